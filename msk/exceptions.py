@@ -1,0 +1,51 @@
+"""One exception hierarchy for msk.
+
+Every error names what it is about (file, channel, segment, muscle, frame) and the offending
+value, so that the CLI can print it on one line and exit with status 2.
+"""
+
+from __future__ import annotations
+
+
+class MskError(Exception):
+    """Base class of every error msk raises on purpose."""
+
+
+class C3DError(MskError):
+    """A C3D file cannot be read or is inconsistent (truncated, corrupt, no points, bad units)."""
+
+
+class FileFormatError(MskError):
+    """A text file (.trc, .mot, .sto, .csv, .toml, .osim) is malformed."""
+
+
+class MissingDataError(MskError):
+    """A channel, marker, coordinate or column that is needed is absent or empty."""
+
+
+class UnitsError(MskError):
+    """A unit string is unknown or inconsistent with the quantity."""
+
+
+class ForcePlateError(MskError):
+    """A force platform is inconsistent or its load cannot be assigned to a foot."""
+
+
+class ModelError(MskError):
+    """A model is invalid or uses a feature msk does not support."""
+
+
+class KinematicsError(MskError):
+    """Inverse kinematics failed (too few markers in a frame, divergence)."""
+
+
+class OptimizationError(MskError):
+    """An optimisation problem is infeasible or a solver failed at a given frame."""
+
+
+class IdentificationError(MskError):
+    """An identification is ill-posed (not exciting enough, singular) or failed."""
+
+
+class ConfigError(MskError):
+    """A session configuration has an unknown key, a missing file or a bad value."""

@@ -1,0 +1,39 @@
+"""Shared fixtures: paths to the third-party recordings and reference tables."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+
+from msk._data import real_data_dir, reference_dir
+from msk.opensim_peer import opensim_available
+
+TESTS_DATA = Path(__file__).parent / "data"
+
+
+@pytest.fixture(scope="session")
+def real_dir() -> Path:
+    d = real_data_dir()
+    if not d.is_dir():
+        pytest.skip(f"real recordings folder absent: {d}")
+    return d
+
+
+@pytest.fixture(scope="session")
+def ref_dir() -> Path:
+    d = reference_dir()
+    if not d.is_dir():
+        pytest.skip(f"reference folder absent: {d}")
+    return d
+
+
+@pytest.fixture(scope="session")
+def needs_opensim() -> None:
+    if not opensim_available():
+        pytest.skip("opensim extra not installed")
+
+
+@pytest.fixture(scope="session")
+def tests_data() -> Path:
+    return TESTS_DATA
