@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import sys
 from pathlib import Path
 
 import pytest
@@ -10,6 +11,8 @@ from msk._data import real_data_dir, reference_dir
 from msk.opensim_peer import opensim_available
 
 TESTS_DATA = Path(__file__).parent / "data"
+# shared test helpers (tiny models built in code) import as top-level modules
+sys.path.insert(0, str(Path(__file__).parent))
 
 
 @pytest.fixture(scope="session")
