@@ -49,3 +49,23 @@ class IdentificationError(MskError):
 
 class ConfigError(MskError):
     """A session configuration has an unknown key, a missing file or a bad value."""
+
+
+class ShapeMismatchError(MskError):
+    """Arrays that must be compared or combined have incompatible shapes (names both shapes)."""
+
+
+class AnthropometryError(MskError):
+    """Bad input to the anthropometric tables (unknown segment, sex or table; bad mass or length)."""
+
+
+class InertiaError(MskError):
+    """An inertial-parameter vector or inertia tensor has the wrong shape or is not finite."""
+
+
+class MuscleModelError(ModelError):
+    """A muscle parameter or state is invalid, or a muscle equilibrium failed (names the muscle)."""
+
+
+class EmgError(MskError):
+    """EMG cannot be processed (bad mapping, unusable MVC, bad filter band); names the channel."""

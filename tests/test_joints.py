@@ -122,7 +122,9 @@ def test_coupling_jacobian_and_bias_match_finite_differences():
         coupling.bias(theta, thd), np.einsum("nki,ni->nk", fd_gdot, thd), rtol=1e-6, atol=1e-8
     )
     q, v, a = coupling.embed(theta, thd, thdd)
+    np.testing.assert_allclose(q, coupling.q(theta))
     np.testing.assert_allclose(v, np.einsum("nki,ni->nk", g, thd))
+    np.testing.assert_allclose(a, np.einsum("nki,ni->nk", g, thdd) + coupling.bias(theta, thd))
     tau = rng.normal(size=(5, 5))
     # virtual work: τ_θ·θ̇ = τ_pin·v
     np.testing.assert_allclose(
