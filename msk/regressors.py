@@ -1,0 +1,236 @@
+"""Inertial-parameter regressors of the embedded model: joint torques and base-link equations.
+
+The inverse dynamics of a rigid multibody system is linear in the standard inertial parameters
+φ (10 per body, :data:`msk.model.INERTIAL_PARAMETER_NAMES`, each body's parameters in its own
+body frame)::
+
+    τ_θ = Gᵀ (M(q) a + b(q, v)) − Gᵀ Jᵀ f_ext = Y_θ(θ, θ̇, θ̈) φ − τ_ext        (seed 002 Eq. 1)
+
+The first rows — the generalised forces of the floating-base (pelvis) coordinates, which no
+actuator drives — give the **base-link equations** (seed 002 Eq. 2)::
+
+    Y_root(θ, θ̇, θ̈) φ = τ_ext,root
+
+which identify φ from motion capture and force plates without any joint torque.
+
+Pinocchio's ``computeJointTorqueRegressor`` gives Y per *joint* (parameters in the joint frame
+of each 1-DOF Pinocchio joint); msk bodies are attached to their last joint with a fixed
+placement X_b, so the body columns are Y_joint · A(X_b), with A the linear map of inertial
+parameters under a rigid displacement (:func:`parameter_transform`).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+import pinocchio as pin
+from numpy.typing import ArrayLike, NDArray
+
+from msk.exceptions import IdentificationError
+from msk.model import INERTIAL_PARAMETER_NAMES, Model
+
+Array = NDArray[np.float64]
+
+
+def _skew(x: Array) -> Array:
+    return np.array([[0.0, -x[2], x[1]], [x[2], 0.0, -x[0]], [-x[1], x[0], 0.0]])
+
+
+def _sym_to_vec(s: Array) -> Array:
+    return np.array([s[0, 0], s[0, 1], s[1, 1], s[0, 2], s[1, 2], s[2, 2]])
+
+
+def _vec_to_sym(v: Array) -> Array:
+    return np.array([[v[0], v[1], v[3]], [v[1], v[2], v[4]], [v[3], v[4], v[5]]])
+
+
+def parameter_transform(placement: pin.SE3) -> Array:
+    """A (10×10) with φ_parent = A φ_child for a body frame placed at ``placement`` (R, p).
+
+    m' = m, h' = R h + m p, and, with inertias about the frame origins and S(x)ᵀS(x) = xᵀx·1 − x xᵀ:
+    I' = R I Rᵀ + m S(p)ᵀS(p) + S(R h)ᵀS(p) + S(p)ᵀS(R h).
+    """
+    r, p = placement.rotation, placement.translation
+    sp = _skew(p)
+    a = np.zeros((10, 10))
+    for k in range(10):
+        e = np.zeros(10)
+        e[k] = 1.0
+        m, h, inertia = e[0], e[1:4], _vec_to_sym(e[4:])
+        rh = r @ h
+        srh = _skew(rh)
+        new_i = r @ inertia @ r.T + m * sp.T @ sp + srh.T @ sp + sp.T @ srh
+        a[:, k] = np.concatenate([[m], rh + m * p, _sym_to_vec(new_i)])
+    return a
+
+
+@dataclass(frozen=True)
+class RegressorLayout:
+    """Which columns of the Pinocchio joint regressor each body uses (precomputed per model)."""
+
+    body_names: tuple[str, ...]
+    joint_ids: tuple[int, ...]
+    transforms: Array  # (n_bodies, 10, 10)
+
+    @property
+    def parameter_names(self) -> tuple[str, ...]:
+        return tuple(f"{b}.{p}" for b in self.body_names for p in INERTIAL_PARAMETER_NAMES)
+
+    def parameters(self, model: Model) -> Array:
+        """φ of ``model`` in layout order (n_bodies·10,)."""
+        return np.concatenate([model.body(b).parameters() for b in self.body_names])
+
+
+def regressor_layout(model: Model, bodies: Sequence[str] | None = None) -> RegressorLayout:
+    """Layout of the body-parameter regressor (all bodies of the model by default)."""
+    names = tuple(bodies) if bodies is not None else tuple(b.name for b in model.bodies)
+    for n in names:
+        model.body(n)  # raises ModelError naming the body
+    return RegressorLayout(
+        body_names=names,
+        joint_ids=tuple(model.body_joint[n] for n in names),
+        transforms=np.stack([parameter_transform(model.body_placement[n]) for n in names]),
+    )
+
+
+def _states(
+    model: Model, theta: ArrayLike, theta_dot: ArrayLike, theta_ddot: ArrayLike
+) -> tuple[Array, Array, Array, Array, Array]:
+    th = np.atleast_2d(np.asarray(theta, dtype=float))
+    thd = np.atleast_2d(np.asarray(theta_dot, dtype=float))
+    thdd = np.atleast_2d(np.asarray(theta_ddot, dtype=float))
+    if not (th.shape == thd.shape == thdd.shape) or th.shape[1] != model.n_coords:
+        raise IdentificationError(
+            f"θ, θ̇, θ̈ must all be (N, {model.n_coords}); got {th.shape}, {thd.shape}, {thdd.shape}"
+        )
+    q, v, a = model.coupling.embed(th, thd, thdd)
+    return th, q, v, a, model.coupling.jacobian(th)
+
+
+def joint_torque_regressor(
+    model: Model,
+    theta: ArrayLike,
+    theta_dot: ArrayLike,
+    theta_ddot: ArrayLike,
+    *,
+    layout: RegressorLayout | None = None,
+    rows: ArrayLike | None = None,
+) -> Array:
+    """Y_θ (N, n_rows, 10·n_bodies) with τ_θ = Y_θ φ (no external forces; gravity included).
+
+    ``rows`` selects coordinates (indices into ``model.coordinates``); default all.
+    """
+    layout = layout or regressor_layout(model)
+    th, q, v, a, g = _states(model, theta, theta_dot, theta_ddot)
+    sel = np.arange(model.n_coords) if rows is None else np.asarray(rows, dtype=int)
+    data = model.create_data()
+    nb = len(layout.body_names)
+    out = np.empty((th.shape[0], sel.size, 10 * nb))
+    cols = [slice(10 * (j - 1), 10 * j) for j in layout.joint_ids]
+    for n in range(th.shape[0]):
+        y_pin = pin.computeJointTorqueRegressor(model.pin_model, data, q[n], v[n], a[n])
+        y_theta = g[n][:, sel].T @ y_pin
+        for b in range(nb):
+            out[n, :, 10 * b : 10 * b + 10] = y_theta[:, cols[b]] @ layout.transforms[b]
+    return out
+
+
+def root_coordinate_indices(model: Model) -> Array:
+    """Indices of the coordinates driving the root (pelvis) joint: the base-link rows."""
+    if model.root_joint is None:
+        raise IdentificationError(f"model {model.name}: no unique root joint")
+    joint = next(j for j in model.joints if j.name == model.root_joint)
+    names = [ax.coordinate for ax in joint.axes if ax.coordinate is not None]
+    return np.array([model.coordinate_index(n) for n in dict.fromkeys(names)], dtype=int)
+
+
+def base_link_regressor(
+    model: Model,
+    theta: ArrayLike,
+    theta_dot: ArrayLike,
+    theta_ddot: ArrayLike,
+    *,
+    layout: RegressorLayout | None = None,
+) -> Array:
+    """Y_root (N, 6, 10·n_bodies): the floating-base rows of :func:`joint_torque_regressor`."""
+    return joint_torque_regressor(
+        model, theta, theta_dot, theta_ddot, layout=layout, rows=root_coordinate_indices(model)
+    )
+
+
+def external_generalized_forces(model: Model, theta: ArrayLike, fext_local: ArrayLike) -> Array:
+    """τ_ext = Gᵀ Σ_k J_kᵀ f_k (N, n_coords) from spatial forces per Pinocchio joint.
+
+    ``fext_local`` is (N, njoints, 6) = [f, n] of each joint's external wrench expressed in the
+    joint's local frame (Pinocchio ``fext`` convention; entry 0 is the universe and is ignored).
+    """
+    th = np.atleast_2d(np.asarray(theta, dtype=float))
+    f = np.asarray(fext_local, dtype=float).reshape(th.shape[0], model.pin_model.njoints, 6)
+    q = model.coupling.q(th)
+    g = model.coupling.jacobian(th)
+    data = model.create_data()
+    out = np.empty_like(th)
+    for n in range(th.shape[0]):
+        pin.computeJointJacobians(model.pin_model, data, q[n])
+        tau = np.zeros(model.pin_model.nv)
+        for j in range(1, model.pin_model.njoints):
+            if np.any(f[n, j]):
+                jac = pin.getJointJacobian(model.pin_model, data, j, pin.ReferenceFrame.LOCAL)
+                tau += jac.T @ f[n, j]
+        out[n] = g[n].T @ tau
+    return out
+
+
+@dataclass(frozen=True)
+class BaseParameters:
+    """Base (identifiable) parameters β = φ_b + K φ_d of a regressor (QR with pivoting).
+
+    Y φ = Y[:, independent] β for every state, with β = ``projection`` @ φ.
+    """
+
+    independent: Array  # column indices of φ kept as base parameters
+    dependent: Array
+    k: Array  # (n_base, n_dependent)
+    projection: Array  # (n_base, n_params)
+    names: tuple[str, ...]
+    rank: int
+
+    def beta(self, phi: ArrayLike) -> Array:
+        return self.projection @ np.asarray(phi, dtype=float)
+
+
+def base_parameters(
+    stacked_regressor: ArrayLike, names: Sequence[str], *, rtol: float = 1e-8
+) -> BaseParameters:
+    """Base parameters from a regressor stacked over (random) states, by column-pivoted QR.
+
+    ``stacked_regressor`` is (rows, n_params) (flatten frames × equations first).
+    """
+    from scipy.linalg import qr
+
+    y = np.asarray(stacked_regressor, dtype=float)
+    if y.ndim == 3:
+        y = y.reshape(-1, y.shape[-1])
+    scale = np.linalg.norm(y, axis=0)
+    scale[scale == 0] = 1.0
+    _, r, piv = qr(y / scale, mode="economic", pivoting=True)
+    diag = np.abs(np.diag(r))
+    if diag.size == 0 or diag[0] == 0:
+        raise IdentificationError("regressor is identically zero: nothing is identifiable")
+    rank = int(np.sum(diag > rtol * diag[0]))
+    ind, dep = np.sort(piv[:rank]), np.sort(piv[rank:])
+    # Y_d = Y_b K  (least squares, exact up to round-off for dependent columns)
+    k, *_ = np.linalg.lstsq(y[:, ind], y[:, dep], rcond=None)
+    proj = np.zeros((rank, y.shape[1]))
+    proj[np.arange(rank), ind] = 1.0
+    proj[:, dep] = k
+    return BaseParameters(
+        independent=ind,
+        dependent=dep,
+        k=k,
+        projection=proj,
+        names=tuple(names[i] for i in ind),
+        rank=rank,
+    )
