@@ -56,7 +56,7 @@ class ShapeMismatchError(MskError):
 
 
 class AnthropometryError(MskError):
-    """Bad input to the anthropometric tables (unknown segment, sex or table; bad mass or length)."""
+    """Bad input to the anthropometric tables (unknown segment, sex or table; mass, length)."""
 
 
 class InertiaError(MskError):
