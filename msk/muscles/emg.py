@@ -1,0 +1,437 @@
+"""EMG processing: raw analog channels → normalised linear envelopes per muscle.
+
+Pipeline (``seeds/003 §2.2.1`` and §3.1.4; ``seeds/002 §IV``), per channel::
+
+    x → high-pass (zero-lag Butterworth, default 30 Hz; removes offset and movement artefact)
+      → full-wave rectification |·|
+      → low-pass (zero-lag Butterworth, default 6 Hz) = linear envelope
+      → e(t) = envelope / MVC, clipped to [0, 1]
+      → electromechanical delay: e_d(t) = e(t − d)
+
+MVC is the peak of the envelope of the MVC trials, processed with the same filters (one peak per
+channel over all MVC trials together, as in ``seeds/003 §3.1.4``). Without an MVC for a channel,
+the session's own envelope peak is used and a warning is *recorded in the result*
+(``normalisation_source == "session_peak"``, ``warnings``), because the activation is then relative
+(it always reaches 1). Muscles without an electrode take the mean envelope of named synergists
+(e.g. vastus intermedius from vastus medialis and lateralis, ``seeds/003 §3.2.1``).
+
+Quality checks (figures are reported for every channel in :class:`ChannelQuality`):
+
+* **flat** (dead, unplugged or unused channel): the high-passed RMS is below ``flat_rms_lsb``
+  quantisation steps, or below ``flat_rel_rms`` × the median RMS of the channels processed
+  together (needs ≥ 3 channels), or the envelope is not modulated: its 99th/10th percentile ratio
+  (inner part, filter edges excluded) is below ``flat_modulation`` (stationary noise gives
+  ≈ 1.2–1.5, EMG of a muscle that works during the trial gives > 3).
+* **saturated** (clipped amplifier or ADC): at least ``clip_min_samples`` samples (and at least
+  ``clip_fraction`` of the trial) sit within half a quantisation step of the channel's extreme
+  value, or reach ``saturation_level`` when the range is known.
+
+By default a flat channel's envelope is set to NaN (``bad_channel="nan"``) so that it cannot be
+mistaken for activity; ``"keep"`` keeps it, ``"raise"`` raises :class:`EmgError`.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
+from typing import Any, Literal, Protocol
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from msk.exceptions import EmgError, MissingDataError
+from msk.signal import filtfilt_butter, resample_to
+
+Array = NDArray[np.float64]
+NormalisationSource = Literal["mvc", "session_peak"]
+
+
+@dataclass(frozen=True)
+class ChannelQuality:
+    """Per-channel quality figures (arrays of length C, in the order of ``labels``)."""
+
+    labels: tuple[str, ...]
+    flat: NDArray[np.bool_]
+    saturated: NDArray[np.bool_]
+    rms: Array  #: RMS after the high-pass filter, input units
+    lsb: Array  #: quantisation step (smallest difference between distinct values), input units
+    rms_lsb: Array  #: rms / lsb
+    relative_rms: Array  #: rms / median rms of the channels processed together (NaN if < 3)
+    modulation: Array  #: 99th / 10th percentile of the envelope
+    clipped_fraction: Array  #: fraction of samples at an extreme (saturation) value
+
+    def summary(self) -> list[str]:
+        """One line per flagged channel, with the figures that flagged it."""
+        lines = []
+        for i, lab in enumerate(self.labels):
+            if self.flat[i]:
+                lines.append(
+                    f"channel {lab!r} is flat: rms {self.rms[i]:.3g} ({self.rms_lsb[i]:.1f} LSB, "
+                    f"{self.relative_rms[i]:.3f} of the median channel), "
+                    f"envelope modulation {self.modulation[i]:.2f}"
+                )
+            if self.saturated[i]:
+                lines.append(
+                    f"channel {lab!r} is saturated: {100 * self.clipped_fraction[i]:.2f} % of "
+                    "samples at the extreme value"
+                )
+        return lines
+
+
+@dataclass(frozen=True)
+class EmgEnvelopes:
+    """Normalised EMG envelopes e(t) ∈ [0, 1] (NaN for unusable channels), time on axis 0."""
+
+    time: Array  #: (N,) s
+    envelopes: Array  #: (N, n_muscles)
+    muscle_names: tuple[str, ...]
+    muscle_sources: tuple[str, ...]  #: channel label(s) behind each muscle ("vasmed+vaslat")
+    channel_labels: tuple[str, ...]  #: channels actually used, in the order below
+    normalisation_source: tuple[str, ...]  #: per channel: "mvc" or "session_peak"
+    normalisation_value: Array  #: per channel: the divisor, input units
+    quality: ChannelQuality
+    delay_s: Array  #: per muscle electromechanical delay applied
+    warnings: tuple[str, ...]
+
+    @property
+    def rate_hz(self) -> float:
+        return float(1.0 / np.median(np.diff(self.time))) if self.time.size > 1 else float("nan")
+
+    @property
+    def usable(self) -> NDArray[np.bool_]:
+        """Muscles whose envelope is finite throughout."""
+        return np.isfinite(self.envelopes).all(axis=0)
+
+    def column(self, muscle: str) -> Array:
+        if muscle not in self.muscle_names:
+            raise MissingDataError(f"muscle {muscle!r} not in EMG envelopes {self.muscle_names}")
+        return self.envelopes[:, self.muscle_names.index(muscle)]
+
+    def resampled(self, time: ArrayLike) -> EmgEnvelopes:
+        """Envelopes linearly interpolated at ``time`` (e.g. the marker frames)."""
+        t = np.asarray(time, dtype=float)
+        return EmgEnvelopes(
+            time=t,
+            envelopes=resample_to(self.time, self.envelopes, t),
+            muscle_names=self.muscle_names,
+            muscle_sources=self.muscle_sources,
+            channel_labels=self.channel_labels,
+            normalisation_source=self.normalisation_source,
+            normalisation_value=self.normalisation_value,
+            quality=self.quality,
+            delay_s=self.delay_s,
+            warnings=self.warnings,
+        )
+
+
+def _as_channels(x: ArrayLike, n_labels: int | None = None) -> Array:
+    a = np.asarray(x, dtype=float)
+    if a.ndim == 1:
+        a = a[:, None]
+    if a.ndim != 2:
+        raise EmgError(f"EMG must be (N samples, C channels), got shape {a.shape}")
+    if n_labels is not None and a.shape[1] != n_labels:
+        if a.shape[0] == n_labels:
+            raise EmgError(
+                f"EMG has shape {a.shape} but {n_labels} labels: pass (N samples, C channels) "
+                "(transpose the analogs)"
+            )
+        raise EmgError(f"EMG has {a.shape[1]} channels but {n_labels} labels")
+    return a
+
+
+def linear_envelope(
+    emg: ArrayLike,
+    *,
+    rate_hz: float,
+    highpass_hz: float = 30.0,
+    lowpass_hz: float = 6.0,
+    order: int = 4,
+) -> Array:
+    """High-pass, full-wave rectify, low-pass (``seeds/003 §2.2.1``); ``(N, C)`` → ``(N, C)``.
+
+    Both filters are zero-lag Butterworth (:func:`msk.signal.filtfilt_butter`); the envelope is
+    clipped at 0 (the low-pass can ring slightly below zero). Units are those of the input.
+    """
+    x = _as_channels(emg)
+    if not np.isfinite(x).all():
+        r, c = np.argwhere(~np.isfinite(x))[0]
+        raise MissingDataError(f"EMG channel {c} has a non-finite sample at index {r}: fill it")
+    hp = filtfilt_butter(x, rate_hz=rate_hz, cutoff_hz=highpass_hz, order=order, btype="highpass")
+    env = filtfilt_butter(np.abs(hp), rate_hz=rate_hz, cutoff_hz=lowpass_hz, order=order)
+    return np.maximum(env, 0.0)
+
+
+def _edge(n: int, rate_hz: float, lowpass_hz: float) -> int:
+    """Samples to ignore at each end when taking peaks/percentiles (filter transients)."""
+    return min(round(rate_hz / lowpass_hz), max(n // 10, 0))
+
+
+def mvc_peaks(
+    trials: Sequence[tuple[ArrayLike, float, Sequence[str]]],
+    *,
+    highpass_hz: float = 30.0,
+    lowpass_hz: float = 6.0,
+    order: int = 4,
+) -> dict[str, float]:
+    """Peak envelope per channel label over all MVC trials ``(emg (N, C), rate_hz, labels)``.
+
+    One value per channel from all trials together (``seeds/003 §3.1.4``); the first and last
+    ``rate/lowpass`` samples of each trial are ignored (filter edge transients).
+    """
+    peaks: dict[str, float] = {}
+    for emg, rate, labels in trials:
+        labels = [str(s).strip() for s in labels]
+        x = _as_channels(emg, len(labels))
+        env = linear_envelope(
+            x, rate_hz=rate, highpass_hz=highpass_hz, lowpass_hz=lowpass_hz, order=order
+        )
+        k = _edge(env.shape[0], rate, lowpass_hz)
+        inner = env[k : env.shape[0] - k] if k else env
+        for j, lab in enumerate(labels):
+            peaks[lab] = max(peaks.get(lab, 0.0), float(inner[:, j].max()))
+    return peaks
+
+
+def channel_quality(
+    emg: ArrayLike,
+    *,
+    rate_hz: float,
+    labels: Sequence[str],
+    highpass_hz: float = 30.0,
+    lowpass_hz: float = 6.0,
+    flat_rms_lsb: float = 20.0,
+    flat_rel_rms: float = 0.05,
+    flat_modulation: float = 1.6,
+    clip_min_samples: int = 5,
+    clip_fraction: float = 0.002,
+    saturation_level: float | None = None,
+) -> ChannelQuality:
+    """Flat and saturated channel detection with the figures behind each decision."""
+    labels = tuple(str(s).strip() for s in labels)
+    x = _as_channels(emg, len(labels))
+    n, c = x.shape
+    hp = filtfilt_butter(x, rate_hz=rate_hz, cutoff_hz=highpass_hz, btype="highpass")
+    rms = np.sqrt(np.mean(hp**2, axis=0))
+    env = np.maximum(filtfilt_butter(np.abs(hp), rate_hz=rate_hz, cutoff_hz=lowpass_hz), 0.0)
+    k = _edge(n, rate_hz, lowpass_hz)
+    inner = env[k : n - k] if k else env
+    p10 = np.percentile(inner, 10, axis=0)
+    p99 = np.percentile(inner, 99, axis=0)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        modulation = np.where(p10 > 0, p99 / p10, np.where(p99 > 0, np.inf, 1.0))
+    lsb = np.empty(c)
+    clipped = np.empty(c)
+    for j in range(c):
+        u = np.unique(x[:, j])
+        d = np.diff(u)
+        d = d[d > 0]
+        lsb[j] = float(d.min()) if d.size else 0.0
+        tol = 0.5 * lsb[j] if lsb[j] > 0 else 0.0
+        at_max = x[:, j] >= u[-1] - tol
+        at_min = x[:, j] <= u[0] + tol
+        if saturation_level is not None:
+            at_max |= x[:, j] >= saturation_level
+            at_min |= x[:, j] <= -saturation_level
+        clipped[j] = max(at_max.sum(), at_min.sum()) / n if u.size > 1 else 1.0
+    with np.errstate(divide="ignore", invalid="ignore"):
+        rms_lsb = np.where(lsb > 0, rms / lsb, 0.0)
+    rel = rms / np.median(rms) if c >= 3 and np.median(rms) > 0 else np.full(c, np.nan)
+    flat = (rms_lsb < flat_rms_lsb) | (modulation < flat_modulation)
+    if c >= 3:
+        flat |= rel < flat_rel_rms
+    n_clip = clipped * n
+    saturated = (~flat) & (n_clip >= clip_min_samples) & (clipped >= clip_fraction)
+    return ChannelQuality(
+        labels=labels,
+        flat=flat,
+        saturated=saturated,
+        rms=rms,
+        lsb=lsb,
+        rms_lsb=rms_lsb,
+        relative_rms=rel,
+        modulation=modulation,
+        clipped_fraction=clipped,
+    )
+
+
+def process_emg(
+    emg: ArrayLike,
+    *,
+    rate_hz: float,
+    labels: Sequence[str],
+    muscles: Mapping[str, str] | None = None,
+    synergists: Mapping[str, Sequence[str]] | None = None,
+    mvc: Mapping[str, float] | None = None,
+    mvc_trials: Sequence[tuple[ArrayLike, float, Sequence[str]]] | None = None,
+    highpass_hz: float = 30.0,
+    lowpass_hz: float = 6.0,
+    order: int = 4,
+    delay_s: float | Mapping[str, float] = 0.0,
+    t0: float = 0.0,
+    bad_channel: Literal["nan", "keep", "raise"] = "nan",
+    quality_options: Mapping[str, Any] | None = None,
+) -> EmgEnvelopes:
+    """Raw EMG ``(N, C)`` with channel ``labels`` → :class:`EmgEnvelopes`.
+
+    ``muscles`` maps muscle name → channel label (config); ``None`` uses every channel as its own
+    muscle. A label absent from ``labels`` raises :class:`MissingDataError` naming the muscle,
+    the channel and the available labels. ``synergists`` maps a muscle without electrode to the
+    muscles (already in ``muscles``) whose normalised envelopes it averages. ``mvc`` maps channel
+    label → MVC envelope peak (:func:`mvc_peaks`), in the units of ``emg``; alternatively
+    ``mvc_trials`` (``(emg, rate_hz, labels)`` tuples) are processed here with the same filters
+    (explicit ``mvc`` values win). ``delay_s`` (scalar or
+    per muscle) is the electromechanical delay: ``e_d[k] = e[k − round(d·rate)]``, the first
+    samples repeating e[0].
+    """
+    labels = tuple(str(s).strip() for s in labels)
+    x = _as_channels(emg, len(labels))
+    n = x.shape[0]
+    if muscles is None:
+        muscles = {lab: lab for lab in labels}
+    missing = [(m, ch) for m, ch in muscles.items() if str(ch).strip() not in labels]
+    if missing:
+        m, ch = missing[0]
+        raise MissingDataError(
+            f"EMG channel {ch!r} (for muscle {m!r}) not found; available channels: {list(labels)}"
+        )
+    used: list[str] = []
+    for ch in muscles.values():
+        if str(ch).strip() not in used:
+            used.append(str(ch).strip())
+    idx = [labels.index(ch) for ch in used]
+    xs = x[:, idx]
+    if not np.isfinite(xs).all():
+        r, c = np.argwhere(~np.isfinite(xs))[0]
+        raise MissingDataError(f"EMG channel {used[c]!r} has a non-finite sample at index {r}")
+    quality = channel_quality(
+        xs,
+        rate_hz=rate_hz,
+        labels=used,
+        highpass_hz=highpass_hz,
+        lowpass_hz=lowpass_hz,
+        **dict(quality_options or {}),
+    )
+    warnings: list[str] = list(quality.summary())
+    if bad_channel == "raise" and quality.flat.any():
+        raise EmgError("; ".join(quality.summary()))
+    env = linear_envelope(
+        xs, rate_hz=rate_hz, highpass_hz=highpass_hz, lowpass_hz=lowpass_hz, order=order
+    )
+    k = _edge(n, rate_hz, lowpass_hz)
+    inner = env[k : n - k] if k else env
+    mvc_all: dict[str, float] = {}
+    if mvc_trials:
+        mvc_all.update(
+            mvc_peaks(mvc_trials, highpass_hz=highpass_hz, lowpass_hz=lowpass_hz, order=order)
+        )
+    mvc_all.update({str(k).strip(): float(v) for k, v in (mvc or {}).items()})
+    mvc = mvc_all
+    sources: list[str] = []
+    norm = np.empty(len(used))
+    for j, ch in enumerate(used):
+        if ch in mvc:
+            v = float(mvc[ch])
+            if not (np.isfinite(v) and v > 0):
+                raise EmgError(f"EMG channel {ch!r}: MVC value must be > 0, got {v}")
+            norm[j] = v
+            sources.append("mvc")
+        else:
+            norm[j] = float(inner[:, j].max())
+            sources.append("session_peak")
+            warnings.append(
+                f"channel {ch!r}: no MVC given, normalised to the session's peak envelope "
+                f"({norm[j]:.4g}); activation is relative, not % MVC"
+            )
+    with np.errstate(divide="ignore", invalid="ignore"):
+        e = env / np.where(norm > 0, norm, np.nan)
+    e_in = np.nan_to_num(e[k : n - k] if k else e, nan=0.0)
+    over = e_in.max(axis=0) if e_in.size else np.zeros(len(used))
+    for j, ch in enumerate(used):
+        if sources[j] == "mvc" and over[j] > 1.0:
+            warnings.append(
+                f"channel {ch!r}: envelope reaches {100 * over[j]:.1f} % of MVC; clipped to 100 %"
+            )
+    e = np.clip(e, 0.0, 1.0)
+    if bad_channel == "nan":
+        e[:, quality.flat] = np.nan
+    names = list(muscles)
+    cols = [e[:, used.index(str(muscles[m]).strip())] for m in names]
+    msrc = [str(muscles[m]).strip() for m in names]
+    for m, group in (synergists or {}).items():
+        if m in names:
+            raise EmgError(f"muscle {m!r} has both an electrode and a synergist mapping")
+        unknown = [g for g in group if g not in names]
+        if unknown or not group:
+            raise MissingDataError(
+                f"synergists {unknown or list(group)} of muscle {m!r} are not mapped muscles "
+                f"({names})"
+            )
+        cols.append(np.mean([cols[names.index(g)] for g in group], axis=0))
+        msrc.append("+".join(msrc[names.index(g)] for g in group))
+        names.append(m)
+    out = np.column_stack(cols) if cols else np.empty((n, 0))
+    if isinstance(delay_s, Mapping):
+        unknown = [m for m in delay_s if m not in names]
+        if unknown:
+            raise EmgError(f"delay given for unknown muscles {unknown}")
+        delays = np.array([float(delay_s.get(m, 0.0)) for m in names])
+    else:
+        delays = np.full(len(names), float(delay_s))
+    if np.any(delays < 0):
+        j = int(np.flatnonzero(delays < 0)[0])
+        raise EmgError(
+            f"muscle {names[j]!r}: electromechanical delay must be >= 0 s, got {delays[j]}"
+        )
+    shifts = np.round(delays * rate_hz).astype(int)
+    for j, s in enumerate(shifts):
+        if s > 0:
+            out[:, j] = np.concatenate([np.full(min(s, n), out[0, j]), out[: max(n - s, 0), j]])
+    return EmgEnvelopes(
+        time=t0 + np.arange(n) / rate_hz,
+        envelopes=out,
+        muscle_names=tuple(names),
+        muscle_sources=tuple(msrc),
+        channel_labels=tuple(used),
+        normalisation_source=tuple(sources),
+        normalisation_value=norm,
+        quality=quality,
+        delay_s=shifts / rate_hz,
+        warnings=tuple(warnings),
+    )
+
+
+class _AnalogTrial(Protocol):
+    analogs: NDArray[np.float64]
+    analog_labels: tuple[str, ...]
+    analog_rate_hz: float
+    analog_time: NDArray[np.float64]
+
+
+def envelopes_from_trial(
+    trial: _AnalogTrial,
+    *,
+    muscles: Mapping[str, str] | None = None,
+    channels: Sequence[str] | None = None,
+    **options: Any,
+) -> EmgEnvelopes:
+    """:func:`process_emg` on the analog channels of a :class:`msk.io.Trial` (``read_c3d``).
+
+    Give either ``muscles`` (muscle → channel label) or ``channels`` (labels used as muscle
+    names); MVC values in ``options["mvc"]`` must be in the trial's analog units
+    (``trial.analog_units``). Time starts at ``trial.analog_time[0]``.
+    """
+    if muscles is None and channels is None:
+        raise EmgError("envelopes_from_trial needs `muscles` (muscle -> channel) or `channels`")
+    labels = tuple(str(s).strip() for s in trial.analog_labels)
+    if muscles is None:
+        muscles = {str(c).strip(): str(c).strip() for c in channels or ()}
+    t = np.asarray(trial.analog_time, dtype=float)
+    return process_emg(
+        np.asarray(trial.analogs, dtype=float),
+        rate_hz=float(trial.analog_rate_hz),
+        labels=labels,
+        muscles=muscles,
+        t0=float(t[0]) if t.size else 0.0,
+        **options,
+    )

@@ -1,0 +1,232 @@
+"""EMG processing: envelope recovery, MVC normalisation, quality flags, delay, mapping, real EMG."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from scipy import signal as sps
+
+from msk.exceptions import EmgError, MissingDataError
+from msk.muscles.emg import (
+    channel_quality,
+    envelopes_from_trial,
+    linear_envelope,
+    mvc_peaks,
+    process_emg,
+)
+
+RATE = 2000.0
+
+
+def _noise(n: int, rng: np.random.Generator, band=(20.0, 450.0)) -> np.ndarray:
+    sos = sps.butter(4, band, btype="bandpass", fs=RATE, output="sos")
+    x = sps.sosfilt(sos, rng.standard_normal(n + 2000))[2000:]
+    return x / x.std()
+
+
+def _truth(t: np.ndarray) -> np.ndarray:
+    """A smooth, gait-like activation pattern in [0.05, 1]."""
+    return 0.05 + 0.95 * (
+        np.exp(-((((t % 1.0) - 0.3) / 0.08) ** 2)) * 0.9
+        + 0.5 * np.exp(-((((t % 1.0) - 0.7) / 0.1) ** 2))
+    ).clip(0, 1)
+
+
+def _session(seed: int = 0, dur: float = 4.0):
+    rng = np.random.default_rng(seed)
+    t = np.arange(int(dur * RATE)) / RATE
+    env = _truth(t)
+    x = np.column_stack([env * _noise(t.size, rng) * 1e-3 for _ in range(3)])
+    return t, env, x
+
+
+def test_envelope_recovers_the_modulating_signal():
+    _, env, x = _session()
+    e = linear_envelope(x, rate_hz=RATE, highpass_hz=20.0, lowpass_hz=6.0)
+    inner = slice(1000, -1000)
+    for j in range(3):
+        r = np.corrcoef(e[inner, j], env[inner])[0, 1]
+        assert r > 0.95
+    # amplitude: the mean of |gaussian| is sqrt(2/pi) sigma
+    ratio = np.median(e[inner, 0] / (env[inner] * 1e-3))
+    assert ratio == pytest.approx(np.sqrt(2 / np.pi), rel=0.1)
+
+
+def test_mvc_normalisation_is_exact():
+    _, _, x = _session(1)
+    mvc_trial = 2.0 * x  # same electrodes, twice the drive
+    peaks = mvc_peaks([(mvc_trial, RATE, ["a", "b", "c"])])
+    res = process_emg(x, rate_hz=RATE, labels=["a", "b", "c"], mvc=peaks)
+    assert res.normalisation_source == ("mvc", "mvc", "mvc")
+    ref = linear_envelope(x, rate_hz=RATE)
+    k = round(RATE / 6.0)
+    # linear filters + |·| are positively homogeneous: the session peak is exactly half the MVC
+    for j in range(3):
+        assert res.envelopes[k:-k, j].max() == pytest.approx(0.5, rel=1e-9)
+        np.testing.assert_allclose(res.envelopes[:, j], np.clip(ref[:, j] / peaks["abc"[j]], 0, 1))
+    assert not any("MVC" in w for w in res.warnings)
+    via_trials = process_emg(
+        x, rate_hz=RATE, labels=["a", "b", "c"], mvc_trials=[(mvc_trial, RATE, ["a", "b", "c"])]
+    )
+    np.testing.assert_array_equal(via_trials.envelopes, res.envelopes)
+    np.testing.assert_allclose(via_trials.normalisation_value, [peaks[c] for c in "abc"])
+    # the peak over several trials is taken
+    peaks2 = mvc_peaks([(x, RATE, ["a", "b", "c"]), (mvc_trial, RATE, ["a", "b", "c"])])
+    assert peaks2 == pytest.approx(peaks)
+
+
+def test_session_peak_fallback_is_recorded_and_clipping_warned():
+    _, _, x = _session(2)
+    res = process_emg(x, rate_hz=RATE, labels=["a", "b", "c"], mvc={"a": 1e-9})
+    assert res.normalisation_source == ("mvc", "session_peak", "session_peak")
+    assert any("'b'" in w and "session's peak" in w for w in res.warnings)
+    assert any("'a'" in w and "clipped" in w for w in res.warnings)
+    assert np.nanmax(res.envelopes) <= 1.0 and np.nanmin(res.envelopes) >= 0.0
+    assert res.envelopes[:, 1].max() == pytest.approx(1.0)
+    with pytest.raises(EmgError, match=r"'a'.*MVC.*-1"):
+        process_emg(x, rate_hz=RATE, labels=["a", "b", "c"], mvc={"a": -1.0})
+
+
+def _quantise(x: np.ndarray, lsb: float = 10.0 / 65536) -> np.ndarray:
+    return np.round(x / lsb) * lsb
+
+
+def test_flat_and_saturated_channels_are_flagged_with_figures():
+    rng = np.random.default_rng(3)
+    t, env, _ = _session(3)
+    good = _quantise(env * _noise(t.size, rng) * 0.3)
+    dead = _quantise(-0.1 + 0.0015 * rng.standard_normal(t.size))  # noise floor, ~10 LSB
+    unmodulated = _quantise(0.05 * _noise(t.size, rng))  # stationary noise, plenty of LSB
+    constant = np.full(t.size, 0.2)
+    raw = env * _noise(t.size, rng) * 0.3
+    clip_level = 0.5 * np.abs(raw).max()
+    clipped = _quantise(np.clip(raw, -clip_level, clip_level))
+    x = np.column_stack([good, dead, unmodulated, constant, clipped, good[::-1]])
+    labels = ["good", "dead", "unmod", "const", "clipped", "good2"]
+    q = channel_quality(x, rate_hz=RATE, labels=labels)
+    assert q.flat.tolist() == [False, True, True, True, False, False]
+    assert q.saturated.tolist() == [False, False, False, False, True, False]
+    assert q.clipped_fraction[4] > 0.002 and q.clipped_fraction[0] < 0.001
+    assert q.rms_lsb[1] < 20 < q.rms_lsb[2]
+    assert q.modulation[2] < 1.6 < q.modulation[0]
+    lines = q.summary()
+    assert any("'dead' is flat" in s and "LSB" in s for s in lines)
+    assert any("'clipped' is saturated" in s for s in lines)
+    res = process_emg(x, rate_hz=RATE, labels=labels)
+    assert res.usable.tolist() == [True, False, False, False, True, True]
+    assert any("'dead' is flat" in w for w in res.warnings)
+    with pytest.raises(EmgError, match="'dead' is flat"):
+        process_emg(x, rate_hz=RATE, labels=labels, bad_channel="raise")
+    kept = process_emg(x, rate_hz=RATE, labels=labels, bad_channel="keep")
+    assert kept.usable.all()
+
+
+def test_delay_shifts_by_the_right_number_of_samples():
+    _, _, x = _session(4)
+    labels = ["a", "b", "c"]
+    base = process_emg(x, rate_hz=RATE, labels=labels)
+    res = process_emg(x, rate_hz=RATE, labels=labels, delay_s={"b": 0.040})
+    s = round(0.040 * RATE)
+    assert s == 80
+    np.testing.assert_array_equal(res.envelopes[s:, 1], base.envelopes[:-s, 1])
+    np.testing.assert_array_equal(res.envelopes[:s, 1], base.envelopes[0, 1])
+    np.testing.assert_array_equal(res.envelopes[:, 0], base.envelopes[:, 0])
+    assert res.delay_s.tolist() == [0.0, 0.04, 0.0]
+    with pytest.raises(EmgError, match="unknown muscles"):
+        process_emg(x, rate_hz=RATE, labels=labels, delay_s={"zz": 0.01})
+
+
+def test_mapping_and_synergists():
+    _, _, x = _session(5)
+    labels = ["VM", "VL", "RF"]
+    muscles = {"vasmed_r": "VM", "vaslat_r": "VL", "recfem_r": "RF"}
+    res = process_emg(
+        x,
+        rate_hz=RATE,
+        labels=labels,
+        muscles=muscles,
+        synergists={"vasint_r": ["vasmed_r", "vaslat_r"]},
+    )
+    assert res.muscle_names == ("vasmed_r", "vaslat_r", "recfem_r", "vasint_r")
+    assert res.muscle_sources[-1] == "VM+VL"
+    np.testing.assert_allclose(
+        res.column("vasint_r"), 0.5 * (res.column("vasmed_r") + res.column("vaslat_r"))
+    )
+    assert res.time[1] - res.time[0] == pytest.approx(1 / RATE)
+    with pytest.raises(MissingDataError, match=r"'GRA'.*'gracilis_r'.*\['VM', 'VL', 'RF'\]"):
+        process_emg(x, rate_hz=RATE, labels=labels, muscles={"gracilis_r": "GRA"})
+    with pytest.raises(MissingDataError, match="vasint_r"):
+        process_emg(x, rate_hz=RATE, labels=labels, muscles=muscles, synergists={"vasint_r": ["x"]})
+    with pytest.raises(EmgError, match="transpose"):
+        process_emg(x.T, rate_hz=RATE, labels=labels)
+    r2 = res.resampled(np.arange(0.5, 1.0, 0.01))
+    assert r2.envelopes.shape == (50, 4)
+
+
+@pytest.mark.slow
+@pytest.mark.realdata
+def test_grand_challenge_emg(real_dir):
+    ezc3d = pytest.importorskip("ezc3d")
+    c = ezc3d.c3d(str(real_dir / "knee-grand-challenge-gc5" / "PS_ngait_og_ss1.c3d"))
+    labels = [s.strip() for s in c["parameters"]["ANALOG"]["LABELS"]["value"]]
+    rate = float(c["parameters"]["ANALOG"]["RATE"]["value"][0])
+    analogs = c["data"]["analogs"][0].T  # (N, C)
+    emg_labels = labels[labels.index("gracilis") : labels.index("sartorius") + 1]
+    x = analogs[:, [labels.index(s) for s in emg_labels]]
+    res = process_emg(
+        x,
+        rate_hz=rate,
+        labels=emg_labels,
+        synergists={"vasint": ["vasmed", "vaslat"]},
+        delay_s=0.03,
+    )
+    flat = {lab for lab, f in zip(res.quality.labels, res.quality.flat) if f}
+    assert "gracilis" in flat
+    assert {"semimem", "bifeml", "vasmed", "vaslat", "rf", "tibant", "soleus"}.isdisjoint(flat)
+    assert not res.quality.saturated.any()
+    assert np.isnan(res.column("gracilis")).all()
+    ok = res.envelopes[:, res.usable]
+    assert ok.min() >= 0 and ok.max() <= 1
+    assert res.usable[res.muscle_names.index("vasint")]
+    assert all(s == "session_peak" for s in res.normalisation_source)
+    assert res.time.size == x.shape[0] and res.rate_hz == pytest.approx(1200.0)
+    # the same through msk.io.read_c3d (SI trial) when that reader is present
+    io = pytest.importorskip("msk.io")
+    trial = io.read_c3d(real_dir / "knee-grand-challenge-gc5" / "PS_ngait_og_ss1.c3d")
+    via = envelopes_from_trial(trial, channels=emg_labels, delay_s=0.03)
+    np.testing.assert_allclose(via.envelopes, res.envelopes[:, : len(emg_labels)], atol=1e-9)
+
+
+def test_trial_adapter_uses_analog_time_and_labels():
+    from types import SimpleNamespace
+
+    _, _, x = _session(6)
+    trial = SimpleNamespace(
+        analogs=np.column_stack([np.zeros(len(x)), x]),
+        analog_labels=("Fz1", "VM", "VL", "RF"),
+        analog_rate_hz=RATE,
+        analog_time=2.5 + np.arange(len(x)) / RATE,
+    )
+    res = envelopes_from_trial(trial, muscles={"vasmed_r": "VM", "recfem_r": "RF"}, delay_s=0.01)
+    ref = process_emg(x[:, [0, 2]], rate_hz=RATE, labels=["VM", "RF"], delay_s=0.01)
+    np.testing.assert_array_equal(res.envelopes, ref.envelopes)
+    assert res.time[0] == 2.5 and res.channel_labels == ("VM", "RF")
+    with pytest.raises(EmgError, match="muscles"):
+        envelopes_from_trial(trial)
+
+
+@pytest.mark.slow
+@pytest.mark.realdata
+def test_grand_challenge_4_dud_and_dead_first_channel(real_dir):
+    ezc3d = pytest.importorskip("ezc3d")
+    c = ezc3d.c3d(str(real_dir / "knee-grand-challenge-gc4" / "jw_ngait_og3.c3d"))
+    labels = [s.strip() for s in c["parameters"]["ANALOG"]["LABELS"]["value"]]
+    rate = float(c["parameters"]["ANALOG"]["RATE"]["value"][0])
+    emg_labels = labels[labels.index("semimem") : labels.index("sartorius") + 1]
+    x = c["data"]["analogs"][0].T[:, [labels.index(s) for s in emg_labels]]
+    q = channel_quality(x, rate_hz=rate, labels=emg_labels)
+    flat = {lab for lab, f in zip(q.labels, q.flat) if f}
+    # the README: a "dud" channel and a flat first EMG channel (semimem)
+    assert {"dud", "semimem"} <= flat
+    assert {"bifeml", "vaslat", "rf", "medgas", "latgas", "tibant", "soleus"}.isdisjoint(flat)
+    assert not q.saturated.any()
