@@ -1,0 +1,159 @@
+"""OpenSim 4.6 StaticOptimization as a side-by-side reference (run in a child process).
+
+:func:`opensim_static_optimization_reference` runs OpenSim's AnalyzeTool + StaticOptimization
+(``use_muscle_physiology``, activation exponent 2, the model's residual actuators file, 6 Hz
+coordinates) on the gait2392 subject01 walking pipeline (``shared/tools/opensim-peer/data``
+layout) and, at each SO frame and on the very states SO used (the tool's states storage),
+returns the moment arms about the requested coordinates, OpenSim's
+``calcInextensibleTendonActiveFiberForce(s, 1.0)`` and OpenSim's activations, so that msk's
+:class:`~msk.optimization.StaticOptimizationProblem` can be solved on identical inputs.
+``opensim`` is never imported in this process (see :mod:`msk.opensim_peer`).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+from numpy.typing import NDArray
+
+from msk.opensim_peer import run_opensim_script
+
+FloatArray = NDArray[np.float64]
+
+#: The right-leg coordinates of gait2392.
+GAIT2392_RIGHT_LEG: tuple[str, ...] = (
+    "hip_flexion_r",
+    "hip_adduction_r",
+    "hip_rotation_r",
+    "knee_angle_r",
+    "ankle_angle_r",
+    "subtalar_angle_r",
+    "mtp_angle_r",
+)
+
+_SCRIPT = r"""
+import opensim as osim, os, time, numpy as np
+data = ARGS["data"]; out = ARGS["out"]
+PIPE = os.path.join(data, "Pipelines", "Gait2392_Simbody")
+model_path = os.path.join(PIPE, "OutputReference", "subject01_simbody.osim")
+el = osim.ExternalLoads(os.path.join(PIPE, "subject01_walk1_grf.xml"), True)
+el.setDataFileName(os.path.join(PIPE, "subject01_walk1_grf.mot"))
+el_xml = os.path.join(out, "external_loads.xml"); el.printToXML(el_xml)
+at = osim.AnalyzeTool(os.path.join(PIPE, "setup_static_optimization.xml"), False)
+at.setName("so"); at.setModelFilename(model_path); at.setReplaceForceSet(False)
+files = osim.ArrayStr(); files.append(os.path.join(PIPE, "gait2392_SO_Residual_Actuators.xml"))
+at.setForceSetFiles(files); at.setResultsDir(out)
+at.setInitialTime(ARGS["t0"]); at.setFinalTime(ARGS["t1"])
+at.setExternalLoadsFileName(el_xml); at.setStatesFileName(""); at.setSpeedsFileName("")
+at.setCoordinatesFileName(os.path.join(PIPE, "subject01_walk1_ik.mot"))
+at.setLowpassCutoffFrequency(6.0)
+so = osim.StaticOptimization.safeDownCast(at.getAnalysisSet().get("StaticOptimization"))
+so.setStartTime(ARGS["t0"]); so.setEndTime(ARGS["t1"]); so.setStepInterval(1)
+so.setUseModelForceSet(True); so.setActivationExponent(2.0); so.setUseMusclePhysiology(True)
+setup = os.path.join(out, "setup_so.xml"); at.printToXML(setup)
+tool = osim.AnalyzeTool(setup)
+tic = time.perf_counter()
+if not tool.run():
+    raise RuntimeError("OpenSim static optimization failed")
+RESULT["so_wall_s"] = time.perf_counter() - tic
+act = osim.Storage(os.path.join(out, "so_StaticOptimization_activation.sto"))
+alab = act.getColumnLabels(); alab = [alab.get(i) for i in range(alab.getSize())]
+states = tool.getStatesStorage()
+slab = states.getColumnLabels(); slab = [slab.get(i) for i in range(slab.getSize())]
+stimes = np.array([states.getStateVector(i).getTime() for i in range(states.getSize())])
+model = osim.Model(model_path); s = model.initSystem()
+cs = model.getCoordinateSet()
+coords = [cs.get(n) for n in ARGS["coords"]]
+muscles = [model.getMuscles().get(i) for i in range(model.getMuscles().getSize())]
+muscles = [m for m in muscles if m.getName().endswith(ARGS["suffix"])]
+names = [m.getName() for m in muscles]
+T, R, FA, A = [], [], [], []
+for k in range(act.getSize()):
+    sv = act.getStateVector(k); t = sv.getTime()
+    row = int(np.argmin(np.abs(stimes - t)))
+    if abs(stimes[row] - t) > 1e-6:
+        continue
+    y = states.getStateVector(row).getData()
+    for j, lab in enumerate(slab[1:]):
+        parts = lab.split("/")
+        if parts[-1] not in ("value", "speed") or not cs.contains(parts[-2]):
+            continue
+        c = cs.get(parts[-2])
+        if parts[-1] == "value":
+            c.setValue(s, y.get(j), False)
+        else:
+            c.setSpeedValue(s, y.get(j))
+    model.realizeVelocity(s)
+    a = sv.getData()
+    T.append(t)
+    A.append([a.get(alab.index(n) - 1) for n in names])
+    R.append([[m.computeMomentArm(s, c) for c in coords] for m in muscles])
+    FA.append([m.calcInextensibleTendonActiveFiberForce(s, 1.0) for m in muscles])
+RESULT.update(time=T, muscles=names, moment_arms=R, f_active=FA, activations=A,
+              min_control=[m.getMinControl() for m in muscles],
+              max_control=[m.getMaxControl() for m in muscles])
+"""
+
+
+@dataclass(frozen=True)
+class OpenSimSOReference:
+    """OpenSim SO inputs and outputs per frame (time on axis 0).
+
+    ``moment_arms`` ``(N, n_muscles, n_coords)`` (OpenSim's ``computeMomentArm`` = −∂L/∂q, so
+    the msk Jacobian is ``−moment_arms``), ``f_active`` ``(N, n_muscles)``, ``activations``
+    ``(N, n_muscles)`` from OpenSim, the muscles' ``min_control``/``max_control``, and the wall
+    time of OpenSim's AnalyzeTool run (``so_wall_s``, all its muscles and residuals).
+    """
+
+    time: FloatArray
+    muscle_names: tuple[str, ...]
+    coordinate_names: tuple[str, ...]
+    moment_arms: FloatArray
+    f_active: FloatArray
+    activations: FloatArray
+    min_control: FloatArray
+    max_control: FloatArray
+    so_wall_s: float
+
+
+def opensim_static_optimization_reference(
+    data_dir: Path | str,
+    out_dir: Path | str,
+    *,
+    t0: float,
+    t1: float,
+    coordinates: Sequence[str] = GAIT2392_RIGHT_LEG,
+    muscle_suffix: str = "_r",
+    drop_uncoupled: bool = True,
+) -> OpenSimSOReference:
+    """Run OpenSim SO on gait2392 subject01 walking over ``[t0, t1]`` s and read it back.
+
+    Muscles whose name ends with ``muscle_suffix`` are kept; with ``drop_uncoupled`` those with
+    no moment arm about ``coordinates`` at any frame (e.g. the ``_r`` trunk muscles) are
+    dropped, so that the result is the decoupled subproblem of these coordinates.
+    """
+    out = run_opensim_script(
+        _SCRIPT,
+        data=str(data_dir),
+        out=str(out_dir),
+        t0=float(t0),
+        t1=float(t1),
+        coords=list(coordinates),
+        suffix=muscle_suffix,
+    )
+    r = np.asarray(out["moment_arms"], dtype=float)
+    keep = np.abs(r).max(axis=(0, 2)) > 0 if drop_uncoupled else np.ones(r.shape[1], dtype=bool)
+    return OpenSimSOReference(
+        time=np.asarray(out["time"], dtype=float),
+        muscle_names=tuple(n for n, k in zip(out["muscles"], keep) if k),
+        coordinate_names=tuple(coordinates),
+        moment_arms=r[:, keep],
+        f_active=np.asarray(out["f_active"], dtype=float)[:, keep],
+        activations=np.asarray(out["activations"], dtype=float)[:, keep],
+        min_control=np.asarray(out["min_control"], dtype=float)[keep],
+        max_control=np.asarray(out["max_control"], dtype=float)[keep],
+        so_wall_s=float(out["so_wall_s"]),
+    )

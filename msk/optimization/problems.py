@@ -1,0 +1,969 @@
+"""Bounded tension QP, OpenSim-equivalent static optimisation and EMG-weighted QP.
+
+Sign convention as in :mod:`msk.optimization.closed_form`: ``J = ∂l/∂θ`` ``(n_muscles,
+n_coords)``, tensions ``f ≥ 0``, generalised force ``τ = −Jᵀ f = R f`` with ``R = −Jᵀ``.
+
+Every problem is a frozen dataclass of one frame; :func:`solve` maps it onto the scaled
+standard form of :mod:`msk.optimization._qp` (unknowns O(1): ``f/F_iso``, activations, reserve
+controls), calls a registered solver (DAQP by default) and returns a :class:`QPSolution` with the
+residual, the solver-independent KKT figures, the active bounds and a status. The ``*_batch``
+functions take stacked arrays ``(N, n_muscles, n_coords)`` / ``(N, n_coords)`` and reuse one
+DAQP workspace across frames (warm start from the previous working set).
+
+Infeasible frames (no reserves, torque beyond the muscles' capacity) are never dropped: the
+bounded least-squares point ``argmin ‖τ − R f‖ s.t. bounds`` is returned with status
+``"infeasible"`` and its residual, or, with ``strict=True``, an
+:class:`~msk.exceptions.OptimizationError` names the frame and the residual.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from msk.exceptions import OptimizationError
+from msk.optimization._common import (
+    as_float,
+    check_finite,
+    check_jacobian,
+    check_positive,
+    names_or_default,
+)
+from msk.optimization._qp import (
+    DEFAULT_SOLVER,
+    KKT,
+    KKT_COLUMNS,
+    STATUS_NAMES,
+    STATUS_OPTIMAL,
+    StandardQP,
+    active_bounds,
+    active_masks,
+    get_solver,
+    new_warm,
+    solve_standard,
+)
+
+FloatArray = NDArray[np.float64]
+BoolArray = NDArray[np.bool_]
+
+
+# ---------------------------------------------------------------------------------------------
+# frame layout: standard-form unknowns  ->  forces, activations, reserves
+# ---------------------------------------------------------------------------------------------
+
+
+@dataclass(frozen=True)
+class _Layout:
+    """How ``x`` maps back: ``f = scale ⊙ x[:m] + offset``, reserves ``r = x[m:]`` on ``idx``."""
+
+    n_coords: int
+    scale: FloatArray
+    offset: FloatArray
+    reserve_idx: NDArray[np.intp]
+    reserve_opt: FloatArray
+    activations: bool
+    objective_scale: float = 1.0
+    objective_constant: float = 0.0
+
+    def unpack(self, x: FloatArray) -> tuple[FloatArray, FloatArray | None, FloatArray]:
+        m = self.scale.shape[0]
+        f = self.scale * x[:m] + self.offset
+        r = np.zeros(self.n_coords)
+        r[self.reserve_idx] = x[m:]
+        return f, (x[:m].copy() if self.activations else None), r
+
+
+def _reserves(
+    reserve_optimal_force: ArrayLike | None, n: int, names: Sequence[str]
+) -> tuple[NDArray[np.intp], FloatArray]:
+    """Coordinates with a reserve actuator (optimal force > 0) and their optimal forces."""
+    if reserve_optimal_force is None:
+        return np.zeros(0, dtype=np.intp), np.zeros(0)
+    opt = as_float(reserve_optimal_force, (n,), "reserve_optimal_force")
+    if np.any(opt < 0) or not np.all(np.isfinite(opt)):
+        i = int(np.argmax((opt < 0) | ~np.isfinite(opt)))
+        raise OptimizationError(
+            f"reserve optimal force of coordinate {names[i]!r} must be ≥ 0 and finite: "
+            f"{float(opt[i])!r}"
+        )
+    idx = np.flatnonzero(opt > 0)
+    return idx, opt[idx]
+
+
+def _assemble(
+    r_scaled: FloatArray,
+    b: FloatArray,
+    lb_m: FloatArray,
+    ub_m: FloatArray,
+    res_idx: NDArray[np.intp],
+    res_opt: FloatArray,
+    res_lb: FloatArray,
+    res_ub: FloatArray,
+) -> StandardQP:
+    """``min Σx² + Σr²  s.t. [R S, E diag(opt)] [x; r] = b`` with bounds (H = 2I)."""
+    n, m = r_scaled.shape
+    k = res_idx.shape[0]
+    if k:
+        e = np.zeros((n, k))
+        e[res_idx, np.arange(k)] = res_opt
+        a = np.hstack([r_scaled, e])
+        lb = np.concatenate([lb_m, res_lb])
+        ub = np.concatenate([ub_m, res_ub])
+    else:
+        a, lb, ub = r_scaled, lb_m, ub_m
+    nv = m + k
+    h, g = _constant_cost(nv)
+    return StandardQP(H=h, g=g, A=a, b=b, lb=lb, ub=ub)
+
+
+_COST_CACHE: dict[int, tuple[FloatArray, FloatArray]] = {}
+
+
+def _constant_cost(nv: int) -> tuple[FloatArray, FloatArray]:
+    """``H = 2I``, ``g = 0`` as shared arrays (the same objects every frame, so the DAQP
+    workspace is not re-factorised for an unchanged cost). Never modified in place (DAQP needs
+    writable buffers, so they cannot be flagged read-only)."""
+    if nv not in _COST_CACHE:
+        _COST_CACHE[nv] = (2.0 * np.eye(nv), np.zeros(nv))
+    return _COST_CACHE[nv]
+
+
+# ---------------------------------------------------------------------------------------------
+# problems
+# ---------------------------------------------------------------------------------------------
+
+
+@dataclass(frozen=True)
+class TensionProblem:
+    """Bounded tension QP of one frame (seeds/004 criterion with bounds)::
+
+        minimise   Σ_i (f_i / F_iso,i)²  +  Σ_j r_j²
+        subject to R f + diag(F_res) r = τ,     f_min ≤ f ≤ f_max
+
+    ``f_max`` defaults to ``F_iso`` (pass ``F_iso·f_l·f_v`` for a length/velocity-dependent
+    capacity), ``f_min`` to 0. ``reserve_optimal_force`` ``(n_coords,)`` adds a coordinate
+    actuator of torque ``F_res,j · r_j`` wherever it is > 0: OpenSim-style reserves whose cost
+    ``r_j²`` is small only when ``F_res,j`` is large, so a reserve of 1 N·m costs a torque of
+    1 N·m as much as a fully active muscle; with unbounded reserves every frame is feasible.
+    """
+
+    jacobian: FloatArray
+    tau: FloatArray
+    f_iso: FloatArray
+    f_max: FloatArray | None = None
+    f_min: FloatArray | None = None
+    reserve_optimal_force: FloatArray | None = None
+    muscle_names: tuple[str, ...] | None = None
+    coordinate_names: tuple[str, ...] | None = None
+
+    def __post_init__(self) -> None:
+        j = check_jacobian(self.jacobian, 2)
+        m, n = j.shape
+        mn = names_or_default(self.muscle_names, m, "muscle", "muscle")
+        cn = names_or_default(self.coordinate_names, n, "coord", "coordinate")
+        tau = as_float(self.tau, (n,), "tau")
+        check_finite(tau, "tau", cn)
+        f_iso = as_float(self.f_iso, (m,), "f_iso")
+        check_positive(f_iso, "f_iso", mn)
+        f_max = f_iso.copy() if self.f_max is None else as_float(self.f_max, (m,), "f_max")
+        f_min = np.zeros(m) if self.f_min is None else as_float(self.f_min, (m,), "f_min")
+        _check_bounds(f_min, f_max, "force", mn)
+        _reserves(self.reserve_optimal_force, n, cn)
+        for key, val in (
+            ("jacobian", j),
+            ("tau", tau),
+            ("f_iso", f_iso),
+            ("f_max", f_max),
+            ("f_min", f_min),
+            ("muscle_names", mn),
+            ("coordinate_names", cn),
+        ):
+            object.__setattr__(self, key, val)
+        if self.reserve_optimal_force is not None:
+            object.__setattr__(
+                self,
+                "reserve_optimal_force",
+                as_float(self.reserve_optimal_force, (n,), "reserve_optimal_force"),
+            )
+
+    def standard_form(self) -> tuple[StandardQP, _Layout]:
+        assert self.f_max is not None and self.f_min is not None
+        idx, opt = _reserves(self.reserve_optimal_force, self.tau.shape[0], self.coordinate_names)
+        return _tension_qp(-self.jacobian.T, self.tau, self.f_iso, self.f_min, self.f_max, idx, opt)
+
+
+def _tension_qp(
+    r: FloatArray,
+    tau: FloatArray,
+    f_iso: FloatArray,
+    f_min: FloatArray,
+    f_max: FloatArray,
+    idx: NDArray[np.intp],
+    opt: FloatArray,
+) -> tuple[StandardQP, _Layout]:
+    k = idx.shape[0]
+    inf = np.full(k, np.inf)
+    qp = _assemble(r * f_iso, tau, f_min / f_iso, f_max / f_iso, idx, opt, -inf, inf)
+    lay = _Layout(tau.shape[0], f_iso, np.zeros_like(f_iso), idx, opt, activations=False)
+    return qp, lay
+
+
+@dataclass(frozen=True)
+class StaticOptimizationProblem:
+    """OpenSim's StaticOptimization (``use_muscle_physiology = true``, exponent 2), one frame::
+
+        minimise   Σ_i a_i²  +  Σ_j r_j²
+        subject to Σ_i R_ji (a_i F_act,i + F_pass,i) + F_res,j r_j = τ_j
+                   a_min ≤ a ≤ a_max,   r_min ≤ r ≤ r_max
+
+    ``f_active`` is OpenSim's ``calcInextensibleTendonActiveFiberForce(s, 1.0)``: the active
+    fibre force along the tendon at full activation with a rigid tendon,
+    ``F_iso · f_l(l̃_M) · f_v(ṽ_M) · cos α`` (from the Hill model:
+    ``msk.muscles.hill.rigid_tendon_state(...).max_active_force_along_tendon``; its
+    ``passive_force_along_tendon`` is the ``f_passive`` of the variant below).
+    Subtleties of OpenSim's implementation (``StaticOptimizationTarget``) this reproduces:
+
+    * the objective sums ``|x|²`` over **all** actuators, muscles and residual/reserve
+      ``CoordinateActuator`` alike; a reserve's price is set only by its ``optimal_force``;
+    * each actuator's force is *overridden* by ``x · F_opt``, so OpenSim's SO has **no passive
+      fibre force**: to reproduce it leave ``f_passive`` at 0. A non-zero ``f_passive``
+      (``F_iso f_PE cos α`` from the Hill model) is the common "SO with passive forces" variant;
+    * the bounds are the actuators' ``min_control``/``max_control``: gait2392's muscles use
+      ``[0.01, 1]``, not ``[0, 1]``; residuals are often unbounded;
+    * OpenSim imposes the equality in acceleration space, ``q̈_target − q̈(x) = 0``, i.e.
+      ``M⁻¹(τ_act(x) − τ)`` = 0 for the unconstrained coordinates; with ``M`` invertible this is
+      the same feasible set, hence the same optimum, as the torque equality used here, whose
+      ``τ`` is the inverse-dynamics result on the same (filtered) kinematics;
+    * OpenSim uses IPOPT with a convergence tolerance (default 1e-4), so its activations agree
+      with this exact QP to about that tolerance, and it keeps the last iterate when IPOPT fails.
+    * coordinates crossed by no actuator but the muscles decouple: in gait2392 the pelvis
+      residuals act on the pelvis coordinates only, so the right-leg rows form their own QP.
+
+    Checked against OpenSim 4.6 on gait2392 subject01 walking (``tests/test_optimization.py``,
+    13 frames, 43 right-leg muscles × 7 coordinates, same states, ``f_passive = 0``):
+    activations agree to 0.005 max / 0.0008 RMS and msk's cost is never above OpenSim's
+    (≈ 3e-4 lower: IPOPT's tolerance).
+    """
+
+    jacobian: FloatArray
+    tau: FloatArray
+    f_active: FloatArray
+    f_passive: FloatArray | None = None
+    activation_min: FloatArray | float = 0.0
+    activation_max: FloatArray | float = 1.0
+    reserve_optimal_force: FloatArray | None = None
+    reserve_min_control: FloatArray | float = -np.inf
+    reserve_max_control: FloatArray | float = np.inf
+    muscle_names: tuple[str, ...] | None = None
+    coordinate_names: tuple[str, ...] | None = None
+
+    def __post_init__(self) -> None:
+        j = check_jacobian(self.jacobian, 2)
+        m, n = j.shape
+        mn = names_or_default(self.muscle_names, m, "muscle", "muscle")
+        cn = names_or_default(self.coordinate_names, n, "coord", "coordinate")
+        tau = as_float(self.tau, (n,), "tau")
+        check_finite(tau, "tau", cn)
+        fa = as_float(self.f_active, (m,), "f_active")
+        check_finite(fa, "f_active", mn)
+        if np.any(fa < 0):
+            i = int(np.argmax(fa < 0))
+            raise OptimizationError(f"f_active of muscle {mn[i]!r} is negative: {float(fa[i])!r}")
+        fp = np.zeros(m) if self.f_passive is None else as_float(self.f_passive, (m,), "f_passive")
+        check_finite(fp, "f_passive", mn)
+        amin = as_float(self.activation_min, (m,), "activation_min")
+        amax = as_float(self.activation_max, (m,), "activation_max")
+        _check_bounds(amin, amax, "activation", mn)
+        _reserves(self.reserve_optimal_force, n, cn)
+        rmin = as_float(self.reserve_min_control, (n,), "reserve_min_control")
+        rmax = as_float(self.reserve_max_control, (n,), "reserve_max_control")
+        for key, val in (
+            ("jacobian", j),
+            ("tau", tau),
+            ("f_active", fa),
+            ("f_passive", fp),
+            ("activation_min", amin),
+            ("activation_max", amax),
+            ("reserve_min_control", rmin),
+            ("reserve_max_control", rmax),
+            ("muscle_names", mn),
+            ("coordinate_names", cn),
+        ):
+            object.__setattr__(self, key, val)
+        if self.reserve_optimal_force is not None:
+            object.__setattr__(
+                self,
+                "reserve_optimal_force",
+                as_float(self.reserve_optimal_force, (n,), "reserve_optimal_force"),
+            )
+
+    def standard_form(self) -> tuple[StandardQP, _Layout]:
+        assert self.f_passive is not None and self.coordinate_names is not None
+        idx, opt = _reserves(self.reserve_optimal_force, self.tau.shape[0], self.coordinate_names)
+        return _static_qp(
+            -self.jacobian.T,
+            self.tau,
+            self.f_active,
+            self.f_passive,
+            np.asarray(self.activation_min),
+            np.asarray(self.activation_max),
+            idx,
+            opt,
+            np.asarray(self.reserve_min_control)[idx],
+            np.asarray(self.reserve_max_control)[idx],
+        )
+
+
+def _static_qp(
+    r: FloatArray,
+    tau: FloatArray,
+    fa: FloatArray,
+    fp: FloatArray,
+    amin: FloatArray,
+    amax: FloatArray,
+    idx: NDArray[np.intp],
+    opt: FloatArray,
+    rmin: FloatArray,
+    rmax: FloatArray,
+) -> tuple[StandardQP, _Layout]:
+    qp = _assemble(r * fa, tau - r @ fp, amin, amax, idx, opt, rmin, rmax)
+    return qp, _Layout(tau.shape[0], fa, fp, idx, opt, activations=True)
+
+
+@dataclass(frozen=True)
+class EMGWeightedProblem:
+    """EMG-weighted tension optimisation of one frame (seeds/002 Eq. 17–18)::
+
+        minimise   ½‖τ − R f‖²  +  (W_emg/2) Σ_{i measured} (f_i − f*_i)²  +  (ε/2) Σ_{i ∉ M} f_i²
+        subject to f ≥ f_min (= 0),  f ≤ f_max (optional)
+
+    seeds/002 writes ``Z = ½‖τ − Jᵀf‖² + (W_emg/2)‖f − f*‖²`` subject to ``E_t f ≤ 0``
+    (Eq. 18), with ``f`` along muscle lengthening: tensions are non-positive there. With the
+    msk convention (``f`` = tension, ``τ = −Jᵀ f``) the same problem reads as above with
+    ``f ≥ 0``. ``f*`` (``f_ref``) is the EMG-based reference force of Eq. 9
+    (``a f_l f_v F_iso``), known only for the ``measured`` muscles. ``W_emg`` has the units of
+    ``R``² (m² for rotations) when ``f`` is in N and ``τ`` in N·m.
+
+    The Hessian ``RᵀR + W_emg E_M`` is singular when there are more unmeasured muscles than
+    coordinates, so the optimum of Eq. 17 is not unique; the Tikhonov term ``ε/2 Σ f_i²`` on
+    the unmeasured muscles (on all muscles when ``W_emg = 0``) makes it strictly convex and
+    picks the smallest such forces. ``ε = regularization · mean_i ‖R_:,i‖²`` (default
+    ``regularization = 1e-6``) biases the forces by about that relative amount.
+    """
+
+    jacobian: FloatArray
+    tau: FloatArray
+    f_ref: FloatArray
+    measured: NDArray[np.bool_]
+    w_emg: float
+    f_max: FloatArray | None = None
+    f_min: FloatArray | None = None
+    regularization: float = 1e-6
+    muscle_names: tuple[str, ...] | None = None
+    coordinate_names: tuple[str, ...] | None = None
+
+    def __post_init__(self) -> None:
+        j = check_jacobian(self.jacobian, 2)
+        m, n = j.shape
+        mn = names_or_default(self.muscle_names, m, "muscle", "muscle")
+        cn = names_or_default(self.coordinate_names, n, "coord", "coordinate")
+        tau = as_float(self.tau, (n,), "tau")
+        check_finite(tau, "tau", cn)
+        meas = _measured_mask(self.measured, m)
+        fr = as_float(self.f_ref, (m,), "f_ref")
+        fr = np.where(meas, fr, 0.0)
+        check_finite(fr, "f_ref", mn)
+        fmax = np.full(m, np.inf) if self.f_max is None else as_float(self.f_max, (m,), "f_max")
+        fmin = np.zeros(m) if self.f_min is None else as_float(self.f_min, (m,), "f_min")
+        _check_bounds(fmin, fmax, "force", mn)
+        _check_weights(self.w_emg, self.regularization)
+        for key, val in (
+            ("jacobian", j),
+            ("tau", tau),
+            ("f_ref", fr),
+            ("measured", meas),
+            ("f_max", fmax),
+            ("f_min", fmin),
+            ("w_emg", float(self.w_emg)),
+            ("regularization", float(self.regularization)),
+            ("muscle_names", mn),
+            ("coordinate_names", cn),
+        ):
+            object.__setattr__(self, key, val)
+
+    def standard_form(self) -> tuple[StandardQP, _Layout]:
+        assert self.f_min is not None and self.f_max is not None
+        return _emg_qp(
+            -self.jacobian.T,
+            self.tau,
+            self.f_ref,
+            self.measured,
+            self.w_emg,
+            self.regularization,
+            self.f_min,
+            self.f_max,
+            _emg_scale(self.f_ref, self.f_max, self.measured),
+        )
+
+
+def _measured_mask(measured: ArrayLike, m: int) -> BoolArray:
+    meas = np.asarray(measured)
+    if meas.dtype != bool:
+        idx = meas.astype(int).ravel()
+        if np.any((idx < 0) | (idx >= m)):
+            raise OptimizationError(f"measured muscle index out of range 0..{m - 1}: {idx}")
+        mask = np.zeros(m, dtype=bool)
+        mask[idx] = True
+        return mask
+    if meas.shape != (m,):
+        raise OptimizationError(f"measured mask has shape {meas.shape}, expected ({m},)")
+    return meas.copy()
+
+
+def _check_weights(w_emg: float, regularization: float) -> None:
+    if not (np.isfinite(w_emg) and w_emg >= 0):
+        raise OptimizationError(f"w_emg must be finite and ≥ 0: {w_emg!r}")
+    if not (np.isfinite(regularization) and regularization > 0):
+        raise OptimizationError(f"regularization must be finite and > 0: {regularization!r}")
+
+
+def _check_bounds(lo: FloatArray, hi: FloatArray, what: str, names: Sequence[str]) -> None:
+    bad = ~(lo <= hi) | np.isnan(lo) | np.isnan(hi)
+    if bad.any():
+        i = int(np.argmax(bad))
+        raise OptimizationError(
+            f"{what} bounds of muscle {names[i]!r} are inconsistent: "
+            f"min {float(lo[i])!r} > max {float(hi[i])!r}"
+        )
+
+
+def _emg_scale(f_ref: FloatArray, f_max: FloatArray, measured: BoolArray) -> FloatArray:
+    """Per-muscle force scale (N) so that the scaled unknowns are O(1)."""
+    fin = np.isfinite(f_max) & (f_max > 0)
+    base = max(1.0, float(np.max(np.abs(f_ref[measured]))) if measured.any() else 1.0)
+    return np.where(fin, f_max, base)
+
+
+def _emg_qp(
+    r: FloatArray,
+    tau: FloatArray,
+    f_ref: FloatArray,
+    measured: BoolArray,
+    w_emg: float,
+    regularization: float,
+    f_min: FloatArray,
+    f_max: FloatArray,
+    scale: FloatArray,
+) -> tuple[StandardQP, _Layout]:
+    m = f_ref.shape[0]
+    rs = r * scale
+    eps = regularization * float(np.mean(np.sum(r * r, axis=0)))
+    if eps <= 0:
+        eps = regularization
+    wdiag = np.where(measured, w_emg, eps) if w_emg > 0 else np.full(m, eps)
+    h = rs.T @ rs + np.diag(wdiag * scale * scale)
+    g = -(rs.T @ tau) - np.where(measured, w_emg, 0.0) * scale * f_ref
+    c = float(np.max(np.diag(h)))
+    c = c if c > 0 else 1.0
+    qp = StandardQP(
+        H=h / c,
+        g=g / c,
+        A=np.zeros((0, m)),
+        b=np.zeros(0),
+        lb=f_min / scale,
+        ub=f_max / scale,
+    )
+    lay = _Layout(
+        tau.shape[0],
+        scale,
+        np.zeros(m),
+        np.zeros(0, dtype=np.intp),
+        np.zeros(0),
+        activations=False,
+        objective_scale=c,
+        objective_constant=0.5 * float(tau @ tau)
+        + 0.5 * w_emg * float(np.sum(f_ref[measured] ** 2)),
+    )
+    return qp, lay
+
+
+Problem = TensionProblem | StaticOptimizationProblem | EMGWeightedProblem
+
+
+# ---------------------------------------------------------------------------------------------
+# solutions
+# ---------------------------------------------------------------------------------------------
+
+
+@dataclass(frozen=True)
+class QPSolution:
+    """Solution of one frame.
+
+    ``forces`` (N) ``(n_muscles,)``; ``activations`` for static optimisation, else ``None``;
+    ``reserve_controls`` ``(n_coords,)`` (0 where no reserve) and ``reserve_torques`` =
+    ``F_res ⊙ r``; ``torque_error`` = ``τ − R f`` (muscles only, N·m or N) and ``residual`` =
+    ``τ − R f − F_res ⊙ r`` (the equality constraint; for the EMG-weighted QP, where the torque
+    is a penalty, both are ``τ − R f``); ``residual_norm`` = ``‖residual‖``; ``objective`` the
+    problem's cost at the solution, in its own units (Eq. 17 value, incl. the ε term, for the
+    EMG-weighted QP); ``kkt`` the
+    solver-independent KKT figures in the scaled standard form; ``active_lower`` /
+    ``active_upper`` the muscle bounds active at the solution; ``status`` ``"optimal"``,
+    ``"infeasible"`` (bounded least-squares point returned) or ``"solver_failed"``.
+    """
+
+    forces: FloatArray
+    activations: FloatArray | None
+    reserve_controls: FloatArray
+    reserve_torques: FloatArray
+    torque_error: FloatArray
+    residual: FloatArray
+    residual_norm: float
+    objective: float
+    kkt: KKT
+    active_lower: BoolArray
+    active_upper: BoolArray
+    solver: str
+    status: str
+    iterations: int
+    solve_time_s: float
+    muscle_names: tuple[str, ...]
+    coordinate_names: tuple[str, ...]
+
+
+def solve(
+    problem: Problem,
+    *,
+    solver: str = DEFAULT_SOLVER,
+    strict: bool = False,
+    frame: int | None = None,
+) -> QPSolution:
+    """Solve one frame of any QP problem of this module with a registered solver."""
+    qp, lay = problem.standard_form()
+    raw, _ = solve_standard(qp, solver=solver, compute_kkt=True, frame=frame, strict=strict)
+    assert raw.kkt is not None
+    f, act, rc = lay.unpack(raw.x)
+    r = -problem.jacobian.T
+    terr = problem.tau - r @ f
+    rt = np.zeros_like(rc)
+    rt[lay.reserve_idx] = lay.reserve_opt * rc[lay.reserve_idx]
+    resid = terr - rt
+    lo, up = active_bounds(qp, raw.x)
+    m = f.shape[0]
+    obj = (
+        lay.objective_scale * float(0.5 * raw.x @ qp.H @ raw.x + qp.g @ raw.x)
+        + lay.objective_constant
+    )
+    assert problem.muscle_names is not None and problem.coordinate_names is not None
+    return QPSolution(
+        forces=f,
+        activations=act,
+        reserve_controls=rc,
+        reserve_torques=rt,
+        torque_error=terr,
+        residual=resid,
+        residual_norm=float(np.linalg.norm(resid)),
+        objective=obj,
+        kkt=raw.kkt,
+        active_lower=lo[:m],
+        active_upper=up[:m],
+        solver=solver,
+        status=STATUS_NAMES[raw.status],
+        iterations=raw.iterations,
+        solve_time_s=raw.solve_time_s,
+        muscle_names=problem.muscle_names,
+        coordinate_names=problem.coordinate_names,
+    )
+
+
+@dataclass(frozen=True)
+class BatchSolution:
+    """Per-frame solutions stacked over time (axis 0); fields as in :class:`QPSolution`.
+
+    ``status`` ``(N,)`` int8 codes (0 optimal, 1 infeasible, 2 solver failed; names in
+    ``STATUS_NAMES``); ``kkt`` ``(N, 4)`` with columns ``kkt_columns``; ``solve_time_s`` per
+    frame (solver call, incl. fallback); ``time`` optional frame times in s.
+    """
+
+    forces: FloatArray
+    activations: FloatArray | None
+    reserve_controls: FloatArray
+    reserve_torques: FloatArray
+    torque_error: FloatArray
+    residual: FloatArray
+    residual_norm: FloatArray
+    kkt: FloatArray
+    active_lower: BoolArray
+    active_upper: BoolArray
+    status: NDArray[np.int8]
+    iterations: NDArray[np.int64]
+    solve_time_s: FloatArray
+    solver: str
+    muscle_names: tuple[str, ...]
+    coordinate_names: tuple[str, ...]
+    time: FloatArray | None = None
+    kkt_columns: tuple[str, ...] = KKT_COLUMNS
+    status_names: tuple[str, ...] = STATUS_NAMES
+
+    @property
+    def infeasible_frames(self) -> NDArray[np.intp]:
+        """Indices of the frames that are not optimal (reported, never dropped)."""
+        return np.flatnonzero(self.status != STATUS_OPTIMAL)
+
+
+def _run_batch(
+    n_frames: int,
+    build: Callable[[int], tuple[StandardQP, _Layout]],
+    jac: FloatArray,
+    tau: FloatArray,
+    *,
+    solver: str,
+    warm_start: bool,
+    strict: bool,
+    compute_kkt: bool,
+    activations: bool,
+    muscle_names: tuple[str, ...],
+    coordinate_names: tuple[str, ...],
+    time: ArrayLike | None,
+) -> BatchSolution:
+    get_solver(solver)
+    _, m, n = jac.shape
+    forces = np.empty((n_frames, m))
+    acts = np.empty((n_frames, m)) if activations else None
+    rc = np.zeros((n_frames, n))
+    rt = np.zeros((n_frames, n))
+    kk = np.full((n_frames, 4), np.nan)
+    xs = np.empty((n_frames, m))  # muscle unknowns and their bounds, for the active sets
+    lbs = np.empty((n_frames, m))
+    ubs = np.empty((n_frames, m))
+    status = np.zeros(n_frames, dtype=np.int8)
+    iters = np.zeros(n_frames, dtype=np.int64)
+    times = np.zeros(n_frames)
+    warm = new_warm(solver) if warm_start else None
+    for k in range(n_frames):
+        qp, lay = build(k)
+        raw, w = solve_standard(
+            qp, solver=solver, warm=warm, compute_kkt=compute_kkt, frame=k, strict=strict
+        )
+        if warm_start:
+            warm = w
+        f, a, r = lay.unpack(raw.x)
+        forces[k] = f
+        if acts is not None and a is not None:
+            acts[k] = a
+        rc[k] = r
+        rt[k, lay.reserve_idx] = lay.reserve_opt * r[lay.reserve_idx]
+        if raw.kkt is not None:
+            kk[k] = raw.kkt.as_array()
+        xs[k], lbs[k], ubs[k] = raw.x[:m], qp.lb[:m], qp.ub[:m]
+        status[k] = raw.status
+        iters[k] = raw.iterations
+        times[k] = raw.solve_time_s
+    alo, aup = active_masks(xs, lbs, ubs)
+    terr = tau + np.einsum("kmn,km->kn", jac, forces)
+    resid = terr - rt
+    t = None if time is None else as_float(time, (n_frames,), "time")
+    return BatchSolution(
+        forces=forces,
+        activations=acts,
+        reserve_controls=rc,
+        reserve_torques=rt,
+        torque_error=terr,
+        residual=resid,
+        residual_norm=np.linalg.norm(resid, axis=1),
+        kkt=kk,
+        active_lower=alo,
+        active_upper=aup,
+        status=status,
+        iterations=iters,
+        solve_time_s=times,
+        solver=solver,
+        muscle_names=muscle_names,
+        coordinate_names=coordinate_names,
+        time=t,
+    )
+
+
+def _per_frame(value: ArrayLike | None, n_frames: int, m: int, what: str, default: float) -> Any:
+    if value is None:
+        return np.full((n_frames, m), default)
+    return as_float(value, (n_frames, m), what)
+
+
+def _batch_inputs(
+    jacobians: ArrayLike,
+    taus: ArrayLike,
+    muscle_names: Sequence[str] | None,
+    coordinate_names: Sequence[str] | None,
+) -> tuple[FloatArray, FloatArray, tuple[str, ...], tuple[str, ...]]:
+    jac = check_jacobian(jacobians, 3)
+    n_frames, m, n = jac.shape
+    mn = names_or_default(muscle_names, m, "muscle", "muscle")
+    cn = names_or_default(coordinate_names, n, "coord", "coordinate")
+    tau = as_float(taus, (n_frames, n), "taus")
+    check_finite(tau, "taus", cn)
+    return jac, tau, mn, cn
+
+
+def solve_tension_batch(
+    jacobians: ArrayLike,
+    taus: ArrayLike,
+    *,
+    f_iso: ArrayLike,
+    f_max: ArrayLike | None = None,
+    f_min: ArrayLike | None = None,
+    reserve_optimal_force: ArrayLike | None = None,
+    solver: str = DEFAULT_SOLVER,
+    warm_start: bool = True,
+    strict: bool = False,
+    compute_kkt: bool = True,
+    muscle_names: Sequence[str] | None = None,
+    coordinate_names: Sequence[str] | None = None,
+    time: ArrayLike | None = None,
+) -> BatchSolution:
+    """:class:`TensionProblem` over frames. ``f_max``/``f_min`` ``(m,)`` or ``(N, m)``."""
+    jac, tau, mn, cn = _batch_inputs(jacobians, taus, muscle_names, coordinate_names)
+    n_frames, m, n = jac.shape
+    fi = as_float(f_iso, (m,), "f_iso")
+    check_positive(fi, "f_iso", mn)
+    fmax = (
+        np.broadcast_to(fi, (n_frames, m))
+        if f_max is None
+        else as_float(f_max, (n_frames, m), "f_max")
+    )
+    fmin = _per_frame(f_min, n_frames, m, "f_min", 0.0)
+    bad = ~(fmin <= fmax)
+    if bad.any():
+        k, i = (int(v) for v in np.argwhere(bad)[0])
+        raise OptimizationError(
+            f"force bounds of muscle {mn[i]!r} at frame {k} are inconsistent: "
+            f"min {float(fmin[k, i])!r} > max {float(fmax[k, i])!r}"
+        )
+    idx, opt = _reserves(reserve_optimal_force, n, cn)
+    rt = np.ascontiguousarray(-np.swapaxes(jac, 1, 2))  # R per frame, C order
+
+    def build(k: int) -> tuple[StandardQP, _Layout]:
+        return _tension_qp(rt[k], tau[k], fi, fmin[k], fmax[k], idx, opt)
+
+    return _run_batch(
+        n_frames,
+        build,
+        jac,
+        tau,
+        solver=solver,
+        warm_start=warm_start,
+        strict=strict,
+        compute_kkt=compute_kkt,
+        activations=False,
+        muscle_names=mn,
+        coordinate_names=cn,
+        time=time,
+    )
+
+
+def solve_static_optimization_batch(
+    jacobians: ArrayLike,
+    taus: ArrayLike,
+    *,
+    f_active: ArrayLike,
+    f_passive: ArrayLike | None = None,
+    activation_min: ArrayLike = 0.0,
+    activation_max: ArrayLike = 1.0,
+    reserve_optimal_force: ArrayLike | None = None,
+    reserve_min_control: ArrayLike = -np.inf,
+    reserve_max_control: ArrayLike = np.inf,
+    solver: str = DEFAULT_SOLVER,
+    warm_start: bool = True,
+    strict: bool = False,
+    compute_kkt: bool = True,
+    muscle_names: Sequence[str] | None = None,
+    coordinate_names: Sequence[str] | None = None,
+    time: ArrayLike | None = None,
+) -> BatchSolution:
+    """:class:`StaticOptimizationProblem` over frames; ``f_active``/``f_passive`` ``(N, m)``."""
+    jac, tau, mn, cn = _batch_inputs(jacobians, taus, muscle_names, coordinate_names)
+    n_frames, m, n = jac.shape
+    fa = as_float(f_active, (n_frames, m), "f_active")
+    check_finite(fa, "f_active", mn)
+    if np.any(fa < 0):
+        k, i = (int(v) for v in np.argwhere(fa < 0)[0])
+        raise OptimizationError(f"f_active of muscle {mn[i]!r} at frame {k} is negative")
+    fp = _per_frame(f_passive, n_frames, m, "f_passive", 0.0)
+    check_finite(fp, "f_passive", mn)
+    amin = as_float(activation_min, (m,), "activation_min")
+    amax = as_float(activation_max, (m,), "activation_max")
+    _check_bounds(amin, amax, "activation", mn)
+    idx, opt = _reserves(reserve_optimal_force, n, cn)
+    rmin = as_float(reserve_min_control, (n,), "reserve_min_control")[idx]
+    rmax = as_float(reserve_max_control, (n,), "reserve_max_control")[idx]
+    rt = np.ascontiguousarray(-np.swapaxes(jac, 1, 2))  # R per frame, C order
+
+    def build(k: int) -> tuple[StandardQP, _Layout]:
+        return _static_qp(rt[k], tau[k], fa[k], fp[k], amin, amax, idx, opt, rmin, rmax)
+
+    return _run_batch(
+        n_frames,
+        build,
+        jac,
+        tau,
+        solver=solver,
+        warm_start=warm_start,
+        strict=strict,
+        compute_kkt=compute_kkt,
+        activations=True,
+        muscle_names=mn,
+        coordinate_names=cn,
+        time=time,
+    )
+
+
+def solve_emg_weighted_batch(
+    jacobians: ArrayLike,
+    taus: ArrayLike,
+    *,
+    f_ref: ArrayLike,
+    measured: ArrayLike,
+    w_emg: float,
+    f_max: ArrayLike | None = None,
+    f_min: ArrayLike | None = None,
+    regularization: float = 1e-6,
+    solver: str = DEFAULT_SOLVER,
+    warm_start: bool = True,
+    strict: bool = False,
+    compute_kkt: bool = True,
+    muscle_names: Sequence[str] | None = None,
+    coordinate_names: Sequence[str] | None = None,
+    time: ArrayLike | None = None,
+) -> BatchSolution:
+    """:class:`EMGWeightedProblem` over frames; ``f_ref`` ``(N, m)`` (EMG-based f*)."""
+    jac, tau, mn, cn = _batch_inputs(jacobians, taus, muscle_names, coordinate_names)
+    n_frames, m, _ = jac.shape
+    meas = _measured_mask(measured, m)
+    fr = np.where(meas, as_float(f_ref, (n_frames, m), "f_ref"), 0.0)
+    check_finite(fr, "f_ref", mn)
+    fmax = _per_frame(f_max, n_frames, m, "f_max", np.inf)
+    fmin = _per_frame(f_min, n_frames, m, "f_min", 0.0)
+    _check_weights(w_emg, regularization)
+    rt = np.ascontiguousarray(-np.swapaxes(jac, 1, 2))  # R per frame, C order
+
+    def build(k: int) -> tuple[StandardQP, _Layout]:
+        scale = _emg_scale(fr[k], fmax[k], meas)
+        return _emg_qp(rt[k], tau[k], fr[k], meas, w_emg, regularization, fmin[k], fmax[k], scale)
+
+    return _run_batch(
+        n_frames,
+        build,
+        jac,
+        tau,
+        solver=solver,
+        warm_start=warm_start,
+        strict=strict,
+        compute_kkt=compute_kkt,
+        activations=False,
+        muscle_names=mn,
+        coordinate_names=cn,
+        time=time,
+    )
+
+
+# ---------------------------------------------------------------------------------------------
+# W_emg study (seeds/002 Table I)
+# ---------------------------------------------------------------------------------------------
+
+
+@dataclass(frozen=True)
+class EMGWeightSweep:
+    """The W_emg study of seeds/002 Table I, one row per ``w_emg``.
+
+    ``torque_error_rms`` ``(W,)``: RMS over frames and coordinates of ``τ − R f`` (N·m);
+    ``torque_error_rms_per_coordinate`` ``(W, n_coords)``; ``max_force`` / ``mean_force``
+    ``(W, n_muscles)`` over frames; ``emg_deviation_rms`` ``(W,)``: RMS of ``f − f*`` over the
+    measured muscles and frames (N); ``forces`` ``(W, N, n_muscles)``; ``status`` ``(W, N)``.
+    """
+
+    w_emg: FloatArray
+    torque_error_rms: FloatArray
+    torque_error_rms_per_coordinate: FloatArray
+    max_force: FloatArray
+    mean_force: FloatArray
+    emg_deviation_rms: FloatArray
+    forces: FloatArray
+    status: NDArray[np.int8]
+    muscle_names: tuple[str, ...]
+    coordinate_names: tuple[str, ...]
+
+    def table(self, muscle: str | None = None, coordinate: str | None = None) -> str:
+        """Plain-text table like seeds/002 Table I (W_emg, τ error, max force of ``muscle``)."""
+        mi = self.muscle_names.index(muscle) if muscle is not None else None
+        ci = self.coordinate_names.index(coordinate) if coordinate is not None else None
+        head = f"{'W_emg':>10} {'tau err RMS':>12} {'|f-f*| RMS':>11}"
+        head += f" {'max ' + muscle if muscle else 'max force':>14}"
+        lines = [head]
+        for w in range(self.w_emg.shape[0]):
+            err = (
+                self.torque_error_rms_per_coordinate[w, ci]
+                if ci is not None
+                else self.torque_error_rms[w]
+            )
+            fmax = self.max_force[w, mi] if mi is not None else self.max_force[w].max()
+            lines.append(
+                f"{self.w_emg[w]:>10.3g} {err:>12.4g} {self.emg_deviation_rms[w]:>11.4g}"
+                f" {fmax:>14.4g}"
+            )
+        return "\n".join(lines)
+
+
+def emg_weight_sweep(
+    jacobians: ArrayLike,
+    taus: ArrayLike,
+    *,
+    f_ref: ArrayLike,
+    measured: ArrayLike,
+    w_emgs: Sequence[float] = (1.0, 0.5, 0.1, 0.05, 0.01, 0.005, 0.001),
+    f_max: ArrayLike | None = None,
+    regularization: float = 1e-6,
+    solver: str = DEFAULT_SOLVER,
+    muscle_names: Sequence[str] | None = None,
+    coordinate_names: Sequence[str] | None = None,
+) -> EMGWeightSweep:
+    """Solve the EMG-weighted QP for each ``W_emg`` (defaults: the values of seeds/002 Table I)."""
+    ws = np.asarray(w_emgs, dtype=float)
+    sols = [
+        solve_emg_weighted_batch(
+            jacobians,
+            taus,
+            f_ref=f_ref,
+            measured=measured,
+            w_emg=float(w),
+            f_max=f_max,
+            regularization=regularization,
+            solver=solver,
+            compute_kkt=False,
+            muscle_names=muscle_names,
+            coordinate_names=coordinate_names,
+        )
+        for w in ws
+    ]
+    meas = _measured_mask(measured, sols[0].forces.shape[1])
+    fr = np.asarray(f_ref, dtype=float)
+    dev = [
+        float(np.sqrt(np.mean((s.forces[:, meas] - fr[:, meas]) ** 2))) if meas.any() else 0.0
+        for s in sols
+    ]
+    return EMGWeightSweep(
+        w_emg=ws,
+        torque_error_rms=np.array([np.sqrt(np.mean(s.torque_error**2)) for s in sols]),
+        torque_error_rms_per_coordinate=np.array(
+            [np.sqrt(np.mean(s.torque_error**2, axis=0)) for s in sols]
+        ),
+        max_force=np.array([s.forces.max(axis=0) for s in sols]),
+        mean_force=np.array([s.forces.mean(axis=0) for s in sols]),
+        emg_deviation_rms=np.array(dev),
+        forces=np.array([s.forces for s in sols]),
+        status=np.array([s.status for s in sols]),
+        muscle_names=sols[0].muscle_names,
+        coordinate_names=sols[0].coordinate_names,
+    )

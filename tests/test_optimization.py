@@ -1,0 +1,531 @@
+"""Tension optimisation (msk.optimization): closed form, bounded QP, static optimisation, EMG QP."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
+from scipy.optimize import lsq_linear, minimize
+
+from msk._data import shared_dir
+from msk.exceptions import OptimizationError
+from msk.optimization import (
+    EMGWeightedProblem,
+    LagrangeProblem,
+    SolveOutput,
+    SolverSpec,
+    StandardQP,
+    StaticOptimizationProblem,
+    TensionProblem,
+    available_solvers,
+    build_coefficient_table,
+    emg_weight_sweep,
+    lagrange_coefficients,
+    register_solver,
+    solve,
+    solve_emg_weighted_batch,
+    solve_lagrange,
+    solve_lagrange_batch,
+    solve_static_optimization_batch,
+    solve_tension_batch,
+)
+from msk.optimization.opensim_reference import opensim_static_optimization_reference
+from msk.optimization.synthetic import leg_like_frames
+
+pytestmark = pytest.mark.filterwarnings("ignore::UserWarning")  # qpsolvers sparse conversion
+
+HSET = settings(max_examples=25, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+
+
+def _random_moment_arms(rng: np.random.Generator, m: int, n: int) -> np.ndarray:
+    """Sparse leg-like moment arms R (n, m): each muscle crosses 1–2 coordinates, 1–6 cm."""
+    r = np.zeros((n, m))
+    for i in range(m):
+        cs = rng.choice(n, size=int(rng.integers(1, min(2, n) + 1)), replace=False)
+        r[cs, i] = rng.choice([-1.0, 1.0], size=cs.size) * rng.uniform(0.01, 0.06, cs.size)
+    for c in range(n):  # every coordinate has an agonist and an antagonist
+        r[c, 2 * c % m] = 0.03
+        r[c, (2 * c + 1) % m] = -0.03
+    return r
+
+
+def _kkt_truth(seed: int, m: int, n: int, f_hi_frac: float):
+    """A bounded tension QP whose optimum is known from its KKT conditions.
+
+    For ``min Σ x²  s.t. A x = τ, lb ≤ x ≤ ub`` (x = f/F_iso, A = R F_iso), the point
+    ``x* = clip(Aᵀλ/2, lb, ub)`` with ``τ = A x*`` satisfies stationarity with the multipliers
+    λ and bound multipliers of the right sign, so it is *the* optimum (strictly convex).
+    """
+    rng = np.random.default_rng(seed)
+    r = _random_moment_arms(rng, m, n)
+    f_iso = rng.uniform(200.0, 3000.0, m)
+    a = r * f_iso
+    lam = rng.normal(0.0, 1.0, n) / np.abs(a).sum(axis=1).mean() * 2.0
+    ub = np.full(m, f_hi_frac)
+    x = np.clip(a.T @ lam / 2.0, 0.0, ub)
+    tau = a @ x
+    return r, f_iso, ub * f_iso, x * f_iso, tau
+
+
+# ---------------------------------------------------------------------------------------------
+# closed form (seeds/004 Eq. 6)
+# ---------------------------------------------------------------------------------------------
+
+
+def test_lagrange_single_coordinate_is_seed_eq6() -> None:
+    rng = np.random.default_rng(3)
+    c = rng.normal(0.0, 0.04, 9)
+    area = rng.uniform(1e-4, 4e-3, 9)
+    tau = 37.5
+    sol = solve_lagrange(LagrangeProblem(jacobian=-c[:, None], tau=[tau], area=area))
+    eq6 = area**2 * c * tau / np.sum((area * c) ** 2)
+    np.testing.assert_allclose(sol.forces, eq6, rtol=1e-13)
+    assert sol.residual_norm < 1e-12
+    assert np.array_equal(sol.negative, eq6 < 0)
+    assert sol.status == ("negative_forces" if (eq6 < 0).any() else "optimal")
+
+
+def test_lagrange_multi_coordinate_is_stationary_and_flags_negative_forces() -> None:
+    rng = np.random.default_rng(4)
+    r = _random_moment_arms(rng, 12, 4)
+    area = rng.uniform(200, 2000, 12)
+    tau = rng.normal(0, 40, 4)
+    sol = solve_lagrange(LagrangeProblem(jacobian=-r.T, tau=tau, area=area))
+    np.testing.assert_allclose(r @ sol.forces, tau, atol=1e-10)
+    # stationarity of Σ(F/A)² − λᵀ(C F − τ): 2 F / A² = Cᵀ λ
+    np.testing.assert_allclose(2 * sol.forces / area**2, r.T @ sol.multipliers, atol=1e-12)
+    assert sol.negative.any() and sol.status == "negative_forces"
+    assert sol.kkt.max() < 1e-8
+    # any other feasible force vector costs more
+    null = np.linalg.svd(r)[2][4:]
+    other = sol.forces + null.T @ rng.normal(0, 50, null.shape[0])
+    assert np.sum((other / area) ** 2) > np.sum((sol.forces / area) ** 2)
+
+
+def test_lagrange_batch_equals_frames() -> None:
+    d = leg_like_frames(20, 5, 30, seed=2)
+    b = solve_lagrange_batch(d.jacobians, d.taus, area=d.f_iso)
+    for k in (0, 11, 29):
+        one = solve_lagrange(LagrangeProblem(jacobian=d.jacobians[k], tau=d.taus[k], area=d.f_iso))
+        np.testing.assert_allclose(b.forces[k], one.forces, rtol=1e-10, atol=1e-9)
+    assert b.residual_norm.max() < 1e-9
+
+
+@given(seed=st.integers(0, 10_000), m=st.integers(4, 30), n=st.integers(1, 6))
+@HSET
+def test_closed_form_equals_bounded_qp_when_no_bound_is_active(seed: int, m: int, n: int) -> None:
+    m = max(m, 2 * n)
+    rng = np.random.default_rng(seed)
+    r = _random_moment_arms(rng, m, n)
+    f_iso = rng.uniform(200.0, 3000.0, m)
+    # λ with Rᵀλ > 0 for every muscle (flip the muscles that oppose it): F = W Rᵀλ/2 > 0
+    lam = rng.normal(0.0, 1.0, n)
+    s = np.sign(r.T @ lam)
+    s[s == 0] = 1.0
+    r = r * s
+    f_cf = f_iso**2 * (r.T @ lam)
+    f_cf *= 0.5 / np.max(f_cf / f_iso)  # largest activation 0.5: no upper bound active
+    tau = r @ f_cf
+    cf = solve_lagrange(LagrangeProblem(jacobian=-r.T, tau=tau, area=f_iso))
+    qp = solve(TensionProblem(jacobian=-r.T, tau=tau, f_iso=f_iso))
+    assert not cf.negative.any()
+    assert qp.status == "optimal"
+    assert not qp.active_upper.any()
+    np.testing.assert_allclose(qp.forces, cf.forces, rtol=1e-7, atol=1e-7 * f_iso.max())
+
+
+# ---------------------------------------------------------------------------------------------
+# precomputed coefficient table over a functional DOF (seeds/004 §2.2)
+# ---------------------------------------------------------------------------------------------
+
+
+def _fdof_jacobian(s: np.ndarray, m: int = 10, n: int = 3) -> np.ndarray:
+    """Smooth J(s) along a functional path s (knee flexion, rad); (len(s), m, n)."""
+    rng = np.random.default_rng(7)
+    base = _random_moment_arms(rng, m, n).T
+    amp = 0.3 * base * rng.uniform(0.2, 1.0, base.shape)
+    w = rng.uniform(0.5, 2.0, base.shape)
+    return -(base[None] + amp[None] * np.sin(w[None] * s[:, None, None]))
+
+
+@pytest.mark.parametrize("kind, order", [("linear", 2), ("cubic", 4)])
+def test_coefficient_table_matches_direct_solution(kind: str, order: int) -> None:
+    area = np.linspace(300, 2500, 10)
+    s_eval = np.linspace(0.05, 1.95, 101)
+    rng = np.random.default_rng(8)
+    tau = rng.normal(0, 30, (101, 3))
+    direct = solve_lagrange_batch(_fdof_jacobian(s_eval), tau, area=area).forces
+    errors = []
+    for g in (21, 41, 81):
+        grid = np.linspace(0.0, 2.0, g)
+        table = build_coefficient_table(grid, _fdof_jacobian(grid), area=area, kind=kind)
+        errors.append(np.abs(table.forces(s_eval, tau) - direct).max())
+    # interpolation error converges at the interpolant's order, and is small at 41 points
+    rate = np.log2(errors[0] / errors[1]), np.log2(errors[1] / errors[2])
+    assert min(rate) > order - 0.6, (errors, rate)
+    assert errors[1] < (2e-2 if kind == "linear" else 2e-4) * np.abs(direct).max()
+    # a scalar lookup is the same as the vectorised one, and grid nodes are exact
+    table = build_coefficient_table(grid, _fdof_jacobian(grid), area=area, kind=kind)
+    np.testing.assert_allclose(table.forces(s_eval[5], tau[5]), table.forces(s_eval, tau)[5])
+    np.testing.assert_allclose(
+        table.coefficients_at(grid[3]), lagrange_coefficients(_fdof_jacobian(grid[3:4])[0], area)
+    )
+
+
+def test_coefficient_table_refuses_extrapolation() -> None:
+    grid = np.linspace(0.0, 2.0, 11)
+    table = build_coefficient_table(grid, _fdof_jacobian(grid), area=np.ones(10))
+    with pytest.raises(OptimizationError, match=r"frame 1 = 2\.5"):
+        table.forces(np.array([1.0, 2.5]), np.zeros((2, 3)))
+
+
+# ---------------------------------------------------------------------------------------------
+# bounded QP: known optimum, KKT, second solver
+# ---------------------------------------------------------------------------------------------
+
+
+@given(seed=st.integers(0, 10_000), m=st.integers(6, 45), n=st.integers(1, 7))
+@HSET
+def test_bounded_qp_recovers_kkt_truth_and_agrees_with_second_solver(
+    seed: int, m: int, n: int
+) -> None:
+    r, f_iso, f_max, f_true, tau = _kkt_truth(seed, m, n, f_hi_frac=0.6)
+    prob = TensionProblem(jacobian=-r.T, tau=tau, f_iso=f_iso, f_max=f_max)
+    sol = solve(prob)
+    assert sol.status == "optimal"
+    assert sol.kkt.max() < 1e-8, sol.kkt
+    np.testing.assert_allclose(sol.forces, f_true, rtol=1e-7, atol=1e-7 * f_iso.max())
+    assert np.array_equal(sol.active_lower, f_true <= 1e-9 * f_iso)
+    for other in ("clarabel", "osqp"):
+        sol2 = solve(prob, solver=other)
+        assert sol2.status == "optimal" and sol2.solver == other
+        scale = np.abs(sol.forces).max() + 1.0
+        assert np.abs(sol2.forces - sol.forces).max() < 1e-6 * scale
+
+
+def test_registry_lists_solvers_accepts_new_and_rejects_unknown() -> None:
+    assert {"daqp", "osqp", "clarabel"} <= set(available_solvers())
+    d = leg_like_frames(8, 2, 2, seed=1)
+    calls = []
+
+    def via_scipy(qp: StandardQP, warm: object) -> SolveOutput:
+        calls.append(warm)
+        res = minimize(
+            lambda x: 0.5 * x @ qp.H @ x + qp.g @ x,
+            np.clip(np.zeros(qp.n), qp.lb, qp.ub),
+            jac=lambda x: qp.H @ x + qp.g,
+            bounds=list(zip(qp.lb, qp.ub)),
+            constraints=[{"type": "eq", "fun": lambda x: qp.A @ x - qp.b, "jac": lambda x: qp.A}],
+            method="SLSQP",
+            options={"ftol": 1e-14, "maxiter": 1000},
+        )
+        return SolveOutput(x=res.x, ok=bool(res.success), infeasible=False, warm="prev")
+
+    register_solver(SolverSpec("test-slsqp", via_scipy, description="scipy SLSQP (tests)"))
+    assert "test-slsqp" in available_solvers()
+    a = solve_tension_batch(d.jacobians, d.taus, f_iso=d.f_iso)
+    b = solve_tension_batch(d.jacobians, d.taus, f_iso=d.f_iso, solver="test-slsqp")
+    assert calls == [None, "prev"] and b.solver == "test-slsqp"
+    np.testing.assert_allclose(b.forces, a.forces, atol=1e-5 * a.forces.max())
+    with pytest.raises(OptimizationError, match="unknown QP solver 'quadprog'"):
+        solve(
+            TensionProblem(jacobian=d.jacobians[0], tau=d.taus[0], f_iso=d.f_iso), solver="quadprog"
+        )
+
+
+def test_batch_warm_start_equals_cold_and_single_frames() -> None:
+    d = leg_like_frames(43, 7, 60, seed=5)
+    warm = solve_tension_batch(d.jacobians, d.taus, f_iso=d.f_iso)
+    cold = solve_tension_batch(d.jacobians, d.taus, f_iso=d.f_iso, warm_start=False)
+    assert (warm.status == 0).all()
+    np.testing.assert_allclose(warm.forces, cold.forces, atol=1e-8)
+    assert np.nanmax(warm.kkt) < 1e-8
+    # warm start needs fewer active-set iterations than starting from scratch
+    assert warm.iterations[1:].sum() < cold.iterations[1:].sum()
+    one = solve(TensionProblem(jacobian=d.jacobians[17], tau=d.taus[17], f_iso=d.f_iso))
+    np.testing.assert_allclose(warm.forces[17], one.forces, atol=1e-8)
+    assert warm.residual_norm.max() < 1e-8
+    # the synthetic torques came from known forces: they are feasible, and the optimum costs
+    # no more than the truth
+    cost = np.sum((warm.forces / d.f_iso) ** 2, axis=1)
+    assert np.all(cost <= np.sum(d.activations_true**2, axis=1) + 1e-9)
+
+
+def test_batch_with_other_solver_agrees() -> None:
+    d = leg_like_frames(20, 4, 8, seed=9)
+    a = solve_tension_batch(d.jacobians, d.taus, f_iso=d.f_iso)
+    b = solve_tension_batch(d.jacobians, d.taus, f_iso=d.f_iso, solver="clarabel")
+    np.testing.assert_allclose(b.forces, a.forces, atol=1e-6 * a.forces.max())
+
+
+# ---------------------------------------------------------------------------------------------
+# infeasible frames and reserves
+# ---------------------------------------------------------------------------------------------
+
+
+def test_infeasible_frames_are_reported_with_their_residual() -> None:
+    d = leg_like_frames(15, 3, 10, seed=11)
+    taus = d.taus.copy()
+    taus[[3, 7]] *= 50.0  # beyond the muscles' capacity
+    res = solve_tension_batch(d.jacobians, taus, f_iso=d.f_iso)
+    assert list(res.infeasible_frames) == [3, 7]
+    assert res.forces.shape == (10, 15)  # nothing dropped
+    assert np.all(res.residual_norm[[3, 7]] > 1.0)
+    assert np.all(np.delete(res.residual_norm, [3, 7]) < 1e-8)
+    # the reported point is the bounded least-squares one (independent reference: scipy)
+    for k in (3, 7):
+        r = -d.jacobians[k].T
+        ls = lsq_linear(r, taus[k], bounds=(np.zeros(15), d.f_iso), tol=1e-12)
+        assert res.residual_norm[k] == pytest.approx(np.linalg.norm(r @ ls.x - taus[k]), rel=1e-5)
+        assert np.all(res.forces[k] >= -1e-9) and np.all(res.forces[k] <= d.f_iso * (1 + 1e-9))
+    with pytest.raises(OptimizationError, match=r"frame 3: QP infeasible.*residual"):
+        solve_tension_batch(d.jacobians, taus, f_iso=d.f_iso, strict=True)
+    with pytest.raises(OptimizationError, match="infeasible"):
+        solve(TensionProblem(jacobian=d.jacobians[3], tau=taus[3], f_iso=d.f_iso), strict=True)
+
+
+def test_reserves_make_every_frame_feasible() -> None:
+    d = leg_like_frames(15, 3, 10, seed=11)
+    taus = d.taus * 50.0
+    res = solve_tension_batch(d.jacobians, taus, f_iso=d.f_iso, reserve_optimal_force=[1.0] * 3)
+    assert (res.status == 0).all()
+    assert res.residual_norm.max() < 1e-8 * np.abs(taus).max()
+    np.testing.assert_allclose(res.torque_error, res.reserve_torques, atol=1e-8)
+    assert np.abs(res.reserve_torques).max() > 1.0
+    assert np.nanmax(res.kkt) < 1e-8
+    # reserves stay idle when the muscles suffice (cost of 1 N·m of reserve ≫ muscles)
+    ok = solve_tension_batch(d.jacobians, d.taus, f_iso=d.f_iso, reserve_optimal_force=1.0)
+    assert np.abs(ok.reserve_torques).max() < 0.05 * np.abs(d.taus).max()
+
+
+# ---------------------------------------------------------------------------------------------
+# OpenSim-equivalent static optimisation
+# ---------------------------------------------------------------------------------------------
+
+
+@given(seed=st.integers(0, 10_000), m=st.integers(6, 30), n=st.integers(1, 6))
+@HSET
+def test_static_optimization_recovers_kkt_truth_with_passive_forces(
+    seed: int, m: int, n: int
+) -> None:
+    rng = np.random.default_rng(seed)
+    r = _random_moment_arms(rng, m, n)
+    f_act = rng.uniform(100.0, 2500.0, m) * rng.uniform(0.3, 1.0, m)  # F_iso f_l f_v cos α
+    f_pas = rng.uniform(0.0, 80.0, m) * (rng.random(m) < 0.3)
+    a_min = np.full(m, 0.01)  # OpenSim models often use min_control = 0.01
+    lam = rng.normal(0.0, 1.0, n) * 4.0 / np.abs(r * f_act).sum(axis=1).mean()
+    a_true = np.clip(f_act * (r.T @ lam) / 2.0, a_min, 1.0)
+    tau = r @ (a_true * f_act + f_pas)
+    prob = StaticOptimizationProblem(
+        jacobian=-r.T, tau=tau, f_active=f_act, f_passive=f_pas, activation_min=a_min
+    )
+    sol = solve(prob)
+    assert sol.status == "optimal" and sol.activations is not None
+    np.testing.assert_allclose(sol.activations, a_true, atol=1e-8)
+    np.testing.assert_allclose(sol.forces, a_true * f_act + f_pas, atol=1e-5)
+    assert sol.kkt.max() < 1e-8
+    assert sol.objective == pytest.approx(np.sum(a_true**2), rel=1e-8, abs=1e-12)
+    sol2 = solve(prob, solver="clarabel")
+    assert sol2.activations is not None
+    np.testing.assert_allclose(sol2.activations, sol.activations, atol=1e-6)
+
+
+def test_static_optimization_without_passive_is_the_tension_qp_in_activations() -> None:
+    d = leg_like_frames(30, 5, 20, seed=12)
+    f_act = np.broadcast_to(d.f_iso, (20, 30))
+    so = solve_static_optimization_batch(d.jacobians, d.taus, f_active=f_act)
+    tq = solve_tension_batch(d.jacobians, d.taus, f_iso=d.f_iso)
+    assert so.activations is not None
+    np.testing.assert_allclose(so.forces, tq.forces, atol=1e-7)
+    np.testing.assert_allclose(so.activations * d.f_iso, so.forces, atol=1e-9)
+
+
+def test_static_optimization_residual_actuators_with_bounds() -> None:
+    d = leg_like_frames(12, 3, 6, seed=13)
+    taus = d.taus.copy()
+    taus[:, 0] += 500.0  # a "pelvis" load no muscle can carry
+    opt = np.array([10.0, 0.0, 0.0])
+    res = solve_static_optimization_batch(
+        d.jacobians,
+        taus,
+        f_active=np.broadcast_to(d.f_iso, (6, 12)),
+        reserve_optimal_force=opt,
+        reserve_min_control=-1e3,
+        reserve_max_control=1e3,
+    )
+    assert (res.status == 0).all()
+    assert res.residual_norm.max() < 1e-7
+    assert np.all(np.abs(res.reserve_controls[:, 0]) > 1.0)
+    assert np.all(res.reserve_controls[:, 1:] == 0.0)
+    # a bound on the residual control that is too tight makes the frames infeasible, reported
+    tight = solve_static_optimization_batch(
+        d.jacobians,
+        taus,
+        f_active=np.broadcast_to(d.f_iso, (6, 12)),
+        reserve_optimal_force=opt,
+        reserve_min_control=-1.0,
+        reserve_max_control=1.0,
+    )
+    assert (tight.status == 1).all() and np.all(tight.residual_norm > 1.0)
+
+
+# ---------------------------------------------------------------------------------------------
+# EMG-weighted QP (seeds/002 Eq. 17–18) and the W_emg sweep (Table I)
+# ---------------------------------------------------------------------------------------------
+
+
+def _emg_case(seed: int = 21, noise: float = 0.3):
+    """Few muscles, most measured: a real trade-off between torque fit and EMG fit."""
+    d = leg_like_frames(10, 3, 25, seed=seed)
+    rng = np.random.default_rng(seed)
+    f_true = d.activations_true * d.f_iso
+    f_ref = f_true * (1.0 + noise * rng.normal(size=f_true.shape))  # noisy EMG-based f*
+    f_ref = np.maximum(f_ref, 0.0)
+    measured = np.ones(10, dtype=bool)
+    measured[[2, 5]] = False
+    return d, f_true, f_ref, measured
+
+
+def test_emg_weighted_limits() -> None:
+    d, _, f_ref, measured = _emg_case()
+    tau_scale = np.abs(d.taus).max()
+    small = solve_emg_weighted_batch(
+        d.jacobians, d.taus, f_ref=f_ref, measured=measured, w_emg=1e-12, regularization=1e-12
+    )
+    assert np.abs(small.torque_error).max() < 1e-6 * tau_scale  # feasible: torque fitted
+    assert np.nanmax(small.kkt) < 1e-8
+    big = solve_emg_weighted_batch(d.jacobians, d.taus, f_ref=f_ref, measured=measured, w_emg=1e6)
+    np.testing.assert_allclose(big.forces[:, measured], f_ref[:, measured], atol=1e-3)
+    assert np.nanmax(big.kkt) < 1e-8
+    assert np.all(big.forces >= 0.0)
+
+
+def test_emg_weighted_single_frame_agrees_with_second_solver() -> None:
+    d, _, f_ref, measured = _emg_case(seed=22)
+    prob = EMGWeightedProblem(
+        jacobian=d.jacobians[4], tau=d.taus[4], f_ref=f_ref[4], measured=measured, w_emg=1e-3
+    )
+    a = solve(prob)
+    b = solve(prob, solver="clarabel")
+    assert a.kkt.max() < 1e-8
+    np.testing.assert_allclose(b.forces, a.forces, atol=1e-6 * a.forces.max())
+    np.testing.assert_allclose(a.residual, a.torque_error)
+    # objective = seeds/002 Eq. 17 (+ the tiny ε term on the unmeasured muscles)
+    r = -d.jacobians[4].T
+    eps = 1e-6 * np.mean(np.sum(r * r, axis=0))  # default regularization, relative
+    z = 0.5 * np.sum(a.torque_error**2) + 0.5e-3 * np.sum((a.forces - f_ref[4])[measured] ** 2)
+    z += 0.5 * eps * np.sum(a.forces[~measured] ** 2)
+    assert a.objective == pytest.approx(z, rel=1e-6)
+
+
+def test_emg_weighted_recovers_known_forces_better_than_plain_static_optimization() -> None:
+    """Known truth: forces from random activations; noisy torques and noisy EMG-based f*."""
+    d, f_true, f_ref, measured = _emg_case(seed=24, noise=0.1)
+    rng = np.random.default_rng(24)
+    taus = d.taus + rng.normal(0.0, 0.02 * np.abs(d.taus).std(), d.taus.shape)
+    emg = solve_emg_weighted_batch(d.jacobians, taus, f_ref=f_ref, measured=measured, w_emg=1e-3)
+    plain = solve_tension_batch(d.jacobians, taus, f_iso=d.f_iso, reserve_optimal_force=1.0)
+
+    def rms(f: np.ndarray, cols: np.ndarray | slice = slice(None)) -> float:
+        return float(np.sqrt(np.mean((f[:, cols] - f_true[:, cols]) ** 2)))
+
+    assert rms(emg.forces) < 0.5 * rms(plain.forces)
+    # the torque information improves on the noisy EMG reference of the measured muscles
+    assert rms(emg.forces, measured) < rms(f_ref, measured)
+
+
+def test_emg_weight_sweep_trade_off_is_monotone() -> None:
+    d, _, f_ref, measured = _emg_case(seed=23)
+    ws = [1.0, 0.5, 0.1, 0.05, 0.01, 0.005, 0.001, 1e-4]
+    sweep = emg_weight_sweep(
+        d.jacobians, d.taus, f_ref=f_ref, measured=measured, w_emgs=ws, regularization=1e-9
+    )
+    assert sweep.forces.shape == (8, 25, 10)
+    err, dev = sweep.torque_error_rms, sweep.emg_deviation_rms
+    # W_emg decreasing down the table: torque error decreases, EMG deviation increases
+    assert np.all(np.diff(err) <= 1e-9 * err.max()), err
+    assert np.all(np.diff(dev) >= -1e-9 * dev.max()), dev
+    assert err[0] > 10 * err[-1] and dev[-1] > 2 * dev[0]
+    text = sweep.table(muscle="muscle0", coordinate="coord1")
+    assert text.count("\n") == 8 and "max muscle0" in text
+
+
+# ---------------------------------------------------------------------------------------------
+# bad input
+# ---------------------------------------------------------------------------------------------
+
+
+def test_bad_input_raises_typed_errors_naming_the_item() -> None:
+    d = leg_like_frames(6, 2, 3, seed=1)
+    names = [f"m{i}" for i in range(6)]
+    f_iso = d.f_iso.copy()
+    f_iso[4] = 0.0
+    with pytest.raises(OptimizationError, match="'m4'"):
+        TensionProblem(jacobian=d.jacobians[0], tau=d.taus[0], f_iso=f_iso, muscle_names=names)
+    with pytest.raises(OptimizationError, match="tau has shape"):
+        TensionProblem(jacobian=d.jacobians[0], tau=[1.0, 2.0, 3.0], f_iso=d.f_iso)
+    with pytest.raises(OptimizationError, match="jacobian has shape"):
+        solve_tension_batch(d.jacobians[0], d.taus, f_iso=d.f_iso)
+    bad = d.taus.copy()
+    bad[1, 1] = np.nan
+    with pytest.raises(OptimizationError, match="coord1"):
+        solve_tension_batch(d.jacobians, bad, f_iso=d.f_iso)
+    with pytest.raises(OptimizationError, match="w_emg"):
+        EMGWeightedProblem(
+            jacobian=d.jacobians[0], tau=d.taus[0], f_ref=d.f_iso, measured=[0, 1], w_emg=-1.0
+        )
+    with pytest.raises(OptimizationError, match="activation bounds of muscle 'm2'"):
+        StaticOptimizationProblem(
+            jacobian=d.jacobians[0],
+            tau=d.taus[0],
+            f_active=d.f_iso,
+            activation_min=[0, 0, 0.5, 0, 0, 0],
+            activation_max=[1, 1, 0.2, 1, 1, 1],
+            muscle_names=names,
+        )
+
+
+# ---------------------------------------------------------------------------------------------
+# OpenSim 4.6 StaticOptimization on gait2392 subject01 walking (real recording), side by side
+# ---------------------------------------------------------------------------------------------
+
+PEER_DATA = shared_dir() / "tools" / "opensim-peer" / "data"
+
+
+@pytest.mark.slow
+@pytest.mark.realdata
+@pytest.mark.opensim
+def test_static_optimization_matches_opensim_on_gait2392_walk(
+    needs_opensim: None, tmp_path: Path
+) -> None:
+    if not PEER_DATA.is_dir():
+        pytest.skip(f"OpenSim peer data absent: {PEER_DATA}")
+    ref = opensim_static_optimization_reference(PEER_DATA, tmp_path, t0=0.8, t1=1.0)
+    assert ref.time.shape[0] >= 10 and len(ref.muscle_names) == 43
+    # OpenSim's right-leg equations have no actuator but these 43 muscles, and the pelvis
+    # residuals carry no right-leg moment: τ_leg = R (a_os ⊙ F_act) is the torque OpenSim met
+    a_os = ref.activations
+    tau = np.einsum("kmn,km->kn", ref.moment_arms, a_os * ref.f_active)
+    res = solve_static_optimization_batch(
+        -ref.moment_arms,
+        tau,
+        f_active=ref.f_active,
+        activation_min=ref.min_control,  # 0.01 in gait2392
+        activation_max=ref.max_control,
+        muscle_names=ref.muscle_names,
+        coordinate_names=ref.coordinate_names,
+    )
+    assert res.activations is not None
+    assert (res.status == 0).all() and np.nanmax(res.kkt) < 1e-8
+    cost_msk = np.sum(res.activations**2, axis=1)
+    cost_os = np.sum(a_os**2, axis=1)
+    # the exact optimum never costs more than IPOPT's (tolerance 1e-4), and not much less
+    assert np.all(cost_msk <= cost_os + 1e-9)
+    assert np.all(cost_os - cost_msk < 1e-3 * cost_os)
+    da = res.activations - a_os
+    worst = ref.muscle_names[int(np.abs(da).max(axis=0).argmax())]
+    assert np.abs(da).max() < 0.01, worst
+    assert np.sqrt(np.mean(da**2)) < 0.002
