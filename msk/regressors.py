@@ -23,6 +23,7 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 from dataclasses import dataclass
+from typing import Literal
 
 import numpy as np
 import pinocchio as pin
@@ -117,14 +118,25 @@ def joint_torque_regressor(
     *,
     layout: RegressorLayout | None = None,
     rows: ArrayLike | None = None,
+    method: Literal["vectorized", "pinocchio"] = "vectorized",
 ) -> Array:
     """Y_θ (N, n_rows, 10·n_bodies) with τ_θ = Y_θ φ (no external forces; gravity included).
 
     ``rows`` selects coordinates (indices into ``model.coordinates``); default all.
+
+    ``method="vectorized"`` (default) evaluates all frames at once: forward kinematics vectorised
+    over frames (:func:`spatial_kinematics`), each body's regressor Y_b(v_b, a_b) (Pinocchio's
+    ``bodyRegressor``) and τ_i = Σ_k G_ki S_kᵀ Σ_{b in subtree(k)} ᵒX_b* Y_b φ_b, with one Python
+    loop over bodies, none over frames. ``method="pinocchio"`` calls
+    ``computeJointTorqueRegressor`` frame by frame (the independent reference).
     """
     layout = layout or regressor_layout(model)
     th, q, v, a, g = _states(model, theta, theta_dot, theta_ddot)
     sel = np.arange(model.n_coords) if rows is None else np.asarray(rows, dtype=int)
+    if method == "vectorized":
+        return _vectorised_regressor(model, q, v, a, g, layout, sel)
+    if method != "pinocchio":
+        raise IdentificationError(f"unknown regressor method {method!r}")
     data = model.create_data()
     nb = len(layout.body_names)
     out = np.empty((th.shape[0], sel.size, 10 * nb))
@@ -153,10 +165,17 @@ def base_link_regressor(
     theta_ddot: ArrayLike,
     *,
     layout: RegressorLayout | None = None,
+    method: Literal["vectorized", "pinocchio"] = "vectorized",
 ) -> Array:
     """Y_root (N, 6, 10·n_bodies): the floating-base rows of :func:`joint_torque_regressor`."""
     return joint_torque_regressor(
-        model, theta, theta_dot, theta_ddot, layout=layout, rows=root_coordinate_indices(model)
+        model,
+        theta,
+        theta_dot,
+        theta_ddot,
+        layout=layout,
+        rows=root_coordinate_indices(model),
+        method=method,
     )
 
 
@@ -234,3 +253,192 @@ def base_parameters(
         names=tuple(names[i] for i in ind),
         rank=rank,
     )
+
+
+# ------------------------------------------------------------------------------------------
+# vectorised regressor (all frames at once, one Python loop over joints and bodies)
+# ------------------------------------------------------------------------------------------
+@dataclass(frozen=True)
+class SpatialKinematics:
+    """World-frame kinematics of every Pinocchio joint over N frames (index 0: universe).
+
+    ``rotation[j]`` (N, 3, 3) and ``translation[j]`` (N, 3) are oM_j; ``velocity[j]`` and
+    ``acceleration[j]`` (N, 6) are spatial motions [linear; angular] expressed in the world frame
+    *at the world origin* (Featherstone's ground-frame convention), the acceleration including
+    −g as the acceleration of the universe; ``subspace[j]`` (N, 6) is the joint's motion
+    subspace S_j in the same convention.
+    """
+
+    rotation: list[Array]
+    translation: list[Array]
+    velocity: list[Array]
+    acceleration: list[Array]
+    subspace: list[Array]
+
+
+def _joint_axes(pm: pin.Model) -> list[tuple[str, Array]]:
+    out: list[tuple[str, Array]] = [("U", np.zeros(3))]
+    for j in range(1, pm.njoints):
+        jm = pm.joints[j]
+        jd = jm.createData()
+        jm.calc(jd, np.zeros(pm.nq))
+        s = np.asarray(jd.S).reshape(6)
+        if np.linalg.norm(s[3:]) > 0.5:
+            out.append(("R", s[3:] / np.linalg.norm(s[3:])))
+        else:
+            out.append(("P", s[:3] / np.linalg.norm(s[:3])))
+    return out
+
+
+def _motion_cross(m1: Array, m2: Array) -> Array:
+    """m1 × m2 for spatial motions [v; ω] (…, 6)."""
+    v1, w1 = m1[..., :3], m1[..., 3:]
+    v2, w2 = m2[..., :3], m2[..., 3:]
+    return np.concatenate([np.cross(w1, v2) + np.cross(v1, w2), np.cross(w1, w2)], axis=-1)
+
+
+def spatial_kinematics(model: Model, q: ArrayLike, v: ArrayLike, a: ArrayLike) -> SpatialKinematics:
+    """Forward kinematics (position, velocity, acceleration) of all joints for N frames at once.
+
+    ``q, v, a`` are Pinocchio configurations (N, nq) (use ``model.coupling.embed``). The loop
+    runs over joints; every operation is vectorised over frames (no per-frame Python work).
+    """
+    pm = model.pin_model
+    q = np.atleast_2d(np.asarray(q, dtype=float))
+    v = np.atleast_2d(np.asarray(v, dtype=float))
+    a = np.atleast_2d(np.asarray(a, dtype=float))
+    n = q.shape[0]
+    rot = [np.broadcast_to(np.eye(3), (n, 3, 3))]
+    trans = [np.zeros((n, 3))]
+    vel = [np.zeros((n, 6))]
+    acc0 = np.zeros((n, 6))
+    acc0[:, :3] = -np.asarray(pm.gravity.linear)
+    acc0[:, 3:] = -np.asarray(pm.gravity.angular)
+    acc = [acc0]
+    sub = [np.zeros((n, 6))]
+    for j, (kind, u) in enumerate(_joint_axes(pm)):
+        if j == 0:
+            continue
+        par = pm.parents[j]
+        place = pm.jointPlacements[j]
+        idx = pm.joints[j].idx_q
+        qj, vj, aj = q[:, idx], v[:, idx], a[:, idx]
+        r_pl = rot[par] @ place.rotation  # (N, 3, 3)
+        p_pl = trans[par] + rot[par] @ place.translation
+        w = r_pl @ u  # world axis (N, 3)
+        s = np.zeros((n, 6))
+        if kind == "R":
+            c, sn = np.cos(qj), np.sin(qj)
+            k = _skew(u)
+            r_q = (
+                np.eye(3)[None]
+                + sn[:, None, None] * k[None]
+                + (1.0 - c)[:, None, None] * (k @ k)[None]
+            )
+            rot.append(r_pl @ r_q)
+            trans.append(p_pl)
+            s[:, :3] = np.cross(p_pl, w)
+            s[:, 3:] = w
+        else:
+            rot.append(r_pl)
+            trans.append(p_pl + w * qj[:, None])
+            s[:, :3] = w
+        sv = s * vj[:, None]
+        vel_j = vel[par] + sv
+        vel.append(vel_j)
+        acc.append(acc[par] + s * aj[:, None] + _motion_cross(vel_j, sv))
+        sub.append(s)
+    return SpatialKinematics(rot, trans, vel, acc, sub)
+
+
+def _body_regressor(vb: Array, ab: Array) -> Array:
+    """Pinocchio ``bodyRegressor`` vectorised: Y (N, 6, 10) with f = I a + v ×* I v = Y φ for
+    body-frame spatial velocity ``vb`` and acceleration ``ab`` (N, 6)."""
+    n = vb.shape[0]
+    v, w = vb[:, :3], vb[:, 3:]
+    a, dw = ab[:, :3], ab[:, 3:]
+    y = np.zeros((n, 6, 10))
+    acc_lin = a + np.cross(w, v)
+    y[:, :3, 0] = acc_lin
+    # f_lin = ([ω̇]× + [ω]×[ω]×) h
+    wx, wy, wz = w[:, 0], w[:, 1], w[:, 2]
+    dx, dy, dz = dw[:, 0], dw[:, 1], dw[:, 2]
+    y[:, 0, 1] = -(wy * wy + wz * wz)
+    y[:, 0, 2] = wx * wy - dz
+    y[:, 0, 3] = wx * wz + dy
+    y[:, 1, 1] = wx * wy + dz
+    y[:, 1, 2] = -(wx * wx + wz * wz)
+    y[:, 1, 3] = wy * wz - dx
+    y[:, 2, 1] = wx * wz - dy
+    y[:, 2, 2] = wy * wz + dx
+    y[:, 2, 3] = -(wx * wx + wy * wy)
+    # f_ang = −[a + ω × v]× h
+    ax, ay, az = acc_lin[:, 0], acc_lin[:, 1], acc_lin[:, 2]
+    y[:, 3, 2] = az
+    y[:, 3, 3] = -ay
+    y[:, 4, 1] = -az
+    y[:, 4, 3] = ax
+    y[:, 5, 1] = ay
+    y[:, 5, 2] = -ax
+
+    # f_ang += Ī ω̇ + ω × Ī ω, Ī = (xx, xy, yy, xz, yz, zz)
+    def lmat(x: Array) -> Array:
+        out = np.zeros((n, 3, 6))
+        out[:, 0, 0], out[:, 0, 1], out[:, 0, 3] = x[:, 0], x[:, 1], x[:, 2]
+        out[:, 1, 1], out[:, 1, 2], out[:, 1, 4] = x[:, 0], x[:, 1], x[:, 2]
+        out[:, 2, 3], out[:, 2, 4], out[:, 2, 5] = x[:, 0], x[:, 1], x[:, 2]
+        return out
+
+    lw = lmat(w)
+    y[:, 3:, 4:] = lmat(dw) + np.cross(w[:, None, :], lw.transpose(0, 2, 1)).transpose(0, 2, 1)
+    return y
+
+
+def _to_body(m: Array, rt: Array, p_b: Array) -> Array:
+    """World-origin spatial motions m (N, ..., 6) → body frame (R_b, p_b): v + ω × p_b, then Rᵀ."""
+    extra = (slice(None),) + (None,) * (m.ndim - 2)
+    lin = m[..., :3] + np.cross(m[..., 3:], p_b[extra])
+    rte = rt[extra]
+    return np.concatenate(
+        [
+            np.einsum("n...ij,n...j->n...i", rte, lin),
+            np.einsum("n...ij,n...j->n...i", rte, m[..., 3:]),
+        ],
+        axis=-1,
+    )
+
+
+def _vectorised_regressor(
+    model: Model, q: Array, v: Array, a: Array, g: Array, layout: RegressorLayout, sel: Array
+) -> Array:
+    """Rows ``sel`` of Y_θ for all frames: τ_i = Σ_k G_ki S_kᵀ Σ_{b ⪰ k} Y_b(v_b, a_b) φ_b."""
+    pm = model.pin_model
+    kin = spatial_kinematics(model, q, v, a)
+    n = q.shape[0]
+    nb = len(layout.body_names)
+    out = np.zeros((n, sel.size, 10 * nb))
+    coord_of_dof = np.asarray(model.coupling.coordinate)
+    joint_of_dof = {pm.joints[j].idx_v: j for j in range(1, pm.njoints)}
+    for b, name in enumerate(layout.body_names):
+        jb = layout.joint_ids[b]
+        if jb == 0:
+            continue
+        support = set(pm.supports[jb])
+        # effective world motion subspace of each selected coordinate acting on this body
+        s_eff = np.zeros((n, sel.size, 6))
+        for r, i in enumerate(sel):
+            for k in np.flatnonzero(coord_of_dof == i):
+                j = joint_of_dof[int(k)]
+                if j in support:
+                    s_eff[:, r] += g[:, k, i][:, None] * kin.subspace[j]
+        if not np.any(s_eff):
+            continue
+        place = model.body_placement[name]
+        r_b = kin.rotation[jb] @ place.rotation
+        p_b = kin.translation[jb] + kin.rotation[jb] @ place.translation
+        rt = np.swapaxes(r_b, 1, 2)
+        y_b = _body_regressor(
+            _to_body(kin.velocity[jb], rt, p_b), _to_body(kin.acceleration[jb], rt, p_b)
+        )
+        out[:, :, 10 * b : 10 * b + 10] = np.einsum("nrk,nkp->nrp", _to_body(s_eff, rt, p_b), y_b)
+    return out

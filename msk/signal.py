@@ -15,6 +15,7 @@ from scipy import signal as _sig
 from msk.exceptions import MissingDataError, MskError
 
 FilterType = Literal["lowpass", "highpass", "bandpass", "bandstop"]
+GapMethod = Literal["linear", "pchip", "cubic"]
 
 
 def filtfilt_butter(
@@ -72,3 +73,63 @@ def derivative(x: ArrayLike, *, dt: float, order: int = 1, axis: int = 0) -> NDA
     for _ in range(order):
         y = np.gradient(y, dt, axis=axis, edge_order=2)
     return y
+
+
+def _nan_runs(missing: NDArray[np.bool_]) -> NDArray[np.int64]:
+    """Length of the NaN run each sample belongs to (0 for finite samples), 1-D."""
+    n = missing.size
+    if not missing.any():
+        return np.zeros(n, dtype=np.int64)
+    d = np.diff(np.concatenate([[0], missing.astype(np.int8), [0]]))
+    starts, ends = np.flatnonzero(d == 1), np.flatnonzero(d == -1)
+    out = np.zeros(n, dtype=np.int64)
+    lengths = ends - starts
+    idx = np.repeat(np.arange(starts.size), lengths)
+    out[missing] = lengths[idx]
+    return out
+
+
+def fill_gaps(
+    x: ArrayLike,
+    *,
+    max_gap: int | None = None,
+    method: GapMethod = "pchip",
+    axis: int = 0,
+) -> NDArray[np.float64]:
+    """Interpolate interior NaN gaps along ``axis`` (e.g. marker gaps before filtering).
+
+    Each column is interpolated from its finite samples (``linear``, shape-preserving ``pchip``
+    or natural ``cubic`` spline, over the sample index). Gaps longer than ``max_gap`` samples,
+    and NaN before the first / after the last finite sample, are left NaN: extrapolating a
+    marker is never safe. Columns with fewer than two finite samples are returned unchanged.
+    """
+    from scipy.interpolate import CubicSpline, PchipInterpolator
+
+    if method not in ("linear", "pchip", "cubic"):
+        raise MskError(f"unknown gap-filling method {method!r} (linear, pchip, cubic)")
+    if max_gap is not None and max_gap < 0:
+        raise MskError(f"max_gap must be >= 0 samples, got {max_gap}")
+    arr = np.moveaxis(np.array(x, dtype=float), axis, 0)
+    flat = arr.reshape(arr.shape[0], -1)
+    n = flat.shape[0]
+    t = np.arange(n, dtype=float)
+    for j in range(flat.shape[1]):
+        col = flat[:, j]
+        ok = np.isfinite(col)
+        if ok.all() or ok.sum() < 2:
+            continue
+        first, last = np.flatnonzero(ok)[[0, -1]]
+        fill = ~ok
+        fill[:first] = False
+        fill[last + 1 :] = False
+        if max_gap is not None:
+            fill &= _nan_runs(~ok) <= max_gap
+        if not fill.any():
+            continue
+        if method == "linear":
+            col[fill] = np.interp(t[fill], t[ok], col[ok])
+        elif method == "pchip":
+            col[fill] = PchipInterpolator(t[ok], col[ok])(t[fill])
+        else:
+            col[fill] = CubicSpline(t[ok], col[ok], bc_type="natural")(t[fill])
+    return np.moveaxis(flat.reshape(arr.shape), 0, axis)

@@ -36,3 +36,39 @@ def test_resample_block_average_and_derivative():
     np.testing.assert_allclose(block_average(np.arange(12.0), 4), [1.5, 5.5, 9.5])
     np.testing.assert_allclose(derivative(t**2, dt=0.01), 2 * t, atol=1e-9)
     np.testing.assert_allclose(derivative(t**3, dt=0.01, order=2)[5:-5], 6 * t[5:-5], atol=1e-6)
+
+
+def test_fill_gaps_recovers_smooth_signal_and_leaves_long_gaps_and_edges():
+    from msk.signal import fill_gaps
+
+    t = np.linspace(0, 1, 201)
+    truth = np.stack([np.sin(2 * np.pi * t), np.cos(2 * np.pi * t) + t], axis=1)
+    x = truth.copy()
+    x[:3, 0] = np.nan  # leading: stays NaN
+    x[50:56, 0] = np.nan  # 6-sample gap: filled
+    x[100:140, 1] = np.nan  # 40-sample gap: too long with max_gap=10
+    x[170:175, 1] = np.nan  # 5-sample gap: filled
+    for method in ("linear", "pchip", "cubic"):
+        y = fill_gaps(x, max_gap=10, method=method)
+        assert np.isnan(y[:3, 0]).all() and np.isnan(y[100:140, 1]).all()
+        tol = {"linear": 1e-2, "pchip": 1e-3, "cubic": 1e-4}[method]  # gap spans a peak
+        np.testing.assert_allclose(y[50:56, 0], truth[50:56, 0], atol=tol)
+        np.testing.assert_allclose(y[170:175, 1], truth[170:175, 1], atol=tol)
+        ok = np.isfinite(x)
+        np.testing.assert_array_equal(y[ok], x[ok])
+    # no limit: the long gap is bridged too; markers (N, M, 3) along axis 0
+    y = fill_gaps(x, method="pchip")
+    assert np.isfinite(y[100:140, 1]).all()
+    m = np.stack([truth, truth], axis=1)[:, :, :1].repeat(3, axis=2)
+    m[10:12, 1] = np.nan
+    np.testing.assert_allclose(fill_gaps(m)[10:12, 1], m[10:12, 0], atol=1e-4)
+
+
+def test_fill_gaps_bad_options():
+    from msk.signal import fill_gaps
+
+    with pytest.raises(MskError, match="method"):
+        fill_gaps(np.ones(5), method="spline")  # type: ignore[arg-type]
+    with pytest.raises(MskError, match="max_gap"):
+        fill_gaps(np.ones(5), max_gap=-1)
+    np.testing.assert_array_equal(fill_gaps(np.array([np.nan, 1.0, np.nan])), [np.nan, 1.0, np.nan])
