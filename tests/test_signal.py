@@ -51,7 +51,9 @@ def test_fill_gaps_recovers_smooth_signal_and_leaves_long_gaps_and_edges():
     for method in ("linear", "pchip", "cubic"):
         y = fill_gaps(x, max_gap=10, method=method)
         assert np.isnan(y[:3, 0]).all() and np.isnan(y[100:140, 1]).all()
-        tol = {"linear": 1e-2, "pchip": 1e-3, "cubic": 1e-4}[method]  # gap spans a peak
+        # 6 samples over a peak of a 1 Hz sine at 200 Hz: chord error ~6e-3, pchip flattens the
+        # extremum (~3e-3), the natural spline follows it (~1e-5)
+        tol = {"linear": 8e-3, "pchip": 4e-3, "cubic": 5e-5}[method]
         np.testing.assert_allclose(y[50:56, 0], truth[50:56, 0], atol=tol)
         np.testing.assert_allclose(y[170:175, 1], truth[170:175, 1], atol=tol)
         ok = np.isfinite(x)

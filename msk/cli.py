@@ -1,0 +1,229 @@
+"""The ``msk`` command.
+
+Verbs are registered with :func:`command`; a later module adds one with::
+
+    from msk.cli import command
+
+    @command("run", help="run a session pipeline", arguments=lambda p: p.add_argument("CONFIG"))
+    def _run(args: argparse.Namespace) -> int:
+        ...
+        return 0
+
+and makes sure the module is imported in :data:`VERB_MODULES` (imported lazily by
+:func:`build_parser`). Any :class:`msk.exceptions.MskError` ends the command with exactly one
+line ``msk: error: <message>`` on stderr and exit status 2, never a traceback.
+"""
+
+from __future__ import annotations
+
+import argparse
+import importlib
+import sys
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
+from pathlib import Path
+from typing import TextIO
+
+import numpy as np
+
+from msk import __version__
+from msk.exceptions import MskError
+
+__all__ = ["VERB_MODULES", "Command", "build_parser", "command", "flat_channels", "main"]
+
+#: Modules imported before the parser is built, so that their ``@command`` verbs register.
+VERB_MODULES: list[str] = []
+
+
+@dataclass(frozen=True)
+class Command:
+    """A registered verb: its help line, argument builder and handler (returns exit status)."""
+
+    name: str
+    help: str
+    arguments: Callable[[argparse.ArgumentParser], None]
+    handler: Callable[[argparse.Namespace], int]
+
+
+_COMMANDS: dict[str, Command] = {}
+
+
+def command(
+    name: str,
+    *,
+    help: str,
+    arguments: Callable[[argparse.ArgumentParser], None] | None = None,
+) -> Callable[[Callable[[argparse.Namespace], int]], Callable[[argparse.Namespace], int]]:
+    """Decorator registering ``handler(args) -> int`` as ``msk <name>``."""
+
+    def deco(handler: Callable[[argparse.Namespace], int]) -> Callable[[argparse.Namespace], int]:
+        _COMMANDS[name] = Command(name, help, arguments or (lambda p: None), handler)
+        return handler
+
+    return deco
+
+
+def build_parser() -> argparse.ArgumentParser:
+    """The argparse parser with every registered verb."""
+    for mod in VERB_MODULES:
+        importlib.import_module(mod)
+    parser = argparse.ArgumentParser(
+        prog="msk", description="Subject-specific musculoskeletal analysis of the lower limb."
+    )
+    parser.add_argument("--version", action="version", version=f"msk {__version__}")
+    sub = parser.add_subparsers(dest="verb", metavar="COMMAND")
+    sub.required = True
+    for cmd in _COMMANDS.values():
+        p = sub.add_parser(cmd.name, help=cmd.help, description=cmd.help)
+        cmd.arguments(p)
+        p.set_defaults(_handler=cmd.handler)
+    return parser
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """Entry point of the ``msk`` console script; returns the exit status."""
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    try:
+        return int(args._handler(args) or 0)
+    except MskError as exc:
+        msg = " ".join(str(exc).split()) or type(exc).__name__
+        print(f"msk: error: {msg}", file=sys.stderr)
+        return 2
+    except BrokenPipeError:  # output piped into head & co.
+        return 0
+    except OSError as exc:
+        print(f"msk: error: {' '.join(str(exc).split())}", file=sys.stderr)
+        return 2
+
+
+# ---------------------------------------------------------------------------------------------
+# msk info
+# ---------------------------------------------------------------------------------------------
+def flat_channels(
+    analogs: np.ndarray, labels: Sequence[str], units: Sequence[str], *, rel_std: float = 0.03
+) -> dict[str, str]:
+    """Channels that look flat or unused, with the reason.
+
+    All NaN, all zero, at most three distinct values, or a standard deviation below ``rel_std``
+    times the median standard deviation of the channels with the same unit (a channel at the
+    amplifier's noise floor next to live EMG).
+    """
+    out: dict[str, str] = {}
+    if analogs.size == 0:
+        return out
+    std = np.array([np.nanstd(c) if np.isfinite(c).any() else np.nan for c in analogs.T])
+    for k, lab in enumerate(labels):
+        col = analogs[:, k]
+        fin = col[np.isfinite(col)]
+        if fin.size == 0:
+            out[lab] = "all NaN"
+        elif not fin.any():
+            out[lab] = "all zero"
+        elif np.unique(fin).size <= 3:
+            out[lab] = f"{np.unique(fin).size} distinct values"
+        else:
+            same = [j for j, u in enumerate(units) if u == units[k] and np.isfinite(std[j])]
+            med = float(np.median(std[same])) if len(same) >= 3 else float("nan")
+            if np.isfinite(med) and med > 0 and std[k] < rel_std * med:
+                out[lab] = f"std {std[k]:.3g} {units[k]} is {100 * std[k] / med:.1f}% of median"
+    return out
+
+
+def _info_c3d(path: Path, out: TextIO) -> None:
+    from msk.io.c3d import read_c3d
+
+    tr = read_c3d(path)
+    w = out.write
+    w(f"file: {path}\n")
+    t0 = tr.time[0] if tr.n_frames else 0.0
+    w(
+        f"points: {tr.point_rate_hz:g} Hz, {tr.n_frames} frames, {tr.duration_s:.3f} s "
+        f"(first frame {tr.metadata.get('first_frame', 0)}, t0 {t0:.3f} s), "
+        f"units in file {tr.point_units_in_file or '-'}\n"
+    )
+    sign = "+" if tr.up[tr.vertical_axis] > 0 else "-"
+    w(f"lab vertical axis: {sign}{'XYZ'[tr.vertical_axis]}\n")
+    gapped = tr.gaps.with_gaps()
+    w(f"markers: {len(tr.marker_labels)} ({len(gapped)} with gaps)\n")
+    for lab in gapped:
+        k = tr.gaps.labels.index(lab)
+        w(f"  gap {lab}: {tr.gaps.n_missing[k]} missing frames, longest {tr.gaps.longest_gap[k]}\n")
+    mo = tr.model_outputs
+    if mo.labels:
+        kinds = {k: mo.kinds.count(k) for k in dict.fromkeys(mo.kinds)}
+        w(f"model outputs: {len(mo.labels)} ({', '.join(f'{k} {n}' for k, n in kinds.items())})\n")
+    plate_ch = {c for p in tr.plates for c in p.channels}
+    others = [k for k, lab in enumerate(tr.analog_labels) if lab not in plate_ch]
+    w(
+        f"analogs: {len(tr.analog_labels)} channels at {tr.analog_rate_hz:g} Hz "
+        f"({len(plate_ch)} force-plate, {len(others)} other)\n"
+    )
+    labs = [tr.analog_labels[k] for k in others]
+    units = [tr.analog_units[k] for k in others]
+    flat = flat_channels(tr.analogs[:, others], labs, units)
+    for lab, u in zip(labs, units):
+        note = f"  FLAT/UNUSED? ({flat[lab]})" if lab in flat else ""
+        w(f"  {lab} [{u or '-'}]{note}\n")
+    w(f"force platforms: {len(tr.plates)}\n")
+    for p in tr.plates:
+        w(f"  plate {p.index + 1}: type {p.type}, peak force {p.peak_force_n:.1f} N\n")
+    w(f"events: {len(tr.events)}\n")
+    for e in tr.events:
+        w(f"  {e.time:.3f} s  {e.context} {e.label}\n".replace("  \n", "\n"))
+    s = tr.subject
+    parts = []
+    if s.name:
+        parts.append(f"name {s.name}")
+    if s.mass_kg is not None:
+        parts.append(f"mass {s.mass_kg:g} kg")
+    if s.height_m is not None:
+        parts.append(f"height {s.height_m:g} m")
+    w(f"subject: {', '.join(parts) if parts else '-'}\n")
+
+
+def _info_text(path: Path, out: TextIO) -> None:
+    from msk.io.opensim_files import read_sto, read_trc
+
+    w = out.write
+    w(f"file: {path}\n")
+    if path.suffix.lower() == ".trc":
+        m = read_trc(path)
+        n = m.time.size
+        dur = (m.time[-1] - m.time[0]) if n > 1 else 0.0
+        w(
+            f"rate: {m.rate_hz:g} Hz, {n} frames, duration {dur:.3f} s, "
+            f"units in file {m.units_in_file}\n"
+        )
+        miss = np.isnan(m.markers).any(axis=2).sum(axis=0)
+        w(f"markers: {len(m.labels)} ({int((miss > 0).sum())} with gaps)\n")
+        for lab, k in zip(m.labels, miss):
+            w(f"  {lab}{f'  ({k} missing frames)' if k else ''}\n")
+        return
+    t = read_sto(path)
+    n = t.time.size
+    dur = (t.time[-1] - t.time[0]) if n > 1 else 0.0
+    w(f"rate: {t.rate_hz:.6g} Hz, {n} rows, duration {dur:.3f} s\n")
+    w(f"inDegrees in file: {'yes' if t.in_degrees_in_file else 'no'}")
+    w(f" ({len(t.angle_columns)} angle columns converted to rad)\n")
+    w(f"columns: {len(t.columns)}\n")
+    for c in t.columns:
+        w(f"  {c}\n")
+
+
+def _info_arguments(p: argparse.ArgumentParser) -> None:
+    p.add_argument("file", metavar="FILE", type=Path, help=".c3d, .trc, .mot or .sto file")
+
+
+@command("info", help="summarise a .c3d/.trc/.mot/.sto file", arguments=_info_arguments)
+def _info(args: argparse.Namespace) -> int:
+    path: Path = args.file
+    if path.suffix.lower() in (".trc", ".mot", ".sto"):
+        _info_text(path, sys.stdout)
+    else:
+        _info_c3d(path, sys.stdout)
+    return 0
+
+
+if __name__ == "__main__":  # pragma: no cover
+    sys.exit(main())

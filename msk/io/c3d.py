@@ -1,0 +1,857 @@
+"""C3D trials via ezc3d: markers, model outputs, analogs, force platforms, events, subject data.
+
+Everything is converted to SI once, here: positions m, forces N, moments N·m, time s, angles rad,
+mass kg, height m. Time is axis 0 of every array.
+
+Force platforms (C3D ``FORCE_PLATFORM`` types 2, 3 and 4) are computed from the analog channels in
+vectorised numpy with the conventions of ezc3d's ``ForcePlatforms`` module (ezc3d's own extraction
+loops over frames in Python and is ~10x slower; ``tests/io`` checks that both agree):
+
+* plate axes ``R = [x̂ ŷ ẑ]`` from the corners: ``x = c0 - c1``, ``y = c0 - c3``, ``z = x × y``;
+* ``ORIGIN`` (the transducer offset, flipped so that its z is ≤ 0) moves the measured moment to
+  the centre of the working surface: ``M_c = M_t + F × o``;
+* COP in plate axes ``(-M_c,y / F_z, M_c,x / F_z, 0)``; free moment ``T = M_c + F × p_cop``
+  (only its plate-normal component is non-zero);
+* everything is then rotated to the lab: ``F_lab = R F``, ``M_lab = R M_c``, ``cop = R p + c̄``.
+
+The force is the ground reaction on the subject (upward when loaded), as ezc3d and OpenSim's
+C3DFileAdapter report it.
+"""
+
+from __future__ import annotations
+
+import math
+import struct
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from msk.exceptions import C3DError, ForcePlateError, MissingDataError, MskError, UnitsError
+from msk.signal import block_average, resample_to
+
+__all__ = [
+    "LENGTH_UNITS_M",
+    "MODEL_OUTPUT_KINDS",
+    "Event",
+    "ForcePlate",
+    "GapReport",
+    "ModelOutputs",
+    "PlateSpec",
+    "Subject",
+    "Trial",
+    "read_c3d",
+    "write_c3d",
+]
+
+#: Length units accepted in ``POINT:UNITS`` and their value in metres.
+LENGTH_UNITS_M: Mapping[str, float] = {"m": 1.0, "mm": 1e-3, "cm": 1e-2}
+#: ``POINT`` parameters listing model-output points (Plug-in Gait and alike), never markers.
+MODEL_OUTPUT_KINDS: tuple[str, ...] = ("ANGLES", "FORCES", "MOMENTS", "POWERS", "REACTIONS")
+_AXES = "XYZ"
+
+
+# ---------------------------------------------------------------------------------------------
+# result types
+# ---------------------------------------------------------------------------------------------
+@dataclass(frozen=True)
+class ForcePlate:
+    """One force platform, at the analog rate, in the lab frame (SI).
+
+    ``force`` is the ground reaction on the subject (upward when loaded), ``(Na, 3)`` N;
+    ``moment`` is about ``origin``, the centre of the working surface (mean of the corners);
+    ``cop`` is NaN where the plate-normal force is below the threshold; ``free_moment`` is the
+    moment about the COP (along the plate normal), zero where the plate is unloaded.
+    """
+
+    index: int
+    type: int
+    force: NDArray[np.float64]
+    moment: NDArray[np.float64]
+    cop: NDArray[np.float64]
+    free_moment: NDArray[np.float64]
+    corners: NDArray[np.float64]
+    origin: NDArray[np.float64]
+    rotation: NDArray[np.float64]
+    channels: tuple[str, ...]
+    rate_hz: float
+
+    @property
+    def normal(self) -> NDArray[np.float64]:
+        """Unit plate z axis in the lab (C3D plates usually point it down, into the plate)."""
+        return self.rotation[:, 2]
+
+    @property
+    def peak_force_n(self) -> float:
+        """Largest |F| over the trial (NaN samples ignored); 0 for an all-NaN plate."""
+        norm = np.linalg.norm(self.force, axis=1)
+        return float(np.nanmax(norm)) if np.isfinite(norm).any() else 0.0
+
+
+@dataclass(frozen=True)
+class Event:
+    """A labelled instant: ``context`` is usually Left/Right/General."""
+
+    label: str
+    context: str
+    time: float
+
+
+@dataclass(frozen=True)
+class Subject:
+    """Subject metadata found in the file (``None`` where absent).
+
+    Mass from ``PROCESSING:Bodymass`` (Vicon), ``SUBJECTS``/``SUBJECT`` ``WEIGHT``/``MASS``;
+    height from ``Height``/``HEIGHT``: a value above 3 is taken as mm (Vicon stores 1680),
+    otherwise as m (older files store 1.63 even when the description says mm).
+    """
+
+    name: str | None = None
+    mass_kg: float | None = None
+    height_m: float | None = None
+
+
+@dataclass(frozen=True)
+class GapReport:
+    """Per marker: number of missing frames and the longest run of consecutive missing frames."""
+
+    labels: tuple[str, ...]
+    n_missing: NDArray[np.int64]
+    longest_gap: NDArray[np.int64]
+
+    def with_gaps(self) -> tuple[str, ...]:
+        """Labels of the markers that miss at least one frame."""
+        return tuple(lab for lab, n in zip(self.labels, self.n_missing) if n > 0)
+
+
+@dataclass(frozen=True)
+class ModelOutputs:
+    """Points that are model outputs (joint angles, forces, moments, powers), kept apart.
+
+    ``data`` is ``(N, K, 3)``; angles are converted to rad and moments from N·mm to N·m (a
+    Plug-in Gait moment normalised by body mass stays per kg); ``kinds[k]`` names the group
+    (ANGLES, FORCES, MOMENTS, POWERS, REACTIONS) and ``units[k]`` the SI unit after conversion.
+    """
+
+    labels: tuple[str, ...]
+    kinds: tuple[str, ...]
+    units: tuple[str, ...]
+    data: NDArray[np.float64]
+
+    def get(self, label: str) -> NDArray[np.float64]:
+        """``(N, 3)`` series of one output; :class:`MissingDataError` if absent."""
+        try:
+            return self.data[:, self.labels.index(label)]
+        except ValueError:
+            raise MissingDataError(f"no model output {label!r} (have {len(self.labels)})") from None
+
+
+@dataclass(frozen=True)
+class Trial:
+    """A C3D trial in SI units. Markers ``(N, M, 3)`` m with NaN gaps; analogs ``(Na, C)``."""
+
+    path: Path
+    point_rate_hz: float
+    time: NDArray[np.float64]
+    markers: NDArray[np.float64]
+    marker_labels: tuple[str, ...]
+    gaps: GapReport
+    model_outputs: ModelOutputs
+    analog_rate_hz: float
+    analog_time: NDArray[np.float64]
+    analogs: NDArray[np.float64]
+    analog_labels: tuple[str, ...]
+    analog_units: tuple[str, ...]
+    plates: tuple[ForcePlate, ...]
+    events: tuple[Event, ...]
+    subject: Subject
+    vertical_axis: int
+    up: NDArray[np.float64]
+    point_units_in_file: str = "m"
+    metadata: Mapping[str, Any] = field(default_factory=dict)
+
+    @property
+    def n_frames(self) -> int:
+        return int(self.time.size)
+
+    @property
+    def duration_s(self) -> float:
+        """Recording length ``N / rate`` (points, or analogs when there are no points)."""
+        if self.n_frames:
+            return self.n_frames / self.point_rate_hz
+        return self.analog_time.size / self.analog_rate_hz if self.analog_rate_hz else 0.0
+
+    def marker(self, label: str) -> NDArray[np.float64]:
+        """``(N, 3)`` trajectory (m) of one marker; :class:`MissingDataError` if absent."""
+        try:
+            return self.markers[:, self.marker_labels.index(label)]
+        except ValueError:
+            raise MissingDataError(f"{self.path}: no marker {label!r}") from None
+
+    def analog(self, label: str) -> NDArray[np.float64]:
+        """``(Na,)`` samples of one analog channel (its own units, see ``analog_units``)."""
+        try:
+            return self.analogs[:, self.analog_labels.index(label)]
+        except ValueError:
+            raise MissingDataError(f"{self.path}: no analog channel {label!r}") from None
+
+    @property
+    def analog_ratio(self) -> float:
+        """Analog samples per point frame."""
+        return self.analog_rate_hz / self.point_rate_hz if self.point_rate_hz else 1.0
+
+    def to_point_rate(self, x_analog: ArrayLike) -> NDArray[np.float64]:
+        """Bring an analog-rate series (time on axis 0) to the point rate.
+
+        Block average over each frame when the ratio is an integer (C3D subframes), otherwise
+        linear interpolation onto ``time``.
+        """
+        x = np.asarray(x_analog, dtype=float)
+        ratio = self.analog_ratio
+        if abs(ratio - round(ratio)) < 1e-9 and round(ratio) >= 1:
+            out = block_average(x, round(ratio))
+            return out[: self.n_frames] if self.n_frames else out
+        return resample_to(self.analog_time, x, self.time)
+
+    def events_named(self, label: str, context: str | None = None) -> tuple[float, ...]:
+        """Times (s) of the events with this label (and context, if given)."""
+        return tuple(
+            e.time
+            for e in self.events
+            if e.label == label and (context is None or e.context == context)
+        )
+
+
+# ---------------------------------------------------------------------------------------------
+# header guard: refuse what would make ezc3d crash or raise a raw exception
+# ---------------------------------------------------------------------------------------------
+def _check_bytes(path: Path) -> None:
+    """Sanity checks of the header and parameter section before ezc3d sees the file."""
+    if not path.exists():
+        raise C3DError(f"{path}: no such file")
+    if path.is_dir():
+        raise C3DError(f"{path}: is a directory, not a C3D file")
+    size = path.stat().st_size
+    if size == 0:
+        raise C3DError(f"{path}: empty file")
+    if size < 1024:
+        raise C3DError(f"{path}: {size} bytes is too short for a C3D file (header + parameters)")
+    with path.open("rb") as fh:
+        head = fh.read(512)
+        if head[1] != 0x50:
+            raise C3DError(f"{path}: not a C3D file (byte 2 is 0x{head[1]:02x}, expected 0x50)")
+        param_block = head[0]
+        if param_block < 2 or (param_block - 1) * 512 + 4 > size:
+            raise C3DError(f"{path}: corrupt header (parameter block {param_block})")
+        fh.seek((param_block - 1) * 512)
+        phead = fh.read(4)
+        n_param_blocks, proc = phead[2], phead[3]
+        if proc not in (84, 85, 86):
+            raise C3DError(f"{path}: corrupt parameter section (processor type byte {proc})")
+        params_end = (param_block - 1 + n_param_blocks) * 512
+        if n_param_blocks == 0 or params_end > size:
+            raise C3DError(
+                f"{path}: truncated or corrupt parameter section "
+                f"({n_param_blocks} blocks announced, file has {size} bytes)"
+            )
+        fh.seek((param_block - 1) * 512)
+        params = fh.read(n_param_blocks * 512)
+    endian = ">" if proc == 86 else "<"
+    _walk_parameters(path, params, endian)
+    w = struct.unpack(endian + "12H", head[:24])
+    n_points, n_analog_words, first, last = w[1], w[2], w[3], w[4]
+    # scale factor (words 7-8): its sign says integer (>0) or float (<0) storage
+    if proc == 85:  # DEC: sign bit is the top bit of the first 16-bit word
+        is_float = bool(head[13] & 0x80)
+    elif proc == 86:
+        is_float = bool(head[12] & 0x80)
+    else:
+        is_float = bool(head[15] & 0x80)
+    data_block = w[8]
+    word = 4 if is_float else 2
+    n_frames = last - first + 1 if last >= first else 0
+    if data_block < 2 and (n_points or n_analog_words):
+        raise C3DError(f"{path}: corrupt header (data block {data_block})")
+    expected = (data_block - 1) * 512 + n_frames * (4 * n_points + n_analog_words) * word
+    if n_frames and size < expected:
+        raise C3DError(
+            f"{path}: truncated: the header promises {n_frames} frames "
+            f"({expected} bytes) but the file has {size} bytes"
+        )
+
+
+def _walk_parameters(path: Path, buf: bytes, endian: str) -> None:
+    """Walk the parameter records and check every length and pointer stays inside the section."""
+    pos = 4
+    n = len(buf)
+    count = 0
+    while pos < n:
+        nchar = abs(struct.unpack_from("b", buf, pos)[0])
+        if nchar == 0:
+            return
+        gid = struct.unpack_from("b", buf, pos + 1)[0]
+        name = buf[pos + 2 : pos + 2 + nchar]
+        if pos + 4 + nchar > n or not all(c >= 32 and c != 127 for c in name):
+            raise C3DError(f"{path}: corrupt parameter section at byte {pos}: bad name {name!r}")
+        (offset,) = struct.unpack_from(endian + "H", buf, pos + 2 + nchar)
+        body = pos + 4 + nchar
+        end = body  # where the description length byte sits
+        if gid > 0:  # a parameter: type, dims, data, description
+            if body + 2 > n:
+                raise C3DError(f"{path}: corrupt parameter section at byte {pos}")
+            typ, ndim = struct.unpack_from("bB", buf, body)
+            if typ not in (-1, 1, 2, 4):
+                raise C3DError(
+                    f"{path}: corrupt parameter {name.decode()!r}: unknown data type {typ}"
+                )
+            dims = buf[body + 2 : body + 2 + ndim]
+            length = abs(typ) * math.prod(dims) if ndim else abs(typ)
+            end = body + 2 + ndim + length
+        if end + 1 > n:
+            raise C3DError(
+                f"{path}: corrupt parameter {name.decode()!r}: its data overrun "
+                "the parameter section"
+            )
+        rec_end = end + 1 + buf[end]
+        if rec_end > n or (offset and rec_end > pos + 2 + nchar + offset):
+            raise C3DError(
+                f"{path}: corrupt parameter {name.decode()!r}: its length ({rec_end - pos} "
+                f"bytes) disagrees with its pointer to the next record"
+            )
+        if offset == 0:
+            return
+        nxt = pos + 2 + nchar + offset
+        if nxt <= pos or nxt > n:
+            raise C3DError(
+                f"{path}: corrupt parameter section at byte {pos}: next record at {nxt} "
+                f"is outside the section ({n} bytes)"
+            )
+        pos = nxt
+        count += 1
+        if count > 100_000:
+            raise C3DError(f"{path}: corrupt parameter section (no end found)")
+
+
+# ---------------------------------------------------------------------------------------------
+# parameter helpers
+# ---------------------------------------------------------------------------------------------
+def _param(params: Mapping[str, Any], group: str, name: str, default: Any = None) -> Any:
+    try:
+        return params[group][name]["value"]
+    except (KeyError, TypeError):
+        return default
+
+
+def _labels(
+    params: Mapping[str, Any], group: str, key: str, n: int, prefix: str | None
+) -> list[str]:
+    """``key``, ``key2``, ``key3``… concatenated, cut or padded to ``n``; blanks become
+    ``prefix<k>`` (kept blank when ``prefix`` is None)."""
+    out: list[str] = []
+    vals = _param(params, group, key) or []
+    out.extend(str(v).strip() for v in vals)
+    i = 2
+    while (more := _param(params, group, f"{key}{i}")) is not None:
+        out.extend(str(v).strip() for v in more)
+        i += 1
+    out = out[:n] + [""] * max(0, n - len(out))
+    if prefix is None:
+        return out
+    return [lab if lab else f"{prefix}{k + 1}" for k, lab in enumerate(out)]
+
+
+def _first_number(params: Mapping[str, Any], group: str, names: Sequence[str]) -> float | None:
+    for name in names:
+        v = _param(params, group, name)
+        if v is not None and len(v) and isinstance(v, np.ndarray) and np.isfinite(v.flat[0]):
+            return float(v.flat[0])
+    return None
+
+
+def _subject(params: Mapping[str, Any]) -> Subject:
+    mass = None
+    height = None
+    for group in ("PROCESSING", "SUBJECTS", "SUBJECT"):
+        if mass is None:
+            mass = _first_number(params, group, ("Bodymass", "BODYMASS", "WEIGHT", "MASS"))
+        if height is None:
+            height = _first_number(params, group, ("Height", "HEIGHT"))
+    if mass is not None and mass <= 0:
+        mass = None
+    if height is not None:
+        # stored in mm by Vicon (1680), in m by some older systems (1.63)
+        height = height / 1000.0 if height > 3.0 else height
+        height = height if height > 0 else None
+    name = None
+    for group, key in (("SUBJECTS", "NAMES"), ("SUBJECT", "NAME")):
+        v = _param(params, group, key)
+        if v and str(v[0]).strip():
+            name = str(v[0]).strip()
+            break
+    return Subject(name=name, mass_kg=mass, height_m=height)
+
+
+def _events(params: Mapping[str, Any]) -> tuple[Event, ...]:
+    times = _param(params, "EVENT", "TIMES")
+    labels = _param(params, "EVENT", "LABELS") or []
+    contexts = _param(params, "EVENT", "CONTEXTS") or []
+    if times is None or not len(labels):
+        return ()
+    t = np.asarray(times, dtype=float)
+    secs = 60.0 * t[0] + t[1] if t.ndim == 2 and t.shape[0] == 2 else t.ravel()
+    out = []
+    for k, lab in enumerate(labels):
+        if k >= secs.size:
+            break
+        ctx = str(contexts[k]).strip() if k < len(contexts) else ""
+        out.append(Event(label=str(lab).strip(), context=ctx, time=float(secs[k])))
+    return tuple(sorted(out, key=lambda e: (e.time, e.context, e.label)))
+
+
+# ---------------------------------------------------------------------------------------------
+# force platforms (vectorised)
+# ---------------------------------------------------------------------------------------------
+def _apply(x: NDArray[np.float64], mat: NDArray[np.float64]) -> NDArray[np.float64]:
+    """``x @ mat.T`` for tall ``x`` and a tiny matrix, as broadcast products.
+
+    (numpy's matmul on (100000, 3) @ (3, 3) goes through BLAS and is ~20x slower.)
+    """
+    out = x[:, 0:1] * mat[:, 0]
+    for j in range(1, mat.shape[1]):
+        out = out + x[:, j : j + 1] * mat[:, j]
+    return out
+
+
+def _plates(
+    path: Path,
+    params: Mapping[str, Any],
+    analogs: NDArray[np.float64],
+    analog_labels: Sequence[str],
+    pos_scale: float,
+    rate_hz: float,
+    cop_threshold_n: float,
+) -> tuple[ForcePlate, ...]:
+    used_v = _param(params, "FORCE_PLATFORM", "USED")
+    used = int(np.asarray(used_v).flat[0]) if used_v is not None and len(used_v) else 0
+    if used <= 0:
+        return ()
+    fu = _param(params, "FORCE_PLATFORM", "UNITS")
+    if fu and str(fu[0]).strip() not in ("N", ""):
+        raise UnitsError(f"{path}: FORCE_PLATFORM:UNITS {fu[0]!r} is not supported (expected N)")
+    types = np.atleast_1d(np.asarray(_param(params, "FORCE_PLATFORM", "TYPE", []), dtype=int))
+    corners_all = np.asarray(_param(params, "FORCE_PLATFORM", "CORNERS", []), dtype=float)
+    origin_all = np.asarray(_param(params, "FORCE_PLATFORM", "ORIGIN", []), dtype=float)
+    chan = np.asarray(_param(params, "FORCE_PLATFORM", "CHANNEL", []), dtype=int)
+    cal = _param(params, "FORCE_PLATFORM", "CAL_MATRIX")
+    cal = np.asarray(cal, dtype=float) if cal is not None else np.empty(0)
+    poly = _param(params, "FORCE_PLATFORM", "FPCOPPOLY")
+    poly = np.asarray(poly, dtype=float).ravel(order="F") if poly is not None else np.empty(0)
+    if types.size < used:
+        raise ForcePlateError(f"{path}: FORCE_PLATFORM:USED={used} but {types.size} TYPE values")
+    corners_all = corners_all.reshape(3, 4, -1, order="F") if corners_all.size else corners_all
+    if corners_all.size < 12 * used:
+        raise ForcePlateError(f"{path}: FORCE_PLATFORM:CORNERS holds fewer than {used} plates")
+    origin_all = origin_all.reshape(3, -1, order="F") if origin_all.size else origin_all
+    if origin_all.size < 3 * used:
+        raise ForcePlateError(f"{path}: FORCE_PLATFORM:ORIGIN holds fewer than {used} plates")
+    if chan.ndim == 1:
+        chan = chan.reshape(-1, 1) if used == 1 else chan.reshape(-1, used, order="F")
+    n_ch = analogs.shape[1]
+    plates: list[ForcePlate] = []
+    used_by: dict[int, int] = {}
+    for p in range(used):
+        typ = int(types[p])
+        nchan = {2: 6, 4: 6, 3: 8}.get(typ)
+        if nchan is None:
+            raise ForcePlateError(
+                f"{path}: force platform {p + 1} has type {typ}; msk reads types 2, 3 and 4"
+            )
+        if chan.shape[0] < nchan or chan.shape[1] <= p:
+            raise ForcePlateError(
+                f"{path}: force platform {p + 1} (type {typ}) needs {nchan} channels, "
+                f"FORCE_PLATFORM:CHANNEL has shape {chan.shape}"
+            )
+        idx = chan[:nchan, p] - 1
+        if idx.min() < 0 or idx.max() >= n_ch:
+            raise ForcePlateError(
+                f"{path}: force platform {p + 1} uses analog channels {list(idx + 1)} "
+                f"but the file has {n_ch} analog channels"
+            )
+        for i in idx:
+            if used_by.setdefault(int(i), p) != p:
+                raise ForcePlateError(
+                    f"{path}: analog channel {i + 1} ({analog_labels[i]!r}) is used by force "
+                    f"platforms {used_by[int(i)] + 1} and {p + 1}"
+                )
+        c = corners_all[:, :, p].T  # (4, 3) file units
+        o = origin_all[:, p].copy()
+        if o[2] > 0:
+            o = -o
+        ax = c[0] - c[1]
+        ay = c[0] - c[3]
+        az = np.cross(ax, ay)
+        nx, nz = np.linalg.norm(ax), np.linalg.norm(az)
+        if nx == 0 or nz == 0:
+            raise ForcePlateError(f"{path}: force platform {p + 1} has degenerate corners {c}")
+        ay = np.cross(az, ax)
+        rot = np.column_stack([ax / nx, ay / np.linalg.norm(ay), az / nz])
+        centre = c.mean(axis=0)
+        ch = analogs[:, idx]  # (Na, nchan) file units
+        if typ == 3:
+            a, b, az0 = o
+            f_raw = np.column_stack([ch[:, 0] + ch[:, 1], ch[:, 2] + ch[:, 3], ch[:, 4:8].sum(1)])
+            m_raw = np.column_stack(
+                [
+                    b * (ch[:, 4] + ch[:, 5] - ch[:, 6] - ch[:, 7]),
+                    a * (ch[:, 5] + ch[:, 6] - ch[:, 4] - ch[:, 7]),
+                    b * (ch[:, 1] - ch[:, 0]) + a * (ch[:, 2] - ch[:, 3]),
+                ]
+            )
+            m_raw = m_raw + np.cross(f_raw, np.array([0.0, 0.0, az0]))
+        else:
+            data = ch
+            if typ == 4:
+                if cal.ndim == 3 and cal.shape[2] > p:
+                    data = _apply(ch, cal[:6, :6, p])
+                elif cal.size and not (cal.ndim == 3 and cal.shape[2] > p):
+                    raise ForcePlateError(
+                        f"{path}: force platform {p + 1} (type 4) has no 6x6 CAL_MATRIX "
+                        f"(CAL_MATRIX shape {cal.shape})"
+                    )
+            f_raw = data[:, :3]
+            m_raw = data[:, 3:6] + np.cross(data[:, :3], o)
+        fz = f_raw[:, 2]
+        with np.errstate(divide="ignore", invalid="ignore"):
+            cop_raw = np.column_stack([-m_raw[:, 1] / fz, m_raw[:, 0] / fz, np.zeros_like(fz)])
+        if typ == 3 and poly.size >= 12 * (p + 1):
+            k = poly[12 * p : 12 * (p + 1)]
+            x, y = cop_raw[:, 0].copy(), cop_raw[:, 1].copy()
+            dx = (k[0] * y**4 + k[1] * y**2 + k[2]) * x**3 + (k[3] * y**4 + k[4] * y**2 + k[5]) * x
+            dy = (k[6] * x**4 + k[7] * x**2 + k[8]) * y**3 + (
+                k[9] * x**4 + k[10] * x**2 + k[11]
+            ) * y
+            cop_raw[:, 0] = x - dx
+            cop_raw[:, 1] = y - dy
+        loaded = np.abs(fz) >= cop_threshold_n
+        cop_raw[~loaded] = np.nan
+        t_raw = m_raw + np.cross(f_raw, np.nan_to_num(cop_raw))
+        t_raw[~loaded] = 0.0
+        t_raw[:, :2] = 0.0  # zero by construction of the COP (type 3: normal part only)
+        plates.append(
+            ForcePlate(
+                index=p,
+                type=typ,
+                force=_apply(f_raw, rot),
+                moment=_apply(m_raw, rot) * pos_scale,
+                cop=(_apply(cop_raw, rot) + centre) * pos_scale,
+                free_moment=_apply(t_raw, rot) * pos_scale,
+                corners=c * pos_scale,
+                origin=centre * pos_scale,
+                rotation=rot,
+                channels=tuple(analog_labels[i] for i in idx),
+                rate_hz=rate_hz,
+            )
+        )
+    return tuple(plates)
+
+
+def _vertical(
+    params: Mapping[str, Any], plates: Sequence[ForcePlate]
+) -> tuple[int, NDArray[np.float64]]:
+    """Vertical lab axis from the plate normals (sign from the loaded reaction), else Y_SCREEN."""
+    if plates:
+        normals = np.abs(np.array([p.normal for p in plates])).sum(axis=0)
+        axis = int(np.argmax(normals))
+        fv = np.concatenate([p.force[:, axis] for p in plates])
+        s = np.nansum(fv)
+        sign = 1.0 if (not np.isfinite(s) or s >= 0) else -1.0
+    else:
+        ys = _param(params, "POINT", "Y_SCREEN")
+        ys = str(ys[0]).strip().upper() if ys else ""
+        if len(ys) == 2 and ys[1] in _AXES and ys[0] in "+-":
+            # only the axis: the sign of Y_SCREEN is a display choice (FP_Type3.c3d says -Z)
+            axis, sign = _AXES.index(ys[1]), 1.0
+        else:
+            axis, sign = 2, 1.0
+    up = np.zeros(3)
+    up[axis] = sign
+    return axis, up
+
+
+# ---------------------------------------------------------------------------------------------
+# reading
+# ---------------------------------------------------------------------------------------------
+def _longest_runs(missing: NDArray[np.bool_]) -> NDArray[np.int64]:
+    """Longest run of True along axis 0 for each column, vectorised."""
+    n, m = missing.shape
+    if n == 0 or m == 0:
+        return np.zeros(m, dtype=np.int64)
+    pad = np.zeros((1, m), dtype=np.int8)
+    d = np.diff(np.vstack([pad, missing.astype(np.int8), pad]), axis=0)
+    starts_r, starts_c = np.nonzero(d == 1)
+    ends_r, ends_c = np.nonzero(d == -1)
+    # np.nonzero is row-major: reorder by column so starts and ends pair up
+    o1 = np.lexsort((starts_r, starts_c))
+    o2 = np.lexsort((ends_r, ends_c))
+    lengths = ends_r[o2] - starts_r[o1]
+    out = np.zeros(m, dtype=np.int64)
+    np.maximum.at(out, starts_c[o1], lengths)
+    return out
+
+
+def read_c3d(path: str | Path, *, cop_threshold_n: float = 20.0) -> Trial:
+    """Read a C3D file into a :class:`Trial` (SI units, time on axis 0).
+
+    Raises :class:`C3DError` for a missing, empty, truncated, corrupt or non-C3D file and for a
+    file with neither points nor analogs; :class:`UnitsError` for unknown ``POINT:UNITS``;
+    :class:`ForcePlateError` for inconsistent force-platform parameters.
+    """
+    import ezc3d
+
+    path = Path(path)
+    if not cop_threshold_n >= 0:
+        raise MskError(f"{path}: cop_threshold_n must be >= 0 N, got {cop_threshold_n}")
+    _check_bytes(path)
+    try:
+        c = ezc3d.c3d(str(path))
+    except MskError:
+        raise
+    except Exception as exc:  # ezc3d raises RuntimeError/ValueError/IndexError on bad files
+        raise C3DError(f"{path}: ezc3d cannot read it: {exc}") from exc
+    params = c["parameters"]
+    hdr = c["header"]
+    pts = np.asarray(c["data"]["points"], dtype=float)
+    res = np.asarray(c["data"]["meta_points"]["residuals"], dtype=float)
+    ana = np.asarray(c["data"]["analogs"], dtype=float)
+    n_pts = pts.shape[1] if pts.ndim == 3 else 0
+    n_frames = pts.shape[2] if pts.ndim == 3 else 0
+    n_ana = ana.shape[1] if ana.ndim == 3 else 0
+    n_asamp = ana.shape[2] if ana.ndim == 3 else 0
+    if n_pts == 0 and (n_ana == 0 or n_asamp == 0):
+        raise C3DError(f"{path}: no point and no analog data")
+    point_rate = float(hdr["points"]["frame_rate"])
+    analog_rate = float(hdr["analogs"]["frame_rate"]) if n_ana else 0.0
+    if n_pts and not point_rate > 0:
+        raise C3DError(f"{path}: point rate {point_rate} Hz is not positive")
+    first = int(hdr["points"]["first_frame"])
+
+    # --- units
+    units_v = _param(params, "POINT", "UNITS") or []
+    unit = str(units_v[0]).strip() if len(units_v) else ""
+    if unit in LENGTH_UNITS_M:
+        pos_scale = LENGTH_UNITS_M[unit]
+    elif unit == "" and n_pts == 0:
+        pos_scale, unit = 1e-3, "mm"  # no points: plate geometry is conventionally mm
+    else:
+        raise UnitsError(
+            f"{path}: POINT:UNITS {unit!r} is not a known length unit "
+            f"(expected one of {sorted(LENGTH_UNITS_M)})"
+        )
+
+    # --- points: markers vs model outputs
+    labels = _labels(params, "POINT", "LABELS", n_pts, "POINT")
+    kind_of: dict[str, str] = {}
+    for kind in MODEL_OUTPUT_KINDS:
+        for lab in _param(params, "POINT", kind) or []:
+            kind_of.setdefault(str(lab).strip(), kind)
+    is_out = np.array([lab in kind_of for lab in labels], dtype=bool)
+    xyz = np.transpose(pts[:3], (2, 1, 0)) if n_pts else np.zeros((n_frames, 0, 3))
+    mk = xyz[:, ~is_out] if n_pts else xyz
+    r = res[0].T[:, ~is_out] if (n_pts and res.size) else np.zeros(mk.shape[:2])
+    missing = (r < 0) | np.isnan(mk).any(axis=2) | (mk == 0).all(axis=2)
+    markers = mk * pos_scale
+    markers[missing] = np.nan
+    marker_labels = tuple(lab for lab, o in zip(labels, is_out) if not o)
+    gaps = GapReport(
+        labels=marker_labels,
+        n_missing=missing.sum(axis=0).astype(np.int64),
+        longest_gap=_longest_runs(missing),
+    )
+    out_labels = tuple(lab for lab, o in zip(labels, is_out) if o)
+    out_kinds = tuple(kind_of[lab] for lab in out_labels)
+    out_data = xyz[:, is_out].copy() if n_pts else np.zeros((n_frames, 0, 3))
+    if n_pts and res.size:
+        out_data[res[0].T[:, is_out] < 0] = np.nan
+    out_units = []
+    unit_params = {
+        "ANGLES": "ANGLE_UNITS",
+        "MOMENTS": "MOMENT_UNITS",
+        "FORCES": "FORCE_UNITS",
+        "REACTIONS": "FORCE_UNITS",
+    }
+    for k, kind in enumerate(out_kinds):
+        u = _param(params, "POINT", unit_params.get(kind, "POWER_UNITS")) or [""]
+        u = str(u[0]).strip()
+        if kind == "ANGLES":
+            if u.lower() in ("deg", "degree", "degrees", ""):
+                out_data[:, k] = np.deg2rad(out_data[:, k])
+            u = "rad"
+        elif kind == "MOMENTS" and u.lower() in ("nmm", "n.mm", "n·mm"):
+            out_data[:, k] *= 1e-3
+            u = "N.m"
+        out_units.append(u)
+    model_outputs = ModelOutputs(out_labels, out_kinds, tuple(out_units), out_data)
+
+    # --- analogs
+    analog_labels = tuple(_labels(params, "ANALOG", "LABELS", n_ana, "ANALOG"))
+    analog_units = tuple(_labels(params, "ANALOG", "UNITS", n_ana, None))
+    analogs = ana[0].T.copy() if n_ana else np.zeros((n_asamp, 0))
+    t0 = first / point_rate if point_rate > 0 else 0.0
+    time = t0 + np.arange(n_frames) / point_rate if point_rate > 0 else np.zeros(0)
+    analog_time = t0 + np.arange(analogs.shape[0]) / analog_rate if analog_rate else np.zeros(0)
+
+    plates = _plates(path, params, analogs, analog_labels, pos_scale, analog_rate, cop_threshold_n)
+    vertical_axis, up = _vertical(params, plates)
+    meta = {
+        "first_frame": first,
+        "manufacturer": str((_param(params, "MANUFACTURER", "COMPANY") or [""])[0]).strip(),
+    }
+    return Trial(
+        path=path,
+        point_rate_hz=point_rate,
+        time=time,
+        markers=markers,
+        marker_labels=marker_labels,
+        gaps=gaps,
+        model_outputs=model_outputs,
+        analog_rate_hz=analog_rate,
+        analog_time=analog_time,
+        analogs=analogs,
+        analog_labels=analog_labels,
+        analog_units=analog_units,
+        plates=plates,
+        events=_events(params),
+        subject=_subject(params),
+        vertical_axis=vertical_axis,
+        up=up,
+        point_units_in_file=unit,
+        metadata=meta,
+    )
+
+
+# ---------------------------------------------------------------------------------------------
+# writing (synthetic trials, round trips, benchmarks)
+# ---------------------------------------------------------------------------------------------
+@dataclass(frozen=True)
+class PlateSpec:
+    """A force platform to declare in a written C3D.
+
+    ``channels`` are analog labels (6 for types 2/4, 8 for type 3) in C3D order; ``corners_m``
+    ``(4, 3)`` and ``origin_m`` (transducer offset, plate axes) are in metres and written in the
+    file's point units. Moment channels must already be in N·<point units>.
+    """
+
+    channels: tuple[str, ...]
+    corners_m: NDArray[np.float64]
+    origin_m: NDArray[np.float64]
+    type: int = 2
+    cal_matrix: NDArray[np.float64] | None = None
+
+
+def _set_param(c: Any, group: str, name: str, value: Any) -> None:
+    p = c["parameters"]
+    if group not in p:
+        p[group] = {"__METADATA__": {"DESCRIPTION": "", "IS_LOCKED": False}}
+    if isinstance(value, str):
+        value = [value]
+    if isinstance(value, list | tuple) and value and isinstance(value[0], str):
+        typ, val = -1, [str(v) for v in value]
+    else:
+        val = np.atleast_1d(np.asarray(value))
+        typ = 2 if np.issubdtype(val.dtype, np.integer) else 4
+        val = val.astype(int) if typ == 2 else val.astype(float)
+    p[group][name] = {"type": typ, "description": "", "is_locked": False, "value": val}
+
+
+def write_c3d(
+    path: str | Path,
+    *,
+    markers: ArrayLike,
+    marker_labels: Sequence[str],
+    rate_hz: float,
+    point_units: str = "m",
+    residuals: ArrayLike | None = None,
+    analogs: ArrayLike | None = None,
+    analog_labels: Sequence[str] = (),
+    analog_units: Sequence[str] | None = None,
+    analog_ratio: int = 1,
+    plates: Sequence[PlateSpec] = (),
+    events: Sequence[Event] = (),
+    subject: Subject | None = None,
+    first_frame: int = 0,
+) -> Path:
+    """Write a C3D with ezc3d from arrays: markers ``(N, M, 3)`` in metres (NaN = gap), written
+    in ``point_units``; analogs ``(N * analog_ratio, C)`` written as given.
+
+    Used for synthetic ground-truth trials, round-trip tests and benchmarks.
+    """
+    import ezc3d
+
+    if point_units not in LENGTH_UNITS_M:
+        raise UnitsError(f"{path}: point units {point_units!r} not in {sorted(LENGTH_UNITS_M)}")
+    scale = LENGTH_UNITS_M[point_units]
+    x = np.asarray(markers, dtype=float)
+    n, m = x.shape[0], x.shape[1]
+    if len(marker_labels) != m:
+        raise MskError(f"{path}: {len(marker_labels)} marker labels for {m} markers")
+    c = ezc3d.c3d()
+    c["parameters"]["POINT"]["RATE"]["value"] = [float(rate_hz)]
+    c["parameters"]["POINT"]["LABELS"]["value"] = list(marker_labels)
+    c["parameters"]["ANALOG"]["RATE"]["value"] = [float(rate_hz * analog_ratio)]
+    _set_param(c, "POINT", "UNITS", point_units)
+    pts = np.ones((4, m, n))
+    pts[:3] = np.transpose(x / scale, (2, 1, 0))
+    gap = np.isnan(x).any(axis=2).T
+    pts[:3, gap] = 0.0
+    c["data"]["points"] = pts
+    res = np.zeros((1, m, n)) if residuals is None else np.asarray(residuals, float).T[None]
+    res = res.copy()
+    res[0, gap] = -1.0
+    c["data"]["meta_points"]["residuals"] = res
+    c["data"]["meta_points"]["camera_masks"] = np.zeros((7, m, n), dtype=bool)
+    a = np.zeros((n * analog_ratio, 0)) if analogs is None else np.asarray(analogs, dtype=float)
+    c["parameters"]["ANALOG"]["LABELS"]["value"] = list(analog_labels)
+    if a.shape[0] != n * analog_ratio:
+        raise MskError(
+            f"{path}: {a.shape[0]} analog samples for {n} frames x analog_ratio {analog_ratio}"
+        )
+    c["data"]["analogs"] = a.T[None].copy()
+    if a.shape[1]:
+        if analog_units is not None:
+            _set_param(c, "ANALOG", "UNITS", list(analog_units))
+    if plates:
+        lab = list(analog_labels)
+        nch = max(8 if p.type == 3 else 6 for p in plates)
+        chan = np.zeros((nch, len(plates)), dtype=int)
+        corners = np.zeros((3, 4, len(plates)))
+        origins = np.zeros((3, len(plates)))
+        cal = np.zeros((6, 6, len(plates)))
+        for k, p in enumerate(plates):
+            chan[: len(p.channels), k] = [lab.index(ch) + 1 for ch in p.channels]
+            corners[:, :, k] = np.asarray(p.corners_m, float).T / scale
+            origins[:, k] = np.asarray(p.origin_m, float) / scale
+            cal[:, :, k] = np.eye(6) if p.cal_matrix is None else p.cal_matrix
+        _set_param(c, "FORCE_PLATFORM", "USED", [len(plates)])
+        _set_param(c, "FORCE_PLATFORM", "TYPE", np.array([p.type for p in plates]))
+        _set_param(c, "FORCE_PLATFORM", "ZERO", np.array([1, 0]))
+        _set_param(c, "FORCE_PLATFORM", "CORNERS", corners)
+        _set_param(c, "FORCE_PLATFORM", "ORIGIN", origins)
+        _set_param(c, "FORCE_PLATFORM", "CHANNEL", chan)
+        if any(p.type == 4 for p in plates):
+            _set_param(c, "FORCE_PLATFORM", "CAL_MATRIX", cal)
+    for e in events:
+        c.add_event([0.0, float(e.time)], context=e.context, label=e.label)
+    if subject is not None:
+        if subject.mass_kg is not None:
+            _set_param(c, "PROCESSING", "Bodymass", [float(subject.mass_kg)])
+        if subject.height_m is not None:
+            _set_param(c, "PROCESSING", "Height", [float(subject.height_m) * 1000.0])
+        if subject.name:
+            _set_param(c, "SUBJECTS", "NAMES", [subject.name])
+    c["header"]["points"]["first_frame"] = int(first_frame)
+    path = Path(path)
+    c.write(str(path))
+    return path

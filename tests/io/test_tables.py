@@ -1,0 +1,56 @@
+"""CSV result tables: first column time, atomic writes, typed errors on bad input."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from msk.exceptions import FileFormatError
+from msk.io import Table, read_csv_table, write_csv_table
+
+
+def test_round_trip_with_nan(tmp_path):
+    t = np.array([0.0, 0.01, 0.02])
+    x = np.array([[1.0, np.nan], [1e-300, -2.5], [3.0, 1e300]])
+    p = write_csv_table(tmp_path / "tables" / "q.csv", time=t, data=x, columns=["hip", "knee"])
+    assert p.read_text().splitlines()[0] == "time,hip,knee"
+    back = read_csv_table(p)
+    assert back.columns == ("hip", "knee") and back.name == "q"
+    np.testing.assert_array_equal(back.time, t)
+    np.testing.assert_array_equal(back.data, x)
+
+
+def test_bad_tables(tmp_path):
+    with pytest.raises(FileFormatError, match="no such file"):
+        read_csv_table(tmp_path / "none.csv")
+    p = tmp_path / "b.csv"
+    p.write_text("")
+    with pytest.raises(FileFormatError, match="empty"):
+        read_csv_table(p)
+    p.write_text("t,a\n0,1\n")
+    with pytest.raises(FileFormatError, match="expected 'time'"):
+        read_csv_table(p)
+    p.write_text("time,a\n0,1\n1,2,3\n")
+    with pytest.raises(FileFormatError, match="line 3 has 3 values"):
+        read_csv_table(p)
+    p.write_text("time,a\n0,x\n")
+    with pytest.raises(FileFormatError, match="line 2"):
+        read_csv_table(p)
+    with pytest.raises(FileFormatError, match="invalid CSV column names"):
+        write_csv_table(tmp_path / "c.csv", time=[0.0], data=[[1.0]], columns=["a,b"])
+    with pytest.raises(FileFormatError, match="2 data columns but 1 names"):
+        write_csv_table(tmp_path / "c.csv", time=[0.0], data=[[1.0, 2.0]], columns=["a"])
+
+
+def test_failed_write_leaves_old_file_intact(tmp_path, monkeypatch):
+    p = write_csv_table(tmp_path / "r.csv", Table(np.arange(2.0), np.ones((2, 1)), ("a",)))
+    before = p.read_text()
+
+    def boom(*args, **kwargs):
+        raise OSError("disk full")
+
+    monkeypatch.setattr("os.replace", boom)
+    with pytest.raises(OSError, match="disk full"):
+        write_csv_table(p, Table(np.arange(3.0), np.zeros((3, 1)), ("a",)))
+    assert p.read_text() == before
+    assert [f.name for f in tmp_path.iterdir()] == ["r.csv"]

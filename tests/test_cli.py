@@ -1,0 +1,137 @@
+"""The msk command: --version, info on C3D and OpenSim files, one-line errors with status 2."""
+
+from __future__ import annotations
+
+import argparse
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+
+from msk import __version__
+from msk.cli import build_parser, command, flat_channels, main
+from msk.exceptions import UnitsError
+from msk.io import write_c3d
+from msk.io.opensim_files import Table, write_sto, write_trc
+
+
+@pytest.fixture
+def small_c3d(tmp_path):
+    rng = np.random.default_rng(0)
+    x = rng.uniform(size=(30, 3, 3))
+    x[3:7, 2] = np.nan
+    a = np.column_stack(
+        [
+            rng.normal(0, 1e-4, 300),
+            np.zeros(300),
+            rng.normal(0, 2e-4, 300),
+            rng.normal(0, 1e-4, 300),
+        ]
+    )
+    return write_c3d(
+        tmp_path / "small.c3d",
+        markers=x,
+        marker_labels=["A", "B", "C"],
+        rate_hz=100.0,
+        point_units="mm",
+        analogs=a,
+        analog_labels=["EMG1", "EMG2", "EMG3", "EMG4"],
+        analog_units=["V"] * 4,
+        analog_ratio=10,
+    )
+
+
+def test_version(capsys):
+    with pytest.raises(SystemExit) as exc:
+        main(["--version"])
+    assert exc.value.code == 0
+    assert capsys.readouterr().out.strip() == f"msk {__version__}"
+
+
+def test_info_c3d(small_c3d, capsys):
+    assert main(["info", str(small_c3d)]) == 0
+    out = capsys.readouterr().out
+    assert "points: 100 Hz, 30 frames, 0.300 s" in out
+    assert "markers: 3 (1 with gaps)" in out
+    assert "gap C: 4 missing frames, longest 4" in out
+    assert "analogs: 4 channels at 1000 Hz (0 force-plate, 4 other)" in out
+    assert "EMG2 [V]  FLAT/UNUSED? (all zero)" in out
+    assert "EMG1 [V]\n" in out
+    assert "force platforms: 0" in out
+
+
+def test_info_trc_and_sto(tmp_path, capsys):
+    t = np.arange(11) / 50.0
+    write_trc(tmp_path / "m.trc", time=t, markers=np.ones((11, 2, 3)), labels=["P", "Q"])
+    assert main(["info", str(tmp_path / "m.trc")]) == 0
+    out = capsys.readouterr().out
+    assert "rate: 50 Hz, 11 frames, duration 0.200 s, units in file mm" in out
+    assert "markers: 2 (0 with gaps)" in out
+    write_sto(tmp_path / "q.sto", Table(time=t, data=np.zeros((11, 2)), columns=("a", "b")))
+    assert main(["info", str(tmp_path / "q.sto")]) == 0
+    out = capsys.readouterr().out
+    assert "rate: 50 Hz, 11 rows, duration 0.200 s" in out
+    assert "columns: 2\n  a\n  b\n" in out
+
+
+def test_errors_are_one_line_with_status_2(tmp_path, capsys):
+    bad = tmp_path / "bad.c3d"
+    bad.write_text("not a c3d" * 200)
+    assert main(["info", str(bad)]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and err.startswith("msk: error: ") and "bad.c3d" in err
+    assert main(["info", str(tmp_path / "missing.c3d")]) == 2
+    assert "no such file" in capsys.readouterr().err
+
+
+def test_console_script_never_prints_a_traceback(tmp_path):
+    bad = tmp_path / "cut.c3d"
+    bad.write_bytes(b"\x02\x50" + b"\0" * 2000)
+    proc = subprocess.run(
+        [
+            sys.executable,
+            "-c",
+            "import sys; from msk.cli import main; sys.exit(main())",
+            "info",
+            str(bad),
+        ],
+        capture_output=True,
+        text=True,
+        timeout=60,
+        check=False,
+    )
+    assert proc.returncode == 2
+    assert proc.stderr.count("\n") == 1 and "Traceback" not in proc.stderr
+    assert proc.stderr.startswith("msk: error: ")
+
+
+def test_verbs_register(capsys, monkeypatch):
+    import msk.cli
+
+    monkeypatch.setattr(msk.cli, "_COMMANDS", dict(msk.cli._COMMANDS))
+
+    @command("hello-test", help="say hello", arguments=lambda p: p.add_argument("--who"))
+    def _hello(args: argparse.Namespace) -> int:
+        if args.who == "units":
+            raise UnitsError("furlong\nis not a unit")
+        print(f"hello {args.who}")
+        return 0
+
+    assert "hello-test" in build_parser().format_help()
+    assert main(["hello-test", "--who", "lab"]) == 0
+    assert capsys.readouterr().out == "hello lab\n"
+    assert main(["hello-test", "--who", "units"]) == 2
+    assert capsys.readouterr().err == "msk: error: furlong is not a unit\n"
+
+
+def test_flat_channels_rules():
+    rng = np.random.default_rng(1)
+    live = rng.normal(0, 0.1, size=(1000, 4))
+    a = np.column_stack(
+        [live, 1e-3 * rng.normal(size=1000), np.full(1000, np.nan), np.repeat([0.0, 1.0], 500)]
+    )
+    labs = ["a", "b", "c", "d", "floor", "nan", "switch"]
+    flat = flat_channels(a, labs, ["V"] * 7)
+    assert set(flat) == {"floor", "nan", "switch"}
+    assert flat["nan"] == "all NaN" and flat["switch"] == "2 distinct values"
