@@ -1,0 +1,336 @@
+"""Model scaling: recovery of known segment lengths, OpenSim 4.6 ScaleTool side by side, a real
+static trial."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+from model_factory import leg_model
+
+from msk.exceptions import MissingDataError, ModelError
+from msk.model import forward_kinematics, marker_positions
+from msk.opensim_peer import run_opensim_script
+from msk.osim import load_osim
+from msk.scaling import (
+    Measurement,
+    apply_scale_factors,
+    measure_scale_factors,
+    muscle_path_lengths,
+    read_scale_setup,
+    scale_inertia,
+    scale_model,
+)
+
+LEG_MEASUREMENTS = (
+    Measurement("pelvis", (("ASIS", "PSIS"),), ("pelvis",)),
+    Measurement("thigh", (("THI", "KNE"),), ("femur",)),
+    Measurement("shank", (("TIB", "ANK"),), ("tibia",)),
+    Measurement("foot", (("HEE", "TOE"),), ("foot",)),
+)
+
+
+def _femur_length(model):
+    """Hip centre to knee (tibia origin) distance in the default pose."""
+    data = model.create_data()
+    forward_kinematics(model, data, model.default_coordinates())
+    hip = data.oMf[model.body_frame["femur"]].translation
+    knee = data.oMf[model.body_frame["tibia"]].translation
+    return float(np.linalg.norm(knee - hip))
+
+
+def _shank_length(model):
+    data = model.create_data()
+    forward_kinematics(model, data, model.default_coordinates())
+    knee = data.oMf[model.body_frame["tibia"]].translation
+    ankle = data.oMf[model.body_frame["foot"]].translation
+    return float(np.linalg.norm(ankle - knee))
+
+
+def test_scaling_recovers_known_segment_lengths_from_a_noisy_static_trial():
+    generic = leg_model()
+    truth = {"pelvis": 1.08, "femur": 1.12, "tibia": 0.93, "foot": 1.04}
+    subject = apply_scale_factors(generic, truth, body_mass=71.0)
+    rng = np.random.default_rng(0)
+    pos = marker_positions(subject, subject.default_coordinates())[0]
+    frames = 240  # 2 s at 120 Hz, 1 mm noise
+    static = {
+        name: pos[i] + rng.normal(scale=1e-3, size=(frames, 3))
+        for i, name in enumerate(subject.marker_names)
+    }
+    static["TOE"][:10] = np.nan  # gaps are ignored
+    scaled = scale_model(generic, static, measurements=LEG_MEASUREMENTS, body_mass=71.0)
+    assert abs(_femur_length(scaled) - _femur_length(subject)) < 1e-3
+    assert abs(_shank_length(scaled) - _shank_length(subject)) < 1e-3
+    for body, s in truth.items():
+        np.testing.assert_allclose(scaled.metadata["scale_factors"][body], s, atol=5e-3)
+    np.testing.assert_allclose(
+        marker_positions(scaled, scaled.default_coordinates()),
+        marker_positions(subject, subject.default_coordinates()),
+        atol=2e-3,
+    )
+    assert scaled.total_mass == pytest.approx(71.0)
+    # the generic model is untouched (immutable)
+    assert generic.total_mass == pytest.approx(24.5)
+    assert generic.metadata.get("scale_factors") is None
+
+
+def test_mass_distribution_and_inertia_scale_with_m_s2():
+    generic = leg_model()
+    scaled = apply_scale_factors(generic, {"femur": 1.1}, body_mass=2 * generic.total_mass)
+    for b, g in zip(scaled.bodies, generic.bodies):
+        assert b.mass == pytest.approx(2 * g.mass)
+        s = 1.1 if b.name == "femur" else 1.0
+        np.testing.assert_allclose(b.inertia, 2 * s**2 * g.inertia, rtol=1e-12)
+        np.testing.assert_allclose(b.com, s * g.com)
+
+
+@settings(max_examples=30, deadline=None)
+@given(
+    st.lists(st.floats(0.7, 1.4), min_size=3, max_size=3),
+    st.lists(st.floats(-1.0, 1.0), min_size=12, max_size=12),
+)
+def test_inertia_scaling_equals_stretched_point_masses(s, raw):
+    """I' from J' = S J S equals the inertia of point masses whose positions are stretched."""
+    m = np.array([1.0, 2.0, 0.5, 1.5])
+    pts = np.asarray(raw).reshape(4, 3)
+    pts = pts - (m[:, None] * pts).sum(0) / m.sum()  # about the centre of mass
+
+    def inertia(p):
+        return sum(mi * (pi @ pi * np.eye(3) - np.outer(pi, pi)) for mi, pi in zip(m, p))
+
+    np.testing.assert_allclose(
+        scale_inertia(inertia(pts), s), inertia(pts * np.asarray(s)), atol=1e-12
+    )
+
+
+def test_bad_scaling_input():
+    generic = leg_model()
+    with pytest.raises(ModelError, match="no bodies"):
+        apply_scale_factors(generic, {"humerus": 1.1})
+    with pytest.raises(ModelError, match="positive"):
+        apply_scale_factors(generic, {"femur": -1.0})
+    with pytest.raises(MissingDataError, match="no \\(valid\\) marker 'TOE'"):
+        measure_scale_factors(generic, {"HEE": np.zeros(3)}, LEG_MEASUREMENTS[3:])
+    with pytest.raises(MissingDataError, match="no marker 'XYZ'"):
+        measure_scale_factors(
+            generic, {"HEE": np.zeros(3)}, [Measurement("m", (("HEE", "XYZ"),), ("foot",))]
+        )
+
+
+def _subject01(shared: Path):
+    d = shared / "tools/opensim-peer/data/Pipelines/Gait2392_Simbody"
+    return d, read_scale_setup(d / "subject01_Setup_Scale.xml")
+
+
+def _read_static(path: Path, t0: float, t1: float):
+    try:
+        from msk.io.opensim_files import read_trc
+    except ImportError:  # pragma: no cover - the io module is written by another engineer
+        pytest.skip("msk.io.read_trc not available")
+    trc = read_trc(path)
+    sel = (trc.time >= t0 - 1e-9) & (trc.time <= t1 + 1e-9)
+    return {lab: trc.markers[sel, i] for i, lab in enumerate(trc.labels)}
+
+
+_SCALE_PEER = """
+import opensim as osim
+tool = osim.ScaleTool(ARGS["setup"])
+gm = tool.getGenericModelMaker()
+gm.setModelFileName(ARGS["model"])
+gm.setMarkerSetFileName(ARGS["markers"])
+ms = tool.getModelScaler()
+ms.setMarkerFileName(ARGS["trc"])
+ms.setOutputModelFileName(ARGS["out"])
+tool.getMarkerPlacer().setApply(False)
+tool.setPathToSubject("")
+tool.run()
+"""
+
+
+@pytest.mark.opensim
+@pytest.mark.slow
+def test_scaled_gait2392_matches_opensim_scale_tool(ref_dir, needs_opensim, tmp_path):
+    """gait2392 scaled to subject01's static trial with subject01's Scale setup (measurements
+    torso, pelvis, thigh, shank, foot; manual femur/tibia factors; 72.6 kg; no marker
+    placement): msk vs OpenSim 4.6 ScaleTool."""
+    d, setup = _subject01(ref_dir.parent.parent)
+    generic_path = ref_dir / "opensim-models/gait2392_thelen2003muscle.osim"
+    markers = d / "gait2392_Scale_MarkerSet.xml"
+    out = tmp_path / "osim_scaled.osim"
+    run_opensim_script(
+        _SCALE_PEER,
+        setup=str(d / "subject01_Setup_Scale.xml"),
+        model=str(generic_path),
+        markers=str(markers),
+        trc=str(d / "subject01_static.trc"),
+        out=str(out),
+    )
+    ref = load_osim(out)
+    generic = load_osim(generic_path, marker_set=markers)
+    assert setup.time_range is not None and setup.mass == pytest.approx(72.6)
+    static = _read_static(d / "subject01_static.trc", *setup.time_range)
+    ours = scale_model(
+        generic,
+        static,
+        measurements=setup.measurements,
+        scale_factors=setup.manual,
+        body_mass=setup.mass,
+    )
+    assert ours.total_mass == pytest.approx(ref.total_mass, rel=1e-12)
+    for b in ref.bodies:
+        a = ours.body(b.name)
+        assert a.mass == pytest.approx(b.mass, rel=1e-9)
+        np.testing.assert_allclose(a.com, b.com, atol=1e-6)
+        np.testing.assert_allclose(a.inertia, b.inertia, rtol=1e-5, atol=1e-9)
+    for j, k in zip(ours.joints, ref.joints):
+        np.testing.assert_allclose(
+            j.parent_offset.translation, k.parent_offset.translation, atol=1e-6
+        )
+    th = np.random.default_rng(2).uniform(-0.5, 0.5, (4, ours.n_coords))
+    np.testing.assert_allclose(marker_positions(ours, th), marker_positions(ref, th), atol=2e-6)
+    mr = {m.name: m for m in ref.muscles}
+    for m in ours.muscles:
+        r = mr[m.name]
+        assert m.optimal_fiber_length == pytest.approx(r.optimal_fiber_length, abs=1e-6)
+        assert m.tendon_slack_length == pytest.approx(r.tendon_slack_length, abs=1e-6)
+        for p, q in zip(m.points, r.points):
+            np.testing.assert_allclose(p.location, q.location, atol=1e-6)
+    # path lengths scale: l_opt changed where the path changed
+    assert any(
+        m.optimal_fiber_length != g.optimal_fiber_length
+        for m, g in zip(ours.muscles, generic.muscles)
+    )
+    lengths = muscle_path_lengths(ours)
+    assert all(v > 0 for v in lengths.values())
+
+
+# Grand Challenge subject PS static trial → gait2392 (markers named as in its TRC)
+GC5_PAIRS = {
+    "pelvis": [("RAsis", "LAsis")],
+    "thigh": [("RAsis", "RKneeLateral"), ("LAsis", "LKneeLateral")],
+    "shank": [("RKneeLateral", "RAnkleLateral"), ("LKneeLateral", "LAnkleLateral")],
+    "foot": [("RHeel", "RToe"), ("LHeel", "LToe")],
+}
+GC5_TO_GAIT2392 = {
+    "RAsis": "R.ASIS",
+    "LAsis": "L.ASIS",
+    "RKneeLateral": "R.Knee.Lat",
+    "LKneeLateral": "L.Knee.Lat",
+    "RAnkleLateral": "R.Ankle.Lat",
+    "LAnkleLateral": "L.Ankle.Lat",
+    "RHeel": "R.Heel",
+    "LHeel": "L.Heel",
+    "RToe": "R.Toe.Tip",
+    "LToe": "L.Toe.Tip",
+}
+
+
+@pytest.mark.slow
+@pytest.mark.realdata
+def test_scale_gait2392_to_grand_challenge_static_trial(real_dir, ref_dir):
+    d = ref_dir.parent.parent / "tools/opensim-peer/data/Pipelines/Gait2392_Simbody"
+    generic = load_osim(
+        ref_dir / "opensim-models/gait2392_thelen2003muscle.osim",
+        marker_set=d / "gait2392_Scale_MarkerSet.xml",
+    )
+    static = _read_static(real_dir / "knee-grand-challenge-gc5/PS_static_for_scaling.trc", 0, 99)
+    model_of = {v: k for k, v in GC5_TO_GAIT2392.items()}
+    bodies = {
+        "pelvis": ("pelvis",),
+        "thigh": ("femur_r", "femur_l"),
+        "shank": ("tibia_r", "tibia_l", "talus_r", "talus_l"),
+        "foot": ("calcn_r", "calcn_l", "toes_r", "toes_l"),
+    }
+    meas = [
+        Measurement(k, tuple((GC5_TO_GAIT2392[a], GC5_TO_GAIT2392[b]) for a, b in v), bodies[k])
+        for k, v in GC5_PAIRS.items()
+    ]
+    names = {GC5_TO_GAIT2392[k]: k for k in model_of.values()}
+    scaled = scale_model(generic, static, measurements=meas, marker_names=names, body_mass=68.0)
+    ratios = scaled.metadata["scale_ratios"]
+    # subject PS: 1.67 m, 68 kg (Fregly et al. 2012); gait2392 is 1.8 m, 75.16 kg
+    assert all(0.75 < r < 1.15 for r in ratios.values()), ratios
+    assert scaled.total_mass == pytest.approx(68.0)
+    # after scaling, the measured distances match the trial's on average (by construction)
+    pos = dict(zip(scaled.marker_names, marker_positions(scaled, scaled.default_coordinates())[0]))
+    means = {k: np.nanmean(v, axis=0) for k, v in static.items()}
+    for a, b in GC5_PAIRS["thigh"]:
+        dm = np.linalg.norm(pos[GC5_TO_GAIT2392[a]] - pos[GC5_TO_GAIT2392[b]])
+        de = np.linalg.norm(means[a] - means[b])
+        assert abs(dm - de) < 0.02
+
+
+_MANUAL_SCALE_PEER = """
+import opensim as osim
+m = osim.Model(ARGS["model"])
+s = m.initSystem()
+ss = osim.ScaleSet()
+for body, f in ARGS["factors"].items():
+    sc = osim.Scale()
+    sc.setSegmentName(body)
+    sc.setScaleFactors(osim.Vec3(*f))
+    sc.setApply(True)
+    ss.cloneAndAppend(sc)
+RESULT["ok"] = m.scale(s, ss, True, ARGS["mass"])
+m.printToXML(ARGS["out"])
+"""
+
+
+@pytest.mark.opensim
+@pytest.mark.slow
+def test_rajagopal_manual_nonuniform_scaling_matches_opensim_model_scale(
+    ref_dir, needs_opensim, tmp_path
+):
+    """Rajagopal 2016 (wrap cylinders, coupled patella) scaled with non-uniform manual factors:
+    msk vs OpenSim 4.6 ``Model::scale`` (preserve mass distribution, 70 kg)."""
+    path = ref_dir / "opensim-models/Rajagopal2016.osim"
+    factors = {
+        "pelvis": [1.05, 1.0, 1.1],
+        "femur_r": [1.1, 0.95, 1.05],
+        "tibia_r": [0.9, 1.08, 1.0],
+        "femur_l": [1.2, 1.2, 1.2],
+    }
+    out = tmp_path / "scaled.osim"
+    res = run_opensim_script(
+        _MANUAL_SCALE_PEER, model=str(path), factors=factors, mass=70.0, out=str(out)
+    )
+    assert res["ok"]
+    ref = load_osim(out)
+    ours = apply_scale_factors(load_osim(path), factors, body_mass=70.0)
+    for b in ref.bodies:
+        a = ours.body(b.name)
+        assert a.mass == pytest.approx(b.mass, rel=1e-12)
+        np.testing.assert_allclose(a.com, b.com, atol=1e-12)
+        if len(set(factors.get(b.name, [1.0]))) == 1:
+            # uniform factors: I' = (m'/m) s² I in both; OpenSim's non-uniform inertia scaling
+            # is an approximation (it equalises principal moments), ours is exact (J' = S J S)
+            np.testing.assert_allclose(a.inertia, b.inertia, rtol=1e-12, atol=1e-15)
+    for j, k in zip(ours.joints, ref.joints):
+        np.testing.assert_allclose(
+            j.parent_offset.translation, k.parent_offset.translation, atol=1e-12
+        )
+        np.testing.assert_allclose(
+            j.child_offset.translation, k.child_offset.translation, atol=1e-12
+        )
+    wraps = {w.name: w for w in ref.metadata["wrap_objects"]}
+    for w in ours.metadata["wrap_objects"]:
+        r = wraps[w.name]
+        np.testing.assert_allclose(w.translation, r.translation, atol=1e-12)
+        assert (w.radius, w.length) == pytest.approx((r.radius, r.length), rel=1e-12)
+    th = np.random.default_rng(0).uniform(0.0, 0.5, (3, ours.n_coords))
+    np.testing.assert_allclose(marker_positions(ours, th), marker_positions(ref, th), atol=1e-12)
+    mr = {m.name: m for m in ref.muscles}
+    for m in ours.muscles:
+        r = mr[m.name]
+        for p, q in zip(m.points, r.points):
+            np.testing.assert_allclose(p.location, q.location, atol=1e-12)
+        # path-length ratio: exact for via-point paths; wrapped paths differ by OpenSim's
+        # approximate cylinder tangent points (≤ 0.02 % one cylinder, ≤ 0.3 % for the
+        # gastrocnemii wrapping over two)
+        rel = {0: 1e-9, 1: 5e-4}.get(len(m.wraps), 5e-3)
+        assert m.optimal_fiber_length == pytest.approx(r.optimal_fiber_length, rel=rel)
+        assert m.tendon_slack_length == pytest.approx(r.tendon_slack_length, rel=rel)
