@@ -20,6 +20,7 @@ import importlib.util
 import json
 import subprocess
 import sys
+import tempfile
 import textwrap
 from typing import Any
 
@@ -44,18 +45,22 @@ def run_opensim_script(body: str, *, timeout_s: float = 600.0, **args: Any) -> d
     """Run ``body`` in a fresh interpreter; it reads ``ARGS`` and fills the dict ``RESULT``.
 
     ``args`` must be JSON-serialisable. Returns ``RESULT`` (JSON round trip: arrays come back as
-    lists). Raises :class:`MskError` with OpenSim's stderr tail when the script fails.
+    lists). Raises :class:`MskError` with OpenSim's stderr tail when the script fails. The child
+    runs in a temporary working directory (OpenSim drops ``opensim.log`` and tool by-products
+    there), so pass absolute paths.
     """
     if not opensim_available():
         raise MskError("opensim is not installed: pip install 'msk[opensim]'")
     code = _PRELUDE + textwrap.dedent(body) + _EPILOGUE
-    proc = subprocess.run(
-        [sys.executable, "-c", code, json.dumps(args)],
-        capture_output=True,
-        text=True,
-        timeout=timeout_s,
-        check=False,
-    )
+    with tempfile.TemporaryDirectory(prefix="msk-opensim-") as cwd:
+        proc = subprocess.run(
+            [sys.executable, "-c", code, json.dumps(args)],
+            capture_output=True,
+            text=True,
+            timeout=timeout_s,
+            check=False,
+            cwd=cwd,
+        )
     marker = "@@MSK-RESULT@@"
     if proc.returncode != 0 or marker not in proc.stdout:
         tail = (proc.stderr or proc.stdout)[-2000:]
