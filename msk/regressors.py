@@ -131,12 +131,13 @@ def joint_torque_regressor(
     ``computeJointTorqueRegressor`` frame by frame (the independent reference).
     """
     layout = layout or regressor_layout(model)
-    th, q, v, a, g = _states(model, theta, theta_dot, theta_ddot)
     sel = np.arange(model.n_coords) if rows is None else np.asarray(rows, dtype=int)
     if method == "vectorized":
-        return _vectorised_regressor(model, q, v, a, g, layout, sel)
+        q, v, a, d1 = _embed_diagonal(model, theta, theta_dot, theta_ddot)
+        return _vectorised_regressor(model, q, v, a, d1, layout, sel)
     if method != "pinocchio":
         raise IdentificationError(f"unknown regressor method {method!r}")
+    th, q, v, a, g = _states(model, theta, theta_dot, theta_ddot)
     data = model.create_data()
     nb = len(layout.body_names)
     out = np.empty((th.shape[0], sel.size, 10 * nb))
@@ -290,11 +291,18 @@ def _joint_axes(pm: pin.Model) -> list[tuple[str, Array]]:
     return out
 
 
+def _cross(a: Array, b: Array) -> Array:
+    """a × b over the last axis (broadcasting), without ``np.cross``'s overhead."""
+    a0, a1, a2 = a[..., 0], a[..., 1], a[..., 2]
+    b0, b1, b2 = b[..., 0], b[..., 1], b[..., 2]
+    return np.stack([a1 * b2 - a2 * b1, a2 * b0 - a0 * b2, a0 * b1 - a1 * b0], axis=-1)
+
+
 def _motion_cross(m1: Array, m2: Array) -> Array:
     """m1 × m2 for spatial motions [v; ω] (…, 6)."""
     v1, w1 = m1[..., :3], m1[..., 3:]
     v2, w2 = m2[..., :3], m2[..., 3:]
-    return np.concatenate([np.cross(w1, v2) + np.cross(v1, w2), np.cross(w1, w2)], axis=-1)
+    return np.concatenate([_cross(w1, v2) + _cross(v1, w2), _cross(w1, w2)], axis=-1)
 
 
 def spatial_kinematics(model: Model, q: ArrayLike, v: ArrayLike, a: ArrayLike) -> SpatialKinematics:
@@ -337,7 +345,7 @@ def spatial_kinematics(model: Model, q: ArrayLike, v: ArrayLike, a: ArrayLike) -
             )
             rot.append(r_pl @ r_q)
             trans.append(p_pl)
-            s[:, :3] = np.cross(p_pl, w)
+            s[:, :3] = _cross(p_pl, w)
             s[:, 3:] = w
         else:
             rot.append(r_pl)
@@ -358,7 +366,7 @@ def _body_regressor(vb: Array, ab: Array) -> Array:
     v, w = vb[:, :3], vb[:, 3:]
     a, dw = ab[:, :3], ab[:, 3:]
     y = np.zeros((n, 6, 10))
-    acc_lin = a + np.cross(w, v)
+    acc_lin = a + _cross(w, v)
     y[:, :3, 0] = acc_lin
     # f_lin = ([ω̇]× + [ω]×[ω]×) h
     wx, wy, wz = w[:, 0], w[:, 1], w[:, 2]
@@ -390,26 +398,58 @@ def _body_regressor(vb: Array, ab: Array) -> Array:
         return out
 
     lw = lmat(w)
-    y[:, 3:, 4:] = lmat(dw) + np.cross(w[:, None, :], lw.transpose(0, 2, 1)).transpose(0, 2, 1)
+    y[:, 3:, 4:] = lmat(dw) + _cross(w[:, None, :], lw.transpose(0, 2, 1)).transpose(0, 2, 1)
     return y
 
 
-def _to_body(m: Array, rt: Array, p_b: Array) -> Array:
-    """World-origin spatial motions m (N, ..., 6) → body frame (R_b, p_b): v + ω × p_b, then Rᵀ."""
-    extra = (slice(None),) + (None,) * (m.ndim - 2)
-    lin = m[..., :3] + np.cross(m[..., 3:], p_b[extra])
-    rte = rt[extra]
-    return np.concatenate(
+def _to_body(m: Array, r_b: Array, p_b: Array) -> Array:
+    """World-origin spatial motions m (N, 6) or (N, k, 6) → body frame (R_b, p_b): Rᵀ(v + ω × p_b),
+    Rᵀω (row vectors times R_b: batched matmul, no einsum)."""
+    m3 = m[:, None, :] if m.ndim == 2 else m
+    w = m3[..., 3:]
+    p = p_b[:, None, :]
+    lin = m3[..., :3] + np.stack(
         [
-            np.einsum("n...ij,n...j->n...i", rte, lin),
-            np.einsum("n...ij,n...j->n...i", rte, m[..., 3:]),
+            w[..., 1] * p[..., 2] - w[..., 2] * p[..., 1],
+            w[..., 2] * p[..., 0] - w[..., 0] * p[..., 2],
+            w[..., 0] * p[..., 1] - w[..., 1] * p[..., 0],
         ],
         axis=-1,
     )
+    out = np.concatenate([lin @ r_b, w @ r_b], axis=-1)
+    return out[:, 0, :] if m.ndim == 2 else out
+
+
+def _embed_diagonal(
+    model: Model, theta: ArrayLike, theta_dot: ArrayLike, theta_ddot: ArrayLike
+) -> tuple[Array, Array, Array, Array]:
+    """(q, v, a) and f_k'(θ) per Pinocchio DOF (N, nq): the embedding without the dense G."""
+    th = np.atleast_2d(np.asarray(theta, dtype=float))
+    thd = np.atleast_2d(np.asarray(theta_dot, dtype=float))
+    thdd = np.atleast_2d(np.asarray(theta_ddot, dtype=float))
+    if not (th.shape == thd.shape == thdd.shape) or th.shape[1] != model.n_coords:
+        raise IdentificationError(
+            f"θ, θ̇, θ̈ must all be (N, {model.n_coords}); got {th.shape}, {thd.shape}, {thdd.shape}"
+        )
+    cp = model.coupling
+    n = th.shape[0]
+    q = np.empty((n, cp.nq))
+    v = np.zeros((n, cp.nq))
+    a = np.zeros((n, cp.nq))
+    d1 = np.zeros((n, cp.nq))
+    for k, (i, f) in enumerate(zip(cp.coordinate, cp.functions)):
+        x = th[:, i] if i >= 0 else np.zeros(n)
+        q[:, k] = f(x)
+        if i < 0:
+            continue
+        d1[:, k] = f.d1(x)
+        v[:, k] = d1[:, k] * thd[:, i]
+        a[:, k] = d1[:, k] * thdd[:, i] + f.d2(x) * thd[:, i] ** 2
+    return q, v, a, d1
 
 
 def _vectorised_regressor(
-    model: Model, q: Array, v: Array, a: Array, g: Array, layout: RegressorLayout, sel: Array
+    model: Model, q: Array, v: Array, a: Array, d1: Array, layout: RegressorLayout, sel: Array
 ) -> Array:
     """Rows ``sel`` of Y_θ for all frames: τ_i = Σ_k G_ki S_kᵀ Σ_{b ⪰ k} Y_b(v_b, a_b) φ_b."""
     pm = model.pin_model
@@ -430,15 +470,14 @@ def _vectorised_regressor(
             for k in np.flatnonzero(coord_of_dof == i):
                 j = joint_of_dof[int(k)]
                 if j in support:
-                    s_eff[:, r] += g[:, k, i][:, None] * kin.subspace[j]
+                    s_eff[:, r] += d1[:, k][:, None] * kin.subspace[j]
         if not np.any(s_eff):
             continue
         place = model.body_placement[name]
         r_b = kin.rotation[jb] @ place.rotation
         p_b = kin.translation[jb] + kin.rotation[jb] @ place.translation
-        rt = np.swapaxes(r_b, 1, 2)
         y_b = _body_regressor(
-            _to_body(kin.velocity[jb], rt, p_b), _to_body(kin.acceleration[jb], rt, p_b)
+            _to_body(kin.velocity[jb], r_b, p_b), _to_body(kin.acceleration[jb], r_b, p_b)
         )
-        out[:, :, 10 * b : 10 * b + 10] = np.einsum("nrk,nkp->nrp", _to_body(s_eff, rt, p_b), y_b)
+        out[:, :, 10 * b : 10 * b + 10] = _to_body(s_eff, r_b, p_b) @ y_b
     return out
