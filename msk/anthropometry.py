@@ -76,6 +76,7 @@ import pinocchio as pin
 from numpy.typing import ArrayLike, NDArray
 
 from msk.exceptions import AnthropometryError, FileFormatError, InertiaError
+from msk.model import INERTIAL_PARAMETER_NAMES
 
 __all__ = [
     "DELEVA1996_SEGMENTS",
@@ -105,20 +106,6 @@ Table = Literal["dumas2007", "deleva1996"]
 SEXES: tuple[str, ...] = ("male", "female")
 TABLES: tuple[str, ...] = ("dumas2007", "deleva1996")
 
-#: Pinocchio's standard inertial-parameter order (``Inertia.toDynamicParameters``): mass, first
-#: moments ``m c`` and the rotational inertia about the body origin (lower triangle, row-wise).
-INERTIAL_PARAMETER_NAMES: tuple[str, ...] = (
-    "m",
-    "mx",
-    "my",
-    "mz",
-    "Ixx",
-    "Ixy",
-    "Iyy",
-    "Ixz",
-    "Iyz",
-    "Izz",
-)
 
 #: Reference statures (m) that turn the tables' mean segment lengths into length/height ratios:
 #: de Leva 1996 (Zatsiorsky–Seluyanov samples: 1741 mm men, 1735 mm women) and Dumas 2007
