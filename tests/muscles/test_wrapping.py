@@ -1,0 +1,151 @@
+"""Cylinder wrapping ("via cylinders", seed 004 §2.1; OpenSim WrapCylinder): the path is the
+geodesic — checked against a direct numerical minimisation over the tangent points."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+from scipy.optimize import minimize
+
+from msk.exceptions import ModelError
+from msk.muscles.geometry import wrap_cylinder
+
+R = 0.03
+
+
+def _path_length(params, a, b, r, sense):
+    """a → T1 → helix (sense = ±1 around z) → T2 → b, T = (r cos φ, r sin φ, z)."""
+    p1, z1, p2, z2 = params
+    t1 = np.array([r * np.cos(p1), r * np.sin(p1), z1])
+    t2 = np.array([r * np.cos(p2), r * np.sin(p2), z2])
+    dphi = np.mod(sense * (p2 - p1), 2 * np.pi)
+    return np.linalg.norm(t1 - a) + np.hypot(r * dphi, z2 - z1) + np.linalg.norm(b - t2)
+
+
+def _segment_clearance(p, q):
+    """Smallest distance to the z axis along the segment p–q, minus R (≥ 0: outside)."""
+    d = q[:2] - p[:2]
+    t = np.clip(-(p[:2] @ d) / max(d @ d, 1e-300), 0.0, 1.0)
+    return np.linalg.norm(p[:2] + t * d) - R
+
+
+def _numerical_shortest(a, b, r, t1, t2):
+    """Minimise the length over the tangent points (φ1, z1, φ2, z2), both senses, subject to
+    the straight parts staying outside the cylinder (SLSQP from perturbed starts)."""
+
+    def point(phi, z):
+        return np.array([r * np.cos(phi), r * np.sin(phi), z])
+
+    cons = [
+        {"type": "ineq", "fun": lambda x: _segment_clearance(a, point(x[0], x[1])) + 1e-12},
+        {"type": "ineq", "fun": lambda x: _segment_clearance(point(x[2], x[3]), b) + 1e-12},
+    ]
+    rng = np.random.default_rng(1)
+    best = np.inf
+    for sense in (1.0, -1.0):
+        for _ in range(3):
+            x0 = np.array(
+                [np.arctan2(t1[1], t1[0]), t1[2], np.arctan2(t2[1], t2[0]), t2[2]]
+            ) + rng.normal(scale=[0.2, 0.01, 0.2, 0.01])
+            res = minimize(
+                _path_length, x0, args=(a, b, r, sense), method="SLSQP", constraints=cons,
+                options={"ftol": 1e-15, "maxiter": 500},
+            )  # fmt: skip
+            if res.success and min(c["fun"](res.x) for c in cons) > -1e-9:
+                best = min(best, res.fun)
+    return best
+
+
+def test_geodesic_equals_numerical_minimum_and_is_tangent():
+    rng = np.random.default_rng(0)
+    n_wrapped = 0
+    for _ in range(12):
+        # points on opposite sides of the cylinder so that the straight line crosses it
+        ang = rng.uniform(0, 2 * np.pi)
+        a = np.array([0.1 * np.cos(ang), 0.1 * np.sin(ang), rng.uniform(-0.05, 0.05)])
+        b = np.array(
+            [-0.08 * np.cos(ang + 0.2), -0.08 * np.sin(ang + 0.2), rng.uniform(-0.05, 0.05)]
+        )
+        wraps, t1, t2, arc, mand = wrap_cylinder(a, b, R)
+        if not wraps:
+            continue
+        n_wrapped += 1
+        assert mand
+        total = np.linalg.norm(t1 - a) + arc + np.linalg.norm(b - t2)
+        assert total == pytest.approx(_numerical_shortest(a, b, R, t1, t2), abs=1e-8)
+        assert total > np.linalg.norm(b - a)
+        for t, p in ((t1, a), (t2, b)):
+            assert np.hypot(t[0], t[1]) == pytest.approx(R, abs=1e-14)
+            d = (t - p) / np.linalg.norm(t - p)
+            radial = np.array([t[0], t[1], 0.0]) / R
+            assert abs(d @ radial) < 1e-12  # the straight part meets the surface tangentially
+    assert n_wrapped >= 8
+
+
+@settings(max_examples=60, deadline=None)
+@given(
+    st.floats(0.0, 2 * np.pi), st.floats(0.035, 0.2), st.floats(-0.1, 0.1),
+    st.floats(0.0, 2 * np.pi), st.floats(0.035, 0.2), st.floats(-0.1, 0.1),
+)  # fmt: skip
+def test_wrapped_path_is_never_shorter_than_the_straight_line(pa, ra, za, pb, rb, zb):
+    a = np.array([ra * np.cos(pa), ra * np.sin(pa), za])
+    b = np.array([rb * np.cos(pb), rb * np.sin(pb), zb])
+    for quadrant in ("all", "+x", "-y"):
+        wraps, t1, t2, arc, _ = wrap_cylinder(a, b, R, quadrant=quadrant)
+        straight = np.linalg.norm(b - a)
+        total = np.linalg.norm(t1 - a) + arc + np.linalg.norm(b - t2) if wraps else straight
+        assert total >= straight - 1e-12
+        if not wraps:
+            assert arc == 0.0
+
+
+def test_unconstrained_cylinder_wraps_only_when_crossed():
+    a = np.array([0.1, 0.05, 0.0])
+    b = np.array([-0.1, 0.05, 0.02])  # passes 5 cm from the axis: misses a 3 cm cylinder
+    wraps, t1, _, arc, _ = wrap_cylinder(a, b, R)
+    assert not wraps and arc == 0.0
+    np.testing.assert_allclose(t1, b)
+    wraps, _, _, arc, mand = wrap_cylinder(a, b * [1, -1, 1], R)  # now through the axis
+    assert wraps and mand and arc > 0
+    # a segment ending before it reaches the cylinder does not wrap
+    assert not wrap_cylinder(a, np.array([0.05, 0.0, 0.0]), R)[0]
+
+
+def test_quadrant_forces_the_path_around_the_active_side():
+    # both points on the -x side, line far from the cylinder: "+x" forces a wrap around +x
+    a = np.array([-0.05, 0.1, 0.0])
+    b = np.array([-0.05, -0.1, 0.0])
+    assert not wrap_cylinder(a, b, R)[0]
+    wraps, t1, t2, _, mand = wrap_cylinder(a, b, R, quadrant="+x")
+    assert wraps and not mand
+    mid = 0.5 * (np.arctan2(t1[1], t1[0]) + np.arctan2(t2[1], t2[0]))
+    assert np.cos(mid) > 0.9  # the arc passes through +x
+    # crossing line: "-x" keeps the wrap on the -x side, "+x" on the +x side
+    a = np.array([0.0, 0.1, 0.0])
+    b = np.array([0.001, -0.1, 0.0])
+    for q, sign in (("-x", -1), ("+x", 1)):
+        wraps, t1, t2, _, _ = wrap_cylinder(a, b, R, quadrant=q)
+        assert wraps
+        assert sign * (t1[0] + t2[0]) > 0
+
+
+def test_no_wrap_inside_the_radius_or_beyond_the_cylinder_ends():
+    assert not wrap_cylinder([0.01, 0.0, 0.0], [-0.1, 0.0, 0.0], R)[0]
+    a, b = np.array([0.1, 0.0, 0.2]), np.array([-0.1, 0.0, 0.25])
+    assert wrap_cylinder(a, b, R)[0]
+    assert not wrap_cylinder(a, b, R, length=0.1)[0]  # tangent points at z ≈ 0.22 > 0.05
+    assert wrap_cylinder(a, b, R, length=0.6)[0]
+
+
+def test_vectorised_over_leading_axes_and_bad_quadrant():
+    rng = np.random.default_rng(3)
+    a = rng.normal(scale=0.1, size=(4, 5, 3))
+    b = rng.normal(scale=0.1, size=(4, 5, 3))
+    wraps, t1, _, arc, _ = wrap_cylinder(a, b, R, quadrant="-y")
+    assert wraps.shape == (4, 5) and t1.shape == (4, 5, 3) and arc.shape == (4, 5)
+    one = wrap_cylinder(a[2, 3], b[2, 3], R, quadrant="-y")
+    assert one[0] == wraps[2, 3] and one[3] == pytest.approx(arc[2, 3])
+    with pytest.raises(ModelError, match="quadrant 'z'"):
+        wrap_cylinder(a, b, R, quadrant="z")
