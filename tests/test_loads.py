@@ -1,0 +1,169 @@
+"""External loads: automatic plate assignment, C3D round trip, signs, errors, applied forces."""
+
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+import pinocchio as pin
+import pytest
+from synthetic import make_trial, two_leg_model
+
+from msk.dynamics import inverse_dynamics
+from msk.exceptions import ForcePlateError
+from msk.kinematics import kinematics_from_coordinates
+from msk.loads import (
+    AppliedForce,
+    ExternalLoads,
+    PlateWrench,
+    external_loads,
+    plates_from_table,
+    plates_from_trial,
+)
+from msk.model import Body
+
+MODEL = two_leg_model()
+TRIAL = make_trial(MODEL, duration_s=1.0, rate_hz=100.0, analog_ratio=10)
+KIN = dataclasses.replace(
+    kinematics_from_coordinates(TRIAL.time, TRIAL.q, MODEL.coordinate_names, cutoff_hz=None),
+    v=TRIAL.v,
+    a=TRIAL.a,
+)
+
+
+def _unloaded_between(pl: PlateWrench, t0: float, t1: float) -> PlateWrench:
+    off = (pl.time > t0) & (pl.time < t1)
+    f, c, m = pl.force.copy(), pl.cop.copy(), pl.free_moment.copy()
+    f[off], c[off], m[off] = 0.0, np.nan, 0.0
+    return dataclasses.replace(pl, force=f, cop=c, free_moment=m)
+
+
+def test_plates_are_assigned_to_the_foot_standing_on_them():
+    loads = external_loads(MODEL, KIN, TRIAL.plates)
+    assert isinstance(loads, ExternalLoads)
+    assert [(a.plate, a.body) for a in loads.assignments] == [
+        ("plate1", "foot_r"),
+        ("plate2", "foot_l"),
+    ]
+    idx = np.arange(TRIAL.time.size) * TRIAL.analog_ratio
+    b = loads.body_index("foot_r")
+    np.testing.assert_allclose(loads.force[:, b], TRIAL.plates[0].force[idx], atol=1e-9)
+    np.testing.assert_allclose(loads.point[:, b], TRIAL.plates[0].cop[idx], atol=1e-9)
+    np.testing.assert_allclose(
+        loads.moment_about_point()[:, b], TRIAL.plates[0].free_moment[idx], atol=1e-8
+    )
+    f, m = loads.total()
+    np.testing.assert_allclose(f, TRIAL.grf_force[idx], atol=1e-8)
+    np.testing.assert_allclose(m, TRIAL.grf_moment[idx], atol=1e-8)
+
+
+def test_contact_intervals_and_sign_of_an_action_plate():
+    pl = _unloaded_between(TRIAL.plates[0], 0.3, 0.6)
+    flipped = dataclasses.replace(
+        TRIAL.plates[1], force=-TRIAL.plates[1].force, free_moment=-TRIAL.plates[1].free_moment
+    )
+    loads = external_loads(MODEL, KIN, [pl, flipped])
+    spans = [(a.plate, a.body, a.start_time, a.end_time) for a in loads.assignments]
+    assert spans[0][:3] == ("plate1", "foot_r", 0.0) and spans[0][3] == pytest.approx(0.3)
+    assert spans[1][:3] == ("plate1", "foot_r", pytest.approx(0.6))
+    assert spans[2][:2] == ("plate2", "foot_l")
+    i = np.flatnonzero((TRIAL.time > 0.31) & (TRIAL.time < 0.59))
+    assert np.all(loads.force[i, loads.body_index("foot_r")] == 0.0)
+    assert np.isnan(loads.point[i, loads.body_index("foot_r")]).all()
+    b = loads.body_index("foot_l")
+    assert np.all(loads.force[:, b, 1] > 0)  # made a ground reaction again
+
+
+def test_unassignable_contacts_raise_naming_plate_and_time():
+    pl = TRIAL.plates[0]
+    mid = (TRIAL.plates[0].corners + TRIAL.plates[1].corners) / 2
+    both = dataclasses.replace(
+        pl, corners=mid + np.array([[0, 0, 0.2], [0, 0, 0.2], [0, 0, -0.2], [0, 0, -0.2]])
+    )
+    with pytest.raises(
+        ForcePlateError, match=r"plate1 contact 0\.000.*both feet \(foot_r, foot_l\)"
+    ):
+        external_loads(MODEL, KIN, [both])
+    far = dataclasses.replace(pl, corners=pl.corners + np.array([3.0, 0.0, 0.0]))
+    with pytest.raises(ForcePlateError, match=r"plate1 .*no foot over the plate at t = 0\.000 s"):
+        external_loads(MODEL, KIN, [far])
+    no_corners = dataclasses.replace(pl, corners=None, cop=pl.cop + np.array([2.0, 0.0, 0.0]))
+    with pytest.raises(ForcePlateError, match=r"no foot within 0\.3 m"):
+        external_loads(MODEL, KIN, [no_corners])
+    # without corners the COP decides
+    ok = external_loads(MODEL, KIN, [dataclasses.replace(p, corners=None) for p in TRIAL.plates])
+    assert [a.body for a in ok.assignments] == ["foot_r", "foot_l"]
+    # an explicit assignment bypasses the test
+    forced = external_loads(MODEL, KIN, [far], assignment={"plate1": "foot_r"})
+    assert forced.assignments[0].body == "foot_r"
+
+
+def test_c3d_round_trip_through_msk_io(tmp_path):
+    from msk.io import read_c3d
+
+    path = TRIAL.write_c3d(tmp_path / "synthetic.c3d")
+    trial = read_c3d(path)
+    assert trial.marker_labels == TRIAL.marker_labels
+    np.testing.assert_allclose(trial.markers, TRIAL.markers, atol=1e-6)  # float32 in mm
+    plates = plates_from_trial(trial)
+    assert len(plates) == 2
+    loads = external_loads(MODEL, KIN, plates)
+    assert [a.body for a in loads.assignments] == ["foot_r", "foot_l"]
+    idx = np.arange(TRIAL.time.size) * TRIAL.analog_ratio
+    f, m = loads.total()
+    scale = np.abs(TRIAL.grf_force).max()
+    np.testing.assert_allclose(f, TRIAL.grf_force[idx], atol=1e-5 * scale)
+    np.testing.assert_allclose(m, TRIAL.grf_moment[idx], atol=1e-5 * scale)
+
+
+def test_fext_equals_minus_jacobian_transpose_of_the_world_wrench():
+    loads = external_loads(MODEL, KIN, TRIAL.plates)
+    geo = inverse_dynamics(MODEL, KIN, loads, variant="geometric")
+    pm = MODEL.pin_model
+    data = pm.createData()
+    for k in (0, 37, 99):
+        q = MODEL.coupling.q(TRIAL.q[k])
+        tau = np.zeros(pm.nv)
+        for b, body in enumerate(loads.bodies):
+            jac = pin.computeFrameJacobian(pm, data, q, MODEL.body_frame[body], pin.WORLD)
+            tau -= jac.T @ np.concatenate([loads.force[k, b], loads.moment[k, b]])
+        np.testing.assert_allclose(geo.tau_pin[k], tau, atol=1e-9 * np.abs(tau).max())
+
+
+def test_carried_load_equals_a_point_mass_added_to_the_body():
+    mass, local = 5.0, np.array([0.05, 0.20, 0.10])
+    n = TRIAL.time.size
+    weight = np.tile(mass * MODEL.gravity, (n, 1))
+    carried = AppliedForce("pelvis", weight, np.tile(local, (n, 1)), point_in_body=True)
+    loads = external_loads(MODEL, KIN, [], extra=[carried])
+    with_load = inverse_dynamics(MODEL, KIN, loads, variant="quasi_static")
+    pelvis = MODEL.body("pelvis")
+    inertia = pelvis.pin_inertia + pin.Inertia(mass, local, np.zeros((3, 3)))
+    heavier = MODEL.with_bodies(
+        {"pelvis": Body("pelvis", inertia.mass, inertia.lever, inertia.inertia)}
+    )
+    ref = inverse_dynamics(heavier, KIN, None, variant="quasi_static")
+    np.testing.assert_allclose(with_load.tau, ref.tau, atol=1e-9)
+    np.testing.assert_allclose(loads.point[:, 0, 1], KIN.q[:, 1] + 0.2, atol=0.05)
+
+
+def test_plates_from_an_opensim_grf_table():
+    t = np.linspace(0, 1, 11)
+    cols = []
+    data = []
+    for pre in ("ground_", "1_ground_"):
+        for name, val in (
+            ("force_v", [10.0, 700.0, 5.0]),
+            ("force_p", [0.3, 0.0, 0.1]),
+            ("torque_", [0.0, 2.0, 0.0]),
+        ):
+            for ax, v in zip("xyz", val):
+                cols.append(f"{pre}{name}{ax}")
+                data.append(np.full(t.size, v))
+    pls = plates_from_table(t, np.column_stack(data), cols)
+    assert [p.name for p in pls] == ["plate1", "plate2"]
+    np.testing.assert_allclose(pls[1].force[0], [10.0, 700.0, 5.0])
+    np.testing.assert_allclose(
+        pls[0].moment_about_origin()[0],
+        np.cross([0.3, 0, 0.1], [10.0, 700.0, 5.0]) + np.array([0, 2.0, 0]),
+    )
