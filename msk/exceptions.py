@@ -69,3 +69,7 @@ class MuscleModelError(ModelError):
 
 class EmgError(MskError):
     """EMG cannot be processed (bad mapping, unusable MVC, bad filter band); names the channel."""
+
+
+class BatchError(MskError):
+    """A batch cannot start (no sessions, Dask scheduler unreachable or not installed)."""

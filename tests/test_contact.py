@@ -1,0 +1,295 @@
+"""Knee contact force from the tibia free-body diagram (msk.contact, seed 004 §2.1)."""
+
+from __future__ import annotations
+
+import numpy as np
+import pinocchio as pin
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+from model_factory import leg_model
+
+from msk.contact import (
+    CONTACT_COLUMNS,
+    G0,
+    KneeContact,
+    knee_contact_force,
+    muscle_distal_wrenches,
+)
+from msk.dynamics import joint_reaction
+from msk.exceptions import ModelError, ShapeMismatchError
+from msk.kinematics import kinematics_from_coordinates
+from msk.model import Axis, Body, Coordinate, Joint, Model
+from msk.muscles.geometry import muscle_geometry
+from msk.muscles.path import ConditionalPathPoint, Muscle, PathPoint, PathWrap, WrapObject
+
+HIP = np.array([0.0, 1.0, 0.0])  # knee centre in the world (the femur is welded there)
+M_SHANK = 4.0
+COM = np.array([0.01, -0.22, 0.0])  # shank COM in the tibia frame
+ORIGIN = np.array([0.03, 0.20, 0.01])  # quadriceps origin on the femur (femur frame)
+INSERT = np.array([0.045, -0.07, 0.0])  # patellar-tendon insertion on the tibia
+
+
+def _pt(name: str, body: str, xyz) -> PathPoint:
+    return PathPoint(name, body, np.asarray(xyz, dtype=float))
+
+
+def _muscle(name: str, points, wraps=()) -> Muscle:
+    return Muscle(name, tuple(points), 3000.0, 0.1, 0.2, 0.0, 10.0, wraps=tuple(wraps))
+
+
+def seated_shank() -> Model:
+    """A femur welded to the ground (knee centre at ``HIP``), a shank on a revolute knee about
+    z and one quadriceps from the femur to the tibial tuberosity: the leg-extension bench."""
+    from msk.joints import Linear
+
+    bodies = [
+        Body("femur", 7.0, [0.0, 0.2, 0.0], np.diag([0.1, 0.02, 0.1])),
+        Body("tibia", M_SHANK, COM, np.diag([0.05, 0.005, 0.05])),
+    ]
+    joints = [
+        Joint("ground_femur", "ground", "femur", parent_offset=pin.SE3(np.eye(3), HIP)),
+        Joint(
+            "knee", "femur", "tibia", axes=(Axis("revolute", [0, 0, 1], "knee_angle", Linear()),)
+        ),
+    ]
+    coords = [Coordinate("knee_angle", range=(-2.5, 2.5))]
+    model = Model(name="bench", bodies=bodies, joints=joints, coordinates=coords)
+    return model.with_muscles(
+        [_muscle("quad", [_pt("o", "femur", ORIGIN), _pt("i", "tibia", INSERT)])]
+    )
+
+
+def _rz(a: float) -> np.ndarray:
+    c, s = np.cos(a), np.sin(a)
+    return np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
+
+
+def _static(model: Model, q: np.ndarray):
+    q = np.atleast_2d(np.asarray(q, dtype=float))
+    t = np.arange(q.shape[0]) * 0.01
+    return kinematics_from_coordinates(t, q, model.coordinate_names, cutoff_hz=None)
+
+
+@settings(max_examples=25, deadline=None)
+@given(theta=st.floats(-1.4, 1.4), f_extra=st.floats(0.0, 2000.0))
+def test_single_quadriceps_holding_the_shank_is_solved_by_hand(
+    theta: float, f_extra: float
+) -> None:
+    """Static shank held by one muscle: contact = −(weight) − (muscle pull), by hand."""
+    model = seated_shank()
+    r = _rz(theta)
+    g = np.array([0.0, -G0, 0.0])
+    p_ins = HIP + r @ INSERT
+    u = (HIP + ORIGIN - p_ins) / np.linalg.norm(HIP + ORIGIN - p_ins)  # pull on the tibia
+    arm = np.cross(r @ INSERT, u)[2]
+    weight_moment = np.cross(r @ COM, M_SHANK * g)[2]
+    f_hold = max(-weight_moment / arm, 0.0) + f_extra  # the equilibrium tension, plus extra
+    kin = _static(model, [[theta]] * 3)
+    out = knee_contact_force(
+        model, kin, muscle_forces=np.full((3, 1), f_hold), joint="knee", variant="quasi_static"
+    )
+    force_w = -M_SHANK * g - f_hold * u
+    moment_w = -np.cross(r @ COM, M_SHANK * g) - np.cross(r @ INSERT, f_hold * u)
+    np.testing.assert_allclose(out.force, np.tile(r.T @ force_w, (3, 1)), atol=1e-9)
+    np.testing.assert_allclose(out.moment, np.tile(r.T @ moment_w, (3, 1)), atol=1e-9)
+    f_t = r.T @ force_w
+    np.testing.assert_allclose(out.normal, -f_t[1], atol=1e-9)
+    np.testing.assert_allclose(out.tangential, np.hypot(f_t[0], f_t[2]), atol=1e-9)
+    np.testing.assert_allclose(out.total, np.linalg.norm(force_w), atol=1e-9)
+    bw = (7.0 + M_SHANK) * G0
+    np.testing.assert_allclose(out.total_bw, np.linalg.norm(force_w) / bw, atol=1e-12)
+    if f_extra == 0.0 and -weight_moment / arm > 0:
+        # holding exactly: the joint carries no moment about its axis
+        assert abs(out.moment[0, 2]) < 1e-8
+
+
+def test_quadriceps_in_extension_compresses_the_plateau() -> None:
+    model = seated_shank()
+    kin = _static(model, [[0.0], [-0.3], [-1.2]])
+    out = knee_contact_force(
+        model, kin, muscle_forces=np.full((3, 1), 1500.0), joint="knee", variant="quasi_static"
+    )
+    assert isinstance(out, KneeContact) and out.columns == CONTACT_COLUMNS
+    assert out.values.shape == (3, len(CONTACT_COLUMNS))
+    assert np.all(out.column("normal_n") > 800.0)  # the tendon pulls the tibia onto the femur
+    np.testing.assert_allclose(out.in_body_weights(), out.values / out.body_weight_n)
+    with pytest.raises(ModelError, match="no column"):
+        out.column("medial_n")
+
+
+def _moving_leg():
+    """The pelvis–femur–tibia–foot test leg with static-path muscles (no moving points, no
+    wraps), and a smooth motion."""
+    model = leg_model()
+    muscles = [
+        _muscle(
+            "glut",
+            [_pt("o", "pelvis", [-0.04, 0.03, 0.12]), _pt("i", "femur", [-0.02, -0.01, 0.055])],
+        ),
+        _muscle(
+            "quad",
+            [
+                _pt("o", "femur", [0.029, -0.192, 0.031]),
+                _pt("v", "femur", [0.035, -0.36, 0.002]),
+                _pt("i", "tibia", [0.045, -0.06, 0.0]),
+            ],
+        ),
+        _muscle(
+            "ham",
+            [
+                _pt("o", "pelvis", [-0.12, -0.10, 0.07]),
+                _pt("v", "tibia", [-0.03, -0.04, -0.02]),
+                _pt("i", "tibia", [-0.024, -0.06, -0.019]),
+            ],
+        ),
+        _muscle(
+            "gas",
+            [
+                _pt("o", "femur", [-0.019, -0.393, -0.024]),
+                _pt("v", "tibia", [-0.03, -0.15, -0.02]),
+                _pt("i", "foot", [-0.05, 0.03, -0.005]),
+            ],
+        ),
+    ]
+    model = model.with_muscles(muscles)
+    t = np.linspace(0.0, 1.0, 41)
+    q = np.tile(model.default_coordinates(), (t.size, 1))
+    q[:, 0] += 0.3 * t
+    q[:, 3] += 0.1 * np.sin(2 * np.pi * t)
+    q[:, 6] += 0.5 * np.sin(2 * np.pi * t)
+    q[:, 7] += 0.1 * np.cos(2 * np.pi * t)
+    q[:, 9] = -0.6 - 0.5 * np.sin(2 * np.pi * t)
+    return model, kinematics_from_coordinates(t, q, model.coordinate_names, cutoff_hz=None)
+
+
+def test_without_muscle_forces_it_is_the_inverse_dynamics_joint_reaction() -> None:
+    model, kin = _moving_leg()
+    ref = joint_reaction(model, kin, joint="knee", frame="tibia")
+    for forces in (None, np.zeros((kin.n_frames, 4))):
+        out = knee_contact_force(model, kin, muscle_forces=forces, joint="knee")
+        ok = np.isfinite(ref.force).all(axis=1)
+        assert ok.sum() > 30
+        np.testing.assert_allclose(out.force[ok], ref.force[ok], atol=1e-9)
+        np.testing.assert_allclose(out.moment[ok], ref.moment[ok], atol=1e-9)
+        assert out.muscles_included is (forces is not None)
+
+
+def test_muscle_pull_agrees_with_the_path_point_wrenches_of_dynamics() -> None:
+    """Independent route: ``joint_reaction`` with the muscles applied at their path points
+    (msk.dynamics.muscle_body_wrenches) gives the same bone-on-bone load."""
+    model, kin = _moving_leg()
+    rng = np.random.default_rng(3)
+    f = rng.uniform(0.0, 1500.0, (kin.n_frames, 4))
+    paths = [[(p.body, p.location) for p in m.points] for m in model.muscles]
+    ref = joint_reaction(
+        model, kin, joint="knee", frame="tibia", muscle_forces=f, muscle_paths=paths
+    )
+    out = knee_contact_force(model, kin, muscle_forces=f, joint="knee")
+    ok = np.isfinite(ref.force).all(axis=1)
+    np.testing.assert_allclose(out.force[ok], ref.force[ok], atol=1e-7)
+    np.testing.assert_allclose(out.moment[ok], ref.moment[ok], atol=1e-7)
+    # named columns in any order, absent muscles are zero
+    out2 = knee_contact_force(
+        model,
+        kin,
+        muscle_forces=f[:, ::-1],
+        muscle_names=["gas", "ham", "quad", "glut"],
+        joint="knee",
+    )
+    np.testing.assert_allclose(out2.force, out.force, atol=1e-9)
+
+
+def test_distal_wrench_projects_on_the_knee_twist_as_the_length_jacobian() -> None:
+    """With wrapping cylinders and conditional points: ∂l/∂ξ · (knee twist) = ∂l/∂θ_knee."""
+    model = leg_model()
+    wraps = [
+        WrapObject(
+            "cond",
+            "femur",
+            "cylinder",
+            np.array([-0.005, -0.41, 0.0]),
+            np.array([0.05, 0.02, 0.0]),
+            radius=0.025,
+            length=0.1,
+            quadrant="-x",
+        ),
+        WrapObject(
+            "shank",
+            "tibia",
+            "cylinder",
+            np.array([-0.03, -0.1, 0.0]),
+            np.zeros(3),
+            radius=0.02,
+            length=0.1,
+            quadrant="-x",
+        ),
+    ]
+    muscles = [
+        _muscle(
+            "gas",
+            [
+                _pt("o", "femur", [-0.019, -0.393, -0.024]),
+                _pt("v", "femur", [-0.03, -0.402, -0.026]),
+                _pt("i", "foot", [-0.05, 0.03, -0.005]),
+            ],
+            wraps=[PathWrap("cond"), PathWrap("shank")],
+        ),
+        _muscle(
+            "semimem",
+            [
+                _pt("o", "pelvis", [-0.12, -0.10, 0.07]),
+                ConditionalPathPoint(
+                    "c",
+                    "tibia",
+                    np.array([-0.035, -0.035, -0.019]),
+                    coordinate="knee_angle",
+                    range=(-0.5585, 0.1745),
+                ),
+                _pt("i", "tibia", [-0.024, -0.054, -0.019]),
+            ],
+        ),
+        _muscle(
+            "glut",
+            [_pt("o", "pelvis", [-0.04, 0.03, 0.12]), _pt("i", "femur", [-0.02, -0.01, 0.055])],
+        ),
+    ]
+    model = model.with_muscles(muscles).with_metadata(wrap_objects=wraps)
+    rng = np.random.default_rng(0)
+    q = np.tile(model.default_coordinates(), (12, 1))
+    q[:, 6:9] += rng.uniform(-0.4, 0.4, (12, 3))
+    q[:, 9] = rng.uniform(-1.8, 0.1, 12)
+    w = muscle_distal_wrenches(model, q, joint="knee")
+    jl = muscle_geometry(model, q).jacobian
+    pm = model.pin_model
+    data = pm.createData()
+    jid = pm.getJointId("knee_2")  # last axis of the knee chain: its twist moves the tibia
+    for k in range(q.shape[0]):
+        qp = model.coupling.q(q[k : k + 1])[0]
+        gk = model.coupling.jacobian(q[k : k + 1])[0]
+        pin.computeJointJacobians(pm, data, qp)
+        knee_cols = [
+            pm.joints[j].idx_v for j in range(1, pm.njoints) if pm.names[j].startswith("knee")
+        ]
+        twist = data.J[:, knee_cols] @ gk[knee_cols, 9]
+        np.testing.assert_allclose(w[k] @ twist, jl[k, :, 9], atol=1e-10)
+        assert jid > 0
+    assert np.abs(w[:, 2]).max() == 0.0  # the hip muscle does not cross the knee
+    assert np.abs(w[:, 0]).max() > 0.1
+
+
+def test_bad_input_raises_typed_errors() -> None:
+    model, kin = _moving_leg()
+    with pytest.raises(ModelError, match="no joint 'knee_x'"):
+        knee_contact_force(model, kin, joint="knee_x")
+    with pytest.raises(ShapeMismatchError, match="muscles"):
+        knee_contact_force(model, kin, muscle_forces=np.zeros((kin.n_frames, 3)), joint="knee")
+    with pytest.raises(ModelError, match="no muscle 'soleus'"):
+        knee_contact_force(
+            model, kin, muscle_forces=np.zeros((kin.n_frames, 1)), muscle_names=["soleus"],
+            joint="knee",
+        )  # fmt: skip
+    with pytest.raises(ModelError, match="weld"):
+        muscle_distal_wrenches(model, kin.q, joint="ankle_weld")
+    with pytest.raises(ModelError, match="body mass"):
+        knee_contact_force(model, kin, joint="knee", body_mass_kg=0.0)
