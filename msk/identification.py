@@ -412,18 +412,6 @@ def base_residuals(
 # ------------------------------------------------------------------------------------------
 # the identification model: lumping subtrees
 # ------------------------------------------------------------------------------------------
-def _subtree(model: Model, root: str) -> list[str]:
-    out = [root]
-    changed = True
-    while changed:
-        changed = False
-        for j in model.joints:
-            if j.parent in out and j.child not in out:
-                out.append(j.child)
-                changed = True
-    return out
-
-
 @dataclass(frozen=True, eq=False)
 class LumpedModel:
     """An identification model made from a musculoskeletal model by lumping subtrees.
@@ -540,7 +528,7 @@ def lump_subtrees(
         model.body(root)
         if root in absorbed or root in members:
             raise ModelError(f"lump root {root!r} is already inside another lump")
-        sub = _subtree(model, root)
+        sub = model.subtree(root)
         if absorbed & set(sub):
             raise ModelError(f"lumps overlap: {sorted(absorbed & set(sub))}")
         members[root] = tuple(sub)

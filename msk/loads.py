@@ -189,18 +189,6 @@ class ExternalLoads:
 _SAMPLES = 12  # frames per contact interval used to decide which foot stands on a plate
 
 
-def _descendants(model: Model, body: str) -> list[str]:
-    out = [body]
-    changed = True
-    while changed:
-        changed = False
-        for j in model.joints:
-            if j.parent in out and j.child not in out:
-                out.append(j.child)
-                changed = True
-    return out
-
-
 def _default_feet(model: Model) -> tuple[str, ...]:
     names = [b.name for b in model.bodies]
     for stem in ("calcn", "foot"):
@@ -251,7 +239,7 @@ def _foot_points(model: Model, q: Array, feet: Sequence[str], frames: Array) -> 
     data = pm.createData()
     specs = []
     for foot in feet:
-        segs = _descendants(model, foot)
+        segs = model.subtree(foot)
         fids = [model.body_frame[s] for s in segs]
         fids += [model.marker_frame[mk.name] for mk in model.markers if mk.body in segs]
         parents = [pm.frames[f].parentJoint for f in fids]

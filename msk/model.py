@@ -318,6 +318,19 @@ class Model:
         hi = np.array([c.range[1] for c in self.coordinates])
         return lo, hi
 
+    def subtree(self, body: str) -> tuple[str, ...]:
+        """``body`` and every body distal to it (depth-first order of the joint list)."""
+        self.body(body)
+        out = [body]
+        changed = True
+        while changed:
+            changed = False
+            for joint in self.joints:
+                if joint.parent in out and joint.child not in out:
+                    out.append(joint.child)
+                    changed = True
+        return tuple(out)
+
     def create_data(self) -> pin.Data:
         """A fresh Pinocchio workspace for this model."""
         return self.pin_model.createData()
