@@ -12,6 +12,6 @@ All quantities inside are SI (m, s, rad, N, N·m, kg); time is axis 0.
 
 __version__ = "0.1.0"
 
-from msk.exceptions import MskError  # noqa: E402
+from msk.exceptions import MskError
 
 __all__ = ["MskError", "__version__"]
