@@ -378,6 +378,24 @@ class Model:
     def with_muscles(self, muscles: Sequence[Any]) -> Model:
         return self._rebuilt(muscles=muscles)
 
+    def with_strength(self, factors: Mapping[str, float]) -> Model:
+        """A new model whose named muscles have F_iso multiplied by their strength factor."""
+        names = {m.name for m in self.muscles}
+        unknown = sorted(set(factors) - names)
+        if unknown:
+            raise ModelError(f"model {self.name}: unknown muscles {unknown}")
+        bad = {k: v for k, v in factors.items() if not (np.isfinite(v) and v > 0)}
+        if bad:
+            raise ModelError(f"model {self.name}: strength factors must be > 0, got {bad}")
+        return self.with_muscles(
+            [
+                replace(m, max_isometric_force=m.max_isometric_force * float(factors[m.name]))
+                if m.name in factors
+                else m
+                for m in self.muscles
+            ]
+        )
+
     def with_joints(self, joints: Mapping[str, Joint]) -> Model:
         """A new model with some joints replaced (e.g. the spline knee by a four-bar knee)."""
         unknown = set(joints) - {j.name for j in self.joints}

@@ -1,0 +1,71 @@
+"""Muscle-strength identification (seeds/002 §V) and EMG-driven calibration (seeds/003).
+
+* :class:`StrengthIdentifier` — regression on the net contribution matrix with correlation
+  gating and confidence intervals → :class:`StrengthProfile`;
+* :class:`EMGDrivenCalibration` — Hill + activation parameters calibrated to inverse-dynamics
+  moments with casadi exact derivatives and multi-start;
+* :func:`w_emg_stability` and the comparison tables of :mod:`msk.strength.studies`;
+* :mod:`msk.strength.synthetic` — a synthetic leg with known strengths.
+"""
+
+from __future__ import annotations
+
+from msk.strength.calibration import (
+    CALIBRATION_BOUNDS,
+    MUSCLE_CALIBRATION_PARAMETERS,
+    CalibrationParameters,
+    CalibrationResult,
+    CalibrationTrial,
+    EMGDrivenCalibration,
+    FitMetrics,
+    casadi_curves,
+    emg_driven_forces,
+    fractional_delay,
+)
+from msk.strength.identification import (
+    STRENGTH_FACTOR_BOUNDS,
+    StrengthIdentifier,
+    StrengthProfile,
+    expand_groups,
+    group_contributions,
+    net_contribution,
+    with_strength,
+)
+from msk.strength.studies import (
+    TABLE_I_W_EMG,
+    MetricTable,
+    WEmgStability,
+    area_ratio_table,
+    moment_fit_table,
+    net_force_table,
+    net_joint_force,
+    w_emg_stability,
+)
+
+__all__ = [
+    "CALIBRATION_BOUNDS",
+    "MUSCLE_CALIBRATION_PARAMETERS",
+    "STRENGTH_FACTOR_BOUNDS",
+    "TABLE_I_W_EMG",
+    "CalibrationParameters",
+    "CalibrationResult",
+    "CalibrationTrial",
+    "EMGDrivenCalibration",
+    "FitMetrics",
+    "MetricTable",
+    "StrengthIdentifier",
+    "StrengthProfile",
+    "WEmgStability",
+    "area_ratio_table",
+    "casadi_curves",
+    "emg_driven_forces",
+    "expand_groups",
+    "fractional_delay",
+    "group_contributions",
+    "moment_fit_table",
+    "net_contribution",
+    "net_force_table",
+    "net_joint_force",
+    "w_emg_stability",
+    "with_strength",
+]
