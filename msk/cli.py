@@ -32,7 +32,7 @@ from msk.exceptions import MskError
 __all__ = ["VERB_MODULES", "Command", "build_parser", "command", "flat_channels", "main"]
 
 #: Modules imported before the parser is built, so that their ``@command`` verbs register.
-VERB_MODULES: list[str] = []
+VERB_MODULES: list[str] = ["msk.pipeline", "msk.batch"]
 
 
 @dataclass(frozen=True)

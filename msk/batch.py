@@ -1,0 +1,461 @@
+"""Many sessions at once: a local process pool by default, a Dask distributed cluster on demand.
+
+``run_batch(configs, out)`` runs :func:`msk.pipeline.run_session` for every configuration into
+``out/<session>/`` (``<session>`` = the config file's stem, made unique), in parallel:
+
+* ``scheduler=None``: a local :class:`concurrent.futures.ProcessPoolExecutor` (``spawn``
+  start method: each worker imports msk afresh, no forked solver state);
+* ``scheduler="tcp://host:8786"`` (or a ``distributed.Client``): the sessions are mapped on a
+  Dask distributed cluster; the workers need msk installed and the paths visible.
+
+A failing session never stops the others: its error is kept as one line (type and message), the
+others complete and are written, and :attr:`BatchResult.failed` lists it. The cohort table
+``out/cohort.csv`` has one row per session with its key quality figures (:data:`COHORT_COLUMNS`).
+
+``compare_sessions(folders)`` builds the table of generic vs identified differences across
+session folders (``msk compare``), with the metrics of :mod:`msk.compare`.
+"""
+
+from __future__ import annotations
+
+import csv
+import io
+import os
+import sys
+import tempfile
+import time as _time
+import traceback
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from msk.exceptions import BatchError, MskError
+
+__all__ = [
+    "COHORT_COLUMNS",
+    "BatchResult",
+    "SessionOutcome",
+    "compare_sessions",
+    "run_batch",
+    "run_one",
+    "write_cohort_csv",
+]
+
+#: Columns of ``cohort.csv`` (units in the names).
+COHORT_COLUMNS: tuple[str, ...] = (
+    "session",
+    "config",
+    "status",
+    "error",
+    "run_s",
+    "frames",
+    "ik_marker_rms_mean_mm",
+    "ik_failed_frames",
+    "residual_force_rms_pct_bw",
+    "residual_moment_rms_nm",
+    "emg_flat_channels",
+    "identified_mass_kg",
+    "strength_fit_r2",
+    "strength_groups_identified",
+    "knee_contact_rms_bw",
+    "knee_contact_icc",
+    "stages_not_available",
+)
+
+
+@dataclass(frozen=True)
+class SessionOutcome:
+    """One session of a batch: ``ok`` or the one-line ``error``; ``row`` its cohort row."""
+
+    config: str
+    out_dir: str
+    ok: bool
+    seconds: float
+    error: str = ""
+    row: Mapping[str, Any] = field(default_factory=dict)
+
+
+@dataclass(frozen=True)
+class BatchResult:
+    out_dir: Path
+    outcomes: tuple[SessionOutcome, ...]
+    cohort_csv: Path
+    seconds: float
+
+    @property
+    def failed(self) -> tuple[SessionOutcome, ...]:
+        return tuple(o for o in self.outcomes if not o.ok)
+
+
+def _one_line(exc: BaseException) -> str:
+    return f"{type(exc).__name__}: {' '.join(str(exc).split())}"
+
+
+def _row(
+    config: str, summary: Mapping[str, Any] | None, status: str, error: str, seconds: float
+) -> dict[str, Any]:
+    name = Path(config).stem
+    row: dict[str, Any] = dict.fromkeys(COHORT_COLUMNS, "")
+    row.update(session=name, config=config, status=status, error=error, run_s=round(seconds, 3))
+    if not summary:
+        return row
+    q = summary.get("quality", {})
+    row["session"] = summary.get("session", name) or name
+    row["frames"] = q.get("frames", "")
+    if q.get("ik_marker_rms_mean_m") is not None:
+        row["ik_marker_rms_mean_mm"] = round(1000 * q["ik_marker_rms_mean_m"], 3)
+    row["ik_failed_frames"] = q.get("ik_failed_frames", "")
+    for k in ("residual_force_rms_pct_bw", "residual_moment_rms_nm", "strength_fit_r2"):
+        v = q.get(k)
+        row[k] = "" if v is None else round(float(v), 4)
+    row["emg_flat_channels"] = " ".join(q.get("emg_flat_channels", []))
+    ident = summary.get("identification")
+    if ident:
+        row["identified_mass_kg"] = round(sum(s["mass_kg"] for s in ident["segments"]), 3)
+    st = summary.get("strength")
+    if st:
+        row["strength_groups_identified"] = sum(bool(g["identified"]) for g in st["groups"])
+    comp = (summary.get("comparison") or {}).get("knee_contact_subject_specific") or (
+        summary.get("comparison") or {}
+    ).get("knee_contact_generic")
+    if comp:
+        row["knee_contact_rms_bw"] = round(comp["rms_bw"], 4)
+        row["knee_contact_icc"] = round(comp["icc"], 4)
+    row["stages_not_available"] = " ".join(i["stage"] for i in summary.get("not_available", []))
+    return row
+
+
+def run_one(config: str, out_dir: str, use_cache: bool = True) -> SessionOutcome:
+    """Run one session, never raising: the outcome carries the error as one line."""
+    from msk.pipeline import run_session
+
+    t0 = _time.perf_counter()
+    try:
+        res = run_session(config, out_dir, progress=None, use_cache=use_cache)
+    except MskError as exc:
+        dt = _time.perf_counter() - t0
+        msg = _one_line(exc)
+        return SessionOutcome(
+            config, out_dir, False, dt, msg, _row(config, None, "failed", msg, dt)
+        )
+    except Exception as exc:  # a bug in one session must not take the cohort down
+        dt = _time.perf_counter() - t0
+        tb = traceback.extract_tb(exc.__traceback__)
+        where = f" ({tb[-1].filename}:{tb[-1].lineno})" if tb else ""
+        msg = _one_line(exc) + where
+        return SessionOutcome(
+            config, out_dir, False, dt, msg, _row(config, None, "failed", msg, dt)
+        )
+    dt = _time.perf_counter() - t0
+    return SessionOutcome(config, out_dir, True, dt, "", _row(config, res.summary, "ok", "", dt))
+
+
+def _session_dirs(configs: Sequence[str | Path], out: Path) -> list[Path]:
+    seen: dict[str, int] = {}
+    dirs = []
+    for c in configs:
+        stem = Path(c).stem
+        k = seen.get(stem, 0)
+        seen[stem] = k + 1
+        dirs.append(out / (stem if k == 0 else f"{stem}-{k + 1}"))
+    return dirs
+
+
+def write_cohort_csv(path: str | Path, rows: Sequence[Mapping[str, Any]]) -> Path:
+    """The cohort table (one row per session, :data:`COHORT_COLUMNS`), written atomically."""
+    path = Path(path)
+    buf = io.StringIO()
+    w = csv.DictWriter(buf, fieldnames=list(COHORT_COLUMNS), lineterminator="\n")
+    w.writeheader()
+    for r in rows:
+        w.writerow({k: r.get(k, "") for k in COHORT_COLUMNS})
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", dir=path.parent)
+    with os.fdopen(fd, "w", encoding="utf-8", newline="") as fh:
+        fh.write(buf.getvalue())
+    os.chmod(tmp, 0o644)
+    os.replace(tmp, path)
+    return path
+
+
+def run_batch(
+    configs: Sequence[str | Path],
+    out_dir: str | Path,
+    *,
+    scheduler: Any = None,
+    workers: int | None = None,
+    use_cache: bool = True,
+    progress: Any = None,
+) -> BatchResult:
+    """Run every session configuration into ``out_dir/<session>/`` (see the module docstring)."""
+    t0 = _time.perf_counter()
+    if not configs:
+        raise BatchError("no session configurations given")
+    out = Path(out_dir).resolve()
+    out.mkdir(parents=True, exist_ok=True)
+    cfgs = [str(Path(c).resolve()) for c in configs]
+    dirs = [str(d) for d in _session_dirs(cfgs, out)]
+    outcomes: list[SessionOutcome] = []
+
+    def report(o: SessionOutcome) -> None:
+        if progress is None:
+            return
+        if o.ok:
+            progress.write(f"ok      {Path(o.config).name} → {o.out_dir} ({o.seconds:.1f} s)\n")
+        else:
+            progress.write(f"FAILED  {Path(o.config).name}: {o.error}\n")
+        progress.flush()
+
+    if scheduler is None:
+        import multiprocessing as mp
+        from concurrent.futures import ProcessPoolExecutor, as_completed
+
+        n = workers or min(len(cfgs), os.cpu_count() or 1) or 1
+        with ProcessPoolExecutor(max_workers=n, mp_context=mp.get_context("spawn")) as pool:
+            futs = {
+                pool.submit(run_one, c, d, use_cache): k for k, (c, d) in enumerate(zip(cfgs, dirs))
+            }
+            done: dict[int, SessionOutcome] = {}
+            for f in as_completed(futs):
+                k = futs[f]
+                try:
+                    o = f.result()
+                except Exception as exc:  # worker died
+                    msg = _one_line(exc)
+                    o = SessionOutcome(
+                        cfgs[k], dirs[k], False, 0.0, msg, _row(cfgs[k], None, "failed", msg, 0.0)
+                    )
+                done[k] = o
+                report(o)
+            outcomes = [done[k] for k in range(len(cfgs))]
+    else:
+        try:
+            from distributed import Client, as_completed
+        except ImportError:
+            raise BatchError(
+                "--scheduler needs Dask distributed: pip install 'msk[dask]'"
+            ) from None
+        try:
+            client = scheduler if isinstance(scheduler, Client) else Client(scheduler, timeout=20)
+        except OSError as exc:
+            raise BatchError(f"Dask scheduler {scheduler!r} unreachable: {exc}") from None
+        try:
+            futs = client.map(run_one, cfgs, dirs, [use_cache] * len(cfgs), pure=False)
+            index = {f.key: k for k, f in enumerate(futs)}
+            done = {}
+            for f in as_completed(futs):
+                k = index[f.key]
+                try:
+                    o = f.result()
+                except Exception as exc:  # worker lost
+                    msg = _one_line(exc)
+                    o = SessionOutcome(
+                        cfgs[k], dirs[k], False, 0.0, msg, _row(cfgs[k], None, "failed", msg, 0.0)
+                    )
+                done[k] = o
+                report(o)
+            outcomes = [done[k] for k in range(len(cfgs))]
+        finally:
+            if client is not scheduler:
+                client.close()
+    cohort = write_cohort_csv(out / "cohort.csv", [o.row for o in outcomes])
+    return BatchResult(out, tuple(outcomes), cohort, _time.perf_counter() - t0)
+
+
+# ---------------------------------------------------------------------------------------------
+# compare across session folders
+# ---------------------------------------------------------------------------------------------
+COMPARE_COLUMNS = (
+    "session",
+    "quantity",
+    "item",
+    "generic",
+    "identified",
+    "difference",
+    "unit",
+    "note",
+)
+
+
+def compare_sessions(folders: Sequence[str | Path]) -> list[dict[str, Any]]:
+    """Generic vs identified, per session folder: segment masses (kg), strength factors (×),
+    pelvis residuals (N, N·m) and the knee contact force against the measured one (RMS in BW,
+    NRMSD %, Pearson r, ICC from :mod:`msk.compare` on the ``knee_contact`` table)."""
+    from msk import compare
+    from msk.results import read_session
+
+    rows: list[dict[str, Any]] = []
+
+    def add(
+        sess: str, qty: str, item: str, gen: float, ide: float, unit: str, note: str = ""
+    ) -> None:
+        rows.append(
+            {
+                "session": sess,
+                "quantity": qty,
+                "item": item,
+                "generic": gen,
+                "identified": ide,
+                "difference": ide - gen,
+                "unit": unit,
+                "note": note,
+            }
+        )
+
+    for folder in folders:
+        res = read_session(folder)
+        s = res.summary
+        sess = str(s.get("session") or Path(folder).name)
+        ident = s.get("identification")
+        if ident:
+            for seg in ident["segments"]:
+                add(
+                    sess,
+                    "segment mass",
+                    seg["name"],
+                    seg["prior_mass_kg"],
+                    seg["mass_kg"],
+                    "kg",
+                    seg["flag"],
+                )
+        st = s.get("strength")
+        if st:
+            for g in st["groups"]:
+                add(
+                    sess,
+                    "strength factor",
+                    g["group"],
+                    1.0,
+                    g["factor"],
+                    "x generic",
+                    "identified" if g["identified"] else "kept generic",
+                )
+        comp = s.get("comparison") or {}
+        for key, unit in (("residual_force_rms_n", "N"), ("residual_moment_rms_nm", "N·m")):
+            if key in comp:
+                add(
+                    sess,
+                    "pelvis residual RMS",
+                    key.split("_rms")[0],
+                    comp[key]["generic"],
+                    comp[key]["identified"],
+                    unit,
+                )
+        if res.has("knee_contact"):
+            kc = res.table("knee_contact")
+            if {"measured_total_bw", "generic_total_bw"} <= set(kc.columns):
+                meas = kc.column("measured_total_bw")
+                gen = kc.column("generic_total_bw")
+                spec = (
+                    kc.column("subject_specific_total_bw")
+                    if "subject_specific_total_bw" in kc.columns
+                    else None
+                )
+                m = np.isfinite(meas) & np.isfinite(gen)
+                if spec is not None:
+                    m &= np.isfinite(spec)
+                if m.sum() >= 5:
+                    for name, fn, unit in (
+                        ("RMS error", compare.rms, "BW"),
+                        ("NRMSD", compare.nrmsd, "%"),
+                        ("Pearson r", compare.pearson_r, "1"),
+                        ("ICC(2,1)", compare.icc, "1"),
+                    ):
+                        g = float(fn(meas[m], gen[m]))
+                        i = float(fn(meas[m], spec[m])) if spec is not None else float("nan")
+                        add(
+                            sess,
+                            "knee contact vs measured",
+                            name,
+                            g,
+                            i,
+                            unit,
+                            f"{int(m.sum())} frames",
+                        )
+    return rows
+
+
+def _fmt(v: Any) -> str:
+    if isinstance(v, float):
+        return "nan" if not np.isfinite(v) else f"{v:.4g}"
+    return str(v)
+
+
+# ---------------------------------------------------------------------------------------------
+# CLI verbs: msk batch, msk compare
+# ---------------------------------------------------------------------------------------------
+def _cli() -> None:
+    import argparse
+
+    from msk.cli import command
+
+    def batch_args(p: argparse.ArgumentParser) -> None:
+        p.add_argument(
+            "sessions",
+            nargs="+",
+            metavar="SESSION",
+            type=Path,
+            help="session configurations (.toml)",
+        )
+        p.add_argument("--out", required=True, type=Path, metavar="DIR")
+        p.add_argument(
+            "--scheduler",
+            metavar="ADDRESS",
+            help="Dask distributed scheduler (tcp://host:8786); default: local pool",
+        )
+        p.add_argument("--workers", type=int, help="local pool size (default: #CPUs)")
+        p.add_argument("--no-cache", action="store_true", help="recompute every stage")
+
+    @command(
+        "batch", help="run many sessions in parallel (local pool or Dask)", arguments=batch_args
+    )
+    def _batch(args: argparse.Namespace) -> int:
+        res = run_batch(
+            args.sessions,
+            args.out,
+            scheduler=args.scheduler,
+            workers=args.workers,
+            use_cache=not args.no_cache,
+            progress=sys.stderr,
+        )
+        n_ok = len(res.outcomes) - len(res.failed)
+        sys.stderr.write(
+            f"{n_ok}/{len(res.outcomes)} sessions ok in {res.seconds:.1f} s; "
+            f"cohort table {res.cohort_csv}\n"
+        )
+        return 1 if res.failed else 0
+
+    def cmp_args(p: argparse.ArgumentParser) -> None:
+        p.add_argument("folders", nargs="+", metavar="DIR", type=Path, help="session folders")
+        p.add_argument("--out", type=Path, metavar="FILE", help="also write the table as CSV")
+
+    @command(
+        "compare",
+        help="generic vs identified parameters across session folders",
+        arguments=cmp_args,
+    )
+    def _compare(args: argparse.Namespace) -> int:
+        rows = compare_sessions(args.folders)
+        widths = {
+            c: max(len(c), *(len(_fmt(r[c])) for r in rows)) if rows else len(c)
+            for c in COMPARE_COLUMNS
+        }
+        sys.stdout.write("  ".join(c.ljust(widths[c]) for c in COMPARE_COLUMNS).rstrip() + "\n")
+        for r in rows:
+            sys.stdout.write(
+                "  ".join(_fmt(r[c]).ljust(widths[c]) for c in COMPARE_COLUMNS).rstrip() + "\n"
+            )
+        if args.out is not None:
+            buf = io.StringIO()
+            w = csv.DictWriter(buf, fieldnames=list(COMPARE_COLUMNS), lineterminator="\n")
+            w.writeheader()
+            w.writerows(rows)
+            args.out.parent.mkdir(parents=True, exist_ok=True)
+            args.out.write_text(buf.getvalue(), encoding="utf-8")
+        return 0
+
+
+_cli()

@@ -1,0 +1,14 @@
+"""The clinician report: a self-contained HTML page (and a PDF when Chromium is available).
+
+Built from result objects only (:class:`msk.results.SessionResults`: the tables and
+``summary.json`` of a run), never from the pipeline's internals, so ``msk report DIR`` can
+rebuild it from a session folder. Figures are inline SVG made by matplotlib (Agg backend);
+CSS is inline. Every number carries its unit; every plot has labelled axes with units and a
+legend.
+"""
+
+from __future__ import annotations
+
+from msk.report.html import build_figures, render_html, write_pdf, write_report
+
+__all__ = ["build_figures", "render_html", "write_pdf", "write_report"]

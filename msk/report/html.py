@@ -1,0 +1,778 @@
+"""HTML report and its figures (see :mod:`msk.report`)."""
+
+from __future__ import annotations
+
+import html
+import io
+import os
+import re
+import shutil
+import subprocess
+import tempfile
+from collections.abc import Mapping, Sequence
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from msk.results import SessionResults
+
+__all__ = ["build_figures", "chromium_executable", "render_html", "write_pdf", "write_report"]
+
+#: Identifiability colours of the segment masses, seeds/002 Fig. 3: green = parameters identified
+#: with excellent accuracy, blue = links whose parameters are poorly determined (small); msk adds
+#: grey for segments left at the prior (the data do not inform them).
+FLAG_COLOURS = {
+    "well identified": "#2e7d32",
+    "weakly identified": "#1e88e5",
+    "prior": "#9e9e9e",
+}
+#: Plausible strength-factor range (× generic F_iso), seeds/003 Table 3.1.
+LITERATURE_FACTOR_RANGE = (0.5, 2.0)
+#: (coordinate stem, title, sign): gait2392's knee_angle is negative in flexion; the report shows
+#: flexion positive (and the knee moment and power with the same sign change; power unchanged).
+_JOINTS = (
+    ("hip_flexion", "Hip flexion", 1.0),
+    ("knee_angle", "Knee flexion", -1.0),
+    ("ankle_angle", "Ankle dorsiflexion", 1.0),
+)
+
+
+# ---------------------------------------------------------------------------------------------
+# figures
+# ---------------------------------------------------------------------------------------------
+def _plt() -> Any:
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    plt.rcParams.update(
+        {"font.size": 9, "svg.fonttype": "none", "axes.grid": True, "grid.alpha": 0.3}
+    )
+    return plt
+
+
+def _svg(fig: Any) -> str:
+    buf = io.StringIO()
+    fig.savefig(buf, format="svg", bbox_inches="tight")
+    import matplotlib.pyplot as plt
+
+    plt.close(fig)
+    text = buf.getvalue()
+    text = re.sub(r"<metadata>.*?</metadata>\s*", "", text, flags=re.S)  # dates, licence URIs
+    return text[text.index("<svg") :]
+
+
+def _cycle_axis(res: SessionResults, t: np.ndarray) -> tuple[np.ndarray, np.ndarray, str]:
+    """x values in % of the gait cycle (from the C3D foot strikes) and the in-cycle mask."""
+    cyc = res.summary.get("gait_cycle_s")
+    if cyc:
+        x = 100.0 * (t - cyc[0]) / (cyc[1] - cyc[0])
+        return x, (x >= 0) & (x <= 100), "gait cycle (%)"
+    return t, np.ones(t.size, dtype=bool), "time (s)"
+
+
+def _side(res: SessionResults) -> str:
+    return "_l" if res.summary.get("subject", {}).get("side", "right") == "left" else "_r"
+
+
+def _fig_strength(res: SessionResults) -> str | None:
+    st = res.summary.get("strength")
+    if not st or not st.get("groups"):
+        return None
+    plt = _plt()
+    groups = st["groups"]
+    fig, ax = plt.subplots(figsize=(7.5, 0.35 * len(groups) + 1.4))
+    y = np.arange(len(groups))
+    lo, hi = LITERATURE_FACTOR_RANGE
+    ax.axvspan(lo, hi, color="#e3f2fd", label=f"plausible range {lo}–{hi} × (seeds/003)")
+    ax.axvline(1.0, color="k", lw=1, ls="--", label="generic model (1.0 ×)")
+    for k, g in enumerate(groups):
+        f = g["factor"]
+        col = "#1565c0" if g["identified"] else "#9e9e9e"
+        if g["identified"] and g["ci_low"] is not None and g["ci_high"] is not None:
+            ax.errorbar(
+                f,
+                k,
+                xerr=[[f - g["ci_low"]], [g["ci_high"] - f]],
+                fmt="o",
+                color=col,
+                capsize=3,
+                label="identified, 95 % CI" if k == 0 else None,
+            )
+        else:
+            ax.plot(f, k, "s", color=col, label="not identified (kept generic)")
+    ax.set_yticks(y, [g["group"] for g in groups])
+    ax.set_xlabel("strength factor (× generic F_iso, dimensionless)")
+    ax.set_ylabel("muscle group (EMG channel)")
+    ax.set_xlim(0.3, 2.2)
+    handles, labels = ax.get_legend_handles_labels()
+    uniq = dict(zip(labels, handles))
+    ax.legend(uniq.values(), uniq.keys(), loc="lower right", fontsize=7)
+    return _svg(fig)
+
+
+def _fig_mass(res: SessionResults) -> str | None:
+    ident = res.summary.get("identification")
+    if not ident:
+        return None
+    plt = _plt()
+    segs = ident["segments"]
+    anth = (res.summary.get("anthropometry") or {}).get("segments", {})
+    fig, ax = plt.subplots(figsize=(7.5, 3.2))
+    x = np.arange(len(segs))
+    w = 0.27
+    prior = [s["prior_mass_kg"] for s in segs]
+    mass = [s["mass_kg"] for s in segs]
+    err = [2 * (s["mass_std_kg"] or 0.0) for s in segs]
+    cols = [FLAG_COLOURS.get(s["flag"], "#9e9e9e") for s in segs]
+    ax.bar(x - w, prior, w, color="#cfd8dc", edgecolor="k", lw=0.5, label="scaled generic model")
+    ax.bar(
+        x,
+        mass,
+        w,
+        color=cols,
+        edgecolor="k",
+        lw=0.5,
+        yerr=err,
+        capsize=2,
+        label="identified (±2 SD)",
+    )
+    tab = []
+    for s in segs:
+        n = s["name"]
+        key = n
+        if n.startswith(("talus", "calcn", "toes")):
+            key = "foot" + n[-2:]
+        elif n.startswith("femur"):
+            key = "femur" + n[-2:]
+        v = (
+            anth.get(key, {}).get("mass_kg")
+            if n.startswith(("pelvis", "femur", "tibia", "torso", "calcn"))
+            else None
+        )
+        tab.append(np.nan if v is None else v)
+    ax.bar(
+        x + w,
+        tab,
+        w,
+        color="white",
+        edgecolor="#37474f",
+        hatch="//",
+        lw=0.5,
+        label="anthropometric table (Dumas 2007)",
+    )
+    for flag, col in FLAG_COLOURS.items():
+        ax.bar([0], [0], color=col, label=f"flag: {flag}")
+    ax.set_xticks(x, [s["name"] for s in segs], rotation=40, ha="right")
+    ax.set_ylabel("segment mass (kg)")
+    ax.set_xlabel("segment")
+    ax.legend(fontsize=7, ncol=2)
+    return _svg(fig)
+
+
+def _series(res: SessionResults, table: str, cols: Sequence[str]) -> dict[str, np.ndarray]:
+    if not res.has(table):
+        return {}
+    tb = res.table(table)
+    return {c: tb.column(c) for c in cols if c in tb.columns}
+
+
+def _fig_joints(res: SessionResults) -> str | None:
+    if not res.has("q"):
+        return None
+    plt = _plt()
+    sfx = _side(res)
+    q = res.table("q")
+    x, sel, xl = _cycle_axis(res, q.time)
+    tq = res.table("joint_torques") if res.has("joint_torques") else None
+    mass = res.summary.get("subject", {}).get("mass_kg") or 1.0
+    fig, axes = plt.subplots(3, 3, figsize=(8.5, 6.5), sharex=True)
+    dt = np.gradient(q.time) if q.time.size > 1 else np.ones(1)
+    for j, (stem, title, sign) in enumerate(_JOINTS):
+        c = stem + sfx
+        if c not in q.columns:
+            continue
+        ang = q.column(c)
+        axes[0, j].plot(x[sel], sign * np.rad2deg(ang[sel]), color="#1565c0", label="this session")
+        axes[0, j].set_title(title)
+        axes[0, j].set_ylabel("angle (deg)")
+        if tq is not None and c in tq.columns:
+            tau = tq.column(c)
+            axes[1, j].plot(
+                x[sel], sign * tau[sel] / mass, color="#c62828", label="net joint moment"
+            )
+            axes[1, j].set_ylabel("moment (N·m/kg)")
+            power = tau * np.gradient(ang) / dt
+            axes[2, j].plot(x[sel], power[sel] / mass, color="#2e7d32", label="joint power")
+            axes[2, j].set_ylabel("power (W/kg)")
+        for r in range(3):
+            if axes[r, j].lines:
+                axes[r, j].legend(fontsize=7, loc="best")
+        axes[2, j].set_xlabel(xl)
+    fig.tight_layout()
+    return _svg(fig)
+
+
+def _fig_muscles(res: SessionResults) -> str | None:
+    if not res.has("muscle_forces"):
+        return None
+    plt = _plt()
+    sfx = _side(res)
+    mf = res.table("muscle_forces")
+    x, sel, xl = _cycle_axis(res, mf.time)
+    idx = [k for k, c in enumerate(mf.columns) if c.endswith(sfx)]
+    if not idx:
+        return None
+    peaks = np.nan_to_num(np.nanmax(np.abs(mf.data[:, idx]), axis=0, initial=0.0))
+    top = [idx[k] for k in np.argsort(peaks)[::-1][:8]]
+    fig, ax = plt.subplots(figsize=(7.5, 3.2))
+    for k in top:
+        ax.plot(x[sel], mf.data[sel, k], label=mf.columns[k])
+    ax.set_xlabel(xl)
+    ax.set_ylabel("muscle force (N)")
+    ax.legend(fontsize=7, ncol=2, title="8 largest")
+    return _svg(fig)
+
+
+def _fig_contact(res: SessionResults) -> str | None:
+    if not res.has("knee_contact"):
+        return None
+    plt = _plt()
+    kc = res.table("knee_contact")
+    x, sel, xl = _cycle_axis(res, kc.time)
+    fig, ax = plt.subplots(figsize=(7.5, 3.0))
+    style = {
+        "measured_total_bw": ("k", "-", "measured (instrumented implant)"),
+        "generic_total_bw": ("#9e9e9e", "--", "predicted, generic parameters"),
+        "subject_specific_total_bw": ("#1565c0", "-", "predicted, subject-specific"),
+    }
+    for col, (c, ls, lab) in style.items():
+        if col in kc.columns:
+            ax.plot(x[sel], kc.column(col)[sel], color=c, ls=ls, label=lab)
+    ax.set_xlabel(xl)
+    ax.set_ylabel("knee contact force (body weights)")
+    ax.legend(fontsize=7)
+    return _svg(fig)
+
+
+def build_figures(res: SessionResults) -> dict[str, str]:
+    """Inline SVG figures by name (strength, mass, joints, muscles, contact)."""
+    out = {}
+    for name, fn in (
+        ("strength", _fig_strength),
+        ("mass", _fig_mass),
+        ("joints", _fig_joints),
+        ("muscles", _fig_muscles),
+        ("contact", _fig_contact),
+    ):
+        svg = fn(res)
+        if svg:
+            out[name] = svg
+    return out
+
+
+# ---------------------------------------------------------------------------------------------
+# HTML
+# ---------------------------------------------------------------------------------------------
+_CSS = """
+body{font-family:system-ui,-apple-system,"Segoe UI",Roboto,Arial,sans-serif;margin:0;
+ color:#222;background:#fafafa}
+main{max-width:1100px;margin:0 auto;padding:16px 24px;background:#fff}
+h1{font-size:1.6em;margin:.2em 0}h2{border-bottom:2px solid #1565c0;padding-bottom:2px;
+ margin-top:1.6em;font-size:1.25em}h3{font-size:1.05em}
+table{border-collapse:collapse;margin:8px 0;font-size:.88em;max-width:100%}
+th,td{border:1px solid #ccc;padding:3px 7px;text-align:right;white-space:nowrap}
+th{background:#eceff1}td:first-child,th:first-child{text-align:left}
+table.strength td:nth-child(2),table.strength th:nth-child(2){text-align:left;white-space:normal}
+.wrap{overflow-x:auto;max-width:100%}
+.note{color:#555;font-size:.88em}.plain{background:#e3f2fd;padding:8px 12px;border-radius:4px}
+.warn{background:#fff3e0;border-left:4px solid #ef6c00;padding:6px 10px;margin:6px 0}
+.na{color:#b71c1c;font-weight:600}
+svg{max-width:100%;height:auto}figure{margin:8px 0}
+.flag{display:inline-block;width:10px;height:10px;border-radius:2px;margin-right:4px}
+@media print{main{max-width:none}h2{page-break-after:avoid}figure{page-break-inside:avoid}}
+"""
+
+
+def _e(x: Any) -> str:
+    return html.escape(str(x))
+
+
+def _num(x: Any, fmt: str = ".3g", unit: str = "") -> str:
+    if x is None or (isinstance(x, float) and not np.isfinite(x)):
+        return "—"
+    s = format(x, fmt)
+    return f"{s} {unit}".rstrip() if unit else s
+
+
+def _table(head: Sequence[str], rows: Sequence[Sequence[str]], cls: str = "") -> str:
+    h = "".join(f"<th>{_e(c)}</th>" for c in head)
+    b = "".join("<tr>" + "".join(f"<td>{c}</td>" for c in r) + "</tr>" for r in rows)
+    return (
+        f'<div class="wrap"><table class="{cls}"><thead><tr>{h}</tr></thead>'
+        f"<tbody>{b}</tbody></table></div>"
+    )
+
+
+def _na(res: SessionResults, *stages: str) -> str:
+    for item in res.summary.get("not_available", []):
+        if item["stage"] in stages:
+            return (
+                f'<p class="na">Not available: stage “{_e(item["stage"])}” '
+                f"{_e(item['status'])} — {_e(item['reason'])}</p>"
+            )
+    return ""
+
+
+def _strength_section(res: SessionResults, figs: Mapping[str, str]) -> str:
+    st = res.summary.get("strength")
+    out = ["<h2>1. Muscle strength</h2>"]
+    if not st:
+        return (
+            "".join(out)
+            + _na(res, "strength_identification", "emg")
+            + ('<p class="na">Strength was not identified in this session.</p>')
+        )
+    side = res.summary.get("subject", {}).get("side", "right")
+    other = "right" if side == "left" else "left"
+    weaker = [
+        g["group"]
+        for g in st["groups"]
+        if g["identified"] and g["ci_high"] is not None and g["ci_high"] < 1.0
+    ]
+    stronger = [
+        g["group"]
+        for g in st["groups"]
+        if g["identified"] and g["ci_low"] is not None and g["ci_low"] > 1.0
+    ]
+    msg = (
+        f"Strength of the {side} leg muscles measured with EMG, relative to a typical adult "
+        "(the generic model = 1.0). "
+    )
+    msg += (
+        f"Clearly below typical: {', '.join(weaker)}. "
+        if weaker
+        else "No group is clearly below typical. "
+    )
+    msg += f"Clearly above typical: {', '.join(stronger)}. " if stronger else ""
+    msg += (
+        f"The {other} leg was not measured with EMG, so no left/right comparison of strength "
+        "is possible in this session."
+    )
+    r2 = st.get("r2")
+    unreliable = r2 is None or r2 < 0.5
+    no_mvc = any("no MVC" in w for w in res.summary.get("quality", {}).get("emg_warnings", []))
+    if unreliable:
+        msg = (
+            f"Strength of the {side} leg muscles, relative to a typical adult (the generic "
+            "model = 1.0), could not be estimated reliably in this session: see the warning "
+            "below. The values are shown for research use only."
+        )
+    out.append(f'<p class="plain">{_e(msg)}</p>')
+    if unreliable:
+        out.append(
+            f'<p class="warn"><b>Caution:</b> the EMG-driven muscle model explains the '
+            f"joint moments poorly (fit r² = {_num(r2, '.2f')}); factors at the bounds "
+            f"({st['bounds'][0]} or {st['bounds'][1]} ×) mean the data did not determine "
+            "them.</p>"
+        )
+    if no_mvc:
+        out.append(
+            '<p class="warn">No maximal voluntary contraction (MVC) trials: EMG is '
+            "normalised to this session's peak, so activations are relative and the "
+            "strength factors are biased (a muscle that never contracts fully looks "
+            "strong).</p>"
+        )
+    pct = round(100 * st.get("confidence", 0.95))
+    rows = []
+    for g in st["groups"]:
+        rows.append(
+            [
+                _e(g["group"]),
+                _e(", ".join(g["muscles"])),
+                _num(g["factor"], ".2f", "×"),
+                (
+                    f"{_num(g['ci_low'], '.2f')}–{_num(g['ci_high'], '.2f')} ×"
+                    if g["identified"]
+                    else "—"
+                ),
+                _num(g["f_iso_generic_n"], ".0f", "N"),
+                _num(g["f_iso_n"], ".0f", "N"),
+                "identified" if g["identified"] else "kept generic",
+            ]
+        )
+    out.append(
+        _table(
+            [
+                "group (EMG)",
+                f"muscles ({side})",
+                "strength factor",
+                f"{pct} % CI (bootstrap)",
+                "generic F_iso",
+                "identified F_iso",
+                "status",
+            ],
+            rows,
+            "strength",
+        )
+    )
+    lo, hi = LITERATURE_FACTOR_RANGE
+    out.append(
+        f'<p class="note">Literature range of strength factors: {lo}–{hi} × generic '
+        f"(seeds/003 Table 3.1); generic F_iso: gait2392 (Delp et al. 1990). {other.capitalize()} "
+        "side: not measured (no EMG).</p>"
+    )
+    out.append(
+        f'<p class="note">Fit r² = {_num(st["r2"], ".3f")} (dimensionless); method: '
+        f"{_e(st['method'])}; factors bounded to {st['bounds'][0]}–{st['bounds'][1]} × "
+        "generic (seeds/002 §V, seeds/003 Table 3.1).</p>"
+    )
+    if "strength" in figs:
+        out.append(f"<figure>{figs['strength']}</figure>")
+    return "".join(out)
+
+
+def _mass_section(res: SessionResults, figs: Mapping[str, str]) -> str:
+    ident = res.summary.get("identification")
+    out = ["<h2>2. Mass distribution</h2>"]
+    if not ident:
+        return "".join(out) + _na(res, "mass_identification")
+    anth = (res.summary.get("anthropometry") or {}).get("segments", {})
+    out.append(
+        '<p class="plain">Body segment masses estimated from this session\'s motion and '
+        "ground forces. Colour shows how well the data determine each segment: "
+        + " ".join(
+            f'<span class="flag" style="background:{c}"></span>{_e(f)}'
+            for f, c in FLAG_COLOURS.items()
+        )
+        + ". Grey segments keep the generic value.</p>"
+    )
+    rows = []
+    for s in ident["segments"]:
+        n = s["name"]
+        key = ("foot" + n[-2:]) if n.startswith("calcn") else n
+        tab = anth.get(key, {}).get("mass_kg")
+        col = FLAG_COLOURS.get(s["flag"], "#9e9e9e")
+        com = s.get("com_m") or [None] * 3
+        rows.append(
+            [
+                _e(n),
+                _num(s["mass_kg"], ".2f", "kg"),
+                _num(s["mass_std_kg"], ".2f", "kg"),
+                _num(s["prior_mass_kg"], ".2f", "kg"),
+                _num(tab, ".2f", "kg") if tab is not None else "—",
+                " ".join(_num(c, "+.3f") for c in com) + " m",
+                f'<span class="flag" style="background:{col}"></span>{_e(s["flag"])}',
+            ]
+        )
+    out.append(
+        _table(
+            [
+                "segment",
+                "identified mass",
+                "± SD",
+                "scaled generic",
+                "anthropometric table",
+                "COM (x y z, body frame)",
+                "identifiability",
+            ],
+            rows,
+            "mass",
+        )
+    )
+    out.append(
+        f'<p class="note">Condition number of the base regressor '
+        f"{_num(ident['condition_number'], '.3g')} (dimensionless), "
+        f"{ident['n_frames']} frames. Table masses: Dumas et al. 2007 (foot row on the "
+        "calcaneus; talus and toes are part of it; torso = trunk + head + arms).</p>"
+    )
+    for a in ident.get("advice", [])[:3]:
+        out.append(f'<p class="warn">{_e(a)}</p>')
+    if "mass" in figs:
+        out.append(f"<figure>{figs['mass']}</figure>")
+    return "".join(out)
+
+
+def _gait_section(res: SessionResults, figs: Mapping[str, str]) -> str:
+    out = ["<h2>3. Joint angles, moments, powers and muscle forces over the gait cycle</h2>"]
+    cyc = res.summary.get("gait_cycle_s")
+    side = res.summary.get("subject", {}).get("side", "right")
+    if cyc:
+        out.append(
+            f'<p class="note">Gait cycle of the {_e(side)} leg from foot strike '
+            f"{cyc[0]:.3f} s to foot strike {cyc[1]:.3f} s (C3D events), shown as 0–100 %."
+            " Moments are internal net joint moments per kg body mass; positive = flexion"
+            " (hip, knee) or dorsiflexion (ankle) for angles and moments alike. Power = moment"
+            " × angular velocity (W/kg; positive = generation).</p>"
+        )
+    else:
+        out.append(
+            '<p class="warn">No two foot-strike events of the side of interest in the '
+            "C3D file: curves are shown against time.</p>"
+        )
+    if "joints" in figs:
+        out.append(f"<figure>{figs['joints']}</figure>")
+    if "muscles" in figs:
+        out.append(f"<h3>Muscle forces ({_e(side)} leg)</h3><figure>{figs['muscles']}</figure>")
+    else:
+        out.append(_na(res, "tension_optimization", "muscle_geometry"))
+    return "".join(out)
+
+
+def _contact_section(res: SessionResults, figs: Mapping[str, str]) -> str:
+    out = ["<h2>4. Knee contact force</h2>"]
+    if "contact" not in figs:
+        return "".join(out) + _na(res, "knee_contact", "tension_optimization")
+    comp = res.summary.get("comparison") or {}
+    rows = []
+    for key, label in (
+        ("knee_contact_generic", "generic parameters"),
+        ("knee_contact_subject_specific", "subject-specific"),
+    ):
+        c = comp.get(key)
+        if c:
+            rows.append(
+                [
+                    _e(label),
+                    _num(c["peak_predicted_bw"], ".2f", "BW"),
+                    _num(c["peak_measured_bw"], ".2f", "BW"),
+                    _num(c["rms_bw"], ".2f", "BW"),
+                    _num(c["rms_n"], ".0f", "N"),
+                    _num(c["nrmsd_pct"], ".1f", "%"),
+                    _num(c["pearson_r"], ".2f"),
+                    _num(c["icc"], ".2f"),
+                ]
+            )
+    if rows:
+        out.append(
+            '<p class="plain">Force between femur and tibia in body weights (BW), '
+            "predicted from the muscle forces and compared with the force measured by "
+            "the instrumented knee implant.</p>"
+        )
+        out.append(
+            _table(
+                [
+                    "prediction",
+                    "peak predicted",
+                    "peak measured",
+                    "RMS error",
+                    "RMS error",
+                    "NRMSD",
+                    "Pearson r (dimensionless)",
+                    "ICC (dimensionless)",
+                ],
+                rows,
+                "contact",
+            )
+        )
+    else:
+        out.append(
+            '<p class="note">No measured contact force for this session: prediction only.</p>'
+        )
+    out.append(f"<figure>{figs['contact']}</figure>")
+    return "".join(out)
+
+
+def _quality_section(res: SessionResults) -> str:
+    q = res.summary.get("quality", {})
+    out = ["<h2>5. Data quality</h2>"]
+    rows = [
+        ["frames", f"{q.get('frames', '—')} at {_num(q.get('rate_hz'), '.0f', 'Hz')}"],
+        [
+            "IK marker error, mean",
+            _num(1000 * q["ik_marker_rms_mean_m"], ".1f", "mm")
+            if "ik_marker_rms_mean_m" in q
+            else "—",
+        ],
+        [
+            "IK marker error, worst frame",
+            _num(1000 * q["ik_marker_rms_max_m"], ".1f", "mm")
+            if "ik_marker_rms_max_m" in q
+            else "—",
+        ],
+        ["marker most often worst", _e(q.get("ik_worst_marker", "—"))],
+        ["IK failed frames", _e(q.get("ik_failed_frames", "—"))],
+        [
+            "pelvis residual force (RMS)",
+            f"{_num(q.get('residual_force_rms_n'), '.1f', 'N')} "
+            f"({_num(q.get('residual_force_rms_pct_bw'), '.1f', '% BW')})",
+        ],
+        ["pelvis residual moment (RMS)", _num(q.get("residual_moment_rms_nm"), ".1f", "N·m")],
+        ["EMG channels flat / unusable", _e(", ".join(q.get("emg_flat_channels", [])) or "none")],
+        ["optimisation infeasible frames", _e(q.get("optimization_infeasible_frames", "—"))],
+    ]
+    out.append(_table(["figure", "value"], rows, "quality"))
+    gaps = q.get("marker_gaps", [])
+    if gaps:
+        out.append(
+            _table(
+                ["marker with gaps", "missing frames", "longest gap (frames)"],
+                [
+                    [_e(g["marker"]), _e(g["missing_frames"]), _e(g["longest_gap_frames"])]
+                    for g in gaps
+                ],
+                "gaps",
+            )
+        )
+    warns = q.get("emg_warnings", [])
+    no_mvc = [w.split("'")[1] for w in warns if "no MVC" in w and w.count("'") >= 2]
+    for w in [w for w in warns if "no MVC" not in w][:8]:
+        out.append(f'<p class="warn">EMG: {_e(w)}</p>')
+    if no_mvc:
+        out.append(
+            f'<p class="warn">EMG: no MVC trial for {len(no_mvc)} channels '
+            f"({_e(', '.join(no_mvc))}): each is normalised to its peak envelope in this "
+            "session, so activations are relative, not % MVC.</p>"
+        )
+    return "".join(out)
+
+
+def _methods_section(res: SessionResults) -> str:
+    s = res.summary
+    out = ["<h2>6. Methods, stages and software</h2>"]
+    out.append(
+        '<p class="note">Markers → scaled model (OpenSim-style measurements; non-model markers '
+        "placed from the static trial) → inverse kinematics → force plates assigned to the feet → "
+        "segment inertial parameters from the base-link equations (seeds/002 §II) → inverse "
+        "dynamics → EMG envelopes and activation (seeds/002 Eq. 8) → muscle–tendon geometry "
+        "(seeds/002 Eq. 6–7) → tension optimisation → strength by regression on the net "
+        "contribution matrix (seeds/002 Eq. 12–16) → knee joint reaction with muscle forces. "
+        "The lab frame is rotated into the model frame (vertical up, walking along +x); each "
+        "force-plate contact is assigned to the foot nearest its centre of pressure; for the "
+        "knee load, muscle path points that move with the knee angle (and conditional via "
+        f"points) are updated every {s.get('methods', {}).get('contact_path_update_frames', '?')} "
+        "frames.</p>"
+    )
+    rows = []
+    for r in s.get("stages", []):
+        cls = ' class="na"' if r["status"] in ("not available", "failed") else ""
+        rows.append(
+            [
+                _e(r["name"]),
+                f"<span{cls}>{_e(r['status'])}</span>",
+                _num(r["seconds"], ".2f", "s"),
+                _e(r.get("message", "")),
+            ]
+        )
+    out.append(_table(["stage", "status", "time", "note"], rows, "stages"))
+    opt = s.get("optimization") or {}
+    if opt:
+        out.append(f'<p class="note">Tension optimisation: {_e(opt.get("method"))}.</p>')
+    ver = s.get("versions", {})
+    out.append(
+        _table(["software", "version"], [[_e(k), _e(v)] for k, v in ver.items()], "versions")
+    )
+    ins = s.get("inputs", [])
+    out.append(
+        _table(
+            ["input", "file", "sha256"],
+            [[_e(i["role"]), _e(Path(i["path"]).name), _e(i["sha256"][:16] + "…")] for i in ins],
+            "inputs",
+        )
+    )
+    return "".join(out)
+
+
+def render_html(res: SessionResults, figures: Mapping[str, str] | None = None) -> str:
+    """The report as one self-contained HTML string."""
+    figs = build_figures(res) if figures is None else figures
+    s = res.summary
+    subj = s.get("subject", {})
+    na = s.get("not_available", [])
+    head = (
+        f"<h1>Gait analysis report — {_e(subj.get('name', ''))}</h1>"
+        f'<p class="note">Body mass {_num(subj.get("mass_kg"), ".1f", "kg")}, height '
+        f"{_num(subj.get('height_m'), '.2f', 'm')}, side of interest {_e(subj.get('side'))}. "
+        f"Produced {_e(s.get('created_utc', ''))} by msk "
+        f"{_e(s.get('versions', {}).get('msk', ''))}.</p>"
+    )
+    if na:
+        head += (
+            '<p class="warn"><b>Parts of the analysis are not available in this report:</b> '
+            + "; ".join(f"{_e(i['stage'])} ({_e(i['status'])}: {_e(i['reason'])})" for i in na)
+            + "</p>"
+        )
+    body = "".join(
+        [
+            head,
+            _strength_section(res, figs),
+            _mass_section(res, figs),
+            _gait_section(res, figs),
+            _contact_section(res, figs),
+            _quality_section(res),
+            _methods_section(res),
+        ]
+    )
+    title = f"msk report {_e(subj.get('name', ''))}"
+    return (
+        f'<!DOCTYPE html><html lang="en"><head><meta charset="utf-8">'
+        f'<meta name="viewport" content="width=device-width, initial-scale=1">'
+        f"<title>{title}</title><style>{_CSS}</style></head>"
+        f"<body><main>{body}</main></body></html>\n"
+    )
+
+
+def chromium_executable() -> str | None:
+    """Path of a headless-capable Chromium/Chrome, or ``None``."""
+    for name in ("chromium", "chromium-browser", "google-chrome", "chrome"):
+        p = shutil.which(name)
+        if p:
+            return p
+    return None
+
+
+def chromium_args(user_data_dir: str) -> list[str]:
+    return [
+        "--headless",
+        "--no-sandbox",
+        "--disable-gpu",
+        "--disable-quic",
+        "--no-first-run",
+        "--disable-background-networking",
+        "--disable-component-update",
+        "--disable-sync",
+        f"--user-data-dir={user_data_dir}",
+    ]
+
+
+def write_pdf(html_path: str | Path, pdf_path: str | Path, *, timeout_s: float = 60.0) -> bool:
+    """Print ``html_path`` to ``pdf_path`` with headless Chromium; ``False`` if unavailable."""
+    exe = chromium_executable()
+    if exe is None:
+        return False
+    with tempfile.TemporaryDirectory() as prof:
+        cmd = [
+            exe,
+            *chromium_args(prof),
+            "--no-pdf-header-footer",
+            f"--print-to-pdf={Path(pdf_path).resolve()}",
+            Path(html_path).resolve().as_uri(),
+        ]
+        try:
+            subprocess.run(cmd, capture_output=True, timeout=timeout_s, check=False)
+        except (OSError, subprocess.TimeoutExpired):
+            return False
+    return Path(pdf_path).is_file() and Path(pdf_path).stat().st_size > 0
+
+
+def write_report(
+    res: SessionResults,
+    folder: str | Path,
+    *,
+    figures: Mapping[str, str] | None = None,
+    pdf: bool | None = None,
+) -> Path:
+    """Write ``report.html`` (and ``report.pdf`` when Chromium is available and ``pdf`` is not
+    False; ``MSK_NO_PDF=1`` disables it) into ``folder``."""
+    folder = Path(folder)
+    path = folder / "report.html"
+    tmp = folder / ".report.html.tmp"
+    tmp.write_text(render_html(res, figures), encoding="utf-8")
+    os.replace(tmp, path)
+    if pdf is None:
+        pdf = os.environ.get("MSK_NO_PDF", "") not in ("1", "true", "yes")
+    if pdf:
+        write_pdf(path, folder / "report.pdf")
+    return path

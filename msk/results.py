@@ -1,0 +1,254 @@
+"""The results contract: what ``msk run`` writes for one session, and how to read it back.
+
+One folder per session (DESIGN.md "Results a run writes")::
+
+    <out>/
+      tables/<quantity>.csv     first column ``time`` (s), then named columns, SI units
+      tables/<quantity>.sto     the same table as an OpenSim 4 storage file (``q.mot`` for the
+                                coordinates, angles in degrees as OpenSim expects)
+      summary.json              versions, inputs with sha256, settings, quality figures, stage
+                                timings, stages not available, identified parameters
+      report.html               the clinician report (self-contained)
+      report.pdf                when headless Chromium is available
+
+Quantities (:data:`TABLES`): ``q`` (rad / m), ``joint_torques`` (N·m / N, one column per
+coordinate, the pelvis ones being the residuals), ``residuals`` (``force_x…z`` N and
+``moment_x…z`` N·m about the pelvis origin, world axes of the model frame), ``muscle_forces``
+(N), ``activations`` (1), ``knee_contact`` (``<variant>_x/_y/_z``: force of the femur on the tibia
+in the knee joint frame fixed in the tibia, N; ``<variant>_total`` its magnitude, N, and
+``_total_bw`` in body weights; variants ``generic`` and ``subject_specific``; ``measured_total``
+the implant's force on the same time base, NaN outside the measured cycle),
+``inertial_parameters`` and ``strength``. The last two are
+not time series: they are one row whose ``time`` is the start (s) of the data they were
+identified from, with columns ``<segment>.<parameter>`` (Pinocchio order ``m, mx, my, mz, Ixx,
+Ixy, Iyy, Ixz, Iyz, Izz`` in kg, kg·m, kg·m²) and ``<group>.<figure>`` (factor ×generic, CI
+bounds, F_iso in N). A readable copy of both lives in ``summary.json``.
+
+Writing is atomic for the whole folder (:func:`write_session`): everything goes into a temporary
+sibling folder that replaces ``<out>`` by a rename at the very end, so a run that fails never
+leaves a half-written table or report behind (the previous results, if any, stay intact).
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import os
+import shutil
+import tempfile
+from collections.abc import Callable, Mapping, Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from msk.exceptions import FileFormatError, MissingDataError
+from msk.io.opensim_files import Table, write_sto
+from msk.io.tables import read_csv_table, write_csv_table
+
+__all__ = [
+    "SUMMARY_FORMAT",
+    "TABLES",
+    "SessionResults",
+    "check_replaceable",
+    "json_default",
+    "read_session",
+    "write_session",
+]
+
+#: The tables of the contract, in the order a reader meets them.
+TABLES: tuple[str, ...] = (
+    "q",
+    "joint_torques",
+    "residuals",
+    "muscle_forces",
+    "activations",
+    "knee_contact",
+    "inertial_parameters",
+    "strength",
+)
+#: ``summary.json`` ``format`` value (bumped on incompatible changes).
+SUMMARY_FORMAT = "msk-session-summary/1"
+
+
+@dataclass(frozen=True)
+class SessionResults:
+    """The results of one session as read from (or about to be written to) its folder.
+
+    ``tables`` maps a quantity name to its :class:`~msk.io.opensim_files.Table` (SI);
+    ``summary`` is the ``summary.json`` content; ``path`` the folder (``None`` before writing).
+    ``angle_columns`` names the columns of ``q`` that are rotations (written in degrees in the
+    ``.mot`` twin).
+    """
+
+    tables: Mapping[str, Table]
+    summary: Mapping[str, Any]
+    path: Path | None = None
+    angle_columns: tuple[str, ...] = ()
+    extra_files: Mapping[str, bytes] = field(default_factory=dict)
+
+    def table(self, name: str) -> Table:
+        try:
+            return self.tables[name]
+        except KeyError:
+            raise MissingDataError(
+                f"session {self.summary.get('session', '?')!r}: no table {name!r} "
+                f"(have {sorted(self.tables)})"
+            ) from None
+
+    def has(self, name: str) -> bool:
+        return name in self.tables
+
+
+def json_default(obj: Any) -> Any:
+    """``json.dumps(default=...)``: numpy scalars/arrays and paths as plain JSON values."""
+    if isinstance(obj, np.ndarray):
+        return [json_default(x) for x in obj.tolist()] if obj.ndim else json_default(obj.item())
+    if isinstance(obj, (np.floating, float)):
+        v = float(obj)
+        return v if math.isfinite(v) else None
+    if isinstance(obj, np.integer):
+        return int(obj)
+    if isinstance(obj, np.bool_):
+        return bool(obj)
+    if isinstance(obj, Path):
+        return str(obj)
+    if isinstance(obj, (set, frozenset, tuple)):
+        return list(obj)
+    raise TypeError(f"not JSON serialisable: {type(obj).__name__}")
+
+
+def _clean(obj: Any) -> Any:
+    """Replace non-finite floats by ``None`` (strict JSON) recursively."""
+    if isinstance(obj, Mapping):
+        return {str(k): _clean(v) for k, v in obj.items()}
+    if isinstance(obj, (list, tuple)):
+        return [_clean(v) for v in obj]
+    if isinstance(obj, (float, np.floating)):
+        v = float(obj)
+        return v if math.isfinite(v) else None
+    if isinstance(obj, np.ndarray):
+        return _clean(obj.tolist())
+    return obj
+
+
+def _write_tables(folder: Path, results: SessionResults) -> list[str]:
+    tdir = folder / "tables"
+    tdir.mkdir(parents=True, exist_ok=True)
+    written = []
+    for name, tab in results.tables.items():
+        write_csv_table(tdir / f"{name}.csv", tab)
+        twin = Table(time=tab.time, data=tab.data, columns=tab.columns, name=name)
+        if name == "q":
+            angles = tuple(c for c in results.angle_columns if c in tab.columns)
+            write_sto(tdir / "q.mot", twin, in_degrees=True, angle_columns=angles, name="q")
+        else:
+            write_sto(tdir / f"{name}.sto", twin, name=name)
+        written.append(name)
+    return written
+
+
+def write_session(
+    out_dir: str | Path,
+    results: SessionResults,
+    *,
+    report: Callable[[SessionResults, Path], None] | None = None,
+    keep: Sequence[str] = (".cache",),
+) -> Path:
+    """Write ``results`` as the session folder ``out_dir``, atomically.
+
+    Tables, twins, ``summary.json`` and whatever ``report(results, folder)`` writes go into a
+    temporary sibling folder; entries of the old folder named in ``keep`` (the stage cache) are
+    moved over; then the temporary folder replaces ``out_dir``. On any exception the temporary
+    folder is removed and ``out_dir`` is left as it was.
+    """
+    out = Path(out_dir).resolve()
+    check_replaceable(out, keep)
+    out.parent.mkdir(parents=True, exist_ok=True)
+    tmp = Path(tempfile.mkdtemp(prefix=f".{out.name}.tmp-", dir=out.parent))
+    try:
+        written = _write_tables(tmp, results)
+        for rel, blob in results.extra_files.items():
+            p = tmp / rel
+            p.parent.mkdir(parents=True, exist_ok=True)
+            p.write_bytes(blob)
+        summary = dict(results.summary)
+        summary["format"] = SUMMARY_FORMAT
+        summary["tables"] = written
+        text = json.dumps(_clean(summary), indent=2, default=json_default, allow_nan=False)
+        (tmp / "summary.json").write_text(text + "\n", encoding="utf-8")
+        if report is not None:
+            # the report sees exactly what a reader of the folder sees
+            report(
+                SessionResults(results.tables, json.loads(text), tmp, results.angle_columns),
+                tmp,
+            )
+        _publishable(tmp)
+        old = None
+        if out.exists():
+            for name in keep:
+                src = out / name
+                if src.exists():
+                    os.replace(src, tmp / name)
+            old = out.parent / f".{out.name}.old-{os.getpid()}"
+            if old.exists():
+                shutil.rmtree(old)
+            os.replace(out, old)
+        os.replace(tmp, out)
+        if old is not None:
+            shutil.rmtree(old, ignore_errors=True)
+    except BaseException:
+        # put the cache back if it was moved, then drop the temporary folder
+        for name in keep:
+            if (tmp / name).exists() and out.exists() and not (out / name).exists():
+                os.replace(tmp / name, out / name)
+        shutil.rmtree(tmp, ignore_errors=True)
+        raise
+    return out
+
+
+def check_replaceable(out_dir: str | Path, keep: Sequence[str] = (".cache",)) -> None:
+    """Refuse to replace a folder that is not a session folder (it would be deleted): it must
+    be absent, empty (but for ``keep``) or hold a ``summary.json``."""
+    out = Path(out_dir)
+    if not out.exists():
+        return
+    if not out.is_dir():
+        raise FileFormatError(f"{out}: exists and is not a folder")
+    other = [p.name for p in out.iterdir() if p.name not in keep]
+    if other and not (out / "summary.json").is_file():
+        raise FileFormatError(
+            f"{out}: not an msk session folder (no summary.json) and not empty "
+            f"({', '.join(sorted(other)[:3])}…); choose another --out"
+        )
+
+
+def _publishable(folder: Path) -> None:
+    """Ordinary permissions (temporary files are created private): dirs 0755, files 0644,
+    both masked by the process umask."""
+    mask = os.umask(0)
+    os.umask(mask)
+    for p in [folder, *folder.rglob("*")]:
+        p.chmod((0o755 if p.is_dir() else 0o644) & ~mask)
+
+
+def read_session(path: str | Path) -> SessionResults:
+    """Read a session folder written by :func:`write_session` (``msk run``)."""
+    folder = Path(path)
+    spath = folder / "summary.json"
+    if not spath.is_file():
+        raise FileFormatError(f"{folder}: not an msk session folder (no summary.json)")
+    try:
+        summary = json.loads(spath.read_text(encoding="utf-8"))
+    except json.JSONDecodeError as exc:
+        raise FileFormatError(f"{spath}: not valid JSON: {exc}") from None
+    if summary.get("format") != SUMMARY_FORMAT:
+        raise FileFormatError(
+            f"{spath}: format {summary.get('format')!r}, expected {SUMMARY_FORMAT!r}"
+        )
+    tables = {}
+    for name in summary.get("tables", []):
+        tables[name] = read_csv_table(folder / "tables" / f"{name}.csv")
+    angles = tuple(summary.get("angle_columns", ()))
+    return SessionResults(tables=tables, summary=summary, path=folder, angle_columns=angles)

@@ -1,0 +1,287 @@
+"""msk.pipeline: a synthetic session with known truth through the whole chain, atomic writes,
+the content-hash cache, the CLI verbs, and the bundled Grand Challenge session end to end."""
+
+from __future__ import annotations
+
+import json
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from msk.cli import main
+from msk.config import TEMPLATE
+from msk.io.opensim_files import read_sto
+from msk.pipeline import STAGES, file_sha256, lab_to_model_rotation, run_session
+from msk.results import TABLES, read_session
+
+REPO = Path(__file__).resolve().parents[1]
+GC5 = REPO / "pipelines" / "gc5_PS.toml"
+
+
+def make_session(
+    folder: Path,
+    name: str = "synth",
+    *,
+    noise_m: float = 0.001,
+    seed: int = 0,
+    broken: bool = False,
+    grf_cutoff_hz: float = 15.0,
+):
+    """A session folder with a model file, a simulated C3D (markers + 2 plates) and its config.
+
+    Returns ``(config_path, synthetic_trial)``; ``broken=True`` writes a truncated C3D."""
+    from synthetic import make_trial, two_leg_model
+
+    from msk.model_files import save_model
+
+    folder.mkdir(parents=True, exist_ok=True)
+    model = two_leg_model()
+    save_model(model, folder / "two_legs.toml", header="synthetic two-leg model (tests)")
+    trial = make_trial(model, duration_s=1.0, rate_hz=100.0, noise_m=noise_m, seed=seed)
+    c3d = trial.write_c3d(folder / f"{name}.c3d")
+    if broken:
+        c3d.write_bytes(c3d.read_bytes()[:700])
+    cfg = folder / f"{name}.toml"
+    cfg.write_text(
+        f"""
+[subject]
+name = "{name}"
+mass_kg = {model.total_mass}
+height_m = 1.75
+side = "left"
+
+[model]
+source = "two_legs.toml"
+scale = false
+
+[[trials]]
+name = "walk"
+file = "{name}.c3d"
+role = "task"
+
+[filters]
+kinematics_cutoff_hz = 8.0
+grf_cutoff_hz = {grf_cutoff_hz}
+""",
+        encoding="utf-8",
+    )
+    return cfg, trial
+
+
+@pytest.fixture(scope="module")
+def synth(tmp_path_factory):
+    folder = tmp_path_factory.mktemp("synth")
+    cfg, trial = make_session(folder)
+    res = run_session(cfg, folder / "out")
+    return cfg, trial, res
+
+
+def test_rotation_lab_to_model():
+    # Z-up lab walking along -x → model y up, walking along +x
+    t = np.linspace(0, 1, 20)
+    markers = np.zeros((20, 2, 3))
+    markers[:, :, 0] = -1.5 * t[:, None]
+    markers[:, :, 2] = 1.0
+    r = lab_to_model_rotation(np.array([0, 0, 1.0]), np.array([0, 1.0, 0]), markers)
+    np.testing.assert_allclose(r @ r.T, np.eye(3), atol=1e-12)
+    assert np.linalg.det(r) == pytest.approx(1.0)
+    np.testing.assert_allclose(r @ [0, 0, 1.0], [0, 1, 0], atol=1e-12)
+    np.testing.assert_allclose(r @ [-1.0, 0, 0], [1, 0, 0], atol=1e-12)
+    # standing still: only the vertical is aligned
+    r2 = lab_to_model_rotation(np.array([0, 1.0, 0]), np.array([0, 1.0, 0]), markers * 0)
+    np.testing.assert_allclose(r2, np.eye(3), atol=1e-12)
+
+
+def test_synthetic_session_recovers_truth(synth):
+    _, trial, res = synth
+    out = read_session(res.out_dir)
+    q = out.table("q")
+    names = list(q.columns)
+    # joint angles: IK on 1 mm marker noise recovers the simulated motion
+    legs = [names.index(c) for c in names if c.startswith(("hip", "knee", "ankle"))]
+    err = np.abs(q.data[:, legs] - trial.q[:, legs])
+    assert np.sqrt(np.mean(err[5:-5] ** 2)) < np.deg2rad(1.0)
+    # joint torques against the true RNEA torques (inverse dynamics with the plates)
+    tau = out.table("joint_torques")
+    for c in ("hip_flexion_l", "knee_angle_l", "hip_flexion_r"):
+        k = names.index(c)
+        a, b = tau.column(c)[10:-10], trial.tau_true[10:-10, k]
+        assert np.sqrt(np.mean((a - b) ** 2)) < 0.1 * np.ptp(b) + 1.0, c
+    # residuals: plates and motion are consistent → small pelvis residual force
+    assert out.summary["quality"]["residual_force_rms_pct_bw"] < 5.0
+    # identified masses sum to the subject's mass (constraint of the identification)
+    segs = out.summary["identification"]["segments"]
+    assert sum(s["mass_kg"] for s in segs) == pytest.approx(trial.model.total_mass, rel=1e-3)
+    assert out.has("inertial_parameters")
+    # the muscle stages are honestly reported as not available (model without muscles)
+    na = {i["stage"]: i["reason"] for i in out.summary["not_available"]}
+    assert "muscle_geometry" in na and "no muscles" in na["muscle_geometry"]
+    assert {"tension_optimization", "strength_identification", "knee_contact"} <= set(na)
+    assert "emg" in na
+    for t in ("muscle_forces", "strength", "knee_contact"):
+        assert not (res.out_dir / "tables" / f"{t}.csv").exists()
+    html = (res.out_dir / "report.html").read_text()
+    assert "Not available" in html and "muscle_geometry" in html
+
+
+def test_summary_contract(synth):
+    _, _, res = synth
+    s = json.loads((res.out_dir / "summary.json").read_text())
+    assert s["versions"]["msk"] and s["versions"]["numpy"] != "not installed"
+    task = next(i for i in s["inputs"] if i["role"] == "task")
+    assert task["sha256"] == file_sha256(task["path"])
+    assert s["settings"]["filters"]["grf_cutoff_hz"] == 15.0
+    assert [st["name"] for st in s["stages"]] == list(STAGES)
+    assert all(st["seconds"] >= 0 for st in s["stages"])
+    assert set(s["tables"]) <= set(TABLES)
+    # every CSV starts with time and has an OpenSim twin with the same numbers
+    for name in s["tables"]:
+        head = (res.out_dir / "tables" / f"{name}.csv").read_text().splitlines()[0]
+        assert head.split(",")[0] == "time"
+    q_csv = read_session(res.out_dir).table("q")
+    q_mot = read_sto(res.out_dir / "tables" / "q.mot")
+    assert q_mot.in_degrees_in_file
+    np.testing.assert_allclose(q_mot.data, q_csv.data, rtol=1e-12, atol=1e-12)
+
+
+def test_failed_run_writes_nothing(tmp_path):
+    cfg, _ = make_session(tmp_path / "s")
+    out = tmp_path / "fresh"
+    with pytest.raises(RuntimeError, match="on purpose"):
+        run_session(cfg, out, _fail_stage="report")
+    assert not (out / "summary.json").exists()
+    assert not (out / "report.html").exists()
+    assert not (out / "tables").exists()
+    # a previous good result stays intact when a later run fails half-way
+    run_session(cfg, out)
+    before = (out / "summary.json").read_bytes()
+    tables_before = sorted(p.name for p in (out / "tables").iterdir())
+    with pytest.raises(RuntimeError):
+        run_session(cfg, out, use_cache=False, _fail_stage="inverse_dynamics")
+    assert (out / "summary.json").read_bytes() == before
+    assert sorted(p.name for p in (out / "tables").iterdir()) == tables_before
+    leftovers = [p.name for p in tmp_path.iterdir() if p.name.startswith(".fresh")]
+    assert leftovers == []
+
+
+def test_analysis_stage_error_is_recorded_not_fatal(tmp_path):
+    cfg, _ = make_session(tmp_path / "s")
+    res = run_session(cfg, tmp_path / "out", _fail_stage="comparison")
+    rec = {r.name: r for r in res.stages}["comparison"]
+    assert rec.status == "failed"
+    assert rec.message.startswith("internal error: RuntimeError") and "pipeline.py:" in rec.message
+    out = read_session(res.out_dir)
+    assert out.has("joint_torques") and out.summary["comparison"] is None
+    assert any(i["stage"] == "comparison" for i in out.summary["not_available"])
+
+
+def test_cache_reuses_and_invalidates(tmp_path):
+    cfg, _ = make_session(tmp_path / "s")
+    out = tmp_path / "out"
+    t0 = time.perf_counter()
+    first = run_session(cfg, out)
+    t1 = time.perf_counter()
+    second = run_session(cfg, out)
+    t2 = time.perf_counter()
+    st1 = {r.name: r.status for r in first.stages}
+    st2 = {r.name: r.status for r in second.stages}
+    assert {s for s in st1.values()} <= {"computed", "not available"}
+    assert all(st2[n] == "cached" for n, s in st1.items() if s == "computed")
+    assert (t2 - t1) < 0.5 * (t1 - t0)
+    # identical numbers from the cache
+    a = read_session(out).table("joint_torques").data
+    # a changed setting recomputes exactly the stages downstream of it
+    cfg.write_text(cfg.read_text().replace("grf_cutoff_hz = 15.0", "grf_cutoff_hz = 12.0"))
+    third = run_session(cfg, out)
+    st3 = {r.name: r.status for r in third.stages}
+    assert st3["read"] == st3["model"] == st3["kinematics"] == "cached"
+    assert st3["loads"] == st3["mass_identification"] == st3["inverse_dynamics"] == "computed"
+    b = read_session(out).table("joint_torques").data
+    assert not np.allclose(a, b, equal_nan=True)
+
+
+def test_cli_run_print_config_and_errors(tmp_path, capsys):
+    cfg, _ = make_session(tmp_path / "s")
+    assert main(["run", str(cfg), "--out", str(tmp_path / "o"), "--quiet"]) == 0
+    assert (tmp_path / "o" / "report.html").is_file()
+    capsys.readouterr()
+    assert main(["print-config"]) == 0
+    assert capsys.readouterr().out == TEMPLATE
+    assert main(["print-config", "--out", str(tmp_path / "t.toml")]) == 0
+    assert (tmp_path / "t.toml").read_text() == TEMPLATE
+    # a bad config (unknown key) → one line, status 2
+    bad = tmp_path / "bad.toml"
+    bad.write_text(cfg.read_text().replace("[filters]", "[filters]\ncolour = 3"))
+    bad.with_name("two_legs.toml").write_bytes((cfg.parent / "two_legs.toml").read_bytes())
+    (tmp_path / "synth.c3d").write_bytes((cfg.parent / "synth.c3d").read_bytes())
+    assert main(["run", str(bad), "--out", str(tmp_path / "o2")]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and err[0].startswith("msk: error:") and "filters.colour" in err[0]
+    # a broken C3D (core stage) → one line, status 2, nothing written
+    broken, _ = make_session(tmp_path / "b", broken=True)
+    assert main(["run", str(broken), "--out", str(tmp_path / "o3"), "--quiet"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "synth.c3d" in err[0]
+    assert not (tmp_path / "o3" / "summary.json").exists()
+
+
+@pytest.mark.slow
+def test_bundled_grand_challenge_session(tmp_path):
+    """The README's main job: subject PS, gait2392, every stage available, the knee contact
+    force within the range of the measured eTibia force."""
+    res = run_session(GC5, tmp_path / "gc5")
+    s = res.summary
+    status = {r.name: r.status for r in res.stages}
+    assert all(v == "computed" for v in status.values()), status
+    out = read_session(res.out_dir)
+    assert set(out.tables) == set(TABLES)
+    q = s["quality"]
+    assert q["ik_failed_frames"] == 0 and q["ik_marker_rms_mean_m"] < 0.03
+    assert set(q["emg_flat_channels"]) == {"gracilis", "gmed"}
+    kc = s["comparison"]["knee_contact_subject_specific"]
+    assert kc["peak_measured_bw"] == pytest.approx(2.19, abs=0.02)
+    assert abs(kc["peak_predicted_bw"] - kc["peak_measured_bw"]) < 0.6
+    assert kc["pearson_r"] > 0.5
+    # left stance on plate 1, right foot on plates 2 and 3
+    bodies = {a["plate"]: a["body"] for a in q["plate_assignments"]}
+    assert bodies == {"plate1": "calcn_l", "plate2": "calcn_r", "plate3": "calcn_r"}
+    assert s["gait_cycle_s"] == pytest.approx([5.1417, 6.2333], abs=1e-3)
+    assert (res.out_dir / "tables" / "muscle_forces.sto").is_file()
+
+
+def test_missing_library_piece_is_reported_not_faked(tmp_path, monkeypatch):
+    """A stage whose library module is not there yet is 'not available' (with the reason) in
+    summary.json and the report; the stages after it run on what exists."""
+    import msk.identification
+
+    cfg, _ = make_session(tmp_path / "s")
+    monkeypatch.delattr(msk.identification, "InertialIdentifier")
+    res = run_session(cfg, tmp_path / "out")
+    status = {r.name: r.status for r in res.stages}
+    assert status["mass_identification"] == "not available"
+    assert status["inverse_dynamics"] == "computed"  # on the generic (scaled) inertias
+    out = read_session(res.out_dir)
+    assert not out.has("inertial_parameters") and out.has("joint_torques")
+    (item,) = [i for i in out.summary["not_available"] if i["stage"] == "mass_identification"]
+    assert "InertialIdentifier not available" in item["reason"]
+    assert out.summary["identification"] is None
+    html = (res.out_dir / "report.html").read_text()
+    assert "InertialIdentifier not available" in html
+
+
+def test_mass_identification_trials_are_used(tmp_path):
+    cfg, trial = make_session(tmp_path / "s")
+    make_session(tmp_path / "s", "extra", seed=3)
+    text = cfg.read_text() + (
+        '\n[[trials]]\nname = "exciting"\nfile = "extra.c3d"\nrole = "mass_identification"\n'
+    )
+    # [[trials]] must come before the [filters] table in TOML: rebuild the file in order
+    head, filters = text.split("[filters]")
+    filters, more = filters.split("\n[[trials]]", 1)
+    cfg.write_text(head + "[[trials]]" + more + "\n[filters]" + filters)
+    res = run_session(cfg, tmp_path / "out")
+    s = res.summary
+    assert s["identification"]["n_frames"] > trial.time.size  # task + exciting trial
+    assert any(i["role"] == "mass_identification:exciting" for i in s["inputs"])
