@@ -1003,8 +1003,17 @@ class InertialIdentifier:
                 raise IdentificationError(f"noise_std must be > 0, got {sigma}")
             iterations = 1
         else:
-            # start from 5 % of each row's RMS, then re-estimate from the residuals
-            sigma = 0.05 * np.sqrt(self._c / self.n_frames_) + 1e-6
+            # start from 5 % of the RMS pooled over the force rows and over the moment rows,
+            # then re-estimate from the residuals. (Not per row: a row that is physically
+            # near zero — the moment about the vertical when standing — would get a σ far
+            # below the measurement noise, and the fit would trade every other row for it.)
+            rms = np.sqrt(self._c / self.n_frames_)
+            root = root_coordinate_indices(self.model)
+            trans = np.array([self.model.coordinates[i].kind == "translational" for i in root])
+            for kind in (trans, ~trans):
+                if kind.any():
+                    rms[kind] = np.sqrt(np.mean(rms[kind] ** 2))
+            sigma = 0.05 * rms + 1e-6
             iterations = 1 + max(self.noise_iterations, 0)
         x = self._x_prior
         for it in range(iterations):
