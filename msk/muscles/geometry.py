@@ -27,12 +27,22 @@ torques τ = −J_lᵀ f = rᵀ f (seed 002 Eq. 7); the lengthening velocity is 
 Translational Jacobians are never formed: with the world-frame joint Jacobian J (6×nv, columns
 are joint twists at the world origin, Pinocchio's ``computeJointJacobians``), a point x on body b
 has J_x = (J_lin − [x]× J_ang) S_b (S_b keeps the joints that support b), so
-uᵀ J_x = (u, x × u)ᵀ J S_b: each segment end contributes a unit wrench (u, x × u); the wrenches
-are summed per (muscle, body) and multiplied by J once. This is the Pinocchio frame Jacobian in
-LOCAL_WORLD_ALIGNED shifted to the point, without a Python loop over points. Joint placements
+uᵀ J_x = (u, x × u)ᵀ J S_b: each segment contributes its unit line L_s = (u, x × u) (Plücker
+coordinates, the same for every x on the segment) with + at its end and − at its start. With
+G diagonal per Pinocchio DOF (q_j = g_j(θ_{c_j})), ::
+
+    ∂l_m/∂θ_c = Σ_e (Σ_s σ_{s,e} L_s)ᵀ Σ_{j ∈ e} J_j g_j'(θ_c)
+
+where the effective column e groups the DOFs of coordinate c that support the same bodies and
+σ_{s,e} = [e supports the end body of s] − [e supports its start body]. A joint that carries
+the whole path (or none of it) contributes exactly nothing (the unit wrenches of a path sum to
+zero), so only the (muscle, e) rows of the joints a muscle crosses are computed, by sparse
+products fixed at plan time (``σ`` is static without wraps; a segment followed by conditional
+points has a few candidate ends). This is the Pinocchio frame Jacobian in LOCAL_WORLD_ALIGNED
+shifted to the points, without a Python loop over points, muscles or frames. Joint placements
 and J are computed for all frames at once from the Pinocchio tree (1-DOF joints: each column is
-(o_j × a_j, a_j) for a revolute, (a_j, 0) for a prismatic joint); tests check them against
-Pinocchio frame by frame.
+(o_j × a_j, a_j) for a revolute, (a_j, 0) for a prismatic joint), or, for a few frames, by
+Pinocchio itself frame by frame; tests check both against each other and against Pinocchio.
 
 Wrapping (cylinder, seed 004 §2.1): in the cylinder frame (axis z, radius R) the shortest path
 from P to S over the cylinder is a straight line in the developed surface: tangent points T1, T2
@@ -46,17 +56,26 @@ forces the path around the active side; no wrap when both tangent points lie bey
 among the segments of the wrap range, a crossing segment wins, else the smallest length increase.
 Several wraps on one path are re-applied in turn on the current path (as OpenSim) until the
 tangent points stop moving (1e-12 m; OpenSim stops after 8 passes or 0.5 mm), so that the
-envelope theorem holds. Ellipsoids, spheres and tori raise :class:`ModelError` (naming the
+envelope theorem holds. The tangent points contract linearly (~0.3 a pass), so after every
+other pass Aitken's Δ² extrapolates them (x* = x₂ − (Δx₂)²/(Δx₂ − Δx₁), only where the steps
+shrink); convergence is still judged on a plain pass, hence the same fixed point in about 40 %
+fewer passes. A path that alternates between two states (the wraps choose different segments
+in turn: a 2-cycle, which some gastrocnemius poses of Rajagopal 2016 reach) never converges;
+it ends on the state of the pass limit's parity, which is returned as soon as the cycle is
+detected. Ellipsoids, spheres and tori raise :class:`ModelError` (naming the
 muscle and the wrap object); OpenSim's own single-cylinder path is an approximation of the
 geodesic (tangent-point heights by plane intersection), up to ~1 mm longer in deep flexion.
 
 Per-model static structure (point → body, support masks, moving/conditional points, wrap
-candidates) is precomputed once in a :class:`GeometryPlan` (Pinocchio ``Data`` style); a trial
-is processed in one call, frames and muscles vectorised with numpy.
+candidates, the sparse row maps above, the coordinate functions as one spline table) is
+precomputed once in a :class:`GeometryPlan` (Pinocchio ``Data`` style); a trial is processed in
+one call, frames, muscles and wraps vectorised with numpy (the wraps of all paths are applied in
+rounds: the r-th wrap of every path at once).
 """
 
 from __future__ import annotations
 
+import threading
 import weakref
 from collections.abc import Mapping
 from dataclasses import dataclass
@@ -68,7 +87,7 @@ from numpy.typing import ArrayLike, NDArray
 from scipy import sparse
 
 from msk.exceptions import ModelError, ShapeMismatchError
-from msk.joints import Multiplier, SimmSpline
+from msk.joints import Linear, Multiplier, SimmSpline
 from msk.model import Model
 from msk.muscles.hill import MuscleParameters
 from msk.muscles.path import ConditionalPathPoint, MovingPathPoint, Muscle, PathPoint, WrapObject
@@ -164,9 +183,9 @@ def _dsign(x: Array) -> Array:
     return np.where(x >= 0.0, 1.0, -1.0)
 
 
-def _not_active(angle: Array, axis: int, sign: int) -> Array:
-    out = (angle >= 0.5 * np.pi) & (angle <= 1.5 * np.pi) if axis == 0 else angle > np.pi
-    return ~out if sign < 0 else out
+def _not_active(angle: Array, x_axis: Any, sign: Any) -> Array:
+    out = np.where(x_axis, (angle >= 0.5 * np.pi) & (angle <= 1.5 * np.pi), angle > np.pi)
+    return np.where(sign < 0, ~out, out)
 
 
 def wrap_cylinder(
@@ -187,27 +206,39 @@ def wrap_cylinder(
     """
     a = np.asarray(a, dtype=float)
     b = np.asarray(b, dtype=float)
-    r = float(radius)
     q = quadrant.strip().lower()
     if q not in _QUADRANTS:
         raise ModelError(f"cylinder quadrant {quadrant!r} is not one of {sorted(_QUADRANTS)}")
     axis, sign = _QUADRANTS[q]
+    return _wrap_cylinder(a, b, float(radius), axis, sign, 0.5 * float(length))
+
+
+def _wrap_cylinder(
+    a: Array, b: Array, r: Any, axis: Any, sign: Any, half: Any
+) -> tuple[Array, Array, Array, Array, Array]:
+    """:func:`wrap_cylinder` with radius, quadrant (axis 0/1, sign 0/±1) and half-length as
+    scalars or arrays broadcasting against ``a[..., 0]`` (several cylinders at once)."""
     ax, ay, az = a[..., 0], a[..., 1], a[..., 2]
     bx, by, bz = b[..., 0], b[..., 1], b[..., 2]
     ra2 = ax * ax + ay * ay
     rb2 = bx * bx + by * by
-    inside = (ra2 < r * r) | (rb2 < r * r)
+    r2 = r * r
+    inside = (ra2 < r2) | (rb2 < r2)
     # closest approach of the projected segment to the axis (t in (0, 1) on the segment)
     dx, dy = bx - ax, by - ay
     dd = np.maximum(dx * dx + dy * dy, 1e-300)
     t = -(ax * dx + ay * dy) / dd
     cx, cy = ax + t * dx, ay + t * dy
-    crosses = (cx * cx + cy * cy < r * r) & (t > 0.0) & (t < 1.0)
-    if sign == 0:
+    crosses = (cx * cx + cy * cy < r2) & (t > 0.0) & (t < 1.0)
+    scalar = np.ndim(axis) == 0 and np.ndim(sign) == 0
+    x_axis = axis == 0
+    unconstrained = sign == 0
+    if scalar and unconstrained:
         wraps = crosses.copy()
     else:
-        pa, pb = a[..., axis], b[..., axis]
-        near = cx if axis == 0 else cy
+        pa = np.where(x_axis, ax, ay)
+        pb = np.where(x_axis, bx, by)
+        near = np.where(x_axis, cx, cy)
         on_a = _dsign(pa) == sign
         on_b = _dsign(pb) == sign
         # a point on the active side: wrap if crossing, or if the two points straddle the
@@ -215,12 +246,14 @@ def wrap_cylinder(
         # side: the path is forced around the active side
         straddle = (_dsign(pa) != _dsign(pb)) & (_dsign(near) != sign)
         wraps = np.where(on_a | on_b, crosses | straddle, True)
+        if not scalar:
+            wraps = np.where(unconstrained, crosses, wraps)
     wraps = wraps & ~inside
     # tangent angles (OpenSim Creator's ScrewWrap formulation of the same geodesic)
-    ra = np.sqrt(np.maximum(ra2, r * r))
-    rb = np.sqrt(np.maximum(rb2, r * r))
-    la = np.sqrt(np.maximum(ra2 - r * r, 0.0))
-    lb = np.sqrt(np.maximum(rb2 - r * r, 0.0))
+    ra = np.sqrt(np.maximum(ra2, r2))
+    rb = np.sqrt(np.maximum(rb2, r2))
+    la = np.sqrt(np.maximum(ra2 - r2, 0.0))
+    lb = np.sqrt(np.maximum(rb2 - r2, 0.0))
     da = np.arccos(np.clip(r / ra, -1.0, 1.0))
     db = np.arccos(np.clip(r / rb, -1.0, 1.0))
     phia = np.arctan2(ay, ax)
@@ -231,14 +264,17 @@ def wrap_cylinder(
     b_neg = np.mod(phib - db, _TWO_PI)
     d_pos = np.mod(b_neg - a_pos, _TWO_PI)  # counter-clockwise a → b
     d_neg = np.mod(a_neg - b_pos, _TWO_PI)  # clockwise a → b
-    if sign == 0:
+    if scalar and unconstrained:
         pos_ok = np.ones_like(wraps)
         neg_ok = np.ones_like(wraps)
     else:
-        n1, n2 = _not_active(a_pos, axis, sign), _not_active(b_neg, axis, sign)
+        n1, n2 = _not_active(a_pos, x_axis, sign), _not_active(b_neg, x_axis, sign)
         pos_ok = ~((n1 & n2) | (~n1 & ~n2 & (d_pos > np.pi)))
-        n1, n2 = _not_active(b_pos, axis, sign), _not_active(a_neg, axis, sign)
+        n1, n2 = _not_active(b_pos, x_axis, sign), _not_active(a_neg, x_axis, sign)
         neg_ok = ~((n1 & n2) | (~n1 & ~n2 & (d_neg > np.pi)))
+        if not scalar:
+            pos_ok = pos_ok | unconstrained
+            neg_ok = neg_ok | unconstrained
     wraps = wraps & (pos_ok | neg_ok)
     positive = np.where(pos_ok & neg_ok, d_pos < d_neg, pos_ok)
     phi1 = np.where(positive, a_pos, a_neg)
@@ -249,7 +285,6 @@ def wrap_cylinder(
     z1 = az + dz * la / total
     z2 = az + dz * (la + arc2d) / total
     phi2 = phi1 + dphi
-    half = 0.5 * float(length)
     wraps = wraps & ~((np.abs(z1) > half) & (np.abs(z2) > half))
     t1 = np.stack([r * np.cos(phi1), r * np.sin(phi1), z1], -1)
     t2 = np.stack([r * np.cos(phi2), r * np.sin(phi2), z2], -1)
@@ -291,6 +326,39 @@ class _WrapEntry:
     extra_slot: int
 
 
+class _WrapRound:
+    """Per-wrap constants of a set of wraps on distinct paths, as arrays (K, ...)."""
+
+    def __init__(self, plan: GeometryPlan, ks: list[int]) -> None:
+        ws = [plan.wraps[k] for k in ks]
+        self.k = np.asarray(ks, dtype=np.intp)
+        self.body = np.array([w.body for w in ws], dtype=np.intp)
+        self.muscle = np.array([w.muscle for w in ws], dtype=np.intp)
+        self.extra = np.array([w.extra_slot for w in ws], dtype=np.intp)
+        self.rotation = np.array([w.rotation for w in ws]).reshape(-1, 3, 3)
+        self.translation = np.array([w.translation for w in ws]).reshape(-1, 3)
+        shape = (len(ws), 1, 1)
+        self.radius = np.array([w.radius for w in ws]).reshape(shape)
+        self.half = np.array([0.5 * w.length for w in ws]).reshape(shape)
+        quad = [_QUADRANTS[w.quadrant] for w in ws]
+        self.axis = np.array([q[0] for q in quad], dtype=np.intp).reshape(shape)
+        self.sign = np.array([q[1] for q in quad], dtype=np.intp).reshape(shape)
+        cands = [plan._candidates[k] for k in ks]
+        c_max = max((c.size for c in cands), default=0)
+        self.cand = np.array(
+            [np.concatenate([c, np.full(c_max - c.size, c[0])]) for c in cands], dtype=np.intp
+        ).reshape(len(ws), c_max)
+        self.cand_ok = np.array([np.arange(c_max) < c.size for c in cands], dtype=bool).reshape(
+            len(ws), c_max
+        )
+        spans = [plan._muscle_slots[w.muscle] for w in ws]
+        s_max = max((s1 - s0 for s0, s1 in spans), default=0)
+        self.muscle_slots = np.array(
+            [np.r_[np.arange(s0, s1), np.full(s_max - (s1 - s0), s0)] for s0, s1 in spans],
+            dtype=np.intp,
+        ).reshape(len(ws), s_max)
+
+
 @dataclass
 class _PathState:
     """Per-trial segment table: ends A/B (world), their point ids (−1: none; ≤ −2: wrap tangent
@@ -305,6 +373,11 @@ class _PathState:
 
 
 _MAX_WRAP_PASSES = 100
+_AITKEN = True  # extrapolate the multi-wrap iteration (tests compare with the plain one)
+_DETECT_CYCLES = True  # stop 2-cycles at the state of the pass limit's parity
+_AITKEN_RATIO = 0.7
+_CHUNK_BYTES = 768 * 1024  # largest per-chunk temporary (wrap-free plans)
+_PIN_FRAMES = 8  # up to this many frames, forward kinematics by Pinocchio frame by frame
 _WRAP_TOL = 1e-12
 
 
@@ -519,24 +592,175 @@ class GeometryPlan:
         self._mv_point = np.array([mv[0] for mv in moving], dtype=np.intp)
         self._mv_axis = np.array([mv[1] for mv in moving], dtype=np.intp)
         self._mv_coord = np.array([mv[2] for mv in moving], dtype=np.intp)
-        self._moving_groups = _group_functions(
-            [(e, slot_of[mv[0]], mv[1], mv[2], mv[3]) for e, mv in enumerate(moving)]
-        )
+        self._mv_slot = np.array([slot_of[mv[0]] for mv in moving], dtype=np.intp)
+        self._moving_bank = _FunctionBank(self._mv_coord, [mv[3] for mv in moving])
         # static start point of every slot (T2 of its wrap for the extra slots)
         ia_static = self.slot_start.copy()
         for k, w in enumerate(wraps):
             ia_static[w.extra_slot] = n_pts + 2 * k + 1
         self._ia_static = ia_static
+        # wraps in rounds: round r holds the r-th wrap of every path (at most one per muscle,
+        # so the wraps of a round touch disjoint slots and are applied at once)
+        order: dict[int, list[int]] = {}
+        for k, w in enumerate(wraps):
+            order.setdefault(w.muscle, []).append(k)
+        n_rounds = max((len(v) for v in order.values()), default=0)
+        self._wrap_rounds = [
+            _WrapRound(self, [v[r] for v in order.values() if len(v) > r]) for r in range(n_rounds)
+        ]
+        self._multi_rounds = [
+            _WrapRound(self, [v[r] for v in order.values() if len(v) > 1 and len(v) > r])
+            for r in range(n_rounds)
+        ]
+        self._multi_rounds = [r for r in self._multi_rounds if r.k.size]
+        multi_muscles = sorted({w.muscle for w in wraps if self._n_wraps[w.muscle] > 1})
+        self._multi_muscles = np.asarray(multi_muscles, dtype=np.intp)
+        self._multi_wraps = np.array(
+            [k for k, w in enumerate(wraps) if self._n_wraps[w.muscle] > 1], dtype=np.intp
+        )
+        self._multi_watch = np.array(
+            [s for m in multi_muscles for s in range(*self._muscle_slots[m])], dtype=np.intp
+        )
         # the embedding θ → q_pin, grouped
         cp = model.coupling
         self._q_const = np.array(
             [float(f(0.0)) if c < 0 else 0.0 for c, f in zip(cp.coordinate, cp.functions)]
         )
-        self._coupling_groups = _group_functions(
-            [(k, k, 0, c, f) for k, (c, f) in enumerate(zip(cp.coordinate, cp.functions)) if c >= 0]
+        self._var_dof = np.array([k for k, c in enumerate(cp.coordinate) if c >= 0], dtype=np.intp)
+        self._coupling_bank = _FunctionBank(
+            np.asarray(cp.coordinate, dtype=np.intp)[self._var_dof],
+            [cp.functions[k] for k in self._var_dof],
         )
+        self._dof_coord = np.asarray(cp.coordinate, dtype=np.intp)
         # batched forward kinematics of the Pinocchio tree (1-DOF joints)
         self._fk = _tree_structure(pm)
+        self._pm = pm
+        self._local = threading.local()  # a Pinocchio Data per thread (few-frame calls)
+        self._body_joint_list = [int(j) for j in self.body_joint]
+        self._build_rows(model, ext_body, ext_muscle)
+
+    def _build_rows(self, model: Model, ext_body: Array, ext_muscle: Array) -> None:
+        """Static structure of the fast Jacobian aggregation.
+
+        ∂l_m/∂θ_c = Σ_{j: q_j = g_j(θ_c)} g_j'(θ_c) Σ_{p ∈ m, j supports body(p)} W_pᵀ J_j with
+        W_p = (f_p, x_p × f_p) the unit wrench at path point p. DOFs of one coordinate that
+        support the same plan bodies are merged into one effective column e (their twists scaled
+        by g_j' and summed); a row (m, e) exists only when e supports some but not all of
+        muscle m's bodies (the unit wrenches of a muscle sum to zero: a joint that carries the
+        whole path, or none of it, contributes nothing).
+        """
+        nb = len(self.body_names)
+        nv = self.nv
+        sup = self.support[:nb].astype(bool)  # (B, nv)
+        cols: dict[tuple[int, bytes], int] = {}
+        col_coord: list[int] = []
+        dof_col = np.full(nv, -1, dtype=np.intp)
+        for j in range(nv):
+            c = int(self._dof_coord[j])
+            if c < 0 or not sup[:, j].any():
+                continue
+            key = (c, sup[:, j].tobytes())
+            if key not in cols:
+                cols[key] = len(col_coord)
+                col_coord.append(c)
+            dof_col[j] = cols[key]
+        n_cols = len(col_coord)
+        used = np.flatnonzero(dof_col >= 0)
+        # DOFs sorted by effective column, for one reduceat (no BLAS call: on a shared
+        # machine a threaded gemm costs more than it saves on these small products)
+        order = used[np.argsort(dof_col[used], kind="stable")]
+        self._col_dofs = order
+        self._col_start = np.searchsorted(dof_col[order], np.arange(n_cols))
+        col_sup = np.zeros((nb, n_cols), dtype=bool)
+        for j in used:
+            col_sup[:, dof_col[j]] = sup[:, j]
+        r_idx: list[int] = []
+        p_idx: list[int] = []
+        row_col: list[int] = []
+        row_target: list[int] = []
+        nc = len(self.coordinate_names)
+        for mi in range(self.n_muscles):
+            pts = np.flatnonzero(ext_muscle == mi)
+            bmask = col_sup[ext_body[pts]]  # (points, cols)
+            for e in range(n_cols):
+                on = bmask[:, e]
+                if on.any() and not on.all():
+                    r = len(row_col)
+                    row_col.append(e)
+                    row_target.append(mi * nc + col_coord[e])
+                    for p in pts[on]:
+                        r_idx.append(r)
+                        p_idx.append(int(p))
+        n_rows = len(row_col)
+        # the rows, then one row per moving point (its net wrench, for the ∂p_b/∂θ term)
+        n_mvp = self.moving_points.size
+        r_idx += list(range(n_rows, n_rows + n_mvp))
+        p_idx += [int(p) for p in self.moving_points]
+        self._row_agg = sparse.csr_matrix(
+            (np.ones(len(r_idx)), (r_idx, p_idx)), shape=(n_rows + n_mvp, self._n_ext + 1)
+        )
+        self._mv_row = n_rows + np.searchsorted(self.moving_points, self._mv_point)
+        self._build_static_segments()
+        per_frame = 48 * max(self._row_agg.shape[0], self.n_points, self.slot_start.size, 1)
+        self._chunk = max(8, _CHUNK_BYTES // per_frame)
+        self._row_col = np.asarray(row_col, dtype=np.intp)
+        mv_target = self.point_muscle[self._mv_point] * nc + self._mv_coord
+        targets = np.concatenate([np.asarray(row_target, dtype=np.intp), mv_target])
+        uniq, inv = np.unique(targets, return_inverse=True)
+        n_src = targets.size
+        self._target_sum = sparse.csr_matrix(
+            (np.ones(n_src), (inv, np.arange(n_src))), shape=(uniq.size, n_src)
+        )
+        self._target_cols = uniq.astype(np.intp)
+        self._target_muscle = (uniq // max(nc, 1)).astype(np.intp)
+        self._target_coord = (uniq % max(nc, 1)).astype(np.intp)
+        self._muscle_of_target = sparse.csr_matrix(
+            (np.ones(uniq.size), (self._target_muscle, np.arange(uniq.size))),
+            shape=(self.n_muscles, uniq.size),
+        )
+
+    def _build_static_segments(self) -> None:
+        """Without wraps every segment starts at a fixed point and ends at the next active one:
+        the rows are then Σ_s σ_s L_s with L_s = (u_s, x_A × u_s) the segment's unit line
+        (Plücker coordinates: the same at both ends) and σ_s = A[:, end] − A[:, start]
+        static, except for a segment followed by conditional points, whose end is one of a few
+        candidates (the next points up to the first unconditional one)."""
+        self._static = not self.wraps
+        if not self._static:
+            return
+        sp = self.orig_start_point
+        n_seg = sp.size
+        is_cond = np.zeros(self.n_points, dtype=bool)
+        is_cond[self.cond_points] = True
+        agg = self._row_agg.tocsc()
+        dyn = np.flatnonzero(is_cond[sp + 1])
+        static = np.flatnonzero(~is_cond[sp + 1])
+        ends = agg[:, sp[static] + 1] @ sparse.csc_matrix(
+            (np.ones(static.size), (np.arange(static.size), static)), shape=(static.size, n_seg)
+        )
+        sigma = (ends - agg[:, sp]).tocsc()
+        sigma.eliminate_zeros()
+        need = np.union1d(np.flatnonzero(np.diff(sigma.indptr) > 0), dyn).astype(np.intp)
+        self._seg_need = need
+        self._seg_sigma = sigma[:, need].tocsr()
+        cands = []
+        for s in dyn:
+            c = [int(sp[s]) + 1]
+            while is_cond[c[-1]]:
+                c.append(c[-1] + 1)
+            cands.append(c)
+        depth = max((len(c) for c in cands), default=0)
+        self._dyn_seg = dyn
+        self._dyn_need = np.searchsorted(need, dyn)
+        self._dyn_cand = np.array(
+            [c + [c[-1]] * (depth - len(c)) for c in cands], dtype=np.intp
+        ).reshape(dyn.size, depth)
+        ent_seg = [i for i, c in enumerate(cands) for _ in c]
+        ent_lvl = [k for c in cands for k in range(len(c))]
+        ent_pt = [p for c in cands for p in c]
+        self._ent_seg = np.asarray(ent_seg, dtype=np.intp)
+        self._ent_lvl = np.asarray(ent_lvl, dtype=np.intp)
+        self._ent_agg = agg[:, np.asarray(ent_pt, dtype=np.intp)].tocsr()
 
     @property
     def model(self) -> Model | None:
@@ -553,9 +777,27 @@ class GeometryPlan:
         ``computeJointJacobians``), body rotations (N, B, 3, 3) and translations (N, B, 3) in
         world, and G (N, nq, n_coords); all frames at once (batched forward kinematics)."""
         q, g = self._embed(theta)
-        rj, tj, jac = _batched_fk(self._fk, q, self.nv)
-        rjb = rj[:, self.body_joint]
-        tjb = tj[:, self.body_joint]
+        n = q.shape[0]
+        if n <= _PIN_FRAMES:
+            # a few frames: Pinocchio's own (C++) pass per frame beats ~10 numpy calls per joint
+            data = getattr(self._local, "data", None)
+            if data is None:
+                data = self._local.data = self._pm.createData()
+            jac = np.empty((n, 6, self.nv))
+            rjb = np.empty((n, self.body_joint.size, 3, 3))
+            tjb = np.empty((n, self.body_joint.size, 3))
+            joints = self._body_joint_list
+            for i in range(n):
+                jac[i] = np.reshape(pin.computeJointJacobians(self._pm, data, q[i]), (6, -1))
+                omi = data.oMi
+                for b, jid in enumerate(joints):
+                    m_ = omi[jid]
+                    rjb[i, b] = m_.rotation
+                    tjb[i, b] = m_.translation
+        else:
+            rj, tj, jac = _batched_fk(self._fk, q, self.nv)
+            rjb = rj[:, self.body_joint]
+            tjb = tj[:, self.body_joint]
         rot = rjb @ self.body_rot
         trans = tjb + np.einsum("nbij,bj->nbi", rjb, self.body_trans)
         return jac, rot, trans, g
@@ -563,128 +805,208 @@ class GeometryPlan:
     def _embed(self, theta: Array) -> tuple[Array, Array]:
         """q = g(θ) (N, nq) and G = ∂g/∂θ (N, nq, n_coords), as ``model.coupling`` computes them,
         with the coordinate functions evaluated in groups (splines sharing knots at once)."""
-        n = theta.shape[0]
-        q = np.broadcast_to(self._q_const, (n, self._q_const.size)).copy()
-        g = np.zeros((n, self._q_const.size, len(self.coordinate_names)))
-        for grp in self._coupling_groups:
-            val, d1 = grp.evaluate(theta[:, grp.coordinate])
-            q[:, grp.entries] = val
-            g[:, grp.entries, grp.coordinate] = d1
+        q, d = self._embed_diag(theta)
+        g = np.zeros((theta.shape[0], q.shape[1], len(self.coordinate_names)))
+        k = np.flatnonzero(self._dof_coord >= 0)
+        g[:, k, self._dof_coord[k]] = d[:, k]
         return q, g
+
+    def _embed_diag(self, theta: Array) -> tuple[Array, Array]:
+        """q = g(θ) (N, nq) and the non-zero entries of G: g_j'(θ_{c_j}) (N, nq), 0 for a
+        constant DOF (each Pinocchio DOF is a function of one coordinate)."""
+        n = theta.shape[0]
+        q = np.empty((n, self._q_const.size))
+        q[:] = self._q_const
+        d = np.zeros((n, self._q_const.size))
+        val, d1 = self._coupling_bank.evaluate(theta)
+        q[:, self._var_dof] = val
+        d[:, self._var_dof] = d1
+        return q, d
 
     def evaluate(self, theta: ArrayLike, theta_dot: ArrayLike | None = None) -> MuscleGeometry:
         """Lengths, Jacobians ∂l/∂θ (and l̇ when θ̇ is given) for θ of shape (N, n_coords)."""
         th = _frames(theta, len(self.coordinate_names), "q")
-        jac, rot, trans, g = self.kinematics(th)
-        lengths, dl_dq, dl_dth = self._paths(th, jac, rot, trans)
-        jl = np.matmul(dl_dq, g) + dl_dth
-        vel = None
+        thd = None
         if theta_dot is not None:
             thd = _frames(theta_dot, len(self.coordinate_names), "qdot")
             if thd.shape != th.shape:
                 raise ShapeMismatchError(f"qdot shape {thd.shape} differs from q shape {th.shape}")
-            vel = np.einsum("nmi,ni->nm", jl, thd)
+        n = th.shape[0]
+        m, nc = self.n_muscles, len(self.coordinate_names)
+        lengths = np.empty((n, m))
+        jl = np.zeros((n, m, nc))
+        vel = None if thd is None else np.empty((n, m))
+        # frames in chunks: the temporaries stay small (cache, and no fresh pages to fault in
+        # on every call); wrap iterations keep the whole batch (their cost is per pass)
+        chunk = self._chunk if self._static else max(n, 1)
+        for c0 in range(0, n, chunk):
+            sl = slice(c0, min(c0 + chunk, n))
+            self._evaluate_into(
+                th[sl], None if thd is None else thd[sl], lengths[sl], jl[sl],
+                None if vel is None else vel[sl],
+            )  # fmt: skip
         return MuscleGeometry(self.muscle_names, self.coordinate_names, lengths, jl, vel)
 
-    def _apply_wrap(
-        self,
-        k: int,
-        w: _WrapEntry,
-        st: _PathState,
-        rot: Array,
-        trans: Array,
-        frames: NDArray[np.intp] | None = None,
+    def _evaluate_into(
+        self, th: Array, thd: Array | None, lengths: Array, jl: Array, vel: Array | None
+    ) -> None:
+        """One chunk of :meth:`evaluate`, written into the given output views."""
+        n = th.shape[0]
+        q, dg = self._embed_diag(th)
+        jac, rot, trans = self._body_kinematics(q)
+        if self._static:
+            lengths[:], rows, dloc = self._static_rows(th, rot, trans)
+        else:
+            lengths[:], wp, dloc = self._wrenches(th, rot, trans)
+            rows = (self._row_agg @ wp.reshape(-1, n * 6)).reshape(-1, n, 6)
+        # effective columns: twists of the DOFs of one coordinate scaled by g_j' and summed
+        n_rows = self._row_col.size
+        if n_rows:
+            jg = jac[:, :, self._col_dofs] * dg[:, None, self._col_dofs]
+            jt = np.add.reduceat(jg, self._col_start, axis=2).transpose(2, 0, 1)  # (E, N, 6)
+            vals = np.einsum("rnc,rnc->rn", rows[:n_rows], jt[self._row_col])
+        else:  # no muscle crosses a joint
+            vals = np.zeros((0, n))
+        if self.moving:
+            mv_p, mv_ax = self._mv_point, self._mv_axis
+            col = rot[:, self.point_body[mv_p], :, mv_ax]  # (E, N, 3)
+            term = np.einsum("eni,eni->en", rows[self._mv_row, :, :3], col) * dloc.T
+            vals = np.concatenate([vals, term])
+        v = self._target_sum @ vals  # (U, N)
+        jl.reshape(n, -1)[:, self._target_cols] = v.T
+        if vel is not None and thd is not None:
+            vel[:] = (self._muscle_of_target @ (v * thd.T[self._target_coord])).T
+
+    def _body_kinematics(self, q: Array) -> tuple[Array, Array, Array]:
+        """World-frame joint Jacobians (N, 6, nv), plan-body rotations (N, B, 3, 3) and
+        translations (N, B, 3) from q_pin."""
+        n = q.shape[0]
+        if n <= _PIN_FRAMES:
+            # a few frames: Pinocchio's own (C++) pass per frame beats ~10 numpy calls per joint
+            data = getattr(self._local, "data", None)
+            if data is None:
+                data = self._local.data = self._pm.createData()
+            jac = np.empty((n, 6, self.nv))
+            rjb = np.empty((n, self.body_joint.size, 3, 3))
+            tjb = np.empty((n, self.body_joint.size, 3))
+            joints = self._body_joint_list
+            for i in range(n):
+                jac[i] = np.reshape(pin.computeJointJacobians(self._pm, data, q[i]), (6, -1))
+                omi = data.oMi
+                for b, jid in enumerate(joints):
+                    m_ = omi[jid]
+                    rjb[i, b] = m_.rotation
+                    tjb[i, b] = m_.translation
+        else:
+            rj, tj, jac = _batched_fk(self._fk, q, self.nv)
+            rjb = rj[:, self.body_joint]
+            tjb = tj[:, self.body_joint]
+        rot = rjb @ self.body_rot
+        trans = tjb + np.einsum("nbij,bj->nbi", rjb, self.body_trans)
+        return jac, rot, trans
+
+    def _apply_round(
+        self, rd: _WrapRound, st: _PathState, rot: Array, trans: Array, fa: NDArray[np.intp]
     ) -> tuple[Array, Array]:
-        """Wrap the best candidate segment over cylinder ``w`` in ``frames`` (default all);
-        returns the hit mask and arc length (full length; meaningful in ``frames``)."""
-        n = st.sa.shape[1]
-        fa = np.arange(n) if frames is None else frames
-        rows = np.arange(fa.size)
-        rc = rot[fa, w.body] @ w.rotation
-        oc = trans[fa, w.body] + rot[fa, w.body] @ w.translation
-        cand = self._candidates[k]
-        ix = (cand[:, None], fa[None, :])  # (K, F) slot-major
-        a = np.einsum("nji,knj->nki", rc, st.sa[ix] - oc)
-        b = np.einsum("nji,knj->nki", rc, st.sb[ix] - oc)
-        wraps, t1, t2, arc, mand = wrap_cylinder(
-            a, b, w.radius, quadrant=w.quadrant, length=w.length
-        )
-        wraps &= st.valid[ix].T
+        """Wrap, for each of the K wraps of a round (distinct paths) and each frame of ``fa``,
+        the best candidate segment over the cylinder (a crossing segment wins, else the smallest
+        length increase): the segment A→B becomes A→T1 and T2→B (the wrap's extra slot).
+        Returns the hit masks and arc lengths (K, F)."""
+        nk, nf = rd.k.size, fa.size
+        rb = rot[fa[None, :], rd.body[:, None]]  # (K, F, 3, 3)
+        rc = rb @ rd.rotation[:, None]
+        oc = trans[fa[None, :], rd.body[:, None]] + (rb @ rd.translation[:, None, :, None])[..., 0]
+        ix = (rd.cand[:, :, None], fa[None, None, :])  # (K, C, F)
+        a = np.einsum("kfji,kcfj->kfci", rc, st.sa[ix] - oc[:, None])
+        b = np.einsum("kfji,kcfj->kfci", rc, st.sb[ix] - oc[:, None])
+        wraps, t1, t2, arc, mand = _wrap_cylinder(a, b, rd.radius, rd.axis, rd.sign, rd.half)
+        wraps &= st.valid[ix].transpose(0, 2, 1) & rd.cand_ok[:, None, :]
         mand &= wraps
         change = np.linalg.norm(t1 - a, axis=-1) + arc + np.linalg.norm(b - t2, axis=-1)
         change -= np.linalg.norm(b - a, axis=-1)
-        order = np.arange(cand.size, dtype=float)
+        order = np.arange(rd.cand.shape[1], dtype=float)
         score = np.where(mand, -1e9 + order, np.where(wraps, change, np.inf))
-        best = np.argmin(score, axis=1)
-        hit_f = np.isfinite(score[rows, best])
-        hit = np.zeros(n, dtype=bool)
-        arc_hit = np.zeros(n)
-        if not hit_f.any():
+        best = np.argmin(score, axis=2)  # (K, F)
+        kk, ff = np.nonzero(np.isfinite(np.take_along_axis(score, best[..., None], 2)[..., 0]))
+        hit = np.zeros((nk, nf), dtype=bool)
+        arc_hit = np.zeros((nk, nf))
+        if kk.size == 0:
             return hit, arc_hit
-        kb = best[hit_f]
-        fr = fa[hit_f]
-        slot = cand[kb]
-        t1w = np.einsum("nij,nj->ni", rc[hit_f], t1[hit_f, kb]) + oc[hit_f]
-        t2w = np.einsum("nij,nj->ni", rc[hit_f], t2[hit_f, kb]) + oc[hit_f]
-        e = w.extra_slot
+        kb = best[kk, ff]
+        fr = fa[ff]
+        slot = rd.cand[kk, kb]
+        rch, och = rc[kk, ff], oc[kk, ff]
+        t1w = np.einsum("nij,nj->ni", rch, t1[kk, ff, kb]) + och
+        t2w = np.einsum("nij,nj->ni", rch, t2[kk, ff, kb]) + och
+        e = rd.extra[kk]
         st.sa[e, fr] = t2w
         st.sb[e, fr] = st.sb[slot, fr]
         st.ib[e, fr] = st.ib[slot, fr]
-        st.ia[e, fr] = -3 - 2 * k
+        st.ia[e, fr] = -3 - 2 * rd.k[kk]
         st.valid[e, fr] = True
         st.sb[slot, fr] = t1w
-        st.ib[slot, fr] = -2 - 2 * k
-        hit[fr] = True
-        arc_hit[fr] = arc[hit_f, kb]
-        st.arcs[w.muscle, fr] += arc_hit[fr]
+        st.ib[slot, fr] = -2 - 2 * rd.k[kk]
+        hit[kk, ff] = True
+        arc_hit[kk, ff] = arc[kk, ff, kb]
+        st.arcs[rd.muscle[kk], fr] += arc_hit[kk, ff]
         return hit, arc_hit
 
-    def _remove_wrap(self, k: int, w: _WrapEntry, st: _PathState, hit: Array, arc: Array) -> None:
-        """Undo :meth:`_apply_wrap` of wrap ``k`` (the segment ending at its T1 takes back the end
-        of the segment starting at its T2)."""
-        if not hit.any():
+    def _remove_round(self, rd: _WrapRound, st: _PathState, hit: Array, arc: Array) -> None:
+        """Undo :meth:`_apply_round` where ``hit`` (K, n): the segment ending at the wrap's T1
+        takes back the end of the segment starting at its T2; ``arc`` (K, n) the arcs added."""
+        kk, fr = np.nonzero(hit)
+        if kk.size == 0:
             return
-        fr = np.flatnonzero(hit)
-        s0, s1 = self._muscle_slots[w.muscle]
-        into = s0 + np.argmax(st.ib[s0:s1, fr] == -2 - 2 * k, axis=0)
-        e = w.extra_slot
+        slots = rd.muscle_slots[kk]  # (H, S_max), padded with the first slot
+        mine = st.ib[slots, fr[:, None]] == (-2 - 2 * rd.k[kk])[:, None]
+        into = slots[np.arange(kk.size), np.argmax(mine, axis=1)]
+        e = rd.extra[kk]
         st.sb[into, fr] = st.sb[e, fr]
         st.ib[into, fr] = st.ib[e, fr]
         st.valid[e, fr] = False
         st.ia[e, fr] = -1
-        st.arcs[w.muscle, fr] -= arc[fr]
+        st.arcs[rd.muscle[kk], fr] -= arc[kk, fr]
 
     def _paths(self, th: Array, jac: Array, rot: Array, trans: Array) -> tuple[Array, Array, Array]:
-        """Lengths (N, M), ∂l/∂q_pin (N, M, nv) and the moving-point part of ∂l/∂θ (N, M, nc).
+        """Lengths (N, M), ∂l/∂q_pin (N, M, nv) and the moving-point part of ∂l/∂θ (N, M, nc)
+        for any joint Jacobians ``jac`` (N, 6, nv) (used by :mod:`msk.contact`; ``evaluate``
+        aggregates in θ directly)."""
+        n = th.shape[0]
+        m = self.n_muscles
+        lengths, wp, dloc = self._wrenches(th, rot, trans)
+        pb = self.point_body
+        p_ext = self._n_ext
+        # per (muscle, body) pair, then masked by the joints supporting that body
+        n_pairs = self._pair_mask.shape[0]
+        w_pairs = (self._agg @ wp.reshape(p_ext + 1, n * 6)).reshape(n_pairs, n, 6)
+        nv = jac.shape[-1]
+        contrib = np.empty((n_pairs, n, nv))
+        np.matmul(w_pairs.transpose(1, 0, 2), jac, out=contrib.transpose(1, 0, 2))
+        contrib *= self._pair_mask[:, None, :]
+        # pairs are sorted by muscle (and every muscle has one): contiguous block sums
+        dl_dq = np.add.reduceat(contrib, self._pair_start, axis=0).transpose(1, 0, 2)
+        # moving points: f_pᵀ R_b ∂p_b/∂θ, f_p the net unit pull on p
+        dl_dth = np.zeros((n, m, len(self.coordinate_names)))
+        if self.moving:
+            mv_p, mv_ax, mv_c = self._mv_point, self._mv_axis, self._mv_coord
+            # (E, n, 3) — advanced indices separated by a slice go first
+            col = rot[:, pb[mv_p], :, mv_ax]  # body-frame axis k of each moving entry, in world
+            term = np.einsum("eni,eni->ne", wp[mv_p, :, :3], col) * dloc
+            np.add.at(dl_dth, (slice(None), self.point_muscle[mv_p], mv_c), term)
+        return lengths, dl_dq, dl_dth
+
+    def _wrenches(self, th: Array, rot: Array, trans: Array) -> tuple[Array, Array, Array]:
+        """Lengths (N, M), the net unit wrench (f_p, x_p × f_p) at every extended path point
+        (P_ext + 1, N, 6) (last row: a dummy) and the moving-point derivatives ∂p_b/∂θ (N, E).
         Internally point- and slot-major ((P, N, 3), (S, N, 3)) so that gathers by point or
         slot are contiguous."""
         n = th.shape[0]
         n_pts = self.n_points
         m = self.n_muscles
-        # point locations in world: static points through one sparse product with the body
-        # rotations (no per-point gather), moving points recomputed from their functions
-        pb = self.point_body
-        nb = len(self.body_names)
-        rt = rot.transpose(1, 3, 2, 0).reshape(nb * 3, 3 * n)  # [(b, j), (i, n)]
-        trans_b = trans.transpose(1, 0, 2)  # (B, N, 3)
-        xw = (self._loc_matrix @ rt).reshape(n_pts, 3, n).transpose(0, 2, 1) + trans_b[pb]
-        dloc = np.zeros((n, len(self.moving)))
-        if self.moving:
-            mp = self.moving_points
-            loc = np.broadcast_to(self.point_location[mp], (n, mp.size, 3)).copy()
-            for grp in self._moving_groups:
-                val, d1 = grp.evaluate(th[:, grp.coordinate])
-                loc[:, grp.slots, grp.axes] = val
-                dloc[:, grp.entries] = d1
-            xm = np.matmul(rot[:, pb[mp]], loc[..., None])[..., 0] + trans[:, pb[mp]]
-            xw[mp] = xm.transpose(1, 0, 2)
-        # active points and the next active point of each point (point-major)
+        xw, dloc, active = self._points(th, rot, trans)
         frames = np.arange(n)
         os_, sp = self.orig_slots, self.orig_start_point
-        if self.cond_points.size:
-            active = np.ones((n_pts, n), dtype=bool)
-            v = th[:, self.cond_coord].T
-            active[self.cond_points] = (v >= self.cond_lo[:, None]) & (v <= self.cond_hi[:, None])
+        if active is not None:
             idx = np.where(active, np.arange(n_pts)[:, None], n_pts)
             nxt_all = np.minimum.accumulate(idx[::-1], axis=0)[::-1]
             end = np.minimum(nxt_all[sp + 1], n_pts - 1)  # sp is never a last point
@@ -713,34 +1035,77 @@ class GeometryPlan:
             ib[os_] = end
             valid[os_] = valid_orig
             st = _PathState(sa, sb, ia, ib, valid, np.zeros((m, n)))
-        hits: list[Array] = []
-        arc_of: list[Array] = []
-        for k, w in enumerate(self.wraps):
-            h, arc = self._apply_wrap(k, w, st, rot, trans)
-            hits.append(h)
-            arc_of.append(arc)
+        # the wraps of all paths, one round (at most one wrap per path) at a time, as OpenSim
+        # applies the wraps of a path in order on the current path
+        hits = np.zeros((len(self.wraps), n), dtype=bool)
+        arc_of = np.zeros((len(self.wraps), n))
+        every = np.arange(n)
+        for rd in self._wrap_rounds:
+            hits[rd.k], arc_of[rd.k] = self._apply_round(rd, st, rot, trans, every)
         # several wraps on one path: re-wrap each on the current path until the tangent points
         # stop moving (OpenSim iterates up to 8 times to 0.5 mm; we go to convergence so that
         # the envelope theorem, hence the analytic Jacobian, holds)
-        multi = [k for k, w in enumerate(self.wraps) if self._n_wraps[w.muscle] > 1]
-        if multi:
-            watch = np.concatenate(
-                [np.arange(*self._muscle_slots[m]) for m in {self.wraps[k].muscle for k in multi}]
-            )
-            todo = np.arange(n)
-            for _ in range(_MAX_WRAP_PASSES):
+        if self._multi_rounds:
+            watch, mm, mk = self._multi_watch, self._multi_muscles, self._multi_wraps
+            todo = every
+            back2 = None  # watched segment ends two passes back
+            last_x = 0  # last pass followed by an extrapolation
+            for p in range(1, _MAX_WRAP_PASSES + 1):
                 wx = (watch[:, None], todo[None, :])
-                before = np.concatenate([st.sa[wx], st.sb[wx]], 0)
-                for k in multi:
-                    w = self.wraps[k]
-                    undo = np.zeros(n, dtype=bool)
-                    undo[todo] = hits[k][todo]
-                    self._remove_wrap(k, w, st, undo, arc_of[k])
-                    h, arc = self._apply_wrap(k, w, st, rot, trans, todo)
-                    hits[k][todo] = h[todo]
-                    arc_of[k][todo] = arc[todo]
-                moved = np.abs(np.concatenate([st.sa[wx], st.sb[wx]], 0) - before).max(axis=(0, 2))
-                todo = todo[moved >= _WRAP_TOL]  # keep iterating the frames still moving
+                snap = (
+                    st.sa[wx], st.sb[wx], st.ia[wx], st.ib[wx], st.valid[wx],
+                    st.arcs[mm[:, None], todo], hits[mk[:, None], todo],
+                    arc_of[mk[:, None], todo],
+                )  # fmt: skip
+                before = np.concatenate(snap[:2], 0)
+                for rd in self._multi_rounds:
+                    undo = np.zeros((rd.k.size, n), dtype=bool)
+                    undo[:, todo] = hits[rd.k][:, todo]
+                    self._remove_round(rd, st, undo, arc_of[rd.k])
+                    h, arc = self._apply_round(rd, st, rot, trans, todo)
+                    hits[rd.k[:, None], todo] = h
+                    arc_of[rd.k[:, None], todo] = arc
+                after = np.concatenate([st.sa[wx], st.sb[wx]], 0)
+                keep = np.abs(after - before).max(axis=(0, 2)) >= _WRAP_TOL
+                if _DETECT_CYCLES and back2 is not None:
+                    # a frame alternating between two paths (the wraps pick different segments
+                    # in turn) never converges: the plain iteration ends on the state of the
+                    # pass limit's parity, which is this pass's or the previous one's
+                    cyc = keep & (np.abs(after - back2).max(axis=(0, 2)) < _WRAP_TOL)
+                    if cyc.any():
+                        if (_MAX_WRAP_PASSES - p) % 2:
+                            c = np.flatnonzero(cyc)
+                            fr = todo[c]
+                            wc = (watch[:, None], fr[None, :])
+                            st.sa[wc], st.sb[wc] = snap[0][:, c], snap[1][:, c]
+                            st.ia[wc], st.ib[wc], st.valid[wc] = (x[:, c] for x in snap[2:5])
+                            st.arcs[mm[:, None], fr] = snap[5][:, c]
+                            hits[mk[:, None], fr] = snap[6][:, c]
+                            arc_of[mk[:, None], fr] = snap[7][:, c]
+                        keep &= ~cyc
+                if _AITKEN and back2 is not None and p - last_x >= 2:
+                    # Aitken's Δ² on three successive iterates x0, x1 = F(x0), x2 = F(x1) of
+                    # the frames converging linearly (the tangent points contract by ~0.3 a
+                    # pass): a better start for the next pass; convergence is still judged on
+                    # a plain pass, so the fixed point is the same
+                    d1, d2 = before - back2, after - before
+                    dd = d2 - d1
+                    n1 = np.abs(d1).max(axis=(0, 2))
+                    n2 = np.abs(d2).max(axis=(0, 2))
+                    good = keep & (n2 < _AITKEN_RATIO * n1)
+                    if good.any():
+                        g = np.flatnonzero(good)
+                        d2g, ddg = d2[:, g], dd[:, g]
+                        use = (np.abs(ddg) > 1e-300) & (
+                            np.abs(d2g) < _AITKEN_RATIO * np.abs(d1[:, g])
+                        )
+                        step = np.where(use, d2g * d2g / np.where(use, ddg, 1.0), 0.0)
+                        x = after[:, g] - step
+                        wg = (watch[:, None], todo[g][None, :])
+                        st.sa[wg], st.sb[wg] = x[: watch.size], x[watch.size :]
+                        last_x = p
+                back2 = before[:, keep]
+                todo = todo[keep]  # keep iterating the frames still moving
                 if todo.size == 0:
                     break
         sa, sb, ia, ib, valid, arcs = st.sa, st.sb, st.ia, st.ib, st.valid, st.arcs
@@ -751,9 +1116,9 @@ class GeometryPlan:
         u = d / np.where(ok, seg, np.inf)[..., None]  # 0 where invalid
         seg = np.where(ok, seg, 0.0)
         lengths = (np.add.reduceat(seg, self.muscle_slot_start, axis=0) + arcs).T
-        # ∂l/∂q_pin: unit wrenches (u, x × u) at both segment ends, summed per path point (each
-        # point starts and ends at most one segment per frame, so the scatter is injective),
-        # then per (muscle, body) pair, then masked by the joints supporting that body
+        # unit wrenches (u, x × u) at both segment ends, summed per path point (each point
+        # starts and ends at most one segment per frame, so the scatter is injective); the
+        # callers aggregate them per (muscle, body) or per Jacobian row
         p_ext = self._n_ext
         ibx = np.where(ib >= 0, ib, self.n_points + (-ib - 2))
         ibx = np.where(ok, ibx, p_ext)  # invalid ends go to the dummy row (their u is 0)
@@ -764,23 +1129,70 @@ class GeometryPlan:
         wp[self._ia_static] = -wa  # each point starts at most one segment
         _cross_into(sb, u, wa[..., 3:])
         wp[ibx, frames] += wa  # ... and ends at most one
-        n_pairs = self._pair_mask.shape[0]
-        w_pairs = (self._agg @ wp.reshape(p_ext + 1, n * 6)).reshape(n_pairs, n, 6)
-        nv = jac.shape[-1]
-        contrib = np.empty((n_pairs, n, nv))
-        np.matmul(w_pairs.transpose(1, 0, 2), jac, out=contrib.transpose(1, 0, 2))
-        contrib *= self._pair_mask[:, None, :]
-        # pairs are sorted by muscle (and every muscle has one): contiguous block sums
-        dl_dq = np.add.reduceat(contrib, self._pair_start, axis=0).transpose(1, 0, 2)
-        # moving points: f_pᵀ R_b ∂p_b/∂θ, f_p the net unit pull on p
-        dl_dth = np.zeros((n, m, len(self.coordinate_names)))
+        return lengths, wp, dloc
+
+    def _static_rows(self, th: Array, rot: Array, trans: Array) -> tuple[Array, Array, Array]:
+        """Without wraps: lengths (N, M), the aggregated wrenches of the rows and moving points
+        (R + P_mv, N, 6) (see :meth:`_build_static_segments`) and ∂p_b/∂θ (N, E)."""
+        n = th.shape[0]
+        xw, dloc, active = self._points(th, rot, trans)
+        sp = self.orig_start_point
+        sa = xw[sp]
+        sb = xw[sp + 1]
+        ent_on = None
+        if active is not None and self._dyn_seg.size:
+            # end of a segment followed by conditional points: its first active candidate
+            # (the last candidate is unconditional)
+            lvl = np.argmax(active[self._dyn_cand], axis=1)  # (D, N)
+            end = np.take_along_axis(self._dyn_cand[:, :, None], lvl[:, None, :], 1)[:, 0]
+            sb[self._dyn_seg] = xw[end, np.arange(n)]
+            ent_on = lvl[self._ent_seg] == self._ent_lvl[:, None]  # (entries, N)
+        d = sb - sa
+        seg = np.sqrt(np.einsum("sni,sni->sn", d, d))
+        ok = seg > 0.0
+        if active is not None:
+            ok &= active[sp]  # a segment starting at an inactive point is not on the path
+        u = d / np.where(ok, seg, np.inf)[..., None]  # 0 where invalid
+        seg = np.where(ok, seg, 0.0)
+        lengths = np.add.reduceat(seg, self.muscle_slot_start, axis=0).T
+        need = self._seg_need
+        lines = np.empty((need.size, n, 6))
+        un = u[need]
+        lines[..., :3] = un
+        _cross_into(sa[need], un, lines[..., 3:])
+        rows = self._seg_sigma @ lines.reshape(need.size, n * 6)
+        if ent_on is not None:
+            ent = lines[self._dyn_need[self._ent_seg]] * ent_on[..., None]
+            rows += self._ent_agg @ ent.reshape(-1, n * 6)
+        return lengths, rows.reshape(-1, n, 6), dloc
+
+    def _points(self, th: Array, rot: Array, trans: Array) -> tuple[Array, Array, Array | None]:
+        """World positions of the path points (P, N, 3), the moving-point derivatives ∂p_b/∂θ
+        (N, E) and which points are active (P, N) (``None`` without conditional points)."""
+        n = th.shape[0]
+        n_pts = self.n_points
+        # point locations in world: static points through one sparse product with the body
+        # rotations (no per-point gather), moving points recomputed from their functions
+        pb = self.point_body
+        nb = len(self.body_names)
+        rt = rot.transpose(1, 3, 2, 0).reshape(nb * 3, 3 * n)  # [(b, j), (i, n)]
+        trans_b = trans.transpose(1, 0, 2)  # (B, N, 3)
+        xw = (self._loc_matrix @ rt).reshape(n_pts, 3, n).transpose(0, 2, 1) + trans_b[pb]
+        dloc = np.zeros((n, 0))
         if self.moving:
-            mv_p, mv_ax, mv_c = self._mv_point, self._mv_axis, self._mv_coord
-            # (E, n, 3) — advanced indices separated by a slice go first
-            col = rot[:, pb[mv_p], :, mv_ax]  # body-frame axis k of each moving entry, in world
-            term = np.einsum("eni,eni->ne", wp[mv_p, :, :3], col) * dloc
-            np.add.at(dl_dth, (slice(None), self.point_muscle[mv_p], mv_c), term)
-        return lengths, dl_dq, dl_dth
+            mp = self.moving_points
+            loc = np.broadcast_to(self.point_location[mp], (n, mp.size, 3)).copy()
+            val, dloc = self._moving_bank.evaluate(th)
+            loc[:, self._mv_slot, self._mv_axis] = val
+            xm = np.matmul(rot[:, pb[mp]], loc[..., None])[..., 0] + trans[:, pb[mp]]
+            xw[mp] = xm.transpose(1, 0, 2)
+        # active points (point-major)
+        active = None
+        if self.cond_points.size:
+            active = np.ones((n_pts, n), dtype=bool)
+            v = th[:, self.cond_coord].T
+            active[self.cond_points] = (v >= self.cond_lo[:, None]) & (v <= self.cond_hi[:, None])
+        return xw, dloc, active
 
 
 # --------------------------------------------------------------------------------------------
@@ -818,6 +1230,84 @@ class _FunctionGroup:
             val = np.where(hi, y[:, -1] + (x[:, None] - kn[-1]) * b[:, -1], val)
             d1 = np.where(lo, b[:, 0], np.where(hi, b[:, -1], d1))
         return val, d1
+
+
+class _FunctionBank:
+    """Functions f_e(θ_{c_e}) evaluated together in entry order: exactly-Linear ones in one
+    pass, all SimmSplines (possibly scaled by a Multiplier) in one padded table whatever their
+    knots, anything else one by one. Same arithmetic as the functions themselves."""
+
+    def __init__(self, coords: NDArray[np.intp], functions: list[Any]) -> None:
+        coords = np.asarray(coords, dtype=np.intp)
+        self.size = len(functions)
+        lin = [e for e, f in enumerate(functions) if _linear_of(f) is not None]
+        spl = [e for e, f in enumerate(functions) if e not in set(lin) and _spline_of(f)]
+        self.other = [e for e in range(self.size) if e not in set(lin) | set(spl)]
+        self.other_coord = [int(coords[e]) for e in self.other]
+        self.other_fun = [functions[e] for e in self.other]
+        self.lin = np.asarray(lin, dtype=np.intp)
+        self.lin_coord = coords[self.lin]
+        lins = [_linear_of(functions[e]) for e in lin]
+        self.scale = np.array([t[0] for t in lins])  # type: ignore[index]
+        self.slope = np.array([t[1].slope for t in lins], dtype=float)  # type: ignore[index]
+        self.intercept = np.array([t[1].intercept for t in lins], dtype=float)  # type: ignore[index]
+        self.d_lin = self.scale * self.slope
+        self.spl = np.asarray(spl, dtype=np.intp)
+        self.spl_coord = coords[self.spl]
+        tabs = [_spline_of(functions[e]) for e in spl]
+        nk = np.array([len(t[1].x) for t in tabs], dtype=np.intp)  # type: ignore[index]
+        k_max = int(nk.max()) if nk.size else 2
+        self.knots = np.full((len(spl), k_max), np.inf)
+        self.coef = np.zeros((4, len(spl), k_max))
+        for i, (scale, sp) in enumerate(tabs):  # type: ignore[misc]
+            self.knots[i, : nk[i]] = sp.x
+            self.coef[:, i, : nk[i]] = scale * np.stack([np.asarray(sp.y), sp._b, sp._c, sp._d])
+        self.nk = nk
+        rows = np.arange(len(spl))
+        self.k0 = self.knots[:, 0].copy()
+        self.k1 = self.knots[rows, nk - 1] if nk.size else np.zeros(0)
+        self.y0, self.b0 = self.coef[0, :, 0].copy(), self.coef[1, :, 0].copy()
+        self.y1 = self.coef[0, rows, nk - 1] if nk.size else np.zeros(0)
+        self.b1 = self.coef[1, rows, nk - 1] if nk.size else np.zeros(0)
+        self.rows = rows
+
+    def evaluate(self, theta: Array) -> tuple[Array, Array]:
+        """Values and first derivatives (N, E) for θ (N, n_coords)."""
+        n = theta.shape[0]
+        val = np.empty((n, self.size))
+        d1 = np.empty((n, self.size))
+        if self.lin.size:
+            # scale·(slope·x + intercept): Multiplier(Linear) as it computes, 1·y = y exactly
+            val[:, self.lin] = self.scale * (self.slope * theta[:, self.lin_coord] + self.intercept)
+            d1[:, self.lin] = self.d_lin
+        if self.spl.size:
+            x = theta[:, self.spl_coord]
+            # index of the last knot ≤ x (searchsorted "right" − 1) on the +inf-padded table
+            i = np.minimum(np.maximum((self.knots <= x[..., None]).sum(-1) - 1, 0), self.nk - 2)
+            dx = x - self.knots[self.rows, i]
+            y, b, c, d = self.coef[:, self.rows, i]
+            v = y + dx * (b + dx * (c + dx * d))
+            g = b + dx * (2.0 * c + 3.0 * dx * d)
+            lo, hi = x < self.k0, x > self.k1
+            if lo.any() or hi.any():  # linear extrapolation with the end slopes, as SimmSpline
+                v = np.where(lo, self.y0 + (x - self.k0) * self.b0, v)
+                v = np.where(hi, self.y1 + (x - self.k1) * self.b1, v)
+                g = np.where(lo, self.b0, np.where(hi, self.b1, g))
+            val[:, self.spl] = v
+            d1[:, self.spl] = g
+        for e, c, f in zip(self.other, self.other_coord, self.other_fun):
+            x = theta[:, c]
+            val[:, e] = np.asarray(f(x), dtype=float)
+            d1[:, e] = np.asarray(f.d1(x), dtype=float)
+        return val, d1
+
+
+def _linear_of(fun: Any) -> tuple[float, Linear] | None:
+    if type(fun) is Linear:
+        return 1.0, fun
+    if type(fun) is Multiplier and type(fun.function) is Linear:
+        return float(fun.scale), fun.function
+    return None
 
 
 def _spline_of(fun: Any) -> tuple[float, SimmSpline] | None:
@@ -861,6 +1351,10 @@ class _Tree:
     axes: Array  # unit axis of each joint (its own frame)
     idx_q: tuple[int, ...]
     idx_v: tuple[int, ...]
+    frame_axis: tuple[int, ...]  # 0, 1, 2 for an axis of the joint frame, -1 otherwise
+    identity_rotation: tuple[bool, ...]
+    zero_translation: tuple[bool, ...]
+    skew: Array  # [a_j]×
 
 
 def _cross_into(x: Array, u: Array, out: Array) -> None:
@@ -897,13 +1391,29 @@ def _tree_structure(pm: pin.Model) -> _Tree:
         axes=axes,
         idx_q=tuple(int(pm.joints[j].idx_q) for j in range(n)),
         idx_v=tuple(int(pm.joints[j].idx_v) for j in range(n)),
+        frame_axis=tuple(
+            int(np.flatnonzero(axes[j])[0])
+            if np.count_nonzero(axes[j]) == 1 and axes[j].max() == 1.0
+            else -1
+            for j in range(n)
+        ),
+        identity_rotation=tuple(
+            bool(np.array_equal(pm.jointPlacements[j].rotation, np.eye(3))) for j in range(n)
+        ),
+        zero_translation=tuple(not np.any(pm.jointPlacements[j].translation) for j in range(n)),
+        skew=np.array([pin.skew(axes[j]) for j in range(n)]),
     )
 
 
 def _batched_fk(tree: _Tree, q: Array, nv: int) -> tuple[Array, Array, Array]:
     """oMi of every joint (N, njoints, 3, 3), (N, njoints, 3) and the world-frame joint Jacobian
     (N, 6, nv): column of joint j = (o_j × a_j, a_j) if revolute, (a_j, 0) if prismatic, with
-    a_j its world axis and o_j its origin (the joint twist at the world origin)."""
+    a_j its world axis and o_j its origin (the joint twist at the world origin).
+
+    Identity placements are skipped and a rotation about a frame axis k only mixes the two
+    other columns of the parent rotation (R_j = R_p R_k(q): column i1 → c·r_i1 + s·r_i2,
+    column i2 → c·r_i2 − s·r_i1), so no per-joint 3 × 3 products remain but for unaligned axes.
+    """
     n = q.shape[0]
     nj = len(tree.parents)
     rot = np.empty((n, nj, 3, 3))
@@ -913,18 +1423,29 @@ def _batched_fk(tree: _Tree, q: Array, nv: int) -> tuple[Array, Array, Array]:
     jac = np.zeros((n, 6, nv))
     for j in range(1, nj):
         par = tree.parents[j]
-        rp = rot[:, par] @ tree.rotations[j]
-        tp = trans[:, par] + rot[:, par] @ tree.translations[j]
-        ax = tree.axes[j]
+        rp = rot[:, par]
+        tp = trans[:, par]
+        if not tree.identity_rotation[j]:
+            rp = rp @ tree.rotations[j]
+        if not tree.zero_translation[j]:
+            tp = tp + rot[:, par] @ tree.translations[j]
         qj = q[:, tree.idx_q[j]]
-        a = rp @ ax
         iv = tree.idx_v[j]
+        k = tree.frame_axis[j]
+        a = rp[:, :, k] if k >= 0 else rp @ tree.axes[j]
         if tree.revolute[j]:
-            k = pin.skew(ax)
-            c, s_ = np.cos(qj)[:, None, None], np.sin(qj)[:, None, None]
-            rot[:, j] = rp @ (np.eye(3) + s_ * k + (1.0 - c) * (k @ k))
+            c, s_ = np.cos(qj)[:, None], np.sin(qj)[:, None]
+            if k >= 0:
+                i1, i2 = (k + 1) % 3, (k + 2) % 3
+                out = rot[:, j]
+                out[:, :, k] = a
+                out[:, :, i1] = c * rp[:, :, i1] + s_ * rp[:, :, i2]
+                out[:, :, i2] = c * rp[:, :, i2] - s_ * rp[:, :, i1]
+            else:
+                kk = tree.skew[j]
+                rot[:, j] = rp @ (np.eye(3) + s_[..., None] * kk + (1.0 - c[..., None]) * (kk @ kk))
             trans[:, j] = tp
-            jac[:, :3, iv] = np.cross(tp, a)
+            _cross_into(tp, a, jac[:, :3, iv])
             jac[:, 3:, iv] = a
         else:
             rot[:, j] = rp

@@ -639,3 +639,173 @@ def test_plan_cache_does_not_keep_models_alive_and_plans_are_not_mixed():
     gc.collect()
     assert ref() is None
     assert all(k is not None for k in geometry._PLANS.keys())
+
+
+# --------------------------------------------------------------------------------------------
+# the fast evaluation paths (issue 6 speed work): same results as the direct definitions
+# --------------------------------------------------------------------------------------------
+def test_function_bank_equals_the_functions_whatever_their_knots():
+    from msk.joints import Constant, Multiplier, Polynomial
+    from msk.muscles.geometry import _FunctionBank
+
+    funs = [
+        Multiplier(SimmSpline((-2.0, -1.2, -0.5, 0.0, 0.1), (0.01, 0.02, 0.04, 0.05, 0.05)), 0.97),
+        SimmSpline((0.0, 1.0), (0.0, 2.0)),
+        Linear(0.3, -0.1),
+        Polynomial((0.1, 0.0, -0.2)),
+        SimmSpline(_KA, (0.0155, 0.0226, 0.0394, 0.0411, 0.0421, 0.0421, 0.0421, 0.0421)),
+        Constant(0.25),
+        Linear(-1.5, 0.0),
+        Multiplier(Linear(0.7, 0.2), -1.3),
+    ]
+    coords = np.array([0, 1, 0, 2, 1, 2, 2, 1])
+    bank = _FunctionBank(coords, funs)
+    rng = np.random.default_rng(5)
+    th = rng.uniform(-2.6, 1.4, (64, 3))  # beyond every spline's knots on both sides
+    th[:5, :] = [
+        [-2.0, 0.0, 0.1],
+        [-1.2, 1.0, 0.0],
+        [0.1, -2.0944, 0.2],
+        [0.0, 0.10472, 0],
+        [0] * 3,
+    ]
+    val, d1 = bank.evaluate(th)
+    for e, (c, f) in enumerate(zip(coords, funs)):
+        np.testing.assert_allclose(val[:, e], f(th[:, c]), rtol=0, atol=1e-15)
+        np.testing.assert_allclose(d1[:, e], f.d1(th[:, c]), rtol=0, atol=1e-14)
+
+
+def _chained_conditional_model() -> Model:
+    """Two consecutive conditional via points on one path (the segment before them ends at the
+    first active one of three candidates), next to a moving point."""
+    chain = _muscle("chain", [
+        _pt("o", "pelvis", [-0.11, -0.08, 0.07]),
+        ConditionalPathPoint("c1", "femur", np.array([-0.03, -0.38, -0.01]),
+                             coordinate="knee_angle", range=(-1.5, -0.5)),
+        ConditionalPathPoint("c2", "tibia", np.array([-0.035, -0.03, -0.02]),
+                             coordinate="knee_angle", range=(-0.8, -0.1)),
+        MovingPathPoint("p", "tibia", np.array([0.04, -0.06, 0.0]),
+                        coordinates=("knee_angle", "knee_angle", None),
+                        functions=(PATELLA_X, PATELLA_Y, None)),
+        _pt("i", "foot", [0.02, 0.01, 0.0]),
+    ])  # fmt: skip
+    return leg_model().with_muscles([*muscles_for_leg()[:3], chain])  # no wraps
+
+
+def test_consecutive_conditional_points_lengths_and_jacobian():
+    model = _chained_conditional_model()
+    th = random_poses(model, 60, seed=11)
+    plan = geometry_plan(model)
+    assert plan._static and plan._dyn_cand.shape[1] == 3  # o → c1 | c2 | p
+    knee = th[:, KNEE_IDX]
+    c1, c2 = (knee >= -1.5) & (knee <= -0.5), (knee >= -0.8) & (knee <= -0.1)
+    assert all(((c1 == x) & (c2 == y)).any() for x in (0, 1) for y in (0, 1))  # 4 states
+    assert_jacobian_matches_fd(model, th)
+    geo = muscle_geometry(model, th)
+    pm = model.pin_model
+    data = pm.createData()
+    mus = model.muscles[-1]
+    q = model.coupling.q(th)
+    seen = set()
+    for n in range(th.shape[0]):
+        pin.framesForwardKinematics(pm, data, q[n])
+        pts = []
+        for pt in mus.points:
+            if isinstance(pt, ConditionalPathPoint):
+                lo, hi = pt.range
+                if not lo <= th[n, KNEE_IDX] <= hi:
+                    continue
+                seen.add(pt.name)
+            loc = np.asarray(pt.location, dtype=float).copy()
+            if isinstance(pt, MovingPathPoint):
+                loc[:2] = [pt.functions[0](th[n, KNEE_IDX]), pt.functions[1](th[n, KNEE_IDX])]
+            frame = data.oMf[pm.getFrameId(pt.body)]
+            pts.append(frame.rotation @ loc + frame.translation)
+        ref = sum(np.linalg.norm(b - a) for a, b in itertools.pairwise(pts))
+        assert abs(geo.lengths[n, -1] - ref) < 1e-12, n
+    assert seen == {"c1", "c2"}
+    # a coordinate the path does not cross (the pelvis DOFs carry the whole path) is exactly 0
+    assert np.all(geo.jacobian[:, :, :6] == 0.0)
+
+
+@pytest.mark.parametrize("four_bar", [False, True], ids=["spline_knee", "four_bar_knee"])
+def test_few_frame_calls_equal_the_batch(four_bar):
+    """Few frames take Pinocchio's forward kinematics frame by frame, batches the numpy one;
+    single-frame calls, short and long batches agree."""
+    model = leg_with_muscles(four_bar=four_bar)
+    th = random_poses(model, 24, seed=21)
+    thd = np.random.default_rng(2).standard_normal(th.shape)
+    plan = GeometryPlan(model)
+    full = plan.evaluate(th, thd)
+    for sl in (slice(0, 1), slice(3, 7), slice(5, 20)):
+        part = plan.evaluate(th[sl], thd[sl])
+        np.testing.assert_allclose(part.lengths, full.lengths[sl], rtol=0, atol=1e-14)
+        np.testing.assert_allclose(part.jacobian, full.jacobian[sl], rtol=0, atol=1e-13)
+        np.testing.assert_allclose(part.velocities, full.velocities[sl], rtol=0, atol=1e-13)
+    np.testing.assert_allclose(
+        full.velocities, np.einsum("nmi,ni->nm", full.jacobian, thd), rtol=0, atol=1e-14
+    )
+
+
+def test_chunked_batches_equal_one_pass():
+    model = _chained_conditional_model()
+    th = random_poses(model, 37, seed=4)
+    thd = np.random.default_rng(3).standard_normal(th.shape)
+    plan = GeometryPlan(model)
+    assert plan._chunk > th.shape[0]
+    ref = plan.evaluate(th, thd)
+    plan._chunk = 5  # 8 chunks, the last one of 2 frames (Pinocchio's kinematics)
+    out = plan.evaluate(th, thd)
+    np.testing.assert_allclose(out.lengths, ref.lengths, rtol=0, atol=1e-14)
+    np.testing.assert_allclose(out.jacobian, ref.jacobian, rtol=0, atol=1e-13)
+    np.testing.assert_allclose(out.velocities, ref.velocities, rtol=0, atol=1e-13)
+
+
+def _rajagopal_walk(ref_dir, frames):
+    data = _peer_data()
+    model = _load_osim(ref_dir / "opensim-models" / "Rajagopal2016.osim")
+    g2392 = _load_osim(data / GAIT2392_SUBJECT01)
+    walk = read_ik_mot(data / GAIT2392_IK, g2392)[frames]
+    th = np.tile(model.default_coordinates(), (walk.shape[0], 1))
+    for i, c in enumerate(model.coordinates):
+        if c.name in g2392.coordinate_names:
+            th[:, i] = walk[:, g2392.coordinate_index(c.name)]
+    return model, th
+
+
+@pytest.mark.slow
+@pytest.mark.realdata
+def test_wrap_iteration_shortcuts_keep_the_plain_iteration_result(ref_dir, monkeypatch):
+    """Two wraps on one path (Rajagopal's gastrocnemii): the Aitken-extrapolated iteration and
+    the 2-cycle shortcut give what the plain iteration to convergence (or to the pass limit)
+    gives."""
+    from msk.muscles import geometry
+
+    model, th = _rajagopal_walk(ref_dir, [10, 31, 50, 92, 129, 150, 165])
+    plan = GeometryPlan(model)
+    fast = plan.evaluate(th)
+    monkeypatch.setattr(geometry, "_AITKEN", False)
+    monkeypatch.setattr(geometry, "_DETECT_CYCLES", False)
+    plain = plan.evaluate(th)
+    np.testing.assert_allclose(fast.lengths, plain.lengths, rtol=0, atol=1e-13)
+    np.testing.assert_allclose(fast.jacobian, plain.jacobian, rtol=0, atol=1e-10)
+    # the shortcut is exercised: at frames 31, 92 (left) and 129 (right) the plain iteration
+    # alternates between two gastrocnemius paths and ends on the one of its limit's parity
+    monkeypatch.setattr(geometry, "_MAX_WRAP_PASSES", geometry._MAX_WRAP_PASSES + 1)
+    odd = plan.evaluate(th).lengths
+    gas = [plan.muscle_names.index(n) for n in ("gasmed_l", "gasmed_r")]
+    jump = np.abs(odd - plain.lengths)[:, gas].max(axis=1)
+    assert np.all(jump[[1, 3, 4, 6]] > 0.1) and np.all(jump[[0, 2, 5]] < 1e-12)
+
+
+def test_extrapolated_wrap_iteration_equals_the_plain_one(monkeypatch):
+    from msk.muscles import geometry
+
+    model = leg_with_muscles(four_bar=True)
+    th = random_poses(model, 40, seed=6)
+    plan = GeometryPlan(model)
+    fast = plan.evaluate(th)
+    monkeypatch.setattr(geometry, "_AITKEN", False)
+    plain = plan.evaluate(th)
+    np.testing.assert_allclose(fast.lengths, plain.lengths, rtol=0, atol=1e-13)
+    np.testing.assert_allclose(fast.jacobian, plain.jacobian, rtol=0, atol=1e-10)

@@ -149,3 +149,26 @@ def test_vectorised_over_leading_axes_and_bad_quadrant():
     assert one[0] == wraps[2, 3] and one[3] == pytest.approx(arc[2, 3])
     with pytest.raises(ModelError, match="quadrant 'z'"):
         wrap_cylinder(a, b, R, quadrant="z")
+
+
+def test_several_cylinders_at_once_equal_one_at_a_time():
+    """The wraps of one round (several cylinders, quadrants and lengths in one array call) give
+    what each cylinder gives alone."""
+    from msk.muscles.geometry import _QUADRANTS, _wrap_cylinder
+
+    rng = np.random.default_rng(8)
+    specs = [(0.02, "all", 0.1), (0.03, "-x", np.inf), (0.025, "+y", 0.08), (0.015, "-y", 0.2),
+             (0.02, "x", 0.05)]  # fmt: skip
+    a = rng.normal(0.0, 0.05, (len(specs), 7, 3))
+    b = rng.normal(0.0, 0.05, (len(specs), 7, 3))
+    shape = (len(specs), 1)
+    r = np.array([s[0] for s in specs]).reshape(shape)
+    axis = np.array([_QUADRANTS[s[1]][0] for s in specs]).reshape(shape)
+    sign = np.array([_QUADRANTS[s[1]][1] for s in specs]).reshape(shape)
+    half = 0.5 * np.array([s[2] for s in specs]).reshape(shape)
+    together = _wrap_cylinder(a, b, r, axis, sign, half)
+    assert together[0].any() and not together[0].all()
+    for k, (radius, quadrant, length) in enumerate(specs):
+        alone = wrap_cylinder(a[k], b[k], radius, quadrant=quadrant, length=length)
+        for x, y in zip(together, alone):
+            np.testing.assert_array_equal(x[k], y)
