@@ -2,15 +2,22 @@
 
 from __future__ import annotations
 
+import os
 import sys
 from pathlib import Path
 
 import pytest
+from hypothesis import settings
 
 from msk._data import real_data_dir, reference_dir
 from msk.opensim_peer import opensim_available
 
 TESTS_DATA = Path(__file__).parent / "data"
+# CI runs property tests on a fixed example sequence (reproducible, never flaky); locally they
+# explore fresh examples on every run.
+settings.register_profile("ci", derandomize=True, print_blob=True)
+if os.environ.get("CI"):
+    settings.load_profile("ci")
 # shared test helpers (tiny models built in code) import as top-level modules
 sys.path.insert(0, str(Path(__file__).parent))
 
