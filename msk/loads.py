@@ -9,12 +9,25 @@ wrench as a spatial force at the world origin, world axes::
 which is linear in the recorded channels, so it is what gets resampled to the kinematics time
 (linear interpolation) — the COP is not interpolated. A plate is *in contact* where its vertical
 force (along −gravity) exceeds ``threshold_n``. Each contiguous contact interval is assigned to
-the foot that stands on the plate: a foot is on a plate at a frame when the floor projection of
-one of its points (origins of the foot bodies and their descendants, and their markers) lies
-inside the plate outline (corners) grown by ``margin_m``; a plate without corners uses the
-distance from the COP to the foot points instead (nearest foot within ``cop_radius_m``). An
-interval with no foot on the plate, or with two feet on it for most of its frames, raises
-:class:`~msk.exceptions.ForcePlateError` naming the plate and the time.
+the foot that stands on the plate. A foot *stands* on a plate at a frame when all of these hold
+for its points (origins of the foot bodies and their descendants, and their markers):
+
+* the floor projection of one of them lies inside the plate outline (corners) grown by
+  ``margin_m``;
+* the one nearest the floor is within ``floor_m`` of the plate surface (the height of the
+  recorded COPs);
+* it is not swinging over the plate: a foot whose slowest point moves faster than
+  ``speed_mps`` does not stand on the plate while another foot on it is both slower and nearer
+  the centre of pressure (a supporting foot is still, or rolls about the heel or the toes; a
+  swinging foot passing over the plate moves at metres per second).
+
+The outline test alone counts a foot swinging over the plate, or a foot standing on the next
+plate with its toes within the margin, as standing on it (overground gait, e.g. the Grand
+Challenge walks). The foot standing on the plate for most of the sampled frames of the interval
+wins. A plate without corners uses the distance from the COP to the foot points only (nearest
+foot within ``cop_radius_m``). An interval with no foot standing on the plate, or with two feet
+standing on it for most of its frames, raises :class:`~msk.exceptions.ForcePlateError` naming
+the plate and the time.
 
 Signs: F is the force the ground exerts **on the subject** (vertical component positive up).
 Plates that recorded the action instead (negative vertical force during contact) are flipped
@@ -273,6 +286,8 @@ def external_loads(
     threshold_n: float = 20.0,
     margin_m: float = 0.05,
     cop_radius_m: float = 0.30,
+    floor_m: float = 0.10,
+    speed_mps: float = 1.0,
     sign: Literal["auto"] | float = "auto",
     cutoff_hz: float | None = None,
     extra: Sequence[AppliedForce] = (),
@@ -288,6 +303,10 @@ def external_loads(
         threshold_n: vertical force above which a plate is in contact.
         margin_m: growth of the plate outline for the "foot on plate" test.
         cop_radius_m: largest COP–foot distance for plates without corners.
+        floor_m: largest distance of a standing foot's point nearest the floor from the plate
+            surface (along the vertical).
+        speed_mps: speed of a foot's slowest point above which it is swinging (when another
+            foot on the plate is slower and nearer the COP).
         sign: +1 / −1 multiplies the plate force and free moment; ``"auto"`` makes the vertical
             force positive up during contact.
         cutoff_hz: optional zero-lag low-pass of the plate wrench at its own rate.
@@ -301,7 +320,6 @@ def external_loads(
     n = t.size
     g = np.asarray(model.gravity, dtype=float)
     up = -g / np.linalg.norm(g) if np.linalg.norm(g) > 0 else np.array([0.0, 1.0, 0.0])
-    hz = _horizontal_axes(up)
     feet = tuple(feet) if feet is not None else _default_feet(model)
     for f in feet:
         if f not in model.body_joint:
@@ -359,7 +377,7 @@ def external_loads(
             m_h = m_k - np.cross(h * up, f_k)
             cop = h * up + np.cross(up, m_h) / fv[:, None]
         cop[~contact] = np.nan
-        prepared.append((pl, f_k, m_k, fv, cop, _runs(contact)))
+        prepared.append((pl, f_k, m_k, fv, cop, h, _runs(contact)))
 
     # foot points, once, at the frames that decide the assignments
     sample: dict[tuple[int, int], Array] = {}
@@ -370,16 +388,17 @@ def external_loads(
                 sample[(i0, i1)] = np.unique(np.linspace(i0, i1 - 1, n_s).round().astype(int))
     fpts: list[Array] = []
     if sample:
-        fpts = _foot_points(model, q, feet, np.unique(np.concatenate(list(sample.values()))))
+        at = np.concatenate(list(sample.values()))
+        at = np.unique(np.clip(np.concatenate([at - 1, at, at + 1]), 0, n - 1))  # speeds too
+        fpts = _foot_points(model, q, feet, at)
+    crit = _Criteria(margin_m, cop_radius_m, floor_m, speed_mps)
 
-    for pl, f_k, m_k, fv, cop, runs in prepared:
+    for pl, f_k, m_k, fv, cop, h, runs in prepared:
         for i0, i1 in runs:
             if assignment is not None and pl.name in assignment:
                 body = assignment[pl.name]
             else:
-                frames = sample[(i0, i1)]
-                pts = [fp[frames] for fp in fpts]
-                body = _assign(pl, feet, pts, cop, frames, i0, i1, t, hz, margin_m, cop_radius_m)
+                body = _assign(pl, feet, fpts, cop, h, sample[(i0, i1)], i0, i1, t, up, crit)
             b = slot(body)
             sl = slice(i0, i1)
             force[b][sl] += f_k[sl]
@@ -435,27 +454,75 @@ def external_loads(
     )
 
 
+@dataclass(frozen=True)
+class _Criteria:
+    """Thresholds of the "foot stands on the plate" test (module docstring)."""
+
+    margin_m: float
+    cop_radius_m: float
+    floor_m: float
+    speed_mps: float
+
+
+def _foot_state(
+    pts: Array, prev: Array, nxt: Array, dt: Array, poly2: Array, cop2: Array, h: float,
+    up: Array, hz: Array, crit: _Criteria,
+) -> tuple[Array, Array, Array]:  # fmt: skip
+    """Per sampled frame, for one foot: on the plate (a point inside the grown outline and one
+    within ``floor_m`` of the surface height), speed of its slowest point, floor-plane distance
+    of its nearest point to the COP. ``pts``, ``prev``, ``nxt`` (K, P, 3) are the foot points at
+    the frames and at their neighbours (``dt`` (K,) s apart)."""
+    p2 = pts @ hz.T
+    inside = _inside_grown(p2, poly2, crit.margin_m).any(axis=1)
+    with np.errstate(invalid="ignore"):
+        low = np.where(np.isfinite(pts).all(axis=2), np.abs(pts @ up - h), np.inf).min(axis=1)
+        speed = np.linalg.norm(nxt - prev, axis=2) / dt[:, None]
+        slow = np.where(np.isfinite(speed), speed, np.inf).min(axis=1)
+        near = np.linalg.norm(p2 - cop2[:, None, :], axis=2)
+        near = np.where(np.isfinite(near), near, np.inf).min(axis=1)
+    return inside & (low <= crit.floor_m), slow, near
+
+
+def _standing(on: Array, speed: Array, near: Array, speed_mps: float) -> Array:
+    """(frames, feet): the feet ``on`` the plate, less the swinging ones — faster than
+    ``speed_mps`` while another foot on the plate is both slower and nearer the COP."""
+    out = on.copy()
+    for a in range(on.shape[1]):
+        for b in range(on.shape[1]):
+            if a != b:
+                beaten = on[:, b] & (speed[:, b] < speed[:, a]) & (near[:, b] < near[:, a])
+                out[:, a] &= ~(beaten & (speed[:, a] > speed_mps))
+    return out
+
+
 def _assign(
     pl: PlateWrench,
     feet: Sequence[str],
     fpts: list[Array],
     cop: Array,
+    h: float,
     frames: Array,
     i0: int,
     i1: int,
     t: Array,
-    hz: Array,
-    margin: float,
-    radius: float,
+    up: Array,
+    crit: _Criteria,
 ) -> str:
     """The foot standing on plate ``pl`` during frames [i0, i1), judged on the foot points
-    ``fpts`` ([(len(frames), P, 3)]) at ``frames`` (at most ``_SAMPLES`` of the interval)."""
+    ``fpts`` ([(N, P, 3)], filled at ``frames`` and their neighbours) at ``frames`` (at most
+    ``_SAMPLES`` of the interval); ``h`` is the height of the plate surface along ``up``."""
     span = f"{pl.name} contact {t[i0]:.3f}–{t[i1 - 1]:.3f} s"
+    hz = _horizontal_axes(up)
+    c2 = cop[frames] @ hz.T
     if pl.corners is not None:
         poly = np.asarray(pl.corners, dtype=float) @ hz.T
-        on = np.stack(
-            [_inside_grown(fp @ hz.T, poly, margin).any(axis=1) for fp in fpts], axis=1
-        )  # (frames, feet)
+        k0 = np.clip(frames - 1, 0, t.size - 1)
+        k1 = np.clip(frames + 1, 0, t.size - 1)
+        dt = np.maximum(t[k1] - t[k0], 1e-12)
+        state = [
+            _foot_state(fp[frames], fp[k0], fp[k1], dt, poly, c2, h, up, hz, crit) for fp in fpts
+        ]
+        on = _standing(*(np.stack(x, axis=1) for x in zip(*state)), crit.speed_mps)
         frac = on.mean(axis=0)
         both = (on.sum(axis=1) >= 2).mean()
         if both > 0.5:
@@ -471,12 +538,18 @@ def _assign(
                 f"in {100 * frac[best]:.0f} % of the frames)"
             )
         return feet[best]
-    c2 = cop[frames] @ hz.T
-    dist = np.stack([np.linalg.norm(fp @ hz.T - c2[:, None, :], axis=2) for fp in fpts], 1)
-    dist = np.where(np.isfinite(dist), dist, np.inf).min(axis=2)  # (frames, feet)
+    # nearest point of each foot (feet may carry different numbers of points: reduce first)
+    dist = np.stack(
+        [
+            np.where(np.isfinite(d), d, np.inf).min(axis=1)
+            for d in (np.linalg.norm(fp[frames] @ hz.T - c2[:, None, :], axis=2) for fp in fpts)
+        ],
+        axis=1,
+    )  # (frames, feet)
     usable = np.isfinite(dist).all(axis=1)
     med = np.median(dist[usable], axis=0) if usable.any() else np.full(len(feet), np.inf)
     best = int(np.argmin(med))
+    radius = crit.cop_radius_m
     if not med[best] <= radius:
         raise ForcePlateError(
             f"{span}: no foot within {radius} m of the centre of pressure at t = {t[i0]:.3f} s "

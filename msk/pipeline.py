@@ -17,14 +17,18 @@ dynamics, report) have no fallback: their errors end the run, and nothing is wri
 of the stages it reads (input files enter through their content hash), so a changed setting
 recomputes exactly the stages downstream of it. Values are pickled in ``<out>/.cache``.
 
-**Frames.** The lab frame of a C3D trial is rotated into the model frame (lab vertical → the
-model's up, −gravity) and about the vertical so that the walking direction is the model's +x
-(OpenSim's convention); the rotation is recorded in ``summary.json``.
+Each stage is one method of ``_Session``; what is left here is composition, caching, progress
+and results writing. The algorithms live in the library:
 
-**Marker placement.** Lab markers that are not model markers (clusters, PSIS…) are placed on
-the scaled model from the static trial: the static pose is solved with the markers both share
-(``[markers] rename`` maps model names to lab labels) and every other static marker is fixed to
-the body whose bone segment is nearest, at its measured position (OpenSim's MarkerPlacer idea).
+* **Frames** (:func:`msk.io.lab_to_model_rotation`, :meth:`msk.io.Trial.rotated`): the lab
+  frame of a C3D trial is rotated into the model frame (lab vertical → the model's up,
+  −gravity) and about the vertical so that the walking direction is the model's +x (OpenSim's
+  convention); the rotation is recorded in ``summary.json``.
+* **Marker placement** (:func:`msk.scaling.place_markers`): lab markers that are not model
+  markers (clusters, PSIS…) are placed on the scaled model from the static trial
+  (``[markers] rename`` maps model names to lab labels).
+* **Plate assignment** (:func:`msk.loads.external_loads`): each contact interval goes to the
+  foot standing on the plate, judged on the plate outline.
 """
 
 from __future__ import annotations
@@ -32,7 +36,6 @@ from __future__ import annotations
 import dataclasses
 import hashlib
 import json
-import math
 import os
 import pickle
 import platform
@@ -52,6 +55,7 @@ import numpy as np
 from msk import __version__
 from msk.config import SessionConfig, load_config
 from msk.exceptions import ConfigError, MissingDataError, MskError
+from msk.io.frames import lab_to_model_rotation
 from msk.io.opensim_files import Table
 from msk.results import SessionResults, check_replaceable, json_default, write_session
 
@@ -59,6 +63,7 @@ __all__ = [
     "CONTACT_CHUNK_FRAMES",
     "CORE_STAGES",
     "DEFAULT_MEASUREMENTS",
+    "PLATE_ASSIGNMENT",
     "STAGES",
     "RunResult",
     "StageRecord",
@@ -103,6 +108,11 @@ _DEPENDENCIES = (
 G0 = 9.80665
 #: Frames per joint-reaction call in the knee-contact stage (moving path points per chunk).
 CONTACT_CHUNK_FRAMES = 6
+#: How msk.loads assigns plate contacts to feet (recorded in summary.json, part of the cache key).
+PLATE_ASSIGNMENT = (
+    "msk.loads: the foot standing on the plate (inside the outline, near the floor, not "
+    "swinging over it)"
+)
 
 #: Scaling measurements (model marker pairs → bodies), used where both markers exist in the
 #: model and (after ``[markers] rename``) in the static trial.
@@ -296,120 +306,19 @@ def _need(module: str, *names: str) -> Any:
 
 
 # ---------------------------------------------------------------------------------------------
-# glue: frames and marker placement
+# compatibility: the frame and marker-placement steps now live in the library
 # ---------------------------------------------------------------------------------------------
-def _rotation_between(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """Smallest rotation taking unit vector ``a`` to unit vector ``b`` (Rodrigues)."""
-    a = a / np.linalg.norm(a)
-    b = b / np.linalg.norm(b)
-    v = np.cross(a, b)
-    c = float(a @ b)
-    if c < -1 + 1e-12:  # opposite: half turn about any axis normal to a
-        n = np.cross(a, [1.0, 0.0, 0.0])
-        if np.linalg.norm(n) < 1e-6:
-            n = np.cross(a, [0.0, 1.0, 0.0])
-        n /= np.linalg.norm(n)
-        return 2 * np.outer(n, n) - np.eye(3)
-    vx = np.array([[0, -v[2], v[1]], [v[2], 0, -v[0]], [-v[1], v[0], 0]])
-    return np.eye(3) + vx + vx @ vx / (1 + c)
-
-
-def lab_to_model_rotation(
-    up_lab: np.ndarray, up_model: np.ndarray, markers: np.ndarray | None = None
-) -> np.ndarray:
-    """Rotation R (x_model = R x_lab): lab up → model up, then about the vertical so that the
-    horizontal progression of the marker centroid (when > 0.3 m) points along model +x."""
-    r = _rotation_between(np.asarray(up_lab, float), np.asarray(up_model, float))
-    if markers is None or markers.size == 0:
-        return r
-    with np.errstate(all="ignore"):
-        c = np.nanmean(markers @ r.T, axis=1)
-    ok = np.isfinite(c).all(axis=1)
-    if ok.sum() < 2:
-        return r
-    d = c[ok][-1] - c[ok][0]
-    u = np.asarray(up_model, float) / np.linalg.norm(up_model)
-    d = d - (d @ u) * u
-    if np.linalg.norm(d) < 0.3:
-        return r
-    x = np.array([1.0, 0.0, 0.0])
-    x = x - (x @ u) * u
-    d, x = d / np.linalg.norm(d), x / np.linalg.norm(x)
-    phi = math.atan2(float(u @ np.cross(d, x)), float(d @ x))  # about the vertical u
-    k = np.array([[0, -u[2], u[1]], [u[2], 0, -u[0]], [-u[1], u[0], 0]])
-    heading = np.eye(3) + math.sin(phi) * k + (1 - math.cos(phi)) * k @ k
-    return heading @ r
-
-
-def _rotate_plate(p: Any, r: np.ndarray) -> Any:
-    """A plate in the model frame. Its outline is dropped: msk.loads then assigns each contact
-    to the foot nearest the COP (the outline test projects a swinging foot onto the plate too,
-    which fails on overground gait where the other foot swings over the plate)."""
-    return dataclasses.replace(
-        p, force=p.force @ r.T, cop=p.cop @ r.T, free_moment=p.free_moment @ r.T, corners=None
-    )
-
-
-def _segments(model: Any, data: Any) -> list[tuple[str, np.ndarray, np.ndarray]]:
-    """Bone segments per body: origin → each child body origin (leaf: origin → 2 × COM)."""
-    out = []
-    for b in model.bodies:
-        o = data.oMf[model.body_frame[b.name]]
-        kids = [j.child for j in model.joints if j.parent == b.name]
-        ends = [data.oMf[model.body_frame[c]].translation for c in kids]
-        if not ends:
-            ends = [o.act(2.0 * np.asarray(b.com, dtype=float))]
-        out.extend((b.name, o.translation.copy(), e.copy()) for e in ends)
-    return out
-
-
-def _point_segment_distance(p: np.ndarray, a: np.ndarray, b: np.ndarray) -> float:
-    d = b - a
-    t = float(np.clip((p - a) @ d / max(float(d @ d), 1e-12), 0.0, 1.0))
-    return float(np.linalg.norm(p - (a + t * d)))
-
-
 def place_markers(
     model: Any, static_markers: np.ndarray, labels: Sequence[str], time: np.ndarray
 ) -> tuple[Any, dict[str, Any]]:
-    """Add the static trial's non-model markers to ``model`` (see the module docstring);
-    ``labels`` are already in model names where a model marker matches."""
-    from msk.kinematics import solve_kinematics
-    from msk.model import Marker, forward_kinematics
+    """Kept for callers of ``msk.pipeline``: :func:`msk.scaling.place_markers`."""
+    from msk.scaling import place_markers as place
 
-    n = static_markers.shape[0]
-    frames = np.unique(np.linspace(0, n - 1, min(n, 9)).round().astype(int))
-    kin = solve_kinematics(
-        model, static_markers[frames], labels, time[frames], cutoff_hz=None, min_markers=3
-    )
-    ok = np.isfinite(kin.q).all(axis=1)
-    if not ok.any():
-        raise MissingDataError("static trial: no frame could be solved for marker placement")
-    theta = np.median(kin.q[ok], axis=0)
-    data = model.create_data()
-    forward_kinematics(model, data, theta)
-    segs = _segments(model, data)
-    with np.errstate(all="ignore"):
-        mean = np.nanmean(static_markers, axis=0)
-    known = set(model.marker_names)
-    added = []
-    placed: dict[str, str] = {}
-    for i, lab in enumerate(labels):
-        if lab in known or not np.isfinite(mean[i]).all():
-            continue
-        body = min(segs, key=lambda s, p=mean[i]: _point_segment_distance(p, s[1], s[2]))[0]
-        local = data.oMf[model.body_frame[body]].actInv(mean[i])
-        added.append(Marker(lab, body, np.asarray(local, dtype=float)))
-        placed[lab] = body
-    info = {
-        "static_marker_rms_m": float(np.nanmean(kin.marker_rms[ok])),
-        "placed": placed,
-    }
-    return model.with_markers([*model.markers, *added]), info
+    return place(model, static_markers, labels, time)
 
 
 # ---------------------------------------------------------------------------------------------
-# the run
+# inputs
 # ---------------------------------------------------------------------------------------------
 def _settings(cfg: SessionConfig) -> dict[str, Any]:
     def plain(x: Any) -> Any:
@@ -434,17 +343,18 @@ def _settings(cfg: SessionConfig) -> dict[str, Any]:
     }
 
 
-def _read_markers(path: Path) -> tuple[np.ndarray, tuple[str, ...], np.ndarray, Any]:
-    """Markers of a static trial (.trc in the model frame, or .c3d)."""
+def _read_markers(path: Path, up: np.ndarray) -> tuple[np.ndarray, tuple[str, ...], np.ndarray]:
+    """Markers of a static trial in the model frame: a .trc is already in it; a .c3d is rotated
+    (lab vertical → model ``up``, no heading: the subject stands still)."""
     if path.suffix.lower() == ".trc":
         from msk.io.opensim_files import read_trc
 
         t = read_trc(path)
-        return t.markers, t.labels, t.time, None
-    from msk.io.c3d import read_c3d
+        return t.markers, t.labels, t.time
+    from msk.io import read_c3d, to_model_frame
 
-    tr = read_c3d(path)
-    return tr.markers, tr.marker_labels, tr.time, tr
+    tr = to_model_frame(read_c3d(path), up=up, forward=None)
+    return tr.markers, tr.marker_labels, tr.time
 
 
 def _model_source(cfg: SessionConfig) -> Path:
@@ -470,24 +380,22 @@ def _load_model(path: Path) -> Any:
     return load_model(path)
 
 
-def _kinematics_and_loads(
-    cfg: SessionConfig, model: Any, trial: Any, labels: Sequence[str]
-) -> tuple[Any, Any]:
-    """IK and plate loads of one C3D trial in the model frame (same settings as the task)."""
-    from msk.kinematics import solve_kinematics
-    from msk.loads import external_loads, plates_from_trial
+def _read_contact(path: Path) -> dict[str, Any]:
+    """Measured knee contact force over one gait cycle: a CSV whose first column is the cycle
+    position (``sample_0_to_100``, ``percent``…) and with ``F_total_magnitude_N`` (or the last
+    column), read by :func:`msk.io.read_csv_table`."""
+    from msk.io import read_csv_table
 
-    rot = lab_to_model_rotation(trial.up, -np.asarray(model.gravity, dtype=float), trial.markers)
-    kin = solve_kinematics(
-        model,
-        trial.markers @ rot.T,
-        labels,
-        trial.time,
-        weights=dict(cfg.marker_weights) or None,
-        cutoff_hz=cfg.filters.kinematics_cutoff_hz,
-    )
-    plates = tuple(_rotate_plate(p, rot) for p in plates_from_trial(trial))
-    return kin, external_loads(model, kin, plates, cutoff_hz=cfg.filters.grf_cutoff_hz)
+    tab = read_csv_table(path, time_column=None)
+    if tab.time.size < 2:
+        raise MissingDataError(f"{path}: no contact-force samples")
+    col = tab.columns.index("F_total_magnitude_N") if "F_total_magnitude_N" in tab.columns else -1
+    x = tab.time
+    return {
+        "fraction": (x - x[0]) / (x[-1] - x[0]),
+        "total": tab.data[:, col],
+        "column": tab.columns[col],
+    }
 
 
 def _gait_cycle(events: Sequence[Mapping[str, Any]], side: str) -> tuple[float, float] | None:
@@ -496,6 +404,683 @@ def _gait_cycle(events: Sequence[Mapping[str, Any]], side: str) -> tuple[float, 
         e["time"] for e in events if e["label"] == "Foot Strike" and e["context"] == ctx
     )
     return (strikes[0], strikes[1]) if len(strikes) >= 2 else None
+
+
+# ---------------------------------------------------------------------------------------------
+# the session: one method per stage, each composing library calls through the cached runner
+# ---------------------------------------------------------------------------------------------
+class _Session:
+    """The state of one run. Each stage method runs one stage through :class:`_Runner` (cache,
+    status, progress), stores its value and returns it; ``None`` when not available / failed."""
+
+    def __init__(self, cfg: SessionConfig, runner: _Runner, fail_stage: str | None = None) -> None:
+        self.cfg = cfg
+        self.runner = runner
+        self.fail_stage = fail_stage
+        self.side = cfg.subject.side
+        self.sfx = "_l" if self.side == "left" else "_r"
+        self.body_weight = cfg.subject.mass_kg * G0
+        tasks = cfg.trials_with_role("task")
+        if not tasks:
+            raise ConfigError(f"{cfg.path}: no trial with role 'task'")
+        self.task = tasks[0]
+        statics = cfg.trials_with_role("static")
+        self.static = statics[0] if statics else None
+        self.idtrials = cfg.trials_with_role("mass_identification")
+        self.inv_rename = {v: k for k, v in cfg.marker_rename.items()}  # lab label → model name
+        files = {"task": self.task.file}
+        if self.static is not None:
+            files["static"] = self.static.file
+        if self.task.contact_force is not None:
+            files["contact_force"] = self.task.contact_force
+        for tc in (*self.idtrials, *cfg.trials_with_role("mvc")):
+            files[f"{tc.role}:{tc.name}"] = tc.file
+        self.model_src = _model_source(cfg)
+        files["model"] = self.model_src
+        self.files = files
+        self.hashes = {k: file_sha256(p) for k, p in files.items()}
+
+    def check(self, name: str) -> None:
+        if self.fail_stage == name:
+            raise RuntimeError(f"stage {name} failed on purpose (test hook)")
+
+    def labels_of(self, labels: Sequence[str]) -> tuple[str, ...]:
+        """Lab marker labels in model names (``[markers] rename``)."""
+        return tuple(self.inv_rename.get(lab, lab) for lab in labels)
+
+    # ------------------------------------------------------------------ read
+    def read(self) -> dict[str, Any]:
+        def do() -> dict[str, Any]:
+            self.check("read")
+            from msk.io import read_c3d
+
+            out = {"trial": read_c3d(self.task.file)}
+            if self.task.contact_force is not None:
+                out["contact"] = _read_contact(self.task.contact_force)
+            return out
+
+        self.raw = self.runner.run("read", do, settings={"files": self.hashes}, cache=True)
+        self.trial = self.raw["trial"]
+        return self.raw
+
+    # ------------------------------------------------------------------ model
+    def build_model(self) -> Any:
+        cfg = self.cfg
+
+        def do() -> dict[str, Any]:
+            self.check("model")
+            from msk.scaling import place_markers, scale_model, usable_measurements
+
+            model = _load_model(self.model_src)
+            info: dict[str, Any] = {
+                "source": str(self.model_src),
+                "generic_mass_kg": model.total_mass,
+            }
+            static, shared = None, set()
+            if self.static is not None:
+                up = -np.asarray(model.gravity, dtype=float)
+                sm, slabels, stime = _read_markers(self.static.file, up)
+                slabels = self.labels_of(slabels)
+                static = {lab: sm[:, i] for i, lab in enumerate(slabels)}
+                shared = set(slabels) & set(model.marker_names)
+            if cfg.model.scale:
+                model = scale_model(
+                    model,
+                    static,
+                    measurements=usable_measurements(DEFAULT_MEASUREMENTS, shared),
+                    body_mass=cfg.subject.mass_kg,
+                )
+                info["scale_ratios"] = dict(model.metadata.get("scale_ratios", {}))
+            if self.static is not None:
+                model, placed = place_markers(model, sm, slabels, stime)
+                info["marker_placement"] = placed
+            info["mass_kg"] = model.total_mass
+            return {"model": model, "info": info}
+
+        self.built = self.runner.run(
+            "model",
+            do,
+            needs=("read",),
+            settings={
+                "model": self.hashes["model"],
+                "static": self.hashes.get("static"),
+                "scale": cfg.model.scale,
+                "knee": cfg.model.knee,
+                "mass": cfg.subject.mass_kg,
+                "rename": dict(cfg.marker_rename),
+            },
+        )
+        self.model = self.built["model"]
+        # the task trial in the model frame (lab up → model up, walking along +x)
+        up = -np.asarray(self.model.gravity, dtype=float)
+        self.rot = lab_to_model_rotation(self.trial.up, up, self.trial.markers)
+        self.mtrial = self.trial.rotated(self.rot)
+        self.labels = self.labels_of(self.trial.marker_labels)
+        return self.model
+
+    # ------------------------------------------------------------------ kinematics, loads
+    def _solve_kinematics(self, trial: Any, labels: Sequence[str]) -> Any:
+        from msk.kinematics import solve_kinematics
+
+        return solve_kinematics(
+            self.model,
+            trial.markers,
+            labels,
+            trial.time,
+            weights=dict(self.cfg.marker_weights) or None,
+            cutoff_hz=self.cfg.filters.kinematics_cutoff_hz,
+        )
+
+    def _external_loads(self, trial: Any, kin: Any) -> Any:
+        from msk.loads import external_loads, plates_from_trial
+
+        plates = plates_from_trial(trial)
+        return external_loads(self.model, kin, plates, cutoff_hz=self.cfg.filters.grf_cutoff_hz)
+
+    def kinematics(self) -> Any:
+        def do() -> Any:
+            self.check("kinematics")
+            return self._solve_kinematics(self.mtrial, self.labels)
+
+        self.kin = self.runner.run(
+            "kinematics",
+            do,
+            needs=("read", "model"),
+            settings={
+                "weights": dict(self.cfg.marker_weights),
+                "cut": self.cfg.filters.kinematics_cutoff_hz,
+            },
+        )
+        return self.kin
+
+    def loads(self) -> Any:
+        def do() -> Any:
+            self.check("loads")
+            return self._external_loads(self.mtrial, self.kin)
+
+        self.ext = self.runner.run(
+            "loads",
+            do,
+            needs=("kinematics",),
+            settings={"cut": self.cfg.filters.grf_cutoff_hz, "assignment": PLATE_ASSIGNMENT},
+        )
+        kin = self.kin
+        self.ok_frames = np.isfinite(kin.q).all(axis=1) & np.isfinite(kin.a).all(axis=1)
+        return self.ext
+
+    # ------------------------------------------------------------------ mass identification
+    def mass_identification(self) -> dict[str, Any] | None:
+        cfg, kin = self.cfg, self.kin
+
+        def do() -> dict[str, Any]:
+            self.check("mass_identification")
+            ident_cls, trial_cls = _need(
+                "msk.identification", "InertialIdentifier", "IdentificationTrial"
+            )
+            from msk.io import read_c3d, to_model_frame
+
+            up = -np.asarray(self.model.gravity, dtype=float)
+            runs = [(self.task.name, kin, self.ext)]
+            for tc in self.idtrials:  # dedicated exciting motions (seeds/002 §VI) + the task
+                tr_i = to_model_frame(read_c3d(tc.file), up=up)
+                k_i = self._solve_kinematics(tr_i, self.labels_of(tr_i.marker_labels))
+                runs.append((tc.name, k_i, self._external_loads(tr_i, k_i)))
+            its = []
+            for nm, k_i, l_i in runs:
+                it = trial_cls.from_loads(self.model, k_i, l_i, name=nm)
+                good = np.isfinite(it.tau_ext).all(axis=1) & np.isfinite(it.theta_ddot).all(axis=1)
+                its.append(
+                    trial_cls(
+                        it.theta[good],
+                        it.theta_dot[good],
+                        it.theta_ddot[good],
+                        it.tau_ext[good],
+                        nm,
+                    )
+                )
+            est = ident_cls(self.model, total_mass=cfg.subject.mass_kg, symmetric=True).fit(its)
+            good = np.isfinite(kin.q).all(axis=1)
+            return {
+                "parameters": {k: np.asarray(v) for k, v in est.parameters_.items()},
+                "segments": [_segment_summary(s) for s in est.segments_],
+                "condition_number": float(est.condition_number_),
+                "n_frames": int(est.n_frames_),
+                "advice": list(est.advice()),
+                "t0": float(kin.time[good][0]),
+            }
+
+        self.ident = self.runner.run(
+            "mass_identification",
+            do,
+            needs=("loads",),
+            settings={
+                "trials": [file_sha256(t.file) for t in self.idtrials],
+                "mass": cfg.subject.mass_kg,
+            },
+        )
+        self.model_id = (
+            self.model.with_inertias(self.ident["parameters"]) if self.ident else self.model
+        )
+        return self.ident
+
+    # ------------------------------------------------------------------ inverse dynamics
+    def inverse_dynamics(self) -> dict[str, Any]:
+        def do() -> dict[str, Any]:
+            self.check("inverse_dynamics")
+            from msk.dynamics import inverse_dynamics
+
+            out = {"generic": inverse_dynamics(self.model, self.kin, self.ext)}
+            if self.ident is not None:
+                out["identified"] = inverse_dynamics(self.model_id, self.kin, self.ext)
+            return out
+
+        self.tau = self.runner.run(
+            "inverse_dynamics",
+            do,
+            needs=("loads",) + (("mass_identification",) if self.ident else ()),
+        )
+        self.jt = self.tau.get("identified", self.tau["generic"])
+        return self.tau
+
+    # ------------------------------------------------------------------ EMG
+    def emg(self) -> dict[str, Any] | None:
+        cfg, model, kin, trial = self.cfg, self.model, self.kin, self.trial
+
+        def do() -> dict[str, Any]:
+            self.check("emg")
+            if not cfg.emg.channels:
+                raise StageUnavailable("no [emg] channels in the configuration")
+            envelopes_from_trial = _need("msk.muscles.emg", "envelopes_from_trial")
+            first_order_activation = _need("msk.muscles.activation", "first_order_activation")
+            unknown = sorted(set(cfg.emg.channels) - {m.name for m in model.muscles})
+            if unknown:
+                raise ConfigError(f"{cfg.path}: emg.channels: model has no muscle {unknown[0]!r}")
+            from msk.io import read_c3d
+
+            mvc = []
+            for tc in cfg.trials_with_role("mvc"):
+                tr_m = read_c3d(tc.file)
+                mvc.append((tr_m.analogs, tr_m.analog_rate_hz, tr_m.analog_labels))
+            env = envelopes_from_trial(
+                trial,
+                muscles=dict(cfg.emg.channels),
+                highpass_hz=cfg.emg.highpass_hz,
+                lowpass_hz=cfg.emg.lowpass_hz,
+                delay_s=cfg.emg.electromechanical_delay_s,
+                **({"mvc_trials": mvc} if mvc else {}),
+            )
+            env_k = env.resampled(kin.time)
+            e = np.clip(np.nan_to_num(env_k.envelopes, nan=0.0), 0.0, 1.0)
+            act = first_order_activation(e, rate_hz=trial.point_rate_hz)
+            act[:, ~env_k.usable] = np.nan
+            return {
+                "muscles": env_k.muscle_names,
+                "sources": env_k.muscle_sources,
+                "envelopes": env_k.envelopes,
+                "activation": act,
+                "usable": env_k.usable,
+                "warnings": list(env.warnings),
+                "quality": env.quality,  # msk.muscles.emg.ChannelQuality
+            }
+
+        self.emg_ = self.runner.run(
+            "emg",
+            do,
+            needs=("read", "kinematics"),
+            settings={
+                "channels": dict(cfg.emg.channels),
+                "hp": cfg.emg.highpass_hz,
+                "lp": cfg.emg.lowpass_hz,
+                "emd": cfg.emg.electromechanical_delay_s,
+                "mvc": [file_sha256(t.file) for t in cfg.trials_with_role("mvc")],
+            },
+        )
+        return self.emg_
+
+    # ------------------------------------------------------------------ muscle geometry
+    def muscle_geometry(self) -> Any:
+        model, kin, ok = self.model, self.kin, self.ok_frames
+
+        def do() -> Any:
+            self.check("muscle_geometry")
+            if not model.muscles:
+                raise StageUnavailable(f"model {model.name} has no muscles")
+            muscle_geometry = _need("msk.muscles.geometry", "muscle_geometry")
+            q = np.where(ok[:, None], kin.q, model.default_coordinates()[None, :])
+            v = np.where(ok[:, None], kin.v, 0.0)
+            return muscle_geometry(model, q, v)
+
+        self.geom = self.runner.run("muscle_geometry", do, needs=("kinematics",))
+        root = tuple(self.jt.root_coordinates)
+        self.act_idx = [i for i, c in enumerate(self.jt.coordinate_names) if c not in root]
+        return self.geom
+
+    def _muscle_state(self, mdl: Any) -> tuple[Any, Any]:
+        from msk.muscles.geometry import muscle_parameters
+        from msk.muscles.hill import rigid_tendon_state
+
+        params = muscle_parameters(mdl)
+        return params, rigid_tendon_state(params, self.geom.lengths, self.geom.velocities)
+
+    # ------------------------------------------------------------------ tension optimisation
+    def _optimise(self, mdl: Any, torques: Any) -> dict[str, Any]:
+        """Muscle tensions of ``mdl`` for ``torques`` by the configured method (msk.optimization
+        batch solvers) on the usable frames; NaN elsewhere."""
+        o = _need("msk.optimization")
+        cfg, kin, ok, emg, act_idx = self.cfg, self.kin, self.ok_frames, self.emg_, self.act_idx
+        params, state = self._muscle_state(mdl)
+        jac = self.geom.jacobian[ok][:, :, act_idx]
+        tq = torques.tau[ok][:, act_idx]
+        cn = tuple(self.jt.coordinate_names[i] for i in act_idx)
+        reserves = np.ones(len(act_idx))
+        meth = cfg.optimization.method
+        fa = state.max_active_force_along_tendon[ok]
+        fp = state.passive_force_along_tendon[ok]
+        common = {"muscle_names": params.names, "coordinate_names": cn, "time": kin.time[ok]}
+        solver = cfg.optimization.solver
+        if meth == "static_optimization":
+            sol = o.solve_static_optimization_batch(
+                jac, tq, f_active=fa, f_passive=fp, reserve_optimal_force=reserves,
+                solver=solver, **common,
+            )  # fmt: skip
+            forces, acts = sol.forces, sol.activations
+        elif meth == "bounded_qp":
+            sol = o.solve_tension_batch(
+                jac, tq, f_iso=params.max_isometric_force, f_max=fa + fp,
+                reserve_optimal_force=reserves, solver=solver, **common,
+            )  # fmt: skip
+            forces = sol.forces
+            acts = np.clip(forces / np.maximum(fa, 1e-9), 0, None)
+        elif meth == "emg_weighted":
+            if emg is None:
+                raise StageUnavailable("emg_weighted needs the EMG stage")
+            meas = np.array(
+                [
+                    n in emg["muscles"] and bool(emg["usable"][emg["muscles"].index(n)])
+                    for n in params.names
+                ]
+            )
+            a = np.zeros_like(fa)
+            for k, n in enumerate(params.names):
+                if meas[k]:
+                    a[:, k] = emg["activation"][ok, emg["muscles"].index(n)]
+            sol = o.solve_emg_weighted_batch(
+                jac, tq, f_ref=a * fa, measured=meas, w_emg=cfg.optimization.w_emg,
+                f_max=fa + fp, solver=solver, **common,
+            )  # fmt: skip
+            forces = sol.forces
+            acts = np.clip(forces / np.maximum(fa, 1e-9), 0, None)
+        else:  # closed_form (seeds/004 Eq. 6, unbounded)
+            lag = o.solve_lagrange_batch(
+                jac, tq, area=params.max_isometric_force, muscle_names=params.names
+            )
+            forces = lag.forces
+            acts = forces / np.maximum(fa, 1e-9)
+            sol = None
+        n = kin.time.size
+        f_all = np.full((n, len(params.names)), np.nan)
+        a_all = np.full_like(f_all, np.nan)
+        f_all[ok], a_all[ok] = forces, acts
+        out = {"forces": f_all, "activations": a_all, "muscles": params.names, "method": meth}
+        if sol is not None:
+            out["infeasible_frames"] = int(sol.infeasible_frames.size)
+            rt = np.full((n, len(act_idx)), np.nan)
+            rt[ok] = sol.reserve_torques
+            out["reserve_torques"] = rt
+            out["reserve_coordinates"] = cn
+        return out
+
+    def tension_optimization(self) -> dict[str, Any] | None:
+        cfg = self.cfg
+        needs = ("muscle_geometry", "inverse_dynamics") + (
+            ("emg",) if cfg.optimization.method == "emg_weighted" else ()
+        )
+
+        def do() -> dict[str, Any]:
+            self.check("tension_optimization")
+            return self._optimise(self.model_id, self.jt)
+
+        self.sol = self.runner.run(
+            "tension_optimization", do, needs=needs, settings=dataclasses.asdict(cfg.optimization)
+        )
+        return self.sol
+
+    # ------------------------------------------------------------------ strength
+    def strength_identification(self) -> dict[str, Any] | None:
+        kin, jt, ok = self.kin, self.jt, self.ok_frames
+
+        def do() -> dict[str, Any]:
+            self.check("strength_identification")
+            ident_cls = _need("msk.strength", "StrengthIdentifier")
+            emg = self.emg_
+            params, state = self._muscle_state(self.model)
+            groups: dict[str, list[str]] = {}
+            for k, m in enumerate(emg["muscles"]):
+                if emg["usable"][k]:
+                    groups.setdefault(emg["sources"][k], []).append(m)
+            if not groups:
+                raise StageUnavailable("no usable EMG channel")
+            act = np.zeros((kin.time.size, len(params.names)))
+            for k, m in enumerate(emg["muscles"]):
+                if emg["usable"][k]:
+                    act[:, params.names.index(m)] = emg["activation"][:, k]
+            good = ok & np.isfinite(jt.tau).all(axis=1)
+            est = ident_cls(groups, params, n_bootstrap=200, random_state=0)
+            est.fit(
+                self.geom.jacobian[good],
+                act[good],
+                jt.tau[good],
+                _slice_state(state, good),
+                coordinate_names=jt.coordinate_names,
+            )
+            return {
+                "profile": est.profile_,
+                "groups": {g: list(v) for g, v in groups.items()},
+                "t0": float(kin.time[good][0]),
+            }
+
+        self.strength = self.runner.run(
+            "strength_identification",
+            do,
+            needs=("muscle_geometry", "emg", "inverse_dynamics"),
+        )
+        return self.strength
+
+    # ------------------------------------------------------------------ knee contact
+    def knee_contact(self) -> dict[str, Any] | None:
+        model, kin, ext, ok_frames = self.model, self.kin, self.ext, self.ok_frames
+
+        def do() -> dict[str, Any]:
+            self.check("knee_contact")
+            from msk.dynamics import joint_reaction
+
+            joint = f"knee{self.sfx}"
+            if joint not in {j.name for j in model.joints}:
+                raise StageUnavailable(f"model has no joint {joint!r}")
+            res: dict[str, Any] = {"joint": joint}
+            variants = {"generic": (model, self.sol)}
+            if self.strength is not None:
+                from msk.strength import with_strength
+
+                m_spec = with_strength(self.model_id, self.strength["profile"])
+                variants["subject_specific"] = (m_spec, self._optimise(m_spec, self.jt))
+            n = kin.time.size
+            # muscle paths are fixed points per call: evaluate moving / conditional points at
+            # the mean posture of short chunks of frames (CONTACT_CHUNK_FRAMES)
+            chunks = [
+                np.arange(i, min(i + CONTACT_CHUNK_FRAMES, n))
+                for i in range(0, n, CONTACT_CHUNK_FRAMES)
+            ]
+            for name, (mdl, s) in variants.items():
+                f = np.nan_to_num(s["forces"], nan=0.0)
+                force = np.full((n, 3), np.nan)
+                for idx in chunks:
+                    ok = idx[ok_frames[idx]]
+                    if ok.size == 0:
+                        continue
+                    paths = _muscle_paths(mdl, np.mean(kin.q[ok], axis=0), kin.coordinate_names)
+                    jr = joint_reaction(
+                        mdl,
+                        _frames(kin, ok, n),
+                        _frames(ext, ok, n),
+                        joint=joint,
+                        frame="child",
+                        muscle_forces=f[ok],
+                        muscle_paths=paths,
+                    )
+                    force[ok] = jr.force
+                res[name] = {"force": force, "total": np.linalg.norm(force, axis=1)}
+            if "contact" in self.raw:
+                res["measured"] = self.raw["contact"]
+            return res
+
+        self.contact = self.runner.run(
+            "knee_contact",
+            do,
+            needs=("tension_optimization",)
+            + (("strength_identification",) if self.strength is not None else ()),
+            settings={"contact": self.hashes.get("contact_force")},
+        )
+        return self.contact
+
+    # ------------------------------------------------------------------ result tables
+    def tables(self) -> dict[str, Table]:
+        kin, jt, sol, contact = self.kin, self.jt, self.sol, self.contact
+        self.events = [
+            {"label": e.label, "context": e.context, "time": e.time} for e in self.trial.events
+        ]
+        self.cycle = _gait_cycle(self.events, self.side)
+        bw = self.body_weight
+        t = kin.time
+        tables: dict[str, Table] = {
+            "q": Table(t, kin.q, tuple(kin.coordinate_names), "q"),
+            "joint_torques": Table(t, jt.tau, tuple(jt.coordinate_names), "joint_torques"),
+            "residuals": Table(
+                t,
+                np.column_stack([jt.residual_force, jt.residual_moment]),
+                ("force_x", "force_y", "force_z", "moment_x", "moment_y", "moment_z"),
+                "residuals",
+            ),
+        }
+        if sol is not None:
+            names = tuple(sol["muscles"])
+            tables["muscle_forces"] = Table(t, sol["forces"], names, "muscle_forces")
+            tables["activations"] = Table(t, sol["activations"], names, "activations")
+        self.measured_on_t = None
+        if contact is not None:
+            cols, data = [], []
+            for name in ("generic", "subject_specific"):
+                if name in contact:
+                    c = contact[name]
+                    cols += [f"{name}_{a}" for a in ("x", "y", "z")]
+                    cols += [f"{name}_total", f"{name}_total_bw"]
+                    data += [c["force"], c["total"][:, None], (c["total"] / bw)[:, None]]
+            if "measured" in contact and self.cycle is not None:
+                meas, (c0, c1) = contact["measured"], self.cycle
+                tm = c0 + meas["fraction"] * (c1 - c0)
+                self.measured_on_t = np.interp(t, tm, meas["total"], left=np.nan, right=np.nan)
+                cols += ["measured_total", "measured_total_bw"]
+                data += [self.measured_on_t[:, None], (self.measured_on_t / bw)[:, None]]
+            tables["knee_contact"] = Table(t, np.column_stack(data), tuple(cols), "knee_contact")
+        if self.ident is not None:
+            tables["inertial_parameters"] = _inertial_table(self.ident)
+        if self.strength is not None:
+            tables["strength"] = _strength_table(self.strength)
+        self.tables_ = tables
+        return tables
+
+    # ------------------------------------------------------------------ comparison
+    def comparison(self) -> dict[str, Any] | None:
+        tau, contact, strength, sfx, bw = (
+            self.tau, self.contact, self.strength, self.sfx, self.body_weight
+        )  # fmt: skip
+        measured_on_t = self.measured_on_t
+
+        def do() -> dict[str, Any]:
+            self.check("comparison")
+            from msk import compare
+
+            out: dict[str, Any] = {}
+            if "identified" in tau:
+                g, s = tau["generic"], tau["identified"]
+                good = np.isfinite(g.tau).all(axis=1) & np.isfinite(s.tau).all(axis=1)
+                leg = [i for i, c in enumerate(g.coordinate_names) if c.endswith(sfx)]
+                out["torque_rms_difference_nm"] = {
+                    g.coordinate_names[i]: float(compare.rms(g.tau[good, i], s.tau[good, i]))
+                    for i in leg
+                }
+                out["residual_force_rms_n"] = {
+                    "generic": _rms(g.residual_force[good]),
+                    "identified": _rms(s.residual_force[good]),
+                }
+                out["residual_moment_rms_nm"] = {
+                    "generic": _rms(g.residual_moment[good]),
+                    "identified": _rms(s.residual_moment[good]),
+                }
+            if contact is not None and measured_on_t is not None:
+                sel = np.isfinite(measured_on_t)
+                for name in ("generic", "subject_specific"):
+                    if name not in contact:
+                        continue
+                    pred = contact[name]["total"]
+                    m = sel & np.isfinite(pred)
+                    if m.sum() < 5:
+                        continue
+                    out[f"knee_contact_{name}"] = _contact_agreement(measured_on_t[m], pred[m], bw)
+            if strength is not None:
+                p = strength["profile"]
+                out["strength_factor_minus_generic"] = {
+                    n: float(f - 1.0) for n, f in zip(p.group_names, p.factors)
+                }
+            if not out:
+                raise StageUnavailable("nothing to compare")
+            return out
+
+        self.comparison_ = self.runner.run(
+            "comparison",
+            do,
+            needs=("inverse_dynamics",),
+            settings=[self.runner.keys.get(n) for n in ("knee_contact", "strength_identification")],
+        )
+        return self.comparison_
+
+    # ------------------------------------------------------------------ summary
+    def summary(self) -> dict[str, Any]:
+        cfg, model, sol, ident, strength = (
+            self.cfg, self.model, self.sol, self.ident, self.strength
+        )  # fmt: skip
+        quality = _quality(
+            self.trial, self.kin, self.jt, self.ext, self.emg_, sol, strength, ident,
+            self.body_weight,
+        )  # fmt: skip
+        return {
+            "session": cfg.subject.name,
+            "created_utc": datetime.now(UTC).strftime("%Y-%m-%dT%H:%M:%SZ"),
+            "versions": _versions(),
+            "config": {"path": str(cfg.path), "sha256": file_sha256(cfg.path)},
+            "inputs": [
+                {
+                    "role": k,
+                    "path": str(p),
+                    "sha256": self.hashes[k],
+                    "bytes": Path(p).stat().st_size,
+                }
+                for k, p in self.files.items()
+            ],
+            "settings": _settings(cfg),
+            "subject": {
+                "name": cfg.subject.name,
+                "mass_kg": cfg.subject.mass_kg,
+                "height_m": cfg.subject.height_m,
+                "sex": cfg.subject.sex,
+                "side": self.side,
+                "body_weight_n": self.body_weight,
+            },
+            "model": {**self.built["info"], "name": model.name, "muscles": len(model.muscles)},
+            "frame": {"lab_to_model_rotation": self.rot, "lab_up": self.trial.up},
+            "events": self.events,
+            "gait_cycle_s": list(self.cycle) if self.cycle else None,
+            "angle_columns": [
+                c for c in self.kin.coordinate_names if not c.endswith(("_tx", "_ty", "_tz"))
+            ],
+            "quality": quality,
+            "methods": {
+                "contact_path_update_frames": CONTACT_CHUNK_FRAMES,
+                "plate_assignment": PLATE_ASSIGNMENT,
+                "scaling_measurements": [m[0] for m in DEFAULT_MEASUREMENTS],
+                "task_trial": self.task.name,
+            },
+            "identification": None
+            if ident is None
+            else {k: ident[k] for k in ("segments", "condition_number", "n_frames", "advice")},
+            "anthropometry": _anthropometry(cfg, model),
+            "strength": None if strength is None else _strength_summary(strength),
+            "comparison": self.comparison_,
+            "optimization": None if sol is None else _optimization_summary(sol, self.sfx),
+        }
+
+    # ------------------------------------------------------------------ report figures
+    def figures(self, summary: Mapping[str, Any]) -> dict[str, str] | None:
+        from msk.report import build_figures
+
+        tables = self.tables_
+
+        def do() -> dict[str, str]:
+            self.check("report")
+            res = SessionResults(tables, summary, None, tuple(summary["angle_columns"]))
+            return build_figures(res)
+
+        key = _key(
+            [
+                (n, tb.columns, hashlib.sha256(np.ascontiguousarray(tb.data).tobytes()).hexdigest())
+                for n, tb in tables.items()
+            ],
+            [
+                summary[k]
+                for k in ("gait_cycle_s", "subject", "identification", "strength", "anthropometry")
+            ],
+        )
+        return self.runner.run("report", do, settings=key)
 
 
 def run_session(
@@ -518,678 +1103,37 @@ def run_session(
     out = Path(out_dir).resolve()
     check_replaceable(out)  # fail before computing, not after
     runner = _Runner(out / ".cache" if use_cache else None, progress)
-    side = cfg.subject.side
-    sfx = "_l" if side == "left" else "_r"
-    tasks = cfg.trials_with_role("task")
-    if not tasks:
-        raise ConfigError(f"{cfg.path}: no trial with role 'task'")
-    task = tasks[0]
-    statics = cfg.trials_with_role("static")
-    static = statics[0] if statics else None
-    idtrials = cfg.trials_with_role("mass_identification")
-
-    def check(name: str) -> None:
-        if _fail_stage == name:
-            raise RuntimeError(f"stage {name} failed on purpose (test hook)")
-
-    # ------------------------------------------------------------------ read
-    files = {"task": task.file}
-    if static is not None:
-        files["static"] = static.file
-    if task.contact_force is not None:
-        files["contact_force"] = task.contact_force
-    for tc in (*idtrials, *cfg.trials_with_role("mvc")):
-        files[f"{tc.role}:{tc.name}"] = tc.file
-    model_src = _model_source(cfg)
-    files["model"] = model_src
-    hashes = {k: file_sha256(p) for k, p in files.items()}
-
-    def do_read() -> dict[str, Any]:
-        check("read")
-        from msk.io.c3d import read_c3d
-
-        tr = read_c3d(task.file)
-        out = {"trial": tr}
-        if task.contact_force is not None:
-            out["contact"] = _read_contact_csv(task.contact_force)
-        return out
-
-    raw = runner.run("read", do_read, settings={"files": hashes}, cache=True)
-    trial = raw["trial"]
-
-    # ------------------------------------------------------------------ model
-    def do_model() -> dict[str, Any]:
-        check("model")
-        model = _load_model(model_src)
-        info: dict[str, Any] = {"source": str(model_src), "generic_mass_kg": model.total_mass}
-        rename = dict(cfg.marker_rename)  # model name -> lab label
-        inv = {v: k for k, v in rename.items()}
-        if static is not None:
-            sm, slabels, stime, st_trial = _read_markers(static.file)
-            if st_trial is not None:  # a C3D static trial: lab vertical → model up
-                r_st = _rotation_between(st_trial.up, -np.asarray(model.gravity, dtype=float))
-                sm = sm @ r_st.T
-            slabels = tuple(inv.get(lab, lab) for lab in slabels)
-        if cfg.model.scale:
-            from msk.scaling import Measurement, scale_model
-
-            meas = []
-            if static is not None:
-                have = set(slabels) & set(model.marker_names)
-                meas = [
-                    Measurement(n, pairs, bodies)
-                    for n, pairs, bodies in DEFAULT_MEASUREMENTS
-                    if all(a in have and b in have for a, b in pairs)
-                ]
-            model = scale_model(
-                model,
-                {lab: sm[:, i] for i, lab in enumerate(slabels)} if static is not None else None,
-                measurements=meas,
-                body_mass=cfg.subject.mass_kg,
-            )
-            info["scale_ratios"] = dict(model.metadata.get("scale_ratios", {}))
-        if static is not None:
-            model, placed = place_markers(model, sm, slabels, stime)
-            info["marker_placement"] = placed
-        info["mass_kg"] = model.total_mass
-        return {"model": model, "info": info}
-
-    built = runner.run(
-        "model",
-        do_model,
-        needs=("read",),
-        settings={
-            "model": hashes["model"],
-            "static": hashes.get("static"),
-            "scale": cfg.model.scale,
-            "knee": cfg.model.knee,
-            "mass": cfg.subject.mass_kg,
-            "rename": dict(cfg.marker_rename),
-        },
-    )
-    model = built["model"]
-    up_model = -np.asarray(model.gravity, dtype=float)
-    rot = lab_to_model_rotation(trial.up, up_model, trial.markers)
-    inv = {v: k for k, v in cfg.marker_rename.items()}
-
-    def labels_of(tr: Any) -> tuple[str, ...]:
-        return tuple(inv.get(lab, lab) for lab in tr.marker_labels)
-
-    labels = labels_of(trial)
-
-    # ------------------------------------------------------------------ kinematics
-    def do_kin() -> Any:
-        check("kinematics")
-        from msk.kinematics import solve_kinematics
-
-        return solve_kinematics(
-            model,
-            trial.markers @ rot.T,
-            labels,
-            trial.time,
-            weights=dict(cfg.marker_weights) or None,
-            cutoff_hz=cfg.filters.kinematics_cutoff_hz,
-        )
-
-    kin = runner.run(
-        "kinematics",
-        do_kin,
-        needs=("read", "model"),
-        settings={"weights": dict(cfg.marker_weights), "cut": cfg.filters.kinematics_cutoff_hz},
-    )
-
-    # ------------------------------------------------------------------ loads
-    def do_loads() -> Any:
-        check("loads")
-        from msk.loads import external_loads, plates_from_trial
-
-        plates = tuple(_rotate_plate(p, rot) for p in plates_from_trial(trial))
-        return external_loads(model, kin, plates, cutoff_hz=cfg.filters.grf_cutoff_hz)
-
-    loads = runner.run(
-        "loads", do_loads, needs=("kinematics",), settings={"cut": cfg.filters.grf_cutoff_hz}
-    )
-    ok_frames = np.isfinite(kin.q).all(axis=1) & np.isfinite(kin.a).all(axis=1)
-
-    # ------------------------------------------------------------------ mass identification
-    def do_ident() -> dict[str, Any]:
-        check("mass_identification")
-        ident_cls, trial_cls = _need(
-            "msk.identification", "InertialIdentifier", "IdentificationTrial"
-        )
-        runs = [(task.name, kin, loads)]
-        for tc in idtrials:  # dedicated exciting motions (seeds/002 §VI), plus the task trial
-            from msk.io.c3d import read_c3d
-
-            tr_i = read_c3d(tc.file)
-            k_i, l_i = _kinematics_and_loads(cfg, model, tr_i, labels_of(tr_i))
-            runs.append((tc.name, k_i, l_i))
-        its = []
-        for nm, k_i, l_i in runs:
-            it = trial_cls.from_loads(model, k_i, l_i, name=nm)
-            good = np.isfinite(it.tau_ext).all(axis=1) & np.isfinite(it.theta_ddot).all(axis=1)
-            its.append(
-                trial_cls(
-                    it.theta[good], it.theta_dot[good], it.theta_ddot[good], it.tau_ext[good], nm
-                )
-            )
-        est = ident_cls(model, total_mass=cfg.subject.mass_kg, symmetric=True).fit(its)
-        good = np.isfinite(kin.q).all(axis=1)
-        segs = [
-            {
-                "name": s.name,
-                "mass_kg": s.mass,
-                "mass_std_kg": s.mass_std,
-                "prior_mass_kg": s.prior_mass,
-                "com_m": s.com,
-                "com_std_m": s.com_std,
-                "prior_com_m": s.prior_com,
-                "flag": s.flag,
-            }
-            for s in est.segments_
-        ]
-        return {
-            "parameters": {k: np.asarray(v) for k, v in est.parameters_.items()},
-            "segments": segs,
-            "condition_number": float(est.condition_number_),
-            "n_frames": int(est.n_frames_),
-            "advice": list(est.advice()),
-            "t0": float(kin.time[good][0]),
-        }
-
-    ident = runner.run(
-        "mass_identification",
-        do_ident,
-        needs=("loads",),
-        settings={"trials": [file_sha256(t.file) for t in idtrials], "mass": cfg.subject.mass_kg},
-    )
-    model_id = model.with_inertias(ident["parameters"]) if ident else model
-
-    # ------------------------------------------------------------------ inverse dynamics
-    def do_id() -> dict[str, Any]:
-        check("inverse_dynamics")
-        from msk.dynamics import inverse_dynamics
-
-        out = {"generic": inverse_dynamics(model, kin, loads)}
-        if ident is not None:
-            out["identified"] = inverse_dynamics(model_id, kin, loads)
-        return out
-
-    tau = runner.run(
-        "inverse_dynamics",
-        do_id,
-        needs=("loads",) + (("mass_identification",) if ident else ()),
-    )
-    jt = tau.get("identified", tau["generic"])
-
-    # ------------------------------------------------------------------ EMG
-    def do_emg() -> dict[str, Any]:
-        check("emg")
-        if not cfg.emg.channels:
-            raise StageUnavailable("no [emg] channels in the configuration")
-        envelopes_from_trial = _need("msk.muscles.emg", "envelopes_from_trial")
-        first_order_activation = _need("msk.muscles.activation", "first_order_activation")
-        muscles = (
-            set(model.muscle_names)
-            if hasattr(model, "muscle_names")
-            else {m.name for m in model.muscles}
-        )
-        unknown = sorted(set(cfg.emg.channels) - muscles)
-        if unknown:
-            raise ConfigError(f"{cfg.path}: emg.channels: model has no muscle {unknown[0]!r}")
-        mvc = []
-        for tc in cfg.trials_with_role("mvc"):
-            from msk.io.c3d import read_c3d
-
-            tr_m = read_c3d(tc.file)
-            mvc.append((tr_m.analogs, tr_m.analog_rate_hz, tr_m.analog_labels))
-        env = envelopes_from_trial(
-            trial,
-            muscles=dict(cfg.emg.channels),
-            highpass_hz=cfg.emg.highpass_hz,
-            lowpass_hz=cfg.emg.lowpass_hz,
-            delay_s=cfg.emg.electromechanical_delay_s,
-            **({"mvc_trials": mvc} if mvc else {}),
-        )
-        env_k = env.resampled(kin.time)
-        e = np.clip(np.nan_to_num(env_k.envelopes, nan=0.0), 0.0, 1.0)
-        act = first_order_activation(e, rate_hz=trial.point_rate_hz)
-        act[:, ~env_k.usable] = np.nan
-        return {
-            "muscles": env_k.muscle_names,
-            "sources": env_k.muscle_sources,
-            "envelopes": env_k.envelopes,
-            "activation": act,
-            "usable": env_k.usable,
-            "warnings": list(env.warnings),
-            "quality": _plain_quality(env.quality),
-        }
-
-    emg = runner.run(
-        "emg",
-        do_emg,
-        needs=("read", "kinematics"),
-        settings={
-            "channels": dict(cfg.emg.channels),
-            "hp": cfg.emg.highpass_hz,
-            "lp": cfg.emg.lowpass_hz,
-            "emd": cfg.emg.electromechanical_delay_s,
-            "mvc": [file_sha256(t.file) for t in cfg.trials_with_role("mvc")],
-        },
-    )
-
-    # ------------------------------------------------------------------ geometry
-    def do_geom() -> Any:
-        check("muscle_geometry")
-        if not model.muscles:
-            raise StageUnavailable(f"model {model.name} has no muscles")
-        muscle_geometry = _need("msk.muscles.geometry", "muscle_geometry")
-        q = np.where(ok_frames[:, None], kin.q, model.default_coordinates()[None, :])
-        v = np.where(ok_frames[:, None], kin.v, 0.0)
-        return muscle_geometry(model, q, v)
-
-    geom = runner.run("muscle_geometry", do_geom, needs=("kinematics",))
-    root = tuple(jt.root_coordinates)
-    act_idx = [i for i, c in enumerate(jt.coordinate_names) if c not in root]
-
-    def muscle_state(mdl: Any) -> tuple[Any, Any]:
-        from msk.muscles.geometry import muscle_parameters
-        from msk.muscles.hill import rigid_tendon_state
-
-        params = muscle_parameters(mdl)
-        return params, rigid_tendon_state(params, geom.lengths, geom.velocities)
-
-    def optimise(mdl: Any, torques: Any) -> dict[str, Any]:
-        o = _need("msk.optimization")
-        params, state = muscle_state(mdl)
-        jac = geom.jacobian[ok_frames][:, :, act_idx]
-        tq = torques.tau[ok_frames][:, act_idx]
-        cn = tuple(jt.coordinate_names[i] for i in act_idx)
-        reserves = np.ones(len(act_idx))
-        meth = cfg.optimization.method
-        fa = state.max_active_force_along_tendon[ok_frames]
-        fp = state.passive_force_along_tendon[ok_frames]
-        common = {"muscle_names": params.names, "coordinate_names": cn, "time": kin.time[ok_frames]}
-        if meth == "static_optimization":
-            sol = o.solve_static_optimization_batch(
-                jac,
-                tq,
-                f_active=fa,
-                f_passive=fp,
-                reserve_optimal_force=reserves,
-                solver=cfg.optimization.solver,
-                **common,
-            )
-            forces, acts = sol.forces, sol.activations
-        elif meth == "bounded_qp":
-            sol = o.solve_tension_batch(
-                jac,
-                tq,
-                f_iso=params.max_isometric_force,
-                f_max=fa + fp,
-                reserve_optimal_force=reserves,
-                solver=cfg.optimization.solver,
-                **common,
-            )
-            forces = sol.forces
-            acts = np.clip(forces / np.maximum(fa, 1e-9), 0, None)
-        elif meth == "emg_weighted":
-            if emg is None:
-                raise StageUnavailable("emg_weighted needs the EMG stage")
-            meas = np.array(
-                [
-                    n in emg["muscles"] and bool(emg["usable"][emg["muscles"].index(n)])
-                    for n in params.names
-                ]
-            )
-            a = np.zeros_like(fa)
-            for k, n in enumerate(params.names):
-                if meas[k]:
-                    a[:, k] = emg["activation"][ok_frames, emg["muscles"].index(n)]
-            sol = o.solve_emg_weighted_batch(
-                jac,
-                tq,
-                f_ref=a * fa,
-                measured=meas,
-                w_emg=cfg.optimization.w_emg,
-                f_max=fa + fp,
-                solver=cfg.optimization.solver,
-                **common,
-            )
-            forces = sol.forces
-            acts = np.clip(forces / np.maximum(fa, 1e-9), 0, None)
-        else:  # closed_form (seeds/004 Eq. 6, unbounded)
-            lag = o.solve_lagrange_batch(
-                jac, tq, area=params.max_isometric_force, muscle_names=params.names
-            )
-            forces = lag.forces
-            acts = forces / np.maximum(fa, 1e-9)
-            sol = None
-        n = kin.time.size
-        f_all = np.full((n, len(params.names)), np.nan)
-        a_all = np.full_like(f_all, np.nan)
-        f_all[ok_frames], a_all[ok_frames] = forces, acts
-        out = {"forces": f_all, "activations": a_all, "muscles": params.names, "method": meth}
-        if sol is not None:
-            out["infeasible_frames"] = int(sol.infeasible_frames.size)
-            rt = np.full((n, len(act_idx)), np.nan)
-            rt[ok_frames] = sol.reserve_torques
-            out["reserve_torques"] = rt
-            out["reserve_coordinates"] = cn
-        return out
-
-    # ------------------------------------------------------------------ tension optimisation
-    opt_settings = dataclasses.asdict(cfg.optimization)
-    opt_needs = ("muscle_geometry", "inverse_dynamics") + (
-        ("emg",) if cfg.optimization.method == "emg_weighted" else ()
-    )
-
-    def do_opt() -> dict[str, Any]:
-        check("tension_optimization")
-        return optimise(model_id, jt)
-
-    sol = runner.run("tension_optimization", do_opt, needs=opt_needs, settings=opt_settings)
-
-    # ------------------------------------------------------------------ strength
-    def do_strength() -> dict[str, Any]:
-        check("strength_identification")
-        ident_cls = _need("msk.strength", "StrengthIdentifier")
-        params, state = muscle_state(model)
-        groups: dict[str, list[str]] = {}
-        for k, m in enumerate(emg["muscles"]):
-            if emg["usable"][k]:
-                groups.setdefault(emg["sources"][k], []).append(m)
-        if not groups:
-            raise StageUnavailable("no usable EMG channel")
-        act = np.zeros((kin.time.size, len(params.names)))
-        for k, m in enumerate(emg["muscles"]):
-            if emg["usable"][k]:
-                act[:, params.names.index(m)] = emg["activation"][:, k]
-        good = ok_frames & np.isfinite(jt.tau).all(axis=1)
-        est = ident_cls(groups, params, n_bootstrap=200, random_state=0)
-        sub = _slice_state(state, good)
-        est.fit(
-            geom.jacobian[good],
-            act[good],
-            jt.tau[good],
-            sub,
-            coordinate_names=jt.coordinate_names,
-        )
-        p = est.profile_
-        return {
-            "profile": p,
-            "groups": {g: list(v) for g, v in groups.items()},
-            "t0": float(kin.time[good][0]),
-        }
-
-    strength = runner.run(
-        "strength_identification",
-        do_strength,
-        needs=("muscle_geometry", "emg", "inverse_dynamics"),
-    )
-
-    # ------------------------------------------------------------------ knee contact
-    def do_contact() -> dict[str, Any]:
-        check("knee_contact")
-        from msk.dynamics import joint_reaction
-
-        joint = f"knee{sfx}"
-        if joint not in {j.name for j in model.joints}:
-            raise StageUnavailable(f"model has no joint {joint!r}")
-        res: dict[str, Any] = {"joint": joint}
-        variants = {"generic": (model, sol)}
-        if strength is not None:
-            from msk.strength import with_strength
-
-            m_spec = with_strength(model_id, strength["profile"])
-            variants["subject_specific"] = (m_spec, optimise(m_spec, jt))
-        n = kin.time.size
-        # muscle paths are fixed points per call: evaluate moving / conditional points at the
-        # mean posture of short chunks of frames (CONTACT_CHUNK_FRAMES)
-        chunks = [
-            np.arange(i, min(i + CONTACT_CHUNK_FRAMES, n))
-            for i in range(0, n, CONTACT_CHUNK_FRAMES)
-        ]
-        for name, (mdl, s) in variants.items():
-            f = np.nan_to_num(s["forces"], nan=0.0)
-            force = np.full((n, 3), np.nan)
-            for idx in chunks:
-                ok = idx[ok_frames[idx]]
-                if ok.size == 0:
-                    continue
-                paths = _muscle_paths(mdl, np.mean(kin.q[ok], axis=0), kin.coordinate_names)
-                jr = joint_reaction(
-                    mdl,
-                    _frames(kin, ok, n),
-                    _frames(loads, ok, n),
-                    joint=joint,
-                    frame="child",
-                    muscle_forces=f[ok],
-                    muscle_paths=paths,
-                )
-                force[ok] = jr.force
-            res[name] = {"force": force, "total": np.linalg.norm(force, axis=1)}
-        if "contact" in raw:
-            res["measured"] = raw["contact"]
-        return res
-
-    contact = runner.run(
-        "knee_contact",
-        do_contact,
-        needs=("tension_optimization",)
-        + (("strength_identification",) if strength is not None else ()),
-        settings={"contact": hashes.get("contact_force")},
-    )
-
-    # ------------------------------------------------------------------ tables and comparison
-    events = [{"label": e.label, "context": e.context, "time": e.time} for e in trial.events]
-    cycle = _gait_cycle(events, side)
-    body_weight = cfg.subject.mass_kg * G0
-    tables: dict[str, Table] = {}
-    t = kin.time
-    tables["q"] = Table(t, kin.q, tuple(kin.coordinate_names), "q")
-    tables["joint_torques"] = Table(t, jt.tau, tuple(jt.coordinate_names), "joint_torques")
-    tables["residuals"] = Table(
-        t,
-        np.column_stack([jt.residual_force, jt.residual_moment]),
-        ("force_x", "force_y", "force_z", "moment_x", "moment_y", "moment_z"),
-        "residuals",
-    )
-    if sol is not None:
-        tables["muscle_forces"] = Table(t, sol["forces"], tuple(sol["muscles"]), "muscle_forces")
-        tables["activations"] = Table(t, sol["activations"], tuple(sol["muscles"]), "activations")
-    measured_on_t = None
-    if contact is not None:
-        cols, data = [], []
-        for name in ("generic", "subject_specific"):
-            if name in contact:
-                c = contact[name]
-                cols += [f"{name}_{a}" for a in ("x", "y", "z")] + [
-                    f"{name}_total",
-                    f"{name}_total_bw",
-                ]
-                data += [c["force"], c["total"][:, None], (c["total"] / body_weight)[:, None]]
-        if "measured" in contact and cycle is not None:
-            meas = contact["measured"]
-            tm = cycle[0] + meas["fraction"] * (cycle[1] - cycle[0])
-            measured_on_t = np.interp(t, tm, meas["total"], left=np.nan, right=np.nan)
-            cols += ["measured_total", "measured_total_bw"]
-            data += [measured_on_t[:, None], (measured_on_t / body_weight)[:, None]]
-        tables["knee_contact"] = Table(t, np.column_stack(data), tuple(cols), "knee_contact")
-    if ident is not None:
-        from msk.model import INERTIAL_PARAMETER_NAMES
-
-        cols, vals = [], []
-        for b, phi in ident["parameters"].items():
-            cols += [f"{b}.{p}" for p in INERTIAL_PARAMETER_NAMES]
-            vals += list(np.asarray(phi, dtype=float))
-        tables["inertial_parameters"] = Table(
-            np.array([ident["t0"]]), np.array([vals]), tuple(cols), "inertial_parameters"
-        )
-    if strength is not None:
-        p = strength["profile"]
-        cols, vals = [], []
-        for g, name in enumerate(p.group_names):
-            for fig, arr in (
-                ("factor", p.factors),
-                ("ci_low", p.ci_low),
-                ("ci_high", p.ci_high),
-                ("f_iso_generic", p.f_iso_generic),
-                ("f_iso", p.f_iso),
-            ):
-                cols.append(f"{name}.{fig}")
-                vals.append(float(arr[g]))
-        tables["strength"] = Table(
-            np.array([strength["t0"]]), np.array([vals]), tuple(cols), "strength"
-        )
-
-    def do_compare() -> dict[str, Any]:
-        check("comparison")
-        from msk import compare
-
-        out: dict[str, Any] = {}
-        if "identified" in tau:
-            g, s = tau["generic"], tau["identified"]
-            good = np.isfinite(g.tau).all(axis=1) & np.isfinite(s.tau).all(axis=1)
-            leg = [i for i, c in enumerate(g.coordinate_names) if c.endswith(sfx)]
-            out["torque_rms_difference_nm"] = {
-                g.coordinate_names[i]: float(compare.rms(g.tau[good, i], s.tau[good, i]))
-                for i in leg
-            }
-            out["residual_force_rms_n"] = {
-                "generic": float(np.sqrt(np.mean(g.residual_force[good] ** 2))),
-                "identified": float(np.sqrt(np.mean(s.residual_force[good] ** 2))),
-            }
-            out["residual_moment_rms_nm"] = {
-                "generic": float(np.sqrt(np.mean(g.residual_moment[good] ** 2))),
-                "identified": float(np.sqrt(np.mean(s.residual_moment[good] ** 2))),
-            }
-        if contact is not None and measured_on_t is not None:
-            sel = np.isfinite(measured_on_t)
-            for name in ("generic", "subject_specific"):
-                if name not in contact:
-                    continue
-                pred = contact[name]["total"]
-                m = sel & np.isfinite(pred)
-                if m.sum() < 5:
-                    continue
-                a, b = measured_on_t[m], pred[m]
-                out[f"knee_contact_{name}"] = {
-                    "rms_n": float(compare.rms(a, b)),
-                    "rms_bw": float(compare.rms(a, b)) / body_weight,
-                    "nrmsd_pct": float(compare.nrmsd(a, b)),
-                    "pearson_r": float(compare.pearson_r(a, b)),
-                    "spearman_rho": float(compare.spearman(a, b)),
-                    "icc": float(compare.icc(a, b)),
-                    "peak_difference_n": float(compare.peak_difference(b, a)),
-                    "peak_measured_bw": float(a.max() / body_weight),
-                    "peak_predicted_bw": float(b.max() / body_weight),
-                    "n_frames": int(m.sum()),
-                }
-        if strength is not None:
-            p = strength["profile"]
-            out["strength_factor_minus_generic"] = {
-                n: float(f - 1.0) for n, f in zip(p.group_names, p.factors)
-            }
-        if not out:
-            raise StageUnavailable("nothing to compare")
-        return out
-
-    comparison = runner.run(
-        "comparison",
-        do_compare,
-        needs=("inverse_dynamics",),
-        settings=[runner.keys.get(n) for n in ("knee_contact", "strength_identification")],
-    )
-
-    # ------------------------------------------------------------------ summary
-    quality = _quality(trial, kin, jt, loads, emg, sol, strength, ident, body_weight)
-    settings = _settings(cfg)
-    summary: dict[str, Any] = {
-        "session": cfg.subject.name,
-        "created_utc": datetime.now(UTC).strftime("%Y-%m-%dT%H:%M:%SZ"),
-        "versions": _versions(),
-        "config": {"path": str(cfg.path), "sha256": file_sha256(cfg.path)},
-        "inputs": [
-            {"role": k, "path": str(p), "sha256": hashes[k], "bytes": Path(p).stat().st_size}
-            for k, p in files.items()
-        ],
-        "settings": settings,
-        "subject": {
-            "name": cfg.subject.name,
-            "mass_kg": cfg.subject.mass_kg,
-            "height_m": cfg.subject.height_m,
-            "sex": cfg.subject.sex,
-            "side": side,
-            "body_weight_n": body_weight,
-        },
-        "model": {**built["info"], "name": model.name, "muscles": len(model.muscles)},
-        "frame": {"lab_to_model_rotation": rot, "lab_up": trial.up},
-        "events": events,
-        "gait_cycle_s": list(cycle) if cycle else None,
-        "angle_columns": [c for c in kin.coordinate_names if not c.endswith(("_tx", "_ty", "_tz"))],
-        "quality": quality,
-        "methods": {
-            "contact_path_update_frames": CONTACT_CHUNK_FRAMES,
-            "plate_assignment": "foot nearest the centre of pressure (msk.loads, no outline)",
-            "scaling_measurements": [m[0] for m in DEFAULT_MEASUREMENTS],
-            "task_trial": task.name,
-        },
-        "identification": None
-        if ident is None
-        else {k: ident[k] for k in ("segments", "condition_number", "n_frames", "advice")},
-        "anthropometry": _anthropometry(cfg, model),
-        "strength": None if strength is None else _strength_summary(strength),
-        "comparison": comparison,
-        "optimization": None
-        if sol is None
-        else {
-            "method": sol["method"],
-            "infeasible_frames": sol.get("infeasible_frames"),
-            "reserve_torque_rms_nm": None
-            if "reserve_torques" not in sol
-            else {
-                c: float(np.sqrt(np.nanmean(sol["reserve_torques"][:, k] ** 2)))
-                for k, c in enumerate(sol["reserve_coordinates"])
-                if c.endswith(sfx)
-            },
-        },
-    }
-
-    # ------------------------------------------------------------------ report + write
-    from msk.report import build_figures, write_report
-
-    def figures() -> dict[str, str]:
-        check("report")
-        res = SessionResults(tables, summary, None, tuple(summary["angle_columns"]))
-        return build_figures(res)
-
-    fig_key = _key(
-        [
-            (n, tb.columns, hashlib.sha256(np.ascontiguousarray(tb.data).tobytes()).hexdigest())
-            for n, tb in tables.items()
-        ],
-        [
-            summary[k]
-            for k in ("gait_cycle_s", "subject", "identification", "strength", "anthropometry")
-        ],
-    )
-    figs = runner.run("report", figures, settings=fig_key)
-    total = _time.perf_counter() - t_start
+    s = _Session(cfg, runner, _fail_stage)
+    s.read()
+    s.build_model()
+    s.kinematics()
+    s.loads()
+    s.mass_identification()
+    s.inverse_dynamics()
+    s.emg()
+    s.muscle_geometry()
+    s.tension_optimization()
+    s.strength_identification()
+    s.knee_contact()
+    tables = s.tables()
+    s.comparison()
+    summary = s.summary()
+    figs = s.figures(summary)
     summary["stages"] = [dataclasses.asdict(r) for r in runner.records]
     summary["not_available"] = [
         {"stage": r.name, "status": r.status, "reason": r.message}
         for r in runner.records
         if r.status in ("not available", "failed")
     ]
-    summary["run_seconds"] = total
+    summary["run_seconds"] = _time.perf_counter() - t_start
 
     def report(res: SessionResults, folder: Path) -> None:
+        from msk.report import write_report
+
         write_report(res, folder, figures=figs, pdf=pdf)
 
-    write_session(
-        out, SessionResults(tables, summary, None, tuple(summary["angle_columns"])), report=report
-    )
+    angles = tuple(summary["angle_columns"])
+    write_session(out, SessionResults(tables, summary, None, angles), report=report)
     if progress is not None:
         progress.write(f"wrote {out} in {_time.perf_counter() - t_start:.2f} s\n")
     return RunResult(out, summary, tuple(runner.records), _time.perf_counter() - t_start)
@@ -1198,21 +1142,80 @@ def run_session(
 # ---------------------------------------------------------------------------------------------
 # helpers (formatting only)
 # ---------------------------------------------------------------------------------------------
-def _read_contact_csv(path: Path) -> dict[str, np.ndarray]:
-    """Measured knee contact force over one gait cycle: a CSV with a cycle-fraction column
-    (``sample_0_to_100`` or ``percent``…) and ``F_total_magnitude_N`` (or the last column)."""
-    lines = [ln for ln in path.read_text(encoding="utf-8").splitlines() if ln.strip()]
-    if len(lines) < 3:
-        raise MissingDataError(f"{path}: no contact-force samples")
-    head = [c.strip() for c in lines[0].split(",")]
-    try:
-        arr = np.array([[float(v) for v in ln.split(",")] for ln in lines[1:]])
-    except ValueError as exc:
-        raise ConfigError(f"{path}: not a numeric CSV: {exc}") from None
-    col = head.index("F_total_magnitude_N") if "F_total_magnitude_N" in head else len(head) - 1
-    x = arr[:, 0]
-    frac = (x - x[0]) / (x[-1] - x[0])
-    return {"fraction": frac, "total": arr[:, col], "column": head[col]}
+def _rms(x: np.ndarray) -> float:
+    return float(np.sqrt(np.mean(x**2)))
+
+
+def _contact_agreement(measured: np.ndarray, predicted: np.ndarray, bw: float) -> dict[str, Any]:
+    """Agreement figures (msk.compare) of a predicted knee contact force with the measured."""
+    from msk import compare
+
+    a, b = measured, predicted
+    return {
+        "rms_n": float(compare.rms(a, b)),
+        "rms_bw": float(compare.rms(a, b)) / bw,
+        "nrmsd_pct": float(compare.nrmsd(a, b)),
+        "pearson_r": float(compare.pearson_r(a, b)),
+        "spearman_rho": float(compare.spearman(a, b)),
+        "icc": float(compare.icc(a, b)),
+        "peak_difference_n": float(compare.peak_difference(b, a)),
+        "peak_measured_bw": float(a.max() / bw),
+        "peak_predicted_bw": float(b.max() / bw),
+        "n_frames": int(a.size),
+    }
+
+
+def _segment_summary(s: Any) -> dict[str, Any]:
+    return {
+        "name": s.name,
+        "mass_kg": s.mass,
+        "mass_std_kg": s.mass_std,
+        "prior_mass_kg": s.prior_mass,
+        "com_m": s.com,
+        "com_std_m": s.com_std,
+        "prior_com_m": s.prior_com,
+        "flag": s.flag,
+    }
+
+
+def _inertial_table(ident: Mapping[str, Any]) -> Table:
+    from msk.model import INERTIAL_PARAMETER_NAMES
+
+    cols, vals = [], []
+    for b, phi in ident["parameters"].items():
+        cols += [f"{b}.{p}" for p in INERTIAL_PARAMETER_NAMES]
+        vals += list(np.asarray(phi, dtype=float))
+    return Table(np.array([ident["t0"]]), np.array([vals]), tuple(cols), "inertial_parameters")
+
+
+def _strength_table(strength: Mapping[str, Any]) -> Table:
+    p = strength["profile"]
+    cols, vals = [], []
+    for g, name in enumerate(p.group_names):
+        for fig, arr in (
+            ("factor", p.factors),
+            ("ci_low", p.ci_low),
+            ("ci_high", p.ci_high),
+            ("f_iso_generic", p.f_iso_generic),
+            ("f_iso", p.f_iso),
+        ):
+            cols.append(f"{name}.{fig}")
+            vals.append(float(arr[g]))
+    return Table(np.array([strength["t0"]]), np.array([vals]), tuple(cols), "strength")
+
+
+def _optimization_summary(sol: Mapping[str, Any], sfx: str) -> dict[str, Any]:
+    return {
+        "method": sol["method"],
+        "infeasible_frames": sol.get("infeasible_frames"),
+        "reserve_torque_rms_nm": None
+        if "reserve_torques" not in sol
+        else {
+            c: float(np.sqrt(np.nanmean(sol["reserve_torques"][:, k] ** 2)))
+            for k, c in enumerate(sol["reserve_coordinates"])
+            if c.endswith(sfx)
+        },
+    }
 
 
 def _slice_state(state: Any, mask: np.ndarray) -> Any:
@@ -1261,16 +1264,6 @@ def _frames(obj: Any, idx: np.ndarray, n: int) -> Any:
         if isinstance(v, np.ndarray) and v.ndim >= 1 and v.shape[0] == n:
             changes[f.name] = v[idx]
     return dataclasses.replace(obj, **changes)
-
-
-def _plain_quality(q: Any) -> dict[str, Any]:
-    if q is None:
-        return {}
-    out = {}
-    for f in dataclasses.fields(q):
-        v = getattr(q, f.name)
-        out[f.name] = v.tolist() if isinstance(v, np.ndarray) else v
-    return out
 
 
 def _quality(

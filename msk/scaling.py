@@ -1,4 +1,5 @@
-"""Scaling a generic model to a subject from a static trial (as OpenSim's Scale tool does).
+"""Scaling a generic model to a subject from a static trial (as OpenSim's Scale tool does),
+and placing the static trial's other markers on the scaled model (:func:`place_markers`).
 
 Scale factors (OpenSim ``ModelScaler``, "measurements" method): for a measurement k with marker
 pairs (a_j, b_j) and the static trial averaged over its frames,
@@ -33,8 +34,9 @@ Applying per-body factors S_b = diag(s_x, s_y, s_z) (:func:`apply_scale_factors`
 from __future__ import annotations
 
 import itertools
+import warnings
 import xml.etree.ElementTree as ET
-from collections.abc import Mapping, Sequence
+from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any
@@ -54,11 +56,15 @@ __all__ = [
     "Measurement",
     "ScaleSetup",
     "apply_scale_factors",
+    "bone_segments",
     "measure_scale_factors",
     "muscle_path_lengths",
+    "place_markers",
+    "point_segment_distance",
     "read_scale_setup",
     "scale_inertia",
     "scale_model",
+    "usable_measurements",
 ]
 
 
@@ -71,6 +77,21 @@ class Measurement:
     marker_pairs: tuple[tuple[str, str], ...]
     bodies: tuple[str, ...]
     axes: str = "XYZ"
+
+
+def usable_measurements(
+    specs: Sequence[Measurement | tuple[str, Sequence[tuple[str, str]], Sequence[str]]],
+    markers: Iterable[str],
+) -> list[Measurement]:
+    """The measurements of ``specs`` (:class:`Measurement` or ``(name, pairs, bodies)``) whose
+    every marker pair is in ``markers`` (the markers the model and the static trial share)."""
+    have = set(markers)
+    out = []
+    for sp in specs:
+        m = sp if isinstance(sp, Measurement) else Measurement(sp[0], tuple(sp[1]), tuple(sp[2]))
+        if all(a in have and b in have for a, b in m.marker_pairs):
+            out.append(m)
+    return out
 
 
 @dataclass(frozen=True)
@@ -416,3 +437,89 @@ def read_scale_setup(path: str | Path) -> ScaleSetup:
         tr,
         order or ("measurements", "manualScale"),
     )
+
+
+# ---------------------------------------------------------------------------------------------
+# marker placement (OpenSim Scale's MarkerPlacer step)
+# ---------------------------------------------------------------------------------------------
+def bone_segments(model: Model, data: pin.Data) -> list[tuple[str, Array, Array]]:
+    """Bone segments per body, world frame, from ``data.oMf`` (after forward kinematics):
+    ``(body, a, b)`` from the body origin to each child body's origin (a leaf body: from its
+    origin to twice its centre of mass)."""
+    out = []
+    for b in model.bodies:
+        o = data.oMf[model.body_frame[b.name]]
+        kids = [j.child for j in model.joints if j.parent == b.name]
+        ends = [data.oMf[model.body_frame[c]].translation for c in kids]
+        if not ends:
+            ends = [o.act(2.0 * np.asarray(b.com, dtype=float))]
+        out.extend((b.name, o.translation.copy(), np.array(e, dtype=float)) for e in ends)
+    return out
+
+
+def point_segment_distance(p: ArrayLike, a: ArrayLike, b: ArrayLike) -> float:
+    """Distance from the point ``p`` to the segment [a, b]: ‖p − (a + t (b − a))‖ with
+    t = clip((p − a)·(b − a) / ‖b − a‖², 0, 1)."""
+    p, a, b = (np.asarray(x, dtype=float) for x in (p, a, b))
+    d = b - a
+    t = float(np.clip((p - a) @ d / max(float(d @ d), 1e-12), 0.0, 1.0))
+    return float(np.linalg.norm(p - (a + t * d)))
+
+
+def place_markers(
+    model: Model, static_markers: np.ndarray, labels: Sequence[str], time: np.ndarray
+) -> tuple[Model, dict[str, Any]]:
+    """Add the static trial's non-model markers to ``model`` (OpenSim's MarkerPlacer idea).
+
+    The static pose θ̄ is the median of inverse kinematics on up to 9 frames of the static
+    trial, with the markers the model already has (``labels`` are in model names where a model
+    marker matches; at least 3 per frame); every other static marker (mean position x̄) is
+    fixed to the body whose bone segment (:func:`bone_segments`) is nearest, at its measured
+    position in that body's frame: ``p_b = (oMf_b(θ̄))⁻¹ x̄``.
+
+    Args:
+        model: the (scaled) model, in the frame of ``static_markers``.
+        static_markers: (N, M, 3) m, NaN gaps.
+        labels: the M labels.
+        time: (N,) s.
+
+    Returns:
+        The model with the markers added, and ``{"static_marker_rms_m", "placed"}`` (placed:
+        marker → body).
+
+    Raises:
+        KinematicsError: too few markers in every static frame.
+        MissingDataError: no static frame could be solved.
+    """
+    from msk.kinematics import solve_kinematics
+
+    n = static_markers.shape[0]
+    frames = np.unique(np.linspace(0, n - 1, min(n, 9)).round().astype(int))
+    kin = solve_kinematics(
+        model, static_markers[frames], labels, time[frames], cutoff_hz=None, min_markers=3
+    )
+    ok = np.isfinite(kin.q).all(axis=1)
+    if not ok.any():
+        raise MissingDataError("static trial: no frame could be solved for marker placement")
+    theta = np.median(kin.q[ok], axis=0)
+    data = model.create_data()
+    forward_kinematics(model, data, theta)
+    segs = bone_segments(model, data)
+    with warnings.catch_warnings():  # a marker never seen: NaN mean, skipped below
+        warnings.simplefilter("ignore", RuntimeWarning)
+        mean = np.nanmean(static_markers, axis=0)
+    known = set(model.marker_names)
+    added = []
+    placed: dict[str, str] = {}
+    for i, lab in enumerate(labels):
+        if lab in known or not np.isfinite(mean[i]).all():
+            continue
+        body = min(segs, key=lambda s, p=mean[i]: point_segment_distance(p, s[1], s[2]))[0]
+        local = data.oMf[model.body_frame[body]].actInv(mean[i])
+        added.append(Marker(lab, body, np.asarray(local, dtype=float)))
+        placed[lab] = body
+    info = {
+        "static_marker_rms_m": float(np.nanmean(kin.marker_rms[ok])),
+        "placed": placed,
+    }
+    return model.with_markers([*model.markers, *added]), info

@@ -3,6 +3,9 @@
 from __future__ import annotations
 
 import dataclasses
+import functools
+import tomllib
+from pathlib import Path
 
 import numpy as np
 import pinocchio as pin
@@ -90,6 +93,13 @@ def test_unassignable_contacts_raise_naming_plate_and_time():
     no_corners = dataclasses.replace(pl, corners=None, cop=pl.cop + np.array([2.0, 0.0, 0.0]))
     with pytest.raises(ForcePlateError, match=r"no foot within 0\.3 m"):
         external_loads(MODEL, KIN, [no_corners])
+    # a foot inside the outline but far from the plate surface does not stand on it
+    for dy in (0.5, -0.5):
+        shift = np.array([0.0, dy, 0.0])  # the model's up is +y
+        lifted = dataclasses.replace(pl, cop=pl.cop + shift, corners=pl.corners + shift)
+        with pytest.raises(ForcePlateError, match=r"plate1 .*no foot over the plate"):
+            external_loads(MODEL, KIN, [lifted])
+    assert external_loads(MODEL, KIN, [pl], floor_m=0.1).assignments[0].body == "foot_r"
     # without corners the COP decides
     ok = external_loads(MODEL, KIN, [dataclasses.replace(p, corners=None) for p in TRIAL.plates])
     assert [a.body for a in ok.assignments] == ["foot_r", "foot_l"]
@@ -167,3 +177,65 @@ def test_plates_from_an_opensim_grf_table():
         pls[0].moment_about_origin()[0],
         np.cross([0.3, 0, 0.1], [10.0, 700.0, 5.0]) + np.array([0, 2.0, 0]),
     )
+
+
+# ---------------------------------------------------------------------------------------------
+# regression: Grand Challenge PS overground walk (data/gc5-PS, bundled with the repository)
+# ---------------------------------------------------------------------------------------------
+GC5 = Path(__file__).resolve().parents[1] / "data" / "gc5-PS"
+
+
+@functools.lru_cache(maxsize=1)
+def _gc5_walk() -> tuple[object, object, object]:
+    """gait2392 scaled to PS, the overground walk in the model frame and its kinematics."""
+    from msk.io import read_c3d, read_trc, to_model_frame
+    from msk.kinematics import solve_kinematics
+    from msk.model_files import load_model
+    from msk.pipeline import DEFAULT_MEASUREMENTS
+    from msk.scaling import place_markers, scale_model, usable_measurements
+
+    with (Path(__file__).resolve().parents[1] / "pipelines" / "gc5_PS.toml").open("rb") as fh:
+        inv = {v: k for k, v in tomllib.load(fh)["markers"]["rename"].items()}
+    model = load_model(Path(__file__).resolve().parents[1] / "models" / "gait2392.toml")
+    static = read_trc(GC5 / "PS_static_for_scaling.trc")
+    labels = tuple(inv.get(lab, lab) for lab in static.labels)
+    meas = usable_measurements(DEFAULT_MEASUREMENTS, set(labels) & set(model.marker_names))
+    markers = {lab: static.markers[:, i] for i, lab in enumerate(labels)}
+    model = scale_model(model, markers, measurements=meas, body_mass=75.0)
+    model, _ = place_markers(model, static.markers, labels, static.time)
+    trial = to_model_frame(
+        read_c3d(GC5 / "PS_ngait_og_ss1.c3d"), up=-np.asarray(model.gravity, dtype=float)
+    )
+    kin = solve_kinematics(
+        model,
+        trial.markers,
+        tuple(inv.get(lab, lab) for lab in trial.marker_labels),
+        trial.time,
+        cutoff_hz=6.0,
+    )
+    return model, trial, kin
+
+
+@pytest.mark.slow
+def test_overground_walk_plates_go_to_the_standing_foot_not_the_swinging_one():
+    """PS_ngait_og_ss1: the swinging right foot passes over plate 1 while the left foot stands
+    on it (and the left over plate 3 under the right); the outline-based assignment alone
+    counted both feet; plate 1 → left foot, plates 2 and 3 → right foot."""
+    model, trial, kin = _gc5_walk()
+    plates = plates_from_trial(trial)
+    assert all(p.corners is not None for p in plates)
+    loads = external_loads(model, kin, plates, cutoff_hz=15.0)
+    assert [(a.plate, a.body) for a in loads.assignments] == [
+        ("plate1", "calcn_l"),
+        ("plate2", "calcn_r"),
+        ("plate3", "calcn_r"),
+    ]
+    # the same answer as the COP-only rule (plates without outline)
+    cop_only = external_loads(
+        model, kin, [dataclasses.replace(p, corners=None) for p in plates], cutoff_hz=15.0
+    )
+    assert [a.body for a in cop_only.assignments] == [a.body for a in loads.assignments]
+    np.testing.assert_array_equal(cop_only.force, loads.force)
+    # without the swing test the outline counts both feet on plate 1: a typed error
+    with pytest.raises(ForcePlateError, match=r"plate1 contact 5\.133.*both feet"):
+        external_loads(model, kin, plates, cutoff_hz=15.0, speed_mps=np.inf)

@@ -11,7 +11,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from model_factory import leg_model
 
-from msk.exceptions import MissingDataError, ModelError
+from msk.exceptions import KinematicsError, MissingDataError, ModelError
 from msk.model import forward_kinematics, marker_positions
 from msk.opensim_peer import run_opensim_script
 from msk.osim import load_osim
@@ -334,3 +334,102 @@ def test_rajagopal_manual_nonuniform_scaling_matches_opensim_model_scale(
         rel = {0: 1e-9, 1: 5e-4}.get(len(m.wraps), 5e-3)
         assert m.optimal_fiber_length == pytest.approx(r.optimal_fiber_length, rel=rel)
         assert m.tendon_slack_length == pytest.approx(r.tendon_slack_length, rel=rel)
+
+
+# ---------------------------------------------------------------------------------------------
+# marker placement (OpenSim Scale's MarkerPlacer step)
+# ---------------------------------------------------------------------------------------------
+#: cluster markers with a known place on the synthetic two-leg model (body, local position)
+CLUSTERS = {
+    "RTHC": ("femur_r", [0.05, -0.22, 0.04]),
+    "LTHC": ("femur_l", [0.05, -0.28, -0.04]),
+    "RSHC": ("tibia_r", [0.05, -0.25, 0.03]),
+    "LSHC": ("tibia_l", [0.04, -0.15, -0.03]),
+    "RMID": ("foot_r", [0.08, -0.05, 0.02]),
+}
+
+
+def _static_with_clusters(noise_m: float, n: int = 15, seed: int = 0):
+    """Static frames of the two-leg model carrying the clusters (known truth)."""
+    from synthetic import two_leg_model
+
+    from msk.model import Marker
+
+    model = two_leg_model()
+    truth = model.with_markers(
+        [*model.markers, *(Marker(k, b, np.array(p)) for k, (b, p) in CLUSTERS.items())]
+    )
+    theta = model.default_coordinates()
+    names = model.coordinate_names
+    for c, v in (("pelvis_tx", 0.4), ("pelvis_rotation", 0.3), ("knee_angle_r", -0.15),
+                 ("hip_flexion_l", 0.1), ("ankle_angle_l", 0.05)):  # fmt: skip
+        theta[names.index(c)] = v
+    x = marker_positions(truth, np.repeat(theta[None], n, axis=0))
+    x += np.random.default_rng(seed).normal(0.0, noise_m, x.shape)
+    return model, truth, x, np.arange(n) / 100.0
+
+
+@pytest.mark.parametrize("noise_m", [0.0, 0.002])
+def test_place_markers_puts_clusters_on_their_bones_at_their_place(noise_m):
+    from msk.scaling import place_markers
+
+    model, truth, x, t = _static_with_clusters(noise_m)
+    x[3, 0] = np.nan  # a gap in a model marker
+    placed, info = place_markers(model, x, truth.marker_names, t)
+    assert info["placed"] == {k: b for k, (b, _) in CLUSTERS.items()}
+    assert info["static_marker_rms_m"] <= 1e-6 + 2 * noise_m
+    got = {m.name: m for m in placed.markers}
+    assert set(got) == set(truth.marker_names)
+    for name, (body, local) in CLUSTERS.items():
+        assert got[name].body == body
+        np.testing.assert_allclose(got[name].offset, local, atol=1e-6 + 2 * noise_m)
+    # the model markers themselves are untouched
+    for m in model.markers:
+        np.testing.assert_array_equal(got[m.name].offset, m.offset)
+
+
+def test_place_markers_skips_unseen_markers_and_names_an_unsolvable_static():
+    from msk.scaling import place_markers
+
+    model, truth, x, t = _static_with_clusters(0.0)
+    x[:, truth.marker_names.index("RMID")] = np.nan
+    placed, info = place_markers(model, x, truth.marker_names, t)
+    assert "RMID" not in info["placed"] and "RMID" not in placed.marker_names
+    with pytest.raises((MissingDataError, KinematicsError), match="no frame could be solved"):
+        place_markers(model, np.full_like(x, np.nan), truth.marker_names, t)
+
+
+def test_point_segment_distance_and_bone_segments():
+    from synthetic import two_leg_model
+
+    from msk.scaling import bone_segments, point_segment_distance
+
+    a, b = np.zeros(3), np.array([1.0, 0.0, 0.0])
+    assert point_segment_distance([0.5, 0.2, 0.0], a, b) == pytest.approx(0.2)
+    assert point_segment_distance([-0.3, 0.4, 0.0], a, b) == pytest.approx(0.5)  # beyond a
+    assert point_segment_distance([1.0, 0.0, 0.0], a, a) == pytest.approx(1.0)  # degenerate
+    model = two_leg_model()
+    data = model.create_data()
+    forward_kinematics(model, data, model.default_coordinates())
+    segs = bone_segments(model, data)
+    femur = [s for s in segs if s[0] == "femur_r"]
+    knee = data.oMf[model.body_frame["tibia_r"]].translation
+    assert len(femur) == 1 and np.allclose(femur[0][2], knee)
+    foot = next(s for s in segs if s[0] == "foot_r")  # a leaf: origin → 2 × COM
+    com = next(bd.com for bd in model.bodies if bd.name == "foot_r")
+    np.testing.assert_allclose(
+        foot[2], data.oMf[model.body_frame["foot_r"]].act(2.0 * np.asarray(com)), atol=1e-12
+    )
+
+
+def test_usable_measurements_keep_those_whose_markers_all_exist():
+    from msk.scaling import usable_measurements
+
+    specs = [
+        ("pelvis", (("RASI", "LASI"),), ("pelvis",)),
+        Measurement("thigh", (("RASI", "RKNE"), ("LASI", "LKNE")), ("femur_r", "femur_l")),
+    ]
+    got = usable_measurements(specs, {"RASI", "LASI", "RKNE"})
+    assert got == [Measurement("pelvis", (("RASI", "LASI"),), ("pelvis",))]
+    assert len(usable_measurements(specs, {"RASI", "LASI", "RKNE", "LKNE"})) == 2
+    assert usable_measurements(specs, ()) == []

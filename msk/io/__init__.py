@@ -14,6 +14,13 @@ from msk.io.c3d import (
     read_c3d,
     write_c3d,
 )
+from msk.io.frames import (
+    lab_to_model_rotation,
+    rotate_plate,
+    rotate_trial,
+    rotation_between,
+    to_model_frame,
+)
 from msk.io.opensim_files import (
     MarkerTable,
     Table,
@@ -36,11 +43,16 @@ __all__ = [
     "Subject",
     "Table",
     "Trial",
+    "lab_to_model_rotation",
     "read_c3d",
     "read_csv_table",
     "read_mot",
     "read_sto",
     "read_trc",
+    "rotate_plate",
+    "rotate_trial",
+    "rotation_between",
+    "to_model_frame",
     "write_c3d",
     "write_csv_table",
     "write_mot",

@@ -216,6 +216,13 @@ class Trial:
             return out[: self.n_frames] if self.n_frames else out
         return resample_to(self.analog_time, x, self.time)
 
+    def rotated(self, rotation: ArrayLike) -> Trial:
+        """This trial with markers, plates and ``up`` rotated by R (``x_new = R x``), see
+        :func:`msk.io.frames.rotate_trial`."""
+        from msk.io.frames import rotate_trial
+
+        return rotate_trial(self, rotation)
+
     def events_named(self, label: str, context: str | None = None) -> tuple[float, ...]:
         """Times (s) of the events with this label (and context, if given)."""
         return tuple(

@@ -46,8 +46,11 @@ def write_csv_table(
     return _atomic_write(path, "\n".join([",".join(("time", *cols)), *rows]) + "\n")
 
 
-def read_csv_table(path: str | Path) -> Table:
-    """Read a CSV table written by :func:`write_csv_table` (first column must be ``time``)."""
+def read_csv_table(path: str | Path, *, time_column: str | None = "time") -> Table:
+    """Read a CSV table written by :func:`write_csv_table` (first column must be ``time``).
+
+    ``time_column`` names the first column expected (``None``: any name, e.g. a cycle
+    percentage such as ``sample_0_to_100``); its values become ``Table.time``."""
     path = Path(path)
     if not path.is_file():
         raise FileFormatError(f"{path}: no such file")
@@ -55,8 +58,8 @@ def read_csv_table(path: str | Path) -> Table:
     if not lines:
         raise FileFormatError(f"{path}: empty file")
     cols = [c.strip() for c in lines[0].split(",")]
-    if cols[0] != "time":
-        raise FileFormatError(f"{path}: first column is {cols[0]!r}, expected 'time'")
+    if time_column is not None and cols[0] != time_column:
+        raise FileFormatError(f"{path}: first column is {cols[0]!r}, expected {time_column!r}")
     rows = []
     for k, ln in enumerate(lines[1:], start=2):
         parts = ln.split(",")

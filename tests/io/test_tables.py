@@ -54,3 +54,21 @@ def test_failed_write_leaves_old_file_intact(tmp_path, monkeypatch):
         write_csv_table(p, Table(np.arange(3.0), np.zeros((3, 1)), ("a",)))
     assert p.read_text() == before
     assert [f.name for f in tmp_path.iterdir()] == ["r.csv"]
+
+
+def test_first_column_other_than_time(tmp_path):
+    """A cycle-percentage CSV (the Grand Challenge eTibia file): ``time_column`` names the
+    first column, ``None`` takes any; the default still insists on ``time``."""
+    p = tmp_path / "etibia.csv"
+    p.write_text("sample_0_to_100,F_medial_N,F_total_magnitude_N\n0,1.5,2\n1,2.5,3\n2,3,4.25\n")
+    tab = read_csv_table(p, time_column="sample_0_to_100")
+    np.testing.assert_array_equal(tab.time, [0.0, 1.0, 2.0])
+    assert tab.columns == ("F_medial_N", "F_total_magnitude_N")
+    np.testing.assert_array_equal(tab.data[:, 1], [2.0, 3.0, 4.25])
+    assert read_csv_table(p, time_column=None).columns == tab.columns
+    with pytest.raises(
+        FileFormatError, match=r"first column is 'sample_0_to_100', expected 'time'"
+    ):
+        read_csv_table(p)
+    with pytest.raises(FileFormatError, match=r"expected 'percent'"):
+        read_csv_table(p, time_column="percent")
