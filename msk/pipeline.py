@@ -60,7 +60,6 @@ from msk.io.opensim_files import Table
 from msk.results import SessionResults, check_replaceable, json_default, write_session
 
 __all__ = [
-    "CONTACT_CHUNK_FRAMES",
     "CORE_STAGES",
     "DEFAULT_MEASUREMENTS",
     "PLATE_ASSIGNMENT",
@@ -107,7 +106,6 @@ _DEPENDENCIES = (
 )
 G0 = 9.80665
 #: Frames per joint-reaction call in the knee-contact stage (moving path points per chunk).
-CONTACT_CHUNK_FRAMES = 6
 #: How msk.loads assigns plate contacts to feet (recorded in summary.json, part of the cache key).
 PLATE_ASSIGNMENT = (
     "msk.loads: the foot standing on the plate (inside the outline, near the floor, not "
@@ -852,7 +850,7 @@ class _Session:
 
         def do() -> dict[str, Any]:
             self.check("knee_contact")
-            from msk.dynamics import joint_reaction
+            from msk.contact import knee_contact_force
 
             joint = f"knee{self.sfx}"
             if joint not in {j.name for j in model.joints}:
@@ -865,30 +863,18 @@ class _Session:
                 m_spec = with_strength(self.model_id, self.strength["profile"])
                 variants["subject_specific"] = (m_spec, self._optimise(m_spec, self.jt))
             n = kin.time.size
-            # muscle paths are fixed points per call: evaluate moving / conditional points at
-            # the mean posture of short chunks of frames (CONTACT_CHUNK_FRAMES)
-            chunks = [
-                np.arange(i, min(i + CONTACT_CHUNK_FRAMES, n))
-                for i in range(0, n, CONTACT_CHUNK_FRAMES)
-            ]
+            ok = np.flatnonzero(ok_frames)
             for name, (mdl, s) in variants.items():
-                f = np.nan_to_num(s["forces"], nan=0.0)
+                contact = knee_contact_force(
+                    mdl,
+                    _frames(kin, ok, n),
+                    _frames(ext, ok, n),
+                    muscle_forces=np.nan_to_num(s["forces"][ok], nan=0.0),
+                    muscle_names=tuple(s["muscles"]),
+                    joint=joint,
+                )
                 force = np.full((n, 3), np.nan)
-                for idx in chunks:
-                    ok = idx[ok_frames[idx]]
-                    if ok.size == 0:
-                        continue
-                    paths = _muscle_paths(mdl, np.mean(kin.q[ok], axis=0), kin.coordinate_names)
-                    jr = joint_reaction(
-                        mdl,
-                        _frames(kin, ok, n),
-                        _frames(ext, ok, n),
-                        joint=joint,
-                        frame="child",
-                        muscle_forces=f[ok],
-                        muscle_paths=paths,
-                    )
-                    force[ok] = jr.force
+                force[ok] = contact.force
                 res[name] = {"force": force, "total": np.linalg.norm(force, axis=1)}
             if "contact" in self.raw:
                 res["measured"] = self.raw["contact"]
@@ -1045,7 +1031,6 @@ class _Session:
             ],
             "quality": quality,
             "methods": {
-                "contact_path_update_frames": CONTACT_CHUNK_FRAMES,
                 "plate_assignment": PLATE_ASSIGNMENT,
                 "scaling_measurements": [m[0] for m in DEFAULT_MEASUREMENTS],
                 "task_trial": self.task.name,
@@ -1225,34 +1210,6 @@ def _slice_state(state: Any, mask: np.ndarray) -> Any:
         if isinstance(v, np.ndarray) and v.ndim == 2:
             changes[f.name] = v[mask]
     return dataclasses.replace(state, **changes)
-
-
-def _muscle_paths(
-    model: Any, theta: np.ndarray, coordinate_names: Sequence[str]
-) -> list[list[tuple[str, np.ndarray]]]:
-    """Path points per muscle at the posture ``theta``, as ``(body, point in body)`` pairs for
-    :func:`msk.dynamics.joint_reaction`: moving points evaluated at ``theta``, conditional
-    points kept only while their coordinate is in range (as the geometry does)."""
-    names = list(coordinate_names)
-    paths = []
-    for m in model.muscles:
-        pts = []
-        for p in m.points:
-            loc = np.asarray(p.location, dtype=float).copy()
-            coords = getattr(p, "coordinates", None)
-            funcs = getattr(p, "functions", None)
-            if coords is not None and funcs is not None:
-                for k in range(3):
-                    if coords[k] is not None and funcs[k] is not None:
-                        loc[k] = float(np.asarray(funcs[k](theta[names.index(coords[k])])))
-            cond = getattr(p, "coordinate", "")
-            if cond and cond in names:
-                lo, hi = p.range
-                if not lo <= theta[names.index(cond)] <= hi:
-                    continue
-            pts.append((p.body, loc))
-        paths.append(pts)
-    return paths
 
 
 def _frames(obj: Any, idx: np.ndarray, n: int) -> Any:

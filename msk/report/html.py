@@ -638,12 +638,11 @@ def _methods_section(res: SessionResults) -> str:
         "segment inertial parameters from the base-link equations (seeds/002 §II) → inverse "
         "dynamics → EMG envelopes and activation (seeds/002 Eq. 8) → muscle–tendon geometry "
         "(seeds/002 Eq. 6–7) → tension optimisation → strength by regression on the net "
-        "contribution matrix (seeds/002 Eq. 12–16) → knee joint reaction with muscle forces. "
-        "The lab frame is rotated into the model frame (vertical up, walking along +x); each "
-        "force-plate contact is assigned to the foot nearest its centre of pressure; for the "
-        "knee load, muscle path points that move with the knee angle (and conditional via "
-        f"points) are updated every {s.get('methods', {}).get('contact_path_update_frames', '?')} "
-        "frames.</p>"
+        "contribution matrix (seeds/002 Eq. 12–16) → tibiofemoral contact force from the tibia "
+        "free-body diagram with the muscle forces (seeds/004 §2.1), muscle paths evaluated at "
+        "every frame. The lab frame is rotated into the model frame (vertical up, walking "
+        f"along +x); force-plate contacts: {s.get('methods', {}).get('plate_assignment', '?')}."
+        "</p>"
     )
     rows = []
     for r in s.get("stages", []):
