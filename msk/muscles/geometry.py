@@ -60,11 +60,17 @@ envelope theorem holds. The tangent points contract linearly (~0.3 a pass), so a
 other pass Aitken's Δ² extrapolates them (x* = x₂ − (Δx₂)²/(Δx₂ − Δx₁), only where the steps
 shrink); convergence is still judged on a plain pass, hence the same fixed point in about 40 %
 fewer passes. A path that alternates between two states (the wraps choose different segments
-in turn: a 2-cycle, which some gastrocnemius poses of Rajagopal 2016 reach) never converges;
-it ends on the state of the pass limit's parity, which is returned as soon as the cycle is
-detected. Ellipsoids, spheres and tori raise :class:`ModelError` (naming the
-muscle and the wrap object); OpenSim's own single-cylinder path is an approximation of the
-geodesic (tangent-point heights by plane intersection), up to ~1 mm longer in deep flexion.
+in turn: a 2-cycle) has no path consistent with the wrap rules; some gastrocnemius poses of
+Rajagopal 2016 reach it where the condyle and shank cylinders overlap (a tangent point of one
+wrap inside the other cylinder refuses that wrap, and the shank wrap jumps to the segment
+before the condyles, the long way round: ~0.72 m instead of ~0.47 m). Such a path is resolved
+among candidate topologies, each iterated to its own fixed point so that the Jacobian stays
+exact: one wrap position off, the others free; the shortest admissible candidate (the wrap
+left off wraps no segment at the fixed point), else the converged one that loses least length
+(:meth:`GeometryPlan._resolve_cycles`). Ellipsoids, spheres and tori raise :class:`ModelError`
+(naming the muscle and the wrap object); OpenSim's own single-cylinder path is an
+approximation of the geodesic (tangent-point heights by plane intersection), up to ~1 mm
+longer in deep flexion.
 
 Per-model static structure (point → body, support masks, moving/conditional points, wrap
 candidates, the sparse row maps above, the coordinate functions as one spline table) is
@@ -374,7 +380,6 @@ class _PathState:
 
 _MAX_WRAP_PASSES = 100
 _AITKEN = True  # extrapolate the multi-wrap iteration (tests compare with the plain one)
-_DETECT_CYCLES = True  # stop 2-cycles at the state of the pass limit's parity
 _AITKEN_RATIO = 0.7
 _CHUNK_BYTES = 768 * 1024  # largest per-chunk temporary (wrap-free plans)
 _PIN_FRAMES = 8  # up to this many frames, forward kinematics by Pinocchio frame by frame
@@ -621,6 +626,17 @@ class GeometryPlan:
         self._multi_watch = np.array(
             [s for m in multi_muscles for s in range(*self._muscle_slots[m])], dtype=np.intp
         )
+        # position in _multi_muscles of each watched slot and of each multi-wrap
+        self._multi_watch_of = np.array(
+            [i for i, m in enumerate(multi_muscles) for _ in range(*self._muscle_slots[m])],
+            dtype=np.intp,
+        )
+        self._multi_watch_start = np.searchsorted(
+            self._multi_watch_of, np.arange(len(multi_muscles))
+        ).astype(np.intp)
+        self._multi_wrap_of = np.searchsorted(
+            self._multi_muscles, [wraps[k].muscle for k in self._multi_wraps]
+        ).astype(np.intp)
         # the embedding θ → q_pin, grouped
         cp = model.coupling
         self._q_const = np.array(
@@ -906,12 +922,21 @@ class GeometryPlan:
         return jac, rot, trans
 
     def _apply_round(
-        self, rd: _WrapRound, st: _PathState, rot: Array, trans: Array, fa: NDArray[np.intp]
+        self,
+        rd: _WrapRound,
+        st: _PathState,
+        rot: Array,
+        trans: Array,
+        fa: NDArray[np.intp],
+        only: NDArray[np.intp] | None = None,
+        *,
+        dry: bool = False,
     ) -> tuple[Array, Array]:
         """Wrap, for each of the K wraps of a round (distinct paths) and each frame of ``fa``,
         the best candidate segment over the cylinder (a crossing segment wins, else the smallest
         length increase): the segment A→B becomes A→T1 and T2→B (the wrap's extra slot).
-        Returns the hit masks and arc lengths (K, F)."""
+        ``only`` (K, F): −2 keeps a wrap off (−1: free). Returns the hit masks and arc lengths
+        (K, F); ``dry``: only the decision, the path is left unchanged."""
         nk, nf = rd.k.size, fa.size
         rb = rot[fa[None, :], rd.body[:, None]]  # (K, F, 3, 3)
         rc = rb @ rd.rotation[:, None]
@@ -924,13 +949,16 @@ class GeometryPlan:
         mand &= wraps
         change = np.linalg.norm(t1 - a, axis=-1) + arc + np.linalg.norm(b - t2, axis=-1)
         change -= np.linalg.norm(b - a, axis=-1)
-        order = np.arange(rd.cand.shape[1], dtype=float)
+        order = np.arange(rd.cand.shape[1])
         score = np.where(mand, -1e9 + order, np.where(wraps, change, np.inf))
+        if only is not None:  # a wrap kept off
+            score = np.where(only[..., None] == -2, np.inf, score)
         best = np.argmin(score, axis=2)  # (K, F)
         kk, ff = np.nonzero(np.isfinite(np.take_along_axis(score, best[..., None], 2)[..., 0]))
         hit = np.zeros((nk, nf), dtype=bool)
         arc_hit = np.zeros((nk, nf))
-        if kk.size == 0:
+        hit[kk, ff] = True
+        if kk.size == 0 or dry:
             return hit, arc_hit
         kb = best[kk, ff]
         fr = fa[ff]
@@ -946,7 +974,6 @@ class GeometryPlan:
         st.valid[e, fr] = True
         st.sb[slot, fr] = t1w
         st.ib[slot, fr] = -2 - 2 * rd.k[kk]
-        hit[kk, ff] = True
         arc_hit[kk, ff] = arc[kk, ff, kb]
         st.arcs[rd.muscle[kk], fr] += arc_hit[kk, ff]
         return hit, arc_hit
@@ -966,6 +993,227 @@ class GeometryPlan:
         st.valid[e, fr] = False
         st.ia[e, fr] = -1
         st.arcs[rd.muscle[kk], fr] -= arc[kk, fr]
+
+    def _iterate_wraps(
+        self,
+        st: _PathState,
+        rot: Array,
+        trans: Array,
+        wr: tuple[Array, Array],
+        todo: NDArray[np.intp],
+        frozen: NDArray[np.intp] | None = None,
+    ) -> tuple[NDArray[np.bool_], NDArray[np.bool_]]:
+        """Several wraps on one path: re-wrap each on the current path until the tangent points
+        stop moving (OpenSim iterates up to 8 times to 0.5 mm; we go to convergence so that the
+        envelope theorem, hence the analytic Jacobian, holds). ``wr`` = (hits, arcs) of every
+        wrap (n_wraps, N), updated in place; ``frozen`` (n_wraps, N): −2 keeps a wrap off,
+        −1 leaves it free.
+
+        Returns, per (multi-wrap muscle, frame) (M', N): whether it converged and whether it
+        ended in a 2-cycle (its wraps choose different segments in turn and the path alternates
+        between two states; it is left on the shorter one, see :meth:`_resolve_cycles`)."""
+        n = st.valid.shape[1]
+        watch, mm = self._multi_watch, self._multi_muscles
+        hits, arc_of = wr
+        if frozen is None:
+            frozen = np.full(hits.shape, -1, dtype=np.intp)
+        converged = np.zeros((mm.size, n), dtype=bool)
+        cycled = np.zeros((mm.size, n), dtype=bool)
+        back2 = None  # watched segment ends two passes back
+        last_x = 0  # last pass followed by an extrapolation
+        for p in range(1, _MAX_WRAP_PASSES + 1):
+            wx = (watch[:, None], todo[None, :])
+            snap = self._take_state(st, wr, todo)
+            before = np.concatenate(snap[:2], 0)
+            for rd in self._multi_rounds:
+                undo = np.zeros((rd.k.size, n), dtype=bool)
+                undo[:, todo] = hits[rd.k][:, todo]
+                self._remove_round(rd, st, undo, arc_of[rd.k])
+                h, arc = self._apply_round(
+                    rd, st, rot, trans, todo, frozen[rd.k[:, None], todo[None, :]]
+                )
+                hits[rd.k[:, None], todo] = h
+                arc_of[rd.k[:, None], todo] = arc
+            after = np.concatenate([st.sa[wx], st.sb[wx]], 0)
+            moved = np.abs(after - before).max(axis=2)  # (2W, F)
+            keep = moved.max(axis=0) >= _WRAP_TOL
+            conv = self._per_muscle(moved) < _WRAP_TOL  # (M', F)
+            converged[:, todo] = conv
+            cyc = np.zeros_like(keep)
+            if back2 is not None:
+                # a muscle back to its state of two passes ago, which moved: a 2-cycle
+                cyc_m = ~conv & (self._per_muscle(np.abs(after - back2).max(axis=2)) < _WRAP_TOL)
+                cyc = cyc_m.any(axis=0)
+            if cyc.any():
+                # a 2-cycle never converges: leave each cycling muscle on the shorter of the two
+                # states (the previous pass's or this one's) and stop iterating the frame (the
+                # other muscles of the frame are finished by :meth:`_resolve_cycles`)
+                c = np.flatnonzero(cyc)
+                fr = todo[c]
+                now = self._take_state(st, wr, fr)
+                prev = tuple(x[:, c] for x in snap)
+                back = cyc_m[:, c] & (self._state_lengths(prev) < self._state_lengths(now))
+                self._put_state(st, wr, fr, prev, back)
+                cycled[:, fr] = cyc_m[:, c]
+                keep[c] = False
+            if _AITKEN and back2 is not None and p - last_x >= 2:
+                # Aitken's Δ² on three successive iterates x0, x1 = F(x0), x2 = F(x1) of the
+                # frames converging linearly (the tangent points contract by ~0.3 a pass): a
+                # better start for the next pass; convergence is still judged on a plain pass,
+                # so the fixed point is the same
+                d1, d2 = before - back2, after - before
+                dd = d2 - d1
+                n1 = np.abs(d1).max(axis=(0, 2))
+                n2 = np.abs(d2).max(axis=(0, 2))
+                good = keep & (n2 < _AITKEN_RATIO * n1)
+                if good.any():
+                    g = np.flatnonzero(good)
+                    d2g, ddg = d2[:, g], dd[:, g]
+                    use = (np.abs(ddg) > 1e-300) & (np.abs(d2g) < _AITKEN_RATIO * np.abs(d1[:, g]))
+                    step = np.where(use, d2g * d2g / np.where(use, ddg, 1.0), 0.0)
+                    x = after[:, g] - step
+                    wg = (watch[:, None], todo[g][None, :])
+                    st.sa[wg], st.sb[wg] = x[: watch.size], x[watch.size :]
+                    last_x = p
+            back2 = before[:, keep]
+            todo = todo[keep]  # keep iterating the frames still moving
+            if todo.size == 0:
+                break
+        return converged, cycled
+
+    def _resolve_cycles(
+        self,
+        st: _PathState,
+        rot: Array,
+        trans: Array,
+        wr: tuple[Array, Array],
+        cycled: NDArray[np.bool_],
+    ) -> None:
+        """The path of a (muscle, frame) whose wrap iteration ends in a 2-cycle.
+
+        Such a cycle means that OpenSim's wrap rules admit no consistent path: Rajagopal's
+        gastrocnemii reach it where the condyle and shank cylinders overlap. The condyle
+        tangent point falls inside the shank cylinder (an end inside the radius: no wrap), so
+        the shank wrap is refused on the segment after the condyles and its quadrant forces it
+        onto the segment before them, the long way round (~0.72 m instead of ~0.47 m); on the
+        next pass the condyle wrap takes the segment before the shank again, and so on.
+
+        The candidates are the paths with one wrap position r of the path off (the r-th wrap
+        of every multi-wrap path) and the others free, each iterated to its own fixed point, so
+        that the envelope theorem, hence the analytic Jacobian, holds. A candidate is
+        admissible when the iteration converges and the wrap left off, re-applied at the fixed
+        point, wraps no segment; the shortest admissible one is kept. Where none is (the
+        frames above: dropping the shank wrap lets the path cut through the shank cylinder,
+        dropping the condyle wrap lets the segment before the shank graze the condyle
+        cylinder), the converged candidate that loses least length, hence stays closest to
+        the path that cannot be completed, is kept: for the gastrocnemii the shank wrap alone,
+        the path OpenSim's rules give once the shank tangent point is inside the condyle
+        cylinder (the neighbouring frames). Without a converged candidate the shorter of the
+        two cycle states stays.
+        """
+        mm = self._multi_muscles
+        hits, arc_of = wr
+        n = hits.shape[1]
+        frames = np.flatnonzero(cycled.any(axis=0))
+        here = cycled[:, frames]
+        base = self._take_state(st, wr, frames)
+        # the other muscles of these frames: iterated on to their own fixed points (the wraps
+        # of the cycling ones off meanwhile)
+        frozen = np.full(hits.shape, -1, dtype=np.intp)
+        frozen[self._multi_wraps[:, None], frames] = np.where(here[self._multi_wrap_of], -2, -1)
+        self._iterate_wraps(st, rot, trans, wr, frames, frozen)
+        free = self._take_state(st, wr, frames)
+        strict = self._take_state(st, wr, frames)  # shortest admissible candidate
+        strict_len = np.full((mm.size, frames.size), np.inf)
+        loose = self._take_state(st, wr, frames)  # longest converged candidate
+        loose_len = np.full((mm.size, frames.size), -np.inf)
+        for rd in self._multi_rounds:
+            self._put_state(st, wr, frames, base)
+            off = np.zeros((rd.k.size, n), dtype=bool)
+            off[:, frames] = hits[rd.k][:, frames]
+            self._remove_round(rd, st, off, arc_of[rd.k])
+            idx = (rd.k[:, None], frames[None, :])
+            hits[idx], arc_of[idx] = False, 0.0
+            frozen = np.full(hits.shape, -1, dtype=np.intp)
+            frozen[idx] = -2
+            conv, cyc = self._iterate_wraps(st, rot, trans, wr, frames, frozen)
+            state = self._take_state(st, wr, frames)
+            length = self._state_lengths(state)
+            ok = conv[:, frames] & ~cyc[:, frames]
+            would = np.zeros_like(ok)
+            would[np.searchsorted(mm, rd.muscle)] = self._apply_round(
+                rd, st, rot, trans, frames, dry=True
+            )[0]
+            better = ok & ~would & (length < strict_len)
+            strict_len = np.where(better, length, strict_len)
+            self._put_state_into(strict, state, better)
+            longer = ok & (length > loose_len)
+            loose_len = np.where(longer, length, loose_len)
+            self._put_state_into(loose, state, longer)
+        self._put_state(st, wr, frames, free)
+        self._put_state(st, wr, frames, base, here)
+        self._put_state(st, wr, frames, loose, here & np.isfinite(loose_len))
+        self._put_state(st, wr, frames, strict, here & np.isfinite(strict_len))
+
+    def _take_state(
+        self, st: _PathState, wr: tuple[Array, Array], fr: NDArray[np.intp]
+    ) -> tuple[Array, ...]:
+        """Copy of the multi-wrap paths' state at frames ``fr``: watched slot ends, point ids
+        and validity (W, F, ...), arcs (M', F) and the wraps' hits and arcs (K', F)."""
+        wx = (self._multi_watch[:, None], fr[None, :])
+        kx = (self._multi_wraps[:, None], fr[None, :])
+        return (
+            st.sa[wx], st.sb[wx], st.ia[wx], st.ib[wx], st.valid[wx],
+            st.arcs[self._multi_muscles[:, None], fr], wr[0][kx], wr[1][kx],
+        )  # fmt: skip
+
+    def _put_state(
+        self,
+        st: _PathState,
+        wr: tuple[Array, Array],
+        fr: NDArray[np.intp],
+        state: tuple[Array, ...],
+        which: NDArray[np.bool_] | None = None,
+    ) -> None:
+        """Write back a :meth:`_take_state` copy, for the (muscle, frame) pairs ``which``
+        (M', F) only when given."""
+        cur = self._take_state(st, wr, fr)
+        if which is not None:
+            state = self._merge_state(cur, state, which)
+        wx = (self._multi_watch[:, None], fr[None, :])
+        kx = (self._multi_wraps[:, None], fr[None, :])
+        st.sa[wx], st.sb[wx], st.ia[wx], st.ib[wx], st.valid[wx] = state[:5]
+        st.arcs[self._multi_muscles[:, None], fr] = state[5]
+        wr[0][kx], wr[1][kx] = state[6:]
+
+    def _merge_state(
+        self, cur: tuple[Array, ...], new: tuple[Array, ...], which: NDArray[np.bool_]
+    ) -> tuple[Array, ...]:
+        """``new`` where ``which`` (M', F), else ``cur``."""
+        bw, bk = which[self._multi_watch_of], which[self._multi_wrap_of]
+        masks = (bw[..., None], bw[..., None], bw, bw, bw, which, bk, bk)
+        return tuple(np.where(m, x, y) for m, x, y in zip(masks, new, cur))
+
+    def _put_state_into(
+        self, dst: tuple[Array, ...], src: tuple[Array, ...], which: NDArray[np.bool_]
+    ) -> None:
+        merged = self._merge_state(dst, src, which)
+        for d, m in zip(dst, merged):
+            d[...] = m
+
+    def _state_lengths(self, state: tuple[Array, ...]) -> Array:
+        """Path lengths (M', F) of the multi-wrap muscles in a :meth:`_take_state` copy."""
+        sa, sb, valid, arcs = state[0], state[1], state[4], state[5]
+        seg = np.where(valid, np.linalg.norm(sb - sa, axis=-1), 0.0)
+        out = arcs.copy()
+        np.add.at(out, self._multi_watch_of, seg)
+        return out
+
+    def _per_muscle(self, moved: Array) -> Array:
+        """Largest movement (M', F) of each multi-wrap muscle's watched ends, from (2W, F)."""
+        w = self._multi_watch.size
+        m = np.maximum(moved[:w], moved[w:])
+        return np.maximum.reduceat(m, self._multi_watch_start, axis=0)
 
     def _paths(self, th: Array, jac: Array, rot: Array, trans: Array) -> tuple[Array, Array, Array]:
         """Lengths (N, M), ∂l/∂q_pin (N, M, nv) and the moving-point part of ∂l/∂θ (N, M, nc)
@@ -1046,68 +1294,10 @@ class GeometryPlan:
         # stop moving (OpenSim iterates up to 8 times to 0.5 mm; we go to convergence so that
         # the envelope theorem, hence the analytic Jacobian, holds)
         if self._multi_rounds:
-            watch, mm, mk = self._multi_watch, self._multi_muscles, self._multi_wraps
-            todo = every
-            back2 = None  # watched segment ends two passes back
-            last_x = 0  # last pass followed by an extrapolation
-            for p in range(1, _MAX_WRAP_PASSES + 1):
-                wx = (watch[:, None], todo[None, :])
-                snap = (
-                    st.sa[wx], st.sb[wx], st.ia[wx], st.ib[wx], st.valid[wx],
-                    st.arcs[mm[:, None], todo], hits[mk[:, None], todo],
-                    arc_of[mk[:, None], todo],
-                )  # fmt: skip
-                before = np.concatenate(snap[:2], 0)
-                for rd in self._multi_rounds:
-                    undo = np.zeros((rd.k.size, n), dtype=bool)
-                    undo[:, todo] = hits[rd.k][:, todo]
-                    self._remove_round(rd, st, undo, arc_of[rd.k])
-                    h, arc = self._apply_round(rd, st, rot, trans, todo)
-                    hits[rd.k[:, None], todo] = h
-                    arc_of[rd.k[:, None], todo] = arc
-                after = np.concatenate([st.sa[wx], st.sb[wx]], 0)
-                keep = np.abs(after - before).max(axis=(0, 2)) >= _WRAP_TOL
-                if _DETECT_CYCLES and back2 is not None:
-                    # a frame alternating between two paths (the wraps pick different segments
-                    # in turn) never converges: the plain iteration ends on the state of the
-                    # pass limit's parity, which is this pass's or the previous one's
-                    cyc = keep & (np.abs(after - back2).max(axis=(0, 2)) < _WRAP_TOL)
-                    if cyc.any():
-                        if (_MAX_WRAP_PASSES - p) % 2:
-                            c = np.flatnonzero(cyc)
-                            fr = todo[c]
-                            wc = (watch[:, None], fr[None, :])
-                            st.sa[wc], st.sb[wc] = snap[0][:, c], snap[1][:, c]
-                            st.ia[wc], st.ib[wc], st.valid[wc] = (x[:, c] for x in snap[2:5])
-                            st.arcs[mm[:, None], fr] = snap[5][:, c]
-                            hits[mk[:, None], fr] = snap[6][:, c]
-                            arc_of[mk[:, None], fr] = snap[7][:, c]
-                        keep &= ~cyc
-                if _AITKEN and back2 is not None and p - last_x >= 2:
-                    # Aitken's Δ² on three successive iterates x0, x1 = F(x0), x2 = F(x1) of
-                    # the frames converging linearly (the tangent points contract by ~0.3 a
-                    # pass): a better start for the next pass; convergence is still judged on
-                    # a plain pass, so the fixed point is the same
-                    d1, d2 = before - back2, after - before
-                    dd = d2 - d1
-                    n1 = np.abs(d1).max(axis=(0, 2))
-                    n2 = np.abs(d2).max(axis=(0, 2))
-                    good = keep & (n2 < _AITKEN_RATIO * n1)
-                    if good.any():
-                        g = np.flatnonzero(good)
-                        d2g, ddg = d2[:, g], dd[:, g]
-                        use = (np.abs(ddg) > 1e-300) & (
-                            np.abs(d2g) < _AITKEN_RATIO * np.abs(d1[:, g])
-                        )
-                        step = np.where(use, d2g * d2g / np.where(use, ddg, 1.0), 0.0)
-                        x = after[:, g] - step
-                        wg = (watch[:, None], todo[g][None, :])
-                        st.sa[wg], st.sb[wg] = x[: watch.size], x[watch.size :]
-                        last_x = p
-                back2 = before[:, keep]
-                todo = todo[keep]  # keep iterating the frames still moving
-                if todo.size == 0:
-                    break
+            wr = (hits, arc_of)
+            _, cycled = self._iterate_wraps(st, rot, trans, wr, every)
+            if cycled.any():
+                self._resolve_cycles(st, rot, trans, wr, cycled)
         sa, sb, ia, ib, valid, arcs = st.sa, st.sb, st.ia, st.ib, st.valid, st.arcs
         # straight segments (slot-major)
         d = sb - sa

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import itertools
 
 import numpy as np
@@ -773,29 +774,94 @@ def _rajagopal_walk(ref_dir, frames):
     return model, th
 
 
+# frames of the subject01 walk where the two wraps of a Rajagopal gastrocnemius used to
+# alternate between two paths (~0.47 m and ~0.72 m) without converging
+CYCLE_FRAMES = {"gasmed_l": (31, 92, 105, 165, 178), "gasmed_r": (129, 142)}
+
+
 @pytest.mark.slow
 @pytest.mark.realdata
 def test_wrap_iteration_shortcuts_keep_the_plain_iteration_result(ref_dir, monkeypatch):
-    """Two wraps on one path (Rajagopal's gastrocnemii): the Aitken-extrapolated iteration and
-    the 2-cycle shortcut give what the plain iteration to convergence (or to the pass limit)
-    gives."""
+    """Two wraps on one path (Rajagopal's gastrocnemii): the Aitken-extrapolated iteration
+    gives what the plain iteration to convergence gives, 2-cycle frames included, and neither
+    depends on the parity of the pass limit (it used to: a 2-cycle ended on the state the
+    limit landed on)."""
     from msk.muscles import geometry
 
     model, th = _rajagopal_walk(ref_dir, [10, 31, 50, 92, 129, 150, 165])
     plan = GeometryPlan(model)
     fast = plan.evaluate(th)
     monkeypatch.setattr(geometry, "_AITKEN", False)
-    monkeypatch.setattr(geometry, "_DETECT_CYCLES", False)
     plain = plan.evaluate(th)
     np.testing.assert_allclose(fast.lengths, plain.lengths, rtol=0, atol=1e-13)
     np.testing.assert_allclose(fast.jacobian, plain.jacobian, rtol=0, atol=1e-10)
-    # the shortcut is exercised: at frames 31, 92 (left) and 129 (right) the plain iteration
-    # alternates between two gastrocnemius paths and ends on the one of its limit's parity
     monkeypatch.setattr(geometry, "_MAX_WRAP_PASSES", geometry._MAX_WRAP_PASSES + 1)
-    odd = plan.evaluate(th).lengths
-    gas = [plan.muscle_names.index(n) for n in ("gasmed_l", "gasmed_r")]
-    jump = np.abs(odd - plain.lengths)[:, gas].max(axis=1)
-    assert np.all(jump[[1, 3, 4, 6]] > 0.1) and np.all(jump[[0, 2, 5]] < 1e-12)
+    odd = plan.evaluate(th)
+    np.testing.assert_allclose(odd.lengths, plain.lengths, rtol=0, atol=1e-13)
+    np.testing.assert_allclose(odd.jacobian, plain.jacobian, rtol=0, atol=1e-10)
+
+
+@pytest.mark.slow
+@pytest.mark.realdata
+def test_two_cylinder_cycles_resolve_to_a_fixed_point_with_an_exact_jacobian(ref_dir):
+    """At the frames where the gastrocnemius wraps alternate between two paths, the path is
+    a fixed point of one topology (the shank wrap alone): no 0.72 m path, the length of the
+    plain iteration with the condyle wrap removed, and the analytic Jacobian equals central
+    differences there (envelope theorem)."""
+    frames = sorted({f for fs in CYCLE_FRAMES.values() for f in fs})
+    model, th = _rajagopal_walk(ref_dir, frames)
+    plan = GeometryPlan(model)
+    geo = plan.evaluate(th)
+    # the cycle is really met (the resolution is exercised) ...
+    cycles = []
+    orig = GeometryPlan._resolve_cycles
+
+    def spy(self, st, rot, trans, wr, cycled):
+        cycles.append({self.muscle_names[m] for m in self._multi_muscles[cycled.any(axis=1)]})
+        return orig(self, st, rot, trans, wr, cycled)
+
+    try:
+        GeometryPlan._resolve_cycles = spy
+        plan.evaluate(th)
+    finally:
+        GeometryPlan._resolve_cycles = orig
+    assert cycles == [set(CYCLE_FRAMES)]
+    # ... and every gastrocnemius stays a ~0.45–0.48 m path
+    gas = [plan.muscle_names.index(n) for n in ("gaslat_l", "gaslat_r", "gasmed_l", "gasmed_r")]
+    assert np.all((geo.lengths[:, gas] > 0.44) & (geo.lengths[:, gas] < 0.48))
+    # the same muscles without their condyle wrap (a plain single-wrap path): same lengths
+    # and Jacobians at those frames
+    shank_only = model.with_muscles(
+        [
+            dataclasses.replace(
+                m, wraps=tuple(w for w in m.wraps if "condyles" not in str(w.wrap_object))
+            )
+            if m.name in CYCLE_FRAMES
+            else m
+            for m in model.muscles
+        ]
+    )
+    ref = muscle_geometry(shank_only, th)
+    for name, fs in CYCLE_FRAMES.items():
+        k = plan.muscle_names.index(name)
+        rows = [frames.index(f) for f in fs]
+        np.testing.assert_allclose(geo.lengths[rows, k], ref.lengths[rows, k], rtol=0, atol=1e-12)
+        np.testing.assert_allclose(geo.jacobian[rows, k], ref.jacobian[rows, k], atol=1e-10)
+    assert_jacobian_matches_fd(model, th)
+
+
+@pytest.mark.slow
+@pytest.mark.realdata
+def test_rajagopal_lengths_are_continuous_along_the_walk(ref_dir):
+    """Every Rajagopal muscle over the 211 frames of the subject01 walk: no jump > 2 cm
+    between neighbouring frames (a 2-cycle of the gastrocnemius wraps used to return a
+    0.72 m path between 0.46–0.47 m neighbours)."""
+    model, th = _rajagopal_walk(ref_dir, slice(None))
+    assert th.shape[0] == 211
+    geo = muscle_geometry(model, th)
+    jump = np.abs(np.diff(geo.lengths, axis=0))
+    f, k = np.unravel_index(np.argmax(jump), jump.shape)
+    assert jump.max() < 0.02, (geo.muscle_names[k], int(f), float(jump.max()))
 
 
 def test_extrapolated_wrap_iteration_equals_the_plain_one(monkeypatch):

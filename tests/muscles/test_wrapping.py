@@ -172,3 +172,91 @@ def test_several_cylinders_at_once_equal_one_at_a_time():
         alone = wrap_cylinder(a[k], b[k], radius, quadrant=quadrant, length=length)
         for x, y in zip(together, alone):
             np.testing.assert_array_equal(x[k], y)
+
+
+# --------------------------------------------------------------------------------------------
+# two overlapping cylinders on one path: the wraps can alternate between two paths (2-cycle)
+# --------------------------------------------------------------------------------------------
+def _overlapping_cylinders_model():
+    """The test leg with a gastrocnemius over a condyle cylinder (femur, unconstrained) and a
+    shank cylinder (tibia, quadrant +x) that overlap near the knee: at some poses a tangent
+    point of one wrap lies inside the other cylinder and the wrap rules have no consistent
+    path (as Rajagopal 2016's gastrocnemii over the subject01 walk)."""
+    from model_factory import leg_model
+
+    from msk.muscles.path import Muscle, PathPoint, PathWrap, WrapObject
+
+    condyles = WrapObject(
+        "condyles", "femur", "cylinder", np.array([-0.005, -0.41, 0.0]),
+        np.array([0.05, 0.02, 0.0]), radius=0.025, length=0.1,
+    )  # fmt: skip
+    shank = WrapObject(
+        "shank", "tibia", "cylinder", np.array([-0.02, -0.07, 0.0]), np.zeros(3),
+        radius=0.045, length=0.1, quadrant="+x",
+    )  # fmt: skip
+    points = (
+        PathPoint("o", "femur", np.array([-0.019, -0.393, -0.024])),
+        PathPoint("v", "femur", np.array([-0.030, -0.402, -0.026])),
+        PathPoint("i", "foot", np.array([-0.05, 0.03, -0.005])),
+    )
+    gas = Muscle("gas", points, 1000.0, 0.1, 0.2, 0.1, 10.0,
+                 wraps=(PathWrap("condyles"), PathWrap("shank")))  # fmt: skip
+    one = [Muscle(f"gas_{w}", points, 1000.0, 0.1, 0.2, 0.1, 10.0, wraps=(PathWrap(w),))
+           for w in ("condyles", "shank")]  # fmt: skip
+    return leg_model().with_muscles([gas, *one]).with_metadata(wrap_objects=[condyles, shank])
+
+
+def _poses(model, n, seed):
+    rng = np.random.default_rng(seed)
+    th = rng.uniform(-0.6, 0.6, (n, model.n_coords))
+    th[:, :3] = rng.uniform(-0.5, 0.5, (n, 3))
+    th[:, model.coordinate_index("knee_angle")] = rng.uniform(-2.0, 0.1, n)
+    return th
+
+
+def test_two_wrap_cycles_resolve_to_a_fixed_point_with_an_exact_jacobian(monkeypatch):
+    """Where the two wraps alternate between two paths, the path returned is the fixed point
+    of one wrap alone (one wrap position off, iterated to convergence): its length is that of
+    the same muscle with that one wrap, it does not depend on the pass limit's parity nor on
+    the extrapolation, and the analytic Jacobian equals central differences."""
+    from msk.muscles import geometry
+    from msk.muscles.geometry import GeometryPlan
+
+    model = _overlapping_cylinders_model()
+    th = _poses(model, 120, seed=1)
+    plan = GeometryPlan(model)
+    seen = []
+    orig = GeometryPlan._resolve_cycles
+
+    def spy(self, st, rot, trans, wr, cycled):
+        seen.append(np.flatnonzero(cycled[0]))
+        return orig(self, st, rot, trans, wr, cycled)
+
+    monkeypatch.setattr(GeometryPlan, "_resolve_cycles", spy)
+    geo = plan.evaluate(th)
+    monkeypatch.setattr(GeometryPlan, "_resolve_cycles", orig)
+    assert len(seen) == 1 and seen[0].size >= 5  # the 2-cycle is met
+    cyc = seen[0]
+    lengths = geo.lengths
+    # the single-wrap paths; at a cycle frame the two-wrap path is one of them
+    single = lengths[:, 1:]
+    assert np.all(np.min(np.abs(single[cyc] - lengths[cyc, :1]), axis=1) < 1e-12)
+    # independent of the pass limit's parity and of Aitken's extrapolation
+    monkeypatch.setattr(geometry, "_MAX_WRAP_PASSES", geometry._MAX_WRAP_PASSES + 1)
+    np.testing.assert_allclose(plan.evaluate(th).lengths, lengths, rtol=0, atol=1e-13)
+    monkeypatch.setattr(geometry, "_AITKEN", False)
+    plain = plan.evaluate(th)
+    np.testing.assert_allclose(plain.lengths, lengths, rtol=0, atol=1e-13)
+    np.testing.assert_allclose(plain.jacobian, geo.jacobian, rtol=0, atol=1e-10)
+    monkeypatch.undo()
+    # envelope theorem at the fixed point: analytic Jacobian = central differences
+    h = 1e-6
+    fd = np.empty_like(geo.jacobian[cyc])
+    for i in range(model.n_coords):
+        e = np.zeros(model.n_coords)
+        e[i] = h
+        fd[..., i] = (plan.evaluate(th[cyc] + e).lengths - plan.evaluate(th[cyc] - e).lengths) / (
+            2 * h
+        )
+    err = np.linalg.norm(geo.jacobian[cyc] - fd, axis=-1)
+    assert np.all(err < 1e-6 * np.maximum(np.linalg.norm(fd, axis=-1), 1e-3))
