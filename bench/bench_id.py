@@ -31,6 +31,7 @@ import numpy as np
 ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT / "tests"))
 
+from _timing import best_of  # noqa: E402
 from synthetic import OPENSIM_IK_ID_SCRIPT, load_subject01  # noqa: E402
 
 from msk.dynamics import inverse_dynamics  # noqa: E402
@@ -82,15 +83,6 @@ def build_trial(s, n_min: int, folder: Path) -> dict:
     mot = write_sto(folder / "walk_long_grf.mot", time=tg, data=grf, columns=cols)
     return {"time": t, "markers": markers, "grf_time": tg, "grf": grf, "grf_columns": cols,
             "trc": trc, "mot": mot, "t1": float(t[-1])}  # fmt: skip
-
-
-def best_of(fn, repeats: int) -> tuple[float, object]:
-    best, out = np.inf, None
-    for _ in range(repeats):
-        tic = time.perf_counter()
-        out = fn()
-        best = min(best, time.perf_counter() - tic)
-    return best, out
 
 
 def main() -> None:

@@ -27,27 +27,16 @@ import sys
 import time
 from pathlib import Path
 
-import numpy as np
-
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT / "tests"))
 
+from _timing import best_of  # noqa: E402
 from test_identification import simulate, subject, whole_body_model  # noqa: E402
 
 from msk.identification import InertialIdentifier, lump_subtrees  # noqa: E402
 from msk.regressors import base_link_regressor, regressor_layout  # noqa: E402
 
 SECTION = "## Mass identification"
-
-
-def best_of(f, n=3):
-    best = np.inf
-    out = None
-    for _ in range(n):
-        t = time.perf_counter()
-        out = f()
-        best = min(best, time.perf_counter() - t)
-    return best, out
 
 
 def main() -> None:
@@ -61,7 +50,7 @@ def main() -> None:
     model = lumped.model
     ident = InertialIdentifier(model, total_mass=truth.total_mass)
     ident.fit(trial)  # warm-up (imports, Clarabel)
-    t_fit, _ = best_of(lambda: ident.fit(trial), n=5)
+    t_fit, _ = best_of(lambda: ident.fit(trial), 5)
     stacks, solves = [], []
     for _ in range(5):
         ident.fit(trial)
@@ -73,7 +62,7 @@ def main() -> None:
         lambda: base_link_regressor(
             model, trial.theta, trial.theta_dot, trial.theta_ddot, layout=layout
         ),
-        n=5,
+        5,
     )
     t_pin, _ = best_of(
         lambda: base_link_regressor(
@@ -84,7 +73,7 @@ def main() -> None:
             layout=layout,
             method="pinocchio",
         ),
-        n=2,
+        2,
     )
     n_x = ident.x_.size
     lines = [

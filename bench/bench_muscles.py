@@ -11,10 +11,9 @@ Speed targets live here, never in tests.
 from __future__ import annotations
 
 import platform
-import time
-from collections.abc import Callable
 
 import numpy as np
+from _timing import best_of
 
 from msk._data import reference_dir
 from msk.muscles import (
@@ -26,15 +25,6 @@ from msk.muscles import (
     process_emg,
     rigid_tendon_state,
 )
-
-
-def _best(fn: Callable[[], object], repeat: int = 3) -> float:
-    best = np.inf
-    for _ in range(repeat):
-        t0 = time.perf_counter()
-        fn()
-        best = min(best, time.perf_counter() - t0)
-    return best
 
 
 def _params() -> MuscleParameters:
@@ -73,27 +63,27 @@ def main() -> None:
     rows = [
         (
             f"process_emg ({c} ch x {dur:.0f} s @ {rate:.0f} Hz)",
-            _best(lambda: process_emg(emg, rate_hz=rate, labels=labels)),
+            best_of(lambda: process_emg(emg, rate_hz=rate, labels=labels))[0],
             env.shape[0],
         ),
         (
             f"first_order_activation thelen ({c} x {env.shape[0]})",
-            _best(lambda: first_order_activation(env, rate_hz=rate, form="thelen")),
+            best_of(lambda: first_order_activation(env, rate_hz=rate, form="thelen"))[0],
             env.shape[0],
         ),
         (
             f"emg_to_activation recursive ({c} x {env.shape[0]})",
-            _best(lambda: emg_to_activation(env, gamma1=-0.9, gamma2=-0.9, shape_factor=-1.0)),
+            best_of(lambda: emg_to_activation(env, gamma1=-0.9, gamma2=-0.9, shape_factor=-1.0))[0],
             env.shape[0],
         ),
         (
             f"rigid_tendon_state ({n} x {p.n_muscles})",
-            _best(lambda: rigid_tendon_state(p, lmt, vmt, curves=curves)),
+            best_of(lambda: rigid_tendon_state(p, lmt, vmt, curves=curves))[0],
             n,
         ),
         (
             f"equilibrium elastic tendon ({n} x {p.n_muscles})",
-            _best(lambda: equilibrium(p, lmt, act, curves=curves)),
+            best_of(lambda: equilibrium(p, lmt, act, curves=curves))[0],
             n,
         ),
     ]

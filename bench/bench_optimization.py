@@ -23,6 +23,7 @@ from functools import partial
 from pathlib import Path
 
 import numpy as np
+from _timing import best_of
 from scipy.optimize import minimize
 
 from msk.optimization import (
@@ -38,17 +39,6 @@ warnings.filterwarnings("ignore")  # qpsolvers' dense → sparse conversion noti
 
 SIZES = ((43, 7), (86, 14), (92, 18))
 SECTION = "## Tension optimisation"
-
-
-def _best(fn: Callable[[], object], repeat: int) -> float:
-    """Best wall time of ``repeat`` runs (s), after one untimed warm-up run (imports, caches)."""
-    fn()
-    best = np.inf
-    for _ in range(repeat):
-        t0 = time.perf_counter()
-        fn()
-        best = min(best, time.perf_counter() - t0)
-    return best
 
 
 def _daqp_raw(jac: np.ndarray, taus: np.ndarray, f_iso: np.ndarray) -> np.ndarray:
@@ -190,7 +180,7 @@ def run(n_frames: int = 300, n_slow: int = 30, repeat: int = 9) -> list[dict[str
         cases["coefficient table lookup (cubic)"] = (partial(table.forces, s_eval, taus), n_frames)
         base = None
         for name, (fn, frames) in cases.items():
-            t = _best(fn, repeat if frames == n_frames else 2) / frames
+            t = best_of(fn, repeat if frames == n_frames else 2, warmup=True)[0] / frames
             forces = np.asarray(fn())
             if "closed form" in name or "table" in name:
                 dev = float("nan")
@@ -252,7 +242,7 @@ def run_opensim(t0: float = 0.6, t1: float = 1.4) -> list[dict[str, object]]:
         assert res.activations is not None
         return res.activations
 
-    t = _best(msk_so, 5) / n_frames
+    t = best_of(msk_so, 5, warmup=True)[0] / n_frames
     da = np.abs(msk_so() - ref.activations).max()
     size = f"gait2392 right leg {m} × {n}, {n_frames} real frames"
     return [

@@ -30,21 +30,15 @@ import numpy as np
 
 from msk.muscles.activation import emg_to_activation
 from msk.muscles.hill import rigid_tendon_state
-from msk.strength import (
-    CalibrationParameters,
-    CalibrationTrial,
-    EMGDrivenCalibration,
-    StrengthIdentifier,
-    emg_driven_forces,
+from msk.strength import EMGDrivenCalibration, StrengthIdentifier
+from msk.strength.synthetic import (
+    CALIBRATION_GROUPS,
+    LEG_TRUE_FACTORS,
+    calibration_trial,
+    calibration_truth,
+    gait_trial,
+    synthetic_leg,
 )
-from msk.strength.synthetic import LEG_TRUE_FACTORS, gait_trial, synthetic_leg
-
-GROUPS = {
-    "knee_extensors": ("RF", "VL", "VM", "VI"),
-    "knee_flexors": ("BFLH", "SM", "ST", "BFSH"),
-    "plantar_flexors": ("MG", "LG", "SOL"),
-    "dorsiflexors": ("TA", "EDL"),
-}
 
 
 def main() -> None:
@@ -69,60 +63,20 @@ def main() -> None:
     prof = idf.profile_
 
     # ---------------------------------------------------------------- calibration
-    names = tuple(m for g in GROUPS.values() for m in g)
-    idx = [leg.muscle_names.index(m) for m in names]
-    base = leg.params.subset(names)
-    rng = np.random.default_rng(1)
-    m = len(names)
-    truth = CalibrationParameters(
-        tuple(GROUPS),
-        names,
-        np.array([1.7, 1.0, 0.6, 1.2]),
-        rng.uniform(0.96, 1.04, m),
-        rng.uniform(0.9, 1.1, m),
-        rng.uniform(-0.8, -0.3, m),
-        rng.uniform(-0.8, -0.3, m),
-        rng.uniform(0.02, 0.08, m),
-        rng.uniform(-2.0, -0.5, m),
-        0.12,
-    )
-    ctrials = []
-    for s in (21, 22, 23):
-        tr = gait_trial(leg, n_cycles=2, seed=s)
-        r = -tr.jacobian[:, idx][:, :, 1:]
-        clean = CalibrationTrial(
-            tr.excitation_true[:, idx],
-            tr.muscle_tendon_length[:, idx],
-            tr.lengthening_velocity[:, idx],
-            r,
-            np.zeros((tr.q.shape[0], 2)),
-            100.0,
-            ("knee", "ankle"),
-        )
-        _, f = emg_driven_forces(truth, base, GROUPS, clean)
-        mom = np.einsum("tmj,tm->tj", r, f)
-        ctrials.append(
-            CalibrationTrial(
-                tr.emg[:, idx],
-                clean.muscle_tendon_length,
-                clean.lengthening_velocity,
-                r,
-                mom,
-                100.0,
-                ("knee", "ankle"),
-                f"trial {s}",
-            )
-        )
+    truth = calibration_truth()
+    base = leg.params.subset(truth.muscle_names)
+    m = len(truth.muscle_names)
+    ctrials = [calibration_trial(leg, truth, seed=s, name=f"trial {s}") for s in (21, 22, 23)]
     t0 = time.perf_counter()
-    cal = EMGDrivenCalibration(base, GROUPS, n_starts=3, max_iter=100).fit(ctrials[:2])
+    cal = EMGDrivenCalibration(base, CALIBRATION_GROUPS, n_starts=3, max_iter=100).fit(ctrials[:2])
     t_cal = time.perf_counter() - t0
     val = cal.validate(ctrials[2:])
     t_ipopt = None
     if use_ipopt:
         t0 = time.perf_counter()
-        cal_i = EMGDrivenCalibration(base, GROUPS, n_starts=3, max_iter=100, solver="ipopt").fit(
-            ctrials[:2]
-        )
+        cal_i = EMGDrivenCalibration(
+            base, CALIBRATION_GROUPS, n_starts=3, max_iter=100, solver="ipopt"
+        ).fit(ctrials[:2])
         t_ipopt = time.perf_counter() - t0
 
     # ---------------------------------------------------------------- report

@@ -198,9 +198,18 @@ def run_batch(
     out.mkdir(parents=True, exist_ok=True)
     cfgs = [str(Path(c).resolve()) for c in configs]
     dirs = [str(d) for d in _session_dirs(cfgs, out)]
-    outcomes: list[SessionOutcome] = []
+    done: dict[int, SessionOutcome] = {}
 
-    def report(o: SessionOutcome) -> None:
+    def collect(k: int, fut: Any) -> None:
+        """Session ``k``'s outcome from its finished future (a dead or lost worker: failed)."""
+        try:
+            o = fut.result()
+        except Exception as exc:  # worker died or was lost
+            msg = _one_line(exc)
+            o = SessionOutcome(
+                cfgs[k], dirs[k], False, 0.0, msg, _row(cfgs[k], None, "failed", msg, 0.0)
+            )
+        done[k] = o
         if progress is None:
             return
         if o.ok:
@@ -218,19 +227,8 @@ def run_batch(
             futs = {
                 pool.submit(run_one, c, d, use_cache): k for k, (c, d) in enumerate(zip(cfgs, dirs))
             }
-            done: dict[int, SessionOutcome] = {}
             for f in as_completed(futs):
-                k = futs[f]
-                try:
-                    o = f.result()
-                except Exception as exc:  # worker died
-                    msg = _one_line(exc)
-                    o = SessionOutcome(
-                        cfgs[k], dirs[k], False, 0.0, msg, _row(cfgs[k], None, "failed", msg, 0.0)
-                    )
-                done[k] = o
-                report(o)
-            outcomes = [done[k] for k in range(len(cfgs))]
+                collect(futs[f], f)
     else:
         try:
             from distributed import Client, as_completed
@@ -245,22 +243,12 @@ def run_batch(
         try:
             futs = client.map(run_one, cfgs, dirs, [use_cache] * len(cfgs), pure=False)
             index = {f.key: k for k, f in enumerate(futs)}
-            done = {}
             for f in as_completed(futs):
-                k = index[f.key]
-                try:
-                    o = f.result()
-                except Exception as exc:  # worker lost
-                    msg = _one_line(exc)
-                    o = SessionOutcome(
-                        cfgs[k], dirs[k], False, 0.0, msg, _row(cfgs[k], None, "failed", msg, 0.0)
-                    )
-                done[k] = o
-                report(o)
-            outcomes = [done[k] for k in range(len(cfgs))]
+                collect(index[f.key], f)
         finally:
             if client is not scheduler:
                 client.close()
+    outcomes = [done[k] for k in range(len(cfgs))]
     cohort = write_cohort_csv(out / "cohort.csv", [o.row for o in outcomes])
     return BatchResult(out, tuple(outcomes), cohort, _time.perf_counter() - t0)
 

@@ -96,9 +96,10 @@ def regressor_layout(model: Model, bodies: Sequence[str] | None = None) -> Regre
     )
 
 
-def _states(
+def _coordinates(
     model: Model, theta: ArrayLike, theta_dot: ArrayLike, theta_ddot: ArrayLike
-) -> tuple[Array, Array, Array, Array, Array]:
+) -> tuple[Array, Array, Array]:
+    """θ, θ̇, θ̈ as ``(N, n_coords)`` arrays (one frame: N = 1), else an error."""
     th = np.atleast_2d(np.asarray(theta, dtype=float))
     thd = np.atleast_2d(np.asarray(theta_dot, dtype=float))
     thdd = np.atleast_2d(np.asarray(theta_ddot, dtype=float))
@@ -106,6 +107,13 @@ def _states(
         raise IdentificationError(
             f"θ, θ̇, θ̈ must all be (N, {model.n_coords}); got {th.shape}, {thd.shape}, {thdd.shape}"
         )
+    return th, thd, thdd
+
+
+def _states(
+    model: Model, theta: ArrayLike, theta_dot: ArrayLike, theta_ddot: ArrayLike
+) -> tuple[Array, Array, Array, Array, Array]:
+    th, thd, thdd = _coordinates(model, theta, theta_dot, theta_ddot)
     q, v, a = model.coupling.embed(th, thd, thdd)
     return th, q, v, a, model.coupling.jacobian(th)
 
@@ -424,13 +432,7 @@ def _embed_diagonal(
     model: Model, theta: ArrayLike, theta_dot: ArrayLike, theta_ddot: ArrayLike
 ) -> tuple[Array, Array, Array, Array]:
     """(q, v, a) and f_k'(θ) per Pinocchio DOF (N, nq): the embedding without the dense G."""
-    th = np.atleast_2d(np.asarray(theta, dtype=float))
-    thd = np.atleast_2d(np.asarray(theta_dot, dtype=float))
-    thdd = np.atleast_2d(np.asarray(theta_ddot, dtype=float))
-    if not (th.shape == thd.shape == thdd.shape) or th.shape[1] != model.n_coords:
-        raise IdentificationError(
-            f"θ, θ̇, θ̈ must all be (N, {model.n_coords}); got {th.shape}, {thd.shape}, {thdd.shape}"
-        )
+    th, thd, thdd = _coordinates(model, theta, theta_dot, theta_ddot)
     cp = model.coupling
     n = th.shape[0]
     q = np.empty((n, cp.nq))

@@ -9,8 +9,37 @@ from msk.joints import CoordinateFunction, Linear, Polynomial
 from msk.model import Axis, Body, Coordinate, Joint, Marker, Model
 
 
-def _inertia(m, l):
+def inertia(m: float, l: float) -> np.ndarray:
+    """Inertia about the COM of a slender segment of mass ``m`` and length ``l`` (long axis y)."""
     return np.diag([m * l**2 / 12, m * l**2 / 80, m * l**2 / 12])
+
+
+def free_pelvis(pelvis_height: float) -> tuple[list[Coordinate], Joint]:
+    """The pelvis's 6 coordinates (``pelvis_tx/ty/tz``, ``pelvis_tilt/list/rotation``,
+    ``pelvis_ty`` defaulting to ``pelvis_height``) and the free ``ground_pelvis`` joint, y up."""
+    lin = Linear()
+    coords = [
+        Coordinate("pelvis_tx", "translational", (-5, 5)),
+        Coordinate("pelvis_ty", "translational", (-1, 2), pelvis_height),
+        Coordinate("pelvis_tz", "translational", (-5, 5)),
+        Coordinate("pelvis_tilt"),
+        Coordinate("pelvis_list"),
+        Coordinate("pelvis_rotation"),
+    ]
+    joint = Joint(
+        "ground_pelvis",
+        "ground",
+        "pelvis",
+        axes=(
+            Axis("prismatic", [1, 0, 0], "pelvis_tx", lin),
+            Axis("prismatic", [0, 1, 0], "pelvis_ty", lin),
+            Axis("prismatic", [0, 0, 1], "pelvis_tz", lin),
+            Axis("revolute", [0, 0, 1], "pelvis_tilt", lin),
+            Axis("revolute", [1, 0, 0], "pelvis_list", lin),
+            Axis("revolute", [0, 1, 0], "pelvis_rotation", lin),
+        ),
+    )
+    return coords, joint
 
 
 def leg_model(knee_x: CoordinateFunction | None = None, knee_y: CoordinateFunction | None = None):
@@ -18,13 +47,8 @@ def leg_model(knee_x: CoordinateFunction | None = None, knee_y: CoordinateFuncti
     → shank (knee: coupled translations + flexion) → foot (welded), y up as OpenSim."""
     knee_x = knee_x or Polynomial((0.002, -0.004, 0.0))
     knee_y = knee_y or Polynomial((-0.001, 0.003, -0.40))
-    coords = [
-        Coordinate("pelvis_tx", "translational", (-5, 5)),
-        Coordinate("pelvis_ty", "translational", (-1, 2), 0.9),
-        Coordinate("pelvis_tz", "translational", (-5, 5)),
-        Coordinate("pelvis_tilt"),
-        Coordinate("pelvis_list"),
-        Coordinate("pelvis_rotation"),
+    coords, pelvis_joint = free_pelvis(0.9)
+    coords += [
         Coordinate("hip_flexion"),
         Coordinate("hip_adduction"),
         Coordinate("hip_rotation"),
@@ -32,25 +56,13 @@ def leg_model(knee_x: CoordinateFunction | None = None, knee_y: CoordinateFuncti
     ]
     lin = Linear()
     bodies = [
-        Body("pelvis", 11.0, [-0.07, 0.0, 0.0], _inertia(11.0, 0.25)),
-        Body("femur", 8.8, [0.0, -0.17, 0.0], _inertia(8.8, 0.40)),
-        Body("tibia", 3.5, [0.0, -0.18, 0.0], _inertia(3.5, 0.40)),
-        Body("foot", 1.2, [0.08, -0.02, 0.0], _inertia(1.2, 0.2)),
+        Body("pelvis", 11.0, [-0.07, 0.0, 0.0], inertia(11.0, 0.25)),
+        Body("femur", 8.8, [0.0, -0.17, 0.0], inertia(8.8, 0.40)),
+        Body("tibia", 3.5, [0.0, -0.18, 0.0], inertia(3.5, 0.40)),
+        Body("foot", 1.2, [0.08, -0.02, 0.0], inertia(1.2, 0.2)),
     ]
     joints = [
-        Joint(
-            "ground_pelvis",
-            "ground",
-            "pelvis",
-            axes=(
-                Axis("prismatic", [1, 0, 0], "pelvis_tx", lin),
-                Axis("prismatic", [0, 1, 0], "pelvis_ty", lin),
-                Axis("prismatic", [0, 0, 1], "pelvis_tz", lin),
-                Axis("revolute", [0, 0, 1], "pelvis_tilt", lin),
-                Axis("revolute", [1, 0, 0], "pelvis_list", lin),
-                Axis("revolute", [0, 1, 0], "pelvis_rotation", lin),
-            ),
-        ),
+        pelvis_joint,
         Joint(
             "hip",
             "pelvis",

@@ -22,6 +22,7 @@ from pathlib import Path
 
 import numpy as np
 import pinocchio as pin
+from model_factory import free_pelvis, inertia
 from numpy.typing import NDArray
 
 from msk.joints import Linear, Polynomial
@@ -32,38 +33,13 @@ Array = NDArray[np.float64]
 UP = np.array([0.0, 1.0, 0.0])
 
 
-def _inertia(m: float, l: float) -> Array:
-    return np.diag([m * l**2 / 12, m * l**2 / 80, m * l**2 / 12])
-
-
 def two_leg_model() -> Model:
     """Pelvis (6 DOF) with two legs (3-DOF hip, knee with coupled translations, 1-DOF ankle),
     y up, 16 coordinates, 30 markers; segment values close to ``model_factory.leg_model``."""
     lin = Linear()
-    coords = [
-        Coordinate("pelvis_tx", "translational", (-5, 5)),
-        Coordinate("pelvis_ty", "translational", (-1, 2), 0.93),
-        Coordinate("pelvis_tz", "translational", (-5, 5)),
-        Coordinate("pelvis_tilt"),
-        Coordinate("pelvis_list"),
-        Coordinate("pelvis_rotation"),
-    ]
-    bodies = [Body("pelvis", 11.0, [-0.07, 0.0, 0.0], _inertia(11.0, 0.25))]
-    joints = [
-        Joint(
-            "ground_pelvis",
-            "ground",
-            "pelvis",
-            axes=(
-                Axis("prismatic", [1, 0, 0], "pelvis_tx", lin),
-                Axis("prismatic", [0, 1, 0], "pelvis_ty", lin),
-                Axis("prismatic", [0, 0, 1], "pelvis_tz", lin),
-                Axis("revolute", [0, 0, 1], "pelvis_tilt", lin),
-                Axis("revolute", [1, 0, 0], "pelvis_list", lin),
-                Axis("revolute", [0, 1, 0], "pelvis_rotation", lin),
-            ),
-        )
-    ]
+    coords, pelvis_joint = free_pelvis(0.93)
+    bodies = [Body("pelvis", 11.0, [-0.07, 0.0, 0.0], inertia(11.0, 0.25))]
+    joints = [pelvis_joint]
     markers = [
         Marker("RASI", "pelvis", [0.02, 0.0, 0.12]),
         Marker("LASI", "pelvis", [0.02, 0.0, -0.12]),
@@ -80,9 +56,9 @@ def two_leg_model() -> Model:
             Coordinate(f"ankle_angle_{side}", range=(-0.7, 0.5)),
         ]
         bodies += [
-            Body(f"femur_{side}", 8.8, [0.0, -0.17, 0.0], _inertia(8.8, 0.40)),
-            Body(f"tibia_{side}", 3.5, [0.0, -0.18, 0.0], _inertia(3.5, 0.40)),
-            Body(f"foot_{side}", 1.2, [0.06, -0.03, 0.0], _inertia(1.2, 0.2)),
+            Body(f"femur_{side}", 8.8, [0.0, -0.17, 0.0], inertia(8.8, 0.40)),
+            Body(f"tibia_{side}", 3.5, [0.0, -0.18, 0.0], inertia(3.5, 0.40)),
+            Body(f"foot_{side}", 1.2, [0.06, -0.03, 0.0], inertia(1.2, 0.2)),
         ]
         joints += [
             Joint(

@@ -15,6 +15,7 @@ import pinocchio as pin
 import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
+from model_factory import free_pelvis
 
 from msk.anthropometry import generic_segments, is_physically_consistent
 from msk.exceptions import IdentificationError
@@ -72,13 +73,8 @@ def whole_body_model(bodies: dict[str, Body] | None = None) -> Model:
     bodies = bodies or generic_bodies()
     lin = Linear()
     se3 = lambda x, y, z: pin.SE3(np.eye(3), np.array([x, y, z]))  # noqa: E731
-    coords = [
-        Coordinate("pelvis_tx", "translational", (-5, 5)),
-        Coordinate("pelvis_ty", "translational", (-1, 2), 0.95),
-        Coordinate("pelvis_tz", "translational", (-5, 5)),
-        Coordinate("pelvis_tilt"),
-        Coordinate("pelvis_list"),
-        Coordinate("pelvis_rotation"),
+    coords, pelvis_joint = free_pelvis(0.95)
+    coords += [
         Coordinate("lumbar_extension"),
         Coordinate("lumbar_bending"),
         Coordinate("lumbar_rotation"),
@@ -86,14 +82,7 @@ def whole_body_model(bodies: dict[str, Body] | None = None) -> Model:
         Coordinate("arm_flex_l"),
     ]
     joints = [
-        Joint("ground_pelvis", "ground", "pelvis", axes=(
-            Axis("prismatic", [1, 0, 0], "pelvis_tx", lin),
-            Axis("prismatic", [0, 1, 0], "pelvis_ty", lin),
-            Axis("prismatic", [0, 0, 1], "pelvis_tz", lin),
-            Axis("revolute", [0, 0, 1], "pelvis_tilt", lin),
-            Axis("revolute", [1, 0, 0], "pelvis_list", lin),
-            Axis("revolute", [0, 1, 0], "pelvis_rotation", lin),
-        )),
+        pelvis_joint,
         Joint("back", "pelvis", "torso", parent_offset=se3(0, 0.47, 0), axes=(
             Axis("revolute", [0, 0, 1], "lumbar_extension", lin),
             Axis("revolute", [1, 0, 0], "lumbar_bending", lin),

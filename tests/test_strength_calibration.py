@@ -20,70 +20,35 @@ from msk.strength import (
     emg_driven_forces,
     fractional_delay,
 )
-from msk.strength.synthetic import gait_trial, synthetic_leg
+from msk.strength.synthetic import (
+    CALIBRATION_GROUPS,
+    CALIBRATION_TRUE_FACTORS,
+    calibration_trial,
+    calibration_truth,
+    synthetic_leg,
+)
 
-GROUPS = {
-    "knee_extensors": ("RF", "VL", "VM", "VI"),
-    "knee_flexors": ("BFLH", "SM", "ST", "BFSH"),
-    "plantar_flexors": ("MG", "LG", "SOL"),
-    "dorsiflexors": ("TA", "EDL"),
-}
+GROUPS = CALIBRATION_GROUPS
 NAMES = tuple(m for g in GROUPS.values() for m in g)
-TRUE_FACTORS = np.array([1.7, 1.0, 0.6, 1.2])
-
-
-def _truth(seed: int = 1) -> CalibrationParameters:
-    rng = np.random.default_rng(seed)
-    m = len(NAMES)
-    return CalibrationParameters(
-        tuple(GROUPS),
-        NAMES,
-        TRUE_FACTORS,
-        rng.uniform(0.96, 1.04, m),
-        rng.uniform(0.9, 1.1, m),
-        rng.uniform(-0.8, -0.3, m),
-        rng.uniform(-0.8, -0.3, m),
-        rng.uniform(0.02, 0.08, m),
-        rng.uniform(-2.0, -0.5, m),
-        0.12,
-    )
+TRUE_FACTORS = np.array(CALIBRATION_TRUE_FACTORS)
 
 
 @pytest.fixture(scope="module")
 def setup():
     leg = synthetic_leg(0)
     base = leg.params.subset(NAMES)
-    idx = [leg.muscle_names.index(m) for m in NAMES]
-    truth = _truth()
+    truth = calibration_truth()
 
     def make(seed: int, n_cycles: int = 2, noise: float = 0.0) -> CalibrationTrial:
-        tr = gait_trial(leg, seed=seed, n_cycles=n_cycles, emg_mult_noise=noise)
-        r = -tr.jacobian[:, idx][:, :, 1:]
-        e = tr.emg[:, idx] if noise > 0 else tr.excitation_true[:, idx]
-        t0 = CalibrationTrial(
-            tr.excitation_true[:, idx],
-            tr.muscle_tendon_length[:, idx],
-            tr.lengthening_velocity[:, idx],
-            r,
-            np.zeros((tr.q.shape[0], 2)),
-            100.0,
-            ("knee", "ankle"),
-            f"seed{seed}",
-        )
-        _, f = emg_driven_forces(truth, base, GROUPS, t0)
-        moments = np.einsum("tmj,tm->tj", r, f)
-        if noise > 0:
-            rng = np.random.default_rng(seed)
-            moments = moments + noise * np.ptp(moments, axis=0) * rng.standard_normal(moments.shape)
-        return CalibrationTrial(
-            e,
-            t0.muscle_tendon_length,
-            t0.lengthening_velocity,
-            r,
-            moments,
-            100.0,
-            t0.coordinate_names,
-            t0.name,
+        return calibration_trial(
+            leg,
+            truth,
+            seed=seed,
+            n_cycles=n_cycles,
+            emg_mult_noise=noise,
+            moment_noise=noise,
+            excitation="recorded" if noise > 0 else "true",
+            name=f"seed{seed}",
         )
 
     return base, truth, make

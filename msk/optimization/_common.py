@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 from collections.abc import Sequence
+from typing import Any
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -63,3 +64,31 @@ def check_jacobian(jacobian: ArrayLike, ndim: int) -> FloatArray:
         idx = tuple(int(i) for i in np.argwhere(~np.isfinite(j))[0])
         raise OptimizationError(f"jacobian is not finite at index {idx}: {float(j[idx])!r}")
     return j
+
+
+def check_frame(
+    jacobian: ArrayLike,
+    tau: ArrayLike,
+    muscle_names: Sequence[str] | None,
+    coordinate_names: Sequence[str] | None,
+    *,
+    ndim: int = 2,
+    tau_name: str = "tau",
+) -> tuple[FloatArray, FloatArray, tuple[str, ...], tuple[str, ...]]:
+    """The inputs every problem shares, checked: the jacobian ``(m, n)`` (or ``(N, m, n)`` with
+    ``ndim=3``), the muscle and coordinate names (defaults ``muscle<i>``/``coord<j>``) and a
+    finite ``tau`` ``(n,)`` (``(N, n)``). Returns ``(jacobian, tau, muscle_names,
+    coordinate_names)``."""
+    j = check_jacobian(jacobian, ndim)
+    m, n = j.shape[-2:]
+    mn = names_or_default(muscle_names, m, "muscle", "muscle")
+    cn = names_or_default(coordinate_names, n, "coord", "coordinate")
+    t = as_float(tau, (*j.shape[:-2], n), tau_name)
+    check_finite(t, tau_name, cn)
+    return j, t, mn, cn
+
+
+def set_fields(obj: Any, **values: Any) -> None:
+    """Store the checked, normalised values on a frozen dataclass (from its ``__post_init__``)."""
+    for key, val in values.items():
+        object.__setattr__(obj, key, val)

@@ -39,10 +39,11 @@ from numpy.typing import ArrayLike, NDArray
 from msk.exceptions import OptimizationError
 from msk.optimization._common import (
     as_float,
-    check_finite,
+    check_frame,
     check_jacobian,
     check_positive,
     names_or_default,
+    set_fields,
 )
 from msk.optimization._qp import KKT, StandardQP, kkt
 
@@ -90,19 +91,12 @@ class LagrangeProblem:
     coordinate_names: tuple[str, ...] | None = None
 
     def __post_init__(self) -> None:
-        j = check_jacobian(self.jacobian, 2)
-        m, n = j.shape
-        mn = names_or_default(self.muscle_names, m, "muscle", "muscle")
-        cn = names_or_default(self.coordinate_names, n, "coord", "coordinate")
-        tau = as_float(self.tau, (n,), "tau")
-        check_finite(tau, "tau", cn)
-        area = as_float(self.area, (m,), "area")
+        j, tau, mn, cn = check_frame(
+            self.jacobian, self.tau, self.muscle_names, self.coordinate_names
+        )
+        area = as_float(self.area, (j.shape[0],), "area")
         check_positive(area, "area", mn)
-        object.__setattr__(self, "jacobian", j)
-        object.__setattr__(self, "tau", tau)
-        object.__setattr__(self, "area", area)
-        object.__setattr__(self, "muscle_names", mn)
-        object.__setattr__(self, "coordinate_names", cn)
+        set_fields(self, jacobian=j, tau=tau, area=area, muscle_names=mn, coordinate_names=cn)
 
 
 @dataclass(frozen=True)

@@ -29,9 +29,9 @@ from msk.exceptions import OptimizationError
 from msk.optimization._common import (
     as_float,
     check_finite,
-    check_jacobian,
+    check_frame,
     check_positive,
-    names_or_default,
+    set_fields,
 )
 from msk.optimization._qp import (
     DEFAULT_SOLVER,
@@ -77,12 +77,12 @@ class _Layout:
         return f, (x[:m].copy() if self.activations else None), r
 
 
-def _reserves(
+def _reserve_forces(
     reserve_optimal_force: ArrayLike | None, n: int, names: Sequence[str]
-) -> tuple[NDArray[np.intp], FloatArray]:
-    """Coordinates with a reserve actuator (optimal force > 0) and their optimal forces."""
+) -> FloatArray | None:
+    """``reserve_optimal_force`` as a checked ``(n,)`` array (≥ 0, finite), or ``None``."""
     if reserve_optimal_force is None:
-        return np.zeros(0, dtype=np.intp), np.zeros(0)
+        return None
     opt = as_float(reserve_optimal_force, (n,), "reserve_optimal_force")
     if np.any(opt < 0) or not np.all(np.isfinite(opt)):
         i = int(np.argmax((opt < 0) | ~np.isfinite(opt)))
@@ -90,6 +90,16 @@ def _reserves(
             f"reserve optimal force of coordinate {names[i]!r} must be ≥ 0 and finite: "
             f"{float(opt[i])!r}"
         )
+    return opt
+
+
+def _reserves(
+    reserve_optimal_force: ArrayLike | None, n: int, names: Sequence[str]
+) -> tuple[NDArray[np.intp], FloatArray]:
+    """Coordinates with a reserve actuator (optimal force > 0) and their optimal forces."""
+    opt = _reserve_forces(reserve_optimal_force, n, names)
+    if opt is None:
+        return np.zeros(0, dtype=np.intp), np.zeros(0)
     idx = np.flatnonzero(opt > 0)
     return idx, opt[idx]
 
@@ -161,34 +171,26 @@ class TensionProblem:
     coordinate_names: tuple[str, ...] | None = None
 
     def __post_init__(self) -> None:
-        j = check_jacobian(self.jacobian, 2)
+        j, tau, mn, cn = check_frame(
+            self.jacobian, self.tau, self.muscle_names, self.coordinate_names
+        )
         m, n = j.shape
-        mn = names_or_default(self.muscle_names, m, "muscle", "muscle")
-        cn = names_or_default(self.coordinate_names, n, "coord", "coordinate")
-        tau = as_float(self.tau, (n,), "tau")
-        check_finite(tau, "tau", cn)
         f_iso = as_float(self.f_iso, (m,), "f_iso")
         check_positive(f_iso, "f_iso", mn)
         f_max = f_iso.copy() if self.f_max is None else as_float(self.f_max, (m,), "f_max")
         f_min = np.zeros(m) if self.f_min is None else as_float(self.f_min, (m,), "f_min")
         _check_bounds(f_min, f_max, "force", mn)
-        _reserves(self.reserve_optimal_force, n, cn)
-        for key, val in (
-            ("jacobian", j),
-            ("tau", tau),
-            ("f_iso", f_iso),
-            ("f_max", f_max),
-            ("f_min", f_min),
-            ("muscle_names", mn),
-            ("coordinate_names", cn),
-        ):
-            object.__setattr__(self, key, val)
-        if self.reserve_optimal_force is not None:
-            object.__setattr__(
-                self,
-                "reserve_optimal_force",
-                as_float(self.reserve_optimal_force, (n,), "reserve_optimal_force"),
-            )
+        set_fields(
+            self,
+            jacobian=j,
+            tau=tau,
+            f_iso=f_iso,
+            f_max=f_max,
+            f_min=f_min,
+            reserve_optimal_force=_reserve_forces(self.reserve_optimal_force, n, cn),
+            muscle_names=mn,
+            coordinate_names=cn,
+        )
 
     def standard_form(self) -> tuple[StandardQP, _Layout]:
         assert self.f_max is not None and self.f_min is not None
@@ -262,12 +264,10 @@ class StaticOptimizationProblem:
     coordinate_names: tuple[str, ...] | None = None
 
     def __post_init__(self) -> None:
-        j = check_jacobian(self.jacobian, 2)
+        j, tau, mn, cn = check_frame(
+            self.jacobian, self.tau, self.muscle_names, self.coordinate_names
+        )
         m, n = j.shape
-        mn = names_or_default(self.muscle_names, m, "muscle", "muscle")
-        cn = names_or_default(self.coordinate_names, n, "coord", "coordinate")
-        tau = as_float(self.tau, (n,), "tau")
-        check_finite(tau, "tau", cn)
         fa = as_float(self.f_active, (m,), "f_active")
         check_finite(fa, "f_active", mn)
         if np.any(fa < 0):
@@ -278,28 +278,23 @@ class StaticOptimizationProblem:
         amin = as_float(self.activation_min, (m,), "activation_min")
         amax = as_float(self.activation_max, (m,), "activation_max")
         _check_bounds(amin, amax, "activation", mn)
-        _reserves(self.reserve_optimal_force, n, cn)
+        ropt = _reserve_forces(self.reserve_optimal_force, n, cn)
         rmin = as_float(self.reserve_min_control, (n,), "reserve_min_control")
         rmax = as_float(self.reserve_max_control, (n,), "reserve_max_control")
-        for key, val in (
-            ("jacobian", j),
-            ("tau", tau),
-            ("f_active", fa),
-            ("f_passive", fp),
-            ("activation_min", amin),
-            ("activation_max", amax),
-            ("reserve_min_control", rmin),
-            ("reserve_max_control", rmax),
-            ("muscle_names", mn),
-            ("coordinate_names", cn),
-        ):
-            object.__setattr__(self, key, val)
-        if self.reserve_optimal_force is not None:
-            object.__setattr__(
-                self,
-                "reserve_optimal_force",
-                as_float(self.reserve_optimal_force, (n,), "reserve_optimal_force"),
-            )
+        set_fields(
+            self,
+            jacobian=j,
+            tau=tau,
+            f_active=fa,
+            f_passive=fp,
+            activation_min=amin,
+            activation_max=amax,
+            reserve_optimal_force=ropt,
+            reserve_min_control=rmin,
+            reserve_max_control=rmax,
+            muscle_names=mn,
+            coordinate_names=cn,
+        )
 
     def standard_form(self) -> tuple[StandardQP, _Layout]:
         assert self.f_passive is not None and self.coordinate_names is not None
@@ -367,12 +362,10 @@ class EMGWeightedProblem:
     coordinate_names: tuple[str, ...] | None = None
 
     def __post_init__(self) -> None:
-        j = check_jacobian(self.jacobian, 2)
-        m, n = j.shape
-        mn = names_or_default(self.muscle_names, m, "muscle", "muscle")
-        cn = names_or_default(self.coordinate_names, n, "coord", "coordinate")
-        tau = as_float(self.tau, (n,), "tau")
-        check_finite(tau, "tau", cn)
+        j, tau, mn, cn = check_frame(
+            self.jacobian, self.tau, self.muscle_names, self.coordinate_names
+        )
+        m = j.shape[0]
         meas = _measured_mask(self.measured, m)
         fr = as_float(self.f_ref, (m,), "f_ref")
         fr = np.where(meas, fr, 0.0)
@@ -381,19 +374,19 @@ class EMGWeightedProblem:
         fmin = np.zeros(m) if self.f_min is None else as_float(self.f_min, (m,), "f_min")
         _check_bounds(fmin, fmax, "force", mn)
         _check_weights(self.w_emg, self.regularization)
-        for key, val in (
-            ("jacobian", j),
-            ("tau", tau),
-            ("f_ref", fr),
-            ("measured", meas),
-            ("f_max", fmax),
-            ("f_min", fmin),
-            ("w_emg", float(self.w_emg)),
-            ("regularization", float(self.regularization)),
-            ("muscle_names", mn),
-            ("coordinate_names", cn),
-        ):
-            object.__setattr__(self, key, val)
+        set_fields(
+            self,
+            jacobian=j,
+            tau=tau,
+            f_ref=fr,
+            measured=meas,
+            f_max=fmax,
+            f_min=fmin,
+            w_emg=float(self.w_emg),
+            regularization=float(self.regularization),
+            muscle_names=mn,
+            coordinate_names=cn,
+        )
 
     def standard_form(self) -> tuple[StandardQP, _Layout]:
         assert self.f_min is not None and self.f_max is not None
@@ -699,13 +692,7 @@ def _batch_inputs(
     muscle_names: Sequence[str] | None,
     coordinate_names: Sequence[str] | None,
 ) -> tuple[FloatArray, FloatArray, tuple[str, ...], tuple[str, ...]]:
-    jac = check_jacobian(jacobians, 3)
-    n_frames, m, n = jac.shape
-    mn = names_or_default(muscle_names, m, "muscle", "muscle")
-    cn = names_or_default(coordinate_names, n, "coord", "coordinate")
-    tau = as_float(taus, (n_frames, n), "taus")
-    check_finite(tau, "taus", cn)
-    return jac, tau, mn, cn
+    return check_frame(jacobians, taus, muscle_names, coordinate_names, ndim=3, tau_name="taus")
 
 
 def solve_tension_batch(

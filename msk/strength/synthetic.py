@@ -15,11 +15,15 @@ true activation is the ``seeds/003 Eq. 1–7`` filter of ``e`` with a known elec
 the **recorded** EMG envelope is ``e (1 + σ_m η_m) + σ_a η_a`` (η: unit-variance Gaussian noise
 low-passed at 5 Hz — multiplicative envelope noise and additive baseline noise), clipped to
 [0, 1]. Joint torques are ``τ = −Jᵀ f + d + noise`` with the true strengths.
+
+:func:`calibration_trial` turns a gait trial into a seeds/003 calibration trial of the knee and
+ankle muscles whose moments come from known EMG-driven parameters (:func:`calibration_truth`).
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Literal
 
 import numpy as np
 from numpy.typing import NDArray
@@ -27,6 +31,7 @@ from scipy.signal import butter, sosfiltfilt
 
 from msk.muscles.activation import emg_to_activation
 from msk.muscles.hill import MuscleParameters, RigidTendonState, rigid_tendon_state
+from msk.strength.calibration import CalibrationParameters, CalibrationTrial, emg_driven_forces
 
 Array = NDArray[np.float64]
 
@@ -297,4 +302,91 @@ def gait_trial(
         offset=np.asarray(offset, dtype=float),
         cycle=cycle.astype(np.int64),
         params=leg.params,
+    )
+
+
+#: The knee and ankle muscles of the synthetic leg (13) in the 4 functional groups of the
+#: seeds/003 calibration tests and benchmark.
+CALIBRATION_GROUPS: dict[str, tuple[str, ...]] = {
+    "knee_extensors": ("RF", "VL", "VM", "VI"),
+    "knee_flexors": ("BFLH", "SM", "ST", "BFSH"),
+    "plantar_flexors": ("MG", "LG", "SOL"),
+    "dorsiflexors": ("TA", "EDL"),
+}
+
+#: True strength factors of :data:`CALIBRATION_GROUPS`, in that order (× generic F_iso).
+CALIBRATION_TRUE_FACTORS: tuple[float, ...] = (1.7, 1.0, 0.6, 1.2)
+
+
+def calibration_truth(seed: int = 1) -> CalibrationParameters:
+    """Known seeds/003 parameters of the :data:`CALIBRATION_GROUPS` muscles: strength factors
+    :data:`CALIBRATION_TRUE_FACTORS`, per-muscle scales, activation and delay parameters drawn
+    (``seed``) around the generic values, skew 0.12."""
+    names = tuple(m for g in CALIBRATION_GROUPS.values() for m in g)
+    rng = np.random.default_rng(seed)
+    m = len(names)
+    return CalibrationParameters(
+        tuple(CALIBRATION_GROUPS),
+        names,
+        np.array(CALIBRATION_TRUE_FACTORS),
+        rng.uniform(0.96, 1.04, m),
+        rng.uniform(0.9, 1.1, m),
+        rng.uniform(-0.8, -0.3, m),
+        rng.uniform(-0.8, -0.3, m),
+        rng.uniform(0.02, 0.08, m),
+        rng.uniform(-2.0, -0.5, m),
+        0.12,
+    )
+
+
+def calibration_trial(
+    leg: SyntheticLeg,
+    truth: CalibrationParameters,
+    *,
+    seed: int,
+    n_cycles: int = 2,
+    emg_mult_noise: float = 0.10,
+    moment_noise: float = 0.0,
+    excitation: Literal["recorded", "true"] = "recorded",
+    name: str = "trial",
+) -> CalibrationTrial:
+    """A knee/ankle trial of ``leg`` (:func:`gait_trial` motion, 100 Hz) for the EMG-driven
+    calibration: moments of the seeds/003 model (:func:`~msk.strength.calibration.
+    emg_driven_forces`) with the known parameters ``truth`` driven by the true excitations.
+
+    ``excitation`` ``"recorded"`` gives the calibration the noisy EMG envelope of
+    :func:`gait_trial` (``emg_mult_noise``), ``"true"`` the noise-free one; ``moment_noise`` adds
+    white noise of that fraction of each moment's range (drawn from ``seed``).
+    """
+    names = truth.muscle_names
+    base = leg.params.subset(names)
+    idx = [leg.muscle_names.index(m) for m in names]
+    tr = gait_trial(leg, seed=seed, n_cycles=n_cycles, emg_mult_noise=emg_mult_noise)
+    r = -tr.jacobian[:, idx][:, :, 1:]
+    clean = CalibrationTrial(
+        tr.excitation_true[:, idx],
+        tr.muscle_tendon_length[:, idx],
+        tr.lengthening_velocity[:, idx],
+        r,
+        np.zeros((tr.q.shape[0], 2)),
+        100.0,
+        ("knee", "ankle"),
+        name,
+    )
+    _, f = emg_driven_forces(truth, base, CALIBRATION_GROUPS, clean)
+    moments = np.einsum("tmj,tm->tj", r, f)
+    if moment_noise > 0:
+        rng = np.random.default_rng(seed)
+        moments = moments + moment_noise * np.ptp(moments, axis=0) * rng.standard_normal(
+            moments.shape
+        )
+    return CalibrationTrial(
+        tr.emg[:, idx] if excitation == "recorded" else clean.excitation,
+        clean.muscle_tendon_length,
+        clean.lengthening_velocity,
+        r,
+        moments,
+        100.0,
+        clean.coordinate_names,
+        name,
     )
