@@ -12,6 +12,18 @@ six pelvis residual actuators); OpenSim runs AnalyzeTool + StaticOptimization in
 process (the script of :mod:`msk.optimization.opensim_reference`, every muscle kept, plus the
 states read-back above) with the peer's residual actuators file (FX…MZ on the pelvis).
 
+What "OpenSim-equivalent" takes, found here:
+
+- **Plate loads without a contact threshold.** OpenSim's ExternalLoads apply the plate wrench
+  whatever its size; msk's ``external_loads`` zeroes a plate below ``threshold_n`` (20 N by
+  default). At heel strikes and toe-offs (a few to 20 N on one plate: 9 of the 121 frames)
+  the joint torques then differ by 0.6–5.7 N·m and so do the optima (Σ a² up to 6.5 % apart,
+  once read as IPOPT failures): ``threshold_n=0``.
+- **IPOPT converged.** StaticOptimization's defaults (``optimizer_convergence_criterion`` 1e-4,
+  ``optimizer_max_iterations`` 100) stop IPOPT 0.007–0.3 % above the optimal Σ a², which moves
+  the small muscles (toe flexors/extensors, obliquus externus: peaks 8–42 N) by 2–5 %
+  of their peak. At 1e-8 OpenSim reaches the optimum; msk's QP (DAQP) is exact either way.
+
 (Filtering the IK with msk's own zero-lag Butterworth instead of OpenSim's IIR + GCV spline
 changes q̇ enough to move ``f_active`` by ~3 % of its peak and the forces by ~4 % RMS: the
 comparison is only meaningful on identical states.)
@@ -45,8 +57,16 @@ from msk.optimization.opensim_reference import _SCRIPT
 
 PEER_DATA = shared_dir() / "tools" / "opensim-peer" / "data"
 T0, T1 = 0.5, 2.5
-#: edges of the filtered window (filter transients, OpenSim's last-frame failure) are left out
+#: edges of the filtered window, left out by default in :func:`compare` (OpenSim at its default
+#: tolerance; the converged comparison uses every frame)
 INNER = (0.6, 2.4)
+#: every SO frame (OpenSim's first one is at 0.4999993 s)
+ALL = (T0 - 1e-3, T1 + 1e-3)
+#: OpenSim's StaticOptimization IPOPT defaults, and the settings at which it reaches the optimum
+OPENSIM_DEFAULT = {"convergence_criterion": 1e-4, "max_iterations": 100}
+OPENSIM_TIGHT = {"convergence_criterion": 1e-8, "max_iterations": 1000}
+#: OpenSim's ExternalLoads apply the plate wrench whatever its size: no contact threshold
+PLATE_THRESHOLD_N = 0.0
 
 #: prepended to the reference script: CPU time of AnalyzeTool.run (the wall time is its own)
 _CPU = r"""
@@ -76,12 +96,19 @@ RESULT.update(q=Qs, u=Us, udot=As)
 """
 
 
-def opensim_static_optimization(tmp: Path, coordinate_names: Sequence[str]) -> dict[str, Any]:
+def opensim_static_optimization(
+    tmp: Path,
+    coordinate_names: Sequence[str],
+    *,
+    convergence_criterion: float = OPENSIM_DEFAULT["convergence_criterion"],
+    max_iterations: int = OPENSIM_DEFAULT["max_iterations"],
+) -> dict[str, Any]:
     """OpenSim 4.6 SO on all 92 muscles (+ pelvis residuals) over [T0, T1], timed in the child
-    (wall time of AnalyzeTool.run), with the states it used."""
+    (wall time of AnalyzeTool.run), with the states it used; IPOPT settings as given."""
     out = run_opensim_script(
         _CPU + _SCRIPT + _STATES, data=str(PEER_DATA), out=str(tmp), t0=T0, t1=T1,
         coords=["knee_angle_r"], suffix="", all_coords=list(coordinate_names),
+        convergence_criterion=float(convergence_criterion), max_iterations=int(max_iterations),
     )  # fmt: skip
     act = np.asarray(out["activations"], dtype=float)
     fa = np.asarray(out["f_active"], dtype=float)
@@ -95,6 +122,8 @@ def opensim_static_optimization(tmp: Path, coordinate_names: Sequence[str]) -> d
         "activations": act,
         "f_active": fa,
         "muscle_names": tuple(out["muscles"]),
+        "convergence_criterion": float(out["convergence_criterion"]),
+        "max_iterations": int(out["max_iterations"]),
         "so_wall_s": float(out["so_wall_s"]),
         "per_frame_s": float(out["so_wall_s"]) / max(t.size, 1),
         "per_frame_cpu_s": float(out.get("so_cpu_s", np.nan)) / max(t.size, 1),
@@ -102,13 +131,19 @@ def opensim_static_optimization(tmp: Path, coordinate_names: Sequence[str]) -> d
 
 
 def msk_static_optimization(
-    os_: dict[str, Any], model: Any, plates: Any, *, repeats: int = 1
+    os_: dict[str, Any],
+    model: Any,
+    plates: Any,
+    *,
+    repeats: int = 1,
+    threshold_n: float = PLATE_THRESHOLD_N,
 ) -> dict[str, Any]:
-    """msk's chain on OpenSim's states: ID, geometry, f_active and SO on every SO frame;
-    per-frame times of each stage (best of ``repeats``)."""
+    """msk's chain on OpenSim's states: ID (plate loads applied from ``threshold_n`` up),
+    geometry, f_active and SO on every SO frame; per-frame times of each stage (best of
+    ``repeats``)."""
     k0 = kinematics_from_coordinates(os_["time"], os_["q"], model.coordinate_names, cutoff_hz=None)
     kin = dataclasses.replace(k0, q=os_["q"], v=os_["u"], a=os_["udot"])
-    loads = external_loads(model, kin, plates)
+    loads = external_loads(model, kin, plates, threshold_n=threshold_n)
     params = muscle_parameters(model)
     curves = Thelen2003Curves.gait2392()
     best: dict[str, float] = {}
@@ -122,15 +157,14 @@ def msk_static_optimization(
         state = rigid_tendon_state(params, geom.lengths, geom.velocities, curves=curves)
         t_c = time.perf_counter()
         root = jt.root_coordinates
+        reserves = np.array([1.0 if c in root else 0.0 for c in jt.coordinate_names])
         sol = solve_static_optimization_batch(
             geom.jacobian,
             jt.tau,
             f_active=state.max_active_force_along_tendon,
             activation_min=0.01,
             activation_max=1.0,
-            reserve_optimal_force=np.array(
-                [1.0 if c in root else 0.0 for c in jt.coordinate_names]
-            ),
+            reserve_optimal_force=reserves,
             muscle_names=params.names,
             coordinate_names=jt.coordinate_names,
             time=kin.time,
@@ -149,19 +183,26 @@ def msk_static_optimization(
             "activations": sol.activations,
             "f_active": state.max_active_force_along_tendon,
             "status": sol.status,
+            "jacobian": geom.jacobian,
+            "tau": jt.tau,
+            "reserves": reserves,
+            "loads": loads,
         }
     out.update(per_frame_s=best, muscle_names=params.names, n_frames=n)
     return out
 
 
-def compare(ms: dict[str, Any], os_: dict[str, Any]) -> dict[str, Any]:
+def compare(
+    ms: dict[str, Any], os_: dict[str, Any], *, window: tuple[float, float] = INNER
+) -> dict[str, Any]:
     """Per muscle: RMS of (msk − OpenSim) force relative to the muscle's OpenSim peak, over the
-    inner frames where OpenSim's IPOPT reached the optimum (its Σ a² is not > 1 % above msk's
-    exact one), for the muscles OpenSim does not saturate (max activation < 0.99)."""
+    frames of ``window`` where OpenSim's Σ a² is not > 1 % above msk's (none with the settings
+    above; with a plate threshold or OpenSim's default tolerance some are), for the muscles
+    OpenSim does not saturate (max activation < 0.99)."""
     names = list(os_["muscle_names"])
     idx = [ms["muscle_names"].index(n) for n in names]
     t = os_["time"]
-    inner = (t >= INNER[0]) & (t <= INNER[1])
+    inner = (t >= window[0]) & (t <= window[1])
     a_ms = ms["activations"][:, idx]
     cost_ms = np.sum(a_ms**2, axis=1)
     cost_os = np.sum(os_["activations"] ** 2, axis=1)
@@ -187,51 +228,145 @@ def compare(ms: dict[str, Any], os_: dict[str, Any]) -> dict[str, Any]:
         "not_converged_times": t[inner & ~converged],
         "f_active_rel_max": float(fa_rel.max()),
         "activation_rms": float(np.sqrt(np.mean((a_ms - os_["activations"])[use] ** 2))),
+        "cost_msk": cost_ms,
+        "cost_opensim": cost_os,
     }
 
 
+def msk_cost_on_opensim_torques(ms: dict[str, Any], os_: dict[str, Any]) -> np.ndarray:
+    """Σ a² of msk's optimum per frame when the muscles must produce the joint torques OpenSim's
+    forces produce through msk's moment arms, τ'_j = −Σ_i ∂l_i/∂q_j F_i^OpenSim (non-root
+    coordinates; the pelvis rows are the residuals' in both). OpenSim's activations are feasible
+    for this problem, so the optimum is ≤ OpenSim's Σ a²; the gap is how far IPOPT stopped
+    above the optimum."""
+    idx = [ms["muscle_names"].index(n) for n in os_["muscle_names"]]
+    jac = ms["jacobian"][:, idx]
+    tau = ms["tau"].copy()
+    muscles = ms["reserves"] == 0.0
+    tau[:, muscles] = -np.einsum("kmn,km->kn", jac, os_["forces"])[:, muscles]
+    sol = solve_static_optimization_batch(
+        jac,
+        tau,
+        f_active=ms["f_active"][:, idx],
+        activation_min=0.01,
+        activation_max=1.0,
+        reserve_optimal_force=ms["reserves"],
+        compute_kkt=False,
+    )
+    assert (sol.status == 0).all()
+    return np.sum(sol.activations**2, axis=1)
+
+
+def opensim_forces_residual(ms: dict[str, Any], os_: dict[str, Any]) -> np.ndarray:
+    """(N, n) joint-torque residual −Jᵀ F^OpenSim − τ_msk on the non-root coordinates (N·m)."""
+    idx = [ms["muscle_names"].index(n) for n in os_["muscle_names"]]
+    res = -np.einsum("kmn,km->kn", ms["jacobian"][:, idx], os_["forces"]) - ms["tau"]
+    return res[:, ms["reserves"] == 0.0]
+
+
 def run_side_by_side(
-    tmp: Path, *, repeats: int = 3
+    tmp: Path, *, repeats: int = 3, **opensim: Any
 ) -> tuple[dict[str, Any], dict[str, Any], dict[str, Any]]:
     from synthetic import load_subject01
 
     s = load_subject01()
-    os_ = opensim_static_optimization(tmp, s.model.coordinate_names)
+    os_ = opensim_static_optimization(tmp, s.model.coordinate_names, **opensim)
     ms = msk_static_optimization(os_, s.model, s.plates, repeats=repeats)
-    return ms, os_, compare(ms, os_)
+    return ms, os_, compare(ms, os_, window=ALL)
+
+
+def _skip_without_peer_data() -> None:
+    if not PEER_DATA.is_dir():
+        pytest.skip(f"OpenSim peer data absent: {PEER_DATA}")
 
 
 @pytest.mark.slow
 @pytest.mark.realdata
 @pytest.mark.opensim
-def test_full_model_static_optimization_matches_opensim(
+def test_full_model_static_optimization_matches_converged_opensim(
     needs_opensim: None, tmp_path: Path
 ) -> None:
-    if not PEER_DATA.is_dir():
-        pytest.skip(f"OpenSim peer data absent: {PEER_DATA}")
-    ms, os_, c = run_side_by_side(tmp_path)
+    """GitHub issue 7: every muscle OpenSim does not saturate within 2 % RMS of its peak, on
+    OpenSim converged to 1e-8, every frame of 0.5–2.5 s; and the objectives agree."""
+    _skip_without_peer_data()
+    ms, os_, c = run_side_by_side(tmp_path, **OPENSIM_TIGHT)
+    assert os_["convergence_criterion"] == OPENSIM_TIGHT["convergence_criterion"]
     assert len(os_["muscle_names"]) == 92 and set(os_["muscle_names"]) == set(ms["muscle_names"])
-    rel, keep, peak = c["relative_rms"], c["keep"], c["peak"]
+    rel, keep = c["relative_rms"], c["keep"]
+    cost_ms, cost_os = c["cost_msk"], c["cost_opensim"]
+    cost_on_os = msk_cost_on_opensim_torques(ms, os_)
+    gap = (cost_os - cost_on_os) / cost_os
+    own = (cost_ms - cost_os) / cost_os
+    residual = opensim_forces_residual(ms, os_)
     print(
-        f"full gait2392 SO vs OpenSim 4.6: {c['n_frames']} frames ({c['not_converged_times'].size}"
-        f" left out: OpenSim not converged at {np.round(c['not_converged_times'], 3)}), "
-        f"{keep.sum()} unsaturated muscles, relative RMS median {np.median(rel[keep]):.4f}, "
-        f"max {rel[keep].max():.4f} ({c['worst']}), within 2 %: {(rel[keep] < 0.02).sum()}; "
-        f"saturated {c['saturated']}; activation RMS {c['activation_rms']:.4f}"
+        f"full gait2392 SO vs OpenSim 4.6 (IPOPT tol {os_['convergence_criterion']:g}): "
+        f"{c['n_frames']} frames, {keep.sum()} unsaturated muscles, relative RMS median "
+        f"{np.median(rel[keep]):.2e}, max {rel[keep].max():.2e} ({c['worst']}), all 92 max "
+        f"{rel.max():.2e}; saturated {c['saturated']}; activation RMS "
+        f"{c['activation_rms']:.1e}; Σa² msk − OpenSim {own.min():+.1e}…{own.max():+.1e} "
+        f"(relative); OpenSim above msk's optimum on its own torques by {gap.min():.1e}…"
+        f"{gap.max():.1e}; OpenSim forces in msk's ID equations: max "
+        f"{np.abs(residual).max():.1e} N·m"
     )
     ratio = os_["per_frame_s"] / ms["per_frame_s"]["so_s"]
-    print(f"OpenSim SO CPU per frame {os_['per_frame_cpu_s'] * 1e3:.1f} ms")
     print(
-        f"per frame: OpenSim SO {os_['per_frame_s'] * 1e3:.1f} ms, msk SO "
-        f"{ms['per_frame_s']['so_s'] * 1e6:.0f} µs (x {ratio:.0f}), msk ID + geometry + SO "
-        f"{ms['per_frame_s']['chain_s'] * 1e6:.0f} µs"
+        f"per frame (OpenSim at tol 1e-8, slower than its default): OpenSim SO "
+        f"{os_['per_frame_s'] * 1e3:.1f} ms wall ({os_['per_frame_cpu_s'] * 1e3:.1f} ms CPU), "
+        f"msk SO {ms['per_frame_s']['so_s'] * 1e6:.0f} µs (x {ratio:.0f}), msk ID + geometry "
+        f"+ SO {ms['per_frame_s']['chain_s'] * 1e6:.0f} µs"
     )
     assert c["f_active_rel_max"] < 1e-8  # identical muscle physiology on identical states
     assert (ms["status"] == 0).all()
-    assert c["not_converged_times"].size <= 6
+    assert c["not_converged_times"].size == 0 and c["n_frames"] == os_["time"].size == 121
     assert keep.sum() >= 85
-    assert np.median(rel[keep]) < 0.01
-    loaded = keep & (peak >= 50.0)  # the muscles that carry load (tiny toe muscles: < 1 N off)
-    assert rel[loaded].max() < 0.02, c["worst"]
-    assert (rel[keep] < 0.02).mean() >= 0.85
+    assert (rel[keep] < 0.02).all(), c["worst"]  # the issue's criterion
+    assert rel[keep].max() < 2e-3 and np.median(rel[keep]) < 1e-4  # floors reached: 1e-4, 1e-5
+    assert rel.max() < 2e-3  # the saturated muscles agree as well
+    # objectives: same Σ a² at every frame, up to msk's and OpenSim's ID (≤ 5 mN·m apart)
+    assert np.abs(own).max() < 5e-4
+    assert np.abs(residual).max() < 0.02
+    # on the torques OpenSim met, msk's optimum is never above OpenSim's, and OpenSim is at it
+    assert (cost_on_os <= cost_os + 1e-9).all()
+    assert gap.max() < 1e-6
     assert ratio > 100.0  # the 500x target is a bench figure (bench/bench_chain.py)
+
+    # the 20 N contact threshold of msk's default plate assignment is what differs at heel
+    # strikes and toe-offs: OpenSim's forces then miss msk's torques by 0.6–5.7 N·m there only
+    from synthetic import load_subject01
+
+    s = load_subject01()
+    ms20 = msk_static_optimization(os_, s.model, s.plates, threshold_n=20.0)
+    small = np.any(np.abs(ms20["loads"].force - ms["loads"].force).max(axis=2) > 0.0, axis=1)
+    off = np.abs(opensim_forces_residual(ms20, os_)).max(axis=1) > 0.1
+    print(
+        f"threshold 20 N: plates below 20 N at t = {np.round(os_['time'][small], 3)}; OpenSim's "
+        f"forces > 0.1 N·m off msk's torques at t = {np.round(os_['time'][off], 3)}"
+    )
+    assert off.any() and not (off & ~small).any()
+
+
+@pytest.mark.slow
+@pytest.mark.realdata
+@pytest.mark.opensim
+def test_opensim_default_tolerance_stops_above_the_optimum(
+    needs_opensim: None, tmp_path: Path
+) -> None:
+    """At StaticOptimization's default IPOPT settings (1e-4, 100 iterations) OpenSim's Σ a² is
+    above msk's optimum (on the torques OpenSim met) at every frame: the small muscles' 2–5 %
+    differences seen there are OpenSim's tolerance, not a modelling difference."""
+    _skip_without_peer_data()
+    ms, os_, c = run_side_by_side(tmp_path, repeats=1, **OPENSIM_DEFAULT)
+    assert os_["convergence_criterion"] == OPENSIM_DEFAULT["convergence_criterion"]
+    rel, keep = c["relative_rms"], c["keep"]
+    cost_os = c["cost_opensim"]
+    gap = (cost_os - msk_cost_on_opensim_torques(ms, os_)) / cost_os
+    above = [n for n, r, k in zip(c["names"], rel, keep) if k and r >= 0.02]
+    print(
+        f"OpenSim at its default tolerance: Σa² above the optimum by {gap.min():.1e}…"
+        f"{gap.max():.1e} (relative); relative RMS median {np.median(rel[keep]):.2e}, max "
+        f"{rel[keep].max():.3f} ({c['worst']}); ≥ 2 %: {above}"
+    )
+    assert gap.min() > 1e-5  # never at the optimum (reached: 7e-5 … 3e-3)
+    assert 0 < len(above) <= 12 and rel[keep].max() < 0.1
+    peaks = c["peak"][[c["names"].index(n) for n in above]]
+    assert peaks.max() < 50.0  # only small muscles (reached: 8–42 N)
