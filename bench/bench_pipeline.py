@@ -60,7 +60,7 @@ def main() -> None:
             t0 = time.perf_counter()
             again = run_session(cfg, out)
             reruns.append(time.perf_counter() - t0)
-        assert all(r.status == "cached" for r in again.stages), [
+        assert all(r.status in ("cached", "not requested") for r in again.stages), [
             (r.name, r.status) for r in again.stages
         ]
         t_rerun = statistics.median(reruns)

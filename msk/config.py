@@ -13,11 +13,41 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+import numpy as np
+
 from msk.exceptions import ConfigError
 
 TRIAL_ROLES = ("static", "mass_identification", "mvc", "task", "fes")
 KNEE_VARIANTS = ("spline", "four_bar")
 OPTIMIZATION_METHODS = ("static_optimization", "bounded_qp", "emg_weighted", "closed_form")
+#: The step of the FES identification protocol a ``role = "fes"`` trial records (seeds/000 §2.3):
+#: passive static torques, pendulum drop, isometric trains at several knee angles (force–length),
+#: isometric trains of increasing level at one angle (recruitment), the dynamic trial of the
+#: ``k_s`` NLP, and the cross-validation trial.
+FES_STEPS = ("static", "pendulum", "isometric", "recruitment", "dynamic", "validation")
+FES_ANGLE_UNITS = ("deg", "rad")
+#: ``us``/``s``: pulse-width modulation (seeds/000); ``mA``/``A``: current modulation (seeds/001).
+FES_STIM_UNITS = ("us", "s", "mA", "A")
+#: Per-trial keys valid only with ``role = "fes"`` (with their defaults).
+FES_TRIAL_KEYS = (
+    "fes_step",
+    "time_column",
+    "angle_channel",
+    "torque_channel",
+    "stimulation_channel",
+    "angle_unit",
+    "stimulation_unit",
+    "knee_angle_deg",
+)
+#: How many trials of each step a FES session needs (at least).
+FES_STEPS_NEEDED = {
+    "static": 1,
+    "pendulum": 1,
+    "isometric": 3,
+    "recruitment": 3,
+    "dynamic": 1,
+    "validation": 1,
+}
 
 TEMPLATE = """\
 # msk session configuration. Paths are relative to this file. Units are SI unless the key says.
@@ -35,6 +65,7 @@ knee = "spline"                      # "spline" (gait2392 knee) | "four_bar" (se
 scale = true                         # scale to the static trial's marker distances
 
 # One [[trials]] table per recording. role: static | mass_identification | mvc | task | fes
+# (A session may hold only FES trials: [model] is then optional and the gait stages are skipped.)
 [[trials]]
 name = "static"
 file = "../data/gc5-PS/PS_static_for_scaling.trc"
@@ -67,6 +98,34 @@ grf_cutoff_hz = 15.0
 method = "static_optimization"   # static_optimization | bounded_qp | emg_weighted | closed_form
 w_emg = 0.1                      # EMG weight of the EMG-weighted QP (seed 002 Eq. 18)
 solver = "daqp"
+
+# FES knee-model identification (seeds/000): one [[trials]] table per recording with
+# role = "fes" and fes_step = static | pendulum | isometric | recruitment | dynamic | validation
+# (needs subject.height_m; at least 3 isometric and 3 recruitment trains). CSV files (header
+# row) or C3D files (analog channels). The keys below are valid only with role = "fes".
+# [[trials]]
+# name = "fes_pendulum"
+# file = "../data/fes/pendulum.csv"
+# role = "fes"
+# fes_step = "pendulum"
+# time_column = "time"              # CSV only (s); a C3D uses its analog time
+# angle_channel = "knee_angle"      # goniometer column / analog label (0 = full extension)
+# torque_channel = "torque"         # dynamometer torque (N·m)
+# stimulation_channel = "pw"        # stimulation level column / analog label
+# angle_unit = "deg"                # deg | rad
+# stimulation_unit = "us"           # us | s (pulse width) | mA | A (current)
+# knee_angle_deg = 60.0             # isometric / recruitment: the dynamometer angle when the
+#                                   # file has no angle channel
+
+# [fes]
+# fibre_fraction = 0.195    # prior L_c0/(L_c0 + L_s) (seeds/000 Table 3 mean)
+# stiffness_ratio = 800.0   # prior K_cm/F_cm (1/m; seeds/000 Table 3 median)
+# k_s0 = 5000.0             # initial series stiffness of the NLP (N/m, literature value)
+# outer_iterations = 6      # fixed-point passes on k_s (1 = the seed's single pass)
+# frequency_hz = 20.0       # stimulation frequency
+# steady_window_s = 0.5     # end-of-train window of the steady isometric torque
+# isometric_transients = false   # refit on the torque time courses (short trains)
+# theta_rest_deg = 90.0     # knee angle of the hanging shank (rest)
 """
 
 
@@ -87,11 +146,40 @@ class ModelConfig:
 
 
 @dataclass(frozen=True)
+class FesTrialConfig:
+    """How to read one FES recording: its protocol step, channels and units."""
+
+    step: str
+    time_column: str = "time"
+    angle_channel: str = "knee_angle"
+    torque_channel: str = "torque"
+    stimulation_channel: str = "stimulation"
+    angle_unit: str = "deg"
+    stimulation_unit: str = "us"
+    knee_angle_deg: float | None = None
+
+
+@dataclass(frozen=True)
 class TrialConfig:
     name: str
     file: Path
     role: str
     contact_force: Path | None = None
+    fes: FesTrialConfig | None = None
+
+
+@dataclass(frozen=True)
+class FesConfig:
+    """Options of the FES identification protocol (:func:`msk.fes.protocol.run_protocol`)."""
+
+    fibre_fraction: float = 0.195
+    stiffness_ratio: float = 800.0
+    k_s0: float = 5e3
+    outer_iterations: int = 6
+    frequency_hz: float = 20.0
+    steady_window_s: float = 0.5
+    isometric_transients: bool = False
+    theta_rest_deg: float = 90.0
 
 
 @dataclass(frozen=True)
@@ -119,13 +207,14 @@ class OptimizationConfig:
 class SessionConfig:
     path: Path
     subject: Subject
-    model: ModelConfig
+    model: ModelConfig | None
     trials: tuple[TrialConfig, ...]
     marker_rename: Mapping[str, str] = field(default_factory=dict)
     marker_weights: Mapping[str, float] = field(default_factory=dict)
     emg: EmgConfig = field(default_factory=EmgConfig)
     filters: FilterConfig = field(default_factory=FilterConfig)
     optimization: OptimizationConfig = field(default_factory=OptimizationConfig)
+    fes: FesConfig = field(default_factory=FesConfig)
 
     def trials_with_role(self, role: str) -> tuple[TrialConfig, ...]:
         return tuple(t for t in self.trials if t.role == role)
@@ -208,26 +297,31 @@ def load_config(path: str | Path) -> SessionConfig:
     )
     s.done()
 
-    m = _Section(top.get("model", dict), "model", source)
-    model = ModelConfig(
-        source=m.path("source"),  # type: ignore[arg-type]
-        knee=m.choice("knee", KNEE_VARIANTS, "spline"),
-        scale=m.get("scale", bool, True),
-    )
-    m.done()
-
     trials = []
     for i, t_raw in enumerate(top.get("trials", list)):
         t = _Section(t_raw, f"trials[{i}]", source)
+        role = t.choice("role", TRIAL_ROLES, "task")
         trials.append(
             TrialConfig(
                 name=t.get("name", str),
                 file=t.path("file"),  # type: ignore[arg-type]
-                role=t.choice("role", TRIAL_ROLES, "task"),
+                role=role,
                 contact_force=t.path("contact_force", required=False),
+                fes=_fes_trial(t, role),
             )
         )
         t.done()
+    only_fes = bool(trials) and all(tc.role == "fes" for tc in trials)
+
+    model: ModelConfig | None = None
+    if "model" in raw or not only_fes:
+        m = _Section(top.get("model", dict), "model", source)
+        model = ModelConfig(
+            source=m.path("source"),  # type: ignore[arg-type]
+            knee=m.choice("knee", KNEE_VARIANTS, "spline"),
+            scale=m.get("scale", bool, True),
+        )
+        m.done()
     names = [t.name for t in trials]
     if len(set(names)) != len(names):
         raise ConfigError(f"{source}: trial names must be unique, got {names}")
@@ -264,6 +358,34 @@ def load_config(path: str | Path) -> SessionConfig:
         solver=o.get("solver", str, "daqp"),
     )
     o.done()
+
+    fz = _Section(top.get("fes", dict, {}), "fes", source)
+    fes = FesConfig(
+        fibre_fraction=fz.get("fibre_fraction", float, 0.195),
+        stiffness_ratio=fz.get("stiffness_ratio", float, 800.0),
+        k_s0=fz.get("k_s0", float, 5e3),
+        outer_iterations=fz.get("outer_iterations", int, 6),
+        frequency_hz=fz.get("frequency_hz", float, 20.0),
+        steady_window_s=fz.get("steady_window_s", float, 0.5),
+        isometric_transients=fz.get("isometric_transients", bool, False),
+        theta_rest_deg=fz.get("theta_rest_deg", float, 90.0),
+    )
+    for key, lo, hi in (
+        ("fibre_fraction", 0.0, 1.0),
+        ("stiffness_ratio", 0.0, np.inf),
+        ("k_s0", 0.0, np.inf),
+        ("frequency_hz", 0.0, np.inf),
+        ("steady_window_s", 0.0, np.inf),
+    ):
+        v = getattr(fes, key)
+        if not lo < v < hi:
+            raise ConfigError(f"{source}: fes.{key} = {v} should be in ({lo}, {hi})")
+    if fes.outer_iterations < 1:
+        raise ConfigError(f"{source}: fes.outer_iterations = {fes.outer_iterations} should be ≥ 1")
+    fz.done()
+    fes_trials = [tc for tc in trials if tc.role == "fes"]
+    if fes_trials:
+        _check_fes_session(source, fes_trials, height)
     top.done()
     return SessionConfig(
         path=source,
@@ -275,4 +397,58 @@ def load_config(path: str | Path) -> SessionConfig:
         emg=emg,
         filters=filters,
         optimization=optimization,
+        fes=fes,
     )
+
+
+def _fes_trial(t: _Section, role: str) -> FesTrialConfig | None:
+    """The ``role = "fes"`` keys of one trial; they are errors on any other role."""
+    if role != "fes":
+        given = [k for k in FES_TRIAL_KEYS if k in t.table]
+        if given:
+            raise ConfigError(
+                f"{t.source}: {t.where}.{given[0]} is only valid with role = 'fes' "
+                f"(this trial has role = {role!r})"
+            )
+        return None
+    if "fes_step" not in t.table:
+        raise ConfigError(
+            f"{t.source}: missing key {t.where}.fes_step (role = 'fes' needs one of "
+            f"{', '.join(FES_STEPS)})"
+        )
+    knee = t.get("knee_angle_deg", float, None)
+    if knee is not None and not -30.0 <= knee <= 180.0:
+        raise ConfigError(f"{t.source}: {t.where}.knee_angle_deg = {knee} is not a knee angle")
+    return FesTrialConfig(
+        step=t.choice("fes_step", FES_STEPS, "static"),
+        time_column=t.get("time_column", str, "time"),
+        angle_channel=t.get("angle_channel", str, "knee_angle"),
+        torque_channel=t.get("torque_channel", str, "torque"),
+        stimulation_channel=t.get("stimulation_channel", str, "stimulation"),
+        angle_unit=t.choice("angle_unit", FES_ANGLE_UNITS, "deg"),
+        stimulation_unit=t.choice("stimulation_unit", FES_STIM_UNITS, "us"),
+        knee_angle_deg=knee,
+    )
+
+
+def _check_fes_session(source: Path, fes_trials: list[TrialConfig], height: float | None) -> None:
+    """A FES session needs every protocol step and the subject's height (geometry)."""
+    if height is None:
+        raise ConfigError(
+            f"{source}: subject.height_m is needed by the FES trials "
+            f"({fes_trials[0].name!r}…): the muscle geometry comes from the height"
+        )
+    counts = {s: 0 for s in FES_STEPS}
+    for tc in fes_trials:
+        assert tc.fes is not None
+        counts[tc.fes.step] += 1
+    for step, need in FES_STEPS_NEEDED.items():
+        if counts[step] < need:
+            raise ConfigError(
+                f"{source}: the FES protocol needs at least {need} trial(s) with "
+                f"fes_step = {step!r}, got {counts[step]}"
+            )
+    for step in ("static", "pendulum", "dynamic", "validation"):
+        if counts[step] > 1:
+            names = [tc.name for tc in fes_trials if tc.fes and tc.fes.step == step]
+            raise ConfigError(f"{source}: more than one trial with fes_step = {step!r}: {names}")

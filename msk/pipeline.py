@@ -5,9 +5,16 @@ them and records what happened. Stages (DESIGN.md "Architecture")::
 
     read → model (load, scale, place markers) → kinematics → loads → mass_identification
       → inverse_dynamics → emg → muscle_geometry → tension_optimization
-      → strength_identification → knee_contact → comparison → report
+      → strength_identification → knee_contact → comparison → fes → report
 
-**Stage status.** ``computed`` / ``cached`` / ``not available`` (the library piece is missing
+**FES.** The ``fes`` stage reads the ``role = "fes"`` trials (CSV with
+:func:`msk.fes.io.read_fes_csv`, C3D analogs with :func:`msk.fes.io.recording_from_trial`),
+builds the :class:`msk.fes.protocol.FesSession` and runs
+:func:`msk.fes.protocol.run_protocol` (seeds/000 §2.3). A session may hold only FES trials: the
+gait stages are then ``not requested`` and the report holds the FES section.
+
+**Stage status.** ``computed`` / ``cached`` / ``not requested`` (the configuration has no
+trial for it: no gait trial, no FES trial) / ``not available`` (the library piece is missing
 or a prerequisite is: recorded with the reason, never replaced by made-up numbers) / ``failed``
 (an analysis stage raised: recorded with its message — and the code location for an internal
 error — and the run goes on). The core stages (read, model, kinematics, loads, inverse
@@ -86,6 +93,7 @@ STAGES: tuple[str, ...] = (
     "strength_identification",
     "knee_contact",
     "comparison",
+    "fes",
     "report",
 )
 #: Stages without which there are no results: their errors end the run.
@@ -131,7 +139,8 @@ DEFAULT_MEASUREMENTS: tuple[tuple[str, tuple[tuple[str, str], ...], tuple[str, .
 # ---------------------------------------------------------------------------------------------
 @dataclass(frozen=True)
 class StageRecord:
-    """What happened to one stage: ``status`` computed | cached | not available | failed."""
+    """What happened to one stage: ``status`` computed | cached | not requested |
+    not available | failed."""
 
     name: str
     status: str
@@ -200,6 +209,12 @@ class _Runner:
             f"[{k:2d}/{len(STAGES)}] {rec.name:<24} {rec.seconds:7.2f} s  {rec.status}{msg}\n"
         )
         self.progress.flush()
+
+    def skip(self, name: str, reason: str) -> None:
+        """Record a stage the configuration does not ask for (not an error)."""
+        rec = StageRecord(name, "not requested", 0.0, reason)
+        self.records.append(rec)
+        self._say(rec)
 
     def run(
         self,
@@ -338,6 +353,7 @@ def _settings(cfg: SessionConfig) -> dict[str, Any]:
         "emg": plain(cfg.emg),
         "filters": plain(cfg.filters),
         "optimization": plain(cfg.optimization),
+        "fes": plain(cfg.fes),
     }
 
 
@@ -356,6 +372,8 @@ def _read_markers(path: Path, up: np.ndarray) -> tuple[np.ndarray, tuple[str, ..
 
 
 def _model_source(cfg: SessionConfig) -> Path:
+    if cfg.model is None:  # load_config requires [model] with a gait trial
+        raise ConfigError(f"{cfg.path}: a gait trial (role 'task') needs a [model] table")
     src = cfg.model.source
     if cfg.model.knee == "four_bar" and "fourbar" not in src.stem:
         alt = src.with_name(f"{src.stem}_fourbar{src.suffix}")
@@ -418,9 +436,17 @@ class _Session:
         self.side = cfg.subject.side
         self.sfx = "_l" if self.side == "left" else "_r"
         self.body_weight = cfg.subject.mass_kg * G0
+        self.fes_trials = cfg.trials_with_role("fes")
+        self.fes_ = None
         tasks = cfg.trials_with_role("task")
-        if not tasks:
-            raise ConfigError(f"{cfg.path}: no trial with role 'task'")
+        if not tasks and not self.fes_trials:
+            raise ConfigError(f"{cfg.path}: no trial with role 'task' (nor 'fes')")
+        #: gait analysis requested (a task trial); a pure FES session has none
+        self.gait = bool(tasks)
+        if not self.gait:
+            self.files = {f"fes:{tc.name}": tc.file for tc in self.fes_trials}
+            self.hashes = {k: file_sha256(p) for k, p in self.files.items()}
+            return
         self.task = tasks[0]
         statics = cfg.trials_with_role("static")
         self.static = statics[0] if statics else None
@@ -431,7 +457,7 @@ class _Session:
             files["static"] = self.static.file
         if self.task.contact_force is not None:
             files["contact_force"] = self.task.contact_force
-        for tc in (*self.idtrials, *cfg.trials_with_role("mvc")):
+        for tc in (*self.idtrials, *cfg.trials_with_role("mvc"), *self.fes_trials):
             files[f"{tc.role}:{tc.name}"] = tc.file
         self.model_src = _model_source(cfg)
         files["model"] = self.model_src
@@ -990,15 +1016,57 @@ class _Session:
         )
         return self.comparison_
 
+    # ------------------------------------------------------------------ FES
+    def fes(self) -> dict[str, Any] | None:
+        """seeds/000's identification protocol on the ``role = "fes"`` trials."""
+        cfg = self.cfg
+        if not self.fes_trials:
+            self.runner.skip("fes", "no trial with role 'fes' in the configuration")
+            return None
+
+        def do() -> dict[str, Any]:
+            self.check("fes")
+            from msk.fes.protocol import run_protocol
+
+            session = _fes_session(cfg, self.fes_trials)
+            res = run_protocol(
+                session,
+                fibre_fraction=cfg.fes.fibre_fraction,
+                stiffness_ratio=cfg.fes.stiffness_ratio,
+                k_s0=cfg.fes.k_s0,
+                outer_iterations=cfg.fes.outer_iterations,
+                steady_window=cfg.fes.steady_window_s,
+                isometric_transients=cfg.fes.isometric_transients,
+            )
+            return {"result": res}
+
+        self.fes_ = self.runner.run(
+            "fes",
+            do,
+            settings={
+                "files": {tc.name: self.hashes[f"fes:{tc.name}"] for tc in self.fes_trials},
+                "trials": [
+                    {"name": tc.name, **dataclasses.asdict(tc.fes)} for tc in self.fes_trials
+                ],
+                "options": dataclasses.asdict(cfg.fes),
+                "height": cfg.subject.height_m,
+                "mass": cfg.subject.mass_kg,
+            },
+        )
+        return self.fes_
+
+    def fes_tables(self) -> dict[str, Table]:
+        return {} if self.fes_ is None else _fes_tables(self.fes_["result"])
+
+    def fes_summary(self) -> dict[str, Any] | None:
+        if self.fes_ is None:
+            return None
+        return _fes_summary(self.fes_["result"], self.cfg, self.fes_trials)
+
     # ------------------------------------------------------------------ summary
-    def summary(self) -> dict[str, Any]:
-        cfg, model, sol, ident, strength = (
-            self.cfg, self.model, self.sol, self.ident, self.strength
-        )  # fmt: skip
-        quality = _quality(
-            self.trial, self.kin, self.jt, self.ext, self.emg_, sol, strength, ident,
-            self.body_weight,
-        )  # fmt: skip
+    def base_summary(self) -> dict[str, Any]:
+        """The part of ``summary.json`` every session has (gait or FES only)."""
+        cfg = self.cfg
         return {
             "session": cfg.subject.name,
             "created_utc": datetime.now(UTC).strftime("%Y-%m-%dT%H:%M:%SZ"),
@@ -1022,6 +1090,18 @@ class _Session:
                 "side": self.side,
                 "body_weight_n": self.body_weight,
             },
+        }
+
+    def summary(self) -> dict[str, Any]:
+        cfg, model, sol, ident, strength = (
+            self.cfg, self.model, self.sol, self.ident, self.strength
+        )  # fmt: skip
+        quality = _quality(
+            self.trial, self.kin, self.jt, self.ext, self.emg_, sol, strength, ident,
+            self.body_weight,
+        )  # fmt: skip
+        return {
+            **self.base_summary(),
             "model": {**self.built["info"], "name": model.name, "muscles": len(model.muscles)},
             "frame": {"lab_to_model_rotation": self.rot, "lab_up": self.trial.up},
             "events": self.events,
@@ -1061,8 +1141,15 @@ class _Session:
                 for n, tb in tables.items()
             ],
             [
-                summary[k]
-                for k in ("gait_cycle_s", "subject", "identification", "strength", "anthropometry")
+                summary.get(k)
+                for k in (
+                    "gait_cycle_s",
+                    "subject",
+                    "identification",
+                    "strength",
+                    "anthropometry",
+                    "fes",
+                )
             ],
         )
         return self.runner.run("report", do, settings=key)
@@ -1089,20 +1176,30 @@ def run_session(
     check_replaceable(out)  # fail before computing, not after
     runner = _Runner(out / ".cache" if use_cache else None, progress)
     s = _Session(cfg, runner, _fail_stage)
-    s.read()
-    s.build_model()
-    s.kinematics()
-    s.loads()
-    s.mass_identification()
-    s.inverse_dynamics()
-    s.emg()
-    s.muscle_geometry()
-    s.tension_optimization()
-    s.strength_identification()
-    s.knee_contact()
-    tables = s.tables()
-    s.comparison()
-    summary = s.summary()
+    if s.gait:
+        s.read()
+        s.build_model()
+        s.kinematics()
+        s.loads()
+        s.mass_identification()
+        s.inverse_dynamics()
+        s.emg()
+        s.muscle_geometry()
+        s.tension_optimization()
+        s.strength_identification()
+        s.knee_contact()
+        tables = s.tables()
+        s.comparison()
+        summary = s.summary()
+    else:
+        for name in STAGES[: STAGES.index("fes")]:
+            runner.skip(name, "no gait trial (role 'task') in the configuration")
+        tables = {}
+        summary = {**s.base_summary(), "angle_columns": [], "quality": {}}
+    s.fes()
+    tables.update(s.fes_tables())
+    summary["fes"] = s.fes_summary()
+    s.tables_ = tables
     figs = s.figures(summary)
     summary["stages"] = [dataclasses.asdict(r) for r in runner.records]
     summary["not_available"] = [
@@ -1344,6 +1441,165 @@ def _strength_summary(strength: Mapping[str, Any]) -> dict[str, Any]:
 # ---------------------------------------------------------------------------------------------
 # CLI verbs: msk run, msk print-config, msk report
 # ---------------------------------------------------------------------------------------------
+#: Units of the identified FES parameters (``fes_parameters.csv`` columns, SI).
+FES_PARAMETER_UNITS: dict[str, str] = {
+    "geometry.L_ext": "m",
+    "geometry.r_q": "m",
+    "knee.J": "kg·m²",
+    "knee.B": "N·m·s/rad",
+    "knee.K": "N·m/rad",
+    "muscle.F_cm": "N",
+    "muscle.K_cm": "N/m",
+    "muscle.L_c0": "m",
+    "muscle.b": "1",
+    "muscle.k_s": "N/m",
+    "muscle.L_s": "m",
+    "recruitment.c1": "1",
+    "recruitment.c2": "1",
+    "recruitment.c3": "1 (PW/PW_max)",
+}
+#: Protocol steps of ``fes_steps.csv`` (seeds/000 Table 2 rows) and the figures per step.
+FES_STEP_FIGURES = ("nrmsd_pct", "nrmse_pct")
+
+
+def _fes_recording(tc: Any) -> Any:
+    """One FES trial file as a :class:`msk.fes.io.FesRecording` (SI)."""
+    from msk.fes.io import read_fes_csv, recording_from_trial
+
+    f = tc.fes
+    chans = {
+        "angle": f.angle_channel,
+        "torque": f.torque_channel,
+        "stimulation": f.stimulation_channel,
+        "angle_unit": f.angle_unit,
+        "stim_unit": f.stimulation_unit,
+    }
+    if tc.file.suffix.lower() == ".c3d":
+        from msk.io import read_c3d
+
+        trial = read_c3d(tc.file)
+        have = set(trial.analog_labels)
+        for k in ("angle", "torque", "stimulation"):
+            if chans[k] not in have:
+                chans[k] = None
+        return recording_from_trial(trial, **chans)
+    return read_fes_csv(tc.file, time=f.time_column, **chans)
+
+
+def _fes_session(cfg: SessionConfig, trials: Sequence[Any]) -> Any:
+    """The :class:`msk.fes.protocol.FesSession` of the ``role = "fes"`` trials."""
+    from msk.fes.protocol import FesSession, StaticTrial
+
+    opt = cfg.fes
+    rest = np.deg2rad(opt.theta_rest_deg)
+    by_step: dict[str, list[tuple[Any, Any]]] = {}
+    for tc in trials:
+        rec = _fes_recording(tc)
+        if rec.stim_kind != "pw" and tc.fes.step not in ("static", "pendulum"):
+            raise ConfigError(
+                f"{cfg.path}: trial {tc.name!r}: stimulation_unit = {tc.fes.stimulation_unit!r} "
+                "(current modulation): the seeds/000 protocol of msk run identifies "
+                "pulse-width modulated sessions only"
+            )
+        by_step.setdefault(tc.fes.step, []).append((tc, rec))
+
+    def iso(tc: Any, rec: Any) -> Any:
+        if tc.fes.knee_angle_deg is not None:
+            angle = float(np.deg2rad(tc.fes.knee_angle_deg))
+        elif rec.knee_angle is not None:
+            angle = float(np.median(rec.knee_angle))
+        else:
+            raise MissingDataError(
+                f"{tc.file}: no angle channel {tc.fes.angle_channel!r} and no knee_angle_deg "
+                f"for isometric trial {tc.name!r}"
+            )
+        return rec.isometric_trial(knee_angle=angle, frequency_hz=opt.frequency_hz)
+
+    ((_, st),) = by_step["static"]
+    if st.torque is None:
+        tc0 = by_step["static"][0][0]
+        raise MissingDataError(
+            f"{tc0.file}: no torque channel {tc0.fes.torque_channel!r} in the static trial"
+        )
+    static = StaticTrial(st.theta_r(rest), st.torque)
+    ((_, pd),) = by_step["pendulum"]
+    ((_, dy),) = by_step["dynamic"]
+    ((_, va),) = by_step["validation"]
+    return FesSession(
+        cfg.subject.name,
+        float(cfg.subject.height_m),  # type: ignore[arg-type]
+        cfg.subject.mass_kg,
+        static,
+        pd.pendulum_trial(theta_rest=rest),
+        tuple(iso(tc, r) for tc, r in by_step["isometric"]),
+        tuple(iso(tc, r) for tc, r in by_step["recruitment"]),
+        dy.dynamic_trial(frequency_hz=opt.frequency_hz, theta_rest=rest),
+        va.dynamic_trial(frequency_hz=opt.frequency_hz, theta_rest=rest),
+        opt.frequency_hz,
+    )
+
+
+def _fes_parameters(res: Any) -> dict[str, float]:
+    subj = res.subject
+    return {
+        name: float(getattr(getattr(subj, name.split(".")[0]), name.split(".")[1]))
+        for name in FES_PARAMETER_UNITS
+    }
+
+
+def _fes_steps(res: Any) -> dict[str, dict[str, float]]:
+    steps = {
+        "static_torque": res.static,
+        "joint_mechanics": res.pendulum,
+        "force_length": res.force_length,
+        "recruitment": res.recruitment,
+        "nlp_ks": res.series_stiffness,
+        "cross_validation_initial": res.cross_validation_initial,
+        "cross_validation": res.cross_validation,
+    }
+    return {k: {"nrmsd_pct": float(v.nrmsd), "nrmse_pct": float(v.nrmse)} for k, v in steps.items()}
+
+
+def _fes_tables(res: Any) -> dict[str, Table]:
+    """``fes_parameters`` and ``fes_steps`` (one row, ``time`` = 0: the start of the data they
+    were identified from) and ``fes_validation`` (a time series: measured and simulated knee
+    angle of the cross-validation trial, rad)."""
+    par = _fes_parameters(res)
+    steps = _fes_steps(res)
+    cols = tuple(f"{k}.{f}" for k in steps for f in FES_STEP_FIGURES)
+    vals = [steps[k][f] for k in steps for f in FES_STEP_FIGURES]
+    cv, cv0 = res.cross_validation, res.cross_validation_initial
+    rest = res.subject.knee.theta_rest
+    t0 = np.zeros(1)
+    return {
+        "fes_parameters": Table(t0, np.array([list(par.values())]), tuple(par), "fes_parameters"),
+        "fes_steps": Table(t0, np.array([vals]), cols, "fes_steps"),
+        "fes_validation": Table(
+            np.asarray(cv.time, dtype=float),
+            np.column_stack([rest - cv.theta_r, rest - cv.theta_r_sim, rest - cv0.theta_r_sim]),
+            ("knee_angle_measured", "knee_angle_simulated", "knee_angle_simulated_k_s0"),
+            "fes_validation",
+        ),
+    }
+
+
+def _fes_summary(res: Any, cfg: SessionConfig, trials: Sequence[Any]) -> dict[str, Any]:
+    par = _fes_parameters(res)
+    return {
+        "parameters": {k: {"value": v, "unit": FES_PARAMETER_UNITS[k]} for k, v in par.items()},
+        "initial_parameters": {
+            k: float(getattr(getattr(res.subject_initial, k.split(".")[0]), k.split(".")[1]))
+            for k in FES_PARAMETER_UNITS
+        },
+        "steps": _fes_steps(res),
+        "k_s_history_n_per_m": list(res.k_s_history),
+        "solver_status": res.series_stiffness.solver_status,
+        "seconds": dict(res.seconds),
+        "trials": [{"name": tc.name, "step": tc.fes.step, "file": str(tc.file)} for tc in trials],
+        "options": dataclasses.asdict(cfg.fes),
+    }
+
+
 def _cli() -> None:
     import argparse
 

@@ -63,3 +63,84 @@ def test_not_toml_and_missing_file(tmp_path: Path):
         load_config(bad)
     with pytest.raises(ConfigError, match="config file not found"):
         load_config(tmp_path / "nope.toml")
+
+
+def _fes_trial(name: str, file: Path, step: str, extra: str = "") -> str:
+    return (
+        f'[[trials]]\nname = "{name}"\nfile = "{file.name}"\nrole = "fes"\n'
+        f'fes_step = "{step}"\nstimulation_channel = "pw_us"\n{extra}\n'
+    )
+
+
+def test_fes_config_keys(tmp_path: Path) -> None:
+    ses_files = {}
+    for step in ("static", "pendulum", "dynamic", "validation"):
+        ses_files[step] = tmp_path / f"{step}.csv"
+        ses_files[step].write_text("time\n0\n")
+    body = "".join(_fes_trial(f"fes_{s}", p, s) for s, p in ses_files.items())
+    for step in ("isometric", "recruitment"):
+        for k in range(3):
+            p = tmp_path / f"{step}_{k}.csv"
+            p.write_text("time\n0\n")
+            body += _fes_trial(f"fes_{step}_{k}", p, step, "knee_angle_deg = 60.0")
+    head = "[subject]\nmass_kg = 70.0\nheight_m = 1.75\n\n"
+    cfg = tmp_path / "s.toml"
+    cfg.write_text(head + body + "[fes]\nouter_iterations = 2\n")
+    c = load_config(cfg)
+    assert c.model is None  # optional in a FES-only session
+    assert c.fes.outer_iterations == 2 and c.fes.fibre_fraction == 0.195
+    fes = c.trials_with_role("fes")
+    assert len(fes) == 10 and fes[0].fes is not None and fes[0].fes.step == "static"
+    assert fes[0].fes.stimulation_channel == "pw_us" and fes[0].fes.angle_unit == "deg"
+
+    cfg.write_text(head.replace("height_m = 1.75\n", "") + body)
+    with pytest.raises(ConfigError, match=r"subject\.height_m is needed by the FES trials"):
+        load_config(cfg)
+    cfg.write_text(head + body.replace('fes_step = "validation"', 'fes_step = "dynamic"'))
+    with pytest.raises(ConfigError, match="fes_step = 'validation', got 0"):
+        load_config(cfg)
+    cfg.write_text(head + body.replace('fes_step = "pendulum"', 'fes_step = "drop"'))
+    with pytest.raises(ConfigError, match=r"trials\[1\].fes_step = 'drop' is not one of"):
+        load_config(cfg)
+    cfg.write_text(head + body.replace('fes_step = "static"\n', ""))
+    with pytest.raises(ConfigError, match=r"missing key trials\[0\].fes_step"):
+        load_config(cfg)
+    cfg.write_text(head + body + "[fes]\nfibre_fraction = 1.5\n")
+    with pytest.raises(ConfigError, match=r"fes\.fibre_fraction = 1\.5"):
+        load_config(cfg)
+    cfg.write_text(head + body + "[fes]\nfibre = 0.2\n")
+    with pytest.raises(ConfigError, match=r"unknown key fes\.fibre"):
+        load_config(cfg)
+    # a task trial and no [model]: the model is required again
+    task = tmp_path / "walk.c3d"
+    task.write_text("")
+    cfg.write_text(head + body + f'[[trials]]\nname = "walk"\nfile = "{task.name}"\n')
+    with pytest.raises(ConfigError, match=r"missing key \.model"):
+        load_config(cfg)
+
+
+@pytest.mark.parametrize(
+    "key", ['fes_step = "static"', 'angle_unit = "deg"', "knee_angle_deg = 60.0"]
+)
+def test_fes_keys_only_with_role_fes(session_dir: Path, key: str):
+    path = session_dir / "pipelines" / "session.toml"
+    path.write_text(TEMPLATE.replace('role = "task"', f'role = "task"\n{key}', 1))
+    name = key.split(" ")[0]
+    with pytest.raises(ConfigError, match=rf"trials\[1\]\.{name} is only valid with role = 'fes'"):
+        load_config(path)
+
+
+def test_template_fes_example_parses(session_dir: Path):
+    """The commented FES example of the template, uncommented, parses (alone
+    it is not a protocol)."""
+    lines = TEMPLATE.splitlines()
+    start = lines.index("# [[trials]]")
+    fes = [ln[2:] if ln.startswith("# ") else ln for ln in lines[start:]]
+    (session_dir / "data" / "fes").mkdir()
+    (session_dir / "data" / "fes" / "pendulum.csv").write_text("time\n0\n")
+    text = "\n".join(lines[:start] + fes) + "\n"
+    path = session_dir / "pipelines" / "session.toml"
+    path.write_text(text)
+    # one FES trial is not a protocol: the missing steps are named
+    with pytest.raises(ConfigError, match="needs at least 1 trial\\(s\\) with fes_step = 'static'"):
+        load_config(path)

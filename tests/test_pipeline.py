@@ -187,7 +187,8 @@ def test_cache_reuses_and_invalidates(tmp_path):
     t2 = time.perf_counter()
     st1 = {r.name: r.status for r in first.stages}
     st2 = {r.name: r.status for r in second.stages}
-    assert {s for s in st1.values()} <= {"computed", "not available"}
+    assert {s for s in st1.values()} <= {"computed", "not available", "not requested"}
+    assert st1["fes"] == "not requested"  # no FES trial in the configuration
     assert all(st2[n] == "cached" for n, s in st1.items() if s == "computed")
     assert (t2 - t1) < 0.5 * (t1 - t0)
     # identical numbers from the cache
@@ -234,9 +235,10 @@ def test_bundled_grand_challenge_session(tmp_path):
     res = run_session(GC5, tmp_path / "gc5")
     s = res.summary
     status = {r.name: r.status for r in res.stages}
+    assert status.pop("fes") == "not requested"  # a gait session without FES trials
     assert all(v == "computed" for v in status.values()), status
     out = read_session(res.out_dir)
-    assert set(out.tables) == set(TABLES)
+    assert set(out.tables) == {t for t in TABLES if not t.startswith("fes_")}
     q = s["quality"]
     assert q["ik_failed_frames"] == 0 and q["ik_marker_rms_mean_m"] < 0.03
     assert set(q["emg_flat_channels"]) == {"gracilis", "gmed"}

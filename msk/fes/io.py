@@ -73,11 +73,15 @@ class FesRecording:
         return PendulumTrial(self.time - self.time[0], self.theta_r(theta_rest))
 
     def isometric_trial(self, *, knee_angle: float, frequency_hz: float) -> IsometricTrial:
+        """The train at ``knee_angle`` (rad); the zero-level pulses after the train's last
+        pulse are dropped so that the steady window ends with the train, not the file."""
         t = self.time - self.time[0]
         rec = dataclasses.replace(self, time=t)
-        return IsometricTrial(
-            knee_angle, rec.stimulation(frequency_hz=frequency_hz), t, self._need("torque")
-        )
+        st = rec.stimulation(frequency_hz=frequency_hz)
+        on = np.flatnonzero(st.levels > 0)
+        if on.size:
+            st = Stimulation(st.pulse_times[: on[-1] + 1], st.levels[: on[-1] + 1], st.kind)
+        return IsometricTrial(knee_angle, st, t, self._need("torque"))
 
 
 def _units(angle_unit: str, stim_unit: str) -> tuple[float, float, StimKind]:

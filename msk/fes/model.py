@@ -56,6 +56,7 @@ __all__ = [
     "PARAM_NAMES",
     "SEED001_SUBJECT",
     "SHANK_LENGTH_FRACTION",
+    "TABLE2_NRMSD_PCT",
     "TABLE3",
     "CalciumParams",
     "FesSubject",
@@ -358,6 +359,64 @@ TABLE3: dict[str, FesSubject] = {
         _table3("S10R", 41.2, 4.84, 10.9, 0.32, 0.18, 9.18, 0.54, 1.15, 8.12, 0.75, 300, 180, 10),
         _table3("S10L", 41.2, 4.84, 10.6, 0.30, 0.19, 9.27, 0.46, 1.15, 18.4, 0.89, 452, 250, 12),
     )
+}
+
+
+#: seeds/000 Table 2: NRMSD (%) per identification step and leg (S3R, S3L, S4R, S4L, S5R, S5L,
+#: S6R, S6L, S7R, S7L, S9R, S9L, S10R, S10L); ``None`` where the seed reports nonsignificant
+#: force (Nsf). Rows are the keys of :meth:`msk.fes.protocol.ProtocolResult.nrmsd_table`.
+TABLE2_NRMSD_PCT: dict[str, tuple[float | None, ...]] = {
+    "static_torque": (
+        2.36,
+        3.87,
+        3.13,
+        2.35,
+        3.20,
+        3.17,
+        3.88,
+        3.49,
+        2.50,
+        2.81,
+        2.49,
+        4.96,
+        2.86,
+        3.55,
+    ),
+    "joint_mechanics": (
+        2.60,
+        3.26,
+        3.80,
+        2.86,
+        3.10,
+        3.87,
+        3.97,
+        3.45,
+        3.65,
+        5.07,
+        4.01,
+        3.51,
+        2.87,
+        3.70,
+    ),
+    "force_length": (17.3, 3.96, 10.4, 18.9, 35, 21, 5.01, 6.68, 35, 4, 38, 17, 10.8, 3.80),
+    "recruitment": (5.93, 1.96, 2.44, 4.94, None, 6.16, 3.92, 2.47, 4.93, 1.2, 3.53, 10.7, 1, 0.18),
+    "nlp_ks": (13.7, 4.77, 47.6, 13.6, None, 8.78, 9.34, 19.9, 8.63, 19, 10.5, 4.08, 11.1, 7.9),
+    "cross_validation": (
+        10.3,
+        5.17,
+        50.5,
+        15.4,
+        None,
+        13.7,
+        9.35,
+        6.87,
+        17.3,
+        13.2,
+        9.55,
+        19.7,
+        12.2,
+        None,
+    ),
 }
 
 

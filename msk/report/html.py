@@ -257,8 +257,48 @@ def _fig_contact(res: SessionResults) -> str | None:
     return _svg(fig)
 
 
+def _fig_fes(res: SessionResults) -> str | None:
+    """Measured vs simulated knee angle of the FES cross-validation trial (seeds/000 Fig. 5b)."""
+    if not res.has("fes_validation"):
+        return None
+    tb = res.table("fes_validation")
+    plt = _plt()
+    fig, ax = plt.subplots(figsize=(7.5, 3.0))
+    ax.plot(
+        tb.time,
+        np.rad2deg(tb.column("knee_angle_measured")),
+        color="k",
+        lw=1.2,
+        label="measured (goniometer)",
+    )
+    ax.plot(
+        tb.time,
+        np.rad2deg(tb.column("knee_angle_simulated")),
+        color="#1565c0",
+        lw=1.2,
+        label="simulated, identified model",
+    )
+    if "knee_angle_simulated_k_s0" in tb.columns:
+        ax.plot(
+            tb.time,
+            np.rad2deg(tb.column("knee_angle_simulated_k_s0")),
+            color="#ef6c00",
+            lw=0.9,
+            ls="--",
+            label="simulated before k_s identification",
+        )
+    ax.invert_yaxis()
+    ax.set_xlabel("time (s)")
+    ax.set_ylabel("knee angle (deg, 0 = full extension)")
+    ax.set_title(
+        "Cross-validation trial (stimulation pattern not used for identification)", fontsize=9
+    )
+    ax.legend(fontsize=7, loc="upper center", bbox_to_anchor=(0.5, -0.2), ncol=3)
+    return _svg(fig)
+
+
 def build_figures(res: SessionResults) -> dict[str, str]:
-    """Inline SVG figures by name (strength, mass, joints, muscles, contact)."""
+    """Inline SVG figures by name (strength, mass, joints, muscles, contact, fes)."""
     out = {}
     for name, fn in (
         ("strength", _fig_strength),
@@ -266,6 +306,7 @@ def build_figures(res: SessionResults) -> dict[str, str]:
         ("joints", _fig_joints),
         ("muscles", _fig_muscles),
         ("contact", _fig_contact),
+        ("fes", _fig_fes),
     ):
         svg = fn(res)
         if svg:
@@ -629,21 +670,152 @@ def _quality_section(res: SessionResults) -> str:
     return "".join(out)
 
 
-def _methods_section(res: SessionResults) -> str:
-    s = res.summary
-    out = ["<h2>6. Methods, stages and software</h2>"]
+#: Meaning of the FES model parameters (seeds/000 Eq. 1–7, 10) for the report.
+_FES_MEANING = {
+    "geometry.L_ext": "quadriceps muscle–tendon length at full extension",
+    "geometry.r_q": "quadriceps moment arm",
+    "knee.J": "shank + foot inertia about the knee",
+    "knee.B": "knee viscous damping",
+    "knee.K": "static torque (gravity + passive elasticity)",
+    "muscle.F_cm": "maximal contractile force",
+    "muscle.K_cm": "maximal contractile stiffness",
+    "muscle.L_c0": "optimal contractile-element length",
+    "muscle.b": "force–length width",
+    "muscle.k_s": "series-element (tendon) stiffness",
+    "muscle.L_s": "series-element slack length",
+    "recruitment.c1": "recruitment sigmoid: maximum",
+    "recruitment.c2": "recruitment sigmoid: slope",
+    "recruitment.c3": "recruitment sigmoid: threshold (PW/PW_max)",
+}
+_FES_STEPS = {
+    "static_torque": "static torque (K)",
+    "joint_mechanics": "joint mechanics, pendulum (J, B)",
+    "force_length": "force–length (L_c0, b)",
+    "recruitment": "recruitment (c1, c2, c3)",
+    "nlp_ks": "NLP identification (k_s)",
+    "cross_validation_initial": "cross-validation before k_s identification",
+    "cross_validation": "cross-validation, identified model",
+}
+
+
+def _fes_references() -> tuple[dict[str, tuple[float, float]], dict[str, tuple[float, float]]]:
+    """seeds/000 Table 3 parameter ranges and Table 2 NRMSD ranges (literature, for context)."""
+    from msk.fes.model import TABLE2_NRMSD_PCT, TABLE3
+
+    t3 = {}
+    for key in _FES_MEANING:
+        grp, name = key.split(".")
+        vals = [float(getattr(getattr(subj, grp), name)) for subj in TABLE3.values()]
+        t3[key] = (min(vals), max(vals))
+    t2 = {}
+    for key, row in TABLE2_NRMSD_PCT.items():
+        vals = [v for v in row if v is not None]
+        t2[key] = (float(min(vals)), float(max(vals)))
+    return t3, t2
+
+
+def _fes_section(res: SessionResults, figs: Mapping[str, str], number: int) -> str:
+    fes = res.summary.get("fes")
+    out = [f"<h2>{number}. FES knee model</h2>"]
+    if not fes:
+        return (
+            "".join(out) + _na(res, "fes") + '<p class="na">The FES model was not identified.</p>'
+        )
+    t3, t2 = _fes_references()
+    steps = fes.get("steps", {})
+    cv = (steps.get("cross_validation") or {}).get("nrmsd_pct")
+    from msk.fes.model import TABLE2_NRMSD_PCT
+
+    seed_cv = [v for v in TABLE2_NRMSD_PCT["cross_validation"] if v is not None]
     out.append(
-        '<p class="note">Markers → scaled model (OpenSim-style measurements; non-model markers '
-        "placed from the static trial) → inverse kinematics → force plates assigned to the feet → "
-        "segment inertial parameters from the base-link equations (seeds/002 §II) → inverse "
-        "dynamics → EMG envelopes and activation (seeds/002 Eq. 8) → muscle–tendon geometry "
-        "(seeds/002 Eq. 6–7) → tension optimisation → strength by regression on the net "
-        "contribution matrix (seeds/002 Eq. 12–16) → tibiofemoral contact force from the tibia "
-        "free-body diagram with the muscle forces (seeds/004 §2.1), muscle paths evaluated at "
-        "every frame. The lab frame is rotated into the model frame (vertical up, walking "
-        f"along +x); force-plate contacts: {s.get('methods', {}).get('plate_assignment', '?')}."
-        "</p>"
+        '<p class="plain">A model of the knee moved by electrical stimulation of the quadriceps '
+        "was fitted to this session's recordings. On a stimulation pattern it was not fitted "
+        f"to, it predicts the knee angle with an error of {_num(cv, '.1f', '%')} of the "
+        f"movement range (lower is better; seeds/000 reported a median of "
+        f"{float(np.median(seed_cv)):.1f} % in {len(seed_cv)} legs of spinal cord-injured "
+        "subjects).</p>"
     )
+    rows = []
+    for key, item in fes.get("parameters", {}).items():
+        unit = item.get("unit", "")
+        r = t3.get(key)
+        rows.append(
+            [
+                _e(key),
+                _e(_FES_MEANING.get(key, "")),
+                _num(item.get("value"), ".4g"),
+                _e({"1": "dimensionless", "1 (PW/PW_max)": "PW/PW_max"}.get(unit, unit)),
+                "—" if r is None else f"{r[0]:.4g} – {r[1]:.4g}",
+            ]
+        )
+    out.append("<h3>Identified parameters</h3>")
+    out.append(
+        _table(
+            ["parameter", "meaning", "identified", "unit", "seeds/000 Table 3 range"],
+            rows,
+            "strength fes-parameters",
+        )
+    )
+    out.append(
+        '<p class="note">Model of seeds/000 (Eq. 1–7, 10); K_cm/F_cm and L_c0/(L_c0 + L_s) '
+        "are priors of the protocol (session configuration [fes]). Table 3 ranges are the 13 "
+        "legs of seeds/000 (L_s derived from an assumed optimal angle of 60°).</p>"
+    )
+    rows = []
+    for key, label in _FES_STEPS.items():
+        if key not in steps:
+            continue
+        r = t2.get(key)
+        rows.append(
+            [
+                _e(label),
+                _num(steps[key].get("nrmsd_pct"), ".2f", "%"),
+                _num(steps[key].get("nrmse_pct"), ".2f", "%"),
+                "—" if r is None else f"{r[0]:.2f} – {r[1]:.2f} %",
+            ]
+        )
+    out.append("<h3>Fit per protocol step</h3>")
+    out.append(
+        _table(
+            ["protocol step (parameters)", "NRMSD", "NRMSE", "seeds/000 Table 2 NRMSD range"],
+            rows,
+            "fes-steps",
+        )
+    )
+    out.append(
+        '<p class="note">NRMSD = RMS(measured − simulated) / range(measured) × 100 '
+        "(seeds/000 Eq. 9).</p>"
+    )
+    if "fes" in figs:
+        out.append(f"<figure>{figs['fes']}</figure>")
+    return "".join(out)
+
+
+def _methods_section(res: SessionResults, number: int = 6, *, gait: bool = True) -> str:
+    s = res.summary
+    out = [f"<h2>{number}. Methods, stages and software</h2>"]
+    if s.get("fes"):
+        out.append(
+            '<p class="note">FES knee model (seeds/000 §2.3): geometry from the height → '
+            "static torque K → pendulum J, B → force–length L_c0, b → recruitment c1–c3, "
+            "F_cm → series stiffness k_s by the NLP of Eq. 8 on the dynamic trial (repeated to "
+            "a fixed point of k_s) → cross-validation on a trial not used for identification."
+            "</p>"
+        )
+    if gait:
+        out.append(
+            '<p class="note">Markers → scaled model (OpenSim-style measurements; non-model '
+            "markers placed from the static trial) → inverse kinematics → force plates assigned "
+            "to the feet → "
+            "segment inertial parameters from the base-link equations (seeds/002 §II) → inverse "
+            "dynamics → EMG envelopes and activation (seeds/002 Eq. 8) → muscle–tendon geometry "
+            "(seeds/002 Eq. 6–7) → tension optimisation → strength by regression on the net "
+            "contribution matrix (seeds/002 Eq. 12–16) → tibiofemoral contact force from the tibia "
+            "free-body diagram with the muscle forces (seeds/004 §2.1), muscle paths evaluated at "
+            "every frame. The lab frame is rotated into the model frame (vertical up, walking "
+            f"along +x); force-plate contacts: {s.get('methods', {}).get('plate_assignment', '?')}."
+            "</p>"
+        )
     rows = []
     for r in s.get("stages", []):
         cls = ' class="na"' if r["status"] in ("not available", "failed") else ""
@@ -680,8 +852,11 @@ def render_html(res: SessionResults, figures: Mapping[str, str] | None = None) -
     s = res.summary
     subj = s.get("subject", {})
     na = s.get("not_available", [])
+    # a session of FES trials only has no gait results: its report is the FES section
+    gait = res.has("q") or not s.get("fes")
+    kind = "Gait analysis" if gait else "FES knee model"
     head = (
-        f"<h1>Gait analysis report — {_e(subj.get('name', ''))}</h1>"
+        f"<h1>{kind} report — {_e(subj.get('name', ''))}</h1>"
         f'<p class="note">Body mass {_num(subj.get("mass_kg"), ".1f", "kg")}, height '
         f"{_num(subj.get('height_m'), '.2f', 'm')}, side of interest {_e(subj.get('side'))}. "
         f"Produced {_e(s.get('created_utc', ''))} by msk "
@@ -693,17 +868,21 @@ def render_html(res: SessionResults, figures: Mapping[str, str] | None = None) -
             + "; ".join(f"{_e(i['stage'])} ({_e(i['status'])}: {_e(i['reason'])})" for i in na)
             + "</p>"
         )
-    body = "".join(
-        [
-            head,
+    parts = [head]
+    if gait:
+        parts += [
             _strength_section(res, figs),
             _mass_section(res, figs),
             _gait_section(res, figs),
             _contact_section(res, figs),
             _quality_section(res),
-            _methods_section(res),
         ]
-    )
+    n = len(parts)
+    if s.get("fes") or any(i.get("stage") == "fes" for i in na):
+        parts.append(_fes_section(res, figs, n))
+        n += 1
+    parts.append(_methods_section(res, n, gait=gait))
+    body = "".join(parts)
     title = f"msk report {_e(subj.get('name', ''))}"
     return (
         f'<!DOCTYPE html><html lang="en"><head><meta charset="utf-8">'

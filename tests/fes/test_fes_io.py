@@ -119,3 +119,16 @@ def test_recording_from_a_real_c3d_file(tmp_path: Path) -> None:
     dyn = rec.dynamic_trial(frequency_hz=31.25)
     cv = cross_validate(dyn.time, dyn.theta_r, dyn.stim, s)
     assert cv.nrmsd < 1.0
+
+
+def test_isometric_train_ends_with_its_last_pulse(tmp_path: Path) -> None:
+    """A dynamometer file with rest after the train: the steady window is the train's end."""
+    t = np.arange(0.0, 6.0, 0.002)
+    on = (t >= 0.5) & (t < 4.5)
+    torque = np.where(on, 20.0, 0.0)
+    _write(tmp_path / "iso.csv", ["time", "torque", "pw"], np.column_stack([t, torque, 300 * on]))
+    rec = read_fes_csv(tmp_path / "iso.csv", angle=None, stimulation="pw")
+    tr = rec.isometric_trial(knee_angle=np.deg2rad(60), frequency_hz=20.0)
+    assert tr.stim.end_time == pytest.approx(4.45)
+    assert tr.level == pytest.approx(300e-6)
+    assert tr.steady_torque() == pytest.approx(20.0)
