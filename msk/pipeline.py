@@ -261,16 +261,6 @@ class _Runner:
             self.records.append(rec)
             self._say(rec)
             return None
-        except (AttributeError, TypeError, NotImplementedError) as exc:
-            # an analysis module still being written (its API differs from what this pipeline
-            # calls): recorded, visibly, as not available rather than ending the session
-            if name in CORE_STAGES:
-                raise
-            msg = f"library API mismatch: {type(exc).__name__}: {' '.join(str(exc).split())}"
-            rec = StageRecord(name, "not available", _time.perf_counter() - t0, msg, key)
-            self.records.append(rec)
-            self._say(rec)
-            return None
         except Exception as exc:
             # a bug in an analysis module must not cost the session its other results: the
             # stage is recorded as failed, with the error and where it happened
@@ -298,24 +288,6 @@ class _Runner:
         self.records.append(rec)
         self._say(rec)
         return value
-
-
-def _need(module: str, *names: str) -> Any:
-    """Import ``module`` and return its attributes; StageUnavailable if it is not there yet."""
-    import importlib
-
-    try:
-        mod = importlib.import_module(module)
-    except ImportError as exc:
-        raise StageUnavailable(f"{module} not available ({exc})") from None
-    if not names:
-        return mod
-    out = []
-    for n in names:
-        if not hasattr(mod, n):
-            raise StageUnavailable(f"{module}.{n} not available")
-        out.append(getattr(mod, n))
-    return out[0] if len(out) == 1 else tuple(out)
 
 
 # ---------------------------------------------------------------------------------------------
@@ -412,14 +384,6 @@ def _read_contact(path: Path) -> dict[str, Any]:
         "total": tab.data[:, col],
         "column": tab.columns[col],
     }
-
-
-def _gait_cycle(events: Sequence[Mapping[str, Any]], side: str) -> tuple[float, float] | None:
-    ctx = side.capitalize()
-    strikes = sorted(
-        e["time"] for e in events if e["label"] == "Foot Strike" and e["context"] == ctx
-    )
-    return (strikes[0], strikes[1]) if len(strikes) >= 2 else None
 
 
 # ---------------------------------------------------------------------------------------------
@@ -598,9 +562,8 @@ class _Session:
 
         def do() -> dict[str, Any]:
             self.check("mass_identification")
-            ident_cls, trial_cls = _need(
-                "msk.identification", "InertialIdentifier", "IdentificationTrial"
-            )
+            from msk.identification import IdentificationTrial as trial_cls
+            from msk.identification import InertialIdentifier as ident_cls
             from msk.io import read_c3d, to_model_frame
 
             up = -np.asarray(self.model.gravity, dtype=float)
@@ -674,8 +637,9 @@ class _Session:
             self.check("emg")
             if not cfg.emg.channels:
                 raise StageUnavailable("no [emg] channels in the configuration")
-            envelopes_from_trial = _need("msk.muscles.emg", "envelopes_from_trial")
-            first_order_activation = _need("msk.muscles.activation", "first_order_activation")
+            from msk.muscles.activation import first_order_activation
+            from msk.muscles.emg import envelopes_from_trial
+
             unknown = sorted(set(cfg.emg.channels) - {m.name for m in model.muscles})
             if unknown:
                 raise ConfigError(f"{cfg.path}: emg.channels: model has no muscle {unknown[0]!r}")
@@ -729,7 +693,8 @@ class _Session:
             self.check("muscle_geometry")
             if not model.muscles:
                 raise StageUnavailable(f"model {model.name} has no muscles")
-            muscle_geometry = _need("msk.muscles.geometry", "muscle_geometry")
+            from msk.muscles.geometry import muscle_geometry
+
             q = np.where(ok[:, None], kin.q, model.default_coordinates()[None, :])
             v = np.where(ok[:, None], kin.v, 0.0)
             return muscle_geometry(model, q, v)
@@ -750,7 +715,8 @@ class _Session:
     def _optimise(self, mdl: Any, torques: Any) -> dict[str, Any]:
         """Muscle tensions of ``mdl`` for ``torques`` by the configured method (msk.optimization
         batch solvers) on the usable frames; NaN elsewhere."""
-        o = _need("msk.optimization")
+        import msk.optimization as o
+
         cfg, kin, ok, emg, act_idx = self.cfg, self.kin, self.ok_frames, self.emg_, self.act_idx
         params, state = self._muscle_state(mdl)
         jac = self.geom.jacobian[ok][:, :, act_idx]
@@ -835,7 +801,8 @@ class _Session:
 
         def do() -> dict[str, Any]:
             self.check("strength_identification")
-            ident_cls = _need("msk.strength", "StrengthIdentifier")
+            from msk.strength import StrengthIdentifier as ident_cls
+
             emg = self.emg_
             params, state = self._muscle_state(self.model)
             groups: dict[str, list[str]] = {}
@@ -921,7 +888,8 @@ class _Session:
         self.events = [
             {"label": e.label, "context": e.context, "time": e.time} for e in self.trial.events
         ]
-        self.cycle = _gait_cycle(self.events, self.side)
+        strikes = sorted(self.trial.events_named("Foot Strike", self.side.capitalize()))
+        self.cycle = (strikes[0], strikes[1]) if len(strikes) >= 2 else None
         bw = self.body_weight
         t = kin.time
         tables: dict[str, Table] = {
