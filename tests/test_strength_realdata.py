@@ -45,9 +45,11 @@ GROUPS = {
 COORDS = ("knee_angle_r", "ankle_angle_r")
 
 
-def _load(real_dir, ref_dir):
+def rajagopal_walk(real_dir, ref_dir):
+    """The Rajagopal walk on ``subject_walk_scaled.osim`` at RATE_HZ over 0.45–1.80 s: the model,
+    the ID and EMG tables, the time grid and the muscle geometry along the recorded coordinates."""
     from msk.io.opensim_files import read_sto
-    from msk.muscles.geometry import muscle_geometry, muscle_parameters
+    from msk.muscles.geometry import muscle_geometry
     from msk.osim import load_osim
 
     d = real_dir / "opensim-rajagopal-walk"
@@ -63,7 +65,13 @@ def _load(real_dir, ref_dir):
             for n in model.coordinate_names
         ]
     )
-    geo = muscle_geometry(model, q, np.gradient(q, 1.0 / RATE_HZ, axis=0))
+    return model, ids, emg, t, muscle_geometry(model, q, np.gradient(q, 1.0 / RATE_HZ, axis=0))
+
+
+def _load(real_dir, ref_dir):
+    from msk.muscles.geometry import muscle_parameters
+
+    model, ids, emg, t, geo = rajagopal_walk(real_dir, ref_dir)
     names = tuple(EMG_MAP)
     idx = [geo.muscle_index(m) for m in names]
     cidx = [geo.coordinate_index(c) for c in COORDS]

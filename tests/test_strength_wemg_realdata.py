@@ -350,28 +350,12 @@ def rajagopal_study(real_dir: Path, ref_dir: Path) -> RajagopalStudy:
     """The right-leg muscles (40) of ``subject_walk_scaled.osim`` on the right hip, knee and
     ankle; EMG mapping and groups of ``tests/test_strength_realdata.py`` plus the two gluteal
     electrodes (gluteus maximus → glmax1–3_r, gluteus medius → glmed1–3_r)."""
-    from test_strength_realdata import EMG_MAP, RATE_HZ
+    from test_strength_realdata import EMG_MAP, rajagopal_walk
     from test_strength_realdata import GROUPS as RAJ_GROUPS
 
-    from msk.io.opensim_files import read_sto
     from msk.muscles.activation import emg_to_activation
-    from msk.muscles.geometry import muscle_geometry
-    from msk.osim import load_osim
 
-    d = real_dir / "opensim-rajagopal-walk"
-    model = load_osim(ref_dir / "opensim-core" / "subject_walk_scaled.osim")
-    coords = read_sto(d / "coordinates.sto")
-    ids = read_sto(d / "id_walk.sto")
-    emg = read_sto(d / "electromyography.sto")
-    t = np.arange(0.45, 1.80 + 1e-9, 1.0 / RATE_HZ)
-    by_name = {c.split("/")[-2]: i for i, c in enumerate(coords.columns) if c.endswith("/value")}
-    q = np.column_stack(
-        [
-            np.interp(t, coords.time, coords.data[:, by_name[n]]) if n in by_name else 0 * t
-            for n in model.coordinate_names
-        ]
-    )
-    geo = muscle_geometry(model, q, np.gradient(q, 1.0 / RATE_HZ, axis=0))
+    model, ids, emg, t, geo = rajagopal_walk(real_dir, ref_dir)
     all_params = muscle_parameters(model)
     names = tuple(m for m in all_params.names if m.endswith("_r"))
     params = all_params.subset(names)
