@@ -793,29 +793,7 @@ class GeometryPlan:
         ``computeJointJacobians``), body rotations (N, B, 3, 3) and translations (N, B, 3) in
         world, and G (N, nq, n_coords); all frames at once (batched forward kinematics)."""
         q, g = self._embed(theta)
-        n = q.shape[0]
-        if n <= _PIN_FRAMES:
-            # a few frames: Pinocchio's own (C++) pass per frame beats ~10 numpy calls per joint
-            data = getattr(self._local, "data", None)
-            if data is None:
-                data = self._local.data = self._pm.createData()
-            jac = np.empty((n, 6, self.nv))
-            rjb = np.empty((n, self.body_joint.size, 3, 3))
-            tjb = np.empty((n, self.body_joint.size, 3))
-            joints = self._body_joint_list
-            for i in range(n):
-                jac[i] = np.reshape(pin.computeJointJacobians(self._pm, data, q[i]), (6, -1))
-                omi = data.oMi
-                for b, jid in enumerate(joints):
-                    m_ = omi[jid]
-                    rjb[i, b] = m_.rotation
-                    tjb[i, b] = m_.translation
-        else:
-            rj, tj, jac = _batched_fk(self._fk, q, self.nv)
-            rjb = rj[:, self.body_joint]
-            tjb = tj[:, self.body_joint]
-        rot = rjb @ self.body_rot
-        trans = tjb + np.einsum("nbij,bj->nbi", rjb, self.body_trans)
+        jac, rot, trans = self._body_kinematics(q)
         return jac, rot, trans, g
 
     def _embed(self, theta: Array) -> tuple[Array, Array]:
