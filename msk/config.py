@@ -76,12 +76,19 @@ name = "gait1"
 file = "../data/gc5-PS/PS_ngait_og_ss1.c3d"
 role = "task"
 contact_force = "../data/gc5-PS/PS_ngait_og_ss1_eTibia.csv"   # optional measured knee force
+# A task trial may be an OpenSim .trc (markers, +y up) with its forces in an OpenSim GRF .mot
+# (ground_force_v*, ground_force_p*, ground_torque_* and 1_ground_… : one set per plate):
+# file = "subject01_walk.trc"
+# grf = "subject01_walk_grf.mot"   # same frame as the .trc (only with a .trc file)
 
 [markers]
 # model marker name = lab label, when they differ
 rename = {}
 # IK weights by model marker name (default 1.0)
 weights = {}
+# model markers a lab places where it likes (thigh / shank clusters): moved to where the static
+# trial puts them on their body (OpenSim's move_model_markers for these markers)
+move = []
 
 [emg]
 # model muscle (or muscle group) = analog channel label
@@ -166,6 +173,9 @@ class TrialConfig:
     role: str
     contact_force: Path | None = None
     fes: FesTrialConfig | None = None
+    #: OpenSim GRF ``.mot``/``.sto`` (``<prefix>force_v[xyz]``, ``force_p[xyz]``,
+    #: ``torque_[xyz]`` per plate) of a ``.trc`` task trial, in the frame of its markers
+    grf: Path | None = None
 
 
 @dataclass(frozen=True)
@@ -211,6 +221,8 @@ class SessionConfig:
     trials: tuple[TrialConfig, ...]
     marker_rename: Mapping[str, str] = field(default_factory=dict)
     marker_weights: Mapping[str, float] = field(default_factory=dict)
+    #: model markers moved to where the static trial puts them (technical clusters)
+    marker_move: tuple[str, ...] = ()
     emg: EmgConfig = field(default_factory=EmgConfig)
     filters: FilterConfig = field(default_factory=FilterConfig)
     optimization: OptimizationConfig = field(default_factory=OptimizationConfig)
@@ -301,15 +313,30 @@ def load_config(path: str | Path) -> SessionConfig:
     for i, t_raw in enumerate(top.get("trials", list)):
         t = _Section(t_raw, f"trials[{i}]", source)
         role = t.choice("role", TRIAL_ROLES, "task")
-        trials.append(
-            TrialConfig(
-                name=t.get("name", str),
-                file=t.path("file"),  # type: ignore[arg-type]
-                role=role,
-                contact_force=t.path("contact_force", required=False),
-                fes=_fes_trial(t, role),
-            )
+        tc = TrialConfig(
+            name=t.get("name", str),
+            file=t.path("file"),  # type: ignore[arg-type]
+            role=role,
+            contact_force=t.path("contact_force", required=False),
+            fes=_fes_trial(t, role),
+            grf=t.path("grf", required=False),
         )
+        if tc.grf is not None and role != "task":
+            raise ConfigError(
+                f"{source}: trials[{i}].grf is only valid with role = 'task' "
+                f"(this trial has role = {role!r})"
+            )
+        if tc.grf is not None and tc.file.suffix.lower() != ".trc":
+            raise ConfigError(
+                f"{source}: trials[{i}].grf goes with a .trc trial file (a C3D has its own "
+                f"plates, in its lab frame), got {tc.file.name}"
+            )
+        if role == "task" and tc.file.suffix.lower() == ".trc" and tc.grf is None:
+            raise ConfigError(
+                f"{source}: trials[{i}].file is a .trc (markers only): give its ground "
+                f"reactions as trials[{i}].grf = an OpenSim GRF .mot"
+            )
+        trials.append(tc)
         t.done()
     only_fes = bool(trials) and all(tc.role == "fes" for tc in trials)
 
@@ -333,6 +360,11 @@ def load_config(path: str | Path) -> SessionConfig:
     weights = {k: float(v) for k, v in mk.get("weights", dict, {}).items()}
     if any(w < 0 for w in weights.values()):
         raise ConfigError(f"{source}: markers.weights must be ≥ 0")
+    move = mk.get("move", list, [])
+    if not all(isinstance(m, str) for m in move):
+        raise ConfigError(f"{source}: markers.move = {move!r} should be a list of marker names")
+    if move and not any(tc.role == "static" for tc in trials):
+        raise ConfigError(f"{source}: markers.move needs a trial with role = 'static'")
     mk.done()
 
     e = _Section(top.get("emg", dict, {}), "emg", source)
@@ -394,6 +426,7 @@ def load_config(path: str | Path) -> SessionConfig:
         trials=tuple(trials),
         marker_rename=rename,
         marker_weights=weights,
+        marker_move=tuple(move),
         emg=emg,
         filters=filters,
         optimization=optimization,

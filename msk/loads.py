@@ -40,6 +40,7 @@ of the Pinocchio joint carrying it: ``fext[j] = data.oMi[j].actInv(f_O)``
 
 from __future__ import annotations
 
+import warnings
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import Any, Literal
@@ -452,6 +453,61 @@ def external_loads(
         point=point,
         assignments=tuple(assigned),
     )
+
+
+def contact_measured(
+    model: Model,
+    kinematics: Any,
+    loads: ExternalLoads,
+    *,
+    feet: Sequence[str] | None = None,
+    threshold_n: float = 20.0,
+    height_m: float = 0.08,
+    speed_mps: float = 0.5,
+) -> NDArray[np.bool_]:
+    """(N,) bool: the frames whose ground contact is all measured — every foot on the ground
+    carries a plate load.
+
+    A foot is *on the ground* at frame i when its point nearest the floor is within
+    ``height_m`` of the floor (the lowest point of any foot over the trial) and its slowest point
+    moves slower than ``speed_mps`` (central differences); it *carries a plate load* when the
+    vertical external force on it and its descendants (``loads``) exceeds ``threshold_n``.
+    Foot points as for the plate assignment (module docstring). Frames with an unknown pose
+    (NaN ``q``) are False.
+
+    On the other frames a foot stands on the floor beside the plates (the steps before and after
+    a walkway's plates): inverse dynamics misses its ground reaction, so the pelvis residuals,
+    the identification equations and that leg's joint torques there measure nothing. The
+    defaults were read on overground gait (Plug-in Gait BTKData, Grand Challenge PS): from heel
+    strike to toe-off the lowest foot point is ≤ 6 cm above the floor and the slowest one moves
+    at < 0.3 m/s; in swing it moves at > 1 m/s but in the last frame or two before heel strike
+    (those, unloaded, count as unmeasured: conservative).
+    """
+    t = np.asarray(kinematics.time, dtype=float)
+    q = np.asarray(kinematics.q, dtype=float)
+    n = t.size
+    known = np.isfinite(q).all(axis=1)
+    if n < 3 or not known.any():
+        return known
+    g = np.asarray(model.gravity, dtype=float)
+    up = -g / np.linalg.norm(g) if np.linalg.norm(g) > 0 else np.array([0.0, 1.0, 0.0])
+    feet = tuple(feet) if feet is not None else _default_feet(model)
+    pts = _foot_points(model, q, feet, np.arange(n))
+    with warnings.catch_warnings():  # all-NaN frames (unknown pose): NaN, excluded below
+        warnings.simplefilter("ignore", RuntimeWarning)
+        low = np.stack([np.nanmin(p @ up, axis=1) for p in pts], axis=1)  # (N, F)
+        speed = np.stack(
+            [np.nanmin(np.linalg.norm(np.gradient(p, t, axis=0), axis=2), axis=1) for p in pts],
+            axis=1,
+        )
+        floor = np.nanmin(low)
+    grounded = (low - floor <= height_m) & (speed <= speed_mps)
+    fv = np.zeros((n, len(feet)))
+    for k, foot in enumerate(feet):
+        for b in model.subtree(foot):
+            if b in loads.bodies:
+                fv[:, k] += np.asarray(loads.force[:, loads.bodies.index(b)]) @ up
+    return known & ~(grounded & ~(fv > threshold_n)).any(axis=1)
 
 
 @dataclass(frozen=True)

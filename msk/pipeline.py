@@ -36,12 +36,18 @@ and results writing. The algorithms live in the library:
   (``[markers] rename`` maps model names to lab labels).
 * **Plate assignment** (:func:`msk.loads.external_loads`): each contact interval goes to the
   foot standing on the plate, judged on the plate outline.
+* **Measured frames** (:func:`msk.loads.contact_measured`): pelvis residuals, identification
+  equations, muscle forces and knee contact use only the frames whose every foot on the floor
+  stands on a plate (a walkway's steps before and after the plates miss a ground reaction).
+* **TRC + GRF**: a task trial may be an OpenSim ``.trc`` (:func:`msk.io.read_trc_trial`, +y up)
+  with ``grf`` = an OpenSim GRF ``.mot``, whose plates are rotated with the markers.
 """
 
 from __future__ import annotations
 
 import dataclasses
 import hashlib
+import itertools
 import json
 import os
 import pickle
@@ -61,7 +67,7 @@ import numpy as np
 
 from msk import __version__
 from msk.config import SessionConfig, load_config
-from msk.exceptions import ConfigError, MissingDataError, MskError
+from msk.exceptions import ConfigError, MissingDataError, ModelError, MskError
 from msk.io.frames import lab_to_model_rotation
 from msk.io.opensim_files import Table
 from msk.results import SessionResults, check_replaceable, json_default, write_session
@@ -321,7 +327,11 @@ def _settings(cfg: SessionConfig) -> dict[str, Any]:
         "subject": plain(cfg.subject),
         "model": plain(cfg.model),
         "trials": plain(cfg.trials),
-        "markers": {"rename": dict(cfg.marker_rename), "weights": dict(cfg.marker_weights)},
+        "markers": {
+            "rename": dict(cfg.marker_rename),
+            "weights": dict(cfg.marker_weights),
+            "move": list(cfg.marker_move),
+        },
         "emg": plain(cfg.emg),
         "filters": plain(cfg.filters),
         "optimization": plain(cfg.optimization),
@@ -341,6 +351,42 @@ def _read_markers(path: Path, up: np.ndarray) -> tuple[np.ndarray, tuple[str, ..
 
     tr = to_model_frame(read_c3d(path), up=up, forward=None)
     return tr.markers, tr.marker_labels, tr.time
+
+
+def _contact_measured(model: Any, kin: Any, loads: Any) -> np.ndarray:
+    """:func:`msk.loads.contact_measured`: the frames whose ground contact the plates measure."""
+    from msk.loads import contact_measured
+
+    return contact_measured(model, kin, loads)
+
+
+def _read_grf(path: Path) -> tuple[Any, ...]:
+    """The plates of an OpenSim GRF file (:func:`msk.io.read_sto`,
+    :func:`msk.loads.plates_from_table`): one per ``<prefix>force_vx`` column."""
+    from msk.io import read_sto
+    from msk.loads import plates_from_table
+
+    tab = read_sto(path)
+    prefixes = [c[: -len("force_vx")] for c in tab.columns if c.endswith("force_vx")]
+    if not prefixes:
+        raise MissingDataError(f"{path}: no ground-reaction columns (<prefix>force_vx …)")
+    try:
+        return plates_from_table(tab.time, tab.data, tab.columns, prefixes=prefixes)
+    except MissingDataError as exc:
+        raise MissingDataError(f"{path}: {exc}") from None
+
+
+def _rotated_plate(plate: Any, rot: np.ndarray) -> Any:
+    """A :class:`msk.loads.PlateWrench` rotated by ``rot`` about the origin (force, COP,
+    free moment, corners)."""
+    r = np.asarray(rot, dtype=float)
+    return dataclasses.replace(
+        plate,
+        force=np.asarray(plate.force) @ r.T,
+        cop=np.asarray(plate.cop) @ r.T,
+        free_moment=np.asarray(plate.free_moment) @ r.T,
+        corners=None if plate.corners is None else np.asarray(plate.corners) @ r.T,
+    )
 
 
 def _model_source(cfg: SessionConfig) -> Path:
@@ -421,6 +467,8 @@ class _Session:
             files["static"] = self.static.file
         if self.task.contact_force is not None:
             files["contact_force"] = self.task.contact_force
+        if self.task.grf is not None:
+            files["grf"] = self.task.grf
         for tc in (*self.idtrials, *cfg.trials_with_role("mvc"), *self.fes_trials):
             files[f"{tc.role}:{tc.name}"] = tc.file
         self.model_src = _model_source(cfg)
@@ -440,9 +488,14 @@ class _Session:
     def read(self) -> dict[str, Any]:
         def do() -> dict[str, Any]:
             self.check("read")
-            from msk.io import read_c3d
+            from msk.io import read_c3d, read_trc_trial
 
-            out = {"trial": read_c3d(self.task.file)}
+            if self.task.file.suffix.lower() == ".trc":  # OpenSim ground: +y up
+                out = {"trial": read_trc_trial(self.task.file)}
+            else:
+                out = {"trial": read_c3d(self.task.file)}
+            if self.task.grf is not None:
+                out["grf"] = _read_grf(self.task.grf)
             if self.task.contact_force is not None:
                 out["contact"] = _read_contact(self.task.contact_force)
             return out
@@ -480,7 +533,10 @@ class _Session:
                 )
                 info["scale_ratios"] = dict(model.metadata.get("scale_ratios", {}))
             if self.static is not None:
-                model, placed = place_markers(model, sm, slabels, stime)
+                try:
+                    model, placed = place_markers(model, sm, slabels, stime, move=cfg.marker_move)
+                except ModelError as exc:
+                    raise ConfigError(f"{cfg.path}: markers.move: {exc}") from None
                 info["marker_placement"] = placed
             info["mass_kg"] = model.total_mass
             return {"model": model, "info": info}
@@ -496,6 +552,7 @@ class _Session:
                 "knee": cfg.model.knee,
                 "mass": cfg.subject.mass_kg,
                 "rename": dict(cfg.marker_rename),
+                "move": list(cfg.marker_move),
             },
         )
         self.model = self.built["model"]
@@ -504,6 +561,9 @@ class _Session:
         self.rot = lab_to_model_rotation(self.trial.up, up, self.trial.markers)
         self.mtrial = self.trial.rotated(self.rot)
         self.labels = self.labels_of(self.trial.marker_labels)
+        # plates of a GRF file (``grf``), in the frame of the trial's markers: rotated alike
+        grf = self.raw.get("grf")
+        self.grf_plates = None if grf is None else tuple(_rotated_plate(p, self.rot) for p in grf)
         return self.model
 
     # ------------------------------------------------------------------ kinematics, loads
@@ -519,10 +579,10 @@ class _Session:
             cutoff_hz=self.cfg.filters.kinematics_cutoff_hz,
         )
 
-    def _external_loads(self, trial: Any, kin: Any) -> Any:
+    def _external_loads(self, trial: Any, kin: Any, plates: Any = None) -> Any:
         from msk.loads import external_loads, plates_from_trial
 
-        plates = plates_from_trial(trial)
+        plates = plates_from_trial(trial) if plates is None else plates
         return external_loads(self.model, kin, plates, cutoff_hz=self.cfg.filters.grf_cutoff_hz)
 
     def kinematics(self) -> Any:
@@ -544,7 +604,7 @@ class _Session:
     def loads(self) -> Any:
         def do() -> Any:
             self.check("loads")
-            return self._external_loads(self.mtrial, self.kin)
+            return self._external_loads(self.mtrial, self.kin, self.grf_plates)
 
         self.ext = self.runner.run(
             "loads",
@@ -553,7 +613,12 @@ class _Session:
             settings={"cut": self.cfg.filters.grf_cutoff_hz, "assignment": PLATE_ASSIGNMENT},
         )
         kin = self.kin
-        self.ok_frames = np.isfinite(kin.q).all(axis=1) & np.isfinite(kin.a).all(axis=1)
+        # frames where a foot stands on the floor beside the plates miss a ground reaction:
+        # no residual, identification equation or muscle force comes from them
+        self.measured = _contact_measured(self.model, kin, self.ext)
+        self.ok_frames = (
+            np.isfinite(kin.q).all(axis=1) & np.isfinite(kin.a).all(axis=1) & self.measured
+        )
         return self.ext
 
     # ------------------------------------------------------------------ mass identification
@@ -567,15 +632,20 @@ class _Session:
             from msk.io import read_c3d, to_model_frame
 
             up = -np.asarray(self.model.gravity, dtype=float)
-            runs = [(self.task.name, kin, self.ext)]
+            runs = [(self.task.name, kin, self.ext, self.measured)]
             for tc in self.idtrials:  # dedicated exciting motions (seeds/002 §VI) + the task
                 tr_i = to_model_frame(read_c3d(tc.file), up=up)
                 k_i = self._solve_kinematics(tr_i, self.labels_of(tr_i.marker_labels))
-                runs.append((tc.name, k_i, self._external_loads(tr_i, k_i)))
+                l_i = self._external_loads(tr_i, k_i)
+                runs.append((tc.name, k_i, l_i, _contact_measured(self.model, k_i, l_i)))
             its = []
-            for nm, k_i, l_i in runs:
+            for nm, k_i, l_i, m_i in runs:
                 it = trial_cls.from_loads(self.model, k_i, l_i, name=nm)
-                good = np.isfinite(it.tau_ext).all(axis=1) & np.isfinite(it.theta_ddot).all(axis=1)
+                good = (
+                    np.isfinite(it.tau_ext).all(axis=1)
+                    & np.isfinite(it.theta_ddot).all(axis=1)
+                    & m_i
+                )
                 its.append(
                     trial_cls(
                         it.theta[good],
@@ -889,9 +959,17 @@ class _Session:
             {"label": e.label, "context": e.context, "time": e.time} for e in self.trial.events
         ]
         strikes = sorted(self.trial.events_named("Foot Strike", self.side.capitalize()))
-        self.cycle = (strikes[0], strikes[1]) if len(strikes) >= 2 else None
-        bw = self.body_weight
         t = kin.time
+
+        def on_plates(c: tuple[float, float]) -> float:
+            sel = (t >= c[0]) & (t <= c[1])
+            return float(self.measured[sel].mean()) if sel.any() else 0.0
+
+        # the gait cycle of the report: the one the plates measure best (the first on a tie;
+        # a walkway's plates often see the second cycle of the trial, not the first)
+        cycles = list(itertools.pairwise(strikes))
+        self.cycle = max(cycles, key=on_plates) if cycles else None
+        bw = self.body_weight
         tables: dict[str, Table] = {
             "q": Table(t, kin.q, tuple(kin.coordinate_names), "q"),
             "joint_torques": Table(t, jt.tau, tuple(jt.coordinate_names), "joint_torques"),
@@ -934,7 +1012,7 @@ class _Session:
         tau, contact, strength, sfx, bw = (
             self.tau, self.contact, self.strength, self.sfx, self.body_weight
         )  # fmt: skip
-        measured_on_t = self.measured_on_t
+        measured_on_t, on_plates = self.measured_on_t, self.measured
 
         def do() -> dict[str, Any]:
             self.check("comparison")
@@ -944,6 +1022,7 @@ class _Session:
             if "identified" in tau:
                 g, s = tau["generic"], tau["identified"]
                 good = np.isfinite(g.tau).all(axis=1) & np.isfinite(s.tau).all(axis=1)
+                good &= on_plates
                 leg = [i for i, c in enumerate(g.coordinate_names) if c.endswith(sfx)]
                 out["torque_rms_difference_nm"] = {
                     g.coordinate_names[i]: float(compare.rms(g.tau[good, i], s.tau[good, i]))
@@ -1066,7 +1145,7 @@ class _Session:
         )  # fmt: skip
         quality = _quality(
             self.trial, self.kin, self.jt, self.ext, self.emg_, sol, strength, ident,
-            self.body_weight,
+            self.body_weight, self.measured,
         )  # fmt: skip
         return {
             **self.base_summary(),
@@ -1298,8 +1377,12 @@ def _quality(
     strength: Any,
     ident: Any,
     body_weight: float,
+    measured: np.ndarray,
 ) -> dict[str, Any]:
-    ok = np.isfinite(jt.residual_force).all(axis=1)
+    """Data-quality figures; the residuals over the frames whose ground contact the plates
+    measure (``measured``, :func:`msk.loads.contact_measured`), None when there is none."""
+    ok = np.isfinite(jt.residual_force).all(axis=1) & measured
+    res_f = _rms(jt.residual_force[ok]) if ok.any() else None
     gaps = [
         {"marker": lab, "missing_frames": int(n), "longest_gap_frames": int(g)}
         for lab, n, g in zip(trial.gaps.labels, trial.gaps.n_missing, trial.gaps.longest_gap)
@@ -1313,11 +1396,10 @@ def _quality(
         "ik_marker_rms_mean_m": float(np.nanmean(kin.marker_rms)),
         "ik_marker_rms_max_m": float(np.nanmax(kin.marker_rms)),
         "ik_worst_marker": _mode(kin.marker_max_name),
-        "residual_force_rms_n": float(np.sqrt(np.mean(jt.residual_force[ok] ** 2))),
-        "residual_force_rms_pct_bw": float(
-            100 * np.sqrt(np.mean(jt.residual_force[ok] ** 2)) / body_weight
-        ),
-        "residual_moment_rms_nm": float(np.sqrt(np.mean(jt.residual_moment[ok] ** 2))),
+        "contact_measured_frames": int(measured.sum()),
+        "residual_force_rms_n": res_f,
+        "residual_force_rms_pct_bw": None if res_f is None else 100 * res_f / body_weight,
+        "residual_moment_rms_nm": _rms(jt.residual_moment[ok]) if ok.any() else None,
         "plate_assignments": [
             {k: getattr(a, k) for k in ("plate", "body", "start_time", "end_time") if hasattr(a, k)}
             for a in getattr(loads, "assignments", ())

@@ -467,7 +467,13 @@ def point_segment_distance(p: ArrayLike, a: ArrayLike, b: ArrayLike) -> float:
 
 
 def place_markers(
-    model: Model, static_markers: np.ndarray, labels: Sequence[str], time: np.ndarray
+    model: Model,
+    static_markers: np.ndarray,
+    labels: Sequence[str],
+    time: np.ndarray,
+    *,
+    max_distance_m: float = 0.25,
+    move: Sequence[str] = (),
 ) -> tuple[Model, dict[str, Any]]:
     """Add the static trial's non-model markers to ``model`` (OpenSim's MarkerPlacer idea).
 
@@ -475,28 +481,51 @@ def place_markers(
     trial, with the markers the model already has (``labels`` are in model names where a model
     marker matches; at least 3 per frame); every other static marker (mean position x̄) is
     fixed to the body whose bone segment (:func:`bone_segments`) is nearest, at its measured
-    position in that body's frame: ``p_b = (oMf_b(θ̄))⁻¹ x̄``.
+    position in that body's frame: ``p_b = (oMf_b(θ̄))⁻¹ x̄``. Points that are not measured
+    markers (:func:`msk.io.c3d.is_measured_marker`: unlabelled trajectories ``*N``, Plug-in
+    Gait's virtual segment points ``PELO``…) are not placed: a ``*N`` label names another
+    point in every trial, and PiG's points follow PiG's own segments, not the subject's bones.
+    Nor is a marker farther than ``max_distance_m`` from every bone segment: it sits on a
+    segment the model does not have (arm markers on a model without arms would be fixed to the
+    torso, and an arm held out in the static trial is ~0.5 m from where it swings in gait). The
+    default keeps skin and wand markers (≤ 0.17 m from their bone on the Grand Challenge and
+    Plug-in Gait statics) and leaves out elbows and wrists (≥ 0.33 m on subject01's static).
+
+    ``move`` names model markers that are not anatomical (technical clusters: a lab puts them
+    where it likes): θ̄ is solved without them and they are moved, on their own body, to where
+    the static trial puts them — OpenSim's ``move_model_markers`` restricted to these markers.
 
     Args:
         model: the (scaled) model, in the frame of ``static_markers``.
         static_markers: (N, M, 3) m, NaN gaps.
         labels: the M labels.
         time: (N,) s.
+        max_distance_m: largest distance of a placed marker from its bone segment.
+        move: model markers to move to their static positions (on their body).
 
     Returns:
-        The model with the markers added, and ``{"static_marker_rms_m", "placed"}`` (placed:
-        marker → body).
+        The model with the markers added, and ``{"static_marker_rms_m", "placed",
+        "not_markers", "too_far", "moved"}`` (placed: marker → body; not_markers: the labels
+        left out as not measured markers; too_far: marker → [nearest body, distance in m] of
+        the markers left out by ``max_distance_m``; moved: marker → displacement in m).
 
     Raises:
+        ModelError: a ``move`` name is not a model marker.
         KinematicsError: too few markers in every static frame.
         MissingDataError: no static frame could be solved.
     """
+    from msk.io.c3d import is_measured_marker
     from msk.kinematics import solve_kinematics
 
+    move = tuple(move)
+    unknown = sorted(set(move) - set(model.marker_names))
+    if unknown:
+        raise ModelError(f"model {model.name}: no marker {unknown[0]!r} to move")
     n = static_markers.shape[0]
     frames = np.unique(np.linspace(0, n - 1, min(n, 9)).round().astype(int))
+    base = model.with_markers([m for m in model.markers if m.name not in move]) if move else model
     kin = solve_kinematics(
-        model, static_markers[frames], labels, time[frames], cutoff_hz=None, min_markers=3
+        base, static_markers[frames], labels, time[frames], cutoff_hz=None, min_markers=3
     )
     ok = np.isfinite(kin.q).all(axis=1)
     if not ok.any():
@@ -509,17 +538,33 @@ def place_markers(
         warnings.simplefilter("ignore", RuntimeWarning)
         mean = np.nanmean(static_markers, axis=0)
     known = set(model.marker_names)
+    where = {lab: i for i, lab in enumerate(labels)}
+    markers, moved = list(model.markers), {}
+    for k, mk in enumerate(markers):
+        i = where.get(mk.name)
+        if mk.name in move and i is not None and np.isfinite(mean[i]).all():
+            local = np.asarray(data.oMf[model.body_frame[mk.body]].actInv(mean[i]), dtype=float)
+            moved[mk.name] = float(np.linalg.norm(local - np.asarray(mk.offset, dtype=float)))
+            markers[k] = Marker(mk.name, mk.body, local)
     added = []
     placed: dict[str, str] = {}
+    too_far: dict[str, list[Any]] = {}
+    not_markers = [lab for lab in labels if lab not in known and not is_measured_marker(lab)]
     for i, lab in enumerate(labels):
-        if lab in known or not np.isfinite(mean[i]).all():
+        if lab in known or lab in not_markers or not np.isfinite(mean[i]).all():
             continue
-        body = min(segs, key=lambda s, p=mean[i]: point_segment_distance(p, s[1], s[2]))[0]
+        dist, body = min((point_segment_distance(mean[i], a, b), nm) for nm, a, b in segs)
+        if dist > max_distance_m:
+            too_far[lab] = [body, dist]
+            continue
         local = data.oMf[model.body_frame[body]].actInv(mean[i])
         added.append(Marker(lab, body, np.asarray(local, dtype=float)))
         placed[lab] = body
     info = {
         "static_marker_rms_m": float(np.nanmean(kin.marker_rms[ok])),
         "placed": placed,
+        "not_markers": not_markers,
+        "too_far": too_far,
+        "moved": moved,
     }
-    return model.with_markers([*model.markers, *added]), info
+    return model.with_markers([*markers, *added]), info

@@ -144,3 +144,49 @@ def test_template_fes_example_parses(session_dir: Path):
     # one FES trial is not a protocol: the missing steps are named
     with pytest.raises(ConfigError, match="needs at least 1 trial\\(s\\) with fes_step = 'static'"):
         load_config(path)
+
+
+def test_grf_and_marker_move_keys(session_dir: Path):
+    """``grf`` (an OpenSim GRF file for a task trial, needed by a .trc task) and
+    ``markers.move`` (a list of model markers; needs a static trial)."""
+    path = session_dir / "pipelines" / "session.toml"
+    data = session_dir / "data" / "gc5-PS"
+    (data / "walk.trc").write_text("")
+    (data / "walk_grf.mot").write_text("")
+    trc_task = TEMPLATE.replace("PS_ngait_og_ss1.c3d", "walk.trc", 1)
+    with_grf = trc_task.replace(
+        'role = "task"\n', 'role = "task"\ngrf = "../data/gc5-PS/walk_grf.mot"\n', 1
+    ).replace("move = []", 'move = ["R.Thigh.Upper"]', 1)
+    path.write_text(with_grf)
+    cfg = load_config(path)
+    assert cfg.trials[1].grf == (data / "walk_grf.mot").resolve()
+    assert cfg.trials[0].grf is None and cfg.marker_move == ("R.Thigh.Upper",)
+    for text, message in (
+        (trc_task, r"trials\[1\].file is a .trc .*trials\[1\].grf"),
+        (
+            TEMPLATE.replace('role = "static"\n', 'role = "static"\ngrf = "x.mot"\n', 1),
+            r"trials\[0\].grf: file not found",
+        ),
+        (
+            TEMPLATE.replace(
+                'role = "static"\n', 'role = "static"\ngrf = "../data/gc5-PS/walk_grf.mot"\n', 1
+            ),
+            r"trials\[0\].grf is only valid with role = 'task'",
+        ),
+        (
+            TEMPLATE.replace(
+                'role = "task"\n', 'role = "task"\ngrf = "../data/gc5-PS/walk_grf.mot"\n', 1
+            ),
+            r"trials\[1\].grf goes with a .trc trial file .* PS_ngait_og_ss1.c3d",
+        ),
+        (TEMPLATE.replace("move = []", "move = [3]", 1), "markers.move = .* list of marker"),
+        (
+            TEMPLATE.replace('role = "static"', 'role = "mvc"', 1).replace(
+                "move = []", 'move = ["R.Thigh.Upper"]', 1
+            ),
+            "markers.move needs a trial with role = 'static'",
+        ),
+    ):
+        path.write_text(text)
+        with pytest.raises(ConfigError, match=message):
+            load_config(path)

@@ -239,3 +239,33 @@ def test_overground_walk_plates_go_to_the_standing_foot_not_the_swinging_one():
     # without the swing test the outline counts both feet on plate 1: a typed error
     with pytest.raises(ForcePlateError, match=r"plate1 contact 5\.133.*both feet"):
         external_loads(model, kin, plates, cutoff_hz=15.0, speed_mps=np.inf)
+
+
+def test_contact_measured_flags_a_foot_on_the_floor_beside_the_plates():
+    """Standing still on both plates: every frame measured; plate 1 unloaded for 0.3 s (the
+    right foot on the floor, its reaction not recorded): those frames are not; the same 0.3 s
+    in the air (a hop: pelvis 0.2 m up, no foot on the floor): measured; unknown pose: not."""
+    from msk.loads import contact_measured
+
+    t = KIN.time
+    q = np.repeat(TRIAL.q[:1], t.size, axis=0)
+    still = dataclasses.replace(KIN, q=q, v=np.zeros_like(q), a=np.zeros_like(q))
+    full = external_loads(MODEL, still, TRIAL.plates)
+    assert contact_measured(MODEL, still, full).all()
+    window = (t > 0.3) & (t < 0.6)
+    plates = (_unloaded_between(TRIAL.plates[0], 0.3, 0.6), TRIAL.plates[1])
+    m = contact_measured(MODEL, still, external_loads(MODEL, still, plates))
+    np.testing.assert_array_equal(m, ~window)
+    # the left foot alone is always loaded
+    part = external_loads(MODEL, still, plates)
+    assert contact_measured(MODEL, still, part, feet=("foot_l",)).all()
+    hop_q = q.copy()
+    hop_q[window, MODEL.coordinate_index("pelvis_ty")] += 0.2
+    hop = dataclasses.replace(still, q=hop_q)
+    both_off = tuple(_unloaded_between(p, 0.3, 0.6) for p in TRIAL.plates)
+    assert contact_measured(MODEL, hop, external_loads(MODEL, hop, both_off)).all()
+    gap_q = q.copy()
+    gap_q[5] = np.nan
+    gap = dataclasses.replace(still, q=gap_q)
+    m = contact_measured(MODEL, gap, full)
+    assert not m[5] and m[np.arange(t.size) != 5].all()

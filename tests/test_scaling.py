@@ -399,6 +399,51 @@ def test_place_markers_skips_unseen_markers_and_names_an_unsolvable_static():
         place_markers(model, np.full_like(x, np.nan), truth.marker_names, t)
 
 
+def test_place_markers_moves_named_model_markers_and_leaves_out_far_and_virtual_points():
+    """``move``: a model marker 4 cm off where this subject carries it goes back to its true
+    place (on its own body); a point 0.6 m from every bone (an arm marker on a model without
+    arms) and the points that are not markers (Vicon's unlabelled ``*1``, Plug-in Gait's
+    ``PELO``) are not placed."""
+    from msk.model import Marker
+    from msk.scaling import place_markers
+
+    _, truth, x, t = _static_with_clusters(0.0)
+    shift = np.array([0.04, 0.0, 0.0])
+    true_offset = next(m.offset for m in truth.markers if m.name == "RTHC")
+    generic = truth.with_markers(
+        [Marker(m.name, m.body, m.offset + shift) if m.name == "RTHC" else m
+         for m in truth.markers]
+    )  # fmt: skip
+    far = x[:, truth.marker_names.index("RTHC")] + np.array([0.0, 0.0, 0.8])
+    near = x[:, truth.marker_names.index("RSHC")] + 0.01
+    xs = np.concatenate([x, far[:, None], near[:, None], near[:, None]], axis=1)
+    labels = [*truth.marker_names, "R.Wrist", "*1", "PELO"]
+    kept, _ = place_markers(generic, xs, labels, t)
+    np.testing.assert_allclose(
+        next(m.offset for m in kept.markers if m.name == "RTHC"), true_offset + shift
+    )
+    moved, info = place_markers(generic, xs, labels, t, move=["RTHC"])
+    got = next(m for m in moved.markers if m.name == "RTHC")
+    assert got.body == "femur_r"
+    np.testing.assert_allclose(got.offset, true_offset, atol=1e-6)
+    assert info["moved"] == {"RTHC": pytest.approx(0.04, abs=1e-6)}
+    assert info["static_marker_rms_m"] < 1e-6  # the pose came without the moved marker
+    assert info["too_far"]["R.Wrist"][1] > 0.25 and "R.Wrist" not in moved.marker_names
+    assert info["not_markers"] == ["*1", "PELO"]
+    assert not {"*1", "PELO"} & set(moved.marker_names)
+    with pytest.raises(ModelError, match="no marker 'RTHX' to move"):
+        place_markers(generic, xs, labels, t, move=["RTHX"])
+
+
+def test_is_measured_marker():
+    from msk.io import is_measured_marker
+
+    for lab in ("*1", "*23", "PELO", "LFEA", "RTIL", "LFOP", "RTOO", "HEDA", "TRXO", "LHUO"):
+        assert not is_measured_marker(lab), lab
+    for lab in ("LASI", "RTOE", "LTIB", "RTHI", "LHEE", "RPSI", "R.Knee.Lat", "RKNEin", "*x"):
+        assert is_measured_marker(lab), lab
+
+
 def test_point_segment_distance_and_bone_segments():
     from synthetic import two_leg_model
 

@@ -21,6 +21,7 @@ C3DFileAdapter report it.
 from __future__ import annotations
 
 import math
+import re
 import struct
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
@@ -36,6 +37,7 @@ from msk.signal import block_average, resample_to
 __all__ = [
     "LENGTH_UNITS_M",
     "MODEL_OUTPUT_KINDS",
+    "NON_MARKER_POINT",
     "Event",
     "ForcePlate",
     "GapReport",
@@ -43,6 +45,7 @@ __all__ = [
     "PlateSpec",
     "Subject",
     "Trial",
+    "is_measured_marker",
     "read_c3d",
     "write_c3d",
 ]
@@ -51,6 +54,19 @@ __all__ = [
 LENGTH_UNITS_M: Mapping[str, float] = {"m": 1.0, "mm": 1e-3, "cm": 1e-2}
 #: ``POINT`` parameters listing model-output points (Plug-in Gait and alike), never markers.
 MODEL_OUTPUT_KINDS: tuple[str, ...] = ("ANGLES", "FORCES", "MOMENTS", "POWERS", "REACTIONS")
+#: Point labels that are not measured markers although C3D writers put them among the markers:
+#: Vicon's unlabelled trajectories (``*1``, ``*12``: the same label is another point in another
+#: trial) and Plug-in Gait's virtual segment points (origin / anterior / lateral / proximal of
+#: each PiG segment: ``PELO``, ``LFEA``, ``RTIL``, ``HEDP``, ``TRXO``…), outputs of its model.
+NON_MARKER_POINT = re.compile(r"^\*\d+$|^(PEL|HED|TRX|[LR](FE|TI|FO|TO|CL|HU|RA|HN))[OALP]$")
+
+
+def is_measured_marker(label: str) -> bool:
+    """False for an unlabelled trajectory or a Plug-in Gait virtual point
+    (:data:`NON_MARKER_POINT`): not something to fix on a model body."""
+    return NON_MARKER_POINT.match(label.strip()) is None
+
+
 _AXES = "XYZ"
 
 

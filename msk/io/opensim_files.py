@@ -17,11 +17,15 @@ import tempfile
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from msk.exceptions import FileFormatError, MissingDataError, UnitsError
+
+if TYPE_CHECKING:
+    from msk.io.c3d import Trial
 
 __all__ = [
     "MarkerTable",
@@ -30,6 +34,7 @@ __all__ = [
     "read_mot",
     "read_sto",
     "read_trc",
+    "read_trc_trial",
     "write_mot",
     "write_sto",
     "write_trc",
@@ -327,6 +332,40 @@ def read_trc(path: str | Path) -> MarkerTable:
         rate_hz=rate,
         units_in_file=units,
         frame_numbers=np.nan_to_num(data[:, 0]).astype(np.int64),
+    )
+
+
+def read_trc_trial(path: str | Path, *, up: ArrayLike = (0.0, 1.0, 0.0)) -> Trial:
+    """A TRC file as a markers-only :class:`msk.io.Trial` (no analogs, plates, events), so that
+    a marker trial exported for OpenSim goes where a C3D trial goes. A TRC has no vertical
+    axis: ``up`` is the frame's (OpenSim's ground: +y)."""
+    from msk.io.c3d import GapReport, ModelOutputs, Subject, Trial, _longest_runs
+
+    path = Path(path)
+    t = read_trc(path)
+    u = np.asarray(up, dtype=float)
+    if u.shape != (3,) or not np.linalg.norm(u) > 0:
+        raise FileFormatError(f"{path}: up must be a non-zero 3-vector, got {up!r}")
+    missing = ~np.isfinite(t.markers).all(axis=2)
+    return Trial(
+        path=path,
+        point_rate_hz=float(t.rate_hz),
+        time=t.time,
+        markers=t.markers,
+        marker_labels=t.labels,
+        gaps=GapReport(t.labels, missing.sum(axis=0).astype(np.int64), _longest_runs(missing)),
+        model_outputs=ModelOutputs((), (), (), np.zeros((t.time.size, 0, 3))),
+        analog_rate_hz=0.0,
+        analog_time=np.zeros(0),
+        analogs=np.zeros((0, 0)),
+        analog_labels=(),
+        analog_units=(),
+        plates=(),
+        events=(),
+        subject=Subject(),
+        vertical_axis=int(np.argmax(np.abs(u))),
+        up=u / np.linalg.norm(u),
+        point_units_in_file=t.units_in_file,
     )
 
 

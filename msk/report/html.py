@@ -636,6 +636,10 @@ def _quality_section(res: SessionResults) -> str:
         ["marker most often worst", _e(q.get("ik_worst_marker", "—"))],
         ["IK failed frames", _e(q.get("ik_failed_frames", "—"))],
         [
+            "frames with all ground contact on plates (residuals, muscle forces)",
+            f"{_e(q.get('contact_measured_frames', '—'))} of {_e(q.get('frames', '—'))}",
+        ],
+        [
             "pelvis residual force (RMS)",
             f"{_num(q.get('residual_force_rms_n'), '.1f', 'N')} "
             f"({_num(q.get('residual_force_rms_pct_bw'), '.1f', '% BW')})",

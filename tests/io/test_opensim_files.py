@@ -83,6 +83,30 @@ def test_trc_round_trip_is_identity(tmp_path, n, m, units, seed):
     np.testing.assert_array_equal(back.frame_numbers, np.arange(1, n + 1))
 
 
+def test_trc_as_a_markers_only_trial(tmp_path):
+    """read_trc_trial: the TRC's markers, time and gaps in a Trial with no analogs or plates;
+    up = +y unless told."""
+    from msk.io import read_trc_trial
+
+    rng = np.random.default_rng(1)
+    x = rng.uniform(-1, 1, size=(6, 3, 3))
+    x[2:5, 1] = np.nan
+    t = np.arange(6) / 50.0
+    path = write_trc(tmp_path / "w.trc", time=t, markers=x, labels=["A", "B", "C"], rate_hz=50.0)
+    tr = read_trc_trial(path)
+    assert tr.marker_labels == ("A", "B", "C") and tr.point_rate_hz == 50.0
+    np.testing.assert_allclose(tr.markers, x, atol=1e-12)
+    np.testing.assert_array_equal(tr.time, t)
+    assert tr.gaps.with_gaps() == ("B",) and int(tr.gaps.longest_gap[1]) == 3
+    assert tr.plates == () and tr.analogs.shape[1] == 0 and tr.events == ()
+    np.testing.assert_array_equal(tr.up, [0.0, 1.0, 0.0])
+    assert tr.vertical_axis == 1
+    z = read_trc_trial(path, up=(0, 0, 2))
+    np.testing.assert_array_equal(z.up, [0.0, 0.0, 1.0])
+    with pytest.raises(FileFormatError, match="up must be"):
+        read_trc_trial(path, up=(0, 0, 0))
+
+
 @settings(
     max_examples=30, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture]
 )
