@@ -131,3 +131,12 @@ def test_missing_stages_are_visible():
     assert "msk.strength not available" in html and "ModelError: no knee_l" in html
     assert "time (s)" in html  # no gait events: curves against time
     assert "<svg" in html
+
+
+def test_strength_status_flags_factors_on_the_regression_bounds():
+    from msk.report.html import _strength_status
+
+    assert _strength_status({"identified": True, "factor": 1.13}, [0.5, 2.0]) == "identified"
+    assert _strength_status({"identified": True, "factor": 0.5}, [0.5, 2.0]).startswith("at bound")
+    assert _strength_status({"identified": True, "factor": 2.0}, [0.5, 2.0]).startswith("at bound")
+    assert _strength_status({"identified": False, "factor": 1.0}, [0.5, 2.0]) == "kept generic"

@@ -348,6 +348,16 @@ def _num(x: Any, fmt: str = ".3g", unit: str = "") -> str:
     return f"{s} {unit}".rstrip() if unit else s
 
 
+def _strength_status(group: dict[str, Any], bounds: Any) -> str:
+    """'identified', 'at bound' (the data did not determine the factor: it sits on the
+    0.5–2.0 × limit of the regression) or 'kept generic'."""
+    if not group["identified"]:
+        return "kept generic"
+    if bounds is not None and any(abs(group["factor"] - b) < 1e-6 for b in bounds):
+        return "at bound (not determined)"
+    return "identified"
+
+
 def _table(head: Sequence[str], rows: Sequence[Sequence[str]], cls: str = "") -> str:
     h = "".join(f"<th>{_e(c)}</th>" for c in head)
     b = "".join("<tr>" + "".join(f"<td>{c}</td>" for c in r) + "</tr>" for r in rows)
@@ -441,7 +451,7 @@ def _strength_section(res: SessionResults, figs: Mapping[str, str]) -> str:
                 ),
                 _num(g["f_iso_generic_n"], ".0f", "N"),
                 _num(g["f_iso_n"], ".0f", "N"),
-                "identified" if g["identified"] else "kept generic",
+                _strength_status(g, st.get("bounds")),
             ]
         )
     out.append(
