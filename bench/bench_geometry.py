@@ -35,7 +35,7 @@ import numpy as np
 from msk._data import reference_dir, shared_dir
 from msk.model import Model
 from msk.muscles.geometry import GeometryPlan
-from msk.opensim_peer import opensim_available, run_opensim_script
+from msk.opensim_peer import POSE_PRELUDE, opensim_available, run_opensim_script
 
 SECTION = "## Muscle geometry"
 PEER = shared_dir() / "tools" / "opensim-peer" / "data"
@@ -46,31 +46,15 @@ TRUNK = ("ercspn", "intobl", "extobl")
 LEG = ("hip_flexion", "hip_adduction", "hip_rotation", "knee_angle", "ankle_angle",
        "subtalar_angle", "mtp_angle")  # fmt: skip
 
-OPENSIM_TIMING = """
-import opensim as osim, time
-m = osim.Model(ARGS["model"]); s = m.initSystem()
-cs = m.getCoordinateSet()
-coords = [cs.get(n) for n in ARGS["coords"]]
-for c in coords:
-    c.setLocked(s, False)  # a locked coordinate ignores setValue
-couplers = []  # dependent = scale * f(independent), which msk embeds exactly
-cset = m.getConstraintSet()
-for i in range(cset.getSize()):
-    cc = osim.CoordinateCouplerConstraint.safeDownCast(cset.get(i))
-    if cc is not None and cc.get_isEnforced():
-        couplers.append((cs.get(cc.getDependentCoordinateName()),
-                         cs.get(cc.getIndependentCoordinateNames().get(0)), cc.getFunction(),
-                         float(cc.getPropertyByName("scale_factor").toString())))
+OPENSIM_TIMING = (
+    POSE_PRELUDE
+    + """
 muscles = [m.getMuscles().get(n) for n in ARGS["muscles"]]
 own = [[cs.get(n) for n in names] for names in ARGS["own_coords"]]
 L, R = [], []
 t0, c0 = time.perf_counter(), time.process_time()
 for q in ARGS["q"]:
-    for c, v in zip(coords, q):
-        c.setValue(s, v, False)
-    for dep, ind, f, k in couplers:
-        dep.setValue(s, k * f.calcValue(osim.Vector(1, ind.getValue(s))), False)
-    m.realizePosition(s)
+    set_pose(q)
     L.append([mu.getLength(s) for mu in muscles])
     R.append([[mu.computeMomentArm(s, c) for c in cl] for mu, cl in zip(muscles, own)])
 RESULT["seconds"] = time.perf_counter() - t0
@@ -79,6 +63,7 @@ RESULT["L"] = L
 RESULT["R"] = R
 RESULT["calls"] = len(ARGS["q"]) * sum(1 + len(c) for c in ARGS["own_coords"])
 """
+)
 
 
 def lower_limb(model: Model) -> Model:

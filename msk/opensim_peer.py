@@ -36,6 +36,37 @@ sys.stdout.write("\\n@@MSK-RESULT@@" + json.dumps(RESULT))
 """
 
 
+#: Peer-script prelude for pose sweeps: loads ``ARGS["model"]`` as ``m`` with state ``s``, unlocks
+#: the coordinates ``ARGS["coords"]`` (a locked coordinate ignores ``setValue``) and defines
+#: ``set_pose(q)``, which sets them, applies every enforced CoordinateCouplerConstraint
+#: (dependent = scale · f(independent), which OpenSim does not update on ``setValue``; msk embeds
+#: it exactly) and realises positions.
+POSE_PRELUDE = """
+import opensim as osim, time
+m = osim.Model(ARGS["model"]); s = m.initSystem()
+cs = m.getCoordinateSet()
+coords = [cs.get(n) for n in ARGS["coords"]]
+for c in coords:
+    c.setLocked(s, False)
+couplers = []
+cset = m.getConstraintSet()
+for i in range(cset.getSize()):
+    cc = osim.CoordinateCouplerConstraint.safeDownCast(cset.get(i))
+    if cc is not None and cc.get_isEnforced():
+        couplers.append((cs.get(cc.getDependentCoordinateName()),
+                         cs.get(cc.getIndependentCoordinateNames().get(0)), cc.getFunction(),
+                         float(cc.getPropertyByName("scale_factor").toString())))
+
+
+def set_pose(q):
+    for c, v in zip(coords, q):
+        c.setValue(s, v, False)
+    for dep, ind, f, k in couplers:
+        dep.setValue(s, k * f.calcValue(osim.Vector(1, ind.getValue(s))), False)
+    m.realizePosition(s)
+"""
+
+
 def opensim_available() -> bool:
     """True when the optional ``opensim`` package is installed (it is never imported here)."""
     return importlib.util.find_spec("opensim") is not None

@@ -127,10 +127,8 @@ def _subject01(shared: Path):
 
 
 def _read_static(path: Path, t0: float, t1: float):
-    try:
-        from msk.io.opensim_files import read_trc
-    except ImportError:  # pragma: no cover - the io module is written by another engineer
-        pytest.skip("msk.io.read_trc not available")
+    from msk.io.opensim_files import read_trc
+
     trc = read_trc(path)
     sel = (trc.time >= t0 - 1e-9) & (trc.time <= t1 + 1e-9)
     return {lab: trc.markers[sel, i] for i, lab in enumerate(trc.labels)}

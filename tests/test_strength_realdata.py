@@ -114,7 +114,6 @@ def _trial(full, t0, t1, name):
 @pytest.mark.slow
 @pytest.mark.realdata
 def test_emg_driven_calibration_on_the_rajagopal_walk(real_dir, ref_dir):
-    pytest.importorskip("msk.muscles.geometry")
     params, full = _load(real_dir, ref_dir)
     calib = _trial(full, 0.45, 1.30, "right stance 1 + swing")
     held_out = _trial(full, 1.30, 1.80, "right stance 2 (held out)")

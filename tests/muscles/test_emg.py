@@ -191,7 +191,8 @@ def test_grand_challenge_emg(real_dir):
     assert all(s == "session_peak" for s in res.normalisation_source)
     assert res.time.size == x.shape[0] and res.rate_hz == pytest.approx(1200.0)
     # the same through msk.io.read_c3d (SI trial) when that reader is present
-    io = pytest.importorskip("msk.io")
+    import msk.io as io
+
     trial = io.read_c3d(real_dir / "knee-grand-challenge-gc5" / "PS_ngait_og_ss1.c3d")
     via = envelopes_from_trial(trial, channels=emg_labels, delay_s=0.03)
     np.testing.assert_allclose(via.envelopes, res.envelopes[:, : len(emg_labels)], atol=1e-9)

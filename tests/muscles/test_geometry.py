@@ -29,6 +29,7 @@ from msk.muscles.path import (
     PathWrap,
     WrapObject,
 )
+from msk.opensim_peer import POSE_PRELUDE
 
 # the crossed four-bar of tests/test_joints.py (femur frame: x anterior, y proximal)
 KNEE = FourBarKnee(
@@ -389,43 +390,27 @@ GAIT2392_IK = "Pipelines/Gait2392_Simbody/OutputReference/subject01_walk1_ik.mot
 LEG_COORDS = ("hip_flexion", "hip_adduction", "hip_rotation", "knee_angle", "ankle_angle",
               "subtalar_angle", "mtp_angle")  # fmt: skip
 
-OPENSIM_GEOMETRY = """
-import opensim as osim, time
-m = osim.Model(ARGS["model"]); s = m.initSystem()
-cs = m.getCoordinateSet()
-coords = [cs.get(n) for n in ARGS["coords"]]
-for c in coords:
-    c.setLocked(s, False)  # a locked coordinate ignores setValue
-couplers = []  # dependent = scale * f(independent), which msk embeds exactly
-cset = m.getConstraintSet()
-for i in range(cset.getSize()):
-    cc = osim.CoordinateCouplerConstraint.safeDownCast(cset.get(i))
-    if cc is not None and cc.get_isEnforced():
-        couplers.append((cs.get(cc.getDependentCoordinateName()),
-                         cs.get(cc.getIndependentCoordinateNames().get(0)), cc.getFunction(),
-                         float(cc.getPropertyByName("scale_factor").toString())))
+OPENSIM_GEOMETRY = (
+    POSE_PRELUDE
+    + """
 muscles = [m.getMuscles().get(n) for n in ARGS["muscles"]]
 macs = [cs.get(n) for n in ARGS["ma_coords"]]
 L, R = [], []
 t0 = time.perf_counter()
 for q in ARGS["q"]:
-    for c, v in zip(coords, q):
-        c.setValue(s, v, False)
-    for dep, ind, f, k in couplers:
-        dep.setValue(s, k * f.calcValue(osim.Vector(1, ind.getValue(s))), False)
-    m.realizePosition(s)
+    set_pose(q)
     L.append([mu.getLength(s) for mu in muscles])
     R.append([[mu.computeMomentArm(s, c) for c in macs] for mu in muscles])
 RESULT["seconds"] = time.perf_counter() - t0
 RESULT["L"] = L
 RESULT["R"] = R
 """
+)
 
 
 def _load_osim(path):
-    osim = pytest.importorskip(
-        "msk.osim", reason="msk.osim (OpenSim import, issue 5) not there yet"
-    )
+    import msk.osim as osim
+
     if not path.is_file():
         pytest.skip(f"model file absent: {path}")
     return osim.load_osim(path)
@@ -567,7 +552,8 @@ def test_knee_moment_arms_spline_vs_four_bar_are_plausible():
     four-bar fitted to it (msk.fourbar_fit): quadriceps extend with 2–6 cm and average 4–6 cm
     over 0–60° (in-vivo range cited by seed 000); hamstrings flex; both knees agree within 4 mm
     (the four-bar reproduces the spline path, its rolling–gliding enters through G)."""
-    fourbar_fit = pytest.importorskip("msk.fourbar_fit")
+    import msk.fourbar_fit as fourbar_fit
+
     model = _load_osim(_peer_data() / GAIT2392_SUBJECT01)
     knee = next(j for j in model.joints if j.name == "knee_r")
     fit = fourbar_fit.fit_four_bar_to_joint(knee, flexion=(0.0, -np.deg2rad(120.0)))
