@@ -20,6 +20,8 @@ from msk.exceptions import ConfigError
 TRIAL_ROLES = ("static", "mass_identification", "mvc", "task", "fes")
 KNEE_VARIANTS = ("spline", "four_bar")
 OPTIMIZATION_METHODS = ("static_optimization", "bounded_qp", "emg_weighted", "closed_form")
+#: static optimisation activation weights: uniform (OpenSim's Σ a^p) or muscle volume (Happee)
+ACTIVATION_WEIGHTS = ("uniform", "volume")
 #: The step of the FES identification protocol a ``role = "fes"`` trial records (seeds/000 §2.3):
 #: passive static torques, pendulum drop, isometric trains at several knee angles (force–length),
 #: isometric trains of increasing level at one angle (recruitment), the dynamic trial of the
@@ -105,6 +107,8 @@ grf_cutoff_hz = 15.0
 method = "static_optimization"   # static_optimization | bounded_qp | emg_weighted | closed_form
 w_emg = 0.1                      # EMG weight of the EMG-weighted QP (seed 002 Eq. 18)
 solver = "daqp"
+activation_weights = "uniform"   # static_optimization: uniform (OpenSim, Σ a^p) | volume (Σ V a^p)
+activation_exponent = 2.0        # static_optimization: p ≥ 2 (OpenSim's activation_exponent)
 
 # FES knee-model identification (seeds/000): one [[trials]] table per recording with
 # role = "fes" and fes_step = static | pendulum | isometric | recruitment | dynamic | validation
@@ -211,6 +215,9 @@ class OptimizationConfig:
     method: str = "static_optimization"
     w_emg: float = 0.1
     solver: str = "daqp"
+    #: static optimisation criterion Σ w_i a_i^p: weights ("uniform" | "volume") and p ≥ 2
+    activation_weights: str = "uniform"
+    activation_exponent: float = 2.0
 
 
 @dataclass(frozen=True)
@@ -388,8 +395,17 @@ def load_config(path: str | Path) -> SessionConfig:
         method=o.choice("method", OPTIMIZATION_METHODS, "static_optimization"),
         w_emg=o.get("w_emg", float, 0.1),
         solver=o.get("solver", str, "daqp"),
+        activation_weights=o.choice("activation_weights", ACTIVATION_WEIGHTS, "uniform"),
+        activation_exponent=o.get("activation_exponent", float, 2.0),
     )
     o.done()
+    if not (
+        np.isfinite(optimization.activation_exponent) and optimization.activation_exponent >= 2
+    ):
+        raise ConfigError(
+            f"{source}: optimization.activation_exponent = {optimization.activation_exponent} "
+            "should be ≥ 2"
+        )
 
     fz = _Section(top.get("fes", dict, {}), "fes", source)
     fes = FesConfig(

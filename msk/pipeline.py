@@ -799,8 +799,15 @@ class _Session:
         common = {"muscle_names": params.names, "coordinate_names": cn, "time": kin.time[ok]}
         solver = cfg.optimization.solver
         if meth == "static_optimization":
+            opt = cfg.optimization
+            weights = (
+                o.volume_weights(params.max_isometric_force, params.optimal_fiber_length)
+                if opt.activation_weights == "volume"
+                else None
+            )
             sol = o.solve_static_optimization_batch(
                 jac, tq, f_active=fa, f_passive=fp, reserve_optimal_force=reserves,
+                activation_weights=weights, activation_exponent=opt.activation_exponent,
                 solver=solver, **common,
             )  # fmt: skip
             forces, acts = sol.forces, sol.activations
@@ -842,6 +849,10 @@ class _Session:
         a_all = np.full_like(f_all, np.nan)
         f_all[ok], a_all[ok] = forces, acts
         out = {"forces": f_all, "activations": a_all, "muscles": params.names, "method": meth}
+        if meth == "static_optimization":
+            opt = cfg.optimization
+            w = "V_i " if opt.activation_weights == "volume" else ""
+            out["criterion"] = f"min Σ {w}a_i^{opt.activation_exponent:g}"
         if sol is not None:
             out["infeasible_frames"] = int(sol.infeasible_frames.size)
             rt = np.full((n, len(act_idx)), np.nan)
@@ -1336,6 +1347,7 @@ def _strength_table(strength: Mapping[str, Any]) -> Table:
 def _optimization_summary(sol: Mapping[str, Any], sfx: str) -> dict[str, Any]:
     return {
         "method": sol["method"],
+        "criterion": sol.get("criterion"),
         "infeasible_frames": sol.get("infeasible_frames"),
         "reserve_torque_rms_nm": None
         if "reserve_torques" not in sol

@@ -44,6 +44,8 @@ def test_template_is_a_valid_config(session_dir: Path):
         ("PS_ngait_og_ss1.c3d", "missing.c3d", r"trials\[1\].file: file not found: .*missing.c3d"),
         ("[filters]", "[filters]\ncutoff = 3", "unknown key filters.cutoff"),
         ("w_emg = 0.1", 'w_emg = "high"', "optimization.w_emg = 'high' should be float"),
+        ('activation_weights = "uniform"', 'activation_weights = "mass"', "weights = 'mass'"),
+        ("activation_exponent = 2.0", "activation_exponent = 1.5", "exponent = 1.5 should be"),
         ('name = "gait1"', 'name = "static"', "trial names must be unique"),
     ],
 )

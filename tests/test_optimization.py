@@ -333,6 +333,94 @@ def test_static_optimization_recovers_kkt_truth_with_passive_forces(
     np.testing.assert_allclose(sol2.activations, sol.activations, atol=1e-6)
 
 
+@given(
+    seed=st.integers(0, 10_000),
+    m=st.integers(6, 30),
+    n=st.integers(1, 6),
+    p=st.sampled_from([2.0, 3.0, 4.0]),
+    weighted=st.booleans(),
+)
+@HSET
+def test_static_optimization_weighted_power_criterion_recovers_kkt_truth(
+    seed: int, m: int, n: int, p: float, weighted: bool
+) -> None:
+    """``min Σ w_i a_i^p`` (volume weights, Crowninshield–Brand p = 3): for multipliers λ the
+    point ``a = clip((f_act Rᵀλ / (p w))^(1/(p−1)), a_min, 1)`` with ``τ = R (a f_act)`` meets
+    the KKT conditions of the strictly convex problem, so it is the optimum; DAQP (QP, or
+    sequential QP for p > 2) and Clarabel agree, and the batch equals the frame solve."""
+    rng = np.random.default_rng(seed)
+    r = _random_moment_arms(rng, m, n)
+    f_act = rng.uniform(100.0, 2500.0, m) * rng.uniform(0.3, 1.0, m)
+    w = rng.uniform(0.2, 5.0, m) if weighted else np.ones(m)
+    a_min = np.full(m, 0.01)
+    lam = rng.normal(0.0, 1.0, n) * 4.0 / np.abs(r * f_act).sum(axis=1).mean()
+    s = f_act * (r.T @ lam) / (p * w)
+    a_true = np.clip(np.maximum(s, 0.0) ** (1.0 / (p - 1.0)), a_min, 1.0)
+    tau = r @ (a_true * f_act)
+    prob = StaticOptimizationProblem(
+        jacobian=-r.T,
+        tau=tau,
+        f_active=f_act,
+        activation_min=a_min,
+        activation_weights=w if weighted else None,
+        activation_exponent=p,
+    )
+    sol = solve(prob)
+    assert sol.status == "optimal" and sol.activations is not None
+    np.testing.assert_allclose(sol.activations, a_true, atol=1e-7)
+    assert sol.kkt.max() < 1e-8
+    assert sol.objective == pytest.approx(np.sum(w * a_true**p), rel=1e-7, abs=1e-12)
+    sol2 = solve(prob, solver="clarabel")
+    assert sol2.activations is not None
+    np.testing.assert_allclose(sol2.activations, sol.activations, atol=1e-6)
+    batch = solve_static_optimization_batch(
+        (-r.T)[None],
+        tau[None],
+        f_active=f_act[None],
+        activation_min=a_min,
+        activation_weights=w if weighted else None,
+        activation_exponent=p,
+    )
+    assert batch.activations is not None and batch.status[0] == 0
+    np.testing.assert_allclose(batch.activations[0], sol.activations, atol=1e-9)
+    assert batch.kkt[0].max() < 1e-8
+
+
+def test_static_optimization_power_criterion_shares_load_more_evenly() -> None:
+    """Two synergists of capacities 1000 N and 250 N on one coordinate: Σ a² gives
+    a₁/a₂ = F₁/F₂ = 4, Σ a³ gives √4 = 2 (a^(p−1) ∝ F), and volume weights w = F give 1."""
+    f_act = np.array([1000.0, 250.0])
+    jac = -np.array([[0.05], [0.05]])
+    tau = np.array([20.0])
+    ratio = {}
+    for key, w, p in (("a2", None, 2.0), ("a3", None, 3.0), ("vol", f_act / f_act.mean(), 2.0)):
+        prob = StaticOptimizationProblem(
+            jacobian=jac, tau=tau, f_active=f_act, activation_weights=w, activation_exponent=p
+        )
+        a = solve(prob).activations
+        assert a is not None
+        ratio[key] = a[0] / a[1]
+    assert ratio["a2"] == pytest.approx(4.0, rel=1e-9)
+    assert ratio["a3"] == pytest.approx(2.0, rel=1e-7)
+    assert ratio["vol"] == pytest.approx(1.0, rel=1e-9)
+
+
+@pytest.mark.parametrize(
+    ("weights", "exponent"), [([1.0, 0.0], 2.0), ([1.0, np.inf], 2.0), (None, 1.5), (None, np.nan)]
+)
+def test_static_optimization_rejects_bad_weights_and_exponents(
+    weights: list[float] | None, exponent: float
+) -> None:
+    with pytest.raises(OptimizationError):
+        StaticOptimizationProblem(
+            jacobian=-np.array([[0.05], [0.04]]),
+            tau=np.array([10.0]),
+            f_active=np.array([1000.0, 500.0]),
+            activation_weights=weights,
+            activation_exponent=exponent,
+        )
+
+
 def test_static_optimization_without_passive_is_the_tension_qp_in_activations() -> None:
     d = leg_like_frames(30, 5, 20, seed=12)
     f_act = np.broadcast_to(d.f_iso, (20, 30))
@@ -529,3 +617,16 @@ def test_static_optimization_matches_opensim_on_gait2392_walk(
     worst = ref.muscle_names[int(np.abs(da).max(axis=0).argmax())]
     assert np.abs(da).max() < 0.01, worst
     assert np.sqrt(np.mean(da**2)) < 0.002
+
+
+def test_volume_weights_are_relative_muscle_volumes() -> None:
+    from msk.optimization import volume_weights
+
+    w = volume_weights([1000.0, 500.0, 2000.0], [0.1, 0.2, 0.05])
+    np.testing.assert_allclose(w, [1.0, 1.0, 1.0])
+    w = volume_weights([1000.0, 3000.0], [0.1, 0.1])
+    np.testing.assert_allclose(w, [0.5, 1.5])
+    with pytest.raises(OptimizationError, match=r"muscle 1 has F_iso·l_opt = 0\.0"):
+        volume_weights([1000.0, 0.0], [0.1, 0.1])
+    with pytest.raises(OptimizationError, match="should be"):
+        volume_weights([1000.0, 1.0], [0.1])

@@ -55,9 +55,11 @@ from msk.optimization.problems import (
     TensionProblem,
     emg_weight_sweep,
     solve,
+    solve_emg_assisted_batch,
     solve_emg_weighted_batch,
     solve_static_optimization_batch,
     solve_tension_batch,
+    volume_weights,
 )
 
 __all__ = [
@@ -89,9 +91,11 @@ __all__ = [
     "lagrange_coefficients",
     "register_solver",
     "solve",
+    "solve_emg_assisted_batch",
     "solve_emg_weighted_batch",
     "solve_lagrange",
     "solve_lagrange_batch",
     "solve_static_optimization_batch",
     "solve_tension_batch",
+    "volume_weights",
 ]

@@ -39,10 +39,13 @@ from msk.optimization._qp import (
     KKT_COLUMNS,
     STATUS_NAMES,
     STATUS_OPTIMAL,
+    STATUS_SOLVER_FAILED,
+    RawResult,
     StandardQP,
     active_bounds,
     active_masks,
     get_solver,
+    kkt,
     new_warm,
     solve_standard,
 )
@@ -113,8 +116,10 @@ def _assemble(
     res_opt: FloatArray,
     res_lb: FloatArray,
     res_ub: FloatArray,
+    cost: tuple[FloatArray, FloatArray] | None = None,
 ) -> StandardQP:
-    """``min Σx² + Σr²  s.t. [R S, E diag(opt)] [x; r] = b`` with bounds (H = 2I)."""
+    """``min Σx² + Σr²  s.t. [R S, E diag(opt)] [x; r] = b`` with bounds (H = 2I), or the cost
+    ``(H, g)`` given (e.g. :func:`_weighted_cost`)."""
     n, m = r_scaled.shape
     k = res_idx.shape[0]
     if k:
@@ -126,7 +131,7 @@ def _assemble(
     else:
         a, lb, ub = r_scaled, lb_m, ub_m
     nv = m + k
-    h, g = _constant_cost(nv)
+    h, g = _constant_cost(nv) if cost is None else cost
     return StandardQP(H=h, g=g, A=a, b=b, lb=lb, ub=ub)
 
 
@@ -140,6 +145,101 @@ def _constant_cost(nv: int) -> tuple[FloatArray, FloatArray]:
     if nv not in _COST_CACHE:
         _COST_CACHE[nv] = (2.0 * np.eye(nv), np.zeros(nv))
     return _COST_CACHE[nv]
+
+
+def _weighted_cost(weights: FloatArray, n_reserves: int) -> tuple[FloatArray, FloatArray]:
+    """``H = 2 diag(w, 1…1)``, ``g = 0``: the cost ``Σ w_i x_i² + Σ r_j²``."""
+    return np.diag(2.0 * np.concatenate([weights, np.ones(n_reserves)])), np.zeros(
+        weights.shape[0] + n_reserves
+    )
+
+
+#: SQP of the power criterion: step tolerance (scaled unknowns) and iteration limit
+POWER_STEP_TOL = 1e-10
+POWER_MAX_ITERATIONS = 100
+#: smallest activation at which the curvature of w a^p is evaluated (keeps H > 0 at a = 0)
+POWER_CURVATURE_FLOOR = 1e-3
+
+
+def _power_cost(x: FloatArray, m: int, w: FloatArray, p: float) -> float:
+    """``Σ w_i a_i^p + Σ r_j²`` of the standard-form unknowns ``x = [a; r]`` (a ≥ 0)."""
+    return float(np.sum(w * np.maximum(x[:m], 0.0) ** p) + np.sum(x[m:] ** 2))
+
+
+def _power_model(qp: StandardQP, x: FloatArray, m: int, w: FloatArray, p: float) -> StandardQP:
+    """Second-order model at ``x`` of ``Σ w_i a_i^p + Σ r_j²`` on the constraints of ``qp``:
+    ``H_ii = w_i p (p−1) max(a_i, ε)^(p−2)``, ``g = ∇F(x) − H x`` (its gradient at ``x`` is the
+    true gradient, so a fixed point of the model is a KKT point of the power criterion)."""
+    a = np.maximum(x[:m], 0.0)
+    curv = w * p * (p - 1.0) * np.maximum(a, POWER_CURVATURE_FLOOR) ** (p - 2.0)
+    hd = np.concatenate([curv, np.full(x.shape[0] - m, 2.0)])
+    grad = np.concatenate([w * p * a ** (p - 1.0), 2.0 * x[m:]])
+    return StandardQP(H=np.diag(hd), g=grad - hd * x, A=qp.A, b=qp.b, lb=qp.lb, ub=qp.ub)
+
+
+def _solve_power(
+    qp: StandardQP,
+    m: int,
+    w: FloatArray,
+    p: float,
+    *,
+    solver: str,
+    warm: Any,
+    compute_kkt: bool,
+    frame: int | None,
+    strict: bool,
+) -> tuple[RawResult, Any]:
+    """``min Σ w_i a_i^p + Σ r_j²`` on the constraints of ``qp`` (its Σ w a² form) by sequential
+    QP: start at the p = 2 optimum, solve the second-order model (:func:`_power_model`) with
+    ``solver``, backtrack along the step (Armijo; the feasible set is convex, so every point of
+    the step is feasible) until the step is below :data:`POWER_STEP_TOL`. The KKT figures are
+    those of the model at the returned point, i.e. of the power criterion itself. A frame whose
+    p = 2 problem is infeasible keeps its bounded least-squares point and status."""
+    raw, warm = solve_standard(
+        qp, solver=solver, warm=warm, compute_kkt=compute_kkt, frame=frame, strict=strict
+    )
+    if raw.status != STATUS_OPTIMAL:
+        return raw, warm
+    x, iters, status = raw.x, raw.iterations, raw.status
+    t0 = raw.solve_time_s
+    for _ in range(POWER_MAX_ITERATIONS):
+        model = _power_model(qp, x, m, w, p)
+        sub, warm = solve_standard(model, solver=solver, warm=warm, compute_kkt=False)
+        iters += max(sub.iterations, 0)
+        t0 += sub.solve_time_s
+        if sub.status != STATUS_OPTIMAL:
+            status = sub.status
+            break
+        d = sub.x - x
+        f0 = _power_cost(x, m, w, p)
+        slope = float((model.g + model.H @ x) @ d)  # ∇F(x)·d < 0 unless converged
+        # Armijo, with a round-off allowance so that the (quadratically convergent) full
+        # Newton steps are taken near the optimum, where the decrease is below machine precision
+        tol_f = 1e-14 * (1.0 + abs(f0))
+        alpha = 1.0
+        while (
+            alpha > 1e-12
+            and _power_cost(x + alpha * d, m, w, p) > f0 + 1e-4 * alpha * slope + tol_f
+        ):
+            alpha *= 0.5
+        x = np.minimum(np.maximum(x + alpha * d, qp.lb), qp.ub)
+        if float(np.max(np.abs(d), initial=0.0)) <= POWER_STEP_TOL:
+            break
+    else:
+        status = STATUS_SOLVER_FAILED
+    if strict and status != STATUS_OPTIMAL:
+        where = f"frame {frame}" if frame is not None else "the frame"
+        raise OptimizationError(
+            f"{where}: power criterion (p = {p:g}) did not converge with solver {solver!r}"
+        )
+    res = RawResult(
+        x=x,
+        status=status,
+        iterations=iters,
+        solve_time_s=t0,
+        kkt=kkt(_power_model(qp, x, m, w, p), x) if compute_kkt else None,
+    )
+    return res, warm
 
 
 # ---------------------------------------------------------------------------------------------
@@ -249,6 +349,22 @@ class StaticOptimizationProblem:
     13 frames, 43 right-leg muscles × 7 coordinates, same states, ``f_passive = 0``):
     activations agree to 0.005 max / 0.0008 RMS and msk's cost is never above OpenSim's
     (≈ 3e-4 lower: IPOPT's tolerance).
+
+    **Other criteria** (muscles only; reserves keep ``r_j²``): ``minimise Σ_i w_i a_i^p + Σ_j
+    r_j²`` with ``activation_weights`` ``w`` (default 1) and ``activation_exponent`` ``p ≥ 2``
+    (default 2, the criterion above):
+
+    * ``w_i = V_i`` (muscle volume, ∝ ``F_iso,i · l_opt,i``), p = 2: the volume-weighted
+      activation criterion of Happee (1994, J Biomech 27:953) and Happee & Van der Helm (1995,
+      J Biomech 28:1179) — a proxy of metabolic energy, which penalises large muscles;
+    * p = 3: the "maximum endurance" criterion of Crowninshield & Brand (1981, J Biomech
+      14:793), Σ (f_i / PCSA_i)³, written in activations as OpenSim's
+      ``activation_exponent = 3``. It shares the load more evenly between synergists.
+
+    p = 2 stays one QP (``H = 2 diag(w)``). p > 2 is convex but not quadratic: it is solved by
+    sequential QP with the same solver (:func:`_solve_power`: second-order model
+    ``H = diag(w p (p−1) a^(p−2))``, Armijo backtracking, from the p = 2 optimum), and the KKT
+    figures are those of the power criterion at the returned point.
     """
 
     jacobian: FloatArray
@@ -262,12 +378,16 @@ class StaticOptimizationProblem:
     reserve_max_control: FloatArray | float = np.inf
     muscle_names: tuple[str, ...] | None = None
     coordinate_names: tuple[str, ...] | None = None
+    activation_weights: FloatArray | None = None
+    activation_exponent: float = 2.0
 
     def __post_init__(self) -> None:
         j, tau, mn, cn = check_frame(
             self.jacobian, self.tau, self.muscle_names, self.coordinate_names
         )
         m, n = j.shape
+        w = _activation_weights(self.activation_weights, m, mn)
+        _check_exponent(self.activation_exponent)
         fa = as_float(self.f_active, (m,), "f_active")
         check_finite(fa, "f_active", mn)
         if np.any(fa < 0):
@@ -294,11 +414,18 @@ class StaticOptimizationProblem:
             reserve_max_control=rmax,
             muscle_names=mn,
             coordinate_names=cn,
+            activation_weights=w,
+            activation_exponent=float(self.activation_exponent),
         )
 
     def standard_form(self) -> tuple[StandardQP, _Layout]:
+        """The QP of ``Σ w_i a_i² + Σ r_j²`` (the problem itself when p = 2; the start and the
+        constraints of the sequential QP when p > 2)."""
         assert self.f_passive is not None and self.coordinate_names is not None
         idx, opt = _reserves(self.reserve_optimal_force, self.tau.shape[0], self.coordinate_names)
+        cost = None
+        if self.activation_weights is not None:
+            cost = _weighted_cost(self.activation_weights, idx.shape[0])
         return _static_qp(
             -self.jacobian.T,
             self.tau,
@@ -310,7 +437,44 @@ class StaticOptimizationProblem:
             opt,
             np.asarray(self.reserve_min_control)[idx],
             np.asarray(self.reserve_max_control)[idx],
+            cost,
         )
+
+
+def volume_weights(max_isometric_force: ArrayLike, optimal_fiber_length: ArrayLike) -> FloatArray:
+    """Activation weights ``w_i = V_i / mean(V)`` of the volume-weighted criterion ``Σ V_i a_i²``
+    (Happee 1994; :class:`StaticOptimizationProblem`, "Other criteria").
+
+    Muscle volume ``V_i = PCSA_i · l_opt,i = F_iso,i · l_opt,i / σ`` with one specific tension
+    σ for all muscles, so ``V_i ∝ F_iso,i · l_opt,i``; the weights are normalised to mean 1
+    (only their ratios change the optimum)."""
+    f_iso = np.asarray(max_isometric_force, dtype=float)
+    l_opt = np.asarray(optimal_fiber_length, dtype=float)
+    if f_iso.shape != l_opt.shape or f_iso.ndim != 1:
+        raise OptimizationError(
+            f"volume_weights: max_isometric_force {f_iso.shape} and optimal_fiber_length "
+            f"{l_opt.shape} should be (n_muscles,) arrays"
+        )
+    vol = f_iso * l_opt
+    if not (np.all(np.isfinite(vol)) and np.all(vol > 0)):
+        k = int(np.flatnonzero(~(np.isfinite(vol) & (vol > 0)))[0])
+        raise OptimizationError(f"volume_weights: muscle {k} has F_iso·l_opt = {float(vol[k])!r}")
+    return vol / vol.mean()
+
+
+def _activation_weights(weights: ArrayLike | None, m: int, names: Sequence[str]) -> Any:
+    """``activation_weights`` as a checked ``(m,)`` array (> 0, finite), or ``None``."""
+    if weights is None:
+        return None
+    w = as_float(weights, (m,), "activation_weights")
+    check_finite(w, "activation_weights", names)
+    check_positive(w, "activation_weights", names)
+    return w
+
+
+def _check_exponent(p: float) -> None:
+    if not (np.isfinite(p) and p >= 2.0):
+        raise OptimizationError(f"activation_exponent must be finite and ≥ 2: {p!r}")
 
 
 def _static_qp(
@@ -324,8 +488,9 @@ def _static_qp(
     opt: FloatArray,
     rmin: FloatArray,
     rmax: FloatArray,
+    cost: tuple[FloatArray, FloatArray] | None = None,
 ) -> tuple[StandardQP, _Layout]:
-    qp = _assemble(r * fa, tau - r @ fp, amin, amax, idx, opt, rmin, rmax)
+    qp = _assemble(r * fa, tau - r @ fp, amin, amax, idx, opt, rmin, rmax, cost)
     return qp, _Layout(tau.shape[0], fa, fp, idx, opt, activations=True)
 
 
@@ -534,9 +699,16 @@ def solve(
     strict: bool = False,
     frame: int | None = None,
 ) -> QPSolution:
-    """Solve one frame of any QP problem of this module with a registered solver."""
+    """Solve one frame of any problem of this module with a registered solver (a power
+    criterion, ``activation_exponent > 2``, by sequential QP with that solver)."""
     qp, lay = problem.standard_form()
-    raw, _ = solve_standard(qp, solver=solver, compute_kkt=True, frame=frame, strict=strict)
+    power = _power_of(problem)
+    if power is None:
+        raw, _ = solve_standard(qp, solver=solver, compute_kkt=True, frame=frame, strict=strict)
+    else:
+        raw, _ = _solve_power(
+            qp, *power, solver=solver, warm=None, compute_kkt=True, frame=frame, strict=strict
+        )
     assert raw.kkt is not None
     f, act, rc = lay.unpack(raw.x)
     r = -problem.jacobian.T
@@ -546,10 +718,13 @@ def solve(
     resid = terr - rt
     lo, up = active_bounds(qp, raw.x)
     m = f.shape[0]
-    obj = (
-        lay.objective_scale * float(0.5 * raw.x @ qp.H @ raw.x + qp.g @ raw.x)
-        + lay.objective_constant
-    )
+    if power is None:
+        obj = (
+            lay.objective_scale * float(0.5 * raw.x @ qp.H @ raw.x + qp.g @ raw.x)
+            + lay.objective_constant
+        )
+    else:
+        obj = _power_cost(raw.x, *power)
     assert problem.muscle_names is not None and problem.coordinate_names is not None
     return QPSolution(
         forces=f,
@@ -570,6 +745,15 @@ def solve(
         muscle_names=problem.muscle_names,
         coordinate_names=problem.coordinate_names,
     )
+
+
+def _power_of(problem: Problem) -> tuple[int, FloatArray, float] | None:
+    """``(m, w, p)`` of a static optimisation with ``activation_exponent > 2``, else None."""
+    if not isinstance(problem, StaticOptimizationProblem) or problem.activation_exponent == 2.0:
+        return None
+    m = problem.f_active.shape[0]
+    w = np.ones(m) if problem.activation_weights is None else problem.activation_weights
+    return m, w, problem.activation_exponent
 
 
 @dataclass(frozen=True)
@@ -621,6 +805,7 @@ def _run_batch(
     muscle_names: tuple[str, ...],
     coordinate_names: tuple[str, ...],
     time: ArrayLike | None,
+    power: tuple[int, FloatArray, float] | None = None,
 ) -> BatchSolution:
     get_solver(solver)
     _, m, n = jac.shape
@@ -638,9 +823,20 @@ def _run_batch(
     warm = new_warm(solver) if warm_start else None
     for k in range(n_frames):
         qp, lay = build(k)
-        raw, w = solve_standard(
-            qp, solver=solver, warm=warm, compute_kkt=compute_kkt, frame=k, strict=strict
-        )
+        if power is None:
+            raw, w = solve_standard(
+                qp, solver=solver, warm=warm, compute_kkt=compute_kkt, frame=k, strict=strict
+            )
+        else:
+            raw, w = _solve_power(
+                qp,
+                *power,
+                solver=solver,
+                warm=warm,
+                compute_kkt=compute_kkt,
+                frame=k,
+                strict=strict,
+            )
         if warm_start:
             warm = w
         f, a, r = lay.unpack(raw.x)
@@ -762,6 +958,8 @@ def solve_static_optimization_batch(
     reserve_optimal_force: ArrayLike | None = None,
     reserve_min_control: ArrayLike = -np.inf,
     reserve_max_control: ArrayLike = np.inf,
+    activation_weights: ArrayLike | None = None,
+    activation_exponent: float = 2.0,
     solver: str = DEFAULT_SOLVER,
     warm_start: bool = True,
     strict: bool = False,
@@ -770,7 +968,9 @@ def solve_static_optimization_batch(
     coordinate_names: Sequence[str] | None = None,
     time: ArrayLike | None = None,
 ) -> BatchSolution:
-    """:class:`StaticOptimizationProblem` over frames; ``f_active``/``f_passive`` ``(N, m)``."""
+    """:class:`StaticOptimizationProblem` over frames; ``f_active``/``f_passive`` ``(N, m)``;
+    ``activation_weights`` ``(m,)`` and ``activation_exponent`` as in the problem (criterion
+    ``Σ w_i a_i^p + Σ r_j²``)."""
     jac, tau, mn, cn = _batch_inputs(jacobians, taus, muscle_names, coordinate_names)
     n_frames, m, n = jac.shape
     fa = as_float(f_active, (n_frames, m), "f_active")
@@ -786,10 +986,16 @@ def solve_static_optimization_batch(
     idx, opt = _reserves(reserve_optimal_force, n, cn)
     rmin = as_float(reserve_min_control, (n,), "reserve_min_control")[idx]
     rmax = as_float(reserve_max_control, (n,), "reserve_max_control")[idx]
+    w = _activation_weights(activation_weights, m, mn)
+    _check_exponent(activation_exponent)
+    cost = None if w is None else _weighted_cost(w, idx.shape[0])  # one H for every frame
+    power = None
+    if activation_exponent != 2.0:
+        power = (m, np.ones(m) if w is None else w, float(activation_exponent))
     rt = np.ascontiguousarray(-np.swapaxes(jac, 1, 2))  # R per frame, C order
 
     def build(k: int) -> tuple[StandardQP, _Layout]:
-        return _static_qp(rt[k], tau[k], fa[k], fp[k], amin, amax, idx, opt, rmin, rmax)
+        return _static_qp(rt[k], tau[k], fa[k], fp[k], amin, amax, idx, opt, rmin, rmax, cost)
 
     return _run_batch(
         n_frames,
@@ -804,6 +1010,7 @@ def solve_static_optimization_batch(
         muscle_names=mn,
         coordinate_names=cn,
         time=time,
+        power=power,
     )
 
 
@@ -953,4 +1160,92 @@ def emg_weight_sweep(
         status=np.array([s.status for s in sols]),
         muscle_names=sols[0].muscle_names,
         coordinate_names=sols[0].coordinate_names,
+    )
+
+
+def solve_emg_assisted_batch(
+    jacobians: ArrayLike,
+    taus: ArrayLike,
+    *,
+    f_active: ArrayLike,
+    a_ref: ArrayLike,
+    measured: ArrayLike,
+    w_track: float = 1.0,
+    activation_weights: ArrayLike | None = None,
+    activation_min: ArrayLike = 0.0,
+    activation_max: ArrayLike = 1.0,
+    reserve_optimal_force: ArrayLike | None = None,
+    reserve_min_control: ArrayLike = -np.inf,
+    reserve_max_control: ArrayLike = np.inf,
+    solver: str = DEFAULT_SOLVER,
+    warm_start: bool = True,
+    strict: bool = False,
+    compute_kkt: bool = True,
+    muscle_names: Sequence[str] | None = None,
+    coordinate_names: Sequence[str] | None = None,
+    time: ArrayLike | None = None,
+) -> BatchSolution:
+    """EMG-assisted static optimisation over frames: static optimisation whose activations of
+    the measured muscles are pulled towards EMG-based references, torques kept exact::
+
+        minimise   Σ_i w_i a_i²  +  w_track Σ_{i ∈ M} (a_i − a*_i)²  +  Σ_j r_j²
+        subject to Σ_i R_ji a_i F_act,i + F_res,j r_j = τ_j,   a_min ≤ a ≤ a_max
+
+    ``a_ref`` ``(N, m)`` is a*, e.g. ``g_c ê_c`` (an EMG activation times an EMG-to-activation
+    gain, :func:`msk.strength.fit_emg_gains`), used only for the ``measured`` muscles;
+    ``activation_weights`` w (default 1; the volume weights of Happee 1994 are the usual
+    choice); ``w_track`` ≥ 0 is dimensionless (activations², relative to w). ``w_track = 0``
+    is :func:`solve_static_optimization_batch` with exponent 2. Unlike the EMG-weighted QP of
+    seeds/002 Eq. 17 (torque error penalised, W_emg in m²), the torques are constraints here,
+    so the EMG can only redistribute force inside the null space of ``R`` (the sharing between
+    synergists, antagonists and biarticular muscles), never change the net joint moments.
+    The cost is ``Σ (w_i + w_track [i ∈ M]) a_i² − 2 w_track Σ_{i ∈ M} a*_i a_i`` + constant:
+    one QP per frame, ``H`` shared by all frames. The :class:`BatchSolution` has the
+    activations and the forces ``a F_act``.
+    """
+    jac, tau, mn, cn = _batch_inputs(jacobians, taus, muscle_names, coordinate_names)
+    n_frames, m, n = jac.shape
+    fa = as_float(f_active, (n_frames, m), "f_active")
+    check_finite(fa, "f_active", mn)
+    if np.any(fa < 0):
+        k, i = (int(v) for v in np.argwhere(fa < 0)[0])
+        raise OptimizationError(f"f_active of muscle {mn[i]!r} at frame {k} is negative")
+    meas = _measured_mask(measured, m)
+    aref = np.where(meas, as_float(a_ref, (n_frames, m), "a_ref"), 0.0)
+    check_finite(aref, "a_ref", mn)
+    if not (np.isfinite(w_track) and w_track >= 0):
+        raise OptimizationError(f"w_track must be finite and ≥ 0: {w_track!r}")
+    amin = as_float(activation_min, (m,), "activation_min")
+    amax = as_float(activation_max, (m,), "activation_max")
+    _check_bounds(amin, amax, "activation", mn)
+    idx, opt = _reserves(reserve_optimal_force, n, cn)
+    rmin = as_float(reserve_min_control, (n,), "reserve_min_control")[idx]
+    rmax = as_float(reserve_max_control, (n,), "reserve_max_control")[idx]
+    w = _activation_weights(activation_weights, m, mn)
+    w = np.ones(m) if w is None else w
+    wm = np.where(meas, float(w_track), 0.0)
+    h, _ = _weighted_cost(w + wm, idx.shape[0])  # one H for every frame
+    zeros_r = np.zeros(idx.shape[0])
+    no_passive = np.zeros(m)
+    rt = np.ascontiguousarray(-np.swapaxes(jac, 1, 2))  # R per frame, C order
+
+    def build(k: int) -> tuple[StandardQP, _Layout]:
+        g = np.concatenate([-2.0 * wm * aref[k], zeros_r])
+        return _static_qp(
+            rt[k], tau[k], fa[k], no_passive, amin, amax, idx, opt, rmin, rmax, (h, g)
+        )
+
+    return _run_batch(
+        n_frames,
+        build,
+        jac,
+        tau,
+        solver=solver,
+        warm_start=warm_start,
+        strict=strict,
+        compute_kkt=compute_kkt,
+        activations=True,
+        muscle_names=mn,
+        coordinate_names=cn,
+        time=time,
     )

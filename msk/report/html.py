@@ -844,7 +844,8 @@ def _methods_section(res: SessionResults, number: int = 6, *, gait: bool = True)
     out.append(_table(["stage", "status", "time", "note"], rows, "stages"))
     opt = s.get("optimization") or {}
     if opt:
-        out.append(f'<p class="note">Tension optimisation: {_e(opt.get("method"))}.</p>')
+        crit = f" ({_e(opt['criterion'])})" if opt.get("criterion") else ""
+        out.append(f'<p class="note">Tension optimisation: {_e(opt.get("method"))}{crit}.</p>')
     ver = s.get("versions", {})
     out.append(
         _table(["software", "version"], [[_e(k), _e(v)] for k, v in ver.items()], "versions")
