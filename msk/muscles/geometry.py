@@ -81,6 +81,7 @@ rounds: the r-th wrap of every path at once).
 
 from __future__ import annotations
 
+import itertools
 import threading
 import weakref
 from collections.abc import Mapping
@@ -381,7 +382,7 @@ class _PathState:
 _MAX_WRAP_PASSES = 100
 _AITKEN = True  # extrapolate the multi-wrap iteration (tests compare with the plain one)
 _AITKEN_RATIO = 0.7
-_CHUNK_BYTES = 768 * 1024  # largest per-chunk temporary (wrap-free plans)
+_CHUNK_BYTES = 480 * 1024  # largest per-chunk temporary (wrap-free plans)
 _PIN_FRAMES = 8  # up to this many frames, forward kinematics by Pinocchio frame by frame
 _WRAP_TOL = 1e-12
 
@@ -832,9 +833,11 @@ class GeometryPlan:
         vel = None if thd is None else np.empty((n, m))
         # frames in chunks: the temporaries stay small (cache, and no fresh pages to fault in
         # on every call); wrap iterations keep the whole batch (their cost is per pass)
-        chunk = self._chunk if self._static else max(n, 1)
-        for c0 in range(0, n, chunk):
-            sl = slice(c0, min(c0 + chunk, n))
+        # chunks of equal size (no short last chunk paying the per-chunk overhead alone)
+        n_chunks = -(-n // self._chunk) if self._static else 1
+        bounds = [c * n // n_chunks for c in range(n_chunks + 1)] if n else [0, 0]
+        for c0, c1 in itertools.pairwise(bounds):
+            sl = slice(c0, c1)
             self._evaluate_into(
                 th[sl], None if thd is None else thd[sl], lengths[sl], jl[sl],
                 None if vel is None else vel[sl],
