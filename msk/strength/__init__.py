@@ -4,6 +4,8 @@
   gating and confidence intervals → :class:`StrengthProfile`;
 * :class:`EMGDrivenCalibration` — Hill + activation parameters calibrated to inverse-dynamics
   moments with casadi exact derivatives and multi-start;
+* :func:`fit_emg_gains` — EMG-to-activation gains fitted jointly with EMG-assisted static
+  optimisation on the inverse-dynamics torques → :class:`EMGGainFit`;
 * :func:`w_emg_stability` and the comparison tables of :mod:`msk.strength.studies`;
 * :mod:`msk.strength.synthetic` — a synthetic leg with known strengths.
 """
@@ -22,6 +24,7 @@ from msk.strength.calibration import (
     emg_driven_forces,
     fractional_delay,
 )
+from msk.strength.emg_gains import EMGGainFit, fit_emg_gains
 from msk.strength.identification import (
     STRENGTH_FACTOR_BOUNDS,
     StrengthIdentifier,
@@ -51,6 +54,7 @@ __all__ = [
     "CalibrationResult",
     "CalibrationTrial",
     "EMGDrivenCalibration",
+    "EMGGainFit",
     "FitMetrics",
     "MetricTable",
     "StrengthIdentifier",
@@ -60,6 +64,7 @@ __all__ = [
     "casadi_curves",
     "emg_driven_forces",
     "expand_groups",
+    "fit_emg_gains",
     "fractional_delay",
     "group_contributions",
     "moment_fit_table",

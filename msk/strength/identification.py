@@ -55,25 +55,50 @@ rows are divided by the standard deviation of its torque so that joints weigh eq
   a window are strongly autocorrelated (low-passed EMG and torque noise), which makes it far too
   narrow; the CR1 sandwich and t_{W−1} were measured to under-cover with ~12 windows.
   The percentile bootstrap interval is widened by ``sqrt(W/(W−1)) t_{W−p}/z`` for the same
-  reason. Measured coverage of the 95 % intervals (synthetic leg, 10 % envelope noise, 3 %
-  torque noise, 30 subjects): ≥ 93 % for every group with 12 cycles (two independent sets of
-  30 seeds), but 80–93 % with 24 cycles — with more data the EMG-noise bias (below) and a
-  jackknife that under-estimates some groups' spread (z-scores with SD 1.1–1.4 even without EMG
-  noise) start to show.
+  reason.
 
-Known bias: noise in the EMG envelopes is noise in the regressors (errors in variables) and
-attenuates the factors by about the relative noise variance of the activation (≈ 1–2 % for 10 %
-multiplicative envelope noise on the synthetic leg); the least-squares intervals do not include
-it. With ``instrument="phase_average"`` (windows = cycles of one movement) the estimator is
-instrumental variables instead: the instrument of C_g in window w is the same contribution built
-with the activation averaged, at the same phase of the cycle, over the *other* windows — it
-follows the true activation pattern but is independent of window w's EMG noise, so the
-attenuation disappears (at the price of a wider interval). What remains is the bias of the
-activation itself: the concave nonlinearity of seeds/003 Eq. 7 turns zero-mean envelope noise
-into a slightly low mean activation, hence slightly high factors (synthetic leg, 20 % envelope
-noise: least squares −3.8 % / −2.6 %, IV +1.9 % / +1.6 % on knee extensors / plantar flexors).
-Bounded IV minimises ``(Zᵀ(y − Xβ))ᵀ (ZᵀZ)⁻¹ Zᵀ(y − Xβ)``; bootstrap and jackknife resample the
-per-window sums ``ZᵀZ, ZᵀX, Zᵀy``.
+**Errors in variables and honest intervals.** Noise in the EMG envelopes is noise in the
+regressors, which attenuates the least-squares factors (synthetic leg, 10 % envelope noise:
+knee extensors −1.4 … −1.7 %, plantar flexors −0.7 … −1.2 %, hip extensors −1.6 … −2.1 %, the
+same at 12, 24 and 48 cycles) while their intervals shrink as 1/√cycles: the least-squares
+intervals do not include that bias and stop being honest as the data grow. Measured coverage
+of the least-squares 95 % intervals, synthetic leg, 10 % envelope and 3 % torque noise, seeds
+0–119, worst group (jackknife-t / bootstrap): 12 cycles 0.97 / 0.97 (the t_{W−p} quantile with
+W − p = 3 is wide enough to hide the bias), 24 cycles 0.88 / 0.87, 48 cycles 0.82.
+
+With ``instrument="phase_average"`` (windows = cycles of one movement) the estimator is
+instrumental variables instead (Fuller 1987, *Measurement Error Models*, §1.4; Wooldridge 2010,
+*Econometric Analysis of Cross Section and Panel Data*, §5.1 and §15.7): the instrument of C_g in
+window w is the same contribution built with the activation averaged, at the same phase of the
+cycle, over the *other* windows — it follows the true activation pattern but is independent of
+window w's EMG noise, so the attenuation disappears (at the price of ≈ 5–10 % wider intervals).
+Bounded IV minimises ``(Zᵀ(y − Xβ))ᵀ (ZᵀZ)⁻¹ Zᵀ(y − Xβ)``. Its intervals resample whole cycles
+*including the noise they put into the other cycles' instruments*: C_g is affine in the
+activation and the phase average is linear, so the instrument of window w built from any
+weighted set of the other windows is the same weighting of the per-pair instruments
+``Z_{w←v}`` (w's contribution with v's activation alone), whose cross-products ``Z_{w←v}ᵀX_w``,
+``Z_{w←v}ᵀy_w`` are precomputed once (O(W²)):
+
+* the jackknife deletes cycle u from the regression *and* from every other cycle's instrument
+  (then the average of W − 2 cycles) — the delete-one-cluster jackknife of the whole estimator
+  (Efron & Tibshirani 1993, *An Introduction to the Bootstrap*, ch. 11; CR3 above);
+* the bootstrap draws cycles with replacement and rebuilds each picked cycle's instrument from
+  the other picked cycles (copies of itself excluded; the weight matrix ZᵀZ is the full-sample
+  one, which leaves the exactly identified estimate unchanged), and its interval is the
+  bias-corrected and accelerated percentile (BCa, Efron 1987, *J. Am. Stat. Assoc.* 82:171;
+  acceleration from the jackknife values), widened by the same c.
+
+Measured coverage of the IV 95 % intervals (same set-up, seeds 0–119; per group, worst group,
+jackknife-t / BCa): 12 cycles 0.98 / 0.97, 24 cycles 0.92 / 0.90, 48 cycles 0.93 / 0.925
+(mean over groups ≈ 0.99, 0.94, 0.95); 30-seed subsets at 24 cycles range 0.83–1.0 per group,
+as the binomial Monte Carlo error of 30 draws allows. What remains is the bias of the
+activation itself, which no instrument removes: the concave nonlinearity of seeds/003 Eq. 7
+turns zero-mean envelope noise into a slightly low mean activation, hence slightly high factors
+(10 % noise: +0.3 … +0.9 %, 0.2–0.3 standard errors at 24–48 cycles; 20 % envelope noise: least
+squares −3.8 % / −2.6 %, IV +1.9 % / +1.6 % on knee extensors / plantar flexors). It grows
+relative to the interval as √cycles, so with 10 % noise the IV intervals stay honest up to
+≈ 100 cycles, with 20 % noise only to ≈ 15–20 cycles (not measured beyond). Least squares stays
+the default because the instrument needs windows that are repetitions of one movement.
 """
 
 from __future__ import annotations
@@ -347,6 +372,39 @@ def _phase_average_loo(values: Array, labels: NDArray[np.int64], grid: int = 101
     return out
 
 
+def _interp_matrix(x_from: Array, x_to: Array) -> Array:
+    """Weights ``(len(x_to), len(x_from))`` of ``np.interp(x_to, x_from, ·)`` (x_from increasing),
+    so that interpolation of many columns is one matrix product."""
+    out = np.zeros((x_to.size, x_from.size))
+    if x_from.size == 1:
+        out[:, 0] = 1.0
+        return out
+    pos = np.interp(x_to, x_from, np.arange(x_from.size, dtype=float))
+    i0 = np.clip(np.floor(pos).astype(np.int64), 0, x_from.size - 2)
+    frac = pos - i0
+    rows = np.arange(x_to.size)
+    out[rows, i0] = 1.0 - frac
+    out[rows, i0 + 1] += frac
+    return out
+
+
+def _bca_limits(boot: Array, est: Array, jack: Array, alpha: float) -> tuple[Array, Array]:
+    """BCa limits (Efron 1987): bias correction z0 from the bootstrap, acceleration from the
+    jackknife values."""
+    n_b = boot.shape[0]
+    frac = (np.sum(boot < est, axis=0) + 0.5 * np.sum(boot == est, axis=0)) / n_b
+    z0 = stats.norm.ppf(np.clip(frac, 0.5 / n_b, 1 - 0.5 / n_b))
+    d = jack.mean(axis=0) - jack
+    den = 6.0 * np.sum(d**2, axis=0) ** 1.5
+    acc = np.where(den > 0, np.sum(d**3, axis=0) / np.where(den > 0, den, 1.0), 0.0)
+    out = []
+    for q in (alpha / 2, 1 - alpha / 2):
+        zq = z0 + stats.norm.ppf(q)
+        lev = stats.norm.cdf(z0 + zq / (1 - acc * zq))
+        out.append(np.array([np.quantile(boot[:, i], lev[i]) for i in range(boot.shape[1])]))
+    return out[0], out[1]
+
+
 def _iv_normal(szz: Array, szx: Array, szy: Array) -> tuple[Array, Array]:
     """(A, b) of the bounded IV problem ½βᵀAβ − bᵀβ, A = Sxzᵀ Szz⁻¹ Szx, b = Szxᵀ Szz⁻¹ Szy."""
     w = np.linalg.lstsq(szz, np.column_stack([szx, szy]), rcond=None)[0]
@@ -374,7 +432,8 @@ class StrengthIdentifier:
         passive: include the passive fibre force in C_k.
         instrument: ``"phase_average"`` replaces least squares by instrumental variables (see
             the module docstring); the windows must then be repetitions of one movement
-            (cycles).
+            (cycles). Use it for honest intervals when there are more than ≈ 12 cycles: the
+            least-squares intervals do not include the EMG-noise (errors-in-variables) bias.
         random_state: seed of the bootstrap.
     """
 
@@ -438,6 +497,71 @@ class StrengthIdentifier:
             raise ShapeMismatchError(f"{len(names)} coordinate names for {n} coordinates")
         return names
 
+    def _instrument_pairs(
+        self,
+        jacobian: ArrayLike,
+        activation: Array,
+        state: RigidTendonState,
+        labels: NDArray[np.int64],
+        gid: NDArray[np.int64],
+        blocks: Sequence[tuple[int, int, Array, Array]],
+        sd: Array,
+        grid: int = 101,
+    ) -> tuple[Array, Array]:
+        """Per pair of windows (w, v): ``P[w, v] = Z_{w←v}ᵀ X_w`` ``(W, W, p, p)`` and
+        ``Q[w, v] = Z_{w←v}ᵀ y_w`` ``(W, W, p)``, where ``Z_{w←v}`` is window w's instrument
+        built from window v's activation alone (resampled at w's phases); zero for v = w.
+
+        The contribution is affine in the activation and the phase average is linear, so the
+        instrument of w built from any weighted set of other windows (weights summing to 1) is
+        the same weighting of the ``Z_{w←v}``: this lets the jackknife and the bootstrap rebuild
+        every instrument from the windows they keep (:meth:`fit`).
+        """
+        jac = np.asarray(jacobian, dtype=float)
+        n_frames, n_mus, _ = jac.shape
+        fiso = self.params.max_isometric_force[None, :, None]
+        ka = net_contribution(jac, np.ones((n_frames, n_mus)), state, passive=False) * fiso
+        kp = net_contribution(jac, np.zeros((n_frames, n_mus)), state, passive=self.passive)
+        kp = kp * fiso
+        _, idx = _group_index(self.groups, self.params.names)
+        gm = np.zeros((gid.size, n_mus))
+        for r, g in enumerate(gid):
+            gm[r, idx[g]] = 1.0
+        n_win = int(labels.max()) + 1
+        ph_grid = np.linspace(0.0, 1.0, grid)
+        frames = []
+        curves = np.zeros((n_win, grid, n_mus))
+        for w in range(n_win):
+            iw = np.flatnonzero(labels == w)
+            ph = np.linspace(0.0, 1.0, iw.size) if iw.size > 1 else np.zeros(iw.size)
+            frames.append((iw, ph))
+            curves[w] = _interp_matrix(ph, ph_grid) @ activation[iw]
+        n_par = blocks[0][2].shape[1]
+        pp = np.zeros((n_win, n_win, n_par, n_par))
+        qq = np.zeros((n_win, n_win, n_par))
+        by_window: dict[int, list[tuple[int, Array, Array]]] = {}
+        for w, j, x, yv in blocks:
+            by_window.setdefault(w, []).append((j, x, yv))
+        ng = gid.size
+        for w, items in by_window.items():
+            iw, ph = frames[w]
+            lw = _interp_matrix(ph_grid, ph)  # (n_w, grid): grid → window w's phases
+            for j, x, yv in items:
+                xy = np.column_stack([x, yv])  # (n_w, p + 1)
+                # Σ_t lw[t, k] ka[t, m, j] xy[t, q] → (M, grid, p + 1)
+                h = np.matmul(lw.T[None], ka[iw, :, j].T[:, :, None] * xy[None])
+                # group part of Z_{w←v}ᵀ [X y] for every source window v → (W, G, p + 1)
+                zxy = np.einsum("gm,mvq->vgq", gm, np.matmul(curves.transpose(2, 0, 1), h))
+                zxy += ((kp[iw, :, j] @ gm.T).T @ xy)[None]
+                zxy /= sd[j]
+                pp[w, :, :ng] += zxy[:, :, :-1]
+                qq[w, :, :ng] += zxy[:, :, -1]
+                pp[w, :, ng:] += (x[:, ng:].T @ x)[None]
+                qq[w, :, ng:] += (x[:, ng:].T @ yv)[None]
+            pp[w, w] = 0.0
+            qq[w, w] = 0.0
+        return pp, qq
+
     # ----------------------------------------------------------------- fit
     def fit(
         self,
@@ -467,8 +591,9 @@ class StrengthIdentifier:
             raise IdentificationError(f"need at least 3 windows for gating/bootstrap, got {n_win}")
         use_iv = self.instrument == "phase_average"
         zg = cg
+        act_arr = np.asarray(activation, dtype=float)
         if use_iv:
-            a_bar = _phase_average_loo(np.asarray(activation, dtype=float), labels)
+            a_bar = _phase_average_loo(act_arr, labels)
             zg, _ = self._contributions(jacobian, a_bar, state)
         # coordinates used
         scale = np.abs(cg).max(axis=0)  # (G, n)
@@ -563,11 +688,33 @@ class StrengthIdentifier:
         alpha = 1.0 - self.confidence
         active_w = np.flatnonzero(np.any(selected, axis=1))
         n_eff = int(active_w.size)
-        jack = np.empty((n_eff, n_par))
-        for i, w in enumerate(active_w):
-            jack[i] = np.linalg.lstsq(zx_tot - szx[w], zy_tot - szy[w], rcond=None)[0]
+        if use_iv:
+            # delete-one-cycle jackknife of the whole IV estimator: the deleted cycle leaves
+            # the regression *and* every other cycle's instrument (which then averages W − 2
+            # cycles), so the instrument's own EMG noise is part of the spread
+            pp, qq = self._instrument_pairs(
+                jacobian,
+                act_arr,
+                state,
+                labels,
+                gid,
+                [(b[0], b[1], b[3], b[4]) for b in blocks],
+                sd,
+            )
+            p_tot, q_tot = pp.sum(axis=(0, 1)), qq.sum(axis=(0, 1))
+            n_jack = n_win
+            jack = np.empty((n_jack, n_par))
+            for u in range(n_win):
+                s_u = p_tot - pp[u].sum(axis=0) - pp[:, u].sum(axis=0)
+                r_u = q_tot - qq[u].sum(axis=0) - qq[:, u].sum(axis=0)
+                jack[u] = np.linalg.lstsq(s_u, r_u, rcond=None)[0]
+        else:
+            n_jack = n_eff
+            jack = np.empty((n_jack, n_par))
+            for i, w in enumerate(active_w):
+                jack[i] = np.linalg.lstsq(zx_tot - szx[w], zy_tot - szy[w], rcond=None)[0]
         dev = jack - jack.mean(axis=0)
-        cov = dev.T @ dev * (n_eff - 1) / n_eff
+        cov = dev.T @ dev * (n_jack - 1) / n_jack
         se = np.sqrt(np.clip(np.diag(cov), 0.0, None))
         # Student-t on W − p degrees of freedom (p regression parameters): the conservative
         # small-sample choice for cluster-robust inference with few windows
@@ -578,8 +725,24 @@ class StrengthIdentifier:
         rng = np.random.default_rng(self.random_state)
         boot = np.full((self.n_bootstrap, n_par), np.nan)
         for bi in range(self.n_bootstrap):
-            pick = rng.choice(active_w, size=active_w.size, replace=True)
-            ab, bb = _iv_normal(szz[pick].sum(axis=0), szx[pick].sum(axis=0), szy[pick].sum(axis=0))
+            if use_iv:
+                # whole cycles are resampled: cycle w's instrument averages the *other* picked
+                # cycles (copies of w excluded); the weight matrix keeps the full-sample Z
+                mult = np.full(n_win, float(n_win))
+                while mult.max() > n_win - 2:  # some cycle must have ≥ 2 others to average
+                    mult = np.bincount(rng.integers(0, n_win, n_win), minlength=n_win)
+                    mult = mult.astype(float)
+                cw = mult / (n_win - mult)
+                ab, bb = _iv_normal(
+                    np.einsum("w,wpq->pq", mult, szz),
+                    np.einsum("w,v,wvpq->pq", cw, mult, pp),
+                    np.einsum("w,v,wvp->p", cw, mult, qq),
+                )
+            else:
+                pick = rng.choice(active_w, size=active_w.size, replace=True)
+                ab, bb = _iv_normal(
+                    szz[pick].sum(axis=0), szx[pick].sum(axis=0), szy[pick].sum(axis=0)
+                )
             # a coordinate absent from the resample keeps d from the full fit (tiny ridge)
             ridge = np.zeros(n_par)
             ridge[gid.size :] = 1e-9 * max(float(np.trace(ab)), 1.0)
@@ -599,12 +762,16 @@ class StrengthIdentifier:
         if self.n_bootstrap > 0 and gid.size:
             # percentile interval, widened for the small number of windows by
             # c = sqrt(W/(W-1)) t_{W-p}/z (the percentile bootstrap of a few clusters is narrow)
-            q_lo = np.quantile(boot[:, : gid.size], alpha / 2, axis=0)
-            q_hi = np.quantile(boot[:, : gid.size], 1 - alpha / 2, axis=0)
-            widen = np.sqrt(n_eff / max(n_eff - 1, 1)) * tq / float(stats.norm.ppf(1 - alpha / 2))
             est = sol[: gid.size]
-            ci_low[gid] = np.maximum(est - widen * (est - q_lo), self.bounds[0])
-            ci_high[gid] = np.minimum(est + widen * (q_hi - est), self.bounds[1])
+            if use_iv:
+                # BCa (Efron 1987): the IV's bootstrap distribution is skewed and median-biased
+                q_lo, q_hi = _bca_limits(boot[:, : gid.size], est, jack[:, : gid.size], alpha)
+            else:
+                q_lo = np.quantile(boot[:, : gid.size], alpha / 2, axis=0)
+                q_hi = np.quantile(boot[:, : gid.size], 1 - alpha / 2, axis=0)
+            widen = np.sqrt(n_eff / max(n_eff - 1, 1)) * tq / float(stats.norm.ppf(1 - alpha / 2))
+            ci_low[gid] = np.maximum(est - widen * np.maximum(est - q_lo, 0.0), self.bounds[0])
+            ci_high[gid] = np.minimum(est + widen * np.maximum(q_hi - est, 0.0), self.bounds[1])
         sev[gid] = se[: gid.size]
         cl[gid] = factors[gid] - tq * sev[gid]
         ch[gid] = factors[gid] + tq * sev[gid]
