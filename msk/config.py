@@ -19,7 +19,13 @@ from msk.exceptions import ConfigError
 
 TRIAL_ROLES = ("static", "mass_identification", "mvc", "task", "fes")
 KNEE_VARIANTS = ("spline", "four_bar")
-OPTIMIZATION_METHODS = ("static_optimization", "bounded_qp", "emg_weighted", "closed_form")
+OPTIMIZATION_METHODS = (
+    "static_optimization",
+    "bounded_qp",
+    "emg_weighted",
+    "emg_assisted",
+    "closed_form",
+)
 #: static optimisation activation weights: uniform (OpenSim's Σ a^p) or muscle volume (Happee)
 ACTIVATION_WEIGHTS = ("uniform", "volume")
 #: The step of the FES identification protocol a ``role = "fes"`` trial records (seeds/000 §2.3):
@@ -104,10 +110,12 @@ kinematics_cutoff_hz = 6.0
 grf_cutoff_hz = 15.0
 
 [optimization]
-method = "static_optimization"   # static_optimization | bounded_qp | emg_weighted | closed_form
+# static_optimization | bounded_qp | emg_weighted | emg_assisted | closed_form
+method = "static_optimization"
 w_emg = 0.1                      # EMG weight of the EMG-weighted QP (seed 002 Eq. 18)
+w_track = 1.0                    # emg_assisted: weight of Σ (a_i − g_c ê_i)², gains fitted
 solver = "daqp"
-activation_weights = "uniform"   # static_optimization: uniform (OpenSim, Σ a^p) | volume (Σ V a^p)
+activation_weights = "uniform"   # static_optimization, emg_assisted: uniform | volume (Σ V a^p)
 activation_exponent = 2.0        # static_optimization: p ≥ 2 (OpenSim's activation_exponent)
 
 # FES knee-model identification (seeds/000): one [[trials]] table per recording with
@@ -218,6 +226,8 @@ class OptimizationConfig:
     #: static optimisation criterion Σ w_i a_i^p: weights ("uniform" | "volume") and p ≥ 2
     activation_weights: str = "uniform"
     activation_exponent: float = 2.0
+    #: emg_assisted: weight of the EMG tracking term Σ (a_i − g_c ê_i)²
+    w_track: float = 1.0
 
 
 @dataclass(frozen=True)
@@ -397,6 +407,7 @@ def load_config(path: str | Path) -> SessionConfig:
         solver=o.get("solver", str, "daqp"),
         activation_weights=o.choice("activation_weights", ACTIVATION_WEIGHTS, "uniform"),
         activation_exponent=o.get("activation_exponent", float, 2.0),
+        w_track=o.get("w_track", float, 1.0),
     )
     o.done()
     if not (
@@ -406,6 +417,8 @@ def load_config(path: str | Path) -> SessionConfig:
             f"{source}: optimization.activation_exponent = {optimization.activation_exponent} "
             "should be ≥ 2"
         )
+    if not (np.isfinite(optimization.w_track) and optimization.w_track > 0):
+        raise ConfigError(f"{source}: optimization.w_track = {optimization.w_track} should be > 0")
 
     fz = _Section(top.get("fes", dict, {}), "fes", source)
     fes = FesConfig(

@@ -818,9 +818,9 @@ class _Session:
             )  # fmt: skip
             forces = sol.forces
             acts = np.clip(forces / np.maximum(fa, 1e-9), 0, None)
-        elif meth == "emg_weighted":
+        elif meth in ("emg_weighted", "emg_assisted"):
             if emg is None:
-                raise StageUnavailable("emg_weighted needs the EMG stage")
+                raise StageUnavailable(f"{meth} needs the EMG stage")
             meas = np.array(
                 [
                     n in emg["muscles"] and bool(emg["usable"][emg["muscles"].index(n)])
@@ -831,12 +831,16 @@ class _Session:
             for k, n in enumerate(params.names):
                 if meas[k]:
                     a[:, k] = emg["activation"][ok, emg["muscles"].index(n)]
-            sol = o.solve_emg_weighted_batch(
-                jac, tq, f_ref=a * fa, measured=meas, w_emg=cfg.optimization.w_emg,
-                f_max=fa + fp, solver=solver, **common,
-            )  # fmt: skip
-            forces = sol.forces
-            acts = np.clip(forces / np.maximum(fa, 1e-9), 0, None)
+            if meth == "emg_weighted":
+                sol = o.solve_emg_weighted_batch(
+                    jac, tq, f_ref=a * fa, measured=meas, w_emg=cfg.optimization.w_emg,
+                    f_max=fa + fp, solver=solver, **common,
+                )  # fmt: skip
+                forces = sol.forces
+                acts = np.clip(forces / np.maximum(fa, 1e-9), 0, None)
+            else:
+                sol, gains = self._emg_assisted(jac, tq, fa, a, meas, params, reserves, common)
+                forces, acts = sol.forces, sol.activations
         else:  # closed_form (seeds/004 Eq. 6, unbounded)
             lag = o.solve_lagrange_batch(
                 jac, tq, area=params.max_isometric_force, muscle_names=params.names
@@ -849,10 +853,16 @@ class _Session:
         a_all = np.full_like(f_all, np.nan)
         f_all[ok], a_all[ok] = forces, acts
         out = {"forces": f_all, "activations": a_all, "muscles": params.names, "method": meth}
+        opt = cfg.optimization
+        w = "V_i " if opt.activation_weights == "volume" else ""
         if meth == "static_optimization":
-            opt = cfg.optimization
-            w = "V_i " if opt.activation_weights == "volume" else ""
             out["criterion"] = f"min Σ {w}a_i^{opt.activation_exponent:g}"
+        elif meth == "emg_assisted":
+            out["criterion"] = (
+                f"min Σ {w}a_i^2 + {opt.w_track:g} Σ (a_i − g_c ê_i)^2, gains g_c fitted on the "
+                "trial's torques"
+            )
+            out["emg_gains"] = gains
         if sol is not None:
             out["infeasible_frames"] = int(sol.infeasible_frames.size)
             rt = np.full((n, len(act_idx)), np.nan)
@@ -861,10 +871,50 @@ class _Session:
             out["reserve_coordinates"] = cn
         return out
 
+    def _emg_assisted(
+        self,
+        jac: np.ndarray,
+        tq: np.ndarray,
+        fa: np.ndarray,
+        emg_act: np.ndarray,
+        measured: np.ndarray,
+        params: Any,
+        reserves: np.ndarray,
+        common: dict[str, Any],
+    ) -> tuple[Any, dict[str, float]]:
+        """EMG-assisted static optimisation with one gain per EMG channel fitted jointly with
+        the activations on this trial's torques (:func:`msk.strength.fit_emg_gains`), then
+        solved once more with the final gains (KKT figures included)."""
+        import msk.optimization as o
+        from msk.strength import fit_emg_gains
+
+        opt = self.cfg.optimization
+        channels = self.cfg.emg.channels
+        groups: dict[str, list[str]] = {}
+        for k, n in enumerate(params.names):
+            if measured[k]:
+                groups.setdefault(channels[n], []).append(n)
+        weights = (
+            o.volume_weights(params.max_isometric_force, params.optimal_fiber_length)
+            if opt.activation_weights == "volume"
+            else None
+        )
+        fit = fit_emg_gains(
+            jac, tq, f_active=fa, emg_activation=emg_act, groups=groups,
+            muscle_names=params.names, w_track=opt.w_track, activation_weights=weights,
+            reserve_optimal_force=reserves, coordinate_names=common["coordinate_names"],
+        )  # fmt: skip
+        sol = o.solve_emg_assisted_batch(
+            jac, tq, f_active=fa, a_ref=fit.reference(emg_act), measured=fit.measured,
+            w_track=opt.w_track, activation_weights=weights, reserve_optimal_force=reserves,
+            solver=opt.solver, **common,
+        )  # fmt: skip
+        return sol, dict(zip(fit.group_names, map(float, fit.gains)))
+
     def tension_optimization(self) -> dict[str, Any] | None:
         cfg = self.cfg
         needs = ("muscle_geometry", "inverse_dynamics") + (
-            ("emg",) if cfg.optimization.method == "emg_weighted" else ()
+            ("emg",) if cfg.optimization.method in ("emg_weighted", "emg_assisted") else ()
         )
 
         def do() -> dict[str, Any]:
@@ -1348,6 +1398,7 @@ def _optimization_summary(sol: Mapping[str, Any], sfx: str) -> dict[str, Any]:
     return {
         "method": sol["method"],
         "criterion": sol.get("criterion"),
+        "emg_gains": sol.get("emg_gains"),
         "infeasible_frames": sol.get("infeasible_frames"),
         "reserve_torque_rms_nm": None
         if "reserve_torques" not in sol

@@ -254,6 +254,48 @@ def test_bundled_grand_challenge_session(tmp_path):
     assert (res.out_dir / "tables" / "muscle_forces.sto").is_file()
 
 
+@pytest.mark.slow
+@pytest.mark.parametrize("method", ["emg_weighted", "emg_assisted"])
+def test_bundled_session_with_emg_informed_tension_optimization(tmp_path, method):
+    """The EMG-informed methods of ``[optimization]`` on the bundled session: torques met,
+    EMG-assisted gains fitted per channel (only usable channels), the contact force computed."""
+    text = GC5.read_text().replace(
+        'method = "static_optimization"', f'method = "{method}"\nw_track = 1.0', 1
+    )
+    assert f'method = "{method}"' in text
+    cfg = tmp_path / "session.toml"  # the session's relative paths made absolute
+    cfg.write_text(text.replace('"../', f'"{REPO.as_posix()}/'))
+    res = run_session(cfg, tmp_path / method)
+    status = {r.name: r.status for r in res.stages}
+    assert status["tension_optimization"] == status["knee_contact"] == "computed", status
+    opt = res.summary["optimization"]
+    assert opt["method"] == method and opt["infeasible_frames"] == 0
+    forces = read_session(res.out_dir).table("muscle_forces").data
+    assert np.all(np.nan_to_num(forces) >= -1e-6)
+    if method == "emg_assisted":
+        gains = opt["emg_gains"]
+        # one gain per usable channel (gracilis and gmed are flat), EMG at session peak → g < 1
+        assert set(gains) == {
+            "semimem",
+            "bifeml",
+            "vasmed",
+            "vaslat",
+            "rf",
+            "medgas",
+            "latgas",
+            "tfl",
+            "tibant",
+            "peronl",
+            "soleus",
+            "addmag",
+            "gmax",
+            "sartorius",
+        }
+        assert all(0.0 <= g < 1.0 for g in gains.values()), gains
+        assert "g_c" in opt["criterion"]
+        assert "gain g_c" in (res.out_dir / "report.html").read_text(encoding="utf-8")
+
+
 def test_broken_library_piece_is_reported_not_faked(tmp_path, monkeypatch):
     """A stage whose library piece is broken is 'failed' (with the reason and where) in
     summary.json and the report; the stages after it run on what exists."""

@@ -846,6 +846,9 @@ def _methods_section(res: SessionResults, number: int = 6, *, gait: bool = True)
     if opt:
         crit = f" ({_e(opt['criterion'])})" if opt.get("criterion") else ""
         out.append(f'<p class="note">Tension optimisation: {_e(opt.get("method"))}{crit}.</p>')
+        if opt.get("emg_gains"):
+            rows = [[_e(c), _num(g, ".3f")] for c, g in opt["emg_gains"].items()]
+            out.append(_table(["EMG channel", "gain g_c (activation per unit EMG)"], rows, "gains"))
     ver = s.get("versions", {})
     out.append(
         _table(["software", "version"], [[_e(k), _e(v)] for k, v in ver.items()], "versions")
