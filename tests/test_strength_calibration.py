@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import casadi as ca
 import numpy as np
 import pytest
@@ -278,3 +280,74 @@ def test_shared_parameters_take_one_value_per_group(setup):
     np.testing.assert_allclose(p.shape_factor, -1.0)
     with pytest.raises(IdentificationError, match="shared"):
         EMGDrivenCalibration(base, GROUPS, shared=("skew",))
+
+
+# ---------------------------------------------------------------------------------------------
+# elastic tendon (msk.muscles.contraction inside the casadi graph)
+# ---------------------------------------------------------------------------------------------
+def test_elastic_casadi_moments_equal_numpy_forward_model(setup):
+    base, _, make = setup
+    tr = make(7, n_cycles=1)
+    cal = EMGDrivenCalibration(base, GROUPS, tendon="elastic")
+    lo, hi, _ = cal._bounds_vectors()
+    x = np.random.default_rng(3).uniform(lo, hi)
+    par = CalibrationParameters.from_vector(x, tuple(GROUPS), NAMES)
+    xs = ca.MX.sym("x", x.size)
+    mf = np.asarray(ca.Function("m", [xs], [cal._symbolic_moments(xs, tr)])(x))
+    _, f = emg_driven_forces(par, base, GROUPS, tr, tendon="elastic")
+    ref = np.einsum("tmj,tm->tj", tr.moment_arms, f)
+    np.testing.assert_allclose(mf, ref, rtol=1e-9, atol=1e-8 * np.abs(ref).max())
+    # not the rigid model: the tendon stretches
+    _, f_rigid = emg_driven_forces(par, base, GROUPS, tr)
+    assert np.abs(f - f_rigid).max() > 0.05 * np.abs(f_rigid).max()
+
+
+def test_elastic_calibration_recovers_strength_factors_of_elastic_data(setup):
+    """Moments of the elastic-tendon model (seeds/003 Eq. 8–18 integrated over time) with known
+    strength factors and activation parameters; the elastic calibration (strength factors,
+    activation parameters per group, λ; l_opt and l_ts at their generic values) recovers the
+    factors, the rigid-tendon calibration of the same data does not."""
+    base, truth, make = setup
+    m = len(NAMES)
+    ones = np.ones(m)
+    true = CalibrationParameters(
+        truth.group_names,
+        NAMES,
+        TRUE_FACTORS,
+        ones,
+        ones,
+        np.full(m, -0.6),
+        np.full(m, -0.4),
+        np.full(m, 0.05),
+        np.full(m, -1.5),
+        0.1,
+    )
+    base_trial = make(1, n_cycles=2)
+    _, f = emg_driven_forces(true, base, GROUPS, base_trial, tendon="elastic")
+    tr = replace(base_trial, moments=np.einsum("tmj,tm->tj", base_trial.moment_arms, f))
+    kw = {
+        "fixed": ("optimal_fiber_length_scale", "tendon_slack_length_scale"),
+        "shared": ("gamma1", "gamma2", "delay_s", "shape_factor"),
+        "n_starts": 1,
+        "max_iter": 60,
+    }
+    cal = EMGDrivenCalibration(base, GROUPS, tendon="elastic", **kw).fit([tr])
+    assert cal.result_.n_parameters == 4 + 4 * 4 + 1
+    assert cal.result_.extra["tendon"] == "elastic"
+    np.testing.assert_allclose(cal.parameters_.strength_factors, TRUE_FACTORS, rtol=0.02)
+    assert np.all(cal.result_.calibration.r2 > 0.9999)
+    np.testing.assert_allclose(cal.parameters_.delay_s, 0.05, atol=0.005)
+    np.testing.assert_allclose(cal.parameters_.skew, 0.1, atol=0.02)
+    rigid = EMGDrivenCalibration(base, GROUPS, **kw).fit([tr])
+    err = np.abs(rigid.parameters_.strength_factors / TRUE_FACTORS - 1.0)
+    assert err.max() > 0.1, err
+    assert np.all(rigid.result_.calibration.r2 < cal.result_.calibration.r2)
+
+
+def test_tendon_option_is_checked(setup):
+    base, _, _ = setup
+    assert EMGDrivenCalibration(base, GROUPS).tendon == "rigid"
+    with pytest.raises(IdentificationError, match="tendon"):
+        EMGDrivenCalibration(base, GROUPS, tendon="springy")
+    with pytest.raises(IdentificationError, match="substeps"):
+        EMGDrivenCalibration(base, GROUPS, tendon="elastic", substeps=0)

@@ -1,6 +1,7 @@
 """Muscles: EMG processing, activation dynamics and Hill-type models (geometry lives beside them).
 
-Submodules: :mod:`msk.muscles.emg`, :mod:`msk.muscles.activation`, :mod:`msk.muscles.hill`
+Submodules: :mod:`msk.muscles.emg`, :mod:`msk.muscles.activation`, :mod:`msk.muscles.hill`,
+:mod:`msk.muscles.contraction` (elastic-tendon contraction dynamics over time)
 (and, from another change, ``msk.muscles.geometry`` for paths, lengths and moment arms).
 """
 
@@ -13,6 +14,7 @@ from msk.muscles.activation import (
     recursive_filter,
     recursive_filter_coefficients,
 )
+from msk.muscles.contraction import ContractionState, contraction_dynamics
 from msk.muscles.emg import (
     ChannelQuality,
     EmgEnvelopes,
@@ -40,6 +42,7 @@ from msk.muscles.hill import (
 __all__ = [
     "MUSCLE_PARAMETER_ORDER",
     "ChannelQuality",
+    "ContractionState",
     "EmgEnvelopes",
     "EquilibriumState",
     "LloydBesierCurves",
@@ -47,6 +50,7 @@ __all__ = [
     "RigidTendonState",
     "Thelen2003Curves",
     "channel_quality",
+    "contraction_dynamics",
     "emg_to_activation",
     "envelopes_from_trial",
     "equilibrium",

@@ -14,12 +14,21 @@ with the curves of :class:`msk.muscles.hill.LloydBesierCurves` (Gaussian active 
 ``e^{10(l̃−1)}/e^5`` passive, Epstein–Herzog force–velocity, damping b_m) and the activation of
 :mod:`msk.muscles.activation` (recursive filter + exponential nonlinearity; the thesis prints
 A ∈ [0.01, 0.12] for the piecewise log/linear form of Manal & Buchanan, our exponential form uses
-Lloyd & Besier's A ∈ (−3, 0), bounds [−2.9, −0.01]). Contraction uses a **rigid tendon** at the
-tendon slack length l_ts (fibre length ``sqrt(h² + (l_MT − l_ts)²)``, ``h = l_opt sin φ_0``,
-constant-height pennation, Eq. 14) instead of the thesis' elastic tendon integrated by
-Runge–Kutta–Fehlberg: the calibration is then a smooth explicit function of the parameters that
-casadi differentiates exactly. The fractional delay d is a linear interpolation between samples
-(``e_d(t) = Σ_i max(0, 1 − |d/h − i|) e(t − i h)``), continuous in d.
+Lloyd & Besier's A ∈ (−3, 0), bounds [−2.9, −0.01]). Contraction, ``tendon=``:
+
+* ``"rigid"`` (default): the tendon stays at its slack length l_ts (fibre length
+  ``sqrt(h² + (l_MT − l_ts)²)``, ``h = l_opt sin φ_0``, constant-height pennation, Eq. 14,
+  velocity ``l̇_MT cos φ``): the forces are smooth explicit functions of the parameters;
+* ``"elastic"``: the thesis' elastic tendon (Eq. 8–18): the fibre length is integrated over the
+  trial by :mod:`msk.muscles.contraction` (BDF2 with ``substeps`` steps per sample, the force
+  balance of Eq. 8 solved for the fibre velocity by Newton; the thesis uses
+  Runge–Kutta–Fehlberg) from the static equilibrium at the first sample, and
+  ``F_k = G F_iso F̃_t(ε)`` (Eq. 16–18). The integrator is a fixed chain of casadi operations
+  (one SX function per trial length, mapped over the muscles in an MX graph), so its derivatives
+  with respect to l_opt, l_ts, λ and the activation parameters are exact.
+
+Both are differentiated exactly by casadi. The fractional delay d is a linear interpolation
+between samples (``e_d(t) = Σ_i max(0, 1 − |d/h − i|) e(t − i h)``), continuous in d.
 
 Calibrated parameters (bounds of ``seeds/003 Table 3.1``): strength factors G per functional
 group ∈ [0.5, 2] (Eq. 19–20), per muscle the optimal fibre length (× [0.95, 1.05]), tendon slack
@@ -50,6 +59,7 @@ from scipy.optimize import least_squares
 from msk import compare
 from msk.exceptions import IdentificationError, ShapeMismatchError
 from msk.muscles.activation import nonlinear_activation, recursive_filter
+from msk.muscles.contraction import contraction_dynamics, trajectory_function
 from msk.muscles.hill import LloydBesierCurves, MuscleParameters
 from msk.strength.identification import STRENGTH_FACTOR_BOUNDS, StrengthProfile
 
@@ -240,6 +250,12 @@ class CalibrationResult:
     extra: dict[str, Any] = field(default_factory=dict)
 
 
+def _check_tendon(tendon: str) -> str:
+    if tendon not in ("rigid", "elastic"):
+        raise IdentificationError(f"unknown tendon model {tendon!r}: use 'rigid' or 'elastic'")
+    return tendon
+
+
 # ---------------------------------------------------------------------------------------------
 # numpy reference forward model
 # ---------------------------------------------------------------------------------------------
@@ -265,15 +281,30 @@ def emg_driven_forces(
     trial: CalibrationTrial,
     *,
     curves: LloydBesierCurves | None = None,
+    tendon: str = "rigid",
+    substeps: int = 2,
 ) -> tuple[Array, Array]:
     """Activations and tendon forces ``(N, M)`` of the EMG-driven model (module docstring),
-    numpy reference of the casadi expressions."""
+    numpy reference of the casadi expressions. ``tendon="elastic"`` integrates the contraction
+    dynamics of :mod:`msk.muscles.contraction` (``substeps`` BDF2 steps per sample) instead of
+    the rigid tendon."""
     curves = curves or LloydBesierCurves()
+    _check_tendon(tendon)
     h = 1.0 / trial.rate_hz
     ed = fractional_delay(trial.excitation, params.delay_s / h)
     u = recursive_filter(ed, gamma1=params.gamma1, gamma2=params.gamma2)
     a = nonlinear_activation(np.clip(u, -1.0, 2.0), shape_factor=params.shape_factor)
     mp = params.muscle_parameters(base, groups)
+    if tendon == "elastic":
+        state = contraction_dynamics(
+            mp,
+            a,
+            trial.muscle_tendon_length,
+            np.arange(trial.n_frames) * h,
+            curves=replace(curves, skew=params.skew),
+            substeps=substeps,
+        )
+        return a, state.tendon_force
     lopt, lts = mp.optimal_fiber_length, mp.tendon_slack_length
     hgt = lopt * np.sin(mp.pennation_angle_at_optimal)
     x = np.maximum(trial.muscle_tendon_length - lts, 0.1 * lopt)
@@ -335,6 +366,9 @@ class EMGDrivenCalibration:
         skip_s: padding at the start of each trial excluded from the objective
             (``seeds/003 §3.2.2``; covers the delay and filter start-up).
         max_iter, tol: ipopt options.
+        tendon: ``"rigid"`` (default) or ``"elastic"`` (contraction dynamics over time, module
+            docstring; seeds/003's model, ~2–8× slower to calibrate).
+        substeps: BDF2 steps per sample interval of the elastic tendon.
     """
 
     def __init__(
@@ -354,6 +388,8 @@ class EMGDrivenCalibration:
         curves: LloydBesierCurves | None = None,
         random_state: int | None = 0,
         solver: str = "trf",
+        tendon: str = "rigid",
+        substeps: int = 2,
     ) -> None:
         self.params = params
         self.groups = {g: tuple(m) for g, m in groups.items()}
@@ -386,6 +422,10 @@ class EMGDrivenCalibration:
         if solver not in ("trf", "ipopt"):
             raise IdentificationError(f"unknown solver {solver!r}: use 'trf' or 'ipopt'")
         self.solver = solver
+        self.tendon = _check_tendon(tendon)
+        if substeps < 1:
+            raise IdentificationError(f"substeps must be >= 1, got {substeps}")
+        self.substeps = int(substeps)
 
     # ----------------------------------------------------------------- layout
     @property
@@ -466,8 +506,25 @@ class EMGDrivenCalibration:
 
     # ----------------------------------------------------------------- casadi model
     def _symbolic_forces(self, x: Any, trial: CalibrationTrial) -> list[Any]:
-        """Muscle forces, one ``(N, 1)`` casadi SX column per muscle, of the parameter vector
-        ``x`` (see the module docstring)."""
+        """Muscle forces, one ``(N, 1)`` casadi column per muscle, of the parameter vector ``x``
+        (see the module docstring): SX for the rigid tendon. For the elastic tendon the
+        activation part is an SX function of ``x`` and the contraction dynamics one
+        :func:`~msk.muscles.contraction.trajectory_function` mapped over the muscles, so with an
+        MX ``x`` the graph stays small and casadi builds its Jacobian in well under a second."""
+        if self.tendon == "rigid":
+            return self._sx_forces(x, trial)
+        m, n = self.params.n_muscles, trial.n_frames
+        xs = ca.SX.sym("x", x.shape[0])
+        acts, pks, fisos = self._sx_forces(xs, trial, elastic_parts=True)
+        pre = ca.Function("pre", [xs], [ca.horzcat(*acts), ca.horzcat(*pks), ca.horzcat(*fisos)])
+        amat, pmat, fmat = pre(x)
+        traj = trajectory_function(self.curves, self.substeps, n, 1.0 / trial.rate_hz)
+        ft = traj.map(m)(amat, ca.DM(trial.muscle_tendon_length), pmat)
+        return [fmat[k] * ft[:, k] for k in range(m)]
+
+    def _sx_forces(self, x: Any, trial: CalibrationTrial, *, elastic_parts: bool = False) -> Any:
+        """Rigid-tendon forces (SX columns) or, with ``elastic_parts``, the lists of
+        activation columns, contraction parameter vectors and F_iso of the elastic model."""
         cc = casadi_curves(self.curves)
         g, m = len(self.groups), self.params.n_muscles
         n = trial.n_frames
@@ -484,6 +541,7 @@ class EMGDrivenCalibration:
         p = self.params
         dmax = int(np.ceil(self.bounds["delay_s"][1] / h)) + 1
         forces = []
+        parts: tuple[list[Any], list[Any], list[Any]] = ([], [], [])
         for k in range(m):
             e = trial.excitation[:, k]
             ds = blk["delay_s"][k] / h
@@ -507,6 +565,14 @@ class EMGDrivenCalibration:
             act = (ca.exp(big_a * u) - 1.0) / (ca.exp(big_a) - 1.0)
             lopt = p.optimal_fiber_length[k] * blk["optimal_fiber_length_scale"][k]
             lts = p.tendon_slack_length[k] * blk["tendon_slack_length_scale"][k]
+            fiso = p.max_isometric_force[k] * (sf[int(gidx[k])] if gidx[k] >= 0 else 1.0)
+            if elastic_parts:
+                sin0 = np.sin(p.pennation_angle_at_optimal[k])
+                vmax = p.max_contraction_velocity[k]
+                parts[0].append(act)
+                parts[1].append(ca.vertcat(lopt, lts, sin0, vmax, skew, 1.0))
+                parts[2].append(fiso)
+                continue
             hgt = lopt * np.sin(p.pennation_angle_at_optimal[k])
             xf = ca.fmax(ca.DM(trial.muscle_tendon_length[:, k]) - lts, 0.1 * lopt)
             lf = ca.sqrt(hgt**2 + xf**2)
@@ -517,7 +583,6 @@ class EMGDrivenCalibration:
                 * cos_p
                 / (p.max_contraction_velocity[k] * lopt)
             )
-            fiso = p.max_isometric_force[k] * (sf[int(gidx[k])] if gidx[k] >= 0 else 1.0)
             force = (
                 fiso
                 * (
@@ -528,7 +593,7 @@ class EMGDrivenCalibration:
                 * cos_p
             )
             forces.append(force)
-        return forces
+        return parts if elastic_parts else forces
 
     def _symbolic_moments(self, x: Any, trial: CalibrationTrial) -> Any:
         """M_F ``(N, n)`` as a casadi SX matrix of the parameter vector ``x``."""
@@ -538,7 +603,7 @@ class EMGDrivenCalibration:
     def _moments_of(forces: list[Any], trial: CalibrationTrial) -> Any:
         cols = []
         for j in range(len(trial.coordinate_names)):
-            mj = ca.SX.zeros(trial.n_frames, 1)
+            mj = ca.DM.zeros(trial.n_frames, 1)
             for k, fk in enumerate(forces):
                 rj = trial.moment_arms[:, k, j]
                 if np.any(rj != 0):
@@ -557,8 +622,9 @@ class EMGDrivenCalibration:
         first = np.argmax(tmat > 0, axis=0)  # a representative entry of x per entry of y
         lo, hi = lo_x[first], hi_x[first]
         x0 = np.array([x0_x[tmat[:, i] > 0].mean() for i in range(tmat.shape[1])])
-        y = ca.SX.sym("y", tmat.shape[1])
-        x = ca.mtimes(ca.DM(tmat), y)
+        # the elastic model calls casadi functions (MX graph), the rigid one is inlined (SX)
+        y = (ca.MX if self.tendon == "elastic" else ca.SX).sym("y", tmat.shape[1])
+        x = ca.mtimes(ca.DM(sparse.csc_matrix(tmat)), y)  # sparse: keeps the Jacobian coloured
         all_m = np.concatenate([t.moments for t in trials])
         sd = np.maximum(np.std(all_m, axis=0), 1e-9)
         fiso = self.params.max_isometric_force
@@ -614,7 +680,7 @@ class EMGDrivenCalibration:
             solve_time_s=time.perf_counter() - t0,
             n_parameters=int(free.sum()),
             n_residuals=n_res,
-            extra={"solver": self.solver},
+            extra={"solver": self.solver, "tendon": self.tendon, "substeps": self.substeps},
         )
         return self
 
@@ -701,7 +767,7 @@ class EMGDrivenCalibration:
         variables tied to the model by equality constraints, so the Hessian of the Lagrangian is
         sparse (each force depends on its muscle's parameters, its group factor and λ)."""
         nf = int(fvec.shape[0])
-        z = ca.SX.sym("z", nf)
+        z = (ca.MX if isinstance(x, ca.MX) else ca.SX).sym("z", nf)
         rm = ca.DM(rmat)
         rv = ca.mtimes(rm, z) - ca.DM(mvec)
         n_res = mvec.size
@@ -747,7 +813,13 @@ class EMGDrivenCalibration:
         """Activations and muscle forces ``(N, M)`` with the calibrated parameters."""
         self._check_fitted()
         return emg_driven_forces(
-            self.parameters_, self.params, self.groups, trial, curves=self.curves
+            self.parameters_,
+            self.params,
+            self.groups,
+            trial,
+            curves=self.curves,
+            tendon=self.tendon,
+            substeps=self.substeps,
         )
 
     def predict(self, trial: CalibrationTrial) -> Array:
