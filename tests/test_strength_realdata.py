@@ -180,6 +180,35 @@ def test_elastic_tendon_calibration_on_the_rajagopal_walk(real_dir, ref_dir):
 
 @pytest.mark.slow
 @pytest.mark.realdata
+@pytest.mark.parametrize("tendon", ["rigid", "elastic"])
+def test_calibration_without_mvc_reaches_the_seed_r2(real_dir, ref_dir, tendon):
+    """seeds/003 calibrates MVC-normalised EMG with strength factors in [0.5, 2]. This walk's EMG
+    is normalised to its own peak, so activations reach 1 in walking and the factor must also
+    carry the missing EMG scale: with the Table 3.1 bounds the knee extensors sit on 0.5 and
+    the knee r² stays at 0.79–0.80. With the lower bound at 0.1 (the same widening as the
+    net-contribution identification below) the calibration reaches Table 4.1 (knee 0.924,
+    ankle 0.954). Measured (2026-11-22), calibration / held-out r² knee, ankle: rigid 0.949,
+    0.975 / 0.575, 0.086; elastic 0.957, 0.991 / 0.579, 0.446; knee-extensor factor 0.12–0.13.
+    The held-out stance is worse than with [0.5, 2] (elastic 0.78 / 0.60): with one walk to
+    calibrate on, the freer scale over-fits — the held-out figures are the ones to quote."""
+    params, full = _load(real_dir, ref_dir)
+    calib = _trial(full, 0.45, 1.30, "right stance 1 + swing")
+    held_out = _trial(full, 1.30, 1.80, "right stance 2 (held out)")
+    cal = EMGDrivenCalibration(
+        params, GROUPS, tendon=tendon, n_starts=3, max_iter=150, regularization=1e-2,
+        random_state=0, bounds={"strength_factor": (0.1, 2.0)},
+    ).fit([calib])  # fmt: skip
+    fit, val = cal.result_.calibration, cal.validate([held_out])
+    print(tendon, "calibration r²", np.round(fit.r2, 3), "held out r²", np.round(val.r2, 3))
+    assert fit.r2[0] > 0.92 and fit.r2[1] > 0.95, fit
+    ke = cal.group_names.index("knee_extensors")
+    assert 0.1 < cal.parameters_.strength_factors[ke] < 0.5
+    assert np.all(np.isfinite(val.r2)) and val.r2[0] > 0.4, val
+    assert np.all(val.r2 < fit.r2), (val, fit)
+
+
+@pytest.mark.slow
+@pytest.mark.realdata
 def test_net_contribution_identification_on_the_rajagopal_walk(real_dir, ref_dir):
     """seeds/002 §V on real gait. The EMG of this recording is normalised to its own peak (not
     to an MVC), so activations reach 1 during walking and the factors come out well below the
