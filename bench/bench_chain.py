@@ -171,11 +171,14 @@ def _write_docs(figures: str) -> None:
         f"**Targets: chain < {TARGET_US:.0f} µs per frame; "
         f"≥ {TARGET_RATIO:.0f}× OpenSim's SO.**\n\n"
         f"<!-- bench_chain:figures -->\n{figures}\n<!-- bench_chain:figures -->\n\n"
-        "Where the time goes: the SO is one warm-started DAQP QP per frame (92 activations + 6 "
-        "pelvis residuals, 23 equalities); geometry is the batched evaluation of "
-        '"Muscle geometry" above plus the Thelen curves; ID is RNEA per frame. Reaching '
-        "150 µs needs the SO near 50 µs (e.g. dropping the six decoupled pelvis rows and "
-        "reusing the previous active set) and the geometry near its own 60 µs target. The "
+        "Where the time goes: the SO is one warm-started DAQP QP per frame (92 activations, 17 "
+        "equalities: no muscle crosses a pelvis coordinate, so the six pelvis residuals are "
+        "τ/F_res exactly and leave the QP with their rows, see "
+        "`solve_static_optimization_batch`), built in buffers allocated once per batch; about "
+        "two thirds of it is DAQP's update and solve (refactorising the kept working set, "
+        "~6 active-set iterations per frame), the rest Python per frame. Geometry is the "
+        'batched evaluation of "Muscle geometry" above plus the Thelen curves; ID is RNEA per '
+        "frame. The "
         "knee contact force costs more than the chain because it evaluates the path geometry "
         "once per pair of virtual-twist components (`msk.contact.muscle_distal_wrenches`).\n"
     )

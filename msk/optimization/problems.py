@@ -791,6 +791,137 @@ class BatchSolution:
         return np.flatnonzero(self.status != STATUS_OPTIMAL)
 
 
+# ---------------------------------------------------------------------------------------------
+# batches: per-batch buffers, decoupled reserves
+# ---------------------------------------------------------------------------------------------
+
+
+#: The solver with which decoupled reserves leave the batch QPs: DAQP's active-set solution is
+#: exact to round-off, so the reduced QP gives the same solution; an iterative solver (OSQP,
+#: Clarabel) would stop elsewhere inside its tolerance, so it keeps solving the whole QP.
+_EXACT_SOLVER = "daqp"
+
+
+def _decoupled_reserves(
+    jac: FloatArray,
+    tau: FloatArray,
+    idx: NDArray[np.intp],
+    opt: FloatArray,
+    lo: FloatArray,
+    hi: FloatArray,
+) -> BoolArray:
+    """Mask over the reserves ``idx`` that can leave the QP of every frame of a batch.
+
+    A reserve decouples when no muscle crosses its coordinate (that column of every frame's
+    Jacobian is exactly 0, e.g. gait2392's pelvis residuals): its equality row then reads
+    ``opt_j r_j = τ_j`` alone, so ``r_j = τ_j / opt_j`` at the optimum whatever the muscles do,
+    and the muscles' QP is the same without that row and column. This holds only while
+    ``τ_j / opt_j`` lies inside the reserve's control bounds ``lo``/``hi`` (``(k,)`` or
+    ``(N, k)``) in every frame (always, when they are infinite); otherwise the reserve stays."""
+    if idx.size == 0:
+        return np.zeros(0, dtype=bool)
+    free = np.array([not jac[:, :, c].any() for c in idx])  # one strided pass per column
+    vals = tau[:, idx] / opt
+    inside = np.all((vals >= lo) & (vals <= hi), axis=0)
+    return free & inside
+
+
+@dataclass(frozen=True)
+class _Reduction:
+    """How a batch's reduced QPs (decoupled reserves left out, :class:`_BatchQP`) map back.
+
+    ``expand`` puts the dropped reserves' controls (``values`` ``(N, d)``) into the reduced
+    solution, giving the ``x`` of the whole QP (muscles, then every reserve in coordinate
+    order); ``full(k)`` is the whole QP of frame ``k``, for its KKT figures and for a frame that
+    is not optimal (solved whole, so that its bounded least-squares point is unchanged)."""
+
+    kept: NDArray[np.intp]
+    dropped: NDArray[np.intp]
+    values: FloatArray
+    full: Callable[[int], StandardQP]
+
+    def expand(self, x: FloatArray, k: int) -> FloatArray:
+        m = x.shape[0] - self.kept.shape[0]
+        xf = np.empty(m + self.kept.shape[0] + self.dropped.shape[0])
+        xf[:m] = x[:m]
+        xf[self.kept] = x[m:]
+        xf[self.dropped] = self.values[k]
+        return xf
+
+
+class _BatchQP:
+    """The standard-form QPs ``min ½xᵀHx + gᵀx  s.t. [R S, E diag(opt)] [x; r] = b``, bounds,
+    of a batch's frames (muscle column scales ``S`` = ``scale`` ``(m,)`` or ``(N, m)``),
+    built in arrays allocated once per batch instead of per frame: the constraint matrix is one
+    buffer whose muscle block is overwritten every frame (DAQP reads it during ``update``;
+    nothing keeps a frame's QP once the next is built), the reserve block written once; bounds
+    ``lb``/``ub`` and ``g`` are ``(nv,)`` for all frames or ``(N, nv)`` rows, ``h`` one matrix.
+    ``R = −Jᵀ`` is read from ``jac`` frame by frame (no transposed copy of the batch). The
+    reserves that decouple from the muscles (:func:`_decoupled_reserves`) and their rows are
+    left out when ``decouple`` is true; ``reduction`` then says how the solutions map back."""
+
+    def __init__(
+        self,
+        jac: FloatArray,
+        tau: FloatArray,
+        scale: FloatArray,
+        idx: NDArray[np.intp],
+        opt: FloatArray,
+        lb: FloatArray,
+        ub: FloatArray,
+        h: FloatArray,
+        g: FloatArray,
+        *,
+        passive: FloatArray | None = None,
+        layout: Callable[[int], _Layout],
+        full: Callable[[int], StandardQP],
+        decouple: bool = True,
+    ) -> None:
+        _, m, n = jac.shape
+        nres = idx.shape[0]
+        drop = np.zeros(nres, dtype=bool)
+        if decouple:
+            drop = _decoupled_reserves(jac, tau, idx, opt, lb[..., m:], ub[..., m:])
+        keep = ~drop
+        rows = np.setdiff1d(np.arange(n), idx[drop])
+        cols = np.concatenate([np.arange(m), m + np.flatnonzero(keep)])
+        k = int(keep.sum())
+        self.jac, self.tau, self.m = jac, tau, m
+        self.neg_scale = -scale  # R S = −Jᵀ S = Jᵀ (−S), the same numbers
+        self.passive = passive if passive is not None and passive.any() else None
+        contiguous = rows.size > 0 and rows[-1] - rows[0] + 1 == rows.size
+        self.rows: slice | NDArray[np.intp] = (
+            slice(int(rows[0]), int(rows[-1]) + 1) if contiguous else rows
+        )
+        self.a = np.zeros((rows.size, m + k))
+        self.a[np.searchsorted(rows, idx[keep]), m + np.arange(k)] = opt[keep]
+        self.lb, self.ub = lb[..., cols], ub[..., cols]
+        self.h = h[np.ix_(cols, cols)] if drop.any() else h
+        self.g = g[..., cols]
+        self.layout = layout
+        self.reduction: _Reduction | None = None
+        if drop.any():
+            self.reduction = _Reduction(
+                kept=m + np.flatnonzero(keep),
+                dropped=m + np.flatnonzero(drop),
+                values=tau[:, idx[drop]] / opt[drop],
+                full=full,
+            )
+
+    def __call__(self, k: int) -> tuple[StandardQP, _Layout]:
+        m, a = self.m, self.a
+        jr = self.jac[k][:, self.rows]
+        s = self.neg_scale if self.neg_scale.ndim == 1 else self.neg_scale[k]
+        np.multiply(jr.T, s, out=a[:, :m])
+        b = self.tau[k, self.rows]
+        if self.passive is not None:
+            b = b + jr.T @ self.passive[k]  # τ − R f_p
+        lb = self.lb if self.lb.ndim == 1 else self.lb[k]
+        ub = self.ub if self.ub.ndim == 1 else self.ub[k]
+        g = self.g if self.g.ndim == 1 else self.g[k]
+        return StandardQP(H=self.h, g=g, A=a, b=b, lb=lb, ub=ub), self.layout(k)
+
+
 def _run_batch(
     n_frames: int,
     build: Callable[[int], tuple[StandardQP, _Layout]],
@@ -806,9 +937,16 @@ def _run_batch(
     coordinate_names: tuple[str, ...],
     time: ArrayLike | None,
     power: tuple[int, FloatArray, float] | None = None,
+    reduction: _Reduction | None = None,
 ) -> BatchSolution:
+    """Solve ``build(k)`` for every frame (warm-started). With a ``reduction`` (decoupled
+    reserves left out of ``build``'s QPs, :class:`_BatchQP`) each solution is expanded back to
+    the whole QP, whose KKT figures are reported, and a frame that is not optimal is solved
+    whole (cold), exactly as without the reduction."""
     get_solver(solver)
     _, m, n = jac.shape
+    assert reduction is None or power is None
+    whole = reduction is None
     forces = np.empty((n_frames, m))
     acts = np.empty((n_frames, m)) if activations else None
     rc = np.zeros((n_frames, n))
@@ -825,7 +963,12 @@ def _run_batch(
         qp, lay = build(k)
         if power is None:
             raw, w = solve_standard(
-                qp, solver=solver, warm=warm, compute_kkt=compute_kkt, frame=k, strict=strict
+                qp,
+                solver=solver,
+                warm=warm,
+                compute_kkt=compute_kkt and whole,
+                frame=k,
+                strict=strict and whole,
             )
         else:
             raw, w = _solve_power(
@@ -839,7 +982,19 @@ def _run_batch(
             )
         if warm_start:
             warm = w
-        f, a, r = lay.unpack(raw.x)
+        x = raw.x
+        if reduction is not None:
+            if raw.status == STATUS_OPTIMAL:
+                x = reduction.expand(x, k)
+                if compute_kkt:
+                    kk[k] = kkt(reduction.full(k), x).as_array()
+            else:
+                qp = reduction.full(k)
+                raw, _ = solve_standard(
+                    qp, solver=solver, compute_kkt=compute_kkt, frame=k, strict=strict
+                )
+                x = raw.x
+        f, a, r = lay.unpack(x)
         forces[k] = f
         if acts is not None and a is not None:
             acts[k] = a
@@ -847,7 +1002,7 @@ def _run_batch(
         rt[k, lay.reserve_idx] = lay.reserve_opt * r[lay.reserve_idx]
         if raw.kkt is not None:
             kk[k] = raw.kkt.as_array()
-        xs[k], lbs[k], ubs[k] = raw.x[:m], qp.lb[:m], qp.ub[:m]
+        xs[k], lbs[k], ubs[k] = x[:m], qp.lb[:m], qp.ub[:m]
         status[k] = raw.status
         iters[k] = raw.iterations
         times[k] = raw.solve_time_s
@@ -926,11 +1081,26 @@ def solve_tension_batch(
             f"min {float(fmin[k, i])!r} > max {float(fmax[k, i])!r}"
         )
     idx, opt = _reserves(reserve_optimal_force, n, cn)
-    rt = np.ascontiguousarray(-np.swapaxes(jac, 1, 2))  # R per frame, C order
+    inf = np.full((n_frames, idx.shape[0]), np.inf)
+    lay = _Layout(n, fi, np.zeros(m), idx, opt, activations=False)
 
-    def build(k: int) -> tuple[StandardQP, _Layout]:
-        return _tension_qp(rt[k], tau[k], fi, fmin[k], fmax[k], idx, opt)
+    def full(k: int) -> StandardQP:
+        r = np.ascontiguousarray(-jac[k].T)
+        return _tension_qp(r, tau[k], fi, fmin[k], fmax[k], idx, opt)[0]
 
+    build = _BatchQP(
+        jac,
+        tau,
+        fi,
+        idx,
+        opt,
+        np.hstack([fmin / fi, -inf]),
+        np.hstack([fmax / fi, inf]),
+        *_constant_cost(m + idx.shape[0]),
+        layout=lambda k: lay,
+        full=full,
+        decouple=solver == _EXACT_SOLVER,
+    )
     return _run_batch(
         n_frames,
         build,
@@ -944,6 +1114,7 @@ def solve_tension_batch(
         muscle_names=mn,
         coordinate_names=cn,
         time=time,
+        reduction=build.reduction,
     )
 
 
@@ -970,7 +1141,13 @@ def solve_static_optimization_batch(
 ) -> BatchSolution:
     """:class:`StaticOptimizationProblem` over frames; ``f_active``/``f_passive`` ``(N, m)``;
     ``activation_weights`` ``(m,)`` and ``activation_exponent`` as in the problem (criterion
-    ``Σ w_i a_i^p + Σ r_j²``)."""
+    ``Σ w_i a_i^p + Σ r_j²``).
+
+    With DAQP and p = 2, a reserve whose coordinate no muscle crosses in any frame (gait2392's
+    pelvis residuals) leaves the QP with its row: ``r_j = τ_j / F_res,j`` exactly, unless its
+    control bounds could be active (:func:`_decoupled_reserves`); every output, KKT figures
+    included, is that of the whole QP (to round-off), and a frame that is not optimal is
+    solved whole."""
     jac, tau, mn, cn = _batch_inputs(jacobians, taus, muscle_names, coordinate_names)
     n_frames, m, n = jac.shape
     fa = as_float(f_active, (n_frames, m), "f_active")
@@ -992,11 +1169,25 @@ def solve_static_optimization_batch(
     power = None
     if activation_exponent != 2.0:
         power = (m, np.ones(m) if w is None else w, float(activation_exponent))
-    rt = np.ascontiguousarray(-np.swapaxes(jac, 1, 2))  # R per frame, C order
 
-    def build(k: int) -> tuple[StandardQP, _Layout]:
-        return _static_qp(rt[k], tau[k], fa[k], fp[k], amin, amax, idx, opt, rmin, rmax, cost)
+    def full(k: int) -> StandardQP:
+        r = np.ascontiguousarray(-jac[k].T)
+        return _static_qp(r, tau[k], fa[k], fp[k], amin, amax, idx, opt, rmin, rmax, cost)[0]
 
+    build = _BatchQP(
+        jac,
+        tau,
+        fa,
+        idx,
+        opt,
+        np.concatenate([amin, rmin]),
+        np.concatenate([amax, rmax]),
+        *(_constant_cost(m + idx.shape[0]) if cost is None else cost),
+        passive=fp,
+        layout=lambda k: _Layout(n, fa[k], fp[k], idx, opt, activations=True),
+        full=full,
+        decouple=power is None and solver == _EXACT_SOLVER,  # p > 2: SQP keeps every unknown
+    )
     return _run_batch(
         n_frames,
         build,
@@ -1011,6 +1202,7 @@ def solve_static_optimization_batch(
         coordinate_names=cn,
         time=time,
         power=power,
+        reduction=build.reduction,
     )
 
 
@@ -1041,11 +1233,11 @@ def solve_emg_weighted_batch(
     fmax = _per_frame(f_max, n_frames, m, "f_max", np.inf)
     fmin = _per_frame(f_min, n_frames, m, "f_min", 0.0)
     _check_weights(w_emg, regularization)
-    rt = np.ascontiguousarray(-np.swapaxes(jac, 1, 2))  # R per frame, C order
 
     def build(k: int) -> tuple[StandardQP, _Layout]:
         scale = _emg_scale(fr[k], fmax[k], meas)
-        return _emg_qp(rt[k], tau[k], fr[k], meas, w_emg, regularization, fmin[k], fmax[k], scale)
+        r = np.ascontiguousarray(-jac[k].T)  # R of this frame (no transposed batch copy)
+        return _emg_qp(r, tau[k], fr[k], meas, w_emg, regularization, fmin[k], fmax[k], scale)
 
     return _run_batch(
         n_frames,
@@ -1225,16 +1417,29 @@ def solve_emg_assisted_batch(
     w = np.ones(m) if w is None else w
     wm = np.where(meas, float(w_track), 0.0)
     h, _ = _weighted_cost(w + wm, idx.shape[0])  # one H for every frame
-    zeros_r = np.zeros(idx.shape[0])
+    gs = np.hstack([-2.0 * wm * aref, np.zeros((n_frames, idx.shape[0]))])  # g of every frame
     no_passive = np.zeros(m)
-    rt = np.ascontiguousarray(-np.swapaxes(jac, 1, 2))  # R per frame, C order
 
-    def build(k: int) -> tuple[StandardQP, _Layout]:
-        g = np.concatenate([-2.0 * wm * aref[k], zeros_r])
+    def full(k: int) -> StandardQP:
+        r = np.ascontiguousarray(-jac[k].T)
         return _static_qp(
-            rt[k], tau[k], fa[k], no_passive, amin, amax, idx, opt, rmin, rmax, (h, g)
-        )
+            r, tau[k], fa[k], no_passive, amin, amax, idx, opt, rmin, rmax, (h, gs[k])
+        )[0]
 
+    build = _BatchQP(
+        jac,
+        tau,
+        fa,
+        idx,
+        opt,
+        np.concatenate([amin, rmin]),
+        np.concatenate([amax, rmax]),
+        h,
+        gs,
+        layout=lambda k: _Layout(n, fa[k], no_passive, idx, opt, activations=True),
+        full=full,
+        decouple=solver == _EXACT_SOLVER,
+    )
     return _run_batch(
         n_frames,
         build,
@@ -1248,4 +1453,5 @@ def solve_emg_assisted_batch(
         muscle_names=mn,
         coordinate_names=cn,
         time=time,
+        reduction=build.reduction,
     )
