@@ -58,20 +58,21 @@ from __future__ import annotations
 
 import dataclasses
 import functools
-import tomllib
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 import pytest
 from test_validation_gc5 import (
-    ROOT,
     TRIALS,
     W_EMGS,
     Gc5Run,
     _need_data,
+    emg_config,
+    emg_options,
     run_trial,
     scaled_model,
+    session_peaks,
 )
 
 from msk.muscles.activation import first_order_activation
@@ -130,41 +131,13 @@ class Fold:
     f_iso_strength: np.ndarray  # (M,)
 
 
-def emg_config() -> dict[str, Any]:
-    with (ROOT / "pipelines" / "gc5_PS.toml").open("rb") as fh:
-        return dict(tomllib.load(fh)["emg"])
-
-
-def _emg_options(cfg: dict[str, Any]) -> dict[str, Any]:
-    return {
-        "highpass_hz": float(cfg["highpass_hz"]),
-        "lowpass_hz": float(cfg["lowpass_hz"]),
-        "delay_s": float(cfg["electromechanical_delay_s"]),
-    }
-
-
-@functools.lru_cache(maxsize=1)
-def session_peaks() -> dict[str, float]:
-    """Per channel, the peak envelope over the three trials (input units): the divisor that
-    replaces the missing MVC."""
-    cfg = emg_config()
-    peaks: dict[str, float] = {}
-    for name in TRIALS:
-        env = envelopes_from_trial(
-            run_trial(name).trial, muscles=cfg["channels"], **_emg_options(cfg)
-        )
-        for ch, v in zip(env.channel_labels, env.normalisation_value):
-            peaks[ch] = max(peaks.get(ch, 0.0), float(v))
-    return peaks
-
-
 @functools.lru_cache(maxsize=3)
 def cycle_inputs(name: str) -> CycleInputs:
     run: Gc5Run = run_trial(name)
     cfg = emg_config()
     names = muscle_parameters(scaled_model()).names
     env = envelopes_from_trial(
-        run.trial, muscles=cfg["channels"], mvc=session_peaks(), **_emg_options(cfg)
+        run.trial, muscles=cfg["channels"], mvc=session_peaks(), **emg_options(cfg)
     ).resampled(run.kin.time)
     e = np.clip(np.nan_to_num(env.envelopes), 0.0, 1.0)
     a = first_order_activation(e, rate_hz=run.trial.point_rate_hz)

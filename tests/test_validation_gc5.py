@@ -364,12 +364,12 @@ def _chain(name: str, mass: str, move: tuple[str, ...]) -> dict[str, Any]:
     }  # fmt: skip
 
 
-def _emg_config() -> dict[str, Any]:
+def emg_config() -> dict[str, Any]:
     with (ROOT / "pipelines" / "gc5_PS.toml").open("rb") as fh:
         return dict(tomllib.load(fh)["emg"])
 
 
-def _emg_options(cfg: dict[str, Any]) -> dict[str, Any]:
+def emg_options(cfg: dict[str, Any]) -> dict[str, Any]:
     return {
         "highpass_hz": float(cfg["highpass_hz"]),
         "lowpass_hz": float(cfg["lowpass_hz"]),
@@ -378,14 +378,14 @@ def _emg_options(cfg: dict[str, Any]) -> dict[str, Any]:
 
 
 @functools.lru_cache(maxsize=1)
-def _session_peaks() -> dict[str, float]:
+def session_peaks() -> dict[str, float]:
     """Per EMG channel, the peak envelope over the three trials: the common divisor that stands
     for the missing MVC (so that a gain fitted on two trials means the same on the third)."""
-    cfg = _emg_config()
+    cfg = emg_config()
     peaks: dict[str, float] = {}
     for name in TRIALS:
         trial = read_c3d(_gc5_dir() / f"{name}.c3d")
-        env = envelopes_from_trial(trial, muscles=cfg["channels"], **_emg_options(cfg))
+        env = envelopes_from_trial(trial, muscles=cfg["channels"], **emg_options(cfg))
         for ch, v in zip(env.channel_labels, env.normalisation_value):
             peaks[ch] = max(peaks.get(ch, 0.0), float(v))
     return peaks
@@ -398,10 +398,10 @@ def emg_inputs(name: str, mass: str, move: tuple[str, ...]) -> dict[str, Any]:
     and delay, first-order activation), the ``measured`` mask, each muscle's ``channel`` and the
     gait-cycle frames ``sel``."""
     c = _chain(name, mass, move)
-    cfg = _emg_config()
+    cfg = emg_config()
     names = c["params"].names
     env = envelopes_from_trial(
-        c["trial"], muscles=cfg["channels"], mvc=_session_peaks(), **_emg_options(cfg)
+        c["trial"], muscles=cfg["channels"], mvc=session_peaks(), **emg_options(cfg)
     ).resampled(c["kin"].time)
     e = np.clip(np.nan_to_num(env.envelopes), 0.0, 1.0)
     a = first_order_activation(e, rate_hz=c["trial"].point_rate_hz)
