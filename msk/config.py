@@ -74,6 +74,7 @@ scale = true                         # scale to the static trial's marker distan
 
 # One [[trials]] table per recording. role: static | mass_identification | mvc | task | fes
 # (A session may hold only FES trials: [model] is then optional and the gait stages are skipped.)
+# Several task trials: `msk run` analyses each into its own folder, <out>/<trial name>/.
 [[trials]]
 name = "static"
 file = "../data/gc5-PS/PS_static_for_scaling.trc"

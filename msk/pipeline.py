@@ -83,6 +83,8 @@ __all__ = [
     "lab_to_model_rotation",
     "place_markers",
     "run_session",
+    "run_task_trials",
+    "split_task_trials",
 ]
 
 #: Every stage, in order.
@@ -1177,6 +1179,7 @@ class _Session:
         cfg = self.cfg
         return {
             "session": cfg.subject.name,
+            "trial": self.task.name if self.gait else None,
             "created_utc": datetime.now(UTC).strftime("%Y-%m-%dT%H:%M:%SZ"),
             "versions": _versions(),
             "config": {"path": str(cfg.path), "sha256": file_sha256(cfg.path)},
@@ -1263,6 +1266,40 @@ class _Session:
         return self.runner.run("report", do, settings=key)
 
 
+def split_task_trials(cfg: SessionConfig) -> list[SessionConfig]:
+    """One configuration per task trial, each keeping the session's other trials (static,
+    mass identification, MVC, FES); a configuration with at most one task trial is returned
+    as is."""
+    tasks = cfg.trials_with_role("task")
+    if len(tasks) <= 1:
+        return [cfg]
+    return [
+        dataclasses.replace(cfg, trials=tuple(t for t in cfg.trials if t.role != "task" or t is k))
+        for k in tasks
+    ]
+
+
+def run_task_trials(
+    config: str | Path | SessionConfig,
+    out_dir: str | Path,
+    **options: Any,
+) -> list[RunResult]:
+    """:func:`run_session` for every task trial of the session: one task trial → ``out_dir``
+    itself; several → ``out_dir/<trial name>/`` each (a complete results folder, whose report
+    and tables are that trial's; ``msk compare`` reads them together). ``options`` as for
+    :func:`run_session`. Every target folder is checked before anything is computed; a core
+    stage failing on one trial raises after the trials before it were written."""
+    cfg = config if isinstance(config, SessionConfig) else load_config(config)
+    parts = split_task_trials(cfg)
+    out = Path(out_dir).resolve()
+    if len(parts) == 1:
+        return [run_session(cfg, out, **options)]
+    dirs = [out / t.name for t in cfg.trials_with_role("task")]
+    for d in dirs:
+        check_replaceable(d)
+    return [run_session(c, d, **options) for c, d in zip(parts, dirs)]
+
+
 def run_session(
     config: str | Path | SessionConfig,
     out_dir: str | Path,
@@ -1280,6 +1317,13 @@ def run_session(
     """
     t_start = _time.perf_counter()
     cfg = config if isinstance(config, SessionConfig) else load_config(config)
+    tasks = cfg.trials_with_role("task")
+    if len(tasks) > 1:
+        names = ", ".join(t.name for t in tasks)
+        raise ConfigError(
+            f"{cfg.path}: {len(tasks)} task trials ({names}): run_session analyses one; "
+            "run_task_trials (what `msk run` does) analyses each into its own folder"
+        )
     out = Path(out_dir).resolve()
     check_replaceable(out)  # fail before computing, not after
     runner = _Runner(out / ".cache" if use_cache else None, progress)
@@ -1727,16 +1771,16 @@ def _cli() -> None:
 
     @command("run", help="run a session pipeline (C3D → results folder)", arguments=run_args)
     def _run(args: argparse.Namespace) -> int:
-        res = run_session(
+        for res in run_task_trials(
             args.config,
             args.out,
             progress=None if args.quiet else sys.stderr,
             use_cache=not args.no_cache,
             pdf=args.pdf,
-        )
-        missing = res.not_available
-        if missing and not args.quiet:
-            sys.stderr.write(f"stages not available: {', '.join(missing)}\n")
+        ):
+            missing = res.not_available
+            if missing and not args.quiet:
+                sys.stderr.write(f"{res.out_dir}: stages not available: {', '.join(missing)}\n")
         return 0
 
     def pc_args(p: argparse.ArgumentParser) -> None:

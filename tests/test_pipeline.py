@@ -12,6 +12,7 @@ import pytest
 
 from msk.cli import main
 from msk.config import TEMPLATE
+from msk.exceptions import ConfigError
 from msk.io.opensim_files import read_sto
 from msk.pipeline import STAGES, file_sha256, lab_to_model_rotation, run_session
 from msk.results import TABLES, read_session
@@ -226,6 +227,23 @@ def test_cli_run_print_config_and_errors(tmp_path, capsys):
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "synth.c3d" in err[0]
     assert not (tmp_path / "o3" / "summary.json").exists()
+
+
+def test_several_task_trials_each_get_a_results_folder(tmp_path, capsys):
+    """``msk run`` analyses every task trial (one folder each); ``run_session`` refuses a
+    configuration with several rather than silently analysing the first."""
+    cfg, _ = make_session(tmp_path / "s")
+    second = cfg.read_text() + '\n[[trials]]\nname = "walk2"\nfile = "synth.c3d"\nrole = "task"\n'
+    cfg.write_text(second.replace("[filters]", "[filters]", 1))
+    with pytest.raises(ConfigError, match=r"2 task trials \(walk, walk2\)"):
+        run_session(cfg, tmp_path / "refused")
+    assert not (tmp_path / "refused").exists()
+    assert main(["run", str(cfg), "--out", str(tmp_path / "o"), "--quiet"]) == 0
+    for name in ("walk", "walk2"):
+        folder = tmp_path / "o" / name
+        assert (folder / "report.html").is_file()
+        summary = json.loads((folder / "summary.json").read_text())
+        assert summary["trial"] == name, summary.get("trial")
 
 
 @pytest.mark.slow

@@ -874,7 +874,8 @@ def render_html(res: SessionResults, figures: Mapping[str, str] | None = None) -
     gait = res.has("q") or not s.get("fes")
     kind = "Gait analysis" if gait else "FES knee model"
     head = (
-        f"<h1>{kind} report — {_e(subj.get('name', ''))}</h1>"
+        f"<h1>{kind} report — {_e(subj.get('name', ''))}"
+        f"{', trial ' + _e(s['trial']) if s.get('trial') else ''}</h1>"
         f'<p class="note">Body mass {_num(subj.get("mass_kg"), ".1f", "kg")}, height '
         f"{_num(subj.get('height_m'), '.2f', 'm')}, side of interest {_e(subj.get('side'))}. "
         f"Produced {_e(s.get('created_utc', ''))} by msk "
