@@ -800,13 +800,13 @@ class _Session:
         fp = state.passive_force_along_tendon[ok]
         common = {"muscle_names": params.names, "coordinate_names": cn, "time": kin.time[ok]}
         solver = cfg.optimization.solver
+        opt = cfg.optimization
+        weights = (  # activation weights of static_optimization and emg_assisted
+            o.volume_weights(params.max_isometric_force, params.optimal_fiber_length)
+            if opt.activation_weights == "volume"
+            else None
+        )
         if meth == "static_optimization":
-            opt = cfg.optimization
-            weights = (
-                o.volume_weights(params.max_isometric_force, params.optimal_fiber_length)
-                if opt.activation_weights == "volume"
-                else None
-            )
             sol = o.solve_static_optimization_batch(
                 jac, tq, f_active=fa, f_passive=fp, reserve_optimal_force=reserves,
                 activation_weights=weights, activation_exponent=opt.activation_exponent,
@@ -841,7 +841,9 @@ class _Session:
                 forces = sol.forces
                 acts = np.clip(forces / np.maximum(fa, 1e-9), 0, None)
             else:
-                sol, gains = self._emg_assisted(jac, tq, fa, a, meas, params, reserves, common)
+                sol, gains = self._emg_assisted(
+                    jac, tq, fa, a, meas, params.names, weights, reserves, common
+                )
                 forces, acts = sol.forces, sol.activations
         else:  # closed_form (seeds/004 Eq. 6, unbounded)
             lag = o.solve_lagrange_batch(
@@ -855,7 +857,6 @@ class _Session:
         a_all = np.full_like(f_all, np.nan)
         f_all[ok], a_all[ok] = forces, acts
         out = {"forces": f_all, "activations": a_all, "muscles": params.names, "method": meth}
-        opt = cfg.optimization
         w = "V_i " if opt.activation_weights == "volume" else ""
         if meth == "static_optimization":
             out["criterion"] = f"min Σ {w}a_i^{opt.activation_exponent:g}"
@@ -880,7 +881,8 @@ class _Session:
         fa: np.ndarray,
         emg_act: np.ndarray,
         measured: np.ndarray,
-        params: Any,
+        names: tuple[str, ...],
+        weights: np.ndarray | None,
         reserves: np.ndarray,
         common: dict[str, Any],
     ) -> tuple[Any, dict[str, float]]:
@@ -893,17 +895,12 @@ class _Session:
         opt = self.cfg.optimization
         channels = self.cfg.emg.channels
         groups: dict[str, list[str]] = {}
-        for k, n in enumerate(params.names):
+        for k, n in enumerate(names):
             if measured[k]:
                 groups.setdefault(channels[n], []).append(n)
-        weights = (
-            o.volume_weights(params.max_isometric_force, params.optimal_fiber_length)
-            if opt.activation_weights == "volume"
-            else None
-        )
         fit = fit_emg_gains(
             jac, tq, f_active=fa, emg_activation=emg_act, groups=groups,
-            muscle_names=params.names, w_track=opt.w_track, activation_weights=weights,
+            muscle_names=names, w_track=opt.w_track, activation_weights=weights,
             reserve_optimal_force=reserves, coordinate_names=common["coordinate_names"],
         )  # fmt: skip
         sol = o.solve_emg_assisted_batch(
