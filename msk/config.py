@@ -7,6 +7,7 @@ file. ``msk print-config`` writes :data:`TEMPLATE`, a commented example.
 
 from __future__ import annotations
 
+import re
 import tomllib
 from collections.abc import Mapping
 from dataclasses import dataclass, field
@@ -250,6 +251,10 @@ class SessionConfig:
         return tuple(t for t in self.trials if t.role == role)
 
 
+#: a trial name: it becomes a folder name under ``--out``
+_PLAIN_NAME = re.compile(r"[A-Za-z0-9_][A-Za-z0-9._-]{0,99}")
+
+
 class _Section:
     """Reads one TOML table, remembering which keys were used; unknown keys are errors."""
 
@@ -331,8 +336,14 @@ def load_config(path: str | Path) -> SessionConfig:
     for i, t_raw in enumerate(top.get("trials", list)):
         t = _Section(t_raw, f"trials[{i}]", source)
         role = t.choice("role", TRIAL_ROLES, "task")
+        name = t.get("name", str)
+        if not _PLAIN_NAME.fullmatch(name) or name in (".", ".."):
+            raise ConfigError(
+                f"{source}: trials[{i}].name = {name!r} must be a plain name (letters, digits, "
+                "'.', '_', '-'; no path separators): it names the trial's results folder"
+            )
         tc = TrialConfig(
-            name=t.get("name", str),
+            name=name,
             file=t.path("file"),  # type: ignore[arg-type]
             role=role,
             contact_force=t.path("contact_force", required=False),

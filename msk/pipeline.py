@@ -789,15 +789,28 @@ class _Session:
         batch solvers) on the usable frames; NaN elsewhere."""
         import msk.optimization as o
 
-        cfg, kin, ok, emg, act_idx = self.cfg, self.kin, self.ok_frames, self.emg_, self.act_idx
+        cfg, kin, emg, act_idx = self.cfg, self.kin, self.emg_, self.act_idx
         params, state = self._muscle_state(mdl)
+        # a frame whose inputs cannot be posed (non-finite geometry or torques, negative
+        # active force) is excluded and flagged, never allowed to abort the whole stage
+        fa_all = state.max_active_force_along_tendon
+        fp_all = state.passive_force_along_tendon
+        posable = (
+            np.isfinite(self.geom.jacobian[:, :, act_idx]).all(axis=(1, 2))
+            & np.isfinite(torques.tau[:, act_idx]).all(axis=1)
+            & np.isfinite(fa_all).all(axis=1)
+            & (fa_all >= 0).all(axis=1)
+            & np.isfinite(fp_all).all(axis=1)
+        )
+        ok = self.ok_frames & posable
+        excluded = int((self.ok_frames & ~posable).sum())
         jac = self.geom.jacobian[ok][:, :, act_idx]
         tq = torques.tau[ok][:, act_idx]
         cn = tuple(self.jt.coordinate_names[i] for i in act_idx)
         reserves = np.ones(len(act_idx))
         meth = cfg.optimization.method
-        fa = state.max_active_force_along_tendon[ok]
-        fp = state.passive_force_along_tendon[ok]
+        fa = fa_all[ok]
+        fp = fp_all[ok]
         common = {"muscle_names": params.names, "coordinate_names": cn, "time": kin.time[ok]}
         solver = cfg.optimization.solver
         opt = cfg.optimization
@@ -857,6 +870,9 @@ class _Session:
         a_all = np.full_like(f_all, np.nan)
         f_all[ok], a_all[ok] = forces, acts
         out = {"forces": f_all, "activations": a_all, "muscles": params.names, "method": meth}
+        out["excluded_frames"] = excluded
+        if excluded:
+            out["excluded_reason"] = "non-finite geometry or torque, or negative active force"
         w = "V_i " if opt.activation_weights == "volume" else ""
         if meth == "static_optimization":
             out["criterion"] = f"min Σ {w}a_i^{opt.activation_exponent:g}"
@@ -986,13 +1002,14 @@ class _Session:
                 m_spec = with_strength(self.model_id, self.strength["profile"])
                 variants["subject_specific"] = (m_spec, self._optimise(m_spec, self.jt))
             n = kin.time.size
-            ok = np.flatnonzero(ok_frames)
             for name, (mdl, s) in variants.items():
+                # frames without muscle forces get no contact force (never zero muscle force)
+                ok = np.flatnonzero(ok_frames & np.isfinite(s["forces"]).all(axis=1))
                 contact = knee_contact_force(
                     mdl,
                     _frames(kin, ok, n),
                     _frames(ext, ok, n),
-                    muscle_forces=np.nan_to_num(s["forces"][ok], nan=0.0),
+                    muscle_forces=s["forces"][ok],
                     muscle_names=tuple(s["muscles"]),
                     joint=joint,
                 )
@@ -1208,6 +1225,20 @@ class _Session:
             self.trial, self.kin, self.jt, self.ext, self.emg_, sol, strength, ident,
             self.body_weight, self.measured,
         )  # fmt: skip
+        from msk.quality import THRESHOLDS, body_mass_from_loads, gait_flags
+
+        plate_mass = body_mass_from_loads(model, self.kin, self.ext, self.measured)
+        quality["plate_mass_kg"] = plate_mass
+        quality["flags"] = [
+            f.as_dict()
+            for f in gait_flags(
+                self.task.name, quality=quality, model=model, kinematics=self.kin,
+                joint_torques=self.jt, mass_kg=cfg.subject.mass_kg,
+                height_m=cfg.subject.height_m, marker_labels=self.trial.marker_labels,
+                optimization=sol, plate_mass_kg=plate_mass,
+            )
+        ]  # fmt: skip
+        quality["thresholds"] = dict(THRESHOLDS)
         return {
             **self.base_summary(),
             "model": {**self.built["info"], "name": model.name, "muscles": len(model.muscles)},
@@ -1765,9 +1796,13 @@ def _cli() -> None:
         p.add_argument("--no-cache", action="store_true", help="recompute every stage")
         p.add_argument("--pdf", action="store_true", help="also print report.pdf (Chromium)")
         p.add_argument("--quiet", action="store_true", help="no progress lines")
+        p.add_argument(
+            "--strict", action="store_true", help="exit 3 when any quality gate is raised"
+        )
 
     @command("run", help="run a session pipeline (C3D → results folder)", arguments=run_args)
     def _run(args: argparse.Namespace) -> int:
+        raised = 0
         for res in run_task_trials(
             args.config,
             args.out,
@@ -1778,7 +1813,11 @@ def _cli() -> None:
             missing = res.not_available
             if missing and not args.quiet:
                 sys.stderr.write(f"{res.out_dir}: stages not available: {', '.join(missing)}\n")
-        return 0
+            flags = (res.summary.get("quality") or {}).get("flags") or []
+            raised += len(flags)
+            for f in flags:
+                sys.stderr.write(f"{res.out_dir}: quality flag: {f['message']}\n")
+        return 3 if args.strict and raised else 0
 
     def pc_args(p: argparse.ArgumentParser) -> None:
         p.add_argument("--out", type=Path, metavar="FILE", help="write to FILE (default stdout)")

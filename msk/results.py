@@ -221,19 +221,50 @@ def write_session(
     return out
 
 
+#: what a session folder written by :func:`write_session` holds (besides ``keep``)
+SESSION_ENTRIES = frozenset({"summary.json", "report.html", "report.pdf", "tables"})
+
+
 def check_replaceable(out_dir: str | Path, keep: Sequence[str] = (".cache",)) -> None:
-    """Refuse to replace a folder that is not a session folder (it would be deleted): it must
-    be absent, empty (but for ``keep``) or hold a ``summary.json``."""
+    """Refuse to replace a folder unless nothing but msk's own output would be lost: it must
+    be absent, empty (but for ``keep``), or an msk session folder — a ``summary.json`` of
+    format :data:`SUMMARY_FORMAT` and no entry msk did not write (:data:`SESSION_ENTRIES`,
+    table files in ``tables/``)."""
     out = Path(out_dir)
     if not out.exists():
         return
     if not out.is_dir():
         raise FileFormatError(f"{out}: exists and is not a folder")
-    other = [p.name for p in out.iterdir() if p.name not in keep]
-    if other and not (out / "summary.json").is_file():
+    other = sorted(p.name for p in out.iterdir() if p.name not in keep)
+    if not other:
+        return
+    spath = out / "summary.json"
+    if not spath.is_file():
         raise FileFormatError(
             f"{out}: not an msk session folder (no summary.json) and not empty "
-            f"({', '.join(sorted(other)[:3])}…); choose another --out"
+            f"({', '.join(other[:3])}…); choose another --out"
+        )
+    try:
+        fmt = json.loads(spath.read_text(encoding="utf-8")).get("format")
+    except (OSError, UnicodeDecodeError, json.JSONDecodeError, AttributeError):
+        fmt = None
+    if fmt != SUMMARY_FORMAT:
+        raise FileFormatError(
+            f"{spath}: not an msk session summary (format {fmt!r}, expected "
+            f"{SUMMARY_FORMAT!r}); refusing to replace {out}: choose another --out"
+        )
+    foreign = [n for n in other if n not in SESSION_ENTRIES]
+    tables = out / "tables"
+    if tables.is_dir():
+        foreign += [
+            f"tables/{p.name}"
+            for p in tables.iterdir()
+            if not (p.is_file() and p.suffix in (".csv", ".sto", ".mot"))
+        ]
+    if foreign:
+        raise FileFormatError(
+            f"{out}: holds files msk did not write ({', '.join(sorted(foreign)[:3])}); "
+            "refusing to replace it: move them or choose another --out"
         )
 
 

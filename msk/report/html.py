@@ -887,6 +887,20 @@ def render_html(res: SessionResults, figures: Mapping[str, str] | None = None) -
             + "; ".join(f"{_e(i['stage'])} ({_e(i['status'])}: {_e(i['reason'])})" for i in na)
             + "</p>"
         )
+    flags = (s.get("quality") or {}).get("flags") or []
+    if flags:
+        head += (
+            f'<div class="warn" id="quality-flags"><b>Quality gates raised ({len(flags)}): '
+            "these results must not be used without checking the quantities named "
+            "here.</b><ul>"
+            + "".join(
+                f"<li>{_e(f.get('trial'))}: {_e(f.get('message'))} "
+                f"[{_e(f.get('quantity'))} = {_num(f.get('value'))}, threshold "
+                f"{_num(f.get('threshold'))}]</li>"
+                for f in flags
+            )
+            + "</ul></div>"
+        )
     parts = [head]
     if gait:
         parts += [

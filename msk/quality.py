@@ -1,0 +1,314 @@
+"""Quality gates: figures of a gait run checked against stated thresholds.
+
+Every check returns :class:`Flag` records naming the trial, the quantity, the value and the
+threshold, so that a wrong number never passes silently: ``summary.json`` carries them under
+``quality.flags``, the report shows them in a banner at its top, and ``msk run --strict`` exits
+with status 3 when any is raised.
+
+Thresholds and their sources (:data:`THRESHOLDS`):
+
+* IK marker error: mean per-frame RMS ≤ 20 mm and per-frame maximum ≤ 40 mm — OpenSim's
+  recommendations for inverse kinematics ("RMS under 2 cm, maximum marker error under 2–4 cm",
+  OpenSim User's Guide, *Getting started with inverse kinematics*; Hicks JL, Uchida TK, Seth A,
+  Rajagopal A, Delp SL (2015) Is my model good enough? J Biomech Eng 137:020905, Table 2).
+* Residual (pelvis) force RMS ≤ 5 % of body weight and residual moment RMS ≤ 1 % of
+  (centre-of-mass height × body weight): the residual bounds of Hicks et al. (2015, Table 2),
+  stated there on peak external force and COM height; msk states them on the RMS over the frames
+  whose ground contact the plates measure.
+* Body mass: the mass that balances the measured vertical ground reaction against the model's
+  centre-of-mass acceleration, m̂ = Σ F_z / Σ (a_com,z + g) over the measured frames (Newton's
+  second law on the whole body), more than 5 % from the configured mass.
+* Joint angles outside physiological ranges of motion (:data:`PHYSIOLOGICAL_RANGES_DEG`: the
+  active ranges of motion of healthy adults, Roaas A, Andersson GBJ (1982) Acta Orthop Scand
+  53:205–208, widened by 10°).
+* Frozen coordinates: a leg coordinate whose standard deviation over the trial is below 0.05°
+  (a segment that the markers do not observe stays at its initial value).
+* Unobserved segments: frames in which no marker on a leg segment was used by IK.
+* Tension optimisation: infeasible frames, frames excluded from it (non-finite or invalid
+  inputs), muscles saturated (activation ≥ 0.99) on more than 5 % of frames, reserve actuators
+  carrying more than 10 % of a leg coordinate's peak joint torque (RMS).
+* Duplicate marker labels in the file.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
+from dataclasses import asdict, dataclass
+from typing import Any
+
+import numpy as np
+import pinocchio as pin
+from numpy.typing import NDArray
+
+Array = NDArray[np.float64]
+
+__all__ = [
+    "PHYSIOLOGICAL_RANGES_DEG",
+    "THRESHOLDS",
+    "Flag",
+    "body_mass_from_loads",
+    "gait_flags",
+]
+
+#: the thresholds of the gates (SI unless the name says)
+THRESHOLDS: Mapping[str, float] = {
+    "ik_marker_rms_mean_m": 0.020,
+    "ik_marker_max_mean_m": 0.040,
+    "residual_force_rms_pct_bw": 5.0,
+    "residual_moment_rms_pct_com_height_bw": 1.0,
+    "body_mass_difference_pct": 5.0,
+    "frozen_coordinate_std_deg": 0.05,
+    "unobserved_segment_frames_pct": 5.0,
+    "saturated_frames_pct": 5.0,
+    "reserve_rms_pct_peak_torque": 10.0,
+    "saturation_activation": 0.99,
+}
+
+#: physiological joint ranges (deg) by coordinate stem, gait2392/OpenSim sign conventions
+#: (knee_angle is negative in flexion); active ROM of adults (Roaas & Andersson 1982) + 10°
+PHYSIOLOGICAL_RANGES_DEG: Mapping[str, tuple[float, float]] = {
+    "hip_flexion": (-40.0, 140.0),
+    "hip_adduction": (-55.0, 40.0),
+    "hip_rotation": (-55.0, 55.0),
+    "knee_angle": (-155.0, 15.0),
+    "ankle_angle": (-60.0, 45.0),
+    "subtalar_angle": (-45.0, 45.0),
+}
+
+#: leg bodies whose observation by markers is checked (gait2392 / Rajagopal names)
+_LEG_BODIES = ("femur", "tibia", "calcn")
+
+
+@dataclass(frozen=True)
+class Flag:
+    """One raised quality gate: ``quantity`` measured ``value`` against ``threshold``."""
+
+    trial: str
+    quantity: str
+    value: float
+    threshold: float
+    message: str
+
+    def as_dict(self) -> dict[str, Any]:
+        return asdict(self)
+
+
+def body_mass_from_loads(
+    model: Any, kinematics: Any, loads: Any, frames: NDArray[np.bool_]
+) -> float | None:
+    """m̂ = Σ_k F_z,k / Σ_k (a_com,z,k + g) over ``frames``: the mass whose whole-body
+    Newton balance matches the measured vertical ground reaction (``loads.force`` summed over
+    bodies, world frame, z along −gravity). None when fewer than 10 frames are usable."""
+    g_vec = np.asarray(model.gravity, dtype=float)
+    g = float(np.linalg.norm(g_vec))
+    if g == 0.0:
+        return None
+    up = -g_vec / g
+    q, v, a = (np.asarray(x, dtype=float) for x in (kinematics.q, kinematics.v, kinematics.a))
+    ok = np.asarray(frames, dtype=bool) & np.isfinite(q).all(1) & np.isfinite(a).all(1)
+    idx = np.flatnonzero(ok)
+    if idx.size < 10:
+        return None
+    fz = np.nansum(np.asarray(loads.force, dtype=float)[idx] @ up, axis=1)
+    data = model.create_data()
+    qp, vp, ap = model.coupling.embed(q[idx], v[idx], a[idx])
+    acc = np.empty(idx.size)
+    for i in range(idx.size):
+        pin.centerOfMass(model.pin_model, data, qp[i], vp[i], ap[i])
+        acc[i] = float(np.asarray(data.acom[0]) @ up)
+    den = float(np.sum(acc + g))
+    return float(np.sum(fz) / den) if den > 0 else None
+
+
+def _flag(trial: str, quantity: str, value: float, threshold: float, message: str) -> Flag:
+    return Flag(trial, quantity, float(value), float(threshold), message)
+
+
+def _coordinate_flags(trial: str, kin: Any, th: Mapping[str, float]) -> list[Flag]:
+    out: list[Flag] = []
+    q = np.asarray(kin.q, dtype=float)
+    good = np.isfinite(q).all(axis=1)
+    if not good.any():
+        return out
+    for j, name in enumerate(kin.coordinate_names):
+        stem = name[:-2] if name.endswith(("_r", "_l")) else name
+        if stem not in PHYSIOLOGICAL_RANGES_DEG:
+            continue
+        deg = np.degrees(q[good, j])
+        lo, hi = PHYSIOLOGICAL_RANGES_DEG[stem]
+        if deg.min() < lo or deg.max() > hi:
+            worst = deg.min() if lo - deg.min() > deg.max() - hi else deg.max()
+            bound = lo if worst < lo else hi
+            out.append(
+                _flag(trial, f"{name}_deg", worst, bound,
+                      f"{name} reaches {worst:.1f}°, outside the physiological range "
+                      f"[{lo:g}°, {hi:g}°]")
+            )  # fmt: skip
+        sd = float(np.degrees(np.std(q[good, j])))
+        if sd < th["frozen_coordinate_std_deg"]:
+            out.append(
+                _flag(trial, f"{name}_std_deg", sd, th["frozen_coordinate_std_deg"],
+                      f"{name} is frozen (SD {sd:.3g}° over the trial): the markers do not "
+                      "observe it; joint torques and muscle forces across it are not measured")
+            )  # fmt: skip
+    return out
+
+
+def _unobserved_flags(trial: str, model: Any, kin: Any, th: Mapping[str, float]) -> list[Flag]:
+    out: list[Flag] = []
+    errs = np.asarray(getattr(kin, "marker_errors", np.zeros((0, 0))), dtype=float)
+    names = tuple(getattr(kin, "marker_names", ()))
+    if errs.ndim != 2 or errs.shape[1] != len(names) or errs.shape[0] == 0:
+        return out
+    body_of = {m.name: m.body for m in model.markers}
+    bodies = sorted({b for b in body_of.values() if b.startswith(_LEG_BODIES)})
+    n = errs.shape[0]
+    for body in bodies:
+        cols = [k for k, nm in enumerate(names) if body_of.get(nm) == body]
+        seen = np.isfinite(errs[:, cols]).any(axis=1) if cols else np.zeros(n, bool)
+        pct = 100.0 * (1.0 - seen.mean())
+        if pct > th["unobserved_segment_frames_pct"]:
+            out.append(
+                _flag(trial, f"{body}_unobserved_frames_pct", pct,
+                      th["unobserved_segment_frames_pct"],
+                      f"no marker observes {body} in {pct:.0f} % of the frames: its pose there "
+                      "comes from the neighbouring segments only")
+            )  # fmt: skip
+    return out
+
+
+def _optimization_flags(
+    trial: str, sol: Mapping[str, Any], jt: Any, th: Mapping[str, float]
+) -> list[Flag]:
+    out: list[Flag] = []
+    n_inf = int(sol.get("infeasible_frames", 0) or 0)
+    if n_inf:
+        out.append(
+            _flag(trial, "optimization_infeasible_frames", n_inf, 0,
+                  f"{n_inf} frames of the tension optimisation are infeasible (bounded "
+                  "least-squares point kept)")
+        )  # fmt: skip
+    n_exc = int(sol.get("excluded_frames", 0) or 0)
+    if n_exc:
+        out.append(
+            _flag(trial, "optimization_excluded_frames", n_exc, 0,
+                  f"{n_exc} frames could not be posed to the tension optimisation "
+                  f"({sol.get('excluded_reason', 'invalid inputs')}): no muscle force or contact "
+                  "force there")
+        )  # fmt: skip
+    acts = np.asarray(sol.get("activations", np.zeros((0, 0))), dtype=float)
+    names = tuple(sol.get("muscles", ()))
+    if acts.ndim == 2 and acts.size:
+        rows = np.isfinite(acts).all(axis=1)
+        if rows.any():
+            sat = 100.0 * (acts[rows] >= th["saturation_activation"]).mean(axis=0)
+            worst = int(np.argmax(sat))
+            if sat[worst] > th["saturated_frames_pct"]:
+                out.append(
+                    _flag(trial, f"{names[worst]}_saturated_frames_pct", sat[worst],
+                          th["saturated_frames_pct"],
+                          f"{names[worst]} is saturated (activation ≥ "
+                          f"{th['saturation_activation']:g}) in {sat[worst]:.0f} % of the frames"
+                          f" ({int((sat > th['saturated_frames_pct']).sum())} muscles in all)")
+                )  # fmt: skip
+    rt = sol.get("reserve_torques")
+    rc = tuple(sol.get("reserve_coordinates", ()))
+    if rt is not None and rc:
+        rt = np.asarray(rt, dtype=float)
+        cn = tuple(jt.coordinate_names)
+        for k, c in enumerate(rc):
+            if not c.endswith(("_r", "_l")) or c not in cn:
+                continue
+            tau = np.asarray(jt.tau, dtype=float)[:, cn.index(c)]
+            ok = np.isfinite(rt[:, k]) & np.isfinite(tau)
+            if ok.sum() < 2:
+                continue
+            peak = float(np.max(np.abs(tau[ok])))
+            if peak <= 1.0:
+                continue
+            pct = 100.0 * float(np.sqrt(np.mean(rt[ok, k] ** 2))) / peak
+            if pct > th["reserve_rms_pct_peak_torque"]:
+                out.append(
+                    _flag(trial, f"{c}_reserve_rms_pct", pct, th["reserve_rms_pct_peak_torque"],
+                          f"the reserve actuator of {c} carries {pct:.0f} % of its peak joint "
+                          "torque (RMS): the muscles cannot produce that moment")
+                )  # fmt: skip
+    return out
+
+
+def gait_flags(
+    trial_name: str,
+    *,
+    quality: Mapping[str, Any],
+    model: Any,
+    kinematics: Any,
+    joint_torques: Any,
+    mass_kg: float,
+    height_m: float | None,
+    marker_labels: Sequence[str] = (),
+    optimization: Mapping[str, Any] | None = None,
+    plate_mass_kg: float | None = None,
+    thresholds: Mapping[str, float] = THRESHOLDS,
+) -> list[Flag]:
+    """Every gate of the module docstring on one gait trial.
+
+    ``quality`` is the quality block of the run (``ik_marker_rms_mean_m``,
+    ``residual_force_rms_pct_bw``, ``residual_moment_rms_nm`` …, None where not computed);
+    ``plate_mass_kg`` :func:`body_mass_from_loads` of the trial."""
+    th = {**THRESHOLDS, **thresholds}
+    out: list[Flag] = []
+    ik = quality.get("ik_marker_rms_mean_m")
+    if ik is not None and np.isfinite(ik) and ik > th["ik_marker_rms_mean_m"]:
+        out.append(
+            _flag(trial_name, "ik_marker_rms_mean_m", ik, th["ik_marker_rms_mean_m"],
+                  f"IK marker RMS {1000 * ik:.1f} mm over {1000 * th['ik_marker_rms_mean_m']:g} "
+                  f"mm (worst marker {quality.get('ik_worst_marker', '?')})")
+        )  # fmt: skip
+    mx = np.asarray(getattr(kinematics, "marker_max", []), dtype=float)
+    if mx.size and np.isfinite(mx).any():
+        m = float(np.nanmean(mx))
+        if m > th["ik_marker_max_mean_m"]:
+            out.append(
+                _flag(trial_name, "ik_marker_max_mean_m", m, th["ik_marker_max_mean_m"],
+                      f"IK worst-marker error {1000 * m:.1f} mm on average over "
+                      f"{1000 * th['ik_marker_max_mean_m']:g} mm (mostly "
+                      f"{quality.get('ik_worst_marker', '?')})")
+            )  # fmt: skip
+    rf = quality.get("residual_force_rms_pct_bw")
+    if rf is not None and np.isfinite(rf) and rf > th["residual_force_rms_pct_bw"]:
+        out.append(
+            _flag(trial_name, "residual_force_rms_pct_bw", rf, th["residual_force_rms_pct_bw"],
+                  f"pelvis residual force RMS {rf:.1f} % BW over "
+                  f"{th['residual_force_rms_pct_bw']:g} % BW (Hicks et al. 2015)")
+        )  # fmt: skip
+    rm = quality.get("residual_moment_rms_nm")
+    if rm is not None and np.isfinite(rm):
+        com_h = 0.55 * (height_m if height_m else 1.75)  # COM ≈ 55 % of stature (de Leva 1996)
+        pct = 100.0 * rm / (com_h * mass_kg * 9.80665)
+        if pct > th["residual_moment_rms_pct_com_height_bw"]:
+            out.append(
+                _flag(trial_name, "residual_moment_rms_pct_com_height_bw", pct,
+                      th["residual_moment_rms_pct_com_height_bw"],
+                      f"pelvis residual moment RMS {rm:.1f} N·m = {pct:.2f} % of COM height × "
+                      f"BW, over {th['residual_moment_rms_pct_com_height_bw']:g} % "
+                      "(Hicks et al. 2015)")
+            )  # fmt: skip
+    if plate_mass_kg is not None and mass_kg > 0:
+        d = 100.0 * (plate_mass_kg - mass_kg) / mass_kg
+        if abs(d) > th["body_mass_difference_pct"]:
+            out.append(
+                _flag(trial_name, "plate_mass_difference_pct", d, th["body_mass_difference_pct"],
+                      f"the plates weigh the subject at {plate_mass_kg:.1f} kg; the configuration"
+                      f" says {mass_kg:g} kg ({d:+.1f} %)")
+            )  # fmt: skip
+    out += _coordinate_flags(trial_name, kinematics, th)
+    out += _unobserved_flags(trial_name, model, kinematics, th)
+    dup = sorted({lab for lab in marker_labels if list(marker_labels).count(lab) > 1})
+    if dup:
+        out.append(
+            _flag(trial_name, "duplicate_marker_labels", len(dup), 0,
+                  f"duplicate marker labels in the file: {', '.join(dup[:5])}")
+        )  # fmt: skip
+    if optimization is not None:
+        out += _optimization_flags(trial_name, optimization, joint_torques, th)
+    return out
