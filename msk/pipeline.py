@@ -1032,10 +1032,16 @@ class _Session:
     # ------------------------------------------------------------------ result tables
     def tables(self) -> dict[str, Table]:
         kin, jt, sol, contact = self.kin, self.jt, self.sol, self.contact
-        self.events = [
-            {"label": e.label, "context": e.context, "time": e.time} for e in self.trial.events
-        ]
-        strikes = sorted(self.trial.events_named("Foot Strike", self.side.capitalize()))
+        from msk.events import detect_gait_events, reconcile
+
+        # gait events: the file's where they agree with the plates, else detected from the
+        # plates and the kinematics (Zeni et al. 2008); the notes say which
+        self.gait_events = reconcile(
+            self.trial.events,
+            detect_gait_events(self.model, kin, self.ext, observed=self.measured),
+        )
+        self.events = self.gait_events.as_list()
+        strikes = sorted(self.gait_events.foot_strike.get(self.side, ()))
         t = kin.time
 
         def on_plates(c: tuple[float, float]) -> float:
@@ -1244,6 +1250,10 @@ class _Session:
             "model": {**self.built["info"], "name": model.name, "muscles": len(model.muscles)},
             "frame": {"lab_to_model_rotation": self.rot, "lab_up": self.trial.up},
             "events": self.events,
+            "event_sources": {
+                **dict(self.gait_events.source),
+                "notes": list(self.gait_events.notes),
+            },
             "gait_cycle_s": list(self.cycle) if self.cycle else None,
             "angle_columns": [
                 c for c in self.kin.coordinate_names if not c.endswith(("_tx", "_ty", "_tz"))
