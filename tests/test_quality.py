@@ -32,8 +32,9 @@ def test_body_mass_balances_the_vertical_reaction(mass):
 
 def _flags(model, kin, **quality):
     jt = SimpleNamespace(coordinate_names=kin_names(model), tau=np.zeros_like(kin.q))
+    plate = quality.pop("plate", None)
     return gait_flags("walk1", quality=quality, model=model, kinematics=kin, joint_torques=jt,
-                      mass_kg=70.0, height_m=1.7, plate_mass_kg=quality.pop("plate", None))  # fmt: skip
+                      mass_kg=70.0, height_m=1.7, plate_mass_kg=plate)  # fmt: skip
 
 
 def kin_names(model):
