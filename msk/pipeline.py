@@ -1242,6 +1242,9 @@ class _Session:
                 joint_torques=self.jt, mass_kg=cfg.subject.mass_kg,
                 height_m=cfg.subject.height_m, marker_labels=self.trial.marker_labels,
                 optimization=sol, plate_mass_kg=plate_mass,
+                peak_external_force_n=float(np.nanmax(
+                    np.linalg.norm(np.nansum(self.ext.force[self.measured], axis=1), axis=1),
+                    initial=0.0)),
             )
         ]  # fmt: skip
         quality["thresholds"] = dict(THRESHOLDS)

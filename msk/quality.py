@@ -12,9 +12,9 @@ Thresholds and their sources (:data:`THRESHOLDS`):
   OpenSim User's Guide, *Getting started with inverse kinematics*; Hicks JL, Uchida TK, Seth A,
   Rajagopal A, Delp SL (2015) Is my model good enough? J Biomech Eng 137:020905, Table 2).
 * Residual (pelvis) force RMS ≤ 5 % of body weight and residual moment RMS ≤ 1 % of
-  (centre-of-mass height × body weight): the residual bounds of Hicks et al. (2015, Table 2),
-  stated there on peak external force and COM height; msk states them on the RMS over the frames
-  whose ground contact the plates measure.
+  (centre-of-mass height × peak external force): the residual bounds of Hicks et al. (2015,
+  Table 2), stated there on the peak residuals; msk applies them to the RMS over the frames
+  whose ground contact the plates measure (COM height 55 % of stature, 1.75 m when unknown).
 * Body mass: the mass that balances the measured vertical ground reaction against the model's
   centre-of-mass acceleration, m̂ = Σ F_z / Σ (a_com,z + g) over the measured frames (Newton's
   second law on the whole body), more than 5 % from the configured mass.
@@ -55,7 +55,7 @@ THRESHOLDS: Mapping[str, float] = {
     "ik_marker_rms_mean_m": 0.020,
     "ik_marker_max_mean_m": 0.040,
     "residual_force_rms_pct_bw": 5.0,
-    "residual_moment_rms_pct_com_height_bw": 1.0,
+    "residual_moment_rms_pct_com_height_peak_force": 1.0,
     "body_mass_difference_pct": 5.0,
     "frozen_coordinate_std_deg": 0.05,
     "unobserved_segment_frames_pct": 5.0,
@@ -248,13 +248,16 @@ def gait_flags(
     marker_labels: Sequence[str] = (),
     optimization: Mapping[str, Any] | None = None,
     plate_mass_kg: float | None = None,
+    peak_external_force_n: float | None = None,
     thresholds: Mapping[str, float] = THRESHOLDS,
 ) -> list[Flag]:
     """Every gate of the module docstring on one gait trial.
 
     ``quality`` is the quality block of the run (``ik_marker_rms_mean_m``,
     ``residual_force_rms_pct_bw``, ``residual_moment_rms_nm`` …, None where not computed);
-    ``plate_mass_kg`` :func:`body_mass_from_loads` of the trial."""
+    ``plate_mass_kg`` :func:`body_mass_from_loads` of the trial; ``peak_external_force_n`` the
+    largest ground-reaction magnitude (Hicks et al. 2015 state the moment bound on it; body
+    weight when None)."""
     th = {**THRESHOLDS, **thresholds}
     out: list[Flag] = []
     ik = quality.get("ik_marker_rms_mean_m")
@@ -284,13 +287,15 @@ def gait_flags(
     rm = quality.get("residual_moment_rms_nm")
     if rm is not None and np.isfinite(rm):
         com_h = 0.55 * (height_m if height_m else 1.75)  # COM ≈ 55 % of stature (de Leva 1996)
-        pct = 100.0 * rm / (com_h * mass_kg * 9.80665)
-        if pct > th["residual_moment_rms_pct_com_height_bw"]:
+        f_ext = peak_external_force_n if peak_external_force_n else mass_kg * 9.80665
+        pct = 100.0 * rm / (com_h * f_ext)
+        if pct > th["residual_moment_rms_pct_com_height_peak_force"]:
             out.append(
-                _flag(trial_name, "residual_moment_rms_pct_com_height_bw", pct,
-                      th["residual_moment_rms_pct_com_height_bw"],
+                _flag(trial_name, "residual_moment_rms_pct_com_height_peak_force", pct,
+                      th["residual_moment_rms_pct_com_height_peak_force"],
                       f"pelvis residual moment RMS {rm:.1f} N·m = {pct:.2f} % of COM height × "
-                      f"BW, over {th['residual_moment_rms_pct_com_height_bw']:g} % "
+                      f"peak external force, over "
+                      f"{th['residual_moment_rms_pct_com_height_peak_force']:g} % "
                       "(Hicks et al. 2015)")
             )  # fmt: skip
     if plate_mass_kg is not None and mass_kg > 0:
