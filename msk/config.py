@@ -90,6 +90,7 @@ contact_force = "../data/gc5-PS/PS_ngait_og_ss1_eTibia.csv"   # optional measure
 # (ground_force_v*, ground_force_p*, ground_torque_* and 1_ground_… : one set per plate):
 # file = "subject01_walk.trc"
 # grf = "subject01_walk_grf.mot"   # same frame as the .trc (only with a .trc file)
+# external_loads = "subject01_walk_grf.xml"   # OpenSim ExternalLoads: which body each force acts on
 
 [markers]
 # model marker name = lab label, when they differ
@@ -106,6 +107,15 @@ channels = { vasmed_l = "vasmed", vaslat_l = "vaslat", rect_fem_l = "rf" }
 highpass_hz = 20.0
 lowpass_hz = 6.0
 electromechanical_delay_s = 0.04
+
+[loads]
+# explicit plate → body assignment (plates named plate1, plate2… in file order); default automatic
+assign = {}
+
+[contact]
+# medial–lateral distance of the two tibiofemoral contact points (m); default: 40 mm scaled by
+# the model's tibia (Lerner et al. 2015)
+# intercondylar_distance_m = 0.04
 
 [filters]
 kinematics_cutoff_hz = 6.0
@@ -190,6 +200,8 @@ class TrialConfig:
     #: OpenSim GRF ``.mot``/``.sto`` (``<prefix>force_v[xyz]``, ``force_p[xyz]``,
     #: ``torque_[xyz]`` per plate) of a ``.trc`` task trial, in the frame of its markers
     grf: Path | None = None
+    #: OpenSim ExternalLoads ``.xml`` naming the body each force set of ``grf`` acts on
+    external_loads: Path | None = None
 
 
 @dataclass(frozen=True)
@@ -233,6 +245,20 @@ class OptimizationConfig:
 
 
 @dataclass(frozen=True)
+class LoadsConfig:
+    """``[loads]``: explicit plate → body assignment (plate names ``plate1``… in file order)."""
+
+    assign: Mapping[str, str] = field(default_factory=dict)
+
+
+@dataclass(frozen=True)
+class ContactConfig:
+    """``[contact]``: tibiofemoral contact-point geometry (m); None: from the scaled model."""
+
+    intercondylar_distance_m: float | None = None
+
+
+@dataclass(frozen=True)
 class SessionConfig:
     path: Path
     subject: Subject
@@ -246,6 +272,8 @@ class SessionConfig:
     filters: FilterConfig = field(default_factory=FilterConfig)
     optimization: OptimizationConfig = field(default_factory=OptimizationConfig)
     fes: FesConfig = field(default_factory=FesConfig)
+    loads: LoadsConfig = field(default_factory=LoadsConfig)
+    contact: ContactConfig = field(default_factory=ContactConfig)
 
     def trials_with_role(self, role: str) -> tuple[TrialConfig, ...]:
         return tuple(t for t in self.trials if t.role == role)
@@ -349,7 +377,13 @@ def load_config(path: str | Path) -> SessionConfig:
             contact_force=t.path("contact_force", required=False),
             fes=_fes_trial(t, role),
             grf=t.path("grf", required=False),
+            external_loads=t.path("external_loads", required=False),
         )
+        if tc.external_loads is not None and tc.grf is None:
+            raise ConfigError(
+                f"{source}: trials[{i}].external_loads goes with trials[{i}].grf (the GRF file "
+                "whose force sets it assigns to bodies)"
+            )
         if tc.grf is not None and role != "task":
             raise ConfigError(
                 f"{source}: trials[{i}].grf is only valid with role = 'task' "
@@ -459,7 +493,24 @@ def load_config(path: str | Path) -> SessionConfig:
     fes_trials = [tc for tc in trials if tc.role == "fes"]
     if fes_trials:
         _check_fes_session(source, fes_trials, height)
+    ld = _Section(top.get("loads", dict, {}), "loads", source)
+    assign = ld.get("assign", dict, {})
+    bad = [k for k, v in assign.items() if not isinstance(v, str)]
+    if bad:
+        raise ConfigError(f"{source}: loads.assign.{bad[0]} should be a body name (string)")
+    loads = LoadsConfig(assign=dict(assign))
+    ld.done()
+    ct = _Section(top.get("contact", dict, {}), "contact", source)
+    icd = ct.get("intercondylar_distance_m", float, None)
+    if icd is not None and not (np.isfinite(icd) and 0.01 <= icd <= 0.10):
+        raise ConfigError(
+            f"{source}: contact.intercondylar_distance_m = {icd!r} m should be in 0.01–0.10 m "
+            "(adult knees: about 0.04 m)"
+        )
+    contact = ContactConfig(intercondylar_distance_m=icd)
+    ct.done()
     top.done()
+
     return SessionConfig(
         path=source,
         subject=subject,
@@ -472,6 +523,8 @@ def load_config(path: str | Path) -> SessionConfig:
         filters=filters,
         optimization=optimization,
         fes=fes,
+        loads=loads,
+        contact=contact,
     )
 
 
