@@ -33,13 +33,49 @@ the same line (its load cells sit under the plateau), which is what ``total`` co
 Without muscle forces the result is the inverse-dynamics joint reaction itself (no
 double counting), and in a static pose with one muscle it is minus the weight of the distal
 side minus the muscle pull, which the tests check by hand.
+
+**Medial and lateral compartments (two-point model).** :func:`split_medial_lateral` divides
+the normal force between a medial and a lateral contact point, after Winby CR, Lloyd DG,
+Besier TF, Kirk TB (2009) J Biomech 42:2294–2300 and Lerner ZF, DeMers MS, Delp SL,
+Browning RC (2015) J Biomech 48:644–650. The contact points P_M and P_L lie on the plateau
+(plateau-frame z axis through their midpoint C), a distance d apart (the intercondylar
+distance)::
+
+    P_L, P_M = C ± (d/2) e_z        (right knee: +z lateral; LEFT knee: +z is MEDIAL)
+
+Each carries a compressive force F_M, F_L along −y (the femur pushes the tibia down); the
+tangential load is carried at the same level and so has no frontal-plane moment about C. With
+the load (F, M_O) about the plateau-frame origin O, the moment about C is
+``M_C = M_O − c × F`` (c = C − O); its frontal-plane (about the anterior x axis) component ::
+
+    M_C,x = M_O,x − c_y F_z + c_z F_y = M_O,x + h F_z − c_z N,   h = −c_y (plateau depth)
+
+is the shear × height transfer from the knee-centre level to the plateau. Force balance
+along the normal and frontal moment balance about C give (right knee; N = −F_y)::
+
+    F_M + F_L = N,       (d/2) (F_L − F_M) = M_C,x
+    F_L = N/2 + M_C,x/d,   F_M = N/2 − M_C,x/d
+
+which is Winby's form: each compartment force is the frontal moment about the *other*
+contact point divided by d, ``F_M = −M^{P_L}_x / d``, ``F_L = M^{P_M}_x / d`` with
+``M^{P}_x = M_C,x − ((P − C) × F)_x``. For the left knee the roles of ±z swap
+(F_M = N/2 + M_C,x/d). A negative compartment force is condylar lift-off that the two-point
+model (without ligaments) cannot carry; it is reported, not clipped.
+
+Geometry (:func:`plateau_geometry`): d defaults to 40 mm (the generic intercondylar
+distance of the two-point models of Winby et al. 2009 and Lerner et al. 2015) times the
+tibia's medio-lateral scale factor (``model.metadata["scale_factors"][tibia][2]`` after
+:func:`msk.scaling.scale_model`); C lies 22 mm below the tibia-frame origin (the top of the
+gait2392/Rajagopal tibial-plateau mesh, 18–25 mm below the origin) times the tibia's
+longitudinal scale factor. Both can be given explicitly (e.g. from imaging); they are never
+fitted to measured forces.
 """
 
 from __future__ import annotations
 
 from collections.abc import Sequence
 from dataclasses import dataclass, field
-from typing import Any
+from typing import Any, Literal
 
 import numpy as np
 import pinocchio as pin
@@ -55,9 +91,15 @@ Array = NDArray[np.float64]
 __all__ = [
     "CONTACT_COLUMNS",
     "G0",
+    "INTERCONDYLAR_DISTANCE_M",
+    "PLATEAU_DEPTH_M",
     "KneeContact",
+    "MedialLateral",
+    "PlateauGeometry",
     "knee_contact_force",
     "muscle_distal_wrenches",
+    "plateau_geometry",
+    "split_medial_lateral",
 ]
 
 #: standard gravity used to express forces in body weights (BW = m g)
@@ -311,4 +353,190 @@ def knee_contact_force(
         body_weight_n=mass * G0,
         muscles_included=with_muscles,
         metadata={"variant": variant, "plateau_offset": plateau_offset is not None},
+    )
+
+
+# ---------------------------------------------------------------------------------------------
+# medial / lateral split (two-point model, Winby et al. 2009; Lerner et al. 2015)
+# ---------------------------------------------------------------------------------------------
+#: generic intercondylar distance d between the medial and lateral contact points (m), as in
+#: the two-point knee models of Winby et al. (2009) and Lerner et al. (2015)
+INTERCONDYLAR_DISTANCE_M = 0.040
+#: depth of the tibial plateau below the tibia-frame origin of gait2392 / Rajagopal (m): the
+#: top of their tibia mesh lies 18–25 mm below the origin (the knee centre)
+PLATEAU_DEPTH_M = 0.022
+
+Side = Literal["right", "left"]
+
+
+@dataclass(frozen=True)
+class PlateauGeometry:
+    """Medial/lateral contact points in the plateau frame of a :class:`KneeContact`.
+
+    Attributes:
+        intercondylar_distance_m: d, distance between the two contact points along the
+            plateau's medio-lateral (z) axis (m, > 0).
+        centre_m: C, midpoint of the two contact points in the plateau frame (m); its y is
+            minus the plateau depth below the frame origin.
+        source: how the values were obtained (generic, scaled, given).
+    """
+
+    intercondylar_distance_m: float = INTERCONDYLAR_DISTANCE_M
+    centre_m: tuple[float, float, float] = (0.0, -PLATEAU_DEPTH_M, 0.0)
+    source: str = "generic"
+
+    def __post_init__(self) -> None:
+        d = float(self.intercondylar_distance_m)
+        if not (np.isfinite(d) and d > 0):
+            raise ModelError(f"intercondylar distance must be > 0 m, got {d!r}")
+        c = np.asarray(self.centre_m, dtype=float).reshape(-1)
+        if c.size != 3 or not np.isfinite(c).all():
+            raise ModelError(
+                f"contact-point centre must be 3 finite numbers, got {self.centre_m!r}"
+            )
+        object.__setattr__(self, "intercondylar_distance_m", d)
+        object.__setattr__(self, "centre_m", (float(c[0]), float(c[1]), float(c[2])))
+
+
+def plateau_geometry(
+    model: Model,
+    *,
+    joint: str = "knee_r",
+    intercondylar_distance_m: float | None = None,
+    centre_m: ArrayLike | None = None,
+) -> PlateauGeometry:
+    """Contact-point geometry for ``joint`` of a (scaled) model.
+
+    Defaults: d = :data:`INTERCONDYLAR_DISTANCE_M` × s_z and C = (0, −:data:`PLATEAU_DEPTH_M`
+    × s_y, 0), with (s_x, s_y, s_z) the scale factors of the knee's child body (the tibia) in
+    ``model.metadata["scale_factors"]`` (written by :func:`msk.scaling.scale_model`; 1 for an
+    unscaled model). Values given explicitly are used as they are (not scaled).
+    """
+    spec = next((j for j in model.joints if j.name == joint), None)
+    if spec is None:
+        raise ModelError(f"model {model.name}: no joint {joint!r}")
+    factors = (model.metadata.get("scale_factors") or {}).get(spec.child)
+    sf = np.ones(3) if factors is None else np.asarray(factors, dtype=float).reshape(-1)
+    if sf.size == 1:
+        sf = np.full(3, sf[0])
+    if sf.size != 3 or not (np.isfinite(sf).all() and (sf > 0).all()):
+        raise ModelError(f"model {model.name}: bad scale factors {factors!r} for {spec.child}")
+    scaled = factors is not None
+    parts = []
+    if intercondylar_distance_m is None:
+        d = INTERCONDYLAR_DISTANCE_M * sf[2]
+        parts.append(
+            f"d = {INTERCONDYLAR_DISTANCE_M * 1e3:g} mm" + (f" × {sf[2]:.4g}" if scaled else "")
+        )
+    else:
+        d = float(intercondylar_distance_m)
+        parts.append("d given")
+    if centre_m is None:
+        c = (0.0, -PLATEAU_DEPTH_M * sf[1], 0.0)
+        parts.append(f"depth {PLATEAU_DEPTH_M * 1e3:g} mm" + (f" × {sf[1]:.4g}" if scaled else ""))
+    else:
+        v = np.asarray(centre_m, dtype=float).reshape(-1)
+        if v.size != 3:
+            raise ModelError(f"contact-point centre must be 3 numbers, got {centre_m!r}")
+        c = (float(v[0]), float(v[1]), float(v[2]))
+        parts.append("centre given")
+    return PlateauGeometry(d, c, f"{spec.child}: " + ", ".join(parts))
+
+
+@dataclass(frozen=True)
+class MedialLateral:
+    """Medial and lateral tibiofemoral contact forces over a trial (N, compressive > 0).
+
+    Attributes:
+        time: (N,) s.
+        joint: the knee joint; ``side`` ``"right"`` or ``"left"``.
+        medial, lateral: (N,) compartment forces F_M, F_L (N); F_M + F_L = ``normal``.
+        normal: (N,) total compressive normal force N (N).
+        frontal_moment: (N,) M_C,x, frontal-plane moment of the contact load about the
+            midpoint C of the contact points, about the plateau's anterior (x) axis (N·m).
+        geometry: the contact points used.
+        body_weight_n: m g for :meth:`in_body_weights` (N).
+    """
+
+    time: Array
+    joint: str
+    side: Side
+    medial: Array
+    lateral: Array
+    normal: Array
+    frontal_moment: Array
+    geometry: PlateauGeometry
+    body_weight_n: float
+    columns: tuple[str, ...] = ("medial_n", "lateral_n")
+
+    @property
+    def values(self) -> Array:
+        """(N, 2) columns :attr:`columns` (medial, lateral) in N."""
+        return np.stack([self.medial, self.lateral], axis=1)
+
+    def in_body_weights(self) -> Array:
+        """(N, 2) medial and lateral forces in body weights."""
+        return self.values / self.body_weight_n
+
+
+def _side_of(joint: str, side: str | None) -> Side:
+    if side is None:
+        low = joint.lower()
+        if low.endswith(("_r", "_right")):
+            return "right"
+        if low.endswith(("_l", "_left")):
+            return "left"
+        raise ModelError(f"knee joint {joint!r}: cannot tell the side from its name; give side=")
+    s = side.lower()
+    if s in ("right", "r"):
+        return "right"
+    if s in ("left", "l"):
+        return "left"
+    raise ModelError(f"side must be 'right' or 'left', got {side!r}")
+
+
+def split_medial_lateral(
+    contact: KneeContact,
+    geometry: PlateauGeometry | None = None,
+    *,
+    side: str | None = None,
+) -> MedialLateral:
+    """Medial and lateral compartment forces by the two-point model (module docstring;
+    Winby et al. 2009 J Biomech 42:2294; Lerner et al. 2015 J Biomech 48:644).
+
+    ``F_L = N/2 + M_C,x/d``, ``F_M = N/2 − M_C,x/d`` for a right knee (+z lateral), medial and
+    lateral swapped for a left knee (+z medial), with ``M_C,x = M_O,x − c_y F_z + c_z F_y`` the
+    frontal moment moved from the plateau-frame origin to the contact-point midpoint C.
+    Vectorised over frames; NaN frames stay NaN.
+
+    Args:
+        contact: :func:`knee_contact_force` result (force and moment about its plateau-frame
+            origin; ``geometry.centre_m`` is expressed in that same frame).
+        geometry: contact points (default :class:`PlateauGeometry`: generic 40 mm, 22 mm deep;
+            use :func:`plateau_geometry` for a scaled model).
+        side: ``"right"`` / ``"left"`` (default: from the joint name suffix ``_r`` / ``_l``).
+    """
+    geo = PlateauGeometry() if geometry is None else geometry
+    sd = _side_of(contact.joint, side)
+    f = np.asarray(contact.force, dtype=float)
+    m = np.asarray(contact.moment, dtype=float)
+    if f.ndim != 2 or f.shape[1] != 3 or m.shape != f.shape:
+        raise ShapeMismatchError(f"contact force {f.shape} / moment {m.shape} must be (N, 3)")
+    _, cy, cz = geo.centre_m
+    normal = -f[:, 1]
+    m_c = m[:, 0] - cy * f[:, 2] + cz * f[:, 1]
+    half = 0.5 * normal
+    delta = m_c / geo.intercondylar_distance_m
+    plus, minus = half + delta, half - delta  # forces at C + d/2 e_z and C − d/2 e_z
+    medial, lateral = (minus, plus) if sd == "right" else (plus, minus)
+    return MedialLateral(
+        time=np.asarray(contact.time, dtype=float),
+        joint=contact.joint,
+        side=sd,
+        medial=medial,
+        lateral=lateral,
+        normal=normal,
+        frontal_moment=m_c,
+        geometry=geo,
+        body_weight_n=float(contact.body_weight_n),
     )
