@@ -1,0 +1,228 @@
+"""Marker-set recognition: lab labels → gait2392 markers by anatomical landmark."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from msk.markersets import parse_label, recognise
+from msk.model_files import load_model
+
+MODELS = Path(__file__).resolve().parents[1] / "models"
+
+
+@pytest.fixture(scope="module")
+def gait2392():
+    return load_model(MODELS / "gait2392.toml")
+
+
+def _labels(path: Path) -> list[str]:
+    if path.suffix == ".trc":
+        from msk.io.opensim_files import read_trc
+
+        return list(read_trc(path).labels)
+    ezc3d = pytest.importorskip("ezc3d")
+    c = ezc3d.c3d(str(path))
+    pt = c["parameters"]["POINT"]
+    return list(pt["LABELS"]["value"]) + list(pt.get("LABELS2", {}).get("value", []))
+
+
+def _match(model, path: Path):
+    if not path.exists():
+        pytest.skip(f"{path} absent")
+    return recognise(_labels(path), model.marker_names, model_bodies=[b.name for b in model.bodies])
+
+
+@pytest.mark.parametrize(
+    ("label", "side", "landmark"),
+    [
+        ("R_Knee_Lateral", "R", "knee_lat"),
+        ("R.Knee.Lat", "R", "knee_lat"),
+        ("RKneeLateral", "R", "knee_lat"),
+        ("RKNE", "R", "knee_lat"),
+        ("RLE", "R", "knee_lat"),
+        ("LKNEin", "L", "knee_med"),
+        ("RankleMedial", "R", "ankle_med"),
+        ("LMM", "L", "ankle_med"),
+        ("JW:RAsis", "R", "asis"),
+        ("r asis", "R", "asis"),
+        ("ASIS_L", "L", "asis"),
+        ("RightKneeLateral", "R", "knee_lat"),
+        ("RTOE", "R", "mt2"),  # Plug-in Gait: 2nd metatarsal head, not the toe tip
+        ("RToe", "R", "toe_tip"),
+        ("R.Toe", "R", "toe_tip"),
+        ("LVMH", "L", "mt5"),
+        ("RIMH", "R", "mt1"),
+        ("LCAL", "L", "heel"),
+        ("SACR", None, "sacrum"),
+        ("S2", None, "sacrum"),
+        ("L5", None, "spine"),
+        ("STRN", None, "xiphoid"),
+        ("RTH1", "R", "thigh_cluster"),
+        ("L_Shank_Superior", "L", "shank_cluster"),
+    ],
+)
+def test_parse_label_reads_side_and_landmark(label, side, landmark):
+    p = parse_label(label)
+    assert (p.side, p.landmark) == (side, landmark), p
+
+
+@pytest.mark.parametrize(
+    ("label", "kind"),
+    [
+        ("*12", "unlabelled"),
+        ("Oglobal", "lab axis"),
+        ("Zglobal", "lab axis"),
+        ("PELO", "model output"),
+        ("LKneeAngles", "model output"),
+        ("RHipPower", "model output"),
+        ("LeftHipCenter", "model output"),
+        ("JW:RShoulderCenter", "model output"),
+        ("#", "not a marker"),
+    ],
+)
+def test_parse_label_sets_non_markers_apart(label, kind):
+    assert parse_label(label).kind == kind
+
+
+def test_prefixes_explicit_renames_and_apply(gait2392):
+    labels = ["JW:RAsis", "JW:LAsis", "JW:Sacral", "JW:RKneeLateral", "JW:RThighSuperior", "*3"]
+    m = recognise(labels, gait2392.marker_names, rename={"R.Knee.Med": "JW:RKneeLateral"})
+    assert m.rename["R.ASIS"] == "JW:RAsis"
+    assert m.rename["V.Sacral"] == "JW:Sacral"
+    # the user's rename wins (even a wrong one) and the label is not used twice
+    assert m.rename["R.Knee.Med"] == "JW:RKneeLateral"
+    assert "R.Knee.Lat" not in m.rename
+    assert m.unmatched_lab == ("JW:RThighSuperior",)
+    assert m.excluded == {"*3": "unlabelled trajectory"}
+    x = np.arange(2 * 6 * 3, dtype=float).reshape(2, 6, 3)
+    kept, names = m.apply(x, labels)
+    assert kept.shape == (2, 5, 3)
+    assert names == ("R.ASIS", "L.ASIS", "V.Sacral", "R.Knee.Med", "JW:RThighSuperior")
+    np.testing.assert_array_equal(kept[:, 4], x[:, 4])
+
+
+def test_arm_markers_are_kept_for_a_model_with_arms(gait2392):
+    m = recognise(["RELB", "RASI"], gait2392.marker_names, model_bodies=["pelvis", "humerus_r"])
+    assert "RELB" in m.unmatched_lab and not m.excluded
+    m = recognise(["RELB", "RASI"], gait2392.marker_names, model_bodies=["pelvis", "torso"])
+    assert "arm" in m.excluded["RELB"]
+
+
+GC = {
+    "knee-grand-challenge-gc5/PS_ngait_og_ss1.c3d": "Grand Challenge",
+    "knee-grand-challenge-gc4/jw_ngait_og3.c3d": "Grand Challenge",
+    "knee-grand-challenge-gc6-DM/DM_ngait_og1_new.trc": "Grand Challenge",
+}
+
+
+@pytest.mark.parametrize("rel", sorted(GC))
+def test_grand_challenge_motion_trials(real_dir, gait2392, rel):
+    m = _match(gait2392, real_dir / rel)
+    assert m.protocol == GC[rel]
+    inv = m.lab_to_model
+    for lab in m.rename.values():
+        assert lab in _labels(real_dir / rel)
+    for s in ("R", "L"):
+        asis = next(lab for lab in inv if parse_label(lab).landmark == "asis" and lab[0] == s)
+        assert inv[asis] == f"{s}.ASIS"
+        assert "heel" in m.rename[f"{s}.Heel"].lower()
+        assert m.rename[f"{s}.Toe.Tip"].endswith("Toe")
+    assert m.rename["V.Sacral"] == "Sacral"
+    for axis in ("Oglobal", "Xglobal", "Yglobal", "Zglobal"):
+        assert m.excluded[axis].startswith("lab axis")
+    assert any("arm" in why for why in m.excluded.values())
+    for cluster in ("RThighSuperior", "R_Thigh_Superior"):
+        assert cluster not in inv
+    if "DM" in rel:
+        assert m.rename["R.Knee.Lat"] == "R_Knee_Lateral"
+        assert m.rename["R.Knee.Med"] == "R_Knee_Medial"
+        assert m.rename["R.Ankle.Med"] == "RankleMedial"
+        assert m.rename["R.Ankle.Lat"] == "R_Ankle_Lateral"
+        assert m.rename["R.Toe.Med"] == "R_ToeMedial"
+    else:  # no knee/ankle markers in the GC4/GC5 motion trials
+        assert "R.Knee.Lat" in m.unmatched_model
+
+
+def test_grand_challenge_static(real_dir, gait2392):
+    m = _match(gait2392, real_dir / "knee-grand-challenge-gc5/PS_static_for_scaling.trc")
+    assert m.rename["R.Knee.Lat"] == "RKneeLateral"
+    assert m.rename["L.Knee.Med"] == "LKneeMedial"
+    assert m.rename["R.Ankle.Med"] == "RankleMedial"
+    assert m.rename["L.Ankle.Lat"] == "LAnkleLateral"
+    assert m.rename["R.Toe.Tip"] == "RToe"
+    assert {"RPsis", "Xiphoid", "RHindfoot", "RMidfootMedial"} <= set(m.unmatched_lab)
+
+
+def test_plug_in_gait(real_dir, gait2392):
+    m = _match(gait2392, real_dir / "btkdata/PiG_Motion3_FF.c3d")
+    assert m.protocol == "Plug-in Gait"
+    assert m.rename["R.ASIS"] == "RASI"
+    assert m.rename["L.Knee.Lat"] == "LKNE"
+    assert m.rename["R.Ankle.Lat"] == "RANK"
+    assert m.rename["R.Heel"] == "RHEE"
+    assert "R.Toe.Tip" not in m.rename  # RTOE is on the 2nd metatarsal head
+    assert {"RTOE", "LTOE", "RTHI", "LTIB", "RPSI"} <= set(m.unmatched_lab)
+    assert m.excluded["PELO"].startswith("model output")
+    assert m.excluded["*1"] == "unlabelled trajectory"
+    assert m.excluded["LKneeAnglesV"].startswith("model output")
+    m = _match(gait2392, real_dir / "btkdata/FunctionalStatic.c3d")
+    assert m.rename["R.Knee.Med"] == "RKNEin"
+    assert m.rename["L.Ankle.Med"] == "LANKin"
+    assert m.rename["V.Sacral"] == "SACR"
+    assert "Sternum" not in m.rename  # STRN is on the xiphoid
+    assert m.excluded["LeftHipCenter"].startswith("model output")
+
+
+def test_uwa_has_no_knee_or_ankle_markers(real_dir, gait2392):
+    m = _match(gait2392, real_dir / "motonms-testdata/UWA/Fast_Walking.c3d")
+    assert m.protocol == "UWA clusters"
+    assert m.rename["R.ASIS"] == "RASI"
+    assert m.rename["V.Sacral"] == "SACR"
+    assert m.rename["L.Heel"] == "LCAL"
+    assert m.rename["L.Toe.Med"] == "LMT1"
+    assert m.rename["R.Toe.Lat"] == "RMT5"
+    assert not {"R.Knee.Lat", "R.Ankle.Lat", "L.Knee.Lat"} & set(m.rename)
+    assert {"LTH1", "RTB3", "LPSI"} <= set(m.unmatched_lab)
+    assert m.excluded["*51"] == "unlabelled trajectory"
+    assert "arm" in m.excluded["RFA1"]
+
+
+@pytest.mark.parametrize("trial", ["Static1.c3d", "Walking1.c3d"])
+def test_unipd_ior_cast(real_dir, gait2392, trial):
+    m = _match(gait2392, real_dir / "motonms-testdata/UNIPD" / trial)
+    assert m.protocol == "IOR/CAST"
+    expect = {
+        "R.ASIS": "RASIS",
+        "L.ASIS": "LASIS",
+        "R.Knee.Lat": "RLE",
+        "R.Knee.Med": "RME",
+        "L.Ankle.Lat": "LLM",
+        "L.Ankle.Med": "LMM",
+        "R.Heel": "RCA",
+        "R.Toe.Med": "RIMH",
+        "R.Toe.Lat": "RVMH",
+    }
+    assert {k: m.rename[k] for k in expect} == expect
+    assert "V.Sacral" not in m.rename  # L5 is a lumbar vertebra
+    assert {"RGT", "RHF", "RTT", "L5", "RPSIS"} <= set(m.unmatched_lab)
+
+
+def test_opensim_sets(real_dir, gait2392):
+    m = _match(gait2392, real_dir / "opensim-subject01-walk/subject01_static.trc")
+    assert m.protocol.startswith("OpenSim")
+    assert all(m.rename[k] == k for k in m.rename)
+    assert len(m.rename) == len(gait2392.marker_names)
+    assert "arm" in m.excluded["R.Elbow"]
+    m = _match(gait2392, real_dir / "opensim-rajagopal-walk/markers_walk.trc")
+    expect = {
+        "V.Sacral": "S2",
+        "R.Knee.Lat": "R.Knee",
+        "R.Ankle.Lat": "R.Ankle",
+        "R.Toe.Tip": "R.Toe",
+        "R.Toe.Lat": "R.MT5",
+    }
+    assert {k: m.rename[k] for k in expect} == expect
+    assert {"R.TH1", "R.SH4", "R.PSIS"} <= set(m.unmatched_lab)
