@@ -11,12 +11,27 @@ frame, and :func:`to_model_frame` does both.
 A rotation about the lab origin maps a point ``p`` to ``R p`` and a free vector (force,
 moment) ``v`` to ``R v``; so a plate moment about its origin ``o`` stays the moment about the
 rotated origin ``R o``: ``R (M_o) = R ((c − o) × F + T) = (R c − R o) × R F + R T``.
+
+Heading from the pelvis (:func:`pelvis_heading_rotation`): the progression of the centroid says
+nothing on a treadmill, in a short trial or one that goes back and forth (the subject's pelvis
+then ends up facing anywhere and inverse kinematics settles tens of millimetres off). The pelvis
+markers do: after levelling (lab up → model up), the yaw ψ about the vertical u that best maps
+the observed horizontal pelvis-marker pattern b_i(t) (centred) onto the model's default-pose
+pattern a_i (centred) is the 2-D Procrustes / Kabsch solution about one axis (Kabsch 1976, Acta
+Cryst A32:922; Umeyama 1991, IEEE TPAMI 13:376, restricted to rotations about u):
+
+    ψ_t = atan2(u · Σ_i b_i × a_i, Σ_i b_i · a_i),
+
+and ψ is the circular median of ψ_t over the frames where those markers are all tracked, so the
+subject's pelvis faces the model's forward. The fit is checked (horizontal residual after a
+uniform scale) and the chain falls back to the progression (> 0.3 m), then to levelling only.
 """
 
 from __future__ import annotations
 
 import dataclasses
 import math
+from collections.abc import Mapping, Sequence
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -26,11 +41,15 @@ from msk.exceptions import ShapeMismatchError
 
 if TYPE_CHECKING:
     from msk.io.c3d import ForcePlate, Trial
+    from msk.model import Model
 
 Array = NDArray[np.float64]
 
 __all__ = [
+    "HEADING_SOURCES",
+    "Heading",
     "lab_to_model_rotation",
+    "pelvis_heading_rotation",
     "rotate_plate",
     "rotate_trial",
     "rotation_between",
@@ -77,26 +96,193 @@ def lab_to_model_rotation(
     r = rotation_between(up_lab, u)
     if markers is None or markers.size == 0:
         return r
-    rotated = markers @ r.T
+    phi = _progression_yaw(markers @ r.T, u / np.linalg.norm(u), forward)
+    return r if phi is None else _about(u / np.linalg.norm(u), phi) @ r
+
+
+#: where a heading came from, best first
+HEADING_SOURCES: tuple[str, ...] = ("pelvis markers", "progression", "none")
+
+
+@dataclasses.dataclass(frozen=True)
+class Heading:
+    """A lab → model rotation and how its heading (rotation about the vertical) was found.
+
+    Attributes:
+        rotation: (3, 3) R, ``x_model = R x_lab``.
+        source: one of :data:`HEADING_SOURCES`.
+        yaw_deg: the rotation about the model's up applied after levelling (deg).
+        markers: the model's pelvis markers used (empty unless ``source == "pelvis markers"``).
+        n_frames: frames the pelvis fit used.
+        pelvis_rms_m: median horizontal RMS residual of the pelvis fit (m), NaN when not fitted.
+        progression_yaw_deg: the yaw the progression would give (NaN when < 0.3 m).
+        message: why a better source was not used.
+    """
+
+    rotation: Array
+    source: str
+    yaw_deg: float
+    markers: tuple[str, ...] = ()
+    n_frames: int = 0
+    pelvis_rms_m: float = math.nan
+    progression_yaw_deg: float = math.nan
+    message: str = ""
+
+
+def _about(u: Array, phi: float) -> Array:
+    """Rotation by ``phi`` about the unit axis ``u`` (Rodrigues)."""
+    k = np.array([[0, -u[2], u[1]], [u[2], 0, -u[0]], [-u[1], u[0], 0]])
+    return np.eye(3) + math.sin(phi) * k + (1 - math.cos(phi)) * k @ k
+
+
+def _progression_yaw(rotated: Array, u: Array, forward: ArrayLike) -> float | None:
+    """Yaw (rad, about ``u``) taking the horizontal progression of the marker centroid of
+    ``rotated`` (N, M, 3, levelled) to ``forward``; None below :data:`MIN_PROGRESSION_M`."""
     seen = np.isfinite(rotated).all(axis=2)  # (N, M): markers visible in each frame
     count = seen.sum(axis=1)
     total = np.where(seen[..., None], rotated, 0.0).sum(axis=1)
     ok = count > 0  # frames with no marker at all carry no centroid
     c = total[ok] / count[ok, None]
     if c.shape[0] < 2:
-        return r
+        return None
     d = c[-1] - c[0]
-    u = u / np.linalg.norm(u)
     d = d - (d @ u) * u
     if np.linalg.norm(d) < MIN_PROGRESSION_M:
-        return r
+        return None
     x = np.asarray(forward, dtype=float)
     x = x - (x @ u) * u
     d, x = d / np.linalg.norm(d), x / np.linalg.norm(x)
-    phi = math.atan2(float(u @ np.cross(d, x)), float(d @ x))  # about the vertical u
-    k = np.array([[0, -u[2], u[1]], [u[2], 0, -u[0]], [-u[1], u[0], 0]])
-    heading = np.eye(3) + math.sin(phi) * k + (1 - math.cos(phi)) * k @ k
-    return heading @ r
+    return math.atan2(float(u @ np.cross(d, x)), float(d @ x))
+
+
+def _circular_median(angles: Array, *, window: float = math.pi / 4) -> float:
+    """Median of angles (rad) about their dominant direction, wrapped to (−π, π]: the circular
+    mean, then the median of the angles within ``window`` of it (twice, so that a minority
+    facing the other way — a subject who turned round — does not pull it)."""
+    centre = math.atan2(float(np.sin(angles).mean()), float(np.cos(angles).mean()))
+    for _ in range(2):
+        dev = np.angle(np.exp(1j * (angles - centre)))
+        near = np.abs(dev) <= window
+        if not near.any():
+            break
+        centre = float(np.angle(np.exp(1j * (centre + float(np.median(dev[near]))))))
+    return centre
+
+
+def _root_markers(model: Model) -> list[str]:
+    """Markers on the body the floating base carries (the pelvis of a gait model)."""
+    from msk.model import GROUND
+
+    roots = {j.child for j in model.joints if j.parent == GROUND}
+    return [mk.name for mk in model.markers if mk.body in roots]
+
+
+def pelvis_heading_rotation(
+    up_lab: ArrayLike,
+    up_model: ArrayLike,
+    markers: Array,
+    labels: Sequence[str],
+    model: Model,
+    *,
+    rename: Mapping[str, str] | None = None,
+    forward: ArrayLike = (1.0, 0.0, 0.0),
+    min_frames: int = 5,
+    min_spread_m: float = 0.05,
+    max_rms_m: float = 0.03,
+) -> Heading:
+    """Lab → model rotation whose heading comes from the pelvis markers (module docstring).
+
+    Fallback chain: the model's pelvis markers (markers on the floating-base body, e.g.
+    gait2392's R.ASIS, L.ASIS, V.Sacral; at least 2 whose default-pose horizontal positions
+    spread over ``min_spread_m``: a rotation about a known vertical needs only one horizontal
+    direction; 3 are used when tracked) tracked together in ``min_frames`` frames with a fit
+    residual ≤ ``max_rms_m`` → the progression of the marker centroid (≥ 0.3 m, as
+    :func:`lab_to_model_rotation`) → levelling only.
+
+    Args:
+        up_lab: the lab's up (−gravity) in lab coordinates.
+        up_model: the model's up (OpenSim: +y).
+        markers: (N, M, 3) lab frame, m, NaN gaps.
+        labels: the M labels, in the model's marker names where they match (else use
+            ``rename``).
+        model: the model (its default pose gives the pelvis pattern).
+        rename: model marker → lab label, when ``labels`` are the lab's own labels.
+        forward: the model's forward, for the progression fallback.
+        min_frames, min_spread_m, max_rms_m: acceptance of the pelvis fit.
+
+    Returns:
+        :class:`Heading`.
+    """
+    from msk.model import forward_kinematics
+
+    u = np.asarray(up_model, dtype=float)
+    u = u / np.linalg.norm(u)
+    r0 = rotation_between(up_lab, u)
+    x = np.asarray(markers, dtype=float)
+    labels = tuple(labels)
+    if x.ndim != 3 or x.shape[2] != 3 or x.shape[1] != len(labels):
+        raise ShapeMismatchError(f"markers {x.shape} must be (N, {len(labels)}, 3)")
+    rotated = x @ r0.T
+    prog = _progression_yaw(rotated, u, forward) if x.size else None
+    prog_deg = math.nan if prog is None else math.degrees(prog)
+    inv = {v: k for k, v in (rename or {}).items()}
+    col = {}
+    for i, lab in enumerate(labels):
+        col.setdefault(inv.get(lab, lab), i)
+    names = [n for n in _root_markers(model) if n in col]
+    why = ""
+    if len(names) < 2:
+        why = f"fewer than 2 pelvis markers in the trial ({names})"
+    else:
+        data = model.create_data()
+        forward_kinematics(model, data, model.default_coordinates())
+        model_pos = {n: np.asarray(data.oMf[model.marker_frame[n]].translation) for n in names}
+        seen = np.isfinite(rotated[:, [col[n] for n in names]]).all(axis=2)
+        # drop the least-tracked markers until enough frames track all the rest
+        order = sorted(range(len(names)), key=lambda k: -int(seen[:, k].sum()))
+        keep = list(order)
+        while len(keep) > 2 and int(seen[:, keep].all(axis=1).sum()) < min_frames:
+            keep.pop()
+        names = [names[k] for k in sorted(keep)]
+        frames = seen[:, sorted(keep)].all(axis=1)
+        a = np.array([model_pos[n] for n in names])
+        a = a - (a @ u)[:, None] * u
+        a = a - a.mean(axis=0)
+        spread = float(np.linalg.svd(a, compute_uv=False)[0]) if len(names) > 1 else 0.0
+        if int(frames.sum()) < min_frames:
+            why = f"pelvis markers {names} tracked together in {int(frames.sum())} frames"
+        elif spread < min_spread_m:
+            why = f"pelvis markers {names} span {spread:.3f} m horizontally"
+        else:
+            b = rotated[frames][:, [col[n] for n in names]]
+            b = b - (b @ u)[..., None] * u
+            b = b - b.mean(axis=1, keepdims=True)
+            cross = np.einsum("tij,j->t", np.cross(b, a[None]), u)
+            dot = np.einsum("tij,ij->t", b, a)
+            psi_t = np.arctan2(cross, dot)
+            psi = _circular_median(psi_t)
+            rot = _about(u, psi)
+            bb = b @ rot.T
+            s = np.einsum("tij,ij->t", bb, a) / np.maximum(np.einsum("tij,tij->t", bb, bb), 1e-12)
+            res = np.sqrt(((s[:, None, None] * bb - a[None]) ** 2).sum(axis=2).mean(axis=1))
+            rms = float(np.median(res))
+            if rms <= max_rms_m:
+                return Heading(
+                    rot @ r0,
+                    "pelvis markers",
+                    math.degrees(psi),
+                    tuple(names),
+                    int(frames.sum()),
+                    rms,
+                    prog_deg,
+                )
+            why = f"pelvis markers {names} fit the model's pelvis to {rms:.3f} m only"
+    if prog is not None:
+        return Heading(
+            _about(u, prog) @ r0, "progression", prog_deg, (), 0, math.nan, prog_deg, why
+        )
+    why += "; progression < 0.3 m"
+    return Heading(r0, "none", 0.0, (), 0, math.nan, prog_deg, why)
 
 
 def _check_rotation(r: ArrayLike, what: str) -> Array:

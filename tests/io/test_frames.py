@@ -171,3 +171,152 @@ def test_lab_to_model_rotation_ignores_frames_without_markers():
     markers[2:, :, 2] = 1.0
     r = lab_to_model_rotation((0, 0, 1), (0, 1, 0), markers)  # no warning, NaN frames skipped
     np.testing.assert_allclose(r @ np.array([1.0, 0.0, 0.0]), [1.0, 0.0, 0.0], atol=1e-12)
+
+
+# ---------------------------------------------------------------------------------------------
+# heading from the pelvis markers
+# ---------------------------------------------------------------------------------------------
+MODELS = Path(__file__).resolve().parents[2] / "models"
+REAL = Path(__file__).resolve().parents[3] / "shared" / "data" / "real"
+_Y_TO_Z = rotation_between([0, 1.0, 0], [0, 0, 1.0])  # model (Y-up) → a Z-up lab
+
+
+@pytest.fixture(scope="module")
+def gait2392():
+    from msk.model_files import load_model
+
+    return load_model(MODELS / "gait2392.toml")
+
+
+def _walk(model, yaw_deg, *, speed=1.2, n=120, turn_at=None, seed=0):
+    """Z-up lab markers of gait2392 in its default pose, facing ``yaw_deg`` (about lab z, from
+    lab +x), walking forward at ``speed`` (0: treadmill), pelvis yaw swinging ±5°, 2 mm noise;
+    after frame ``turn_at`` the subject has turned round and walks back."""
+    from msk.model import forward_kinematics
+
+    data = model.create_data()
+    forward_kinematics(model, data, model.default_coordinates())
+    pos = np.array([data.oMf[model.marker_frame[n]].translation for n in model.marker_names])
+    pos = pos @ _Y_TO_Z.T  # Z-up, facing lab +x
+    rng = np.random.default_rng(seed)
+    t = np.arange(n) / 100.0
+    out = np.empty((n, len(pos), 3))
+    place = np.zeros(3)
+    for k in range(n):
+        heading = yaw_deg + (180.0 if turn_at is not None and k >= turn_at else 0.0)
+        sway = 5.0 * np.sin(2 * np.pi * t[k])
+        r = _rotation(np.array([0, 0, 1.0]), np.radians(heading + sway))
+        if k:
+            place += speed * 0.01 * _rotation(np.array([0, 0, 1.0]), np.radians(heading))[:, 0]
+        out[k] = pos @ r.T + place
+    return out + rng.normal(0.0, 0.002, out.shape)
+
+
+def _faces(model, heading, markers):
+    """Unit horizontal direction (model frame) the pelvis faces: sacrum → mid-ASIS."""
+    names = model.marker_names
+    x = markers @ heading.rotation.T
+    mid = 0.5 * (x[:, names.index("R.ASIS")] + x[:, names.index("L.ASIS")])
+    d = np.median(mid - x[:, names.index("V.Sacral")], axis=0)
+    d[1] = 0.0
+    return d / np.linalg.norm(d)
+
+
+@pytest.mark.parametrize("yaw", [0.0, 37.0, 90.0, 180.0, -123.0])
+def test_pelvis_heading_faces_the_model_forward_whatever_the_walking_direction(gait2392, yaw):
+    from msk.io.frames import pelvis_heading_rotation
+
+    x = _walk(gait2392, yaw)
+    h = pelvis_heading_rotation((0, 0, 1), (0, 1, 0), x, gait2392.marker_names, gait2392)
+    assert h.source == "pelvis markers"
+    assert set(h.markers) == {"R.ASIS", "L.ASIS", "V.Sacral"}
+    np.testing.assert_allclose(h.rotation @ [0, 0, 1.0], [0, 1, 0], atol=1e-12)
+    np.testing.assert_allclose(_faces(gait2392, h, x), [1, 0, 0], atol=np.sin(np.radians(1.5)))
+    assert h.pelvis_rms_m < 0.015  # the ±5° sway about the median yaw
+    # the progression agrees (both ways of finding the heading)
+    assert abs(((h.yaw_deg - h.progression_yaw_deg) + 180) % 360 - 180) < 2.0
+    np.testing.assert_allclose(
+        lab_to_model_rotation((0, 0, 1), (0, 1, 0), x), h.rotation, atol=np.radians(2.0)
+    )
+
+
+def test_pelvis_heading_on_a_treadmill_where_progression_gives_none(gait2392):
+    from msk.io.frames import pelvis_heading_rotation
+
+    x = _walk(gait2392, -90.0, speed=0.0)  # facing lab −y, not moving
+    np.testing.assert_allclose(  # the centroid cannot tell: levelling only
+        lab_to_model_rotation((0, 0, 1), (0, 1, 0), x), rotation_between([0, 0, 1], [0, 1, 0])
+    )
+    h = pelvis_heading_rotation((0, 0, 1), (0, 1, 0), x, gait2392.marker_names, gait2392)
+    assert h.source == "pelvis markers" and np.isnan(h.progression_yaw_deg)
+    np.testing.assert_allclose(_faces(gait2392, h, x), [1, 0, 0], atol=np.sin(np.radians(1.5)))
+
+
+def test_pelvis_heading_when_the_subject_turns_round(gait2392):
+    """Out 1.2 m and most of the way back: the progression points backwards (0.3 m net, the
+    wrong way); the pelvis heading is the direction faced in most frames."""
+    from msk.io.frames import pelvis_heading_rotation
+
+    x = _walk(gait2392, 20.0, n=200, turn_at=80)
+    h = pelvis_heading_rotation((0, 0, 1), (0, 1, 0), x, gait2392.marker_names, gait2392)
+    assert h.source == "pelvis markers"
+    np.testing.assert_allclose(_faces(gait2392, h, x[80:]), [1, 0, 0], atol=np.sin(np.radians(2)))
+
+
+def test_heading_fallbacks_and_lab_labels(gait2392):
+    from msk.io.frames import pelvis_heading_rotation
+
+    names = list(gait2392.marker_names)
+    x = _walk(gait2392, 60.0)
+    # lab labels + rename (model marker → lab label)
+    lab = [{"R.ASIS": "RASI", "L.ASIS": "LASI", "V.Sacral": "SACR"}.get(n, n) for n in names]
+    h = pelvis_heading_rotation(
+        (0, 0, 1), (0, 1, 0), x, lab, gait2392, rename={"R.ASIS": "RASI", "L.ASIS": "LASI"}
+    )
+    assert h.source == "pelvis markers" and set(h.markers) == {"R.ASIS", "L.ASIS"}
+    np.testing.assert_allclose(_faces(gait2392, h, x), [1, 0, 0], atol=np.sin(np.radians(1.5)))
+    # swapped ASIS (a mirror image no rotation fits) → the progression
+    swapped = names.copy()
+    i, j = swapped.index("R.ASIS"), swapped.index("L.ASIS")
+    swapped[i], swapped[j] = swapped[j], swapped[i]
+    h = pelvis_heading_rotation((0, 0, 1), (0, 1, 0), x, swapped, gait2392)
+    assert h.source == "progression" and "fit" in h.message
+    # no pelvis marker → the progression; standing still too → levelling only
+    other = [n if n not in ("R.ASIS", "L.ASIS", "V.Sacral") else f"x{n}" for n in names]
+    h = pelvis_heading_rotation((0, 0, 1), (0, 1, 0), x, other, gait2392)
+    assert h.source == "progression"
+    np.testing.assert_allclose(h.rotation, lab_to_model_rotation((0, 0, 1), (0, 1, 0), x))
+    still = _walk(gait2392, 60.0, speed=0.0)
+    h = pelvis_heading_rotation((0, 0, 1), (0, 1, 0), still, other, gait2392)
+    assert h.source == "none" and "progression" in h.message
+    np.testing.assert_allclose(h.rotation, rotation_between([0, 0, 1], [0, 1, 0]))
+
+
+def test_pelvis_heading_on_real_walks(gait2392):
+    """GC5 PS overground (Z-up c3d): pelvis and progression agree; DM on the treadmill (Y-up
+    TRC, standing in place): only the pelvis can tell, and it faces the belt's direction."""
+    from msk.io import read_trc_trial
+    from msk.io.frames import pelvis_heading_rotation
+    from msk.markersets import recognise
+
+    tr = read_c3d(GC5 / "PS_ngait_og_ss1.c3d")
+    m = recognise(tr.marker_labels, gait2392.marker_names)
+    h = pelvis_heading_rotation(
+        tr.up, (0, 1, 0), tr.markers, tr.marker_labels, gait2392, rename=m.rename
+    )
+    assert h.source == "pelvis markers"
+    assert abs(((h.yaw_deg - h.progression_yaw_deg) + 180) % 360 - 180) < 5.0
+    path = REAL / "knee-grand-challenge-gc6-DM" / "DM_ngait_tm_ss1_new.trc"
+    if not path.exists():
+        pytest.skip(f"{path} absent")
+    tr = read_trc_trial(path)
+    m = recognise(tr.marker_labels, gait2392.marker_names)
+    h = pelvis_heading_rotation(
+        tr.up, (0, 1, 0), tr.markers, tr.marker_labels, gait2392, rename=m.rename
+    )
+    assert h.source == "pelvis markers" and np.isnan(h.progression_yaw_deg)
+    assert h.pelvis_rms_m < 0.03
+    # the feet swing along the model's x: heel x-range ≫ z-range
+    heel = tr.markers[:, tr.marker_labels.index("R_Heel")] @ h.rotation.T
+    span = np.nanpercentile(heel, 95, axis=0) - np.nanpercentile(heel, 5, axis=0)
+    assert span[0] > 3 * abs(span[2])
