@@ -38,8 +38,8 @@ The minimum is sharp (the neighbouring offsets give ≈ 11 mm); a sub-frame shif
 lower the marker residual (best shift 0 ms in ±10 ms), and a 6 Hz low-pass of the ``.trc``
 lowers it to 1.5–1.7 mm (the source's markers are smoothed). The ground reaction, matched
 independently at the ``.sto``'s 1200 Hz against the right-foot plate, agrees within half a
-frame (≤ 4.2 ms). Each trial is one right-leg gait cycle from heel strike (the plate load
-starts at frame 0 and ends near 60 % of the cycle).
+frame (≤ 4.2 ms). Each trial is one right-leg gait cycle from heel strike (the right plate's
+load rises from ≈ 20 N at frame 0 and ends at 60–63 % of the frames).
 
 **The DM EMG fields** (for MVC normalisation; established from og1/og3/og4):
 ``Emg.<m>_raw`` is already an envelope at 120 Hz (non-negative apart from ≤ 2.6 % slightly
@@ -49,9 +49,9 @@ Butterworth at ≈ 8 Hz applied to ``_raw`` reproduces it with gain 0.99–1.00 
 relative RMS residual, mean(Emg)/mean(raw) = 0.95–1.06, cross-correlation lag 0. ``Mvc.<m>``
 is one scalar per muscle, identical in the three trials and in the same units as ``Emg``
 (e.g. vaslat: Mvc 0.286, peak Emg 0.29–0.33): %MVC is therefore ``Emg.<m> / Mvc.<m>``, but
-these ratios reach 9.5 (addmagnus) and 11.3 (gmax) in normal walking, 1.2–1.8 for semimem,
-vasmed, rf and tfl, so the Mvc values are not maximal for every muscle: check before using
-them as activations (cap, or normalise by the session peak instead).
+these ratios reach 9.5 (addmagnus) and 11.3 (gmax) in normal walking and 1.02–1.83 for
+semimem, vasmed, vaslat, rf, tfl and soleus, so the Mvc values are not maximal for every
+muscle: check before using them as activations (cap, or normalise by the session peak).
 
 **Peak measured forces** (body weight 70 kg × g): og1 medial 1.20, lateral 1.41, total 2.58 BW;
 og3 1.19, 1.32, 2.50 BW; og4 1.38, 1.36, 2.75 BW. ``total`` for these files is
