@@ -416,22 +416,20 @@ def _load_model(path: Path) -> Any:
     return load_model(path)
 
 
-def _read_contact(path: Path) -> dict[str, Any]:
-    """Measured knee contact force over one gait cycle: a CSV whose first column is the cycle
-    position (``sample_0_to_100``, ``percent``…) and with ``F_total_magnitude_N`` (or the last
-    column), read by :func:`msk.io.read_csv_table`."""
-    from msk.io import read_csv_table
+def _read_contact(path: Path, trial: Path, grf: Path | None) -> Any:
+    """Measured knee contact force (:func:`msk.io.contact_force.read_measured_contact`): a CSV
+    with a time column or cycle-normalised (Grand Challenge eTibia), or a Grand Challenge DM
+    ``.mat`` aligned to the task trial by its markers."""
+    from msk.io.contact_force import read_measured_contact
 
-    tab = read_csv_table(path, time_column=None)
-    if tab.time.size < 2:
+    mc = read_measured_contact(
+        path,
+        trial=trial if path.suffix.lower() == ".mat" else None,
+        grf=grf if path.suffix.lower() == ".mat" else None,
+    )
+    if mc.n_frames < 2:
         raise MissingDataError(f"{path}: no contact-force samples")
-    col = tab.columns.index("F_total_magnitude_N") if "F_total_magnitude_N" in tab.columns else -1
-    x = tab.time
-    return {
-        "fraction": (x - x[0]) / (x[-1] - x[0]),
-        "total": tab.data[:, col],
-        "column": tab.columns[col],
-    }
+    return mc
 
 
 # ---------------------------------------------------------------------------------------------
@@ -499,7 +497,9 @@ class _Session:
             if self.task.grf is not None:
                 out["grf"] = _read_grf(self.task.grf)
             if self.task.contact_force is not None:
-                out["contact"] = _read_contact(self.task.contact_force)
+                out["contact"] = _read_contact(
+                    self.task.contact_force, self.task.file, self.task.grf
+                )
             return out
 
         self.raw = self.runner.run("read", do, settings={"files": self.hashes}, cache=True)
@@ -989,7 +989,7 @@ class _Session:
 
         def do() -> dict[str, Any]:
             self.check("knee_contact")
-            from msk.contact import knee_contact_force
+            from msk.contact import knee_contact_force, plateau_geometry, split_medial_lateral
 
             joint = f"knee{self.sfx}"
             if joint not in {j.name for j in model.joints}:
@@ -1015,7 +1015,26 @@ class _Session:
                 )
                 force = np.full((n, 3), np.nan)
                 force[ok] = contact.force
-                res[name] = {"force": force, "total": np.linalg.norm(force, axis=1)}
+                # two-point medial/lateral split (Winby et al. 2009; Lerner et al. 2015)
+                geo = plateau_geometry(
+                    mdl, joint=joint,
+                    intercondylar_distance_m=self.cfg.contact.intercondylar_distance_m,
+                )  # fmt: skip
+                ml = split_medial_lateral(contact, geo)
+                medial = np.full(n, np.nan)
+                lateral = np.full(n, np.nan)
+                medial[ok], lateral[ok] = ml.medial, ml.lateral
+                res[name] = {
+                    "force": force,
+                    "total": np.linalg.norm(force, axis=1),
+                    "medial": medial,
+                    "lateral": lateral,
+                }
+                res["plateau"] = {
+                    "intercondylar_distance_m": geo.intercondylar_distance_m,
+                    "centre_m": list(geo.centre_m),
+                    "source": geo.source,
+                }
             if "contact" in self.raw:
                 res["measured"] = self.raw["contact"]
             return res
@@ -1025,7 +1044,10 @@ class _Session:
             do,
             needs=("tension_optimization",)
             + (("strength_identification",) if self.strength is not None else ()),
-            settings={"contact": self.hashes.get("contact_force")},
+            settings={
+                "contact": self.hashes.get("contact_force"),
+                "icd": self.cfg.contact.intercondylar_distance_m,
+            },
         )
         return self.contact
 
@@ -1076,12 +1098,25 @@ class _Session:
                     cols += [f"{name}_{a}" for a in ("x", "y", "z")]
                     cols += [f"{name}_total", f"{name}_total_bw"]
                     data += [c["force"], c["total"][:, None], (c["total"] / bw)[:, None]]
-            if "measured" in contact and self.cycle is not None:
-                meas, (c0, c1) = contact["measured"], self.cycle
-                tm = c0 + meas["fraction"] * (c1 - c0)
-                self.measured_on_t = np.interp(t, tm, meas["total"], left=np.nan, right=np.nan)
-                cols += ["measured_total", "measured_total_bw"]
-                data += [self.measured_on_t[:, None], (self.measured_on_t / bw)[:, None]]
+                    for comp in ("medial", "lateral"):
+                        cols += [f"{name}_{comp}", f"{name}_{comp}_bw"]
+                        data += [c[comp][:, None], (c[comp] / bw)[:, None]]
+            meas = contact.get("measured")
+            if meas is not None and (meas.time is not None or self.cycle is not None):
+                if meas.time is not None:
+                    tm = np.asarray(meas.time, dtype=float)
+                else:
+                    c0, c1 = self.cycle
+                    tm = c0 + np.asarray(meas.cycle_fraction, dtype=float) * (c1 - c0)
+                self.measured_on_t = {}
+                for comp in ("total", "medial", "lateral"):
+                    y = np.asarray(getattr(meas, comp), dtype=float)
+                    if not np.isfinite(y).any():
+                        continue
+                    on_t = np.interp(t, tm, y, left=np.nan, right=np.nan)
+                    self.measured_on_t[comp] = on_t
+                    cols += [f"measured_{comp}", f"measured_{comp}_bw"]
+                    data += [on_t[:, None], (on_t / bw)[:, None]]
             tables["knee_contact"] = Table(t, np.column_stack(data), tuple(cols), "knee_contact")
         if self.ident is not None:
             tables["inertial_parameters"] = _inertial_table(self.ident)
@@ -1119,16 +1154,17 @@ class _Session:
                     "generic": _rms(g.residual_moment[good]),
                     "identified": _rms(s.residual_moment[good]),
                 }
-            if contact is not None and measured_on_t is not None:
-                sel = np.isfinite(measured_on_t)
+            if contact is not None and measured_on_t:
                 for name in ("generic", "subject_specific"):
                     if name not in contact:
                         continue
-                    pred = contact[name]["total"]
-                    m = sel & np.isfinite(pred)
-                    if m.sum() < 5:
-                        continue
-                    out[f"knee_contact_{name}"] = _contact_agreement(measured_on_t[m], pred[m], bw)
+                    for comp, meas in measured_on_t.items():
+                        pred = contact[name][comp]
+                        m = np.isfinite(meas) & np.isfinite(pred)
+                        if m.sum() < 5:
+                            continue
+                        key = f"knee_contact_{name}" + ("" if comp == "total" else f"_{comp}")
+                        out[key] = _contact_agreement(meas[m], pred[m], bw)
             if strength is not None:
                 p = strength["profile"]
                 out["strength_factor_minus_generic"] = {

@@ -237,23 +237,30 @@ def _fig_muscles(res: SessionResults) -> str | None:
 
 
 def _fig_contact(res: SessionResults) -> str | None:
+    """Predicted knee contact force, total and (two-point model) medial and lateral, against
+    the instrumented implant's measurement where there is one."""
     if not res.has("knee_contact"):
         return None
     plt = _plt()
     kc = res.table("knee_contact")
     x, sel, xl = _cycle_axis(res, kc.time)
-    fig, ax = plt.subplots(figsize=(7.5, 3.0))
+    comps = [c for c in ("total", "medial", "lateral") if f"generic_{c}_bw" in kc.columns]
+    fig, axes = plt.subplots(1, len(comps), figsize=(7.5, 2.8), sharey=True, squeeze=False)
     style = {
-        "measured_total_bw": ("k", "-", "measured (instrumented implant)"),
-        "generic_total_bw": ("#9e9e9e", "--", "predicted, generic parameters"),
-        "subject_specific_total_bw": ("#1565c0", "-", "predicted, subject-specific"),
+        "measured": ("k", "-", "measured (instrumented implant)"),
+        "generic": ("#9e9e9e", "--", "predicted, generic parameters"),
+        "subject_specific": ("#1565c0", "-", "predicted, subject-specific"),
     }
-    for col, (c, ls, lab) in style.items():
-        if col in kc.columns:
-            ax.plot(x[sel], kc.column(col)[sel], color=c, ls=ls, label=lab)
-    ax.set_xlabel(xl)
-    ax.set_ylabel("knee contact force (body weights)")
-    ax.legend(fontsize=7)
+    for ax, comp in zip(axes[0], comps):
+        for key, (c, ls, lab) in style.items():
+            col = f"{key}_{comp}_bw"
+            if col in kc.columns:
+                ax.plot(x[sel], kc.column(col)[sel], color=c, ls=ls, label=lab)
+        ax.set_title(comp, fontsize=9)
+        ax.set_xlabel(xl)
+    axes[0][0].set_ylabel("knee contact force (BW)")
+    axes[0][0].legend(fontsize=6)
+    fig.tight_layout()
     return _svg(fig)
 
 
@@ -579,8 +586,9 @@ def _contact_section(res: SessionResults, figs: Mapping[str, str]) -> str:
     comp = res.summary.get("comparison") or {}
     rows = []
     for key, label in (
-        ("knee_contact_generic", "generic parameters"),
-        ("knee_contact_subject_specific", "subject-specific"),
+        (f"knee_contact_{v}{c}", f"{vl}{cl}")
+        for v, vl in (("generic", "generic parameters"), ("subject_specific", "subject-specific"))
+        for c, cl in (("", ", total"), ("_medial", ", medial"), ("_lateral", ", lateral"))
     ):
         c = comp.get(key)
         if c:
