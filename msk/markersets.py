@@ -45,7 +45,10 @@ Rajagopal's ``R.Knee``), ``ANK``/``Ankle`` the lateral malleolus; ``LE``/``ME`` 
 Cappozzo et al. 1995 Clin Biomech 10:171) the lateral/medial epicondyles, ``LM``/``MM`` the
 malleoli. Sternum: gait2392's ``Sternum`` is 0.14 m below the acromia, on the body of the sternum,
 as the Grand Challenge ``Sternum``; Plug-in Gait's ``STRN`` and the Grand Challenge
-``Xiphoid`` are on the xiphoid process, 0.15 m lower, and stay unmatched. Pelvis: ``SACR``,
+``Xiphoid`` are on the xiphoid process, 0.15 m lower, and stay unmatched. Acromion: ``SHO``
+(Plug-in Gait: acromio-clavicular joint), ``ACR``, IOR's ``A``; a "Shoulder" word marker
+(Grand Challenge, Rajagopal) is not paired (7–9 cm from gait2392's ``R.Acromium`` after
+scaling on PS's static): it is placed. Pelvis: ``SACR``,
 ``Sacral``, ``S2``, ``V.Sacral`` are the sacrum; ``L5`` (a lumbar spinous process) is not.
 The greater trochanter, fibular head, tibial tuberosity, patella, 2nd metatarsal head, hindfoot,
 medial midfoot and all thigh/shank cluster markers have no gait2392 marker: they are unmatched,
@@ -63,7 +66,7 @@ from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
-from numpy.typing import NDArray
+from numpy.typing import ArrayLike, NDArray
 
 from msk.exceptions import ShapeMismatchError
 
@@ -75,6 +78,7 @@ __all__ = [
     "ParsedLabel",
     "parse_label",
     "recognise",
+    "zeros_as_gaps",
 ]
 
 #: landmark key → description (anatomical landmarks and marker kinds the grammar recognises)
@@ -212,9 +216,7 @@ SIDED_SYNONYMS: Mapping[str, str] = {
     **dict.fromkeys(("hf", "fibhead", "fibularhead", "fibulahead"), "fib_head"),
     **dict.fromkeys(("tt", "tibtub", "tibialtuberosity"), "tib_tub"),
     **dict.fromkeys(("patella", "pat"), "patella"),
-    **dict.fromkeys(
-        ("acromion", "acromium", "acr", "sho", "a", "shoulder", "should", "ac"), "acromion"
-    ),
+    **dict.fromkeys(("acromion", "acromium", "acr", "sho", "a", "ac"), "acromion"),
     **dict.fromkeys(("clavicle", "cla", "clav"), "clavicle"),
     **dict.fromkeys(("temple", "temp", "fhd", "bhd", "head"), "head"),
 }
@@ -254,6 +256,15 @@ _OUTPUT = re.compile(
 )
 _UNLABELLED = re.compile(r"^\*\d+$")
 _SEP = re.compile(r"[\s._\-]+")
+
+
+def zeros_as_gaps(markers: ArrayLike) -> NDArray[np.float64]:
+    """(…, 3) positions with exact (0, 0, 0) samples set to NaN: TRC and some C3D writers mark
+    a gap (or a static-only marker carried through a motion trial, as the Grand Challenge DM
+    trials do for the knee and ankle markers) with zeros, which no real marker sits at."""
+    x = np.array(markers, dtype=float)
+    x[(x == 0.0).all(axis=-1)] = np.nan
+    return x
 
 
 def _norm(s: str) -> str:
@@ -377,8 +388,9 @@ class MarkerSetMatch:
     def apply(
         self, markers: NDArray[np.float64], labels: Sequence[str]
     ) -> tuple[NDArray[np.float64], tuple[str, ...]]:
-        """(N, M, 3) markers and labels without the excluded columns, labels in model names."""
-        x = np.asarray(markers, dtype=float)
+        """(N, M, 3) markers and labels without the excluded columns, labels in model names;
+        exact-zero samples become NaN gaps (:func:`zeros_as_gaps`)."""
+        x = zeros_as_gaps(markers)
         if x.ndim != 3 or x.shape[1] != len(labels):
             raise ShapeMismatchError(f"markers {x.shape} do not match {len(labels)} labels")
         keep = [i for i, lab in enumerate(labels) if lab not in self.excluded]
@@ -416,6 +428,7 @@ def recognise(
     *,
     rename: Mapping[str, str] | None = None,
     model_bodies: Sequence[str] = (),
+    markers: ArrayLike | None = None,
 ) -> MarkerSetMatch:
     """Pair the lab's marker labels with the model's markers by anatomical landmark.
 
@@ -432,6 +445,8 @@ def recognise(
         rename: explicit model marker → lab label pairs; they override everything.
         model_bodies: the model's body names (to exclude arm / head markers); empty: gait2392
             style (no arm, head on the torso), i.e. arm markers excluded, head markers kept.
+        markers: (N, M, 3) data of ``labels``, optional: a label with no valid sample (all NaN
+            or all exact zeros, :func:`zeros_as_gaps`) is excluded as never tracked.
 
     Returns:
         :class:`MarkerSetMatch`.
@@ -449,10 +464,18 @@ def recognise(
     landmarks: dict[str, str] = {}
     notes: list[str] = []
     used_labels = set(explicit.values())
-    for p in parsed:
+    tracked = np.ones(len(labels), dtype=bool)
+    if markers is not None:
+        x = zeros_as_gaps(markers)
+        if x.ndim != 3 or x.shape[1] != len(labels):
+            raise ShapeMismatchError(f"markers {x.shape} do not match {len(labels)} labels")
+        tracked = np.isfinite(x).all(axis=2).any(axis=0)
+    for k, p in enumerate(parsed):
         if p.label in used_labels:
             continue
-        if p.kind == "unlabelled":
+        if not tracked[k]:
+            excluded[p.label] = "never tracked (no valid sample)"
+        elif p.kind == "unlabelled":
             excluded[p.label] = "unlabelled trajectory"
         elif p.kind == "model output":
             excluded[p.label] = "model output, not a marker"

@@ -37,7 +37,7 @@ import itertools
 import warnings
 import xml.etree.ElementTree as ET
 from collections.abc import Iterable, Mapping, Sequence
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
@@ -53,15 +53,26 @@ from msk.muscles.path import ConditionalPathPoint, MovingPathPoint, Muscle, Path
 Array = NDArray[np.float64]
 
 __all__ = [
+    "MODEL_HEIGHT_M",
+    "SCALING_METHODS",
+    "SEGMENT_MEASUREMENTS",
     "Measurement",
     "ScaleSetup",
+    "ScalingReport",
     "apply_scale_factors",
     "bone_segments",
+    "choose_measurements",
+    "complete_scale_factors",
     "measure_scale_factors",
+    "measure_scale_factors_from_motion",
+    "model_height",
     "muscle_path_lengths",
     "place_markers",
+    "place_markers_from_motion",
     "point_segment_distance",
     "read_scale_setup",
+    "scale_from_motion",
+    "scale_from_static",
     "scale_inertia",
     "scale_model",
     "usable_measurements",
@@ -568,3 +579,586 @@ def place_markers(
         "moved": moved,
     }
     return model.with_markers([*markers, *added]), info
+
+
+# ---------------------------------------------------------------------------------------------
+# scaling without a static trial: motion markers, height, and how each segment was scaled
+# ---------------------------------------------------------------------------------------------
+#: How a body's scale factors were obtained (``ScalingReport.methods``).
+SCALING_METHODS: tuple[str, ...] = ("static markers", "motion markers", "height", "unscaled")
+
+#: Stature (m) of generic models whose documentation states it, by model name: gait2392 "about
+#: 1.8 m tall and 75.16 kg" (OpenSim documentation, Gait 2392 and 2354 Models).
+MODEL_HEIGHT_M: Mapping[str, float] = {"3DGaitModel2392": 1.80, "gait2392": 1.80}
+
+
+def _m(name: str, pairs: Sequence[tuple[str, str]], bodies: Sequence[str]) -> Measurement:
+    return Measurement(name, tuple(pairs), tuple(bodies))
+
+
+def _sided_alternatives(s: str, side: str) -> list[tuple[str, list[Measurement]]]:
+    p = s.upper()
+    foot = (f"talus_{side}", f"calcn_{side}", f"toes_{side}")
+    return [
+        (
+            f"femur_{side}",
+            [
+                _m(f"femur_{side}", [(f"{p}.ASIS", f"{p}.Knee.Lat")], [f"femur_{side}"]),
+                _m(f"femur_{side}", [(f"{p}.ASIS", f"{p}.Knee.Med")], [f"femur_{side}"]),
+            ],
+        ),
+        (
+            f"tibia_{side}",
+            [
+                _m(f"tibia_{side}", [(f"{p}.Knee.Lat", f"{p}.Ankle.Lat")], [f"tibia_{side}"]),
+                _m(f"tibia_{side}", [(f"{p}.Knee.Med", f"{p}.Ankle.Med")], [f"tibia_{side}"]),
+            ],
+        ),
+        (
+            f"foot_{side}",
+            [
+                _m(f"foot_{side}", [(f"{p}.Heel", f"{p}.Toe.Tip")], foot),
+                _m(
+                    f"foot_{side}",
+                    [(f"{p}.Heel", f"{p}.Toe.Med"), (f"{p}.Heel", f"{p}.Toe.Lat")],
+                    foot,
+                ),
+                _m(f"foot_{side}", [(f"{p}.Heel", f"{p}.Toe.Med")], foot),
+                _m(f"foot_{side}", [(f"{p}.Heel", f"{p}.Toe.Lat")], foot),
+            ],
+        ),
+    ]
+
+
+#: gait2392 measurements, per segment the alternatives in order of preference (the first whose
+#: markers are all there is used, :func:`choose_measurements`): the pipeline's defaults first,
+#: then medial markers (IOR/CAST, Grand Challenge), metatarsal heads for the foot (UWA, IOR).
+SEGMENT_MEASUREMENTS: tuple[tuple[str, tuple[Measurement, ...]], ...] = tuple(
+    (name, tuple(alts))
+    for name, alts in [
+        ("pelvis", [_m("pelvis", [("R.ASIS", "L.ASIS")], ["pelvis"])]),
+        *_sided_alternatives("r", "r"),
+        *_sided_alternatives("l", "l"),
+        (
+            "torso",
+            [
+                _m("torso", [("V.Sacral", "Sternum")], ["torso"]),
+                _m("torso", [("V.Sacral", "R.Acromium"), ("V.Sacral", "L.Acromium")], ["torso"]),
+            ],
+        ),
+    ]
+)
+
+
+def choose_measurements(
+    alternatives: Sequence[tuple[str, Sequence[Measurement]]], markers: Iterable[str]
+) -> list[Measurement]:
+    """Per segment, the first alternative of ``alternatives`` (e.g. :data:`SEGMENT_MEASUREMENTS`)
+    whose marker pairs are all in ``markers`` (model names the trial and the model share)."""
+    have = set(markers)
+    out = []
+    for _, alts in alternatives:
+        use = usable_measurements(list(alts), have)
+        if use:
+            out.append(use[0])
+    return out
+
+
+def model_height(model: Model) -> tuple[float, str]:
+    """The generic model's stature (m) and where it comes from: ``metadata["height_m"]``, then
+    :data:`MODEL_HEIGHT_M` by model name, then an estimate — the highest marker above the
+    lowest marker or body origin in the default pose (gait2392: 1.67 m against its documented
+    1.8 m: a head marker is not at the vertex)."""
+    h = model.metadata.get("height_m")
+    if h is not None:
+        return float(h), "model metadata"
+    if model.name in MODEL_HEIGHT_M:
+        return MODEL_HEIGHT_M[model.name], f"documented stature of {model.name}"
+    data = model.create_data()
+    forward_kinematics(model, data, model.default_coordinates())
+    up = -np.asarray(model.gravity, dtype=float)
+    up = up / np.linalg.norm(up)
+    pts = [data.oMf[model.marker_frame[m]].translation for m in model.marker_names]
+    pts += [data.oMf[model.body_frame[b.name]].translation for b in model.bodies]
+    z = np.asarray(pts, dtype=float) @ up
+    return float(z.max() - z.min()), "estimated from the default pose (markers, body origins)"
+
+
+@dataclass(frozen=True)
+class ScalingReport:
+    """How a model was scaled.
+
+    Attributes:
+        factors: body → (3,) factors applied.
+        methods: body → one of :data:`SCALING_METHODS` (every body of the model).
+        ratios: measurement → ratio (experimental / model distance).
+        details: measurement → {"pairs", "frames", "iqr_ratio"} (motion) or {"pairs"}.
+        height_factor: H_subject / H_model when the height was given, else None.
+        model_height_m: the model stature used and its source.
+        messages: what could not be done (a segment left unscaled, a measurement skipped).
+    """
+
+    factors: Mapping[str, Array]
+    methods: Mapping[str, str]
+    ratios: Mapping[str, float]
+    details: Mapping[str, Mapping[str, Any]] = field(default_factory=dict)
+    height_factor: float | None = None
+    model_height_m: tuple[float, str] | None = None
+    messages: tuple[str, ...] = ()
+
+    def summary(self) -> dict[str, Any]:
+        """JSON-ready: per body the method and factors, the ratios and the messages."""
+        return {
+            "bodies": {
+                b: {"method": self.methods[b], "factors": np.asarray(self.factors[b]).tolist()}
+                for b in self.methods
+            },
+            "ratios": dict(self.ratios),
+            "height_factor": self.height_factor,
+            "model_height_m": None if self.model_height_m is None else self.model_height_m[0],
+            "messages": list(self.messages),
+        }
+
+
+def complete_scale_factors(
+    model: Model,
+    measured: Mapping[str, ArrayLike],
+    *,
+    source: str,
+    height_m: float | None = None,
+) -> tuple[dict[str, Array], dict[str, str], float | None, tuple[float, str] | None]:
+    """Every body's factors and method: ``measured`` bodies by ``source`` ("static markers" or
+    "motion markers"), the others by the stature ratio s = H / H_model (uniform; OpenSim-style
+    "scale by height", :func:`model_height`) when ``height_m`` is given, else 1 ("unscaled",
+    said so in the methods). Returns (factors, methods, height factor, model height)."""
+    if source not in SCALING_METHODS[:2]:
+        raise ModelError(f"scaling: source must be one of {SCALING_METHODS[:2]}, got {source!r}")
+    hf, mh = None, None
+    if height_m is not None:
+        if not np.isfinite(height_m) or not 0.5 <= height_m <= 2.5:
+            raise ModelError(f"scaling: height {height_m} m is not a plausible stature")
+        mh = model_height(model)
+        hf = float(height_m) / mh[0]
+    factors: dict[str, Array] = {}
+    methods: dict[str, str] = {}
+    for b in model.bodies:
+        if b.name in measured:
+            v = np.asarray(measured[b.name], dtype=float).reshape(-1)
+            factors[b.name] = np.full(3, v[0]) if v.size == 1 else v
+            methods[b.name] = source
+        elif hf is not None:
+            factors[b.name] = np.full(3, hf)
+            methods[b.name] = "height"
+        else:
+            factors[b.name] = np.ones(3)
+            methods[b.name] = "unscaled"
+    return factors, methods, hf, mh
+
+
+def _pair_distances(
+    markers: Array, col: Mapping[str, int], a: str, b: str
+) -> tuple[Array, NDArray[np.bool_]]:
+    d = np.linalg.norm(markers[:, col[a]] - markers[:, col[b]], axis=1)
+    return d, np.isfinite(d)
+
+
+def measure_scale_factors_from_motion(
+    model: Model,
+    markers: ArrayLike,
+    labels: Sequence[str],
+    measurements: Sequence[Measurement],
+    *,
+    q: ArrayLike | None = None,
+    min_frames: int = 10,
+) -> tuple[dict[str, Array], dict[str, float], dict[str, dict[str, Any]]]:
+    """Per-body factors from a motion trial (no static): for each marker pair the distance
+    d_t = ‖x_a(t) − x_b(t)‖ in every frame where both are tracked, over the model's distance.
+
+    Without ``q`` the ratio is median_t(d_t) / ‖x_a(θ₀) − x_b(θ₀)‖ (default pose): exact for
+    two markers on one rigid segment (their distance is constant in any motion). A pair across
+    a joint (gait2392's R.ASIS–R.Knee.Lat spans the hip) changes length with the joint angle
+    (by ±5 % over a gait cycle), so with ``q`` ((N, n_coords), e.g. inverse kinematics of the
+    same frames on this model or a scaled copy: joint angles do not depend on the scale) each
+    frame is compared with the model in that frame's pose, r_t = d_t / ‖x_a(q_t) − x_b(q_t)‖,
+    and the ratio is median_t(r_t): the measurement a static trial makes, in every frame.
+    Medians resist marker swaps and gaps (Hampel's breakdown point 50 %).
+
+    Args:
+        model: the generic model (the one to be scaled).
+        markers: (N, M, 3) m, NaN gaps, in any frame (distances only).
+        labels: the M labels in the model's marker names.
+        measurements: as for :func:`measure_scale_factors`.
+        q: (N, n_coords) pose per frame (NaN rows skipped), optional.
+        min_frames: fewest frames where a pair is tracked.
+
+    Returns:
+        (body → (3,) factors, measurement → ratio, measurement → {"pairs", "frames",
+        "iqr_ratio": interquartile range of the per-frame ratios / median}).
+
+    Raises:
+        MissingDataError: a marker of a measurement is not in ``labels`` or is tracked in fewer
+            than ``min_frames`` frames.
+    """
+    from msk.markersets import zeros_as_gaps
+
+    x = zeros_as_gaps(markers)
+    labels = tuple(labels)
+    if x.ndim != 3 or x.shape[2] != 3 or x.shape[1] != len(labels):
+        raise MissingDataError(f"scaling: markers {x.shape} do not match {len(labels)} labels")
+    col = {lab: i for i, lab in reversed(list(enumerate(labels)))}
+    qq = None if q is None else np.asarray(q, dtype=float)
+    if qq is not None and qq.shape != (x.shape[0], model.n_coords):
+        raise MissingDataError(f"scaling: q {qq.shape} must be ({x.shape[0]}, {model.n_coords})")
+    data = model.create_data()
+    forward_kinematics(model, data, model.default_coordinates())
+    default = {
+        m: np.asarray(data.oMf[model.marker_frame[m]].translation) for m in model.marker_names
+    }
+    posed: dict[str, Array] = {}
+    if qq is not None:
+        from msk.model import marker_positions
+
+        okq = np.isfinite(qq).all(axis=1)
+        pos = np.full((x.shape[0], len(model.marker_names), 3), np.nan)
+        if okq.any():
+            pos[okq] = marker_positions(model, qq[okq])
+        posed = {m: pos[:, i] for i, m in enumerate(model.marker_names)}
+    factors: dict[str, Array] = {}
+    ratios: dict[str, float] = {}
+    details: dict[str, dict[str, Any]] = {}
+    for meas in measurements:
+        rs, n_min, spread = [], x.shape[0], []
+        for a, b in meas.marker_pairs:
+            for mk in (a, b):
+                if mk not in col:
+                    raise MissingDataError(f"scaling: the motion trial has no marker {mk!r}")
+                if mk not in default:
+                    raise MissingDataError(f"scaling: model {model.name} has no marker {mk!r}")
+            d, ok = _pair_distances(x, col, a, b)
+            if qq is not None:
+                dm = np.linalg.norm(posed[a] - posed[b], axis=1)
+                ok &= np.isfinite(dm)
+                r = d[ok] / dm[ok]
+            else:
+                r = d[ok] / float(np.linalg.norm(default[a] - default[b]))
+            if r.size < min_frames:
+                raise MissingDataError(
+                    f"scaling: {a}–{b} tracked together in {r.size} frames (< {min_frames})"
+                )
+            med = float(np.median(r))
+            q1, q3 = np.percentile(r, [25, 75])
+            rs.append(med)
+            spread.append(float((q3 - q1) / med))
+            n_min = min(n_min, int(r.size))
+        ratio = float(np.mean(rs))
+        ratios[meas.name] = ratio
+        details[meas.name] = {
+            "pairs": [list(p) for p in meas.marker_pairs],
+            "frames": n_min,
+            "iqr_ratio": max(spread),
+        }
+        for body in meas.bodies:
+            if body not in model.body_joint:
+                continue
+            f = factors.get(body, np.ones(3)).copy()
+            for k, ax in enumerate("XYZ"):
+                if ax in meas.axes.upper():
+                    f[k] = ratio
+            factors[body] = f
+    return factors, ratios, details
+
+
+def _ik_frames(
+    x: Array, labels: Sequence[str], names: Iterable[str], max_frames: int, min_markers: int
+) -> NDArray[np.int64]:
+    """Up to ``max_frames`` evenly spread frames with at least ``min_markers`` of ``names``."""
+    cols = [i for i, lab in enumerate(labels) if lab in set(names)]
+    n_seen = np.isfinite(x[:, cols]).all(axis=2).sum(axis=1) if cols else np.zeros(len(x))
+    good = np.flatnonzero(n_seen >= min_markers)
+    if good.size > max_frames:
+        good = good[np.unique(np.linspace(0, good.size - 1, max_frames).round().astype(int))]
+    return good
+
+
+def scale_from_motion(
+    model: Model,
+    markers: ArrayLike,
+    labels: Sequence[str],
+    time: ArrayLike,
+    *,
+    measurements: Sequence[Measurement] | None = None,
+    height_m: float | None = None,
+    body_mass: float | None = None,
+    pose_matched: bool = True,
+    max_frames: int = 120,
+    min_frames: int = 10,
+) -> tuple[Model, ScalingReport]:
+    """Scale ``model`` from a motion trial (no static), completing with the stature.
+
+    1. measurements: ``measurements`` or, per segment, the first usable alternative of
+       :data:`SEGMENT_MEASUREMENTS` (:func:`choose_measurements`) for the markers of
+       ``labels`` (model names, e.g. after :func:`msk.markersets.recognise`);
+    2. factors from per-frame pair distances (:func:`measure_scale_factors_from_motion`);
+    3. with ``pose_matched``: inverse kinematics of up to ``max_frames`` frames on the model so
+       scaled (model markers only, no filter), then the factors again with each frame compared
+       to the generic model in that frame's pose (a pair across a joint is then measured at the
+       same joint angles as the trial);
+    4. bodies no measurement reaches: the stature ratio when ``height_m`` is given
+       (:func:`complete_scale_factors`), else unscaled — said in ``ScalingReport.methods``.
+
+    A measurement whose markers are too seldom tracked is skipped (named in ``messages``) and
+    its bodies fall to the height.
+
+    Returns:
+        (the scaled model, :class:`ScalingReport`).
+    """
+    from msk.markersets import zeros_as_gaps
+
+    x = zeros_as_gaps(markers)  # exact zeros: gaps (TRC writers)
+    t = np.asarray(time, dtype=float)
+    labels = tuple(labels)
+    have = set(labels) & set(model.marker_names)
+    meas = (
+        choose_measurements(SEGMENT_MEASUREMENTS, have)
+        if measurements is None
+        else usable_measurements(list(measurements), have)
+    )
+    messages: list[str] = []
+    ok_meas = []
+    for m in meas:
+        try:
+            measure_scale_factors_from_motion(model, x, labels, [m], min_frames=min_frames)
+            ok_meas.append(m)
+        except MissingDataError as exc:
+            messages.append(f"{m.name}: {exc}")
+    measured, ratios, details = measure_scale_factors_from_motion(
+        model, x, labels, ok_meas, min_frames=min_frames
+    )
+    if pose_matched and ok_meas:
+        from msk.exceptions import KinematicsError
+        from msk.kinematics import solve_kinematics
+
+        first = apply_scale_factors(model, measured)
+        idx = _ik_frames(x, labels, have, max_frames, 3)
+        try:
+            kin = solve_kinematics(first, x[idx], labels, t[idx], cutoff_hz=None, min_markers=3)
+            q = np.full((x.shape[0], model.n_coords), np.nan)
+            q[idx] = kin.q_raw
+            measured, ratios, details = measure_scale_factors_from_motion(
+                model, x, labels, ok_meas, q=q, min_frames=min_frames
+            )
+        except (KinematicsError, MissingDataError) as exc:
+            messages.append(f"pose-matched measurement not done ({exc}): default pose used")
+    factors, methods, hf, mh = complete_scale_factors(
+        model, measured, source="motion markers", height_m=height_m
+    )
+    unscaled = [b for b, m in methods.items() if m == "unscaled"]
+    if unscaled:
+        messages.append(f"no marker measurement and no height: {unscaled} left unscaled")
+    scaled = apply_scale_factors(model, factors, body_mass=body_mass).with_metadata(
+        scale_ratios=ratios, scale_methods=methods
+    )
+    rep = ScalingReport(factors, methods, ratios, details, hf, mh, tuple(messages))
+    return scaled, rep
+
+
+def scale_from_static(
+    model: Model,
+    static_markers: Any,
+    *,
+    measurements: Sequence[Measurement] | None = None,
+    height_m: float | None = None,
+    body_mass: float | None = None,
+    marker_names: Mapping[str, str] | None = None,
+) -> tuple[Model, ScalingReport]:
+    """:func:`measure_scale_factors` on a static trial (``{label: (N, 3)}`` or a TRC table),
+    per segment the first usable alternative of :data:`SEGMENT_MEASUREMENTS` when
+    ``measurements`` is None, completed by the stature like :func:`scale_from_motion`."""
+    means = _static_means(static_markers)
+    names = dict(marker_names or {})
+    have = {mk for mk in model.marker_names if names.get(mk, mk) in means}
+    meas = (
+        choose_measurements(SEGMENT_MEASUREMENTS, have)
+        if measurements is None
+        else usable_measurements(list(measurements), have)
+    )
+    measured, ratios = measure_scale_factors(model, means, meas, marker_names=names)
+    factors, methods, hf, mh = complete_scale_factors(
+        model, measured, source="static markers", height_m=height_m
+    )
+    messages = []
+    unscaled = [b for b, m in methods.items() if m == "unscaled"]
+    if unscaled:
+        messages.append(f"no marker measurement and no height: {unscaled} left unscaled")
+    details = {m.name: {"pairs": [list(p) for p in m.marker_pairs]} for m in meas}
+    scaled = apply_scale_factors(model, factors, body_mass=body_mass).with_metadata(
+        scale_ratios=ratios, scale_methods=methods
+    )
+    return scaled, ScalingReport(factors, methods, ratios, details, hf, mh, tuple(messages))
+
+
+def place_markers_from_motion(
+    model: Model,
+    markers: ArrayLike,
+    labels: Sequence[str],
+    time: ArrayLike,
+    *,
+    max_spread_m: float = 0.02,
+    max_distance_m: float = 0.25,
+    max_frames: int = 120,
+    min_frames: int = 10,
+    min_markers: int = 4,
+    iterations: int = 2,
+    move: Sequence[str] = (),
+) -> tuple[Model, dict[str, Any]]:
+    """Add a motion trial's non-model markers to ``model`` when there is no static trial.
+
+    1. Inverse kinematics (:func:`msk.kinematics.solve_kinematics`, no filter) of up to
+       ``max_frames`` evenly spread frames with at least ``min_markers`` model markers, with the
+       model's markers only (the recognised anatomical ones: ``labels`` in model names);
+    2. every other measured marker (not ``*N`` nor a model output,
+       :func:`msk.io.c3d.is_measured_marker`) tracked in ``min_frames`` solved frames is
+       expressed in each body's frame, p_b(t) = oMf_b(q_t)⁻¹ x(t); its body is the one where
+       it moves least — spread σ_b = RMS_t ‖p_b(t) − median_t p_b‖, the rigid-body residual of
+       a marker fixed to b (skin motion and a wrong segment both raise it) — among the bodies
+       whose bone segment (:func:`bone_segments`, median pose) is within ``max_distance_m``;
+       it is fixed there at the median position (component-wise: robust to gaps and swaps);
+    3. ``iterations`` > 1: inverse kinematics again with the placed markers too (they pin the
+       rotations about the long axes that a few anatomical markers leave free, e.g. a thigh
+       with no knee marker), and step 2 again from that pose;
+    4. a marker whose final spread exceeds ``max_spread_m`` is not placed and is reported;
+    5. ``move``: model markers (a lab puts its foot markers where it likes) moved, on their
+       own body, to their median body-frame position in the last pass (OpenSim's
+       ``move_model_markers`` for these markers, as :func:`place_markers` does on a static).
+
+    Returns:
+        The model with the markers added, and ``{"placed": marker → body, "spread_m": marker →
+        σ (m), "too_loose": marker → [body, σ], "too_far": marker → [body, distance],
+        "not_markers", "unseen", "moved": marker → displacement (m), "ik_marker_rms_m" (median
+        over the solved frames, last pass), "frames" (solved)}``.
+
+    Raises:
+        KinematicsError: fewer than 3 model markers in the trial.
+        MissingDataError: no frame could be solved.
+    """
+    from msk.io.c3d import is_measured_marker
+    from msk.kinematics import solve_kinematics
+    from msk.markersets import zeros_as_gaps
+
+    x = zeros_as_gaps(markers)  # exact zeros: gaps (TRC writers)
+    t = np.asarray(time, dtype=float)
+    labels = tuple(labels)
+    known = set(model.marker_names)
+    unknown = sorted(set(move) - known)
+    if unknown:
+        raise ModelError(f"model {model.name}: no marker {unknown[0]!r} to move")
+    idx = _ik_frames(x, labels, known, max_frames, min_markers)
+    if idx.size == 0:
+        raise MissingDataError(
+            f"motion trial: no frame with {min_markers} model markers for marker placement"
+        )
+    xs, ts = x[idx], t[idx]
+    not_markers = [lab for lab in labels if lab not in known and not is_measured_marker(lab)]
+    cand = [
+        i
+        for i, lab in enumerate(labels)
+        if lab not in known and lab not in not_markers and lab not in labels[:i]
+    ]
+    # bone segments of each body in its own frame (default pose)
+    d0 = model.create_data()
+    forward_kinematics(model, d0, model.default_coordinates())
+    local_segs: dict[str, list[tuple[Array, Array]]] = {b.name: [] for b in model.bodies}
+    for nm, a, e in bone_segments(model, d0):
+        o = d0.oMf[model.body_frame[nm]]
+        local_segs[nm].append((np.asarray(o.actInv(a)), np.asarray(o.actInv(e))))
+    base = model
+    placed: dict[str, str] = {}
+    spread: dict[str, float] = {}
+    local: dict[str, Array] = {}
+    too_far: dict[str, list[Any]] = {}
+    unseen: list[str] = []
+    rms = float("nan")
+    n_ok = 0
+    for it in range(max(1, iterations)):
+        # later passes: IK with the markers placed so far, save the clearly loose ones
+        ok_prev = [k for k in placed if spread[k] <= 2.0 * max_spread_m]
+        ik_model = (
+            base
+            if it == 0
+            else model.with_markers(
+                [*model.markers, *(Marker(k, placed[k], local[k]) for k in ok_prev)]
+            )
+        )
+        kin = solve_kinematics(ik_model, xs, labels, ts, cutoff_hz=None, min_markers=3)
+        ok = np.isfinite(kin.q_raw).all(axis=1)
+        if not ok.any():
+            raise MissingDataError("motion trial: no frame could be solved for marker placement")
+        n_ok = int(ok.sum())
+        rms = float(np.nanmedian(kin.marker_rms[ok]))
+        q = kin.q_raw[ok]
+        xo = xs[ok]
+        data = model.create_data()
+        # body poses per solved frame: rotations (F, B, 3, 3) and translations (F, B, 3)
+        names = [b.name for b in model.bodies]
+        rot = np.empty((len(q), len(names), 3, 3))
+        tra = np.empty((len(q), len(names), 3))
+        for f, qf in enumerate(q):
+            forward_kinematics(model, data, qf)
+            for k, b in enumerate(names):
+                o = data.oMf[model.body_frame[b]]
+                rot[f, k], tra[f, k] = o.rotation, o.translation
+        placed, spread, local, too_far, unseen = {}, {}, {}, {}, []
+        for i in cand:
+            lab = labels[i]
+            seen = np.isfinite(xo[:, i]).all(axis=1)
+            if seen.sum() < min_frames:
+                unseen.append(lab)
+                continue
+            p = np.einsum("fbji,fbj->fbi", rot[seen], xo[seen, i][:, None, :] - tra[seen])
+            med = np.median(p, axis=0)  # (B, 3)
+            sig = np.sqrt(((p - med) ** 2).sum(axis=2).mean(axis=0))  # (B,)
+            dist = np.array(
+                [
+                    min(point_segment_distance(med[k], a, e) for a, e in local_segs[b])
+                    for k, b in enumerate(names)
+                ]
+            )
+            near = dist <= max_distance_m
+            if not near.any():
+                k = int(np.argmin(dist))
+                too_far[lab] = [names[k], float(dist[k])]
+                continue
+            # the most rigid body; near-ties (a locked joint, a marker near a joint) go to the
+            # nearest bone, as the static placement does
+            best = float(sig[near].min())
+            tie = near & (sig <= best + max(0.002, 0.25 * best))
+            k = int(np.flatnonzero(tie)[np.argmin(dist[tie])])
+            placed[lab], spread[lab], local[lab] = names[k], float(sig[k]), med[k]
+    too_loose = {lab: [placed[lab], spread[lab]] for lab in placed if spread[lab] > max_spread_m}
+    keep = [lab for lab in placed if lab not in too_loose]
+    added = [Marker(lab, placed[lab], np.asarray(local[lab], dtype=float)) for lab in keep]
+    moved: dict[str, float] = {}
+    own = list(model.markers)
+    for j, mk in enumerate(own):
+        if mk.name not in move or mk.name not in labels:
+            continue
+        i, k = labels.index(mk.name), names.index(mk.body)
+        seen = np.isfinite(xo[:, i]).all(axis=1)
+        if seen.sum() < min_frames:
+            continue
+        p = np.einsum("fji,fj->fi", rot[seen, k], xo[seen, i] - tra[seen, k])
+        new = np.median(p, axis=0)
+        moved[mk.name] = float(np.linalg.norm(new - np.asarray(mk.offset, dtype=float)))
+        own[j] = Marker(mk.name, mk.body, new)
+    info = {
+        "placed": {lab: placed[lab] for lab in keep},
+        "spread_m": dict(spread),
+        "too_loose": too_loose,
+        "too_far": too_far,
+        "not_markers": not_markers,
+        "unseen": unseen,
+        "moved": moved,
+        "ik_marker_rms_m": rms,
+        "frames": n_ok,
+    }
+    return model.with_markers([*own, *added]), info

@@ -12,7 +12,7 @@ from hypothesis import strategies as st
 from model_factory import leg_model
 
 from msk.exceptions import KinematicsError, MissingDataError, ModelError
-from msk.model import forward_kinematics, marker_positions
+from msk.model import Marker, forward_kinematics, marker_positions
 from msk.opensim_peer import run_opensim_script
 from msk.osim import load_osim
 from msk.scaling import (
@@ -476,3 +476,164 @@ def test_usable_measurements_keep_those_whose_markers_all_exist():
     assert got == [Measurement("pelvis", (("RASI", "LASI"),), ("pelvis",))]
     assert len(usable_measurements(specs, {"RASI", "LASI", "RKNE", "LKNE"})) == 2
     assert usable_measurements(specs, ()) == []
+
+
+# ---------------------------------------------------------------------------------------------
+# scaling and marker placement without a static trial
+# ---------------------------------------------------------------------------------------------
+GAIT2392 = Path(__file__).resolve().parents[1] / "models" / "gait2392.toml"
+TRUE_FACTORS = {
+    "pelvis": 1.06,
+    "femur_r": 1.10,
+    "femur_l": 1.09,
+    "tibia_r": 0.94,
+    "tibia_l": 0.95,
+    "talus_r": 1.04,
+    "calcn_r": 1.04,
+    "toes_r": 1.04,
+    "talus_l": 1.03,
+    "calcn_l": 1.03,
+    "toes_l": 1.03,
+    "torso": 0.97,
+}
+
+
+@pytest.fixture(scope="module")
+def gait2392():
+    from msk.model_files import load_model
+
+    return load_model(GAIT2392)
+
+
+def _gait_poses(model, n=80):
+    """A walking-like motion: hips ±30°, knees 0–60°, ankles ±15°, pelvis moving forward."""
+    th = np.repeat(model.default_coordinates()[None], n, axis=0)
+    ph = np.linspace(0.0, 2 * np.pi, n)
+    c = model.coordinate_names
+    for name, v in {
+        "pelvis_tx": np.linspace(0.0, 1.4, n),
+        "hip_flexion_r": 0.5 * np.sin(ph),
+        "hip_flexion_l": -0.5 * np.sin(ph),
+        "knee_angle_r": -0.5 * (1 - np.cos(ph)),
+        "knee_angle_l": -0.5 * (1 + np.cos(ph)),
+        "ankle_angle_r": 0.25 * np.sin(ph),
+        "ankle_angle_l": -0.25 * np.sin(ph),
+        "lumbar_extension": 0.05 * np.sin(2 * ph),
+    }.items():
+        th[:, c.index(name)] = v
+    return th
+
+
+def _motion(model, truth, noise_m=0.001, seed=0):
+    th = _gait_poses(truth)
+    x = marker_positions(truth, th)
+    x = x + np.random.default_rng(seed).normal(0.0, noise_m, x.shape)
+    return x, list(truth.marker_names), np.arange(len(th)) / 100.0
+
+
+def test_scale_from_motion_measures_what_a_static_trial_would(gait2392):
+    """A walk of a scaled gait2392 (known factors): the motion-derived factors equal those a
+    static trial of the same subject gives (the measurement method's own values: ASIS–knee
+    also carries the pelvis, so 1.091 for a femur stretched by 1.10), within 0.5 %."""
+    from msk.scaling import SEGMENT_MEASUREMENTS, choose_measurements, scale_from_motion
+
+    truth = apply_scale_factors(gait2392, TRUE_FACTORS)
+    x, labels, t = _motion(gait2392, truth)
+    pos = marker_positions(truth, truth.default_coordinates())[0]
+    static = {n: np.repeat(pos[None, i], 3, axis=0) for i, n in enumerate(truth.marker_names)}
+    meas = choose_measurements(SEGMENT_MEASUREMENTS, truth.marker_names)
+    want, _ = measure_scale_factors(gait2392, static, meas)
+    scaled, rep = scale_from_motion(gait2392, x, labels, t, body_mass=70.0)
+    assert set(rep.methods) == {b.name for b in gait2392.bodies}
+    assert set(rep.methods.values()) == {"motion markers"}
+    for body, f in want.items():
+        assert rep.factors[body][0] == pytest.approx(f[0], rel=0.005), body
+        assert rep.factors[body][0] == pytest.approx(TRUE_FACTORS[body], rel=0.02), body
+    assert scaled.total_mass == pytest.approx(70.0)
+    assert scaled.metadata["scale_methods"]["femur_r"] == "motion markers"
+    # knee–ankle spans the knee (flexed 0–60°): the plain median over frames (default-pose
+    # model distance) is off by ~1 %; a pair on one segment (heel–toe) is the same either way
+    _, plain = scale_from_motion(gait2392, x, labels, t, pose_matched=False)
+    assert abs(plain.factors["tibia_r"][0] / want["tibia_r"][0] - 1) > 0.005
+    assert plain.factors["calcn_r"][0] == pytest.approx(want["calcn_r"][0], rel=0.005)
+
+
+def test_scale_from_motion_falls_back_on_height_and_says_so(gait2392):
+    from msk.scaling import scale_from_motion
+
+    truth = apply_scale_factors(gait2392, TRUE_FACTORS)
+    x, labels, t = _motion(gait2392, truth)
+    for name in ("R.Knee.Lat", "R.Knee.Med", "L.Knee.Lat", "L.Knee.Med"):
+        x[:, labels.index(name)] = 0.0  # static-only markers carried as zeros (GC6 DM)
+    _, rep = scale_from_motion(gait2392, x, labels, t, height_m=1.71)
+    assert rep.height_factor == pytest.approx(1.71 / 1.80)
+    for body in ("femur_r", "femur_l", "tibia_r", "tibia_l"):
+        assert rep.methods[body] == "height"
+        np.testing.assert_allclose(rep.factors[body], 1.71 / 1.80)
+    assert rep.methods["pelvis"] == "motion markers"
+    assert rep.factors["pelvis"][0] == pytest.approx(TRUE_FACTORS["pelvis"], rel=0.01)
+    _, rep = scale_from_motion(gait2392, x, labels, t)
+    assert rep.methods["tibia_r"] == "unscaled"
+    assert any("unscaled" in m and "tibia_r" in m for m in rep.messages)
+    summary = rep.summary()
+    assert summary["bodies"]["tibia_r"] == {"method": "unscaled", "factors": [1.0, 1.0, 1.0]}
+
+
+def test_place_markers_from_motion_finds_each_clusters_bone_and_leaves_out_loose_markers(gait2392):
+    from msk.scaling import place_markers_from_motion
+
+    clusters = {
+        "RTH1": ("femur_r", (0.03, -0.20, 0.07)),
+        "RTH2": ("femur_r", (0.06, -0.28, 0.05)),
+        "RSH1": ("tibia_r", (0.04, -0.15, 0.05)),
+        "LSH1": ("tibia_l", (0.04, -0.20, -0.05)),
+        "RPSI": ("pelvis", (-0.15, 0.06, 0.05)),
+        "RMT2": ("calcn_r", (0.17, 0.03, 0.0)),
+        "SKIN": ("femur_l", (0.05, -0.25, -0.06)),
+    }
+    truth = gait2392.with_markers(
+        [*gait2392.markers, *(Marker(k, b, np.array(p)) for k, (b, p) in clusters.items())]
+    )
+    x, labels, t = _motion(gait2392, truth, noise_m=0.001)
+    rng = np.random.default_rng(1)
+    x[:, labels.index("SKIN")] += rng.normal(0.0, 0.03, (len(t), 3))  # not on any bone
+    x[::4, labels.index("RTH1")] = np.nan  # gaps
+    model, info = place_markers_from_motion(gait2392, x, labels, t, move=["R.Heel"], max_frames=40)
+    expect = {k: b for k, (b, _) in clusters.items() if k != "SKIN"}
+    assert info["placed"] == expect
+    assert info["too_loose"]["SKIN"][1] > 0.02 and "SKIN" not in model.marker_names
+    got = {m.name: m for m in model.markers}
+    for k in expect:
+        np.testing.assert_allclose(got[k].offset, clusters[k][1], atol=0.003)
+        assert info["spread_m"][k] < 0.005
+    assert info["ik_marker_rms_m"] < 0.003
+    assert info["moved"]["R.Heel"] < 0.003
+    with pytest.raises(ModelError, match=r"no marker 'R\.Nose' to move"):
+        place_markers_from_motion(gait2392, x, labels, t, move=["R.Nose"])
+
+
+def test_motion_scaling_of_grand_challenge_ps_agrees_with_its_static(real_dir, gait2392):
+    """PS: the static trial (TRC) against the overground walk (c3d) — pelvis, feet, torso
+    (the walk has no knee or ankle marker: femur and tibia go to the height, 1.67 m)."""
+    from msk.io import read_c3d
+    from msk.io.frames import pelvis_heading_rotation
+    from msk.io.opensim_files import read_trc
+    from msk.markersets import recognise
+    from msk.scaling import scale_from_motion, scale_from_static
+
+    st = read_trc(real_dir / "knee-grand-challenge-gc5/PS_static_for_scaling.trc")
+    m = recognise(st.labels, gait2392.marker_names)
+    xs, ls = m.apply(st.markers, st.labels)
+    _, rs = scale_from_static(gait2392, {lab: xs[:, i] for i, lab in enumerate(ls)})
+    assert set(rs.methods.values()) == {"static markers"}
+    tr = read_c3d(real_dir / "knee-grand-challenge-gc5/PS_ngait_og_ss1.c3d")
+    m = recognise(tr.marker_labels, gait2392.marker_names, markers=tr.markers)
+    h = pelvis_heading_rotation(
+        tr.up, (0, 1, 0), tr.markers, tr.marker_labels, gait2392, rename=m.rename
+    )
+    x, labels = m.apply(tr.markers @ h.rotation.T, tr.marker_labels)
+    _, rm = scale_from_motion(gait2392, x, labels, tr.time, height_m=1.67)
+    for body in ("pelvis", "calcn_r", "calcn_l", "torso"):
+        assert rm.methods[body] == "motion markers"
+        assert rm.factors[body][0] == pytest.approx(rs.factors[body][0], rel=0.04), body
+    assert rm.methods["femur_r"] == "height"

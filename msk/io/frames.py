@@ -218,10 +218,11 @@ def pelvis_heading_rotation(
     u = np.asarray(up_model, dtype=float)
     u = u / np.linalg.norm(u)
     r0 = rotation_between(up_lab, u)
-    x = np.asarray(markers, dtype=float)
+    x = np.array(markers, dtype=float)
     labels = tuple(labels)
     if x.ndim != 3 or x.shape[2] != 3 or x.shape[1] != len(labels):
         raise ShapeMismatchError(f"markers {x.shape} must be (N, {len(labels)}, 3)")
+    x[(x == 0.0).all(axis=2)] = np.nan  # exact zeros: gaps (TRC writers)
     rotated = x @ r0.T
     prog = _progression_yaw(rotated, u, forward) if x.size else None
     prog_deg = math.nan if prog is None else math.degrees(prog)
