@@ -258,7 +258,7 @@ def _fig_contact(res: SessionResults) -> str | None:
                 ax.plot(x[sel], kc.column(col)[sel], color=c, ls=ls, label=lab)
         ax.set_title(comp, fontsize=9)
         ax.set_xlabel(xl)
-    axes[0][0].set_ylabel("knee contact force (BW)")
+    axes[0][0].set_ylabel("knee contact force (body weights)")
     axes[0][0].legend(fontsize=6)
     fig.tight_layout()
     return _svg(fig)
