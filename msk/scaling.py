@@ -1008,7 +1008,7 @@ def place_markers_from_motion(
     max_frames: int = 120,
     min_frames: int = 10,
     min_markers: int = 4,
-    iterations: int = 2,
+    iterations: int = 3,
     move: Sequence[str] = (),
 ) -> tuple[Model, dict[str, Any]]:
     """Add a motion trial's non-model markers to ``model`` when there is no static trial.
@@ -1081,7 +1081,7 @@ def place_markers_from_motion(
     n_ok = 0
     for it in range(max(1, iterations)):
         # later passes: IK with the markers placed so far, save the clearly loose ones
-        ok_prev = [k for k in placed if spread[k] <= 2.0 * max_spread_m]
+        ok_prev = [k for k in placed if spread[k] <= 3.0 * max_spread_m]
         ik_model = (
             base
             if it == 0
