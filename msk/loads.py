@@ -43,6 +43,7 @@ from __future__ import annotations
 import warnings
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
+from pathlib import Path
 from typing import Any, Literal
 
 import numpy as np
@@ -128,6 +129,93 @@ def plates_from_table(
     return tuple(out)
 
 
+def _plates_from_sets(
+    time: Array, data: Array, columns: Sequence[str], sets: Sequence[Any]
+) -> tuple[PlateWrench, ...]:
+    """PlateWrenches of :class:`msk.io.grf.GrfForceSet` column sets (missing torque → 0)."""
+    col = {c: i for i, c in enumerate(columns)}
+    out = []
+    for s in sets:
+        f = data[:, [col[c] for c in s.force]]
+        c = data[:, [col[c] for c in s.point]].copy()
+        tq = np.zeros_like(f)
+        for k, name in enumerate(s.torque):
+            if name is not None:
+                tq[:, k] = data[:, col[name]]
+        c[(np.linalg.norm(f, axis=1) == 0.0) | ~np.isfinite(c).all(axis=1)] = np.nan
+        out.append(PlateWrench(s.name, time, f, c, tq, None))
+    return tuple(out)
+
+
+def plates_from_grf_file(
+    path: str | Path, external_loads_xml: str | Path | None = None
+) -> tuple[PlateWrench, ...]:
+    """The plates of an OpenSim GRF file (``.mot`` / ``.sto``), at the file's rate.
+
+    Without ``external_loads_xml`` every force set found from the column names is a plate
+    (:mod:`msk.io.grf`: ``ground_force_vx``, ``ground_force_r_vx``, ``r_ground_force_vx``,
+    ``ground_force_1_vx``, ``1_ground_force_vx`` …, torque columns ``…torque…``/``…moment…``
+    in any order, absent torque components = 0). With it, the plates are the enabled
+    ExternalForces of that file, found by their identifiers. Either way plates are named
+    ``plate1``, ``plate2``, … in the order their force-x column appears in the file — the
+    names :func:`external_loads_assignment` maps to bodies. No outline (``corners=None``): the
+    automatic assignment then works from the COP (:func:`external_loads`).
+
+    Measured: force (N) and COP (m) in the lab (= file) frame, torque (N·m) taken as the free
+    moment about the COP (the OpenSim convention for plate-derived files). The COP is NaN where
+    the force is exactly zero or the COP is not finite.
+
+    Raises:
+        FileFormatError / MissingDataError: unreadable file, no force set, or a set without
+            its three force or point columns (names the file and the columns).
+    """
+    from msk.io import read_sto
+    from msk.io.grf import external_force_sets, grf_force_sets, read_external_loads_xml
+
+    path = Path(path)
+    tab = read_sto(path)
+    if external_loads_xml is None:
+        sets = grf_force_sets(tab.columns, source=str(path))
+    else:
+        spec = read_external_loads_xml(external_loads_xml)
+        sets = external_force_sets(spec, tab.columns, source=str(path))
+    return _plates_from_sets(
+        np.asarray(tab.time, dtype=float), np.asarray(tab.data, dtype=float), tab.columns, sets
+    )
+
+
+def external_loads_assignment(
+    external_loads_xml: str | Path, grf_path: str | Path | None = None
+) -> dict[str, str]:
+    """Plate name → body of an OpenSim ExternalLoads ``.xml``, for
+    ``external_loads(..., assignment=...)``.
+
+    Plate names are those of :func:`plates_from_grf_file` for the GRF file ``grf_path``
+    (default: the ``<datafile>`` of the xml, relative to the xml's folder): ``plate<k>``, k the
+    rank of the set's force-x column in the file. Several plates may go to one body (one
+    ExternalForce per plate); a body per foot is also fine (files already split by foot).
+
+    Raises:
+        FileFormatError: malformed xml (names file and element).
+        ForcePlateError: a force expressed in a body other than ``ground``.
+        MissingDataError: no GRF file (xml names none and ``grf_path`` is None, or it does not
+            exist), or an identifier matching no column (names the ExternalForce).
+    """
+    from msk.io import read_sto
+    from msk.io.grf import external_force_sets, read_external_loads_xml
+
+    spec = read_external_loads_xml(external_loads_xml)
+    grf = Path(grf_path) if grf_path is not None else spec.datafile
+    if grf is None:
+        raise MissingDataError(
+            f"{spec.path}: <datafile> names no GRF file; pass grf_path to resolve the plates"
+        )
+    if not grf.is_file():
+        raise MissingDataError(f"{spec.path}: GRF data file {grf} does not exist")
+    cols = read_sto(grf).columns
+    return {s.name: str(s.body) for s in external_force_sets(spec, cols, source=str(grf))}
+
+
 @dataclass(frozen=True)
 class AppliedForce:
     """An extra external force on a body (a carried load, an end-effector force).
@@ -155,6 +243,23 @@ class Assignment:
 
 
 @dataclass(frozen=True)
+class ContactFlag:
+    """A contact interval of a plate whose load went to **no** body (times of its first and last
+    frame).
+
+    ``reason`` is ``"shared"`` — two or more feet (``feet``) stand on the plate at once, so its
+    single wrench cannot be split between them — or ``"unassigned"`` — no foot stands on the
+    loaded plate (a foot outside the outline, an unknown pose, a hand or a crutch).
+    """
+
+    plate: str
+    reason: Literal["shared", "unassigned"]
+    start_time: float
+    end_time: float
+    feet: tuple[str, ...] = ()
+
+
+@dataclass(frozen=True)
 class ExternalLoads:
     """External wrenches per body on the kinematics time (world frame, SI).
 
@@ -162,6 +267,11 @@ class ExternalLoads:
     ``bodies[b]``; ``point[:, b]`` the point of application (the COP for plate loads; NaN when
     unloaded or undefined). ``moment_about_point`` gives the moment about that point (the free
     moment for a single plate).
+
+    ``flags`` lists the plate contact intervals left unassigned (:class:`ContactFlag`);
+    ``shared_contact`` / ``unassigned_contact`` ``(N,)`` bool mark their frames (``None`` when
+    built by hand: no flag). On those frames a measured ground reaction is on no body, so
+    :func:`contact_measured` excludes them.
     """
 
     time: Array
@@ -171,6 +281,17 @@ class ExternalLoads:
     point: Array
     assignments: tuple[Assignment, ...] = ()
     metadata: Mapping[str, Any] = field(default_factory=dict)
+    flags: tuple[ContactFlag, ...] = ()
+    shared_contact: NDArray[np.bool_] | None = None
+    unassigned_contact: NDArray[np.bool_] | None = None
+
+    def flagged(self) -> NDArray[np.bool_]:
+        """(N,) bool: frames with a shared or unassigned plate contact."""
+        out = np.zeros(np.size(self.time), dtype=bool)
+        for x in (self.shared_contact, self.unassigned_contact):
+            if x is not None and np.size(x) == out.size:
+                out |= np.asarray(x, dtype=bool)
+        return out
 
     def moment_about_point(self) -> Array:
         """M_O − p × F (N, B, 3); NaN where the point is undefined."""
@@ -200,7 +321,8 @@ class ExternalLoads:
         return self.force.sum(axis=1), self.moment.sum(axis=1)
 
 
-_SAMPLES = 12  # frames per contact interval used to decide which foot stands on a plate
+_NONE, _SHARED = -1, -2  # per-frame labels besides a foot index
+_MIN_SEGMENT_S = 0.03  # a foot's run shorter than this between runs of another foot is noise
 
 
 def _default_feet(model: Model) -> tuple[str, ...]:
@@ -277,6 +399,31 @@ def _foot_points(model: Model, q: Array, feet: Sequence[str], frames: Array) -> 
     return out
 
 
+@dataclass(frozen=True)
+class _Criteria:
+    """Thresholds of the "foot stands on the plate" test (module docstring)."""
+
+    margin_m: float
+    cop_radius_m: float
+    floor_m: float
+    speed_mps: float
+
+
+@dataclass
+class _Prepared:
+    """A plate on the kinematics time: wrench, COP, surface height, contact frames."""
+
+    plate: PlateWrench
+    force: Array
+    moment: Array
+    fv: Array
+    cop: Array
+    height: float
+    contact: NDArray[np.bool_]
+    standing: NDArray[np.bool_] | None = None  # (N, F) after the swing test
+    primary: NDArray[np.int64] | None = None  # (N,) nearest standing foot, -1 none
+
+
 def external_loads(
     model: Model,
     kinematics: Any,
@@ -292,29 +439,38 @@ def external_loads(
     sign: Literal["auto"] | float = "auto",
     cutoff_hz: float | None = None,
     extra: Sequence[AppliedForce] = (),
+    on_unassigned: Literal["flag", "raise"] = "flag",
 ) -> ExternalLoads:
     """Assign plate wrenches to feet and bring them to the kinematics time.
 
     Args:
         model: the model (feet and markers are looked up in it).
         kinematics: a :class:`msk.kinematics.Kinematics` (``time``, ``q``).
-        plates: the plates (:func:`plates_from_trial`, :func:`plates_from_table`).
+        plates: the plates (:func:`plates_from_trial`, :func:`plates_from_grf_file`,
+            :func:`plates_from_table`).
         feet: bodies that can stand on a plate (default: bodies named ``calcn*`` or ``foot*``).
-        assignment: plate name → body, to bypass the automatic assignment.
+        assignment: plate name → body for all the frames of that plate, bypassing the automatic
+            assignment (e.g. :func:`external_loads_assignment` of an OpenSim ExternalLoads
+            file); plates not named are assigned automatically.
         threshold_n: vertical force above which a plate is in contact.
         margin_m: growth of the plate outline for the "foot on plate" test.
         cop_radius_m: largest COP–foot distance for plates without corners.
-        floor_m: largest distance of a standing foot's point nearest the floor from the plate
-            surface (along the vertical).
-        speed_mps: speed of a foot's slowest point above which it is swinging (when another
-            foot on the plate is slower and nearer the COP).
+        floor_m: largest distance of a standing foot's point nearest the plate surface from it
+            (along the vertical).
+        speed_mps: speed of a foot's slowest point, relative to the plate surface, above which
+            it is swinging (when another foot on the plate is slower and nearer the COP).
         sign: +1 / −1 multiplies the plate force and free moment; ``"auto"`` makes the vertical
             force positive up during contact.
         cutoff_hz: optional zero-lag low-pass of the plate wrench at its own rate.
         extra: other applied forces.
+        on_unassigned: ``"flag"`` (default) puts a shared or unassigned contact interval in
+            :attr:`ExternalLoads.flags` (its load on no body); ``"raise"`` raises instead.
 
     Raises:
-        ForcePlateError: a contact interval cannot be assigned (names plate and time).
+        ForcePlateError: with ``on_unassigned="raise"``, a contact interval that cannot be
+            assigned (names plate and time).
+        ModelError: unknown foot or body.
+        ShapeMismatchError: a plate's arrays do not match its time.
     """
     t = np.asarray(kinematics.time, dtype=float)
     q = np.asarray(kinematics.q, dtype=float)
@@ -325,12 +481,18 @@ def external_loads(
     for f in feet:
         if f not in model.body_joint:
             raise ModelError(f"model {model.name}: no foot body {f!r}")
+    if on_unassigned not in ("flag", "raise"):
+        raise ValueError(f"on_unassigned must be 'flag' or 'raise', not {on_unassigned!r}")
+    assignment = dict(assignment or {})
     bodies: list[str] = []
     force: list[Array] = []
     moment: list[Array] = []
     point_num: list[Array] = []  # Σ F_v c  (to average the COP by vertical force)
     point_den: list[Array] = []
     assigned: list[Assignment] = []
+    flags: list[ContactFlag] = []
+    shared = np.zeros(n, dtype=bool)
+    unassigned = np.zeros(n, dtype=bool)
 
     def slot(body: str) -> int:
         if body not in bodies:
@@ -342,71 +504,67 @@ def external_loads(
             point_den.append(np.zeros(n))
         return bodies.index(body)
 
-    prepared = []
-    for pl in plates:
-        f_raw = np.asarray(pl.force, dtype=float)
-        if f_raw.ndim != 2 or f_raw.shape[1] != 3 or f_raw.shape[0] != np.size(pl.time):
-            raise ShapeMismatchError(
-                f"{pl.name}: force {f_raw.shape} does not match time ({np.size(pl.time)},)"
-            )
-        fv_raw = np.nan_to_num(f_raw) @ up
-        loaded_raw = np.abs(fv_raw) > threshold_n
-        if sign == "auto":
-            s = -1.0 if loaded_raw.any() and np.sum(fv_raw[loaded_raw]) < 0 else 1.0
-        else:
-            s = float(sign)
-        f_pl = s * np.nan_to_num(f_raw)
-        m_pl = (
-            s * PlateWrench(pl.name, pl.time, f_raw, pl.cop, pl.free_moment).moment_about_origin()
-        )
-        f_pl[~loaded_raw] = 0.0
-        m_pl[~loaded_raw] = 0.0
-        ta = np.asarray(pl.time, dtype=float)
-        if cutoff_hz is not None:
-            rate = (ta.size - 1) / (ta[-1] - ta[0])
-            f_pl = filtfilt_butter(f_pl, rate_hz=rate, cutoff_hz=cutoff_hz)
-            m_pl = filtfilt_butter(m_pl, rate_hz=rate, cutoff_hz=cutoff_hz)
-        f_k = np.nan_to_num(resample_to(ta, f_pl, t))
-        m_k = np.nan_to_num(resample_to(ta, m_pl, t))
-        fv = f_k @ up
-        contact = fv > threshold_n
-        # COP of the resampled wrench on the plate surface (height of the recorded COPs)
-        cop_ok = np.isfinite(pl.cop).all(axis=1) & loaded_raw
-        h = float(np.median(pl.cop[cop_ok] @ up)) if cop_ok.any() else 0.0
-        with np.errstate(divide="ignore", invalid="ignore"):
-            # c = h·up + (up × M_O_h)/F_v with M_O_h the moment about the point h·up
-            m_h = m_k - np.cross(h * up, f_k)
-            cop = h * up + np.cross(up, m_h) / fv[:, None]
-        cop[~contact] = np.nan
-        prepared.append((pl, f_k, m_k, fv, cop, h, _runs(contact)))
+    prepared = [
+        _prepare(pl, t, up, threshold_n=threshold_n, sign=sign, cutoff_hz=cutoff_hz)
+        for pl in plates
+    ]
+    auto = [p for p in prepared if p.plate.name not in assignment and p.contact.any()]
+    if auto:
+        fpts = _foot_points(model, q, feet, np.arange(n))
+        vel = [_velocity(p, t) for p in fpts]
+        crit = _Criteria(margin_m, cop_radius_m, floor_m, speed_mps)
+        hz = _horizontal_axes(up)
+        for p in auto:
+            p.standing, p.primary = _plate_state(p, fpts, vel, up, hz, crit)
+        for p in prepared:  # an explicit assignment explains its foot too
+            if p.plate.name in assignment:
+                body = assignment[p.plate.name]
+                k = feet.index(body) if body in feet else -1
+                p.primary = np.where(p.contact, k, -1)
+        labels = {id(p): _labels(p, prepared, feet) for p in auto}
 
-    # foot points, once, at the frames that decide the assignments
-    sample: dict[tuple[int, int], Array] = {}
-    for pl, *_, runs in prepared:
-        if assignment is None or pl.name not in assignment:
-            for i0, i1 in runs:
-                n_s = min(_SAMPLES, i1 - i0)
-                sample[(i0, i1)] = np.unique(np.linspace(i0, i1 - 1, n_s).round().astype(int))
-    fpts: list[Array] = []
-    if sample:
-        at = np.concatenate(list(sample.values()))
-        at = np.unique(np.clip(np.concatenate([at - 1, at, at + 1]), 0, n - 1))  # speeds too
-        fpts = _foot_points(model, q, feet, at)
-    crit = _Criteria(margin_m, cop_radius_m, floor_m, speed_mps)
-
-    for pl, f_k, m_k, fv, cop, h, runs in prepared:
-        for i0, i1 in runs:
-            if assignment is not None and pl.name in assignment:
-                body = assignment[pl.name]
+    for p in prepared:
+        pl = p.plate
+        for i0, i1 in _runs(p.contact):
+            if pl.name in assignment:
+                segs = [(i0, i1, -3)]  # the explicit body
             else:
-                body = _assign(pl, feet, fpts, cop, h, sample[(i0, i1)], i0, i1, t, up, crit)
-            b = slot(body)
-            sl = slice(i0, i1)
-            force[b][sl] += f_k[sl]
-            moment[b][sl] += m_k[sl]
-            point_num[b][sl] += fv[sl, None] * cop[sl]
-            point_den[b][sl] += fv[sl]
-            assigned.append(Assignment(pl.name, body, float(t[i0]), float(t[i1 - 1])))
+                segs = _segments(labels[id(p)][i0:i1], t[i0:i1], i0)
+            for s0, s1, lab in segs:
+                sl = slice(s0, s1)
+                if lab == _SHARED or lab == _NONE:
+                    span = f"{pl.name} contact {t[i0]:.3f}–{t[i1 - 1]:.3f} s"
+                    on = [f for k, f in enumerate(feet) if p.standing is not None and
+                          p.standing[sl, k].any()]  # fmt: skip
+                    if on_unassigned == "raise":
+                        if lab == _SHARED:
+                            raise ForcePlateError(
+                                f"{span}: both feet ({', '.join(on)}) stand on the plate at "
+                                f"t = {t[s0]:.3f} s; cannot split its load"
+                            )
+                        if pl.corners is None:
+                            raise ForcePlateError(
+                                f"{span}: no foot within {cop_radius_m} m of the centre of "
+                                f"pressure at t = {t[s0]:.3f} s"
+                            )
+                        raise ForcePlateError(
+                            f"{span}: no foot over the plate at t = {t[s0]:.3f} s"
+                        )
+                    reason: Literal["shared", "unassigned"] = (
+                        "shared" if lab == _SHARED else "unassigned"
+                    )
+                    flags.append(
+                        ContactFlag(pl.name, reason, float(t[s0]), float(t[s1 - 1]), tuple(on))
+                    )
+                    (shared if lab == _SHARED else unassigned)[sl] = True
+                    continue
+                body = assignment[pl.name] if lab == -3 else feet[lab]
+                b = slot(body)
+                force[b][sl] += p.force[sl]
+                moment[b][sl] += p.moment[sl]
+                point_num[b][sl] += p.fv[sl, None] * p.cop[sl]
+                point_den[b][sl] += p.fv[sl]
+                assigned.append(Assignment(pl.name, body, float(t[s0]), float(t[s1 - 1])))
 
     # extra applied forces
     data = model.create_data()
@@ -452,7 +610,193 @@ def external_loads(
         moment=np.stack(moment, axis=1) if nb else np.zeros((n, 0, 3)),
         point=point,
         assignments=tuple(assigned),
+        metadata={"surface_heights_m": {p.plate.name: p.height for p in prepared}},
+        flags=tuple(flags),
+        shared_contact=shared,
+        unassigned_contact=unassigned,
     )
+
+
+def _prepare(
+    pl: PlateWrench,
+    t: Array,
+    up: Array,
+    *,
+    threshold_n: float,
+    sign: Literal["auto"] | float,
+    cutoff_hz: float | None,
+) -> _Prepared:
+    """The plate's wrench on the kinematics time ``t``, its COP there, its surface height
+    (corners, else the recorded COPs) and its contact frames."""
+    f_raw = np.asarray(pl.force, dtype=float)
+    if f_raw.ndim != 2 or f_raw.shape[1] != 3 or f_raw.shape[0] != np.size(pl.time):
+        raise ShapeMismatchError(
+            f"{pl.name}: force {f_raw.shape} does not match time ({np.size(pl.time)},)"
+        )
+    fv_raw = np.nan_to_num(f_raw) @ up
+    loaded_raw = np.abs(fv_raw) > threshold_n
+    if sign == "auto":
+        s = -1.0 if loaded_raw.any() and np.sum(fv_raw[loaded_raw]) < 0 else 1.0
+    else:
+        s = float(sign)
+    f_pl = s * np.nan_to_num(f_raw)
+    m_pl = s * PlateWrench(pl.name, pl.time, f_raw, pl.cop, pl.free_moment).moment_about_origin()
+    f_pl[~loaded_raw] = 0.0
+    m_pl[~loaded_raw] = 0.0
+    ta = np.asarray(pl.time, dtype=float)
+    if cutoff_hz is not None:
+        rate = (ta.size - 1) / (ta[-1] - ta[0])
+        f_pl = filtfilt_butter(f_pl, rate_hz=rate, cutoff_hz=cutoff_hz)
+        m_pl = filtfilt_butter(m_pl, rate_hz=rate, cutoff_hz=cutoff_hz)
+    f_k = np.nan_to_num(resample_to(ta, f_pl, t))
+    m_k = np.nan_to_num(resample_to(ta, m_pl, t))
+    fv = f_k @ up
+    contact = fv > threshold_n
+    # the plate surface: its corners (a step, a raised walkway), else the recorded COPs
+    cop_raw = np.asarray(pl.cop, dtype=float)
+    cop_ok = np.isfinite(cop_raw).all(axis=1) & loaded_raw
+    if pl.corners is not None and np.isfinite(pl.corners).all():
+        h = float(np.mean(np.asarray(pl.corners, dtype=float) @ up))
+    else:
+        h = float(np.median(cop_raw[cop_ok] @ up)) if cop_ok.any() else 0.0
+    with np.errstate(divide="ignore", invalid="ignore"):
+        # c = h·up + (up × M_O_h)/F_v with M_O_h the moment about the point h·up
+        m_h = m_k - np.cross(h * up, f_k)
+        cop = h * up + np.cross(up, m_h) / fv[:, None]
+    cop[~contact] = np.nan
+    return _Prepared(pl, f_k, m_k, fv, cop, h, contact)
+
+
+def _velocity(pts: Array, t: Array) -> Array:
+    """Central-difference velocity of points (N, P, 3) (one-sided at the ends; NaN propagates)."""
+    n = t.size
+    if n < 2:
+        return np.zeros_like(pts)
+    k0 = np.clip(np.arange(n) - 1, 0, n - 1)
+    k1 = np.clip(np.arange(n) + 1, 0, n - 1)
+    dt = np.maximum(t[k1] - t[k0], 1e-12)
+    return (pts[k1] - pts[k0]) / dt[:, None, None]
+
+
+def _plate_state(
+    p: _Prepared,
+    fpts: list[Array],
+    vel: list[Array],
+    up: Array,
+    hz: Array,
+    crit: _Criteria,
+) -> tuple[NDArray[np.bool_], NDArray[np.int64]]:
+    """Per frame of contact, which feet stand on the plate ``p`` (N, F) and the one nearest the
+    COP (N,) (-1: none). Module docstring: outline (or COP radius), surface height, swing test
+    with speeds relative to the plate surface (its velocity: the median velocity of the
+    slowest point of the foot nearest the COP — zero for a floor plate, the belt's for a
+    treadmill)."""
+    n, nf = p.contact.size, len(fpts)
+    k = np.flatnonzero(p.contact)
+    c2 = p.cop[k] @ hz.T
+    poly = None if p.plate.corners is None else np.asarray(p.plate.corners, dtype=float) @ hz.T
+    on = np.zeros((k.size, nf), dtype=bool)
+    near = np.full((k.size, nf), np.inf)
+    slow_v = np.full((k.size, nf, 3), np.nan)
+    for f, pts in enumerate(fpts):
+        x = pts[k]
+        p2 = x @ hz.T
+        with np.errstate(invalid="ignore"):
+            d = np.linalg.norm(p2 - c2[:, None, :], axis=2)
+            near[:, f] = np.where(np.isfinite(d), d, np.inf).min(axis=1)
+            low = np.where(np.isfinite(x).all(axis=2), np.abs(x @ up - p.height), np.inf)
+            if poly is not None:
+                inside = _inside_grown(p2, poly, crit.margin_m).any(axis=1)
+            else:
+                inside = near[:, f] <= crit.cop_radius_m
+            on[:, f] = inside & (low.min(axis=1) <= crit.floor_m)
+            sp = np.linalg.norm(vel[f][k], axis=2)
+            sp = np.where(np.isfinite(sp), sp, np.inf)
+            j = np.argmin(sp, axis=1)
+            slow_v[:, f] = vel[f][k][np.arange(k.size), j]
+    any_on = on.any(axis=1)
+    surface_v = np.zeros(3)
+    if any_on.any():
+        nearest = np.argmin(np.where(on, near, np.inf), axis=1)
+        v = slow_v[np.arange(k.size), nearest][any_on]
+        v = v[np.isfinite(v).all(axis=1)]
+        if v.size:
+            surface_v = np.median(v, axis=0)
+    speed = np.full((k.size, nf), np.inf)
+    for f in range(nf):
+        with np.errstate(invalid="ignore"):
+            s = np.linalg.norm(vel[f][k] - surface_v, axis=2)
+        speed[:, f] = np.where(np.isfinite(s), s, np.inf).min(axis=1)
+    st = _standing(on, speed, near, crit.speed_mps)
+    standing = np.zeros((n, nf), dtype=bool)
+    standing[k] = st
+    primary = np.full(n, -1, dtype=np.int64)
+    has = st.any(axis=1)
+    primary[k[has]] = np.argmin(np.where(st, near, np.inf), axis=1)[has]
+    return standing, primary
+
+
+def _labels(p: _Prepared, prepared: Sequence[_Prepared], feet: Sequence[str]) -> Array:
+    """(N,) per-frame label of plate ``p``: a foot index, ``_SHARED`` or ``_NONE``.
+
+    A foot standing on ``p`` does not count for it while it is the nearest standing foot of
+    another loaded plate (a foot on the next plate or belt with its toes within the margin),
+    unless that leaves none."""
+    assert p.standing is not None
+    st = p.standing.copy()
+    pruned = st.copy()
+    for other in prepared:
+        if other is p or other.primary is None:
+            continue
+        for f in range(len(feet)):
+            pruned[:, f] &= ~(other.contact & (other.primary == f))
+    keep = np.where(pruned.any(axis=1)[:, None], pruned, st)
+    count = keep.sum(axis=1)
+    lab = np.where(count >= 2, _SHARED, _NONE)
+    one = count == 1
+    lab[one] = np.argmax(keep[one], axis=1)
+    return lab
+
+
+def _segments(lab: Array, t: Array, offset: int) -> list[tuple[int, int, int]]:
+    """Runs of one label in a contact run, cleaned: a foot's run shorter than
+    ``_MIN_SEGMENT_S`` between runs of one other foot takes that foot; a run with no foot next
+    to runs of one foot only, and not longer than them, takes that foot (a foot at the edge of
+    the outline at heel strike, a frame of unknown pose). Shared runs are kept as they are.
+    Returns [(start, end, label)] with absolute frame indices."""
+    lab = np.asarray(lab).copy()
+
+    def runs() -> list[list[int]]:
+        cut = np.flatnonzero(np.diff(lab)) + 1
+        starts = np.concatenate([[0], cut])
+        ends = np.concatenate([cut, [lab.size]])
+        return [[int(a), int(b), int(lab[a])] for a, b in zip(starts, ends)]
+
+    def dur(a: int, b: int) -> float:
+        return float(t[b - 1] - t[a]) if b > a else 0.0
+
+    for _ in range(lab.size):
+        changed = False
+        segs = runs()
+        for i, (a, b, v) in enumerate(segs):
+            nbrs = [segs[j] for j in (i - 1, i + 1) if 0 <= j < len(segs)]
+            vals = {s[2] for s in nbrs}
+            if len(vals) != 1 or not nbrs:
+                continue
+            w = next(iter(vals))
+            if w < 0:
+                continue
+            if v >= 0 and len(nbrs) == 2 and dur(a, b) < _MIN_SEGMENT_S:
+                lab[a:b] = w
+                changed = True
+                break
+            if v == _NONE and (b - a) <= sum(s[1] - s[0] for s in nbrs):
+                lab[a:b] = w
+                changed = True
+                break
+        if not changed:
+            break
+    return [(a + offset, b + offset, v) for a, b, v in runs()]
 
 
 def contact_measured(
@@ -473,7 +817,10 @@ def contact_measured(
     moves slower than ``speed_mps`` (central differences); it *carries a plate load* when the
     vertical external force on it and its descendants (``loads``) exceeds ``threshold_n``.
     Foot points as for the plate assignment (module docstring). Frames with an unknown pose
-    (NaN ``q``) are False.
+    (NaN ``q``) are False. The surfaces of the plates (``loads.metadata["surface_heights_m"]``,
+    e.g. a raised step) count as floors too: a still foot at a plate's height that carries no
+    load is unmeasured. Frames with a shared or unassigned plate contact
+    (:meth:`ExternalLoads.flagged`: a plate's load that went to no body) are False.
 
     On the other frames a foot stands on the floor beside the plates (the steps before and after
     a walkway's plates): inverse dynamics misses its ground reaction, so the pelvis residuals,
@@ -501,42 +848,18 @@ def contact_measured(
             axis=1,
         )
         floor = np.nanmin(low)
-    grounded = (low - floor <= height_m) & (speed <= speed_mps)
+    levels = [floor] + [float(h) for h in loads.metadata.get("surface_heights_m", {}).values()]
+    near_level = np.zeros(low.shape, dtype=bool)
+    for h in levels:
+        with np.errstate(invalid="ignore"):
+            near_level |= np.abs(low - h) <= height_m
+    grounded = near_level & (speed <= speed_mps)
     fv = np.zeros((n, len(feet)))
     for k, foot in enumerate(feet):
         for b in model.subtree(foot):
             if b in loads.bodies:
                 fv[:, k] += np.asarray(loads.force[:, loads.bodies.index(b)]) @ up
-    return known & ~(grounded & ~(fv > threshold_n)).any(axis=1)
-
-
-@dataclass(frozen=True)
-class _Criteria:
-    """Thresholds of the "foot stands on the plate" test (module docstring)."""
-
-    margin_m: float
-    cop_radius_m: float
-    floor_m: float
-    speed_mps: float
-
-
-def _foot_state(
-    pts: Array, prev: Array, nxt: Array, dt: Array, poly2: Array, cop2: Array, h: float,
-    up: Array, hz: Array, crit: _Criteria,
-) -> tuple[Array, Array, Array]:  # fmt: skip
-    """Per sampled frame, for one foot: on the plate (a point inside the grown outline and one
-    within ``floor_m`` of the surface height), speed of its slowest point, floor-plane distance
-    of its nearest point to the COP. ``pts``, ``prev``, ``nxt`` (K, P, 3) are the foot points at
-    the frames and at their neighbours (``dt`` (K,) s apart)."""
-    p2 = pts @ hz.T
-    inside = _inside_grown(p2, poly2, crit.margin_m).any(axis=1)
-    with np.errstate(invalid="ignore"):
-        low = np.where(np.isfinite(pts).all(axis=2), np.abs(pts @ up - h), np.inf).min(axis=1)
-        speed = np.linalg.norm(nxt - prev, axis=2) / dt[:, None]
-        slow = np.where(np.isfinite(speed), speed, np.inf).min(axis=1)
-        near = np.linalg.norm(p2 - cop2[:, None, :], axis=2)
-        near = np.where(np.isfinite(near), near, np.inf).min(axis=1)
-    return inside & (low <= crit.floor_m), slow, near
+    return known & ~(grounded & ~(fv > threshold_n)).any(axis=1) & ~loads.flagged()
 
 
 def _standing(on: Array, speed: Array, near: Array, speed_mps: float) -> Array:
@@ -549,66 +872,3 @@ def _standing(on: Array, speed: Array, near: Array, speed_mps: float) -> Array:
                 beaten = on[:, b] & (speed[:, b] < speed[:, a]) & (near[:, b] < near[:, a])
                 out[:, a] &= ~(beaten & (speed[:, a] > speed_mps))
     return out
-
-
-def _assign(
-    pl: PlateWrench,
-    feet: Sequence[str],
-    fpts: list[Array],
-    cop: Array,
-    h: float,
-    frames: Array,
-    i0: int,
-    i1: int,
-    t: Array,
-    up: Array,
-    crit: _Criteria,
-) -> str:
-    """The foot standing on plate ``pl`` during frames [i0, i1), judged on the foot points
-    ``fpts`` ([(N, P, 3)], filled at ``frames`` and their neighbours) at ``frames`` (at most
-    ``_SAMPLES`` of the interval); ``h`` is the height of the plate surface along ``up``."""
-    span = f"{pl.name} contact {t[i0]:.3f}–{t[i1 - 1]:.3f} s"
-    hz = _horizontal_axes(up)
-    c2 = cop[frames] @ hz.T
-    if pl.corners is not None:
-        poly = np.asarray(pl.corners, dtype=float) @ hz.T
-        k0 = np.clip(frames - 1, 0, t.size - 1)
-        k1 = np.clip(frames + 1, 0, t.size - 1)
-        dt = np.maximum(t[k1] - t[k0], 1e-12)
-        state = [
-            _foot_state(fp[frames], fp[k0], fp[k1], dt, poly, c2, h, up, hz, crit) for fp in fpts
-        ]
-        on = _standing(*(np.stack(x, axis=1) for x in zip(*state)), crit.speed_mps)
-        frac = on.mean(axis=0)
-        both = (on.sum(axis=1) >= 2).mean()
-        if both > 0.5:
-            names = [f for f, x in zip(feet, frac) if x > 0]
-            raise ForcePlateError(
-                f"{span}: both feet ({', '.join(names)}) stand on the plate at "
-                f"t = {t[frames[int(np.argmax(on.sum(axis=1) >= 2))]]:.3f} s; cannot split its load"
-            )
-        best = int(np.argmax(frac))
-        if frac[best] < 0.5:
-            raise ForcePlateError(
-                f"{span}: no foot over the plate at t = {t[i0]:.3f} s (best {feet[best]} on it "
-                f"in {100 * frac[best]:.0f} % of the frames)"
-            )
-        return feet[best]
-    # nearest point of each foot (feet may carry different numbers of points: reduce first)
-    dist = np.stack(
-        [
-            np.where(np.isfinite(d), d, np.inf).min(axis=1)
-            for d in (np.linalg.norm(fp[frames] @ hz.T - c2[:, None, :], axis=2) for fp in fpts)
-        ],
-        axis=1,
-    )  # (frames, feet)
-    usable = np.isfinite(dist).all(axis=1)
-    med = np.median(dist[usable], axis=0) if usable.any() else np.full(len(feet), np.inf)
-    best = int(np.argmin(med))
-    radius = crit.cop_radius_m
-    if not med[best] <= radius:
-        raise ForcePlateError(
-            f"{span}: no foot within {radius} m of the centre of pressure at t = {t[i0]:.3f} s "
-            f"(nearest {feet[best]} at {med[best]:.3f} m)"
-        )
-    return feet[best]

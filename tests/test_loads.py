@@ -77,28 +77,38 @@ def test_contact_intervals_and_sign_of_an_action_plate():
     assert np.all(loads.force[:, b, 1] > 0)  # made a ground reaction again
 
 
-def test_unassignable_contacts_raise_naming_plate_and_time():
+def test_unassignable_contacts_are_flagged_or_raise_naming_plate_and_time():
     pl = TRIAL.plates[0]
     mid = (TRIAL.plates[0].corners + TRIAL.plates[1].corners) / 2
     both = dataclasses.replace(
         pl, corners=mid + np.array([[0, 0, 0.2], [0, 0, 0.2], [0, 0, -0.2], [0, 0, -0.2]])
     )
+    flagged = external_loads(MODEL, KIN, [both])  # default: flag, never guess, never raise
+    # both feet stand on it until 0.81 s; then the right foot swings (1–1.8 m/s) over it
+    assert [(f.plate, f.reason, f.feet, f.start_time) for f in flagged.flags] == [
+        ("plate1", "shared", ("foot_r", "foot_l"), 0.0)
+    ]
+    shared = flagged.shared_contact
+    assert shared[KIN.time <= 0.8].all() and not flagged.unassigned_contact.any()
+    assert np.all(flagged.total()[0][shared] == 0.0)  # the load is on no body there
     with pytest.raises(
         ForcePlateError, match=r"plate1 contact 0\.000.*both feet \(foot_r, foot_l\)"
     ):
-        external_loads(MODEL, KIN, [both])
+        external_loads(MODEL, KIN, [both], on_unassigned="raise")
     far = dataclasses.replace(pl, corners=pl.corners + np.array([3.0, 0.0, 0.0]))
+    assert [f.reason for f in external_loads(MODEL, KIN, [far]).flags] == ["unassigned"]
     with pytest.raises(ForcePlateError, match=r"plate1 .*no foot over the plate at t = 0\.000 s"):
-        external_loads(MODEL, KIN, [far])
+        external_loads(MODEL, KIN, [far], on_unassigned="raise")
     no_corners = dataclasses.replace(pl, corners=None, cop=pl.cop + np.array([2.0, 0.0, 0.0]))
     with pytest.raises(ForcePlateError, match=r"no foot within 0\.3 m"):
-        external_loads(MODEL, KIN, [no_corners])
+        external_loads(MODEL, KIN, [no_corners], on_unassigned="raise")
     # a foot inside the outline but far from the plate surface does not stand on it
     for dy in (0.5, -0.5):
         shift = np.array([0.0, dy, 0.0])  # the model's up is +y
         lifted = dataclasses.replace(pl, cop=pl.cop + shift, corners=pl.corners + shift)
         with pytest.raises(ForcePlateError, match=r"plate1 .*no foot over the plate"):
-            external_loads(MODEL, KIN, [lifted])
+            external_loads(MODEL, KIN, [lifted], on_unassigned="raise")
+        assert external_loads(MODEL, KIN, [lifted]).unassigned_contact.all()
     assert external_loads(MODEL, KIN, [pl], floor_m=0.1).assignments[0].body == "foot_r"
     # without corners the COP decides
     ok = external_loads(MODEL, KIN, [dataclasses.replace(p, corners=None) for p in TRIAL.plates])
@@ -236,9 +246,21 @@ def test_overground_walk_plates_go_to_the_standing_foot_not_the_swinging_one():
     )
     assert [a.body for a in cop_only.assignments] == [a.body for a in loads.assignments]
     np.testing.assert_array_equal(cop_only.force, loads.force)
-    # without the swing test the outline counts both feet on plate 1: a typed error
+    # without the swing test the outline counts both feet on plate 1 while the right foot swings
+    # over it: those frames are flagged (no load on a foot there, not measured), or raise
+    bad = external_loads(model, kin, plates, cutoff_hz=15.0, speed_mps=np.inf)
+    assert [(f.plate, f.reason, round(f.start_time, 2)) for f in bad.flags] == [
+        ("plate1", "shared", 5.31),
+        ("plate3", "shared", 5.85),
+    ]
+    from msk.loads import contact_measured
+
+    assert not contact_measured(model, kin, bad)[bad.shared_contact].any()
+    assert contact_measured(model, kin, loads).sum() > contact_measured(model, kin, bad).sum()
     with pytest.raises(ForcePlateError, match=r"plate1 contact 5\.133.*both feet"):
-        external_loads(model, kin, plates, cutoff_hz=15.0, speed_mps=np.inf)
+        external_loads(
+            model, kin, plates, cutoff_hz=15.0, speed_mps=np.inf, on_unassigned="raise"
+        )
 
 
 def test_contact_measured_flags_a_foot_on_the_floor_beside_the_plates():

@@ -22,6 +22,14 @@ from msk.io.frames import (
     rotation_between,
     to_model_frame,
 )
+from msk.io.grf import (
+    ExternalForceSpec,
+    ExternalLoadsSpec,
+    GrfForceSet,
+    external_force_sets,
+    grf_force_sets,
+    read_external_loads_xml,
+)
 from msk.io.opensim_files import (
     MarkerTable,
     Table,
@@ -37,18 +45,24 @@ from msk.io.tables import read_csv_table, write_csv_table
 
 __all__ = [
     "Event",
+    "ExternalForceSpec",
+    "ExternalLoadsSpec",
     "ForcePlate",
     "GapReport",
+    "GrfForceSet",
     "MarkerTable",
     "ModelOutputs",
     "PlateSpec",
     "Subject",
     "Table",
     "Trial",
+    "external_force_sets",
+    "grf_force_sets",
     "is_measured_marker",
     "lab_to_model_rotation",
     "read_c3d",
     "read_csv_table",
+    "read_external_loads_xml",
     "read_mot",
     "read_sto",
     "read_trc",

@@ -3,9 +3,9 @@
 Everything is converted to SI once, here: positions m, forces N, moments N·m, time s, angles rad,
 mass kg, height m. Time is axis 0 of every array.
 
-Force platforms (C3D ``FORCE_PLATFORM`` types 2, 3 and 4) are computed from the analog channels in
-vectorised numpy with the conventions of ezc3d's ``ForcePlatforms`` module (ezc3d's own extraction
-loops over frames in Python and is ~10x slower; ``tests/io`` checks that both agree):
+Force platforms (C3D ``FORCE_PLATFORM`` types 1, 2, 3 and 4) are computed from the analog channels
+in vectorised numpy with the conventions of ezc3d's ``ForcePlatforms`` module (ezc3d's own
+extraction loops over frames in Python and is ~10x slower; ``tests/io`` checks that both agree):
 
 * plate axes ``R = [x̂ ŷ ẑ]`` from the corners: ``x = c0 - c1``, ``y = c0 - c3``, ``z = x × y``;
 * ``ORIGIN`` (the transducer offset, flipped so that its z is ≤ 0) moves the measured moment to
@@ -13,6 +13,11 @@ loops over frames in Python and is ~10x slower; ``tests/io`` checks that both ag
 * COP in plate axes ``(-M_c,y / F_z, M_c,x / F_z, 0)``; free moment ``T = M_c + F × p_cop``
   (only its plate-normal component is non-zero);
 * everything is then rotated to the lab: ``F_lab = R F``, ``M_lab = R M_c``, ``cop = R p + c̄``.
+
+Type 1 plates (channels ``Fx Fy Fz Px Py Mz``, e.g. BTS systems) record the COP and the free
+moment directly: ``(Px, Py, 0)`` is the COP in plate axes about the centre of the working surface
+(ezc3d and MOtoNMS read it so; ``ORIGIN`` is not used), ``Mz`` the free moment along the plate
+normal, in N·<point units>; ``M_c = p × F + (0, 0, Mz)``.
 
 The force is the ground reaction on the subject (upward when loaded), as ezc3d and OpenSim's
 C3DFileAdapter report it.
@@ -487,10 +492,10 @@ def _plates(
     used_by: dict[int, int] = {}
     for p in range(used):
         typ = int(types[p])
-        nchan = {2: 6, 4: 6, 3: 8}.get(typ)
+        nchan = {1: 6, 2: 6, 4: 6, 3: 8}.get(typ)
         if nchan is None:
             raise ForcePlateError(
-                f"{path}: force platform {p + 1} has type {typ}; msk reads types 2, 3 and 4"
+                f"{path}: force platform {p + 1} has type {typ}; msk reads types 1, 2, 3 and 4"
             )
         if chan.shape[0] < nchan or chan.shape[1] <= p:
             raise ForcePlateError(
@@ -523,6 +528,33 @@ def _plates(
         rot = np.column_stack([ax / nx, ay / np.linalg.norm(ay), az / nz])
         centre = c.mean(axis=0)
         ch = analogs[:, idx]  # (Na, nchan) file units
+        if typ == 1:
+            # Fx Fy Fz, COP (Px, Py) on the surface about its centre, free moment Mz: all in the
+            # plate axes; the moment about the centre is c x F + (0, 0, Mz)
+            f_raw = ch[:, :3]
+            fz = f_raw[:, 2]
+            loaded = np.abs(fz) >= cop_threshold_n
+            cop_raw = np.column_stack([ch[:, 3], ch[:, 4], np.zeros_like(fz)])
+            t_raw = np.column_stack([np.zeros_like(fz), np.zeros_like(fz), ch[:, 5]])
+            m_raw = np.cross(cop_raw, f_raw) + t_raw
+            cop_raw[~loaded] = np.nan
+            t_raw[~loaded] = 0.0
+            plates.append(
+                ForcePlate(
+                    index=p,
+                    type=typ,
+                    force=_apply(f_raw, rot),
+                    moment=_apply(m_raw, rot) * pos_scale,
+                    cop=(_apply(cop_raw, rot) + centre) * pos_scale,
+                    free_moment=_apply(t_raw, rot) * pos_scale,
+                    corners=c * pos_scale,
+                    origin=centre * pos_scale,
+                    rotation=rot,
+                    channels=tuple(analog_labels[i] for i in idx),
+                    rate_hz=rate_hz,
+                )
+            )
+            continue
         if typ == 3:
             a, b, az0 = o
             f_raw = np.column_stack([ch[:, 0] + ch[:, 1], ch[:, 2] + ch[:, 3], ch[:, 4:8].sum(1)])
@@ -762,7 +794,8 @@ def read_c3d(path: str | Path, *, cop_threshold_n: float = 20.0) -> Trial:
 class PlateSpec:
     """A force platform to declare in a written C3D.
 
-    ``channels`` are analog labels (6 for types 2/4, 8 for type 3) in C3D order; ``corners_m``
+    ``channels`` are analog labels (6 for types 1/2/4, 8 for type 3) in C3D order (type 1:
+    Fx Fy Fz Px Py Mz, the COP about the centre of the surface in point units); ``corners_m``
     ``(4, 3)`` and ``origin_m`` (transducer offset, plate axes) are in metres and written in the
     file's point units. Moment channels must already be in N·<point units>.
     """
