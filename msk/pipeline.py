@@ -130,6 +130,10 @@ PLATE_ASSIGNMENT = (
 
 #: Scaling measurements (model marker pairs → bodies), used where both markers exist in the
 #: model and (after ``[markers] rename``) in the static trial.
+#: IK weight of the coordinate task holding an unobserved foot joint at 0 rad (weight per rad²,
+#: markers per m²: 1° off costs as much as 17 mm of marker error)
+HELD_COORDINATE_WEIGHT = 1.0
+
 DEFAULT_MEASUREMENTS: tuple[tuple[str, tuple[tuple[str, str], ...], tuple[str, ...]], ...] = (
     ("pelvis", (("R.ASIS", "L.ASIS"),), ("pelvis",)),
     ("femur_r", (("R.ASIS", "R.Knee.Lat"),), ("femur_r",)),
@@ -508,40 +512,95 @@ class _Session:
 
     # ------------------------------------------------------------------ model
     def build_model(self) -> Any:
+        """Marker-set recognition, heading, scaling (static trial, else the motion, else the
+        stature: the method of every body is reported) and marker placement."""
         cfg = self.cfg
+        trial = self.trial
 
         def do() -> dict[str, Any]:
             self.check("model")
-            from msk.scaling import place_markers, scale_model, usable_measurements
+            from msk.io.frames import pelvis_heading_rotation
+            from msk.markersets import recognise, zeros_as_gaps
+            from msk.scaling import (
+                place_markers,
+                place_markers_from_motion,
+                scale_from_motion,
+                scale_from_static,
+            )
 
             model = _load_model(self.model_src)
+            bodies = [b.name for b in model.bodies]
             info: dict[str, Any] = {
                 "source": str(self.model_src),
                 "generic_mass_kg": model.total_mass,
             }
-            static, shared = None, set()
+            up = -np.asarray(model.gravity, dtype=float)
+            x_lab = zeros_as_gaps(trial.markers)
+            match = recognise(
+                trial.marker_labels, model.marker_names, rename=cfg.marker_rename,
+                model_bodies=bodies, markers=x_lab,
+            )  # fmt: skip
+            info["marker_set"] = {
+                "protocol": match.protocol,
+                "matched": dict(match.rename),
+                "excluded": dict(match.excluded),
+                "notes": list(match.notes),
+            }
+            # heading: the progression where it agrees with the pelvis markers (within 30°),
+            # else the pelvis markers (treadmill, turning, short trials), else none
+            head = pelvis_heading_rotation(
+                trial.up, up, x_lab, trial.marker_labels, model, rename=match.rename
+            )
+            rot, source = head.rotation, head.source
+            prog = head.progression_yaw_deg
+            if prog is not None and (
+                head.source != "pelvis markers"
+                or abs((head.yaw_deg - prog + 180.0) % 360.0 - 180.0) <= 30.0
+            ):
+                rot, source = lab_to_model_rotation(trial.up, up, trial.markers), "progression"
+            info["heading"] = {
+                "source": source,
+                "pelvis_yaw_deg": head.yaw_deg if head.source == "pelvis markers" else None,
+                "progression_yaw_deg": prog,
+                "message": head.message,
+            }
+            report = None
             if self.static is not None:
-                up = -np.asarray(model.gravity, dtype=float)
-                sm, slabels, stime = _read_markers(self.static.file, up)
-                slabels = self.labels_of(slabels)
-                static = {lab: sm[:, i] for i, lab in enumerate(slabels)}
-                shared = set(slabels) & set(model.marker_names)
-            if cfg.model.scale:
-                model = scale_model(
-                    model,
-                    static,
-                    measurements=usable_measurements(DEFAULT_MEASUREMENTS, shared),
-                    body_mass=cfg.subject.mass_kg,
-                )
-                info["scale_ratios"] = dict(model.metadata.get("scale_ratios", {}))
-            if self.static is not None:
+                sm, slabels_raw, stime = _read_markers(self.static.file, up)
+                smatch = recognise(
+                    slabels_raw, model.marker_names, rename=cfg.marker_rename,
+                    model_bodies=bodies, markers=zeros_as_gaps(sm),
+                )  # fmt: skip
+                sm, slabels = smatch.apply(sm, slabels_raw)
+                if cfg.model.scale:
+                    static = {lab: sm[:, i] for i, lab in enumerate(slabels)}
+                    model, report = scale_from_static(
+                        model, static, height_m=cfg.subject.height_m,
+                        body_mass=cfg.subject.mass_kg,
+                    )  # fmt: skip
                 try:
                     model, placed = place_markers(model, sm, slabels, stime, move=cfg.marker_move)
                 except ModelError as exc:
                     raise ConfigError(f"{cfg.path}: markers.move: {exc}") from None
                 info["marker_placement"] = placed
+            else:
+                # no static trial: the task trial's own markers scale and place (the segment
+                # lengths are constant over a motion; msk.scaling.scale_from_motion)
+                xm, mlabels = match.apply(trial.rotated(rot).markers, trial.marker_labels)
+                if cfg.model.scale:
+                    model, report = scale_from_motion(
+                        model, xm, mlabels, trial.time, height_m=cfg.subject.height_m,
+                        body_mass=cfg.subject.mass_kg,
+                    )  # fmt: skip
+                model, placed = place_markers_from_motion(
+                    model, xm, mlabels, trial.time, move=cfg.marker_move
+                )
+                info["marker_placement"] = placed
+            if report is not None:
+                info["scaling"] = report.summary()
+                info["scale_ratios"] = dict(model.metadata.get("scale_ratios", {}))
             info["mass_kg"] = model.total_mass
-            return {"model": model, "info": info}
+            return {"model": model, "info": info, "rotation": rot, "rename": dict(match.rename)}
 
         self.built = self.runner.run(
             "model",
@@ -553,16 +612,35 @@ class _Session:
                 "scale": cfg.model.scale,
                 "knee": cfg.model.knee,
                 "mass": cfg.subject.mass_kg,
+                "height": cfg.subject.height_m,
                 "rename": dict(cfg.marker_rename),
                 "move": list(cfg.marker_move),
             },
         )
         self.model = self.built["model"]
-        # the task trial in the model frame (lab up → model up, walking along +x)
-        up = -np.asarray(self.model.gravity, dtype=float)
-        self.rot = lab_to_model_rotation(self.trial.up, up, self.trial.markers)
-        self.mtrial = self.trial.rotated(self.rot)
-        self.labels = self.labels_of(self.trial.marker_labels)
+        # the task trial in the model frame (lab up → model up, heading as decided above);
+        # exact-zero samples are gaps (TRC writers store missing markers as 0, 0, 0)
+        from msk.markersets import zeros_as_gaps
+
+        self.rot = self.built["rotation"]
+        mtrial = trial.rotated(self.rot)
+        self.mtrial = dataclasses.replace(mtrial, markers=zeros_as_gaps(mtrial.markers))
+        inv = {v: k for k, v in self.built["rename"].items()}
+        self.labels = tuple(inv.get(lab, lab) for lab in trial.marker_labels)
+        # foot joints the markers cannot observe (fewer than 3 markers on the bodies distal to
+        # the joint: e.g. Plug-in Gait's heel + toe) are held near neutral by an IK coordinate
+        # task (OpenSim's IKCoordinateTask), reported, instead of wandering to −75°
+        seen = {lab for lab in self.labels if lab in self.model.marker_names}
+        body_of = {m.name: m.body for m in self.model.markers}
+        self.held: dict[str, tuple[float, float]] = {}
+        for sfx in ("_r", "_l"):
+            for coord, child in (("subtalar_angle", "calcn"), ("mtp_angle", "toes")):
+                name, body = coord + sfx, child + sfx
+                if name not in self.model.coordinate_names or body not in self.model.body_joint:
+                    continue
+                sub = set(self.model.subtree(body))
+                if sum(body_of.get(m) in sub for m in seen) < 3:
+                    self.held[name] = (0.0, HELD_COORDINATE_WEIGHT)
         # plates of a GRF file (``grf``), in the frame of the trial's markers: rotated alike
         grf = self.raw.get("grf")
         self.grf_plates = None if grf is None else tuple(_rotated_plate(p, self.rot) for p in grf)
@@ -578,6 +656,7 @@ class _Session:
             labels,
             trial.time,
             weights=dict(self.cfg.marker_weights) or None,
+            coordinate_tasks=dict(self.held) or None,
             cutoff_hz=self.cfg.filters.kinematics_cutoff_hz,
         )
 
@@ -599,6 +678,7 @@ class _Session:
             settings={
                 "weights": dict(self.cfg.marker_weights),
                 "cut": self.cfg.filters.kinematics_cutoff_hz,
+                "held": dict(self.held),
             },
         )
         return self.kin
@@ -1277,13 +1357,14 @@ class _Session:
                 self.task.name, quality=quality, model=model, kinematics=self.kin,
                 joint_torques=self.jt, mass_kg=cfg.subject.mass_kg,
                 height_m=cfg.subject.height_m, marker_labels=self.trial.marker_labels,
-                optimization=sol, plate_mass_kg=plate_mass,
+                optimization=sol, plate_mass_kg=plate_mass, held=tuple(self.held),
                 peak_external_force_n=float(np.nanmax(
                     np.linalg.norm(np.nansum(self.ext.force[self.measured], axis=1), axis=1),
                     initial=0.0)),
             )
         ]  # fmt: skip
         quality["thresholds"] = dict(THRESHOLDS)
+        quality["held_coordinates"] = sorted(self.held)
         return {
             **self.base_summary(),
             "model": {**self.built["info"], "name": model.name, "muscles": len(model.muscles)},

@@ -124,7 +124,9 @@ def _flag(trial: str, quantity: str, value: float, threshold: float, message: st
     return Flag(trial, quantity, float(value), float(threshold), message)
 
 
-def _coordinate_flags(trial: str, kin: Any, th: Mapping[str, float]) -> list[Flag]:
+def _coordinate_flags(
+    trial: str, kin: Any, th: Mapping[str, float], held: set[str]
+) -> list[Flag]:
     out: list[Flag] = []
     q = np.asarray(kin.q, dtype=float)
     good = np.isfinite(q).all(axis=1)
@@ -132,7 +134,7 @@ def _coordinate_flags(trial: str, kin: Any, th: Mapping[str, float]) -> list[Fla
         return out
     for j, name in enumerate(kin.coordinate_names):
         stem = name[:-2] if name.endswith(("_r", "_l")) else name
-        if stem not in PHYSIOLOGICAL_RANGES_DEG:
+        if stem not in PHYSIOLOGICAL_RANGES_DEG or name in held:
             continue
         deg = np.degrees(q[good, j])
         lo, hi = PHYSIOLOGICAL_RANGES_DEG[stem]
@@ -249,6 +251,7 @@ def gait_flags(
     optimization: Mapping[str, Any] | None = None,
     plate_mass_kg: float | None = None,
     peak_external_force_n: float | None = None,
+    held: Sequence[str] = (),
     thresholds: Mapping[str, float] = THRESHOLDS,
 ) -> list[Flag]:
     """Every gate of the module docstring on one gait trial.
@@ -257,7 +260,8 @@ def gait_flags(
     ``residual_force_rms_pct_bw``, ``residual_moment_rms_nm`` …, None where not computed);
     ``plate_mass_kg`` :func:`body_mass_from_loads` of the trial; ``peak_external_force_n`` the
     largest ground-reaction magnitude (Hicks et al. 2015 state the moment bound on it; body
-    weight when None)."""
+    weight when None); ``held`` coordinates held near neutral by an IK coordinate task (the
+    markers do not observe them; reported as such, not checked for range or freezing)."""
     th = {**THRESHOLDS, **thresholds}
     out: list[Flag] = []
     ik = quality.get("ik_marker_rms_mean_m")
@@ -306,7 +310,7 @@ def gait_flags(
                       f"the plates weigh the subject at {plate_mass_kg:.1f} kg; the configuration"
                       f" says {mass_kg:g} kg ({d:+.1f} %)")
             )  # fmt: skip
-    out += _coordinate_flags(trial_name, kinematics, th)
+    out += _coordinate_flags(trial_name, kinematics, th, set(held))
     out += _unobserved_flags(trial_name, model, kinematics, th)
     dup = sorted({lab for lab in marker_labels if list(marker_labels).count(lab) > 1})
     if dup:
