@@ -322,6 +322,7 @@ class ExternalLoads:
 
 
 _NONE, _SHARED = -1, -2  # per-frame labels besides a foot index
+_BELT_MPS = 0.3  # a plate whose surface moves faster than this is a treadmill belt
 _MIN_SEGMENT_S = 0.03  # a foot's run shorter than this between runs of another foot is noise
 
 
@@ -420,8 +421,10 @@ class _Prepared:
     cop: Array
     height: float
     contact: NDArray[np.bool_]
+    on: NDArray[np.bool_] | None = None  # (N, F) over the plate, before the swing test
     standing: NDArray[np.bool_] | None = None  # (N, F) after the swing test
     primary: NDArray[np.int64] | None = None  # (N,) nearest standing foot, -1 none
+    surface_v: Array | None = None  # (3,) velocity of the surface (a treadmill belt's)
 
 
 def external_loads(
@@ -515,7 +518,7 @@ def external_loads(
         crit = _Criteria(margin_m, cop_radius_m, floor_m, speed_mps)
         hz = _horizontal_axes(up)
         for p in auto:
-            p.standing, p.primary = _plate_state(p, fpts, vel, up, hz, crit)
+            p.on, p.standing, p.primary, p.surface_v = _plate_state(p, fpts, vel, up, hz, crit)
         for p in prepared:  # an explicit assignment explains its foot too
             if p.plate.name in assignment:
                 body = assignment[p.plate.name]
@@ -610,7 +613,12 @@ def external_loads(
         moment=np.stack(moment, axis=1) if nb else np.zeros((n, 0, 3)),
         point=point,
         assignments=tuple(assigned),
-        metadata={"surface_heights_m": {p.plate.name: p.height for p in prepared}},
+        metadata={
+            "surface_heights_m": {p.plate.name: p.height for p in prepared},
+            "surface_velocities_mps": {
+                p.plate.name: p.surface_v.tolist() for p in prepared if p.surface_v is not None
+            },
+        },
         flags=tuple(flags),
         shared_contact=shared,
         unassigned_contact=unassigned,
@@ -685,10 +693,11 @@ def _plate_state(
     up: Array,
     hz: Array,
     crit: _Criteria,
-) -> tuple[NDArray[np.bool_], NDArray[np.int64]]:
-    """Per frame of contact, which feet stand on the plate ``p`` (N, F) and the one nearest the
-    COP (N,) (-1: none). Module docstring: outline (or COP radius), surface height, swing test
-    with speeds relative to the plate surface (its velocity: the median velocity of the
+) -> tuple[NDArray[np.bool_], NDArray[np.bool_], NDArray[np.int64], Array]:
+    """Per frame of contact, which feet are over the plate ``p`` (N, F), which of them stand
+    on it (N, F) and the standing one nearest the COP (N,) (-1: none); also the velocity of
+    the plate surface (3,). Module docstring: outline (or COP radius), surface height, swing
+    test with speeds relative to the plate surface (its velocity: the median velocity of the
     slowest point of the foot nearest the COP — zero for a floor plate, the belt's for a
     treadmill)."""
     n, nf = p.contact.size, len(fpts)
@@ -730,26 +739,30 @@ def _plate_state(
     st = _standing(on, speed, near, crit.speed_mps)
     standing = np.zeros((n, nf), dtype=bool)
     standing[k] = st
+    over = np.zeros((n, nf), dtype=bool)
+    over[k] = on
     primary = np.full(n, -1, dtype=np.int64)
     has = st.any(axis=1)
     primary[k[has]] = np.argmin(np.where(st, near, np.inf), axis=1)[has]
-    return standing, primary
+    return over, standing, primary, surface_v
 
 
 def _labels(p: _Prepared, prepared: Sequence[_Prepared], feet: Sequence[str]) -> Array:
     """(N,) per-frame label of plate ``p``: a foot index, ``_SHARED`` or ``_NONE``.
 
-    A foot standing on ``p`` does not count for it while it is the nearest standing foot of
-    another loaded plate (a foot on the next plate or belt with its toes within the margin),
-    unless that leaves none."""
-    assert p.standing is not None
-    st = p.standing.copy()
-    pruned = st.copy()
+    A foot standing on ``p`` but not the one nearest its COP does not count for it while it is
+    the nearest standing foot of another loaded plate (a foot on the next plate or belt with its
+    toes within the margin); a foot astride two plates is the nearest on both and counts for
+    both."""
+    assert p.standing is not None and p.primary is not None
+    st = p.standing
+    elsewhere = np.zeros_like(st)
     for other in prepared:
         if other is p or other.primary is None:
             continue
         for f in range(len(feet)):
-            pruned[:, f] &= ~(other.contact & (other.primary == f))
+            elsewhere[:, f] |= other.contact & (other.primary == f) & (p.primary != f)
+    pruned = st & ~elsewhere
     keep = np.where(pruned.any(axis=1)[:, None], pruned, st)
     count = keep.sum(axis=1)
     lab = np.where(count >= 2, _SHARED, _NONE)
@@ -760,7 +773,8 @@ def _labels(p: _Prepared, prepared: Sequence[_Prepared], feet: Sequence[str]) ->
 
 def _segments(lab: Array, t: Array, offset: int) -> list[tuple[int, int, int]]:
     """Runs of one label in a contact run, cleaned: a foot's run shorter than
-    ``_MIN_SEGMENT_S`` between runs of one other foot takes that foot; a run with no foot next
+    ``_MIN_SEGMENT_S`` next to runs of one other foot only takes that foot (at the edge of a
+    contact the COP of a few newtons is unreliable); a run with no foot next
     to runs of one foot only, and not longer than them, takes that foot (a foot at the edge of
     the outline at heel strike, a frame of unknown pose). Shared runs are kept as they are.
     Returns [(start, end, label)] with absolute frame indices."""
@@ -786,7 +800,7 @@ def _segments(lab: Array, t: Array, offset: int) -> list[tuple[int, int, int]]:
             w = next(iter(vals))
             if w < 0:
                 continue
-            if v >= 0 and len(nbrs) == 2 and dur(a, b) < _MIN_SEGMENT_S:
+            if v >= 0 and dur(a, b) < _MIN_SEGMENT_S:
                 lab[a:b] = w
                 changed = True
                 break
@@ -820,7 +834,9 @@ def contact_measured(
     (NaN ``q``) are False. The surfaces of the plates (``loads.metadata["surface_heights_m"]``,
     e.g. a raised step) count as floors too: a still foot at a plate's height that carries no
     load is unmeasured. Frames with a shared or unassigned plate contact
-    (:meth:`ExternalLoads.flagged`: a plate's load that went to no body) are False.
+    (:meth:`ExternalLoads.flagged`: a plate's load that went to no body) are False. On a
+    treadmill (every plate's surface moves: ``loads.metadata["surface_velocities_mps"]``) speeds
+    are taken relative to the belts and there is no still floor.
 
     On the other frames a foot stands on the floor beside the plates (the steps before and after
     a walkway's plates): inverse dynamics misses its ground reaction, so the pelvis residuals,
@@ -843,17 +859,22 @@ def contact_measured(
     with warnings.catch_warnings():  # all-NaN frames (unknown pose): NaN, excluded below
         warnings.simplefilter("ignore", RuntimeWarning)
         low = np.stack([np.nanmin(p @ up, axis=1) for p in pts], axis=1)  # (N, F)
-        speed = np.stack(
-            [np.nanmin(np.linalg.norm(np.gradient(p, t, axis=0), axis=2), axis=1) for p in pts],
-            axis=1,
-        )
+        vel = [np.gradient(p, t, axis=0) for p in pts]
         floor = np.nanmin(low)
-    levels = [floor] + [float(h) for h in loads.metadata.get("surface_heights_m", {}).values()]
-    near_level = np.zeros(low.shape, dtype=bool)
-    for h in levels:
-        with np.errstate(invalid="ignore"):
-            near_level |= np.abs(low - h) <= height_m
-    grounded = near_level & (speed <= speed_mps)
+    # supporting surfaces: (height, velocity) — the floor, still, and each plate's surface; a
+    # treadmill session (every plate moving) has no still floor to stand on
+    heights = dict(loads.metadata.get("surface_heights_m", {}))
+    moving = dict(loads.metadata.get("surface_velocities_mps", {}))
+    levels = [(float(h), np.asarray(moving.get(k, (0.0, 0.0, 0.0)))) for k, h in heights.items()]
+    treadmill = bool(moving) and all(np.linalg.norm(v) > _BELT_MPS for v in moving.values())
+    if not treadmill:
+        levels.append((float(floor), np.zeros(3)))
+    grounded = np.zeros(low.shape, dtype=bool)
+    with warnings.catch_warnings(), np.errstate(invalid="ignore"):
+        warnings.simplefilter("ignore", RuntimeWarning)
+        for h, v in levels:
+            speed = np.stack([np.nanmin(np.linalg.norm(x - v, axis=2), axis=1) for x in vel], 1)
+            grounded |= (np.abs(low - h) <= height_m) & (speed <= speed_mps)
     fv = np.zeros((n, len(feet)))
     for k, foot in enumerate(feet):
         for b in model.subtree(foot):
