@@ -426,8 +426,6 @@ def load_config(path: str | Path) -> SessionConfig:
     move = mk.get("move", list, [])
     if not all(isinstance(m, str) for m in move):
         raise ConfigError(f"{source}: markers.move = {move!r} should be a list of marker names")
-    if move and not any(tc.role == "static" for tc in trials):
-        raise ConfigError(f"{source}: markers.move needs a trial with role = 'static'")
     mk.done()
 
     e = _Section(top.get("emg", dict, {}), "emg", source)

@@ -366,20 +366,12 @@ def _contact_measured(model: Any, kin: Any, loads: Any) -> np.ndarray:
     return contact_measured(model, kin, loads)
 
 
-def _read_grf(path: Path) -> tuple[Any, ...]:
-    """The plates of an OpenSim GRF file (:func:`msk.io.read_sto`,
-    :func:`msk.loads.plates_from_table`): one per ``<prefix>force_vx`` column."""
-    from msk.io import read_sto
-    from msk.loads import plates_from_table
+def _read_grf(path: Path, xml: Path | None) -> tuple[Any, ...]:
+    """The plates of an OpenSim GRF file (:func:`msk.loads.plates_from_grf_file`: every common
+    column naming; with an ExternalLoads ``xml``, its force sets)."""
+    from msk.loads import plates_from_grf_file
 
-    tab = read_sto(path)
-    prefixes = [c[: -len("force_vx")] for c in tab.columns if c.endswith("force_vx")]
-    if not prefixes:
-        raise MissingDataError(f"{path}: no ground-reaction columns (<prefix>force_vx …)")
-    try:
-        return plates_from_table(tab.time, tab.data, tab.columns, prefixes=prefixes)
-    except MissingDataError as exc:
-        raise MissingDataError(f"{path}: {exc}") from None
+    return plates_from_grf_file(path, xml)
 
 
 def _rotated_plate(plate: Any, rot: np.ndarray) -> Any:
@@ -473,6 +465,8 @@ class _Session:
             files["contact_force"] = self.task.contact_force
         if self.task.grf is not None:
             files["grf"] = self.task.grf
+        if self.task.external_loads is not None:
+            files["external_loads"] = self.task.external_loads
         for tc in (*self.idtrials, *cfg.trials_with_role("mvc"), *self.fes_trials):
             files[f"{tc.role}:{tc.name}"] = tc.file
         self.model_src = _model_source(cfg)
@@ -499,7 +493,13 @@ class _Session:
             else:
                 out = {"trial": read_c3d(self.task.file)}
             if self.task.grf is not None:
-                out["grf"] = _read_grf(self.task.grf)
+                out["grf"] = _read_grf(self.task.grf, self.task.external_loads)
+                if self.task.external_loads is not None:
+                    from msk.loads import external_loads_assignment
+
+                    out["assignment"] = external_loads_assignment(
+                        self.task.external_loads, self.task.grf
+                    )
             if self.task.contact_force is not None:
                 out["contact"] = _read_contact(
                     self.task.contact_force, self.task.file, self.task.grf
@@ -664,7 +664,11 @@ class _Session:
         from msk.loads import external_loads, plates_from_trial
 
         plates = plates_from_trial(trial) if plates is None else plates
-        return external_loads(self.model, kin, plates, cutoff_hz=self.cfg.filters.grf_cutoff_hz)
+        # explicit assignment: the ExternalLoads .xml of a GRF file, then the config's [loads]
+        assign = {**self.raw.get("assignment", {}), **self.cfg.loads.assign} or None
+        return external_loads(
+            self.model, kin, plates, assignment=assign, cutoff_hz=self.cfg.filters.grf_cutoff_hz
+        )
 
     def kinematics(self) -> Any:
         def do() -> Any:
@@ -692,7 +696,11 @@ class _Session:
             "loads",
             do,
             needs=("kinematics",),
-            settings={"cut": self.cfg.filters.grf_cutoff_hz, "assignment": PLATE_ASSIGNMENT},
+            settings={
+                "cut": self.cfg.filters.grf_cutoff_hz,
+                "assignment": PLATE_ASSIGNMENT,
+                "assign": dict(self.cfg.loads.assign),
+            },
         )
         kin = self.kin
         # frames where a foot stands on the floor beside the plates miss a ground reaction:

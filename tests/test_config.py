@@ -183,10 +183,12 @@ def test_grf_and_marker_move_keys(session_dir: Path):
         ),
         (TEMPLATE.replace("move = []", "move = [3]", 1), "markers.move = .* list of marker"),
         (
-            TEMPLATE.replace('role = "static"', 'role = "mvc"', 1).replace(
-                "move = []", 'move = ["R.Thigh.Upper"]', 1
-            ),
-            "markers.move needs a trial with role = 'static'",
+            TEMPLATE.replace('name = "gait1"', 'name = "../../x"', 1),
+            r"trials\[1\].name = '../../x' must be a plain name",
+        ),
+        (
+            TEMPLATE.replace("# intercondylar_distance_m = 0.04", "intercondylar_distance_m = 4.0"),
+            "contact.intercondylar_distance_m = 4.0 m should be in 0.01–0.10 m",
         ),
     ):
         path.write_text(text)
