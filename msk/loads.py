@@ -532,7 +532,11 @@ def external_loads(
             if pl.name in assignment:
                 segs = [(i0, i1, -3)]  # the explicit body
             else:
-                segs = _segments(labels[id(p)][i0:i1], t[i0:i1], i0)
+                run_lab = labels[id(p)][i0:i1].copy()
+                # the COP of a few newtons is unreliable: those frames take their neighbours'
+                # label; a run of only such frames (a noise blip, a light touch) is unassigned
+                run_lab[p.fv[i0:i1] < 2.0 * threshold_n] = _NONE
+                segs = _segments(run_lab, t[i0:i1], i0)
             for s0, s1, lab in segs:
                 sl = slice(s0, s1)
                 if lab == _SHARED or lab == _NONE:

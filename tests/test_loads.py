@@ -258,9 +258,7 @@ def test_overground_walk_plates_go_to_the_standing_foot_not_the_swinging_one():
     assert not contact_measured(model, kin, bad)[bad.shared_contact].any()
     assert contact_measured(model, kin, loads).sum() > contact_measured(model, kin, bad).sum()
     with pytest.raises(ForcePlateError, match=r"plate1 contact 5\.133.*both feet"):
-        external_loads(
-            model, kin, plates, cutoff_hz=15.0, speed_mps=np.inf, on_unassigned="raise"
-        )
+        external_loads(model, kin, plates, cutoff_hz=15.0, speed_mps=np.inf, on_unassigned="raise")
 
 
 def test_contact_measured_flags_a_foot_on_the_floor_beside_the_plates():
