@@ -869,15 +869,29 @@ def measure_scale_factors_from_motion(
 
 
 def _ik_frames(
-    x: Array, labels: Sequence[str], names: Iterable[str], max_frames: int, min_markers: int
-) -> NDArray[np.int64]:
-    """Up to ``max_frames`` evenly spread frames with at least ``min_markers`` of ``names``."""
+    x: Array, labels: Sequence[str], names: Iterable[str], max_frames: int, min_markers: int,
+    time: ArrayLike | None = None, max_rate_hz: float = 60.0,
+) -> NDArray[np.int64]:  # fmt: skip
+    """Up to ``max_frames`` frames with at least ``min_markers`` of ``names``, **consecutive**
+    (subsampled to at most ``max_rate_hz``) around the middle of the trial: inverse kinematics
+    warm-starts each frame from the previous one, which keeps it on the right branch when few
+    markers pin the legs (pelvis and feet only: crouch gait jumped between hip ±120° with
+    frames a second apart)."""
     cols = [i for i, lab in enumerate(labels) if lab in set(names)]
     n_seen = np.isfinite(x[:, cols]).all(axis=2).sum(axis=1) if cols else np.zeros(len(x))
     good = np.flatnonzero(n_seen >= min_markers)
-    if good.size > max_frames:
-        good = good[np.unique(np.linspace(0, good.size - 1, max_frames).round().astype(int))]
-    return good
+    if good.size <= max_frames:
+        return good
+    step = 1
+    if time is not None:
+        t = np.asarray(time, dtype=float)
+        if t.size > 1 and t[-1] > t[0]:
+            rate = (t.size - 1) / (t[-1] - t[0])
+            step = max(1, int(np.ceil(rate / max_rate_hz)))
+    sub = good[::step] if good.size // step >= max_frames else good
+    mid = sub.size // 2
+    lo = max(0, min(mid - max_frames // 2, sub.size - max_frames))
+    return sub[lo : lo + max_frames]
 
 
 def scale_from_motion(
@@ -939,7 +953,7 @@ def scale_from_motion(
         from msk.kinematics import solve_kinematics
 
         first = apply_scale_factors(model, measured)
-        idx = _ik_frames(x, labels, have, max_frames, 3)
+        idx = _ik_frames(x, labels, have, max_frames, 3, t)
         try:
             kin = solve_kinematics(first, x[idx], labels, t[idx], cutoff_hz=None, min_markers=3)
             q = np.full((x.shape[0], model.n_coords), np.nan)
@@ -1052,7 +1066,7 @@ def place_markers_from_motion(
     unknown = sorted(set(move) - known)
     if unknown:
         raise ModelError(f"model {model.name}: no marker {unknown[0]!r} to move")
-    idx = _ik_frames(x, labels, known, max_frames, min_markers)
+    idx = _ik_frames(x, labels, known, max_frames, min_markers, t)
     if idx.size == 0:
         raise MissingDataError(
             f"motion trial: no frame with {min_markers} model markers for marker placement"
