@@ -535,6 +535,12 @@ def place_markers(
     n = static_markers.shape[0]
     frames = np.unique(np.linspace(0, n - 1, min(n, 9)).round().astype(int))
     base = model.with_markers([m for m in model.markers if m.name not in move]) if move else model
+    # the moved markers still pin the pose where the others are too few to determine it
+    # (3 coordinates per marker at most; e.g. a static with pelvis markers and feet only)
+    seen = {lab for lab in labels if lab in base.marker_names}
+    n_free = sum(not c.locked for c in model.coordinates)
+    if move and 3 * len(seen) < n_free:
+        base = model
     kin = solve_kinematics(
         base, static_markers[frames], labels, time[frames], cutoff_hz=None, min_markers=3
     )
