@@ -58,7 +58,6 @@ def test_every_parameter_recovered_within_5_percent_without_noise(name: str) -> 
     assert set(err) >= {"c1", "c2", "c3", "L_s"}
     bad = {k: round(100 * v, 2) for k, v in err.items() if abs(v) > 0.05}
     assert not bad, f"{name}: parameters off by more than 5 % (in %): {bad}"
-    assert res.seconds["total"] < 60
 
 
 @pytest.mark.slow
