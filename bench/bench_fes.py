@@ -56,10 +56,11 @@ def bench_leg(leg: str, repeat: int) -> None:
             f"N/mm, NRMSD % {table}"
         )
     cold, warm = cpus[0], min(cpus[1:]) if len(cpus) > 1 else float("nan")
+    warm_wall = min(walls[1:]) if len(walls) > 1 else float("nan")
     print(f"CPU: cold {cold:.2f} s, warm {warm:.2f} s, warm/cold = {warm / cold:.2f}")
     print(
         f"| {leg} full protocol (1 % torque, 0.5° noise) | {walls[0]:.1f} s / {cold:.1f} s "
-        f"| {min(walls[1:]):.1f} s / {warm:.1f} s | {warm / cold:.2f} | "
+        f"| {warm_wall:.1f} s / {warm:.1f} s | {warm / cold:.2f} | "
         f"{platform.machine()}, load {os.getloadavg()[0]:.1f} |"
     )
 
