@@ -864,7 +864,9 @@ def contact_measured(
         warnings.simplefilter("ignore", RuntimeWarning)
         low = np.stack([np.nanmin(p @ up, axis=1) for p in pts], axis=1)  # (N, F)
         vel = [np.gradient(p, t, axis=0) for p in pts]
-        floor = np.nanmin(low)
+        # the floor: a low percentile of the feet's lowest points, not their minimum (a frame
+        # or two of a badly tracked foot below the floor must not lift every other foot off it)
+        floor = np.nanpercentile(low, 2.0)
     # supporting surfaces: (height, velocity) — the floor, still, and each plate's surface; a
     # treadmill session (every plate moving) has no still floor to stand on
     heights = dict(loads.metadata.get("surface_heights_m", {}))
@@ -884,6 +886,10 @@ def contact_measured(
         for b in model.subtree(foot):
             if b in loads.bodies:
                 fv[:, k] += np.asarray(loads.force[:, loads.bodies.index(b)]) @ up
+    # a frame whose foot speeds are unknown (an isolated solved frame between unsolved ones)
+    # cannot be shown to have all its ground contact measured
+    speed_known = np.stack([np.isfinite(x).all(axis=2).any(axis=1) for x in vel], axis=1)
+    known &= speed_known.all(axis=1)
     return known & ~(grounded & ~(fv > threshold_n)).any(axis=1) & ~loads.flagged()
 
 

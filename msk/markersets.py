@@ -72,6 +72,7 @@ from msk.exceptions import ShapeMismatchError
 
 __all__ = [
     "LANDMARKS",
+    "LANDMARK_BODIES",
     "MIDLINE_SYNONYMS",
     "SIDED_SYNONYMS",
     "MarkerSetMatch",
@@ -118,6 +119,41 @@ LANDMARKS: Mapping[str, str] = {
     "foot_cluster": "foot technical marker",
     "arm": "arm marker",
     "head": "head marker",
+}
+
+#: landmark key → the body (gait2392 / OpenSim naming stem, side suffix added for sided
+#: landmarks) the bony landmark belongs to: a placement hint for markers without a model marker
+#: (a single static pose cannot tell a PSIS from the lumbar spine by distance alone)
+LANDMARK_BODIES: Mapping[str, str] = {
+    "asis": "pelvis",
+    "psis": "pelvis",
+    "sacrum": "pelvis",
+    "gt": "femur",
+    "knee_lat": "femur",
+    "knee_med": "femur",
+    "thigh_cluster": "femur",
+    "fib_head": "tibia",
+    "tib_tub": "tibia",
+    "ankle_lat": "tibia",
+    "ankle_med": "tibia",
+    "shank_cluster": "tibia",
+    "heel": "calcn",
+    "hindfoot": "calcn",
+    "midfoot_sup": "calcn",
+    "midfoot_lat": "calcn",
+    "midfoot_med": "calcn",
+    "mt1": "calcn",
+    "mt2": "calcn",
+    "mt5": "calcn",
+    "toe_tip": "toes",
+    "c7": "torso",
+    "t10": "torso",
+    "spine": "torso",
+    "sternum": "torso",
+    "xiphoid": "torso",
+    "jugular": "torso",
+    "clavicle": "torso",
+    "acromion": "torso",
 }
 
 #: normalised name (lower case, no separators, side removed) → landmark key, sided landmarks
@@ -374,6 +410,23 @@ class MarkerSetMatch:
     unmatched_model: tuple[str, ...] = ()
     landmarks: Mapping[str, str] = field(default_factory=dict)
     notes: tuple[str, ...] = ()
+
+    def body_hints(self, bodies: Sequence[str]) -> dict[str, str]:
+        """Lab label → the model body its landmark belongs to (:data:`LANDMARK_BODIES`), for
+        the recognised labels whose body (``<stem>_r``/``_l`` by the label's side, or the
+        stem) is in ``bodies``."""
+        have = set(bodies)
+        out: dict[str, str] = {}
+        for lab, lm in self.landmarks.items():
+            stem = LANDMARK_BODIES.get(lm)
+            if stem is None:
+                continue
+            side = parse_label(lab).side
+            for cand in ((f"{stem}_{side.lower()}",) if side else ()) + (stem,):
+                if cand in have:
+                    out[lab] = cand
+                    break
+        return out
 
     @property
     def lab_to_model(self) -> dict[str, str]:

@@ -130,6 +130,9 @@ PLATE_ASSIGNMENT = (
 
 #: Scaling measurements (model marker pairs → bodies), used where both markers exist in the
 #: model and (after ``[markers] rename``) in the static trial.
+#: a frame is solved by IK when it sees this fraction of the most model markers any frame sees
+MIN_MARKER_FRACTION = 0.5
+
 #: IK weight of the coordinate task holding an unobserved foot joint at 0 rad (weight per rad²,
 #: markers per m²: 1° off costs as much as 17 mm of marker error)
 HELD_COORDINATE_WEIGHT = 1.0
@@ -579,7 +582,10 @@ class _Session:
                         body_mass=cfg.subject.mass_kg,
                     )  # fmt: skip
                 try:
-                    model, placed = place_markers(model, sm, slabels, stime, move=cfg.marker_move)
+                    model, placed = place_markers(
+                        model, sm, slabels, stime, move=cfg.marker_move,
+                        hints=smatch.body_hints([b.name for b in model.bodies]),
+                    )  # fmt: skip
                 except ModelError as exc:
                     raise ConfigError(f"{cfg.path}: markers.move: {exc}") from None
                 info["marker_placement"] = placed
@@ -630,7 +636,16 @@ class _Session:
         # foot joints the markers cannot observe (fewer than 3 markers on the bodies distal to
         # the joint: e.g. Plug-in Gait's heel + toe) are held near neutral by an IK coordinate
         # task (OpenSim's IKCoordinateTask), reported, instead of wandering to −75°
-        seen = {lab for lab in self.labels if lab in self.model.marker_names}
+        # (a marker counts when the trial tracks it in at least half of the frames it tracks
+        # anything: metatarsal-head markers lost in most frames do not observe the subtalar)
+        x = self.mtrial.markers
+        vis = np.isfinite(x).all(axis=2)
+        anyvis = vis.any(axis=1)
+        frac = vis[anyvis].mean(axis=0) if anyvis.any() else np.zeros(len(self.labels))
+        seen = {
+            lab for k, lab in enumerate(self.labels)
+            if lab in self.model.marker_names and frac[k] >= 0.5
+        }  # fmt: skip
         body_of = {m.name: m.body for m in self.model.markers}
         self.held: dict[str, tuple[float, float]] = {}
         for sfx in ("_r", "_l"):
@@ -648,16 +663,34 @@ class _Session:
 
     # ------------------------------------------------------------------ kinematics, loads
     def _solve_kinematics(self, trial: Any, labels: Sequence[str]) -> Any:
+        """IK of a trial; a frame that sees fewer than half of the model markers the trial
+        tracks at best is not solved (a subject walking out of the capture volume leaves the
+        acromia alone in view: IK there would give the legs any pose)."""
         from msk.kinematics import solve_kinematics
 
+        names = set(self.model.marker_names)
+        cols = [i for i, lab in enumerate(labels) if lab in names]
+        seen = np.isfinite(trial.markers[:, cols]).all(axis=2)  # (N, used markers)
+        # a frame where a leg segment carrying markers in this trial has none in view is not
+        # solved either: its pose would come from the neighbours only (joint torques there
+        # would be computed from a guessed pose)
+        body_of = {m.name: m.body for m in self.model.markers}
+        blind = np.zeros(trial.time.size, dtype=bool)
+        for body in {body_of[labels[i]] for i in cols}:
+            if body.startswith(("pelvis", "femur", "tibia", "calcn")):
+                on = [k for k, i in enumerate(cols) if body_of[labels[i]] == body]
+                blind |= ~seen[:, on].any(axis=1)
+        markers = np.array(trial.markers, dtype=float, copy=True)
+        markers[blind] = np.nan
         return solve_kinematics(
             self.model,
-            trial.markers,
+            markers,
             labels,
             trial.time,
             weights=dict(self.cfg.marker_weights) or None,
             coordinate_tasks=dict(self.held) or None,
             cutoff_hz=self.cfg.filters.kinematics_cutoff_hz,
+            min_markers=max(3, int(np.ceil(MIN_MARKER_FRACTION * seen.sum(axis=1).max()))),
         )
 
     def _external_loads(self, trial: Any, kin: Any, plates: Any = None) -> Any:

@@ -23,7 +23,7 @@ Thresholds and their sources (:data:`THRESHOLDS`):
   53:205–208, widened by 10°).
 * Frozen coordinates: a leg coordinate whose standard deviation over the trial is below 0.05°
   (a segment that the markers do not observe stays at its initial value).
-* Unobserved segments: frames in which no marker on a leg segment was used by IK.
+* Unobserved segments: solved frames in which no marker on a leg segment was used by IK.
 * Tension optimisation: infeasible frames, frames excluded from it (non-finite or invalid
   inputs), a muscle saturated (activation ≥ 0.99) on more than 25 % of frames (the generic
   strength is short of the task for a quarter of it), reserve actuators
@@ -165,17 +165,20 @@ def _unobserved_flags(trial: str, model: Any, kin: Any, th: Mapping[str, float])
         return out
     body_of = {m.name: m.body for m in model.markers}
     bodies = sorted({b for b in body_of.values() if b.startswith(_LEG_BODIES)})
-    n = errs.shape[0]
+    solved = np.isfinite(errs).any(axis=1)  # frames IK solved (the others are reported apart)
+    if not solved.any():
+        return out
+    n = int(solved.sum())
     for body in bodies:
         cols = [k for k, nm in enumerate(names) if body_of.get(nm) == body]
-        seen = np.isfinite(errs[:, cols]).any(axis=1) if cols else np.zeros(n, bool)
+        seen = np.isfinite(errs[solved][:, cols]).any(axis=1) if cols else np.zeros(n, bool)
         pct = 100.0 * (1.0 - seen.mean())
         if pct > th["unobserved_segment_frames_pct"]:
             out.append(
                 _flag(trial, f"{body}_unobserved_frames_pct", pct,
                       th["unobserved_segment_frames_pct"],
-                      f"no marker observes {body} in {pct:.0f} % of the frames: its pose there "
-                      "comes from the neighbouring segments only")
+                      f"no marker observes {body} in {pct:.0f} % of the solved frames: its pose "
+                      "there comes from the neighbouring segments only")
             )  # fmt: skip
     return out
 

@@ -485,8 +485,13 @@ def place_markers(
     *,
     max_distance_m: float = 0.25,
     move: Sequence[str] = (),
+    hints: Mapping[str, str] | None = None,
 ) -> tuple[Model, dict[str, Any]]:
     """Add the static trial's non-model markers to ``model`` (OpenSim's MarkerPlacer idea).
+
+    ``hints`` (lab label → body, e.g. :meth:`msk.markersets.MarkerSetMatch.body_hints`) puts a
+    marker of a known bony landmark on its own body when that body is within
+    ``max_distance_m``, instead of on the nearest bone.
 
     The static pose θ̄ is the median of inverse kinematics on up to 9 frames of the static
     trial, with the markers the model already has (``labels`` are in model names where a model
@@ -571,6 +576,16 @@ def place_markers(
         if lab in known or lab in not_markers or not np.isfinite(mean[i]).all():
             continue
         dist, body = min((point_segment_distance(mean[i], a, b), nm) for nm, a, b in segs)
+        hint = (hints or {}).get(lab)
+        if hint is not None and hint != body and hint in model.body_frame:
+            # the landmark's own body (a PSIS is on the pelvis even where the lumbar spine's
+            # bone segment passes nearer), if it is within reach
+            d_hint = min(
+                (point_segment_distance(mean[i], a, b) for nm, a, b in segs if nm == hint),
+                default=np.inf,
+            )
+            if d_hint <= max_distance_m:
+                dist, body = d_hint, hint
         if dist > max_distance_m:
             too_far[lab] = [body, dist]
             continue
