@@ -29,8 +29,9 @@ Steps (in protocol order):
 
 from __future__ import annotations
 
+import contextlib
 import functools
-from collections.abc import Sequence
+from collections.abc import Iterator, Sequence
 from dataclasses import dataclass
 from typing import Any
 
@@ -53,6 +54,7 @@ from msk.fes.model import (
     RecruitmentPW,
     param_vector,
 )
+from msk.fes.priors import k_s_lower_bound
 from msk.fes.simulate import DT, _step_function, simulate
 from msk.fes.stimulation import Stimulation, calcium_pi, sample_on_grid
 
@@ -87,6 +89,40 @@ F64 = NDArray[np.float64]
 
 def _quality(measured: F64, predicted: F64) -> tuple[float, float]:
     return float(nrmsd(measured, predicted)), float(nrmse(measured, predicted))
+
+
+def _fmt(v: Any) -> str:
+    a = np.asarray(v, dtype=float)
+    if a.ndim == 0:
+        return f"{float(a):.4g}"
+    return "[" + ", ".join(f"{x:.4g}" for x in a.ravel()[:8]) + (", …]" if a.size > 8 else "]")
+
+
+@contextlib.contextmanager
+def solver_step(step: str, who: str, **values: Any) -> Iterator[None]:
+    """Turn a casadi/ipopt/scipy failure inside the block into :class:`IdentificationError`.
+
+    The message names the identification ``step``, the leg or trial ``who`` and the offending
+    ``values`` (start point, bounds, fixed parameters), plus the solver's first message line.
+    ``RuntimeError`` is what casadi raises (assertions, NaN in a Function, ipopt exceptions);
+    ``ValueError``/``LinAlgError`` are scipy's (non-finite residuals, infeasible start).
+    """
+    try:
+        yield
+    except (RuntimeError, ValueError, np.linalg.LinAlgError) as e:
+        vals = ", ".join(f"{k} = {_fmt(v)}" for k, v in values.items())
+        lines = [ln.strip() for ln in str(e).splitlines() if ln.strip()]
+        why = lines[-1] if lines else type(e).__name__
+        raise IdentificationError(f"{step} ({who}): solver failed with {vals}: {why}") from e
+
+
+def _check_finite(step: str, who: str, **values: Any) -> None:
+    bad = {k: v for k, v in values.items() if not np.all(np.isfinite(np.asarray(v, float)))}
+    if bad:
+        raise IdentificationError(
+            f"{step} ({who}): non-finite result "
+            + ", ".join(f"{k} = {_fmt(v)}" for k, v in bad.items())
+        )
 
 
 # --------------------------------------------------------------------------- geometry (1)
@@ -256,7 +292,9 @@ def identify_pendulum_linear(
     dec = np.log(peaks[0] / peaks[-1]) / max(len(peaks) - 1, 1) if len(peaks) > 1 else 0.1
     sig0 = max(dec * 2 / period, 1e-3)
     p0 = [y[0] - np.median(y[-10:]), sig0, wd0, 0.0, np.median(y[-10:])]
-    res = least_squares(lambda q: _damped(t, *q) - y, p0, method="lm")
+    with solver_step("pendulum (linear)", "pendulum trial", start=p0):
+        res = least_squares(lambda q: _damped(t, *q) - y, p0, method="lm")
+    _check_finite("pendulum (linear)", "pendulum trial", fit=res.x)
     _a, sig, wd, _phi, _c = res.x
     wn = float(np.hypot(wd, sig))
     zeta = float(abs(sig) / wn)
@@ -339,7 +377,9 @@ def identify_pendulum_nonlinear(
         jf = np.asarray(fun(full(z))[1])
         return np.column_stack([jf[:, 0], jf[:, 1], jf[:, 2] if fit_j else jf[:, 5], jf[:, 3]])
 
-    res = least_squares(resid, z0, jac=jac, x_scale=np.abs(np.array(z0)) + 1e-3)
+    with solver_step("pendulum (nonlinear)", "pendulum trial", start=z0, K=K, K_e=K_e):
+        res = least_squares(resid, z0, jac=jac, x_scale=np.abs(np.array(z0)) + 1e-3)
+    _check_finite("pendulum (nonlinear)", "pendulum trial", fit=res.x)
     z = res.x
     j_hat = float(z[2]) if fit_j else float(J)  # type: ignore[arg-type]
     ke_hat = K_e if fit_j else float(z[2])
@@ -519,15 +559,24 @@ def identify_recruitment_pw(
     p, alpha, f, fl = p[on], alpha[on], f[on], fl[on]
     imax = int(np.argmax(p))
     x = p / pw_max
+    if fl[imax] < 0.05:
+        m = subject.muscle
+        raise IdentificationError(
+            f"recruitment (PW) ({subject.name}): force–length factor {fl[imax]:.3g} at the test "
+            f"angle {np.rad2deg(knee_angle):.0f} deg and PW_max (b = {m.b:.4g}, L_c0 = "
+            f"{m.L_c0:.4g} m, L_s = {m.L_s:.4g} m, k_s = {m.k_s:.4g} N/m): F_cm would be "
+            f"{f[imax] / max(fl[imax], 1e-300):.4g} N"
+        )
 
     def model(c: F64) -> F64:
         return c[0] / (1 + np.exp(c[1] * (c[2] - x)))
 
-    res = least_squares(
-        lambda c: model(c) - alpha,
-        [1.0, 6.0, 0.5],
-        bounds=([0.1, 0.1, -1.0], [5.0, 100.0, 2.0]),
-    )
+    with solver_step("recruitment (PW)", subject.name, pw=p, alpha=alpha):
+        res = least_squares(
+            lambda c: model(c) - alpha,
+            [1.0, 6.0, 0.5],
+            bounds=([0.1, 0.1, -1.0], [5.0, 100.0, 2.0]),
+        )
     c1, c2, c3 = (float(v) for v in res.x)
     fit = model(res.x)
     a_max = c1 / (1 + np.exp(c2 * (c3 - p[imax] / pw_max)))
@@ -646,7 +695,14 @@ def identify_isometric_transients(
 
     lb = np.array([1.0, 0.05, 0.2 * m.L_c0, 0.1, -1.0])
     ub = np.array([1e5, 3.0, 5.0 * m.L_c0, 100.0, 2.0])
-    res = least_squares(resid, np.clip(q0, lb, ub), jac=jac, bounds=(lb, ub), x_scale=q0)
+    who = f"{subject.name}, {len(trials)} isometric trials"
+    if not np.all(np.isfinite(q0)) or np.any(q0[:3] <= 0):
+        raise IdentificationError(
+            f"isometric transients ({who}): bad start F_cm, b, L_c0, c2, c3 = {_fmt(q0)}"
+        )
+    with solver_step("isometric transients", who, start=q0, lower=lb, upper=ub):
+        res = least_squares(resid, np.clip(q0, lb, ub), jac=jac, bounds=(lb, ub), x_scale=q0)
+    _check_finite("isometric transients", who, fit=res.x)
     f_cm, b, l_c0, c2, c3 = (float(v) for v in res.x)
     a_max = float(rec.c1 / (1 + np.exp(c2 * (c3 - 1.0))))
     fit = (res.fun + y).reshape(len(trials), n + 1).T
@@ -752,14 +808,16 @@ def identify_recruitment_current(
         return np.asarray(fun(x0, w, p, q)[1])
 
     q0 = np.clip(p[idx], _REC_I_LB + 1e-6, _REC_I_UB - 1e-6)
-    res = least_squares(
-        resid,
-        q0,
-        jac=jac,
-        bounds=(_REC_I_LB, _REC_I_UB),
-        x_scale=np.abs(q0) + 0.1,
-        max_nfev=max_nfev,
-    )
+    with solver_step("recruitment (current)", subject.name, start=q0):
+        res = least_squares(
+            resid,
+            q0,
+            jac=jac,
+            bounds=(_REC_I_LB, _REC_I_UB),
+            x_scale=np.abs(q0) + 0.1,
+            max_nfev=max_nfev,
+        )
+    _check_finite("recruitment (current)", subject.name, fit=res.x)
     q = res.x
     fit = np.interp(t - t[0], tg, resid(q) + yg)
     return RecruitmentCurrentResult(*(float(v) for v in q), t, y, fit, *_quality(y, fit))
@@ -781,6 +839,19 @@ class SeriesStiffnessResult:
     solver_status: str
     iterations: int
     columns: tuple[str, ...] = ("time", "theta_r", "theta_r_fit", "theta_r_initial")
+
+
+#: ipopt return statuses whose point is kept (the others raise :class:`IdentificationError`);
+#: ``solver_status`` of the result tells which one it was.
+_IPOPT_USABLE = frozenset(
+    {
+        "Solve_Succeeded",
+        "Solved_To_Acceptable_Level",
+        "Maximum_Iterations_Exceeded",
+        "Search_Direction_Becomes_Too_Small",
+        "Feasible_Point_Found",
+    }
+)
 
 
 @functools.lru_cache(maxsize=8)
@@ -835,8 +906,9 @@ def identify_series_stiffness(
     Direct multiple shooting: the state ``(θ_r, θ̇_r, K_c, F_c)`` is a decision variable every
     ``interval_steps`` RK4 steps (50 ms), continuity and the initial rest state are equality
     constraints, and the integral is the sum over every 2 ms sample; ``k_s`` is scaled in N/mm
-    and boxed in ``k_s_bounds`` (N/m; Eq. 8's ``k_s > 0`` made strict: by default the series
-    element may stretch by at most ``2 L_c0`` at ``F_cm``, i.e. ``k_s ≥ F_cm/(2 L_c0)``).
+    and boxed in ``k_s_bounds`` (N/m; Eq. 8's ``k_s > 0`` made strict: by default
+    :func:`~msk.fes.priors.k_s_lower_bound` — the series element may stretch at ``F_cm`` by up
+    to twice the largest elongation in Table 3, 2 × 2.76 ``L_c0`` — and 10⁶ N/m).
     The node states are initialised from a simulation at ``k_s0`` (the seed initialises from
     the literature).  All other parameters are those of ``subject`` (initial phase).
     """
@@ -862,14 +934,36 @@ def identify_series_stiffness(
     z0 = np.concatenate([[k0 / 1e3], xnodes.T.ravel()])
     lbx = np.full(dims["n_z"], -np.inf)
     ubx = np.full(dims["n_z"], np.inf)
+    m0 = s0.muscle
     if k_s_bounds is None:
-        # SE elongation at F_cm at most 2 L_c0 (Table 3 reaches 1.04 L_c0, S9L)
-        k_s_bounds = (0.5 * s0.muscle.F_cm / s0.muscle.L_c0, 1e6)
+        k_s_bounds = (k_s_lower_bound(m0.F_cm, m0.L_c0), 1e6)
+    step, who = "k_s NLP (seeds/000 Eq. 8)", f"{subject.name}, dynamic trial"
+    if not (0 < k_s_bounds[0] < k_s_bounds[1]) or not np.isfinite(k_s_bounds[0]):
+        raise IdentificationError(
+            f"{step} ({who}): empty k_s box [{k_s_bounds[0]:.4g}, {k_s_bounds[1]:.4g}] N/m "
+            f"(F_cm = {m0.F_cm:.4g} N, L_c0 = {m0.L_c0:.4g} m from the previous steps)"
+        )
+    _check_finite(step, who, initial_states=xnodes)
     lbx[0], ubx[0] = k_s_bounds[0] / 1e3, k_s_bounds[1] / 1e3
     z0[0] = float(np.clip(z0[0], lbx[0], ubx[0]))
-    sol = solver(x0=z0, p=prm, lbx=lbx, ubx=ubx, lbg=0, ubg=0)
+    values = {
+        "k_s0": k0,
+        "k_s_box": np.array(k_s_bounds),
+        "F_cm": m0.F_cm,
+        "K_cm": m0.K_cm,
+        "L_c0": m0.L_c0,
+        "b": m0.b,
+    }
+    with solver_step(step, who, **values):
+        sol = solver(x0=z0, p=prm, lbx=lbx, ubx=ubx, lbg=0, ubg=0)
     stats = solver.stats()
     k_hat = float(sol["x"][0]) * 1e3
+    status = str(stats.get("return_status", ""))
+    if status not in _IPOPT_USABLE or not np.isfinite(k_hat):
+        vals = ", ".join(f"{k} = {_fmt(v)}" for k, v in values.items())
+        raise IdentificationError(
+            f"{step} ({who}): ipopt returned {status} (k_s = {k_hat:.4g} N/m) with {vals}"
+        )
     final = simulate(s0.with_muscle(k_s=k_hat), stim, duration=n * dt, dt=dt)
     fit = np.interp(t - t[0], tg, final.theta_r)
     fit0 = np.interp(t - t[0], tg, init.theta_r)
@@ -883,7 +977,7 @@ def identify_series_stiffness(
         nrmsd=float(nrmsd(y, fit)),
         nrmse=float(nrmse(y, fit)),
         nrmsd_initial=float(nrmsd(y, fit0)),
-        solver_status=str(stats.get("return_status", "")),
+        solver_status=status,
         iterations=int(stats.get("iter_count", -1)),
     )
 

@@ -5,7 +5,9 @@ sessions from known parameters, and :func:`run_protocol` composing the steps of
 
 from __future__ import annotations
 
+import contextlib
 import time as _time
+from collections.abc import Iterator
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -13,7 +15,7 @@ import numpy as np
 from numpy.typing import NDArray
 from scipy import signal as _sig
 
-from msk.exceptions import MissingDataError
+from msk.exceptions import IdentificationError, MissingDataError, ModelError
 from msk.fes.identify import (
     CrossValidationResult,
     ForceLengthResult,
@@ -45,6 +47,7 @@ from msk.fes.model import (
     RecruitmentCurrent,
     RecruitmentPW,
 )
+from msk.fes.priors import population_priors
 from msk.fes.simulate import DT, simulate
 from msk.fes.stimulation import StimKind, Stimulation, pulse_train, stimulation_from_profile
 
@@ -318,6 +321,9 @@ class ProtocolResult:
     series_stiffness_first: SeriesStiffnessResult | None = None
     isometric_fit: IsometricFitResult | None = None
     seconds: dict[str, float] = field(default_factory=dict)
+    #: priors used (``fibre_fraction``, ``stiffness_ratio``) and why the passes stopped early
+    priors: dict[str, float] = field(default_factory=dict)
+    notes: tuple[str, ...] = ()
 
     def nrmsd_table(self) -> dict[str, float]:
         """Per-step NRMSD (%) in the rows of seeds/000 Table 2."""
@@ -331,11 +337,20 @@ class ProtocolResult:
         }
 
 
+@contextlib.contextmanager
+def _stage(leg: str, stage: str) -> Iterator[None]:
+    """Re-raise a step's typed error as :class:`IdentificationError` naming the leg and stage."""
+    try:
+        yield
+    except (IdentificationError, ModelError) as e:
+        raise IdentificationError(f"FES protocol, leg {leg}, {stage}: {e}") from e
+
+
 def run_protocol(
     session: FesSession,
     *,
-    fibre_fraction: float,
-    stiffness_ratio: float,
+    fibre_fraction: float | None = None,
+    stiffness_ratio: float | None = None,
     k_s0: float = 5e3,
     outer_iterations: int = 6,
     calcium: CalciumParams | None = None,
@@ -359,18 +374,36 @@ def run_protocol(
     With ``isometric_transients`` each pass ≥ 1 also refits ``F_cm, b, L_c0, c2, c3`` on the
     isometric torque time courses (:func:`~msk.fes.identify.identify_isometric_transients`):
     needed when the trains are too short to reach the steady state (the seed's 1.5 s).
+
+    ``fibre_fraction`` and ``stiffness_ratio`` are priors (the data do not identify them);
+    ``None`` takes the seeds/000 Table 3 means (:func:`msk.fes.priors.population_priors`).
+    Every solver failure raises :class:`~msk.exceptions.IdentificationError` naming the leg,
+    the stage and the offending values; a failure in a refinement pass (≥ 1) instead stops the
+    passes and keeps the last complete one, with the reason in ``notes``.
     """
     secs: dict[str, float] = {}
     t0 = _time.perf_counter()
+    if fibre_fraction is None or stiffness_ratio is None:
+        pop = population_priors()
+        fibre_fraction = pop.fibre_fraction if fibre_fraction is None else fibre_fraction
+        stiffness_ratio = pop.stiffness_ratio if stiffness_ratio is None else stiffness_ratio
+    ff, ratio = float(fibre_fraction), float(stiffness_ratio)
+    if not (0 < ff < 1 and ratio > 0):
+        raise IdentificationError(
+            f"FES protocol, leg {session.name}: priors fibre_fraction = {ff} (in (0, 1)) and "
+            f"stiffness_ratio = {ratio} 1/m (> 0) are not physical"
+        )
+    notes: list[str] = []
     calcium = calcium or CalciumParams()
-    geo = geometry_from_height(session.height)
-    static = identify_static_torque(session.static.theta_r, session.static.torque)
-    pend_lin = identify_pendulum_linear(
-        session.pendulum.time, session.pendulum.theta_r, K_eq=static.K
-    )
-    pend = identify_pendulum_nonlinear(
-        session.pendulum.time, session.pendulum.theta_r, K=static.K, init=pend_lin
-    )
+    with _stage(session.name, "geometry, static torque and pendulum"):
+        geo = geometry_from_height(session.height)
+        static = identify_static_torque(session.static.theta_r, session.static.torque)
+        pend_lin = identify_pendulum_linear(
+            session.pendulum.time, session.pendulum.theta_r, K_eq=static.K
+        )
+        pend = identify_pendulum_nonlinear(
+            session.pendulum.time, session.pendulum.theta_r, K=static.K, init=pend_lin
+        )
     secs["passive"] = _time.perf_counter() - t0
 
     fl_angles = np.array([tr.knee_angle for tr in session.force_length])
@@ -383,11 +416,9 @@ def run_protocol(
 
     def initial_phase(k_s: float, k_fl: float) -> tuple[FesSubject, ForceLengthResult, Any]:
         fl = identify_force_length(
-            fl_angles, fl_force, geometry=geo.geometry, fibre_fraction=fibre_fraction, k_s=k_fl
+            fl_angles, fl_force, geometry=geo.geometry, fibre_fraction=ff, k_s=k_fl
         )
-        muscle = MuscleParams(
-            F_cm=1.0, K_cm=stiffness_ratio, L_c0=fl.L_c0, b=fl.b, k_s=k_s, L_s=fl.L_s
-        )
+        muscle = MuscleParams(F_cm=1.0, K_cm=ratio, L_c0=fl.L_c0, b=fl.b, k_s=k_s, L_s=fl.L_s)
         subj = FesSubject(
             session.name, geo.geometry, knee, muscle, RecruitmentPW(1.0, 5.0, 0.5), calcium
         )
@@ -397,7 +428,7 @@ def run_protocol(
             knee_angle=rec_angle,
             subject=subj.with_muscle(k_s=k_fl),
             frequency_hz=session.frequency_hz,
-            stiffness_ratio=stiffness_ratio,
+            stiffness_ratio=ratio,
         )
         subj = subj.with_muscle(F_cm=rec.F_cm, K_cm=rec.K_cm).with_recruitment(rec.recruitment)
         return subj, fl, rec
@@ -406,9 +437,10 @@ def run_protocol(
     v = session.validation
     # pass 0: the seed's protocol (rigid tendon in the force–length step, k_s0 from literature)
     t1 = _time.perf_counter()
-    subj_initial, fl, rec = initial_phase(k_s0, np.inf)
-    cv0 = cross_validate(v.time, v.theta_r, v.stim, subj_initial)
-    ks = identify_series_stiffness(d.time, d.theta_r, d.stim, subj_initial, k_s0=k_s0)
+    with _stage(session.name, "pass 0 (seeds/000 protocol)"):
+        subj_initial, fl, rec = initial_phase(k_s0, np.inf)
+        cv0 = cross_validate(v.time, v.theta_r, v.stim, subj_initial)
+        ks = identify_series_stiffness(d.time, d.theta_r, d.stim, subj_initial, k_s0=k_s0)
     ks_first = ks
     secs["pass_0"] = _time.perf_counter() - t1
     history = [float(k_s0), ks.k_s]
@@ -419,24 +451,31 @@ def run_protocol(
     subj = subj_initial.with_muscle(k_s=k)
     for it in range(1, outer_iterations):
         t1 = _time.perf_counter()
-        if isometric_transients:
-            # warm start from the previous pass (pass 0: the seed's steady-state estimates)
-            subj_k, fl_k, rec_k = subj.with_muscle(k_s=k), fl, rec
-            iso_fit = identify_isometric_transients(
-                (*session.force_length, *session.recruitment),
-                subj_k,
-                fibre_fraction=fibre_fraction,
-                stiffness_ratio=stiffness_ratio,
-            )
-            subj_k = (
-                subj_k.with_muscle(F_cm=iso_fit.F_cm, K_cm=iso_fit.K_cm, b=iso_fit.b)
-                .with_muscle(L_c0=iso_fit.L_c0, L_s=iso_fit.L_s)
-                .with_recruitment(iso_fit.recruitment)
-            )
-        else:
-            subj_k, fl_k, rec_k = initial_phase(k, k)
-        ks_k = identify_series_stiffness(d.time, d.theta_r, d.stim, subj_k, k_s0=k)
+        try:
+            with _stage(session.name, f"pass {it} (k_s = {k:.4g} N/m)"):
+                if isometric_transients:
+                    # warm start from the previous pass (pass 0: the seed's steady-state values)
+                    subj_k, fl_k, rec_k = subj.with_muscle(k_s=k), fl, rec
+                    iso_k = identify_isometric_transients(
+                        (*session.force_length, *session.recruitment),
+                        subj_k,
+                        fibre_fraction=ff,
+                        stiffness_ratio=ratio,
+                    )
+                    subj_k = (
+                        subj_k.with_muscle(F_cm=iso_k.F_cm, K_cm=iso_k.K_cm, b=iso_k.b)
+                        .with_muscle(L_c0=iso_k.L_c0, L_s=iso_k.L_s)
+                        .with_recruitment(iso_k.recruitment)
+                    )
+                else:
+                    subj_k, fl_k, rec_k = initial_phase(k, k)
+                ks_k = identify_series_stiffness(d.time, d.theta_r, d.stim, subj_k, k_s0=k)
+        except IdentificationError as e:
+            notes.append(f"passes stopped, pass {it - 1} kept: {e}")
+            break
         secs[f"pass_{it}"] = _time.perf_counter() - t1
+        if isometric_transients:
+            iso_fit = iso_k
         subj, fl, rec, ks = subj_k.with_muscle(k_s=ks_k.k_s), fl_k, rec_k, ks_k
         history.append(ks_k.k_s)
         h = np.log(ks_k.k_s / k)
@@ -451,7 +490,8 @@ def run_protocol(
             if slope < -1e-3:  # secant on h(log k) = 0, at most 3 fixed-point steps long
                 xn = x1 + float(np.clip(-h1 / slope, -3 * abs(h1), 3 * abs(h1)))
         k = float(np.exp(xn))
-    cv = cross_validate(v.time, v.theta_r, v.stim, subj)
+    with _stage(session.name, "cross-validation"):
+        cv = cross_validate(v.time, v.theta_r, v.stim, subj)
     secs["total"] = _time.perf_counter() - t0
     return ProtocolResult(
         subj,
@@ -469,6 +509,8 @@ def run_protocol(
         ks_first,
         iso_fit,
         secs,
+        {"fibre_fraction": ff, "stiffness_ratio": ratio},
+        tuple(notes),
     )
 
 

@@ -197,7 +197,13 @@ def simulate(
         x0[0] = subject.knee.theta_rest - float(isometric_angle)  # type: ignore[arg-type]
         x0[1] = 0.0
     sim = simulator_function(kind, iso, n, dt, method)
-    xs = np.asarray(sim(x0, w, p)).T
+    try:
+        xs = np.asarray(sim(x0, w, p)).T
+    except RuntimeError as e:  # casadi: NaN/Inf or an assertion inside the simulator
+        raise ModelError(
+            f"FES simulation of {subject.name!r} failed ({n} steps of {dt} s, x0 = {x0}): "
+            f"{str(e).strip().splitlines()[-1] if str(e).strip() else type(e).__name__}"
+        ) from e
     states = np.vstack([x0, xs])
     time = np.arange(n + 1) * dt
     level = np.append(w[0], w[0, -1])

@@ -165,3 +165,25 @@ def test_isometric_transients_refit_from_short_trains() -> None:
     assert (r.c2, r.c3) == pytest.approx((8.12, 0.75), rel=0.02)
     assert r.nrmsd < 0.1
     assert r.torque.shape == r.torque_fit.shape == (r.time.size, 5)
+
+
+def test_series_stiffness_solver_failures_are_typed() -> None:
+    """Empty k_s box, NaN data: IdentificationError naming the step, leg and values."""
+    s = TABLE3["S3L"]
+    st, t, y = _short_dynamic(s)
+    with pytest.raises(IdentificationError, match=r"k_s NLP .*S3L.*empty k_s box"):
+        identify_series_stiffness(t, y, st, s, k_s_bounds=(2e6, 1e6))
+    bad = y.copy()
+    bad[10] = np.nan
+    with pytest.raises(IdentificationError, match=r"k_s NLP .*S3L.*F_cm = 438"):
+        identify_series_stiffness(t, bad, st, s, k_s0=3e3)
+
+
+def test_ks_lower_bound_admits_every_table3_leg() -> None:
+    """The default k_s bound comes from Table 3 (max F_cm/(k_s L_c0) = 2.76, S3R) × 2."""
+    from msk.fes.priors import KS_STRETCH_MAX_TABLE3, k_s_lower_bound
+
+    assert KS_STRETCH_MAX_TABLE3 == pytest.approx(523 / (2100 * 0.0901), rel=1e-9)
+    for leg in TABLE3.values():
+        m = leg.muscle
+        assert m.k_s >= 2 * k_s_lower_bound(m.F_cm, m.L_c0) * (1 - 1e-12)

@@ -5,6 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from msk.exceptions import IdentificationError
 from msk.fes.identify import ShankAnthropometry
 from msk.fes.model import SEED001_SUBJECT, TABLE3, FesSubject, RecruitmentCurrent
 from msk.fes.protocol import (
@@ -168,3 +169,27 @@ def test_seed001_subject_nrmse_of_the_reported_order() -> None:
     truth = s.recruitment(current) * s.muscle.F_cm
     ident = res.subject.recruitment(current) * res.subject.muscle.F_cm
     assert ident == pytest.approx(truth, rel=0.12)
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("name", ["S3L", "S6R"])
+def test_halved_stiffness_ratio_prior_gives_a_result_or_a_typed_error(name: str) -> None:
+    """A K_cm/F_cm prior at half the truth used to crash with a raw casadi assertion (the k_s
+    box became empty).  Now: a result (a failed refinement pass stops the passes, with a note)
+    or an IdentificationError naming the leg, the stage and the values — never RuntimeError."""
+    s = TABLE3[name]
+    h, m = TABLE1[int(name[1:-1])]
+    ses = synthetic_session(s, height=h, body_mass=m, rng=np.random.default_rng(7))
+    try:
+        res = run_protocol(
+            ses,
+            fibre_fraction=fibre_fraction(s),
+            stiffness_ratio=0.5 * s.muscle.K_cm / s.muscle.F_cm,
+        )
+    except IdentificationError as e:
+        assert f"leg {name}" in str(e) and "k_s" in str(e)
+        assert not isinstance(e, RuntimeError)
+    else:
+        assert res.priors["stiffness_ratio"] == pytest.approx(0.5 * s.muscle.K_cm / s.muscle.F_cm)
+        assert all("passes stopped" in n for n in res.notes)
+        assert np.isfinite(res.subject.muscle.k_s) and res.subject.muscle.k_s > 0
