@@ -18,7 +18,19 @@ the whole distal side (a world twist about the world origin) ::
 taken from the path geometry of :mod:`msk.muscles.geometry` (via points, conditional and moving
 points, wrapping cylinders, all as the muscle lengths and Jacobians use them): it is the length
 Jacobian for a virtual six-DOF joint at the knee. Muscles entirely on one side contribute
-nothing; a muscle crossing the knee pulls the distal side along its crossing segment(s).
+nothing; a muscle crossing the knee pulls the distal side along its crossing segment(s). The
+geometry pass already forms it: the length-Jacobian row (muscle, knee) is that same sum before
+its projection on the knee twist, so ``muscle_geometry(..., distal_wrench_joints=("knee_r",))``
+returns it at no extra path resolution, and :func:`knee_contact_force` takes it from there
+(``distal_wrenches=``).
+
+``W_ID`` is RNEA's transmitted wrench ``data.f`` of the knee, computed for all frames at once as
+the Newton–Euler balance of the distal bodies: forward kinematics, spatial velocities
+V_j = Σ_{k ⪯ j} S_k q̇_k and accelerations A_j = Σ_{k ⪯ j} (S_k q̈_k + (V_λ(k) × S_k) q̇_k) of the
+Pinocchio joints from the root to the knee's subtree (world twists S_k at the origin), then
+Σ_b (m_b (a_c − g), c × m_b (a_c − g) + I α + ω × I ω) over the subtree's bodies, minus their
+external loads. It equals :func:`msk.dynamics.joint_reaction` to rounding (the tests compare
+them on the gait2392 walk, spline and four-bar knees).
 
 **Tibial plateau frame.** The contact force is expressed in the frame of the knee's child body
 (the tibia: ``tibia_r``/``tibia_l`` in gait2392; origin at the knee, OpenSim axes x anterior,
@@ -76,6 +88,7 @@ centre.
 
 from __future__ import annotations
 
+import weakref
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 from typing import Any, Literal
@@ -84,7 +97,7 @@ import numpy as np
 import pinocchio as pin
 from numpy.typing import ArrayLike, NDArray
 
-from msk.dynamics import Variant, joint_reaction
+from msk.dynamics import Variant
 from msk.exceptions import ModelError, ShapeMismatchError
 from msk.model import Model
 from msk.muscles.geometry import GeometryPlan, geometry_plan
@@ -202,46 +215,24 @@ def muscle_distal_wrenches(
     columns (force x, y, z, moment x, y, z about the world origin), world axes.
 
     A tension F_i applies the wrench ``−F_i ∂l_i/∂ξ`` to the distal side (module docstring).
-    Computed by the path geometry of :mod:`msk.muscles.geometry` with, in place of the
-    Pinocchio joint Jacobian, unit twists on the DOFs of ``joint`` (the axes of a coupled
-    knee all carry the same distal bodies, so a 3-axis knee needs two stacked evaluations, a
-    1-axis one six): the length derivative of every path-segment end on a body these DOFs
-    support, which is exactly what the length Jacobian sums.
+    It is the length-Jacobian row of the muscle for a virtual six-DOF joint at ``joint``: the
+    sum of the unit wrenches (u, x × u) of the path-segment ends on the bodies distal to it,
+    which the geometry pass already aggregates for the joint's own column
+    (:meth:`msk.muscles.geometry.GeometryPlan.evaluate` with ``distal_wrench_joints``; a
+    pipeline that computes the muscle geometry anyway takes it from there). Frames with
+    non-finite ``q`` are NaN.
     """
     th = np.asarray(q, dtype=float)
     if th.ndim != 2 or th.shape[1] != model.n_coords:
         raise ShapeMismatchError(f"q has shape {th.shape}, expected (N, {model.n_coords})")
     plan = plan if plan is not None else geometry_plan(model)
     if plan.model is not model:
-        raise ModelError(f"geometry plan was built for model {plan.model.name!r}, not this one")
-    dofs, _ = _chain_dofs(model, joint)
-    # chain axes whose support pattern over the muscle-carrying bodies equals the first one's
-    sup = np.asarray(plan.support)
-    cols = [iv for iv in dofs if np.array_equal(sup[:, iv], sup[:, dofs[0]])]
-    n = th.shape[0]
-    out = np.full((n, plan.n_muscles, 6), np.nan)
+        raise ModelError(f"geometry plan was built for model {plan.model_name!r}, not this one")
+    _chain_dofs(model, joint)  # typed errors for a missing or welded joint
+    out = np.full((th.shape[0], plan.n_muscles, 6), np.nan)
     good = np.isfinite(th).all(axis=1)
-    if not good.any():
-        return out
-    tg = th[good]
-    k = tg.shape[0]
-    jac, rot, trans, _ = plan.kinematics(tg)
-    groups = [list(range(c, min(c + len(cols), 6))) for c in range(0, 6, len(cols))]
-    reps = len(groups)
-    fake = np.zeros((reps * k, *jac.shape[1:]))
-    for r, comps in enumerate(groups):
-        for col, comp in zip(cols, comps):
-            fake[r * k : (r + 1) * k, comp, col] = 1.0
-    tile = (reps,) + (1,) * (rot.ndim - 1)
-    # the path evaluation of the geometry plan: (lengths, ∂l/∂q_pin, ∂l/∂θ of moving points)
-    _, dl_dq, _ = plan._paths(
-        np.tile(tg, (reps, 1)), fake, np.tile(rot, tile), np.tile(trans, (reps, 1, 1))
-    )
-    w = np.empty((k, plan.n_muscles, 6))
-    for r, comps in enumerate(groups):
-        for col, comp in zip(cols, comps):
-            w[:, :, comp] = dl_dq[r * k : (r + 1) * k, :, col]
-    out[good] = w
+    if good.any():
+        out[good] = plan.evaluate(th[good], distal_wrench_joints=(joint,)).distal_wrenches[joint]
     return out
 
 
@@ -287,8 +278,14 @@ def knee_contact_force(
     body_mass_kg: float | None = None,
     variant: Variant = "full",
     plan: GeometryPlan | None = None,
+    distal_wrenches: ArrayLike | None = None,
 ) -> KneeContact:
     """Tibiofemoral contact force per frame (see the module docstring, seed 004 §2.1).
+
+    All frames at once, no per-frame Python loop: the inverse-dynamics wrench transmitted to
+    the distal side is the Newton–Euler balance of the distal bodies (:func:`_distal_balance`,
+    equal to RNEA's ``data.f`` of the knee, :func:`msk.dynamics.joint_reaction`), the muscles'
+    pull ``Σ F_i ∂l_i/∂ξ`` one contraction with the unit wrenches of the geometry pass.
 
     Args:
         model: the model (its muscles give the paths).
@@ -303,6 +300,10 @@ def knee_contact_force(
         body_mass_kg: body mass for the BW columns (default: the model's total mass).
         variant: inverse-dynamics variant (``"full"``, ``"quasi_static"``, ``"geometric"``).
         plan: a geometry plan of ``model`` (default: the cached one).
+        distal_wrenches: ∂l/∂ξ (N, n_muscles, 6) of this joint on these frames, model muscle
+            order, as :attr:`msk.muscles.geometry.MuscleGeometry.distal_wrenches` ``[joint]``
+            (the geometry stage computes them in its own pass: give them, and no path is
+            resolved here); default: one geometry pass on ``kinematics.q``.
 
     Returns:
         :class:`KneeContact`; frames whose kinematics are NaN are NaN.
@@ -310,32 +311,76 @@ def knee_contact_force(
     spec = next((j for j in model.joints if j.name == joint), None)
     if spec is None:
         raise ModelError(f"model {model.name}: no joint {joint!r}")
+    tree = _distal_tree(model, joint)
     th = np.asarray(kinematics.q, dtype=float)
     n = th.shape[0]
-    # ID wrench transmitted femur → distal side, world axes, moment about the world origin
-    jr = joint_reaction(model, kinematics, loads, joint=joint, frame="world", variant=variant)
-    force_w = np.array(jr.force, dtype=float)
-    moment_w = np.array(jr.moment, dtype=float)
+    if tuple(kinematics.coordinate_names) != model.coordinate_names:
+        raise ShapeMismatchError(
+            f"kinematics columns {tuple(kinematics.coordinate_names)[:4]}… do not match the "
+            f"model coordinates {model.coordinate_names[:4]}…"
+        )
+    if variant not in ("full", "quasi_static", "geometric"):
+        raise ModelError(f"unknown inverse-dynamics variant {variant!r}")
+    time = np.asarray(kinematics.time, dtype=float)
+    if loads is not None and (
+        np.asarray(loads.force).shape[0] != n
+        or np.asarray(loads.time, dtype=float).shape != time.shape
+        or not np.allclose(np.asarray(loads.time, dtype=float), time, atol=1e-9)
+    ):
+        raise ShapeMismatchError("external loads are not on the kinematics time")
+    ok = np.isfinite(th).all(axis=1)
+    dyn = variant == "full"
+    if dyn:
+        thd = np.asarray(kinematics.v, dtype=float)
+        thdd = np.asarray(kinematics.a, dtype=float)
+        ok &= np.isfinite(thd).all(axis=1) & np.isfinite(thdd).all(axis=1)
     with_muscles = muscle_forces is not None
+    f = w = None
     if with_muscles:
         f = _forces_in_model_order(model, muscle_forces, muscle_names, n)
-        w = muscle_distal_wrenches(model, th, joint=joint, plan=plan)
+        if distal_wrenches is None:
+            w = muscle_distal_wrenches(model, th, joint=joint, plan=plan)
+        else:
+            w = np.asarray(distal_wrenches, dtype=float)
+            if w.shape != (n, len(model.muscles), 6):
+                raise ShapeMismatchError(
+                    f"distal wrenches {w.shape} must be (frames {n}, muscles "
+                    f"{len(model.muscles)}, 6)"
+                )
+    idx = np.flatnonzero(ok)
+    force_w = np.full((n, 3), np.nan)
+    moment_w = np.full((n, 3), np.nan)
+    rot = np.full((n, 3, 3), np.nan)
+    origin = np.full((n, 3), np.nan)
+    if idx.size:
+        tg = th[idx]
+        if dyn:
+            st = _chain_states(model, tree, tg, thd[idx], thdd[idx])
+        else:
+            st = _chain_states(model, tree, tg, None, None)
+        gravity = np.zeros(3) if variant == "geometric" else tree.gravity
+        wr = _distal_balance(tree, st, gravity, dyn)
+        if loads is not None:
+            for b, body in enumerate(loads.bodies):
+                if model.body_joint[body] in tree.subtree:
+                    wr[:, :3] -= np.asarray(loads.force, dtype=float)[idx, b]
+                    wr[:, 3:] -= np.asarray(loads.moment, dtype=float)[idx, b]
+        force_w[idx] = wr[:, :3]
+        moment_w[idx] = wr[:, 3:]
+        # plateau frame: the tibia body frame (child of the knee), optionally offset
+        r_j, p_j = st.rot[tree.child_slot], st.trans[tree.child_slot]
+        r_b = r_j @ tree.child_placement.rotation
+        p_b = p_j + r_j @ tree.child_placement.translation
+        if plateau_offset is not None:
+            p_b = p_b + r_b @ plateau_offset.translation
+            r_b = r_b @ plateau_offset.rotation
+        rot[idx] = r_b
+        origin[idx] = p_b
+    if with_muscles and f is not None and w is not None:
         add = np.einsum("nm,nmc->nc", np.nan_to_num(f), w)
         add[~np.isfinite(f).all(axis=1)] = np.nan
         force_w += add[:, :3]
         moment_w += add[:, 3:]
-    # plateau frame: the tibia body frame (child of the knee), optionally offset
-    body = spec.child
-    data = model.create_data()
-    fid = model.body_frame[body]
-    place = np.full((n, 4, 4), np.nan)
-    qpin = model.coupling.q(np.where(np.isfinite(th), th, 0.0))
-    for k in np.flatnonzero(np.isfinite(th).all(axis=1)):
-        pin.framesForwardKinematics(model.pin_model, data, qpin[k])
-        oMp = data.oMf[fid] if plateau_offset is None else data.oMf[fid] * plateau_offset
-        place[k] = oMp.homogeneous
-    rot = place[:, :3, :3]
-    origin = place[:, :3, 3]
     m_o = moment_w - np.cross(origin, force_w)
     force = np.einsum("nji,nj->ni", rot, force_w)
     moment = np.einsum("nji,nj->ni", rot, m_o)
@@ -347,9 +392,9 @@ def knee_contact_force(
     if not (np.isfinite(mass) and mass > 0):
         raise ModelError(f"knee contact: body mass must be > 0 kg, got {mass!r}")
     return KneeContact(
-        time=np.asarray(kinematics.time, dtype=float),
+        time=time,
         joint=joint,
-        body=body,
+        body=spec.child,
         force=force,
         moment=moment,
         values=values,
@@ -357,6 +402,234 @@ def knee_contact_force(
         muscles_included=with_muscles,
         metadata={"variant": variant, "plateau_offset": plateau_offset is not None},
     )
+
+
+# ---------------------------------------------------------------------------------------------
+# the inverse-dynamics wrench at the knee, all frames at once
+# ---------------------------------------------------------------------------------------------
+@dataclass(frozen=True)
+class _DistalTree:
+    """Static structure for the knee wrench: the Pinocchio joints from the root to the knee and
+    the knee's subtree (topological order), their 1-DOF axes, and the inertias of the subtree."""
+
+    joints: tuple[int, ...]  # Pinocchio joint ids, topological order
+    parent_slot: tuple[int, ...]  # slot of each joint's parent in ``joints`` (-1: universe)
+    placement_rot: Array  # (J, 3, 3) joint placement in the parent joint frame
+    placement_trans: Array  # (J, 3)
+    identity_rot: tuple[bool, ...]
+    zero_trans: tuple[bool, ...]
+    axis: Array  # (J, 3) unit axis in the joint frame
+    frame_axis: tuple[int, ...]  # 0, 1, 2 when the axis is a frame axis, else -1
+    revolute: tuple[bool, ...]
+    dof: tuple[int, ...]  # Pinocchio q/v index of each joint
+    support: Array  # (J, J): 1 where joint k (column) supports joint j (row), itself included
+    parent_support: Array  # (J, J): the same without the diagonal
+    subtree: frozenset[int]  # Pinocchio ids of the joints the knee supports (itself included)
+    massive: NDArray[np.intp]  # slots of the subtree joints that carry inertia
+    mass: Array  # (B,)
+    com: Array  # (B, 3) in the joint frame
+    inertia: Array  # (B, 3, 3) about the COM, joint-frame axes
+    child_slot: int  # slot of the joint carrying the knee's child body
+    child_placement: pin.SE3  # the child body frame in that joint's frame
+    gravity: Array  # (3,) the model's gravity
+
+
+_TREES: weakref.WeakKeyDictionary[Model, dict[str, _DistalTree]] = weakref.WeakKeyDictionary()
+
+
+def _distal_tree(model: Model, joint: str) -> _DistalTree:
+    """The (cached, models are immutable) :class:`_DistalTree` of ``joint``."""
+    cache = _TREES.setdefault(model, {})
+    hit = cache.get(joint)
+    if hit is not None:
+        return hit
+    dofs, child = _chain_dofs(model, joint)
+    pm = model.pin_model
+    j0 = next(j for j in range(1, pm.njoints) if pm.joints[j].idx_v == dofs[0])
+    subtree = [j for j in range(1, pm.njoints) if j0 in pm.supports[j]]
+    joints = sorted({int(j) for j in pm.supports[j0] if j > 0} | set(subtree))
+    slot = {j: i for i, j in enumerate(joints)}
+    axes = np.zeros((len(joints), 3))
+    rev = []
+    for i, j in enumerate(joints):
+        jm = pm.joints[j]
+        name = jm.shortname()
+        if jm.nq != 1 or jm.nv != 1:
+            raise ModelError(f"joint {pm.names[j]}: knee contact needs 1-DOF joints ({name})")
+        if name.endswith("Unaligned"):
+            axes[i] = np.asarray(jm.extract().axis, dtype=float)
+            rev.append("Revolute" in name)
+        elif name[-2] in "RP" and name[-1] in "XYZ":
+            axes[i, "XYZ".index(name[-1])] = 1.0
+            rev.append(name[-2] == "R")
+        else:
+            raise ModelError(f"joint {pm.names[j]}: unsupported Pinocchio joint {name}")
+    massive = [
+        slot[j] for j in subtree if pm.inertias[j].mass > 0 or np.any(pm.inertias[j].inertia)
+    ]
+    ins = [pm.inertias[joints[i]] for i in massive]
+    cj = model.body_joint[child]
+    sup = np.zeros((len(joints), len(joints)))
+    for i, j in enumerate(joints):
+        for k in pm.supports[j]:
+            if k > 0:
+                sup[i, slot[int(k)]] = 1.0
+    tree = _DistalTree(
+        joints=tuple(joints),
+        parent_slot=tuple(slot.get(int(pm.parents[j]), -1) for j in joints),
+        placement_rot=np.array([pm.jointPlacements[j].rotation for j in joints]),
+        placement_trans=np.array([pm.jointPlacements[j].translation for j in joints]),
+        identity_rot=tuple(
+            bool(np.array_equal(pm.jointPlacements[j].rotation, np.eye(3))) for j in joints
+        ),
+        zero_trans=tuple(not np.any(pm.jointPlacements[j].translation) for j in joints),
+        axis=axes,
+        frame_axis=tuple(
+            int(np.flatnonzero(a)[0]) if np.count_nonzero(a) == 1 and a.max() == 1.0 else -1
+            for a in axes
+        ),
+        revolute=tuple(rev),
+        dof=tuple(int(pm.joints[j].idx_v) for j in joints),
+        support=sup,
+        parent_support=sup - np.eye(len(joints)),
+        subtree=frozenset(subtree),
+        massive=np.asarray(massive, dtype=np.intp),
+        mass=np.array([x.mass for x in ins], dtype=float),
+        com=np.array([x.lever for x in ins], dtype=float).reshape(-1, 3),
+        inertia=np.array([x.inertia for x in ins], dtype=float).reshape(-1, 3, 3),
+        child_slot=slot[cj],
+        child_placement=model.body_placement[child],
+        gravity=np.array(pm.gravity.linear, dtype=float),
+    )
+    cache[joint] = tree
+    return tree
+
+
+@dataclass
+class _ChainStates:
+    """World placements (J, N, 3, 3), (J, N, 3) of the tree's joints and, when moving, their
+    spatial velocities and accelerations (J, N, 6): (linear at the world origin, angular)."""
+
+    rot: Array
+    trans: Array
+    vel: Array | None
+    acc: Array | None
+
+
+def _chain_states(
+    model: Model, tree: _DistalTree, th: Array, thd: Array | None, thdd: Array | None
+) -> _ChainStates:
+    """Forward kinematics (and velocities, accelerations) of the tree's joints, all frames at
+    once: q = g(θ), v = G θ̇, a = G θ̈ + Ġ θ̇ on their DOFs only (as ``model.coupling``)."""
+    n = th.shape[0]
+    cp = model.coupling
+    nj = len(tree.joints)
+    rot = np.empty((nj, n, 3, 3))
+    trans = np.empty((nj, n, 3))
+    moving = thd is not None and thdd is not None
+    eye = np.broadcast_to(np.eye(3), (n, 3, 3))
+    zero3 = np.zeros((n, 3))
+    twist = np.empty((nj, n, 6))  # joint twists S_j at the world origin
+    qd = np.zeros((nj, n))
+    qdd = np.zeros((nj, n))
+    for i in range(nj):
+        k = tree.dof[i]
+        c = cp.coordinate[k]
+        fun = cp.functions[k]
+        x = th[:, c] if c >= 0 else np.zeros(n)
+        qj = np.broadcast_to(np.asarray(fun(x), dtype=float), (n,))
+        ps = tree.parent_slot[i]
+        rp = eye if ps < 0 else rot[ps]
+        tp = zero3 if ps < 0 else trans[ps]
+        r0 = rp if tree.identity_rot[i] else rp @ tree.placement_rot[i]
+        o = tp if tree.zero_trans[i] else tp + rp @ tree.placement_trans[i]
+        ax = tree.frame_axis[i]
+        a = r0[:, :, ax] if ax >= 0 else r0 @ tree.axis[i]
+        s = twist[i]
+        if tree.revolute[i]:
+            cq, sq = np.cos(qj)[:, None], np.sin(qj)[:, None]
+            out = rot[i]
+            if ax >= 0:
+                i1, i2 = (ax + 1) % 3, (ax + 2) % 3
+                out[:, :, ax] = a
+                out[:, :, i1] = cq * r0[:, :, i1] + sq * r0[:, :, i2]
+                out[:, :, i2] = cq * r0[:, :, i2] - sq * r0[:, :, i1]
+            else:
+                kk = pin.skew(tree.axis[i])
+                out[:] = r0 @ (np.eye(3) + sq[..., None] * kk + (1.0 - cq[..., None]) * (kk @ kk))
+            trans[i] = o
+            _cross_into(o, a, s[:, :3])
+            s[:, 3:] = a
+        else:
+            rot[i] = r0
+            trans[i] = o + a * qj[:, None]
+            s[:, :3] = a
+            s[:, 3:] = 0.0
+        if moving and c >= 0 and thd is not None and thdd is not None:
+            d1 = np.asarray(fun.d1(x), dtype=float)
+            qd[i] = d1 * thd[:, c]
+            qdd[i] = d1 * thdd[:, c] + np.asarray(fun.d2(x), dtype=float) * thd[:, c] ** 2
+    vel = acc = None
+    if moving:
+        # V_j = Σ_{k ⪯ j} S_k q̇_k; Ṡ_k = V_parent(k) × S_k (motion cross product), so
+        # A_j = Σ_{k ⪯ j} (S_k q̈_k + Ṡ_k q̇_k): sums over the support as matrix products
+        sv = (twist * qd[..., None]).reshape(nj, -1)
+        vp = (tree.parent_support @ sv).reshape(nj, n, 6)
+        ds = np.empty((nj, n, 6))
+        _cross_into(vp[..., 3:], twist[..., :3], ds[..., :3])
+        ds[..., :3] += _cross(vp[..., :3], twist[..., 3:])
+        _cross_into(vp[..., 3:], twist[..., 3:], ds[..., 3:])
+        ds *= qd[..., None]
+        ds += twist * qdd[..., None]
+        vel = vp + sv.reshape(nj, n, 6)
+        acc = (tree.support @ ds.reshape(nj, -1)).reshape(nj, n, 6)
+    return _ChainStates(rot, trans, vel, acc)
+
+
+def _distal_balance(tree: _DistalTree, st: _ChainStates, gravity: Array, dyn: bool) -> Array:
+    """(N, 6) wrench the proximal side transmits to the knee's subtree (world force, moment
+    about the world origin) without external loads: Σ over its bodies of m (a_c − g) and
+    c × m (a_c − g) + I α + ω × I ω (Newton–Euler, RNEA's ``data.f`` of the knee)."""
+    b = tree.massive
+    r = st.rot[b]  # (B, N, 3, 3)
+    c = np.einsum("bnij,bj->bni", r, tree.com) + st.trans[b]  # world COM
+    m = tree.mass[:, None, None]
+    if dyn and st.vel is not None and st.acc is not None:
+        v, a = st.vel[b], st.acc[b]
+        w, al = v[..., 3:], a[..., 3:]
+        vc = v[..., :3] + _cross(w, c)
+        ac = a[..., :3] + _cross(al, c) + _cross(w, vc)
+        f = m * (ac - gravity)
+        # I_w x = R I_c Rᵀ x, for x = ω and α at once
+        x = np.concatenate([w, al], axis=1)  # (B, 2N, 3)
+        rr = np.concatenate([r, r], axis=1)
+        y = np.matmul(x[..., None, :], rr)  # Rᵀ x as a row: (B, 2N, 1, 3)
+        z = np.matmul(y, tree.inertia.transpose(0, 2, 1)[:, None])  # (I_c Rᵀ x)ᵀ
+        ix = np.matmul(rr, z.transpose(0, 1, 3, 2))[..., 0]  # (B, 2N, 3)
+        n = c.shape[1]
+        tau = ix[:, n:] + _cross(w, ix[:, :n])
+    else:
+        f = np.broadcast_to(m * -gravity, c.shape)
+        tau = np.zeros(c.shape)
+    out = np.empty((c.shape[1], 6))
+    out[:, :3] = f.sum(axis=0)
+    out[:, 3:] = (_cross(c, f) + tau).sum(axis=0)
+    return out
+
+
+def _cross_into(x: Array, u: Array, out: Array) -> None:
+    """out = x × u over the last axis (``np.cross`` costs several times more on (…, 3))."""
+    x0, x1, x2 = x[..., 0], x[..., 1], x[..., 2]
+    u0, u1, u2 = u[..., 0], u[..., 1], u[..., 2]
+    out[..., 0] = x1 * u2 - x2 * u1
+    out[..., 1] = x2 * u0 - x0 * u2
+    out[..., 2] = x0 * u1 - x1 * u0
+
+
+def _cross(x: Array, u: Array) -> Array:
+    out = np.empty(np.broadcast_shapes(x.shape, u.shape))
+    _cross_into(x, u, out)
+    return out
 
 
 # ---------------------------------------------------------------------------------------------

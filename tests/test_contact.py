@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import pinocchio as pin
@@ -24,7 +25,7 @@ from msk.contact import (
     plateau_geometry,
     split_medial_lateral,
 )
-from msk.dynamics import joint_reaction
+from msk.dynamics import Variant, joint_reaction
 from msk.exceptions import ModelError, ShapeMismatchError
 from msk.kinematics import kinematics_from_coordinates
 from msk.model import Axis, Body, Coordinate, Joint, Model
@@ -208,8 +209,9 @@ def test_muscle_pull_agrees_with_the_path_point_wrenches_of_dynamics() -> None:
     np.testing.assert_allclose(out2.force, out.force, atol=1e-9)
 
 
-def test_distal_wrench_projects_on_the_knee_twist_as_the_length_jacobian() -> None:
-    """With wrapping cylinders and conditional points: ∂l/∂ξ · (knee twist) = ∂l/∂θ_knee."""
+def _wrapped_leg() -> Model:
+    """The test leg with a gastrocnemius over two wrapping cylinders, a semimembranosus with a
+    conditional point and a hip muscle that does not cross the knee."""
     model = leg_model()
     wraps = [
         WrapObject(
@@ -262,7 +264,12 @@ def test_distal_wrench_projects_on_the_knee_twist_as_the_length_jacobian() -> No
             [_pt("o", "pelvis", [-0.04, 0.03, 0.12]), _pt("i", "femur", [-0.02, -0.01, 0.055])],
         ),
     ]
-    model = model.with_muscles(muscles).with_metadata(wrap_objects=wraps)
+    return model.with_muscles(muscles).with_metadata(wrap_objects=wraps)
+
+
+def test_distal_wrench_projects_on_the_knee_twist_as_the_length_jacobian() -> None:
+    """With wrapping cylinders and conditional points: ∂l/∂ξ · (knee twist) = ∂l/∂θ_knee."""
+    model = _wrapped_leg()
     rng = np.random.default_rng(0)
     q = np.tile(model.default_coordinates(), (12, 1))
     q[:, 6:9] += rng.uniform(-0.4, 0.4, (12, 3))
@@ -509,3 +516,135 @@ def test_plateau_geometry_follows_the_tibia_scale_factors(gait_models) -> None:
     assert given_.intercondylar_distance_m == 0.045 and given_.centre_m[2] == 0.002
     with pytest.raises(ModelError, match="no joint"):
         plateau_geometry(model, joint="knee_x")
+
+
+# ---------------------------------------------------------------------------------------------
+# the vectorised route equals the RNEA + per-twist path route (the implementation until 2026-11)
+# ---------------------------------------------------------------------------------------------
+def legacy_knee_contact_force(
+    model: Model,
+    kin: Any,
+    loads: Any,
+    *,
+    muscle_forces: np.ndarray,
+    joint: str,
+    variant: Variant = "full",
+) -> tuple[np.ndarray, np.ndarray]:
+    """Force and moment in the plateau (tibia) frame as msk computed them before the vectorised
+    route (also timed by ``bench/bench_contact.py``): RNEA's transmitted wrench
+    (``joint_reaction``, a Pinocchio pass per frame), ∂l/∂ξ from a path evaluation per pair of
+    unit twists on the knee DOFs (``GeometryPlan._distal_by_twists``, the former
+    ``muscle_distal_wrenches``), the tibia placement by ``framesForwardKinematics`` per frame."""
+    from msk.muscles.geometry import geometry_plan
+
+    jr = joint_reaction(model, kin, loads, joint=joint, frame="world", variant=variant)
+    plan = geometry_plan(model)
+    th = np.asarray(kin.q, dtype=float)
+    w = plan._distal_by_twists(th, plan._joint_dofs(joint))
+    add = np.einsum("nm,nmc->nc", muscle_forces, w)
+    force_w = jr.force + add[:, :3]
+    moment_w = jr.moment + add[:, 3:]
+    spec = next(j for j in model.joints if j.name == joint)
+    data = model.create_data()
+    fid = model.body_frame[spec.child]
+    place = np.empty((th.shape[0], 4, 4))
+    qpin = model.coupling.q(th)
+    for k in range(th.shape[0]):
+        pin.framesForwardKinematics(model.pin_model, data, qpin[k])
+        place[k] = data.oMf[fid].homogeneous
+    rot, origin = place[:, :3, :3], place[:, :3, 3]
+    m_o = moment_w - np.cross(origin, force_w)
+    return np.einsum("nji,nj->ni", rot, force_w), np.einsum("nji,nj->ni", rot, m_o)
+
+
+@pytest.fixture(scope="module")
+def walk() -> dict[str, object]:
+    """Kinematics (filtered at 6 Hz) and plate loads of the subject01 walk, 0.5–2.5 s."""
+    from synthetic import load_subject01
+
+    s = load_subject01()
+    sel = (s.ik_time >= 0.5) & (s.ik_time <= 2.5)
+    return {"subject": s, "time": s.ik_time[sel], "q": s.ik_q[sel]}
+
+
+@pytest.mark.parametrize("kind", ["spline", "four-bar"])
+def test_vectorised_contact_equals_the_rnea_route_on_the_walk(gait_models, walk, kind) -> None:
+    """gait2392 (spline knee) and its four-bar version on the real subject01 walk, both knees,
+    full and quasi-static: force and moment equal today's route to 1e-9 (relative to the
+    largest component), whether ∂l/∂ξ comes from the geometry stage or from its own pass; the
+    medial/lateral split follows."""
+    from msk.loads import external_loads
+
+    model = gait_models[kind]
+    s: Any = walk["subject"]
+    kin = kinematics_from_coordinates(
+        walk["time"], walk["q"], model.coordinate_names, cutoff_hz=6.0
+    )
+    loads = external_loads(model, kin, s.plates, threshold_n=0.0)
+    rng = np.random.default_rng(7)
+    f = rng.uniform(0.0, 1200.0, (kin.n_frames, len(model.muscles)))
+    geom = muscle_geometry(model, kin.q, kin.v, distal_wrench_joints=("knee_r", "knee_l"))
+    for joint in ("knee_r", "knee_l"):
+        for variant in ("full", "quasi_static"):
+            ref_f, ref_m = legacy_knee_contact_force(
+                model, kin, loads, muscle_forces=f, joint=joint, variant=variant
+            )
+            for dw in (None, geom.distal_wrenches[joint]):
+                out = knee_contact_force(
+                    model, kin, loads, muscle_forces=f, joint=joint, variant=variant,
+                    distal_wrenches=dw,
+                )  # fmt: skip
+                assert np.abs(out.force - ref_f).max() <= 1e-9 * np.abs(ref_f).max()
+                assert np.abs(out.moment - ref_m).max() <= 1e-9 * np.abs(ref_m).max()
+            ref = KneeContact(
+                out.time, joint, out.body, ref_f, ref_m, out.values, out.body_weight_n, True
+            )
+            a, b = split_medial_lateral(out), split_medial_lateral(ref)
+            scale = np.abs(b.normal).max()
+            assert np.abs(a.medial - b.medial).max() <= 1e-9 * scale
+            assert np.abs(a.lateral - b.lateral).max() <= 1e-9 * scale
+    # the geometry pass gives the same Jacobians with and without the wrenches
+    plain = muscle_geometry(model, kin.q, kin.v)
+    np.testing.assert_array_equal(plain.jacobian, geom.jacobian)
+    np.testing.assert_array_equal(plain.lengths, geom.lengths)
+
+
+def test_distal_wrenches_of_the_geometry_pass_equal_the_twist_evaluation() -> None:
+    """Wrapping cylinders (the per-point wrench route) and conditional points: the wrench rows
+    of the geometry pass equal the path evaluation with unit twists on the knee; muscles that
+    do not cross the knee get exact zeros; NaN frames stay NaN in muscle_distal_wrenches."""
+    from msk.muscles.geometry import geometry_plan
+
+    model = _wrapped_leg()
+    rng = np.random.default_rng(1)
+    q = np.tile(model.default_coordinates(), (15, 1))
+    q[:, 6:9] += rng.uniform(-0.4, 0.4, (15, 3))
+    q[:, 9] = rng.uniform(-1.8, 0.1, 15)
+    plan = geometry_plan(model)
+    assert not plan._static
+    geom = muscle_geometry(model, q, distal_wrench_joints=("knee", "hip"))
+    ref = plan._distal_by_twists(q, plan._joint_dofs("knee"))
+    np.testing.assert_allclose(geom.distal_wrenches["knee"], ref, rtol=0, atol=1e-12)
+    assert np.all(geom.distal_wrenches["knee"][:, 2] == 0.0)  # the hip muscle
+    ref_hip = plan._distal_by_twists(q, plan._joint_dofs("hip"))
+    np.testing.assert_allclose(geom.distal_wrenches["hip"], ref_hip, rtol=0, atol=1e-12)
+    q[3] = np.nan
+    w = muscle_distal_wrenches(model, q, joint="knee")
+    assert np.isnan(w[3]).all() and np.isfinite(np.delete(w, 3, axis=0)).all()
+    with pytest.raises(ModelError, match="no joint"):
+        muscle_geometry(model, q[:2], distal_wrench_joints=("knee_x",))
+
+
+def test_contact_checks_the_given_distal_wrenches() -> None:
+    model, kin = _moving_leg()
+    f = np.ones((kin.n_frames, 4))
+    with pytest.raises(ShapeMismatchError, match="distal wrenches"):
+        knee_contact_force(
+            model, kin, muscle_forces=f, joint="knee", distal_wrenches=np.zeros((3, 4, 6))
+        )
+    geom = muscle_geometry(model, kin.q, distal_wrench_joints=("knee",))
+    a = knee_contact_force(model, kin, muscle_forces=f, joint="knee")
+    b = knee_contact_force(
+        model, kin, muscle_forces=f, joint="knee", distal_wrenches=geom.distal_wrenches["knee"]
+    )
+    np.testing.assert_array_equal(a.force, b.force)

@@ -84,8 +84,8 @@ from __future__ import annotations
 import itertools
 import threading
 import weakref
-from collections.abc import Mapping
-from dataclasses import dataclass
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
@@ -124,6 +124,10 @@ class MuscleGeometry:
         lengths: l (N, n_muscles), m.
         jacobian: J_l = ∂l/∂θ (N, n_muscles, n_coords), m/rad (m/m for translations).
         velocities: l̇ = J_l θ̇ (N, n_muscles), m/s, or ``None`` when no θ̇ was given.
+        distal_wrenches: per joint asked for (``distal_wrench_joints``), ∂l/∂ξ (N, n_muscles, 6)
+            for a rigid world twist ξ of everything distal to that joint: columns (force x, y,
+            z, moment x, y, z about the world origin), world axes; zero for the muscles that do
+            not cross it (see :meth:`GeometryPlan.evaluate`).
     """
 
     muscle_names: tuple[str, ...]
@@ -131,6 +135,7 @@ class MuscleGeometry:
     lengths: Array
     jacobian: Array
     velocities: Array | None = None
+    distal_wrenches: Mapping[str, Array] = field(default_factory=dict)
 
     @property
     def moment_arms(self) -> Array:
@@ -709,6 +714,8 @@ class GeometryPlan:
                         r_idx.append(r)
                         p_idx.append(int(p))
         n_rows = len(row_col)
+        self._row_muscle = np.asarray(row_target, dtype=np.intp) // max(nc, 1)
+        self._col_sup = col_sup
         # the rows, then one row per moving point (its net wrench, for the ∂p_b/∂θ term)
         n_mvp = self.moving_points.size
         r_idx += list(range(n_rows, n_rows + n_mvp))
@@ -818,8 +825,24 @@ class GeometryPlan:
         d[:, self._var_dof] = d1
         return q, d
 
-    def evaluate(self, theta: ArrayLike, theta_dot: ArrayLike | None = None) -> MuscleGeometry:
-        """Lengths, Jacobians ∂l/∂θ (and l̇ when θ̇ is given) for θ of shape (N, n_coords)."""
+    def evaluate(
+        self,
+        theta: ArrayLike,
+        theta_dot: ArrayLike | None = None,
+        *,
+        distal_wrench_joints: Sequence[str] = (),
+    ) -> MuscleGeometry:
+        """Lengths, Jacobians ∂l/∂θ (and l̇ when θ̇ is given) for θ of shape (N, n_coords).
+
+        ``distal_wrench_joints``: model joints (e.g. ``("knee_r",)``) for which the same pass
+        also returns :attr:`MuscleGeometry.distal_wrenches`, the unit wrench ∂l_i/∂ξ of each
+        muscle on everything distal to the joint (ξ a rigid world twist of that side, a virtual
+        six-DOF joint in its place). It is Σ (u, x × u) over the path-segment ends on the
+        bodies the joint supports, which is exactly the Jacobian row (muscle, joint) the length
+        Jacobian already aggregates (module docstring: a row exists for every muscle that
+        crosses the joint): no extra path resolution. Only for a joint none of whose DOFs moves
+        with a coordinate (no such row) is the path evaluated once more.
+        """
         th = _frames(theta, len(self.coordinate_names), "q")
         thd = None
         if theta_dot is not None:
@@ -831,6 +854,10 @@ class GeometryPlan:
         lengths = np.empty((n, m))
         jl = np.zeros((n, m, nc))
         vel = None if thd is None else np.empty((n, m))
+        joints = tuple(dict.fromkeys(distal_wrench_joints))
+        dw = {j: np.zeros((n, m, 6)) for j in joints}
+        by_row = {j: self._distal_rows(j) for j in joints}
+        rowed = {j: r for j, r in by_row.items() if r is not None}
         # frames in chunks: the temporaries stay small (cache, and no fresh pages to fault in
         # on every call); wrap iterations keep the whole batch (their cost is per pass)
         # chunks of equal size (no short last chunk paying the per-chunk overhead alone)
@@ -841,13 +868,83 @@ class GeometryPlan:
             self._evaluate_into(
                 th[sl], None if thd is None else thd[sl], lengths[sl], jl[sl],
                 None if vel is None else vel[sl],
+                {j: (rows, mus, dw[j][sl]) for j, (rows, mus) in rowed.items()},
             )  # fmt: skip
-        return MuscleGeometry(self.muscle_names, self.coordinate_names, lengths, jl, vel)
+        for j, r in by_row.items():
+            if r is None and n:
+                dw[j][:] = self._distal_by_twists(th, self._joint_dofs(j))
+        return MuscleGeometry(self.muscle_names, self.coordinate_names, lengths, jl, vel, dw)
+
+    def _joint_dofs(self, joint: str) -> list[int]:
+        """Pinocchio velocity indices of the axes of the model joint ``joint`` (first first)."""
+        model = self.model
+        if model is None:
+            raise ModelError(f"geometry plan of {self.model_name!r}: its model is gone")
+        spec = next((j for j in model.joints if j.name == joint), None)
+        if spec is None:
+            raise ModelError(f"model {model.name}: no joint {joint!r}")
+        if not spec.axes:
+            raise ModelError(f"model {model.name}: joint {joint!r} is a weld (no axis to cut at)")
+        names = [joint] if len(spec.axes) == 1 else [f"{joint}_{k}" for k in range(len(spec.axes))]
+        out = []
+        for name in names:
+            jid = self._pm.getJointId(name)
+            if jid >= self._pm.njoints:
+                raise ModelError(f"model {model.name}: no Pinocchio joint {name!r} for {joint!r}")
+            out.append(int(self._pm.joints[jid].idx_v))
+        return out
+
+    def _distal_rows(self, joint: str) -> tuple[NDArray[np.intp], NDArray[np.intp]] | None:
+        """The Jacobian rows (muscle, e) whose effective column e supports exactly the plan bodies
+        distal to ``joint``, and their muscles; ``None`` when no column does (then
+        :meth:`_distal_by_twists`)."""
+        dofs = self._joint_dofs(joint)
+        nb = len(self.body_names)
+        pattern = self.support[:nb, dofs[0]].astype(bool)
+        if not pattern.any():  # no muscle point distal to the joint
+            return np.zeros(0, dtype=np.intp), np.zeros(0, dtype=np.intp)
+        match = np.flatnonzero((self._col_sup == pattern[:, None]).all(axis=0))
+        if match.size == 0:
+            return None
+        rows = np.flatnonzero(self._row_col == match[0])
+        return rows, self._row_muscle[rows]
+
+    def _distal_by_twists(self, th: Array, dofs: list[int]) -> Array:
+        """∂l/∂ξ (N, M, 6) by the path evaluation with, in place of the joint Jacobian, unit
+        twists on ``dofs`` (those with the first one's support pattern: the axes of a coupled
+        joint all carry the same distal bodies, so a 3-axis joint needs two stacked
+        evaluations, a 1-axis one six). Used when no Jacobian row gives it directly."""
+        sup = self.support
+        cols = [iv for iv in dofs if np.array_equal(sup[:, iv], sup[:, dofs[0]])]
+        k = th.shape[0]
+        jac, rot, trans, _ = self.kinematics(th)
+        groups = [list(range(c, min(c + len(cols), 6))) for c in range(0, 6, len(cols))]
+        reps = len(groups)
+        fake = np.zeros((reps * k, *jac.shape[1:]))
+        for r, comps in enumerate(groups):
+            for col, comp in zip(cols, comps):
+                fake[r * k : (r + 1) * k, comp, col] = 1.0
+        tile = (reps,) + (1,) * (rot.ndim - 1)
+        _, dl_dq, _ = self._paths(
+            np.tile(th, (reps, 1)), fake, np.tile(rot, tile), np.tile(trans, (reps, 1, 1))
+        )
+        w = np.empty((k, self.n_muscles, 6))
+        for r, comps in enumerate(groups):
+            for col, comp in zip(cols, comps):
+                w[:, :, comp] = dl_dq[r * k : (r + 1) * k, :, col]
+        return w
 
     def _evaluate_into(
-        self, th: Array, thd: Array | None, lengths: Array, jl: Array, vel: Array | None
+        self,
+        th: Array,
+        thd: Array | None,
+        lengths: Array,
+        jl: Array,
+        vel: Array | None,
+        distal: Mapping[str, tuple[NDArray[np.intp], NDArray[np.intp], Array]] | None = None,
     ) -> None:
-        """One chunk of :meth:`evaluate`, written into the given output views."""
+        """One chunk of :meth:`evaluate`, written into the given output views; ``distal``: per
+        joint (its rows, their muscles, the (n, M, 6) view their wrenches go to)."""
         n = th.shape[0]
         q, dg = self._embed_diag(th)
         jac, rot, trans = self._body_kinematics(q)
@@ -856,6 +953,8 @@ class GeometryPlan:
         else:
             lengths[:], wp, dloc = self._wrenches(th, rot, trans)
             rows = (self._row_agg @ wp.reshape(-1, n * 6)).reshape(-1, n, 6)
+        for r_idx, mus, out in (distal or {}).values():
+            out[:, mus] = rows[r_idx].transpose(1, 0, 2)
         # effective columns: twists of the DOFs of one coordinate scaled by g_j' and summed
         n_rows = self._row_col.size
         if n_rows:
@@ -1683,13 +1782,17 @@ def muscle_geometry(
     qdot: ArrayLike | None = None,
     *,
     plan: GeometryPlan | None = None,
+    distal_wrench_joints: Sequence[str] = (),
 ) -> MuscleGeometry:
     """Lengths l(θ), Jacobians ∂l/∂θ and lengthening velocities of every muscle of ``model``
     over a trial: ``q`` (N, n_coords) independent coordinates θ, ``qdot`` θ̇ (optional).
+    ``distal_wrench_joints`` (e.g. ``("knee_r",)``): also the unit wrenches ∂l/∂ξ of the muscles
+    on the side distal to these joints, from the same pass
+    (:attr:`MuscleGeometry.distal_wrenches`, used by :func:`msk.contact.knee_contact_force`).
 
     See the module docstring for the maths (seed 002 Eq. 6–7; seed 004 §2.1).
     """
     plan = plan if plan is not None else geometry_plan(model)
     if plan.model is not model:
         raise ModelError(f"geometry plan was built for model {plan.model_name!r}, not this one")
-    return plan.evaluate(q, qdot)
+    return plan.evaluate(q, qdot, distal_wrench_joints=distal_wrench_joints)

@@ -1,0 +1,216 @@
+"""Knee contact force on gait2392 (92 muscles), subject01 walk: the former route (RNEA per frame,
+a path evaluation per pair of unit twists, a forward-kinematics pass per frame) against the
+vectorised one (``msk.contact.knee_contact_force`` with the unit wrenches ∂l/∂ξ of the geometry
+stage), both with the medial/lateral split, and the whole chain ID + geometry + SO + contact,
+in µs per frame, all measured in the same run (their ratios are what to compare: on the shared
+machine absolute times move ×2–3 with the load).
+
+Data: subject01 walking of the OpenSim peer (``shared/tools/opensim-peer/data``), its IK
+filtered at 6 Hz, 0.5–2.5 s, plate loads; static-optimisation forces by msk (no OpenSim here).
+Each stage is a batch call over the trial, one warm-up then ``--repeat`` timed calls; min and
+median are reported.
+
+    .venv/bin/python bench/bench_contact.py                 # print
+    .venv/bin/python bench/bench_contact.py --write-docs    # also update docs/benchmarks.md
+
+``--write-docs`` replaces only the section "## Knee contact" of docs/benchmarks.md (appends it
+when absent). Target: ≤ 10 µs per frame for the contact stage, medial/lateral split included.
+"""
+
+from __future__ import annotations
+
+import argparse
+import datetime
+import os
+import platform
+import sys
+import time
+from collections.abc import Callable
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT / "tests"))
+
+from synthetic import load_subject01  # noqa: E402
+from test_contact import legacy_knee_contact_force  # noqa: E402
+
+from msk.contact import (  # noqa: E402
+    KneeContact,
+    knee_contact_force,
+    plateau_geometry,
+    split_medial_lateral,
+)
+from msk.dynamics import inverse_dynamics  # noqa: E402
+from msk.kinematics import kinematics_from_coordinates  # noqa: E402
+from msk.loads import external_loads  # noqa: E402
+from msk.muscles.geometry import geometry_plan, muscle_parameters  # noqa: E402
+from msk.muscles.hill import Thelen2003Curves, rigid_tendon_state  # noqa: E402
+from msk.optimization import solve_static_optimization_batch  # noqa: E402
+
+SECTION = "## Knee contact"
+TARGET_US = 10.0
+JOINT = "knee_r"
+
+
+def timings(fn: Callable[[], Any], repeat: int, n: int) -> tuple[float, float]:
+    """(min, median) wall µs per frame of ``repeat`` calls after one warm-up."""
+    fn()
+    ts = []
+    for _ in range(repeat):
+        t0 = time.perf_counter()
+        fn()
+        ts.append(time.perf_counter() - t0)
+    return min(ts) / n * 1e6, float(np.median(ts)) / n * 1e6
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("--repeat", type=int, default=15)
+    ap.add_argument("--write-docs", action="store_true")
+    args = ap.parse_args()
+
+    s = load_subject01()
+    model = s.model
+    sel = (s.ik_time >= 0.5) & (s.ik_time <= 2.5)
+    kin = kinematics_from_coordinates(
+        s.ik_time[sel], s.ik_q[sel], model.coordinate_names, cutoff_hz=6.0
+    )
+    loads = external_loads(model, kin, s.plates, threshold_n=0.0)
+    params = muscle_parameters(model)
+    curves = Thelen2003Curves.gait2392()
+    plan = geometry_plan(model)
+    geo = plateau_geometry(model, joint=JOINT)
+    n = kin.n_frames
+
+    def stage_id() -> Any:
+        return inverse_dynamics(model, kin, loads)
+
+    def stage_geometry(joints: tuple[str, ...] = (JOINT,)) -> Any:
+        g = plan.evaluate(kin.q, kin.v, distal_wrench_joints=joints)
+        return g, rigid_tendon_state(params, g.lengths, g.velocities, curves=curves)
+
+    jt = stage_id()
+    geom, state = stage_geometry()
+    reserves = np.array([1.0 if c in jt.root_coordinates else 0.0 for c in jt.coordinate_names])
+
+    def stage_so() -> Any:
+        return solve_static_optimization_batch(
+            geom.jacobian, jt.tau, f_active=state.max_active_force_along_tendon,
+            activation_min=0.01, activation_max=1.0, reserve_optimal_force=reserves,
+            muscle_names=params.names, coordinate_names=jt.coordinate_names, compute_kkt=False,
+        )  # fmt: skip
+
+    sol = stage_so()
+    forces = np.nan_to_num(sol.forces)
+    wrenches = geom.distal_wrenches[JOINT]
+
+    def contact_old() -> Any:
+        f, m = legacy_knee_contact_force(model, kin, loads, muscle_forces=forces, joint=JOINT)
+        c = KneeContact(kin.time, JOINT, "tibia_r", f, m, np.zeros((n, 5)), 1.0, True)
+        return split_medial_lateral(c, geo)
+
+    def contact_new() -> Any:
+        c = knee_contact_force(
+            model, kin, loads, muscle_forces=forces, joint=JOINT, distal_wrenches=wrenches
+        )
+        return split_medial_lateral(c, geo)
+
+    def contact_alone() -> Any:
+        c = knee_contact_force(model, kin, loads, muscle_forces=forces, joint=JOINT, plan=plan)
+        return split_medial_lateral(c, geo)
+
+    a, b = contact_old(), contact_new()
+    err = max(
+        float(np.abs(a.medial - b.medial).max()), float(np.abs(a.lateral - b.lateral).max())
+    ) / float(np.abs(a.normal).max())
+
+    stages: dict[str, Callable[[], Any]] = {
+        "knee contact + split, former route (RNEA, twist paths)": contact_old,
+        "knee contact + split, from the geometry stage's ∂l/∂ξ": contact_new,
+        "knee contact + split, own geometry pass (no ∂l/∂ξ given)": contact_alone,
+        "inverse dynamics": stage_id,
+        "geometry + f_active": lambda: stage_geometry(()),
+        "geometry + f_active + knee ∂l/∂ξ": stage_geometry,
+        "static optimisation": stage_so,
+    }
+    res = {k: timings(fn, args.repeat, n) for k, fn in stages.items()}
+    names = list(stages)
+    old, new = res[names[0]], res[names[1]]
+    chain_keys = ("inverse dynamics", "geometry + f_active + knee ∂l/∂ξ", "static optimisation")
+    chain = [sum(res[k][i] for k in chain_keys) for i in (0, 1)]
+    chain_c = [chain[i] + new[i] for i in (0, 1)]
+    chain_o = [chain[i] + old[i] for i in (0, 1)]
+    load = os.getloadavg() if hasattr(os, "getloadavg") else (float("nan"),) * 3
+    lines = [
+        f"Latest run ({datetime.date.today().isoformat()}, {platform.machine()}, "
+        f"{os.cpu_count()} cores shared with other jobs, load average {load[0]:.1f} / "
+        f"{load[1]:.1f} / {load[2]:.1f} (1/5/15 min); Python {platform.python_version()}, numpy "
+        f"{np.__version__}): gait2392 subject01 walk, {n} frames, 92 muscles, `{JOINT}`, "
+        f"{args.repeat} repeats after a warm-up.",
+        "",
+        "| stage | µs/frame: min | median |",
+        "| --- | --- | --- |",
+    ]
+    for k in names:
+        lines.append(f"| {k} | {res[k][0]:,.1f} | {res[k][1]:,.1f} |")
+    lines += [
+        f"| **chain: ID + geometry (with ∂l/∂ξ) + SO + contact** | **{chain_c[0]:,.0f}** | "
+        f"{chain_c[1]:,.0f} |",
+        f"| chain with the former contact | {chain_o[0]:,.0f} | {chain_o[1]:,.0f} |",
+        "",
+        f"- Contact stage, former / new: **{old[0] / new[0]:,.0f}×** (min), "
+        f"{old[1] / new[1]:,.0f}× (median); the contact is now "
+        f"{100 * new[0] / chain_c[0]:.0f} % of the chain (was {100 * old[0] / chain_o[0]:.0f} %).",
+        f"- ∂l/∂ξ in the geometry pass: {res[names[5]][0] - res[names[4]][0]:+.1f} µs/frame "
+        "(min; they are the knee rows of the length Jacobian, gathered).",
+        f"- Same run, medial/lateral forces: largest difference {err:.1e} of the peak normal "
+        "force between the two routes.",
+        f"- Target ≤ {TARGET_US:.0f} µs/frame for the contact stage (split included): "
+        + ("met" if new[0] <= TARGET_US else "**not met**")
+        + f" ({new[0]:.1f} min, {new[1]:.1f} median).",
+    ]
+    text = "\n".join(lines)
+    print(text)
+    if args.write_docs:
+        _write_docs(text)
+
+
+def _write_docs(figures: str) -> None:
+    path = ROOT / "docs" / "benchmarks.md"
+    old = path.read_text(encoding="utf-8")
+    section = (
+        f"{SECTION} (`bench/bench_contact.py`)\n\n"
+        "`.venv/bin/python bench/bench_contact.py [--write-docs]`: tibiofemoral contact force "
+        "(`msk.contact.knee_contact_force`) and its medial/lateral split "
+        "(`split_medial_lateral`), former route against the vectorised one, and the whole "
+        "chain with it, all in one run.\n\n"
+        f"**Target: ≤ {TARGET_US:.0f} µs per frame for the contact stage, split included.**\n\n"
+        f"<!-- bench_contact:figures -->\n{figures}\n<!-- bench_contact:figures -->\n\n"
+        "Where the time went and goes: the former route evaluated the muscle paths again, once "
+        "per pair of unit twists on the knee DOFs (two stacked evaluations for the 3-axis "
+        "knee), ran RNEA per frame for the transmitted wrench and a forward-kinematics pass per "
+        "frame for the plateau frame. Now ∂l_i/∂ξ is the knee row of the length Jacobian that "
+        "the geometry stage aggregates anyway (`muscle_geometry(..., "
+        'distal_wrench_joints=("knee_r",))`, no second path resolution), the transmitted '
+        "wrench is the Newton–Euler balance of the bodies distal to the knee computed for all "
+        "frames at once (forward kinematics, velocities and accelerations of the 15 Pinocchio "
+        "joints from the pelvis to the toes, matrix products over the support), and the muscle "
+        "pull one contraction Σ F_i ∂l_i/∂ξ; what is left is numpy call overhead of the "
+        "per-joint forward-kinematics loop.\n"
+    )
+    if SECTION in old:
+        head, rest = old.split(SECTION, 1)
+        nxt = rest.find("\n## ")
+        new = head + section + (rest[nxt:] if nxt >= 0 else "")
+    else:
+        new = old.rstrip("\n") + "\n\n" + section
+    tmp = path.with_suffix(".md.tmp")
+    tmp.write_text(new, encoding="utf-8")
+    tmp.replace(path)
+
+
+if __name__ == "__main__":
+    main()
