@@ -817,6 +817,20 @@ def _segments(lab: Array, t: Array, offset: int) -> list[tuple[int, int, int]]:
     return [(a + offset, b + offset, v) for a, b, v in runs()]
 
 
+def _velocity(p: Array, t: Array) -> Array:
+    """(N, P, 3) velocity of points ``p`` (N, P, 3): the mean of the backward and forward
+    differences where both exist (central differences), one of them next to a gap or an end,
+    NaN for a frame with unknown neighbours on both sides."""
+    dt = np.diff(t)[:, None, None]
+    d = np.diff(p, axis=0) / dt  # (N-1, P, 3): d[i] between frames i and i+1
+    nan = np.full((1, *p.shape[1:]), np.nan)
+    back = np.concatenate([nan, d])
+    fwd = np.concatenate([d, nan])
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", RuntimeWarning)
+        return np.nanmean(np.stack([back, fwd]), axis=0)
+
+
 def contact_measured(
     model: Model,
     kinematics: Any,
@@ -863,7 +877,7 @@ def contact_measured(
     with warnings.catch_warnings():  # all-NaN frames (unknown pose): NaN, excluded below
         warnings.simplefilter("ignore", RuntimeWarning)
         low = np.stack([np.nanmin(p @ up, axis=1) for p in pts], axis=1)  # (N, F)
-        vel = [np.gradient(p, t, axis=0) for p in pts]
+        vel = [_velocity(p, t) for p in pts]
         # the floor: a low percentile of the feet's lowest points, not their minimum (a frame
         # or two of a badly tracked foot below the floor must not lift every other foot off it)
         floor = np.nanpercentile(low, 2.0)

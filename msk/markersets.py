@@ -540,6 +540,10 @@ def recognise(
             excluded[p.label] = "arm marker: the model has no arm segment"
         elif p.landmark in _HEAD_LANDMARKS and not has_head:
             excluded[p.label] = "head marker: the model has no head segment"
+        elif p.landmark == "patella" and not any("patella" in b for b in model_bodies):
+            # the patella glides over the femur as the knee flexes: fixed to femur or tibia it
+            # would pull the knee angle (no patella body in the model)
+            excluded[p.label] = "patella marker: the model has no patella segment"
         if p.landmark is not None:
             landmarks[p.label] = p.landmark
 

@@ -620,12 +620,18 @@ def _m(name: str, pairs: Sequence[tuple[str, str]], bodies: Sequence[str]) -> Me
 def _sided_alternatives(s: str, side: str) -> list[tuple[str, list[Measurement]]]:
     p = s.upper()
     foot = (f"talus_{side}", f"calcn_{side}", f"toes_{side}")
+    leg = (f"femur_{side}", f"tibia_{side}")
     return [
         (
             f"femur_{side}",
             [
                 _m(f"femur_{side}", [(f"{p}.ASIS", f"{p}.Knee.Lat")], [f"femur_{side}"]),
                 _m(f"femur_{side}", [(f"{p}.ASIS", f"{p}.Knee.Med")], [f"femur_{side}"]),
+                # no knee marker (cluster-only and Grand Challenge walks): the whole leg, femur
+                # and tibia alike, from the pelvis to the ankle or the heel (pose-matched in a
+                # motion trial, so the knee's flexion does not shorten it)
+                _m(f"leg_{side}", [(f"{p}.ASIS", f"{p}.Ankle.Lat")], leg),
+                _m(f"leg_{side}", [(f"{p}.ASIS", f"{p}.Heel")], leg),
             ],
         ),
         (
@@ -633,6 +639,8 @@ def _sided_alternatives(s: str, side: str) -> list[tuple[str, list[Measurement]]
             [
                 _m(f"tibia_{side}", [(f"{p}.Knee.Lat", f"{p}.Ankle.Lat")], [f"tibia_{side}"]),
                 _m(f"tibia_{side}", [(f"{p}.Knee.Med", f"{p}.Ankle.Med")], [f"tibia_{side}"]),
+                _m(f"leg_{side}", [(f"{p}.ASIS", f"{p}.Ankle.Lat")], leg),
+                _m(f"leg_{side}", [(f"{p}.ASIS", f"{p}.Heel")], leg),
             ],
         ),
         (
@@ -680,7 +688,7 @@ def choose_measurements(
     out = []
     for _, alts in alternatives:
         use = usable_measurements(list(alts), have)
-        if use:
+        if use and use[0] not in out:  # a whole-leg measurement serves femur and tibia once
             out.append(use[0])
     return out
 
@@ -889,6 +897,26 @@ def measure_scale_factors_from_motion(
     return factors, ratios, details
 
 
+#: weight (per rad²; markers per m²) of the pull towards neutral of a placement retried with it
+#: (:func:`place_markers_from_motion`): 10° off neutral costs as much as one marker 5.5 mm off,
+#: enough to settle rotations the markers leave free (UWA fast walking: placement IK 78 → 19 mm)
+NEUTRAL_TASK_WEIGHT = 0.001
+
+
+#: median marker RMS (m) of a motion placement above which it is retried with the pull towards
+#: neutral (a well-tracked gait trial places at 20–25 mm with the generic foot markers)
+PLACEMENT_RETRY_RMS_M = 0.030
+
+
+def _neutral_tasks(model: Model) -> dict[str, tuple[float, float]]:
+    """Coordinate tasks pulling every free rotation of ``model`` towards 0 (not translations)."""
+    return {
+        c.name: (0.0, NEUTRAL_TASK_WEIGHT)
+        for c in model.coordinates
+        if not c.locked and not c.name.endswith(("_tx", "_ty", "_tz"))
+    }
+
+
 def _ik_frames(
     x: Array, labels: Sequence[str], names: Iterable[str], max_frames: int, min_markers: int,
     time: ArrayLike | None = None, max_rate_hz: float = 60.0,
@@ -976,7 +1004,10 @@ def scale_from_motion(
         first = apply_scale_factors(model, measured)
         idx = _ik_frames(x, labels, have, max_frames, 3, t)
         try:
-            kin = solve_kinematics(first, x[idx], labels, t[idx], cutoff_hz=None, min_markers=3)
+            kin = solve_kinematics(
+                first, x[idx], labels, t[idx], cutoff_hz=None, min_markers=3,
+                coordinate_tasks=None,
+            )  # fmt: skip
             q = np.full((x.shape[0], model.n_coords), np.nan)
             q[idx] = kin.q_raw
             measured, ratios, details = measure_scale_factors_from_motion(
@@ -1066,6 +1097,12 @@ def place_markers_from_motion(
        own body, to their median body-frame position in the last pass (OpenSim's
        ``move_model_markers`` for these markers, as :func:`place_markers` does on a static).
 
+    The passes run without any pull on the coordinates; when their final marker RMS exceeds
+    :data:`PLACEMENT_RETRY_RMS_M` (the anatomical markers leave the legs free: pelvis and feet
+    only, e.g. UWA's cluster-only set), they are run again with every rotation pulled weakly
+    towards neutral (:data:`NEUTRAL_TASK_WEIGHT`) and the placement with the lower RMS is kept
+    (``info["regularized"]`` says which).
+
     Returns:
         The model with the markers added, and ``{"placed": marker → body, "spread_m": marker →
         σ (m), "too_loose": marker → [body, σ], "too_far": marker → [body, distance],
@@ -1076,6 +1113,43 @@ def place_markers_from_motion(
         KinematicsError: fewer than 3 model markers in the trial.
         MissingDataError: no frame could be solved.
     """
+    args = dict(
+        max_spread_m=max_spread_m, max_distance_m=max_distance_m, max_frames=max_frames,
+        min_frames=min_frames, min_markers=min_markers, iterations=iterations, move=move,
+    )  # fmt: skip
+    best = _place_markers_from_motion(model, markers, labels, time, **args)  # type: ignore[arg-type]
+    best[1]["regularized"] = False
+    if not best[1]["ik_marker_rms_m"] <= PLACEMENT_RETRY_RMS_M:
+        alt = _place_markers_from_motion(
+            model,
+            markers,
+            labels,
+            time,
+            regularize=True,
+            **args,  # type: ignore[arg-type]
+        )
+        alt[1]["regularized"] = True
+        if alt[1]["ik_marker_rms_m"] < best[1]["ik_marker_rms_m"]:
+            best = alt
+    return best
+
+
+def _place_markers_from_motion(
+    model: Model,
+    markers: ArrayLike,
+    labels: Sequence[str],
+    time: ArrayLike,
+    *,
+    max_spread_m: float = 0.02,
+    max_distance_m: float = 0.25,
+    max_frames: int = 120,
+    min_frames: int = 10,
+    min_markers: int = 4,
+    iterations: int = 3,
+    move: Sequence[str] = (),
+    regularize: bool = False,
+) -> tuple[Model, dict[str, Any]]:
+    """:func:`place_markers_from_motion` with or without the pull towards neutral."""
     from msk.io.c3d import is_measured_marker
     from msk.kinematics import solve_kinematics
     from msk.markersets import zeros_as_gaps
@@ -1124,7 +1198,14 @@ def place_markers_from_motion(
                 [*model.markers, *(Marker(k, placed[k], local[k]) for k in ok_prev)]
             )
         )
-        kin = solve_kinematics(ik_model, xs, labels, ts, cutoff_hz=None, min_markers=3)
+        # every pass (the first with the anatomical markers only: pelvis and feet at worst):
+        # a weak pull of every rotation towards neutral keeps the unpinned ones (hip rotation
+        # with no thigh marker, pelvis tilt with two pelvis markers) from wandering to their
+        # bounds, and later passes from diverging (UWA fast walking: 79 → 22 mm in pass 3)
+        tasks = _neutral_tasks(model) if regularize else None
+        kin = solve_kinematics(
+            ik_model, xs, labels, ts, cutoff_hz=None, min_markers=3, coordinate_tasks=tasks
+        )
         ok = np.isfinite(kin.q_raw).all(axis=1)
         if not ok.any():
             raise MissingDataError("motion trial: no frame could be solved for marker placement")
