@@ -20,9 +20,11 @@ or a prerequisite is: recorded with the reason, never replaced by made-up number
 error — and the run goes on). The core stages (read, model, kinematics, loads, inverse
 dynamics, report) have no fallback: their errors end the run, and nothing is written.
 
-**Cache.** A stage's key is the sha256 of its name, the msk version, its settings and the keys
+**Cache.** A stage's key is the sha256 of its name, the code fingerprint (the source of msk
+and the versions of its numerical dependencies), its settings and the keys
 of the stages it reads (input files enter through their content hash), so a changed setting
-recomputes exactly the stages downstream of it. Values are pickled in ``<out>/.cache``.
+recomputes exactly the stages downstream of it. Values are stored in ``<out>/.cache`` by
+:mod:`msk.cache` (``.npz`` + JSON, checksummed, keyed on the source of msk; never pickled).
 
 Each stage is one method of ``_Session``; what is left here is composition, caching, progress
 and results writing. The algorithms live in the library:
@@ -49,11 +51,8 @@ import dataclasses
 import hashlib
 import itertools
 import json
-import os
-import pickle
 import platform
 import sys
-import tempfile
 import time as _time
 import traceback
 from collections.abc import Callable, Mapping, Sequence
@@ -66,6 +65,7 @@ from typing import Any, TextIO
 import numpy as np
 
 from msk import __version__
+from msk.cache import StageCache, code_fingerprint
 from msk.config import SessionConfig, load_config
 from msk.exceptions import ConfigError, MissingDataError, ModelError, MskError
 from msk.io.frames import lab_to_model_rotation
@@ -211,6 +211,7 @@ def _versions() -> dict[str, str]:
 class _Runner:
     def __init__(self, cache_dir: Path | None, progress: TextIO | None) -> None:
         self.cache_dir = cache_dir
+        self.cache = StageCache(cache_dir) if cache_dir is not None else None
         self.progress = progress
         self.records: list[StageRecord] = []
         self.keys: dict[str, str] = {}
@@ -247,15 +248,13 @@ class _Runner:
             self.records.append(rec)
             self._say(rec)
             return None
-        key = _key(name, __version__, settings, [self.keys[n] for n in needs])
-        path = self.cache_dir / f"{name}-{key[:24]}.pkl" if self.cache_dir and cache else None
-        if path is not None and path.is_file():
-            try:
-                with open(path, "rb") as fh:
-                    value = pickle.load(fh)
-            except Exception:  # a corrupt cache entry is recomputed
-                value = None
-            else:
+        # the key holds the source of msk and its numerical dependencies (msk.cache): a code
+        # change recomputes; entries are .npz + JSON, checksummed, never unpickled
+        key = _key(name, code_fingerprint(), settings, [self.keys[n] for n in needs])
+        store = self.cache if cache else None
+        if store is not None:
+            hit, value = store.load(name, key)
+            if hit:
                 self.keys[name] = key
                 rec = StageRecord(name, "cached", _time.perf_counter() - t0, "", key)
                 self.records.append(rec)
@@ -288,18 +287,11 @@ class _Runner:
             self.records.append(rec)
             self._say(rec)
             return None
-        if path is not None:
-            path.parent.mkdir(parents=True, exist_ok=True)
-            fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", dir=path.parent)
-            try:
-                with os.fdopen(fd, "wb") as fh:
-                    pickle.dump(value, fh, protocol=pickle.HIGHEST_PROTOCOL)
-                os.replace(tmp, path)
-            except BaseException:
-                Path(tmp).unlink(missing_ok=True)
-                raise
+        note = ""
+        if store is not None and not store.save(name, key, value):
+            note = store.last_reason  # e.g. the model stage: a Model is not storable
         self.keys[name] = key
-        rec = StageRecord(name, "computed", _time.perf_counter() - t0, "", key)
+        rec = StageRecord(name, "computed", _time.perf_counter() - t0, note, key)
         self.records.append(rec)
         self._say(rec)
         return value
@@ -890,7 +882,9 @@ class _Session:
 
             q = np.where(ok[:, None], kin.q, model.default_coordinates()[None, :])
             v = np.where(ok[:, None], kin.v, 0.0)
-            return muscle_geometry(model, q, v)
+            # the knee's unit wrenches ∂l/∂ξ for the contact stage, from this same pass
+            knee = tuple(j.name for j in model.joints if j.name == f"knee{self.sfx}")
+            return muscle_geometry(model, q, v, distal_wrench_joints=knee)
 
         self.geom = self.runner.run("muscle_geometry", do, needs=("kinematics",))
         root = tuple(self.jt.root_coordinates)
@@ -1126,6 +1120,9 @@ class _Session:
             for name, (mdl, s) in variants.items():
                 # frames without muscle forces get no contact force (never zero muscle force)
                 ok = np.flatnonzero(ok_frames & np.isfinite(s["forces"]).all(axis=1))
+                # ∂l/∂ξ of the geometry stage (same paths and muscle order in both variants:
+                # with_strength only scales F_iso)
+                dw = getattr(self.geom, "distal_wrenches", {}).get(joint)
                 contact = knee_contact_force(
                     mdl,
                     _frames(kin, ok, n),
@@ -1133,6 +1130,7 @@ class _Session:
                     muscle_forces=s["forces"][ok],
                     muscle_names=tuple(s["muscles"]),
                     joint=joint,
+                    distal_wrenches=None if dw is None else dw[ok],
                 )
                 force = np.full((n, 3), np.nan)
                 force[ok] = contact.force

@@ -4,7 +4,6 @@ the content-hash cache, the CLI verbs, and the bundled Grand Challenge session e
 from __future__ import annotations
 
 import json
-import time
 from pathlib import Path
 
 import numpy as np
@@ -181,27 +180,36 @@ def test_analysis_stage_error_is_recorded_not_fatal(tmp_path):
 def test_cache_reuses_and_invalidates(tmp_path):
     cfg, _ = make_session(tmp_path / "s")
     out = tmp_path / "out"
-    t0 = time.perf_counter()
     first = run_session(cfg, out)
-    t1 = time.perf_counter()
     second = run_session(cfg, out)
-    t2 = time.perf_counter()
     st1 = {r.name: r.status for r in first.stages}
     st2 = {r.name: r.status for r in second.stages}
     assert {s for s in st1.values()} <= {"computed", "not available", "not requested"}
     assert st1["fes"] == "not requested"  # no FES trial in the configuration
-    assert all(st2[n] == "cached" for n, s in st1.items() if s == "computed")
-    assert (t2 - t1) < 0.5 * (t1 - t0)
+    # every computed stage comes from the cache, but the model (a msk.model.Model is not
+    # storable without pickle: msk.cache; it is rebuilt, its key unchanged)
+    assert all(st2[n] == "cached" for n, s in st1.items() if s == "computed" and n != "model")
+    assert st2["model"] == "computed"
+    assert not list((out / ".cache").glob("*.pkl"))
     # identical numbers from the cache
     a = read_session(out).table("joint_torques").data
     # a changed setting recomputes exactly the stages downstream of it
     cfg.write_text(cfg.read_text().replace("grf_cutoff_hz = 15.0", "grf_cutoff_hz = 12.0"))
     third = run_session(cfg, out)
     st3 = {r.name: r.status for r in third.stages}
-    assert st3["read"] == st3["model"] == st3["kinematics"] == "cached"
+    assert st3["read"] == st3["kinematics"] == "cached"
     assert st3["loads"] == st3["mass_identification"] == st3["inverse_dynamics"] == "computed"
     b = read_session(out).table("joint_torques").data
     assert not np.allclose(a, b, equal_nan=True)
+    # a poisoned or corrupted entry is never used: flip a byte of every cached array file
+    for f in (out / ".cache").glob("*.npz"):
+        blob = bytearray(f.read_bytes())
+        blob[len(blob) // 2] ^= 0xFF
+        f.write_bytes(bytes(blob))
+    fourth = run_session(cfg, out)
+    st4 = {r.name: r.status for r in fourth.stages}
+    assert "cached" not in st4.values()
+    assert np.array_equal(read_session(out).table("joint_torques").data, b, equal_nan=True)
 
 
 def test_cli_run_print_config_and_errors(tmp_path, capsys):
