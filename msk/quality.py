@@ -15,9 +15,9 @@ Thresholds and their sources (:data:`THRESHOLDS`):
   (centre-of-mass height × peak external force): the residual bounds of Hicks et al. (2015,
   Table 2), stated there on the peak residuals; msk applies them to the RMS over the frames
   whose ground contact the plates measure (COM height 55 % of stature, 1.75 m when unknown).
-* Body mass: the mass that balances the measured vertical ground reaction against the model's
-  centre-of-mass acceleration, m̂ = Σ F_z / Σ (a_com,z + g) over the measured frames (Newton's
-  second law on the whole body), more than 5 % from the configured mass.
+* Body mass: the mass that balances the measured vertical ground reaction, Newton's second law
+  on the whole body in integral form over the longest measured run,
+  m̂ = ∫ F_z dt / (g T + Δv_com,z), more than 5 % from the configured mass.
 * Joint angles outside physiological ranges of motion (:data:`PHYSIOLOGICAL_RANGES_DEG`: the
   active ranges of motion of healthy adults, Roaas A, Andersson GBJ (1982) Acta Orthop Scand
   53:205–208, widened by 10°).
@@ -97,28 +97,40 @@ class Flag:
 def body_mass_from_loads(
     model: Any, kinematics: Any, loads: Any, frames: NDArray[np.bool_]
 ) -> float | None:
-    """m̂ = Σ_k F_z,k / Σ_k (a_com,z,k + g) over ``frames``: the mass whose whole-body
-    Newton balance matches the measured vertical ground reaction (``loads.force`` summed over
-    bodies, world frame, z along −gravity). None when fewer than 10 frames are usable."""
+    """The mass whose whole-body Newton balance matches the measured vertical ground reaction,
+    in integral form over the longest run of consecutive ``frames`` [t₀, t₁]:
+
+        m̂ = ∫ F_z dt / (g (t₁ − t₀) + v_com,z(t₁) − v_com,z(t₀))
+
+    (``loads.force`` summed over bodies, world frame, z along −gravity; v_com from the model and
+    the kinematics at the two ends only, so the estimate does not rest on the model's mass
+    distribution the way a frame-by-frame balance with COM accelerations does). None when the
+    run is shorter than 10 frames."""
     g_vec = np.asarray(model.gravity, dtype=float)
     g = float(np.linalg.norm(g_vec))
     if g == 0.0:
         return None
     up = -g_vec / g
-    q, v, a = (np.asarray(x, dtype=float) for x in (kinematics.q, kinematics.v, kinematics.a))
-    ok = np.asarray(frames, dtype=bool) & np.isfinite(q).all(1) & np.isfinite(a).all(1)
-    idx = np.flatnonzero(ok)
-    if idx.size < 10:
+    t = np.asarray(kinematics.time, dtype=float)
+    q, v = (np.asarray(x, dtype=float) for x in (kinematics.q, kinematics.v))
+    ok = np.asarray(frames, dtype=bool) & np.isfinite(q).all(1) & np.isfinite(v).all(1)
+    edges = np.flatnonzero(np.diff(np.concatenate([[0], ok.astype(int), [0]])))
+    runs = list(zip(edges[::2], edges[1::2]))
+    if not runs:
         return None
-    fz = np.nansum(np.asarray(loads.force, dtype=float)[idx] @ up, axis=1)
+    i0, i1 = max(runs, key=lambda r: r[1] - r[0])
+    if i1 - i0 < 10:
+        return None
+    fz = np.nansum(np.asarray(loads.force, dtype=float)[i0:i1] @ up, axis=1)
+    impulse = float(np.trapezoid(fz, t[i0:i1]))
     data = model.create_data()
-    qp, vp, ap = model.coupling.embed(q[idx], v[idx], a[idx])
-    acc = np.empty(idx.size)
-    for i in range(idx.size):
-        pin.centerOfMass(model.pin_model, data, qp[i], vp[i], ap[i])
-        acc[i] = float(np.asarray(data.acom[0]) @ up)
-    den = float(np.sum(acc + g))
-    return float(np.sum(fz) / den) if den > 0 else None
+    vz = []
+    for k in (i0, i1 - 1):
+        qp, vp, _ = model.coupling.embed(q[k : k + 1], v[k : k + 1], np.zeros_like(v[k : k + 1]))
+        pin.centerOfMass(model.pin_model, data, qp[0], vp[0])
+        vz.append(float(np.asarray(data.vcom[0]) @ up))
+    den = g * float(t[i1 - 1] - t[i0]) + vz[1] - vz[0]
+    return impulse / den if den > 0 else None
 
 
 def _flag(trial: str, quantity: str, value: float, threshold: float, message: str) -> Flag:
