@@ -538,8 +538,10 @@ def identify_recruitment_pw(
     normalised by the one at ``PW_max`` as in the seed, each first divided by its force–length
     factor ``Fl(ε_c)`` (with ``L_c = L − L_s − F/k_s`` from ``subject``'s current ``b``,
     ``L_c0``, ``L_s``, ``k_s``; the seed neglects this, exact only for a rigid tendon).  Only
-    the product ``c1 F_cm`` is identifiable: the normalisation fixes ``α(PW_max) ≈ 1``
-    (seeds/000 Table 3 sets satisfy it within 3 %).  ``F_cm = F_max / (κ Fl_max α̂(PW_max))``
+    the product ``c1 F_cm`` is identifiable: the normalisation fixes ``α(PW_max) ≈ 1``.  The
+    seeds/000 Table 3 sets do not all satisfy it (their ``α(PW_max)`` spans 0.87 (S5L) to 1.03
+    (S9L)), so for such a leg ``c1`` and ``F_cm`` differ from the published ones by that factor
+    while ``F_cm α(PW_max)`` is recovered.  ``F_cm = F_max / (κ Fl_max α̂(PW_max))``
     with ``κ`` = :func:`calcium_gain`; ``K_cm = stiffness_ratio · F_cm`` ("proportional to
     F_cm according to the physiological model", ratio in 1/m).
     """
@@ -839,6 +841,8 @@ class SeriesStiffnessResult:
     solver_status: str
     iterations: int
     columns: tuple[str, ...] = ("time", "theta_r", "theta_r_fit", "theta_r_initial")
+    #: ``K_cm`` (N/m) of the fit: the subject's unless ``free_K_cm`` identified it jointly
+    K_cm: float = float("nan")
 
 
 #: ipopt return statuses whose point is kept (the others raise :class:`IdentificationError`);
@@ -855,13 +859,17 @@ _IPOPT_USABLE = frozenset(
 
 
 @functools.lru_cache(maxsize=8)
-def _ks_nlp(n_int: int, m: int, dt: float, kind: str) -> tuple[ca.Function, dict[str, int]]:
-    """Multiple-shooting NLP of Eq. 8: nodes every ``m`` steps, ``k_s`` in N/mm."""
+def _ks_nlp(
+    n_int: int, m: int, dt: float, kind: str, free_K_cm: bool = False
+) -> tuple[ca.Function, dict[str, int]]:
+    """Multiple-shooting NLP of Eq. 8: nodes every ``m`` steps, ``k_s`` in N/mm (and, with
+    ``free_K_cm``, a factor on ``K_cm`` as the second decision variable)."""
     step = _step_function(kind, False, dt, "rk4")  # type: ignore[arg-type]
     interval = step.mapaccum("interval", m).expand()  # SX: fast exact Hessians
     many = interval.map(n_int, "serial")
     npar = len(PARAM_NAMES)
     ks = ca.MX.sym("ks_mm")
+    kf = ca.MX.sym("kcm_factor", 1 if free_K_cm else 0)
     X = ca.MX.sym("X", 4, n_int + 1)  # scaled node states
     scale = ca.MX.sym("scale", 4)
     W = ca.MX.sym("W", 4, n_int * m)
@@ -869,7 +877,10 @@ def _ks_nlp(n_int: int, m: int, dt: float, kind: str) -> tuple[ca.Function, dict
     Y = ca.MX.sym("Y", 1, n_int * m)  # measured θ_r at the end of every step
     x0 = ca.MX.sym("x0", 4)
     k_idx = PARAM_NAMES.index("k_s")
-    p_full = ca.vertcat(P[:k_idx], 1e3 * ks, P[k_idx + 1 :])
+    c_idx = PARAM_NAMES.index("K_cm")
+    assert c_idx == k_idx - 1
+    kcm = kf * P[c_idx] if free_K_cm else P[c_idx]
+    p_full = ca.vertcat(P[:c_idx], kcm, 1e3 * ks, P[k_idx + 1 :])
     Xu = X * ca.repmat(scale, 1, n_int + 1)
     traj = many(Xu[:, :n_int], W, p_full)  # interval i reads columns i m … (i+1) m − 1
     ends = traj[:, m - 1 :: m]
@@ -877,7 +888,7 @@ def _ks_nlp(n_int: int, m: int, dt: float, kind: str) -> tuple[ca.Function, dict
     err = traj[0, :] - Y
     obj = ca.sumsqr(err) * dt
     g = ca.vertcat(ca.vec(gaps), (Xu[:, 0] - x0) / scale)
-    z = ca.vertcat(ks, ca.vec(X))
+    z = ca.vertcat(ks, kf, ca.vec(X))
     prm = ca.vertcat(ca.vec(W), P, ca.vec(Y), x0, scale)
     nlp = {"x": z, "f": obj, "g": g, "p": prm}
     opts = {
@@ -900,6 +911,8 @@ def identify_series_stiffness(
     k_s_bounds: tuple[float, float] | None = None,
     interval_steps: int = 25,
     dt: float = DT,
+    free_K_cm: bool = False,
+    K_cm_factor_bounds: tuple[float, float] = (0.1, 10.0),
 ) -> SeriesStiffnessResult:
     """``min_{k_s} ∫ (θ_r − θ_s)² dt  s.t. k_s > 0`` (seeds/000 Eq. 8) with casadi + ipopt.
 
@@ -928,10 +941,11 @@ def identify_series_stiffness(
     init = simulate(s0, stim, duration=n * dt, dt=dt)
     scale = np.array([1.0, 5.0, max(s0.muscle.K_cm, 1.0), max(s0.muscle.F_cm, 1.0)])
     xnodes = init.states[::m][: n_int + 1].T / scale[:, None]
-    solver, dims = _ks_nlp(n_int, m, dt, kind)
+    solver, dims = _ks_nlp(n_int, m, dt, kind, free_K_cm)
     p = param_vector(s0)
     prm = np.concatenate([w.T.ravel(), p, yg[1:], np.zeros(4), scale])
-    z0 = np.concatenate([[k0 / 1e3], xnodes.T.ravel()])
+    nf = 1 if free_K_cm else 0
+    z0 = np.concatenate([[k0 / 1e3], np.ones(nf), xnodes.T.ravel()])
     lbx = np.full(dims["n_z"], -np.inf)
     ubx = np.full(dims["n_z"], np.inf)
     m0 = s0.muscle
@@ -946,6 +960,8 @@ def identify_series_stiffness(
     _check_finite(step, who, initial_states=xnodes)
     lbx[0], ubx[0] = k_s_bounds[0] / 1e3, k_s_bounds[1] / 1e3
     z0[0] = float(np.clip(z0[0], lbx[0], ubx[0]))
+    if free_K_cm:
+        lbx[1], ubx[1] = K_cm_factor_bounds
     values = {
         "k_s0": k0,
         "k_s_box": np.array(k_s_bounds),
@@ -958,13 +974,14 @@ def identify_series_stiffness(
         sol = solver(x0=z0, p=prm, lbx=lbx, ubx=ubx, lbg=0, ubg=0)
     stats = solver.stats()
     k_hat = float(sol["x"][0]) * 1e3
+    kcm_hat = float(sol["x"][1]) * m0.K_cm if free_K_cm else m0.K_cm
     status = str(stats.get("return_status", ""))
     if status not in _IPOPT_USABLE or not np.isfinite(k_hat):
         vals = ", ".join(f"{k} = {_fmt(v)}" for k, v in values.items())
         raise IdentificationError(
             f"{step} ({who}): ipopt returned {status} (k_s = {k_hat:.4g} N/m) with {vals}"
         )
-    final = simulate(s0.with_muscle(k_s=k_hat), stim, duration=n * dt, dt=dt)
+    final = simulate(s0.with_muscle(k_s=k_hat, K_cm=kcm_hat), stim, duration=n * dt, dt=dt)
     fit = np.interp(t - t[0], tg, final.theta_r)
     fit0 = np.interp(t - t[0], tg, init.theta_r)
     return SeriesStiffnessResult(
@@ -979,6 +996,7 @@ def identify_series_stiffness(
         nrmsd_initial=float(nrmsd(y, fit0)),
         solver_status=status,
         iterations=int(stats.get("iter_count", -1)),
+        K_cm=kcm_hat,
     )
 
 

@@ -356,6 +356,7 @@ def run_protocol(
     calcium: CalciumParams | None = None,
     steady_window: float = 0.5,
     isometric_transients: bool = False,
+    identify_stiffness_ratio: bool = False,
 ) -> ProtocolResult:
     """seeds/000's protocol on one quadriceps–shank (PW-modulated stimulation).
 
@@ -380,6 +381,11 @@ def run_protocol(
     Every solver failure raises :class:`~msk.exceptions.IdentificationError` naming the leg,
     the stage and the offending values; a failure in a refinement pass (≥ 1) instead stops the
     passes and keeps the last complete one, with the reason in ``notes``.
+
+    With ``identify_stiffness_ratio`` (our addition) the NLP of passes ≥ 1 also identifies
+    ``K_cm`` (a factor in [0.1, 10] on ``stiffness_ratio · F_cm``) together with ``k_s``, and the
+    next pass uses the identified ratio: the prior is then only the starting point.  The
+    recovery study (``docs/fes.md``) shows what it changes with population priors.
     """
     secs: dict[str, float] = {}
     t0 = _time.perf_counter()
@@ -388,6 +394,7 @@ def run_protocol(
         fibre_fraction = pop.fibre_fraction if fibre_fraction is None else fibre_fraction
         stiffness_ratio = pop.stiffness_ratio if stiffness_ratio is None else stiffness_ratio
     ff, ratio = float(fibre_fraction), float(stiffness_ratio)
+    ratio_prior = ratio
     if not (0 < ff < 1 and ratio > 0):
         raise IdentificationError(
             f"FES protocol, leg {session.name}: priors fibre_fraction = {ff} (in (0, 1)) and "
@@ -469,17 +476,23 @@ def run_protocol(
                     )
                 else:
                     subj_k, fl_k, rec_k = initial_phase(k, k)
-                ks_k = identify_series_stiffness(d.time, d.theta_r, d.stim, subj_k, k_s0=k)
+                ks_k = identify_series_stiffness(
+                    d.time, d.theta_r, d.stim, subj_k, k_s0=k, free_K_cm=identify_stiffness_ratio
+                )
         except IdentificationError as e:
             notes.append(f"passes stopped, pass {it - 1} kept: {e}")
             break
         secs[f"pass_{it}"] = _time.perf_counter() - t1
         if isometric_transients:
             iso_fit = iso_k
-        subj, fl, rec, ks = subj_k.with_muscle(k_s=ks_k.k_s), fl_k, rec_k, ks_k
+        subj, fl, rec, ks = subj_k.with_muscle(k_s=ks_k.k_s, K_cm=ks_k.K_cm), fl_k, rec_k, ks_k
         history.append(ks_k.k_s)
         h = np.log(ks_k.k_s / k)
-        if abs(h) < 5e-3:
+        moved = 0.0
+        if identify_stiffness_ratio:
+            new_ratio = ks_k.K_cm / subj_k.muscle.F_cm
+            moved, ratio = abs(np.log(new_ratio / ratio)), new_ratio
+        if abs(h) < 5e-3 and moved < 5e-3:
             break
         pts.append((np.log(k), h))
         x1, h1 = pts[-1]
@@ -509,7 +522,7 @@ def run_protocol(
         ks_first,
         iso_fit,
         secs,
-        {"fibre_fraction": ff, "stiffness_ratio": ratio},
+        {"fibre_fraction": ff, "stiffness_ratio": ratio_prior},
         tuple(notes),
     )
 
