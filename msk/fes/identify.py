@@ -621,8 +621,8 @@ _ISO_FREE = ("F_cm", "b", "L_c0", "rec1", "rec2")
 
 
 @functools.lru_cache(maxsize=8)
-def _iso_fit_function(n: int, dt: float, n_trials: int) -> ca.Function:
-    step = _step_function("pw", True, dt, "rk4")
+def _iso_fit_function(n: int, dt: float, n_trials: int, ce: str = "000") -> ca.Function:
+    step = _step_function("pw", True, dt, "rk4", ce)
     sim = step.mapaccum("iso", n)
     x0 = ca.MX.sym("x0", 4)
     w = ca.MX.sym("w", 4, n)
@@ -679,7 +679,7 @@ def identify_isometric_transients(
     X0[0] = [subject.knee.theta_rest - tr.knee_angle for tr in trials]
     W = np.hstack([sample_on_grid(tr.stim, n, dt, cal.tau_c, cal.tau_r) for tr in trials])
     Y = np.column_stack([_grid_measure(tr.time, tr.torque, n, dt)[1] for tr in trials])
-    fun = _iso_fit_function(n, dt, len(trials))
+    fun = _iso_fit_function(n, dt, len(trials), subject.contractile)
     p = param_vector(subject)
     rec = subject.recruitment
     if not isinstance(rec, RecruitmentPW):
@@ -734,8 +734,10 @@ def _grid_measure(time: F64, theta_r: F64, n: int, dt: float) -> tuple[F64, F64]
 
 
 @functools.lru_cache(maxsize=16)
-def _traj_with_jac(kind: str, n: int, dt: float, free: tuple[str, ...]) -> ca.Function:
-    step = _step_function(kind, False, dt, "rk4")  # type: ignore[arg-type]
+def _traj_with_jac(
+    kind: str, n: int, dt: float, free: tuple[str, ...], ce: str = "000"
+) -> ca.Function:
+    step = _step_function(kind, False, dt, "rk4", ce)  # type: ignore[arg-type]
     sim = step.mapaccum("sim", n)
     x0 = ca.MX.sym("x0", 4)
     w = ca.MX.sym("w", 4, n)
@@ -798,7 +800,7 @@ def identify_recruitment_current(
         raise IdentificationError(f"{subject.name}: current recruitment needs a current model")
     w = sample_on_grid(stim, n, dt, s0.calcium.tau_c, s0.calcium.tau_r)
     free = ("rec0", "rec1", "rec2", "rec3")
-    fun = _traj_with_jac("current", n, dt, free)
+    fun = _traj_with_jac("current", n, dt, free, s0.contractile)
     p = param_vector(s0)
     idx = [PARAM_NAMES.index(k) for k in free]
     x0 = np.zeros(4)
@@ -860,11 +862,11 @@ _IPOPT_USABLE = frozenset(
 
 @functools.lru_cache(maxsize=8)
 def _ks_nlp(
-    n_int: int, m: int, dt: float, kind: str, free_K_cm: bool = False
+    n_int: int, m: int, dt: float, kind: str, free_K_cm: bool = False, ce: str = "000"
 ) -> tuple[ca.Function, dict[str, int]]:
     """Multiple-shooting NLP of Eq. 8: nodes every ``m`` steps, ``k_s`` in N/mm (and, with
     ``free_K_cm``, a factor on ``K_cm`` as the second decision variable)."""
-    step = _step_function(kind, False, dt, "rk4")  # type: ignore[arg-type]
+    step = _step_function(kind, False, dt, "rk4", ce)  # type: ignore[arg-type]
     interval = step.mapaccum("interval", m).expand()  # SX: fast exact Hessians
     many = interval.map(n_int, "serial")
     npar = len(PARAM_NAMES)
@@ -941,7 +943,7 @@ def identify_series_stiffness(
     init = simulate(s0, stim, duration=n * dt, dt=dt)
     scale = np.array([1.0, 5.0, max(s0.muscle.K_cm, 1.0), max(s0.muscle.F_cm, 1.0)])
     xnodes = init.states[::m][: n_int + 1].T / scale[:, None]
-    solver, dims = _ks_nlp(n_int, m, dt, kind, free_K_cm)
+    solver, dims = _ks_nlp(n_int, m, dt, kind, free_K_cm, s0.contractile)
     p = param_vector(s0)
     prm = np.concatenate([w.T.ravel(), p, yg[1:], np.zeros(4), scale])
     nf = 1 if free_K_cm else 0

@@ -203,6 +203,9 @@ class FesSubject:
     muscle: MuscleParams
     recruitment: Recruitment
     calcium: CalciumParams = CalciumParams()
+    #: contractile-element equations: ``"000"`` (seeds/000 Eq. 1–4) or ``"001"`` (seeds/001
+    #: Eq. 3, 5–6; see :func:`msk.fes.simulate.rhs_function`)
+    contractile: Literal["000", "001"] = "000"
 
     def with_knee(self, **kw: float) -> FesSubject:
         return dataclasses.replace(self, knee=dataclasses.replace(self.knee, **kw))
@@ -297,6 +300,7 @@ def subject_from_vector(template: FesSubject, p: ArrayLike) -> FesSubject:
         muscle=MuscleParams(v["F_cm"], v["K_cm"], v["L_c0"], v["b"], v["k_s"], v["L_s"]),
         recruitment=rec,
         calcium=dataclasses.replace(template.calcium, U_c=v["U_c"], U_r=v["U_r"]),
+        contractile=template.contractile,
     )
 
 
@@ -429,7 +433,9 @@ def _seed001_subject() -> FesSubject:
     ``L_c0 = 0.09 m`` (seeds/000's mean 9.2 cm), ``L_s = L_opt − L_c0`` and
     ``b = b_l L_opt / L_c0``.  ``K_max = 10⁴`` (Eq. 6, taken by the seed from the literature;
     read as N/m).  ``k_s`` is not identified in seed 001: we use 10 N/mm (Table 3 order).
-    The stimulation is fused (31.25 Hz, u = const), obtained with ``τ_c = 1/f``.
+    The stimulation is fused (31.25 Hz, u = const), obtained with ``τ_c = 1/f``.  Its
+    contractile element is seed 001's own (Eq. 3, force–length on ``L_q``: ``contractile =
+    "001"``).
     """
     M_s, L_og, J = 4.026, 0.194, 0.343
     L_opt, b_l, L_c0 = 0.455, 0.054, 0.09
@@ -442,6 +448,7 @@ def _seed001_subject() -> FesSubject:
         ),
         recruitment=RecruitmentCurrent(a_I=-0.295, B_r=0.593, C_r=-0.994, D_r=4.203),
         calcium=CalciumParams(tau_c=1 / 31.25, tau_r=0.020),
+        contractile="001",
     )
 
 

@@ -9,7 +9,7 @@ import contextlib
 import time as _time
 from collections.abc import Iterator
 from dataclasses import dataclass, field
-from typing import Any
+from typing import Any, Literal
 
 import numpy as np
 from numpy.typing import NDArray
@@ -551,12 +551,17 @@ def run_protocol_seed001(
     k_s: float,
     recruitment_init: RecruitmentCurrent,
     calcium: CalciumParams,
+    contractile: Literal["000", "001"] = "001",
 ) -> Seed001Result:
     """seeds/001 §IV: ``J`` and ``M_s g L_og`` from anthropometry, pendulum → ``K_eq``, ``F_v``
     (``K_e = K_eq − M_s g L_og``), force–length at maximal stimulation (``F_max`` read as
     ``α = 1``: seed 001's ``D_r`` absorbs the scale), recruitment ``α(I)`` from the first part
     of the dynamic data, cross-validation on the second part.  ``k_s`` and ``K_max`` are
     literature values in the seed (``K_cm = stiffness_ratio F_cm``).
+
+    The model is seeds/001's own contractile element (its Eq. 3, force–length on the whole
+    muscle length, Eq. 5–6; ``contractile = "001"``, the default) — the force–length step then
+    fits Eq. 5 on ``L_q`` directly (rigid series element) — or seeds/000's (``"000"``).
     """
     geo = geometry_from_height(session.height)
     k_g = anthropometry.gravity_stiffness
@@ -567,11 +572,17 @@ def run_protocol_seed001(
     fl_angles = np.array([tr.knee_angle for tr in session.force_length])
     fl_force = np.array([tr.steady_torque() for tr in session.force_length]) / geo.r_q
     fl = identify_force_length(
-        fl_angles, fl_force, geometry=geo.geometry, fibre_fraction=fibre_fraction, k_s=k_s
+        fl_angles,
+        fl_force,
+        geometry=geo.geometry,
+        fibre_fraction=fibre_fraction,
+        k_s=np.inf if contractile == "001" else k_s,
     )
     f_max = fl.F_peak / calcium_gain(calcium, session.frequency_hz)
     muscle = MuscleParams(f_max, stiffness_ratio * f_max, fl.L_c0, fl.b, k_s, fl.L_s)
-    subj = FesSubject(session.name, geo.geometry, knee, muscle, recruitment_init, calcium)
+    subj = FesSubject(
+        session.name, geo.geometry, knee, muscle, recruitment_init, calcium, contractile
+    )
     d = session.identification
     rec = identify_recruitment_current(d.time, d.theta_r, d.stim, subj)
     subj = subj.with_recruitment(rec.recruitment)

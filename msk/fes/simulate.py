@@ -58,8 +58,23 @@ def _alpha_sym(kind: RecKind, level: ca.SX, r: list[ca.SX]) -> ca.SX:
 
 
 @functools.lru_cache(maxsize=8)
-def rhs_function(kind: RecKind = "pw", isometric: bool = False) -> ca.Function:
-    """``f(x, level, Π_c, p) → (ẋ, α, ε_c, ε̇_c)`` (seeds/000 Eq. 1–7, 10–12)."""
+def rhs_function(kind: RecKind = "pw", isometric: bool = False, ce: str = "000") -> ca.Function:
+    """``f(x, level, Π_c, p) → (ẋ, α, ε_c, ε̇_c)`` (seeds/000 Eq. 1–7, 10–12).
+
+    ``ce = "001"`` uses seeds/001's contractile element (its Eq. 3, 5–6) instead: ``F_0 =
+    F_cm Fl(L)``, ``K_0 = K_cm Fl(L)`` with the force–length factor of the *whole* muscle
+    length ``L(θ)`` (seeds/001 Eq. 5–6: ``Fl = exp(−((L/L_opt − 1)/b_l)²)``, here ``L_opt =
+    L_c0 + L_s``, ``b_l L_opt = b L_c0``), and with ``p = 1/k_s``, ``q = 1/(L_c0 k_s)``,
+    ``D = 1 + p K_c − s_v q F_c``::
+
+        Ḟ_c = [u (α F_0 − F_c) + (K_c − s_v F_c/L_c0) L̇] / D
+        K̇_c = u (α K_0 − K_c) / D − |ε̇_c| K_c,   ε̇_c = (L̇/L_c0 + q u (F_c − α F_0)) / D
+
+    which is seeds/001 Eq. 3 with its fused-tetanus ``u = 1`` read as the calcium rate ``u``
+    (``U_c`` while stimulating, ``Π_c ≡ 1``; ``U_r`` after the train) and ``a ε̇ = L̇/L_c0``,
+    ``b ε̇ = L̇``.  ``Ḟ_c`` is seeds/000's (Eq. 1, 3 eliminated); ``K̇_c`` differs from it: its
+    relaxation term is divided by ``D``.
+    """
     x = ca.SX.sym("x", 4)
     level = ca.SX.sym("level")
     pi = ca.SX.sym("pi")
@@ -68,22 +83,34 @@ def rhs_function(kind: RecKind = "pw", isometric: bool = False) -> ca.Function:
     th_r, om, kc, fc = x[0], x[1], x[2], x[3]
     if isometric:
         om = 0 * om
+    if ce not in ("000", "001"):
+        raise ModelError(f"contractile element model {ce!r}: expected '000' or '001'")
     alpha = _alpha_sym(kind, level, [P["rec0"], P["rec1"], P["rec2"], P["rec3"]])
     theta = P["theta_rest"] - th_r
     length = P["L_ext"] + P["r_q"] * theta
     l_dot = -P["r_q"] * om
-    l_c = length - P["L_s"] - fc / P["k_s"]
-    eps_c = (l_c - P["L_c0"]) / P["L_c0"]
-    fl = ca.exp(-((eps_c / P["b"]) ** 2))
     u = pi * P["U_c"] + (1 - pi) * P["U_r"]
+    k_s, l_c0 = P["k_s"], P["L_c0"]
+    if ce == "000":
+        l_c = length - P["L_s"] - fc / k_s
+        eps_c = (l_c - l_c0) / l_c0
+        fl = ca.exp(-((eps_c / P["b"]) ** 2))
+    else:  # seeds/001 Eq. 5-6: force-length on the whole muscle length
+        fl = ca.exp(-(((length - P["L_s"] - l_c0) / (l_c0 * P["b"])) ** 2))
+        eps_c = (length - P["L_s"] - fc / k_s - l_c0) / l_c0
     drive = alpha * fl * pi * P["U_c"]
-    num = P["k_s"] * l_dot + fc * u - drive * P["F_cm"]
+    num = k_s * l_dot + fc * u - drive * P["F_cm"]
     s_v = num / ca.sqrt(num**2 + _SMOOTH**2)
-    den = P["k_s"] * P["L_c0"] + kc * P["L_c0"] - s_v * fc
+    den = k_s * l_c0 + kc * l_c0 - s_v * fc
     eps_c_dot = num / den
     abs_eps = s_v * eps_c_dot
-    kc_dot = -(u + abs_eps) * kc + drive * P["K_cm"]
-    fc_dot = -(u + abs_eps) * fc + drive * P["F_cm"] + kc * P["L_c0"] * eps_c_dot
+    if ce == "000":
+        kc_dot = -(u + abs_eps) * kc + drive * P["K_cm"]
+        fc_dot = -(u + abs_eps) * fc + drive * P["F_cm"] + kc * l_c0 * eps_c_dot
+    else:  # seeds/001 Eq. 3 (D = den / (k_s L_c0))
+        d = den / (k_s * l_c0)
+        kc_dot = (drive * P["K_cm"] - u * kc) / d - abs_eps * kc
+        fc_dot = (drive * P["F_cm"] - u * fc + (kc - s_v * fc / l_c0) * l_dot) / d
     torque = P["r_q"] * fc
     passive = P["B"] * om + P["K"] * ca.sin(th_r) + P["K_e"] * th_r
     om_dot = (torque - passive) / P["J"]
@@ -101,8 +128,10 @@ def rhs_function(kind: RecKind = "pw", isometric: bool = False) -> ca.Function:
 
 
 @functools.lru_cache(maxsize=16)
-def _step_function(kind: RecKind, isometric: bool, dt: float, method: Method) -> ca.Function:
-    f = rhs_function(kind, isometric)
+def _step_function(
+    kind: RecKind, isometric: bool, dt: float, method: Method, ce: str = "000"
+) -> ca.Function:
+    f = rhs_function(kind, isometric, ce)
     x = ca.SX.sym("x", 4)
     w = ca.SX.sym("w", 4)
     p = ca.SX.sym("p", len(PARAM_NAMES))
@@ -132,10 +161,15 @@ def _step_function(kind: RecKind, isometric: bool, dt: float, method: Method) ->
 
 @functools.lru_cache(maxsize=64)
 def simulator_function(
-    kind: RecKind, isometric: bool, n_steps: int, dt: float = DT, method: Method = "rk4"
+    kind: RecKind,
+    isometric: bool,
+    n_steps: int,
+    dt: float = DT,
+    method: Method = "rk4",
+    ce: str = "000",
 ) -> ca.Function:
     """``F(x0, W[4×n], p) → X[4×n]`` (states at the end of each step), cached per shape."""
-    return _step_function(kind, isometric, dt, method).mapaccum("fes_sim", n_steps)
+    return _step_function(kind, isometric, dt, method, ce).mapaccum("fes_sim", n_steps)
 
 
 @dataclass(frozen=True)
@@ -196,7 +230,7 @@ def simulate(
     if iso:
         x0[0] = subject.knee.theta_rest - float(isometric_angle)  # type: ignore[arg-type]
         x0[1] = 0.0
-    sim = simulator_function(kind, iso, n, dt, method)
+    sim = simulator_function(kind, iso, n, dt, method, subject.contractile)
     try:
         xs = np.asarray(sim(x0, w, p)).T
     except RuntimeError as e:  # casadi: NaN/Inf or an assertion inside the simulator

@@ -111,3 +111,55 @@ def test_eq3_is_the_derivative_of_the_series_element_law(
     assert eps_dot[0] == pytest.approx(
         expected[0] if np.ndim(expected) else expected, rel=1e-6, abs=1e-9
     )
+
+
+def test_seed001_contractile_element_is_its_eq3() -> None:
+    """rhs_function(..., ce="001") against seeds/001 Eq. 3 written out with its a, b, p, q
+    (u = U_c, the fused-tetanus rate; F_0, K_0 from Eq. 5-6 on the whole muscle length)."""
+    from msk.fes.model import SEED001_SUBJECT, param_vector
+    from msk.fes.simulate import rhs_function
+
+    s = SEED001_SUBJECT
+    assert s.contractile == "001"
+    m, g = s.muscle, s.geometry
+    p = param_vector(s)
+    level = 2e-3
+    alpha = float(s.recruitment(level))
+    u = s.calcium.U_c
+    L_opt, b_l = m.L_c0 + m.L_s, m.b * m.L_c0 / (m.L_c0 + m.L_s)
+    for x in ([0.3, 1.2, 4e3, 120.0], [0.5, -2.0, 8e3, 60.0], [0.1, 0.0, 1e3, 10.0]):
+        theta = s.knee.theta_rest - x[0]
+        L = g.L_ext + g.r_q * theta
+        L0 = L  # ε = (L − L0)/L0: any reference length, it cancels (a ε̇ = L̇/L_c0)
+        eps_dot = -g.r_q * x[1] / L0
+        fl = np.exp(-(((L / L_opt - 1) / b_l) ** 2))
+        F0, K0 = m.F_cm * fl, m.K_cm * fl
+        a, b, pp, q = L0 / m.L_c0, L0, 1 / m.k_s, 1 / (m.L_c0 * m.k_s)
+        kc, fc = x[2], x[3]
+        sv = np.sign(a * eps_dot + q * u * (fc - F0 * alpha))
+        D = 1 + pp * kc - sv * q * fc
+        kc_dot = (
+            (u * K0 + sv * q * u * F0 * kc) * alpha - (u + sv * q * u * fc + sv * a * eps_dot) * kc
+        ) / D
+        fc_dot = (u * F0 * alpha + (b * kc - sv * a * fc) * eps_dot - u * fc) / D
+        out = np.asarray(rhs_function("current", False, "001")(x, level, 1.0, p)[0]).ravel()
+        assert out[2] == pytest.approx(kc_dot, rel=1e-9)
+        assert out[3] == pytest.approx(fc_dot, rel=1e-9)
+
+
+def test_seed001_isometric_steady_force_on_whole_length() -> None:
+    """Eq. 5: the steady isometric force is α F_max Fl(L_q), whatever k_s (no F/k_s shift)."""
+    from msk.fes.model import SEED001_SUBJECT
+    from msk.fes.simulate import simulate
+    from msk.fes.stimulation import pulse_train
+
+    s = SEED001_SUBJECT
+    st = pulse_train(3e-3, duration=3.0, frequency_hz=31.25, kind="current")
+    for deg in (24, 60, 77):
+        a = np.deg2rad(deg)
+        tr = simulate(s, st, duration=3.0, isometric_angle=a)
+        L = s.geometry.L_ext + s.geometry.r_q * a
+        fl = np.exp(-(((L - s.muscle.L_s - s.muscle.L_c0) / (s.muscle.b * s.muscle.L_c0)) ** 2))
+        assert tr.F_c[-10] == pytest.approx(
+            float(s.recruitment(3e-3)) * s.muscle.F_cm * fl, rel=1e-3
+        )
