@@ -95,7 +95,8 @@ def _fig_strength(res: SessionResults) -> str | None:
             ax.errorbar(
                 f,
                 k,
-                xerr=[[f - g["ci_low"]], [g["ci_high"] - f]],
+                # an interval end one rounding step past the factor must not abort the figure
+                xerr=[[max(0.0, f - g["ci_low"])], [max(0.0, g["ci_high"] - f)]],
                 fmt="o",
                 color=col,
                 capsize=3,
@@ -315,7 +316,13 @@ def build_figures(res: SessionResults) -> dict[str, str]:
         ("contact", _fig_contact),
         ("fes", _fig_fes),
     ):
-        svg = fn(res)
+        try:
+            svg = fn(res)
+        except Exception as exc:  # a figure that cannot be drawn must not cost the report
+            svg = (
+                f'<p class="warn">This figure could not be drawn ({_e(type(exc).__name__)}: '
+                f"{_e(' '.join(str(exc).split())[:200])}); the tables hold its numbers.</p>"
+            )
         if svg:
             out[name] = svg
     return out
