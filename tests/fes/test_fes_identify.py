@@ -187,3 +187,17 @@ def test_ks_lower_bound_admits_every_table3_leg() -> None:
     for leg in TABLE3.values():
         m = leg.muscle
         assert m.k_s >= 2 * k_s_lower_bound(m.F_cm, m.L_c0) * (1 - 1e-12)
+
+
+def test_series_stiffness_nlp_with_free_kcm() -> None:
+    """identify_stiffness_ratio's NLP: K_cm 50 % off, everything else right → both recovered."""
+    s = TABLE3["S3L"]
+    st, t, y = _short_dynamic(s)
+    y = y + RNG.normal(0, np.deg2rad(0.5), y.size)
+    start = s.with_muscle(K_cm=1.5 * s.muscle.K_cm)
+    fixed = identify_series_stiffness(t, y, st, start, k_s0=5e3)
+    free = identify_series_stiffness(t, y, st, start, k_s0=5e3, free_K_cm=True)
+    assert abs(fixed.k_s / 10e3 - 1) > 0.1  # k_s compensates the wrong K_cm
+    assert free.k_s == pytest.approx(10e3, rel=0.03)
+    assert free.K_cm == pytest.approx(s.muscle.K_cm, rel=0.03)
+    assert free.nrmsd < fixed.nrmsd
