@@ -10,7 +10,9 @@
 
 A failing session never stops the others: its error is kept as one line (type and message), the
 others complete and are written, and :attr:`BatchResult.failed` lists it. The cohort table
-``out/cohort.csv`` has one row per session with its key quality figures (:data:`COHORT_COLUMNS`).
+``out/cohort.csv`` has one row per session with its key quality figures (:data:`COHORT_COLUMNS`);
+its strength columns count the groups per :mod:`msk.status` word and list each group's word
+(``strength_group_status``: ``group: status; …``).
 
 ``compare_sessions(folders)`` builds the table of generic vs identified differences across
 session folders (``msk compare``), with the metrics of :mod:`msk.compare`.
@@ -60,6 +62,9 @@ COHORT_COLUMNS: tuple[str, ...] = (
     "identified_mass_kg",
     "strength_fit_r2",
     "strength_groups_identified",
+    "strength_groups_at_bound",
+    "strength_groups_not_determined",
+    "strength_group_status",
     "knee_contact_rms_bw",
     "knee_contact_icc",
     "stages_not_available",
@@ -102,6 +107,8 @@ def _row(
     row.update(session=name, config=config, status=status, error=error, run_s=round(seconds, 3))
     if not summary:
         return row
+    from msk.status import group_status
+
     q = summary.get("quality", {})
     row["session"] = summary.get("session", name) or name
     row["frames"] = q.get("frames", "")
@@ -117,7 +124,14 @@ def _row(
         row["identified_mass_kg"] = round(sum(s["mass_kg"] for s in ident["segments"]), 3)
     st = summary.get("strength")
     if st:
-        row["strength_groups_identified"] = sum(bool(g["identified"]) for g in st["groups"])
+        status = [(g["group"], group_status(g, st).value) for g in st["groups"]]
+        for col, word in (
+            ("strength_groups_identified", "identified"),
+            ("strength_groups_at_bound", "at bound"),
+            ("strength_groups_not_determined", "not determined"),
+        ):
+            row[col] = sum(s == word for _, s in status)
+        row["strength_group_status"] = "; ".join(f"{n}: {s}" for n, s in status)
     comp = (summary.get("comparison") or {}).get("knee_contact_subject_specific") or (
         summary.get("comparison") or {}
     ).get("knee_contact_generic")
@@ -271,9 +285,12 @@ COMPARE_COLUMNS = (
 def compare_sessions(folders: Sequence[str | Path]) -> list[dict[str, Any]]:
     """Generic vs identified, per session folder: segment masses (kg), strength factors (×),
     pelvis residuals (N, N·m) and the knee contact force against the measured one (RMS in BW,
-    NRMSD %, Pearson r, ICC from :mod:`msk.compare` on the ``knee_contact`` table)."""
+    NRMSD %, Pearson r, ICC from :mod:`msk.compare` on the ``knee_contact`` table). The
+    ``note`` of a mass or strength row is its :mod:`msk.status` word (``identified``,
+    ``at bound``, ``not determined``, ``prior``)."""
     from msk import compare
     from msk.results import read_session
+    from msk.status import group_status, segment_status
 
     rows: list[dict[str, Any]] = []
 
@@ -307,7 +324,7 @@ def compare_sessions(folders: Sequence[str | Path]) -> list[dict[str, Any]]:
                     seg["prior_mass_kg"],
                     seg["mass_kg"],
                     "kg",
-                    seg["flag"],
+                    segment_status(seg).value,
                 )
         st = s.get("strength")
         if st:
@@ -319,7 +336,7 @@ def compare_sessions(folders: Sequence[str | Path]) -> list[dict[str, Any]]:
                     1.0,
                     g["factor"],
                     "x generic",
-                    "identified" if g["identified"] else "kept generic",
+                    group_status(g, st).value,
                 )
         comp = s.get("comparison") or {}
         for key, unit in (("residual_force_rms_n", "N"), ("residual_moment_rms_nm", "N·m")):

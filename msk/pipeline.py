@@ -1597,7 +1597,9 @@ def _contact_agreement(measured: np.ndarray, predicted: np.ndarray, bw: float) -
 
 
 def _segment_summary(s: Any) -> dict[str, Any]:
-    return {
+    from msk.status import segment_status
+
+    out = {
         "name": s.name,
         "mass_kg": s.mass,
         "mass_std_kg": s.mass_std,
@@ -1607,6 +1609,10 @@ def _segment_summary(s: Any) -> dict[str, Any]:
         "prior_com_m": s.prior_com,
         "flag": s.flag,
     }
+    # msk.status word: a segment that moved from its prior without becoming precise is
+    # "not determined", never "prior" (issue 17)
+    out["status"] = segment_status(out).value
+    return out
 
 
 def _inertial_table(ident: Mapping[str, Any]) -> Table:
@@ -1620,7 +1626,12 @@ def _inertial_table(ident: Mapping[str, Any]) -> Table:
 
 
 def _strength_table(strength: Mapping[str, Any]) -> Table:
+    """One row: per group factor, CI, F_iso and ``status_code`` (:data:`msk.status.STATUS_CODES`,
+    listed in ``summary.json`` ``strength.status_codes``: the tables are numeric)."""
+    from msk.status import STATUS_CODES
+
     p = strength["profile"]
+    status = p.statuses()
     cols, vals = [], []
     for g, name in enumerate(p.group_names):
         for fig, arr in (
@@ -1632,14 +1643,21 @@ def _strength_table(strength: Mapping[str, Any]) -> Table:
         ):
             cols.append(f"{name}.{fig}")
             vals.append(float(arr[g]))
+        cols.append(f"{name}.status_code")
+        vals.append(float(STATUS_CODES[status[g]]))
     return Table(np.array([strength["t0"]]), np.array([vals]), tuple(cols), "strength")
 
 
 def _optimization_summary(sol: Mapping[str, Any], sfx: str) -> dict[str, Any]:
+    from msk.status import gain_status
+
     return {
         "method": sol["method"],
         "criterion": sol.get("criterion"),
         "emg_gains": sol.get("emg_gains"),
+        "emg_gain_status": None
+        if not sol.get("emg_gains")
+        else {c: gain_status(float(g)).value for c, g in sol["emg_gains"].items()},
         "infeasible_frames": sol.get("infeasible_frames"),
         "reserve_torque_rms_nm": None
         if "reserve_torques" not in sol
@@ -1768,7 +1786,12 @@ def _anthropometry(cfg: SessionConfig, model: Any) -> dict[str, Any] | None:
 
 
 def _strength_summary(strength: Mapping[str, Any]) -> dict[str, Any]:
+    """``identified`` = status "identified" (:mod:`msk.status`); ``gated`` = the group passed
+    the correlation gate (what ``identified`` meant before issue 17)."""
+    from msk.status import STATUS_CODES, STATUS_MEANING, STRENGTH_R2_MIN
+
     p = strength["profile"]
+    status = p.statuses()
     return {
         "groups": [
             {
@@ -1781,11 +1804,16 @@ def _strength_summary(strength: Mapping[str, Any]) -> dict[str, Any]:
                 "ci_cov_high": float(p.ci_cov_high[g]),
                 "f_iso_generic_n": float(p.f_iso_generic[g]),
                 "f_iso_n": float(p.f_iso[g]),
-                "identified": bool(p.identified[g]),
+                "status": status[g],
+                "identified": status[g] == "identified",
+                "gated": bool(p.identified[g]),
             }
             for g, n in enumerate(p.group_names)
         ],
         "r2": float(p.r2),
+        "r2_min": STRENGTH_R2_MIN,
+        "status_codes": dict(STATUS_CODES),
+        "status_meaning": dict(STATUS_MEANING),
         "confidence": float(p.confidence),
         "bounds": list(p.bounds),
         "method": p.method,

@@ -255,7 +255,8 @@ class StrengthProfile:
     ``f_iso_generic`` / ``f_iso`` the group's summed F_iso (N) before/after, ``ci_low`` /
     ``ci_high`` the bootstrap percentile interval of s_g, ``ci_cov_low`` / ``ci_cov_high`` the
     interval from the (cluster-robust) regression covariance, ``std_error`` its standard error,
-    ``identified`` whether the group passed the correlation gate (else factor 1, CIs NaN).
+    ``identified`` whether the group passed the correlation gate (else factor 1, CIs NaN) —
+    not whether the data determined it: that is :meth:`statuses` (:mod:`msk.status`).
     Muscle arrays ``(M,)`` in :attr:`muscle_names` order: ``muscle_factors``, ``muscle_f_iso``.
     ``residual`` d_j per coordinate (N·m), ``r2_per_coordinate`` fit r² on the selected rows,
     ``r2`` their mean. Gating figures: ``gating_r`` ``(W, G, n)`` per-window correlation of C_g
@@ -301,6 +302,27 @@ class StrengthProfile:
         """Muscle → identified F_iso (N)."""
         return {n: float(f) for n, f in zip(self.muscle_names, self.muscle_f_iso)}
 
+    def statuses(self, *, r2_min: float | None = None) -> tuple[str, ...]:
+        """Per group, the :class:`msk.status.Status` value (``identified``, ``at bound``,
+        ``not determined``, ``prior``) from the factor, its bootstrap interval, the bounds, the
+        fit r² and the correlation gate (:func:`msk.status.strength_status`)."""
+        from msk.status import STRENGTH_R2_MIN, strength_status
+
+        lo, hi = self.bounds
+        return tuple(
+            strength_status(
+                float(self.factors[g]),
+                float(self.ci_low[g]),
+                float(self.ci_high[g]),
+                lo,
+                hi,
+                float(self.r2),
+                gated=bool(self.identified[g]),
+                r2_min=STRENGTH_R2_MIN if r2_min is None else r2_min,
+            ).value
+            for g in range(len(self.group_names))
+        )
+
     def table(self) -> str:
         """Plain-text table: group, factor, 95 % CIs, F_iso generic → identified."""
         pct = round(100 * self.confidence)
@@ -308,8 +330,10 @@ class StrengthProfile:
             f"{'group':<18} {'factor':>7} {f'boot {pct}% CI':>16} {f'cov {pct}% CI':>16}"
             f" {'F_iso gen (N)':>13} {'F_iso (N)':>10}"
         ]
+        status = self.statuses()
         for g, name in enumerate(self.group_names):
-            flag = "" if self.identified[g] else "  (not identified: gated out)"
+            flag = "" if self.identified[g] else "  (gated out: kept generic)"
+            flag = f"  {status[g]}{flag}"
             lines.append(
                 f"{name:<18} {self.factors[g]:>7.3f} "
                 f"{f'[{self.ci_low[g]:.3f}, {self.ci_high[g]:.3f}]':>16} "
