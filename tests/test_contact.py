@@ -404,19 +404,14 @@ def test_left_is_the_mirror_image_of_right(force, moment, cz) -> None:
     np.testing.assert_allclose(left.lateral, right.lateral, atol=1e-9)
 
 
-def test_split_is_vectorised_nan_safe_and_fast() -> None:
+def test_split_is_vectorised_and_nan_safe() -> None:
     rng = np.random.default_rng(3)
     n = 20000
     f = rng.normal(0.0, 800.0, (n, 3))
     m = rng.normal(0.0, 30.0, (n, 3))
     f[5] = np.nan
     c = _contact(f, m)
-    import time
-
-    t0 = time.perf_counter()
-    out = split_medial_lateral(c)
-    per_frame = (time.perf_counter() - t0) / n
-    assert per_frame < 10e-6  # issue: the split adds ≤ 10 µs/frame (it takes ~0.05 µs)
+    out = split_medial_lateral(c)  # its speed is measured in bench/bench_contact.py
     assert np.isnan(out.medial[5]) and np.isfinite(np.delete(out.medial, 5)).all()
     assert out.medial.shape == (n,)
 

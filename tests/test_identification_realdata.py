@@ -369,6 +369,9 @@ def standing(which: str) -> StandingResult:
     full = IdentificationTrial.from_loads(model, kin, loads, name=path.stem)
     idx = np.arange(EDGE_FRAMES, kin.n_frames - EDGE_FRAMES)
     idx = idx[np.isfinite(full.tau_ext[idx]).all(axis=1)]
+    # frames whose plate contact could not be given to one foot (msk.loads flags them) carry
+    # no ground reaction: not equations of the base link
+    idx = idx[~loads.flagged()[idx]]
     trial_id = _subset(lm.restrict_trial(full), idx, path.stem)
     ident = InertialIdentifier(lm.model, symmetric=True).fit(trial_id)
     # total mass and whole-body COM (posterior std by the delta method) at the median pose

@@ -78,8 +78,13 @@ def rotation_between(a: ArrayLike, b: ArrayLike) -> Array:
             n = np.cross(a, [0.0, 1.0, 0.0])
         n /= np.linalg.norm(n)
         return 2 * np.outer(n, n) - np.eye(3)
-    vx = np.array([[0, -v[2], v[1]], [v[2], 0, -v[0]], [-v[1], v[0], 0]])
-    return np.eye(3) + vx + vx @ vx / (1 + c)
+    s = float(np.linalg.norm(v))
+    if s < 1e-15:  # the same direction
+        return np.eye(3)
+    # axis–angle form of the same rotation: stable near a half turn, where 1/(1 + c) is not
+    k = v / s
+    kx = np.array([[0, -k[2], k[1]], [k[2], 0, -k[0]], [-k[1], k[0], 0]])
+    return np.eye(3) + s * kx + (1.0 - c) * kx @ kx
 
 
 def lab_to_model_rotation(
