@@ -149,8 +149,9 @@ activation_exponent = 2.0        # static_optimization: p ≥ 2 (OpenSim's activ
 #                                   # file has no angle channel
 
 # [fes]
-# fibre_fraction = 0.195    # prior L_c0/(L_c0 + L_s) (seeds/000 Table 3 mean)
-# stiffness_ratio = 800.0   # prior K_cm/F_cm (1/m; seeds/000 Table 3 median)
+# fibre_fraction = 0.195    # prior L_c0/(L_c0 + L_s); default: the Table 3 population mean
+# stiffness_ratio = 741.0   # prior K_cm/F_cm (1/m); default: the Table 3 population mean
+#                           # (Benoussaad et al. 2013, Table 3: msk.fes.priors)
 # k_s0 = 5000.0             # initial series stiffness of the NLP (N/m, literature value)
 # outer_iterations = 6      # fixed-point passes on k_s (1 = the seed's single pass)
 # frequency_hz = 20.0       # stimulation frequency
@@ -208,8 +209,10 @@ class TrialConfig:
 class FesConfig:
     """Options of the FES identification protocol (:func:`msk.fes.protocol.run_protocol`)."""
 
-    fibre_fraction: float = 0.195
-    stiffness_ratio: float = 800.0
+    #: priors of the identification; None: the population means of Benoussaad et al. (2013)
+    #: Table 3 (:mod:`msk.fes.priors`), never a leg's own values
+    fibre_fraction: float | None = None
+    stiffness_ratio: float | None = None
     k_s0: float = 5e3
     outer_iterations: int = 6
     frequency_hz: float = 20.0
@@ -466,8 +469,8 @@ def load_config(path: str | Path) -> SessionConfig:
 
     fz = _Section(top.get("fes", dict, {}), "fes", source)
     fes = FesConfig(
-        fibre_fraction=fz.get("fibre_fraction", float, 0.195),
-        stiffness_ratio=fz.get("stiffness_ratio", float, 800.0),
+        fibre_fraction=fz.get("fibre_fraction", float, None),
+        stiffness_ratio=fz.get("stiffness_ratio", float, None),
         k_s0=fz.get("k_s0", float, 5e3),
         outer_iterations=fz.get("outer_iterations", int, 6),
         frequency_hz=fz.get("frequency_hz", float, 20.0),
@@ -483,7 +486,7 @@ def load_config(path: str | Path) -> SessionConfig:
         ("steady_window_s", 0.0, np.inf),
     ):
         v = getattr(fes, key)
-        if not lo < v < hi:
+        if v is not None and not lo < v < hi:
             raise ConfigError(f"{source}: fes.{key} = {v} should be in ({lo}, {hi})")
     if fes.outer_iterations < 1:
         raise ConfigError(f"{source}: fes.outer_iterations = {fes.outer_iterations} should be ≥ 1")

@@ -90,7 +90,7 @@ def test_fes_config_keys(tmp_path: Path) -> None:
     cfg.write_text(head + body + "[fes]\nouter_iterations = 2\n")
     c = load_config(cfg)
     assert c.model is None  # optional in a FES-only session
-    assert c.fes.outer_iterations == 2 and c.fes.fibre_fraction == 0.195
+    assert c.fes.outer_iterations == 2 and c.fes.fibre_fraction is None  # population prior
     fes = c.trials_with_role("fes")
     assert len(fes) == 10 and fes[0].fes is not None and fes[0].fes.step == "static"
     assert fes[0].fes.stimulation_channel == "pw_us" and fes[0].fes.angle_unit == "deg"
