@@ -1397,6 +1397,10 @@ class _Session:
                 joint_torques=self.jt, mass_kg=cfg.subject.mass_kg,
                 height_m=cfg.subject.height_m, marker_labels=self.trial.marker_labels,
                 optimization=sol, plate_mass_kg=plate_mass, held=tuple(self.held),
+                scaling_methods={
+                    b: v["method"]
+                    for b, v in self.built["info"].get("scaling", {}).get("bodies", {}).items()
+                },
                 peak_external_force_n=float(np.nanmax(
                     np.linalg.norm(np.nansum(self.ext.force[self.measured], axis=1), axis=1),
                     initial=0.0)),

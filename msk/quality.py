@@ -28,7 +28,7 @@ Thresholds and their sources (:data:`THRESHOLDS`):
   inputs), a muscle saturated (activation ≥ 0.99) on more than 25 % of frames (the generic
   strength is short of the task for a quarter of it), reserve actuators
   carrying more than 10 % of a leg coordinate's peak joint torque (RMS).
-* Duplicate marker labels in the file.
+* Duplicate marker labels in the file; segments left at the generic size (no scaling).
 """
 
 from __future__ import annotations
@@ -268,6 +268,7 @@ def gait_flags(
     plate_mass_kg: float | None = None,
     peak_external_force_n: float | None = None,
     held: Sequence[str] = (),
+    scaling_methods: Mapping[str, str] | None = None,
     thresholds: Mapping[str, float] = THRESHOLDS,
 ) -> list[Flag]:
     """Every gate of the module docstring on one gait trial.
@@ -276,7 +277,8 @@ def gait_flags(
     ``residual_force_rms_pct_bw``, ``residual_moment_rms_nm`` …, None where not computed);
     ``plate_mass_kg`` :func:`body_mass_from_loads` of the trial; ``peak_external_force_n`` the
     largest ground-reaction magnitude (Hicks et al. 2015 state the moment bound on it; body
-    weight when None); ``held`` coordinates held near neutral by an IK coordinate task (the
+    weight when None); ``scaling_methods`` body → how it was scaled (a body left
+    ``"unscaled"`` is flagged); ``held`` coordinates held near neutral by an IK coordinate task (the
     markers do not observe them; reported as such, not checked for range or freezing)."""
     th = {**THRESHOLDS, **thresholds}
     out: list[Flag] = []
@@ -326,6 +328,13 @@ def gait_flags(
                       f"the plates weigh the subject at {plate_mass_kg:.1f} kg; the configuration"
                       f" says {mass_kg:g} kg ({d:+.1f} %)")
             )  # fmt: skip
+    unscaled = sorted(b for b, m in (scaling_methods or {}).items() if m == "unscaled")
+    if unscaled:
+        out.append(
+            _flag(trial_name, "unscaled_segments", len(unscaled), 0,
+                  f"{', '.join(unscaled)} left at the generic model's size (no marker measured "
+                  "the subject and no height is given: set subject.height_m)")
+        )  # fmt: skip
     out += _coordinate_flags(trial_name, kinematics, th, set(held))
     out += _unobserved_flags(trial_name, model, kinematics, th)
     dup = sorted({lab for lab in marker_labels if list(marker_labels).count(lab) > 1})

@@ -758,8 +758,10 @@ def complete_scale_factors(
 ) -> tuple[dict[str, Array], dict[str, str], float | None, tuple[float, str] | None]:
     """Every body's factors and method: ``measured`` bodies by ``source`` ("static markers" or
     "motion markers"), the others by the stature ratio s = H / H_model (uniform; OpenSim-style
-    "scale by height", :func:`model_height`) when ``height_m`` is given, else 1 ("unscaled",
-    said so in the methods). Returns (factors, methods, height factor, model height)."""
+    "scale by height", :func:`model_height`) when ``height_m`` is given, else by the median
+    factor of the measured bodies (the subject's size as the markers show it; method
+    "height", the returned height factor says which), else 1 ("unscaled", nothing measured).
+    Returns (factors, methods, height factor, model height)."""
     if source not in SCALING_METHODS[:2]:
         raise ModelError(f"scaling: source must be one of {SCALING_METHODS[:2]}, got {source!r}")
     hf, mh = None, None
@@ -768,6 +770,13 @@ def complete_scale_factors(
             raise ModelError(f"scaling: height {height_m} m is not a plausible stature")
         mh = model_height(model)
         hf = float(height_m) / mh[0]
+    elif measured:
+        # no stature given: the subject's size from the segments the markers did measure (the
+        # median of their factors), rather than a segment left at the generic size
+        mh = model_height(model)
+        hf = float(
+            np.median([np.asarray(v, dtype=float).reshape(-1)[0] for v in measured.values()])
+        )
     factors: dict[str, Array] = {}
     methods: dict[str, str] = {}
     for b in model.bodies:

@@ -572,11 +572,14 @@ def test_scale_from_motion_falls_back_on_height_and_says_so(gait2392):
         np.testing.assert_allclose(rep.factors[body], 1.71 / 1.80)
     assert rep.methods["pelvis"] == "motion markers"
     assert rep.factors["pelvis"][0] == pytest.approx(TRUE_FACTORS["pelvis"], rel=0.01)
+    # no stature: the subject's size from the measured segments (median factor), never left
+    # at the generic size while other segments say the subject is not generic
     _, rep = scale_from_motion(gait2392, x, labels, t)
-    assert rep.methods["tibia_r"] == "unscaled"
-    assert any("unscaled" in m and "tibia_r" in m for m in rep.messages)
-    summary = rep.summary()
-    assert summary["bodies"]["tibia_r"] == {"method": "unscaled", "factors": [1.0, 1.0, 1.0]}
+    measured = [rep.factors[b][0] for b, m in rep.methods.items() if m == "motion markers"]
+    assert rep.methods["tibia_r"] == "height"
+    assert rep.height_factor == pytest.approx(np.median(measured))
+    np.testing.assert_allclose(rep.factors["tibia_r"], rep.height_factor)
+    assert not any("unscaled" in m for m in rep.messages)
 
 
 def test_place_markers_from_motion_finds_each_clusters_bone_and_leaves_out_loose_markers(gait2392):
