@@ -1,0 +1,96 @@
+"""Knee contact validation table: the shipped Grand Challenge session configs run on every trial
+with a measured contact force, only the task files swapped, spline and four-bar knee.
+
+    python scripts/contact_validation.py [--out docs/contact_validation.md]
+
+Trials: subject PS (``pipelines/gc5_PS.toml``: ss1 bundled, ss3 and ss8 from
+``../shared/data/real/knee-grand-challenge-gc5``) and subject DM (``pipelines/gc6_DM_og1.toml``:
+og1, og3, og4, measured forces in ``data/gc6-DM``). Nothing is fitted to the measured force:
+the configurations are the shipped ones. Prints a markdown table of RMSE (BW) and Pearson r of
+the total, medial and lateral force per trial and knee model.
+"""
+
+from __future__ import annotations
+
+import argparse
+import re
+import sys
+import tempfile
+from pathlib import Path
+
+REPO = Path(__file__).resolve().parents[1]
+REAL = REPO.parent / "shared" / "data" / "real"
+
+TRIALS = {
+    "gc5_PS": [
+        ("ss1", None),
+        ("ss3", {"PS_ngait_og_ss1": "PS_ngait_og_ss3"}),
+        ("ss8", {"PS_ngait_og_ss1": "PS_ngait_og_ss8"}),
+    ],
+    "gc6_DM_og1": [
+        ("og1", None),
+        ("og3", {"og1": "og3"}),
+        ("og4", {"og1": "og4"}),
+    ],
+}
+
+
+def _config(name: str, swap: dict[str, str] | None, knee: str, folder: Path) -> Path:
+    src = REPO / "pipelines" / f"{name}.toml"
+    text = src.read_text(encoding="utf-8")
+    # absolute paths, the task files swapped (a PS trial other than ss1 is in shared/)
+    text = re.sub(r'(=\s*")(\.\.[^"]*)"', lambda m: f'{m[1]}{(src.parent / m[2]).resolve()}"', text)
+    for a, b in (swap or {}).items():
+        text = text.replace(a, b)
+    if name == "gc5_PS" and swap:
+        text = text.replace(str(REPO / "data" / "gc5-PS"), str(REAL / "knee-grand-challenge-gc5"))
+        text = text.replace(
+            str(REAL / "knee-grand-challenge-gc5" / "PS_static_for_scaling.trc"),
+            str(REPO / "data" / "gc5-PS" / "PS_static_for_scaling.trc"),
+        )
+    text = text.replace('knee = "spline"', f'knee = "{knee}"')
+    if "knee =" not in text:
+        text = text.replace("[model]\n", f'[model]\nknee = "{knee}"\n', 1)
+    out = folder / f"{name}_{knee}.toml"
+    out.write_text(text, encoding="utf-8")
+    return out
+
+
+def main(argv: list[str] | None = None) -> int:
+    from msk.pipeline import run_task_trials
+
+    p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    p.add_argument("--out", type=Path, help="write the markdown table here too")
+    args = p.parse_args(argv)
+    rows = [
+        "| subject | trial | knee | total RMSE (BW) | total r | medial RMSE | medial r | "
+        "lateral RMSE | lateral r | IK (mm) |",
+        "| --- | --- | --- | --- | --- | --- | --- | --- | --- | --- |",
+    ]
+    with tempfile.TemporaryDirectory() as tmp:
+        folder = Path(tmp)
+        for name, trials in TRIALS.items():
+            for trial, swap in trials:
+                for knee in ("spline", "four_bar"):
+                    cfg = _config(name, swap, knee, folder)
+                    (res,) = run_task_trials(cfg, folder / f"{name}_{trial}_{knee}")
+                    comp = res.summary["comparison"] or {}
+                    cells = []
+                    for part in ("", "_medial", "_lateral"):
+                        c = comp.get(f"knee_contact_generic{part}")
+                        cells += (
+                            [f"{c['rms_bw']:.2f}", f"{c['pearson_r']:.2f}"] if c else ["—", "—"]
+                        )
+                    ik = 1000 * res.summary["quality"]["ik_marker_rms_mean_m"]
+                    row = f"| {name[4:]} | {trial} | {knee} | " + " | ".join(cells)
+                    rows.append(row + f" | {ik:.1f} |")
+                    print(rows[-1], flush=True)
+    text = "\n".join(rows) + "\n"
+    if args.out:
+        args.out.write_text(text, encoding="utf-8")
+    sys.stdout.write(text)
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
