@@ -282,6 +282,16 @@ class SessionConfig:
         return tuple(t for t in self.trials if t.role == role)
 
 
+def _file_kind(p: Path) -> str:
+    """What a path that is not a regular file is (for the error message)."""
+    from msk.io.validate import _kind
+
+    try:
+        return _kind(p.stat().st_mode)
+    except OSError:
+        return "not accessible"
+
+
 #: a trial name: it becomes a folder name under ``--out``
 _PLAIN_NAME = re.compile(r"[A-Za-z0-9_][A-Za-z0-9._-]{0,99}")
 
@@ -325,6 +335,10 @@ class _Section:
         p = (self.source.parent / value).resolve()
         if not p.exists():
             raise ConfigError(f"{self.source}: {self.where}.{key}: file not found: {p}")
+        if not p.is_file():  # a FIFO or /dev/zero would hang the reader, a folder is no file
+            raise ConfigError(
+                f"{self.source}: {self.where}.{key}: {p} is {_file_kind(p)}, not a regular file"
+            )
         return p
 
     def done(self) -> None:
@@ -339,10 +353,21 @@ class _Section:
 def load_config(path: str | Path) -> SessionConfig:
     """Read and validate a session configuration file."""
     source = Path(path).resolve()
+    if not source.exists():
+        raise ConfigError(f"config file not found: {source}")
+    if not source.is_file():
+        raise ConfigError(f"{source}: is {_file_kind(source)}, not a configuration file")
     try:
         raw = tomllib.loads(source.read_text(encoding="utf-8"))
     except FileNotFoundError:
         raise ConfigError(f"config file not found: {source}") from None
+    except UnicodeDecodeError as exc:
+        raise ConfigError(
+            f"{source}: not UTF-8 text (invalid byte 0x{exc.object[exc.start]:02x} at offset "
+            f"{exc.start}); save the configuration as UTF-8"
+        ) from None
+    except OSError as exc:
+        raise ConfigError(f"{source}: cannot read: {exc.strerror or exc}") from None
     except tomllib.TOMLDecodeError as exc:
         raise ConfigError(f"{source}: not valid TOML: {exc}") from None
     top = _Section(raw, "", source)

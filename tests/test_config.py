@@ -194,3 +194,33 @@ def test_grf_and_marker_move_keys(session_dir: Path):
         path.write_text(text)
         with pytest.raises(ConfigError, match=message):
             load_config(path)
+
+
+# --- issue 18: special files, encodings, number ranges with units -----------------------------
+@pytest.mark.parametrize("special", ["fifo", "/dev/zero", "dir"])
+def test_special_files_are_refused_without_hanging(session_dir: Path, special: str):
+    import os
+
+    path = session_dir / "pipelines" / "session.toml"
+    if special == "fifo":
+        target = session_dir / "data" / "pipe.c3d"
+        os.mkfifo(target)
+    elif special == "dir":
+        target = session_dir / "data"
+    else:
+        target = Path(special)
+    path.write_text(TEMPLATE.replace("../data/gc5-PS/PS_ngait_og_ss1.c3d", str(target)))
+    with pytest.raises(ConfigError, match=r"trials\[1\]\.file: .* not a regular file"):
+        load_config(path)
+    if special == "fifo":
+        with pytest.raises(ConfigError, match="FIFO"):
+            load_config(target)
+
+
+def test_non_utf8_config_is_one_line(session_dir: Path):
+    path = session_dir / "pipelines" / "session.toml"
+    latin1 = TEMPLATE.encode("utf-8").replace(b'"PS"', b'"M\xfcller"')  # Latin-1 u-umlaut
+    path.write_bytes(latin1)
+    with pytest.raises(ConfigError, match="not UTF-8") as exc:
+        load_config(path)
+    assert "\n" not in str(exc.value)

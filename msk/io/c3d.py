@@ -37,6 +37,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from msk.exceptions import C3DError, ForcePlateError, MissingDataError, MskError, UnitsError
+from msk.io.validate import check_regular_file
 from msk.signal import block_average, resample_to
 
 __all__ = [
@@ -258,10 +259,7 @@ class Trial:
 # ---------------------------------------------------------------------------------------------
 def _check_bytes(path: Path) -> None:
     """Sanity checks of the header and parameter section before ezc3d sees the file."""
-    if not path.exists():
-        raise C3DError(f"{path}: no such file")
-    if path.is_dir():
-        raise C3DError(f"{path}: is a directory, not a C3D file")
+    check_regular_file(path, C3DError, "C3D file")
     size = path.stat().st_size
     if size == 0:
         raise C3DError(f"{path}: empty file")

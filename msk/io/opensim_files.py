@@ -23,6 +23,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from msk.exceptions import FileFormatError, MissingDataError, UnitsError
+from msk.io.validate import check_regular_file
 
 if TYPE_CHECKING:
     from msk.io.c3d import Trial
@@ -121,9 +122,7 @@ def _atomic_write(path: Path, text: str) -> Path:
 
 
 def _read_text(path: Path) -> list[str]:
-    path = Path(path)
-    if not path.is_file():
-        raise FileFormatError(f"{path}: no such file")
+    path = check_regular_file(path, FileFormatError)
     try:
         text = path.read_text(encoding="utf-8", errors="replace")
     except OSError as exc:

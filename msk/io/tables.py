@@ -15,6 +15,7 @@ from numpy.typing import ArrayLike
 
 from msk.exceptions import FileFormatError
 from msk.io.opensim_files import Table, _atomic_write
+from msk.io.validate import check_regular_file
 
 __all__ = ["read_csv_table", "write_csv_table"]
 
@@ -51,10 +52,12 @@ def read_csv_table(path: str | Path, *, time_column: str | None = "time") -> Tab
 
     ``time_column`` names the first column expected (``None``: any name, e.g. a cycle
     percentage such as ``sample_0_to_100``); its values become ``Table.time``."""
-    path = Path(path)
-    if not path.is_file():
-        raise FileFormatError(f"{path}: no such file")
-    lines = [ln for ln in path.read_text(encoding="utf-8").splitlines() if ln.strip()]
+    path = check_regular_file(path, FileFormatError)
+    try:
+        text = path.read_text(encoding="utf-8")
+    except UnicodeDecodeError as exc:
+        raise FileFormatError(f"{path}: not UTF-8 text (byte {exc.start}): not a CSV") from None
+    lines = [ln for ln in text.splitlines() if ln.strip()]
     if not lines:
         raise FileFormatError(f"{path}: empty file")
     cols = [c.strip() for c in lines[0].split(",")]
