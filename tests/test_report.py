@@ -136,7 +136,223 @@ def test_missing_stages_are_visible():
 def test_strength_status_flags_factors_on_the_regression_bounds():
     from msk.report.html import _strength_status
 
-    assert _strength_status({"identified": True, "factor": 1.13}, [0.5, 2.0]) == "identified"
-    assert _strength_status({"identified": True, "factor": 0.5}, [0.5, 2.0]).startswith("at bound")
-    assert _strength_status({"identified": True, "factor": 2.0}, [0.5, 2.0]).startswith("at bound")
-    assert _strength_status({"identified": False, "factor": 1.0}, [0.5, 2.0]) == "kept generic"
+    st = {"bounds": [0.5, 2.0], "r2": 0.8}
+
+    def g(f, lo, hi, gated=True):
+        return {"factor": f, "ci_low": lo, "ci_high": hi, "identified": gated}
+
+    assert _strength_status(g(1.13, 0.9, 1.3), st) == "identified"
+    assert _strength_status(g(0.5, 0.5, 0.6), st) == "at bound"
+    assert _strength_status(g(0.4999999999999999, 0.5, 0.5), st) == "at bound"
+    assert _strength_status(g(2.0, 1.5, 2.0), st) == "at bound"
+    assert _strength_status(g(0.7, 0.5, 2.0), st) == "not determined"
+    assert _strength_status(g(1.13, 0.9, 1.3), {**st, "r2": -0.11}) == "not determined"
+    assert _strength_status(g(1.0, None, None, gated=False), st) == "prior"
+
+
+def _summary(**extra):
+    return {
+        "subject": {"name": "X", "mass_kg": 70.0, "height_m": 1.7, "side": "left"},
+        "gait_cycle_s": None,
+        "not_available": [],
+        "stages": [],
+        "quality": {},
+        **extra,
+    }
+
+
+def test_strings_from_the_data_are_shown_literally():
+    """A `$` (matplotlib mathtext) or `<script>` in an EMG label or a summary field must not
+    crash the report nor be interpreted: it is shown as written."""
+    bad = "a$b$_<script>alert(1)</script>"
+    strength = {
+        "groups": [
+            {
+                "group": bad,
+                "muscles": [bad],
+                "factor": 1.2,
+                "ci_low": 1.0,
+                "ci_high": 1.4,
+                "f_iso_generic_n": 100.0,
+                "f_iso_n": 120.0,
+                "identified": True,
+            },
+            {
+                "group": "$\\alpha$",
+                "muscles": ["m"],
+                "factor": 0.5,
+                "ci_low": 0.5,
+                "ci_high": 0.5,
+                "f_iso_generic_n": 100.0,
+                "f_iso_n": 50.0,
+                "identified": True,
+            },
+        ],
+        "r2": 0.7,
+        "confidence": 0.95,
+        "bounds": [0.5, 2.0],
+        "method": bad,
+    }
+    quality = {"emg_flat_channels": [bad], "emg_warnings": [f"channel '{bad}' is flat"]}
+    t = np.linspace(0, 1, 20)
+    mf = Table(t, np.column_stack([t, 2 * t]), (bad + "_l", "$x$_l"), "muscle_forces")
+    summary = _summary(strength=strength, quality=quality, trial=bad)
+    html = render_html(SessionResults({"muscle_forces": mf}, summary))
+    assert "<script" not in html
+    assert "&lt;script&gt;alert(1)&lt;/script&gt;" in html
+    assert "could not be drawn" not in html  # the figures with "$" labels are drawn
+    assert html.count("<svg") == 2  # strength, muscles
+    # the labels reach the SVG text as written (no mathtext: "$" kept, no italic alpha)
+    assert "a$b$_" in html and "$\\alpha$" in html
+    # the group at the bound is not called identified; the other one is
+    rows = re.findall(
+        r"<tr>(.*?)</tr>",
+        re.search(r'<table class="strength">(.*?)</table>', html, re.S).group(1),
+        re.S,
+    )
+    assert "at bound" in rows[2] and "identified" not in rows[2]
+    assert rows[1].rstrip().endswith("identified</span></td>")
+
+
+def test_no_internal_document_names_and_a_reference_list(session):
+    html = (session.path / "report.html").read_text()
+    assert "seeds/" not in html
+    refs = re.search(r'<ol class="refs">(.*?)</ol>', html, re.S).group(1)
+    assert "Hayashibe M, Venture G, Ayusawa K, Nakamura Y" in refs
+    assert "application to patients with spinal cord injury" in refs
+    assert "EMG-driven and OpenSim musculoskeletal model" in refs
+    assert "control of rehabilitation robots" in refs
+    for k in (1, 3, 4, 5):  # [2] is the FES study: cited by FES sessions only
+        assert f"[{k}]" in html.split('<ol class="refs">')[0]
+
+
+def test_weak_directions_in_words():
+    from msk.report.html import weak_direction_words
+
+    w = weak_direction_words("weak direction (no data): -0.59·pelvis.m +0.41·torso.m")
+    assert "pelvis mass" in w and "torso" in w and "not each one" in w and "·" not in w
+    w = weak_direction_words("weak direction (data std 2.3× prior): +0.5·femur_r(+_l).my")
+    assert w.startswith("The thighs (left and right together) mass-centre position")
+    assert "2.3 times" in w
+    assert weak_direction_words("not excited (estimate stays at the prior): toes_r") is None
+
+
+def test_every_quality_figure_has_its_threshold_and_a_check(session):
+    html = (session.path / "report.html").read_text()
+    table = re.search(r'<table class="quality">(.*?)</table>', html, re.S).group(1)
+    head = re.findall(r"<th>(.*?)</th>", table)
+    assert head == ["figure", "value", "threshold", "check"]
+    rows = {
+        re.sub(r"<.*?>", "", r[0]): r[1:]
+        for r in (
+            re.findall(r"<td>(.*?)</td>", tr, re.S)
+            for tr in re.findall(r"<tr>(.*?)</tr>", table, re.S)
+        )
+        if r
+    }
+    assert "≤ 20 mm" in rows["IK marker error, mean"][1]
+    assert "ok" in rows["IK marker error, mean"][2]
+    assert "≤ 5 % BW" in rows["pelvis residual force (RMS)"][1]
+    r2 = rows["strength fit r² (EMG-driven model vs joint moments)"]
+    assert "≥ 0.50" in r2[1] and "below threshold" in r2[2]  # the bundled session: r² −0.11
+
+
+def _pdf_text(pdf: Path) -> str | None:
+    import shutil
+
+    exe = shutil.which("pdftotext")
+    if exe is None:
+        return None
+    return subprocess.run(
+        [exe, "-layout", str(pdf), "-"], capture_output=True, text=True, check=True, timeout=60
+    ).stdout
+
+
+def test_pdf_tables_are_not_cut_at_a4(session, chromium, tmp_path):
+    """Printed at A4, every column of the strength and mass tables is on the page: the status
+    column's header and words are in the PDF text."""
+    pdf = tmp_path / "r.pdf"
+    assert write_pdf(session.path / "report.html", pdf)
+    text = _pdf_text(pdf)
+    if text is None:
+        pytest.skip("pdftotext (poppler-utils) is not installed")
+    groups = session.summary["strength"]["groups"]
+    for g in groups:  # one line per group, ending with its status word
+        line = next(ln for ln in text.splitlines() if ln.split()[:1] == [g["group"]])
+        assert g["status"].split()[0] in line, line
+    for seg in session.summary["identification"]["segments"]:
+        line = next(ln for ln in text.splitlines() if ln.split()[:1] == [seg["name"]])
+        assert seg["status"].split()[0] in line, line
+    assert "anthropometric" in text.replace("-\n", "") or "anthropome" in text
+    assert "threshold" in text and "check" in text
+
+
+def test_no_group_at_a_bound_is_called_identified_anywhere(tmp_path):
+    """Issue 17, on the bundled session through `msk batch`: summary.json, strength.csv,
+    cohort.csv, the report's DOM and its PDF text agree, and none calls a group whose factor
+    sits on the 0.5–2.0 bound "identified"."""
+    import csv
+
+    from msk.batch import run_batch
+    from msk.status import STATUS_CODES, at_bound
+
+    res = run_batch([REPO / "pipelines" / "gc5_PS.toml"], tmp_path, workers=1)
+    assert not res.failed, res.failed
+    folder = tmp_path / "gc5_PS"
+    sess = read_session(folder)
+    st = sess.summary["strength"]
+    lo, hi = st["bounds"]
+    words = {g["group"]: g["status"] for g in st["groups"]}
+    bound = [
+        g["group"] for g in st["groups"] if at_bound(g["factor"], lo) or at_bound(g["factor"], hi)
+    ]
+    assert len(bound) >= 10  # the bundled session: 11 of 14 on the 0.5 / 2.0 bound
+    # summary.json
+    for g in st["groups"]:
+        assert g["identified"] == (g["status"] == "identified")
+        if g["group"] in bound:
+            assert g["status"] == "at bound" and not g["identified"]
+    assert st["status_codes"] == STATUS_CODES and "r2_min" in st
+    if st["r2"] < st["r2_min"]:
+        assert "identified" not in words.values()
+    # strength.csv: numeric status code per group
+    tb = sess.table("strength")
+    for name, word in words.items():
+        assert int(tb.column(f"{name}.status_code")[0]) == STATUS_CODES[word]
+    # cohort.csv
+    with open(res.cohort_csv, newline="", encoding="utf-8") as fh:
+        (row,) = list(csv.DictReader(fh))
+    cohort = dict(item.split(": ") for item in row["strength_group_status"].split("; "))
+    assert cohort == words
+    assert int(row["strength_groups_identified"]) == sum(w == "identified" for w in words.values())
+    assert int(row["strength_groups_at_bound"]) == len(bound)
+    # msk compare
+    from msk.batch import compare_sessions
+
+    notes = {
+        r["item"]: r["note"]
+        for r in compare_sessions([folder])
+        if r["quantity"] == "strength factor"
+    }
+    assert notes == words
+    # the report: rendered DOM when Chromium is there, else the HTML text
+    html = (folder / "report.html").read_text()
+    exe = chromium_executable()
+    if exe is not None:
+        html = _chromium(exe, "--dump-dom", (folder / "report.html").resolve().as_uri()).stdout
+    table = re.search(r'<table class="strength">(.*?)</table>', html, re.S).group(1)
+    for tr in re.findall(r"<tr>(.*?)</tr>", table, re.S)[1:]:
+        cells = [re.sub(r"<.*?>", "", c) for c in re.findall(r"<td>(.*?)</td>", tr, re.S)]
+        assert cells[-1] == words[cells[0]]
+        if cells[0] in bound:
+            assert "identified" not in " ".join(cells)
+    plain = re.sub(r"<.*?>", " ", html.split('<table class="strength">')[0])
+    for g in bound:
+        assert not re.search(rf"identified[^.]*\b{re.escape(g)}\b", plain)
+    # the PDF text
+    pdf = tmp_path / "report.pdf"  # msk run prints it with --pdf: the same write_pdf
+    text = _pdf_text(pdf) if exe is not None and write_pdf(folder / "report.html", pdf) else None
+    if text is not None:
+        for g in bound:
+            line = next(ln for ln in text.splitlines() if ln.split()[:1] == [g])
+            assert "at bound" in line and "identified" not in line, line

@@ -16,18 +16,51 @@ from typing import Any
 import numpy as np
 
 from msk.results import SessionResults
+from msk.status import (
+    FES_NRMSD_MAX_PCT,
+    STATUS_MEANING,
+    STRENGTH_R2_MIN,
+    Status,
+    fes_status,
+    gain_status,
+    group_status,
+    segment_status,
+)
 
 __all__ = ["build_figures", "chromium_executable", "render_html", "write_pdf", "write_report"]
 
-#: Identifiability colours of the segment masses, seeds/002 Fig. 3: green = parameters identified
-#: with excellent accuracy, blue = links whose parameters are poorly determined (small); msk adds
-#: grey for segments left at the prior (the data do not inform them).
-FLAG_COLOURS = {
-    "well identified": "#2e7d32",
-    "weakly identified": "#1e88e5",
-    "prior": "#9e9e9e",
+#: The literature the report cites, by number ([1] … in the text). Authors are given where the
+#: copy of the paper we hold names them; the others are cited by title.
+REFERENCES: tuple[str, ...] = (
+    "Hayashibe M, Venture G, Ayusawa K, Nakamura Y. Muscle strength and mass distribution "
+    "identification toward subject-specific musculoskeletal modeling.",
+    "Experimental parameter identification of a multi-scale musculoskeletal model controlled "
+    "by electrical stimulation: application to patients with spinal cord injury.",
+    "Using subject-specific muscle parameters to compare muscle forces and activation between "
+    "an EMG-driven and OpenSim musculoskeletal model (master's thesis).",
+    "A computationally efficient musculoskeletal model of the lower limb for the control of "
+    "rehabilitation robots: assumptions and validation.",
+    "Hicks JL, Uchida TK, Seth A, Rajagopal A, Delp SL (2015). Is my model good enough? Best "
+    "practices for verification and validation of musculoskeletal models and simulations of "
+    "movement. J Biomech Eng 137:020905.",
+    "Delp SL, Loan JP, Hoy MG, Zajac FE, Topp EL, Rosen JM (1990). An interactive graphics-based "
+    "model of the lower extremity to study orthopaedic surgical procedures. IEEE Trans Biomed "
+    "Eng 37:757–767.",
+    "Dumas R, Chèze L, Verriest JP (2007). Adjustments to McConville et al. and Young et al. body "
+    "segment inertial parameters. J Biomech 40:543–553.",
+)
+#: Colours of the :mod:`msk.status` words (tables, figures): green = identified (after the
+#: colour coding of the segment parameters in [1], Fig. 3), orange = at a bound, blue = not
+#: determined, grey = the prior (generic value kept).
+STATUS_COLOURS = {
+    Status.IDENTIFIED.value: "#2e7d32",
+    Status.AT_BOUND.value: "#ef6c00",
+    Status.NOT_DETERMINED.value: "#1e88e5",
+    Status.PRIOR.value: "#9e9e9e",
 }
-#: Plausible strength-factor range (× generic F_iso), seeds/003 Table 3.1.
+#: Kept for callers of the former name (identifiability flags): the status colours.
+FLAG_COLOURS = STATUS_COLOURS
+#: Plausible strength-factor range (× generic F_iso), thesis [3], Table 3.1.
 LITERATURE_FACTOR_RANGE = (0.5, 2.0)
 #: (coordinate stem, title, sign): gait2392's knee_angle is negative in flexion; the report shows
 #: flexion positive (and the knee moment and power with the same sign change; power unchanged).
@@ -48,7 +81,15 @@ def _plt() -> Any:
     import matplotlib.pyplot as plt
 
     plt.rcParams.update(
-        {"font.size": 9, "svg.fonttype": "none", "axes.grid": True, "grid.alpha": 0.3}
+        {
+            "font.size": 9,
+            "svg.fonttype": "none",
+            "axes.grid": True,
+            "grid.alpha": 0.3,
+            # labels come from data files (EMG channels, muscles): a "$" is text, not mathtext
+            "text.usetex": False,
+            "text.parse_math": False,
+        }
     )
     return plt
 
@@ -86,24 +127,28 @@ def _fig_strength(res: SessionResults) -> str | None:
     fig, ax = plt.subplots(figsize=(7.5, 0.35 * len(groups) + 1.4))
     y = np.arange(len(groups))
     lo, hi = LITERATURE_FACTOR_RANGE
-    ax.axvspan(lo, hi, color="#e3f2fd", label=f"plausible range {lo}–{hi} × (seeds/003)")
+    ax.axvspan(lo, hi, color="#e3f2fd", label=f"plausible range {lo}–{hi} × [3]")
     ax.axvline(1.0, color="k", lw=1, ls="--", label="generic model (1.0 ×)")
+    marker = {"identified": "o", "at bound": "D", "not determined": "o", "prior": "s"}
     for k, g in enumerate(groups):
         f = g["factor"]
-        col = "#1565c0" if g["identified"] else "#9e9e9e"
-        if g["identified"] and g["ci_low"] is not None and g["ci_high"] is not None:
+        status = group_status(g, st).value
+        col = STATUS_COLOURS[status]
+        lab = f"{status}, 95 % CI" if status in ("identified", "not determined") else status
+        if _finite(g.get("ci_low")) and _finite(g.get("ci_high")) and status != "prior":
             ax.errorbar(
                 f,
                 k,
                 # an interval end one rounding step past the factor must not abort the figure
                 xerr=[[max(0.0, f - g["ci_low"])], [max(0.0, g["ci_high"] - f)]],
-                fmt="o",
+                fmt=marker[status],
                 color=col,
+                mfc=col if status == "identified" else "white",
                 capsize=3,
-                label="identified, 95 % CI" if k == 0 else None,
+                label=lab,
             )
         else:
-            ax.plot(f, k, "s", color=col, label="not identified (kept generic)")
+            ax.plot(f, k, marker[status], color=col, label=lab)
     ax.set_yticks(y, [g["group"] for g in groups])
     ax.set_xlabel("strength factor (× generic F_iso, dimensionless)")
     ax.set_ylabel("muscle group (EMG channel)")
@@ -127,7 +172,7 @@ def _fig_mass(res: SessionResults) -> str | None:
     prior = [s["prior_mass_kg"] for s in segs]
     mass = [s["mass_kg"] for s in segs]
     err = [2 * (s["mass_std_kg"] or 0.0) for s in segs]
-    cols = [FLAG_COLOURS.get(s["flag"], "#9e9e9e") for s in segs]
+    cols = [STATUS_COLOURS[segment_status(s).value] for s in segs]
     ax.bar(x - w, prior, w, color="#cfd8dc", edgecolor="k", lw=0.5, label="scaled generic model")
     ax.bar(
         x,
@@ -164,8 +209,8 @@ def _fig_mass(res: SessionResults) -> str | None:
         lw=0.5,
         label="anthropometric table (Dumas 2007)",
     )
-    for flag, col in FLAG_COLOURS.items():
-        ax.bar([0], [0], color=col, label=f"flag: {flag}")
+    for word, col in STATUS_COLOURS.items():
+        ax.bar([0], [0], color=col, label=f"status: {word}")
     ax.set_xticks(x, [s["name"] for s in segs], rotation=40, ha="right")
     ax.set_ylabel("segment mass (kg)")
     ax.set_xlabel("segment")
@@ -266,7 +311,7 @@ def _fig_contact(res: SessionResults) -> str | None:
 
 
 def _fig_fes(res: SessionResults) -> str | None:
-    """Measured vs simulated knee angle of the FES cross-validation trial (seeds/000 Fig. 5b)."""
+    """Measured vs simulated knee angle of the FES cross-validation trial ([2], Fig. 5b)."""
     if not res.has("fes_validation"):
         return None
     tb = res.table("fes_validation")
@@ -347,12 +392,45 @@ table.strength td:nth-child(2),table.strength th:nth-child(2){text-align:left;wh
 .na{color:#b71c1c;font-weight:600}
 svg{max-width:100%;height:auto}figure{margin:8px 0}
 .flag{display:inline-block;width:10px;height:10px;border-radius:2px;margin-right:4px}
-@media print{main{max-width:none}h2{page-break-after:avoid}figure{page-break-inside:avoid}}
+.status{white-space:nowrap}.ok{color:#2e7d32}.bad{color:#b71c1c;font-weight:600}
+ol.refs{font-size:.85em;color:#333}
+@page{size:A4;margin:12mm}
+@media print{body{background:#fff}main{max-width:none;padding:0}
+ h2{page-break-after:avoid}figure{page-break-inside:avoid}tr{page-break-inside:avoid}
+ .wrap{overflow:visible}
+ table{width:100%;font-size:.72em}
+ th,td{white-space:normal;overflow-wrap:anywhere;padding:2px 3px}}
 """
 
 
+#: Internal names of the literature in strings of a run (method names, messages) → citations.
+_CITATIONS = {
+    "seeds/000": "ref. [2]",
+    "seeds/001": "a companion FES identification study",
+    "seeds/002": "Hayashibe et al. [1]",
+    "seeds/003": "ref. [3]",
+    "seeds/004": "ref. [4]",
+}
+
+
 def _e(x: Any) -> str:
-    return html.escape(str(x))
+    """HTML-escaped text (a ``<script>`` or ``$`` from a data file is shown literally), with the
+    literature cited instead of internal document names."""
+    text = re.sub(r"seeds/00\d", lambda m: _CITATIONS.get(m.group(0), "the literature"), str(x))
+    return html.escape(text)
+
+
+def _finite(x: Any) -> bool:
+    return isinstance(x, (int, float)) and bool(np.isfinite(x))
+
+
+def _status_html(word: str) -> str:
+    """A status word with its colour swatch and its meaning as a tooltip."""
+    col = STATUS_COLOURS.get(word, "#9e9e9e")
+    return (
+        f'<span class="status" title="{_e(STATUS_MEANING.get(word, ""))}">'
+        f'<span class="flag" style="background:{col}"></span>{_e(word)}</span>'
+    )
 
 
 def _num(x: Any, fmt: str = ".3g", unit: str = "") -> str:
@@ -362,14 +440,10 @@ def _num(x: Any, fmt: str = ".3g", unit: str = "") -> str:
     return f"{s} {unit}".rstrip() if unit else s
 
 
-def _strength_status(group: dict[str, Any], bounds: Any) -> str:
-    """'identified', 'at bound' (the data did not determine the factor: it sits on the
-    0.5–2.0 × limit of the regression) or 'kept generic'."""
-    if not group["identified"]:
-        return "kept generic"
-    if bounds is not None and any(abs(group["factor"] - b) < 1e-6 for b in bounds):
-        return "at bound (not determined)"
-    return "identified"
+def _strength_status(group: Mapping[str, Any], strength: Mapping[str, Any]) -> str:
+    """The :mod:`msk.status` word of a strength group (its summary ``status``, or computed from
+    the factor, interval, bounds and fit r² for folders written before it existed)."""
+    return group_status(group, strength).value
 
 
 def _table(head: Sequence[str], rows: Sequence[Sequence[str]], cls: str = "") -> str:
@@ -402,47 +476,48 @@ def _strength_section(res: SessionResults, figs: Mapping[str, str]) -> str:
         )
     side = res.summary.get("subject", {}).get("side", "right")
     other = "right" if side == "left" else "left"
-    weaker = [
-        g["group"]
-        for g in st["groups"]
-        if g["identified"] and g["ci_high"] is not None and g["ci_high"] < 1.0
-    ]
-    stronger = [
-        g["group"]
-        for g in st["groups"]
-        if g["identified"] and g["ci_low"] is not None and g["ci_low"] > 1.0
-    ]
+    status = [_strength_status(g, st) for g in st["groups"]]
+    ident = [g for g, w in zip(st["groups"], status) if w == "identified"]
+    weaker = [g["group"] for g in ident if _finite(g["ci_high"]) and g["ci_high"] < 1.0]
+    stronger = [g["group"] for g in ident if _finite(g["ci_low"]) and g["ci_low"] > 1.0]
+    counts = {w: status.count(w) for w in STATUS_COLOURS if status.count(w)}
+    r2 = st.get("r2")
+    r2_min = st.get("r2_min", STRENGTH_R2_MIN)
+    unreliable = not _finite(r2) or r2 < r2_min
+    n = len(status)
     msg = (
         f"Strength of the {side} leg muscles measured with EMG, relative to a typical adult "
-        "(the generic model = 1.0). "
+        f"(the generic model = 1.0). Of {n} muscle groups, "
+        + ", ".join(f"{c} {w}" for w, c in counts.items())
+        + ". "
     )
-    msg += (
-        f"Clearly below typical: {', '.join(weaker)}. "
-        if weaker
-        else "No group is clearly below typical. "
-    )
-    msg += f"Clearly above typical: {', '.join(stronger)}. " if stronger else ""
+    if not ident:
+        msg += (
+            "No group's strength is determined by this session's data: the values below must "
+            "not be read as the subject's strength. "
+        )
+    else:
+        msg += (
+            f"Clearly below typical: {', '.join(weaker)}. "
+            if weaker
+            else "No identified group is clearly below typical. "
+        )
+        msg += f"Clearly above typical: {', '.join(stronger)}. " if stronger else ""
     msg += (
         f"The {other} leg was not measured with EMG, so no left/right comparison of strength "
         "is possible in this session."
     )
-    r2 = st.get("r2")
-    unreliable = r2 is None or r2 < 0.5
-    no_mvc = any("no MVC" in w for w in res.summary.get("quality", {}).get("emg_warnings", []))
-    if unreliable:
-        msg = (
-            f"Strength of the {side} leg muscles, relative to a typical adult (the generic "
-            "model = 1.0), could not be estimated reliably in this session: see the warning "
-            "below. The values are shown for research use only."
-        )
     out.append(f'<p class="plain">{_e(msg)}</p>')
     if unreliable:
         out.append(
             f'<p class="warn"><b>Caution:</b> the EMG-driven muscle model explains the '
-            f"joint moments poorly (fit r² = {_num(r2, '.2f')}); factors at the bounds "
-            f"({st['bounds'][0]} or {st['bounds'][1]} ×) mean the data did not determine "
-            "them.</p>"
+            f"joint moments poorly: fit r² = {_num(r2, '.2f')}, below the threshold "
+            f"{_num(r2_min, '.2f')} for a group to be identified. No group is identified; "
+            f"factors at the bounds ({_e(st['bounds'][0])} or {_e(st['bounds'][1])} ×) were "
+            "fixed by the bound, not by the data. The values are shown for research use only."
+            "</p>"
         )
+    no_mvc = any("no MVC" in w for w in res.summary.get("quality", {}).get("emg_warnings", []))
     if no_mvc:
         out.append(
             '<p class="warn">No maximal voluntary contraction (MVC) trials: EMG is '
@@ -452,20 +527,21 @@ def _strength_section(res: SessionResults, figs: Mapping[str, str]) -> str:
         )
     pct = round(100 * st.get("confidence", 0.95))
     rows = []
-    for g in st["groups"]:
+    for g, word in zip(st["groups"], status):
+        ci = (
+            f"{_num(g['ci_low'], '.2f')}–{_num(g['ci_high'], '.2f')} ×"
+            if word != "prior" and _finite(g.get("ci_low")) and _finite(g.get("ci_high"))
+            else "—"
+        )
         rows.append(
             [
                 _e(g["group"]),
                 _e(", ".join(g["muscles"])),
                 _num(g["factor"], ".2f", "×"),
-                (
-                    f"{_num(g['ci_low'], '.2f')}–{_num(g['ci_high'], '.2f')} ×"
-                    if g["identified"]
-                    else "—"
-                ),
+                ci,
                 _num(g["f_iso_generic_n"], ".0f", "N"),
                 _num(g["f_iso_n"], ".0f", "N"),
-                _strength_status(g, st.get("bounds")),
+                _status_html(word),
             ]
         )
     out.append(
@@ -476,27 +552,113 @@ def _strength_section(res: SessionResults, figs: Mapping[str, str]) -> str:
                 "strength factor",
                 f"{pct} % CI (bootstrap)",
                 "generic F_iso",
-                "identified F_iso",
+                "estimated F_iso",
                 "status",
             ],
             rows,
             "strength",
         )
     )
+    out.append(_status_legend())
     lo, hi = LITERATURE_FACTOR_RANGE
     out.append(
         f'<p class="note">Literature range of strength factors: {lo}–{hi} × generic '
-        f"(seeds/003 Table 3.1); generic F_iso: gait2392 (Delp et al. 1990). {other.capitalize()} "
-        "side: not measured (no EMG).</p>"
+        f"(thesis [3], Table 3.1); generic F_iso: gait2392 (Delp et al. 1990 [6]). "
+        f"{other.capitalize()} side: not measured (no EMG).</p>"
     )
     out.append(
-        f'<p class="note">Fit r² = {_num(st["r2"], ".3f")} (dimensionless); method: '
-        f"{_e(st['method'])}; factors bounded to {st['bounds'][0]}–{st['bounds'][1]} × "
-        "generic (seeds/002 §V, seeds/003 Table 3.1).</p>"
+        f'<p class="note">Fit r² = {_num(r2, ".3f")} (dimensionless; threshold for '
+        f"“identified”: ≥ {_num(r2_min, '.2f')}); method: {_e(st['method'])}; factors "
+        f"bounded to {_e(st['bounds'][0])}–{_e(st['bounds'][1])} × generic (Hayashibe et al. "
+        "[1], §V; thesis [3], Table 3.1). A group is “identified” only when its factor and its "
+        "whole interval lie strictly inside the bounds and the fit reaches the threshold.</p>"
     )
     if "strength" in figs:
         out.append(f"<figure>{figs['strength']}</figure>")
     return "".join(out)
+
+
+def _status_legend() -> str:
+    return (
+        '<p class="note">Status: '
+        + "; ".join(f"{_status_html(w)} — {_e(m)}" for w, m in STATUS_MEANING.items())
+        + ".</p>"
+    )
+
+
+#: Words for the identification's segment and parameter names (weak directions in words).
+_SEGMENT_WORDS = {
+    "pelvis": "pelvis",
+    "torso": "torso (trunk, head and arms)",
+    "femur": "thigh",
+    "tibia": "shank",
+    "talus": "ankle bone (talus)",
+    "calcn": "foot (heel)",
+    "toes": "toes",
+}
+_PARAMETER_WORDS = {
+    "m": "mass",
+    "mx": "mass-centre position (front–back)",
+    "my": "mass-centre position (along the segment)",
+    "mz": "mass-centre position (sideways)",
+}
+
+
+def _segment_words(name: str) -> str:
+    both = "(+_l)" in name
+    base = name.replace("(+_l)", "")
+    stem, side = (base[:-2], base[-2:]) if base[-2:] in ("_r", "_l") else (base, "")
+    word = _SEGMENT_WORDS.get(stem, stem)
+    if both:
+        plural = {"thigh": "thighs", "shank": "shanks", "foot (heel)": "feet (heel)"}.get(
+            word, word.replace("ankle bone", "ankle bones")
+        )
+        return f"{plural} (left and right together)"
+    return {"_r": f"right {word}", "_l": f"left {word}"}.get(side, word)
+
+
+def weak_direction_words(text: str) -> str | None:
+    """A weak direction of the mass identification (``msk.identification`` advice line
+    ``weak direction (…): -0.59·pelvis.my +0.31·torso.m …``) in words, or None when ``text``
+    is not one."""
+    m = re.match(r"weak direction \((.*?)\):\s*(.*)$", text.strip())
+    if not m:
+        return None
+    how, comb = m.groups()
+    terms = re.findall(r"([+-]\d*\.?\d+)·(\S+)\.(\w+)", comb)
+    if not terms:
+        return None
+    phrases: dict[str, set[int]] = {}
+    for coef, seg, par in terms:
+        what = _PARAMETER_WORDS.get(par, "rotational inertia")
+        phrases.setdefault(f"the {_segment_words(seg)} {what}", set()).add(
+            1 if float(coef) > 0 else -1
+        )
+    names = list(phrases)
+    signs = set().union(*phrases.values())
+    listed = names[0] if len(names) == 1 else ", ".join(names[:-1]) + " and " + names[-1]
+    if how.startswith("no data"):
+        why = "this motion carries no information on this combination"
+    else:
+        r = re.search(r"([\d.]+(?:e[+-]?\d+)?)×", how)
+        why = (
+            f"the data are {r.group(1)} times less precise on this combination than the "
+            "generic value's spread"
+            if r
+            else "the data barely inform this combination"
+        )
+    if len(names) == 1:
+        return f"{listed[0].upper()}{listed[1:]} is not determined ({why})."
+    if len(signs) > 1:
+        return (
+            f"The data cannot tell {listed} apart: only a weighted sum of them is determined, "
+            f"not each one — shifting from one to the other fits the measurements equally well "
+            f"({why})."
+        )
+    return (
+        f"The data cannot tell the common level of {listed}: only their balance is determined "
+        f"— raising or lowering them all together fits the measurements equally well ({why})."
+    )
 
 
 def _mass_section(res: SessionResults, figs: Mapping[str, str]) -> str:
@@ -505,56 +667,84 @@ def _mass_section(res: SessionResults, figs: Mapping[str, str]) -> str:
     if not ident:
         return "".join(out) + _na(res, "mass_identification")
     anth = (res.summary.get("anthropometry") or {}).get("segments", {})
+    status = [segment_status(s).value for s in ident["segments"]]
+    counts = {w: status.count(w) for w in STATUS_COLOURS if status.count(w)}
     out.append(
         '<p class="plain">Body segment masses estimated from this session\'s motion and '
-        "ground forces. Colour shows how well the data determine each segment: "
-        + " ".join(
-            f'<span class="flag" style="background:{c}"></span>{_e(f)}'
-            for f, c in FLAG_COLOURS.items()
-        )
-        + ". Grey segments keep the generic value.</p>"
+        f"ground forces. Of {len(status)} segments, "
+        + _e(", ".join(f"{c} {w}" for w, c in counts.items()))
+        + ". Only “identified” segments are determined by the data; “prior” segments keep the "
+        "generic value; “not determined” segments moved from the generic value without the "
+        "data pinning them down — read their masses as uncertain.</p>"
     )
     rows = []
-    for s in ident["segments"]:
+    for s, word in zip(ident["segments"], status):
         n = s["name"]
         key = ("foot" + n[-2:]) if n.startswith("calcn") else n
         tab = anth.get(key, {}).get("mass_kg")
-        col = FLAG_COLOURS.get(s["flag"], "#9e9e9e")
         com = s.get("com_m") or [None] * 3
+        prior = s.get("prior_mass_kg")
+        change = 100.0 * (s["mass_kg"] - prior) / prior if _finite(prior) and prior > 0 else None
         rows.append(
             [
                 _e(n),
                 _num(s["mass_kg"], ".2f", "kg"),
                 _num(s["mass_std_kg"], ".2f", "kg"),
-                _num(s["prior_mass_kg"], ".2f", "kg"),
+                _num(prior, ".2f", "kg"),
+                _num(change, "+.0f", "%"),
                 _num(tab, ".2f", "kg") if tab is not None else "—",
                 " ".join(_num(c, "+.3f") for c in com) + " m",
-                f'<span class="flag" style="background:{col}"></span>{_e(s["flag"])}',
+                _status_html(word),
             ]
         )
     out.append(
         _table(
             [
                 "segment",
-                "identified mass",
+                "estimated mass",
                 "± SD",
                 "scaled generic",
+                "change",
                 "anthropometric table",
                 "COM (x y z, body frame)",
-                "identifiability",
+                "status",
             ],
             rows,
             "mass",
         )
     )
+    out.append(_status_legend())
     out.append(
         f'<p class="note">Condition number of the base regressor '
         f"{_num(ident['condition_number'], '.3g')} (dimensionless), "
-        f"{ident['n_frames']} frames. Table masses: Dumas et al. 2007 (foot row on the "
-        "calcaneus; talus and toes are part of it; torso = trunk + head + arms).</p>"
+        f"{_e(ident['n_frames'])} frames. Base-link equations after Hayashibe et al. [1], §II. "
+        "“Identified”: posterior SD of the mass ≤ 2 % and of every COM coordinate ≤ 4 mm; "
+        "“prior”: mass and COM within 0.2 prior SD (6 %, 6 mm) of the generic value. Table "
+        "masses: Dumas et al. 2007 [7] (foot row on the calcaneus; talus and toes are part of "
+        "it; torso = trunk + head + arms).</p>"
     )
-    for a in ident.get("advice", [])[:3]:
-        out.append(f'<p class="warn">{_e(a)}</p>')
+    at_prior = [s["name"] for s, w in zip(ident["segments"], status) if w == "prior"]
+    advice = list(ident.get("advice", []))
+    if any(a.startswith("not excited") for a in advice) and at_prior:
+        out.append(
+            '<p class="warn">Not excited by this motion (kept at the generic value): '
+            f"{_e(', '.join(at_prior))}. Move these segments more (larger, faster, "
+            "multi-planar motion) to identify them.</p>"
+        )
+    seen: list[str] = []
+    for a in advice:
+        words = weak_direction_words(a)
+        if words and words not in seen:
+            seen.append(words)
+    if seen:
+        out.append(
+            '<div class="warn">Parameter combinations this motion does not determine:<ul>'
+            + "".join(f"<li>{_e(w)}</li>" for w in seen[:5])
+            + "</ul></div>"
+        )
+    for a in advice:
+        if not a.startswith(("not excited", "weak direction")):
+            out.append(f'<p class="warn">{_e(a)}</p>')
     if "mass" in figs:
         out.append(f"<figure>{figs['mass']}</figure>")
     return "".join(out)
@@ -641,39 +831,157 @@ def _contact_section(res: SessionResults, figs: Mapping[str, str]) -> str:
     return "".join(out)
 
 
+#: Quality-gate quantities shown as rows of the data-quality table.
+_QUALITY_ROW_QUANTITIES = {
+    "ik_marker_rms_mean_m",
+    "ik_marker_max_mean_m",
+    "residual_force_rms_pct_bw",
+    "residual_moment_rms_pct_com_height_peak_force",
+    "plate_mass_difference_pct",
+    "optimization_infeasible_frames",
+}
+
+
+def _check(
+    value: Any,
+    limit: float,
+    *,
+    flagged: bool | None = None,
+    below: bool = True,
+    needs_value: bool = True,
+) -> str:
+    """'ok' / 'over threshold' (or 'below threshold') for a quality figure. ``flagged`` (whether
+    the gate of ``summary.quality.flags`` was raised) decides when the run checked it (not
+    None); otherwise the value is compared with ``limit``."""
+    if needs_value and value is None and not flagged:
+        return '<span class="note">not checked</span>'
+    if flagged is not None:
+        bad = flagged
+    elif not _finite(value):
+        return '<span class="note">not checked</span>'
+    else:
+        bad = value > limit if below else value < limit
+    if not bad:
+        return '<span class="ok">✓ ok</span>'
+    word = "over threshold" if below else "below threshold"
+    return f'<span class="bad">⚠ {word}</span>'
+
+
 def _quality_section(res: SessionResults) -> str:
-    q = res.summary.get("quality", {})
+    from msk.quality import THRESHOLDS as TH
+
+    s = res.summary
+    q = s.get("quality", {})
+    raised = {f.get("quantity") for f in q.get("flags") or []}
+
+    def gate(quantity: str) -> bool | None:
+        return (quantity in raised) if "flags" in q else None
+
+    plate = [f for f in q.get("flags") or [] if f.get("quantity") == "plate_mass_difference_pct"]
     out = ["<h2>5. Data quality</h2>"]
+    ik_mean = q.get("ik_marker_rms_mean_m")
+    ik_max = q.get("ik_marker_rms_max_m")
+    rf = q.get("residual_force_rms_pct_bw")
+    flat = q.get("emg_flat_channels", [])
+    st = s.get("strength") or {}
+    r2_min = st.get("r2_min", STRENGTH_R2_MIN)
+    n_frames = q.get("frames")
     rows = [
-        ["frames", f"{q.get('frames', '—')} at {_num(q.get('rate_hz'), '.0f', 'Hz')}"],
+        [
+            "frames",
+            f"{_e(n_frames if n_frames is not None else '—')} at "
+            f"{_num(q.get('rate_hz'), '.0f', 'Hz')}",
+            "—",
+            "—",
+        ],
         [
             "IK marker error, mean",
-            _num(1000 * q["ik_marker_rms_mean_m"], ".1f", "mm")
-            if "ik_marker_rms_mean_m" in q
-            else "—",
+            _num(1000 * ik_mean, ".1f", "mm") if _finite(ik_mean) else "—",
+            f"≤ {1000 * TH['ik_marker_rms_mean_m']:g} mm [5]",
+            _check(ik_mean, TH["ik_marker_rms_mean_m"], flagged=gate("ik_marker_rms_mean_m")),
         ],
         [
             "IK marker error, worst frame",
-            _num(1000 * q["ik_marker_rms_max_m"], ".1f", "mm")
-            if "ik_marker_rms_max_m" in q
-            else "—",
+            _num(1000 * ik_max, ".1f", "mm") if _finite(ik_max) else "—",
+            f"worst marker ≤ {1000 * TH['ik_marker_max_mean_m']:g} mm on average [5]",
+            _check(ik_max, TH["ik_marker_max_mean_m"], flagged=gate("ik_marker_max_mean_m")),
         ],
-        ["marker most often worst", _e(q.get("ik_worst_marker", "—"))],
-        ["IK failed frames", _e(q.get("ik_failed_frames", "—"))],
+        ["marker most often worst", _e(q.get("ik_worst_marker", "—")), "—", "—"],
+        [
+            "IK failed frames",
+            _e(q.get("ik_failed_frames", "—")),
+            "0",
+            _check(q.get("ik_failed_frames"), 0),
+        ],
         [
             "frames with all ground contact on plates (residuals, muscle forces)",
             f"{_e(q.get('contact_measured_frames', '—'))} of {_e(q.get('frames', '—'))}",
+            "—",
+            "—",
         ],
         [
             "pelvis residual force (RMS)",
-            f"{_num(q.get('residual_force_rms_n'), '.1f', 'N')} "
-            f"({_num(q.get('residual_force_rms_pct_bw'), '.1f', '% BW')})",
+            f"{_num(q.get('residual_force_rms_n'), '.1f', 'N')} ({_num(rf, '.1f', '% BW')})",
+            f"≤ {TH['residual_force_rms_pct_bw']:g} % BW [5]",
+            _check(rf, TH["residual_force_rms_pct_bw"], flagged=gate("residual_force_rms_pct_bw")),
         ],
-        ["pelvis residual moment (RMS)", _num(q.get("residual_moment_rms_nm"), ".1f", "N·m")],
-        ["EMG channels flat / unusable", _e(", ".join(q.get("emg_flat_channels", [])) or "none")],
-        ["optimisation infeasible frames", _e(q.get("optimization_infeasible_frames", "—"))],
+        [
+            "pelvis residual moment (RMS)",
+            _num(q.get("residual_moment_rms_nm"), ".1f", "N·m"),
+            f"≤ {TH['residual_moment_rms_pct_com_height_peak_force']:g} % of COM height × peak "
+            "external force [5]",
+            _check(
+                q.get("residual_moment_rms_nm"),
+                np.inf,
+                flagged=gate("residual_moment_rms_pct_com_height_peak_force"),
+            ),
+        ],
+        [
+            "body mass weighed by the force plates vs configured",
+            _num(plate[0].get("value"), "+.1f", "%") if plate else "—",
+            f"within ±{TH['body_mass_difference_pct']:g} %",
+            _check(None, 0.0, flagged=gate("plate_mass_difference_pct"), needs_value=False),
+        ],
+        [
+            "EMG channels flat / unusable",
+            _e(", ".join(flat) or "none"),
+            "none",
+            _check(len(flat), 0) if "emg_flat_channels" in q else "—",
+        ],
+        [
+            "optimisation infeasible frames",
+            _e(q.get("optimization_infeasible_frames", "—")),
+            "0",
+            _check(
+                q.get("optimization_infeasible_frames"),
+                0,
+                flagged=gate("optimization_infeasible_frames"),
+            ),
+        ],
     ]
-    out.append(_table(["figure", "value"], rows, "quality"))
+    if st:
+        rows.append(
+            [
+                "strength fit r² (EMG-driven model vs joint moments)",
+                _num(st.get("r2"), ".2f"),
+                f"≥ {_num(r2_min, '.2f')} for any group to be identified",
+                _check(st.get("r2"), r2_min, below=False),
+            ]
+        )
+    other = [f for f in q.get("flags") or [] if f.get("quantity") not in _QUALITY_ROW_QUANTITIES]
+    out.append(_table(["figure", "value", "threshold", "check"], rows, "quality"))
+    if other:
+        out.append(
+            '<p class="note">Other gates raised (see the banner at the top): '
+            + "; ".join(_e(f.get("message")) for f in other)
+            + ".</p>"
+        )
+    out.append(
+        '<p class="note">Thresholds: IK and residuals after Hicks et al. 2015 [5] (stated '
+        "there on peak values; applied here to the RMS over the frames the plates measure); "
+        "the strength fit threshold is msk's (below it the EMG-driven model explains less than "
+        "half of the joint-moment variance).</p>"
+    )
     gaps = q.get("marker_gaps", [])
     if gaps:
         out.append(
@@ -699,7 +1007,7 @@ def _quality_section(res: SessionResults) -> str:
     return "".join(out)
 
 
-#: Meaning of the FES model parameters (seeds/000 Eq. 1–7, 10) for the report.
+#: Meaning of the FES model parameters (FES identification study [2], Eq. 1–7, 10).
 _FES_MEANING = {
     "geometry.L_ext": "quadriceps muscle–tendon length at full extension",
     "geometry.r_q": "quadriceps moment arm",
@@ -716,6 +1024,19 @@ _FES_MEANING = {
     "recruitment.c2": "recruitment sigmoid: slope",
     "recruitment.c3": "recruitment sigmoid: threshold (PW/PW_max)",
 }
+#: The protocol step whose fit identifies each FES parameter (the others are protocol priors).
+_FES_PARAMETER_STEP = {
+    "knee.K": "static_torque",
+    "knee.J": "joint_mechanics",
+    "knee.B": "joint_mechanics",
+    "muscle.L_c0": "force_length",
+    "muscle.b": "force_length",
+    "muscle.F_cm": "recruitment",
+    "recruitment.c1": "recruitment",
+    "recruitment.c2": "recruitment",
+    "recruitment.c3": "recruitment",
+    "muscle.k_s": "nlp_ks",
+}
 _FES_STEPS = {
     "static_torque": "static torque (K)",
     "joint_mechanics": "joint mechanics, pendulum (J, B)",
@@ -728,7 +1049,8 @@ _FES_STEPS = {
 
 
 def _fes_references() -> tuple[dict[str, tuple[float, float]], dict[str, tuple[float, float]]]:
-    """seeds/000 Table 3 parameter ranges and Table 2 NRMSD ranges (literature, for context)."""
+    """Parameter ranges (Table 3) and NRMSD ranges (Table 2) of the FES identification study
+    [2] (literature, for context)."""
     from msk.fes.model import TABLE2_NRMSD_PCT, TABLE3
 
     t3 = {}
@@ -760,14 +1082,23 @@ def _fes_section(res: SessionResults, figs: Mapping[str, str], number: int) -> s
         '<p class="plain">A model of the knee moved by electrical stimulation of the quadriceps '
         "was fitted to this session's recordings. On a stimulation pattern it was not fitted "
         f"to, it predicts the knee angle with an error of {_num(cv, '.1f', '%')} of the "
-        f"movement range (lower is better; seeds/000 reported a median of "
+        f"movement range (lower is better; the FES identification study [2] reported a "
+        "median of "
         f"{float(np.median(seed_cv)):.1f} % in {len(seed_cv)} legs of spinal cord-injured "
         "subjects).</p>"
     )
     rows = []
+    initial = fes.get("initial_parameters") or {}
     for key, item in fes.get("parameters", {}).items():
         unit = item.get("unit", "")
         r = t3.get(key)
+        step = _FES_PARAMETER_STEP.get(key)
+        word = fes_status(
+            item.get("value"),
+            prior=initial.get(key),
+            from_prior=step is None,
+            nrmsd_pct=(steps.get(step) or {}).get("nrmsd_pct") if step else None,
+        ).value
         rows.append(
             [
                 _e(key),
@@ -775,20 +1106,25 @@ def _fes_section(res: SessionResults, figs: Mapping[str, str], number: int) -> s
                 _num(item.get("value"), ".4g"),
                 _e({"1": "dimensionless", "1 (PW/PW_max)": "PW/PW_max"}.get(unit, unit)),
                 "—" if r is None else f"{r[0]:.4g} – {r[1]:.4g}",
+                _status_html(word),
             ]
         )
-    out.append("<h3>Identified parameters</h3>")
+    out.append("<h3>Model parameters</h3>")
     out.append(
         _table(
-            ["parameter", "meaning", "identified", "unit", "seeds/000 Table 3 range"],
+            ["parameter", "meaning", "value", "unit", "published range [2]", "status"],
             rows,
             "strength fes-parameters",
         )
     )
+    out.append(_status_legend())
     out.append(
-        '<p class="note">Model of seeds/000 (Eq. 1–7, 10); K_cm/F_cm and L_c0/(L_c0 + L_s) '
-        "are priors of the protocol (session configuration [fes]). Table 3 ranges are the 13 "
-        "legs of seeds/000 (L_s derived from an assumed optimal angle of 60°).</p>"
+        '<p class="note">Model of the FES identification study [2] (Eq. 1–7, 10); the '
+        "geometry (from the height), K_cm/F_cm and L_c0/(L_c0 + L_s) are priors of the protocol "
+        "(session configuration [fes]). A parameter is “identified” when the NRMSD of the "
+        f"protocol step that fits it is ≤ {FES_NRMSD_MAX_PCT:g} % of the movement range. "
+        "Published ranges are the 13 legs of [2], Table 3 (L_s derived from an assumed optimal "
+        "angle of 60°).</p>"
     )
     rows = []
     for key, label in _FES_STEPS.items():
@@ -806,14 +1142,15 @@ def _fes_section(res: SessionResults, figs: Mapping[str, str], number: int) -> s
     out.append("<h3>Fit per protocol step</h3>")
     out.append(
         _table(
-            ["protocol step (parameters)", "NRMSD", "NRMSE", "seeds/000 Table 2 NRMSD range"],
+            ["protocol step (parameters)", "NRMSD", "NRMSE", "published NRMSD range [2]"],
             rows,
             "fes-steps",
         )
     )
     out.append(
         '<p class="note">NRMSD = RMS(measured − simulated) / range(measured) × 100 '
-        "(seeds/000 Eq. 9).</p>"
+        f"([2], Eq. 9); threshold for the step's parameters to be identified: ≤ "
+        f"{FES_NRMSD_MAX_PCT:g} %.</p>"
     )
     if "fes" in figs:
         out.append(f"<figure>{figs['fes']}</figure>")
@@ -825,7 +1162,7 @@ def _methods_section(res: SessionResults, number: int = 6, *, gait: bool = True)
     out = [f"<h2>{number}. Methods, stages and software</h2>"]
     if s.get("fes"):
         out.append(
-            '<p class="note">FES knee model (seeds/000 §2.3): geometry from the height → '
+            '<p class="note">FES knee model ([2], §2.3): geometry from the height → '
             "static torque K → pendulum J, B → force–length L_c0, b → recruitment c1–c3, "
             "F_cm → series stiffness k_s by the NLP of Eq. 8 on the dynamic trial (repeated to "
             "a fixed point of k_s) → cross-validation on a trial not used for identification."
@@ -836,11 +1173,11 @@ def _methods_section(res: SessionResults, number: int = 6, *, gait: bool = True)
             '<p class="note">Markers → scaled model (OpenSim-style measurements; non-model '
             "markers placed from the static trial) → inverse kinematics → force plates assigned "
             "to the feet → "
-            "segment inertial parameters from the base-link equations (seeds/002 §II) → inverse "
-            "dynamics → EMG envelopes and activation (seeds/002 Eq. 8) → muscle–tendon geometry "
-            "(seeds/002 Eq. 6–7) → tension optimisation → strength by regression on the net "
-            "contribution matrix (seeds/002 Eq. 12–16) → tibiofemoral contact force from the tibia "
-            "free-body diagram with the muscle forces (seeds/004 §2.1), muscle paths evaluated at "
+            "segment inertial parameters from the base-link equations ([1], §II) → inverse "
+            "dynamics → EMG envelopes and activation ([1], Eq. 8) → muscle–tendon geometry "
+            "([1], Eq. 6–7) → tension optimisation → strength by regression on the net "
+            "contribution matrix ([1], Eq. 12–16) → tibiofemoral contact force from the tibia "
+            "free-body diagram with the muscle forces ([4], §2.1), muscle paths evaluated at "
             "every frame. The lab frame is rotated into the model frame (vertical up, walking "
             f"along +x); force-plate contacts: {s.get('methods', {}).get('plate_assignment', '?')}."
             "</p>"
@@ -862,8 +1199,16 @@ def _methods_section(res: SessionResults, number: int = 6, *, gait: bool = True)
         crit = f" ({_e(opt['criterion'])})" if opt.get("criterion") else ""
         out.append(f'<p class="note">Tension optimisation: {_e(opt.get("method"))}{crit}.</p>')
         if opt.get("emg_gains"):
-            rows = [[_e(c), _num(g, ".3f")] for c, g in opt["emg_gains"].items()]
-            out.append(_table(["EMG channel", "gain g_c (activation per unit EMG)"], rows, "gains"))
+            gst = opt.get("emg_gain_status") or {}
+            rows = [
+                [_e(c), _num(g, ".3f"), _status_html(gst.get(c) or gain_status(g).value)]
+                for c, g in opt["emg_gains"].items()
+            ]
+            out.append(
+                _table(
+                    ["EMG channel", "gain g_c (activation per unit EMG)", "status"], rows, "gains"
+                )
+            )
     ver = s.get("versions", {})
     out.append(
         _table(["software", "version"], [[_e(k), _e(v)] for k, v in ver.items()], "versions")
@@ -930,6 +1275,11 @@ def render_html(res: SessionResults, figures: Mapping[str, str] | None = None) -
         parts.append(_fes_section(res, figs, n))
         n += 1
     parts.append(_methods_section(res, n, gait=gait))
+    parts.append(
+        '<h3 id="references">References</h3><ol class="refs">'
+        + "".join(f"<li>{_e(r)}</li>" for r in REFERENCES)
+        + "</ol>"
+    )
     body = "".join(parts)
     title = f"msk report {_e(subj.get('name', ''))}"
     return (
