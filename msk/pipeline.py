@@ -908,13 +908,17 @@ class _Session:
         params, state = self._muscle_state(mdl)
         # a frame whose inputs cannot be posed (non-finite geometry or torques, negative
         # active force) is excluded and flagged, never allowed to abort the whole stage
-        fa_all = state.max_active_force_along_tendon
+        # a muscle shortening faster than its maximal velocity produces no active force: the
+        # force–velocity curve's extrapolation below zero (noisy fibre velocities of short
+        # trunk muscles) is clipped to 0 rather than costing the frame
+        fa_all = np.where(
+            state.max_active_force_along_tendon < 0, 0.0, state.max_active_force_along_tendon
+        )
         fp_all = state.passive_force_along_tendon
         posable = (
             np.isfinite(self.geom.jacobian[:, :, act_idx]).all(axis=(1, 2))
             & np.isfinite(torques.tau[:, act_idx]).all(axis=1)
             & np.isfinite(fa_all).all(axis=1)
-            & (fa_all >= 0).all(axis=1)
             & np.isfinite(fp_all).all(axis=1)
         )
         ok = self.ok_frames & posable
@@ -987,7 +991,7 @@ class _Session:
         out = {"forces": f_all, "activations": a_all, "muscles": params.names, "method": meth}
         out["excluded_frames"] = excluded
         if excluded:
-            out["excluded_reason"] = "non-finite geometry or torque, or negative active force"
+            out["excluded_reason"] = "non-finite geometry, torque or muscle force curves"
         w = "V_i " if opt.activation_weights == "volume" else ""
         if meth == "static_optimization":
             out["criterion"] = f"min Σ {w}a_i^{opt.activation_exponent:g}"
