@@ -188,7 +188,10 @@ def test_fes_report_section(fes_run: tuple[Path, Path]) -> None:
     _, out = fes_run
     html = (out / "report.html").read_text()
     assert "FES knee model" in html
-    assert "seeds/000 Table 3 range" in html and "seeds/000 Table 2 NRMSD range" in html
+    assert "published range [2]" in html and "published NRMSD range [2]" in html
+    assert "seeds/" not in html  # the literature is cited, not internal file names
+    assert "application to patients with spinal cord injury" in html.split('class="refs"')[1]
+    assert "<th>status</th>" in html.split("published range [2]")[1][:40]
     assert "kg·m²" in html and "N·m·s/rad" in html
     assert "knee angle (deg, 0 = full extension)" in html and "time (s)" in html
     assert "simulated, identified model" in html  # the figure's legend

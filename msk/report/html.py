@@ -1275,12 +1275,14 @@ def render_html(res: SessionResults, figures: Mapping[str, str] | None = None) -
         parts.append(_fes_section(res, figs, n))
         n += 1
     parts.append(_methods_section(res, n, gait=gait))
-    parts.append(
-        '<h3 id="references">References</h3><ol class="refs">'
-        + "".join(f"<li>{_e(r)}</li>" for r in REFERENCES)
-        + "</ol>"
-    )
     body = "".join(parts)
+    cited = [k for k in range(1, len(REFERENCES) + 1) if f"[{k}]" in body]
+    if cited:  # the works cited in this report, under their fixed numbers
+        body += (
+            '<h3 id="references">References</h3><ol class="refs">'
+            + "".join(f'<li value="{k}">{_e(REFERENCES[k - 1])}</li>' for k in cited)
+            + "</ol>"
+        )
     title = f"msk report {_e(subj.get('name', ''))}"
     return (
         f'<!DOCTYPE html><html lang="en"><head><meta charset="utf-8">'
