@@ -183,7 +183,7 @@ def _fig_mass(res: SessionResults) -> str | None:
         lw=0.5,
         yerr=err,
         capsize=2,
-        label="identified (±2 SD)",
+        label="estimated (±2 SD), coloured by status",
     )
     tab = []
     for s in segs:
