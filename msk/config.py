@@ -72,6 +72,7 @@ side = "left"          # side of interest (instrumented knee, affected limb)
 source = "../models/gait2392.toml"   # an msk model file (.toml) or an OpenSim model (.osim)
 knee = "spline"                      # "spline" (gait2392 knee) | "four_bar" (seed 004)
 scale = true                         # scale to the static trial's marker distances
+# markers = "gait2392_Scale_MarkerSet.xml"   # OpenSim marker set of a .osim without markers
 
 # One [[trials]] table per recording. role: static | mass_identification | mvc | task | fes
 # (A session may hold only FES trials: [model] is then optional and the gait stages are skipped.)
@@ -175,6 +176,8 @@ class ModelConfig:
     source: Path
     knee: str = "spline"
     scale: bool = True
+    #: an OpenSim marker-set ``.xml`` for a model whose markers are kept apart (stock ``.osim``)
+    markers: Path | None = None
 
 
 @dataclass(frozen=True)
@@ -438,6 +441,7 @@ def load_config(path: str | Path) -> SessionConfig:
             source=m.path("source"),  # type: ignore[arg-type]
             knee=m.choice("knee", KNEE_VARIANTS, "spline"),
             scale=m.get("scale", bool, True),
+            markers=m.path("markers", required=False),
         )
         m.done()
     names = [t.name for t in trials]

@@ -397,14 +397,20 @@ def _model_source(cfg: SessionConfig) -> Path:
     return src
 
 
-def _load_model(path: Path) -> Any:
+def _load_model(path: Path, markers: Path | None = None) -> Any:
+    """An msk model file or an OpenSim ``.osim`` (with its marker-set ``.xml`` when given)."""
     if path.suffix.lower() == ".osim":
         from msk.osim import load_osim
 
-        return load_osim(path)
+        return load_osim(path, marker_set=markers)
     from msk.model_files import load_model
 
-    return load_model(path)
+    model = load_model(path)
+    if markers is not None:
+        from msk.osim import read_marker_set
+
+        model = read_marker_set(markers, model)
+    return model
 
 
 def _read_contact(path: Path, trial: Path, grf: Path | None) -> Any:
@@ -466,6 +472,8 @@ class _Session:
             files[f"{tc.role}:{tc.name}"] = tc.file
         self.model_src = _model_source(cfg)
         files["model"] = self.model_src
+        if cfg.model.markers is not None:
+            files["model_markers"] = cfg.model.markers
         self.files = files
         self.hashes = {k: file_sha256(p) for k, p in files.items()}
 
@@ -523,7 +531,7 @@ class _Session:
                 scale_from_static,
             )
 
-            model = _load_model(self.model_src)
+            model = _load_model(self.model_src, cfg.model.markers)
             bodies = [b.name for b in model.bodies]
             info: dict[str, Any] = {
                 "source": str(self.model_src),
@@ -606,6 +614,7 @@ class _Session:
             needs=("read",),
             settings={
                 "model": self.hashes["model"],
+                "model_markers": self.hashes.get("model_markers"),
                 "static": self.hashes.get("static"),
                 "scale": cfg.model.scale,
                 "knee": cfg.model.knee,

@@ -207,3 +207,32 @@ def test_msk_run_on_opensim_subject01_trc_and_grf_mot(real_dir: Path, tmp_path: 
     assert not {"R.Wrist.Med", "L.Elbow"} & set(placement["placed"])
     assert set(placement["moved"]) == set(S01_CLUSTERS)
     assert q["residual_force_rms_pct_bw"] < 5.0  # clean OpenSim example data
+
+
+@pytest.mark.slow
+@pytest.mark.realdata
+def test_stock_osim_with_its_marker_set_in_a_separate_xml(real_dir: Path, tmp_path: Path) -> None:
+    """A stock ``.osim`` without markers plus an OpenSim MarkerSet ``.xml`` (``[model]
+    markers``): the subject01 walk runs on OpenSim's gait2392 as distributed."""
+    from msk.model_files import load_model
+
+    osim = real_dir.parent / "reference" / "opensim-models" / "gait2392_thelen2003muscle.osim"
+    _need(osim)
+    rows = "".join(
+        f'<Marker name="{m.name}"><socket_parent_frame>/bodyset/{m.body}'
+        f"</socket_parent_frame><location>{' '.join(f'{v:.6f}' for v in m.offset)}</location>"
+        "<fixed>false</fixed></Marker>"
+        for m in load_model(GAIT2392).markers
+    )
+    xml = tmp_path / "gait2392_markers.xml"
+    head = '<?xml version="1.0"?><OpenSimDocument Version="40000"><MarkerSet name="markers">'
+    xml.write_text(f"{head}<objects>{rows}</objects></MarkerSet></OpenSimDocument>")
+    cfg = subject01_config(real_dir, tmp_path)
+    text = cfg.read_text().replace(
+        f'source = "{GAIT2392}"', f'source = "{osim}"\nmarkers = "{xml}"'
+    )
+    cfg.write_text(text)
+    res = run_session(cfg, tmp_path / "out")
+    q = res.summary["quality"]
+    assert res.summary["model"]["source"] == str(osim)
+    assert q["ik_marker_rms_mean_m"] < 0.025 and q["residual_force_rms_pct_bw"] < 5.0
