@@ -37,7 +37,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from msk.exceptions import C3DError, ForcePlateError, MissingDataError, MskError, UnitsError
-from msk.io.validate import check_regular_file
+from msk.io.validate import MAX_ABS_COORDINATE_M, MAX_ABS_FORCE_N, check_regular_file
 from msk.signal import block_average, resample_to
 
 __all__ = [
@@ -286,7 +286,7 @@ def _check_bytes(path: Path) -> None:
         fh.seek((param_block - 1) * 512)
         params = fh.read(n_param_blocks * 512)
     endian = ">" if proc == 86 else "<"
-    _walk_parameters(path, params, endian)
+    raw_params = _walk_parameters(path, params, endian)
     w = struct.unpack(endian + "12H", head[:24])
     n_points, n_analog_words, first, last = w[1], w[2], w[3], w[4]
     # scale factor (words 7-8): its sign says integer (>0) or float (<0) storage
@@ -307,17 +307,50 @@ def _check_bytes(path: Path) -> None:
             f"{path}: truncated: the header promises {n_frames} frames "
             f"({expected} bytes) but the file has {size} bytes"
         )
+    if proc == 85:
+        a = bytes(head[20:24][i] for i in (2, 3, 0, 1))
+        hdr_rate = struct.unpack("<f", a)[0] / 4.0
+    else:
+        hdr_rate = struct.unpack(endian + "f", head[20:24])[0]
+    _check_parameters(
+        path,
+        raw_params,
+        proc,
+        {
+            "n_points": n_points,
+            "n_analog_words": n_analog_words,
+            "n_frames": n_frames,
+            "point_rate": hdr_rate,
+            "analog_per_frame": w[9],
+        },
+    )
 
 
-def _walk_parameters(path: Path, buf: bytes, endian: str) -> None:
-    """Walk the parameter records and check every length and pointer stays inside the section."""
+@dataclass(frozen=True)
+class _RawParam:
+    """One parameter record as stored: data type (-1 char, 1 byte, 2 int16, 4 float), dims and
+    data bytes, and where the record starts in the parameter section."""
+
+    group: str
+    name: str
+    type: int
+    dims: tuple[int, ...]
+    data: bytes
+    offset: int
+
+
+def _walk_parameters(path: Path, buf: bytes, endian: str) -> dict[tuple[str, str], _RawParam]:
+    """Walk the parameter records, check every length and pointer stays inside the section and
+    return the parameters by ``(GROUP, NAME)`` (upper case)."""
     pos = 4
     n = len(buf)
     count = 0
+    groups: dict[int, str] = {}
+    raw: list[tuple[int, str, int, tuple[int, ...], bytes, int]] = []
     while pos < n:
         nchar = abs(struct.unpack_from("b", buf, pos)[0])
         if nchar == 0:
-            return
+            break
         gid = struct.unpack_from("b", buf, pos + 1)[0]
         name = buf[pos + 2 : pos + 2 + nchar]
         if pos + 4 + nchar > n or not all(c >= 32 and c != 127 for c in name):
@@ -331,24 +364,30 @@ def _walk_parameters(path: Path, buf: bytes, endian: str) -> None:
             typ, ndim = struct.unpack_from("bB", buf, body)
             if typ not in (-1, 1, 2, 4):
                 raise C3DError(
-                    f"{path}: corrupt parameter {name.decode()!r}: unknown data type {typ}"
+                    f"{path}: corrupt parameter {name.decode('latin-1')!r}: unknown data type {typ}"
                 )
-            dims = buf[body + 2 : body + 2 + ndim]
+            dims = tuple(buf[body + 2 : body + 2 + ndim])
             length = abs(typ) * math.prod(dims) if ndim else abs(typ)
             end = body + 2 + ndim + length
+            if end <= n:
+                raw.append(
+                    (gid, name.decode("latin-1").upper(), typ, dims, buf[end - length : end], pos)
+                )
+        elif gid < 0:
+            groups.setdefault(-gid, name.decode("latin-1").upper())
         if end + 1 > n:
             raise C3DError(
-                f"{path}: corrupt parameter {name.decode()!r}: its data overrun "
+                f"{path}: corrupt parameter {name.decode('latin-1')!r}: its data overrun "
                 "the parameter section"
             )
         rec_end = end + 1 + buf[end]
         if rec_end > n or (offset and rec_end > pos + 2 + nchar + offset):
             raise C3DError(
-                f"{path}: corrupt parameter {name.decode()!r}: its length ({rec_end - pos} "
-                f"bytes) disagrees with its pointer to the next record"
+                f"{path}: corrupt parameter {name.decode('latin-1')!r}: its length "
+                f"({rec_end - pos} bytes) disagrees with its pointer to the next record"
             )
         if offset == 0:
-            return
+            break
         nxt = pos + 2 + nchar + offset
         if nxt <= pos or nxt > n:
             raise C3DError(
@@ -359,6 +398,200 @@ def _walk_parameters(path: Path, buf: bytes, endian: str) -> None:
         count += 1
         if count > 100_000:
             raise C3DError(f"{path}: corrupt parameter section (no end found)")
+    out: dict[tuple[str, str], _RawParam] = {}
+    for gid, pname, typ, dims, data, at in raw:
+        group = groups.get(gid, f"#{gid}")
+        out.setdefault((group, pname), _RawParam(group, pname, typ, dims, data, at))
+    return out
+
+
+def _decode(p: _RawParam, proc: int) -> NDArray[np.float64] | None:
+    """Numeric values of a parameter (flat, file order); None for a character parameter."""
+    if p.type == -1:
+        return None
+    endian = ">" if proc == 86 else "<"
+    if p.type == 4:
+        b = p.data
+        if proc == 85:  # DEC floats: swap the 16-bit words, exponent bias off by 2
+            a = np.frombuffer(b, dtype=np.uint8).reshape(-1, 4)[:, [2, 3, 0, 1]]
+            return np.frombuffer(a.tobytes(), dtype="<f4").astype(float) / 4.0
+        return np.frombuffer(b, dtype=endian + "f4").astype(float)
+    if p.type == 2:
+        return np.frombuffer(p.data, dtype=endian + "i2").astype(float)
+    return np.frombuffer(p.data, dtype="i1").astype(float)
+
+
+#: numeric parameters ezc3d reads as numbers (a character value there crashes it natively);
+#: the ``True`` ones are scalars it dereferences (they must hold at least one value)
+_NUMERIC_PARAMS: Mapping[tuple[str, str], bool] = {
+    ("POINT", "USED"): True,
+    ("POINT", "RATE"): True,
+    ("POINT", "SCALE"): True,
+    ("POINT", "DATA_START"): True,
+    ("POINT", "FRAMES"): True,
+    ("ANALOG", "USED"): True,
+    ("ANALOG", "RATE"): True,
+    ("ANALOG", "GEN_SCALE"): True,
+    ("ANALOG", "SCALE"): False,
+    ("ANALOG", "OFFSET"): False,
+    ("FORCE_PLATFORM", "USED"): True,
+    ("FORCE_PLATFORM", "TYPE"): False,
+    ("FORCE_PLATFORM", "ZERO"): False,
+    ("FORCE_PLATFORM", "CORNERS"): False,
+    ("FORCE_PLATFORM", "ORIGIN"): False,
+    ("FORCE_PLATFORM", "CHANNEL"): False,
+    ("FORCE_PLATFORM", "CAL_MATRIX"): False,
+    ("EVENT", "USED"): True,
+    ("EVENT", "TIMES"): False,
+    ("TRIAL", "ACTUAL_START_FIELD"): False,
+    ("TRIAL", "ACTUAL_END_FIELD"): False,
+}
+#: character parameters ezc3d reads as strings
+_TEXT_PARAMS = (
+    ("POINT", "LABELS"),
+    ("POINT", "DESCRIPTIONS"),
+    ("POINT", "UNITS"),
+    ("ANALOG", "LABELS"),
+    ("ANALOG", "DESCRIPTIONS"),
+    ("ANALOG", "UNITS"),
+    ("EVENT", "LABELS"),
+    ("EVENT", "CONTEXTS"),
+)
+#: relative disagreement tolerated between a rate in the header and in the parameters
+_RATE_RTOL = 1e-3
+
+
+def _check_parameters(
+    path: Path,
+    params: Mapping[tuple[str, str], _RawParam],
+    proc: int,
+    header: Mapping[str, float],
+) -> None:
+    """Types and sizes of the parameters ezc3d dereferences, header/parameter consistency of
+    rates and counts, force-platform parameter shapes and finite values."""
+    vals: dict[tuple[str, str], NDArray[np.float64]] = {}
+    for key, scalar in _NUMERIC_PARAMS.items():
+        p = params.get(key)
+        if p is None:
+            continue
+        v = _decode(p, proc)
+        if v is None:
+            raise C3DError(
+                f"{path}: parameter {key[0]}:{key[1]} is stored as text (type char); "
+                "it must be a number"
+            )
+        if scalar and v.size == 0:
+            raise C3DError(f"{path}: parameter {key[0]}:{key[1]} holds no value (dims {p.dims})")
+        if not np.isfinite(v).all():
+            k = int(np.flatnonzero(~np.isfinite(v))[0])
+            raise C3DError(f"{path}: parameter {key[0]}:{key[1]}[{k}] is {v[k]} (not finite)")
+        vals[key] = v
+    for key in _TEXT_PARAMS:
+        p = params.get(key)
+        if p is not None and p.type != -1:
+            raise C3DError(
+                f"{path}: parameter {key[0]}:{key[1]} is stored as numbers (type {p.type}); "
+                "it must be text"
+            )
+
+    def first(group: str, name: str) -> float | None:
+        v = vals.get((group, name))
+        return float(v[0]) if v is not None and v.size else None
+
+    def count(group: str, name: str) -> int | None:
+        v = first(group, name)
+        if v is None:
+            return None
+        p = params[(group, name)]
+        # counts are unsigned 16-bit integers in practice (POINT:USED 40000 is stored as -25536)
+        return int(v) % 65536 if p.type == 2 and v < 0 else int(v)
+
+    n_points, n_frames = int(header["n_points"]), int(header["n_frames"])
+    hdr_rate, samples = float(header["point_rate"]), int(header["analog_per_frame"])
+    n_analog_words = int(header["n_analog_words"])
+    used = count("POINT", "USED")
+    if used is not None and used != n_points:
+        raise C3DError(
+            f"{path}: POINT:USED = {used} but the header declares {n_points} points per frame"
+        )
+    rate = first("POINT", "RATE")
+    if rate is not None and (n_points or n_frames):
+        if not rate > 0:
+            raise C3DError(f"{path}: POINT:RATE = {rate:g} Hz is not positive")
+        if not hdr_rate > 0 or abs(rate - hdr_rate) > _RATE_RTOL * hdr_rate:
+            raise C3DError(
+                f"{path}: POINT:RATE = {rate:g} Hz disagrees with the header's point rate "
+                f"{hdr_rate:g} Hz"
+            )
+    elif n_points and not (hdr_rate > 0 and math.isfinite(hdr_rate)):
+        raise C3DError(f"{path}: the header's point rate {hdr_rate:g} Hz is not positive")
+    a_used = count("ANALOG", "USED")
+    if a_used is not None and n_analog_words:
+        if samples <= 0 or a_used * samples != n_analog_words:
+            raise C3DError(
+                f"{path}: ANALOG:USED = {a_used} channels x {samples} samples per frame "
+                f"disagrees with the header's {n_analog_words} analog words per frame"
+            )
+    a_rate = first("ANALOG", "RATE")
+    if a_rate is not None and n_analog_words and a_used:
+        if not a_rate > 0:
+            raise C3DError(f"{path}: ANALOG:RATE = {a_rate:g} Hz is not positive")
+        expected = hdr_rate * samples
+        if expected > 0 and abs(a_rate - expected) > _RATE_RTOL * expected:
+            raise C3DError(
+                f"{path}: ANALOG:RATE = {a_rate:g} Hz disagrees with the header "
+                f"({samples} samples per frame at {hdr_rate:g} Hz = {expected:g} Hz)"
+            )
+    if (gs := first("ANALOG", "GEN_SCALE")) is not None and gs == 0 and a_used:
+        raise C3DError(f"{path}: ANALOG:GEN_SCALE is 0: every analog value would be 0")
+    _check_plate_params(path, params, vals, count("FORCE_PLATFORM", "USED"), a_used)
+
+
+def _check_plate_params(
+    path: Path,
+    params: Mapping[tuple[str, str], _RawParam],
+    vals: Mapping[tuple[str, str], NDArray[np.float64]],
+    used: int | None,
+    n_analog: int | None,
+) -> None:
+    """FORCE_PLATFORM parameter shapes: TYPE, CORNERS (3x4 per plate), ORIGIN (3 per plate),
+    CHANNEL (channels x plates, each within ANALOG:USED)."""
+    if not used:
+        return
+    if used > 64:
+        raise C3DError(f"{path}: FORCE_PLATFORM:USED = {used} is not a number of plates")
+    fp = "FORCE_PLATFORM"
+    for name, per_plate in (("TYPE", 1), ("CORNERS", 12), ("ORIGIN", 3)):
+        v = vals.get((fp, name))
+        if v is None:
+            raise ForcePlateError(f"{path}: FORCE_PLATFORM:USED = {used} but no {fp}:{name}")
+        if v.size % per_plate or v.size < per_plate * used:
+            raise ForcePlateError(
+                f"{path}: {fp}:{name} holds {v.size} values (dims {params[(fp, name)].dims}); "
+                f"{used} plates need {per_plate} each"
+            )
+    chan = vals.get((fp, "CHANNEL"))
+    if chan is None:
+        raise ForcePlateError(f"{path}: FORCE_PLATFORM:USED = {used} but no {fp}:CHANNEL")
+    dims = params[(fp, "CHANNEL")].dims
+    rows = dims[0] if len(dims) >= 2 else (chan.size if used == 1 else chan.size // used)
+    if rows == 0 or chan.size < rows * used or (len(dims) < 2 and chan.size % used):
+        raise ForcePlateError(
+            f"{path}: {fp}:CHANNEL holds {chan.size} values (dims {dims}): "
+            f"not a whole number of channels for {used} plates"
+        )
+    if n_analog is not None:
+        types = vals[(fp, "TYPE")]
+        grid = chan[: rows * used].reshape(used, rows)
+        for p in range(used):
+            nch = {1: 6, 2: 6, 4: 6, 3: 8}.get(int(types[p]), rows)
+            idx = grid[p, : min(nch, rows)]
+            bad = idx[(idx < 1) | (idx > n_analog)]
+            if bad.size:
+                raise ForcePlateError(
+                    f"{path}: force platform {p + 1} uses analog channel {int(bad[0])} but "
+                    f"ANALOG:USED = {n_analog}"
+                )
 
 
 # ---------------------------------------------------------------------------------------------
@@ -635,6 +868,107 @@ def _vertical(
 
 
 # ---------------------------------------------------------------------------------------------
+# plausibility of what was read
+# ---------------------------------------------------------------------------------------------
+#: largest point and analog rates accepted (Hz): anything above is a corrupt header
+MAX_POINT_RATE_HZ = 20_000.0
+MAX_ANALOG_RATE_HZ = 1_000_000.0
+_CONTROL = re.compile(r"[\x00-\x1f\x7f]")
+
+
+def _check_rates(path: Path, point_rate: float, n_pts: int, analog_rate: float, n_ana: int) -> None:
+    if n_pts and not (0 < point_rate <= MAX_POINT_RATE_HZ):
+        raise C3DError(
+            f"{path}: point rate {point_rate:g} Hz is not plausible "
+            f"(expected 0 < rate <= {MAX_POINT_RATE_HZ:g} Hz)"
+        )
+    if n_ana and not (0 < analog_rate <= MAX_ANALOG_RATE_HZ):
+        raise C3DError(
+            f"{path}: analog rate {analog_rate:g} Hz is not plausible "
+            f"(expected 0 < rate <= {MAX_ANALOG_RATE_HZ:g} Hz)"
+        )
+
+
+def _check_labels(
+    path: Path, what: str, labels: list[str], warnings: list[str], *, rename: bool = True
+) -> list[str]:
+    """Labels with control characters are refused; a repeated label keeps its name on its first
+    occurrence and (``rename``) becomes ``LABEL#2``, ``LABEL#3``… after, with a warning."""
+    for k, lab in enumerate(labels):
+        if _CONTROL.search(lab):
+            raise C3DError(f"{path}: {what}[{k + 1}] = {lab!r} holds control characters")
+    seen: dict[str, int] = {}
+    out = []
+    renamed: list[str] = []
+    for lab in labels:
+        n = seen.get(lab, 0) + 1
+        seen[lab] = n
+        if n > 1 and rename:
+            new = f"{lab}#{n}"
+            while new in seen:
+                n += 1
+                new = f"{lab}#{n}"
+            seen[new] = 1
+            renamed.append(f"{lab} -> {new}")
+            out.append(new)
+        else:
+            out.append(lab)
+    dup = [lab for lab, n in seen.items() if n > 1]
+    if dup:
+        how = (
+            f"the first keeps the name, the others are renamed ({', '.join(renamed)})"
+            if rename
+            else "a look-up by name finds the first"
+        )
+        warnings.append(f"{what}: repeated labels {', '.join(dup)}: {how}")
+    return out
+
+
+def _check_coordinates(
+    path: Path, markers: NDArray[np.float64], labels: Sequence[str], time: NDArray[np.float64]
+) -> None:
+    """Marker coordinates beyond :data:`msk.io.validate.MAX_ABS_COORDINATE_M` are corrupt."""
+    if not markers.size:
+        return
+    with np.errstate(invalid="ignore"):
+        bad = np.abs(markers) > MAX_ABS_COORDINATE_M
+    bad |= np.isinf(markers)
+    if bad.any():
+        f, m, a = (int(i[0]) for i in np.nonzero(bad))
+        t = f" (t = {time[f]:.3f} s)" if f < time.size else ""
+        raise C3DError(
+            f"{path}: marker {labels[m]!r} has {_AXES[a]} = {markers[f, m, a]:.6g} m at frame "
+            f"{f + 1}{t}: beyond {MAX_ABS_COORDINATE_M:g} m from the lab origin"
+        )
+
+
+def _check_plate_forces(
+    path: Path, plates: Sequence[ForcePlate], time: NDArray[np.float64], warnings: list[str]
+) -> None:
+    """Infinite forces or forces beyond :data:`msk.io.validate.MAX_ABS_FORCE_N` are refused
+    (naming plate, channel, sample and value); NaN samples are missing data (a warning)."""
+    for p in plates:
+        f = p.force
+        with np.errstate(invalid="ignore"):
+            bad = np.isinf(f) | (np.abs(f) > MAX_ABS_FORCE_N)
+        if bad.any():
+            i, a = (int(x[0]) for x in np.nonzero(bad))
+            ch = p.channels[a] if p.type != 3 and a < len(p.channels) else "/".join(p.channels)
+            t = f" (t = {time[i]:.4f} s)" if i < time.size else ""
+            raise ForcePlateError(
+                f"{path}: force platform {p.index + 1} reads F{_AXES[a].lower()} = "
+                f"{f[i, a]:.6g} N at sample {i + 1}{t} (channels {ch}): beyond "
+                f"{MAX_ABS_FORCE_N:g} N, not a ground reaction"
+            )
+        nan = ~np.isfinite(f).all(axis=1)
+        if nan.any():
+            warnings.append(
+                f"force platform {p.index + 1}: {int(nan.sum())} of {nan.size} samples are NaN "
+                "(missing)"
+            )
+
+
+# ---------------------------------------------------------------------------------------------
 # reading
 # ---------------------------------------------------------------------------------------------
 def _longest_runs(missing: NDArray[np.bool_]) -> NDArray[np.int64]:
@@ -756,11 +1090,30 @@ def read_c3d(path: str | Path, *, cop_threshold_n: float = 20.0) -> Trial:
     time = t0 + np.arange(n_frames) / point_rate if point_rate > 0 else np.zeros(0)
     analog_time = t0 + np.arange(analogs.shape[0]) / analog_rate if analog_rate else np.zeros(0)
 
+    warnings: list[str] = []
+    _check_rates(path, point_rate, n_pts, analog_rate, n_ana)
+    labels_ok = [*_check_labels(path, "POINT:LABELS", list(marker_labels), warnings)]
+    if labels_ok != list(marker_labels):
+        marker_labels = tuple(labels_ok)
+        gaps = GapReport(
+            labels=marker_labels, n_missing=gaps.n_missing, longest_gap=gaps.longest_gap
+        )
+    _check_labels(path, "ANALOG:LABELS", list(analog_labels), warnings, rename=False)
+    _check_coordinates(path, markers, marker_labels, time)
     plates = _plates(path, params, analogs, analog_labels, pos_scale, analog_rate, cop_threshold_n)
+    _check_plate_forces(path, plates, analog_time, warnings)
+    events = _events(params)
+    bad_ev = [e for e in events if not math.isfinite(e.time)]
+    if bad_ev:
+        raise C3DError(
+            f"{path}: event {bad_ev[0].context} {bad_ev[0].label!r} has time {bad_ev[0].time} "
+            "(EVENT:TIMES not finite)"
+        )
     vertical_axis, up = _vertical(params, plates)
     meta = {
         "first_frame": first,
         "manufacturer": str((_param(params, "MANUFACTURER", "COMPANY") or [""])[0]).strip(),
+        "warnings": tuple(warnings),
     }
     return Trial(
         path=path,
@@ -776,7 +1129,7 @@ def read_c3d(path: str | Path, *, cop_threshold_n: float = 20.0) -> Trial:
         analog_labels=analog_labels,
         analog_units=analog_units,
         plates=plates,
-        events=_events(params),
+        events=events,
         subject=_subject(params),
         vertical_axis=vertical_axis,
         up=up,
