@@ -295,6 +295,13 @@ def _file_kind(p: Path) -> str:
         return "not accessible"
 
 
+#: filter cut-offs (Hz): above ~0.01 Hz (a smaller one is no filter: a constant) and at most
+#: 500 Hz (the Nyquist frequency of a 1 kHz analog rate)
+MIN_CUTOFF_HZ = 0.01
+MAX_CUTOFF_HZ = 500.0
+#: electromechanical delay (s): physiological values are 10–100 ms
+MAX_EMD_S = 0.2
+
 #: a trial name: it becomes a folder name under ``--out``
 _PLAIN_NAME = re.compile(r"[A-Za-z0-9_][A-Za-z0-9._-]{0,99}")
 
@@ -322,6 +329,30 @@ class _Section:
                 f"{getattr(kind, '__name__', kind)}"
             )
         return value
+
+    def number(
+        self,
+        key: str,
+        default: Any,
+        lo: float,
+        hi: float,
+        unit: str,
+        *,
+        lo_open: bool = False,
+        hint: str = "",
+    ) -> float:
+        """A finite float in ``[lo, hi]`` (``(lo, hi]`` with ``lo_open``); the message gives the
+        unit and the range."""
+        value = self.get(key, float, default)
+        if value is None:
+            return value
+        low_ok = value > lo if lo_open else value >= lo
+        if not (np.isfinite(value) and low_ok and value <= hi):
+            rng = f"{'(' if lo_open else '['}{lo:g}, {hi:g}] {unit}"
+            raise ConfigError(
+                f"{self.source}: {self.where}.{key} = {value!r} {unit} is outside {rng}{hint}"
+            )
+        return float(value)
 
     def choice(self, key: str, choices: tuple[str, ...], default: str) -> str:
         value = self.get(key, str, default)
@@ -376,12 +407,10 @@ def load_config(path: str | Path) -> SessionConfig:
     top = _Section(raw, "", source)
 
     s = _Section(top.get("subject", dict), "subject", source)
-    mass = s.get("mass_kg", float)
-    if not 10.0 <= mass <= 300.0:
-        raise ConfigError(f"{source}: subject.mass_kg = {mass} is not a plausible body mass (kg)")
-    height = s.get("height_m", float, None)
-    if height is not None and not 0.5 <= height <= 2.5:
-        raise ConfigError(f"{source}: subject.height_m = {height} is not a height in metres")
+    mass = s.number("mass_kg", ..., 20.0, 300.0, "kg", hint=": not a plausible body mass")
+    height = s.number(
+        "height_m", None, 0.5, 2.5, "m", hint=": not a height in metres (1680 mm is 1.68 m)"
+    )
     subject = Subject(
         name=s.get("name", str, "subject"),
         mass_kg=mass,
@@ -452,35 +481,61 @@ def load_config(path: str | Path) -> SessionConfig:
 
     mk = _Section(top.get("markers", dict, {}), "markers", source)
     rename = dict(mk.get("rename", dict, {}))
-    weights = {k: float(v) for k, v in mk.get("weights", dict, {}).items()}
-    if any(w < 0 for w in weights.values()):
-        raise ConfigError(f"{source}: markers.weights must be ≥ 0")
+    bad_r = [k for k, v in rename.items() if not isinstance(v, str) or not v.strip()]
+    if bad_r:
+        raise ConfigError(
+            f"{source}: markers.rename.{bad_r[0]} = {rename[bad_r[0]]!r} should be a lab "
+            "marker label (string)"
+        )
+    weights: dict[str, float] = {}
+    for k, v in mk.get("weights", dict, {}).items():
+        if isinstance(v, bool) or not isinstance(v, int | float) or not (np.isfinite(v) and v >= 0):
+            raise ConfigError(
+                f"{source}: markers.weights.{k} = {v!r} should be a finite number ≥ 0 "
+                "(dimensionless IK weight)"
+            )
+        weights[k] = float(v)
     move = mk.get("move", list, [])
     if not all(isinstance(m, str) for m in move):
         raise ConfigError(f"{source}: markers.move = {move!r} should be a list of marker names")
     mk.done()
 
     e = _Section(top.get("emg", dict, {}), "emg", source)
+    channels = dict(e.get("channels", dict, {}))
+    bad_c = [k for k, v in channels.items() if not isinstance(v, str) or not v.strip()]
+    if bad_c:
+        raise ConfigError(
+            f"{source}: emg.channels.{bad_c[0]} = {channels[bad_c[0]]!r} should be an analog "
+            "channel label (string)"
+        )
+    delay = e.get("electromechanical_delay_s", float, 0.0)
+    hint = ""
+    if np.isfinite(delay) and 0.2 < delay <= 200.0:
+        hint = f" (milliseconds typed as seconds? {delay:g} ms is {delay / 1000:g} s)"
     emg = EmgConfig(
-        channels=dict(e.get("channels", dict, {})),
-        highpass_hz=e.get("highpass_hz", float, 20.0),
-        lowpass_hz=e.get("lowpass_hz", float, 6.0),
-        electromechanical_delay_s=e.get("electromechanical_delay_s", float, 0.0),
+        channels=channels,
+        highpass_hz=e.number("highpass_hz", 20.0, 0.0, MAX_CUTOFF_HZ, "Hz", lo_open=True),
+        lowpass_hz=e.number("lowpass_hz", 6.0, 0.0, MAX_CUTOFF_HZ, "Hz", lo_open=True),
+        electromechanical_delay_s=e.number(
+            "electromechanical_delay_s", 0.0, 0.0, MAX_EMD_S, "s", hint=hint
+        ),
     )
     e.done()
 
     f = _Section(top.get("filters", dict, {}), "filters", source)
     filters = FilterConfig(
-        kinematics_cutoff_hz=f.get("kinematics_cutoff_hz", float, 6.0),
-        grf_cutoff_hz=f.get("grf_cutoff_hz", float, 15.0),
+        kinematics_cutoff_hz=f.number(
+            "kinematics_cutoff_hz", 6.0, MIN_CUTOFF_HZ, MAX_CUTOFF_HZ, "Hz"
+        ),
+        grf_cutoff_hz=f.number("grf_cutoff_hz", 15.0, MIN_CUTOFF_HZ, MAX_CUTOFF_HZ, "Hz"),
     )
     f.done()
 
     o = _Section(top.get("optimization", dict, {}), "optimization", source)
     optimization = OptimizationConfig(
         method=o.choice("method", OPTIMIZATION_METHODS, "static_optimization"),
-        w_emg=o.get("w_emg", float, 0.1),
-        solver=o.get("solver", str, "daqp"),
+        w_emg=o.number("w_emg", 0.1, 0.0, 1e6, "(dimensionless)"),
+        solver=_solver(o),
         activation_weights=o.choice("activation_weights", ACTIVATION_WEIGHTS, "uniform"),
         activation_exponent=o.get("activation_exponent", float, 2.0),
         w_track=o.get("w_track", float, 1.0),
@@ -505,7 +560,7 @@ def load_config(path: str | Path) -> SessionConfig:
         frequency_hz=fz.get("frequency_hz", float, 20.0),
         steady_window_s=fz.get("steady_window_s", float, 0.5),
         isometric_transients=fz.get("isometric_transients", bool, False),
-        theta_rest_deg=fz.get("theta_rest_deg", float, 90.0),
+        theta_rest_deg=fz.number("theta_rest_deg", 90.0, 0.0, 180.0, "deg"),
     )
     for key, lo, hi in (
         ("fibre_fraction", 0.0, 1.0),
@@ -517,8 +572,10 @@ def load_config(path: str | Path) -> SessionConfig:
         v = getattr(fes, key)
         if v is not None and not lo < v < hi:
             raise ConfigError(f"{source}: fes.{key} = {v} should be in ({lo}, {hi})")
-    if fes.outer_iterations < 1:
-        raise ConfigError(f"{source}: fes.outer_iterations = {fes.outer_iterations} should be ≥ 1")
+    if not 1 <= fes.outer_iterations <= 100:
+        raise ConfigError(
+            f"{source}: fes.outer_iterations = {fes.outer_iterations} should be in 1–100"
+        )
     fz.done()
     fes_trials = [tc for tc in trials if tc.role == "fes"]
     if fes_trials:
@@ -556,6 +613,20 @@ def load_config(path: str | Path) -> SessionConfig:
         loads=loads,
         contact=contact,
     )
+
+
+def _solver(o: _Section) -> str:
+    """``optimization.solver``: one of the registered QP solvers (a typo is a config error,
+    not a failed stage)."""
+    from msk.optimization import available_solvers
+
+    name = o.get("solver", str, "daqp")
+    known = available_solvers()
+    if name not in known:
+        raise ConfigError(
+            f"{o.source}: optimization.solver = {name!r} is not one of {', '.join(known)}"
+        )
+    return name
 
 
 def _fes_trial(t: _Section, role: str) -> FesTrialConfig | None:

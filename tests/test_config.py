@@ -224,3 +224,53 @@ def test_non_utf8_config_is_one_line(session_dir: Path):
     with pytest.raises(ConfigError, match="not UTF-8") as exc:
         load_config(path)
     assert "\n" not in str(exc.value)
+
+
+@pytest.mark.parametrize(
+    ("old", "new", "message"),
+    [
+        (
+            "kinematics_cutoff_hz = 6.0",
+            "kinematics_cutoff_hz = 0",
+            r"= 0.0 Hz is outside \[0.01, 500\] Hz",
+        ),
+        ("kinematics_cutoff_hz = 6.0", "kinematics_cutoff_hz = 1e-9", "1e-09 Hz is outside"),
+        ("kinematics_cutoff_hz = 6.0", "kinematics_cutoff_hz = nan", "nan Hz is outside"),
+        ("grf_cutoff_hz = 15.0", "grf_cutoff_hz = inf", r"grf_cutoff_hz = inf Hz"),
+        (
+            "lowpass_hz = 6.0",
+            "lowpass_hz = -6.0",
+            r"emg.lowpass_hz = -6.0 Hz is outside \(0, 500\]",
+        ),
+        (
+            "electromechanical_delay_s = 0.04",
+            "electromechanical_delay_s = 40",
+            r"= 40.0 s is outside \[0, 0.2\] s \(milliseconds typed as seconds\? 40 ms is 0.04 s\)",
+        ),
+        (
+            "weights = {}",
+            'weights = { RASI = "high" }',
+            r"markers.weights.RASI = 'high' should be a finite",
+        ),
+        ("weights = {}", "weights = { RASI = nan }", "markers.weights.RASI = nan"),
+        ("weights = {}", "weights = { RASI = -1 }", "markers.weights.RASI = -1"),
+        ("rename = {}", "rename = { RASI = 3 }", "markers.rename.RASI = 3 should be"),
+        (
+            "mass_kg = 75.0",
+            "mass_kg = 10.0",
+            r"subject.mass_kg = 10.0 kg is outside \[20, 300\] kg",
+        ),
+        ("height_m = 1.70", "height_m = 1700", r"1700.0 m is outside .*1.68 m"),
+        ('solver = "daqp"', 'solver = "dapq"', "optimization.solver = 'dapq' is not one of"),
+        ("w_emg = 0.1", "w_emg = nan", "optimization.w_emg = nan"),
+        ('vasmed_l = "vasmed"', "vasmed_l = 1", "emg.channels.vasmed_l = 1 should be"),
+    ],
+)
+def test_numbers_are_range_checked_with_their_unit(session_dir, old, new, message):
+    path = session_dir / "pipelines" / "session.toml"
+    text = TEMPLATE.replace(old, new, 1)
+    assert text != TEMPLATE
+    path.write_text(text)
+    with pytest.raises(ConfigError, match=message) as exc:
+        load_config(path)
+    assert "\n" not in str(exc.value)

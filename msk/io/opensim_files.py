@@ -23,7 +23,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from msk.exceptions import FileFormatError, MissingDataError, UnitsError
-from msk.io.validate import check_regular_file
+from msk.io.validate import MAX_ABS_COORDINATE_M, check_regular_file, check_time_axis
 
 if TYPE_CHECKING:
     from msk.io.c3d import Trial
@@ -196,6 +196,7 @@ def read_sto(path: str | Path, *, angle_columns: Sequence[str] | None = None) ->
     if not cols or cols[0].lower() != "time":
         raise FileFormatError(f"{path}: first column is {cols[:1]!r}, expected 'time'")
     data = _parse_rows(path, lines, hdr_i + 1, len(cols))
+    check_time_axis(path, data[:, 0], FileFormatError, "time")
     n_rows = meta.get("nRows", meta.get("datarows"))
     if n_rows is not None and n_rows.strip().isdigit() and int(n_rows) != data.shape[0]:
         raise FileFormatError(
@@ -310,6 +311,10 @@ def read_trc(path: str | Path) -> MarkerTable:
         n_markers = int(float(info.get("NumMarkers", "0")))
     except ValueError as exc:
         raise FileFormatError(f"{path}: bad TRC header values: {exc}") from None
+    if not (np.isfinite(rate) and 0 < rate <= 20_000):
+        raise FileFormatError(
+            f"{path}: TRC DataRate = {rate:g} Hz is not a sampling rate (0, 20000]"
+        )
     names = [s.strip() for s in lines[3].split("\t")[2:]]
     labels = [s for s in names if s]
     if n_markers != len(labels):
@@ -323,7 +328,16 @@ def read_trc(path: str | Path) -> MarkerTable:
         raise FileFormatError(
             f"{path}: header announces NumFrames={n_frames}, file has {data.shape[0]} rows"
         )
+    check_time_axis(path, data[:, 1], FileFormatError, "time")
     markers = data[:, 2:].reshape(-1, n_markers, 3) * _TRC_UNITS_M[units]
+    with np.errstate(invalid="ignore"):
+        far = np.isinf(markers) | (np.abs(markers) > MAX_ABS_COORDINATE_M)
+    if far.any():
+        f, m, a = (int(i[0]) for i in np.nonzero(far))
+        raise FileFormatError(
+            f"{path}: marker {labels[m]!r} has {'XYZ'[a]} = {markers[f, m, a]:.6g} m at row "
+            f"{f + 1}: beyond {MAX_ABS_COORDINATE_M:g} m from the lab origin"
+        )
     return MarkerTable(
         time=data[:, 1].copy(),
         markers=markers,
