@@ -23,6 +23,7 @@ from __future__ import annotations
 import csv
 import io
 import os
+import re
 import sys
 import tempfile
 import time as _time
@@ -208,6 +209,16 @@ def run_batch(
     t0 = _time.perf_counter()
     if not configs:
         raise BatchError("no session configurations given")
+    if workers is not None and (isinstance(workers, bool) or not isinstance(workers, int)):
+        raise BatchError(f"workers = {workers!r} should be an integer ≥ 1")
+    if workers is not None and workers < 1:
+        raise BatchError(f"workers = {workers} should be ≥ 1 (local pool size)")
+    if isinstance(scheduler, str) and not re.fullmatch(
+        r"(tcp|tls|inproc|ucx|ws|wss)://[^\s/]+(:\d{1,5})?/?", scheduler
+    ):
+        raise BatchError(
+            f"--scheduler {scheduler!r} is not a Dask scheduler address (tcp://host:8786)"
+        )
     out = Path(out_dir).resolve()
     out.mkdir(parents=True, exist_ok=True)
     cfgs = [str(Path(c).resolve()) for c in configs]
@@ -252,7 +263,7 @@ def run_batch(
             ) from None
         try:
             client = scheduler if isinstance(scheduler, Client) else Client(scheduler, timeout=20)
-        except OSError as exc:
+        except (OSError, ValueError, TypeError) as exc:
             raise BatchError(f"Dask scheduler {scheduler!r} unreachable: {exc}") from None
         try:
             futs = client.map(run_one, cfgs, dirs, [use_cache] * len(cfgs), pure=False)
@@ -395,7 +406,7 @@ def _fmt(v: Any) -> str:
 def _cli() -> None:
     import argparse
 
-    from msk.cli import command
+    from msk.cli import command, positive_int
 
     def batch_args(p: argparse.ArgumentParser) -> None:
         p.add_argument(
@@ -411,7 +422,7 @@ def _cli() -> None:
             metavar="ADDRESS",
             help="Dask distributed scheduler (tcp://host:8786); default: local pool",
         )
-        p.add_argument("--workers", type=int, help="local pool size (default: #CPUs)")
+        p.add_argument("--workers", type=positive_int, help="local pool size (default: #CPUs)")
         p.add_argument("--no-cache", action="store_true", help="recompute every stage")
 
     @command(

@@ -22,14 +22,22 @@ import sys
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
-from typing import TextIO
+from typing import NoReturn, TextIO
 
 import numpy as np
 
 from msk import __version__
 from msk.exceptions import MskError
 
-__all__ = ["VERB_MODULES", "Command", "build_parser", "command", "flat_channels", "main"]
+__all__ = [
+    "VERB_MODULES",
+    "Command",
+    "build_parser",
+    "command",
+    "flat_channels",
+    "main",
+    "positive_int",
+]
 
 #: Modules imported before the parser is built, so that their ``@command`` verbs register.
 VERB_MODULES: list[str] = ["msk.pipeline", "msk.batch"]
@@ -63,11 +71,40 @@ def command(
     return deco
 
 
+class _Parser(argparse.ArgumentParser):
+    """argparse with usage errors on one line (``msk: error: …``, exit 2), like every other."""
+
+    def error(self, message: str) -> NoReturn:
+        msg = " ".join(message.split())
+        self.exit(2, f"msk: error: {self.prog}: {msg} (see {self.prog} --help)\n")
+
+
+def positive_int(text: str) -> int:
+    """argparse type: an integer ≥ 1 (``--workers``)."""
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r} is not an integer") from None
+    if value < 1:
+        raise argparse.ArgumentTypeError(f"{value} should be ≥ 1")
+    return value
+
+
+def _safe_streams() -> None:
+    """A strict-ASCII (or any non-UTF-8) terminal gets escapes, never a UnicodeEncodeError."""
+    for stream in (sys.stdout, sys.stderr):
+        if hasattr(stream, "reconfigure") and (stream.errors or "strict") == "strict":
+            try:
+                stream.reconfigure(errors="backslashreplace")
+            except (ValueError, OSError):  # pragma: no cover - detached or closed
+                pass
+
+
 def build_parser() -> argparse.ArgumentParser:
     """The argparse parser with every registered verb."""
     for mod in VERB_MODULES:
         importlib.import_module(mod)
-    parser = argparse.ArgumentParser(
+    parser = _Parser(
         prog="msk", description="Subject-specific musculoskeletal analysis of the lower limb."
     )
     parser.add_argument("--version", action="version", version=f"msk {__version__}")
@@ -82,6 +119,7 @@ def build_parser() -> argparse.ArgumentParser:
 
 def main(argv: Sequence[str] | None = None) -> int:
     """Entry point of the ``msk`` console script; returns the exit status."""
+    _safe_streams()
     parser = build_parser()
     args = parser.parse_args(argv)
     try:
