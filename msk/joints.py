@@ -117,7 +117,7 @@ class SimmSpline:
         object.__setattr__(self, "_c", c)
         object.__setattr__(self, "_d", d)
 
-    def _locate(self, x: Array) -> tuple[Array, Array]:
+    def _locate(self, x: Array) -> tuple[NDArray[np.intp], Array]:
         knots = np.asarray(self.x)
         i = np.clip(np.searchsorted(knots, x, side="right") - 1, 0, knots.size - 2)
         return i, x - knots[i]

@@ -335,7 +335,7 @@ class Model:
         """A fresh Pinocchio workspace for this model."""
         return self.pin_model.createData()
 
-    def root_dofs(self) -> Array:
+    def root_dofs(self) -> NDArray[np.intp]:
         """Pinocchio DOF indices of the floating-base joint chain (the pelvis residuals)."""
         if self.root_joint is None:
             raise ModelError(f"model {self.name}: no unique root joint")

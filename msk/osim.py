@@ -43,7 +43,7 @@ import xml.etree.ElementTree as ET
 from collections.abc import Iterable
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import Any, Literal
 
 import numpy as np
 import pinocchio as pin
@@ -97,7 +97,7 @@ class PiecewiseLinear:
         if x.ndim != 1 or x.size < 2 or x.shape != np.shape(self.y) or np.any(np.diff(x) <= 0):
             raise ModelError(f"PiecewiseLinear needs ≥ 2 increasing knots, got x={self.x}")
 
-    def _seg(self, xa: Array) -> tuple[Array, Array]:
+    def _seg(self, xa: Array) -> tuple[NDArray[np.intp], Array]:
         knots = np.asarray(self.x)
         i = np.clip(np.searchsorted(knots, xa, side="right") - 1, 0, knots.size - 2)
         ys = np.asarray(self.y)
@@ -537,7 +537,9 @@ class _Importer:
                 ta = by_name.get(key)
                 if ta is None:
                     continue
-                kind = "revolute" if key.startswith("rotation") else "prismatic"
+                kind: Literal["revolute", "prismatic"] = (
+                    "revolute" if key.startswith("rotation") else "prismatic"
+                )
                 what = f"CustomJoint {jname} {key}"
                 names = (_txt(ta, "coordinates", "") or "").split()
                 axis = _floats(_txt(ta, "axis", "0 0 0"), f"{what} <axis>", 3)
@@ -671,25 +673,29 @@ class _Importer:
             funs: list[CoordinateFunction | None] = []
             for k, ax in enumerate("xyz"):
                 cpath = _txt(el, f"socket_{ax}_coordinate") or _txt(el, f"{ax}_coordinate") or ""
-                cname = _last(cpath) if cpath else None
+                axis_cname = _last(cpath) if cpath else None
                 fel_wrap = el.find(f"{ax}_location")
                 fel = fel_wrap[0] if fel_wrap is not None and len(fel_wrap) else None
                 fun = _parse_function(fel, f"{what} {ax}", self.log) if fel is not None else None
-                if fun is None or cname is None or isinstance(fun, Constant):
+                if fun is None or axis_cname is None or isinstance(fun, Constant):
                     coords.append(None)
                     funs.append(None)
                     if fun is not None:
                         loc[k] = float(fun(0.0))
                     continue
-                if cname in coupled:
-                    indep, cf = coupled[cname]
-                    cname, fun = indep, Composite(fun, cf)
-                coords.append(cname)
+                if axis_cname in coupled:
+                    indep, cf = coupled[axis_cname]
+                    axis_cname, fun = indep, Composite(fun, cf)
+                coords.append(axis_cname)
                 funs.append(fun)
-                loc[k] = float(fun(self.coords.get(cname, {}).get("default", 0.0)))
+                loc[k] = float(fun(self.coords.get(axis_cname, {}).get("default", 0.0)))
             return MovingPathPoint(
-                name, body, loc, coordinates=tuple(coords), functions=tuple(funs)
-            )  # type: ignore[arg-type]
+                name,
+                body,
+                loc,
+                coordinates=(coords[0], coords[1], coords[2]),
+                functions=tuple(funs),
+            )
         self.log.bad(f"{what}: path point type {el.tag}")
         return None
 
@@ -814,9 +820,7 @@ class _Importer:
             kind = c["motion"]
             if kind is None or kind == "coupled":
                 kind = "rotational" if name in self.rot_coords else "translational"
-            coordinates.append(
-                Coordinate(name, kind, c["range"], c["default"], c["locked"])  # type: ignore[arg-type]
-            )
+            coordinates.append(Coordinate(name, kind, c["range"], c["default"], c["locked"]))
         muscles = self._muscles(coupled)
         if marker_set is not None:
             markers = self._markers(_marker_elements(Path(marker_set)))

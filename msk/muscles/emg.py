@@ -100,7 +100,7 @@ class EmgEnvelopes:
     @property
     def usable(self) -> NDArray[np.bool_]:
         """Muscles whose envelope is finite throughout."""
-        return np.isfinite(self.envelopes).all(axis=0)
+        return np.asarray(np.isfinite(self.envelopes).all(axis=0))
 
     def column(self, muscle: str) -> Array:
         if muscle not in self.muscle_names:
