@@ -40,6 +40,7 @@ tibialis posterior elements (foot, (0.04489, −0.01477, −0.02404) m).
 from __future__ import annotations
 
 import csv
+import io
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass, field
@@ -255,7 +256,9 @@ class TlemDataset:
 def _read_rows(source: Traversable | Path, file: str) -> list[list[str]]:
     path = source / file
     try:
-        with path.open(encoding="utf-8", newline="") as fh:
+        # Binary open + TextIOWrapper is what a text-mode open does; a Traversable's typed
+        # ``open`` takes no ``newline`` (csv needs newline="").
+        with path.open("rb") as raw, io.TextIOWrapper(raw, encoding="utf-8", newline="") as fh:
             return list(csv.reader(fh))
     except FileNotFoundError:
         raise MissingDataError(f"TLEM 2.0 table not found: {path}") from None
@@ -500,8 +503,8 @@ def _load(source: Traversable | Path, sigma: float) -> TlemDataset:
     for cname, _bone, *_ in a5:
         if cname not in TLEM_CYLINDER_MUSCLES:
             raise FileFormatError(f"{f_a5}: cylinder {cname!r} is not linked to any muscle")
-        for m in TLEM_CYLINDER_MUSCLES[cname]:
-            cyl_of_muscle[m] = cname
+        for muscle_name in TLEM_CYLINDER_MUSCLES[cname]:
+            cyl_of_muscle[muscle_name] = cname
 
     t1_names = [m.name for m in t1]
     elements: list[TlemElement] = []
