@@ -339,7 +339,7 @@ def _initial_guess(a: Any, l_mt: Any, p: Any) -> Any:
 
 def tendon_force_trajectory(
     activation: Sequence[Any] | Any,
-    muscle_tendon_length: ArrayLike,
+    muscle_tendon_length: Sequence[Any] | Any,
     p: Any,
     dt: float | ArrayLike,
     *,

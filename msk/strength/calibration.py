@@ -775,7 +775,8 @@ class EMGDrivenCalibration:
         solver = ca.nlpsol(
             "calib",
             "ipopt",
-            {"x": ca.vertcat(x, z), "f": obj, "g": fvec - z},
+            # casadi's nlpsol overloads take an all-SX or an all-MX dict, not the SX | MX union
+            {"x": ca.vertcat(x, z), "f": obj, "g": fvec - z},  # type: ignore[dict-item]
             {
                 "ipopt.print_level": 0,
                 "print_time": False,

@@ -735,7 +735,7 @@ class StrengthIdentifier:
         else:
             n_jack = n_eff
             jack = np.empty((n_jack, n_par))
-            for i, w in enumerate(active_w):
+            for i, w in enumerate(active_w.tolist()):
                 jack[i] = np.linalg.lstsq(zx_tot - szx[w], zy_tot - szy[w], rcond=None)[0]
         dev = jack - jack.mean(axis=0)
         cov = dev.T @ dev * (n_jack - 1) / n_jack
