@@ -316,8 +316,9 @@ def inverse_dynamics(
     tau = np.full((th.shape[0], model.n_coords), np.nan)
     if ok.any():
         tau[ok] = model.coupling.project(th[ok], tau_pin[ok])
+    assert p is not None  # _run_rnea returns the point when ``origin`` is given
     # moment about the pelvis origin (the root body's frame origin)
-    moment = fw[:, 3:] - np.cross(p, fw[:, :3])  # type: ignore[arg-type]
+    moment = fw[:, 3:] - np.cross(p, fw[:, :3])
     return JointTorques(
         time=np.asarray(kinematics.time, dtype=float),
         tau=tau,
@@ -352,19 +353,20 @@ def muscle_body_wrenches(
             f"muscle forces {f.shape} must be (frames {th.shape[0]}, muscles {len(muscle_paths)})"
         )
     bodies: list[str] = []
-    pts: list[tuple[int, Array]] = []  # per muscle: body index per point, local points
+    # per muscle: body index per point, local points
+    pts: list[tuple[NDArray[np.intp], Array]] = []
     for path in muscle_paths:
         if len(path) < 2:
             raise ModelError("a muscle path needs at least two points")
-        idx = []
+        body_idx: list[int] = []
         for body, _ in path:
             if body not in model.body_frame:
                 raise ModelError(f"model {model.name}: muscle path on unknown body {body!r}")
             if body not in bodies:
                 bodies.append(body)
-            idx.append(bodies.index(body))
+            body_idx.append(bodies.index(body))
         loc = np.array([np.asarray(p, dtype=float) for _, p in path])
-        pts.append((np.asarray(idx), loc))  # type: ignore[arg-type]
+        pts.append((np.asarray(body_idx, dtype=np.intp), loc))
     n = th.shape[0]
     fb = np.zeros((n, len(bodies), 3))
     mb = np.zeros((n, len(bodies), 3))

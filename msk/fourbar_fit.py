@@ -252,9 +252,9 @@ def four_bar_joint(joint: Joint, knee: FourBarKnee) -> Joint:
         raise ModelError(f"joint {joint.name}: a four-bar knee needs one coordinate, has {coords}")
     (c,) = coords
     axes = (
-        Axis("prismatic", [1.0, 0.0, 0.0], c, FourBarTranslation(knee, 0)),
-        Axis("prismatic", [0.0, 1.0, 0.0], c, FourBarTranslation(knee, 1)),
-        Axis("revolute", [0.0, 0.0, 1.0], c, Linear()),
+        Axis("prismatic", np.array([1.0, 0.0, 0.0]), c, FourBarTranslation(knee, 0)),
+        Axis("prismatic", np.array([0.0, 1.0, 0.0]), c, FourBarTranslation(knee, 1)),
+        Axis("revolute", np.array([0.0, 0.0, 1.0]), c, Linear()),
     )
     return Joint(
         joint.name, joint.parent, joint.child, joint.parent_offset, joint.child_offset, axes

@@ -451,7 +451,13 @@ def _embed_diagonal(
 
 
 def _vectorised_regressor(
-    model: Model, q: Array, v: Array, a: Array, d1: Array, layout: RegressorLayout, sel: Array
+    model: Model,
+    q: Array,
+    v: Array,
+    a: Array,
+    d1: Array,
+    layout: RegressorLayout,
+    sel: NDArray[np.intp],
 ) -> Array:
     """Rows ``sel`` of Y_θ for all frames: τ_i = Σ_k G_ki S_kᵀ Σ_{b ⪰ k} Y_b(v_b, a_b) φ_b."""
     pm = model.pin_model

@@ -239,7 +239,7 @@ def simulate(
             f"{str(e).strip().splitlines()[-1] if str(e).strip() else type(e).__name__}"
         ) from e
     states = np.vstack([x0, xs])
-    time = np.arange(n + 1) * dt
+    time = np.arange(n + 1, dtype=np.float64) * dt
     level = np.append(w[0], w[0, -1])
     alpha = np.asarray(subject.recruitment(level), dtype=float)
     alpha = np.where(level > 0, alpha, 0.0)
