@@ -160,7 +160,7 @@ def geometry_from_height(
     if not 0.5 < height < 2.6:
         raise IdentificationError(f"geometry_from_height: height {height} m is not a stature")
     th = np.linspace(0.0, np.pi / 2, n_angles)
-    length = shank_fraction * height * np.polyval(poly[::-1], th)
+    length = np.asarray(shank_fraction * height * np.polyval(poly[::-1], th), dtype=np.float64)
     A = np.column_stack([np.ones_like(th), th])
     (l_ext, r_q), *_ = np.linalg.lstsq(A, length, rcond=None)
     fit = A @ np.array([l_ext, r_q])
@@ -708,7 +708,7 @@ def identify_isometric_transients(
     f_cm, b, l_c0, c2, c3 = (float(v) for v in res.x)
     a_max = float(rec.c1 / (1 + np.exp(c2 * (c3 - 1.0))))
     fit = (res.fun + y).reshape(len(trials), n + 1).T
-    tg = np.arange(n + 1) * dt
+    tg = np.arange(n + 1, dtype=np.float64) * dt
     q_nrmsd, q_nrmse = _quality(Y.ravel(), fit.ravel())
     return IsometricFitResult(
         F_cm=f_cm * a_max,
@@ -729,7 +729,7 @@ def identify_isometric_transients(
 
 # --------------------------------------------- model-in-the-loop fits (recruitment I, k_s)
 def _grid_measure(time: F64, theta_r: F64, n: int, dt: float) -> tuple[F64, F64]:
-    tg = np.arange(n + 1) * dt
+    tg = np.arange(n + 1, dtype=np.float64) * dt
     return tg, np.interp(tg, time - time[0], theta_r)
 
 
@@ -737,7 +737,7 @@ def _grid_measure(time: F64, theta_r: F64, n: int, dt: float) -> tuple[F64, F64]
 def _traj_with_jac(
     kind: str, n: int, dt: float, free: tuple[str, ...], ce: str = "000"
 ) -> ca.Function:
-    step = _step_function(kind, False, dt, "rk4", ce)  # type: ignore[arg-type]
+    step = _step_function(kind, False, dt, "rk4", ce)
     sim = step.mapaccum("sim", n)
     x0 = ca.MX.sym("x0", 4)
     w = ca.MX.sym("w", 4, n)
@@ -795,7 +795,7 @@ def identify_recruitment_current(
     y = np.asarray(theta_r, dtype=float)
     n = int(np.floor((t[-1] - t[0]) / dt + 1e-9))
     tg, yg = _grid_measure(t, y, n, dt)
-    s0 = subject.with_recruitment(init or subject.recruitment)  # type: ignore[arg-type]
+    s0 = subject.with_recruitment(init or subject.recruitment)
     if not isinstance(s0.recruitment, RecruitmentCurrent):
         raise IdentificationError(f"{subject.name}: current recruitment needs a current model")
     w = sample_on_grid(stim, n, dt, s0.calcium.tau_c, s0.calcium.tau_r)
@@ -824,7 +824,8 @@ def identify_recruitment_current(
     _check_finite("recruitment (current)", subject.name, fit=res.x)
     q = res.x
     fit = np.interp(t - t[0], tg, resid(q) + yg)
-    return RecruitmentCurrentResult(*(float(v) for v in q), t, y, fit, *_quality(y, fit))
+    a_i, b_r, c_r, d_r = (float(v) for v in q)
+    return RecruitmentCurrentResult(a_i, b_r, c_r, d_r, t, y, fit, *_quality(y, fit))
 
 
 @dataclass(frozen=True)
@@ -866,7 +867,7 @@ def _ks_nlp(
 ) -> tuple[ca.Function, dict[str, int]]:
     """Multiple-shooting NLP of Eq. 8: nodes every ``m`` steps, ``k_s`` in N/mm (and, with
     ``free_K_cm``, a factor on ``K_cm`` as the second decision variable)."""
-    step = _step_function(kind, False, dt, "rk4", ce)  # type: ignore[arg-type]
+    step = _step_function(kind, False, dt, "rk4", ce)
     interval = step.mapaccum("interval", m).expand()  # SX: fast exact Hessians
     many = interval.map(n_int, "serial")
     npar = len(PARAM_NAMES)
