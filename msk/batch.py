@@ -145,9 +145,15 @@ def _row(
 
 def run_one(config: str, out_dir: str, use_cache: bool = True) -> SessionOutcome:
     """Run one session, never raising: the outcome carries the error as one line."""
+    from msk.io.c3d import ISOLATE_ENV
     from msk.pipeline import run_session
 
     t0 = _time.perf_counter()
+    # C3D files are read in a child process: a native crash of the reader costs this session
+    # (one line), never the worker and with it the pool (BrokenProcessPool)
+    isolate_set = ISOLATE_ENV not in os.environ
+    if isolate_set:
+        os.environ[ISOLATE_ENV] = "1"
     try:
         res = run_session(config, out_dir, progress=None, use_cache=use_cache)
     except MskError as exc:
@@ -164,6 +170,9 @@ def run_one(config: str, out_dir: str, use_cache: bool = True) -> SessionOutcome
         return SessionOutcome(
             config, out_dir, False, dt, msg, _row(config, None, "failed", msg, dt)
         )
+    finally:
+        if isolate_set:
+            os.environ.pop(ISOLATE_ENV, None)
     dt = _time.perf_counter() - t0
     return SessionOutcome(config, out_dir, True, dt, "", _row(config, res.summary, "ok", "", dt))
 

@@ -3,6 +3,7 @@ what a broken writer or a damaged disk would, which ezc3d's own writer never pro
 
 from __future__ import annotations
 
+import math
 import struct
 from pathlib import Path
 
@@ -47,9 +48,10 @@ def _encode(proc: int, typ: int, value: float) -> bytes:
             b = struct.pack("<f", value * 4.0)
             return bytes(b[i] for i in (2, 3, 0, 1))
         return struct.pack(">f" if proc == 86 else "<f", value)
+    iv = int(value) if math.isfinite(value) else -1  # integers wrap as stored
     if typ == 2:
-        return struct.pack(">h" if proc == 86 else "<h", int(value))
-    return struct.pack("b", int(value))
+        return struct.pack(">h" if proc == 86 else "<h", (iv + 32768) % 65536 - 32768)
+    return struct.pack("b", (iv + 128) % 256 - 128)
 
 
 def set_value(data: bytearray, key: Key, value: float, index: int = 0) -> None:
@@ -72,3 +74,17 @@ def set_text(data: bytearray, key: Key, offset: int, text: bytes) -> None:
 def label_width(data: bytes, key: Key) -> int:
     _, _, params = parameters(data)
     return params[key].dims[0]
+
+
+def crashing_reader(conn, path, cop_threshold_n):  # pragma: no cover - runs in a child
+    """Stands in for a reader that dies natively (as ezc3d does on some corrupt files)."""
+    import os
+    import signal
+
+    os.kill(os.getpid(), signal.SIGSEGV)
+
+
+def hanging_reader(conn, path, cop_threshold_n):  # pragma: no cover - runs in a child
+    import time
+
+    time.sleep(600)

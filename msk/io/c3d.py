@@ -26,6 +26,7 @@ C3DFileAdapter report it.
 from __future__ import annotations
 
 import math
+import os
 import re
 import struct
 from collections.abc import Mapping, Sequence
@@ -754,7 +755,9 @@ def _plates(
         az = np.cross(ax, ay)
         nx, nz = np.linalg.norm(ax), np.linalg.norm(az)
         if nx == 0 or nz == 0:
-            raise ForcePlateError(f"{path}: force platform {p + 1} has degenerate corners {c}")
+            raise ForcePlateError(
+                f"{path}: force platform {p + 1} has degenerate corners {c.tolist()}"
+            )
         ay = np.cross(az, ax)
         rot = np.column_stack([ax / nx, ay / np.linalg.norm(ay), az / nz])
         centre = c.mean(axis=0)
@@ -989,19 +992,106 @@ def _longest_runs(missing: NDArray[np.bool_]) -> NDArray[np.int64]:
     return out
 
 
-def read_c3d(path: str | Path, *, cop_threshold_n: float = 20.0) -> Trial:
+#: environment switch: ``MSK_ISOLATE_C3D=1`` reads every C3D in a child process (batch workers
+#: set it), ``MSK_C3D_TIMEOUT_S`` bounds the child's time (default 300 s)
+ISOLATE_ENV = "MSK_ISOLATE_C3D"
+TIMEOUT_ENV = "MSK_C3D_TIMEOUT_S"
+
+
+def _child_read(conn: Any, path: str, cop_threshold_n: float) -> None:  # pragma: no cover
+    """Body of the isolated reader (runs in a spawned child)."""
+    try:
+        out: Any = ("ok", read_c3d(path, cop_threshold_n=cop_threshold_n, isolate=False))
+    except MskError as exc:
+        out = ("error", type(exc).__name__, str(exc))
+    except Exception as exc:
+        out = ("error", "C3DError", f"{path}: ezc3d cannot read it: {type(exc).__name__}: {exc}")
+    conn.send(out)
+    conn.close()
+
+
+def _read_isolated(
+    path: Path, cop_threshold_n: float, timeout_s: float, target: Any = None
+) -> Trial:
+    """:func:`read_c3d` in a spawned child: a native crash or a hang of the reader costs this
+    file (a :class:`C3DError`), never the calling process or its pool. (A daemonic process,
+    e.g. a Dask worker, may not have children: it reads in-process.)"""
+    import multiprocessing as mp
+
+    from msk import exceptions
+
+    if mp.current_process().daemon:
+        return read_c3d(path, cop_threshold_n=cop_threshold_n, isolate=False)
+    ctx = mp.get_context("spawn")
+    recv, send = ctx.Pipe(duplex=False)
+    proc = ctx.Process(
+        target=target or _child_read, args=(send, str(path), cop_threshold_n), daemon=True
+    )
+    proc.start()
+    send.close()
+    try:
+        if not recv.poll(timeout_s):
+            proc.kill()
+            proc.join(5)
+            if proc.exitcode is not None and proc.exitcode != -9:
+                raise C3DError(f"{path}: the C3D reader {_death(proc.exitcode)}")
+            raise C3DError(f"{path}: the C3D reader did not finish in {timeout_s:g} s")
+        try:
+            out = recv.recv()
+        except EOFError:
+            proc.join(5)
+            raise C3DError(f"{path}: the C3D reader {_death(proc.exitcode)}") from None
+    finally:
+        recv.close()
+        proc.join(5)
+        if proc.is_alive():
+            proc.kill()
+    if out[0] == "ok":
+        return out[1]
+    cls = getattr(exceptions, out[1], C3DError)
+    raise (cls if isinstance(cls, type) and issubclass(cls, MskError) else C3DError)(out[2])
+
+
+def _death(code: int | None) -> str:
+    import signal
+
+    if code is not None and code < 0:
+        try:
+            name = signal.Signals(-code).name
+        except ValueError:
+            name = f"signal {-code}"
+        return f"crashed ({name}): the file is corrupt in a way msk does not detect"
+    return f"exited with status {code} without an answer"
+
+
+def read_c3d(
+    path: str | Path, *, cop_threshold_n: float = 20.0, isolate: bool | None = None
+) -> Trial:
     """Read a C3D file into a :class:`Trial` (SI units, time on axis 0).
 
     Raises :class:`C3DError` for a missing, empty, truncated, corrupt or non-C3D file and for a
     file with neither points nor analogs; :class:`UnitsError` for unknown ``POINT:UNITS``;
     :class:`ForcePlateError` for inconsistent force-platform parameters.
-    """
-    import ezc3d
 
+    ``isolate`` (default: ``MSK_ISOLATE_C3D=1`` in the environment) runs ezc3d in a spawned
+    child process bounded by ``MSK_C3D_TIMEOUT_S`` (300 s): a native crash or hang of the
+    reader becomes a :class:`C3DError` (batch workers use it, so a bad file costs one session).
+    """
     path = Path(path)
     if not cop_threshold_n >= 0:
         raise MskError(f"{path}: cop_threshold_n must be >= 0 N, got {cop_threshold_n}")
     _check_bytes(path)
+    if isolate is None:
+        isolate = os.environ.get(ISOLATE_ENV, "") == "1"
+    if isolate:
+        try:
+            timeout_s = float(os.environ.get(TIMEOUT_ENV, "300"))
+        except ValueError:
+            timeout_s = 300.0
+        timeout_s = timeout_s if math.isfinite(timeout_s) and timeout_s > 0 else 300.0
+        return _read_isolated(path, cop_threshold_n, timeout_s)
+    import ezc3d
+
     try:
         c = ezc3d.c3d(str(path))
     except MskError:

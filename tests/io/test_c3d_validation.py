@@ -12,9 +12,10 @@ import numpy as np
 import pytest
 from c3d_mutants import label_width, retype, set_dim, set_text, set_value
 
-from msk.exceptions import C3DError, MskError
+from msk.exceptions import C3DError, ForcePlateError, MskError
 from msk.io import read_c3d
 
+MSK = [sys.executable, "-c", "import sys; from msk.cli import main; sys.exit(main())"]
 PS = "knee-grand-challenge-gc5/PS_ngait_og_ss1.c3d"
 GAIT = "btkdata/Gait.c3d"  # DEC floats, six repeated marker labels
 
@@ -137,7 +138,7 @@ def test_nan_plate_samples_are_a_warning(real_dir):
 def test_msk_info_exits_2_on_a_retyped_rate(real_dir, tmp_path):
     f = _mutant(real_dir, tmp_path, PS, lambda d: retype(d, ("POINT", "RATE"), -1))
     r = subprocess.run(
-        [sys.executable, "-m", "msk.cli", "info", str(f)],
+        [*MSK, "info", str(f)],
         capture_output=True,
         text=True,
         timeout=120,
@@ -145,3 +146,28 @@ def test_msk_info_exits_2_on_a_retyped_rate(real_dir, tmp_path):
     )
     assert r.returncode == 2, r.stderr
     assert r.stderr.count("\n") == 1 and "POINT:RATE is stored as text" in r.stderr
+
+
+# --- isolation: a native crash or a hang of the reader costs one file, one line ----------------
+def test_isolated_read_matches_the_in_process_read(real_dir):
+    a = read_c3d(real_dir / GAIT, isolate=True)
+    b = read_c3d(real_dir / GAIT)
+    np.testing.assert_array_equal(a.markers, b.markers)
+    assert a.marker_labels == b.marker_labels and a.metadata == b.metadata
+
+
+def test_isolated_read_carries_the_typed_error(real_dir, tmp_path):
+    f = _mutant(real_dir, tmp_path, PS, lambda d: set_value(d, ("ANALOG", "SCALE"), 1e6))
+    with pytest.raises(ForcePlateError, match="beyond 20000 N"):
+        read_c3d(f, isolate=True)
+
+
+def test_a_crashing_or_hanging_reader_is_one_c3d_error(real_dir):
+    from c3d_mutants import crashing_reader, hanging_reader
+
+    from msk.io.c3d import _read_isolated
+
+    with pytest.raises(C3DError, match=r"crashed \(SIGSEGV\)"):
+        _read_isolated(real_dir / PS, 20.0, 60.0, target=crashing_reader)
+    with pytest.raises(C3DError, match=r"did not finish in 1 s"):
+        _read_isolated(real_dir / PS, 20.0, 1.0, target=hanging_reader)
