@@ -517,12 +517,12 @@ def recognise(
     landmarks: dict[str, str] = {}
     notes: list[str] = []
     used_labels = set(explicit.values())
-    tracked = np.ones(len(labels), dtype=bool)
+    tracked: NDArray[np.bool_] = np.ones(len(labels), dtype=bool)
     if markers is not None:
         x = zeros_as_gaps(markers)
         if x.ndim != 3 or x.shape[1] != len(labels):
             raise ShapeMismatchError(f"markers {x.shape} do not match {len(labels)} labels")
-        tracked = np.isfinite(x).all(axis=2).any(axis=0)
+        tracked = np.asarray(np.isfinite(x).all(axis=2).any(axis=0))
     for k, p in enumerate(parsed):
         if p.label in used_labels:
             continue
@@ -552,7 +552,7 @@ def recognise(
         out[mk] = lab
     free = [p for p in parsed if p.label not in excluded and p.label not in used_labels]
     # same name (prefix dropped)
-    by_name = {}
+    by_name: dict[str, str] = {}
     for p in free:
         by_name.setdefault(p.name, p.label)
     exact = 0

@@ -457,7 +457,7 @@ def bone_segments(model: Model, data: pin.Data) -> list[tuple[str, Array, Array]
     """Bone segments per body, world frame, from ``data.oMf`` (after forward kinematics):
     ``(body, a, b)`` from the body origin to each child body's origin (a leaf body: from its
     origin to twice its centre of mass)."""
-    out = []
+    out: list[tuple[str, Array, Array]] = []
     for b in model.bodies:
         o = data.oMf[model.body_frame[b.name]]
         kids = [j.child for j in model.joints if j.parent == b.name]

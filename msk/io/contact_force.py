@@ -319,7 +319,7 @@ def _window_rms(x: Array, y: Array) -> tuple[Array, Array]:
     """RMS distance between ``y`` (n, 3) and every length-n window of every marker of ``x``
     (T, M, 3; NaN = missing): (O, M) RMS and (O, M) number of frames compared."""
     n = y.shape[0]
-    w = np.isfinite(x).all(axis=2)
+    w = np.asarray(np.isfinite(x).all(axis=2))
     x0 = np.where(w[..., None], x, 0.0)
     wf = w.astype(float)
     sx = sliding_window_view(x0, n, axis=0)  # (O, M, 3, n)

@@ -359,7 +359,7 @@ def read_trc_trial(path: str | Path, *, up: ArrayLike = (0.0, 1.0, 0.0)) -> Tria
     u = np.asarray(up, dtype=float)
     if u.shape != (3,) or not np.linalg.norm(u) > 0:
         raise FileFormatError(f"{path}: up must be a non-zero 3-vector, got {up!r}")
-    missing = ~np.isfinite(t.markers).all(axis=2)
+    missing = ~np.asarray(np.isfinite(t.markers).all(axis=2))
     return Trial(
         path=path,
         point_rate_hz=float(t.rate_hz),

@@ -81,7 +81,7 @@ class _Layout:
 
 
 def _reserve_forces(
-    reserve_optimal_force: ArrayLike | None, n: int, names: Sequence[str]
+    reserve_optimal_force: ArrayLike | None, n: int, names: Sequence[str] | None
 ) -> FloatArray | None:
     """``reserve_optimal_force`` as a checked ``(n,)`` array (≥ 0, finite), or ``None``."""
     if reserve_optimal_force is None:
@@ -89,15 +89,15 @@ def _reserve_forces(
     opt = as_float(reserve_optimal_force, (n,), "reserve_optimal_force")
     if np.any(opt < 0) or not np.all(np.isfinite(opt)):
         i = int(np.argmax((opt < 0) | ~np.isfinite(opt)))
+        which = repr(names[i]) if names is not None else str(i)
         raise OptimizationError(
-            f"reserve optimal force of coordinate {names[i]!r} must be ≥ 0 and finite: "
-            f"{float(opt[i])!r}"
+            f"reserve optimal force of coordinate {which} must be ≥ 0 and finite: {float(opt[i])!r}"
         )
     return opt
 
 
 def _reserves(
-    reserve_optimal_force: ArrayLike | None, n: int, names: Sequence[str]
+    reserve_optimal_force: ArrayLike | None, n: int, names: Sequence[str] | None
 ) -> tuple[NDArray[np.intp], FloatArray]:
     """Coordinates with a reserve actuator (optimal force > 0) and their optimal forces."""
     opt = _reserve_forces(reserve_optimal_force, n, names)
