@@ -108,6 +108,9 @@ channels = { vasmed_l = "vasmed", vaslat_l = "vaslat", rect_fem_l = "rf" }
 highpass_hz = 20.0
 lowpass_hz = 6.0
 electromechanical_delay_s = 0.04
+# MVC envelope peak per channel (analog units): activations then relative to MVC, not to the
+# session's own peak; or give MVC recordings as [[trials]] with role = "mvc"
+# mvc = { vasmed = 0.31, vaslat = 0.29 }
 
 [loads]
 # explicit plate → body assignment (plates named plate1, plate2… in file order); default automatic
@@ -230,6 +233,9 @@ class EmgConfig:
     highpass_hz: float = 20.0
     lowpass_hz: float = 6.0
     electromechanical_delay_s: float = 0.0
+    #: channel label → MVC envelope peak in the channel's analog units (absolute activations);
+    #: empty: each channel normalised to this session's peak (relative activations)
+    mvc: Mapping[str, float] = field(default_factory=dict)
 
 
 @dataclass(frozen=True)
@@ -519,7 +525,18 @@ def load_config(path: str | Path) -> SessionConfig:
         electromechanical_delay_s=e.number(
             "electromechanical_delay_s", 0.0, 0.0, MAX_EMD_S, "s", hint=hint
         ),
+        mvc=dict(e.get("mvc", dict, {})),
     )
+    for ch, v in emg.mvc.items():
+        if isinstance(v, bool) or not isinstance(v, (int, float)) or not np.isfinite(v) or v <= 0:
+            raise ConfigError(
+                f"{source}: emg.mvc.{ch} = {v!r} should be a positive number (the MVC envelope "
+                "peak, in the channel's analog units)"
+            )
+        if ch not in emg.channels.values():
+            raise ConfigError(
+                f"{source}: emg.mvc names channel {ch!r}, which no muscle in emg.channels uses"
+            )
     e.done()
 
     f = _Section(top.get("filters", dict, {}), "filters", source)

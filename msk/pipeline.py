@@ -850,12 +850,16 @@ class _Session:
                 lowpass_hz=cfg.emg.lowpass_hz,
                 delay_s=cfg.emg.electromechanical_delay_s,
                 **({"mvc_trials": mvc} if mvc else {}),
+                **({"mvc": {k: float(v) for k, v in cfg.emg.mvc.items()}} if cfg.emg.mvc else {}),
             )
             env_k = env.resampled(kin.time)
             e = np.clip(np.nan_to_num(env_k.envelopes, nan=0.0), 0.0, 1.0)
             act = first_order_activation(e, rate_hz=trial.point_rate_hz)
             act[:, ~env_k.usable] = np.nan
             return {
+                "normalisation": "MVC"
+                if (mvc or cfg.emg.mvc)
+                else "this session's peak (relative activations, not strength)",
                 "muscles": env_k.muscle_names,
                 "sources": env_k.muscle_sources,
                 "envelopes": env_k.envelopes,
@@ -875,6 +879,7 @@ class _Session:
                 "lp": cfg.emg.lowpass_hz,
                 "emd": cfg.emg.electromechanical_delay_s,
                 "mvc": [file_sha256(t.file) for t in cfg.trials_with_role("mvc")],
+                "mvc_values": dict(cfg.emg.mvc),
             },
         )
         return self.emg_
@@ -1748,6 +1753,7 @@ def _quality(
         flat = [emg["sources"][k] for k in range(len(emg["muscles"])) if not emg["usable"][k]]
         q["emg_flat_channels"] = sorted(set(flat))
         q["emg_warnings"] = emg["warnings"]
+        q["emg_normalisation"] = emg.get("normalisation")
     if sol is not None and "infeasible_frames" in sol:
         q["optimization_infeasible_frames"] = sol["infeasible_frames"]
     if strength is not None:

@@ -274,3 +274,25 @@ def test_numbers_are_range_checked_with_their_unit(session_dir, old, new, messag
     with pytest.raises(ConfigError, match=message) as exc:
         load_config(path)
     assert "\n" not in str(exc.value)
+
+
+def test_emg_mvc_values(tmp_path):
+    """``[emg] mvc``: positive numbers for channels the mapping uses, else one clear line."""
+    path = tmp_path / "lab" / "pipelines" / "session.toml"
+    path.parent.mkdir(parents=True)
+    root = tmp_path / "lab"
+    (root / "models").mkdir()
+    (root / "models" / "gait2392.toml").write_text("")
+    (root / "data" / "gc5-PS").mkdir(parents=True)
+    for f in ("PS_static_for_scaling.trc", "PS_ngait_og_ss1.c3d", "PS_ngait_og_ss1_eTibia.csv"):
+        (root / "data" / "gc5-PS" / f).write_text("")
+    ok = TEMPLATE.replace("# mvc = { vasmed = 0.31, vaslat = 0.29 }", "mvc = { vasmed = 0.31 }")
+    path.write_text(ok)
+    assert load_config(path).emg.mvc == {"vasmed": 0.31}
+    for text, message in (
+        (ok.replace("vasmed = 0.31 }", "vasmed = -1.0 }"), "emg.mvc.vasmed = -1.0 should be"),
+        (ok.replace("{ vasmed = 0.31 }", "{ soleus = 0.2 }"), "names channel 'soleus'"),
+    ):
+        path.write_text(text)
+        with pytest.raises(ConfigError, match=message):
+            load_config(path)
