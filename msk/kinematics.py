@@ -218,8 +218,8 @@ def kinematics_from_coordinates(
 def _scalar_function(f: object) -> tuple[object, object] | None:
     """Fast scalar (value, first derivative) closures for the common coordinate functions."""
     if isinstance(f, Linear):
-        a, b = float(f.slope), float(f.intercept)
-        return (lambda x: a * x + b), (lambda x: a)
+        slope, intercept = float(f.slope), float(f.intercept)
+        return (lambda x: slope * x + intercept), (lambda x: slope)
     if isinstance(f, Multiplier):
         inner = _scalar_function(f.function)
         if inner is None:
@@ -509,9 +509,9 @@ def solve_kinematics(
             f"M = len(marker_labels) = {len(labels)}"
         )
     weights = dict(weights or {})
-    for name, w in weights.items():
-        if not np.isfinite(w) or w < 0:
-            raise KinematicsError(f"marker {name}: weight must be finite and ≥ 0, got {w}")
+    for name, wt in weights.items():
+        if not np.isfinite(wt) or wt < 0:
+            raise KinematicsError(f"marker {name}: weight must be finite and ≥ 0, got {wt}")
     used = [mk.name for mk in model.markers if mk.name in labels and weights.get(mk.name, 1.0) > 0]
     if len(used) < min_markers:
         raise KinematicsError(
@@ -622,7 +622,7 @@ def solve_kinematics(
     rms[solved] = np.sqrt(sq[solved].sum(axis=1) / np.isfinite(errs[solved]).sum(axis=1))
     mx = np.full(n_frames, np.nan)
     mx_name = [""] * n_frames
-    for n in np.flatnonzero(solved):
+    for n in np.flatnonzero(solved).tolist():
         j = int(np.nanargmax(errs[n]))
         mx[n], mx_name[n] = errs[n, j], used[j]
     q_out[status == STATUS_TOO_FEW_MARKERS] = np.nan
@@ -652,8 +652,8 @@ def _levenberg_marquardt(
     theta: Array,
     target: Array,
     sw: Array,
-    present: Array,
-    free: Array,
+    present: NDArray[np.bool_],
+    free: NDArray[np.bool_],
     lo: Array,
     hi: Array,
     max_iterations: int,
