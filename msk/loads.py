@@ -360,13 +360,15 @@ def _inside_grown(points2: Array, poly2: Array, margin: float) -> Array:
     return ok
 
 
-def _runs(mask: Array) -> list[tuple[int, int]]:
+def _runs(mask: NDArray[np.bool_]) -> list[tuple[int, int]]:
     """[start, end) index pairs of the True runs of a boolean vector."""
     d = np.diff(np.concatenate([[0], mask.astype(int), [0]]))
     return list(zip(np.flatnonzero(d == 1), np.flatnonzero(d == -1)))
 
 
-def _foot_points(model: Model, q: Array, feet: Sequence[str], frames: Array) -> list[Array]:
+def _foot_points(
+    model: Model, q: Array, feet: Sequence[str], frames: NDArray[np.intp]
+) -> list[Array]:
     """World points of each foot at the given frames: [(N, P_f, 3)] (NaN elsewhere).
 
     Points are the body origins of the foot and its descendants and their markers, computed
@@ -589,7 +591,7 @@ def external_loads(
             pw = np.full_like(pe, np.nan)
             good = np.flatnonzero(np.isfinite(q).all(axis=1))
             qpin = model.coupling.q(q[good]) if good.size else np.zeros((0, 0))
-            for i, k in enumerate(good):
+            for i, k in enumerate(good.tolist()):
                 pin.framesForwardKinematics(model.pin_model, data, qpin[i])
                 pw[k] = data.oMf[fid].act(pe[k])
             pe = pw
@@ -679,17 +681,6 @@ def _prepare(
     return _Prepared(pl, f_k, m_k, fv, cop, h, contact)
 
 
-def _velocity(pts: Array, t: Array) -> Array:
-    """Central-difference velocity of points (N, P, 3) (one-sided at the ends; NaN propagates)."""
-    n = t.size
-    if n < 2:
-        return np.zeros_like(pts)
-    k0 = np.clip(np.arange(n) - 1, 0, n - 1)
-    k1 = np.clip(np.arange(n) + 1, 0, n - 1)
-    dt = np.maximum(t[k1] - t[k0], 1e-12)
-    return (pts[k1] - pts[k0]) / dt[:, None, None]
-
-
 def _plate_state(
     p: _Prepared,
     fpts: list[Array],
@@ -767,7 +758,7 @@ def _labels(p: _Prepared, prepared: Sequence[_Prepared], feet: Sequence[str]) ->
         for f in range(len(feet)):
             elsewhere[:, f] |= other.contact & (other.primary == f) & (p.primary != f)
     pruned = st & ~elsewhere
-    keep = np.where(pruned.any(axis=1)[:, None], pruned, st)
+    keep = np.where(np.asarray(pruned.any(axis=1))[:, None], pruned, st)
     count = keep.sum(axis=1)
     lab = np.where(count >= 2, _SHARED, _NONE)
     one = count == 1
@@ -902,12 +893,16 @@ def contact_measured(
                 fv[:, k] += np.asarray(loads.force[:, loads.bodies.index(b)]) @ up
     # a frame whose foot speeds are unknown (an isolated solved frame between unsolved ones)
     # cannot be shown to have all its ground contact measured
-    speed_known = np.stack([np.isfinite(x).all(axis=2).any(axis=1) for x in vel], axis=1)
+    speed_known = np.stack(
+        [np.asarray(np.isfinite(x).all(axis=2)).any(axis=1) for x in vel], axis=1
+    )
     known &= speed_known.all(axis=1)
     return known & ~(grounded & ~(fv > threshold_n)).any(axis=1) & ~loads.flagged()
 
 
-def _standing(on: Array, speed: Array, near: Array, speed_mps: float) -> Array:
+def _standing(
+    on: NDArray[np.bool_], speed: Array, near: Array, speed_mps: float
+) -> NDArray[np.bool_]:
     """(frames, feet): the feet ``on`` the plate, less the swinging ones — faster than
     ``speed_mps`` while another foot on the plate is both slower and nearer the COP."""
     out = on.copy()
