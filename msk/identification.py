@@ -534,8 +534,8 @@ def lump_subtrees(
         members[root] = tuple(sub)
         absorbed |= set(sub[1:])
         o_root = data.oMf[model.body_frame[root]]
-        for b in sub:
-            placements[b] = o_root.actInv(data.oMf[model.body_frame[b]])
+        for bname in sub:
+            placements[bname] = o_root.actInv(data.oMf[model.body_frame[bname]])
     bodies: list[Body] = []
     for b in model.bodies:
         if b.name in absorbed:
@@ -808,7 +808,7 @@ class InertialIdentifier:
                 acc += sgn * prior[10 * b : 10 * b + 10]
             x_prior[10 * gi : 10 * gi + 10] = acc / len(grp.members) / d
         phi_fixed = np.zeros(10 * nb)
-        for b in np.flatnonzero(fixed_mask):
+        for b in np.flatnonzero(fixed_mask).tolist():
             phi_fixed[10 * b : 10 * b + 10] = prior[10 * b : 10 * b + 10]
         self._layout: RegressorLayout = layout
         self._groups = groups
@@ -1083,8 +1083,8 @@ class InertialIdentifier:
             v = vec[:, i]
             top = np.argsort(-np.abs(v))[:4]
             comps = tuple((self._x_names[j], float(v[j])) for j in top if abs(v[j]) > 0.1)
-            ratio = math.inf if lam[i] <= 1e-12 else 1.0 / math.sqrt(lam[i])
-            weak.append(WeakDirection(float(ratio), comps))
+            std_ratio = math.inf if lam[i] <= 1e-12 else 1.0 / math.sqrt(lam[i])
+            weak.append(WeakDirection(float(std_ratio), comps))
         self.weak_directions_ = tuple(weak)
         # structural base parameters (random states) and their data-only std on this data
         self.base_ = _structural_base(self.model, self._layout)
