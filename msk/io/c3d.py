@@ -342,7 +342,7 @@ class _RawParam:
 
 def _walk_parameters(path: Path, buf: bytes, endian: str) -> dict[tuple[str, str], _RawParam]:
     """Walk the parameter records, check every length and pointer stays inside the section and
-    return the parameters by ``(GROUP, NAME)`` (upper case)."""
+    return the parameters by ``(GROUP, NAME)`` as stored (ezc3d looks names up by case)."""
     pos = 4
     n = len(buf)
     count = 0
@@ -371,11 +371,9 @@ def _walk_parameters(path: Path, buf: bytes, endian: str) -> dict[tuple[str, str
             length = abs(typ) * math.prod(dims) if ndim else abs(typ)
             end = body + 2 + ndim + length
             if end <= n:
-                raw.append(
-                    (gid, name.decode("latin-1").upper(), typ, dims, buf[end - length : end], pos)
-                )
+                raw.append((gid, name.decode("latin-1"), typ, dims, buf[end - length : end], pos))
         elif gid < 0:
-            groups.setdefault(-gid, name.decode("latin-1").upper())
+            groups.setdefault(-gid, name.decode("latin-1"))
         if end + 1 > n:
             raise C3DError(
                 f"{path}: corrupt parameter {name.decode('latin-1')!r}: its data overrun "
@@ -543,6 +541,15 @@ def _check_parameters(
                 f"{path}: ANALOG:RATE = {a_rate:g} Hz disagrees with the header "
                 f"({samples} samples per frame at {hdr_rate:g} Hz = {expected:g} Hz)"
             )
+    if a_used and n_analog_words:  # ezc3d indexes these per channel without a bound check
+        for name in ("GEN_SCALE", "SCALE", "OFFSET"):
+            v = vals.get(("ANALOG", name))
+            need = 1 if name == "GEN_SCALE" else a_used
+            if v is None or v.size < need:
+                have = "is missing" if v is None else f"holds {v.size} values"
+                raise C3DError(
+                    f"{path}: ANALOG:{name} {have}; ANALOG:USED = {a_used} channels need {need}"
+                )
     if (gs := first("ANALOG", "GEN_SCALE")) is not None and gs == 0 and a_used:
         raise C3DError(f"{path}: ANALOG:GEN_SCALE is 0: every analog value would be 0")
     _check_plate_params(path, params, vals, count("FORCE_PLATFORM", "USED"), a_used)
