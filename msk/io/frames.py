@@ -64,18 +64,22 @@ def rotation_between(a: ArrayLike, b: ArrayLike) -> Array:
     """Smallest rotation taking the direction ``a`` to the direction ``b`` (Rodrigues):
     ``R = I + [v]× + [v]×² / (1 + c)`` with ``v = â × b̂``, ``c = â · b̂``; a half turn about
     an axis normal to ``a`` when they are opposite."""
-    a = np.asarray(a, dtype=float)
-    b = np.asarray(b, dtype=float)
-    if a.shape != (3,) or b.shape != (3,) or not (np.linalg.norm(a) > 0 and np.linalg.norm(b) > 0):
-        raise ShapeMismatchError(f"directions must be non-zero 3-vectors, got {a} and {b}")
-    a = a / np.linalg.norm(a)
-    b = b / np.linalg.norm(b)
-    v = np.cross(a, b)
-    c = float(a @ b)
+    va = np.asarray(a, dtype=float)
+    vb = np.asarray(b, dtype=float)
+    if (
+        va.shape != (3,)
+        or vb.shape != (3,)
+        or not (np.linalg.norm(va) > 0 and np.linalg.norm(vb) > 0)
+    ):
+        raise ShapeMismatchError(f"directions must be non-zero 3-vectors, got {va} and {vb}")
+    va = va / np.linalg.norm(va)
+    vb = vb / np.linalg.norm(vb)
+    v = np.cross(va, vb)
+    c = float(va @ vb)
     if c < -1 + 1e-12:  # opposite: half turn about any axis normal to a
-        n = np.cross(a, [1.0, 0.0, 0.0])
+        n = np.cross(va, [1.0, 0.0, 0.0])
         if np.linalg.norm(n) < 1e-6:
-            n = np.cross(a, [0.0, 1.0, 0.0])
+            n = np.cross(va, [0.0, 1.0, 0.0])
         n /= np.linalg.norm(n)
         return 2 * np.outer(n, n) - np.eye(3)
     s = float(np.linalg.norm(v))
@@ -143,7 +147,7 @@ def _about(u: Array, phi: float) -> Array:
 def _progression_yaw(rotated: Array, u: Array, forward: ArrayLike) -> float | None:
     """Yaw (rad, about ``u``) taking the horizontal progression of the marker centroid of
     ``rotated`` (N, M, 3, levelled) to ``forward``; None below :data:`MIN_PROGRESSION_M`."""
-    seen = np.isfinite(rotated).all(axis=2)  # (N, M): markers visible in each frame
+    seen = np.asarray(np.isfinite(rotated).all(axis=2))  # (N, M): markers visible in each frame
     count = seen.sum(axis=1)
     total = np.where(seen[..., None], rotated, 0.0).sum(axis=1)
     ok = count > 0  # frames with no marker at all carry no centroid
@@ -232,7 +236,7 @@ def pelvis_heading_rotation(
     prog = _progression_yaw(rotated, u, forward) if x.size else None
     prog_deg = math.nan if prog is None else math.degrees(prog)
     inv = {v: k for k, v in (rename or {}).items()}
-    col = {}
+    col: dict[str, int] = {}
     for i, lab in enumerate(labels):
         col.setdefault(inv.get(lab, lab), i)
     names = [n for n in _root_markers(model) if n in col]
@@ -243,7 +247,7 @@ def pelvis_heading_rotation(
         data = model.create_data()
         forward_kinematics(model, data, model.default_coordinates())
         model_pos = {n: np.asarray(data.oMf[model.marker_frame[n]].translation) for n in names}
-        seen = np.isfinite(rotated[:, [col[n] for n in names]]).all(axis=2)
+        seen = np.asarray(np.isfinite(rotated[:, [col[n] for n in names]]).all(axis=2))
         # drop the least-tracked markers until enough frames track all the rest
         order = sorted(range(len(names)), key=lambda k: -int(seen[:, k].sum()))
         keep = list(order)
