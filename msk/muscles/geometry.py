@@ -195,7 +195,7 @@ def _dsign(x: Array) -> Array:
     return np.where(x >= 0.0, 1.0, -1.0)
 
 
-def _not_active(angle: Array, x_axis: Any, sign: Any) -> Array:
+def _not_active(angle: Array, x_axis: Any, sign: Any) -> NDArray[np.bool_]:
     out = np.where(x_axis, (angle >= 0.5 * np.pi) & (angle <= 1.5 * np.pi), angle > np.pi)
     return np.where(sign < 0, ~out, out)
 
@@ -207,7 +207,7 @@ def wrap_cylinder(
     *,
     quadrant: str = "all",
     length: float = np.inf,
-) -> tuple[Array, Array, Array, Array, Array]:
+) -> tuple[NDArray[np.bool_], Array, Array, Array, NDArray[np.bool_]]:
     """Shortest path from a to b over a cylinder (axis z through the origin, frame of the
     cylinder), shapes (..., 3). As OpenSim, the surface is infinite except that there is no wrap
     when both tangent points lie beyond ±``length``/2.
@@ -227,7 +227,7 @@ def wrap_cylinder(
 
 def _wrap_cylinder(
     a: Array, b: Array, r: Any, axis: Any, sign: Any, half: Any
-) -> tuple[Array, Array, Array, Array, Array]:
+) -> tuple[NDArray[np.bool_], Array, Array, Array, NDArray[np.bool_]]:
     """:func:`wrap_cylinder` with radius, quadrant (axis 0/1, sign 0/±1) and half-length as
     scalars or arrays broadcasting against ``a[..., 0]`` (several cylinders at once)."""
     ax, ay, az = a[..., 0], a[..., 1], a[..., 2]
@@ -694,7 +694,7 @@ class GeometryPlan:
         self._col_dofs = order
         self._col_start = np.searchsorted(dof_col[order], np.arange(n_cols))
         col_sup = np.zeros((nb, n_cols), dtype=bool)
-        for j in used:
+        for j in used.tolist():
             col_sup[:, dof_col[j]] = sup[:, j]
         r_idx: list[int] = []
         p_idx: list[int] = []
@@ -1122,7 +1122,9 @@ class GeometryPlan:
             cyc = np.zeros_like(keep)
             if back2 is not None:
                 # a muscle back to its state of two passes ago, which moved: a 2-cycle
-                cyc_m = ~conv & (self._per_muscle(np.abs(after - back2).max(axis=2)) < _WRAP_TOL)
+                cyc_m: NDArray[np.bool_] = ~conv & (
+                    self._per_muscle(np.abs(after - back2).max(axis=2)) < _WRAP_TOL
+                )
                 cyc = cyc_m.any(axis=0)
             if cyc.any():
                 # a 2-cycle never converges: leave each cycling muscle on the shorter of the two
@@ -1237,7 +1239,7 @@ class GeometryPlan:
 
     def _take_state(
         self, st: _PathState, wr: tuple[Array, Array], fr: NDArray[np.intp]
-    ) -> tuple[Array, ...]:
+    ) -> tuple[NDArray[Any], ...]:
         """Copy of the multi-wrap paths' state at frames ``fr``: watched slot ends, point ids
         and validity (W, F, ...), arcs (M', F) and the wraps' hits and arcs (K', F)."""
         wx = (self._multi_watch[:, None], fr[None, :])
@@ -1320,7 +1322,8 @@ class GeometryPlan:
             # (E, n, 3) — advanced indices separated by a slice go first
             col = rot[:, pb[mv_p], :, mv_ax]  # body-frame axis k of each moving entry, in world
             term = np.einsum("eni,eni->ne", wp[mv_p, :, :3], col) * dloc
-            np.add.at(dl_dth, (slice(None), self.point_muscle[mv_p], mv_c), term)
+            # numpy's stub for ufunc.at takes no slice in the index tuple (numpy accepts it)
+            np.add.at(dl_dth, (slice(None), self.point_muscle[mv_p], mv_c), term)  # type: ignore[arg-type]
         return lengths, dl_dq, dl_dth
 
     def _wrenches(self, th: Array, rot: Array, trans: Array) -> tuple[Array, Array, Array]:
@@ -1436,7 +1439,9 @@ class GeometryPlan:
             rows += self._ent_agg @ ent.reshape(-1, n * 6)
         return lengths, rows.reshape(-1, n, 6), dloc
 
-    def _points(self, th: Array, rot: Array, trans: Array) -> tuple[Array, Array, Array | None]:
+    def _points(
+        self, th: Array, rot: Array, trans: Array
+    ) -> tuple[Array, Array, NDArray[np.bool_] | None]:
         """World positions of the path points (P, N, 3), the moving-point derivatives ∂p_b/∂θ
         (N, E) and which points are active (P, N) (``None`` without conditional points)."""
         n = th.shape[0]
@@ -1457,7 +1462,7 @@ class GeometryPlan:
             xm = np.matmul(rot[:, pb[mp]], loc[..., None])[..., 0] + trans[:, pb[mp]]
             xw[mp] = xm.transpose(1, 0, 2)
         # active points (point-major)
-        active = None
+        active: NDArray[np.bool_] | None = None
         if self.cond_points.size:
             active = np.ones((n_pts, n), dtype=bool)
             v = th[:, self.cond_coord].T
@@ -1517,19 +1522,19 @@ class _FunctionBank:
         self.other_fun = [functions[e] for e in self.other]
         self.lin = np.asarray(lin, dtype=np.intp)
         self.lin_coord = coords[self.lin]
-        lins = [_linear_of(functions[e]) for e in lin]
-        self.scale = np.array([t[0] for t in lins])  # type: ignore[index]
-        self.slope = np.array([t[1].slope for t in lins], dtype=float)  # type: ignore[index]
-        self.intercept = np.array([t[1].intercept for t in lins], dtype=float)  # type: ignore[index]
+        lins = [t for t in (_linear_of(functions[e]) for e in lin) if t is not None]
+        self.scale = np.array([t[0] for t in lins])
+        self.slope = np.array([t[1].slope for t in lins], dtype=float)
+        self.intercept = np.array([t[1].intercept for t in lins], dtype=float)
         self.d_lin = self.scale * self.slope
         self.spl = np.asarray(spl, dtype=np.intp)
         self.spl_coord = coords[self.spl]
-        tabs = [_spline_of(functions[e]) for e in spl]
-        nk = np.array([len(t[1].x) for t in tabs], dtype=np.intp)  # type: ignore[index]
+        tabs = [t for t in (_spline_of(functions[e]) for e in spl) if t is not None]
+        nk = np.array([len(t[1].x) for t in tabs], dtype=np.intp)
         k_max = int(nk.max()) if nk.size else 2
         self.knots = np.full((len(spl), k_max), np.inf)
         self.coef = np.zeros((4, len(spl), k_max))
-        for i, (scale, sp) in enumerate(tabs):  # type: ignore[misc]
+        for i, (scale, sp) in enumerate(tabs):
             self.knots[i, : nk[i]] = sp.x
             self.coef[:, i, : nk[i]] = scale * np.stack([np.asarray(sp.y), sp._b, sp._c, sp._d])
         self.nk = nk
@@ -1599,13 +1604,19 @@ def _group_functions(items: list[tuple[int, int, int, int, Any]]) -> list[_Funct
     for (coord, knots), its in groups.items():
         idx = [np.array([it[k] for it in its], dtype=np.intp) for k in range(3)]
         if knots is None:
-            out.append(_FunctionGroup(coord, *idx, functions=tuple(it[4] for it in its)))
+            out.append(
+                _FunctionGroup(coord, idx[0], idx[1], idx[2], functions=tuple(it[4] for it in its))
+            )
             continue
         coef = np.zeros((4, len(its), len(knots)))
         for k, it in enumerate(its):
-            scale, spl = _spline_of(it[4])  # type: ignore[misc]
+            sp = _spline_of(it[4])
+            assert sp is not None  # grouped under spline knots
+            scale, spl = sp
             coef[:, k] = scale * np.stack([np.asarray(spl.y), spl._b, spl._c, spl._d])
-        out.append(_FunctionGroup(coord, *idx, knots=np.asarray(knots), coef=coef))
+        out.append(
+            _FunctionGroup(coord, idx[0], idx[1], idx[2], knots=np.asarray(knots), coef=coef)
+        )
     return out
 
 
