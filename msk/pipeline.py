@@ -60,13 +60,13 @@ from dataclasses import dataclass
 from datetime import UTC, datetime
 from importlib import metadata as _md
 from pathlib import Path
-from typing import Any, TextIO
+from typing import Any, Literal, TextIO, cast
 
 import numpy as np
 
 from msk import __version__
 from msk.cache import StageCache, code_fingerprint
-from msk.config import SessionConfig, load_config
+from msk.config import FesTrialConfig, ModelConfig, SessionConfig, TrialConfig, load_config
 from msk.exceptions import ConfigError, MissingDataError, ModelError, MskError
 from msk.io.frames import lab_to_model_rotation
 from msk.io.opensim_files import Table
@@ -268,7 +268,9 @@ class _Runner:
             self._say(rec)
             return None
         except MskError as exc:
-            if name in CORE_STAGES:
+            # a configuration error is the user's to fix: the run ends with one line and a
+            # non-zero exit, whatever the stage (an EMG channel typo is not a "failed stage")
+            if name in CORE_STAGES or isinstance(exc, ConfigError):
                 raise
             msg = f"{type(exc).__name__}: {' '.join(str(exc).split())}"
             rec = StageRecord(name, "failed", _time.perf_counter() - t0, msg, key)
@@ -397,6 +399,13 @@ def _model_source(cfg: SessionConfig) -> Path:
     return src
 
 
+def _fes_settings(tc: TrialConfig) -> FesTrialConfig:
+    """The FES keys of a ``role = "fes"`` trial (``load_config`` always fills them)."""
+    if tc.fes is None:
+        raise ConfigError(f"trial {tc.name!r}: role 'fes' without its FES settings")
+    return tc.fes
+
+
 def _load_model(path: Path, markers: Path | None = None) -> Any:
     """An msk model file or an OpenSim ``.osim`` (with its marker-set ``.xml`` when given)."""
     if path.suffix.lower() == ".osim":
@@ -471,9 +480,12 @@ class _Session:
         for tc in (*self.idtrials, *cfg.trials_with_role("mvc"), *self.fes_trials):
             files[f"{tc.role}:{tc.name}"] = tc.file
         self.model_src = _model_source(cfg)
+        assert cfg.model is not None  # _model_source raised without a [model] table
+        #: the [model] table (always there in a gait session)
+        self.model_cfg: ModelConfig = cfg.model
         files["model"] = self.model_src
-        if cfg.model.markers is not None:
-            files["model_markers"] = cfg.model.markers
+        if self.model_cfg.markers is not None:
+            files["model_markers"] = self.model_cfg.markers
         self.files = files
         self.hashes = {k: file_sha256(p) for k, p in files.items()}
 
@@ -491,6 +503,7 @@ class _Session:
             self.check("read")
             from msk.io import read_c3d, read_trc_trial
 
+            out: dict[str, Any]
             if self.task.file.suffix.lower() == ".trc":  # OpenSim ground: +y up
                 out = {"trial": read_trc_trial(self.task.file)}
             else:
@@ -531,7 +544,7 @@ class _Session:
                 scale_from_static,
             )
 
-            model = _load_model(self.model_src, cfg.model.markers)
+            model = _load_model(self.model_src, self.model_cfg.markers)
             bodies = [b.name for b in model.bodies]
             info: dict[str, Any] = {
                 "source": str(self.model_src),
@@ -543,11 +556,24 @@ class _Session:
                 trial.marker_labels, model.marker_names, rename=cfg.marker_rename,
                 model_bodies=bodies, markers=x_lab,
             )  # fmt: skip
+            # names in the configuration that match nothing are errors, not silently ignored
+            labels_all = set(trial.marker_labels)
+            if self.static is not None:
+                labels_all |= set(_read_markers(self.static.file, -np.asarray(model.gravity))[1])
+            # (a lab label absent from these trials is a note: rename tables of a protocol
+            # list variants a given session may not use)
+            absent = sorted(set(cfg.marker_rename.values()) - labels_all)
+            unknown = sorted(set(cfg.marker_rename) - set(model.marker_names))
+            if unknown:
+                raise ConfigError(
+                    f"{cfg.path}: markers.rename: the model has no marker {unknown[0]!r}"
+                )
             info["marker_set"] = {
                 "protocol": match.protocol,
                 "matched": dict(match.rename),
                 "excluded": dict(match.excluded),
-                "notes": list(match.notes),
+                "notes": list(match.notes)
+                + ([f"markers.rename: labels in no trial: {', '.join(absent)}"] if absent else []),
             }
             # heading: the progression where it agrees with the pelvis markers (within 30°),
             # else the pelvis markers (treadmill, turning, short trials), else none
@@ -575,7 +601,7 @@ class _Session:
                     model_bodies=bodies, markers=zeros_as_gaps(sm),
                 )  # fmt: skip
                 sm, slabels = smatch.apply(sm, slabels_raw)
-                if cfg.model.scale:
+                if self.model_cfg.scale:
                     static = {lab: sm[:, i] for i, lab in enumerate(slabels)}
                     model, report = scale_from_static(
                         model, static, height_m=cfg.subject.height_m,
@@ -593,7 +619,7 @@ class _Session:
                 # no static trial: the task trial's own markers scale and place (the segment
                 # lengths are constant over a motion; msk.scaling.scale_from_motion)
                 xm, mlabels = match.apply(trial.rotated(rot).markers, trial.marker_labels)
-                if cfg.model.scale:
+                if self.model_cfg.scale:
                     model, report = scale_from_motion(
                         model, xm, mlabels, trial.time, height_m=cfg.subject.height_m,
                         body_mass=cfg.subject.mass_kg,
@@ -616,8 +642,8 @@ class _Session:
                 "model": self.hashes["model"],
                 "model_markers": self.hashes.get("model_markers"),
                 "static": self.hashes.get("static"),
-                "scale": cfg.model.scale,
-                "knee": cfg.model.knee,
+                "scale": self.model_cfg.scale,
+                "knee": self.model_cfg.knee,
                 "mass": cfg.subject.mass_kg,
                 "height": cfg.subject.height_m,
                 "rename": dict(cfg.marker_rename),
@@ -625,6 +651,11 @@ class _Session:
             },
         )
         self.model = self.built["model"]
+        unknown = sorted(
+            set(cfg.marker_weights) - set(self.model.marker_names) - set(trial.marker_labels)
+        )
+        if unknown:
+            raise ConfigError(f"{cfg.path}: markers.weights: no marker {unknown[0]!r}")
         # the task trial in the model frame (lab up → model up, heading as decided above);
         # exact-zero samples are gaps (TRC writers store missing markers as 0, 0, 0)
         from msk.markersets import zeros_as_gaps
@@ -837,20 +868,31 @@ class _Session:
             unknown = sorted(set(cfg.emg.channels) - {m.name for m in model.muscles})
             if unknown:
                 raise ConfigError(f"{cfg.path}: emg.channels: model has no muscle {unknown[0]!r}")
+            labels = {str(a).strip() for a in getattr(trial, "analog_labels", ())}
+            missing = sorted({str(c).strip() for c in cfg.emg.channels.values()} - labels)
+            if missing:
+                raise ConfigError(
+                    f"{cfg.path}: emg.channels: {self.task.file.name} has no analog channel "
+                    f"{missing[0]!r}"
+                )
             from msk.io import read_c3d
 
             mvc = []
             for tc in cfg.trials_with_role("mvc"):
                 tr_m = read_c3d(tc.file)
                 mvc.append((tr_m.analogs, tr_m.analog_rate_hz, tr_m.analog_labels))
+            mvc_options: dict[str, Any] = {}
+            if mvc:
+                mvc_options["mvc_trials"] = mvc
+            if cfg.emg.mvc:
+                mvc_options["mvc"] = {k: float(v) for k, v in cfg.emg.mvc.items()}
             env = envelopes_from_trial(
                 trial,
                 muscles=dict(cfg.emg.channels),
                 highpass_hz=cfg.emg.highpass_hz,
                 lowpass_hz=cfg.emg.lowpass_hz,
                 delay_s=cfg.emg.electromechanical_delay_s,
-                **({"mvc_trials": mvc} if mvc else {}),
-                **({"mvc": {k: float(v) for k, v in cfg.emg.mvc.items()}} if cfg.emg.mvc else {}),
+                **mvc_options,
             )
             env_k = env.resampled(kin.time)
             e = np.clip(np.nan_to_num(env_k.envelopes, nan=0.0), 0.0, 1.0)
@@ -1243,6 +1285,7 @@ class _Session:
                 if meas.time is not None:
                     tm = np.asarray(meas.time, dtype=float)
                 else:
+                    assert self.cycle is not None  # the condition above
                     c0, c1 = self.cycle
                     tm = c0 + np.asarray(meas.cycle_fraction, dtype=float) * (c1 - c0)
                 self.measured_on_t = {}
@@ -1349,7 +1392,8 @@ class _Session:
             settings={
                 "files": {tc.name: self.hashes[f"fes:{tc.name}"] for tc in self.fes_trials},
                 "trials": [
-                    {"name": tc.name, **dataclasses.asdict(tc.fes)} for tc in self.fes_trials
+                    {"name": tc.name, **dataclasses.asdict(_fes_settings(tc))}
+                    for tc in self.fes_trials
                 ],
                 "options": dataclasses.asdict(cfg.fes),
                 "height": cfg.subject.height_m,
@@ -1424,6 +1468,12 @@ class _Session:
                     initial=0.0)),
             )
         ]  # fmt: skip
+        # what the reader noticed in the file (duplicate labels renamed, NaN plate samples…)
+        for w in (self.trial.metadata or {}).get("warnings", ()):
+            quality["flags"].append(
+                {"trial": self.task.name, "quantity": "input_file", "value": 1.0,
+                 "threshold": 0.0, "message": f"{self.task.file.name}: {w}"}
+            )  # fmt: skip
         quality["thresholds"] = dict(THRESHOLDS)
         quality["held_coordinates"] = sorted(self.held)
         return {
@@ -1785,9 +1835,9 @@ def _anthropometry(cfg: SessionConfig, model: Any) -> dict[str, Any] | None:
 
         # segment masses are fractions of body mass: the stature (default 1.75 m when the
         # config has none) only sets lengths and inertias, which are not reported
-        segs = generic_segments(
-            cfg.subject.mass_kg, cfg.subject.height_m or 1.75, sex=cfg.subject.sex
-        )
+        # load_config accepts only "male" | "female" (SubjectConfig.sex is typed str)
+        sex = cast(Literal["male", "female"], cfg.subject.sex)
+        segs = generic_segments(cfg.subject.mass_kg, cfg.subject.height_m or 1.75, sex=sex)
     except (ImportError, MskError):
         return None
     out = {}

@@ -356,3 +356,23 @@ def test_mass_identification_trials_are_used(tmp_path):
     s = res.summary
     assert s["identification"]["n_frames"] > trial.time.size  # task + exciting trial
     assert any(i["role"] == "mass_identification:exciting" for i in s["inputs"])
+
+
+def test_config_typos_end_the_run_with_one_line(tmp_path, capsys):
+    """An EMG channel or marker-weight name that matches nothing is a configuration error
+    (exit 2, one line, nothing written), not a 'failed stage' with exit 0."""
+    base = GC5.read_text(encoding="utf-8")
+    base = base.replace('"../', f'"{REPO}/')
+    for edit, message in (
+        (lambda t: t.replace('vas_med_l = "vasmed"', 'vas_med_l = "vasmedX"'),
+         "has no analog channel 'vasmedX'"),
+        (lambda t: t.replace("weights = {}", 'weights = { "R.ASISS" = 2.0 }'),
+         "markers.weights: no marker 'R.ASISS'"),
+    ):  # fmt: skip
+        cfg = tmp_path / "typo.toml"
+        cfg.write_text(edit(base), encoding="utf-8")
+        out = tmp_path / "out"
+        assert main(["run", str(cfg), "--out", str(out), "--quiet"]) == 2
+        err = capsys.readouterr().err.strip().splitlines()
+        assert len(err) == 1 and message in err[0], err
+        assert not (out / "summary.json").exists()
