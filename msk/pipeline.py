@@ -268,7 +268,9 @@ class _Runner:
             self._say(rec)
             return None
         except MskError as exc:
-            if name in CORE_STAGES:
+            # a configuration error is the user's to fix: the run ends with one line and a
+            # non-zero exit, whatever the stage (an EMG channel typo is not a "failed stage")
+            if name in CORE_STAGES or isinstance(exc, ConfigError):
                 raise
             msg = f"{type(exc).__name__}: {' '.join(str(exc).split())}"
             rec = StageRecord(name, "failed", _time.perf_counter() - t0, msg, key)
@@ -554,11 +556,24 @@ class _Session:
                 trial.marker_labels, model.marker_names, rename=cfg.marker_rename,
                 model_bodies=bodies, markers=x_lab,
             )  # fmt: skip
+            # names in the configuration that match nothing are errors, not silently ignored
+            labels_all = set(trial.marker_labels)
+            if self.static is not None:
+                labels_all |= set(_read_markers(self.static.file, -np.asarray(model.gravity))[1])
+            # (a lab label absent from these trials is a note: rename tables of a protocol
+            # list variants a given session may not use)
+            absent = sorted(set(cfg.marker_rename.values()) - labels_all)
+            unknown = sorted(set(cfg.marker_rename) - set(model.marker_names))
+            if unknown:
+                raise ConfigError(
+                    f"{cfg.path}: markers.rename: the model has no marker {unknown[0]!r}"
+                )
             info["marker_set"] = {
                 "protocol": match.protocol,
                 "matched": dict(match.rename),
                 "excluded": dict(match.excluded),
-                "notes": list(match.notes),
+                "notes": list(match.notes)
+                + ([f"markers.rename: labels in no trial: {', '.join(absent)}"] if absent else []),
             }
             # heading: the progression where it agrees with the pelvis markers (within 30°),
             # else the pelvis markers (treadmill, turning, short trials), else none
@@ -636,6 +651,11 @@ class _Session:
             },
         )
         self.model = self.built["model"]
+        unknown = sorted(
+            set(cfg.marker_weights) - set(self.model.marker_names) - set(trial.marker_labels)
+        )
+        if unknown:
+            raise ConfigError(f"{cfg.path}: markers.weights: no marker {unknown[0]!r}")
         # the task trial in the model frame (lab up → model up, heading as decided above);
         # exact-zero samples are gaps (TRC writers store missing markers as 0, 0, 0)
         from msk.markersets import zeros_as_gaps
@@ -848,6 +868,13 @@ class _Session:
             unknown = sorted(set(cfg.emg.channels) - {m.name for m in model.muscles})
             if unknown:
                 raise ConfigError(f"{cfg.path}: emg.channels: model has no muscle {unknown[0]!r}")
+            labels = {str(a).strip() for a in getattr(trial, "analog_labels", ())}
+            missing = sorted({str(c).strip() for c in cfg.emg.channels.values()} - labels)
+            if missing:
+                raise ConfigError(
+                    f"{cfg.path}: emg.channels: {self.task.file.name} has no analog channel "
+                    f"{missing[0]!r}"
+                )
             from msk.io import read_c3d
 
             mvc = []
@@ -1441,6 +1468,12 @@ class _Session:
                     initial=0.0)),
             )
         ]  # fmt: skip
+        # what the reader noticed in the file (duplicate labels renamed, NaN plate samples…)
+        for w in (self.trial.metadata or {}).get("warnings", ()):
+            quality["flags"].append(
+                {"trial": self.task.name, "quantity": "input_file", "value": 1.0,
+                 "threshold": 0.0, "message": f"{self.task.file.name}: {w}"}
+            )  # fmt: skip
         quality["thresholds"] = dict(THRESHOLDS)
         quality["held_coordinates"] = sorted(self.held)
         return {
