@@ -97,10 +97,31 @@ def test_shipped_session_runs_and_flags_what_is_wrong(cfg: Path, tmp_path: Path)
     if "knee_contact" in res.summary.get("tables", []):
         side = s["subject"]["side"]
         assert s["comparison"] is not None or side
+    _check_report_renders(res.out_dir, s)
     if any(i["role"] == "contact_force" for i in s["inputs"]):
         comp = s["comparison"]
         for part in ("", "_medial", "_lateral"):
             assert f"knee_contact_generic{part}" in comp
+
+
+def _check_report_renders(folder: Path, summary: dict) -> None:
+    """The report as headless Chromium renders it (when installed): title, sections, the
+    quality banner exactly when flags were raised."""
+    import subprocess
+    import tempfile
+
+    from msk.report.html import chromium_args, chromium_executable
+
+    exe = chromium_executable()
+    if exe is None:
+        return
+    with tempfile.TemporaryDirectory() as prof:
+        dom = subprocess.run(
+            [exe, *chromium_args(prof), "--dump-dom", (folder / "report.html").resolve().as_uri()],
+            capture_output=True, text=True, timeout=120,
+        ).stdout  # fmt: skip
+    assert "<h1" in dom and "Knee contact" in dom and "Traceback" not in dom
+    assert ('id="quality-flags"' in dom) == bool(summary["quality"]["flags"])
 
 
 def _variant(cfg: Path, folder: Path, edit) -> Path:
