@@ -125,14 +125,14 @@ def _row(
         row["identified_mass_kg"] = round(sum(s["mass_kg"] for s in ident["segments"]), 3)
     st = summary.get("strength")
     if st:
-        status = [(g["group"], group_status(g, st).value) for g in st["groups"]]
+        statuses = [(g["group"], group_status(g, st).value) for g in st["groups"]]
         for col, word in (
             ("strength_groups_identified", "identified"),
             ("strength_groups_at_bound", "at bound"),
             ("strength_groups_not_determined", "not determined"),
         ):
-            row[col] = sum(s == word for _, s in status)
-        row["strength_group_status"] = "; ".join(f"{n}: {s}" for n, s in status)
+            row[col] = sum(s == word for _, s in statuses)
+        row["strength_group_status"] = "; ".join(f"{n}: {s}" for n, s in statuses)
     comp = (summary.get("comparison") or {}).get("knee_contact_subject_specific") or (
         summary.get("comparison") or {}
     ).get("knee_contact_generic")
@@ -265,7 +265,8 @@ def run_batch(
                 collect(futs[f], f)
     else:
         try:
-            from distributed import Client, as_completed
+            from distributed import Client
+            from distributed import as_completed as dask_as_completed
         except ImportError:
             raise BatchError(
                 "--scheduler needs Dask distributed: pip install 'msk[dask]'"
@@ -275,10 +276,10 @@ def run_batch(
         except (OSError, ValueError, TypeError) as exc:
             raise BatchError(f"Dask scheduler {scheduler!r} unreachable: {exc}") from None
         try:
-            futs = client.map(run_one, cfgs, dirs, [use_cache] * len(cfgs), pure=False)
-            index = {f.key: k for k, f in enumerate(futs)}
-            for f in as_completed(futs):
-                collect(index[f.key], f)
+            dask_futs = client.map(run_one, cfgs, dirs, [use_cache] * len(cfgs), pure=False)
+            index = {f.key: k for k, f in enumerate(dask_futs)}
+            for df in dask_as_completed(dask_futs):
+                collect(index[df.key], df)
         finally:
             if client is not scheduler:
                 client.close()

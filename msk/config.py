@@ -318,7 +318,8 @@ class _Section:
     def __init__(self, table: Any, where: str, source: Path) -> None:
         if not isinstance(table, dict):
             raise ConfigError(f"{source}: [{where}] must be a table, got {type(table).__name__}")
-        self.table, self.where, self.source, self.used = table, where, source, set()
+        self.table, self.where, self.source = table, where, source
+        self.used: set[str] = set()
 
     def get(self, key: str, kind: type | tuple[type, ...], default: Any = ...) -> Any:
         self.used.add(key)
@@ -346,9 +347,9 @@ class _Section:
         *,
         lo_open: bool = False,
         hint: str = "",
-    ) -> float:
-        """A finite float in ``[lo, hi]`` (``(lo, hi]`` with ``lo_open``); the message gives the
-        unit and the range."""
+    ) -> Any:
+        """A finite float in ``[lo, hi]`` (``(lo, hi]`` with ``lo_open``), or ``default`` (which
+        may be None: optional key) when absent; the message gives the unit and the range."""
         value = self.get(key, float, default)
         if value is None:
             return value

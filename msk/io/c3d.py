@@ -1261,12 +1261,13 @@ def _set_param(c: Any, group: str, name: str, value: Any) -> None:
         p[group] = {"__METADATA__": {"DESCRIPTION": "", "IS_LOCKED": False}}
     if isinstance(value, str):
         value = [value]
+    val: Any
     if isinstance(value, list | tuple) and value and isinstance(value[0], str):
         typ, val = -1, [str(v) for v in value]
     else:
-        val = np.atleast_1d(np.asarray(value))
-        typ = 2 if np.issubdtype(val.dtype, np.integer) else 4
-        val = val.astype(int) if typ == 2 else val.astype(float)
+        arr = np.atleast_1d(np.asarray(value))
+        typ = 2 if np.issubdtype(arr.dtype, np.integer) else 4
+        val = arr.astype(int) if typ == 2 else arr.astype(float)
     p[group][name] = {"type": typ, "description": "", "is_locked": False, "value": val}
 
 
