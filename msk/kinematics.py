@@ -574,7 +574,6 @@ def solve_kinematics(
                     f"need {max(min_markers, int(np.ceil((free.sum() - n_tasks) / 3)))}"
                 )
             continue
-        was_first = first
         if first and initial_q is None and root_free.any():
             theta, _, _, _ = _levenberg_marquardt(
                 prob, theta, xm[n], sw, present, root_free, lo, hi, max_iterations, tolerance
@@ -603,23 +602,6 @@ def solve_kinematics(
             ctask,
             rel_tolerance,
         )
-        if was_first and initial_q is None:
-            # the first frame sets the branch every later frame follows (warm starts): a
-            # second start settled by a weak pull towards neutral, polished without it; the
-            # lower marker cost wins (a torso that fell into lumbar rotation −90° stayed there)
-            pulled, _, _, _ = _levenberg_marquardt(
-                prob, start, xm[n], sw, present, free, lo, hi, max_iterations, tolerance,
-                _neutral_task(model, free), rel_tolerance,
-            )  # fmt: skip
-            alt, k2, ok2, p2 = _levenberg_marquardt(
-                prob, pulled, xm[n], sw, present, free, lo, hi, max_iterations, tolerance,
-                ctask, rel_tolerance,
-            )  # fmt: skip
-
-            if _cost(alt, p2, xm[n], sw, present, ctask) < (
-                _cost(theta, p, xm[n], sw, present, ctask) - 1e-12
-            ):
-                theta, k, ok, p = alt, k + k2, ok2, p2
         iters[n] = k
         if not ok:
             status[n] = STATUS_NOT_CONVERGED
@@ -663,42 +645,6 @@ def solve_kinematics(
         cutoff_hz=cutoff_hz,
         solve_time_s=solve_time,
     )
-
-
-def _cost(
-    q: Array,
-    pts: Array,
-    target: Array,
-    sw: Array,
-    present: NDArray[np.bool_],
-    ctask: tuple[NDArray[np.int64], Array, Array, Array] | None,
-) -> float:
-    """The IK objective at ``q`` (marker positions ``pts``): Σ w‖p − x‖² + coordinate tasks."""
-    r = (sw[present, None] * (pts - target)[present]).ravel()
-    c = float(r @ r)
-    if ctask is not None:
-        e = ctask[2] * (q[ctask[0]] - ctask[1])
-        c += float(e @ e)
-    return c
-
-
-def _neutral_task(
-    model: Model, free: NDArray[np.bool_], weight: float = 0.01
-) -> tuple[NDArray[np.int64], Array, Array, Array]:
-    """A coordinate task (the ``ctask`` tuple of :func:`_levenberg_marquardt`) pulling every
-    free rotation towards 0 with ``weight`` per rad² (translations untouched)."""
-    idx = np.array(
-        [
-            i
-            for i, c in enumerate(model.coordinates)
-            if free[i] and not c.name.endswith(("_tx", "_ty", "_tz"))
-        ],
-        dtype=np.int64,
-    )
-    sqw = np.full(idx.size, np.sqrt(weight))
-    rows = np.zeros((idx.size, model.n_coords))
-    rows[np.arange(idx.size), idx] = sqw
-    return idx, np.zeros(idx.size), sqw, rows
 
 
 def _levenberg_marquardt(
