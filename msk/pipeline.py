@@ -1468,6 +1468,16 @@ class _Session:
                     initial=0.0)),
             )
         ]  # fmt: skip
+        from msk.quality import swapped_sides
+
+        for r, lft, dz in swapped_sides(model, self.kin, self.mtrial.markers, self.labels):
+            quality["flags"].append(
+                {"trial": self.task.name, "quantity": f"{r}/{lft}_swapped", "value": dz,
+                 "threshold": 0.0,
+                 "message": f"{r} is {-1000 * dz:.0f} mm left of {lft} in the pelvis frame: "
+                 "their labels look swapped (a labelling error in the file, or the wrong "
+                 "side in the config)"}
+            )  # fmt: skip
         # what the reader noticed in the file (duplicate labels renamed, NaN plate samples…)
         for w in (self.trial.metadata or {}).get("warnings", ()):
             quality["flags"].append(

@@ -49,6 +49,7 @@ __all__ = [
     "Flag",
     "body_mass_from_loads",
     "gait_flags",
+    "swapped_sides",
 ]
 
 #: the thresholds of the gates (SI unless the name says)
@@ -131,6 +132,53 @@ def body_mass_from_loads(
         vz.append(float(np.asarray(data.vcom[0]) @ up))
     den = g * float(t[i1 - 1] - t[i0]) + vz[1] - vz[0]
     return impulse / den if den > 0 else None
+
+
+def swapped_sides(
+    model: Any, kinematics: Any, markers: Array, labels: Sequence[str]
+) -> list[tuple[str, str, float]]:
+    """Left/right marker pairs whose labels look swapped: in the pelvis frame (``pelvis``
+    body, +z to the right as in gait2392/OpenSim), the median over the solved frames of
+    z(right marker) − z(left marker) is negative. Pairs are model markers of one landmark on
+    both sides (:func:`msk.markersets.parse_label`). Returns (right, left, median Δz in m)."""
+    from msk.markersets import parse_label
+
+    if "pelvis" not in model.body_frame:
+        return []
+    q = np.asarray(kinematics.q, dtype=float)
+    good = np.flatnonzero(np.isfinite(q).all(axis=1))
+    if good.size == 0:
+        return []
+    col = {lab: i for i, lab in enumerate(labels) if lab in set(model.marker_names)}
+    by_side: dict[tuple[str, str], str] = {}
+    for lab in col:
+        pl = parse_label(lab)
+        if pl.side in ("R", "L") and pl.landmark:
+            by_side[(pl.landmark, pl.side)] = lab
+    pairs = [(by_side[(lm, "R")], by_side[(lm, "L")]) for lm, sd in by_side if sd == "R"
+             and (lm, "L") in by_side]  # fmt: skip
+    if not pairs:
+        return []
+    step = max(1, good.size // 60)
+    frames = good[::step]
+    data = model.create_data()
+    fp = model.body_frame["pelvis"]
+    qp = model.coupling.q(q[frames])
+    rot = np.empty((frames.size, 3, 3))
+    org = np.empty((frames.size, 3))
+    for i in range(frames.size):
+        pin.framesForwardKinematics(model.pin_model, data, qp[i])
+        rot[i], org[i] = data.oMf[fp].rotation, data.oMf[fp].translation
+    out = []
+    x = np.asarray(markers, dtype=float)[frames]
+    for r, lft in pairs:
+        zr = np.einsum("fi,fi->f", x[:, col[r]] - org, rot[:, :, 2])
+        zl = np.einsum("fi,fi->f", x[:, col[lft]] - org, rot[:, :, 2])
+        dz = zr - zl
+        dz = dz[np.isfinite(dz)]
+        if dz.size >= 3 and float(np.median(dz)) < 0.0:
+            out.append((r, lft, float(np.median(dz))))
+    return out
 
 
 def _flag(trial: str, quantity: str, value: float, threshold: float, message: str) -> Flag:
