@@ -31,21 +31,24 @@ CONFIGS = sorted((REPO / "pipelines").glob("*.toml"))
 
 #: per session: IK RMS bound (mm), residual force bound (% BW), flags that must be raised,
 #: flags allowed (true findings on these data); None: any
+#: gates whose value sits near its threshold on some sessions: a last-digit difference on
+#: another machine may raise them; never asserted absent
+BORDERLINE = {"residual_moment_rms_pct_com_height_peak_force", "residual_force_rms_pct_bw",
+              "optimization_excluded_frames"}  # fmt: skip
+
 EXPECT: dict[str, dict] = {
-    "gc5_PS": {"ik_mm": 12, "res_pct": 5, "must": set(), "may": set()},
-    "gc6_DM_og1": {"ik_mm": 12, "res_pct": 5, "must": set(), "may": set()},
-    "gc6_DM_ngait_tm_ss": {"ik_mm": 12, "res_pct": 5, "must": set(),
-                           "may": {"optimization_excluded_frames"}},
-    "gc6_DM_crouch_tm": {"ik_mm": 15, "res_pct": None,
+    "gc5_PS": {"ik_mm": 11, "res_pct": 5, "must": set(), "may": set()},
+    "gc6_DM_og1": {"ik_mm": 11, "res_pct": 5, "must": set(), "may": set()},
+    "gc6_DM_ngait_tm_ss": {"ik_mm": 10, "res_pct": 5.5, "must": set(), "may": set()},
+    "gc6_DM_crouch_tm": {"ik_mm": 13, "res_pct": None,
                          "must": {"plate_mass_difference_pct", "residual_force_rms_pct_bw"},
                          "may": None},
-    "gc4_JW": {"ik_mm": 13, "res_pct": 5, "must": set(),
-               "may": {"residual_moment_rms_pct_com_height_peak_force", "hip_flexion_l_deg"}},
-    "opensim_subject01": {"ik_mm": 20, "res_pct": 5, "must": set(), "may": set()},
-    "opensim_rajagopal": {"ik_mm": 17, "res_pct": 5, "must": set(), "may": set()},
-    "pig_motion3": {"ik_mm": 17, "res_pct": 6, "must": set(), "may": None},
-    "unipd_bts": {"ik_mm": 27, "res_pct": 5, "must": set(), "may": None},
-    "uwa_fast_walking": {"ik_mm": 25, "res_pct": None, "must": set(), "may": None},
+    "gc4_JW": {"ik_mm": 12, "res_pct": 5.5, "must": set(), "may": {"hip_flexion_l_deg"}},
+    "opensim_subject01": {"ik_mm": 20, "res_pct": 4, "must": set(), "may": set()},
+    "opensim_rajagopal": {"ik_mm": 17.5, "res_pct": 4, "must": set(), "may": set()},
+    "pig_motion3": {"ik_mm": 17.5, "res_pct": 6, "must": set(), "may": None},
+    "unipd_bts": {"ik_mm": 28, "res_pct": 5, "must": set(), "may": None},
+    "uwa_fast_walking": {"ik_mm": 23, "res_pct": None, "must": set(), "may": None},
     "uwa_running": {"ik_mm": None, "res_pct": None,
                     "must": {"residual_force_rms_pct_bw", "plate_mass_difference_pct"},
                     "may": None},
@@ -90,7 +93,8 @@ def test_shipped_session_runs_and_flags_what_is_wrong(cfg: Path, tmp_path: Path)
         assert q["residual_force_rms_pct_bw"] <= e["res_pct"], q["residual_force_rms_pct_bw"]
     assert e["must"] <= flags, (e["must"] - flags, flags)
     if e["may"] is not None:
-        assert flags <= e["must"] | e["may"], flags - e["must"] - e["may"]
+        extra = flags - e["must"] - e["may"] - BORDERLINE
+        assert not extra, extra
     # every segment's scaling method is said
     methods = {b["method"] for b in s["model"]["scaling"]["bodies"].values()}
     assert methods <= {"static markers", "motion markers", "height", "unscaled"}
