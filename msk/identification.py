@@ -89,6 +89,7 @@ from msk.regressors import (
 Array = NDArray[np.float64]
 
 __all__ = [
+    "DEFAULT_CV_GRID",
     "FLAGS",
     "MIRROR_SIGNS",
     "PRIOR_STD_RATIO",
@@ -96,13 +97,17 @@ __all__ = [
     "WELL_IDENTIFIED_MASS_REL_STD",
     "BaseResiduals",
     "BoundingEllipsoid",
+    "CrossValidation",
+    "ExcitationReport",
     "IdentificationTrial",
     "InertialIdentifier",
     "LumpedModel",
     "SegmentEstimate",
+    "SegmentExcitation",
     "WeakDirection",
     "base_residuals",
     "default_prior_std",
+    "excitation_report",
     "lump_subtrees",
     "root_generalized_forces",
 ]
@@ -117,6 +122,8 @@ WELL_IDENTIFIED_COM_STD_M = 0.004
 #: flagged "prior": the data barely inform it.
 PRIOR_STD_RATIO = 0.7
 FLAGS: tuple[str, ...] = ("well identified", "weakly identified", "prior")
+#: Candidate prior weights λ of ``prior_weight="cv"`` (prior only, λ = ∞, is always added).
+DEFAULT_CV_GRID: tuple[float, ...] = tuple(float(10.0**e) for e in range(-3, 5))
 
 _PSD_N = 10  # entries of a 4×4 symmetric matrix in svec form
 
@@ -375,6 +382,11 @@ class BaseResiduals:
     force_rms_n: float
     moment_rms_nm: float
     n_frames: int
+
+
+def _pool_rms(rms: Array, mask: NDArray[np.bool_]) -> float:
+    """RMS pooled over the rows of ``mask`` (per component); nan when none."""
+    return float(np.sqrt(np.mean(rms[mask] ** 2))) if mask.any() else math.nan
 
 
 def _pool(model: Model, sq_sum: Array, n: int) -> BaseResiduals:
@@ -668,6 +680,75 @@ class _Group:
     members: tuple[tuple[int, Array], ...]  # (body index in layout, sign vector)
 
 
+@dataclass
+class _Stats:
+    """Per-row Gram statistics of some frames: Σ Y_kᵀY_k, Σ Y_kᵀτ_k, Σ τ_k², frame count."""
+
+    h: Array
+    g: Array
+    c: Array
+    n: int
+
+    @staticmethod
+    def zeros(nr: int, n_phi: int) -> _Stats:
+        return _Stats(np.zeros((nr, n_phi, n_phi)), np.zeros((nr, n_phi)), np.zeros(nr), 0)
+
+    def add(self, other: _Stats) -> None:
+        self.h += other.h
+        self.g += other.g
+        self.c += other.c
+        self.n += other.n
+
+    def row_rss(self, phi: Array) -> Array:
+        """Σ over frames of (Y_k φ − τ_k)² per row k."""
+        return np.einsum("i,kij,j->k", phi, self.h, phi) - 2 * self.g @ phi + self.c
+
+
+@dataclass(frozen=True)
+class CrossValidation:
+    """Held-out base-link residuals of :class:`InertialIdentifier` per prior weight.
+
+    ``weights`` (W,) the candidate prior weights λ (``math.inf`` = prior only: the prior scaled
+    to the total mass, no data); ``force_rms_n`` / ``moment_rms_nm`` (W,) the pelvis residual RMS
+    pooled over all held-out frames; ``fold_force_rms_n`` / ``fold_moment_rms_nm`` (W, K) per
+    fold (``folds`` names them); ``score`` (W,) the selection criterion (``metric``) relative to
+    prior only (1 = prior only; ``inf`` = not admissible: worse than prior only on a pooled
+    residual); ``selected`` the index of the chosen weight."""
+
+    weights: Array
+    force_rms_n: Array
+    moment_rms_nm: Array
+    fold_force_rms_n: Array
+    fold_moment_rms_nm: Array
+    folds: tuple[str, ...]
+    fold_frames: tuple[int, ...]
+    score: Array
+    metric: str
+    selected: int
+
+    @property
+    def prior_only(self) -> int:
+        """Index of the prior-only candidate."""
+        return int(np.flatnonzero(np.isinf(self.weights))[0])
+
+    def table(self) -> list[str]:
+        """One line per candidate weight: pooled and per-fold held-out RMS."""
+        out = []
+        for i, w in enumerate(self.weights):
+            name = "prior only" if math.isinf(w) else f"λ = {w:.3g}"
+            folds = " ".join(
+                f"{f:.1f}/{m:.2f}"
+                for f, m in zip(self.fold_force_rms_n[i], self.fold_moment_rms_nm[i])
+            )
+            mark = " ← selected" if i == self.selected else ""
+            out.append(
+                f"{name:<12} force {self.force_rms_n[i]:7.2f} N  moment "
+                f"{self.moment_rms_nm[i]:6.2f} N·m  score {self.score[i]:.3f}  folds "
+                f"(N/N·m) {folds}{mark}"
+            )
+        return out
+
+
 class InertialIdentifier:
     """Physically consistent segment inertial parameters from base-link equations (seeds/002 §II).
 
@@ -686,12 +767,25 @@ class InertialIdentifier:
             residuals (``noise_iterations`` refits).
         min_eigenvalue: ε of J(φ) ⪰ ε in the pseudo-inertia scaled to O(1) (strictness margin).
         solver: ``"clarabel"`` (SDP, default) or ``"ipopt"`` (log-Cholesky, casadi).
+        prior_weight: λ, the weight of the prior term λ ‖x − x_prior‖² (1 = the Gaussian prior
+            as stated; ``math.inf`` = prior only), or ``"cv"``: λ chosen by cross-validation
+            over the held-out pelvis residuals (:class:`CrossValidation`) among ``cv_grid``
+            (default :data:`DEFAULT_CV_GRID`) and "prior only" (the prior scaled to
+            ``total_mass``), so that the choice is never worse than prior only on the held-out
+            frames of the CV estimate.
+        cv_folds: contiguous blocks of frames per trial when folding by blocks.
+        cv_by: ``"auto"`` (leave one trial out with ≥ 2 trials, else blocks), ``"trials"`` or
+            ``"blocks"`` (block i of every trial held out together).
+        cv_metric: ``"both"`` (default: mean of the force and moment RMS², each relative to
+            prior only; a weight whose pooled force *or* moment RMS exceeds prior only's is not
+            admissible), ``"force"`` or ``"moment"``.
 
     Fitted attributes: ``parameters_`` (body → φ), ``phi_``, ``std_``, ``prior_``,
     ``prior_std_``, ``parameter_names_``, ``segments_`` (:class:`SegmentEstimate`), ``flags_``,
     ``base_`` (:class:`~msk.regressors.BaseParameters`), ``base_std_``, ``condition_number_``,
     ``weak_directions_``, ``noise_std_``, ``n_frames_``, ``timing_`` (``stacking_s``,
-    ``solve_s``), ``solver_status_``.
+    ``solve_s``, ``cv_s``), ``prior_weight_`` (λ used), ``cv_scores_``
+    (:class:`CrossValidation` or ``None``).
     """
 
     def __init__(
@@ -712,6 +806,11 @@ class InertialIdentifier:
         noise_iterations: int = 2,
         min_eigenvalue: float = 1e-5,
         solver: Literal["clarabel", "ipopt"] = "clarabel",
+        prior_weight: float | Literal["cv"] = 1.0,
+        cv_folds: int = 5,
+        cv_by: Literal["auto", "trials", "blocks"] = "auto",
+        cv_metric: Literal["both", "force", "moment"] = "both",
+        cv_grid: Sequence[float] | None = None,
     ) -> None:
         self.model = model
         self.prior = prior
@@ -730,6 +829,15 @@ class InertialIdentifier:
         self.solver = solver
         if solver not in ("clarabel", "ipopt"):
             raise IdentificationError(f"unknown solver {solver!r}; use 'clarabel' or 'ipopt'")
+        self.prior_weight = prior_weight
+        self.cv_folds = cv_folds
+        self.cv_by = cv_by
+        self.cv_metric = cv_metric
+        self.cv_grid = None if cv_grid is None else tuple(cv_grid)
+        if cv_by not in ("auto", "trials", "blocks"):
+            raise IdentificationError(f"unknown cv_by {cv_by!r}")
+        if cv_metric not in ("both", "force", "moment"):
+            raise IdentificationError(f"unknown cv_metric {cv_metric!r}")
 
     # ------------------------------------------------------------ set-up
     def _setup(self) -> None:
@@ -826,41 +934,54 @@ class InertialIdentifier:
         )
 
     # ------------------------------------------------------------ stacking
-    def _stack(self, trials: list[IdentificationTrial]) -> None:
+    def _stack(self, trials: list[IdentificationTrial], n_blocks: int = 1) -> list[_Stats]:
+        """Gram statistics of the base-link rows, summed into ``self._h, _g, _c``; returned per
+        block — one per trial (``n_blocks == 0``) or ``n_blocks`` contiguous blocks of frames
+        of every trial (block i holds the i-th chunk of each trial)."""
         model, layout = self.model, self._layout
         nr = root_coordinate_indices(model).size
         n_phi = 10 * len(layout.body_names)
-        h = np.zeros((nr, n_phi, n_phi))
-        g = np.zeros((nr, n_phi))
-        c = np.zeros(nr)
-        n = 0
-        for trial in trials:
+        n_out = len(trials) if n_blocks == 0 else n_blocks
+        blocks = [_Stats.zeros(nr, n_phi) for _ in range(n_out)]
+        for ti, trial in enumerate(trials):
             th, thd, thdd, tau = _trial_arrays(model, trial)
             if th.shape[0] == 0:
                 continue
             y = base_link_regressor(model, th, thd, thdd, layout=layout)
             yt = np.ascontiguousarray(y.transpose(1, 0, 2))  # (rows, N, params)
-            for k in range(nr):
-                yk = yt[k]
-                h[k] += yk.T @ yk
-                g[k] += yk.T @ tau[:, k]
-                c[k] += tau[:, k] @ tau[:, k]
-            n += th.shape[0]
-        if n < 2:
+            if n_blocks == 0:
+                chunks = [(ti, np.arange(th.shape[0]))]
+            else:
+                chunks = list(enumerate(np.array_split(np.arange(th.shape[0]), n_blocks)))
+            for bi, idx in chunks:
+                blk = blocks[bi]
+                for k in range(nr):
+                    yk = yt[k][idx]
+                    blk.h[k] += yk.T @ yk
+                    blk.g[k] += yk.T @ tau[idx, k]
+                    blk.c[k] += tau[idx, k] @ tau[idx, k]
+                blk.n += idx.size
+        total = _Stats.zeros(nr, n_phi)
+        for blk in blocks:
+            total.add(blk)
+        if total.n < 2:
             names = [t.name for t in trials]
             raise IdentificationError(f"trials {names}: fewer than 2 usable (finite) frames")
-        self._h, self._g, self._c, self.n_frames_ = h, g, c, n
+        self._h, self._g, self._c, self.n_frames_ = total.h, total.g, total.c, total.n
+        return blocks
 
     # ------------------------------------------------------------ solving
-    def _x_system(self, sigma: Array) -> tuple[Array, Array]:
+    def _x_system(self, sigma: Array, st: _Stats | None = None) -> tuple[Array, Array]:
         """Scaled data information H_x and right-hand side g_x for noise σ_k."""
+        h, g = (self._h, self._g) if st is None else (st.h, st.g)
         w = 1.0 / sigma**2
-        h_phi = np.einsum("k,kij->ij", w, self._h)
-        g_phi = np.einsum("k,ki->i", w, self._g) - h_phi @ self._phi_fixed
+        h_phi = np.einsum("k,kij->ij", w, h)
+        g_phi = np.einsum("k,ki->i", w, g) - h_phi @ self._phi_fixed
         return self._proj.T @ h_phi @ self._proj, self._proj.T @ g_phi
 
-    def _row_rss(self, phi: Array) -> Array:
-        return np.einsum("i,kij,j->k", phi, self._h, phi) - 2 * self._g @ phi + self._c
+    def _row_rss(self, phi: Array, st: _Stats | None = None) -> Array:
+        st = st or _Stats(self._h, self._g, self._c, self.n_frames_)
+        return st.row_rss(phi)
 
     def _constraints(self) -> tuple[list[Array], list[Array], list[tuple[str, int]]]:
         """Rows (A, b, cone) of A x + s = b in the scaled variables x."""
@@ -908,12 +1029,12 @@ class InertialIdentifier:
             return self.bounding_ellipsoids[name]
         return BoundingEllipsoid.from_parameters(phi0, scale=self.ellipsoid_scale)
 
-    def _solve(self, hx: Array, gx: Array) -> Array:
+    def _solve(self, hx: Array, gx: Array, weight: float = 1.0) -> Array:
         import clarabel
 
         a_rows, b_rows, cones = self._constraints()
-        hess = hx + np.eye(hx.shape[0])
-        lin = gx + self._x_prior
+        hess = hx + weight * np.eye(hx.shape[0])
+        lin = gx + weight * self._x_prior
         if self.solver == "ipopt":
             return self._solve_ipopt(hess, lin, a_rows, b_rows, cones)
         kinds = {"zero": clarabel.ZeroConeT, "nonneg": clarabel.NonnegativeConeT}
@@ -990,59 +1111,193 @@ class InertialIdentifier:
     def fit(
         self, trials: IdentificationTrial | Sequence[IdentificationTrial]
     ) -> InertialIdentifier:
-        """Identify φ from the base-link equations of ``trials`` (seeds/002 Eq. 2)."""
+        """Identify φ from the base-link equations of ``trials`` (seeds/002 Eq. 2).
+
+        With ``prior_weight="cv"`` the weight λ of the prior term is chosen first by
+        cross-validation (:meth:`cross_validate`), then φ is fitted on all frames with it."""
         trial_list = _as_trials(trials)
         self._setup()
         t0 = _time.perf_counter()
-        self._stack(trial_list)
+        cv = isinstance(self.prior_weight, str)
+        if cv and self.prior_weight != "cv":
+            raise IdentificationError(f"prior_weight must be 'cv' or a float > 0, got "
+                                      f"{self.prior_weight!r}")  # fmt: skip
+        if not cv and not float(self.prior_weight) > 0:
+            raise IdentificationError(f"prior_weight must be > 0, got {self.prior_weight!r}")
+        by_trial = cv and self.cv_by != "blocks" and len(trial_list) >= 2
+        if cv and self.cv_by == "trials" and len(trial_list) < 2:
+            raise IdentificationError("cv_by='trials' needs at least 2 trials")
+        n_blocks = 0 if by_trial else (max(int(self.cv_folds), 2) if cv else 1)
+        blocks = self._stack(trial_list, n_blocks)
         t1 = _time.perf_counter()
-        nr = self._h.shape[0]
-        if self.noise_std is not None:
-            sigma = np.broadcast_to(np.asarray(self.noise_std, dtype=float), (nr,)).copy()
-            if np.any(sigma <= 0):
-                raise IdentificationError(f"noise_std must be > 0, got {sigma}")
-            iterations = 1
+        if cv:
+            names = (
+                tuple(t.name or f"trial {i}" for i, t in enumerate(trial_list))
+                if by_trial
+                else tuple(f"block {i + 1}/{n_blocks}" for i in range(n_blocks))
+            )
+            self.cv_scores_: CrossValidation | None = self._cross_validate(blocks, names)
+            weight = float(self.cv_scores_.weights[self.cv_scores_.selected])
         else:
-            # start from 5 % of the RMS pooled over the force rows and over the moment rows,
-            # then re-estimate from the residuals. (Not per row: a row that is physically
-            # near zero — the moment about the vertical when standing — would get a σ far
-            # below the measurement noise, and the fit would trade every other row for it.)
-            rms = np.sqrt(self._c / self.n_frames_)
-            root = root_coordinate_indices(self.model)
-            trans = np.array([self.model.coordinates[i].kind == "translational" for i in root])
-            for kind in (trans, ~trans):
-                if kind.any():
-                    rms[kind] = np.sqrt(np.mean(rms[kind] ** 2))
-            sigma = 0.05 * rms + 1e-6
-            iterations = 1 + max(self.noise_iterations, 0)
-        x = self._x_prior
-        for it in range(iterations):
-            hx, gx = self._x_system(sigma)
-            x = self._solve(hx, gx)
-            if it < iterations - 1:
-                phi = self._proj @ x + self._phi_fixed
-                rss = np.maximum(self._row_rss(phi), 0.0)
-                sigma = np.sqrt(rss / self.n_frames_) + 1e-9 * (
-                    1 + np.sqrt(self._c / self.n_frames_)
-                )
+            self.cv_scores_ = None
+            weight = float(self.prior_weight)
         t2 = _time.perf_counter()
+        total = _Stats(self._h, self._g, self._c, self.n_frames_)
+        x, sigma, hx, solves = self._fit_stats(total, weight)
+        t3 = _time.perf_counter()
+        self.prior_weight_ = weight
         self.noise_std_ = sigma
         self._hx = hx
         self.x_ = x
         self.phi_ = self._proj @ x + self._phi_fixed
-        names = self._layout.body_names
-        self.parameters_ = {n: self.phi_[10 * b : 10 * b + 10].copy() for b, n in enumerate(names)}
-        self.timing_ = {"stacking_s": t1 - t0, "solve_s": t2 - t1, "solves": iterations}
+        names_b = self._layout.body_names
+        self.parameters_ = {
+            n: self.phi_[10 * b : 10 * b + 10].copy() for b, n in enumerate(names_b)
+        }
+        self.timing_ = {"stacking_s": t1 - t0, "solve_s": t3 - t2, "solves": solves,
+                        "cv_s": t2 - t1}  # fmt: skip
         self._uncertainty()
         return self
 
+    def _initial_sigma(self, st: _Stats) -> Array:
+        nr = st.c.size
+        if self.noise_std is not None:
+            sigma = np.broadcast_to(np.asarray(self.noise_std, dtype=float), (nr,)).copy()
+            if np.any(sigma <= 0):
+                raise IdentificationError(f"noise_std must be > 0, got {sigma}")
+            return sigma
+        # start from 5 % of the RMS pooled over the force rows and over the moment rows,
+        # then re-estimate from the residuals. (Not per row: a row that is physically
+        # near zero — the moment about the vertical when standing — would get a σ far
+        # below the measurement noise, and the fit would trade every other row for it.)
+        rms = np.sqrt(st.c / max(st.n, 1))
+        trans = self._translational_rows()
+        for kind in (trans, ~trans):
+            if kind.any():
+                rms[kind] = np.sqrt(np.mean(rms[kind] ** 2))
+        return 0.05 * rms + 1e-6
+
+    def _translational_rows(self) -> NDArray[np.bool_]:
+        root = root_coordinate_indices(self.model)
+        return np.array([self.model.coordinates[i].kind == "translational" for i in root])
+
+    def _prior_only_x(self) -> Array:
+        """The prior with every free segment scaled by one factor so that Σ m = total mass (the
+        generic model at the measured mass; the prior itself without ``total_mass``)."""
+        if self.total_mass is None:
+            return self._x_prior.copy()
+        names = self._layout.body_names
+        free_m = sum(
+            len(grp.members) * self._proj[10 * grp.members[0][0], 10 * gi]
+            * self._x_prior[10 * gi]
+            for gi, grp in enumerate(self._groups)
+        )  # fmt: skip
+        fixed_m = sum(self._phi_fixed[10 * b] for b in range(len(names)))
+        if not free_m > 0 or not self.total_mass > fixed_m:
+            raise IdentificationError(
+                f"total_mass {self.total_mass} kg ≤ mass of fixed segments {fixed_m:.3f} kg"
+            )
+        return self._x_prior * ((self.total_mass - fixed_m) / free_m)
+
+    def _fit_stats(self, st: _Stats, weight: float) -> tuple[Array, Array, Array, int]:
+        """x, σ, H_x and the number of solves of the MAP fit on the statistics ``st`` with prior
+        weight λ (``inf``: prior only, σ from its residuals)."""
+        sigma = self._initial_sigma(st)
+        if math.isinf(weight):
+            x = self._prior_only_x()
+            if self.noise_std is None:
+                phi = self._proj @ x + self._phi_fixed
+                rss = np.maximum(st.row_rss(phi), 0.0)
+                sigma = np.sqrt(rss / st.n) + 1e-9 * (1 + np.sqrt(st.c / st.n))
+            hx, _ = self._x_system(sigma, st)
+            return x, sigma, hx, 0
+        iterations = 1 if self.noise_std is not None else 1 + max(self.noise_iterations, 0)
+        x = self._x_prior
+        hx = np.zeros((x.size, x.size))
+        for it in range(iterations):
+            hx, gx = self._x_system(sigma, st)
+            x = self._solve(hx, gx, weight)
+            if it < iterations - 1:
+                phi = self._proj @ x + self._phi_fixed
+                rss = np.maximum(st.row_rss(phi), 0.0)
+                sigma = np.sqrt(rss / st.n) + 1e-9 * (1 + np.sqrt(st.c / st.n))
+        return x, sigma, hx, iterations
+
+    def _cross_validate(self, blocks: list[_Stats], names: tuple[str, ...]) -> CrossValidation:
+        """Held-out pelvis residuals per candidate λ (every block held out once)."""
+        grid = np.array(
+            sorted({float(w) for w in (self.cv_grid if self.cv_grid is not None
+                                       else DEFAULT_CV_GRID)} | {math.inf})
+        )  # fmt: skip
+        if np.any(grid <= 0):
+            raise IdentificationError(f"cv_grid weights must be > 0, got {grid.tolist()}")
+        used = [i for i, b in enumerate(blocks) if b.n > 0]
+        if len(used) < 2:
+            raise IdentificationError(
+                "cross-validation needs at least 2 blocks with frames (more frames or trials)"
+            )
+        nr = blocks[0].c.size
+        trans = self._translational_rows()
+        k = len(used)
+        sq = np.zeros((grid.size, nr))
+        fold_f = np.full((grid.size, k), np.nan)
+        fold_m = np.full((grid.size, k), np.nan)
+        n_held = 0
+        for fi, bi in enumerate(used):
+            held = blocks[bi]
+            train = _Stats.zeros(nr, held.h.shape[1])
+            for bj in used:
+                if bj != bi:
+                    train.add(blocks[bj])
+            if train.n < 2:
+                raise IdentificationError(
+                    f"cross-validation fold {names[bi]!r}: no training frames"
+                )
+            n_held += held.n
+            for wi, w in enumerate(grid):
+                x, _, _, _ = self._fit_stats(train, float(w))
+                rss = np.maximum(held.row_rss(self._proj @ x + self._phi_fixed), 0.0)
+                sq[wi] += rss
+                rms = np.sqrt(rss / held.n)
+                fold_f[wi, fi] = _pool_rms(rms, trans)
+                fold_m[wi, fi] = _pool_rms(rms, ~trans)
+        rms_all = np.sqrt(sq / n_held)
+        force = np.array([_pool_rms(r, trans) for r in rms_all])
+        moment = np.array([_pool_rms(r, ~trans) for r in rms_all])
+        po = int(np.flatnonzero(np.isinf(grid))[0])
+        f0 = max(force[po], 1e-12) if np.isfinite(force[po]) else 1.0
+        m0 = max(moment[po], 1e-12) if np.isfinite(moment[po]) else 1.0
+        rel_f = np.nan_to_num(force / f0, nan=1.0)
+        rel_m = np.nan_to_num(moment / m0, nan=1.0)
+        if self.cv_metric == "force":
+            score = rel_f**2
+        elif self.cv_metric == "moment":
+            score = rel_m**2
+        else:
+            score = 0.5 * (rel_f**2 + rel_m**2)
+            # admissible only if neither pooled residual is worse than prior only
+            score = np.where((rel_f <= 1.0 + 1e-12) & (rel_m <= 1.0 + 1e-12), score, math.inf)
+        score[po] = 1.0
+        # smallest score; ties → the larger weight (closer to the prior)
+        best = min(range(grid.size), key=lambda i: (score[i], -grid[i]))
+        return CrossValidation(
+            grid, force, moment, fold_f, fold_m, tuple(names[i] for i in used),
+            tuple(blocks[i].n for i in used), score, self.cv_metric, int(best),
+        )  # fmt: skip
+
     def _uncertainty(self) -> None:
         nx = self._hx.shape[0]
-        cov_x = np.linalg.inv(self._hx + np.eye(nx))
+        # prior only (λ = ∞): the data were not used, report the prior covariance (λ = 1)
+        lam = 1.0 if math.isinf(self.prior_weight_) else self.prior_weight_
+        cov_x = (
+            np.eye(nx) if math.isinf(self.prior_weight_)
+            else np.linalg.inv(self._hx + lam * np.eye(nx))
+        )  # fmt: skip
+        self._cov_x = cov_x
         cov_phi = self._proj @ cov_x @ self._proj.T
         self.covariance_ = cov_phi
         self.std_ = np.sqrt(np.maximum(np.diag(cov_phi), 0.0))
-        prior_cov = self._proj @ self._proj.T  # x prior covariance is the identity
+        prior_cov = self._proj @ self._proj.T / lam  # x prior covariance is the identity / λ
         names = self._layout.body_names
         segments: list[SegmentEstimate] = []
         flags: dict[str, str] = {}
@@ -1074,16 +1329,16 @@ class InertialIdentifier:
             )  # fmt: skip
         self.segments_ = tuple(segments)
         self.flags_ = flags
-        # weak directions: data information of the scaled variables below the prior's (= 1)
-        lam, vec = np.linalg.eigh(0.5 * (self._hx + self._hx.T))
+        # weak directions: data information of the scaled variables below the prior's (= λ)
+        ev, vec = np.linalg.eigh(0.5 * (self._hx + self._hx.T))
         weak = []
-        for i in np.argsort(lam)[:8]:
-            if lam[i] >= 1.0:
+        for i in np.argsort(ev)[:8]:
+            if ev[i] >= lam:
                 break
             v = vec[:, i]
             top = np.argsort(-np.abs(v))[:4]
             comps = tuple((self._x_names[j], float(v[j])) for j in top if abs(v[j]) > 0.1)
-            std_ratio = math.inf if lam[i] <= 1e-12 else 1.0 / math.sqrt(lam[i])
+            std_ratio = math.inf if ev[i] <= 1e-12 else math.sqrt(lam / ev[i])
             weak.append(WeakDirection(float(std_ratio), comps))
         self.weak_directions_ = tuple(weak)
         # structural base parameters (random states) and their data-only std on this data
@@ -1144,6 +1399,83 @@ class InertialIdentifier:
         lines.extend(self.advice())
         return "\n".join(lines)
 
+    def excitation(self, *, suggest: bool = True) -> ExcitationReport:
+        """How well the fitted trials excite each segment, and which motion would excite the
+        poorly excited ones (:func:`excitation_report`)."""
+        self._check_fitted()
+        lam = 1.0 if math.isinf(self.prior_weight_) else self.prior_weight_
+        nx = self._hx.shape[0]
+        cov0 = np.linalg.inv(self._hx + lam * np.eye(nx))
+        candidates = self._candidate_motions() if suggest else []
+        infos = [(label, self._motion_information(th, thd, thdd)) for label, th, thd, thdd in
+                 candidates]  # fmt: skip
+        covs = [(label, np.linalg.inv(self._hx + hc + lam * np.eye(nx))) for label, hc in infos]
+        out: list[SegmentExcitation] = []
+        mc = slice(0, 4)
+        for gi, grp in enumerate(self._groups):
+            sl = slice(10 * gi, 10 * gi + 10)
+            c_g = cov0[sl, sl] * lam  # posterior / prior covariance (scaled variables)
+            ratio = np.sqrt(np.maximum(np.diag(c_g), 0.0))
+            ev = np.linalg.eigvalsh(np.linalg.inv(c_g))
+            info = np.sort(np.maximum(ev - 1.0, 0.0))  # data / prior information per direction
+            poor = bool(np.any(ratio[mc] > PRIOR_STD_RATIO))
+            sugg: list[tuple[str, float]] = []
+            if poor and covs:
+                gains = []
+                for label, cov in covs:
+                    r1 = np.sqrt(np.maximum(np.diag(cov[sl, sl] * lam)[mc], 1e-300))
+                    gains.append((label, float(np.mean(np.log(ratio[mc] / r1)))))
+                gains.sort(key=lambda t: -t[1])
+                sugg = [(lb, g) for lb, g in gains[:3] if g > 0.05]
+            names = tuple(self._layout.body_names[b] for b, _ in grp.members)
+            out.append(SegmentExcitation(
+                names, float(ratio[0]), ratio[1:4].copy(), float(np.max(ratio[4:])),
+                info, int(np.sum(ratio < PRIOR_STD_RATIO)), poor, tuple(sugg),
+            ))  # fmt: skip
+        return ExcitationReport(tuple(out), self.n_frames_, float(lam))
+
+    def _motion_information(self, th: Array, thd: Array, thdd: Array) -> Array:
+        y = base_link_regressor(self.model, th, thd, thdd, layout=self._layout)
+        w = 1.0 / self.noise_std_**2
+        h_phi = np.einsum("k,nki,nkj->ij", w, y, y)
+        return np.asarray(self._proj.T @ h_phi @ self._proj)
+
+    def _candidate_motions(self) -> list[tuple[str, Array, Array, Array]]:
+        """Per non-root rotational coordinate: a 1 Hz swing and 5 still poses (2 s at 100 Hz
+        each) about the model's default pose."""
+        model = self.model
+        root = set(root_coordinate_indices(model).tolist())
+        base = model.default_coordinates()
+        lo, hi = model.coordinate_bounds()
+        t = np.arange(200) / 100.0
+        out = []
+        for i, c in enumerate(model.coordinates):
+            if i in root or c.kind == "translational":
+                continue
+            amp = 0.5
+            if np.isfinite(lo[i]) and np.isfinite(hi[i]):
+                amp = min(amp, 0.45 * (hi[i] - lo[i]))
+            centre = base[i]
+            if np.isfinite(lo[i]) and np.isfinite(hi[i]):
+                centre = float(np.clip(centre, lo[i] + amp, hi[i] - amp))
+            words = _motion_words(c.name)
+            th = np.tile(base, (t.size, 1))
+            thd = np.zeros_like(th)
+            thdd = np.zeros_like(th)
+            w = 2 * np.pi
+            th[:, i] = centre + amp * np.sin(w * t)
+            thd[:, i] = amp * w * np.cos(w * t)
+            thdd[:, i] = -amp * w * w * np.sin(w * t)
+            out.append((f"swing: {words}, ±{np.degrees(amp):.0f}° at 1 Hz", th, thd, thdd))
+            poses = np.tile(base, (t.size, 1))
+            poses[:, i] = centre + amp * np.repeat(np.linspace(-1, 1, 5), t.size // 5)
+            zero = np.zeros_like(poses)
+            out.append(
+                (f"still poses on plates: {words} held at 5 angles over ±{np.degrees(amp):.0f}°",
+                 poses, zero, zero)
+            )  # fmt: skip
+        return out
+
     def advice(self) -> list[str]:
         """Guidance when the motion is not exciting enough: the segments left at the prior and
         the least excited parameter combinations (in parameter names)."""
@@ -1161,6 +1493,123 @@ class InertialIdentifier:
             how = "no data" if math.isinf(wd.std_ratio) else f"data std {wd.std_ratio:.2g}× prior"
             out.append(f"weak direction ({how}): {comb}")
         return out
+
+
+_WORDS = (
+    ("hip_flexion", "hip flexion/extension"),
+    ("hip_adduction", "hip abduction/adduction"),
+    ("hip_rotation", "hip internal/external rotation"),
+    ("knee", "knee flexion/extension"),
+    ("ankle", "ankle plantar/dorsiflexion"),
+    ("subtalar", "subtalar inversion/eversion"),
+    ("mtp", "toe flexion/extension"),
+    ("lumbar_extension", "trunk flexion/extension"),
+    ("lumbar_bending", "trunk lateral bending"),
+    ("lumbar_rotation", "trunk axial rotation"),
+    ("arm_flex", "shoulder flexion/extension"),
+    ("arm_add", "shoulder abduction (T-pose)"),
+    ("arm_rot", "shoulder rotation"),
+    ("elbow", "elbow flexion/extension"),
+)
+
+
+def _motion_words(coordinate: str) -> str:
+    """Plain words for moving one coordinate (``hip_adduction_r`` → "hip abduction/adduction
+    (right), with the leg free")."""
+    base, side = coordinate, ""
+    if coordinate.endswith(("_r", "_l")):
+        base, side = coordinate[:-2], " (right)" if coordinate.endswith("_r") else " (left)"
+    words = next((w for key, w in _WORDS if base.startswith(key)), coordinate)
+    leg = base.startswith(("hip", "knee", "ankle", "subtalar", "mtp"))
+    return words + side + (", with the leg free (stand on the other leg)" if leg else "")
+
+
+@dataclass(frozen=True)
+class SegmentExcitation:
+    """Excitation of one identified segment (a left/right pair counts once).
+
+    ``mass_std_ratio``, ``com_std_ratio`` (3,), ``inertia_std_ratio`` (largest over the 6
+    inertia entries): posterior / prior std (1 = the data say nothing); ``information`` (10,)
+    the eigenvalues of data / prior information of the segment's parameters (others
+    marginalised), ascending; ``n_excited`` parameters with std ratio < :data:`PRIOR_STD_RATIO`;
+    ``poorly_excited`` when the mass or a COM coordinate is not; ``suggestions`` (motion, mean
+    log-reduction of the mass and COM std) of the candidate motions that help most."""
+
+    bodies: tuple[str, ...]
+    mass_std_ratio: float
+    com_std_ratio: Array
+    inertia_std_ratio: float
+    information: Array
+    n_excited: int
+    poorly_excited: bool
+    suggestions: tuple[tuple[str, float], ...]
+
+    @property
+    def name(self) -> str:
+        return "/".join(self.bodies)
+
+
+@dataclass(frozen=True)
+class ExcitationReport:
+    """Per-segment excitation of some trials (:func:`excitation_report`)."""
+
+    segments: tuple[SegmentExcitation, ...]
+    n_frames: int
+    prior_weight: float
+
+    def segment(self, body: str) -> SegmentExcitation:
+        for s in self.segments:
+            if body in s.bodies:
+                return s
+        raise IdentificationError(f"no identified segment {body!r} in the report")
+
+    def lines(self) -> list[str]:
+        out = [
+            f"excitation over {self.n_frames} frames (posterior/prior std; 1 = not excited; "
+            f"≤ {PRIOR_STD_RATIO} excited):",
+            f"{'segment':<20}{'mass':>6}{'COM x':>7}{'COM y':>7}{'COM z':>7}{'inertia':>8}"
+            f"{'excited':>9}",
+        ]
+        for s in self.segments:
+            com = "".join(f"{r:7.2f}" for r in s.com_std_ratio)
+            out.append(f"{s.name:<20}{s.mass_std_ratio:6.2f}{com}{s.inertia_std_ratio:8.2f}"
+                       f"{s.n_excited:>6}/10")  # fmt: skip
+        for s in self.segments:
+            if s.poorly_excited:
+                how = "; ".join(f"{m} (std ×{math.exp(-g):.2f})" for m, g in s.suggestions)
+                out.append(
+                    f"{s.name}: poorly excited — "
+                    + (
+                        how
+                        or "no 2 s single-coordinate "
+                        "motion cuts its mass/COM std by ≥ 5 % more: record longer trials"
+                    )
+                )
+        return out
+
+    def __str__(self) -> str:
+        return "\n".join(self.lines())
+
+
+def excitation_report(
+    model: Model,
+    trials: IdentificationTrial | Sequence[IdentificationTrial],
+    *,
+    suggest: bool = True,
+    **identifier_options: Any,
+) -> ExcitationReport:
+    """Experiment-design aid: which segments ``trials`` excite and which motion would excite the
+    rest (in the spirit of Hayashibe et al., IROS 2011: T-pose / functional movements).
+
+    The trials are fitted (:class:`InertialIdentifier` with ``identifier_options``); per segment
+    the posterior/prior std of mass, COM and inertia follow from the base-link regressor columns
+    (information Y_bᵀ W Y_b, the others marginalised). For a poorly excited segment every
+    candidate motion — per joint coordinate, a 1 Hz swing (θ̈ and θ̇: inertia and the mass
+    through the segment's own acceleration) and still poses at 5 angles (gravity only: the
+    first moments m·c through the change of orientation) — is added to the trials' information
+    and ranked by how much it reduces that segment's mass and COM std."""
+    ident = InertialIdentifier(model, **identifier_options).fit(trials)
+    return ident.excitation(suggest=suggest)
 
 
 def _pseudo(phi: Array) -> Array:

@@ -10,6 +10,8 @@ Butterworth, as the plates) and differentiated numerically.
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 import pinocchio as pin
 import pytest
@@ -25,6 +27,7 @@ from msk.identification import (
     IdentificationTrial,
     InertialIdentifier,
     base_residuals,
+    excitation_report,
     lump_subtrees,
     root_generalized_forces,
 )
@@ -588,3 +591,111 @@ def test_massless_bodies_stay_massless():
     assert ident.flags_["virtual"] == "prior"
     np.testing.assert_array_equal(ident.parameters_["virtual"], np.zeros(10))
     assert ident.to_model().body("virtual").mass == 0.0
+
+
+# ------------------------------------------------------------------------------------------
+# prior weight by cross-validation (issue 19) and the excitation report
+# ------------------------------------------------------------------------------------------
+def _mass_errors(ident, truth_lm):
+    true_phi = {b.name: b.parameters() for b in truth_lm.model.bodies}
+    return {
+        s.name: (abs(s.mass - true_phi[s.name][0]), abs(s.prior_mass - true_phi[s.name][0]))
+        for s in ident.segments_
+    }
+
+
+@pytest.mark.parametrize(("kind", "seconds"), [("athlete", 15.0), ("elderly", 4.0)])
+def test_cv_prior_weight_is_never_worse_than_prior_only_held_out(lumped, kind, seconds):
+    truth = whole_body_model(subject(kind))
+    train = [simulate(truth, seconds, seed, name=f"{kind}{seed}") for seed in (31, 32)]
+    ident = _fit(lumped, train, truth.total_mass, prior_weight="cv")
+    cv = ident.cv_scores_
+    assert cv is not None and cv.folds == (f"{kind}31", f"{kind}32")  # leave one trial out
+    assert ident.prior_weight_ == cv.weights[cv.selected]
+    po = cv.prior_only
+    assert np.isinf(cv.weights[po]) and cv.score[po] == 1.0
+    # the selection is admissible: neither pooled held-out residual above prior only's
+    assert cv.force_rms_n[cv.selected] <= cv.force_rms_n[po] + 1e-9
+    assert cv.moment_rms_nm[cv.selected] <= cv.moment_rms_nm[po] + 1e-9
+    assert cv.fold_force_rms_n.shape == (cv.weights.size, 2)
+    assert sum(p[0] for p in ident.parameters_.values()) == pytest.approx(truth.total_mass, 1e-6)
+    for phi in ident.parameters_.values():
+        assert is_physically_consistent(phi)
+    # an unseen trial of another motion: not worse than the prior at the total mass (the
+    # generic model at the measured mass) beyond the noise (2 %)
+    test = [lumped.restrict_trial(simulate(truth, 8.0, 99))]
+    scale = truth.total_mass / lumped.model.total_mass
+    prior_only = base_residuals(
+        lumped.model, test, {b.name: scale * b.parameters() for b in lumped.model.bodies}
+    )
+    got = ident.score(test)
+    assert got.force_rms_n <= 1.02 * prior_only.force_rms_n, (got, prior_only)
+    assert got.moment_rms_nm <= 1.02 * prior_only.moment_rms_nm, (got, prior_only)
+
+
+def test_cv_by_blocks_and_prior_only_when_the_data_say_nothing(lumped):
+    truth = whole_body_model(subject("athlete"))
+    # standing still: only the total mass and the horizontal COM are seen
+    still = tuple(c.name for c in truth.coordinates)
+    trial = simulate(truth, 4.0, 8, still=still, plate_noise=0.03)
+    ident = _fit(lumped, [trial], truth.total_mass, prior_weight="cv", cv_folds=4)
+    cv = ident.cv_scores_
+    assert cv.folds == tuple(f"block {i}/4" for i in range(1, 5))
+    assert sum(cv.fold_frames) == ident.n_frames_
+    assert cv.force_rms_n[cv.selected] <= cv.force_rms_n[cv.prior_only] + 1e-9
+    # fixed weights: ∞ is the prior scaled to the total mass exactly
+    po = _fit(lumped, [trial], truth.total_mass, prior_weight=math.inf)
+    scale = truth.total_mass / lumped.model.total_mass
+    for b in lumped.model.bodies:
+        np.testing.assert_allclose(po.parameters_[b.name], scale * b.parameters(), rtol=1e-9,
+                                   atol=1e-12)  # fmt: skip
+    assert set(po.flags_.values()) == {"prior"} and po.cv_scores_ is None
+    with pytest.raises(IdentificationError, match="prior_weight"):
+        InertialIdentifier(lumped.model, prior_weight=-1.0).fit(lumped.restrict_trial(trial))
+    with pytest.raises(IdentificationError, match="2 trials"):
+        InertialIdentifier(lumped.model, prior_weight="cv", cv_by="trials").fit(
+            lumped.restrict_trial(trial)
+        )
+
+
+def test_rich_excitation_with_cv_recovers_segments_better_than_the_prior(lumped):
+    """Measured per segment (synthetic athlete: thighs and shanks +20 % mass, COM shifted 2 cm;
+    2 × 15 s of sums of sines on every coordinate, 1 % plate noise)."""
+    truth = whole_body_model(subject("athlete"))
+    train = [simulate(truth, 15.0, seed, name=str(seed)) for seed in (11, 12)]
+    ident = _fit(lumped, train, truth.total_mass, prior_weight="cv")
+    err = _mass_errors(ident, lump_subtrees(truth, ["torso"]))
+    # the segments the motion excites (torso lump, thighs, shanks) move toward the truth (the
+    # torso lump: mass error at most half the prior's)
+    for name in ("torso", "femur_r", "tibia_r"):
+        got, prior = err[name]
+        assert got < prior, (name, got, prior, ident.summary())
+    assert err["torso"][0] < 0.5 * err["torso"][1]
+    # the summed absolute mass error is below the prior's
+    assert sum(e[0] for e in err.values()) < 0.6 * sum(e[1] for e in err.values())
+
+
+def test_excitation_report_names_segments_and_motions_from_the_regressor(lumped):
+    truth = whole_body_model(subject("athlete"))
+    still = tuple(c.name for c in truth.coordinates)
+    trial = lumped.restrict_trial(simulate(truth, 3.0, 8, still=still))
+    rep = excitation_report(lumped.model, trial, total_mass=truth.total_mass)
+    assert {s.name for s in rep.segments} == {
+        "pelvis", "torso", "femur_r/femur_l", "tibia_r/tibia_l", "foot_r/foot_l"
+    }  # fmt: skip
+    foot = rep.segment("foot_l")
+    assert foot.poorly_excited and foot.mass_std_ratio > 0.9
+    # the foot is excited by moving the ankle with the leg free, the trunk lump by the trunk
+    assert "ankle" in foot.suggestions[0][0] and "leg free" in foot.suggestions[0][0]
+    assert "trunk" in rep.segment("torso").suggestions[0][0]
+    assert (
+        rep.segment("tibia_r").suggestions[0][0].split(":")[1].strip().startswith(("knee", "hip"))
+    )
+    text = str(rep)
+    assert "poorly excited" in text and "foot_r/foot_l" in text
+    # rich motion: the torso lump and thighs are excited (mass and COM std < 0.7 × prior)
+    rich = _fit(lumped, [simulate(truth, 15.0, 11)], truth.total_mass).excitation(suggest=False)
+    for body in ("torso", "femur_r"):
+        s = rich.segment(body)
+        assert not s.poorly_excited and s.n_excited >= 4, str(rich)
+        assert np.all(np.diff(s.information) >= 0)

@@ -532,3 +532,48 @@ def main() -> None:  # pragma: no cover - a report, not a test
 
 if __name__ == "__main__":  # pragma: no cover
     main()
+
+
+# ------------------------------------------------------------------------------------------
+# prior weight by cross-validation (issue 19)
+# ------------------------------------------------------------------------------------------
+@functools.lru_cache(maxsize=3)
+def gc5_cv_fold(test: str) -> tuple[InertialIdentifier, Any, Any, float]:
+    """Fit on the two other trials at their plate mass with ``prior_weight="cv"`` (leave one
+    training trial out inside); held-out residuals of the fit and of the generic model at the
+    plate mass (every segment × plate mass / model mass: the CV's "prior only")."""
+    lm = gc5_lumped()
+    train = [gc5_trial(n) for n in GC5_TRIALS if n != test]
+    held = gc5_trial(test)
+    w = np.array([t.ident.n_frames for t in train], dtype=float)
+    mass = float(np.average([t.plate_mass_kg for t in train], weights=w))
+    ident = InertialIdentifier(lm.model, total_mass=mass, symmetric=True, prior_weight="cv").fit(
+        [t.ident for t in train]
+    )
+    k = mass / lm.model.total_mass
+    generic = base_residuals(lm.model, held.ident, {b.name: k * b.parameters()
+                                                   for b in lm.model.bodies})  # fmt: skip
+    return ident, ident.score(held.ident), generic, mass
+
+
+@pytest.mark.slow
+@pytest.mark.realdata
+@pytest.mark.parametrize("test", GC5_TRIALS)
+def test_gc5_cv_prior_weight_never_worse_than_generic_at_plate_mass(
+    real_dir: Path, test: str
+) -> None:
+    _need(real_dir, *(f"knee-grand-challenge-gc5/{n}.c3d" for n in GC5_TRIALS))
+    ident, got, generic, mass = gc5_cv_fold(test)
+    cv = ident.cv_scores_
+    assert cv is not None
+    print(f"\n{test} held out, plates {mass:.2f} kg, λ = {ident.prior_weight_:g}: force "
+          f"{generic.force_rms_n:.2f} → {got.force_rms_n:.2f} N, moment "
+          f"{generic.moment_rms_nm:.2f} → {got.moment_rms_nm:.2f} N·m\n"
+          + "\n".join(cv.table()) + f"\n{ident.excitation()}")  # fmt: skip
+    assert len(cv.folds) == 2  # leave one training trial out
+    assert sum(p[0] for p in ident.parameters_.values()) == pytest.approx(mass, rel=1e-6)
+    # the issue-19 criterion: never worse than the generic model at the plate mass
+    assert got.force_rms_n <= 1.01 * generic.force_rms_n
+    assert got.moment_rms_nm <= 1.01 * generic.moment_rms_nm
+    for phi in ident.parameters_.values():
+        assert is_physically_consistent(phi)
