@@ -1868,13 +1868,29 @@ def _anthropometry(cfg: SessionConfig, model: Any) -> dict[str, Any] | None:
     return {"segments": out, "table": "Dumas et al. 2007", "sex": cfg.subject.sex}
 
 
-def _strength_summary(strength: Mapping[str, Any]) -> dict[str, Any]:
+def _strength_summary(
+    strength: Mapping[str, Any],
+    *,
+    model: Any = None,
+    side: str = "_r",
+    mass_kg: float | None = None,
+) -> dict[str, Any]:
     """``identified`` = status "identified" (:mod:`msk.status`); ``gated`` = the group passed
-    the correlation gate (what ``identified`` meant before issue 17)."""
+    the correlation gate (what ``identified`` meant before issue 17). With the (generic, scaled)
+    ``model``: ``joint_strength``, the maximal isometric moment curves of the generic and the
+    identified model (:func:`msk.strength.joint_strength_summary`), N·m and N·m/kg."""
     from msk.status import STATUS_CODES, STATUS_MEANING, STRENGTH_R2_MIN
 
     p = strength["profile"]
     status = p.statuses()
+    joint: dict[str, Any] | None = None
+    if model is not None and model.muscles:
+        from msk.strength import joint_strength_summary
+
+        try:
+            joint = joint_strength_summary(model, p, side=side, mass_kg=mass_kg)
+        except Exception as exc:  # the curves must not cost the run its strength summary
+            joint = {"error": f"{type(exc).__name__}: {' '.join(str(exc).split())[:200]}"}
     return {
         "groups": [
             {
@@ -1900,6 +1916,7 @@ def _strength_summary(strength: Mapping[str, Any]) -> dict[str, Any]:
         "confidence": float(p.confidence),
         "bounds": list(p.bounds),
         "method": p.method,
+        "joint_strength": joint,
     }
 
 

@@ -159,6 +159,48 @@ def _fig_strength(res: SessionResults) -> str | None:
     return _svg(fig)
 
 
+def _fig_strength_curves(res: SessionResults) -> str | None:
+    """Maximal isometric moment–angle curves per action (N·m/kg): generic vs identified; the
+    identified curve is drawn only when its status is ``identified``."""
+    js = (res.summary.get("strength") or {}).get("joint_strength") or {}
+    acts = js.get("actions") or []
+    mass = js.get("mass_kg")
+    if not acts or not isinstance(mass, (int, float)) or not np.isfinite(mass) or mass <= 0:
+        return None
+    plt = _plt()
+    ncol = min(4, len(acts))
+    nrow = -(-len(acts) // ncol)
+    fig, axes = plt.subplots(nrow, ncol, figsize=(2.6 * ncol, 2.3 * nrow), squeeze=False)
+    for ax in axes.ravel()[len(acts) :]:
+        ax.set_visible(False)
+    for ax, a in zip(axes.ravel(), acts):
+        x = np.asarray(a["angles_deg"], dtype=float)
+        ax.plot(x, np.asarray(a["generic_nm"], dtype=float) / mass, "k--", lw=1.2,
+                label="generic model")  # fmt: skip
+        word = a.get("status", "prior")
+        if word == "identified":
+            ax.plot(x, np.asarray(a["identified_nm"], dtype=float) / mass, lw=1.8,
+                    color=STATUS_COLOURS[word], label="identified (this subject)")  # fmt: skip
+        else:
+            text = "= generic (prior)" if word == "prior" else f"identified: {word}"
+            ax.text(0.03, 0.05, text, transform=ax.transAxes, fontsize=7,
+                    color=STATUS_COLOURS.get(word, "#9e9e9e"))  # fmt: skip
+        ax.set_title(a["action"], fontsize=9)
+        ax.set_xlabel(f"{a['angle_label']} (deg)")
+        ax.set_ylabel("moment (N·m/kg)")
+        ax.set_ylim(bottom=0.0)
+    handles, labels = [], []
+    for ax in axes.ravel()[: len(acts)]:
+        for h, lab in zip(*ax.get_legend_handles_labels()):
+            if lab not in labels:
+                handles.append(h)
+                labels.append(lab)
+    fig.legend(handles, labels, loc="lower center", ncol=len(labels), fontsize=8,
+               bbox_to_anchor=(0.5, -0.02))  # fmt: skip
+    fig.tight_layout(rect=(0, 0.05, 1, 1))
+    return _svg(fig)
+
+
 def _fig_mass(res: SessionResults) -> str | None:
     ident = res.summary.get("identification")
     if not ident:
@@ -351,10 +393,12 @@ def _fig_fes(res: SessionResults) -> str | None:
 
 
 def build_figures(res: SessionResults) -> dict[str, str]:
-    """Inline SVG figures by name (strength, mass, joints, muscles, contact, fes)."""
+    """Inline SVG figures by name (strength, strength_curves, mass, joints, muscles, contact,
+    fes)."""
     out = {}
     for name, fn in (
         ("strength", _fig_strength),
+        ("strength_curves", _fig_strength_curves),
         ("mass", _fig_mass),
         ("joints", _fig_joints),
         ("muscles", _fig_muscles),
@@ -575,6 +619,95 @@ def _strength_section(res: SessionResults, figs: Mapping[str, str]) -> str:
     )
     if "strength" in figs:
         out.append(f"<figure>{figs['strength']}</figure>")
+    out.append(_joint_strength_html(st, figs))
+    return "".join(out)
+
+
+def _joint_strength_html(st: Mapping[str, Any], figs: Mapping[str, str]) -> str:
+    """Sub-section "joint strength": peak maximal isometric moments per action, generic vs
+    identified, with the status of the identified curve (summary ``strength.joint_strength``)."""
+    js = st.get("joint_strength")
+    if not js:
+        return ""
+    out = ["<h3>Joint strength (maximal isometric moments)</h3>"]
+    if js.get("error"):
+        return out[0] + f'<p class="na">Not available: {_e(js["error"])}</p>'
+    mass = js.get("mass_kg")
+    per_kg = _finite(mass) and mass > 0
+    acts = js.get("actions") or []
+    undetermined = [a["action"] for a in acts if a.get("status") in ("at bound", "not determined")]
+    msg = (
+        "Largest moment each muscle group of the model can produce at full effort, without "
+        "movement, over the joint's range: the generic model (a typical adult scaled to the "
+        "subject) beside the model with this session's identified strength."
+    )
+    if undetermined:
+        msg += (
+            " For " + ", ".join(undetermined) + " the identified curve is not determined (its "
+            "muscle groups are at a bound or not determined): it must not be read as the "
+            "subject's strength, and only the generic curve is shown."
+        )
+    out.append(f'<p class="plain">{_e(msg)}</p>')
+    rows = []
+    for a in acts:
+        word = a.get("status", "prior")
+        gp, ip = a.get("generic_peak_nm"), a.get("identified_peak_nm")
+        gen = f"{_num(gp, '.0f', 'N·m')}"
+        if per_kg:
+            gen += f" ({_num(gp / mass, '.2f', 'N·m/kg')})" if _finite(gp) else ""
+        gen += f" at {_num(a.get('generic_peak_angle_deg'), '.0f', '°')}"
+        if word in ("at bound", "not determined"):
+            ide = "not determined"
+        elif word == "prior":
+            ide = "= generic (no identified group carries this action)"
+        else:
+            ide = f"{_num(ip, '.0f', 'N·m')}"
+            if per_kg and _finite(ip):
+                ide += f" ({_num(ip / mass, '.2f', 'N·m/kg')})"
+            ide += f" at {_num(a.get('identified_peak_angle_deg'), '.0f', '°')}"
+        groups = ", ".join(
+            f"{g['group']} {100 * g['share']:.0f} % ({g['status']})" for g in a.get("groups", [])
+        )
+        posture = ", ".join(f"{k} {v:.0f}°" for k, v in (a.get("posture_deg") or {}).items())
+        rows.append(
+            [
+                _e(a["action"]),
+                _e(f"{a['angle_label']} {a['angles_deg'][0]:.0f}–{a['angles_deg'][-1]:.0f}°"
+                   + (f"; {posture}" if posture else "")),
+                gen,
+                _e(ide),
+                _e(groups or "none (generic muscles only)"),
+                _status_html(word),
+            ]
+        )  # fmt: skip
+    side = js.get("side", "")
+    out.append(
+        _table(
+            [
+                "action",
+                "angle range; posture held",
+                "generic peak (at angle)",
+                "identified peak (at angle)",
+                "groups (share of peak, status)",
+                "status",
+            ],
+            rows,
+            "strength joint-strength",
+        )
+    )
+    if "strength_curves" in figs:
+        out.append(f"<figure>{figs['strength_curves']}</figure>")
+    share = js.get("status_share_min", 0.05)
+    out.append(
+        f'<p class="note">{_e(side.capitalize())} side; every agonist (moment arm in the '
+        "direction of the action) at full activation, rigid tendon, zero velocity, active fibre "
+        "force only; antagonists silent. Coordinates not swept at 0° except the posture listed "
+        "(knee flexion is knee_angle < 0 in the model). Status of an identified curve: not "
+        f"determined when a group carrying ≥ {100 * share:.0f} % of the peak is at a bound or "
+        "not determined; identified when such a group is identified; otherwise the generic "
+        f"curve. N·m/kg: body mass {_num(mass, '.1f', 'kg')}. {_e(js.get('norms_note', ''))}"
+        "</p>"
+    )
     return "".join(out)
 
 

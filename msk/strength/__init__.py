@@ -6,6 +6,8 @@
   moments with casadi exact derivatives and multi-start;
 * :func:`fit_emg_gains` — EMG-to-activation gains fitted jointly with EMG-assisted static
   optimisation on the inverse-dynamics torques → :class:`EMGGainFit`;
+* :func:`max_isometric_moment_curves` — maximal isometric joint-moment curves per action
+  (knee, ankle, hip) of a model → :class:`JointStrengthCurves`;
 * :func:`w_emg_stability` and the comparison tables of :mod:`msk.strength.studies`;
 * :mod:`msk.strength.synthetic` — a synthetic leg with known strengths.
 """
@@ -34,6 +36,14 @@ from msk.strength.identification import (
     net_contribution,
     with_strength,
 )
+from msk.strength.joint_strength import (
+    ACTIONS,
+    JointStrengthCurves,
+    MomentCurve,
+    action_status,
+    joint_strength_summary,
+    max_isometric_moment_curves,
+)
 from msk.strength.studies import (
     TABLE_I_W_EMG,
     MetricTable,
@@ -46,6 +56,7 @@ from msk.strength.studies import (
 )
 
 __all__ = [
+    "ACTIONS",
     "CALIBRATION_BOUNDS",
     "MUSCLE_CALIBRATION_PARAMETERS",
     "STRENGTH_FACTOR_BOUNDS",
@@ -56,10 +67,13 @@ __all__ = [
     "EMGDrivenCalibration",
     "EMGGainFit",
     "FitMetrics",
+    "JointStrengthCurves",
     "MetricTable",
+    "MomentCurve",
     "StrengthIdentifier",
     "StrengthProfile",
     "WEmgStability",
+    "action_status",
     "area_ratio_table",
     "casadi_curves",
     "emg_driven_forces",
@@ -67,6 +81,8 @@ __all__ = [
     "fit_emg_gains",
     "fractional_delay",
     "group_contributions",
+    "joint_strength_summary",
+    "max_isometric_moment_curves",
     "moment_fit_table",
     "net_contribution",
     "net_force_table",
