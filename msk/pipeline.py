@@ -810,7 +810,9 @@ class _Session:
                         nm,
                     )
                 )
-            est = ident_cls(self.model, total_mass=cfg.subject.mass_kg, symmetric=True).fit(its)
+            est = ident_cls(
+                self.model, total_mass=cfg.subject.mass_kg, symmetric=True, prior_weight="cv"
+            ).fit(its)
             good = np.isfinite(kin.q).all(axis=1)
             return {
                 "parameters": {k: np.asarray(v) for k, v in est.parameters_.items()},
