@@ -1511,7 +1511,11 @@ class _Session:
             if ident is None
             else {k: ident[k] for k in ("segments", "condition_number", "n_frames", "advice")},
             "anthropometry": _anthropometry(cfg, model),
-            "strength": None if strength is None else _strength_summary(strength),
+            "strength": None
+            if strength is None
+            else _strength_summary(
+                strength, model=model, side=self.sfx, mass_kg=cfg.subject.mass_kg
+            ),
             "comparison": self.comparison_,
             "optimization": None if sol is None else _optimization_summary(sol, self.sfx),
         }
