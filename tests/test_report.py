@@ -51,7 +51,7 @@ def test_html_is_self_contained(session):
     assert not re.search(r"""<(script|link|img)[^>]+(src|href)\s*=""", html)
     assert not re.search(r"""(href|src)\s*=\s*["']https?:|url\(\s*["']?https?:""", html)
     assert "<metadata>" not in html
-    assert html.count("<svg") == 5  # strength, mass, joints, muscles, contact
+    assert html.count("<svg") == 6  # strength, joint strength, mass, joints, muscles, contact
     for heading in (
         "Muscle strength",
         "Mass distribution",
