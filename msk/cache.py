@@ -101,6 +101,7 @@ DEPENDENCIES = (
     "clarabel",
     "qpsolvers",
     "ezc3d",
+    "matplotlib",
 )
 _MAX_DEPTH = 200
 _MAX_MANIFEST_BYTES = 64 << 20

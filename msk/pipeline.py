@@ -51,21 +51,19 @@ import dataclasses
 import hashlib
 import itertools
 import json
-import platform
 import sys
 import time as _time
 import traceback
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 from datetime import UTC, datetime
-from importlib import metadata as _md
 from pathlib import Path
 from typing import Any, Literal, TextIO, cast
 
 import numpy as np
 
 from msk import __version__
-from msk.cache import StageCache, code_fingerprint
+from msk.cache import StageCache, code_fingerprint, dependency_versions
 from msk.config import FesTrialConfig, ModelConfig, SessionConfig, TrialConfig, load_config
 from msk.exceptions import ConfigError, MissingDataError, ModelError, MskError
 from msk.io.frames import lab_to_model_rotation
@@ -107,18 +105,6 @@ STAGES: tuple[str, ...] = (
 #: Stages without which there are no results: their errors end the run.
 CORE_STAGES: frozenset[str] = frozenset(
     {"read", "model", "kinematics", "loads", "inverse_dynamics", "report"}
-)
-_DEPENDENCIES = (
-    "numpy",
-    "scipy",
-    "pin",
-    "casadi",
-    "ezc3d",
-    "matplotlib",
-    "daqp",
-    "osqp",
-    "clarabel",
-    "qpsolvers",
 )
 G0 = 9.80665
 #: Frames per joint-reaction call in the knee-contact stage (moving path points per chunk).
@@ -196,13 +182,8 @@ def _key(*parts: Any) -> str:
 
 
 def _versions() -> dict[str, str]:
-    out = {"msk": __version__, "python": platform.python_version()}
-    for name in _DEPENDENCIES:
-        try:
-            out[name] = _md.version(name)
-        except _md.PackageNotFoundError:
-            out[name] = "not installed"
-    return out
+    """msk, Python and the numerical dependencies (:func:`msk.cache.dependency_versions`)."""
+    return {"msk": __version__, **dependency_versions()}
 
 
 # ---------------------------------------------------------------------------------------------
