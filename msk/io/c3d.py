@@ -780,62 +780,51 @@ def _plates(
             m_raw = np.cross(cop_raw, f_raw) + t_raw
             cop_raw[~loaded] = np.nan
             t_raw[~loaded] = 0.0
-            plates.append(
-                ForcePlate(
-                    index=p,
-                    type=typ,
-                    force=_apply(f_raw, rot),
-                    moment=_apply(m_raw, rot) * pos_scale,
-                    cop=(_apply(cop_raw, rot) + centre) * pos_scale,
-                    free_moment=_apply(t_raw, rot) * pos_scale,
-                    corners=c * pos_scale,
-                    origin=centre * pos_scale,
-                    rotation=rot,
-                    channels=tuple(analog_labels[i] for i in idx),
-                    rate_hz=rate_hz,
-                )
-            )
-            continue
-        if typ == 3:
-            a, b, az0 = o
-            f_raw = np.column_stack([ch[:, 0] + ch[:, 1], ch[:, 2] + ch[:, 3], ch[:, 4:8].sum(1)])
-            m_raw = np.column_stack(
-                [
-                    b * (ch[:, 4] + ch[:, 5] - ch[:, 6] - ch[:, 7]),
-                    a * (ch[:, 5] + ch[:, 6] - ch[:, 4] - ch[:, 7]),
-                    b * (ch[:, 1] - ch[:, 0]) + a * (ch[:, 2] - ch[:, 3]),
-                ]
-            )
-            m_raw = m_raw + np.cross(f_raw, np.array([0.0, 0.0, az0]))
         else:
-            data = ch
-            if typ == 4:
-                if cal.ndim == 3 and cal.shape[2] > p:
-                    data = _apply(ch, cal[:6, :6, p])
-                elif cal.size and not (cal.ndim == 3 and cal.shape[2] > p):
-                    raise ForcePlateError(
-                        f"{path}: force platform {p + 1} (type 4) has no 6x6 CAL_MATRIX "
-                        f"(CAL_MATRIX shape {cal.shape})"
-                    )
-            f_raw = data[:, :3]
-            m_raw = data[:, 3:6] + np.cross(data[:, :3], o)
-        fz = f_raw[:, 2]
-        with np.errstate(divide="ignore", invalid="ignore"):
-            cop_raw = np.column_stack([-m_raw[:, 1] / fz, m_raw[:, 0] / fz, np.zeros_like(fz)])
-        if typ == 3 and poly.size >= 12 * (p + 1):
-            k = poly[12 * p : 12 * (p + 1)]
-            x, y = cop_raw[:, 0].copy(), cop_raw[:, 1].copy()
-            dx = (k[0] * y**4 + k[1] * y**2 + k[2]) * x**3 + (k[3] * y**4 + k[4] * y**2 + k[5]) * x
-            dy = (k[6] * x**4 + k[7] * x**2 + k[8]) * y**3 + (
-                k[9] * x**4 + k[10] * x**2 + k[11]
-            ) * y
-            cop_raw[:, 0] = x - dx
-            cop_raw[:, 1] = y - dy
-        loaded = np.abs(fz) >= cop_threshold_n
-        cop_raw[~loaded] = np.nan
-        t_raw = m_raw + np.cross(f_raw, np.nan_to_num(cop_raw))
-        t_raw[~loaded] = 0.0
-        t_raw[:, :2] = 0.0  # zero by construction of the COP (type 3: normal part only)
+            if typ == 3:
+                a, b, az0 = o
+                f_raw = np.column_stack(
+                    [ch[:, 0] + ch[:, 1], ch[:, 2] + ch[:, 3], ch[:, 4:8].sum(1)]
+                )
+                m_raw = np.column_stack(
+                    [
+                        b * (ch[:, 4] + ch[:, 5] - ch[:, 6] - ch[:, 7]),
+                        a * (ch[:, 5] + ch[:, 6] - ch[:, 4] - ch[:, 7]),
+                        b * (ch[:, 1] - ch[:, 0]) + a * (ch[:, 2] - ch[:, 3]),
+                    ]
+                )
+                m_raw = m_raw + np.cross(f_raw, np.array([0.0, 0.0, az0]))
+            else:
+                data = ch
+                if typ == 4:
+                    if cal.ndim == 3 and cal.shape[2] > p:
+                        data = _apply(ch, cal[:6, :6, p])
+                    elif cal.size and not (cal.ndim == 3 and cal.shape[2] > p):
+                        raise ForcePlateError(
+                            f"{path}: force platform {p + 1} (type 4) has no 6x6 CAL_MATRIX "
+                            f"(CAL_MATRIX shape {cal.shape})"
+                        )
+                f_raw = data[:, :3]
+                m_raw = data[:, 3:6] + np.cross(data[:, :3], o)
+            fz = f_raw[:, 2]
+            with np.errstate(divide="ignore", invalid="ignore"):
+                cop_raw = np.column_stack([-m_raw[:, 1] / fz, m_raw[:, 0] / fz, np.zeros_like(fz)])
+            if typ == 3 and poly.size >= 12 * (p + 1):
+                k = poly[12 * p : 12 * (p + 1)]
+                x, y = cop_raw[:, 0].copy(), cop_raw[:, 1].copy()
+                dx = (k[0] * y**4 + k[1] * y**2 + k[2]) * x**3 + (
+                    k[3] * y**4 + k[4] * y**2 + k[5]
+                ) * x
+                dy = (k[6] * x**4 + k[7] * x**2 + k[8]) * y**3 + (
+                    k[9] * x**4 + k[10] * x**2 + k[11]
+                ) * y
+                cop_raw[:, 0] = x - dx
+                cop_raw[:, 1] = y - dy
+            loaded = np.abs(fz) >= cop_threshold_n
+            cop_raw[~loaded] = np.nan
+            t_raw = m_raw + np.cross(f_raw, np.nan_to_num(cop_raw))
+            t_raw[~loaded] = 0.0
+            t_raw[:, :2] = 0.0  # zero by construction of the COP (type 3: normal part only)
         plates.append(
             ForcePlate(
                 index=p,
