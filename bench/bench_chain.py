@@ -33,6 +33,7 @@ import numpy as np
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT / "tests"))
 
+from _timing import replace_doc_section  # noqa: E402
 from synthetic import load_subject01  # noqa: E402
 from test_validation_opensim_so import compare, opensim_static_optimization  # noqa: E402
 
@@ -164,7 +165,6 @@ def main() -> None:
 
 def _write_docs(figures: str) -> None:
     path = ROOT / "docs" / "benchmarks.md"
-    old = path.read_text(encoding="utf-8")
     section = (
         f"{SECTION} (`bench/bench_chain.py`)\n\n"
         "`.venv/bin/python bench/bench_chain.py [--write-docs]`: inverse dynamics "
@@ -189,15 +189,7 @@ def _write_docs(figures: str) -> None:
         "knee contact force takes the knee rows of the length Jacobian from the geometry pass "
         'and balances the distal bodies for all frames at once (see "Knee contact" below).\n'
     )
-    if SECTION in old:
-        head, rest = old.split(SECTION, 1)
-        nxt = rest.find("\n## ")
-        new = head + section + (rest[nxt:] if nxt >= 0 else "")
-    else:
-        new = old.rstrip("\n") + "\n\n" + section
-    tmp = path.with_suffix(".md.tmp")
-    tmp.write_text(new, encoding="utf-8")
-    tmp.replace(path)
+    replace_doc_section(path, SECTION, section)
 
 
 if __name__ == "__main__":

@@ -34,6 +34,7 @@ import numpy as np
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT / "tests"))
 
+from _timing import replace_doc_section  # noqa: E402
 from synthetic import load_subject01  # noqa: E402
 from test_contact import legacy_knee_contact_force  # noqa: E402
 
@@ -180,7 +181,6 @@ def main() -> None:
 
 def _write_docs(figures: str) -> None:
     path = ROOT / "docs" / "benchmarks.md"
-    old = path.read_text(encoding="utf-8")
     section = (
         f"{SECTION} (`bench/bench_contact.py`)\n\n"
         "`.venv/bin/python bench/bench_contact.py [--write-docs]`: tibiofemoral contact force "
@@ -201,15 +201,7 @@ def _write_docs(figures: str) -> None:
         "pull one contraction Σ F_i ∂l_i/∂ξ; what is left is numpy call overhead of the "
         "per-joint forward-kinematics loop.\n"
     )
-    if SECTION in old:
-        head, rest = old.split(SECTION, 1)
-        nxt = rest.find("\n## ")
-        new = head + section + (rest[nxt:] if nxt >= 0 else "")
-    else:
-        new = old.rstrip("\n") + "\n\n" + section
-    tmp = path.with_suffix(".md.tmp")
-    tmp.write_text(new, encoding="utf-8")
-    tmp.replace(path)
+    replace_doc_section(path, SECTION, section)
 
 
 if __name__ == "__main__":
