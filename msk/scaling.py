@@ -1085,6 +1085,7 @@ def place_markers_from_motion(
     min_markers: int = 4,
     iterations: int = 3,
     move: Sequence[str] = (),
+    regularize: bool | None = None,
 ) -> tuple[Model, dict[str, Any]]:
     """Add a motion trial's non-model markers to ``model`` when there is no static trial.
 
@@ -1106,11 +1107,11 @@ def place_markers_from_motion(
        own body, to their median body-frame position in the last pass (OpenSim's
        ``move_model_markers`` for these markers, as :func:`place_markers` does on a static).
 
-    The passes run without any pull on the coordinates; when their final marker RMS exceeds
-    :data:`PLACEMENT_RETRY_RMS_M` (the anatomical markers leave the legs free: pelvis and feet
-    only, e.g. UWA's cluster-only set), they are run again with every rotation pulled weakly
-    towards neutral (:data:`NEUTRAL_TASK_WEIGHT`) and the placement with the lower RMS is kept
-    (``info["regularized"]`` says which).
+    ``regularize`` None (default): the passes run without any pull on the coordinates; when
+    their final marker RMS exceeds :data:`PLACEMENT_RETRY_RMS_M` (the anatomical markers leave
+    the legs free: pelvis and feet only, e.g. UWA's cluster-only set), they are run again with
+    every rotation pulled weakly towards neutral (:data:`NEUTRAL_TASK_WEIGHT`) and the placement
+    with the lower RMS is kept (``info["regularized"]`` says which); True / False: only that.
 
     Returns:
         The model with the markers added, and ``{"placed": marker → body, "spread_m": marker →
@@ -1122,43 +1123,16 @@ def place_markers_from_motion(
         KinematicsError: fewer than 3 model markers in the trial.
         MissingDataError: no frame could be solved.
     """
-    args = dict(
-        max_spread_m=max_spread_m, max_distance_m=max_distance_m, max_frames=max_frames,
-        min_frames=min_frames, min_markers=min_markers, iterations=iterations, move=move,
-    )  # fmt: skip
-    best = _place_markers_from_motion(model, markers, labels, time, **args)  # type: ignore[arg-type]
-    best[1]["regularized"] = False
-    if not best[1]["ik_marker_rms_m"] <= PLACEMENT_RETRY_RMS_M:
-        alt = _place_markers_from_motion(
-            model,
-            markers,
-            labels,
-            time,
-            regularize=True,
-            **args,  # type: ignore[arg-type]
-        )
-        alt[1]["regularized"] = True
-        if alt[1]["ik_marker_rms_m"] < best[1]["ik_marker_rms_m"]:
-            best = alt
-    return best
-
-
-def _place_markers_from_motion(
-    model: Model,
-    markers: ArrayLike,
-    labels: Sequence[str],
-    time: ArrayLike,
-    *,
-    max_spread_m: float = 0.02,
-    max_distance_m: float = 0.25,
-    max_frames: int = 120,
-    min_frames: int = 10,
-    min_markers: int = 4,
-    iterations: int = 3,
-    move: Sequence[str] = (),
-    regularize: bool = False,
-) -> tuple[Model, dict[str, Any]]:
-    """:func:`place_markers_from_motion` with or without the pull towards neutral."""
+    if regularize is None:
+        args: dict[str, Any] = dict(
+            max_spread_m=max_spread_m, max_distance_m=max_distance_m, max_frames=max_frames,
+            min_frames=min_frames, min_markers=min_markers, iterations=iterations, move=move,
+        )  # fmt: skip
+        plain = place_markers_from_motion(model, markers, labels, time, regularize=False, **args)
+        if plain[1]["ik_marker_rms_m"] <= PLACEMENT_RETRY_RMS_M:
+            return plain
+        pulled = place_markers_from_motion(model, markers, labels, time, regularize=True, **args)
+        return pulled if pulled[1]["ik_marker_rms_m"] < plain[1]["ik_marker_rms_m"] else plain
     from msk.io.c3d import is_measured_marker
     from msk.kinematics import solve_kinematics
     from msk.markersets import zeros_as_gaps
@@ -1285,5 +1259,6 @@ def _place_markers_from_motion(
         "moved": moved,
         "ik_marker_rms_m": rms,
         "frames": n_ok,
+        "regularized": regularize,
     }
     return model.with_markers([*own, *added]), info
