@@ -531,16 +531,18 @@ class _Session:
                 "source": str(self.model_src),
                 "generic_mass_kg": model.total_mass,
             }
-            up = -np.asarray(model.gravity, dtype=float)
             x_lab = zeros_as_gaps(trial.markers)
             match = recognise(
                 trial.marker_labels, model.marker_names, rename=cfg.marker_rename,
                 model_bodies=bodies, markers=x_lab,
             )  # fmt: skip
             # names in the configuration that match nothing are errors, not silently ignored
+            up = -np.asarray(model.gravity, dtype=float)
+            # the static trial, read once: its labels for the checks, its markers for scaling
+            static_read = None if self.static is None else _read_markers(self.static.file, up)
             labels_all = set(trial.marker_labels)
-            if self.static is not None:
-                labels_all |= set(_read_markers(self.static.file, -np.asarray(model.gravity))[1])
+            if static_read is not None:
+                labels_all |= set(static_read[1])
             # (a lab label absent from these trials is a note: rename tables of a protocol
             # list variants a given session may not use)
             absent = sorted(set(cfg.marker_rename.values()) - labels_all)
@@ -575,8 +577,8 @@ class _Session:
                 "message": head.message,
             }
             report = None
-            if self.static is not None:
-                sm, slabels_raw, stime = _read_markers(self.static.file, up)
+            if static_read is not None:
+                sm, slabels_raw, stime = static_read
                 smatch = recognise(
                     slabels_raw, model.marker_names, rename=cfg.marker_rename,
                     model_bodies=bodies, markers=zeros_as_gaps(sm),
