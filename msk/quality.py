@@ -185,9 +185,7 @@ def _flag(trial: str, quantity: str, value: float, threshold: float, message: st
     return Flag(trial, quantity, float(value), float(threshold), message)
 
 
-def _coordinate_flags(
-    trial: str, kin: Any, th: Mapping[str, float], held: set[str]
-) -> list[Flag]:
+def _coordinate_flags(trial: str, kin: Any, th: Mapping[str, float], held: set[str]) -> list[Flag]:
     out: list[Flag] = []
     q = np.asarray(kin.q, dtype=float)
     good = np.isfinite(q).all(axis=1)
@@ -243,27 +241,25 @@ def _unobserved_flags(trial: str, model: Any, kin: Any, th: Mapping[str, float])
     return out
 
 
-def _optimization_flags(
-    trial: str, sol: Mapping[str, Any], jt: Any, th: Mapping[str, float]
-) -> list[Flag]:
+def _optimization_flags(trial: str, sol: Any, jt: Any, th: Mapping[str, float]) -> list[Flag]:
     out: list[Flag] = []
-    n_inf = int(sol.get("infeasible_frames", 0) or 0)
+    n_inf = int(getattr(sol, "infeasible_frames", 0) or 0)
     if n_inf:
         out.append(
             _flag(trial, "optimization_infeasible_frames", n_inf, 0,
                   f"{n_inf} frames of the tension optimisation are infeasible (bounded "
                   "least-squares point kept)")
         )  # fmt: skip
-    n_exc = int(sol.get("excluded_frames", 0) or 0)
+    n_exc = int(getattr(sol, "excluded_frames", 0) or 0)
     if n_exc:
         out.append(
             _flag(trial, "optimization_excluded_frames", n_exc, 0,
                   f"{n_exc} frames could not be posed to the tension optimisation "
-                  f"({sol.get('excluded_reason', 'invalid inputs')}): no muscle force or contact "
-                  "force there")
+                  f"({getattr(sol, 'excluded_reason', None) or 'invalid inputs'}): no muscle "
+                  "force or contact force there")
         )  # fmt: skip
-    acts = np.asarray(sol.get("activations", np.zeros((0, 0))), dtype=float)
-    names = tuple(sol.get("muscles", ()))
+    acts = np.asarray(getattr(sol, "activations", np.zeros((0, 0))), dtype=float)
+    names = tuple(getattr(sol, "muscles", ()))
     if acts.ndim == 2 and acts.size:
         rows = np.isfinite(acts).all(axis=1)
         if rows.any():
@@ -277,8 +273,8 @@ def _optimization_flags(
                           f"{th['saturation_activation']:g}) in {sat[worst]:.0f} % of the frames"
                           f" ({int((sat > th['saturated_frames_pct']).sum())} muscles in all)")
                 )  # fmt: skip
-    rt = sol.get("reserve_torques")
-    rc = tuple(sol.get("reserve_coordinates", ()))
+    rt = getattr(sol, "reserve_torques", None)
+    rc = tuple(getattr(sol, "reserve_coordinates", None) or ())
     if rt is not None and rc:
         rt = np.asarray(rt, dtype=float)
         cn = tuple(jt.coordinate_names)
@@ -312,7 +308,7 @@ def gait_flags(
     mass_kg: float,
     height_m: float | None,
     marker_labels: Sequence[str] = (),
-    optimization: Mapping[str, Any] | None = None,
+    optimization: Any = None,
     plate_mass_kg: float | None = None,
     peak_external_force_n: float | None = None,
     held: Sequence[str] = (),
@@ -323,7 +319,9 @@ def gait_flags(
 
     ``quality`` is the quality block of the run (``ik_marker_rms_mean_m``,
     ``residual_force_rms_pct_bw``, ``residual_moment_rms_nm`` …, None where not computed);
-    ``plate_mass_kg`` :func:`body_mass_from_loads` of the trial; ``peak_external_force_n`` the
+    ``optimization`` the tension result (:class:`msk.pipeline.tension.MuscleTensions`: forces,
+    activations, excluded and infeasible frames, reserve torques); ``plate_mass_kg``
+    :func:`body_mass_from_loads` of the trial; ``peak_external_force_n`` the
     largest ground-reaction magnitude (Hicks et al. 2015 state the moment bound on it; body
     weight when None); ``scaling_methods`` body → how it was scaled (a body left
     ``"unscaled"`` is flagged); ``held`` coordinates held near neutral by an IK coordinate task (the

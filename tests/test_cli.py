@@ -10,7 +10,8 @@ import numpy as np
 import pytest
 
 from msk import __version__
-from msk.cli import build_parser, command, flat_channels, main
+from msk.cli import Command, build_parser, main
+from msk.cli.info import flat_channels
 from msk.exceptions import UnitsError
 from msk.io import write_c3d
 from msk.io.opensim_files import Table, write_sto, write_trc
@@ -106,23 +107,49 @@ def test_console_script_never_prints_a_traceback(tmp_path):
     assert proc.stderr.startswith("msk: error: ")
 
 
-def test_verbs_register(capsys, monkeypatch):
+def test_verbs_come_from_the_commands_of_the_verb_modules(capsys, monkeypatch):
+    import types
+
     import msk.cli
 
-    monkeypatch.setattr(msk.cli, "_COMMANDS", dict(msk.cli._COMMANDS))
-
-    @command("hello-test", help="say hello", arguments=lambda p: p.add_argument("--who"))
     def _hello(args: argparse.Namespace) -> int:
         if args.who == "units":
             raise UnitsError("furlong\nis not a unit")
         print(f"hello {args.who}")
         return 0
 
+    mod = types.ModuleType("msk_test_verbs")
+    mod.COMMANDS = (  # type: ignore[attr-defined]
+        Command("hello-test", "say hello", lambda p: p.add_argument("--who"), _hello),
+    )
+    monkeypatch.setitem(sys.modules, "msk_test_verbs", mod)
+    monkeypatch.setattr(msk.cli, "VERB_MODULES", (*msk.cli.VERB_MODULES, "msk_test_verbs"))
     assert "hello-test" in build_parser().format_help()
     assert main(["hello-test", "--who", "lab"]) == 0
     assert capsys.readouterr().out == "hello lab\n"
     assert main(["hello-test", "--who", "units"]) == 2
     assert capsys.readouterr().err == "msk: error: furlong is not a unit\n"
+    # a verb defined twice is a packaging error, not a silent override
+    monkeypatch.setattr(msk.cli, "VERB_MODULES", ("msk_test_verbs", "msk_test_verbs"))
+    with pytest.raises(RuntimeError, match="hello-test"):
+        build_parser()
+
+
+def test_help_imports_no_numerical_library():
+    """``msk --help`` builds every verb's parser without importing Pinocchio, casadi,
+    matplotlib or the pipeline (verb modules import the library in their handlers)."""
+    code = (
+        "import sys, contextlib, io\n"
+        "from msk.cli import main\n"
+        "with contextlib.suppress(SystemExit), contextlib.redirect_stdout(io.StringIO()):\n"
+        "    main(['--help'])\n"
+        "heavy = ('pinocchio', 'casadi', 'matplotlib', 'scipy', 'msk.pipeline', 'msk.model')\n"
+        "print(' '.join(m for m in heavy if m in sys.modules))\n"
+    )
+    proc = subprocess.run(
+        [sys.executable, "-c", code], capture_output=True, text=True, timeout=120, check=True
+    )
+    assert proc.stdout.strip() == ""
 
 
 def test_flat_channels_rules():

@@ -171,7 +171,7 @@ def test_analysis_stage_error_is_recorded_not_fatal(tmp_path):
     res = run_session(cfg, tmp_path / "out", _fail_stage="comparison")
     rec = {r.name: r for r in res.stages}["comparison"]
     assert rec.status == "failed"
-    assert rec.message.startswith("internal error: RuntimeError") and "pipeline.py:" in rec.message
+    assert rec.message.startswith("internal error: RuntimeError") and "runner.py:" in rec.message
     out = read_session(res.out_dir)
     assert out.has("joint_torques") and out.summary["comparison"] is None
     assert any(i["stage"] == "comparison" for i in out.summary["not_available"])

@@ -12,6 +12,8 @@ are known to be incomplete must raise the flag that says so, never a silent numb
   residual and plate-mass flags;
 * UWA fast walking: no knee/ankle markers, no static, body mass not in the files.
 
+Every table a config writes equals its golden fingerprint (``tests/golden/``) to 1e-9.
+
 Broken variants (wrong mass, a foot's markers dropped, swapped ASIS labels) raise the gate that
 names the problem.
 """
@@ -23,6 +25,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from support import golden
 
 from msk.pipeline import CORE_STAGES, run_task_trials
 
@@ -102,6 +105,9 @@ def test_shipped_session_runs_and_flags_what_is_wrong(cfg: Path, tmp_path: Path)
         side = s["subject"]["side"]
         assert s["comparison"] is not None or side
     _check_report_renders(res.out_dir, s)
+    # golden outputs: every table equal to the stored fingerprint to 1e-9 (relative to the
+    # column's largest value) and the same report sections (tests/support/golden.py)
+    assert not golden.check(cfg.stem, res.out_dir), golden.check(cfg.stem, res.out_dir)[:10]
     if any(i["role"] == "contact_force" for i in s["inputs"]):
         comp = s["comparison"]
         for part in ("", "_medial", "_lateral"):

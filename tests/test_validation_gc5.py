@@ -14,7 +14,7 @@ file) when present, else :data:`RENAME` (the same mapping). Mapping gait2392's a
 markers to the lab's ``RShoulder``/``LShoulder`` makes IK worse (30 vs 22 mm RMS): they are
 left to be placed. The
 static trial's other markers (thigh/shank clusters, PSIS…) are added to the scaled model where
-they sit (:func:`msk.pipeline.place_markers`), as the pipeline does.
+they sit (:func:`msk.scaling.place_markers`), as the pipeline does.
 
 Issue 7 variants (:class:`Variant`, table in ``docs/validation.md``): body mass from the plates
 instead of 75 kg, the lab's foot markers moved to their static positions (``FOOT_MARKERS``),

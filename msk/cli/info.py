@@ -1,143 +1,21 @@
-"""The ``msk`` command.
-
-Verbs are registered with :func:`command`; a later module adds one with::
-
-    from msk.cli import command
-
-    @command("run", help="run a session pipeline", arguments=lambda p: p.add_argument("CONFIG"))
-    def _run(args: argparse.Namespace) -> int:
-        ...
-        return 0
-
-and makes sure the module is imported in :data:`VERB_MODULES` (imported lazily by
-:func:`build_parser`). Any :class:`msk.exceptions.MskError` ends the command with exactly one
-line ``msk: error: <message>`` on stderr and exit status 2, never a traceback.
-"""
+"""``msk info FILE``: what a .c3d/.trc/.mot/.sto file holds (rates, markers and gaps, analog
+channels with the flat or unused ones, plates, events, subject)."""
 
 from __future__ import annotations
 
 import argparse
-import importlib
 import sys
-from collections.abc import Callable, Sequence
-from dataclasses import dataclass
+from collections.abc import Sequence
 from pathlib import Path
-from typing import NoReturn, TextIO
+from typing import TextIO
 
 import numpy as np
 
-from msk import __version__
-from msk.exceptions import MskError
+from msk.cli import Command
 
-__all__ = [
-    "VERB_MODULES",
-    "Command",
-    "build_parser",
-    "command",
-    "flat_channels",
-    "main",
-    "positive_int",
-]
-
-#: Modules imported before the parser is built, so that their ``@command`` verbs register.
-VERB_MODULES: list[str] = ["msk.pipeline", "msk.batch"]
+__all__ = ["COMMANDS", "flat_channels"]
 
 
-@dataclass(frozen=True)
-class Command:
-    """A registered verb: its help line, argument builder and handler (returns exit status)."""
-
-    name: str
-    help: str
-    arguments: Callable[[argparse.ArgumentParser], None]
-    handler: Callable[[argparse.Namespace], int]
-
-
-_COMMANDS: dict[str, Command] = {}
-
-
-def command(
-    name: str,
-    *,
-    help: str,
-    arguments: Callable[[argparse.ArgumentParser], None] | None = None,
-) -> Callable[[Callable[[argparse.Namespace], int]], Callable[[argparse.Namespace], int]]:
-    """Decorator registering ``handler(args) -> int`` as ``msk <name>``."""
-
-    def deco(handler: Callable[[argparse.Namespace], int]) -> Callable[[argparse.Namespace], int]:
-        _COMMANDS[name] = Command(name, help, arguments or (lambda p: None), handler)
-        return handler
-
-    return deco
-
-
-class _Parser(argparse.ArgumentParser):
-    """argparse with usage errors on one line (``msk: error: …``, exit 2), like every other."""
-
-    def error(self, message: str) -> NoReturn:
-        msg = " ".join(message.split())
-        self.exit(2, f"msk: error: {self.prog}: {msg} (see {self.prog} --help)\n")
-
-
-def positive_int(text: str) -> int:
-    """argparse type: an integer ≥ 1 (``--workers``)."""
-    try:
-        value = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"{text!r} is not an integer") from None
-    if value < 1:
-        raise argparse.ArgumentTypeError(f"{value} should be ≥ 1")
-    return value
-
-
-def _safe_streams() -> None:
-    """A strict-ASCII (or any non-UTF-8) terminal gets escapes, never a UnicodeEncodeError."""
-    for stream in (sys.stdout, sys.stderr):
-        if hasattr(stream, "reconfigure") and (stream.errors or "strict") == "strict":
-            try:
-                stream.reconfigure(errors="backslashreplace")
-            except (ValueError, OSError):  # pragma: no cover - detached or closed
-                pass
-
-
-def build_parser() -> argparse.ArgumentParser:
-    """The argparse parser with every registered verb."""
-    for mod in VERB_MODULES:
-        importlib.import_module(mod)
-    parser = _Parser(
-        prog="msk", description="Subject-specific musculoskeletal analysis of the lower limb."
-    )
-    parser.add_argument("--version", action="version", version=f"msk {__version__}")
-    sub = parser.add_subparsers(dest="verb", metavar="COMMAND")
-    sub.required = True
-    for cmd in _COMMANDS.values():
-        p = sub.add_parser(cmd.name, help=cmd.help, description=cmd.help)
-        cmd.arguments(p)
-        p.set_defaults(_handler=cmd.handler)
-    return parser
-
-
-def main(argv: Sequence[str] | None = None) -> int:
-    """Entry point of the ``msk`` console script; returns the exit status."""
-    _safe_streams()
-    parser = build_parser()
-    args = parser.parse_args(argv)
-    try:
-        return int(args._handler(args) or 0)
-    except MskError as exc:
-        msg = " ".join(str(exc).split()) or type(exc).__name__
-        print(f"msk: error: {msg}", file=sys.stderr)
-        return 2
-    except BrokenPipeError:  # output piped into head & co.
-        return 0
-    except OSError as exc:
-        print(f"msk: error: {' '.join(str(exc).split())}", file=sys.stderr)
-        return 2
-
-
-# ---------------------------------------------------------------------------------------------
-# msk info
-# ---------------------------------------------------------------------------------------------
 def flat_channels(
     analogs: np.ndarray, labels: Sequence[str], units: Sequence[str], *, rel_std: float = 0.03
 ) -> dict[str, str]:
@@ -253,7 +131,6 @@ def _info_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("file", metavar="FILE", type=Path, help=".c3d, .trc, .mot or .sto file")
 
 
-@command("info", help="summarise a .c3d/.trc/.mot/.sto file", arguments=_info_arguments)
 def _info(args: argparse.Namespace) -> int:
     path: Path = args.file
     if path.suffix.lower() in (".trc", ".mot", ".sto"):
@@ -263,5 +140,4 @@ def _info(args: argparse.Namespace) -> int:
     return 0
 
 
-if __name__ == "__main__":  # pragma: no cover
-    sys.exit(main())
+COMMANDS = (Command("info", "summarise a .c3d/.trc/.mot/.sto file", _info_arguments, _info),)

@@ -1,0 +1,110 @@
+"""The ``msk`` command.
+
+Every verb is a :class:`Command` (name, help line, argument builder, handler) listed in the
+``COMMANDS`` tuple of one module of :data:`VERB_MODULES`; :func:`build_parser` reads them —
+importing a verb module registers nothing and imports nothing heavy (handlers import the
+library when they run), so ``msk --help`` never loads Pinocchio, casadi or matplotlib. Adding a
+verb = a :class:`Command` in one of those modules (or a new module + one line in
+:data:`VERB_MODULES`). Any :class:`msk.exceptions.MskError` ends the command with exactly one
+line ``msk: error: <message>`` on stderr and exit status 2, never a traceback.
+"""
+
+from __future__ import annotations
+
+import argparse
+import importlib
+import sys
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
+from typing import NoReturn
+
+from msk import __version__
+from msk.exceptions import MskError
+
+__all__ = ["VERB_MODULES", "Command", "build_parser", "main", "positive_int"]
+
+#: Modules whose ``COMMANDS`` tuple lists their verbs, in the order ``msk --help`` shows them.
+VERB_MODULES: tuple[str, ...] = ("msk.cli.session", "msk.cli.batch", "msk.cli.info")
+
+
+@dataclass(frozen=True)
+class Command:
+    """A verb: its help line, argument builder and handler (returns the exit status)."""
+
+    name: str
+    help: str
+    arguments: Callable[[argparse.ArgumentParser], None]
+    handler: Callable[[argparse.Namespace], int]
+
+
+def commands() -> tuple[Command, ...]:
+    """Every verb of :data:`VERB_MODULES` (a repeated name is an error of the package)."""
+    out: dict[str, Command] = {}
+    for mod in VERB_MODULES:
+        for cmd in importlib.import_module(mod).COMMANDS:
+            if cmd.name in out:
+                raise RuntimeError(f"msk verb {cmd.name!r} defined twice ({mod})")
+            out[cmd.name] = cmd
+    return tuple(out.values())
+
+
+class _Parser(argparse.ArgumentParser):
+    """argparse with usage errors on one line (``msk: error: …``, exit 2), like every other."""
+
+    def error(self, message: str) -> NoReturn:
+        msg = " ".join(message.split())
+        self.exit(2, f"msk: error: {self.prog}: {msg} (see {self.prog} --help)\n")
+
+
+def positive_int(text: str) -> int:
+    """argparse type: an integer ≥ 1 (``--workers``)."""
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r} is not an integer") from None
+    if value < 1:
+        raise argparse.ArgumentTypeError(f"{value} should be ≥ 1")
+    return value
+
+
+def _safe_streams() -> None:
+    """A strict-ASCII (or any non-UTF-8) terminal gets escapes, never a UnicodeEncodeError."""
+    for stream in (sys.stdout, sys.stderr):
+        if hasattr(stream, "reconfigure") and (stream.errors or "strict") == "strict":
+            try:
+                stream.reconfigure(errors="backslashreplace")
+            except (ValueError, OSError):  # pragma: no cover - detached or closed
+                pass
+
+
+def build_parser() -> argparse.ArgumentParser:
+    """The argparse parser with every registered verb."""
+    parser = _Parser(
+        prog="msk", description="Subject-specific musculoskeletal analysis of the lower limb."
+    )
+    parser.add_argument("--version", action="version", version=f"msk {__version__}")
+    sub = parser.add_subparsers(dest="verb", metavar="COMMAND")
+    sub.required = True
+    for cmd in commands():
+        p = sub.add_parser(cmd.name, help=cmd.help, description=cmd.help)
+        cmd.arguments(p)
+        p.set_defaults(_handler=cmd.handler)
+    return parser
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """Entry point of the ``msk`` console script; returns the exit status."""
+    _safe_streams()
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    try:
+        return int(args._handler(args) or 0)
+    except MskError as exc:
+        msg = " ".join(str(exc).split()) or type(exc).__name__
+        print(f"msk: error: {msg}", file=sys.stderr)
+        return 2
+    except BrokenPipeError:  # output piped into head & co.
+        return 0
+    except OSError as exc:
+        print(f"msk: error: {' '.join(str(exc).split())}", file=sys.stderr)
+        return 2

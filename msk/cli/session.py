@@ -1,0 +1,79 @@
+"""``msk run`` (a session configuration → its results folder), ``msk print-config`` (the
+commented session-config template) and ``msk report`` (rebuild a folder's report)."""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from pathlib import Path
+
+from msk.cli import Command
+
+__all__ = ["COMMANDS"]
+
+
+def _run_args(p: argparse.ArgumentParser) -> None:
+    p.add_argument("config", metavar="CONFIG", type=Path, help="session configuration (.toml)")
+    p.add_argument("--out", required=True, type=Path, metavar="DIR", help="session folder")
+    p.add_argument("--no-cache", action="store_true", help="recompute every stage")
+    p.add_argument("--pdf", action="store_true", help="also print report.pdf (Chromium)")
+    p.add_argument("--quiet", action="store_true", help="no progress lines")
+    p.add_argument("--strict", action="store_true", help="exit 3 when any quality gate is raised")
+
+
+def _run(args: argparse.Namespace) -> int:
+    from msk.pipeline import run_task_trials
+
+    raised = 0
+    for res in run_task_trials(
+        args.config,
+        args.out,
+        progress=None if args.quiet else sys.stderr,
+        use_cache=not args.no_cache,
+        pdf=args.pdf,
+    ):
+        missing = res.not_available
+        if missing and not args.quiet:
+            sys.stderr.write(f"{res.out_dir}: stages not available: {', '.join(missing)}\n")
+        flags = (res.summary.get("quality") or {}).get("flags") or []
+        raised += len(flags)
+        for f in flags:
+            sys.stderr.write(f"{res.out_dir}: quality flag: {f['message']}\n")
+    return 3 if args.strict and raised else 0
+
+
+def _print_config_args(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--out", type=Path, metavar="FILE", help="write to FILE (default stdout)")
+
+
+def _print_config(args: argparse.Namespace) -> int:
+    from msk.config import TEMPLATE
+
+    if args.out is None:
+        sys.stdout.write(TEMPLATE)
+    else:
+        args.out.parent.mkdir(parents=True, exist_ok=True)
+        args.out.write_text(TEMPLATE, encoding="utf-8")
+    return 0
+
+
+def _report_args(p: argparse.ArgumentParser) -> None:
+    p.add_argument("folder", metavar="DIR", type=Path, help="a session folder of msk run")
+    p.add_argument("--pdf", action="store_true", help="also print report.pdf (Chromium)")
+
+
+def _report(args: argparse.Namespace) -> int:
+    from msk.report import write_report
+    from msk.results import read_session
+
+    path = write_report(read_session(args.folder), args.folder, pdf=args.pdf)
+    sys.stdout.write(f"{path}\n")
+    return 0
+
+
+COMMANDS = (
+    Command("run", "run a session pipeline (C3D → results folder)", _run_args, _run),
+    Command("print-config", "print the commented session-config template", _print_config_args,
+            _print_config),
+    Command("report", "rebuild report.html of a session folder", _report_args, _report),
+)  # fmt: skip

@@ -1,0 +1,132 @@
+"""Stage ``knee_contact``: tibiofemoral contact force of the generic and the subject-specific
+model (:func:`msk.contact.knee_contact_force`: the joint reaction with the muscle forces, from
+the geometry pass's unit wrenches) and its two-point medial/lateral split
+(:func:`msk.contact.split_medial_lateral`; Winby et al. 2009; Lerner et al. 2015)."""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from msk.pipeline.dynamics import InverseDynamics
+from msk.pipeline.emg import EmgActivations
+from msk.pipeline.inputs import SessionInputs
+from msk.pipeline.loads import Loads
+from msk.pipeline.mass_identification import MassIdentification, identified_model
+from msk.pipeline.model import BuiltModel
+from msk.pipeline.read import ReadResult
+from msk.pipeline.runner import StageUnavailable
+from msk.pipeline.strength import StrengthIdentification
+from msk.pipeline.tension import MuscleTensions, optimise
+
+__all__ = ["ContactVariant", "KneeContact", "run", "settings"]
+
+
+@dataclass(frozen=True)
+class ContactVariant:
+    """One model's knee contact force (N, 3) in the knee joint frame fixed in the tibia, its
+    magnitude and medial/lateral compartment forces (N); NaN where there is no muscle force."""
+
+    force: np.ndarray
+    total: np.ndarray
+    medial: np.ndarray
+    lateral: np.ndarray
+
+
+@dataclass(frozen=True)
+class KneeContact:
+    """Contact of the ``generic`` model and, with identified strength, of the
+    ``subject_specific`` one; the plateau geometry of the split; the measured force (as read)."""
+
+    joint: str
+    variants: Mapping[str, ContactVariant]
+    plateau: Mapping[str, Any]
+    measured: Any = None
+
+
+def settings(inputs: SessionInputs) -> Any:
+    return {
+        "contact": inputs.hashes.get("contact_force"),
+        "icd": inputs.cfg.contact.intercondylar_distance_m,
+    }
+
+
+def _frames(obj: Any, idx: np.ndarray, n: int) -> Any:
+    """A frozen time-axis result restricted to the frames ``idx`` (every array field whose first
+    axis has the ``n`` frames is sliced)."""
+    import dataclasses
+
+    changes = {}
+    for f in dataclasses.fields(obj):
+        v = getattr(obj, f.name)
+        if isinstance(v, np.ndarray) and v.ndim >= 1 and v.shape[0] == n:
+            changes[f.name] = v[idx]
+    return dataclasses.replace(obj, **changes)
+
+
+def run(
+    inputs: SessionInputs,
+    read: ReadResult,
+    model: BuiltModel,
+    kinematics: Any,
+    loads: Loads,
+    mass_identification: MassIdentification | None,
+    inverse_dynamics: InverseDynamics,
+    emg: EmgActivations | None,
+    muscle_geometry: Any,
+    tension_optimization: MuscleTensions,
+    strength_identification: StrengthIdentification | None,
+) -> KneeContact:
+    from msk.contact import knee_contact_force, plateau_geometry, split_medial_lateral
+
+    mdl, kin = model.model, kinematics
+    joint = f"knee{inputs.sfx}"
+    if joint not in {j.name for j in mdl.joints}:
+        raise StageUnavailable(f"model has no joint {joint!r}")
+    variants: dict[str, tuple[Any, MuscleTensions]] = {"generic": (mdl, tension_optimization)}
+    if strength_identification is not None:
+        from msk.strength import with_strength
+
+        m_spec = with_strength(
+            identified_model(mdl, mass_identification), strength_identification.profile
+        )
+        variants["subject_specific"] = (
+            m_spec,
+            optimise(
+                inputs, m_spec, inverse_dynamics.torques, muscle_geometry, kin.time,
+                loads.usable, emg,
+            ),
+        )  # fmt: skip
+    n = kin.time.size
+    out: dict[str, ContactVariant] = {}
+    plateau: dict[str, Any] = {}
+    # ∂l/∂ξ of the geometry stage (same paths and muscle order in both variants: with_strength
+    # only scales F_iso)
+    dw = getattr(muscle_geometry, "distal_wrenches", {}).get(joint)
+    for name, (m, s) in variants.items():
+        # frames without muscle forces get no contact force (never zero muscle force)
+        ok = np.flatnonzero(loads.usable & np.isfinite(s.forces).all(axis=1))
+        contact = knee_contact_force(
+            m, _frames(kin, ok, n), _frames(loads.external, ok, n),
+            muscle_forces=s.forces[ok], muscle_names=tuple(s.muscles), joint=joint,
+            distal_wrenches=None if dw is None else dw[ok],
+        )  # fmt: skip
+        force = np.full((n, 3), np.nan)
+        force[ok] = contact.force
+        geo = plateau_geometry(
+            m, joint=joint, intercondylar_distance_m=inputs.cfg.contact.intercondylar_distance_m
+        )
+        ml = split_medial_lateral(contact, geo)
+        medial = np.full(n, np.nan)
+        lateral = np.full(n, np.nan)
+        medial[ok], lateral[ok] = ml.medial, ml.lateral
+        out[name] = ContactVariant(force, np.linalg.norm(force, axis=1), medial, lateral)
+        plateau = {
+            "intercondylar_distance_m": geo.intercondylar_distance_m,
+            "centre_m": list(geo.centre_m),
+            "source": geo.source,
+        }
+    return KneeContact(joint, out, plateau, read.contact)

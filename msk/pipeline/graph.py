@@ -1,0 +1,167 @@
+"""The stage graph: every node of a session run, its upstream nodes, in one place.
+
+A node is a function ``run(inputs, **upstream)`` of the :class:`~msk.pipeline.inputs.SessionInputs`
+and of the results of the nodes it names as parameters; ``needs`` are the upstream nodes without
+which it cannot run (``not available`` otherwise), ``reads`` the optional ones (passed as
+``None`` when they did not run). Recorded nodes are the stages of ``summary.json`` ``stages``
+(status, seconds, cache); unrecorded ones are cheap derivations (events and cycle, tables,
+summary). Adding a stage = one module with ``run`` (and ``settings`` when options enter its
+cache key) + one line below::
+
+    read ─ model ─ kinematics ─ loads ─┬─ mass_identification ─ inverse_dynamics ─┐
+                                       ├─ emg ──────────────────────────────────────┤
+                                       └─ muscle_geometry ─ tension_optimization ───┤
+         strength_identification (emg, geometry, torques) ─ knee_contact ─ gait_cycle*
+         ─ comparison ─ fes ─ tables* ─ summary* ─ report          (* unrecorded)
+"""
+
+from __future__ import annotations
+
+import inspect
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass
+from typing import Any
+
+from msk.pipeline import (
+    comparison,
+    contact,
+    cycle,
+    dynamics,
+    emg,
+    fes,
+    geometry,
+    kinematics,
+    loads,
+    mass_identification,
+    model,
+    read,
+    report,
+    strength,
+    summary,
+    tables,
+    tension,
+)
+from msk.pipeline.inputs import SessionInputs
+from msk.pipeline.runner import Runner
+
+__all__ = ["CORE_STAGES", "GRAPH", "STAGES", "Node", "run_graph"]
+
+#: why a gait node does not run in a session without a task trial
+NO_GAIT = "no gait trial (role 'task') in the configuration"
+
+
+@dataclass(frozen=True)
+class Node:
+    """One node of the graph (see the module docstring)."""
+
+    name: str
+    run: Callable[..., Any]
+    needs: tuple[str, ...] | Callable[[SessionInputs], tuple[str, ...]] = ()
+    reads: tuple[str, ...] = ()
+    settings: Callable[..., Any] | None = None
+    recorded: bool = True
+    core: bool = False
+    gait: bool = True
+    requested: Callable[[SessionInputs], str | None] | None = None
+
+    @property
+    def parameters(self) -> tuple[str, ...]:
+        """The upstream nodes ``run`` takes (its parameters after ``inputs``)."""
+        return tuple(inspect.signature(self.run).parameters)[1:]
+
+    def needs_of(self, inputs: SessionInputs) -> tuple[str, ...]:
+        return self.needs(inputs) if callable(self.needs) else self.needs
+
+
+_ALL = ("model", "kinematics", "loads")
+GRAPH: tuple[Node, ...] = (
+    Node("read", read.run, settings=read.settings, core=True),
+    Node("model", model.run, ("read",), settings=model.settings, core=True),
+    Node("kinematics", kinematics.run, ("model",), settings=kinematics.settings, core=True),
+    Node("loads", loads.run, ("read", "model", "kinematics"), settings=loads.settings, core=True),
+    Node("mass_identification", mass_identification.run, ("read", *_ALL),
+         settings=mass_identification.settings),
+    Node("inverse_dynamics", dynamics.run, _ALL, ("mass_identification",), core=True),
+    Node("emg", emg.run, ("read", "model", "kinematics"), settings=emg.settings),
+    Node("muscle_geometry", geometry.run, _ALL),
+    Node("tension_optimization", tension.run, tension.needs, ("mass_identification", "emg"),
+         settings=tension.settings),
+    Node("strength_identification", strength.run,
+         (*_ALL, "inverse_dynamics", "emg", "muscle_geometry")),
+    Node("knee_contact", contact.run,
+         ("read", *_ALL, "inverse_dynamics", "muscle_geometry", "tension_optimization"),
+         ("mass_identification", "emg", "strength_identification"), settings=contact.settings),
+    Node("gait_cycle", cycle.run, ("read", *_ALL), ("knee_contact",), recorded=False),
+    Node("comparison", comparison.run, ("loads", "inverse_dynamics"),
+         ("knee_contact", "strength_identification", "gait_cycle")),
+    Node("fes", fes.run, settings=fes.settings, gait=False, requested=fes.requested),
+    Node("tables", tables.run, (),
+         ("kinematics", "inverse_dynamics", "mass_identification", "tension_optimization",
+          "strength_identification", "knee_contact", "gait_cycle", "fes"),
+         recorded=False, gait=False),
+    Node("summary", summary.run, (),
+         ("read", *_ALL, "mass_identification", "inverse_dynamics", "emg",
+          "tension_optimization", "strength_identification", "gait_cycle", "comparison", "fes"),
+         recorded=False, gait=False),
+    Node("report", report.run, ("tables", "summary"), settings=report.settings, core=True,
+         gait=False),
+)  # fmt: skip
+
+#: Every recorded stage, in order (``summary.json`` ``stages``, progress lines).
+STAGES: tuple[str, ...] = tuple(n.name for n in GRAPH if n.recorded)
+#: Stages without which there are no results: their errors end the run.
+CORE_STAGES: frozenset[str] = frozenset(n.name for n in GRAPH if n.core)
+
+
+def _check(graph: tuple[Node, ...]) -> None:
+    """Every parameter of a node's ``run`` is an earlier node named in its needs or reads."""
+    seen: set[str] = set()
+    for node in graph:
+        declared = set(node.reads) | (set() if callable(node.needs) else set(node.needs))
+        if callable(node.needs):
+            declared |= set(node.parameters)  # checked against ``seen`` below
+        for p in node.parameters:
+            if p not in declared or p not in seen:
+                raise RuntimeError(f"graph: {node.name}.run takes {p!r}: not an earlier node")
+        seen.add(node.name)
+
+
+_check(GRAPH)
+
+
+def _call(fn: Callable[..., Any], inputs: SessionInputs, results: Mapping[str, Any]) -> Any:
+    names = tuple(inspect.signature(fn).parameters)[1:]
+    return fn(inputs, **{n: results.get(n) for n in names})
+
+
+def run_graph(
+    inputs: SessionInputs, runner: Runner, graph: tuple[Node, ...] = GRAPH
+) -> dict[str, Any]:
+    """Run every node in order; node name → its result (None when not requested, not
+    available or failed)."""
+    results: dict[str, Any] = {}
+    for node in graph:
+        results[node.name] = None
+        reason = NO_GAIT if node.gait and not inputs.gait else None
+        if reason is None and node.requested is not None:
+            reason = node.requested(inputs)
+        if reason is not None:
+            if node.recorded:
+                runner.skip(node.name, reason)
+            continue
+        needs = node.needs_of(inputs)
+
+        def call(node: Node = node) -> Any:
+            return _call(node.run, inputs, results)
+
+        if not node.recorded:
+            results[node.name] = runner.derive(node.name, call, needs + node.reads)
+            continue
+        ready = all(n in runner.keys for n in needs)  # else the runner says "not available"
+        settings = None
+        if node.settings is not None and ready:
+            settings = _call(node.settings, inputs, results)
+        results[node.name] = runner.run(
+            node.name, call, needs=needs, reads=node.reads, settings=settings
+        )
+    return results

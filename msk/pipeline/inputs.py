@@ -1,0 +1,150 @@
+"""What every stage may read: the session configuration resolved once (files, hashes, roles).
+
+:func:`session_inputs` turns a :class:`~msk.config.SessionConfig` into a frozen
+:class:`SessionInputs`; stages receive it as their first argument and never change it.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from collections.abc import Mapping
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+from msk.config import ModelConfig, SessionConfig, TrialConfig
+from msk.exceptions import ConfigError
+from msk.pipeline.runner import file_sha256
+
+__all__ = ["G0", "SessionInputs", "plain_settings", "session_inputs"]
+
+#: Standard gravity (m/s²) converting the configured body mass to body weight.
+G0 = 9.80665
+
+
+@dataclass(frozen=True)
+class SessionInputs:
+    """One session's configuration and input files.
+
+    ``task``/``static``/``model_source``/``model_cfg`` are ``None`` in a pure FES session
+    (``gait`` False); ``files`` maps a role (``task``, ``static``, ``grf``, ``model``,
+    ``fes:<name>``…) to its path and ``hashes`` to its sha256; ``inv_rename`` maps lab labels
+    to model marker names (``[markers] rename``)."""
+
+    cfg: SessionConfig
+    gait: bool
+    task: TrialConfig | None
+    static: TrialConfig | None
+    mass_trials: tuple[TrialConfig, ...]
+    mvc_trials: tuple[TrialConfig, ...]
+    fes_trials: tuple[TrialConfig, ...]
+    model_source: Path | None
+    model_cfg: ModelConfig | None
+    files: Mapping[str, Path]
+    hashes: Mapping[str, str]
+    inv_rename: Mapping[str, str]
+
+    @property
+    def side(self) -> str:
+        """``left`` or ``right``: the leg whose muscles and knee are analysed."""
+        return self.cfg.subject.side
+
+    @property
+    def sfx(self) -> str:
+        """Coordinate/body suffix of the analysed side (``_r`` or ``_l``)."""
+        return "_l" if self.side == "left" else "_r"
+
+    @property
+    def body_weight(self) -> float:
+        """Configured body mass × standard gravity (N)."""
+        return self.cfg.subject.mass_kg * G0
+
+    def labels_of(self, labels: tuple[str, ...] | list[str]) -> tuple[str, ...]:
+        """Lab marker labels in model names (``[markers] rename``)."""
+        return tuple(self.inv_rename.get(lab, lab) for lab in labels)
+
+
+def model_source(cfg: SessionConfig) -> Path:
+    """The model file of ``[model]``; with ``knee = "four_bar"`` its ``_fourbar`` twin."""
+    if cfg.model is None:  # load_config requires [model] with a gait trial
+        raise ConfigError(f"{cfg.path}: a gait trial (role 'task') needs a [model] table")
+    src = cfg.model.source
+    if cfg.model.knee == "four_bar" and "fourbar" not in src.stem:
+        alt = src.with_name(f"{src.stem}_fourbar{src.suffix}")
+        if not alt.is_file():
+            raise ConfigError(
+                f"{cfg.path}: model.knee = 'four_bar' but {src.name} has a spline knee and "
+                f"{alt.name} does not exist"
+            )
+        return alt
+    return src
+
+
+def session_inputs(cfg: SessionConfig) -> SessionInputs:
+    """Resolve the trials by role, the model file and the sha256 of every input file."""
+    fes_trials = cfg.trials_with_role("fes")
+    tasks = cfg.trials_with_role("task")
+    if not tasks and not fes_trials:
+        raise ConfigError(f"{cfg.path}: no trial with role 'task' (nor 'fes')")
+    mvc = cfg.trials_with_role("mvc")
+    if not tasks:
+        files: dict[str, Path] = {f"fes:{tc.name}": tc.file for tc in fes_trials}
+        return SessionInputs(
+            cfg, False, None, None, (), tuple(mvc), tuple(fes_trials), None, None, files,
+            {k: file_sha256(p) for k, p in files.items()}, {},
+        )  # fmt: skip
+    task = tasks[0]
+    statics = cfg.trials_with_role("static")
+    static = statics[0] if statics else None
+    mass_trials = cfg.trials_with_role("mass_identification")
+    files = {"task": task.file}
+    if static is not None:
+        files["static"] = static.file
+    if task.contact_force is not None:
+        files["contact_force"] = task.contact_force
+    if task.grf is not None:
+        files["grf"] = task.grf
+    if task.external_loads is not None:
+        files["external_loads"] = task.external_loads
+    for tc in (*mass_trials, *mvc, *fes_trials):
+        files[f"{tc.role}:{tc.name}"] = tc.file
+    src = model_source(cfg)
+    assert cfg.model is not None  # model_source raised without a [model] table
+    files["model"] = src
+    if cfg.model.markers is not None:
+        files["model_markers"] = cfg.model.markers
+    return SessionInputs(
+        cfg, True, task, static, tuple(mass_trials), tuple(mvc), tuple(fes_trials), src,
+        cfg.model, files, {k: file_sha256(p) for k, p in files.items()},
+        {v: k for k, v in cfg.marker_rename.items()},
+    )  # fmt: skip
+
+
+def plain_settings(cfg: SessionConfig) -> dict[str, Any]:
+    """The configuration as JSON-ready values (``summary.json`` ``settings``)."""
+
+    def plain(x: Any) -> Any:
+        if dataclasses.is_dataclass(x) and not isinstance(x, type):
+            return {f.name: plain(getattr(x, f.name)) for f in dataclasses.fields(x)}
+        if isinstance(x, Mapping):
+            return {str(k): plain(v) for k, v in x.items()}
+        if isinstance(x, (list, tuple)):
+            return [plain(v) for v in x]
+        if isinstance(x, Path):
+            return str(x)
+        return x
+
+    return {
+        "subject": plain(cfg.subject),
+        "model": plain(cfg.model),
+        "trials": plain(cfg.trials),
+        "markers": {
+            "rename": dict(cfg.marker_rename),
+            "weights": dict(cfg.marker_weights),
+            "move": list(cfg.marker_move),
+        },
+        "emg": plain(cfg.emg),
+        "filters": plain(cfg.filters),
+        "optimization": plain(cfg.optimization),
+        "fes": plain(cfg.fes),
+    }

@@ -1,0 +1,72 @@
+"""Stage ``kinematics``: inverse kinematics of the task trial
+(:func:`msk.kinematics.solve_kinematics`)."""
+
+from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
+from typing import Any
+
+import numpy as np
+
+from msk.pipeline.inputs import SessionInputs
+from msk.pipeline.model import BuiltModel
+
+__all__ = ["MIN_MARKER_FRACTION", "run", "settings", "solve_trial"]
+
+#: a frame is solved by IK when it sees this fraction of the most model markers any frame sees
+MIN_MARKER_FRACTION = 0.5
+
+
+def solve_trial(
+    model: Any,
+    trial: Any,
+    labels: Sequence[str],
+    *,
+    weights: Mapping[str, float] | None,
+    held: Mapping[str, tuple[float, float]] | None,
+    cutoff_hz: float | None,
+) -> Any:
+    """IK of a trial in the model frame; a frame that sees fewer than half of the model markers
+    the trial tracks at best is not solved (a subject walking out of the capture volume leaves
+    the acromia alone in view: IK there would give the legs any pose), nor a frame where a leg
+    segment carrying markers in this trial has none in view (its pose would come from the
+    neighbours only, and joint torques there from a guessed pose)."""
+    from msk.kinematics import solve_kinematics
+
+    names = set(model.marker_names)
+    cols = [i for i, lab in enumerate(labels) if lab in names]
+    seen = np.isfinite(trial.markers[:, cols]).all(axis=2)  # (N, used markers)
+    body_of = {m.name: m.body for m in model.markers}
+    blind = np.zeros(trial.time.size, dtype=bool)
+    for body in {body_of[labels[i]] for i in cols}:
+        if body.startswith(("pelvis", "femur", "tibia", "calcn")):
+            on = [k for k, i in enumerate(cols) if body_of[labels[i]] == body]
+            blind |= ~seen[:, on].any(axis=1)
+    markers = np.array(trial.markers, dtype=float, copy=True)
+    markers[blind] = np.nan
+    return solve_kinematics(
+        model,
+        markers,
+        labels,
+        trial.time,
+        weights=dict(weights or {}) or None,
+        coordinate_tasks=dict(held or {}) or None,
+        cutoff_hz=cutoff_hz,
+        min_markers=max(3, int(np.ceil(MIN_MARKER_FRACTION * seen.sum(axis=1).max()))),
+    )
+
+
+def settings(inputs: SessionInputs, model: BuiltModel) -> Any:
+    return {
+        "weights": dict(inputs.cfg.marker_weights),
+        "cut": inputs.cfg.filters.kinematics_cutoff_hz,
+        "held": dict(model.held),
+    }
+
+
+def run(inputs: SessionInputs, model: BuiltModel) -> Any:
+    """:class:`msk.kinematics.Kinematics` of the task trial."""
+    return solve_trial(
+        model.model, model.trial, model.labels, weights=inputs.cfg.marker_weights,
+        held=model.held, cutoff_hz=inputs.cfg.filters.kinematics_cutoff_hz,
+    )  # fmt: skip

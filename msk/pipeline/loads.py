@@ -1,0 +1,74 @@
+"""Stage ``loads``: the ground reactions assigned to the feet (:func:`msk.loads.external_loads`)
+and the frames whose ground contact the plates measure (:func:`msk.loads.contact_measured`)."""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from msk.pipeline.inputs import SessionInputs
+from msk.pipeline.model import BuiltModel
+from msk.pipeline.read import ReadResult
+
+__all__ = ["PLATE_ASSIGNMENT", "Loads", "assign_loads", "run", "settings"]
+
+#: How msk.loads assigns plate contacts to feet (recorded in summary.json, part of the cache key).
+PLATE_ASSIGNMENT = (
+    "msk.loads: the foot standing on the plate (inside the outline, near the floor, not "
+    "swinging over it)"
+)
+
+
+@dataclass(frozen=True)
+class Loads:
+    """``external``: :class:`msk.loads.ExternalLoads`; ``measured``: (N,) frames whose every
+    foot on the floor stands on a plate (a walkway's steps before and after the plates miss a
+    ground reaction: no residual, identification equation or muscle force comes from them);
+    ``usable``: measured frames with finite q and q̈."""
+
+    external: Any
+    measured: np.ndarray
+    usable: np.ndarray
+
+
+def assign_loads(
+    inputs: SessionInputs,
+    model: Any,
+    trial: Any,
+    kinematics: Any,
+    plates: Any = None,
+    assignment: Mapping[str, str] | None = None,
+) -> Any:
+    """:func:`msk.loads.external_loads` of a trial: its plates (a C3D's, or ``plates``), with the
+    explicit assignment of the ExternalLoads ``.xml`` then of the config's ``[loads] assign``."""
+    from msk.loads import external_loads, plates_from_trial
+
+    plates = plates_from_trial(trial) if plates is None else plates
+    assign = {**(assignment or {}), **inputs.cfg.loads.assign} or None
+    return external_loads(
+        model, kinematics, plates, assignment=assign, cutoff_hz=inputs.cfg.filters.grf_cutoff_hz
+    )
+
+
+def settings(inputs: SessionInputs) -> Any:
+    return {
+        "cut": inputs.cfg.filters.grf_cutoff_hz,
+        "assignment": PLATE_ASSIGNMENT,
+        "assign": dict(inputs.cfg.loads.assign),
+    }
+
+
+def run(inputs: SessionInputs, read: ReadResult, model: BuiltModel, kinematics: Any) -> Loads:
+    from msk.loads import contact_measured
+
+    ext = assign_loads(
+        inputs, model.model, model.trial, kinematics, model.grf_plates, read.assignment
+    )
+    measured = contact_measured(model.model, kinematics, ext)
+    usable = (
+        np.isfinite(kinematics.q).all(axis=1) & np.isfinite(kinematics.a).all(axis=1) & measured
+    )
+    return Loads(ext, measured, usable)

@@ -1,0 +1,109 @@
+"""Stage ``mass_identification``: segment inertial parameters from the floating-base equations
+of the task trial and the dedicated exciting trials (:class:`msk.identification.InertialIdentifier`,
+physically consistent, symmetric, prior weight chosen by held-out residuals)."""
+
+from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from msk.pipeline.inputs import SessionInputs
+from msk.pipeline.kinematics import solve_trial
+from msk.pipeline.loads import Loads, assign_loads
+from msk.pipeline.model import BuiltModel
+from msk.pipeline.read import ReadResult
+from msk.pipeline.runner import file_sha256
+
+__all__ = ["MassIdentification", "identified_model", "run", "segment_summary", "settings"]
+
+
+@dataclass(frozen=True)
+class MassIdentification:
+    """Identified inertial parameters per body (Pinocchio order ``m, mx, my, mz, Ixx, Ixy, Iyy,
+    Ixz, Iyz, Izz``), per-segment figures with their status (:func:`segment_summary`), the
+    condition number of the identification, the frames used, advice on the motions that would
+    excite the rest, and ``t0`` the start (s) of the data identified from."""
+
+    parameters: Mapping[str, np.ndarray]
+    segments: Sequence[Mapping[str, Any]]
+    condition_number: float
+    n_frames: int
+    advice: Sequence[str]
+    t0: float
+
+
+def segment_summary(s: Any) -> dict[str, Any]:
+    """One identified segment as JSON-ready figures with its :mod:`msk.status` word (a segment
+    that moved from its prior without becoming precise is "not determined", never "prior")."""
+    from msk.status import segment_status
+
+    out = {
+        "name": s.name,
+        "mass_kg": s.mass,
+        "mass_std_kg": s.mass_std,
+        "prior_mass_kg": s.prior_mass,
+        "com_m": s.com,
+        "com_std_m": s.com_std,
+        "prior_com_m": s.prior_com,
+        "flag": s.flag,
+    }
+    out["status"] = segment_status(out).value
+    return out
+
+
+def identified_model(model: Any, ident: MassIdentification | None) -> Any:
+    """``model`` with the identified inertias (``model`` itself when nothing was identified)."""
+    return model if ident is None else model.with_inertias(ident.parameters)
+
+
+def settings(inputs: SessionInputs) -> Any:
+    return {
+        "trials": [file_sha256(t.file) for t in inputs.mass_trials],
+        "mass": inputs.cfg.subject.mass_kg,
+    }
+
+
+def run(
+    inputs: SessionInputs, read: ReadResult, model: BuiltModel, kinematics: Any, loads: Loads
+) -> MassIdentification:
+    from msk.identification import IdentificationTrial, InertialIdentifier
+    from msk.io import read_c3d, to_model_frame
+    from msk.loads import contact_measured
+
+    cfg, mdl, kin = inputs.cfg, model.model, kinematics
+    assert inputs.task is not None  # a gait stage
+    up = -np.asarray(mdl.gravity, dtype=float)
+    runs = [(inputs.task.name, kin, loads.external, loads.measured)]
+    # the task and the dedicated exciting motions (Hayashibe et al. 2011, §VI)
+    for tc in inputs.mass_trials:
+        tr_i = to_model_frame(read_c3d(tc.file), up=up)
+        k_i = solve_trial(
+            mdl, tr_i, inputs.labels_of(tr_i.marker_labels), weights=cfg.marker_weights,
+            held=model.held, cutoff_hz=cfg.filters.kinematics_cutoff_hz,
+        )  # fmt: skip
+        l_i = assign_loads(inputs, mdl, tr_i, k_i, assignment=read.assignment)
+        runs.append((tc.name, k_i, l_i, contact_measured(mdl, k_i, l_i)))
+    its = []
+    for nm, k_i, l_i, m_i in runs:
+        it = IdentificationTrial.from_loads(mdl, k_i, l_i, name=nm)
+        good = np.isfinite(it.tau_ext).all(axis=1) & np.isfinite(it.theta_ddot).all(axis=1) & m_i
+        its.append(
+            IdentificationTrial(
+                it.theta[good], it.theta_dot[good], it.theta_ddot[good], it.tau_ext[good], nm
+            )
+        )
+    est = InertialIdentifier(
+        mdl, total_mass=cfg.subject.mass_kg, symmetric=True, prior_weight="cv"
+    ).fit(its)
+    good = np.isfinite(kin.q).all(axis=1)
+    return MassIdentification(
+        {k: np.asarray(v) for k, v in est.parameters_.items()},
+        [segment_summary(s) for s in est.segments_],
+        float(est.condition_number_),
+        int(est.n_frames_),
+        list(est.advice()),
+        float(kin.time[good][0]),
+    )

@@ -1,0 +1,79 @@
+"""Stage ``strength_identification``: one strength factor per EMG channel's muscle group from
+the EMG activations, the moment-arm Jacobians and the joint torques, with bootstrap intervals
+(:class:`msk.strength.StrengthIdentifier`; Hayashibe et al. 2011, §V, Eq. 12–14)."""
+
+from __future__ import annotations
+
+import dataclasses
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from msk.pipeline.dynamics import InverseDynamics
+from msk.pipeline.emg import EmgActivations
+from msk.pipeline.inputs import SessionInputs
+from msk.pipeline.loads import Loads
+from msk.pipeline.model import BuiltModel
+from msk.pipeline.runner import StageUnavailable
+from msk.pipeline.tension import muscle_state
+
+__all__ = ["StrengthIdentification", "run"]
+
+
+@dataclass(frozen=True)
+class StrengthIdentification:
+    """The :class:`msk.strength.StrengthProfile` (factors × generic, intervals, statuses), the
+    muscles of each group, and ``t0`` the start (s) of the data identified from."""
+
+    profile: Any
+    groups: Mapping[str, Sequence[str]]
+    t0: float
+
+
+def _rows(state: Any, mask: np.ndarray) -> Any:
+    """A muscle state with its (N, m) arrays restricted to the frames of ``mask``."""
+    changes = {}
+    for f in dataclasses.fields(state):
+        v = getattr(state, f.name)
+        if isinstance(v, np.ndarray) and v.ndim == 2:
+            changes[f.name] = v[mask]
+    return dataclasses.replace(state, **changes)
+
+
+def run(
+    inputs: SessionInputs,
+    model: BuiltModel,
+    kinematics: Any,
+    loads: Loads,
+    inverse_dynamics: InverseDynamics,
+    emg: EmgActivations,
+    muscle_geometry: Any,
+) -> StrengthIdentification:
+    from msk.strength import StrengthIdentifier
+
+    jt = inverse_dynamics.torques
+    params, state = muscle_state(model.model, muscle_geometry)
+    groups: dict[str, list[str]] = {}
+    for k, m in enumerate(emg.muscles):
+        if emg.usable[k]:
+            groups.setdefault(emg.sources[k], []).append(m)
+    if not groups:
+        raise StageUnavailable("no usable EMG channel")
+    act = np.zeros((kinematics.time.size, len(params.names)))
+    for k, m in enumerate(emg.muscles):
+        if emg.usable[k]:
+            act[:, params.names.index(m)] = emg.activation[:, k]
+    good = loads.usable & np.isfinite(jt.tau).all(axis=1)
+    est = StrengthIdentifier(groups, params, n_bootstrap=200, random_state=0)
+    est.fit(
+        muscle_geometry.jacobian[good],
+        act[good],
+        jt.tau[good],
+        _rows(state, good),
+        coordinate_names=jt.coordinate_names,
+    )
+    return StrengthIdentification(
+        est.profile_, {g: list(v) for g, v in groups.items()}, float(kinematics.time[good][0])
+    )

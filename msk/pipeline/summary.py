@@ -1,0 +1,353 @@
+"""Step ``summary`` (not a recorded stage): ``summary.json`` from the stage results — inputs
+with their sha256, settings, subject, model, frame, events, quality figures and gates
+(:mod:`msk.quality`), methods, identified parameters with their :mod:`msk.status` words,
+comparison, FES. The stage records are added by :func:`msk.pipeline.session.run_session`."""
+
+from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
+from datetime import UTC, datetime
+from pathlib import Path
+from typing import Any, Literal, cast
+
+import numpy as np
+
+from msk.config import SessionConfig
+from msk.exceptions import MskError
+from msk.pipeline.comparison import rms
+from msk.pipeline.cycle import GaitCycle
+from msk.pipeline.dynamics import InverseDynamics
+from msk.pipeline.emg import EmgActivations
+from msk.pipeline.fes import FesResult, fes_summary
+from msk.pipeline.inputs import SessionInputs, plain_settings
+from msk.pipeline.loads import PLATE_ASSIGNMENT, Loads
+from msk.pipeline.mass_identification import MassIdentification
+from msk.pipeline.model import BuiltModel
+from msk.pipeline.read import ReadResult
+from msk.pipeline.runner import file_sha256, versions
+from msk.pipeline.strength import StrengthIdentification
+from msk.pipeline.tension import MuscleTensions
+
+__all__ = ["DEFAULT_MEASUREMENTS", "base_summary", "run", "strength_summary"]
+
+#: Scaling measurements (model marker pairs → bodies), used where both markers exist in the
+#: model and (after ``[markers] rename``) in the static trial.
+DEFAULT_MEASUREMENTS: tuple[tuple[str, tuple[tuple[str, str], ...], tuple[str, ...]], ...] = (
+    ("pelvis", (("R.ASIS", "L.ASIS"),), ("pelvis",)),
+    ("femur_r", (("R.ASIS", "R.Knee.Lat"),), ("femur_r",)),
+    ("femur_l", (("L.ASIS", "L.Knee.Lat"),), ("femur_l",)),
+    ("tibia_r", (("R.Knee.Lat", "R.Ankle.Lat"),), ("tibia_r",)),
+    ("tibia_l", (("L.Knee.Lat", "L.Ankle.Lat"),), ("tibia_l",)),
+    ("foot_r", (("R.Heel", "R.Toe.Tip"),), ("talus_r", "calcn_r", "toes_r")),
+    ("foot_l", (("L.Heel", "L.Toe.Tip"),), ("talus_l", "calcn_l", "toes_l")),
+    ("torso", (("V.Sacral", "Sternum"),), ("torso",)),
+)
+
+_ANTHRO_MAP = {
+    "pelvis": ("pelvis",),
+    "femur": ("thigh",),
+    "tibia": ("shank",),
+    "foot": ("foot",),
+    "torso": ("head_neck", "thorax", "upper_arm", "forearm", "hand"),
+}
+
+
+def base_summary(inputs: SessionInputs) -> dict[str, Any]:
+    """The part of ``summary.json`` every session has (gait or FES only)."""
+    cfg = inputs.cfg
+    return {
+        "session": cfg.subject.name,
+        "trial": inputs.task.name if inputs.task is not None else None,
+        "created_utc": datetime.now(UTC).strftime("%Y-%m-%dT%H:%M:%SZ"),
+        "versions": versions(),
+        "config": {"path": str(cfg.path), "sha256": file_sha256(cfg.path)},
+        "inputs": [
+            {"role": k, "path": str(p), "sha256": inputs.hashes[k], "bytes": Path(p).stat().st_size}
+            for k, p in inputs.files.items()
+        ],
+        "settings": plain_settings(cfg),
+        "subject": {
+            "name": cfg.subject.name,
+            "mass_kg": cfg.subject.mass_kg,
+            "height_m": cfg.subject.height_m,
+            "sex": cfg.subject.sex,
+            "side": inputs.side,
+            "body_weight_n": inputs.body_weight,
+        },
+    }
+
+
+def _mode(names: Sequence[str]) -> str:
+    vals = [n for n in names if n]
+    return max(set(vals), key=vals.count) if vals else ""
+
+
+def _quality(
+    trial: Any,
+    kin: Any,
+    jt: Any,
+    loads: Any,
+    emg: EmgActivations | None,
+    sol: MuscleTensions | None,
+    strength: StrengthIdentification | None,
+    ident: MassIdentification | None,
+    body_weight: float,
+    measured: np.ndarray,
+) -> dict[str, Any]:
+    """Data-quality figures; the residuals over the frames whose ground contact the plates
+    measure (``measured``, :func:`msk.loads.contact_measured`), None when there is none."""
+    ok = np.isfinite(jt.residual_force).all(axis=1) & measured
+    res_f = rms(jt.residual_force[ok]) if ok.any() else None
+    gaps = [
+        {"marker": lab, "missing_frames": int(n), "longest_gap_frames": int(g)}
+        for lab, n, g in zip(trial.gaps.labels, trial.gaps.n_missing, trial.gaps.longest_gap)
+        if n > 0
+    ]
+    q: dict[str, Any] = {
+        "frames": int(kin.time.size),
+        "rate_hz": float(trial.point_rate_hz),
+        "marker_gaps": gaps,
+        "ik_failed_frames": int(kin.failed_frames.size),
+        "ik_marker_rms_mean_m": float(np.nanmean(kin.marker_rms)),
+        "ik_marker_rms_max_m": float(np.nanmax(kin.marker_rms)),
+        "ik_worst_marker": _mode(kin.marker_max_name),
+        "contact_measured_frames": int(measured.sum()),
+        "residual_force_rms_n": res_f,
+        "residual_force_rms_pct_bw": None if res_f is None else 100 * res_f / body_weight,
+        "residual_moment_rms_nm": rms(jt.residual_moment[ok]) if ok.any() else None,
+        "plate_assignments": [
+            {k: getattr(a, k) for k in ("plate", "body", "start_time", "end_time") if hasattr(a, k)}
+            for a in getattr(loads, "assignments", ())
+        ],
+    }
+    if emg is not None:
+        flat = [emg.sources[k] for k in range(len(emg.muscles)) if not emg.usable[k]]
+        q["emg_flat_channels"] = sorted(set(flat))
+        q["emg_warnings"] = list(emg.warnings)
+        q["emg_normalisation"] = emg.normalisation
+    if sol is not None and sol.infeasible_frames is not None:
+        q["optimization_infeasible_frames"] = sol.infeasible_frames
+    if strength is not None:
+        q["strength_fit_r2"] = float(strength.profile.r2)
+    if ident is not None:
+        q["identification_condition_number"] = ident.condition_number
+    return q
+
+
+def _anthropometry(cfg: SessionConfig, model: Any) -> dict[str, Any] | None:
+    """Generic segment masses of the anthropometric table (Dumas et al. 2007) mapped on the
+    model's segments (the foot = talus + calcaneus + toes; the torso = trunk, head and arms)."""
+    try:
+        from msk.anthropometry import generic_segments
+
+        # segment masses are fractions of body mass: the stature (default 1.75 m when the
+        # config has none) only sets lengths and inertias, which are not reported
+        sex = cast(Literal["male", "female"], cfg.subject.sex)
+        segs = generic_segments(cfg.subject.mass_kg, cfg.subject.height_m or 1.75, sex=sex)
+    except (ImportError, MskError):
+        return None
+    out = {}
+    for body in (b.name for b in model.bodies):
+        base, _, sd = body.rpartition("_") if body.endswith(("_l", "_r")) else (body, "", "")
+        key = "foot" if base in ("talus", "calcn", "toes") else base
+        if key not in _ANTHRO_MAP:
+            continue
+        total = 0.0
+        for s in _ANTHRO_MAP[key]:
+            for name, seg in segs.items():
+                stem = name[:-2] if name.endswith(("_l", "_r")) else name
+                side_ok = not sd or not name.endswith(("_l", "_r")) or name.endswith("_" + sd)
+                if stem == s and side_ok:
+                    total += seg.mass
+        label = f"{key}_{sd}" if sd else key
+        out[label] = {"mass_kg": total, "table": "Dumas et al. 2007"}
+    return {"segments": out, "table": "Dumas et al. 2007", "sex": cfg.subject.sex}
+
+
+def strength_summary(
+    strength: StrengthIdentification,
+    *,
+    model: Any = None,
+    side: str = "_r",
+    mass_kg: float | None = None,
+) -> dict[str, Any]:
+    """``identified`` = status "identified" (:mod:`msk.status`); ``gated`` = the group passed
+    the correlation gate. With the (generic, scaled) ``model``: ``joint_strength``, the maximal
+    isometric moment curves of the generic and the identified model
+    (:func:`msk.strength.joint_strength_summary`), N·m and N·m/kg."""
+    from msk.status import STATUS_CODES, STATUS_MEANING, STRENGTH_R2_MIN
+
+    p = strength.profile
+    status = p.statuses()
+    joint: dict[str, Any] | None = None
+    if model is not None and model.muscles:
+        from msk.strength import joint_strength_summary
+
+        try:
+            joint = joint_strength_summary(model, p, side=side, mass_kg=mass_kg)
+        except Exception as exc:  # the curves must not cost the run its strength summary
+            joint = {"error": f"{type(exc).__name__}: {' '.join(str(exc).split())[:200]}"}
+    return {
+        "groups": [
+            {
+                "group": n,
+                "muscles": list(strength.groups.get(n, [])),
+                "factor": float(p.factors[g]),
+                "ci_low": float(p.ci_low[g]),
+                "ci_high": float(p.ci_high[g]),
+                "ci_cov_low": float(p.ci_cov_low[g]),
+                "ci_cov_high": float(p.ci_cov_high[g]),
+                "f_iso_generic_n": float(p.f_iso_generic[g]),
+                "f_iso_n": float(p.f_iso[g]),
+                "status": status[g],
+                "identified": status[g] == "identified",
+                "gated": bool(p.identified[g]),
+            }
+            for g, n in enumerate(p.group_names)
+        ],
+        "r2": float(p.r2),
+        "r2_min": STRENGTH_R2_MIN,
+        "status_codes": dict(STATUS_CODES),
+        "status_meaning": dict(STATUS_MEANING),
+        "confidence": float(p.confidence),
+        "bounds": list(p.bounds),
+        "method": p.method,
+        "joint_strength": joint,
+    }
+
+
+def _optimization_summary(sol: MuscleTensions, sfx: str) -> dict[str, Any]:
+    from msk.status import gain_status
+
+    return {
+        "method": sol.method,
+        "criterion": sol.criterion,
+        "emg_gains": None if sol.emg_gains is None else dict(sol.emg_gains),
+        "emg_gain_status": None
+        if not sol.emg_gains
+        else {c: gain_status(float(g)).value for c, g in sol.emg_gains.items()},
+        "infeasible_frames": sol.infeasible_frames,
+        "reserve_torque_rms_nm": None
+        if sol.reserve_torques is None or sol.reserve_coordinates is None
+        else {
+            c: float(np.sqrt(np.nanmean(sol.reserve_torques[:, k] ** 2)))
+            for k, c in enumerate(sol.reserve_coordinates)
+            if c.endswith(sfx)
+        },
+    }
+
+
+def _flags(
+    inputs: SessionInputs,
+    quality: Mapping[str, Any],
+    read: ReadResult,
+    model: BuiltModel,
+    kin: Any,
+    loads: Loads,
+    jt: Any,
+    sol: MuscleTensions | None,
+    plate_mass: float | None,
+) -> list[dict[str, Any]]:
+    """The quality gates raised (:func:`msk.quality.gait_flags`), swapped left/right labels and
+    what the reader noticed in the file (duplicate labels renamed, NaN plate samples…)."""
+    from msk.quality import gait_flags, swapped_sides
+
+    cfg, task, mdl = inputs.cfg, inputs.task, model.model
+    assert task is not None  # a gait session
+    scaling = model.info.get("scaling", {}).get("bodies", {})
+    ext = loads.external
+    flags = [
+        f.as_dict()
+        for f in gait_flags(
+            task.name, quality=quality, model=mdl, kinematics=kin, joint_torques=jt,
+            mass_kg=cfg.subject.mass_kg, height_m=cfg.subject.height_m,
+            marker_labels=read.trial.marker_labels, optimization=sol, plate_mass_kg=plate_mass,
+            held=tuple(model.held), scaling_methods={b: v["method"] for b, v in scaling.items()},
+            peak_external_force_n=float(np.nanmax(
+                np.linalg.norm(np.nansum(ext.force[loads.measured], axis=1), axis=1),
+                initial=0.0)),
+        )
+    ]  # fmt: skip
+    for r, lft, dz in swapped_sides(mdl, kin, model.trial.markers, model.labels):
+        flags.append(
+            {"trial": task.name, "quantity": f"{r}/{lft}_swapped", "value": dz,
+             "threshold": 0.0,
+             "message": f"{r} is {-1000 * dz:.0f} mm left of {lft} in the pelvis frame: "
+             "their labels look swapped (a labelling error in the file, or the wrong "
+             "side in the config)"}
+        )  # fmt: skip
+    for w in (read.trial.metadata or {}).get("warnings", ()):
+        flags.append(
+            {"trial": task.name, "quantity": "input_file", "value": 1.0,
+             "threshold": 0.0, "message": f"{task.file.name}: {w}"}
+        )  # fmt: skip
+    return flags
+
+
+def run(
+    inputs: SessionInputs,
+    read: ReadResult | None,
+    model: BuiltModel | None,
+    kinematics: Any,
+    loads: Loads | None,
+    mass_identification: MassIdentification | None,
+    inverse_dynamics: InverseDynamics | None,
+    emg: EmgActivations | None,
+    tension_optimization: MuscleTensions | None,
+    strength_identification: StrengthIdentification | None,
+    gait_cycle: GaitCycle | None,
+    comparison: Mapping[str, Any] | None,
+    fes: FesResult | None,
+) -> dict[str, Any]:
+    """``summary.json`` without the stage records; a pure FES session has the base summary,
+    no angle columns, an empty quality block and the ``fes`` section."""
+    from msk.quality import THRESHOLDS, body_mass_from_loads
+
+    cfg = inputs.cfg
+    fes_part = None if fes is None else fes_summary(fes.result, cfg, inputs.fes_trials)
+    if read is None or model is None or loads is None or inverse_dynamics is None:
+        return {**base_summary(inputs), "angle_columns": [], "quality": {}, "fes": fes_part}
+    assert gait_cycle is not None and inputs.task is not None  # derived from the core stages
+    mdl, kin, sol = model.model, kinematics, tension_optimization
+    ident, strength = mass_identification, strength_identification
+    jt = inverse_dynamics.torques
+    quality = _quality(
+        read.trial, kin, jt, loads.external, emg, sol, strength, ident, inputs.body_weight,
+        loads.measured,
+    )  # fmt: skip
+    plate_mass = body_mass_from_loads(mdl, kin, loads.external, loads.measured)
+    quality["plate_mass_kg"] = plate_mass
+    quality["flags"] = _flags(inputs, quality, read, model, kin, loads, jt, sol, plate_mass)
+    quality["thresholds"] = dict(THRESHOLDS)
+    quality["held_coordinates"] = sorted(model.held)
+    ev = gait_cycle.events
+    return {
+        **base_summary(inputs),
+        "model": {**model.info, "name": mdl.name, "muscles": len(mdl.muscles)},
+        "frame": {"lab_to_model_rotation": model.rotation, "lab_up": read.trial.up},
+        "events": gait_cycle.as_list(),
+        "event_sources": {**dict(ev.source), "notes": list(ev.notes)},
+        "gait_cycle_s": list(gait_cycle.cycle) if gait_cycle.cycle else None,
+        "angle_columns": [c for c in kin.coordinate_names if not c.endswith(("_tx", "_ty", "_tz"))],
+        "quality": quality,
+        "methods": {
+            "plate_assignment": PLATE_ASSIGNMENT,
+            "scaling_measurements": [m[0] for m in DEFAULT_MEASUREMENTS],
+            "task_trial": inputs.task.name,
+        },
+        "identification": None
+        if ident is None
+        else {
+            "segments": ident.segments,
+            "condition_number": ident.condition_number,
+            "n_frames": ident.n_frames,
+            "advice": ident.advice,
+        },
+        "anthropometry": _anthropometry(cfg, mdl),
+        "strength": None
+        if strength is None
+        else strength_summary(strength, model=mdl, side=inputs.sfx, mass_kg=cfg.subject.mass_kg),
+        "comparison": comparison,
+        "optimization": None if sol is None else _optimization_summary(sol, inputs.sfx),
+        "fes": fes_part,
+    }

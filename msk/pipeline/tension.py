@@ -1,0 +1,246 @@
+"""Stage ``tension_optimization``: muscle tensions that produce the joint torques, by the
+configured criterion (:mod:`msk.optimization` batch solvers) on the usable frames.
+
+Criteria (``[optimization] method``): ``static_optimization`` min Σ w_i a_i^p with activation
+bounds and reserve actuators (Crowninshield & Brand 1981; ``activation_weights = "volume"``:
+w_i = V_i, the muscle volume); ``bounded_qp`` min Σ (F_i/F_iso,i)² with 0 ≤ F ≤ F_max;
+``emg_weighted`` the EMG-weighted tension optimisation (Hayashibe et al. 2011, Eq. 17–18, with
+the EMG-based reference force of Eq. 9); ``emg_assisted`` min Σ a_i² + w Σ (a_i − g_c ê_i)² with
+one gain per EMG channel; ``closed_form`` the unbounded Lagrange-multiplier solution
+``F = W Cᵀ (C W Cᵀ)⁻¹ τ`` of the rehabilitation-robot model (:mod:`msk.optimization.closed_form`,
+its Eq. 6).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from collections.abc import Mapping
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from msk.pipeline.dynamics import InverseDynamics
+from msk.pipeline.emg import EmgActivations
+from msk.pipeline.inputs import SessionInputs
+from msk.pipeline.loads import Loads
+from msk.pipeline.mass_identification import MassIdentification, identified_model
+from msk.pipeline.model import BuiltModel
+from msk.pipeline.runner import StageUnavailable
+
+__all__ = ["MuscleTensions", "muscle_state", "needs", "optimise", "run", "settings"]
+
+
+@dataclass(frozen=True)
+class MuscleTensions:
+    """Muscle forces (N) and activations (N, m) on the kinematics' time base (NaN on frames not
+    optimised), the method and its criterion in words, the frames that could not be posed
+    (``excluded_frames``, with the reason), the EMG gains of ``emg_assisted``, the infeasible
+    frames and the reserve torques (N, coordinates) of the QP methods (None for
+    ``closed_form``)."""
+
+    forces: np.ndarray
+    activations: np.ndarray
+    muscles: tuple[str, ...]
+    method: str
+    excluded_frames: int
+    excluded_reason: str | None = None
+    criterion: str | None = None
+    emg_gains: Mapping[str, float] | None = None
+    infeasible_frames: int | None = None
+    reserve_torques: np.ndarray | None = None
+    reserve_coordinates: tuple[str, ...] | None = None
+
+
+def muscle_state(model: Any, geometry: Any) -> tuple[Any, Any]:
+    """Muscle parameters of ``model`` and their rigid-tendon Hill state on ``geometry``."""
+    from msk.muscles.geometry import muscle_parameters
+    from msk.muscles.hill import rigid_tendon_state
+
+    params = muscle_parameters(model)
+    return params, rigid_tendon_state(params, geometry.lengths, geometry.velocities)
+
+
+def actuated(torques: Any) -> list[int]:
+    """Columns of the joint torques that muscles actuate (every coordinate but the root's)."""
+    root = tuple(torques.root_coordinates)
+    return [i for i, c in enumerate(torques.coordinate_names) if c not in root]
+
+
+def _emg_assisted(
+    inputs: SessionInputs,
+    jac: np.ndarray,
+    tq: np.ndarray,
+    fa: np.ndarray,
+    emg_act: np.ndarray,
+    measured: np.ndarray,
+    names: tuple[str, ...],
+    weights: np.ndarray | None,
+    reserves: np.ndarray,
+    common: dict[str, Any],
+) -> tuple[Any, dict[str, float]]:
+    """EMG-assisted static optimisation with one gain per EMG channel fitted jointly with the
+    activations on this trial's torques (:func:`msk.strength.fit_emg_gains`), then solved once
+    more with the final gains (KKT figures included)."""
+    import msk.optimization as o
+    from msk.strength import fit_emg_gains
+
+    opt = inputs.cfg.optimization
+    channels = inputs.cfg.emg.channels
+    groups: dict[str, list[str]] = {}
+    for k, n in enumerate(names):
+        if measured[k]:
+            groups.setdefault(channels[n], []).append(n)
+    fit = fit_emg_gains(
+        jac, tq, f_active=fa, emg_activation=emg_act, groups=groups,
+        muscle_names=names, w_track=opt.w_track, activation_weights=weights,
+        reserve_optimal_force=reserves, coordinate_names=common["coordinate_names"],
+    )  # fmt: skip
+    sol = o.solve_emg_assisted_batch(
+        jac, tq, f_active=fa, a_ref=fit.reference(emg_act), measured=fit.measured,
+        w_track=opt.w_track, activation_weights=weights, reserve_optimal_force=reserves,
+        solver=opt.solver, **common,
+    )  # fmt: skip
+    return sol, dict(zip(fit.group_names, map(float, fit.gains)))
+
+
+def optimise(
+    inputs: SessionInputs,
+    model: Any,
+    torques: Any,
+    geometry: Any,
+    time: np.ndarray,
+    usable: np.ndarray,
+    emg: EmgActivations | None,
+) -> MuscleTensions:
+    """Muscle tensions of ``model`` for ``torques`` by the configured method on the ``usable``
+    frames. A frame whose inputs cannot be posed (non-finite geometry or torques, negative
+    active force) is excluded and reported, never allowed to abort the whole stage; a muscle
+    shortening faster than its maximal velocity produces no active force (the force–velocity
+    curve's extrapolation below zero is clipped to 0 rather than costing the frame)."""
+    import msk.optimization as o
+
+    act_idx = actuated(torques)
+    params, state = muscle_state(model, geometry)
+    fa_all = np.where(
+        state.max_active_force_along_tendon < 0, 0.0, state.max_active_force_along_tendon
+    )
+    fp_all = state.passive_force_along_tendon
+    posable = (
+        np.isfinite(geometry.jacobian[:, :, act_idx]).all(axis=(1, 2))
+        & np.isfinite(torques.tau[:, act_idx]).all(axis=1)
+        & np.isfinite(fa_all).all(axis=1)
+        & np.isfinite(fp_all).all(axis=1)
+    )
+    ok = usable & posable
+    excluded = int((usable & ~posable).sum())
+    jac = geometry.jacobian[ok][:, :, act_idx]
+    tq = torques.tau[ok][:, act_idx]
+    cn = tuple(torques.coordinate_names[i] for i in act_idx)
+    reserves = np.ones(len(act_idx))
+    opt = inputs.cfg.optimization
+    meth, solver = opt.method, opt.solver
+    fa, fp = fa_all[ok], fp_all[ok]
+    common = {"muscle_names": params.names, "coordinate_names": cn, "time": time[ok]}
+    weights = (  # activation weights of static_optimization and emg_assisted
+        o.volume_weights(params.max_isometric_force, params.optimal_fiber_length)
+        if opt.activation_weights == "volume"
+        else None
+    )
+    gains: dict[str, float] | None = None
+    if meth == "static_optimization":
+        sol = o.solve_static_optimization_batch(
+            jac, tq, f_active=fa, f_passive=fp, reserve_optimal_force=reserves,
+            activation_weights=weights, activation_exponent=opt.activation_exponent,
+            solver=solver, **common,
+        )  # fmt: skip
+        forces, acts = sol.forces, sol.activations
+    elif meth == "bounded_qp":
+        sol = o.solve_tension_batch(
+            jac, tq, f_iso=params.max_isometric_force, f_max=fa + fp,
+            reserve_optimal_force=reserves, solver=solver, **common,
+        )  # fmt: skip
+        forces = sol.forces
+        acts = np.clip(forces / np.maximum(fa, 1e-9), 0, None)
+    elif meth in ("emg_weighted", "emg_assisted"):
+        if emg is None:
+            raise StageUnavailable(f"{meth} needs the EMG stage")
+        meas = np.array(
+            [n in emg.muscles and bool(emg.usable[emg.column(n)]) for n in params.names]
+        )
+        a = np.zeros_like(fa)
+        for k, n in enumerate(params.names):
+            if meas[k]:
+                a[:, k] = emg.activation[ok, emg.column(n)]
+        if meth == "emg_weighted":
+            sol = o.solve_emg_weighted_batch(
+                jac, tq, f_ref=a * fa, measured=meas, w_emg=opt.w_emg,
+                f_max=fa + fp, solver=solver, **common,
+            )  # fmt: skip
+            forces = sol.forces
+            acts = np.clip(forces / np.maximum(fa, 1e-9), 0, None)
+        else:
+            sol, gains = _emg_assisted(
+                inputs, jac, tq, fa, a, meas, params.names, weights, reserves, common
+            )
+            forces, acts = sol.forces, sol.activations
+    else:  # closed_form (unbounded Lagrange solution)
+        lag = o.solve_lagrange_batch(
+            jac, tq, area=params.max_isometric_force, muscle_names=params.names
+        )
+        forces = lag.forces
+        acts = forces / np.maximum(fa, 1e-9)
+        sol = None
+    n = time.size
+    f_all = np.full((n, len(params.names)), np.nan)
+    a_all = np.full_like(f_all, np.nan)
+    f_all[ok], a_all[ok] = forces, acts
+    w = "V_i " if opt.activation_weights == "volume" else ""
+    criterion = None
+    if meth == "static_optimization":
+        criterion = f"min Σ {w}a_i^{opt.activation_exponent:g}"
+    elif meth == "emg_assisted":
+        criterion = (
+            f"min Σ {w}a_i^2 + {opt.w_track:g} Σ (a_i − g_c ê_i)^2, gains g_c fitted on the "
+            "trial's torques"
+        )
+    out = MuscleTensions(
+        f_all, a_all, tuple(params.names), meth, excluded,
+        "non-finite geometry, torque or muscle force curves" if excluded else None,
+        criterion, gains,
+    )  # fmt: skip
+    if sol is None:
+        return out
+    rt = np.full((n, len(act_idx)), np.nan)
+    rt[ok] = sol.reserve_torques
+    return dataclasses.replace(
+        out, infeasible_frames=int(sol.infeasible_frames.size), reserve_torques=rt,
+        reserve_coordinates=cn,
+    )  # fmt: skip
+
+
+def needs(inputs: SessionInputs) -> tuple[str, ...]:
+    emg = inputs.cfg.optimization.method in ("emg_weighted", "emg_assisted")
+    return ("model", "kinematics", "loads", "muscle_geometry", "inverse_dynamics") + (
+        ("emg",) if emg else ()
+    )
+
+
+def settings(inputs: SessionInputs) -> Any:
+    return dataclasses.asdict(inputs.cfg.optimization)
+
+
+def run(
+    inputs: SessionInputs,
+    model: BuiltModel,
+    kinematics: Any,
+    loads: Loads,
+    mass_identification: MassIdentification | None,
+    inverse_dynamics: InverseDynamics,
+    muscle_geometry: Any,
+    emg: EmgActivations | None,
+) -> MuscleTensions:
+    return optimise(
+        inputs, identified_model(model.model, mass_identification), inverse_dynamics.torques,
+        muscle_geometry, kinematics.time, loads.usable, emg,
+    )  # fmt: skip
