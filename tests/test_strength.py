@@ -24,7 +24,14 @@ from msk.strength import (
     w_emg_stability,
     with_strength,
 )
-from msk.strength.synthetic import LEG_TRUE_FACTORS, SyntheticLegTrial, gait_trial, synthetic_leg
+from msk.strength.synthetic import (
+    LEG_TRUE_FACTORS,
+    SyntheticLegTrial,
+    concatenate_trials,
+    gait_trial,
+    mvc_trials,
+    synthetic_leg,
+)
 
 # activation dynamics assumed known (generic) by the identifier: those of the simulation
 ACT = {"gamma1": -0.5, "gamma2": -0.5, "shape_factor": -1.0, "delay_samples": 4}
@@ -378,3 +385,93 @@ def test_phase_averaged_instrument_removes_the_emg_noise_attenuation(leg):
     assert np.all(np.abs(bias_iv) < 0.8 * np.abs(bias_ls)), (bias_iv, bias_ls)
     assert np.all(bias_iv > 0), bias_iv
     assert np.max(np.abs(err_iv)) < 0.1
+
+
+# ---------------------------------------------------------------------------------------------
+# with MVC trials (issue 17): every excited group recovered, honest intervals, the others not
+# ---------------------------------------------------------------------------------------------
+#: subjects of the MVC recovery tests (≥ 100: the Monte Carlo error of a coverage is ≈ 2.5 pp)
+N_MVC_SEEDS = 120
+
+
+def _gait_and_mvc(leg, seed, *, silent=(), mvc_groups=None):
+    tr = concatenate_trials(
+        gait_trial(leg, n_cycles=12, seed=seed, silent_groups=silent),
+        mvc_trials(leg, seed=seed, groups=mvc_groups, repetitions=5),
+    )
+    a, s = _inputs(leg, tr)
+    return tr, a, s
+
+
+@pytest.mark.slow
+def test_mvc_trials_recover_every_group_within_10_percent_with_honest_intervals(leg):
+    """Issue 17: 12 gait cycles + 5 isometric MVC repetitions per action (flexion and extension
+    of hip, knee, ankle: Hayashibe et al., IROS 2011, §VI.A), EMG on the MVC scale. With the
+    phase-averaged IV, each action's repetitions instrumenting each other (``movements``), and
+    the stratified jackknife-t interval with Satterthwaite degrees of freedom, every group —
+    dorsiflexors and hip groups included (gait alone: up to 21 % off) — is within 10 % for
+    every subject, and the 95 % interval covers the truth in ≥ 90 % of them.
+    Measured (120 seeds): max error 2.1–4.5 %, coverage 0.91–0.97 per group.
+    """
+    inside = np.zeros((N_MVC_SEEDS, 6), dtype=bool)
+    err = np.zeros((N_MVC_SEEDS, 6))
+    for seed in range(N_MVC_SEEDS):
+        tr, a, s = _gait_and_mvc(leg, seed)
+        p = (
+            StrengthIdentifier(leg.groups, leg.params, instrument="phase_average", n_bootstrap=0)
+            .fit(tr.jacobian, a, tr.tau, s, windows=tr.cycle, movements=tr.movement)
+            .profile_
+        )
+        truth = _truth(p.group_names)
+        assert p.identified.all(), (seed, p.table())
+        inside[seed] = (p.ci_cov_low <= truth) & (truth <= p.ci_cov_high)
+        err[seed] = p.factors / truth - 1
+    assert np.abs(err).max(axis=0).max() < 0.10, np.abs(err).max(axis=0)
+    assert inside.mean(axis=0).min() >= 0.90, inside.mean(axis=0)
+
+
+@pytest.mark.slow
+def test_groups_the_data_do_not_excite_are_never_identified(leg):
+    """Hip flexors and extensors silent in the gait trial (baseline excitation only) and no hip
+    MVC: over 100 subjects they never come out ``identified`` (msk.status): the correlation gate
+    keeps them generic (``prior``), or their interval says ``not determined`` / ``at bound``;
+    the knee and ankle groups, excited by gait and MVC, are ``identified`` within 10 %."""
+    hip = ("hip_flexors", "hip_extensors")
+    knee_ankle = [g for g in leg.groups if g not in hip]
+    counts: dict[str, dict[str, int]] = {g: {} for g in leg.groups}
+    for seed in range(100):
+        tr, a, s = _gait_and_mvc(leg, seed, silent=hip, mvc_groups=knee_ankle)
+        p = (
+            StrengthIdentifier(
+                leg.groups,
+                leg.params,
+                instrument="phase_average",
+                n_bootstrap=40,
+                random_state=seed,
+            )
+            .fit(tr.jacobian, a, tr.tau, s, windows=tr.cycle, movements=tr.movement)
+            .profile_
+        )
+        for g, status in zip(p.group_names, p.statuses()):
+            counts[g][status] = counts[g].get(status, 0) + 1
+        ka = [p.group_names.index(g) for g in knee_ankle]
+        np.testing.assert_allclose(p.factors[ka], _truth(knee_ankle), rtol=0.10)
+    for g in hip:
+        assert "identified" not in counts[g], counts
+    for g in knee_ankle:
+        assert counts[g].get("identified", 0) >= 95, counts
+
+
+def test_movements_must_each_have_three_windows_for_the_instrument(leg):
+    tr, a, s = _gait_and_mvc(leg, 0, mvc_groups=["dorsiflexors"])
+    mov = tr.movement.copy()
+    mov[tr.cycle == tr.cycle.max()] = 7  # the last MVC repetition alone in its movement
+    idf = StrengthIdentifier(leg.groups, leg.params, instrument="phase_average", n_bootstrap=0)
+    with pytest.raises(IdentificationError, match="≥ 3 windows per movement"):
+        idf.fit(tr.jacobian, a, tr.tau, s, windows=tr.cycle, movements=mov)
+    split = tr.movement.copy()
+    split[np.flatnonzero(tr.cycle == 0)[:10]] = 5  # window 0 spans two movements
+    with pytest.raises(IdentificationError, match="window 0 spans 2 movements"):
+        idf.fit(tr.jacobian, a, tr.tau, s, windows=tr.cycle, movements=split)
+    with pytest.raises(ShapeMismatchError, match="movements"):
+        idf.fit(tr.jacobian, a, tr.tau, s, windows=tr.cycle, movements=mov[:5])

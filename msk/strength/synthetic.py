@@ -22,6 +22,7 @@ ankle muscles whose moments come from known EMG-driven parameters (:func:`calibr
 
 from __future__ import annotations
 
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from typing import Literal
 
@@ -114,6 +115,10 @@ class SyntheticLegTrial:
     cycle: NDArray[np.int64]
     params: MuscleParameters
     coordinate_names: tuple[str, ...] = LEG_COORDINATES
+    #: per frame, the movement the frame's window repeats (0: gait; MVC trials: one label per
+    #: action, see :func:`mvc_trials`) — the ``movements`` of
+    #: :meth:`msk.strength.StrengthIdentifier.fit`
+    movement: NDArray[np.int64] | None = None
 
     @property
     def rate_hz(self) -> float:
@@ -208,6 +213,7 @@ def gait_trial(
     offset: tuple[float, float, float] = (2.0, -1.5, 1.0),
     force_fn: object | None = None,
     noise_seed: int | None = None,
+    silent_groups: Sequence[str] = (),
 ) -> SyntheticLegTrial:
     """Simulate ``n_cycles`` gait-like cycles of the synthetic subject.
 
@@ -217,7 +223,8 @@ def gait_trial(
     reference force with the rigid-tendon Thelen state, ``f = F_iso (a f_l f_v + f_P) cos α``
     — or, if ``force_fn(params, activation, lmt, vmt)`` is given, whatever it returns (the
     calibration tests use the seed 003 Hill model there). ``seed`` draws the motion and the
-    excitations, ``noise_seed`` (default ``seed + 10000``) the noise.
+    excitations, ``noise_seed`` (default ``seed + 10000``) the noise. ``silent_groups`` stay at
+    the baseline excitation (0.03) throughout: the data do not excite them.
     """
     rng = np.random.default_rng(seed)
     factors = dict(LEG_TRUE_FACTORS if factors is None else factors)
@@ -239,23 +246,73 @@ def gait_trial(
     q = sosfiltfilt(sos, q, axis=0)
     ph = np.concatenate(phs)
     cycle = np.concatenate(cyc)
+    g_names = list(leg.groups)
+    for gname in silent_groups:
+        if gname not in g_names:
+            raise ValueError(f"silent_groups: unknown group {gname!r}; have {g_names}")
+    # group excitations with cycle-to-cycle variability (a silent group keeps the baseline;
+    # its bursts are still drawn so that the other groups' excitations do not change)
+    e_group = np.full((q.shape[0], len(g_names)), 0.03)
+    for g, gname in enumerate(g_names):
+        on = 0.0 if gname in silent_groups else 1.0
+        for centre, width, a in _BURSTS[gname]:
+            for k in range(n_cycles):
+                sel = cycle == k
+                c = centre + rng.uniform(-0.03, 0.03)
+                e_group[sel, g] += on * a * rng.uniform(0.5, 1.3) * _bump(ph[sel], c, width)
+    return _simulate(
+        leg,
+        q,
+        np.clip(e_group, 0.0, 1.0),
+        cycle,
+        rate_hz=rate_hz,
+        factors=factors,
+        rng_noise=np.random.default_rng(seed + 10_000 if noise_seed is None else noise_seed),
+        emg_mult_noise=emg_mult_noise,
+        emg_add_noise=emg_add_noise,
+        tau_noise=tau_noise,
+        gamma1=gamma1,
+        gamma2=gamma2,
+        shape_factor=shape_factor,
+        delay_s=delay_s,
+        offset=offset,
+        force_fn=force_fn,
+    )
+
+
+def _simulate(
+    leg: SyntheticLeg,
+    q: Array,
+    e_group: Array,
+    cycle: NDArray[np.int64],
+    *,
+    rate_hz: float,
+    factors: Mapping[str, float],
+    rng_noise: np.random.Generator,
+    emg_mult_noise: float,
+    emg_add_noise: float,
+    tau_noise: float | Array,
+    gamma1: float,
+    gamma2: float,
+    shape_factor: float,
+    delay_s: float,
+    offset: tuple[float, float, float],
+    force_fn: object | None = None,
+    qdot: Array | None = None,
+    movement: NDArray[np.int64] | None = None,
+) -> SyntheticLegTrial:
+    """Forces, torques and recorded EMG of the motion ``q`` driven by the group excitations
+    ``e_group`` (N, G) with the true strengths ``factors``. ``tau_noise`` is × the range of
+    each torque (scalar), or the noise standard deviation per coordinate in N·m (array)."""
     n_frames = q.shape[0]
     time = np.arange(n_frames) / rate_hz
-    qdot = np.gradient(q, 1.0 / rate_hz, axis=0)
+    if qdot is None:
+        qdot = np.gradient(q, 1.0 / rate_hz, axis=0)
     lmt, jac = leg.lengths(q)
     vmt = np.einsum("tmj,tj->tm", jac, qdot)
     names = leg.muscle_names
     gm = leg.group_matrix()
     g_names = list(leg.groups)
-    # group excitations with cycle-to-cycle variability
-    e_group = np.full((n_frames, len(g_names)), 0.03)
-    for g, gname in enumerate(g_names):
-        for centre, width, a in _BURSTS[gname]:
-            for k in range(n_cycles):
-                sel = cycle == k
-                c = centre + rng.uniform(-0.03, 0.03)
-                e_group[sel, g] += a * rng.uniform(0.5, 1.3) * _bump(ph[sel], c, width)
-    e_group = np.clip(e_group, 0.0, 1.0)
     e_true = e_group @ gm
     delay = round(delay_s * rate_hz)
     a_true = emg_to_activation(
@@ -279,9 +336,11 @@ def gait_trial(
     else:
         forces = force_fn(true_params, a_true, lmt, vmt)  # type: ignore[operator]
     tau_true = -np.einsum("tmj,tm->tj", jac, forces) + np.asarray(offset)[None]
-    rng_noise = np.random.default_rng(seed + 10_000 if noise_seed is None else noise_seed)
-    tau_range = np.ptp(tau_true, axis=0)
-    tau = tau_true + tau_noise * tau_range * _smooth_noise(rng_noise, tau_true.shape, rate_hz)
+    if np.ndim(tau_noise) == 0:
+        tau_sd = float(tau_noise) * np.ptp(tau_true, axis=0)
+    else:
+        tau_sd = np.asarray(tau_noise, dtype=float)
+    tau = tau_true + tau_sd * _smooth_noise(rng_noise, tau_true.shape, rate_hz)
     e_obs_group = e_group * (
         1.0 + emg_mult_noise * _smooth_noise(rng_noise, e_group.shape, rate_hz)
     ) + emg_add_noise * _smooth_noise(rng_noise, e_group.shape, rate_hz)
@@ -302,6 +361,140 @@ def gait_trial(
         offset=np.asarray(offset, dtype=float),
         cycle=cycle.astype(np.int64),
         params=leg.params,
+        movement=np.zeros(n_frames, dtype=np.int64) if movement is None else movement,
+    )
+
+
+def mvc_trials(
+    leg: SyntheticLeg,
+    *,
+    seed: int = 0,
+    groups: Sequence[str] | None = None,
+    repetitions: int = 3,
+    rate_hz: float = 100.0,
+    factors: Mapping[str, float] | None = None,
+    emg_mult_noise: float = 0.10,
+    emg_add_noise: float = 0.01,
+    tau_noise_nm: float = 3.0,
+    effort: tuple[float, float] = (0.7, 0.9),
+    delay_s: float = 0.04,
+    offset: tuple[float, float, float] = (2.0, -1.5, 1.0),
+    first_cycle: int = 0,
+    first_movement: int = 1,
+) -> SyntheticLegTrial:
+    """Isometric maximal voluntary contractions of the synthetic subject, concatenated.
+
+    The seeds/002 protocol (Hayashibe, Venture, Ayusawa & Nakamura, IROS 2011, §VI.A: "MVC for
+    the extension and flexion in each joint of lower limbs") with the joint torque recorded:
+    for each group of ``groups`` (default: every group, i.e. flexion and extension of hip, knee
+    and ankle), ``repetitions`` trials at a posture drawn within the gait range (hip 0–0.3,
+    knee 0.3–0.8, ankle −0.1–0.1 rad), each 0.3 s rest, 0.5 s ramp up, 2 s hold at the
+    excitation ``effort`` (drawn in that range, on the MVC scale of the gait trials), 0.5 s
+    ramp down, 0.3 s rest; the other groups co-contract at 0–10 % of the effort over the
+    baseline 0.03. Same EMG noise model as :func:`gait_trial`; torque noise ``tau_noise_nm``
+    (N·m, standard deviation, 5 Hz low-passed: a dynamometer's or inverse dynamics' error).
+
+    One window (``cycle``) per trial, numbered from ``first_cycle``; ``movement`` labels the
+    action (``first_movement + index in groups``) so that the repetitions of one action are
+    averaged together for the instrument (:meth:`msk.strength.StrengthIdentifier.fit`).
+    """
+    rng = np.random.default_rng(seed + 20_000)
+    g_names = list(leg.groups)
+    targets = list(g_names if groups is None else groups)
+    for gname in targets:
+        if gname not in g_names:
+            raise ValueError(f"mvc_trials: unknown group {gname!r}; have {g_names}")
+    if repetitions < 1:
+        raise ValueError(f"mvc_trials: repetitions must be ≥ 1, got {repetitions}")
+    rest, ramp, hold = round(0.3 * rate_hz), round(0.5 * rate_hz), round(2.0 * rate_hz)
+    shape = np.concatenate(
+        [
+            np.zeros(rest),
+            0.5 - 0.5 * np.cos(np.pi * np.arange(ramp) / ramp),
+            np.ones(hold),
+            0.5 + 0.5 * np.cos(np.pi * np.arange(ramp) / ramp),
+            np.zeros(rest),
+        ]
+    )
+    n = shape.size
+    qs, es, cyc, mov = [], [], [], []
+    k = first_cycle
+    for i, gname in enumerate(targets):
+        g = g_names.index(gname)
+        for _ in range(repetitions):
+            posture = np.array(
+                [rng.uniform(0.0, 0.3), rng.uniform(0.3, 0.8), rng.uniform(-0.1, 0.1)]
+            )
+            level = rng.uniform(*effort)
+            e = 0.03 + np.outer(shape, rng.uniform(0.0, 0.1, len(g_names)) * level)
+            e[:, g] = 0.03 + (level - 0.03) * shape
+            qs.append(np.repeat(posture[None], n, axis=0))
+            es.append(e)
+            cyc.append(np.full(n, k))
+            mov.append(np.full(n, first_movement + i))
+            k += 1
+    q = np.concatenate(qs)
+    return _simulate(
+        leg,
+        q,
+        np.clip(np.concatenate(es), 0.0, 1.0),
+        np.concatenate(cyc).astype(np.int64),
+        rate_hz=rate_hz,
+        factors=dict(LEG_TRUE_FACTORS if factors is None else factors),
+        rng_noise=np.random.default_rng(seed + 30_000),
+        emg_mult_noise=emg_mult_noise,
+        emg_add_noise=emg_add_noise,
+        tau_noise=np.full(q.shape[1], tau_noise_nm),
+        gamma1=-0.5,
+        gamma2=-0.5,
+        shape_factor=-1.0,
+        delay_s=delay_s,
+        offset=offset,
+        qdot=np.zeros_like(q),
+        movement=np.concatenate(mov).astype(np.int64),
+    )
+
+
+def concatenate_trials(*trials: SyntheticLegTrial) -> SyntheticLegTrial:
+    """One trial of several (frames concatenated; windows and movements renumbered so that
+    those of different trials stay distinct; time continues)."""
+    if not trials:
+        raise ValueError("concatenate_trials needs at least one trial")
+    cyc, mov = [], []
+    c0 = m0 = 0
+    for tr in trials:
+        c = np.unique(tr.cycle, return_inverse=True)[1]
+        mv = tr.movement if tr.movement is not None else np.zeros(tr.cycle.size, np.int64)
+        m = np.unique(mv, return_inverse=True)[1]
+        cyc.append(c + c0)
+        mov.append(m + m0)
+        c0 += int(c.max()) + 1
+        m0 += int(m.max()) + 1
+    cat = {
+        f: np.concatenate([getattr(tr, f) for tr in trials])
+        for f in (
+            "q",
+            "qdot",
+            "muscle_tendon_length",
+            "lengthening_velocity",
+            "jacobian",
+            "emg",
+            "excitation_true",
+            "activation_true",
+            "forces_true",
+            "tau",
+            "tau_true",
+        )
+    }
+    dt = float(trials[0].time[1] - trials[0].time[0])
+    return SyntheticLegTrial(
+        time=np.arange(cat["q"].shape[0], dtype=np.float64) * dt,
+        offset=trials[0].offset,
+        cycle=np.concatenate(cyc).astype(np.int64),
+        params=trials[0].params,
+        coordinate_names=trials[0].coordinate_names,
+        movement=np.concatenate(mov).astype(np.int64),
+        **cat,
     )
 
 
