@@ -27,7 +27,13 @@ from msk.strength import (
 from msk.strength.synthetic import LEG_TRUE_FACTORS, SyntheticLegTrial, gait_trial, synthetic_leg
 
 # activation dynamics assumed known (generic) by the identifier: those of the simulation
-ACT = {"gamma1": -0.5, "gamma2": -0.5, "shape_factor": -1.0, "delay_samples": 4}
+ACT = {
+    "gamma1": -0.5,
+    "gamma2": -0.5,
+    "shape_factor": -1.0,
+    "delay_samples": 4,
+    "form": "exponential",
+}
 
 
 @pytest.fixture(scope="module")

@@ -293,7 +293,9 @@ def emg_driven_forces(
     h = 1.0 / trial.rate_hz
     ed = fractional_delay(trial.excitation, params.delay_s / h)
     u = recursive_filter(ed, gamma1=params.gamma1, gamma2=params.gamma2)
-    a = nonlinear_activation(np.clip(u, -1.0, 2.0), shape_factor=params.shape_factor)
+    a = nonlinear_activation(
+        np.clip(u, -1.0, 2.0), shape_factor=params.shape_factor, form="exponential"
+    )
     mp = params.muscle_parameters(base, groups)
     if tendon == "elastic":
         state = contraction_dynamics(

@@ -259,7 +259,12 @@ def gait_trial(
     e_true = e_group @ gm
     delay = round(delay_s * rate_hz)
     a_true = emg_to_activation(
-        e_true, gamma1=gamma1, gamma2=gamma2, shape_factor=shape_factor, delay_samples=delay
+        e_true,
+        gamma1=gamma1,
+        gamma2=gamma2,
+        shape_factor=shape_factor,
+        delay_samples=delay,
+        form="exponential",
     )
     scale = np.ones(len(names))
     for g, gname in enumerate(g_names):
