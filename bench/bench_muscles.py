@@ -73,7 +73,11 @@ def main() -> None:
         ),
         (
             f"emg_to_activation recursive ({c} x {env.shape[0]})",
-            best_of(lambda: emg_to_activation(env, gamma1=-0.9, gamma2=-0.9, shape_factor=-1.0))[0],
+            best_of(
+                lambda: emg_to_activation(
+                    env, gamma1=-0.9, gamma2=-0.9, shape_factor=-1.0, form="exponential"
+                )
+            )[0],
             env.shape[0],
         ),
         (

@@ -57,7 +57,9 @@ def main() -> None:
     lmt = np.concatenate([t.muscle_tendon_length for t in trials])
     vmt = np.concatenate([t.lengthening_velocity for t in trials])
     windows = np.concatenate([t.cycle + 100 * i for i, t in enumerate(trials)])
-    act = emg_to_activation(emg, gamma1=-0.5, gamma2=-0.5, shape_factor=-1.0, delay_samples=4)
+    act = emg_to_activation(
+        emg, gamma1=-0.5, gamma2=-0.5, shape_factor=-1.0, delay_samples=4, form="exponential"
+    )
     state = rigid_tendon_state(leg.params, lmt, vmt)
     idf = StrengthIdentifier(leg.groups, leg.params, n_bootstrap=400).fit(
         jac, act, tau, state, windows=windows

@@ -256,7 +256,9 @@ def test_measured_contact_strength_profile_and_tlem_read_only_arrays(cache):
 
     leg = synthetic_leg(0)
     tr = gait_trial(leg, n_cycles=4, seed=0)
-    a = emg_to_activation(tr.emg, gamma1=-0.5, gamma2=-0.5, shape_factor=-1.0, delay_samples=4)
+    a = emg_to_activation(
+        tr.emg, gamma1=-0.5, gamma2=-0.5, shape_factor=-1.0, delay_samples=4, form="exponential"
+    )
     s = rigid_tendon_state(leg.params, tr.muscle_tendon_length, tr.lengthening_velocity)
     idf = StrengthIdentifier(leg.groups, leg.params, n_bootstrap=0)
     profile = idf.fit(tr.jacobian, a, tr.tau, s, windows=tr.cycle).profile_

@@ -34,7 +34,13 @@ from msk.strength.synthetic import (
 )
 
 # activation dynamics assumed known (generic) by the identifier: those of the simulation
-ACT = {"gamma1": -0.5, "gamma2": -0.5, "shape_factor": -1.0, "delay_samples": 4}
+ACT = {
+    "gamma1": -0.5,
+    "gamma2": -0.5,
+    "shape_factor": -1.0,
+    "delay_samples": 4,
+    "form": "exponential",
+}
 
 
 @pytest.fixture(scope="module")

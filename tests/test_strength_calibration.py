@@ -109,6 +109,7 @@ def test_numpy_model_with_whole_sample_delay_uses_the_activation_module(setup):
         gamma2=par.gamma2,
         shape_factor=par.shape_factor,
         delay_samples=np.round(par.delay_s * 100).astype(int),
+        form="exponential",
     )
     np.testing.assert_allclose(a, ref, atol=1e-12)
 

@@ -219,7 +219,9 @@ def test_net_contribution_identification_on_the_rajagopal_walk(real_dir, ref_dir
     from msk.strength import StrengthIdentifier
 
     params, full = _load(real_dir, ref_dir)
-    act = emg_to_activation(full["e"], gamma1=-0.5, gamma2=-0.5, shape_factor=-1.0, delay_samples=4)
+    act = emg_to_activation(
+        full["e"], gamma1=-0.5, gamma2=-0.5, shape_factor=-1.0, delay_samples=4, form="exponential"
+    )
     state = rigid_tendon_state(params, full["lmt"], full["vmt"])
     idf = StrengthIdentifier(GROUPS, params, n_windows=9, bounds=(0.01, 5.0), n_bootstrap=200)
     p = idf.fit(-full["r"], act, full["m"], state, coordinate_names=COORDS).profile_

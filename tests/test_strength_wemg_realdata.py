@@ -350,7 +350,12 @@ def rajagopal_study(real_dir: Path, ref_dir: Path) -> RajagopalStudy:
     # as tests/test_strength_realdata.py (session-peak-normalised envelopes, seeds/003 Eq. 1-7)
     act = (
         emg_to_activation(
-            np.clip(e, 0.0, 1.0), gamma1=-0.5, gamma2=-0.5, shape_factor=-1.0, delay_samples=4
+            np.clip(e, 0.0, 1.0),
+            gamma1=-0.5,
+            gamma2=-0.5,
+            shape_factor=-1.0,
+            delay_samples=4,
+            form="exponential",
         )
         * measured
     )

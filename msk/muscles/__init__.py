@@ -11,6 +11,7 @@ from msk.muscles.activation import (
     emg_to_activation,
     first_order_activation,
     nonlinear_activation,
+    piecewise_coefficients,
     recursive_filter,
     recursive_filter_coefficients,
 )
@@ -61,6 +62,7 @@ __all__ = [
     "mvc_peaks",
     "nonlinear_activation",
     "pennation_constant_height",
+    "piecewise_coefficients",
     "process_emg",
     "recursive_filter",
     "recursive_filter_coefficients",

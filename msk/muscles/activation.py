@@ -21,21 +21,39 @@ Two families, both taking ``e`` of shape ``(N, M)`` (time on axis 0, one column 
       u(t) = α e(t − d) − β1 u(t − 1) − β2 u(t − 2)                          (Eq. 1)
       β1 = γ1 + γ2,  β2 = γ1 γ2,  |γ1| < 1,  |γ2| < 1                          (Eq. 2–5)
 
-  The poles are z = −γ1, −γ2 (stable for |γ| < 1). Eq. 6 as printed (α − β1 − β2 = 1) is the
-  unit-gain condition only for the recursion written with "+β" terms; for Eq. 1 as written the
-  steady-state gain is α/(1 + β1 + β2), so we impose **α = 1 + β1 + β2** (unit steady-state gain,
-  checked by a test). For γ1, γ2 ∈ (−1, 0] both poles are in [0, 1), the
-  impulse response is non-negative and sums to 1, so u ∈ [0, 1] for e ∈ [0, 1]; a positive γ
-  gives a negative pole (an alternating, overshooting response).
+  The poles are z = −γ1, −γ2 (stable for |γ| < 1). For Eq. 1 as printed the steady-state gain
+  is α/(1 + β1 + β2), so Eq. 6 (α − β1 − β2 = 1, i.e. **α = 1 + β1 + β2**) is exactly the
+  unit-gain condition; we impose it (checked by a test). For γ1, γ2 ∈ (−1, 0] both poles are in
+  [0, 1), the impulse response is non-negative and sums to 1, so u ∈ [0, 1] for e ∈ [0, 1]; a
+  positive γ gives a negative pole (an alternating, overshooting response).
 
-  followed by the one-parameter nonlinearity (Manal & Buchanan 2003, ``seeds/003 Eq. 7``, in its
-  exponential form)::
+  followed by the neural → muscle activation nonlinearity (:func:`nonlinear_activation`), in one
+  of two forms:
 
-      a = (e^{A u} − 1)/(e^{A} − 1),   −3 < A < 0   (A → 0 gives a = u)
+  - ``form="piecewise"`` (default): ``seeds/003 Eq. 7`` as printed, the one-parameter model of
+    Manal & Buchanan (2003, J Biomech 36:1197)::
+
+        a = d ln(c u + 1)      0 ≤ u < 0.3085
+        a = m u + b            0.3085 ≤ u ≤ 1,        shape factor A ∈ [0, 0.6915)
+
+    The thesis says b, c, d and m follow from A alone but does not print the relation; we take
+    the construction its Fig. 2.3 describes: the linear piece runs from Q = (u₀, u₀ + A),
+    u₀ = 0.3085 (A is the distance from P = (u₀, u₀) on the identity line to Q), to (1, 1), and
+    the logarithmic piece passes through (0, 0) and meets the line at Q with the same slope
+    (value and slope continuous). A = 0 is the identity a = u; seeds/003 Table 3.1 bounds A to
+    [0.01, 0.12]. It is the default because it is the only form seeds/003 uses (Eq. 7,
+    Table 3.1).
+  - ``form="exponential"``: Lloyd & Besier (2003, J Biomech 36:765, Eq. 8)::
+
+        a = (e^{A u} − 1)/(e^{A} − 1),   −3 < A ≤ 0   (A → 0 gives a = u)
+
+    used by :mod:`msk.strength.calibration` (smooth in A and u, which its exact casadi
+    derivatives need).
 """
 
 from __future__ import annotations
 
+import math
 from typing import Literal
 
 import numpy as np
@@ -46,6 +64,11 @@ from msk.exceptions import MuscleModelError
 
 Array = NDArray[np.float64]
 ActivationForm = Literal["seed002", "thelen", "zajac"]
+NonlinearityForm = Literal["piecewise", "exponential"]
+
+#: Neural activation at which seeds/003 Eq. 7 switches from the logarithmic to the linear piece
+#: (Manal & Buchanan 2003).
+PIECEWISE_BREAKPOINT = 0.3085
 
 
 def _as_2d(e: ArrayLike) -> tuple[Array, bool]:
@@ -186,24 +209,87 @@ def recursive_filter(
     return out[:, 0] if was_1d else out
 
 
+def piecewise_coefficients(shape_factor: float) -> tuple[float, float, float, float]:
+    """``(d, c, m, b)`` of ``seeds/003 Eq. 7`` (Manal & Buchanan 2003) for shape factor A.
+
+    The line ``a = m u + b`` joins Q = (u₀, u₀ + A) to (1, 1) (u₀ = :data:`PIECEWISE_BREAKPOINT`);
+    ``a = d ln(c u + 1)`` passes through the origin and matches the line's value and slope at
+    u₀. With x = c u₀ the two conditions reduce to ``(1 + x) ln(1 + x)/x = (u₀ + A)/(m u₀)``,
+    whose left side increases from 1 (x → 0), so x is unique. A = 0 returns the identity
+    (``d = inf``, ``c = 0``, ``m = 1``, ``b = 0``). A outside [0, 1 − u₀) raises
+    :class:`MuscleModelError`.
+    """
+    from scipy.optimize import brentq
+
+    u0 = PIECEWISE_BREAKPOINT
+    A = float(shape_factor)
+    if not (0.0 <= A < 1.0 - u0):
+        raise MuscleModelError(
+            f"piecewise shape factor A must be in [0, {1.0 - u0:.4f}), got {A} "
+            "(seeds/003 Table 3.1 uses [0.01, 0.12]; form='exponential' takes A in (-3, 0])"
+        )
+    y0 = u0 + A
+    m = (1.0 - y0) / (1.0 - u0)
+    b = 1.0 - m
+    if A < 1e-12:
+        return math.inf, 0.0, 1.0, 0.0
+    r = y0 / (m * u0)
+
+    def g(x: float) -> float:
+        return (1.0 + x) * math.log1p(x) / x - r
+
+    hi = 1.0
+    while g(hi) < 0.0:
+        hi *= 2.0
+    x = brentq(g, 1e-12, hi, xtol=1e-14, rtol=1e-14)
+    c = x / u0
+    d = y0 / math.log1p(x)
+    return d, c, m, b
+
+
 def nonlinear_activation(
     neural_activation: ArrayLike,
     *,
     shape_factor: ArrayLike,
+    form: NonlinearityForm = "piecewise",
     names: tuple[str, ...] | list[str] | None = None,
 ) -> Array:
-    """``a = (e^{A u} − 1)/(e^{A} − 1)`` (``seeds/003 Eq. 7``, exponential form), −3 < A ≤ 0.
+    """Muscle activation a from neural activation u (``seeds/003 Eq. 7``), per column.
 
-    A = 0 is the linear limit a = u. A outside (−3, 0] raises :class:`MuscleModelError`.
+    ``form="piecewise"`` (default; Manal & Buchanan 2003, the form seeds/003 prints):
+    ``a = d ln(c u + 1)`` below u = 0.3085, ``a = m u + b`` above, coefficients from
+    :func:`piecewise_coefficients`, A ∈ [0, 0.6915). ``form="exponential"`` (Lloyd & Besier
+    2003, Eq. 8): ``a = (e^{A u} − 1)/(e^{A} − 1)``, A ∈ (−3, 0]. A = 0 is a = u in both.
+    A outside its form's range raises :class:`MuscleModelError` naming the muscle.
     """
     u, was_1d = _as_2d(neural_activation)
     m = u.shape[1]
     nm = _names(m, names)
     A = _per_muscle(shape_factor, m, "shape_factor")
+    if form == "piecewise":
+        a = np.empty_like(u)
+        for j in range(m):
+            try:
+                d, c, slope, b = piecewise_coefficients(A[j])
+            except MuscleModelError as exc:
+                raise MuscleModelError(f"muscle {nm[j]!r}: {exc}") from None
+            if c == 0.0:
+                a[:, j] = u[:, j]
+                continue
+            low = u[:, j] < PIECEWISE_BREAKPOINT
+            # log1p of c u for u < 0 (filter undershoot) is kept finite by the clip
+            a[:, j] = np.where(
+                low, d * np.log1p(c * np.maximum(u[:, j], -0.99 / c)), slope * u[:, j] + b
+            )
+        return a[:, 0] if was_1d else a
+    if form != "exponential":
+        raise MuscleModelError(f"unknown nonlinearity form {form!r}: 'piecewise' or 'exponential'")
     bad = ~((A > -3.0) & (A <= 0.0))
     if bad.any():
         j = int(np.flatnonzero(bad)[0])
-        raise MuscleModelError(f"muscle {nm[j]!r}: shape factor A must be in (-3, 0], got {A[j]}")
+        raise MuscleModelError(
+            f"muscle {nm[j]!r}: exponential shape factor A must be in (-3, 0], got {A[j]}"
+        )
     lin = np.abs(A) < 1e-8
     As = np.where(lin, -1.0, A)
     a = np.where(lin, u, np.expm1(As * u) / np.expm1(As))
@@ -217,10 +303,12 @@ def emg_to_activation(
     gamma2: ArrayLike,
     shape_factor: ArrayLike,
     delay_samples: ArrayLike = 0,
+    form: NonlinearityForm = "piecewise",
     names: tuple[str, ...] | list[str] | None = None,
 ) -> Array:
-    """Recursive filter then nonlinearity (``seeds/003 Eq. 1–7``): e(t) → u(t) → a(t)."""
+    """Recursive filter then nonlinearity (``seeds/003 Eq. 1–7``): e(t) → u(t) → a(t);
+    ``form`` and the range of ``shape_factor`` as in :func:`nonlinear_activation`."""
     u = recursive_filter(
         excitation, gamma1=gamma1, gamma2=gamma2, delay_samples=delay_samples, names=names
     )
-    return nonlinear_activation(u, shape_factor=shape_factor, names=names)
+    return nonlinear_activation(u, shape_factor=shape_factor, form=form, names=names)

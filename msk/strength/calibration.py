@@ -5,7 +5,7 @@ Forward model (per muscle k, frame t; ``seeds/003 Eq. 1–20``), EMG envelope e 
     e_d(t)  = e(t − d)                         electromechanical delay d ∈ [0, 100 ms]   (Eq. 1)
     u(t)    = α e_d(t) − β1 u(t−1) − β2 u(t−2),  β1 = γ1 + γ2, β2 = γ1 γ2, α = 1 + β1 + β2
                                                                                        (Eq. 1–6)
-    a(t)    = (e^{A u} − 1)/(e^{A} − 1)        shape factor A                            (Eq. 7)
+    a(t)    = (e^{A u} − 1)/(e^{A} − 1)     shape factor A  (Eq. 7's role; Lloyd & Besier 2003)
     l_o(t)  = l_opt (λ (1 − a) + 1)            force–length skew λ                        (Eq. 9)
     F_k     = G F_iso [F̃_A(l̃) F̃_V(ṽ) a + F̃_P(l̃) + b_m ṽ] cos φ                   (Eq. 8, 19–20)
     M_F(j)  = Σ_k R_k(j) F_k,   R = −∂l/∂θ                                        (moment arms)
@@ -293,7 +293,9 @@ def emg_driven_forces(
     h = 1.0 / trial.rate_hz
     ed = fractional_delay(trial.excitation, params.delay_s / h)
     u = recursive_filter(ed, gamma1=params.gamma1, gamma2=params.gamma2)
-    a = nonlinear_activation(np.clip(u, -1.0, 2.0), shape_factor=params.shape_factor)
+    a = nonlinear_activation(
+        np.clip(u, -1.0, 2.0), shape_factor=params.shape_factor, form="exponential"
+    )
     mp = params.muscle_parameters(base, groups)
     if tendon == "elastic":
         state = contraction_dynamics(

@@ -11,7 +11,8 @@ iliopsoas (iliacus + psoas) and a gluteus maximus.
 
 The motion is a gait-like cycle (≈1 s, 100 Hz) with cycle-to-cycle variability of duration,
 amplitude and burst timing. Each group's excitation ``e(t)`` is a sum of phase-locked bursts; the
-true activation is the ``seeds/003 Eq. 1–7`` filter of ``e`` with a known electromechanical delay;
+true activation is the ``seeds/003 Eq. 1–6`` filter of ``e`` and the exponential nonlinearity
+(Lloyd & Besier 2003; ``form="exponential"``) with a known electromechanical delay;
 the **recorded** EMG envelope is ``e (1 + σ_m η_m) + σ_a η_a`` (η: unit-variance Gaussian noise
 low-passed at 5 Hz — multiplicative envelope noise and additive baseline noise), clipped to
 [0, 1]. Joint torques are ``τ = −Jᵀ f + d + noise`` with the true strengths.
@@ -316,7 +317,12 @@ def _simulate(
     e_true = e_group @ gm
     delay = round(delay_s * rate_hz)
     a_true = emg_to_activation(
-        e_true, gamma1=gamma1, gamma2=gamma2, shape_factor=shape_factor, delay_samples=delay
+        e_true,
+        gamma1=gamma1,
+        gamma2=gamma2,
+        shape_factor=shape_factor,
+        delay_samples=delay,
+        form="exponential",
     )
     scale = np.ones(len(names))
     for g, gname in enumerate(g_names):

@@ -10,9 +10,11 @@ from hypothesis.extra.numpy import arrays
 
 from msk.exceptions import MuscleModelError
 from msk.muscles.activation import (
+    PIECEWISE_BREAKPOINT,
     emg_to_activation,
     first_order_activation,
     nonlinear_activation,
+    piecewise_coefficients,
     recursive_filter,
     recursive_filter_coefficients,
 )
@@ -105,15 +107,53 @@ def test_recursive_filter_delay_and_stability_errors():
 
 def test_nonlinear_activation_shape():
     u = np.linspace(0, 1, 101)
-    a = nonlinear_activation(u, shape_factor=-2.0)
+    a = nonlinear_activation(u, shape_factor=-2.0, form="exponential")
     assert a[0] == 0.0 and a[-1] == pytest.approx(1.0)
     assert np.all(np.diff(a) > 0) and np.all(a >= u - 1e-15)  # concave, above the diagonal
-    np.testing.assert_allclose(nonlinear_activation(u, shape_factor=0.0), u)
-    np.testing.assert_allclose(nonlinear_activation(u, shape_factor=-1e-6), u, atol=1e-6)
+    for A in (0.0, -1e-6):
+        got = nonlinear_activation(u, shape_factor=A, form="exponential")
+        np.testing.assert_allclose(got, u, atol=1e-6)
     with pytest.raises(MuscleModelError, match=r"shape factor A.*-3.5"):
-        nonlinear_activation(u, shape_factor=-3.5)
+        nonlinear_activation(u, shape_factor=-3.5, form="exponential")
     with pytest.raises(MuscleModelError, match=r"shape factor A.*0.5"):
-        nonlinear_activation(u, shape_factor=0.5)
+        nonlinear_activation(u, shape_factor=0.5, form="exponential")
+    with pytest.raises(MuscleModelError, match="unknown nonlinearity"):
+        nonlinear_activation(u, shape_factor=0.0, form="cubic")  # type: ignore[arg-type]
+
+
+@pytest.mark.parametrize("A", [0.01, 0.05, 0.12, 0.3, 0.6])
+def test_piecewise_eq7_is_the_default_and_c1_at_the_breakpoint(A):
+    """seeds/003 Eq. 7 (Manal & Buchanan 2003): log piece through (0, 0), line through
+    Q = (0.3085, 0.3085 + A) and (1, 1), value and slope continuous at u = 0.3085."""
+    d, c, m, b = piecewise_coefficients(A)
+    u0 = PIECEWISE_BREAKPOINT
+    assert m * u0 + b == pytest.approx(u0 + A, abs=1e-12) and m + b == pytest.approx(1.0)
+    assert d * np.log1p(c * u0) == pytest.approx(u0 + A, abs=1e-10)  # value
+    assert d * c / (c * u0 + 1.0) == pytest.approx(m, rel=1e-9)  # slope
+    u = np.linspace(0.0, 1.0, 2001)
+    a = nonlinear_activation(u, shape_factor=A)  # piecewise is the default form
+    np.testing.assert_allclose(a, nonlinear_activation(u, shape_factor=A, form="piecewise"))
+    assert a[0] == 0.0 and a[-1] == pytest.approx(1.0)
+    assert np.all(np.diff(a) > 0) and np.all(a >= u - 1e-12)
+    assert np.all(np.diff(a, 2) < 1e-9)  # concave: the slope never increases
+    low = u < u0
+    np.testing.assert_allclose(a[low], d * np.log1p(c * u[low]))
+    np.testing.assert_allclose(a[~low], m * u[~low] + b)
+    # larger A bends more (seeds/003 Fig. 2.3)
+    assert np.all(nonlinear_activation(u, shape_factor=A + 0.01)[1:-1] > a[1:-1])
+
+
+def test_piecewise_limits_and_range():
+    u = np.linspace(0, 1, 11)
+    np.testing.assert_allclose(nonlinear_activation(u, shape_factor=0.0), u)
+    np.testing.assert_allclose(nonlinear_activation(u, shape_factor=1e-7), u, atol=1e-6)
+    for bad in (-0.1, 0.7):
+        with pytest.raises(MuscleModelError, match=r"muscle 'column 0'.*piecewise shape factor"):
+            nonlinear_activation(u, shape_factor=bad)
+    # the default form of emg_to_activation is the piecewise one
+    e = np.full(50, 0.2)
+    got = emg_to_activation(e, gamma1=-0.5, gamma2=-0.5, shape_factor=0.1)
+    np.testing.assert_allclose(got, nonlinear_activation(np.full(50, 0.2), shape_factor=0.1))
 
 
 unit = st.floats(0.0, 1.0, allow_nan=False)
@@ -129,7 +169,9 @@ unit = st.floats(0.0, 1.0, allow_nan=False)
     form=st.sampled_from(["seed002", "thelen", "zajac"]),
 )
 def test_activation_stays_in_unit_interval(e, g1, g2, A, d, form):
-    a = emg_to_activation(e, gamma1=g1, gamma2=g2, shape_factor=A, delay_samples=d)
+    a = emg_to_activation(
+        e, gamma1=g1, gamma2=g2, shape_factor=A, delay_samples=d, form="exponential"
+    )
     assert np.all(a >= -1e-12) and np.all(a <= 1 + 1e-12)
     b = first_order_activation(e, rate_hz=100.0, tau_act_s=0.01, tau_deact_s=0.04, form=form)
     assert np.all(b >= 0) and np.all(b <= 1)
@@ -159,7 +201,9 @@ def test_on_rajagopal_processed_emg(real_dir):
         cc = [np.dot(x[: len(x) - k], y[k:]) for k in lags]
         lag_s = lags[int(np.argmax(cc))] / rate
         assert 0.002 < lag_s < 0.06, (header[j + 1], lag_s)
-    u = emg_to_activation(e, gamma1=-0.95, gamma2=-0.95, shape_factor=-1.5, delay_samples=80)
+    u = emg_to_activation(
+        e, gamma1=-0.95, gamma2=-0.95, shape_factor=-1.5, delay_samples=80, form="exponential"
+    )
     assert np.all((u >= 0) & (u <= 1))
 
 
