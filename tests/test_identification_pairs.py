@@ -68,7 +68,7 @@ def _walks(config: str, real: Path) -> tuple[_Walk, ...]:
     frames the pipeline's mass-identification stage uses)."""
     # the stages up to the loads, as `msk run` runs them (no cache, nothing written)
     from msk.config import load_config
-    from msk.pipeline import _Runner, _Session
+    from msk.pipeline import run_stages
 
     cfg = load_config(ROOT / "pipelines" / f"{config}.toml")
     task = cfg.trials_with_role("task")[0]
@@ -77,13 +77,11 @@ def _walks(config: str, real: Path) -> tuple[_Walk, ...]:
     for f in files:
         tc = dataclasses.replace(task, name=f.stem, file=f)
         others = tuple(t for t in cfg.trials if t.role != "task")
-        s = _Session(dataclasses.replace(cfg, trials=(*others, tc)), _Runner(None, None))
-        s.read()
-        s.build_model()
-        kin, loads = s.kinematics(), s.loads()
-        it = IdentificationTrial.from_loads(s.model, kin, loads, name=f.stem)
-        good = np.isfinite(it.tau_ext).all(1) & np.isfinite(it.theta_ddot).all(1) & s.measured
-        out.append(_Walk(s.model, it, good, kin, loads))
+        r = run_stages(dataclasses.replace(cfg, trials=(*others, tc)), until="loads")
+        model, kin, loads = r["model"].model, r["kinematics"], r["loads"]
+        it = IdentificationTrial.from_loads(model, kin, loads.external, name=f.stem)
+        good = np.isfinite(it.tau_ext).all(1) & np.isfinite(it.theta_ddot).all(1) & loads.measured
+        out.append(_Walk(model, it, good, kin, loads.external))
     return tuple(out)
 
 

@@ -31,7 +31,7 @@ from msk.io.frames import lab_to_model_rotation
 from msk.pipeline.graph import CORE_STAGES, GRAPH, STAGES, Node
 from msk.pipeline.loads import PLATE_ASSIGNMENT
 from msk.pipeline.runner import RunResult, StageRecord, file_sha256
-from msk.pipeline.session import run_session, run_task_trials, split_task_trials
+from msk.pipeline.session import run_session, run_stages, run_task_trials, split_task_trials
 from msk.pipeline.summary import DEFAULT_MEASUREMENTS
 
 __all__ = [
@@ -46,6 +46,7 @@ __all__ = [
     "file_sha256",
     "lab_to_model_rotation",
     "run_session",
+    "run_stages",
     "run_task_trials",
     "split_task_trials",
 ]

@@ -15,12 +15,12 @@ from typing import Any, TextIO
 
 from msk.config import SessionConfig, load_config
 from msk.exceptions import ConfigError
-from msk.pipeline.graph import CORE_STAGES, STAGES, run_graph
+from msk.pipeline.graph import CORE_STAGES, GRAPH, STAGES, run_graph
 from msk.pipeline.inputs import session_inputs
 from msk.pipeline.runner import Runner, RunResult
 from msk.results import SessionResults, check_replaceable, write_session
 
-__all__ = ["run_session", "run_task_trials", "split_task_trials"]
+__all__ = ["run_session", "run_stages", "run_task_trials", "split_task_trials"]
 
 
 def split_task_trials(cfg: SessionConfig) -> list[SessionConfig]:
@@ -55,6 +55,20 @@ def run_task_trials(
     for d in dirs:
         check_replaceable(d)
     return [run_session(c, d, **options) for c, d in zip(parts, dirs)]
+
+
+def run_stages(
+    config: str | Path | SessionConfig, *, until: str, progress: TextIO | None = None
+) -> dict[str, Any]:
+    """The results of the graph's nodes up to and including ``until`` (node name → result),
+    without cache and without writing anything: the pipeline's own model, kinematics, loads…
+    for a study that goes on from there."""
+    names = [n.name for n in GRAPH]
+    if until not in names:
+        raise ConfigError(f"no pipeline stage {until!r}; stages: {', '.join(names)}")
+    cfg = config if isinstance(config, SessionConfig) else load_config(config)
+    runner = Runner(None, progress, stages=STAGES, core=CORE_STAGES)
+    return run_graph(session_inputs(cfg), runner, GRAPH[: names.index(until) + 1])
 
 
 def run_session(
