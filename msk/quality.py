@@ -185,9 +185,7 @@ def _flag(trial: str, quantity: str, value: float, threshold: float, message: st
     return Flag(trial, quantity, float(value), float(threshold), message)
 
 
-def _coordinate_flags(
-    trial: str, kin: Any, th: Mapping[str, float], held: set[str]
-) -> list[Flag]:
+def _coordinate_flags(trial: str, kin: Any, th: Mapping[str, float], held: set[str]) -> list[Flag]:
     out: list[Flag] = []
     q = np.asarray(kin.q, dtype=float)
     good = np.isfinite(q).all(axis=1)
