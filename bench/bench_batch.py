@@ -1,10 +1,11 @@
 """Benchmark: ``msk batch`` of 20 sessions on a Dask ``LocalCluster`` (2 worker processes).
 
-The cohort is the bundled Grand Challenge session (real), 18 simulated sessions (the synthetic
-two-leg model of ``tests/synthetic.py`` with 1–3 mm marker noise) and one deliberately broken
-session (truncated C3D). Times, in the same run: the first batch (empty stage caches), then a
-re-run with nothing changed (every stage from the content-hash cache); prints the ratio
-(target < 10 %) and checks that exactly the broken session is reported and 19 are written.
+The cohort is the bundled Grand Challenge session (real), 18 simulated sessions
+(``msk.synthetic_trials.write_synthetic_session``: the synthetic two-leg model with 1–3 mm marker
+noise) and one deliberately broken session (truncated C3D). Times, in the same run: the first
+batch (empty stage caches), then a re-run with nothing changed (every stage from the
+content-hash cache); prints the ratio (target < 10 %) and checks that exactly the broken
+session is reported and 19 are written.
 
 Usage: ``.venv/bin/python bench/bench_batch.py [--workers 2]``.
 """
@@ -12,17 +13,14 @@ Usage: ``.venv/bin/python bench/bench_batch.py [--workers 2]``.
 from __future__ import annotations
 
 import argparse
-import sys
 import tempfile
 import time
 from pathlib import Path
 
+from msk.batch import run_batch
+from msk.synthetic_trials import write_synthetic_session
+
 REPO = Path(__file__).resolve().parents[1]
-sys.path.insert(0, str(REPO / "tests"))
-
-from test_pipeline import make_session  # noqa: E402
-
-from msk.batch import run_batch  # noqa: E402
 
 
 def main() -> None:
@@ -35,10 +33,10 @@ def main() -> None:
         root = Path(tmp)
         configs = [REPO / "pipelines" / "gc5_PS.toml"]
         for i in range(18):
-            cfg, _ = make_session(root / f"s{i:02d}", f"synth_{i:02d}", seed=i,
+            cfg, _ = write_synthetic_session(root / f"s{i:02d}", f"synth_{i:02d}", seed=i,
                                   noise_m=0.001 * (1 + i % 3))  # fmt: skip
             configs.append(cfg)
-        bad, _ = make_session(root / "broken", "broken", broken=True)
+        bad, _ = write_synthetic_session(root / "broken", "broken", broken=True)
         configs.append(bad)
         out = root / "out"
         with LocalCluster(

@@ -4,7 +4,8 @@ in µs per frame, and its ratio to OpenSim 4.6's StaticOptimization measured in 
 
 Data: subject01 walking of the OpenSim peer (``shared/tools/opensim-peer/data``), 0.5–2.5 s; both
 sides work on the same states (OpenSim's IK as AnalyzeTool filters it, read back from the child
-process, see ``tests/test_validation_opensim_so.py``). OpenSim's time is the wall time of
+process, see ``msk.optimization.opensim_reference.opensim_full_static_optimization``). OpenSim's
+time is the wall time of
 ``AnalyzeTool.run()`` (SO, 92 muscles + 6 pelvis residuals, IPOPT) timed inside the child,
 divided by its frames; msk's are best-of-``--repeat`` batch calls after one warm-up.
 
@@ -23,27 +24,27 @@ import dataclasses
 import datetime
 import os
 import platform
-import sys
 import tempfile
 import time
 from pathlib import Path
 
 import numpy as np
+from _timing import replace_doc_section
+
+from msk.contact import knee_contact_force, split_medial_lateral
+from msk.dynamics import inverse_dynamics
+from msk.kinematics import kinematics_from_coordinates
+from msk.loads import external_loads
+from msk.muscles.geometry import geometry_plan, muscle_parameters
+from msk.muscles.hill import Thelen2003Curves, rigid_tendon_state
+from msk.opensim_subject01 import load_subject01
+from msk.optimization import solve_static_optimization_batch
+from msk.optimization.opensim_reference import (
+    compare_static_optimization,
+    opensim_full_static_optimization,
+)
 
 ROOT = Path(__file__).resolve().parents[1]
-sys.path.insert(0, str(ROOT / "tests"))
-
-from _timing import replace_doc_section  # noqa: E402
-from synthetic import load_subject01  # noqa: E402
-from test_validation_opensim_so import compare, opensim_static_optimization  # noqa: E402
-
-from msk.contact import knee_contact_force, split_medial_lateral  # noqa: E402
-from msk.dynamics import inverse_dynamics  # noqa: E402
-from msk.kinematics import kinematics_from_coordinates  # noqa: E402
-from msk.loads import external_loads  # noqa: E402
-from msk.muscles.geometry import geometry_plan, muscle_parameters  # noqa: E402
-from msk.muscles.hill import Thelen2003Curves, rigid_tendon_state  # noqa: E402
-from msk.optimization import solve_static_optimization_batch  # noqa: E402
 
 SECTION = "## Whole chain"
 TARGET_US = 150.0
@@ -59,7 +60,7 @@ def main() -> None:
     s = load_subject01()
     model = s.model
     with tempfile.TemporaryDirectory() as tmp:
-        os_ = opensim_static_optimization(Path(tmp), model.coordinate_names)
+        os_ = opensim_full_static_optimization(Path(tmp), model.coordinate_names)
     k0 = kinematics_from_coordinates(os_["time"], os_["q"], model.coordinate_names, cutoff_hz=None)
     kin = dataclasses.replace(k0, q=os_["q"], v=os_["u"], a=os_["udot"])
     loads = external_loads(model, kin, s.plates, threshold_n=0.0)  # as OpenSim: every load
@@ -119,7 +120,7 @@ def main() -> None:
     os_cpu = os_["per_frame_cpu_s"] * 1e6
     ms = {"forces": sol.forces, "activations": sol.activations, "muscle_names": params.names,
           "f_active": state.max_active_force_along_tendon}  # fmt: skip
-    c = compare(ms, os_)
+    c = compare_static_optimization(ms, os_)
     keep = c["keep"]
     load = os.getloadavg()[0] if hasattr(os, "getloadavg") else float("nan")
     lines = [

@@ -23,33 +23,30 @@ import argparse
 import datetime
 import os
 import platform
-import sys
 import time
 from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
 import numpy as np
+from _timing import replace_doc_section
 
-ROOT = Path(__file__).resolve().parents[1]
-sys.path.insert(0, str(ROOT / "tests"))
-
-from _timing import replace_doc_section  # noqa: E402
-from synthetic import load_subject01  # noqa: E402
-from test_contact import legacy_knee_contact_force  # noqa: E402
-
-from msk.contact import (  # noqa: E402
+from msk._legacy_contact import legacy_knee_contact_force
+from msk.contact import (
     KneeContact,
     knee_contact_force,
     plateau_geometry,
     split_medial_lateral,
 )
-from msk.dynamics import inverse_dynamics  # noqa: E402
-from msk.kinematics import kinematics_from_coordinates  # noqa: E402
-from msk.loads import external_loads  # noqa: E402
-from msk.muscles.geometry import geometry_plan, muscle_parameters  # noqa: E402
-from msk.muscles.hill import Thelen2003Curves, rigid_tendon_state  # noqa: E402
-from msk.optimization import solve_static_optimization_batch  # noqa: E402
+from msk.dynamics import inverse_dynamics
+from msk.kinematics import kinematics_from_coordinates
+from msk.loads import external_loads
+from msk.muscles.geometry import geometry_plan, muscle_parameters
+from msk.muscles.hill import Thelen2003Curves, rigid_tendon_state
+from msk.opensim_subject01 import load_subject01
+from msk.optimization import solve_static_optimization_batch
+
+ROOT = Path(__file__).resolve().parents[1]
 
 SECTION = "## Knee contact"
 TARGET_US = 10.0

@@ -21,24 +21,21 @@ from __future__ import annotations
 import argparse
 import os
 import platform
-import sys
 import tempfile
 import time
 from pathlib import Path
 
 import numpy as np
+from _timing import best_of
+
+from msk.dynamics import inverse_dynamics
+from msk.io.opensim_files import write_sto, write_trc
+from msk.kinematics import kinematics_from_coordinates, solve_kinematics
+from msk.loads import external_loads, plates_from_table
+from msk.opensim_peer import opensim_available, run_opensim_script
+from msk.opensim_subject01 import OPENSIM_IK_ID_SCRIPT, load_subject01
 
 ROOT = Path(__file__).resolve().parent.parent
-sys.path.insert(0, str(ROOT / "tests"))
-
-from _timing import best_of  # noqa: E402
-from synthetic import OPENSIM_IK_ID_SCRIPT, load_subject01  # noqa: E402
-
-from msk.dynamics import inverse_dynamics  # noqa: E402
-from msk.io.opensim_files import write_sto, write_trc  # noqa: E402
-from msk.kinematics import kinematics_from_coordinates, solve_kinematics  # noqa: E402
-from msk.loads import external_loads, plates_from_table  # noqa: E402
-from msk.opensim_peer import opensim_available, run_opensim_script  # noqa: E402
 
 SECTION = "## Inverse kinematics and dynamics"
 

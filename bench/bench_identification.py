@@ -1,6 +1,6 @@
 """Mass-distribution identification from 10,000 frames: regressor stacking vs constrained solve.
 
-The whole-body test model of ``tests/test_identification.py`` (15 bodies, upper body lumped into
+The whole-body model of ``msk.synthetic_models.whole_body_model`` (15 bodies, upper body lumped into
 one link: 8 identified segments, 4 free with left/right symmetry... 50 scaled parameters), a
 100 s trial at 100 Hz of sums of sines with 2 mm-marker-equivalent kinematic noise and 1 %
 force-plate noise. Times (best of 5 wall-clock, same run):
@@ -23,18 +23,17 @@ from __future__ import annotations
 import argparse
 import os
 import platform
-import sys
 import time
 from pathlib import Path
 
+from _timing import best_of
+
+from msk.identification import InertialIdentifier, lump_subtrees
+from msk.regressors import base_link_regressor, regressor_layout
+from msk.synthetic_models import subject_bodies, whole_body_model
+from msk.synthetic_trials import identification_trial
+
 ROOT = Path(__file__).resolve().parents[1]
-sys.path.insert(0, str(ROOT / "tests"))
-
-from _timing import best_of  # noqa: E402
-from test_identification import simulate, subject, whole_body_model  # noqa: E402
-
-from msk.identification import InertialIdentifier, lump_subtrees  # noqa: E402
-from msk.regressors import base_link_regressor, regressor_layout  # noqa: E402
 
 SECTION = "## Mass identification"
 
@@ -43,9 +42,9 @@ def main() -> None:
     ap = argparse.ArgumentParser()
     ap.add_argument("--write-docs", action="store_true")
     args = ap.parse_args()
-    truth = whole_body_model(subject("athlete"))
+    truth = whole_body_model(subject_bodies("athlete"))
     lumped = lump_subtrees(whole_body_model(), ["torso"])
-    trial = lumped.restrict_trial(simulate(truth, 100.4, 7))
+    trial = lumped.restrict_trial(identification_trial(truth, 100.4, 7))
     n = trial.n_frames
     model = lumped.model
     ident = InertialIdentifier(model, total_mass=truth.total_mass)

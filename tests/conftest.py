@@ -1,9 +1,10 @@
-"""Shared fixtures: paths to the third-party recordings and reference tables."""
+"""Shared fixtures (paths to the third-party recordings and reference tables) and the lane
+summary: the last line of a run names the lane that ran and its wall time."""
 
 from __future__ import annotations
 
 import os
-import sys
+import time
 from pathlib import Path
 
 import pytest
@@ -18,8 +19,6 @@ TESTS_DATA = Path(__file__).parent / "data"
 settings.register_profile("ci", derandomize=True, print_blob=True)
 if os.environ.get("CI"):
     settings.load_profile("ci")
-# shared test helpers (tiny models built in code) import as top-level modules
-sys.path.insert(0, str(Path(__file__).parent))
 
 
 @pytest.fixture(scope="session")
@@ -47,3 +46,34 @@ def needs_opensim() -> None:
 @pytest.fixture(scope="session")
 def tests_data() -> Path:
     return TESTS_DATA
+
+
+# ---------------------------------------------------------------------------------------------
+# lanes (docs/contributing.md): which one ran and how long it took, in the log of every run
+# ---------------------------------------------------------------------------------------------
+_START = time.perf_counter()
+
+
+def lane_name(markexpr: str) -> str:
+    """The lane a ``-m`` expression selects: ``fast`` (``not slow``, the default), ``slow``,
+    ``whole suite`` (``slow or not slow``, or no expression), else the expression itself."""
+    expr = " ".join(markexpr.split())
+    return {
+        "not slow": "fast",
+        "slow": "slow",
+        "slow or not slow": "whole suite",
+        "not slow or slow": "whole suite",
+        "": "whole suite",
+    }.get(expr, f"-m {expr!r}")
+
+
+def pytest_terminal_summary(
+    terminalreporter: pytest.TerminalReporter, config: pytest.Config
+) -> None:
+    workers = config.getoption("numprocesses", None)
+    terminalreporter.write_sep(
+        "-",
+        f"lane: {lane_name(config.getoption('markexpr') or '')}; wall time "
+        f"{time.perf_counter() - _START:.1f} s (from conftest import, {os.cpu_count()} CPUs, "
+        f"xdist workers: {workers or 0}, CI={os.environ.get('CI', '')!r})",
+    )

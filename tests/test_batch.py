@@ -7,10 +7,10 @@ import csv
 from pathlib import Path
 
 import pytest
-from test_pipeline import make_session
 
 from msk.batch import COHORT_COLUMNS, compare_sessions, run_batch
 from msk.cli import main
+from msk.synthetic_trials import write_synthetic_session
 
 REPO = Path(__file__).resolve().parents[1]
 GC5 = REPO / "pipelines" / "gc5_PS.toml"
@@ -26,9 +26,9 @@ def _cohort(path: Path) -> list[dict[str, str]]:
 @pytest.mark.slow
 def test_dask_local_cluster(tmp_path):
     distributed = pytest.importorskip("distributed")
-    a, _ = make_session(tmp_path / "a", "synth_a", seed=1)
-    b, _ = make_session(tmp_path / "b", "synth_b", seed=2, noise_m=0.002)
-    bad, _ = make_session(tmp_path / "c", "broken", broken=True)
+    a, _ = write_synthetic_session(tmp_path / "a", "synth_a", seed=1)
+    b, _ = write_synthetic_session(tmp_path / "b", "synth_b", seed=2, noise_m=0.002)
+    bad, _ = write_synthetic_session(tmp_path / "c", "broken", broken=True)
     configs = [a, GC5, bad, b]
     with distributed.LocalCluster(
         n_workers=2, threads_per_worker=1, processes=True, dashboard_address=":0"
@@ -52,8 +52,8 @@ def test_dask_local_cluster(tmp_path):
 
 
 def test_local_pool_cli_and_compare(tmp_path, capsys):
-    a, _ = make_session(tmp_path / "a", "synth_a", seed=1)
-    bad, _ = make_session(tmp_path / "c", "broken", broken=True)
+    a, _ = write_synthetic_session(tmp_path / "a", "synth_a", seed=1)
+    bad, _ = write_synthetic_session(tmp_path / "c", "broken", broken=True)
     out = tmp_path / "out"
     status = main(["batch", str(a), str(bad), "--out", str(out), "--workers", "2"])
     assert status == 1  # one session failed, the other completed

@@ -174,10 +174,10 @@ def trial():
 
 @pytest.fixture(scope="module")
 def synthetic():
-    from synthetic import make_trial, two_leg_model
-
     from msk.kinematics import solve_kinematics
     from msk.loads import external_loads
+    from msk.synthetic_models import two_leg_model
+    from msk.synthetic_trials import make_trial
 
     model = two_leg_model()
     tr = make_trial(model, duration_s=0.3, rate_hz=100.0, analog_ratio=2)
@@ -208,12 +208,11 @@ def test_kinematics_and_external_loads_with_assignments(cache, synthetic):
 
 
 def test_inverse_dynamics_and_muscle_geometry_with_init_false_fields(cache, synthetic):
-    from model_factory import leg_model
-
     from msk.dynamics import inverse_dynamics
     from msk.joints import SimmSpline
     from msk.muscles.geometry import MuscleGeometry, muscle_geometry
     from msk.muscles.path import MovingPathPoint, Muscle, PathPoint
+    from msk.synthetic_models import leg_model
 
     model, _, kin, ext = synthetic
     round_trip(cache, {"generic": inverse_dynamics(model, kin, ext)}, "inverse_dynamics")
@@ -302,15 +301,14 @@ def test_values_that_are_not_storable_are_refused_without_a_pickle(cache, value,
 
 
 def _model() -> Any:
-    from synthetic import two_leg_model
+    from msk.synthetic_models import two_leg_model
 
     return two_leg_model()
 
 
 def _synthetic_dataclass() -> Any:
-    from synthetic import plate_corners
-
     from msk.loads import PlateWrench
+    from msk.synthetic_trials import plate_corners
 
     @dataclasses.dataclass
     class Local:  # a dataclass of a test module, not of msk

@@ -10,8 +10,8 @@ import pinocchio as pin
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
-from model_factory import leg_model
 
+from msk._legacy_contact import legacy_knee_contact_force
 from msk.contact import (
     CONTACT_COLUMNS,
     G0,
@@ -25,12 +25,13 @@ from msk.contact import (
     plateau_geometry,
     split_medial_lateral,
 )
-from msk.dynamics import Variant, joint_reaction
+from msk.dynamics import joint_reaction
 from msk.exceptions import ModelError, ShapeMismatchError
 from msk.kinematics import kinematics_from_coordinates
 from msk.model import Axis, Body, Coordinate, Joint, Model
 from msk.muscles.geometry import muscle_geometry
 from msk.muscles.path import ConditionalPathPoint, Muscle, PathPoint, PathWrap, WrapObject
+from msk.synthetic_models import leg_model
 
 HIP = np.array([0.0, 1.0, 0.0])  # knee centre in the world (the femur is welded there)
 M_SHANK = 4.0
@@ -516,46 +517,10 @@ def test_plateau_geometry_follows_the_tibia_scale_factors(gait_models) -> None:
 # ---------------------------------------------------------------------------------------------
 # the vectorised route equals the RNEA + per-twist path route (the implementation until 2026-11)
 # ---------------------------------------------------------------------------------------------
-def legacy_knee_contact_force(
-    model: Model,
-    kin: Any,
-    loads: Any,
-    *,
-    muscle_forces: np.ndarray,
-    joint: str,
-    variant: Variant = "full",
-) -> tuple[np.ndarray, np.ndarray]:
-    """Force and moment in the plateau (tibia) frame as msk computed them before the vectorised
-    route (also timed by ``bench/bench_contact.py``): RNEA's transmitted wrench
-    (``joint_reaction``, a Pinocchio pass per frame), ∂l/∂ξ from a path evaluation per pair of
-    unit twists on the knee DOFs (``GeometryPlan._distal_by_twists``, the former
-    ``muscle_distal_wrenches``), the tibia placement by ``framesForwardKinematics`` per frame."""
-    from msk.muscles.geometry import geometry_plan
-
-    jr = joint_reaction(model, kin, loads, joint=joint, frame="world", variant=variant)
-    plan = geometry_plan(model)
-    th = np.asarray(kin.q, dtype=float)
-    w = plan._distal_by_twists(th, plan._joint_dofs(joint))
-    add = np.einsum("nm,nmc->nc", muscle_forces, w)
-    force_w = jr.force + add[:, :3]
-    moment_w = jr.moment + add[:, 3:]
-    spec = next(j for j in model.joints if j.name == joint)
-    data = model.create_data()
-    fid = model.body_frame[spec.child]
-    place = np.empty((th.shape[0], 4, 4))
-    qpin = model.coupling.q(th)
-    for k in range(th.shape[0]):
-        pin.framesForwardKinematics(model.pin_model, data, qpin[k])
-        place[k] = data.oMf[fid].homogeneous
-    rot, origin = place[:, :3, :3], place[:, :3, 3]
-    m_o = moment_w - np.cross(origin, force_w)
-    return np.einsum("nji,nj->ni", rot, force_w), np.einsum("nji,nj->ni", rot, m_o)
-
-
 @pytest.fixture(scope="module")
 def walk() -> dict[str, object]:
     """Kinematics (filtered at 6 Hz) and plate loads of the subject01 walk, 0.5–2.5 s."""
-    from synthetic import load_subject01
+    from msk.opensim_subject01 import load_subject01
 
     s = load_subject01()
     sel = (s.ik_time >= 0.5) & (s.ik_time <= 2.5)

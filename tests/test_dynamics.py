@@ -9,13 +9,6 @@ import itertools
 import numpy as np
 import pinocchio as pin
 import pytest
-from synthetic import (
-    OPENSIM_IK_ID_SCRIPT,
-    load_subject01,
-    make_trial,
-    subject01_pipeline,
-    two_leg_model,
-)
 
 from msk.dynamics import inverse_dynamics, joint_reaction, muscle_body_wrenches
 from msk.exceptions import ModelError
@@ -23,6 +16,9 @@ from msk.joints import FourBarKnee, FourBarTranslation, Linear
 from msk.kinematics import kinematics_from_coordinates, solve_kinematics
 from msk.loads import external_loads, plates_from_table, plates_from_trial
 from msk.model import Axis, Body, Joint
+from msk.opensim_subject01 import OPENSIM_IK_ID_SCRIPT, load_subject01, subject01_pipeline
+from msk.synthetic_models import two_leg_model
+from msk.synthetic_trials import make_trial
 
 MODEL = two_leg_model()
 TRIAL = make_trial(MODEL, duration_s=1.0, rate_hz=100.0)

@@ -10,7 +10,7 @@ import pytest
 
 from msk.events import GaitEvents, detect_gait_events, reconcile
 from msk.io.c3d import Event
-from tests.synthetic import two_leg_model
+from msk.synthetic_models import two_leg_model
 
 
 def _kin(model, t, q):

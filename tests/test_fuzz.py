@@ -22,10 +22,10 @@ import textwrap
 from pathlib import Path
 
 import pytest
-from c3d_mutants import label_width, parameters, retype, set_dim, set_text, set_value
 
 from msk._data import real_data_dir
 from msk.config import TEMPLATE
+from tests.support.c3d_mutants import label_width, parameters, retype, set_dim, set_text, set_value
 
 REAL = real_data_dir()
 C3D_SOURCES = [

@@ -7,7 +7,7 @@ import copy
 from pathlib import Path
 
 import numpy as np
-from support import golden
+from tests.support import golden
 
 from msk.io.opensim_files import Table
 from msk.io.tables import write_csv_table

@@ -17,9 +17,8 @@ import pinocchio as pin
 import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
-from model_factory import free_pelvis
 
-from msk.anthropometry import generic_segments, is_physically_consistent
+from msk.anthropometry import is_physically_consistent
 from msk.exceptions import IdentificationError
 from msk.identification import (
     MIRROR_SIGNS,
@@ -31,190 +30,17 @@ from msk.identification import (
     lump_subtrees,
     root_generalized_forces,
 )
-from msk.joints import Linear, Polynomial
-from msk.model import Axis, Body, Coordinate, Joint, Model
+from msk.model import Body, Joint, Model
 from msk.regressors import (
     base_link_regressor,
     external_generalized_forces,
     joint_torque_regressor,
     regressor_layout,
 )
-from msk.signal import derivative, filtfilt_butter
+from msk.synthetic_models import generic_bodies, subject_bodies, whole_body_model
+from msk.synthetic_trials import identification_trial
 
-RATE_HZ = 100.0
-BODY_MASS = 75.0
 G = 9.80665
-SEGMENTS = {  # model body -> Dumas 2007 segment
-    "pelvis": "pelvis",
-    "torso": "thorax",
-    "head": "head_neck",
-    "humerus_r": "upper_arm_r",
-    "humerus_l": "upper_arm_l",
-    "forearm_r": "forearm_r",
-    "forearm_l": "forearm_l",
-    "hand_r": "hand_r",
-    "hand_l": "hand_l",
-    "femur_r": "thigh_r",
-    "femur_l": "thigh_l",
-    "tibia_r": "shank_r",
-    "tibia_l": "shank_l",
-    "foot_r": "foot_r",
-    "foot_l": "foot_l",
-}
-
-
-def generic_bodies() -> dict[str, Body]:
-    segs = generic_segments(BODY_MASS, 1.75, sex="male")
-    return {
-        b: Body(b, s.mass, s.com, s.inertia) for b, s in ((b, segs[n]) for b, n in SEGMENTS.items())
-    }
-
-
-def whole_body_model(bodies: dict[str, Body] | None = None) -> Model:
-    """Pelvis (6 DOF) + 3-DOF lumbar joint + head and arms welded to the torso (one 1-DOF
-    shoulder each, held still) + two legs (3-DOF hip, coupled knee, ankle); y up."""
-    bodies = bodies or generic_bodies()
-    lin = Linear()
-    se3 = lambda x, y, z: pin.SE3(np.eye(3), np.array([x, y, z]))  # noqa: E731
-    coords, pelvis_joint = free_pelvis(0.95)
-    coords += [
-        Coordinate("lumbar_extension"),
-        Coordinate("lumbar_bending"),
-        Coordinate("lumbar_rotation"),
-        Coordinate("arm_flex_r"),
-        Coordinate("arm_flex_l"),
-    ]
-    joints = [
-        pelvis_joint,
-        Joint("back", "pelvis", "torso", parent_offset=se3(0, 0.47, 0), axes=(
-            Axis("revolute", [0, 0, 1], "lumbar_extension", lin),
-            Axis("revolute", [1, 0, 0], "lumbar_bending", lin),
-            Axis("revolute", [0, 1, 0], "lumbar_rotation", lin),
-        )),
-        Joint("neck", "torso", "head"),
-    ]  # fmt: skip
-    for s, z in (("r", 1.0), ("l", -1.0)):
-        coords += [
-            Coordinate(f"hip_flexion_{s}"),
-            Coordinate(f"hip_adduction_{s}"),
-            Coordinate(f"hip_rotation_{s}"),
-            Coordinate(f"knee_angle_{s}", range=(-2.1, 0.2)),
-            Coordinate(f"ankle_angle_{s}"),
-        ]
-        joints += [
-            Joint(f"shoulder_{s}", "torso", f"humerus_{s}", parent_offset=se3(0, -0.03, 0.18 * z),
-                  axes=(Axis("revolute", [0, 0, 1], f"arm_flex_{s}", lin),)),
-            Joint(f"elbow_{s}", f"humerus_{s}", f"forearm_{s}", parent_offset=se3(0, -0.27, 0)),
-            Joint(f"wrist_{s}", f"forearm_{s}", f"hand_{s}", parent_offset=se3(0, -0.25, 0)),
-            Joint(f"hip_{s}", "pelvis", f"femur_{s}", parent_offset=se3(-0.02, -0.07, 0.085 * z),
-                  axes=(
-                Axis("revolute", [0, 0, 1], f"hip_flexion_{s}", lin),
-                Axis("revolute", [1, 0, 0], f"hip_adduction_{s}", lin),
-                Axis("revolute", [0, 1, 0], f"hip_rotation_{s}", lin),
-            )),
-            Joint(f"knee_{s}", f"femur_{s}", f"tibia_{s}", parent_offset=se3(0, -0.43, 0), axes=(
-                Axis("prismatic", [1, 0, 0], f"knee_angle_{s}", Polynomial((0.002, -0.004, 0.0))),
-                Axis("prismatic", [0, 1, 0], f"knee_angle_{s}", Polynomial((-0.001, 0.003, 0.0))),
-                Axis("revolute", [0, 0, 1], f"knee_angle_{s}", lin),
-            )),
-            Joint(f"ankle_{s}", f"tibia_{s}", f"foot_{s}", parent_offset=se3(0, -0.43, 0),
-                  axes=(Axis("revolute", [0, 0, 1], f"ankle_angle_{s}", lin),)),
-        ]  # fmt: skip
-    return Model(name="whole_body", bodies=list(bodies.values()), joints=joints, coordinates=coords)
-
-
-def subject(kind: str) -> dict[str, Body]:
-    """True segments of a subject whose mass distribution departs from the tables."""
-    gen = generic_bodies()
-    if kind == "generic":
-        return gen
-    factor, shift = {"athlete": (1.20, 0.02), "elderly": (0.85, -0.015)}[kind]
-    out = dict(gen)
-    for name in ("femur_r", "femur_l", "tibia_r", "tibia_l"):
-        b = gen[name]
-        com = b.com + np.array([shift, -shift, 0.0])
-        out[name] = Body(name, b.mass * factor, com, b.inertia * factor)
-    return out
-
-
-def motion(model: Model, t: np.ndarray, rng: np.random.Generator, *, still=()):
-    """Sums of sines on every coordinate (closed-form θ, θ̇, θ̈); ``still`` coordinates fixed."""
-    n_c = model.n_coords
-    th = np.tile(model.default_coordinates(), (t.size, 1))
-    thd = np.zeros_like(th)
-    thdd = np.zeros_like(th)
-    for i, c in enumerate(model.coordinates):
-        if c.name in still:
-            continue
-        base = {"knee": -0.6, "hip_flexion": 0.3}.get(
-            c.name.rsplit("_", 1)[0].split("_angle")[0], 0.0
-        )
-        amp = 0.08 if c.kind == "translational" else (0.45 if "pelvis" not in c.name else 0.3)
-        th[:, i] += base
-        for _ in range(3):
-            a = amp * rng.uniform(0.3, 0.6)
-            w = 2 * np.pi * rng.uniform(0.15, 1.2)
-            p = rng.uniform(0, 2 * np.pi)
-            th[:, i] += a * np.sin(w * t + p)
-            thd[:, i] += a * w * np.cos(w * t + p)
-            thdd[:, i] -= a * w * w * np.sin(w * t + p)
-    assert th.shape[1] == n_c
-    return th, thd, thdd
-
-
-def ground_wrench(model: Model, th, thd, thdd):
-    """World force and moment about the origin the plates must supply (Pinocchio RNEA)."""
-    q, v, a = model.coupling.embed(th, thd, thdd)
-    data = model.create_data()
-    f = np.empty((th.shape[0], 3))
-    m = np.empty((th.shape[0], 3))
-    for n in range(th.shape[0]):
-        pin.rnea(model.pin_model, data, q[n], v[n], a[n])
-        w = data.liMi[1].act(data.f[1])  # force through the first root joint (world: parent 0)
-        f[n], m[n] = w.linear, w.angular
-    return f, m
-
-
-def simulate(
-    truth: Model,
-    duration_s: float,
-    seed: int,
-    *,
-    marker_noise_m: float = 0.002,
-    plate_noise: float = 0.01,
-    cutoff_hz: float = 4.0,
-    still=("arm_flex_r", "arm_flex_l"),
-    name: str = "",
-) -> IdentificationTrial:
-    """A noisy trial of the source model (see the module docstring)."""
-    rng = np.random.default_rng(seed)
-    t = np.arange(0.0, duration_s, 1.0 / RATE_HZ)
-    th, thd, thdd = motion(truth, t, rng, still=still)
-    f, m = ground_wrench(truth, th, thd, thdd)
-    # 2 mm markers ≈ 1.2 mm on translations and 2 mm / 0.15 m / √3 rad on rotations (IK over
-    # three markers per segment), white, then filtered like the plates
-    rot_noise = marker_noise_m / 0.15 / np.sqrt(3)
-    noise = np.array(
-        [marker_noise_m / np.sqrt(3) if c.kind == "translational" else rot_noise
-         for c in truth.coordinates]
-    )  # fmt: skip
-    for i, c in enumerate(truth.coordinates):
-        if c.name in still:
-            noise[i] = 0.0
-    th_m = filtfilt_butter(
-        th + rng.normal(size=th.shape) * noise, rate_hz=RATE_HZ, cutoff_hz=cutoff_hz
-    )
-    dt = 1.0 / RATE_HZ
-    thd_m, thdd_m = derivative(th_m, dt=dt), derivative(th_m, dt=dt, order=2)
-    weight = truth.total_mass * G
-    df = rng.normal(scale=plate_noise * weight, size=f.shape)
-    plate_centre = np.array([0.4, 0.0, 0.2])
-    dm = np.cross(plate_centre, df) + rng.normal(scale=plate_noise * weight * 0.05, size=m.shape)
-    f_m = filtfilt_butter(f + df, rate_hz=RATE_HZ, cutoff_hz=cutoff_hz)
-    m_m = filtfilt_butter(m + dm, rate_hz=RATE_HZ, cutoff_hz=cutoff_hz)
-    tau = root_generalized_forces(truth, th_m, f_m, m_m)
-    keep = slice(20, -20)  # drop filter edges
-    return IdentificationTrial(th_m[keep], thd_m[keep], thdd_m[keep], tau[keep], name=name)
 
 
 @pytest.fixture(scope="module")
@@ -327,10 +153,10 @@ def _fit(lm, trials, total_mass, **kw):
 
 @pytest.mark.parametrize("kind", ["athlete", "elderly"])
 def test_recovers_well_identified_segments_and_halves_held_out_residuals(lumped, kind):
-    truth = whole_body_model(subject(kind))
+    truth = whole_body_model(subject_bodies(kind))
     lm_truth = lump_subtrees(truth, ["torso"])
     true_phi = {b.name: b.parameters() for b in lm_truth.model.bodies}
-    train = [simulate(truth, 15.0, seed, name=f"{kind}{seed}") for seed in (11, 12)]
+    train = [identification_trial(truth, 15.0, seed, name=f"{kind}{seed}") for seed in (11, 12)]
     ident = _fit(lumped, train, truth.total_mass)
     # every segment consistent, symmetric, total mass exact
     for name, phi in ident.parameters_.items():
@@ -364,11 +190,11 @@ def test_recovers_well_identified_segments_and_halves_held_out_residuals(lumped,
          for b in lumped.source.bodies}
     )  # fmt: skip
     identified = ident.to_model(lumped)
-    clean = [simulate(truth, 8.0, 99, marker_noise_m=0.0, plate_noise=0.0)]
+    clean = [identification_trial(truth, 8.0, 99, marker_noise_m=0.0, plate_noise=0.0)]
     before, after = base_residuals(scaled, clean), base_residuals(identified, clean)
     assert after.force_rms_n < 0.5 * before.force_rms_n, (before, after)
     assert after.moment_rms_nm < 0.5 * before.moment_rms_nm, (before, after)
-    noisy = [simulate(truth, 8.0, 99)]
+    noisy = [identification_trial(truth, 8.0, 99)]
     before, after = base_residuals(scaled, noisy), base_residuals(identified, noisy)
     assert after.force_rms_n < before.force_rms_n, (before, after)
     assert after.moment_rms_nm < before.moment_rms_nm, (before, after)
@@ -382,8 +208,8 @@ def _idx(ident, name):
 
 
 def test_clarabel_and_ipopt_agree_and_kkt_without_active_constraints(lumped):
-    truth = whole_body_model(subject("athlete"))
-    trial = lumped.restrict_trial(simulate(truth, 6.0, 5))
+    truth = whole_body_model(subject_bodies("athlete"))
+    trial = lumped.restrict_trial(identification_trial(truth, 6.0, 5))
     kw = {"noise_std": np.array([7.0, 7.0, 7.0, 3.0, 3.0, 3.0]), "bounding_ellipsoids": None}
     a = InertialIdentifier(lumped.model, total_mass=truth.total_mass, **kw).fit(trial)
     b = InertialIdentifier(lumped.model, total_mass=truth.total_mass, solver="ipopt", **kw).fit(
@@ -400,7 +226,9 @@ def test_clarabel_and_ipopt_agree_and_kkt_without_active_constraints(lumped):
     from msk.identification import default_prior_std
 
     tight = {b.name: 0.05 * default_prior_std(b.parameters()) for b in lumped.model.bodies}
-    clean = lumped.restrict_trial(simulate(truth, 6.0, 5, marker_noise_m=0.0, plate_noise=0.0))
+    clean = lumped.restrict_trial(
+        identification_trial(truth, 6.0, 5, marker_noise_m=0.0, plate_noise=0.0)
+    )
     c = InertialIdentifier(lumped.model, prior_std=tight, **kw).fit(clean)
     hx, gx = c._x_system(c.noise_std_)
     x_ref = np.linalg.solve(hx + np.eye(hx.shape[0]), gx + c._x_prior)
@@ -408,8 +236,8 @@ def test_clarabel_and_ipopt_agree_and_kkt_without_active_constraints(lumped):
 
 
 def test_fixed_segments_stay_at_prior_and_bad_input_is_named(lumped):
-    truth = whole_body_model(subject("elderly"))
-    trial = lumped.restrict_trial(simulate(truth, 4.0, 3))
+    truth = whole_body_model(subject_bodies("elderly"))
+    trial = lumped.restrict_trial(identification_trial(truth, 4.0, 3))
     ident = InertialIdentifier(lumped.model, fixed=("foot_r", "foot_l")).fit(trial)
     np.testing.assert_array_equal(
         ident.parameters_["foot_r"], lumped.model.body("foot_r").parameters()
@@ -428,9 +256,9 @@ def test_fixed_segments_stay_at_prior_and_bad_input_is_named(lumped):
 
 
 def test_standing_still_is_flagged_and_stays_at_prior(lumped):
-    truth = whole_body_model(subject("athlete"))
+    truth = whole_body_model(subject_bodies("athlete"))
     still = tuple(c.name for c in truth.coordinates)
-    trial = lumped.restrict_trial(simulate(truth, 3.0, 8, still=still))
+    trial = lumped.restrict_trial(identification_trial(truth, 3.0, 8, still=still))
     ident = InertialIdentifier(lumped.model, total_mass=truth.total_mass).fit(trial)
     assert ident.flags_["femur_r"] in ("prior", "weakly identified")
     assert ident.weak_directions_ and ident.advice()
@@ -460,7 +288,9 @@ def test_identified_segments_are_always_physically_consistent(
         b = gen[name]
         bodies[name] = Body(name, b.mass * f, b.com * f, b.inertia * f)
     truth = whole_body_model(bodies)
-    trial = lumped.restrict_trial(simulate(truth, duration, seed, plate_noise=noise, cutoff_hz=8.0))
+    trial = lumped.restrict_trial(
+        identification_trial(truth, duration, seed, plate_noise=noise, cutoff_hz=8.0)
+    )
     ident = InertialIdentifier(lumped.model, total_mass=truth.total_mass).fit(trial)
     for name, phi in ident.parameters_.items():
         assert is_physically_consistent(phi), (name, phi)
@@ -517,10 +347,9 @@ def test_real_subject01_walk_split_halves(real_dir, ref_dir):
 def test_real_subject01_gait2392_msk_ik_lumped_feet():
     """gait2392 subject01 walk1 through msk's own pipeline (markers → msk IK → plates → loads),
     feet (calcn + toes) lumped; identify on the first half, held-out second half."""
-    from synthetic import load_subject01
-
     from msk.kinematics import kinematics_from_coordinates, solve_kinematics
     from msk.loads import external_loads
+    from msk.opensim_subject01 import load_subject01
 
     try:
         s = load_subject01()
@@ -581,13 +410,13 @@ def test_massless_bodies_stay_massless():
         coordinates=base.coordinates,
     )
     lm = lump_subtrees(model, ["torso"])
-    trial = lm.restrict_trial(simulate(model, 2.0, 4))
+    trial = lm.restrict_trial(identification_trial(model, 2.0, 4))
     ident = InertialIdentifier(lm.model, total_mass=model.total_mass).fit(trial)
     full = ident.to_model(lm)
     np.testing.assert_array_equal(full.body("virtual").parameters(), np.zeros(10))
     assert full.total_mass == pytest.approx(model.total_mass, rel=1e-6)
     # unlumped: the massless body is held at zero and flagged "prior"
-    ident = InertialIdentifier(model).fit(simulate(model, 2.0, 4))
+    ident = InertialIdentifier(model).fit(identification_trial(model, 2.0, 4))
     assert ident.flags_["virtual"] == "prior"
     np.testing.assert_array_equal(ident.parameters_["virtual"], np.zeros(10))
     assert ident.to_model().body("virtual").mass == 0.0
@@ -606,8 +435,8 @@ def _mass_errors(ident, truth_lm):
 
 @pytest.mark.parametrize(("kind", "seconds"), [("athlete", 15.0), ("elderly", 4.0)])
 def test_cv_prior_weight_is_never_worse_than_prior_only_held_out(lumped, kind, seconds):
-    truth = whole_body_model(subject(kind))
-    train = [simulate(truth, seconds, seed, name=f"{kind}{seed}") for seed in (31, 32)]
+    truth = whole_body_model(subject_bodies(kind))
+    train = [identification_trial(truth, seconds, seed, name=f"{kind}{seed}") for seed in (31, 32)]
     ident = _fit(lumped, train, truth.total_mass, prior_weight="cv")
     cv = ident.cv_scores_
     assert cv is not None and cv.folds == (f"{kind}31", f"{kind}32")  # leave one trial out
@@ -623,7 +452,7 @@ def test_cv_prior_weight_is_never_worse_than_prior_only_held_out(lumped, kind, s
         assert is_physically_consistent(phi)
     # an unseen trial of another motion: not worse than the prior at the total mass (the
     # generic model at the measured mass) beyond the noise (2 %)
-    test = [lumped.restrict_trial(simulate(truth, 8.0, 99))]
+    test = [lumped.restrict_trial(identification_trial(truth, 8.0, 99))]
     scale = truth.total_mass / lumped.model.total_mass
     prior_only = base_residuals(
         lumped.model, test, {b.name: scale * b.parameters() for b in lumped.model.bodies}
@@ -634,10 +463,10 @@ def test_cv_prior_weight_is_never_worse_than_prior_only_held_out(lumped, kind, s
 
 
 def test_cv_by_blocks_and_prior_only_when_the_data_say_nothing(lumped):
-    truth = whole_body_model(subject("athlete"))
+    truth = whole_body_model(subject_bodies("athlete"))
     # standing still: only the total mass and the horizontal COM are seen
     still = tuple(c.name for c in truth.coordinates)
-    trial = simulate(truth, 4.0, 8, still=still, plate_noise=0.03)
+    trial = identification_trial(truth, 4.0, 8, still=still, plate_noise=0.03)
     ident = _fit(lumped, [trial], truth.total_mass, prior_weight="cv", cv_folds=4)
     cv = ident.cv_scores_
     assert cv.folds == tuple(f"block {i}/4" for i in range(1, 5))
@@ -661,8 +490,8 @@ def test_cv_by_blocks_and_prior_only_when_the_data_say_nothing(lumped):
 def test_rich_excitation_with_cv_recovers_segments_better_than_the_prior(lumped):
     """Measured per segment (synthetic athlete: thighs and shanks +20 % mass, COM shifted 2 cm;
     2 × 15 s of sums of sines on every coordinate, 1 % plate noise)."""
-    truth = whole_body_model(subject("athlete"))
-    train = [simulate(truth, 15.0, seed, name=str(seed)) for seed in (11, 12)]
+    truth = whole_body_model(subject_bodies("athlete"))
+    train = [identification_trial(truth, 15.0, seed, name=str(seed)) for seed in (11, 12)]
     ident = _fit(lumped, train, truth.total_mass, prior_weight="cv")
     err = _mass_errors(ident, lump_subtrees(truth, ["torso"]))
     # the segments the motion excites (torso lump, thighs, shanks) move toward the truth (the
@@ -676,9 +505,9 @@ def test_rich_excitation_with_cv_recovers_segments_better_than_the_prior(lumped)
 
 
 def test_excitation_report_names_segments_and_motions_from_the_regressor(lumped):
-    truth = whole_body_model(subject("athlete"))
+    truth = whole_body_model(subject_bodies("athlete"))
     still = tuple(c.name for c in truth.coordinates)
-    trial = lumped.restrict_trial(simulate(truth, 3.0, 8, still=still))
+    trial = lumped.restrict_trial(identification_trial(truth, 3.0, 8, still=still))
     rep = excitation_report(lumped.model, trial, total_mass=truth.total_mass)
     assert {s.name for s in rep.segments} == {
         "pelvis", "torso", "femur_r/femur_l", "tibia_r/tibia_l", "foot_r/foot_l"
@@ -694,7 +523,9 @@ def test_excitation_report_names_segments_and_motions_from_the_regressor(lumped)
     text = str(rep)
     assert "poorly excited" in text and "foot_r/foot_l" in text
     # rich motion: the torso lump and thighs are excited (mass and COM std < 0.7 × prior)
-    rich = _fit(lumped, [simulate(truth, 15.0, 11)], truth.total_mass).excitation(suggest=False)
+    rich = _fit(lumped, [identification_trial(truth, 15.0, 11)], truth.total_mass).excitation(
+        suggest=False
+    )
     for body in ("torso", "femur_r"):
         s = rich.segment(body)
         assert not s.poorly_excited and s.n_excited >= 4, str(rich)

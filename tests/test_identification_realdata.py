@@ -3,8 +3,8 @@ C3D recordings with force plates (GitHub issue 5, "Show — real data").
 
 Grand Challenge (5th) subject PS, three overground gait trials on 3 plates
     gait2392 (``models/gait2392.toml``) scaled to ``PS_static_for_scaling.trc`` at the 75 kg the
-    data's source assumes (``test_validation_gc5.scaled_model``, marker names from
-    ``pipelines/gc5_PS.toml`` ``[markers] rename`` via ``test_validation_gc5.marker_rename``) →
+    data's source assumes (``tests.support.gc5.scaled_model``, marker names from
+    ``pipelines/gc5_PS.toml`` ``[markers] rename`` via ``tests.support.gc5.marker_rename``) →
     msk IK → plate loads → identification model with the upper body (gait2392's torso = HAT)
     and each foot (talus + calcn + toes) lumped, left/right symmetric. Fit on two trials, score
     the pelvis (base-link) residuals on the third, for the three rotations.
@@ -94,7 +94,7 @@ LUMBAR = ("lumbar_extension", "lumbar_bending", "lumbar_rotation")
 # helpers
 # ------------------------------------------------------------------------------------------
 def _gc5() -> Any:
-    import test_validation_gc5 as gc5  # the PS model and marker mapping (shared, not copied)
+    from tests.support import gc5  # the PS model and marker mapping (shared, not copied)
 
     return gc5
 
@@ -187,7 +187,7 @@ def gc5_lumped() -> LumpedModel:
 def gc5_trial(name: str) -> GaitData:
     gc5 = _gc5()
     model = gc5.scaled_model()
-    trial = read_c3d(gc5._gc5_dir() / f"{name}.c3d")
+    trial = read_c3d(gc5.gc5_dir() / f"{name}.c3d")
     up = _up(model)
     rot = lab_to_model_rotation(trial.up, up, trial.markers)
     inv = {v: k for k, v in gc5.marker_rename().items()}

@@ -6,7 +6,6 @@ import numpy as np
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
-from synthetic import make_trial, two_leg_model
 
 from msk.exceptions import KinematicsError, ShapeMismatchError
 from msk.kinematics import (
@@ -18,6 +17,8 @@ from msk.kinematics import (
     solve_kinematics,
 )
 from msk.model import Coordinate, marker_positions
+from msk.synthetic_models import two_leg_model
+from msk.synthetic_trials import make_trial
 
 MODEL = two_leg_model()
 TRIAL = make_trial(MODEL, duration_s=1.0, rate_hz=100.0)

@@ -10,7 +10,6 @@ from pathlib import Path
 import numpy as np
 import pinocchio as pin
 import pytest
-from synthetic import make_trial, two_leg_model
 
 from msk.dynamics import inverse_dynamics
 from msk.exceptions import ForcePlateError
@@ -24,6 +23,8 @@ from msk.loads import (
     plates_from_trial,
 )
 from msk.model import Body
+from msk.synthetic_models import two_leg_model
+from msk.synthetic_trials import make_trial
 
 MODEL = two_leg_model()
 TRIAL = make_trial(MODEL, duration_s=1.0, rate_hz=100.0, analog_ratio=10)

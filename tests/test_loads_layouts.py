@@ -19,12 +19,12 @@ from collections.abc import Callable
 import numpy as np
 import pinocchio as pin
 import pytest
-from model_factory import free_pelvis, inertia
 
 from msk.joints import Linear
 from msk.kinematics import kinematics_from_coordinates
 from msk.loads import PlateWrench, contact_measured, external_loads
 from msk.model import Axis, Body, Coordinate, Joint, Marker, Model
+from msk.synthetic_models import free_pelvis, inertia
 
 RATE = 100.0
 SOLE = 0.06  # foot origin above the sole

@@ -2,7 +2,6 @@ import casadi as ca
 import numpy as np
 import pinocchio as pin
 import pytest
-from model_factory import leg_model
 
 from msk.exceptions import ModelError
 from msk.joints import Constant, FourBarKnee, FourBarTranslation, Linear
@@ -15,6 +14,7 @@ from msk.model import (
     Model,
     marker_positions,
 )
+from msk.synthetic_models import leg_model
 
 
 def _rodrigues(axis, angle):

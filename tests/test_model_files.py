@@ -7,7 +7,6 @@ import pinocchio as pin
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
-from model_factory import leg_model
 
 from msk._data import REPO_ROOT
 from msk.exceptions import FileFormatError, ModelError
@@ -24,6 +23,7 @@ from msk.model import marker_positions
 from msk.model_files import function_from_dict, function_to_dict, load_model, save_model
 from msk.muscles.path import MovingPathPoint
 from msk.osim import Composite, PiecewiseLinear, load_osim
+from msk.synthetic_models import leg_model
 
 MODELS = REPO_ROOT / "models"
 

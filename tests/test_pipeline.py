@@ -15,65 +15,16 @@ from msk.exceptions import ConfigError
 from msk.io.opensim_files import read_sto
 from msk.pipeline import STAGES, file_sha256, lab_to_model_rotation, run_session
 from msk.results import TABLES, read_session
+from msk.synthetic_trials import write_synthetic_session
 
 REPO = Path(__file__).resolve().parents[1]
 GC5 = REPO / "pipelines" / "gc5_PS.toml"
 
 
-def make_session(
-    folder: Path,
-    name: str = "synth",
-    *,
-    noise_m: float = 0.001,
-    seed: int = 0,
-    broken: bool = False,
-    grf_cutoff_hz: float = 15.0,
-):
-    """A session folder with a model file, a simulated C3D (markers + 2 plates) and its config.
-
-    Returns ``(config_path, synthetic_trial)``; ``broken=True`` writes a truncated C3D."""
-    from synthetic import make_trial, two_leg_model
-
-    from msk.model_files import save_model
-
-    folder.mkdir(parents=True, exist_ok=True)
-    model = two_leg_model()
-    save_model(model, folder / "two_legs.toml", header="synthetic two-leg model (tests)")
-    trial = make_trial(model, duration_s=1.0, rate_hz=100.0, noise_m=noise_m, seed=seed)
-    c3d = trial.write_c3d(folder / f"{name}.c3d")
-    if broken:
-        c3d.write_bytes(c3d.read_bytes()[:700])
-    cfg = folder / f"{name}.toml"
-    cfg.write_text(
-        f"""
-[subject]
-name = "{name}"
-mass_kg = {model.total_mass}
-height_m = 1.75
-side = "left"
-
-[model]
-source = "two_legs.toml"
-scale = false
-
-[[trials]]
-name = "walk"
-file = "{name}.c3d"
-role = "task"
-
-[filters]
-kinematics_cutoff_hz = 8.0
-grf_cutoff_hz = {grf_cutoff_hz}
-""",
-        encoding="utf-8",
-    )
-    return cfg, trial
-
-
 @pytest.fixture(scope="module")
 def synth(tmp_path_factory):
     folder = tmp_path_factory.mktemp("synth")
-    cfg, trial = make_session(folder)
+    cfg, trial = write_synthetic_session(folder)
     res = run_session(cfg, folder / "out")
     return cfg, trial, res
 
@@ -147,7 +98,7 @@ def test_summary_contract(synth):
 
 
 def test_failed_run_writes_nothing(tmp_path):
-    cfg, _ = make_session(tmp_path / "s")
+    cfg, _ = write_synthetic_session(tmp_path / "s")
     out = tmp_path / "fresh"
     with pytest.raises(RuntimeError, match="on purpose"):
         run_session(cfg, out, _fail_stage="report")
@@ -167,7 +118,7 @@ def test_failed_run_writes_nothing(tmp_path):
 
 
 def test_analysis_stage_error_is_recorded_not_fatal(tmp_path):
-    cfg, _ = make_session(tmp_path / "s")
+    cfg, _ = write_synthetic_session(tmp_path / "s")
     res = run_session(cfg, tmp_path / "out", _fail_stage="comparison")
     rec = {r.name: r for r in res.stages}["comparison"]
     assert rec.status == "failed"
@@ -178,7 +129,7 @@ def test_analysis_stage_error_is_recorded_not_fatal(tmp_path):
 
 
 def test_cache_reuses_and_invalidates(tmp_path):
-    cfg, _ = make_session(tmp_path / "s")
+    cfg, _ = write_synthetic_session(tmp_path / "s")
     out = tmp_path / "out"
     first = run_session(cfg, out)
     second = run_session(cfg, out)
@@ -213,7 +164,7 @@ def test_cache_reuses_and_invalidates(tmp_path):
 
 
 def test_cli_run_print_config_and_errors(tmp_path, capsys):
-    cfg, _ = make_session(tmp_path / "s")
+    cfg, _ = write_synthetic_session(tmp_path / "s")
     assert main(["run", str(cfg), "--out", str(tmp_path / "o"), "--quiet"]) == 0
     assert (tmp_path / "o" / "report.html").is_file()
     capsys.readouterr()
@@ -230,7 +181,7 @@ def test_cli_run_print_config_and_errors(tmp_path, capsys):
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and err[0].startswith("msk: error:") and "filters.colour" in err[0]
     # a broken C3D (core stage) → one line, status 2, nothing written
-    broken, _ = make_session(tmp_path / "b", broken=True)
+    broken, _ = write_synthetic_session(tmp_path / "b", broken=True)
     assert main(["run", str(broken), "--out", str(tmp_path / "o3"), "--quiet"]) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "synth.c3d" in err[0]
@@ -240,7 +191,7 @@ def test_cli_run_print_config_and_errors(tmp_path, capsys):
 def test_several_task_trials_each_get_a_results_folder(tmp_path, capsys):
     """``msk run`` analyses every task trial (one folder each); ``run_session`` refuses a
     configuration with several rather than silently analysing the first."""
-    cfg, _ = make_session(tmp_path / "s")
+    cfg, _ = write_synthetic_session(tmp_path / "s")
     second = cfg.read_text() + '\n[[trials]]\nname = "walk2"\nfile = "synth.c3d"\nrole = "task"\n'
     cfg.write_text(second.replace("[filters]", "[filters]", 1))
     with pytest.raises(ConfigError, match=r"2 task trials \(walk, walk2\)"):
@@ -327,7 +278,7 @@ def test_broken_library_piece_is_reported_not_faked(tmp_path, monkeypatch):
     summary.json and the report; the stages after it run on what exists."""
     import msk.identification
 
-    cfg, _ = make_session(tmp_path / "s")
+    cfg, _ = write_synthetic_session(tmp_path / "s")
     monkeypatch.delattr(msk.identification, "InertialIdentifier")
     res = run_session(cfg, tmp_path / "out")
     status = {r.name: r.status for r in res.stages}
@@ -343,8 +294,8 @@ def test_broken_library_piece_is_reported_not_faked(tmp_path, monkeypatch):
 
 
 def test_mass_identification_trials_are_used(tmp_path):
-    cfg, trial = make_session(tmp_path / "s")
-    make_session(tmp_path / "s", "extra", seed=3)
+    cfg, trial = write_synthetic_session(tmp_path / "s")
+    write_synthetic_session(tmp_path / "s", "extra", seed=3)
     text = cfg.read_text() + (
         '\n[[trials]]\nname = "exciting"\nfile = "extra.c3d"\nrole = "mass_identification"\n'
     )

@@ -213,9 +213,9 @@ def test_fes_stage_is_cached(fes_run: tuple[Path, Path]) -> None:
 
 def test_gait_and_fes_in_one_session(tmp_path: Path) -> None:
     """FES trials next to a gait trial: both analyses, one report with both sections."""
-    from test_pipeline import make_session
+    from msk.synthetic_trials import write_synthetic_session
 
-    cfg, _ = make_session(tmp_path / "s")
+    cfg, _ = write_synthetic_session(tmp_path / "s")
     ses = synthetic_session(
         TRUTH,
         height=HEIGHT,

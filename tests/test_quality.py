@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from msk.quality import THRESHOLDS, body_mass_from_loads, gait_flags
-from tests.synthetic import two_leg_model
+from msk.synthetic_models import two_leg_model
 
 
 def _still(model, n, ty=0.93):

@@ -3,7 +3,6 @@ import pinocchio as pin
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
-from model_factory import leg_model
 
 from msk.exceptions import IdentificationError
 from msk.model import INERTIAL_PARAMETER_NAMES
@@ -16,6 +15,7 @@ from msk.regressors import (
     regressor_layout,
     root_coordinate_indices,
 )
+from msk.synthetic_models import leg_model
 
 MODEL = leg_model()
 LAYOUT = regressor_layout(MODEL)

@@ -9,7 +9,6 @@ import numpy as np
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
-from model_factory import leg_model
 
 from msk.exceptions import KinematicsError, MissingDataError, ModelError
 from msk.model import Marker, forward_kinematics, marker_positions
@@ -24,6 +23,7 @@ from msk.scaling import (
     scale_inertia,
     scale_model,
 )
+from msk.synthetic_models import leg_model
 
 LEG_MEASUREMENTS = (
     Measurement("pelvis", (("ASIS", "PSIS"),), ("pelvis",)),
@@ -349,9 +349,8 @@ CLUSTERS = {
 
 def _static_with_clusters(noise_m: float, n: int = 15, seed: int = 0):
     """Static frames of the two-leg model carrying the clusters (known truth)."""
-    from synthetic import two_leg_model
-
     from msk.model import Marker
+    from msk.synthetic_models import two_leg_model
 
     model = two_leg_model()
     truth = model.with_markers(
@@ -443,9 +442,8 @@ def test_is_measured_marker():
 
 
 def test_point_segment_distance_and_bone_segments():
-    from synthetic import two_leg_model
-
     from msk.scaling import bone_segments, point_segment_distance
+    from msk.synthetic_models import two_leg_model
 
     a, b = np.zeros(3), np.array([1.0, 0.0, 0.0])
     assert point_segment_distance([0.5, 0.2, 0.0], a, b) == pytest.approx(0.2)

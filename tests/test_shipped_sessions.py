@@ -25,7 +25,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from support import golden
+from tests.support import golden
 
 from msk.pipeline import CORE_STAGES, run_task_trials
 

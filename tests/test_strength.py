@@ -314,10 +314,9 @@ def test_comparison_tables_against_hand_computed_values():
 
 
 def test_with_strength_scales_the_model_muscles():
-    from model_factory import leg_model
-
     from msk.exceptions import ModelError
     from msk.muscles.path import Muscle, PathPoint
+    from msk.synthetic_models import leg_model
 
     muscles = [
         Muscle(

@@ -1,8 +1,8 @@
 """Strength identification and the W_emg sweep on real EMG (GitHub issue 8, seeds/002 Table I).
 
 Grand Challenge subject PS, three overground gait trials (the chain of
-``tests/test_validation_gc5.py``: scaled gait2392 → IK → plate loads → ID → muscle geometry, whose
-helpers are imported, not copied). Per trial, over the left gait cycle (Left Foot Strike → next
+``tests/support/gc5.py``, shared with ``tests/test_validation_gc5.py``: scaled gait2392 → IK →
+plate loads → ID → muscle geometry). Per trial, over the left gait cycle (Left Foot Strike → next
 Left Foot Strike):
 
 * EMG envelopes of the left-leg channels mapped to the gait2392 left muscles by
@@ -63,17 +63,6 @@ from typing import Any
 
 import numpy as np
 import pytest
-from test_validation_gc5 import (
-    TRIALS,
-    W_EMGS,
-    Gc5Run,
-    _need_data,
-    emg_config,
-    emg_options,
-    run_trial,
-    scaled_model,
-    session_peaks,
-)
 
 from msk.muscles.activation import first_order_activation
 from msk.muscles.emg import envelopes_from_trial
@@ -81,6 +70,17 @@ from msk.muscles.geometry import muscle_parameters
 from msk.muscles.hill import Thelen2003Curves, rigid_tendon_state
 from msk.optimization import EMGWeightSweep, emg_weight_sweep
 from msk.strength import StrengthIdentifier, StrengthProfile, WEmgStability, w_emg_stability
+from tests.support.gc5 import (
+    TRIALS,
+    W_EMGS,
+    Gc5Run,
+    emg_config,
+    emg_options,
+    need_data,
+    run_trial,
+    scaled_model,
+    session_peaks,
+)
 
 #: functional synergist groups sharing one factor (seeds/002 §V, seeds/003 Eq. 19–20)
 GROUPS: dict[str, tuple[str, ...]] = {
@@ -321,12 +321,11 @@ class RajagopalStudy:
 @functools.lru_cache(maxsize=1)
 def rajagopal_study(real_dir: Path, ref_dir: Path) -> RajagopalStudy:
     """The right-leg muscles (40) of ``subject_walk_scaled.osim`` on the right hip, knee and
-    ankle; EMG mapping and groups of ``tests/test_strength_realdata.py`` plus the two gluteal
+    ankle; EMG mapping and groups of ``tests/support/rajagopal.py`` plus the two gluteal
     electrodes (gluteus maximus → glmax1–3_r, gluteus medius → glmed1–3_r)."""
-    from test_strength_realdata import EMG_MAP, rajagopal_walk
-    from test_strength_realdata import GROUPS as RAJ_GROUPS
-
     from msk.muscles.activation import emg_to_activation
+    from tests.support.rajagopal import EMG_MAP, rajagopal_walk
+    from tests.support.rajagopal import GROUPS as RAJ_GROUPS
 
     model, ids, emg, t, geo = rajagopal_walk(real_dir, ref_dir)
     all_params = muscle_parameters(model)
@@ -405,7 +404,7 @@ def test_session_peak_emg_puts_the_strength_factors_at_the_lower_bound(real_dir:
     """Without MVC the session-peak EMG asks for more force than the torques need: the factors
     of the large EMG-driven groups go to the 0.5 bound of seeds/003 Table 3.1 in every fold;
     read as EMG gains with wide bounds they come out at 0.1–0.5."""
-    _need_data(real_dir)
+    need_data(real_dir)
     for name in TRIALS:
         f = fold(name)
         for g in ("knee_extensors", "knee_flexors", "plantar_flexors"):
@@ -423,7 +422,7 @@ def test_session_peak_emg_puts_the_strength_factors_at_the_lower_bound(real_dir:
 @pytest.mark.realdata
 def test_torque_error_falls_as_w_emg_decreases_in_every_variant(real_dir: Path) -> None:
     """The trade-off of seeds/002 Table I on the held-out trials, generic and identified."""
-    _need_data(real_dir)
+    need_data(real_dir)
     for name in TRIALS:
         f = fold(name)
         s = f.stability
@@ -450,7 +449,7 @@ def test_identified_strengths_reduce_the_spread_of_the_maximal_force(real_dir: P
     bound; the EMG-gain reading does not stabilise the maxima (its spread stays above the
     strength factors' one, and is not below the generic one on every trial), so nothing is
     claimed for it."""
-    _need_data(real_dir)
+    need_data(real_dir)
     for name in TRIALS:
         f = fold(name)
         sp = mean_spreads(f)

@@ -9,6 +9,9 @@ used (the tool's states storage), returns the moment arms about the requested co
 OpenSim's ``calcInextensibleTendonActiveFiberForce(s, 1.0)`` and OpenSim's activations, so
 that msk's :class:`~msk.optimization.StaticOptimizationProblem` can be solved on identical
 inputs.
+:func:`opensim_full_static_optimization` runs SO on the whole model (every muscle, the pelvis
+residuals) and returns the states SO used, so that msk's whole chain (inverse dynamics,
+geometry, SO) can run on them; :func:`compare_static_optimization` compares the two solutions.
 ``opensim`` is never imported in this process (see :mod:`msk.opensim_peer`).
 """
 
@@ -17,6 +20,7 @@ from __future__ import annotations
 from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
@@ -175,3 +179,135 @@ def opensim_static_optimization_reference(
         max_control=np.asarray(out["max_control"], dtype=float)[keep],
         so_wall_s=float(out["so_wall_s"]),
     )
+
+
+# ---------------------------------------------------------------------------------------------
+# the whole model (every muscle, pelvis residuals) with the states SO used
+# ---------------------------------------------------------------------------------------------
+#: time window of :func:`opensim_full_static_optimization` (s)
+FULL_SO_WINDOW = (0.5, 2.5)
+#: default window of :func:`compare_static_optimization`: the edges of the filtered window
+#: are left out (OpenSim at its default tolerance; a converged comparison uses every frame)
+COMPARE_WINDOW = (0.6, 2.4)
+#: OpenSim's StaticOptimization IPOPT defaults, and the settings at which it reaches the optimum
+IPOPT_DEFAULT = {"convergence_criterion": 1e-4, "max_iterations": 100}
+IPOPT_TIGHT = {"convergence_criterion": 1e-8, "max_iterations": 1000}
+
+
+def _peer_data_dir() -> Path:
+    from msk._data import shared_dir
+
+    return shared_dir() / "tools" / "opensim-peer" / "data"
+
+
+#: prepended to the reference script: CPU time of AnalyzeTool.run (the wall time is its own)
+_CPU = r"""
+import opensim as _osim, time as _time
+_run = _osim.AnalyzeTool.run
+def _timed_run(self, *a):
+    c = _time.process_time()
+    ok = _run(self, *a)
+    RESULT["so_cpu_s"] = _time.process_time() - c
+    return ok
+_osim.AnalyzeTool.run = _timed_run
+"""
+
+#: appended to the reference script: the states SO used, q, q̇ and q̈ = d(q̇)/dt of the GCV
+#: splines (StaticOptimization's target accelerations), at the SO frames ``T``
+_STATES = r"""
+ss = osim.GCVSplineSet(5, states)
+Qs, Us, As = [], [], []
+d1 = osim.StdVectorInt(); d1.append(0)
+for c in ARGS["all_coords"]:
+    vl = next(l for l in slab if l.endswith("/" + c + "/value"))
+    sl = next(l for l in slab if l.endswith("/" + c + "/speed"))
+    Qs.append([ss.get(vl).calcValue(osim.Vector(1, t)) for t in T])
+    Us.append([ss.get(sl).calcValue(osim.Vector(1, t)) for t in T])
+    As.append([ss.get(sl).calcDerivative(d1, osim.Vector(1, t)) for t in T])
+RESULT.update(q=Qs, u=Us, udot=As)
+"""
+
+
+def opensim_full_static_optimization(
+    out_dir: Path | str,
+    coordinate_names: Sequence[str],
+    *,
+    data_dir: Path | str | None = None,
+    convergence_criterion: float = 1e-4,
+    max_iterations: int = 100,
+) -> dict[str, Any]:
+    """OpenSim 4.6 SO on all 92 muscles (+ pelvis residuals) of gait2392 subject01 walking over
+    :data:`FULL_SO_WINDOW`, timed in the child (wall time of AnalyzeTool.run, and its CPU
+    time), with the states it used: ``q``, ``u`` (q̇) and ``udot`` (q̈ = d(q̇)/dt of the GCV
+    splines, StaticOptimization's target accelerations) at the SO frames; IPOPT settings as
+    given (OpenSim's defaults: :data:`IPOPT_DEFAULT`). ``data_dir`` is the OpenSim peer's data
+    folder (default ``shared/tools/opensim-peer/data``)."""
+    t0, t1 = FULL_SO_WINDOW
+    data = Path(data_dir) if data_dir is not None else _peer_data_dir()
+    out = run_opensim_script(
+        _CPU + _SCRIPT + _STATES, data=str(data), out=str(out_dir), t0=t0, t1=t1,
+        coords=["knee_angle_r"], suffix="", all_coords=list(coordinate_names),
+        convergence_criterion=float(convergence_criterion), max_iterations=int(max_iterations),
+    )  # fmt: skip
+    act = np.asarray(out["activations"], dtype=float)
+    fa = np.asarray(out["f_active"], dtype=float)
+    t = np.asarray(out["time"], dtype=float)
+    return {
+        "time": t,
+        "q": np.asarray(out["q"], dtype=float).T,
+        "u": np.asarray(out["u"], dtype=float).T,
+        "udot": np.asarray(out["udot"], dtype=float).T,
+        "forces": act * fa,  # OpenSim's SO has no passive fibre force
+        "activations": act,
+        "f_active": fa,
+        "muscle_names": tuple(out["muscles"]),
+        "convergence_criterion": float(out["convergence_criterion"]),
+        "max_iterations": int(out["max_iterations"]),
+        "so_wall_s": float(out["so_wall_s"]),
+        "per_frame_s": float(out["so_wall_s"]) / max(t.size, 1),
+        "per_frame_cpu_s": float(out.get("so_cpu_s", np.nan)) / max(t.size, 1),
+    }
+
+
+def compare_static_optimization(
+    ms: dict[str, Any], os_: dict[str, Any], *, window: tuple[float, float] = COMPARE_WINDOW
+) -> dict[str, Any]:
+    """msk (``ms``: ``muscle_names``, ``activations``, ``forces``, ``f_active`` on the frames
+    of ``os_``) against :func:`opensim_full_static_optimization` (``os_``).
+
+    Per muscle: RMS of (msk − OpenSim) force relative to the muscle's OpenSim peak, over the
+    frames of ``window`` where OpenSim's Σ a² is not > 1 % above msk's (none with the settings
+    above; with a plate threshold or OpenSim's default tolerance some are), for the muscles
+    OpenSim does not saturate (max activation < 0.99)."""
+    names = list(os_["muscle_names"])
+    idx = [ms["muscle_names"].index(n) for n in names]
+    t = os_["time"]
+    inner = (t >= window[0]) & (t <= window[1])
+    a_ms = ms["activations"][:, idx]
+    cost_ms = np.sum(a_ms**2, axis=1)
+    cost_os = np.sum(os_["activations"] ** 2, axis=1)
+    converged = (cost_os - cost_ms) <= 0.01 * cost_os
+    use = inner & converged
+    f_ms = ms["forces"][:, idx][use]
+    f_os = os_["forces"][use]
+    saturated = os_["activations"][inner].max(axis=0) >= 0.99
+    peak = np.maximum(np.abs(f_os).max(axis=0), 1e-9)
+    rel = np.sqrt(np.mean((f_ms - f_os) ** 2, axis=0)) / peak
+    keep = ~saturated
+    fa_rel = np.abs(ms["f_active"][:, idx] - os_["f_active"])[inner].max(axis=0) / np.maximum(
+        os_["f_active"][inner].max(axis=0), 1e-9
+    )
+    return {
+        "names": names,
+        "relative_rms": rel,
+        "peak": peak,
+        "saturated": [n for n, s in zip(names, saturated) if s],
+        "keep": keep,
+        "worst": names[int(np.argmax(np.where(keep, rel, -1)))],
+        "n_frames": int(use.sum()),
+        "not_converged_times": t[inner & ~converged],
+        "f_active_rel_max": float(fa_rel.max()),
+        "activation_rms": float(np.sqrt(np.mean((a_ms - os_["activations"])[use] ** 2))),
+        "cost_msk": cost_ms,
+        "cost_opensim": cost_os,
+    }

@@ -10,10 +10,10 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from c3d_mutants import label_width, retype, set_dim, set_text, set_value
 
 from msk.exceptions import C3DError, ForcePlateError, MskError
 from msk.io import read_c3d
+from tests.support.c3d_mutants import label_width, retype, set_dim, set_text, set_value
 
 MSK = [sys.executable, "-c", "import sys; from msk.cli import main; sys.exit(main())"]
 PS = "knee-grand-challenge-gc5/PS_ngait_og_ss1.c3d"
@@ -163,9 +163,8 @@ def test_isolated_read_carries_the_typed_error(real_dir, tmp_path):
 
 
 def test_a_crashing_or_hanging_reader_is_one_c3d_error(real_dir):
-    from c3d_mutants import crashing_reader, hanging_reader
-
     from msk.io.c3d import _read_isolated
+    from tests.support.c3d_mutants import crashing_reader, hanging_reader
 
     with pytest.raises(C3DError, match=r"crashed \(SIGSEGV\)"):
         _read_isolated(real_dir / PS, 20.0, 60.0, target=crashing_reader)

@@ -8,7 +8,6 @@ import itertools
 import numpy as np
 import pinocchio as pin
 import pytest
-from model_factory import leg_model
 
 from msk.exceptions import ModelError, ShapeMismatchError
 from msk.joints import FourBarKnee, FourBarTranslation, Linear, SimmSpline
@@ -30,6 +29,7 @@ from msk.muscles.path import (
     WrapObject,
 )
 from msk.opensim_peer import POSE_PRELUDE
+from msk.synthetic_models import leg_model
 
 # the crossed four-bar of tests/test_joints.py (femur frame: x anterior, y proximal)
 KNEE = FourBarKnee(

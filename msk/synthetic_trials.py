@@ -1,119 +1,47 @@
-"""Synthetic ground-truth trials: a two-legged model moved along a known smooth motion.
+"""Synthetic trials with a known truth, for tests, benchmarks and tutorials.
 
-``make_trial`` returns the exact coordinates (θ, θ̇, θ̈ in closed form), the marker trajectories
+:func:`make_trial` moves :func:`~msk.synthetic_models.two_leg_model` along a known smooth motion
+and returns the exact coordinates (θ, θ̇, θ̈ in closed form), the marker trajectories
 (optionally with Gaussian noise), the ground reaction wrench that the motion needs — the
 root-chain (base-link) rows of RNEA: the spatial force the ground would have to transmit to the
 pelvis — split over two force plates (one under each foot, each with its own centre of pressure
 and a free moment about the vertical), and the true joint torques. ``SyntheticTrial.write_c3d``
 writes markers and plates as a C3D file with ezc3d (plates of type 2, channels in the plate
-frame, mm), which :func:`msk.io.read_c3d` reads back.
+frame, mm), which :func:`msk.io.read_c3d` reads back; :func:`write_synthetic_session` writes a
+whole session folder (model, C3D, config) for ``msk run``.
+
+:func:`identification_trial` simulates a noisy inertial-identification trial of a
+:func:`~msk.synthetic_models.whole_body_model`.
 
 Usage::
 
-    from synthetic import make_trial, two_leg_model
+    from msk.synthetic_models import two_leg_model
+    from msk.synthetic_trials import make_trial
+
     trial = make_trial(two_leg_model(), duration_s=2.0, rate_hz=100.0, noise_m=0.002)
     trial.write_c3d(tmp_path / "synthetic.c3d")
 """
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 import pinocchio as pin
-from model_factory import free_pelvis, inertia
 from numpy.typing import NDArray
 
-from msk.joints import Linear, Polynomial
+from msk.identification import IdentificationTrial, root_generalized_forces
 from msk.loads import PlateWrench
-from msk.model import Axis, Body, Coordinate, Joint, Marker, Model, marker_positions
+from msk.model import Model, marker_positions
+from msk.signal import derivative, filtfilt_butter
+from msk.synthetic_models import two_leg_model
 
 Array = NDArray[np.float64]
 UP = np.array([0.0, 1.0, 0.0])
-
-
-def two_leg_model() -> Model:
-    """Pelvis (6 DOF) with two legs (3-DOF hip, knee with coupled translations, 1-DOF ankle),
-    y up, 16 coordinates, 30 markers; segment values close to ``model_factory.leg_model``."""
-    lin = Linear()
-    coords, pelvis_joint = free_pelvis(0.93)
-    bodies = [Body("pelvis", 11.0, [-0.07, 0.0, 0.0], inertia(11.0, 0.25))]
-    joints = [pelvis_joint]
-    markers = [
-        Marker("RASI", "pelvis", [0.02, 0.0, 0.12]),
-        Marker("LASI", "pelvis", [0.02, 0.0, -0.12]),
-        Marker("RPSI", "pelvis", [-0.15, 0.03, 0.05]),
-        Marker("LPSI", "pelvis", [-0.15, 0.03, -0.05]),
-    ]
-    for side, s in (("r", 1.0), ("l", -1.0)):
-        up = side.upper()
-        coords += [
-            Coordinate(f"hip_flexion_{side}", range=(-1.2, 2.0)),
-            Coordinate(f"hip_adduction_{side}", range=(-0.9, 0.5)),
-            Coordinate(f"hip_rotation_{side}", range=(-0.7, 0.7)),
-            Coordinate(f"knee_angle_{side}", range=(-2.1, 0.17)),
-            Coordinate(f"ankle_angle_{side}", range=(-0.7, 0.5)),
-        ]
-        bodies += [
-            Body(f"femur_{side}", 8.8, [0.0, -0.17, 0.0], inertia(8.8, 0.40)),
-            Body(f"tibia_{side}", 3.5, [0.0, -0.18, 0.0], inertia(3.5, 0.40)),
-            Body(f"foot_{side}", 1.2, [0.06, -0.03, 0.0], inertia(1.2, 0.2)),
-        ]
-        joints += [
-            Joint(
-                f"hip_{side}",
-                "pelvis",
-                f"femur_{side}",
-                parent_offset=pin.SE3(np.eye(3), np.array([-0.07, -0.066, s * 0.083])),
-                axes=(
-                    Axis("revolute", [0, 0, 1], f"hip_flexion_{side}", lin),
-                    Axis("revolute", [s * 0.9, s * 0.1, 0.0], f"hip_adduction_{side}", lin),
-                    Axis("revolute", [0, s, 0], f"hip_rotation_{side}", lin),
-                ),
-            ),
-            Joint(
-                f"knee_{side}",
-                f"femur_{side}",
-                f"tibia_{side}",
-                axes=(
-                    Axis(
-                        "prismatic",
-                        [1, 0, 0],
-                        f"knee_angle_{side}",
-                        Polynomial((0.002, -0.004, 0.0)),
-                    ),
-                    Axis(
-                        "prismatic",
-                        [0, 1, 0],
-                        f"knee_angle_{side}",
-                        Polynomial((-0.001, 0.003, -0.40)),
-                    ),
-                    Axis("revolute", [0, 0, 1], f"knee_angle_{side}", lin),
-                ),
-            ),
-            Joint(
-                f"ankle_{side}",
-                f"tibia_{side}",
-                f"foot_{side}",
-                parent_offset=pin.SE3(np.eye(3), np.array([0.0, -0.43, 0.0])),
-                axes=(Axis("revolute", [0, 0, 1], f"ankle_angle_{side}", lin),),
-            ),
-        ]
-        markers += [
-            Marker(f"{up}THI", f"femur_{side}", [0.03, -0.2, s * 0.06]),
-            Marker(f"{up}THA", f"femur_{side}", [0.05, -0.12, s * 0.02]),
-            Marker(f"{up}KNE", f"femur_{side}", [0.0, -0.4, s * 0.05]),
-            Marker(f"{up}KNM", f"femur_{side}", [0.0, -0.4, -s * 0.05]),
-            Marker(f"{up}TIB", f"tibia_{side}", [0.03, -0.2, s * 0.05]),
-            Marker(f"{up}TIA", f"tibia_{side}", [0.05, -0.1, -s * 0.01]),
-            Marker(f"{up}ANK", f"tibia_{side}", [0.0, -0.42, s * 0.04]),
-            Marker(f"{up}ANM", f"tibia_{side}", [0.0, -0.42, -s * 0.04]),
-            Marker(f"{up}HEE", f"foot_{side}", [-0.05, -0.05, 0.0]),
-            Marker(f"{up}TOE", f"foot_{side}", [0.16, -0.06, 0.0]),
-            Marker(f"{up}MT5", f"foot_{side}", [0.12, -0.05, s * 0.04]),
-        ]
-    return Model(name="two_legs", bodies=bodies, joints=joints, coordinates=coords, markers=markers)
+#: sampling rate of :func:`identification_trial` (Hz)
+IDENTIFICATION_RATE_HZ = 100.0
 
 
 # mean, amplitude, frequency (Hz), phase of every coordinate of two_leg_model (smooth motion)
@@ -236,6 +164,8 @@ class SyntheticTrial:
         specs = []
         for k, pl in enumerate(self.plates):
             corners = pl.corners
+            if corners is None:
+                raise ValueError(f"plate {pl.name} has no corners")
             centre = corners.mean(axis=0)
             rot = _plate_rotation(corners)
             m_centre = np.cross(pl.cop - centre, pl.force) + pl.free_moment
@@ -346,124 +276,141 @@ def make_trial(
     )
 
 
-# ---------------------------------------------------------------------------------------------
-# the real OpenSim subject01 walk on the scaled gait2392 (used by tests and bench/bench_id.py)
-# ---------------------------------------------------------------------------------------------
-@dataclass(frozen=True)
-class Subject01:
-    """Inputs of OpenSim's gait2392 subject01 walk (``shared/tools/opensim-peer/data``)."""
+def write_synthetic_session(
+    folder: Path,
+    name: str = "synth",
+    *,
+    noise_m: float = 0.001,
+    seed: int = 0,
+    broken: bool = False,
+    grf_cutoff_hz: float = 15.0,
+) -> tuple[Path, SyntheticTrial]:
+    """A session folder for ``msk run``: the :func:`~msk.synthetic_models.two_leg_model` file, a
+    simulated C3D ``<name>.c3d`` of :func:`make_trial` (1 s at 100 Hz, markers + 2 plates) and
+    its config ``<name>.toml``.
 
-    pipeline: Path
-    model: Model
-    trc_time: Array
-    markers: Array
-    marker_labels: tuple[str, ...]
-    weights: dict[str, float]
-    coordinate_tasks: dict[str, tuple[float, float]]
-    plates: tuple[PlateWrench, ...]
-    ik_time: Array
-    ik_q: Array  # OpenSim's reference IK, rad / m, model coordinate order
+    Returns ``(config_path, synthetic_trial)``; ``broken=True`` writes a truncated C3D."""
+    from msk.model_files import save_model
 
-    @property
-    def model_path(self) -> Path:
-        return self.pipeline / "OutputReference" / "subject01_simbody.osim"
+    folder.mkdir(parents=True, exist_ok=True)
+    model = two_leg_model()
+    save_model(model, folder / "two_legs.toml", header="synthetic two-leg model (tests)")
+    trial = make_trial(model, duration_s=1.0, rate_hz=100.0, noise_m=noise_m, seed=seed)
+    c3d = trial.write_c3d(folder / f"{name}.c3d")
+    if broken:
+        c3d.write_bytes(c3d.read_bytes()[:700])
+    cfg = folder / f"{name}.toml"
+    cfg.write_text(
+        f"""
+[subject]
+name = "{name}"
+mass_kg = {model.total_mass}
+height_m = 1.75
+side = "left"
 
-    @property
-    def reference_id_path(self) -> Path:
-        return (
-            self.pipeline
-            / "OutputReference"
-            / "ResultsInverseDynamics"
-            / "InverseDynamicsOutput.sto"
-        )
+[model]
+source = "two_legs.toml"
+scale = false
 
+[[trials]]
+name = "walk"
+file = "{name}.c3d"
+role = "task"
 
-def subject01_pipeline() -> Path:
-    from msk._data import shared_dir
-
-    return shared_dir() / "tools" / "opensim-peer" / "data" / "Pipelines" / "Gait2392_Simbody"
-
-
-def load_subject01() -> Subject01:
-    """Model (via :func:`msk.osim.load_osim`), markers, IK tasks, plates and reference IK.
-
-    The reference IK ``.mot`` has an old SIMM header without ``inDegrees``: its rotational
-    coordinates are in degrees and converted here.
-    """
-    from msk.io.opensim_files import read_sto, read_trc
-    from msk.kinematics import ik_tasks_from_setup
-    from msk.loads import plates_from_table
-    from msk.osim import load_osim
-
-    pipe = subject01_pipeline()
-    model = load_osim(pipe / "OutputReference" / "subject01_simbody.osim")
-    trc = read_trc(pipe / "subject01_walk1.trc")
-    weights, tasks = ik_tasks_from_setup(pipe / "subject01_Setup_IK.xml")
-    grf = read_sto(pipe / "subject01_walk1_grf.mot")
-    plates = plates_from_table(grf.time, grf.data, grf.columns)
-    ik = read_sto(pipe / "OutputReference" / "subject01_walk1_ik.mot")
-    cols = [ik.columns.index(c) for c in model.coordinate_names]
-    q = ik.data[:, cols].copy()
-    rot = [c.kind == "rotational" for c in model.coordinates]
-    q[:, rot] = np.deg2rad(q[:, rot])
-    return Subject01(
-        pipeline=pipe,
-        model=model,
-        trc_time=trc.time,
-        markers=trc.markers,
-        marker_labels=trc.labels,
-        weights=weights,
-        coordinate_tasks=tasks,
-        plates=plates,
-        ik_time=ik.time,
-        ik_q=q,
+[filters]
+kinematics_cutoff_hz = 8.0
+grf_cutoff_hz = {grf_cutoff_hz}
+""",
+        encoding="utf-8",
     )
+    return cfg, trial
 
 
-#: OpenSim child-process script: IK (when ``trc`` is given) and ID with the subject01 setups,
-#: each repeated ``ik_repeats`` / ``id_repeats`` times and timed inside the child (best kept).
-OPENSIM_IK_ID_SCRIPT = """
-import opensim as osim, os, time
-P = ARGS["pipe"]
-out = ARGS["out"]
-model = P + "/OutputReference/subject01_simbody.osim"
-ik_mot = ARGS.get("ik_mot")
-if ARGS.get("trc"):
-    ik_mot = out + "/ik.mot"
-    walls = []
-    for _ in range(int(ARGS.get("ik_repeats", 1))):
-        ik = osim.InverseKinematicsTool(P + "/subject01_Setup_IK.xml")
-        ik.set_model_file(model)
-        ik.setMarkerDataFileName(ARGS["trc"])
-        ik.setStartTime(ARGS["t0"]); ik.setEndTime(ARGS["t1"])
-        ik.setResultsDir(out)
-        ik.setOutputMotionFileName(ik_mot)
-        tic = time.perf_counter(); ok = ik.run(); walls.append(time.perf_counter() - tic)
-    RESULT["ik_wall_s"] = min(walls)
-    RESULT["ik_walls_s"] = walls
-    t = osim.TimeSeriesTable(ik_mot)
-    RESULT["ik_frames"] = t.getNumRows()
-    RESULT["ik_time"] = list(t.getIndependentColumn())
-    RESULT["ik_labels"] = list(t.getColumnLabels())
-    RESULT["ik_data"] = t.getMatrix().to_numpy().tolist()
-el = osim.ExternalLoads(P + "/subject01_walk1_grf.xml", True)
-el.setDataFileName(os.path.abspath(ARGS["grf"]))
-el.printToXML(out + "/el.xml")
-walls = []
-for _ in range(int(ARGS.get("id_repeats", 1))):
-    idt = osim.InverseDynamicsTool(P + "/subject01_Setup_InverseDynamics.xml")
-    idt.setModelFileName(model)
-    idt.setCoordinatesFileName(ik_mot)
-    idt.setExternalLoadsFileName(out + "/el.xml")
-    idt.setLowpassCutoffFrequency(ARGS["cutoff_hz"])
-    idt.setStartTime(ARGS["t0"]); idt.setEndTime(ARGS["t1"])
-    idt.setResultsDir(out); idt.setOutputGenForceFileName("id.sto")
-    tic = time.perf_counter(); ok = idt.run(); walls.append(time.perf_counter() - tic)
-RESULT["id_wall_s"] = min(walls)
-RESULT["id_walls_s"] = walls
-t = osim.TimeSeriesTable(out + "/id.sto")
-RESULT["id_frames"] = t.getNumRows()
-RESULT["id_time"] = list(t.getIndependentColumn())
-RESULT["id_labels"] = list(t.getColumnLabels())
-RESULT["id_data"] = t.getMatrix().to_numpy().tolist()
-"""
+def whole_body_motion(
+    model: Model, t: Array, rng: np.random.Generator, *, still: Sequence[str] = ()
+) -> tuple[Array, Array, Array]:
+    """Sums of sines on every coordinate (closed-form θ, θ̇, θ̈); ``still`` coordinates fixed."""
+    n_c = model.n_coords
+    th = np.tile(model.default_coordinates(), (t.size, 1))
+    thd = np.zeros_like(th)
+    thdd = np.zeros_like(th)
+    for i, c in enumerate(model.coordinates):
+        if c.name in still:
+            continue
+        base = {"knee": -0.6, "hip_flexion": 0.3}.get(
+            c.name.rsplit("_", 1)[0].split("_angle")[0], 0.0
+        )
+        amp = 0.08 if c.kind == "translational" else (0.45 if "pelvis" not in c.name else 0.3)
+        th[:, i] += base
+        for _ in range(3):
+            a = amp * rng.uniform(0.3, 0.6)
+            w = 2 * np.pi * rng.uniform(0.15, 1.2)
+            p = rng.uniform(0, 2 * np.pi)
+            th[:, i] += a * np.sin(w * t + p)
+            thd[:, i] += a * w * np.cos(w * t + p)
+            thdd[:, i] -= a * w * w * np.sin(w * t + p)
+    assert th.shape[1] == n_c
+    return th, thd, thdd
+
+
+def ground_wrench(model: Model, th: Array, thd: Array, thdd: Array) -> tuple[Array, Array]:
+    """World force and moment about the origin the plates must supply (Pinocchio RNEA)."""
+    q, v, a = model.coupling.embed(th, thd, thdd)
+    data = model.create_data()
+    f = np.empty((th.shape[0], 3))
+    m = np.empty((th.shape[0], 3))
+    for n in range(th.shape[0]):
+        pin.rnea(model.pin_model, data, q[n], v[n], a[n])
+        w = data.liMi[1].act(data.f[1])  # force through the first root joint (world: parent 0)
+        f[n], m[n] = w.linear, w.angular
+    return f, m
+
+
+def identification_trial(
+    truth: Model,
+    duration_s: float,
+    seed: int,
+    *,
+    marker_noise_m: float = 0.002,
+    plate_noise: float = 0.01,
+    cutoff_hz: float = 4.0,
+    still: Sequence[str] = ("arm_flex_r", "arm_flex_l"),
+    name: str = "",
+) -> IdentificationTrial:
+    """A noisy identification trial of ``truth`` (e.g.
+    :func:`~msk.synthetic_models.whole_body_model`) moved along sums of sines on every
+    coordinate but ``still`` (pelvis free), at 100 Hz.
+
+    The plates measure the base-link wrench computed by Pinocchio's RNEA (independent of msk's
+    regressor), with ``plate_noise`` × body weight white noise on the forces (and the matching
+    moment noise); the kinematics carry white noise equivalent to ``marker_noise_m`` markers,
+    low-pass filtered (``cutoff_hz`` zero-lag Butterworth, as the plates) and differentiated
+    numerically; 20 frames are dropped at each end (filter edges)."""
+    rng = np.random.default_rng(seed)
+    t = np.arange(0.0, duration_s, 1.0 / IDENTIFICATION_RATE_HZ)
+    th, thd, thdd = whole_body_motion(truth, t, rng, still=still)
+    f, m = ground_wrench(truth, th, thd, thdd)
+    # 2 mm markers ≈ 1.2 mm on translations and 2 mm / 0.15 m / √3 rad on rotations (IK over
+    # three markers per segment), white, then filtered like the plates
+    rot_noise = marker_noise_m / 0.15 / np.sqrt(3)
+    noise = np.array(
+        [marker_noise_m / np.sqrt(3) if c.kind == "translational" else rot_noise
+         for c in truth.coordinates]
+    )  # fmt: skip
+    for i, c in enumerate(truth.coordinates):
+        if c.name in still:
+            noise[i] = 0.0
+    th_m = filtfilt_butter(
+        th + rng.normal(size=th.shape) * noise, rate_hz=IDENTIFICATION_RATE_HZ, cutoff_hz=cutoff_hz
+    )
+    dt = 1.0 / IDENTIFICATION_RATE_HZ
+    thd_m, thdd_m = derivative(th_m, dt=dt), derivative(th_m, dt=dt, order=2)
+    weight = truth.total_mass * 9.80665
+    df = rng.normal(scale=plate_noise * weight, size=f.shape)
+    plate_centre = np.array([0.4, 0.0, 0.2])
+    dm = np.cross(plate_centre, df) + rng.normal(scale=plate_noise * weight * 0.05, size=m.shape)
+    f_m = filtfilt_butter(f + df, rate_hz=IDENTIFICATION_RATE_HZ, cutoff_hz=cutoff_hz)
+    m_m = filtfilt_butter(m + dm, rate_hz=IDENTIFICATION_RATE_HZ, cutoff_hz=cutoff_hz)
+    tau = root_generalized_forces(truth, th_m, f_m, m_m)
+    keep = slice(20, -20)  # drop filter edges
+    return IdentificationTrial(th_m[keep], thd_m[keep], thdd_m[keep], tau[keep], name=name)
