@@ -7,10 +7,10 @@ import copy
 from pathlib import Path
 
 import numpy as np
-from tests.support import golden
 
 from msk.io.opensim_files import Table
 from msk.io.tables import write_csv_table
+from tests.support import golden
 
 
 def _folder(tmp_path: Path, bump: float) -> Path:

@@ -25,9 +25,9 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from tests.support import golden
 
 from msk.pipeline import CORE_STAGES, run_task_trials
+from tests.support import golden
 
 REPO = Path(__file__).resolve().parents[1]
 CONFIGS = sorted((REPO / "pipelines").glob("*.toml"))
