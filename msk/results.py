@@ -44,7 +44,6 @@ leaves a half-written table or report behind (the previous results, if any, stay
 from __future__ import annotations
 
 import json
-import math
 import os
 import shutil
 import tempfile
@@ -53,12 +52,10 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-import numpy as np
-
 from msk.exceptions import FileFormatError, MissingDataError, SummaryError
 from msk.io.opensim_files import Table, write_sto
 from msk.io.tables import read_csv_table, write_csv_table
-from msk.summary import SUMMARY_FORMAT, Summary, as_summary
+from msk.summary import SUMMARY_FORMAT, Summary, as_summary, json_default, strict_json
 
 __all__ = [
     "SUMMARY_FORMAT",
@@ -131,38 +128,6 @@ class SessionResults:
         return name in self.tables
 
 
-def json_default(obj: Any) -> Any:
-    """``json.dumps(default=...)``: numpy scalars/arrays and paths as plain JSON values."""
-    if isinstance(obj, np.ndarray):
-        return [json_default(x) for x in obj.tolist()] if obj.ndim else json_default(obj.item())
-    if isinstance(obj, (np.floating, float)):
-        v = float(obj)
-        return v if math.isfinite(v) else None
-    if isinstance(obj, np.integer):
-        return int(obj)
-    if isinstance(obj, np.bool_):
-        return bool(obj)
-    if isinstance(obj, Path):
-        return str(obj)
-    if isinstance(obj, (set, frozenset, tuple)):
-        return list(obj)
-    raise TypeError(f"not JSON serialisable: {type(obj).__name__}")
-
-
-def _clean(obj: Any) -> Any:
-    """Replace non-finite floats by ``None`` (strict JSON) recursively."""
-    if isinstance(obj, Mapping):
-        return {str(k): _clean(v) for k, v in obj.items()}
-    if isinstance(obj, (list, tuple)):
-        return [_clean(v) for v in obj]
-    if isinstance(obj, (float, np.floating)):
-        v = float(obj)
-        return v if math.isfinite(v) else None
-    if isinstance(obj, np.ndarray):
-        return _clean(obj.tolist())
-    return obj
-
-
 def _write_tables(folder: Path, results: SessionResults) -> list[str]:
     tdir = folder / "tables"
     tdir.mkdir(parents=True, exist_ok=True)
@@ -206,7 +171,7 @@ def write_session(
         summary = results.summary.to_dict()
         summary["format"] = SUMMARY_FORMAT
         summary["tables"] = written
-        text = json.dumps(_clean(summary), indent=2, default=json_default, allow_nan=False)
+        text = json.dumps(strict_json(summary), indent=2, default=json_default, allow_nan=False)
         (tmp / "summary.json").write_text(text + "\n", encoding="utf-8")
         if report is not None:
             # the report sees exactly what a reader of the folder sees

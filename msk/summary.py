@@ -30,12 +30,16 @@ from __future__ import annotations
 
 import dataclasses
 import json
+import math
 import re
 import types
 import typing
 from collections.abc import Mapping
 from dataclasses import dataclass
+from pathlib import Path
 from typing import Any, TypeVar, Union
+
+import numpy as np
 
 from msk.exceptions import SummaryError, SummaryKeyError, SummaryVersionError
 
@@ -76,6 +80,8 @@ __all__ = [
     "Subject",
     "Summary",
     "as_summary",
+    "json_default",
+    "strict_json",
 ]
 
 #: The schema version this msk writes and the newest it reads.
@@ -204,7 +210,8 @@ class _Record:
                 raise SummaryKeyError(f"summary: required key {sub!r} is missing", key=sub)
         obj = cls(**kwargs)
         object.__setattr__(obj, "_keys", tuple(d))
-        object.__setattr__(obj, "_extra", {k: _freeze(v) for k, v in d.items() if k not in named})
+        extra = {k: _freeze(v) for k, v in d.items() if k not in named}
+        object.__setattr__(obj, "_extra", types.MappingProxyType(extra))
         return obj
 
     @classmethod
@@ -724,6 +731,39 @@ class Summary(_Record):
         return json.dumps(self.to_dict(), indent=2, allow_nan=False) + "\n"
 
 
+def json_default(obj: Any) -> Any:
+    """``json.dumps(default=...)``: numpy scalars/arrays and paths as plain JSON values."""
+    if isinstance(obj, np.ndarray):
+        return [json_default(x) for x in obj.tolist()] if obj.ndim else json_default(obj.item())
+    if isinstance(obj, (np.floating, float)):
+        v = float(obj)
+        return v if math.isfinite(v) else None
+    if isinstance(obj, np.integer):
+        return int(obj)
+    if isinstance(obj, np.bool_):
+        return bool(obj)
+    if isinstance(obj, Path):
+        return str(obj)
+    if isinstance(obj, (set, frozenset, tuple)):
+        return list(obj)
+    raise TypeError(f"not JSON serialisable: {type(obj).__name__}")
+
+
+def strict_json(obj: Any) -> Any:
+    """``obj`` with non-finite floats replaced by ``None`` (strict JSON), recursively; mapping
+    keys as strings, tuples and arrays as lists."""
+    if isinstance(obj, Mapping):
+        return {str(k): strict_json(v) for k, v in obj.items()}
+    if isinstance(obj, (list, tuple)):
+        return [strict_json(v) for v in obj]
+    if isinstance(obj, (float, np.floating)):
+        v = float(obj)
+        return v if math.isfinite(v) else None
+    if isinstance(obj, np.ndarray):
+        return strict_json(obj.tolist())
+    return obj
+
+
 def as_summary(summary: Summary | Mapping[str, Any]) -> Summary:
     """``summary`` as a :class:`Summary`: a mapping (a summary being assembled by the
     pipeline, not yet written) is first made what its ``summary.json`` would hold — numpy
@@ -731,9 +771,7 @@ def as_summary(summary: Summary | Mapping[str, Any]) -> Summary:
     absent — so a reader sees exactly what a reader of the written folder sees."""
     if isinstance(summary, Summary):
         return summary
-    from msk.results import _clean, json_default
-
-    d = json.loads(json.dumps(_clean(summary), default=json_default, allow_nan=False))
+    d = json.loads(json.dumps(strict_json(summary), default=json_default, allow_nan=False))
     if isinstance(d, dict):
         d.setdefault("format", SUMMARY_FORMAT)
     return Summary.from_dict(d)
