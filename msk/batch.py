@@ -35,6 +35,7 @@ from typing import Any
 import numpy as np
 
 from msk.exceptions import BatchError, MskError
+from msk.summary import Summary, as_summary
 
 __all__ = [
     "COHORT_COLUMNS",
@@ -99,32 +100,43 @@ def _one_line(exc: BaseException) -> str:
     return f"{type(exc).__name__}: {' '.join(str(exc).split())}"
 
 
+def _nan(x: float | None) -> float:
+    """A summary number (``None`` where the run computed a non-finite one) as a float."""
+    return float("nan") if x is None else x
+
+
 def _row(
-    config: str, summary: Mapping[str, Any] | None, status: str, error: str, seconds: float
+    config: str,
+    summary: Summary | Mapping[str, Any] | None,
+    status: str,
+    error: str,
+    seconds: float,
 ) -> dict[str, Any]:
     name = Path(config).stem
     row: dict[str, Any] = dict.fromkeys(COHORT_COLUMNS, "")
     row.update(session=name, config=config, status=status, error=error, run_s=round(seconds, 3))
     if not summary:
         return row
-    from msk.status import group_status
-
-    q = summary.get("quality", {})
-    row["session"] = summary.get("session", name) or name
-    row["frames"] = q.get("frames", "")
-    if q.get("ik_marker_rms_mean_m") is not None:
-        row["ik_marker_rms_mean_mm"] = round(1000 * q["ik_marker_rms_mean_m"], 3)
-    row["ik_failed_frames"] = q.get("ik_failed_frames", "")
-    for k in ("residual_force_rms_pct_bw", "residual_moment_rms_nm", "strength_fit_r2"):
-        v = q.get(k)
+    s = as_summary(summary)
+    q = s.quality
+    row["session"] = s.session or name
+    row["frames"] = "" if q.frames is None else q.frames
+    if q.ik_marker_rms_mean_m is not None:
+        row["ik_marker_rms_mean_mm"] = round(1000 * q.ik_marker_rms_mean_m, 3)
+    row["ik_failed_frames"] = "" if q.ik_failed_frames is None else q.ik_failed_frames
+    for k, v in (
+        ("residual_force_rms_pct_bw", q.residual_force_rms_pct_bw),
+        ("residual_moment_rms_nm", q.residual_moment_rms_nm),
+        ("strength_fit_r2", q.strength_fit_r2),
+    ):
         row[k] = "" if v is None else round(float(v), 4)
-    row["emg_flat_channels"] = " ".join(q.get("emg_flat_channels", []))
-    ident = summary.get("identification")
+    row["emg_flat_channels"] = " ".join(q.emg_flat_channels or ())
+    ident = s.identification
     if ident:
-        row["identified_mass_kg"] = round(sum(s["mass_kg"] for s in ident["segments"]), 3)
-    st = summary.get("strength")
+        row["identified_mass_kg"] = round(sum(_nan(g.mass_kg) for g in ident.segments), 3)
+    st = s.strength
     if st:
-        statuses = [(g["group"], group_status(g, st).value) for g in st["groups"]]
+        statuses = [(g.group, st.group_status(g)) for g in st.groups]
         for col, word in (
             ("strength_groups_identified", "identified"),
             ("strength_groups_at_bound", "at bound"),
@@ -132,13 +144,13 @@ def _row(
         ):
             row[col] = sum(s == word for _, s in statuses)
         row["strength_group_status"] = "; ".join(f"{n}: {s}" for n, s in statuses)
-    comp = (summary.get("comparison") or {}).get("knee_contact_subject_specific") or (
-        summary.get("comparison") or {}
-    ).get("knee_contact_generic")
+    comp = s.comparison and (
+        s.comparison.knee_contact_subject_specific or s.comparison.knee_contact_generic
+    )
     if comp:
-        row["knee_contact_rms_bw"] = round(comp["rms_bw"], 4)
-        row["knee_contact_icc"] = round(comp["icc"], 4)
-    row["stages_not_available"] = " ".join(i["stage"] for i in summary.get("not_available", []))
+        row["knee_contact_rms_bw"] = round(_nan(comp.rms_bw), 4)
+        row["knee_contact_icc"] = round(_nan(comp.icc), 4)
+    row["stages_not_available"] = " ".join(i.stage for i in s.not_available or ())
     return row
 
 
@@ -310,13 +322,19 @@ def compare_sessions(folders: Sequence[str | Path]) -> list[dict[str, Any]]:
     ``at bound``, ``not determined``, ``prior``)."""
     from msk import compare
     from msk.results import read_session
-    from msk.status import group_status, segment_status
 
     rows: list[dict[str, Any]] = []
 
     def add(
-        sess: str, qty: str, item: str, gen: float, ide: float, unit: str, note: str = ""
+        sess: str,
+        qty: str,
+        item: str,
+        gen: float | None,
+        ide: float | None,
+        unit: str,
+        note: str = "",
     ) -> None:
+        gen, ide = _nan(gen), _nan(ide)
         rows.append(
             {
                 "session": sess,
@@ -333,42 +351,46 @@ def compare_sessions(folders: Sequence[str | Path]) -> list[dict[str, Any]]:
     for folder in folders:
         res = read_session(folder)
         s = res.summary
-        sess = str(s.get("session") or Path(folder).name)
-        ident = s.get("identification")
+        sess = str(s.session or Path(folder).name)
+        ident = s.identification
         if ident:
-            for seg in ident["segments"]:
+            for seg in ident.segments:
                 add(
                     sess,
                     "segment mass",
-                    seg["name"],
-                    seg["prior_mass_kg"],
-                    seg["mass_kg"],
+                    seg.name,
+                    seg.prior_mass_kg,
+                    seg.mass_kg,
                     "kg",
-                    segment_status(seg).value,
+                    seg.status_word(),
                 )
-        st = s.get("strength")
+        st = s.strength
         if st:
-            for g in st["groups"]:
+            for grp in st.groups:
                 add(
                     sess,
                     "strength factor",
-                    g["group"],
+                    grp.group,
                     1.0,
-                    g["factor"],
+                    grp.factor,
                     "x generic",
-                    group_status(g, st).value,
+                    st.group_status(grp),
                 )
-        comp = s.get("comparison") or {}
-        for key, unit in (("residual_force_rms_n", "N"), ("residual_moment_rms_nm", "N·m")):
-            if key in comp:
+        comp = s.comparison
+        for key, unit, pair in (
+            ("residual_force_rms_n", "N", comp.residual_force_rms_n if comp else None),
+            ("residual_moment_rms_nm", "N·m", comp.residual_moment_rms_nm if comp else None),
+        ):
+            if pair is not None:
                 add(
                     sess,
                     "pelvis residual RMS",
                     key.split("_rms")[0],
-                    comp[key]["generic"],
-                    comp[key]["identified"],
+                    pair.generic,
+                    pair.identified,
                     unit,
                 )
+
         if res.has("knee_contact"):
             kc = res.table("knee_contact")
             if {"measured_total_bw", "generic_total_bw"} <= set(kc.columns):

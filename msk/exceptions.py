@@ -73,3 +73,21 @@ class EmgError(MskError):
 
 class BatchError(MskError):
     """A batch cannot start (no sessions, Dask scheduler unreachable or not installed)."""
+
+
+class SummaryError(FileFormatError):
+    """A ``summary.json`` does not follow the results contract (:class:`msk.summary.Summary`):
+    a value of the wrong type, or not a session summary. ``key`` names the offending key
+    (``strength.groups[2].factor``)."""
+
+    def __init__(self, message: str, *, key: str | None = None) -> None:
+        super().__init__(message)
+        self.key = key
+
+
+class SummaryKeyError(SummaryError):
+    """A required key of ``summary.json`` is missing (``key`` names it)."""
+
+
+class SummaryVersionError(SummaryError):
+    """A ``summary.json`` has a newer schema version than this msk reads (``key`` = ``format``)."""

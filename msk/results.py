@@ -7,7 +7,9 @@ One folder per session (DESIGN.md "Results a run writes")::
       tables/<quantity>.sto     the same table as an OpenSim 4 storage file (``q.mot`` for the
                                 coordinates, angles in degrees as OpenSim expects)
       summary.json              versions, inputs with sha256, settings, quality figures, stage
-                                timings, stages not available, identified parameters
+                                timings, stages not available, identified parameters: the
+                                typed, versioned :class:`msk.summary.Summary` (its ``format``
+                                key is the schema version)
       report.html               the clinician report (self-contained)
       report.pdf                when headless Chromium is available
 
@@ -42,25 +44,24 @@ leaves a half-written table or report behind (the previous results, if any, stay
 from __future__ import annotations
 
 import json
-import math
 import os
 import shutil
 import tempfile
 from collections.abc import Callable, Mapping, Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-import numpy as np
-
-from msk.exceptions import FileFormatError, MissingDataError
+from msk.exceptions import FileFormatError, MissingDataError, SummaryError
 from msk.io.opensim_files import Table, write_sto
 from msk.io.tables import read_csv_table, write_csv_table
+from msk.summary import SUMMARY_FORMAT, Summary, as_summary, json_default, strict_json
 
 __all__ = [
     "SUMMARY_FORMAT",
     "TABLES",
     "SessionResults",
+    "Summary",
     "check_replaceable",
     "json_default",
     "read_session",
@@ -81,69 +82,50 @@ TABLES: tuple[str, ...] = (
     "fes_steps",
     "fes_validation",
 )
-#: ``summary.json`` ``format`` value (bumped on incompatible changes).
-SUMMARY_FORMAT = "msk-session-summary/1"
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, init=False)
 class SessionResults:
     """The results of one session as read from (or about to be written to) its folder.
 
     ``tables`` maps a quantity name to its :class:`~msk.io.opensim_files.Table` (SI);
-    ``summary`` is the ``summary.json`` content; ``path`` the folder (``None`` before writing).
-    ``angle_columns`` names the columns of ``q`` that are rotations (written in degrees in the
-    ``.mot`` twin).
+    ``summary`` is the ``summary.json`` content as a :class:`~msk.summary.Summary` (a plain
+    mapping — the summary the pipeline assembles — is converted by
+    :func:`~msk.summary.as_summary`: numpy values as JSON, non-finite numbers as ``None``);
+    ``path`` the folder (``None`` before writing). ``angle_columns`` names the columns of ``q``
+    that are rotations (written in degrees in the ``.mot`` twin).
     """
 
     tables: Mapping[str, Table]
-    summary: Mapping[str, Any]
-    path: Path | None = None
-    angle_columns: tuple[str, ...] = ()
-    extra_files: Mapping[str, bytes] = field(default_factory=dict)
+    summary: Summary
+    path: Path | None
+    angle_columns: tuple[str, ...]
+    extra_files: Mapping[str, bytes]
+
+    def __init__(
+        self,
+        tables: Mapping[str, Table],
+        summary: Summary | Mapping[str, Any],
+        path: Path | None = None,
+        angle_columns: tuple[str, ...] = (),
+        extra_files: Mapping[str, bytes] | None = None,
+    ) -> None:
+        object.__setattr__(self, "tables", tables)
+        object.__setattr__(self, "summary", as_summary(summary))
+        object.__setattr__(self, "path", path)
+        object.__setattr__(self, "angle_columns", tuple(angle_columns))
+        object.__setattr__(self, "extra_files", {} if extra_files is None else extra_files)
 
     def table(self, name: str) -> Table:
         try:
             return self.tables[name]
         except KeyError:
             raise MissingDataError(
-                f"session {self.summary.get('session', '?')!r}: no table {name!r} "
-                f"(have {sorted(self.tables)})"
+                f"session {self.summary.session!r}: no table {name!r} (have {sorted(self.tables)})"
             ) from None
 
     def has(self, name: str) -> bool:
         return name in self.tables
-
-
-def json_default(obj: Any) -> Any:
-    """``json.dumps(default=...)``: numpy scalars/arrays and paths as plain JSON values."""
-    if isinstance(obj, np.ndarray):
-        return [json_default(x) for x in obj.tolist()] if obj.ndim else json_default(obj.item())
-    if isinstance(obj, (np.floating, float)):
-        v = float(obj)
-        return v if math.isfinite(v) else None
-    if isinstance(obj, np.integer):
-        return int(obj)
-    if isinstance(obj, np.bool_):
-        return bool(obj)
-    if isinstance(obj, Path):
-        return str(obj)
-    if isinstance(obj, (set, frozenset, tuple)):
-        return list(obj)
-    raise TypeError(f"not JSON serialisable: {type(obj).__name__}")
-
-
-def _clean(obj: Any) -> Any:
-    """Replace non-finite floats by ``None`` (strict JSON) recursively."""
-    if isinstance(obj, Mapping):
-        return {str(k): _clean(v) for k, v in obj.items()}
-    if isinstance(obj, (list, tuple)):
-        return [_clean(v) for v in obj]
-    if isinstance(obj, (float, np.floating)):
-        v = float(obj)
-        return v if math.isfinite(v) else None
-    if isinstance(obj, np.ndarray):
-        return _clean(obj.tolist())
-    return obj
 
 
 def _write_tables(folder: Path, results: SessionResults) -> list[str]:
@@ -186,15 +168,15 @@ def write_session(
             p = tmp / rel
             p.parent.mkdir(parents=True, exist_ok=True)
             p.write_bytes(blob)
-        summary = dict(results.summary)
+        summary = results.summary.to_dict()
         summary["format"] = SUMMARY_FORMAT
         summary["tables"] = written
-        text = json.dumps(_clean(summary), indent=2, default=json_default, allow_nan=False)
+        text = json.dumps(strict_json(summary), indent=2, default=json_default, allow_nan=False)
         (tmp / "summary.json").write_text(text + "\n", encoding="utf-8")
         if report is not None:
             # the report sees exactly what a reader of the folder sees
             report(
-                SessionResults(results.tables, json.loads(text), tmp, results.angle_columns),
+                SessionResults(results.tables, Summary.from_json(text), tmp, results.angle_columns),
                 tmp,
             )
         _publishable(tmp)
@@ -278,21 +260,20 @@ def _publishable(folder: Path) -> None:
 
 
 def read_session(path: str | Path) -> SessionResults:
-    """Read a session folder written by :func:`write_session` (``msk run``)."""
+    """Read a session folder written by :func:`write_session` (``msk run``); its ``summary``
+    is a :class:`~msk.summary.Summary`. A summary of a newer schema version, without a
+    required key or with a value of the wrong type raises a
+    :class:`~msk.exceptions.SummaryError` naming the file and the key."""
     folder = Path(path)
     spath = folder / "summary.json"
     if not spath.is_file():
         raise FileFormatError(f"{folder}: not an msk session folder (no summary.json)")
     try:
-        summary = json.loads(spath.read_text(encoding="utf-8"))
-    except json.JSONDecodeError as exc:
-        raise FileFormatError(f"{spath}: not valid JSON: {exc}") from None
-    if summary.get("format") != SUMMARY_FORMAT:
-        raise FileFormatError(
-            f"{spath}: format {summary.get('format')!r}, expected {SUMMARY_FORMAT!r}"
-        )
+        summary = Summary.from_json(spath.read_text(encoding="utf-8"))
+    except SummaryError as exc:
+        raise type(exc)(f"{spath}: {exc}", key=exc.key) from None
     tables = {}
-    for name in summary.get("tables", []):
+    for name in summary.tables or ():
         tables[name] = read_csv_table(folder / "tables" / f"{name}.csv")
-    angles = tuple(summary.get("angle_columns", ()))
+    angles = summary.angle_columns or ()
     return SessionResults(tables=tables, summary=summary, path=folder, angle_columns=angles)

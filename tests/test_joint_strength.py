@@ -22,6 +22,17 @@ from msk.strength import (
 KNEE_EXTENSORS = ("rect_fem_r", "vas_med_r", "vas_int_r", "vas_lat_r")
 
 
+#: the keys every summary.json has (msk.summary.Summary's required ones) besides subject, quality
+BASE_SUMMARY = {
+    "session": "X",
+    "created_utc": "2026-01-01T00:00:00Z",
+    "versions": {"msk": "0.1.0"},
+    "config": {"path": "x.toml", "sha256": "0" * 64},
+    "inputs": [],
+    "settings": {},
+}
+
+
 @pytest.fixture(scope="module")
 def model():
     return load_model(REPO_ROOT / "models" / "gait2392.toml")
@@ -186,6 +197,7 @@ def test_summary_record_and_report_keep_undetermined_curves_out(model, curves):
     assert acts["ankle dorsiflexion"]["identified_nm"] == acts["ankle dorsiflexion"]["generic_nm"]
 
     summary = {
+        **BASE_SUMMARY,
         "subject": {"name": "X", "mass_kg": 75.0, "height_m": 1.7, "side": "right"},
         "gait_cycle_s": None,
         "not_available": [],

@@ -16,6 +16,7 @@ from msk.io.opensim_files import read_sto
 from msk.pipeline import STAGES, file_sha256, lab_to_model_rotation, run_session
 from msk.results import TABLES, read_session
 from msk.synthetic_trials import write_synthetic_session
+from msk.summary import Summary
 
 REPO = Path(__file__).resolve().parents[1]
 GC5 = REPO / "pipelines" / "gc5_PS.toml"
@@ -48,6 +49,8 @@ def test_rotation_lab_to_model():
 def test_synthetic_session_recovers_truth(synth):
     _, trial, res = synth
     out = read_session(res.out_dir)
+    text = (res.out_dir / "summary.json").read_text()
+    assert Summary.from_json(text).to_json() == text  # the typed summary round-trips exactly
     q = out.table("q")
     names = list(q.columns)
     # joint angles: IK on 1 mm marker noise recovers the simulated motion
@@ -61,13 +64,13 @@ def test_synthetic_session_recovers_truth(synth):
         a, b = tau.column(c)[10:-10], trial.tau_true[10:-10, k]
         assert np.sqrt(np.mean((a - b) ** 2)) < 0.1 * np.ptp(b) + 1.0, c
     # residuals: plates and motion are consistent → small pelvis residual force
-    assert out.summary["quality"]["residual_force_rms_pct_bw"] < 5.0
+    assert out.summary.quality.residual_force_rms_pct_bw < 5.0
     # identified masses sum to the subject's mass (constraint of the identification)
-    segs = out.summary["identification"]["segments"]
-    assert sum(s["mass_kg"] for s in segs) == pytest.approx(trial.model.total_mass, rel=1e-3)
+    segs = out.summary.identification.segments
+    assert sum(s.mass_kg for s in segs) == pytest.approx(trial.model.total_mass, rel=1e-3)
     assert out.has("inertial_parameters")
     # the muscle stages are honestly reported as not available (model without muscles)
-    na = {i["stage"]: i["reason"] for i in out.summary["not_available"]}
+    na = {i.stage: i.reason for i in out.summary.not_available}
     assert "muscle_geometry" in na and "no muscles" in na["muscle_geometry"]
     assert {"tension_optimization", "strength_identification", "knee_contact"} <= set(na)
     assert "emg" in na
@@ -124,8 +127,8 @@ def test_analysis_stage_error_is_recorded_not_fatal(tmp_path):
     assert rec.status == "failed"
     assert rec.message.startswith("internal error: RuntimeError") and "runner.py:" in rec.message
     out = read_session(res.out_dir)
-    assert out.has("joint_torques") and out.summary["comparison"] is None
-    assert any(i["stage"] == "comparison" for i in out.summary["not_available"])
+    assert out.has("joint_torques") and out.summary.comparison is None
+    assert any(i.stage == "comparison" for i in out.summary.not_available)
 
 
 def test_cache_reuses_and_invalidates(tmp_path):
@@ -286,9 +289,9 @@ def test_broken_library_piece_is_reported_not_faked(tmp_path, monkeypatch):
     assert status["inverse_dynamics"] == "computed"  # on the generic (scaled) inertias
     out = read_session(res.out_dir)
     assert not out.has("inertial_parameters") and out.has("joint_torques")
-    (item,) = [i for i in out.summary["not_available"] if i["stage"] == "mass_identification"]
-    assert "ImportError" in item["reason"] and "InertialIdentifier" in item["reason"]
-    assert out.summary["identification"] is None
+    (item,) = [i for i in out.summary.not_available if i.stage == "mass_identification"]
+    assert "ImportError" in item.reason and "InertialIdentifier" in item.reason
+    assert out.summary.identification is None
     html = (res.out_dir / "report.html").read_text()
     assert "InertialIdentifier" in html
 

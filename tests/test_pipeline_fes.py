@@ -17,6 +17,7 @@ from msk.fes.protocol import FesSession, fibre_fraction, synthetic_session
 from msk.fes.stimulation import Stimulation
 from msk.pipeline import STAGES, run_session
 from msk.results import read_session
+from msk.summary import Summary
 
 TRUTH = TABLE3["S3L"]
 HEIGHT, MASS = 1.75, 72.0  # seeds/000 Table 1, subject 3
@@ -174,7 +175,10 @@ def test_fes_only_session_writes_tables_and_recovers_truth(fes_run: tuple[Path, 
     assert val.columns[:2] == ("knee_angle_measured", "knee_angle_simulated")
     assert val.time.size > 500 and np.all(np.isfinite(val.data))
 
-    s = json.loads((out / "summary.json").read_text())
+    text = (out / "summary.json").read_text()
+    assert Summary.from_json(text).to_json() == text  # the typed summary round-trips exactly
+    assert res.summary.fes is not None and res.summary.strength is None
+    s = json.loads(text)
     assert s["fes"]["parameters"]["knee.J"]["unit"] == "kg·m²"
     assert abs(s["fes"]["steps"]["cross_validation"]["nrmsd_pct"] - cv) < 1e-9
     status = {st["name"]: st["status"] for st in s["stages"]}

@@ -84,7 +84,7 @@ def test_rendered_in_chromium(session, chromium, tmp_path):
     table = re.search(r'<table class="strength">(.*?)</table>', dom, re.S)
     assert table, "strength table missing from the rendered DOM"
     rows = re.findall(r"<tr>(.*?)</tr>", table.group(1), re.S)
-    assert len(rows) == 1 + len(session.summary["strength"]["groups"])
+    assert len(rows) == 1 + len(session.summary.strength.groups)
     assert re.search(r"<td>vasmed</td>.*?<td>\d\.\d\d ×</td>", table.group(1), re.S)
     assert re.search(r"\d+ N</td>", table.group(1))
     shot = tmp_path / "shot.png"
@@ -113,6 +113,7 @@ def test_missing_stages_are_visible():
         "q",
     )
     summary = {
+        **BASE_SUMMARY,
         "subject": {"name": "X", "mass_kg": 70.0, "height_m": 1.7, "side": "left"},
         "gait_cycle_s": None,
         "not_available": [
@@ -134,24 +135,38 @@ def test_missing_stages_are_visible():
 
 
 def test_strength_status_flags_factors_on_the_regression_bounds():
-    from msk.report.html import _strength_status
+    from msk.summary import Strength
 
     st = {"bounds": [0.5, 2.0], "r2": 0.8}
 
-    def g(f, lo, hi, gated=True):
-        return {"factor": f, "ci_low": lo, "ci_high": hi, "identified": gated}
+    def status(f, lo, hi, gated=True, **over):
+        g = {"group": "g", "factor": f, "ci_low": lo, "ci_high": hi, "identified": gated}
+        rec = Strength.from_dict({**st, **over, "groups": [g]})
+        return rec.group_status(rec.groups[0])
 
-    assert _strength_status(g(1.13, 0.9, 1.3), st) == "identified"
-    assert _strength_status(g(0.5, 0.5, 0.6), st) == "at bound"
-    assert _strength_status(g(0.4999999999999999, 0.5, 0.5), st) == "at bound"
-    assert _strength_status(g(2.0, 1.5, 2.0), st) == "at bound"
-    assert _strength_status(g(0.7, 0.5, 2.0), st) == "not determined"
-    assert _strength_status(g(1.13, 0.9, 1.3), {**st, "r2": -0.11}) == "not determined"
-    assert _strength_status(g(1.0, None, None, gated=False), st) == "prior"
+    assert status(1.13, 0.9, 1.3) == "identified"
+    assert status(0.5, 0.5, 0.6) == "at bound"
+    assert status(0.4999999999999999, 0.5, 0.5) == "at bound"
+    assert status(2.0, 1.5, 2.0) == "at bound"
+    assert status(0.7, 0.5, 2.0) == "not determined"
+    assert status(1.13, 0.9, 1.3, r2=-0.11) == "not determined"
+    assert status(1.0, None, None, gated=False) == "prior"
+
+
+#: the keys every summary.json has (msk.summary.Summary's required ones) besides subject, quality
+BASE_SUMMARY = {
+    "session": "X",
+    "created_utc": "2026-01-01T00:00:00Z",
+    "versions": {"msk": "0.1.0"},
+    "config": {"path": "x.toml", "sha256": "0" * 64},
+    "inputs": [],
+    "settings": {},
+}
 
 
 def _summary(**extra):
     return {
+        **BASE_SUMMARY,
         "subject": {"name": "X", "mass_kg": 70.0, "height_m": 1.7, "side": "left"},
         "gait_cycle_s": None,
         "not_available": [],
@@ -276,13 +291,13 @@ def test_pdf_tables_are_not_cut_at_a4(session, chromium, tmp_path):
     text = _pdf_text(pdf)
     if text is None:
         pytest.skip("pdftotext (poppler-utils) is not installed")
-    groups = session.summary["strength"]["groups"]
+    groups = session.summary.strength.groups
     for g in groups:  # one line per group, ending with its status word
-        line = next(ln for ln in text.splitlines() if ln.split()[:1] == [g["group"]])
-        assert g["status"].split()[0] in line, line
-    for seg in session.summary["identification"]["segments"]:
-        line = next(ln for ln in text.splitlines() if ln.split()[:1] == [seg["name"]])
-        assert seg["status"].split()[0] in line, line
+        line = next(ln for ln in text.splitlines() if ln.split()[:1] == [g.group])
+        assert g.status.split()[0] in line, line
+    for seg in session.summary.identification.segments:
+        line = next(ln for ln in text.splitlines() if ln.split()[:1] == [seg.name])
+        assert seg.status.split()[0] in line, line
     assert "anthropometric" in text.replace("-\n", "") or "anthropome" in text
     assert "threshold" in text and "check" in text
 
@@ -300,20 +315,18 @@ def test_no_group_at_a_bound_is_called_identified_anywhere(tmp_path):
     assert not res.failed, res.failed
     folder = tmp_path / "gc5_PS"
     sess = read_session(folder)
-    st = sess.summary["strength"]
-    lo, hi = st["bounds"]
-    words = {g["group"]: g["status"] for g in st["groups"]}
-    bound = [
-        g["group"] for g in st["groups"] if at_bound(g["factor"], lo) or at_bound(g["factor"], hi)
-    ]
+    st = sess.summary.strength
+    lo, hi = st.bounds
+    words = {g.group: g.status for g in st.groups}
+    bound = [g.group for g in st.groups if at_bound(g.factor, lo) or at_bound(g.factor, hi)]
     assert len(bound) >= 10  # the bundled session: 11 of 14 on the 0.5 / 2.0 bound
     # summary.json
-    for g in st["groups"]:
-        assert g["identified"] == (g["status"] == "identified")
-        if g["group"] in bound:
-            assert g["status"] == "at bound" and not g["identified"]
-    assert st["status_codes"] == STATUS_CODES and "r2_min" in st
-    if st["r2"] < st["r2_min"]:
+    for g in st.groups:
+        assert g.identified == (g.status == "identified")
+        if g.group in bound:
+            assert g.status == "at bound" and not g.identified
+    assert st.status_codes == STATUS_CODES and st.r2_min is not None
+    if st.r2 < st.r2_min:
         assert "identified" not in words.values()
     # strength.csv: numeric status code per group
     tb = sess.table("strength")

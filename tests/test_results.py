@@ -2,14 +2,41 @@
 
 from __future__ import annotations
 
+import dataclasses
 import json
+import re
+import types
+import typing
+from collections.abc import Mapping
+from typing import Any
 
 import numpy as np
 import pytest
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
 
-from msk.exceptions import FileFormatError, MissingDataError
+from msk.exceptions import (
+    FileFormatError,
+    MissingDataError,
+    SummaryError,
+    SummaryKeyError,
+    SummaryVersionError,
+)
 from msk.io.opensim_files import Table, read_sto
 from msk.results import SUMMARY_FORMAT, SessionResults, read_session, write_session
+from msk.summary import SCHEMA_VERSION, Summary, _Record
+
+#: the required keys of a summary (msk.summary.Summary) but ``format``
+BASE = {
+    "session": "S1",
+    "created_utc": "2026-01-01T00:00:00Z",
+    "versions": {"msk": "0.1.0"},
+    "config": {"path": "s.toml", "sha256": "0" * 64},
+    "inputs": [{"role": "task", "path": "t.c3d", "sha256": "1" * 64, "bytes": 10}],
+    "settings": {"subject": {"name": "S1"}},
+    "subject": {"name": "S1", "mass_kg": 70.0, "height_m": None, "side": "left"},
+    "quality": {},
+}
 
 
 def _results() -> SessionResults:
@@ -31,7 +58,7 @@ def _results() -> SessionResults:
         ),
     }
     summary = {
-        "session": "S1",
+        **BASE,
         "quality": {"x": float("nan"), "y": np.float64(2.5)},
         "frame": {"rotation": np.eye(3)},
     }
@@ -41,9 +68,12 @@ def _results() -> SessionResults:
 def test_round_trip(tmp_path):
     out = write_session(tmp_path / "s1", _results())
     back = read_session(out)
-    assert back.summary["format"] == SUMMARY_FORMAT
-    assert back.summary["quality"] == {"x": None, "y": 2.5}  # strict JSON: NaN → null
-    assert back.summary["frame"]["rotation"] == np.eye(3).tolist()
+    assert isinstance(back.summary, Summary) and back.summary.schema_version == SCHEMA_VERSION
+    written = json.loads((out / "summary.json").read_text())
+    assert written["format"] == SUMMARY_FORMAT and back.summary.to_dict() == written
+    # keys this schema does not name are kept as written
+    assert written["quality"] == {"x": None, "y": 2.5}  # strict JSON: NaN → null
+    assert written["frame"]["rotation"] == np.eye(3).tolist()
     for name, tab in _results().tables.items():
         got = back.table(name)
         assert got.columns == tab.columns
@@ -75,7 +105,7 @@ def test_failure_leaves_previous_folder_and_cache(tmp_path):
         (folder / "report.html").write_text("<html>half")
         raise RuntimeError("report crashed")
 
-    changed = SessionResults(_results().tables, {"session": "S2"})
+    changed = SessionResults(_results().tables, {**BASE, "session": "S2"})
     with pytest.raises(RuntimeError, match="report crashed"):
         write_session(out, changed, report=bad_report)
     assert (out / "summary.json").read_bytes() == before
@@ -140,3 +170,154 @@ def test_twins_open_in_opensim(tmp_path, needs_opensim):
     mf = got["muscle_forces.sto"]
     assert mf["labels"] == ["vas_med_l", "soleus_l"]
     assert mf["first"][0] == pytest.approx(10.0)
+
+
+# ---------------------------------------------------------------------------------------------
+# the typed summary (msk.summary): exact round trip, versioned, errors name the key
+# ---------------------------------------------------------------------------------------------
+_JSON = st.recursive(
+    st.none()
+    | st.booleans()
+    | st.integers()
+    | st.floats(allow_nan=False, allow_infinity=False)
+    | st.text(max_size=4),
+    lambda inner: (
+        st.lists(inner, max_size=3) | st.dictionaries(st.text(max_size=4), inner, max_size=3)
+    ),
+    max_leaves=6,
+)
+
+
+def _strategy(tp: Any) -> st.SearchStrategy[Any]:
+    """Plain JSON values of the annotated type of a summary field."""
+    if tp is Any:
+        return _JSON
+    origin, args = typing.get_origin(tp), typing.get_args(tp)
+    if origin in (typing.Union, types.UnionType):
+        (inner,) = [a for a in args if a is not type(None)]
+        return st.none() | _strategy(inner)
+    if isinstance(tp, type) and issubclass(tp, _Record):
+        return st.deferred(lambda: _record(tp))
+    if origin is Mapping:
+        return st.dictionaries(st.text(max_size=6), _strategy(args[1]), max_size=2)
+    if origin is tuple:
+        return st.lists(_strategy(args[0]), max_size=2)
+    if tp is float:
+        return st.floats(allow_nan=False, allow_infinity=False) | st.integers()
+    return st.from_type(tp)
+
+
+@st.composite
+def _record_dict(draw: st.DrawFn, cls: type) -> dict[str, Any]:
+    hints = typing.get_type_hints(cls)
+    names = set()
+    items = []
+    for f in dataclasses.fields(cls):
+        key = f.metadata.get("json", f.name)
+        names.add(key)
+        required = f.default is dataclasses.MISSING and f.default_factory is dataclasses.MISSING
+        if key == "format":
+            items.append((key, f"msk-session-summary/{draw(st.integers(1, SCHEMA_VERSION))}"))
+        elif required or draw(st.booleans()):
+            items.append((key, draw(_strategy(hints[f.name]))))
+    extra = draw(st.dictionaries(st.text(min_size=1, max_size=6), _JSON, max_size=2))
+    items += [(k, v) for k, v in extra.items() if k not in names]
+    return dict(draw(st.permutations(items)))  # any key order
+
+
+def _record(cls: type) -> st.SearchStrategy[dict[str, Any]]:
+    return _record_dict(cls)
+
+
+# a summary is a deep tree: generating one is slow on a loaded machine, and 60 trees cover it
+@settings(max_examples=60, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(_record(Summary))
+def test_summary_round_trip_is_exact(d: dict[str, Any]) -> None:
+    """Any summary of the schema — optional keys absent or null, keys in any order, keys the
+    schema does not name — gives back the same mapping and the same JSON text."""
+    s = Summary.from_dict(d)
+    assert s.to_dict() == d
+    text = json.dumps(d, indent=2) + "\n"
+    assert Summary.from_json(text).to_json() == text
+    assert Summary.from_json(s.to_json()) == s
+
+
+def _summary_dict() -> dict[str, Any]:
+    return {
+        **json.loads(json.dumps(BASE)),
+        "strength": {"groups": [{"group": "vasmed", "factor": 1.2}], "r2": 0.8},
+        "format": SUMMARY_FORMAT,
+    }
+
+
+def test_summary_fields_are_typed_and_frozen() -> None:
+    s = Summary.from_dict(_summary_dict())
+    assert s.subject.side == "left" and s.quality.flags is None and s.fes is None
+    assert s.strength is not None and s.strength.groups[0].factor == 1.2
+    assert s.strength.group_status(s.strength.groups[0]) == "not determined"  # no interval
+    assert s.inputs[0].bytes == 10 and isinstance(s.inputs, tuple)
+    with pytest.raises(AttributeError):
+        s.session = "other"  # type: ignore[misc]
+    with pytest.raises(TypeError):
+        s.versions["msk"] = "9"  # type: ignore[index]
+    # a summary built in code writes every field (None as null), "format" from the version
+    built = Summary.from_dict(
+        Summary(**{f: getattr(s, f) for f in s.__dataclass_fields__}).to_dict()
+    )
+    assert built == s and built.to_dict()["format"] == SUMMARY_FORMAT
+
+
+def test_summary_newer_version_is_refused_naming_the_key() -> None:
+    d = _summary_dict()
+    d["format"] = f"msk-session-summary/{SCHEMA_VERSION + 1}"
+    with pytest.raises(SummaryVersionError, match=r"'format'.*newer") as exc:
+        Summary.from_dict(d)
+    assert exc.value.key == "format" and isinstance(exc.value, FileFormatError)
+    d["format"] = "other/1"
+    with pytest.raises(SummaryError, match="not an msk session summary"):
+        Summary.from_dict(d)
+
+
+@pytest.mark.parametrize(
+    ("path", "key"),
+    [
+        (("format",), "format"),
+        (("quality",), "quality"),
+        (("subject", "name"), "subject.name"),
+        (("strength", "groups", 0, "group"), "strength.groups[0].group"),
+    ],
+)
+def test_summary_missing_required_key_is_named(path: tuple[Any, ...], key: str) -> None:
+    d = _summary_dict()
+    parent: Any = d
+    for p in path[:-1]:
+        parent = parent[p]
+    del parent[path[-1]]
+    with pytest.raises(SummaryKeyError, match=re.escape(f"required key '{key}' is missing")) as exc:
+        Summary.from_dict(d)
+    assert exc.value.key == key
+
+
+def test_summary_wrong_type_is_named() -> None:
+    d = _summary_dict()
+    d["strength"]["groups"][0]["factor"] = "1.2"
+    with pytest.raises(SummaryError, match=r"'strength\.groups\[0\]\.factor': expected a number"):
+        Summary.from_dict(d)
+    d = _summary_dict()
+    d["quality"] = []
+    with pytest.raises(SummaryError, match="'quality': expected an object, got an array"):
+        Summary.from_dict(d)
+
+
+def test_read_session_names_the_file_and_the_key(tmp_path):
+    out = write_session(tmp_path / "s", _results())
+    d = json.loads((out / "summary.json").read_text())
+    del d["subject"]
+    (out / "summary.json").write_text(json.dumps(d))
+    with pytest.raises(SummaryKeyError, match=r"summary\.json: summary: required key 'subject'"):
+        read_session(out)
+    d["subject"] = BASE["subject"]
+    d["format"] = "msk-session-summary/99"
+    (out / "summary.json").write_text(json.dumps(d))
+    with pytest.raises(SummaryVersionError, match="schema version 99"):
+        read_session(out)

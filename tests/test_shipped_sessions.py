@@ -27,6 +27,7 @@ import numpy as np
 import pytest
 
 from msk.pipeline import CORE_STAGES, run_task_trials
+from msk.summary import Summary
 from tests.support import golden
 
 REPO = Path(__file__).resolve().parents[1]
@@ -79,6 +80,8 @@ def test_shipped_session_runs_and_flags_what_is_wrong(cfg: Path, tmp_path: Path)
     assert cfg.stem in EXPECT, f"add {cfg.stem} to EXPECT with its measured figures"
     res = _run(cfg, tmp_path / "out")
     s = res.summary
+    text = (res.out_dir / "summary.json").read_text()
+    assert Summary.from_json(text).to_json() == text  # the typed summary round-trips exactly
     status = {r.name: r.status for r in res.stages}
     for name in CORE_STAGES:
         assert status[name] == "computed", (name, status[name])

@@ -11,7 +11,7 @@ import subprocess
 import tempfile
 from collections.abc import Mapping, Sequence
 from pathlib import Path
-from typing import Any
+from typing import Any, TypeGuard
 
 import numpy as np
 
@@ -23,9 +23,8 @@ from msk.status import (
     Status,
     fes_status,
     gain_status,
-    group_status,
-    segment_status,
 )
+from msk.summary import Strength, Summary
 
 __all__ = ["build_figures", "chromium_executable", "render_html", "write_pdf", "write_report"]
 
@@ -107,7 +106,7 @@ def _svg(fig: Any) -> str:
 
 def _cycle_axis(res: SessionResults, t: np.ndarray) -> tuple[np.ndarray, np.ndarray, str]:
     """x values in % of the gait cycle (from the C3D foot strikes) and the in-cycle mask."""
-    cyc = res.summary.get("gait_cycle_s")
+    cyc = res.summary.gait_cycle_s
     if cyc:
         x = 100.0 * (t - cyc[0]) / (cyc[1] - cyc[0])
         return x, (x >= 0) & (x <= 100), "gait cycle (%)"
@@ -115,15 +114,15 @@ def _cycle_axis(res: SessionResults, t: np.ndarray) -> tuple[np.ndarray, np.ndar
 
 
 def _side(res: SessionResults) -> str:
-    return "_l" if res.summary.get("subject", {}).get("side", "right") == "left" else "_r"
+    return "_l" if res.summary.subject.side == "left" else "_r"
 
 
 def _fig_strength(res: SessionResults) -> str | None:
-    st = res.summary.get("strength")
-    if not st or not st.get("groups"):
+    st = res.summary.strength
+    if not st or not st.groups:
         return None
     plt = _plt()
-    groups = st["groups"]
+    groups = st.groups
     fig, ax = plt.subplots(figsize=(7.5, 0.35 * len(groups) + 1.4))
     y = np.arange(len(groups))
     lo, hi = LITERATURE_FACTOR_RANGE
@@ -131,16 +130,16 @@ def _fig_strength(res: SessionResults) -> str | None:
     ax.axvline(1.0, color="k", lw=1, ls="--", label="generic model (1.0 ×)")
     marker = {"identified": "o", "at bound": "D", "not determined": "o", "prior": "s"}
     for k, g in enumerate(groups):
-        f = g["factor"]
-        status = group_status(g, st).value
+        f = float("nan") if g.factor is None else g.factor
+        status = st.group_status(g)
         col = STATUS_COLOURS[status]
         lab = f"{status}, 95 % CI" if status in ("identified", "not determined") else status
-        if _finite(g.get("ci_low")) and _finite(g.get("ci_high")) and status != "prior":
+        if _finite(g.ci_low) and _finite(g.ci_high) and status != "prior":
             ax.errorbar(
                 f,
                 k,
                 # an interval end one rounding step past the factor must not abort the figure
-                xerr=[[max(0.0, f - g["ci_low"])], [max(0.0, g["ci_high"] - f)]],
+                xerr=[[max(0.0, f - g.ci_low)], [max(0.0, g.ci_high - f)]],
                 fmt=marker[status],
                 color=col,
                 mfc=col if status == "identified" else "white",
@@ -149,7 +148,7 @@ def _fig_strength(res: SessionResults) -> str | None:
             )
         else:
             ax.plot(f, k, marker[status], color=col, label=lab)
-    ax.set_yticks(y, [g["group"] for g in groups])
+    ax.set_yticks(y, [g.group for g in groups])
     ax.set_xlabel("strength factor (× generic F_iso, dimensionless)")
     ax.set_ylabel("muscle group (EMG channel)")
     ax.set_xlim(0.3, 2.2)
@@ -162,9 +161,10 @@ def _fig_strength(res: SessionResults) -> str | None:
 def _fig_strength_curves(res: SessionResults) -> str | None:
     """Maximal isometric moment–angle curves per action (N·m/kg): generic vs identified; the
     identified curve is drawn only when its status is ``identified``."""
-    js = (res.summary.get("strength") or {}).get("joint_strength") or {}
-    acts = js.get("actions") or []
-    mass = js.get("mass_kg")
+    st = res.summary.strength
+    js = st.joint_strength if st else None
+    acts = (js.actions if js else None) or ()
+    mass = js.mass_kg if js else None
     if not acts or not isinstance(mass, (int, float)) or not np.isfinite(mass) or mass <= 0:
         return None
     plt = _plt()
@@ -174,19 +174,19 @@ def _fig_strength_curves(res: SessionResults) -> str | None:
     for ax in axes.ravel()[len(acts) :]:
         ax.set_visible(False)
     for ax, a in zip(axes.ravel(), acts):
-        x = np.asarray(a["angles_deg"], dtype=float)
-        ax.plot(x, np.asarray(a["generic_nm"], dtype=float) / mass, "k--", lw=1.2,
+        x = np.asarray(a.angles_deg, dtype=float)
+        ax.plot(x, np.asarray(a.generic_nm, dtype=float) / mass, "k--", lw=1.2,
                 label="generic model")  # fmt: skip
-        word = a.get("status", "prior")
+        word = a.status or "prior"
         if word == "identified":
-            ax.plot(x, np.asarray(a["identified_nm"], dtype=float) / mass, lw=1.8,
+            ax.plot(x, np.asarray(a.identified_nm, dtype=float) / mass, lw=1.8,
                     color=STATUS_COLOURS[word], label="identified (this subject)")  # fmt: skip
         else:
             text = "= generic (prior)" if word == "prior" else f"identified: {word}"
             ax.text(0.03, 0.05, text, transform=ax.transAxes, fontsize=7,
                     color=STATUS_COLOURS.get(word, "#9e9e9e"))  # fmt: skip
-        ax.set_title(a["action"], fontsize=9)
-        ax.set_xlabel(f"{a['angle_label']} (deg)")
+        ax.set_title(a.action, fontsize=9)
+        ax.set_xlabel(f"{a.angle_label} (deg)")
         ax.set_ylabel("moment (N·m/kg)")
         ax.set_ylim(bottom=0.0)
     handles, labels = [], []
@@ -202,19 +202,19 @@ def _fig_strength_curves(res: SessionResults) -> str | None:
 
 
 def _fig_mass(res: SessionResults) -> str | None:
-    ident = res.summary.get("identification")
+    ident = res.summary.identification
     if not ident:
         return None
     plt = _plt()
-    segs = ident["segments"]
-    anth = (res.summary.get("anthropometry") or {}).get("segments", {})
+    segs = ident.segments
+    anth = _anthropometry_masses(res.summary)
     fig, ax = plt.subplots(figsize=(7.5, 3.2))
     x = np.arange(len(segs))
     w = 0.27
-    prior = [s["prior_mass_kg"] for s in segs]
-    mass = [s["mass_kg"] for s in segs]
-    err = [2 * (s["mass_std_kg"] or 0.0) for s in segs]
-    cols = [STATUS_COLOURS[segment_status(s).value] for s in segs]
+    prior = [s.prior_mass_kg for s in segs]
+    mass = [s.mass_kg for s in segs]
+    err = [2 * (s.mass_std_kg or 0.0) for s in segs]
+    cols = [STATUS_COLOURS[s.status_word()] for s in segs]
     ax.bar(x - w, prior, w, color="#cfd8dc", edgecolor="k", lw=0.5, label="scaled generic model")
     ax.bar(
         x,
@@ -229,17 +229,13 @@ def _fig_mass(res: SessionResults) -> str | None:
     )
     tab = []
     for s in segs:
-        n = s["name"]
+        n = s.name
         key = n
         if n.startswith(("talus", "calcn", "toes")):
             key = "foot" + n[-2:]
         elif n.startswith("femur"):
             key = "femur" + n[-2:]
-        v = (
-            anth.get(key, {}).get("mass_kg")
-            if n.startswith(("pelvis", "femur", "tibia", "torso", "calcn"))
-            else None
-        )
+        v = anth.get(key) if n.startswith(("pelvis", "femur", "tibia", "torso", "calcn")) else None
         tab.append(np.nan if v is None else v)
     ax.bar(
         x + w,
@@ -253,7 +249,8 @@ def _fig_mass(res: SessionResults) -> str | None:
     )
     for word, col in STATUS_COLOURS.items():
         ax.bar([0], [0], color=col, label=f"status: {word}")
-    ax.set_xticks(x, [s["name"] for s in segs], rotation=40, ha="right")
+    ax.set_xticks(x, [s.name for s in segs], rotation=40, ha="right")
+
     ax.set_ylabel("segment mass (kg)")
     ax.set_xlabel("segment")
     ax.legend(fontsize=7, ncol=2)
@@ -275,7 +272,7 @@ def _fig_joints(res: SessionResults) -> str | None:
     q = res.table("q")
     x, sel, xl = _cycle_axis(res, q.time)
     tq = res.table("joint_torques") if res.has("joint_torques") else None
-    mass = res.summary.get("subject", {}).get("mass_kg") or 1.0
+    mass = res.summary.subject.mass_kg or 1.0
     fig, axes = plt.subplots(3, 3, figsize=(8.5, 6.5), sharex=True)
     dt = np.gradient(q.time) if q.time.size > 1 else np.ones(1)
     for j, (stem, title, sign) in enumerate(_JOINTS):
@@ -464,7 +461,7 @@ def _e(x: Any) -> str:
     return html.escape(text)
 
 
-def _finite(x: Any) -> bool:
+def _finite(x: Any) -> TypeGuard[float]:
     return isinstance(x, (int, float)) and bool(np.isfinite(x))
 
 
@@ -484,10 +481,15 @@ def _num(x: Any, fmt: str = ".3g", unit: str = "") -> str:
     return f"{s} {unit}".rstrip() if unit else s
 
 
-def _strength_status(group: Mapping[str, Any], strength: Mapping[str, Any]) -> str:
-    """The :mod:`msk.status` word of a strength group (its summary ``status``, or computed from
-    the factor, interval, bounds and fit r² for folders written before it existed)."""
-    return group_status(group, strength).value
+def _or(x: Any, default: Any) -> Any:
+    """``x``, or ``default`` when the summary does not have it (``None``)."""
+    return default if x is None else x
+
+
+def _anthropometry_masses(s: Summary) -> dict[str, float | None]:
+    """The anthropometric table's segment masses (kg) by segment name."""
+    anth = s.anthropometry
+    return {} if anth is None else {k: v.mass_kg for k, v in anth.segments.items()}
 
 
 def _table(head: Sequence[str], rows: Sequence[Sequence[str]], cls: str = "") -> str:
@@ -500,17 +502,17 @@ def _table(head: Sequence[str], rows: Sequence[Sequence[str]], cls: str = "") ->
 
 
 def _na(res: SessionResults, *stages: str) -> str:
-    for item in res.summary.get("not_available", []):
-        if item["stage"] in stages:
+    for item in res.summary.not_available or ():
+        if item.stage in stages:
             return (
-                f'<p class="na">Not available: stage “{_e(item["stage"])}” '
-                f"{_e(item['status'])} — {_e(item['reason'])}</p>"
+                f'<p class="na">Not available: stage “{_e(item.stage)}” '
+                f"{_e(item.status)} — {_e(item.reason)}</p>"
             )
     return ""
 
 
 def _strength_section(res: SessionResults, figs: Mapping[str, str]) -> str:
-    st = res.summary.get("strength")
+    st = res.summary.strength
     out = ["<h2>1. Muscle strength</h2>"]
     if not st:
         return (
@@ -518,16 +520,17 @@ def _strength_section(res: SessionResults, figs: Mapping[str, str]) -> str:
             + _na(res, "strength_identification", "emg")
             + ('<p class="na">Strength was not identified in this session.</p>')
         )
-    side = res.summary.get("subject", {}).get("side", "right")
+    side = _or(res.summary.subject.side, "right")
     other = "right" if side == "left" else "left"
-    status = [_strength_status(g, st) for g in st["groups"]]
-    ident = [g for g, w in zip(st["groups"], status) if w == "identified"]
-    weaker = [g["group"] for g in ident if _finite(g["ci_high"]) and g["ci_high"] < 1.0]
-    stronger = [g["group"] for g in ident if _finite(g["ci_low"]) and g["ci_low"] > 1.0]
+    status = [st.group_status(g) for g in st.groups]
+    ident = [g for g, w in zip(st.groups, status) if w == "identified"]
+    weaker = [g.group for g in ident if _finite(g.ci_high) and g.ci_high < 1.0]
+    stronger = [g.group for g in ident if _finite(g.ci_low) and g.ci_low > 1.0]
     counts = {w: status.count(w) for w in STATUS_COLOURS if status.count(w)}
-    r2 = st.get("r2")
-    r2_min = st.get("r2_min", STRENGTH_R2_MIN)
+    r2 = st.r2
+    r2_min = _or(st.r2_min, STRENGTH_R2_MIN)
     unreliable = not _finite(r2) or r2 < r2_min
+    bounds = st.bounds or ("—", "—")
     n = len(status)
     msg = (
         f"Strength of the {side} leg muscles measured with EMG, relative to a typical adult "
@@ -557,11 +560,11 @@ def _strength_section(res: SessionResults, figs: Mapping[str, str]) -> str:
             f'<p class="warn"><b>Caution:</b> the EMG-driven muscle model explains the '
             f"joint moments poorly: fit r² = {_num(r2, '.2f')}, below the threshold "
             f"{_num(r2_min, '.2f')} for a group to be identified. No group is identified; "
-            f"factors at the bounds ({_e(st['bounds'][0])} or {_e(st['bounds'][1])} ×) were "
+            f"factors at the bounds ({_e(bounds[0])} or {_e(bounds[1])} ×) were "
             "fixed by the bound, not by the data. The values are shown for research use only."
             "</p>"
         )
-    no_mvc = any("no MVC" in w for w in res.summary.get("quality", {}).get("emg_warnings", []))
+    no_mvc = any("no MVC" in w for w in res.summary.quality.emg_warnings or ())
     if no_mvc:
         out.append(
             '<p class="warn">No maximal voluntary contraction (MVC) trials: EMG is '
@@ -569,22 +572,22 @@ def _strength_section(res: SessionResults, figs: Mapping[str, str]) -> str:
             "strength factors are biased (a muscle that never contracts fully looks "
             "strong).</p>"
         )
-    pct = round(100 * st.get("confidence", 0.95))
+    pct = round(100 * _or(st.confidence, 0.95))
     rows = []
-    for g, word in zip(st["groups"], status):
+    for g, word in zip(st.groups, status):
         ci = (
-            f"{_num(g['ci_low'], '.2f')}–{_num(g['ci_high'], '.2f')} ×"
-            if word != "prior" and _finite(g.get("ci_low")) and _finite(g.get("ci_high"))
+            f"{_num(g.ci_low, '.2f')}–{_num(g.ci_high, '.2f')} ×"
+            if word != "prior" and _finite(g.ci_low) and _finite(g.ci_high)
             else "—"
         )
         rows.append(
             [
-                _e(g["group"]),
-                _e(", ".join(g["muscles"])),
-                _num(g["factor"], ".2f", "×"),
+                _e(g.group),
+                _e(", ".join(g.muscles)),
+                _num(g.factor, ".2f", "×"),
                 ci,
-                _num(g["f_iso_generic_n"], ".0f", "N"),
-                _num(g["f_iso_n"], ".0f", "N"),
+                _num(g.f_iso_generic_n, ".0f", "N"),
+                _num(g.f_iso_n, ".0f", "N"),
                 _status_html(word),
             ]
         )
@@ -612,8 +615,8 @@ def _strength_section(res: SessionResults, figs: Mapping[str, str]) -> str:
     )
     out.append(
         f'<p class="note">Fit r² = {_num(r2, ".3f")} (dimensionless; threshold for '
-        f"“identified”: ≥ {_num(r2_min, '.2f')}); method: {_e(st['method'])}; factors "
-        f"bounded to {_e(st['bounds'][0])}–{_e(st['bounds'][1])} × generic (Hayashibe et al. "
+        f"“identified”: ≥ {_num(r2_min, '.2f')}); method: {_e(st.method)}; factors "
+        f"bounded to {_e(bounds[0])}–{_e(bounds[1])} × generic (Hayashibe et al. "
         "[1], §V; thesis [3], Table 3.1). A group is “identified” only when its factor and its "
         "whole interval lie strictly inside the bounds and the fit reaches the threshold.</p>"
     )
@@ -623,19 +626,19 @@ def _strength_section(res: SessionResults, figs: Mapping[str, str]) -> str:
     return "".join(out)
 
 
-def _joint_strength_html(st: Mapping[str, Any], figs: Mapping[str, str]) -> str:
+def _joint_strength_html(st: Strength, figs: Mapping[str, str]) -> str:
     """Sub-section "joint strength": peak maximal isometric moments per action, generic vs
     identified, with the status of the identified curve (summary ``strength.joint_strength``)."""
-    js = st.get("joint_strength")
+    js = st.joint_strength
     if not js:
         return ""
     out = ["<h3>Joint strength (maximal isometric moments)</h3>"]
-    if js.get("error"):
-        return out[0] + f'<p class="na">Not available: {_e(js["error"])}</p>'
-    mass = js.get("mass_kg")
+    if js.error:
+        return out[0] + f'<p class="na">Not available: {_e(js.error)}</p>'
+    mass = js.mass_kg
     per_kg = _finite(mass) and mass > 0
-    acts = js.get("actions") or []
-    undetermined = [a["action"] for a in acts if a.get("status") in ("at bound", "not determined")]
+    acts = js.actions or ()
+    undetermined = [a.action for a in acts if a.status in ("at bound", "not determined")]
     msg = (
         "Largest moment each muscle group of the model can produce at full effort, without "
         "movement, over the joint's range: the generic model (a typical adult scaled to the "
@@ -650,29 +653,29 @@ def _joint_strength_html(st: Mapping[str, Any], figs: Mapping[str, str]) -> str:
     out.append(f'<p class="plain">{_e(msg)}</p>')
     rows = []
     for a in acts:
-        word = a.get("status", "prior")
-        gp, ip = a.get("generic_peak_nm"), a.get("identified_peak_nm")
+        word = _or(a.status, "prior")
+        gp, ip = a.generic_peak_nm, a.identified_peak_nm
         gen = f"{_num(gp, '.0f', 'N·m')}"
-        if per_kg:
+        if per_kg and mass:
             gen += f" ({_num(gp / mass, '.2f', 'N·m/kg')})" if _finite(gp) else ""
-        gen += f" at {_num(a.get('generic_peak_angle_deg'), '.0f', '°')}"
+        gen += f" at {_num(a.generic_peak_angle_deg, '.0f', '°')}"
         if word in ("at bound", "not determined"):
             ide = "not determined"
         elif word == "prior":
             ide = "= generic (no identified group carries this action)"
         else:
             ide = f"{_num(ip, '.0f', 'N·m')}"
-            if per_kg and _finite(ip):
+            if per_kg and mass and _finite(ip):
                 ide += f" ({_num(ip / mass, '.2f', 'N·m/kg')})"
-            ide += f" at {_num(a.get('identified_peak_angle_deg'), '.0f', '°')}"
+            ide += f" at {_num(a.identified_peak_angle_deg, '.0f', '°')}"
         groups = ", ".join(
-            f"{g['group']} {100 * g['share']:.0f} % ({g['status']})" for g in a.get("groups", [])
+            f"{g.group} {100 * _or(g.share, np.nan):.0f} % ({g.status})" for g in a.groups or ()
         )
-        posture = ", ".join(f"{k} {v:.0f}°" for k, v in (a.get("posture_deg") or {}).items())
+        posture = ", ".join(f"{k} {v:.0f}°" for k, v in (a.posture_deg or {}).items())
         rows.append(
             [
-                _e(a["action"]),
-                _e(f"{a['angle_label']} {a['angles_deg'][0]:.0f}–{a['angles_deg'][-1]:.0f}°"
+                _e(a.action),
+                _e(f"{a.angle_label} {a.angles_deg[0]:.0f}–{a.angles_deg[-1]:.0f}°"
                    + (f"; {posture}" if posture else "")),
                 gen,
                 _e(ide),
@@ -680,7 +683,7 @@ def _joint_strength_html(st: Mapping[str, Any], figs: Mapping[str, str]) -> str:
                 _status_html(word),
             ]
         )  # fmt: skip
-    side = js.get("side", "")
+    side = _or(js.side, "")
     out.append(
         _table(
             [
@@ -697,7 +700,7 @@ def _joint_strength_html(st: Mapping[str, Any], figs: Mapping[str, str]) -> str:
     )
     if "strength_curves" in figs:
         out.append(f"<figure>{figs['strength_curves']}</figure>")
-    share = js.get("status_share_min", 0.05)
+    share = _or(js.status_share_min, 0.05)
     out.append(
         f'<p class="note">{_e(side.capitalize())} side; every agonist (moment arm in the '
         "direction of the action) at full activation, rigid tendon, zero velocity, active fibre "
@@ -705,7 +708,7 @@ def _joint_strength_html(st: Mapping[str, Any], figs: Mapping[str, str]) -> str:
         "(knee flexion is knee_angle < 0 in the model). Status of an identified curve: not "
         f"determined when a group carrying ≥ {100 * share:.0f} % of the peak is at a bound or "
         "not determined; identified when such a group is identified; otherwise the generic "
-        f"curve. N·m/kg: body mass {_num(mass, '.1f', 'kg')}. {_e(js.get('norms_note', ''))}"
+        f"curve. N·m/kg: body mass {_num(mass, '.1f', 'kg')}. {_e(_or(js.norms_note, ''))}"
         "</p>"
     )
     return "".join(out)
@@ -795,12 +798,12 @@ def weak_direction_words(text: str) -> str | None:
 
 
 def _mass_section(res: SessionResults, figs: Mapping[str, str]) -> str:
-    ident = res.summary.get("identification")
+    ident = res.summary.identification
     out = ["<h2>2. Mass distribution</h2>"]
     if not ident:
         return "".join(out) + _na(res, "mass_identification")
-    anth = (res.summary.get("anthropometry") or {}).get("segments", {})
-    status = [segment_status(s).value for s in ident["segments"]]
+    anth = _anthropometry_masses(res.summary)
+    status = [s.status_word() for s in ident.segments]
     counts = {w: status.count(w) for w in STATUS_COLOURS if status.count(w)}
     out.append(
         '<p class="plain">Body segment masses estimated from this session\'s motion and '
@@ -811,18 +814,22 @@ def _mass_section(res: SessionResults, figs: Mapping[str, str]) -> str:
         "data pinning them down — read their masses as uncertain.</p>"
     )
     rows = []
-    for s, word in zip(ident["segments"], status):
-        n = s["name"]
+    for s, word in zip(ident.segments, status):
+        n = s.name
         key = ("foot" + n[-2:]) if n.startswith("calcn") else n
-        tab = anth.get(key, {}).get("mass_kg")
-        com = s.get("com_m") or [None] * 3
-        prior = s.get("prior_mass_kg")
-        change = 100.0 * (s["mass_kg"] - prior) / prior if _finite(prior) and prior > 0 else None
+        tab = anth.get(key)
+        com = s.com_m or (None,) * 3
+        prior = s.prior_mass_kg
+        change = (
+            100.0 * (s.mass_kg - prior) / prior  # type: ignore[operator]
+            if _finite(prior) and prior > 0
+            else None
+        )
         rows.append(
             [
                 _e(n),
-                _num(s["mass_kg"], ".2f", "kg"),
-                _num(s["mass_std_kg"], ".2f", "kg"),
+                _num(s.mass_kg, ".2f", "kg"),
+                _num(s.mass_std_kg, ".2f", "kg"),
                 _num(prior, ".2f", "kg"),
                 _num(change, "+.0f", "%"),
                 _num(tab, ".2f", "kg") if tab is not None else "—",
@@ -849,15 +856,15 @@ def _mass_section(res: SessionResults, figs: Mapping[str, str]) -> str:
     out.append(_status_legend())
     out.append(
         f'<p class="note">Condition number of the base regressor '
-        f"{_num(ident['condition_number'], '.3g')} (dimensionless), "
-        f"{_e(ident['n_frames'])} frames. Base-link equations after Hayashibe et al. [1], §II. "
+        f"{_num(ident.condition_number, '.3g')} (dimensionless), "
+        f"{_e(ident.n_frames)} frames. Base-link equations after Hayashibe et al. [1], §II. "
         "“Identified”: posterior SD of the mass ≤ 2 % and of every COM coordinate ≤ 4 mm; "
         "“prior”: mass and COM within 0.2 prior SD (6 %, 6 mm) of the generic value. Table "
         "masses: Dumas et al. 2007 [7] (foot row on the calcaneus; talus and toes are part of "
         "it; torso = trunk + head + arms).</p>"
     )
-    at_prior = [s["name"] for s, w in zip(ident["segments"], status) if w == "prior"]
-    advice = list(ident.get("advice", []))
+    at_prior = [s.name for s, w in zip(ident.segments, status) if w == "prior"]
+    advice = list(ident.advice or ())
     if any(a.startswith("not excited") for a in advice) and at_prior:
         out.append(
             '<p class="warn">Not excited by this motion (kept at the generic value): '
@@ -885,8 +892,8 @@ def _mass_section(res: SessionResults, figs: Mapping[str, str]) -> str:
 
 def _gait_section(res: SessionResults, figs: Mapping[str, str]) -> str:
     out = ["<h2>3. Joint angles, moments, powers and muscle forces over the gait cycle</h2>"]
-    cyc = res.summary.get("gait_cycle_s")
-    side = res.summary.get("subject", {}).get("side", "right")
+    cyc = res.summary.gait_cycle_s
+    side = _or(res.summary.subject.side, "right")
     if cyc:
         out.append(
             f'<p class="note">Gait cycle of the {_e(side)} leg from foot strike '
@@ -913,25 +920,25 @@ def _contact_section(res: SessionResults, figs: Mapping[str, str]) -> str:
     out = ["<h2>4. Knee contact force</h2>"]
     if "contact" not in figs:
         return "".join(out) + _na(res, "knee_contact", "tension_optimization")
-    comp = res.summary.get("comparison") or {}
+    comp = res.summary.comparison
     rows = []
-    for key, label in (
-        (f"knee_contact_{v}{c}", f"{vl}{cl}")
-        for v, vl in (("generic", "generic parameters"), ("subject_specific", "subject-specific"))
-        for c, cl in (("", ", total"), ("_medial", ", medial"), ("_lateral", ", lateral"))
+    for (v, vl), (part, pl) in (
+        (variant, part)
+        for variant in (("generic", "generic parameters"), ("subject_specific", "subject-specific"))
+        for part in (("total", ", total"), ("medial", ", medial"), ("lateral", ", lateral"))
     ):
-        c = comp.get(key)
+        c = comp.knee_contact(v, part) if comp else None
         if c:
             rows.append(
                 [
-                    _e(label),
-                    _num(c["peak_predicted_bw"], ".2f", "BW"),
-                    _num(c["peak_measured_bw"], ".2f", "BW"),
-                    _num(c["rms_bw"], ".2f", "BW"),
-                    _num(c["rms_n"], ".0f", "N"),
-                    _num(c["nrmsd_pct"], ".1f", "%"),
-                    _num(c["pearson_r"], ".2f"),
-                    _num(c["icc"], ".2f"),
+                    _e(f"{vl}{pl}"),
+                    _num(c.peak_predicted_bw, ".2f", "BW"),
+                    _num(c.peak_measured_bw, ".2f", "BW"),
+                    _num(c.rms_bw, ".2f", "BW"),
+                    _num(c.rms_n, ".0f", "N"),
+                    _num(c.nrmsd_pct, ".1f", "%"),
+                    _num(c.pearson_r, ".2f"),
+                    _num(c.icc, ".2f"),
                 ]
             )
     if rows:
@@ -1004,26 +1011,26 @@ def _quality_section(res: SessionResults) -> str:
     from msk.quality import THRESHOLDS as TH
 
     s = res.summary
-    q = s.get("quality", {})
-    raised = {f.get("quantity") for f in q.get("flags") or []}
+    q = s.quality
+    flags = q.flags or ()
+    raised = {f.quantity for f in flags}
 
     def gate(quantity: str) -> bool | None:
-        return (quantity in raised) if "flags" in q else None
+        return (quantity in raised) if q.flags is not None else None
 
-    plate = [f for f in q.get("flags") or [] if f.get("quantity") == "plate_mass_difference_pct"]
+    plate = [f for f in flags if f.quantity == "plate_mass_difference_pct"]
     out = ["<h2>5. Data quality</h2>"]
-    ik_mean = q.get("ik_marker_rms_mean_m")
-    ik_max = q.get("ik_marker_rms_max_m")
-    rf = q.get("residual_force_rms_pct_bw")
-    flat = q.get("emg_flat_channels", [])
-    st = s.get("strength") or {}
-    r2_min = st.get("r2_min", STRENGTH_R2_MIN)
-    n_frames = q.get("frames")
+    ik_mean = q.ik_marker_rms_mean_m
+    ik_max = q.ik_marker_rms_max_m
+    rf = q.residual_force_rms_pct_bw
+    flat = q.emg_flat_channels or ()
+    st = s.strength
+    r2_min = _or(st.r2_min, STRENGTH_R2_MIN) if st else STRENGTH_R2_MIN
+    n_frames = q.frames
     rows = [
         [
             "frames",
-            f"{_e(n_frames if n_frames is not None else '—')} at "
-            f"{_num(q.get('rate_hz'), '.0f', 'Hz')}",
+            f"{_e(n_frames if n_frames is not None else '—')} at {_num(q.rate_hz, '.0f', 'Hz')}",
             "—",
             "—",
         ],
@@ -1039,39 +1046,39 @@ def _quality_section(res: SessionResults) -> str:
             f"worst marker ≤ {1000 * TH['ik_marker_max_mean_m']:g} mm on average [5]",
             _check(ik_max, TH["ik_marker_max_mean_m"], flagged=gate("ik_marker_max_mean_m")),
         ],
-        ["marker most often worst", _e(q.get("ik_worst_marker", "—")), "—", "—"],
+        ["marker most often worst", _e(_or(q.ik_worst_marker, "—")), "—", "—"],
         [
             "IK failed frames",
-            _e(q.get("ik_failed_frames", "—")),
+            _e(_or(q.ik_failed_frames, "—")),
             "0",
-            _check(q.get("ik_failed_frames"), 0),
+            _check(q.ik_failed_frames, 0),
         ],
         [
             "frames with all ground contact on plates (residuals, muscle forces)",
-            f"{_e(q.get('contact_measured_frames', '—'))} of {_e(q.get('frames', '—'))}",
+            f"{_e(_or(q.contact_measured_frames, '—'))} of {_e(_or(q.frames, '—'))}",
             "—",
             "—",
         ],
         [
             "pelvis residual force (RMS)",
-            f"{_num(q.get('residual_force_rms_n'), '.1f', 'N')} ({_num(rf, '.1f', '% BW')})",
+            f"{_num(q.residual_force_rms_n, '.1f', 'N')} ({_num(rf, '.1f', '% BW')})",
             f"≤ {TH['residual_force_rms_pct_bw']:g} % BW [5]",
             _check(rf, TH["residual_force_rms_pct_bw"], flagged=gate("residual_force_rms_pct_bw")),
         ],
         [
             "pelvis residual moment (RMS)",
-            _num(q.get("residual_moment_rms_nm"), ".1f", "N·m"),
+            _num(q.residual_moment_rms_nm, ".1f", "N·m"),
             f"≤ {TH['residual_moment_rms_pct_com_height_peak_force']:g} % of COM height × peak "
             "external force [5]",
             _check(
-                q.get("residual_moment_rms_nm"),
+                q.residual_moment_rms_nm,
                 np.inf,
                 flagged=gate("residual_moment_rms_pct_com_height_peak_force"),
             ),
         ],
         [
             "body mass weighed by the force plates vs configured",
-            _num(plate[0].get("value"), "+.1f", "%") if plate else "—",
+            _num(plate[0].value, "+.1f", "%") if plate else "—",
             f"within ±{TH['body_mass_difference_pct']:g} %",
             _check(None, 0.0, flagged=gate("plate_mass_difference_pct"), needs_value=False),
         ],
@@ -1079,14 +1086,14 @@ def _quality_section(res: SessionResults) -> str:
             "EMG channels flat / unusable",
             _e(", ".join(flat) or "none"),
             "none",
-            _check(len(flat), 0) if "emg_flat_channels" in q else "—",
+            _check(len(flat), 0) if q.emg_flat_channels is not None else "—",
         ],
         [
             "optimisation infeasible frames",
-            _e(q.get("optimization_infeasible_frames", "—")),
+            _e(_or(q.optimization_infeasible_frames, "—")),
             "0",
             _check(
-                q.get("optimization_infeasible_frames"),
+                q.optimization_infeasible_frames,
                 0,
                 flagged=gate("optimization_infeasible_frames"),
             ),
@@ -1096,17 +1103,17 @@ def _quality_section(res: SessionResults) -> str:
         rows.append(
             [
                 "strength fit r² (EMG-driven model vs joint moments)",
-                _num(st.get("r2"), ".2f"),
+                _num(st.r2, ".2f"),
                 f"≥ {_num(r2_min, '.2f')} for any group to be identified",
-                _check(st.get("r2"), r2_min, below=False),
+                _check(st.r2, r2_min, below=False),
             ]
         )
-    other = [f for f in q.get("flags") or [] if f.get("quantity") not in _QUALITY_ROW_QUANTITIES]
+    other = [f for f in flags if f.quantity not in _QUALITY_ROW_QUANTITIES]
     out.append(_table(["figure", "value", "threshold", "check"], rows, "quality"))
     if other:
         out.append(
             '<p class="note">Other gates raised (see the banner at the top): '
-            + "; ".join(_e(f.get("message")) for f in other)
+            + "; ".join(_e(f.message) for f in other)
             + ".</p>"
         )
     out.append(
@@ -1115,19 +1122,17 @@ def _quality_section(res: SessionResults) -> str:
         "the strength fit threshold is msk's (below it the EMG-driven model explains less than "
         "half of the joint-moment variance).</p>"
     )
-    gaps = q.get("marker_gaps", [])
+    gaps = q.marker_gaps or ()
     if gaps:
         out.append(
             _table(
                 ["marker with gaps", "missing frames", "longest gap (frames)"],
-                [
-                    [_e(g["marker"]), _e(g["missing_frames"]), _e(g["longest_gap_frames"])]
-                    for g in gaps
-                ],
+                [[_e(g.marker), _e(g.missing_frames), _e(g.longest_gap_frames)] for g in gaps],
                 "gaps",
             )
         )
-    warns = q.get("emg_warnings", [])
+    warns = q.emg_warnings or ()
+
     no_mvc = [w.split("'")[1] for w in warns if "no MVC" in w and w.count("'") >= 2]
     for w in [w for w in warns if "no MVC" not in w][:8]:
         out.append(f'<p class="warn">EMG: {_e(w)}</p>')
@@ -1199,15 +1204,16 @@ def _fes_references() -> tuple[dict[str, tuple[float, float]], dict[str, tuple[f
 
 
 def _fes_section(res: SessionResults, figs: Mapping[str, str], number: int) -> str:
-    fes = res.summary.get("fes")
+    fes = res.summary.fes
     out = [f"<h2>{number}. FES knee model</h2>"]
     if not fes:
         return (
             "".join(out) + _na(res, "fes") + '<p class="na">The FES model was not identified.</p>'
         )
     t3, t2 = _fes_references()
-    steps = fes.get("steps", {})
-    cv = (steps.get("cross_validation") or {}).get("nrmsd_pct")
+    steps = _or(fes.steps, {})
+    cv_step = steps.get("cross_validation")
+    cv = cv_step.nrmsd_pct if cv_step else None
     from msk.fes.model import TABLE2_NRMSD_PCT
 
     seed_cv = [v for v in TABLE2_NRMSD_PCT["cross_validation"] if v is not None]
@@ -1221,22 +1227,23 @@ def _fes_section(res: SessionResults, figs: Mapping[str, str], number: int) -> s
         "subjects).</p>"
     )
     rows = []
-    initial = fes.get("initial_parameters") or {}
-    for key, item in fes.get("parameters", {}).items():
-        unit = item.get("unit", "")
+    initial = fes.initial_parameters or {}
+    for key, item in fes.parameters.items():
+        unit = _or(item.unit, "")
         r = t3.get(key)
         step = _FES_PARAMETER_STEP.get(key)
+        fit = steps.get(step) if step else None
         word = fes_status(
-            item.get("value"),
+            item.value,
             prior=initial.get(key),
             from_prior=step is None,
-            nrmsd_pct=(steps.get(step) or {}).get("nrmsd_pct") if step else None,
+            nrmsd_pct=fit.nrmsd_pct if fit else None,
         ).value
         rows.append(
             [
                 _e(key),
                 _e(_FES_MEANING.get(key, "")),
-                _num(item.get("value"), ".4g"),
+                _num(item.value, ".4g"),
                 _e({"1": "dimensionless", "1 (PW/PW_max)": "PW/PW_max"}.get(unit, unit)),
                 "—" if r is None else f"{r[0]:.4g} – {r[1]:.4g}",
                 _status_html(word),
@@ -1267,8 +1274,8 @@ def _fes_section(res: SessionResults, figs: Mapping[str, str], number: int) -> s
         rows.append(
             [
                 _e(label),
-                _num(steps[key].get("nrmsd_pct"), ".2f", "%"),
-                _num(steps[key].get("nrmse_pct"), ".2f", "%"),
+                _num(steps[key].nrmsd_pct, ".2f", "%"),
+                _num(steps[key].nrmse_pct, ".2f", "%"),
                 "—" if r is None else f"{r[0]:.2f} – {r[1]:.2f} %",
             ]
         )
@@ -1293,7 +1300,7 @@ def _fes_section(res: SessionResults, figs: Mapping[str, str], number: int) -> s
 def _methods_section(res: SessionResults, number: int = 6, *, gait: bool = True) -> str:
     s = res.summary
     out = [f"<h2>{number}. Methods, stages and software</h2>"]
-    if s.get("fes"):
+    if s.fes:
         out.append(
             '<p class="note">FES knee model ([2], §2.3): geometry from the height → '
             "static torque K → pendulum J, B → force–length L_c0, b → recruitment c1–c3, "
@@ -1302,6 +1309,7 @@ def _methods_section(res: SessionResults, number: int = 6, *, gait: bool = True)
             "</p>"
         )
     if gait:
+        plate_assignment = s.methods.plate_assignment if s.methods else None
         out.append(
             '<p class="note">Markers → scaled model (OpenSim-style measurements; non-model '
             "markers placed from the static trial) → inverse kinematics → force plates assigned "
@@ -1312,45 +1320,45 @@ def _methods_section(res: SessionResults, number: int = 6, *, gait: bool = True)
             "contribution matrix ([1], Eq. 12–16) → tibiofemoral contact force from the tibia "
             "free-body diagram with the muscle forces ([4], §2.1), muscle paths evaluated at "
             "every frame. The lab frame is rotated into the model frame (vertical up, walking "
-            f"along +x); force-plate contacts: {s.get('methods', {}).get('plate_assignment', '?')}."
+            f"along +x); force-plate contacts: {_or(plate_assignment, '?')}."
             "</p>"
         )
     rows = []
-    for r in s.get("stages", []):
-        cls = ' class="na"' if r["status"] in ("not available", "failed") else ""
+    for r in s.stages or ():
+        cls = ' class="na"' if r.status in ("not available", "failed") else ""
         rows.append(
             [
-                _e(r["name"]),
-                f"<span{cls}>{_e(r['status'])}</span>",
-                _num(r["seconds"], ".2f", "s"),
-                _e(r.get("message", "")),
+                _e(r.name),
+                f"<span{cls}>{_e(r.status)}</span>",
+                _num(r.seconds, ".2f", "s"),
+                _e(_or(r.message, "")),
             ]
         )
     out.append(_table(["stage", "status", "time", "note"], rows, "stages"))
-    opt = s.get("optimization") or {}
+    opt = s.optimization
     if opt:
-        crit = f" ({_e(opt['criterion'])})" if opt.get("criterion") else ""
-        out.append(f'<p class="note">Tension optimisation: {_e(opt.get("method"))}{crit}.</p>')
-        if opt.get("emg_gains"):
-            gst = opt.get("emg_gain_status") or {}
+        crit = f" ({_e(opt.criterion)})" if opt.criterion else ""
+        out.append(f'<p class="note">Tension optimisation: {_e(opt.method)}{crit}.</p>')
+        if opt.emg_gains:
+            gst = opt.emg_gain_status or {}
             rows = [
                 [_e(c), _num(g, ".3f"), _status_html(gst.get(c) or gain_status(g).value)]
-                for c, g in opt["emg_gains"].items()
+                for c, g in opt.emg_gains.items()
             ]
             out.append(
                 _table(
                     ["EMG channel", "gain g_c (activation per unit EMG)", "status"], rows, "gains"
                 )
             )
-    ver = s.get("versions", {})
+    ver = s.versions
     out.append(
         _table(["software", "version"], [[_e(k), _e(v)] for k, v in ver.items()], "versions")
     )
-    ins = s.get("inputs", [])
+    ins = s.inputs
     out.append(
         _table(
             ["input", "file", "sha256"],
-            [[_e(i["role"]), _e(Path(i["path"]).name), _e(i["sha256"][:16] + "…")] for i in ins],
+            [[_e(i.role), _e(Path(i.path).name), _e(i.sha256[:16] + "…")] for i in ins],
             "inputs",
         )
     )
@@ -1361,35 +1369,35 @@ def render_html(res: SessionResults, figures: Mapping[str, str] | None = None) -
     """The report as one self-contained HTML string."""
     figs = build_figures(res) if figures is None else figures
     s = res.summary
-    subj = s.get("subject", {})
-    na = s.get("not_available", [])
+    subj = s.subject
+    na = s.not_available or ()
     # a session of FES trials only has no gait results: its report is the FES section
-    gait = res.has("q") or not s.get("fes")
+    gait = res.has("q") or not s.fes
     kind = "Gait analysis" if gait else "FES knee model"
     head = (
-        f"<h1>{kind} report — {_e(subj.get('name', ''))}"
-        f"{', trial ' + _e(s['trial']) if s.get('trial') else ''}</h1>"
-        f'<p class="note">Body mass {_num(subj.get("mass_kg"), ".1f", "kg")}, height '
-        f"{_num(subj.get('height_m'), '.2f', 'm')}, side of interest {_e(subj.get('side'))}. "
-        f"Produced {_e(s.get('created_utc', ''))} by msk "
-        f"{_e(s.get('versions', {}).get('msk', ''))}.</p>"
+        f"<h1>{kind} report — {_e(subj.name)}"
+        f"{', trial ' + _e(s.trial) if s.trial else ''}</h1>"
+        f'<p class="note">Body mass {_num(subj.mass_kg, ".1f", "kg")}, height '
+        f"{_num(subj.height_m, '.2f', 'm')}, side of interest {_e(subj.side)}. "
+        f"Produced {_e(s.created_utc)} by msk "
+        f"{_e(s.versions.get('msk', ''))}.</p>"
     )
     if na:
         head += (
             '<p class="warn"><b>Parts of the analysis are not available in this report:</b> '
-            + "; ".join(f"{_e(i['stage'])} ({_e(i['status'])}: {_e(i['reason'])})" for i in na)
+            + "; ".join(f"{_e(i.stage)} ({_e(i.status)}: {_e(i.reason)})" for i in na)
             + "</p>"
         )
-    flags = (s.get("quality") or {}).get("flags") or []
+    flags = s.quality.flags or ()
     if flags:
         head += (
             f'<div class="warn" id="quality-flags"><b>Quality gates raised ({len(flags)}): '
             "these results must not be used without checking the quantities named "
             "here.</b><ul>"
             + "".join(
-                f"<li>{_e(f.get('trial'))}: {_e(f.get('message'))} "
-                f"[{_e(f.get('quantity'))} = {_num(f.get('value'))}, threshold "
-                f"{_num(f.get('threshold'))}]</li>"
+                f"<li>{_e(f.trial)}: {_e(f.message)} "
+                f"[{_e(f.quantity)} = {_num(f.value)}, threshold "
+                f"{_num(f.threshold)}]</li>"
                 for f in flags
             )
             + "</ul></div>"
@@ -1404,7 +1412,7 @@ def render_html(res: SessionResults, figures: Mapping[str, str] | None = None) -
             _quality_section(res),
         ]
     n = len(parts)
-    if s.get("fes") or any(i.get("stage") == "fes" for i in na):
+    if s.fes or any(i.stage == "fes" for i in na):
         parts.append(_fes_section(res, figs, n))
         n += 1
     parts.append(_methods_section(res, n, gait=gait))
@@ -1416,7 +1424,8 @@ def render_html(res: SessionResults, figures: Mapping[str, str] | None = None) -
             + "".join(f'<li value="{k}">{_e(REFERENCES[k - 1])}</li>' for k in cited)
             + "</ol>"
         )
-    title = f"msk report {_e(subj.get('name', ''))}"
+    title = f"msk report {_e(subj.name)}"
+
     return (
         f'<!DOCTYPE html><html lang="en"><head><meta charset="utf-8">'
         f'<meta name="viewport" content="width=device-width, initial-scale=1">'
