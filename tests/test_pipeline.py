@@ -15,8 +15,8 @@ from msk.exceptions import ConfigError
 from msk.io.opensim_files import read_sto
 from msk.pipeline import STAGES, file_sha256, lab_to_model_rotation, run_session
 from msk.results import TABLES, read_session
-from msk.synthetic_trials import write_synthetic_session
 from msk.summary import Summary
+from msk.synthetic_trials import write_synthetic_session
 
 REPO = Path(__file__).resolve().parents[1]
 GC5 = REPO / "pipelines" / "gc5_PS.toml"
