@@ -110,16 +110,26 @@ def config_reference() -> str:
     return "\n".join(lines) + "\n"
 
 
-def _values(obj: Any, lines: list[str]) -> None:
+def _values(obj: Any, lines: list[str], table: str) -> None:
+    """The keys of ``obj`` (a table of more than three entries as a sub-table after them)."""
+    subtables: list[str] = []
     for f, o, _ in option_fields(type(obj)):
         key, value, default = key_of(f, o), getattr(obj, f.name), default_of(f)
         if value is None:
             lines.append(f"# {key}: absent")
             continue
-        text = f"{key} = {toml_value(value)}"
+        if isinstance(value, Mapping) and len(value) > 3:
+            subtables += ["", f"[{table}.{key}]"]
+            subtables += [f"{toml_value({k: v})[2:-2]}" for k, v in value.items()]
+            continue
+        if isinstance(value, tuple) and len(value) > 3:
+            text = f"{key} = [\n" + "".join(f"    {toml_value(v)},\n" for v in value) + "]"
+        else:
+            text = f"{key} = {toml_value(value)}"
         if default is not MISSING and default is not None and value != default:
             text += f"   # default {toml_value(default)}"
         lines.append(text)
+    lines += subtables
 
 
 def render_config(cfg: SessionConfig) -> str:
@@ -141,7 +151,7 @@ def render_config(cfg: SessionConfig) -> str:
             if obj is None:
                 continue
             lines += ["", f"[[{sec.name}]]" if sec.array else f"[{sec.name}]"]
-            _values(obj, lines)
+            _values(obj, lines, sec.name)
             if getattr(obj, "fes", None) is not None and sec.name == "trials":
-                _values(obj.fes, lines)
+                _values(obj.fes, lines, sec.name)
     return "\n".join(lines) + "\n"
