@@ -113,7 +113,8 @@ def config_reference() -> str:
 def _values(obj: Any, lines: list[str], table: str) -> None:
     """The keys of ``obj`` (a table of more than three entries as a sub-table after them)."""
     subtables: list[str] = []
-    for f, o, _ in option_fields(type(obj)):
+    cls: type = type(obj)
+    for f, o, _ in option_fields(cls):
         key, value, default = key_of(f, o), getattr(obj, f.name), default_of(f)
         if value is None:
             lines.append(f"# {key}: absent")

@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import dataclasses
 import difflib
+import functools
 import math
 import types
 import typing
@@ -114,14 +115,22 @@ def opt(
     return field(default=default, metadata=md)
 
 
-def option_fields(cls: type) -> list[tuple[dataclasses.Field[Any], Option, Any]]:
-    """The fields of ``cls`` that are TOML keys, with their :class:`Option` and type."""
+@functools.cache
+def option_fields(cls: type) -> tuple[tuple[dataclasses.Field[Any], Option, Any], ...]:
+    """The fields of ``cls`` that are TOML keys, with their :class:`Option` and type.
+
+    Args:
+        cls: an options dataclass.
+
+    Returns:
+        ``(field, option, annotation)`` per key, in field order.
+    """
     hints = typing.get_type_hints(cls)
-    return [
+    return tuple(
         (f, f.metadata[OPTION], hints[f.name])
         for f in dataclasses.fields(cls)
         if OPTION in f.metadata
-    ]
+    )
 
 
 def key_of(f: dataclasses.Field[Any], o: Option) -> str:
@@ -161,11 +170,9 @@ def _where(where: str, key: str) -> str:
 
 def _did_you_mean(word: str, candidates: Iterable[str], quote: bool = False) -> str:
     close = difflib.get_close_matches(word, list(candidates), n=1, cutoff=0.6)
-    return (
-        f" (did you mean {close[0]!r}?)"
-        if quote and close
-        else (f" (did you mean {close[0]}?)" if close else "")
-    )
+    if not close:
+        return ""
+    return f" (did you mean {close[0]!r}?)" if quote else f" (did you mean {close[0]}?)"
 
 
 def check_keys(table: Mapping[str, Any], allowed: Iterable[str], where: str, source: Path) -> None:
@@ -241,8 +248,11 @@ def _value(o: Option, tp: Any, value: Any, name: str, source: Path) -> Any:
 def _typed(tp: type, value: Any, name: str, source: Path) -> Any:
     """``value`` if it is a ``tp`` (an integer is a float; a boolean is no number)."""
     number = isinstance(value, int | float) and not isinstance(value, bool)
-    ok = number if tp is float else (number and isinstance(value, int) if tp is int else None)
-    if ok is None:
+    if tp is float:
+        ok = number
+    elif tp is int:
+        ok = number and isinstance(value, int)
+    else:
         ok = isinstance(value, tp)
     if not ok:
         raise ConfigError(f"{source}: {name} = {value!r} should be {tp.__name__}")
