@@ -1,0 +1,387 @@
+"""The options dataclasses: the schema of the TOML session configuration.
+
+Each field that is a TOML key is declared with :func:`~msk.config.schema.opt` (meaning, unit,
+range or allowed values); its type is the annotation and its default the field's default (none:
+required). :data:`SECTIONS` lists the tables in the order of the reference.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+from pathlib import Path
+
+from msk.config.schema import Range, opt
+
+TRIAL_ROLES = ("static", "mass_identification", "mvc", "task", "fes")
+KNEE_VARIANTS = ("spline", "four_bar")
+OPTIMIZATION_METHODS = (
+    "static_optimization",
+    "bounded_qp",
+    "emg_weighted",
+    "emg_assisted",
+    "closed_form",
+)
+#: static optimisation activation weights: uniform (OpenSim's Σ a^p) or muscle volume (Happee)
+ACTIVATION_WEIGHTS = ("uniform", "volume")
+#: The step of the FES identification protocol a ``role = "fes"`` trial records (seeds/000 §2.3):
+#: passive static torques, pendulum drop, isometric trains at several knee angles (force–length),
+#: isometric trains of increasing level at one angle (recruitment), the dynamic trial of the
+#: ``k_s`` NLP, and the cross-validation trial.
+FES_STEPS = ("static", "pendulum", "isometric", "recruitment", "dynamic", "validation")
+FES_ANGLE_UNITS = ("deg", "rad")
+#: ``us``/``s``: pulse-width modulation (seeds/000); ``mA``/``A``: current modulation (seeds/001).
+FES_STIM_UNITS = ("us", "s", "mA", "A")
+#: How many trials of each step a FES session needs (at least).
+FES_STEPS_NEEDED = {
+    "static": 1,
+    "pendulum": 1,
+    "isometric": 3,
+    "recruitment": 3,
+    "dynamic": 1,
+    "validation": 1,
+}
+
+#: filter cut-offs (Hz): above ~0.01 Hz (a smaller one is no filter: a constant) and at most
+#: 500 Hz (the Nyquist frequency of a 1 kHz analog rate)
+MIN_CUTOFF_HZ = 0.01
+MAX_CUTOFF_HZ = 500.0
+#: electromechanical delay (s): physiological values are 10–100 ms
+MAX_EMD_S = 0.2
+_CUTOFF = Range(MIN_CUTOFF_HZ, MAX_CUTOFF_HZ)
+_EMG_CUTOFF = Range(0.0, MAX_CUTOFF_HZ, lo_open=True)
+_POSITIVE = Range(0.0, math.inf, lo_open=True)
+
+
+def _solvers() -> tuple[str, ...]:
+    from msk.optimization import available_solvers
+
+    return available_solvers()
+
+
+def _ms_hint(delay: float) -> str:
+    """``40`` given as a delay in seconds: say it looks like milliseconds."""
+    if math.isfinite(delay) and 0.2 < delay <= 200.0:
+        return f" (milliseconds typed as seconds? {delay:g} ms is {delay / 1000:g} s)"
+    return ""
+
+
+@dataclass(frozen=True, kw_only=True)
+class Subject:
+    """``[subject]``: who was measured."""
+
+    name: str = opt("the subject's name, used in the report", "subject")
+    mass_kg: float = opt(
+        "body mass; the static trial's plates are checked against it",
+        unit="kg",
+        bounds=Range(20.0, 300.0),
+        hint=": not a plausible body mass",
+    )
+    height_m: float | None = opt(
+        "body height; needed by FES trials (their muscle geometry comes from it)",
+        None,
+        unit="m",
+        bounds=Range(0.5, 2.5),
+        hint=": not a height in metres (1680 mm is 1.68 m)",
+    )
+    sex: str = opt("picks the anthropometric table rows", "male", choices=("male", "female"))
+    side: str = opt(
+        "side of interest (instrumented knee, affected limb)", "right", choices=("left", "right")
+    )
+
+
+@dataclass(frozen=True, kw_only=True)
+class ModelConfig:
+    """``[model]``: the musculoskeletal model (optional when every trial has role = "fes")."""
+
+    source: Path = opt("an msk model file (.toml) or an OpenSim model (.osim)")
+    knee: str = opt(
+        "knee joint: spline (the gait2392 knee) or four_bar (seed 004)",
+        "spline",
+        choices=KNEE_VARIANTS,
+    )
+    scale: bool = opt("scale the model to the static trial's marker distances", True)
+    markers: Path | None = opt(
+        "an OpenSim marker set (.xml) for a model whose markers are kept apart (stock .osim)",
+        None,
+    )
+
+
+@dataclass(frozen=True, kw_only=True)
+class FesTrialConfig:
+    """Keys of a ``[[trials]]`` table valid only with ``role = "fes"``: how to read one FES
+    recording (CSV with a header row, or C3D analog channels)."""
+
+    step: str = opt(
+        "the FES protocol step this recording is (role = 'fes' needs it)",
+        key="fes_step",
+        choices=FES_STEPS,
+    )
+    time_column: str = opt("CSV time column (s); a C3D uses its analog time", "time")
+    angle_channel: str = opt(
+        "knee angle column / analog label (goniometer; 0 = full extension)", "knee_angle"
+    )
+    torque_channel: str = opt("dynamometer torque column / analog label (N·m)", "torque")
+    stimulation_channel: str = opt("stimulation level column / analog label", "stimulation")
+    angle_unit: str = opt("unit of the angle channel", "deg", choices=FES_ANGLE_UNITS)
+    stimulation_unit: str = opt(
+        "unit of the stimulation channel: us, s (pulse width) or mA, A (current)",
+        "us",
+        choices=FES_STIM_UNITS,
+    )
+    knee_angle_deg: float | None = opt(
+        "isometric / recruitment: the dynamometer's knee angle when the file has no angle channel",
+        None,
+        unit="deg",
+        bounds=Range(-30.0, 180.0),
+        hint=": not a knee angle",
+    )
+
+
+@dataclass(frozen=True, kw_only=True)
+class TrialConfig:
+    """``[[trials]]``: one table per recording."""
+
+    name: str = opt("the trial's name: its results folder (letters, digits, '.', '_', '-')")
+    file: Path = opt(
+        "the recording: C3D; OpenSim .trc (markers, +y up, with grf); CSV or C3D for FES"
+    )
+    role: str = opt(
+        "what the recording is for",
+        "task",
+        choices=TRIAL_ROLES,
+    )
+    contact_force: Path | None = opt(
+        "measured knee contact force (CSV, e.g. Grand Challenge eTibia) to compare with", None
+    )
+    #: the ``role = "fes"`` keys of the same table (None on any other role)
+    fes: FesTrialConfig | None = None
+    grf: Path | None = opt(
+        "task .trc only: its OpenSim GRF .mot (force_v*, force_p*, torque_* per plate), in the "
+        "frame of its markers",
+        None,
+    )
+    external_loads: Path | None = opt(
+        "OpenSim ExternalLoads .xml naming the body each force set of grf acts on", None
+    )
+
+
+@dataclass(frozen=True, kw_only=True)
+class MarkersConfig:
+    """``[markers]``: lab marker names, IK weights, technical clusters (flattened into
+    :class:`SessionConfig` as ``marker_rename``, ``marker_weights``, ``marker_move``)."""
+
+    rename: Mapping[str, str] = opt(
+        "model marker name = lab label, when they differ", {}, item="a lab marker label (string)"
+    )
+    weights: Mapping[str, float] = opt(
+        "IK weight by model marker name (absent: 1.0)",
+        {},
+        bounds=Range(0.0),
+        item="dimensionless IK weight",
+    )
+    move: tuple[str, ...] = opt(
+        "model markers moved to where the static trial puts them on their body (clusters)",
+        (),
+        item="marker names",
+    )
+
+
+@dataclass(frozen=True, kw_only=True)
+class EmgConfig:
+    """``[emg]``: EMG channels and their envelope."""
+
+    channels: Mapping[str, str] = opt(
+        "model muscle (or muscle group) = analog channel label",
+        {},
+        item="an analog channel label (string)",
+    )
+    highpass_hz: float = opt(
+        "high-pass cut-off before rectification", 20.0, unit="Hz", bounds=_EMG_CUTOFF
+    )
+    lowpass_hz: float = opt(
+        "low-pass cut-off of the rectified envelope", 6.0, unit="Hz", bounds=_EMG_CUTOFF
+    )
+    electromechanical_delay_s: float = opt(
+        "delay of the force after the EMG (physiological: 0.01–0.1 s)",
+        0.0,
+        unit="s",
+        bounds=Range(0.0, MAX_EMD_S),
+        hint=_ms_hint,
+    )
+    mvc: Mapping[str, float] = opt(
+        "channel label = MVC envelope peak (channel's analog units): activations relative to "
+        "MVC; empty: to the session's own peak (or give role = 'mvc' trials)",
+        {},
+        bounds=_POSITIVE,
+        item="the MVC envelope peak, in the channel's analog units",
+    )
+
+
+@dataclass(frozen=True, kw_only=True)
+class FilterConfig:
+    """``[filters]``: low-pass cut-offs (zero-lag Butterworth)."""
+
+    kinematics_cutoff_hz: float = opt(
+        "low-pass cut-off of the joint coordinates before differentiation",
+        6.0,
+        unit="Hz",
+        bounds=_CUTOFF,
+    )
+    grf_cutoff_hz: float = opt(
+        "low-pass cut-off of the ground reactions", 15.0, unit="Hz", bounds=_CUTOFF
+    )
+
+
+@dataclass(frozen=True, kw_only=True)
+class OptimizationConfig:
+    """``[optimization]``: how muscle forces are solved."""
+
+    method: str = opt("muscle-force solution", "static_optimization", choices=OPTIMIZATION_METHODS)
+    w_emg: float = opt(
+        "emg_weighted: EMG weight of the QP (seed 002 Eq. 18)", 0.1, bounds=Range(0.0, 1e6)
+    )
+    solver: str = opt("QP solver", "daqp", choices=_solvers)
+    activation_weights: str = opt(
+        "static_optimization, emg_assisted: weights w_i of Σ w_i a_i^p: uniform (OpenSim) or "
+        "muscle volume (Happee)",
+        "uniform",
+        choices=ACTIVATION_WEIGHTS,
+    )
+    activation_exponent: float = opt(
+        "static_optimization: p of Σ w_i a_i^p (OpenSim's activation_exponent)",
+        2.0,
+        bounds=Range(2.0),
+    )
+    w_track: float = opt(
+        "emg_assisted: weight of the tracking term Σ (a_i − g_c ê_i)², gains fitted",
+        1.0,
+        bounds=_POSITIVE,
+    )
+
+
+@dataclass(frozen=True, kw_only=True)
+class LoadsConfig:
+    """``[loads]``: which body each force plate pushes."""
+
+    assign: Mapping[str, str] = opt(
+        "plate name (plate1, plate2… in file order) = body name; empty: automatic",
+        {},
+        item="a body name (string)",
+    )
+
+
+@dataclass(frozen=True, kw_only=True)
+class ContactConfig:
+    """``[contact]``: tibiofemoral contact-point geometry."""
+
+    intercondylar_distance_m: float | None = opt(
+        "medial–lateral distance of the two contact points; absent: 40 mm scaled by the model's "
+        "tibia (Lerner et al. 2015)",
+        None,
+        unit="m",
+        bounds=Range(0.01, 0.10),
+        hint=" (adult knees: about 0.04 m)",
+    )
+
+
+@dataclass(frozen=True, kw_only=True)
+class FesConfig:
+    """``[fes]``: the FES identification protocol (:func:`msk.fes.protocol.run_protocol`)."""
+
+    fibre_fraction: float | None = opt(
+        "prior L_c0/(L_c0 + L_s); absent: the population mean of Benoussaad et al. (2013) "
+        "Table 3 (msk.fes.priors)",
+        None,
+        bounds=Range(0.0, 1.0, lo_open=True, hi_open=True),
+    )
+    stiffness_ratio: float | None = opt(
+        "prior K_cm/F_cm; absent: the Table 3 population mean", None, unit="1/m", bounds=_POSITIVE
+    )
+    k_s0: float = opt(
+        "initial series stiffness of the NLP (literature value)", 5e3, unit="N/m", bounds=_POSITIVE
+    )
+    outer_iterations: int = opt(
+        "fixed-point passes on k_s (1 = the seed's single pass)", 6, bounds=Range(1, 100)
+    )
+    frequency_hz: float = opt("stimulation frequency", 20.0, unit="Hz", bounds=_POSITIVE)
+    steady_window_s: float = opt(
+        "end-of-train window of the steady isometric torque", 0.5, unit="s", bounds=_POSITIVE
+    )
+    isometric_transients: bool = opt("refit on the torque time courses (short trains)", False)
+    theta_rest_deg: float = opt(
+        "knee angle of the hanging shank (rest)", 90.0, unit="deg", bounds=Range(0.0, 180.0)
+    )
+
+
+@dataclass(frozen=True)
+class SessionConfig:
+    """A validated session configuration (:func:`msk.config.load_config`)."""
+
+    path: Path
+    subject: Subject
+    model: ModelConfig | None
+    trials: tuple[TrialConfig, ...]
+    marker_rename: Mapping[str, str] = field(default_factory=dict)
+    marker_weights: Mapping[str, float] = field(default_factory=dict)
+    #: model markers moved to where the static trial puts them (technical clusters)
+    marker_move: tuple[str, ...] = ()
+    emg: EmgConfig = field(default_factory=EmgConfig)
+    filters: FilterConfig = field(default_factory=FilterConfig)
+    optimization: OptimizationConfig = field(default_factory=OptimizationConfig)
+    fes: FesConfig = field(default_factory=FesConfig)
+    loads: LoadsConfig = field(default_factory=LoadsConfig)
+    contact: ContactConfig = field(default_factory=ContactConfig)
+
+    def trials_with_role(self, role: str) -> tuple[TrialConfig, ...]:
+        """The trials of ``role``, in file order."""
+        return tuple(t for t in self.trials if t.role == role)
+
+    @property
+    def markers(self) -> MarkersConfig:
+        """The ``[markers]`` table."""
+        return MarkersConfig(
+            rename=self.marker_rename, weights=self.marker_weights, move=self.marker_move
+        )
+
+
+@dataclass(frozen=True)
+class Section:
+    """One TOML table of the schema: its name, options dataclass and where it goes in
+    :class:`SessionConfig` (``attr``; "" for ``[markers]``, flattened), with a one-line note."""
+
+    name: str
+    options: type
+    attr: str
+    note: str
+    array: bool = False
+
+
+#: the tables of a session configuration, in the order of the reference; the ``role = "fes"``
+#: keys of ``[[trials]]`` are :class:`FesTrialConfig` (``TrialConfig.fes``)
+SECTIONS = (
+    Section("subject", Subject, "subject", "who was measured (required)"),
+    Section(
+        "model", ModelConfig, "model", "the model (required unless every trial has role = 'fes')"
+    ),
+    Section(
+        "trials",
+        TrialConfig,
+        "trials",
+        "one table per recording (at least one); several task trials: one results folder each",
+        array=True,
+    ),
+    Section("markers", MarkersConfig, "", "lab marker names, IK weights, technical clusters"),
+    Section("emg", EmgConfig, "emg", "EMG channels and their linear envelope"),
+    Section("loads", LoadsConfig, "loads", "which body each force plate pushes"),
+    Section("contact", ContactConfig, "contact", "tibiofemoral contact-point geometry"),
+    Section("filters", FilterConfig, "filters", "low-pass cut-offs (zero-lag Butterworth)"),
+    Section("optimization", OptimizationConfig, "optimization", "how muscle forces are solved"),
+    Section(
+        "fes",
+        FesConfig,
+        "fes",
+        "the FES knee-model identification (seeds/000; role = 'fes' trials)",
+    ),
+)
