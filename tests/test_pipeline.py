@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 from msk.cli import main
-from msk.config import TEMPLATE
+from msk.config import TEMPLATE, config_reference, load_config, render_config
 from msk.exceptions import ConfigError
 from msk.io.opensim_files import read_sto
 from msk.pipeline import STAGES, file_sha256, lab_to_model_rotation, run_session
@@ -172,9 +172,11 @@ def test_cli_run_print_config_and_errors(tmp_path, capsys):
     assert (tmp_path / "o" / "report.html").is_file()
     capsys.readouterr()
     assert main(["print-config"]) == 0
-    assert capsys.readouterr().out == TEMPLATE
-    assert main(["print-config", "--out", str(tmp_path / "t.toml")]) == 0
+    assert capsys.readouterr().out == config_reference()
+    assert main(["print-config", "--example", "--out", str(tmp_path / "t.toml")]) == 0
     assert (tmp_path / "t.toml").read_text() == TEMPLATE
+    assert main(["print-config", str(cfg)]) == 0
+    assert capsys.readouterr().out == render_config(load_config(cfg))
     # a bad config (unknown key) → one line, status 2
     bad = tmp_path / "bad.toml"
     bad.write_text(cfg.read_text().replace("[filters]", "[filters]\ncolour = 3"))

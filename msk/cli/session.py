@@ -1,5 +1,8 @@
-"""``msk run`` (a session configuration → its results folder), ``msk print-config`` (the
-commented session-config template) and ``msk report`` (rebuild a folder's report)."""
+"""``msk run`` (a session configuration → its results folder), ``msk print-config`` (every
+configuration key with its type, default, unit and meaning — generated from the options
+dataclasses, :func:`msk.config.config_reference`; with a CONFIG, that configuration resolved with
+every default; ``--example``, the commented example) and ``msk report`` (rebuild a folder's
+report)."""
 
 from __future__ import annotations
 
@@ -43,17 +46,28 @@ def _run(args: argparse.Namespace) -> int:
 
 
 def _print_config_args(p: argparse.ArgumentParser) -> None:
+    p.add_argument(
+        "config", nargs="?", metavar="CONFIG", type=Path,
+        help="a session configuration: print it resolved, every default filled in",
+    )  # fmt: skip
+    p.add_argument("--example", action="store_true", help="the commented example session")
     p.add_argument("--out", type=Path, metavar="FILE", help="write to FILE (default stdout)")
 
 
 def _print_config(args: argparse.Namespace) -> int:
-    from msk.config import TEMPLATE
+    from msk.config import TEMPLATE, config_reference, load_config, render_config
 
+    if args.example:
+        text = TEMPLATE
+    elif args.config is not None:
+        text = render_config(load_config(args.config))
+    else:
+        text = config_reference()
     if args.out is None:
-        sys.stdout.write(TEMPLATE)
+        sys.stdout.write(text)
     else:
         args.out.parent.mkdir(parents=True, exist_ok=True)
-        args.out.write_text(TEMPLATE, encoding="utf-8")
+        args.out.write_text(text, encoding="utf-8")
     return 0
 
 
@@ -73,7 +87,7 @@ def _report(args: argparse.Namespace) -> int:
 
 COMMANDS = (
     Command("run", "run a session pipeline (C3D → results folder)", _run_args, _run),
-    Command("print-config", "print the commented session-config template", _print_config_args,
-            _print_config),
+    Command("print-config", "print every session-config key (type, default, unit, meaning), a "
+            "config resolved, or the example", _print_config_args, _print_config),
     Command("report", "rebuild report.html of a session folder", _report_args, _report),
 )  # fmt: skip
