@@ -640,13 +640,16 @@ def test_motion_scaling_of_grand_challenge_ps_agrees_with_its_static(real_dir, g
         assert rm.methods[body] == "motion markers"
         assert rm.factors[body][0] == pytest.approx(rs.factors[body][0], rel=0.04), body
     # no knee or ankle marker in the walk: the whole leg from ASIS to heel (pose-matched)
-    # scales femur and tibia alike; it agrees with the static's femur and tibia factors
-    # weighted by the generic bone lengths (gait2392: 0.41 and 0.43 m) within 1 %, where the
+    # scales femur and tibia alike; it agrees with the static's femur and tibia marker-pair
+    # ratios weighted by the generic bone lengths (gait2392: 0.41 and 0.43 m) within 1 %, and
+    # with the static's joint-centre factors (what the static scales by) within 4 %, where the
     # stature (1.67 / 1.80 = 0.93) would be 10 % short
     for side in "rl":
         assert rm.methods[f"femur_{side}"] == "motion markers"
+        pair = (0.41 * rs.ratios[f"femur_{side}"] + 0.43 * rs.ratios[f"tibia_{side}"]) / 0.84
+        assert rm.factors[f"femur_{side}"][0] == pytest.approx(pair, rel=0.01)
         leg = (0.41 * rs.factors[f"femur_{side}"][0] + 0.43 * rs.factors[f"tibia_{side}"][0]) / 0.84
-        assert rm.factors[f"femur_{side}"][0] == pytest.approx(leg, rel=0.01)
+        assert rm.factors[f"femur_{side}"][0] == pytest.approx(leg, rel=0.04)
 
 
 def _jc_subject(gait2392, factors, *, sacrum=True, medial=True, noise_m=0.002, seed=1):
