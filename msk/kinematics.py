@@ -77,6 +77,8 @@ class Kinematics:
         n_markers_used, iterations: (N,) per frame.
         cutoff_hz: the low-pass cutoff used for v and a (None: no filtering).
         solve_time_s: wall-clock time of the frame-by-frame solve.
+        marker_rms_all: (N,) RMS marker distance (m) over the markers used and the model
+            markers of the trial given weight 0 (None when there are none).
     """
 
     time: Array
@@ -96,6 +98,7 @@ class Kinematics:
     cutoff_hz: float | None = None
     solve_time_s: float = 0.0
     metadata: Mapping[str, object] = field(default_factory=dict)
+    marker_rms_all: Array | None = None
 
     @property
     def n_frames(self) -> int:
@@ -519,6 +522,11 @@ def solve_kinematics(
         )
     cols = [labels.index(n) for n in used]
     xm = x[:, cols]
+    # model markers of the trial left out by a zero weight: their distances are reported
+    ignored = [mk.name for mk in model.markers if mk.name in labels and mk.name not in used]
+    x_ign = x[:, [labels.index(n) for n in ignored]]
+    prob_ign = _MarkerProblem(model, ignored) if ignored else None
+    errs_ign = np.full((t.size, len(ignored)), np.nan)
     w = np.array([weights.get(n, 1.0) for n in used])
     sw = np.sqrt(w)
     prob = _MarkerProblem(model, used)
@@ -613,6 +621,8 @@ def solve_kinematics(
         d = np.linalg.norm(p - xm[n], axis=1)
         d[~present] = np.nan
         errs[n] = d
+        if prob_ign is not None:
+            errs_ign[n] = np.linalg.norm(prob_ign.positions(theta) - x_ign[n], axis=1)
     solve_time = _time.perf_counter() - tic
     if status.all():
         raise KinematicsError("no frame could be solved (too few markers in every frame)")
@@ -625,6 +635,15 @@ def solve_kinematics(
     for n in np.flatnonzero(solved).tolist():
         j = int(np.nanargmax(errs[n]))
         mx[n], mx_name[n] = errs[n, j], used[j]
+    rms_all = None
+    if ignored:
+        both = np.concatenate([errs, errs_ign], axis=1)
+        both[~solved] = np.nan
+        cnt = np.isfinite(both).sum(axis=1)
+        rms_all = np.full(n_frames, np.nan)
+        rms_all[solved] = np.sqrt(
+            np.where(np.isfinite(both), both**2, 0.0)[solved].sum(axis=1) / cnt[solved]
+        )
     q_out[status == STATUS_TOO_FEW_MARKERS] = np.nan
     qf, v, a = _filtered_derivatives(t, q_out, cutoff_hz, filter_order)
     return Kinematics(
@@ -644,6 +663,7 @@ def solve_kinematics(
         iterations=iters,
         cutoff_hz=cutoff_hz,
         solve_time_s=solve_time,
+        marker_rms_all=rms_all,
     )
 
 

@@ -79,6 +79,7 @@ __all__ = [
     "ParsedLabel",
     "parse_label",
     "recognise",
+    "shoulder_girdle_markers",
     "zeros_as_gaps",
 ]
 
@@ -383,6 +384,36 @@ _ARM_LANDMARKS = frozenset({"arm"})
 _HEAD_LANDMARKS = frozenset({"head"})
 _ARM_BODY = re.compile(r"humerus|ulna|radius|hand|arm", re.IGNORECASE)
 _HEAD_BODY = re.compile(r"head|skull|neck", re.IGNORECASE)
+
+
+#: landmarks of the shoulder girdle (scapula, clavicle)
+SHOULDER_GIRDLE_LANDMARKS = frozenset({"acromion", "clavicle"})
+_SHOULDER_BODY = re.compile(r"scapula|clavic|humerus|shoulder", re.IGNORECASE)
+_SHOULDER_WORD = re.compile(r"shoulder|acrom")
+
+
+def shoulder_girdle_markers(labels: Sequence[str], model_bodies: Sequence[str]) -> tuple[str, ...]:
+    """The labels of markers on the shoulder girdle (acromion, clavicle, a "Shoulder" word
+    marker) when the model has no shoulder-girdle or arm segment (no scapula, clavicle or
+    humerus body; gait2392 puts its acromion markers on the rigid torso).
+
+    Such a marker follows the scapula, which elevates, protracts and rotates on the thorax
+    with the arms (it moves ~8 cm between the arms-out static and the walk on OpenSim's
+    subject01; gait2392 fits leave the acromia 55-65 mm off on the UWA and UNIPD walks, the
+    worst markers by far): on a model whose torso is rigid it does not measure the trunk, and
+    fitting it tilts the trunk and, through the lumbar joint, the pelvis. Empty when the model
+    has such a segment.
+    """
+    if any(_SHOULDER_BODY.search(b) for b in model_bodies):
+        return ()
+    out = []
+    for lab in labels:
+        p = parse_label(lab)
+        if p.landmark in SHOULDER_GIRDLE_LANDMARKS or (
+            p.kind != "excluded" and p.landmark != "arm" and _SHOULDER_WORD.search(_norm(p.name))
+        ):
+            out.append(lab)
+    return tuple(out)
 
 
 @dataclass(frozen=True)

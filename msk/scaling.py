@@ -47,6 +47,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from msk.exceptions import FileFormatError, MissingDataError, ModelError, MskError
 from msk.joints import Constant, CoordinateFunction, Multiplier
+from msk.markersets import parse_label, shoulder_girdle_markers
 from msk.model import GROUND, Axis, Body, Joint, Marker, Model, forward_kinematics
 from msk.muscles.path import ConditionalPathPoint, MovingPathPoint, Muscle, PathPoint, WrapObject
 
@@ -477,6 +478,19 @@ def point_segment_distance(p: ArrayLike, a: ArrayLike, b: ArrayLike) -> float:
     return float(np.linalg.norm(p - (a + t * d)))
 
 
+def _girdle_moved(model: Model, labels: Sequence[str], move: Sequence[str]) -> tuple[str, ...]:
+    """``move`` plus the model's shoulder-girdle markers in ``labels`` when the model has no
+    shoulder-girdle segment (:func:`msk.markersets.shoulder_girdle_markers`): gait2392's
+    acromion markers sit on its rigid torso where a generic trunk puts them, not on a bone of
+    the model, so the subject's are placed like technical markers (their shoulder width and
+    the shoulders' position over the pelvis are the subject's: left where the generic torso
+    puts them, UWA's acromia stayed 55 mm from the model's through the walk, 10 mm once
+    placed)."""
+    present = [mk.name for mk in model.markers if mk.name in set(labels)]
+    girdle = shoulder_girdle_markers(present, [b.name for b in model.bodies])
+    return tuple(move) + tuple(m for m in girdle if m not in move)
+
+
 def place_markers(
     model: Model,
     static_markers: np.ndarray,
@@ -510,6 +524,8 @@ def place_markers(
     ``move`` names model markers that are not anatomical (technical clusters: a lab puts them
     where it likes): θ̄ is solved without them and they are moved, on their own body, to where
     the static trial puts them — OpenSim's ``move_model_markers`` restricted to these markers.
+    Shoulder-girdle markers of a model without that segment (acromia on gait2392's torso) are
+    always moved (:func:`_girdle_moved`).
 
     Args:
         model: the (scaled) model, in the frame of ``static_markers``.
@@ -533,10 +549,10 @@ def place_markers(
     from msk.io.c3d import is_measured_marker
     from msk.kinematics import solve_kinematics
 
-    move = tuple(move)
     unknown = sorted(set(move) - set(model.marker_names))
     if unknown:
         raise ModelError(f"model {model.name}: no marker {unknown[0]!r} to move")
+    move = _girdle_moved(model, labels, move)
     n = static_markers.shape[0]
     frames = np.unique(np.linspace(0, n - 1, min(n, 9)).round().astype(int))
     base = model.with_markers([m for m in model.markers if m.name not in move]) if move else model
@@ -1048,7 +1064,11 @@ def scale_from_static(
 ) -> tuple[Model, ScalingReport]:
     """:func:`measure_scale_factors` on a static trial (``{label: (N, 3)}`` or a TRC table),
     per segment the first usable alternative of :data:`SEGMENT_MEASUREMENTS` when
-    ``measurements`` is None, completed by the stature like :func:`scale_from_motion`."""
+    ``measurements`` is None, completed by the stature like :func:`scale_from_motion`.
+
+    With ``measurements`` None, a thigh or shank whose joint centres the static trial shows
+    (epicondyles and malleoli both sides of the leg, :func:`joint_centre_scale_factors`) is
+    scaled by the joint-centre distance instead of the marker pair (Kainz et al. 2017)."""
     means = _static_means(static_markers)
     names = dict(marker_names or {})
     have = {mk for mk in model.marker_names if names.get(mk, mk) in means}
@@ -1058,6 +1078,19 @@ def scale_from_static(
         else usable_measurements(list(measurements), have)
     )
     measured, ratios = measure_scale_factors(model, means, meas, marker_names=names)
+    details: dict[str, dict[str, Any]] = {
+        m.name: {"pairs": [list(p) for p in m.marker_pairs]} for m in meas
+    }
+    if measurements is None:
+        # thigh and shank by joint centres where the static has medial and lateral markers
+        pf = float(np.asarray(measured.get("pelvis", np.ones(3)), dtype=float).reshape(-1)[0])
+        jc, jc_details = joint_centre_scale_factors(
+            model, means, pelvis_factor=pf, marker_names=names
+        )
+        for body, f in jc.items():
+            measured[body] = np.full(3, f)
+            ratios[f"{body} (joint centres)"] = f
+        details.update(jc_details)
     factors, methods, hf, mh = complete_scale_factors(
         model, measured, source="static markers", height_m=height_m
     )
@@ -1065,7 +1098,6 @@ def scale_from_static(
     unscaled = [b for b, m in methods.items() if m == "unscaled"]
     if unscaled:
         messages.append(f"no marker measurement and no height: {unscaled} left unscaled")
-    details = {m.name: {"pairs": [list(p) for p in m.marker_pairs]} for m in meas}
     scaled = apply_scale_factors(model, factors, body_mass=body_mass).with_metadata(
         scale_ratios=ratios, scale_methods=methods
     )
@@ -1105,7 +1137,8 @@ def place_markers_from_motion(
     4. a marker whose final spread exceeds ``max_spread_m`` is not placed and is reported;
     5. ``move``: model markers (a lab puts its foot markers where it likes) moved, on their
        own body, to their median body-frame position in the last pass (OpenSim's
-       ``move_model_markers`` for these markers, as :func:`place_markers` does on a static).
+       ``move_model_markers`` for these markers, as :func:`place_markers` does on a static);
+       shoulder-girdle markers of a model without that segment are always moved.
 
     ``regularize`` None (default): the passes run without any pull on the coordinates; when
     their final marker RMS exceeds :data:`PLACEMENT_RETRY_RMS_M` (the anatomical markers leave
@@ -1144,6 +1177,7 @@ def place_markers_from_motion(
     unknown = sorted(set(move) - known)
     if unknown:
         raise ModelError(f"model {model.name}: no marker {unknown[0]!r} to move")
+    move = _girdle_moved(model, labels, move)
     idx = _ik_frames(x, labels, known, max_frames, min_markers, t)
     if idx.size == 0:
         raise MissingDataError(
@@ -1262,3 +1296,127 @@ def place_markers_from_motion(
         "regularized": regularize,
     }
     return model.with_markers([*own, *added]), info
+
+
+# ---------------------------------------------------------------------------------------------
+# joint-centre scaling of the leg (static trial with medial and lateral markers)
+# ---------------------------------------------------------------------------------------------
+#: landmark pairs whose midpoint is a joint centre (gait2392 marker names, side prefix added):
+#: knee = femoral epicondyles, ankle = malleoli
+JOINT_CENTRE_PAIRS: Mapping[str, tuple[str, str]] = {
+    "knee": ("Knee.Lat", "Knee.Med"),
+    "ankle": ("Ankle.Lat", "Ankle.Med"),
+}
+
+
+def _rigid_fit(local: Array, world: Array) -> tuple[Array, Array]:
+    """Rotation R and translation t minimising Σ‖R local_i + t − world_i‖² (Kabsch)."""
+    cl, cw = local.mean(axis=0), world.mean(axis=0)
+    u, _, vt = np.linalg.svd((local - cl).T @ (world - cw))
+    d = np.sign(np.linalg.det(vt.T @ u.T))
+    rot = vt.T @ np.diag([1.0, 1.0, d]) @ u.T
+    return rot, cw - rot @ cl
+
+
+def _mid_psis(means: Mapping[str, Array]) -> Array | None:
+    """The static's mid-PSIS (both PSIS markers), found by landmark."""
+    found: dict[tuple[str | None, str], Array] = {}
+    for lab, v in means.items():
+        p = parse_label(lab)
+        if p.landmark == "psis" and p.kind == "landmark":
+            found.setdefault((p.side, p.landmark), np.asarray(v, dtype=float))
+    if ("R", "psis") in found and ("L", "psis") in found:
+        return 0.5 * (found[("R", "psis")] + found[("L", "psis")])
+    return None
+
+
+def joint_centre_scale_factors(
+    model: Model,
+    static_markers: Any,
+    *,
+    pelvis_factor: float = 1.0,
+    marker_names: Mapping[str, str] | None = None,
+) -> tuple[dict[str, float], dict[str, dict[str, Any]]]:
+    """Thigh and shank scale factors from joint-centre distances in a static trial (Kainz et
+    al. 2017, J Appl Biomech 33:354-360: scaling the thigh by hip–knee and the shank by
+    knee–ankle joint-centre distances is more accurate than by skin-marker pairs).
+
+    Per side s with both epicondyle and both malleolus markers (:data:`JOINT_CENTRE_PAIRS`):
+    the knee centre is the midpoint of the epicondyles, the ankle centre that of the malleoli
+    (ISB, Wu et al. 2002, J Biomech 35:543-548); the hip centre is the model's, carried by the
+    pelvis (scaled by ``pelvis_factor``) fitted rigidly to the pelvis markers (≥ 3 model
+    markers on the pelvis in the trial). The factors are these distances over the model's
+    joint-origin distances in the default pose (hip → knee → ankle joint): the skin markers'
+    positions in the generic marker set do not enter (gait2392 puts its malleolus markers 3 cm
+    above the ankle joint, which inflated the shank by ~10 % when scaled by marker pairs).
+
+    Returns ``({body: factor}, {measurement: details})``; a side without the four markers, or
+    a pelvis without 3 markers (a sacral marker or, failing it, the mid-PSIS counts), gives
+    nothing for that leg (thigh and shank are scaled together this way or not at all).
+    """
+    means = _static_means(static_markers)
+    names = dict(marker_names or {})
+
+    def exp(mk: str) -> Array | None:
+        v = means.get(names.get(mk, mk))
+        return None if v is None else np.asarray(v, dtype=float)
+
+    data = model.create_data()
+    forward_kinematics(model, data, model.default_coordinates())
+
+    def origin(body: str) -> Array:
+        return np.asarray(data.oMf[model.body_frame[body]].translation, dtype=float)
+
+    factors: dict[str, float] = {}
+    details: dict[str, dict[str, Any]] = {}
+    # the hip centres: the model's, carried by its pelvis fitted rigidly to the pelvis markers
+    # (the mid-PSIS stands in for a missing sacral marker: IOR/CAST sets have PSIS, no sacrum)
+    pelvis_pts = {
+        mk.name: (np.asarray(mk.offset, dtype=float), exp(mk.name))
+        for mk in model.markers
+        if mk.body == "pelvis" and exp(mk.name) is not None
+    }
+    sacral = [
+        mk for mk in model.markers
+        if mk.body == "pelvis" and parse_label(mk.name).landmark == "sacrum"
+    ]  # fmt: skip
+    mid = _mid_psis(means)
+    if len(sacral) == 1 and sacral[0].name not in pelvis_pts and mid is not None:
+        pelvis_pts[sacral[0].name] = (np.asarray(sacral[0].offset, dtype=float), mid)
+    pelvis_pose = None
+    if len(pelvis_pts) >= 3 and "pelvis" in model.body_frame:
+        local = np.array([v[0] for v in pelvis_pts.values()]) * pelvis_factor
+        world = np.array([v[1] for v in pelvis_pts.values()])
+        if np.linalg.matrix_rank(local - local.mean(axis=0), tol=1e-3) >= 2:
+            pelvis_pose = _rigid_fit(local, world)
+    hip_of = {}
+    if pelvis_pose is not None:
+        o_p = data.oMf[model.body_frame["pelvis"]]
+        for side in ("r", "l"):
+            if f"femur_{side}" in model.body_frame:
+                loc = np.asarray(o_p.actInv(origin(f"femur_{side}")), dtype=float)
+                hip_of[side] = pelvis_pose[0] @ (loc * pelvis_factor) + pelvis_pose[1]
+    for side in ("r", "l"):
+        p = side.upper()
+        femur, tibia, talus = f"femur_{side}", f"tibia_{side}", f"talus_{side}"
+        if not all(b in model.body_frame for b in (femur, tibia, talus)):
+            continue
+        pts = {}
+        for jc, (a, b) in JOINT_CENTRE_PAIRS.items():
+            xa, xb = exp(f"{p}.{a}"), exp(f"{p}.{b}")
+            if xa is not None and xb is not None:
+                pts[jc] = 0.5 * (xa + xb)
+        hjc = hip_of.get(side)
+        if "knee" not in pts or "ankle" not in pts or hjc is None:
+            # thigh and shank together or neither: a shank by joint centres under a thigh by
+            # marker pairs would put the knee where neither definition does
+            continue
+        for body, a, b, x_a, x_b in (
+            (femur, femur, tibia, hjc, pts["knee"]),
+            (tibia, tibia, talus, pts["knee"], pts["ankle"]),
+        ):
+            d_m = float(np.linalg.norm(origin(a) - origin(b)))
+            d_e = float(np.linalg.norm(x_a - x_b))
+            factors[body] = d_e / d_m
+            details[f"{body} (joint centres)"] = {"experimental_m": d_e, "model_m": d_m}
+    return factors, details

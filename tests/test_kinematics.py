@@ -151,3 +151,20 @@ def test_kinematics_from_coordinates_reorders_to_the_model():
     )
     np.testing.assert_allclose(kin.q, TRIAL.q)
     assert kin.coordinate_names == MODEL.coordinate_names
+
+
+def test_markers_left_out_by_a_zero_weight_are_in_the_all_markers_rms():
+    """A marker given weight 0 does not move the solution, and its distance is reported in
+    ``marker_rms_all`` (over all the model markers of the trial), not in ``marker_rms``."""
+    x = TRIAL.markers.copy()
+    k = MODEL.marker_names.index("RTOE")
+    x[:, k] += [0.0, 0.03, 0.0]  # 3 cm off
+    kin = solve_kinematics(
+        MODEL, x, TRIAL.marker_labels, TRIAL.time, weights={"RTOE": 0.0}, cutoff_hz=None
+    )
+    n = len(kin.marker_names) + 1
+    assert np.nanmax(kin.marker_rms) < 1e-6
+    assert kin.marker_rms_all is not None
+    np.testing.assert_allclose(kin.marker_rms_all, np.sqrt(0.03**2 / n), rtol=1e-4)
+    full = solve_kinematics(MODEL, TRIAL.markers, TRIAL.marker_labels, TRIAL.time, cutoff_hz=None)
+    assert full.marker_rms_all is None

@@ -226,3 +226,17 @@ def test_opensim_sets(real_dir, gait2392):
     }
     assert {k: m.rename[k] for k in expect} == expect
     assert {"R.TH1", "R.SH4", "R.PSIS"} <= set(m.unmatched_lab)
+
+
+def test_shoulder_girdle_markers_only_for_a_model_without_that_segment():
+    """Acromion / clavicle / "Shoulder" markers are the shoulder girdle's on a model whose
+    torso is rigid (gait2392); never on a model with a scapula or humerus; arm markers, the
+    sternum, C7 and the jugular notch (Plug-in Gait CLAV) are not."""
+    from msk.markersets import shoulder_girdle_markers
+
+    labels = ["R.Acromium", "LSHO", "RA", "RShoulder", "RCLAV", "CLAV", "C7", "Sternum",
+              "R_ShoulderAnterior", "RELB", "RASIS"]  # fmt: skip
+    assert shoulder_girdle_markers(labels, ["pelvis", "torso", "femur_r"]) == (
+        "R.Acromium", "LSHO", "RA", "RShoulder", "RCLAV"
+    )  # fmt: skip
+    assert shoulder_girdle_markers(labels, ["pelvis", "torso", "humerus_r"]) == ()

@@ -638,10 +638,117 @@ def test_motion_scaling_of_grand_challenge_ps_agrees_with_its_static(real_dir, g
         assert rm.methods[body] == "motion markers"
         assert rm.factors[body][0] == pytest.approx(rs.factors[body][0], rel=0.04), body
     # no knee or ankle marker in the walk: the whole leg from ASIS to heel (pose-matched)
-    # scales femur and tibia alike; it agrees with the static's femur and tibia factors
-    # weighted by the generic bone lengths (gait2392: 0.41 and 0.43 m) within 1 %, where the
+    # scales femur and tibia alike; it agrees with the static's femur and tibia marker-pair
+    # ratios weighted by the generic bone lengths (gait2392: 0.41 and 0.43 m) within 1 %, and
+    # with the static's joint-centre factors (what the static scales by) within 4 %, where the
     # stature (1.67 / 1.80 = 0.93) would be 10 % short
     for side in "rl":
         assert rm.methods[f"femur_{side}"] == "motion markers"
+        pair = (0.41 * rs.ratios[f"femur_{side}"] + 0.43 * rs.ratios[f"tibia_{side}"]) / 0.84
+        assert rm.factors[f"femur_{side}"][0] == pytest.approx(pair, rel=0.01)
         leg = (0.41 * rs.factors[f"femur_{side}"][0] + 0.43 * rs.factors[f"tibia_{side}"][0]) / 0.84
-        assert rm.factors[f"femur_{side}"][0] == pytest.approx(leg, rel=0.01)
+        assert rm.factors[f"femur_{side}"][0] == pytest.approx(leg, rel=0.04)
+
+
+def _jc_subject(gait2392, factors, *, sacrum=True, medial=True, noise_m=0.002, seed=1):
+    """A static trial of gait2392 scaled by ``factors`` whose epicondyle and malleolus markers
+    straddle the knee and ankle joint centres (ISB), in a random pose of the whole body."""
+    from msk.model import Marker
+
+    truth = apply_scale_factors(gait2392, factors)
+    data = truth.create_data()
+    forward_kinematics(truth, data, truth.default_coordinates())
+
+    def local(body, child):
+        o = data.oMf[truth.body_frame[body]]
+        return np.asarray(o.actInv(data.oMf[truth.body_frame[child]].translation))
+
+    mk = []
+    for m in truth.markers:
+        side = m.name[0].lower()
+        if m.name[1:] in (".Knee.Lat", ".Knee.Med"):
+            c = local(f"femur_{side}", f"tibia_{side}")
+        elif m.name[1:] in (".Ankle.Lat", ".Ankle.Med"):
+            c = local(f"tibia_{side}", f"talus_{side}")
+        else:
+            mk.append(m)
+            continue
+        lat = (1 if side == "r" else -1) * (1 if m.name.endswith("Lat") else -1)
+        mk.append(Marker(m.name, m.body, c + np.array([0.0, 0.0, 0.05 * lat])))
+    if not sacrum:  # IOR/CAST: two PSIS, no sacral marker
+        sac = next(m for m in mk if m.name == "V.Sacral")
+        mk = [m for m in mk if m.name != "V.Sacral"]
+        for s, z in (("R", 0.05), ("L", -0.05)):
+            mk.append(Marker(f"{s}PSIS", "pelvis", sac.offset + np.array([0.0, 0.0, z])))
+    if not medial:
+        mk = [m for m in mk if not m.name.endswith("Med")]
+    truth = truth.with_markers(mk)
+    q = truth.default_coordinates()
+    c = truth.coordinate_names
+    for name, v in {"pelvis_tilt": 0.2, "pelvis_rotation": 1.1, "pelvis_tx": 0.4,
+                    "hip_flexion_r": 0.1, "knee_angle_l": -0.05}.items():  # fmt: skip
+        q[c.index(name)] = v
+    pos = marker_positions(truth, q[None])[0]
+    rng = np.random.default_rng(seed)
+    return {n: pos[i] + rng.normal(0.0, noise_m, (30, 3)) for i, n in enumerate(truth.marker_names)}
+
+
+def test_joint_centre_scaling_recovers_thigh_and_shank_lengths(gait2392):
+    """Thigh and shank from hip–knee and knee–ankle joint-centre distances (Kainz 2017):
+    a subject with a long femur and a short tibia, 2 mm marker noise, any pose — the factors
+    come back within 1.5 %, where the marker pairs (ASIS–knee, knee–ankle with gait2392's
+    malleolus markers 3 cm above the joint) are off by more; scale_from_static uses them."""
+    from msk.scaling import joint_centre_scale_factors, scale_from_static
+
+    f = {"pelvis": 1.04, "femur_r": 1.12, "femur_l": 1.10, "tibia_r": 0.96, "tibia_l": 0.98}
+    static = _jc_subject(gait2392, f)
+    got, details = joint_centre_scale_factors(gait2392, static, pelvis_factor=1.04)
+    assert set(got) == {"femur_r", "femur_l", "tibia_r", "tibia_l"}
+    for body, v in got.items():
+        assert v == pytest.approx(f[body], rel=0.015), body
+    assert details["tibia_r (joint centres)"]["model_m"] == pytest.approx(0.43)
+    _, rep = scale_from_static(gait2392, static)
+    assert rep.factors["tibia_r"][0] == pytest.approx(f["tibia_r"], rel=0.015)
+    assert rep.factors["femur_l"][0] == pytest.approx(f["femur_l"], rel=0.015)
+    assert rep.ratios["tibia_r"] > 1.05 * f["tibia_r"]  # the marker pair, for the record
+    assert "femur_r (joint centres)" in rep.ratios
+
+
+def test_joint_centre_scaling_uses_the_psis_and_needs_the_medial_markers(gait2392):
+    """An IOR/CAST pelvis (two PSIS, no sacral marker) still carries the hip centres; a
+    static without medial markers gives no joint-centre factor (the marker pairs stay)."""
+    from msk.scaling import joint_centre_scale_factors, scale_from_static
+
+    f = {"pelvis": 0.97, "femur_r": 1.05, "femur_l": 1.05, "tibia_r": 1.08, "tibia_l": 1.08}
+    got, _ = joint_centre_scale_factors(
+        gait2392, _jc_subject(gait2392, f, sacrum=False), pelvis_factor=0.97
+    )
+    assert got["femur_r"] == pytest.approx(1.05, rel=0.015)
+    assert got["tibia_l"] == pytest.approx(1.08, rel=0.015)
+    lateral = _jc_subject(gait2392, f, medial=False)
+    assert joint_centre_scale_factors(gait2392, lateral, pelvis_factor=0.97)[0] == {}
+    _, rep = scale_from_static(gait2392, lateral)
+    assert not any("joint centres" in k for k in rep.ratios)
+
+
+def test_place_markers_moves_the_acromia_of_a_model_without_shoulder_girdle(gait2392):
+    """gait2392's acromion markers sit on its rigid torso where the generic trunk puts them:
+    a subject whose acromia are 4 cm higher gets them moved there by the static placement,
+    without naming them in ``move``; the static pose is solved without them."""
+    from msk.model import Marker
+    from msk.scaling import place_markers
+
+    up = np.array([0.0, 0.04, 0.0])
+    truth = gait2392.with_markers(
+        [Marker(m.name, m.body, m.offset + up) if "Acromium" in m.name else m
+         for m in gait2392.markers]
+    )  # fmt: skip
+    q = truth.default_coordinates()
+    x = np.repeat(marker_positions(truth, q[None]), 5, axis=0)
+    placed, info = place_markers(gait2392, x, truth.marker_names, np.arange(5) / 100.0)
+    assert set(info["moved"]) == {"R.Acromium", "L.Acromium"}
+    assert info["moved"]["R.Acromium"] == pytest.approx(0.04, abs=1e-6)
+    assert info["static_marker_rms_m"] < 1e-6
+    got = {m.name: m.offset for m in placed.markers}
+    want = {m.name: m.offset for m in truth.markers}
+    np.testing.assert_allclose(got["L.Acromium"], want["L.Acromium"], atol=1e-6)
