@@ -157,7 +157,7 @@ _FRAME_BLOCK = 2048
 
 def _state_rows(state: RigidTendonState, sl: slice, n: int) -> RigidTendonState:
     """``state`` with its (n, M) arrays restricted to the frames ``sl`` (views)."""
-    changes = {}
+    changes: dict[str, Any] = {}
     for f in dataclasses.fields(state):
         v = getattr(state, f.name)
         if isinstance(v, np.ndarray) and v.ndim == 2 and v.shape[0] == n:
