@@ -39,6 +39,11 @@ before the ``k_s`` identification, rad, 0 = full extension).
 Writing is atomic for the whole folder (:func:`write_session`): everything goes into a temporary
 sibling folder that replaces ``<out>`` by a rename at the very end, so a run that fails never
 leaves a half-written table or report behind (the previous results, if any, stay intact).
+The replacement is two renames (``<out>`` → ``.<out>.old-<pid>``, then the temporary folder →
+``<out>``); a process killed between them leaves ``<out>`` absent. The next write to (or
+check of) ``<out>`` recovers (:func:`recover_interrupted_write`): the previous results are put
+back, with the stage cache, and the leftovers of dead writers are removed — an interrupted run
+never reported success, so its half-published results are not kept.
 """
 
 from __future__ import annotations
@@ -65,6 +70,7 @@ __all__ = [
     "check_replaceable",
     "json_default",
     "read_session",
+    "recover_interrupted_write",
     "write_session",
 ]
 
@@ -161,7 +167,7 @@ def write_session(
     out = Path(out_dir).resolve()
     check_replaceable(out, keep)
     out.parent.mkdir(parents=True, exist_ok=True)
-    tmp = Path(tempfile.mkdtemp(prefix=f".{out.name}.tmp-", dir=out.parent))
+    tmp = Path(tempfile.mkdtemp(prefix=f".{out.name}.tmp-{os.getpid()}-", dir=out.parent))
     try:
         written = _write_tables(tmp, results)
         for rel, blob in results.extra_files.items():
@@ -207,12 +213,81 @@ def write_session(
 SESSION_ENTRIES = frozenset({"summary.json", "report.html", "report.pdf", "tables"})
 
 
+def _writer_alive(pid: int) -> bool:
+    """Whether process ``pid`` may still be writing (exists, or cannot be checked)."""
+    if pid == os.getpid():
+        return False  # this process is not inside write_session here
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except (PermissionError, OSError, OverflowError):
+        return True
+    return True
+
+
+def _leftover_pid(name: str, prefix: str) -> int | None:
+    """The writer's pid in a leftover name ``<prefix><pid>[-<random>]``; None when it has
+    none (a folder that is not msk's)."""
+    head = name[len(prefix) :].split("-", 1)[0]
+    return int(head) if head.isdigit() else None
+
+
+def recover_interrupted_write(out_dir: str | Path, keep: Sequence[str] = (".cache",)) -> list[str]:
+    """Recover ``out_dir`` from a :func:`write_session` killed between its two renames, and
+    remove what dead writers left beside it. The rule, for leftovers whose writer process is
+    gone (a live writer's are never touched):
+
+    * ``.<out>.old-<pid>`` (the previous results, renamed away): when ``<out>`` is absent it
+      is renamed back to ``<out>``; otherwise the swap had completed and it is removed;
+    * ``.<out>.tmp-<pid>-*`` (a temporary folder: unfinished, or finished but never
+      published): the ``keep`` entries in it (the stage cache) go back into ``<out>`` when
+      ``<out>`` lacks them; then it is removed.
+
+    Returns one line per action (empty when there was nothing to do)."""
+    out = Path(out_dir).resolve()
+    parent = out.parent
+    if not parent.is_dir():
+        return []
+    done: list[str] = []
+    old_prefix, tmp_prefix = f".{out.name}.old-", f".{out.name}.tmp-"
+    try:
+        entries = sorted(parent.iterdir())
+    except OSError:
+        return []
+    olds = [p for p in entries if p.name.startswith(old_prefix) and p.is_dir()]
+    tmps = [p for p in entries if p.name.startswith(tmp_prefix) and p.is_dir()]
+    for old in olds:
+        pid = _leftover_pid(old.name, old_prefix)
+        if pid is None or _writer_alive(pid):
+            continue
+        if not out.exists():
+            os.replace(old, out)
+            done.append(f"restored {out} from {old.name} (a run was interrupted replacing it)")
+        else:
+            shutil.rmtree(old, ignore_errors=True)
+            done.append(f"removed {old.name} (left by an interrupted run)")
+    for tmp in tmps:
+        pid = _leftover_pid(tmp.name, tmp_prefix)
+        if pid is None or _writer_alive(pid):
+            continue
+        if out.is_dir():
+            for name in keep:
+                if (tmp / name).exists() and not (out / name).exists():
+                    os.replace(tmp / name, out / name)
+        shutil.rmtree(tmp, ignore_errors=True)
+        done.append(f"removed {tmp.name} (temporary folder of an interrupted run)")
+    return done
+
+
 def check_replaceable(out_dir: str | Path, keep: Sequence[str] = (".cache",)) -> None:
     """Refuse to replace a folder unless nothing but msk's own output would be lost: it must
     be absent, empty (but for ``keep``), or an msk session folder — a ``summary.json`` of
     format :data:`SUMMARY_FORMAT` and no entry msk did not write (:data:`SESSION_ENTRIES`,
-    table files in ``tables/``)."""
+    table files in ``tables/``). Recovers an interrupted write first
+    (:func:`recover_interrupted_write`)."""
     out = Path(out_dir)
+    recover_interrupted_write(out, keep)
     if not out.exists():
         return
     if not out.is_dir():

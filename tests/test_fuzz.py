@@ -577,3 +577,96 @@ def test_cli_info_on_a_strict_ascii_stdout(tmp_path):
     r = _msk("info", str(f), ascii_out=True)
     assert r.returncode == 0 and "Traceback" not in r.stderr, r.stderr
     assert "R.ASIS\\xe9" in r.stdout
+
+
+# --- the issue's named examples that the mutant lanes reach only by chance (issue 18) --------
+
+
+def _trc_text(tmp_path: Path) -> str:
+    import numpy as np
+
+    from msk.io.opensim_files import write_trc
+
+    t = np.arange(5) / 100.0
+    x = np.zeros((5, 2, 3)) + np.array([0.1, 0.9, 0.2])
+    return write_trc(
+        tmp_path / "g.trc", time=t, markers=x, labels=["A", "B"], rate_hz=100.0
+    ).read_text()
+
+
+@pytest.mark.parametrize("rate", ["0", "-100"])
+def test_trc_rate_zero_or_negative_is_refused(tmp_path, rate):
+    from msk.exceptions import MskError
+    from msk.io.opensim_files import read_trc
+
+    lines = _trc_text(tmp_path).splitlines()
+    vals = lines[2].split("\t")
+    vals[0] = rate
+    lines[2] = "\t".join(vals)
+    (tmp_path / "r.trc").write_text("\n".join(lines) + "\n")
+    with pytest.raises(MskError, match="DataRate"):
+        read_trc(tmp_path / "r.trc")
+
+
+@pytest.mark.parametrize("times", [(0.0, 0.02, 0.01), (0.0, 0.01, 0.01)], ids=["unsorted", "dup"])
+def test_trc_and_mot_with_unsorted_or_duplicated_time_are_refused(tmp_path, times):
+    import numpy as np
+
+    from msk.exceptions import MskError
+    from msk.io.opensim_files import read_sto, read_trc
+
+    lines = _trc_text(tmp_path).splitlines()
+    for k, t in enumerate(times):  # data rows start after the 5 header lines (+ blank)
+        row = next(i for i, ln in enumerate(lines) if ln.startswith(f"{k + 1}\t"))
+        vals = lines[row].split("\t")
+        vals[1] = repr(t)
+        lines[row] = "\t".join(vals)
+    (tmp_path / "t.trc").write_text("\n".join(lines) + "\n")
+    with pytest.raises(MskError, match="time"):
+        read_trc(tmp_path / "t.trc")
+    mot = tmp_path / "g.mot"
+    rows = "\n".join(f"{t!r}\t{v:g}" for t, v in zip(times, np.arange(3.0)))
+    mot.write_text(
+        f"g\nversion=1\nnRows=3\nnColumns=2\ninDegrees=no\nendheader\ntime\tground_force_vy\n{rows}\n"
+    )
+    with pytest.raises(MskError, match="time"):
+        read_sto(mot)
+
+
+def test_trc_absurd_coordinate_is_refused(tmp_path):
+    from msk.exceptions import MskError
+    from msk.io.opensim_files import read_trc
+
+    lines = _trc_text(tmp_path).splitlines()
+    row = next(i for i, ln in enumerate(lines) if ln.startswith("3\t"))
+    vals = lines[row].split("\t")
+    vals[2] = "1e9"  # mm: 1000 km
+    lines[row] = "\t".join(vals)
+    (tmp_path / "a.trc").write_text("\n".join(lines) + "\n")
+    with pytest.raises(MskError, match="beyond"):
+        read_trc(tmp_path / "a.trc")
+
+
+@pytest.mark.parametrize(
+    ("edit", "match"),
+    [
+        (('rename = { "R.ASIS"', 'rename = { "R.ASIS" = "NoSuchMarker", "X.ASIS"'), "no marker"),
+        (("weights = {}", "weights = { NoSuchMarker = 2.0 }"), "NoSuchMarker"),
+    ],
+    ids=["rename", "weights"],
+)
+def test_unknown_marker_names_in_rename_or_weights_exit_2(tmp_path, edit, match):
+    repo = Path(__file__).resolve().parents[1]
+    text = (repo / "pipelines" / "gc5_PS.toml").read_text(encoding="utf-8")
+    text = text.replace('"../', f'"{repo}/')
+    assert edit[0] in text
+    cfg = tmp_path / "c.toml"
+    cfg.write_text(text.replace(edit[0], edit[1], 1), encoding="utf-8")
+    p = subprocess.run(
+        [sys.executable, "-c", "import sys; from msk.cli import main; sys.exit(main())",
+         "run", str(cfg), "--out", str(tmp_path / "o"), "--quiet"],
+        capture_output=True, text=True, timeout=300, check=False,
+    )  # fmt: skip
+    assert p.returncode == 2, p.stderr[-2000:]
+    assert match in p.stderr and "Traceback" not in p.stderr
+    assert len(p.stderr.strip().splitlines()) == 1

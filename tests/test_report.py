@@ -3,8 +3,10 @@
 from __future__ import annotations
 
 import re
+import shutil
 import subprocess
 import tempfile
+import warnings
 from pathlib import Path
 
 import numpy as np
@@ -369,3 +371,43 @@ def test_no_group_at_a_bound_is_called_identified_anywhere(tmp_path):
         for g in bound:
             line = next(ln for ln in text.splitlines() if ln.split()[:1] == [g])
             assert "at bound" in line and "identified" not in line, line
+
+
+def test_chromium_sandbox_unless_root_and_no_javascript_for_the_pdf(monkeypatch):
+    # issue 18: Chromium ran with --no-sandbox always and with JavaScript on during --pdf
+    import msk.report.html as h
+
+    assert "--no-sandbox" not in chromium_args("/p", sandbox=True)
+    assert "--no-sandbox" in chromium_args("/p", sandbox=False)
+    monkeypatch.setattr(h.os, "geteuid", lambda: 1000)
+    assert h.sandbox_possible() and h.pdf_attempts() == [True, False]
+    assert "--no-sandbox" not in chromium_args("/p")  # sandbox first
+    monkeypatch.setattr(h.os, "geteuid", lambda: 0)
+    assert not h.sandbox_possible() and h.pdf_attempts() == [False]  # root: cannot start
+    assert "--no-sandbox" in chromium_args("/p")
+    page = h.without_scripts("<!DOCTYPE html><html><head><title>x</title></head><body></body>")
+    assert page.startswith('<!DOCTYPE html><html><head><meta http-equiv="Content-Security-Pol')
+    assert "script-src 'none'" in page
+    bare = h.without_scripts("<!DOCTYPE html><p>x<script>alert(1)</script>")
+    assert bare.index("script-src 'none'") < bare.index("<script>")
+    t = np.linspace(0, 1, 5)
+    q = Table(t, np.column_stack([t]), ("knee_angle_l",), "q")
+    summary = {"subject": {"name": "X"}, "quality": {}, "stages": [], "not_available": []}
+    assert "script-src 'none'" in render_html(SessionResults({"q": q}, summary))
+
+
+def test_pdf_runs_no_script_of_the_page(chromium, tmp_path):
+    exe_text = shutil.which("pdftotext")
+    if exe_text is None:
+        pytest.skip("pdftotext (poppler-utils) is not installed")
+    page = tmp_path / "r.html"
+    page.write_text(
+        "<!DOCTYPE html><html><head><title>t</title></head><body><p id=x>static text</p>"
+        "<script>document.getElementById('x').textContent='SCRIPT RAN'</script></body></html>",
+        encoding="utf-8",
+    )
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")  # the sandbox warning when run as root
+        assert write_pdf(page, tmp_path / "r.pdf")
+    text = _pdf_text(tmp_path / "r.pdf")
+    assert text is not None and "static text" in text and "SCRIPT RAN" not in text

@@ -321,3 +321,87 @@ def test_read_session_names_the_file_and_the_key(tmp_path):
     (out / "summary.json").write_text(json.dumps(d))
     with pytest.raises(SummaryVersionError, match="schema version 99"):
         read_session(out)
+
+
+def _killed_between_renames(monkeypatch, out):
+    """Write ``out`` again with the process "killed" right after its first rename (out →
+    .out.old-<pid>): os.replace raises there, and the except clause that a SIGKILL would skip
+    is bypassed too (the temporary folder and the old copy stay as a kill leaves them)."""
+    import os
+
+    import msk.results as results
+
+    real = os.replace
+    calls = []
+
+    class Killed(BaseException):
+        pass
+
+    def replace(src, dst):
+        real(src, dst)
+        calls.append((str(src), str(dst)))
+        if ".old-" in str(dst):
+            raise Killed
+
+    monkeypatch.setattr(results.os, "replace", replace)
+    monkeypatch.setattr(results.shutil, "rmtree", lambda *a, **k: None)  # no cleanup: killed
+    with pytest.raises(Killed):
+        write_session(out, _results())
+    monkeypatch.undo()
+
+
+def _fake_dead_pid(parent, name):
+    """Rename the leftovers of this process to those of a process that no longer exists."""
+    import os
+
+    dead = 2**22 + 12345  # above pid_max's default: no such process
+    for p in parent.iterdir():
+        for kind in ("old", "tmp"):
+            prefix = f".{name}.{kind}-{os.getpid()}"
+            if p.name.startswith(prefix):
+                p.rename(parent / p.name.replace(prefix, f".{name}.{kind}-{dead}"))
+
+
+def test_kill_between_the_two_renames_is_recovered_on_the_next_run(tmp_path, monkeypatch):
+    # issue 18: a kill between write_session's two renames left --out absent and the hidden
+    # copies behind; the next run restores the previous results (with the stage cache) and
+    # removes the leftovers
+    out = tmp_path / "s"
+    write_session(out, _results())
+    (out / ".cache").mkdir()
+    (out / ".cache" / "entry.json").write_text("{}")
+    before = (out / "tables" / "q.csv").read_bytes()
+    _killed_between_renames(monkeypatch, out)
+    assert not out.exists()
+    hidden = sorted(p.name for p in tmp_path.iterdir())
+    assert any(".s.old-" in n for n in hidden) and any(".s.tmp-" in n for n in hidden)
+    _fake_dead_pid(tmp_path, "s")
+    from msk.results import check_replaceable, recover_interrupted_write
+
+    check_replaceable(out)  # what `msk run` does before computing
+    assert (out / "tables" / "q.csv").read_bytes() == before
+    assert (out / ".cache" / "entry.json").exists()  # the cache came back from the tmp folder
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["s"]
+    assert recover_interrupted_write(out) == []  # nothing left to do
+    write_session(out, _results())  # and the next write works as usual
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["s"]
+
+
+def test_stale_leftovers_are_removed_but_a_live_writers_are_kept(tmp_path):
+    import os
+
+    from msk.results import recover_interrupted_write
+
+    out = write_session(tmp_path / "s", _results())
+    dead = 2**22 + 12345
+    (tmp_path / f".s.old-{dead}").mkdir()  # swap completed, old copy not removed
+    (tmp_path / f".s.tmp-{dead}-abc").mkdir()  # unfinished temporary folder
+    (tmp_path / f".s.tmp-{dead}-abc" / "summary.json").write_text("{}")
+    parent_pid = os.getppid()  # alive: its leftovers may be in use
+    (tmp_path / f".s.tmp-{parent_pid}-xyz").mkdir()
+    (tmp_path / ".s.tmp-notapid").mkdir()  # not msk's naming: untouched
+    msgs = recover_interrupted_write(out)
+    assert len(msgs) == 2
+    left = sorted(p.name for p in tmp_path.iterdir())
+    assert left == sorted(["s", f".s.tmp-{parent_pid}-xyz", ".s.tmp-notapid"])
+    assert (out / "summary.json").exists()

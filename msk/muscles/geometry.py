@@ -104,7 +104,9 @@ Array = NDArray[np.float64]
 __all__ = [
     "GeometryPlan",
     "MuscleGeometry",
+    "finite_frames",
     "geometry_plan",
+    "jacobian_frames",
     "muscle_geometry",
     "muscle_parameters",
     "wrap_cylinder",
@@ -1776,6 +1778,40 @@ def _frames(x: ArrayLike, n_coords: int, what: str) -> Array:
 
 
 _PLANS: weakref.WeakKeyDictionary[Model, GeometryPlan] = weakref.WeakKeyDictionary()
+
+
+#: frames per block of :func:`finite_frames` / :func:`jacobian_frames` (a few MB per block for
+#: gait2392's 92 muscles × 23 coordinates: long trials need no full-size temporary)
+FRAME_BLOCK = 2048
+
+
+def finite_frames(jacobian: Array, columns: Sequence[int] | NDArray[np.intp]) -> NDArray[np.bool_]:
+    """(N,) frames whose Jacobian ``(N, M, n)`` is finite in the coordinate ``columns``,
+    block by block (no (N, M, len(columns)) temporary)."""
+    cols = np.asarray(columns, dtype=np.intp)
+    n = jacobian.shape[0]
+    out = np.empty(n, dtype=bool)
+    for c0 in range(0, n, FRAME_BLOCK):
+        blk = jacobian[c0 : c0 + FRAME_BLOCK][:, :, cols]
+        out[c0 : c0 + FRAME_BLOCK] = np.isfinite(blk).all(axis=(1, 2))
+    return out
+
+
+def jacobian_frames(
+    jacobian: Array,
+    frames: NDArray[np.bool_] | NDArray[np.intp],
+    columns: Sequence[int] | NDArray[np.intp] | None = None,
+) -> Array:
+    """``jacobian[frames][:, :, columns]`` (the same values) gathered block by block, without
+    the intermediate full-width copy of ``jacobian[frames]``. The result has numpy's memory
+    layout of that expression (coordinate-major: the arithmetic downstream, whose summation
+    order follows the strides, gives the same bits)."""
+    idx = np.flatnonzero(frames) if np.asarray(frames).dtype == bool else np.asarray(frames)
+    cols = np.arange(jacobian.shape[2]) if columns is None else np.asarray(columns, np.intp)
+    out = np.empty((cols.size, idx.size, jacobian.shape[1])).transpose(1, 2, 0)
+    for c0 in range(0, idx.size, FRAME_BLOCK):
+        out[c0 : c0 + FRAME_BLOCK] = jacobian[idx[c0 : c0 + FRAME_BLOCK]][:, :, cols]
+    return out
 
 
 def geometry_plan(model: Model) -> GeometryPlan:

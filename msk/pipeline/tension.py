@@ -119,6 +119,7 @@ def optimise(
     shortening faster than its maximal velocity produces no active force (the force–velocity
     curve's extrapolation below zero is clipped to 0 rather than costing the frame)."""
     import msk.optimization as o
+    from msk.muscles.geometry import finite_frames, jacobian_frames
 
     act_idx = actuated(torques)
     params, state = muscle_state(model, geometry)
@@ -127,14 +128,14 @@ def optimise(
     )
     fp_all = state.passive_force_along_tendon
     posable = (
-        np.isfinite(geometry.jacobian[:, :, act_idx]).all(axis=(1, 2))
+        finite_frames(geometry.jacobian, act_idx)
         & np.isfinite(torques.tau[:, act_idx]).all(axis=1)
         & np.isfinite(fa_all).all(axis=1)
         & np.isfinite(fp_all).all(axis=1)
     )
     ok = usable & posable
     excluded = int((usable & ~posable).sum())
-    jac = geometry.jacobian[ok][:, :, act_idx]
+    jac = jacobian_frames(geometry.jacobian, ok, act_idx)
     tq = torques.tau[ok][:, act_idx]
     cn = tuple(torques.coordinate_names[i] for i in act_idx)
     reserves = np.ones(len(act_idx))

@@ -9,6 +9,7 @@ import re
 import shutil
 import subprocess
 import tempfile
+import warnings
 from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any, TypeGuard
@@ -1428,7 +1429,7 @@ def render_html(res: SessionResults, figures: Mapping[str, str] | None = None) -
 
     return (
         f'<!DOCTYPE html><html lang="en"><head><meta charset="utf-8">'
-        f'<meta name="viewport" content="width=device-width, initial-scale=1">'
+        f'<meta name="viewport" content="width=device-width, initial-scale=1">{_CSP_META}'
         f"<title>{title}</title><style>{_CSS}</style></head>"
         f"<body><main>{body}</main></body></html>\n"
     )
@@ -1443,38 +1444,104 @@ def chromium_executable() -> str | None:
     return None
 
 
-def chromium_args(user_data_dir: str) -> list[str]:
+#: what the report's HTML allows: no script at all (the report has none; a string from a data
+#: file that slipped past escaping could not run)
+CONTENT_SECURITY_POLICY = "script-src 'none'; object-src 'none'; base-uri 'none'"
+_CSP_META = f'<meta http-equiv="Content-Security-Policy" content="{CONTENT_SECURITY_POLICY}">'
+
+
+class ChromiumSandboxWarning(UserWarning):
+    """report.pdf was printed by Chromium without its sandbox (see :func:`write_pdf`)."""
+
+
+def sandbox_possible() -> bool:
+    """Whether Chromium's sandbox can start here: not as root (Chromium refuses to run as root
+    with its sandbox: ``--no-sandbox`` is then the only way)."""
+    geteuid = getattr(os, "geteuid", None)
+    return geteuid is None or geteuid() != 0
+
+
+def chromium_args(user_data_dir: str, *, sandbox: bool | None = None) -> list[str]:
+    """Headless Chromium's arguments; ``sandbox`` None: with the sandbox unless
+    :func:`sandbox_possible` says it cannot start (root), then ``--no-sandbox``."""
+    if sandbox is None:
+        sandbox = sandbox_possible()
     return [
         "--headless",
-        "--no-sandbox",
+        *(() if sandbox else ("--no-sandbox",)),
         "--disable-gpu",
         "--disable-quic",
         "--no-first-run",
         "--disable-background-networking",
         "--disable-component-update",
         "--disable-sync",
+        "--disable-extensions",
         f"--user-data-dir={user_data_dir}",
     ]
 
 
+def without_scripts(html_text: str) -> str:
+    """``html_text`` with the no-script Content-Security-Policy as the first element of its
+    head (Chromium then runs no script of the page, whatever it holds: its
+    ``--blink-settings=scriptEnabled=false`` also stops headless printing)."""
+    m = re.search(r"<head\b[^>]*>", html_text, flags=re.IGNORECASE)
+    if m is not None:
+        return html_text[: m.end()] + _CSP_META + html_text[m.end() :]
+    d = re.match(r"\s*<!doctype[^>]*>", html_text, flags=re.IGNORECASE)
+    at = d.end() if d is not None else 0
+    return html_text[:at] + f"<head>{_CSP_META}</head>" + html_text[at:]
+
+
+def pdf_attempts() -> list[bool]:
+    """The sandbox settings :func:`write_pdf` tries in order: sandboxed first, unsandboxed
+    only as the fallback when the sandbox cannot start (or only that, as root)."""
+    return [True, False] if sandbox_possible() else [False]
+
+
 def write_pdf(html_path: str | Path, pdf_path: str | Path, *, timeout_s: float = 60.0) -> bool:
-    """Print ``html_path`` to ``pdf_path`` with headless Chromium; ``False`` if unavailable."""
+    """Print ``html_path`` to ``pdf_path`` with headless Chromium; ``False`` if unavailable.
+
+    JavaScript is disabled for the print (the page is printed with a no-script
+    Content-Security-Policy, :func:`without_scripts`). Chromium runs with its sandbox; without
+    it (``--no-sandbox``) only as root, where the sandbox cannot start, or when a sandboxed
+    start fails — and a :class:`ChromiumSandboxWarning` says so."""
     exe = chromium_executable()
     if exe is None:
         return False
-    with tempfile.TemporaryDirectory() as prof:
-        cmd = [
-            exe,
-            *chromium_args(prof),
-            "--no-pdf-header-footer",
-            f"--print-to-pdf={Path(pdf_path).resolve()}",
-            Path(html_path).resolve().as_uri(),
-        ]
-        try:
-            subprocess.run(cmd, capture_output=True, timeout=timeout_s, check=False)
-        except (OSError, subprocess.TimeoutExpired):
-            return False
-    return Path(pdf_path).is_file() and Path(pdf_path).stat().st_size > 0
+    pdf = Path(pdf_path).resolve()
+    with tempfile.TemporaryDirectory() as work:
+        page = Path(work) / "report.html"  # the report is self-contained: no relative links
+        page.write_text(
+            without_scripts(Path(html_path).read_text(encoding="utf-8")), encoding="utf-8"
+        )
+        for k, sandbox in enumerate(pdf_attempts()):
+            prof = Path(work) / f"profile{k}"
+            cmd = [
+                exe,
+                *chromium_args(str(prof), sandbox=sandbox),
+                "--no-pdf-header-footer",
+                f"--print-to-pdf={pdf}",
+                page.as_uri(),
+            ]
+            try:
+                subprocess.run(cmd, capture_output=True, timeout=timeout_s, check=False)
+            except (OSError, subprocess.TimeoutExpired):
+                return False
+            if pdf.is_file() and pdf.stat().st_size > 0:
+                if not sandbox:
+                    why = (
+                        "running as root"
+                        if not sandbox_possible()
+                        else "its sandbox could not start here"
+                    )
+                    warnings.warn(
+                        f"{pdf.name}: Chromium printed without its sandbox ({why}); "
+                        "JavaScript was disabled",
+                        ChromiumSandboxWarning,
+                        stacklevel=2,
+                    )
+                return True
+    return False
 
 
 def write_report(

@@ -118,6 +118,7 @@ co-contraction alone).
 
 from __future__ import annotations
 
+import dataclasses
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import Any, Literal
@@ -150,6 +151,20 @@ __all__ = [
 # ---------------------------------------------------------------------------------------------
 # net contribution matrix
 # ---------------------------------------------------------------------------------------------
+#: frames per block of the contribution matrices (:meth:`StrengthIdentifier._contributions`)
+_FRAME_BLOCK = 2048
+
+
+def _state_rows(state: RigidTendonState, sl: slice, n: int) -> RigidTendonState:
+    """``state`` with its (n, M) arrays restricted to the frames ``sl`` (views)."""
+    changes: dict[str, Any] = {}
+    for f in dataclasses.fields(state):
+        v = getattr(state, f.name)
+        if isinstance(v, np.ndarray) and v.ndim == 2 and v.shape[0] == n:
+            changes[f.name] = v[sl]
+    return dataclasses.replace(state, **changes)
+
+
 def _as3(x: ArrayLike, what: str) -> Array:
     a = np.asarray(x, dtype=float)
     if a.ndim != 3:
@@ -572,8 +587,25 @@ class StrengthIdentifier:
                 f"muscle state names {state.names[:3]}… differ from the parameters' "
                 f"{self.params.names[:3]}…"
             )
-        c = net_contribution(jacobian, activation, state, passive=self.passive)
-        return group_contributions(c, self.groups, self.params)
+        # block by block over the frames: the (N, M, n) contributions of a long trial are never
+        # held whole (each frame's values are computed exactly as in one pass)
+        jac = _as3(jacobian, "jacobian")
+        n = jac.shape[0]
+        act = _as2(activation, (n, jac.shape[1]), "activation", state.names)
+        if n <= _FRAME_BLOCK:
+            c = net_contribution(jac, act, state, passive=self.passive)
+            return group_contributions(c, self.groups, self.params)
+        parts = []
+        for c0 in range(0, n, _FRAME_BLOCK):
+            sl = slice(c0, c0 + _FRAME_BLOCK)
+            st = _state_rows(state, sl, n)
+            c = net_contribution(jac[sl], act[sl], st, passive=self.passive)
+            parts.append(group_contributions(c, self.groups, self.params))
+            del c
+        return (
+            np.concatenate([p[0] for p in parts]),
+            np.concatenate([p[1] for p in parts]),
+        )
 
     def _coords(self, coordinate_names: Sequence[str] | None, n: int) -> tuple[str, ...]:
         names = tuple(coordinate_names) if coordinate_names is not None else None

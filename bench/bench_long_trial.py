@@ -1,0 +1,179 @@
+"""Benchmark: peak memory and time of ``msk run`` on long trials (issue 18: a 100 000-frame
+trial within 1 GB peak RSS and linear time).
+
+The long trials are the bundled Grand Challenge PS gait trial (``data/gc5-PS``, 145 frames at
+120 Hz, 36 analog channels at 1200 Hz: 3 plates and 16 EMG) played forwards, backwards,
+forwards… (a palindrome: markers, plates and EMG stay continuous) to 10 000, 30 000 and
+100 000 frames (83 s, 4 min, 14 min). A C3D holds at most 65 535 frames, so the tiled trial is
+built in memory from the read one and handed to :func:`msk.pipeline.run_session` in place of
+what the ``read`` stage reads (everything else — model, IK, loads, mass identification,
+inverse dynamics, EMG, muscle geometry, static optimisation, strength, knee contact, tables,
+summary, report — is the real ``pipelines/gc5_PS.toml`` chain, stage cache off).
+
+Each length runs in its own child process; printed per length: the child's peak RSS
+(``getrusage(RUSAGE_CHILDREN).ru_maxrss``), wall time and time per frame, and the resident
+memory (VmHWM, high-water mark so far) after each stage. Ratios between lengths show
+linearity; absolute times depend on the machine's load.
+
+Usage: ``.venv/bin/python bench/bench_long_trial.py [--frames 10000 30000 100000]``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import dataclasses
+import functools
+import json
+import resource
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+from typing import Any
+
+REPO = Path(__file__).resolve().parents[1]
+CONFIG = REPO / "pipelines" / "gc5_PS.toml"
+
+
+def _status_kib(field: str) -> int:
+    """A ``/proc/self/status`` memory field (kB); 0 where /proc is not available."""
+    try:
+        for line in Path("/proc/self/status").read_text().splitlines():
+            if line.startswith(field + ":"):
+                return int(line.split()[1])
+    except OSError:
+        pass
+    return 0
+
+
+class _StageMemory:
+    """A progress stream that records VmHWM after every stage line."""
+
+    def __init__(self) -> None:
+        self.rows: list[tuple[str, float, int]] = []
+
+    def write(self, text: str) -> int:
+        if text.startswith("["):
+            parts = text.split("]", 1)[1].split()
+            self.rows.append((parts[0], float(parts[1]), _status_kib("VmHWM")))
+        return len(text)
+
+    def flush(self) -> None:
+        pass
+
+
+def tile_trial(trial: Any, n_frames: int) -> Any:
+    """``trial`` played forwards, backwards, forwards… to ``n_frames`` point frames (analog
+    samples and plates follow; events dropped: detected from the plates)."""
+    import numpy as np
+
+    nf = trial.time.size
+    ratio = round(trial.analog_ratio)
+    block = np.arange(n_frames) // nf
+    pos = np.arange(n_frames) % nf
+    backwards = block % 2 == 1
+    idx = np.where(backwards, nf - 1 - pos, pos)
+    sub = np.arange(ratio)
+    aidx = np.where(
+        backwards[:, None], idx[:, None] * ratio + (ratio - 1 - sub), idx[:, None] * ratio + sub
+    ).ravel()
+
+    def take(obj: Any) -> Any:
+        changes = {}
+        for f in dataclasses.fields(obj):
+            v = getattr(obj, f.name)
+            if isinstance(v, np.ndarray) and v.ndim >= 1 and v.shape[0] == nf:
+                changes[f.name] = v[idx]
+            elif isinstance(v, np.ndarray) and v.ndim >= 1 and v.shape[0] == nf * ratio:
+                changes[f.name] = v[aidx]
+        return dataclasses.replace(obj, **changes)
+
+    t0, dt = float(trial.time[0]), 1.0 / trial.point_rate_hz
+    out = take(trial)
+    return dataclasses.replace(
+        out,
+        time=t0 + dt * np.arange(n_frames),
+        analog_time=t0 + dt / ratio * np.arange(n_frames * ratio),
+        model_outputs=take(trial.model_outputs),
+        plates=tuple(take(p) for p in trial.plates),
+        events=(),
+    )
+
+
+def child(n_frames: int, out: Path) -> dict[str, Any]:
+    """Run the session on the tiled trial in this process; figures as a dict."""
+    import msk.pipeline.graph as graph
+    import msk.pipeline.session as session
+    from msk.config import load_config
+    from msk.pipeline import read
+
+    cfg = load_config(CONFIG)
+
+    def tiled_read(inputs: Any) -> Any:
+        res = read.run(inputs)
+        return dataclasses.replace(res, trial=tile_trial(res.trial, n_frames))
+
+    nodes = tuple(
+        dataclasses.replace(n, run=tiled_read) if n.name == "read" else n for n in graph.GRAPH
+    )
+    session.run_graph = functools.partial(graph.run_graph, graph=nodes)  # type: ignore[assignment]
+    mem = _StageMemory()
+    hwm0 = _status_kib("VmHWM")
+    t0 = time.perf_counter()
+    res = session.run_session(cfg, out, progress=mem, use_cache=False)  # type: ignore[arg-type]
+    seconds = time.perf_counter() - t0
+    failed = [s.name for s in res.stages if s.status in ("failed", "not available")]
+    return {
+        "frames": n_frames,
+        "seconds": seconds,
+        "hwm_before_kib": hwm0,
+        "stages": mem.rows,
+        "failed": failed,
+    }
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--frames", type=int, nargs="+", default=[10_000, 30_000, 100_000])
+    ap.add_argument("--child", type=int, help=argparse.SUPPRESS)
+    ap.add_argument("--out", type=Path, help=argparse.SUPPRESS)
+    args = ap.parse_args()
+    if args.child:
+        print(json.dumps(child(args.child, args.out)))
+        return
+    rows = []
+    for n in args.frames:
+        with tempfile.TemporaryDirectory() as tmp:
+            before = resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss
+            p = subprocess.run(
+                [sys.executable, __file__, "--child", str(n), "--out", str(Path(tmp) / "out")],
+                capture_output=True, text=True, check=False,
+            )  # fmt: skip
+            peak = resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss
+        if p.returncode != 0:
+            sys.exit(f"{n} frames: child failed ({p.returncode}):\n{p.stderr[-3000:]}")
+        r = json.loads(p.stdout.strip().splitlines()[-1])
+        # ru_maxrss of the children is the largest of any child so far: valid for this one
+        # when it grew (lengths are run in increasing order)
+        r["peak_kib"] = peak if peak > before else r["stages"][-1][2]
+        rows.append(r)
+        print(
+            f"{n:7d} frames  peak RSS {r['peak_kib'] / 1024:7.0f} MiB  {r['seconds']:7.1f} s  "
+            f"{1e6 * r['seconds'] / n:6.0f} µs/frame"
+            + (f"  (not run: {', '.join(r['failed'])})" if r["failed"] else ""),
+            flush=True,
+        )
+        print(f"    after imports {r['hwm_before_kib'] / 1024:6.0f} MiB")
+        for name, sec, hwm in r["stages"]:
+            print(f"    {name:<26}{sec:8.2f} s  high-water {hwm / 1024:6.0f} MiB")
+    if len(rows) > 1:
+        a = rows[0]
+        for b in rows[1:]:
+            f = b["frames"] / a["frames"]
+            dt, dm = b["seconds"] / a["seconds"], b["peak_kib"] / a["peak_kib"]
+            print(f"{b['frames']} / {a['frames']} frames (x{f:g}): time x{dt:.2f}, RSS x{dm:.2f}")
+
+
+if __name__ == "__main__":
+    main()
