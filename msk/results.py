@@ -54,8 +54,8 @@ from typing import Any
 import numpy as np
 
 from msk.exceptions import FileFormatError, MissingDataError
-from msk.io.opensim_files import Table, write_sto
-from msk.io.tables import read_csv_table, write_csv_table
+from msk.io.opensim_files import write_sto
+from msk.io.tables import Table, read_csv_table, write_csv_table
 
 __all__ = [
     "SUMMARY_FORMAT",
@@ -89,7 +89,7 @@ SUMMARY_FORMAT = "msk-session-summary/1"
 class SessionResults:
     """The results of one session as read from (or about to be written to) its folder.
 
-    ``tables`` maps a quantity name to its :class:`~msk.io.opensim_files.Table` (SI);
+    ``tables`` maps a quantity name to its :class:`~msk.io.tables.Table` (SI);
     ``summary`` is the ``summary.json`` content; ``path`` the folder (``None`` before writing).
     ``angle_columns`` names the columns of ``q`` that are rotations (written in degrees in the
     ``.mot`` twin).

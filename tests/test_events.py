@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from msk.events import GaitEvents, detect_gait_events, reconcile
-from msk.io.c3d import Event
+from msk.trial import Event
 from tests.synthetic import two_leg_model
 
 

@@ -3,18 +3,7 @@
 Everything returned is SI (m, s, rad, N, N·m, kg) with time on axis 0.
 """
 
-from msk.io.c3d import (
-    Event,
-    ForcePlate,
-    GapReport,
-    ModelOutputs,
-    PlateSpec,
-    Subject,
-    Trial,
-    is_measured_marker,
-    read_c3d,
-    write_c3d,
-)
+from msk.io.c3d import PlateSpec, is_measured_marker, read_c3d, write_c3d
 from msk.io.frames import (
     lab_to_model_rotation,
     rotate_plate,
@@ -32,7 +21,6 @@ from msk.io.grf import (
 )
 from msk.io.opensim_files import (
     MarkerTable,
-    Table,
     read_mot,
     read_sto,
     read_trc,
@@ -41,7 +29,8 @@ from msk.io.opensim_files import (
     write_sto,
     write_trc,
 )
-from msk.io.tables import read_csv_table, write_csv_table
+from msk.io.tables import Table, read_csv_table, write_csv_table
+from msk.trial import Event, ForcePlate, GapReport, ModelOutputs, Subject, Trial
 
 __all__ = [
     "Event",
