@@ -1,4 +1,5 @@
-"""Input/output: C3D trials (via ezc3d), OpenSim ``.trc/.mot/.sto`` files, CSV result tables.
+"""Input/output: C3D trials (via ezc3d), OpenSim ``.trc/.mot/.sto`` files, CSV result tables;
+:func:`read_trial` reads a trial file by its suffix.
 
 Everything returned is SI (m, s, rad, N, N·m, kg) with time on axis 0.
 """
@@ -29,6 +30,7 @@ from msk.io.opensim_files import (
     write_sto,
     write_trc,
 )
+from msk.io.readers import TrialReader, read_trial, register_trial_reader, trial_suffixes
 from msk.io.tables import Table, read_csv_table, write_csv_table
 from msk.trial import Event, ForcePlate, GapReport, ModelOutputs, Subject, Trial
 
@@ -45,6 +47,7 @@ __all__ = [
     "Subject",
     "Table",
     "Trial",
+    "TrialReader",
     "external_force_sets",
     "grf_force_sets",
     "is_measured_marker",
@@ -56,10 +59,13 @@ __all__ = [
     "read_sto",
     "read_trc",
     "read_trc_trial",
+    "read_trial",
+    "register_trial_reader",
     "rotate_plate",
     "rotate_trial",
     "rotation_between",
     "to_model_frame",
+    "trial_suffixes",
     "write_c3d",
     "write_csv_table",
     "write_mot",
