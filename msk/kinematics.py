@@ -241,7 +241,7 @@ def _scalar_function(f: object) -> tuple[object, object] | None:
     if isinstance(f, SimmSpline):
         knots = [float(x) for x in f.x]
         ys = [float(y) for y in f.y]
-        b, c, d = (list(map(float, arr)) for arr in (f._b, f._c, f._d))
+        b, c, d = (list(map(float, arr)) for arr in f.coefficients)
         last = len(knots) - 2
 
         def val(x: float) -> float:

@@ -1536,7 +1536,7 @@ class _FunctionBank:
         self.coef = np.zeros((4, len(spl), k_max))
         for i, (scale, sp) in enumerate(tabs):
             self.knots[i, : nk[i]] = sp.x
-            self.coef[:, i, : nk[i]] = scale * np.stack([np.asarray(sp.y), sp._b, sp._c, sp._d])
+            self.coef[:, i, : nk[i]] = scale * np.stack([np.asarray(sp.y), *sp.coefficients])
         self.nk = nk
         rows = np.arange(len(spl))
         self.k0 = self.knots[:, 0].copy()
@@ -1613,7 +1613,7 @@ def _group_functions(items: list[tuple[int, int, int, int, Any]]) -> list[_Funct
             sp = _spline_of(it[4])
             assert sp is not None  # grouped under spline knots
             scale, spl = sp
-            coef[:, k] = scale * np.stack([np.asarray(spl.y), spl._b, spl._c, spl._d])
+            coef[:, k] = scale * np.stack([np.asarray(spl.y), *spl.coefficients])
         out.append(
             _FunctionGroup(coord, idx[0], idx[1], idx[2], knots=np.asarray(knots), coef=coef)
         )
