@@ -293,12 +293,9 @@ class SessionConfig:
 
 def _file_kind(p: Path) -> str:
     """What a path that is not a regular file is (for the error message)."""
-    from msk.io.validate import _kind
+    from msk.io.validate import path_kind
 
-    try:
-        return _kind(p.stat().st_mode)
-    except OSError:
-        return "not accessible"
+    return path_kind(p)
 
 
 #: filter cut-offs (Hz): above ~0.01 Hz (a smaller one is no filter: a constant) and at most
