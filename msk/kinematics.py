@@ -32,7 +32,7 @@ from bisect import bisect_right
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import Any, ClassVar
 
 import numpy as np
 import pinocchio as pin
@@ -48,6 +48,7 @@ from msk.exceptions import (
 from msk.joints import Constant, Linear, Multiplier, Polynomial, SimmSpline
 from msk.model import Model
 from msk.signal import derivative, filtfilt_butter
+from msk.timeseries import FrameAxis
 
 Array = NDArray[np.float64]
 
@@ -59,7 +60,7 @@ STATUS_NAMES = {STATUS_OK: "ok", STATUS_TOO_FEW_MARKERS: "too few markers", 2: "
 
 
 @dataclass(frozen=True)
-class Kinematics:
+class Kinematics(FrameAxis):
     """Joint kinematics over a trial (time on axis 0, SI: rad or m).
 
     Attributes:
@@ -78,6 +79,21 @@ class Kinematics:
         cutoff_hz: the low-pass cutoff used for v and a (None: no filtering).
         solve_time_s: wall-clock time of the frame-by-frame solve.
     """
+
+    FRAME_FIELDS: ClassVar[tuple[str, ...]] = (
+        "time",
+        "q",
+        "v",
+        "a",
+        "q_raw",
+        "status",
+        "marker_rms",
+        "marker_max",
+        "marker_max_name",
+        "marker_errors",
+        "n_markers_used",
+        "iterations",
+    )
 
     time: Array
     q: Array

@@ -86,7 +86,7 @@ import threading
 import weakref
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
-from typing import Any
+from typing import Any, ClassVar
 
 import numpy as np
 import pinocchio as pin
@@ -98,6 +98,7 @@ from msk.joints import Linear, Multiplier, SimmSpline
 from msk.model import Model
 from msk.muscles.hill import MuscleParameters
 from msk.muscles.path import ConditionalPathPoint, MovingPathPoint, Muscle, PathPoint, WrapObject
+from msk.timeseries import FrameAxis
 
 Array = NDArray[np.float64]
 
@@ -115,7 +116,7 @@ __all__ = [
 # results
 # --------------------------------------------------------------------------------------------
 @dataclass(frozen=True)
-class MuscleGeometry:
+class MuscleGeometry(FrameAxis):
     """Muscle–tendon geometry over a trial (time on axis 0, SI).
 
     Attributes:
@@ -129,6 +130,13 @@ class MuscleGeometry:
             z, moment x, y, z about the world origin), world axes; zero for the muscles that do
             not cross it (see :meth:`GeometryPlan.evaluate`).
     """
+
+    FRAME_FIELDS: ClassVar[tuple[str, ...]] = (
+        "lengths",
+        "jacobian",
+        "velocities",
+        "distal_wrenches",
+    )
 
     muscle_names: tuple[str, ...]
     coordinate_names: tuple[str, ...]
