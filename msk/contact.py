@@ -91,7 +91,7 @@ from __future__ import annotations
 import weakref
 from collections.abc import Sequence
 from dataclasses import dataclass, field
-from typing import Any, Literal
+from typing import Any, ClassVar, Literal
 
 import numpy as np
 import pinocchio as pin
@@ -101,6 +101,7 @@ from msk.dynamics import Variant
 from msk.exceptions import ModelError, ShapeMismatchError
 from msk.model import Model
 from msk.muscles.geometry import GeometryPlan, geometry_plan
+from msk.timeseries import FrameAxis
 
 Array = NDArray[np.float64]
 
@@ -132,7 +133,7 @@ CONTACT_COLUMNS: tuple[str, ...] = (
 
 
 @dataclass(frozen=True)
-class KneeContact:
+class KneeContact(FrameAxis):
     """Tibiofemoral contact load over a trial (time on axis 0, SI, tibial plateau frame).
 
     Attributes:
@@ -146,6 +147,13 @@ class KneeContact:
         body_weight_n: m g used by :meth:`in_body_weights` (N).
         muscles_included: the muscle forces were subtracted (False: the ID joint reaction).
     """
+
+    FRAME_FIELDS: ClassVar[tuple[str, ...]] = (
+        "time",
+        "force",
+        "moment",
+        "values",
+    )
 
     time: Array
     joint: str
@@ -720,7 +728,7 @@ def plateau_geometry(
 
 
 @dataclass(frozen=True)
-class MedialLateral:
+class MedialLateral(FrameAxis):
     """Medial and lateral tibiofemoral contact forces over a trial (N, compressive > 0).
 
     Attributes:
@@ -733,6 +741,14 @@ class MedialLateral:
         geometry: the contact points used.
         body_weight_n: m g for :meth:`in_body_weights` (N).
     """
+
+    FRAME_FIELDS: ClassVar[tuple[str, ...]] = (
+        "time",
+        "medial",
+        "lateral",
+        "normal",
+        "frontal_moment",
+    )
 
     time: Array
     joint: str

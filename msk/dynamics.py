@@ -32,7 +32,7 @@ from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
-from typing import Any, Literal
+from typing import Any, ClassVar, Literal
 
 import numpy as np
 import pinocchio as pin
@@ -40,13 +40,14 @@ from numpy.typing import ArrayLike, NDArray
 
 from msk.exceptions import MissingDataError, ModelError, ShapeMismatchError
 from msk.model import GROUND, Model
+from msk.timeseries import FrameAxis
 
 Array = NDArray[np.float64]
 Variant = Literal["full", "quasi_static", "geometric"]
 
 
 @dataclass(frozen=True)
-class JointTorques:
+class JointTorques(FrameAxis):
     """Generalised forces per independent coordinate (N·m or N), time on axis 0.
 
     Attributes:
@@ -59,6 +60,15 @@ class JointTorques:
         variant: ``full``, ``quasi_static`` or ``geometric``.
         tau_pin: (N, nv) τ on the Pinocchio DOFs before projection.
     """
+
+    FRAME_FIELDS: ClassVar[tuple[str, ...]] = (
+        "time",
+        "tau",
+        "residual_force",
+        "residual_moment",
+        "residual_point",
+        "tau_pin",
+    )
 
     time: Array
     tau: Array
@@ -84,9 +94,15 @@ class JointTorques:
 
 
 @dataclass(frozen=True)
-class JointReaction:
+class JointReaction(FrameAxis):
     """Wrench transmitted through ``joint`` from its parent to its child (N, N·m), expressed in
     ``frame``: ``force`` (N, 3) and ``moment`` (N, 3) about the frame origin, frame axes."""
+
+    FRAME_FIELDS: ClassVar[tuple[str, ...]] = (
+        "time",
+        "force",
+        "moment",
+    )
 
     time: Array
     joint: str

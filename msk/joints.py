@@ -11,8 +11,9 @@ and generalised forces map back as τ_θ = Gᵀ τ_pin (virtual work). A constan
 ``coordinate = -1`` and a zero row in G.
 
 Functions here are the ones OpenSim uses (Constant, LinearFunction, PolynomialFunction, SimmSpline,
-MultiplierFunction) plus the four-bar knee of seed 004 (§2.1), whose tibia translation is an
-exact closed-form function of the flexion angle.
+MultiplierFunction, PiecewiseLinearFunction), the composition f(c(θ)) that eliminates a
+CoordinateCouplerConstraint (:class:`Composite`), and the four-bar knee of seed 004 (§2.1),
+whose tibia translation is an exact closed-form function of the flexion angle.
 """
 
 from __future__ import annotations
@@ -117,6 +118,12 @@ class SimmSpline:
         object.__setattr__(self, "_c", c)
         object.__setattr__(self, "_d", d)
 
+    @property
+    def coefficients(self) -> tuple[Array, Array, Array]:
+        """``(b, c, d)`` (one per knot) of the cubic after knot i,
+        s_i(x) = y_i + b_i dx + c_i dx² + d_i dx³ with dx = x − x_i."""
+        return self._b, self._c, self._d
+
     def _locate(self, x: Array) -> tuple[NDArray[np.intp], Array]:
         knots = np.asarray(self.x)
         i = np.clip(np.searchsorted(knots, x, side="right") - 1, 0, knots.size - 2)
@@ -203,6 +210,63 @@ class Multiplier:
 
     def d2(self, x: ArrayLike) -> Array:
         return self.scale * self.function.d2(x)
+
+
+@dataclass(frozen=True)
+class PiecewiseLinear:
+    """OpenSim ``PiecewiseLinearFunction``: linear interpolation through the knots, linear
+    extrapolation with the end-segment slopes; f'' = 0 (almost everywhere)."""
+
+    x: tuple[float, ...]
+    y: tuple[float, ...]
+
+    def __post_init__(self) -> None:
+        x = np.asarray(self.x, dtype=float)
+        if x.ndim != 1 or x.size < 2 or x.shape != np.shape(self.y) or np.any(np.diff(x) <= 0):
+            raise ModelError(f"PiecewiseLinear needs ≥ 2 increasing knots, got x={self.x}")
+
+    def _seg(self, xa: Array) -> tuple[NDArray[np.intp], Array]:
+        knots = np.asarray(self.x)
+        i = np.clip(np.searchsorted(knots, xa, side="right") - 1, 0, knots.size - 2)
+        ys = np.asarray(self.y)
+        slope = (ys[i + 1] - ys[i]) / (knots[i + 1] - knots[i])
+        return i, slope
+
+    def __call__(self, x: Any) -> Any:
+        xa = np.asarray(x, dtype=float)
+        i, slope = self._seg(xa)
+        val = np.asarray(self.y)[i] + slope * (xa - np.asarray(self.x)[i])
+        return val if val.ndim else float(val)
+
+    def d1(self, x: ArrayLike) -> Array:
+        return np.asarray(self._seg(np.asarray(x, dtype=float))[1], dtype=float)
+
+    def d2(self, x: ArrayLike) -> Array:
+        return np.zeros_like(np.asarray(x, dtype=float))
+
+
+@dataclass(frozen=True)
+class Composite:
+    """f(x) = outer(inner(x)): a function of a coordinate eliminated by a
+    CoordinateCouplerConstraint (dependent = inner(independent)). Chain rule:
+    f' = outer'(inner) · inner', f'' = outer''(inner) · inner'² + outer'(inner) · inner''."""
+
+    outer: CoordinateFunction
+    inner: CoordinateFunction
+
+    def __call__(self, x: Any) -> Any:
+        return self.outer(self.inner(x))
+
+    def d1(self, x: ArrayLike) -> Array:
+        u = np.asarray(self.inner(x), dtype=float)
+        return np.asarray(self.outer.d1(u) * self.inner.d1(x), dtype=float)
+
+    def d2(self, x: ArrayLike) -> Array:
+        u = np.asarray(self.inner(x), dtype=float)
+        i1 = self.inner.d1(x)
+        return np.asarray(
+            self.outer.d2(u) * i1**2 + self.outer.d1(u) * self.inner.d2(x), dtype=float
+        )
 
 
 # --------------------------------------------------------------------------------------------

@@ -32,7 +32,7 @@ from bisect import bisect_right
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import Any, ClassVar
 
 import numpy as np
 import pinocchio as pin
@@ -48,6 +48,7 @@ from msk.exceptions import (
 from msk.joints import Constant, Linear, Multiplier, Polynomial, SimmSpline
 from msk.model import Model
 from msk.signal import derivative, filtfilt_butter
+from msk.timeseries import FrameAxis
 
 Array = NDArray[np.float64]
 
@@ -59,7 +60,7 @@ STATUS_NAMES = {STATUS_OK: "ok", STATUS_TOO_FEW_MARKERS: "too few markers", 2: "
 
 
 @dataclass(frozen=True)
-class Kinematics:
+class Kinematics(FrameAxis):
     """Joint kinematics over a trial (time on axis 0, SI: rad or m).
 
     Attributes:
@@ -80,6 +81,21 @@ class Kinematics:
         marker_rms_all: (N,) RMS marker distance (m) over the markers used and the model
             markers of the trial given weight 0 (None when there are none).
     """
+
+    FRAME_FIELDS: ClassVar[tuple[str, ...]] = (
+        "time",
+        "q",
+        "v",
+        "a",
+        "q_raw",
+        "status",
+        "marker_rms",
+        "marker_max",
+        "marker_max_name",
+        "marker_errors",
+        "n_markers_used",
+        "iterations",
+    )
 
     time: Array
     q: Array
@@ -244,7 +260,7 @@ def _scalar_function(f: object) -> tuple[object, object] | None:
     if isinstance(f, SimmSpline):
         knots = [float(x) for x in f.x]
         ys = [float(y) for y in f.y]
-        b, c, d = (list(map(float, arr)) for arr in (f._b, f._c, f._d))
+        b, c, d = (list(map(float, arr)) for arr in f.coefficients)
         last = len(knots) - 2
 
         def val(x: float) -> float:

@@ -44,7 +44,7 @@ import warnings
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Literal
+from typing import Any, ClassVar, Literal
 
 import numpy as np
 import pinocchio as pin
@@ -53,6 +53,7 @@ from numpy.typing import ArrayLike, NDArray
 from msk.exceptions import ForcePlateError, MissingDataError, ModelError, ShapeMismatchError
 from msk.model import Model
 from msk.signal import filtfilt_butter, resample_to
+from msk.timeseries import FrameAxis
 
 Array = NDArray[np.float64]
 
@@ -260,7 +261,7 @@ class ContactFlag:
 
 
 @dataclass(frozen=True)
-class ExternalLoads:
+class ExternalLoads(FrameAxis):
     """External wrenches per body on the kinematics time (world frame, SI).
 
     ``force[:, b]`` (N) and ``moment[:, b]`` (N·m, about the **world origin**) of body
@@ -273,6 +274,15 @@ class ExternalLoads:
     built by hand: no flag). On those frames a measured ground reaction is on no body, so
     :func:`contact_measured` excludes them.
     """
+
+    FRAME_FIELDS: ClassVar[tuple[str, ...]] = (
+        "time",
+        "force",
+        "moment",
+        "point",
+        "shared_contact",
+        "unassigned_contact",
+    )
 
     time: Array
     bodies: tuple[str, ...]

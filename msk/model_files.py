@@ -41,12 +41,14 @@ import pinocchio as pin
 
 from msk.exceptions import FileFormatError, ModelError
 from msk.joints import (
+    Composite,
     Constant,
     CoordinateFunction,
     FourBarKnee,
     FourBarTranslation,
     Linear,
     Multiplier,
+    PiecewiseLinear,
     Polynomial,
     SimmSpline,
 )
@@ -59,7 +61,6 @@ from msk.muscles.path import (
     PathWrap,
     WrapObject,
 )
-from msk.osim import Composite, PiecewiseLinear
 
 __all__ = ["FORMAT_VERSION", "function_from_dict", "function_to_dict", "load_model", "save_model"]
 

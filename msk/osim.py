@@ -21,12 +21,13 @@ Mapping (OpenSim → msk):
   about z, SliderJoint = translation along x, UniversalJoint = x then y, GimbalJoint and
   BallJoint = body-fixed x, y, z, PlanarJoint = translations x, y then rotation z, FreeJoint =
   translations x, y, z then body-fixed x, y, z, WeldJoint = no axis.
-* Functions: Constant, LinearFunction, PolynomialFunction, SimmSpline, MultiplierFunction
-  (:mod:`msk.joints`) and PiecewiseLinearFunction (:class:`PiecewiseLinear`). GCVSpline,
+* Functions: Constant, LinearFunction, PolynomialFunction, SimmSpline, MultiplierFunction and
+  PiecewiseLinearFunction (:class:`msk.joints.PiecewiseLinear`), all in :mod:`msk.joints`
+  (``PiecewiseLinear`` and ``Composite`` are re-exported here). GCVSpline,
   NaturalCubicSpline, StepFunction, Sine… are reported (strict: ``ModelError``).
 * CoordinateCouplerConstraint with one independent coordinate: the dependent coordinate is
   eliminated, every axis (and moving path point) it drives becomes f(c(θ_indep))
-  (:class:`Composite`), which is exactly OpenSim's constrained kinematics.
+  (:class:`msk.joints.Composite`), which is exactly OpenSim's constrained kinematics.
 * Muscles (every force with a ``GeometryPath`` whose class name contains ``Muscle``): path
   points (PathPoint, ConditionalPathPoint, MovingPathPoint) in their body frames, PathWrap uses,
   F_iso, l_opt, l_ts, α_opt, v_max; every other scalar property goes to ``Muscle.extra``. Wrap
@@ -51,10 +52,12 @@ from numpy.typing import ArrayLike, NDArray
 
 from msk.exceptions import FileFormatError, ModelError
 from msk.joints import (
+    Composite,
     Constant,
     CoordinateFunction,
     Linear,
     Multiplier,
+    PiecewiseLinear,
     Polynomial,
     SimmSpline,
 )
@@ -79,66 +82,6 @@ __all__ = [
     "load_osim",
     "read_marker_set",
 ]
-
-
-# ------------------------------------------------------------------------------------------
-# extra coordinate functions
-# ------------------------------------------------------------------------------------------
-@dataclass(frozen=True)
-class PiecewiseLinear:
-    """OpenSim ``PiecewiseLinearFunction``: linear interpolation through the knots, linear
-    extrapolation with the end-segment slopes; f'' = 0 (almost everywhere)."""
-
-    x: tuple[float, ...]
-    y: tuple[float, ...]
-
-    def __post_init__(self) -> None:
-        x = np.asarray(self.x, dtype=float)
-        if x.ndim != 1 or x.size < 2 or x.shape != np.shape(self.y) or np.any(np.diff(x) <= 0):
-            raise ModelError(f"PiecewiseLinear needs ≥ 2 increasing knots, got x={self.x}")
-
-    def _seg(self, xa: Array) -> tuple[NDArray[np.intp], Array]:
-        knots = np.asarray(self.x)
-        i = np.clip(np.searchsorted(knots, xa, side="right") - 1, 0, knots.size - 2)
-        ys = np.asarray(self.y)
-        slope = (ys[i + 1] - ys[i]) / (knots[i + 1] - knots[i])
-        return i, slope
-
-    def __call__(self, x: Any) -> Any:
-        xa = np.asarray(x, dtype=float)
-        i, slope = self._seg(xa)
-        val = np.asarray(self.y)[i] + slope * (xa - np.asarray(self.x)[i])
-        return val if val.ndim else float(val)
-
-    def d1(self, x: ArrayLike) -> Array:
-        return np.asarray(self._seg(np.asarray(x, dtype=float))[1], dtype=float)
-
-    def d2(self, x: ArrayLike) -> Array:
-        return np.zeros_like(np.asarray(x, dtype=float))
-
-
-@dataclass(frozen=True)
-class Composite:
-    """f(x) = outer(inner(x)): a function of a coordinate eliminated by a
-    CoordinateCouplerConstraint (dependent = inner(independent)). Chain rule:
-    f' = outer'(inner) · inner', f'' = outer''(inner) · inner'² + outer'(inner) · inner''."""
-
-    outer: CoordinateFunction
-    inner: CoordinateFunction
-
-    def __call__(self, x: Any) -> Any:
-        return self.outer(self.inner(x))
-
-    def d1(self, x: ArrayLike) -> Array:
-        u = np.asarray(self.inner(x), dtype=float)
-        return np.asarray(self.outer.d1(u) * self.inner.d1(x), dtype=float)
-
-    def d2(self, x: ArrayLike) -> Array:
-        u = np.asarray(self.inner(x), dtype=float)
-        i1 = self.inner.d1(x)
-        return np.asarray(
-            self.outer.d2(u) * i1**2 + self.outer.d1(u) * self.inner.d2(x), dtype=float
-        )
 
 
 def body_fixed_xyz(angles: ArrayLike) -> Array:

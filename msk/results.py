@@ -58,8 +58,8 @@ from pathlib import Path
 from typing import Any
 
 from msk.exceptions import FileFormatError, MissingDataError, SummaryError
-from msk.io.opensim_files import Table, write_sto
-from msk.io.tables import read_csv_table, write_csv_table
+from msk.io.opensim_files import write_sto
+from msk.io.tables import Table, read_csv_table, write_csv_table
 from msk.summary import SUMMARY_FORMAT, Summary, as_summary, json_default, strict_json
 
 __all__ = [
@@ -94,7 +94,7 @@ TABLES: tuple[str, ...] = (
 class SessionResults:
     """The results of one session as read from (or about to be written to) its folder.
 
-    ``tables`` maps a quantity name to its :class:`~msk.io.opensim_files.Table` (SI);
+    ``tables`` maps a quantity name to its :class:`~msk.io.tables.Table` (SI);
     ``summary`` is the ``summary.json`` content as a :class:`~msk.summary.Summary` (a plain
     mapping — the summary the pipeline assembles — is converted by
     :func:`~msk.summary.as_summary`: numpy values as JSON, non-finite numbers as ``None``);

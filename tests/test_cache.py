@@ -186,7 +186,7 @@ def synthetic():
 
 
 def test_read_stage_with_a_real_c3d_trial(cache, trial):
-    from msk.io.c3d import ForcePlate, Trial
+    from msk.trial import ForcePlate, Trial
 
     assert trial.plates and isinstance(trial.plates[0], ForcePlate)
     back = round_trip(cache, {"trial": trial}, "read")
@@ -450,13 +450,13 @@ POISON = [
     {"dc": ["msk.io.c3d:Path", []]},  # a class an msk module imports from elsewhere
     {"dc": ["msk.pipeline:os.system", []]},  # through a module an msk module imports
     {"dc": ["msk.pipeline:subprocess.Popen", []]},
-    {"dc": ["msk.io.c3d:Event.__init__", []]},
+    {"dc": ["msk.trial:Event.__init__", []]},
     {"dc": ["mskevil:Thing", []]},
     {"dc": ["msk..io:Trial", []]},
-    {"dc": ["msk.io.c3d:Event", [["__class__", None]]]},  # dunder attribute
-    {"dc": ["msk.io.c3d:Event", [["label", "x"]]]},  # missing fields
+    {"dc": ["msk.trial:Event", [["__class__", None]]]},  # dunder attribute
+    {"dc": ["msk.trial:Event", [["label", "x"]]]},  # missing fields
     {"en": ["os:system", "x"]},
-    {"en": ["msk.io.c3d:Event", "label"]},
+    {"en": ["msk.trial:Event", "label"]},
     {"l": [{"nd": 5}]},  # no such array
     {"x": 1},
     [1, 2],

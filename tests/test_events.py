@@ -9,8 +9,8 @@ import numpy as np
 import pytest
 
 from msk.events import GaitEvents, detect_gait_events, reconcile
-from msk.io.c3d import Event
 from msk.synthetic_models import two_leg_model
+from msk.trial import Event
 
 
 def _kin(model, t, q):

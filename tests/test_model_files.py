@@ -11,18 +11,20 @@ from hypothesis import strategies as st
 from msk._data import REPO_ROOT
 from msk.exceptions import FileFormatError, ModelError
 from msk.joints import (
+    Composite,
     Constant,
     FourBarKnee,
     FourBarTranslation,
     Linear,
     Multiplier,
+    PiecewiseLinear,
     Polynomial,
     SimmSpline,
 )
 from msk.model import marker_positions
 from msk.model_files import function_from_dict, function_to_dict, load_model, save_model
 from msk.muscles.path import MovingPathPoint
-from msk.osim import Composite, PiecewiseLinear, load_osim
+from msk.osim import load_osim
 from msk.synthetic_models import leg_model
 
 MODELS = REPO_ROOT / "models"

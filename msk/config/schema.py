@@ -283,12 +283,9 @@ def _entry(o: Option, vt: Any, v: Any, name: str, source: Path) -> Any:
 
 def _file_kind(p: Path) -> str:
     """What a path that is not a regular file is (for the error message)."""
-    from msk.io.validate import _kind
+    from msk.io.validate import path_kind
 
-    try:
-        return _kind(p.stat().st_mode)
-    except OSError:
-        return "not accessible"
+    return path_kind(p)
 
 
 def _path(value: str, name: str, source: Path) -> Path:

@@ -55,7 +55,7 @@ from msk.fes.model import (
     param_vector,
 )
 from msk.fes.priors import k_s_lower_bound
-from msk.fes.simulate import DT, _step_function, simulate
+from msk.fes.simulate import DT, simulate, step_function
 from msk.fes.stimulation import Stimulation, calcium_pi, sample_on_grid
 
 __all__ = [
@@ -622,7 +622,7 @@ _ISO_FREE = ("F_cm", "b", "L_c0", "rec1", "rec2")
 
 @functools.lru_cache(maxsize=8)
 def _iso_fit_function(n: int, dt: float, n_trials: int, ce: str = "000") -> ca.Function:
-    step = _step_function("pw", True, dt, "rk4", ce)
+    step = step_function("pw", True, dt, "rk4", ce)
     sim = step.mapaccum("iso", n)
     x0 = ca.MX.sym("x0", 4)
     w = ca.MX.sym("w", 4, n)
@@ -737,7 +737,7 @@ def _grid_measure(time: F64, theta_r: F64, n: int, dt: float) -> tuple[F64, F64]
 def _traj_with_jac(
     kind: str, n: int, dt: float, free: tuple[str, ...], ce: str = "000"
 ) -> ca.Function:
-    step = _step_function(kind, False, dt, "rk4", ce)
+    step = step_function(kind, False, dt, "rk4", ce)
     sim = step.mapaccum("sim", n)
     x0 = ca.MX.sym("x0", 4)
     w = ca.MX.sym("w", 4, n)
@@ -867,7 +867,7 @@ def _ks_nlp(
 ) -> tuple[ca.Function, dict[str, int]]:
     """Multiple-shooting NLP of Eq. 8: nodes every ``m`` steps, ``k_s`` in N/mm (and, with
     ``free_K_cm``, a factor on ``K_cm`` as the second decision variable)."""
-    step = _step_function(kind, False, dt, "rk4", ce)
+    step = step_function(kind, False, dt, "rk4", ce)
     interval = step.mapaccum("interval", m).expand()  # SX: fast exact Hessians
     many = interval.map(n_int, "serial")
     npar = len(PARAM_NAMES)

@@ -37,6 +37,7 @@ __all__ = [
     "rhs_function",
     "simulate",
     "simulator_function",
+    "step_function",
 ]
 
 DT = 2e-3  # s
@@ -128,9 +129,12 @@ def rhs_function(kind: RecKind = "pw", isometric: bool = False, ce: str = "000")
 
 
 @functools.lru_cache(maxsize=16)
-def _step_function(
+def step_function(
     kind: RecKind, isometric: bool, dt: float, method: Method, ce: str = "000"
 ) -> ca.Function:
+    """One time step ``(x, w, p) → x_next`` of :func:`rhs_function` over ``dt``: RK4 on the
+    stimulation samples ``w = (level, Π_c(t), Π_c(t + dt/2), Π_c(t + dt))`` (``method="rk4"``),
+    or CVODES with Π_c linear over the step."""
     f = rhs_function(kind, isometric, ce)
     x = ca.SX.sym("x", 4)
     w = ca.SX.sym("w", 4)
@@ -169,7 +173,7 @@ def simulator_function(
     ce: str = "000",
 ) -> ca.Function:
     """``F(x0, W[4×n], p) → X[4×n]`` (states at the end of each step), cached per shape."""
-    return _step_function(kind, isometric, dt, method, ce).mapaccum("fes_sim", n_steps)
+    return step_function(kind, isometric, dt, method, ce).mapaccum("fes_sim", n_steps)
 
 
 @dataclass(frozen=True)

@@ -1,20 +1,10 @@
-"""Input/output: C3D trials (via ezc3d), OpenSim ``.trc/.mot/.sto`` files, CSV result tables.
+"""Input/output: C3D trials (via ezc3d), OpenSim ``.trc/.mot/.sto`` files, CSV result tables;
+:func:`read_trial` reads a trial file by its suffix.
 
 Everything returned is SI (m, s, rad, N, N·m, kg) with time on axis 0.
 """
 
-from msk.io.c3d import (
-    Event,
-    ForcePlate,
-    GapReport,
-    ModelOutputs,
-    PlateSpec,
-    Subject,
-    Trial,
-    is_measured_marker,
-    read_c3d,
-    write_c3d,
-)
+from msk.io.c3d import PlateSpec, is_measured_marker, read_c3d, write_c3d
 from msk.io.frames import (
     lab_to_model_rotation,
     rotate_plate,
@@ -32,7 +22,6 @@ from msk.io.grf import (
 )
 from msk.io.opensim_files import (
     MarkerTable,
-    Table,
     read_mot,
     read_sto,
     read_trc,
@@ -41,7 +30,9 @@ from msk.io.opensim_files import (
     write_sto,
     write_trc,
 )
-from msk.io.tables import read_csv_table, write_csv_table
+from msk.io.readers import TrialReader, read_trial, register_trial_reader, trial_suffixes
+from msk.io.tables import Table, read_csv_table, write_csv_table
+from msk.trial import Event, ForcePlate, GapReport, ModelOutputs, Subject, Trial
 
 __all__ = [
     "Event",
@@ -56,6 +47,7 @@ __all__ = [
     "Subject",
     "Table",
     "Trial",
+    "TrialReader",
     "external_force_sets",
     "grf_force_sets",
     "is_measured_marker",
@@ -67,10 +59,13 @@ __all__ = [
     "read_sto",
     "read_trc",
     "read_trc_trial",
+    "read_trial",
+    "register_trial_reader",
     "rotate_plate",
     "rotate_trial",
     "rotation_between",
     "to_model_frame",
+    "trial_suffixes",
     "write_c3d",
     "write_csv_table",
     "write_mot",

@@ -30,28 +30,22 @@ import os
 import re
 import struct
 from collections.abc import Mapping, Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from msk.exceptions import C3DError, ForcePlateError, MissingDataError, MskError, UnitsError
+from msk.exceptions import C3DError, ForcePlateError, MskError, UnitsError
 from msk.io.validate import MAX_ABS_COORDINATE_M, MAX_ABS_FORCE_N, check_regular_file
-from msk.signal import block_average, resample_to
+from msk.trial import Event, ForcePlate, GapReport, ModelOutputs, Subject, Trial
 
 __all__ = [
     "LENGTH_UNITS_M",
     "MODEL_OUTPUT_KINDS",
     "NON_MARKER_POINT",
-    "Event",
-    "ForcePlate",
-    "GapReport",
-    "ModelOutputs",
     "PlateSpec",
-    "Subject",
-    "Trial",
     "is_measured_marker",
     "read_c3d",
     "write_c3d",
@@ -75,184 +69,6 @@ def is_measured_marker(label: str) -> bool:
 
 
 _AXES = "XYZ"
-
-
-# ---------------------------------------------------------------------------------------------
-# result types
-# ---------------------------------------------------------------------------------------------
-@dataclass(frozen=True)
-class ForcePlate:
-    """One force platform, at the analog rate, in the lab frame (SI).
-
-    ``force`` is the ground reaction on the subject (upward when loaded), ``(Na, 3)`` N;
-    ``moment`` is about ``origin``, the centre of the working surface (mean of the corners);
-    ``cop`` is NaN where the plate-normal force is below the threshold; ``free_moment`` is the
-    moment about the COP (along the plate normal), zero where the plate is unloaded.
-    """
-
-    index: int
-    type: int
-    force: NDArray[np.float64]
-    moment: NDArray[np.float64]
-    cop: NDArray[np.float64]
-    free_moment: NDArray[np.float64]
-    corners: NDArray[np.float64]
-    origin: NDArray[np.float64]
-    rotation: NDArray[np.float64]
-    channels: tuple[str, ...]
-    rate_hz: float
-
-    @property
-    def normal(self) -> NDArray[np.float64]:
-        """Unit plate z axis in the lab (C3D plates usually point it down, into the plate)."""
-        return self.rotation[:, 2]
-
-    @property
-    def peak_force_n(self) -> float:
-        """Largest |F| over the trial (NaN samples ignored); 0 for an all-NaN plate."""
-        norm = np.linalg.norm(self.force, axis=1)
-        return float(np.nanmax(norm)) if np.isfinite(norm).any() else 0.0
-
-
-@dataclass(frozen=True)
-class Event:
-    """A labelled instant: ``context`` is usually Left/Right/General."""
-
-    label: str
-    context: str
-    time: float
-
-
-@dataclass(frozen=True)
-class Subject:
-    """Subject metadata found in the file (``None`` where absent).
-
-    Mass from ``PROCESSING:Bodymass`` (Vicon), ``SUBJECTS``/``SUBJECT`` ``WEIGHT``/``MASS``;
-    height from ``Height``/``HEIGHT``: a value above 3 is taken as mm (Vicon stores 1680),
-    otherwise as m (older files store 1.63 even when the description says mm).
-    """
-
-    name: str | None = None
-    mass_kg: float | None = None
-    height_m: float | None = None
-
-
-@dataclass(frozen=True)
-class GapReport:
-    """Per marker: number of missing frames and the longest run of consecutive missing frames."""
-
-    labels: tuple[str, ...]
-    n_missing: NDArray[np.int64]
-    longest_gap: NDArray[np.int64]
-
-    def with_gaps(self) -> tuple[str, ...]:
-        """Labels of the markers that miss at least one frame."""
-        return tuple(lab for lab, n in zip(self.labels, self.n_missing) if n > 0)
-
-
-@dataclass(frozen=True)
-class ModelOutputs:
-    """Points that are model outputs (joint angles, forces, moments, powers), kept apart.
-
-    ``data`` is ``(N, K, 3)``; angles are converted to rad and moments from N·mm to N·m (a
-    Plug-in Gait moment normalised by body mass stays per kg); ``kinds[k]`` names the group
-    (ANGLES, FORCES, MOMENTS, POWERS, REACTIONS) and ``units[k]`` the SI unit after conversion.
-    """
-
-    labels: tuple[str, ...]
-    kinds: tuple[str, ...]
-    units: tuple[str, ...]
-    data: NDArray[np.float64]
-
-    def get(self, label: str) -> NDArray[np.float64]:
-        """``(N, 3)`` series of one output; :class:`MissingDataError` if absent."""
-        try:
-            return self.data[:, self.labels.index(label)]
-        except ValueError:
-            raise MissingDataError(f"no model output {label!r} (have {len(self.labels)})") from None
-
-
-@dataclass(frozen=True)
-class Trial:
-    """A C3D trial in SI units. Markers ``(N, M, 3)`` m with NaN gaps; analogs ``(Na, C)``."""
-
-    path: Path
-    point_rate_hz: float
-    time: NDArray[np.float64]
-    markers: NDArray[np.float64]
-    marker_labels: tuple[str, ...]
-    gaps: GapReport
-    model_outputs: ModelOutputs
-    analog_rate_hz: float
-    analog_time: NDArray[np.float64]
-    analogs: NDArray[np.float64]
-    analog_labels: tuple[str, ...]
-    analog_units: tuple[str, ...]
-    plates: tuple[ForcePlate, ...]
-    events: tuple[Event, ...]
-    subject: Subject
-    vertical_axis: int
-    up: NDArray[np.float64]
-    point_units_in_file: str = "m"
-    metadata: Mapping[str, Any] = field(default_factory=dict)
-
-    @property
-    def n_frames(self) -> int:
-        return int(self.time.size)
-
-    @property
-    def duration_s(self) -> float:
-        """Recording length ``N / rate`` (points, or analogs when there are no points)."""
-        if self.n_frames:
-            return self.n_frames / self.point_rate_hz
-        return self.analog_time.size / self.analog_rate_hz if self.analog_rate_hz else 0.0
-
-    def marker(self, label: str) -> NDArray[np.float64]:
-        """``(N, 3)`` trajectory (m) of one marker; :class:`MissingDataError` if absent."""
-        try:
-            return self.markers[:, self.marker_labels.index(label)]
-        except ValueError:
-            raise MissingDataError(f"{self.path}: no marker {label!r}") from None
-
-    def analog(self, label: str) -> NDArray[np.float64]:
-        """``(Na,)`` samples of one analog channel (its own units, see ``analog_units``)."""
-        try:
-            return self.analogs[:, self.analog_labels.index(label)]
-        except ValueError:
-            raise MissingDataError(f"{self.path}: no analog channel {label!r}") from None
-
-    @property
-    def analog_ratio(self) -> float:
-        """Analog samples per point frame."""
-        return self.analog_rate_hz / self.point_rate_hz if self.point_rate_hz else 1.0
-
-    def to_point_rate(self, x_analog: ArrayLike) -> NDArray[np.float64]:
-        """Bring an analog-rate series (time on axis 0) to the point rate.
-
-        Block average over each frame when the ratio is an integer (C3D subframes), otherwise
-        linear interpolation onto ``time``.
-        """
-        x = np.asarray(x_analog, dtype=float)
-        ratio = self.analog_ratio
-        if abs(ratio - round(ratio)) < 1e-9 and round(ratio) >= 1:
-            out = block_average(x, round(ratio))
-            return out[: self.n_frames] if self.n_frames else out
-        return resample_to(self.analog_time, x, self.time)
-
-    def rotated(self, rotation: ArrayLike) -> Trial:
-        """This trial with markers, plates and ``up`` rotated by R (``x_new = R x``), see
-        :func:`msk.io.frames.rotate_trial`."""
-        from msk.io.frames import rotate_trial
-
-        return rotate_trial(self, rotation)
-
-    def events_named(self, label: str, context: str | None = None) -> tuple[float, ...]:
-        """Times (s) of the events with this label (and context, if given)."""
-        return tuple(
-            e.time
-            for e in self.events
-            if e.label == label and (context is None or e.context == context)
-        )
 
 
 # ---------------------------------------------------------------------------------------------
@@ -970,24 +786,6 @@ def _check_plate_forces(
 # ---------------------------------------------------------------------------------------------
 # reading
 # ---------------------------------------------------------------------------------------------
-def _longest_runs(missing: NDArray[np.bool_]) -> NDArray[np.int64]:
-    """Longest run of True along axis 0 for each column, vectorised."""
-    n, m = missing.shape
-    if n == 0 or m == 0:
-        return np.zeros(m, dtype=np.int64)
-    pad = np.zeros((1, m), dtype=np.int8)
-    d = np.diff(np.vstack([pad, missing.astype(np.int8), pad]), axis=0)
-    starts_r, starts_c = np.nonzero(d == 1)
-    ends_r, ends_c = np.nonzero(d == -1)
-    # np.nonzero is row-major: reorder by column so starts and ends pair up
-    o1 = np.lexsort((starts_r, starts_c))
-    o2 = np.lexsort((ends_r, ends_c))
-    lengths = ends_r[o2] - starts_r[o1]
-    out = np.zeros(m, dtype=np.int64)
-    np.maximum.at(out, starts_c[o1], lengths)
-    return out
-
-
 #: environment switch: ``MSK_ISOLATE_C3D=1`` reads every C3D in a child process (batch workers
 #: set it), ``MSK_C3D_TIMEOUT_S`` bounds the child's time (default 300 s)
 ISOLATE_ENV = "MSK_ISOLATE_C3D"
@@ -1138,11 +936,7 @@ def read_c3d(
     markers = mk * pos_scale
     markers[missing] = np.nan
     marker_labels = tuple(lab for lab, o in zip(labels, is_out) if not o)
-    gaps = GapReport(
-        labels=marker_labels,
-        n_missing=missing.sum(axis=0).astype(np.int64),
-        longest_gap=_longest_runs(missing),
-    )
+    gaps = GapReport.from_missing(marker_labels, missing)
     out_labels = tuple(lab for lab, o in zip(labels, is_out) if o)
     out_kinds = tuple(kind_of[lab] for lab in out_labels)
     out_data = xyz[:, is_out].copy() if n_pts else np.zeros((n_frames, 0, 3))

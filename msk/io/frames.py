@@ -38,9 +38,9 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from msk.exceptions import ShapeMismatchError
+from msk.trial import ForcePlate, Trial
 
 if TYPE_CHECKING:
-    from msk.io.c3d import ForcePlate, Trial
     from msk.model import Model
 
 Array = NDArray[np.float64]
@@ -295,52 +295,19 @@ def pelvis_heading_rotation(
     return Heading(r0, "none", 0.0, (), 0, math.nan, prog_deg, why)
 
 
-def _check_rotation(r: ArrayLike, what: str) -> Array:
-    r = np.asarray(r, dtype=float)
-    if r.shape != (3, 3):
-        raise ShapeMismatchError(f"{what}: rotation has shape {r.shape}, expected (3, 3)")
-    if not np.allclose(r @ r.T, np.eye(3), atol=1e-9) or np.linalg.det(r) < 0:
-        raise ShapeMismatchError(
-            f"{what}: not a proper rotation matrix (det {np.linalg.det(r):.6g})"
-        )
-    return r
-
-
 def rotate_plate(plate: ForcePlate, rotation: ArrayLike) -> ForcePlate:
-    """A :class:`~msk.io.ForcePlate` in the rotated frame: force, moment (about the rotated
-    origin), COP, free moment, corners and origin rotated; the plate axes become ``R @ axes``."""
-    r = _check_rotation(rotation, f"force plate {plate.index + 1}")
-    return dataclasses.replace(
-        plate,
-        force=plate.force @ r.T,
-        moment=plate.moment @ r.T,
-        cop=plate.cop @ r.T,
-        free_moment=plate.free_moment @ r.T,
-        corners=plate.corners @ r.T,
-        origin=np.asarray(plate.origin, dtype=float) @ r.T,
-        rotation=r @ plate.rotation,
-    )
+    """A :class:`~msk.io.ForcePlate` in the rotated frame (:meth:`msk.trial.ForcePlate.rotated`):
+    force, moment (about the rotated origin), COP, free moment, corners and origin rotated; the
+    plate axes become ``R @ axes``."""
+    return plate.rotated(rotation)
 
 
 def rotate_trial(trial: Trial, rotation: ArrayLike) -> Trial:
     """``trial`` with everything that lives in the lab frame rotated by R (about the lab
     origin): markers, force plates (:func:`rotate_plate`) and ``up``; ``vertical_axis`` becomes
-    the axis nearest the new up. Model outputs (Plug-in Gait angles, forces, moments, powers)
-    are expressed in segment / joint frames, which a rotation of the lab does not change, so
-    they are kept. ``metadata["lab_to_model_rotation"]`` accumulates R."""
-    r = _check_rotation(rotation, str(trial.path))
-    up = r @ np.asarray(trial.up, dtype=float)
-    meta = dict(trial.metadata)
-    prev = np.asarray(meta.get("lab_to_model_rotation", np.eye(3)), dtype=float)
-    meta["lab_to_model_rotation"] = r @ prev
-    return dataclasses.replace(
-        trial,
-        markers=trial.markers @ r.T,
-        plates=tuple(rotate_plate(p, r) for p in trial.plates),
-        up=up,
-        vertical_axis=int(np.argmax(np.abs(up))),
-        metadata=meta,
-    )
+    the axis nearest the new up; model outputs are kept; ``metadata["lab_to_model_rotation"]``
+    accumulates R (:meth:`msk.trial.Trial.rotated`)."""
+    return trial.rotated(rotation)
 
 
 def to_model_frame(

@@ -11,22 +11,18 @@ Writes are atomic (temporary file then rename).
 
 from __future__ import annotations
 
-import os
 import re
-import tempfile
-from collections.abc import Mapping, Sequence
-from dataclasses import dataclass, field
+from collections.abc import Sequence
+from dataclasses import dataclass
 from pathlib import Path
-from typing import TYPE_CHECKING
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from msk.exceptions import FileFormatError, MissingDataError, UnitsError
+from msk.io.tables import Table, write_text_atomic
 from msk.io.validate import MAX_ABS_COORDINATE_M, check_regular_file, check_time_axis
-
-if TYPE_CHECKING:
-    from msk.io.c3d import Trial
+from msk.trial import GapReport, ModelOutputs, Subject, Trial
 
 __all__ = [
     "MarkerTable",
@@ -58,37 +54,6 @@ def is_angle_column(name: str) -> bool:
 
 
 @dataclass(frozen=True)
-class Table:
-    """A time series table: ``time (N,)`` s, ``data (N, K)`` SI, ``columns`` (K names).
-
-    ``in_degrees_in_file`` records the header flag of the file read; ``angle_columns`` are the
-    columns that were converted deg → rad (and are converted back when written with
-    ``in_degrees=True``).
-    """
-
-    time: NDArray[np.float64]
-    data: NDArray[np.float64]
-    columns: tuple[str, ...]
-    name: str = ""
-    in_degrees_in_file: bool = False
-    angle_columns: tuple[str, ...] = ()
-    metadata: Mapping[str, str] = field(default_factory=dict)
-
-    def column(self, name: str) -> NDArray[np.float64]:
-        try:
-            return self.data[:, self.columns.index(name)]
-        except ValueError:
-            raise MissingDataError(f"table {self.name!r}: no column {name!r}") from None
-
-    @property
-    def rate_hz(self) -> float:
-        """Mean sampling rate (NaN for fewer than two rows)."""
-        if self.time.size < 2:
-            return float("nan")
-        return float((self.time.size - 1) / (self.time[-1] - self.time[0]))
-
-
-@dataclass(frozen=True)
 class MarkerTable:
     """Markers from a TRC file: ``markers (N, M, 3)`` in m (NaN = missing)."""
 
@@ -107,20 +72,6 @@ class MarkerTable:
 
 
 # ---------------------------------------------------------------------------------------------
-def _atomic_write(path: Path, text: str) -> Path:
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
-    try:
-        with os.fdopen(fd, "w", newline="\n") as fh:
-            fh.write(text)
-        os.replace(tmp, path)
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise
-    return path
-
-
 def _read_text(path: Path) -> list[str]:
     path = check_regular_file(path, FileFormatError)
     try:
@@ -285,7 +236,7 @@ def write_sto(
     ]
     body = np.column_stack([t, x])
     rows = ["\t".join(r) for r in np.char.mod("%.17g", body)] if body.size else []
-    return _atomic_write(path, "\n".join(head + rows) + "\n")
+    return write_text_atomic(path, "\n".join(head + rows) + "\n")
 
 
 write_mot = write_sto
@@ -352,8 +303,6 @@ def read_trc_trial(path: str | Path, *, up: ArrayLike = (0.0, 1.0, 0.0)) -> Tria
     """A TRC file as a markers-only :class:`msk.io.Trial` (no analogs, plates, events), so that
     a marker trial exported for OpenSim goes where a C3D trial goes. A TRC has no vertical
     axis: ``up`` is the frame's (OpenSim's ground: +y)."""
-    from msk.io.c3d import GapReport, ModelOutputs, Subject, Trial, _longest_runs
-
     path = Path(path)
     t = read_trc(path)
     u = np.asarray(up, dtype=float)
@@ -366,7 +315,7 @@ def read_trc_trial(path: str | Path, *, up: ArrayLike = (0.0, 1.0, 0.0)) -> Tria
         time=t.time,
         markers=t.markers,
         marker_labels=t.labels,
-        gaps=GapReport(t.labels, missing.sum(axis=0).astype(np.int64), _longest_runs(missing)),
+        gaps=GapReport.from_missing(t.labels, missing),
         model_outputs=ModelOutputs((), (), (), np.zeros((t.time.size, 0, 3))),
         analog_rate_hz=0.0,
         analog_time=np.zeros(0),
@@ -420,4 +369,4 @@ def write_trc(
     body = np.column_stack([np.arange(1, n + 1), t, x.reshape(n, 3 * m) / _TRC_UNITS_M[units]])
     rows = ["\t".join(r) for r in np.char.mod("%.17g", body)] if body.size else []
     rows = [r.replace("nan", "NaN") for r in rows]
-    return _atomic_write(path, "\n".join(head + rows) + "\n")
+    return write_text_atomic(path, "\n".join(head + rows) + "\n")

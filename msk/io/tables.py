@@ -1,4 +1,5 @@
-"""CSV result tables: first column ``time`` (s), then named columns in SI units.
+"""Time-series tables (:class:`Table`) and CSV result tables: first column ``time`` (s), then
+named columns in SI units.
 
 This is the contract other tools read (``tables/*.csv`` of a run). Writes are atomic: the
 table is written to a temporary file in the same folder and renamed, so a failed run never
@@ -7,17 +8,66 @@ leaves a half-written table behind.
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+import os
+import tempfile
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
-from numpy.typing import ArrayLike
+from numpy.typing import ArrayLike, NDArray
 
-from msk.exceptions import FileFormatError
-from msk.io.opensim_files import Table, _atomic_write
+from msk.exceptions import FileFormatError, MissingDataError
 from msk.io.validate import check_regular_file
 
-__all__ = ["read_csv_table", "write_csv_table"]
+__all__ = ["Table", "read_csv_table", "write_csv_table", "write_text_atomic"]
+
+
+@dataclass(frozen=True)
+class Table:
+    """A time series table: ``time (N,)`` s, ``data (N, K)`` SI, ``columns`` (K names).
+
+    ``in_degrees_in_file`` records the header flag of the file read; ``angle_columns`` are the
+    columns that were converted deg → rad (and are converted back when written with
+    ``in_degrees=True``).
+    """
+
+    time: NDArray[np.float64]
+    data: NDArray[np.float64]
+    columns: tuple[str, ...]
+    name: str = ""
+    in_degrees_in_file: bool = False
+    angle_columns: tuple[str, ...] = ()
+    metadata: Mapping[str, str] = field(default_factory=dict)
+
+    def column(self, name: str) -> NDArray[np.float64]:
+        try:
+            return self.data[:, self.columns.index(name)]
+        except ValueError:
+            raise MissingDataError(f"table {self.name!r}: no column {name!r}") from None
+
+    @property
+    def rate_hz(self) -> float:
+        """Mean sampling rate (NaN for fewer than two rows)."""
+        if self.time.size < 2:
+            return float("nan")
+        return float((self.time.size - 1) / (self.time[-1] - self.time[0]))
+
+
+def write_text_atomic(path: str | Path, text: str) -> Path:
+    """Write ``text`` to ``path`` (parent folders created): a temporary file in the same folder,
+    then renamed, so a failed write never leaves a half-written file behind."""
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
+    try:
+        with os.fdopen(fd, "w", newline="\n") as fh:
+            fh.write(text)
+        os.replace(tmp, path)
+    except BaseException:
+        Path(tmp).unlink(missing_ok=True)
+        raise
+    return path
 
 
 def write_csv_table(
@@ -44,7 +94,7 @@ def write_csv_table(
         raise FileFormatError(f"{path}: invalid CSV column names {bad}")
     body = np.column_stack([t, x])
     rows = [",".join(r) for r in np.char.mod("%.17g", body)] if body.size else []
-    return _atomic_write(path, "\n".join([",".join(("time", *cols)), *rows]) + "\n")
+    return write_text_atomic(path, "\n".join([",".join(("time", *cols)), *rows]) + "\n")
 
 
 def read_csv_table(path: str | Path, *, time_column: str | None = "time") -> Table:

@@ -22,6 +22,7 @@ __all__ = [
     "check_regular_file",
     "check_time_axis",
     "duplicates",
+    "path_kind",
 ]
 
 #: plausibility bounds of what a reader may return: a ground reaction (N) and a lab coordinate (m)
@@ -41,6 +42,16 @@ def _kind(mode: int) -> str:
     if stat.S_ISSOCK(mode):
         return "a socket"
     return "not a regular file"
+
+
+def path_kind(path: str | Path) -> str:
+    """What a path that is not a regular file is, for an error message: ``"a directory"``,
+    ``"a FIFO (named pipe)"``, a device, ``"a socket"``, ``"not a regular file"`` or, when it
+    cannot be examined, ``"not accessible"``."""
+    try:
+        return _kind(Path(path).stat().st_mode)
+    except OSError:
+        return "not accessible"
 
 
 def check_regular_file(

@@ -68,7 +68,7 @@ from __future__ import annotations
 from collections.abc import Sequence
 from dataclasses import dataclass
 from functools import lru_cache
-from typing import Any
+from typing import Any, ClassVar
 
 import casadi as ca
 import numpy as np
@@ -76,6 +76,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from msk.exceptions import MuscleModelError
 from msk.muscles.hill import MAX_PENNATION_ANGLE, LloydBesierCurves, MuscleParameters
+from msk.timeseries import FrameAxis
 
 Array = NDArray[np.float64]
 
@@ -106,7 +107,7 @@ _COS_MIN = float(np.cos(MAX_PENNATION_ANGLE))
 
 
 @dataclass(frozen=True)
-class ContractionState:
+class ContractionState(FrameAxis):
     """Fibre and tendon state over time; arrays ``(N, M)`` (SI), ``time`` ``(N,)``.
 
     ``fiber_velocity`` is the lengthening velocity l̇_m of the ODE at each state and
@@ -116,6 +117,23 @@ class ContractionState:
     ``damping_fiber_force`` F_iso b_m ṽ, all along the fibre, and ``fiber_force_along_tendon``
     their sum times cos φ (equal to the tendon force, Eq. 8).
     """
+
+    FRAME_FIELDS: ClassVar[tuple[str, ...]] = (
+        "time",
+        "fiber_length",
+        "norm_fiber_length",
+        "fiber_velocity",
+        "norm_fiber_velocity",
+        "pennation_angle",
+        "cos_pennation",
+        "tendon_length",
+        "tendon_strain",
+        "tendon_force",
+        "active_fiber_force",
+        "passive_fiber_force",
+        "damping_fiber_force",
+        "fiber_force_along_tendon",
+    )
 
     names: tuple[str, ...]
     time: Array

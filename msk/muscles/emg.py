@@ -34,13 +34,14 @@ from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
-from typing import Any, Literal, Protocol
+from typing import Any, ClassVar, Literal, Protocol
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from msk.exceptions import EmgError, MissingDataError
 from msk.signal import filtfilt_butter, resample_to
+from msk.timeseries import FrameAxis
 
 Array = NDArray[np.float64]
 NormalisationSource = Literal["mvc", "session_peak"]
@@ -79,8 +80,13 @@ class ChannelQuality:
 
 
 @dataclass(frozen=True)
-class EmgEnvelopes:
+class EmgEnvelopes(FrameAxis):
     """Normalised EMG envelopes e(t) ∈ [0, 1] (NaN for unusable channels), time on axis 0."""
+
+    FRAME_FIELDS: ClassVar[tuple[str, ...]] = (
+        "time",
+        "envelopes",
+    )
 
     time: Array  #: (N,) s
     envelopes: Array  #: (N, n_muscles)

@@ -86,7 +86,7 @@ import threading
 import weakref
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
-from typing import Any
+from typing import Any, ClassVar
 
 import numpy as np
 import pinocchio as pin
@@ -98,6 +98,7 @@ from msk.joints import Linear, Multiplier, SimmSpline
 from msk.model import Model
 from msk.muscles.hill import MuscleParameters
 from msk.muscles.path import ConditionalPathPoint, MovingPathPoint, Muscle, PathPoint, WrapObject
+from msk.timeseries import FrameAxis
 
 Array = NDArray[np.float64]
 
@@ -117,7 +118,7 @@ __all__ = [
 # results
 # --------------------------------------------------------------------------------------------
 @dataclass(frozen=True)
-class MuscleGeometry:
+class MuscleGeometry(FrameAxis):
     """Muscle–tendon geometry over a trial (time on axis 0, SI).
 
     Attributes:
@@ -131,6 +132,13 @@ class MuscleGeometry:
             z, moment x, y, z about the world origin), world axes; zero for the muscles that do
             not cross it (see :meth:`GeometryPlan.evaluate`).
     """
+
+    FRAME_FIELDS: ClassVar[tuple[str, ...]] = (
+        "lengths",
+        "jacobian",
+        "velocities",
+        "distal_wrenches",
+    )
 
     muscle_names: tuple[str, ...]
     coordinate_names: tuple[str, ...]
@@ -1538,7 +1546,7 @@ class _FunctionBank:
         self.coef = np.zeros((4, len(spl), k_max))
         for i, (scale, sp) in enumerate(tabs):
             self.knots[i, : nk[i]] = sp.x
-            self.coef[:, i, : nk[i]] = scale * np.stack([np.asarray(sp.y), sp._b, sp._c, sp._d])
+            self.coef[:, i, : nk[i]] = scale * np.stack([np.asarray(sp.y), *sp.coefficients])
         self.nk = nk
         rows = np.arange(len(spl))
         self.k0 = self.knots[:, 0].copy()
@@ -1615,7 +1623,7 @@ def _group_functions(items: list[tuple[int, int, int, int, Any]]) -> list[_Funct
             sp = _spline_of(it[4])
             assert sp is not None  # grouped under spline knots
             scale, spl = sp
-            coef[:, k] = scale * np.stack([np.asarray(spl.y), spl._b, spl._c, spl._d])
+            coef[:, k] = scale * np.stack([np.asarray(spl.y), *spl.coefficients])
         out.append(
             _FunctionGroup(coord, idx[0], idx[1], idx[2], knots=np.asarray(knots), coef=coef)
         )

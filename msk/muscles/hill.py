@@ -43,12 +43,13 @@ from __future__ import annotations
 import csv
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Protocol
+from typing import ClassVar, Protocol
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from msk.exceptions import FileFormatError, MuscleModelError
+from msk.timeseries import FrameAxis
 
 Array = NDArray[np.float64]
 
@@ -389,8 +390,21 @@ def pennation_constant_height(
 # Rigid tendon
 # ---------------------------------------------------------------------------------------------
 @dataclass(frozen=True)
-class RigidTendonState:
+class RigidTendonState(FrameAxis):
     """Muscle state per frame for an inextensible tendon; arrays ``(N, M)``."""
+
+    FRAME_FIELDS: ClassVar[tuple[str, ...]] = (
+        "fiber_length",
+        "norm_fiber_length",
+        "fiber_velocity",
+        "norm_fiber_velocity",
+        "cos_pennation",
+        "f_active_length",
+        "f_velocity",
+        "f_passive",
+        "max_active_force_along_tendon",
+        "passive_force_along_tendon",
+    )
 
     names: tuple[str, ...]
     fiber_length: Array
@@ -473,8 +487,19 @@ def rigid_tendon_state(
 # Elastic tendon: static equilibrium
 # ---------------------------------------------------------------------------------------------
 @dataclass(frozen=True)
-class EquilibriumState:
+class EquilibriumState(FrameAxis):
     """Static fibre–tendon equilibrium; arrays ``(N, M)`` (SI)."""
+
+    FRAME_FIELDS: ClassVar[tuple[str, ...]] = (
+        "fiber_length",
+        "norm_fiber_length",
+        "tendon_length",
+        "tendon_strain",
+        "cos_pennation",
+        "tendon_force",
+        "active_fiber_force",
+        "passive_fiber_force",
+    )
 
     names: tuple[str, ...]
     fiber_length: Array

@@ -54,19 +54,6 @@ def settings(inputs: SessionInputs) -> Any:
     }
 
 
-def _frames(obj: Any, idx: np.ndarray, n: int) -> Any:
-    """A frozen time-axis result restricted to the frames ``idx`` (every array field whose first
-    axis has the ``n`` frames is sliced)."""
-    import dataclasses
-
-    changes = {}
-    for f in dataclasses.fields(obj):
-        v = getattr(obj, f.name)
-        if isinstance(v, np.ndarray) and v.ndim >= 1 and v.shape[0] == n:
-            changes[f.name] = v[idx]
-    return dataclasses.replace(obj, **changes)
-
-
 def run(
     inputs: SessionInputs,
     read: ReadResult,
@@ -110,7 +97,7 @@ def run(
         # frames without muscle forces get no contact force (never zero muscle force)
         ok = np.flatnonzero(loads.usable & np.isfinite(s.forces).all(axis=1))
         contact = knee_contact_force(
-            m, _frames(kin, ok, n), _frames(loads.external, ok, n),
+            m, kin.take(ok), loads.external.take(ok),
             muscle_forces=s.forces[ok], muscle_names=tuple(s.muscles), joint=joint,
             distal_wrenches=None if dw is None else dw[ok],
         )  # fmt: skip

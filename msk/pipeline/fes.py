@@ -15,7 +15,7 @@ import numpy as np
 
 from msk.config import FesTrialConfig, SessionConfig, TrialConfig
 from msk.exceptions import ConfigError, MissingDataError
-from msk.io.opensim_files import Table
+from msk.io.tables import Table
 from msk.pipeline.inputs import SessionInputs
 
 __all__ = [

@@ -70,7 +70,7 @@ def run(
     inputs: SessionInputs, read: ReadResult, model: BuiltModel, kinematics: Any, loads: Loads
 ) -> MassIdentification:
     from msk.identification import IdentificationTrial, InertialIdentifier
-    from msk.io import read_c3d, to_model_frame
+    from msk.io import read_trial, to_model_frame
     from msk.loads import contact_measured
 
     cfg, mdl, kin = inputs.cfg, model.model, kinematics
@@ -79,7 +79,7 @@ def run(
     runs = [(inputs.task.name, kin, loads.external, loads.measured)]
     # the task and the dedicated exciting motions (Hayashibe et al. 2011, §VI)
     for tc in inputs.mass_trials:
-        tr_i = to_model_frame(read_c3d(tc.file), up=up)
+        tr_i = to_model_frame(read_trial(tc.file), up=up)
         k_i = solve_trial(
             mdl, tr_i, inputs.labels_of(tr_i.marker_labels), weights=cfg.marker_weights,
             held=model.held, cutoff_hz=cfg.filters.kinematics_cutoff_hz,

@@ -46,14 +46,11 @@ def settings(inputs: SessionInputs) -> Any:
 
 
 def run(inputs: SessionInputs) -> ReadResult:
-    from msk.io import read_c3d, read_trc_trial
+    from msk.io import read_trial
 
     task = inputs.task
     assert task is not None  # a gait stage
-    if task.file.suffix.lower() == ".trc":  # OpenSim ground: +y up
-        trial = read_trc_trial(task.file)
-    else:
-        trial = read_c3d(task.file)
+    trial = read_trial(task.file)  # by suffix (a .trc: OpenSim ground, +y up)
     grf, assignment = None, {}
     if task.grf is not None:
         from msk.loads import external_loads_assignment, plates_from_grf_file

@@ -10,7 +10,7 @@ from typing import Any
 
 import numpy as np
 
-from msk.io.opensim_files import Table
+from msk.io.tables import Table
 from msk.pipeline.inputs import SessionInputs
 from msk.results import SessionResults
 

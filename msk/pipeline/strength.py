@@ -4,7 +4,6 @@ the EMG activations, the moment-arm Jacobians and the joint torques, with bootst
 
 from __future__ import annotations
 
-import dataclasses
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from typing import Any
@@ -30,16 +29,6 @@ class StrengthIdentification:
     profile: Any
     groups: Mapping[str, Sequence[str]]
     t0: float
-
-
-def _rows(state: Any, mask: np.ndarray) -> Any:
-    """A muscle state with its (N, m) arrays restricted to the frames of ``mask``."""
-    changes = {}
-    for f in dataclasses.fields(state):
-        v = getattr(state, f.name)
-        if isinstance(v, np.ndarray) and v.ndim == 2:
-            changes[f.name] = v[mask]
-    return dataclasses.replace(state, **changes)
 
 
 def run(
@@ -71,7 +60,7 @@ def run(
         muscle_geometry.jacobian[good],
         act[good],
         jt.tau[good],
-        _rows(state, good),
+        state.take(good),
         coordinate_names=jt.coordinate_names,
     )
     return StrengthIdentification(

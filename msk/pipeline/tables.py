@@ -7,7 +7,7 @@ from typing import Any
 
 import numpy as np
 
-from msk.io.opensim_files import Table
+from msk.io.tables import Table
 from msk.pipeline.contact import KneeContact
 from msk.pipeline.cycle import GaitCycle
 from msk.pipeline.dynamics import InverseDynamics

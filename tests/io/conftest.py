@@ -7,7 +7,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from msk.io.c3d import Event, PlateSpec, Subject, write_c3d
+from msk.io.c3d import PlateSpec, write_c3d
+from msk.trial import Event, Subject
 
 # AMTI-like plate: x along lab x, y along -lab y, z down (into the plate)
 PLATE_ROT = np.diag([1.0, -1.0, -1.0])
