@@ -29,7 +29,7 @@ from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
-from _timing import replace_doc_section  # noqa: E402
+from _timing import replace_doc_section
 
 REPO = Path(__file__).resolve().parents[1]
 CONFIG = REPO / "pipelines" / "gc5_PS.toml"
@@ -57,7 +57,11 @@ def _checkout(ref: str, into: Path) -> Path:
 
 def _run_once(src: Path, out: Path) -> tuple[float, dict[str, float]]:
     """Wall time of one cold ``msk run`` with the package found in ``src``; stage seconds."""
-    code = f"import sys; sys.path.insert(0, {str(src)!r}); from msk.cli import main; sys.exit(main())"
+    # what the console script runs (msk.cli.console; main where there is no console yet)
+    code = (
+        f"import sys; sys.path.insert(0, {str(src)!r}); import msk.cli as c; "
+        "getattr(c, 'console', lambda: sys.exit(c.main()))()"
+    )
     cmd = [sys.executable, "-c", code, "run", str(CONFIG), "--out", str(out), "--no-cache"]
     t0 = time.perf_counter()
     proc = subprocess.run(cmd, capture_output=True, text=True, cwd=REPO)

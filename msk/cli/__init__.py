@@ -22,7 +22,7 @@ from typing import NoReturn
 from msk import __version__
 from msk.exceptions import MskError
 
-__all__ = ["VERB_MODULES", "Command", "build_parser", "main", "positive_int"]
+__all__ = ["VERB_MODULES", "Command", "build_parser", "console", "main", "positive_int"]
 
 #: Modules whose ``COMMANDS`` tuple lists their verbs, in the order ``msk --help`` shows them.
 VERB_MODULES: tuple[str, ...] = ("msk.cli.session", "msk.cli.batch", "msk.cli.info")
@@ -120,3 +120,15 @@ def main(argv: Sequence[str] | None = None) -> int:
     except OSError as exc:
         print(f"msk: error: {' '.join(str(exc).split())}", file=sys.stderr)
         return 2
+
+
+def console() -> NoReturn:
+    """The ``msk`` console script (and ``python -m msk.cli``): :func:`main`, then the process
+    ends without the interpreter's last garbage collection over every object the run made and
+    imported (``gc.freeze``: ~0.15 s of a cold ``msk run``; the objects are freed with the
+    process all the same, finalisers and ``atexit`` handlers still run)."""
+    import gc
+
+    code = main()
+    gc.freeze()
+    sys.exit(code)
