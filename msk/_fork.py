@@ -11,16 +11,22 @@ fails in any way.
 :func:`spare_cpu` decides: only in the main thread of a top-level process (never inside a batch
 worker, whose siblings use the other CPUs), with at least two CPUs in its affinity mask, where
 ``os.fork`` exists, and unless ``MSK_FORK=0``.
+
+A :class:`Server` is a child forked early (``msk run`` forks one before its own imports) that
+imports a module on the free CPU while the caller works, then computes one function of that
+module for it: the report's figures cost the caller neither matplotlib's import nor their
+drawing time beyond the caller's wait.
 """
 
 from __future__ import annotations
 
+import importlib
 import os
 import pickle
 from collections.abc import Callable
 from typing import Any, Generic, TypeVar
 
-__all__ = ["ENV", "Forked", "spare_cpu"]
+__all__ = ["ENV", "Forked", "Server", "spare_cpu", "start_server", "stop_servers", "take_server"]
 
 #: environment switch: ``MSK_FORK=0`` computes everything in the calling process
 ENV = "MSK_FORK"
@@ -86,3 +92,90 @@ class Forked(Generic[T]):
             except Exception:  # a truncated answer: computed here instead
                 pass
         return self._fn(*self._args)
+
+
+class Server:
+    """A child forked now that imports ``module`` meanwhile (and calls ``module.warm()`` if
+    given) and, when :meth:`call` sends it arguments, returns ``module.function(*args)``
+    (once). Its standard streams are ``/dev/null``: it holds no pipe of the caller's open."""
+
+    def __init__(self, module: str, function: str, warm: str | None = None) -> None:
+        self._pid = -1
+        req_r, req_w = os.pipe()
+        ans_r, ans_w = os.pipe()
+        try:
+            pid = os.fork()
+        except OSError:
+            for fd in (req_r, req_w, ans_r, ans_w):
+                os.close(fd)
+            return
+        if pid == 0:  # pragma: no cover - the child (coverage does not follow os.fork)
+            try:
+                os.close(req_w)
+                os.close(ans_r)
+                null = os.open(os.devnull, os.O_RDWR)
+                for fd in (0, 1, 2):
+                    os.dup2(null, fd)
+                _SERVERS.clear()
+                mod = importlib.import_module(module)
+                fn = getattr(mod, function)
+                if warm is not None:
+                    getattr(mod, warm)()
+                with os.fdopen(req_r, "rb") as fh:
+                    request = fh.read()
+                if request:
+                    answer = pickle.dumps(fn(*pickle.loads(request)), pickle.HIGHEST_PROTOCOL)
+                    with os.fdopen(ans_w, "wb") as fh:
+                        fh.write(answer)
+            finally:
+                os._exit(0)
+        os.close(req_r)
+        os.close(ans_w)
+        self._pid, self._req, self._ans = pid, req_w, ans_r
+
+    def call(self, *args: Any) -> Any:
+        """``module.function(*args)`` computed by the child; :class:`RuntimeError` if it cannot
+        (the caller computes it itself)."""
+        if self._pid < 0:
+            raise RuntimeError("no server")
+        pid, self._pid = self._pid, -1
+        try:
+            with os.fdopen(self._req, "wb") as fh:
+                fh.write(pickle.dumps(args, pickle.HIGHEST_PROTOCOL))
+            with os.fdopen(self._ans, "rb") as fh:
+                data = fh.read()
+        except OSError as exc:
+            raise RuntimeError(f"server: {exc}") from None
+        finally:
+            os.waitpid(pid, 0)
+        if not data:
+            raise RuntimeError("server: no answer")
+        return pickle.loads(data)
+
+    def close(self) -> None:
+        """Let the child go without a request (it exits when its import is done)."""
+        if self._pid < 0:
+            return
+        self._pid = -1
+        os.close(self._req)
+        os.close(self._ans)
+
+
+_SERVERS: dict[str, Server] = {}
+
+
+def start_server(key: str, module: str, function: str, warm: str | None = None) -> None:
+    """Fork a :class:`Server` for ``module.function`` under ``key`` when a CPU is spare."""
+    if key not in _SERVERS and spare_cpu():
+        _SERVERS[key] = Server(module, function, warm)
+
+
+def take_server(key: str) -> Server | None:
+    """The server started under ``key`` (once; ``None`` if there is none)."""
+    return _SERVERS.pop(key, None)
+
+
+def stop_servers() -> None:
+    """Release every server not used."""
+    while _SERVERS:
+        _SERVERS.popitem()[1].close()

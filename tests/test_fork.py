@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from msk import _fork
-from msk._fork import Forked, spare_cpu
+from msk._fork import Forked, Server, spare_cpu, start_server, stop_servers, take_server
 
 
 def _work(n: int) -> dict[str, np.ndarray]:
@@ -39,3 +39,19 @@ def test_a_failing_child_is_computed_again_here():
 def test_msk_fork_0_keeps_everything_in_the_process(monkeypatch):
     monkeypatch.setenv(_fork.ENV, "0")
     assert not spare_cpu()
+
+
+@pytest.mark.skipif(not hasattr(os, "fork"), reason="no os.fork")
+def test_a_server_imports_first_and_answers_once():
+    srv = Server("math", "fsum")
+    assert srv.call([0.1] * 10) == 1.0
+    with pytest.raises(RuntimeError):  # once
+        srv.call([1.0])
+    Server("math", "fsum").close()  # released unused: the child exits on its own
+
+
+def test_servers_by_key(monkeypatch):
+    monkeypatch.setenv(_fork.ENV, "0")  # no spare CPU: nothing is started
+    start_server("k", "math", "fsum")
+    assert take_server("k") is None
+    stop_servers()

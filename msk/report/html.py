@@ -435,6 +435,32 @@ def build_figures(res: SessionResults) -> dict[str, str]:
     fes). Drawing them is most of a session's report (~0.05–0.25 s a figure with matplotlib);
     with a second CPU free (:func:`msk._fork.spare_cpu`) a forked child draws half of them
     meanwhile — the same figures, in about half the wall time."""
+    from msk._fork import take_server
+
+    server = take_server(FIGURE_SERVER)
+    if server is not None:  # forked by `msk run` before its imports (msk._fork.Server)
+        try:
+            return dict(server.call(res))
+        except RuntimeError:
+            pass
+    return _draw_all(res)
+
+
+#: key of the :class:`msk._fork.Server` that draws the figures (``msk run`` starts it)
+FIGURE_SERVER = "figures"
+
+
+def _warm() -> None:
+    """Load what the first figure of a process loads (fonts, text layout, the SVG backend)."""
+    fig, ax = _plt().subplots(figsize=(2.0, 1.5))
+    ax.plot([0.0, 1.0], [0.0, 1.0], label="warm-up")
+    ax.set_xlabel("x (unit)")
+    ax.legend()
+    fig.tight_layout()
+    _svg(fig)
+
+
+def _draw_all(res: SessionResults) -> dict[str, str]:
     from msk._fork import Forked, spare_cpu
 
     names = [n for n, _ in _FIGURES]
