@@ -131,10 +131,12 @@ def main() -> None:
             f"- working tree / baseline: **{min(cur) / min(base):.2f}** (min), "
             f"{statistics.median(cur) / statistics.median(base):.2f} (median)."
         )
-    verdict = "met" if min(cur) <= TARGET_S else "not met"
+    lo, mid = min(cur), statistics.median(cur)
+    verdict = "met" if mid <= TARGET_S else ("met by the fastest run only" if lo <= TARGET_S
+                                             else "not met")  # fmt: skip
     lines.append(
-        f"- Target ≤ {TARGET_S:g} s cold on an idle machine: {verdict} at this load "
-        f"(min {min(cur):.2f} s, median {statistics.median(cur):.2f} s)."
+        f"- Target ≤ {TARGET_S:g} s cold: {verdict} at this load (min {lo:.2f} s, median "
+        f"{mid:.2f} s)."
     )
     text = "\n".join(lines)
     print(text)
@@ -145,6 +147,23 @@ def main() -> None:
             "(imports, model, every stage, the report), against the package at a git ref in the "
             "same run.\n\n"
             f"**Target: ≤ {TARGET_S:g} s wall on an idle machine.**\n\n"
+            "Where the time goes and what was done (issue 20): about 1 s is imports (numpy, "
+            "scipy — `scipy.signal` alone ~0.45 s, of which `scipy.stats` ~0.17 s and scipy's "
+            "docstring processing, and it is needed for the filters —, Pinocchio, ezc3d, "
+            "clarabel, daqp; most land in the `model` stage, the first to need them), the mass "
+            "identification ~0.5 s (123 Clarabel solves of the cross-validation grid; their "
+            "constraints are now built once per fit, each fold's first noise system once for "
+            "all λ — same solver inputs, same result), the report ~0.4 s. The report's "
+            "figures are drawn by a child that `msk run` forks before its own imports "
+            "(`msk._fork.Server`): it imports matplotlib and warms its fonts on the free CPU "
+            "while the stages run, then draws half of the figures while a grandchild draws "
+            "the other half (the parent never imports matplotlib; `MSK_FORK=0` draws in the "
+            "process, as inside batch workers); figures are plain `Figure`s (no pyplot) drawn "
+            "once when `tight_layout` already fits them. The console script ends with "
+            "`gc.freeze()` (no final collection over ~10⁶ objects, ~0.15 s) and collects "
+            "cyclic garbage every 20,000 allocations (~0.07 s). On a loaded machine the "
+            "forked children get no spare CPU and the run is about as slow as drawing in "
+            "the process.\n\n"
         )
         replace_doc_section(DOCS, HEADING, intro + f"<!-- bench_run_cold:figures -->\n{text}\n"
                             "<!-- bench_run_cold:figures -->\n")  # fmt: skip
