@@ -651,7 +651,7 @@ def _pseudo_scaling(phi: Array) -> Array:
 
 
 def _clarabel_solve(
-    hess: Array, lin: Array, a: Array, b: Array, cones: list[Any], what: str
+    hess: Array, lin: Array, a: Any, b: Array, cones: list[Any], what: str
 ) -> Array:
     """min ½ xᵀ(2H)x − 2 linᵀx  s.t.  A x + s = b, s ∈ cones (objective normalised)."""
     import clarabel
@@ -664,7 +664,8 @@ def _clarabel_solve(
     settings.tol_gap_abs = settings.tol_gap_rel = 1e-10
     settings.tol_feas = 1e-10
     settings.max_iter = 200
-    sol = clarabel.DefaultSolver(p, q, sp.csc_matrix(a), b, cones, settings).solve()
+    a_csc = a if sp.issparse(a) else sp.csc_matrix(a)
+    sol = clarabel.DefaultSolver(p, q, a_csc, b, cones, settings).solve()
     status = str(sol.status)
     if status not in ("Solved", "AlmostSolved"):
         raise OptimizationError(f"{what}: Clarabel failed with status {status}")
@@ -920,6 +921,7 @@ class InertialIdentifier:
             phi_fixed[10 * b : 10 * b + 10] = prior[10 * b : 10 * b + 10]
         self._layout: RegressorLayout = layout
         self._groups = groups
+        self._cone_cache: tuple[Any, ...] | None = None  # constraints of _solve, built once
         self._proj = proj
         self._x_prior = x_prior
         self._phi_fixed = phi_fixed
@@ -1032,14 +1034,18 @@ class InertialIdentifier:
     def _solve(self, hx: Array, gx: Array, weight: float = 1.0) -> Array:
         import clarabel
 
-        a_rows, b_rows, cones = self._constraints()
+        if self._cone_cache is None:  # the same for every solve of a fit (cv grid: ~120)
+            a_rows, b_rows, cones = self._constraints()
+            kinds = {"zero": clarabel.ZeroConeT, "nonneg": clarabel.NonnegativeConeT}
+            cl = [clarabel.PSDTriangleConeT(n) if k == "psd" else kinds[k](n) for k, n in cones]
+            a_csc = sp.csc_matrix(np.vstack(a_rows))
+            self._cone_cache = (a_rows, b_rows, cones, a_csc, np.concatenate(b_rows), cl)
+        a_rows, b_rows, cones, a_csc, b, cl = self._cone_cache
         hess = hx + weight * np.eye(hx.shape[0])
         lin = gx + weight * self._x_prior
         if self.solver == "ipopt":
             return self._solve_ipopt(hess, lin, a_rows, b_rows, cones)
-        kinds = {"zero": clarabel.ZeroConeT, "nonneg": clarabel.NonnegativeConeT}
-        cl = [clarabel.PSDTriangleConeT(n) if k == "psd" else kinds[k](n) for k, n in cones]
-        return _clarabel_solve(hess, lin, np.vstack(a_rows), np.concatenate(b_rows), cl,
+        return _clarabel_solve(hess, lin, a_csc, b, cl,
                                f"identification of {self.model.name!r}")  # fmt: skip
 
     def _solve_ipopt(
@@ -1199,10 +1205,13 @@ class InertialIdentifier:
             )
         return self._x_prior * ((self.total_mass - fixed_m) / free_m)
 
-    def _fit_stats(self, st: _Stats, weight: float) -> tuple[Array, Array, Array, int]:
+    def _fit_stats(
+        self, st: _Stats, weight: float, first: tuple[Array, Array, Array] | None = None
+    ) -> tuple[Array, Array, Array, int]:
         """x, σ, H_x and the number of solves of the MAP fit on the statistics ``st`` with prior
-        weight λ (``inf``: prior only, σ from its residuals)."""
-        sigma = self._initial_sigma(st)
+        weight λ (``inf``: prior only, σ from its residuals). ``first``: σ₀ and its
+        :meth:`_x_system` on ``st`` when the caller has them (the same for every λ)."""
+        sigma = self._initial_sigma(st) if first is None else first[0]
         if math.isinf(weight):
             x = self._prior_only_x()
             if self.noise_std is None:
@@ -1215,7 +1224,7 @@ class InertialIdentifier:
         x = self._x_prior
         hx = np.zeros((x.size, x.size))
         for it in range(iterations):
-            hx, gx = self._x_system(sigma, st)
+            hx, gx = self._x_system(sigma, st) if it or first is None else first[1:]
             x = self._solve(hx, gx, weight)
             if it < iterations - 1:
                 phi = self._proj @ x + self._phi_fixed
@@ -1254,8 +1263,10 @@ class InertialIdentifier:
                     f"cross-validation fold {names[bi]!r}: no training frames"
                 )
             n_held += held.n
+            sigma0 = self._initial_sigma(train)
+            first = (sigma0, *self._x_system(sigma0, train))
             for wi, w in enumerate(grid):
-                x, _, _, _ = self._fit_stats(train, float(w))
+                x, _, _, _ = self._fit_stats(train, float(w), first)
                 rss = np.maximum(held.row_rss(self._proj @ x + self._phi_fixed), 0.0)
                 sq[wi] += rss
                 rms = np.sqrt(rss / held.n)

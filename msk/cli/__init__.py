@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import argparse
 import importlib
+import os
 import sys
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
@@ -21,7 +22,7 @@ from typing import NoReturn
 from msk import __version__
 from msk.exceptions import MskError
 
-__all__ = ["VERB_MODULES", "Command", "build_parser", "main", "positive_int"]
+__all__ = ["VERB_MODULES", "Command", "build_parser", "console", "main", "positive_int"]
 
 #: Modules whose ``COMMANDS`` tuple lists their verbs, in the order ``msk --help`` shows them.
 VERB_MODULES: tuple[str, ...] = ("msk.cli.session", "msk.cli.batch", "msk.cli.info")
@@ -92,8 +93,19 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
+def _quiet_blas_threads() -> None:
+    """OpenBLAS's worker threads sleep as soon as a call is done instead of spinning on a core
+    for ~0.1 s after every threaded call (``OPENBLAS_THREAD_TIMEOUT``: 2⁴ cycles instead of
+    2²⁸). Same thread count, hence the same results; on a shared machine and in a batch,
+    where the spinning threads took the CPU the other workers need, the runs are faster and
+    steadier. Read when OpenBLAS loads (numpy's import), so set before it; a value already in
+    the environment is kept."""
+    os.environ.setdefault("OPENBLAS_THREAD_TIMEOUT", "4")
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     """Entry point of the ``msk`` console script; returns the exit status."""
+    _quiet_blas_threads()
     _safe_streams()
     parser = build_parser()
     args = parser.parse_args(argv)
@@ -108,3 +120,18 @@ def main(argv: Sequence[str] | None = None) -> int:
     except OSError as exc:
         print(f"msk: error: {' '.join(str(exc).split())}", file=sys.stderr)
         return 2
+
+
+def console() -> NoReturn:
+    """The ``msk`` console script (and ``python -m msk.cli``): :func:`main` in a short-lived
+    process, so the cyclic garbage collector runs less often (first generation every 20,000
+    allocations instead of 700: ~0.07 s of a cold ``msk run``, most of them over the ~10⁶
+    objects that imports create) and the process ends without the interpreter's last collection
+    over every object (``gc.freeze``: ~0.15 s; the objects are freed with the process all the
+    same, finalisers and ``atexit`` handlers still run)."""
+    import gc
+
+    gc.set_threshold(20_000, 20, 20)
+    code = main()
+    gc.freeze()
+    sys.exit(code)

@@ -1,7 +1,5 @@
 """``python -m msk.cli``: the ``msk`` command."""
 
-import sys
+from msk.cli import console
 
-from msk.cli import main
-
-sys.exit(main())
+console()

@@ -25,6 +25,18 @@ def _run_args(p: argparse.ArgumentParser) -> None:
 
 
 def _run(args: argparse.Namespace) -> int:
+    from msk import _fork
+
+    # the report's figures: a child forked now imports matplotlib on the free CPU while the
+    # stages run, and draws them when the report stage asks (msk.report.build_figures)
+    _fork.start_server("figures", "msk.report.html", "_draw_all", warm="_warm")
+    try:
+        return _run_sessions(args)
+    finally:
+        _fork.stop_servers()
+
+
+def _run_sessions(args: argparse.Namespace) -> int:
     from msk.pipeline import run_task_trials
 
     raised = 0

@@ -74,13 +74,24 @@ _JOINTS = (
 # ---------------------------------------------------------------------------------------------
 # figures
 # ---------------------------------------------------------------------------------------------
-def _plt() -> Any:
+class _Figures:
+    """``plt.subplots`` without pyplot: plain :class:`matplotlib.figure.Figure` objects, outside
+    pyplot's registry (nothing to close) and without its import (~20 ms) or a GUI backend."""
+
+    @staticmethod
+    def subplots(
+        nrows: int = 1, ncols: int = 1, *, figsize: tuple[float, float], **kw: Any
+    ) -> tuple[Any, Any]:
+        from matplotlib.figure import Figure
+
+        fig = Figure(figsize=figsize)
+        return fig, fig.subplots(nrows, ncols, **kw)
+
+
+def _plt() -> _Figures:
     import matplotlib
 
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    plt.rcParams.update(
+    matplotlib.rcParams.update(
         {
             "font.size": 9,
             "svg.fonttype": "none",
@@ -91,15 +102,14 @@ def _plt() -> Any:
             "text.parse_math": False,
         }
     )
-    return plt
+    return _Figures()
 
 
-def _svg(fig: Any) -> str:
+def _svg(fig: Any, *, laid_out: bool = False) -> str:
+    """The figure as SVG text. ``laid_out``: ``tight_layout`` already fitted it to its canvas,
+    so no ``bbox_inches="tight"`` (which draws the whole figure once more to measure it)."""
     buf = io.StringIO()
-    fig.savefig(buf, format="svg", bbox_inches="tight")
-    import matplotlib.pyplot as plt
-
-    plt.close(fig)
+    fig.savefig(buf, format="svg", bbox_inches=None if laid_out else "tight")
     text = buf.getvalue()
     text = re.sub(r"<metadata>.*?</metadata>\s*", "", text, flags=re.S)  # dates, licence URIs
     return text[text.index("<svg") :]
@@ -197,9 +207,9 @@ def _fig_strength_curves(res: SessionResults) -> str | None:
                 handles.append(h)
                 labels.append(lab)
     fig.legend(handles, labels, loc="lower center", ncol=len(labels), fontsize=8,
-               bbox_to_anchor=(0.5, -0.02))  # fmt: skip
-    fig.tight_layout(rect=(0, 0.05, 1, 1))
-    return _svg(fig)
+               bbox_to_anchor=(0.5, 0.0))  # fmt: skip
+    fig.tight_layout(rect=(0, 0.3 / fig.get_figheight(), 1, 1))  # 0.3 in for the legend
+    return _svg(fig, laid_out=True)
 
 
 def _fig_mass(res: SessionResults) -> str | None:
@@ -298,7 +308,7 @@ def _fig_joints(res: SessionResults) -> str | None:
                 axes[r, j].legend(fontsize=7, loc="best")
         axes[2, j].set_xlabel(xl)
     fig.tight_layout()
-    return _svg(fig)
+    return _svg(fig, laid_out=True)
 
 
 def _fig_muscles(res: SessionResults) -> str | None:
@@ -347,7 +357,7 @@ def _fig_contact(res: SessionResults) -> str | None:
     axes[0][0].set_ylabel("knee contact force (body weights)")
     axes[0][0].legend(fontsize=6)
     fig.tight_layout()
-    return _svg(fig)
+    return _svg(fig, laid_out=True)
 
 
 def _fig_fes(res: SessionResults) -> str | None:
@@ -390,19 +400,22 @@ def _fig_fes(res: SessionResults) -> str | None:
     return _svg(fig)
 
 
-def build_figures(res: SessionResults) -> dict[str, str]:
-    """Inline SVG figures by name (strength, strength_curves, mass, joints, muscles, contact,
-    fes)."""
+_FIGURES = (
+    ("strength", _fig_strength),
+    ("strength_curves", _fig_strength_curves),
+    ("mass", _fig_mass),
+    ("joints", _fig_joints),
+    ("muscles", _fig_muscles),
+    ("contact", _fig_contact),
+    ("fes", _fig_fes),
+)
+
+
+def _draw(res: SessionResults, names: Sequence[str]) -> dict[str, str]:
     out = {}
-    for name, fn in (
-        ("strength", _fig_strength),
-        ("strength_curves", _fig_strength_curves),
-        ("mass", _fig_mass),
-        ("joints", _fig_joints),
-        ("muscles", _fig_muscles),
-        ("contact", _fig_contact),
-        ("fes", _fig_fes),
-    ):
+    for name, fn in _FIGURES:
+        if name not in names:
+            continue
         try:
             svg = fn(res)
         except Exception as exc:  # a figure that cannot be drawn must not cost the report
@@ -413,6 +426,50 @@ def build_figures(res: SessionResults) -> dict[str, str]:
         if svg:
             out[name] = svg
     return out
+
+
+def build_figures(res: SessionResults) -> dict[str, str]:
+    """Inline SVG figures by name (strength, strength_curves, mass, joints, muscles, contact,
+    fes). Drawing them is most of a session's report (~0.05–0.25 s a figure with matplotlib);
+    with a second CPU free (:func:`msk._fork.spare_cpu`) a forked child draws half of them
+    meanwhile — the same figures, in about half the wall time."""
+    from msk._fork import take_server
+
+    server = take_server(FIGURE_SERVER)
+    if server is not None:  # forked by `msk run` before its imports (msk._fork.Server)
+        try:
+            return dict(server.call(res))
+        except RuntimeError:
+            pass
+    return _draw_all(res)
+
+
+#: key of the :class:`msk._fork.Server` that draws the figures (``msk run`` starts it)
+FIGURE_SERVER = "figures"
+
+
+def _warm() -> None:
+    """Load what the first figure of a process loads (fonts, text layout, the SVG backend)."""
+    fig, ax = _plt().subplots(figsize=(2.0, 1.5))
+    ax.plot([0.0, 1.0], [0.0, 1.0], label="warm-up")
+    ax.set_xlabel("x (unit)")
+    ax.legend()
+    fig.tight_layout()
+    _svg(fig)
+
+
+def _draw_all(res: SessionResults) -> dict[str, str]:
+    from msk._fork import Forked, spare_cpu
+
+    names = [n for n, _ in _FIGURES]
+    if not spare_cpu():
+        return _draw(res, names)
+    _plt()  # matplotlib imported once, before the fork
+    # halves of about equal cost (joints, strength_curves and contact are the dear ones)
+    theirs = ("strength_curves", "contact", "strength", "fes")
+    child = Forked(_draw, res, theirs)
+    both = {**_draw(res, [n for n in names if n not in theirs]), **child.result()}
+    return {n: both[n] for n in names if n in both}
 
 
 # ---------------------------------------------------------------------------------------------
