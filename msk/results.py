@@ -122,6 +122,12 @@ class SessionResults:
         object.__setattr__(self, "angle_columns", tuple(angle_columns))
         object.__setattr__(self, "extra_files", {} if extra_files is None else extra_files)
 
+    def __reduce__(self) -> tuple[Any, ...]:
+        # to a forked figure process of the same run (msk._fork): the summary as its plain
+        # JSON tree (its records hold read-only mapping proxies, which pickle refuses)
+        args = (dict(self.tables), self.summary.to_dict(), self.path, self.angle_columns)
+        return (SessionResults, (*args, dict(self.extra_files)))
+
     def table(self, name: str) -> Table:
         try:
             return self.tables[name]

@@ -13,6 +13,8 @@ import time
 from pathlib import Path
 from typing import Any, TextIO
 
+from threadpoolctl import threadpool_limits
+
 from msk.config import SessionConfig, load_config
 from msk.exceptions import ConfigError
 from msk.pipeline.graph import CORE_STAGES, GRAPH, STAGES, run_graph
@@ -68,7 +70,8 @@ def run_stages(
         raise ConfigError(f"no pipeline stage {until!r}; stages: {', '.join(names)}")
     cfg = config if isinstance(config, SessionConfig) else load_config(config)
     runner = Runner(None, progress, stages=STAGES, core=CORE_STAGES)
-    return run_graph(session_inputs(cfg), runner, GRAPH[: names.index(until) + 1])
+    with threadpool_limits(limits=1, user_api="blas"):
+        return run_graph(session_inputs(cfg), runner, GRAPH[: names.index(until) + 1])
 
 
 def run_session(
@@ -101,7 +104,11 @@ def run_session(
         out / ".cache" if use_cache else None, progress, stages=STAGES, core=CORE_STAGES,
         fail_stage=_fail_stage,
     )  # fmt: skip
-    results = run_graph(session_inputs(cfg), runner)
+    # one BLAS thread: the numbers do not depend on the machine's core count (OpenBLAS sums in
+    # another order with 2 threads: mass identification moved by ~5e-7), and batch workers do
+    # not oversubscribe the cores
+    with threadpool_limits(limits=1, user_api="blas"):
+        results = run_graph(session_inputs(cfg), runner)
     tables, figures = results["tables"], results["report"]
     summary = dict(results["summary"])
     summary["stages"] = [dataclasses.asdict(r) for r in runner.records]
