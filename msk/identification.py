@@ -1155,7 +1155,7 @@ class InertialIdentifier:
         self.noise_std_ = sigma
         self._hx = hx
         self.x_ = x
-        self.phi_ = self._proj @ x + self._phi_fixed
+        self.phi_ = self._phi_of(x, weight)
         names_b = self._layout.body_names
         self.parameters_ = {
             n: self.phi_[10 * b : 10 * b + 10].copy() for b, n in enumerate(names_b)
@@ -1187,6 +1187,21 @@ class InertialIdentifier:
         root = root_coordinate_indices(self.model)
         return np.array([self.model.coordinates[i].kind == "translational" for i in root])
 
+    def _phi_of(self, x: Array, weight: float) -> Array:
+        """φ of the solution ``x`` at prior weight ``weight``; prior only (``inf``) is the prior
+        itself scaled to the total mass — every body as in the model, also a symmetric pair
+        whose prior is not mirror-symmetric (legs scaled with different factors), which the
+        symmetric parametrisation ``x`` can only average."""
+        if not math.isinf(weight):
+            return self._proj @ x + self._phi_fixed
+        phi = np.asarray(self.prior_, dtype=float).copy()
+        free = ~self._fixed_mask
+        if self.total_mass is not None:
+            masses = phi[0::10]
+            fixed_m = float(masses[~free].sum())
+            phi.reshape(-1, 10)[free] *= (self.total_mass - fixed_m) / float(masses[free].sum())
+        return phi
+
     def _prior_only_x(self) -> Array:
         """The prior with every free segment scaled by one factor so that Σ m = total mass (the
         generic model at the measured mass; the prior itself without ``total_mass``)."""
@@ -1215,7 +1230,7 @@ class InertialIdentifier:
         if math.isinf(weight):
             x = self._prior_only_x()
             if self.noise_std is None:
-                phi = self._proj @ x + self._phi_fixed
+                phi = self._phi_of(x, weight)
                 rss = np.maximum(st.row_rss(phi), 0.0)
                 sigma = np.sqrt(rss / st.n) + 1e-9 * (1 + np.sqrt(st.c / st.n))
             hx, _ = self._x_system(sigma, st)
@@ -1267,7 +1282,7 @@ class InertialIdentifier:
             first = (sigma0, *self._x_system(sigma0, train))
             for wi, w in enumerate(grid):
                 x, _, _, _ = self._fit_stats(train, float(w), first)
-                rss = np.maximum(held.row_rss(self._proj @ x + self._phi_fixed), 0.0)
+                rss = np.maximum(held.row_rss(self._phi_of(x, float(w))), 0.0)
                 sq[wi] += rss
                 rms = np.sqrt(rss / held.n)
                 fold_f[wi, fi] = _pool_rms(rms, trans)

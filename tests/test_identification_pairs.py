@@ -69,6 +69,7 @@ def _walks(config: str, real: Path) -> tuple[_Walk, ...]:
     # the stages up to the loads, as `msk run` runs them (no cache, nothing written)
     from msk.config import load_config
     from msk.pipeline import run_stages
+    from msk.quality import swapped_sides
 
     cfg = load_config(ROOT / "pipelines" / f"{config}.toml")
     task = cfg.trials_with_role("task")[0]
@@ -79,6 +80,10 @@ def _walks(config: str, real: Path) -> tuple[_Walk, ...]:
         others = tuple(t for t in cfg.trials if t.role != "task")
         r = run_stages(dataclasses.replace(cfg, trials=(*others, tc)), until="loads")
         model, kin, loads = r["model"].model, r["kinematics"], r["loads"]
+        # a walk the pipeline flags for swapped left/right labels (UNIPD Walking3: its acromia)
+        # has a wrong pose: its residuals say nothing about inertial parameters
+        if swapped_sides(model, kin, r["model"].trial.markers, r["model"].labels):
+            continue
         it = IdentificationTrial.from_loads(model, kin, loads.external, name=f.stem)
         good = np.isfinite(it.tau_ext).all(1) & np.isfinite(it.theta_ddot).all(1) & loads.measured
         out.append(_Walk(model, it, good, kin, loads.external))
