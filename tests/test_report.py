@@ -392,7 +392,13 @@ def test_chromium_sandbox_unless_root_and_no_javascript_for_the_pdf(monkeypatch)
     assert bare.index("script-src 'none'") < bare.index("<script>")
     t = np.linspace(0, 1, 5)
     q = Table(t, np.column_stack([t]), ("knee_angle_l",), "q")
-    summary = {"subject": {"name": "X"}, "quality": {}, "stages": [], "not_available": []}
+    summary = {
+        **BASE_SUMMARY,
+        "subject": {"name": "X"},
+        "quality": {},
+        "stages": [],
+        "not_available": [],
+    }
     assert "script-src 'none'" in render_html(SessionResults({"q": q}, summary))
 
 
