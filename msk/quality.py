@@ -48,6 +48,7 @@ __all__ = [
     "THRESHOLDS",
     "Flag",
     "body_mass_from_loads",
+    "contact_flags",
     "gait_flags",
     "swapped_sides",
 ]
@@ -295,6 +296,40 @@ def _optimization_flags(trial: str, sol: Any, jt: Any, th: Mapping[str, float]) 
                           f"the reserve actuator of {c} carries {pct:.0f} % of its peak joint "
                           "torque (RMS): the muscles cannot produce that moment")
                 )  # fmt: skip
+    return out
+
+
+def contact_flags(trial: str, loads: Any, *, unassigned_pct: float = 1.0) -> list[Flag]:
+    """Plate contacts whose load went to no body (:attr:`msk.loads.ExternalLoads.flags`): both
+    feet on one plate (its single wrench cannot be split between them: one resultant and one
+    centre of pressure for two feet) or a load with no foot over the plate. Their frames are
+    excluded from the residuals, the identification and the muscle forces
+    (:func:`msk.loads.contact_measured`): the flag says how many and where. A shared contact
+    is always flagged; an unassigned one above ``unassigned_pct`` % of the frames (a
+    treadmill's first frame with a belt's load and the foot not yet tracked is no finding)."""
+    out: list[Flag] = []
+    n = int(np.size(getattr(loads, "time", ())))
+    for reason, mask, what in (
+        ("shared", getattr(loads, "shared_contact", None), "both feet stand on one plate"),
+        ("unassigned", getattr(loads, "unassigned_contact", None),
+         "no foot stands on a loaded plate"),
+    ):  # fmt: skip
+        if mask is None or np.size(mask) != n or not np.any(mask):
+            continue
+        spans = [
+            f"{c.plate} {c.start_time:.2f}–{c.end_time:.2f} s"
+            + (f" ({', '.join(c.feet)})" if c.feet else "")
+            for c in getattr(loads, "flags", ())
+            if c.reason == reason
+        ]
+        k = int(np.count_nonzero(mask))
+        if reason == "unassigned" and 100.0 * k / max(n, 1) <= unassigned_pct:
+            continue
+        out.append(
+            _flag(trial, f"plate_{reason}_contact_frames", k, 0,
+                  f"{what} in {k} frames ({'; '.join(spans[:3])}): its load is on no body, those "
+                  "frames are left out of the residuals, the identification and the muscle forces")
+        )  # fmt: skip
     return out
 
 

@@ -63,6 +63,7 @@ __all__ = [
     "apply_scale_factors",
     "bone_segments",
     "choose_measurements",
+    "chord_joint_centre",
     "complete_scale_factors",
     "measure_scale_factors",
     "measure_scale_factors_from_motion",
@@ -76,6 +77,7 @@ __all__ = [
     "scale_from_static",
     "scale_inertia",
     "scale_model",
+    "static_joint_centres",
     "usable_measurements",
 ]
 
@@ -500,8 +502,20 @@ def place_markers(
     max_distance_m: float = 0.25,
     move: Sequence[str] = (),
     hints: Mapping[str, str] | None = None,
+    centres: Mapping[str, tuple[str, ArrayLike, ArrayLike]] | None = None,
+    coordinate_tasks: Mapping[str, tuple[float, float]] | None = None,
 ) -> tuple[Model, dict[str, Any]]:
     """Add the static trial's non-model markers to ``model`` (OpenSim's MarkerPlacer idea).
+
+    ``centres`` (name → (body, point in the body, its static position), e.g. the knee and
+    ankle centres of :func:`static_joint_centres` at the tibia's and talus' origins) are
+    virtual markers of the static pose θ̄ only: with lateral markers alone (Plug-in Gait) the
+    leg's rotation about its long axis in the static is otherwise set by the generic model's
+    lateral-marker offsets, and the wands placed from that pose carry its error into every
+    frame of the motion (the knee flexion axis off the subject's: tibia and toe markers 60 mm
+    off at 65° of knee flexion on PiG_Motion3, 8 mm in stance). ``coordinate_tasks`` (name →
+    (value rad, weight)) hold coordinates the static's model markers do not observe (a foot
+    with a heel marker only: subtalar and mtp) near neutral in θ̄, as in the motion's IK.
 
     ``hints`` (lab label → body, e.g. :meth:`msk.markersets.MarkerSetMatch.body_hints`) puts a
     marker of a known bony landmark on its own body when that body is within
@@ -556,15 +570,32 @@ def place_markers(
     n = static_markers.shape[0]
     frames = np.unique(np.linspace(0, n - 1, min(n, 9)).round().astype(int))
     base = model.with_markers([m for m in model.markers if m.name not in move]) if move else model
+    ik_markers, ik_labels = static_markers, list(labels)
+    if centres:
+        virt = {k: v for k, v in centres.items() if v[0] in model.body_frame}
+        base = base.with_markers(
+            [
+                *base.markers,
+                *(Marker(k, b, np.asarray(o, dtype=float)) for k, (b, o, _) in virt.items()),
+            ]
+        )
+        extra = np.broadcast_to(
+            np.array([np.asarray(x, dtype=float) for _, _, x in virt.values()]).reshape(1, -1, 3),
+            (n, len(virt), 3),
+        )
+        ik_markers = np.concatenate([static_markers, extra], axis=1)
+        ik_labels += list(virt)
     # the moved markers still pin the pose where the others are too few to determine it
     # (3 coordinates per marker at most; e.g. a static with pelvis markers and feet only)
-    seen = {lab for lab in labels if lab in base.marker_names}
+    seen = {lab for lab in ik_labels if lab in base.marker_names}
     n_free = sum(not c.locked for c in model.coordinates)
     if move and 3 * len(seen) < n_free:
         base = model
+        ik_markers, ik_labels = static_markers, list(labels)
     kin = solve_kinematics(
-        base, static_markers[frames], labels, time[frames], cutoff_hz=None, min_markers=3
-    )
+        base, ik_markers[frames], ik_labels, time[frames], cutoff_hz=None, min_markers=3,
+        coordinate_tasks=dict(coordinate_tasks) if coordinate_tasks else None,
+    )  # fmt: skip
     ok = np.isfinite(kin.q).all(axis=1)
     if not ok.any():
         raise MissingDataError("static trial: no frame could be solved for marker placement")
@@ -1061,6 +1092,8 @@ def scale_from_static(
     height_m: float | None = None,
     body_mass: float | None = None,
     marker_names: Mapping[str, str] | None = None,
+    widths_m: Mapping[str, float] | None = None,
+    marker_diameter_m: float | None = None,
 ) -> tuple[Model, ScalingReport]:
     """:func:`measure_scale_factors` on a static trial (``{label: (N, 3)}`` or a TRC table),
     per segment the first usable alternative of :data:`SEGMENT_MEASUREMENTS` when
@@ -1068,7 +1101,9 @@ def scale_from_static(
 
     With ``measurements`` None, a thigh or shank whose joint centres the static trial shows
     (epicondyles and malleoli both sides of the leg, :func:`joint_centre_scale_factors`) is
-    scaled by the joint-centre distance instead of the marker pair (Kainz et al. 2017)."""
+    scaled by the joint-centre distance instead of the marker pair (Kainz et al. 2017); with
+    lateral markers only, the lab's joint widths (``widths_m``, ``marker_diameter_m``) place the
+    knee and ankle centres as Plug-in Gait does (:func:`static_joint_centres`)."""
     means = _static_means(static_markers)
     names = dict(marker_names or {})
     have = {mk for mk in model.marker_names if names.get(mk, mk) in means}
@@ -1085,7 +1120,12 @@ def scale_from_static(
         # thigh and shank by joint centres where the static has medial and lateral markers
         pf = float(np.asarray(measured.get("pelvis", np.ones(3)), dtype=float).reshape(-1)[0])
         jc, jc_details = joint_centre_scale_factors(
-            model, means, pelvis_factor=pf, marker_names=names
+            model,
+            means,
+            pelvis_factor=pf,
+            marker_names=names,
+            widths_m=widths_m,
+            marker_diameter_m=marker_diameter_m,
         )
         for body, f in jc.items():
             measured[body] = np.full(3, f)
@@ -1330,31 +1370,31 @@ def _mid_psis(means: Mapping[str, Array]) -> Array | None:
     return None
 
 
-def joint_centre_scale_factors(
-    model: Model,
-    static_markers: Any,
-    *,
-    pelvis_factor: float = 1.0,
+def chord_joint_centre(proximal: ArrayLike, wand: ArrayLike, lateral: ArrayLike, r: float) -> Array:
+    """Plug-in Gait's "chord function" (Davis et al. 1991, Hum Mov Sci 10:575-587; Vicon
+    Plug-in Gait reference guide): the joint centre J in the plane of the proximal joint
+    centre P, the wand marker W and the lateral marker L, at distance ``r`` (half the joint
+    width plus half the marker diameter) from L with the angle P–J–L a right angle (J on the
+    circle of diameter PL, Thales), on the side of the line PL away from the wand:
+    J = L + r (cos β (P − L)/‖P − L‖ − sin β w), cos β = r/‖P − L‖, w the unit in-plane normal to
+    PL pointing to W."""
+    p, w_, lat = (np.asarray(v, dtype=float) for v in (proximal, wand, lateral))
+    d = float(np.linalg.norm(p - lat))
+    u = (p - lat) / d
+    w = (w_ - lat) - np.dot(w_ - lat, u) * u
+    w /= np.linalg.norm(w)
+    cb = min(r / d, 1.0)
+    return lat + r * (cb * u - np.sqrt(1.0 - cb * cb) * w)
+
+
+def static_hip_centres(
+    model: Model, means: Mapping[str, Array], *, pelvis_factor: float = 1.0,
     marker_names: Mapping[str, str] | None = None,
-) -> tuple[dict[str, float], dict[str, dict[str, Any]]]:
-    """Thigh and shank scale factors from joint-centre distances in a static trial (Kainz et
-    al. 2017, J Appl Biomech 33:354-360: scaling the thigh by hip–knee and the shank by
-    knee–ankle joint-centre distances is more accurate than by skin-marker pairs).
-
-    Per side s with both epicondyle and both malleolus markers (:data:`JOINT_CENTRE_PAIRS`):
-    the knee centre is the midpoint of the epicondyles, the ankle centre that of the malleoli
-    (ISB, Wu et al. 2002, J Biomech 35:543-548); the hip centre is the model's, carried by the
-    pelvis (scaled by ``pelvis_factor``) fitted rigidly to the pelvis markers (≥ 3 model
-    markers on the pelvis in the trial). The factors are these distances over the model's
-    joint-origin distances in the default pose (hip → knee → ankle joint): the skin markers'
-    positions in the generic marker set do not enter (gait2392 puts its malleolus markers 3 cm
-    above the ankle joint, which inflated the shank by ~10 % when scaled by marker pairs).
-
-    Returns ``({body: factor}, {measurement: details})``; a side without the four markers, or
-    a pelvis without 3 markers (a sacral marker or, failing it, the mid-PSIS counts), gives
-    nothing for that leg (thigh and shank are scaled together this way or not at all).
-    """
-    means = _static_means(static_markers)
+) -> dict[str, Array]:  # fmt: skip
+    """``{"r"|"l": hip centre}`` in a static trial: the model's, carried by its pelvis (scaled
+    by ``pelvis_factor``) fitted rigidly to the pelvis markers (≥ 3 model markers on the
+    pelvis; the mid-PSIS stands in for a missing sacral marker: IOR/CAST sets have PSIS, no
+    sacrum). Empty when the pelvis is not determined."""
     names = dict(marker_names or {})
 
     def exp(mk: str) -> Array | None:
@@ -1363,14 +1403,6 @@ def joint_centre_scale_factors(
 
     data = model.create_data()
     forward_kinematics(model, data, model.default_coordinates())
-
-    def origin(body: str) -> Array:
-        return np.asarray(data.oMf[model.body_frame[body]].translation, dtype=float)
-
-    factors: dict[str, float] = {}
-    details: dict[str, dict[str, Any]] = {}
-    # the hip centres: the model's, carried by its pelvis fitted rigidly to the pelvis markers
-    # (the mid-PSIS stands in for a missing sacral marker: IOR/CAST sets have PSIS, no sacrum)
     pelvis_pts = {
         mk.name: (np.asarray(mk.offset, dtype=float), exp(mk.name))
         for mk in model.markers
@@ -1383,36 +1415,124 @@ def joint_centre_scale_factors(
     mid = _mid_psis(means)
     if len(sacral) == 1 and sacral[0].name not in pelvis_pts and mid is not None:
         pelvis_pts[sacral[0].name] = (np.asarray(sacral[0].offset, dtype=float), mid)
-    pelvis_pose = None
-    if len(pelvis_pts) >= 3 and "pelvis" in model.body_frame:
-        local = np.array([v[0] for v in pelvis_pts.values()]) * pelvis_factor
-        world = np.array([v[1] for v in pelvis_pts.values()])
-        if np.linalg.matrix_rank(local - local.mean(axis=0), tol=1e-3) >= 2:
-            pelvis_pose = _rigid_fit(local, world)
-    hip_of = {}
-    if pelvis_pose is not None:
-        o_p = data.oMf[model.body_frame["pelvis"]]
-        for side in ("r", "l"):
-            if f"femur_{side}" in model.body_frame:
-                loc = np.asarray(o_p.actInv(origin(f"femur_{side}")), dtype=float)
-                hip_of[side] = pelvis_pose[0] @ (loc * pelvis_factor) + pelvis_pose[1]
+    if len(pelvis_pts) < 3 or "pelvis" not in model.body_frame:
+        return {}
+    local = np.array([v[0] for v in pelvis_pts.values()]) * pelvis_factor
+    world = np.array([v[1] for v in pelvis_pts.values()])
+    if np.linalg.matrix_rank(local - local.mean(axis=0), tol=1e-3) < 2:
+        return {}
+    rot, tr = _rigid_fit(local, world)
+    o_p = data.oMf[model.body_frame["pelvis"]]
+    out = {}
     for side in ("r", "l"):
+        if f"femur_{side}" in model.body_frame:
+            o_f = np.asarray(data.oMf[model.body_frame[f"femur_{side}"]].translation, dtype=float)
+            loc = np.asarray(o_p.actInv(o_f), dtype=float)
+            out[side] = rot @ (loc * pelvis_factor) + tr
+    return out
+
+
+def _wand(means: Mapping[str, Array], side: str, landmark: str) -> Array | None:
+    for lab, v in means.items():
+        p = parse_label(lab)
+        if p.side == side and p.landmark == landmark and np.isfinite(v).all():
+            return np.asarray(v, dtype=float)
+    return None
+
+
+def static_joint_centres(
+    model: Model,
+    means: Mapping[str, Array],
+    *,
+    pelvis_factor: float = 1.0,
+    marker_names: Mapping[str, str] | None = None,
+    widths_m: Mapping[str, float] | None = None,
+    marker_diameter_m: float | None = None,
+) -> dict[str, dict[str, Array]]:
+    """``{"r"|"l": {"hip", "knee", "ankle": centre}}`` in a static trial (sides with all three).
+
+    Hip: :func:`static_hip_centres`. Knee and ankle: the midpoint of the epicondyle and of the
+    malleolus markers (ISB, Wu et al. 2002, J Biomech 35:543-548) where the static has medial
+    and lateral markers; else, for a lateral-marker protocol with wands (Plug-in Gait: KNE +
+    THI, ANK + TIB) whose joint widths the lab measured (``widths_m`` ``"R.knee"``…, the C3D's
+    subject parameters), Plug-in Gait's chord function (:func:`chord_joint_centre`, Davis et al.
+    1991) with r = (width + marker diameter)/2 (14 mm, Vicon's default, when not given): the
+    knee from hip, THI, KNE; the ankle from knee, TIB, ANK."""
+    names = dict(marker_names or {})
+    widths = dict(widths_m or {})
+    md = 0.014 if marker_diameter_m is None else float(marker_diameter_m)
+
+    def exp(mk: str) -> Array | None:
+        v = means.get(names.get(mk, mk))
+        return None if v is None or not np.isfinite(v).all() else np.asarray(v, dtype=float)
+
+    hips = static_hip_centres(model, means, pelvis_factor=pelvis_factor, marker_names=names)
+    out: dict[str, dict[str, Array]] = {}
+    for side, hjc in hips.items():
         p = side.upper()
-        femur, tibia, talus = f"femur_{side}", f"tibia_{side}", f"talus_{side}"
-        if not all(b in model.body_frame for b in (femur, tibia, talus)):
-            continue
-        pts = {}
+        pts: dict[str, Array] = {"hip": hjc}
+        prox = hjc
         for jc, (a, b) in JOINT_CENTRE_PAIRS.items():
             xa, xb = exp(f"{p}.{a}"), exp(f"{p}.{b}")
             if xa is not None and xb is not None:
                 pts[jc] = 0.5 * (xa + xb)
-        hjc = hip_of.get(side)
-        if "knee" not in pts or "ankle" not in pts or hjc is None:
-            # thigh and shank together or neither: a shank by joint centres under a thigh by
-            # marker pairs would put the knee where neither definition does
+            else:
+                wand = _wand(means, p, "thigh_cluster" if jc == "knee" else "shank_cluster")
+                wd = widths.get(f"{p}.{jc}")
+                if xa is not None and wand is not None and wd is not None:
+                    pts[jc] = chord_joint_centre(prox, wand, xa, 0.5 * (wd + md))
+            if jc not in pts:
+                break
+            prox = pts[jc]
+        if {"knee", "ankle"} <= set(pts):
+            out[side] = pts
+    return out
+
+
+def joint_centre_scale_factors(
+    model: Model,
+    static_markers: Any,
+    *,
+    pelvis_factor: float = 1.0,
+    marker_names: Mapping[str, str] | None = None,
+    widths_m: Mapping[str, float] | None = None,
+    marker_diameter_m: float | None = None,
+) -> tuple[dict[str, float], dict[str, dict[str, Any]]]:
+    """Thigh and shank scale factors from joint-centre distances in a static trial (Kainz et
+    al. 2017, J Appl Biomech 33:354-360: scaling the thigh by hip–knee and the shank by
+    knee–ankle joint-centre distances is more accurate than by skin-marker pairs).
+
+    The joint centres are :func:`static_joint_centres`' (epicondyle and malleolus midpoints,
+    or Plug-in Gait's chord function from the lab's joint widths); the factors are their
+    distances over the model's joint-origin distances in the default pose (hip → knee → ankle
+    joint): the skin markers' positions in the generic marker set do not enter (gait2392 puts
+    its malleolus markers 3 cm above the ankle joint, which inflated the shank by ~10 % when
+    scaled by marker pairs).
+
+    Returns ``({body: factor}, {measurement: details})``; a side without its knee and ankle
+    centres, or a pelvis without 3 markers, gives nothing for that leg (thigh and shank are
+    scaled together this way or not at all: a shank by joint centres under a thigh by marker
+    pairs would put the knee where neither definition does).
+    """
+    means = _static_means(static_markers)
+    data = model.create_data()
+    forward_kinematics(model, data, model.default_coordinates())
+
+    def origin(body: str) -> Array:
+        return np.asarray(data.oMf[model.body_frame[body]].translation, dtype=float)
+
+    centres = static_joint_centres(
+        model, means, pelvis_factor=pelvis_factor, marker_names=marker_names,
+        widths_m=widths_m, marker_diameter_m=marker_diameter_m,
+    )  # fmt: skip
+    factors: dict[str, float] = {}
+    details: dict[str, dict[str, Any]] = {}
+    for side, pts in centres.items():
+        femur, tibia, talus = f"femur_{side}", f"tibia_{side}", f"talus_{side}"
+        if not all(b in model.body_frame for b in (femur, tibia, talus)):
             continue
         for body, a, b, x_a, x_b in (
-            (femur, femur, tibia, hjc, pts["knee"]),
+            (femur, femur, tibia, pts["hip"], pts["knee"]),
             (tibia, tibia, talus, pts["knee"], pts["ankle"]),
         ):
             d_m = float(np.linalg.norm(origin(a) - origin(b)))

@@ -124,11 +124,17 @@ class Subject:
     Mass from ``PROCESSING:Bodymass`` (Vicon), ``SUBJECTS``/``SUBJECT`` ``WEIGHT``/``MASS``;
     height from ``Height``/``HEIGHT``: a value above 3 is taken as mm (Vicon stores 1680),
     otherwise as m (older files store 1.63 even when the description says mm).
+    ``widths_m``: the lab's anthropometric measurements of the joints, ``"R.knee"``,
+    ``"L.ankle"``… (Vicon ``PROCESSING:RKneeWidth``, ``LAnkleWidth``; mm in the file), and
+    ``marker_diameter_m`` (``PROCESSING:MarkerDiameter``; None when absent): what Plug-in Gait
+    places its knee and ankle centres from (Davis et al. 1991).
     """
 
     name: str | None = None
     mass_kg: float | None = None
     height_m: float | None = None
+    widths_m: Mapping[str, float] = field(default_factory=dict)
+    marker_diameter_m: float | None = None
 
 
 @dataclass(frozen=True)

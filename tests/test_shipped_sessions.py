@@ -50,7 +50,7 @@ EXPECT: dict[str, dict] = {
     "gc4_JW": {"ik_mm": 12, "res_pct": 5.5, "must": set(), "may": {"hip_flexion_l_deg"}},
     "opensim_subject01": {"ik_mm": 14, "res_pct": 4, "must": set(), "may": set()},
     "opensim_rajagopal": {"ik_mm": 17.5, "res_pct": 4, "must": set(), "may": set()},
-    "pig_motion3": {"ik_mm": 17.5, "res_pct": 6, "must": set(), "may": None},
+    "pig_motion3": {"ik_mm": 14.5, "res_pct": 5, "must": set(), "may": None},
     "unipd_bts": {"ik_mm": 24, "res_pct": 5, "must": set(), "may": None},
     "uwa_fast_walking": {"ik_mm": 14, "res_pct": None, "must": set(), "may": None},
     "uwa_running": {"ik_mm": None, "res_pct": None,
@@ -174,3 +174,81 @@ def test_broken_variants_raise_the_gate_that_names_the_problem(tmp_path: Path) -
     )  # fmt: skip
     q = _run(swap, tmp_path / "o3").summary["quality"]
     assert "R.ASIS/L.ASIS_swapped" in {f["quantity"] for f in q["flags"]}
+
+
+def _crop_c3d(src: Path, dst: Path, f0: int, f1: int) -> Path:
+    """A copy of a C3D holding frames [f0, f1) only (points, analogs, first-frame headers)."""
+    import ezc3d
+
+    c = ezc3d.c3d(str(src))
+    n = c["data"]["points"].shape[2]
+    r = c["data"]["analogs"].shape[2] // n
+    first = c["header"]["points"]["first_frame"]
+    c["data"]["points"] = c["data"]["points"][:, :, f0:f1]
+    for k in ("residuals", "camera_masks"):
+        c["data"]["meta_points"][k] = c["data"]["meta_points"][k][:, :, f0:f1]
+    c["data"]["analogs"] = c["data"]["analogs"][:, :, f0 * r : f1 * r]
+    c["header"]["points"]["first_frame"] = first + f0
+    c["header"]["analogs"]["first_frame"] = (first + f0) * r
+    c.write(str(dst))
+    return dst
+
+
+def _q_table(folder: Path) -> tuple[list[str], np.ndarray]:
+    rows = [ln for ln in (folder / "tables" / "q.csv").read_text().splitlines()
+            if not ln.startswith("#")]  # fmt: skip
+    return rows[0].split(","), np.array([r.split(",") for r in rows[1:]], dtype=float)
+
+
+@pytest.mark.slow
+@pytest.mark.realdata
+def test_short_trial_progressing_under_0p3_m_is_headed_by_the_pelvis(tmp_path: Path) -> None:
+    """A 0.25 s piece of the Plug-in Gait walk (0.3 m of progression at most, as a treadmill or
+    a back-and-forth trial): heading from the pelvis markers, the same joint angles as the
+    whole trial's at the same instants (not IK settling at 75 mm), or a flag."""
+    cfg = REPO / "pipelines" / "pig_motion3.toml"
+    if not _files_present(cfg):
+        pytest.skip("BTKData Plug-in Gait recordings are not here")
+    src = (REPO / "pipelines" / "../../shared/data/real/btkdata/PiG_Motion3_FF.c3d").resolve()
+    short = _crop_c3d(src, tmp_path / "short.c3d", 100, 125)
+    var = _variant(cfg, tmp_path, lambda t: t.replace(str(src), str(short)))
+    full = _run(cfg, tmp_path / "full")
+    res = _run(var, tmp_path / "short")
+    s = res.summary
+    assert s["model"]["heading"]["source"] == "pelvis markers"
+    prog = s["model"]["heading"]["progression_yaw_deg"]
+    assert prog is None or not np.isfinite(prog)  # < 0.3 m: no progression heading
+    assert s["quality"]["ik_marker_rms_mean_m"] < 0.02
+    hf, qf = _q_table(full.out_dir)
+    hs, qs = _q_table(res.out_dir)
+    rows = [int(np.argmin(abs(qf[:, 0] - t))) for t in qs[:, 0]]
+    joints = [c for c in hs[1:] if not c.startswith("pelvis")]
+    d = np.array([qs[:, hs.index(c)] - qf[rows, hf.index(c)] for c in joints])
+    assert np.degrees(np.nanmax(abs(d))) < 3.0, dict(zip(joints, np.degrees(abs(d).max(axis=1))))
+
+
+def test_both_feet_on_one_plate_is_flagged_and_left_out(tmp_path: Path) -> None:
+    """The synthetic session with its two plates merged into one under both feet: the shared
+    contact frames raise ``plate_shared_contact_frames`` and are measured nowhere (no
+    residual, identification or muscle force computed from a load split by guess)."""
+    import dataclasses
+
+    from msk.loads import PlateWrench
+    from msk.synthetic_trials import plate_corners, write_synthetic_session
+
+    cfg, tr = write_synthetic_session(tmp_path / "s")
+    p1, p2 = tr.plates
+    f = p1.force + p2.force
+    m = sum(np.cross(p.cop, p.force) + p.free_moment for p in (p1, p2))
+    fv = np.maximum(f[:, 1], 1e-9)[:, None]  # +y up in the synthetic lab
+    cop = (p1.cop * p1.force[:, 1:2] + p2.cop * p2.force[:, 1:2]) / fv
+    c = np.concatenate([p1.corners, p2.corners])
+    centre, half = 0.5 * (c.min(axis=0) + c.max(axis=0)), 0.5 * (c.max(axis=0) - c.min(axis=0))
+    one = PlateWrench("plate1", p1.time, f, cop, m - np.cross(cop, f),
+                      plate_corners(centre, half_x=half[0], half_z=half[2]))  # fmt: skip
+    dataclasses.replace(tr, plates=(one,)).write_c3d(cfg.parent / "synth.c3d")
+    (res,) = run_task_trials(cfg, tmp_path / "out")
+    q = res.summary["quality"]
+    flag = {f["quantity"]: f for f in q["flags"]}["plate_shared_contact_frames"]
+    assert flag["value"] > 0.5 * tr.time.size and "both feet" in flag["message"]
+    assert q["contact_measured_frames"] <= tr.time.size - flag["value"]

@@ -474,7 +474,17 @@ def _subject(params: Mapping[str, Any]) -> Subject:
         if v and str(v[0]).strip():
             name = str(v[0]).strip()
             break
-    return Subject(name=name, mass_kg=mass, height_m=height)
+    widths: dict[str, float] = {}
+    for side, long in (("R", "Right"), ("L", "Left")):
+        for joint, key in (("knee", "KneeWidth"), ("ankle", "AnkleWidth")):
+            w = _first_number(params, "PROCESSING", (f"{side}{key}", f"{long}{key}"))
+            if w is not None and w > 0:
+                widths[f"{side}.{joint}"] = w / 1000.0  # Vicon stores mm
+    md = _first_number(params, "PROCESSING", ("MarkerDiameter",))
+    return Subject(
+        name=name, mass_kg=mass, height_m=height, widths_m=widths,
+        marker_diameter_m=md / 1000.0 if md is not None and md > 0 else None,
+    )  # fmt: skip
 
 
 def _events(params: Mapping[str, Any]) -> tuple[Event, ...]:

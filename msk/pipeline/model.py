@@ -12,6 +12,7 @@ than 30° (treadmill, turning, short trials). Marker placement: :func:`msk.scali
 from __future__ import annotations
 
 import dataclasses
+import warnings
 from collections.abc import Mapping
 from dataclasses import dataclass
 from pathlib import Path
@@ -155,7 +156,11 @@ def _scale_and_place(inputs: SessionInputs, read: ReadResult) -> dict[str, Any]:
     }
     report = None
     if static_read is not None:
-        sm, slabels_raw, stime = static_read
+        sm, slabels_raw, stime, ssubj = static_read
+        # the lab's joint widths (Plug-in Gait subject parameters): the static's, else the task's
+        subj = ssubj if ssubj is not None and ssubj.widths_m else trial.subject
+        widths = dict(getattr(subj, "widths_m", None) or {})
+        mdiam = getattr(subj, "marker_diameter_m", None)
         smatch = recognise(
             slabels_raw, model.marker_names, rename=cfg.marker_rename,
             model_bodies=bodies, markers=zeros_as_gaps(sm),
@@ -164,12 +169,16 @@ def _scale_and_place(inputs: SessionInputs, read: ReadResult) -> dict[str, Any]:
         if mc.scale:
             static = {lab: sm[:, i] for i, lab in enumerate(slabels)}
             model, report = scale_from_static(
-                model, static, height_m=cfg.subject.height_m, body_mass=cfg.subject.mass_kg
-            )
+                model, static, height_m=cfg.subject.height_m, body_mass=cfg.subject.mass_kg,
+                widths_m=widths, marker_diameter_m=mdiam,
+            )  # fmt: skip
+        centres, jc_move = _chord_centres(model, sm, slabels, widths, mdiam)
         try:
             model, placed = place_markers(
-                model, sm, slabels, stime, move=cfg.marker_move,
-                hints=smatch.body_hints([b.name for b in model.bodies]),
+                model, sm, slabels, stime,
+                move=[*cfg.marker_move, *(m for m in jc_move if m not in cfg.marker_move)],
+                hints=smatch.body_hints([b.name for b in model.bodies]), centres=centres,
+                coordinate_tasks=held_foot_coordinates(model, sm, slabels) if centres else None,
             )  # fmt: skip
         except ModelError as exc:
             raise ConfigError(f"{cfg.path}: markers.move: {exc}") from None
@@ -191,6 +200,72 @@ def _scale_and_place(inputs: SessionInputs, read: ReadResult) -> dict[str, Any]:
         info["scale_ratios"] = dict(model.metadata.get("scale_ratios", {}))
     info["mass_kg"] = model.total_mass
     return {"model": model, "info": info, "rotation": rot, "rename": dict(match.rename)}
+
+
+def _chord_centres(
+    model: Any, sm: np.ndarray, labels: tuple[str, ...], widths: Mapping[str, float],
+    mdiam: float | None,
+) -> tuple[dict[str, tuple[str, np.ndarray, np.ndarray]], list[str]]:  # fmt: skip
+    """The static pose of a lateral-marker protocol (no medial knee marker) as Plug-in Gait
+    defines it (Davis et al. 1991): virtual markers for :func:`msk.scaling.place_markers` at the
+    knee and ankle centres of the chord function (:func:`msk.scaling.static_joint_centres`;
+    the tibia's and the talus' origins) and the lateral knee marker on the knee flexion axis
+    at r = (knee width + marker diameter)/2 from the knee centre; the lateral knee and ankle
+    markers are then placed (moved) where the static puts them, not held at the generic
+    model's offsets (which differ from the subject's measured widths by 10–20 mm).
+    Returns (virtual markers, markers to move)."""
+    from msk.markersets import parse_label
+    from msk.scaling import static_joint_centres
+
+    if not widths:
+        return {}, []
+    with np.errstate(all="ignore"), warnings.catch_warnings():
+        warnings.simplefilter("ignore", RuntimeWarning)
+        means = {lab: np.nanmean(sm[:, i], axis=0) for i, lab in enumerate(labels)}
+    md = 0.014 if mdiam is None else float(mdiam)
+    out: dict[str, tuple[str, np.ndarray, np.ndarray]] = {}
+    move: list[str] = []
+    pts_of = static_joint_centres(model, means, widths_m=widths, marker_diameter_m=mdiam)
+    for side, pts in pts_of.items():
+        p = side.upper()
+        knee_lat, ankle_lat = f"{p}.Knee.Lat", f"{p}.Ankle.Lat"
+        if f"{p}.Knee.Med" in means or knee_lat not in means or f"{p}.knee" not in widths:
+            continue  # epicondyles: the model's own knee markers place the knee
+        tibia = f"tibia_{side}"
+        axis = _revolute_axis(model, tibia)
+        lat = next((mk.offset for mk in model.markers if mk.name == knee_lat), None)
+        if axis is None or lat is None:
+            continue
+        # the flexion axis, pointing to the lateral side (the generic lateral knee marker's)
+        knee_in_tibia = np.asarray(lat, dtype=float)  # femur frame ≈ tibia frame at θ = 0
+        axis = axis if float(np.dot(axis, knee_in_tibia)) >= 0.0 else -axis
+        r = 0.5 * (widths[f"{p}.knee"] + md)
+        out[f"{p}.hip_centre"] = (f"femur_{side}", np.zeros(3), pts["hip"])
+        out[f"{p}.knee_centre"] = (tibia, np.zeros(3), pts["knee"])
+        out[f"{p}.ankle_centre"] = (f"talus_{side}", np.zeros(3), pts["ankle"])
+        out[f"{p}.knee_axis"] = (tibia, r * axis, means[knee_lat])
+        move += [m for m in (knee_lat, ankle_lat) if m in model.marker_names]
+    # the pelvis pose the hip centres came from: the mid-PSIS as the sacral marker (IOR, PiG)
+    psis = [lab for lab in means if parse_label(lab).landmark == "psis"]
+    sacral = [mk for mk in model.markers if mk.body == "pelvis"
+              and parse_label(mk.name).landmark == "sacrum"]  # fmt: skip
+    if out and len(psis) == 2 and len(sacral) == 1 and sacral[0].name not in means:
+        mid = 0.5 * (means[psis[0]] + means[psis[1]])
+        out[f"{sacral[0].name}:mid_psis"] = ("pelvis", np.asarray(sacral[0].offset, float), mid)
+    return out, move
+
+
+def _revolute_axis(model: Any, body: str) -> np.ndarray | None:
+    """Unit axis (in ``body``'s frame) of the revolute axis of the joint whose child is
+    ``body`` (the knee's flexion axis for a tibia), None without one."""
+    for j in model.joints:
+        if j.child != body:
+            continue
+        for ax in j.axes:
+            if ax.kind == "revolute":
+                v = np.asarray(j.child_offset.rotation, dtype=float) @ np.asarray(ax.axis, float)
+                return v / np.linalg.norm(v)
+    return None
 
 
 def held_foot_coordinates(

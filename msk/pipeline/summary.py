@@ -250,7 +250,7 @@ def _flags(
 ) -> list[dict[str, Any]]:
     """The quality gates raised (:func:`msk.quality.gait_flags`), swapped left/right labels and
     what the reader noticed in the file (duplicate labels renamed, NaN plate samples…)."""
-    from msk.quality import gait_flags, swapped_sides
+    from msk.quality import contact_flags, gait_flags, swapped_sides
 
     cfg, task, mdl = inputs.cfg, inputs.task, model.model
     assert task is not None  # a gait session
@@ -268,6 +268,7 @@ def _flags(
                 initial=0.0)),
         )
     ]  # fmt: skip
+    flags += [f.as_dict() for f in contact_flags(task.name, ext)]
     for r, lft, dz in swapped_sides(mdl, kin, model.trial.markers, model.labels):
         flags.append(
             {"trial": task.name, "quantity": f"{r}/{lft}_swapped", "value": dz,
