@@ -442,17 +442,22 @@ def test_gc5_two_trials_identify_the_plate_mass_and_lower_held_out_residuals(
     assert set(ident.flags_.values()) <= set(FLAGS)
     assert np.isfinite(ident.condition_number_)
     # total mass: the plates say ≈ 83 kg, not the 75 kg the source assumes
-    assert fold.identified_mass_kg == pytest.approx(fold.plate_mass_train_kg, rel=0.02)
-    assert fold.identified_mass_kg == pytest.approx(fold.plate_mass_test_kg, rel=0.02)
+    # (docs/validation.md: within 0.5 % of the training plates, 0.9 % of the held-out trial's)
+    assert fold.identified_mass_kg == pytest.approx(fold.plate_mass_train_kg, rel=0.005)
+    assert fold.identified_mass_kg == pytest.approx(fold.plate_mass_test_kg, rel=0.009)
     assert fold.plate_mass_test_kg > 1.05 * 75.0
-    # held-out pelvis residuals: lower than the generic (scaled) model, also than the generic
-    # model rescaled to the plate mass, and for the redistributed musculoskeletal model
-    assert fold.identified.force_rms_n < 0.6 * fold.generic.force_rms_n
-    assert fold.identified.force_rms_n < fold.generic_at_plate_mass.force_rms_n
-    assert fold.identified.moment_rms_nm < 0.8 * fold.generic.moment_rms_nm
-    assert fold.identified.moment_rms_nm < fold.generic_at_plate_mass.moment_rms_nm
-    assert fold.identified_full.force_rms_n < 0.6 * fold.generic_full.force_rms_n
-    assert fold.identified_full.moment_rms_nm < fold.generic_full.moment_rms_nm
+    # held-out pelvis residuals, each against its baseline (docs/validation.md, figures reached
+    # with a margin of ~1 point): the generic model at the 75 kg the source assumes (force
+    # −61 … −67 %, moment −45 … −54 %), the generic model at the plate mass (force −10 … −29 %,
+    # moment −52 … −60 %; that baseline's moment residual is larger than the 75 kg one's), and
+    # the redistributed musculoskeletal model against the generic one at 75 kg
+    assert fold.identified.force_rms_n < 0.40 * fold.generic.force_rms_n
+    assert fold.identified.moment_rms_nm < 0.56 * fold.generic.moment_rms_nm
+    assert fold.identified.force_rms_n < 0.91 * fold.generic_at_plate_mass.force_rms_n
+    assert fold.identified.moment_rms_nm < 0.50 * fold.generic_at_plate_mass.moment_rms_nm
+    assert fold.generic_at_plate_mass.moment_rms_nm > fold.generic.moment_rms_nm
+    assert fold.identified_full.force_rms_n < 0.40 * fold.generic_full.force_rms_n
+    assert fold.identified_full.moment_rms_nm < 0.57 * fold.generic_full.moment_rms_nm
 
 
 def _check_standing(res: StandingResult) -> None:
@@ -556,6 +561,15 @@ def gc5_cv_fold(test: str) -> tuple[InertialIdentifier, Any, Any, float]:
     return ident, ident.score(held.ident), generic, mass
 
 
+#: held-out trial → largest (force, moment) RMS ratio to the generic model at the plate mass:
+#: the measured −9/−27/−27 % and −52/−59/−59 % plus 2 points
+CV_REACHED = {
+    "PS_ngait_og_ss1": (0.93, 0.50),
+    "PS_ngait_og_ss3": (0.75, 0.43),
+    "PS_ngait_og_ss8": (0.75, 0.43),
+}
+
+
 @pytest.mark.slow
 @pytest.mark.realdata
 @pytest.mark.parametrize("test", GC5_TRIALS)
@@ -572,8 +586,11 @@ def test_gc5_cv_prior_weight_never_worse_than_generic_at_plate_mass(
           + "\n".join(cv.table()) + f"\n{ident.excitation()}")  # fmt: skip
     assert len(cv.folds) == 2  # leave one training trial out
     assert sum(p[0] for p in ident.parameters_.values()) == pytest.approx(mass, rel=1e-6)
-    # the issue-19 criterion: never worse than the generic model at the plate mass
-    assert got.force_rms_n <= 1.01 * generic.force_rms_n
-    assert got.moment_rms_nm <= 1.01 * generic.moment_rms_nm
+    # the issue-19 criterion: never worse than the generic model at the plate mass — here the
+    # figures reached (README, docs/validation.md: force −9/−27/−27 %, moment −52/−59/−59 %)
+    # with a margin of 2 points
+    force_max, moment_max = CV_REACHED[test]
+    assert got.force_rms_n <= force_max * generic.force_rms_n
+    assert got.moment_rms_nm <= moment_max * generic.moment_rms_nm
     for phi in ident.parameters_.values():
         assert is_physically_consistent(phi)

@@ -28,7 +28,7 @@ Here (:func:`seed003_comparison`):
   inside a tracking loop, which needs an RRA-adjusted model we do not have — so static
   optimisation is the peer, and that difference is stated wherever the tables are printed;
 * **windows**: the right-leg stance the recording contains: 0.55–1.02 s (inside the calibration
-  window; mid to late stance, the coordinates start at 0.45 s) and 1.41–1.80 s (held out; early
+  window; mid to late stance, the coordinates start at 0.45 s) and 1.42–1.80 s (held out; early
   to mid stance, the recording ends at 1.80 s). The thesis compares whole stance phases.
 
 The gastrocnemii get one electrode; the thesis averages its knee- and ankle-model MG/LG outputs

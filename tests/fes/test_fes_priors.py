@@ -29,3 +29,19 @@ def test_leave_subject_out_never_contains_the_leg() -> None:
     assert population_priors(exclude=["S3L"]).legs == tuple(k for k in TABLE3 if k != "S3L")
     with pytest.raises(IdentificationError):
         population_priors(exclude=[k for k in TABLE3][:12])
+
+
+def test_leave_subject_out_prior_errors_of_the_recovery_study() -> None:
+    """docs/fes.md: with its subject left out, the fibre-fraction prior is within 3.2 % of every
+    leg's own value (Table 3's L_s comes from one assumed 60° optimum), the K_cm/F_cm prior is
+    −30 … +178 % off (S6R … S9L)."""
+    ff_err, ratio_err = {}, {}
+    for leg, s in TABLE3.items():
+        pop = population_priors(exclude=[leg[:-1]])
+        own = leg_values(s)
+        ff_err[leg] = pop.fibre_fraction / own["fibre_fraction"] - 1.0
+        ratio_err[leg] = pop.stiffness_ratio / own["stiffness_ratio"] - 1.0
+    assert max(abs(e) for e in ff_err.values()) < 0.032
+    assert min(ratio_err, key=ratio_err.__getitem__) == "S6R"
+    assert max(ratio_err, key=ratio_err.__getitem__) == "S9L"
+    assert -0.31 < ratio_err["S6R"] < -0.29 and 1.77 < ratio_err["S9L"] < 1.79

@@ -27,8 +27,10 @@ def _within(runs: dict[str, RecoveryRun], name: str, tol: float) -> int:
 @pytest.mark.slow
 def test_population_prior_recovery_per_parameter(runs: dict[str, RecoveryRun]) -> None:
     assert len(runs) == 13
-    failed = [leg for leg, r in runs.items() if not r.ok]
-    assert len(failed) <= 1, failed  # S6R (F_cm 45 N): the pass-0 k_s NLP fails (typed error)
+    failed = {leg: r.failure for leg, r in runs.items() if not r.ok}
+    # S6R (F_cm 45 N): the pass-0 k_s NLP fails (typed error); every other leg gives a result
+    assert set(failed) <= {"S6R"}, failed
+    assert all("pass 0" in f and "k_s NLP" in f for f in failed.values()), failed
     for r in runs.values():
         if r.ok:  # priors never contain the leg's own values: its subject is left out
             assert abs(r.prior_error["stiffness_ratio"]) > 0.01
@@ -41,8 +43,13 @@ def test_population_prior_recovery_per_parameter(runs: dict[str, RecoveryRun]) -
     reached = {
         ("L_c0", 0.05): 8,
         ("L_c0", 0.15): 12,
+        ("L_s", 0.05): 10,
+        ("L_s", 0.15): 12,
         ("b", 0.05): 3,
         ("b", 0.25): 7,
+        ("F_cm", 0.05): 3,
+        ("F_cm", 0.10): 6,
+        ("F_cm", 0.25): 8,
         ("F_cm·α_max", 0.05): 4,
         ("F_cm·α_max", 0.10): 6,
         ("F_cm·α_max", 0.30): 9,
@@ -50,8 +57,13 @@ def test_population_prior_recovery_per_parameter(runs: dict[str, RecoveryRun]) -
         ("K_cm", 0.30): 8,
         ("k_s", 0.10): 3,
         ("k_s", 0.50): 7,
+        ("c1", 0.05): 5,
+        ("c1", 0.10): 7,
+        ("c1", 0.25): 9,
         ("c2", 0.10): 5,
+        ("c2", 0.25): 8,
         ("c3", 0.05): 6,
+        ("c3", 0.25): 8,
     }
     got = {key: _within(runs, *key) for key in reached}
     low = {key: (got[key], n) for key, n in reached.items() if got[key] < n}
