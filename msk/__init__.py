@@ -10,7 +10,7 @@ Data flows one way (see ``docs/architecture.md``)::
 All quantities inside are SI (m, s, rad, N, N·m, kg); time is axis 0.
 """
 
-__version__ = "0.3.0"
+__version__ = "0.4.0"
 
 from msk.exceptions import MskError
 
