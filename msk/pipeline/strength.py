@@ -17,6 +17,7 @@ from msk.pipeline.loads import Loads
 from msk.pipeline.model import BuiltModel
 from msk.pipeline.runner import StageUnavailable
 from msk.pipeline.tension import muscle_state
+from msk.timeseries import FrameSparse
 
 __all__ = ["StrengthIdentification", "run"]
 
@@ -29,6 +30,11 @@ class StrengthIdentification:
     profile: Any
     groups: Mapping[str, Sequence[str]]
     t0: float
+
+
+def take_frames(jacobian: Any, frames: np.ndarray) -> Any:
+    """``jacobian[frames]``, kept compact when it is a :class:`FrameSparse`."""
+    return jacobian.take(frames) if isinstance(jacobian, FrameSparse) else jacobian[frames]
 
 
 def run(
@@ -57,7 +63,7 @@ def run(
     good = loads.usable & np.isfinite(jt.tau).all(axis=1)
     est = StrengthIdentifier(groups, params, n_bootstrap=200, random_state=0)
     est.fit(
-        muscle_geometry.jacobian[good],
+        take_frames(muscle_geometry.jacobian, good),
         act[good],
         jt.tau[good],
         state.take(good),
