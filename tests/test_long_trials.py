@@ -142,3 +142,27 @@ def test_session_in_small_blocks_equals_one_block(
         da, db = np.asarray(ta.data), np.asarray(tb.data)
         scale = np.nanmax(np.abs(da))
         np.testing.assert_allclose(db, da, rtol=0, atol=1e-9 * scale, err_msg=name)
+
+
+def test_identification_regressor_in_blocks_equals_one_pass(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    """A trial longer than ``REGRESSOR_BLOCK`` is stacked block by block: the same statistics to
+    round-off, hence the same fit."""
+    import msk.identification as ident
+    from msk.synthetic_models import subject_bodies, whole_body_model
+    from msk.synthetic_trials import identification_trial
+
+    truth = whole_body_model(subject_bodies("athlete"))
+    trial = identification_trial(truth, 4.0, 5)
+    kw = {"total_mass": truth.total_mass, "noise_std": np.array([7.0] * 3 + [3.0] * 3)}
+    one = ident.InertialIdentifier(truth, **kw).fit(trial)  # type: ignore[arg-type]
+    monkeypatch.setattr(ident, "REGRESSOR_BLOCK", 37)
+    many = ident.InertialIdentifier(truth, **kw).fit(trial)  # type: ignore[arg-type]
+    assert many.n_frames_ == one.n_frames_ > 37
+    # the Gram statistics to round-off; the identified parameters to the conic solver's tolerance
+    for x in ("_h", "_g", "_c"):
+        a, b = getattr(one, x), getattr(many, x)
+        np.testing.assert_allclose(b, a, rtol=0, atol=1e-12 * np.abs(a).max(), err_msg=x)
+    for name, phi in one.parameters_.items():
+        np.testing.assert_allclose(many.parameters_[name], phi, rtol=1e-6, atol=1e-9, err_msg=name)
