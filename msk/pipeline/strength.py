@@ -17,7 +17,6 @@ from msk.pipeline.loads import Loads
 from msk.pipeline.model import BuiltModel
 from msk.pipeline.runner import StageUnavailable
 from msk.pipeline.tension import muscle_state
-from msk.timeseries import FrameSparse
 
 __all__ = ["StrengthIdentification", "run"]
 
@@ -32,11 +31,6 @@ class StrengthIdentification:
     t0: float
 
 
-def take_frames(jacobian: Any, frames: np.ndarray) -> Any:
-    """``jacobian[frames]``, kept compact when it is a :class:`FrameSparse`."""
-    return jacobian.take(frames) if isinstance(jacobian, FrameSparse) else jacobian[frames]
-
-
 def run(
     inputs: SessionInputs,
     model: BuiltModel,
@@ -49,24 +43,25 @@ def run(
     from msk.strength import StrengthIdentifier
 
     jt = inverse_dynamics.torques
-    params, state = muscle_state(model.model, muscle_geometry)
+    good = loads.usable & np.isfinite(jt.tau).all(axis=1)
+    geo = muscle_geometry.take(good)  # compact: the state of the frames used only
+    params, state = muscle_state(model.model, geo)
     groups: dict[str, list[str]] = {}
     for k, m in enumerate(emg.muscles):
         if emg.usable[k]:
             groups.setdefault(emg.sources[k], []).append(m)
     if not groups:
         raise StageUnavailable("no usable EMG channel")
-    act = np.zeros((kinematics.time.size, len(params.names)))
+    act = np.zeros((int(good.sum()), len(params.names)))
     for k, m in enumerate(emg.muscles):
         if emg.usable[k]:
-            act[:, params.names.index(m)] = emg.activation[:, k]
-    good = loads.usable & np.isfinite(jt.tau).all(axis=1)
+            act[:, params.names.index(m)] = emg.activation[good, k]
     est = StrengthIdentifier(groups, params, n_bootstrap=200, random_state=0)
     est.fit(
-        take_frames(muscle_geometry.jacobian, good),
-        act[good],
+        geo.jacobian,
+        act,
         jt.tau[good],
-        state.take(good),
+        state,
         coordinate_names=jt.coordinate_names,
     )
     return StrengthIdentification(

@@ -120,14 +120,22 @@ def optimise(
     shortening faster than its maximal velocity produces no active force (the force–velocity
     curve's extrapolation below zero is clipped to 0 rather than costing the frame)."""
     import msk.optimization as o
-    from msk.muscles.geometry import finite_frames, jacobian_frames
+    from msk.muscles.geometry import finite_frames, jacobian_frames, muscle_parameters
+    from msk.muscles.hill import rigid_tendon_state
 
     act_idx = actuated(torques)
-    params, state = muscle_state(model, geometry)
-    fa_all = np.where(
-        state.max_active_force_along_tendon < 0, 0.0, state.max_active_force_along_tendon
-    )
-    fp_all = state.passive_force_along_tendon
+    params = muscle_parameters(model)
+    # the Hill state block by block (its many (N, m) arrays are never held whole)
+    fa_all = np.empty(geometry.lengths.shape)
+    fp_all = np.empty(geometry.lengths.shape)
+    for fr in frame_blocks(geometry.lengths.shape[0]):
+        sl = slice(int(fr[0]), int(fr[-1]) + 1) if fr.size else slice(0, 0)
+        vel = None if geometry.velocities is None else geometry.velocities[sl]
+        state = rigid_tendon_state(params, geometry.lengths[sl], vel)
+        fmax = state.max_active_force_along_tendon
+        fa_all[sl] = np.where(fmax < 0, 0.0, fmax)
+        fp_all[sl] = state.passive_force_along_tendon
+        del state
     posable = (
         finite_frames(geometry.jacobian, act_idx)
         & np.isfinite(torques.tau[:, act_idx]).all(axis=1)
@@ -162,7 +170,11 @@ def optimise(
         jac = jacobian_frames(geometry.jacobian, fr, act_idx)
         tq = torques.tau[fr][:, act_idx]
         fa, fp = fa_all[fr], fp_all[fr]
-        common = {"muscle_names": params.names, "coordinate_names": cn, "time": time[fr]}
+        common: dict[str, Any] = {
+            "muscle_names": params.names,
+            "coordinate_names": cn,
+            "time": time[fr],
+        }
         if meth == "static_optimization":
             sol = o.solve_static_optimization_batch(
                 jac, tq, f_active=fa, f_passive=fp, reserve_optimal_force=reserves,
@@ -180,9 +192,9 @@ def optimise(
         elif meth in ("emg_weighted", "emg_assisted"):
             assert emg is not None and meas is not None
             a = np.zeros_like(fa)
-            for k, n in enumerate(params.names):
+            for k, name in enumerate(params.names):
                 if meas[k]:
-                    a[:, k] = emg.activation[fr, emg.column(n)]
+                    a[:, k] = emg.activation[fr, emg.column(name)]
             if meth == "emg_weighted":
                 sol = o.solve_emg_weighted_batch(
                     jac, tq, f_ref=a * fa, measured=meas, w_emg=opt.w_emg,
