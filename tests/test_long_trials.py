@@ -166,3 +166,20 @@ def test_identification_regressor_in_blocks_equals_one_pass(
         np.testing.assert_allclose(b, a, rtol=0, atol=1e-12 * np.abs(a).max(), err_msg=x)
     for name, phi in one.parameters_.items():
         np.testing.assert_allclose(many.parameters_[name], phi, rtol=1e-6, atol=1e-9, err_msg=name)
+
+
+def test_table_rows_formatted_in_blocks_are_the_same_text(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    import msk.io.tables as tables
+    from msk.io.opensim_files import write_sto
+
+    rng = np.random.default_rng(2)
+    tab = tables.Table(
+        time=np.arange(11) / 100.0, data=rng.normal(size=(11, 3)), columns=("a", "b", "c")
+    )
+    one_csv = tables.write_csv_table(tmp_path / "one.csv", tab).read_bytes()
+    one_sto = write_sto(tmp_path / "one.sto", tab, name="t").read_bytes()
+    monkeypatch.setattr(tables, "FORMAT_BLOCK", 4)
+    assert tables.write_csv_table(tmp_path / "b.csv", tab).read_bytes() == one_csv
+    assert write_sto(tmp_path / "b.sto", tab, name="t").read_bytes() == one_sto
