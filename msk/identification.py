@@ -681,6 +681,11 @@ class _Group:
     members: tuple[tuple[int, Array], ...]  # (body index in layout, sign vector)
 
 
+#: frames per block of the base-link regressor of a longer trial (~27 MB for 14 bodies): a
+#: trial of at most this many frames is stacked in one pass
+REGRESSOR_BLOCK = 4096
+
+
 @dataclass
 class _Stats:
     """Per-row Gram statistics of some frames: Σ Y_kᵀY_k, Σ Y_kᵀτ_k, Σ τ_k², frame count."""
@@ -699,6 +704,16 @@ class _Stats:
         self.g += other.g
         self.c += other.c
         self.n += other.n
+
+    def accumulate(self, yk: list[Array], tau: Array) -> None:
+        """Add the frames whose base-link rows are ``yk[k]`` (frames, params) and torques
+        ``tau`` (frames, rows)."""
+        for k, y in enumerate(yk):
+            t = np.ascontiguousarray(tau[:, k])  # contiguous: the same BLAS path as always
+            self.h[k] += y.T @ y
+            self.g[k] += y.T @ t
+            self.c[k] += t @ t
+        self.n += tau.shape[0]
 
     def row_rss(self, phi: Array) -> Array:
         """Σ over frames of (Y_k φ − τ_k)² per row k."""
@@ -949,20 +964,25 @@ class InertialIdentifier:
             th, thd, thdd, tau = _trial_arrays(model, trial)
             if th.shape[0] == 0:
                 continue
-            y = base_link_regressor(model, th, thd, thdd, layout=layout)
-            yt = np.ascontiguousarray(y.transpose(1, 0, 2))  # (rows, N, params)
             if n_blocks == 0:
                 chunks = [(ti, np.arange(th.shape[0]))]
             else:
                 chunks = list(enumerate(np.array_split(np.arange(th.shape[0]), n_blocks)))
+            if th.shape[0] <= REGRESSOR_BLOCK:  # the regressor of the whole trial at once
+                y = base_link_regressor(model, th, thd, thdd, layout=layout)
+                yt = np.ascontiguousarray(y.transpose(1, 0, 2))  # (rows, N, params)
+                for bi, idx in chunks:
+                    blocks[bi].accumulate([yt[k][idx] for k in range(nr)], tau[idx])
+                continue
+            # a long trial: the regressor (N, rows, params) is never held whole
             for bi, idx in chunks:
-                blk = blocks[bi]
-                for k in range(nr):
-                    yk = yt[k][idx]
-                    blk.h[k] += yk.T @ yk
-                    blk.g[k] += yk.T @ tau[idx, k]
-                    blk.c[k] += tau[idx, k] @ tau[idx, k]
-                blk.n += idx.size
+                for c0 in range(0, idx.size, REGRESSOR_BLOCK):
+                    sub = idx[c0 : c0 + REGRESSOR_BLOCK]
+                    y = base_link_regressor(model, th[sub], thd[sub], thdd[sub], layout=layout)
+                    yt = np.ascontiguousarray(y.transpose(1, 0, 2))
+                    del y
+                    blocks[bi].accumulate(list(yt), tau[sub])
+                    del yt
         total = _Stats.zeros(nr, n_phi)
         for blk in blocks:
             total.add(blk)

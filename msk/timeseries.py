@@ -27,7 +27,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from msk.exceptions import ShapeMismatchError
 
-__all__ = ["FrameAxis", "frame_indices"]
+__all__ = ["FrameAxis", "FrameSparse", "frame_indices"]
 
 
 def frame_indices(frames: ArrayLike, n: int, what: str = "result") -> NDArray[np.intp]:
@@ -56,6 +56,8 @@ def _take(value: Any, idx: NDArray[np.intp]) -> Any:
         return None
     if isinstance(value, np.ndarray):
         return value[idx]
+    if isinstance(value, FrameSparse):
+        return value.take(idx)
     if isinstance(value, tuple):
         return tuple(value[i] for i in idx)
     if isinstance(value, Mapping):
@@ -69,6 +71,74 @@ def _length(value: Any) -> int | None:
     if isinstance(value, Mapping):
         return next((n for n in map(_length, value.values()) if n is not None), None)
     return len(value)
+
+
+@dataclasses.dataclass(frozen=True, eq=False)
+class FrameSparse:
+    """A per-frame array ``(N, *trailing)`` that is zero outside fixed positions (the same in
+    every frame): ``values`` ``(N, k)`` the entries at the flat ``positions`` ``(k,)`` of the
+    trailing shape. A muscle Jacobian ∂l/∂θ ``(N, muscles, coordinates)`` holds only the
+    coordinates each muscle crosses (a few of gait2392's 23), so a long trial keeps it at a
+    fraction of its dense size.
+
+    ``x[frames]`` (a slice, integer indices or a boolean mask of the frames) is the dense
+    ``(len(frames), *trailing)`` array of those frames — the same values, zeros included, as
+    the dense array indexed so; ``take(frames)`` keeps the compact form; ``np.asarray(x)`` is
+    the whole dense array."""
+
+    values: NDArray[np.float64]
+    positions: NDArray[np.intp]
+    trailing: tuple[int, ...]
+
+    @classmethod
+    def from_dense(cls, dense: NDArray[np.float64], positions: ArrayLike) -> FrameSparse:
+        """The entries of ``dense`` ``(N, *trailing)`` at the flat trailing ``positions`` (the
+        caller vouches that the other entries are zero)."""
+        pos = np.asarray(positions, dtype=np.intp)
+        n = dense.shape[0]
+        return cls(dense.reshape(n, -1)[:, pos], pos, tuple(int(d) for d in dense.shape[1:]))
+
+    @property
+    def shape(self) -> tuple[int, ...]:
+        return (int(self.values.shape[0]), *self.trailing)
+
+    @property
+    def ndim(self) -> int:
+        return 1 + len(self.trailing)
+
+    @property
+    def dtype(self) -> np.dtype[Any]:
+        return self.values.dtype
+
+    def __len__(self) -> int:
+        return int(self.values.shape[0])
+
+    def __getitem__(self, frames: Any) -> NDArray[np.float64]:
+        if isinstance(frames, tuple):
+            raise TypeError("FrameSparse: index the frames only (x[frames][:, ...] for more)")
+        v = self.values[frames]
+        if v.ndim == 1:  # one frame
+            out = np.zeros(int(np.prod(self.trailing)), dtype=v.dtype)
+            out[self.positions] = v
+            return out.reshape(self.trailing)
+        out = np.zeros((v.shape[0], int(np.prod(self.trailing))), dtype=v.dtype)
+        out[:, self.positions] = v
+        return out.reshape(v.shape[0], *self.trailing)
+
+    def __array__(self, dtype: Any = None, copy: Any = None) -> NDArray[Any]:
+        out = self[:]
+        return out if dtype is None else out.astype(dtype, copy=False)
+
+    def take(self, frames: ArrayLike) -> FrameSparse:
+        """The same compact array on ``frames`` (mask or indices)."""
+        idx = frame_indices(frames, len(self), "FrameSparse")
+        return dataclasses.replace(self, values=self.values[idx])
+
+    @staticmethod
+    def concatenate(parts: list[FrameSparse]) -> FrameSparse:
+        """Frame blocks of one array (same positions and trailing shape) end to end."""
+        first = parts[0]
+        return dataclasses.replace(first, values=np.concatenate([p.values for p in parts]))
 
 
 class FrameAxis:

@@ -20,7 +20,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from msk.exceptions import FileFormatError, MissingDataError, UnitsError
-from msk.io.tables import Table, write_text_atomic
+from msk.io.tables import Table, format_rows, write_text_atomic
 from msk.io.validate import MAX_ABS_COORDINATE_M, check_regular_file, check_time_axis
 from msk.trial import GapReport, ModelOutputs, Subject, Trial
 
@@ -234,8 +234,7 @@ def write_sto(
         "endheader",
         "\t".join(("time", *table.columns)),
     ]
-    body = np.column_stack([t, x])
-    rows = ["\t".join(r) for r in np.char.mod("%.17g", body)] if body.size else []
+    rows = format_rows(t, x, "\t")
     return write_text_atomic(path, "\n".join(head + rows) + "\n")
 
 

@@ -70,6 +70,22 @@ def write_text_atomic(path: str | Path, text: str) -> Path:
     return path
 
 
+#: rows per block of :func:`format_rows` (np.char.mod's string array takes ~100 bytes a value)
+FORMAT_BLOCK = 4096
+
+
+def format_rows(time: NDArray[np.float64], data: NDArray[np.float64], sep: str) -> list[str]:
+    """The rows ``time, data…`` with full float precision (``%.17g``) joined by ``sep``,
+    formatted block by block: a long table never holds its whole string array."""
+    if time.size == 0:
+        return []
+    rows: list[str] = []
+    for c0 in range(0, time.size, FORMAT_BLOCK):
+        body = np.column_stack([time[c0 : c0 + FORMAT_BLOCK], data[c0 : c0 + FORMAT_BLOCK]])
+        rows.extend(sep.join(r) for r in np.char.mod("%.17g", body))
+    return rows
+
+
 def write_csv_table(
     path: str | Path,
     table: Table | None = None,
@@ -92,8 +108,7 @@ def write_csv_table(
     bad = [c for c in cols if not c or any(ch in c for ch in ',"\n\r') or c == "time"]
     if bad:
         raise FileFormatError(f"{path}: invalid CSV column names {bad}")
-    body = np.column_stack([t, x])
-    rows = [",".join(r) for r in np.char.mod("%.17g", body)] if body.size else []
+    rows = format_rows(t, x, ",")
     return write_text_atomic(path, "\n".join([",".join(("time", *cols)), *rows]) + "\n")
 
 

@@ -98,7 +98,7 @@ from msk.joints import Linear, Multiplier, SimmSpline
 from msk.model import Model
 from msk.muscles.hill import MuscleParameters
 from msk.muscles.path import ConditionalPathPoint, MovingPathPoint, Muscle, PathPoint, WrapObject
-from msk.timeseries import FrameAxis
+from msk.timeseries import FrameAxis, FrameSparse
 
 Array = NDArray[np.float64]
 
@@ -125,7 +125,9 @@ class MuscleGeometry(FrameAxis):
         muscle_names: muscles in model order (``model.muscles``).
         coordinate_names: the model's independent coordinates θ.
         lengths: l (N, n_muscles), m.
-        jacobian: J_l = ∂l/∂θ (N, n_muscles, n_coords), m/rad (m/m for translations).
+        jacobian: J_l = ∂l/∂θ (N, n_muscles, n_coords), m/rad (m/m for translations); dense,
+            or (the pipeline's ``muscle_geometry`` stage) a :class:`msk.timeseries.FrameSparse`
+            holding only the coordinates each muscle crosses (``jacobian[frames]`` is dense).
         velocities: l̇ = J_l θ̇ (N, n_muscles), m/s, or ``None`` when no θ̇ was given.
         distal_wrenches: per joint asked for (``distal_wrench_joints``), ∂l/∂ξ (N, n_muscles, 6)
             for a rigid world twist ξ of everything distal to that joint: columns (force x, y,
@@ -143,14 +145,14 @@ class MuscleGeometry(FrameAxis):
     muscle_names: tuple[str, ...]
     coordinate_names: tuple[str, ...]
     lengths: Array
-    jacobian: Array
+    jacobian: Array | FrameSparse
     velocities: Array | None = None
-    distal_wrenches: Mapping[str, Array] = field(default_factory=dict)
+    distal_wrenches: Mapping[str, Array | FrameSparse] = field(default_factory=dict)
 
     @property
     def moment_arms(self) -> Array:
         """r = −∂l/∂θ (N, n_muscles, n_coords), OpenSim's ``computeMomentArm`` sign."""
-        return -self.jacobian
+        return -np.asarray(self.jacobian)
 
     def muscle_index(self, name: str) -> int:
         try:
@@ -884,6 +886,23 @@ class GeometryPlan:
             if r is None and n:
                 dw[j][:] = self._distal_by_twists(th, self._joint_dofs(j))
         return MuscleGeometry(self.muscle_names, self.coordinate_names, lengths, jl, vel, dw)
+
+    def jacobian_positions(self) -> NDArray[np.intp]:
+        """Flat (muscle, coordinate) positions, increasing, of the Jacobian entries
+        :meth:`evaluate` writes: every other entry of ∂l/∂θ is exactly 0 (the compact form
+        :class:`msk.timeseries.FrameSparse` keeps these only)."""
+        return self._target_cols.copy()
+
+    def distal_positions(self, joint: str) -> NDArray[np.intp]:
+        """Flat (muscle, component) positions, increasing, of the entries of
+        :attr:`MuscleGeometry.distal_wrenches` ``[joint]`` that can be nonzero (the six
+        components of the muscles crossing ``joint``; all of them when the wrenches come from
+        :meth:`_distal_by_twists`)."""
+        rows = self._distal_rows(joint)
+        if rows is None:
+            return np.arange(self.n_muscles * 6, dtype=np.intp)
+        mus = np.unique(rows[1])
+        return (mus[:, None] * 6 + np.arange(6)).ravel().astype(np.intp)
 
     def _joint_dofs(self, joint: str) -> list[int]:
         """Pinocchio velocity indices of the axes of the model joint ``joint`` (first first)."""
@@ -1793,7 +1812,9 @@ _PLANS: weakref.WeakKeyDictionary[Model, GeometryPlan] = weakref.WeakKeyDictiona
 FRAME_BLOCK = 2048
 
 
-def finite_frames(jacobian: Array, columns: Sequence[int] | NDArray[np.intp]) -> NDArray[np.bool_]:
+def finite_frames(
+    jacobian: Array | FrameSparse, columns: Sequence[int] | NDArray[np.intp]
+) -> NDArray[np.bool_]:
     """(N,) frames whose Jacobian ``(N, M, n)`` is finite in the coordinate ``columns``,
     block by block (no (N, M, len(columns)) temporary)."""
     cols = np.asarray(columns, dtype=np.intp)
@@ -1806,7 +1827,7 @@ def finite_frames(jacobian: Array, columns: Sequence[int] | NDArray[np.intp]) ->
 
 
 def jacobian_frames(
-    jacobian: Array,
+    jacobian: Array | FrameSparse,
     frames: NDArray[np.bool_] | NDArray[np.intp],
     columns: Sequence[int] | NDArray[np.intp] | None = None,
 ) -> Array:

@@ -922,6 +922,18 @@ class _BatchQP:
         return StandardQP(H=self.h, g=g, A=a, b=b, lb=lb, ub=ub), self.layout(k)
 
 
+class WarmStart:
+    """A batch solver's warm start carried from one call to the next (``warm=`` of the
+    ``*_batch`` functions): the calls on consecutive frame blocks of one trial, given the same
+    object, each start from the previous block's last working set, as one call on all the
+    frames would (a long trial solved block by block, :mod:`msk.pipeline.blocks`). A fresh
+    object starts cold, like a call without it."""
+
+    def __init__(self) -> None:
+        self.state: Any = None
+        self.started = False
+
+
 def _run_batch(
     n_frames: int,
     build: Callable[[int], tuple[StandardQP, _Layout]],
@@ -933,6 +945,7 @@ def _run_batch(
     strict: bool,
     compute_kkt: bool,
     activations: bool,
+    carry: WarmStart | None = None,
     muscle_names: tuple[str, ...],
     coordinate_names: tuple[str, ...],
     time: ArrayLike | None,
@@ -958,7 +971,9 @@ def _run_batch(
     status = np.zeros(n_frames, dtype=np.int8)
     iters = np.zeros(n_frames, dtype=np.int64)
     times = np.zeros(n_frames)
-    warm = new_warm(solver) if warm_start else None
+    warm = None
+    if warm_start:
+        warm = carry.state if carry is not None and carry.started else new_warm(solver)
     for k in range(n_frames):
         qp, lay = build(k)
         if power is None:
@@ -1006,6 +1021,8 @@ def _run_batch(
         status[k] = raw.status
         iters[k] = raw.iterations
         times[k] = raw.solve_time_s
+    if carry is not None and warm_start:
+        carry.state, carry.started = warm, True
     alo, aup = active_masks(xs, lbs, ubs)
     terr = tau + np.einsum("kmn,km->kn", jac, forces)
     resid = terr - rt
@@ -1056,6 +1073,7 @@ def solve_tension_batch(
     reserve_optimal_force: ArrayLike | None = None,
     solver: str = DEFAULT_SOLVER,
     warm_start: bool = True,
+    warm: WarmStart | None = None,
     strict: bool = False,
     compute_kkt: bool = True,
     muscle_names: Sequence[str] | None = None,
@@ -1108,6 +1126,7 @@ def solve_tension_batch(
         tau,
         solver=solver,
         warm_start=warm_start,
+        carry=warm,
         strict=strict,
         compute_kkt=compute_kkt,
         activations=False,
@@ -1133,6 +1152,7 @@ def solve_static_optimization_batch(
     activation_exponent: float = 2.0,
     solver: str = DEFAULT_SOLVER,
     warm_start: bool = True,
+    warm: WarmStart | None = None,
     strict: bool = False,
     compute_kkt: bool = True,
     muscle_names: Sequence[str] | None = None,
@@ -1195,6 +1215,7 @@ def solve_static_optimization_batch(
         tau,
         solver=solver,
         warm_start=warm_start,
+        carry=warm,
         strict=strict,
         compute_kkt=compute_kkt,
         activations=True,
@@ -1218,6 +1239,7 @@ def solve_emg_weighted_batch(
     regularization: float = 1e-6,
     solver: str = DEFAULT_SOLVER,
     warm_start: bool = True,
+    warm: WarmStart | None = None,
     strict: bool = False,
     compute_kkt: bool = True,
     muscle_names: Sequence[str] | None = None,
@@ -1246,6 +1268,7 @@ def solve_emg_weighted_batch(
         tau,
         solver=solver,
         warm_start=warm_start,
+        carry=warm,
         strict=strict,
         compute_kkt=compute_kkt,
         activations=False,
@@ -1371,6 +1394,7 @@ def solve_emg_assisted_batch(
     reserve_max_control: ArrayLike = np.inf,
     solver: str = DEFAULT_SOLVER,
     warm_start: bool = True,
+    warm: WarmStart | None = None,
     strict: bool = False,
     compute_kkt: bool = True,
     muscle_names: Sequence[str] | None = None,
@@ -1447,6 +1471,7 @@ def solve_emg_assisted_batch(
         tau,
         solver=solver,
         warm_start=warm_start,
+        carry=warm,
         strict=strict,
         compute_kkt=compute_kkt,
         activations=True,

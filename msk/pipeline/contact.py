@@ -11,6 +11,7 @@ from typing import Any
 
 import numpy as np
 
+from msk.pipeline.blocks import frame_blocks
 from msk.pipeline.dynamics import InverseDynamics
 from msk.pipeline.emg import EmgActivations
 from msk.pipeline.inputs import SessionInputs
@@ -96,20 +97,22 @@ def run(
     for name, (m, s) in variants.items():
         # frames without muscle forces get no contact force (never zero muscle force)
         ok = np.flatnonzero(loads.usable & np.isfinite(s.forces).all(axis=1))
-        contact = knee_contact_force(
-            m, kin.take(ok), loads.external.take(ok),
-            muscle_forces=s.forces[ok], muscle_names=tuple(s.muscles), joint=joint,
-            distal_wrenches=None if dw is None else dw[ok],
-        )  # fmt: skip
-        force = np.full((n, 3), np.nan)
-        force[ok] = contact.force
         geo = plateau_geometry(
             m, joint=joint, intercondylar_distance_m=inputs.cfg.contact.intercondylar_distance_m
         )
-        ml = split_medial_lateral(contact, geo)
+        force = np.full((n, 3), np.nan)
         medial = np.full(n, np.nan)
         lateral = np.full(n, np.nan)
-        medial[ok], lateral[ok] = ml.medial, ml.lateral
+        for fr in frame_blocks(ok):  # block by block: memory bounded on long trials
+            contact = knee_contact_force(
+                m, kin.take(fr), loads.external.take(fr),
+                muscle_forces=s.forces[fr], muscle_names=tuple(s.muscles), joint=joint,
+                distal_wrenches=None if dw is None else dw[fr],
+            )  # fmt: skip
+            force[fr] = contact.force
+            ml = split_medial_lateral(contact, geo)
+            medial[fr], lateral[fr] = ml.medial, ml.lateral
+            del contact, ml
         out[name] = ContactVariant(force, np.linalg.norm(force, axis=1), medial, lateral)
         plateau = {
             "intercondylar_distance_m": geo.intercondylar_distance_m,

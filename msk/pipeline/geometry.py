@@ -1,6 +1,10 @@
 """Stage ``muscle_geometry``: muscle-tendon lengths, velocities and moment-arm Jacobians on the
 usable frames (:func:`msk.muscles.geometry.muscle_geometry`), with the knee's unit wrenches
-∂l/∂ξ for the contact stage from the same pass."""
+∂l/∂ξ for the contact stage from the same pass.
+
+The Jacobian and the wrenches are kept compact (:class:`msk.timeseries.FrameSparse`: only the
+coordinates each muscle crosses, only the muscles crossing the knee), evaluated block by block
+(:mod:`msk.pipeline.blocks`): a long trial never holds them dense."""
 
 from __future__ import annotations
 
@@ -8,6 +12,7 @@ from typing import Any
 
 import numpy as np
 
+from msk.pipeline.blocks import frame_blocks
 from msk.pipeline.inputs import SessionInputs
 from msk.pipeline.loads import Loads
 from msk.pipeline.model import BuiltModel
@@ -17,14 +22,37 @@ __all__ = ["run"]
 
 
 def run(inputs: SessionInputs, model: BuiltModel, kinematics: Any, loads: Loads) -> Any:
-    """:class:`msk.muscles.geometry.MuscleGeometry`; frames that are not usable are evaluated at
-    the default pose, at rest (their values are never used)."""
+    """:class:`msk.muscles.geometry.MuscleGeometry` with compact ``jacobian`` and
+    ``distal_wrenches``; frames that are not usable are evaluated at the default pose, at rest
+    (their values are never used)."""
     mdl, kin, ok = model.model, kinematics, loads.usable
     if not mdl.muscles:
         raise StageUnavailable(f"model {mdl.name} has no muscles")
-    from msk.muscles.geometry import muscle_geometry
+    from msk.muscles.geometry import MuscleGeometry, geometry_plan, muscle_geometry
+    from msk.timeseries import FrameSparse
 
     q = np.where(ok[:, None], kin.q, mdl.default_coordinates()[None, :])
     v = np.where(ok[:, None], kin.v, 0.0)
     knee = tuple(j.name for j in mdl.joints if j.name == f"knee{inputs.sfx}")
-    return muscle_geometry(mdl, q, v, distal_wrench_joints=knee)
+    plan = geometry_plan(mdl)
+    jpos = plan.jacobian_positions()
+    dpos = {j: plan.distal_positions(j) for j in knee}
+    parts = []
+    for b in frame_blocks(q.shape[0]):
+        sl = slice(int(b[0]), int(b[-1]) + 1) if b.size else slice(0, 0)
+        g = muscle_geometry(mdl, q[sl], v[sl], plan=plan, distal_wrench_joints=knee)
+        dw = {j: FrameSparse.from_dense(np.asarray(g.distal_wrenches[j]), dpos[j]) for j in knee}
+        parts.append(
+            (g.lengths, g.velocities, FrameSparse.from_dense(np.asarray(g.jacobian), jpos), dw)
+        )
+        del g
+    if len(parts) == 1:
+        lengths, vel, jac, dws = parts[0]
+    else:
+        lengths = np.concatenate([p[0] for p in parts])
+        vel = np.concatenate([p[1] for p in parts])
+        jac = FrameSparse.concatenate([p[2] for p in parts])
+        dws = {j: FrameSparse.concatenate([p[3][j] for p in parts]) for j in knee}
+    return MuscleGeometry(
+        tuple(plan.muscle_names), tuple(plan.coordinate_names), lengths, jac, vel, dws
+    )

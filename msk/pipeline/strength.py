@@ -43,24 +43,25 @@ def run(
     from msk.strength import StrengthIdentifier
 
     jt = inverse_dynamics.torques
-    params, state = muscle_state(model.model, muscle_geometry)
+    good = loads.usable & np.isfinite(jt.tau).all(axis=1)
+    geo = muscle_geometry.take(good)  # compact: the state of the frames used only
+    params, state = muscle_state(model.model, geo)
     groups: dict[str, list[str]] = {}
     for k, m in enumerate(emg.muscles):
         if emg.usable[k]:
             groups.setdefault(emg.sources[k], []).append(m)
     if not groups:
         raise StageUnavailable("no usable EMG channel")
-    act = np.zeros((kinematics.time.size, len(params.names)))
+    act = np.zeros((int(good.sum()), len(params.names)))
     for k, m in enumerate(emg.muscles):
         if emg.usable[k]:
-            act[:, params.names.index(m)] = emg.activation[:, k]
-    good = loads.usable & np.isfinite(jt.tau).all(axis=1)
+            act[:, params.names.index(m)] = emg.activation[good, k]
     est = StrengthIdentifier(groups, params, n_bootstrap=200, random_state=0)
     est.fit(
-        muscle_geometry.jacobian[good],
-        act[good],
+        geo.jacobian,
+        act,
         jt.tau[good],
-        state.take(good),
+        state,
         coordinate_names=jt.coordinate_names,
     )
     return StrengthIdentification(

@@ -20,6 +20,7 @@ from typing import Any
 
 import numpy as np
 
+from msk.pipeline.blocks import frame_blocks
 from msk.pipeline.dynamics import InverseDynamics
 from msk.pipeline.emg import EmgActivations
 from msk.pipeline.inputs import SessionInputs
@@ -119,14 +120,22 @@ def optimise(
     shortening faster than its maximal velocity produces no active force (the force–velocity
     curve's extrapolation below zero is clipped to 0 rather than costing the frame)."""
     import msk.optimization as o
-    from msk.muscles.geometry import finite_frames, jacobian_frames
+    from msk.muscles.geometry import finite_frames, jacobian_frames, muscle_parameters
+    from msk.muscles.hill import rigid_tendon_state
 
     act_idx = actuated(torques)
-    params, state = muscle_state(model, geometry)
-    fa_all = np.where(
-        state.max_active_force_along_tendon < 0, 0.0, state.max_active_force_along_tendon
-    )
-    fp_all = state.passive_force_along_tendon
+    params = muscle_parameters(model)
+    # the Hill state block by block (its many (N, m) arrays are never held whole)
+    fa_all = np.empty(geometry.lengths.shape)
+    fp_all = np.empty(geometry.lengths.shape)
+    for fr in frame_blocks(geometry.lengths.shape[0]):
+        sl = slice(int(fr[0]), int(fr[-1]) + 1) if fr.size else slice(0, 0)
+        vel = None if geometry.velocities is None else geometry.velocities[sl]
+        state = rigid_tendon_state(params, geometry.lengths[sl], vel)
+        fmax = state.max_active_force_along_tendon
+        fa_all[sl] = np.where(fmax < 0, 0.0, fmax)
+        fp_all[sl] = state.passive_force_along_tendon
+        del state
     posable = (
         finite_frames(geometry.jacobian, act_idx)
         & np.isfinite(torques.tau[:, act_idx]).all(axis=1)
@@ -135,67 +144,86 @@ def optimise(
     )
     ok = usable & posable
     excluded = int((usable & ~posable).sum())
-    jac = jacobian_frames(geometry.jacobian, ok, act_idx)
-    tq = torques.tau[ok][:, act_idx]
     cn = tuple(torques.coordinate_names[i] for i in act_idx)
     reserves = np.ones(len(act_idx))
     opt = inputs.cfg.optimization
     meth, solver = opt.method, opt.solver
-    fa, fp = fa_all[ok], fp_all[ok]
-    common = {"muscle_names": params.names, "coordinate_names": cn, "time": time[ok]}
     weights = (  # activation weights of static_optimization and emg_assisted
         o.volume_weights(params.max_isometric_force, params.optimal_fiber_length)
         if opt.activation_weights == "volume"
         else None
     )
-    gains: dict[str, float] | None = None
-    if meth == "static_optimization":
-        sol = o.solve_static_optimization_batch(
-            jac, tq, f_active=fa, f_passive=fp, reserve_optimal_force=reserves,
-            activation_weights=weights, activation_exponent=opt.activation_exponent,
-            solver=solver, **common,
-        )  # fmt: skip
-        forces, acts = sol.forces, sol.activations
-    elif meth == "bounded_qp":
-        sol = o.solve_tension_batch(
-            jac, tq, f_iso=params.max_isometric_force, f_max=fa + fp,
-            reserve_optimal_force=reserves, solver=solver, **common,
-        )  # fmt: skip
-        forces = sol.forces
-        acts = np.clip(forces / np.maximum(fa, 1e-9), 0, None)
-    elif meth in ("emg_weighted", "emg_assisted"):
+    meas = None
+    if meth in ("emg_weighted", "emg_assisted"):
         if emg is None:
             raise StageUnavailable(f"{meth} needs the EMG stage")
         meas = np.array(
             [n in emg.muscles and bool(emg.usable[emg.column(n)]) for n in params.names]
         )
-        a = np.zeros_like(fa)
-        for k, n in enumerate(params.names):
-            if meas[k]:
-                a[:, k] = emg.activation[ok, emg.column(n)]
-        if meth == "emg_weighted":
-            sol = o.solve_emg_weighted_batch(
-                jac, tq, f_ref=a * fa, measured=meas, w_emg=opt.w_emg,
-                f_max=fa + fp, solver=solver, **common,
+    idx_ok = np.flatnonzero(ok)
+    # emg_assisted fits its gains on the whole trial: one block
+    blocks = [idx_ok] if meth == "emg_assisted" else frame_blocks(idx_ok)
+    carry = o.WarmStart()
+    gains: dict[str, float] | None = None
+    parts: list[tuple[Any, Any, Any, int]] = []
+    for fr in blocks:
+        jac = jacobian_frames(geometry.jacobian, fr, act_idx)
+        tq = torques.tau[fr][:, act_idx]
+        fa, fp = fa_all[fr], fp_all[fr]
+        common: dict[str, Any] = {
+            "muscle_names": params.names,
+            "coordinate_names": cn,
+            "time": time[fr],
+        }
+        if meth == "static_optimization":
+            sol = o.solve_static_optimization_batch(
+                jac, tq, f_active=fa, f_passive=fp, reserve_optimal_force=reserves,
+                activation_weights=weights, activation_exponent=opt.activation_exponent,
+                solver=solver, warm=carry, **common,
+            )  # fmt: skip
+            forces, acts = sol.forces, sol.activations
+        elif meth == "bounded_qp":
+            sol = o.solve_tension_batch(
+                jac, tq, f_iso=params.max_isometric_force, f_max=fa + fp,
+                reserve_optimal_force=reserves, solver=solver, warm=carry, **common,
             )  # fmt: skip
             forces = sol.forces
             acts = np.clip(forces / np.maximum(fa, 1e-9), 0, None)
-        else:
-            sol, gains = _emg_assisted(
-                inputs, jac, tq, fa, a, meas, params.names, weights, reserves, common
+        elif meth in ("emg_weighted", "emg_assisted"):
+            assert emg is not None and meas is not None
+            a = np.zeros_like(fa)
+            for k, name in enumerate(params.names):
+                if meas[k]:
+                    a[:, k] = emg.activation[fr, emg.column(name)]
+            if meth == "emg_weighted":
+                sol = o.solve_emg_weighted_batch(
+                    jac, tq, f_ref=a * fa, measured=meas, w_emg=opt.w_emg,
+                    f_max=fa + fp, solver=solver, warm=carry, **common,
+                )  # fmt: skip
+                forces = sol.forces
+                acts = np.clip(forces / np.maximum(fa, 1e-9), 0, None)
+            else:
+                sol, gains = _emg_assisted(
+                    inputs, jac, tq, fa, a, meas, params.names, weights, reserves, common
+                )
+                forces, acts = sol.forces, sol.activations
+        else:  # closed_form (unbounded Lagrange solution)
+            lag = o.solve_lagrange_batch(
+                jac, tq, area=params.max_isometric_force, muscle_names=params.names
             )
-            forces, acts = sol.forces, sol.activations
-    else:  # closed_form (unbounded Lagrange solution)
-        lag = o.solve_lagrange_batch(
-            jac, tq, area=params.max_isometric_force, muscle_names=params.names
-        )
-        forces = lag.forces
-        acts = forces / np.maximum(fa, 1e-9)
-        sol = None
+            forces = lag.forces
+            acts = forces / np.maximum(fa, 1e-9)
+            sol = None
+        del jac
+        parts.append(
+            (forces, acts, None if sol is None else sol.reserve_torques,
+             0 if sol is None else int(sol.infeasible_frames.size))
+        )  # fmt: skip
     n = time.size
     f_all = np.full((n, len(params.names)), np.nan)
     a_all = np.full_like(f_all, np.nan)
-    f_all[ok], a_all[ok] = forces, acts
+    for fr, (forces, acts, _, _) in zip(blocks, parts, strict=True):
+        f_all[fr], a_all[fr] = forces, acts
     w = "V_i " if opt.activation_weights == "volume" else ""
     criterion = None
     if meth == "static_optimization":
@@ -210,12 +238,13 @@ def optimise(
         "non-finite geometry, torque or muscle force curves" if excluded else None,
         criterion, gains,
     )  # fmt: skip
-    if sol is None:
+    if meth == "closed_form":
         return out
     rt = np.full((n, len(act_idx)), np.nan)
-    rt[ok] = sol.reserve_torques
+    for fr, (_, _, r, _) in zip(blocks, parts, strict=True):
+        rt[fr] = r
     return dataclasses.replace(
-        out, infeasible_frames=int(sol.infeasible_frames.size), reserve_torques=rt,
+        out, infeasible_frames=sum(p[3] for p in parts), reserve_torques=rt,
         reserve_coordinates=cn,
     )  # fmt: skip
 

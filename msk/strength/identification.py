@@ -131,6 +131,7 @@ from scipy.optimize import lsq_linear
 from msk import compare
 from msk.exceptions import IdentificationError, ShapeMismatchError
 from msk.muscles.hill import MuscleParameters, RigidTendonState
+from msk.timeseries import FrameSparse
 
 Array = NDArray[np.float64]
 
@@ -580,7 +581,7 @@ class StrengthIdentifier:
 
     # ----------------------------------------------------------------- helpers
     def _contributions(
-        self, jacobian: ArrayLike, activation: ArrayLike, state: RigidTendonState
+        self, jacobian: ArrayLike | FrameSparse, activation: ArrayLike, state: RigidTendonState
     ) -> tuple[Array, Array]:
         if tuple(state.names) != self.params.names:
             raise ShapeMismatchError(
@@ -589,11 +590,20 @@ class StrengthIdentifier:
             )
         # block by block over the frames: the (N, M, n) contributions of a long trial are never
         # held whole (each frame's values are computed exactly as in one pass)
-        jac = _as3(jacobian, "jacobian")
+        jac: Array | FrameSparse
+        if isinstance(jacobian, FrameSparse):  # compact (the pipeline's): dense block by block
+            jac = jacobian
+            bad = np.flatnonzero(~np.isfinite(jac.values).all(axis=1))
+            if bad.size:
+                _as3(jac[bad[:1]], f"jacobian (from frame {int(bad[0])})")
+            if jac.ndim != 3:
+                raise ShapeMismatchError(f"jacobian must be (N, M, n), got {jac.shape}")
+        else:
+            jac = _as3(jacobian, "jacobian")
         n = jac.shape[0]
         act = _as2(activation, (n, jac.shape[1]), "activation", state.names)
         if n <= _FRAME_BLOCK:
-            c = net_contribution(jac, act, state, passive=self.passive)
+            c = net_contribution(jac[:], act, state, passive=self.passive)
             return group_contributions(c, self.groups, self.params)
         parts = []
         for c0 in range(0, n, _FRAME_BLOCK):
@@ -688,7 +698,7 @@ class StrengthIdentifier:
     # ----------------------------------------------------------------- fit
     def fit(
         self,
-        jacobian: ArrayLike,
+        jacobian: ArrayLike | FrameSparse,
         activation: ArrayLike,
         tau: ArrayLike,
         state: RigidTendonState,
@@ -699,7 +709,8 @@ class StrengthIdentifier:
     ) -> StrengthIdentifier:
         """Identify the group strengths from one or more concatenated trials.
 
-        ``jacobian`` ``(N, M, n)`` J = ∂l/∂θ; ``activation`` ``(N, M)`` EMG-driven activations
+        ``jacobian`` ``(N, M, n)`` J = ∂l/∂θ (dense, or a :class:`msk.timeseries.FrameSparse`,
+        used block by block); ``activation`` ``(N, M)`` EMG-driven activations
         (see :func:`expand_groups` and :func:`msk.muscles.activation.emg_to_activation`);
         ``tau`` ``(N, n)`` inverse-dynamics torques; ``state`` the rigid-tendon state of the
         generic parameters; ``windows`` one label per frame (cycle / trial / motion) — the
