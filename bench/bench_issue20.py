@@ -1,0 +1,143 @@
+"""Issue 20's five figures in one run, each next to its target, with the load average.
+
+1. static optimisation: OpenSim 4.6 StaticOptimization / msk SO per frame, CPU (≥ 500×);
+2. the chain ID + geometry + SO + knee contact (with the medial/lateral split), µs/frame (≤ 100);
+3. the knee contact stage alone, µs/frame (≤ 10);
+4. ``msk run pipelines/gc5_PS.toml --no-cache`` cold, in a fresh interpreter, s (≤ 2);
+5. ``msk batch`` of 16 × gc5_PS, 1 worker / 2 workers on the local pool (≥ 1.8×).
+
+1–3 come from :func:`bench_chain.measure` (gait2392 subject01 walk, OpenSim on the same states,
+``--repeat`` batch calls per stage after a warm-up: min and median; the verdict uses the min
+wall time, the ratio the CPU times), 4 from ``bench_run_cold`` (``--cold`` runs after one
+untimed run: min and median, verdict on the median), 5 from :func:`msk.batch.run_batch`
+(``forkserver`` workers, every stage computed). The machine is shared: the load average is
+printed before and after each part; only figures of the same run compare.
+
+    .venv/bin/python bench/bench_issue20.py [--repeat 15] [--cold 5] [--sessions 16]
+        [--skip batch]
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import platform
+import statistics
+import sys
+import tempfile
+import time
+from datetime import date
+from pathlib import Path
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+
+import bench_chain
+import bench_run_cold
+
+REPO = Path(__file__).resolve().parents[1]
+CONFIG = REPO / "pipelines" / "gc5_PS.toml"
+
+
+def _load() -> str:
+    return " / ".join(f"{x:.1f}" for x in os.getloadavg())
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--repeat", type=int, default=15, help="timed batch calls per chain stage")
+    ap.add_argument("--cold", type=int, default=5, help="timed cold `msk run`s")
+    ap.add_argument("--sessions", type=int, default=16, help="sessions per batch")
+    ap.add_argument("--skip", default="", help="comma-separated: chain, cold, batch")
+    args = ap.parse_args()
+    skip = set(filter(None, args.skip.split(",")))
+    rows: list[tuple[str, str, str, str, str]] = []  # figure, value, detail, target, verdict
+    notes: list[str] = [
+        f"{date.today().isoformat()}, {platform.machine()}, {os.cpu_count()} cores shared with "
+        f"other jobs, Python {platform.python_version()}; load average (1/5/15 min) at start "
+        f"{_load()}"
+    ]
+
+    if "chain" not in skip:
+        l0 = _load()
+        r = bench_chain.measure(args.repeat)
+        best, med, cpu = r["best"], r["median"], r["cpu"]
+        so = "static optimisation"
+        ratio = r["opensim_cpu_us"] / cpu[so]
+        chain = sum(best.values())
+        chain_med = sum(med.values())
+        contact = best[bench_chain.CONTACT]
+        rows += [
+            ("SO: OpenSim / msk per frame (CPU)", f"{ratio:,.0f}×",
+             f"OpenSim {r['opensim_cpu_us']:,.0f} µs CPU ({r['opensim_us']:,.0f} wall), msk "
+             f"{cpu[so]:.1f} µs CPU ({best[so]:.1f} wall min, {med[so]:.1f} median)",
+             f"≥ {bench_chain.TARGET_RATIO:.0f}×", "met" if ratio >= bench_chain.TARGET_RATIO
+             else "not met"),
+            ("chain ID + geometry + SO + contact", f"{chain:.1f} µs/frame",
+             f"wall min; median {chain_med:.1f}, CPU {sum(cpu.values()):.1f}; "
+             + ", ".join(f"{k} {best[k]:.1f}" for k in r["stages"]),
+             f"≤ {bench_chain.TARGET_US:.0f} µs", "met" if chain <= bench_chain.TARGET_US
+             else "not met"),
+            ("knee contact + medial/lateral split", f"{contact:.1f} µs/frame",
+             f"wall min; median {med[bench_chain.CONTACT]:.1f}",
+             f"≤ {bench_chain.TARGET_CONTACT_US:.0f} µs",
+             "met" if contact <= bench_chain.TARGET_CONTACT_US else "not met"),
+        ]  # fmt: skip
+        notes.append(
+            f"chain: {r['n']} frames, 92 muscles, {args.repeat} repeats per stage; load {l0} → "
+            f"{_load()}"
+        )
+
+    if "cold" not in skip:
+        l0 = _load()
+        walls = []
+        with tempfile.TemporaryDirectory() as tmp:
+            for k in range(args.cold + 1):  # the first run warms the disk cache, not timed
+                wall, _ = bench_run_cold._run_once(REPO, Path(tmp) / f"out{k}")
+                if k:
+                    walls.append(wall)
+        lo, mid = min(walls), statistics.median(walls)
+        rows.append(
+            ("`msk run` gc5_PS cold (fresh interpreter)", f"{mid:.2f} s",
+             f"median of {args.cold}; min {lo:.2f} s", f"≤ {bench_run_cold.TARGET_S:g} s",
+             "met" if mid <= bench_run_cold.TARGET_S else
+             ("met by the fastest run only" if lo <= bench_run_cold.TARGET_S else "not met"))
+        )  # fmt: skip
+        notes.append(f"cold run: load {l0} → {_load()}")
+
+    if "batch" not in skip:
+        import msk.batch as batch
+
+        os.environ.setdefault("OPENBLAS_THREAD_TIMEOUT", "4")  # as `msk batch` sets it
+        wall: dict[int, float] = {}
+        for workers in (1, 2):
+            l0 = _load()
+            with tempfile.TemporaryDirectory() as tmp:
+                t0 = time.perf_counter()
+                res = batch.run_batch(
+                    [CONFIG] * args.sessions, Path(tmp) / "out", workers=workers, use_cache=False
+                )
+                wall[workers] = time.perf_counter() - t0
+            if res.failed:
+                raise SystemExit(f"batch failed: {[o.error for o in res.failed]}")
+            notes.append(
+                f"batch, {workers} worker(s): {wall[workers]:.1f} s, load {l0} → {_load()}"
+            )
+        speed = wall[1] / wall[2]
+        rows.append(
+            (f"`msk batch` {args.sessions} × gc5_PS, 2 workers / 1", f"{speed:.2f}×",
+             f"{wall[1]:.1f} s → {wall[2]:.1f} s (forkserver workers)", "≥ 1.8×",
+             "met" if speed >= 1.8 else "not met")
+        )  # fmt: skip
+
+    notes.append(f"load average at the end {_load()}")
+    print("| figure | value | detail | target | verdict |")
+    print("| --- | --- | --- | --- | --- |")
+    for row in rows:
+        print("| " + " | ".join(row) + " |")
+    print()
+    for note in notes:
+        print(f"- {note}")
+
+
+if __name__ == "__main__":
+    main()
