@@ -242,13 +242,16 @@ def _solve_daqp(qp: StandardQP, warm: Any) -> SolveOutput:
         if warm.model is not None and warm.shape == (qp.n, qp.m_eq):
             h = None if qp.H is warm.h else qp.H
             g = None if qp.g is warm.g else qp.g
-            warm.model.update(H=h, f=g, A=a if qp.m_eq else None, bupper=bu, blower=bl)
+            if warm.model.update(H=h, f=g, A=a if qp.m_eq else None, bupper=bu, blower=bl) < 0:
+                warm.model = None  # the update found the frame infeasible: solve it cold
         else:
             warm.model = daqp.Model()
             warm.model.settings = DAQP_OPTIONS
-            warm.model.setup(qp.H, qp.g, a, bu, bl, _daqp_sense(qp))
+            if warm.model.setup(qp.H, qp.g, a, bu, bl, _daqp_sense(qp))[0] < 0:
+                warm.model = None  # e.g. infeasible bounds found by the setup: solve cold
             warm.shape = (qp.n, qp.m_eq)
         warm.h, warm.g = qp.H, qp.g
+    if isinstance(warm, _DaqpWarm) and warm.model is not None:
         x, _, flag, info = warm.model.solve()
         if flag < 0:  # do not carry a failed working set into the next frame
             warm.model = None
