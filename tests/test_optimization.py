@@ -26,6 +26,7 @@ from msk.optimization import (
     lagrange_coefficients,
     register_solver,
     solve,
+    solve_emg_assisted_batch,
     solve_emg_weighted_batch,
     solve_lagrange,
     solve_lagrange_batch,
@@ -634,3 +635,110 @@ def test_volume_weights_are_relative_muscle_volumes() -> None:
         volume_weights([1000.0, 0.0], [0.1, 0.1])
     with pytest.raises(OptimizationError, match="should be"):
         volume_weights([1000.0, 1.0], [0.1])
+
+
+# ---------------------------------------------------------------------------------------------
+# independent sub-problems (each leg apart) solved apart: the same solutions
+# ---------------------------------------------------------------------------------------------
+
+
+def _two_legs(n_frames: int = 40):
+    """Two leg-like muscle sets on their own coordinates plus two coordinates no muscle crosses
+    (a "pelvis"): the QPs split into one sub-problem per leg."""
+    a, b = leg_like_frames(18, 4, n_frames, seed=3), leg_like_frames(20, 3, n_frames, seed=4)
+    m1, n1 = a.jacobians.shape[1:]
+    m2, n2 = b.jacobians.shape[1:]
+    jac = np.zeros((n_frames, m1 + m2, 2 + n1 + n2))
+    jac[:, :m1, 2 : 2 + n1] = a.jacobians
+    jac[:, m1:, 2 + n1 :] = b.jacobians
+    tau = np.concatenate([np.full((n_frames, 2), 7.0), a.taus, b.taus], axis=1)
+    return jac, tau, np.concatenate([a.f_iso, b.f_iso])
+
+
+def _whole_and_split(monkeypatch, run):
+    """``run()`` with the QPs split into their sub-problems and with each frame's QP whole."""
+    import msk.optimization.problems as problems
+
+    calls = []
+    solve_blocks = problems._BatchQP.solve_blocks
+    monkeypatch.setattr(
+        problems._BatchQP, "solve_blocks", lambda self: calls.append(1) or solve_blocks(self)
+    )
+    split = run()
+    assert calls, "the QPs were not split"
+    monkeypatch.setattr(problems, "_MIN_BLOCK_UNKNOWNS", 10**9)  # one block: the whole QP
+    whole = run()
+    assert len(calls) == 1
+    return split, whole
+
+
+def _assert_same(split, whole, atol: float = 1e-9) -> None:
+    np.testing.assert_array_equal(split.status, whole.status)
+    for name in ("forces", "reserve_controls", "torque_error", "residual_norm"):
+        np.testing.assert_allclose(getattr(split, name), getattr(whole, name), rtol=0, atol=atol)
+    if whole.activations is not None:
+        np.testing.assert_allclose(split.activations, whole.activations, rtol=0, atol=1e-12)
+    np.testing.assert_array_equal(split.active_lower, whole.active_lower)
+    np.testing.assert_array_equal(split.active_upper, whole.active_upper)
+    np.testing.assert_allclose(split.kkt, whole.kkt, rtol=0, atol=1e-9)
+
+
+def test_batch_splits_into_independent_subproblems(monkeypatch) -> None:
+    import msk.optimization.problems as problems
+
+    jac, tau, f_iso = _two_legs()
+    n_frames, m, n = jac.shape
+    rng = np.random.default_rng(0)
+    fa = f_iso * rng.uniform(0.6, 1.0, size=(n_frames, m))
+    fp = f_iso * rng.uniform(0.0, 0.02, size=(n_frames, m))
+    reserves = np.ones(n)
+    pattern = problems._nonzero_pattern(jac)[:, 2:].T
+    blocks = problems._independent_blocks(
+        np.hstack([pattern, np.eye(n - 2, dtype=bool)]), np.eye(m + n - 2)
+    )
+    assert [(r.size, c.size) for r, c in blocks] == [(4, 22), (3, 23)]
+
+    def so():
+        return solve_static_optimization_batch(
+            jac, tau, f_active=fa, f_passive=fp, activation_min=0.01,
+            reserve_optimal_force=reserves, activation_weights=np.linspace(0.5, 2.0, m),
+        )  # fmt: skip
+
+    split, whole = _whole_and_split(monkeypatch, so)
+    assert (split.status == 0).all() and np.nanmax(split.kkt) < 1e-8
+    _assert_same(split, whole)
+    # the pelvis residuals left the QPs: τ / F_res exactly
+    np.testing.assert_array_equal(split.reserve_controls[:, :2], 7.0)
+
+
+def test_batch_split_tension_and_emg_assisted_and_infeasible_frames(monkeypatch) -> None:
+    jac, tau, f_iso = _two_legs(30)
+    jac, tau = jac[:, :, 2:], tau[:, 2:]  # no pelvis: without reserves it could not balance
+    taus = tau.copy()
+    taus[[5, 17], 1] = 1e5  # beyond the first leg's capacity: bounded least squares
+    split, whole = _whole_and_split(
+        monkeypatch, lambda: solve_tension_batch(jac, taus, f_iso=f_iso)
+    )
+    assert list(split.infeasible_frames) == [5, 17]
+    _assert_same(split, whole, atol=1e-9 * np.abs(taus).max())
+
+    n_frames, m, _ = jac.shape
+    rng = np.random.default_rng(1)
+    fa = np.broadcast_to(f_iso, (n_frames, m))
+    measured = rng.uniform(size=m) < 0.5
+    a_ref = rng.uniform(0.0, 0.3, size=(n_frames, m))
+
+    def emg():
+        return solve_emg_assisted_batch(
+            jac, tau, f_active=fa, a_ref=a_ref, measured=measured, w_track=1.0,
+            reserve_optimal_force=np.ones(jac.shape[2]),
+        )  # fmt: skip
+
+    import msk.optimization.problems as problems
+
+    monkeypatch.setattr(problems, "_MIN_BLOCK_UNKNOWNS", 16)
+    split, whole = _whole_and_split(monkeypatch, emg)
+    _assert_same(split, whole)
+    with pytest.raises(OptimizationError, match=r"frame 5: QP infeasible"):
+        monkeypatch.setattr(problems, "_MIN_BLOCK_UNKNOWNS", 16)
+        solve_tension_batch(jac, taus, f_iso=f_iso, strict=True)
