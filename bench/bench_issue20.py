@@ -42,6 +42,13 @@ def _load() -> str:
     return " / ".join(f"{x:.1f}" for x in os.getloadavg())
 
 
+def _verdict(wall: float, cpu: float, target: float) -> str:
+    """Met on the wall time (min); on a loaded machine, say when only the CPU time meets it."""
+    if wall <= target:
+        return "met"
+    return "met in CPU time, not in wall time at this load" if cpu <= target else "not met"
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--repeat", type=int, default=15, help="timed batch calls per chain stage")
@@ -75,12 +82,12 @@ def main() -> None:
             ("chain ID + geometry + SO + contact", f"{chain:.1f} µs/frame",
              f"wall min; median {chain_med:.1f}, CPU {sum(cpu.values()):.1f}; "
              + ", ".join(f"{k} {best[k]:.1f}" for k in r["stages"]),
-             f"≤ {bench_chain.TARGET_US:.0f} µs", "met" if chain <= bench_chain.TARGET_US
-             else "not met"),
+             f"≤ {bench_chain.TARGET_US:.0f} µs", _verdict(chain, sum(cpu.values()),
+                                                        bench_chain.TARGET_US)),
             ("knee contact + medial/lateral split", f"{contact:.1f} µs/frame",
-             f"wall min; median {med[bench_chain.CONTACT]:.1f}",
+             f"wall min; median {med[bench_chain.CONTACT]:.1f}, CPU {cpu[bench_chain.CONTACT]:.1f}",
              f"≤ {bench_chain.TARGET_CONTACT_US:.0f} µs",
-             "met" if contact <= bench_chain.TARGET_CONTACT_US else "not met"),
+             _verdict(contact, cpu[bench_chain.CONTACT], bench_chain.TARGET_CONTACT_US)),
         ]  # fmt: skip
         notes.append(
             f"chain: {r['n']} frames, 92 muscles, {args.repeat} repeats per stage; load {l0} → "
