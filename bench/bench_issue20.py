@@ -14,7 +14,12 @@ untimed run: min and median, verdict on the median), 5 from :func:`msk.batch.run
 printed before and after each part; only figures of the same run compare.
 
     .venv/bin/python bench/bench_issue20.py [--repeat 15] [--cold 5] [--sessions 16]
-        [--skip batch]
+        [--skip batch] [--baseline main]
+
+``--baseline REF`` measures the ``msk`` package as it is at git ``REF`` instead (``git
+archive`` into a temporary folder, put ahead of the installed package for this process, the
+cold runs and the batch workers): run it right before or after the working tree for a ratio
+in the same conditions.
 """
 
 from __future__ import annotations
@@ -30,9 +35,6 @@ from datetime import date
 from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-
-import bench_chain
-import bench_run_cold
 
 REPO = Path(__file__).resolve().parents[1]
 CONFIG = REPO / "pipelines" / "gc5_PS.toml"
@@ -55,7 +57,21 @@ def main() -> None:
     ap.add_argument("--cold", type=int, default=5, help="timed cold `msk run`s")
     ap.add_argument("--sessions", type=int, default=16, help="sessions per batch")
     ap.add_argument("--skip", default="", help="comma-separated: chain, cold, batch")
+    ap.add_argument("--baseline", default=None, help="measure the msk package at this git ref")
     args = ap.parse_args()
+    src = REPO
+    if args.baseline:  # the package at a git ref, imported ahead of the installed one
+        import bench_run_cold
+
+        src = bench_run_cold._checkout(args.baseline, Path(tempfile.mkdtemp()))
+        sys.path.insert(0, str(src))
+        os.environ["PYTHONPATH"] = os.pathsep.join([str(src), os.environ.get("PYTHONPATH", "")])
+    import bench_chain  # imports msk: after the baseline's path is set
+    import bench_run_cold
+
+    import msk
+
+    print(f"msk from {Path(msk.__file__).parent}", flush=True)
     skip = set(filter(None, args.skip.split(",")))
     rows: list[tuple[str, str, str, str, str]] = []  # figure, value, detail, target, verdict
     notes: list[str] = [
@@ -99,7 +115,7 @@ def main() -> None:
         walls = []
         with tempfile.TemporaryDirectory() as tmp:
             for k in range(args.cold + 1):  # the first run warms the disk cache, not timed
-                wall, _ = bench_run_cold._run_once(REPO, Path(tmp) / f"out{k}")
+                wall, _ = bench_run_cold._run_once(src, Path(tmp) / f"out{k}")
                 if k:
                     walls.append(wall)
         lo, mid = min(walls), statistics.median(walls)
