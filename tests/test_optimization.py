@@ -662,7 +662,9 @@ def _whole_and_split(monkeypatch, run):
     calls = []
     solve_blocks = problems._BatchQP.solve_blocks
     monkeypatch.setattr(
-        problems._BatchQP, "solve_blocks", lambda self: calls.append(1) or solve_blocks(self)
+        problems._BatchQP,
+        "solve_blocks",
+        lambda self, *a, **k: calls.append(1) or solve_blocks(self, *a, **k),
     )
     split = run()
     assert calls, "the QPs were not split"
