@@ -46,7 +46,12 @@ def plain(x: Any) -> Any:
     if isinstance(x, tuple | list):
         return [plain(v) for v in x]
     if isinstance(x, Path):
-        return {"path": os.path.relpath(x, REPO)}
+        # the shared data may be a symlink beside the clone: relative to its resolved root
+        shared = (REPO.parent / "shared").resolve()
+        rx = Path(x).resolve()
+        if rx.is_relative_to(shared):
+            return {"path": os.path.join("..", "shared", os.path.relpath(rx, shared))}
+        return {"path": os.path.relpath(rx, REPO.resolve())}
     if isinstance(x, float):
         return {"float": repr(x)}
     return x

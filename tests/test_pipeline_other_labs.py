@@ -235,5 +235,5 @@ def test_stock_osim_with_its_marker_set_in_a_separate_xml(real_dir: Path, tmp_pa
     cfg.write_text(text)
     res = run_session(cfg, tmp_path / "out")
     q = res.summary["quality"]
-    assert res.summary["model"]["source"] == str(osim)
+    assert Path(res.summary["model"]["source"]).resolve() == Path(osim).resolve()
     assert q["ik_marker_rms_mean_m"] < 0.025 and q["residual_force_rms_pct_bw"] < 5.0
