@@ -58,6 +58,7 @@ from __future__ import annotations
 import math
 import time as _time
 from collections.abc import Mapping, Sequence
+from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field
 from typing import Any, Literal
 
@@ -66,6 +67,7 @@ import pinocchio as pin
 import scipy.sparse as sp
 from numpy.typing import ArrayLike, NDArray
 
+from msk._fork import spare_cpu
 from msk.exceptions import IdentificationError, ModelError, OptimizationError
 from msk.model import (
     INERTIAL_PARAMETER_NAMES,
@@ -1286,10 +1288,9 @@ class InertialIdentifier:
         sq = np.zeros((grid.size, nr))
         fold_f = np.full((grid.size, k), np.nan)
         fold_m = np.full((grid.size, k), np.nan)
-        n_held = 0
-        for fi, bi in enumerate(used):
-            held = blocks[bi]
-            train = _Stats.zeros(nr, held.h.shape[1])
+        trains = []
+        for bi in used:
+            train = _Stats.zeros(nr, blocks[bi].h.shape[1])
             for bj in used:
                 if bj != bi:
                     train.add(blocks[bj])
@@ -1297,12 +1298,29 @@ class InertialIdentifier:
                 raise IdentificationError(
                     f"cross-validation fold {names[bi]!r}: no training frames"
                 )
-            n_held += held.n
+            trains.append(train)
+
+        def held_out_rss(fold: int) -> list[Array]:
+            """Held-out residual sums per row of every λ of the grid, trained without ``fold``."""
+            train, held = trains[fold], blocks[used[fold]]
             sigma0 = self._initial_sigma(train)
             first = (sigma0, *self._x_system(sigma0, train))
-            for wi, w in enumerate(grid):
+            out = []
+            for w in grid:
                 x, _, _, _ = self._fit_stats(train, float(w), first)
-                rss = np.maximum(held.row_rss(self._phi_of(x, float(w))), 0.0)
+                out.append(np.maximum(held.row_rss(self._phi_of(x, float(w))), 0.0))
+            return out
+
+        # the folds are independent and Clarabel releases the GIL: two at a time with a second
+        # CPU free (msk._fork.spare_cpu; the sums below are taken in fold order, so the result
+        # does not depend on it)
+        with ThreadPoolExecutor(max_workers=2 if spare_cpu() else 1) as pool:
+            per_fold = list(pool.map(held_out_rss, range(k)))
+        n_held = 0
+        for fi, bi in enumerate(used):
+            held = blocks[bi]
+            n_held += held.n
+            for wi, rss in enumerate(per_fold[fi]):
                 sq[wi] += rss
                 rms = np.sqrt(rss / held.n)
                 fold_f[wi, fi] = _pool_rms(rms, trans)

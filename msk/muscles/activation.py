@@ -58,7 +58,6 @@ from typing import Literal
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
-from scipy.signal import lfilter, lfilter_zi
 
 from msk.exceptions import MuscleModelError
 
@@ -195,6 +194,8 @@ def recursive_filter(
         raise MuscleModelError(
             f"muscle {nm[j]!r}: delay_samples must be a whole number >= 0, got {d[j]}"
         )
+    from scipy.signal import lfilter, lfilter_zi  # on use: ~0.45 s a cached run need not pay
+
     out = np.empty_like(e)
     for j in range(m):
         alpha, b1, b2 = recursive_filter_coefficients(g1[j], g2[j])

@@ -48,13 +48,14 @@ from __future__ import annotations
 import time
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field, replace
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import casadi as ca
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
-from scipy import sparse
-from scipy.optimize import least_squares
+
+if TYPE_CHECKING:
+    from scipy import sparse
 
 from msk import compare
 from msk.exceptions import IdentificationError, ShapeMismatchError
@@ -617,6 +618,8 @@ class EMGDrivenCalibration:
     def fit(self, trials: Sequence[CalibrationTrial]) -> EMGDrivenCalibration:
         """Calibrate on ``trials`` (concatenated objective). Returns ``self``; ``result_``,
         ``parameters_`` and ``coordinate_names_`` are set."""
+        from scipy import sparse  # on use: a cached run decoding results need not pay for it
+
         cn = self._check_trials(trials)
         t0 = time.perf_counter()
         lo_x, hi_x, x0_x = self._bounds_vectors()
@@ -707,6 +710,8 @@ class EMGDrivenCalibration:
     ) -> tuple[Array, list[float], list[str]]:
         """Bounded Gauss–Newton (scipy ``least_squares``, trust-region reflective) with the exact
         casadi Jacobian ∂F/∂x (sparse: each force depends on 8 parameters)."""
+        from scipy.optimize import least_squares  # on use (see fit)
+
         f_fn = ca.Function("F", [x], [fvec])
         jf_fn = ca.Function("JF", [x], [ca.jacobian(fvec, x)])
         n_res = mvec.size

@@ -125,8 +125,6 @@ from typing import Any, Literal
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
-from scipy import stats
-from scipy.optimize import lsq_linear
 
 from msk import compare
 from msk.exceptions import IdentificationError, ShapeMismatchError
@@ -398,6 +396,8 @@ def _bounded_from_normal(a: Array, b: Array, lo: Array, hi: Array) -> Array:
     except np.linalg.LinAlgError:
         lfac = np.linalg.cholesky(a + 1e-10 * np.trace(a) * np.eye(a.shape[0]))
     rhs = np.linalg.solve(lfac, b)
+    from scipy.optimize import lsq_linear  # on use: decoding cached results need not pay
+
     return lsq_linear(lfac.T, rhs, bounds=(lo, hi), method="bvls", tol=1e-12).x
 
 
@@ -482,6 +482,8 @@ def _interp_matrix(x_from: Array, x_to: Array) -> Array:
 def _bca_limits(boot: Array, est: Array, jack: Array, alpha: float) -> tuple[Array, Array]:
     """BCa limits (Efron 1987): bias correction z0 from the bootstrap, acceleration from the
     jackknife values."""
+    from scipy import stats  # on use: decoding cached results need not pay for it
+
     n_b = boot.shape[0]
     frac = (np.sum(boot < est, axis=0) + 0.5 * np.sum(boot == est, axis=0)) / n_b
     z0 = stats.norm.ppf(np.clip(frac, 0.5 / n_b, 1 - 0.5 / n_b))
@@ -721,6 +723,9 @@ class StrengthIdentifier:
         have ≥ 3 windows, and the intervals resample within movements (default: all windows
         repeat one movement).
         """
+        from scipy import stats  # on use: decoding cached results need not pay for them
+        from scipy.optimize import lsq_linear
+
         cg, other = self._contributions(jacobian, activation, state)
         n_frames, n_groups, n_coords = cg.shape
         cnames = self._coords(coordinate_names, n_coords)
