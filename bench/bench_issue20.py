@@ -3,7 +3,8 @@
 1. static optimisation: OpenSim 4.6 StaticOptimization / msk SO per frame, CPU (≥ 500×);
 2. the chain ID + geometry + SO + knee contact (with the medial/lateral split), µs/frame (≤ 100);
 3. the knee contact stage alone, µs/frame (≤ 10);
-4. ``msk run pipelines/gc5_PS.toml --no-cache`` cold, in a fresh interpreter, s (≤ 2);
+4. ``msk run pipelines/gc5_PS.toml --no-cache`` cold, in a fresh interpreter, s (≤ 2), and
+   the same run again with its stage cache (≤ 0.5 s: the issue's "cached" target);
 5. ``msk batch`` of 16 × gc5_PS, 1 worker / 2 workers on the local pool (≥ 1.8×).
 
 1–3 come from :func:`bench_chain.measure` (gait2392 subject01 walk, OpenSim on the same states,
@@ -126,6 +127,23 @@ def main() -> None:
              ("met by the fastest run only" if lo <= bench_run_cold.TARGET_S else "not met"))
         )  # fmt: skip
         notes.append(f"cold run: load {l0} → {_load()}")
+        l0 = _load()
+        walls = []
+        with tempfile.TemporaryDirectory() as tmp:
+            out = Path(tmp) / "out"
+            for k in range(args.cold + 1):  # the first run fills the stage cache, not timed
+                wall, _ = bench_run_cold._run_once(src, out, cached=bool(k))
+                if k:
+                    walls.append(wall)
+        lo, mid = min(walls), statistics.median(walls)
+        target = bench_run_cold.TARGET_CACHED_S
+        rows.append(
+            ("`msk run` gc5_PS cached (fresh interpreter)", f"{mid:.2f} s",
+             f"median of {args.cold}; min {lo:.2f} s", f"≤ {target:g} s",
+             "met" if mid <= target else
+             ("met by the fastest run only" if lo <= target else "not met"))
+        )  # fmt: skip
+        notes.append(f"cached run: load {l0} → {_load()}")
 
     if "batch" not in skip:
         import msk.batch as batch
