@@ -1,16 +1,16 @@
 """Half of a job in a forked child while the caller does the other half (a second free CPU).
 
 Used where one session spends most of its wall time in independent pieces of pure Python or
-GIL-holding native work (the report's figures): threads would not run them side by side, a forked child does, with the
-parent's imports and data already in place (~10 ms to fork). Nothing changes in the results:
-the child computes exactly what the caller would have (same code, same data, same BLAS thread
-count), pickles it into a pipe, and the caller falls back to computing it itself if the child
-fails in any way.
+GIL-holding native work (the report's figures): threads would not run them side by side, a
+forked child does, with the parent's imports and data already in place (~10 ms to fork).
+Nothing changes in the results: the child computes exactly what the caller would have (same
+code, same data, same BLAS thread count), pickles it into a pipe, and the caller falls back to
+computing it itself if the child fails in any way.
 
-:func:`spare_cpu` decides (also for GIL-releasing work run on two threads, such as the folds of
-the mass-identification cross-validation): only in the main thread of a top-level process (never inside a batch
-worker, whose siblings use the other CPUs), with at least two CPUs in its affinity mask, where
-``os.fork`` exists, and unless ``MSK_FORK=0``.
+:func:`spare_cpu` decides (also for GIL-releasing work run on two threads, such as the folds
+of the mass-identification cross-validation): only in the main thread of a top-level process
+(never inside a batch worker, whose siblings use the other CPUs), with at least two CPUs in
+its affinity mask, where ``os.fork`` exists, and unless ``MSK_FORK=0``.
 
 A :class:`Server` is a child forked early (``msk run`` forks one before its own imports) that
 imports a module on the free CPU while the caller works, then computes one function of that
