@@ -7,7 +7,9 @@ Trials: subject PS (``pipelines/gc5_PS.toml``: ss1 bundled, ss3 and ss8 from
 ``../shared/data/real/knee-grand-challenge-gc5``) and subject DM (``pipelines/gc6_DM_og1.toml``:
 og1, og3, og4, measured forces in ``data/gc6-DM``). Nothing is fitted to the measured force:
 the configurations are the shipped ones. Prints a markdown table of RMSE (BW) and Pearson r of
-the total, medial and lateral force per trial and knee model.
+the total, medial and lateral force per trial and knee model; a config with a given knee
+alignment (``[model] knee_varus_deg``, ``knee_medial_shift_m``: DM's, from DM.osim) is also run
+with the generic model's neutral alignment (both keys 0), so the table shows its effect.
 """
 
 from __future__ import annotations
@@ -35,7 +37,9 @@ TRIALS = {
 }
 
 
-def _config(name: str, swap: dict[str, str] | None, knee: str, folder: Path) -> Path:
+def _config(
+    name: str, swap: dict[str, str] | None, knee: str, folder: Path, neutral: bool = False
+) -> Path:
     src = REPO / "pipelines" / f"{name}.toml"
     text = src.read_text(encoding="utf-8")
     # absolute paths, the task files swapped (a PS trial other than ss1 is in shared/)
@@ -51,7 +55,9 @@ def _config(name: str, swap: dict[str, str] | None, knee: str, folder: Path) -> 
     text = text.replace('knee = "spline"', f'knee = "{knee}"')
     if "knee =" not in text:
         text = text.replace("[model]\n", f'[model]\nknee = "{knee}"\n', 1)
-    out = folder / f"{name}_{knee}.toml"
+    if neutral:
+        text = re.sub(r"(?m)^knee_(varus_deg|medial_shift_m) = .*$", "", text)
+    out = folder / f"{name}_{knee}{'_neutral' if neutral else ''}.toml"
     out.write_text(text, encoding="utf-8")
     return out
 
@@ -63,17 +69,23 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--out", type=Path, help="write the markdown table here too")
     args = p.parse_args(argv)
     rows = [
-        "| subject | trial | knee | total RMSE (BW) | total r | medial RMSE | medial r | "
-        "lateral RMSE | lateral r | IK (mm) |",
-        "| --- | --- | --- | --- | --- | --- | --- | --- | --- | --- |",
+        "| subject | trial | knee | alignment | total RMSE (BW) | total r | medial RMSE | "
+        "medial r | lateral RMSE | lateral r | IK (mm) |",
+        "| --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- |",
     ]
     with tempfile.TemporaryDirectory() as tmp:
         folder = Path(tmp)
         for name, trials in TRIALS.items():
             for trial, swap in trials:
-                for knee in ("spline", "four_bar"):
-                    cfg = _config(name, swap, knee, folder)
-                    (res,) = run_task_trials(cfg, folder / f"{name}_{trial}_{knee}")
+                given = "knee_varus_deg" in (REPO / "pipelines" / f"{name}.toml").read_text()
+                for knee, neutral in [
+                    (k, n)
+                    for k in ("spline", "four_bar")
+                    for n in ((True, False) if given else (False,))
+                ]:
+                    cfg = _config(name, swap, knee, folder, neutral)
+                    tag = "neutral" if neutral or not given else "given"
+                    (res,) = run_task_trials(cfg, folder / f"{name}_{trial}_{knee}_{tag}")
                     comp = res.summary["comparison"] or {}
                     cells = []
                     for part in ("", "_medial", "_lateral"):
@@ -82,7 +94,9 @@ def main(argv: list[str] | None = None) -> int:
                             [f"{c['rms_bw']:.2f}", f"{c['pearson_r']:.2f}"] if c else ["—", "—"]
                         )
                     ik = 1000 * res.summary["quality"]["ik_marker_rms_mean_m"]
-                    row = f"| {name[4:]} | {trial} | {knee} | " + " | ".join(cells)
+                    row = f"| {name.split('_')[1]} | {trial} | {knee} | {tag} | " + " | ".join(
+                        cells
+                    )
                     rows.append(row + f" | {ik:.1f} |")
                     print(rows[-1], flush=True)
     text = "\n".join(rows) + "\n"
