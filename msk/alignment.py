@@ -5,9 +5,9 @@ alignment: with every coordinate at zero the tibia's long axis continues the fem
 tibia-frame origin lies on the femur's sagittal plane. A subject's knee — a total knee
 replacement in particular — may sit in varus or valgus and be offset medio-laterally. Lerner ZF,
 DeMers MS, Delp SL, Browning RC (2015) J Biomech 48:644–650 showed that the two-point split of
-the tibiofemoral contact force into medial and lateral compartments depends on this
-alignment (their Figs. 3–4: a few degrees move 0.1–0.3 BW between the compartments), because
-it decides where the knee lies relative to the ground reaction force in the frontal plane.
+the tibiofemoral contact force into medial and lateral compartments depends on the
+subject's tibiofemoral alignment and contact locations: the alignment decides where the knee
+lies relative to the ground reaction force in the frontal plane.
 
 :func:`with_knee_alignment` imposes a *given* alignment (from imaging, the implant's surgical
 record or the subject's own model; never fitted to a measured contact force) on the knee
