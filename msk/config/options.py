@@ -299,6 +299,13 @@ class ContactConfig:
         bounds=Range(0.01, 0.10),
         hint=" (adult knees: about 0.04 m)",
     )
+    plateau_depth_m: float | None = opt(
+        "depth of the contact points below the knee centre (tibia-frame origin), given (imaging, "
+        "the implant's geometry); absent: 22 mm scaled by the model's tibia (msk.contact)",
+        None,
+        unit="m",
+        bounds=Range(0.0, 0.08),
+    )
 
 
 @dataclass(frozen=True, kw_only=True)
