@@ -7,7 +7,10 @@ Trials: subject PS (``pipelines/gc5_PS.toml``: ss1 bundled, ss3 and ss8 from
 ``../shared/data/real/knee-grand-challenge-gc5``) and subject DM (``pipelines/gc6_DM_og1.toml``:
 og1, og3, og4, measured forces in ``data/gc6-DM``). Nothing is fitted to the measured force:
 the configurations are the shipped ones. Prints a markdown table of RMSE (BW) and Pearson r of
-the total, medial and lateral force per trial and knee model.
+the total, medial and lateral force per trial, knee model and variant: ``shipped`` (the
+config as it is) and the variants of :data:`VARIANTS`, each one edit of the config (DM: the
+generic model's neutral knee alignment instead of DM.osim's, DM's given contact points from
+``p_DM.mat``; PS: the EMG-informed tension criteria instead of static optimisation).
 """
 
 from __future__ import annotations
@@ -16,6 +19,7 @@ import argparse
 import re
 import sys
 import tempfile
+from collections.abc import Callable
 from pathlib import Path
 
 REPO = Path(__file__).resolve().parents[1]
@@ -35,7 +39,43 @@ TRIALS = {
 }
 
 
-def _config(name: str, swap: dict[str, str] | None, knee: str, folder: Path) -> Path:
+def _neutral(text: str) -> str:
+    return re.sub(r"(?m)^knee_(varus_deg|medial_shift_m) = .*$", "", text)
+
+
+def _p_dm(text: str) -> str:
+    # DM's contact points (fmoissenet/MSK_Delp_U_Ankle p_DM.mat, constant terms): ±18.6 mm,
+    # 33.7 mm below the knee centre (mean of the four polynomials' y)
+    return text + "\n[contact]\nintercondylar_distance_m = 0.0372\nplateau_depth_m = 0.0337\n"
+
+
+def _method(name: str) -> Callable[[str], str]:
+    return lambda text: text.replace('method = "static_optimization"', f'method = "{name}"')
+
+
+#: per config: (variant, edit of the config text, knee models it is run with)
+VARIANTS: dict[str, list[tuple[str, Callable[[str], str] | None, tuple[str, ...]]]] = {
+    "gc5_PS": [
+        ("shipped", None, ("spline", "four_bar")),
+        ("emg_assisted", _method("emg_assisted"), ("spline",)),
+        ("emg_weighted", _method("emg_weighted"), ("spline",)),
+    ],
+    "gc6_DM_og1": [
+        ("shipped (alignment given)", None, ("spline", "four_bar")),
+        ("neutral alignment", _neutral, ("spline", "four_bar")),
+        ("alignment + p_DM points", _p_dm, ("spline",)),
+    ],
+}
+
+
+def _config(
+    name: str,
+    swap: dict[str, str] | None,
+    knee: str,
+    folder: Path,
+    edit: Callable[[str], str] | None = None,
+    tag: str = "",
+) -> Path:
     src = REPO / "pipelines" / f"{name}.toml"
     text = src.read_text(encoding="utf-8")
     # absolute paths, the task files swapped (a PS trial other than ss1 is in shared/)
@@ -51,7 +91,9 @@ def _config(name: str, swap: dict[str, str] | None, knee: str, folder: Path) -> 
     text = text.replace('knee = "spline"', f'knee = "{knee}"')
     if "knee =" not in text:
         text = text.replace("[model]\n", f'[model]\nknee = "{knee}"\n', 1)
-    out = folder / f"{name}_{knee}.toml"
+    if edit is not None:
+        text = edit(text)
+    out = folder / f"{name}_{knee}{re.sub(r'[^a-z_]', '', tag)}.toml"
     out.write_text(text, encoding="utf-8")
     return out
 
@@ -63,28 +105,36 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--out", type=Path, help="write the markdown table here too")
     args = p.parse_args(argv)
     rows = [
-        "| subject | trial | knee | total RMSE (BW) | total r | medial RMSE | medial r | "
-        "lateral RMSE | lateral r | IK (mm) |",
-        "| --- | --- | --- | --- | --- | --- | --- | --- | --- | --- |",
+        "| subject | trial | knee | variant | total RMSE (BW) | total r | peak pred / meas (BW) "
+        "| medial RMSE | medial r | lateral RMSE | lateral r | IK (mm) |",
+        "| --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- |",
     ]
     with tempfile.TemporaryDirectory() as tmp:
         folder = Path(tmp)
         for name, trials in TRIALS.items():
             for trial, swap in trials:
-                for knee in ("spline", "four_bar"):
-                    cfg = _config(name, swap, knee, folder)
-                    (res,) = run_task_trials(cfg, folder / f"{name}_{trial}_{knee}")
-                    comp = res.summary["comparison"] or {}
-                    cells = []
-                    for part in ("", "_medial", "_lateral"):
-                        c = comp.get(f"knee_contact_generic{part}")
-                        cells += (
-                            [f"{c['rms_bw']:.2f}", f"{c['pearson_r']:.2f}"] if c else ["—", "—"]
-                        )
-                    ik = 1000 * res.summary["quality"]["ik_marker_rms_mean_m"]
-                    row = f"| {name[4:]} | {trial} | {knee} | " + " | ".join(cells)
-                    rows.append(row + f" | {ik:.1f} |")
-                    print(rows[-1], flush=True)
+                for tag, edit, knees in VARIANTS[name]:
+                    for knee in knees:
+                        cfg = _config(name, swap, knee, folder, edit, tag)
+                        out = folder / f"{name}_{trial}_{knee}_{re.sub(r'[^a-z_]', '', tag)}"
+                        (res,) = run_task_trials(cfg, out)
+                        comp = res.summary["comparison"] or {}
+                        cells = []
+                        for part in ("", "_medial", "_lateral"):
+                            c = comp.get(f"knee_contact_generic{part}")
+                            cells += (
+                                [f"{c['rms_bw']:.2f}", f"{c['pearson_r']:.2f}"] if c else ["—", "—"]
+                            )
+                            if part == "" and c:
+                                peaks = (
+                                    f"{c['peak_predicted_bw']:.2f} / {c['peak_measured_bw']:.2f}"
+                                )
+                                cells.append(peaks)
+                        ik = 1000 * res.summary["quality"]["ik_marker_rms_mean_m"]
+                        subject = name.split("_")[1]
+                        row = f"| {subject} | {trial} | {knee} | {tag} | " + " | ".join(cells)
+                        rows.append(row + f" | {ik:.1f} |")
+                        print(rows[-1], flush=True)
     text = "\n".join(rows) + "\n"
     if args.out:
         args.out.write_text(text, encoding="utf-8")

@@ -608,3 +608,97 @@ def test_contact_checks_the_given_distal_wrenches() -> None:
         model, kin, muscle_forces=f, joint="knee", distal_wrenches=geom.distal_wrenches["knee"]
     )
     np.testing.assert_array_equal(a.force, b.force)
+
+
+# ---------------------------------------------------------------------------------------------
+# conventions of the split on a tiny LEFT and RIGHT knee built in code (issue 16): OpenSim body
+# frames are not mirrored (z to the right on both legs), so +z is lateral on the right knee and
+# medial on the left one
+# ---------------------------------------------------------------------------------------------
+Z_MUSCLE = 0.025  # the biceps-like muscle runs vertically this far lateral of the knee centre
+
+
+def _one_knee(side: str) -> Model:
+    """A femur welded to the ground (knee centre at ``HIP``), a shank on a revolute knee about
+    z (``knee_r`` or ``knee_l``) and one vertical muscle ``Z_MUSCLE`` lateral of the knee."""
+    from msk.joints import Linear
+
+    lat = 1.0 if side == "r" else -1.0  # world z of the lateral side
+    bodies = [
+        Body("femur", 7.0, [0.0, 0.2, 0.0], np.diag([0.1, 0.02, 0.1])),
+        Body("tibia", M_SHANK, [0.0, -0.2, 0.0], np.diag([0.05, 0.005, 0.05])),
+    ]
+    joints = [
+        Joint("ground_femur", "ground", "femur", parent_offset=pin.SE3(np.eye(3), HIP)),
+        Joint(
+            f"knee_{side}", "femur", "tibia",
+            axes=(Axis("revolute", [0, 0, 1], "knee_angle", Linear()),),
+        ),
+    ]  # fmt: skip
+    model = Model(
+        name=f"knee_{side}", bodies=bodies, joints=joints,
+        coordinates=[Coordinate("knee_angle", range=(-2.5, 2.5))],
+    )  # fmt: skip
+    z = lat * Z_MUSCLE
+    return model.with_muscles(
+        [
+            _muscle(
+                "lateral",
+                [_pt("o", "femur", [-0.02, 0.15, z]), _pt("i", "tibia", [-0.02, -0.06, z])],
+            )
+        ]
+    )
+
+
+def _foot_load(n: int, z_point: float):
+    """700 N straight up on the shank, 0.4 m below the knee centre, at world z ``z_point``."""
+    from msk.loads import ExternalLoads
+
+    force = np.zeros((n, 1, 3))
+    force[:, :, 1] = 700.0
+    point = np.tile(HIP + np.array([0.0, -0.4, z_point]), (n, 1, 1))
+    return ExternalLoads(
+        time=np.arange(n) * 0.01, bodies=("tibia",), force=force,
+        moment=np.cross(point, force), point=point,
+    )  # fmt: skip
+
+
+@pytest.mark.parametrize("side", ["r", "l"])
+def test_external_varus_moment_loads_the_medial_compartment_of_either_knee(side: str) -> None:
+    """An upward ground reaction passing 30 mm medial of the knee (an external knee adduction
+    moment, 700 N × 0.03 m = 21 N·m) makes F_M − F_L = 2·21/d = 1050 N for d = 40 mm on a
+    right and on a left knee; the contact's frontal moment M_C,x has the sign of the side's
+    abduction (−x on the right, +x on the left: it balances the external adduction moment)."""
+    model = _one_knee(side)
+    medial_z = -0.03 if side == "r" else 0.03
+    kin = _static(model, [[0.0]] * 3)
+    c = knee_contact_force(
+        model, kin, _foot_load(3, medial_z), joint=f"knee_{side}", variant="quasi_static"
+    )
+    ml = split_medial_lateral(c, PlateauGeometry(0.04, (0.0, -0.02, 0.0)))
+    assert ml.side == ("right" if side == "r" else "left")
+    np.testing.assert_allclose(ml.normal, 700.0 - M_SHANK * G0, atol=1e-9)
+    np.testing.assert_allclose(ml.medial - ml.lateral, 1050.0, atol=1e-8)
+    np.testing.assert_allclose(ml.frontal_moment, -21.0 if side == "r" else 21.0, atol=1e-10)
+    # the same reaction passing 30 mm lateral loads the lateral compartment
+    c = knee_contact_force(
+        model, kin, _foot_load(3, -medial_z), joint=f"knee_{side}", variant="quasi_static"
+    )
+    ml = split_medial_lateral(c, PlateauGeometry(0.04, (0.0, -0.02, 0.0)))
+    np.testing.assert_allclose(ml.lateral - ml.medial, 1050.0, atol=1e-8)
+
+
+@pytest.mark.parametrize("side", ["r", "l"])
+def test_a_lateral_muscle_loads_the_lateral_compartment_of_either_knee(side: str) -> None:
+    """A 500 N muscle pulling the tibia up 25 mm lateral of the knee centre presses the lateral
+    condyle: F_L − F_M = 2·500·0.025/0.04 = 625 N, N = 500 N − the shank's weight, on the
+    right and on the left knee (the sign of every muscle's frontal contribution)."""
+    model = _one_knee(side)
+    kin = _static(model, [[0.0]] * 3)
+    c = knee_contact_force(
+        model, kin, muscle_forces=np.full((3, 1), 500.0), joint=f"knee_{side}",
+        variant="quasi_static",
+    )  # fmt: skip
+    ml = split_medial_lateral(c, PlateauGeometry(0.04, (0.0, -0.02, 0.0)))
+    np.testing.assert_allclose(ml.normal, 500.0 - M_SHANK * G0, atol=1e-8)
+    np.testing.assert_allclose(ml.lateral - ml.medial, 625.0, atol=1e-8)

@@ -332,3 +332,38 @@ def test_config_typos_end_the_run_with_one_line(tmp_path, capsys):
         err = capsys.readouterr().err.strip().splitlines()
         assert len(err) == 1 and message in err[0], err
         assert not (out / "summary.json").exists()
+
+
+@pytest.mark.slow
+@pytest.mark.realdata
+def test_given_knee_alignment_and_contact_depth_reach_the_model_and_the_split(tmp_path):
+    """``[model] knee_varus_deg`` / ``knee_medial_shift_m`` align the side of interest's knee
+    (PS: the left one) and nothing else; ``[contact] plateau_depth_m`` places the contact
+    points (msk.alignment, msk.contact)."""
+    from msk.pipeline import run_stages
+
+    text = GC5.read_text(encoding="utf-8").replace('"../', f'"{REPO}/')
+    text = text.replace("scale = true\n", "scale = true\nknee_varus_deg = 3.0\n")
+    text = text.replace(
+        "knee_varus_deg = 3.0\n", "knee_varus_deg = 3.0\nknee_medial_shift_m = -0.005\n"
+    )
+    text += "\n[contact]\nplateau_depth_m = 0.03\n"
+    cfg = tmp_path / "s.toml"
+    cfg.write_text(text, encoding="utf-8")
+    st = run_stages(cfg, until="knee_contact")
+    model = st["model"].model
+    assert model.metadata["knee_alignment"] == {
+        "knee_l": {"varus_rad": pytest.approx(np.radians(3.0)), "medial_shift_m": -0.005,
+                   "side": "left"}
+    }  # fmt: skip
+    assert st["model"].info["knee_alignment"]["knee_l"]["side"] == "left"
+    knee_l = next(j for j in model.joints if j.name == "knee_l")
+    knee_r = next(j for j in model.joints if j.name == "knee_r")
+    assert np.allclose(knee_r.child_offset.rotation, np.eye(3))
+    # left varus: the tibia turns about −x after flexion (child offset = R_x(+α))
+    c, s_ = np.cos(np.radians(3.0)), np.sin(np.radians(3.0))
+    np.testing.assert_allclose(
+        knee_l.child_offset.rotation, [[1, 0, 0], [0, c, -s_], [0, s_, c]], atol=1e-12
+    )
+    assert st["knee_contact"].plateau["centre_m"] == [0.0, -0.03, 0.0]
+    assert np.isfinite(st["knee_contact"].variants["generic"].medial).any()

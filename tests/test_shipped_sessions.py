@@ -43,7 +43,9 @@ BORDERLINE = {"residual_moment_rms_pct_com_height_peak_force", "residual_force_r
 
 EXPECT: dict[str, dict] = {
     "gc5_PS": {"ik_mm": 11, "res_pct": 5, "must": set(), "may": set()},
-    "gc6_DM_og1": {"ik_mm": 11, "res_pct": 5, "must": set(), "may": set()},
+    # subtalar 8–44° before the given knee alignment, 12–48° with it (flagged above 45°: no
+    # static trial, foot markers placed from the walk; docs/validation.md)
+    "gc6_DM_og1": {"ik_mm": 11, "res_pct": 5, "must": set(), "may": {"subtalar_angle_r_deg"}},
     "gc6_DM_ngait_tm_ss": {"ik_mm": 10, "res_pct": 5.5, "must": set(), "may": set()},
     "gc6_DM_crouch_tm": {"ik_mm": 13, "res_pct": None,
                          "must": {"plate_mass_difference_pct", "residual_force_rms_pct_bw"},

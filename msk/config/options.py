@@ -102,6 +102,21 @@ class ModelConfig:
         choices=KNEE_VARIANTS,
     )
     scale: bool = opt("scale the model to the static trial's marker distances", True)
+    knee_varus_deg: float = opt(
+        "frontal alignment of the side of interest's knee, given (imaging, implant record, the "
+        "subject's own model; never fitted): tibia varus after flexion, valgus < 0 "
+        "(msk.alignment; Lerner et al. 2015); 0: the generic model's neutral alignment",
+        0.0,
+        unit="deg",
+        bounds=Range(-20.0, 20.0),
+    )
+    knee_medial_shift_m: float = opt(
+        "medio-lateral offset of that knee's tibia on the femur, medial > 0, given as "
+        "knee_varus_deg (msk.alignment)",
+        0.0,
+        unit="m",
+        bounds=Range(-0.03, 0.03),
+    )
     markers: Path | None = opt(
         "an OpenSim marker set (.xml) for a model whose markers are kept apart (stock .osim)",
         None,
@@ -283,6 +298,13 @@ class ContactConfig:
         unit="m",
         bounds=Range(0.01, 0.10),
         hint=" (adult knees: about 0.04 m)",
+    )
+    plateau_depth_m: float | None = opt(
+        "depth of the contact points below the knee centre (tibia-frame origin), given (imaging, "
+        "the implant's geometry); absent: 22 mm scaled by the model's tibia (msk.contact)",
+        None,
+        unit="m",
+        bounds=Range(0.0, 0.08),
     )
 
 

@@ -52,6 +52,7 @@ def settings(inputs: SessionInputs) -> Any:
     return {
         "contact": inputs.hashes.get("contact_force"),
         "icd": inputs.cfg.contact.intercondylar_distance_m,
+        "depth": inputs.cfg.contact.plateau_depth_m,
     }
 
 
@@ -97,9 +98,11 @@ def run(
     for name, (m, s) in variants.items():
         # frames without muscle forces get no contact force (never zero muscle force)
         ok = np.flatnonzero(loads.usable & np.isfinite(s.forces).all(axis=1))
+        cc = inputs.cfg.contact
         geo = plateau_geometry(
-            m, joint=joint, intercondylar_distance_m=inputs.cfg.contact.intercondylar_distance_m
-        )
+            m, joint=joint, intercondylar_distance_m=cc.intercondylar_distance_m,
+            centre_m=None if cc.plateau_depth_m is None else (0.0, -cc.plateau_depth_m, 0.0),
+        )  # fmt: skip
         force = np.full((n, 3), np.nan)
         medial = np.full(n, np.nan)
         lateral = np.full(n, np.nan)

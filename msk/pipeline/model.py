@@ -76,6 +76,7 @@ def settings(inputs: SessionInputs) -> Any:
         "static": inputs.hashes.get("static"),
         "scale": mc.scale,
         "knee": mc.knee,
+        "knee_alignment": (mc.knee_varus_deg, mc.knee_medial_shift_m),
         "mass": cfg.subject.mass_kg,
         "height": cfg.subject.height_m,
         "rename": dict(cfg.marker_rename),
@@ -94,6 +95,27 @@ def _rotated_plate(plate: Any, rot: np.ndarray) -> Any:
         free_moment=np.asarray(plate.free_moment) @ r.T,
         corners=None if plate.corners is None else np.asarray(plate.corners) @ r.T,
     )
+
+
+def _aligned(inputs: SessionInputs, model: Any) -> Any:
+    """The model with the configured frontal alignment of the side of interest's knee
+    (:func:`msk.alignment.with_knee_alignment`; the model itself without one)."""
+    mc = inputs.model_cfg
+    assert mc is not None  # a gait stage
+    if mc.knee_varus_deg == 0.0 and mc.knee_medial_shift_m == 0.0:
+        return model
+    from msk.alignment import with_knee_alignment
+
+    joint = f"knee{inputs.sfx}"
+    if joint not in {j.name for j in model.joints}:
+        raise ConfigError(
+            f"{inputs.cfg.path}: model.knee_varus_deg / knee_medial_shift_m: the model has no "
+            f"joint {joint!r}"
+        )
+    return with_knee_alignment(
+        model, joint, varus_rad=np.radians(mc.knee_varus_deg),
+        medial_shift_m=mc.knee_medial_shift_m,
+    )  # fmt: skip
 
 
 def _scale_and_place(inputs: SessionInputs, read: ReadResult) -> dict[str, Any]:
@@ -172,6 +194,7 @@ def _scale_and_place(inputs: SessionInputs, read: ReadResult) -> dict[str, Any]:
                 model, static, height_m=cfg.subject.height_m, body_mass=cfg.subject.mass_kg,
                 widths_m=widths, marker_diameter_m=mdiam,
             )  # fmt: skip
+        model = _aligned(inputs, model)
         centres, jc_move = _chord_centres(model, sm, slabels, widths, mdiam)
         try:
             model, placed = place_markers(
@@ -191,10 +214,13 @@ def _scale_and_place(inputs: SessionInputs, read: ReadResult) -> dict[str, Any]:
                 model, xm, mlabels, trial.time, height_m=cfg.subject.height_m,
                 body_mass=cfg.subject.mass_kg,
             )  # fmt: skip
+        model = _aligned(inputs, model)
         model, placed = place_markers_from_motion(
             model, xm, mlabels, trial.time, move=cfg.marker_move
         )
     info["marker_placement"] = placed
+    if model.metadata.get("knee_alignment"):
+        info["knee_alignment"] = dict(model.metadata["knee_alignment"])
     if report is not None:
         info["scaling"] = report.summary()
         info["scale_ratios"] = dict(model.metadata.get("scale_ratios", {}))
