@@ -108,7 +108,8 @@ def run_session(
     # another order with 2 threads: mass identification moved by ~5e-7), and batch workers do
     # not oversubscribe the cores
     with threadpool_limits(limits=1, user_api="blas"):
-        results = run_graph(session_inputs(cfg), runner)
+        # every other stage's result is released once no later stage reads it (issue 18)
+        results = run_graph(session_inputs(cfg), runner, keep=("tables", "summary", "report"))
     tables, figures = results["tables"], results["report"]
     summary = dict(results["summary"])
     summary["stages"] = [dataclasses.asdict(r) for r in runner.records]
