@@ -735,10 +735,10 @@ class StrengthIdentifier:
         ``tau`` ``(N, n)`` inverse-dynamics torques; ``state`` the rigid-tendon state of the
         generic parameters (whole, or a :class:`msk.muscles.hill.RigidTendonStateBlocks`
         computing it block by block: the same numbers without holding it); ``windows`` one
-        label per frame (cycle / trial / motion) — the gating and bootstrap units (default: ``n_windows`` equal chunks); ``movements`` one
-        label per frame naming the movement each window repeats (e.g. the gait cycles, and
-        each MVC action's repetitions, seeds/002 §VI.A) — with ``instrument="phase_average"``
-        a window is instrumented by the other windows of its movement only, which must then
+        label per frame (cycle / trial / motion) — the gating and bootstrap units (default:
+        ``n_windows`` equal chunks); ``movements`` one label per frame naming the movement
+        each window repeats (e.g. the gait cycles, and each MVC action's repetitions,
+        seeds/002 §VI.A) — with ``instrument="phase_average"`` a window is instrumented by the other windows of its movement only, which must then
         have ≥ 3 windows, and the intervals resample within movements (default: all windows
         repeat one movement).
         """
