@@ -738,9 +738,9 @@ class StrengthIdentifier:
         label per frame (cycle / trial / motion) — the gating and bootstrap units (default:
         ``n_windows`` equal chunks); ``movements`` one label per frame naming the movement
         each window repeats (e.g. the gait cycles, and each MVC action's repetitions,
-        seeds/002 §VI.A) — with ``instrument="phase_average"`` a window is instrumented by the other windows of its movement only, which must then
-        have ≥ 3 windows, and the intervals resample within movements (default: all windows
-        repeat one movement).
+        seeds/002 §VI.A) — with ``instrument="phase_average"`` a window is instrumented by
+        the other windows of its movement only, which must then have ≥ 3 windows, and the
+        intervals resample within movements (default: all windows repeat one movement).
         """
         from scipy import stats  # on use: decoding cached results need not pay for them
 
