@@ -48,15 +48,16 @@ def _status_kib(field: str) -> int:
 
 
 class _StageMemory:
-    """A progress stream that records VmHWM after every stage line."""
+    """A progress stream that records VmHWM and VmRSS after every stage line."""
 
     def __init__(self) -> None:
-        self.rows: list[tuple[str, float, int]] = []
+        self.rows: list[tuple[str, float, int, int]] = []
 
     def write(self, text: str) -> int:
         if text.startswith("["):
             parts = text.split("]", 1)[1].split()
-            self.rows.append((parts[0], float(parts[1]), _status_kib("VmHWM")))
+            hwm, rss = _status_kib("VmHWM"), _status_kib("VmRSS")
+            self.rows.append((parts[0], float(parts[1]), hwm, rss))
         return len(text)
 
     def flush(self) -> None:
@@ -165,8 +166,11 @@ def main() -> None:
             flush=True,
         )
         print(f"    after imports {r['hwm_before_kib'] / 1024:6.0f} MiB")
-        for name, sec, hwm in r["stages"]:
-            print(f"    {name:<26}{sec:8.2f} s  high-water {hwm / 1024:6.0f} MiB")
+        for name, sec, hwm, rss in r["stages"]:
+            print(
+                f"    {name:<26}{sec:8.2f} s  high-water {hwm / 1024:6.0f} MiB  "
+                f"resident after {rss / 1024:6.0f} MiB"
+            )
     if len(rows) > 1:
         a = rows[0]
         for b in rows[1:]:
