@@ -161,7 +161,7 @@ def root_generalized_forces(
 
 
 def _root_forces_block(
-    model: Model, root: NDArray[np.int64], th: Array, f: Array, n_w: Array
+    model: Model, root: NDArray[Any], th: Array, f: Array, n_w: Array
 ) -> Array:
     """:func:`root_generalized_forces` of a block of frames."""
     q = model.coupling.q(th)
