@@ -160,9 +160,7 @@ def root_generalized_forces(
     return out
 
 
-def _root_forces_block(
-    model: Model, root: NDArray[Any], th: Array, f: Array, n_w: Array
-) -> Array:
+def _root_forces_block(model: Model, root: NDArray[Any], th: Array, f: Array, n_w: Array) -> Array:
     """:func:`root_generalized_forces` of a block of frames."""
     q = model.coupling.q(th)
     zero = np.zeros_like(q)

@@ -4,7 +4,7 @@ and the frames whose ground contact the plates measure (:func:`msk.loads.contact
 from __future__ import annotations
 
 import dataclasses
-from collections.abc import Mapping
+from collections.abc import Iterator, Mapping
 from dataclasses import dataclass
 from typing import Any
 
@@ -78,18 +78,18 @@ def _rotated_plate(plate: Any, rot: np.ndarray) -> Any:
 def run(inputs: SessionInputs, read: ReadResult, model: BuiltModel, kinematics: Any) -> Loads:
     """The read trial's plates (a C3D's, or its GRF file's) in the model frame (rotated here,
     not kept by the model stage), assigned to the feet."""
-    from msk.loads import contact_measured
+    from msk.loads import contact_measured, plates_from_trial
 
-    rot = model.rotation
-    if read.grf is None:
-        trial = dataclasses.replace(
-            read.trial, plates=tuple(p.rotated(rot) for p in read.trial.plates)
-        )
-        grf = None
-    else:
-        trial, grf = read.trial, tuple(_rotated_plate(p, rot) for p in read.grf)
-    ext = assign_loads(inputs, model.model, trial, kinematics, grf, read.assignment)
-    del trial, grf  # the rotated analog-rate plates
+    rot, trial = model.rotation, read.trial
+    # rotated one at a time, as external_loads resamples them: one analog-rate plate in the
+    # model frame is held at a time (issue 18)
+    plates: Iterator[Any] = (
+        (_rotated_plate(p, rot) for p in read.grf)
+        if read.grf is not None
+        else (plates_from_trial(dataclasses.replace(trial, plates=(p.rotated(rot),)))[0]
+              for p in trial.plates)
+    )  # fmt: skip
+    ext = assign_loads(inputs, model.model, trial, kinematics, plates, read.assignment)
     measured = contact_measured(model.model, kinematics, ext)
     usable = (
         np.isfinite(kinematics.q).all(axis=1) & np.isfinite(kinematics.a).all(axis=1) & measured
