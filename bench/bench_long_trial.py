@@ -11,8 +11,10 @@ inverse dynamics, EMG, muscle geometry, static optimisation, strength, knee cont
 summary, report — is the real ``pipelines/gc5_PS.toml`` chain, stage cache off).
 
 Each length runs in its own child process; printed per length: the child's peak RSS
-(``getrusage(RUSAGE_CHILDREN).ru_maxrss``), wall time and time per frame, and the resident
-memory (VmHWM, high-water mark so far) after each stage. Ratios between lengths show
+(``getrusage(RUSAGE_CHILDREN).ru_maxrss``), wall time and time per frame, and after each stage
+the high-water mark so far (VmHWM) and the resident memory then (VmRSS: what the stages
+after it start from; results no later stage reads are released,
+:func:`msk.pipeline.graph.run_graph`). Ratios between lengths show
 linearity; absolute times depend on the machine's load.
 
 Usage: ``.venv/bin/python bench/bench_long_trial.py [--frames 10000 30000 100000]``.

@@ -6,7 +6,9 @@ which it cannot run (``not available`` otherwise), ``reads`` the optional ones (
 ``None`` when they did not run). Recorded nodes are the stages of ``summary.json`` ``stages``
 (status, seconds, cache); unrecorded ones are cheap derivations (events and cycle, tables,
 summary). Adding a stage = one module with ``run`` (and ``settings`` when options enter its
-cache key) + one line below::
+cache key) + one line below. ``measured_contact`` (unrecorded, right after ``read``) hands the
+measured knee contact force on, so that no stage after the EMG stage reads ``read``: with
+``keep`` (:func:`run_graph`) the trial's analog-rate arrays are released there::
 
     read ─ model ─ kinematics ─ loads ─┬─ mass_identification ─ inverse_dynamics ─┐
                                        ├─ emg ──────────────────────────────────────┤
