@@ -624,17 +624,19 @@ class StrengthIdentifier:
                 jac[:], act, _state_rows(state, slice(None), n), passive=self.passive
             )
             return group_contributions(c, self.groups, self.params)
-        parts = []
+        cg = other = None  # filled block by block (no list of parts concatenated at the end)
         for c0 in range(0, n, _FRAME_BLOCK):
             sl = slice(c0, c0 + _FRAME_BLOCK)
             st = _state_rows(state, sl, n)
             c = net_contribution(jac[sl], act[sl], st, passive=self.passive)
-            parts.append(group_contributions(c, self.groups, self.params))
+            g_part, o_part = group_contributions(c, self.groups, self.params)
             del c
-        return (
-            np.concatenate([p[0] for p in parts]),
-            np.concatenate([p[1] for p in parts]),
-        )
+            if cg is None or other is None:
+                cg = np.empty((n, *g_part.shape[1:]))
+                other = np.empty((n, *o_part.shape[1:]))
+            cg[sl], other[sl] = g_part, o_part
+        assert cg is not None and other is not None  # n > _FRAME_BLOCK ≥ 1: one block at least
+        return cg, other
 
     def _coords(self, coordinate_names: Sequence[str] | None, n: int) -> tuple[str, ...]:
         names = tuple(coordinate_names) if coordinate_names is not None else None
@@ -768,7 +770,7 @@ class StrengthIdentifier:
             a_bar = _phase_average_loo(act_arr, labels, movement=win_mov)
             zg, _ = self._contributions(jacobian, a_bar, state)
         # coordinates used
-        scale = np.abs(cg).max(axis=0)  # (G, n)
+        scale = np.maximum(cg.max(axis=0), -cg.min(axis=0))  # max |C_g| (G, n), no |C_g| copy
         acts = scale > 1e-9 * max(float(scale.max()), 1e-300)
         if self.coordinates is None:
             use = [j for j in range(n_coords) if acts[:, j].any()]
