@@ -11,8 +11,10 @@ inverse dynamics, EMG, muscle geometry, static optimisation, strength, knee cont
 summary, report — is the real ``pipelines/gc5_PS.toml`` chain, stage cache off).
 
 Each length runs in its own child process; printed per length: the child's peak RSS
-(``getrusage(RUSAGE_CHILDREN).ru_maxrss``), wall time and time per frame, and the resident
-memory (VmHWM, high-water mark so far) after each stage. Ratios between lengths show
+(``getrusage(RUSAGE_CHILDREN).ru_maxrss``), wall time and time per frame, and after each stage
+the high-water mark so far (VmHWM) and the resident memory then (VmRSS: what the stages
+after it start from; results no later stage reads are released,
+:func:`msk.pipeline.graph.run_graph`). Ratios between lengths show
 linearity; absolute times depend on the machine's load.
 
 Usage: ``.venv/bin/python bench/bench_long_trial.py [--frames 10000 30000 100000]``.
@@ -48,15 +50,16 @@ def _status_kib(field: str) -> int:
 
 
 class _StageMemory:
-    """A progress stream that records VmHWM after every stage line."""
+    """A progress stream that records VmHWM and VmRSS after every stage line."""
 
     def __init__(self) -> None:
-        self.rows: list[tuple[str, float, int]] = []
+        self.rows: list[tuple[str, float, int, int]] = []
 
     def write(self, text: str) -> int:
         if text.startswith("["):
             parts = text.split("]", 1)[1].split()
-            self.rows.append((parts[0], float(parts[1]), _status_kib("VmHWM")))
+            hwm, rss = _status_kib("VmHWM"), _status_kib("VmRSS")
+            self.rows.append((parts[0], float(parts[1]), hwm, rss))
         return len(text)
 
     def flush(self) -> None:
@@ -165,8 +168,11 @@ def main() -> None:
             flush=True,
         )
         print(f"    after imports {r['hwm_before_kib'] / 1024:6.0f} MiB")
-        for name, sec, hwm in r["stages"]:
-            print(f"    {name:<26}{sec:8.2f} s  high-water {hwm / 1024:6.0f} MiB")
+        for name, sec, hwm, rss in r["stages"]:
+            print(
+                f"    {name:<26}{sec:8.2f} s  high-water {hwm / 1024:6.0f} MiB  "
+                f"resident after {rss / 1024:6.0f} MiB"
+            )
     if len(rows) > 1:
         a = rows[0]
         for b in rows[1:]:

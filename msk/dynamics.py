@@ -30,6 +30,7 @@ load: the muscles spanning the joint no longer pass through it.
 
 from __future__ import annotations
 
+import dataclasses
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import Any, ClassVar, Literal
@@ -289,6 +290,11 @@ def _run_rnea(
     return tau, f_keep, m_keep, jac, org
 
 
+#: frames per block of a longer trial's inverse dynamics (issue 18): its per-frame states,
+#: world Jacobians and coupling Jacobians (~8 kB/frame on gait2392) are never held whole
+ID_BLOCK = 4096
+
+
 def inverse_dynamics(
     model: Model,
     kinematics: Any,
@@ -305,8 +311,30 @@ def inverse_dynamics(
         variant: ``"full"``, ``"quasi_static"`` or ``"geometric"``.
 
     Returns:
-        :class:`JointTorques`; frames whose kinematics are NaN are NaN.
+        :class:`JointTorques`; frames whose kinematics are NaN are NaN. A trial longer than
+        :data:`ID_BLOCK` frames is computed block by block (every frame's torques are computed
+        alone, so the blocks give the one-pass result).
     """
+    n = int(np.size(kinematics.time))
+    if n <= ID_BLOCK:
+        return _inverse_dynamics(model, kinematics, loads, variant=variant)
+    parts = []
+    for c0 in range(0, n, ID_BLOCK):
+        fr = np.arange(c0, min(c0 + ID_BLOCK, n))
+        part = None if loads is None else loads.take(fr)
+        parts.append(_inverse_dynamics(model, kinematics.take(fr), part, variant=variant))
+    joined: dict[str, Any] = {
+        f: np.concatenate([getattr(p, f) for p in parts])
+        for f in JointTorques.FRAME_FIELDS
+        if getattr(parts[0], f) is not None
+    }
+    return dataclasses.replace(parts[0], **joined)
+
+
+def _inverse_dynamics(
+    model: Model, kinematics: Any, loads: Any, *, variant: Variant
+) -> JointTorques:
+    """:func:`inverse_dynamics` of one block of frames."""
     pm = _pin_model(model, variant)
     th, q, v, a, ok = _states(model, kinematics, variant)
     _check_loads(loads, np.asarray(kinematics.time, dtype=float))

@@ -151,6 +151,17 @@ def root_generalized_forces(
             f"wrench has {f.shape[0]}/{n_w.shape[0]} frames but θ has {th.shape[0]}"
         )
     root = root_coordinate_indices(model)
+    out = np.zeros((th.shape[0], root.size))
+    # frame by frame maths, in blocks: the (N, n_dof, n_coords) coupling Jacobian and the
+    # per-joint motion subspaces of a long trial are never held whole (issue 18)
+    for c0 in range(0, th.shape[0], REGRESSOR_BLOCK):
+        sl = slice(c0, c0 + REGRESSOR_BLOCK)
+        out[sl] = _root_forces_block(model, root, th[sl], f[sl], n_w[sl])
+    return out
+
+
+def _root_forces_block(model: Model, root: NDArray[Any], th: Array, f: Array, n_w: Array) -> Array:
+    """:func:`root_generalized_forces` of a block of frames."""
     q = model.coupling.q(th)
     zero = np.zeros_like(q)
     kin = spatial_kinematics(model, q, zero, zero)
@@ -249,6 +260,8 @@ def _trial_arrays(model: Model, trial: IdentificationTrial) -> tuple[Array, Arra
         )
     good = np.isfinite(trial.theta).all(1) & np.isfinite(trial.theta_dot).all(1)
     good &= np.isfinite(trial.theta_ddot).all(1) & np.isfinite(tau).all(1)
+    if good.all():  # no copy of a long trial's arrays
+        return trial.theta, trial.theta_dot, trial.theta_ddot, tau
     return trial.theta[good], trial.theta_dot[good], trial.theta_ddot[good], tau[good]
 
 

@@ -41,7 +41,7 @@ of the Pinocchio joint carrying it: ``fext[j] = data.oMi[j].actInv(f_O)``
 from __future__ import annotations
 
 import warnings
-from collections.abc import Mapping, Sequence
+from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, ClassVar, Literal
@@ -424,9 +424,11 @@ class _Criteria:
 
 @dataclass
 class _Prepared:
-    """A plate on the kinematics time: wrench, COP, surface height, contact frames."""
+    """A plate on the kinematics time: wrench, COP, surface height, contact frames (its name
+    and outline; not its analog-rate arrays, released once resampled)."""
 
-    plate: PlateWrench
+    name: str
+    corners: Array | None
     force: Array
     moment: Array
     fv: Array
@@ -442,7 +444,7 @@ class _Prepared:
 def external_loads(
     model: Model,
     kinematics: Any,
-    plates: Sequence[PlateWrench],
+    plates: Iterable[PlateWrench],
     *,
     feet: Sequence[str] | None = None,
     assignment: Mapping[str, str] | None = None,
@@ -462,7 +464,8 @@ def external_loads(
         model: the model (feet and markers are looked up in it).
         kinematics: a :class:`msk.kinematics.Kinematics` (``time``, ``q``).
         plates: the plates (:func:`plates_from_trial`, :func:`plates_from_grf_file`,
-            :func:`plates_from_table`).
+            :func:`plates_from_table`); each is used once, resampled to the kinematics time,
+            so an iterator making them on demand holds one analog-rate plate at a time.
         feet: bodies that can stand on a plate (default: bodies named ``calcn*`` or ``foot*``).
         assignment: plate name → body for all the frames of that plate, bypassing the automatic
             assignment (e.g. :func:`external_loads_assignment` of an OpenSim ExternalLoads
@@ -523,7 +526,7 @@ def external_loads(
         _prepare(pl, t, up, threshold_n=threshold_n, sign=sign, cutoff_hz=cutoff_hz)
         for pl in plates
     ]
-    auto = [p for p in prepared if p.plate.name not in assignment and p.contact.any()]
+    auto = [p for p in prepared if p.name not in assignment and p.contact.any()]
     if auto:
         fpts = _foot_points(model, q, feet, np.arange(n))
         vel = [_velocity(p, t) for p in fpts]
@@ -532,14 +535,14 @@ def external_loads(
         for p in auto:
             p.on, p.standing, p.primary, p.surface_v = _plate_state(p, fpts, vel, up, hz, crit)
         for p in prepared:  # an explicit assignment explains its foot too
-            if p.plate.name in assignment:
-                body = assignment[p.plate.name]
+            if p.name in assignment:
+                body = assignment[p.name]
                 k = feet.index(body) if body in feet else -1
                 p.primary = np.where(p.contact, k, -1)
         labels = {id(p): _labels(p, prepared, feet) for p in auto}
 
     for p in prepared:
-        pl = p.plate
+        pl = p
         for i0, i1 in _runs(p.contact):
             if pl.name in assignment:
                 segs = [(i0, i1, -3)]  # the explicit body
@@ -630,9 +633,9 @@ def external_loads(
         point=point,
         assignments=tuple(assigned),
         metadata={
-            "surface_heights_m": {p.plate.name: p.height for p in prepared},
+            "surface_heights_m": {p.name: p.height for p in prepared},
             "surface_velocities_mps": {
-                p.plate.name: p.surface_v.tolist() for p in prepared if p.surface_v is not None
+                p.name: p.surface_v.tolist() for p in prepared if p.surface_v is not None
             },
         },
         flags=tuple(flags),
@@ -688,7 +691,7 @@ def _prepare(
         m_h = m_k - np.cross(h * up, f_k)
         cop = h * up + np.cross(up, m_h) / fv[:, None]
     cop[~contact] = np.nan
-    return _Prepared(pl, f_k, m_k, fv, cop, h, contact)
+    return _Prepared(pl.name, pl.corners, f_k, m_k, fv, cop, h, contact)
 
 
 def _plate_state(
@@ -708,7 +711,7 @@ def _plate_state(
     n, nf = p.contact.size, len(fpts)
     k = np.flatnonzero(p.contact)
     c2 = p.cop[k] @ hz.T
-    poly = None if p.plate.corners is None else np.asarray(p.plate.corners, dtype=float) @ hz.T
+    poly = None if p.corners is None else np.asarray(p.corners, dtype=float) @ hz.T
     on = np.zeros((k.size, nf), dtype=bool)
     near = np.full((k.size, nf), np.inf)
     slow_v = np.full((k.size, nf, 3), np.nan)

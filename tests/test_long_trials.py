@@ -183,3 +183,157 @@ def test_table_rows_formatted_in_blocks_are_the_same_text(
     monkeypatch.setattr(tables, "FORMAT_BLOCK", 4)
     assert tables.write_csv_table(tmp_path / "b.csv", tab).read_bytes() == one_csv
     assert write_sto(tmp_path / "b.sto", tab, name="t").read_bytes() == one_sto
+
+
+def test_strength_state_block_by_block_equals_the_whole_state(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    """The Hill state computed per block of frames (:class:`RigidTendonStateBlocks`, with a
+    frame subset as the pipeline passes it) gives the identification of the whole state."""
+    import msk.strength.identification as si
+    from msk.muscles.activation import emg_to_activation
+    from msk.muscles.hill import RigidTendonStateBlocks, rigid_tendon_state
+    from msk.strength import StrengthIdentifier
+    from msk.strength.synthetic import gait_trial, synthetic_leg
+
+    leg = synthetic_leg(0)
+    tr = gait_trial(leg, n_cycles=12, seed=1)
+    act = emg_to_activation(
+        tr.emg, gamma1=-0.5, gamma2=-0.5, shape_factor=-1.0, delay_samples=4, form="exponential"
+    )
+    frames = np.flatnonzero(np.arange(tr.tau.shape[0]) % 7 != 3)  # a subset, as `good`
+    lmt, vmt = tr.muscle_tendon_length, tr.lengthening_velocity
+    whole = rigid_tendon_state(leg.params, lmt[frames], vmt[frames])
+    lazy = RigidTendonStateBlocks(leg.params, lmt, vmt, frames)
+    assert lazy.n_frames == frames.size and lazy.names == whole.names
+    np.testing.assert_array_equal(lazy.rows(slice(5, 9)).f_passive, whole.f_passive[5:9])
+    monkeypatch.setattr(si, "_FRAME_BLOCK", 50)  # several blocks, the last one short
+    fits = []
+    for state in (whole, lazy):
+        est = StrengthIdentifier(leg.groups, leg.params, n_bootstrap=20, random_state=0)
+        est.fit(tr.jacobian[frames], act[frames], tr.tau[frames], state, windows=tr.cycle[frames])
+        fits.append(est)
+    np.testing.assert_array_equal(fits[1].factors_, fits[0].factors_)
+    np.testing.assert_array_equal(fits[1].bootstrap_, fits[0].bootstrap_)
+    with pytest.raises(si.ShapeMismatchError):
+        fits[0].predict(tr.jacobian, act, lazy)  # frames of the state ≠ frames of the data
+
+
+def test_bounded_least_squares_from_normal_equations_equals_bvls_on_the_rows() -> None:
+    """The strength regression solved from XᵀX, Xᵀy accumulated by windows (no stacked rows)
+    has the minimiser of BVLS on the rows, bounds active or not, to 1e-9."""
+    from scipy.optimize import lsq_linear
+
+    from msk.strength.identification import _bounded_from_normal
+
+    rng = np.random.default_rng(4)
+    for trial in range(6):
+        x = rng.normal(size=(300, 7)) * rng.uniform(0.1, 10.0, size=7)
+        beta = rng.uniform(-1.0, 3.0, size=7)
+        y = x @ beta + 0.3 * rng.normal(size=300)
+        lo = np.r_[np.full(5, 0.5), -np.inf, -np.inf]
+        hi = np.r_[np.full(5, 2.0), np.inf, np.inf]
+        rows = lsq_linear(x, y, bounds=(lo, hi), method="bvls", tol=1e-12).x
+        xtx, xty = np.zeros((7, 7)), np.zeros(7)
+        for part in np.array_split(np.arange(300), 9):  # window by window
+            xtx += x[part].T @ x[part]
+            xty += x[part].T @ y[part]
+        normal = _bounded_from_normal(xtx, xty, lo, hi)
+        np.testing.assert_allclose(normal, rows, rtol=0, atol=1e-9, err_msg=str(trial))
+        assert np.any((rows[:5] == 0.5) | (rows[:5] == 2.0)) or trial > 0  # bounds bite
+
+
+def test_root_generalised_forces_in_blocks_equal_one_pass(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    import msk.identification as ident
+    from msk.synthetic_models import subject_bodies, whole_body_model
+
+    model = whole_body_model(subject_bodies("athlete"))
+    rng = np.random.default_rng(5)
+    n = 50
+    th = model.default_coordinates()[None, :] + 0.3 * rng.normal(size=(n, model.n_coords))
+    f, m = rng.normal(size=(n, 3)) * 300, rng.normal(size=(n, 3)) * 50
+    one = ident.root_generalized_forces(model, th, f, m)
+    monkeypatch.setattr(ident, "REGRESSOR_BLOCK", 7)
+    np.testing.assert_array_equal(ident.root_generalized_forces(model, th, f, m), one)
+
+
+def test_run_graph_releases_each_result_after_its_last_reader() -> None:
+    """With ``keep``, a node's result is dropped once no later node reads it (the read trial
+    of a long session is not held to the end); without, every result is returned."""
+    import weakref
+    from types import SimpleNamespace
+
+    from msk.pipeline.graph import Node, last_readers, run_graph
+    from msk.pipeline.runner import Runner
+
+    class Big:
+        pass
+
+    alive: dict[str, bool] = {}
+    refs: dict[str, weakref.ref[Big]] = {}
+
+    def source(inputs: object) -> Big:
+        b = Big()
+        refs["source"] = weakref.ref(b)
+        return b
+
+    def first(inputs: object, source: Big) -> str:
+        return "first"
+
+    def middle(inputs: object, first: str) -> str:
+        alive["at middle"] = refs["source"]() is not None
+        return "middle"
+
+    def last(inputs: object, middle: str, first: str) -> str:
+        return "last"
+
+    graph = (
+        Node("source", source),
+        Node("first", first, ("source",)),
+        Node("middle", middle, ("first",)),
+        Node("last", last, ("middle", "first")),
+    )
+    assert last_readers(graph) == {"source": 1, "first": 3, "middle": 3}
+    inputs = SimpleNamespace(gait=True)
+    names = tuple(n.name for n in graph)
+
+    def runner() -> Runner:
+        return Runner(None, None, stages=names, core=frozenset())
+
+    out = run_graph(inputs, runner(), graph, keep=("last",))  # type: ignore[arg-type]
+    assert out == {"last": "last"} and alive["at middle"] is False
+    out = run_graph(inputs, runner(), graph)  # type: ignore[arg-type]
+    assert set(out) == set(names) and alive["at middle"] is True
+
+
+def test_model_stage_keeps_no_analog_rate_data() -> None:
+    """The model stage's trial holds the markers (model frame) only: the analogs and plates
+    stay with the read stage, which is released after the EMG stage."""
+    from msk.config import load_config
+    from msk.pipeline import run_stages
+
+    r = run_stages(load_config(REPO / "pipelines" / "gc5_PS.toml"), until="loads")
+    built, read = r["model"], r["read"]
+    assert built.trial.plates == () and built.trial.analogs.size == 0
+    assert read.trial.plates and read.trial.analogs.size
+    np.testing.assert_array_equal(built.lab_up, read.trial.up)
+    assert built.trial.markers.shape == read.trial.markers.shape
+
+
+def test_inverse_dynamics_in_blocks_equals_one_pass(monkeypatch: pytest.MonkeyPatch) -> None:
+    """gc5_PS's inverse dynamics in blocks of 40 frames: the one-pass torques and residuals."""
+    import msk.dynamics as dyn
+    from msk.config import load_config
+    from msk.pipeline import run_stages
+
+    r = run_stages(load_config(REPO / "pipelines" / "gc5_PS.toml"), until="loads")
+    mdl, kin, ext = r["model"].model, r["kinematics"], r["loads"].external
+    one = dyn.inverse_dynamics(mdl, kin, ext)
+    monkeypatch.setattr(dyn, "ID_BLOCK", 40)
+    many = dyn.inverse_dynamics(mdl, kin, ext)
+    assert kin.time.size > 3 * 40
+    for f in dyn.JointTorques.FRAME_FIELDS:
+        np.testing.assert_array_equal(getattr(many, f), getattr(one, f), err_msg=f)
+    assert many.coordinate_names == one.coordinate_names

@@ -483,6 +483,38 @@ def rigid_tendon_state(
     )
 
 
+@dataclass(frozen=True)
+class RigidTendonStateBlocks:
+    """The rigid-tendon state (:func:`rigid_tendon_state`) of ``params`` on muscle–tendon
+    lengths and lengthening velocities ``(N_all, M)``, computed on demand for a block of frames:
+    the ten ``(N, M)`` state arrays of a long trial are never held whole (issue 18).
+    :func:`rigid_tendon_state` works frame by frame, so a block's state equals the rows of the
+    whole trial's. ``frames``: the rows of ``lengths``/``velocities`` that make up the trial
+    (indices; None: all of them), so the caller need not copy a subset."""
+
+    params: MuscleParameters
+    lengths: Array
+    velocities: Array
+    frames: NDArray[np.int64] | None = None
+
+    @property
+    def names(self) -> tuple[str, ...]:
+        return tuple(self.params.names)
+
+    @property
+    def n_frames(self) -> int:
+        return int(self.lengths.shape[0] if self.frames is None else self.frames.size)
+
+    def rows(self, sl: slice) -> RigidTendonState:
+        """The state of the frames ``sl`` (of the ``n_frames``)."""
+        idx = sl if self.frames is None else self.frames[sl]
+        return rigid_tendon_state(self.params, self.lengths[idx], self.velocities[idx])
+
+    def full(self) -> RigidTendonState:
+        """The state of every frame (held whole)."""
+        return self.rows(slice(None))
+
+
 # ---------------------------------------------------------------------------------------------
 # Elastic tendon: static equilibrium
 # ---------------------------------------------------------------------------------------------

@@ -18,7 +18,6 @@ from msk.pipeline.inputs import SessionInputs
 from msk.pipeline.loads import Loads
 from msk.pipeline.mass_identification import MassIdentification, identified_model
 from msk.pipeline.model import BuiltModel
-from msk.pipeline.read import ReadResult
 from msk.pipeline.runner import StageUnavailable
 from msk.pipeline.strength import StrengthIdentification
 from msk.pipeline.tension import MuscleTensions, optimise
@@ -58,7 +57,6 @@ def settings(inputs: SessionInputs) -> Any:
 
 def run(
     inputs: SessionInputs,
-    read: ReadResult,
     model: BuiltModel,
     kinematics: Any,
     loads: Loads,
@@ -68,6 +66,7 @@ def run(
     muscle_geometry: Any,
     tension_optimization: MuscleTensions,
     strength_identification: StrengthIdentification | None,
+    measured_contact: Any,
 ) -> KneeContact:
     from msk.contact import knee_contact_force, plateau_geometry, split_medial_lateral
 
@@ -122,4 +121,4 @@ def run(
             "centre_m": list(geo.centre_m),
             "source": geo.source,
         }
-    return KneeContact(joint, out, plateau, read.contact)
+    return KneeContact(joint, out, plateau, measured_contact)

@@ -15,7 +15,6 @@ from msk.pipeline.contact import KneeContact
 from msk.pipeline.inputs import SessionInputs
 from msk.pipeline.loads import Loads
 from msk.pipeline.model import BuiltModel
-from msk.pipeline.read import ReadResult
 
 __all__ = ["GaitCycle", "run"]
 
@@ -38,7 +37,6 @@ class GaitCycle:
 
 def run(
     inputs: SessionInputs,
-    read: ReadResult,
     model: BuiltModel,
     kinematics: Any,
     loads: Loads,
@@ -47,7 +45,7 @@ def run(
     from msk.events import detect_gait_events, reconcile
 
     events = reconcile(
-        read.trial.events,
+        model.trial.events,
         detect_gait_events(model.model, kinematics, loads.external, observed=loads.measured),
     )
     strikes = sorted(events.foot_strike.get(inputs.side, ()))

@@ -6,7 +6,9 @@ which it cannot run (``not available`` otherwise), ``reads`` the optional ones (
 ``None`` when they did not run). Recorded nodes are the stages of ``summary.json`` ``stages``
 (status, seconds, cache); unrecorded ones are cheap derivations (events and cycle, tables,
 summary). Adding a stage = one module with ``run`` (and ``settings`` when options enter its
-cache key) + one line below::
+cache key) + one line below. ``measured_contact`` (unrecorded, right after ``read``) hands the
+measured knee contact force on, so that no stage after the EMG stage reads ``read``: with
+``keep`` (:func:`run_graph`) the trial's analog-rate arrays are released there::
 
     read ─ model ─ kinematics ─ loads ─┬─ mass_identification ─ inverse_dynamics ─┐
                                        ├─ emg ──────────────────────────────────────┤
@@ -18,7 +20,7 @@ cache key) + one line below::
 from __future__ import annotations
 
 import inspect
-from collections.abc import Callable, Mapping
+from collections.abc import Callable, Collection, Mapping
 from dataclasses import dataclass
 from typing import Any
 
@@ -44,7 +46,7 @@ from msk.pipeline import (
 from msk.pipeline.inputs import SessionInputs
 from msk.pipeline.runner import Runner
 
-__all__ = ["CORE_STAGES", "GRAPH", "STAGES", "Node", "run_graph"]
+__all__ = ["CORE_STAGES", "GRAPH", "STAGES", "Node", "last_readers", "run_graph"]
 
 #: why a gait node does not run in a session without a task trial
 NO_GAIT = "no gait trial (role 'task') in the configuration"
@@ -69,6 +71,14 @@ class Node:
         """The upstream nodes ``run`` takes (its parameters after ``inputs``)."""
         return tuple(inspect.signature(self.run).parameters)[1:]
 
+    @property
+    def reads_results(self) -> tuple[str, ...]:
+        """The upstream nodes whose results ``run`` or ``settings`` take."""
+        extra: tuple[str, ...] = ()
+        if self.settings is not None:
+            extra = tuple(inspect.signature(self.settings).parameters)[1:]
+        return tuple(dict.fromkeys(self.parameters + extra))
+
     def needs_of(self, inputs: SessionInputs) -> tuple[str, ...]:
         return self.needs(inputs) if callable(self.needs) else self.needs
 
@@ -76,6 +86,7 @@ class Node:
 _ALL = ("model", "kinematics", "loads")
 GRAPH: tuple[Node, ...] = (
     Node("read", read.run, settings=read.settings, core=True),
+    Node("measured_contact", read.measured_contact, ("read",), recorded=False),
     Node("model", model.run, ("read",), settings=model.settings, core=True),
     Node("kinematics", kinematics.run, ("model",), settings=kinematics.settings, core=True),
     Node("loads", loads.run, ("read", "model", "kinematics"), settings=loads.settings, core=True),
@@ -89,9 +100,10 @@ GRAPH: tuple[Node, ...] = (
     Node("strength_identification", strength.run,
          (*_ALL, "inverse_dynamics", "emg", "muscle_geometry")),
     Node("knee_contact", contact.run,
-         ("read", *_ALL, "inverse_dynamics", "muscle_geometry", "tension_optimization"),
-         ("mass_identification", "emg", "strength_identification"), settings=contact.settings),
-    Node("gait_cycle", cycle.run, ("read", *_ALL), ("knee_contact",), recorded=False),
+         (*_ALL, "inverse_dynamics", "muscle_geometry", "tension_optimization"),
+         ("mass_identification", "emg", "strength_identification", "measured_contact"),
+         settings=contact.settings),
+    Node("gait_cycle", cycle.run, _ALL, ("knee_contact",), recorded=False),
     Node("comparison", comparison.run, ("loads", "inverse_dynamics"),
          ("knee_contact", "strength_identification", "gait_cycle")),
     Node("fes", fes.run, settings=fes.settings, gait=False, requested=fes.requested),
@@ -100,7 +112,7 @@ GRAPH: tuple[Node, ...] = (
           "strength_identification", "knee_contact", "gait_cycle", "fes"),
          recorded=False, gait=False),
     Node("summary", summary.run, (),
-         ("read", *_ALL, "mass_identification", "inverse_dynamics", "emg",
+         (*_ALL, "mass_identification", "inverse_dynamics", "emg",
           "tension_optimization", "strength_identification", "gait_cycle", "comparison", "fes"),
          recorded=False, gait=False),
     Node("report", report.run, ("tables", "summary"), settings=report.settings, core=True,
@@ -134,13 +146,36 @@ def _call(fn: Callable[..., Any], inputs: SessionInputs, results: Mapping[str, A
     return fn(inputs, **{n: results.get(n) for n in names})
 
 
+def last_readers(graph: tuple[Node, ...]) -> dict[str, int]:
+    """Node name → position in ``graph`` of the last node whose ``run`` or ``settings`` takes
+    its result (absent: no node reads it)."""
+    last: dict[str, int] = {}
+    for i, node in enumerate(graph):
+        for name in node.reads_results:
+            last[name] = i
+    return last
+
+
 def run_graph(
-    inputs: SessionInputs, runner: Runner, graph: tuple[Node, ...] = GRAPH
+    inputs: SessionInputs,
+    runner: Runner,
+    graph: tuple[Node, ...] = GRAPH,
+    *,
+    keep: Collection[str] | None = None,
 ) -> dict[str, Any]:
     """Run every node in order; node name → its result (None when not requested, not
-    available or failed)."""
+    available or failed).
+
+    ``keep``: the nodes whose results the caller wants back; every other result is released
+    as soon as the last node reading it has run (:func:`last_readers`), so that a long trial's
+    arrays are not all held to the end of the run (issue 18). ``None`` keeps every result."""
     results: dict[str, Any] = {}
-    for node in graph:
+    last = last_readers(graph) if keep is not None else {}
+    for i, node in enumerate(graph):
+        if keep is not None:
+            # results read by no later node (and not kept) are dropped before the next one runs
+            for name in [n for n in results if n not in keep and last.get(n, -1) < i]:
+                del results[name]
         results[node.name] = None
         reason = NO_GAIT if node.gait and not inputs.gait else None
         if reason is None and node.requested is not None:
@@ -164,4 +199,6 @@ def run_graph(
         results[node.name] = runner.run(
             node.name, call, needs=needs, reads=node.reads, settings=settings
         )
+    if keep is not None:
+        return {n: v for n, v in results.items() if n in keep}
     return results

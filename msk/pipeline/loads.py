@@ -3,7 +3,8 @@ and the frames whose ground contact the plates measure (:func:`msk.loads.contact
 
 from __future__ import annotations
 
-from collections.abc import Mapping
+import dataclasses
+from collections.abc import Iterator, Mapping
 from dataclasses import dataclass
 from typing import Any
 
@@ -61,12 +62,34 @@ def settings(inputs: SessionInputs) -> Any:
     }
 
 
-def run(inputs: SessionInputs, read: ReadResult, model: BuiltModel, kinematics: Any) -> Loads:
-    from msk.loads import contact_measured
-
-    ext = assign_loads(
-        inputs, model.model, model.trial, kinematics, model.grf_plates, read.assignment
+def _rotated_plate(plate: Any, rot: np.ndarray) -> Any:
+    """A :class:`msk.loads.PlateWrench` rotated by ``rot`` about the origin (force, COP,
+    free moment, corners)."""
+    r = np.asarray(rot, dtype=float)
+    return dataclasses.replace(
+        plate,
+        force=np.asarray(plate.force) @ r.T,
+        cop=np.asarray(plate.cop) @ r.T,
+        free_moment=np.asarray(plate.free_moment) @ r.T,
+        corners=None if plate.corners is None else np.asarray(plate.corners) @ r.T,
     )
+
+
+def run(inputs: SessionInputs, read: ReadResult, model: BuiltModel, kinematics: Any) -> Loads:
+    """The read trial's plates (a C3D's, or its GRF file's) in the model frame (rotated here,
+    not kept by the model stage), assigned to the feet."""
+    from msk.loads import contact_measured, plates_from_trial
+
+    rot, trial = model.rotation, read.trial
+    # rotated one at a time, as external_loads resamples them: one analog-rate plate in the
+    # model frame is held at a time (issue 18)
+    plates: Iterator[Any] = (
+        (_rotated_plate(p, rot) for p in read.grf)
+        if read.grf is not None
+        else (plates_from_trial(dataclasses.replace(trial, plates=(p.rotated(rot),)))[0]
+              for p in trial.plates)
+    )  # fmt: skip
+    ext = assign_loads(inputs, model.model, trial, kinematics, plates, read.assignment)
     measured = contact_measured(model.model, kinematics, ext)
     usable = (
         np.isfinite(kinematics.q).all(axis=1) & np.isfinite(kinematics.a).all(axis=1) & measured

@@ -95,6 +95,7 @@ def run(
                 it.theta[good], it.theta_dot[good], it.theta_ddot[good], it.tau_ext[good], nm
             )
         )
+        del it  # its τ_ext of every frame
     est = InertialIdentifier(
         mdl, total_mass=cfg.subject.mass_kg, symmetric=True, prior_weight="cv"
     ).fit(its)

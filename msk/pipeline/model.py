@@ -36,10 +36,13 @@ HELD_COORDINATE_WEIGHT = 1.0
 class BuiltModel:
     """The scaled model with its placed markers, what was done (``info``: source, marker set,
     heading, scaling, placement — reported in ``summary.json`` ``model``), the lab → model
-    rotation, and the task trial in the model frame (``trial``, exact-zero samples as gaps)
-    with its labels in model names (``labels``), the foot coordinates held near neutral by an
-    IK coordinate task (``held``: name → (value rad, weight)) and the GRF-file plates rotated
-    alike (``grf_plates``)."""
+    rotation, the task trial's markers in the model frame (``trial``: a :class:`msk.trial.Trial`
+    without its analog-rate data — no analogs, no plates —, exact-zero samples as gaps) with
+    their labels in model names (``labels``), the foot coordinates held near neutral by an IK
+    coordinate task (``held``: name → (value rad, weight)) and the lab's up (``lab_up``, the
+    read trial's). The analogs and plates stay with :class:`~msk.pipeline.read.ReadResult`
+    (the loads and EMG stages read them there): a long trial holds them once, and releases
+    them when no later stage reads ``read`` (:func:`msk.pipeline.graph.run_graph`)."""
 
     model: Any
     info: Mapping[str, Any]
@@ -48,7 +51,7 @@ class BuiltModel:
     trial: Any
     labels: tuple[str, ...]
     held: Mapping[str, tuple[float, float]]
-    grf_plates: tuple[Any, ...] | None
+    lab_up: np.ndarray
 
 
 def load_model_file(path: Path, markers: Path | None = None) -> Any:
@@ -82,19 +85,6 @@ def settings(inputs: SessionInputs) -> Any:
         "rename": dict(cfg.marker_rename),
         "move": list(cfg.marker_move),
     }
-
-
-def _rotated_plate(plate: Any, rot: np.ndarray) -> Any:
-    """A :class:`msk.loads.PlateWrench` rotated by ``rot`` about the origin (force, COP,
-    free moment, corners)."""
-    r = np.asarray(rot, dtype=float)
-    return dataclasses.replace(
-        plate,
-        force=np.asarray(plate.force) @ r.T,
-        cop=np.asarray(plate.cop) @ r.T,
-        free_moment=np.asarray(plate.free_moment) @ r.T,
-        corners=None if plate.corners is None else np.asarray(plate.corners) @ r.T,
-    )
 
 
 def _aligned(inputs: SessionInputs, model: Any) -> Any:
@@ -330,15 +320,19 @@ def run(inputs: SessionInputs, read: ReadResult) -> BuiltModel:
     unknown = sorted(set(cfg.marker_weights) - set(model.marker_names) - set(trial.marker_labels))
     if unknown:
         raise ConfigError(f"{cfg.path}: markers.weights: no marker {unknown[0]!r}")
-    # the task trial in the model frame (lab up → model up, heading as decided above);
-    # exact-zero samples are gaps (TRC writers store missing markers as 0, 0, 0)
+    # the task trial's markers in the model frame (lab up → model up, heading as decided
+    # above); exact-zero samples are gaps (TRC writers store missing markers as 0, 0, 0). Its
+    # analog-rate data are left out (fresh empty arrays: a view would keep them alive)
     rot = built["rotation"]
-    mtrial = trial.rotated(rot)
+    markers_only = dataclasses.replace(
+        trial, plates=(), analog_time=np.empty(0),
+        analogs=np.empty((0, np.shape(trial.analogs)[1] if np.ndim(trial.analogs) == 2 else 0)),
+    )  # fmt: skip
+    mtrial = markers_only.rotated(rot)
     mtrial = dataclasses.replace(mtrial, markers=zeros_as_gaps(mtrial.markers))
     inv = {v: k for k, v in built["rename"].items()}
     labels = tuple(inv.get(lab, lab) for lab in trial.marker_labels)
-    grf = None if read.grf is None else tuple(_rotated_plate(p, rot) for p in read.grf)
     return BuiltModel(
         model, built["info"], rot, built["rename"], mtrial, labels,
-        held_foot_coordinates(model, mtrial.markers, labels), grf,
+        held_foot_coordinates(model, mtrial.markers, labels), np.asarray(trial.up, dtype=float),
     )  # fmt: skip

@@ -13,7 +13,7 @@ import numpy as np
 from msk.exceptions import MissingDataError
 from msk.pipeline.inputs import SessionInputs
 
-__all__ = ["ReadResult", "read_static_markers", "run", "settings"]
+__all__ = ["ReadResult", "measured_contact", "read_static_markers", "run", "settings"]
 
 
 @dataclass(frozen=True)
@@ -63,6 +63,13 @@ def run(inputs: SessionInputs) -> ReadResult:
     if task.contact_force is not None:
         contact = _read_contact(task.contact_force, task.file, task.grf)
     return ReadResult(trial, grf, assignment, contact)
+
+
+def measured_contact(inputs: SessionInputs, read: ReadResult) -> Any:
+    """Step ``measured_contact`` (not a recorded stage): the measured knee contact force of
+    ``read`` alone, so that the stages after the loads and EMG do not read ``read`` and its
+    analog-rate arrays are released early (:func:`msk.pipeline.graph.run_graph`)."""
+    return read.contact
 
 
 def read_static_markers(

@@ -15,6 +15,7 @@ from typing import Any, TextIO
 
 from threadpoolctl import threadpool_limits
 
+from msk._memory import map_large_blocks
 from msk.config import SessionConfig, load_config
 from msk.exceptions import ConfigError
 from msk.pipeline.graph import CORE_STAGES, GRAPH, STAGES, run_graph
@@ -108,7 +109,10 @@ def run_session(
     # another order with 2 threads: mass identification moved by ~5e-7), and batch workers do
     # not oversubscribe the cores
     with threadpool_limits(limits=1, user_api="blas"):
-        results = run_graph(session_inputs(cfg), runner)
+        # every other stage's result is released once no later stage reads it, and its
+        # arrays leave the resident set (glibc: mapped, not kept in the heap; issue 18)
+        map_large_blocks()
+        results = run_graph(session_inputs(cfg), runner, keep=("tables", "summary", "report"))
     tables, figures = results["tables"], results["report"]
     summary = dict(results["summary"])
     summary["stages"] = [dataclasses.asdict(r) for r in runner.records]

@@ -16,7 +16,6 @@ from msk.pipeline.inputs import SessionInputs
 from msk.pipeline.loads import Loads
 from msk.pipeline.model import BuiltModel
 from msk.pipeline.runner import StageUnavailable
-from msk.pipeline.tension import muscle_state
 
 __all__ = ["StrengthIdentification", "run"]
 
@@ -40,12 +39,20 @@ def run(
     emg: EmgActivations,
     muscle_geometry: Any,
 ) -> StrengthIdentification:
+    from msk.muscles.geometry import muscle_parameters
+    from msk.muscles.hill import RigidTendonStateBlocks
     from msk.strength import StrengthIdentifier
+    from msk.timeseries import FrameSparse
 
     jt = inverse_dynamics.torques
     good = loads.usable & np.isfinite(jt.tau).all(axis=1)
-    geo = muscle_geometry.take(good)  # compact: the state of the frames used only
-    params, state = muscle_state(model.model, geo)
+    frames = np.flatnonzero(good)
+    # the Hill state of the frames used, computed block by block as the identifier needs it
+    # (its ten (N, M) arrays are never held whole); the compact Jacobian of those frames only
+    params = muscle_parameters(model.model)
+    state = RigidTendonStateBlocks(
+        params, muscle_geometry.lengths, muscle_geometry.velocities, frames
+    )
     groups: dict[str, list[str]] = {}
     for k, m in enumerate(emg.muscles):
         if emg.usable[k]:
@@ -57,8 +64,10 @@ def run(
         if emg.usable[k]:
             act[:, params.names.index(m)] = emg.activation[good, k]
     est = StrengthIdentifier(groups, params, n_bootstrap=200, random_state=0)
+    jac = muscle_geometry.jacobian
+    jac = jac.take(frames) if isinstance(jac, FrameSparse) else np.asarray(jac)[frames]
     est.fit(
-        geo.jacobian,
+        jac,
         act,
         jt.tau[good],
         state,

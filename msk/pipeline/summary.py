@@ -23,7 +23,6 @@ from msk.pipeline.inputs import SessionInputs, plain_settings
 from msk.pipeline.loads import PLATE_ASSIGNMENT, Loads
 from msk.pipeline.mass_identification import MassIdentification
 from msk.pipeline.model import BuiltModel
-from msk.pipeline.read import ReadResult
 from msk.pipeline.runner import file_sha256, versions
 from msk.pipeline.strength import StrengthIdentification
 from msk.pipeline.tension import MuscleTensions
@@ -240,7 +239,6 @@ def _optimization_summary(sol: MuscleTensions, sfx: str) -> dict[str, Any]:
 def _flags(
     inputs: SessionInputs,
     quality: Mapping[str, Any],
-    read: ReadResult,
     model: BuiltModel,
     kin: Any,
     loads: Loads,
@@ -261,7 +259,7 @@ def _flags(
         for f in gait_flags(
             task.name, quality=quality, model=mdl, kinematics=kin, joint_torques=jt,
             mass_kg=cfg.subject.mass_kg, height_m=cfg.subject.height_m,
-            marker_labels=read.trial.marker_labels, optimization=sol, plate_mass_kg=plate_mass,
+            marker_labels=model.trial.marker_labels, optimization=sol, plate_mass_kg=plate_mass,
             held=tuple(model.held), scaling_methods={b: v["method"] for b, v in scaling.items()},
             peak_external_force_n=float(np.nanmax(
                 np.linalg.norm(np.nansum(ext.force[loads.measured], axis=1), axis=1),
@@ -277,7 +275,7 @@ def _flags(
              "from the pelvis): their labels look swapped (a labelling error in the file, or "
              "the wrong side in the config)"}
         )  # fmt: skip
-    for w in (read.trial.metadata or {}).get("warnings", ()):
+    for w in (model.trial.metadata or {}).get("warnings", ()):
         flags.append(
             {"trial": task.name, "quantity": "input_file", "value": 1.0,
              "threshold": 0.0, "message": f"{task.file.name}: {w}"}
@@ -287,7 +285,6 @@ def _flags(
 
 def run(
     inputs: SessionInputs,
-    read: ReadResult | None,
     model: BuiltModel | None,
     kinematics: Any,
     loads: Loads | None,
@@ -306,26 +303,26 @@ def run(
 
     cfg = inputs.cfg
     fes_part = None if fes is None else fes_summary(fes.result, cfg, inputs.fes_trials)
-    if read is None or model is None or loads is None or inverse_dynamics is None:
+    if model is None or loads is None or inverse_dynamics is None:
         return {**base_summary(inputs), "angle_columns": [], "quality": {}, "fes": fes_part}
     assert gait_cycle is not None and inputs.task is not None  # derived from the core stages
     mdl, kin, sol = model.model, kinematics, tension_optimization
     ident, strength = mass_identification, strength_identification
     jt = inverse_dynamics.torques
     quality = _quality(
-        read.trial, kin, jt, loads.external, emg, sol, strength, ident, inputs.body_weight,
+        model.trial, kin, jt, loads.external, emg, sol, strength, ident, inputs.body_weight,
         loads.measured,
     )  # fmt: skip
     plate_mass = body_mass_from_loads(mdl, kin, loads.external, loads.measured)
     quality["plate_mass_kg"] = plate_mass
-    quality["flags"] = _flags(inputs, quality, read, model, kin, loads, jt, sol, plate_mass)
+    quality["flags"] = _flags(inputs, quality, model, kin, loads, jt, sol, plate_mass)
     quality["thresholds"] = dict(THRESHOLDS)
     quality["held_coordinates"] = sorted(model.held)
     ev = gait_cycle.events
     return {
         **base_summary(inputs),
         "model": {**model.info, "name": mdl.name, "muscles": len(mdl.muscles)},
-        "frame": {"lab_to_model_rotation": model.rotation, "lab_up": read.trial.up},
+        "frame": {"lab_to_model_rotation": model.rotation, "lab_up": model.lab_up},
         "events": gait_cycle.as_list(),
         "event_sources": {**dict(ev.source), "notes": list(ev.notes)},
         "gait_cycle_s": list(gait_cycle.cycle) if gait_cycle.cycle else None,

@@ -39,9 +39,15 @@ A group is identified only if its own contribution correlates, r_{w,g,j} ≥ ``g
 on at least ``min_windows`` selected windows of some coordinate; otherwise its factor stays 1
 (generic), its contribution moves to the known side, and it is flagged ``identified=False``.
 
-**Regression.** Bounded linear least squares (``scipy.optimize.lsq_linear``) for the factors
-s_g ∈ [0.5, 2.0] (``seeds/003 Table 3.1``) and a free d_j per coordinate; each coordinate's
-rows are divided by the standard deviation of its torque so that joints weigh equally.
+**Regression.** Bounded linear least squares for the factors s_g ∈ [0.5, 2.0]
+(``seeds/003 Table 3.1``) and a free d_j per coordinate; each coordinate's rows are divided by
+the standard deviation of its torque so that joints weigh equally. It is solved from the normal
+equations XᵀX β = Xᵀy accumulated window by window (bounded: BVLS on the Cholesky factor of
+XᵀX, ``scipy.optimize.lsq_linear``), so the stacked rows are never held: a long trial's design
+(one row per frame and coordinate) costs no memory beyond its windows' (p, p) sums. Same
+minimiser as BVLS on the rows (tests/test_long_trials.py: to 1e-9 on random designs with
+active bounds); against the previous BVLS on the stacked rows, the strength factors of the
+shipped sessions (gc4_JW, gc5_PS, gc6_DM_crouch_tm) moved by at most 2e-14 relative.
 
 **Confidence intervals** (reported both):
 
@@ -128,7 +134,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from msk import compare
 from msk.exceptions import IdentificationError, ShapeMismatchError
-from msk.muscles.hill import MuscleParameters, RigidTendonState
+from msk.muscles.hill import MuscleParameters, RigidTendonState, RigidTendonStateBlocks
 from msk.timeseries import FrameSparse
 
 Array = NDArray[np.float64]
@@ -154,8 +160,15 @@ __all__ = [
 _FRAME_BLOCK = 2048
 
 
-def _state_rows(state: RigidTendonState, sl: slice, n: int) -> RigidTendonState:
-    """``state`` with its (n, M) arrays restricted to the frames ``sl`` (views)."""
+#: a muscle state given whole, or computed block by block on demand
+StateLike = RigidTendonState | RigidTendonStateBlocks
+
+
+def _state_rows(state: StateLike, sl: slice, n: int) -> RigidTendonState:
+    """``state`` with its (n, M) arrays restricted to the frames ``sl`` (views; computed for
+    these frames only when ``state`` is a :class:`RigidTendonStateBlocks`)."""
+    if isinstance(state, RigidTendonStateBlocks):
+        return state.rows(sl)
     changes: dict[str, Any] = {}
     for f in dataclasses.fields(state):
         v = getattr(state, f.name)
@@ -583,7 +596,7 @@ class StrengthIdentifier:
 
     # ----------------------------------------------------------------- helpers
     def _contributions(
-        self, jacobian: ArrayLike | FrameSparse, activation: ArrayLike, state: RigidTendonState
+        self, jacobian: ArrayLike | FrameSparse, activation: ArrayLike, state: StateLike
     ) -> tuple[Array, Array]:
         if tuple(state.names) != self.params.names:
             raise ShapeMismatchError(
@@ -604,20 +617,26 @@ class StrengthIdentifier:
             jac = _as3(jacobian, "jacobian")
         n = jac.shape[0]
         act = _as2(activation, (n, jac.shape[1]), "activation", state.names)
+        if isinstance(state, RigidTendonStateBlocks) and state.n_frames != n:
+            raise ShapeMismatchError(f"muscle state has {state.n_frames} frames, jacobian {n}")
         if n <= _FRAME_BLOCK:
-            c = net_contribution(jac[:], act, state, passive=self.passive)
+            c = net_contribution(
+                jac[:], act, _state_rows(state, slice(None), n), passive=self.passive
+            )
             return group_contributions(c, self.groups, self.params)
-        parts = []
+        cg = other = None  # filled block by block (no list of parts concatenated at the end)
         for c0 in range(0, n, _FRAME_BLOCK):
             sl = slice(c0, c0 + _FRAME_BLOCK)
             st = _state_rows(state, sl, n)
             c = net_contribution(jac[sl], act[sl], st, passive=self.passive)
-            parts.append(group_contributions(c, self.groups, self.params))
+            g_part, o_part = group_contributions(c, self.groups, self.params)
             del c
-        return (
-            np.concatenate([p[0] for p in parts]),
-            np.concatenate([p[1] for p in parts]),
-        )
+            if cg is None or other is None:
+                cg = np.empty((n, *g_part.shape[1:]))
+                other = np.empty((n, *o_part.shape[1:]))
+            cg[sl], other[sl] = g_part, o_part
+        assert cg is not None and other is not None  # n > _FRAME_BLOCK ≥ 1: one block at least
+        return cg, other
 
     def _coords(self, coordinate_names: Sequence[str] | None, n: int) -> tuple[str, ...]:
         names = tuple(coordinate_names) if coordinate_names is not None else None
@@ -631,7 +650,7 @@ class StrengthIdentifier:
         self,
         jacobian: ArrayLike,
         activation: Array,
-        state: RigidTendonState,
+        state: StateLike,
         labels: NDArray[np.int64],
         gid: NDArray[np.int64],
         blocks: Sequence[tuple[int, int, Array, Array]],
@@ -651,6 +670,8 @@ class StrengthIdentifier:
         """
         jac = np.asarray(jacobian, dtype=float)
         n_frames, n_mus, _ = jac.shape
+        if isinstance(state, RigidTendonStateBlocks):
+            state = state.full()
         fiso = self.params.max_isometric_force[None, :, None]
         ka = net_contribution(jac, np.ones((n_frames, n_mus)), state, passive=False) * fiso
         kp = net_contribution(jac, np.zeros((n_frames, n_mus)), state, passive=self.passive)
@@ -703,7 +724,7 @@ class StrengthIdentifier:
         jacobian: ArrayLike | FrameSparse,
         activation: ArrayLike,
         tau: ArrayLike,
-        state: RigidTendonState,
+        state: StateLike,
         *,
         windows: ArrayLike | None = None,
         coordinate_names: Sequence[str] | None = None,
@@ -715,16 +736,16 @@ class StrengthIdentifier:
         used block by block); ``activation`` ``(N, M)`` EMG-driven activations
         (see :func:`expand_groups` and :func:`msk.muscles.activation.emg_to_activation`);
         ``tau`` ``(N, n)`` inverse-dynamics torques; ``state`` the rigid-tendon state of the
-        generic parameters; ``windows`` one label per frame (cycle / trial / motion) — the
-        gating and bootstrap units (default: ``n_windows`` equal chunks); ``movements`` one
-        label per frame naming the movement each window repeats (e.g. the gait cycles, and
-        each MVC action's repetitions, seeds/002 §VI.A) — with ``instrument="phase_average"``
-        a window is instrumented by the other windows of its movement only, which must then
-        have ≥ 3 windows, and the intervals resample within movements (default: all windows
-        repeat one movement).
+        generic parameters (whole, or a :class:`msk.muscles.hill.RigidTendonStateBlocks`
+        computing it block by block: the same numbers without holding it); ``windows`` one
+        label per frame (cycle / trial / motion) — the gating and bootstrap units (default:
+        ``n_windows`` equal chunks); ``movements`` one label per frame naming the movement
+        each window repeats (e.g. the gait cycles, and each MVC action's repetitions,
+        seeds/002 §VI.A) — with ``instrument="phase_average"`` a window is instrumented by
+        the other windows of its movement only, which must then have ≥ 3 windows, and the
+        intervals resample within movements (default: all windows repeat one movement).
         """
         from scipy import stats  # on use: decoding cached results need not pay for them
-        from scipy.optimize import lsq_linear
 
         cg, other = self._contributions(jacobian, activation, state)
         n_frames, n_groups, n_coords = cg.shape
@@ -749,7 +770,7 @@ class StrengthIdentifier:
             a_bar = _phase_average_loo(act_arr, labels, movement=win_mov)
             zg, _ = self._contributions(jacobian, a_bar, state)
         # coordinates used
-        scale = np.abs(cg).max(axis=0)  # (G, n)
+        scale = np.maximum(cg.max(axis=0), -cg.min(axis=0))  # max |C_g| (G, n), no |C_g| copy
         acts = scale > 1e-9 * max(float(scale.max()), 1e-300)
         if self.coordinates is None:
             use = [j for j in range(n_coords) if acts[:, j].any()]
@@ -812,7 +833,10 @@ class StrengthIdentifier:
         szz = np.zeros((n_win, n_par, n_par))
         szx = np.zeros((n_win, n_par, n_par))
         szy = np.zeros((n_win, n_par))
-        blocks: list[tuple[int, int, NDArray[np.bool_], Array, Array]] = []
+        # the rows themselves are kept only for the instrument pairs (IV): the least-squares
+        # estimate and its intervals need the per-window sums alone
+        blocks: list[tuple[int, int, Array, Array]] = []
+        n_rows = 0
         for w in range(n_win):
             sel = labels == w
             for jj, j in enumerate(used_coords):
@@ -828,19 +852,19 @@ class StrengthIdentifier:
                 szz[w] += z.T @ z
                 szx[w] += z.T @ x
                 szy[w] += z.T @ yv
-                blocks.append((w, j, sel, x, yv))
+                n_rows += yv.size
+                if use_iv:
+                    blocks.append((w, j, x, yv))
         zz_tot, zx_tot, zy_tot = szz.sum(axis=0), szx.sum(axis=0), szy.sum(axis=0)
         if gid.size and np.linalg.matrix_rank(zx_tot) < n_par:
             raise IdentificationError(
                 "the selected windows do not separate the synergist groups "
                 f"{[list(self.groups)[g] for g in gid]} (singular regression)"
             )
-        y_vec = np.concatenate([blk[4] for blk in blocks])
         if use_iv:
             sol = _bounded_from_normal(*_iv_normal(zz_tot, zx_tot, zy_tot), lo, hi)
-        else:
-            x_all = np.vstack([blk[3] for blk in blocks])
-            sol = lsq_linear(x_all, y_vec, bounds=(lo, hi), method="bvls", tol=1e-12).x
+        else:  # least squares from its normal equations (Z = X: zx_tot = XᵀX, zy_tot = Xᵀy)
+            sol = _bounded_from_normal(zx_tot, zy_tot, lo, hi)
 
         # cluster-robust covariance: delete-one-window jackknife (CR3), on the unconstrained
         # estimating equations Zᵀ(y − Xβ) = 0 (the CR1 sandwich is too narrow with few windows)
@@ -857,7 +881,7 @@ class StrengthIdentifier:
                 state,
                 labels,
                 gid,
-                [(b[0], b[1], b[3], b[4]) for b in blocks],
+                blocks,
                 sd,
                 win_mov,
             )
@@ -1020,7 +1044,7 @@ class StrengthIdentifier:
             selected=selected,
             window_labels=labels,
             confidence=self.confidence,
-            n_samples=int(y_vec.size),
+            n_samples=n_rows,
             n_bootstrap=self.n_bootstrap,
             method=(
                 "net-contribution regression (seeds/002 Eq. 12-16), "
@@ -1036,7 +1060,7 @@ class StrengthIdentifier:
         if not hasattr(self, "profile_"):
             raise IdentificationError("StrengthIdentifier is not fitted: call fit() first")
 
-    def predict(self, jacobian: ArrayLike, activation: ArrayLike, state: RigidTendonState) -> Array:
+    def predict(self, jacobian: ArrayLike, activation: ArrayLike, state: StateLike) -> Array:
         """Joint torques ``Σ_g s_g C_g + Σ_{k∉G} C_k F_iso,k + d`` ``(N, n)`` (Eq. 16)."""
         self._check_fitted()
         cg, other = self._contributions(jacobian, activation, state)
@@ -1047,7 +1071,7 @@ class StrengthIdentifier:
         jacobian: ArrayLike,
         activation: ArrayLike,
         tau: ArrayLike,
-        state: RigidTendonState,
+        state: StateLike,
     ) -> float:
         """Mean r² over the fitted coordinates of :meth:`predict` against ``tau``."""
         pred = self.predict(jacobian, activation, state)
