@@ -98,7 +98,13 @@ def _rotated_plate(plate: Any, rot: np.ndarray) -> Any:
 
 def _scale_and_place(inputs: SessionInputs, read: ReadResult) -> dict[str, Any]:
     from msk.io.frames import pelvis_heading_rotation
-    from msk.markersets import recognise, zeros_as_gaps
+    from msk.markersets import (
+        foot_markers,
+        recognise,
+        shoulder_girdle_markers,
+        zeros_as_gaps,
+    )
+    from msk.quality import inconsistent_static_markers
     from msk.scaling import (
         place_markers,
         place_markers_from_motion,
@@ -157,6 +163,15 @@ def _scale_and_place(inputs: SessionInputs, read: ReadResult) -> dict[str, Any]:
     report = None
     if static_read is not None:
         sm, slabels_raw, stime, ssubj = static_read
+        # static labels the task contradicts (mislabelled, swapped, ghost): left out of the
+        # static, placed from the task below (msk.quality.inconsistent_static_markers)
+        girdle = shoulder_girdle_markers(list(slabels_raw), bodies)
+        bad = inconsistent_static_markers(
+            zeros_as_gaps(sm), slabels_raw, x_lab, trial.marker_labels, skip=girdle
+        )
+        if bad:
+            sm = np.array(sm, dtype=float)
+            sm[:, [i for i, lab in enumerate(slabels_raw) if lab in bad]] = np.nan
         # the lab's joint widths (Plug-in Gait subject parameters): the static's, else the task's
         subj = ssubj if ssubj is not None and ssubj.widths_m else trial.subject
         widths = dict(getattr(subj, "widths_m", None) or {})
@@ -182,6 +197,8 @@ def _scale_and_place(inputs: SessionInputs, read: ReadResult) -> dict[str, Any]:
             )  # fmt: skip
         except ModelError as exc:
             raise ConfigError(f"{cfg.path}: markers.move: {exc}") from None
+        if bad:
+            model, info["static_check"] = _place_contradicted(model, trial, rot, match, bad)
     else:
         # no static trial: the task trial's own markers scale and place (the segment lengths
         # are constant over a motion; msk.scaling.scale_from_motion)
@@ -191,8 +208,12 @@ def _scale_and_place(inputs: SessionInputs, read: ReadResult) -> dict[str, Any]:
                 model, xm, mlabels, trial.time, height_m=cfg.subject.height_m,
                 body_mass=cfg.subject.mass_kg,
             )  # fmt: skip
+        # the lab's foot markers: where they sit on the foot is the lab's choice and nothing
+        # but the motion tells (msk.markersets.foot_markers), so they are moved too
+        present = [mk.name for mk in model.markers if mk.name in set(mlabels)]
+        feet = [m for m in foot_markers(present) if m not in cfg.marker_move]
         model, placed = place_markers_from_motion(
-            model, xm, mlabels, trial.time, move=cfg.marker_move
+            model, xm, mlabels, trial.time, move=[*cfg.marker_move, *feet]
         )
     info["marker_placement"] = placed
     if report is not None:
@@ -200,6 +221,38 @@ def _scale_and_place(inputs: SessionInputs, read: ReadResult) -> dict[str, Any]:
         info["scale_ratios"] = dict(model.metadata.get("scale_ratios", {}))
     info["mass_kg"] = model.total_mass
     return {"model": model, "info": info, "rotation": rot, "rename": dict(match.rename)}
+
+
+def _place_contradicted(
+    model: Any, trial: Any, rot: np.ndarray, match: Any, bad: Mapping[str, float]
+) -> tuple[Any, dict[str, Any]]:
+    """The static markers the task trial contradicts (``bad``: lab label → discrepancy m),
+    placed from the task instead (:func:`msk.scaling.place_markers_from_motion` on the task
+    with the model's markers and these only): a model marker is moved on its body, another
+    marker fixed to its most rigid body. Returns the model and the record for
+    ``summary.json`` ``model.static_check`` (and its quality flag)."""
+    from msk.markersets import shoulder_girdle_markers
+    from msk.scaling import place_markers_from_motion
+
+    xm, mlabels = match.apply(trial.rotated(rot).markers, trial.marker_labels)
+    to_model = dict(match.lab_to_model)
+    bad_names = {to_model.get(lab, lab) for lab in bad}
+    known = set(model.marker_names)
+    # the model's markers but those of the shoulder girdle (placed from the static: the task
+    # would move them again), and the contradicted ones
+    girdle = set(shoulder_girdle_markers(list(mlabels), [b.name for b in model.bodies]))
+    keep = [i for i, lab in enumerate(mlabels) if lab not in mlabels[:i] and (
+        lab in bad_names or (lab in known and lab not in girdle))]  # fmt: skip
+    moved = sorted(n for n in bad_names if n in known)
+    model, placed = place_markers_from_motion(
+        model, xm[:, keep], [mlabels[i] for i in keep], trial.time, move=moved
+    )
+    record = {
+        "contradicted_m": dict(bad),
+        "moved_from_task_m": {k: v for k, v in placed["moved"].items() if k in bad_names},
+        "placed_from_task": {k: v for k, v in placed["placed"].items() if k in bad_names},
+    }
+    return model, record
 
 
 def _chord_centres(
