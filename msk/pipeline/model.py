@@ -163,15 +163,6 @@ def _scale_and_place(inputs: SessionInputs, read: ReadResult) -> dict[str, Any]:
     report = None
     if static_read is not None:
         sm, slabels_raw, stime, ssubj = static_read
-        # static labels the task contradicts (mislabelled, swapped, ghost): left out of the
-        # static, placed from the task below (msk.quality.inconsistent_static_markers)
-        girdle = shoulder_girdle_markers(list(slabels_raw), bodies)
-        bad = inconsistent_static_markers(
-            zeros_as_gaps(sm), slabels_raw, x_lab, trial.marker_labels, skip=girdle
-        )
-        if bad:
-            sm = np.array(sm, dtype=float)
-            sm[:, [i for i, lab in enumerate(slabels_raw) if lab in bad]] = np.nan
         # the lab's joint widths (Plug-in Gait subject parameters): the static's, else the task's
         subj = ssubj if ssubj is not None and ssubj.widths_m else trial.subject
         widths = dict(getattr(subj, "widths_m", None) or {})
@@ -180,6 +171,16 @@ def _scale_and_place(inputs: SessionInputs, read: ReadResult) -> dict[str, Any]:
             slabels_raw, model.marker_names, rename=cfg.marker_rename,
             model_bodies=bodies, markers=zeros_as_gaps(sm),
         )  # fmt: skip
+        # static labels the task contradicts (mislabelled, swapped, ghost): left out of the
+        # static, placed from the task below (msk.quality.inconsistent_static_markers); not
+        # checked: markers on no bone of the model (arms) and of the shoulder girdle
+        skip = [*shoulder_girdle_markers(list(slabels_raw), bodies), *smatch.excluded]
+        bad = inconsistent_static_markers(
+            zeros_as_gaps(sm), slabels_raw, x_lab, trial.marker_labels, skip=skip
+        )
+        if bad:
+            sm = np.array(sm, dtype=float)
+            sm[:, [i for i, lab in enumerate(slabels_raw) if lab in bad]] = np.nan
         sm, slabels = smatch.apply(sm, slabels_raw)
         if mc.scale:
             static = {lab: sm[:, i] for i, lab in enumerate(slabels)}
