@@ -69,10 +69,11 @@ def test_no_flag_within_thresholds():
     assert flags == []
 
 
-def _rigid_motion(local: np.ndarray, n: int, rng: np.random.Generator, shift: float) -> np.ndarray:
+def _rigid_motion(local: np.ndarray, n: int, shift: float) -> np.ndarray:
     """(n, M, 3) markers of one rigid segment moving (rotation about z, translation)."""
     ang = np.linspace(0.0, 1.2, n)
-    rot = np.stack([[[np.cos(a), -np.sin(a), 0], [np.sin(a), np.cos(a), 0], [0, 0, 1]] for a in ang])
+    c, s = np.cos(ang), np.sin(ang)
+    rot = np.stack([[c, -s, 0 * c], [s, c, 0 * c], [0 * c, 0 * c, 1 + 0 * c]]).transpose(2, 0, 1)
     tr = np.stack([np.linspace(0, 1.5, n) + shift, np.zeros(n), np.full(n, 0.5)], axis=1)
     return np.einsum("fij,mj->fmi", rot, local) + tr[:, None, :]
 
@@ -90,7 +91,7 @@ def test_inconsistent_static_markers_names_a_swapped_or_ghost_static_label():
     labels = ("A0", "A1", "A2", "A3", "B0", "B1", "B2", "B3")
     n = 200
     motion = np.concatenate(
-        [_rigid_motion(a, n, rng, 0.0), _rigid_motion(b, n, rng, 0.6)[:, :, [1, 0, 2]]], axis=1
+        [_rigid_motion(a, n, 0.0), _rigid_motion(b, n, 0.6)[:, :, [1, 0, 2]]], axis=1
     )
     motion += rng.normal(0.0, 0.002, motion.shape)
     static = motion[:30] + rng.normal(0.0, 0.002, motion[:30].shape)
