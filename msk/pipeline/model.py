@@ -97,6 +97,7 @@ def _rotated_plate(plate: Any, rot: np.ndarray) -> Any:
 
 
 def _scale_and_place(inputs: SessionInputs, read: ReadResult) -> dict[str, Any]:
+    from msk.io.c3d import is_measured_marker
     from msk.io.frames import pelvis_heading_rotation
     from msk.markersets import (
         foot_markers,
@@ -174,13 +175,14 @@ def _scale_and_place(inputs: SessionInputs, read: ReadResult) -> dict[str, Any]:
         # static labels the task contradicts (mislabelled, swapped, ghost): left out of the
         # static, placed from the task below (msk.quality.inconsistent_static_markers); not
         # checked: markers on no bone of the model (arms) and of the shoulder girdle
-        skip = [*shoulder_girdle_markers(list(slabels_raw), bodies), *smatch.excluded]
+        skip = [*shoulder_girdle_markers(list(slabels_raw), bodies), *smatch.excluded,
+                *(lab for lab in slabels_raw if not is_measured_marker(lab))]  # fmt: skip
         bad = inconsistent_static_markers(
             zeros_as_gaps(sm), slabels_raw, x_lab, trial.marker_labels, skip=skip
         )
-        if bad:
-            sm = np.array(sm, dtype=float)
-            sm[:, [i for i, lab in enumerate(slabels_raw) if lab in bad]] = np.nan
+        if bad:  # removed from the static (as if the lab had not labelled them)
+            kept = [i for i, lab in enumerate(slabels_raw) if lab not in bad]
+            sm, slabels_raw = np.asarray(sm)[:, kept], tuple(slabels_raw[i] for i in kept)
         sm, slabels = smatch.apply(sm, slabels_raw)
         if mc.scale:
             static = {lab: sm[:, i] for i, lab in enumerate(slabels)}
@@ -195,6 +197,7 @@ def _scale_and_place(inputs: SessionInputs, read: ReadResult) -> dict[str, Any]:
                 move=[*cfg.marker_move, *(m for m in jc_move if m not in cfg.marker_move)],
                 hints=smatch.body_hints([b.name for b in model.bodies]), centres=centres,
                 coordinate_tasks=held_foot_coordinates(model, sm, slabels) if centres else None,
+                relocate=[lab for lab in slabels if lab in model.marker_names],
             )  # fmt: skip
         except ModelError as exc:
             raise ConfigError(f"{cfg.path}: markers.move: {exc}") from None
