@@ -25,7 +25,19 @@ from msk.io.frames import lab_to_model_rotation
 from msk.pipeline.inputs import SessionInputs
 from msk.pipeline.read import ReadResult, read_static_markers
 
-__all__ = ["HELD_COORDINATE_WEIGHT", "BuiltModel", "load_model_file", "run", "settings"]
+__all__ = [
+    "HELD_COORDINATE_WEIGHT",
+    "STATIC_CHECK_MIN_TASK_S",
+    "BuiltModel",
+    "load_model_file",
+    "run",
+    "settings",
+]
+
+#: shortest task (s) whose frames seeing a marker pair can show it rigid for the static-label
+#: check (:func:`msk.quality.inconsistent_static_markers`): about one step of walking, over
+#: which the hip and knee flex and extend by 20–40° (distances across a joint change)
+STATIC_CHECK_MIN_TASK_S = 0.5
 
 #: IK weight of the coordinate task holding an unobserved foot joint at 0 rad (weight per rad²,
 #: markers per m²: 1° off costs as much as 17 mm of marker error)
@@ -177,9 +189,14 @@ def _scale_and_place(inputs: SessionInputs, read: ReadResult) -> dict[str, Any]:
         # checked: markers on no bone of the model (arms) and of the shoulder girdle
         skip = [*shoulder_girdle_markers(list(slabels_raw), bodies), *smatch.excluded,
                 *(lab for lab in slabels_raw if not is_measured_marker(lab))]  # fmt: skip
+        # rigid pairs over at least a step (0.5 s): over a shorter piece, markers of two
+        # segments can keep their distance too (PiG_Motion3 cut to 0.25 s: RPSI "contradicted")
+        t_task = np.asarray(trial.time, dtype=float)
+        rate = (t_task.size - 1) / (t_task[-1] - t_task[0]) if t_task.size > 1 else 0.0
         bad = inconsistent_static_markers(
-            zeros_as_gaps(sm), slabels_raw, x_lab, trial.marker_labels, skip=skip
-        )
+            zeros_as_gaps(sm), slabels_raw, x_lab, trial.marker_labels, skip=skip,
+            min_frames=max(10, round(STATIC_CHECK_MIN_TASK_S * rate)),
+        )  # fmt: skip
         if bad:  # removed from the static (as if the lab had not labelled them)
             kept = [i for i, lab in enumerate(slabels_raw) if lab not in bad]
             sm, slabels_raw = np.asarray(sm)[:, kept], tuple(slabels_raw[i] for i in kept)
