@@ -218,8 +218,10 @@ def _scale_and_place(inputs: SessionInputs, read: ReadResult) -> dict[str, Any]:
             )  # fmt: skip
         except ModelError as exc:
             raise ConfigError(f"{cfg.path}: markers.move: {exc}") from None
-        if bad:
-            model, info["static_check"] = _place_contradicted(model, trial, rot, match, bad)
+        model, from_task, check = _place_from_task(model, trial, rot, match, bad)
+        placed["from_task"] = from_task
+        if check:
+            info["static_check"] = check
     else:
         # no static trial: the task trial's own markers scale and place (the segment lengths
         # are constant over a motion; msk.scaling.scale_from_motion)
@@ -244,14 +246,24 @@ def _scale_and_place(inputs: SessionInputs, read: ReadResult) -> dict[str, Any]:
     return {"model": model, "info": info, "rotation": rot, "rename": dict(match.rename)}
 
 
-def _place_contradicted(
+def _place_from_task(
     model: Any, trial: Any, rot: np.ndarray, match: Any, bad: Mapping[str, float]
-) -> tuple[Any, dict[str, Any]]:
-    """The static markers the task trial contradicts (``bad``: lab label → discrepancy m),
-    placed from the task instead (:func:`msk.scaling.place_markers_from_motion` on the task
-    with the model's markers and these only): a model marker is moved on its body, another
-    marker fixed to its most rigid body. Returns the model and the record for
-    ``summary.json`` ``model.static_check`` (and its quality flag)."""
+) -> tuple[Any, dict[str, float], dict[str, Any]]:
+    """After the static placement, the markers the static cannot place for the task, placed
+    from the task (:func:`msk.scaling.place_markers_from_motion` on the task with the model's
+    markers and these only):
+
+    * shoulder-girdle markers of a model without that segment (gait2392's acromia on its rigid
+      torso, :func:`msk.markersets.shoulder_girdle_markers`): the scapula follows the arms, so
+      where the static (arms out) puts them is not where they ride in the task (UNIPD's acromia
+      22–26 mm off through the walk when placed from its static, IK 17.5 → 16.3 mm); moved on
+      their body to their median position in the task;
+    * the static markers the task contradicts (``bad``: lab label → discrepancy m,
+      :func:`msk.quality.inconsistent_static_markers`): a model marker moved on its body,
+      another marker fixed to its most rigid body.
+
+    Returns the model, marker → displacement (m) of the markers moved, and the record for
+    ``summary.json`` ``model.static_check`` (empty without ``bad``; its quality flag)."""
     from msk.markersets import shoulder_girdle_markers
     from msk.scaling import place_markers_from_motion
 
@@ -259,21 +271,25 @@ def _place_contradicted(
     to_model = dict(match.lab_to_model)
     bad_names = {to_model.get(lab, lab) for lab in bad}
     known = set(model.marker_names)
-    # the model's markers but those of the shoulder girdle (placed from the static: the task
-    # would move them again), and the contradicted ones
     girdle = set(shoulder_girdle_markers(list(mlabels), [b.name for b in model.bodies]))
+    if not bad_names and not girdle & known:
+        return model, {}, {}
     keep = [i for i, lab in enumerate(mlabels) if lab not in mlabels[:i] and (
-        lab in bad_names or (lab in known and lab not in girdle))]  # fmt: skip
+        lab in bad_names or lab in known)]  # fmt: skip
     moved = sorted(n for n in bad_names if n in known)
+    new_markers = any(n not in known for n in bad_names)
     model, placed = place_markers_from_motion(
-        model, xm[:, keep], [mlabels[i] for i in keep], trial.time, move=moved
-    )
-    record = {
-        "contradicted_m": dict(bad),
-        "moved_from_task_m": {k: v for k, v in placed["moved"].items() if k in bad_names},
-        "placed_from_task": {k: v for k, v in placed["placed"].items() if k in bad_names},
-    }
-    return model, record
+        model, xm[:, keep], [mlabels[i] for i in keep], trial.time, move=moved,
+        iterations=3 if new_markers else 1,
+    )  # fmt: skip
+    record = {}
+    if bad:
+        record = {
+            "contradicted_m": dict(bad),
+            "moved_from_task_m": {k: v for k, v in placed["moved"].items() if k in bad_names},
+            "placed_from_task": {k: v for k, v in placed["placed"].items() if k in bad_names},
+        }
+    return model, dict(placed["moved"]), record
 
 
 def _chord_centres(
