@@ -3,8 +3,10 @@
 1. static optimisation: OpenSim 4.6 StaticOptimization / msk SO per frame, CPU (≥ 500×);
 2. the chain ID + geometry + SO + knee contact (with the medial/lateral split), µs/frame (≤ 100);
 3. the knee contact stage alone, µs/frame (≤ 10);
-4. ``msk run pipelines/gc5_PS.toml --no-cache`` cold, in a fresh interpreter, s (≤ 2);
-5. ``msk batch`` of 16 × gc5_PS, 1 worker / 2 workers on the local pool (≥ 1.8×).
+4. ``msk run pipelines/gc5_PS.toml --no-cache`` cold, in a fresh interpreter, s (≤ 2), and
+   the same run again with its stage cache (≤ 0.5 s: the issue's "cached" target);
+5. ``msk batch`` of 16 × gc5_PS, 1 worker / 2 workers on the local pool (≥ 1.8×), and the
+   same on a Dask ``LocalCluster`` (1 / 2 worker processes, one thread each).
 
 1–3 come from :func:`bench_chain.measure` (gait2392 subject01 walk, OpenSim on the same states,
 ``--repeat`` batch calls per stage after a warm-up: min and median; the verdict uses the min
@@ -56,7 +58,7 @@ def main() -> None:
     ap.add_argument("--repeat", type=int, default=15, help="timed batch calls per chain stage")
     ap.add_argument("--cold", type=int, default=5, help="timed cold `msk run`s")
     ap.add_argument("--sessions", type=int, default=16, help="sessions per batch")
-    ap.add_argument("--skip", default="", help="comma-separated: chain, cold, batch")
+    ap.add_argument("--skip", default="", help="comma-separated: chain, cold, batch, dask")
     ap.add_argument("--baseline", default=None, help="measure the msk package at this git ref")
     args = ap.parse_args()
     src = REPO
@@ -126,6 +128,23 @@ def main() -> None:
              ("met by the fastest run only" if lo <= bench_run_cold.TARGET_S else "not met"))
         )  # fmt: skip
         notes.append(f"cold run: load {l0} → {_load()}")
+        l0 = _load()
+        walls = []
+        with tempfile.TemporaryDirectory() as tmp:
+            out = Path(tmp) / "out"
+            for k in range(args.cold + 1):  # the first run fills the stage cache, not timed
+                wall, _ = bench_run_cold._run_once(src, out, cached=bool(k))
+                if k:
+                    walls.append(wall)
+        lo, mid = min(walls), statistics.median(walls)
+        target = bench_run_cold.TARGET_CACHED_S
+        rows.append(
+            ("`msk run` gc5_PS cached (fresh interpreter)", f"{mid:.2f} s",
+             f"median of {args.cold}; min {lo:.2f} s", f"≤ {target:g} s",
+             "met" if mid <= target else
+             ("met by the fastest run only" if lo <= target else "not met"))
+        )  # fmt: skip
+        notes.append(f"cached run: load {l0} → {_load()}")
 
     if "batch" not in skip:
         import msk.batch as batch
@@ -150,6 +169,40 @@ def main() -> None:
             (f"`msk batch` {args.sessions} × gc5_PS, 2 workers / 1", f"{speed:.2f}×",
              f"{wall[1]:.1f} s → {wall[2]:.1f} s (forkserver workers)", "≥ 1.8×",
              "met" if speed >= 1.8 else "not met")
+        )  # fmt: skip
+
+    if "dask" not in skip:
+        from distributed import Client, LocalCluster
+
+        import msk.batch as batch
+
+        # a cluster is started once and serves many batches: its start is not timed, the
+        # first session on each worker pays that worker's imports
+        dwall: dict[int, float] = {}
+        for workers in (1, 2):
+            l0 = _load()
+            with (
+                LocalCluster(n_workers=workers, threads_per_worker=1, processes=True,
+                             dashboard_address=None) as cluster,
+                Client(cluster) as client,
+                tempfile.TemporaryDirectory() as tmp,
+            ):  # fmt: skip
+                t0 = time.perf_counter()
+                res = batch.run_batch(
+                    [CONFIG] * args.sessions, Path(tmp) / "out", scheduler=client, use_cache=False
+                )
+                dwall[workers] = time.perf_counter() - t0
+            if res.failed:
+                raise SystemExit(f"dask batch failed: {[o.error for o in res.failed]}")
+            notes.append(
+                f"Dask LocalCluster, {workers} worker(s): {dwall[workers]:.1f} s, load {l0} → "
+                f"{_load()}"
+            )
+        speed = dwall[1] / dwall[2]
+        rows.append(
+            (f"`msk batch` {args.sessions} × gc5_PS on Dask, 2 workers / 1", f"{speed:.2f}×",
+             f"{dwall[1]:.1f} s → {dwall[2]:.1f} s (LocalCluster, 1 thread per worker)",
+             "≥ 1.8×", "met" if speed >= 1.8 else "not met")
         )  # fmt: skip
 
     notes.append(f"load average at the end {_load()}")

@@ -32,6 +32,8 @@ import numpy as np
 import pinocchio as pin
 from numpy.typing import NDArray
 
+from msk.signal import find_peaks
+
 Array = NDArray[np.float64]
 
 __all__ = ["GaitEvents", "detect_gait_events", "reconcile"]
@@ -175,12 +177,10 @@ def detect_gait_events(
         k_hs: list[float] = []
         k_to: list[float] = []
         if side in rel:
-            from scipy.signal import find_peaks  # on use: ~0.45 s a cached run need not pay
-
             xh, xt = rel[side]
             dist = max(1, int(min_step_s * rate))
-            hs, _ = find_peaks(xh, distance=dist, prominence=prominence_m)
-            to, _ = find_peaks(-xt, distance=dist, prominence=prominence_m)
+            hs = find_peaks(xh, distance=dist, prominence=prominence_m)
+            to = find_peaks(-xt, distance=dist, prominence=prominence_m)
             k_hs = [float(t[gidx[i]]) for i in hs]
             k_to = [float(t[gidx[i]]) for i in to]
 

@@ -204,10 +204,17 @@ def inconsistent_static_markers(
 def swapped_sides(
     model: Any, kinematics: Any, markers: Array, labels: Sequence[str]
 ) -> list[tuple[str, str, float]]:
-    """Left/right marker pairs whose labels look swapped: in the pelvis frame (``pelvis``
-    body, +z to the right as in gait2392/OpenSim), the median over the solved frames of
-    z(right marker) − z(left marker) is negative. Pairs are model markers of one landmark on
-    both sides (:func:`msk.markersets.parse_label`). Returns (right, left, median Δz in m)."""
+    """Left/right marker pairs whose labels look swapped: the median over the solved frames of
+    (right marker − left marker) · r̂ is negative, r̂ the subject's right. Pairs are model
+    markers of one landmark on both sides (:func:`msk.markersets.parse_label`).
+
+    r̂ comes from the pelvis markers themselves where the trial has both ASIS and a posterior
+    pelvis marker (sacrum or PSIS): r̂ = f̂ × û, f̂ the horizontal direction from the posterior
+    markers' mean to the ASIS midpoint (a midpoint a swap does not move), û the model's
+    vertical — so a swapped ASIS pair is found even when IK, fitting it, turned the pelvis
+    round. Otherwise r̂ is the fitted pelvis's +z (gait2392/OpenSim), and when most pairs look
+    swapped in it (the pelvis fitted the wrong way round) the pairs that do not are reported.
+    Returns (right, left, median in m, signed so that the subject's right is positive)."""
     from msk.markersets import parse_label
 
     if "pelvis" not in model.body_frame:
@@ -218,34 +225,57 @@ def swapped_sides(
         return []
     col = {lab: i for i, lab in enumerate(labels) if lab in set(model.marker_names)}
     by_side: dict[tuple[str, str], str] = {}
+    posterior: list[int] = []
     for lab in col:
         pl = parse_label(lab)
         if pl.side in ("R", "L") and pl.landmark:
             by_side[(pl.landmark, pl.side)] = lab
+        if pl.landmark in ("sacrum", "psis"):
+            posterior.append(col[lab])
     pairs = [(by_side[(lm, "R")], by_side[(lm, "L")]) for lm, sd in by_side if sd == "R"
              and (lm, "L") in by_side]  # fmt: skip
     if not pairs:
         return []
     step = max(1, good.size // 60)
     frames = good[::step]
-    data = model.create_data()
-    fp = model.body_frame["pelvis"]
-    qp = model.coupling.q(q[frames])
-    rot = np.empty((frames.size, 3, 3))
-    org = np.empty((frames.size, 3))
-    for i in range(frames.size):
-        pin.framesForwardKinematics(model.pin_model, data, qp[i])
-        rot[i], org[i] = data.oMf[fp].rotation, data.oMf[fp].translation
-    out = []
     x = np.asarray(markers, dtype=float)[frames]
+    asis = (by_side.get(("asis", "R")), by_side.get(("asis", "L")))
+    if asis[0] is not None and asis[1] is not None and posterior:
+        up = -np.asarray(model.gravity, dtype=float)
+        up = up / np.linalg.norm(up)
+        front = 0.5 * (x[:, col[asis[0]]] + x[:, col[asis[1]]])
+        seen = np.isfinite(x[:, posterior]).all(axis=2)  # (frames, posterior markers)
+        with np.errstate(invalid="ignore", divide="ignore"):
+            back = np.nansum(x[:, posterior], axis=1) / seen.sum(axis=1, keepdims=True)
+        fwd = front - back
+        fwd -= np.outer(fwd @ up, up)
+        right = np.cross(fwd, up)
+        with np.errstate(invalid="ignore", divide="ignore"):
+            right /= np.linalg.norm(right, axis=1, keepdims=True)
+        from_markers = True
+    else:
+        data = model.create_data()
+        fp = model.body_frame["pelvis"]
+        qp = model.coupling.q(q[frames])
+        right = np.empty((frames.size, 3))
+        for i in range(frames.size):
+            pin.framesForwardKinematics(model.pin_model, data, qp[i])
+            right[i] = data.oMf[fp].rotation[:, 2]
+        from_markers = False
+    med: dict[tuple[str, str], float] = {}
     for r, lft in pairs:
-        zr = np.einsum("fi,fi->f", x[:, col[r]] - org, rot[:, :, 2])
-        zl = np.einsum("fi,fi->f", x[:, col[lft]] - org, rot[:, :, 2])
-        dz = zr - zl
+        dz = np.einsum("fi,fi->f", x[:, col[r]] - x[:, col[lft]], right)
         dz = dz[np.isfinite(dz)]
-        if dz.size >= 3 and float(np.median(dz)) < 0.0:
-            out.append((r, lft, float(np.median(dz))))
-    return out
+        if dz.size >= 3:
+            med[(r, lft)] = float(np.median(dz))
+    # without pelvis markers to say where right is, a swapped pelvis pair turns the fitted
+    # pelvis round: then every other pair looks swapped in its frame and the swapped one does
+    # not; the side the majority of pairs agree on is the subject's right
+    reversed_pelvis = not from_markers and (
+        sum(v < 0.0 for v in med.values()) > sum(v > 0.0 for v in med.values())
+    )
+    sign = -1.0 if reversed_pelvis else 1.0
+    return [(r, lft, sign * v) for (r, lft), v in med.items() if sign * v < 0.0]
 
 
 def _flag(trial: str, quantity: str, value: float, threshold: float, message: str) -> Flag:

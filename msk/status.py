@@ -30,6 +30,7 @@ from typing import Any
 
 __all__ = [
     "BOUND_REL_TOL",
+    "FES_DETERMINED_BY_PROTOCOL",
     "FES_NRMSD_MAX_PCT",
     "PRIOR_REL_TOL",
     "PRIOR_SHIFT_PRIOR_STD",
@@ -37,6 +38,7 @@ __all__ = [
     "SEGMENT_MASS_PRIOR_REL_STD",
     "STATUS_CODES",
     "STATUS_MEANING",
+    "STRENGTH_CI_REL_WIDTH_MAX",
     "STRENGTH_R2_MIN",
     "WELL_IDENTIFIED_COM_STD_M",
     "WELL_IDENTIFIED_MASS_REL_STD",
@@ -85,6 +87,13 @@ STATUS_MEANING: dict[str, str] = {
 #: of the moment is then left to the residual, and the factors absorb model error rather than
 #: strength. The same threshold has been the report's "could not be estimated reliably" warning.
 STRENGTH_R2_MIN = 0.5
+#: Largest width of a strength factor's 95 % interval, relative to the factor, for the group to
+#: be ``identified``: ``(ci_high − ci_low) ≤ STRENGTH_CI_REL_WIDTH_MAX · factor`` (a half-width
+#: of ±50 %). Healthy adults' strength relative to a scaled generic model spreads over about
+#: that much (seeds/002 identify factors of 0.6–1.6); an interval wider than the estimate
+#: itself cannot tell a half-strength group from a 1.5× one. An audit found a group called
+#: identified with the interval [0.013, 0.880].
+STRENGTH_CI_REL_WIDTH_MAX = 1.0
 #: Relative tolerance for "on a bound": ``|x − b| ≤ BOUND_REL_TOL · max(1, |b|)``. The bounded
 #: solvers (BVLS, IPOPT) return bound values up to a few rounding steps (e.g. 0.4999999999999999
 #: for 0.5); 1e-6 is far above double rounding and far below any factor difference that matters
@@ -111,6 +120,14 @@ PRIOR_SHIFT_PRIOR_STD = 0.2
 #: parameters to be ``identified``: a quarter of the movement range. The medians of every step
 #: in seeds/000 Table 2 are 3–14 %; only 5 of its 70-odd step fits exceed 25 %.
 FES_NRMSD_MAX_PCT = 25.0
+#: FES model parameters the protocol's data determine (report keys): recovered within 15 % on
+#: at least 12 of the 13 synthetic seeds/000 Table 3 legs with population priors (docs/fes.md,
+#: asserted both ways by ``tests/fes/test_fes_recovery.py``). The others — ``b``, ``F_cm``,
+#: ``k_s``, ``c1``–``c3`` — follow the K_cm/F_cm prior (7–9 legs of 13 within 25–50 %): a good
+#: fit does not make them ``identified``.
+FES_DETERMINED_BY_PROTOCOL: frozenset[str] = frozenset(
+    {"knee.K", "knee.J", "knee.B", "muscle.L_c0"}
+)
 
 
 def _finite(x: float | None) -> bool:
@@ -143,14 +160,16 @@ def strength_status(
     *,
     gated: bool = True,
     r2_min: float = STRENGTH_R2_MIN,
+    ci_rel_width_max: float = STRENGTH_CI_REL_WIDTH_MAX,
     rel_tol: float = BOUND_REL_TOL,
 ) -> Status:
     """Status of one strength group (factor × generic F_iso, bounded to [lower, upper]).
 
     ``gated`` = the group passed the correlation gate (seeds/002 §VI.C); a group that did not
     keeps the generic factor: ``prior``. Otherwise, in this order: a factor on or past a bound
-    is ``at bound``; a non-finite factor or interval, an interval touching a bound, or a fit r²
-    below ``r2_min`` (or unknown) is ``not determined``; else ``identified``.
+    is ``at bound``; a non-finite factor or interval, an interval touching a bound, an interval
+    wider than ``ci_rel_width_max`` × the factor, or a fit r² below ``r2_min`` (or unknown) is
+    ``not determined``; else ``identified``.
     """
     if not gated:
         return Status.PRIOR
@@ -163,6 +182,8 @@ def strength_status(
         return Status.NOT_DETERMINED
     assert ci_low is not None and ci_high is not None
     if _on_or_past(ci_low, lower, upper, rel_tol) or _on_or_past(ci_high, lower, upper, rel_tol):
+        return Status.NOT_DETERMINED
+    if ci_high - ci_low > ci_rel_width_max * abs(factor):
         return Status.NOT_DETERMINED
     if not _finite(r2) or r2 < r2_min:  # type: ignore[operator]
         return Status.NOT_DETERMINED
@@ -237,6 +258,7 @@ def fes_status(
     prior: float | None = None,
     from_prior: bool = False,
     nrmsd_pct: float | None = None,
+    determined: bool = True,
     lower: float = -math.inf,
     upper: float = math.inf,
     nrmsd_max_pct: float = FES_NRMSD_MAX_PCT,
@@ -246,9 +268,10 @@ def fes_status(
 
     ``from_prior``: the protocol sets it from an assumption (geometry from the height, the
     K_cm/F_cm and L_c0/(L_c0 + L_s) ratios) → ``prior``; so is a value equal to its ``prior``
-    (start value) within :data:`PRIOR_REL_TOL`. Otherwise a value on a bound is ``at bound``,
-    and the NRMSD of the protocol step that identified it above ``nrmsd_max_pct`` (or unknown)
-    is ``not determined``; else ``identified``.
+    (start value) within :data:`PRIOR_REL_TOL`. Otherwise a value on a bound is ``at bound``;
+    a parameter the protocol does not determine (``determined=False``: not in
+    :data:`FES_DETERMINED_BY_PROTOCOL`), or whose protocol step fits with an NRMSD above
+    ``nrmsd_max_pct`` (or unknown), is ``not determined``; else ``identified``.
     """
     if not _finite(value):
         return Status.NOT_DETERMINED
@@ -260,7 +283,7 @@ def fes_status(
             return Status.PRIOR
     if _on_or_past(value, lower, upper, rel_tol):
         return Status.AT_BOUND
-    if not _finite(nrmsd_pct) or nrmsd_pct > nrmsd_max_pct:  # type: ignore[operator]
+    if not determined or not _finite(nrmsd_pct) or nrmsd_pct > nrmsd_max_pct:  # type: ignore[operator]
         return Status.NOT_DETERMINED
     return Status.IDENTIFIED
 

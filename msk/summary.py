@@ -587,7 +587,7 @@ class Optimization(_Record):
 
 @dataclass(frozen=True, kw_only=True)
 class FesParameter(_Record):
-    """``fes.parameters[<group>.<name>]``: an identified FES model parameter (SI unit)."""
+    """``fes.parameters[<group>.<name>]``: an FES model parameter as the protocol estimated it (SI unit)."""
 
     value: float | None = None
     unit: str | None = None

@@ -14,8 +14,9 @@ are known to be incomplete must raise the flag that says so, never a silent numb
 
 Every table a config writes equals its golden fingerprint (``tests/golden/``) to 1e-9.
 
-Broken variants (wrong mass, a foot's markers dropped, swapped ASIS labels) raise the gate that
-names the problem.
+Broken variants of every session (wrong mass, a foot's markers dropped, swapped ASIS labels):
+``tests/test_broken_variants.py``; here a short trial (progression < 0.3 m) and both feet on one
+plate.
 """
 
 from __future__ import annotations
@@ -145,36 +146,6 @@ def _variant(cfg: Path, folder: Path, edit) -> Path:
     out = folder / cfg.name
     out.write_text(edit(text), encoding="utf-8")
     return out
-
-
-@pytest.mark.slow
-@pytest.mark.realdata
-def test_broken_variants_raise_the_gate_that_names_the_problem(tmp_path: Path) -> None:
-    cfg = REPO / "pipelines" / "gc6_DM_og1.toml"
-    if not _files_present(cfg):
-        pytest.skip("GC6 DM recordings are not here")
-    # wrong mass (a typo: 50 kg for a 70 kg subject)
-    wrong = _variant(cfg, tmp_path, lambda t: t.replace("mass_kg = 70.0", "mass_kg = 50.0"))
-    q = _run(wrong, tmp_path / "o1").summary["quality"]
-    flag = {f["quantity"]: f for f in q["flags"]}["plate_mass_difference_pct"]
-    assert flag["value"] == pytest.approx(100 * (70.2 - 50) / 50, abs=3)
-    # the right foot's model markers dropped from IK: flagged, never used as if measured
-    foot = ["R.Heel", "R.Midfoot.Sup", "R.Midfoot.Lat", "R.Toe.Tip", "R.Toe.Lat", "R.Toe.Med"]
-    weights = "weights = { " + ", ".join(f'"{m}" = 0.0' for m in foot) + " }\n"
-    nofoot = _variant(cfg, tmp_path, lambda t: t.replace("[markers]\n", "[markers]\n" + weights))
-    q = _run(nofoot, tmp_path / "o2").summary["quality"]
-    # (the lab's other foot markers, placed from the walk, still see the foot: what breaks is
-    # the foot's orientation, and the gate says so)
-    named = {f["quantity"] for f in q["flags"]}
-    assert any(re.match(r"(calcn_r|subtalar_angle_r|ankle_angle_r)", n) for n in named), named
-    # left and right ASIS swapped by a labelling error: IK cannot fit, flagged
-    swap = _variant(
-        cfg, tmp_path,
-        lambda t: t.replace("[markers]\n", '[markers]\nrename = { "R.ASIS" = "L_Asis", '
-                            '"L.ASIS" = "R_Asis" }\n'),
-    )  # fmt: skip
-    q = _run(swap, tmp_path / "o3").summary["quality"]
-    assert "R.ASIS/L.ASIS_swapped" in {f["quantity"] for f in q["flags"]}
 
 
 def _crop_c3d(src: Path, dst: Path, f0: int, f1: int) -> Path:

@@ -1,8 +1,12 @@
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+from hypothesis.extra.numpy import arrays
+from scipy.signal import find_peaks as scipy_find_peaks
 
 from msk.exceptions import MissingDataError, MskError
-from msk.signal import block_average, derivative, filtfilt_butter, resample_to
+from msk.signal import block_average, derivative, filtfilt_butter, find_peaks, resample_to
 
 
 def test_lowpass_keeps_slow_removes_fast_without_lag():
@@ -74,3 +78,30 @@ def test_fill_gaps_bad_options():
     with pytest.raises(MskError, match="max_gap"):
         fill_gaps(np.ones(5), max_gap=-1)
     np.testing.assert_array_equal(fill_gaps(np.array([np.nan, 1.0, np.nan])), [np.nan, 1.0, np.nan])
+
+
+# ---- find_peaks: the same selection as scipy.signal.find_peaks ---------------------------------
+@settings(max_examples=300, deadline=None)
+@given(
+    # few distinct levels: plateaus, equal heights and ties in the distance filter are common
+    x=arrays(np.float64, st.integers(0, 80), elements=st.integers(-4, 4).map(float)),
+    distance=st.integers(1, 12),
+    prominence=st.sampled_from([0.0, 0.5, 1.0, 2.5, 6.0]),
+)
+def test_find_peaks_matches_scipy(x, distance, prominence):
+    kwargs = {"distance": distance} | ({"prominence": prominence} if prominence > 0 else {})
+    expected, _ = scipy_find_peaks(x, **kwargs)
+    np.testing.assert_array_equal(find_peaks(x, distance=distance, prominence=prominence), expected)
+
+
+def test_find_peaks_on_a_smooth_signal_and_bad_arguments():
+    t = np.linspace(0, 4, 401)
+    x = np.sin(2 * np.pi * t) + 0.3 * np.sin(2 * np.pi * 7 * t)
+    for d, p in [(1, 0.0), (30, 0.2), (60, 1.0)]:
+        expected, _ = scipy_find_peaks(x, distance=d, prominence=p or None)
+        np.testing.assert_array_equal(find_peaks(x, distance=d, prominence=p), expected)
+    assert find_peaks(x, distance=60, prominence=1.0).size == 4  # one per period
+    with pytest.raises(MskError, match="distance"):
+        find_peaks(x, distance=0)
+    with pytest.raises(MskError, match="1-D"):
+        find_peaks(np.ones((3, 3)))

@@ -12,6 +12,7 @@ from hypothesis import strategies as st
 
 from msk.status import (
     STATUS_CODES,
+    STRENGTH_CI_REL_WIDTH_MAX,
     STRENGTH_R2_MIN,
     Status,
     fes_status,
@@ -67,6 +68,19 @@ def test_an_interval_touching_a_bound_is_never_identified(factor, other, side, r
     lo, hi = (LO, max(factor, other)) if side == "low" else (min(factor, other), HI)
     s = strength_status(factor, lo, hi, LO, HI, r2)
     assert s != Status.IDENTIFIED and s == Status.NOT_DETERMINED
+
+
+def test_a_wide_interval_is_not_identified():
+    # the audit's case: bounds [0, 3], factor 0.45, interval 0.013–0.880 (wider than the factor)
+    assert strength_status(0.45, 0.013, 0.880, 0.0, 3.0, 0.8) == "not determined"
+    assert strength_status(0.45, 0.30, 0.70, 0.0, 3.0, 0.8) == "identified"
+
+
+@given(factor=inside, ci=st.tuples(inside, inside), r2=good_r2)
+def test_identified_means_an_interval_narrower_than_the_factor(factor, ci, r2):
+    lo, hi = min(ci), max(ci)
+    s = strength_status(factor, lo, hi, LO, HI, r2)
+    assert (s == Status.IDENTIFIED) == (hi - lo <= STRENGTH_CI_REL_WIDTH_MAX * factor)
 
 
 @given(factor=inside, ci=st.tuples(inside, inside), r2=st.floats(-10.0, STRENGTH_R2_MIN))
@@ -133,6 +147,9 @@ def test_gain_and_fes_status():
     assert fes_status(0.04, from_prior=True) == "prior"
     assert fes_status(3.0, prior=3.0, nrmsd_pct=2.0) == "prior"
     assert fes_status(3.5, prior=3.0, nrmsd_pct=2.0) == "identified"
+    # k_s after a good fit: the protocol does not determine it (docs/fes.md recovery)
+    assert fes_status(3.5, prior=3.0, nrmsd_pct=2.0, determined=False) == "not determined"
+    assert fes_status(3.0, prior=3.0, nrmsd_pct=2.0, determined=False) == "prior"
     assert fes_status(3.5, prior=3.0, nrmsd_pct=40.0) == "not determined"
     assert fes_status(1e6, prior=3.0, nrmsd_pct=2.0, upper=1e6) == "at bound"
 

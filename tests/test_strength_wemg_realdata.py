@@ -71,6 +71,8 @@ from msk.muscles.hill import Thelen2003Curves, rigid_tendon_state
 from msk.optimization import EMGWeightSweep, emg_weight_sweep
 from msk.strength import StrengthIdentifier, StrengthProfile, WEmgStability, w_emg_stability
 from tests.support.gc5 import (
+    GAIN_COORDS,
+    GAIN_GROUPS,
     TRIALS,
     W_EMGS,
     Gc5Run,
@@ -82,20 +84,10 @@ from tests.support.gc5 import (
     session_peaks,
 )
 
-#: functional synergist groups sharing one factor (seeds/002 §V, seeds/003 Eq. 19–20)
-GROUPS: dict[str, tuple[str, ...]] = {
-    "knee_extensors": ("vas_med_l", "vas_lat_l", "rect_fem_l"),
-    "knee_flexors": ("semimem_l", "semiten_l", "bifemlh_l"),
-    "plantar_flexors": ("med_gas_l", "lat_gas_l", "soleus_l"),
-    "dorsiflexors": ("tib_ant_l",),
-    "evertors": ("per_long_l", "per_brev_l"),
-    "hip_extensors": ("glut_max1_l", "glut_max2_l", "glut_max3_l"),
-    "adductors": ("add_mag1_l", "add_mag2_l", "add_mag3_l"),
-    "hip_flexors": ("tfl_l", "sar_l"),
-}
+#: functional synergist groups sharing one factor (seeds/002 §V, seeds/003 Eq. 19–20) and the
 #: coordinates of the regression (hip rotation and the foot joints are left out: the measured
-#: groups explain little of them)
-COORDS = ("hip_flexion_l", "hip_adduction_l", "knee_angle_l", "ankle_angle_l")
+#: groups explain little of them): the GC5 chain's
+GROUPS, COORDS = GAIN_GROUPS, GAIN_COORDS
 #: the main measured muscles of the tables
 SHOW = ("vas_lat_l", "rect_fem_l", "semimem_l", "med_gas_l", "soleus_l")
 STRENGTH_BOUNDS = (0.5, 2.0)

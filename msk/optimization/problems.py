@@ -1201,29 +1201,10 @@ def _run_batch(
         times[k] = raw.solve_time_s
     if carry is not None and warm_start:
         carry.state, carry.started = warm, True
-    alo, aup = active_masks(xs, lbs, ubs)
-    terr = tau + np.einsum("kmn,km->kn", jac, forces)
-    resid = terr - rt
-    t = None if time is None else as_float(time, (n_frames,), "time")
-    return BatchSolution(
-        forces=forces,
-        activations=acts,
-        reserve_controls=rc,
-        reserve_torques=rt,
-        torque_error=terr,
-        residual=resid,
-        residual_norm=np.linalg.norm(resid, axis=1),
-        kkt=kk,
-        active_lower=alo,
-        active_upper=aup,
-        status=status,
-        iterations=iters,
-        solve_time_s=times,
-        solver=solver,
-        muscle_names=muscle_names,
-        coordinate_names=coordinate_names,
-        time=t,
-    )
+    return _batch_solution(
+        xs, lbs, ubs, forces, acts, rc, rt, tau, jac, kk, status, iters, times, solver,
+        muscle_names, coordinate_names, time,
+    )  # fmt: skip
 
 
 def _run_blocks(
@@ -1287,7 +1268,35 @@ def _run_blocks(
     rt[:, lay.reserve_idx] = lay.reserve_opt * x[:, m:]
     lbs = np.broadcast_to(build.lb[..., :m], (n_frames, m))
     ubs = np.broadcast_to(build.ub[..., :m], (n_frames, m))
-    alo, aup = active_masks(x[:, :m], lbs, ubs)
+    return _batch_solution(
+        x[:, :m], lbs, ubs, forces, acts, rc, rt, tau, jac, kk, status, iters, times,
+        _EXACT_SOLVER, muscle_names, coordinate_names, time,
+    )  # fmt: skip
+
+
+def _batch_solution(
+    x_muscles: FloatArray,
+    lbs: FloatArray,
+    ubs: FloatArray,
+    forces: FloatArray,
+    acts: FloatArray | None,
+    rc: FloatArray,
+    rt: FloatArray,
+    tau: FloatArray,
+    jac: FloatArray,
+    kk: FloatArray,
+    status: Any,
+    iters: Any,
+    times: Any,
+    solver: str,
+    muscle_names: Any,
+    coordinate_names: Any,
+    time: ArrayLike | None,
+) -> BatchSolution:
+    """The :class:`BatchSolution` of solved frames: active bounds from the muscle variables
+    ``x_muscles`` and their bounds, torque error τ + Jᵀf and residual (error − reserves)."""
+    n_frames = forces.shape[0]
+    alo, aup = active_masks(x_muscles, lbs, ubs)
     terr = tau + np.einsum("kmn,km->kn", jac, forces)
     resid = terr - rt
     t = None if time is None else as_float(time, (n_frames,), "time")
@@ -1305,7 +1314,7 @@ def _run_blocks(
         status=status,
         iterations=iters,
         solve_time_s=times,
-        solver=_EXACT_SOLVER,
+        solver=solver,
         muscle_names=muscle_names,
         coordinate_names=coordinate_names,
         time=t,

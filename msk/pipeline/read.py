@@ -68,15 +68,10 @@ def run(inputs: SessionInputs) -> ReadResult:
 def read_static_markers(
     path: Path, up: np.ndarray
 ) -> tuple[np.ndarray, tuple[str, ...], np.ndarray, Any]:
-    """Markers of a static trial in the model frame: a .trc is already in it; a .c3d is rotated
-    (lab vertical → model ``up``, no heading: the subject stands still); and the file's
-    :class:`msk.trial.Subject` (None for a .trc)."""
-    if path.suffix.lower() == ".trc":
-        from msk.io.opensim_files import read_trc
+    """Markers of a static trial in the model frame (any format :func:`msk.io.read_trial`
+    reads, rotated so that its vertical is the model's ``up``; no heading: the subject stands
+    still) and the file's :class:`msk.trial.Subject`."""
+    from msk.io import read_trial, to_model_frame
 
-        t = read_trc(path)
-        return t.markers, t.labels, t.time, None
-    from msk.io import read_c3d, to_model_frame
-
-    tr = to_model_frame(read_c3d(path), up=up, forward=None)
+    tr = to_model_frame(read_trial(path), up=up, forward=None)
     return tr.markers, tr.marker_labels, tr.time, tr.subject

@@ -273,9 +273,9 @@ def _flags(
         flags.append(
             {"trial": task.name, "quantity": f"{r}/{lft}_swapped", "value": dz,
              "threshold": 0.0,
-             "message": f"{r} is {-1000 * dz:.0f} mm left of {lft} in the pelvis frame: "
-             "their labels look swapped (a labelling error in the file, or the wrong "
-             "side in the config)"}
+             "message": f"{r} is {-1000 * dz:.0f} mm left of {lft} (the subject's right "
+             "from the pelvis): their labels look swapped (a labelling error in the file, or "
+             "the wrong side in the config)"}
         )  # fmt: skip
     bad = dict(model.info.get("static_check", {}).get("contradicted_m", {}))
     if bad:

@@ -18,6 +18,7 @@ import numpy as np
 
 from msk.results import SessionResults
 from msk.status import (
+    FES_DETERMINED_BY_PROTOCOL,
     FES_NRMSD_MAX_PCT,
     STATUS_MEANING,
     STRENGTH_R2_MIN,
@@ -1296,6 +1297,7 @@ def _fes_section(res: SessionResults, figs: Mapping[str, str], number: int) -> s
             prior=initial.get(key),
             from_prior=step is None,
             nrmsd_pct=fit.nrmsd_pct if fit else None,
+            determined=key in FES_DETERMINED_BY_PROTOCOL,
         ).value
         rows.append(
             [

@@ -58,6 +58,7 @@ __all__ = [
     "THESIS_NAMES",
     "Seed003Comparison",
     "rajagopal_calibration_data",
+    "rajagopal_walk",
     "seed003_comparison",
 ]
 
@@ -140,14 +141,12 @@ PAPER: dict[str, Any] = {
 }  # fmt: skip
 
 
-def rajagopal_calibration_data(real_dir: Path | str, ref_dir: Path | str) -> tuple[Any, dict]:
-    """The twelve muscles' parameters (``subject_walk_scaled.osim``) and the Rajagopal walk at
-    100 Hz over 0.45–1.80 s: time ``t``, EMG envelopes ``e`` (mean of each 2 kHz column on the
-    time grid, clipped to [0, 1]), musculotendon lengths ``lmt``, velocities ``vmt``, moment
-    arms ``r`` (knee, ankle) from msk's geometry along the recorded coordinates and the ID
-    moments ``m``."""
+def rajagopal_walk(real_dir: Path | str, ref_dir: Path | str) -> tuple[Any, Any, Any, Array, Any]:
+    """The Rajagopal walk on ``subject_walk_scaled.osim`` at :data:`RATE_HZ` over 0.45–1.80 s:
+    the model, the ID and EMG tables, the time grid and msk's muscle geometry along the
+    recorded coordinates (coordinates the file does not hold at 0)."""
     from msk.io.opensim_files import read_sto
-    from msk.muscles.geometry import muscle_geometry, muscle_parameters
+    from msk.muscles.geometry import muscle_geometry
     from msk.osim import load_osim
 
     d = Path(real_dir) / "opensim-rajagopal-walk"
@@ -163,7 +162,18 @@ def rajagopal_calibration_data(real_dir: Path | str, ref_dir: Path | str) -> tup
             for n in model.coordinate_names
         ]
     )
-    geo = muscle_geometry(model, q, np.gradient(q, 1.0 / RATE_HZ, axis=0))
+    return model, ids, emg, t, muscle_geometry(model, q, np.gradient(q, 1.0 / RATE_HZ, axis=0))
+
+
+def rajagopal_calibration_data(real_dir: Path | str, ref_dir: Path | str) -> tuple[Any, dict]:
+    """The twelve muscles' parameters (``subject_walk_scaled.osim``) and the Rajagopal walk at
+    100 Hz over 0.45–1.80 s (:func:`rajagopal_walk`): time ``t``, EMG envelopes ``e`` (mean of
+    each 2 kHz column on the time grid, clipped to [0, 1]), musculotendon lengths ``lmt``,
+    velocities ``vmt``, moment arms ``r`` (knee, ankle) from msk's geometry along the recorded
+    coordinates and the ID moments ``m``."""
+    from msk.muscles.geometry import muscle_parameters
+
+    model, ids, emg, t, geo = rajagopal_walk(real_dir, ref_dir)
     names = tuple(EMG_MAP)
     idx = [geo.muscle_index(m) for m in names]
     cidx = [geo.coordinate_index(c) for c in COORDS]

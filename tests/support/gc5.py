@@ -390,8 +390,9 @@ def emg_inputs(name: str, mass: str, move: tuple[str, ...]) -> dict[str, Any]:
     return {"act": act, "measured": measured, "channel": tuple(channel), "sel": sel}
 
 
-#: synergist groups sharing one gain in the StrengthIdentifier reading (as in
-#: tests/test_strength_wemg_realdata.py) and the coordinates of its regression
+#: synergist groups sharing one gain in the StrengthIdentifier reading and the coordinates of
+#: its regression (hip rotation and the foot joints left out: the measured groups explain
+#: little of them); tests/test_strength_wemg_realdata.py uses them too
 GAIN_GROUPS: dict[str, tuple[str, ...]] = {
     "knee_extensors": ("vas_med_l", "vas_lat_l", "rect_fem_l"),
     "knee_flexors": ("semimem_l", "semiten_l", "bifemlh_l"),
