@@ -844,6 +844,7 @@ def contact_measured(
     threshold_n: float = 20.0,
     height_m: float = 0.08,
     speed_mps: float = 0.5,
+    pad_s: float | None = None,
 ) -> NDArray[np.bool_]:
     """(N,) bool: the frames whose ground contact is all measured — every foot on the ground
     carries a plate load.
@@ -867,6 +868,15 @@ def contact_measured(
     strike to toe-off the lowest foot point is ≤ 6 cm above the floor and the slowest one moves
     at < 0.3 m/s; in swing it moves at > 1 m/s but in the last frame or two before heel strike
     (those, unloaded, count as unmeasured: conservative).
+
+    ``pad_s``: each run of frames in which a foot is on the ground is widened by this much on
+    both sides; None (default): a quarter of the period of the kinematics' low-pass cutoff,
+    1/(4 f_c) (42 ms at 6 Hz; none when unfiltered). The zero-lag low-pass filter spreads the
+    foot's stop at heel strike and its start at toe-off over about that time, so the filtered
+    foot speeds stay above ``speed_mps`` in the first and last frames of a contact that
+    already (still) carries load: UWA's fast walk (250 Hz, 6 Hz), left foot off the plates at
+    2.47 s (slowest point 1.2 m/s, 9 mm above the floor) and again from 2.90 s (0.8 m/s), with
+    the plate's vertical force 164 and 370 N short of m(g + a_com,z) there.
     """
     t = np.asarray(kinematics.time, dtype=float)
     q = np.asarray(kinematics.q, dtype=float)
@@ -899,6 +909,17 @@ def contact_measured(
         for h, v in levels:
             speed = np.stack([np.nanmin(np.linalg.norm(x - v, axis=2), axis=1) for x in vel], 1)
             grounded |= (np.abs(low - h) <= height_m) & (speed <= speed_mps)
+    if pad_s is None:
+        cut = getattr(kinematics, "cutoff_hz", None)
+        pad_s = 0.25 / float(cut) if cut else 0.0
+    if pad_s > 0.0 and n > 1:
+        dt = float(np.median(np.diff(t)))
+        w = round(pad_s / dt) if dt > 0 else 0
+        if w > 0:
+            # widen every grounded run by w frames each side (a running maximum)
+            g = np.pad(grounded, ((w, w), (0, 0)))
+            c = np.concatenate([np.zeros((1, g.shape[1]), int), np.cumsum(g, axis=0)])
+            grounded = (c[2 * w + 1 :] - c[: -(2 * w + 1)]) > 0
     fv = np.zeros((n, len(feet)))
     for k, foot in enumerate(feet):
         for b in model.subtree(foot):

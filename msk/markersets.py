@@ -77,6 +77,7 @@ __all__ = [
     "SIDED_SYNONYMS",
     "MarkerSetMatch",
     "ParsedLabel",
+    "foot_markers",
     "parse_label",
     "recognise",
     "shoulder_girdle_markers",
@@ -414,6 +415,36 @@ def shoulder_girdle_markers(labels: Sequence[str], model_bodies: Sequence[str]) 
         ):
             out.append(lab)
     return tuple(out)
+
+
+#: landmarks on the foot (calcaneus, metatarsal heads, midfoot, toes)
+FOOT_LANDMARKS: frozenset[str] = frozenset(
+    (
+        "heel",
+        "toe_tip",
+        "mt1",
+        "mt2",
+        "mt5",
+        "midfoot_sup",
+        "midfoot_lat",
+        "midfoot_med",
+        "hindfoot",
+    )
+)
+
+
+def foot_markers(labels: Sequence[str]) -> tuple[str, ...]:
+    """The labels naming a landmark of the foot (:data:`FOOT_LANDMARKS`: heel, metatarsal
+    heads, midfoot, toe tip).
+
+    Where a lab puts these is its own choice (height of the heel marker on the calcaneus,
+    which metatarsal head, on the dorsum or on the side): without a static trial nothing else
+    tells where they sit on the subject's foot, and a model's generic offsets leave them
+    20–35 mm off through a walk (OpenSim's Rajagopal walk on gait2392: R.Toe.Lat 34.8 mm,
+    heels 22–24 mm; UWA's calcaneus and metatarsal heads alike). The pipeline moves them
+    (:func:`msk.scaling.place_markers_from_motion`, ``move``) when there is no static trial.
+    """
+    return tuple(lab for lab in labels if parse_label(lab).landmark in FOOT_LANDMARKS)
 
 
 @dataclass(frozen=True)

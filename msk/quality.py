@@ -29,6 +29,9 @@ Thresholds and their sources (:data:`THRESHOLDS`):
   strength is short of the task for a quarter of it), reserve actuators
   carrying more than 10 % of a leg coordinate's peak joint torque (RMS).
 * Duplicate marker labels in the file; segments left at the generic size (no scaling).
+* Static-trial markers whose distances to the markers of their own segment disagree with the
+  motion trial's by more than 25 mm (median over at least 3 partners,
+  :func:`inconsistent_static_markers`): a mislabelled, swapped or ghost marker in the static.
 """
 
 from __future__ import annotations
@@ -39,7 +42,7 @@ from typing import Any
 
 import numpy as np
 import pinocchio as pin
-from numpy.typing import NDArray
+from numpy.typing import ArrayLike, NDArray
 
 Array = NDArray[np.float64]
 
@@ -50,6 +53,7 @@ __all__ = [
     "body_mass_from_loads",
     "contact_flags",
     "gait_flags",
+    "inconsistent_static_markers",
     "swapped_sides",
 ]
 
@@ -65,6 +69,7 @@ THRESHOLDS: Mapping[str, float] = {
     "saturated_frames_pct": 25.0,
     "reserve_rms_pct_peak_torque": 10.0,
     "saturation_activation": 0.99,
+    "static_marker_discrepancy_m": 0.025,
 }
 
 #: physiological joint ranges (deg) by coordinate stem, gait2392/OpenSim sign conventions
@@ -133,6 +138,67 @@ def body_mass_from_loads(
         vz.append(float(np.asarray(data.vcom[0]) @ up))
     den = g * float(t[i1 - 1] - t[i0]) + vz[1] - vz[0]
     return impulse / den if den > 0 else None
+
+
+def inconsistent_static_markers(
+    static: ArrayLike,
+    static_labels: Sequence[str],
+    motion: ArrayLike,
+    motion_labels: Sequence[str],
+    *,
+    rigid_sd_m: float = 0.008,
+    min_partners: int = 3,
+    min_frames: int = 10,
+    threshold_m: float = THRESHOLDS["static_marker_discrepancy_m"],
+    skip: Sequence[str] = (),
+) -> dict[str, float]:
+    """Static-trial markers whose labels the motion trial contradicts.
+
+    Two markers on one segment keep their distance through a motion (skin motion aside):
+    d_ab(t) = ‖x_a(t) − x_b(t)‖ with a standard deviation below ``rigid_sd_m`` over the
+    motion's frames (``min_frames`` frames seeing both) makes (a, b) a *rigid pair*. A
+    static label names the same marker as the motion's when the static distance (median over
+    its frames) matches the motion's median, e_ab = |d̄_ab^static − d̄_ab^motion|. A marker
+    with at least ``min_partners`` rigid partners whose median discrepancy med_b e_ab exceeds
+    ``threshold_m`` is not where its label says in the static (a mislabelled or swapped label,
+    a ghost trajectory): one wrong marker raises a single e_ab of each partner, so the median
+    names the wrong one (both, for a swap). The motion decides because it has many frames and
+    the static's error would otherwise be carried into the scaling and the placement of every
+    marker.
+
+    ``skip``: labels neither checked nor used as partners — markers that are not fixed to a
+    bone of the model between the two trials (acromia on a model without shoulder girdle:
+    the scapula moves with the arms, 29–34 mm against C7 between UNIPD's arms-out static and
+    its walks, :func:`msk.markersets.shoulder_girdle_markers`).
+
+    Both trials (N, M, 3) in metres with NaN gaps, any frame (distances only). Returns
+    label → median discrepancy (m) for the contradicted markers (UNIPD's ``Static1``: ``RIMH``
+    seen in 1 frame of 107, 7 mm from ``RLM`` where the walks hold them 179 mm apart).
+    """
+    xs = np.asarray(static, dtype=float)
+    xm = np.asarray(motion, dtype=float)
+    js = {lab: i for i, lab in reversed(list(enumerate(static_labels)))}
+    jm = {lab: i for i, lab in reversed(list(enumerate(motion_labels)))}
+    common = [lab for lab in js if lab in jm and lab not in set(skip)]
+    err: dict[str, list[float]] = {lab: [] for lab in common}
+    for k, a in enumerate(common):
+        for b in common[k + 1 :]:
+            dm = np.linalg.norm(xm[:, jm[a]] - xm[:, jm[b]], axis=1)
+            dm = dm[np.isfinite(dm)]
+            if dm.size < min_frames or float(np.std(dm)) > rigid_sd_m:
+                continue
+            ds = np.linalg.norm(xs[:, js[a]] - xs[:, js[b]], axis=1)
+            ds = ds[np.isfinite(ds)]
+            if ds.size == 0:
+                continue
+            e = abs(float(np.median(ds)) - float(np.median(dm)))
+            err[a].append(e)
+            err[b].append(e)
+    out: dict[str, float] = {}
+    for lab, es in err.items():
+        if len(es) >= min_partners and float(np.median(es)) > threshold_m:
+            out[lab] = float(np.median(es))
+    return out
 
 
 def swapped_sides(

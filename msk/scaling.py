@@ -504,6 +504,7 @@ def place_markers(
     hints: Mapping[str, str] | None = None,
     centres: Mapping[str, tuple[str, ArrayLike, ArrayLike]] | None = None,
     coordinate_tasks: Mapping[str, tuple[float, float]] | None = None,
+    relocate: Sequence[str] = (),
 ) -> tuple[Model, dict[str, Any]]:
     """Add the static trial's non-model markers to ``model`` (OpenSim's MarkerPlacer idea).
 
@@ -538,6 +539,12 @@ def place_markers(
     ``move`` names model markers that are not anatomical (technical clusters: a lab puts them
     where it likes): θ̄ is solved without them and they are moved, on their own body, to where
     the static trial puts them — OpenSim's ``move_model_markers`` restricted to these markers.
+    ``relocate`` names model markers that pin θ̄ and are then moved alike (OpenSim's
+    MarkerPlacer with these markers not ``fixed``): the static pose is the generic markers'
+    best fit, and the subject's landmarks sit where the static puts them relative to it, not
+    at the generic offsets (a lateral epicondyle marker 26 mm above gait2392's on UNIPD's
+    subject, in the femur frame through the walk; the knee and ankle markers left 34–38 mm
+    off by a thigh scaled between joint centres).
     Shoulder-girdle markers of a model without that segment (acromia on gait2392's torso) are
     always moved (:func:`_girdle_moved`).
 
@@ -548,12 +555,14 @@ def place_markers(
         time: (N,) s.
         max_distance_m: largest distance of a placed marker from its bone segment.
         move: model markers to move to their static positions (on their body).
+        relocate: model markers that pin θ̄ and are then moved to their static positions.
 
     Returns:
         The model with the markers added, and ``{"static_marker_rms_m", "placed",
-        "not_markers", "too_far", "moved"}`` (placed: marker → body; not_markers: the labels
-        left out as not measured markers; too_far: marker → [nearest body, distance in m] of
-        the markers left out by ``max_distance_m``; moved: marker → displacement in m).
+        "not_markers", "too_far", "moved", "relocated"}`` (placed: marker → body;
+        not_markers: the labels left out as not measured markers; too_far: marker → [nearest
+        body, distance in m] of the markers left out by ``max_distance_m``; moved, relocated:
+        marker → displacement in m).
 
     Raises:
         ModelError: a ``move`` name is not a model marker.
@@ -608,12 +617,19 @@ def place_markers(
         mean = np.nanmean(static_markers, axis=0)
     known = set(model.marker_names)
     where = {lab: i for i, lab in enumerate(labels)}
-    markers, moved = list(model.markers), {}
+    markers = list(model.markers)
+    moved: dict[str, float] = {}
+    relocated: dict[str, float] = {}
     for k, mk in enumerate(markers):
         i = where.get(mk.name)
-        if mk.name in move and i is not None and np.isfinite(mean[i]).all():
+        if (
+            (mk.name in move or mk.name in relocate)
+            and i is not None
+            and np.isfinite(mean[i]).all()
+        ):
             local = np.asarray(data.oMf[model.body_frame[mk.body]].actInv(mean[i]), dtype=float)
-            moved[mk.name] = float(np.linalg.norm(local - np.asarray(mk.offset, dtype=float)))
+            d = float(np.linalg.norm(local - np.asarray(mk.offset, dtype=float)))
+            (moved if mk.name in move else relocated)[mk.name] = d
             markers[k] = Marker(mk.name, mk.body, local)
     added = []
     placed: dict[str, str] = {}
@@ -645,6 +661,7 @@ def place_markers(
         "not_markers": not_markers,
         "too_far": too_far,
         "moved": moved,
+        "relocated": relocated,
     }
     return model.with_markers([*markers, *added]), info
 

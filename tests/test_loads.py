@@ -290,3 +290,30 @@ def test_contact_measured_flags_a_foot_on_the_floor_beside_the_plates():
     gap = dataclasses.replace(still, q=gap_q)
     m = contact_measured(MODEL, gap, full)
     assert not m[5] and m[np.arange(t.size) != 5].all()
+
+
+def test_contact_measured_widens_ground_contact_by_the_kinematic_filter_spread():
+    """A hop (feet 0.2 m up for 0.3 s, plates unloaded): the feet leave and reach the floor
+    within a frame, so unpadded every frame is measured; ``pad_s`` = 0.05 s (100 Hz: 5
+    frames) widens each foot's ground contact into the flight, where it carries no load: the
+    first and last frames of the flight are not measured, the rest are. The default pad is
+    1/(4 f_c) of the kinematics' cutoff (none when unfiltered)."""
+    from msk.loads import contact_measured
+
+    t = KIN.time
+    q = np.repeat(TRIAL.q[:1], t.size, axis=0)
+    still = dataclasses.replace(KIN, q=q, v=np.zeros_like(q), a=np.zeros_like(q))
+    window = (t > 0.3) & (t < 0.6)
+    hop_q = q.copy()
+    hop_q[window, MODEL.coordinate_index("pelvis_ty")] += 0.2
+    hop = dataclasses.replace(still, q=hop_q)
+    loads = external_loads(MODEL, hop, tuple(_unloaded_between(p, 0.3, 0.6) for p in TRIAL.plates))
+    assert contact_measured(MODEL, hop, loads).all()
+    idx = np.flatnonzero(window)
+    padded = contact_measured(MODEL, hop, loads, pad_s=0.05)
+    # the frame next to each jump moves fast (central differences): it is not on the ground,
+    # so the pad reaches 4 frames into the flight
+    assert not padded[idx[:4]].any() and not padded[idx[-4:]].any()
+    assert padded[idx[5:-5]].all() and padded[~window].all()
+    filtered = dataclasses.replace(hop, cutoff_hz=5.0)  # 1/(4·5 Hz) = 0.05 s
+    np.testing.assert_array_equal(contact_measured(MODEL, filtered, loads), padded)

@@ -240,3 +240,14 @@ def test_shoulder_girdle_markers_only_for_a_model_without_that_segment():
         "R.Acromium", "LSHO", "RA", "RShoulder", "RCLAV"
     )  # fmt: skip
     assert shoulder_girdle_markers(labels, ["pelvis", "torso", "humerus_r"]) == ()
+
+
+def test_foot_markers_are_the_foot_landmarks():
+    """Heel, metatarsal heads, toe tip and midfoot labels of any grammar; not the ankle, knee
+    or pelvis."""
+    from msk.markersets import foot_markers
+
+    labels = ["R.Heel", "LCA", "RVMH", "L.Toe.Tip", "R.Toe.Med", "RMidfootSuperior", "RLM",
+              "R.Knee.Lat", "LASIS", "R.Ankle.Lat"]  # fmt: skip
+    assert foot_markers(labels) == ("R.Heel", "LCA", "RVMH", "L.Toe.Tip", "R.Toe.Med",
+                                    "RMidfootSuperior")  # fmt: skip

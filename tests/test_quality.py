@@ -67,3 +67,41 @@ def test_no_flag_within_thresholds():
     flags = _flags(model, kin, ik_marker_rms_mean_m=0.012, residual_force_rms_pct_bw=3.0,
                    residual_moment_rms_nm=2.0, plate=71.0)  # fmt: skip
     assert flags == []
+
+
+def _rigid_motion(local: np.ndarray, n: int, shift: float) -> np.ndarray:
+    """(n, M, 3) markers of one rigid segment moving (rotation about z, translation)."""
+    ang = np.linspace(0.0, 1.2, n)
+    c, s = np.cos(ang), np.sin(ang)
+    rot = np.stack([[c, -s, 0 * c], [s, c, 0 * c], [0 * c, 0 * c, 1 + 0 * c]]).transpose(2, 0, 1)
+    tr = np.stack([np.linspace(0, 1.5, n) + shift, np.zeros(n), np.full(n, 0.5)], axis=1)
+    return np.einsum("fij,mj->fmi", rot, local) + tr[:, None, :]
+
+
+def test_inconsistent_static_markers_names_a_swapped_or_ghost_static_label():
+    """Two rigid segments of 4 markers each (truth: 2 mm skin noise): the clean static agrees
+    with the motion (nothing named); the static with labels A2 and B2 swapped names both, and
+    nothing else; a ghost A3 seen in one static frame 7 mm from A1 is named; a skipped label
+    is neither checked nor a partner."""
+    from msk.quality import inconsistent_static_markers
+
+    rng = np.random.default_rng(3)
+    a = np.array([[0, 0, 0], [0.2, 0, 0], [0, 0.15, 0], [0.1, 0.1, 0.08]])
+    b = np.array([[0, 0, 0], [0.18, 0, 0], [0, 0.12, 0], [0.09, 0.05, 0.1]])
+    labels = ("A0", "A1", "A2", "A3", "B0", "B1", "B2", "B3")
+    n = 200
+    motion = np.concatenate(
+        [_rigid_motion(a, n, 0.0), _rigid_motion(b, n, 0.6)[:, :, [1, 0, 2]]], axis=1
+    )
+    motion += rng.normal(0.0, 0.002, motion.shape)
+    static = motion[:30] + rng.normal(0.0, 0.002, motion[:30].shape)
+    assert inconsistent_static_markers(static, labels, motion, labels) == {}
+    swapped = static[:, [0, 1, 6, 3, 4, 5, 2, 7]]
+    bad = inconsistent_static_markers(swapped, labels, motion, labels)
+    assert set(bad) == {"A2", "B2"}
+    assert all(d > THRESHOLDS["static_marker_discrepancy_m"] for d in bad.values())
+    ghost = static.copy()
+    ghost[:, 3] = np.nan
+    ghost[0, 3] = ghost[0, 1] + np.array([0.007, 0.0, 0.0])
+    assert set(inconsistent_static_markers(ghost, labels, motion, labels)) == {"A3"}
+    assert inconsistent_static_markers(ghost, labels, motion, labels, skip=["A3"]) == {}

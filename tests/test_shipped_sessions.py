@@ -42,7 +42,7 @@ BORDERLINE = {"residual_moment_rms_pct_com_height_peak_force", "residual_force_r
               "optimization_excluded_frames"}  # fmt: skip
 
 EXPECT: dict[str, dict] = {
-    "gc5_PS": {"ik_mm": 11, "res_pct": 5, "must": set(), "may": set()},
+    "gc5_PS": {"ik_mm": 10, "res_pct": 5, "must": set(), "may": set()},
     # subtalar 8–44° before the given knee alignment, 12–48° with it (flagged above 45°: no
     # static trial, foot markers placed from the walk; docs/validation.md)
     "gc6_DM_og1": {"ik_mm": 11, "res_pct": 5, "must": set(), "may": {"subtalar_angle_r_deg"}},
@@ -51,11 +51,12 @@ EXPECT: dict[str, dict] = {
                          "must": {"plate_mass_difference_pct", "residual_force_rms_pct_bw"},
                          "may": None},
     "gc4_JW": {"ik_mm": 12, "res_pct": 5.5, "must": set(), "may": {"hip_flexion_l_deg"}},
-    "opensim_subject01": {"ik_mm": 14, "res_pct": 4, "must": set(), "may": set()},
-    "opensim_rajagopal": {"ik_mm": 17.5, "res_pct": 4, "must": set(), "may": set()},
-    "pig_motion3": {"ik_mm": 14.5, "res_pct": 5, "must": set(), "may": None},
-    "unipd_bts": {"ik_mm": 24, "res_pct": 5, "must": set(), "may": None},
-    "uwa_fast_walking": {"ik_mm": 14, "res_pct": None, "must": set(), "may": None},
+    "opensim_subject01": {"ik_mm": 13, "res_pct": 4, "must": set(), "may": set()},
+    "opensim_rajagopal": {"ik_mm": 13, "res_pct": 4, "must": set(), "may": set()},
+    "pig_motion3": {"ik_mm": 14, "res_pct": 5, "must": set(), "may": None},
+    "unipd_bts": {"ik_mm": 17, "res_pct": 5, "must": {"static_markers_contradicted_m"},
+                  "may": None},
+    "uwa_fast_walking": {"ik_mm": 14, "res_pct": 6, "must": set(), "may": None},
     "uwa_running": {"ik_mm": None, "res_pct": None,
                     "must": {"residual_force_rms_pct_bw", "plate_mass_difference_pct"},
                     "may": None},
@@ -225,3 +226,32 @@ def test_both_feet_on_one_plate_is_flagged_and_left_out(tmp_path: Path) -> None:
     flag = {f["quantity"]: f for f in q["flags"]}["plate_shared_contact_frames"]
     assert flag["value"] > 0.5 * tr.time.size and "both feet" in flag["message"]
     assert q["contact_measured_frames"] <= tr.time.size - flag["value"]
+
+
+@pytest.mark.slow
+@pytest.mark.realdata
+def test_subject01_coordinates_within_5_deg_of_opensims_ik(tmp_path: Path) -> None:
+    """The shipped subject01 config (gait2392, static-scaled, markers placed and relocated from
+    the static) against OpenSim's own IK of the same walk (``subject01_walk_IK.mot``, the
+    10-dof model): every leg and lumbar coordinate within 5° RMS over the IK's frames
+    (measured 2.1–3.9°, docs/validation.md)."""
+    from msk.io.opensim_files import read_sto
+
+    cfg = REPO / "pipelines" / "opensim_subject01.toml"
+    ref = (REPO / "pipelines" / "../../shared/data/real/opensim-subject01-walk"
+           / "subject01_walk_IK.mot").resolve()  # fmt: skip
+    if not _files_present(cfg) or not ref.is_file():
+        pytest.skip("OpenSim subject01 recordings are not here")
+    res = _run(cfg, tmp_path / "out")
+    ik = read_sto(ref)
+    q = res.out_dir / "tables" / "q.csv"
+    head = q.read_text(encoding="utf-8").splitlines()[0].split(",")
+    data = np.genfromtxt(q, delimiter=",", skip_header=1)
+    t = data[:, head.index("time")]
+    coords = ["hip_flexion_r", "knee_angle_r", "ankle_angle_r", "hip_flexion_l", "knee_angle_l",
+              "ankle_angle_l", "lumbar_extension"]  # fmt: skip
+    rms = {}
+    for c in coords:
+        mine = np.interp(ik.time, t, data[:, head.index(c)])
+        rms[c] = float(np.degrees(np.sqrt(np.nanmean((mine - ik.column(c)) ** 2))))
+    assert max(rms.values()) < 5.0, rms

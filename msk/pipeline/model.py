@@ -25,7 +25,19 @@ from msk.io.frames import lab_to_model_rotation
 from msk.pipeline.inputs import SessionInputs
 from msk.pipeline.read import ReadResult, read_static_markers
 
-__all__ = ["HELD_COORDINATE_WEIGHT", "BuiltModel", "load_model_file", "run", "settings"]
+__all__ = [
+    "HELD_COORDINATE_WEIGHT",
+    "STATIC_CHECK_MIN_TASK_S",
+    "BuiltModel",
+    "load_model_file",
+    "run",
+    "settings",
+]
+
+#: shortest task (s) whose frames seeing a marker pair can show it rigid for the static-label
+#: check (:func:`msk.quality.inconsistent_static_markers`): about one step of walking, over
+#: which the hip and knee flex and extend by 20–40° (distances across a joint change)
+STATIC_CHECK_MIN_TASK_S = 0.5
 
 #: IK weight of the coordinate task holding an unobserved foot joint at 0 rad (weight per rad²,
 #: markers per m²: 1° off costs as much as 17 mm of marker error)
@@ -109,8 +121,15 @@ def _aligned(inputs: SessionInputs, model: Any) -> Any:
 
 
 def _scale_and_place(inputs: SessionInputs, read: ReadResult) -> dict[str, Any]:
+    from msk.io.c3d import is_measured_marker
     from msk.io.frames import pelvis_heading_rotation
-    from msk.markersets import recognise, zeros_as_gaps
+    from msk.markersets import (
+        foot_markers,
+        recognise,
+        shoulder_girdle_markers,
+        zeros_as_gaps,
+    )
+    from msk.quality import inconsistent_static_markers
     from msk.scaling import (
         place_markers,
         place_markers_from_motion,
@@ -177,6 +196,22 @@ def _scale_and_place(inputs: SessionInputs, read: ReadResult) -> dict[str, Any]:
             slabels_raw, model.marker_names, rename=cfg.marker_rename,
             model_bodies=bodies, markers=zeros_as_gaps(sm),
         )  # fmt: skip
+        # static labels the task contradicts (mislabelled, swapped, ghost): left out of the
+        # static, placed from the task below (msk.quality.inconsistent_static_markers); not
+        # checked: markers on no bone of the model (arms) and of the shoulder girdle
+        skip = [*shoulder_girdle_markers(list(slabels_raw), bodies), *smatch.excluded,
+                *(lab for lab in slabels_raw if not is_measured_marker(lab))]  # fmt: skip
+        # rigid pairs over at least a step (0.5 s): over a shorter piece, markers of two
+        # segments can keep their distance too (PiG_Motion3 cut to 0.25 s: RPSI "contradicted")
+        t_task = np.asarray(trial.time, dtype=float)
+        rate = (t_task.size - 1) / (t_task[-1] - t_task[0]) if t_task.size > 1 else 0.0
+        bad = inconsistent_static_markers(
+            zeros_as_gaps(sm), slabels_raw, x_lab, trial.marker_labels, skip=skip,
+            min_frames=max(10, round(STATIC_CHECK_MIN_TASK_S * rate)),
+        )  # fmt: skip
+        if bad:  # removed from the static (as if the lab had not labelled them)
+            kept = [i for i, lab in enumerate(slabels_raw) if lab not in bad]
+            sm, slabels_raw = np.asarray(sm)[:, kept], tuple(slabels_raw[i] for i in kept)
         sm, slabels = smatch.apply(sm, slabels_raw)
         if mc.scale:
             static = {lab: sm[:, i] for i, lab in enumerate(slabels)}
@@ -192,9 +227,14 @@ def _scale_and_place(inputs: SessionInputs, read: ReadResult) -> dict[str, Any]:
                 move=[*cfg.marker_move, *(m for m in jc_move if m not in cfg.marker_move)],
                 hints=smatch.body_hints([b.name for b in model.bodies]), centres=centres,
                 coordinate_tasks=held_foot_coordinates(model, sm, slabels) if centres else None,
+                relocate=[lab for lab in slabels if lab in model.marker_names],
             )  # fmt: skip
         except ModelError as exc:
             raise ConfigError(f"{cfg.path}: markers.move: {exc}") from None
+        model, from_task, check = _place_from_task(model, trial, rot, match, bad)
+        placed["from_task"] = from_task
+        if check:
+            info["static_check"] = check
     else:
         # no static trial: the task trial's own markers scale and place (the segment lengths
         # are constant over a motion; msk.scaling.scale_from_motion)
@@ -205,8 +245,12 @@ def _scale_and_place(inputs: SessionInputs, read: ReadResult) -> dict[str, Any]:
                 body_mass=cfg.subject.mass_kg,
             )  # fmt: skip
         model = _aligned(inputs, model)
+        # the lab's foot markers: where they sit on the foot is the lab's choice and nothing
+        # but the motion tells (msk.markersets.foot_markers), so they are moved too
+        present = [mk.name for mk in model.markers if mk.name in set(mlabels)]
+        feet = [m for m in foot_markers(present) if m not in cfg.marker_move]
         model, placed = place_markers_from_motion(
-            model, xm, mlabels, trial.time, move=cfg.marker_move
+            model, xm, mlabels, trial.time, move=[*cfg.marker_move, *feet]
         )
     info["marker_placement"] = placed
     if model.metadata.get("knee_alignment"):
@@ -216,6 +260,52 @@ def _scale_and_place(inputs: SessionInputs, read: ReadResult) -> dict[str, Any]:
         info["scale_ratios"] = dict(model.metadata.get("scale_ratios", {}))
     info["mass_kg"] = model.total_mass
     return {"model": model, "info": info, "rotation": rot, "rename": dict(match.rename)}
+
+
+def _place_from_task(
+    model: Any, trial: Any, rot: np.ndarray, match: Any, bad: Mapping[str, float]
+) -> tuple[Any, dict[str, float], dict[str, Any]]:
+    """After the static placement, the markers the static cannot place for the task, placed
+    from the task (:func:`msk.scaling.place_markers_from_motion` on the task with the model's
+    markers and these only):
+
+    * shoulder-girdle markers of a model without that segment (gait2392's acromia on its rigid
+      torso, :func:`msk.markersets.shoulder_girdle_markers`): the scapula follows the arms, so
+      where the static (arms out) puts them is not where they ride in the task (UNIPD's acromia
+      22–26 mm off through the walk when placed from its static, IK 17.5 → 16.3 mm); moved on
+      their body to their median position in the task;
+    * the static markers the task contradicts (``bad``: lab label → discrepancy m,
+      :func:`msk.quality.inconsistent_static_markers`): a model marker moved on its body,
+      another marker fixed to its most rigid body.
+
+    Returns the model, marker → displacement (m) of the markers moved, and the record for
+    ``summary.json`` ``model.static_check`` (empty without ``bad``; its quality flag)."""
+    from msk.markersets import shoulder_girdle_markers
+    from msk.scaling import place_markers_from_motion
+
+    xm, mlabels = match.apply(trial.rotated(rot).markers, trial.marker_labels)
+    to_model = dict(match.lab_to_model)
+    bad_names = {to_model.get(lab, lab) for lab in bad}
+    known = set(model.marker_names)
+    girdle = set(shoulder_girdle_markers(list(mlabels), [b.name for b in model.bodies]))
+    if not bad_names and not girdle & known:
+        return model, {}, {}
+    keep = [i for i, lab in enumerate(mlabels) if lab not in mlabels[:i] and (
+        lab in bad_names or lab in known)]  # fmt: skip
+    moved = sorted(n for n in bad_names if n in known)
+    new_markers = any(n not in known for n in bad_names)
+    model, placed = place_markers_from_motion(
+        model, xm[:, keep], [mlabels[i] for i in keep], trial.time, move=moved,
+        iterations=3 if new_markers else 1,
+    )  # fmt: skip
+    record = {}
+    if bad:
+        record = {
+            "contradicted_m": dict(bad),
+            "moved_from_task_m": {k: v for k, v in placed["moved"].items() if k in bad_names},
+            "placed_from_task": {k: v for k, v in placed["placed"].items() if k in bad_names},
+        }
+    return model, dict(placed["moved"]), record
 
 
 def _chord_centres(

@@ -10,6 +10,7 @@ from typing import Any
 
 import numpy as np
 
+from msk.exceptions import IdentificationError
 from msk.pipeline.dynamics import InverseDynamics
 from msk.pipeline.emg import EmgActivations
 from msk.pipeline.inputs import SessionInputs
@@ -66,13 +67,20 @@ def run(
     est = StrengthIdentifier(groups, params, n_bootstrap=200, random_state=0)
     jac = muscle_geometry.jacobian
     jac = jac.take(frames) if isinstance(jac, FrameSparse) else np.asarray(jac)[frames]
-    est.fit(
-        jac,
-        act,
-        jt.tau[good],
-        state,
-        coordinate_names=jt.coordinate_names,
-    )
+    try:
+        est.fit(
+            jac,
+            act,
+            jt.tau[good],
+            state,
+            coordinate_names=jt.coordinate_names,
+        )
+    except IdentificationError as exc:
+        # the measured frames do not determine any group (e.g. no window passes the
+        # correlation gate on a trial with one stance on the plates): not available, said why
+        raise StageUnavailable(
+            f"the {int(good.sum())} measured frames determine no strength: {exc}"
+        ) from None
     return StrengthIdentification(
         est.profile_, {g: list(v) for g, v in groups.items()}, float(kinematics.time[good][0])
     )

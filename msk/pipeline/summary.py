@@ -248,7 +248,7 @@ def _flags(
 ) -> list[dict[str, Any]]:
     """The quality gates raised (:func:`msk.quality.gait_flags`), swapped left/right labels and
     what the reader noticed in the file (duplicate labels renamed, NaN plate samples…)."""
-    from msk.quality import contact_flags, gait_flags, swapped_sides
+    from msk.quality import THRESHOLDS, contact_flags, gait_flags, swapped_sides
 
     cfg, task, mdl = inputs.cfg, inputs.task, model.model
     assert task is not None  # a gait session
@@ -274,6 +274,17 @@ def _flags(
              "message": f"{r} is {-1000 * dz:.0f} mm left of {lft} (the subject's right "
              "from the pelvis): their labels look swapped (a labelling error in the file, or "
              "the wrong side in the config)"}
+        )  # fmt: skip
+    bad = dict(model.info.get("static_check", {}).get("contradicted_m", {}))
+    if bad:
+        flags.append(
+            {"trial": task.name, "quantity": "static_markers_contradicted_m",
+             "value": max(bad.values()), "threshold": THRESHOLDS["static_marker_discrepancy_m"],
+             "message": "the static trial's " + ", ".join(
+                 f"{lab} ({1000 * d:.0f} mm)" for lab, d in sorted(bad.items()))
+             + " disagree with their segment's other markers in the task (median distance "
+             "difference): mislabelled or ghost markers in the static, placed from the task "
+             "instead (msk.quality.inconsistent_static_markers)"}
         )  # fmt: skip
     for w in (model.trial.metadata or {}).get("warnings", ()):
         flags.append(
