@@ -48,12 +48,15 @@ Array = NDArray[np.float64]
 
 __all__ = [
     "PHYSIOLOGICAL_RANGES_DEG",
+    "SWAP_MIN_FRACTION",
+    "SWAP_MIN_SEPARATION_M",
     "THRESHOLDS",
     "Flag",
     "body_mass_from_loads",
     "contact_flags",
     "gait_flags",
     "inconsistent_static_markers",
+    "swapped_label_pairs",
     "swapped_sides",
 ]
 
@@ -201,6 +204,89 @@ def inconsistent_static_markers(
     return out
 
 
+def _pairs_and_pelvis(
+    labels: Sequence[str],
+) -> tuple[list[tuple[str, str]], dict[tuple[str, str], str], list[str]]:
+    """Left/right pairs of one landmark among ``labels`` (:func:`msk.markersets.parse_label`),
+    the labels by (landmark, side) and the posterior pelvis labels (sacrum, PSIS)."""
+    from msk.markersets import parse_label
+
+    by_side: dict[tuple[str, str], str] = {}
+    posterior: list[str] = []
+    for lab in dict.fromkeys(labels):
+        pl = parse_label(lab)
+        if pl.side in ("R", "L") and pl.landmark:
+            by_side.setdefault((pl.landmark, pl.side), lab)
+        if pl.landmark in ("sacrum", "psis"):
+            posterior.append(lab)
+    pairs = [(by_side[(lm, "R")], by_side[(lm, "L")]) for lm, sd in by_side if sd == "R"
+             and (lm, "L") in by_side]  # fmt: skip
+    return pairs, by_side, posterior
+
+
+def _right_from_pelvis_markers(
+    x: Array,
+    col: Mapping[str, int],
+    by_side: Mapping[tuple[str, str], str],
+    posterior: Sequence[str],
+    up: Array,
+) -> Array | None:
+    """(frames, 3) the subject's right r̂ = f̂ × û per frame from the pelvis markers: f̂ the
+    horizontal direction from the posterior markers' mean to the ASIS midpoint (a midpoint a
+    left/right swap does not move), û the vertical; None without both ASIS and a posterior
+    marker."""
+    ra, la = by_side.get(("asis", "R")), by_side.get(("asis", "L"))
+    back = [col[b] for b in posterior if b in col]
+    if ra is None or la is None or ra not in col or la not in col or not back:
+        return None
+    u = np.asarray(up, dtype=float)
+    u = u / np.linalg.norm(u)
+    front = 0.5 * (x[:, col[ra]] + x[:, col[la]])
+    seen = np.isfinite(x[:, back]).all(axis=2)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        rear = np.nansum(x[:, back], axis=1) / seen.sum(axis=1, keepdims=True)
+        fwd = front - rear
+        fwd -= np.outer(fwd @ u, u)
+        right = np.cross(fwd, u)
+        right /= np.linalg.norm(right, axis=1, keepdims=True)
+    return right
+
+
+#: a label pair is swapped in a trial when the right-side marker lies at least this far to the
+#: subject's left of the left-side one (median over frames; the narrowest true separations —
+#: medial foot markers in a narrow gait — are about 5 cm the right way round)
+SWAP_MIN_SEPARATION_M = 0.03
+#: … in at least this fraction of the frames where both are seen
+SWAP_MIN_FRACTION = 0.8
+
+
+def swapped_label_pairs(
+    markers: Array, labels: Sequence[str], up: ArrayLike
+) -> list[tuple[str, str, float]]:
+    """Left/right label pairs swapped in a trial, from its markers alone (no model, no IK):
+    (right label, left label, median (x_R − x_L) · r̂ in m, negative) for each pair whose
+    right-side marker lies more than :data:`SWAP_MIN_SEPARATION_M` to the subject's left of the
+    left-side one in at least :data:`SWAP_MIN_FRACTION` of the frames, r̂ the subject's right
+    from the pelvis markers (both ASIS and a sacrum/PSIS marker; otherwise nothing is said).
+    ``markers`` (frames, markers, 3) in a frame whose vertical is ``up``."""
+    x = np.asarray(markers, dtype=float)
+    pairs, by_side, posterior = _pairs_and_pelvis(labels)
+    col = {lab: i for i, lab in reversed(list(enumerate(labels)))}
+    right = _right_from_pelvis_markers(x, col, by_side, posterior, np.asarray(up, dtype=float))
+    if right is None:
+        return []
+    out = []
+    for r, lft in pairs:
+        dz = np.einsum("fi,fi->f", x[:, col[r]] - x[:, col[lft]], right)
+        dz = dz[np.isfinite(dz)]
+        if dz.size < 3:
+            continue
+        med = float(np.median(dz))
+        if med < -SWAP_MIN_SEPARATION_M and np.mean(dz < 0.0) >= SWAP_MIN_FRACTION:
+            out.append((r, lft, med))
+    return out
+
+
 def swapped_sides(
     model: Any, kinematics: Any, markers: Array, labels: Sequence[str]
 ) -> list[tuple[str, str, float]]:
@@ -215,45 +301,24 @@ def swapped_sides(
     round. Otherwise r̂ is the fitted pelvis's +z (gait2392/OpenSim), and when most pairs look
     swapped in it (the pelvis fitted the wrong way round) the pairs that do not are reported.
     Returns (right, left, median in m, signed so that the subject's right is positive)."""
-    from msk.markersets import parse_label
-
     if "pelvis" not in model.body_frame:
         return []
     q = np.asarray(kinematics.q, dtype=float)
     good = np.flatnonzero(np.isfinite(q).all(axis=1))
     if good.size == 0:
         return []
-    col = {lab: i for i, lab in enumerate(labels) if lab in set(model.marker_names)}
-    by_side: dict[tuple[str, str], str] = {}
-    posterior: list[int] = []
-    for lab in col:
-        pl = parse_label(lab)
-        if pl.side in ("R", "L") and pl.landmark:
-            by_side[(pl.landmark, pl.side)] = lab
-        if pl.landmark in ("sacrum", "psis"):
-            posterior.append(col[lab])
-    pairs = [(by_side[(lm, "R")], by_side[(lm, "L")]) for lm, sd in by_side if sd == "R"
-             and (lm, "L") in by_side]  # fmt: skip
+    known = set(model.marker_names)
+    col = {lab: i for i, lab in reversed(list(enumerate(labels))) if lab in known}
+    pairs, by_side, posterior = _pairs_and_pelvis(list(col))
     if not pairs:
         return []
     step = max(1, good.size // 60)
     frames = good[::step]
     x = np.asarray(markers, dtype=float)[frames]
-    asis = (by_side.get(("asis", "R")), by_side.get(("asis", "L")))
-    if asis[0] is not None and asis[1] is not None and posterior:
-        up = -np.asarray(model.gravity, dtype=float)
-        up = up / np.linalg.norm(up)
-        front = 0.5 * (x[:, col[asis[0]]] + x[:, col[asis[1]]])
-        seen = np.isfinite(x[:, posterior]).all(axis=2)  # (frames, posterior markers)
-        with np.errstate(invalid="ignore", divide="ignore"):
-            back = np.nansum(x[:, posterior], axis=1) / seen.sum(axis=1, keepdims=True)
-        fwd = front - back
-        fwd -= np.outer(fwd @ up, up)
-        right = np.cross(fwd, up)
-        with np.errstate(invalid="ignore", divide="ignore"):
-            right /= np.linalg.norm(right, axis=1, keepdims=True)
-        from_markers = True
-    else:
+    up = -np.asarray(model.gravity, dtype=float)
+    right = _right_from_pelvis_markers(x, col, by_side, posterior, up)
+    from_markers = right is not None
+    if right is None:
         data = model.create_data()
         fp = model.body_frame["pelvis"]
         qp = model.coupling.q(q[frames])

@@ -7,7 +7,13 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 
-from msk.quality import THRESHOLDS, body_mass_from_loads, gait_flags
+from msk.quality import (
+    SWAP_MIN_SEPARATION_M,
+    THRESHOLDS,
+    body_mass_from_loads,
+    gait_flags,
+    swapped_label_pairs,
+)
 from msk.synthetic_models import two_leg_model
 
 
@@ -105,3 +111,42 @@ def test_inconsistent_static_markers_names_a_swapped_or_ghost_static_label():
     ghost[0, 3] = ghost[0, 1] + np.array([0.007, 0.0, 0.0])
     assert set(inconsistent_static_markers(ghost, labels, motion, labels)) == {"A3"}
     assert inconsistent_static_markers(ghost, labels, motion, labels, skip=["A3"]) == {}
+
+
+def _walker(n: int = 120, seed: int = 0) -> tuple[np.ndarray, list[str]]:
+    """Markers of a subject walking along +x in a +z-up lab (right = −y), 2 mm noise: pelvis
+    (ASIS, PSIS), acromia, knees and heels, with the feet stepping across a narrow base."""
+    rng = np.random.default_rng(seed)
+    t = np.linspace(0.0, 2.0, n)
+    x0 = 1.2 * t
+    sway = 0.02 * np.sin(np.pi * t)
+    pts = {
+        "RASI": (0.05, -0.12, 1.0), "LASI": (0.05, 0.12, 1.0),
+        "RPSI": (-0.10, -0.05, 1.05), "LPSI": (-0.10, 0.05, 1.05),
+        "R.Acromion": (0.0, -0.18, 1.45), "L.Acromion": (0.0, 0.18, 1.45),
+        "RKNE": (0.1, -0.10, 0.5), "LKNE": (0.1, 0.10, 0.5),
+        "RHEE": (0.0, -0.06, 0.05), "LHEE": (0.0, 0.06, 0.05),
+    }  # fmt: skip
+    cols = [np.column_stack([x0 + a, b + sway, np.full(n, c)]) for a, b, c in pts.values()]
+    x = np.stack(cols, axis=1)
+    return x + rng.normal(0.0, 0.002, x.shape), list(pts)
+
+
+def test_swapped_label_pairs_finds_a_swap_from_the_pelvis_markers_alone():
+    x, labels = _walker()
+    up = np.array([0.0, 0.0, 1.0])
+    assert swapped_label_pairs(x, labels, up) == []
+    for r, lft in (("R.Acromion", "L.Acromion"), ("RASI", "LASI"), ("RHEE", "LHEE")):
+        y = x.copy()
+        i, j = labels.index(r), labels.index(lft)
+        y[:, [i, j]] = y[:, [j, i]]
+        (found,) = swapped_label_pairs(y, labels, up)
+        assert found[:2] == (r, lft) and found[2] < -SWAP_MIN_SEPARATION_M
+    # a pair 2 cm apart the wrong way (within the margin) is not called swapped
+    y = x.copy()
+    y[:, labels.index("RHEE"), 1] = 0.01 + y[:, labels.index("RHEE"), 1] * 0
+    y[:, labels.index("LHEE"), 1] = -0.01
+    assert swapped_label_pairs(y, labels, up) == []
+    # without a posterior pelvis marker the side is not judged
+    keep = [k for k, lab in enumerate(labels) if "PSI" not in lab]
+    assert swapped_label_pairs(x[:, keep], [labels[k] for k in keep], up) == []

@@ -401,11 +401,37 @@ def held_foot_coordinates(
     return held
 
 
+def _swap_back(read: ReadResult) -> tuple[ReadResult, dict[str, float]]:
+    """The task trial with the columns of left/right label pairs that its markers show swapped
+    exchanged back (:func:`msk.quality.swapped_label_pairs`: the right-side marker ≥ 3 cm to
+    the subject's left in ≥ 80 % of the frames, judged from the pelvis markers, before any
+    model sees them), and "right/left" → median signed separation (m) of each pair exchanged
+    (``summary.json`` ``model.marker_set.swapped_back``; a quality flag says so)."""
+    from msk.markersets import zeros_as_gaps
+    from msk.quality import swapped_label_pairs
+
+    trial = read.trial
+    pairs = swapped_label_pairs(zeros_as_gaps(trial.markers), trial.marker_labels, trial.up)
+    if not pairs:
+        return read, {}
+    markers = np.array(trial.markers, dtype=float, copy=True)
+    labels = list(trial.marker_labels)
+    for r, lft, _ in pairs:
+        i, j = labels.index(r), labels.index(lft)
+        markers[:, [i, j]] = markers[:, [j, i]]
+    fixed = dataclasses.replace(trial, markers=markers)
+    return dataclasses.replace(read, trial=fixed), {f"{r}/{lft}": dz for r, lft, dz in pairs}
+
+
 def run(inputs: SessionInputs, read: ReadResult) -> BuiltModel:
     from msk.markersets import zeros_as_gaps
 
-    cfg, trial = inputs.cfg, read.trial
+    cfg = inputs.cfg
+    read, swapped = _swap_back(read)
+    trial = read.trial
     built = _scale_and_place(inputs, read)
+    if swapped:
+        built["info"]["marker_set"]["swapped_back"] = swapped
     model = built["model"]
     unknown = sorted(set(cfg.marker_weights) - set(model.marker_names) - set(trial.marker_labels))
     if unknown:

@@ -248,7 +248,13 @@ def _flags(
 ) -> list[dict[str, Any]]:
     """The quality gates raised (:func:`msk.quality.gait_flags`), swapped left/right labels and
     what the reader noticed in the file (duplicate labels renamed, NaN plate samples…)."""
-    from msk.quality import THRESHOLDS, contact_flags, gait_flags, swapped_sides
+    from msk.quality import (
+        SWAP_MIN_SEPARATION_M,
+        THRESHOLDS,
+        contact_flags,
+        gait_flags,
+        swapped_sides,
+    )
 
     cfg, task, mdl = inputs.cfg, inputs.task, model.model
     assert task is not None  # a gait session
@@ -274,6 +280,17 @@ def _flags(
              "message": f"{r} is {-1000 * dz:.0f} mm left of {lft} (the subject's right "
              "from the pelvis): their labels look swapped (a labelling error in the file, or "
              "the wrong side in the config)"}
+        )  # fmt: skip
+    swapped = dict(model.info.get("marker_set", {}).get("swapped_back", {}))
+    if swapped:
+        flags.append(
+            {"trial": task.name, "quantity": "marker_labels_swapped_back",
+             "value": max(-v for v in swapped.values()), "threshold": SWAP_MIN_SEPARATION_M,
+             "message": "left/right labels swapped in the file: " + ", ".join(
+                 f"{pair} ({-1000 * v:.0f} mm on the wrong side)"
+                 for pair, v in sorted(swapped.items()))
+             + "; their markers were exchanged back before scaling and IK "
+             "(msk.quality.swapped_label_pairs, judged from the pelvis markers)"}
         )  # fmt: skip
     bad = dict(model.info.get("static_check", {}).get("contradicted_m", {}))
     if bad:
