@@ -784,7 +784,10 @@ def _segments(lab: Array, t: Array, offset: int) -> list[tuple[int, int, int]]:
     ``_MIN_SEGMENT_S`` next to runs of one other foot only takes that foot (at the edge of a
     contact the COP of a few newtons is unreliable); a run with no foot next
     to runs of one foot only, and not longer than them, takes that foot (a foot at the edge of
-    the outline at heel strike, a frame of unknown pose). Shared runs are kept as they are.
+    the outline at heel strike, a frame of unknown pose); a shared run shorter than
+    ``_MIN_SEGMENT_S`` between two runs of one foot takes that foot (the other foot passing
+    within the outline's margin as it leaves a neighbouring plate: PS ss3, 3 frames after toe-off).
+    Longer shared runs, or at the ends of a contact, are kept as they are (flagged, left out).
     Returns [(start, end, label)] with absolute frame indices."""
     lab = np.asarray(lab).copy()
 
@@ -809,6 +812,12 @@ def _segments(lab: Array, t: Array, offset: int) -> list[tuple[int, int, int]]:
             if w < 0:
                 continue
             if v >= 0 and dur(a, b) < _MIN_SEGMENT_S:
+                lab[a:b] = w
+                changed = True
+                break
+            if v == _SHARED and len(nbrs) == 2 and dur(a, b) < _MIN_SEGMENT_S:
+                # a few frames "shared" inside one foot's stance on the plate: the other foot
+                # passing within the outline's margin as it leaves a neighbouring plate
                 lab[a:b] = w
                 changed = True
                 break

@@ -317,3 +317,20 @@ def test_contact_measured_widens_ground_contact_by_the_kinematic_filter_spread()
     assert padded[idx[5:-5]].all() and padded[~window].all()
     filtered = dataclasses.replace(hop, cutoff_hz=5.0)  # 1/(4·5 Hz) = 0.05 s
     np.testing.assert_array_equal(contact_measured(MODEL, filtered, loads), padded)
+
+
+def test_a_few_shared_frames_inside_one_foots_stance_take_that_foot():
+    """A shared run shorter than 30 ms between two runs of one foot is that foot's (the other
+    foot passing within the plate's margin after toe-off); a longer one, or one at the end of
+    the contact, stays shared (flagged and left out)."""
+    from msk.loads import _SHARED, _segments
+
+    t = np.arange(40) / 120.0
+    lab = np.zeros(40, dtype=int)
+    lab[10:13] = _SHARED  # 3 frames = 17 ms inside foot 0's stance
+    assert _segments(lab, t, 0) == [(0, 40, 0)]
+    lab[10:16] = _SHARED  # 6 frames = 42 ms: kept
+    assert [s[2] for s in _segments(lab, t, 0)] == [0, _SHARED, 0]
+    lab = np.zeros(40, dtype=int)
+    lab[37:] = _SHARED  # at the end of the contact: kept
+    assert [s[2] for s in _segments(lab, t, 0)] == [0, _SHARED]
