@@ -234,13 +234,18 @@ def gain_status(
     upper: float = math.inf,
     prior: float | None = None,
     converged: bool = True,
+    ci: tuple[float, float] | None = None,
+    ci_rel_width_max: float = STRENGTH_CI_REL_WIDTH_MAX,
     rel_tol: float = BOUND_REL_TOL,
 ) -> Status:
     """Status of one EMG-to-activation gain (:func:`msk.strength.fit_emg_gains`, ``g ≥ 0``).
 
     A gain on its bound (0: the channel is switched off) is ``at bound``; a non-finite gain or
     an unconverged fit is ``not determined``; a gain equal to its ``prior`` (start value) within
-    :data:`PRIOR_REL_TOL` is ``prior``; else ``identified``.
+    :data:`PRIOR_REL_TOL` is ``prior``; a gain without a 95 % interval ``ci`` (its precision is
+    not known: the EMG-assisted fit computes none), or whose interval touches a bound or is
+    wider than ``ci_rel_width_max`` × the gain, is ``not determined``; else ``identified`` —
+    the rule of :func:`strength_status`.
     """
     if not _finite(gain) or not converged:
         return Status.NOT_DETERMINED
@@ -249,6 +254,13 @@ def gain_status(
         return Status.AT_BOUND
     if prior is not None and abs(gain - prior) <= PRIOR_REL_TOL * max(abs(prior), 1e-12):
         return Status.PRIOR
+    if ci is None or not (_finite(ci[0]) and _finite(ci[1])):
+        return Status.NOT_DETERMINED
+    lo, hi = float(ci[0]), float(ci[1])
+    if _on_or_past(lo, lower, upper, rel_tol) or _on_or_past(hi, lower, upper, rel_tol):
+        return Status.NOT_DETERMINED
+    if hi - lo > ci_rel_width_max * abs(gain):
+        return Status.NOT_DETERMINED
     return Status.IDENTIFIED
 
 

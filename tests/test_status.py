@@ -140,7 +140,11 @@ def test_summary_records_including_old_ones():
 def test_gain_and_fes_status():
     assert gain_status(0.0) == "at bound"
     assert gain_status(1e-9) == "at bound"
-    assert gain_status(1.7) == "identified"
+    # no interval (the EMG-assisted fit computes none): its precision is unknown
+    assert gain_status(1.7) == "not determined"
+    assert gain_status(1.7, ci=(1.5, 1.9)) == "identified"
+    assert gain_status(1.7, ci=(0.2, 3.0)) == "not determined"
+    assert gain_status(1.7, ci=(0.0, 1.9)) == "not determined"
     assert gain_status(1.7, converged=False) == "not determined"
     assert gain_status(math.inf) == "not determined"
     assert gain_status(1.0, prior=1.0) == "prior"
