@@ -1326,8 +1326,9 @@ class InertialIdentifier:
 
         # the folds are independent and Clarabel releases the GIL: two at a time with a second
         # CPU free (msk._fork.spare_cpu; the sums below are taken in fold order, so the result
-        # does not depend on it)
-        with ThreadPoolExecutor(max_workers=2 if spare_cpu() else 1) as pool:
+        # does not depend on it). Not with ipopt, whose MUMPS is not thread-safe.
+        threads = 2 if self.solver != "ipopt" and spare_cpu() else 1
+        with ThreadPoolExecutor(max_workers=threads) as pool:
             per_fold = list(pool.map(held_out_rss, range(k)))
         n_held = 0
         for fi, bi in enumerate(used):
