@@ -80,8 +80,9 @@ def _walks(config: str, real: Path) -> tuple[_Walk, ...]:
         others = tuple(t for t in cfg.trials if t.role != "task")
         r = run_stages(dataclasses.replace(cfg, trials=(*others, tc)), until="loads")
         model, kin, loads = r["model"].model, r["kinematics"], r["loads"]
-        # a walk the pipeline flags for swapped left/right labels (UNIPD Walking3: its acromia)
-        # has a wrong pose: its residuals say nothing about inertial parameters
+        # a walk the pipeline still flags for swapped left/right labels after exchanging back
+        # those its pelvis markers show (UNIPD Walking3's acromia are) has a wrong pose: its
+        # residuals say nothing about inertial parameters
         if swapped_sides(model, kin, r["model"].trial.markers, r["model"].labels):
             continue
         it = IdentificationTrial.from_loads(model, kin, loads.external, name=f.stem)
