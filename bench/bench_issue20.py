@@ -27,14 +27,17 @@ in the same conditions.
 from __future__ import annotations
 
 import argparse
+import contextlib
 import os
 import platform
 import statistics
 import sys
 import tempfile
 import time
+from collections.abc import Callable, Iterator
 from datetime import date
 from pathlib import Path
+from typing import Any
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
@@ -51,6 +54,71 @@ def _verdict(wall: float, cpu: float, target: float) -> str:
     if wall <= target:
         return "met"
     return "met in CPU time, not in wall time at this load" if cpu <= target else "not met"
+
+
+def _msk_runs(src: Path, n: int, *, cached: bool) -> list[float]:
+    """Wall times of ``n`` fresh-interpreter ``msk run``s of gc5_PS (cold: ``--no-cache``;
+    cached: with the stage cache of one output folder) after one untimed run (it warms the disk
+    cache, and fills the stage cache)."""
+    import bench_run_cold
+
+    walls = []
+    with tempfile.TemporaryDirectory() as tmp:
+        for k in range(n + 1):
+            out = Path(tmp) / ("out" if cached else f"out{k}")
+            wall, _ = bench_run_cold._run_once(src, out, cached=cached)
+            if k:
+                walls.append(wall)
+    return walls
+
+
+@contextlib.contextmanager
+def _local_pool(workers: int) -> Iterator[dict[str, Any]]:
+    """``run_batch`` arguments for the local process pool of ``workers``."""
+    yield {"workers": workers}
+
+
+@contextlib.contextmanager
+def _dask_cluster(workers: int) -> Iterator[dict[str, Any]]:
+    """``run_batch`` arguments for a Dask LocalCluster of ``workers`` processes (one thread
+    each), started before the timing: a cluster serves many batches, and the first session on
+    each worker pays that worker's imports."""
+    from distributed import Client, LocalCluster
+
+    with (
+        LocalCluster(n_workers=workers, threads_per_worker=1, processes=True,
+                     dashboard_address=None) as cluster,
+        Client(cluster) as client,
+    ):  # fmt: skip
+        yield {"scheduler": client}
+
+
+def _batch_speedup(
+    label: str,
+    detail: str,
+    sessions: int,
+    where: Callable[[int], contextlib.AbstractContextManager[dict[str, Any]]],
+    notes: list[str],
+) -> tuple[str, ...]:
+    """The table row of ``msk batch`` of ``sessions`` × gc5_PS on 1 then 2 workers of
+    ``where`` (every stage computed); a note per batch."""
+    import msk.batch as batch
+
+    wall: dict[int, float] = {}
+    for workers in (1, 2):
+        l0 = _load()
+        with where(workers) as kwargs, tempfile.TemporaryDirectory() as tmp:
+            t0 = time.perf_counter()
+            res = batch.run_batch([CONFIG] * sessions, Path(tmp) / "out", use_cache=False, **kwargs)
+            wall[workers] = time.perf_counter() - t0
+        if res.failed:
+            raise SystemExit(f"batch{label} failed: {[o.error for o in res.failed]}")
+        notes.append(f"batch{label}, {workers} worker(s): {wall[workers]:.1f} s, load {l0} → "
+                     f"{_load()}")  # fmt: skip
+    speed = wall[1] / wall[2]
+    return (f"`msk batch` {sessions} × gc5_PS{label}, 2 workers / 1", f"{speed:.2f}×",
+            f"{wall[1]:.1f} s → {wall[2]:.1f} s ({detail})", "≥ 1.8×",
+            "met" if speed >= 1.8 else "not met")  # fmt: skip
 
 
 def main() -> None:
@@ -113,97 +181,25 @@ def main() -> None:
         )
 
     if "cold" not in skip:
-        l0 = _load()
-        walls = []
-        with tempfile.TemporaryDirectory() as tmp:
-            for k in range(args.cold + 1):  # the first run warms the disk cache, not timed
-                wall, _ = bench_run_cold._run_once(src, Path(tmp) / f"out{k}")
-                if k:
-                    walls.append(wall)
-        lo, mid = min(walls), statistics.median(walls)
-        rows.append(
-            ("`msk run` gc5_PS cold (fresh interpreter)", f"{mid:.2f} s",
-             f"median of {args.cold}; min {lo:.2f} s", f"≤ {bench_run_cold.TARGET_S:g} s",
-             "met" if mid <= bench_run_cold.TARGET_S else
-             ("met by the fastest run only" if lo <= bench_run_cold.TARGET_S else "not met"))
-        )  # fmt: skip
-        notes.append(f"cold run: load {l0} → {_load()}")
-        l0 = _load()
-        walls = []
-        with tempfile.TemporaryDirectory() as tmp:
-            out = Path(tmp) / "out"
-            for k in range(args.cold + 1):  # the first run fills the stage cache, not timed
-                wall, _ = bench_run_cold._run_once(src, out, cached=bool(k))
-                if k:
-                    walls.append(wall)
-        lo, mid = min(walls), statistics.median(walls)
-        target = bench_run_cold.TARGET_CACHED_S
-        rows.append(
-            ("`msk run` gc5_PS cached (fresh interpreter)", f"{mid:.2f} s",
-             f"median of {args.cold}; min {lo:.2f} s", f"≤ {target:g} s",
-             "met" if mid <= target else
-             ("met by the fastest run only" if lo <= target else "not met"))
-        )  # fmt: skip
-        notes.append(f"cached run: load {l0} → {_load()}")
+        for what, cached, target in (("cold", False, bench_run_cold.TARGET_S),
+                                     ("cached", True, bench_run_cold.TARGET_CACHED_S)):  # fmt: skip
+            l0 = _load()
+            walls = _msk_runs(src, args.cold, cached=cached)
+            lo, mid = min(walls), statistics.median(walls)
+            rows.append(
+                (f"`msk run` gc5_PS {what} (fresh interpreter)", f"{mid:.2f} s",
+                 f"median of {args.cold}; min {lo:.2f} s", f"≤ {target:g} s",
+                 "met" if mid <= target else
+                 ("met by the fastest run only" if lo <= target else "not met"))
+            )  # fmt: skip
+            notes.append(f"{what} run: load {l0} → {_load()}")
 
     if "batch" not in skip:
-        import msk.batch as batch
-
         os.environ.setdefault("OPENBLAS_THREAD_TIMEOUT", "4")  # as `msk batch` sets it
-        wall: dict[int, float] = {}
-        for workers in (1, 2):
-            l0 = _load()
-            with tempfile.TemporaryDirectory() as tmp:
-                t0 = time.perf_counter()
-                res = batch.run_batch(
-                    [CONFIG] * args.sessions, Path(tmp) / "out", workers=workers, use_cache=False
-                )
-                wall[workers] = time.perf_counter() - t0
-            if res.failed:
-                raise SystemExit(f"batch failed: {[o.error for o in res.failed]}")
-            notes.append(
-                f"batch, {workers} worker(s): {wall[workers]:.1f} s, load {l0} → {_load()}"
-            )
-        speed = wall[1] / wall[2]
-        rows.append(
-            (f"`msk batch` {args.sessions} × gc5_PS, 2 workers / 1", f"{speed:.2f}×",
-             f"{wall[1]:.1f} s → {wall[2]:.1f} s (forkserver workers)", "≥ 1.8×",
-             "met" if speed >= 1.8 else "not met")
-        )  # fmt: skip
-
+        rows.append(_batch_speedup("", "forkserver workers", args.sessions, _local_pool, notes))
     if "dask" not in skip:
-        from distributed import Client, LocalCluster
-
-        import msk.batch as batch
-
-        # a cluster is started once and serves many batches: its start is not timed, the
-        # first session on each worker pays that worker's imports
-        dwall: dict[int, float] = {}
-        for workers in (1, 2):
-            l0 = _load()
-            with (
-                LocalCluster(n_workers=workers, threads_per_worker=1, processes=True,
-                             dashboard_address=None) as cluster,
-                Client(cluster) as client,
-                tempfile.TemporaryDirectory() as tmp,
-            ):  # fmt: skip
-                t0 = time.perf_counter()
-                res = batch.run_batch(
-                    [CONFIG] * args.sessions, Path(tmp) / "out", scheduler=client, use_cache=False
-                )
-                dwall[workers] = time.perf_counter() - t0
-            if res.failed:
-                raise SystemExit(f"dask batch failed: {[o.error for o in res.failed]}")
-            notes.append(
-                f"Dask LocalCluster, {workers} worker(s): {dwall[workers]:.1f} s, load {l0} → "
-                f"{_load()}"
-            )
-        speed = dwall[1] / dwall[2]
-        rows.append(
-            (f"`msk batch` {args.sessions} × gc5_PS on Dask, 2 workers / 1", f"{speed:.2f}×",
-             f"{dwall[1]:.1f} s → {dwall[2]:.1f} s (LocalCluster, 1 thread per worker)",
-             "≥ 1.8×", "met" if speed >= 1.8 else "not met")
-        )  # fmt: skip
+        rows.append(_batch_speedup(" on Dask", "LocalCluster, 1 thread per worker",
+                                   args.sessions, _dask_cluster, notes))  # fmt: skip
 
     notes.append(f"load average at the end {_load()}")
     print("| figure | value | detail | target | verdict |")
