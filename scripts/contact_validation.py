@@ -10,7 +10,8 @@ the configurations are the shipped ones. Prints a markdown table of RMSE (BW) an
 the total, medial and lateral force per trial, knee model and variant: ``shipped`` (the
 config as it is) and the variants of :data:`VARIANTS`, each one edit of the config (DM: the
 generic model's neutral knee alignment instead of DM.osim's, DM's given contact points from
-``p_DM.mat``; PS: the EMG-informed tension criteria instead of static optimisation).
+``p_DM.mat``; PS: static optimisation or the EMG-weighted criterion instead of the shipped
+EMG-assisted one).
 """
 
 from __future__ import annotations
@@ -50,14 +51,14 @@ def _p_dm(text: str) -> str:
 
 
 def _method(name: str) -> Callable[[str], str]:
-    return lambda text: text.replace('method = "static_optimization"', f'method = "{name}"')
+    return lambda text: re.sub(r'(?m)^method = ".*"$', f'method = "{name}"', text, count=1)
 
 
 #: per config: (variant, edit of the config text, knee models it is run with)
 VARIANTS: dict[str, list[tuple[str, Callable[[str], str] | None, tuple[str, ...]]]] = {
     "gc5_PS": [
-        ("shipped", None, ("spline", "four_bar")),
-        ("emg_assisted", _method("emg_assisted"), ("spline",)),
+        ("shipped (emg_assisted)", None, ("spline", "four_bar")),
+        ("static_optimization", _method("static_optimization"), ("spline",)),
         ("emg_weighted", _method("emg_weighted"), ("spline",)),
     ],
     "gc6_DM_og1": [
