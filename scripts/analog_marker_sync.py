@@ -12,6 +12,10 @@ Two independent estimates per Grand Challenge trial (the shipped ``pipelines/gc5
 * **goniometer** (PS only: its C3D records a knee electrogoniometer on an analog channel): the
   shift ``d`` maximising |r| between goniometer(t + d) and the IK knee angle of the same leg.
 
+For subject JW (``pipelines/gc4_JW.toml``), whose load-cell file carries the knee goniometer in
+degrees (``GON``), the IK knee flexion is also compared with it in degrees: the linear fit
+IK = a·GON + b and the mean difference over the frames whose ground reaction is measured.
+
 A positive ``d`` means the analog signal shows an event ``d`` later than the markers. Used in
 docs/validation.md (medial/lateral contact, "the 21–41 ms lead") as evidence that is not the
 measured contact force.
@@ -84,6 +88,28 @@ def _goniometer(kin: object, task_file: Path, side: str) -> tuple[float, float, 
     return _best(score)
 
 
+def _jw_goniometer() -> None:
+    from msk.config import load_config
+    from msk.pipeline import run_stages
+
+    cfg = load_config(cv.REPO / "pipelines" / "gc4_JW.toml")
+    (task,) = [tc for tc in cfg.trials if tc.role == "task"]
+    assert task.contact_force is not None
+    cells = np.loadtxt(task.contact_force, delimiter=",", skiprows=1, usecols=range(7))
+    r = run_stages(cfg, until="loads")
+    kin, usable = r["kinematics"], r["loads"].usable
+    gon = np.interp(kin.time, cells[:, 0], cells[:, 5])
+    knee = -np.degrees(kin.q[:, list(kin.coordinate_names).index("knee_angle_r")])
+    a, b = np.polyfit(gon, knee, 1)
+    print(
+        f"JW og3 goniometer (deg) vs IK knee flexion: r {np.corrcoef(gon, knee)[0, 1]:.3f}, "
+        f"IK = {a:.2f} GON {b:+.1f}°; on the measured frames IK − GON "
+        f"{np.mean((knee - gon)[usable]):+.1f}° "
+        f"(IK {knee[usable].min():.1f}…{np.percentile(knee[usable], 50):.1f}° min…median, "
+        f"GON {gon[usable].min():.1f}…{np.percentile(gon[usable], 50):.1f}°)"
+    )
+
+
 def main() -> int:
     from msk.config import load_config
     from msk.pipeline import run_stages
@@ -106,13 +132,14 @@ def main() -> int:
                 else None
             )
             gtxt = (
-                "—| —" if gon is None else f"{gon[1] * 1000:+.1f} | {-gon[0]:.3f} / {-gon[2]:.3f}"
+                "— | —" if gon is None else f"{gon[1] * 1000:+.1f} | {-gon[0]:.3f} / {-gon[2]:.3f}"
             )
             print(
                 f"| {name.split('_')[1]} {trial} | {m[1] * 1000:+.1f} | {m[0]:.1f} / {m[2]:.1f} "
                 f"| {gtxt} |",
                 flush=True,
             )
+    _jw_goniometer()
     return 0
 
 
