@@ -237,3 +237,21 @@ def test_stock_osim_with_its_marker_set_in_a_separate_xml(real_dir: Path, tmp_pa
     q = res.summary["quality"]
     assert Path(res.summary["model"]["source"]).resolve() == Path(osim).resolve()
     assert q["ik_marker_rms_mean_m"] < 0.025 and q["residual_force_rms_pct_bw"] < 5.0
+
+
+@pytest.mark.slow
+@pytest.mark.realdata
+def test_a_static_of_another_subject_is_a_clear_error(real_dir: Path, tmp_path: Path) -> None:
+    """The PiG calibration of one subject with another lab's Plug-in Gait walk: the walk
+    contradicts the static's leg markers, which are left out, and the static can no longer be
+    posed — a KinematicsError naming both files and the markers, not "no frame could be
+    solved" alone."""
+    from msk.exceptions import KinematicsError
+
+    other = real_dir / "btkdata" / "PlugInC3D.c3d"
+    _need(other)
+    cfg = pig_config(real_dir, tmp_path)
+    cfg.write_text(cfg.read_text().replace("PiG_Motion3_FF.c3d", "PlugInC3D.c3d"))
+    with pytest.raises(KinematicsError, match=r"PiG_Calibration3_FF\.c3d.*PlugInC3D\.c3d.*RKNE"):
+        run_session(cfg, tmp_path / "out")
+    assert not (tmp_path / "out" / "summary.json").exists()  # no results folder (cache only)

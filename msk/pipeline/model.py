@@ -20,7 +20,7 @@ from typing import Any
 
 import numpy as np
 
-from msk.exceptions import ConfigError, ModelError
+from msk.exceptions import ConfigError, KinematicsError, ModelError
 from msk.io.frames import lab_to_model_rotation
 from msk.pipeline.inputs import SessionInputs
 from msk.pipeline.read import ReadResult, read_static_markers
@@ -231,6 +231,15 @@ def _scale_and_place(inputs: SessionInputs, read: ReadResult) -> dict[str, Any]:
             )  # fmt: skip
         except ModelError as exc:
             raise ConfigError(f"{cfg.path}: markers.move: {exc}") from None
+        except KinematicsError as exc:
+            if not bad:
+                raise
+            assert inputs.static is not None and inputs.task is not None
+            raise KinematicsError(
+                f"{inputs.static.file.name}: the static cannot be posed without the markers "
+                f"{inputs.task.file.name} contradicts ({', '.join(sorted(bad))}): not the same "
+                f"subject or labelling? ({exc})"
+            ) from None
         model, from_task, check = _place_from_task(model, trial, rot, match, bad)
         placed["from_task"] = from_task
         if check:
