@@ -114,8 +114,9 @@ def child(n_frames: int, out: Path) -> dict[str, Any]:
     cfg = load_config(CONFIG)
 
     def tiled_read(inputs: Any) -> Any:
-        res = read.run(inputs)
-        return dataclasses.replace(res, trial=tile_trial(res.trial, n_frames))
+        res = read.read_task(inputs)
+        res = dataclasses.replace(res, trial=tile_trial(res.trial, n_frames))
+        return read.for_session(inputs, res)
 
     nodes = tuple(
         dataclasses.replace(n, run=tiled_read) if n.name == "read" else n for n in graph.GRAPH
