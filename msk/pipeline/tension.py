@@ -105,6 +105,17 @@ def _emg_assisted(
     return sol, dict(zip(fit.group_names, map(float, fit.gains)))
 
 
+def _force_curves(params: Any, geometry: Any, frames: Any) -> tuple[np.ndarray, np.ndarray]:
+    """f_active (its negative extrapolation clipped to 0) and f_passive along the tendon of the
+    rigid-tendon Hill state on the geometry's ``frames`` (a slice or indices), (n, m) each."""
+    from msk.muscles.hill import rigid_tendon_state
+
+    vel = None if geometry.velocities is None else geometry.velocities[frames]
+    state = rigid_tendon_state(params, geometry.lengths[frames], vel)
+    fmax = state.max_active_force_along_tendon
+    return np.where(fmax < 0, 0.0, fmax), state.passive_force_along_tendon
+
+
 def optimise(
     inputs: SessionInputs,
     model: Any,
@@ -121,26 +132,24 @@ def optimise(
     curve's extrapolation below zero is clipped to 0 rather than costing the frame)."""
     import msk.optimization as o
     from msk.muscles.geometry import finite_frames, jacobian_frames, muscle_parameters
-    from msk.muscles.hill import rigid_tendon_state
 
     act_idx = actuated(torques)
     params = muscle_parameters(model)
-    # the Hill state block by block (its many (N, m) arrays are never held whole)
-    fa_all = np.empty(geometry.lengths.shape)
-    fp_all = np.empty(geometry.lengths.shape)
-    for fr in frame_blocks(geometry.lengths.shape[0]):
+    # the Hill state block by block (its many (N, m) arrays are never held whole); here only
+    # whether each frame's force curves are finite — the solves below recompute f_active and
+    # f_passive for their own frames (elementwise: the same numbers), so that no (N, m) array
+    # of them is held through the solves (issue 18)
+    n_all = geometry.lengths.shape[0]
+    curves_finite = np.zeros(n_all, dtype=bool)
+    for fr in frame_blocks(n_all):
         sl = slice(int(fr[0]), int(fr[-1]) + 1) if fr.size else slice(0, 0)
-        vel = None if geometry.velocities is None else geometry.velocities[sl]
-        state = rigid_tendon_state(params, geometry.lengths[sl], vel)
-        fmax = state.max_active_force_along_tendon
-        fa_all[sl] = np.where(fmax < 0, 0.0, fmax)
-        fp_all[sl] = state.passive_force_along_tendon
-        del state
+        fa, fp = _force_curves(params, geometry, sl)
+        curves_finite[sl] = np.isfinite(fa).all(axis=1) & np.isfinite(fp).all(axis=1)
+        del fa, fp
     posable = (
         finite_frames(geometry.jacobian, act_idx)
         & np.isfinite(torques.tau[:, act_idx]).all(axis=1)
-        & np.isfinite(fa_all).all(axis=1)
-        & np.isfinite(fp_all).all(axis=1)
+        & curves_finite
     )
     ok = usable & posable
     excluded = int((usable & ~posable).sum())
@@ -165,11 +174,16 @@ def optimise(
     blocks = [idx_ok] if meth == "emg_assisted" else frame_blocks(idx_ok)
     carry = o.WarmStart()
     gains: dict[str, float] | None = None
-    parts: list[tuple[Any, Any, Any, int]] = []
+    n = time.size
+    # filled block by block (no list of every block's forces concatenated at the end)
+    f_all = np.full((n, len(params.names)), np.nan)
+    a_all = np.full_like(f_all, np.nan)
+    rt = np.full((n, len(act_idx)), np.nan)
+    infeasible = 0
     for fr in blocks:
         jac = jacobian_frames(geometry.jacobian, fr, act_idx)
         tq = torques.tau[fr][:, act_idx]
-        fa, fp = fa_all[fr], fp_all[fr]
+        fa, fp = _force_curves(params, geometry, fr)
         common: dict[str, Any] = {
             "muscle_names": params.names,
             "coordinate_names": cn,
@@ -214,16 +228,12 @@ def optimise(
             forces = lag.forces
             acts = forces / np.maximum(fa, 1e-9)
             sol = None
-        del jac
-        parts.append(
-            (forces, acts, None if sol is None else sol.reserve_torques,
-             0 if sol is None else int(sol.infeasible_frames.size))
-        )  # fmt: skip
-    n = time.size
-    f_all = np.full((n, len(params.names)), np.nan)
-    a_all = np.full_like(f_all, np.nan)
-    for fr, (forces, acts, _, _) in zip(blocks, parts, strict=True):
+        del jac, fa, fp
         f_all[fr], a_all[fr] = forces, acts
+        if sol is not None:
+            rt[fr] = sol.reserve_torques
+            infeasible += int(sol.infeasible_frames.size)
+        del sol, forces, acts
     w = "V_i " if opt.activation_weights == "volume" else ""
     criterion = None
     if meth == "static_optimization":
@@ -240,13 +250,9 @@ def optimise(
     )  # fmt: skip
     if meth == "closed_form":
         return out
-    rt = np.full((n, len(act_idx)), np.nan)
-    for fr, (_, _, r, _) in zip(blocks, parts, strict=True):
-        rt[fr] = r
     return dataclasses.replace(
-        out, infeasible_frames=sum(p[3] for p in parts), reserve_torques=rt,
-        reserve_coordinates=cn,
-    )  # fmt: skip
+        out, infeasible_frames=infeasible, reserve_torques=rt, reserve_coordinates=cn
+    )
 
 
 def needs(inputs: SessionInputs) -> tuple[str, ...]:
