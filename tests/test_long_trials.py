@@ -213,8 +213,18 @@ def test_strength_state_block_by_block_equals_the_whole_state(
         est = StrengthIdentifier(leg.groups, leg.params, n_bootstrap=20, random_state=0)
         est.fit(tr.jacobian[frames], act[frames], tr.tau[frames], state, windows=tr.cycle[frames])
         fits.append(est)
-    np.testing.assert_array_equal(fits[1].factors_, fits[0].factors_)
-    np.testing.assert_array_equal(fits[1].bootstrap_, fits[0].bootstrap_)
+    # the whole trial's Jacobian (dense and compact) with the rows named by ``frames``
+    from msk.timeseries import FrameSparse
+
+    dense = np.asarray(tr.jacobian)
+    compact = FrameSparse.from_dense(dense, np.flatnonzero(np.any(dense != 0, axis=0).ravel()))
+    for jac in (dense, compact):
+        est = StrengthIdentifier(leg.groups, leg.params, n_bootstrap=20, random_state=0)
+        est.fit(jac, act[frames], tr.tau[frames], lazy, windows=tr.cycle[frames], frames=frames)
+        fits.append(est)
+    for est in fits[1:]:
+        np.testing.assert_array_equal(est.factors_, fits[0].factors_)
+        np.testing.assert_array_equal(est.bootstrap_, fits[0].bootstrap_)
     with pytest.raises(si.ShapeMismatchError):
         fits[0].predict(tr.jacobian, act, lazy)  # frames of the state ≠ frames of the data
 

@@ -265,6 +265,13 @@ def expand_groups(
     return out
 
 
+def _rows(jacobian: ArrayLike | FrameSparse, frames: NDArray[np.int64]) -> Array:
+    """The rows ``frames`` of a dense or compact Jacobian, dense (N_frames, M, n)."""
+    if isinstance(jacobian, FrameSparse):
+        return np.asarray(jacobian[frames])
+    return np.asarray(jacobian, dtype=float)[frames]
+
+
 def group_contributions(
     contribution: ArrayLike,
     groups: Mapping[str, Sequence[str]],
@@ -596,7 +603,11 @@ class StrengthIdentifier:
 
     # ----------------------------------------------------------------- helpers
     def _contributions(
-        self, jacobian: ArrayLike | FrameSparse, activation: ArrayLike, state: StateLike
+        self,
+        jacobian: ArrayLike | FrameSparse,
+        activation: ArrayLike,
+        state: StateLike,
+        frames: ArrayLike | None = None,
     ) -> tuple[Array, Array]:
         if tuple(state.names) != self.params.names:
             raise ShapeMismatchError(
@@ -604,31 +615,40 @@ class StrengthIdentifier:
                 f"{self.params.names[:3]}…"
             )
         # block by block over the frames: the (N, M, n) contributions of a long trial are never
-        # held whole (each frame's values are computed exactly as in one pass)
+        # held whole (each frame's values are computed exactly as in one pass); ``frames``: the
+        # rows of ``jacobian`` used, read block by block (never copied whole)
+        rows = None if frames is None else np.asarray(frames, dtype=np.int64)
         jac: Array | FrameSparse
         if isinstance(jacobian, FrameSparse):  # compact (the pipeline's): dense block by block
             jac = jacobian
-            bad = np.flatnonzero(~np.isfinite(jac.values).all(axis=1))
-            if bad.size:
-                _as3(jac[bad[:1]], f"jacobian (from frame {int(bad[0])})")
+            sel = np.arange(len(jac)) if rows is None else rows
+            for c0 in range(0, sel.size, _FRAME_BLOCK):
+                r = sel[c0 : c0 + _FRAME_BLOCK]
+                bad = r[~np.isfinite(jac.values[r]).all(axis=1)]
+                if bad.size:
+                    _as3(jac[bad[:1]], f"jacobian (from frame {int(bad[0])})")
             if jac.ndim != 3:
                 raise ShapeMismatchError(f"jacobian must be (N, M, n), got {jac.shape}")
         else:
             jac = _as3(jacobian, "jacobian")
-        n = jac.shape[0]
+        n = jac.shape[0] if rows is None else int(rows.size)
+
+        def block(sl: slice) -> Array:
+            return np.asarray(jac[sl] if rows is None else jac[rows[sl]])
+
         act = _as2(activation, (n, jac.shape[1]), "activation", state.names)
         if isinstance(state, RigidTendonStateBlocks) and state.n_frames != n:
             raise ShapeMismatchError(f"muscle state has {state.n_frames} frames, jacobian {n}")
         if n <= _FRAME_BLOCK:
             c = net_contribution(
-                jac[:], act, _state_rows(state, slice(None), n), passive=self.passive
+                block(slice(None)), act, _state_rows(state, slice(None), n), passive=self.passive
             )
             return group_contributions(c, self.groups, self.params)
         cg = other = None  # filled block by block (no list of parts concatenated at the end)
         for c0 in range(0, n, _FRAME_BLOCK):
             sl = slice(c0, c0 + _FRAME_BLOCK)
             st = _state_rows(state, sl, n)
-            c = net_contribution(jac[sl], act[sl], st, passive=self.passive)
+            c = net_contribution(block(sl), act[sl], st, passive=self.passive)
             g_part, o_part = group_contributions(c, self.groups, self.params)
             del c
             if cg is None or other is None:
@@ -729,6 +749,7 @@ class StrengthIdentifier:
         windows: ArrayLike | None = None,
         coordinate_names: Sequence[str] | None = None,
         movements: ArrayLike | None = None,
+        frames: ArrayLike | None = None,
     ) -> StrengthIdentifier:
         """Identify the group strengths from one or more concatenated trials.
 
@@ -744,10 +765,14 @@ class StrengthIdentifier:
         seeds/002 §VI.A) — with ``instrument="phase_average"`` a window is instrumented by
         the other windows of its movement only, which must then have ≥ 3 windows, and the
         intervals resample within movements (default: all windows repeat one movement).
+        ``frames``: the rows of ``jacobian`` that the other arguments' rows are (default:
+        all), read block by block — a long trial's Jacobian rows are not copied (issue 18).
         """
         from scipy import stats  # on use: decoding cached results need not pay for them
 
-        cg, other = self._contributions(jacobian, activation, state)
+        if frames is not None:
+            frames = np.asarray(frames, dtype=np.int64)
+        cg, other = self._contributions(jacobian, activation, state, frames)
         n_frames, n_groups, n_coords = cg.shape
         cnames = self._coords(coordinate_names, n_coords)
         y_all = _as2(tau, (n_frames, n_coords), "tau", cnames) - other
@@ -768,7 +793,7 @@ class StrengthIdentifier:
         act_arr = np.asarray(activation, dtype=float)
         if use_iv:
             a_bar = _phase_average_loo(act_arr, labels, movement=win_mov)
-            zg, _ = self._contributions(jacobian, a_bar, state)
+            zg, _ = self._contributions(jacobian, a_bar, state, frames)
         # coordinates used
         scale = np.maximum(cg.max(axis=0), -cg.min(axis=0))  # max |C_g| (G, n), no |C_g| copy
         acts = scale > 1e-9 * max(float(scale.max()), 1e-300)
@@ -876,7 +901,7 @@ class StrengthIdentifier:
             # the regression *and* every other cycle's instrument (which then averages W − 2
             # cycles), so the instrument's own EMG noise is part of the spread
             pp, qq = self._instrument_pairs(
-                jacobian,
+                jacobian if frames is None else _rows(jacobian, frames),
                 act_arr,
                 state,
                 labels,
