@@ -156,8 +156,11 @@ __all__ = [
 # ---------------------------------------------------------------------------------------------
 # net contribution matrix
 # ---------------------------------------------------------------------------------------------
-#: frames per block of the contribution matrices (:meth:`StrengthIdentifier._contributions`)
-_FRAME_BLOCK = 2048
+#: frames per block of the contribution matrices (:meth:`StrengthIdentifier._contributions`):
+#: a block's dense Jacobian and contributions of 92 muscles × 23 coordinates are ~9 MB each
+#: (at 2048 frames they were ~35 MB each, ~100 MB together: the strength stage's fixed part of
+#: a long trial's peak; issue 18). Each frame's values do not depend on the block.
+_FRAME_BLOCK = 512
 
 
 #: a muscle state given whole, or computed block by block on demand
