@@ -17,7 +17,12 @@ after it start from; results no later stage reads are released,
 :func:`msk.pipeline.graph.run_graph`). Ratios between lengths show
 linearity; absolute times depend on the machine's load.
 
-Usage: ``.venv/bin/python bench/bench_long_trial.py [--frames 10000 30000 100000]``.
+``--trace``: instead, each node's run under :mod:`tracemalloc` (numpy's allocations; slower,
+use ~4 000 and 12 000 frames): per node the bytes live before it, its transient (peak during
+it minus live before) and the size of its result, and between two lengths their slopes in
+bytes per frame — what each stage adds to the peak of a longer trial.
+
+Usage: ``.venv/bin/python bench/bench_long_trial.py [--frames 10000 30000 100000] [--trace]``.
 """
 
 from __future__ import annotations
@@ -104,8 +109,49 @@ def tile_trial(trial: Any, n_frames: int) -> Any:
     )
 
 
-def child(n_frames: int, out: Path) -> dict[str, Any]:
+def _nbytes(obj: Any, seen: set[int]) -> int:
+    """Bytes of the numpy arrays reachable from ``obj`` (dataclasses, mappings, sequences,
+    attributes), each buffer once."""
+    import numpy as np
+
+    if id(obj) in seen:
+        return 0
+    seen.add(id(obj))
+    if isinstance(obj, np.ndarray):
+        return obj.nbytes if obj.base is None else _nbytes(obj.base, seen)
+    if dataclasses.is_dataclass(obj) and not isinstance(obj, type):
+        return sum(_nbytes(getattr(obj, f.name), seen) for f in dataclasses.fields(obj))
+    if isinstance(obj, dict):
+        return sum(_nbytes(v, seen) for v in obj.values())
+    if isinstance(obj, (list, tuple)):
+        return sum(_nbytes(v, seen) for v in obj)
+    if hasattr(obj, "__dict__"):
+        return sum(_nbytes(v, seen) for v in vars(obj).values())
+    return 0
+
+
+def _traced(node: Any, rows: list[tuple[str, int, int, int]]) -> Any:
+    """``node`` whose run records (name, live before, transient, result bytes)."""
+    import tracemalloc
+
+    run = node.run
+
+    @functools.wraps(run)
+    def wrapped(*args: Any, **kwargs: Any) -> Any:
+        before = tracemalloc.get_traced_memory()[0]
+        tracemalloc.reset_peak()
+        res = run(*args, **kwargs)
+        peak = tracemalloc.get_traced_memory()[1]
+        rows.append((node.name, before, peak - before, _nbytes(res, set())))
+        return res
+
+    return dataclasses.replace(node, run=wrapped)
+
+
+def child(n_frames: int, out: Path, trace: bool = False) -> dict[str, Any]:
     """Run the session on the tiled trial in this process; figures as a dict."""
+    import tracemalloc
+
     import msk.pipeline.graph as graph
     import msk.pipeline.session as session
     from msk.config import load_config
@@ -114,12 +160,17 @@ def child(n_frames: int, out: Path) -> dict[str, Any]:
     cfg = load_config(CONFIG)
 
     def tiled_read(inputs: Any) -> Any:
-        res = read.run(inputs)
-        return dataclasses.replace(res, trial=tile_trial(res.trial, n_frames))
+        res = read.read_task(inputs)
+        res = dataclasses.replace(res, trial=tile_trial(res.trial, n_frames))
+        return read.for_session(inputs, res)
 
     nodes = tuple(
         dataclasses.replace(n, run=tiled_read) if n.name == "read" else n for n in graph.GRAPH
     )
+    traced: list[tuple[str, int, int, int]] = []
+    if trace:
+        tracemalloc.start()
+        nodes = tuple(_traced(n, traced) for n in nodes)
     session.run_graph = functools.partial(graph.run_graph, graph=nodes)  # type: ignore[assignment]
     mem = _StageMemory()
     hwm0 = _status_kib("VmHWM")
@@ -133,24 +184,44 @@ def child(n_frames: int, out: Path) -> dict[str, Any]:
         "hwm_before_kib": hwm0,
         "stages": mem.rows,
         "failed": failed,
+        "traced": traced,
     }
+
+
+def _print_traced(rows: list[dict[str, Any]]) -> None:
+    """Per node: bytes live before, transient, result (MiB at the first length) and, between
+    the first and last lengths, their slopes (bytes per frame)."""
+    a, b = rows[0], rows[-1]
+    dn = b["frames"] - a["frames"]
+    print(f"per node, {a['frames']} frames (MiB) and slope to {b['frames']} (B/frame):")
+    print(f"    {'node':<26}{'live':>8}{'trans':>8}{'result':>8} | {'live':>7}{'trans':>7}"
+          f"{'result':>7}{'peak':>7}")  # fmt: skip
+    for ra, rb in zip(a["traced"], b["traced"], strict=True):
+        sl = [(rb[i] - ra[i]) / dn if dn else 0.0 for i in (1, 2, 3)]
+        mib = [ra[i] / 2**20 for i in (1, 2, 3)]
+        print(
+            f"    {ra[0]:<26}{mib[0]:8.1f}{mib[1]:8.1f}{mib[2]:8.1f} | {sl[0]:7.0f}{sl[1]:7.0f}"
+            f"{sl[2]:7.0f}{sl[0] + sl[1]:7.0f}"
+        )
 
 
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--frames", type=int, nargs="+", default=[10_000, 30_000, 100_000])
+    ap.add_argument("--trace", action="store_true", help="per-node bytes under tracemalloc")
     ap.add_argument("--child", type=int, help=argparse.SUPPRESS)
     ap.add_argument("--out", type=Path, help=argparse.SUPPRESS)
     args = ap.parse_args()
     if args.child:
-        print(json.dumps(child(args.child, args.out)))
+        print(json.dumps(child(args.child, args.out, args.trace)))
         return
     rows = []
     for n in args.frames:
         with tempfile.TemporaryDirectory() as tmp:
             before = resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss
             p = subprocess.run(
-                [sys.executable, __file__, "--child", str(n), "--out", str(Path(tmp) / "out")],
+                [sys.executable, __file__, "--child", str(n), "--out", str(Path(tmp) / "out")]
+                + (["--trace"] if args.trace else []),
                 capture_output=True, text=True, check=False,
             )  # fmt: skip
             peak = resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss
@@ -173,6 +244,9 @@ def main() -> None:
                 f"    {name:<26}{sec:8.2f} s  high-water {hwm / 1024:6.0f} MiB  "
                 f"resident after {rss / 1024:6.0f} MiB"
             )
+    if args.trace:
+        _print_traced(rows)
+        return
     if len(rows) > 1:
         a = rows[0]
         for b in rows[1:]:

@@ -444,7 +444,7 @@ class _Prepared:
 def external_loads(
     model: Model,
     kinematics: Any,
-    plates: Iterable[PlateWrench],
+    plates: Iterable[PlateWrench | SampledPlate],
     *,
     feet: Sequence[str] | None = None,
     assignment: Mapping[str, str] | None = None,
@@ -465,7 +465,9 @@ def external_loads(
         kinematics: a :class:`msk.kinematics.Kinematics` (``time``, ``q``).
         plates: the plates (:func:`plates_from_trial`, :func:`plates_from_grf_file`,
             :func:`plates_from_table`); each is used once, resampled to the kinematics time,
-            so an iterator making them on demand holds one analog-rate plate at a time.
+            so an iterator making them on demand holds one analog-rate plate at a time; or
+            plates already sampled (:func:`sample_plate`, with the same ``threshold_n``,
+            ``sign`` and ``cutoff_hz``).
         feet: bodies that can stand on a plate (default: bodies named ``calcn*`` or ``foot*``).
         assignment: plate name → body for all the frames of that plate, bypassing the automatic
             assignment (e.g. :func:`external_loads_assignment` of an OpenSim ExternalLoads
@@ -644,17 +646,57 @@ def external_loads(
     )
 
 
-def _prepare(
+@dataclass(frozen=True)
+class SampledPlate:
+    """A plate's wrench brought to the kinematics time by :func:`sample_plate`: the analog-rate
+    part of :func:`external_loads`'s preparation done once, so that a long trial need not hold
+    its plates at the analog rate.
+
+    ``force`` and ``moment`` (N, 3): F and M_O = c × F + T, signed so that F is the ground's
+    reaction on the subject, zero at the analog samples whose vertical force is at most the
+    threshold, low-passed, linearly resampled on ``time`` (0 outside the plate's time);
+    ``height_m``: the plate surface along the ``up`` of the sampling (corners, else the median
+    of the loaded COPs); ``corners`` (4, 3) m or ``None``."""
+
+    name: str
+    time: Array
+    force: Array
+    moment: Array
+    height_m: float
+    corners: Array | None = None
+
+    def rotated(self, rotation: ArrayLike) -> SampledPlate:
+        """This plate in the frame ``x_new = R x`` (force, moment about the origin, corners;
+        the height along the rotated ``up`` is unchanged)."""
+        r = np.asarray(rotation, dtype=float)
+        return SampledPlate(
+            self.name,
+            self.time,
+            self.force @ r.T,
+            self.moment @ r.T,
+            self.height_m,
+            None if self.corners is None else np.asarray(self.corners, dtype=float) @ r.T,
+        )
+
+
+def sample_plate(
     pl: PlateWrench,
-    t: Array,
-    up: Array,
+    t: ArrayLike,
+    up: ArrayLike,
     *,
-    threshold_n: float,
-    sign: Literal["auto"] | float,
-    cutoff_hz: float | None,
-) -> _Prepared:
-    """The plate's wrench on the kinematics time ``t``, its COP there, its surface height
-    (corners, else the recorded COPs) and its contact frames."""
+    threshold_n: float = 20.0,
+    sign: Literal["auto"] | float = "auto",
+    cutoff_hz: float | None = None,
+) -> SampledPlate:
+    """The plate's wrench f_O = (F, M_O) on the times ``t`` (:class:`SampledPlate`).
+
+    At the plate's rate: the sign (``"auto"``: the vertical force, along the unit ``up``,
+    positive during contact), F and M_O zeroed where |F·up| ≤ ``threshold_n``, the optional
+    zero-lag low-pass (:func:`msk.signal.filtfilt_butter`); then linear resampling on ``t``.
+    Component by component, so that the analog-rate temporaries are one column at a time
+    (issue 18); the same numbers as the whole-array computation, bit for bit."""
+    t = np.asarray(t, dtype=float)
+    up = np.asarray(up, dtype=float)
     f_raw = np.asarray(pl.force, dtype=float)
     if f_raw.ndim != 2 or f_raw.shape[1] != 3 or f_raw.shape[0] != np.size(pl.time):
         raise ShapeMismatchError(
@@ -666,26 +708,58 @@ def _prepare(
         s = -1.0 if loaded_raw.any() and np.sum(fv_raw[loaded_raw]) < 0 else 1.0
     else:
         s = float(sign)
-    f_pl = s * np.nan_to_num(f_raw)
-    m_pl = s * PlateWrench(pl.name, pl.time, f_raw, pl.cop, pl.free_moment).moment_about_origin()
-    f_pl[~loaded_raw] = 0.0
-    m_pl[~loaded_raw] = 0.0
-    ta = np.asarray(pl.time, dtype=float)
-    if cutoff_hz is not None:
-        rate = (ta.size - 1) / (ta[-1] - ta[0])
-        f_pl = filtfilt_butter(f_pl, rate_hz=rate, cutoff_hz=cutoff_hz)
-        m_pl = filtfilt_butter(m_pl, rate_hz=rate, cutoff_hz=cutoff_hz)
-    f_k = np.nan_to_num(resample_to(ta, f_pl, t))
-    m_k = np.nan_to_num(resample_to(ta, m_pl, t))
-    fv = f_k @ up
-    contact = fv > threshold_n
-    # the plate surface: its corners (a step, a raised walkway), else the recorded COPs
+    del fv_raw
     cop_raw = np.asarray(pl.cop, dtype=float)
-    cop_ok = np.isfinite(cop_raw).all(axis=1) & loaded_raw
+    cop_finite = np.isfinite(cop_raw).all(axis=1)
+    unloaded = ~loaded_raw
+    ta = np.asarray(pl.time, dtype=float)
+    rate = (ta.size - 1) / (ta[-1] - ta[0]) if ta.size > 1 else float("nan")
+    f_k = np.empty((t.size, 3))
+    m_k = np.empty((t.size, 3))
+    for j in range(3):
+        a, b = (j + 1) % 3, (j + 2) % 3
+        # F_j and (c × F + T)_j as moment_about_origin computes them (np.cross: c_a F_b − c_b F_a)
+        f_j = s * np.nan_to_num(f_raw[:, j])
+        m_j = np.nan_to_num(cop_raw[:, a]) * f_raw[:, b]
+        m_j -= np.nan_to_num(cop_raw[:, b]) * f_raw[:, a]
+        m_j += np.nan_to_num(np.asarray(pl.free_moment[:, j], dtype=float))
+        m_j[~cop_finite] = 0.0
+        m_j *= s
+        for x, out in ((f_j, f_k), (m_j, m_k)):
+            x[unloaded] = 0.0
+            if cutoff_hz is not None:
+                x = filtfilt_butter(x, rate_hz=rate, cutoff_hz=cutoff_hz)
+            out[:, j] = np.nan_to_num(np.interp(t, ta, x, left=np.nan, right=np.nan))
+        del f_j, m_j
+    # the plate surface: its corners (a step, a raised walkway), else the recorded COPs
     if pl.corners is not None and np.isfinite(pl.corners).all():
         h = float(np.mean(np.asarray(pl.corners, dtype=float) @ up))
     else:
+        cop_ok = cop_finite & loaded_raw
         h = float(np.median(cop_raw[cop_ok] @ up)) if cop_ok.any() else 0.0
+    corners = None if pl.corners is None else np.asarray(pl.corners, dtype=float)
+    return SampledPlate(pl.name, t, f_k, m_k, h, corners)
+
+
+def _prepare(
+    pl: PlateWrench | SampledPlate,
+    t: Array,
+    up: Array,
+    *,
+    threshold_n: float,
+    sign: Literal["auto"] | float,
+    cutoff_hz: float | None,
+) -> _Prepared:
+    """The plate's wrench on the kinematics time ``t`` (:func:`sample_plate`, unless already
+    sampled), its COP there, its surface height and its contact frames."""
+    if not isinstance(pl, SampledPlate):
+        pl = sample_plate(pl, t, up, threshold_n=threshold_n, sign=sign, cutoff_hz=cutoff_hz)
+    f_k, m_k, h = pl.force, pl.moment, pl.height_m
+    if not np.array_equal(pl.time, t):
+        f_k = np.nan_to_num(resample_to(pl.time, f_k, t))
+        m_k = np.nan_to_num(resample_to(pl.time, m_k, t))
+    fv = f_k @ up
+    contact = fv > threshold_n
     with np.errstate(divide="ignore", invalid="ignore"):
         # c = h·up + (up × M_O_h)/F_v with M_O_h the moment about the point h·up
         m_h = m_k - np.cross(h * up, f_k)

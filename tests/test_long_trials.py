@@ -255,8 +255,18 @@ def test_strength_state_block_by_block_equals_the_whole_state(
         est = StrengthIdentifier(leg.groups, leg.params, n_bootstrap=20, random_state=0)
         est.fit(tr.jacobian[frames], act[frames], tr.tau[frames], state, windows=tr.cycle[frames])
         fits.append(est)
-    np.testing.assert_array_equal(fits[1].factors_, fits[0].factors_)
-    np.testing.assert_array_equal(fits[1].bootstrap_, fits[0].bootstrap_)
+    # the whole trial's Jacobian (dense and compact) with the rows named by ``frames``
+    from msk.timeseries import FrameSparse
+
+    dense = np.asarray(tr.jacobian)
+    compact = FrameSparse.from_dense(dense, np.flatnonzero(np.any(dense != 0, axis=0).ravel()))
+    for jac in (dense, compact):
+        est = StrengthIdentifier(leg.groups, leg.params, n_bootstrap=20, random_state=0)
+        est.fit(jac, act[frames], tr.tau[frames], lazy, windows=tr.cycle[frames], frames=frames)
+        fits.append(est)
+    for est in fits[1:]:
+        np.testing.assert_array_equal(est.factors_, fits[0].factors_)
+        np.testing.assert_array_equal(est.bootstrap_, fits[0].bootstrap_)
     with pytest.raises(si.ShapeMismatchError):
         fits[0].predict(tr.jacobian, act, lazy)  # frames of the state ≠ frames of the data
 
@@ -352,16 +362,96 @@ def test_run_graph_releases_each_result_after_its_last_reader() -> None:
 
 def test_model_stage_keeps_no_analog_rate_data() -> None:
     """The model stage's trial holds the markers (model frame) only: the analogs and plates
-    stay with the read stage, which is released after the EMG stage."""
+    stay with the read stage, which is released after the EMG stage; the read stage keeps the
+    plates' force, COP and free moment (shared with the file's plates, not copied) and the
+    analog channels of no plate, nothing else at the analog rate."""
     from msk.config import load_config
+    from msk.pipeline import read as read_stage
+    from msk.pipeline import run_stages
+    from msk.pipeline.inputs import session_inputs
+
+    cfg = load_config(REPO / "pipelines" / "gc5_PS.toml")
+    r = run_stages(cfg, until="loads")
+    built, read = r["model"], r["read"]
+    assert built.trial.plates == () and built.trial.analogs.size == 0
+    np.testing.assert_array_equal(built.lab_up, read.trial.up)
+    assert built.trial.markers.shape == read.trial.markers.shape
+    full = read_stage.read_task(session_inputs(cfg))
+    light = read_stage.for_session(session_inputs(cfg), full)
+    assert read.trial.plates == () and len(read.plates) == len(full.trial.plates) == 3
+    plate_channels = {c for p in full.trial.plates for c in p.channels}
+    assert set(light.trial.analog_labels) == set(full.trial.analog_labels) - plate_channels
+    assert len(light.trial.analog_labels) == 18 and set(cfg.emg.channels.values()) <= set(
+        light.trial.analog_labels
+    )
+    for lab in light.trial.analog_labels:  # the same samples
+        np.testing.assert_array_equal(light.trial.analog(lab), full.trial.analog(lab))
+    for pw, fp in zip(light.plates, full.trial.plates):
+        assert np.shares_memory(pw.force, fp.force) and np.shares_memory(pw.cop, fp.cop)
+    assert light.trial.markers is full.trial.markers
+    assert light.trial.model_outputs.data.size == 0
+
+
+def test_emg_channel_by_channel_on_the_frames_equals_resampling_the_whole() -> None:
+    """process_emg with ``time`` (each channel resampled as soon as processed) equals the
+    analog-rate envelopes resampled afterwards: MVC-clipped, session-peak, flat and delayed
+    channels, a channel shared by two muscles, a synergist."""
+    from msk.muscles.emg import process_emg
+
+    rng = np.random.default_rng(3)
+    rate, n = 1000.0, 4000
+    t = np.arange(n) / rate
+    burst = np.clip(np.sin(2 * np.pi * 1.1 * t), 0, None)
+    x = np.column_stack(
+        [
+            np.round(rng.normal(size=n) * (0.05 + a * burst) / 1e-4) * 1e-4
+            for a in (1.0, 2.0, 0.5, 1.5)
+        ]
+        + [np.round(rng.normal(size=n) * 1e-3 / 1e-4) * 1e-4]  # flat: noise, no modulation
+    )
+    labels = ("A", "B", "C", "D", "F")
+    opts: dict[str, object] = dict(
+        rate_hz=rate, labels=labels,
+        muscles={"a": "A", "a2": "A", "b": "B", "c": "C", "d": "D", "f": "F"},
+        synergists={"s": ("a", "b")}, mvc={"B": 0.2}, t0=0.25,
+        delay_s={"a": 0.0, "a2": 0.02, "c": 0.05, "s": 0.01},
+    )  # fmt: skip
+    whole = process_emg(x, **opts)  # type: ignore[arg-type]
+    frames = 0.25 + np.arange(0.0, 3.9, 1 / 120)
+    per_channel = process_emg(x, time=frames, **opts)  # type: ignore[arg-type]
+    ref = whole.resampled(frames)
+    assert whole.quality.flat.tolist() == [False, False, False, False, True]
+    assert any("clipped to 100 %" in w for w in whole.warnings)
+    direct = [i for i, m in enumerate(ref.muscle_names) if m != "s"]
+    np.testing.assert_array_equal(per_channel.envelopes[:, direct], ref.envelopes[:, direct])
+    np.testing.assert_allclose(per_channel.envelopes, ref.envelopes, rtol=0, atol=1e-15)
+    assert per_channel.warnings == whole.warnings
+    np.testing.assert_array_equal(per_channel.normalisation_value, whole.normalisation_value)
+    np.testing.assert_array_equal(per_channel.time, frames)
+
+
+def test_plates_sampled_first_give_the_same_loads() -> None:
+    """external_loads of plates already on the kinematics time (:func:`msk.loads.sample_plate`,
+    column by column) equals external_loads of the analog-rate plates, bit for bit."""
+    from msk.config import load_config
+    from msk.loads import external_loads, sample_plate
     from msk.pipeline import run_stages
 
     r = run_stages(load_config(REPO / "pipelines" / "gc5_PS.toml"), until="loads")
-    built, read = r["model"], r["read"]
-    assert built.trial.plates == () and built.trial.analogs.size == 0
-    assert read.trial.plates and read.trial.analogs.size
-    np.testing.assert_array_equal(built.lab_up, read.trial.up)
-    assert built.trial.markers.shape == read.trial.markers.shape
+    mdl, kin, read = r["model"], r["kinematics"], r["read"]
+    rot = mdl.rotation
+    from msk.pipeline.loads import rotated_plate
+
+    plates = [rotated_plate(p, rot) for p in read.plates]
+    up = -np.asarray(mdl.model.gravity) / np.linalg.norm(mdl.model.gravity)
+    a = external_loads(mdl.model, kin, plates, cutoff_hz=15.0)
+    sampled = [sample_plate(p, kin.time, up, cutoff_hz=15.0) for p in plates]
+    b = external_loads(mdl.model, kin, sampled, cutoff_hz=15.0)
+    for f in ("force", "moment", "point"):
+        np.testing.assert_array_equal(getattr(a, f), getattr(b, f), err_msg=f)
+    assert a.assignments == b.assignments and a.metadata == b.metadata
+    rotated = sampled[0].rotated(rot.T)
+    np.testing.assert_allclose(rotated.force @ rot.T, sampled[0].force, atol=1e-9)
 
 
 def test_inverse_dynamics_in_blocks_equals_one_pass(monkeypatch: pytest.MonkeyPatch) -> None:

@@ -32,6 +32,7 @@ mistaken for activity; ``"keep"`` keeps it, ``"raise"`` raises :class:`EmgError`
 
 from __future__ import annotations
 
+import dataclasses
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from typing import Any, ClassVar, Literal, Protocol
@@ -199,47 +200,68 @@ def mvc_peaks(
     return peaks
 
 
-def channel_quality(
-    emg: ArrayLike,
+@dataclass(frozen=True)
+class _ChannelStats:
+    """One channel's quality figures before the cross-channel ones (relative RMS, flags)."""
+
+    rms: float
+    lsb: float
+    modulation: float
+    clipped: float
+    envelope: Array  #: max(low-pass(|high-pass(x)|), 0) with order-4 filters, (N,)
+
+
+def _channel_stats(
+    x: Array,
     *,
     rate_hz: float,
-    labels: Sequence[str],
-    highpass_hz: float = 30.0,
-    lowpass_hz: float = 6.0,
+    highpass_hz: float,
+    lowpass_hz: float,
+    saturation_level: float | None,
+) -> _ChannelStats:
+    """:func:`channel_quality`'s figures of one channel ``x`` (N,)."""
+    n = x.shape[0]
+    hp = filtfilt_butter(x, rate_hz=rate_hz, cutoff_hz=highpass_hz, btype="highpass")
+    rms = float(np.sqrt(np.mean(hp**2)))
+    np.abs(hp, out=hp)
+    env = np.maximum(filtfilt_butter(hp, rate_hz=rate_hz, cutoff_hz=lowpass_hz), 0.0)
+    del hp
+    k = _edge(n, rate_hz, lowpass_hz)
+    inner = env[k : n - k] if k else env
+    p10 = float(np.percentile(inner, 10))
+    p99 = float(np.percentile(inner, 99))
+    modulation = p99 / p10 if p10 > 0 else (np.inf if p99 > 0 else 1.0)
+    u = np.unique(x)
+    d = np.diff(u)
+    d = d[d > 0]
+    lsb = float(d.min()) if d.size else 0.0
+    tol = 0.5 * lsb if lsb > 0 else 0.0
+    at_max = x >= u[-1] - tol
+    at_min = x <= u[0] + tol
+    if saturation_level is not None:
+        at_max |= x >= saturation_level
+        at_min |= x <= -saturation_level
+    clipped = max(at_max.sum(), at_min.sum()) / n if u.size > 1 else 1.0
+    return _ChannelStats(rms, lsb, float(modulation), float(clipped), env)
+
+
+def _quality(
+    labels: tuple[str, ...],
+    stats: Sequence[_ChannelStats],
+    n: int,
+    *,
     flat_rms_lsb: float = 20.0,
     flat_rel_rms: float = 0.05,
     flat_modulation: float = 1.6,
     clip_min_samples: int = 5,
     clip_fraction: float = 0.002,
-    saturation_level: float | None = None,
 ) -> ChannelQuality:
-    """Flat and saturated channel detection with the figures behind each decision."""
-    labels = tuple(str(s).strip() for s in labels)
-    x = _as_channels(emg, len(labels))
-    n, c = x.shape
-    hp = filtfilt_butter(x, rate_hz=rate_hz, cutoff_hz=highpass_hz, btype="highpass")
-    rms = np.sqrt(np.mean(hp**2, axis=0))
-    env = np.maximum(filtfilt_butter(np.abs(hp), rate_hz=rate_hz, cutoff_hz=lowpass_hz), 0.0)
-    k = _edge(n, rate_hz, lowpass_hz)
-    inner = env[k : n - k] if k else env
-    p10 = np.percentile(inner, 10, axis=0)
-    p99 = np.percentile(inner, 99, axis=0)
-    with np.errstate(divide="ignore", invalid="ignore"):
-        modulation = np.where(p10 > 0, p99 / p10, np.where(p99 > 0, np.inf, 1.0))
-    lsb = np.empty(c)
-    clipped = np.empty(c)
-    for j in range(c):
-        u = np.unique(x[:, j])
-        d = np.diff(u)
-        d = d[d > 0]
-        lsb[j] = float(d.min()) if d.size else 0.0
-        tol = 0.5 * lsb[j] if lsb[j] > 0 else 0.0
-        at_max = x[:, j] >= u[-1] - tol
-        at_min = x[:, j] <= u[0] + tol
-        if saturation_level is not None:
-            at_max |= x[:, j] >= saturation_level
-            at_min |= x[:, j] <= -saturation_level
-        clipped[j] = max(at_max.sum(), at_min.sum()) / n if u.size > 1 else 1.0
+    """The flags of :func:`channel_quality` from every channel's :class:`_ChannelStats`."""
+    c = len(stats)
+    rms = np.array([st.rms for st in stats])
+    lsb = np.array([st.lsb for st in stats])
+    modulation = np.array([st.modulation for st in stats])
+    clipped = np.array([st.clipped for st in stats])
     with np.errstate(divide="ignore", invalid="ignore"):
         rms_lsb = np.where(lsb > 0, rms / lsb, 0.0)
     rel = rms / np.median(rms) if c >= 3 and np.median(rms) > 0 else np.full(c, np.nan)
@@ -261,6 +283,38 @@ def channel_quality(
     )
 
 
+def channel_quality(
+    emg: ArrayLike,
+    *,
+    rate_hz: float,
+    labels: Sequence[str],
+    highpass_hz: float = 30.0,
+    lowpass_hz: float = 6.0,
+    flat_rms_lsb: float = 20.0,
+    flat_rel_rms: float = 0.05,
+    flat_modulation: float = 1.6,
+    clip_min_samples: int = 5,
+    clip_fraction: float = 0.002,
+    saturation_level: float | None = None,
+) -> ChannelQuality:
+    """Flat and saturated channel detection with the figures behind each decision (channel by
+    channel: one channel's filtered copies at a time)."""
+    labels = tuple(str(s).strip() for s in labels)
+    x = _as_channels(emg, len(labels))
+    stats = []
+    for j in range(x.shape[1]):
+        st = _channel_stats(
+            np.ascontiguousarray(x[:, j]), rate_hz=rate_hz, highpass_hz=highpass_hz,
+            lowpass_hz=lowpass_hz, saturation_level=saturation_level,
+        )  # fmt: skip
+        stats.append(dataclasses.replace(st, envelope=np.empty(0)))
+    return _quality(
+        labels, stats, x.shape[0], flat_rms_lsb=flat_rms_lsb, flat_rel_rms=flat_rel_rms,
+        flat_modulation=flat_modulation, clip_min_samples=clip_min_samples,
+        clip_fraction=clip_fraction,
+    )  # fmt: skip
+
+
 def process_emg(
     emg: ArrayLike,
     *,
@@ -275,6 +329,7 @@ def process_emg(
     order: int = 4,
     delay_s: float | Mapping[str, float] = 0.0,
     t0: float = 0.0,
+    time: ArrayLike | None = None,
     bad_channel: Literal["nan", "keep", "raise"] = "nan",
     quality_options: Mapping[str, Any] | None = None,
 ) -> EmgEnvelopes:
@@ -289,6 +344,11 @@ def process_emg(
     (explicit ``mvc`` values win). ``delay_s`` (scalar or
     per muscle) is the electromechanical delay: ``e_d[k] = e[k − round(d·rate)]``, the first
     samples repeating e[0].
+
+    ``time``: the envelopes linearly interpolated at these times (s; the samples are at
+    ``t0 + k / rate_hz``), each muscle's as soon as its channel is processed — the same as
+    :meth:`EmgEnvelopes.resampled` of the result without ``time`` (synergists' means to
+    round-off), holding one channel at the analog rate at a time (issue 18: a long trial).
     """
     labels = tuple(str(s).strip() for s in labels)
     x = _as_channels(emg, len(labels))
@@ -306,63 +366,12 @@ def process_emg(
         if str(ch).strip() not in used:
             used.append(str(ch).strip())
     idx = [labels.index(ch) for ch in used]
-    xs = x[:, idx]
-    if not np.isfinite(xs).all():
-        r, c = np.argwhere(~np.isfinite(xs))[0]
-        raise MissingDataError(f"EMG channel {used[c]!r} has a non-finite sample at index {r}")
-    quality = channel_quality(
-        xs,
-        rate_hz=rate_hz,
-        labels=used,
-        highpass_hz=highpass_hz,
-        lowpass_hz=lowpass_hz,
-        **dict(quality_options or {}),
-    )
-    warnings: list[str] = list(quality.summary())
-    if bad_channel == "raise" and quality.flat.any():
-        raise EmgError("; ".join(quality.summary()))
-    env = linear_envelope(
-        xs, rate_hz=rate_hz, highpass_hz=highpass_hz, lowpass_hz=lowpass_hz, order=order
-    )
-    k = _edge(n, rate_hz, lowpass_hz)
-    inner = env[k : n - k] if k else env
-    mvc_all: dict[str, float] = {}
-    if mvc_trials:
-        mvc_all.update(
-            mvc_peaks(mvc_trials, highpass_hz=highpass_hz, lowpass_hz=lowpass_hz, order=order)
-        )
-    mvc_all.update({str(k).strip(): float(v) for k, v in (mvc or {}).items()})
-    mvc = mvc_all
-    sources: list[str] = []
-    norm = np.empty(len(used))
-    for j, ch in enumerate(used):
-        if ch in mvc:
-            v = float(mvc[ch])
-            if not (np.isfinite(v) and v > 0):
-                raise EmgError(f"EMG channel {ch!r}: MVC value must be > 0, got {v}")
-            norm[j] = v
-            sources.append("mvc")
-        else:
-            norm[j] = float(inner[:, j].max())
-            sources.append("session_peak")
-            warnings.append(
-                f"channel {ch!r}: no MVC given, normalised to the session's peak envelope "
-                f"({norm[j]:.4g}); activation is relative, not % MVC"
-            )
-    with np.errstate(divide="ignore", invalid="ignore"):
-        e = env / np.where(norm > 0, norm, np.nan)
-    e_in = np.nan_to_num(e[k : n - k] if k else e, nan=0.0)
-    over = e_in.max(axis=0) if e_in.size else np.zeros(len(used))
-    for j, ch in enumerate(used):
-        if sources[j] == "mvc" and over[j] > 1.0:
-            warnings.append(
-                f"channel {ch!r}: envelope reaches {100 * over[j]:.1f} % of MVC; clipped to 100 %"
-            )
-    e = np.clip(e, 0.0, 1.0)
-    if bad_channel == "nan":
-        e[:, quality.flat] = np.nan
+    for c, i in enumerate(idx):
+        bad = ~np.isfinite(x[:, i])
+        if bad.any():
+            r = int(np.argmax(bad))
+            raise MissingDataError(f"EMG channel {used[c]!r} has a non-finite sample at index {r}")
     names = list(muscles)
-    cols = [e[:, used.index(str(muscles[m]).strip())] for m in names]
     msrc = [str(muscles[m]).strip() for m in names]
     for m, group in (synergists or {}).items():
         if m in names:
@@ -373,10 +382,11 @@ def process_emg(
                 f"synergists {unknown or list(group)} of muscle {m!r} are not mapped muscles "
                 f"({names})"
             )
-        cols.append(np.mean([cols[names.index(g)] for g in group], axis=0))
-        msrc.append("+".join(msrc[names.index(g)] for g in group))
+    n_direct = len(names)
+    syn = [(m, [names.index(g) for g in group]) for m, group in (synergists or {}).items()]
+    for m, gi in syn:
+        msrc.append("+".join(msrc[g] for g in gi))
         names.append(m)
-    out = np.column_stack(cols) if cols else np.empty((n, 0))
     if isinstance(delay_s, Mapping):
         unknown = [m for m in delay_s if m not in names]
         if unknown:
@@ -390,11 +400,107 @@ def process_emg(
             f"muscle {names[j]!r}: electromechanical delay must be >= 0 s, got {delays[j]}"
         )
     shifts = np.round(delays * rate_hz).astype(int)
-    for j, s in enumerate(shifts):
+    mvc_all: dict[str, float] = {}
+    if mvc_trials:
+        mvc_all.update(
+            mvc_peaks(mvc_trials, highpass_hz=highpass_hz, lowpass_hz=lowpass_hz, order=order)
+        )
+    mvc_all.update({str(k).strip(): float(v) for k, v in (mvc or {}).items()})
+    t_src = t0 + np.arange(n) / rate_hz
+    t_out = t_src if time is None else np.asarray(time, dtype=float)
+    out = np.empty((t_out.size, len(names)))
+    qopt = dict(quality_options or {})
+    k = _edge(n, rate_hz, lowpass_hz)
+    stats: list[_ChannelStats] = []
+    # muscles whose envelope a synergist averages: kept at the analog rate until the end
+    in_groups = sorted({g for _, gi in syn for g in gi})
+    grouped: dict[int, Array] = {}
+    sources: list[str] = []
+    norm = np.empty(len(used))
+    over = np.zeros(len(used))
+    norm_warnings: list[str] = []
+    for j, (ch, i) in enumerate(zip(used, idx)):
+        xj = np.ascontiguousarray(x[:, i])
+        st = _channel_stats(
+            xj, rate_hz=rate_hz, highpass_hz=highpass_hz, lowpass_hz=lowpass_hz,
+            saturation_level=qopt.get("saturation_level"),
+        )  # fmt: skip
+        # the envelope (seeds/003 §2.2.1): the quality pass's one when the orders agree
+        env = (
+            st.envelope
+            if order == 4
+            else linear_envelope(
+                xj, rate_hz=rate_hz, highpass_hz=highpass_hz, lowpass_hz=lowpass_hz, order=order
+            )[:, 0]
+        )
+        del xj
+        stats.append(dataclasses.replace(st, envelope=np.empty(0)))
+        inner = env[k : n - k] if k else env
+        if ch in mvc_all:
+            v = float(mvc_all[ch])
+            if not (np.isfinite(v) and v > 0):
+                raise EmgError(f"EMG channel {ch!r}: MVC value must be > 0, got {v}")
+            norm[j] = v
+            sources.append("mvc")
+        else:
+            norm[j] = float(inner.max())
+            sources.append("session_peak")
+            norm_warnings.append(
+                f"channel {ch!r}: no MVC given, normalised to the session's peak envelope "
+                f"({norm[j]:.4g}); activation is relative, not % MVC"
+            )
+        with np.errstate(divide="ignore", invalid="ignore"):
+            e = env / (norm[j] if norm[j] > 0 else np.nan)
+        del env, inner
+        e_in = np.nan_to_num(e[k : n - k] if k else e, nan=0.0)
+        over[j] = e_in.max() if e_in.size else 0.0
+        del e_in
+        np.clip(e, 0.0, 1.0, out=e)
+        for g in in_groups:
+            if msrc[g] == ch:
+                grouped[g] = e  # synergists average the undelayed envelopes (below)
+        for col in range(n_direct):
+            if msrc[col] != ch:
+                continue
+            s = int(shifts[col])
+            ed = e if s <= 0 else np.concatenate([np.full(min(s, n), e[0]), e[: max(n - s, 0)]])
+            out[:, col] = (
+                ed if time is None else np.interp(t_out, t_src, ed, left=np.nan, right=np.nan)
+            )
+        del e
+    quality = _quality(
+        tuple(used), stats, n,
+        **{key: v for key, v in qopt.items() if key != "saturation_level"},
+    )  # fmt: skip
+    warnings: list[str] = list(quality.summary())
+    if bad_channel == "raise" and quality.flat.any():
+        raise EmgError("; ".join(quality.summary()))
+    warnings += norm_warnings
+    for j, ch in enumerate(used):
+        if sources[j] == "mvc" and over[j] > 1.0:
+            warnings.append(
+                f"channel {ch!r}: envelope reaches {100 * over[j]:.1f} % of MVC; clipped to 100 %"
+            )
+    if bad_channel == "nan":
+        for col in range(n_direct):
+            if quality.flat[used.index(msrc[col])]:
+                out[:, col] = np.nan
+    for c, (_, gi) in enumerate(syn):
+        # the mean of the group's normalised envelopes (NaN for a flat one), then its own delay
+        cols = [
+            np.full(n, np.nan) if bad_channel == "nan" and quality.flat[used.index(msrc[g])]
+            else grouped[g] for g in gi
+        ]  # fmt: skip
+        col = n_direct + c
+        m_e = np.mean(cols, axis=0)
+        s = int(shifts[col])
         if s > 0:
-            out[:, j] = np.concatenate([np.full(min(s, n), out[0, j]), out[: max(n - s, 0), j]])
+            m_e = np.concatenate([np.full(min(s, n), m_e[0]), m_e[: max(n - s, 0)]])
+        out[:, col] = (
+            m_e if time is None else np.interp(t_out, t_src, m_e, left=np.nan, right=np.nan)
+        )
     return EmgEnvelopes(
-        time=t0 + np.arange(n) / rate_hz,
+        time=t_out,
         envelopes=out,
         muscle_names=tuple(names),
         muscle_sources=tuple(msrc),

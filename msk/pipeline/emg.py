@@ -90,9 +90,10 @@ def run(
         highpass_hz=cfg.emg.highpass_hz,
         lowpass_hz=cfg.emg.lowpass_hz,
         delay_s=cfg.emg.electromechanical_delay_s,
+        time=kinematics.time,  # each channel resampled once processed (issue 18)
         **mvc_options,
     )
-    env_k = env.resampled(kinematics.time)
+    env_k = env
     e = np.clip(np.nan_to_num(env_k.envelopes, nan=0.0), 0.0, 1.0)
     act = first_order_activation(e, rate_hz=trial.point_rate_hz)
     act[:, ~env_k.usable] = np.nan

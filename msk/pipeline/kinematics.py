@@ -42,8 +42,10 @@ def solve_trial(
         if body.startswith(("pelvis", "femur", "tibia", "calcn")):
             on = [k for k, i in enumerate(cols) if body_of[labels[i]] == body]
             blind |= ~seen[:, on].any(axis=1)
-    markers = np.array(trial.markers, dtype=float, copy=True)
-    markers[blind] = np.nan
+    markers = np.asarray(trial.markers, dtype=float)
+    if blind.any():  # a copy only when frames are blanked (issue 18: no copy of a long trial)
+        markers = markers.copy()
+        markers[blind] = np.nan
     return solve_kinematics(
         model,
         markers,

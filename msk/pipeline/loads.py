@@ -14,7 +14,7 @@ from msk.pipeline.inputs import SessionInputs
 from msk.pipeline.model import BuiltModel
 from msk.pipeline.read import ReadResult
 
-__all__ = ["PLATE_ASSIGNMENT", "Loads", "assign_loads", "run", "settings"]
+__all__ = ["PLATE_ASSIGNMENT", "Loads", "assign_loads", "rotated_plate", "run", "settings"]
 
 #: How msk.loads assigns plate contacts to feet (recorded in summary.json, part of the cache key).
 PLATE_ASSIGNMENT = (
@@ -62,7 +62,7 @@ def settings(inputs: SessionInputs) -> Any:
     }
 
 
-def _rotated_plate(plate: Any, rot: np.ndarray) -> Any:
+def rotated_plate(plate: Any, rot: np.ndarray) -> Any:
     """A :class:`msk.loads.PlateWrench` rotated by ``rot`` about the origin (force, COP,
     free moment, corners)."""
     r = np.asarray(rot, dtype=float)
@@ -78,18 +78,13 @@ def _rotated_plate(plate: Any, rot: np.ndarray) -> Any:
 def run(inputs: SessionInputs, read: ReadResult, model: BuiltModel, kinematics: Any) -> Loads:
     """The read trial's plates (a C3D's, or its GRF file's) in the model frame (rotated here,
     not kept by the model stage), assigned to the feet."""
-    from msk.loads import contact_measured, plates_from_trial
+    from msk.loads import contact_measured
 
-    rot, trial = model.rotation, read.trial
+    rot = model.rotation
     # rotated one at a time, as external_loads resamples them: one analog-rate plate in the
     # model frame is held at a time (issue 18)
-    plates: Iterator[Any] = (
-        (_rotated_plate(p, rot) for p in read.grf)
-        if read.grf is not None
-        else (plates_from_trial(dataclasses.replace(trial, plates=(p.rotated(rot),)))[0]
-              for p in trial.plates)
-    )  # fmt: skip
-    ext = assign_loads(inputs, model.model, trial, kinematics, plates, read.assignment)
+    plates: Iterator[Any] = (rotated_plate(p, rot) for p in read.plates or ())
+    ext = assign_loads(inputs, model.model, read.trial, kinematics, plates, read.assignment)
     measured = contact_measured(model.model, kinematics, ext)
     usable = (
         np.isfinite(kinematics.q).all(axis=1) & np.isfinite(kinematics.a).all(axis=1) & measured

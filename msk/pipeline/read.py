@@ -1,8 +1,13 @@
 """Stage ``read``: the task trial (C3D, or OpenSim TRC + GRF), its explicit plate assignment
-and the measured knee contact force, as read from the files (lab frame, SI)."""
+and the measured knee contact force, read from the files (lab frame, SI) and kept as the later
+stages read them: the markers, the analog channels that are not plate channels (the EMG), the
+plates' force, COP and free moment (:class:`msk.loads.PlateWrench`), no model outputs. A
+long trial thus holds ~4.9 kB per frame after this stage instead of ~7.1 kB (gc5_PS: 16 EMG
+and 3 plates; issue 18)."""
 
 from __future__ import annotations
 
+import dataclasses
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -13,17 +18,30 @@ import numpy as np
 from msk.exceptions import MissingDataError
 from msk.pipeline.inputs import SessionInputs
 
-__all__ = ["ReadResult", "measured_contact", "read_static_markers", "run", "settings"]
+__all__ = [
+    "ReadResult",
+    "for_session",
+    "measured_contact",
+    "read_static_markers",
+    "read_task",
+    "run",
+    "settings",
+]
 
 
 @dataclass(frozen=True)
 class ReadResult:
-    """The task trial (:class:`msk.io.Trial`), the plates of its GRF file (``grf``, lab frame;
-    None for a C3D's own plates), the ExternalLoads assignment plate → body, and the measured
-    knee contact force (:class:`msk.io.contact_force.MeasuredContact`)."""
+    """The task trial (:class:`msk.io.Trial`), its plates (``plates``), the ExternalLoads
+    assignment plate → body, and the measured knee contact force
+    (:class:`msk.io.contact_force.MeasuredContact`).
+
+    As :func:`read_task` returns it, ``trial`` is the file's and ``plates`` the
+    :class:`msk.loads.PlateWrench` of a GRF file (None for a C3D's own plates); as the stage
+    returns it (:func:`for_session`), ``trial`` has no plates, no plate channels and no model
+    outputs, and ``plates`` are the :class:`msk.loads.PlateWrench` of either (lab frame)."""
 
     trial: Any
-    grf: tuple[Any, ...] | None = None
+    plates: tuple[Any, ...] | None = None
     assignment: Mapping[str, str] = field(default_factory=dict)
     contact: Any = None
 
@@ -46,6 +64,37 @@ def settings(inputs: SessionInputs) -> Any:
 
 
 def run(inputs: SessionInputs) -> ReadResult:
+    """The task's files as the stages read them (:func:`for_session` of :func:`read_task`)."""
+    return for_session(inputs, read_task(inputs))
+
+
+def for_session(inputs: SessionInputs, read: ReadResult) -> ReadResult:
+    """``read`` (as :func:`read_task` returns it) reduced to what the later stages read: the
+    plates as :class:`msk.loads.PlateWrench` (a C3D's: force, COP and free moment shared with
+    its :class:`msk.trial.ForcePlate`, not copied; the moment about the plate origin, which no
+    stage reads, left out), the analog channels of no plate (the EMG: ``[emg] channels`` may
+    name any of them), the markers (shared); no model outputs (no stage reads them)."""
+    from msk.loads import plates_from_trial
+    from msk.trial import ModelOutputs
+
+    trial = read.trial
+    plates = read.plates if read.plates is not None else plates_from_trial(trial)
+    plate_channels = {c for p in trial.plates for c in p.channels}
+    keep = [i for i, lab in enumerate(trial.analog_labels) if lab not in plate_channels]
+    analogs = np.asarray(trial.analogs)
+    light = dataclasses.replace(
+        trial,
+        plates=(),
+        analogs=np.ascontiguousarray(analogs[:, keep]) if analogs.ndim == 2 else analogs,
+        analog_labels=tuple(trial.analog_labels[i] for i in keep),
+        analog_units=tuple(trial.analog_units[i] for i in keep),
+        model_outputs=ModelOutputs((), (), (), np.zeros((trial.time.size, 0, 3))),
+    )
+    return ReadResult(light, tuple(plates), read.assignment, read.contact)
+
+
+def read_task(inputs: SessionInputs) -> ReadResult:
+    """The task trial, its GRF file's plates, assignment and measured contact as read."""
     from msk.io import read_trial
 
     task = inputs.task

@@ -65,8 +65,9 @@ def run(
         if emg.usable[k]:
             act[:, params.names.index(m)] = emg.activation[good, k]
     est = StrengthIdentifier(groups, params, n_bootstrap=200, random_state=0)
+    # the whole trial's compact Jacobian, its rows of the used frames read block by block
     jac = muscle_geometry.jacobian
-    jac = jac.take(frames) if isinstance(jac, FrameSparse) else np.asarray(jac)[frames]
+    jac = jac if isinstance(jac, FrameSparse) else np.asarray(jac)
     try:
         est.fit(
             jac,
@@ -74,6 +75,7 @@ def run(
             jt.tau[good],
             state,
             coordinate_names=jt.coordinate_names,
+            frames=frames,
         )
     except IdentificationError as exc:
         # the measured frames do not determine any group (e.g. no window passes the

@@ -117,6 +117,17 @@ def _emg_gains(
     )  # fmt: skip
 
 
+def _force_curves(params: Any, geometry: Any, frames: Any) -> tuple[np.ndarray, np.ndarray]:
+    """f_active (its negative extrapolation clipped to 0) and f_passive along the tendon of the
+    rigid-tendon Hill state on the geometry's ``frames`` (a slice or indices), (n, m) each."""
+    from msk.muscles.hill import rigid_tendon_state
+
+    vel = None if geometry.velocities is None else geometry.velocities[frames]
+    state = rigid_tendon_state(params, geometry.lengths[frames], vel)
+    fmax = state.max_active_force_along_tendon
+    return np.where(fmax < 0, 0.0, fmax), state.passive_force_along_tendon
+
+
 def optimise(
     inputs: SessionInputs,
     model: Any,
@@ -133,26 +144,24 @@ def optimise(
     curve's extrapolation below zero is clipped to 0 rather than costing the frame)."""
     import msk.optimization as o
     from msk.muscles.geometry import finite_frames, jacobian_frames, muscle_parameters
-    from msk.muscles.hill import rigid_tendon_state
 
     act_idx = actuated(torques)
     params = muscle_parameters(model)
-    # the Hill state block by block (its many (N, m) arrays are never held whole)
-    fa_all = np.empty(geometry.lengths.shape)
-    fp_all = np.empty(geometry.lengths.shape)
-    for fr in frame_blocks(geometry.lengths.shape[0]):
+    # the Hill state block by block (its many (N, m) arrays are never held whole); here only
+    # whether each frame's force curves are finite — the solves below recompute f_active and
+    # f_passive for their own frames (elementwise: the same numbers), so that no (N, m) array
+    # of them is held through the solves (issue 18)
+    n_all = geometry.lengths.shape[0]
+    curves_finite = np.zeros(n_all, dtype=bool)
+    for fr in frame_blocks(n_all):
         sl = slice(int(fr[0]), int(fr[-1]) + 1) if fr.size else slice(0, 0)
-        vel = None if geometry.velocities is None else geometry.velocities[sl]
-        state = rigid_tendon_state(params, geometry.lengths[sl], vel)
-        fmax = state.max_active_force_along_tendon
-        fa_all[sl] = np.where(fmax < 0, 0.0, fmax)
-        fp_all[sl] = state.passive_force_along_tendon
-        del state
+        fa, fp = _force_curves(params, geometry, sl)
+        curves_finite[sl] = np.isfinite(fa).all(axis=1) & np.isfinite(fp).all(axis=1)
+        del fa, fp
     posable = (
         finite_frames(geometry.jacobian, act_idx)
         & np.isfinite(torques.tau[:, act_idx]).all(axis=1)
-        & np.isfinite(fa_all).all(axis=1)
-        & np.isfinite(fp_all).all(axis=1)
+        & curves_finite
     )
     ok = usable & posable
     excluded = int((usable & ~posable).sum())
@@ -187,22 +196,27 @@ def optimise(
     if meth == "emg_assisted":  # gains first (on a bounded frame sample), then every block
         assert meas is not None
         fit_fr = fit_frames(idx_ok)
+        fa, fp = _force_curves(params, geometry, fit_fr)
         gain_fit = _emg_gains(
             inputs, jacobian_frames(geometry.jacobian, fit_fr, act_idx),
-            torques.tau[fit_fr][:, act_idx], fa_all[fit_fr], fp_all[fit_fr],
-            emg_reference(fit_fr), meas,
+            torques.tau[fit_fr][:, act_idx], fa, fp, emg_reference(fit_fr), meas,
             params.names, weights, reserves, cn,
         )  # fmt: skip
+        del fa, fp
     gains = (
         None if gain_fit is None else dict(zip(gain_fit.group_names, map(float, gain_fit.gains)))
     )
-    blocks = frame_blocks(idx_ok)
     carry = o.WarmStart()
-    parts: list[tuple[Any, Any, Any, int]] = []
-    for fr in blocks:
+    n = time.size
+    # filled block by block (no list of every block's forces concatenated at the end)
+    f_all = np.full((n, len(params.names)), np.nan)
+    a_all = np.full_like(f_all, np.nan)
+    rt = np.full((n, len(act_idx)), np.nan)
+    infeasible = 0
+    for fr in frame_blocks(idx_ok):
         jac = jacobian_frames(geometry.jacobian, fr, act_idx)
         tq = torques.tau[fr][:, act_idx]
-        fa, fp = fa_all[fr], fp_all[fr]
+        fa, fp = _force_curves(params, geometry, fr)
         common: dict[str, Any] = {
             "muscle_names": params.names,
             "coordinate_names": cn,
@@ -249,16 +263,12 @@ def optimise(
             forces = lag.forces
             acts = forces / np.maximum(fa, 1e-9)
             sol = None
-        del jac
-        parts.append(
-            (forces, acts, None if sol is None else sol.reserve_torques,
-             0 if sol is None else int(sol.infeasible_frames.size))
-        )  # fmt: skip
-    n = time.size
-    f_all = np.full((n, len(params.names)), np.nan)
-    a_all = np.full_like(f_all, np.nan)
-    for fr, (forces, acts, _, _) in zip(blocks, parts, strict=True):
+        del jac, fa, fp
         f_all[fr], a_all[fr] = forces, acts
+        if sol is not None:
+            rt[fr] = sol.reserve_torques
+            infeasible += int(sol.infeasible_frames.size)
+        del sol, forces, acts
     w = "V_i " if opt.activation_weights == "volume" else ""
     criterion = None
     if meth == "static_optimization":
@@ -277,13 +287,9 @@ def optimise(
     )  # fmt: skip
     if meth == "closed_form":
         return out
-    rt = np.full((n, len(act_idx)), np.nan)
-    for fr, (_, _, r, _) in zip(blocks, parts, strict=True):
-        rt[fr] = r
     return dataclasses.replace(
-        out, infeasible_frames=sum(p[3] for p in parts), reserve_torques=rt,
-        reserve_coordinates=cn,
-    )  # fmt: skip
+        out, infeasible_frames=infeasible, reserve_torques=rt, reserve_coordinates=cn
+    )
 
 
 def needs(inputs: SessionInputs) -> tuple[str, ...]:

@@ -156,8 +156,11 @@ __all__ = [
 # ---------------------------------------------------------------------------------------------
 # net contribution matrix
 # ---------------------------------------------------------------------------------------------
-#: frames per block of the contribution matrices (:meth:`StrengthIdentifier._contributions`)
-_FRAME_BLOCK = 2048
+#: frames per block of the contribution matrices (:meth:`StrengthIdentifier._contributions`):
+#: a block's dense Jacobian and contributions of 92 muscles × 23 coordinates are ~9 MB each
+#: (at 2048 frames they were ~35 MB each, ~100 MB together: the strength stage's fixed part of
+#: a long trial's peak; issue 18). Each frame's values do not depend on the block.
+_FRAME_BLOCK = 512
 
 
 #: a muscle state given whole, or computed block by block on demand
@@ -263,6 +266,13 @@ def expand_groups(
     for g, ii in enumerate(idx):
         out[:, ii] = v[:, [g]]
     return out
+
+
+def _rows(jacobian: ArrayLike | FrameSparse, frames: NDArray[np.int64]) -> Array:
+    """The rows ``frames`` of a dense or compact Jacobian, dense (N_frames, M, n)."""
+    if isinstance(jacobian, FrameSparse):
+        return np.asarray(jacobian[frames])
+    return np.asarray(jacobian, dtype=float)[frames]
 
 
 def group_contributions(
@@ -596,7 +606,11 @@ class StrengthIdentifier:
 
     # ----------------------------------------------------------------- helpers
     def _contributions(
-        self, jacobian: ArrayLike | FrameSparse, activation: ArrayLike, state: StateLike
+        self,
+        jacobian: ArrayLike | FrameSparse,
+        activation: ArrayLike,
+        state: StateLike,
+        frames: ArrayLike | None = None,
     ) -> tuple[Array, Array]:
         if tuple(state.names) != self.params.names:
             raise ShapeMismatchError(
@@ -604,31 +618,40 @@ class StrengthIdentifier:
                 f"{self.params.names[:3]}…"
             )
         # block by block over the frames: the (N, M, n) contributions of a long trial are never
-        # held whole (each frame's values are computed exactly as in one pass)
+        # held whole (each frame's values are computed exactly as in one pass); ``frames``: the
+        # rows of ``jacobian`` used, read block by block (never copied whole)
+        rows = None if frames is None else np.asarray(frames, dtype=np.int64)
         jac: Array | FrameSparse
         if isinstance(jacobian, FrameSparse):  # compact (the pipeline's): dense block by block
             jac = jacobian
-            bad = np.flatnonzero(~np.isfinite(jac.values).all(axis=1))
-            if bad.size:
-                _as3(jac[bad[:1]], f"jacobian (from frame {int(bad[0])})")
+            sel = np.arange(len(jac)) if rows is None else rows
+            for c0 in range(0, sel.size, _FRAME_BLOCK):
+                r = sel[c0 : c0 + _FRAME_BLOCK]
+                bad = r[~np.isfinite(jac.values[r]).all(axis=1)]
+                if bad.size:
+                    _as3(jac[bad[:1]], f"jacobian (from frame {int(bad[0])})")
             if jac.ndim != 3:
                 raise ShapeMismatchError(f"jacobian must be (N, M, n), got {jac.shape}")
         else:
             jac = _as3(jacobian, "jacobian")
-        n = jac.shape[0]
+        n = jac.shape[0] if rows is None else int(rows.size)
+
+        def block(sl: slice) -> Array:
+            return np.asarray(jac[sl] if rows is None else jac[rows[sl]])
+
         act = _as2(activation, (n, jac.shape[1]), "activation", state.names)
         if isinstance(state, RigidTendonStateBlocks) and state.n_frames != n:
             raise ShapeMismatchError(f"muscle state has {state.n_frames} frames, jacobian {n}")
         if n <= _FRAME_BLOCK:
             c = net_contribution(
-                jac[:], act, _state_rows(state, slice(None), n), passive=self.passive
+                block(slice(None)), act, _state_rows(state, slice(None), n), passive=self.passive
             )
             return group_contributions(c, self.groups, self.params)
         cg = other = None  # filled block by block (no list of parts concatenated at the end)
         for c0 in range(0, n, _FRAME_BLOCK):
             sl = slice(c0, c0 + _FRAME_BLOCK)
             st = _state_rows(state, sl, n)
-            c = net_contribution(jac[sl], act[sl], st, passive=self.passive)
+            c = net_contribution(block(sl), act[sl], st, passive=self.passive)
             g_part, o_part = group_contributions(c, self.groups, self.params)
             del c
             if cg is None or other is None:
@@ -729,6 +752,7 @@ class StrengthIdentifier:
         windows: ArrayLike | None = None,
         coordinate_names: Sequence[str] | None = None,
         movements: ArrayLike | None = None,
+        frames: ArrayLike | None = None,
     ) -> StrengthIdentifier:
         """Identify the group strengths from one or more concatenated trials.
 
@@ -744,10 +768,14 @@ class StrengthIdentifier:
         seeds/002 §VI.A) — with ``instrument="phase_average"`` a window is instrumented by
         the other windows of its movement only, which must then have ≥ 3 windows, and the
         intervals resample within movements (default: all windows repeat one movement).
+        ``frames``: the rows of ``jacobian`` that the other arguments' rows are (default:
+        all), read block by block — a long trial's Jacobian rows are not copied (issue 18).
         """
         from scipy import stats  # on use: decoding cached results need not pay for them
 
-        cg, other = self._contributions(jacobian, activation, state)
+        if frames is not None:
+            frames = np.asarray(frames, dtype=np.int64)
+        cg, other = self._contributions(jacobian, activation, state, frames)
         n_frames, n_groups, n_coords = cg.shape
         cnames = self._coords(coordinate_names, n_coords)
         y_all = _as2(tau, (n_frames, n_coords), "tau", cnames) - other
@@ -768,7 +796,7 @@ class StrengthIdentifier:
         act_arr = np.asarray(activation, dtype=float)
         if use_iv:
             a_bar = _phase_average_loo(act_arr, labels, movement=win_mov)
-            zg, _ = self._contributions(jacobian, a_bar, state)
+            zg, _ = self._contributions(jacobian, a_bar, state, frames)
         # coordinates used
         scale = np.maximum(cg.max(axis=0), -cg.min(axis=0))  # max |C_g| (G, n), no |C_g| copy
         acts = scale > 1e-9 * max(float(scale.max()), 1e-300)
@@ -876,7 +904,7 @@ class StrengthIdentifier:
             # the regression *and* every other cycle's instrument (which then averages W − 2
             # cycles), so the instrument's own EMG noise is part of the spread
             pp, qq = self._instrument_pairs(
-                jacobian,
+                jacobian if frames is None else _rows(jacobian, frames),
                 act_arr,
                 state,
                 labels,
