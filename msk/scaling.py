@@ -1392,8 +1392,8 @@ def place_markers_from_motion(
         xo[:, labels.index(mk.name)], min_frames)} | {
         placed[lab] for lab in placed if lab not in too_loose}  # fmt: skip
     kept_loose = sorted(
-        lab for lab, (body, sig) in too_loose.items()
-        if body not in observed and sig <= LOOSE_KEPT_SPREAD_FACTOR * max_spread_m
+        lab for lab in too_loose
+        if placed[lab] not in observed and spread[lab] <= LOOSE_KEPT_SPREAD_FACTOR * max_spread_m
     )  # fmt: skip
     too_loose = {lab: v for lab, v in too_loose.items() if lab not in kept_loose}
     keep = [lab for lab in placed if lab not in too_loose]
