@@ -4,15 +4,17 @@ with a measured contact force, only the task files swapped, spline and four-bar 
     python scripts/contact_validation.py [--out docs/contact_validation.md]
 
 Trials: subject PS (``pipelines/gc5_PS.toml``: ss1 bundled, ss3 and ss8 from
-``../shared/data/real/knee-grand-challenge-gc5``) and subject DM (``pipelines/gc6_DM_og1.toml``:
-og1, og3, og4, measured forces in ``data/gc6-DM``). Nothing is fitted to the measured force:
-the configurations are the shipped ones. Prints a markdown table of RMSE (BW) and Pearson r of
-the total, medial and lateral force per trial, knee model and variant: ``shipped`` (the
-config as it is) and the variants of :data:`VARIANTS`, each one edit of the config (DM: the
-generic model's neutral knee alignment instead of DM.osim's, DM's given contact points from
-``p_DM.mat``; both: the alignment estimated from the subject's markers,
-``knee_alignment = "from_markers"``; PS: the EMG-informed tension criteria instead of static
-optimisation).
+``../shared/data/real/knee-grand-challenge-gc5``), subject DM (``pipelines/gc6_DM_og1.toml``:
+og1, og3, og4, measured forces in ``data/gc6-DM``) and subject JW (``pipelines/gc4_JW.toml``:
+og3, the total from the implant's load cells, no medial/lateral). Nothing is fitted to the
+measured force: the configurations are the shipped ones. Prints a markdown table of RMSE (BW)
+and Pearson r of the total, medial and lateral force per trial, knee model and variant:
+``shipped`` (the config as it is) and the variants of :data:`VARIANTS`, each one edit of the
+config (DM: the generic model's neutral knee alignment instead of DM.osim's, DM's given contact
+points from ``p_DM.mat``; PS: static optimisation or the EMG-weighted criterion instead of the
+shipped EMG-assisted one; JW: EMG-assisted; all three: the knee alignment estimated from the
+subject's markers, ``knee_alignment = "from_markers"``, a "not run" row with the reason when
+the markers are not there).
 """
 
 from __future__ import annotations
@@ -33,6 +35,7 @@ TRIALS = {
         ("ss3", {"PS_ngait_og_ss1": "PS_ngait_og_ss3"}),
         ("ss8", {"PS_ngait_og_ss1": "PS_ngait_og_ss8"}),
     ],
+    "gc4_JW": [("og3", None)],
     "gc6_DM_og1": [
         ("og1", None),
         ("og3", {"og1": "og3"}),
@@ -57,16 +60,21 @@ def _from_markers(text: str) -> str:
 
 
 def _method(name: str) -> Callable[[str], str]:
-    return lambda text: text.replace('method = "static_optimization"', f'method = "{name}"')
+    return lambda text: re.sub(r'(?m)^method = ".*"$', f'method = "{name}"', text, count=1)
 
 
 #: per config: (variant, edit of the config text, knee models it is run with)
 VARIANTS: dict[str, list[tuple[str, Callable[[str], str] | None, tuple[str, ...]]]] = {
     "gc5_PS": [
-        ("shipped", None, ("spline", "four_bar")),
-        ("alignment from markers", _from_markers, ("spline",)),
-        ("emg_assisted", _method("emg_assisted"), ("spline",)),
+        ("shipped (emg_assisted)", None, ("spline", "four_bar")),
+        ("static_optimization", _method("static_optimization"), ("spline",)),
         ("emg_weighted", _method("emg_weighted"), ("spline",)),
+        ("alignment from markers", _from_markers, ("spline",)),
+    ],
+    "gc4_JW": [
+        ("shipped", None, ("spline", "four_bar")),
+        ("emg_assisted", _method("emg_assisted"), ("spline",)),
+        ("alignment from markers", _from_markers, ("spline",)),
     ],
     "gc6_DM_og1": [
         ("shipped (alignment given)", None, ("spline", "four_bar")),

@@ -126,6 +126,29 @@ def test_emg_assisted_so_limits() -> None:
         solve_emg_assisted_batch(jac, tau, f_active=fa, a_ref=a_ref, measured=meas, w_track=-1)
 
 
+def test_emg_assisted_so_with_passive_forces() -> None:
+    """Passive forces enter the torque balance as in static optimisation: with w_track = 0 the
+    same activations as SO with the same F_pas, forces a F_act + F_pas, torques met."""
+    rng = np.random.default_rng(5)
+    n_frames, m, n = 8, 5, 2
+    jac, fa = _frames(rng, n_frames, m, n)
+    fp = rng.uniform(0.0, 150.0, (n_frames, m))
+    tau = _torques(jac, fa, rng.uniform(0.1, 0.4, (n_frames, m))) - np.einsum("kmn,km->kn", jac, fp)
+    meas = np.ones(m, dtype=bool)
+    a_ref = rng.uniform(0.1, 0.5, (n_frames, m))
+    so = solve_static_optimization_batch(jac, tau, f_active=fa, f_passive=fp)
+    ea = solve_emg_assisted_batch(
+        jac, tau, f_active=fa, f_passive=fp, a_ref=a_ref, measured=meas, w_track=0
+    )
+    np.testing.assert_allclose(ea.activations, so.activations, atol=1e-8)
+    np.testing.assert_allclose(ea.forces, ea.activations * fa + fp, rtol=1e-12)
+    mid = solve_emg_assisted_batch(
+        jac, tau, f_active=fa, f_passive=fp, a_ref=a_ref, measured=meas, w_track=1.0
+    )
+    assert (mid.status == 0).all() and np.abs(mid.torque_error).max() < 1e-6
+    np.testing.assert_allclose(-np.einsum("kmn,km->kn", jac, mid.forces), tau, atol=1e-6)
+
+
 def test_fit_emg_gains_rejects_bad_groups() -> None:
     rng = np.random.default_rng(0)
     jac, fa = _frames(rng, 5, 3, 2)

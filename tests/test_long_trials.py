@@ -9,6 +9,8 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from hypothesis import given
+from hypothesis import strategies as st
 
 import msk.optimization as o
 from msk.cache import decode, encode
@@ -142,6 +144,46 @@ def test_session_in_small_blocks_equals_one_block(
         da, db = np.asarray(ta.data), np.asarray(tb.data)
         scale = np.nanmax(np.abs(da))
         np.testing.assert_allclose(db, da, rtol=0, atol=1e-9 * scale, err_msg=name)
+
+
+@given(st.integers(0, 60), st.integers(1, 20))
+def test_gain_fit_frames_are_all_or_evenly_spaced(n: int, cap: int) -> None:
+    """The ``emg_assisted`` gain fit sees every frame up to the cap, else ``cap`` distinct,
+    sorted frames spanning the first to the last."""
+    from msk.pipeline import tension
+
+    frames = np.arange(n) * 3 + 5
+    with pytest.MonkeyPatch.context() as mp:
+        mp.setattr(tension, "GAIN_FIT_FRAMES", cap)
+        fit = tension.fit_frames(frames)
+    if n <= cap:
+        np.testing.assert_array_equal(fit, frames)
+    else:
+        assert fit.size == cap and np.all(np.diff(fit) > 0) and set(fit) <= set(frames)
+        assert fit[0] == frames[0] and (cap == 1 or fit[-1] == frames[-1])
+
+
+def test_emg_assisted_gains_from_a_frame_sample(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """gc5_PS (``emg_assisted``): the EMG gains fitted on half the frames, evenly spaced, are
+    those of all frames within 15 %, and the trial solved in blocks of 40 frames meets its
+    torques on every frame."""
+    from msk.config import load_config
+    from msk.pipeline import run_stages, tension
+
+    cfg = load_config(REPO / "pipelines" / "gc5_PS.toml")
+    assert cfg.optimization.method == "emg_assisted"
+    full = run_stages(cfg, until="tension_optimization")["tension_optimization"]
+    monkeypatch.setattr(tension, "GAIN_FIT_FRAMES", 70)
+    monkeypatch.setattr(blocks, "FRAME_BLOCK", 40)
+    part = run_stages(cfg, until="tension_optimization")["tension_optimization"]
+    assert full.emg_gains is not None and part.emg_gains is not None
+    assert set(part.emg_gains) == set(full.emg_gains)
+    for ch, g in full.emg_gains.items():
+        assert part.emg_gains[ch] == pytest.approx(g, rel=0.15), ch
+    assert part.infeasible_frames == 0
+    assert np.isfinite(part.forces).sum() == np.isfinite(full.forces).sum()
 
 
 def test_identification_regressor_in_blocks_equals_one_pass(

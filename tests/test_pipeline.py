@@ -4,6 +4,7 @@ the content-hash cache, the CLI verbs, and the bundled Grand Challenge session e
 from __future__ import annotations
 
 import json
+import re
 from pathlib import Path
 
 import numpy as np
@@ -13,7 +14,7 @@ from msk.cli import main
 from msk.config import TEMPLATE, config_reference, load_config, render_config
 from msk.exceptions import ConfigError
 from msk.io.opensim_files import read_sto
-from msk.pipeline import STAGES, file_sha256, lab_to_model_rotation, run_session
+from msk.pipeline import STAGES, file_sha256, lab_to_model_rotation, run_session, run_stages
 from msk.results import TABLES, read_session
 from msk.summary import Summary
 from msk.synthetic_trials import write_synthetic_session
@@ -241,10 +242,10 @@ def test_bundled_grand_challenge_session(tmp_path):
 def test_bundled_session_with_emg_informed_tension_optimization(tmp_path, method):
     """The EMG-informed methods of ``[optimization]`` on the bundled session: torques met,
     EMG-assisted gains fitted per channel (only usable channels), the contact force computed."""
-    text = GC5.read_text().replace(
-        'method = "static_optimization"', f'method = "{method}"\nw_track = 1.0', 1
+    text, n = re.subn(
+        r'(?m)^method = ".*"$', f'method = "{method}"\nw_track = 1.0', GC5.read_text(), count=1
     )
-    assert f'method = "{method}"' in text
+    assert n == 1
     cfg = tmp_path / "session.toml"  # the session's relative paths made absolute
     cfg.write_text(text.replace('"../', f'"{REPO.as_posix()}/'))
     res = run_session(cfg, tmp_path / method)
@@ -276,6 +277,35 @@ def test_bundled_session_with_emg_informed_tension_optimization(tmp_path, method
         assert all(0.0 <= g < 1.0 for g in gains.values()), gains
         assert "g_c" in opt["criterion"]
         assert "gain g_c" in (res.out_dir / "report.html").read_text(encoding="utf-8")
+
+
+@pytest.mark.slow
+def test_emg_assisted_without_a_usable_channel_is_static_optimisation():
+    """``emg_assisted`` with no EMG channel usable (flat, unplugged) solves every frame, without
+    gains, as static optimisation with exponent 2 (the same activations to the solver's
+    tolerance) and says so in its criterion; it never fails the stage."""
+    import dataclasses
+
+    from msk.pipeline import tension
+    from msk.pipeline.inputs import session_inputs
+
+    cfg = load_config(GC5)
+    assert cfg.optimization.method == "emg_assisted"
+    r = run_stages(cfg, until="muscle_geometry")
+    flat = dataclasses.replace(r["emg"], usable=np.zeros_like(r["emg"].usable))
+    args = (r["model"], r["kinematics"], r["loads"], r["mass_identification"])
+    rest = (r["inverse_dynamics"], r["muscle_geometry"])
+    ea = tension.run(session_inputs(cfg), *args, *rest, flat)
+    assert ea.emg_gains is None and "no EMG channel" in (ea.criterion or "")
+    so_cfg = dataclasses.replace(
+        cfg,
+        optimization=dataclasses.replace(
+            cfg.optimization, method="static_optimization", activation_exponent=2
+        ),
+    )
+    so = tension.run(session_inputs(so_cfg), *args, *rest, None)
+    assert ea.infeasible_frames == so.infeasible_frames == 0
+    np.testing.assert_allclose(ea.activations, so.activations, atol=1e-6)
 
 
 def test_broken_library_piece_is_reported_not_faked(tmp_path, monkeypatch):

@@ -7,6 +7,9 @@
   sample index or percentage, columns ``F_medial_N``, ``F_lateral_N``, ``F_total_magnitude_N``):
   column names are matched loosely (``total`` / ``medial`` / ``lateral``, with or without an
   ``F_`` prefix, a ``_N`` suffix or ``_magnitude``);
+* the implant load cells of the Grand Challenge 4th edition subject JW as re-exported by
+  AnyBody/knee-grand-challenge-4th (``*_knee_forces.csv``: ``Time(sec), PM, AM, AL, PL, GON,
+  GRFz``, units not stated; :func:`read_load_cells`);
 * the MATLAB files of the Grand Challenge 6th edition subject DM as distributed by
   fmoissenet/MSK_Delp_U_Ankle (``DM_ngait_og*.mat``: ``Force.KneeMedial``,
   ``Force.KneeLateral`` in N, ``f`` = 120 Hz, ``n`` frames and **no time vector**).
@@ -82,6 +85,7 @@ __all__ = [
     "MeasuredContact",
     "align_dm_trial",
     "read_dm_mat",
+    "read_load_cells",
     "read_measured_contact",
 ]
 
@@ -170,9 +174,64 @@ def _find(columns: Sequence[str], role: str, given: str | None, path: Path) -> i
     return hits[0] if hits else None
 
 
+#: pound-force in newtons
+LBF_N = 4.4482216152605
+#: the four load cells of the Grand Challenge eTibia (posteromedial, anteromedial, anterolateral,
+#: posterolateral)
+LOAD_CELLS = ("PM", "AM", "AL", "PL")
+
+
+def read_load_cells(path: str | Path) -> MeasuredContact:
+    """The total axial tibial force of the Grand Challenge 4th edition subject JW: the sum of the
+    eTibia's four load cells ``PM + AM + AL + PL`` of a ``*_knee_forces.csv`` (time column
+    ``Time(sec)``, the C3D's time base), in **pound-force**, converted to N.
+
+    The file states no unit; pound-force is established from the data (jw_ngait_og3): the sum
+    never falls below the inverse-dynamics knee reaction without muscles (a lower bound of the
+    compressive contact force: muscles only add to it) on any frame whose ground reaction is
+    measured, and peaks at 2.48 BW in stance and 0.2–0.4 BW in swing in lbf (in N it would be
+    0.06 BW, below the bound everywhere; in kgf 5.5 BW). The file's ``GON`` is the knee
+    goniometer in degrees (r 0.996 with the C3D's ``goniometer`` channel, same time base).
+    Medial and lateral are NaN: they need the load cells' and condyles' positions, which the
+    file does not give (a force on one condyle loads all four cells)."""
+    path = Path(path)
+    if not path.is_file():
+        raise FileFormatError(f"{path}: no such file")
+    lines = [ln.rstrip().rstrip(",") for ln in path.read_text(encoding="utf-8").splitlines()]
+    head = [c.strip() for c in lines[0].split(",")]
+    missing = [c for c in ("Time(sec)", *LOAD_CELLS) if c not in head]
+    if missing:
+        raise FileFormatError(f"{path}: no column {missing[0]!r} (load-cell file: {head})")
+    try:
+        rows = np.array(
+            [[float(v) for v in ln.split(",")[: len(head)]] for ln in lines[1:] if ln.strip()]
+        )
+    except ValueError as exc:
+        raise FileFormatError(f"{path}: non-numeric value: {exc}") from None
+    if rows.ndim != 2 or rows.shape[0] < 2 or rows.shape[1] != len(head):
+        raise MissingDataError(f"{path}: no load-cell samples")
+    t = rows[:, head.index("Time(sec)")]
+    if not (np.all(np.isfinite(t)) and np.all(np.diff(t) > 0)):
+        raise FileFormatError(f"{path}: Time(sec) is not increasing")
+    total = rows[:, [head.index(c) for c in LOAD_CELLS]].sum(axis=1) * LBF_N
+    nan = np.full(t.size, np.nan)
+    return MeasuredContact(
+        total, nan, nan.copy(), time=t.copy(),
+        source=f"{path.name} (PM+AM+AL+PL load cells, lbf → N)",
+    )  # fmt: skip
+
+
+def _is_load_cell_file(path: Path) -> bool:
+    with path.open(encoding="utf-8", errors="replace") as fh:
+        head = {c.strip() for c in fh.readline().split(",")}
+    return set(LOAD_CELLS) <= head
+
+
 def _read_csv(
     path: Path, total: str | None, medial: str | None, lateral: str | None
 ) -> MeasuredContact:
+    if total is medial is lateral is None and _is_load_cell_file(path):
+        return read_load_cells(path)
     tab = read_csv_table(path, time_column=None)
     if tab.time.size < 2:
         raise MissingDataError(f"{path}: no contact-force samples")

@@ -1663,6 +1663,7 @@ def solve_emg_assisted_batch(
     taus: ArrayLike,
     *,
     f_active: ArrayLike,
+    f_passive: ArrayLike | None = None,
     a_ref: ArrayLike,
     measured: ArrayLike,
     w_track: float = 1.0,
@@ -1685,7 +1686,7 @@ def solve_emg_assisted_batch(
     the measured muscles are pulled towards EMG-based references, torques kept exact::
 
         minimise   Σ_i w_i a_i²  +  w_track Σ_{i ∈ M} (a_i − a*_i)²  +  Σ_j r_j²
-        subject to Σ_i R_ji a_i F_act,i + F_res,j r_j = τ_j,   a_min ≤ a ≤ a_max
+        subject to Σ_i R_ji (a_i F_act,i + F_pas,i) + F_res,j r_j = τ_j,   a_min ≤ a ≤ a_max
 
     ``a_ref`` ``(N, m)`` is a*, e.g. ``g_c ê_c`` (an EMG activation times an EMG-to-activation
     gain, :func:`msk.strength.fit_emg_gains`), used only for the ``measured`` muscles;
@@ -1696,8 +1697,9 @@ def solve_emg_assisted_batch(
     so the EMG can only redistribute force inside the null space of ``R`` (the sharing between
     synergists, antagonists and biarticular muscles), never change the net joint moments.
     The cost is ``Σ (w_i + w_track [i ∈ M]) a_i² − 2 w_track Σ_{i ∈ M} a*_i a_i`` + constant:
-    one QP per frame, ``H`` shared by all frames. The :class:`BatchSolution` has the
-    activations and the forces ``a F_act``.
+    one QP per frame, ``H`` shared by all frames. ``f_passive`` ``(N, m)`` (default 0) as in
+    :func:`solve_static_optimization_batch`. The :class:`BatchSolution` has the activations and
+    the forces ``a F_act + F_pas``.
     """
     jac, tau, mn, cn = _batch_inputs(jacobians, taus, muscle_names, coordinate_names)
     n_frames, m, n = jac.shape
@@ -1706,6 +1708,8 @@ def solve_emg_assisted_batch(
     if np.any(fa < 0):
         k, i = (int(v) for v in np.argwhere(fa < 0)[0])
         raise OptimizationError(f"f_active of muscle {mn[i]!r} at frame {k} is negative")
+    fp = _per_frame(f_passive, n_frames, m, "f_passive", 0.0)
+    check_finite(fp, "f_passive", mn)
     meas = _measured_mask(measured, m)
     aref = np.where(meas, as_float(a_ref, (n_frames, m), "a_ref"), 0.0)
     check_finite(aref, "a_ref", mn)
@@ -1722,13 +1726,10 @@ def solve_emg_assisted_batch(
     wm = np.where(meas, float(w_track), 0.0)
     h, _ = _weighted_cost(w + wm, idx.shape[0])  # one H for every frame
     gs = np.hstack([-2.0 * wm * aref, np.zeros((n_frames, idx.shape[0]))])  # g of every frame
-    no_passive = np.zeros(m)
 
     def full(k: int) -> StandardQP:
         r = np.ascontiguousarray(-jac[k].T)
-        return _static_qp(
-            r, tau[k], fa[k], no_passive, amin, amax, idx, opt, rmin, rmax, (h, gs[k])
-        )[0]
+        return _static_qp(r, tau[k], fa[k], fp[k], amin, amax, idx, opt, rmin, rmax, (h, gs[k]))[0]
 
     build = _BatchQP(
         jac,
@@ -1740,11 +1741,12 @@ def solve_emg_assisted_batch(
         np.concatenate([amax, rmax]),
         h,
         gs,
-        layout=lambda k: _Layout(n, fa[k], no_passive, idx, opt, activations=True),
+        passive=fp,
+        layout=lambda k: _Layout(n, fa[k], fp[k], idx, opt, activations=True),
         full=full,
         decouple=solver == _EXACT_SOLVER,
         out_scale=fa,
-        out_offset=no_passive,
+        out_offset=fp,
     )
     return _run_batch(
         n_frames,

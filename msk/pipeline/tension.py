@@ -6,7 +6,8 @@ bounds and reserve actuators (Crowninshield & Brand 1981; ``activation_weights =
 w_i = V_i, the muscle volume); ``bounded_qp`` min Σ (F_i/F_iso,i)² with 0 ≤ F ≤ F_max;
 ``emg_weighted`` the EMG-weighted tension optimisation (Hayashibe et al. 2011, Eq. 17–18, with
 the EMG-based reference force of Eq. 9); ``emg_assisted`` min Σ a_i² + w Σ (a_i − g_c ê_i)² with
-one gain per EMG channel; ``closed_form`` the unbounded Lagrange-multiplier solution
+one gain per EMG channel, fitted on the trial's torques (at most :data:`GAIN_FIT_FRAMES` evenly
+spaced frames); ``closed_form`` the unbounded Lagrange-multiplier solution
 ``F = W Cᵀ (C W Cᵀ)⁻¹ τ`` of the rehabilitation-robot model (:mod:`msk.optimization.closed_form`,
 its Eq. 6).
 """
@@ -68,41 +69,52 @@ def actuated(torques: Any) -> list[int]:
     return [i for i, c in enumerate(torques.coordinate_names) if c not in root]
 
 
-def _emg_assisted(
+#: at most this many frames (evenly spaced over the trial) fit the EMG gains of ``emg_assisted``
+GAIN_FIT_FRAMES = 4096
+
+
+def fit_frames(frames: np.ndarray) -> np.ndarray:
+    """The frames the EMG gains of ``emg_assisted`` are fitted on: all of ``frames`` up to
+    :data:`GAIN_FIT_FRAMES`, else that many evenly spaced ones (one scalar per channel: every
+    part of a long trial is represented, memory and time bounded; the solve then runs on every
+    frame, block by block)."""
+    if frames.size <= GAIN_FIT_FRAMES:
+        return frames
+    return frames[np.linspace(0, frames.size - 1, GAIN_FIT_FRAMES).round().astype(np.intp)]
+
+
+def _emg_gains(
     inputs: SessionInputs,
     jac: np.ndarray,
     tq: np.ndarray,
     fa: np.ndarray,
+    fp: np.ndarray,
     emg_act: np.ndarray,
     measured: np.ndarray,
     names: tuple[str, ...],
     weights: np.ndarray | None,
     reserves: np.ndarray,
-    common: dict[str, Any],
-) -> tuple[Any, dict[str, float]]:
-    """EMG-assisted static optimisation with one gain per EMG channel fitted jointly with the
-    activations on this trial's torques (:func:`msk.strength.fit_emg_gains`), then solved once
-    more with the final gains (KKT figures included)."""
-    import msk.optimization as o
+    coordinate_names: tuple[str, ...],
+) -> Any:
+    """One EMG-to-activation gain per EMG channel of ``emg_assisted``, fitted jointly with the
+    activations on these frames' torques (:func:`msk.strength.fit_emg_gains`); only channels
+    with signal on these frames take part (None when no channel has: the criterion is then
+    static optimisation with exponent 2)."""
     from msk.strength import fit_emg_gains
 
-    opt = inputs.cfg.optimization
     channels = inputs.cfg.emg.channels
     groups: dict[str, list[str]] = {}
     for k, n in enumerate(names):
-        if measured[k]:
+        if measured[k] and np.any(emg_act[:, k] > 0):
             groups.setdefault(channels[n], []).append(n)
-    fit = fit_emg_gains(
-        jac, tq, f_active=fa, emg_activation=emg_act, groups=groups,
-        muscle_names=names, w_track=opt.w_track, activation_weights=weights,
-        reserve_optimal_force=reserves, coordinate_names=common["coordinate_names"],
+    if not groups:
+        return None
+    return fit_emg_gains(
+        jac, tq, f_active=fa, f_passive=fp, emg_activation=emg_act, groups=groups,
+        muscle_names=names, w_track=inputs.cfg.optimization.w_track,
+        activation_weights=weights, reserve_optimal_force=reserves,
+        coordinate_names=coordinate_names,
     )  # fmt: skip
-    sol = o.solve_emg_assisted_batch(
-        jac, tq, f_active=fa, a_ref=fit.reference(emg_act), measured=fit.measured,
-        w_track=opt.w_track, activation_weights=weights, reserve_optimal_force=reserves,
-        solver=opt.solver, **common,
-    )  # fmt: skip
-    return sol, dict(zip(fit.group_names, map(float, fit.gains)))
 
 
 def optimise(
@@ -161,10 +173,31 @@ def optimise(
             [n in emg.muscles and bool(emg.usable[emg.column(n)]) for n in params.names]
         )
     idx_ok = np.flatnonzero(ok)
-    # emg_assisted fits its gains on the whole trial: one block
-    blocks = [idx_ok] if meth == "emg_assisted" else frame_blocks(idx_ok)
+
+    def emg_reference(fr: np.ndarray) -> np.ndarray:
+        """EMG activation of each measured muscle's channel on frames ``fr`` (0 elsewhere)."""
+        assert emg is not None and meas is not None
+        a = np.zeros((fr.size, len(params.names)))
+        for k, name in enumerate(params.names):
+            if meas[k]:
+                a[:, k] = emg.activation[fr, emg.column(name)]
+        return a
+
+    gain_fit = None
+    if meth == "emg_assisted":  # gains first (on a bounded frame sample), then every block
+        assert meas is not None
+        fit_fr = fit_frames(idx_ok)
+        gain_fit = _emg_gains(
+            inputs, jacobian_frames(geometry.jacobian, fit_fr, act_idx),
+            torques.tau[fit_fr][:, act_idx], fa_all[fit_fr], fp_all[fit_fr],
+            emg_reference(fit_fr), meas,
+            params.names, weights, reserves, cn,
+        )  # fmt: skip
+    gains = (
+        None if gain_fit is None else dict(zip(gain_fit.group_names, map(float, gain_fit.gains)))
+    )
+    blocks = frame_blocks(idx_ok)
     carry = o.WarmStart()
-    gains: dict[str, float] | None = None
     parts: list[tuple[Any, Any, Any, int]] = []
     for fr in blocks:
         jac = jacobian_frames(geometry.jacobian, fr, act_idx)
@@ -189,24 +222,26 @@ def optimise(
             )  # fmt: skip
             forces = sol.forces
             acts = np.clip(forces / np.maximum(fa, 1e-9), 0, None)
-        elif meth in ("emg_weighted", "emg_assisted"):
-            assert emg is not None and meas is not None
-            a = np.zeros_like(fa)
-            for k, name in enumerate(params.names):
-                if meas[k]:
-                    a[:, k] = emg.activation[fr, emg.column(name)]
-            if meth == "emg_weighted":
-                sol = o.solve_emg_weighted_batch(
-                    jac, tq, f_ref=a * fa, measured=meas, w_emg=opt.w_emg,
-                    f_max=fa + fp, solver=solver, warm=carry, **common,
-                )  # fmt: skip
-                forces = sol.forces
-                acts = np.clip(forces / np.maximum(fa, 1e-9), 0, None)
-            else:
-                sol, gains = _emg_assisted(
-                    inputs, jac, tq, fa, a, meas, params.names, weights, reserves, common
-                )
-                forces, acts = sol.forces, sol.activations
+        elif meth == "emg_weighted":
+            assert meas is not None
+            sol = o.solve_emg_weighted_batch(
+                jac, tq, f_ref=emg_reference(fr) * fa, measured=meas, w_emg=opt.w_emg,
+                f_max=fa + fp, solver=solver, warm=carry, **common,
+            )  # fmt: skip
+            forces = sol.forces
+            acts = np.clip(forces / np.maximum(fa, 1e-9), 0, None)
+        elif meth == "emg_assisted":
+            a_ref, tracked = (
+                (np.zeros_like(fa), np.zeros(fa.shape[1], dtype=bool))
+                if gain_fit is None
+                else (gain_fit.reference(emg_reference(fr)), gain_fit.measured)
+            )
+            sol = o.solve_emg_assisted_batch(
+                jac, tq, f_active=fa, f_passive=fp, a_ref=a_ref,
+                measured=tracked, w_track=opt.w_track, activation_weights=weights,
+                reserve_optimal_force=reserves, solver=solver, warm=carry, **common,
+            )  # fmt: skip
+            forces, acts = sol.forces, sol.activations
         else:  # closed_form (unbounded Lagrange solution)
             lag = o.solve_lagrange_batch(
                 jac, tq, area=params.max_isometric_force, muscle_names=params.names
@@ -232,6 +267,8 @@ def optimise(
         criterion = (
             f"min Σ {w}a_i^2 + {opt.w_track:g} Σ (a_i − g_c ê_i)^2, gains g_c fitted on the "
             "trial's torques"
+            if gain_fit is not None
+            else f"min Σ {w}a_i^2 (no EMG channel with signal to track)"
         )
     out = MuscleTensions(
         f_all, a_all, tuple(params.names), meth, excluded,

@@ -12,7 +12,7 @@ gains,
 
     \\min_{a, g}\\; \\sum_t \\Big[ \\sum_i w_i a_{ti}^2
         + w_{track} \\sum_{c} \\sum_{i \\in c} (a_{ti} - g_c\\, ê_{ti})^2 + \\sum_j r_{tj}^2 \\Big]
-    \\quad \\text{s.t.}\\; R_t (a_t ⊙ F_{act,t}) + F_{res} r_t = τ_t,\\;
+    \\quad \\text{s.t.}\\; R_t (a_t ⊙ F_{act,t} + F_{pas,t}) + F_{res} r_t = τ_t,\\;
     a_{min} ≤ a_t ≤ a_{max},\\; g ≥ 0
 
 (``c`` a gain group: one EMG channel or a synergist group; ``i ∈ c`` its muscles). The torques
@@ -93,6 +93,7 @@ def fit_emg_gains(
     taus: ArrayLike,
     *,
     f_active: ArrayLike,
+    f_passive: ArrayLike | None = None,
     emg_activation: ArrayLike,
     groups: Mapping[str, Sequence[str]],
     muscle_names: Sequence[str],
@@ -109,7 +110,8 @@ def fit_emg_gains(
     """Fit one EMG-to-activation gain per group jointly with EMG-assisted static optimisation
     (module docstring). Frames of several trials are simply stacked (axis 0): they share the
     gains and nothing else. ``jacobians`` ``(N, M, n)`` J = ∂l/∂θ, ``taus`` ``(N, n)`` ID
-    torques, ``f_active`` ``(N, M)`` F_iso f_l f_v cos α, ``emg_activation`` ``(N, M)`` EMG
+    torques, ``f_active`` ``(N, M)`` F_iso f_l f_v cos α, ``f_passive`` ``(N, M)`` the passive
+    force along the tendon (default 0), ``emg_activation`` ``(N, M)`` EMG
     activation of each muscle's channel (any scale; values of muscles outside ``groups``
     ignored). Stops when no gain moves by more than ``tol`` (absolute) in an iteration;
     ``converged`` is False when ``max_iterations`` is reached first."""
@@ -149,6 +151,7 @@ def fit_emg_gains(
             jacobians,
             taus,
             f_active=f_active,
+            f_passive=f_passive,
             a_ref=e * muscle_gains(gains),
             measured=measured,
             w_track=w_track,

@@ -15,6 +15,7 @@ from msk.io.contact_force import (
     MeasuredContact,
     align_dm_trial,
     read_dm_mat,
+    read_load_cells,
     read_measured_contact,
 )
 from msk.io.opensim_files import write_sto, write_trc
@@ -130,6 +131,54 @@ def _synthetic_dm(tmp_path: Path, offset: int = 37, n: int = 60, noise: float = 
     }
     savemat(tmp_path / "trial.mat", mat)
     return tmp_path / "trial.mat", tmp_path / "trial.trc", tmp_path / "grf.sto", t_all[offset]
+
+
+def test_load_cell_csv_is_the_sum_in_pound_force(tmp_path: Path) -> None:
+    """The JW re-export's layout (trailing commas included): total = Σ four cells × 4.448 N,
+    time as in the file, medial/lateral NaN (not derivable from the cells alone)."""
+    p = tmp_path / "jw_knee_forces.csv"
+    p.write_text("Time(sec),PM,AM,AL,PL,GON,GRFz\n1.0,10,20,30,40,5.0,0.1,\n1.5,1,2,3,4,6.0,0.2,\n")
+    for m in (read_measured_contact(p), read_load_cells(p)):
+        np.testing.assert_allclose(m.total, [100 * 4.4482216152605, 10 * 4.4482216152605])
+        np.testing.assert_allclose(m.time, [1.0, 1.5])
+        assert np.isnan(m.medial).all() and np.isnan(m.lateral).all()
+        assert "lbf" in m.source
+    bad = tmp_path / "bad.csv"
+    bad.write_text("Time(sec),PM,AM,AL\n1,2,3,4\n")
+    with pytest.raises(FileFormatError, match="'PL'"):
+        read_load_cells(bad)
+    bad.write_text("Time(sec),PM,AM,AL,PL\n1,2,3,x,5\n2,1,1,1,1\n")
+    with pytest.raises(FileFormatError, match="non-numeric"):
+        read_measured_contact(bad)
+    bad.write_text("Time(sec),PM,AM,AL,PL\n2,1,1,1,1\n1,1,1,1,1\n")
+    with pytest.raises(FileFormatError, match="increasing"):
+        read_measured_contact(bad)
+
+
+@pytest.mark.realdata
+@pytest.mark.slow
+def test_jw_load_cells_in_pound_force_bound_the_inverse_dynamics_reaction(real_dir: Path) -> None:
+    """The unit is established from the data: read in lbf, JW's load-cell sum is never below
+    the knee's inverse-dynamics reaction without muscles (compressive contact ≥ that bound) on
+    the measured frames of jw_ngait_og3, peaks at 2.3–2.7 BW; in N it would be below it."""
+    from msk.config import load_config
+    from msk.contact import knee_contact_force
+    from msk.pipeline import run_stages
+
+    cfg = load_config(ROOT / "pipelines" / "gc4_JW.toml")
+    (task,) = [t for t in cfg.trials if t.role == "task"]
+    assert task.contact_force is not None and task.contact_force.name.endswith("forces.csv")
+    r = run_stages(cfg, until="loads")
+    kin, loads = r["kinematics"], r["loads"]
+    reaction = knee_contact_force(r["model"].model, kin, loads.external, joint="knee_r")
+    bound = np.linalg.norm(reaction.force, axis=1)[loads.usable]
+    m = read_measured_contact(task.contact_force)
+    total = np.interp(kin.time, m.time, m.total)[loads.usable]
+    bw = cfg.subject.mass_kg * G0
+    assert loads.usable.sum() > 100
+    assert np.all(total >= bound)
+    assert 2.3 < m.total.max() / bw < 2.7
+    assert np.mean(total / 4.4482216152605 < bound) > 0.5
 
 
 def test_dm_alignment_recovers_a_known_offset(tmp_path: Path) -> None:
