@@ -403,6 +403,18 @@ class Model:
             raise ModelError(f"model {self.name}: unknown joints {sorted(unknown)}")
         return self._rebuilt(joints=[joints.get(j.name, j) for j in self.joints])
 
+    def with_coordinate_ranges(self, ranges: Mapping[str, tuple[float, float]]) -> Model:
+        """A new model whose named coordinates take the given ranges (lower, upper)."""
+        unknown = set(ranges) - {c.name for c in self.coordinates}
+        if unknown:
+            raise ModelError(f"model {self.name}: unknown coordinates {sorted(unknown)}")
+        coords = [
+            replace(c, range=(float(ranges[c.name][0]), float(ranges[c.name][1])))
+            if c.name in ranges else c
+            for c in self.coordinates
+        ]  # fmt: skip
+        return self._rebuilt(coordinates=coords)
+
     def with_metadata(self, **metadata: Any) -> Model:
         return self._rebuilt(metadata={**self.metadata, **metadata})
 

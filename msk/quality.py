@@ -21,6 +21,11 @@ Thresholds and their sources (:data:`THRESHOLDS`):
 * Joint angles outside physiological ranges of motion (:data:`PHYSIOLOGICAL_RANGES_DEG`: the
   active ranges of motion of healthy adults, Roaas A, Andersson GBJ (1982) Acta Orthop Scand
   53:205–208, widened by 10°).
+* Coordinates at their model bound: a leg coordinate that IK holds at a bound of its model
+  range (within :data:`AT_BOUND_TOLERANCE`) in more than 5 % of the solved frames: there the
+  markers pull it beyond what the model allows and the pose is clamped, not measured (DM og4
+  with a four-bar knee before the placement fix: the knee at its +10° hyperextension bound
+  through stance — inside the physiological range gate's +15°, so that gate did not fire).
 * Frozen coordinates: a leg coordinate whose standard deviation over the trial is below 0.05°
   (a segment that the markers do not observe stays at its initial value).
 * Unobserved segments: solved frames in which no marker on a leg segment was used by IK.
@@ -47,6 +52,7 @@ from numpy.typing import ArrayLike, NDArray
 Array = NDArray[np.float64]
 
 __all__ = [
+    "AT_BOUND_TOLERANCE",
     "PHYSIOLOGICAL_RANGES_DEG",
     "SWAP_MIN_FRACTION",
     "SWAP_MIN_SEPARATION_M",
@@ -73,7 +79,11 @@ THRESHOLDS: Mapping[str, float] = {
     "reserve_rms_pct_peak_torque": 10.0,
     "saturation_activation": 0.99,
     "static_marker_discrepancy_m": 0.025,
+    "coordinate_at_bound_frames_pct": 5.0,
 }
+
+#: a solved coordinate within this of its model range bound is "at the bound" (rad or m)
+AT_BOUND_TOLERANCE = 1e-3
 
 #: physiological joint ranges (deg) by coordinate stem, gait2392/OpenSim sign conventions
 #: (knee_angle is negative in flexion); active ROM of adults (Roaas & Andersson 1982) + 10°
@@ -347,12 +357,15 @@ def _flag(trial: str, quantity: str, value: float, threshold: float, message: st
     return Flag(trial, quantity, float(value), float(threshold), message)
 
 
-def _coordinate_flags(trial: str, kin: Any, th: Mapping[str, float], held: set[str]) -> list[Flag]:
+def _coordinate_flags(
+    trial: str, kin: Any, th: Mapping[str, float], held: set[str], model: Any = None
+) -> list[Flag]:
     out: list[Flag] = []
     q = np.asarray(kin.q, dtype=float)
     good = np.isfinite(q).all(axis=1)
     if not good.any():
         return out
+    out += _at_bound_flags(trial, kin, th, held, model)
     for j, name in enumerate(kin.coordinate_names):
         stem = name[:-2] if name.endswith(("_r", "_l")) else name
         if stem not in PHYSIOLOGICAL_RANGES_DEG or name in held:
@@ -374,6 +387,39 @@ def _coordinate_flags(trial: str, kin: Any, th: Mapping[str, float], held: set[s
                       f"{name} is frozen (SD {sd:.3g}° over the trial): the markers do not "
                       "observe it; joint torques and muscle forces across it are not measured")
             )  # fmt: skip
+    return out
+
+
+def _at_bound_flags(
+    trial: str, kin: Any, th: Mapping[str, float], held: set[str], model: Any
+) -> list[Flag]:
+    """Leg coordinates (:data:`PHYSIOLOGICAL_RANGES_DEG` stems) that IK holds at a bound of
+    the model's range in more than the threshold's share of the solved frames."""
+    out: list[Flag] = []
+    raw = np.asarray(getattr(kin, "q_raw", np.zeros((0, 0))), dtype=float)
+    if model is None or raw.ndim != 2 or raw.shape[0] == 0:
+        return out
+    coords = {c.name: c for c in getattr(model, "coordinates", ())}
+    solved = np.isfinite(raw).all(axis=1)
+    if not solved.any():
+        return out
+    for j, name in enumerate(kin.coordinate_names):
+        stem = name[:-2] if name.endswith(("_r", "_l")) else name
+        c = coords.get(name)
+        if stem not in PHYSIOLOGICAL_RANGES_DEG or name in held or c is None or c.locked:
+            continue
+        lo, hi = c.range
+        v = raw[solved, j]
+        for bound, hit in ((lo, v <= lo + AT_BOUND_TOLERANCE), (hi, v >= hi - AT_BOUND_TOLERANCE)):
+            pct = 100.0 * float(hit.mean())
+            if pct > th["coordinate_at_bound_frames_pct"]:
+                out.append(
+                    _flag(trial, f"{name}_at_bound_frames_pct", pct,
+                          th["coordinate_at_bound_frames_pct"],
+                          f"{name} is held at its model bound {np.degrees(bound):.1f}° in "
+                          f"{pct:.0f} % of the solved frames: the markers pull it beyond the "
+                          "model's range; the pose there is clamped, not measured")
+                )  # fmt: skip
     return out
 
 
@@ -577,7 +623,7 @@ def gait_flags(
                   f"{', '.join(unscaled)} left at the generic model's size (no marker measured "
                   "the subject and no height is given: set subject.height_m)")
         )  # fmt: skip
-    out += _coordinate_flags(trial_name, kinematics, th, set(held))
+    out += _coordinate_flags(trial_name, kinematics, th, set(held), model)
     out += _unobserved_flags(trial_name, model, kinematics, th)
     dup = sorted({lab for lab in marker_labels if list(marker_labels).count(lab) > 1})
     if dup:

@@ -54,6 +54,7 @@ from msk.muscles.path import ConditionalPathPoint, MovingPathPoint, Muscle, Path
 Array = NDArray[np.float64]
 
 __all__ = [
+    "LOOSE_KEPT_SPREAD_FACTOR",
     "MODEL_HEIGHT_M",
     "SCALING_METHODS",
     "SEGMENT_MEASUREMENTS",
@@ -78,6 +79,7 @@ __all__ = [
     "scale_inertia",
     "scale_model",
     "static_joint_centres",
+    "unobserved_knees_flexed",
     "usable_measurements",
 ]
 
@@ -1161,6 +1163,51 @@ def scale_from_static(
     return scaled, ScalingReport(factors, methods, ratios, details, hf, mh, tuple(messages))
 
 
+#: a marker too loose for ``max_spread_m`` is still placed when its body has no other marker,
+#: up to this multiple of ``max_spread_m`` (the spread the later passes of
+#: :func:`place_markers_from_motion` accept for their IK)
+LOOSE_KEPT_SPREAD_FACTOR = 3.0
+
+
+def _tracked(x: Array, min_frames: int) -> bool:
+    """A marker column (F, 3) measured in at least ``min_frames`` frames."""
+    return int(np.isfinite(x).all(axis=1).sum()) >= min_frames
+
+
+def unobserved_knees_flexed(
+    model: Model, markers: Array, labels: Sequence[str], min_frames: int
+) -> dict[str, tuple[float, float]]:
+    """Knee coordinates (``knee_angle*``) whose joint no tracked model marker observes (none on
+    its parent nor on its child body in ``min_frames`` frames of ``markers``), with their range
+    restricted to the flexion side of 0 (the side holding most of the range: gait2392's
+    [−120°, 10°] → [−120°, 0°], Rajagopal's [0°, 120°] unchanged).
+
+    With pelvis and foot markers only, the knee angle comes from the hip–foot distance, which
+    is even about its maximum near full extension: flexed and hyperextended knees give the
+    same distance, and IK may take the hyperextended branch to its bound (DM og4, four-bar
+    knee: +10° in 93 of 120 placement frames; the thigh and shank clusters were then placed
+    10–20° off and the whole trial walked in hyperextension). Healthy and replaced knees walk
+    at 0–5° of hyperextension at most (Perry & Burnfield 2010, Gait Analysis, ch. 6), so the
+    placement passes take the flexion branch; the trial's own IK keeps the full range.
+    """
+    observed: set[str] = set()
+    for mk in model.markers:
+        if mk.name in labels and _tracked(markers[:, list(labels).index(mk.name)], min_frames):
+            observed.add(mk.body)
+    out: dict[str, tuple[float, float]] = {}
+    coords = {c.name: c for c in model.coordinates}
+    for j in model.joints:
+        for ax in j.axes:
+            c = coords.get(ax.coordinate or "")
+            if c is None or c.locked or not c.name.startswith("knee_angle") or c.name in out:
+                continue
+            if j.parent in observed or j.child in observed:
+                continue
+            lo, hi = c.range
+            out[c.name] = (lo, min(hi, 0.0)) if -lo >= hi else (max(lo, 0.0), hi)
+    return {k: v for k, v in out.items() if v != coords[k].range}
+
+
 def place_markers_from_motion(
     model: Model,
     markers: ArrayLike,
@@ -1191,11 +1238,18 @@ def place_markers_from_motion(
     3. ``iterations`` > 1: inverse kinematics again with the placed markers too (they pin the
        rotations about the long axes that a few anatomical markers leave free, e.g. a thigh
        with no knee marker), and step 2 again from that pose;
-    4. a marker whose final spread exceeds ``max_spread_m`` is not placed and is reported;
+    4. a marker whose final spread exceeds ``max_spread_m`` is not placed and is reported
+       (``too_loose``), unless no other marker observes its body (no model marker tracked in
+       ``min_frames`` solved frames, no other placed marker) and its spread is at most
+       :data:`LOOSE_KEPT_SPREAD_FACTOR` × ``max_spread_m``: then it is placed and reported
+       (``kept_loose``) — a noisy observation of a segment is better than none;
     5. ``move``: model markers (a lab puts its foot markers where it likes) moved, on their
        own body, to their median body-frame position in the last pass (OpenSim's
        ``move_model_markers`` for these markers, as :func:`place_markers` does on a static);
        shoulder-girdle markers of a model without that segment are always moved.
+
+    The passes' IK takes the flexion branch of a knee no model marker observes
+    (:func:`unobserved_knees_flexed`; reported as ``"knee_flexion_branch"``).
 
     ``regularize`` None (default): the passes run without any pull on the coordinates; when
     their final marker RMS exceeds :data:`PLACEMENT_RETRY_RMS_M` (the anatomical markers leave
@@ -1205,9 +1259,10 @@ def place_markers_from_motion(
 
     Returns:
         The model with the markers added, and ``{"placed": marker → body, "spread_m": marker →
-        σ (m), "too_loose": marker → [body, σ], "too_far": marker → [body, distance],
-        "not_markers", "unseen", "moved": marker → displacement (m), "ik_marker_rms_m" (median
-        over the solved frames, last pass), "frames" (solved)}``.
+        σ (m), "too_loose": marker → [body, σ], "kept_loose": marker → [body, σ],
+        "too_far": marker → [body, distance], "not_markers", "unseen", "moved": marker →
+        displacement (m), "ik_marker_rms_m" (median over the solved frames, last pass),
+        "frames" (solved), "knee_flexion_branch"}``.
 
     Raises:
         KinematicsError: fewer than 3 model markers in the trial.
@@ -1254,7 +1309,10 @@ def place_markers_from_motion(
     for nm, a, e in bone_segments(model, d0):
         o = d0.oMf[model.body_frame[nm]]
         local_segs[nm].append((np.asarray(o.actInv(a)), np.asarray(o.actInv(e))))
-    base = model
+    # the knees no model marker observes take the flexion branch in the placement passes
+    flexed = unobserved_knees_flexed(model, xs, labels, min_frames)
+    solve_on = model.with_coordinate_ranges(flexed) if flexed else model
+    base = solve_on
     placed: dict[str, str] = {}
     spread: dict[str, float] = {}
     local: dict[str, Array] = {}
@@ -1264,11 +1322,11 @@ def place_markers_from_motion(
     n_ok = 0
     for it in range(max(1, iterations)):
         # later passes: IK with the markers placed so far, save the clearly loose ones
-        ok_prev = [k for k in placed if spread[k] <= 3.0 * max_spread_m]
+        ok_prev = [k for k in placed if spread[k] <= LOOSE_KEPT_SPREAD_FACTOR * max_spread_m]
         ik_model = (
             base
             if it == 0
-            else model.with_markers(
+            else solve_on.with_markers(
                 [*model.markers, *(Marker(k, placed[k], local[k]) for k in ok_prev)]
             )
         )
@@ -1325,6 +1383,19 @@ def place_markers_from_motion(
             k = int(np.flatnonzero(tie)[np.argmin(dist[tie])])
             placed[lab], spread[lab], local[lab] = names[k], float(sig[k]), med[k]
     too_loose = {lab: [placed[lab], spread[lab]] for lab in placed if spread[lab] > max_spread_m}
+    # a body that no other marker observes keeps its loose markers (those the later passes
+    # used, ≤ 3 × max_spread_m): without them its pose comes from the neighbours only, and a
+    # thigh with no marker lets IK swing the knee (DM og4, four-bar knee: thigh clusters 20–25
+    # mm, dropped, knee in 11.5° hyperextension); cluster markers on the thigh move 10–30 mm on
+    # the bone in gait (soft-tissue artefact, Leardini et al. 2005 Gait Posture 21:212–225)
+    observed = {mk.body for mk in model.markers if mk.name in labels and _tracked(
+        xo[:, labels.index(mk.name)], min_frames)} | {
+        placed[lab] for lab in placed if lab not in too_loose}  # fmt: skip
+    kept_loose = sorted(
+        lab for lab in too_loose
+        if placed[lab] not in observed and spread[lab] <= LOOSE_KEPT_SPREAD_FACTOR * max_spread_m
+    )  # fmt: skip
+    too_loose = {lab: v for lab, v in too_loose.items() if lab not in kept_loose}
     keep = [lab for lab in placed if lab not in too_loose]
     added = [Marker(lab, placed[lab], np.asarray(local[lab], dtype=float)) for lab in keep]
     moved: dict[str, float] = {}
@@ -1344,6 +1415,7 @@ def place_markers_from_motion(
         "placed": {lab: placed[lab] for lab in keep},
         "spread_m": dict(spread),
         "too_loose": too_loose,
+        "kept_loose": {lab: [placed[lab], spread[lab]] for lab in kept_loose},
         "too_far": too_far,
         "not_markers": not_markers,
         "unseen": unseen,
@@ -1351,6 +1423,7 @@ def place_markers_from_motion(
         "ik_marker_rms_m": rms,
         "frames": n_ok,
         "regularized": regularize,
+        "knee_flexion_branch": sorted(flexed),
     }
     return model.with_markers([*own, *added]), info
 

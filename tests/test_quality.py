@@ -150,3 +150,28 @@ def test_swapped_label_pairs_finds_a_swap_from_the_pelvis_markers_alone():
     # without a posterior pelvis marker the side is not judged
     keep = [k for k, lab in enumerate(labels) if "PSI" not in lab]
     assert swapped_label_pairs(x[:, keep], [labels[k] for k in keep], up) == []
+
+
+def test_a_knee_held_at_its_model_bound_is_flagged():
+    """IK holding the knee at the model's hyperextension bound (gait2392-like +10°, inside the
+    physiological range gate's +15°) in 30 % of the frames raises
+    ``knee_angle_r_at_bound_frames_pct``; 3 % (under 5 %) does not (DM og4, four-bar knee,
+    before the placement fix: the knee at +10° through stance)."""
+
+    model = two_leg_model()
+    i = model.coordinate_names.index("knee_angle_r")
+    c = model.coordinates[i]
+    model = model.with_coordinate_ranges({c.name: (c.range[0], np.radians(10.0))})
+    rng = np.random.default_rng(1)
+    for share, raised in ((0.30, True), (0.03, False)):
+        kin = _still(model, 100)
+        kin.coordinate_names = kin_names(model)
+        kin.q[:, 6:] += 0.05 * rng.standard_normal((100, kin.q.shape[1] - 6))
+        kin.q[:, i] = -0.3 + 0.05 * rng.standard_normal(100)
+        kin.q[: int(share * 100), i] = np.radians(10.0)
+        kin.q_raw = kin.q.copy()
+        by = {f.quantity: f for f in _flags(model, kin)}
+        assert ("knee_angle_r_at_bound_frames_pct" in by) is raised
+        assert "knee_angle_r_deg" not in by  # +10° is inside the physiological range
+        if raised:
+            assert by["knee_angle_r_at_bound_frames_pct"].value == pytest.approx(30.0)

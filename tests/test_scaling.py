@@ -752,3 +752,50 @@ def test_place_markers_moves_the_acromia_of_a_model_without_shoulder_girdle(gait
     got = {m.name: m.offset for m in placed.markers}
     want = {m.name: m.offset for m in truth.markers}
     np.testing.assert_allclose(got["L.Acromium"], want["L.Acromium"], atol=1e-6)
+
+
+def test_unobserved_knees_take_the_flexion_branch_in_placement(gait2392):
+    """Without a tracked model marker on the femur or the tibia (Grand Challenge DM's walks: no
+    epicondyle or malleolus marker), the placement passes bound the knee to the flexion side
+    of 0 (gait2392: [−120°, 10°] → [−120°, 0°]); with the knee markers tracked, nothing."""
+    from msk.scaling import unobserved_knees_flexed
+
+    x, labels, _ = _motion(gait2392, gait2392)
+    assert unobserved_knees_flexed(gait2392, x, labels, 10) == {}
+    body_of = {mk.name: mk.body for mk in gait2392.markers}
+    legs = [i for i, lab in enumerate(labels) if body_of[lab].startswith(("femur", "tibia"))]
+    x2 = x.copy()
+    x2[:, legs] = np.nan
+    lo, _ = dict(zip(gait2392.coordinate_names, zip(*gait2392.coordinate_bounds())))["knee_angle_r"]
+    got = unobserved_knees_flexed(gait2392, x2, labels, 10)
+    assert got == {"knee_angle_r": (lo, 0.0), "knee_angle_l": (lo, 0.0)}
+    flexed = gait2392.with_coordinate_ranges(got)
+    assert flexed.coordinate_bounds()[1][flexed.coordinate_names.index("knee_angle_r")] == 0.0
+
+
+def test_place_markers_from_motion_keeps_the_only_markers_of_a_body_when_loose(gait2392):
+    """Thigh cluster markers with 25 mm of skin motion (spread above the 20 mm limit): left out
+    while the femur's own markers are tracked, kept (``kept_loose``) when nothing else observes
+    the femur — a thigh with no marker lets IK swing the knee (DM og4)."""
+    from msk.scaling import place_markers_from_motion
+
+    clusters = {
+        "RTH1": ("femur_r", (0.03, -0.20, 0.07)),
+        "RTH2": ("femur_r", (0.06, -0.28, 0.05)),
+        "RTH3": ("femur_r", (0.00, -0.24, 0.08)),
+    }
+    truth = gait2392.with_markers(
+        [*gait2392.markers, *(Marker(k, b, np.array(p)) for k, (b, p) in clusters.items())]
+    )
+    x, labels, t = _motion(gait2392, truth, noise_m=0.001)
+    rng = np.random.default_rng(2)
+    for k in clusters:
+        x[:, labels.index(k)] += rng.normal(0.0, 0.025 / np.sqrt(3.0), (len(t), 3))
+    _, info = place_markers_from_motion(gait2392, x, labels, t, max_frames=40)
+    assert set(info["too_loose"]) == set(clusters) and not info["kept_loose"]
+    femur = [mk.name for mk in gait2392.markers if mk.body == "femur_r"]
+    x[:, [labels.index(lab) for lab in femur]] = np.nan
+    model, info = place_markers_from_motion(gait2392, x, labels, t, max_frames=40)
+    assert set(info["kept_loose"]) == set(clusters) and not info["too_loose"]
+    assert {k: info["placed"][k] for k in clusters} == {k: b for k, (b, _) in clusters.items()}
+    assert set(clusters) <= set(model.marker_names)

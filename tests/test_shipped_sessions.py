@@ -57,9 +57,12 @@ EXPECT: dict[str, dict] = {
     "pig_motion3": {"ik_mm": 14, "res_pct": 5, "must": set(), "may": None},
     "unipd_bts": {"ik_mm": 17, "res_pct": 5, "must": {"static_markers_contradicted_m"},
                   "may": None},
-    "uwa_fast_walking": {"ik_mm": 14, "res_pct": 6, "must": set(), "may": None},
+    # no knee marker: the placement takes the knees' flexion branch (IK 12.6 → 10.8 mm, the
+    # knees no longer at their +10° bound; residual 5.6 → 6.0 % BW: flagged, as before)
+    "uwa_fast_walking": {"ik_mm": 12, "res_pct": 6.1, "must": set(), "may": None},
+    # the plates now weigh the runner at 70.2 kg (2.4 % from the walk's 68.5): no mass flag
     "uwa_running": {"ik_mm": None, "res_pct": None,
-                    "must": {"residual_force_rms_pct_bw", "plate_mass_difference_pct"},
+                    "must": {"residual_force_rms_pct_bw"},
                     "may": None},
 }  # fmt: skip
 

@@ -110,6 +110,14 @@ class ModelConfig:
         unit="deg",
         bounds=Range(-20.0, 20.0),
     )
+    knee_alignment: str = opt(
+        "where the side of interest's knee alignment comes from: given (knee_varus_deg, "
+        "knee_medial_shift_m) or from_markers (estimated from the static trial's epicondyle "
+        "and malleolus markers against the scaled model's, ±2–3°: "
+        "msk.alignment.knee_varus_from_markers; then knee_varus_deg and the shift must be 0)",
+        "given",
+        choices=("given", "from_markers"),
+    )
     knee_medial_shift_m: float = opt(
         "medio-lateral offset of that knee's tibia on the femur, medial > 0, given as "
         "knee_varus_deg (msk.alignment)",

@@ -91,7 +91,7 @@ def settings(inputs: SessionInputs) -> Any:
         "static": inputs.hashes.get("static"),
         "scale": mc.scale,
         "knee": mc.knee,
-        "knee_alignment": (mc.knee_varus_deg, mc.knee_medial_shift_m),
+        "knee_alignment": (mc.knee_alignment, mc.knee_varus_deg, mc.knee_medial_shift_m),
         "mass": cfg.subject.mass_kg,
         "height": cfg.subject.height_m,
         "rename": dict(cfg.marker_rename),
@@ -99,14 +99,24 @@ def settings(inputs: SessionInputs) -> Any:
     }
 
 
-def _aligned(inputs: SessionInputs, model: Any) -> Any:
-    """The model with the configured frontal alignment of the side of interest's knee
-    (:func:`msk.alignment.with_knee_alignment`; the model itself without one)."""
+def _aligned(inputs: SessionInputs, model: Any, markers: Any, labels: Any) -> Any:
+    """The model with the frontal alignment of the side of interest's knee: the configured one,
+    or (``knee_alignment = "from_markers"``) the one the trial's epicondyle and malleolus
+    markers show against ``model``'s (:func:`msk.alignment.knee_varus_from_markers`, on the
+    static trial when there is one, else the task); the model itself without one
+    (:func:`msk.alignment.with_knee_alignment`)."""
     mc = inputs.model_cfg
     assert mc is not None  # a gait stage
-    if mc.knee_varus_deg == 0.0 and mc.knee_medial_shift_m == 0.0:
+    from_markers = mc.knee_alignment == "from_markers"
+    if from_markers and (mc.knee_varus_deg != 0.0 or mc.knee_medial_shift_m != 0.0):
+        raise ConfigError(
+            f"{inputs.cfg.path}: model.knee_alignment = 'from_markers' with a given "
+            "knee_varus_deg / knee_medial_shift_m: give one or the other"
+        )
+    if not from_markers and mc.knee_varus_deg == 0.0 and mc.knee_medial_shift_m == 0.0:
         return model
-    from msk.alignment import with_knee_alignment
+    from msk.alignment import knee_varus_from_markers, with_knee_alignment
+    from msk.exceptions import MissingDataError
 
     joint = f"knee{inputs.sfx}"
     if joint not in {j.name for j in model.joints}:
@@ -114,10 +124,21 @@ def _aligned(inputs: SessionInputs, model: Any) -> Any:
             f"{inputs.cfg.path}: model.knee_varus_deg / knee_medial_shift_m: the model has no "
             f"joint {joint!r}"
         )
-    return with_knee_alignment(
-        model, joint, varus_rad=np.radians(mc.knee_varus_deg),
-        medial_shift_m=mc.knee_medial_shift_m,
-    )  # fmt: skip
+    varus, shift = np.radians(mc.knee_varus_deg), mc.knee_medial_shift_m
+    if from_markers:
+        try:
+            est = knee_varus_from_markers(model, markers, labels, inputs.cfg.subject.side)
+        except (MissingDataError, ModelError) as exc:
+            raise ConfigError(f"{inputs.cfg.path}: model.knee_alignment: {exc}") from None
+        varus, shift = est.varus_rad, 0.0
+    aligned = with_knee_alignment(model, joint, varus_rad=varus, medial_shift_m=shift)
+    if from_markers:
+        meta = dict(aligned.metadata.get("knee_alignment") or {})
+        meta[joint] = {**meta.get(joint, {}), "source": "markers",
+                       "subject_rad": est.subject_rad, "model_rad": est.model_rad,
+                       "iqr_rad": est.iqr_rad, "frames": est.frames}  # fmt: skip
+        aligned = aligned.with_metadata(knee_alignment=meta)
+    return aligned
 
 
 def _scale_and_place(inputs: SessionInputs, read: ReadResult) -> dict[str, Any]:
@@ -219,7 +240,7 @@ def _scale_and_place(inputs: SessionInputs, read: ReadResult) -> dict[str, Any]:
                 model, static, height_m=cfg.subject.height_m, body_mass=cfg.subject.mass_kg,
                 widths_m=widths, marker_diameter_m=mdiam,
             )  # fmt: skip
-        model = _aligned(inputs, model)
+        model = _aligned(inputs, model, sm, slabels)
         centres, jc_move = _chord_centres(model, sm, slabels, widths, mdiam)
         try:
             model, placed = place_markers(
@@ -253,7 +274,7 @@ def _scale_and_place(inputs: SessionInputs, read: ReadResult) -> dict[str, Any]:
                 model, xm, mlabels, trial.time, height_m=cfg.subject.height_m,
                 body_mass=cfg.subject.mass_kg,
             )  # fmt: skip
-        model = _aligned(inputs, model)
+        model = _aligned(inputs, model, xm, mlabels)
         # the lab's foot markers: where they sit on the foot is the lab's choice and nothing
         # but the motion tells (msk.markersets.foot_markers), so they are moved too
         present = [mk.name for mk in model.markers if mk.name in set(mlabels)]
