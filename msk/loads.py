@@ -334,6 +334,7 @@ class ExternalLoads(FrameAxis):
 _NONE, _SHARED = -1, -2  # per-frame labels besides a foot index
 _BELT_MPS = 0.3  # a plate whose surface moves faster than this is a treadmill belt
 _MIN_SEGMENT_S = 0.03  # a foot's run shorter than this between runs of another foot is noise
+_STILL_MPS = 0.5  # a foot's slowest point slower than this: on the ground (contact_measured)
 
 
 def _default_feet(model: Model) -> tuple[str, ...]:
@@ -435,6 +436,7 @@ class _Prepared:
     cop: Array
     height: float
     contact: NDArray[np.bool_]
+    fv_recorded: Array  # (N,) the unfiltered vertical force (0 under the threshold)
     on: NDArray[np.bool_] | None = None  # (N, F) over the plate, before the swing test
     standing: NDArray[np.bool_] | None = None  # (N, F) after the swing test
     primary: NDArray[np.int64] | None = None  # (N,) nearest standing foot, -1 none
@@ -533,7 +535,7 @@ def external_loads(
         crit = _Criteria(margin_m, cop_radius_m, floor_m, speed_mps)
         hz = _horizontal_axes(up)
         for p in auto:
-            p.on, p.standing, p.primary, p.surface_v = _plate_state(p, fpts, vel, up, hz, crit)
+            p.on, p.standing, p.primary, p.surface_v = _plate_state(p, t, fpts, vel, up, hz, crit)
         for p in prepared:  # an explicit assignment explains its foot too
             if p.name in assignment:
                 body = assignment[p.name]
@@ -549,8 +551,11 @@ def external_loads(
             else:
                 run_lab = labels[id(p)][i0:i1].copy()
                 # the COP of a few newtons is unreliable: those frames take their neighbours'
-                # label; a run of only such frames (a noise blip, a light touch) is unassigned
-                run_lab[p.fv[i0:i1] < 2.0 * threshold_n] = _NONE
+                # label; a run of only such frames (a noise blip, a light touch) is
+                # unassigned. Judged on the recorded force: a low-pass spreads a heel strike
+                # over the frames before it (≈ 1/(4 f_c), 42 ms at 6 Hz), when the foot is
+                # still in the air, and damps a step cut by the trial's end
+                run_lab[p.fv_recorded[i0:i1] < 2.0 * threshold_n] = _NONE
                 segs = _segments(run_lab, t[i0:i1], i0)
             for s0, s1, lab in segs:
                 sl = slice(s0, s1)
@@ -679,6 +684,9 @@ def _prepare(
     m_k = np.nan_to_num(resample_to(ta, m_pl, t))
     fv = f_k @ up
     contact = fv > threshold_n
+    # the recorded force's own contact: a low-pass spreads a heel strike's step over the
+    # frames before it (≈ 1/(4 f_c), 42 ms at 6 Hz), when the foot is still swinging in
+    fv_rec = np.nan_to_num(resample_to(ta, s * fv_raw * loaded_raw, t))
     # the plate surface: its corners (a step, a raised walkway), else the recorded COPs
     cop_raw = np.asarray(pl.cop, dtype=float)
     cop_ok = np.isfinite(cop_raw).all(axis=1) & loaded_raw
@@ -691,11 +699,12 @@ def _prepare(
         m_h = m_k - np.cross(h * up, f_k)
         cop = h * up + np.cross(up, m_h) / fv[:, None]
     cop[~contact] = np.nan
-    return _Prepared(pl.name, pl.corners, f_k, m_k, fv, cop, h, contact)
+    return _Prepared(pl.name, pl.corners, f_k, m_k, fv, cop, h, contact, fv_rec)
 
 
 def _plate_state(
     p: _Prepared,
+    t: Array,
     fpts: list[Array],
     vel: list[Array],
     up: Array,
@@ -745,6 +754,11 @@ def _plate_state(
             s = np.linalg.norm(vel[f][k] - surface_v, axis=2)
         speed[:, f] = np.where(np.isfinite(s), s, np.inf).min(axis=1)
     st = _standing(on, speed, near, crit.speed_mps)
+    if poly is not None:
+        # a foot known to stand beside the plate does not share its load with a foot on it
+        away: NDArray[np.bool_] = np.asarray(_beside(p, t, fpts, vel, up, hz, poly, crit)[k] & st)
+        other: NDArray[np.bool_] = np.asarray((st & ~away).any(axis=1))
+        st &= ~(away & other[:, None])
     standing = np.zeros((n, nf), dtype=bool)
     standing[k] = st
     over = np.zeros((n, nf), dtype=bool)
@@ -941,6 +955,55 @@ def contact_measured(
     )
     known &= speed_known.all(axis=1)
     return known & ~(grounded & ~(fv > threshold_n)).any(axis=1) & ~loads.flagged()
+
+
+def _beside(
+    p: _Prepared,
+    t: Array,
+    fpts: list[Array],
+    vel: list[Array],
+    up: Array,
+    hz: Array,
+    poly: Array,
+    crit: _Criteria,
+) -> NDArray[np.bool_]:
+    """(N, F): the frames in which a foot over the plate's outline stands beside the plate.
+
+    A foot that stays still (slowest point under :data:`_STILL_MPS`) over the outline (grown
+    by the margin, within ``floor_m`` of the surface) for :data:`_MIN_SEGMENT_S` while every
+    other foot swings (faster than that) and the plate records no force bears the body on the
+    floor next to the plate: on the plate it would load it. It is beside the plate through the
+    whole run of frames in which it stays over the outline (it cannot step onto the plate
+    without leaving it). UWA's fast walk,
+    plate 1 (1.2 m square): the left foot at toe-off with its toes 14 mm over the edge,
+    standing alone on the floor 2.38–2.41 s, while the plate records 0 N, then the right heel
+    strikes with the COP under it, 0.72 m from the left foot. Used only to tell which of two
+    feet standing on a plate loads it (a plate's only foot keeps it)."""
+    n, nf = p.contact.size, len(fpts)
+    out = np.zeros((n, nf), dtype=bool)
+    unloaded = p.fv_recorded <= 0.0
+    if not unloaded.any():
+        return out
+    with np.errstate(invalid="ignore"), warnings.catch_warnings():
+        warnings.simplefilter("ignore", RuntimeWarning)
+        # speeds of the feet's slowest points (NaN: unknown, neither still nor swinging)
+        speed = np.stack([np.nanmin(np.linalg.norm(v, axis=2), axis=1) for v in vel], axis=1)
+    for f, pts in enumerate(fpts):
+        with np.errstate(invalid="ignore"):
+            ok: NDArray[np.bool_] = np.asarray(np.isfinite(pts).all(axis=2))
+            inside: NDArray[np.bool_] = (
+                np.asarray(_inside_grown(pts @ hz.T, poly, crit.margin_m), dtype=bool) & ok
+            )
+            low = np.where(ok, np.abs(pts @ up - p.height), np.inf).min(axis=1)
+            over = inside.any(axis=1) & (low <= crit.floor_m)
+            others = np.delete(speed, f, axis=1)
+            alone = (others > _STILL_MPS).all(axis=1)  # every other foot swinging
+            still = over & unloaded & (speed[:, f] < _STILL_MPS) & alone
+        for i0, i1 in _runs(over):
+            k = np.flatnonzero(still[i0:i1])
+            if k.size >= 2 and t[i0 + k[-1]] - t[i0 + k[0]] >= _MIN_SEGMENT_S:
+                out[i0:i1, f] = True
+    return out
 
 
 def _standing(
