@@ -437,6 +437,7 @@ class _Prepared:
     height: float
     contact: NDArray[np.bool_]
     fv_recorded: Array  # (N,) the unfiltered vertical force (0 under the threshold)
+    recorded: NDArray[np.bool_]  # (N,) the unfiltered vertical force above the threshold
     on: NDArray[np.bool_] | None = None  # (N, F) over the plate, before the swing test
     standing: NDArray[np.bool_] | None = None  # (N, F) after the swing test
     primary: NDArray[np.int64] | None = None  # (N,) nearest standing foot, -1 none
@@ -546,6 +547,10 @@ def external_loads(
     for p in prepared:
         pl = p
         for i0, i1 in _runs(p.contact):
+            if not p.recorded[i0:i1].any():
+                # the low-pass's ringing after a sharp contact (a running foot's: ±150 N lobes
+                # at 6 Hz), no recorded force: no contact, no foot to give it to
+                continue
             if pl.name in assignment:
                 segs = [(i0, i1, -3)]  # the explicit body
             else:
@@ -556,7 +561,7 @@ def external_loads(
                 # over the frames before it (≈ 1/(4 f_c), 42 ms at 6 Hz), when the foot is
                 # still in the air, and damps a step cut by the trial's end
                 run_lab[p.fv_recorded[i0:i1] < 2.0 * threshold_n] = _NONE
-                segs = _segments(run_lab, t[i0:i1], i0)
+                segs = _spread_to_contact(_segments(run_lab, t[i0:i1], i0), p.recorded)
             for s0, s1, lab in segs:
                 sl = slice(s0, s1)
                 if lab == _SHARED or lab == _NONE:
@@ -699,7 +704,8 @@ def _prepare(
         m_h = m_k - np.cross(h * up, f_k)
         cop = h * up + np.cross(up, m_h) / fv[:, None]
     cop[~contact] = np.nan
-    return _Prepared(pl.name, pl.corners, f_k, m_k, fv, cop, h, contact, fv_rec)
+    recorded = fv_rec > threshold_n
+    return _Prepared(pl.name, pl.corners, f_k, m_k, fv, cop, h, contact, fv_rec, recorded)
 
 
 def _plate_state(
@@ -844,6 +850,26 @@ def _segments(lab: Array, t: Array, offset: int) -> list[tuple[int, int, int]]:
     return [(a + offset, b + offset, v) for a, b, v in runs()]
 
 
+def _spread_to_contact(
+    segs: list[tuple[int, int, int]], recorded: NDArray[np.bool_]
+) -> list[tuple[int, int, int]]:
+    """Unassigned segments at the ends of a contact run that the low-pass alone loads (no
+    recorded force: its spread before the first and after the last recorded contact, ≈ 150 ms
+    at 6 Hz before a running foot's strike) take the label of the segment they adjoin: that
+    load is the contact's own, smeared in time, and no foot stands there to take it."""
+    out = list(segs)
+    for end in (0, -1):
+        if len(out) < 2:
+            break
+        a, b, lab = out[end]
+        nxt = out[1] if end == 0 else out[-2]
+        if lab == _NONE and nxt[2] >= 0 and not recorded[a:b].any():
+            merged = (a, nxt[1], nxt[2]) if end == 0 else (nxt[0], b, nxt[2])
+            out[end] = merged
+            del out[1 if end == 0 else -2]
+    return out
+
+
 def _velocity(p: Array, t: Array) -> Array:
     """(N, P, 3) velocity of points ``p`` (N, P, 3): the mean of the backward and forward
     differences where both exist (central differences), one of them next to a gap or an end,
@@ -981,7 +1007,7 @@ def _beside(
     feet standing on a plate loads it (a plate's only foot keeps it)."""
     n, nf = p.contact.size, len(fpts)
     out = np.zeros((n, nf), dtype=bool)
-    unloaded = p.fv_recorded <= 0.0
+    unloaded = ~p.recorded
     if not unloaded.any():
         return out
     with np.errstate(invalid="ignore"), warnings.catch_warnings():
