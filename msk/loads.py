@@ -334,6 +334,7 @@ class ExternalLoads(FrameAxis):
 _NONE, _SHARED = -1, -2  # per-frame labels besides a foot index
 _BELT_MPS = 0.3  # a plate whose surface moves faster than this is a treadmill belt
 _MIN_SEGMENT_S = 0.03  # a foot's run shorter than this between runs of another foot is noise
+_STILL_MPS = 0.5  # a foot's slowest point slower than this: on the ground (contact_measured)
 
 
 def _default_feet(model: Model) -> tuple[str, ...]:
@@ -435,6 +436,8 @@ class _Prepared:
     cop: Array
     height: float
     contact: NDArray[np.bool_]
+    fv_recorded: Array  # (N,) the unfiltered vertical force (0 under the threshold)
+    recorded: NDArray[np.bool_]  # (N,) the unfiltered vertical force above the threshold
     on: NDArray[np.bool_] | None = None  # (N, F) over the plate, before the swing test
     standing: NDArray[np.bool_] | None = None  # (N, F) after the swing test
     primary: NDArray[np.int64] | None = None  # (N,) nearest standing foot, -1 none
@@ -535,7 +538,7 @@ def external_loads(
         crit = _Criteria(margin_m, cop_radius_m, floor_m, speed_mps)
         hz = _horizontal_axes(up)
         for p in auto:
-            p.on, p.standing, p.primary, p.surface_v = _plate_state(p, fpts, vel, up, hz, crit)
+            p.on, p.standing, p.primary, p.surface_v = _plate_state(p, t, fpts, vel, up, hz, crit)
         for p in prepared:  # an explicit assignment explains its foot too
             if p.name in assignment:
                 body = assignment[p.name]
@@ -546,14 +549,22 @@ def external_loads(
     for p in prepared:
         pl = p
         for i0, i1 in _runs(p.contact):
+            if p.recorded[i0:i1].sum() < 2:
+                # the low-pass's ringing after a sharp contact (a running foot's: ±150 N lobes
+                # at 6 Hz) with no recorded force, or one noise sample over the threshold
+                # (UWA's run: 22 N at 3.104 s): no contact, no foot to give it to
+                continue
             if pl.name in assignment:
                 segs = [(i0, i1, -3)]  # the explicit body
             else:
                 run_lab = labels[id(p)][i0:i1].copy()
                 # the COP of a few newtons is unreliable: those frames take their neighbours'
-                # label; a run of only such frames (a noise blip, a light touch) is unassigned
-                run_lab[p.fv[i0:i1] < 2.0 * threshold_n] = _NONE
-                segs = _segments(run_lab, t[i0:i1], i0)
+                # label; a run of only such frames (a noise blip, a light touch) is
+                # unassigned. Judged on the recorded force: a low-pass spreads a heel strike
+                # over the frames before it (≈ 1/(4 f_c), 42 ms at 6 Hz), when the foot is
+                # still in the air, and damps a step cut by the trial's end
+                run_lab[p.fv_recorded[i0:i1] < 2.0 * threshold_n] = _NONE
+                segs = _spread_to_contact(_segments(run_lab, t[i0:i1], i0), p.recorded)
             for s0, s1, lab in segs:
                 sl = slice(s0, s1)
                 if lab == _SHARED or lab == _NONE:
@@ -656,7 +667,9 @@ class SampledPlate:
     reaction on the subject, zero at the analog samples whose vertical force is at most the
     threshold, low-passed, linearly resampled on ``time`` (0 outside the plate's time);
     ``height_m``: the plate surface along the ``up`` of the sampling (corners, else the median
-    of the loaded COPs); ``corners`` (4, 3) m or ``None``."""
+    of the loaded COPs); ``corners`` (4, 3) m or ``None``; ``fv_recorded`` (N,) the vertical
+    force before the low-pass (0 at the samples under the threshold), resampled on ``time``
+    (``None``: taken as the filtered one)."""
 
     name: str
     time: Array
@@ -664,6 +677,7 @@ class SampledPlate:
     moment: Array
     height_m: float
     corners: Array | None = None
+    fv_recorded: Array | None = None
 
     def rotated(self, rotation: ArrayLike) -> SampledPlate:
         """This plate in the frame ``x_new = R x`` (force, moment about the origin, corners;
@@ -676,6 +690,7 @@ class SampledPlate:
             self.moment @ r.T,
             self.height_m,
             None if self.corners is None else np.asarray(self.corners, dtype=float) @ r.T,
+            self.fv_recorded,
         )
 
 
@@ -708,11 +723,14 @@ def sample_plate(
         s = -1.0 if loaded_raw.any() and np.sum(fv_raw[loaded_raw]) < 0 else 1.0
     else:
         s = float(sign)
+    ta = np.asarray(pl.time, dtype=float)
+    # the recorded force's own contact: a low-pass spreads a heel strike's step over the
+    # frames before it (≈ 1/(4 f_c), 42 ms at 6 Hz), when the foot is still swinging in
+    fv_rec = np.nan_to_num(np.interp(t, ta, s * fv_raw * loaded_raw, left=np.nan, right=np.nan))
     del fv_raw
     cop_raw = np.asarray(pl.cop, dtype=float)
     cop_finite = np.isfinite(cop_raw).all(axis=1)
     unloaded = ~loaded_raw
-    ta = np.asarray(pl.time, dtype=float)
     rate = (ta.size - 1) / (ta[-1] - ta[0]) if ta.size > 1 else float("nan")
     f_k = np.empty((t.size, 3))
     m_k = np.empty((t.size, 3))
@@ -738,7 +756,7 @@ def sample_plate(
         cop_ok = cop_finite & loaded_raw
         h = float(np.median(cop_raw[cop_ok] @ up)) if cop_ok.any() else 0.0
     corners = None if pl.corners is None else np.asarray(pl.corners, dtype=float)
-    return SampledPlate(pl.name, t, f_k, m_k, h, corners)
+    return SampledPlate(pl.name, t, f_k, m_k, h, corners, fv_rec)
 
 
 def _prepare(
@@ -755,21 +773,28 @@ def _prepare(
     if not isinstance(pl, SampledPlate):
         pl = sample_plate(pl, t, up, threshold_n=threshold_n, sign=sign, cutoff_hz=cutoff_hz)
     f_k, m_k, h = pl.force, pl.moment, pl.height_m
+    fv_rec = pl.fv_recorded
     if not np.array_equal(pl.time, t):
         f_k = np.nan_to_num(resample_to(pl.time, f_k, t))
         m_k = np.nan_to_num(resample_to(pl.time, m_k, t))
+        if fv_rec is not None:
+            fv_rec = np.nan_to_num(np.interp(t, pl.time, fv_rec, left=np.nan, right=np.nan))
     fv = f_k @ up
+    if fv_rec is None:
+        fv_rec = fv
     contact = fv > threshold_n
     with np.errstate(divide="ignore", invalid="ignore"):
         # c = h·up + (up × M_O_h)/F_v with M_O_h the moment about the point h·up
         m_h = m_k - np.cross(h * up, f_k)
         cop = h * up + np.cross(up, m_h) / fv[:, None]
     cop[~contact] = np.nan
-    return _Prepared(pl.name, pl.corners, f_k, m_k, fv, cop, h, contact)
+    recorded = fv_rec > threshold_n
+    return _Prepared(pl.name, pl.corners, f_k, m_k, fv, cop, h, contact, fv_rec, recorded)
 
 
 def _plate_state(
     p: _Prepared,
+    t: Array,
     fpts: list[Array],
     vel: list[Array],
     up: Array,
@@ -819,6 +844,11 @@ def _plate_state(
             s = np.linalg.norm(vel[f][k] - surface_v, axis=2)
         speed[:, f] = np.where(np.isfinite(s), s, np.inf).min(axis=1)
     st = _standing(on, speed, near, crit.speed_mps)
+    if poly is not None:
+        # a foot known to stand beside the plate does not share its load with a foot on it
+        away: NDArray[np.bool_] = np.asarray(_beside(p, t, fpts, vel, up, hz, poly, crit)[k] & st)
+        other: NDArray[np.bool_] = np.asarray((st & ~away).any(axis=1))
+        st &= ~(away & other[:, None])
     standing = np.zeros((n, nf), dtype=bool)
     standing[k] = st
     over = np.zeros((n, nf), dtype=bool)
@@ -902,6 +932,26 @@ def _segments(lab: Array, t: Array, offset: int) -> list[tuple[int, int, int]]:
         if not changed:
             break
     return [(a + offset, b + offset, v) for a, b, v in runs()]
+
+
+def _spread_to_contact(
+    segs: list[tuple[int, int, int]], recorded: NDArray[np.bool_]
+) -> list[tuple[int, int, int]]:
+    """Unassigned segments at the ends of a contact run that the low-pass alone loads (no
+    recorded force: its spread before the first and after the last recorded contact, ≈ 150 ms
+    at 6 Hz before a running foot's strike) take the label of the segment they adjoin: that
+    load is the contact's own, smeared in time, and no foot stands there to take it."""
+    out = list(segs)
+    for end in (0, -1):
+        if len(out) < 2:
+            break
+        a, b, lab = out[end]
+        nxt = out[1] if end == 0 else out[-2]
+        if lab == _NONE and nxt[2] >= 0 and not recorded[a:b].any():
+            merged = (a, nxt[1], nxt[2]) if end == 0 else (nxt[0], b, nxt[2])
+            out[end] = merged
+            del out[1 if end == 0 else -2]
+    return out
 
 
 def _velocity(p: Array, t: Array) -> Array:
@@ -1015,6 +1065,55 @@ def contact_measured(
     )
     known &= speed_known.all(axis=1)
     return known & ~(grounded & ~(fv > threshold_n)).any(axis=1) & ~loads.flagged()
+
+
+def _beside(
+    p: _Prepared,
+    t: Array,
+    fpts: list[Array],
+    vel: list[Array],
+    up: Array,
+    hz: Array,
+    poly: Array,
+    crit: _Criteria,
+) -> NDArray[np.bool_]:
+    """(N, F): the frames in which a foot over the plate's outline stands beside the plate.
+
+    A foot that stays still (slowest point under :data:`_STILL_MPS`) over the outline (grown
+    by the margin, within ``floor_m`` of the surface) for :data:`_MIN_SEGMENT_S` while every
+    other foot swings (faster than that) and the plate records no force bears the body on the
+    floor next to the plate: on the plate it would load it. It is beside the plate through the
+    whole run of frames in which it stays over the outline (it cannot step onto the plate
+    without leaving it). UWA's fast walk,
+    plate 1 (1.2 m square): the left foot at toe-off with its toes 14 mm over the edge,
+    standing alone on the floor 2.38–2.41 s, while the plate records 0 N, then the right heel
+    strikes with the COP under it, 0.72 m from the left foot. Used only to tell which of two
+    feet standing on a plate loads it (a plate's only foot keeps it)."""
+    n, nf = p.contact.size, len(fpts)
+    out = np.zeros((n, nf), dtype=bool)
+    unloaded = ~p.recorded
+    if not unloaded.any():
+        return out
+    with np.errstate(invalid="ignore"), warnings.catch_warnings():
+        warnings.simplefilter("ignore", RuntimeWarning)
+        # speeds of the feet's slowest points (NaN: unknown, neither still nor swinging)
+        speed = np.stack([np.nanmin(np.linalg.norm(v, axis=2), axis=1) for v in vel], axis=1)
+    for f, pts in enumerate(fpts):
+        with np.errstate(invalid="ignore"):
+            ok: NDArray[np.bool_] = np.asarray(np.isfinite(pts).all(axis=2))
+            inside: NDArray[np.bool_] = (
+                np.asarray(_inside_grown(pts @ hz.T, poly, crit.margin_m), dtype=bool) & ok
+            )
+            low = np.where(ok, np.abs(pts @ up - p.height), np.inf).min(axis=1)
+            over = inside.any(axis=1) & (low <= crit.floor_m)
+            others = np.delete(speed, f, axis=1)
+            alone = (others > _STILL_MPS).all(axis=1)  # every other foot swinging
+            still = over & unloaded & (speed[:, f] < _STILL_MPS) & alone
+        for i0, i1 in _runs(over):
+            k = np.flatnonzero(still[i0:i1])
+            if k.size >= 2 and t[i0 + k[-1]] - t[i0 + k[0]] >= _MIN_SEGMENT_S:
+                out[i0:i1, f] = True
+    return out
 
 
 def _standing(

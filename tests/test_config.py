@@ -236,7 +236,7 @@ def test_non_utf8_config_is_one_line(session_dir: Path):
         ),
         ("kinematics_cutoff_hz = 6.0", "kinematics_cutoff_hz = 1e-9", "1e-09 Hz is outside"),
         ("kinematics_cutoff_hz = 6.0", "kinematics_cutoff_hz = nan", "nan Hz is outside"),
-        ("grf_cutoff_hz = 15.0", "grf_cutoff_hz = inf", r"grf_cutoff_hz = inf Hz"),
+        ("grf_cutoff_hz = 6.0", "grf_cutoff_hz = inf", r"grf_cutoff_hz = inf Hz"),
         (
             "lowpass_hz = 6.0",
             "lowpass_hz = -6.0",
@@ -296,3 +296,17 @@ def test_emg_mvc_values(tmp_path):
         path.write_text(text)
         with pytest.raises(ConfigError, match=message):
             load_config(path)
+
+
+def test_grf_cutoff_defaults_to_the_kinematics_cutoff(session_dir: Path):
+    """Absent ``grf_cutoff_hz``: the plates are low-passed at the kinematics' cut-off (one
+    filter on both, Kristianslund et al. 2012); given, it is used as given."""
+    from msk.pipeline.loads import grf_cutoff_hz
+
+    path = session_dir / "pipelines" / "session.toml"
+    text = TEMPLATE.replace("kinematics_cutoff_hz = 6.0", "kinematics_cutoff_hz = 8.0")
+    path.write_text("\n".join(ln for ln in text.splitlines() if "grf_cutoff_hz" not in ln))
+    cfg = load_config(path)
+    assert cfg.filters.grf_cutoff_hz is None and grf_cutoff_hz(cfg) == 8.0
+    path.write_text(text.replace("grf_cutoff_hz = 6.0", "grf_cutoff_hz = 15.0"))
+    assert grf_cutoff_hz(load_config(path)) == 15.0

@@ -117,7 +117,7 @@ _CHILD = textwrap.dedent(
         nums = {
             "mass_kg": (c.subject.mass_kg, 20, 300),
             "kinematics_cutoff_hz": (c.filters.kinematics_cutoff_hz, 0.01, 500),
-            "grf_cutoff_hz": (c.filters.grf_cutoff_hz, 0.01, 500),
+            "grf_cutoff_hz": (c.filters.grf_cutoff_hz or 6.0, 0.01, 500),
             "highpass_hz": (c.emg.highpass_hz, 1e-12, 500),
             "lowpass_hz": (c.emg.lowpass_hz, 1e-12, 500),
             "electromechanical_delay_s": (c.emg.electromechanical_delay_s, 0, 0.2),
@@ -394,7 +394,7 @@ _CONFIG_EDITS = [
     ("kinematics_cutoff_hz = 6.0", ["kinematics_cutoff_hz = 0", "kinematics_cutoff_hz = 1e-9",
                                     "kinematics_cutoff_hz = nan", "kinematics_cutoff_hz = -6",
                                     "kinematics_cutoff_hz = 6000", "kinematics_cutoff_hz = []"]),
-    ("grf_cutoff_hz = 15.0", ["grf_cutoff_hz = inf", "grf_cutoff_hz = 0.0"]),
+    ("grf_cutoff_hz = 6.0", ["grf_cutoff_hz = inf", "grf_cutoff_hz = 0.0"]),
     ("electromechanical_delay_s = 0.04", ["electromechanical_delay_s = 40",
                                           "electromechanical_delay_s = -0.01",
                                           "electromechanical_delay_s = nan"]),

@@ -170,6 +170,33 @@ def test_adjacent_walkway_plates_double_support_and_toes_over_the_next_plate():
     _both_ways(run)
 
 
+def test_foot_standing_beside_a_plate_does_not_share_its_load():
+    """A large plate (1.2 m): the left foot stands alone on the floor with its toes 2 cm over
+    the plate's edge (the plate records nothing) while the right foot swings, then the right
+    heel strikes the plate's middle (0.5 s) and the left foot leaves (0.6 s). The plate's load
+    is the right foot's from the first frame, no shared contact is flagged (UWA's fast walk).
+    When the left toes do load the plate, the double support is shared and flagged."""
+    t = np.arange(0, 1.2, 1 / RATE)
+    # left sole centre 0.13 m behind the edge: toes (+0.11 from the sole centre) 2 cm over it
+    l_ = foot_path(t, [(0.0, -0.13, -0.09, 0.0), (0.6, -0.13, -0.09, 0.0)],
+                   swing(0.6, 1.2, -0.13, 1.2, -0.09, -0.09))  # fmt: skip
+    r = foot_path(t, swing(0.0, 0.5, -0.9, 0.5, 0.09, 0.09), [(1.2, 0.5, 0.09, 0.0)])
+    kin = kinematics(t, {"foot_r": r, "foot_l": l_})
+    w_r = stance(t, (0.5, 1.2))
+    p1 = plate("plate1", t, [(w_r, r)], corners(0.0, 1.2, -0.6, 0.6))
+    loads = external_loads(MODEL, kin, [p1])
+    assert loads.flags == ()
+    assert spans(loads) == [("plate1", "foot_r", 0.5, 1.19)]
+    np.testing.assert_allclose(on_body(loads, "foot_r")[:, 1], w_r)
+    # the same left foot when its toes do load the plate (a tenth of its load): the double
+    # support 0.5–0.6 s is shared, flagged, never split
+    toes = l_ + np.array([0.1, 0.0, 0.0])
+    both = plate("plate1", t, [(0.1 * stance(t, (0.0, 0.6)), toes), (w_r, r)],
+                 corners(0.0, 1.2, -0.6, 0.6))  # fmt: skip
+    flagged = external_loads(MODEL, kin, [both])
+    assert [(f.reason, round(f.start_time, 2)) for f in flagged.flags] == [("shared", 0.5)]
+
+
 def test_one_foot_straddling_two_plates_loads_both():
     """The right foot stands across the joint of plates 1 and 2 (heel on 1, toes on 2; 60/40)
     while the left swings past: both plates go to the right foot, their sum on it."""

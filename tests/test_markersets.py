@@ -251,3 +251,68 @@ def test_foot_markers_are_the_foot_landmarks():
               "R.Knee.Lat", "LASIS", "R.Ankle.Lat"]  # fmt: skip
     assert foot_markers(labels) == ("R.Heel", "LCA", "RVMH", "L.Toe.Tip", "R.Toe.Med",
                                     "RMidfootSuperior")  # fmt: skip
+
+
+def _cluster_walk(n: int = 300, noise_m: float = 3e-4, seed: int = 0):
+    """A thigh-like segment swinging and translating through a walk: three physical cluster
+    markers measured with camera noise, two anatomical landmarks rebuilt from the noisy cluster
+    (CAST: stored in the cluster's frame, recomputed each frame), a skin marker sliding 5 mm on
+    the segment, and a marker on another segment."""
+    rng = np.random.default_rng(seed)
+    t = np.linspace(0.0, 2.0, n)
+    ang = 0.5 * np.sin(2 * np.pi * t)
+    rot = np.zeros((n, 3, 3))
+    rot[:, 0, 0] = rot[:, 1, 1] = np.cos(ang)
+    rot[:, 0, 1], rot[:, 1, 0] = -np.sin(ang), np.sin(ang)
+    rot[:, 2, 2] = 1.0
+    origin = np.stack([1.2 * t, 0.9 + 0.02 * np.sin(4 * np.pi * t), 0 * t], axis=1)
+    local = np.array([[0.05, -0.1, 0.04], [-0.04, -0.12, 0.05], [0.0, -0.2, 0.06]])
+    cluster = origin[:, None] + np.einsum("nij,kj->nki", rot, local)
+    cluster += rng.normal(0.0, noise_m, cluster.shape)
+    # the cluster's technical frame from its noisy markers, and two landmarks in it
+    e1 = cluster[:, 1] - cluster[:, 0]
+    e1 /= np.linalg.norm(e1, axis=1, keepdims=True)
+    e3 = np.cross(e1, cluster[:, 2] - cluster[:, 0])
+    e3 /= np.linalg.norm(e3, axis=1, keepdims=True)
+    frame = np.stack([e1, np.cross(e3, e1), e3], axis=2)
+    calib = np.array([[0.03, -0.35, 0.05], [0.02, -0.36, -0.07]])
+    landmarks = cluster.mean(axis=1, keepdims=True) + np.einsum("nij,kj->nki", frame, calib)
+    skin = origin + np.einsum("nij,j->ni", rot, [0.0, -0.05, 0.07])
+    skin += 0.005 * np.sin(2 * np.pi * t)[:, None] + rng.normal(0.0, noise_m, (n, 3))
+    other = origin + np.array([0.0, -0.45, 0.0]) + rng.normal(0.0, noise_m, (n, 3))
+    x = np.concatenate([cluster, landmarks, skin[:, None], other[:, None]], axis=1)
+    return x, ["TH1", "TH2", "TH3", "LE", "ME", "SKIN", "TT"]
+
+
+def test_reconstructed_markers_are_the_landmarks_rebuilt_from_a_cluster():
+    """Known truth: the two landmarks computed from a noisy cluster keep their distance
+    exactly; physical markers (cluster markers on one rigid plate, 0.3 mm camera noise; a skin
+    marker; another segment's) never do, whatever the seed."""
+    from msk.markersets import reconstructed_markers
+
+    for seed in range(5):
+        x, labels = _cluster_walk(seed=seed)
+        assert reconstructed_markers(x, labels) == ("LE", "ME")
+    # gaps (NaN or exact zeros) are skipped, a pair seen in too few frames is not judged
+    x[5:, 4] = 0.0
+    assert reconstructed_markers(x, labels) == ()
+    assert reconstructed_markers(x, labels, min_frames=5) == ("LE", "ME")
+    # a label duplicated (one point twice) is not a reconstruction
+    y = np.concatenate([x[:, :1], x[:, :1]], axis=1)
+    assert reconstructed_markers(y, ["TH1", "TH1b"]) == ()
+
+
+@pytest.mark.slow
+@pytest.mark.realdata
+def test_unipd_cast_landmarks_are_reconstructed(real_dir):
+    """BTS/IOR (UNIPD Walking1): ASIS–PSIS of each side, GT–LE–ME of each thigh and
+    HF–TT–LM–MM of each shank are rebuilt from clusters; C7, L5 and the foot markers are
+    measured."""
+    from msk.io import read_trial
+    from msk.markersets import reconstructed_markers
+
+    tr = read_trial(real_dir / "motonms-testdata/UNIPD/Walking1.c3d")
+    rec = set(reconstructed_markers(tr.markers, tr.marker_labels))
+    kinds = ("ASIS", "PSIS", "GT", "LE", "ME", "HF", "TT", "LM", "MM")
+    sides = {s + m for s in "RL" for m in kinds}
+    assert rec == sides

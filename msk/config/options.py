@@ -252,8 +252,14 @@ class FilterConfig:
         unit="Hz",
         bounds=_CUTOFF,
     )
-    grf_cutoff_hz: float = opt(
-        "low-pass cut-off of the ground reactions", 15.0, unit="Hz", bounds=_CUTOFF
+    grf_cutoff_hz: float | None = opt(
+        "low-pass cut-off of the ground reactions; absent: the kinematics' cut-off (one filter "
+        "on the markers and the plates: a force filtered above the accelerations it balances "
+        "leaves its impact peak in the residuals and joint moments; Kristianslund et al. 2012 "
+        "J Biomech 45:666, OpenSim's recommended practice)",
+        None,
+        unit="Hz",
+        bounds=_CUTOFF,
     )
 
 

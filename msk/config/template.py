@@ -67,7 +67,7 @@ assign = {}
 
 [filters]
 kinematics_cutoff_hz = 6.0
-grf_cutoff_hz = 15.0
+grf_cutoff_hz = 6.0               # default: the kinematics' cut-off (the same filter on both)
 
 [optimization]
 # static_optimization | bounded_qp | emg_weighted | emg_assisted | closed_form

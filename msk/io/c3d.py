@@ -447,8 +447,14 @@ def _labels(
 
 
 def _first_number(params: Mapping[str, Any], group: str, names: Sequence[str]) -> float | None:
+    """The first of ``names`` in ``group`` holding a finite number; names match whatever their
+    case (Vicon writes ``PROCESSING:Bodymass``, UWA's pipeline ``BodyMass``)."""
+    try:
+        keys = {str(k).lower(): k for k in params[group]}
+    except (KeyError, TypeError):
+        return None
     for name in names:
-        v = _param(params, group, name)
+        v = _param(params, group, keys.get(name.lower(), name))
         if v is not None and len(v) and isinstance(v, np.ndarray) and np.isfinite(v.flat[0]):
             return float(v.flat[0])
     return None
@@ -459,9 +465,9 @@ def _subject(params: Mapping[str, Any]) -> Subject:
     height = None
     for group in ("PROCESSING", "SUBJECTS", "SUBJECT"):
         if mass is None:
-            mass = _first_number(params, group, ("Bodymass", "BODYMASS", "WEIGHT", "MASS"))
+            mass = _first_number(params, group, ("Bodymass", "WEIGHT", "MASS"))
         if height is None:
-            height = _first_number(params, group, ("Height", "HEIGHT"))
+            height = _first_number(params, group, ("Height",))
     if mass is not None and mass <= 0:
         mass = None
     if height is not None:

@@ -14,7 +14,15 @@ from msk.pipeline.inputs import SessionInputs
 from msk.pipeline.model import BuiltModel
 from msk.pipeline.read import ReadResult
 
-__all__ = ["PLATE_ASSIGNMENT", "Loads", "assign_loads", "rotated_plate", "run", "settings"]
+__all__ = [
+    "PLATE_ASSIGNMENT",
+    "Loads",
+    "assign_loads",
+    "grf_cutoff_hz",
+    "rotated_plate",
+    "run",
+    "settings",
+]
 
 #: How msk.loads assigns plate contacts to feet (recorded in summary.json, part of the cache key).
 PLATE_ASSIGNMENT = (
@@ -50,13 +58,20 @@ def assign_loads(
     plates = plates_from_trial(trial) if plates is None else plates
     assign = {**(assignment or {}), **inputs.cfg.loads.assign} or None
     return external_loads(
-        model, kinematics, plates, assignment=assign, cutoff_hz=inputs.cfg.filters.grf_cutoff_hz
+        model, kinematics, plates, assignment=assign, cutoff_hz=grf_cutoff_hz(inputs.cfg)
     )
+
+
+def grf_cutoff_hz(cfg: Any) -> float:
+    """The ground reactions' low-pass cut-off: ``[filters] grf_cutoff_hz``, absent: the
+    kinematics' (Kristianslund et al. 2012: the same cut-off on both)."""
+    f = cfg.filters
+    return float(f.kinematics_cutoff_hz if f.grf_cutoff_hz is None else f.grf_cutoff_hz)
 
 
 def settings(inputs: SessionInputs) -> Any:
     return {
-        "cut": inputs.cfg.filters.grf_cutoff_hz,
+        "cut": grf_cutoff_hz(inputs.cfg),
         "assignment": PLATE_ASSIGNMENT,
         "assign": dict(inputs.cfg.loads.assign),
     }

@@ -261,8 +261,9 @@ def _scale_and_place(inputs: SessionInputs, read: ReadResult) -> dict[str, Any]:
                 f"{inputs.task.file.name} contradicts ({', '.join(sorted(bad))}): not the same "
                 f"subject or labelling? ({exc})"
             ) from None
-        model, from_task, check = _place_from_task(model, trial, rot, match, bad)
+        model, from_task, check, recon = _place_from_task(model, trial, rot, match, bad)
         placed["from_task"] = from_task
+        placed["reconstructed_from_task"] = recon
         if check:
             info["static_check"] = check
     else:
@@ -294,7 +295,7 @@ def _scale_and_place(inputs: SessionInputs, read: ReadResult) -> dict[str, Any]:
 
 def _place_from_task(
     model: Any, trial: Any, rot: np.ndarray, match: Any, bad: Mapping[str, float]
-) -> tuple[Any, dict[str, float], dict[str, Any]]:
+) -> tuple[Any, dict[str, float], dict[str, Any], list[str]]:
     """After the static placement, the markers the static cannot place for the task, placed
     from the task (:func:`msk.scaling.place_markers_from_motion` on the task with the model's
     markers and these only):
@@ -306,11 +307,19 @@ def _place_from_task(
       their body to their median position in the task;
     * the static markers the task contradicts (``bad``: lab label → discrepancy m,
       :func:`msk.quality.inconsistent_static_markers`): a model marker moved on its body,
-      another marker fixed to its most rigid body.
+      another marker fixed to its most rigid body;
+    * model markers the lab rebuilds from a technical cluster (calibrated anatomical landmarks,
+      :func:`msk.markersets.reconstructed_markers`: rigid with another marker to < 0.1 mm
+      through the task): they ride the cluster's soft tissue, which sits differently on the
+      bone in a standing static and in the task, so they are moved on their body to their
+      median position in the task (UNIPD's ASIS/PSIS, GT, epicondyles, HF, TT, malleoli:
+      thigh landmarks 9 mm distal and 8–11 mm lateral in the femur frame through Walking1 when
+      placed from Static1, IK 16.3 → 14.4 mm).
 
-    Returns the model, marker → displacement (m) of the markers moved, and the record for
-    ``summary.json`` ``model.static_check`` (empty without ``bad``; its quality flag)."""
-    from msk.markersets import shoulder_girdle_markers
+    Returns the model, marker → displacement (m) of the markers moved, the record for
+    ``summary.json`` ``model.static_check`` (empty without ``bad``; its quality flag) and the
+    reconstructed markers moved."""
+    from msk.markersets import reconstructed_markers, shoulder_girdle_markers
     from msk.scaling import place_markers_from_motion
 
     xm, mlabels = match.apply(trial.rotated(rot).markers, trial.marker_labels)
@@ -318,11 +327,14 @@ def _place_from_task(
     bad_names = {to_model.get(lab, lab) for lab in bad}
     known = set(model.marker_names)
     girdle = set(shoulder_girdle_markers(list(mlabels), [b.name for b in model.bodies]))
-    if not bad_names and not girdle & known:
-        return model, {}, {}
+    # landmarks the lab rebuilds from a cluster (rigid with it through the task): placed where
+    # the task's reconstruction puts them (msk.markersets.reconstructed_markers)
+    recon = {m for m in reconstructed_markers(xm, mlabels) if m in known} - bad_names
+    if not bad_names and not recon and not girdle & known:
+        return model, {}, {}, []
     keep = [i for i, lab in enumerate(mlabels) if lab not in mlabels[:i] and (
         lab in bad_names or lab in known)]  # fmt: skip
-    moved = sorted(n for n in bad_names if n in known)
+    moved = sorted(n for n in bad_names | recon if n in known)
     new_markers = any(n not in known for n in bad_names)
     model, placed = place_markers_from_motion(
         model, xm[:, keep], [mlabels[i] for i in keep], trial.time, move=moved,
@@ -335,7 +347,7 @@ def _place_from_task(
             "moved_from_task_m": {k: v for k, v in placed["moved"].items() if k in bad_names},
             "placed_from_task": {k: v for k, v in placed["placed"].items() if k in bad_names},
         }
-    return model, dict(placed["moved"]), record
+    return model, dict(placed["moved"]), record, sorted(recon)
 
 
 def _chord_centres(

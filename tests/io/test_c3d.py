@@ -175,3 +175,23 @@ def test_type4_calibration_matrix_is_applied(tmp_path):
     ref = ezc3d.c3d(str(p), extract_forceplat_data=True)["data"]["platform"][0]
     np.testing.assert_allclose(plate.force, ref["force"].T, atol=1e-9)
     np.testing.assert_allclose(plate.moment * 1e3, ref["moment"].T, atol=1e-6)
+
+
+def test_subject_parameters_whatever_their_case(synth, tmp_path):
+    """UWA's pipeline writes ``PROCESSING:BodyMass`` where Vicon writes ``Bodymass``: the mass
+    is read either way; a zero or negative mass is none."""
+    import ezc3d
+
+    from msk.io.c3d import _set_param
+
+    path, _ = synth()
+    c = ezc3d.c3d(str(path))
+    c["parameters"]["PROCESSING"].pop("Bodymass", None)
+    _set_param(c, "PROCESSING", "BodyMass", [67.0])
+    _set_param(c, "PROCESSING", "HEIGHT", [1820.0])
+    c.write(str(tmp_path / "uwa.c3d"))
+    s = read_c3d(tmp_path / "uwa.c3d").subject
+    assert s.mass_kg == pytest.approx(67.0) and s.height_m == pytest.approx(1.82)
+    _set_param(c, "PROCESSING", "BodyMass", [0.0])
+    c.write(str(tmp_path / "zero.c3d"))
+    assert read_c3d(tmp_path / "zero.c3d").subject.mass_kg is None
