@@ -271,6 +271,63 @@ def test_strength_state_block_by_block_equals_the_whole_state(
         fits[0].predict(tr.jacobian, act, lazy)  # frames of the state ≠ frames of the data
 
 
+@pytest.mark.parametrize("instrument", ["none", "phase_average"])
+def test_strength_compact_group_contributions_equal_the_dense_ones(
+    monkeypatch: pytest.MonkeyPatch, instrument: str
+) -> None:
+    """With a compact Jacobian the identifier keeps only the (group, coordinate) pairs the
+    groups' muscles cross; the profile (factors, intervals, gating, fit r²) is the dense one's,
+    the structural pairs hold every nonzero contribution and are fewer than G × n."""
+    import dataclasses
+
+    import msk.strength.identification as si
+    from msk.muscles.activation import emg_to_activation
+    from msk.muscles.hill import RigidTendonStateBlocks
+    from msk.strength import StrengthIdentifier
+    from msk.strength.synthetic import gait_trial, synthetic_leg
+    from msk.timeseries import FrameSparse
+
+    leg = synthetic_leg(0)
+    tr = gait_trial(leg, n_cycles=12, seed=2)
+    act = emg_to_activation(
+        tr.emg, gamma1=-0.5, gamma2=-0.5, shape_factor=-1.0, delay_samples=4, form="exponential"
+    )
+    n, n_mus, n_coords = tr.jacobian.shape
+    # a leg whose coordinates the groups do not all cross: two extra coordinates, one crossed
+    # by the first group's first muscle only, one by no muscle
+    dense = np.zeros((n, n_mus, n_coords + 2))
+    dense[:, :, :n_coords] = tr.jacobian
+    first = leg.params.names.index(next(iter(leg.groups.values()))[0])
+    dense[:, first, n_coords] = 0.01 * np.sin(np.linspace(0.0, 40.0, n))
+    tau = np.concatenate([tr.tau, np.zeros((n, 2))], axis=1)
+    tau[:, n_coords] = -dense[:, first, n_coords] * 500.0
+    compact = FrameSparse.from_dense(dense, np.flatnonzero(np.any(dense != 0, axis=0).ravel()))
+    frames = np.flatnonzero(np.arange(n) % 5 != 2)
+    state = RigidTendonStateBlocks(
+        leg.params, tr.muscle_tendon_length, tr.lengthening_velocity, frames
+    )
+    pos = si._group_pattern(compact, leg.groups, leg.params)
+    assert 0 < pos.size < len(leg.groups) * (n_coords + 2)
+    monkeypatch.setattr(si, "_FRAME_BLOCK", 64)  # several blocks, the last one short
+    est = StrengthIdentifier(leg.groups, leg.params, n_bootstrap=20, instrument=instrument)
+    cg, other = est._contributions(compact, act[frames], state, frames, compact=True)
+    cg_dense, other_dense = est._contributions(dense, act[frames], state, frames)
+    assert isinstance(cg, FrameSparse) and cg.values.shape == (frames.size, pos.size)
+    np.testing.assert_array_equal(np.asarray(cg), cg_dense)  # zeros outside the pairs
+    np.testing.assert_array_equal(other, other_dense)
+    profiles = []
+    for jac in (dense, compact):
+        est = StrengthIdentifier(leg.groups, leg.params, n_bootstrap=20, instrument=instrument)
+        est.fit(jac, act[frames], tau[frames], state, windows=tr.cycle[frames], frames=frames)
+        profiles.append(est.profile_)
+    for f in dataclasses.fields(profiles[0]):
+        a, b = getattr(profiles[0], f.name), getattr(profiles[1], f.name)
+        if isinstance(a, np.ndarray):
+            np.testing.assert_array_equal(a, b, err_msg=f.name)
+        else:
+            assert a == b, f.name
+
+
 def test_bounded_least_squares_from_normal_equations_equals_bvls_on_the_rows() -> None:
     """The strength regression solved from XᵀX, Xᵀy accumulated by windows (no stacked rows)
     has the minimiser of BVLS on the rows, bounds active or not, to 1e-9."""
