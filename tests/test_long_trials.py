@@ -186,6 +186,34 @@ def test_emg_assisted_gains_from_a_frame_sample(
     assert np.isfinite(part.forces).sum() == np.isfinite(full.forces).sum()
 
 
+def test_tension_forces_only_are_the_stage_forces() -> None:
+    """The knee contact stage's re-solve keeps the forces only: the same forces as the tension
+    stage's (gc5_PS, ``emg_assisted``), no activations or reserve torques held."""
+    from threadpoolctl import threadpool_limits
+
+    from msk.config import load_config
+    from msk.pipeline import run_stages, tension
+    from msk.pipeline.inputs import session_inputs
+    from msk.pipeline.mass_identification import identified_model
+
+    cfg = load_config(REPO / "pipelines" / "gc5_PS.toml")
+    r = run_stages(cfg, until="tension_optimization")
+    full = r["tension_optimization"]
+    with threadpool_limits(limits=1, user_api="blas"):
+        only = tension.optimise(
+            session_inputs(cfg), identified_model(r["model"].model, r["mass_identification"]),
+            r["inverse_dynamics"].torques, r["muscle_geometry"], r["kinematics"].time,
+            r["loads"].usable, r["emg"], forces_only=True,
+        )  # fmt: skip
+    np.testing.assert_array_equal(only.forces, full.forces)
+    assert np.isfinite(full.forces).any()
+    assert only.activations.shape == (full.forces.shape[0], 0) and only.reserve_torques is None
+    assert (only.infeasible_frames, only.excluded_frames) == (
+        full.infeasible_frames,
+        full.excluded_frames,
+    )
+
+
 def test_identification_regressor_in_blocks_equals_one_pass(
     monkeypatch: pytest.MonkeyPatch,
 ) -> None:
