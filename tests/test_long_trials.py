@@ -214,6 +214,28 @@ def test_tension_forces_only_are_the_stage_forces() -> None:
     )
 
 
+def test_foot_points_in_blocks_equal_one_pass(monkeypatch: pytest.MonkeyPatch) -> None:
+    """The feet's points computed block by block of frames (``msk.loads._POINT_BLOCK``) are
+    those of one pass, bit for bit, unknown poses (NaN) and frames not asked for left NaN."""
+    import msk.loads as loads
+    from msk.synthetic_models import two_leg_model
+
+    model = two_leg_model()
+    rng = np.random.default_rng(3)
+    q0 = model.default_coordinates()
+    q = q0[None, :] + 0.2 * rng.normal(size=(53, q0.size))
+    q[[4, 30]] = np.nan
+    feet = loads._default_feet(model)
+    frames = np.flatnonzero(np.arange(53) != 11)
+    one = loads._foot_points(model, q, feet, frames)
+    monkeypatch.setattr(loads, "_POINT_BLOCK", 8)
+    many = loads._foot_points(model, q, feet, frames)
+    assert len(feet) == 2 and len(one) == 2
+    for a, b in zip(one, many, strict=True):
+        np.testing.assert_array_equal(a, b)
+        assert np.isnan(a[[4, 11, 30]]).all() and np.isfinite(np.delete(a, [4, 11, 30], 0)).all()
+
+
 def test_identification_regressor_in_blocks_equals_one_pass(
     monkeypatch: pytest.MonkeyPatch,
 ) -> None:
