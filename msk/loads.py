@@ -402,15 +402,24 @@ def _foot_points(
     good = frames[np.isfinite(q[frames]).all(axis=1)]
     if good.size == 0:
         return out
-    qpin = model.coupling.q(q[good])
-    h = np.empty((good.size, len(all_joints), 4, 4))
-    for i in range(good.size):
-        pin.forwardKinematics(pm, data, qpin[i])
-        h[i] = [data.oMi[j].homogeneous for j in all_joints]
-    for f, (joints, which, local) in enumerate(specs):
-        hj = h[:, [all_joints.index(j) for j in joints]][:, which]  # (K, P, 4, 4)
-        out[f][good] = np.einsum("kpij,pj->kpi", hj[..., :3, :3], local) + hj[..., :3, 3]
+    # block by block of frames: the joint placements (K, J, 4, 4) and their per-point copies
+    # (K, P, 4, 4) of a long trial are never held whole (each frame's points as in one pass)
+    for b0 in range(0, good.size, _POINT_BLOCK):
+        gb = good[b0 : b0 + _POINT_BLOCK]
+        qpin = model.coupling.q(q[gb])
+        h = np.empty((gb.size, len(all_joints), 4, 4))
+        for i in range(gb.size):
+            pin.forwardKinematics(pm, data, qpin[i])
+            h[i] = [data.oMi[j].homogeneous for j in all_joints]
+        for f, (joints, which, local) in enumerate(specs):
+            hj = h[:, [all_joints.index(j) for j in joints]][:, which]  # (K, P, 4, 4)
+            out[f][gb] = np.einsum("kpij,pj->kpi", hj[..., :3, :3], local) + hj[..., :3, 3]
     return out
+
+
+#: frames per block of :func:`_foot_points`' joint placements (~0.5 MB per 1 000 frames and
+#: joint; issue 18)
+_POINT_BLOCK = 4096
 
 
 @dataclass(frozen=True)

@@ -186,6 +186,56 @@ def test_emg_assisted_gains_from_a_frame_sample(
     assert np.isfinite(part.forces).sum() == np.isfinite(full.forces).sum()
 
 
+def test_tension_forces_only_are_the_stage_forces() -> None:
+    """The knee contact stage's re-solve keeps the forces only: the same forces as the tension
+    stage's (gc5_PS, ``emg_assisted``), no activations or reserve torques held."""
+    from threadpoolctl import threadpool_limits
+
+    from msk.config import load_config
+    from msk.pipeline import run_stages, tension
+    from msk.pipeline.inputs import session_inputs
+    from msk.pipeline.mass_identification import identified_model
+
+    cfg = load_config(REPO / "pipelines" / "gc5_PS.toml")
+    r = run_stages(cfg, until="tension_optimization")
+    full = r["tension_optimization"]
+    with threadpool_limits(limits=1, user_api="blas"):
+        only = tension.optimise(
+            session_inputs(cfg), identified_model(r["model"].model, r["mass_identification"]),
+            r["inverse_dynamics"].torques, r["muscle_geometry"], r["kinematics"].time,
+            r["loads"].usable, r["emg"], forces_only=True,
+        )  # fmt: skip
+    np.testing.assert_array_equal(only.forces, full.forces)
+    assert np.isfinite(full.forces).any()
+    assert only.activations.shape == (full.forces.shape[0], 0) and only.reserve_torques is None
+    assert (only.infeasible_frames, only.excluded_frames) == (
+        full.infeasible_frames,
+        full.excluded_frames,
+    )
+
+
+def test_foot_points_in_blocks_equal_one_pass(monkeypatch: pytest.MonkeyPatch) -> None:
+    """The feet's points computed block by block of frames (``msk.loads._POINT_BLOCK``) are
+    those of one pass, bit for bit, unknown poses (NaN) and frames not asked for left NaN."""
+    import msk.loads as loads
+    from msk.synthetic_models import two_leg_model
+
+    model = two_leg_model()
+    rng = np.random.default_rng(3)
+    q0 = model.default_coordinates()
+    q = q0[None, :] + 0.2 * rng.normal(size=(53, q0.size))
+    q[[4, 30]] = np.nan
+    feet = loads._default_feet(model)
+    frames = np.flatnonzero(np.arange(53) != 11)
+    one = loads._foot_points(model, q, feet, frames)
+    monkeypatch.setattr(loads, "_POINT_BLOCK", 8)
+    many = loads._foot_points(model, q, feet, frames)
+    assert len(feet) == 2 and len(one) == 2
+    for a, b in zip(one, many, strict=True):
+        np.testing.assert_array_equal(a, b)
+        assert np.isnan(a[[4, 11, 30]]).all() and np.isfinite(np.delete(a, [4, 11, 30], 0)).all()
+
+
 def test_identification_regressor_in_blocks_equals_one_pass(
     monkeypatch: pytest.MonkeyPatch,
 ) -> None:
@@ -269,6 +319,63 @@ def test_strength_state_block_by_block_equals_the_whole_state(
         np.testing.assert_array_equal(est.bootstrap_, fits[0].bootstrap_)
     with pytest.raises(si.ShapeMismatchError):
         fits[0].predict(tr.jacobian, act, lazy)  # frames of the state ≠ frames of the data
+
+
+@pytest.mark.parametrize("instrument", ["none", "phase_average"])
+def test_strength_compact_group_contributions_equal_the_dense_ones(
+    monkeypatch: pytest.MonkeyPatch, instrument: str
+) -> None:
+    """With a compact Jacobian the identifier keeps only the (group, coordinate) pairs the
+    groups' muscles cross; the profile (factors, intervals, gating, fit r²) is the dense one's,
+    the structural pairs hold every nonzero contribution and are fewer than G × n."""
+    import dataclasses
+
+    import msk.strength.identification as si
+    from msk.muscles.activation import emg_to_activation
+    from msk.muscles.hill import RigidTendonStateBlocks
+    from msk.strength import StrengthIdentifier
+    from msk.strength.synthetic import gait_trial, synthetic_leg
+    from msk.timeseries import FrameSparse
+
+    leg = synthetic_leg(0)
+    tr = gait_trial(leg, n_cycles=12, seed=2)
+    act = emg_to_activation(
+        tr.emg, gamma1=-0.5, gamma2=-0.5, shape_factor=-1.0, delay_samples=4, form="exponential"
+    )
+    n, n_mus, n_coords = tr.jacobian.shape
+    # a leg whose coordinates the groups do not all cross: two extra coordinates, one crossed
+    # by the first group's first muscle only, one by no muscle
+    dense = np.zeros((n, n_mus, n_coords + 2))
+    dense[:, :, :n_coords] = tr.jacobian
+    first = leg.params.names.index(next(iter(leg.groups.values()))[0])
+    dense[:, first, n_coords] = 0.01 * np.sin(np.linspace(0.0, 40.0, n))
+    tau = np.concatenate([tr.tau, np.zeros((n, 2))], axis=1)
+    tau[:, n_coords] = -dense[:, first, n_coords] * 500.0
+    compact = FrameSparse.from_dense(dense, np.flatnonzero(np.any(dense != 0, axis=0).ravel()))
+    frames = np.flatnonzero(np.arange(n) % 5 != 2)
+    state = RigidTendonStateBlocks(
+        leg.params, tr.muscle_tendon_length, tr.lengthening_velocity, frames
+    )
+    pos = si._group_pattern(compact, leg.groups, leg.params)
+    assert 0 < pos.size < len(leg.groups) * (n_coords + 2)
+    monkeypatch.setattr(si, "_FRAME_BLOCK", 64)  # several blocks, the last one short
+    est = StrengthIdentifier(leg.groups, leg.params, n_bootstrap=20, instrument=instrument)
+    cg, other = est._contributions(compact, act[frames], state, frames, compact=True)
+    cg_dense, other_dense = est._contributions(dense, act[frames], state, frames)
+    assert isinstance(cg, FrameSparse) and cg.values.shape == (frames.size, pos.size)
+    np.testing.assert_array_equal(np.asarray(cg), cg_dense)  # zeros outside the pairs
+    np.testing.assert_array_equal(other, other_dense)
+    profiles = []
+    for jac in (dense, compact):
+        est = StrengthIdentifier(leg.groups, leg.params, n_bootstrap=20, instrument=instrument)
+        est.fit(jac, act[frames], tau[frames], state, windows=tr.cycle[frames], frames=frames)
+        profiles.append(est.profile_)
+    for f in dataclasses.fields(profiles[0]):
+        a, b = getattr(profiles[0], f.name), getattr(profiles[1], f.name)
+        if isinstance(a, np.ndarray):
+            np.testing.assert_array_equal(a, b, err_msg=f.name)
+        else:
+            assert a == b, f.name
 
 
 def test_bounded_least_squares_from_normal_equations_equals_bvls_on_the_rows() -> None:

@@ -744,3 +744,41 @@ def test_batch_split_tension_and_emg_assisted_and_infeasible_frames(monkeypatch)
     with pytest.raises(OptimizationError, match=r"frame 5: QP infeasible"):
         monkeypatch.setattr(problems, "_MIN_BLOCK_UNKNOWNS", 16)
         solve_tension_batch(jac, taus, f_iso=f_iso, strict=True)
+
+
+def test_batch_split_per_frame_cost_and_bounds_over_several_chunks(monkeypatch) -> None:
+    """Frames beyond one assembly chunk (``_BLOCK_CHUNK``) with per-frame ``g`` (the EMG
+    reference of ``emg_assisted``) and per-frame bounds (``bounded_qp``'s F_max): each chunk
+    reads its own rows (regression: a trial of more than 512 usable frames failed with a
+    broadcast error), the same solutions as each frame's QP solved whole."""
+    import msk.optimization.problems as problems
+
+    monkeypatch.setattr(problems, "_BLOCK_CHUNK", 7)
+    jac, tau, f_iso = _two_legs(30)
+    jac, tau = jac[:, :, 2:], tau[:, 2:]
+    n_frames, m, _ = jac.shape
+    rng = np.random.default_rng(2)
+    fa = f_iso * rng.uniform(0.6, 1.0, size=(n_frames, m))
+    fp = f_iso * rng.uniform(0.0, 0.02, size=(n_frames, m))
+    measured = rng.uniform(size=m) < 0.5
+    a_ref = rng.uniform(0.0, 0.3, size=(n_frames, m))
+
+    def emg():
+        return solve_emg_assisted_batch(
+            jac, tau, f_active=fa, f_passive=fp, a_ref=a_ref, measured=measured, w_track=1.0,
+            reserve_optimal_force=np.ones(jac.shape[2]),
+        )  # fmt: skip
+
+    monkeypatch.setattr(problems, "_MIN_BLOCK_UNKNOWNS", 16)
+    split, whole = _whole_and_split(monkeypatch, emg)
+    assert (split.status == 0).all()
+    _assert_same(split, whole)
+
+    def bounded():
+        return solve_tension_batch(
+            jac, tau, f_iso=f_iso, f_max=fa + fp, reserve_optimal_force=np.ones(jac.shape[2])
+        )
+
+    monkeypatch.setattr(problems, "_MIN_BLOCK_UNKNOWNS", 16)
+    split, whole = _whole_and_split(monkeypatch, bounded)
+    _assert_same(split, whole, atol=1e-9 * np.abs(tau).max())

@@ -1023,9 +1023,11 @@ class _BatchQP:
             if self.passive is not None:
                 jr = jc[:, :, self.rows]
                 bb = bb + np.einsum("kmr,km->kr", jr, self.passive[s0:s1])
-            lb = np.broadcast_to(self.lb, (s1 - s0, nv))
-            ub = np.broadcast_to(self.ub, (s1 - s0, nv))
-            g = np.broadcast_to(self.g, (s1 - s0, nv))
+            # bounds and g: one row for every frame, or this chunk's rows of per-frame ones
+            lb, ub, g = (
+                np.broadcast_to(v if v.ndim == 1 else v[s0:s1], (s1 - s0, nv))
+                for v in (self.lb, self.ub, self.g)
+            )
             data = []
             for (r, c), (hb, _), sense in zip(self.blocks, cost, senses, strict=True):
                 cm, cr = c[c < m], c[c >= m]

@@ -85,7 +85,7 @@ def run(
             m_spec,
             optimise(
                 inputs, m_spec, inverse_dynamics.torques, muscle_geometry, kin.time,
-                loads.usable, emg,
+                loads.usable, emg, forces_only=True,
             ),
         )  # fmt: skip
     n = kin.time.size

@@ -37,22 +37,22 @@ def run(inputs: SessionInputs, model: BuiltModel, kinematics: Any, loads: Loads)
     plan = geometry_plan(mdl)
     jpos = plan.jacobian_positions()
     dpos = {j: plan.distal_positions(j) for j in knee}
-    parts = []
-    for b in frame_blocks(q.shape[0]):
+    # filled block by block into arrays allocated once (a list of blocks concatenated at the
+    # end held the whole geometry twice at that moment: the stage's high-water, issue 18)
+    n, n_mus = q.shape[0], len(plan.muscle_names)
+    lengths = np.empty((n, n_mus))
+    vel = np.empty((n, n_mus))
+    jac = FrameSparse(np.empty((n, jpos.size)), jpos, (n_mus, len(plan.coordinate_names)))
+    dws = {j: FrameSparse(np.empty((n, dpos[j].size)), dpos[j], (n_mus, 6)) for j in knee}
+    for b in frame_blocks(n):
         sl = slice(int(b[0]), int(b[-1]) + 1) if b.size else slice(0, 0)
         g = muscle_geometry(mdl, q[sl], v[sl], plan=plan, distal_wrench_joints=knee)
-        dw = {j: FrameSparse.from_dense(np.asarray(g.distal_wrenches[j]), dpos[j]) for j in knee}
-        parts.append(
-            (g.lengths, g.velocities, FrameSparse.from_dense(np.asarray(g.jacobian), jpos), dw)
-        )
+        lengths[sl] = g.lengths
+        vel[sl] = g.velocities
+        jac.values[sl] = np.asarray(g.jacobian).reshape(b.size, -1)[:, jpos]
+        for j in knee:
+            dws[j].values[sl] = np.asarray(g.distal_wrenches[j]).reshape(b.size, -1)[:, dpos[j]]
         del g
-    if len(parts) == 1:
-        lengths, vel, jac, dws = parts[0]
-    else:
-        lengths = np.concatenate([p[0] for p in parts])
-        vel = np.concatenate([p[1] for p in parts])
-        jac = FrameSparse.concatenate([p[2] for p in parts])
-        dws = {j: FrameSparse.concatenate([p[3][j] for p in parts]) for j in knee}
     return MuscleGeometry(
         tuple(plan.muscle_names), tuple(plan.coordinate_names), lengths, jac, vel, dws
     )

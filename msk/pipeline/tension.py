@@ -136,12 +136,18 @@ def optimise(
     time: np.ndarray,
     usable: np.ndarray,
     emg: EmgActivations | None,
+    *,
+    forces_only: bool = False,
 ) -> MuscleTensions:
     """Muscle tensions of ``model`` for ``torques`` by the configured method on the ``usable``
     frames. A frame whose inputs cannot be posed (non-finite geometry or torques, negative
     active force) is excluded and reported, never allowed to abort the whole stage; a muscle
     shortening faster than its maximal velocity produces no active force (the force–velocity
-    curve's extrapolation below zero is clipped to 0 rather than costing the frame)."""
+    curve's extrapolation below zero is clipped to 0 rather than costing the frame).
+
+    ``forces_only`` (the knee contact stage's re-solve, which reads the forces alone): the
+    activations and reserve torques are not kept — ``activations`` is then ``(N, 0)`` and
+    ``reserve_torques`` None — so that a long trial does not hold them (issue 18)."""
     import msk.optimization as o
     from msk.muscles.geometry import finite_frames, jacobian_frames, muscle_parameters
 
@@ -210,8 +216,8 @@ def optimise(
     n = time.size
     # filled block by block (no list of every block's forces concatenated at the end)
     f_all = np.full((n, len(params.names)), np.nan)
-    a_all = np.full_like(f_all, np.nan)
-    rt = np.full((n, len(act_idx)), np.nan)
+    a_all = np.full((n, 0 if forces_only else len(params.names)), np.nan)
+    rt = None if forces_only else np.full((n, len(act_idx)), np.nan)
     infeasible = 0
     for fr in frame_blocks(idx_ok):
         jac = jacobian_frames(geometry.jacobian, fr, act_idx)
@@ -264,9 +270,12 @@ def optimise(
             acts = forces / np.maximum(fa, 1e-9)
             sol = None
         del jac, fa, fp
-        f_all[fr], a_all[fr] = forces, acts
+        f_all[fr] = forces
+        if not forces_only:
+            a_all[fr] = acts
         if sol is not None:
-            rt[fr] = sol.reserve_torques
+            if rt is not None:
+                rt[fr] = sol.reserve_torques
             infeasible += int(sol.infeasible_frames.size)
         del sol, forces, acts
     w = "V_i " if opt.activation_weights == "volume" else ""

@@ -296,6 +296,71 @@ def group_contributions(
     return cg, cf[:, ~inside].sum(axis=1)
 
 
+#: group contributions ``(N, G, n)``: dense, or compact (only the (group, coordinate) pairs a
+#: group's muscles cross: elsewhere exactly zero, :func:`_group_pattern`)
+GroupContributions = Array | FrameSparse
+
+
+def _group_pattern(
+    jacobian: FrameSparse, groups: Mapping[str, Sequence[str]], params: MuscleParameters
+) -> NDArray[np.intp]:
+    """Flat positions ``g · n + j`` of the pairs (group g, coordinate j) where some muscle of g
+    has a structural entry of the compact ``jacobian`` ``(N, M, n)``: elsewhere the group's
+    contribution ``C_g = −Σ_k J_kᵀ (…) F_iso,k`` is zero in every frame."""
+    n_mus, n_coords = jacobian.trailing
+    flat = np.zeros(n_mus * n_coords, dtype=bool)
+    flat[jacobian.positions] = True
+    crosses = flat.reshape(n_mus, n_coords)
+    _, idx = _group_index(groups, params.names)
+    gp = np.array([crosses[ii].any(axis=0) for ii in idx]).reshape(len(idx), n_coords)
+    return np.flatnonzero(gp.ravel())
+
+
+def _column(cg: GroupContributions, g: int, j: int) -> Array:
+    """Group g's contribution to coordinate j in every frame ``(N,)`` (zeros where compact
+    ``cg`` holds no such pair)."""
+    if not isinstance(cg, FrameSparse):
+        return cg[:, g, j]
+    k = np.flatnonzero(cg.positions == g * cg.trailing[1] + j)
+    return cg.values[:, int(k[0])] if k.size else np.zeros(len(cg))
+
+
+def _group_scale(cg: GroupContributions) -> Array:
+    """max over frames of |C_g| ``(G, n)``, without an |C_g| copy."""
+    if not isinstance(cg, FrameSparse):
+        return np.maximum(cg.max(axis=0), -cg.min(axis=0))
+    out = np.zeros(int(np.prod(cg.trailing)))
+    if len(cg):
+        out[cg.positions] = np.maximum(cg.values.max(axis=0), -cg.values.min(axis=0))
+    return out.reshape(cg.trailing)
+
+
+def _sum_groups(cg: GroupContributions, which: NDArray[np.bool_]) -> Array:
+    """Σ over the groups ``which`` of C_g ``(N, n)``, in group order (the same sums as the
+    dense ``cg[:, which, :].sum(axis=1)``: a compact form leaves out exact zeros only)."""
+    if not isinstance(cg, FrameSparse):
+        return np.asarray(cg[:, which, :].sum(axis=1))
+    n_coords = cg.trailing[1]
+    out = np.zeros((len(cg), n_coords))
+    for k, pos in enumerate(cg.positions.tolist()):
+        g, j = divmod(pos, n_coords)
+        if which[g]:
+            out[:, j] += cg.values[:, k]
+    return out
+
+
+def _weighted_groups(cg: GroupContributions, factors: Array) -> Array:
+    """``Σ_g s_g C_g`` ``(N, n)`` (Eq. 16), block by block of frames for a compact ``cg``
+    (each frame's sum as in one dense pass)."""
+    if not isinstance(cg, FrameSparse):
+        return np.einsum("tgj,g->tj", cg, factors)
+    out = np.empty((len(cg), cg.trailing[1]))
+    for c0 in range(0, len(cg), _FRAME_BLOCK):
+        sl = slice(c0, c0 + _FRAME_BLOCK)
+        out[sl] = np.einsum("tgj,g->tj", cg[sl], factors)
+    return out
+
+
 # ---------------------------------------------------------------------------------------------
 # result
 # ---------------------------------------------------------------------------------------------
@@ -611,7 +676,13 @@ class StrengthIdentifier:
         activation: ArrayLike,
         state: StateLike,
         frames: ArrayLike | None = None,
-    ) -> tuple[Array, Array]:
+        *,
+        compact: bool = False,
+    ) -> tuple[GroupContributions, Array]:
+        """Group contributions ``C_g`` ``(N, G, n)`` and the other muscles' ``(N, n)``.
+        ``compact`` with a compact Jacobian: ``C_g`` as a :class:`FrameSparse` of the (group,
+        coordinate) pairs the groups' muscles cross (:func:`_group_pattern`; a few of G × n on
+        gait2392, issue 18), else dense."""
         if tuple(state.names) != self.params.names:
             raise ShapeMismatchError(
                 f"muscle state names {state.names[:3]}… differ from the parameters' "
@@ -642,23 +713,32 @@ class StrengthIdentifier:
         act = _as2(activation, (n, jac.shape[1]), "activation", state.names)
         if isinstance(state, RigidTendonStateBlocks) and state.n_frames != n:
             raise ShapeMismatchError(f"muscle state has {state.n_frames} frames, jacobian {n}")
-        if n <= _FRAME_BLOCK:
+        pos = (
+            _group_pattern(jac, self.groups, self.params)
+            if compact and isinstance(jac, FrameSparse)
+            else None
+        )
+        if n <= _FRAME_BLOCK and pos is None:
             c = net_contribution(
                 block(slice(None)), act, _state_rows(state, slice(None), n), passive=self.passive
             )
             return group_contributions(c, self.groups, self.params)
         cg = other = None  # filled block by block (no list of parts concatenated at the end)
-        for c0 in range(0, n, _FRAME_BLOCK):
+        for c0 in range(0, max(n, 1), _FRAME_BLOCK):
             sl = slice(c0, c0 + _FRAME_BLOCK)
             st = _state_rows(state, sl, n)
             c = net_contribution(block(sl), act[sl], st, passive=self.passive)
             g_part, o_part = group_contributions(c, self.groups, self.params)
             del c
             if cg is None or other is None:
-                cg = np.empty((n, *g_part.shape[1:]))
+                shape = (n, *g_part.shape[1:]) if pos is None else (n, pos.size)
+                cg = np.empty(shape)
                 other = np.empty((n, *o_part.shape[1:]))
-            cg[sl], other[sl] = g_part, o_part
-        assert cg is not None and other is not None  # n > _FRAME_BLOCK ≥ 1: one block at least
+            cg[sl] = g_part if pos is None else g_part.reshape(g_part.shape[0], -1)[:, pos]
+            other[sl] = o_part
+        assert cg is not None and other is not None  # one block at least
+        if pos is not None:
+            return FrameSparse(cg, pos, (len(self.groups), other.shape[1])), other
         return cg, other
 
     def _coords(self, coordinate_names: Sequence[str] | None, n: int) -> tuple[str, ...]:
@@ -775,7 +855,9 @@ class StrengthIdentifier:
 
         if frames is not None:
             frames = np.asarray(frames, dtype=np.int64)
-        cg, other = self._contributions(jacobian, activation, state, frames)
+        # compact (the pairs the groups' muscles cross) when the Jacobian is: a long trial's
+        # (N, G, n) contributions are mostly structural zeros (issue 18)
+        cg, other = self._contributions(jacobian, activation, state, frames, compact=True)
         n_frames, n_groups, n_coords = cg.shape
         cnames = self._coords(coordinate_names, n_coords)
         y_all = _as2(tau, (n_frames, n_coords), "tau", cnames) - other
@@ -796,9 +878,9 @@ class StrengthIdentifier:
         act_arr = np.asarray(activation, dtype=float)
         if use_iv:
             a_bar = _phase_average_loo(act_arr, labels, movement=win_mov)
-            zg, _ = self._contributions(jacobian, a_bar, state, frames)
+            zg, _ = self._contributions(jacobian, a_bar, state, frames, compact=True)
         # coordinates used
-        scale = np.maximum(cg.max(axis=0), -cg.min(axis=0))  # max |C_g| (G, n), no |C_g| copy
+        scale = _group_scale(cg)  # max |C_g| (G, n)
         acts = scale > 1e-9 * max(float(scale.max()), 1e-300)
         if self.coordinates is None:
             use = [j for j in range(n_coords) if acts[:, j].any()]
@@ -822,10 +904,10 @@ class StrengthIdentifier:
                     continue
                 gs = [g for g in range(n_groups) if acts[g, j]]
                 for g in gs:
-                    xg = cg[sel, g, j]
+                    xg = _column(cg, g, j)[sel]
                     if np.ptp(xg) > 0:
                         gating_r[w, g, j] = float(compare.pearson_r(xg, yw))
-                xw = np.column_stack([cg[sel][:, gs, j], np.ones(yw.size)])
+                xw = np.column_stack([_column(cg, g, j)[sel] for g in gs] + [np.ones(yw.size)])
                 beta, *_ = np.linalg.lstsq(xw, yw, rcond=None)
                 # adjusted R² (short windows with many groups would inflate the plain one)
                 r2w = float(compare.r2(yw, xw @ beta))
@@ -850,7 +932,7 @@ class StrengthIdentifier:
             )
         gid = np.flatnonzero(identified)
         # known side: unidentified groups at generic strength
-        y_known = y_all - cg[:, ~identified, :].sum(axis=1)
+        y_known = y_all - _sum_groups(cg, ~identified)
 
         # regression design, block per (window, coordinate)
         used_coords = [j for j in use if selected[:, j].any()]
@@ -871,11 +953,13 @@ class StrengthIdentifier:
                 if not selected[w, j]:
                     continue
                 x = np.zeros((int(sel.sum()), n_par))
-                x[:, : gid.size] = cg[sel][:, gid, j] / sd[j]
+                for gg, g in enumerate(gid.tolist()):
+                    x[:, gg] = _column(cg, g, j)[sel] / sd[j]
                 x[:, gid.size + jj] = 1.0 / sd[j]
                 z = x.copy()
                 if use_iv:
-                    z[:, : gid.size] = zg[sel][:, gid, j] / sd[j]
+                    for gg, g in enumerate(gid.tolist()):
+                        z[:, gg] = _column(zg, g, j)[sel] / sd[j]
                 yv = y_known[sel, j] / sd[j]
                 szz[w] += z.T @ z
                 szx[w] += z.T @ x
@@ -1035,7 +1119,7 @@ class StrengthIdentifier:
             for i in ii:
                 mg[i] = gnames[g]
         # fit r² on the selected rows, in N·m
-        pred = np.einsum("tgj,g->tj", cg, factors) + residual[None] + other
+        pred = _weighted_groups(cg, factors) + residual[None] + other
         r2c = np.full(n_coords, np.nan)
         tau_arr = y_all + other
         for j in used_coords:
