@@ -236,6 +236,26 @@ def test_foot_points_in_blocks_equal_one_pass(monkeypatch: pytest.MonkeyPatch) -
         assert np.isnan(a[[4, 11, 30]]).all() and np.isfinite(np.delete(a, [4, 11, 30], 0)).all()
 
 
+def test_shipped_emg_assisted_session_over_several_assembly_chunks(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    """gc5_PS as shipped (``emg_assisted``, per-frame EMG reference) with the split QP's data
+    assembled 40 frames at a time instead of 512 — the path every trial over 512 usable frames
+    takes, which failed before (per-frame g stretched onto one chunk) — gives the one-chunk
+    tensions to round-off."""
+    import msk.optimization.problems as problems
+    from msk.config import load_config
+    from msk.pipeline import run_stages
+
+    cfg = load_config(REPO / "pipelines" / "gc5_PS.toml")
+    assert cfg.optimization.method == "emg_assisted"
+    one = run_stages(cfg, until="tension_optimization")["tension_optimization"]
+    monkeypatch.setattr(problems, "_BLOCK_CHUNK", 40)
+    many = run_stages(cfg, until="tension_optimization")["tension_optimization"]
+    assert np.isfinite(one.forces).sum() > 100 and many.infeasible_frames == 0
+    np.testing.assert_allclose(many.forces, one.forces, rtol=0, atol=1e-6 * np.nanmax(one.forces))
+
+
 def test_identification_regressor_in_blocks_equals_one_pass(
     monkeypatch: pytest.MonkeyPatch,
 ) -> None:
