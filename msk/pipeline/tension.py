@@ -30,7 +30,7 @@ from msk.pipeline.mass_identification import MassIdentification, identified_mode
 from msk.pipeline.model import BuiltModel
 from msk.pipeline.runner import StageUnavailable
 
-__all__ = ["MuscleTensions", "muscle_state", "needs", "optimise", "run", "settings"]
+__all__ = ["MuscleTensions", "needs", "optimise", "run", "settings"]
 
 
 @dataclass(frozen=True)
@@ -52,15 +52,6 @@ class MuscleTensions:
     infeasible_frames: int | None = None
     reserve_torques: np.ndarray | None = None
     reserve_coordinates: tuple[str, ...] | None = None
-
-
-def muscle_state(model: Any, geometry: Any) -> tuple[Any, Any]:
-    """Muscle parameters of ``model`` and their rigid-tendon Hill state on ``geometry``."""
-    from msk.muscles.geometry import muscle_parameters
-    from msk.muscles.hill import rigid_tendon_state
-
-    params = muscle_parameters(model)
-    return params, rigid_tendon_state(params, geometry.lengths, geometry.velocities)
 
 
 def actuated(torques: Any) -> list[int]:
