@@ -676,17 +676,16 @@ class SampledPlate:
     reaction on the subject, zero at the analog samples whose vertical force is at most the
     threshold, low-passed, linearly resampled on ``time`` (0 outside the plate's time);
     ``height_m``: the plate surface along the ``up`` of the sampling (corners, else the median
-    of the loaded COPs); ``corners`` (4, 3) m or ``None``; ``fv_recorded`` (N,) the vertical
-    force before the low-pass (0 at the samples under the threshold), resampled on ``time``
-    (``None``: taken as the filtered one)."""
+    of the loaded COPs); ``fv_recorded`` (N,) the vertical force before the low-pass (0 at the
+    samples under the threshold), resampled on ``time``; ``corners`` (4, 3) m or ``None``."""
 
     name: str
     time: Array
     force: Array
     moment: Array
     height_m: float
+    fv_recorded: Array
     corners: Array | None = None
-    fv_recorded: Array | None = None
 
     def rotated(self, rotation: ArrayLike) -> SampledPlate:
         """This plate in the frame ``x_new = R x`` (force, moment about the origin, corners;
@@ -698,8 +697,8 @@ class SampledPlate:
             self.force @ r.T,
             self.moment @ r.T,
             self.height_m,
-            None if self.corners is None else np.asarray(self.corners, dtype=float) @ r.T,
             self.fv_recorded,
+            None if self.corners is None else np.asarray(self.corners, dtype=float) @ r.T,
         )
 
 
@@ -765,7 +764,7 @@ def sample_plate(
         cop_ok = cop_finite & loaded_raw
         h = float(np.median(cop_raw[cop_ok] @ up)) if cop_ok.any() else 0.0
     corners = None if pl.corners is None else np.asarray(pl.corners, dtype=float)
-    return SampledPlate(pl.name, t, f_k, m_k, h, corners, fv_rec)
+    return SampledPlate(pl.name, t, f_k, m_k, h, fv_rec, corners)
 
 
 def _prepare(
@@ -786,11 +785,8 @@ def _prepare(
     if not np.array_equal(pl.time, t):
         f_k = np.nan_to_num(resample_to(pl.time, f_k, t))
         m_k = np.nan_to_num(resample_to(pl.time, m_k, t))
-        if fv_rec is not None:
-            fv_rec = np.nan_to_num(np.interp(t, pl.time, fv_rec, left=np.nan, right=np.nan))
+        fv_rec = np.nan_to_num(np.interp(t, pl.time, fv_rec, left=np.nan, right=np.nan))
     fv = f_k @ up
-    if fv_rec is None:
-        fv_rec = fv
     contact = fv > threshold_n
     with np.errstate(divide="ignore", invalid="ignore"):
         # c = h·up + (up × M_O_h)/F_v with M_O_h the moment about the point h·up
