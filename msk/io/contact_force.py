@@ -230,7 +230,7 @@ def _is_load_cell_file(path: Path) -> bool:
 def _read_csv(
     path: Path, total: str | None, medial: str | None, lateral: str | None
 ) -> MeasuredContact:
-    if total is medial is lateral is None and _is_load_cell_file(path):
+    if (total, medial, lateral) == (None, None, None) and _is_load_cell_file(path):
         return read_load_cells(path)
     tab = read_csv_table(path, time_column=None)
     if tab.time.size < 2:
