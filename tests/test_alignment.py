@@ -10,32 +10,11 @@ import pytest
 
 from msk.alignment import knee_side, with_knee_alignment
 from msk.exceptions import ModelError
-from msk.model import Axis, Body, Coordinate, Joint, Model, forward_kinematics
+from msk.model import Model, forward_kinematics
+from tests.support.knees import HIP, femur_tibia
 
-HIP = np.array([0.0, 1.0, 0.0])
 ANKLE = np.array([0.0, -0.4, 0.0])  # in the tibia frame
 MODELS = Path(__file__).resolve().parents[1] / "models"
-
-
-def _leg(side: str) -> Model:
-    """Femur welded at ``HIP``, tibia on a revolute knee about z named ``knee_<side>``."""
-    from msk.joints import Linear
-
-    bodies = [
-        Body("femur", 7.0, [0.0, 0.2, 0.0], np.diag([0.1, 0.02, 0.1])),
-        Body("tibia", 4.0, [0.0, -0.2, 0.0], np.diag([0.05, 0.005, 0.05])),
-    ]
-    joints = [
-        Joint("ground_femur", "ground", "femur", parent_offset=pin.SE3(np.eye(3), HIP)),
-        Joint(
-            f"knee_{side}", "femur", "tibia",
-            axes=(Axis("revolute", [0, 0, 1], "knee_angle", Linear()),),
-        ),
-    ]  # fmt: skip
-    return Model(
-        name="leg", bodies=bodies, joints=joints,
-        coordinates=[Coordinate("knee_angle", range=(-2.5, 2.5))],
-    )  # fmt: skip
 
 
 def _tibia(model: Model, theta: float) -> pin.SE3:
@@ -63,7 +42,7 @@ def test_valgus_moves_the_ankle_laterally_and_the_shift_moves_the_tibia_medially
     ankle 0.4 m below the knee moves 0.4 sin 5° laterally; a 10 mm medial shift moves the whole
     tibia 10 mm medially (−z on the right, +z on the left)."""
     lat = 1.0 if side == "r" else -1.0
-    leg = _leg(side)
+    leg = femur_tibia(f"knee_{side}")
     a = np.radians(-5.0)
     aligned = with_knee_alignment(leg, f"knee_{side}", varus_rad=a, medial_shift_m=0.01)
     b = _tibia(aligned, theta)
@@ -106,7 +85,7 @@ def test_gait2392_knees_aligned_alike_are_mirror_images(name: str) -> None:
 
 
 def test_zero_alignment_is_the_model_itself_and_bad_input_raises() -> None:
-    leg = _leg("r")
+    leg = femur_tibia("knee_r")
     assert with_knee_alignment(leg, "knee_r") is leg
     with pytest.raises(ModelError, match="no joint"):
         with_knee_alignment(leg, "knee_x", varus_rad=0.1)

@@ -28,12 +28,12 @@ from msk.contact import (
 from msk.dynamics import joint_reaction
 from msk.exceptions import ModelError, ShapeMismatchError
 from msk.kinematics import kinematics_from_coordinates
-from msk.model import Axis, Body, Coordinate, Joint, Model
+from msk.model import Model
 from msk.muscles.geometry import muscle_geometry
 from msk.muscles.path import ConditionalPathPoint, Muscle, PathPoint, PathWrap, WrapObject
 from msk.synthetic_models import leg_model
+from tests.support.knees import HIP, femur_tibia
 
-HIP = np.array([0.0, 1.0, 0.0])  # knee centre in the world (the femur is welded there)
 M_SHANK = 4.0
 COM = np.array([0.01, -0.22, 0.0])  # shank COM in the tibia frame
 ORIGIN = np.array([0.03, 0.20, 0.01])  # quadriceps origin on the femur (femur frame)
@@ -51,20 +51,7 @@ def _muscle(name: str, points, wraps=()) -> Muscle:
 def seated_shank() -> Model:
     """A femur welded to the ground (knee centre at ``HIP``), a shank on a revolute knee about
     z and one quadriceps from the femur to the tibial tuberosity: the leg-extension bench."""
-    from msk.joints import Linear
-
-    bodies = [
-        Body("femur", 7.0, [0.0, 0.2, 0.0], np.diag([0.1, 0.02, 0.1])),
-        Body("tibia", M_SHANK, COM, np.diag([0.05, 0.005, 0.05])),
-    ]
-    joints = [
-        Joint("ground_femur", "ground", "femur", parent_offset=pin.SE3(np.eye(3), HIP)),
-        Joint(
-            "knee", "femur", "tibia", axes=(Axis("revolute", [0, 0, 1], "knee_angle", Linear()),)
-        ),
-    ]
-    coords = [Coordinate("knee_angle", range=(-2.5, 2.5))]
-    model = Model(name="bench", bodies=bodies, joints=joints, coordinates=coords)
+    model = femur_tibia("knee", shank_mass_kg=M_SHANK, shank_com=tuple(COM))
     return model.with_muscles(
         [_muscle("quad", [_pt("o", "femur", ORIGIN), _pt("i", "tibia", INSERT)])]
     )
@@ -621,24 +608,9 @@ Z_MUSCLE = 0.025  # the biceps-like muscle runs vertically this far lateral of t
 def _one_knee(side: str) -> Model:
     """A femur welded to the ground (knee centre at ``HIP``), a shank on a revolute knee about
     z (``knee_r`` or ``knee_l``) and one vertical muscle ``Z_MUSCLE`` lateral of the knee."""
-    from msk.joints import Linear
 
     lat = 1.0 if side == "r" else -1.0  # world z of the lateral side
-    bodies = [
-        Body("femur", 7.0, [0.0, 0.2, 0.0], np.diag([0.1, 0.02, 0.1])),
-        Body("tibia", M_SHANK, [0.0, -0.2, 0.0], np.diag([0.05, 0.005, 0.05])),
-    ]
-    joints = [
-        Joint("ground_femur", "ground", "femur", parent_offset=pin.SE3(np.eye(3), HIP)),
-        Joint(
-            f"knee_{side}", "femur", "tibia",
-            axes=(Axis("revolute", [0, 0, 1], "knee_angle", Linear()),),
-        ),
-    ]  # fmt: skip
-    model = Model(
-        name=f"knee_{side}", bodies=bodies, joints=joints,
-        coordinates=[Coordinate("knee_angle", range=(-2.5, 2.5))],
-    )  # fmt: skip
+    model = femur_tibia(f"knee_{side}", shank_mass_kg=M_SHANK)
     z = lat * Z_MUSCLE
     return model.with_muscles(
         [
