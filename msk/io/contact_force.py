@@ -195,28 +195,19 @@ def read_load_cells(path: str | Path) -> MeasuredContact:
     Medial and lateral are NaN: they need the load cells' and condyles' positions, which the
     file does not give (a force on one condyle loads all four cells)."""
     path = Path(path)
-    if not path.is_file():
-        raise FileFormatError(f"{path}: no such file")
-    lines = [ln.rstrip().rstrip(",") for ln in path.read_text(encoding="utf-8").splitlines()]
-    head = [c.strip() for c in lines[0].split(",")]
-    missing = [c for c in ("Time(sec)", *LOAD_CELLS) if c not in head]
+    tab = read_csv_table(path, time_column="Time(sec)")
+    missing = [c for c in LOAD_CELLS if c not in tab.columns]
     if missing:
-        raise FileFormatError(f"{path}: no column {missing[0]!r} (load-cell file: {head})")
-    try:
-        rows = np.array(
-            [[float(v) for v in ln.split(",")[: len(head)]] for ln in lines[1:] if ln.strip()]
-        )
-    except ValueError as exc:
-        raise FileFormatError(f"{path}: non-numeric value: {exc}") from None
-    if rows.ndim != 2 or rows.shape[0] < 2 or rows.shape[1] != len(head):
+        raise FileFormatError(f"{path}: no column {missing[0]!r} (load-cell file: {tab.columns})")
+    if tab.time.size < 2:
         raise MissingDataError(f"{path}: no load-cell samples")
-    t = rows[:, head.index("Time(sec)")]
+    t = tab.time
     if not (np.all(np.isfinite(t)) and np.all(np.diff(t) > 0)):
         raise FileFormatError(f"{path}: Time(sec) is not increasing")
-    total = rows[:, [head.index(c) for c in LOAD_CELLS]].sum(axis=1) * LBF_N
+    total = tab.data[:, [tab.columns.index(c) for c in LOAD_CELLS]].sum(axis=1) * LBF_N
     nan = np.full(t.size, np.nan)
     return MeasuredContact(
-        total, nan, nan.copy(), time=t.copy(),
+        total, nan, nan.copy(), time=t,
         source=f"{path.name} (PM+AM+AL+PL load cells, lbf → N)",
     )  # fmt: skip
 

@@ -116,7 +116,9 @@ def read_csv_table(path: str | Path, *, time_column: str | None = "time") -> Tab
     """Read a CSV table written by :func:`write_csv_table` (first column must be ``time``).
 
     ``time_column`` names the first column expected (``None``: any name, e.g. a cycle
-    percentage such as ``sample_0_to_100``); its values become ``Table.time``."""
+    percentage such as ``sample_0_to_100``); its values become ``Table.time``. One empty field
+    after the last column (a trailing comma, as some lab exports write on every data row) is
+    not a value."""
     path = check_regular_file(path, FileFormatError)
     try:
         text = path.read_text(encoding="utf-8")
@@ -131,6 +133,8 @@ def read_csv_table(path: str | Path, *, time_column: str | None = "time") -> Tab
     rows = []
     for k, ln in enumerate(lines[1:], start=2):
         parts = ln.split(",")
+        if len(parts) == len(cols) + 1 and not parts[-1].strip():
+            parts.pop()
         if len(parts) != len(cols):
             raise FileFormatError(f"{path}: line {k} has {len(parts)} values, expected {len(cols)}")
         try:

@@ -72,3 +72,16 @@ def test_first_column_other_than_time(tmp_path):
         read_csv_table(p)
     with pytest.raises(FileFormatError, match=r"expected 'percent'"):
         read_csv_table(p, time_column="percent")
+
+
+def test_one_trailing_empty_field_is_not_a_value(tmp_path):
+    """A lab export with a comma after the last value of every data row (the Grand Challenge 4
+    ``*_knee_forces.csv``) reads as its header says; a non-empty extra field, or two, does not."""
+    p = tmp_path / "cells.csv"
+    p.write_text("time,a,b\n0,1,2,\n1,3,4,\n")
+    tab = read_csv_table(p)
+    np.testing.assert_array_equal(tab.data, [[1.0, 2.0], [3.0, 4.0]])
+    for row in ("1,3,4,5", "1,3,4,,"):
+        p.write_text(f"time,a,b\n0,1,2,\n{row}\n")
+        with pytest.raises(FileFormatError, match="line 3 has"):
+            read_csv_table(p)
