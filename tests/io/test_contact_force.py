@@ -269,3 +269,35 @@ def test_conversion_script_regenerates_the_bundled_csv(real_dir: Path, tmp_path:
     np.testing.assert_array_equal(m.medial, src["medial"])
     np.testing.assert_array_equal(m.lateral, src["lateral"])
     assert out.read_text() == (ROOT / "data" / "gc6-DM" / "DM_ngait_og1_contact.csv").read_text()
+
+
+@pytest.mark.realdata
+def test_dm_medial_lateral_are_one_fixed_linear_map_of_the_raw_implant_channels(
+    real_dir: Path,
+) -> None:
+    """How DM's measured split is defined (docs/validation.md, medial/lateral contact, item 7):
+    ``Force.KneeMedial``/``KneeLateral`` of the three trials are one fixed linear map of the
+    source's ``Force.raw`` channels (F_SI, M_VV, F_ML) — fitted on og1, it reproduces og3 and
+    og4 to rounding — i.e. a fixed geometry/calibration, not a per-trial or load-dependent
+    split; medial + lateral is F_SI (coefficient 0.999), and the split is carried mostly by
+    the channel named F_ML (0.876 per unit), hardly by M_VV (0.019 per unit)."""
+    from scipy.io import loadmat
+
+    def channels(trial: str) -> tuple[np.ndarray, np.ndarray]:
+        d = loadmat(
+            real_dir / "knee-grand-challenge-gc6-DM" / "moissenet" / f"DM_ngait_{trial}.mat",
+            squeeze_me=True,
+            struct_as_record=False,
+        )["Force"]
+        a = np.column_stack([d.raw.F_SI, d.raw.M_VV, d.raw.F_ML])
+        return a, np.column_stack([d.KneeMedial, d.KneeLateral])
+
+    a, y = channels("og1")
+    coef, *_ = np.linalg.lstsq(a, y, rcond=None)
+    for trial in ("og3", "og4"):
+        a2, y2 = channels(trial)
+        assert np.abs(a2 @ coef - y2).max() < 1e-6  # N, against loads up to ~1 kN
+    assert coef.sum(axis=1) == pytest.approx([0.999, 0.0, 0.0], abs=1e-3)
+    assert coef[0] == pytest.approx([0.494, 0.505], abs=1e-3)
+    assert coef[2] == pytest.approx([-0.876, 0.876], abs=1e-3)
+    assert abs(coef[1, 0]) < 0.02 and coef[1, 0] == pytest.approx(-coef[1, 1])
