@@ -596,3 +596,59 @@ def test_inverse_dynamics_in_blocks_equals_one_pass(monkeypatch: pytest.MonkeyPa
     for f in dyn.JointTorques.FRAME_FIELDS:
         np.testing.assert_array_equal(getattr(many, f), getattr(one, f), err_msg=f)
     assert many.coordinate_names == one.coordinate_names
+
+
+def test_knee_contact_in_blocks_equals_one_pass(monkeypatch: pytest.MonkeyPatch) -> None:
+    """The knee contact stage (gc5_PS: generic and subject-specific) with the knee wrenches
+    recomputed per block and the subject-specific re-solve consumed per block of 40 frames
+    (never held whole) gives the contact of one pass: the whole re-solve's forces and the
+    whole trial's wrenches from one geometry evaluation, to round-off."""
+    from threadpoolctl import threadpool_limits
+
+    from msk.config import load_config
+    from msk.contact import knee_contact_force, plateau_geometry, split_medial_lateral
+    from msk.muscles.geometry import muscle_geometry
+    from msk.pipeline import run_stages, tension
+    from msk.pipeline.inputs import session_inputs
+    from msk.pipeline.mass_identification import identified_model
+    from msk.strength import with_strength
+
+    cfg = load_config(REPO / "pipelines" / "gc5_PS.toml")
+    monkeypatch.setattr(blocks, "FRAME_BLOCK", 40)
+    r = run_stages(cfg, until="knee_contact")
+    monkeypatch.setattr(blocks, "FRAME_BLOCK", 4096)
+    got = r["knee_contact"]
+    assert set(got.variants) == {"generic", "subject_specific"}
+    assert not r["muscle_geometry"].distal_wrenches  # not held from geometry to contact
+    inputs, mdl, kin = session_inputs(cfg), r["model"].model, r["kinematics"]
+    joint = got.joint
+    spec = with_strength(
+        identified_model(mdl, r["mass_identification"]), r["strength_identification"].profile
+    )
+    with threadpool_limits(limits=1, user_api="blas"):
+        resolve = tension.optimise(
+            inputs, spec, r["inverse_dynamics"].torques, r["muscle_geometry"], kin.time,
+            r["loads"].usable, r["emg"], forces_only=True,
+        )  # fmt: skip
+    forces = {"generic": r["tension_optimization"].forces, "subject_specific": resolve.forces}
+    models = {"generic": mdl, "subject_specific": spec}
+    for name, f in forces.items():
+        ok = np.flatnonzero(r["loads"].usable & np.isfinite(f).all(axis=1))
+        assert ok.size > 100
+        w = muscle_geometry(mdl, kin.q[ok], distal_wrench_joints=(joint,)).distal_wrenches[joint]
+        c = knee_contact_force(
+            models[name], kin.take(ok), r["loads"].external.take(ok), muscle_forces=f[ok],
+            muscle_names=r["tension_optimization"].muscles, joint=joint, distal_wrenches=w,
+        )  # fmt: skip
+        cc = cfg.contact
+        geo = plateau_geometry(
+            models[name], joint=joint, intercondylar_distance_m=cc.intercondylar_distance_m,
+            centre_m=None if cc.plateau_depth_m is None else (0.0, -cc.plateau_depth_m, 0.0),
+        )  # fmt: skip
+        ml = split_medial_lateral(c, geo)
+        v = got.variants[name]
+        scale = np.abs(c.force).max()
+        assert np.isnan(np.delete(v.total, ok)).all()
+        np.testing.assert_allclose(v.force[ok], c.force, rtol=0, atol=1e-9 * scale)
+        np.testing.assert_allclose(v.medial[ok], ml.medial, rtol=0, atol=1e-9 * scale)
+        np.testing.assert_allclose(v.lateral[ok], ml.lateral, rtol=0, atol=1e-9 * scale)
