@@ -652,3 +652,20 @@ def test_knee_contact_in_blocks_equals_one_pass(monkeypatch: pytest.MonkeyPatch)
         np.testing.assert_allclose(v.force[ok], c.force, rtol=0, atol=1e-9 * scale)
         np.testing.assert_allclose(v.medial[ok], ml.medial, rtol=0, atol=1e-9 * scale)
         np.testing.assert_allclose(v.lateral[ok], ml.lateral, rtol=0, atol=1e-9 * scale)
+
+
+def test_foot_point_velocities_in_blocks_equal_one_pass(monkeypatch: pytest.MonkeyPatch) -> None:
+    """The feet's point velocities block by block (``msk.loads._POINT_BLOCK``, each block with
+    its neighbouring frames) are those of one pass bit for bit: central differences inside,
+    one-sided next to a gap (NaN frames) and at the ends, NaN between two gaps."""
+    import msk.loads as loads
+
+    rng = np.random.default_rng(5)
+    p = rng.normal(size=(61, 4, 3))
+    p[[0, 9, 10, 12, 33, 60]] = np.nan  # an end, a 2-frame gap, a frame between two gaps
+    t = np.cumsum(rng.uniform(0.008, 0.009, 61))
+    one = loads._velocity_one_pass(p, t)
+    monkeypatch.setattr(loads, "_POINT_BLOCK", 8)  # blocks cut at 8, 16, …: through the gaps
+    many = loads._velocity(p, t)
+    np.testing.assert_array_equal(many, one)
+    assert np.isnan(one[11]).all() and np.isfinite(one[[1, 8, 13, 32, 34, 59]]).all()
