@@ -1,7 +1,12 @@
 """Stage ``knee_contact``: tibiofemoral contact force of the generic and the subject-specific
 model (:func:`msk.contact.knee_contact_force`: the joint reaction with the muscle forces, from
-the geometry pass's unit wrenches) and its two-point medial/lateral split
-(:func:`msk.contact.split_medial_lateral`; Winby et al. 2009; Lerner et al. 2015)."""
+the knee's unit wrenches of a geometry pass) and its two-point medial/lateral split
+(:func:`msk.contact.split_medial_lateral`; Winby et al. 2009; Lerner et al. 2015).
+
+Block by block of frames (issue 18): the knee's unit wrenches are recomputed for each block
+from the model's paths (the geometry stage does not hold them for the whole trial), and the
+subject-specific re-solve hands each solved block's forces to both variants' contact
+(:func:`msk.pipeline.tension.optimise` ``on_block``) — its forces are never held whole."""
 
 from __future__ import annotations
 

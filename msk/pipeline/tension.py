@@ -137,9 +137,9 @@ def optimise(
     shortening faster than its maximal velocity produces no active force (the force–velocity
     curve's extrapolation below zero is clipped to 0 rather than costing the frame).
 
-    ``forces_only`` (the knee contact stage's re-solve, which reads the forces alone): the
-    activations and reserve torques are not kept — ``activations`` is then ``(N, 0)`` and
-    ``reserve_torques`` None — so that a long trial does not hold them (issue 18).
+    ``forces_only`` (a re-solve that reads the forces alone): the activations and reserve
+    torques are not kept — ``activations`` is then ``(N, 0)`` and ``reserve_torques`` None —
+    so that a long trial does not hold them (issue 18).
 
     ``on_block(frames, forces)``: each solve block's frames (indices) and forces are handed to
     it as they are solved, and not kept — it implies ``forces_only``, and ``forces`` is then
