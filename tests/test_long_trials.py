@@ -669,3 +669,51 @@ def test_foot_point_velocities_in_blocks_equal_one_pass(monkeypatch: pytest.Monk
     many = loads._velocity(p, t)
     np.testing.assert_array_equal(many, one)
     assert np.isnan(one[11]).all() and np.isfinite(one[[1, 8, 13, 32, 34, 59]]).all()
+
+
+@pytest.mark.parametrize("instrument", ["none", "phase_average"])
+def test_strength_compact_activation_equals_the_dense_one(
+    monkeypatch: pytest.MonkeyPatch, instrument: str
+) -> None:
+    """The activation given compact over the muscles (the measured muscles' columns only, as
+    the pipeline's strength stage gives it) identifies the profile of the dense activation
+    with zeros in the other columns, bit for bit, in several contribution blocks."""
+    import dataclasses
+
+    import msk.strength.identification as si
+    from msk.muscles.activation import emg_to_activation
+    from msk.muscles.hill import RigidTendonStateBlocks
+    from msk.strength import StrengthIdentifier
+    from msk.strength.synthetic import gait_trial, synthetic_leg
+    from msk.timeseries import FrameSparse
+
+    leg = synthetic_leg(0)
+    tr = gait_trial(leg, n_cycles=12, seed=2)
+    act = emg_to_activation(
+        tr.emg, gamma1=-0.5, gamma2=-0.5, shape_factor=-1.0, delay_samples=4, form="exponential"
+    )
+    frames = np.flatnonzero(np.arange(act.shape[0]) % 5 != 2)
+    # one group's muscles unmeasured (0): the others' columns kept
+    groups = dict(list(leg.groups.items())[1:])
+    cols = sorted(leg.params.names.index(m) for ms in groups.values() for m in ms)
+    assert 0 < len(cols) < len(leg.params.names)
+    dense = np.zeros((frames.size, len(leg.params.names)))
+    dense[:, cols] = act[frames][:, cols]
+    compact = FrameSparse.from_dense(dense, cols)
+    jac = FrameSparse.from_dense(tr.jacobian, np.flatnonzero(np.any(tr.jacobian != 0, axis=0)))
+    state = RigidTendonStateBlocks(
+        leg.params, tr.muscle_tendon_length, tr.lengthening_velocity, frames
+    )
+    monkeypatch.setattr(si, "_FRAME_BLOCK", 64)  # several blocks, the last one short
+    profiles = []
+    for a in (dense, compact):
+        est = StrengthIdentifier(groups, leg.params, n_bootstrap=20, instrument=instrument)
+        est.fit(jac, a, tr.tau[frames], state, windows=tr.cycle[frames], frames=frames)
+        profiles.append(est.profile_)
+    for f in dataclasses.fields(profiles[0]):
+        x, y = getattr(profiles[0], f.name), getattr(profiles[1], f.name)
+        if isinstance(x, np.ndarray):
+            np.testing.assert_array_equal(x, y, err_msg=f.name)
+        else:
+            assert x == y, f.name
+    assert np.isfinite(profiles[0].factors).all()
