@@ -962,7 +962,23 @@ def _spread_to_contact(
 def _velocity(p: Array, t: Array) -> Array:
     """(N, P, 3) velocity of points ``p`` (N, P, 3): the mean of the backward and forward
     differences where both exist (central differences), one of them next to a gap or an end,
-    NaN for a frame with unknown neighbours on both sides."""
+    NaN for a frame with unknown neighbours on both sides.
+
+    Block by block of :data:`_POINT_BLOCK` frames (each block with its neighbouring frames: the
+    same operations on every element as in one pass, bit for bit), so that the differences'
+    and their mean's temporaries (~8 times the result) stay bounded on a long trial: they were
+    the loads stage's high-water (issue 18)."""
+    n = p.shape[0]
+    out = np.empty(p.shape)
+    for a in range(0, n, _POINT_BLOCK):
+        c = min(n, a + _POINT_BLOCK)
+        lo, hi = max(a - 1, 0), min(c + 1, n)
+        out[a:c] = _velocity_one_pass(p[lo:hi], t[lo:hi])[a - lo : c - lo]
+    return out
+
+
+def _velocity_one_pass(p: Array, t: Array) -> Array:
+    """:func:`_velocity` of all the frames at once."""
     dt = np.diff(t)[:, None, None]
     d = np.diff(p, axis=0) / dt  # (N-1, P, 3): d[i] between frames i and i+1
     nan = np.full((1, *p.shape[1:]), np.nan)

@@ -596,3 +596,124 @@ def test_inverse_dynamics_in_blocks_equals_one_pass(monkeypatch: pytest.MonkeyPa
     for f in dyn.JointTorques.FRAME_FIELDS:
         np.testing.assert_array_equal(getattr(many, f), getattr(one, f), err_msg=f)
     assert many.coordinate_names == one.coordinate_names
+
+
+def test_knee_contact_in_blocks_equals_one_pass(monkeypatch: pytest.MonkeyPatch) -> None:
+    """The knee contact stage (gc5_PS: generic and subject-specific) with the knee wrenches
+    recomputed per block and the subject-specific re-solve consumed per block of 40 frames
+    (never held whole) gives the contact of one pass: the whole re-solve's forces and the
+    whole trial's wrenches from one geometry evaluation, to round-off."""
+    from threadpoolctl import threadpool_limits
+
+    from msk.config import load_config
+    from msk.contact import knee_contact_force, plateau_geometry, split_medial_lateral
+    from msk.muscles.geometry import muscle_geometry
+    from msk.pipeline import run_stages, tension
+    from msk.pipeline.inputs import session_inputs
+    from msk.pipeline.mass_identification import identified_model
+    from msk.strength import with_strength
+
+    cfg = load_config(REPO / "pipelines" / "gc5_PS.toml")
+    monkeypatch.setattr(blocks, "FRAME_BLOCK", 40)
+    r = run_stages(cfg, until="knee_contact")
+    monkeypatch.setattr(blocks, "FRAME_BLOCK", 4096)
+    got = r["knee_contact"]
+    assert set(got.variants) == {"generic", "subject_specific"}
+    assert not r["muscle_geometry"].distal_wrenches  # not held from geometry to contact
+    inputs, mdl, kin = session_inputs(cfg), r["model"].model, r["kinematics"]
+    joint = got.joint
+    spec = with_strength(
+        identified_model(mdl, r["mass_identification"]), r["strength_identification"].profile
+    )
+    with threadpool_limits(limits=1, user_api="blas"):
+        resolve = tension.optimise(
+            inputs, spec, r["inverse_dynamics"].torques, r["muscle_geometry"], kin.time,
+            r["loads"].usable, r["emg"], forces_only=True,
+        )  # fmt: skip
+    forces = {"generic": r["tension_optimization"].forces, "subject_specific": resolve.forces}
+    models = {"generic": mdl, "subject_specific": spec}
+    for name, f in forces.items():
+        ok = np.flatnonzero(r["loads"].usable & np.isfinite(f).all(axis=1))
+        assert ok.size > 100
+        w = muscle_geometry(mdl, kin.q[ok], distal_wrench_joints=(joint,)).distal_wrenches[joint]
+        c = knee_contact_force(
+            models[name], kin.take(ok), r["loads"].external.take(ok), muscle_forces=f[ok],
+            muscle_names=r["tension_optimization"].muscles, joint=joint, distal_wrenches=w,
+        )  # fmt: skip
+        cc = cfg.contact
+        geo = plateau_geometry(
+            models[name], joint=joint, intercondylar_distance_m=cc.intercondylar_distance_m,
+            centre_m=None if cc.plateau_depth_m is None else (0.0, -cc.plateau_depth_m, 0.0),
+        )  # fmt: skip
+        ml = split_medial_lateral(c, geo)
+        v = got.variants[name]
+        scale = np.abs(c.force).max()
+        assert np.isnan(np.delete(v.total, ok)).all()
+        np.testing.assert_allclose(v.force[ok], c.force, rtol=0, atol=1e-9 * scale)
+        np.testing.assert_allclose(v.medial[ok], ml.medial, rtol=0, atol=1e-9 * scale)
+        np.testing.assert_allclose(v.lateral[ok], ml.lateral, rtol=0, atol=1e-9 * scale)
+
+
+def test_foot_point_velocities_in_blocks_equal_one_pass(monkeypatch: pytest.MonkeyPatch) -> None:
+    """The feet's point velocities block by block (``msk.loads._POINT_BLOCK``, each block with
+    its neighbouring frames) are those of one pass bit for bit: central differences inside,
+    one-sided next to a gap (NaN frames) and at the ends, NaN between two gaps."""
+    import msk.loads as loads
+
+    rng = np.random.default_rng(5)
+    p = rng.normal(size=(61, 4, 3))
+    p[[0, 9, 10, 12, 33, 60]] = np.nan  # an end, a 2-frame gap, a frame between two gaps
+    t = np.cumsum(rng.uniform(0.008, 0.009, 61))
+    one = loads._velocity_one_pass(p, t)
+    monkeypatch.setattr(loads, "_POINT_BLOCK", 8)  # blocks cut at 8, 16, …: through the gaps
+    many = loads._velocity(p, t)
+    np.testing.assert_array_equal(many, one)
+    assert np.isnan(one[11]).all() and np.isfinite(one[[1, 8, 13, 32, 34, 59]]).all()
+
+
+@pytest.mark.parametrize("instrument", ["none", "phase_average"])
+def test_strength_compact_activation_equals_the_dense_one(
+    monkeypatch: pytest.MonkeyPatch, instrument: str
+) -> None:
+    """The activation given compact over the muscles (the measured muscles' columns only, as
+    the pipeline's strength stage gives it) identifies the profile of the dense activation
+    with zeros in the other columns, bit for bit, in several contribution blocks."""
+    import dataclasses
+
+    import msk.strength.identification as si
+    from msk.muscles.activation import emg_to_activation
+    from msk.muscles.hill import RigidTendonStateBlocks
+    from msk.strength import StrengthIdentifier
+    from msk.strength.synthetic import gait_trial, synthetic_leg
+    from msk.timeseries import FrameSparse
+
+    leg = synthetic_leg(0)
+    tr = gait_trial(leg, n_cycles=12, seed=2)
+    act = emg_to_activation(
+        tr.emg, gamma1=-0.5, gamma2=-0.5, shape_factor=-1.0, delay_samples=4, form="exponential"
+    )
+    frames = np.flatnonzero(np.arange(act.shape[0]) % 5 != 2)
+    # one group's muscles unmeasured (0): the others' columns kept
+    groups = dict(list(leg.groups.items())[1:])
+    cols = sorted(leg.params.names.index(m) for ms in groups.values() for m in ms)
+    assert 0 < len(cols) < len(leg.params.names)
+    dense = np.zeros((frames.size, len(leg.params.names)))
+    dense[:, cols] = act[frames][:, cols]
+    compact = FrameSparse.from_dense(dense, cols)
+    jac = FrameSparse.from_dense(tr.jacobian, np.flatnonzero(np.any(tr.jacobian != 0, axis=0)))
+    state = RigidTendonStateBlocks(
+        leg.params, tr.muscle_tendon_length, tr.lengthening_velocity, frames
+    )
+    monkeypatch.setattr(si, "_FRAME_BLOCK", 64)  # several blocks, the last one short
+    profiles = []
+    for a in (dense, compact):
+        est = StrengthIdentifier(groups, leg.params, n_bootstrap=20, instrument=instrument)
+        est.fit(jac, a, tr.tau[frames], state, windows=tr.cycle[frames], frames=frames)
+        profiles.append(est.profile_)
+    for f in dataclasses.fields(profiles[0]):
+        x, y = getattr(profiles[0], f.name), getattr(profiles[1], f.name)
+        if isinstance(x, np.ndarray):
+            np.testing.assert_array_equal(x, y, err_msg=f.name)
+        else:
+            assert x == y, f.name
+    assert np.isfinite(profiles[0].factors).all()

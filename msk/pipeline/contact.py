@@ -1,7 +1,12 @@
 """Stage ``knee_contact``: tibiofemoral contact force of the generic and the subject-specific
 model (:func:`msk.contact.knee_contact_force`: the joint reaction with the muscle forces, from
-the geometry pass's unit wrenches) and its two-point medial/lateral split
-(:func:`msk.contact.split_medial_lateral`; Winby et al. 2009; Lerner et al. 2015)."""
+the knee's unit wrenches of a geometry pass) and its two-point medial/lateral split
+(:func:`msk.contact.split_medial_lateral`; Winby et al. 2009; Lerner et al. 2015).
+
+Block by block of frames (issue 18): the knee's unit wrenches are recomputed for each block
+from the model's paths (the geometry stage does not hold them for the whole trial), and the
+subject-specific re-solve hands each solved block's forces to both variants' contact
+(:func:`msk.pipeline.tension.optimise` ``on_block``) — its forces are never held whole."""
 
 from __future__ import annotations
 
@@ -47,6 +52,41 @@ class KneeContact:
     measured: Any = None
 
 
+class _VariantArrays:
+    """One model's contact force and medial/lateral split on every frame (NaN until filled),
+    filled block by block of frames (:func:`msk.contact.knee_contact_force`,
+    :func:`msk.contact.split_medial_lateral`)."""
+
+    def __init__(self, model: Any, geo: Any, kin: Any, external: Any, joint: str) -> None:
+        n = kin.time.size
+        self.model, self.geo, self.kin, self.external, self.joint = (
+            model, geo, kin, external, joint,
+        )  # fmt: skip
+        self.force = np.full((n, 3), np.nan)
+        self.medial = np.full(n, np.nan)
+        self.lateral = np.full(n, np.nan)
+
+    def fill(self, fr: np.ndarray, forces: np.ndarray, w: np.ndarray, names: Any) -> None:
+        """The contact on frames ``fr`` (indices) with these muscle ``forces`` (columns
+        ``names``) and the knee's unit wrenches ``w`` (N, muscles, 6) of those frames."""
+        from msk.contact import knee_contact_force, split_medial_lateral
+
+        if not fr.size:
+            return
+        contact = knee_contact_force(
+            self.model, self.kin.take(fr), self.external.take(fr), muscle_forces=forces,
+            muscle_names=tuple(names), joint=self.joint, distal_wrenches=w,
+        )  # fmt: skip
+        self.force[fr] = contact.force
+        ml = split_medial_lateral(contact, self.geo)
+        self.medial[fr], self.lateral[fr] = ml.medial, ml.lateral
+
+    def result(self) -> ContactVariant:
+        return ContactVariant(
+            self.force, np.linalg.norm(self.force, axis=1), self.medial, self.lateral
+        )
+
+
 def settings(inputs: SessionInputs) -> Any:
     return {
         "contact": inputs.hashes.get("contact_force"),
@@ -68,57 +108,71 @@ def run(
     strength_identification: StrengthIdentification | None,
     measured_contact: Any,
 ) -> KneeContact:
-    from msk.contact import knee_contact_force, plateau_geometry, split_medial_lateral
+    from msk.contact import plateau_geometry
 
     mdl, kin = model.model, kinematics
     joint = f"knee{inputs.sfx}"
     if joint not in {j.name for j in mdl.joints}:
         raise StageUnavailable(f"model has no joint {joint!r}")
-    variants: dict[str, tuple[Any, MuscleTensions]] = {"generic": (mdl, tension_optimization)}
+    from msk.muscles.geometry import geometry_plan
+
+    cc = inputs.cfg.contact
+    centre = None if cc.plateau_depth_m is None else (0.0, -cc.plateau_depth_m, 0.0)
+    # ∂l/∂ξ of the knee recomputed block by block from the model's paths (the geometry stage
+    # does not keep them for the whole trial: issue 18); the same paths and muscle order in
+    # both variants (with_strength only scales F_iso)
+    plan = geometry_plan(mdl)
+
+    def wrenches(fr: np.ndarray) -> np.ndarray:
+        if not fr.size:
+            return np.zeros((0, plan.n_muscles, 6))
+        return np.asarray(
+            plan.evaluate(kin.q[fr], distal_wrench_joints=(joint,)).distal_wrenches[joint]
+        )
+
+    def variant(m: Any) -> _VariantArrays:
+        geo = plateau_geometry(
+            m, joint=joint, intercondylar_distance_m=cc.intercondylar_distance_m, centre_m=centre
+        )
+        return _VariantArrays(m, geo, kin, loads.external, joint)
+
+    gen_forces, names = tension_optimization.forces, tension_optimization.muscles
+    # frames without muscle forces get no contact force (never zero muscle force)
+    gen_ok = loads.usable & np.isfinite(gen_forces).all(axis=1)
+    generic = variant(mdl)
+    variants = {"generic": generic}
     if strength_identification is not None:
         from msk.strength import with_strength
 
         m_spec = with_strength(
             identified_model(mdl, mass_identification), strength_identification.profile
         )
-        variants["subject_specific"] = (
-            m_spec,
-            optimise(
-                inputs, m_spec, inverse_dynamics.torques, muscle_geometry, kin.time,
-                loads.usable, emg, forces_only=True,
-            ),
+        spec = variants["subject_specific"] = variant(m_spec)
+        done = np.zeros(kin.time.size, dtype=bool)
+
+        def on_block(fr: np.ndarray, forces: np.ndarray) -> None:
+            """One block of the subject-specific re-solve: both variants' contact on its frames
+            (the wrenches computed once), its forces then dropped — a long trial never holds
+            the re-solve's forces whole (issue 18)."""
+            w = wrenches(fr)
+            ks = np.isfinite(forces).all(axis=1)
+            spec.fill(fr[ks], forces[ks], w[ks], names)
+            kg = gen_ok[fr]
+            generic.fill(fr[kg], gen_forces[fr[kg]], w[kg], names)
+            done[fr] = True
+
+        optimise(
+            inputs, m_spec, inverse_dynamics.torques, muscle_geometry, kin.time,
+            loads.usable, emg, on_block=on_block,
         )  # fmt: skip
-    n = kin.time.size
-    out: dict[str, ContactVariant] = {}
-    plateau: dict[str, Any] = {}
-    # ∂l/∂ξ of the geometry stage (same paths and muscle order in both variants: with_strength
-    # only scales F_iso)
-    dw = getattr(muscle_geometry, "distal_wrenches", {}).get(joint)
-    for name, (m, s) in variants.items():
-        # frames without muscle forces get no contact force (never zero muscle force)
-        ok = np.flatnonzero(loads.usable & np.isfinite(s.forces).all(axis=1))
-        cc = inputs.cfg.contact
-        geo = plateau_geometry(
-            m, joint=joint, intercondylar_distance_m=cc.intercondylar_distance_m,
-            centre_m=None if cc.plateau_depth_m is None else (0.0, -cc.plateau_depth_m, 0.0),
-        )  # fmt: skip
-        force = np.full((n, 3), np.nan)
-        medial = np.full(n, np.nan)
-        lateral = np.full(n, np.nan)
-        for fr in frame_blocks(ok):  # block by block: memory bounded on long trials
-            contact = knee_contact_force(
-                m, kin.take(fr), loads.external.take(fr),
-                muscle_forces=s.forces[fr], muscle_names=tuple(s.muscles), joint=joint,
-                distal_wrenches=None if dw is None else dw[fr],
-            )  # fmt: skip
-            force[fr] = contact.force
-            ml = split_medial_lateral(contact, geo)
-            medial[fr], lateral[fr] = ml.medial, ml.lateral
-            del contact, ml
-        out[name] = ContactVariant(force, np.linalg.norm(force, axis=1), medial, lateral)
-        plateau = {
-            "intercondylar_distance_m": geo.intercondylar_distance_m,
-            "centre_m": list(geo.centre_m),
-            "source": geo.source,
-        }
+        gen_ok &= ~done  # generic frames no re-solve block had (normally none)
+    for fr in frame_blocks(np.flatnonzero(gen_ok)):  # block by block: memory bounded
+        generic.fill(fr, gen_forces[fr], wrenches(fr), names)
+    out = {name: v.result() for name, v in variants.items()}
+    geo = variants["subject_specific" if "subject_specific" in variants else "generic"].geo
+    plateau = {
+        "intercondylar_distance_m": geo.intercondylar_distance_m,
+        "centre_m": list(geo.centre_m),
+        "source": geo.source,
+    }
     return KneeContact(joint, out, plateau, measured_contact)

@@ -60,10 +60,15 @@ def run(
             groups.setdefault(emg.sources[k], []).append(m)
     if not groups:
         raise StageUnavailable("no usable EMG channel")
-    act = np.zeros((int(good.sum()), len(params.names)))
+    # the measured muscles' columns only (compact over the muscles: the others are 0, and a
+    # long trial's (N, M) activation was the stage's largest array, issue 18)
+    cols = sorted({params.names.index(m) for k, m in enumerate(emg.muscles) if emg.usable[k]})
+    act = FrameSparse(
+        np.zeros((frames.size, len(cols))), np.asarray(cols, dtype=np.intp), (len(params.names),)
+    )
     for k, m in enumerate(emg.muscles):
         if emg.usable[k]:
-            act[:, params.names.index(m)] = emg.activation[good, k]
+            act.values[:, cols.index(params.names.index(m))] = emg.activation[good, k]
     est = StrengthIdentifier(groups, params, n_bootstrap=200, random_state=0)
     # the whole trial's compact Jacobian, its rows of the used frames read block by block
     jac = muscle_geometry.jacobian

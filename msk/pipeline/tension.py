@@ -15,7 +15,7 @@ its Eq. 6).
 from __future__ import annotations
 
 import dataclasses
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 from typing import Any
 
@@ -129,6 +129,7 @@ def optimise(
     emg: EmgActivations | None,
     *,
     forces_only: bool = False,
+    on_block: Callable[[np.ndarray, np.ndarray], None] | None = None,
 ) -> MuscleTensions:
     """Muscle tensions of ``model`` for ``torques`` by the configured method on the ``usable``
     frames. A frame whose inputs cannot be posed (non-finite geometry or torques, negative
@@ -136,9 +137,14 @@ def optimise(
     shortening faster than its maximal velocity produces no active force (the force–velocity
     curve's extrapolation below zero is clipped to 0 rather than costing the frame).
 
-    ``forces_only`` (the knee contact stage's re-solve, which reads the forces alone): the
-    activations and reserve torques are not kept — ``activations`` is then ``(N, 0)`` and
-    ``reserve_torques`` None — so that a long trial does not hold them (issue 18)."""
+    ``forces_only`` (a re-solve that reads the forces alone): the activations and reserve
+    torques are not kept — ``activations`` is then ``(N, 0)`` and ``reserve_torques`` None —
+    so that a long trial does not hold them (issue 18).
+
+    ``on_block(frames, forces)``: each solve block's frames (indices) and forces are handed to
+    it as they are solved, and not kept — it implies ``forces_only``, and ``forces`` is then
+    ``(N, 0)`` too (the knee contact stage computes its contact block by block: a long trial
+    never holds the re-solve's forces whole)."""
     import msk.optimization as o
     from msk.muscles.geometry import finite_frames, jacobian_frames, muscle_parameters
 
@@ -205,8 +211,9 @@ def optimise(
     )
     carry = o.WarmStart()
     n = time.size
+    forces_only = forces_only or on_block is not None
     # filled block by block (no list of every block's forces concatenated at the end)
-    f_all = np.full((n, len(params.names)), np.nan)
+    f_all = np.full((n, 0 if on_block is not None else len(params.names)), np.nan)
     a_all = np.full((n, 0 if forces_only else len(params.names)), np.nan)
     rt = None if forces_only else np.full((n, len(act_idx)), np.nan)
     infeasible = 0
@@ -261,7 +268,10 @@ def optimise(
             acts = forces / np.maximum(fa, 1e-9)
             sol = None
         del jac, fa, fp
-        f_all[fr] = forces
+        if on_block is not None:
+            on_block(fr, forces)
+        else:
+            f_all[fr] = forces
         if not forces_only:
             a_all[fr] = acts
         if sol is not None:

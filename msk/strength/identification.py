@@ -325,6 +325,18 @@ def _column(cg: GroupContributions, g: int, j: int) -> Array:
     return cg.values[:, int(k[0])] if k.size else np.zeros(len(cg))
 
 
+def _columns(x: Array | FrameSparse, cols: Sequence[int]) -> Array:
+    """``x[:, cols]`` of an (N, M) array, dense or compact (:class:`FrameSparse` over M)."""
+    if not isinstance(x, FrameSparse):
+        return x[:, cols]
+    out = np.zeros((len(x), len(cols)))
+    where = {int(p): k for k, p in enumerate(x.positions)}
+    for c, col in enumerate(cols):
+        if col in where:
+            out[:, c] = x.values[:, where[col]]
+    return out
+
+
 def _group_scale(cg: GroupContributions) -> Array:
     """max over frames of |C_g| ``(G, n)``, without an |C_g| copy."""
     if not isinstance(cg, FrameSparse):
@@ -673,7 +685,7 @@ class StrengthIdentifier:
     def _contributions(
         self,
         jacobian: ArrayLike | FrameSparse,
-        activation: ArrayLike,
+        activation: ArrayLike | FrameSparse,
         state: StateLike,
         frames: ArrayLike | None = None,
         *,
@@ -710,7 +722,19 @@ class StrengthIdentifier:
         def block(sl: slice) -> Array:
             return np.asarray(jac[sl] if rows is None else jac[rows[sl]])
 
-        act = _as2(activation, (n, jac.shape[1]), "activation", state.names)
+        act: Array | FrameSparse
+        if isinstance(activation, FrameSparse):  # the measured muscles' columns only
+            if activation.shape != (n, jac.shape[1]):
+                raise ShapeMismatchError(
+                    f"activation must have shape {(n, jac.shape[1])}, got {activation.shape}"
+                )
+            _as2(
+                activation.values, activation.values.shape, "activation",
+                [state.names[int(k)] for k in activation.positions],
+            )  # fmt: skip
+            act = activation  # dense block by block below
+        else:
+            act = _as2(activation, (n, jac.shape[1]), "activation", state.names)
         if isinstance(state, RigidTendonStateBlocks) and state.n_frames != n:
             raise ShapeMismatchError(f"muscle state has {state.n_frames} frames, jacobian {n}")
         pos = (
@@ -825,7 +849,7 @@ class StrengthIdentifier:
     def fit(
         self,
         jacobian: ArrayLike | FrameSparse,
-        activation: ArrayLike,
+        activation: ArrayLike | FrameSparse,
         tau: ArrayLike,
         state: StateLike,
         *,
@@ -838,7 +862,9 @@ class StrengthIdentifier:
 
         ``jacobian`` ``(N, M, n)`` J = ∂l/∂θ (dense, or a :class:`msk.timeseries.FrameSparse`,
         used block by block); ``activation`` ``(N, M)`` EMG-driven activations
-        (see :func:`expand_groups` and :func:`msk.muscles.activation.emg_to_activation`);
+        (see :func:`expand_groups` and :func:`msk.muscles.activation.emg_to_activation`;
+        dense, or a :class:`msk.timeseries.FrameSparse` over the muscles holding the measured
+        muscles' columns only — the others are 0 — kept compact but for the instrument);
         ``tau`` ``(N, n)`` inverse-dynamics torques; ``state`` the rigid-tendon state of the
         generic parameters (whole, or a :class:`msk.muscles.hill.RigidTendonStateBlocks`
         computing it block by block: the same numbers without holding it); ``windows`` one
@@ -875,9 +901,15 @@ class StrengthIdentifier:
                 f"has {int(n_per_mov[k])}"
             )
         zg = cg
-        act_arr = np.asarray(activation, dtype=float)
+        # a compact activation (the measured muscles' columns) stays compact but for the
+        # instrument, which averages every column
+        act_arr = (
+            activation
+            if isinstance(activation, FrameSparse) and not use_iv
+            else np.asarray(activation, dtype=float)
+        )
         if use_iv:
-            a_bar = _phase_average_loo(act_arr, labels, movement=win_mov)
+            a_bar = _phase_average_loo(np.asarray(act_arr), labels, movement=win_mov)
             zg, _ = self._contributions(jacobian, a_bar, state, frames, compact=True)
         # coordinates used
         scale = _group_scale(cg)  # max |C_g| (G, n)
@@ -921,7 +953,7 @@ class StrengthIdentifier:
         identified &= acts[:, use].any(axis=1)
         _, gidx = _group_index(self.groups, self.params.names)
         excited = (
-            np.array([float(np.quantile(act_arr[:, ii], 0.99, axis=0).max()) for ii in gidx])
+            np.array([float(np.quantile(_columns(act_arr, ii), 0.99, axis=0).max()) for ii in gidx])
             >= self.min_excitation
         )
         identified &= excited
@@ -989,7 +1021,7 @@ class StrengthIdentifier:
             # cycles), so the instrument's own EMG noise is part of the spread
             pp, qq = self._instrument_pairs(
                 jacobian if frames is None else _rows(jacobian, frames),
-                act_arr,
+                np.asarray(act_arr),
                 state,
                 labels,
                 gid,
