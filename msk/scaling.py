@@ -1222,6 +1222,7 @@ def place_markers_from_motion(
     iterations: int = 3,
     move: Sequence[str] = (),
     regularize: bool | None = None,
+    median_neutral: Sequence[str] = (),
 ) -> tuple[Model, dict[str, Any]]:
     """Add a motion trial's non-model markers to ``model`` when there is no static trial.
 
@@ -1246,7 +1247,17 @@ def place_markers_from_motion(
     5. ``move``: model markers (a lab puts its foot markers where it likes) moved, on their
        own body, to their median body-frame position in the last pass (OpenSim's
        ``move_model_markers`` for these markers, as :func:`place_markers` does on a static);
-       shoulder-girdle markers of a model without that segment are always moved.
+       shoulder-girdle markers of a model without that segment are always moved;
+    6. ``median_neutral``: coordinates whose offset the placed and moved markers leave free
+       (every marker distal to the joint placed or moved from this very motion: rotating them
+       all on the child body by δ and the joint by −δ fits equally), so the last pass expresses
+       the markers in the poses with each such coordinate's median over its solved frames
+       subtracted: the motion's median angle becomes the joint's neutral (0), as OpenSim's
+       scaling holds the subtalar and MTP angles at 0 in the static pose (gait2392's example
+       scale setups). Otherwise the offset is whatever the generic model markers' fit gives:
+       DM og1's subtalar at a median of 31° (r) / 24° (l) — gait2392's midfoot markers sit
+       41–66 mm from the lab's, and the calcaneus rolls about the subtalar axis to reach them.
+       Reported as ``"median_neutral"``: coordinate → the median removed (rad).
 
     The passes' IK takes the flexion branch of a knee no model marker observes
     (:func:`unobserved_knees_flexed`; reported as ``"knee_flexion_branch"``).
@@ -1272,6 +1283,7 @@ def place_markers_from_motion(
         args: dict[str, Any] = dict(
             max_spread_m=max_spread_m, max_distance_m=max_distance_m, max_frames=max_frames,
             min_frames=min_frames, min_markers=min_markers, iterations=iterations, move=move,
+            median_neutral=median_neutral,
         )  # fmt: skip
         plain = place_markers_from_motion(model, markers, labels, time, regularize=False, **args)
         if plain[1]["ik_marker_rms_m"] <= PLACEMENT_RETRY_RMS_M:
@@ -1320,6 +1332,7 @@ def place_markers_from_motion(
     unseen: list[str] = []
     rms = float("nan")
     n_ok = 0
+    neutral_shift: dict[str, float] = {}
     for it in range(max(1, iterations)):
         # later passes: IK with the markers placed so far, save the clearly loose ones
         ok_prev = [k for k in placed if spread[k] <= LOOSE_KEPT_SPREAD_FACTOR * max_spread_m]
@@ -1344,6 +1357,12 @@ def place_markers_from_motion(
         n_ok = int(ok.sum())
         rms = float(np.nanmedian(kin.marker_rms[ok]))
         q = kin.q_raw[ok]
+        if it == max(1, iterations) - 1 and median_neutral:
+            q = q.copy()
+            for c in median_neutral:
+                j = model.coordinate_index(c)
+                neutral_shift[c] = float(np.median(q[:, j]))
+                q[:, j] -= neutral_shift[c]
         xo = xs[ok]
         data = model.create_data()
         # body poses per solved frame: rotations (F, B, 3, 3) and translations (F, B, 3)
@@ -1424,6 +1443,7 @@ def place_markers_from_motion(
         "frames": n_ok,
         "regularized": regularize,
         "knee_flexion_branch": sorted(flexed),
+        "median_neutral": neutral_shift,
     }
     return model.with_markers([*own, *added]), info
 
