@@ -799,3 +799,44 @@ def test_place_markers_from_motion_keeps_the_only_markers_of_a_body_when_loose(g
     assert set(info["kept_loose"]) == set(clusters) and not info["too_loose"]
     assert {k: info["placed"][k] for k in clusters} == {k: b for k, (b, _) in clusters.items()}
     assert set(clusters) <= set(model.marker_names)
+
+
+def test_motion_placement_takes_the_walks_median_subtalar_as_neutral(gait2392):
+    """No static trial, every foot marker moved: the subtalar offset is a gauge (the markers
+    rotated on the calcaneus about its axis by δ and the joint by −δ fit equally). A lab's foot
+    markers sitting where gait2392's would be with the subtalar 25° inverted (truth: subtalar
+    ±6° about 0 through the walk) put the walk's subtalar at a median of ~25° unless
+    ``median_neutral`` takes the walk's median as the joint's neutral: then within 2°."""
+    from msk.kinematics import solve_kinematics
+    from msk.pipeline.model import free_foot_coordinates
+    from msk.scaling import place_markers_from_motion
+
+    th = _gait_poses(gait2392)
+    c = gait2392.coordinate_names
+    th[:, c.index("subtalar_angle_r")] = 0.1 * np.sin(np.linspace(0.0, 4 * np.pi, len(th)))
+    x = marker_positions(gait2392, th)
+    shifted = th.copy()
+    shifted[:, c.index("subtalar_angle_r")] += np.radians(25.0)
+    xs = marker_positions(gait2392, shifted)
+    labels = list(gait2392.marker_names)
+    feet = [m.name for m in gait2392.markers if m.body == "calcn_r"]
+    for name in feet:
+        x[:, labels.index(name)] = xs[:, labels.index(name)]
+    x = x + np.random.default_rng(3).normal(0.0, 0.001, x.shape)
+    t = np.arange(len(th)) / 100.0
+    assert free_foot_coordinates(gait2392, feet) == ("subtalar_angle_r",)
+    assert free_foot_coordinates(gait2392, feet[:-1]) == ()  # one marker kept: it observes
+    medians = {}
+    for neutral in ((), ("subtalar_angle_r",)):
+        model, info = place_markers_from_motion(
+            gait2392, x, labels, t, move=feet, median_neutral=neutral, max_frames=40
+        )
+        kin = solve_kinematics(model, x, labels, t, cutoff_hz=None)
+        medians[neutral] = np.degrees(np.median(kin.q_raw[:, c.index("subtalar_angle_r")]))
+        assert kin.marker_rms.mean() < 0.003  # the same fit either way
+        if neutral:
+            assert np.degrees(info["median_neutral"]["subtalar_angle_r"]) == pytest.approx(
+                25.0, abs=2.0
+            )
+    assert medians[()] == pytest.approx(25.0, abs=2.0)
+    assert abs(medians[("subtalar_angle_r",)]) < 2.0
