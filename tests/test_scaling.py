@@ -826,6 +826,8 @@ def test_motion_placement_takes_the_walks_median_subtalar_as_neutral(gait2392):
     t = np.arange(len(th)) / 100.0
     assert free_foot_coordinates(gait2392, feet) == ("subtalar_angle_r",)
     assert free_foot_coordinates(gait2392, feet[:-1]) == ()  # one marker kept: it observes
+    # a generic marker the trial lacks observes nothing
+    assert free_foot_coordinates(gait2392, feet[:-1], present=feet[:-1]) == ("subtalar_angle_r",)
     medians = {}
     for neutral in ((), ("subtalar_angle_r",)):
         model, info = place_markers_from_motion(

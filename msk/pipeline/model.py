@@ -283,7 +283,7 @@ def _scale_and_place(inputs: SessionInputs, read: ReadResult) -> dict[str, Any]:
         moved = [*cfg.marker_move, *feet]
         model, placed = place_markers_from_motion(
             model, xm, mlabels, trial.time, move=moved,
-            median_neutral=free_foot_coordinates(model, moved),
+            median_neutral=free_foot_coordinates(model, moved, present),
         )  # fmt: skip
     info["marker_placement"] = placed
     if model.metadata.get("knee_alignment"):
@@ -418,10 +418,13 @@ def _revolute_axis(model: Any, body: str) -> np.ndarray | None:
     return None
 
 
-def free_foot_coordinates(model: Any, moved: Sequence[str]) -> tuple[str, ...]:
+def free_foot_coordinates(
+    model: Any, moved: Sequence[str], present: Sequence[str] | None = None
+) -> tuple[str, ...]:
     """Foot coordinates (subtalar, MTP) whose offset a placement from the motion leaves free:
-    every model marker distal to the joint is moved (:func:`msk.scaling.
-    place_markers_from_motion`, ``median_neutral``), and there is at least one."""
+    every model marker distal to the joint that the trial has (``present``; None: every model
+    marker) is moved (:func:`msk.scaling.place_markers_from_motion`, ``median_neutral``), and
+    there is at least one. A generic marker the trial lacks observes nothing."""
     body_of = {m.name: m.body for m in model.markers}
     out: list[str] = []
     for sfx in ("_r", "_l"):
@@ -430,7 +433,9 @@ def free_foot_coordinates(model: Any, moved: Sequence[str]) -> tuple[str, ...]:
             if name not in model.coordinate_names or body not in model.body_joint:
                 continue
             sub = set(model.subtree(body))
-            distal = [m for m, b in body_of.items() if b in sub]
+            distal = [
+                m for m, b in body_of.items() if b in sub and (present is None or m in present)
+            ]
             if distal and set(distal) <= set(moved):
                 out.append(name)
     return tuple(out)
