@@ -79,6 +79,7 @@ __all__ = [
     "scale_inertia",
     "scale_model",
     "static_joint_centres",
+    "unobserved_end_rotations",
     "unobserved_knees_flexed",
     "usable_measurements",
 ]
@@ -1174,6 +1175,45 @@ def _tracked(x: Array, min_frames: int) -> bool:
     return int(np.isfinite(x).all(axis=1).sum()) >= min_frames
 
 
+def unobserved_end_rotations(
+    model: Model, markers: Array, labels: Sequence[str], min_frames: int
+) -> dict[str, tuple[float, float]]:
+    """Rotations of the joints whose child's whole subtree (the child and every body distal to
+    it) carries fewer than 3 tracked model markers (each seen in ``min_frames`` frames of
+    ``markers``), as IK coordinate tasks pulling them weakly towards neutral (value 0,
+    :data:`NEUTRAL_TASK_WEIGHT`).
+
+    Nothing distal pins such a joint: fewer than 3 points leave a rotation of the subtree free,
+    and IK lets it wander. The Grand Challenge DM trunk has one gait2392 marker (``Sternum``;
+    its shoulder and neck markers are the lab's own, to be placed): in the placement passes its
+    lumbar rotation drifted to −72…+92° through og1's walk, the neck and shoulder markers
+    then moved 0.14–0.16 m on every body and were left out, and the whole trial's IK kept the
+    trunk turned (og1 lumbar rotation −72…+92°, treadmill −26…+91°, crouch −39…+93°). With
+    the pull the first pass holds the trunk near neutral, the lab's trunk markers are placed
+    on it, and the later passes (and the trial's own IK) track it with them. A leg is pinned by
+    its foot markers and gets no pull. :func:`place_markers_from_motion` applies it in every
+    pass (reported as ``"unobserved_rotations"``).
+    """
+    seen = [
+        mk.body
+        for mk in model.markers
+        if mk.name in labels and _tracked(markers[:, list(labels).index(mk.name)], min_frames)
+    ]
+    coords = {c.name: c for c in model.coordinates}
+    out: dict[str, tuple[float, float]] = {}
+    for j in model.joints:
+        if j.parent == GROUND:
+            continue
+        sub = set(model.subtree(j.child))
+        if sum(b in sub for b in seen) >= 3:
+            continue
+        for ax in j.axes:
+            c = coords.get(ax.coordinate or "")
+            if c is not None and not c.locked and ax.kind == "revolute":
+                out[c.name] = (0.0, NEUTRAL_TASK_WEIGHT)
+    return out
+
+
 def unobserved_knees_flexed(
     model: Model, markers: Array, labels: Sequence[str], min_frames: int
 ) -> dict[str, tuple[float, float]]:
@@ -1260,7 +1300,10 @@ def place_markers_from_motion(
        Reported as ``"median_neutral"``: coordinate → the median removed (rad).
 
     The passes' IK takes the flexion branch of a knee no model marker observes
-    (:func:`unobserved_knees_flexed`; reported as ``"knee_flexion_branch"``).
+    (:func:`unobserved_knees_flexed`; reported as ``"knee_flexion_branch"``), and pulls the
+    rotations of a subtree with fewer than 3 tracked markers towards neutral
+    (:func:`unobserved_end_rotations`: a trunk with one sternum marker; reported, for the last
+    pass, as ``"unobserved_rotations"``).
 
     ``regularize`` None (default): the passes run without any pull on the coordinates; when
     their final marker RMS exceeds :data:`PLACEMENT_RETRY_RMS_M` (the anatomical markers leave
@@ -1333,6 +1376,7 @@ def place_markers_from_motion(
     rms = float("nan")
     n_ok = 0
     neutral_shift: dict[str, float] = {}
+    unobserved: dict[str, tuple[float, float]] = {}
     for it in range(max(1, iterations)):
         # later passes: IK with the markers placed so far, save the clearly loose ones
         ok_prev = [k for k in placed if spread[k] <= LOOSE_KEPT_SPREAD_FACTOR * max_spread_m]
@@ -1347,7 +1391,11 @@ def place_markers_from_motion(
         # a weak pull of every rotation towards neutral keeps the unpinned ones (hip rotation
         # with no thigh marker, pelvis tilt with two pelvis markers) from wandering to their
         # bounds, and later passes from diverging (UWA fast walking: 79 → 22 mm in pass 3)
-        tasks = _neutral_tasks(model) if regularize else None
+        unobserved = unobserved_end_rotations(ik_model, xs, labels, min_frames)
+        tasks = {
+            **unobserved,
+            **(_neutral_tasks(model) if regularize else {}),
+        } or None
         kin = solve_kinematics(
             ik_model, xs, labels, ts, cutoff_hz=None, min_markers=3, coordinate_tasks=tasks
         )
@@ -1444,6 +1492,7 @@ def place_markers_from_motion(
         "regularized": regularize,
         "knee_flexion_branch": sorted(flexed),
         "median_neutral": neutral_shift,
+        "unobserved_rotations": sorted(unobserved),
     }
     return model.with_markers([*own, *added]), info
 

@@ -842,3 +842,36 @@ def test_motion_placement_takes_the_walks_median_subtalar_as_neutral(gait2392):
             )
     assert medians[()] == pytest.approx(25.0, abs=2.0)
     assert abs(medians[("subtalar_angle_r",)]) < 2.0
+
+
+def test_a_trunk_with_one_tracked_marker_is_pulled_to_neutral_in_placement(gait2392):
+    """A subtree with fewer than 3 tracked markers (a trunk with its sternum only, the lab's
+    neck and shoulder markers still to place; toes with none) has its joint's rotations pulled
+    towards neutral in the placement passes; a trunk with 3 does not, nor does a leg (its foot
+    markers pin it). Placement then puts the lab's trunk markers on the torso where they are."""
+    from msk.scaling import NEUTRAL_TASK_WEIGHT, place_markers_from_motion, unobserved_end_rotations
+
+    trunk = {
+        "NECK": ("torso", (-0.06, 0.40, 0.0)),
+        "RSHO": ("torso", (-0.02, 0.38, 0.17)),
+        "LSHO": ("torso", (-0.02, 0.38, -0.17)),
+        "THOR": ("torso", (-0.12, 0.25, 0.0)),
+    }
+    truth = gait2392.with_markers(
+        [*gait2392.markers, *(Marker(k, b, np.array(p)) for k, (b, p) in trunk.items())]
+    )
+    x, labels, t = _motion(gait2392, truth, noise_m=0.001)
+    lumbar = {"lumbar_extension", "lumbar_bending", "lumbar_rotation"}
+    every = unobserved_end_rotations(gait2392, x, labels, 10)
+    assert set(every) == {"mtp_angle_r", "mtp_angle_l"}  # no marker on the toes
+    for name in ("R.Acromium", "L.Acromium", "Top.Head"):
+        x[:, labels.index(name)] = np.nan  # the torso keeps its sternum only
+    pulled = unobserved_end_rotations(gait2392, x, labels, 10)
+    assert set(pulled) == lumbar | {"mtp_angle_r", "mtp_angle_l"}
+    assert all(v == (0.0, NEUTRAL_TASK_WEIGHT) for v in pulled.values())
+    model, info = place_markers_from_motion(gait2392, x, labels, t, max_frames=40)
+    assert set(info["unobserved_rotations"]) == {"mtp_angle_r", "mtp_angle_l"}  # last pass
+    got = {m.name: m for m in model.markers}
+    for k, (body, p) in trunk.items():
+        assert info["placed"][k] == body
+        np.testing.assert_allclose(got[k].offset, p, atol=0.005)
