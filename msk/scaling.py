@@ -1178,21 +1178,25 @@ def _tracked(x: Array, min_frames: int) -> bool:
 def unobserved_end_rotations(
     model: Model, markers: Array, labels: Sequence[str], min_frames: int
 ) -> dict[str, tuple[float, float]]:
-    """Rotations of the joints whose child's whole subtree (the child and every body distal to
-    it) carries fewer than 3 tracked model markers (each seen in ``min_frames`` frames of
-    ``markers``), as IK coordinate tasks pulling them weakly towards neutral (value 0,
+    """Rotations of the joints whose child is a terminal body (nothing distal to it: a trunk,
+    toes) that its tracked model markers (each seen in ``min_frames`` frames of ``markers``) do
+    not pin, as IK coordinate tasks pulling them weakly towards neutral (value 0,
     :data:`NEUTRAL_TASK_WEIGHT`).
 
-    Nothing distal pins such a joint: fewer than 3 points leave a rotation of the subtree free,
-    and IK lets it wander. The Grand Challenge DM trunk has one gait2392 marker (``Sternum``;
+    With the joint centre, one marker pins a 1-DOF joint and two a ball joint; a ball joint
+    with one marker leaves the rotation about the line from the joint centre to the marker
+    free, and IK lets it wander. The Grand Challenge DM trunk has one gait2392 marker
+    (``Sternum``, nearly above the lumbar joint: the free rotation is the trunk's axial one;
     its shoulder and neck markers are the lab's own, to be placed): in the placement passes its
     lumbar rotation drifted to −72…+92° through og1's walk, the neck and shoulder markers
     then moved 0.14–0.16 m on every body and were left out, and the whole trial's IK kept the
     trunk turned (og1 lumbar rotation −72…+92°, treadmill −26…+91°, crouch −39…+93°). With
     the pull the first pass holds the trunk near neutral, the lab's trunk markers are placed
-    on it, and the later passes (and the trial's own IK) track it with them. A leg is pinned by
-    its foot markers and gets no pull. :func:`place_markers_from_motion` applies it in every
-    pass (reported as ``"unobserved_rotations"``).
+    on it, and the later passes (and the trial's own IK) track it with them. A leg gets no pull
+    (its joints are not terminal), nor a trunk with both acromia (UWA running: pulling its
+    20–40° forward lean towards neutral had put the thigh and shank clusters 50–200 mm loose).
+    :func:`place_markers_from_motion` applies it in every pass (reported, for the last pass, as
+    ``"unobserved_rotations"``).
     """
     seen = [
         mk.body
@@ -1204,13 +1208,18 @@ def unobserved_end_rotations(
     for j in model.joints:
         if j.parent == GROUND:
             continue
-        sub = set(model.subtree(j.child))
-        if sum(b in sub for b in seen) >= 3:
+        if any(jj.parent == j.child for jj in model.joints):
+            continue  # not a terminal body
+        free = [
+            c.name
+            for ax in j.axes
+            if ax.kind == "revolute"
+            and (c := coords.get(ax.coordinate or "")) is not None
+            and not c.locked
+        ]
+        if sum(b == j.child for b in seen) >= min(2, len(free)):
             continue
-        for ax in j.axes:
-            c = coords.get(ax.coordinate or "")
-            if c is not None and not c.locked and ax.kind == "revolute":
-                out[c.name] = (0.0, NEUTRAL_TASK_WEIGHT)
+        out.update({name: (0.0, NEUTRAL_TASK_WEIGHT) for name in free})
     return out
 
 

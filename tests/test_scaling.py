@@ -845,10 +845,10 @@ def test_motion_placement_takes_the_walks_median_subtalar_as_neutral(gait2392):
 
 
 def test_a_trunk_with_one_tracked_marker_is_pulled_to_neutral_in_placement(gait2392):
-    """A subtree with fewer than 3 tracked markers (a trunk with its sternum only, the lab's
+    """A terminal body its tracked markers do not pin (a trunk with its sternum only, the lab's
     neck and shoulder markers still to place; toes with none) has its joint's rotations pulled
-    towards neutral in the placement passes; a trunk with 3 does not, nor does a leg (its foot
-    markers pin it). Placement then puts the lab's trunk markers on the torso where they are."""
+    towards neutral in the placement passes; a trunk with 2 markers does not, nor does a leg.
+    Placement then puts the lab's trunk markers on the torso where they are."""
     from msk.scaling import NEUTRAL_TASK_WEIGHT, place_markers_from_motion, unobserved_end_rotations
 
     trunk = {
@@ -864,8 +864,10 @@ def test_a_trunk_with_one_tracked_marker_is_pulled_to_neutral_in_placement(gait2
     lumbar = {"lumbar_extension", "lumbar_bending", "lumbar_rotation"}
     every = unobserved_end_rotations(gait2392, x, labels, 10)
     assert set(every) == {"mtp_angle_r", "mtp_angle_l"}  # no marker on the toes
-    for name in ("R.Acromium", "L.Acromium", "Top.Head"):
-        x[:, labels.index(name)] = np.nan  # the torso keeps its sternum only
+    for name in ("R.Acromium", "Top.Head"):
+        x[:, labels.index(name)] = np.nan  # two markers and the lumbar joint pin the trunk
+    assert set(unobserved_end_rotations(gait2392, x, labels, 10)) == set(every)
+    x[:, labels.index("L.Acromium")] = np.nan  # the torso keeps its sternum only
     pulled = unobserved_end_rotations(gait2392, x, labels, 10)
     assert set(pulled) == lumbar | {"mtp_angle_r", "mtp_angle_l"}
     assert all(v == (0.0, NEUTRAL_TASK_WEIGHT) for v in pulled.values())
