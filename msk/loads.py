@@ -273,6 +273,11 @@ class ExternalLoads(FrameAxis):
     ``shared_contact`` / ``unassigned_contact`` ``(N,)`` bool mark their frames (``None`` when
     built by hand: no flag). On those frames a measured ground reaction is on no body, so
     :func:`contact_measured` excludes them.
+
+    ``force_recorded`` (N, 3): the net plate force on the subject **as recorded** (before the
+    low-pass, zero under the threshold), summed over the plate contacts assigned to a body
+    (``None`` when a plate was given without it): the "measured external force" of the
+    residual guidelines (Hicks et al. 2015), which a low-pass would lower.
     """
 
     FRAME_FIELDS: ClassVar[tuple[str, ...]] = (
@@ -282,6 +287,7 @@ class ExternalLoads(FrameAxis):
         "point",
         "shared_contact",
         "unassigned_contact",
+        "force_recorded",
     )
 
     time: Array
@@ -294,6 +300,7 @@ class ExternalLoads(FrameAxis):
     flags: tuple[ContactFlag, ...] = ()
     shared_contact: NDArray[np.bool_] | None = None
     unassigned_contact: NDArray[np.bool_] | None = None
+    force_recorded: Array | None = None
 
     def flagged(self) -> NDArray[np.bool_]:
         """(N,) bool: frames with a shared or unassigned plate contact."""
@@ -451,6 +458,7 @@ class _Prepared:
     standing: NDArray[np.bool_] | None = None  # (N, F) after the swing test
     primary: NDArray[np.int64] | None = None  # (N,) nearest standing foot, -1 none
     surface_v: Array | None = None  # (3,) velocity of the surface (a treadmill belt's)
+    force_recorded: Array | None = None  # (N, 3) the force before the low-pass
 
 
 def external_loads(
@@ -525,6 +533,7 @@ def external_loads(
     flags: list[ContactFlag] = []
     shared = np.zeros(n, dtype=bool)
     unassigned = np.zeros(n, dtype=bool)
+    force_rec = np.zeros((n, 3))
 
     def slot(body: str) -> int:
         if body not in bodies:
@@ -608,6 +617,8 @@ def external_loads(
                 moment[b][sl] += p.moment[sl]
                 point_num[b][sl] += p.fv[sl, None] * p.cop[sl]
                 point_den[b][sl] += p.fv[sl]
+                if p.force_recorded is not None:
+                    force_rec[sl] += p.force_recorded[sl]
                 assigned.append(Assignment(pl.name, body, float(t[s0]), float(t[s1 - 1])))
 
     # extra applied forces
@@ -663,6 +674,7 @@ def external_loads(
         flags=tuple(flags),
         shared_contact=shared,
         unassigned_contact=unassigned,
+        force_recorded=(force_rec if all(p.force_recorded is not None for p in prepared) else None),
     )
 
 
@@ -677,7 +689,9 @@ class SampledPlate:
     threshold, low-passed, linearly resampled on ``time`` (0 outside the plate's time);
     ``height_m``: the plate surface along the ``up`` of the sampling (corners, else the median
     of the loaded COPs); ``fv_recorded`` (N,) the vertical force before the low-pass (0 at the
-    samples under the threshold), resampled on ``time``; ``corners`` (4, 3) m or ``None``."""
+    samples under the threshold), resampled on ``time``; ``corners`` (4, 3) m or ``None``;
+    ``force_recorded`` (N, 3) F before the low-pass, zero under the threshold, resampled on
+    ``time`` (``None``: not kept)."""
 
     name: str
     time: Array
@@ -686,6 +700,7 @@ class SampledPlate:
     height_m: float
     fv_recorded: Array
     corners: Array | None = None
+    force_recorded: Array | None = None
 
     def rotated(self, rotation: ArrayLike) -> SampledPlate:
         """This plate in the frame ``x_new = R x`` (force, moment about the origin, corners;
@@ -699,6 +714,7 @@ class SampledPlate:
             self.height_m,
             self.fv_recorded,
             None if self.corners is None else np.asarray(self.corners, dtype=float) @ r.T,
+            None if self.force_recorded is None else self.force_recorded @ r.T,
         )
 
 
@@ -742,10 +758,12 @@ def sample_plate(
     rate = (ta.size - 1) / (ta[-1] - ta[0]) if ta.size > 1 else float("nan")
     f_k = np.empty((t.size, 3))
     m_k = np.empty((t.size, 3))
+    f_rec = np.empty((t.size, 3))
     for j in range(3):
         a, b = (j + 1) % 3, (j + 2) % 3
         # F_j and (c × F + T)_j as moment_about_origin computes them (np.cross: c_a F_b − c_b F_a)
         f_j = s * np.nan_to_num(f_raw[:, j])
+        f_rec[:, j] = np.nan_to_num(np.interp(t, ta, f_j * loaded_raw, left=np.nan, right=np.nan))
         m_j = np.nan_to_num(cop_raw[:, a]) * f_raw[:, b]
         m_j -= np.nan_to_num(cop_raw[:, b]) * f_raw[:, a]
         m_j += np.nan_to_num(np.asarray(pl.free_moment[:, j], dtype=float))
@@ -764,7 +782,7 @@ def sample_plate(
         cop_ok = cop_finite & loaded_raw
         h = float(np.median(cop_raw[cop_ok] @ up)) if cop_ok.any() else 0.0
     corners = None if pl.corners is None else np.asarray(pl.corners, dtype=float)
-    return SampledPlate(pl.name, t, f_k, m_k, h, fv_rec, corners)
+    return SampledPlate(pl.name, t, f_k, m_k, h, fv_rec, corners, f_rec)
 
 
 def _prepare(
@@ -781,10 +799,12 @@ def _prepare(
     if not isinstance(pl, SampledPlate):
         pl = sample_plate(pl, t, up, threshold_n=threshold_n, sign=sign, cutoff_hz=cutoff_hz)
     f_k, m_k, h = pl.force, pl.moment, pl.height_m
-    fv_rec = pl.fv_recorded
+    fv_rec, f_rec = pl.fv_recorded, pl.force_recorded
     if not np.array_equal(pl.time, t):
         f_k = np.nan_to_num(resample_to(pl.time, f_k, t))
         m_k = np.nan_to_num(resample_to(pl.time, m_k, t))
+        if f_rec is not None:
+            f_rec = np.nan_to_num(resample_to(pl.time, f_rec, t))
         fv_rec = np.nan_to_num(np.interp(t, pl.time, fv_rec, left=np.nan, right=np.nan))
     fv = f_k @ up
     contact = fv > threshold_n
@@ -794,7 +814,10 @@ def _prepare(
         cop = h * up + np.cross(up, m_h) / fv[:, None]
     cop[~contact] = np.nan
     recorded = fv_rec > threshold_n
-    return _Prepared(pl.name, pl.corners, f_k, m_k, fv, cop, h, contact, fv_rec, recorded)
+    return _Prepared(
+        pl.name, pl.corners, f_k, m_k, fv, cop, h, contact, fv_rec, recorded,
+        force_recorded=f_rec,
+    )  # fmt: skip
 
 
 def _plate_state(

@@ -59,6 +59,7 @@ __all__ = [
     "THRESHOLDS",
     "Flag",
     "body_mass_from_loads",
+    "com_height",
     "contact_flags",
     "gait_flags",
     "inconsistent_static_markers",
@@ -151,6 +152,31 @@ def body_mass_from_loads(
         vz.append(float(np.asarray(data.vcom[0]) @ up))
     den = g * float(t[i1 - 1] - t[i0]) + vz[1] - vz[0]
     return impulse / den if den > 0 else None
+
+
+def com_height(
+    model: Any, kinematics: Any, frames: NDArray[np.bool_], floor_m: float = 0.0
+) -> float | None:
+    """The whole-body centre of mass's height above the floor, median over ``frames``:
+    median_t (c(q_t) · up − ``floor_m``), up = −gravity / g, c from the model's mass
+    distribution (pinocchio ``centerOfMass``). The "COM height" of the residual-moment
+    guideline (Hicks et al. 2015, J Biomech Eng 137:020905): measured on the model and the
+    motion rather than assumed from the stature. None without a finite frame."""
+    g_vec = np.asarray(model.gravity, dtype=float)
+    g = float(np.linalg.norm(g_vec))
+    q = np.asarray(kinematics.q, dtype=float)
+    idx = np.flatnonzero(np.asarray(frames, dtype=bool) & np.isfinite(q).all(axis=1))
+    if g == 0.0 or idx.size == 0:
+        return None
+    up = -g_vec / g
+    data = model.create_data()
+    z = np.empty(idx.size)
+    zero = np.zeros((1, q.shape[1]))
+    for i, k in enumerate(idx.tolist()):
+        qp, _, _ = model.coupling.embed(q[k : k + 1], zero, zero)
+        pin.centerOfMass(model.pin_model, data, qp[0])
+        z[i] = float(np.asarray(data.com[0]) @ up)
+    return float(np.median(z)) - floor_m
 
 
 def inconsistent_static_markers(
@@ -553,6 +579,7 @@ def gait_flags(
     optimization: Any = None,
     plate_mass_kg: float | None = None,
     peak_external_force_n: float | None = None,
+    com_height_m: float | None = None,
     held: Sequence[str] = (),
     scaling_methods: Mapping[str, str] | None = None,
     thresholds: Mapping[str, float] = THRESHOLDS,
@@ -564,8 +591,10 @@ def gait_flags(
     ``optimization`` the tension result (:class:`msk.pipeline.tension.MuscleTensions`: forces,
     activations, excluded and infeasible frames, reserve torques); ``plate_mass_kg``
     :func:`body_mass_from_loads` of the trial; ``peak_external_force_n`` the
-    largest ground-reaction magnitude (Hicks et al. 2015 state the moment bound on it; body
-    weight when None); ``scaling_methods`` body → how it was scaled (a body left
+    largest ground-reaction magnitude as recorded (Hicks et al. 2015 state the moment bound on
+    the measured external force; body weight when None); ``com_height_m`` the subject's
+    centre-of-mass height above the floor (:func:`com_height`; 55 % of the stature when None);
+    ``scaling_methods`` body → how it was scaled (a body left
     ``"unscaled"`` is flagged); ``held`` coordinates held near neutral by an IK coordinate task (the
     markers do not observe them; reported as such, not checked for range or freezing)."""
     th = {**THRESHOLDS, **thresholds}
@@ -596,15 +625,16 @@ def gait_flags(
         )  # fmt: skip
     rm = quality.get("residual_moment_rms_nm")
     if rm is not None and np.isfinite(rm):
-        com_h = 0.55 * (height_m if height_m else 1.75)  # COM ≈ 55 % of stature (de Leva 1996)
+        # COM height: the model's over the trial, else ≈ 55 % of stature (de Leva 1996)
+        com_h = com_height_m if com_height_m else 0.55 * (height_m if height_m else 1.75)
         f_ext = peak_external_force_n if peak_external_force_n else mass_kg * 9.80665
         pct = 100.0 * rm / (com_h * f_ext)
         if pct > th["residual_moment_rms_pct_com_height_peak_force"]:
             out.append(
                 _flag(trial_name, "residual_moment_rms_pct_com_height_peak_force", pct,
                       th["residual_moment_rms_pct_com_height_peak_force"],
-                      f"pelvis residual moment RMS {rm:.1f} N·m = {pct:.2f} % of COM height × "
-                      f"peak external force, over "
+                      f"pelvis residual moment RMS {rm:.1f} N·m = {pct:.2f} % of COM height "
+                      f"({com_h:.2f} m) × peak measured external force ({f_ext:.0f} N), over "
                       f"{th['residual_moment_rms_pct_com_height_peak_force']:g} % "
                       "(Hicks et al. 2015)")
             )  # fmt: skip

@@ -79,6 +79,7 @@ __all__ = [
     "scale_inertia",
     "scale_model",
     "static_joint_centres",
+    "unobserved_end_rotations",
     "unobserved_knees_flexed",
     "usable_measurements",
 ]
@@ -1174,6 +1175,54 @@ def _tracked(x: Array, min_frames: int) -> bool:
     return int(np.isfinite(x).all(axis=1).sum()) >= min_frames
 
 
+def unobserved_end_rotations(
+    model: Model, markers: Array, labels: Sequence[str], min_frames: int
+) -> dict[str, tuple[float, float]]:
+    """Rotations of the joints whose child is a terminal body (nothing distal to it: a trunk,
+    toes) that its tracked model markers (each seen in ``min_frames`` frames of ``markers``) do
+    not pin, as IK coordinate tasks pulling them weakly towards neutral (value 0,
+    :data:`NEUTRAL_TASK_WEIGHT`).
+
+    With the joint centre, one marker pins a 1-DOF joint and two a ball joint; a ball joint
+    with one marker leaves the rotation about the line from the joint centre to the marker
+    free, and IK lets it wander. The Grand Challenge DM trunk has one gait2392 marker
+    (``Sternum``, nearly above the lumbar joint: the free rotation is the trunk's axial one;
+    its shoulder and neck markers are the lab's own, to be placed): in the placement passes its
+    lumbar rotation drifted to −72…+92° through og1's walk, the neck and shoulder markers
+    then moved 0.14–0.16 m on every body and were left out, and the whole trial's IK kept the
+    trunk turned (og1 lumbar rotation −72…+92°, treadmill −26…+91°, crouch −39…+93°). With
+    the pull the first pass holds the trunk near neutral, the lab's trunk markers are placed
+    on it, and the later passes (and the trial's own IK) track it with them. A leg gets no pull
+    (its joints are not terminal), nor a trunk with both acromia (UWA running: pulling its
+    20–40° forward lean towards neutral had put the thigh and shank clusters 50–200 mm loose).
+    :func:`place_markers_from_motion` applies it in every pass (reported, for the last pass, as
+    ``"unobserved_rotations"``).
+    """
+    seen = [
+        mk.body
+        for mk in model.markers
+        if mk.name in labels and _tracked(markers[:, list(labels).index(mk.name)], min_frames)
+    ]
+    coords = {c.name: c for c in model.coordinates}
+    out: dict[str, tuple[float, float]] = {}
+    for j in model.joints:
+        if j.parent == GROUND:
+            continue
+        if any(jj.parent == j.child for jj in model.joints):
+            continue  # not a terminal body
+        free = [
+            c.name
+            for ax in j.axes
+            if ax.kind == "revolute"
+            and (c := coords.get(ax.coordinate or "")) is not None
+            and not c.locked
+        ]
+        if sum(b == j.child for b in seen) >= min(2, len(free)):
+            continue
+        out.update({name: (0.0, NEUTRAL_TASK_WEIGHT) for name in free})
+    return out
+
+
 def unobserved_knees_flexed(
     model: Model, markers: Array, labels: Sequence[str], min_frames: int
 ) -> dict[str, tuple[float, float]]:
@@ -1222,6 +1271,7 @@ def place_markers_from_motion(
     iterations: int = 3,
     move: Sequence[str] = (),
     regularize: bool | None = None,
+    median_neutral: Sequence[str] = (),
 ) -> tuple[Model, dict[str, Any]]:
     """Add a motion trial's non-model markers to ``model`` when there is no static trial.
 
@@ -1246,10 +1296,23 @@ def place_markers_from_motion(
     5. ``move``: model markers (a lab puts its foot markers where it likes) moved, on their
        own body, to their median body-frame position in the last pass (OpenSim's
        ``move_model_markers`` for these markers, as :func:`place_markers` does on a static);
-       shoulder-girdle markers of a model without that segment are always moved.
+       shoulder-girdle markers of a model without that segment are always moved;
+    6. ``median_neutral``: coordinates whose offset the placed and moved markers leave free
+       (every marker distal to the joint placed or moved from this very motion: rotating them
+       all on the child body by δ and the joint by −δ fits equally), so the last pass expresses
+       the markers in the poses with each such coordinate's median over its solved frames
+       subtracted: the motion's median angle becomes the joint's neutral (0), as OpenSim's
+       scaling holds the subtalar and MTP angles at 0 in the static pose (gait2392's example
+       scale setups). Otherwise the offset is whatever the generic model markers' fit gives:
+       DM og1's subtalar at a median of 31° (r) / 24° (l) — gait2392's midfoot markers sit
+       41–66 mm from the lab's, and the calcaneus rolls about the subtalar axis to reach them.
+       Reported as ``"median_neutral"``: coordinate → the median removed (rad).
 
     The passes' IK takes the flexion branch of a knee no model marker observes
-    (:func:`unobserved_knees_flexed`; reported as ``"knee_flexion_branch"``).
+    (:func:`unobserved_knees_flexed`; reported as ``"knee_flexion_branch"``), and pulls the
+    rotations of a subtree with fewer than 3 tracked markers towards neutral
+    (:func:`unobserved_end_rotations`: a trunk with one sternum marker; reported, for the last
+    pass, as ``"unobserved_rotations"``).
 
     ``regularize`` None (default): the passes run without any pull on the coordinates; when
     their final marker RMS exceeds :data:`PLACEMENT_RETRY_RMS_M` (the anatomical markers leave
@@ -1272,6 +1335,7 @@ def place_markers_from_motion(
         args: dict[str, Any] = dict(
             max_spread_m=max_spread_m, max_distance_m=max_distance_m, max_frames=max_frames,
             min_frames=min_frames, min_markers=min_markers, iterations=iterations, move=move,
+            median_neutral=median_neutral,
         )  # fmt: skip
         plain = place_markers_from_motion(model, markers, labels, time, regularize=False, **args)
         if plain[1]["ik_marker_rms_m"] <= PLACEMENT_RETRY_RMS_M:
@@ -1320,6 +1384,8 @@ def place_markers_from_motion(
     unseen: list[str] = []
     rms = float("nan")
     n_ok = 0
+    neutral_shift: dict[str, float] = {}
+    unobserved: dict[str, tuple[float, float]] = {}
     for it in range(max(1, iterations)):
         # later passes: IK with the markers placed so far, save the clearly loose ones
         ok_prev = [k for k in placed if spread[k] <= LOOSE_KEPT_SPREAD_FACTOR * max_spread_m]
@@ -1334,7 +1400,11 @@ def place_markers_from_motion(
         # a weak pull of every rotation towards neutral keeps the unpinned ones (hip rotation
         # with no thigh marker, pelvis tilt with two pelvis markers) from wandering to their
         # bounds, and later passes from diverging (UWA fast walking: 79 → 22 mm in pass 3)
-        tasks = _neutral_tasks(model) if regularize else None
+        unobserved = unobserved_end_rotations(ik_model, xs, labels, min_frames)
+        tasks = {
+            **unobserved,
+            **(_neutral_tasks(model) if regularize else {}),
+        } or None
         kin = solve_kinematics(
             ik_model, xs, labels, ts, cutoff_hz=None, min_markers=3, coordinate_tasks=tasks
         )
@@ -1344,6 +1414,12 @@ def place_markers_from_motion(
         n_ok = int(ok.sum())
         rms = float(np.nanmedian(kin.marker_rms[ok]))
         q = kin.q_raw[ok]
+        if it == max(1, iterations) - 1 and median_neutral:
+            q = q.copy()
+            for c in median_neutral:
+                j = model.coordinate_index(c)
+                neutral_shift[c] = float(np.median(q[:, j]))
+                q[:, j] -= neutral_shift[c]
         xo = xs[ok]
         data = model.create_data()
         # body poses per solved frame: rotations (F, B, 3, 3) and translations (F, B, 3)
@@ -1424,6 +1500,8 @@ def place_markers_from_motion(
         "frames": n_ok,
         "regularized": regularize,
         "knee_flexion_branch": sorted(flexed),
+        "median_neutral": neutral_shift,
+        "unobserved_rotations": sorted(unobserved),
     }
     return model.with_markers([*own, *added]), info
 

@@ -331,3 +331,32 @@ def test_a_few_shared_frames_inside_one_foots_stance_take_that_foot():
     lab = np.zeros(40, dtype=int)
     lab[37:] = _SHARED  # at the end of the contact: kept
     assert [s[2] for s in _segments(lab, t, 0)] == [0, _SHARED]
+
+
+def test_recorded_force_is_kept_beside_the_low_passed_one():
+    """``force_recorded``: the plates' force as recorded (before the low-pass), summed over the
+    assigned contacts; the residual-moment bound takes its peak (Hicks et al. 2015: the
+    measured external force), which a low-pass lowers."""
+    from msk.pipeline.summary import peak_measured_force_n
+
+    idx = np.arange(TRIAL.time.size) * TRIAL.analog_ratio
+    impact = [dataclasses.replace(p, force=p.force.copy()) for p in TRIAL.plates]
+    k = int(np.argmax(impact[0].force[:, 1]))
+    impact[0].force[k - 15 : k + 15, 1] += 600.0  # a 30 ms impact (3 frames)
+    loads = external_loads(MODEL, KIN, impact, cutoff_hz=6.0)
+    assert loads.force_recorded is not None
+    want = np.sum([p.force[idx] for p in impact], axis=0)
+    np.testing.assert_allclose(loads.force_recorded, want, atol=1e-8)
+    every = np.ones(TRIAL.time.size, dtype=bool)
+    peak = peak_measured_force_n(loads, every)
+    assert peak == pytest.approx(np.linalg.norm(want, axis=1).max())
+    filtered = np.linalg.norm(np.nansum(loads.force, axis=1), axis=1).max()
+    assert filtered < peak
+    # taken over the given frames; a result built without it falls back on the filtered force
+    half = TRIAL.time < 0.5
+    assert peak_measured_force_n(loads, half) == pytest.approx(
+        np.linalg.norm(want[half], axis=1).max()
+    )
+    bare = dataclasses.replace(loads, force_recorded=None)
+    assert peak_measured_force_n(bare, every) == pytest.approx(filtered)
+    assert loads.take(half).force_recorded.shape == (int(half.sum()), 3)

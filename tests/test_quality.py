@@ -175,3 +175,35 @@ def test_a_knee_held_at_its_model_bound_is_flagged():
         assert "knee_angle_r_deg" not in by  # +10° is inside the physiological range
         if raised:
             assert by["knee_angle_r_at_bound_frames_pct"].value == pytest.approx(30.0)
+
+
+def test_com_height_and_the_residual_moment_bound_on_it():
+    """The COM height is the model's (median over the frames, above the floor), and the
+    residual-moment gate is 1 % of COM height × peak measured force (Hicks et al. 2015)."""
+    from msk.quality import com_height
+
+    model = two_leg_model()
+    hi, lo = _still(model, 20, ty=0.93), _still(model, 20, ty=0.83)
+    every = np.ones(20, dtype=bool)
+    h = com_height(model, hi, every)
+    assert h == pytest.approx(com_height(model, lo, every) + 0.10)
+    assert com_height(model, hi, every, floor_m=0.05) == pytest.approx(h - 0.05)
+    assert com_height(model, hi, np.zeros(20, dtype=bool)) is None
+    kin = _still(model, 50)
+    kin.coordinate_names = kin_names(model)
+    jt = SimpleNamespace(coordinate_names=kin_names(model), tau=np.zeros_like(kin.q))
+    quality = {"residual_moment_rms_nm": 10.0}
+
+    def moment_flags(**kw):
+        return [
+            f for f in gait_flags("walk1", quality=quality, model=model, kinematics=kin,
+                                  joint_torques=jt, mass_kg=70.0, height_m=1.7, **kw)
+            if f.quantity == "residual_moment_rms_pct_com_height_peak_force"
+        ]  # fmt: skip
+
+    (f,) = moment_flags(peak_external_force_n=1000.0, com_height_m=0.9)
+    assert f.value == pytest.approx(100 * 10.0 / (0.9 * 1000.0))
+    assert "0.90 m" in f.message and "1000 N" in f.message
+    assert moment_flags(peak_external_force_n=1000.0, com_height_m=1.2) == []
+    (f,) = moment_flags(peak_external_force_n=1000.0)  # no COM height: 55 % of stature
+    assert f.value == pytest.approx(100 * 10.0 / (0.55 * 1.7 * 1000.0))

@@ -799,3 +799,81 @@ def test_place_markers_from_motion_keeps_the_only_markers_of_a_body_when_loose(g
     assert set(info["kept_loose"]) == set(clusters) and not info["too_loose"]
     assert {k: info["placed"][k] for k in clusters} == {k: b for k, (b, _) in clusters.items()}
     assert set(clusters) <= set(model.marker_names)
+
+
+def test_motion_placement_takes_the_walks_median_subtalar_as_neutral(gait2392):
+    """No static trial, every foot marker moved: the subtalar offset is a gauge (the markers
+    rotated on the calcaneus about its axis by δ and the joint by −δ fit equally). A lab's foot
+    markers sitting where gait2392's would be with the subtalar 25° inverted (truth: subtalar
+    ±6° about 0 through the walk) put the walk's subtalar at a median of ~25° unless
+    ``median_neutral`` takes the walk's median as the joint's neutral: then within 2°."""
+    from msk.kinematics import solve_kinematics
+    from msk.pipeline.model import free_foot_coordinates
+    from msk.scaling import place_markers_from_motion
+
+    th = _gait_poses(gait2392)
+    c = gait2392.coordinate_names
+    th[:, c.index("subtalar_angle_r")] = 0.1 * np.sin(np.linspace(0.0, 4 * np.pi, len(th)))
+    x = marker_positions(gait2392, th)
+    shifted = th.copy()
+    shifted[:, c.index("subtalar_angle_r")] += np.radians(25.0)
+    xs = marker_positions(gait2392, shifted)
+    labels = list(gait2392.marker_names)
+    feet = [m.name for m in gait2392.markers if m.body == "calcn_r"]
+    for name in feet:
+        x[:, labels.index(name)] = xs[:, labels.index(name)]
+    x = x + np.random.default_rng(3).normal(0.0, 0.001, x.shape)
+    t = np.arange(len(th)) / 100.0
+    assert free_foot_coordinates(gait2392, feet) == ("subtalar_angle_r",)
+    assert free_foot_coordinates(gait2392, feet[:-1]) == ()  # one marker kept: it observes
+    # a generic marker the trial lacks observes nothing
+    assert free_foot_coordinates(gait2392, feet[:-1], present=feet[:-1]) == ("subtalar_angle_r",)
+    medians = {}
+    for neutral in ((), ("subtalar_angle_r",)):
+        model, info = place_markers_from_motion(
+            gait2392, x, labels, t, move=feet, median_neutral=neutral, max_frames=40
+        )
+        kin = solve_kinematics(model, x, labels, t, cutoff_hz=None)
+        medians[neutral] = np.degrees(np.median(kin.q_raw[:, c.index("subtalar_angle_r")]))
+        assert kin.marker_rms.mean() < 0.003  # the same fit either way
+        if neutral:
+            assert np.degrees(info["median_neutral"]["subtalar_angle_r"]) == pytest.approx(
+                25.0, abs=2.0
+            )
+    assert medians[()] == pytest.approx(25.0, abs=2.0)
+    assert abs(medians[("subtalar_angle_r",)]) < 2.0
+
+
+def test_a_trunk_with_one_tracked_marker_is_pulled_to_neutral_in_placement(gait2392):
+    """A terminal body its tracked markers do not pin (a trunk with its sternum only, the lab's
+    neck and shoulder markers still to place; toes with none) has its joint's rotations pulled
+    towards neutral in the placement passes; a trunk with 2 markers does not, nor does a leg.
+    Placement then puts the lab's trunk markers on the torso where they are."""
+    from msk.scaling import NEUTRAL_TASK_WEIGHT, place_markers_from_motion, unobserved_end_rotations
+
+    trunk = {
+        "NECK": ("torso", (-0.06, 0.40, 0.0)),
+        "RSHO": ("torso", (-0.02, 0.38, 0.17)),
+        "LSHO": ("torso", (-0.02, 0.38, -0.17)),
+        "THOR": ("torso", (-0.12, 0.25, 0.0)),
+    }
+    truth = gait2392.with_markers(
+        [*gait2392.markers, *(Marker(k, b, np.array(p)) for k, (b, p) in trunk.items())]
+    )
+    x, labels, t = _motion(gait2392, truth, noise_m=0.001)
+    lumbar = {"lumbar_extension", "lumbar_bending", "lumbar_rotation"}
+    every = unobserved_end_rotations(gait2392, x, labels, 10)
+    assert set(every) == {"mtp_angle_r", "mtp_angle_l"}  # no marker on the toes
+    for name in ("R.Acromium", "Top.Head"):
+        x[:, labels.index(name)] = np.nan  # two markers and the lumbar joint pin the trunk
+    assert set(unobserved_end_rotations(gait2392, x, labels, 10)) == set(every)
+    x[:, labels.index("L.Acromium")] = np.nan  # the torso keeps its sternum only
+    pulled = unobserved_end_rotations(gait2392, x, labels, 10)
+    assert set(pulled) == lumbar | {"mtp_angle_r", "mtp_angle_l"}
+    assert all(v == (0.0, NEUTRAL_TASK_WEIGHT) for v in pulled.values())
+    model, info = place_markers_from_motion(gait2392, x, labels, t, max_frames=40)
+    assert set(info["unobserved_rotations"]) == {"mtp_angle_r", "mtp_angle_l"}  # last pass
+    got = {m.name: m for m in model.markers}
+    for k, (body, p) in trunk.items():
+        assert info["placed"][k] == body
+        np.testing.assert_allclose(got[k].offset, p, atol=0.005)

@@ -13,7 +13,7 @@ from __future__ import annotations
 
 import dataclasses
 import warnings
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -280,9 +280,11 @@ def _scale_and_place(inputs: SessionInputs, read: ReadResult) -> dict[str, Any]:
         # but the motion tells (msk.markersets.foot_markers), so they are moved too
         present = [mk.name for mk in model.markers if mk.name in set(mlabels)]
         feet = [m for m in foot_markers(present) if m not in cfg.marker_move]
+        moved = [*cfg.marker_move, *feet]
         model, placed = place_markers_from_motion(
-            model, xm, mlabels, trial.time, move=[*cfg.marker_move, *feet]
-        )
+            model, xm, mlabels, trial.time, move=moved,
+            median_neutral=free_foot_coordinates(model, moved, present),
+        )  # fmt: skip
     info["marker_placement"] = placed
     if model.metadata.get("knee_alignment"):
         info["knee_alignment"] = dict(model.metadata["knee_alignment"])
@@ -414,6 +416,29 @@ def _revolute_axis(model: Any, body: str) -> np.ndarray | None:
                 v = np.asarray(j.child_offset.rotation, dtype=float) @ np.asarray(ax.axis, float)
                 return v / np.linalg.norm(v)
     return None
+
+
+def free_foot_coordinates(
+    model: Any, moved: Sequence[str], present: Sequence[str] | None = None
+) -> tuple[str, ...]:
+    """Foot coordinates (subtalar, MTP) whose offset a placement from the motion leaves free:
+    every model marker distal to the joint that the trial has (``present``; None: every model
+    marker) is moved (:func:`msk.scaling.place_markers_from_motion`, ``median_neutral``), and
+    there is at least one. A generic marker the trial lacks observes nothing."""
+    body_of = {m.name: m.body for m in model.markers}
+    out: list[str] = []
+    for sfx in ("_r", "_l"):
+        for coord, child in (("subtalar_angle", "calcn"), ("mtp_angle", "toes")):
+            name, body = coord + sfx, child + sfx
+            if name not in model.coordinate_names or body not in model.body_joint:
+                continue
+            sub = set(model.subtree(body))
+            distal = [
+                m for m, b in body_of.items() if b in sub and (present is None or m in present)
+            ]
+            if distal and set(distal) <= set(moved):
+                out.append(name)
+    return tuple(out)
 
 
 def held_foot_coordinates(
