@@ -1310,7 +1310,7 @@ def place_markers_from_motion(
 
     The passes' IK takes the flexion branch of a knee no model marker observes
     (:func:`unobserved_knees_flexed`; reported as ``"knee_flexion_branch"``), and pulls the
-    rotations of a subtree with fewer than 3 tracked markers towards neutral
+    rotations of a terminal body its tracked markers do not pin towards neutral
     (:func:`unobserved_end_rotations`: a trunk with one sternum marker; reported, for the last
     pass, as ``"unobserved_rotations"``).
 
