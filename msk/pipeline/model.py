@@ -208,7 +208,10 @@ def _scale_and_place(inputs: SessionInputs, read: ReadResult) -> dict[str, Any]:
     }
     report = None
     if static_read is not None:
-        sm, slabels_raw, stime, ssubj = static_read
+        sm, slabels_raw, stime, ssubj, window = static_read
+        # the still, double-stance part of the static only (msk.static_window.still_window)
+        sm, stime = sm[window.frames], stime[window.frames]
+        info["static_window"] = window.summary()
         # the lab's joint widths (Plug-in Gait subject parameters): the static's, else the task's
         subj = ssubj if ssubj is not None and ssubj.widths_m else trial.subject
         widths = dict(getattr(subj, "widths_m", None) or {})

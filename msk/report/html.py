@@ -1383,6 +1383,21 @@ def _methods_section(res: SessionResults, number: int = 6, *, gait: bool = True)
             f"along +x); force-plate contacts: {_or(plate_assignment, '?')}."
             "</p>"
         )
+        win = s.model.static_window if s.model is not None else None
+        if win:
+            part = (
+                "the whole trial"
+                if win.get("whole_trial")
+                else f"{win.get('start_s', 0.0):.2f}–{win.get('end_s', 0.0):.2f} s "
+                f"({win.get('frames')} of {win.get('of_frames')} frames)"
+            )
+            out.append(
+                '<p class="note">Static trial used for scaling and marker placement: '
+                f"{_e(part)}, its longest still, double-stance part (markers' 90th-percentile "
+                f"speed ≤ {1000 * float(win.get('still_below_m_s') or 0.0):.0f} mm/s"
+                + ("" if win.get("plates_loaded") is None
+                   else f", {win.get('plates_loaded')} plates loaded") + ").</p>"
+            )  # fmt: skip
     rows = []
     for r in s.stages or ():
         cls = ' class="na"' if r.status in ("not available", "failed") else ""
