@@ -93,7 +93,8 @@ class StillWindow:
             "frames": self.stop - self.first,
             "of_frames": self.n_frames,
             "whole_trial": self.whole,
-            "speed_p90_max_m_s": self.speed_m_s,
+            "speed_p90_max_m_s": self.speed_m_s if np.isfinite(self.speed_m_s) else None,
+            "judged": bool(np.isfinite(self.speed_m_s)),
             "still_below_m_s": self.max_speed_m_s,
             "plates_loaded": self.plates,
         }
@@ -144,15 +145,24 @@ def still_window(
         min_duration_s: shortest window accepted.
         cutoff_hz: low-pass cut-off of the markers before differentiation.
 
+    A static shorter than ``min_duration_s`` or 16 frames (a single-frame TRC) cannot show
+    motion: it is used whole (``speed_m_s`` NaN).
+
     Raises:
-        StaticTrialError: no still window of ``min_duration_s`` (the message gives the longest
-            one and the speeds).
+        StaticTrialError: no frame, or no still window of ``min_duration_s`` (the message gives
+            the longest one and the speeds).
     """
     x = np.asarray(markers, dtype=float)
     t = np.asarray(time, dtype=float)
     n = x.shape[0]
-    if n < 2 or t[-1] <= t[0]:
-        raise StaticTrialError("static trial: fewer than 2 frames, no still window")
+    if n == 0:
+        raise StaticTrialError("static trial: no frame")
+    if n < 16 or t[-1] - t[0] < min_duration_s:
+        # too short to show motion (a single-frame or sub-second static): used whole, not judged
+        return StillWindow(
+            first=0, stop=n, start_s=float(t[0]), end_s=float(t[-1]), n_frames=n,
+            speed_m_s=float("nan"), max_speed_m_s=float(max_speed_m_s), plates=None,
+        )  # fmt: skip
     rate = (n - 1) / (t[-1] - t[0])
     speed = _speeds(x, rate, cutoff_hz)
     seen = np.isfinite(speed).sum(axis=1) >= 3

@@ -167,3 +167,14 @@ def test_gc4_JW_static_knee_offset_against_goniometer() -> None:
     knee = -np.degrees(kin.q[:, list(kin.coordinate_names).index("knee_angle_r")])
     assert abs(float(np.mean((knee - gon)[usable]))) < 3.0
     assert np.corrcoef(gon, knee)[0, 1] > 0.95
+
+
+def test_a_static_too_short_to_judge_is_used_whole() -> None:
+    x, t = _standing(0.3, seed=6)
+    x[:, :, 0] += (0.1 * np.sin(2 * np.pi * t))[:, None]  # moving, but 0.3 s cannot tell
+    w = still_window(x, t)
+    assert w.whole and np.isnan(w.speed_m_s)
+    one = still_window(x[:1], t[:1])
+    assert one.whole and one.n_frames == 1
+    with pytest.raises(StaticTrialError):
+        still_window(x[:0], t[:0])
