@@ -23,6 +23,10 @@ class MissingDataError(MskError):
     """A channel, marker, coordinate or column that is needed is absent or empty."""
 
 
+class StaticTrialError(MissingDataError):
+    """A static trial has no still part to scale and place the markers from."""
+
+
 class UnitsError(MskError):
     """A unit string is unknown or inconsistent with the quantity."""
 

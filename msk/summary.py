@@ -285,8 +285,10 @@ class Heading(_Record):
 
 @dataclass(frozen=True, kw_only=True)
 class ModelInfo(_Record):
-    """``model``: the model file, generic and scaled mass (kg), muscles (count) and what
-    scaling and marker placement did (JSON objects as :mod:`msk.scaling` reports them)."""
+    """``model``: the model file, generic and scaled mass (kg), muscles (count), what
+    scaling and marker placement did (JSON objects as :mod:`msk.scaling` reports them) and the
+    part of the static trial used (``static_window``,
+    :meth:`msk.static_window.StillWindow.summary`)."""
 
     source: str | None = None
     generic_mass_kg: float | None = None
@@ -298,6 +300,7 @@ class ModelInfo(_Record):
     mass_kg: float | None = None
     name: str | None = None
     muscles: int | None = None
+    static_window: JsonObject | None = None
 
 
 @dataclass(frozen=True, kw_only=True)

@@ -399,3 +399,15 @@ def test_given_knee_alignment_and_contact_depth_reach_the_model_and_the_split(tm
     )
     assert st["knee_contact"].plateau["centre_m"] == [0.0, -0.03, 0.0]
     assert np.isfinite(st["knee_contact"].variants["generic"].medial).any()
+
+
+def test_static_knee_held_only_where_no_epicondyle_and_malleolus():
+    from msk.pipeline.model import HELD_COORDINATE_WEIGHT, held_static_knees
+    from msk.synthetic_models import two_leg_model
+
+    model = two_leg_model()
+    # right: lateral epicondyle and malleolus (Plug-in Gait); left: clusters and a patella
+    labels = ("RASI", "LASI", "RKNE", "RANK", "LThighSuperior", "LShankInferior", "LPatella")
+    assert held_static_knees(model, labels) == {"knee_angle_l": (0.0, HELD_COORDINATE_WEIGHT)}
+    assert held_static_knees(model, ("RKNE", "RANK", "LKNE", "LMedMal")) == {}
+    assert set(held_static_knees(model, ("RKNE", "LANK"))) == {"knee_angle_r", "knee_angle_l"}

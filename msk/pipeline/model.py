@@ -29,6 +29,7 @@ __all__ = [
     "HELD_COORDINATE_WEIGHT",
     "STATIC_CHECK_MIN_TASK_S",
     "BuiltModel",
+    "held_static_knees",
     "load_model_file",
     "run",
     "settings",
@@ -208,7 +209,10 @@ def _scale_and_place(inputs: SessionInputs, read: ReadResult) -> dict[str, Any]:
     }
     report = None
     if static_read is not None:
-        sm, slabels_raw, stime, ssubj = static_read
+        sm, slabels_raw, stime, ssubj, window = static_read
+        # the still, double-stance part of the static only (msk.static_window.still_window)
+        sm, stime = sm[window.frames], stime[window.frames]
+        info["static_window"] = window.summary()
         # the lab's joint widths (Plug-in Gait subject parameters): the static's, else the task's
         subj = ssubj if ssubj is not None and ssubj.widths_m else trial.subject
         widths = dict(getattr(subj, "widths_m", None) or {})
@@ -247,7 +251,10 @@ def _scale_and_place(inputs: SessionInputs, read: ReadResult) -> dict[str, Any]:
                 model, sm, slabels, stime,
                 move=[*cfg.marker_move, *(m for m in jc_move if m not in cfg.marker_move)],
                 hints=smatch.body_hints([b.name for b in model.bodies]), centres=centres,
-                coordinate_tasks=held_foot_coordinates(model, sm, slabels) if centres else None,
+                coordinate_tasks={
+                    **(held_foot_coordinates(model, sm, slabels) if centres else {}),
+                    **held_static_knees(model, slabels_raw),
+                } or None,
                 relocate=[lab for lab in slabels if lab in model.marker_names],
             )  # fmt: skip
         except ModelError as exc:
@@ -465,6 +472,31 @@ def held_foot_coordinates(
             sub = set(model.subtree(body))
             if sum(body_of.get(m) in sub for m in seen) < 3:
                 held[name] = (0.0, HELD_COORDINATE_WEIGHT)
+    return held
+
+
+def held_static_knees(model: Any, labels: tuple[str, ...]) -> dict[str, tuple[float, float]]:
+    """Knee flexion a static trial's markers cannot observe, held at 0 rad (the anatomical
+    standing pose a static is recorded in) by an IK coordinate task in the static pose θ̄ of
+    the marker placement (:func:`msk.scaling.place_markers`).
+
+    A side's knee flexion is observed when the static has a femoral epicondyle and a malleolus
+    marker of that side (with the pelvis' hip centre: the thigh's and the shank's long axes;
+    :func:`msk.markersets.parse_label`). Without them (thigh and shank clusters only: the
+    Grand Challenge's JW) θ̄ puts the knee wherever the generic model's cluster offsets fit,
+    and every cluster marker placed from that pose carries the error into the motion:
+    ``jw_1legstand1`` posed 9.6° hyperextended by its clusters where JW's knee goniometer reads
+    5.4° of flexion. Weight :data:`HELD_COORDINATE_WEIGHT`."""
+    from msk.markersets import parse_label
+
+    seen = {(p.side, p.landmark) for p in map(parse_label, labels) if p.side and p.landmark}
+    held: dict[str, tuple[float, float]] = {}
+    for side in ("R", "L"):
+        name = f"knee_angle_{side.lower()}"
+        knee = {(side, "knee_lat"), (side, "knee_med")} & seen
+        ankle = {(side, "ankle_lat"), (side, "ankle_med")} & seen
+        if name in model.coordinate_names and not (knee and ankle):
+            held[name] = (0.0, HELD_COORDINATE_WEIGHT)
     return held
 
 

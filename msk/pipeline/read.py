@@ -123,11 +123,34 @@ def measured_contact(inputs: SessionInputs, read: ReadResult) -> Any:
 
 def read_static_markers(
     path: Path, up: np.ndarray
-) -> tuple[np.ndarray, tuple[str, ...], np.ndarray, Any]:
+) -> tuple[np.ndarray, tuple[str, ...], np.ndarray, Any, Any]:
     """Markers of a static trial in the model frame (any format :func:`msk.io.read_trial`
     reads, rotated so that its vertical is the model's ``up``; no heading: the subject stands
-    still) and the file's :class:`msk.trial.Subject`."""
+    still), the file's :class:`msk.trial.Subject` and the part of the trial that is still in
+    double stance (:func:`msk.static_window.still_window` on its measured markers and, where
+    the file has plates, their vertical loads at the marker frames; the markers and time
+    returned are the whole trial's).
+
+    Raises:
+        StaticTrialError: the static has no still window (the message names the file).
+    """
+    from msk.exceptions import StaticTrialError
     from msk.io import read_trial, to_model_frame
+    from msk.io.c3d import is_measured_marker
+    from msk.markersets import zeros_as_gaps
+    from msk.static_window import still_window
 
     tr = to_model_frame(read_trial(path), up=up, forward=None)
-    return tr.markers, tr.marker_labels, tr.time, tr.subject
+    keep = [i for i, lab in enumerate(tr.marker_labels) if is_measured_marker(lab)]
+    loads = None
+    if tr.plates and np.size(tr.analog_time):
+        u = np.asarray(up, dtype=float)
+        loads = np.stack(
+            [np.interp(tr.time, tr.analog_time, np.asarray(p.force, float) @ u) for p in tr.plates],
+            axis=1,
+        )
+    try:
+        window = still_window(zeros_as_gaps(tr.markers)[:, keep], tr.time, plate_loads=loads)
+    except StaticTrialError as exc:
+        raise StaticTrialError(f"{path.name}: {exc}") from None
+    return tr.markers, tr.marker_labels, tr.time, tr.subject, window

@@ -1383,6 +1383,28 @@ def _methods_section(res: SessionResults, number: int = 6, *, gait: bool = True)
             f"along +x); force-plate contacts: {_or(plate_assignment, '?')}."
             "</p>"
         )
+        win = s.model.static_window if s.model is not None else None
+        if win:
+            rule = (
+                f"markers' 90th-percentile speed ≤ "
+                f"{1000 * float(win.get('still_below_m_s') or 0.0):.0f} mm/s"
+                + ("" if win.get("plates_loaded") is None
+                   else f", {win.get('plates_loaded')} plates loaded")
+            )  # fmt: skip
+            if win.get("judged") is False:
+                part = "the whole trial (too short to judge whether it moves)"
+            elif win.get("whole_trial"):
+                part = f"the whole trial, still throughout ({rule})"
+            else:
+                part = (
+                    f"{win.get('start_s', 0.0):.2f}–{win.get('end_s', 0.0):.2f} s "
+                    f"({win.get('frames')} of {win.get('of_frames')} frames), its longest "
+                    f"still, double-stance part ({rule})"
+                )
+            out.append(
+                '<p class="note">Static trial used for scaling and marker placement: '
+                f"{_e(part)}.</p>"
+            )
     rows = []
     for r in s.stages or ():
         cls = ' class="na"' if r.status in ("not available", "failed") else ""
