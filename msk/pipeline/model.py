@@ -434,18 +434,23 @@ def free_foot_coordinates(
     there is at least one. A generic marker the trial lacks observes nothing."""
     body_of = {m.name: m.body for m in model.markers}
     out: list[str] = []
+    for name, sub in _foot_joints(model):
+        distal = [m for m, b in body_of.items() if b in sub and (present is None or m in present)]
+        if distal and set(distal) <= set(moved):
+            out.append(name)
+    return tuple(out)
+
+
+def _foot_joints(model: Any) -> list[tuple[str, set[str]]]:
+    """gait2392's foot coordinates (subtalar, MTP; both sides) the model has, each with the
+    bodies distal to its joint."""
+    out = []
     for sfx in ("_r", "_l"):
         for coord, child in (("subtalar_angle", "calcn"), ("mtp_angle", "toes")):
             name, body = coord + sfx, child + sfx
-            if name not in model.coordinate_names or body not in model.body_joint:
-                continue
-            sub = set(model.subtree(body))
-            distal = [
-                m for m, b in body_of.items() if b in sub and (present is None or m in present)
-            ]
-            if distal and set(distal) <= set(moved):
-                out.append(name)
-    return tuple(out)
+            if name in model.coordinate_names and body in model.body_joint:
+                out.append((name, set(model.subtree(body))))
+    return out
 
 
 def held_foot_coordinates(
@@ -463,16 +468,11 @@ def held_foot_coordinates(
         lab for k, lab in enumerate(labels) if lab in model.marker_names and frac[k] >= 0.5
     }  # fmt: skip
     body_of = {m.name: m.body for m in model.markers}
-    held: dict[str, tuple[float, float]] = {}
-    for sfx in ("_r", "_l"):
-        for coord, child in (("subtalar_angle", "calcn"), ("mtp_angle", "toes")):
-            name, body = coord + sfx, child + sfx
-            if name not in model.coordinate_names or body not in model.body_joint:
-                continue
-            sub = set(model.subtree(body))
-            if sum(body_of.get(m) in sub for m in seen) < 3:
-                held[name] = (0.0, HELD_COORDINATE_WEIGHT)
-    return held
+    return {
+        name: (0.0, HELD_COORDINATE_WEIGHT)
+        for name, sub in _foot_joints(model)
+        if sum(body_of.get(m) in sub for m in seen) < 3
+    }
 
 
 def held_static_knees(model: Any, labels: tuple[str, ...]) -> dict[str, tuple[float, float]]:
