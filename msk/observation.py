@@ -33,7 +33,7 @@ from numpy.typing import NDArray
 __all__ = ["LEG_BODIES", "MARKERS_TO_POSE", "Observation", "observed_frames"]
 
 #: body-name prefixes of the segments whose observation is checked (gait2392 / Rajagopal names)
-LEG_BODIES = ("pelvis", "femur", "tibia", "calcn")
+LEG_BODIES = ("pelvis", "femur", "tibia", "calcn", "foot")
 
 #: markers that pose a rigid segment without its joints (Söderkvist & Wedin 1993)
 MARKERS_TO_POSE = 3
