@@ -90,7 +90,7 @@ def observed_frames(model: Any, kinematics: Any, *, pad_s: float | None = None) 
         fc = getattr(kinematics, "cutoff_hz", None)
         pad_s = 1.0 / (4.0 * float(fc)) if fc else 0.0
     dt = float(np.median(np.diff(t))) if n > 1 else 1.0
-    pad = int(round(pad_s / dt)) if pad_s > 0 and dt > 0 else 0
+    pad = round(pad_s / dt) if pad_s > 0 and dt > 0 else 0
     wide = bad.copy()
     if pad and bad.any():
         idx = np.flatnonzero(bad)

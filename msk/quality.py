@@ -618,8 +618,8 @@ def gait_flags(
                       f"{quality.get('ik_worst_marker', '?')})")
             )  # fmt: skip
     n_meas, n_obs = quality.get("contact_measured_frames"), quality.get("observed_measured_frames")
-    if n_meas and n_obs is not None and 100.0 * n_obs / n_meas < th["observed_measured_frames_min_pct"]:
-        pct = 100.0 * n_obs / n_meas
+    pct = 100.0 * n_obs / n_meas if n_meas and n_obs is not None else 100.0
+    if pct < th["observed_measured_frames_min_pct"]:
         out.append(
             _flag(trial_name, "observed_measured_frames_min_pct", pct,
                   th["observed_measured_frames_min_pct"],
