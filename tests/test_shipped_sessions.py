@@ -8,8 +8,8 @@ are known to be incomplete must raise the flag that says so, never a silent numb
 
 * DM crouch gait: the plates weigh 63 kg of DM's 70 kg (the subject supports part of his
   weight on the treadmill's handrails): mass and residual flags;
-* UWA running: a 250 Hz running trial with a cluster-only marker set seen for < 1 s: IK and
-  residual flags (its residuals over the 80 of 121 measured frames the markers observe);
+* UWA running: a 250 Hz running trial with a cluster-only marker set seen for < 1 s: the
+  residual flag (its residuals over the 80 of 121 measured frames the markers observe);
 * UWA fast walking: no knee/ankle markers, no static; residual 5.2 % BW, flagged.
 
 Every table a config writes equals its golden fingerprint (``tests/golden/``) to 1e-9.
@@ -61,8 +61,9 @@ EXPECT: dict[str, dict] = {
     # flagged (docs/validation.md: what was diagnosed)
     "uwa_fast_walking": {"ik_mm": 12, "res_pct": 6.1, "must": set(), "may": None},
     # the residuals over the frames whose leg segments the markers observe (80 of the 121
-    # measured: the ends of the tracked window are left out, msk.observation): 21 % BW
-    "uwa_running": {"ik_mm": None, "res_pct": 25,
+    # measured: the ends of the tracked window are left out, msk.observation), the swing
+    # knees solved past gait2392's 120° (knee_flexion_to_physiological): IK 17.4 mm, 18.7 % BW
+    "uwa_running": {"ik_mm": 18, "res_pct": 20,
                     "must": {"residual_force_rms_pct_bw"},
                     "may": None},
 }  # fmt: skip
