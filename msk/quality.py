@@ -76,6 +76,7 @@ THRESHOLDS: Mapping[str, float] = {
     "body_mass_difference_pct": 5.0,
     "frozen_coordinate_std_deg": 0.05,
     "unobserved_segment_frames_pct": 5.0,
+    "observed_measured_frames_min_pct": 50.0,
     "saturated_frames_pct": 25.0,
     "reserve_rms_pct_peak_torque": 10.0,
     "saturation_activation": 0.99,
@@ -616,6 +617,17 @@ def gait_flags(
                       f"{1000 * th['ik_marker_max_mean_m']:g} mm (mostly "
                       f"{quality.get('ik_worst_marker', '?')})")
             )  # fmt: skip
+    n_meas, n_obs = quality.get("contact_measured_frames"), quality.get("observed_measured_frames")
+    pct = 100.0 * n_obs / n_meas if n_meas and n_obs is not None else 100.0
+    if pct < th["observed_measured_frames_min_pct"]:
+        out.append(
+            _flag(trial_name, "observed_measured_frames_min_pct", pct,
+                  th["observed_measured_frames_min_pct"],
+                  f"only {n_obs} of the {n_meas} frames whose ground contact the plates measure "
+                  f"({pct:.0f} %) have every leg segment observed by its markers "
+                  "(msk.observation): the residuals, the plate mass and the identifications "
+                  "rest on those few")
+        )  # fmt: skip
     rf = quality.get("residual_force_rms_pct_bw")
     if rf is not None and np.isfinite(rf) and rf > th["residual_force_rms_pct_bw"]:
         out.append(

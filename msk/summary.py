@@ -364,6 +364,8 @@ class Quality(_Record):
     ik_marker_rms_max_m: float | None = None
     ik_worst_marker: str | None = None
     contact_measured_frames: int | None = None
+    observed_measured_frames: int | None = None
+    unobserved_segment_frames: Mapping[str, int | None] | None = None
     residual_force_rms_n: float | None = None
     residual_force_rms_pct_bw: float | None = None
     residual_moment_rms_nm: float | None = None

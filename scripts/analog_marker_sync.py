@@ -5,12 +5,16 @@
 Two independent estimates per Grand Challenge trial (the shipped ``pipelines/gc5_PS.toml`` and
 ``pipelines/gc6_DM_og1.toml``, only the task files swapped):
 
-* **vertical momentum**: on the frames whose every foot contact is on a plate, the plates'
+* **vertical momentum**: on the frames whose every foot contact is on a plate and whose leg
+  segments the markers observe (``Loads.usable``), the plates'
   total vertical force Σ F_z(t + d) against m (g + z̈_G(t)) from the model's centre of mass on
   the inverse-kinematics coordinates (Newton's second law for the whole body); the shift ``d``
   (3-sample steps at 1200 Hz, ±50 ms) with the smallest RMS difference;
 * **goniometer** (PS only: its C3D records a knee electrogoniometer on an analog channel): the
   shift ``d`` maximising |r| between goniometer(t + d) and the IK knee angle of the same leg.
+
+The shipped UWA configs (``pipelines/uwa_fast_walking.toml``, ``uwa_running.toml``: Vicon,
+250 Hz markers) get the vertical-momentum estimate too.
 
 For subject JW (``pipelines/gc4_JW.toml``), whose load-cell file carries the knee goniometer in
 degrees (``GON``), the IK knee flexion is also compared with it in degrees: the linear fit
@@ -64,7 +68,7 @@ def _momentum(kin: object, loads: object, model: object) -> tuple[float, float, 
     score = []
     for d in SHIFTS_S:
         f = np.interp(t + d, t, fz, left=np.nan, right=np.nan)
-        ok = np.asarray(loads.measured) & np.isfinite(f) & np.isfinite(newton)  # type: ignore[attr-defined]
+        ok = np.asarray(loads.usable) & np.isfinite(f) & np.isfinite(newton)  # type: ignore[attr-defined]
         ok[:5] = ok[-5:] = False  # the finite-difference ends
         score.append((float(np.sqrt(np.mean((f[ok] - newton[ok]) ** 2))), float(d)))
     return _best(score)
@@ -139,6 +143,11 @@ def main() -> int:
                 f"| {gtxt} |",
                 flush=True,
             )
+    for stem in ("uwa_fast_walking", "uwa_running"):  # the shipped UWA configs as they are
+        cfg = load_config(cv.REPO / "pipelines" / f"{stem}.toml")
+        r = run_stages(cfg, until="loads")
+        m = _momentum(r["kinematics"], r["loads"], r["model"].model)
+        print(f"| {stem} | {m[1] * 1000:+.1f} | {m[0]:.1f} / {m[2]:.1f} | — | — |", flush=True)
     _jw_goniometer()
     return 0
 

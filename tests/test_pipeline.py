@@ -411,3 +411,35 @@ def test_static_knee_held_only_where_no_epicondyle_and_malleolus():
     assert held_static_knees(model, labels) == {"knee_angle_l": (0.0, HELD_COORDINATE_WEIGHT)}
     assert held_static_knees(model, ("RKNE", "RANK", "LKNE", "LMedMal")) == {}
     assert set(held_static_knees(model, ("RKNE", "LANK"))) == {"knee_angle_r", "knee_angle_l"}
+
+
+def test_knee_flexion_bound_widened_to_the_physiological_limit_only_where_narrower():
+    """A knee flexed past gait2392's 120° (a running swing) is solved where it is, not held at
+    the bound; a knee with positive flexion (Rajagopal's convention) is left alone."""
+    from msk.kinematics import solve_kinematics
+    from msk.model import marker_positions
+    from msk.pipeline.model import knee_flexion_to_physiological
+    from msk.synthetic_models import two_leg_model
+    from msk.synthetic_trials import make_trial
+
+    model = two_leg_model()  # knees [-120.3°, 9.7°]
+    wide, widened = knee_flexion_to_physiological(model)
+    assert widened == {k: [-155.0, pytest.approx(np.degrees(0.17))] for k in widened}
+    assert set(widened) == {"knee_angle_r", "knee_angle_l"}
+    positive = model.with_coordinate_ranges(
+        {"knee_angle_r": (0.0, 2.1), "knee_angle_l": (0.0, 2.1)}
+    )
+    assert knee_flexion_to_physiological(positive) == (positive, {})
+    tr = make_trial(model, duration_s=0.5)
+    q = tr.q.copy()
+    k = model.coordinate_names.index("knee_angle_l")
+    q[:, k] = np.radians(np.linspace(-100.0, -140.0, q.shape[0]))  # a swing past 120°
+    x = marker_positions(model, q) + np.random.default_rng(0).normal(
+        0, 0.001, (q.shape[0], len(model.markers), 3)
+    )
+    labels = [m.name for m in model.markers]
+    held = solve_kinematics(model, x, labels, tr.time, cutoff_hz=None)
+    free = solve_kinematics(wide, x, labels, tr.time, cutoff_hz=None)
+    assert np.degrees(held.q[:, k]).min() > -120.4  # clamped: the pose there is not measured
+    assert np.abs(np.degrees(free.q[:, k] - q[:, k])).max() < 1.0
+    assert np.nanmean(free.marker_rms) < 0.5 * np.nanmean(held.marker_rms)

@@ -207,3 +207,16 @@ def test_com_height_and_the_residual_moment_bound_on_it():
     assert moment_flags(peak_external_force_n=1000.0, com_height_m=1.2) == []
     (f,) = moment_flags(peak_external_force_n=1000.0)  # no COM height: 55 % of stature
     assert f.value == pytest.approx(100 * 10.0 / (0.55 * 1.7 * 1000.0))
+
+
+def test_too_few_observed_measured_frames_are_flagged_a_few_excluded_are_not():
+    model = two_leg_model()
+    kin = _still(model, 50)
+    kin.coordinate_names = kin_names(model)
+    kin.q[:, 6:] += 0.05 * np.random.default_rng(0).standard_normal((50, kin.q.shape[1] - 6))
+    few = _flags(model, kin, contact_measured_frames=121, observed_measured_frames=40)
+    (f,) = [f for f in few if f.quantity == "observed_measured_frames_min_pct"]
+    assert f.value == pytest.approx(100 * 40 / 121)
+    assert f.threshold == THRESHOLDS["observed_measured_frames_min_pct"]
+    most = _flags(model, kin, contact_measured_frames=121, observed_measured_frames=80)
+    assert most == []

@@ -8,8 +8,8 @@ are known to be incomplete must raise the flag that says so, never a silent numb
 
 * DM crouch gait: the plates weigh 63 kg of DM's 70 kg (the subject supports part of his
   weight on the treadmill's handrails): mass and residual flags;
-* UWA running: a 250 Hz running trial with a cluster-only marker set seen for < 1 s: IK,
-  residual and plate-mass flags;
+* UWA running: a 250 Hz running trial with a cluster-only marker set seen for < 1 s: the
+  residual flag (its residuals over the 80 of 121 measured frames the markers observe);
 * UWA fast walking: no knee/ankle markers, no static; residual 5.2 % BW, flagged.
 
 Every table a config writes equals its golden fingerprint (``tests/golden/``) to 1e-9.
@@ -60,10 +60,18 @@ EXPECT: dict[str, dict] = {
     # no knee marker (the placement takes the knees' flexion branch); residual over the aim,
     # flagged (docs/validation.md: what was diagnosed)
     "uwa_fast_walking": {"ik_mm": 12, "res_pct": 6.1, "must": set(), "may": None},
-    "uwa_running": {"ik_mm": None, "res_pct": None,
+    # the residuals over the frames whose leg segments the markers observe (80 of the 121
+    # measured: the ends of the tracked window are left out, msk.observation), the swing
+    # knees solved past gait2392's 120° (knee_flexion_to_physiological): IK 17.4 mm, 18.7 % BW
+    "uwa_running": {"ik_mm": 18, "res_pct": 20,
                     "must": {"residual_force_rms_pct_bw"},
                     "may": None},
 }  # fmt: skip
+
+#: sessions with measured frames whose leg segments the markers do not all observe (UNIPD: the
+#: left foot's markers drop out; UWA running: the capture volume's edges); every other shipped
+#: session uses all its measured frames
+PARTLY_OBSERVED = {"unipd_bts", "uwa_running"}
 
 
 def _files_present(cfg: Path) -> bool:
@@ -100,6 +108,8 @@ def test_shipped_session_runs_and_flags_what_is_wrong(cfg: Path, tmp_path: Path)
         assert {"trial", "quantity", "value", "threshold", "message"} <= set(f)
         assert f["trial"] == s["trial"] and np.isfinite(f["value"])
     e = EXPECT[cfg.stem]
+    n_meas, n_obs = q["contact_measured_frames"], q["observed_measured_frames"]
+    assert (n_obs < n_meas) if cfg.stem in PARTLY_OBSERVED else (n_obs == n_meas), (n_obs, n_meas)
     if e["ik_mm"] is not None:
         assert 1000 * q["ik_marker_rms_mean_m"] <= e["ik_mm"], q["ik_marker_rms_mean_m"]
     if e["res_pct"] is not None:

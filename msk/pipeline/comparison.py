@@ -58,7 +58,7 @@ def run(
     sfx, bw = inputs.sfx, inputs.body_weight
     if inverse_dynamics.identified is not None:
         g, s = inverse_dynamics.generic, inverse_dynamics.identified
-        good = np.isfinite(g.tau).all(axis=1) & np.isfinite(s.tau).all(axis=1) & loads.measured
+        good = np.isfinite(g.tau).all(axis=1) & np.isfinite(s.tau).all(axis=1) & loads.usable
         leg = [i for i, c in enumerate(g.coordinate_names) if c.endswith(sfx)]
         out["torque_rms_difference_nm"] = {
             g.coordinate_names[i]: float(compare.rms(g.tau[good, i], s.tau[good, i])) for i in leg

@@ -15,6 +15,7 @@ from msk.pipeline.model import BuiltModel
 from msk.pipeline.read import ReadResult
 
 __all__ = [
+    "OBSERVATION",
     "PLATE_ASSIGNMENT",
     "Loads",
     "assign_loads",
@@ -36,11 +37,22 @@ class Loads:
     """``external``: :class:`msk.loads.ExternalLoads`; ``measured``: (N,) frames whose every
     foot on the floor stands on a plate (a walkway's steps before and after the plates miss a
     ground reaction: no residual, identification equation or muscle force comes from them);
-    ``usable``: measured frames with finite q and q̈."""
+    ``observation``: :class:`msk.observation.Observation`, the frames whose leg segments the
+    markers observe (a segment out of the capture volume or a marker dropping out: its pose,
+    hence q̈, is guessed there); ``usable``: measured and observed frames with finite q and q̈
+    — the frames every dynamics-based figure and fit uses."""
 
     external: Any
     measured: np.ndarray
     usable: np.ndarray
+    observation: Any = None
+
+
+#: Which frames the dynamics-based figures use (recorded in the cache key).
+OBSERVATION = (
+    "msk.observation: every leg segment sees min(3, its tracked markers), 1/(4 f_c) from any "
+    "frame where one does not or IK did not solve"
+)
 
 
 def assign_loads(
@@ -74,6 +86,7 @@ def settings(inputs: SessionInputs) -> Any:
         "cut": grf_cutoff_hz(inputs.cfg),
         "assignment": PLATE_ASSIGNMENT,
         "assign": dict(inputs.cfg.loads.assign),
+        "observed": OBSERVATION,
     }
 
 
@@ -94,6 +107,7 @@ def run(inputs: SessionInputs, read: ReadResult, model: BuiltModel, kinematics: 
     """The read trial's plates (a C3D's, or its GRF file's) in the model frame (rotated here,
     not kept by the model stage), assigned to the feet."""
     from msk.loads import contact_measured
+    from msk.observation import observed_frames
 
     rot = model.rotation
     # rotated one at a time, as external_loads resamples them: one analog-rate plate in the
@@ -101,7 +115,11 @@ def run(inputs: SessionInputs, read: ReadResult, model: BuiltModel, kinematics: 
     plates: Iterator[Any] = (rotated_plate(p, rot) for p in read.plates or ())
     ext = assign_loads(inputs, model.model, read.trial, kinematics, plates, read.assignment)
     measured = contact_measured(model.model, kinematics, ext)
+    obs = observed_frames(model.model, kinematics)
     usable = (
-        np.isfinite(kinematics.q).all(axis=1) & np.isfinite(kinematics.a).all(axis=1) & measured
+        np.isfinite(kinematics.q).all(axis=1)
+        & np.isfinite(kinematics.a).all(axis=1)
+        & measured
+        & obs.observed
     )
-    return Loads(ext, measured, usable)
+    return Loads(ext, measured, usable, obs)

@@ -72,11 +72,13 @@ def run(
     from msk.identification import IdentificationTrial, InertialIdentifier
     from msk.io import read_trial, to_model_frame
     from msk.loads import contact_measured
+    from msk.observation import observed_frames
 
     cfg, mdl, kin = inputs.cfg, model.model, kinematics
     assert inputs.task is not None  # a gait stage
     up = -np.asarray(mdl.gravity, dtype=float)
-    runs = [(inputs.task.name, kin, loads.external, loads.measured)]
+    # measured and observed frames only (msk.observation: a guessed pose's q̈ is no equation)
+    runs = [(inputs.task.name, kin, loads.external, loads.usable)]
     # the task and the dedicated exciting motions (Hayashibe et al. 2011, §VI)
     for tc in inputs.mass_trials:
         tr_i = to_model_frame(read_trial(tc.file), up=up)
@@ -85,7 +87,8 @@ def run(
             held=model.held, cutoff_hz=cfg.filters.kinematics_cutoff_hz,
         )  # fmt: skip
         l_i = assign_loads(inputs, mdl, tr_i, k_i, assignment=read.assignment)
-        runs.append((tc.name, k_i, l_i, contact_measured(mdl, k_i, l_i)))
+        seen = observed_frames(mdl, k_i).observed
+        runs.append((tc.name, k_i, l_i, contact_measured(mdl, k_i, l_i) & seen))
     its = []
     for nm, k_i, l_i, m_i in runs:
         it = IdentificationTrial.from_loads(mdl, k_i, l_i, name=nm)

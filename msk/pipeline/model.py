@@ -30,6 +30,7 @@ __all__ = [
     "STATIC_CHECK_MIN_TASK_S",
     "BuiltModel",
     "held_static_knees",
+    "knee_flexion_to_physiological",
     "load_model_file",
     "run",
     "settings",
@@ -140,6 +141,34 @@ def _aligned(inputs: SessionInputs, model: Any, markers: Any, labels: Any) -> An
                        "iqr_rad": est.iqr_rad, "frames": est.frames}  # fmt: skip
         aligned = aligned.with_metadata(knee_alignment=meta)
     return aligned
+
+
+def knee_flexion_to_physiological(model: Any) -> tuple[Any, dict[str, list[float]]]:
+    """``model`` whose knees' flexion bound reaches the physiological limit of
+    :data:`msk.quality.PHYSIOLOGICAL_RANGES_DEG` (155°: active flexion, Roaas & Andersson 1982,
+    + 10°), and the widened ranges (deg). gait2392's knee stops at 120° of flexion, a software
+    bound below the joint's: UWA's running swing is pulled past it in 16–19 % of the solved
+    frames, and IK, held there, bent the pelvis instead (L.ASIS 49 mm RMS, the worst marker;
+    the pelvis residual's fore-aft part 249 N RMS; 153 N with the physiological bound). Only a
+    knee whose flexion is negative (gait2392's sign) and whose bound is narrower; the extension
+    bound (10°, already past the 0–5° of a normal knee) is kept. A session whose knees never
+    reach the model's bound solves the same IK. Applied after scaling and marker placement, whose
+    IK passes keep the generic bounds (widened there, UWA fast walking's placement took another
+    branch: knees to +9° of hyperextension)."""
+    from msk.quality import PHYSIOLOGICAL_RANGES_DEG
+
+    lo_phys = np.radians(PHYSIOLOGICAL_RANGES_DEG["knee_angle"][0])
+    out: dict[str, tuple[float, float]] = {}
+    for c in model.coordinates:
+        stem = c.name[:-2] if c.name.endswith(("_r", "_l")) else c.name
+        lo, hi = c.range
+        if stem == "knee_angle" and -np.pi / 2 >= lo > lo_phys + 1e-9:
+            out[c.name] = (float(lo_phys), float(hi))
+    if not out:
+        return model, {}
+    return model.with_coordinate_ranges(out), {
+        k: [float(np.degrees(v)) for v in r] for k, r in out.items()
+    }
 
 
 def _scale_and_place(inputs: SessionInputs, read: ReadResult) -> dict[str, Any]:
@@ -531,7 +560,11 @@ def run(inputs: SessionInputs, read: ReadResult) -> BuiltModel:
     built = _scale_and_place(inputs, read)
     if swapped:
         built["info"]["marker_set"]["swapped_back"] = swapped
-    model = built["model"]
+    # after scaling and placement (whose passes keep the generic bounds): the task's IK and
+    # every later stage
+    model, widened = knee_flexion_to_physiological(built["model"])
+    if widened:
+        built["info"]["widened_ranges_deg"] = widened
     unknown = sorted(set(cfg.marker_weights) - set(model.marker_names) - set(trial.marker_labels))
     if unknown:
         raise ConfigError(f"{cfg.path}: markers.weights: no marker {unknown[0]!r}")

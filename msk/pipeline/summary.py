@@ -110,10 +110,13 @@ def _quality(
     ident: MassIdentification | None,
     body_weight: float,
     measured: np.ndarray,
+    observation: Any = None,
 ) -> dict[str, Any]:
     """Data-quality figures; the residuals over the frames whose ground contact the plates
-    measure (``measured``, :func:`msk.loads.contact_measured`), None when there is none."""
-    ok = np.isfinite(jt.residual_force).all(axis=1) & measured
+    measure (``measured``, :func:`msk.loads.contact_measured`) and the markers observe
+    (``observation``, :func:`msk.observation.observed_frames`), None when there is none."""
+    seen = np.ones_like(measured) if observation is None else observation.observed
+    ok = np.isfinite(jt.residual_force).all(axis=1) & measured & seen
     res_f = rms(jt.residual_force[ok]) if ok.any() else None
     gaps = [
         {"marker": lab, "missing_frames": int(n), "longest_gap_frames": int(g)}
@@ -129,6 +132,10 @@ def _quality(
         "ik_marker_rms_max_m": float(np.nanmax(kin.marker_rms)),
         "ik_worst_marker": _mode(kin.marker_max_name),
         "contact_measured_frames": int(measured.sum()),
+        "observed_measured_frames": int((measured & seen).sum()),
+        "unobserved_segment_frames": (
+            None if observation is None else {k: int(v) for k, v in observation.short.items()}
+        ),
         "residual_force_rms_n": res_f,
         "residual_force_rms_pct_bw": None if res_f is None else 100 * res_f / body_weight,
         "residual_moment_rms_nm": rms(jt.residual_moment[ok]) if ok.any() else None,
@@ -358,9 +365,10 @@ def run(
     jt = inverse_dynamics.torques
     quality = _quality(
         model.trial, kin, jt, loads.external, emg, sol, strength, ident, inputs.body_weight,
-        loads.measured,
+        loads.measured, loads.observation,
     )  # fmt: skip
-    plate_mass = body_mass_from_loads(mdl, kin, loads.external, loads.measured)
+    seen = loads.measured if loads.observation is None else loads.observation.observed
+    plate_mass = body_mass_from_loads(mdl, kin, loads.external, loads.measured & seen)
     quality["plate_mass_kg"] = plate_mass
     quality["flags"] = _flags(inputs, quality, model, kin, loads, jt, sol, plate_mass)
     quality["thresholds"] = dict(THRESHOLDS)

@@ -1119,6 +1119,12 @@ def _quality_section(res: SessionResults) -> str:
             "—",
         ],
         [
+            "of those, frames whose leg segments the markers observe (residuals, identification)",
+            f"{_e(_or(q.observed_measured_frames, '—'))}",
+            f"≥ {TH['observed_measured_frames_min_pct']:g} %",
+            "—",
+        ],
+        [
             "pelvis residual force (RMS)",
             f"{_num(q.residual_force_rms_n, '.1f', 'N')} ({_num(rf, '.1f', '% BW')})",
             f"≤ {TH['residual_force_rms_pct_bw']:g} % BW [5]",
