@@ -46,6 +46,68 @@ def filtfilt_butter(
     return _sig.sosfiltfilt(sos, x, axis=axis, padlen=max(padlen, 0))
 
 
+def lowpass_filtfilt_numpy(
+    x: ArrayLike, *, rate_hz: float, cutoff_hz: float, order: int = 4
+) -> NDArray[np.float64]:
+    """:func:`filtfilt_butter` (low-pass, even ``order``, time on axis 0) in numpy alone: the
+    same second-order sections (Butterworth analog prototype, frequency prewarping and the
+    bilinear transform, the gain in the first section, as ``scipy.signal.butter(...,
+    output="sos")``), the same odd extension of ``3 (2 n_sections + 1)`` samples and the same
+    steady-state initial conditions as ``scipy.signal.sosfiltfilt`` — equal to it to rounding
+    (tested). For short signals on a path that must not import ``scipy.signal`` (~0.5 s: the
+    static trial's still window, which a cached run computes again); the sample loop runs in
+    Python, vectorised over the other axes."""
+    x = np.asarray(x, dtype=float)
+    wn = cutoff_hz / (0.5 * rate_hz)
+    if not 0.0 < wn < 1.0:
+        raise MskError(
+            f"cutoff {cutoff_hz} Hz must lie in (0, {0.5 * rate_hz}) Hz for rate {rate_hz} Hz"
+        )
+    if order < 2 or order % 2:
+        raise MskError(f"lowpass_filtfilt_numpy: an even order >= 2 is needed, got {order}")
+    if np.isnan(x).any():
+        raise MissingDataError("cannot filter a signal with NaN samples: fill the gaps first")
+    k = np.arange(1, order + 1)
+    warped = 4.0 * np.tan(np.pi * wn / 2.0)  # prewarped, sampling rate 2 as scipy designs
+    poles = warped * np.exp(1j * np.pi * (2 * k + order - 1) / (2 * order))
+    pz = (4.0 + poles) / (4.0 - poles)
+    gain = warped**order * np.real(1.0 / np.prod(4.0 - poles))
+    upper = pz[np.imag(pz) > 0]
+    upper = upper[np.argsort(np.abs(upper))]  # the poles nearest the unit circle last
+    sos = np.array([[1.0, 2.0, 1.0, 1.0, -2.0 * q.real, abs(q) ** 2] for q in upper])
+    sos[0, :3] *= gain
+    # steady state of each section's step response, scaled by the sections before it
+    zi = np.zeros((len(sos), 2))
+    scale = 1.0
+    for i, (b0, b1, b2, _, a1, a2) in enumerate(sos):
+        zi[i] = scale * np.linalg.solve(
+            np.array([[1.0 + a1, -1.0], [a2, 1.0]]), np.array([b1 - a1 * b0, b2 - a2 * b0])
+        )
+        scale *= (b0 + b1 + b2) / (1.0 + a1 + a2)
+    n = x.shape[0]
+    pad = min(3 * (2 * len(sos) + 1), n - 1)
+    if pad > 0:
+        ext = np.concatenate([2 * x[0] - x[pad:0:-1], x, 2 * x[-1] - x[-2 : -pad - 2 : -1]])
+    else:
+        ext = x.copy()
+
+    def sosfilt(sig: NDArray[np.float64]) -> NDArray[np.float64]:
+        y = sig.copy()
+        x0 = sig[0].copy()  # every section starts in the steady state of the input's first sample
+        for i, (b0, b1, b2, _, a1, a2) in enumerate(sos):
+            z0, z1 = zi[i, 0] * x0, zi[i, 1] * x0
+            for t in range(y.shape[0]):
+                xt = y[t]
+                yt = b0 * xt + z0
+                z0 = b1 * xt - a1 * yt + z1
+                z1 = b2 * xt - a2 * yt
+                y[t] = yt
+        return y
+
+    y = sosfilt(sosfilt(ext)[::-1])[::-1]
+    return np.ascontiguousarray(y[pad : pad + n])
+
+
 def find_peaks(x: ArrayLike, *, distance: int = 1, prominence: float = 0.0) -> NDArray[np.int64]:
     """Indices of the local maxima of ``x`` at least ``distance`` samples apart with a
     topographic prominence of at least ``prominence``.

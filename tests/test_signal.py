@@ -6,7 +6,14 @@ from hypothesis.extra.numpy import arrays
 from scipy.signal import find_peaks as scipy_find_peaks
 
 from msk.exceptions import MissingDataError, MskError
-from msk.signal import block_average, derivative, filtfilt_butter, find_peaks, resample_to
+from msk.signal import (
+    block_average,
+    derivative,
+    filtfilt_butter,
+    find_peaks,
+    lowpass_filtfilt_numpy,
+    resample_to,
+)
 
 
 def test_lowpass_keeps_slow_removes_fast_without_lag():
@@ -105,3 +112,33 @@ def test_find_peaks_on_a_smooth_signal_and_bad_arguments():
         find_peaks(x, distance=0)
     with pytest.raises(MskError, match="1-D"):
         find_peaks(np.ones((3, 3)))
+
+
+@settings(max_examples=60, deadline=None)
+@given(
+    n=st.integers(2, 300),
+    columns=st.integers(1, 4),
+    order=st.sampled_from([2, 4, 6]),
+    cutoff_hz=st.floats(0.5, 59.0),
+    seed=st.integers(0, 2**31 - 1),
+)
+def test_numpy_lowpass_equals_scipy_sosfiltfilt(n, columns, order, cutoff_hz, seed):
+    """The numpy-only zero-lag low-pass is filtfilt_butter (scipy's butter + sosfiltfilt with
+    the same padding) to rounding: designs, padding and initial conditions alike."""
+    x = np.cumsum(np.random.default_rng(seed).normal(size=(n, columns)), axis=0)
+    ref = filtfilt_butter(x, rate_hz=120.0, cutoff_hz=cutoff_hz, order=order)
+    got = lowpass_filtfilt_numpy(x, rate_hz=120.0, cutoff_hz=cutoff_hz, order=order)
+    np.testing.assert_allclose(got, ref, rtol=0, atol=1e-9 * max(1.0, np.abs(ref).max()))
+    one = lowpass_filtfilt_numpy(x[:, 0], rate_hz=120.0, cutoff_hz=cutoff_hz, order=order)
+    np.testing.assert_allclose(one, ref[:, 0], rtol=0, atol=1e-9 * max(1.0, np.abs(ref).max()))
+
+
+def test_numpy_lowpass_refuses_what_it_cannot_do():
+    x = np.zeros((10, 2))
+    with pytest.raises(MskError, match="even order"):
+        lowpass_filtfilt_numpy(x, rate_hz=100.0, cutoff_hz=5.0, order=3)
+    with pytest.raises(MskError, match="must lie in"):
+        lowpass_filtfilt_numpy(x, rate_hz=100.0, cutoff_hz=50.0)
+    x[3, 1] = np.nan
+    with pytest.raises(MissingDataError):
+        lowpass_filtfilt_numpy(x, rate_hz=100.0, cutoff_hz=5.0)
