@@ -52,7 +52,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from msk.exceptions import ForcePlateError, MissingDataError, ModelError, ShapeMismatchError
 from msk.model import Model
-from msk.signal import filtfilt_butter, resample_to
+from msk.signal import filtfilt_butter, resample_to, true_runs
 from msk.timeseries import FrameAxis
 
 Array = NDArray[np.float64]
@@ -378,12 +378,6 @@ def _inside_grown(points2: Array, poly2: Array, margin: float) -> Array:
     return ok
 
 
-def _runs(mask: NDArray[np.bool_]) -> list[tuple[int, int]]:
-    """[start, end) index pairs of the True runs of a boolean vector."""
-    d = np.diff(np.concatenate([[0], mask.astype(int), [0]]))
-    return list(zip(np.flatnonzero(d == 1), np.flatnonzero(d == -1)))
-
-
 def _foot_points(
     model: Model, q: Array, feet: Sequence[str], frames: NDArray[np.intp]
 ) -> list[Array]:
@@ -566,7 +560,7 @@ def external_loads(
 
     for p in prepared:
         pl = p
-        for i0, i1 in _runs(p.contact):
+        for i0, i1 in true_runs(p.contact):
             if p.recorded[i0:i1].sum() < 2:
                 # the low-pass's ringing after a sharp contact (a running foot's: ±150 N lobes
                 # at 6 Hz) with no recorded force, or one noise sample over the threshold
@@ -1153,7 +1147,7 @@ def _beside(
             others = np.delete(speed, f, axis=1)
             alone = (others > _STILL_MPS).all(axis=1)  # every other foot swinging
             still = over & unloaded & (speed[:, f] < _STILL_MPS) & alone
-        for i0, i1 in _runs(over):
+        for i0, i1 in true_runs(over):
             k = np.flatnonzero(still[i0:i1])
             if k.size >= 2 and t[i0 + k[-1]] - t[i0 + k[0]] >= _MIN_SEGMENT_S:
                 out[i0:i1, f] = True

@@ -136,8 +136,9 @@ def body_mass_from_loads(
     t = np.asarray(kinematics.time, dtype=float)
     q, v = (np.asarray(x, dtype=float) for x in (kinematics.q, kinematics.v))
     ok = np.asarray(frames, dtype=bool) & np.isfinite(q).all(1) & np.isfinite(v).all(1)
-    edges = np.flatnonzero(np.diff(np.concatenate([[0], ok.astype(int), [0]])))
-    runs = list(zip(edges[::2], edges[1::2]))
+    from msk.signal import true_runs
+
+    runs = true_runs(ok)
     if not runs:
         return None
     i0, i1 = max(runs, key=lambda r: r[1] - r[0])

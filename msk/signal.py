@@ -108,6 +108,12 @@ def lowpass_filtfilt_numpy(
     return np.ascontiguousarray(y[pad : pad + n])
 
 
+def true_runs(mask: ArrayLike) -> list[tuple[int, int]]:
+    """``[start, stop)`` index pairs of the runs of True of a boolean vector, in order."""
+    d = np.diff(np.concatenate([[0], np.asarray(mask, dtype=bool).astype(int), [0]]))
+    return [(int(a), int(b)) for a, b in zip(np.flatnonzero(d == 1), np.flatnonzero(d == -1))]
+
+
 def find_peaks(x: ArrayLike, *, distance: int = 1, prominence: float = 0.0) -> NDArray[np.int64]:
     """Indices of the local maxima of ``x`` at least ``distance`` samples apart with a
     topographic prominence of at least ``prominence``.

@@ -8,7 +8,7 @@ median pose; :func:`msk.scaling.scale_from_static`, :func:`msk.scaling.place_mar
 static that moves mixes poses. :func:`still_window` finds the longest run of frames in which
 
 * the markers are still: the 90th percentile over the markers of the marker speed (after the
-  kinematics' zero-lag 6 Hz low-pass, :func:`msk.signal.filtfilt_butter`) is below
+  kinematics' zero-lag 6 Hz low-pass, in numpy: :func:`msk.signal.lowpass_filtfilt_numpy`) is below
   :data:`STILL_SPEED_M_S`; the percentile leaves out a few markers (a hand scratching, a
   flickering marker) but not a limb, and
 * both feet are down where the plates say so: as many plates carry at least
@@ -106,7 +106,7 @@ def _speeds(markers: NDArray[np.float64], rate: float, cutoff_hz: float) -> NDAr
     The forward–backward filter keeps the raw noise in the first and last samples of a run
     (its padding ends on them: 0.5 mm of noise reads as 60 mm/s at 120 Hz), so the speed over
     half a cut-off period at each end of a run is the nearest interior sample's."""
-    from msk.signal import lowpass_filtfilt_numpy
+    from msk.signal import lowpass_filtfilt_numpy, true_runs
 
     n, m = markers.shape[:2]
     out = np.full((n, m), np.nan)
@@ -114,10 +114,9 @@ def _speeds(markers: NDArray[np.float64], rate: float, cutoff_hz: float) -> NDAr
     k = max(1, int(np.ceil(0.5 * rate / cutoff_hz)))
     runs: dict[tuple[int, int], list[int]] = {}  # (first, stop) → the markers tracked over it
     for j in range(m):
-        edges = np.flatnonzero(np.diff(np.r_[0, ok[:, j].astype(int), 0]))
-        for a, b in zip(edges[::2], edges[1::2], strict=True):
+        for a, b in true_runs(ok[:, j]):
             if b - a >= max(16, 2 * k + 1):  # shorter: too short to filter and to be a window
-                runs.setdefault((int(a), int(b)), []).append(j)
+                runs.setdefault((a, b), []).append(j)
     for (a, b), cols in runs.items():  # the markers of one run filtered together
         seg = markers[a:b, cols]
         if cutoff_hz < 0.5 * rate:  # numpy's filter: a cached run does not import scipy.signal
@@ -179,8 +178,9 @@ def still_window(
         loaded = ((fz >= PLATE_LOADED_FRACTION * total) & (total > 0)).sum(axis=1)
         plates = int(loaded.max())
         still &= loaded == plates
-    edges = np.flatnonzero(np.diff(np.r_[0, still.astype(int), 0]))
-    runs = list(zip(edges[::2], edges[1::2], strict=True))
+    from msk.signal import true_runs
+
+    runs = true_runs(still)
     if runs:
         a, b = max(runs, key=lambda r: r[1] - r[0])
         duration = (b - a) / rate

@@ -1,3 +1,5 @@
+import itertools
+
 import numpy as np
 import pytest
 from hypothesis import given, settings
@@ -13,6 +15,7 @@ from msk.signal import (
     find_peaks,
     lowpass_filtfilt_numpy,
     resample_to,
+    true_runs,
 )
 
 
@@ -142,3 +145,15 @@ def test_numpy_lowpass_refuses_what_it_cannot_do():
     x[3, 1] = np.nan
     with pytest.raises(MissingDataError):
         lowpass_filtfilt_numpy(x, rate_hz=100.0, cutoff_hz=5.0)
+
+
+@given(arrays(np.bool_, st.integers(0, 40)))
+def test_true_runs_rebuild_the_mask(mask):
+    """The runs cover exactly the True samples, are ordered and separated by False."""
+    runs = true_runs(mask)
+    rebuilt = np.zeros(mask.size, dtype=bool)
+    for a, b in runs:
+        assert 0 <= a < b <= mask.size
+        rebuilt[a:b] = True
+    np.testing.assert_array_equal(rebuilt, mask)
+    assert all(b1 < a2 for (_, b1), (a2, _) in itertools.pairwise(runs))
