@@ -47,6 +47,14 @@ class Loads:
     usable: np.ndarray
     observation: Any = None
 
+    @property
+    def measured_observed(self) -> np.ndarray:
+        """(N,) measured frames the markers observe (every measured frame without an
+        ``observation``)."""
+        if self.observation is None:
+            return self.measured
+        return self.measured & self.observation.observed
+
 
 #: Which frames the dynamics-based figures use (recorded in the cache key).
 OBSERVATION = (

@@ -110,13 +110,14 @@ def _quality(
     ident: MassIdentification | None,
     body_weight: float,
     measured: np.ndarray,
+    observed: np.ndarray,
     observation: Any = None,
 ) -> dict[str, Any]:
     """Data-quality figures; the residuals over the frames whose ground contact the plates
     measure (``measured``, :func:`msk.loads.contact_measured`) and the markers observe
-    (``observation``, :func:`msk.observation.observed_frames`), None when there is none."""
-    seen = np.ones_like(measured) if observation is None else observation.observed
-    ok = np.isfinite(jt.residual_force).all(axis=1) & measured & seen
+    (``observed`` ⊆ ``measured``; ``observation``: :func:`msk.observation.observed_frames`),
+    None when there is none."""
+    ok = np.isfinite(jt.residual_force).all(axis=1) & observed
     res_f = rms(jt.residual_force[ok]) if ok.any() else None
     gaps = [
         {"marker": lab, "missing_frames": int(n), "longest_gap_frames": int(g)}
@@ -132,7 +133,7 @@ def _quality(
         "ik_marker_rms_max_m": float(np.nanmax(kin.marker_rms)),
         "ik_worst_marker": _mode(kin.marker_max_name),
         "contact_measured_frames": int(measured.sum()),
-        "observed_measured_frames": int((measured & seen).sum()),
+        "observed_measured_frames": int(observed.sum()),
         "unobserved_segment_frames": (
             None if observation is None else {k: int(v) for k, v in observation.short.items()}
         ),
@@ -365,10 +366,9 @@ def run(
     jt = inverse_dynamics.torques
     quality = _quality(
         model.trial, kin, jt, loads.external, emg, sol, strength, ident, inputs.body_weight,
-        loads.measured, loads.observation,
+        loads.measured, loads.measured_observed, loads.observation,
     )  # fmt: skip
-    seen = loads.measured if loads.observation is None else loads.observation.observed
-    plate_mass = body_mass_from_loads(mdl, kin, loads.external, loads.measured & seen)
+    plate_mass = body_mass_from_loads(mdl, kin, loads.external, loads.measured_observed)
     quality["plate_mass_kg"] = plate_mass
     quality["flags"] = _flags(inputs, quality, model, kin, loads, jt, sol, plate_mass)
     quality["thresholds"] = dict(THRESHOLDS)
