@@ -49,6 +49,8 @@ import numpy as np
 import pinocchio as pin
 from numpy.typing import ArrayLike, NDArray
 
+from msk.signal import true_runs
+
 Array = NDArray[np.float64]
 
 __all__ = [
@@ -136,8 +138,6 @@ def body_mass_from_loads(
     t = np.asarray(kinematics.time, dtype=float)
     q, v = (np.asarray(x, dtype=float) for x in (kinematics.q, kinematics.v))
     ok = np.asarray(frames, dtype=bool) & np.isfinite(q).all(1) & np.isfinite(v).all(1)
-    from msk.signal import true_runs
-
     runs = true_runs(ok)
     if not runs:
         return None

@@ -35,6 +35,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from msk.exceptions import StaticTrialError
+from msk.signal import lowpass_filtfilt_numpy, true_runs
 
 __all__ = [
     "MIN_STILL_S",
@@ -106,8 +107,6 @@ def _speeds(markers: NDArray[np.float64], rate: float, cutoff_hz: float) -> NDAr
     The forward–backward filter keeps the raw noise in the first and last samples of a run
     (its padding ends on them: 0.5 mm of noise reads as 60 mm/s at 120 Hz), so the speed over
     half a cut-off period at each end of a run is the nearest interior sample's."""
-    from msk.signal import lowpass_filtfilt_numpy, true_runs
-
     n, m = markers.shape[:2]
     out = np.full((n, m), np.nan)
     ok: NDArray[np.bool_] = np.asarray(np.isfinite(markers).all(axis=2))
@@ -178,8 +177,6 @@ def still_window(
         loaded = ((fz >= PLATE_LOADED_FRACTION * total) & (total > 0)).sum(axis=1)
         plates = int(loaded.max())
         still &= loaded == plates
-    from msk.signal import true_runs
-
     runs = true_runs(still)
     if runs:
         a, b = max(runs, key=lambda r: r[1] - r[0])
