@@ -276,8 +276,8 @@ class ExternalLoads(FrameAxis):
 
     ``force_recorded`` (N, 3): the net plate force on the subject **as recorded** (before the
     low-pass, zero under the threshold), summed over the plate contacts assigned to a body
-    (``None`` when a plate was given without it): the "measured external force" of the
-    residual guidelines (Hicks et al. 2015), which a low-pass would lower.
+    (``None`` in loads not built by :func:`external_loads`): the "measured external force"
+    of the residual guidelines (Hicks et al. 2015), which a low-pass would lower.
     """
 
     FRAME_FIELDS: ClassVar[tuple[str, ...]] = (
@@ -448,11 +448,11 @@ class _Prepared:
     contact: NDArray[np.bool_]
     fv_recorded: Array  # (N,) the unfiltered vertical force (0 under the threshold)
     recorded: NDArray[np.bool_]  # (N,) the unfiltered vertical force above the threshold
+    force_recorded: Array  # (N, 3) the force before the low-pass
     on: NDArray[np.bool_] | None = None  # (N, F) over the plate, before the swing test
     standing: NDArray[np.bool_] | None = None  # (N, F) after the swing test
     primary: NDArray[np.int64] | None = None  # (N,) nearest standing foot, -1 none
     surface_v: Array | None = None  # (3,) velocity of the surface (a treadmill belt's)
-    force_recorded: Array | None = None  # (N, 3) the force before the low-pass
 
 
 def external_loads(
@@ -611,8 +611,7 @@ def external_loads(
                 moment[b][sl] += p.moment[sl]
                 point_num[b][sl] += p.fv[sl, None] * p.cop[sl]
                 point_den[b][sl] += p.fv[sl]
-                if p.force_recorded is not None:
-                    force_rec[sl] += p.force_recorded[sl]
+                force_rec[sl] += p.force_recorded[sl]
                 assigned.append(Assignment(pl.name, body, float(t[s0]), float(t[s1 - 1])))
 
     # extra applied forces
@@ -668,7 +667,7 @@ def external_loads(
         flags=tuple(flags),
         shared_contact=shared,
         unassigned_contact=unassigned,
-        force_recorded=(force_rec if all(p.force_recorded is not None for p in prepared) else None),
+        force_recorded=force_rec,
     )
 
 
@@ -683,9 +682,9 @@ class SampledPlate:
     threshold, low-passed, linearly resampled on ``time`` (0 outside the plate's time);
     ``height_m``: the plate surface along the ``up`` of the sampling (corners, else the median
     of the loaded COPs); ``fv_recorded`` (N,) the vertical force before the low-pass (0 at the
-    samples under the threshold), resampled on ``time``; ``corners`` (4, 3) m or ``None``;
-    ``force_recorded`` (N, 3) F before the low-pass, zero under the threshold, resampled on
-    ``time`` (``None``: not kept)."""
+    samples under the threshold), resampled on ``time``; ``force_recorded`` (N, 3) F before
+    the low-pass, zero under the threshold, resampled on ``time``; ``corners`` (4, 3) m or
+    ``None``."""
 
     name: str
     time: Array
@@ -693,8 +692,8 @@ class SampledPlate:
     moment: Array
     height_m: float
     fv_recorded: Array
+    force_recorded: Array
     corners: Array | None = None
-    force_recorded: Array | None = None
 
     def rotated(self, rotation: ArrayLike) -> SampledPlate:
         """This plate in the frame ``x_new = R x`` (force, moment about the origin, corners;
@@ -707,8 +706,8 @@ class SampledPlate:
             self.moment @ r.T,
             self.height_m,
             self.fv_recorded,
+            self.force_recorded @ r.T,
             None if self.corners is None else np.asarray(self.corners, dtype=float) @ r.T,
-            None if self.force_recorded is None else self.force_recorded @ r.T,
         )
 
 
@@ -776,7 +775,7 @@ def sample_plate(
         cop_ok = cop_finite & loaded_raw
         h = float(np.median(cop_raw[cop_ok] @ up)) if cop_ok.any() else 0.0
     corners = None if pl.corners is None else np.asarray(pl.corners, dtype=float)
-    return SampledPlate(pl.name, t, f_k, m_k, h, fv_rec, corners, f_rec)
+    return SampledPlate(pl.name, t, f_k, m_k, h, fv_rec, f_rec, corners)
 
 
 def _prepare(
@@ -797,8 +796,7 @@ def _prepare(
     if not np.array_equal(pl.time, t):
         f_k = np.nan_to_num(resample_to(pl.time, f_k, t))
         m_k = np.nan_to_num(resample_to(pl.time, m_k, t))
-        if f_rec is not None:
-            f_rec = np.nan_to_num(resample_to(pl.time, f_rec, t))
+        f_rec = np.nan_to_num(resample_to(pl.time, f_rec, t))
         fv_rec = np.nan_to_num(np.interp(t, pl.time, fv_rec, left=np.nan, right=np.nan))
     fv = f_k @ up
     contact = fv > threshold_n
@@ -808,10 +806,7 @@ def _prepare(
         cop = h * up + np.cross(up, m_h) / fv[:, None]
     cop[~contact] = np.nan
     recorded = fv_rec > threshold_n
-    return _Prepared(
-        pl.name, pl.corners, f_k, m_k, fv, cop, h, contact, fv_rec, recorded,
-        force_recorded=f_rec,
-    )  # fmt: skip
+    return _Prepared(pl.name, pl.corners, f_k, m_k, fv, cop, h, contact, fv_rec, recorded, f_rec)
 
 
 def _plate_state(
