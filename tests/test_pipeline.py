@@ -368,6 +368,26 @@ def test_config_typos_end_the_run_with_one_line(tmp_path, capsys):
 
 @pytest.mark.slow
 @pytest.mark.realdata
+def test_an_emg_channel_absent_from_the_trial_is_flagged_not_fatal(tmp_path):
+    """A configured EMG channel the task file does not record, with no analog label like it
+    (another trial of the session without that electrode), leaves its muscle untracked and
+    raises the ``emg_channels_missing`` flag; the run completes (exit 0)."""
+    text = GC5.read_text(encoding="utf-8").replace('"../', f'"{REPO}/')
+    assert 'vas_med_l = "vasmed"' in text
+    cfg = tmp_path / "absent.toml"
+    cfg.write_text(text.replace('vas_med_l = "vasmed"', 'vas_med_l = "EMG16"'), encoding="utf-8")
+    res = run_session(cfg, tmp_path / "out")
+    status = {r.name: r.status for r in res.stages}
+    assert status["emg"] == "computed" and status["tension_optimization"] == "computed"
+    flags = res.summary["quality"]["flags"]
+    (flag,) = [f for f in flags if f["quantity"] == "emg_channels_missing"]
+    assert flag["value"] == 1 and "'EMG16'" in flag["message"] and "vas_med_l" in flag["message"]
+    out = read_session(res.out_dir)
+    assert "EMG16" not in (out.summary.quality.emg_flat_channels or ())
+
+
+@pytest.mark.slow
+@pytest.mark.realdata
 def test_given_knee_alignment_and_contact_depth_reach_the_model_and_the_split(tmp_path):
     """``[model] knee_varus_deg`` / ``knee_medial_shift_m`` align the side of interest's knee
     (PS: the left one) and nothing else; ``[contact] plateau_depth_m`` places the contact

@@ -216,7 +216,9 @@ class EmgConfig:
     """``[emg]``: EMG channels and their envelope."""
 
     channels: Mapping[str, str] = opt(
-        "model muscle (or muscle group) = analog channel label",
+        "model muscle (or muscle group) = analog channel label; a label the task file "
+        "lacks is an error when an unmapped label is close to it (a typo), else its muscle "
+        "is left untracked and flagged (emg_channels_missing)",
         {},
         item="an analog channel label (string)",
     )

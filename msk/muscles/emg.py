@@ -315,6 +315,32 @@ def channel_quality(
     )  # fmt: skip
 
 
+def missing_channels(
+    channels: Mapping[str, str], labels: Sequence[str], *, typo_cutoff: float = 0.8
+) -> tuple[dict[str, str], tuple[str, ...]]:
+    """The configured EMG ``channels`` (muscle → channel label) a trial's analog ``labels`` lack,
+    split into likely typos and absent channels.
+
+    A missing label whose closest unmapped analog label (:func:`difflib.get_close_matches`,
+    similarity ≥ ``typo_cutoff``: one wrong or extra character in a 5-character label) exists is
+    a typo → ``{label: suggestion}``; any other missing label is absent from this recording (a
+    channel not recorded in this trial) → the tuple. Comparison after stripping blanks."""
+    import difflib
+
+    have = [str(s).strip() for s in labels]
+    wanted = {str(c).strip() for c in channels.values()}
+    free = [lab for lab in have if lab not in wanted]
+    typos: dict[str, str] = {}
+    absent: list[str] = []
+    for ch in sorted(wanted - set(have)):
+        close = difflib.get_close_matches(ch, free, n=1, cutoff=typo_cutoff)
+        if close:
+            typos[ch] = close[0]
+        else:
+            absent.append(ch)
+    return typos, tuple(absent)
+
+
 def process_emg(
     emg: ArrayLike,
     *,

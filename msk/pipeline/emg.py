@@ -62,18 +62,25 @@ def run(
         raise StageUnavailable("no [emg] channels in the configuration")
     from msk.io import read_c3d
     from msk.muscles.activation import first_order_activation
-    from msk.muscles.emg import envelopes_from_trial
+    from msk.muscles.emg import envelopes_from_trial, missing_channels
 
     unknown = sorted(set(cfg.emg.channels) - {m.name for m in model.model.muscles})
     if unknown:
         raise ConfigError(f"{cfg.path}: emg.channels: model has no muscle {unknown[0]!r}")
-    labels = {str(a).strip() for a in getattr(trial, "analog_labels", ())}
-    missing = sorted({str(c).strip() for c in cfg.emg.channels.values()} - labels)
-    if missing:
-        assert inputs.task is not None  # a gait stage
+    assert inputs.task is not None  # a gait stage
+    typos, absent = missing_channels(cfg.emg.channels, getattr(trial, "analog_labels", ()))
+    if typos:
+        ch, close = next(iter(typos.items()))
         raise ConfigError(
             f"{cfg.path}: emg.channels: {inputs.task.file.name} has no analog channel "
-            f"{missing[0]!r}"
+            f"{ch!r} (did you mean {close!r}?)"
+        )
+    # a channel this recording lacks (and nothing like it): its muscles are not tracked, the
+    # quality flag emg_channels_missing says so (msk.pipeline.summary)
+    channels = {m: c for m, c in cfg.emg.channels.items() if str(c).strip() not in absent}
+    if not channels:
+        raise StageUnavailable(
+            f"{inputs.task.file.name} has none of the configured EMG channels ({', '.join(absent)})"
         )
     mvc = []
     for tc in inputs.mvc_trials:
@@ -86,7 +93,7 @@ def run(
         mvc_options["mvc"] = {k: float(v) for k, v in cfg.emg.mvc.items()}
     env = envelopes_from_trial(
         trial,
-        muscles=dict(cfg.emg.channels),
+        muscles=channels,
         highpass_hz=cfg.emg.highpass_hz,
         lowpass_hz=cfg.emg.lowpass_hz,
         delay_s=cfg.emg.electromechanical_delay_s,

@@ -330,6 +330,19 @@ def _flags(
              "difference): mislabelled or ghost markers in the static, placed from the task "
              "instead (msk.quality.inconsistent_static_markers)"}
         )  # fmt: skip
+    if cfg.emg.channels:
+        from msk.muscles.emg import missing_channels
+
+        _, absent = missing_channels(cfg.emg.channels, model.trial.analog_labels)
+        if absent:
+            muscles = sorted(m for m, c in cfg.emg.channels.items() if str(c).strip() in absent)
+            flags.append(
+                {"trial": task.name, "quantity": "emg_channels_missing", "value": len(absent),
+                 "threshold": 0,
+                 "message": f"{task.file.name} has no analog channel "
+                 f"{', '.join(repr(c) for c in absent)} of the configuration's [emg] channels: "
+                 f"{', '.join(muscles)} tracked by no EMG in this trial"}
+            )  # fmt: skip
     for w in (model.trial.metadata or {}).get("warnings", ()):
         flags.append(
             {"trial": task.name, "quantity": "input_file", "value": 1.0,

@@ -11,6 +11,7 @@ from msk.muscles.emg import (
     channel_quality,
     envelopes_from_trial,
     linear_envelope,
+    missing_channels,
     mvc_peaks,
     process_emg,
 )
@@ -231,3 +232,15 @@ def test_grand_challenge_4_dud_and_dead_first_channel(real_dir):
     assert {"dud", "semimem"} <= flat
     assert {"bifeml", "vaslat", "rf", "medgas", "latgas", "tibant", "soleus"}.isdisjoint(flat)
     assert not q.saturated.any()
+
+
+def test_missing_channels_tells_a_typo_from_a_channel_the_trial_lacks():
+    labels = ["vasmed", "vaslat", " rectfem ", "Pedal", "GON"]
+    channels = {"vas_med_l": "vasmedX", "vas_lat_l": "vaslat", "rect_fem_l": "rectfem",
+                "semimem_l": "semimem", "bifemlh_l": "vaslatt"}  # fmt: skip
+    typos, absent = missing_channels(channels, labels)
+    # one extra character next to an unmapped label is a typo; "vaslatt" is close to "vaslat",
+    # but that label is mapped already (its own muscle), so it is absent, not a typo
+    assert typos == {"vasmedX": "vasmed"}
+    assert absent == ("semimem", "vaslatt")
+    assert missing_channels({"a": "vasmed"}, labels) == ({}, ())
