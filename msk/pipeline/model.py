@@ -237,6 +237,10 @@ def _scale_and_place(inputs: SessionInputs, read: ReadResult) -> dict[str, Any]:
         "message": head.message,
     }
     report = None
+    generic = model
+    # a static the task contradicts so much that it cannot be posed (another subject's, or
+    # another labelling): the task's own markers scale and place, and the flag says so
+    rejected: str | None = None
     if static_read is not None:
         sm, slabels_raw, stime, ssubj, window = static_read
         # the still, double-stance part of the static only (msk.static_window.still_window)
@@ -292,17 +296,22 @@ def _scale_and_place(inputs: SessionInputs, read: ReadResult) -> dict[str, Any]:
             if not bad:
                 raise
             assert inputs.static is not None and inputs.task is not None
-            raise KinematicsError(
-                f"{inputs.static.file.name}: the static cannot be posed without the markers "
+            rejected = (
+                f"{inputs.static.file.name} cannot be posed without the markers "
                 f"{inputs.task.file.name} contradicts ({', '.join(sorted(bad))}): not the same "
-                f"subject or labelling? ({exc})"
-            ) from None
-        model, from_task, check, recon = _place_from_task(model, trial, rot, match, bad)
-        placed["from_task"] = from_task
-        placed["reconstructed_from_task"] = recon
-        if check:
-            info["static_check"] = check
-    else:
+                f"subject or labelling? ({' '.join(str(exc).split())}); the model is scaled "
+                "and its markers placed from the task instead"
+            )
+            model, report = generic, None
+            info["static_rejected"] = rejected
+            info.pop("static_window", None)
+        if rejected is None:
+            model, from_task, check, recon = _place_from_task(model, trial, rot, match, bad)
+            placed["from_task"] = from_task
+            placed["reconstructed_from_task"] = recon
+            if check:
+                info["static_check"] = check
+    if static_read is None or rejected is not None:
         # no static trial: the task trial's own markers scale and place (the segment lengths
         # are constant over a motion; msk.scaling.scale_from_motion)
         xm, mlabels = match.apply(trial.rotated(rot).markers, trial.marker_labels)

@@ -319,6 +319,12 @@ def _flags(
              + "; their markers were exchanged back before scaling and IK "
              "(msk.quality.swapped_label_pairs, judged from the pelvis markers)"}
         )  # fmt: skip
+    if model.info.get("static_rejected"):
+        assert inputs.static is not None
+        flags.append(
+            {"trial": task.name, "quantity": "static_not_used", "value": 1.0, "threshold": 0.0,
+             "message": f"static trial {inputs.static.name!r}: {model.info['static_rejected']}"}
+        )  # fmt: skip
     bad = dict(model.info.get("static_check", {}).get("contradicted_m", {}))
     if bad:
         flags.append(
