@@ -1272,6 +1272,7 @@ def place_markers_from_motion(
     move: Sequence[str] = (),
     regularize: bool | None = None,
     median_neutral: Sequence[str] = (),
+    hints: Mapping[str, str] | None = None,
 ) -> tuple[Model, dict[str, Any]]:
     """Add a motion trial's non-model markers to ``model`` when there is no static trial.
 
@@ -1285,6 +1286,11 @@ def place_markers_from_motion(
        a marker fixed to b (skin motion and a wrong segment both raise it) — among the bodies
        whose bone segment (:func:`bone_segments`, median pose) is within ``max_distance_m``;
        it is fixed there at the median position (component-wise: robust to gaps and swaps);
+       near-ties (within 2 mm or 25 % of the smallest spread: a joint the motion hardly moves,
+       such as the lumbar joint, leaves a PSIS as rigid on the torso as on the pelvis) go to the
+       body of the marker's landmark when ``hints`` (lab label → body,
+       :meth:`msk.markersets.MarkerSetMatch.body_hints`) names one of them, else to the nearest
+       bone;
     3. ``iterations`` > 1: inverse kinematics again with the placed markers too (they pin the
        rotations about the long axes that a few anatomical markers leave free, e.g. a thigh
        with no knee marker), and step 2 again from that pose;
@@ -1335,7 +1341,7 @@ def place_markers_from_motion(
         args: dict[str, Any] = dict(
             max_spread_m=max_spread_m, max_distance_m=max_distance_m, max_frames=max_frames,
             min_frames=min_frames, min_markers=min_markers, iterations=iterations, move=move,
-            median_neutral=median_neutral,
+            median_neutral=median_neutral, hints=hints,
         )  # fmt: skip
         plain = place_markers_from_motion(model, markers, labels, time, regularize=False, **args)
         if plain[1]["ik_marker_rms_m"] <= PLACEMENT_RETRY_RMS_M:
@@ -1456,7 +1462,11 @@ def place_markers_from_motion(
             # nearest bone, as the static placement does
             best = float(sig[near].min())
             tie = near & (sig <= best + max(0.002, 0.25 * best))
-            k = int(np.flatnonzero(tie)[np.argmin(dist[tie])])
+            hint = (hints or {}).get(lab)
+            if hint in names and tie[names.index(hint)]:
+                k = names.index(hint)
+            else:
+                k = int(np.flatnonzero(tie)[np.argmin(dist[tie])])
             placed[lab], spread[lab], local[lab] = names[k], float(sig[k]), med[k]
     too_loose = {lab: [placed[lab], spread[lab]] for lab in placed if spread[lab] > max_spread_m}
     # a body that no other marker observes keeps its loose markers (those the later passes

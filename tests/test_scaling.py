@@ -877,3 +877,33 @@ def test_a_trunk_with_one_tracked_marker_is_pulled_to_neutral_in_placement(gait2
     for k, (body, p) in trunk.items():
         assert info["placed"][k] == body
         np.testing.assert_allclose(got[k].offset, p, atol=0.005)
+
+
+def test_motion_placement_gives_near_ties_to_the_landmarks_body(gait2392):
+    """A PSIS over a lumbar joint the walk hardly moves is as rigid on the torso as on the
+    pelvis: the spread cannot tell them apart and the nearest bone may be the torso's. With the
+    marker set's landmark hint (PSIS → pelvis) the tie goes to the pelvis; a hint outside the
+    tie (a body the marker moves on) changes nothing."""
+    from msk.scaling import place_markers_from_motion
+
+    lab = {"LPSI": ("pelvis", (-0.17, 0.10, -0.04)), "RPSI": ("pelvis", (-0.17, 0.10, 0.04))}
+    truth = gait2392.with_markers(
+        [*gait2392.markers, *(Marker(k, b, np.array(p)) for k, (b, p) in lab.items())]
+    )
+    x, labels, t = _motion(gait2392, truth, noise_m=0.001)
+    _, plain = place_markers_from_motion(gait2392, x, labels, t, max_frames=40)
+    # the walk's lumbar joint hardly moves (±3°): without the hint the tie goes to the nearest
+    # bone, the torso's (DM's and JW's L_Psis before the hint)
+    assert {plain["placed"][k] for k in lab} == {"torso"}
+    hinted, info = place_markers_from_motion(
+        gait2392, x, labels, t, max_frames=40,
+        hints={"LPSI": "pelvis", "RPSI": "pelvis"},
+    )  # fmt: skip
+    got = {m.name: m for m in hinted.markers}
+    for k, (body, p) in lab.items():
+        assert info["placed"][k] == body
+        np.testing.assert_allclose(got[k].offset, p, atol=0.005)
+    _, wrong = place_markers_from_motion(
+        gait2392, x, labels, t, max_frames=40, hints={"LPSI": "femur_l"}
+    )
+    assert wrong["placed"]["LPSI"] == plain["placed"]["LPSI"]

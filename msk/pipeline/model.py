@@ -329,6 +329,7 @@ def _scale_and_place(inputs: SessionInputs, read: ReadResult) -> dict[str, Any]:
         model, placed = place_markers_from_motion(
             model, xm, mlabels, trial.time, move=moved,
             median_neutral=free_foot_coordinates(model, moved, present),
+            hints=match.body_hints([b.name for b in model.bodies]),
         )  # fmt: skip
     info["marker_placement"] = placed
     if model.metadata.get("knee_alignment"):
