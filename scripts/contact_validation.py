@@ -59,6 +59,13 @@ def _from_markers(text: str) -> str:
     return text.replace("[model]\n", '[model]\nknee_alignment = "from_markers"\n', 1)
 
 
+def _nonnegative(text: str) -> str:
+    # issue 16, seventh pass: compartment forces ≥ 0 in the muscle-force QP
+    if "compartment_nonnegative" in text:
+        return re.sub(r"(?m)^compartment_nonnegative = .*$", "compartment_nonnegative = true", text)
+    return text.replace("[optimization]\n", "[optimization]\ncompartment_nonnegative = true\n", 1)
+
+
 def _method(name: str) -> Callable[[str], str]:
     return lambda text: re.sub(r'(?m)^method = ".*"$', f'method = "{name}"', text, count=1)
 
@@ -70,10 +77,17 @@ VARIANTS: dict[str, list[tuple[str, Callable[[str], str] | None, tuple[str, ...]
         ("static_optimization", _method("static_optimization"), ("spline",)),
         ("emg_weighted", _method("emg_weighted"), ("spline",)),
         ("alignment from markers", _from_markers, ("spline",)),
+        ("compartments ≥ 0", _nonnegative, ("spline",)),
+        (
+            "static_optimization, compartments ≥ 0",
+            lambda t: _nonnegative(_method("static_optimization")(t)),
+            ("spline",),
+        ),
     ],
     "gc4_JW": [
         ("shipped", None, ("spline", "four_bar")),
         ("emg_assisted", _method("emg_assisted"), ("spline",)),
+        ("compartments ≥ 0", _nonnegative, ("spline",)),
         ("alignment from markers", _from_markers, ("spline",)),
     ],
     "gc6_DM_og1": [
@@ -81,6 +95,7 @@ VARIANTS: dict[str, list[tuple[str, Callable[[str], str] | None, tuple[str, ...]
         ("neutral alignment", _neutral, ("spline", "four_bar")),
         ("alignment + p_DM points", _p_dm, ("spline",)),
         ("alignment from markers", _from_markers, ("spline",)),
+        ("compartments ≥ 0", _nonnegative, ("spline",)),
     ],
 }
 
