@@ -110,9 +110,11 @@ __all__ = [
     "G0",
     "INTERCONDYLAR_DISTANCE_M",
     "PLATEAU_DEPTH_M",
+    "CompartmentMap",
     "KneeContact",
     "MedialLateral",
     "PlateauGeometry",
+    "compartment_force_map",
     "knee_contact_force",
     "muscle_distal_wrenches",
     "plateau_geometry",
@@ -375,15 +377,7 @@ def knee_contact_force(
                     wr[:, 3:] -= np.asarray(loads.moment, dtype=float)[idx, b]
         force_w[idx] = wr[:, :3]
         moment_w[idx] = wr[:, 3:]
-        # plateau frame: the tibia body frame (child of the knee), optionally offset
-        r_j, p_j = st.rot[tree.child_slot], st.trans[tree.child_slot]
-        r_b = r_j @ tree.child_placement.rotation
-        p_b = p_j + r_j @ tree.child_placement.translation
-        if plateau_offset is not None:
-            p_b = p_b + r_b @ plateau_offset.translation
-            r_b = r_b @ plateau_offset.rotation
-        rot[idx] = r_b
-        origin[idx] = p_b
+        rot[idx], origin[idx] = _plateau_placement(tree, st, plateau_offset)
     if with_muscles and f is not None and w is not None:
         add = np.einsum("nm,nmc->nc", np.nan_to_num(f), w)
         add[~np.isfinite(f).all(axis=1)] = np.nan
@@ -410,6 +404,20 @@ def knee_contact_force(
         muscles_included=with_muscles,
         metadata={"variant": variant, "plateau_offset": plateau_offset is not None},
     )
+
+
+def _plateau_placement(
+    tree: _DistalTree, st: _ChainStates, plateau_offset: pin.SE3 | None
+) -> tuple[Array, Array]:
+    """World rotation (N, 3, 3) and origin (N, 3) of the plateau frame: the tibia body frame
+    (child of the knee), optionally offset."""
+    r_j, p_j = st.rot[tree.child_slot], st.trans[tree.child_slot]
+    r_b = r_j @ tree.child_placement.rotation
+    p_b = p_j + r_j @ tree.child_placement.translation
+    if plateau_offset is not None:
+        p_b = p_b + r_b @ plateau_offset.translation
+        r_b = r_b @ plateau_offset.rotation
+    return r_b, p_b
 
 
 # ---------------------------------------------------------------------------------------------
@@ -832,3 +840,112 @@ def split_medial_lateral(
         geometry=geo,
         body_weight_n=float(contact.body_weight_n),
     )
+
+
+# ---------------------------------------------------------------------------------------------
+# the compartment forces as affine functions of the muscle tensions (issue 16, seventh pass)
+# ---------------------------------------------------------------------------------------------
+@dataclass(frozen=True)
+class CompartmentMap(FrameAxis):
+    """Medial and lateral compartment forces as affine functions of the muscle tensions f::
+
+        [F_M, F_L](f) = offset + gain · f        (per frame)
+
+    Knee contact is the inverse-dynamics wrench plus Σ f_i ∂l_i/∂ξ (module docstring) and the
+    two-point split is linear in that wrench, so both compartment forces are affine in f:
+    ``offset`` is the split of the inverse-dynamics load alone, ``gain[:, c, i]`` the split of
+    muscle i's unit wrench (:func:`split_medial_lateral` on both; nothing re-derived). A static
+    optimisation can then require F_M(f) ≥ 0 and F_L(f) ≥ 0 (a compartment cannot pull).
+
+    Attributes:
+        time: (N,) s.
+        joint, side: the knee and its side.
+        offset: (N, 2) medial and lateral forces of the inverse-dynamics load alone (N).
+        gain: (N, 2, K) their change per N of each muscle's tension (dimensionless), muscle
+            columns ``muscle_names`` (the model's order).
+        geometry: the contact points (``intercondylar_distance_m`` d: ``d · F_L`` is the
+            frontal moment about the medial contact point, Winby et al. 2009).
+        muscle_names: the muscles of ``gain``'s last axis.
+    """
+
+    FRAME_FIELDS: ClassVar[tuple[str, ...]] = ("time", "offset", "gain")
+
+    time: Array
+    joint: str
+    side: Side
+    offset: Array
+    gain: Array
+    geometry: PlateauGeometry
+    muscle_names: tuple[str, ...]
+    columns: tuple[str, ...] = ("medial_n", "lateral_n")
+
+    def forces(self, muscle_forces: ArrayLike) -> Array:
+        """(N, 2) medial and lateral forces (N) for tensions ``muscle_forces`` (N, K)."""
+        return self.offset + np.einsum("nck,nk->nc", self.gain, np.asarray(muscle_forces, float))
+
+
+def compartment_force_map(
+    model: Model,
+    kinematics: Any,
+    loads: Any = None,
+    *,
+    joint: str = "knee_r",
+    geometry: PlateauGeometry | None = None,
+    side: str | None = None,
+    plateau_offset: pin.SE3 | None = None,
+    variant: Variant = "full",
+    plan: GeometryPlan | None = None,
+    distal_wrenches: ArrayLike | None = None,
+) -> CompartmentMap:
+    """The medial/lateral compartment forces of ``joint`` as affine functions of the muscle
+    tensions (:class:`CompartmentMap`), all frames at once.
+
+    ``offset`` is :func:`split_medial_lateral` of :func:`knee_contact_force` without muscles;
+    ``gain`` the same split applied to each muscle's unit wrench ∂l_i/∂ξ moved to the plateau
+    frame (the transform :func:`knee_contact_force` applies to Σ f_i ∂l_i/∂ξ), so that
+    ``offset + gain · f`` equals the split of :func:`knee_contact_force` with tensions f to
+    round-off (tested). Arguments as :func:`knee_contact_force`; ``distal_wrenches`` (N, K, 6)
+    from the geometry pass, or computed here. Frames with non-finite kinematics are NaN.
+    """
+    geo = PlateauGeometry() if geometry is None else geometry
+    contact = knee_contact_force(
+        model, kinematics, loads, joint=joint, plateau_offset=plateau_offset, variant=variant,
+        plan=plan,
+    )  # fmt: skip
+    ml = split_medial_lateral(contact, geo, side=side)
+    th = np.asarray(kinematics.q, dtype=float)
+    n = th.shape[0]
+    k = len(model.muscles)
+    if distal_wrenches is None:
+        w = muscle_distal_wrenches(model, th, joint=joint, plan=plan)
+    else:
+        w = np.asarray(distal_wrenches, dtype=float)
+        if w.shape != (n, k, 6):
+            raise ShapeMismatchError(
+                f"distal wrenches {w.shape} must be (frames {n}, muscles {k}, 6)"
+            )
+    tree = _distal_tree(model, joint)
+    rot = np.full((n, 3, 3), np.nan)
+    origin = np.full((n, 3), np.nan)
+    ok = np.isfinite(th).all(axis=1)
+    if ok.any():
+        st = _chain_states(model, tree, th[ok], None, None)
+        rot[ok], origin[ok] = _plateau_placement(tree, st, plateau_offset)
+    # each muscle's unit wrench in the plateau frame, moment about its origin
+    f_w, m_w = w[..., :3], w[..., 3:]
+    m_o = m_w - _cross(origin[:, None, :], f_w)
+    f_p = np.einsum("nji,nkj->nki", rot, f_w)
+    m_p = np.einsum("nji,nkj->nki", rot, m_o)
+    unit = KneeContact(
+        time=np.repeat(np.asarray(kinematics.time, dtype=float), k), joint=joint,
+        body=contact.body, force=f_p.reshape(-1, 3), moment=m_p.reshape(-1, 3),
+        values=np.zeros((n * k, len(CONTACT_COLUMNS))), body_weight_n=contact.body_weight_n,
+        muscles_included=True,
+    )  # fmt: skip
+    per = split_medial_lateral(unit, geo, side=side)
+    gain = np.stack([per.medial.reshape(n, k), per.lateral.reshape(n, k)], axis=1)
+    return CompartmentMap(
+        time=np.asarray(kinematics.time, dtype=float), joint=joint, side=ml.side,
+        offset=np.stack([ml.medial, ml.lateral], axis=1), gain=gain, geometry=geo,
+        muscle_names=tuple(m.name for m in model.muscles),
+    )  # fmt: skip

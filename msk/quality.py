@@ -32,7 +32,11 @@ Thresholds and their sources (:data:`THRESHOLDS`):
 * Tension optimisation: infeasible frames, frames excluded from it (non-finite or invalid
   inputs), a muscle saturated (activation ≥ 0.99) on more than 25 % of frames (the generic
   strength is short of the task for a quarter of it), reserve actuators
-  carrying more than 10 % of a leg coordinate's peak joint torque (RMS).
+  carrying more than 10 % of a leg coordinate's peak joint torque (RMS); with knee compartments
+  held ≥ 0 (``compartment_nonnegative``), a frontal reserve moment whose peak exceeds 10 % of
+  the peak frontal moment of the knee's inverse-dynamics load (:func:`frontal_reserve_flags`:
+  OpenSim's guideline for reserve actuators, peak below 10 % of the peak joint moment, applied
+  to the frontal plane — the reserve stands for the ligaments the model lacks).
 * Duplicate marker labels in the file; segments left at the generic size (no scaling).
 * Static-trial markers whose distances to the markers of their own segment disagree with the
   motion trial's by more than 25 mm (median over at least 3 partners,
@@ -63,6 +67,7 @@ __all__ = [
     "body_mass_from_loads",
     "com_height",
     "contact_flags",
+    "frontal_reserve_flags",
     "gait_flags",
     "inconsistent_static_markers",
     "swapped_label_pairs",
@@ -81,6 +86,7 @@ THRESHOLDS: Mapping[str, float] = {
     "observed_measured_frames_min_pct": 50.0,
     "saturated_frames_pct": 25.0,
     "reserve_rms_pct_peak_torque": 10.0,
+    "frontal_reserve_pct_peak_moment": 10.0,
     "saturation_activation": 0.99,
     "static_marker_discrepancy_m": 0.025,
     "coordinate_at_bound_frames_pct": 5.0,
@@ -531,6 +537,45 @@ def _optimization_flags(trial: str, sol: Any, jt: Any, th: Mapping[str, float]) 
                           f"the reserve actuator of {c} carries {pct:.0f} % of its peak joint "
                           "torque (RMS): the muscles cannot produce that moment")
                 )  # fmt: skip
+    out += frontal_reserve_flags(trial, sol, th)
+    return out
+
+
+def frontal_reserve_flags(
+    trial: str, sol: Any, thresholds: Mapping[str, float] = THRESHOLDS
+) -> list[Flag]:
+    """Knee compartment rows (``[optimization] compartment_nonnegative``) whose frontal reserve
+    moment peaks above ``frontal_reserve_pct_peak_moment`` (10 %) of the peak frontal moment of
+    the knee's inverse-dynamics load about the contact midpoint (``sol``: a
+    :class:`msk.pipeline.tension.MuscleTensions`). The reserve is the moment about the opposite
+    contact point that no admissible tension balances — in a knee, the collateral ligaments'
+    share, absent from the model. The bound transposes OpenSim's guideline for reserve actuators
+    (peak reserve below 10 % of the peak joint moment; OpenSim documentation, "Reserves and
+    Residuals" and the simulation checklist) to the frontal plane."""
+    th = {**THRESHOLDS, **thresholds}
+    res = getattr(sol, "frontal_reserve_moments", None)
+    rows = tuple(getattr(sol, "compartment_rows", ()) or ())
+    peak_id = getattr(sol, "id_frontal_moment_peak_nm", None)
+    if res is None or not rows or peak_id is None or not peak_id > 0:
+        return []
+    res = np.asarray(res, dtype=float)
+    out: list[Flag] = []
+    for k, row in enumerate(rows):
+        col = res[:, k]
+        col = col[np.isfinite(col)]
+        if not col.size:
+            continue
+        pct = 100.0 * float(col.max()) / float(peak_id)
+        if pct > th["frontal_reserve_pct_peak_moment"]:
+            n = int((col > 0.01 * float(peak_id)).sum())
+            out.append(
+                _flag(trial, f"{row}_frontal_reserve_pct", pct,
+                      th["frontal_reserve_pct_peak_moment"],
+                      f"{row}: a frontal reserve moment of up to {col.max():.1f} N·m ({pct:.0f} % "
+                      f"of the knee's peak frontal moment {peak_id:.1f} N·m; above 1 % of it on "
+                      f"{n} frames) keeps the compartment from pulling where no muscle can: "
+                      "ligaments the model lacks would carry it")
+            )  # fmt: skip
     return out
 
 

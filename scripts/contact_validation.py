@@ -14,7 +14,8 @@ config (DM: the generic model's neutral knee alignment instead of DM.osim's, DM'
 points from ``p_DM.mat``; PS: static optimisation or the EMG-weighted criterion instead of the
 shipped EMG-assisted one; JW: EMG-assisted; all three: the knee alignment estimated from the
 subject's markers, ``knee_alignment = "from_markers"``, a "not run" row with the reason when
-the markers are not there).
+the markers are not there; ``compartments free``: ``compartment_nonnegative = false``, the
+medial/lateral forces allowed to pull as before 2026-11-25).
 """
 
 from __future__ import annotations
@@ -59,6 +60,12 @@ def _from_markers(text: str) -> str:
     return text.replace("[model]\n", '[model]\nknee_alignment = "from_markers"\n', 1)
 
 
+def _compartments_free(text: str) -> str:
+    # issue 16, seventh pass: the shipped configs hold the knee compartments ≥ 0 in the
+    # muscle-force QP; this variant lets them pull (the configs before 2026-11-25)
+    return re.sub(r"(?m)^compartment_nonnegative = .*$", "compartment_nonnegative = false", text)
+
+
 def _method(name: str) -> Callable[[str], str]:
     return lambda text: re.sub(r'(?m)^method = ".*"$', f'method = "{name}"', text, count=1)
 
@@ -70,10 +77,17 @@ VARIANTS: dict[str, list[tuple[str, Callable[[str], str] | None, tuple[str, ...]
         ("static_optimization", _method("static_optimization"), ("spline",)),
         ("emg_weighted", _method("emg_weighted"), ("spline",)),
         ("alignment from markers", _from_markers, ("spline",)),
+        ("compartments free", _compartments_free, ("spline",)),
+        (
+            "static_optimization, compartments free",
+            lambda t: _compartments_free(_method("static_optimization")(t)),
+            ("spline",),
+        ),
     ],
     "gc4_JW": [
         ("shipped", None, ("spline", "four_bar")),
         ("emg_assisted", _method("emg_assisted"), ("spline",)),
+        ("compartments free", _compartments_free, ("spline",)),
         ("alignment from markers", _from_markers, ("spline",)),
     ],
     "gc6_DM_og1": [
@@ -81,6 +95,7 @@ VARIANTS: dict[str, list[tuple[str, Callable[[str], str] | None, tuple[str, ...]
         ("neutral alignment", _neutral, ("spline", "four_bar")),
         ("alignment + p_DM points", _p_dm, ("spline",)),
         ("alignment from markers", _from_markers, ("spline",)),
+        ("compartments free", _compartments_free, ("spline",)),
     ],
 }
 

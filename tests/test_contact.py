@@ -674,3 +674,139 @@ def test_a_lateral_muscle_loads_the_lateral_compartment_of_either_knee(side: str
     ml = split_medial_lateral(c, PlateauGeometry(0.04, (0.0, -0.02, 0.0)))
     np.testing.assert_allclose(ml.normal, 500.0 - M_SHANK * G0, atol=1e-8)
     np.testing.assert_allclose(ml.lateral - ml.medial, 625.0, atol=1e-8)
+
+
+# ---------------------------------------------------------------------------------------------
+# compartment forces affine in the tensions; F_M, F_L ≥ 0 in static optimisation (issue 16,
+# seventh pass)
+# ---------------------------------------------------------------------------------------------
+def _varus_frames(model: Model, side: str, medial_m: float, n: int = 3):
+    """Static knee at 0°, 700 N straight up 0.4 m below the knee, ``medial_m`` medial of it."""
+    z = -medial_m if side == "r" else medial_m
+    return _static(model, [[0.0]] * n), _foot_load(n, z)
+
+
+@pytest.mark.parametrize("side", ["r", "l"])
+def test_compartment_map_is_the_split_of_the_contact_with_any_tensions(side: str) -> None:
+    """offset + gain · f equals split_medial_lateral(knee_contact_force(f)) to round-off, for
+    random tensions, a bent moving knee and an external load, on either side."""
+    from msk.contact import compartment_force_map
+    from tests.support.knees import four_muscle_knee
+
+    model = four_muscle_knee(f"knee_{side}")
+    t = np.arange(6) * 0.01
+    q = np.linspace(-0.2, -0.9, 6)[:, None]
+    kin = kinematics_from_coordinates(t, q, model.coordinate_names, cutoff_hz=None)
+    loads = _foot_load(6, 0.02)
+    geo = PlateauGeometry(0.041, (0.002, -0.023, 0.001))
+    f = np.random.default_rng(3).uniform(0.0, 900.0, (6, 4))
+    cm = compartment_force_map(model, kin, loads, joint=f"knee_{side}", geometry=geo)
+    c = knee_contact_force(model, kin, loads, muscle_forces=f, joint=f"knee_{side}")
+    ref = split_medial_lateral(c, geo)
+    got = cm.forces(f)
+    scale = np.abs(ref.normal).max()
+    assert np.abs(got[:, 0] - ref.medial).max() <= 1e-10 * scale
+    assert np.abs(got[:, 1] - ref.lateral).max() <= 1e-10 * scale
+    assert cm.side == ("right" if side == "r" else "left")
+    # the lateral extensor presses the lateral compartment more than the medial one
+    i = cm.muscle_names.index("lat_ext")
+    assert np.all(cm.gain[:, 1, i] > cm.gain[:, 0, i])
+
+
+def _constrained_so(model: Model, side: str, medial_m: float, f_active: float):
+    """Static optimisation (activations², reserves 1 N·m) of the knee's torques with and without
+    the rows d·F_M ≥ 0, d·F_L ≥ 0 (frontal reserves 1 N·m), as the tension stage poses them."""
+    from msk.contact import compartment_force_map
+    from msk.muscles.geometry import jacobian_frames
+    from msk.optimization import TensionInequalities, solve_static_optimization_batch
+
+    kin, loads = _varus_frames(model, side, medial_m)
+    joint = f"knee_{side}"
+    geo = PlateauGeometry(0.04, (0.0, -0.02, 0.0))
+    # the load passes through the knee axis' sagittal line and the shank hangs straight: no
+    # knee torque (checked below against the contact's own moment about the axis)
+    tau = np.zeros((kin.n_frames, 1))
+    c = knee_contact_force(model, kin, loads, joint=joint)
+    np.testing.assert_allclose(c.moment[:, 2], 0.0, atol=1e-9)
+    geom = muscle_geometry(model, kin.q, kin.v, distal_wrench_joints=(joint,))
+    jac = jacobian_frames(geom.jacobian, np.arange(kin.n_frames), [0])
+    cm = compartment_force_map(
+        model, kin, loads, joint=joint, geometry=geo, distal_wrenches=geom.distal_wrenches[joint]
+    )
+    rows = TensionInequalities(0.04 * cm.offset, 0.04 * cm.gain, ("medial", "lateral"), 1.0)
+    fa = np.full((kin.n_frames, 4), f_active)
+    kw: dict[str, Any] = {"f_active": fa, "reserve_optimal_force": np.ones(1)}
+    free = solve_static_optimization_batch(jac, tau, **kw)
+    held = solve_static_optimization_batch(jac, tau, inequalities=rows, **kw)
+    return cm, free, held, jac, tau, kw, rows
+
+
+@pytest.mark.parametrize("side", ["r", "l"])
+def test_nonnegative_compartments_recruit_the_lateral_muscles_under_a_varus_load(side) -> None:
+    """700 N passing 30 mm medial of the knee (21 N·m of external adduction moment, no sagittal
+    torque): without muscles F_L = (661 − 1050)/2 = −194 N (the lateral compartment pulls) and
+    static optimisation recruits nothing. With F_M, F_L ≥ 0 the two lateral muscles co-contract
+    (1.125 N of F_L per N: ≈ 172 N together), the medial ones stay off, both compartments are
+    ≥ 0 to 0.1 N (the reserve is priced quadratically, like a coordinate reserve, so it keeps a
+    few mN·m where the muscles' last newtons cost more: d·F_L = −s), the knee torque is still
+    produced exactly; DAQP's answer has KKT figures ≤ 1e-8 and Clarabel's agrees."""
+    from msk.optimization import solve_static_optimization_batch
+
+    model = _one_knee_four(side)
+    cm, free, held, jac, tau, kw, rows = _constrained_so(model, side, 0.03, 1000.0)
+    np.testing.assert_allclose(cm.offset[:, 1], (661.0 - 1050.0) / 2, atol=0.5)
+    assert np.all(free.forces < 1e-6) and np.all(cm.forces(free.forces)[:, 1] < -190.0)
+    comp = cm.forces(held.forces)
+    assert np.all(comp >= -0.1)
+    names = cm.muscle_names
+    lat = [names.index("lat_ext"), names.index("lat_flex")]
+    med = [names.index("med_ext"), names.index("med_flex")]
+    assert np.all(held.forces[:, lat].sum(axis=1) >= 171.0)
+    assert np.all(held.forces[:, med] < 1e-6)
+    np.testing.assert_allclose(held.residual, 0.0, atol=1e-9)
+    np.testing.assert_allclose(held.reserve_torques, 0.0, atol=1e-9)
+    np.testing.assert_allclose(held.torque_error, free.torque_error, atol=1e-9)
+    s = held.inequality_reserves
+    assert s is not None and np.all(s < 0.005)
+    np.testing.assert_allclose(0.04 * comp[:, 1] + s[:, 1], 0.0, atol=1e-8)
+    assert np.nanmax(held.kkt) <= 1e-8
+    other = solve_static_optimization_batch(jac, tau, inequalities=rows, solver="clarabel", **kw)
+    np.testing.assert_allclose(other.forces, held.forces, atol=1e-3)
+
+
+def test_a_varus_load_no_muscle_can_balance_takes_a_frontal_reserve_and_is_flagged() -> None:
+    """The same knee with muscles of 50 N capacity: the lateral muscles saturate, the frontal
+    reserve of the lateral row carries the rest (d·F_L + s = 0, s > 0), the compartments stay ≥ 0
+    once the reserve is counted, and the quality gate names it."""
+    from msk.pipeline.tension import MuscleTensions
+    from msk.quality import frontal_reserve_flags
+
+    model = _one_knee_four("r")
+    cm, _, held, *_ = _constrained_so(model, "r", 0.03, 50.0)
+    s = held.inequality_reserves
+    assert s is not None
+    assert np.all(s[:, 1] > 1.0) and np.all(s[:, 0] < 1e-9)
+    names = cm.muscle_names
+    assert np.all(held.activations[:, names.index("lat_ext")] > 0.999)
+    np.testing.assert_allclose(0.04 * cm.forces(held.forces)[:, 1] + s[:, 1], 0.0, atol=1e-8)
+    n = held.forces.shape[0]
+    ten = MuscleTensions(
+        held.forces, held.activations, names, "static_optimization", 0,
+        frontal_reserve_moments=s, compartment_rows=("knee_r_medial", "knee_r_lateral"),
+        id_frontal_moment_peak_nm=float(np.max(np.abs(0.02 * (cm.offset[:, 1] - cm.offset[:, 0])))),
+    )  # fmt: skip
+    flags = frontal_reserve_flags("trial", ten)
+    assert [f.quantity for f in flags] == ["knee_r_lateral_frontal_reserve_pct"]
+    assert flags[0].value > 10.0 and "knee_r_lateral" in flags[0].message
+    quiet = MuscleTensions(
+        held.forces, held.activations, names, "static_optimization", 0,
+        frontal_reserve_moments=np.zeros((n, 2)),
+        compartment_rows=("knee_r_medial", "knee_r_lateral"), id_frontal_moment_peak_nm=21.0,
+    )  # fmt: skip
+    assert frontal_reserve_flags("trial", quiet) == []
+
+
+def _one_knee_four(side: str) -> Model:
+    from tests.support.knees import four_muscle_knee
+
+    return four_muscle_knee(f"knee_{side}", shank_mass_kg=M_SHANK)

@@ -203,7 +203,8 @@ def test_tension_forces_only_are_the_stage_forces() -> None:
         only = tension.optimise(
             session_inputs(cfg), identified_model(r["model"].model, r["mass_identification"]),
             r["inverse_dynamics"].torques, r["muscle_geometry"], r["kinematics"].time,
-            r["loads"].usable, r["emg"], forces_only=True,
+            r["loads"].usable, r["emg"], forces_only=True, kinematics=r["kinematics"],
+            external=r["loads"].external,
         )  # fmt: skip
     np.testing.assert_array_equal(only.forces, full.forces)
     assert np.isfinite(full.forces).any()
@@ -628,7 +629,8 @@ def test_knee_contact_in_blocks_equals_one_pass(monkeypatch: pytest.MonkeyPatch)
     with threadpool_limits(limits=1, user_api="blas"):
         resolve = tension.optimise(
             inputs, spec, r["inverse_dynamics"].torques, r["muscle_geometry"], kin.time,
-            r["loads"].usable, r["emg"], forces_only=True,
+            r["loads"].usable, r["emg"], forces_only=True, kinematics=kin,
+            external=r["loads"].external,
         )  # fmt: skip
     forces = {"generic": r["tension_optimization"].forces, "subject_specific": resolve.forces}
     models = {"generic": mdl, "subject_specific": spec}

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import pytest
@@ -782,3 +783,84 @@ def test_batch_split_per_frame_cost_and_bounds_over_several_chunks(monkeypatch) 
     monkeypatch.setattr(problems, "_MIN_BLOCK_UNKNOWNS", 16)
     split, whole = _whole_and_split(monkeypatch, bounded)
     _assert_same(split, whole, atol=1e-9 * np.abs(tau).max())
+
+
+# ---------------------------------------------------------------------------------------------
+# inequality rows c + G f + s ≥ 0 with penalised reserves (knee compartments ≥ 0, issue 16)
+# ---------------------------------------------------------------------------------------------
+@pytest.mark.parametrize("criterion", ["static", "static_p3", "assisted", "weighted", "tension"])
+def test_inequality_rows_hold_with_kkt_and_a_second_solver(criterion: str) -> None:
+    """Random frames (8 muscles, 2 coordinates) with two rows that the unconstrained solution
+    violates by up to ~50 units: with the rows, c + G f + s ≥ 0 to 1e-9 on every frame, s ≥ 0,
+    the torque equality unchanged (residual ≤ 1e-9; the EMG-weighted QP keeps its penalty),
+    DAQP's KKT figures (inequality multipliers included) ≤ 1e-8, Clarabel's forces and reserves
+    equal DAQP's to 1e-4 (relative); rows that never bind leave the solution as it was."""
+    import msk.optimization as o
+
+    rng = np.random.default_rng(11)
+    n_fr, m, n = 12, 8, 2
+    jac = rng.normal(0.0, 0.03, (n_fr, m, n))
+    tau = rng.normal(0.0, 20.0, (n_fr, n))
+    fa = np.full((n_fr, m), 1500.0)
+    gain = rng.normal(0.0, 0.02, (n_fr, 2, m))
+    off = rng.normal(-20.0, 10.0, (n_fr, 2))
+    rows = o.TensionInequalities(off, gain, ("a", "b"))
+    idle = o.TensionInequalities(off + 1e6, gain, ("a", "b"))
+    meas = np.ones(m, dtype=bool)
+
+    def run(ineq: Any, solver: str) -> Any:
+        if criterion in ("static", "static_p3"):
+            p = 3.0 if criterion == "static_p3" else 2.0
+            return o.solve_static_optimization_batch(
+                jac, tau, f_active=fa, reserve_optimal_force=np.ones(n), activation_exponent=p,
+                solver=solver, inequalities=ineq,
+            )  # fmt: skip
+        if criterion == "assisted":
+            return o.solve_emg_assisted_batch(
+                jac, tau, f_active=fa, a_ref=np.full((n_fr, m), 0.1), measured=meas,
+                reserve_optimal_force=np.ones(n), solver=solver, inequalities=ineq,
+            )  # fmt: skip
+        if criterion == "weighted":
+            return o.solve_emg_weighted_batch(
+                jac, tau, f_ref=np.full((n_fr, m), 100.0), measured=meas, w_emg=0.1, f_max=fa,
+                solver=solver, inequalities=ineq,
+            )  # fmt: skip
+        return o.solve_tension_batch(
+            jac, tau, f_iso=np.full(m, 1500.0), reserve_optimal_force=np.ones(n), solver=solver,
+            inequalities=ineq,
+        )  # fmt: skip
+
+    free, held, loose = run(None, "daqp"), run(rows, "daqp"), run(idle, "daqp")
+    assert free.inequality_reserves is None
+    before = off + np.einsum("kim,km->ki", gain, free.forces)
+    assert before.min() < -30.0
+    s = held.inequality_reserves
+    assert s is not None and held.inequality_names == ("a", "b") and np.all(s >= 0.0)
+    after = off + np.einsum("kim,km->ki", gain, held.forces) + s
+    assert after.min() >= -1e-9
+    assert np.all(held.status == 0) and np.nanmax(held.kkt) <= 1e-8
+    if criterion != "weighted":
+        assert np.abs(held.residual).max() <= 1e-9
+    np.testing.assert_allclose(loose.forces, free.forces, atol=1e-7)
+    other = run(rows, "clarabel")
+    scale = np.abs(held.forces).max()
+    assert np.abs(other.forces - held.forces).max() <= 1e-4 * scale
+    assert other.inequality_reserves is not None
+    np.testing.assert_allclose(other.inequality_reserves, s, atol=1e-4 * max(1.0, s.max()))
+
+
+def test_inequality_rows_check_their_shapes() -> None:
+    import msk.optimization as o
+
+    with pytest.raises(OptimizationError, match="offset"):
+        o.TensionInequalities(np.zeros(3), np.zeros((3, 2, 4)), ("a", "b"))
+    with pytest.raises(OptimizationError, match="names"):
+        o.TensionInequalities(np.zeros((3, 2)), np.zeros((3, 2, 4)), ("a",))
+    with pytest.raises(OptimizationError, match="reserve_optimal"):
+        o.TensionInequalities(np.zeros((3, 2)), np.zeros((3, 2, 4)), ("a", "b"), 0.0)
+    rows = o.TensionInequalities(np.zeros((3, 2)), np.zeros((3, 2, 4)), ("a", "b"))
+    with pytest.raises(OptimizationError, match="does not match"):
+        o.solve_static_optimization_batch(
+            np.zeros((3, 5, 1)) + 0.01, np.zeros((3, 1)), f_active=np.ones((3, 5)),
+            inequalities=rows,
+        )  # fmt: skip

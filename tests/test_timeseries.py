@@ -17,7 +17,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from msk.contact import KneeContact, MedialLateral, PlateauGeometry
+from msk.contact import CompartmentMap, KneeContact, MedialLateral, PlateauGeometry
 from msk.dynamics import JointReaction, JointTorques
 from msk.exceptions import ShapeMismatchError
 from msk.kinematics import Kinematics
@@ -110,6 +110,13 @@ def _medial_lateral(n: int, r: np.random.Generator) -> MedialLateral:
     )  # fmt: skip
 
 
+def _compartment_map(n: int, r: np.random.Generator) -> CompartmentMap:
+    return CompartmentMap(
+        r.random(n), "knee_r", "right", r.random((n, 2)), r.random((n, 2, 3)), PlateauGeometry(),
+        ("a", "b", "c"),
+    )  # fmt: skip
+
+
 FACTORIES: dict[str, Callable[[int, np.random.Generator], Any]] = {
     "Kinematics": _kinematics,
     "ExternalLoads": _loads,
@@ -122,6 +129,7 @@ FACTORIES: dict[str, Callable[[int, np.random.Generator], Any]] = {
     "EmgEnvelopes": _emg,
     "KneeContact": _contact,
     "MedialLateral": _medial_lateral,
+    "CompartmentMap": _compartment_map,
 }
 
 

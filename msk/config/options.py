@@ -290,6 +290,13 @@ class OptimizationConfig:
         1.0,
         bounds=_POSITIVE,
     )
+    compartment_nonnegative: bool = opt(
+        "static_optimization, emg_assisted, emg_weighted, bounded_qp: require the medial and "
+        "lateral contact forces of the side's knee (the [contact] two-point split) to be ≥ 0 "
+        "in every frame's QP, a frontal reserve moment (penalised like a coordinate reserve) "
+        "taking what no muscle can; a compartment cannot pull",
+        False,
+    )
 
 
 @dataclass(frozen=True, kw_only=True)

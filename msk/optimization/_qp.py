@@ -5,6 +5,7 @@ that all unknowns are O(1)) onto one standard form::
 
     minimise   ½ xᵀ H x + gᵀ x
     subject to A x = b          (m_eq rows, possibly none)
+               cl ≤ C x ≤ cu    (m_in general inequality rows, possibly none; ±inf allowed)
                lb ≤ x ≤ ub      (±inf allowed)
 
 and solved by a registered solver. The KKT figures are recomputed from the returned ``x`` alone
@@ -37,7 +38,8 @@ ACTIVE_TOL = 1e-9
 
 @dataclass(frozen=True)
 class StandardQP:
-    """``min ½xᵀHx + gᵀx  s.t.  A x = b, lb ≤ x ≤ ub`` (scaled variables)."""
+    """``min ½xᵀHx + gᵀx  s.t.  A x = b, cl ≤ C x ≤ cu, lb ≤ x ≤ ub`` (scaled variables;
+    ``C`` None: no inequality rows)."""
 
     H: FloatArray
     g: FloatArray
@@ -45,6 +47,9 @@ class StandardQP:
     b: FloatArray
     lb: FloatArray
     ub: FloatArray
+    C: FloatArray | None = None
+    cl: FloatArray | None = None
+    cu: FloatArray | None = None
 
     @property
     def n(self) -> int:
@@ -53,6 +58,19 @@ class StandardQP:
     @property
     def m_eq(self) -> int:
         return self.b.shape[0]
+
+    @property
+    def m_in(self) -> int:
+        return 0 if self.C is None else self.C.shape[0]
+
+    def inequality_rows(self) -> tuple[FloatArray, FloatArray, FloatArray]:
+        """``(C, cl, cu)``, empty ``(0, n)`` / ``(0,)`` when there are none."""
+        if self.C is None:
+            return np.zeros((0, self.n)), np.zeros(0), np.zeros(0)
+        n_in = self.C.shape[0]
+        cl = np.full(n_in, -np.inf) if self.cl is None else self.cl
+        cu = np.full(n_in, np.inf) if self.cu is None else self.cu
+        return self.C, cl, cu
 
 
 @dataclass(frozen=True)
@@ -116,40 +134,65 @@ def kkt(qp: StandardQP, x: FloatArray) -> KKT:
     The equality multipliers ν are fitted by least squares on the free variables; when those do
     not determine ν (fewer independent free columns than equality rows, a degenerate vertex),
     ν and the bound multipliers μ ≥ 0 are fitted together by bounded least squares over all
-    variables, so that the figures measure whether *some* valid multipliers exist.
+    variables, so that the figures measure whether *some* valid multipliers exist. Inequality
+    rows ``cl ≤ C x ≤ cu`` active at ``x`` (relative tolerance :data:`ACTIVE_TOL`) join the
+    equality rows in that fit; their multipliers must have the sign of the active side
+    (dual feasibility) and vanish off it (complementarity), as the bounds' do.
     """
     grad = qp.H @ x + qp.g
     lo, up = active_bounds(qp, x)
     free = ~(lo | up)
     eq = float(np.max(np.abs(qp.A @ x - qp.b))) if qp.m_eq else 0.0
+    c_mat, cl, cu = qp.inequality_rows()
+    cx = c_mat @ x
+    ilo, iup = active_masks(cx, cl, cu)
+    iact = np.flatnonzero(ilo | iup)
+    rows = np.vstack([qp.A, c_mat[iact]]) if iact.size else qp.A
+    n_rows = rows.shape[0]
     full = grad
-    if qp.m_eq:
-        af = qp.A[:, free]
+    nu = np.zeros(n_rows)
+    if n_rows:
+        af = rows[:, free]
         nu, _, rank, _ = np.linalg.lstsq(af.T, -grad[free], rcond=None)
-        if rank < qp.m_eq and (lo | up).any():
+        if rank < n_rows and ((lo | up).any() or iact.size):
             from scipy.optimize import lsq_linear
 
             act = np.flatnonzero(lo | up)
             e = np.zeros((qp.n, act.size))
             e[act, np.arange(act.size)] = np.where(lo[act], -1.0, 1.0)
-            mat = np.hstack([qp.A.T, e])
-            lower = np.concatenate([np.full(qp.m_eq, -np.inf), np.zeros(act.size)])
-            sol = lsq_linear(mat, -grad, bounds=(lower, np.inf), tol=1e-14, method="bvls")
-            nu = sol.x[: qp.m_eq]
-        full = grad + qp.A.T @ nu
+            mat = np.hstack([rows.T, e])
+            # an active lower inequality row enters as −λ Cᵀ (ν ≤ 0), an upper one as +λ Cᵀ
+            in_lo = np.where(ilo[iact], -np.inf, 0.0)
+            in_hi = np.where(ilo[iact], 0.0, np.inf)
+            lower = np.concatenate([np.full(qp.m_eq, -np.inf), in_lo, np.zeros(act.size)])
+            upper = np.concatenate([np.full(qp.m_eq, np.inf), in_hi, np.full(act.size, np.inf)])
+            sol = lsq_linear(mat, -grad, bounds=(lower, upper), tol=1e-14, method="bvls")
+            nu = sol.x[:n_rows]
+        full = grad + rows.T @ nu
     stat = float(np.max(np.abs(full[free]))) if free.any() else 0.0
     mu = np.zeros_like(x)
     mu[lo] = full[lo]
     mu[up] = -full[up]
+    lam = np.where(ilo[iact], -nu[qp.m_eq :], nu[qp.m_eq :]) if iact.size else np.zeros(0)
     with np.errstate(invalid="ignore"):
-        viol = np.concatenate([np.maximum(qp.lb - x, 0.0), np.maximum(x - qp.ub, 0.0)])
+        viol = np.concatenate(
+            [
+                np.maximum(qp.lb - x, 0.0),
+                np.maximum(x - qp.ub, 0.0),
+                np.maximum(cl - cx, 0.0),
+                np.maximum(cx - cu, 0.0),
+            ]
+        )
     viol = viol[np.isfinite(viol)]
     primal = max(eq, float(viol.max()) if viol.size else 0.0)
-    dual = max(0.0, float(-mu.min())) if mu.size else 0.0
+    dual = max(0.0, float(-mu.min()) if mu.size else 0.0, float(-lam.min()) if lam.size else 0.0)
     slack = np.zeros_like(x)
     slack[lo] = x[lo] - qp.lb[lo]
     slack[up] = qp.ub[up] - x[up]
     comp = float(np.max(np.abs(mu * slack))) if mu.size else 0.0
+    if iact.size:
+        rs = np.where(ilo[iact], cx[iact] - cl[iact], cu[iact] - cx[iact])
+        comp = max(comp, float(np.max(np.abs(lam * rs))))
     return KKT(stat, primal, dual, comp)
 
 
@@ -216,14 +259,14 @@ class _DaqpWarm:
 
     def __init__(self) -> None:
         self.model: Any = None
-        self.shape: tuple[int, int] | None = None
+        self.shape: tuple[int, int, int] | None = None
         self.h: Any = None  # the H and g objects last sent: unchanged objects are not re-sent
         self.g: Any = None
 
 
 def _daqp_sense(qp: StandardQP) -> NDArray[np.int32]:
-    sense = np.zeros(qp.n + qp.m_eq, dtype=np.int32)
-    sense[qp.n :] = 5  # ACTIVE + IMMUTABLE: equality
+    sense = np.zeros(qp.n + qp.m_eq + qp.m_in, dtype=np.int32)
+    sense[qp.n : qp.n + qp.m_eq] = 5  # ACTIVE + IMMUTABLE: equality; inequality rows 0
     return sense
 
 
@@ -238,18 +281,24 @@ def _solve_daqp(qp: StandardQP, warm: Any) -> SolveOutput:
     bu = np.concatenate((qp.ub, qp.b))
     bl = np.concatenate((qp.lb, qp.b))
     a = qp.A if qp.m_eq else np.zeros((0, qp.n))
+    if qp.m_in:  # general inequality rows after the equalities (DAQP sense 0)
+        c_mat, cl, cu = qp.inequality_rows()
+        a = np.ascontiguousarray(np.vstack([a, c_mat]))
+        bu = np.concatenate((bu, np.where(np.isfinite(cu), cu, 1e30)))
+        bl = np.concatenate((bl, np.where(np.isfinite(cl), cl, -1e30)))
+    rows = qp.m_eq + qp.m_in
     if isinstance(warm, _DaqpWarm):
-        if warm.model is not None and warm.shape == (qp.n, qp.m_eq):
+        if warm.model is not None and warm.shape == (qp.n, qp.m_eq, qp.m_in):
             h = None if qp.H is warm.h else qp.H
             g = None if qp.g is warm.g else qp.g
-            if warm.model.update(H=h, f=g, A=a if qp.m_eq else None, bupper=bu, blower=bl) < 0:
+            if warm.model.update(H=h, f=g, A=a if rows else None, bupper=bu, blower=bl) < 0:
                 warm.model = None  # the update found the frame infeasible: solve it cold
         else:
             warm.model = daqp.Model()
             warm.model.settings = DAQP_OPTIONS
             if warm.model.setup(qp.H, qp.g, a, bu, bl, _daqp_sense(qp))[0] < 0:
                 warm.model = None  # e.g. infeasible bounds found by the setup: solve cold
-            warm.shape = (qp.n, qp.m_eq)
+            warm.shape = (qp.n, qp.m_eq, qp.m_in)
         warm.h, warm.g = qp.H, qp.g
     if isinstance(warm, _DaqpWarm) and warm.model is not None:
         x, _, flag, info = warm.model.solve()
@@ -303,9 +352,17 @@ def _qpsolvers_solver(
 
         lb = np.where(np.isfinite(qp.lb), qp.lb, -1e20)
         ub = np.where(np.isfinite(qp.ub), qp.ub, 1e20)
+        gmat = hvec = None
+        if qp.m_in:  # cl ≤ C x ≤ cu as G x ≤ h (finite sides only)
+            c_mat, cl, cu = qp.inequality_rows()
+            up_, lo_ = np.isfinite(cu), np.isfinite(cl)
+            gmat = np.vstack([c_mat[up_], -c_mat[lo_]])
+            hvec = np.concatenate([cu[up_], -cl[lo_]])
         problem = qpsolvers.Problem(
             qp.H,
             qp.g,
+            G=gmat,
+            h=hvec,
             A=qp.A if qp.m_eq else None,
             b=qp.b if qp.m_eq else None,
             lb=lb,
@@ -324,6 +381,10 @@ def _qpsolvers_solver(
             eq = float(np.max(np.abs(qp.A @ x - qp.b))) if qp.m_eq else 0.0
             with np.errstate(invalid="ignore"):
                 bnd = max(float(np.max(qp.lb - x)), float(np.max(x - qp.ub)), 0.0)
+                if qp.m_in:
+                    c_mat, cl, cu = qp.inequality_rows()
+                    cx = c_mat @ x
+                    bnd = max(bnd, float(np.max(cl - cx)), float(np.max(cx - cu)))
             almost = qp.m_eq > 0 and eq <= 1e-8 * scale
             ok = eq <= 1e-6 * scale and bnd <= 1e-6 and (bool(sol.found) or almost)
         return SolveOutput(x=x if ok else None, ok=ok, infeasible=not ok, warm=x)
@@ -389,7 +450,7 @@ def least_squares_fallback(qp: StandardQP, solver: str) -> StandardQP:
 
     ``min ½‖A x − b‖² + ½ε (xᵀHx + 2gᵀx)  s.t. lb ≤ x ≤ ub`` with a small ε (1e-10 relative to
     ‖AᵀA‖): the bounds hold, the torque residual ``b − A x`` is as small as the bounds allow, and
-    the original cost breaks the ties.
+    the original cost breaks the ties. Inequality rows are kept as constraints.
     """
     ata = qp.A.T @ qp.A
     eps = 1e-10 * max(1.0, float(np.max(np.abs(np.diag(ata)))))
@@ -400,6 +461,9 @@ def least_squares_fallback(qp: StandardQP, solver: str) -> StandardQP:
         b=np.zeros(0),
         lb=qp.lb,
         ub=qp.ub,
+        C=qp.C,
+        cl=qp.cl,
+        cu=qp.cu,
     )
 
 

@@ -18,9 +18,10 @@ bounded least-squares point ``argmin ‖τ − R f‖ s.t. bounds`` is returned 
 
 from __future__ import annotations
 
+import dataclasses
 import time as _time
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
@@ -73,13 +74,90 @@ class _Layout:
     activations: bool
     objective_scale: float = 1.0
     objective_constant: float = 0.0
+    #: optimal values of the reserves of :class:`TensionInequalities` rows, after the coordinate
+    #: reserves in ``x`` (empty: no inequality rows)
+    inequality_opt: FloatArray = field(default_factory=lambda: np.zeros(0))
 
     def unpack(self, x: FloatArray) -> tuple[FloatArray, FloatArray | None, FloatArray]:
         m = self.scale.shape[0]
         f = self.scale * x[:m] + self.offset
         r = np.zeros(self.n_coords)
-        r[self.reserve_idx] = x[m:]
+        r[self.reserve_idx] = x[m : m + self.reserve_idx.shape[0]]
         return f, (x[:m].copy() if self.activations else None), r
+
+    def inequality_reserves(self, x: FloatArray) -> FloatArray:
+        """The reserves of the inequality rows (row units), ``(k,)``."""
+        k = self.inequality_opt.shape[0]
+        return self.inequality_opt * x[x.shape[0] - k :] if k else np.zeros(0)
+
+
+@dataclass(frozen=True)
+class TensionInequalities:
+    """Affine functions of the muscle tensions that must stay non-negative, per frame, each with
+    a non-negative reserve that the cost penalises::
+
+        c_k + Σ_i G_ki f_i + s_k ≥ 0,   s_k ≥ 0,   cost + Σ_k (s_k / s_opt,k)²
+
+    e.g. the medial and lateral compartment forces of a knee, F_M(f) ≥ 0 and F_L(f) ≥ 0, in
+    moment units (:func:`msk.contact.compartment_force_map`: a compartment cannot pull). The
+    reserve ``s_k`` carries what no admissible tension can (a frontal moment of the ligaments
+    the model lacks); like a coordinate reserve of optimal force ``s_opt`` it costs
+    ``(s/s_opt)²``, i.e. a reserve of ``s_opt`` costs as much as a fully active muscle.
+    ``offset`` c ``(N, k)`` and ``gain`` G ``(N, k, m)`` (row units per N of tension, muscle
+    columns in the problem's order) per frame; ``reserve_optimal`` ``(k,)`` or a scalar (> 0,
+    row units); ``names`` one per row. A static optimisation, EMG-assisted or EMG-weighted
+    batch given them adds the rows and the reserves (:class:`BatchSolution`
+    ``inequality_reserves``)."""
+
+    offset: FloatArray
+    gain: FloatArray
+    names: tuple[str, ...]
+    reserve_optimal: FloatArray | float = 1.0
+
+    def __post_init__(self) -> None:
+        c = np.asarray(self.offset, dtype=float)
+        g = np.asarray(self.gain, dtype=float)
+        if c.ndim != 2 or g.ndim != 3 or g.shape[:2] != c.shape:
+            raise OptimizationError(
+                f"inequalities: offset {c.shape} must be (N, k) and gain {g.shape} (N, k, m)"
+            )
+        names = tuple(str(n) for n in self.names)
+        if len(names) != c.shape[1]:
+            raise OptimizationError(f"{len(names)} inequality names for {c.shape[1]} rows")
+        check_finite(c, "inequality offset", names)
+        if not np.all(np.isfinite(g)):
+            idx = tuple(int(i) for i in np.argwhere(~np.isfinite(g))[0])
+            raise OptimizationError(f"inequality gain is not finite at index {idx}")
+        opt = as_float(self.reserve_optimal, (c.shape[1],), "inequality reserve_optimal")
+        if not np.all(np.isfinite(opt) & (opt > 0)):
+            raise OptimizationError(f"inequality reserve_optimal must be > 0 and finite: {opt}")
+        set_fields(self, offset=c, gain=g, names=names, reserve_optimal=opt)
+
+    @property
+    def n_rows(self) -> int:
+        return int(np.asarray(self.offset).shape[1])
+
+    def check(self, n_frames: int, m: int) -> None:
+        """Typed error unless the rows cover ``n_frames`` frames of ``m`` muscles."""
+        g = np.asarray(self.gain)
+        if g.shape[0] != n_frames or g.shape[2] != m:
+            raise OptimizationError(
+                f"inequality gain {g.shape} does not match {n_frames} frames × {m} muscles"
+            )
+
+    def rows(
+        self, k: int, scale: FloatArray, offset: FloatArray, n_before: int
+    ) -> tuple[FloatArray, FloatArray]:
+        """Frame ``k``'s rows on the standard-form unknowns ``x = [x_m; (n_before others);
+        x_s]`` with tensions ``f = scale ⊙ x_m + offset`` and reserves ``s = s_opt ⊙ x_s``:
+        ``(C, cl)`` with ``C x ≥ cl``."""
+        g = np.asarray(self.gain)[k]
+        opt = np.asarray(self.reserve_optimal)
+        n_in, m = g.shape
+        c_mat = np.zeros((n_in, m + n_before + n_in))
+        c_mat[:, :m] = g * scale
+        c_mat[:, m + n_before :] = np.diag(opt)
+        return c_mat, -np.asarray(self.offset)[k] - g @ offset
 
 
 def _reserve_forces(
@@ -176,7 +254,7 @@ def _power_model(qp: StandardQP, x: FloatArray, m: int, w: FloatArray, p: float)
     curv = w * p * (p - 1.0) * np.maximum(a, POWER_CURVATURE_FLOOR) ** (p - 2.0)
     hd = np.concatenate([curv, np.full(x.shape[0] - m, 2.0)])
     grad = np.concatenate([w * p * a ** (p - 1.0), 2.0 * x[m:]])
-    return StandardQP(H=np.diag(hd), g=grad - hd * x, A=qp.A, b=qp.b, lb=qp.lb, ub=qp.ub)
+    return dataclasses.replace(qp, H=np.diag(hd), g=grad - hd * x)
 
 
 def _solve_power(
@@ -764,7 +842,9 @@ class BatchSolution:
 
     ``status`` ``(N,)`` int8 codes (0 optimal, 1 infeasible, 2 solver failed; names in
     ``STATUS_NAMES``); ``kkt`` ``(N, 4)`` with columns ``kkt_columns``; ``solve_time_s`` per
-    frame (solver call, incl. fallback); ``time`` optional frame times in s.
+    frame (solver call, incl. fallback); ``time`` optional frame times in s;
+    ``inequality_reserves`` ``(N, k)`` the reserves ``s_k`` of :class:`TensionInequalities`
+    rows (row units, ``inequality_names``), None when the batch had none.
     """
 
     forces: FloatArray
@@ -786,6 +866,9 @@ class BatchSolution:
     time: FloatArray | None = None
     kkt_columns: tuple[str, ...] = KKT_COLUMNS
     status_names: tuple[str, ...] = STATUS_NAMES
+    #: ``(N, k)`` reserves of the :class:`TensionInequalities` rows (row units; None without)
+    inequality_reserves: FloatArray | None = None
+    inequality_names: tuple[str, ...] = ()
 
     @property
     def infeasible_frames(self) -> NDArray[np.intp]:
@@ -933,15 +1016,31 @@ class _BatchQP:
         decouple: bool = True,
         out_scale: FloatArray | None = None,
         out_offset: FloatArray | None = None,
+        inequalities: TensionInequalities | None = None,
     ) -> None:
         _, m, n = jac.shape
         nres = idx.shape[0]
         drop = np.zeros(nres, dtype=bool)
+        self.ineq = inequalities
+        if inequalities is not None:  # the rows couple the knee's muscles: one whole QP
+            decouple = False
+            n_in = inequalities.n_rows
+            n_fr = jac.shape[0]
+            inequalities.check(n_fr, m)
+            lb = np.concatenate([lb, np.zeros((*lb.shape[:-1], n_in))], axis=-1)
+            ub = np.concatenate([ub, np.full((*ub.shape[:-1], n_in), np.inf)], axis=-1)
+            g = np.concatenate([g, np.zeros((*g.shape[:-1], n_in))], axis=-1)
+            hh = np.zeros((h.shape[0] + n_in, h.shape[0] + n_in))
+            hh[: h.shape[0], : h.shape[0]] = h
+            hh[h.shape[0] :, h.shape[0] :] = 2.0 * np.eye(n_in)  # (s/s_opt)², as a reserve
+            h = hh
         if decouple:
             drop = _decoupled_reserves(jac, tau, idx, opt, lb[..., m:], ub[..., m:])
         keep = ~drop
         rows = np.setdiff1d(np.arange(n), idx[drop])
         cols = np.concatenate([np.arange(m), m + np.flatnonzero(keep)])
+        if inequalities is not None:
+            cols = np.concatenate([cols, m + nres + np.arange(inequalities.n_rows)])
         k = int(keep.sum())
         self.jac, self.tau, self.m = jac, tau, m
         self.neg_scale = -scale  # R S = −Jᵀ S = Jᵀ (−S), the same numbers
@@ -951,8 +1050,10 @@ class _BatchQP:
             slice(int(rows[0]), int(rows[-1]) + 1) if contiguous else rows
         )
         self.coords = rows  # the coordinates of the QP's rows
-        self.a = np.zeros((rows.size, m + k))
+        n_ex = 0 if inequalities is None else inequalities.n_rows
+        self.a = np.zeros((rows.size, m + k + n_ex))
         self.a[np.searchsorted(rows, idx[keep]), m + np.arange(k)] = opt[keep]
+        self.n_reserves = k
         self.lb, self.ub = lb[..., cols], ub[..., cols]
         self.h = h[np.ix_(cols, cols)] if drop.any() else h
         self.g = g[..., cols]
@@ -987,7 +1088,12 @@ class _BatchQP:
         lb = self.lb if self.lb.ndim == 1 else self.lb[k]
         ub = self.ub if self.ub.ndim == 1 else self.ub[k]
         g = self.g if self.g.ndim == 1 else self.g[k]
-        return StandardQP(H=self.h, g=g, A=a, b=b, lb=lb, ub=ub), self.layout(k)
+        lay = self.layout(k)
+        if self.ineq is None:
+            return StandardQP(H=self.h, g=g, A=a, b=b, lb=lb, ub=ub), lay
+        c_mat, cl = self.ineq.rows(k, -s, lay.offset, self.n_reserves)
+        lay = dataclasses.replace(lay, inequality_opt=np.asarray(self.ineq.reserve_optimal))
+        return StandardQP(H=self.h, g=g, A=a, b=b, lb=lb, ub=ub, C=c_mat, cl=cl), lay
 
     def solve_blocks(
         self, models: list[Any] | None = None
@@ -1117,6 +1223,7 @@ def _run_batch(
     time: ArrayLike | None,
     power: tuple[int, FloatArray, float] | None = None,
     reduction: _Reduction | None = None,
+    inequality_names: tuple[str, ...] = (),
 ) -> BatchSolution:
     """Solve ``build(k)`` for every frame (warm-started). With a ``reduction`` (decoupled
     reserves left out of ``build``'s QPs, :class:`_BatchQP`) each solution is expanded back to
@@ -1137,6 +1244,7 @@ def _run_batch(
     status = np.zeros(n_frames, dtype=np.int8)
     iters = np.zeros(n_frames, dtype=np.int64)
     times = np.zeros(n_frames)
+    ineq: FloatArray | None = None
     if (
         isinstance(build, _BatchQP)
         and build.blocks is not None
@@ -1193,6 +1301,10 @@ def _run_batch(
         forces[k] = f
         if acts is not None and a is not None:
             acts[k] = a
+        if lay.inequality_opt.size:
+            if ineq is None:
+                ineq = np.full((n_frames, lay.inequality_opt.size), np.nan)
+            ineq[k] = lay.inequality_reserves(x)
         rc[k] = r
         rt[k, lay.reserve_idx] = lay.reserve_opt * r[lay.reserve_idx]
         if raw.kkt is not None:
@@ -1203,10 +1315,17 @@ def _run_batch(
         times[k] = raw.solve_time_s
     if carry is not None and warm_start:
         carry.state, carry.started = warm, True
-    return _batch_solution(
+    out = _batch_solution(
         xs, lbs, ubs, forces, acts, rc, rt, tau, jac, kk, status, iters, times, solver,
         muscle_names, coordinate_names, time,
     )  # fmt: skip
+    if inequality_names:
+        if ineq is None:
+            ineq = np.zeros((n_frames, len(inequality_names)))
+        out = dataclasses.replace(
+            out, inequality_reserves=ineq, inequality_names=tuple(inequality_names)
+        )
+    return out
 
 
 def _run_blocks(
@@ -1354,6 +1473,7 @@ def solve_tension_batch(
     muscle_names: Sequence[str] | None = None,
     coordinate_names: Sequence[str] | None = None,
     time: ArrayLike | None = None,
+    inequalities: TensionInequalities | None = None,
 ) -> BatchSolution:
     """:class:`TensionProblem` over frames. ``f_max``/``f_min`` ``(m,)`` or ``(N, m)``."""
     jac, tau, mn, cn = _batch_inputs(jacobians, taus, muscle_names, coordinate_names)
@@ -1395,6 +1515,7 @@ def solve_tension_batch(
         decouple=solver == _EXACT_SOLVER,
         out_scale=fi,
         out_offset=np.zeros(m),
+        inequalities=inequalities,
     )
     return _run_batch(
         n_frames,
@@ -1411,6 +1532,7 @@ def solve_tension_batch(
         coordinate_names=cn,
         time=time,
         reduction=build.reduction,
+        inequality_names=() if inequalities is None else inequalities.names,
     )
 
 
@@ -1435,6 +1557,7 @@ def solve_static_optimization_batch(
     muscle_names: Sequence[str] | None = None,
     coordinate_names: Sequence[str] | None = None,
     time: ArrayLike | None = None,
+    inequalities: TensionInequalities | None = None,
 ) -> BatchSolution:
     """:class:`StaticOptimizationProblem` over frames; ``f_active``/``f_passive`` ``(N, m)``;
     ``activation_weights`` ``(m,)`` and ``activation_exponent`` as in the problem (criterion
@@ -1447,7 +1570,12 @@ def solve_static_optimization_batch(
     solved whole. Likewise the QP splits into its independent sub-problems when no muscle
     joins them (gait2392: each leg, the back joined to one of them), each solved with its own
     warm-started DAQP workspace (:meth:`_BatchQP.solve_blocks`): the same solution to
-    round-off (~1e-16 on activations), a DAQP refactorisation of about a third of the size."""
+    round-off (~1e-16 on activations), a DAQP refactorisation of about a third of the size.
+
+    ``inequalities`` (:class:`TensionInequalities`, e.g. knee compartment forces ≥ 0): rows
+    ``c + G f + s ≥ 0`` added to every frame's QP with reserves ``s ≥ 0`` costing
+    ``(s/s_opt)²`` like the coordinate reserves; the QP is then solved whole (no decoupled
+    reserves, no sub-problems: the rows join the knee's muscles)."""
     jac, tau, mn, cn = _batch_inputs(jacobians, taus, muscle_names, coordinate_names)
     n_frames, m, n = jac.shape
     fa = as_float(f_active, (n_frames, m), "f_active")
@@ -1489,6 +1617,7 @@ def solve_static_optimization_batch(
         decouple=power is None and solver == _EXACT_SOLVER,  # p > 2: SQP keeps every unknown
         out_scale=fa,
         out_offset=fp,
+        inequalities=inequalities,
     )
     return _run_batch(
         n_frames,
@@ -1506,6 +1635,7 @@ def solve_static_optimization_batch(
         time=time,
         power=power,
         reduction=build.reduction,
+        inequality_names=() if inequalities is None else inequalities.names,
     )
 
 
@@ -1527,8 +1657,11 @@ def solve_emg_weighted_batch(
     muscle_names: Sequence[str] | None = None,
     coordinate_names: Sequence[str] | None = None,
     time: ArrayLike | None = None,
+    inequalities: TensionInequalities | None = None,
 ) -> BatchSolution:
-    """:class:`EMGWeightedProblem` over frames; ``f_ref`` ``(N, m)`` (EMG-based f*)."""
+    """:class:`EMGWeightedProblem` over frames; ``f_ref`` ``(N, m)`` (EMG-based f*).
+    ``inequalities`` (:class:`TensionInequalities`): rows ``c + G f + s ≥ 0`` whose reserves
+    cost ``½ (s/s_opt)²``, the price of a torque error of ``s_opt``."""
     jac, tau, mn, cn = _batch_inputs(jacobians, taus, muscle_names, coordinate_names)
     n_frames, m, _ = jac.shape
     meas = _measured_mask(measured, m)
@@ -1538,10 +1671,29 @@ def solve_emg_weighted_batch(
     fmin = _per_frame(f_min, n_frames, m, "f_min", 0.0)
     _check_weights(w_emg, regularization)
 
+    if inequalities is not None:
+        inequalities.check(n_frames, m)
+
     def build(k: int) -> tuple[StandardQP, _Layout]:
         scale = _emg_scale(fr[k], fmax[k], meas)
         r = np.ascontiguousarray(-jac[k].T)  # R of this frame (no transposed batch copy)
-        return _emg_qp(r, tau[k], fr[k], meas, w_emg, regularization, fmin[k], fmax[k], scale)
+        qp, lay = _emg_qp(r, tau[k], fr[k], meas, w_emg, regularization, fmin[k], fmax[k], scale)
+        if inequalities is None:
+            return qp, lay
+        # reserves s = s_opt x_s appended, costing ½ s² like the torque error's ½ ‖τ − R f‖²
+        n_in = inequalities.n_rows
+        h = np.zeros((m + n_in, m + n_in))
+        h[:m, :m] = qp.H
+        h[m:, m:] = np.eye(n_in) / lay.objective_scale
+        c_mat, cl = inequalities.rows(k, scale, np.zeros(m), 0)
+        ext = StandardQP(
+            H=h, g=np.concatenate([qp.g, np.zeros(n_in)]), A=np.zeros((0, m + n_in)),
+            b=np.zeros(0), lb=np.concatenate([qp.lb, np.zeros(n_in)]),
+            ub=np.concatenate([qp.ub, np.full(n_in, np.inf)]), C=c_mat, cl=cl,
+        )  # fmt: skip
+        return ext, dataclasses.replace(
+            lay, inequality_opt=np.asarray(inequalities.reserve_optimal)
+        )
 
     return _run_batch(
         n_frames,
@@ -1557,6 +1709,7 @@ def solve_emg_weighted_batch(
         muscle_names=mn,
         coordinate_names=cn,
         time=time,
+        inequality_names=() if inequalities is None else inequalities.names,
     )
 
 
@@ -1683,6 +1836,7 @@ def solve_emg_assisted_batch(
     muscle_names: Sequence[str] | None = None,
     coordinate_names: Sequence[str] | None = None,
     time: ArrayLike | None = None,
+    inequalities: TensionInequalities | None = None,
 ) -> BatchSolution:
     """EMG-assisted static optimisation over frames: static optimisation whose activations of
     the measured muscles are pulled towards EMG-based references, torques kept exact::
@@ -1749,6 +1903,7 @@ def solve_emg_assisted_batch(
         decouple=solver == _EXACT_SOLVER,
         out_scale=fa,
         out_offset=fp,
+        inequalities=inequalities,
     )
     return _run_batch(
         n_frames,
@@ -1765,4 +1920,5 @@ def solve_emg_assisted_batch(
         coordinate_names=cn,
         time=time,
         reduction=build.reduction,
+        inequality_names=() if inequalities is None else inequalities.names,
     )

@@ -163,7 +163,7 @@ def run(
 
         optimise(
             inputs, m_spec, inverse_dynamics.torques, muscle_geometry, kin.time,
-            loads.usable, emg, on_block=on_block,
+            loads.usable, emg, on_block=on_block, kinematics=kin, external=loads.external,
         )  # fmt: skip
         gen_ok &= ~done  # generic frames no re-solve block had (normally none)
     for fr in frame_blocks(np.flatnonzero(gen_ok)):  # block by block: memory bounded

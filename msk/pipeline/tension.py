@@ -39,7 +39,12 @@ class MuscleTensions:
     optimised), the method and its criterion in words, the frames that could not be posed
     (``excluded_frames``, with the reason), the EMG gains of ``emg_assisted``, the infeasible
     frames and the reserve torques (N, coordinates) of the QP methods (None for
-    ``closed_form``)."""
+    ``closed_form``). With ``[optimization] compartment_nonnegative``: the frontal reserve
+    moments (N, 2) N·m of the knee's medial and lateral rows (``compartment_rows``; the
+    moment about the opposite contact point that no admissible tension balances, which
+    ligaments would carry), the largest frontal moment of the inverse-dynamics load about the
+    contact midpoint over the solved frames (``id_frontal_moment_peak_nm``, the reference of
+    the quality gate)."""
 
     forces: np.ndarray
     activations: np.ndarray
@@ -52,6 +57,9 @@ class MuscleTensions:
     infeasible_frames: int | None = None
     reserve_torques: np.ndarray | None = None
     reserve_coordinates: tuple[str, ...] | None = None
+    frontal_reserve_moments: np.ndarray | None = None
+    compartment_rows: tuple[str, ...] = ()
+    id_frontal_moment_peak_nm: float | None = None
 
 
 def actuated(torques: Any) -> list[int]:
@@ -119,6 +127,74 @@ def _force_curves(params: Any, geometry: Any, frames: Any) -> tuple[np.ndarray, 
     return np.where(fmax < 0, 0.0, fmax), state.passive_force_along_tendon
 
 
+#: optimal moment of the frontal reserves of ``compartment_nonnegative`` (N·m): a reserve of
+#: 1 N·m costs as much as a fully active muscle, as the coordinate reserves (optimal torque 1)
+FRONTAL_RESERVE_OPTIMAL_NM = 1.0
+
+
+@dataclass(frozen=True)
+class _Compartments:
+    """What the knee compartment rows of one model need: the knee, its contact points, the
+    geometry plan for its unit wrenches, and the kinematics and external loads they are
+    evaluated on (:func:`msk.contact.compartment_force_map`)."""
+
+    joint: str
+    geometry: Any
+    plan: Any
+    kinematics: Any
+    external: Any
+
+    def rows(self, model: Any, fr: np.ndarray, names: tuple[str, ...]) -> tuple[Any, float]:
+        """The rows ``d·F_M(f) + s_M ≥ 0``, ``d·F_L(f) + s_L ≥ 0`` (N·m: d·F_L is the frontal
+        moment about the medial contact point, Winby et al. 2009) on frames ``fr`` and the
+        largest |frontal moment| of the inverse-dynamics load there (N·m). A frame whose map
+        is not finite gets the trivial row 0 ≥ 0."""
+        from msk.contact import compartment_force_map
+        from msk.optimization import TensionInequalities
+
+        w = self.plan.evaluate(self.kinematics.q[fr], distal_wrench_joints=(self.joint,))
+        ext = None if self.external is None else self.external.take(fr)
+        cmap = compartment_force_map(
+            model, self.kinematics.take(fr), ext, joint=self.joint, geometry=self.geometry,
+            distal_wrenches=w.distal_wrenches[self.joint],
+        )  # fmt: skip
+        if cmap.muscle_names != tuple(names):
+            raise StageUnavailable("compartment rows: muscle order differs from the QP's")
+        d = self.geometry.intercondylar_distance_m
+        off, gain = d * cmap.offset, d * cmap.gain
+        bad = ~(np.isfinite(off).all(axis=1) & np.isfinite(gain).all(axis=(1, 2)))
+        off[bad], gain[bad] = 0.0, 0.0
+        # the frontal moment about the midpoint: d (F_L − F_M)/2 on a right knee (sign aside)
+        peak = float(np.max(np.abs(off[:, 1] - off[:, 0]), initial=0.0)) / 2.0
+        rows = TensionInequalities(
+            off, gain, (f"{self.joint}_medial", f"{self.joint}_lateral"),
+            FRONTAL_RESERVE_OPTIMAL_NM,
+        )  # fmt: skip
+        return rows, peak
+
+
+def compartments(
+    inputs: SessionInputs, model: Any, kinematics: Any, external: Any
+) -> _Compartments | None:
+    """The knee compartment rows of ``[optimization] compartment_nonnegative`` for ``model``
+    (None when the option is off): the side of interest's knee, the ``[contact]`` points as
+    the knee contact stage splits them (:func:`msk.contact.plateau_geometry`)."""
+    if not inputs.cfg.optimization.compartment_nonnegative:
+        return None
+    from msk.contact import plateau_geometry
+    from msk.muscles.geometry import geometry_plan
+
+    joint = f"knee{inputs.sfx}"
+    if joint not in {j.name for j in model.joints}:
+        raise StageUnavailable(f"compartment_nonnegative: model has no joint {joint!r}")
+    cc = inputs.cfg.contact
+    centre = None if cc.plateau_depth_m is None else (0.0, -cc.plateau_depth_m, 0.0)
+    geo = plateau_geometry(
+        model, joint=joint, intercondylar_distance_m=cc.intercondylar_distance_m, centre_m=centre
+    )
+    return _Compartments(joint, geo, geometry_plan(model), kinematics, external)
+
+
 def optimise(
     inputs: SessionInputs,
     model: Any,
@@ -130,6 +206,8 @@ def optimise(
     *,
     forces_only: bool = False,
     on_block: Callable[[np.ndarray, np.ndarray], None] | None = None,
+    kinematics: Any = None,
+    external: Any = None,
 ) -> MuscleTensions:
     """Muscle tensions of ``model`` for ``torques`` by the configured method on the ``usable``
     frames. A frame whose inputs cannot be posed (non-finite geometry or torques, negative
@@ -144,7 +222,12 @@ def optimise(
     ``on_block(frames, forces)``: each solve block's frames (indices) and forces are handed to
     it as they are solved, and not kept — it implies ``forces_only``, and ``forces`` is then
     ``(N, 0)`` too (the knee contact stage computes its contact block by block: a long trial
-    never holds the re-solve's forces whole)."""
+    never holds the re-solve's forces whole).
+
+    ``kinematics``, ``external`` (the trial's kinematics and external loads): needed with
+    ``[optimization] compartment_nonnegative``, which adds to every frame's QP the rows
+    F_M(f) ≥ 0 and F_L(f) ≥ 0 of the side of interest's knee (:func:`compartments`), each
+    with a frontal reserve moment ≥ 0 priced as a coordinate reserve."""
     import msk.optimization as o
     from msk.muscles.geometry import finite_frames, jacobian_frames, muscle_parameters
 
@@ -195,6 +278,13 @@ def optimise(
                 a[:, k] = emg.activation[fr, emg.column(name)]
         return a
 
+    comp = None
+    if inputs.cfg.optimization.compartment_nonnegative and meth != "closed_form":
+        if kinematics is None:
+            raise StageUnavailable("compartment_nonnegative needs the kinematics and loads")
+        comp = compartments(inputs, model, kinematics, external)
+    frontal = None if comp is None else np.full((time.size, 2), np.nan)
+    id_peak = 0.0
     gain_fit = None
     if meth == "emg_assisted":  # gains first (on a bounded frame sample), then every block
         assert meas is not None
@@ -226,6 +316,10 @@ def optimise(
             "coordinate_names": cn,
             "time": time[fr],
         }
+        if comp is not None and meth != "closed_form":
+            rows, peak = comp.rows(model, fr, tuple(params.names))
+            common["inequalities"] = rows
+            id_peak = max(id_peak, peak)
         if meth == "static_optimization":
             sol = o.solve_static_optimization_batch(
                 jac, tq, f_active=fa, f_passive=fp, reserve_optimal_force=reserves,
@@ -277,6 +371,8 @@ def optimise(
         if sol is not None:
             if rt is not None:
                 rt[fr] = sol.reserve_torques
+            if frontal is not None and sol.inequality_reserves is not None:
+                frontal[fr] = sol.inequality_reserves
             infeasible += int(sol.infeasible_frames.size)
         del sol, forces, acts
     w = "V_i " if opt.activation_weights == "volume" else ""
@@ -297,9 +393,18 @@ def optimise(
     )  # fmt: skip
     if meth == "closed_form":
         return out
-    return dataclasses.replace(
+    out = dataclasses.replace(
         out, infeasible_frames=infeasible, reserve_torques=rt, reserve_coordinates=cn
     )
+    if comp is None:
+        return out
+    if criterion is not None:
+        criterion += "; knee compartments F_M, F_L ≥ 0 (frontal reserve moments penalised)"
+    return dataclasses.replace(
+        out, criterion=criterion, frontal_reserve_moments=frontal,
+        compartment_rows=(f"{comp.joint}_medial", f"{comp.joint}_lateral"),
+        id_frontal_moment_peak_nm=id_peak,
+    )  # fmt: skip
 
 
 def needs(inputs: SessionInputs) -> tuple[str, ...]:
@@ -325,5 +430,6 @@ def run(
 ) -> MuscleTensions:
     return optimise(
         inputs, identified_model(model.model, mass_identification), inverse_dynamics.torques,
-        muscle_geometry, kinematics.time, loads.usable, emg,
+        muscle_geometry, kinematics.time, loads.usable, emg, kinematics=kinematics,
+        external=loads.external,
     )  # fmt: skip

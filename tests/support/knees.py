@@ -35,3 +35,23 @@ def femur_tibia(
         name=knee_joint, bodies=bodies, joints=joints,
         coordinates=[Coordinate("knee_angle", range=(-2.5, 2.5))],
     )  # fmt: skip
+
+
+def four_muscle_knee(knee_joint: str, shank_mass_kg: float = 4.0) -> Model:
+    """:func:`femur_tibia` with four vertical muscles from the femur to the tibia, 30 mm anterior
+    (extensors) or posterior (flexors) of the knee axis and 25 mm medial or lateral of the knee
+    centre: ``lat_ext``, ``lat_flex``, ``med_ext``, ``med_flex`` (F_iso 3000 N). The lateral
+    side is world +z on a right knee (``*_r``), −z on a left one (gait2392's frames are not
+    mirrored)."""
+    from msk.muscles.path import Muscle, PathPoint
+
+    lat = 1.0 if knee_joint.endswith("_r") else -1.0
+    muscles = []
+    for side, z in (("lat", lat * 0.025), ("med", -lat * 0.025)):
+        for kind, x in (("ext", 0.03), ("flex", -0.03)):
+            pts = (
+                PathPoint("o", "femur", np.array([x, 0.15, z])),
+                PathPoint("i", "tibia", np.array([x, -0.06, z])),
+            )
+            muscles.append(Muscle(f"{side}_{kind}", pts, 3000.0, 0.1, 0.2, 0.0, 10.0))
+    return femur_tibia(knee_joint, shank_mass_kg=shank_mass_kg).with_muscles(muscles)
