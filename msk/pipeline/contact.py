@@ -43,8 +43,9 @@ class ContactVariant:
 
 @dataclass(frozen=True)
 class KneeContact:
-    """Contact of the ``generic`` model and, with identified strength, of the
-    ``subject_specific`` one; the plateau geometry of the split; the measured force (as read)."""
+    """Contact of the ``generic`` model (generic strength; the identified inertias, which the
+    muscle forces balance) and, with identified strength, of the ``subject_specific`` one; the
+    plateau geometry of the split; the measured force (as read)."""
 
     joint: str
     variants: Mapping[str, ContactVariant]
@@ -139,14 +140,16 @@ def run(
     gen_forces, names = tension_optimization.forces, tension_optimization.muscles
     # frames without muscle forces get no contact force (never zero muscle force)
     gen_ok = loads.usable & np.isfinite(gen_forces).all(axis=1)
-    generic = variant(mdl)
+    # both variants on the inertias the muscle forces balance (the tension stage's torques are
+    # the identified model's): the joint reaction of the generic model's inertias with those
+    # forces mixed two models (PS ss1: up to 82/111 N on the medial/lateral split)
+    m_id = identified_model(mdl, mass_identification)
+    generic = variant(m_id)
     variants = {"generic": generic}
     if strength_identification is not None:
         from msk.strength import with_strength
 
-        m_spec = with_strength(
-            identified_model(mdl, mass_identification), strength_identification.profile
-        )
+        m_spec = with_strength(m_id, strength_identification.profile)
         spec = variants["subject_specific"] = variant(m_spec)
         done = np.zeros(kin.time.size, dtype=bool)
 
