@@ -344,6 +344,11 @@ def swapped_sides(
     vertical — so a swapped ASIS pair is found even when IK, fitting it, turned the pelvis
     round. Otherwise r̂ is the fitted pelvis's +z (gait2392/OpenSim), and when most pairs look
     swapped in it (the pelvis fitted the wrong way round) the pairs that do not are reported.
+    A pair is reported only when the right marker lies more than
+    :data:`SWAP_MIN_SEPARATION_M` to the left (a median within that margin is a pair that
+    crosses or overlaps in the medio-lateral direction, e.g. medial toe markers over a piece of
+    a trial with a narrow or crossing step, not a swap: UWA fast walking, its first 1.55 s,
+    R.Toe.Med 3 mm left of L.Toe.Med).
     Returns (right, left, median in m, signed so that the subject's right is positive)."""
     if "pelvis" not in model.body_frame:
         return []
@@ -384,7 +389,7 @@ def swapped_sides(
         sum(v < 0.0 for v in med.values()) > sum(v > 0.0 for v in med.values())
     )
     sign = -1.0 if reversed_pelvis else 1.0
-    return [(r, lft, sign * v) for (r, lft), v in med.items() if sign * v < 0.0]
+    return [(r, lft, sign * v) for (r, lft), v in med.items() if sign * v < -SWAP_MIN_SEPARATION_M]
 
 
 def _flag(trial: str, quantity: str, value: float, threshold: float, message: str) -> Flag:
@@ -664,6 +669,14 @@ def gait_flags(
                       f"{quality.get('ik_worst_marker', '?')})")
             )  # fmt: skip
     n_meas, n_obs = quality.get("contact_measured_frames"), quality.get("observed_measured_frames")
+    if n_meas == 0 and quality.get("frames"):
+        out.append(
+            _flag(trial_name, "contact_measured_frames", 0.0, 1.0,
+                  f"no frame of the {quality['frames']} in which the plates measure every foot's "
+                  "ground contact (no plate loaded, a foot off the plates, or contact at the "
+                  "trial's edges only): no residuals, plate mass, muscle forces or knee contact "
+                  "for this trial — its joint torques assume no ground reaction")
+        )  # fmt: skip
     pct = 100.0 * n_obs / n_meas if n_meas and n_obs is not None else 100.0
     if pct < th["observed_measured_frames_min_pct"]:
         out.append(
