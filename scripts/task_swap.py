@@ -69,10 +69,16 @@ ALTERNATIVES: dict[str, list[tuple[str, dict[str, Path]]]] = {
     "unipd_bts": [
         *[(f"walking{k}", {"file": UNIPD / f"Walking{k}.c3d"}) for k in (2, 3)],
         ("BTS", {"file": REAL / "ezc3d-testfiles" / "BTS.c3d"}),
+        ("static1_task", {"file": UNIPD / "Static1.c3d"}),  # standing-only, no plate loaded
     ],
     "uwa_fast_walking": [("running_1", {"file": UWA / "Running_1.c3d"})],
     "uwa_running": [("fast_walking", {"file": UWA / "Fast_Walking.c3d"})],
-    "pig_motion3": [(Path(f).stem, {"file": REAL / f}) for f in PIG_WALKS],
+    "pig_motion3": [
+        *[(Path(f).stem, {"file": REAL / f}) for f in PIG_WALKS],
+        # standing-only tasks: on three plates, and the session's own static (no plates)
+        ("FunctionalStatic", {"file": REAL / "btkdata" / "FunctionalStatic.c3d"}),
+        ("calibration3_task", {"file": REAL / "btkdata" / "PiG_Calibration3_FF.c3d"}),
+    ],
     "opensim_subject01": [
         ("walking2", {"file": OSIM / "std_walking2_markers.trc",
                       "grf": OSIM / "std_walking2_grfs.sto"}),
