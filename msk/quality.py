@@ -82,6 +82,9 @@ THRESHOLDS: Mapping[str, float] = {
     "residual_moment_rms_pct_com_height_peak_force": 1.0,
     "body_mass_difference_pct": 5.0,
     "frozen_coordinate_std_deg": 0.05,
+    # quiet standing sways the leg joints by well under 2° SD; any movement task (gait, squat,
+    # stairs, a leg lifted) moves a hip or knee by more
+    "still_trial_coordinate_std_deg": 2.0,
     "unobserved_segment_frames_pct": 5.0,
     "observed_measured_frames_min_pct": 50.0,
     "saturated_frames_pct": 25.0,
@@ -405,6 +408,17 @@ def _coordinate_flags(
     if not good.any():
         return out
     out += _at_bound_flags(trial, kin, th, held, model)
+    # a still trial (quiet standing: every checked coordinate's SD under the standing sway,
+    # THRESHOLDS["still_trial_coordinate_std_deg"]) cannot tell a coordinate the markers do not
+    # observe from one that does not move: no frozen-coordinate flag there
+    checked = [
+        j
+        for j, name in enumerate(kin.coordinate_names)
+        if (name[:-2] if name.endswith(("_r", "_l")) else name) in PHYSIOLOGICAL_RANGES_DEG
+        and name not in held
+    ]
+    sds = np.degrees(np.std(q[good][:, checked], axis=0)) if checked else np.zeros(0)
+    still = bool(sds.size) and float(sds.max()) < th.get("still_trial_coordinate_std_deg", 0.0)
     for j, name in enumerate(kin.coordinate_names):
         stem = name[:-2] if name.endswith(("_r", "_l")) else name
         if stem not in PHYSIOLOGICAL_RANGES_DEG or name in held:
@@ -420,7 +434,7 @@ def _coordinate_flags(
                       f"[{lo:g}°, {hi:g}°]")
             )  # fmt: skip
         sd = float(np.degrees(np.std(q[good, j])))
-        if sd < th["frozen_coordinate_std_deg"]:
+        if sd < th["frozen_coordinate_std_deg"] and not still:
             out.append(
                 _flag(trial, f"{name}_std_deg", sd, th["frozen_coordinate_std_deg"],
                       f"{name} is frozen (SD {sd:.3g}° over the trial): the markers do not "

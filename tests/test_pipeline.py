@@ -494,4 +494,6 @@ def test_a_trial_no_plate_measures_runs_kinematics_and_says_why_no_dynamics(tmp_
     why = {r["stage"]: r["reason"] for r in res.summary["not_available"]}
     assert why["tension_optimization"].startswith("no frame to optimise"), why
     assert why["strength_identification"].startswith("no frame with every foot"), why
+    assert why["mass_identification"].startswith("fewer than 2 frames"), why
     assert not any("internal error" in r for r in why.values()), why
+    assert not [r for r in res.summary["not_available"] if r["status"] == "failed"]

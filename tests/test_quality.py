@@ -256,3 +256,20 @@ def test_swapped_sides_needs_the_separation_margin():
     y[:, i, 1] = y[:, [i, j], 1].mean(axis=1) + 0.002
     y[:, j, 1] = y[:, i, 1] - 0.004
     assert swapped_sides(model, kin, y, labels) == []
+
+
+def test_a_still_trial_raises_no_frozen_coordinate_flag():
+    """Quiet standing (every leg coordinate within 0.5° SD of sway, one at 0.03°: UNIPD's
+    Static1 run as a task, hip_flexion_r 0.04°) cannot tell an unobserved coordinate from a
+    still one: no ``*_std_deg`` flag; the same coordinate frozen in a moving trial is flagged."""
+    model = two_leg_model()
+    rng = np.random.default_rng(3)
+    kin = _still(model, 100)
+    kin.coordinate_names = kin_names(model)
+    kin.q[:, 6:] += np.radians(0.5) * rng.standard_normal((100, kin.q.shape[1] - 6))
+    i = model.coordinate_names.index("hip_flexion_r")
+    kin.q[:, i] = np.radians(0.03) * rng.standard_normal(100)
+    assert not [f for f in _flags(model, kin) if f.quantity.endswith("_std_deg")]
+    kin.q[:, model.coordinate_names.index("knee_angle_l")] = np.linspace(-0.1, -1.0, 100)
+    by = {f.quantity for f in _flags(model, kin)}
+    assert "hip_flexion_r_std_deg" in by
