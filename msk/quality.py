@@ -27,7 +27,11 @@ Thresholds and their sources (:data:`THRESHOLDS`):
   with a four-bar knee before the placement fix: the knee at its +10° hyperextension bound
   through stance — inside the physiological range gate's +15°, so that gate did not fire).
 * Frozen coordinates: a leg coordinate whose standard deviation over the trial is below 0.05°
-  (a segment that the markers do not observe stays at its initial value).
+  (a segment that the markers do not observe stays at its initial value) — not judged on a
+  still trial (every checked coordinate under 2° SD, the sway of quiet standing), where a
+  still coordinate and an unobserved one look alike.
+* No measured contact: a trial in which no frame has every foot's ground contact measured by
+  the plates (no residual, plate mass, muscle forces or knee contact can be computed).
 * Unobserved segments: solved frames in which no marker on a leg segment was used by IK.
 * Tension optimisation: infeasible frames, frames excluded from it (non-finite or invalid
   inputs), a muscle saturated (activation ≥ 0.99) on more than 25 % of frames (the generic
