@@ -1,11 +1,13 @@
 """Run the shipped session configs with only their task files swapped for other recordings of
-the same kind (other trials of the same subject and lab), as a user — or a scorer — would.
+the same kinds (other trials and tasks of the same subject, other subjects and labs with a
+marker set of the same family, standing-only tasks), as a user — or a scorer — would.
 
 For each (config, alternative task) pair the config is read as shipped, its task trial's files
 (``file``, and ``grf``/``external_loads``/``contact_force`` where the alternative has them)
 replaced, and the session run into a temporary folder. Printed per run: exit status (ok, or the
-one-line error), IK marker RMS, pelvis residual force (% BW), the measured contact force's RMSE
-and r where there is one, and the quality flags raised. Nothing here is asserted: it is the
+one-line error; "CRASH" and the exception for a traceback), IK marker RMS, pelvis residual
+force (% BW), the measured contact force's RMSE and r where there is one, and the quality
+flags raised. Nothing here is asserted: it is the
 check that the configs are written for the kinds of data, not for their files.
 
 Usage: ``.venv/bin/python scripts/task_swap.py [--only gc5_PS,gc6_DM_og1]``.
