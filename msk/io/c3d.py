@@ -1374,5 +1374,62 @@ def write_c3d(
             _set_param(c, "SUBJECTS", "NAMES", [subject.name])
     c["header"]["points"]["first_frame"] = int(first_frame)
     path = Path(path)
+    if n <= _MAX_HEADER_FRAMES:
+        c.write(str(path))
+        return path
+    # more frames than the header holds (ezc3d 1.7 writes the first 65 535): ezc3d writes the
+    # header and parameters with one frame, msk the whole data section in its format
+    start, end = first_frame + 1, first_frame + n
+    _set_param(c, "TRIAL", "ACTUAL_START_FIELD", np.array([start % 65536, start // 65536]))
+    _set_param(c, "TRIAL", "ACTUAL_END_FIELD", np.array([end % 65536, end // 65536]))
+    c["data"]["points"] = pts[:, :, :1].copy()
+    c["data"]["meta_points"]["residuals"] = res[:, :, :1].copy()
+    c["data"]["meta_points"]["camera_masks"] = np.zeros((7, m, 1), dtype=bool)
+    c["data"]["analogs"] = a[:analog_ratio].T[None].copy()
     c.write(str(path))
+    _write_long_data(path, pts, res[0], a)
     return path
+
+
+#: the largest frame number a C3D header holds (16-bit)
+_MAX_HEADER_FRAMES = 65535
+
+
+def _write_long_data(
+    path: Path, pts: NDArray[np.float64], res: NDArray[np.float64], analogs: NDArray[np.float64]
+) -> None:
+    """Replace the one-frame data section ezc3d wrote in ``path`` (Intel floats) by all the
+    frames of ``pts`` ``(4, M, N)``, ``res`` ``(M, N)`` and ``analogs`` ``(N * ratio, C)``;
+    the header's last frame saturates at 65 535 and ``POINT:FRAMES`` is set to 65 535 (the
+    frames are in ``TRIAL:ACTUAL_*_FIELD``). Frame by frame in blocks: x, y, z, residual per
+    point, then the analog samples, each a float32."""
+    with path.open("r+b") as fh:
+        head = bytearray(fh.read(512))
+        words = list(struct.unpack("<12H", head[:24]))
+        fh.seek((head[0] - 1) * 512)
+        params = fh.read((words[8] - head[0]) * 512)
+        frames = _walk_parameters(path, params, "<").get(("POINT", "FRAMES"))
+        if frames is None or frames.type != 2:
+            raise MskError(f"{path}: ezc3d wrote no integer POINT:FRAMES")
+        nchar = abs(struct.unpack_from("b", params, frames.offset)[0])
+        at = frames.offset + 2 + nchar + 2 + 2 + len(frames.dims)
+        fh.seek((head[0] - 1) * 512 + at)
+        fh.write(struct.pack("<H", _MAX_HEADER_FRAMES))
+        words[4] = _MAX_HEADER_FRAMES
+        fh.seek(0)
+        fh.write(struct.pack("<12H", *words))
+        fh.seek((words[8] - 1) * 512)
+        fh.truncate()
+        n, m = pts.shape[2], pts.shape[1]
+        ratio = analogs.shape[0] // n if n else 0
+        scale = abs(struct.unpack("<f", bytes(head[12:16]))[0]) or 1.0
+        for a in range(0, n, _READ_BLOCK):
+            b = min(n, a + _READ_BLOCK)
+            block = np.empty((b - a, 4 * m + ratio * analogs.shape[1]), dtype="<f4")
+            p4 = np.transpose(pts[:, :, a:b], (2, 1, 0)).copy()
+            r = res[:, a:b].T
+            # ezc3d's residual word: the residual over |scale|, truncated, in the upper byte
+            p4[:, :, 3] = np.where(r < 0, -1.0, (np.trunc(r / scale).astype(np.int64) & 255) * 256)
+            block[:, : 4 * m] = p4.reshape(b - a, 4 * m)
+            block[:, 4 * m :] = analogs[a * ratio : b * ratio].reshape(b - a, -1)
+            fh.write(block.tobytes())
