@@ -1,4 +1,11 @@
-"""C3D trials via ezc3d: markers, model outputs, analogs, force platforms, events, subject data.
+"""C3D trials: markers, model outputs, analogs, force platforms, events, subject data.
+
+msk reads the file itself: header and parameter section checked first (:func:`_check_bytes`),
+the parameters decoded as ezc3d's Python binding gives them, the data section read block by
+block (float or integer storage; Intel, DEC and MIPS processors; analog samples as
+``(raw - OFFSET) * SCALE * GEN_SCALE``, unsigned when ``ANALOG:FORMAT`` says so), so that a
+long trial never holds more than its outputs and one block (issue 18); ``tests/io`` checks
+every real C3D against ezc3d. ezc3d writes (:func:`write_c3d`).
 
 Everything is converted to SI once, here: positions m, forces N, moments N·m, time s, angles rad,
 mass kg, height m. Time is axis 0 of every array.
@@ -72,7 +79,7 @@ _AXES = "XYZ"
 
 
 # ---------------------------------------------------------------------------------------------
-# header guard: refuse what would make ezc3d crash or raise a raw exception
+# header guard: refuse a corrupt header or parameter section before the data are read
 # ---------------------------------------------------------------------------------------------
 def _check_bytes(path: Path) -> _Layout:
     """Sanity checks of the header and parameter section before the data section is read; the
@@ -193,7 +200,10 @@ def _long_first_frame(
     frame saturates at 65 535 and ``TRIAL:ACTUAL_START_FIELD`` / ``ACTUAL_END_FIELD`` hold the
     frame numbers as two unsigned 16-bit words, low word first (C3D User Guide, C3D.org 2008,
     "The TRIAL group"); None for any other file (the header's frames hold)."""
-    start, end = params.get(("TRIAL", "ACTUAL_START_FIELD")), params.get(("TRIAL", "ACTUAL_END_FIELD"))
+    start, end = (
+        params.get(("TRIAL", "ACTUAL_START_FIELD")),
+        params.get(("TRIAL", "ACTUAL_END_FIELD")),
+    )
     if header_last != 65535 or start is None or end is None or start.type != 2 or end.type != 2:
         return None
     endian = ">" if proc == 86 else "<"
@@ -316,7 +326,9 @@ def _parameter_values(
                 value = [text.replace("\0", "").rstrip(" ")] if p.dims != (0,) else []
             else:
                 w, count = p.dims[0], math.prod(p.dims[1:])
-                value = [text[k * w : (k + 1) * w].replace("\0", "").rstrip(" ") for k in range(count)]
+                value = [
+                    text[k * w : (k + 1) * w].replace("\0", "").rstrip(" ") for k in range(count)
+                ]
         else:
             v = _decode(p, proc)
             assert v is not None
@@ -343,7 +355,11 @@ def _data_words(lay: _Layout, raw: NDArray[Any]) -> NDArray[np.float64]:
 
 
 def _read_data(
-    path: Path, lay: _Layout, analog_columns: Sequence[int], *, points: bool = True
+    path: Path,
+    lay: _Layout,
+    analog_columns: Sequence[int] | NDArray[np.int64],
+    *,
+    points: bool = True,
 ) -> tuple[NDArray[np.float64], NDArray[np.bool_], NDArray[np.float64]]:
     """Points ``(N, P, 3)`` (file units; integer storage times ``|POINT:SCALE|``), their
     invalid flags ``(N, P)`` (negative residual word) and the analog ``analog_columns``
@@ -353,6 +369,11 @@ def _read_data(
     dtype = np.dtype(endian + ("f4" if lay.is_float else "i2"))
     n, n_pts, samples = lay.n_frames, lay.n_points, lay.analog_per_frame
     n_ana = lay.n_analog_words // samples if samples else 0
+    if n_ana * samples != lay.n_analog_words and samples:
+        raise C3DError(
+            f"{path}: {lay.n_analog_words} analog words per frame is not a whole number of "
+            f"channels x {samples} samples"
+        )
     per_frame = 4 * n_pts + lay.n_analog_words
     cols = np.asarray(analog_columns, dtype=np.int64)
     vals = _parameter_values(
@@ -987,7 +1008,7 @@ def _child_read(
     except MskError as exc:
         out = ("error", type(exc).__name__, str(exc))
     except Exception as exc:
-        out = ("error", "C3DError", f"{path}: ezc3d cannot read it: {type(exc).__name__}: {exc}")
+        out = ("error", "C3DError", f"{path}: msk cannot read it: {type(exc).__name__}: {exc}")
     conn.send(out)
     conn.close()
 
