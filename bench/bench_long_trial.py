@@ -204,9 +204,7 @@ def child(n_frames: int, c3d: Path, out: Path, trace: bool = False) -> dict[str,
     from msk.config import load_config
 
     cfg = load_config(CONFIG)
-    trials = tuple(
-        dataclasses.replace(t, file=c3d) if t.role == "task" else t for t in cfg.trials
-    )
+    trials = tuple(dataclasses.replace(t, file=c3d) if t.role == "task" else t for t in cfg.trials)
     cfg = dataclasses.replace(cfg, trials=trials)
     nodes = graph.GRAPH
     traced: list[tuple[str, int, int, int]] = []
@@ -272,7 +270,7 @@ def main() -> None:
                 capture_output=True, text=True, check=False,
             )  # fmt: skip
             if w.returncode != 0:
-                sys.exit(f"{n} frames: writing the C3D failed ({w.returncode}):\n{w.stderr[-3000:]}")
+                sys.exit(f"{n} frames: writing the C3D failed:\n{w.stderr[-3000:]}")
             print(
                 f"{n:7d} frames  C3D written: {c3d.stat().st_size / 2**20:.0f} MiB "
                 f"({time.perf_counter() - t0:.1f} s)",

@@ -143,3 +143,13 @@ def test_more_than_65535_frames_round_trip(tmp_path) -> None:
     assert tr.plates[0].force.shape == (280_000, 3)
     # ezc3d 1.7 reads such a file only to POINT:FRAMES (65 535)
     assert np.asarray(ezc3d.c3d(str(path))["data"]["points"]).shape[2] == 65_535
+
+
+def test_isolated_reader_passes_plate_channels(tmp_path) -> None:
+    path = tmp_path / "t.c3d"
+    _synthetic(40, path)
+    here = read_c3d(path, plate_channels=False)
+    child = read_c3d(path, plate_channels=False, isolate=True)
+    assert child.analog_labels == here.analog_labels == ("EMG",)
+    np.testing.assert_array_equal(child.analogs, here.analogs)
+    np.testing.assert_array_equal(child.plates[0].force, here.plates[0].force)
