@@ -31,6 +31,7 @@ __all__ = [
     "BuiltModel",
     "held_static_knees",
     "knee_flexion_to_physiological",
+    "leg_split",
     "load_model_file",
     "run",
     "settings",
@@ -171,7 +172,9 @@ def knee_flexion_to_physiological(model: Any) -> tuple[Any, dict[str, list[float
     }
 
 
-def _scale_and_place(inputs: SessionInputs, read: ReadResult) -> dict[str, Any]:
+def _scale_and_place(
+    inputs: SessionInputs, read: ReadResult, functional: Mapping[str, float] | None = None
+) -> dict[str, Any]:
     from msk.io.c3d import is_measured_marker
     from msk.io.frames import pelvis_heading_rotation
     from msk.markersets import (
@@ -271,7 +274,7 @@ def _scale_and_place(inputs: SessionInputs, read: ReadResult) -> dict[str, Any]:
             static = {lab: sm[:, i] for i, lab in enumerate(slabels)}
             model, report = scale_from_static(
                 model, static, height_m=cfg.subject.height_m, body_mass=cfg.subject.mass_kg,
-                widths_m=widths, marker_diameter_m=mdiam,
+                widths_m=widths, marker_diameter_m=mdiam, functional=functional,
             )  # fmt: skip
         model = _aligned(inputs, model, sm, slabels)
         centres, jc_move = _chord_centres(model, sm, slabels, widths, mdiam)
@@ -309,7 +312,7 @@ def _scale_and_place(inputs: SessionInputs, read: ReadResult) -> dict[str, Any]:
         if mc.scale:
             model, report = scale_from_motion(
                 model, xm, mlabels, trial.time, height_m=cfg.subject.height_m,
-                body_mass=cfg.subject.mass_kg,
+                body_mass=cfg.subject.mass_kg, functional=functional,
             )  # fmt: skip
         model = _aligned(inputs, model, xm, mlabels)
         # the lab's foot markers: where they sit on the foot is the lab's choice and nothing
@@ -551,6 +554,36 @@ def _swap_back(read: ReadResult) -> tuple[ReadResult, dict[str, float]]:
     return dataclasses.replace(read, trial=fixed), {f"{r}/{lft}": dz for r, lft, dz in pairs}
 
 
+def leg_split(inputs: SessionInputs, trial: Any, built: Mapping[str, Any]) -> dict[str, Any] | None:
+    """The femur : tibia split of each leg scaled by one pelvis-to-heel factor (no knee or
+    ankle marker: ``leg_<side>`` among the scaling ratios), from the functional knee and ankle
+    centres of the task trial's thigh, shank and calcaneus markers
+    (:func:`msk.leg_split.functional_leg_split`) on the model as first scaled and placed
+    (``built``); None when no leg was scaled that way. The model stage scales again with the
+    sides it determines and reports every side in ``summary.json`` ``model.leg_split``."""
+    from msk.leg_split import functional_leg_split
+    from msk.markersets import zeros_as_gaps
+
+    mc = inputs.model_cfg
+    ratios = dict(built["info"].get("scaling", {}).get("ratios", {}))
+    legs = {s: float(ratios[f"leg_{s}"]) for s in ("r", "l") if f"leg_{s}" in ratios}
+    if mc is None or not mc.scale or not legs:
+        return None
+    model, rot = built["model"], np.asarray(built["rotation"], dtype=float)
+    x = zeros_as_gaps(np.asarray(trial.markers, dtype=float) @ rot.T)
+    inv = {v: k for k, v in built["rename"].items()}
+    labels = tuple(inv.get(lab, lab) for lab in trial.marker_labels)
+    # the markers on each body: the model's, those placed and those placed but too loose for
+    # IK (a cluster is posed by its own shape: its markers need only be rigid with each other)
+    placed = built["info"].get("marker_placement", {})
+    segments: dict[str, list[str]] = {}
+    for mk in model.markers:
+        segments.setdefault(mk.body, []).append(mk.name)
+    for lab, (body, _) in dict(placed.get("too_loose", {})).items():
+        segments.setdefault(body, []).append(lab)
+    return dict(functional_leg_split(model, x, labels, legs, segments=segments))
+
+
 def run(inputs: SessionInputs, read: ReadResult) -> BuiltModel:
     from msk.markersets import zeros_as_gaps
 
@@ -558,6 +591,16 @@ def run(inputs: SessionInputs, read: ReadResult) -> BuiltModel:
     read, swapped = _swap_back(read)
     trial = read.trial
     built = _scale_and_place(inputs, read)
+    split = leg_split(inputs, trial, built)
+    if split is not None:
+        functional = {
+            f"{b}_{side}": f
+            for side, sp in split.items() if sp.method != "leg factor"
+            for b, f in (("femur", sp.femur_factor), ("tibia", sp.tibia_factor))
+        }  # fmt: skip
+        if functional:
+            built = _scale_and_place(inputs, read, functional)
+        built["info"]["leg_split"] = {side: sp.summary() for side, sp in split.items()}
     if swapped:
         built["info"]["marker_set"]["swapped_back"] = swapped
     # after scaling and placement (whose passes keep the generic bounds): the task's IK and
