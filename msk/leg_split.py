@@ -228,6 +228,7 @@ def functional_leg_split(
     *,
     segments: Mapping[str, Sequence[str]] | None = None,
     checks: Mapping[str, float] | None = None,
+    use_ankle: bool = False,
 ) -> dict[str, LegSplit]:
     """Femur and tibia factors of each side of ``leg_factors`` from its functional knee and
     ankle (the module docstring), or that side's leg factor and why.
@@ -250,6 +251,9 @@ def functional_leg_split(
             it); the femur's, tibia's and calcaneus' are posed as rigid clusters of their own
             shape, the pelvis on the model's pelvis markers.
         checks: overrides of :data:`CHECKS`.
+        use_ankle: the tibia from the functional ankle where it is determined (else, and by
+            default, the rest of the leg; the ankle's figures are reported either way: see
+            the module docstring for why the pipeline does not use it).
 
     Returns:
         side → :class:`LegSplit`.
@@ -378,9 +382,14 @@ def functional_leg_split(
             d_m = am.centre_a - km.centre_b
             lt_m = float(np.linalg.norm(d_m - np.dot(d_m, km.axis_b) * km.axis_b))
         lengths = {"model_femur_m": lf_m, "model_tibia_m": lt_m}
-        if ankle_why:
+        if ankle_why or not use_ankle:
             method = "functional knee, tibia the rest of the leg"
-            reason = "ankle not determined: " + "; ".join(ankle_why)
+            reason = (
+                "ankle not determined: " + "; ".join(ankle_why)
+                if ankle_why
+                else "the functional ankle is reported, not used (its knee-to-ankle length "
+                "moves with the shank cluster's slide on the bone)"
+            )
             s_t = c_t * (lf_m + lt_m - l_f) / lt_m
         else:
             method, reason = "functional knee and ankle", ""

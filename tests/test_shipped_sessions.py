@@ -27,6 +27,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from msk.leg_split import LEG_SPLIT_METHODS
 from msk.pipeline import CORE_STAGES, run_task_trials
 from msk.summary import Summary
 from tests.support import golden
@@ -124,7 +125,19 @@ def test_shipped_session_runs_and_flags_what_is_wrong(cfg: Path, tmp_path: Path)
         assert abs(np.degrees(np.nanmedian(q_tab[:, names.index(c)]))) < 5.0, c
     # every segment's scaling method is said
     methods = {b["method"] for b in s["model"]["scaling"]["bodies"].values()}
-    assert methods <= {"static markers", "motion markers", "height", "unscaled"}
+    assert methods <= {"static markers", "motion markers", "height", "unscaled",
+                       "functional joint centres"}  # fmt: skip
+    # a leg scaled by one pelvis-to-heel factor (no knee or ankle marker): its femur : tibia
+    # split and why are said in summary.json and the report (msk.leg_split)
+    legs = [k[-1] for k in s["model"]["scaling"]["ratios"] if k in ("leg_r", "leg_l")]
+    split = s["model"].get("leg_split") or {}
+    assert sorted(split) == sorted(legs), (split, legs)
+    for side, sp in split.items():
+        assert sp["method"] in LEG_SPLIT_METHODS and (sp["reason"] or sp["method"] != "leg factor")
+        functional = s["model"]["scaling"]["bodies"][f"femur_{side}"]["method"]
+        assert (functional == "functional joint centres") == (sp["method"] != "leg factor")
+    if split:
+        assert "Femur : tibia split" in (res.out_dir / "report.html").read_text()
     if "knee_contact" in res.summary.get("tables", []):
         side = s["subject"]["side"]
         assert s["comparison"] is not None or side

@@ -559,8 +559,10 @@ def leg_split(inputs: SessionInputs, trial: Any, built: Mapping[str, Any]) -> di
     ankle marker: ``leg_<side>`` among the scaling ratios), from the functional knee and ankle
     centres of the task trial's thigh, shank and calcaneus markers
     (:func:`msk.leg_split.functional_leg_split`) on the model as first scaled and placed
-    (``built``); None when no leg was scaled that way. The model stage scales again with the
-    sides it determines and reports every side in ``summary.json`` ``model.leg_split``."""
+    (``built``); None when no leg was scaled that way. The model stage scales and places again
+    with the sides it determines, keeps that model when the lab's markers fit it no worse (the
+    placement's marker RMS, :func:`_placement_rms`; else every side keeps its leg factor, and
+    says why) and reports every side in ``summary.json`` ``model.leg_split``."""
     from msk.leg_split import functional_leg_split
     from msk.markersets import zeros_as_gaps
 
@@ -584,6 +586,14 @@ def leg_split(inputs: SessionInputs, trial: Any, built: Mapping[str, Any]) -> di
     return dict(functional_leg_split(model, x, labels, legs, segments=segments))
 
 
+def _placement_rms(info: Mapping[str, Any]) -> float:
+    """The marker placement's marker RMS (m): the static's IK (``static_marker_rms_m``) or the
+    motion's last pass (``ik_marker_rms_m``, median over its frames); NaN without one."""
+    mp = dict(info.get("marker_placement", {}))
+    v = mp.get("static_marker_rms_m", mp.get("ik_marker_rms_m"))
+    return float("nan") if v is None else float(v)
+
+
 def run(inputs: SessionInputs, read: ReadResult) -> BuiltModel:
     from msk.markersets import zeros_as_gaps
 
@@ -599,7 +609,24 @@ def run(inputs: SessionInputs, read: ReadResult) -> BuiltModel:
             for b, f in (("femur", sp.femur_factor), ("tibia", sp.tibia_factor))
         }  # fmt: skip
         if functional:
-            built = _scale_and_place(inputs, read, functional)
+            # kept when the lab's markers fit the split model no worse than the leg-factor one
+            # (the placement's marker RMS: the markers' own verdict, not the plates')
+            again = _scale_and_place(inputs, read, functional)
+            rms0, rms1 = _placement_rms(built["info"]), _placement_rms(again["info"])
+            if rms1 <= rms0:
+                built = again
+            else:
+                note = (
+                    f"the markers fit the split model worse (placement marker RMS "
+                    f"{1000 * rms0:.1f} → {1000 * rms1:.1f} mm): leg factor kept"
+                )
+                split = {
+                    side: sp if sp.method == "leg factor" else dataclasses.replace(
+                        sp, method="leg factor", reason=f"{sp.method}: {note}",
+                        femur_factor=sp.leg_factor, tibia_factor=sp.leg_factor,
+                    )
+                    for side, sp in split.items()
+                }  # fmt: skip
         built["info"]["leg_split"] = {side: sp.summary() for side, sp in split.items()}
     if swapped:
         built["info"]["marker_set"]["swapped_back"] = swapped
