@@ -1,5 +1,5 @@
 """How a leg measured only from the pelvis to the heel is split between the femur and the tibia:
-by the functional knee and ankle centres of its marker clusters.
+by the functional knee (and, on request, ankle) of its marker clusters.
 
 Without knee or ankle markers (cluster-only protocols: UWA, the Grand Challenge DM and JW
 walks) the femur and the tibia are scaled by one factor, the pose-matched ASIS-to-heel distance
@@ -13,21 +13,25 @@ through the knee's and the ankle's range, and their functional centres measure t
 * the knee: SCoRE between the thigh's and the shank's markers (Ehrig et al. 2006, Eq. 3) with
   its flexion axis left free (SARA, Ehrig et al. 2007; :func:`msk.functional_joints.score`,
   ``hinge=True``); the femur's length is the distance from the hip centre to that axis
-  (median over the frames), its factor that length over the model's hip-to-knee distance;
-* the ankle: SCoRE between the shank's and the calcaneus' markers (a centre, not an axis: the
-  ankle and subtalar joints together); the tibia's length is the distance from the knee axis
-  to it, its factor that length over the model's knee-to-ankle distance. Where the ankle is not
-  determined (below), the tibia takes the rest of the leg: its length is the model's
-  hip-to-ankle length (the ASIS-to-heel measurement) minus the functional femur's.
+  (median over the frames), its factor the present one times that length over the model's own
+  femur measured the same way (SCoRE of the model's femur and tibia moved over the same range);
+* the tibia: the rest of the leg — the model's hip-to-ankle length (the ASIS-to-heel
+  measurement) minus the functional femur. With ``use_ankle`` it is measured instead, where the
+  ankle is determined: SCoRE between the shank's and the calcaneus' markers, its main axis left
+  free too, the tibia the distance from the knee axis to that point. The pipeline does not use
+  it (its figures are reported): between trials of one subject the functional femur agrees to
+  ~10 mm and this tibia does not (Grand Challenge DM, left: 411 / 430 / 431 mm in three trials),
+  and a shank cluster sliding on the bone moves the knee's estimate along the tibia (synthetic:
+  8 mm of slide, −5 mm of tibia; docs/validation.md, issue 15, seventh pass).
 
 Each centre is used only when the data determine it (:data:`CHECKS`): enough frames, enough
-rotation about the joint's axis (Ehrig et al. 2006 found SCoRE's error growing quickly below
-about 20° of motion: we ask the knee for 30°, half of a walking knee's flexion, and the ankle
-for 15°, half of a walking ankle's range), a mismatch of its two estimates within soft tissue's
-(thigh clusters move 10–30 mm on the femur in gait, Leardini et al. 2005, Gait Posture
-21:212–225; shank clusters less), a femur and tibia within 15 % of the leg factor's (a
-cluster on the wrong segment, not a subject) and, for the ankle, hip-to-ankle within 5 % of the
-ASIS-to-heel measurement. Otherwise the side keeps the leg factor, and the reason is said.
+rotation about the joint's axis (SCoRE's error grows as the range of motion shrinks, Ehrig et
+al. 2006: we ask the knee for 30°, half of a walking knee's flexion, and the ankle for 15°,
+half of a walking ankle's range), a mismatch of its two estimates within soft tissue's (thigh
+clusters move 10–30 mm on the femur in gait, Leardini et al. 2005, Gait Posture 21:212–225;
+shank clusters less), a femur and tibia within 15 % of the leg factor's (a cluster on the wrong
+segment, not a subject) and, for the ankle, hip-to-ankle within 5 % of the ASIS-to-heel
+measurement. Otherwise the side keeps the leg factor, and the reason is said.
 """
 
 from __future__ import annotations
