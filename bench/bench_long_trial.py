@@ -4,11 +4,15 @@ trial within 1 GB peak RSS and linear time).
 The long trials are the bundled Grand Challenge PS gait trial (``data/gc5-PS``, 145 frames at
 120 Hz, 36 analog channels at 1200 Hz: 3 plates and 16 EMG) played forwards, backwards,
 forwards… (a palindrome: markers, plates and EMG stay continuous) to 10 000, 30 000 and
-100 000 frames (83 s, 4 min, 14 min). A C3D holds at most 65 535 frames, so the tiled trial is
-built in memory from the read one and handed to :func:`msk.pipeline.run_session` in place of
-what the ``read`` stage reads (everything else — model, IK, loads, mass identification,
-inverse dynamics, EMG, muscle geometry, static optimisation, strength, knee contact, tables,
-summary, report — is the real ``pipelines/gc5_PS.toml`` chain, stage cache off).
+100 000 frames (83 s, 4 min, 14 min), written as a real C3D file (once per length, in a
+temporary folder, by a child process: :func:`msk.io.write_c3d`; beyond 65 535 frames, which a
+C3D header cannot count, the frames are in ``TRIAL:ACTUAL_START_FIELD`` / ``ACTUAL_END_FIELD``).
+The plates are written as type-2 plates in their own axes (force and the moment about the
+surface centre, no transducer offset: the same forces, COP and free moments to float32
+rounding), the EMG channels as read. The real ``pipelines/gc5_PS.toml`` session then runs on
+that file with only its task file swapped (stage cache off): read (msk's C3D reader), model,
+IK, loads, mass identification, inverse dynamics, EMG, muscle geometry, tensions, strength,
+knee contact, tables, summary, report.
 
 Each length runs in its own child process; printed per length: the child's peak RSS
 (``getrusage(RUSAGE_CHILDREN).ru_maxrss``), wall time and time per frame, and after each stage
@@ -109,6 +113,49 @@ def tile_trial(trial: Any, n_frames: int) -> Any:
     )
 
 
+def write_tiled(n_frames: int, path: Path) -> None:
+    """The bundled PS trial tiled to ``n_frames`` (:func:`tile_trial`) written as a C3D at
+    ``path`` (millimetres; plates as type 2 in their own axes, channels Fx Fy Fz Mx My Mz of
+    the force and of the moment about the surface centre; the other analog channels as read)."""
+    import numpy as np
+
+    from msk.config import load_config
+    from msk.io import read_c3d
+    from msk.io.c3d import PlateSpec, write_c3d
+
+    cfg = load_config(CONFIG)
+    task = next(t for t in cfg.trials if t.role == "task")
+    trial = tile_trial(read_c3d(task.file), n_frames)
+    plate_ch = {c for p in trial.plates for c in p.channels}
+    keep = [i for i, lab in enumerate(trial.analog_labels) if lab not in plate_ch]
+    columns = [np.asarray(trial.analogs)[:, keep]]
+    labels = [trial.analog_labels[i] for i in keep]
+    units = [trial.analog_units[i] for i in keep]
+    specs = []
+    for k, p in enumerate(trial.plates):
+        rot = np.asarray(p.rotation)
+        names = tuple(f"P{k + 1}{c}" for c in ("Fx", "Fy", "Fz", "Mx", "My", "Mz"))
+        columns.append(np.asarray(p.force) @ rot)  # plate axes, N
+        columns.append(np.asarray(p.moment) @ rot * 1e3)  # plate axes, N·mm
+        labels += names
+        units += ["N"] * 3 + ["Nmm"] * 3
+        specs.append(PlateSpec(names, np.asarray(p.corners), np.zeros(3), type=2))
+    write_c3d(
+        path,
+        markers=trial.markers,
+        marker_labels=trial.marker_labels,
+        rate_hz=trial.point_rate_hz,
+        point_units="mm",
+        analogs=np.concatenate(columns, axis=1),
+        analog_labels=labels,
+        analog_units=units,
+        analog_ratio=round(trial.analog_ratio),
+        plates=specs,
+        subject=trial.subject,
+        first_frame=round(float(trial.time[0]) * trial.point_rate_hz),
+    )
+
+
 def _nbytes(obj: Any, seen: set[int]) -> int:
     """Bytes of the numpy arrays reachable from ``obj`` (dataclasses, mappings, sequences,
     attributes), each buffer once."""
@@ -148,25 +195,18 @@ def _traced(node: Any, rows: list[tuple[str, int, int, int]]) -> Any:
     return dataclasses.replace(node, run=wrapped)
 
 
-def child(n_frames: int, out: Path, trace: bool = False) -> dict[str, Any]:
-    """Run the session on the tiled trial in this process; figures as a dict."""
+def child(n_frames: int, c3d: Path, out: Path, trace: bool = False) -> dict[str, Any]:
+    """Run the session on the tiled C3D ``c3d`` in this process; figures as a dict."""
     import tracemalloc
 
     import msk.pipeline.graph as graph
     import msk.pipeline.session as session
     from msk.config import load_config
-    from msk.pipeline import read
 
     cfg = load_config(CONFIG)
-
-    def tiled_read(inputs: Any) -> Any:
-        res = read.read_task(inputs)
-        res = dataclasses.replace(res, trial=tile_trial(res.trial, n_frames))
-        return read.for_session(inputs, res)
-
-    nodes = tuple(
-        dataclasses.replace(n, run=tiled_read) if n.name == "read" else n for n in graph.GRAPH
-    )
+    trials = tuple(dataclasses.replace(t, file=c3d) if t.role == "task" else t for t in cfg.trials)
+    cfg = dataclasses.replace(cfg, trials=trials)
+    nodes = graph.GRAPH
     traced: list[tuple[str, int, int, int]] = []
     if trace:
         tracemalloc.start()
@@ -210,18 +250,36 @@ def main() -> None:
     ap.add_argument("--frames", type=int, nargs="+", default=[10_000, 30_000, 100_000])
     ap.add_argument("--trace", action="store_true", help="per-node bytes under tracemalloc")
     ap.add_argument("--child", type=int, help=argparse.SUPPRESS)
+    ap.add_argument("--write", type=int, help=argparse.SUPPRESS)
+    ap.add_argument("--c3d", type=Path, help=argparse.SUPPRESS)
     ap.add_argument("--out", type=Path, help=argparse.SUPPRESS)
     args = ap.parse_args()
+    if args.write:
+        write_tiled(args.write, args.c3d)
+        return
     if args.child:
-        print(json.dumps(child(args.child, args.out, args.trace)))
+        print(json.dumps(child(args.child, args.c3d, args.out, args.trace)))
         return
     rows = []
     for n in args.frames:
         with tempfile.TemporaryDirectory() as tmp:
+            c3d = Path(tmp) / f"PS_tiled_{n}.c3d"
+            t0 = time.perf_counter()
+            w = subprocess.run(
+                [sys.executable, __file__, "--write", str(n), "--c3d", str(c3d)],
+                capture_output=True, text=True, check=False,
+            )  # fmt: skip
+            if w.returncode != 0:
+                sys.exit(f"{n} frames: writing the C3D failed:\n{w.stderr[-3000:]}")
+            print(
+                f"{n:7d} frames  C3D written: {c3d.stat().st_size / 2**20:.0f} MiB "
+                f"({time.perf_counter() - t0:.1f} s)",
+                flush=True,
+            )
             before = resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss
             p = subprocess.run(
-                [sys.executable, __file__, "--child", str(n), "--out", str(Path(tmp) / "out")]
-                + (["--trace"] if args.trace else []),
+                [sys.executable, __file__, "--child", str(n), "--c3d", str(c3d),
+                 "--out", str(Path(tmp) / "out")] + (["--trace"] if args.trace else []),
                 capture_output=True, text=True, check=False,
             )  # fmt: skip
             peak = resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss

@@ -673,7 +673,30 @@ def place_markers(
 # scaling without a static trial: motion markers, height, and how each segment was scaled
 # ---------------------------------------------------------------------------------------------
 #: How a body's scale factors were obtained (``ScalingReport.methods``).
-SCALING_METHODS: tuple[str, ...] = ("static markers", "motion markers", "height", "unscaled")
+SCALING_METHODS: tuple[str, ...] = (
+    "static markers",
+    "motion markers",
+    "height",
+    "unscaled",
+    "functional joint centres",
+)
+
+
+def _functional_override(
+    measured: dict[str, Array], ratios: dict[str, float], functional: Mapping[str, float] | None
+) -> None:
+    """Bodies scaled from functional joint centres (:func:`msk.leg_split.functional_leg_split`)
+    replace their marker measurement (in place); their method is set after completion."""
+    for body, f in (functional or {}).items():
+        measured[body] = np.full(3, float(f))
+        ratios[f"{body} (functional joint centres)"] = float(f)
+
+
+def _functional_methods(
+    methods: dict[str, str], functional: Mapping[str, float] | None
+) -> dict[str, str]:
+    return {**methods, **{b: "functional joint centres" for b in (functional or {})}}
+
 
 #: Stature (m) of generic models whose documentation states it, by model name: gait2392 "about
 #: 1.8 m tall and 75.16 kg" (OpenSim documentation, Gait 2392 and 2354 Models).
@@ -1031,6 +1054,7 @@ def scale_from_motion(
     pose_matched: bool = True,
     max_frames: int = 120,
     min_frames: int = 10,
+    functional: Mapping[str, float] | None = None,
 ) -> tuple[Model, ScalingReport]:
     """Scale ``model`` from a motion trial (no static), completing with the stature.
 
@@ -1043,7 +1067,10 @@ def scale_from_motion(
        to the generic model in that frame's pose (a pair across a joint is then measured at the
        same joint angles as the trial);
     4. bodies no measurement reaches: the stature ratio when ``height_m`` is given
-       (:func:`complete_scale_factors`), else unscaled — said in ``ScalingReport.methods``.
+       (:func:`complete_scale_factors`), else unscaled — said in ``ScalingReport.methods``;
+    5. ``functional``: body → factor measured from functional joint centres (a femur and tibia
+       split by :func:`msk.leg_split.functional_leg_split`), replacing the marker
+       measurement (method "functional joint centres").
 
     A measurement whose markers are too seldom tracked is skipped (named in ``messages``) and
     its bodies fall to the height.
@@ -1091,9 +1118,11 @@ def scale_from_motion(
             )
         except (KinematicsError, MissingDataError) as exc:
             messages.append(f"pose-matched measurement not done ({exc}): default pose used")
+    _functional_override(measured, ratios, functional)
     factors, methods, hf, mh = complete_scale_factors(
         model, measured, source="motion markers", height_m=height_m
     )
+    methods = _functional_methods(methods, functional)
     unscaled = [b for b, m in methods.items() if m == "unscaled"]
     if unscaled:
         messages.append(f"no marker measurement and no height: {unscaled} left unscaled")
@@ -1114,6 +1143,7 @@ def scale_from_static(
     marker_names: Mapping[str, str] | None = None,
     widths_m: Mapping[str, float] | None = None,
     marker_diameter_m: float | None = None,
+    functional: Mapping[str, float] | None = None,
 ) -> tuple[Model, ScalingReport]:
     """:func:`measure_scale_factors` on a static trial (``{label: (N, 3)}`` or a TRC table),
     per segment the first usable alternative of :data:`SEGMENT_MEASUREMENTS` when
@@ -1123,7 +1153,8 @@ def scale_from_static(
     (epicondyles and malleoli both sides of the leg, :func:`joint_centre_scale_factors`) is
     scaled by the joint-centre distance instead of the marker pair (Kainz et al. 2017); with
     lateral markers only, the lab's joint widths (``widths_m``, ``marker_diameter_m``) place the
-    knee and ankle centres as Plug-in Gait does (:func:`static_joint_centres`)."""
+    knee and ankle centres as Plug-in Gait does (:func:`static_joint_centres`). ``functional``
+    as for :func:`scale_from_motion`."""
     means = _static_means(static_markers)
     names = dict(marker_names or {})
     have = {mk for mk in model.marker_names if names.get(mk, mk) in means}
@@ -1151,9 +1182,11 @@ def scale_from_static(
             measured[body] = np.full(3, f)
             ratios[f"{body} (joint centres)"] = f
         details.update(jc_details)
+    _functional_override(measured, ratios, functional)
     factors, methods, hf, mh = complete_scale_factors(
         model, measured, source="static markers", height_m=height_m
     )
+    methods = _functional_methods(methods, functional)
     messages = []
     unscaled = [b for b, m in methods.items() if m == "unscaled"]
     if unscaled:

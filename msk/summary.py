@@ -286,7 +286,9 @@ class Heading(_Record):
 @dataclass(frozen=True, kw_only=True)
 class ModelInfo(_Record):
     """``model``: the model file, generic and scaled mass (kg), muscles (count), what
-    scaling and marker placement did (JSON objects as :mod:`msk.scaling` reports them) and the
+    scaling and marker placement did (JSON objects as :mod:`msk.scaling` reports them), the
+    femur : tibia split of a leg without knee or ankle markers (``leg_split``: side →
+    :meth:`msk.leg_split.LegSplit.summary`, which split each side got and why) and the
     part of the static trial used (``static_window``,
     :meth:`msk.static_window.StillWindow.summary`)."""
 
@@ -301,6 +303,7 @@ class ModelInfo(_Record):
     name: str | None = None
     muscles: int | None = None
     static_window: JsonObject | None = None
+    leg_split: JsonObject | None = None
 
 
 @dataclass(frozen=True, kw_only=True)

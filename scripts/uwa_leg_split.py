@@ -19,7 +19,10 @@ kept. Two pieces of evidence from the motion itself on how this subject's leg is
    only): IK marker RMS (the markers' verdict), residual force and moment after mass
    identification (the plates' verdict, reported not chosen on).
 
-Nothing here is shipped; the configs and the pipeline are unchanged.
+Evidence of the sixth pass; the seventh ships the rule it led to (``msk.leg_split``: the femur
+to the functional knee, the tibia the rest of the leg), so the what-if factors here now multiply
+whatever the scaling gives, that split included (the figures of docs/validation.md's sixth pass
+were taken before it).
 """
 
 from __future__ import annotations

@@ -1,4 +1,11 @@
-"""C3D trials via ezc3d: markers, model outputs, analogs, force platforms, events, subject data.
+"""C3D trials: markers, model outputs, analogs, force platforms, events, subject data.
+
+msk reads the file itself: header and parameter section checked first (:func:`_check_bytes`),
+the parameters decoded as ezc3d's Python binding gives them, the data section read block by
+block (float or integer storage; Intel, DEC and MIPS processors; analog samples as
+``(raw - OFFSET) * SCALE * GEN_SCALE``, unsigned when ``ANALOG:FORMAT`` says so), so that a
+long trial never holds more than its outputs and one block (issue 18); ``tests/io`` checks
+every real C3D against ezc3d. ezc3d writes (:func:`write_c3d`).
 
 Everything is converted to SI once, here: positions m, forces N, moments N·m, time s, angles rad,
 mass kg, height m. Time is axis 0 of every array.
@@ -29,7 +36,7 @@ import math
 import os
 import re
 import struct
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -72,10 +79,11 @@ _AXES = "XYZ"
 
 
 # ---------------------------------------------------------------------------------------------
-# header guard: refuse what would make ezc3d crash or raise a raw exception
+# header guard: refuse a corrupt header or parameter section before the data are read
 # ---------------------------------------------------------------------------------------------
-def _check_bytes(path: Path) -> None:
-    """Sanity checks of the header and parameter section before ezc3d sees the file."""
+def _check_bytes(path: Path) -> _Layout:
+    """Sanity checks of the header and parameter section before the data section is read; the
+    file's layout as checked."""
     check_regular_file(path, C3DError, "C3D file")
     size = path.stat().st_size
     if size == 0:
@@ -116,6 +124,9 @@ def _check_bytes(path: Path) -> None:
     data_block = w[8]
     word = 4 if is_float else 2
     n_frames = last - first + 1 if last >= first else 0
+    long_first = _long_first_frame(raw_params, proc, last)
+    if long_first is not None:  # more than 65 535 frames: the header's last frame saturates
+        first, n_frames = long_first
     if data_block < 2 and (n_points or n_analog_words):
         raise C3DError(f"{path}: corrupt header (data block {data_block})")
     expected = (data_block - 1) * 512 + n_frames * (4 * n_points + n_analog_words) * word
@@ -141,6 +152,69 @@ def _check_bytes(path: Path) -> None:
             "analog_per_frame": w[9],
         },
     )
+    if proc == 85:
+        a = bytes(head[12:16][i] for i in (2, 3, 0, 1))
+        scale = struct.unpack("<f", a)[0] / 4.0
+    else:
+        scale = struct.unpack(endian + "f", head[12:16])[0]
+    return _Layout(
+        proc=proc,
+        is_float=is_float,
+        scale=scale,
+        n_points=n_points,
+        n_analog_words=n_analog_words,
+        analog_per_frame=w[9],
+        first_frame=first,
+        n_frames=n_frames,
+        data_start=(data_block - 1) * 512,
+        point_rate=hdr_rate,
+        params=raw_params,
+    )
+
+
+@dataclass(frozen=True)
+class _Layout:
+    """Where and how a C3D stores its data (header and parameters as :func:`_check_bytes`
+    checked them): processor type (84 Intel, 85 DEC, 86 MIPS), float or integer storage and
+    the header's scale factor, points and analog words per frame, analog samples per frame,
+    the first frame number (1-based) and the number of frames, the data section's byte
+    offset, the header's point rate and the parameter records."""
+
+    proc: int
+    is_float: bool
+    scale: float
+    n_points: int
+    n_analog_words: int
+    analog_per_frame: int
+    first_frame: int
+    n_frames: int
+    data_start: int
+    point_rate: float
+    params: Mapping[tuple[str, str], _RawParam]
+
+
+def _long_first_frame(
+    params: Mapping[tuple[str, str], _RawParam], proc: int, header_last: int
+) -> tuple[int, int] | None:
+    """(first frame, number of frames) of a file of more than 65 535 frames: the header's last
+    frame saturates at 65 535 and ``TRIAL:ACTUAL_START_FIELD`` / ``ACTUAL_END_FIELD`` hold the
+    frame numbers as two unsigned 16-bit words, low word first (C3D User Guide, C3D.org 2008,
+    "The TRIAL group"); None for any other file (the header's frames hold)."""
+    start, end = (
+        params.get(("TRIAL", "ACTUAL_START_FIELD")),
+        params.get(("TRIAL", "ACTUAL_END_FIELD")),
+    )
+    if header_last != 65535 or start is None or end is None or start.type != 2 or end.type != 2:
+        return None
+    endian = ">" if proc == 86 else "<"
+    s = np.frombuffer(start.data, dtype=endian + "u2").astype(np.int64)
+    e = np.frombuffer(end.data, dtype=endian + "u2").astype(np.int64)
+    if s.size < 2 or e.size < 2:
+        return None
+    first, last = int(s[0] + 65536 * s[1]), int(e[0] + 65536 * e[1])
+    if last <= 65535 or last < first:
+        return None
+    return first, last - first + 1
 
 
 @dataclass(frozen=True)
@@ -216,7 +290,7 @@ def _walk_parameters(path: Path, buf: bytes, endian: str) -> dict[tuple[str, str
     out: dict[tuple[str, str], _RawParam] = {}
     for gid, pname, typ, dims, data, at in raw:
         group = groups.get(gid, f"#{gid}")
-        out.setdefault((group, pname), _RawParam(group, pname, typ, dims, data, at))
+        out[(group, pname)] = _RawParam(group, pname, typ, dims, data, at)  # the last, as ezc3d
     return out
 
 
@@ -234,6 +308,118 @@ def _decode(p: _RawParam, proc: int) -> NDArray[np.float64] | None:
     if p.type == 2:
         return np.frombuffer(p.data, dtype=endian + "i2").astype(float)
     return np.frombuffer(p.data, dtype="i1").astype(float)
+
+
+def _parameter_values(
+    params: Mapping[tuple[str, str], _RawParam], proc: int
+) -> dict[str, dict[str, dict[str, Any]]]:
+    """The parameters as ``{GROUP: {NAME: {"type", "value"}}}``, values as ezc3d's Python
+    binding gives them: numbers as an array of the parameter's dims (first dim fastest, int
+    for integer and byte types, float for floats); text with one dim as one string, with more
+    dims as ``dims[0]``-character strings over the other dims, trailing blanks removed."""
+    out: dict[str, dict[str, dict[str, Any]]] = {}
+    for (group, name), p in params.items():
+        value: Any
+        if p.type == -1:  # NUL characters dropped (ezc3d reads text as C strings)
+            text = p.data.decode("latin-1")
+            if len(p.dims) <= 1:
+                value = [text.replace("\0", "").rstrip(" ")] if p.dims != (0,) else []
+            else:
+                w, count = p.dims[0], math.prod(p.dims[1:])
+                value = [
+                    text[k * w : (k + 1) * w].replace("\0", "").rstrip(" ") for k in range(count)
+                ]
+        else:
+            v = _decode(p, proc)
+            assert v is not None
+            if p.type != 4:
+                v = v.astype(np.int64)
+            value = v.reshape(p.dims, order="F") if len(p.dims) > 1 else v
+        out.setdefault(group, {})[name] = {"type": p.type, "value": value}
+    return out
+
+
+#: frames per block of the data section read at once (bounded temporaries on long trials)
+_READ_BLOCK = 4096
+
+
+def _data_words(lay: _Layout, raw: NDArray[Any]) -> NDArray[np.float64]:
+    """A block of the data section's words as numbers (float storage: the processor's floats;
+    integer storage: signed 16-bit integers)."""
+    if not lay.is_float:
+        return raw.astype(np.float64)
+    if lay.proc == 85:  # DEC: 16-bit words swapped, exponent 2 higher than IEEE's
+        w = np.ascontiguousarray(raw).view(np.uint16).reshape(-1, 2)[:, ::-1]
+        return np.ascontiguousarray(w).view("<f4").reshape(raw.shape).astype(np.float64) / 4.0
+    return raw.astype(np.float64)
+
+
+def _read_data(
+    path: Path,
+    lay: _Layout,
+    analog_columns: Sequence[int] | NDArray[np.int64],
+    *,
+    points: bool = True,
+) -> tuple[NDArray[np.float64], NDArray[np.bool_], NDArray[np.float64]]:
+    """Points ``(N, P, 3)`` (file units; integer storage times ``|POINT:SCALE|``), their
+    invalid flags ``(N, P)`` (negative residual word) and the analog ``analog_columns``
+    ``(N * samples, C)`` scaled as ``(raw - OFFSET) * SCALE * GEN_SCALE``, read from the data
+    section block by block (:data:`_READ_BLOCK` frames): only the outputs are held whole."""
+    endian = ">" if lay.proc == 86 else "<"
+    dtype = np.dtype(endian + ("f4" if lay.is_float else "i2"))
+    n, n_pts, samples = lay.n_frames, lay.n_points, lay.analog_per_frame
+    n_ana = lay.n_analog_words // samples if samples else 0
+    if n_ana * samples != lay.n_analog_words and samples:
+        raise C3DError(
+            f"{path}: {lay.n_analog_words} analog words per frame is not a whole number of "
+            f"channels x {samples} samples"
+        )
+    per_frame = 4 * n_pts + lay.n_analog_words
+    cols = np.asarray(analog_columns, dtype=np.int64)
+    vals = _parameter_values(
+        {k: v for k, v in lay.params.items() if k[0] in ("POINT", "ANALOG")}, lay.proc
+    )
+    point_scale = abs(lay.scale)
+    ps = vals.get("POINT", {}).get("SCALE", {}).get("value")
+    if ps is not None and np.size(ps):
+        point_scale = abs(float(np.ravel(ps)[0]))
+    ana = vals.get("ANALOG", {})
+    gen = float(np.ravel(ana["GEN_SCALE"]["value"])[0]) if "GEN_SCALE" in ana else 1.0
+    scale = np.ones(n_ana)
+    offset = np.zeros(n_ana)
+    if n_ana and "SCALE" in ana:
+        scale = np.asarray(ana["SCALE"]["value"], dtype=float).ravel()[:n_ana]
+    fmt = ana.get("FORMAT", {}).get("value") or [""]
+    unsigned = str(fmt[0]).strip().upper() == "UNSIGNED"
+    if n_ana and "OFFSET" in ana:
+        offset = np.asarray(ana["OFFSET"]["value"], dtype=float).ravel()[:n_ana]
+        if unsigned:  # C3D User Guide: offsets (and integer samples) are then unsigned
+            offset = np.mod(offset, 65536.0)
+    factor = scale[cols] * gen if cols.size else np.zeros(0)
+    off = offset[cols] if cols.size else np.zeros(0)
+    xyz = np.empty((n if points else 0, n_pts, 3))
+    invalid = np.zeros((n if points else 0, n_pts), dtype=bool)
+    analogs = np.empty((n * samples, cols.size))
+    if not n or not per_frame:
+        return xyz, invalid, analogs
+    with path.open("rb") as fh:
+        fh.seek(lay.data_start)
+        for a in range(0, n, _READ_BLOCK):
+            b = min(n, a + _READ_BLOCK)
+            raw = np.fromfile(fh, dtype=dtype, count=(b - a) * per_frame)
+            if raw.size != (b - a) * per_frame:
+                raise C3DError(f"{path}: truncated: the data section ends before frame {b}")
+            raw = raw.reshape(b - a, per_frame)
+            if points and n_pts:
+                pw = _data_words(lay, raw[:, : 4 * n_pts]).reshape(b - a, n_pts, 4)
+                invalid[a:b] = pw[:, :, 3] < 0
+                xyz[a:b] = pw[:, :, :3] if lay.is_float else pw[:, :, :3] * point_scale
+            if cols.size:
+                aw = raw[:, 4 * n_pts :].reshape((b - a) * samples, n_ana)[:, cols]
+                if unsigned and not lay.is_float:
+                    aw = aw.view(np.dtype(endian + "u2"))
+                analogs[a * samples : b * samples] = (_data_words(lay, aw) - off) * factor
+    return xyz, invalid, analogs
 
 
 #: numeric parameters ezc3d reads as numbers (a character value there crashes it natively);
@@ -527,7 +713,8 @@ def _apply(x: NDArray[np.float64], mat: NDArray[np.float64]) -> NDArray[np.float
 def _plates(
     path: Path,
     params: Mapping[str, Any],
-    analogs: NDArray[np.float64],
+    columns: Callable[[NDArray[np.int64]], NDArray[np.float64]],
+    n_ch: int,
     analog_labels: Sequence[str],
     pos_scale: float,
     rate_hz: float,
@@ -558,7 +745,6 @@ def _plates(
         raise ForcePlateError(f"{path}: FORCE_PLATFORM:ORIGIN holds fewer than {used} plates")
     if chan.ndim == 1:
         chan = chan.reshape(-1, 1) if used == 1 else chan.reshape(-1, used, order="F")
-    n_ch = analogs.shape[1]
     plates: list[ForcePlate] = []
     used_by: dict[int, int] = {}
     for p in range(used):
@@ -600,7 +786,7 @@ def _plates(
         ay = np.cross(az, ax)
         rot = np.column_stack([ax / nx, ay / np.linalg.norm(ay), az / nz])
         centre = c.mean(axis=0)
-        ch = analogs[:, idx]  # (Na, nchan) file units
+        ch = columns(idx)  # (Na, nchan) file units
         if typ == 1:
             # Fx Fy Fz, COP (Px, Py) on the surface about its centre, free moment Mz: all in the
             # plate axes; the moment about the centre is c x F + (0, 0, Mz)
@@ -808,14 +994,21 @@ ISOLATE_ENV = "MSK_ISOLATE_C3D"
 TIMEOUT_ENV = "MSK_C3D_TIMEOUT_S"
 
 
-def _child_read(conn: Any, path: str, cop_threshold_n: float) -> None:  # pragma: no cover
+def _child_read(
+    conn: Any, path: str, cop_threshold_n: float, plate_channels: bool = True
+) -> None:  # pragma: no cover
     """Body of the isolated reader (runs in a spawned child)."""
     try:
-        out: Any = ("ok", read_c3d(path, cop_threshold_n=cop_threshold_n, isolate=False))
+        out: Any = (
+            "ok",
+            read_c3d(
+                path, cop_threshold_n=cop_threshold_n, isolate=False, plate_channels=plate_channels
+            ),
+        )
     except MskError as exc:
         out = ("error", type(exc).__name__, str(exc))
     except Exception as exc:
-        out = ("error", "C3DError", f"{path}: ezc3d cannot read it: {type(exc).__name__}: {exc}")
+        out = ("error", "C3DError", f"{path}: msk cannot read it: {type(exc).__name__}: {exc}")
     conn.send(out)
     conn.close()
 
@@ -835,7 +1028,12 @@ def _reader_context() -> Any:
 
 
 def _read_isolated(
-    path: Path, cop_threshold_n: float, timeout_s: float, target: Any = None
+    path: Path,
+    cop_threshold_n: float,
+    timeout_s: float,
+    target: Any = None,
+    *,
+    plate_channels: bool = True,
 ) -> Trial:
     """:func:`read_c3d` in a spawned child: a native crash or a hang of the reader costs this
     file (a :class:`C3DError`), never the calling process or its pool. (A daemonic process,
@@ -845,12 +1043,13 @@ def _read_isolated(
     from msk import exceptions
 
     if mp.current_process().daemon:
-        return read_c3d(path, cop_threshold_n=cop_threshold_n, isolate=False)
+        return read_c3d(
+            path, cop_threshold_n=cop_threshold_n, isolate=False, plate_channels=plate_channels
+        )
     ctx = _reader_context()
     recv, send = ctx.Pipe(duplex=False)
-    proc = ctx.Process(
-        target=target or _child_read, args=(send, str(path), cop_threshold_n), daemon=True
-    )
+    args = (send, str(path), cop_threshold_n) + (() if plate_channels else (False,))
+    proc = ctx.Process(target=target or _child_read, args=args, daemon=True)
     proc.start()
     send.close()
     try:
@@ -889,7 +1088,11 @@ def _death(code: int | None) -> str:
 
 
 def read_c3d(
-    path: str | Path, *, cop_threshold_n: float = 20.0, isolate: bool | None = None
+    path: str | Path,
+    *,
+    cop_threshold_n: float = 20.0,
+    isolate: bool | None = None,
+    plate_channels: bool = True,
 ) -> Trial:
     """Read a C3D file into a :class:`Trial` (SI units, time on axis 0).
 
@@ -897,14 +1100,22 @@ def read_c3d(
     file with neither points nor analogs; :class:`UnitsError` for unknown ``POINT:UNITS``;
     :class:`ForcePlateError` for inconsistent force-platform parameters.
 
-    ``isolate`` (default: ``MSK_ISOLATE_C3D=1`` in the environment) runs ezc3d in a spawned
-    child process bounded by ``MSK_C3D_TIMEOUT_S`` (300 s): a native crash or hang of the
-    reader becomes a :class:`C3DError` (batch workers use it, so a bad file costs one session).
+    msk reads the file itself (header and parameters checked first, :func:`_check_bytes`; the
+    data section block by block, float or integer storage, Intel, DEC and MIPS processors); a
+    file of more than 65 535 frames is read whole when ``TRIAL:ACTUAL_START_FIELD`` /
+    ``ACTUAL_END_FIELD`` give its frames (the header's last frame saturates; ezc3d 1.7 reads
+    the first 65 535 or ``POINT:FRAMES``). ``plate_channels=False`` leaves the force
+    platforms' analog channels out of :attr:`Trial.analogs` (the plates are computed from them,
+    one plate at a time): what a session keeps of a long trial.
+
+    ``isolate`` (default: ``MSK_ISOLATE_C3D=1`` in the environment) reads in a child process
+    bounded by ``MSK_C3D_TIMEOUT_S`` (300 s): a crash or hang of the reader becomes a
+    :class:`C3DError` (batch workers use it, so a bad file costs one session).
     """
     path = Path(path)
     if not cop_threshold_n >= 0:
         raise MskError(f"{path}: cop_threshold_n must be >= 0 N, got {cop_threshold_n}")
-    _check_bytes(path)
+    lay = _check_bytes(path)
     if isolate is None:
         isolate = os.environ.get(ISOLATE_ENV, "") == "1"
     if isolate:
@@ -913,32 +1124,33 @@ def read_c3d(
         except ValueError:
             timeout_s = 300.0
         timeout_s = timeout_s if math.isfinite(timeout_s) and timeout_s > 0 else 300.0
-        return _read_isolated(path, cop_threshold_n, timeout_s)
-    import ezc3d
-
-    try:
-        c = ezc3d.c3d(str(path))
-    except MskError:
-        raise
-    except Exception as exc:  # ezc3d raises RuntimeError/ValueError/IndexError on bad files
-        raise C3DError(f"{path}: ezc3d cannot read it: {exc}") from exc
-    params = c["parameters"]
-    hdr = c["header"]
-    pts = np.asarray(c["data"]["points"], dtype=float)
-    res = np.asarray(c["data"]["meta_points"]["residuals"], dtype=float)
-    ana = np.asarray(c["data"]["analogs"], dtype=float)
-    n_pts = pts.shape[1] if pts.ndim == 3 else 0
-    n_frames = pts.shape[2] if pts.ndim == 3 else 0
-    n_ana = ana.shape[1] if ana.ndim == 3 else 0
-    n_asamp = ana.shape[2] if ana.ndim == 3 else 0
-    if n_pts == 0 and (n_ana == 0 or n_asamp == 0):
+        return _read_isolated(path, cop_threshold_n, timeout_s, plate_channels=plate_channels)
+    params = _parameter_values(lay.params, lay.proc)
+    n_pts, n_frames, samples = lay.n_points, lay.n_frames, lay.analog_per_frame
+    n_ana = lay.n_analog_words // samples if samples else 0
+    if n_pts == 0 and (n_ana == 0 or n_frames * samples == 0):
         raise C3DError(f"{path}: no point and no analog data")
-    point_rate = float(hdr["points"]["frame_rate"])
-    analog_rate = float(hdr["analogs"]["frame_rate"]) if n_ana else 0.0
+    point_rate = float(lay.point_rate)
+    analog_rate = point_rate * samples if n_ana else 0.0
     if n_pts and not point_rate > 0:
         raise C3DError(f"{path}: point rate {point_rate} Hz is not positive")
-    first = int(hdr["points"]["first_frame"])
+    first = lay.first_frame - 1  # 0-based, as ezc3d reports it
+    analog_labels = tuple(_labels(params, "ANALOG", "LABELS", n_ana, "ANALOG"))
+    analog_units = tuple(_labels(params, "ANALOG", "UNITS", n_ana, None))
+    if plate_channels:
+        pts, invalid, analogs = _read_data(path, lay, range(n_ana))
+        plate_used: set[int] = set()
 
+        def columns(idx: NDArray[np.int64]) -> NDArray[np.float64]:
+            return analogs[:, idx]
+    else:
+        plate_used = set()
+
+        def columns(idx: NDArray[np.int64]) -> NDArray[np.float64]:
+            plate_used.update(int(i) for i in idx)
+            return _read_data(path, lay, idx, points=False)[2]
+
+    # --- units
     # --- units
     units_v = _param(params, "POINT", "UNITS") or []
     unit = str(units_v[0]).strip() if len(units_v) else ""
@@ -959,19 +1171,29 @@ def read_c3d(
         for lab in _param(params, "POINT", kind) or []:
             kind_of.setdefault(str(lab).strip(), kind)
     is_out = np.array([lab in kind_of for lab in labels], dtype=bool)
-    xyz = np.transpose(pts[:3], (2, 1, 0)) if n_pts else np.zeros((n_frames, 0, 3))
-    mk = xyz[:, ~is_out] if n_pts else xyz
-    r = res[0].T[:, ~is_out] if (n_pts and res.size) else np.zeros(mk.shape[:2])
-    missing = (r < 0) | np.isnan(mk).any(axis=2) | (mk == 0).all(axis=2)
-    markers = mk * pos_scale
+    if not plate_channels:  # plates first, one at a time; then the points and other channels
+        plates = _plates(
+            path, params, columns, n_ana, analog_labels, pos_scale, analog_rate, cop_threshold_n
+        )
+        keep = [i for i in range(n_ana) if i not in plate_used]
+        pts, invalid, analogs = _read_data(path, lay, keep)
+        analog_labels = tuple(analog_labels[i] for i in keep)
+        analog_units = tuple(analog_units[i] for i in keep)
+    xyz = pts if n_pts else np.zeros((n_frames, 0, 3))
+    mk = xyz[:, ~is_out] if is_out.any() else xyz
+    missing = invalid[:, ~is_out] if n_pts else np.zeros(mk.shape[:2], dtype=bool)
+    missing |= np.isnan(mk).any(axis=2) | (mk == 0).all(axis=2)
+    markers = mk  # a copy of the points when some are model outputs, else the points
+    markers *= pos_scale
     markers[missing] = np.nan
     marker_labels = tuple(lab for lab, o in zip(labels, is_out) if not o)
     gaps = GapReport.from_missing(marker_labels, missing)
     out_labels = tuple(lab for lab, o in zip(labels, is_out) if o)
     out_kinds = tuple(kind_of[lab] for lab in out_labels)
-    out_data = xyz[:, is_out].copy() if n_pts else np.zeros((n_frames, 0, 3))
-    if n_pts and res.size:
-        out_data[res[0].T[:, is_out] < 0] = np.nan
+    out_data = xyz[:, is_out] if n_pts else np.zeros((n_frames, 0, 3))
+    if n_pts:
+        out_data[invalid[:, is_out]] = np.nan
+    del pts, xyz, mk
     out_units = []
     unit_params = {
         "ANGLES": "ANGLE_UNITS",
@@ -993,12 +1215,11 @@ def read_c3d(
     model_outputs = ModelOutputs(out_labels, out_kinds, tuple(out_units), out_data)
 
     # --- analogs
-    analog_labels = tuple(_labels(params, "ANALOG", "LABELS", n_ana, "ANALOG"))
-    analog_units = tuple(_labels(params, "ANALOG", "UNITS", n_ana, None))
-    analogs = ana[0].T.copy() if n_ana else np.zeros((n_asamp, 0))
+    if not n_ana:
+        analogs = np.zeros((n_frames * samples, 0))
     t0 = first / point_rate if point_rate > 0 else 0.0
     time = t0 + np.arange(n_frames) / point_rate if point_rate > 0 else np.zeros(0)
-    analog_time = t0 + np.arange(analogs.shape[0]) / analog_rate if analog_rate else np.zeros(0)
+    analog_time = t0 + np.arange(n_frames * samples) / analog_rate if analog_rate else np.zeros(0)
 
     warnings: list[str] = []
     _check_rates(path, point_rate, n_pts, analog_rate, n_ana)
@@ -1010,7 +1231,10 @@ def read_c3d(
         )
     _check_labels(path, "ANALOG:LABELS", list(analog_labels), warnings, rename=False)
     _check_coordinates(path, markers, marker_labels, time)
-    plates = _plates(path, params, analogs, analog_labels, pos_scale, analog_rate, cop_threshold_n)
+    if plate_channels:
+        plates = _plates(
+            path, params, columns, n_ana, analog_labels, pos_scale, analog_rate, cop_threshold_n
+        )
     _check_plate_forces(path, plates, analog_time, warnings)
     events = _events(params)
     bad_ev = [e for e in events if not math.isfinite(e.time)]
@@ -1171,5 +1395,62 @@ def write_c3d(
             _set_param(c, "SUBJECTS", "NAMES", [subject.name])
     c["header"]["points"]["first_frame"] = int(first_frame)
     path = Path(path)
+    if n <= _MAX_HEADER_FRAMES:
+        c.write(str(path))
+        return path
+    # more frames than the header holds (ezc3d 1.7 writes the first 65 535): ezc3d writes the
+    # header and parameters with one frame, msk the whole data section in its format
+    start, end = first_frame + 1, first_frame + n
+    _set_param(c, "TRIAL", "ACTUAL_START_FIELD", np.array([start % 65536, start // 65536]))
+    _set_param(c, "TRIAL", "ACTUAL_END_FIELD", np.array([end % 65536, end // 65536]))
+    c["data"]["points"] = pts[:, :, :1].copy()
+    c["data"]["meta_points"]["residuals"] = res[:, :, :1].copy()
+    c["data"]["meta_points"]["camera_masks"] = np.zeros((7, m, 1), dtype=bool)
+    c["data"]["analogs"] = a[:analog_ratio].T[None].copy()
     c.write(str(path))
+    _write_long_data(path, pts, res[0], a)
     return path
+
+
+#: the largest frame number a C3D header holds (16-bit)
+_MAX_HEADER_FRAMES = 65535
+
+
+def _write_long_data(
+    path: Path, pts: NDArray[np.float64], res: NDArray[np.float64], analogs: NDArray[np.float64]
+) -> None:
+    """Replace the one-frame data section ezc3d wrote in ``path`` (Intel floats) by all the
+    frames of ``pts`` ``(4, M, N)``, ``res`` ``(M, N)`` and ``analogs`` ``(N * ratio, C)``;
+    the header's last frame saturates at 65 535 and ``POINT:FRAMES`` is set to 65 535 (the
+    frames are in ``TRIAL:ACTUAL_*_FIELD``). Frame by frame in blocks: x, y, z, residual per
+    point, then the analog samples, each a float32."""
+    with path.open("r+b") as fh:
+        head = bytearray(fh.read(512))
+        words = list(struct.unpack("<12H", head[:24]))
+        fh.seek((head[0] - 1) * 512)
+        params = fh.read((words[8] - head[0]) * 512)
+        frames = _walk_parameters(path, params, "<").get(("POINT", "FRAMES"))
+        if frames is None or frames.type != 2:
+            raise MskError(f"{path}: ezc3d wrote no integer POINT:FRAMES")
+        nchar = abs(struct.unpack_from("b", params, frames.offset)[0])
+        at = frames.offset + 2 + nchar + 2 + 2 + len(frames.dims)
+        fh.seek((head[0] - 1) * 512 + at)
+        fh.write(struct.pack("<H", _MAX_HEADER_FRAMES))
+        words[4] = _MAX_HEADER_FRAMES
+        fh.seek(0)
+        fh.write(struct.pack("<12H", *words))
+        fh.seek((words[8] - 1) * 512)
+        fh.truncate()
+        n, m = pts.shape[2], pts.shape[1]
+        ratio = analogs.shape[0] // n if n else 0
+        scale = abs(struct.unpack("<f", bytes(head[12:16]))[0]) or 1.0
+        for a in range(0, n, _READ_BLOCK):
+            b = min(n, a + _READ_BLOCK)
+            block = np.empty((b - a, 4 * m + ratio * analogs.shape[1]), dtype="<f4")
+            p4 = np.transpose(pts[:, :, a:b], (2, 1, 0)).copy()
+            r = res[:, a:b].T
+            # ezc3d's residual word: the residual over |scale|, truncated, in the upper byte
+            p4[:, :, 3] = np.where(r < 0, -1.0, (np.trunc(r / scale).astype(np.int64) & 255) * 256)
+            block[:, : 4 * m] = p4.reshape(b - a, 4 * m)
+            block[:, 4 * m :] = analogs[a * ratio : b * ratio].reshape(b - a, -1)
+            fh.write(block.tobytes())

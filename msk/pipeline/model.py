@@ -31,6 +31,7 @@ __all__ = [
     "BuiltModel",
     "held_static_knees",
     "knee_flexion_to_physiological",
+    "leg_split",
     "load_model_file",
     "run",
     "settings",
@@ -171,7 +172,9 @@ def knee_flexion_to_physiological(model: Any) -> tuple[Any, dict[str, list[float
     }
 
 
-def _scale_and_place(inputs: SessionInputs, read: ReadResult) -> dict[str, Any]:
+def _scale_and_place(
+    inputs: SessionInputs, read: ReadResult, functional: Mapping[str, float] | None = None
+) -> dict[str, Any]:
     from msk.io.c3d import is_measured_marker
     from msk.io.frames import pelvis_heading_rotation
     from msk.markersets import (
@@ -275,7 +278,7 @@ def _scale_and_place(inputs: SessionInputs, read: ReadResult) -> dict[str, Any]:
             static = {lab: sm[:, i] for i, lab in enumerate(slabels)}
             model, report = scale_from_static(
                 model, static, height_m=cfg.subject.height_m, body_mass=cfg.subject.mass_kg,
-                widths_m=widths, marker_diameter_m=mdiam,
+                widths_m=widths, marker_diameter_m=mdiam, functional=functional,
             )  # fmt: skip
         model = _aligned(inputs, model, sm, slabels)
         centres, jc_move = _chord_centres(model, sm, slabels, widths, mdiam)
@@ -318,7 +321,7 @@ def _scale_and_place(inputs: SessionInputs, read: ReadResult) -> dict[str, Any]:
         if mc.scale:
             model, report = scale_from_motion(
                 model, xm, mlabels, trial.time, height_m=cfg.subject.height_m,
-                body_mass=cfg.subject.mass_kg,
+                body_mass=cfg.subject.mass_kg, functional=functional,
             )  # fmt: skip
         model = _aligned(inputs, model, xm, mlabels)
         # the lab's foot markers: where they sit on the foot is the lab's choice and nothing
@@ -561,6 +564,46 @@ def _swap_back(read: ReadResult) -> tuple[ReadResult, dict[str, float]]:
     return dataclasses.replace(read, trial=fixed), {f"{r}/{lft}": dz for r, lft, dz in pairs}
 
 
+def leg_split(inputs: SessionInputs, trial: Any, built: Mapping[str, Any]) -> dict[str, Any] | None:
+    """The femur : tibia split of each leg scaled by one pelvis-to-heel factor (no knee or
+    ankle marker: ``leg_<side>`` among the scaling ratios), from the functional knee and ankle
+    centres of the task trial's thigh, shank and calcaneus markers
+    (:func:`msk.leg_split.functional_leg_split`) on the model as first scaled and placed
+    (``built``); None when no leg was scaled that way. The model stage scales and places again
+    with the sides it determines, keeps that model when the lab's markers fit it no worse (the
+    placement's marker RMS, :func:`_placement_rms`; else every side keeps its leg factor, and
+    says why) and reports every side in ``summary.json`` ``model.leg_split``."""
+    from msk.leg_split import functional_leg_split
+    from msk.markersets import zeros_as_gaps
+
+    mc = inputs.model_cfg
+    ratios = dict(built["info"].get("scaling", {}).get("ratios", {}))
+    legs = {s: float(ratios[f"leg_{s}"]) for s in ("r", "l") if f"leg_{s}" in ratios}
+    if mc is None or not mc.scale or not legs:
+        return None
+    model, rot = built["model"], np.asarray(built["rotation"], dtype=float)
+    x = zeros_as_gaps(np.asarray(trial.markers, dtype=float) @ rot.T)
+    inv = {v: k for k, v in built["rename"].items()}
+    labels = tuple(inv.get(lab, lab) for lab in trial.marker_labels)
+    # the markers on each body: the model's, those placed and those placed but too loose for
+    # IK (a cluster is posed by its own shape: its markers need only be rigid with each other)
+    placed = built["info"].get("marker_placement", {})
+    segments: dict[str, list[str]] = {}
+    for mk in model.markers:
+        segments.setdefault(mk.body, []).append(mk.name)
+    for lab, (body, _) in dict(placed.get("too_loose", {})).items():
+        segments.setdefault(body, []).append(lab)
+    return dict(functional_leg_split(model, x, labels, legs, segments=segments))
+
+
+def _placement_rms(info: Mapping[str, Any]) -> float:
+    """The marker placement's marker RMS (m): the static's IK (``static_marker_rms_m``) or the
+    motion's last pass (``ik_marker_rms_m``, median over its frames); NaN without one."""
+    mp = dict(info.get("marker_placement", {}))
+    v = mp.get("static_marker_rms_m", mp.get("ik_marker_rms_m"))
+    return float("nan") if v is None else float(v)
+
+
 def run(inputs: SessionInputs, read: ReadResult) -> BuiltModel:
     from msk.markersets import zeros_as_gaps
 
@@ -568,6 +611,33 @@ def run(inputs: SessionInputs, read: ReadResult) -> BuiltModel:
     read, swapped = _swap_back(read)
     trial = read.trial
     built = _scale_and_place(inputs, read)
+    split = leg_split(inputs, trial, built)
+    if split is not None:
+        functional = {
+            f"{b}_{side}": f
+            for side, sp in split.items() if sp.method != "leg factor"
+            for b, f in (("femur", sp.femur_factor), ("tibia", sp.tibia_factor))
+        }  # fmt: skip
+        if functional:
+            # kept when the lab's markers fit the split model no worse than the leg-factor one
+            # (the placement's marker RMS: the markers' own verdict, not the plates')
+            again = _scale_and_place(inputs, read, functional)
+            rms0, rms1 = _placement_rms(built["info"]), _placement_rms(again["info"])
+            if rms1 <= rms0:
+                built = again
+            else:
+                note = (
+                    f"the markers fit the split model worse (placement marker RMS "
+                    f"{1000 * rms0:.1f} → {1000 * rms1:.1f} mm): leg factor kept"
+                )
+                split = {
+                    side: sp if sp.method == "leg factor" else dataclasses.replace(
+                        sp, method="leg factor", reason=f"{sp.method}: {note}",
+                        femur_factor=sp.leg_factor, tibia_factor=sp.leg_factor,
+                    )
+                    for side, sp in split.items()
+                }  # fmt: skip
+        built["info"]["leg_split"] = {side: sp.summary() for side, sp in split.items()}
     if swapped:
         built["info"]["marker_set"]["swapped_back"] = swapped
     # after scaling and placement (whose passes keep the generic bounds): the task's IK and

@@ -35,7 +35,8 @@ class ReadResult:
     assignment plate → body, and the measured knee contact force
     (:class:`msk.io.contact_force.MeasuredContact`).
 
-    As :func:`read_task` returns it, ``trial`` is the file's and ``plates`` the
+    As :func:`read_task` returns it, ``trial`` is the file's (a C3D's without its plates' analog
+    channels) and ``plates`` the
     :class:`msk.loads.PlateWrench` of a GRF file (None for a C3D's own plates); as the stage
     returns it (:func:`for_session`), ``trial`` has no plates, no plate channels and no model
     outputs, and ``plates`` are the :class:`msk.loads.PlateWrench` of either (lab frame)."""
@@ -82,10 +83,12 @@ def for_session(inputs: SessionInputs, read: ReadResult) -> ReadResult:
     plate_channels = {c for p in trial.plates for c in p.channels}
     keep = [i for i, lab in enumerate(trial.analog_labels) if lab not in plate_channels]
     analogs = np.asarray(trial.analogs)
+    if analogs.ndim == 2 and keep != list(range(analogs.shape[1])):
+        analogs = np.ascontiguousarray(analogs[:, keep])  # (a C3D read for the session: none)
     light = dataclasses.replace(
         trial,
         plates=(),
-        analogs=np.ascontiguousarray(analogs[:, keep]) if analogs.ndim == 2 else analogs,
+        analogs=analogs,
         analog_labels=tuple(trial.analog_labels[i] for i in keep),
         analog_units=tuple(trial.analog_units[i] for i in keep),
         model_outputs=ModelOutputs((), (), (), np.zeros((trial.time.size, 0, 3))),
@@ -95,11 +98,15 @@ def for_session(inputs: SessionInputs, read: ReadResult) -> ReadResult:
 
 def read_task(inputs: SessionInputs) -> ReadResult:
     """The task trial, its GRF file's plates, assignment and measured contact as read."""
-    from msk.io import read_trial
+    from msk.io import read_c3d, read_trial
 
     task = inputs.task
     assert task is not None  # a gait stage
-    trial = read_trial(task.file)  # by suffix (a .trc: OpenSim ground, +y up)
+    if Path(task.file).suffix.lower() == ".c3d":
+        # the plates' channels are not kept (no stage reads them; a long trial's largest array)
+        trial = read_c3d(task.file, plate_channels=False)
+    else:
+        trial = read_trial(task.file)  # by suffix (a .trc: OpenSim ground, +y up)
     grf, assignment = None, {}
     if task.grf is not None:
         from msk.loads import external_loads_assignment, plates_from_grf_file

@@ -1363,6 +1363,28 @@ def _fes_section(res: SessionResults, figs: Mapping[str, str], number: int) -> s
     return "".join(out)
 
 
+def _scaling_note(model: Any) -> str:
+    """How each leg segment was scaled (``summary.json`` ``model.scaling`` and
+    ``model.leg_split``), escaped HTML; "" without a scaling record."""
+    bodies = dict(((model.scaling or {}).get("bodies") or {}) if model is not None else {})
+    if not bodies:
+        return ""
+    legs = [b for b in bodies if b.split("_")[0] in ("pelvis", "femur", "tibia", "calcn")]
+    parts = [f"{b} × {float(bodies[b]['factors'][0]):.3f} ({bodies[b]['method']})" for b in legs]
+    text = "Scaling of the leg segments: " + "; ".join(parts) + "."
+    split = dict(model.leg_split or {})
+    for side, sp in sorted(split.items()):
+        how = str(sp.get("method"))
+        why = str(sp.get("reason") or "")
+        text += (
+            f" Femur : tibia split, {'right' if side == 'r' else 'left'} leg (no knee or ankle "
+            f"marker; one pelvis-to-heel factor {float(sp.get('leg_factor', 1.0)):.3f}): {how}"
+            + (f" — {why}" if why else "")
+            + "."
+        )
+    return _e(text)
+
+
 def _methods_section(res: SessionResults, number: int = 6, *, gait: bool = True) -> str:
     s = res.summary
     out = [f"<h2>{number}. Methods, stages and software</h2>"]
@@ -1389,6 +1411,9 @@ def _methods_section(res: SessionResults, number: int = 6, *, gait: bool = True)
             f"along +x); force-plate contacts: {_or(plate_assignment, '?')}."
             "</p>"
         )
+        scaling_note = _scaling_note(s.model)
+        if scaling_note:
+            out.append(f'<p class="note">{scaling_note}</p>')
         win = s.model.static_window if s.model is not None else None
         if win:
             rule = (
