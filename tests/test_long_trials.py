@@ -719,3 +719,59 @@ def test_strength_compact_activation_equals_the_dense_one(
         else:
             assert x == y, f.name
     assert np.isfinite(profiles[0].factors).all()
+
+
+def test_recomputed_jacobian_rows_are_the_geometry_stages_values(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    """gc5_PS in blocks of 40 frames: the geometry stage holds no Jacobian
+    (:class:`msk.pipeline.geometry.JacobianRows`); every way the later stages read it (a slice,
+    indices across blocks, a mask, one frame, rows and columns, the dense ``jac[frames]``)
+    gives bit for bit the values of the stage's blocks evaluated and held, and the tension
+    stage on it equals the tension stage on the held array."""
+    import pickle
+
+    from threadpoolctl import threadpool_limits
+
+    from msk.config import load_config
+    from msk.muscles.geometry import geometry_plan
+    from msk.pipeline import geometry, run_stages, tension
+    from msk.pipeline.geometry import JacobianRows, posed_geometry
+    from msk.pipeline.inputs import session_inputs
+
+    monkeypatch.setattr(blocks, "FRAME_BLOCK", 40)
+    cfg = load_config(REPO / "pipelines" / "gc5_PS.toml")
+    r = run_stages(cfg, until="emg")
+    mdl, kin, ok = r["model"].model, r["kinematics"], r["loads"].usable
+    geo = geometry.run(session_inputs(cfg), r["model"], kin, r["loads"])
+    rows = geo.jacobian.values
+    assert isinstance(rows, JacobianRows)
+    plan = geometry_plan(mdl)
+    pos = plan.jacobian_positions()
+    parts = []
+    for b in blocks.frame_blocks(kin.q.shape[0]):
+        g = posed_geometry(mdl, kin.q, kin.v, ok, slice(int(b[0]), int(b[-1]) + 1), plan)
+        parts.append(np.asarray(g.jacobian).reshape(b.size, -1)[:, pos])
+    held = np.concatenate(parts)
+    n = held.shape[0]
+    assert n > 3 * 40 and rows.shape == held.shape
+    rng = np.random.default_rng(3)
+    idx = np.sort(rng.choice(n, 50, replace=False))
+    mask = rng.random(n) < 0.3
+    for key in (slice(None), slice(17, 93), idx, idx[::-1], mask, 77, (idx, slice(2, 9))):
+        np.testing.assert_array_equal(rows[key], held[key])
+    np.testing.assert_array_equal(np.asarray(rows), held)
+    np.testing.assert_array_equal(pickle.loads(pickle.dumps(rows)), held)
+    dense = FrameSparse(held, pos, geo.jacobian.trailing)
+    np.testing.assert_array_equal(geo.jacobian[idx], dense[idx])
+    inputs = session_inputs(cfg)
+    whole = geo.__class__(
+        geo.muscle_names, geo.coordinate_names, geo.lengths, dense, geo.velocities
+    )
+    with threadpool_limits(limits=1, user_api="blas"):
+        a = tension.run(inputs, r["model"], kin, r["loads"], r["mass_identification"],
+                        r["inverse_dynamics"], geo, r["emg"])  # fmt: skip
+        b = tension.run(inputs, r["model"], kin, r["loads"], r["mass_identification"],
+                        r["inverse_dynamics"], whole, r["emg"])  # fmt: skip
+    np.testing.assert_array_equal(a.forces, b.forces)
+    assert np.isfinite(a.forces).any()
