@@ -83,6 +83,7 @@ __all__ = [
     "reconstructed_markers",
     "shoulder_girdle_markers",
     "zeros_as_gaps",
+    "zeros_as_gaps_view",
 ]
 
 #: landmark key → description (anatomical landmarks and marker kinds the grammar recognises)
@@ -304,6 +305,18 @@ def zeros_as_gaps(markers: ArrayLike) -> NDArray[np.float64]:
     x = np.array(markers, dtype=float)
     x[(x == 0.0).all(axis=-1)] = np.nan
     return x
+
+
+def zeros_as_gaps_view(markers: NDArray[np.float64]) -> NDArray[np.float64]:
+    """:func:`zeros_as_gaps` without the copy where there is nothing to blank: a read-only view
+    of ``markers`` (float) when no sample is exactly (0, 0, 0), else the blanked copy (a long
+    trial's markers are not copied for reading, issue 18)."""
+    x = np.asarray(markers)
+    if x.dtype != np.float64 or (x == 0.0).all(axis=-1).any():
+        return zeros_as_gaps(x)
+    view = x.view()
+    view.flags.writeable = False
+    return view
 
 
 def _norm(s: str) -> str:

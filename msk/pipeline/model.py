@@ -179,6 +179,7 @@ def _scale_and_place(inputs: SessionInputs, read: ReadResult) -> dict[str, Any]:
         recognise,
         shoulder_girdle_markers,
         zeros_as_gaps,
+        zeros_as_gaps_view,
     )
     from msk.quality import inconsistent_static_markers
     from msk.scaling import (
@@ -193,7 +194,7 @@ def _scale_and_place(inputs: SessionInputs, read: ReadResult) -> dict[str, Any]:
     model = load_model_file(inputs.model_source, mc.markers)
     bodies = [b.name for b in model.bodies]
     info: dict[str, Any] = {"source": str(inputs.model_source), "generic_mass_kg": model.total_mass}
-    x_lab = zeros_as_gaps(trial.markers)
+    x_lab = zeros_as_gaps_view(trial.markers)  # not copied unless it has zero samples
     match = recognise(
         trial.marker_labels, model.marker_names, rename=cfg.marker_rename,
         model_bodies=bodies, markers=x_lab,
@@ -545,11 +546,11 @@ def _swap_back(read: ReadResult) -> tuple[ReadResult, dict[str, float]]:
     the subject's left in ≥ 80 % of the frames, judged from the pelvis markers, before any
     model sees them), and "right/left" → median signed separation (m) of each pair exchanged
     (``summary.json`` ``model.marker_set.swapped_back``; a quality flag says so)."""
-    from msk.markersets import zeros_as_gaps
+    from msk.markersets import zeros_as_gaps_view
     from msk.quality import swapped_label_pairs
 
     trial = read.trial
-    pairs = swapped_label_pairs(zeros_as_gaps(trial.markers), trial.marker_labels, trial.up)
+    pairs = swapped_label_pairs(zeros_as_gaps_view(trial.markers), trial.marker_labels, trial.up)
     if not pairs:
         return read, {}
     markers = np.array(trial.markers, dtype=float, copy=True)
@@ -562,7 +563,6 @@ def _swap_back(read: ReadResult) -> tuple[ReadResult, dict[str, float]]:
 
 
 def run(inputs: SessionInputs, read: ReadResult) -> BuiltModel:
-    from msk.markersets import zeros_as_gaps
 
     cfg = inputs.cfg
     read, swapped = _swap_back(read)
@@ -587,7 +587,10 @@ def run(inputs: SessionInputs, read: ReadResult) -> BuiltModel:
         analogs=np.empty((0, np.shape(trial.analogs)[1] if np.ndim(trial.analogs) == 2 else 0)),
     )  # fmt: skip
     mtrial = markers_only.rotated(rot)
-    mtrial = dataclasses.replace(mtrial, markers=zeros_as_gaps(mtrial.markers))
+    # the rotated markers are a fresh array: their gaps set in place (zeros_as_gaps' copy was a
+    # second model-frame copy of a long trial's markers at the stage's end, issue 18)
+    x = mtrial.markers
+    x[(x == 0.0).all(axis=-1)] = np.nan
     inv = {v: k for k, v in built["rename"].items()}
     labels = tuple(inv.get(lab, lab) for lab in trial.marker_labels)
     return BuiltModel(
