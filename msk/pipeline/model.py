@@ -32,6 +32,7 @@ __all__ = [
     "held_static_knees",
     "knee_flexion_to_physiological",
     "load_model_file",
+    "model_frame_columns",
     "run",
     "settings",
 ]
@@ -315,7 +316,7 @@ def _scale_and_place(inputs: SessionInputs, read: ReadResult) -> dict[str, Any]:
     if static_read is None or rejected is not None:
         # no static trial: the task trial's own markers scale and place (the segment lengths
         # are constant over a motion; msk.scaling.scale_from_motion)
-        xm, mlabels = match.apply(trial.rotated(rot).markers, trial.marker_labels)
+        xm, mlabels = model_frame_columns(trial, rot, match)
         if mc.scale:
             model, report = scale_from_motion(
                 model, xm, mlabels, trial.time, height_m=cfg.subject.height_m,
@@ -340,6 +341,30 @@ def _scale_and_place(inputs: SessionInputs, read: ReadResult) -> dict[str, Any]:
         info["scale_ratios"] = dict(model.metadata.get("scale_ratios", {}))
     info["mass_kg"] = model.total_mass
     return {"model": model, "info": info, "rotation": rot, "rename": dict(match.rename)}
+
+
+def model_frame_columns(
+    trial: Any, rot: np.ndarray, match: Any
+) -> tuple[np.ndarray, tuple[str, ...]]:
+    """``match.apply(trial.rotated(rot).markers, trial.marker_labels)`` (the matched columns in
+    the model frame, model names, exact zeros as gaps) rotated block by block of
+    :data:`msk.pipeline.blocks.FRAME_BLOCK` frames into the one array returned: a long trial's
+    markers are not rotated whole first (issue 18). Each frame's values are the whole
+    product's."""
+    from msk.pipeline.blocks import FRAME_BLOCK
+
+    x = np.asarray(trial.markers, dtype=float)
+    r = np.asarray(rot, dtype=float)
+    labels = trial.marker_labels
+    n = x.shape[0]
+    first, names = match.apply(x[:FRAME_BLOCK] @ r.T, labels)
+    if n <= FRAME_BLOCK:
+        return first, names
+    out = np.empty((n, *first.shape[1:]))
+    out[:FRAME_BLOCK] = first
+    for c0 in range(FRAME_BLOCK, n, FRAME_BLOCK):
+        out[c0 : c0 + FRAME_BLOCK] = match.apply(x[c0 : c0 + FRAME_BLOCK] @ r.T, labels)[0]
+    return out, names
 
 
 def _place_from_task(
@@ -371,7 +396,7 @@ def _place_from_task(
     from msk.markersets import reconstructed_markers, shoulder_girdle_markers
     from msk.scaling import place_markers_from_motion
 
-    xm, mlabels = match.apply(trial.rotated(rot).markers, trial.marker_labels)
+    xm, mlabels = model_frame_columns(trial, rot, match)
     to_model = dict(match.lab_to_model)
     bad_names = {to_model.get(lab, lab) for lab in bad}
     known = set(model.marker_names)
@@ -385,8 +410,9 @@ def _place_from_task(
         lab in bad_names or lab in known)]  # fmt: skip
     moved = sorted(n for n in bad_names | recon if n in known)
     new_markers = any(n not in known for n in bad_names)
+    xm = xm[:, keep]  # the task's other columns dropped before the placement's passes
     model, placed = place_markers_from_motion(
-        model, xm[:, keep], [mlabels[i] for i in keep], trial.time, move=moved,
+        model, xm, [mlabels[i] for i in keep], trial.time, move=moved,
         iterations=3 if new_markers else 1,
     )  # fmt: skip
     record = {}
