@@ -843,3 +843,27 @@ def test_model_stage_markers_in_blocks_equal_the_whole_trial(
         assert names == whole_cols[1]
         np.testing.assert_array_equal(cols, whole_cols[0])
     assert whole.source in ("pelvis markers", "progression")
+
+
+def test_loads_stage_in_point_blocks_equals_one_pass(monkeypatch: pytest.MonkeyPatch) -> None:
+    """gc5_PS's loads stage (plates rotated and sampled one at a time, the feet's speeds for
+    the measured-contact test block by block of ``msk.loads._POINT_BLOCK`` frames): blocks of
+    8 frames give the one-pass result bit for bit (external loads, measured and usable
+    frames)."""
+    import msk.loads as ml
+    from msk.config import load_config
+    from msk.pipeline import loads as stage
+    from msk.pipeline import run_stages
+    from msk.pipeline.inputs import session_inputs
+
+    cfg = load_config(REPO / "pipelines" / "gc5_PS.toml")
+    r = run_stages(cfg, until="kinematics")
+    inputs = session_inputs(cfg)
+    one = stage.run(inputs, r["read"], r["model"], r["kinematics"])
+    monkeypatch.setattr(ml, "_POINT_BLOCK", 8)
+    many = stage.run(inputs, r["read"], r["model"], r["kinematics"])
+    np.testing.assert_array_equal(many.measured, one.measured)
+    np.testing.assert_array_equal(many.usable, one.usable)
+    for f in ("force", "moment", "point"):
+        np.testing.assert_array_equal(getattr(many.external, f), getattr(one.external, f))
+    assert one.measured.any() and not one.measured.all()
