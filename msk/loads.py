@@ -542,11 +542,11 @@ def external_loads(
     # one plate at a time: the previous one is let go before the next is made (a generator of
     # rotated plates, the pipeline's, holds one analog-rate plate at a time; issue 18)
     prepared = []
-    for pl in plates:
+    for plate in plates:
         prepared.append(
-            _prepare(pl, t, up, threshold_n=threshold_n, sign=sign, cutoff_hz=cutoff_hz)
+            _prepare(plate, t, up, threshold_n=threshold_n, sign=sign, cutoff_hz=cutoff_hz)
         )
-        del pl
+        del plate
     auto = [p for p in prepared if p.name not in assignment and p.contact.any()]
     if auto:
         fpts = _foot_points(model, q, feet, np.arange(n))
