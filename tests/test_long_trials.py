@@ -625,9 +625,8 @@ def test_knee_contact_in_blocks_equals_one_pass(monkeypatch: pytest.MonkeyPatch)
     assert not r["muscle_geometry"].distal_wrenches  # not held from geometry to contact
     inputs, mdl, kin = session_inputs(cfg), r["model"].model, r["kinematics"]
     joint = got.joint
-    spec = with_strength(
-        identified_model(mdl, r["mass_identification"]), r["strength_identification"].profile
-    )
+    m_id = identified_model(mdl, r["mass_identification"])  # both variants' inertias
+    spec = with_strength(m_id, r["strength_identification"].profile)
     with threadpool_limits(limits=1, user_api="blas"):
         resolve = tension.optimise(
             inputs, spec, r["inverse_dynamics"].torques, r["muscle_geometry"], kin.time,
@@ -635,7 +634,7 @@ def test_knee_contact_in_blocks_equals_one_pass(monkeypatch: pytest.MonkeyPatch)
             external=r["loads"].external,
         )  # fmt: skip
     forces = {"generic": r["tension_optimization"].forces, "subject_specific": resolve.forces}
-    models = {"generic": mdl, "subject_specific": spec}
+    models = {"generic": m_id, "subject_specific": spec}
     for name, f in forces.items():
         ok = np.flatnonzero(r["loads"].usable & np.isfinite(f).all(axis=1))
         assert ok.size > 100
