@@ -537,10 +537,11 @@ def solve_kinematics(
             f"only {len(used)} model markers found in the data ({used}); need {min_markers}"
         )
     cols = [labels.index(n) for n in used]
-    xm = x[:, cols]
+    # each frame's used markers are taken as it is solved (x[n, cols]): a long trial's used
+    # markers are not copied whole (issue 18)
     # model markers of the trial left out by a zero weight: their distances are reported
     ignored = [mk.name for mk in model.markers if mk.name in labels and mk.name not in used]
-    x_ign = x[:, [labels.index(n) for n in ignored]]
+    ign_cols = [labels.index(n) for n in ignored]
     prob_ign = _MarkerProblem(model, ignored) if ignored else None
     errs_ign = np.full((t.size, len(ignored)), np.nan)
     w = np.array([weights.get(n, 1.0) for n in used])
@@ -587,7 +588,8 @@ def solve_kinematics(
     hist: list[Array] = []  # solutions of the last consecutive solved frames (prediction)
     tic = _time.perf_counter()
     for n in range(n_frames):
-        present = np.isfinite(xm[n]).all(axis=1)
+        xn = x[n, cols]
+        present = np.isfinite(xn).all(axis=1)
         n_used[n] = int(present.sum())
         if n_used[n] < min_markers or 3 * n_used[n] + n_tasks < int(free.sum()):
             status[n] = STATUS_TOO_FEW_MARKERS
@@ -600,7 +602,7 @@ def solve_kinematics(
             continue
         if first and initial_q is None and root_free.any():
             theta, _, _, _ = _levenberg_marquardt(
-                prob, theta, xm[n], sw, present, root_free, lo, hi, max_iterations, tolerance
+                prob, theta, xn, sw, present, root_free, lo, hi, max_iterations, tolerance
             )
         first = False
         # polynomial prediction from the previous frames (constant velocity / acceleration)
@@ -615,7 +617,7 @@ def solve_kinematics(
         theta, k, ok, p = _levenberg_marquardt(
             prob,
             start,
-            xm[n],
+            xn,
             sw,
             present,
             free,
@@ -634,11 +636,11 @@ def solve_kinematics(
         hist.append(theta)
         del hist[:-3]
         q_out[n] = theta
-        d = np.linalg.norm(p - xm[n], axis=1)
+        d = np.linalg.norm(p - xn, axis=1)
         d[~present] = np.nan
         errs[n] = d
         if prob_ign is not None:
-            errs_ign[n] = np.linalg.norm(prob_ign.positions(theta) - x_ign[n], axis=1)
+            errs_ign[n] = np.linalg.norm(prob_ign.positions(theta) - x[n, ign_cols], axis=1)
     solve_time = _time.perf_counter() - tic
     if status.all():
         need = max(min_markers, int(np.ceil((free.sum() - n_tasks) / 3)))

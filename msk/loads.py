@@ -539,10 +539,14 @@ def external_loads(
             point_den.append(np.zeros(n))
         return bodies.index(body)
 
-    prepared = [
-        _prepare(pl, t, up, threshold_n=threshold_n, sign=sign, cutoff_hz=cutoff_hz)
-        for pl in plates
-    ]
+    # one plate at a time: the previous one is let go before the next is made (a generator of
+    # rotated plates, the pipeline's, holds one analog-rate plate at a time; issue 18)
+    prepared = []
+    for plate in plates:
+        prepared.append(
+            _prepare(plate, t, up, threshold_n=threshold_n, sign=sign, cutoff_hz=cutoff_hz)
+        )
+        del plate
     auto = [p for p in prepared if p.name not in assignment and p.contact.any()]
     if auto:
         fpts = _foot_points(model, q, feet, np.arange(n))
@@ -1058,6 +1062,7 @@ def contact_measured(
         warnings.simplefilter("ignore", RuntimeWarning)
         low = np.stack([np.nanmin(p @ up, axis=1) for p in pts], axis=1)  # (N, F)
         vel = [_velocity(p, t) for p in pts]
+        del pts  # the lowest points and the velocities only, from here (issue 18)
         # the floor: a low percentile of the feet's lowest points, not their minimum (a frame
         # or two of a badly tracked foot below the floor must not lift every other foot off it)
         floor = np.nanpercentile(low, 2.0)
@@ -1073,7 +1078,13 @@ def contact_measured(
     with warnings.catch_warnings(), np.errstate(invalid="ignore"):
         warnings.simplefilter("ignore", RuntimeWarning)
         for h, v in levels:
-            speed = np.stack([np.nanmin(np.linalg.norm(x - v, axis=2), axis=1) for x in vel], 1)
+            # the slowest point's speed relative to the surface, block by block of frames (the
+            # (N, P, 3) differences of a long trial not made whole; the same values)
+            speed = np.empty(low.shape)
+            for a in range(0, n, _POINT_BLOCK):
+                sl = slice(a, a + _POINT_BLOCK)
+                for k, x in enumerate(vel):
+                    speed[sl, k] = np.nanmin(np.linalg.norm(x[sl] - v, axis=2), axis=1)
             grounded |= (np.abs(low - h) <= height_m) & (speed <= speed_mps)
     if pad_s is None:
         cut = getattr(kinematics, "cutoff_hz", None)

@@ -83,6 +83,7 @@ __all__ = [
     "reconstructed_markers",
     "shoulder_girdle_markers",
     "zeros_as_gaps",
+    "zeros_as_gaps_view",
 ]
 
 #: landmark key → description (anatomical landmarks and marker kinds the grammar recognises)
@@ -306,6 +307,18 @@ def zeros_as_gaps(markers: ArrayLike) -> NDArray[np.float64]:
     return x
 
 
+def zeros_as_gaps_view(markers: NDArray[np.float64]) -> NDArray[np.float64]:
+    """:func:`zeros_as_gaps` without the copy where there is nothing to blank: a read-only view
+    of ``markers`` (float) when no sample is exactly (0, 0, 0), else the blanked copy (a long
+    trial's markers are not copied for reading, issue 18)."""
+    x = np.asarray(markers)
+    if x.dtype != np.float64 or (x == 0.0).all(axis=-1).any():
+        return zeros_as_gaps(x)
+    view = x.view()
+    view.flags.writeable = False
+    return view
+
+
 def _norm(s: str) -> str:
     return _SEP.sub("", s).lower()
 
@@ -482,7 +495,7 @@ def reconstructed_markers(
 
     ``markers``: (N, n, 3) positions (NaN or exact zeros: gaps), ``labels``: their n names.
     """
-    x = zeros_as_gaps(markers)
+    x = zeros_as_gaps_view(np.asarray(markers, dtype=float))  # read only (issue 18)
     if x.ndim != 3 or x.shape[1] != len(labels) or x.shape[2] != 3:
         raise ShapeMismatchError(
             f"markers of shape {x.shape} for {len(labels)} labels: expected (N, n, 3)"
@@ -558,8 +571,9 @@ class MarkerSetMatch:
         self, markers: NDArray[np.float64], labels: Sequence[str]
     ) -> tuple[NDArray[np.float64], tuple[str, ...]]:
         """(N, M, 3) markers and labels without the excluded columns, labels in model names;
-        exact-zero samples become NaN gaps (:func:`zeros_as_gaps`)."""
-        x = zeros_as_gaps(markers)
+        exact-zero samples become NaN gaps (:func:`zeros_as_gaps`; the kept columns are the
+        one copy made)."""
+        x = zeros_as_gaps_view(np.asarray(markers, dtype=float))
         if x.ndim != 3 or x.shape[1] != len(labels):
             raise ShapeMismatchError(f"markers {x.shape} do not match {len(labels)} labels")
         keep = [i for i, lab in enumerate(labels) if lab not in self.excluded]

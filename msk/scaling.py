@@ -1383,9 +1383,10 @@ def place_markers_from_motion(
         return pulled if pulled[1]["ik_marker_rms_m"] < plain[1]["ik_marker_rms_m"] else plain
     from msk.io.c3d import is_measured_marker
     from msk.kinematics import solve_kinematics
-    from msk.markersets import zeros_as_gaps
+    from msk.markersets import zeros_as_gaps_view
 
-    x = zeros_as_gaps(markers)  # exact zeros: gaps (TRC writers)
+    # exact zeros: gaps (TRC writers); read only, not copied when there are none (issue 18)
+    x = zeros_as_gaps_view(np.asarray(markers, dtype=float))
     t = np.asarray(time, dtype=float)
     labels = tuple(labels)
     known = set(model.marker_names)

@@ -5,7 +5,9 @@
 
 from __future__ import annotations
 
+import dataclasses
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import pytest
@@ -623,9 +625,8 @@ def test_knee_contact_in_blocks_equals_one_pass(monkeypatch: pytest.MonkeyPatch)
     assert not r["muscle_geometry"].distal_wrenches  # not held from geometry to contact
     inputs, mdl, kin = session_inputs(cfg), r["model"].model, r["kinematics"]
     joint = got.joint
-    spec = with_strength(
-        identified_model(mdl, r["mass_identification"]), r["strength_identification"].profile
-    )
+    m_id = identified_model(mdl, r["mass_identification"])  # both variants' inertias
+    spec = with_strength(m_id, r["strength_identification"].profile)
     with threadpool_limits(limits=1, user_api="blas"):
         resolve = tension.optimise(
             inputs, spec, r["inverse_dynamics"].torques, r["muscle_geometry"], kin.time,
@@ -633,7 +634,7 @@ def test_knee_contact_in_blocks_equals_one_pass(monkeypatch: pytest.MonkeyPatch)
             external=r["loads"].external,
         )  # fmt: skip
     forces = {"generic": r["tension_optimization"].forces, "subject_specific": resolve.forces}
-    models = {"generic": mdl, "subject_specific": spec}
+    models = {"generic": m_id, "subject_specific": spec}
     for name, f in forces.items():
         ok = np.flatnonzero(r["loads"].usable & np.isfinite(f).all(axis=1))
         assert ok.size > 100
@@ -719,3 +720,149 @@ def test_strength_compact_activation_equals_the_dense_one(
         else:
             assert x == y, f.name
     assert np.isfinite(profiles[0].factors).all()
+
+
+def test_recomputed_jacobian_rows_are_the_geometry_stages_values(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    """gc5_PS in blocks of 40 frames: the geometry stage holds no Jacobian
+    (:class:`msk.pipeline.geometry.JacobianRows`); every way the later stages read it (a slice,
+    indices across blocks, a mask, one frame, rows and columns, the dense ``jac[frames]``)
+    gives bit for bit the values of the stage's blocks evaluated and held, and the tension
+    stage on it equals the tension stage on the held array."""
+    import pickle
+
+    from threadpoolctl import threadpool_limits
+
+    from msk.config import load_config
+    from msk.muscles.geometry import geometry_plan
+    from msk.pipeline import geometry, run_stages, tension
+    from msk.pipeline.geometry import JacobianRows, posed_geometry
+    from msk.pipeline.inputs import session_inputs
+
+    monkeypatch.setattr(blocks, "FRAME_BLOCK", 40)
+    cfg = load_config(REPO / "pipelines" / "gc5_PS.toml")
+    r = run_stages(cfg, until="emg")
+    mdl, kin, ok = r["model"].model, r["kinematics"], r["loads"].usable
+    geo = geometry.run(session_inputs(cfg), r["model"], kin, r["loads"])
+    rows = geo.jacobian.values
+    assert isinstance(rows, JacobianRows)
+    plan = geometry_plan(mdl)
+    pos = plan.jacobian_positions()
+    parts = []
+    for b in blocks.frame_blocks(kin.q.shape[0]):
+        g = posed_geometry(mdl, kin.q, kin.v, ok, slice(int(b[0]), int(b[-1]) + 1), plan)
+        parts.append(np.asarray(g.jacobian).reshape(b.size, -1)[:, pos])
+    held = np.concatenate(parts)
+    n = held.shape[0]
+    assert n > 3 * 40 and rows.shape == held.shape
+    rng = np.random.default_rng(3)
+    idx = np.sort(rng.choice(n, 50, replace=False))
+    mask = rng.random(n) < 0.3
+    for key in (slice(None), slice(17, 93), idx, idx[::-1], mask, 77, (idx, slice(2, 9))):
+        np.testing.assert_array_equal(rows[key], held[key])
+    np.testing.assert_array_equal(np.asarray(rows), held)
+    np.testing.assert_array_equal(pickle.loads(pickle.dumps(rows)), held)
+    dense = FrameSparse(held, pos, geo.jacobian.trailing)
+    np.testing.assert_array_equal(geo.jacobian[idx], dense[idx])
+    inputs = session_inputs(cfg)
+    whole = geo.__class__(
+        geo.muscle_names, geo.coordinate_names, geo.lengths, dense, geo.velocities
+    )
+    with threadpool_limits(limits=1, user_api="blas"):
+        a = tension.run(inputs, r["model"], kin, r["loads"], r["mass_identification"],
+                        r["inverse_dynamics"], geo, r["emg"])  # fmt: skip
+        b = tension.run(inputs, r["model"], kin, r["loads"], r["mass_identification"],
+                        r["inverse_dynamics"], whole, r["emg"])  # fmt: skip
+    np.testing.assert_array_equal(a.forces, b.forces)
+    assert np.isfinite(a.forces).any()
+
+
+def test_zeros_as_gaps_view_copies_only_what_it_blanks() -> None:
+    """No exact-zero sample: a read-only view of the same buffer, the same values; one: the
+    blanked copy of :func:`msk.markersets.zeros_as_gaps`."""
+    from msk.markersets import zeros_as_gaps, zeros_as_gaps_view
+
+    rng = np.random.default_rng(5)
+    x = rng.normal(size=(30, 4, 3))
+    x[3, 1] = np.nan
+    v = zeros_as_gaps_view(x)
+    assert np.shares_memory(v, x) and not v.flags.writeable
+    np.testing.assert_array_equal(v, zeros_as_gaps(x))
+    x[7, 2] = 0.0
+    c = zeros_as_gaps_view(x)
+    assert not np.shares_memory(c, x) and np.isnan(c[7, 2]).all()
+    np.testing.assert_array_equal(c, zeros_as_gaps(x))
+
+
+def test_model_stage_markers_in_blocks_equal_the_whole_trial(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    """The model stage's levelled and model-frame markers of a trial longer than a block: the
+    heading (pelvis fit and progression) computed block by block equals the one-pass heading,
+    and :func:`msk.pipeline.model.model_frame_columns` equals ``match.apply`` of the whole
+    rotated trial, bit for bit (gc5_PS's task, blocks of 7 and 40 frames, a gap of exact
+    zeros)."""
+    from msk.config import load_config
+    from msk.io import frames
+    from msk.markersets import recognise
+    from msk.pipeline import run_stages
+    from msk.pipeline.inputs import session_inputs
+    from msk.pipeline.model import load_model_file, model_frame_columns
+
+    cfg = load_config(REPO / "pipelines" / "gc5_PS.toml")
+    read = run_stages(cfg, until="read")["read"]
+    inputs = session_inputs(cfg)
+    assert inputs.model_source is not None and inputs.model_cfg is not None
+    model = load_model_file(inputs.model_source, inputs.model_cfg.markers)
+    trial = read.trial
+    x = np.array(trial.markers, dtype=float)
+    x[20:25, 3] = 0.0  # exact zeros: gaps
+    trial = dataclasses.replace(trial, markers=x)
+    match = recognise(trial.marker_labels, model.marker_names, rename=cfg.marker_rename)
+    up = -np.asarray(model.gravity, dtype=float)
+
+    def heading() -> tuple[Any, np.ndarray]:
+        h = frames.pelvis_heading_rotation(
+            trial.up, up, x, trial.marker_labels, model, rename=match.rename
+        )
+        return h, frames.lab_to_model_rotation(trial.up, up, x)
+
+    whole, rot_whole = heading()
+    whole_cols = match.apply(trial.rotated(whole.rotation).markers, trial.marker_labels)
+    for size in (7, 40):
+        monkeypatch.setattr(frames, "HEADING_BLOCK", size)
+        monkeypatch.setattr(blocks, "FRAME_BLOCK", size)
+        part, rot_part = heading()
+        np.testing.assert_array_equal(part.rotation, whole.rotation)
+        rest = [f.name for f in dataclasses.fields(whole) if f.name != "rotation"]
+        assert [getattr(part, f) for f in rest] == [getattr(whole, f) for f in rest]
+        np.testing.assert_array_equal(rot_part, rot_whole)
+        cols, names = model_frame_columns(trial, whole.rotation, match)
+        assert names == whole_cols[1]
+        np.testing.assert_array_equal(cols, whole_cols[0])
+    assert whole.source in ("pelvis markers", "progression")
+
+
+def test_loads_stage_in_point_blocks_equals_one_pass(monkeypatch: pytest.MonkeyPatch) -> None:
+    """gc5_PS's loads stage (plates rotated and sampled one at a time, the feet's speeds for
+    the measured-contact test block by block of ``msk.loads._POINT_BLOCK`` frames): blocks of
+    8 frames give the one-pass result bit for bit (external loads, measured and usable
+    frames)."""
+    import msk.loads as ml
+    from msk.config import load_config
+    from msk.pipeline import loads as stage
+    from msk.pipeline import run_stages
+    from msk.pipeline.inputs import session_inputs
+
+    cfg = load_config(REPO / "pipelines" / "gc5_PS.toml")
+    r = run_stages(cfg, until="kinematics")
+    inputs = session_inputs(cfg)
+    one = stage.run(inputs, r["read"], r["model"], r["kinematics"])
+    monkeypatch.setattr(ml, "_POINT_BLOCK", 8)
+    many = stage.run(inputs, r["read"], r["model"], r["kinematics"])
+    np.testing.assert_array_equal(many.measured, one.measured)
+    np.testing.assert_array_equal(many.usable, one.usable)
+    for f in ("force", "moment", "point"):
+        np.testing.assert_array_equal(getattr(many.external, f), getattr(one.external, f))
+    assert one.measured.any() and not one.measured.all()

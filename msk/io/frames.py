@@ -31,7 +31,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
-from collections.abc import Mapping, Sequence
+from collections.abc import Iterator, Mapping, Sequence
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -105,7 +105,7 @@ def lab_to_model_rotation(
     r = rotation_between(up_lab, u)
     if markers is None or markers.size == 0:
         return r
-    phi = _progression_yaw(markers @ r.T, u / np.linalg.norm(u), forward)
+    phi = _progression_yaw(np.asarray(markers, dtype=float), r, u / np.linalg.norm(u), forward)
     return r if phi is None else _about(u / np.linalg.norm(u), phi) @ r
 
 
@@ -144,12 +144,39 @@ def _about(u: Array, phi: float) -> Array:
     return np.eye(3) + math.sin(phi) * k + (1 - math.cos(phi)) * k @ k
 
 
-def _progression_yaw(rotated: Array, u: Array, forward: ArrayLike) -> float | None:
+#: frames per block of the heading's rotated markers (a long trial's markers are not copied
+#: whole, issue 18)
+HEADING_BLOCK = 4096
+
+
+def _rotated_blocks(
+    markers: Array, r: Array, *, zeros_as_gaps: bool = False
+) -> Iterator[tuple[slice, Array]]:
+    """``(frames, markers[frames] @ r.T)`` over consecutive blocks of :data:`HEADING_BLOCK`
+    frames (each frame's values those of the whole product; exact-zero samples NaN first with
+    ``zeros_as_gaps``)."""
+    n = markers.shape[0]
+    for c0 in range(0, n, HEADING_BLOCK):
+        sl = slice(c0, min(c0 + HEADING_BLOCK, n))
+        x = np.array(markers[sl], dtype=float)
+        if zeros_as_gaps:
+            x[(x == 0.0).all(axis=2)] = np.nan
+        yield sl, x @ r.T
+
+
+def _progression_yaw(
+    markers: Array, r: Array, u: Array, forward: ArrayLike, *, zeros_as_gaps: bool = False
+) -> float | None:
     """Yaw (rad, about ``u``) taking the horizontal progression of the marker centroid of
-    ``rotated`` (N, M, 3, levelled) to ``forward``; None below :data:`MIN_PROGRESSION_M`."""
-    seen = np.asarray(np.isfinite(rotated).all(axis=2))  # (N, M): markers visible in each frame
-    count = seen.sum(axis=1)
-    total = np.where(seen[..., None], rotated, 0.0).sum(axis=1)
+    ``markers`` (N, M, 3) levelled by ``r`` to ``forward``; None below
+    :data:`MIN_PROGRESSION_M`. The centroids block by block (:func:`_rotated_blocks`)."""
+    n = markers.shape[0]
+    count = np.empty(n, dtype=np.intp)
+    total = np.empty((n, 3))
+    for sl, rotated in _rotated_blocks(markers, r, zeros_as_gaps=zeros_as_gaps):
+        seen = np.asarray(np.isfinite(rotated).all(axis=2))  # (n, M): markers visible
+        count[sl] = seen.sum(axis=1)
+        total[sl] = np.where(seen[..., None], rotated, 0.0).sum(axis=1)
     ok = count > 0  # frames with no marker at all carry no centroid
     c = total[ok] / count[ok, None]
     if c.shape[0] < 2:
@@ -227,13 +254,12 @@ def pelvis_heading_rotation(
     u = np.asarray(up_model, dtype=float)
     u = u / np.linalg.norm(u)
     r0 = rotation_between(up_lab, u)
-    x = np.array(markers, dtype=float)
+    x = np.asarray(markers, dtype=float)  # not copied: levelled block by block (issue 18)
     labels = tuple(labels)
     if x.ndim != 3 or x.shape[2] != 3 or x.shape[1] != len(labels):
         raise ShapeMismatchError(f"markers {x.shape} must be (N, {len(labels)}, 3)")
-    x[(x == 0.0).all(axis=2)] = np.nan  # exact zeros: gaps (TRC writers)
-    rotated = x @ r0.T
-    prog = _progression_yaw(rotated, u, forward) if x.size else None
+    # exact zeros: gaps (TRC writers)
+    prog = _progression_yaw(x, r0, u, forward, zeros_as_gaps=True) if x.size else None
     prog_deg = math.nan if prog is None else math.degrees(prog)
     inv = {v: k for k, v in (rename or {}).items()}
     col: dict[str, int] = {}
@@ -247,7 +273,11 @@ def pelvis_heading_rotation(
         data = model.create_data()
         forward_kinematics(model, data, model.default_coordinates())
         model_pos = {n: np.asarray(data.oMf[model.marker_frame[n]].translation) for n in names}
-        seen = np.asarray(np.isfinite(rotated[:, [col[n] for n in names]]).all(axis=2))
+        cols = [col[n] for n in names]
+        parts = [rb[:, cols] for _, rb in _rotated_blocks(x, r0, zeros_as_gaps=True)]
+        pelvis = np.concatenate(parts) if parts else np.empty((0, len(cols), 3))
+        at = {n: k for k, n in enumerate(names)}  # the pelvis markers' columns of ``pelvis``
+        seen = np.asarray(np.isfinite(pelvis).all(axis=2))
         # drop the least-tracked markers until enough frames track all the rest
         order = sorted(range(len(names)), key=lambda k: -int(seen[:, k].sum()))
         keep = list(order)
@@ -264,7 +294,7 @@ def pelvis_heading_rotation(
         elif spread < min_spread_m:
             why = f"pelvis markers {names} span {spread:.3f} m horizontally"
         else:
-            b = rotated[frames][:, [col[n] for n in names]]
+            b = pelvis[frames][:, [at[n] for n in names]]
             b = b - (b @ u)[..., None] * u
             b = b - b.mean(axis=1, keepdims=True)
             cross = np.einsum("tij,j->t", np.cross(b, a[None]), u)

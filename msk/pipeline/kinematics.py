@@ -35,7 +35,9 @@ def solve_trial(
 
     names = set(model.marker_names)
     cols = [i for i, lab in enumerate(labels) if lab in names]
-    seen = np.isfinite(trial.markers[:, cols]).all(axis=2)  # (N, used markers)
+    # (N, used markers); the flags first, then the columns (not a copy of the used markers'
+    # positions, issue 18)
+    seen = np.isfinite(trial.markers).all(axis=2)[:, cols]
     body_of = {m.name: m.body for m in model.markers}
     blind = np.zeros(trial.time.size, dtype=bool)
     for body in {body_of[labels[i]] for i in cols}:

@@ -33,6 +33,7 @@ __all__ = [
     "knee_flexion_to_physiological",
     "leg_split",
     "load_model_file",
+    "model_frame_columns",
     "run",
     "settings",
 ]
@@ -182,6 +183,7 @@ def _scale_and_place(
         recognise,
         shoulder_girdle_markers,
         zeros_as_gaps,
+        zeros_as_gaps_view,
     )
     from msk.quality import inconsistent_static_markers
     from msk.scaling import (
@@ -196,7 +198,7 @@ def _scale_and_place(
     model = load_model_file(inputs.model_source, mc.markers)
     bodies = [b.name for b in model.bodies]
     info: dict[str, Any] = {"source": str(inputs.model_source), "generic_mass_kg": model.total_mass}
-    x_lab = zeros_as_gaps(trial.markers)
+    x_lab = zeros_as_gaps_view(trial.markers)  # not copied unless it has zero samples
     match = recognise(
         trial.marker_labels, model.marker_names, rename=cfg.marker_rename,
         model_bodies=bodies, markers=x_lab,
@@ -317,7 +319,7 @@ def _scale_and_place(
     if static_read is None or rejected is not None:
         # no static trial: the task trial's own markers scale and place (the segment lengths
         # are constant over a motion; msk.scaling.scale_from_motion)
-        xm, mlabels = match.apply(trial.rotated(rot).markers, trial.marker_labels)
+        xm, mlabels = model_frame_columns(trial, rot, match)
         if mc.scale:
             model, report = scale_from_motion(
                 model, xm, mlabels, trial.time, height_m=cfg.subject.height_m,
@@ -342,6 +344,30 @@ def _scale_and_place(
         info["scale_ratios"] = dict(model.metadata.get("scale_ratios", {}))
     info["mass_kg"] = model.total_mass
     return {"model": model, "info": info, "rotation": rot, "rename": dict(match.rename)}
+
+
+def model_frame_columns(
+    trial: Any, rot: np.ndarray, match: Any
+) -> tuple[np.ndarray, tuple[str, ...]]:
+    """``match.apply(trial.rotated(rot).markers, trial.marker_labels)`` (the matched columns in
+    the model frame, model names, exact zeros as gaps) rotated block by block of
+    :data:`msk.pipeline.blocks.FRAME_BLOCK` frames into the one array returned: a long trial's
+    markers are not rotated whole first (issue 18). Each frame's values are the whole
+    product's."""
+    from msk.pipeline.blocks import FRAME_BLOCK
+
+    x = np.asarray(trial.markers, dtype=float)
+    r = np.asarray(rot, dtype=float)
+    labels = trial.marker_labels
+    n = x.shape[0]
+    first, names = match.apply(x[:FRAME_BLOCK] @ r.T, labels)
+    if n <= FRAME_BLOCK:
+        return first, names
+    out = np.empty((n, *first.shape[1:]))
+    out[:FRAME_BLOCK] = first
+    for c0 in range(FRAME_BLOCK, n, FRAME_BLOCK):
+        out[c0 : c0 + FRAME_BLOCK] = match.apply(x[c0 : c0 + FRAME_BLOCK] @ r.T, labels)[0]
+    return out, names
 
 
 def _place_from_task(
@@ -373,7 +399,7 @@ def _place_from_task(
     from msk.markersets import reconstructed_markers, shoulder_girdle_markers
     from msk.scaling import place_markers_from_motion
 
-    xm, mlabels = match.apply(trial.rotated(rot).markers, trial.marker_labels)
+    xm, mlabels = model_frame_columns(trial, rot, match)
     to_model = dict(match.lab_to_model)
     bad_names = {to_model.get(lab, lab) for lab in bad}
     known = set(model.marker_names)
@@ -387,8 +413,9 @@ def _place_from_task(
         lab in bad_names or lab in known)]  # fmt: skip
     moved = sorted(n for n in bad_names | recon if n in known)
     new_markers = any(n not in known for n in bad_names)
+    xm = xm[:, keep]  # the task's other columns dropped before the placement's passes
     model, placed = place_markers_from_motion(
-        model, xm[:, keep], [mlabels[i] for i in keep], trial.time, move=moved,
+        model, xm, [mlabels[i] for i in keep], trial.time, move=moved,
         iterations=3 if new_markers else 1,
     )  # fmt: skip
     record = {}
@@ -548,11 +575,11 @@ def _swap_back(read: ReadResult) -> tuple[ReadResult, dict[str, float]]:
     the subject's left in ≥ 80 % of the frames, judged from the pelvis markers, before any
     model sees them), and "right/left" → median signed separation (m) of each pair exchanged
     (``summary.json`` ``model.marker_set.swapped_back``; a quality flag says so)."""
-    from msk.markersets import zeros_as_gaps
+    from msk.markersets import zeros_as_gaps_view
     from msk.quality import swapped_label_pairs
 
     trial = read.trial
-    pairs = swapped_label_pairs(zeros_as_gaps(trial.markers), trial.marker_labels, trial.up)
+    pairs = swapped_label_pairs(zeros_as_gaps_view(trial.markers), trial.marker_labels, trial.up)
     if not pairs:
         return read, {}
     markers = np.array(trial.markers, dtype=float, copy=True)
@@ -605,7 +632,6 @@ def _placement_rms(info: Mapping[str, Any]) -> float:
 
 
 def run(inputs: SessionInputs, read: ReadResult) -> BuiltModel:
-    from msk.markersets import zeros_as_gaps
 
     cfg = inputs.cfg
     read, swapped = _swap_back(read)
@@ -657,7 +683,10 @@ def run(inputs: SessionInputs, read: ReadResult) -> BuiltModel:
         analogs=np.empty((0, np.shape(trial.analogs)[1] if np.ndim(trial.analogs) == 2 else 0)),
     )  # fmt: skip
     mtrial = markers_only.rotated(rot)
-    mtrial = dataclasses.replace(mtrial, markers=zeros_as_gaps(mtrial.markers))
+    # the rotated markers are a fresh array: their gaps set in place (zeros_as_gaps' copy was a
+    # second model-frame copy of a long trial's markers at the stage's end, issue 18)
+    x = mtrial.markers
+    x[(x == 0.0).all(axis=-1)] = np.nan
     inv = {v: k for k, v in built["rename"].items()}
     labels = tuple(inv.get(lab, lab) for lab in trial.marker_labels)
     return BuiltModel(
