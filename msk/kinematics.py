@@ -644,7 +644,7 @@ def solve_kinematics(
     solve_time = _time.perf_counter() - tic
     if status.all():
         need = max(min_markers, int(np.ceil((free.sum() - n_tasks) / 3)))
-        seen = np.isfinite(xm).all(axis=2).any(axis=0)
+        seen = [bool(np.isfinite(x[:, c]).all(axis=1).any()) for c in cols]
         found = [name for name, k in zip(used, seen, strict=True) if k]
         raise KinematicsError(
             "no frame could be solved (too few markers in every frame): at most "
