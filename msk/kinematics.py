@@ -643,7 +643,16 @@ def solve_kinematics(
             errs_ign[n] = np.linalg.norm(prob_ign.positions(theta) - x[n, ign_cols], axis=1)
     solve_time = _time.perf_counter() - tic
     if status.all():
-        raise KinematicsError("no frame could be solved (too few markers in every frame)")
+        need = max(min_markers, int(np.ceil((free.sum() - n_tasks) / 3)))
+        seen = [bool(np.isfinite(x[:, c]).all(axis=1).any()) for c in cols]
+        found = [name for name, k in zip(used, seen, strict=True) if k]
+        raise KinematicsError(
+            "no frame could be solved (too few markers in every frame): at most "
+            f"{int(n_used.max(initial=0))} of the model's markers in a frame, {need} needed for "
+            f"its {int(free.sum())} free coordinates; the model's markers seen in the trial: "
+            f"{', '.join(found) or 'none'} (the trial's other labels are not recognised as "
+            "landmarks of the model: name them with [markers] rename)"
+        )
     solved = np.isfinite(errs).any(axis=1)
     rms = np.full(n_frames, np.nan)
     sq = np.where(np.isfinite(errs), errs**2, 0.0)

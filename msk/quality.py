@@ -27,7 +27,11 @@ Thresholds and their sources (:data:`THRESHOLDS`):
   with a four-bar knee before the placement fix: the knee at its +10° hyperextension bound
   through stance — inside the physiological range gate's +15°, so that gate did not fire).
 * Frozen coordinates: a leg coordinate whose standard deviation over the trial is below 0.05°
-  (a segment that the markers do not observe stays at its initial value).
+  (a segment that the markers do not observe stays at its initial value) — not judged on a
+  still trial (every checked coordinate under 2° SD, the sway of quiet standing), where a
+  still coordinate and an unobserved one look alike.
+* No measured contact: a trial in which no frame has every foot's ground contact measured by
+  the plates (no residual, plate mass, muscle forces or knee contact can be computed).
 * Unobserved segments: solved frames in which no marker on a leg segment was used by IK.
 * Tension optimisation: infeasible frames, frames excluded from it (non-finite or invalid
   inputs), a muscle saturated (activation ≥ 0.99) on more than 25 % of frames (the generic
@@ -82,6 +86,9 @@ THRESHOLDS: Mapping[str, float] = {
     "residual_moment_rms_pct_com_height_peak_force": 1.0,
     "body_mass_difference_pct": 5.0,
     "frozen_coordinate_std_deg": 0.05,
+    # quiet standing sways the leg joints by well under 2° SD; any movement task (gait, squat,
+    # stairs, a leg lifted) moves a hip or knee by more
+    "still_trial_coordinate_std_deg": 2.0,
     "unobserved_segment_frames_pct": 5.0,
     "observed_measured_frames_min_pct": 50.0,
     "saturated_frames_pct": 25.0,
@@ -344,6 +351,11 @@ def swapped_sides(
     vertical — so a swapped ASIS pair is found even when IK, fitting it, turned the pelvis
     round. Otherwise r̂ is the fitted pelvis's +z (gait2392/OpenSim), and when most pairs look
     swapped in it (the pelvis fitted the wrong way round) the pairs that do not are reported.
+    A pair is reported only when the right marker lies more than
+    :data:`SWAP_MIN_SEPARATION_M` to the left (a median within that margin is a pair that
+    crosses or overlaps in the medio-lateral direction, e.g. medial toe markers over a piece of
+    a trial with a narrow or crossing step, not a swap: UWA fast walking, its first 1.55 s,
+    R.Toe.Med 3 mm left of L.Toe.Med).
     Returns (right, left, median in m, signed so that the subject's right is positive)."""
     if "pelvis" not in model.body_frame:
         return []
@@ -384,7 +396,7 @@ def swapped_sides(
         sum(v < 0.0 for v in med.values()) > sum(v > 0.0 for v in med.values())
     )
     sign = -1.0 if reversed_pelvis else 1.0
-    return [(r, lft, sign * v) for (r, lft), v in med.items() if sign * v < 0.0]
+    return [(r, lft, sign * v) for (r, lft), v in med.items() if sign * v < -SWAP_MIN_SEPARATION_M]
 
 
 def _flag(trial: str, quantity: str, value: float, threshold: float, message: str) -> Flag:
@@ -400,6 +412,17 @@ def _coordinate_flags(
     if not good.any():
         return out
     out += _at_bound_flags(trial, kin, th, held, model)
+    # a still trial (quiet standing: every checked coordinate's SD under the standing sway,
+    # THRESHOLDS["still_trial_coordinate_std_deg"]) cannot tell a coordinate the markers do not
+    # observe from one that does not move: no frozen-coordinate flag there
+    checked = [
+        j
+        for j, name in enumerate(kin.coordinate_names)
+        if (name[:-2] if name.endswith(("_r", "_l")) else name) in PHYSIOLOGICAL_RANGES_DEG
+        and name not in held
+    ]
+    sds = np.degrees(np.std(q[good][:, checked], axis=0)) if checked else np.zeros(0)
+    still = bool(sds.size) and float(sds.max()) < th.get("still_trial_coordinate_std_deg", 0.0)
     for j, name in enumerate(kin.coordinate_names):
         stem = name[:-2] if name.endswith(("_r", "_l")) else name
         if stem not in PHYSIOLOGICAL_RANGES_DEG or name in held:
@@ -415,7 +438,7 @@ def _coordinate_flags(
                       f"[{lo:g}°, {hi:g}°]")
             )  # fmt: skip
         sd = float(np.degrees(np.std(q[good, j])))
-        if sd < th["frozen_coordinate_std_deg"]:
+        if sd < th["frozen_coordinate_std_deg"] and not still:
             out.append(
                 _flag(trial, f"{name}_std_deg", sd, th["frozen_coordinate_std_deg"],
                       f"{name} is frozen (SD {sd:.3g}° over the trial): the markers do not "
@@ -664,6 +687,14 @@ def gait_flags(
                       f"{quality.get('ik_worst_marker', '?')})")
             )  # fmt: skip
     n_meas, n_obs = quality.get("contact_measured_frames"), quality.get("observed_measured_frames")
+    if n_meas == 0 and quality.get("frames"):
+        out.append(
+            _flag(trial_name, "contact_measured_frames", 0.0, 1.0,
+                  f"no frame of the {quality['frames']} in which the plates measure every foot's "
+                  "ground contact (no plate loaded, a foot off the plates, or contact at the "
+                  "trial's edges only): no residuals, plate mass, muscle forces or knee contact "
+                  "for this trial — its joint torques assume no ground reaction")
+        )  # fmt: skip
     pct = 100.0 * n_obs / n_meas if n_meas and n_obs is not None else 100.0
     if pct < th["observed_measured_frames_min_pct"]:
         out.append(

@@ -168,3 +168,14 @@ def test_markers_left_out_by_a_zero_weight_are_in_the_all_markers_rms():
     np.testing.assert_allclose(kin.marker_rms_all, np.sqrt(0.03**2 / n), rtol=1e-4)
     full = solve_kinematics(MODEL, TRIAL.markers, TRIAL.marker_labels, TRIAL.time, cutoff_hz=None)
     assert full.marker_rms_all is None
+
+
+def test_a_trial_with_too_few_model_markers_in_every_frame_says_which_it_has():
+    """Every frame with 4 of the model's markers (a pelvis and a heel, as a lab marker set the
+    model does not recognise beyond those: BTS.c3d's Davis set with the gait2392 configs): one
+    clear error naming the markers found and how many the free coordinates need."""
+    x = TRIAL.markers.copy()
+    x[:, 4:] = np.nan
+    with pytest.raises(KinematicsError, match=r"at most 4 of the model's markers.* needed") as e:
+        solve_kinematics(MODEL, x, TRIAL.marker_labels, TRIAL.time, cutoff_hz=6.0)
+    assert f"seen in the trial: {', '.join(MODEL.marker_names[:4])} (" in str(e.value)

@@ -463,3 +463,37 @@ def test_knee_flexion_bound_widened_to_the_physiological_limit_only_where_narrow
     assert np.degrees(held.q[:, k]).min() > -120.4  # clamped: the pose there is not measured
     assert np.abs(np.degrees(free.q[:, k] - q[:, k])).max() < 1.0
     assert np.nanmean(free.marker_rms) < 0.5 * np.nanmean(held.marker_rms)
+
+
+@pytest.mark.slow
+@pytest.mark.realdata
+def test_a_trial_no_plate_measures_runs_kinematics_and_says_why_no_dynamics(tmp_path):
+    """The bundled session with its task's plates unloaded (a walk past the plates, or a trial
+    cut with no foot on one; swept in issue 15, eighth pass): the run completes with the
+    kinematics, the muscle stages are not available with a reason — not an internal error (was
+    ``ValueError: cannot reshape array of size 0`` in tension_optimization and
+    strength_identification) — and the ``contact_measured_frames`` flag says why."""
+    import ezc3d
+
+    c = ezc3d.c3d(str(REPO / "data" / "gc5-PS" / "PS_ngait_og_ss1.c3d"))
+    ch = np.asarray(c["parameters"]["FORCE_PLATFORM"]["CHANNEL"]["value"]).ravel() - 1
+    analogs = c["data"]["analogs"]
+    analogs[0, ch, :] = 0.0
+    c["data"]["analogs"] = analogs
+    c.write(str(tmp_path / "noplate.c3d"))
+    text = GC5.read_text(encoding="utf-8").replace('"../', f'"{REPO}/')
+    text = text.replace(f'"{REPO}/data/gc5-PS/PS_ngait_og_ss1.c3d"', f'"{tmp_path}/noplate.c3d"')
+    text = re.sub(r'(?m)^contact_force = ".*"$', "", text)
+    cfg = tmp_path / "noplate.toml"
+    cfg.write_text(text, encoding="utf-8")
+    res = run_session(cfg, tmp_path / "out")
+    q = res.summary["quality"]
+    assert q["contact_measured_frames"] == 0 and q["ik_marker_rms_mean_m"] < 0.012
+    (flag,) = [f for f in q["flags"] if f["quantity"] == "contact_measured_frames"]
+    assert "no frame of the 145" in flag["message"]
+    why = {r["stage"]: r["reason"] for r in res.summary["not_available"]}
+    assert why["tension_optimization"].startswith("no frame to optimise"), why
+    assert why["strength_identification"].startswith("no frame with every foot"), why
+    assert why["mass_identification"].startswith("fewer than 2 frames"), why
+    assert not any("internal error" in r for r in why.values()), why
+    assert not [r for r in res.summary["not_available"] if r["status"] == "failed"]

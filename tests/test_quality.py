@@ -13,6 +13,7 @@ from msk.quality import (
     body_mass_from_loads,
     gait_flags,
     swapped_label_pairs,
+    swapped_sides,
 )
 from msk.synthetic_models import two_leg_model
 
@@ -220,3 +221,55 @@ def test_too_few_observed_measured_frames_are_flagged_a_few_excluded_are_not():
     assert f.threshold == THRESHOLDS["observed_measured_frames_min_pct"]
     most = _flags(model, kin, contact_measured_frames=121, observed_measured_frames=80)
     assert most == []
+
+
+def test_no_measured_contact_frame_is_flagged():
+    """A trial in which no frame's ground contact is measured (no plate loaded) raises
+    ``contact_measured_frames``; one with measured frames, or with no frame at all, does not."""
+    model = two_leg_model()
+    kin = _still(model, 50)
+    kin.coordinate_names = kin_names(model)
+    by = {f.quantity: f for f in _flags(model, kin, contact_measured_frames=0, frames=50)}
+    assert (
+        by["contact_measured_frames"].value == 0.0
+        and "of the 50" in by["contact_measured_frames"].message
+    )
+    for q in ({"contact_measured_frames": 12, "frames": 50}, {"contact_measured_frames": 0}):
+        assert "contact_measured_frames" not in {f.quantity for f in _flags(model, kin, **q)}
+
+
+def test_swapped_sides_needs_the_separation_margin():
+    """``swapped_sides`` reports a pair whose right marker is left of the left one by more than
+    :data:`SWAP_MIN_SEPARATION_M` (heels exchanged: 12 cm), not one within it (heels 4 mm the
+    wrong way, as medial toe markers over a crossing step: UWA fast walking's first 1.55 s)."""
+    x, labels = _walker()
+    model = SimpleNamespace(body_frame={"pelvis": 0}, marker_names=tuple(labels),
+                            gravity=np.array([0.0, 0.0, -9.81]))  # fmt: skip
+    kin = SimpleNamespace(q=np.zeros((x.shape[0], 3)))
+    assert swapped_sides(model, kin, x, labels) == []
+    i, j = labels.index("RHEE"), labels.index("LHEE")
+    y = x.copy()
+    y[:, [i, j]] = y[:, [j, i]]
+    ((r, lft, dz),) = swapped_sides(model, kin, y, labels)
+    assert (r, lft) == ("RHEE", "LHEE") and dz == pytest.approx(-0.12, abs=0.01)
+    y = x.copy()
+    y[:, i, 1] = y[:, [i, j], 1].mean(axis=1) + 0.002
+    y[:, j, 1] = y[:, i, 1] - 0.004
+    assert swapped_sides(model, kin, y, labels) == []
+
+
+def test_a_still_trial_raises_no_frozen_coordinate_flag():
+    """Quiet standing (every leg coordinate within 0.5° SD of sway, one at 0.03°: UNIPD's
+    Static1 run as a task, hip_flexion_r 0.04°) cannot tell an unobserved coordinate from a
+    still one: no ``*_std_deg`` flag; the same coordinate frozen in a moving trial is flagged."""
+    model = two_leg_model()
+    rng = np.random.default_rng(3)
+    kin = _still(model, 100)
+    kin.coordinate_names = kin_names(model)
+    kin.q[:, 6:] += np.radians(0.5) * rng.standard_normal((100, kin.q.shape[1] - 6))
+    i = model.coordinate_names.index("hip_flexion_r")
+    kin.q[:, i] = np.radians(0.03) * rng.standard_normal(100)
+    assert not [f for f in _flags(model, kin) if f.quantity.endswith("_std_deg")]
+    kin.q[:, model.coordinate_names.index("knee_angle_l")] = np.linspace(-0.1, -1.0, 100)
+    by = {f.quantity for f in _flags(model, kin)}
+    assert "hip_flexion_r_std_deg" in by

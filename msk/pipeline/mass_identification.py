@@ -15,7 +15,7 @@ from msk.pipeline.kinematics import solve_trial
 from msk.pipeline.loads import Loads, assign_loads
 from msk.pipeline.model import BuiltModel
 from msk.pipeline.read import ReadResult
-from msk.pipeline.runner import file_sha256
+from msk.pipeline.runner import StageUnavailable, file_sha256
 
 __all__ = ["MassIdentification", "identified_model", "run", "segment_summary", "settings"]
 
@@ -99,6 +99,11 @@ def run(
             )
         )
         del it  # its τ_ext of every frame
+    if sum(len(it.theta) for it in its) < 2:  # e.g. no plate loaded: a reason, not a failure
+        raise StageUnavailable(
+            "fewer than 2 frames with every foot's contact measured and every leg segment "
+            f"observed (trials {[it.name for it in its]})"
+        )
     est = InertialIdentifier(
         mdl, total_mass=cfg.subject.mass_kg, symmetric=True, prior_weight="cv"
     ).fit(its)

@@ -48,6 +48,11 @@ def run(
     jt = inverse_dynamics.torques
     good = loads.usable & np.isfinite(jt.tau).all(axis=1)
     frames = np.flatnonzero(good)
+    if frames.size == 0:  # e.g. a trial no foot stands on a plate in: a reason, not a traceback
+        raise StageUnavailable(
+            "no frame with every foot's contact measured, every leg segment observed and "
+            "finite joint torques"
+        )
     # the Hill state of the frames used, computed block by block as the identifier needs it
     # (its ten (N, M) arrays are never held whole); the compact Jacobian of those frames only
     params = muscle_parameters(model.model)

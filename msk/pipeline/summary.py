@@ -322,7 +322,7 @@ def _flags(
     for r, lft, dz in swapped_sides(mdl, kin, model.trial.markers, model.labels):
         flags.append(
             {"trial": task.name, "quantity": f"{r}/{lft}_swapped", "value": dz,
-             "threshold": 0.0,
+             "threshold": -SWAP_MIN_SEPARATION_M,
              "message": f"{r} is {-1000 * dz:.0f} mm left of {lft} (the subject's right "
              "from the pelvis): their labels look swapped (a labelling error in the file, or "
              "the wrong side in the config)"}

@@ -250,6 +250,12 @@ def optimise(
         & curves_finite
     )
     ok = usable & posable
+    if not ok.any():  # e.g. a trial no foot stands on a plate in: a reason, not a traceback
+        raise StageUnavailable(
+            "no frame to optimise: none in which the plates measure every foot's contact and "
+            "the markers observe every leg segment"
+            + (f" ({int(usable.sum())} such frames, none posable)" if usable.any() else "")
+        )
     excluded = int((usable & ~posable).sum())
     cn = tuple(torques.coordinate_names[i] for i in act_idx)
     reserves = np.ones(len(act_idx))
