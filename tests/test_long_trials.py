@@ -31,6 +31,16 @@ def _sparse_dense(n: int = 7) -> tuple[np.ndarray, np.ndarray]:
     return dense, pos
 
 
+def _assert_fields_equal(a: Any, b: Any) -> None:
+    """Two dataclass results equal field by field (arrays exactly)."""
+    for f in dataclasses.fields(a):
+        x, y = getattr(a, f.name), getattr(b, f.name)
+        if isinstance(x, np.ndarray):
+            np.testing.assert_array_equal(x, y, err_msg=f.name)
+        else:
+            assert x == y, f.name
+
+
 def test_frame_sparse_is_the_dense_array() -> None:
     dense, pos = _sparse_dense()
     fs = FrameSparse.from_dense(dense, pos)
@@ -351,7 +361,6 @@ def test_strength_compact_group_contributions_equal_the_dense_ones(
     """With a compact Jacobian the identifier keeps only the (group, coordinate) pairs the
     groups' muscles cross; the profile (factors, intervals, gating, fit r²) is the dense one's,
     the structural pairs hold every nonzero contribution and are fewer than G × n."""
-    import dataclasses
 
     import msk.strength.identification as si
     from msk.muscles.activation import emg_to_activation
@@ -393,12 +402,7 @@ def test_strength_compact_group_contributions_equal_the_dense_ones(
         est = StrengthIdentifier(leg.groups, leg.params, n_bootstrap=20, instrument=instrument)
         est.fit(jac, act[frames], tau[frames], state, windows=tr.cycle[frames], frames=frames)
         profiles.append(est.profile_)
-    for f in dataclasses.fields(profiles[0]):
-        a, b = getattr(profiles[0], f.name), getattr(profiles[1], f.name)
-        if isinstance(a, np.ndarray):
-            np.testing.assert_array_equal(a, b, err_msg=f.name)
-        else:
-            assert a == b, f.name
+    _assert_fields_equal(*profiles)
 
 
 def test_bounded_least_squares_from_normal_equations_equals_bvls_on_the_rows() -> None:
@@ -681,7 +685,6 @@ def test_strength_compact_activation_equals_the_dense_one(
     """The activation given compact over the muscles (the measured muscles' columns only, as
     the pipeline's strength stage gives it) identifies the profile of the dense activation
     with zeros in the other columns, bit for bit, in several contribution blocks."""
-    import dataclasses
 
     import msk.strength.identification as si
     from msk.muscles.activation import emg_to_activation
@@ -713,12 +716,7 @@ def test_strength_compact_activation_equals_the_dense_one(
         est = StrengthIdentifier(groups, leg.params, n_bootstrap=20, instrument=instrument)
         est.fit(jac, a, tr.tau[frames], state, windows=tr.cycle[frames], frames=frames)
         profiles.append(est.profile_)
-    for f in dataclasses.fields(profiles[0]):
-        x, y = getattr(profiles[0], f.name), getattr(profiles[1], f.name)
-        if isinstance(x, np.ndarray):
-            np.testing.assert_array_equal(x, y, err_msg=f.name)
-        else:
-            assert x == y, f.name
+    _assert_fields_equal(*profiles)
     assert np.isfinite(profiles[0].factors).all()
 
 
