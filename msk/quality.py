@@ -71,6 +71,7 @@ __all__ = [
     "body_mass_from_loads",
     "com_height",
     "contact_flags",
+    "frontal_reserve_figures",
     "frontal_reserve_flags",
     "gait_flags",
     "inconsistent_static_markers",
@@ -412,21 +413,21 @@ def _coordinate_flags(
     if not good.any():
         return out
     out += _at_bound_flags(trial, kin, th, held, model)
+    stems = {
+        j: name[:-2] if name.endswith(("_r", "_l")) else name
+        for j, name in enumerate(kin.coordinate_names)
+    }
+    names = kin.coordinate_names
+    checked = [
+        j for j, st in stems.items() if st in PHYSIOLOGICAL_RANGES_DEG and names[j] not in held
+    ]
+    sds = np.array([np.degrees(np.std(q[good, j])) for j in checked])
     # a still trial (quiet standing: every checked coordinate's SD under the standing sway,
     # THRESHOLDS["still_trial_coordinate_std_deg"]) cannot tell a coordinate the markers do not
     # observe from one that does not move: no frozen-coordinate flag there
-    checked = [
-        j
-        for j, name in enumerate(kin.coordinate_names)
-        if (name[:-2] if name.endswith(("_r", "_l")) else name) in PHYSIOLOGICAL_RANGES_DEG
-        and name not in held
-    ]
-    sds = np.degrees(np.std(q[good][:, checked], axis=0)) if checked else np.zeros(0)
     still = bool(sds.size) and float(sds.max()) < th.get("still_trial_coordinate_std_deg", 0.0)
-    for j, name in enumerate(kin.coordinate_names):
-        stem = name[:-2] if name.endswith(("_r", "_l")) else name
-        if stem not in PHYSIOLOGICAL_RANGES_DEG or name in held:
-            continue
+    for j, sd in zip(checked, sds.tolist()):
+        name, stem = names[j], stems[j]
         deg = np.degrees(q[good, j])
         lo, hi = PHYSIOLOGICAL_RANGES_DEG[stem]
         if deg.min() < lo or deg.max() > hi:
@@ -437,7 +438,6 @@ def _coordinate_flags(
                       f"{name} reaches {worst:.1f}°, outside the physiological range "
                       f"[{lo:g}°, {hi:g}°]")
             )  # fmt: skip
-        sd = float(np.degrees(np.std(q[good, j])))
         if sd < th["frozen_coordinate_std_deg"] and not still:
             out.append(
                 _flag(trial, f"{name}_std_deg", sd, th["frozen_coordinate_std_deg"],
@@ -564,40 +564,57 @@ def _optimization_flags(trial: str, sol: Any, jt: Any, th: Mapping[str, float]) 
     return out
 
 
+def frontal_reserve_figures(sol: Any) -> dict[str, dict[str, Any]]:
+    """Per knee compartment row of ``compartment_nonnegative`` (``sol``: a
+    :class:`msk.pipeline.tension.MuscleTensions`), its frontal reserve moments' ``peak_nm``,
+    ``rms_nm`` (None without a finite frame) and ``frames_above_1pct`` (frames above 1 % of the
+    knee's peak inverse-dynamics frontal moment); empty without rows."""
+    res = getattr(sol, "frontal_reserve_moments", None)
+    rows = tuple(getattr(sol, "compartment_rows", ()) or ())
+    if res is None or not rows:
+        return {}
+    res = np.asarray(res, dtype=float)
+    peak_id = getattr(sol, "id_frontal_moment_peak_nm", None) or 0.0
+    out: dict[str, dict[str, Any]] = {}
+    for k, row in enumerate(rows):
+        col = res[:, k][np.isfinite(res[:, k])]
+        out[row] = {
+            "peak_nm": float(col.max()) if col.size else None,
+            "rms_nm": float(np.sqrt(np.mean(col**2))) if col.size else None,
+            "frames_above_1pct": int((col > 0.01 * peak_id).sum()),
+        }
+    return out
+
+
 def frontal_reserve_flags(
     trial: str, sol: Any, thresholds: Mapping[str, float] = THRESHOLDS
 ) -> list[Flag]:
     """Knee compartment rows (``[optimization] compartment_nonnegative``) whose frontal reserve
     moment peaks above ``frontal_reserve_pct_peak_moment`` (10 %) of the peak frontal moment of
     the knee's inverse-dynamics load about the contact midpoint (``sol``: a
-    :class:`msk.pipeline.tension.MuscleTensions`). The reserve is the moment about the opposite
-    contact point that no admissible tension balances — in a knee, the collateral ligaments'
-    share, absent from the model. The bound transposes OpenSim's guideline for reserve actuators
-    (peak reserve below 10 % of the peak joint moment; OpenSim documentation, "Reserves and
-    Residuals" and the simulation checklist) to the frontal plane."""
+    :class:`msk.pipeline.tension.MuscleTensions`; figures of :func:`frontal_reserve_figures`).
+    The reserve is the moment about the opposite contact point that no admissible tension
+    balances — in a knee, the collateral ligaments' share, absent from the model. The bound
+    transposes OpenSim's guideline for reserve actuators (peak reserve below 10 % of the peak
+    joint moment; OpenSim documentation, "Reserves and Residuals" and the simulation checklist)
+    to the frontal plane."""
     th = {**THRESHOLDS, **thresholds}
-    res = getattr(sol, "frontal_reserve_moments", None)
-    rows = tuple(getattr(sol, "compartment_rows", ()) or ())
     peak_id = getattr(sol, "id_frontal_moment_peak_nm", None)
-    if res is None or not rows or peak_id is None or not peak_id > 0:
+    if peak_id is None or not peak_id > 0:
         return []
-    res = np.asarray(res, dtype=float)
     out: list[Flag] = []
-    for k, row in enumerate(rows):
-        col = res[:, k]
-        col = col[np.isfinite(col)]
-        if not col.size:
+    for row, fig in frontal_reserve_figures(sol).items():
+        if fig["peak_nm"] is None:
             continue
-        pct = 100.0 * float(col.max()) / float(peak_id)
+        pct = 100.0 * fig["peak_nm"] / float(peak_id)
         if pct > th["frontal_reserve_pct_peak_moment"]:
-            n = int((col > 0.01 * float(peak_id)).sum())
             out.append(
                 _flag(trial, f"{row}_frontal_reserve_pct", pct,
                       th["frontal_reserve_pct_peak_moment"],
-                      f"{row}: a frontal reserve moment of up to {col.max():.1f} N·m ({pct:.0f} % "
-                      f"of the knee's peak frontal moment {peak_id:.1f} N·m; above 1 % of it on "
-                      f"{n} frames) keeps the compartment from pulling where no muscle can: "
-                      "ligaments the model lacks would carry it")
+                      f"{row}: a frontal reserve moment of up to {fig['peak_nm']:.1f} N·m "
+                      f"({pct:.0f} % of the knee's peak frontal moment {peak_id:.1f} N·m; above "
+                      f"1 % of it on {fig['frames_above_1pct']} frames) keeps the compartment "
+                      "from pulling where no muscle can: ligaments the model lacks would carry it")
             )  # fmt: skip
     return out
 

@@ -241,28 +241,17 @@ def strength_summary(
     }
 
 
-def _frontal_summary(sol: MuscleTensions) -> dict[str, Any]:
-    """The frontal reserve moments of ``compartment_nonnegative`` (N·m), per compartment row:
-    peak, RMS and frames above 1 % of the knee's peak inverse-dynamics frontal moment."""
-    res = np.asarray(sol.frontal_reserve_moments, dtype=float)
-    peak_id = sol.id_frontal_moment_peak_nm or 0.0
-    out: dict[str, Any] = {"id_frontal_moment_peak_nm": peak_id}
-    for k, row in enumerate(sol.compartment_rows):
-        col = res[:, k][np.isfinite(res[:, k])]
-        out[row] = {
-            "peak_nm": float(col.max()) if col.size else None,
-            "rms_nm": float(np.sqrt(np.mean(col**2))) if col.size else None,
-            "frames_above_1pct": int((col > 0.01 * peak_id).sum()),
-        }
-    return out
-
-
 def _optimization_summary(sol: MuscleTensions, sfx: str) -> dict[str, Any]:
     from msk.status import gain_status
 
     extra = {}
     if sol.frontal_reserve_moments is not None:
-        extra["frontal_reserve"] = _frontal_summary(sol)
+        from msk.quality import frontal_reserve_figures
+
+        extra["frontal_reserve"] = {
+            "id_frontal_moment_peak_nm": sol.id_frontal_moment_peak_nm or 0.0,
+            **frontal_reserve_figures(sol),
+        }
     return extra | {
         "method": sol.method,
         "criterion": sol.criterion,
