@@ -25,7 +25,7 @@ from msk.pipeline.mass_identification import MassIdentification, identified_mode
 from msk.pipeline.model import BuiltModel
 from msk.pipeline.runner import StageUnavailable
 from msk.pipeline.strength import StrengthIdentification
-from msk.pipeline.tension import MuscleTensions, optimise
+from msk.pipeline.tension import MuscleTensions, knee_plateau, optimise
 
 __all__ = ["ContactVariant", "KneeContact", "run", "settings"]
 
@@ -109,16 +109,12 @@ def run(
     strength_identification: StrengthIdentification | None,
     measured_contact: Any,
 ) -> KneeContact:
-    from msk.contact import plateau_geometry
-
     mdl, kin = model.model, kinematics
     joint = f"knee{inputs.sfx}"
     if joint not in {j.name for j in mdl.joints}:
         raise StageUnavailable(f"model has no joint {joint!r}")
     from msk.muscles.geometry import geometry_plan
 
-    cc = inputs.cfg.contact
-    centre = None if cc.plateau_depth_m is None else (0.0, -cc.plateau_depth_m, 0.0)
     # ∂l/∂ξ of the knee recomputed block by block from the model's paths (the geometry stage
     # does not keep them for the whole trial: issue 18); the same paths and muscle order in
     # both variants (with_strength only scales F_iso)
@@ -132,10 +128,7 @@ def run(
         )
 
     def variant(m: Any) -> _VariantArrays:
-        geo = plateau_geometry(
-            m, joint=joint, intercondylar_distance_m=cc.intercondylar_distance_m, centre_m=centre
-        )
-        return _VariantArrays(m, geo, kin, loads.external, joint)
+        return _VariantArrays(m, knee_plateau(inputs, m, joint), kin, loads.external, joint)
 
     gen_forces, names = tension_optimization.forces, tension_optimization.muscles
     # frames without muscle forces get no contact force (never zero muscle force)

@@ -30,7 +30,7 @@ from msk.pipeline.mass_identification import MassIdentification, identified_mode
 from msk.pipeline.model import BuiltModel
 from msk.pipeline.runner import StageUnavailable
 
-__all__ = ["MuscleTensions", "needs", "optimise", "run", "settings"]
+__all__ = ["MuscleTensions", "compartments", "knee_plateau", "needs", "optimise", "run", "settings"]
 
 
 @dataclass(frozen=True)
@@ -181,18 +181,26 @@ def compartments(
     the knee contact stage splits them (:func:`msk.contact.plateau_geometry`)."""
     if not inputs.cfg.optimization.compartment_nonnegative:
         return None
-    from msk.contact import plateau_geometry
     from msk.muscles.geometry import geometry_plan
 
     joint = f"knee{inputs.sfx}"
     if joint not in {j.name for j in model.joints}:
         raise StageUnavailable(f"compartment_nonnegative: model has no joint {joint!r}")
+    return _Compartments(joint, knee_plateau(inputs, model, joint), geometry_plan(model),
+                         kinematics, external)  # fmt: skip
+
+
+def knee_plateau(inputs: SessionInputs, model: Any, joint: str) -> Any:
+    """The two contact points of ``joint`` as the configuration's ``[contact]`` places them
+    (:func:`msk.contact.plateau_geometry`): the same for the compartment rows and the knee
+    contact stage's split."""
+    from msk.contact import plateau_geometry
+
     cc = inputs.cfg.contact
     centre = None if cc.plateau_depth_m is None else (0.0, -cc.plateau_depth_m, 0.0)
-    geo = plateau_geometry(
+    return plateau_geometry(
         model, joint=joint, intercondylar_distance_m=cc.intercondylar_distance_m, centre_m=centre
     )
-    return _Compartments(joint, geo, geometry_plan(model), kinematics, external)
 
 
 def optimise(
@@ -322,7 +330,7 @@ def optimise(
             "coordinate_names": cn,
             "time": time[fr],
         }
-        if comp is not None and meth != "closed_form":
+        if comp is not None:  # never with closed_form (comp is built for the QP methods)
             rows, peak = comp.rows(model, fr, tuple(params.names))
             common["inequalities"] = rows
             id_peak = max(id_peak, peak)
