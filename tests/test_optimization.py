@@ -953,7 +953,7 @@ def test_inequality_rows_join_the_subproblem_of_their_muscles(monkeypatch, crite
     split = run()
     assert len(seen) == 1
     # 4 + 3 torque rows (pelvis left out), then the two inequality rows: with the second leg
-    (r1, c1), (r2, c2) = seen[0]
+    (r1, _), (r2, c2) = seen[0]
     assert list(r1) == [0, 1, 2, 3] and list(r2) == [4, 5, 6, 7, 8]
     nv = m + (n - 2) + 2
     assert set(c2) >= {nv - 2, nv - 1} and set(c2) >= set(range(m1, m))
