@@ -917,8 +917,9 @@ class _Reduction:
 
     ``expand`` puts the dropped reserves' controls (``values`` ``(N, d)``) into the reduced
     solution, giving the ``x`` of the whole QP (muscles, then every reserve in coordinate
-    order, then the reserves of inequality rows, which ``kept`` lists last); ``full(k)`` is the whole QP of frame ``k``, for its KKT figures and for a frame that
-    is not optimal (solved whole, so that its bounded least-squares point is unchanged)."""
+    order, then the reserves of inequality rows, which ``kept`` lists last); ``full(k)`` is
+    the whole QP of frame ``k``, for its KKT figures and for a frame that is not optimal
+    (solved whole, so that its bounded least-squares point is unchanged)."""
 
     kept: NDArray[np.intp]
     dropped: NDArray[np.intp]
