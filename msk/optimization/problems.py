@@ -137,6 +137,14 @@ class TensionInequalities:
     def n_rows(self) -> int:
         return int(np.asarray(self.offset).shape[1])
 
+    def take(self, frames: slice | NDArray[np.intp]) -> TensionInequalities:
+        """The rows of ``frames`` only (a slice gives views, no copy): for a batch solved in
+        several calls on consecutive frames."""
+        return TensionInequalities(
+            np.asarray(self.offset)[frames], np.asarray(self.gain)[frames], self.names,
+            self.reserve_optimal,
+        )  # fmt: skip
+
     def check(self, n_frames: int, m: int) -> None:
         """Typed error unless the rows cover ``n_frames`` frames of ``m`` muscles."""
         g = np.asarray(self.gain)

@@ -16,10 +16,15 @@ import itertools
 import numpy as np
 from numpy.typing import NDArray
 
-__all__ = ["FRAME_BLOCK", "frame_blocks"]
+__all__ = ["FRAME_BLOCK", "SOLVE_BLOCK", "frame_blocks", "solve_parts"]
 
 #: frames per block (a block of gait2392's 92 muscles × 23 coordinates: ~100 MB of temporaries)
 FRAME_BLOCK = 4096
+
+#: frames per QP solve call inside a block, where the frames' QPs are solved one after the
+#: other and only the warm start joins them (:func:`solve_parts`): the block's dense Jacobian
+#: and the solver's (frames, muscles) arrays are this many frames' (issue 18, eighth pass)
+SOLVE_BLOCK = 1024
 
 
 def frame_blocks(frames: int | NDArray[np.intp]) -> list[NDArray[np.intp]]:
@@ -30,3 +35,9 @@ def frame_blocks(frames: int | NDArray[np.intp]) -> list[NDArray[np.intp]]:
     k = max(1, -(-n // FRAME_BLOCK))
     bounds = [c * n // k for c in range(k + 1)]
     return [idx[a:b] for a, b in itertools.pairwise(bounds)]
+
+
+def solve_parts(n: int) -> list[slice]:
+    """Positions ``0 … n−1`` of a block's frames in consecutive slices of at most
+    :data:`SOLVE_BLOCK` (one slice, possibly empty, for ≤ SOLVE_BLOCK)."""
+    return [slice(a, min(a + SOLVE_BLOCK, n)) for a in range(0, n, SOLVE_BLOCK)] or [slice(0, 0)]

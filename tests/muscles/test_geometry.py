@@ -293,6 +293,34 @@ def test_batch_result_shapes_names_velocities_and_moment_arm_sign():
         geo.muscle_index("nope")
 
 
+@pytest.mark.parametrize("four_bar", [False, True])
+def test_compact_jacobian_equals_the_dense_one_bit_for_bit(four_bar):
+    """``compact=True`` (issue 18: no dense (N, muscles, coordinates) array) gives, at
+    :meth:`GeometryPlan.jacobian_positions`, the dense Jacobian's entries bit for bit, zeros
+    elsewhere, and the same lengths, velocities and distal wrenches; on wrapped paths (the
+    frames iterate together) and on a plan without wraps (evaluated in frame chunks)."""
+    from msk.timeseries import FrameSparse
+
+    model = leg_with_muscles(four_bar=four_bar)
+    static = model.with_muscles([m for m in muscles_for_leg() if not m.wraps])
+    for mdl in (model, static):
+        th = random_poses(mdl, 40, seed=11)
+        thd = np.random.default_rng(2).normal(size=th.shape)
+        dense = muscle_geometry(mdl, th, thd, distal_wrench_joints=("knee",))
+        comp = muscle_geometry(mdl, th, thd, distal_wrench_joints=("knee",), compact=True)
+        assert isinstance(comp.jacobian, FrameSparse) and not isinstance(
+            dense.jacobian, FrameSparse
+        )
+        pos = geometry_plan(mdl).jacobian_positions()
+        np.testing.assert_array_equal(comp.jacobian.positions, pos)
+        assert comp.jacobian.values.shape == (40, pos.size)
+        assert pos.size < dense.jacobian[0].size  # some entries are structurally zero
+        np.testing.assert_array_equal(comp.jacobian[:], dense.jacobian)
+        np.testing.assert_array_equal(comp.lengths, dense.lengths)
+        np.testing.assert_array_equal(comp.velocities, dense.velocities)
+        np.testing.assert_array_equal(comp.distal_wrenches["knee"], dense.distal_wrenches["knee"])
+
+
 def test_tau_equals_minus_jacobian_transpose_force_against_pinocchio_rnea():
     """τ = −J_lᵀ f (seed 002 Eq. 7): the tension f of a straight muscle applied as two opposite
     point forces on its bodies gives, through Pinocchio's RNEA (no gravity, at rest), the same
