@@ -1826,17 +1826,34 @@ _PLANS: weakref.WeakKeyDictionary[Model, GeometryPlan] = weakref.WeakKeyDictiona
 FRAME_BLOCK = 2048
 
 
+def _compact_columns(
+    jacobian: FrameSparse, cols: NDArray[np.intp]
+) -> tuple[NDArray[np.intp], NDArray[np.intp], NDArray[np.intp]]:
+    """Of a compact Jacobian's positions: those in coordinate ``cols`` (indices into its
+    values), their muscles and their places in ``cols``."""
+    mus, coord = np.divmod(jacobian.positions, jacobian.trailing[1])
+    place = np.full(jacobian.trailing[1], -1, dtype=np.intp)
+    place[cols] = np.arange(cols.size)
+    keep = np.flatnonzero(place[coord] >= 0)
+    return keep, mus[keep], place[coord[keep]]
+
+
 def finite_frames(
     jacobian: Array | FrameSparse, columns: Sequence[int] | NDArray[np.intp]
 ) -> NDArray[np.bool_]:
     """(N,) frames whose Jacobian ``(N, M, n)`` is finite in the coordinate ``columns``,
-    block by block (no (N, M, len(columns)) temporary)."""
+    block by block (no (N, M, len(columns)) temporary; a compact one's stored entries in
+    those columns only: the others are 0)."""
     cols = np.asarray(columns, dtype=np.intp)
     n = jacobian.shape[0]
     out = np.empty(n, dtype=bool)
+    keep = _compact_columns(jacobian, cols)[0] if isinstance(jacobian, FrameSparse) else None
     for c0 in range(0, n, FRAME_BLOCK):
-        blk = jacobian[c0 : c0 + FRAME_BLOCK][:, :, cols]
-        out[c0 : c0 + FRAME_BLOCK] = np.isfinite(blk).all(axis=(1, 2))
+        sl = slice(c0, c0 + FRAME_BLOCK)
+        if isinstance(jacobian, FrameSparse) and keep is not None:
+            out[sl] = np.isfinite(np.asarray(jacobian.values[sl])[:, keep]).all(axis=1)
+        else:
+            out[sl] = np.isfinite(jacobian[sl][:, :, cols]).all(axis=(1, 2))
     return out
 
 
@@ -1846,12 +1863,20 @@ def jacobian_frames(
     columns: Sequence[int] | NDArray[np.intp] | None = None,
 ) -> Array:
     """``jacobian[frames][:, :, columns]`` (the same values) gathered block by block, without
-    the intermediate full-width copy of ``jacobian[frames]``. The result has numpy's memory
-    layout of that expression (coordinate-major: the arithmetic downstream, whose summation
-    order follows the strides, gives the same bits)."""
+    the intermediate full-width copy of ``jacobian[frames]`` (of a compact Jacobian, its
+    stored entries in ``columns`` put in place: no dense block of every coordinate). The
+    result has numpy's memory layout of that expression (coordinate-major: the arithmetic
+    downstream, whose summation order follows the strides, gives the same bits)."""
     idx = np.flatnonzero(frames) if np.asarray(frames).dtype == bool else np.asarray(frames)
     cols = np.arange(jacobian.shape[2]) if columns is None else np.asarray(columns, np.intp)
     out = np.empty((cols.size, idx.size, jacobian.shape[1])).transpose(1, 2, 0)
+    if isinstance(jacobian, FrameSparse):
+        keep, mus, place = _compact_columns(jacobian, cols)
+        for c0 in range(0, idx.size, FRAME_BLOCK):
+            sl = slice(c0, c0 + FRAME_BLOCK)
+            out[sl] = 0.0
+            out[sl, mus, place] = np.asarray(jacobian.values[idx[sl]])[:, keep]
+        return out
     for c0 in range(0, idx.size, FRAME_BLOCK):
         out[c0 : c0 + FRAME_BLOCK] = jacobian[idx[c0 : c0 + FRAME_BLOCK]][:, :, cols]
     return out

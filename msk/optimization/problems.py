@@ -1241,18 +1241,6 @@ def _run_batch(
     _, m, n = jac.shape
     assert reduction is None or power is None
     whole = reduction is None
-    forces = np.empty((n_frames, m))
-    acts = np.empty((n_frames, m)) if activations else None
-    rc = np.zeros((n_frames, n))
-    rt = np.zeros((n_frames, n))
-    kk = np.full((n_frames, 4), np.nan)
-    xs = np.empty((n_frames, m))  # muscle unknowns and their bounds, for the active sets
-    lbs = np.empty((n_frames, m))
-    ubs = np.empty((n_frames, m))
-    status = np.zeros(n_frames, dtype=np.int8)
-    iters = np.zeros(n_frames, dtype=np.int64)
-    times = np.zeros(n_frames)
-    ineq: FloatArray | None = None
     if (
         isinstance(build, _BatchQP)
         and build.blocks is not None
@@ -1265,6 +1253,19 @@ def _run_batch(
             activations=activations, muscle_names=muscle_names,
             coordinate_names=coordinate_names, time=time, reduction=reduction, carry=carry,
         )  # fmt: skip
+    # the frame-by-frame outputs (not allocated for the sub-problem path above)
+    forces = np.empty((n_frames, m))
+    acts = np.empty((n_frames, m)) if activations else None
+    rc = np.zeros((n_frames, n))
+    rt = np.zeros((n_frames, n))
+    kk = np.full((n_frames, 4), np.nan)
+    xs = np.empty((n_frames, m))  # muscle unknowns and their bounds, for the active sets
+    lbs = np.empty((n_frames, m))
+    ubs = np.empty((n_frames, m))
+    status = np.zeros(n_frames, dtype=np.int8)
+    iters = np.zeros(n_frames, dtype=np.int64)
+    times = np.zeros(n_frames)
+    ineq: FloatArray | None = None
     warm = None
     if warm_start:
         warm = carry.state if carry is not None and carry.started else new_warm(solver)

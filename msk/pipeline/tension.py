@@ -312,6 +312,8 @@ def optimise(
             params.names, weights, reserves, cn,
         )  # fmt: skip
         del fa, fp
+        if gain_fit is not None:  # the fit's last a-step (its frames' solution) is not read
+            gain_fit = dataclasses.replace(gain_fit, solution=None)
     gains = (
         None if gain_fit is None else dict(zip(gain_fit.group_names, map(float, gain_fit.gains)))
     )
