@@ -7,6 +7,11 @@ whole: memory is bounded by the block, not the trial. A trial of at most ``FRAME
 frames (every shipped session) is one block, computed exactly as without blocks; on longer
 ones the warm-started solvers carry their warm start from one block to the next, so results do
 not depend on the block size beyond round-off.
+
+Inside a block, the tension QPs with the knee compartment rows (whole per frame, solved one
+frame after the other) are solved in parts of :data:`SOLVE_BLOCK` frames, the warm start
+carried: bit for bit the block's one call (``tests/test_long_trials.py``), while the block's
+geometry passes (whose wrapped paths iterate the block's frames together) stay per block.
 """
 
 from __future__ import annotations
