@@ -8,7 +8,9 @@ which it cannot run (``not available`` otherwise), ``reads`` the optional ones (
 summary). Adding a stage = one module with ``run`` (and ``settings`` when options enter its
 cache key) + one line below. ``measured_contact`` (unrecorded, right after ``read``) hands the
 measured knee contact force on, so that no stage after the EMG stage reads ``read``: with
-``keep`` (:func:`run_graph`) the trial's analog-rate arrays are released there::
+``keep`` (:func:`run_graph`) the trial's analog-rate arrays are released there, and parts of
+``read`` are dropped earlier, after their last reader (:data:`TRIMS`: the markers after the
+model stage, the plates after the loads stage)::
 
     read ─ model ─ kinematics ─ loads ─┬─ mass_identification ─ inverse_dynamics ─┐
                                        ├─ emg ──────────────────────────────────────┤
@@ -19,6 +21,8 @@ measured knee contact force on, so that no stage after the EMG stage reads ``rea
 
 from __future__ import annotations
 
+import ctypes
+import functools
 import inspect
 from collections.abc import Callable, Collection, Mapping
 from dataclasses import dataclass
@@ -46,7 +50,16 @@ from msk.pipeline import (
 from msk.pipeline.inputs import SessionInputs
 from msk.pipeline.runner import Runner
 
-__all__ = ["CORE_STAGES", "GRAPH", "STAGES", "Node", "last_readers", "run_graph"]
+__all__ = [
+    "CORE_STAGES",
+    "GRAPH",
+    "STAGES",
+    "TRIMS",
+    "Node",
+    "last_readers",
+    "return_freed_memory",
+    "run_graph",
+]
 
 #: why a gait node does not run in a session without a task trial
 NO_GAIT = "no gait trial (role 'task') in the configuration"
@@ -119,6 +132,16 @@ GRAPH: tuple[Node, ...] = (
          gait=False),
 )  # fmt: skip
 
+#: (after node, result, trim): once ``after`` has run, ``result`` is replaced by ``trim`` of it —
+#: the part no later node reads dropped (:func:`run_graph` with ``keep``): the task's markers
+#: are read by the model stage alone (later stages read the model's own copy in the model
+#: frame), the plates by the loads stage alone (the mass identification reads the assignment,
+#: the EMG stage the analog channels). Issue 18: a long trial's read result is ~4.9 kB/frame.
+TRIMS: tuple[tuple[str, str, Callable[[Any], Any]], ...] = (
+    ("model", "read", read.without_markers),
+    ("loads", "read", read.without_plates),
+)
+
 #: Every recorded stage, in order (``summary.json`` ``stages``, progress lines).
 STAGES: tuple[str, ...] = tuple(n.name for n in GRAPH if n.recorded)
 #: Stages without which there are no results: their errors end the run.
@@ -156,19 +179,41 @@ def last_readers(graph: tuple[Node, ...]) -> dict[str, int]:
     return last
 
 
+@functools.cache
+def _malloc_trim() -> Callable[[int], int] | None:
+    try:
+        return ctypes.CDLL(None).malloc_trim
+    except (OSError, AttributeError):  # not glibc (macOS, Windows, musl): nothing to do
+        return None
+
+
+def return_freed_memory() -> None:
+    """Give the memory of released results back to the system: glibc's ``malloc_trim(0)``
+    (frees the unused pages of every malloc arena, not only the top of the heap; a no-op where
+    the C library has none). numpy arrays under glibc's mmap threshold (128 kB, raised up to
+    32 MiB by every large array freed) live on the heap, and their pages stay resident after
+    ``del`` until trimmed (issue 18)."""
+    fn = _malloc_trim()
+    if fn is not None:
+        fn(0)
+
+
 def run_graph(
     inputs: SessionInputs,
     runner: Runner,
     graph: tuple[Node, ...] = GRAPH,
     *,
     keep: Collection[str] | None = None,
+    trims: tuple[tuple[str, str, Callable[[Any], Any]], ...] = TRIMS,
 ) -> dict[str, Any]:
     """Run every node in order; node name → its result (None when not requested, not
     available or failed).
 
     ``keep``: the nodes whose results the caller wants back; every other result is released
-    as soon as the last node reading it has run (:func:`last_readers`), so that a long trial's
-    arrays are not all held to the end of the run (issue 18). ``None`` keeps every result."""
+    as soon as the last node reading it has run (:func:`last_readers`), and ``trims`` (default
+    :data:`TRIMS`) drop the parts of a result no later node reads, so that a long trial's
+    arrays are not all held to the end of the run (issue 18). ``None`` keeps every result
+    whole."""
     results: dict[str, Any] = {}
     last = last_readers(graph) if keep is not None else {}
     for i, node in enumerate(graph):
@@ -176,6 +221,12 @@ def run_graph(
             # results read by no later node (and not kept) are dropped before the next one runs
             for name in [n for n in results if n not in keep and last.get(n, -1) < i]:
                 del results[name]
+            # and the parts of a result that no node after the previous one reads
+            done = graph[i - 1].name if i else None
+            for after, name, trim in trims:
+                if after == done and name not in keep and results.get(name) is not None:
+                    results[name] = trim(results[name])
+            return_freed_memory()
         results[node.name] = None
         reason = NO_GAIT if node.gait and not inputs.gait else None
         if reason is None and node.requested is not None:
