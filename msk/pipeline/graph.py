@@ -21,8 +21,6 @@ model stage, the plates after the loads stage)::
 
 from __future__ import annotations
 
-import ctypes
-import functools
 import inspect
 from collections.abc import Callable, Collection, Mapping
 from dataclasses import dataclass
@@ -50,16 +48,7 @@ from msk.pipeline import (
 from msk.pipeline.inputs import SessionInputs
 from msk.pipeline.runner import Runner
 
-__all__ = [
-    "CORE_STAGES",
-    "GRAPH",
-    "STAGES",
-    "TRIMS",
-    "Node",
-    "last_readers",
-    "return_freed_memory",
-    "run_graph",
-]
+__all__ = ["CORE_STAGES", "GRAPH", "STAGES", "TRIMS", "Node", "last_readers", "run_graph"]
 
 #: why a gait node does not run in a session without a task trial
 NO_GAIT = "no gait trial (role 'task') in the configuration"
@@ -179,25 +168,6 @@ def last_readers(graph: tuple[Node, ...]) -> dict[str, int]:
     return last
 
 
-@functools.cache
-def _malloc_trim() -> Callable[[int], int] | None:
-    try:
-        return ctypes.CDLL(None).malloc_trim
-    except (OSError, AttributeError):  # not glibc (macOS, Windows, musl): nothing to do
-        return None
-
-
-def return_freed_memory() -> None:
-    """Give the memory of released results back to the system: glibc's ``malloc_trim(0)``
-    (frees the unused pages of every malloc arena, not only the top of the heap; a no-op where
-    the C library has none). numpy arrays under glibc's mmap threshold (128 kB, raised up to
-    32 MiB by every large array freed) live on the heap, and their pages stay resident after
-    ``del`` until trimmed (issue 18)."""
-    fn = _malloc_trim()
-    if fn is not None:
-        fn(0)
-
-
 def run_graph(
     inputs: SessionInputs,
     runner: Runner,
@@ -226,7 +196,6 @@ def run_graph(
             for after, name, trim in trims:
                 if after == done and name not in keep and results.get(name) is not None:
                     results[name] = trim(results[name])
-            return_freed_memory()
         results[node.name] = None
         reason = NO_GAIT if node.gait and not inputs.gait else None
         if reason is None and node.requested is not None:
