@@ -1024,12 +1024,20 @@ def test_read_trims_drop_markers_and_plates_only() -> None:
     the plates and share everything else; the model stage holds its own markers (model frame,
     not the read result's array), so that dropping them from ``read`` frees them."""
     from msk.config import load_config
+    from msk.pipeline import model as model_stage
     from msk.pipeline import read as read_stage
     from msk.pipeline import run_stages
     from msk.pipeline.graph import GRAPH, TRIMS
 
     names = [n.name for n in GRAPH]
-    assert [(a, r) for a, r, _ in TRIMS] == [("model", "read"), ("loads", "read")]
+    assert [(a, r) for a, r, _ in TRIMS] == [
+        ("model", "read"),
+        ("loads", "read"),
+        ("swapped_markers", "model"),
+    ]
+    # the model's markers: read by the kinematics stage and the step swapped_markers only
+    # (the summary takes that step's pairs); the step runs right after the kinematics
+    assert names.index("swapped_markers") == names.index("kinematics") + 1
     # no node after the model stage but the loads, mass identification and EMG stages reads
     # ``read``, and none of them the markers (their code: loads.assign_loads takes the plates,
     # mass_identification the assignment, emg the analog channels)
@@ -1037,9 +1045,16 @@ def test_read_trims_drop_markers_and_plates_only() -> None:
     assert readers == ["measured_contact", "model", "loads", "mass_identification", "emg"]
     assert names.index("model") < names.index("loads") < names.index("emg")
     cfg = load_config(REPO / "pipelines" / "gc5_PS.toml")
-    r = run_stages(cfg, until="model")
+    r = run_stages(cfg, until="swapped_markers")
     built, read = r["model"], r["read"]
     assert not np.shares_memory(built.trial.markers, read.trial.markers)
+    assert not np.shares_memory(r["kinematics"].q, built.trial.markers)
+    assert r["swapped_markers"] == ()  # gc5_PS: no swapped pair
+    slim = model_stage.without_markers(built)
+    assert slim.trial.markers.shape == (built.trial.time.size, 0, 3)
+    assert slim.trial.marker_labels == built.trial.marker_labels
+    assert slim.trial.gaps is built.trial.gaps and slim.trial.events is built.trial.events
+    assert slim.model is built.model and slim.labels == built.labels
     light = read_stage.without_plates(read_stage.without_markers(read))
     assert light.plates == () and light.trial.markers.shape == (read.trial.time.size, 0, 3)
     assert light.trial.marker_labels == () and light.trial.analogs is read.trial.analogs

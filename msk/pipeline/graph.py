@@ -10,11 +10,13 @@ cache key) + one line below. ``measured_contact`` (unrecorded, right after ``rea
 measured knee contact force on, so that no stage after the EMG stage reads ``read``: with
 ``keep`` (:func:`run_graph`) the trial's analog-rate arrays are released there, and parts of
 ``read`` are dropped earlier, after their last reader (:data:`TRIMS`: the markers after the
-model stage, the plates after the loads stage)::
+model stage, the plates after the loads stage; the model's own markers after the step
+``swapped_markers``, which takes the summary's swapped-label pairs right after the kinematics)::
 
-    read ─ model ─ kinematics ─ loads ─┬─ mass_identification ─ inverse_dynamics ─┐
-                                       ├─ emg ──────────────────────────────────────┤
-                                       └─ muscle_geometry ─ tension_optimization ───┤
+    read ─ model ─ kinematics ─ swapped_markers* ─ loads ─┬─ mass_identification ─┐
+      ┌──────────────────────────────────────────────────────┘   inverse_dynamics ──┤
+      ├─ emg ───────────────────────────────────────────────────────────────────────┤
+      └─ muscle_geometry ─ tension_optimization ────────────────────────────────────┤
          strength_identification (emg, geometry, torques) ─ knee_contact ─ gait_cycle*
          ─ comparison ─ fes ─ tables* ─ summary* ─ report          (* unrecorded)
 """
@@ -91,6 +93,7 @@ GRAPH: tuple[Node, ...] = (
     Node("measured_contact", read.measured_contact, ("read",), recorded=False),
     Node("model", model.run, ("read",), settings=model.settings, core=True),
     Node("kinematics", kinematics.run, ("model",), settings=kinematics.settings, core=True),
+    Node("swapped_markers", summary.swapped_markers, ("model", "kinematics"), recorded=False),
     Node("loads", loads.run, ("read", "model", "kinematics"), settings=loads.settings, core=True),
     Node("mass_identification", mass_identification.run, ("read", *_ALL),
          settings=mass_identification.settings),
@@ -115,7 +118,8 @@ GRAPH: tuple[Node, ...] = (
          recorded=False, gait=False),
     Node("summary", summary.run, (),
          (*_ALL, "mass_identification", "inverse_dynamics", "emg",
-          "tension_optimization", "strength_identification", "gait_cycle", "comparison", "fes"),
+          "tension_optimization", "strength_identification", "gait_cycle", "comparison", "fes",
+          "swapped_markers"),
          recorded=False, gait=False),
     Node("report", report.run, ("tables", "summary"), settings=report.settings, core=True,
          gait=False),
@@ -125,10 +129,14 @@ GRAPH: tuple[Node, ...] = (
 #: the part no later node reads dropped (:func:`run_graph` with ``keep``): the task's markers
 #: are read by the model stage alone (later stages read the model's own copy in the model
 #: frame), the plates by the loads stage alone (the mass identification reads the assignment,
-#: the EMG stage the analog channels). Issue 18: a long trial's read result is ~4.9 kB/frame.
+#: the EMG stage the analog channels); the model's own model-frame markers by the kinematics
+#: stage and the step ``swapped_markers`` alone (the summary reads that step's pairs, the
+#: marker labels and gaps). Issue 18: a long trial's read result is ~4.9 kB/frame, its
+#: model-frame markers 1.2 kB/frame more.
 TRIMS: tuple[tuple[str, str, Callable[[Any], Any]], ...] = (
     ("model", "read", read.without_markers),
     ("loads", "read", read.without_plates),
+    ("swapped_markers", "model", model.without_markers),
 )
 
 #: Every recorded stage, in order (``summary.json`` ``stages``, progress lines).
