@@ -59,7 +59,9 @@ class BuiltModel:
     coordinate task (``held``: name → (value rad, weight)) and the lab's up (``lab_up``, the
     read trial's). The analogs and plates stay with :class:`~msk.pipeline.read.ReadResult`
     (the loads and EMG stages read them there): a long trial holds them once, and releases
-    them when no later stage reads ``read`` (:func:`msk.pipeline.graph.run_graph`)."""
+    them when no later stage reads ``read`` (:func:`msk.pipeline.graph.run_graph`); in a
+    session run the markers of ``trial`` are dropped after the kinematics and the step
+    ``swapped_markers`` (:func:`without_markers`)."""
 
     model: Any
     info: Mapping[str, Any]
