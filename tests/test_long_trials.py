@@ -977,3 +977,86 @@ def test_loads_stage_in_point_blocks_equals_one_pass(monkeypatch: pytest.MonkeyP
     for f in ("force", "moment", "point"):
         np.testing.assert_array_equal(getattr(many.external, f), getattr(one.external, f))
     assert one.measured.any() and not one.measured.all()
+
+
+def test_run_graph_trims_a_result_after_the_node_named() -> None:
+    """With ``keep``, a trim replaces a result once its ``after`` node has run: the nodes
+    before see it whole, those after the trimmed one; without ``keep``, nothing is trimmed."""
+    from types import SimpleNamespace
+
+    from msk.pipeline.graph import Node, run_graph
+    from msk.pipeline.runner import Runner
+
+    seen: dict[str, tuple[str, ...]] = {}
+
+    def source(inputs: object) -> tuple[str, ...]:
+        return ("a", "b")
+
+    def first(inputs: object, source: tuple[str, ...]) -> str:
+        seen["first"] = source
+        return "first"
+
+    def second(inputs: object, source: tuple[str, ...], first: str) -> str:
+        seen["second"] = source
+        return "second"
+
+    graph = (
+        Node("source", source),
+        Node("first", first, ("source",)),
+        Node("second", second, ("source", "first")),
+    )
+    trims = (("first", "source", lambda s: s[:1]),)
+    names = tuple(n.name for n in graph)
+    inputs = SimpleNamespace(gait=True)
+
+    def runner() -> Runner:
+        return Runner(None, None, stages=names, core=frozenset())
+
+    out = run_graph(inputs, runner(), graph, keep=("second",), trims=trims)  # type: ignore[arg-type]
+    assert out == {"second": "second"}
+    assert seen == {"first": ("a", "b"), "second": ("a",)}
+    run_graph(inputs, runner(), graph, trims=trims)  # type: ignore[arg-type]
+    assert seen == {"first": ("a", "b"), "second": ("a", "b")}
+
+
+def test_read_trims_drop_markers_and_plates_only() -> None:
+    """``without_markers`` / ``without_plates`` (the graph's TRIMS) drop the task's markers and
+    the plates and share everything else; the model stage holds its own markers (model frame,
+    not the read result's array), so that dropping them from ``read`` frees them."""
+    from msk.config import load_config
+    from msk.pipeline import model as model_stage
+    from msk.pipeline import read as read_stage
+    from msk.pipeline import run_stages
+    from msk.pipeline.graph import GRAPH, TRIMS
+
+    names = [n.name for n in GRAPH]
+    assert [(a, r) for a, r, _ in TRIMS] == [
+        ("model", "read"),
+        ("loads", "read"),
+        ("swapped_markers", "model"),
+    ]
+    # the model's markers: read by the kinematics stage and the step swapped_markers only
+    # (the summary takes that step's pairs); the step runs right after the kinematics
+    assert names.index("swapped_markers") == names.index("kinematics") + 1
+    # no node after the model stage but the loads, mass identification and EMG stages reads
+    # ``read``, and none of them the markers (their code: loads.assign_loads takes the plates,
+    # mass_identification the assignment, emg the analog channels)
+    readers = [n.name for n in GRAPH if "read" in n.reads_results]
+    assert readers == ["measured_contact", "model", "loads", "mass_identification", "emg"]
+    assert names.index("model") < names.index("loads") < names.index("emg")
+    cfg = load_config(REPO / "pipelines" / "gc5_PS.toml")
+    r = run_stages(cfg, until="swapped_markers")
+    built, read = r["model"], r["read"]
+    assert not np.shares_memory(built.trial.markers, read.trial.markers)
+    assert not np.shares_memory(r["kinematics"].q, built.trial.markers)
+    assert r["swapped_markers"] == ()  # gc5_PS: no swapped pair
+    slim = model_stage.without_markers(built)
+    assert slim.trial.markers.shape == (built.trial.time.size, 0, 3)
+    assert slim.trial.marker_labels == built.trial.marker_labels
+    assert slim.trial.gaps is built.trial.gaps and slim.trial.events is built.trial.events
+    assert slim.model is built.model and slim.labels == built.labels
+    light = read_stage.without_plates(read_stage.without_markers(read))
+    assert light.plates == () and light.trial.markers.shape == (read.trial.time.size, 0, 3)
+    assert light.trial.marker_labels == () and light.trial.analogs is read.trial.analogs
+    assert light.trial.analog_time is read.trial.analog_time and light.contact is read.contact
+    assert light.assignment == read.assignment and read.plates and read.trial.marker_labels

@@ -8,11 +8,15 @@ which it cannot run (``not available`` otherwise), ``reads`` the optional ones (
 summary). Adding a stage = one module with ``run`` (and ``settings`` when options enter its
 cache key) + one line below. ``measured_contact`` (unrecorded, right after ``read``) hands the
 measured knee contact force on, so that no stage after the EMG stage reads ``read``: with
-``keep`` (:func:`run_graph`) the trial's analog-rate arrays are released there::
+``keep`` (:func:`run_graph`) the trial's analog-rate arrays are released there, and parts of
+``read`` are dropped earlier, after their last reader (:data:`TRIMS`: the markers after the
+model stage, the plates after the loads stage; the model's own markers after the step
+``swapped_markers``, which takes the summary's swapped-label pairs right after the kinematics)::
 
-    read ─ model ─ kinematics ─ loads ─┬─ mass_identification ─ inverse_dynamics ─┐
-                                       ├─ emg ──────────────────────────────────────┤
-                                       └─ muscle_geometry ─ tension_optimization ───┤
+    read ─ model ─ kinematics ─ swapped_markers* ─ loads ─┬─ mass_identification ─┐
+      ┌──────────────────────────────────────────────────────┘   inverse_dynamics ──┤
+      ├─ emg ───────────────────────────────────────────────────────────────────────┤
+      └─ muscle_geometry ─ tension_optimization ────────────────────────────────────┤
          strength_identification (emg, geometry, torques) ─ knee_contact ─ gait_cycle*
          ─ comparison ─ fes ─ tables* ─ summary* ─ report          (* unrecorded)
 """
@@ -46,7 +50,7 @@ from msk.pipeline import (
 from msk.pipeline.inputs import SessionInputs
 from msk.pipeline.runner import Runner
 
-__all__ = ["CORE_STAGES", "GRAPH", "STAGES", "Node", "last_readers", "run_graph"]
+__all__ = ["CORE_STAGES", "GRAPH", "STAGES", "TRIMS", "Node", "last_readers", "run_graph"]
 
 #: why a gait node does not run in a session without a task trial
 NO_GAIT = "no gait trial (role 'task') in the configuration"
@@ -89,6 +93,7 @@ GRAPH: tuple[Node, ...] = (
     Node("measured_contact", read.measured_contact, ("read",), recorded=False),
     Node("model", model.run, ("read",), settings=model.settings, core=True),
     Node("kinematics", kinematics.run, ("model",), settings=kinematics.settings, core=True),
+    Node("swapped_markers", summary.swapped_markers, ("model", "kinematics"), recorded=False),
     Node("loads", loads.run, ("read", "model", "kinematics"), settings=loads.settings, core=True),
     Node("mass_identification", mass_identification.run, ("read", *_ALL),
          settings=mass_identification.settings),
@@ -113,11 +118,26 @@ GRAPH: tuple[Node, ...] = (
          recorded=False, gait=False),
     Node("summary", summary.run, (),
          (*_ALL, "mass_identification", "inverse_dynamics", "emg",
-          "tension_optimization", "strength_identification", "gait_cycle", "comparison", "fes"),
+          "tension_optimization", "strength_identification", "gait_cycle", "comparison", "fes",
+          "swapped_markers"),
          recorded=False, gait=False),
     Node("report", report.run, ("tables", "summary"), settings=report.settings, core=True,
          gait=False),
 )  # fmt: skip
+
+#: (after node, result, trim): once ``after`` has run, ``result`` is replaced by ``trim`` of it —
+#: the part no later node reads dropped (:func:`run_graph` with ``keep``): the task's markers
+#: are read by the model stage alone (later stages read the model's own copy in the model
+#: frame), the plates by the loads stage alone (the mass identification reads the assignment,
+#: the EMG stage the analog channels); the model's own model-frame markers by the kinematics
+#: stage and the step ``swapped_markers`` alone (the summary reads that step's pairs, the
+#: marker labels and gaps). Issue 18: a long trial's read result is ~4.9 kB/frame, its
+#: model-frame markers 1.2 kB/frame more.
+TRIMS: tuple[tuple[str, str, Callable[[Any], Any]], ...] = (
+    ("model", "read", read.without_markers),
+    ("loads", "read", read.without_plates),
+    ("swapped_markers", "model", model.without_markers),
+)
 
 #: Every recorded stage, in order (``summary.json`` ``stages``, progress lines).
 STAGES: tuple[str, ...] = tuple(n.name for n in GRAPH if n.recorded)
@@ -162,13 +182,16 @@ def run_graph(
     graph: tuple[Node, ...] = GRAPH,
     *,
     keep: Collection[str] | None = None,
+    trims: tuple[tuple[str, str, Callable[[Any], Any]], ...] = TRIMS,
 ) -> dict[str, Any]:
     """Run every node in order; node name → its result (None when not requested, not
     available or failed).
 
     ``keep``: the nodes whose results the caller wants back; every other result is released
-    as soon as the last node reading it has run (:func:`last_readers`), so that a long trial's
-    arrays are not all held to the end of the run (issue 18). ``None`` keeps every result."""
+    as soon as the last node reading it has run (:func:`last_readers`), and ``trims`` (default
+    :data:`TRIMS`) drop the parts of a result no later node reads, so that a long trial's
+    arrays are not all held to the end of the run (issue 18). ``None`` keeps every result
+    whole."""
     results: dict[str, Any] = {}
     last = last_readers(graph) if keep is not None else {}
     for i, node in enumerate(graph):
@@ -176,6 +199,11 @@ def run_graph(
             # results read by no later node (and not kept) are dropped before the next one runs
             for name in [n for n in results if n not in keep and last.get(n, -1) < i]:
                 del results[name]
+            # and the parts of a result that no node after the previous one reads
+            done = graph[i - 1].name if i else None
+            for after, name, trim in trims:
+                if after == done and name not in keep and results.get(name) is not None:
+                    results[name] = trim(results[name])
         results[node.name] = None
         reason = NO_GAIT if node.gait and not inputs.gait else None
         if reason is None and node.requested is not None:

@@ -36,6 +36,7 @@ __all__ = [
     "model_frame_columns",
     "run",
     "settings",
+    "without_markers",
 ]
 
 #: shortest task (s) whose frames seeing a marker pair can show it rigid for the static-label
@@ -58,7 +59,9 @@ class BuiltModel:
     coordinate task (``held``: name → (value rad, weight)) and the lab's up (``lab_up``, the
     read trial's). The analogs and plates stay with :class:`~msk.pipeline.read.ReadResult`
     (the loads and EMG stages read them there): a long trial holds them once, and releases
-    them when no later stage reads ``read`` (:func:`msk.pipeline.graph.run_graph`)."""
+    them when no later stage reads ``read`` (:func:`msk.pipeline.graph.run_graph`); in a
+    session run the markers of ``trial`` are dropped after the kinematics and the step
+    ``swapped_markers`` (:func:`without_markers`)."""
 
     model: Any
     info: Mapping[str, Any]
@@ -629,6 +632,17 @@ def _placement_rms(info: Mapping[str, Any]) -> float:
     mp = dict(info.get("marker_placement", {}))
     v = mp.get("static_marker_rms_m", mp.get("ik_marker_rms_m"))
     return float("nan") if v is None else float(v)
+
+
+def without_markers(model: BuiltModel) -> BuiltModel:
+    """``model`` without the task's model-frame markers (``trial.markers`` a ``(N, 0, 3)``
+    array; the labels, gaps, events, time and metadata kept): the kinematics stage and the
+    step ``swapped_markers`` are the last to read them, and
+    :func:`msk.pipeline.graph.run_graph` drops them after that step (a long trial's markers,
+    1.2 kB/frame with 51 markers, are not held through the tail; issue 18)."""
+    trial = model.trial
+    empty = np.zeros((int(np.shape(trial.markers)[0]), 0, 3))
+    return dataclasses.replace(model, trial=dataclasses.replace(trial, markers=empty))
 
 
 def run(inputs: SessionInputs, read: ReadResult) -> BuiltModel:

@@ -26,6 +26,8 @@ __all__ = [
     "read_task",
     "run",
     "settings",
+    "without_markers",
+    "without_plates",
 ]
 
 
@@ -94,6 +96,27 @@ def for_session(inputs: SessionInputs, read: ReadResult) -> ReadResult:
         model_outputs=ModelOutputs((), (), (), np.zeros((trial.time.size, 0, 3))),
     )
     return ReadResult(light, tuple(plates), read.assignment, read.contact)
+
+
+def without_markers(read: ReadResult) -> ReadResult:
+    """``read`` without the task's markers (a ``(N, 0, 3)`` array, no labels): the model stage
+    is the last to read them (its :class:`~msk.pipeline.model.BuiltModel` holds them in the
+    model frame); :func:`msk.pipeline.graph.run_graph` drops them from ``read`` after it, so
+    that a long trial's markers are not held twice through the loads and EMG stages (issue 18).
+    Time, rates, analogs and the plates are shared, not copied."""
+    trial = read.trial
+    n = int(np.shape(trial.markers)[0])
+    empty = np.zeros((n, 0, 3))
+    light = dataclasses.replace(trial, markers=empty, marker_labels=())
+    return dataclasses.replace(read, trial=light)
+
+
+def without_plates(read: ReadResult) -> ReadResult:
+    """``read`` without its plates (``plates=()``): the loads stage is the last to read them;
+    :func:`msk.pipeline.graph.run_graph` drops them after it (their analog-rate force, COP and
+    free moment are the largest part of a long trial's read result; issue 18). The assignment,
+    the measured contact and the trial (its EMG channels) are kept."""
+    return dataclasses.replace(read, plates=())
 
 
 def read_task(inputs: SessionInputs) -> ReadResult:

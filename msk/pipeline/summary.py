@@ -33,6 +33,7 @@ __all__ = [
     "peak_measured_force_n",
     "run",
     "strength_summary",
+    "swapped_markers",
 ]
 
 #: Scaling measurements (model marker pairs → bodies), used where both markers exist in the
@@ -270,12 +271,26 @@ def _optimization_summary(sol: MuscleTensions, sfx: str) -> dict[str, Any]:
     }
 
 
+def swapped_markers(
+    inputs: SessionInputs, model: BuiltModel, kinematics: Any
+) -> tuple[tuple[str, str, float], ...]:
+    """Step ``swapped_markers`` (not a recorded stage): the left/right marker pairs of the task
+    whose labels look swapped (:func:`msk.quality.swapped_sides` of the model-frame markers and
+    the solved poses), for the summary's flags — taken right after the kinematics stage, the
+    last stage to read the task's markers, so that a long trial's markers are dropped there
+    (:data:`msk.pipeline.graph.TRIMS`; issue 18)."""
+    from msk.quality import swapped_sides
+
+    return tuple(swapped_sides(model.model, kinematics, model.trial.markers, model.labels))
+
+
 def _flags(
     inputs: SessionInputs,
     quality: Mapping[str, Any],
     model: BuiltModel,
     kin: Any,
     loads: Loads,
+    swapped_pairs: Sequence[tuple[str, str, float]],
     jt: Any,
     sol: MuscleTensions | None,
     plate_mass: float | None,
@@ -288,7 +303,6 @@ def _flags(
         com_height,
         contact_flags,
         gait_flags,
-        swapped_sides,
     )
 
     cfg, task, mdl = inputs.cfg, inputs.task, model.model
@@ -308,7 +322,7 @@ def _flags(
         )
     ]  # fmt: skip
     flags += [f.as_dict() for f in contact_flags(task.name, ext)]
-    for r, lft, dz in swapped_sides(mdl, kin, model.trial.markers, model.labels):
+    for r, lft, dz in swapped_pairs:
         flags.append(
             {"trial": task.name, "quantity": f"{r}/{lft}_swapped", "value": dz,
              "threshold": -SWAP_MIN_SEPARATION_M,
@@ -378,6 +392,7 @@ def run(
     gait_cycle: GaitCycle | None,
     comparison: Mapping[str, Any] | None,
     fes: FesResult | None,
+    swapped_markers: Sequence[tuple[str, str, float]] | None,
 ) -> dict[str, Any]:
     """``summary.json`` without the stage records; a pure FES session has the base summary,
     no angle columns, an empty quality block and the ``fes`` section."""
@@ -397,7 +412,8 @@ def run(
     )  # fmt: skip
     plate_mass = body_mass_from_loads(mdl, kin, loads.external, loads.measured_observed)
     quality["plate_mass_kg"] = plate_mass
-    quality["flags"] = _flags(inputs, quality, model, kin, loads, jt, sol, plate_mass)
+    pairs = () if swapped_markers is None else swapped_markers
+    quality["flags"] = _flags(inputs, quality, model, kin, loads, pairs, jt, sol, plate_mass)
     quality["thresholds"] = dict(THRESHOLDS)
     quality["held_coordinates"] = sorted(model.held)
     ev = gait_cycle.events
