@@ -53,6 +53,8 @@ from collections.abc import Mapping, Sequence
 from dataclasses import asdict, dataclass
 from typing import Any
 
+import warnings
+
 import numpy as np
 import pinocchio as pin
 from numpy.typing import ArrayLike, NDArray
@@ -206,12 +208,16 @@ def inconsistent_static_markers(
     min_frames: int = 10,
     threshold_m: float = THRESHOLDS["static_marker_discrepancy_m"],
     skip: Sequence[str] = (),
+    still_m: float = 0.01,
 ) -> dict[str, float]:
     """Static-trial markers whose labels the motion trial contradicts.
 
     Two markers on one segment keep their distance through a motion (skin motion aside):
     d_ab(t) = ‖x_a(t) − x_b(t)‖ with a standard deviation below ``rigid_sd_m`` over the
-    motion's frames (``min_frames`` frames seeing both) makes (a, b) a *rigid pair*. A
+    motion's frames (``min_frames`` frames seeing both) makes (a, b) a *rigid pair* — unless
+    both stay still (position SD < ``still_m`` on every axis): markers of two still segments
+    keep their distance too (the two feet of a squat, the lab's axis markers), so a pair of
+    still markers says nothing of one segment. A
     static label names the same marker as the motion's when the static distance (median over
     its frames) matches the motion's median, e_ab = |d̄_ab^static − d̄_ab^motion|. A marker
     with at least ``min_partners`` rigid partners whose median discrepancy med_b e_ab exceeds
@@ -236,8 +242,14 @@ def inconsistent_static_markers(
     jm = {lab: i for i, lab in reversed(list(enumerate(motion_labels)))}
     common = [lab for lab in js if lab in jm and lab not in set(skip)]
     err: dict[str, list[float]] = {lab: [] for lab in common}
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", RuntimeWarning)
+        spread = {lab: float(np.nan_to_num(np.nanstd(xm[:, jm[lab]], axis=0)).max())
+                  for lab in common}  # fmt: skip
     for k, a in enumerate(common):
         for b in common[k + 1 :]:
+            if spread[a] < still_m and spread[b] < still_m:
+                continue  # two still markers keep any distance (both feet in a squat, lab axes)
             dm = np.linalg.norm(xm[:, jm[a]] - xm[:, jm[b]], axis=1)
             dm = dm[np.isfinite(dm)]
             if dm.size < min_frames or float(np.std(dm)) > rigid_sd_m:

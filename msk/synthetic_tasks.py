@@ -24,8 +24,8 @@ horizontal offset and the free moment shared, so that the feet's wrenches add up
 total (the same construction as :func:`~msk.synthetic_trials.split_wrench`, with each foot on its
 own surface height). :func:`true_torques` are RNEA's joint torques with those foot wrenches.
 :func:`write_lab_c3d` writes the trial in a lab's format — the template C3D's marker labels
-(the model's markers by forward kinematics + Gaussian noise; labels the model lacks rigid on the
-torso or fixed, as in the template), its plates' channel labels and type, its other analog
+(the model's markers by forward kinematics + Gaussian noise; labels the model lacks fixed
+where the template has them still — lab axes — else gaps), its plates' channel labels and type, its other analog
 channels (EMG: white noise modulated by the joint torques a channel's muscles produce, plus the
 template's offsets; the rest noise) — with the plates where the task puts them (a stair's plate
 corners at its step's height).
@@ -257,7 +257,7 @@ def squat_motion(
     rate_hz: float = 120.0,
 ) -> TaskMotion:
     """A two-leg squat: ``reps`` repetitions (each down and up in ``rep_s``, a raised-cosine
-    depth profile) between ``still_s`` of quiet standing, the feet at ±``stance_half_width_m``
+    depth profile, 90–100 % deep, with a small asymmetric sway of pelvis and trunk) between ``still_s`` of quiet standing, the feet at ±``stance_half_width_m``
     from the mid-line, still and flat; the pelvis goes down by d, back by 0.15 d and tilts
     forward by 45° × d / 0.4 m (the trunk 35° more by the lumbar joint), d found (bisection) so that the deepest knee flexion is
     ``knee_flexion_deg``; the legs solved to the feet."""
@@ -276,8 +276,25 @@ def squat_motion(
     }
     ik = names.index("knee_angle_r")
 
-    def pose(depth: float, sk: float, start: Array) -> tuple[Array, float]:
+    # a person's squat is neither perfectly symmetric nor repeatable: the pelvis sways
+    # (list ±2°, rotation ±3°, side ±1.5 cm, lumbar bending ±2°) at incommensurate rates and
+    # each repetition reaches 90–100 % of the deepest one
+    sway = {
+        "pelvis_list": np.deg2rad(2.0) * np.sin(2 * np.pi * 0.23 * t + 0.4),
+        "pelvis_rotation": np.deg2rad(3.0) * np.sin(2 * np.pi * 0.31 * t + 1.1),
+        "pelvis_tz": 0.015 * np.sin(2 * np.pi * 0.17 * t + 2.0),
+        "lumbar_bending": np.deg2rad(2.0) * np.sin(2 * np.pi * 0.41 * t + 0.7),
+    }
+    rep_scale = 1.0 - 0.1 * np.abs(np.sin(1.7 * np.arange(reps) + 0.3))
+    rep_scale[0] = 1.0
+    s = s * rep_scale[np.clip((tr // rep_s).astype(int), 0, reps - 1)]
+
+    def pose(depth: float, sk: float, start: Array, k: int | None = None) -> tuple[Array, float]:
         th = start.copy()
+        if k is not None:
+            for c, x in sway.items():
+                if c in names:
+                    th[names.index(c)] = th0[names.index(c)] + x[k]
         # 2 cm lower when standing: knees slightly bent, off the singular straight leg
         th[names.index("pelvis_ty")] = th0[names.index("pelvis_ty")] - 0.005 - depth * sk
         th[names.index("pelvis_tx")] = th0[names.index("pelvis_tx")] - 0.15 * depth * sk
@@ -301,7 +318,7 @@ def squat_motion(
     prev = _flexed(model, th0)
     err = 0.0
     for k in range(t.size):
-        prev, e = pose(depth, float(s[k]), prev)
+        prev, e = pose(depth, float(s[k]), prev, k)
         th[k] = prev
         err = max(err, e)
     footholds = [
@@ -326,15 +343,15 @@ def stair_motion(
     step k's tread spans x ∈ [(k − 1) tread, k tread] at height k × riser): both feet start on the
     floor at x = −0.25 m; the right foot steps onto step 1, the left onto step 2, and so on, each
     swing ``swing_s``, each double support ``double_s``, ``still_s`` standing at both ends. The
-    footholds are named ``floor``, ``step1`` … (the surfaces a lab instruments or not)."""
+    footholds are named ``floor_r``/``floor_l`` (each foot's place on the floor), ``step1`` … (the surfaces a lab instruments or not)."""
     th0, h_stand, place = _standing(model)
     names = list(model.coordinate_names)
     half_w = {f: float(place[f].translation[2]) for f in FEET}
     x_start = -0.25
     # footholds: (foot, x, height, surface) in order of landing, each foot alternating
     order: list[tuple[str, float, float, str]] = [
-        ("calcn_r", x_start, 0.0, "floor"),
-        ("calcn_l", x_start, 0.0, "floor"),
+        ("calcn_r", x_start, 0.0, "floor_r"),
+        ("calcn_l", x_start, 0.0, "floor_l"),
     ]
     for k in range(1, steps + 1):
         foot = FEET[(k - 1) % 2]
@@ -661,18 +678,6 @@ def _emg(
     return (0.02 + env_a) * rng.normal(0.0, 0.3, n)
 
 
-def _triad(p: Array) -> tuple[Array, Array]:
-    """(K, 3, 3) orthonormal frames (columns) and (K, 3) origins of three points per frame
-    (K, 3, 3): origin the first, x towards the second, z normal to the three."""
-    o = p[:, 0]
-    x = p[:, 1] - o
-    x /= np.linalg.norm(x, axis=1, keepdims=True)
-    z = np.cross(x, p[:, 2] - o)
-    z /= np.linalg.norm(z, axis=1, keepdims=True)
-    y = np.cross(z, x)
-    return np.stack([x, y, z], axis=2), o
-
-
 def write_lab_c3d(
     path: str | Path,
     motion: TaskMotion,
@@ -715,17 +720,14 @@ def write_lab_c3d(
     n = motion.time.size
     mk = marker_positions(model, motion.q)  # (N, M, 3) model frame
     lab_of = {rename.get(m.name, m.name): i for i, m in enumerate(model.markers)}
-    # the template's other labels: fixed (lab axes) at their template median, or moving with the
-    # torso (arms, head): rigid in the frame of three of the model's torso markers, at their
-    # template median offset in that frame
+    # the template's other labels: fixed ones (lab axes) at their template median; moving ones
+    # the model does not carry (arms, head) left as gaps (a lab that does not track them)
     tpts = np.asarray(tmpl["data"]["points"][:3], dtype=float).transpose(2, 1, 0) / scale
     tpts[(tpts == 0).all(axis=2)] = np.nan
     out = np.full((n, len(labels), 3), np.nan)
     for j, lab in enumerate(labels):
         if lab in lab_of:
             out[:, j] = mk[:, lab_of[lab]] @ rot.T + org
-    torso = [lab for lab, i in lab_of.items() if model.markers[i].body == "torso" and lab in labels]
-    tri = [labels.index(lab) for lab in torso[:3]]
     for j, lab in enumerate(labels):
         if lab in lab_of:
             continue
@@ -733,14 +735,10 @@ def write_lab_c3d(
         good = np.isfinite(tp).all(axis=1)
         if not good.any():
             continue
-        if np.nanstd(tp[good], axis=0).max() < 0.005 or len(tri) < 3:
+        if np.nanstd(tp[good], axis=0).max() < 0.005:
             out[:, j] = np.median(tp[good], axis=0)
             continue
-        ok = good & np.isfinite(tpts[:, tri]).all(axis=(1, 2))
-        f_t, o_t = _triad(tpts[ok][:, tri])
-        local = np.median(np.einsum("kji,kj->ki", f_t, tp[ok] - o_t), axis=0)
-        f_s, o_s = _triad(out[:, tri])
-        out[:, j] = o_s + np.einsum("kij,j->ki", f_s, local)
+        # a moving label the model does not carry (arms, head): not tracked (a gap)
     out = out + rng.normal(0.0, noise_m, out.shape)
     na = n * ratio
     analogs = np.zeros((na, len(a_labels)))
@@ -790,3 +788,123 @@ def write_lab_c3d(
         analog_ratio=ratio,
         plates=specs,
     )
+
+
+@dataclass(frozen=True)
+class LabTask:
+    """A task trial written in a session's lab format with its truth: the C3D ``path``, the
+    ``motion`` (θ at the marker rate), the true generalised forces ``tau`` (N, n) there, and
+    ``unmeasured`` (N,) the frames in which a foot stands on a surface no plate measures."""
+
+    path: Path
+    motion: TaskMotion
+    reactions: FootReactions
+    tau: Array
+    unmeasured: NDArray[np.bool_]
+
+
+def _tread(x0: float, x1: float, z0: float, z1: float, h: float) -> Array:
+    """Corners of a horizontal plate (model frame) over x ∈ [x0, x1], z ∈ [z0, z1] at height h,
+    ordered so that its z axis points down (as the Grand Challenge and most labs' plates)."""
+    return np.array([[x1, h, z1], [x0, h, z1], [x0, h, z0], [x1, h, z0]], dtype=float)
+
+
+def lab_task(
+    config: str | Path,
+    kind: str,
+    path: str | Path,
+    *,
+    seed: int = 0,
+    noise_m: float = 0.0015,
+    step_height_m: float = 0.17,
+    steps: int = 4,
+    reps: int = 4,
+    knee_flexion_deg: float = 95.0,
+) -> LabTask:
+    """A ``kind`` ("squat" or "stair") trial of the session ``config``'s subject in its lab's
+    format: the model its ``msk run`` builds (scaled, markers placed from its static), its task
+    C3D as the template (labels, rates, plate and analog channels), written to ``path``.
+
+    Squat: each foot on its own plate — the feet straddle the boundary between the template's
+    two nearest plates (±15 cm of their centres' midpoint along the line joining them; the
+    subject faces across it). Stair: the template's first plate on the floor under the left
+    foot's start, the next ones in steps 1 and 2 (corners at the step's height, tread-sized),
+    the other steps uninstrumented; the flight along the lab's first horizontal axis."""
+    import ezc3d
+
+    from msk.pipeline import run_stages
+
+    built = run_stages(Path(config), until="model")["model"]
+    model = built.model
+    from msk.config import load_config
+
+    cfg = load_config(config)
+    template = cfg.trials_with_role("task")[0].file
+    tmpl = ezc3d.c3d(str(template))
+    prm = tmpl["parameters"]
+    scale = {"mm": 1000.0, "m": 1.0, "cm": 100.0}[str(prm["POINT"]["UNITS"]["value"][0])]
+    a_labels = [str(s) for s in prm["ANALOG"]["LABELS"]["value"]]
+    chan = np.asarray(prm["FORCE_PLATFORM"]["CHANNEL"]["value"], dtype=int)
+    corners_t = np.asarray(prm["FORCE_PLATFORM"]["CORNERS"]["value"], dtype=float) / scale
+    n_pl = chan.shape[1]
+    channels = [tuple(a_labels[c - 1] for c in chan[:6, k]) for k in range(n_pl)]
+    up = np.asarray(built.lab_up, dtype=float)
+    up = up / np.linalg.norm(up)
+    rate = float(prm["POINT"]["RATE"]["value"][0])
+    a_rate = float(prm["ANALOG"]["RATE"]["value"][0])
+    if kind == "squat":
+        motion = squat_motion(model, reps=reps, knee_flexion_deg=knee_flexion_deg, rate_hz=rate)
+        cen = corners_t.mean(axis=1).T  # (P, 3) lab
+        pairs = [(i, j) for i in range(n_pl) for j in range(i + 1, n_pl)]
+        i, j = min(pairs, key=lambda p: float(np.linalg.norm(cen[p[0]] - cen[p[1]])))
+        right_lab = cen[i] - cen[j]
+        right_lab -= (right_lab @ up) * up
+        right_lab /= np.linalg.norm(right_lab)
+        fwd_lab = np.cross(up, right_lab)
+        rot = np.column_stack([fwd_lab, up, right_lab])  # lab = rot @ model
+        feet = _foot_points(model, motion.q[:1])[0]
+        mid = 0.5 * (cen[i] + cen[j])
+        mid -= (mid @ up) * up
+        org = mid - rot @ np.array([feet[:, 0].mean(), 0.0, 0.0])
+        org += float(np.mean(corners_t[:, :, i].T @ up)) * up
+        floor = float(np.mean(corners_t[:, :, i].T @ up))
+        plates_m = []
+        for k, surf in ((i, "plate_r"), (j, "plate_l")):
+            c_model = (corners_t[:, :, k].T - org) @ rot  # model = rotᵀ (lab − o)
+            plates_m.append(LabPlate(surf, c_model, channels[k]))
+        del floor
+    elif kind == "stair":
+        motion = stair_motion(model, steps=steps, step_height_m=step_height_m, rate_hz=rate)
+        horiz = [np.eye(3)[a] for a in range(3) if abs(np.eye(3)[a] @ up) < 0.5]
+        fwd_lab = horiz[0]
+        right_lab = np.cross(fwd_lab, up)
+        rot = np.column_stack([fwd_lab, up, right_lab])
+        org = np.zeros(3)
+        _, _, place = _standing(model)
+        fl = _foot_points(model, motion.q[:1])[0, 1]
+        fl_x = float(fl[0])
+        fl_z = float(place["calcn_l"].translation[2])
+        tread = 0.28
+        plates_m = [
+            LabPlate("floor_l", _tread(fl_x - 0.25, fl_x + 0.25, fl_z - 0.25, fl_z + 0.1, 0.0),
+                     channels[0]),
+        ]  # fmt: skip
+        for k in range(1, min(n_pl, 3)):
+            h = k * step_height_m
+            plates_m.append(LabPlate(f"step{k}", _tread((k - 1) * tread, k * tread, -0.25, 0.25,
+                                                        h), channels[k]))  # fmt: skip
+    else:
+        raise ValueError(f"kind {kind!r}: 'squat' or 'stair'")
+    reactions = task_reactions(motion, a_rate)
+    tau = true_torques(motion, reactions, motion.time)
+    out = write_lab_c3d(
+        path, motion, reactions, template=template, rename=built.rename, lab_from_model=rot,
+        lab_origin_m=org, plates=plates_m, noise_m=noise_m, seed=seed, tau=tau,
+        side=cfg.subject.side[0] if cfg.subject.side else "r",
+    )  # fmt: skip
+    measured = {p.surface for p in plates_m}
+    unmeasured = np.zeros(motion.time.size, dtype=bool)
+    for fh in motion.footholds:
+        if fh.surface not in measured:
+            unmeasured |= (motion.time >= fh.t_on) & (motion.time <= fh.t_off)
+    return LabTask(out, motion, reactions, tau, unmeasured)
