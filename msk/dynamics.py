@@ -548,12 +548,17 @@ def without_unmeasured_contact(
     tau = np.array(torques.tau, dtype=float, copy=True)
     miss = np.asarray(unmeasured, dtype=bool)
     if miss.shape != (tau.shape[0], len(feet)):
-        raise ShapeMismatchError(f"unmeasured {miss.shape} for {tau.shape[0]} frames × {len(feet)} feet")
+        raise ShapeMismatchError(
+            f"unmeasured {miss.shape} for {tau.shape[0]} frames × {len(feet)} feet"
+        )
     names = list(torques.coordinate_names)
     for k, foot in enumerate(feet):
         if not miss[:, k].any():
             continue
-        cols = [names.index(c) for c in coordinates_carrying(model, foot)
-                if c in names and c not in torques.root_coordinates]  # fmt: skip
+        carry = coordinates_carrying(model, foot)
+        cols = np.array(
+            [names.index(c) for c in carry if c in names and c not in torques.root_coordinates],
+            dtype=int,
+        )
         tau[np.ix_(miss[:, k], cols)] = np.nan
     return dataclasses.replace(torques, tau=tau)

@@ -1167,9 +1167,7 @@ def foot_contact(
     return FootContact(feet, grounded, unmeasured, known)
 
 
-def _support_shortfall(
-    model: Model, t: Array, q: Array, loads: ExternalLoads, up: Array
-) -> Array:
+def _support_shortfall(model: Model, t: Array, q: Array, loads: ExternalLoads, up: Array) -> Array:
     """(N,) m (g + a_G)·up − Σ F_ext·up (N): the vertical force the body's motion needs beyond
     what the loads supply (NaN where the pose or its derivatives are unknown)."""
     from msk.signal import derivative

@@ -49,11 +49,10 @@ Thresholds and their sources (:data:`THRESHOLDS`):
 
 from __future__ import annotations
 
+import warnings
 from collections.abc import Mapping, Sequence
 from dataclasses import asdict, dataclass
 from typing import Any
-
-import warnings
 
 import numpy as np
 import pinocchio as pin
@@ -94,6 +93,9 @@ THRESHOLDS: Mapping[str, float] = {
     "still_trial_coordinate_std_deg": 2.0,
     "unobserved_segment_frames_pct": 5.0,
     "observed_measured_frames_min_pct": 50.0,
+    # a foot on an unmeasured surface inside the measured span (stair steps without plates, a
+    # foot off a plate mid-task): more than this share of the span's frames lose that leg's torques
+    "unmeasured_contact_inside_pct": 5.0,
     "saturated_frames_pct": 25.0,
     "reserve_rms_pct_peak_torque": 10.0,
     "frontal_reserve_pct_peak_moment": 10.0,
@@ -722,7 +724,7 @@ def gait_flags(
                   f"no frame of the {quality['frames']} in which the plates measure every foot's "
                   "ground contact (no plate loaded, a foot off the plates, or contact at the "
                   "trial's edges only): no residuals, plate mass, muscle forces or knee contact "
-                  "for this trial — its joint torques assume no ground reaction")
+                  "for this trial, and no joint torque of a leg whose foot stands unmeasured")
         )  # fmt: skip
     pct = 100.0 * n_obs / n_meas if n_meas and n_obs is not None else 100.0
     if pct < th["observed_measured_frames_min_pct"]:
@@ -733,6 +735,19 @@ def gait_flags(
                   f"({pct:.0f} %) have every leg segment observed by its markers "
                   "(msk.observation): the residuals, the plate mass and the identifications "
                   "rest on those few")
+        )  # fmt: skip
+    ui = quality.get("unmeasured_contact_inside_pct")
+    if ui is not None and ui > th["unmeasured_contact_inside_pct"]:
+        span = quality.get("unmeasured_contact_inside_s") or [float("nan")] * 2
+        feet = quality.get("unmeasured_contact_frames_by_foot") or {}
+        out.append(
+            _flag(trial_name, "unmeasured_contact_inside_pct", float(ui),
+                  th["unmeasured_contact_inside_pct"],
+                  f"a foot stands on a surface no plate measures in {ui:.0f} % of the frames "
+                  f"between the first and last measured one ({span[0]:.2f}–{span[1]:.2f} s; "
+                  + ", ".join(f"{f} {n}" for f, n in feet.items() if n) + " frames in the "
+                  "trial): that leg's joint torques are not written there, and no residual, "
+                  "muscle force or knee contact comes from those frames")
         )  # fmt: skip
     rf = quality.get("residual_force_rms_pct_bw")
     if rf is not None and np.isfinite(rf) and rf > th["residual_force_rms_pct_bw"]:

@@ -25,10 +25,10 @@ total (the same construction as :func:`~msk.synthetic_trials.split_wrench`, with
 own surface height). :func:`true_torques` are RNEA's joint torques with those foot wrenches.
 :func:`write_lab_c3d` writes the trial in a lab's format — the template C3D's marker labels
 (the model's markers by forward kinematics + Gaussian noise; labels the model lacks fixed
-where the template has them still — lab axes — else gaps), its plates' channel labels and type, its other analog
-channels (EMG: white noise modulated by the joint torques a channel's muscles produce, plus the
-template's offsets; the rest noise) — with the plates where the task puts them (a stair's plate
-corners at its step's height).
+where the template has them still — lab axes — else gaps), its plates' channel labels and type,
+its other analog channels (EMG: white noise modulated by the joint torques a channel's
+muscles produce, plus the template's offsets; the rest noise) — with the plates where the task
+puts them (a stair's plate corners at its step's height).
 """
 
 from __future__ import annotations
@@ -50,8 +50,8 @@ Array = NDArray[np.float64]
 
 __all__ = [
     "FEET",
-    "Foothold",
     "FootReactions",
+    "Foothold",
     "TaskMotion",
     "squat_motion",
     "stair_motion",
@@ -157,7 +157,9 @@ def _solve_legs(
         idx = [names.index(c) for c in _LEGS[foot]]
         fid = model.body_frame[foot]
 
-        def resid(x: Array, idx: list[int] = idx, fid: int = fid, target: pin.SE3 = target) -> Array:
+        def resid(
+            x: Array, idx: list[int] = idx, fid: int = fid, target: pin.SE3 = target
+        ) -> Array:
             th[idx] = x
             pin.framesForwardKinematics(model.pin_model, data, model.coupling.q(th))
             return np.asarray(pin.log6(target.actInv(data.oMf[fid])).vector)
@@ -257,9 +259,10 @@ def squat_motion(
     rate_hz: float = 120.0,
 ) -> TaskMotion:
     """A two-leg squat: ``reps`` repetitions (each down and up in ``rep_s``, a raised-cosine
-    depth profile, 90–100 % deep, with a small asymmetric sway of pelvis and trunk) between ``still_s`` of quiet standing, the feet at ±``stance_half_width_m``
-    from the mid-line, still and flat; the pelvis goes down by d, back by 0.15 d and tilts
-    forward by 45° × d / 0.4 m (the trunk 35° more by the lumbar joint), d found (bisection) so that the deepest knee flexion is
+    depth profile, 90–100 % deep, with a small asymmetric sway of pelvis and trunk) between
+    ``still_s`` of quiet standing, the feet at ±``stance_half_width_m`` from the mid-line, still
+    and flat; the pelvis goes down by d, back by 0.15 d and tilts forward by 45° × d / 0.4 m (the
+    trunk 35° more by the lumbar joint), d found (bisection) so that the deepest knee flexion is
     ``knee_flexion_deg``; the legs solved to the feet."""
     th0, _, place = _standing(model)
     names = list(model.coordinate_names)
@@ -298,9 +301,9 @@ def squat_motion(
         # 2 cm lower when standing: knees slightly bent, off the singular straight leg
         th[names.index("pelvis_ty")] = th0[names.index("pelvis_ty")] - 0.005 - depth * sk
         th[names.index("pelvis_tx")] = th0[names.index("pelvis_tx")] - 0.15 * depth * sk
-        th[names.index("pelvis_tilt")] = th0[names.index("pelvis_tilt")] - np.deg2rad(
-            45.0 * depth / 0.4
-        ) * sk
+        th[names.index("pelvis_tilt")] = (
+            th0[names.index("pelvis_tilt")] - np.deg2rad(45.0 * depth / 0.4) * sk
+        )
         if "lumbar_extension" in names:
             th[names.index("lumbar_extension")] = -np.deg2rad(35.0) * sk
         return _solve_legs(model, th, targets)
@@ -343,7 +346,8 @@ def stair_motion(
     step k's tread spans x ∈ [(k − 1) tread, k tread] at height k × riser): both feet start on the
     floor at x = −0.25 m; the right foot steps onto step 1, the left onto step 2, and so on, each
     swing ``swing_s``, each double support ``double_s``, ``still_s`` standing at both ends. The
-    footholds are named ``floor_r``/``floor_l`` (each foot's place on the floor), ``step1`` … (the surfaces a lab instruments or not)."""
+    footholds are named ``floor_r``/``floor_l`` (each foot's place on the floor), ``step1`` …
+    (the surfaces a lab instruments or not)."""
     th0, h_stand, place = _standing(model)
     names = list(model.coordinate_names)
     half_w = {f: float(place[f].translation[2]) for f in FEET}
@@ -407,7 +411,7 @@ def stair_motion(
     # lower foot to the next lower one (minimum jerk)
     support = np.zeros(ts.size)
     level = 0.0
-    for g, a, b, (_, ha), (_, hb) in swings:
+    for g, a, b, _, (_, hb) in swings:
         other = [fh for fh in holds if fh.foot != g and fh.t_on <= a <= fh.t_off]
         new = min(hb, other[0].height_m) if other else hb
         new_level = min(new, other[0].height_m) if other else new
@@ -425,9 +429,7 @@ def stair_motion(
     on_l = np.array([any(fh.foot == "calcn_l" and fh.t_on <= tt <= fh.t_off for fh in holds)
                      for tt in ts])  # fmt: skip
     sway = np.where(on_r & ~on_l, 1.0, np.where(on_l & ~on_r, -1.0, 0.0)) * 0.025
-    sway = filtfilt_butter(np.pad(sway, pad, mode="edge"), rate_hz=rate_hz, cutoff_hz=1.5)[
-        pad:-pad
-    ]
+    sway = filtfilt_butter(np.pad(sway, pad, mode="edge"), rate_hz=rate_hz, cutoff_hz=1.5)[pad:-pad]
     ix, iy, iz = (names.index(c) for c in ("pelvis_tx", "pelvis_ty", "pelvis_tz"))
     itilt = names.index("pelvis_tilt")
     ia = [names.index(c) for c in ("ankle_angle_r", "ankle_angle_l")]
@@ -547,7 +549,7 @@ def task_reactions(motion: TaskMotion, rate_hz: float) -> FootReactions:
     # minimum-jerk transfer from the trailing to the leading foot (stair), or the COP's
     # projection between the feet clipped to [0.15, 0.85] (squat)
     alpha = np.where(on[:, 0], 1.0, 0.0)
-    both = on.all(axis=1)
+    both: NDArray[np.bool_] = np.asarray(on.all(axis=1), dtype=bool)
     if motion.kind == "squat":
         fy = force[:, 1]
         c = np.column_stack([moment[:, 2] / fy, np.zeros_like(fy), -moment[:, 0] / fy])

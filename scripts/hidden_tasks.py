@@ -50,7 +50,7 @@ def compare(task: Any, cfg: Path) -> dict[str, Any]:
     from msk.pipeline import run_stages
 
     res = run_stages(cfg, until="inverse_dynamics")
-    kin, jt, loads = res["kinematics"], res["inverse_dynamics"].generic, res["loads"]
+    kin, jt = res["kinematics"], res["inverse_dynamics"].generic
     names = list(task.motion.model.coordinate_names)
     true_t = task.motion.time
     out: dict[str, Any] = {"ik_deg": {}, "tau_rmse_nm": {}, "tau_peak_nm": {}}
@@ -70,15 +70,23 @@ def compare(task: Any, cfg: Path) -> dict[str, Any]:
             tau = tau_w[:, list(jt.coordinate_names).index(n)]
             tt = task.tau[idx, names.index(n)]
             ok = np.isfinite(tau)
-            out["tau_rmse_nm"][n] = float(np.sqrt(np.mean((tau[ok] - tt[ok]) ** 2))) if ok.any() else None
+            out["tau_rmse_nm"][n] = (
+                float(np.sqrt(np.mean((tau[ok] - tt[ok]) ** 2))) if ok.any() else None
+            )
             out["tau_peak_nm"][n] = float(np.abs(tt).max())
     out["frames"] = int(t.size)
-    out["written_unmeasured"] = int((~np.isfinite(tau_w[:, list(jt.coordinate_names).index("knee_angle_r")])).sum())
+    out["written_unmeasured"] = int(
+        (~np.isfinite(tau_w[:, list(jt.coordinate_names).index("knee_angle_r")])).sum()
+    )
     out["true_unmeasured"] = int(task.unmeasured[idx].sum())
-    out["knee_r_range_deg"] = (float(np.nanmin(np.rad2deg(-kin.coordinate("knee_angle_r")))),
-                               float(np.nanmax(np.rad2deg(-kin.coordinate("knee_angle_r")))))
-    out["knee_r_true_deg"] = (float(np.rad2deg(-task.motion.q[:, names.index("knee_angle_r")]).min()),
-                              float(np.rad2deg(-task.motion.q[:, names.index("knee_angle_r")]).max()))
+    out["knee_r_range_deg"] = (
+        float(np.nanmin(np.rad2deg(-kin.coordinate("knee_angle_r")))),
+        float(np.nanmax(np.rad2deg(-kin.coordinate("knee_angle_r")))),
+    )
+    out["knee_r_true_deg"] = (
+        float(np.rad2deg(-task.motion.q[:, names.index("knee_angle_r")]).min()),
+        float(np.rad2deg(-task.motion.q[:, names.index("knee_angle_r")]).max()),
+    )
     return out
 
 
@@ -107,16 +115,23 @@ def main() -> None:
                 flags = sorted({f["quantity"] for f in q.get("flags", [])})
                 print(f"## {stem} {kind}: IK {1000 * q['ik_marker_rms_mean_m']:.1f} mm, residual "
                       f"{q.get('residual_force_rms_pct_bw')}, flags {flags or '—'}")  # fmt: skip
-                print("   IK − truth (deg RMS):", {k: round(v, 2) for k, v in cmp["ik_deg"].items()})
-                print("   torque RMSE (N·m):", {k: None if v is None else round(v, 2)
-                                                 for k, v in cmp["tau_rmse_nm"].items()})  # fmt: skip
-                print("   true peak (N·m):", {k: round(v, 1) for k, v in cmp["tau_peak_nm"].items()})
-                print(f"   knee_r flexion solved {cmp['knee_r_range_deg']}, true {cmp['knee_r_true_deg']}")
-                print(f"   frames {cmp['frames']}, unmeasured written {cmp['written_unmeasured']}, "
-                      f"true {cmp['true_unmeasured']}")
-                print("   stages not computed:", [(x["name"], x["status"], x.get("reason", "")[:80])
-                                               for x in res.summary.get("stages", [])
-                                               if x["status"] not in ("computed", "not requested")])  # fmt: skip
+                ik = {k: round(v, 2) for k, v in cmp["ik_deg"].items()}
+                tau = {k: None if v is None else round(v, 1) for k, v in cmp["tau_rmse_nm"].items()}
+                peak = {k: round(v, 1) for k, v in cmp["tau_peak_nm"].items()}
+                print("   IK − truth (deg RMS):", ik)
+                print("   torque RMSE (N·m):", tau)
+                print("   true peak (N·m):", peak)
+                print(f"   knee_r flexion solved {cmp['knee_r_range_deg']}")
+                print(f"   knee_r flexion true {cmp['knee_r_true_deg']}")
+                print(f"   frames {cmp['frames']}, unmeasured written {cmp['written_unmeasured']}")
+                print(f"   unmeasured true {cmp['true_unmeasured']}")
+                bad = [x["name"] for x in res.summary.get("stages", [])]
+                bad = [
+                    f"{x['name']}: {x['status']}"
+                    for x in res.summary.get("stages", [])
+                    if x["status"] not in ("computed", "not requested")
+                ]
+                print("   stages not computed:", bad)
                 sys.stdout.flush()
 
 

@@ -1125,6 +1125,17 @@ def _quality_section(res: SessionResults) -> str:
             "—",
         ],
         [
+            "frames with a foot on an unmeasured surface (that leg's torques not written)",
+            f"{_e(_or(q.unmeasured_contact_frames, '—'))} "
+            f"({_num(q.unmeasured_contact_inside_pct, '.0f', '%')} of the measured span)",
+            f"≤ {TH['unmeasured_contact_inside_pct']:g} % of the span",
+            _check(
+                q.unmeasured_contact_inside_pct,
+                TH["unmeasured_contact_inside_pct"],
+                flagged=gate("unmeasured_contact_inside_pct"),
+            ),
+        ],
+        [
             "pelvis residual force (RMS)",
             f"{_num(q.residual_force_rms_n, '.1f', 'N')} ({_num(rf, '.1f', '% BW')})",
             f"≤ {TH['residual_force_rms_pct_bw']:g} % BW [5]",
