@@ -1056,6 +1056,11 @@ def contact_measured(
     return contact.known & ~contact.unmeasured.any(axis=1) & ~loads.flagged()
 
 
+#: a foot standing on a surface lasts at least this long (s): a stance on a step or beside a
+#: plate takes ≥ 0.2 s even running; the unloaded frames a heel strike's low-pass spreads ≤ 0.05 s
+STANDING_S = 0.15
+
+
 @dataclass(frozen=True)
 class FootContact:
     """Per frame and foot (``feet``): ``grounded`` (N, F) — the foot stands on the floor or a
@@ -1067,6 +1072,20 @@ class FootContact:
     grounded: NDArray[np.bool_]
     unmeasured: NDArray[np.bool_]
     known: NDArray[np.bool_]
+    time: NDArray[np.float64] | None = None
+
+    def standing(self, min_s: float = STANDING_S) -> NDArray[np.bool_]:
+        """(N, F) the unmeasured runs that last ``min_s`` or longer: a foot standing on an
+        unmeasured surface. Shorter runs are the frame or two before a heel strike that the
+        low-pass filter spreads (a foot not yet loaded: conservative for the residuals, but its
+        reaction is truly zero, so the joint torques there are right)."""
+        out = np.zeros_like(self.unmeasured)
+        t = self.time
+        for k in range(out.shape[1]):
+            for a, b in true_runs(self.unmeasured[:, k]):
+                long = (b - a) > 1 and t is not None and float(t[b - 1] - t[a]) >= min_s - 1e-9
+                out[a:b, k] = long
+        return out
 
 
 def foot_contact(
@@ -1100,7 +1119,7 @@ def foot_contact(
     feet = tuple(feet) if feet is not None else _default_feet(model)
     if n < 3 or not known.any():
         none = np.zeros((n, len(feet)), dtype=bool)
-        return FootContact(feet, none, none.copy(), known)
+        return FootContact(feet, none, none.copy(), known, t)
     g = np.asarray(model.gravity, dtype=float)
     up = -g / np.linalg.norm(g) if np.linalg.norm(g) > 0 else np.array([0.0, 1.0, 0.0])
     pts = _foot_points(model, q, feet, np.arange(n))
@@ -1164,7 +1183,7 @@ def foot_contact(
     )
     known &= speed_known.all(axis=1)
     unmeasured = grounded & ~(fv > threshold_n)
-    return FootContact(feet, grounded, unmeasured, known)
+    return FootContact(feet, grounded, unmeasured, known, t)
 
 
 def _support_shortfall(model: Model, t: Array, q: Array, loads: ExternalLoads, up: Array) -> Array:

@@ -888,7 +888,7 @@ def lab_task(
         fl_z = float(place["calcn_l"].translation[2])
         tread = 0.28
         plates_m = [
-            LabPlate("floor_l", _tread(fl_x - 0.25, fl_x + 0.25, fl_z - 0.25, fl_z + 0.1, 0.0),
+            LabPlate("floor_l", _tread(fl_x - 0.25, fl_x + 0.25, fl_z - 0.3, fl_z + 0.07, 0.0),
                      channels[0]),
         ]  # fmt: skip
         for k in range(1, min(n_pl, 3)):

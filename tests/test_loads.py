@@ -366,3 +366,31 @@ def test_recorded_force_is_kept_beside_the_low_passed_one():
     bare = dataclasses.replace(loads, force_recorded=None)
     assert peak_measured_force_n(bare, every) == pytest.approx(filtered)
     assert loads.take(half).force_recorded.shape == (int(half.sum()), 3)
+
+
+def test_foot_contact_finds_feet_on_an_unmarked_support_by_the_momentum_balance():
+    """Standing still 0.2 m up on a box no plate measures (0.3–0.6 s; plates unloaded there):
+    the feet are at no plate's or the floor's height, but the plates' vertical force is
+    m g short of m (g + z̈_G) while they stand still, so both feet are in unmeasured contact
+    inside the box's run (the kinematic jumps onto and off it aside); off the box every foot's
+    contact is measured. With the momentum test off (``shortfall_bw`` = ∞) nothing on the box
+    counts as contact (the behaviour before: torques computed without the box's reaction)."""
+    from msk.loads import contact_measured, foot_contact
+
+    t = KIN.time
+    q = np.repeat(TRIAL.q[:1], t.size, axis=0)
+    box = (t > 0.3) & (t < 0.6)
+    q[box, MODEL.coordinate_index("pelvis_ty")] += 0.2
+    still = dataclasses.replace(KIN, q=q, v=np.zeros_like(q), a=np.zeros_like(q))
+    loads = external_loads(
+        MODEL, still, tuple(_unloaded_between(p, 0.3, 0.6) for p in TRIAL.plates)
+    )
+    c = foot_contact(MODEL, still, loads)
+    inner = box & (t > 0.33) & (t < 0.57)
+    assert c.unmeasured[inner].all() and c.standing()[inner].all()
+    assert not c.unmeasured[~box].any()
+    np.testing.assert_array_equal(
+        contact_measured(MODEL, still, loads), c.known & ~c.unmeasured.any(axis=1)
+    )
+    off = foot_contact(MODEL, still, loads, shortfall_bw=np.inf)
+    assert not off.unmeasured.any()

@@ -7,8 +7,6 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Any
 
-import numpy as np
-
 from msk.pipeline.inputs import SessionInputs
 from msk.pipeline.loads import Loads
 from msk.pipeline.mass_identification import MassIdentification, identified_model
@@ -55,12 +53,12 @@ def run(
 def contact_gated_torques(model: Any, torques: Any, loads: Loads) -> Any:
     """``torques`` without the frames and legs whose ground reaction the plates miss
     (:func:`msk.dynamics.without_unmeasured_contact`): a foot standing on an unmeasured surface
-    (``loads.contact``), and every foot in a frame whose plate load went to no foot or to two
+    (``loads.contact``, runs of at least :data:`msk.loads.STANDING_S`), and every foot in a frame whose plate load went to no foot or to two
     (:meth:`msk.loads.ExternalLoads.flagged`)."""
     from msk.dynamics import without_unmeasured_contact
 
     contact = loads.contact
     if contact is None:
         return torques
-    miss = np.asarray(contact.unmeasured, dtype=bool) | loads.external.flagged()[:, None]
+    miss = contact.standing() | loads.external.flagged()[:, None]
     return without_unmeasured_contact(model, torques, miss, contact.feet)

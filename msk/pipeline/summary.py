@@ -96,7 +96,8 @@ def base_summary(inputs: SessionInputs) -> dict[str, Any]:
 
 def unmeasured_contact_figures(loads: Any, time: Any) -> dict[str, Any]:
     """``quality.unmeasured_contact_frames`` (frames in which a foot stands on a surface no plate
-    measures, :func:`msk.loads.foot_contact`; its leg's joint torques are not written there),
+    measures for at least :data:`msk.loads.STANDING_S`, :meth:`msk.loads.FootContact.standing`;
+    its leg's joint torques are not written there),
     ``unmeasured_contact_frames_by_foot`` and ``unmeasured_contact_inside_pct``: the share of
     the frames between the first and the last measured frame that have one (a walkway's steps
     before and after the plates lie outside; an unmeasured stair step or a foot off a plate in
@@ -104,7 +105,7 @@ def unmeasured_contact_figures(loads: Any, time: Any) -> dict[str, Any]:
     contact = getattr(loads, "contact", None)
     if contact is None:
         return {}
-    miss = np.asarray(contact.unmeasured, dtype=bool)
+    miss = np.asarray(contact.standing(), dtype=bool)
     anym: np.ndarray[Any, np.dtype[np.bool_]] = np.asarray(miss.any(axis=1), dtype=bool)
     meas = np.flatnonzero(np.asarray(loads.measured, dtype=bool))
     inside = None
