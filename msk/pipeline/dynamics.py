@@ -53,8 +53,8 @@ def run(
 def contact_gated_torques(model: Any, torques: Any, loads: Loads) -> Any:
     """``torques`` without the frames and legs whose ground reaction the plates miss
     (:func:`msk.dynamics.without_unmeasured_contact`): a foot standing on an unmeasured surface
-    (``loads.contact``, runs of at least :data:`msk.loads.STANDING_S`), and every foot in a frame whose plate load went to no foot or to two
-    (:meth:`msk.loads.ExternalLoads.flagged`)."""
+    (``loads.contact``, runs of at least :data:`msk.loads.STANDING_S`), and every foot in a
+    frame whose plate load went to no foot or to two (:meth:`msk.loads.ExternalLoads.flagged`)."""
     from msk.dynamics import without_unmeasured_contact
 
     contact = loads.contact
