@@ -1110,8 +1110,10 @@ def foot_contact(
     frame where the plates' vertical force falls short of m (g + z̈_G) — the whole body's
     vertical momentum balance, m the model's mass, z̈_G its centre of mass's acceleration — by
     more than ``shortfall_bw`` of the body weight, a foot whose slowest point moves slower than
-    ``speed_mps`` stands on something (it is grounded at any height). 15 % BW is three times the
-    pelvis residual force a walk's plates and markers leave (2–5 % BW, docs/validation.md)."""
+    ``speed_mps`` stands on something (it is grounded at any height; not on a treadmill, whose
+    swinging feet stop in the lab at each turn while a handrail takes the shortfall). 15 % BW is
+    three times the pelvis residual force a walk's plates and markers leave (2–5 % BW,
+    docs/validation.md)."""
     t = np.asarray(kinematics.time, dtype=float)
     q = np.asarray(kinematics.q, dtype=float)
     n = t.size
@@ -1154,7 +1156,7 @@ def foot_contact(
     short = _support_shortfall(model, t, q, loads, up) > shortfall_bw * model.total_mass * float(
         np.linalg.norm(g)
     )
-    if short.any():
+    if short.any() and not treadmill:  # on belts a shortfall is a handrail, not a foot
         with warnings.catch_warnings(), np.errstate(invalid="ignore"):
             warnings.simplefilter("ignore", RuntimeWarning)
             for k, x in enumerate(vel):

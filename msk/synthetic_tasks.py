@@ -796,13 +796,15 @@ def write_lab_c3d(
 class LabTask:
     """A task trial written in a session's lab format with its truth: the C3D ``path``, the
     ``motion`` (θ at the marker rate), the true generalised forces ``tau`` (N, n) there, and
-    ``unmeasured`` (N,) the frames in which a foot stands on a surface no plate measures."""
+    ``unmeasured`` (N,) the frames in which a foot stands on a surface no plate measures, and
+    the surfaces the plates measure (``measured_surfaces``)."""
 
     path: Path
     motion: TaskMotion
     reactions: FootReactions
     tau: Array
     unmeasured: NDArray[np.bool_]
+    measured_surfaces: frozenset[str] = frozenset()
 
 
 def _tread(x0: float, x1: float, z0: float, z1: float, h: float) -> Array:
@@ -909,4 +911,4 @@ def lab_task(
     for fh in motion.footholds:
         if fh.surface not in measured:
             unmeasured |= (motion.time >= fh.t_on) & (motion.time <= fh.t_off)
-    return LabTask(out, motion, reactions, tau, unmeasured)
+    return LabTask(out, motion, reactions, tau, unmeasured, frozenset(measured))
