@@ -1066,13 +1066,15 @@ class FootContact:
     """Per frame and foot (``feet``): ``grounded`` (N, F) — the foot stands on the floor or a
     plate's surface (:func:`contact_measured`'s test); ``unmeasured`` (N, F) — grounded and
     carrying no plate load (its ground reaction is missing from the loads); ``known`` (N,) —
-    the pose and the feet's speeds are known."""
+    the pose and the feet's speeds are known; ``time`` (N,) s; ``on_floor`` (N, F) grounded at
+    the floor's height (the lowest still level; never on a treadmill)."""
 
     feet: tuple[str, ...]
     grounded: NDArray[np.bool_]
     unmeasured: NDArray[np.bool_]
     known: NDArray[np.bool_]
     time: NDArray[np.float64] | None = None
+    on_floor: NDArray[np.bool_] | None = None
 
     def standing(self, min_s: float = STANDING_S) -> NDArray[np.bool_]:
         """(N, F) the unmeasured runs that last ``min_s`` or longer: a foot standing on an
@@ -1121,7 +1123,7 @@ def foot_contact(
     feet = tuple(feet) if feet is not None else _default_feet(model)
     if n < 3 or not known.any():
         none = np.zeros((n, len(feet)), dtype=bool)
-        return FootContact(feet, none, none.copy(), known, t)
+        return FootContact(feet, none, none.copy(), known, t, none.copy())
     g = np.asarray(model.gravity, dtype=float)
     up = -g / np.linalg.norm(g) if np.linalg.norm(g) > 0 else np.array([0.0, 1.0, 0.0])
     pts = _foot_points(model, q, feet, np.arange(n))
@@ -1153,6 +1155,8 @@ def foot_contact(
                 for k, x in enumerate(vel):
                     speed[sl, k] = np.nanmin(np.linalg.norm(x[sl] - v, axis=2), axis=1)
             grounded |= (np.abs(low - h) <= height_m) & (speed <= speed_mps)
+    # on the floor (the lowest still level), as the steps before and after a walkway's plates
+    on_floor = grounded & (np.abs(low - floor) <= height_m) if not treadmill else grounded & False
     short = _support_shortfall(model, t, q, loads, up) > shortfall_bw * model.total_mass * float(
         np.linalg.norm(g)
     )
@@ -1160,8 +1164,13 @@ def foot_contact(
         with warnings.catch_warnings(), np.errstate(invalid="ignore"):
             warnings.simplefilter("ignore", RuntimeWarning)
             for k, x in enumerate(vel):
+                # a run of frames in which the foot stays still and the plates fall short in
+                # any of them: the foot stands on something through the whole run (its load
+                # builds up from 0 at its first frames, under the shortfall's threshold)
                 still = np.nanmin(np.linalg.norm(x, axis=2), axis=1) <= speed_mps
-                grounded[:, k] |= still & short
+                for i0, i1 in true_runs(still):
+                    if short[i0:i1].any():
+                        grounded[i0:i1, k] = True
     if pad_s is None:
         cut = getattr(kinematics, "cutoff_hz", None)
         pad_s = 0.25 / float(cut) if cut else 0.0
@@ -1170,9 +1179,13 @@ def foot_contact(
         w = round(pad_s / dt) if dt > 0 else 0
         if w > 0:
             # widen every grounded run by w frames each side (a running maximum)
-            g = np.pad(grounded, ((w, w), (0, 0)))
-            c = np.concatenate([np.zeros((1, g.shape[1]), int), np.cumsum(g, axis=0)])
-            grounded = (c[2 * w + 1 :] - c[: -(2 * w + 1)]) > 0
+            def widen(x: NDArray[np.bool_]) -> NDArray[np.bool_]:
+                g = np.pad(x, ((w, w), (0, 0)))
+                c = np.concatenate([np.zeros((1, g.shape[1]), int), np.cumsum(g, axis=0)])
+                return np.asarray((c[2 * w + 1 :] - c[: -(2 * w + 1)]) > 0)
+
+            grounded = widen(grounded)
+            on_floor = widen(on_floor)
     fv = np.zeros((n, len(feet)))
     for k, foot in enumerate(feet):
         for b in model.subtree(foot):
@@ -1185,7 +1198,7 @@ def foot_contact(
     )
     known &= speed_known.all(axis=1)
     unmeasured = grounded & ~(fv > threshold_n)
-    return FootContact(feet, grounded, unmeasured, known, t)
+    return FootContact(feet, grounded, unmeasured, known, t, on_floor)
 
 
 def _support_shortfall(model: Model, t: Array, q: Array, loads: ExternalLoads, up: Array) -> Array:

@@ -736,6 +736,16 @@ def gait_flags(
                   "(msk.observation): the residuals, the plate mass and the identifications "
                   "rest on those few")
         )  # fmt: skip
+    raised = quality.get("unmeasured_contact_raised_frames") or 0
+    if raised and quality.get("frames"):
+        out.append(
+            _flag(trial_name, "unmeasured_contact_raised_frames", float(raised), 0.0,
+                  f"a foot stands on a raised surface no plate measures (an uninstrumented step "
+                  f"or box, found by the plates' vertical force falling short of the body's "
+                  f"momentum balance) in {raised} of the {quality['frames']} frames: that "
+                  "leg's joint torques are not written there, and no residual, muscle force or "
+                  "knee contact comes from those frames")
+        )  # fmt: skip
     ui = quality.get("unmeasured_contact_inside_pct")
     if ui is not None and ui > th["unmeasured_contact_inside_pct"]:
         span = quality.get("unmeasured_contact_inside_s") or [float("nan")] * 2

@@ -370,6 +370,7 @@ class Quality(_Record):
     observed_measured_frames: int | None = None
     unmeasured_contact_frames: int | None = None
     unmeasured_contact_frames_by_foot: Mapping[str, int | None] | None = None
+    unmeasured_contact_raised_frames: int | None = None
     unmeasured_contact_inside_pct: float | None = None
     unmeasured_contact_inside_s: tuple[float, ...] | None = None
     unobserved_segment_frames: Mapping[str, int | None] | None = None

@@ -98,10 +98,11 @@ def unmeasured_contact_figures(loads: Any, time: Any) -> dict[str, Any]:
     """``quality.unmeasured_contact_frames`` (frames in which a foot stands on a surface no plate
     measures for at least :data:`msk.loads.STANDING_S`, :meth:`msk.loads.FootContact.standing`;
     its leg's joint torques are not written there),
-    ``unmeasured_contact_frames_by_foot`` and ``unmeasured_contact_inside_pct``: the share of
-    the frames between the first and the last measured frame that have one (a walkway's steps
-    before and after the plates lie outside; an unmeasured stair step or a foot off a plate in
-    the middle of the task inside)."""
+    ``unmeasured_contact_frames_by_foot``, ``unmeasured_contact_raised_frames`` (those off the
+    floor's level: a stair's upper steps, a box) and ``unmeasured_contact_inside_pct``: the share
+    of the frames between the first and the last measured frame that have one (a walkway's
+    steps before and after the plates lie outside; a foot off a plate in the middle of the task
+    inside)."""
     contact = getattr(loads, "contact", None)
     if contact is None:
         return {}
@@ -117,8 +118,11 @@ def unmeasured_contact_figures(loads: Any, time: Any) -> dict[str, Any]:
         hit = np.flatnonzero(anym[a : b + 1])
         if hit.size:
             span = [float(t[a + hit[0]]), float(t[a + hit[-1]])]
+    floor = getattr(contact, "on_floor", None)
+    raised = miss & ~np.asarray(floor, dtype=bool) if floor is not None else miss & False
     return {
         "unmeasured_contact_frames": int(anym.sum()),
+        "unmeasured_contact_raised_frames": int(raised.any(axis=1).sum()),
         "unmeasured_contact_frames_by_foot": {
             f: int(miss[:, k].sum()) for k, f in enumerate(contact.feet)
         },
