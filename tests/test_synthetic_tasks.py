@@ -81,13 +81,14 @@ def test_jw_stair_unmeasured_steps_are_found_blanked_counted_and_flagged(tmp_mod
     """4 steps of 0.17 m, plates under the floor start (left foot) and steps 1–2, steps 3–4
     uninstrumented: every frame in which a foot stands on the right foot's floor spot or an
     upper step (the truth) has that leg's torques unwritten (NaN) — never a number computed
-    without its reaction; the frames are counted in summary.json and flagged; on the written
+    without its reaction; the frames are counted in summary.json and flagged (a raised surface);
+    on the written
     frames the knee torques are within 8 N·m RMS of the truth and IK within 0.5°; the pelvis
     residual over the measured frames stays under the 5 % BW gate."""
     _, res, cmp = _run("stair", tmp_module / "stair")
     q = res.summary["quality"]
     flags = {f["quantity"] for f in q["flags"]}
-    assert "unmeasured_contact_inside_pct" in flags
+    assert "unmeasured_contact_raised_frames" in flags
     assert "residual_force_rms_pct_bw" not in flags and q["residual_force_rms_pct_bw"] < 5.0
     assert cmp["true_unmeasured"] > 100
     assert cmp["unblanked_true_unmeasured"] == 0, cmp["unblanked_true_unmeasured"]
