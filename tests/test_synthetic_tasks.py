@@ -46,6 +46,7 @@ def _run(kind: str, folder: Path):
     from msk.synthetic_tasks import lab_task
 
     ht = _script()
+    folder.mkdir(parents=True, exist_ok=True)
     task = lab_task(JW, kind, folder / f"{kind}.c3d", seed=1)
     cfg = ht.swapped_config("gc4_JW", task.path, folder, kind)
     (res,) = run_task_trials(cfg, folder / "out")
