@@ -52,7 +52,10 @@ __all__ = [
     "FEET",
     "FootReactions",
     "Foothold",
+    "LabPlate",
+    "LabTask",
     "TaskMotion",
+    "lab_task",
     "squat_motion",
     "stair_motion",
     "task_reactions",
@@ -94,10 +97,9 @@ class Foothold:
 
 @dataclass(frozen=True)
 class TaskMotion:
-    """A task's motion: ``time`` (N,) at the marker rate, θ (N, n) there, the spline giving θ,
-    θ̇, θ̈ at any time (:meth:`at`), the footholds (contact truth), the share of the total
-    ground reaction of the first foot in double support per time (``share``: a function of the
-    trial time and the feet's points), the floor's height (0) and the IK's worst foot error."""
+    """A task's motion: ``time`` (N,) at the marker rate, θ (N, n) there, the footholds (the
+    contact truth), ``kind`` ("squat" / "stair"), the IK's worst foot position error (m) and the
+    spline giving θ, θ̇, θ̈ at any time (:meth:`at`). The floor is y = 0."""
 
     model: Model
     time: Array
@@ -640,9 +642,9 @@ def _plate_axes(corners: Array) -> Array:
     )
 
 
-#: EMG channel (substring of the label) → signed coordinates whose torque drives it
-#: (+1: the positive torque, −1: the negative); gait2392 signs (extension of the knee negative
-#: knee_angle torque... i.e. knee extensors give positive knee_angle moment)
+#: EMG channel (substring of the label) → the coordinates whose torque of the given sign its
+#: muscle produces (gait2392 signs: knee extensors give a positive knee_angle torque, hip
+#: extensors a negative hip_flexion one, plantarflexors a negative ankle_angle one)
 _EMG_DRIVE: dict[str, tuple[tuple[str, float], ...]] = {
     "vas": (("knee_angle", 1.0),),
     "rf": (("knee_angle", 1.0), ("hip_flexion", 1.0)),
