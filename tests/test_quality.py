@@ -328,3 +328,18 @@ def test_unmeasured_contact_inside_the_measured_span_is_flagged_outside_it_is_no
     (flag,) = [f for f in _flags(model, kin, frames=100, **q)
                if f.quantity == "unmeasured_contact_inside_pct"]  # fmt: skip
     assert "0.40–0.59 s" in flag.message and "calcn_r 40" in flag.message
+
+
+def test_unmeasured_contact_on_a_raised_surface_is_flagged():
+    """A foot standing on a raised surface no plate measures (a stair's upper steps, found by
+    the momentum balance) raises ``unmeasured_contact_raised_frames`` wherever it lies in the
+    trial; none raises nothing."""
+    model = two_leg_model()
+    kin = _still(model, 100)
+    kin.coordinate_names = kin_names(model)
+    q = {"frames": 100, "unmeasured_contact_raised_frames": 30}
+    (flag,) = [f for f in _flags(model, kin, **q)
+               if f.quantity == "unmeasured_contact_raised_frames"]  # fmt: skip
+    assert flag.value == 30.0 and "30 of the 100 frames" in flag.message
+    q["unmeasured_contact_raised_frames"] = 0
+    assert not [f for f in _flags(model, kin, **q) if f.quantity.startswith("unmeasured")]
