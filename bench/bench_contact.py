@@ -163,6 +163,8 @@ def main() -> None:
     chain = [sum(res[k][i] for k in chain_keys) for i in (0, 1)]
     chain_c = [chain[i] + new[i] for i in (0, 1)]
     chain_o = [chain[i] + old[i] for i in (0, 1)]
+    so, rows_t, so_rows = res[names[6]], res[names[7]], res[names[8]]
+    chain_r = [chain_c[i] + rows_t[i] + so_rows[i] - so[i] for i in (0, 1)]
     load = os.getloadavg() if hasattr(os, "getloadavg") else (float("nan"),) * 3
     lines = [
         f"Latest run ({datetime.date.today().isoformat()}, {platform.machine()}, "
@@ -180,6 +182,8 @@ def main() -> None:
         f"| **chain: ID + geometry (with ∂l/∂ξ) + SO + contact** | **{chain_c[0]:,.0f}** | "
         f"{chain_c[1]:,.0f} |",
         f"| chain with the former contact | {chain_o[0]:,.0f} | {chain_o[1]:,.0f} |",
+        f"| chain with the compartment rows (rows + SO with them) | {chain_r[0]:,.0f} | "
+        f"{chain_r[1]:,.0f} |",
         "",
         f"- Contact stage, former / new: **{old[0] / new[0]:,.0f}×** (min), "
         f"{old[1] / new[1]:,.0f}× (median); the contact is now "
@@ -188,11 +192,12 @@ def main() -> None:
         "(min; they are the knee rows of the length Jacobian, gathered).",
         f"- Same run, medial/lateral forces: largest difference {err:.1e} of the peak normal "
         "force between the two routes.",
-        f"- `compartment_nonnegative` (issue 16, seventh pass): the rows cost "
-        f"{res[names[7]][0]:.1f} µs/frame and the QP with them "
-        f"{res[names[8]][0]:.1f} against {res[names[6]][0]:.1f} µs/frame (min; one whole QP per "
-        "frame instead of its independent sub-problems): "
-        f"{res[names[7]][0] + res[names[8]][0] - res[names[6]][0]:+.1f} µs/frame on the chain.",
+        f"- `compartment_nonnegative` (issue 16; since the tenth pass each knee's rows are "
+        "solved in its leg's sub-problem, `_BatchQP.solve_blocks`): the rows cost "
+        f"{rows_t[0]:.1f} µs/frame and the QP with them {so_rows[0]:.1f} against "
+        f"{so[0]:.1f} µs/frame without (min; ratio {so_rows[0] / so[0]:.2f}, median "
+        f"{so_rows[1] / so[1]:.2f}): {rows_t[0] + so_rows[0] - so[0]:+.1f} µs/frame on the "
+        f"chain, which is then {chain_r[0]:,.0f} µs/frame (min; median {chain_r[1]:,.0f}).",
         f"- Target ≤ {TARGET_US:.0f} µs/frame for the contact stage (split included): "
         + ("met" if new[0] <= TARGET_US else "**not met**")
         + f" ({new[0]:.1f} min, {new[1]:.1f} median).",

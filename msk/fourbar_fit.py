@@ -33,6 +33,7 @@ from numpy.typing import ArrayLike, NDArray
 from scipy.optimize import least_squares
 
 from msk.exceptions import IdentificationError, ModelError, ShapeMismatchError
+from msk.functional_joints import segment_poses
 from msk.joints import FourBarKnee, FourBarTranslation, Linear
 from msk.model import Axis, Joint
 
@@ -265,30 +266,27 @@ def four_bar_joint(joint: Joint, knee: FourBarKnee) -> Joint:
 # functional calibration from marker clusters
 # ------------------------------------------------------------------------------------------
 def cluster_pose(local: ArrayLike, world: ArrayLike) -> tuple[Array, Array]:
-    """Least-squares rigid pose (R, t) with world ≈ R local + t (Kabsch / SVD), per frame.
+    """Least-squares rigid pose (R, t) with world ≈ R local + t per frame (Söderkvist & Wedin
+    1993, :func:`msk.functional_joints.segment_poses`).
 
     ``local`` (k, 3), ``world`` (N, k, 3) → R (N, 3, 3), t (N, 3). Frames with a missing (NaN)
     marker use the remaining markers (≥ 3 needed).
+
+    Raises:
+        ShapeMismatchError: ``local`` and ``world`` do not match.
+        IdentificationError: a frame with fewer than three tracked (non-collinear) markers.
     """
     loc = np.asarray(local, dtype=float)
     w = np.asarray(world, dtype=float)
     if w.ndim != 3 or w.shape[1:] != loc.shape or loc.shape[1] != 3:
         raise ShapeMismatchError(f"cluster pose: local {loc.shape} vs world {w.shape}")
-    n = w.shape[0]
-    rot = np.empty((n, 3, 3))
-    tr = np.empty((n, 3))
-    for i in range(n):
-        ok = np.all(np.isfinite(w[i]), axis=1)
-        if ok.sum() < 3:
-            raise IdentificationError(f"cluster pose: frame {i} has {ok.sum()} markers (< 3)")
-        a, b = loc[ok], w[i, ok]
-        ca, cb = a.mean(0), b.mean(0)
-        u, _, vt = np.linalg.svd((b - cb).T @ (a - ca))
-        d = np.sign(np.linalg.det(u @ vt))
-        r = u @ np.diag([1.0, 1.0, d]) @ vt
-        rot[i] = r
-        tr[i] = cb - r @ ca
-    return rot, tr
+    poses = segment_poses(loc, w)
+    if (bad := np.flatnonzero(~poses.valid)).size:
+        i = int(bad[0])
+        tracked = int(np.isfinite(w[i]).all(axis=1).sum())
+        why = f"{tracked} markers (< 3)" if tracked < 3 else "collinear markers"
+        raise IdentificationError(f"cluster pose: frame {i} has {why}")
+    return poses.rotation, poses.origin
 
 
 def fit_four_bar_from_markers(

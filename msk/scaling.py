@@ -46,6 +46,7 @@ import pinocchio as pin
 from numpy.typing import ArrayLike, NDArray
 
 from msk.exceptions import FileFormatError, MissingDataError, ModelError, MskError
+from msk.functional_joints import segment_poses
 from msk.joints import Constant, CoordinateFunction, Multiplier
 from msk.markersets import parse_label, shoulder_girdle_markers
 from msk.model import GROUND, Axis, Body, Joint, Marker, Model, forward_kinematics
@@ -1561,15 +1562,6 @@ JOINT_CENTRE_PAIRS: Mapping[str, tuple[str, str]] = {
 }
 
 
-def _rigid_fit(local: Array, world: Array) -> tuple[Array, Array]:
-    """Rotation R and translation t minimising Σ‖R local_i + t − world_i‖² (Kabsch)."""
-    cl, cw = local.mean(axis=0), world.mean(axis=0)
-    u, _, vt = np.linalg.svd((local - cl).T @ (world - cw))
-    d = np.sign(np.linalg.det(vt.T @ u.T))
-    rot = vt.T @ np.diag([1.0, 1.0, d]) @ u.T
-    return rot, cw - rot @ cl
-
-
 def _mid_psis(means: Mapping[str, Array]) -> Array | None:
     """The static's mid-PSIS (both PSIS markers), found by landmark."""
     found: dict[tuple[str | None, str], Array] = {}
@@ -1633,7 +1625,8 @@ def static_hip_centres(
     world = np.array([v[1] for v in pelvis_pts.values()])
     if np.linalg.matrix_rank(local - local.mean(axis=0), tol=1e-3) < 2:
         return {}
-    rot, tr = _rigid_fit(local, world)
+    pose = segment_poses(local, world[None])
+    rot, tr = pose.rotation[0], pose.origin[0]
     o_p = data.oMf[model.body_frame["pelvis"]]
     out = {}
     for side in ("r", "l"):

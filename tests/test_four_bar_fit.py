@@ -6,7 +6,7 @@ import numpy as np
 import pinocchio as pin
 import pytest
 
-from msk.exceptions import ShapeMismatchError
+from msk.exceptions import IdentificationError, ShapeMismatchError
 from msk.fourbar_fit import (
     cluster_pose,
     fit_four_bar,
@@ -126,3 +126,10 @@ def test_cluster_pose_and_bad_shapes():
         fit_four_bar(np.zeros(20), np.zeros((19, 2)))
     with pytest.raises(ShapeMismatchError):
         cluster_pose(local, world[:, :3])
+    gap = np.concatenate([world, world]).copy()
+    gap[1, 1:3] = np.nan  # the second frame keeps two markers
+    with pytest.raises(IdentificationError, match="frame 1 has 2 markers"):
+        cluster_pose(local, gap)
+    line = np.outer(np.arange(4.0), [1.0, 0.5, 0.2])  # collinear cluster
+    with pytest.raises(IdentificationError, match="frame 0 has collinear markers"):
+        cluster_pose(line, line[None])

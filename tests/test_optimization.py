@@ -868,3 +868,199 @@ def test_inequality_rows_check_their_shapes() -> None:
             np.zeros((3, 5, 1)) + 0.01, np.zeros((3, 1)), f_active=np.ones((3, 5)),
             inequalities=rows,
         )  # fmt: skip
+
+
+# ---------------------------------------------------------------------------------------------
+# inequality rows inside the sub-problems (issue 16, tenth pass: a knee's compartment rows in
+# its leg's sub-problem)
+# ---------------------------------------------------------------------------------------------
+
+
+def _knee_rows(n_frames: int, m: int, leg: slice, seed: int = 5):
+    """Two rows ``c + G f + s ≥ 0`` over the muscles of one leg only (a knee's medial and
+    lateral compartments: only the muscles crossing it, here 12 of the leg's), offsets that
+    the unconstrained optimum violates, and one frame with the trivial row 0 ≥ 0 (the
+    pipeline's row where the compartment map is not finite)."""
+    import msk.optimization as o
+
+    rng = np.random.default_rng(seed)
+    gain = np.zeros((n_frames, 2, m))
+    cols = np.arange(m)[leg][:12]
+    gain[:, :, cols] = rng.normal(0.0, 0.02, (n_frames, 2, cols.size))
+    off = rng.normal(-20.0, 10.0, (n_frames, 2))
+    gain[3], off[3] = 0.0, 0.0
+    return o.TensionInequalities(off, gain, ("knee_medial", "knee_lateral"))
+
+
+def _whole_qp_reference(monkeypatch, run):
+    """``run()`` with every frame's QP whole: no sub-problems and no reserve left out."""
+    import msk.optimization.problems as problems
+
+    with monkeypatch.context() as mp:
+        mp.setattr(problems, "_MIN_BLOCK_UNKNOWNS", 10**9)
+        mp.setattr(
+            problems, "_decoupled_reserves",
+            lambda jac, tau, idx, *a: np.zeros(idx.shape[0], dtype=bool),
+        )  # fmt: skip
+        return run()
+
+
+@pytest.mark.parametrize("criterion", ["static", "assisted", "tension"])
+def test_inequality_rows_join_the_subproblem_of_their_muscles(monkeypatch, criterion) -> None:
+    """Two legs and a pelvis no muscle crosses (``_two_legs``), rows on the second leg's
+    muscles: the QPs still split — the rows and their reserves in the second leg's
+    sub-problem — and the pelvis reserves still leave them (τ/F_res exactly). Forces within
+    1e-8 N and row reserves within 1e-10 of every frame's whole QP (no split, no reserve left
+    out), KKT figures of the whole QP ≤ 1e-8, the rows hold, Clarabel on the whole QP agrees
+    to 1e-4 (relative). Frames over several assembly chunks (``_BLOCK_CHUNK`` 7), per-frame
+    cost (EMG reference) and bounds (``bounded_qp``'s F_max)."""
+    import msk.optimization.problems as problems
+
+    monkeypatch.setattr(problems, "_BLOCK_CHUNK", 7)
+    jac, tau, f_iso = _two_legs(30)
+    n_frames, m, n = jac.shape
+    m1 = 18  # the first leg's muscles (``_two_legs``)
+    ineq = _knee_rows(n_frames, m, slice(m1, m))
+    rng = np.random.default_rng(6)
+    fa = f_iso * rng.uniform(0.6, 1.0, size=(n_frames, m))
+    fp = f_iso * rng.uniform(0.0, 0.02, size=(n_frames, m))
+
+    def run(rows: Any = ineq, solver: str = "daqp") -> Any:
+        if criterion == "static":
+            return solve_static_optimization_batch(
+                jac, tau, f_active=fa, f_passive=fp, activation_min=0.01,
+                reserve_optimal_force=np.ones(n), activation_weights=np.linspace(0.5, 2.0, m),
+                inequalities=rows, solver=solver,
+            )  # fmt: skip
+        if criterion == "assisted":
+            return solve_emg_assisted_batch(
+                jac, tau, f_active=fa, f_passive=fp, a_ref=rng_ref, measured=measured,
+                w_track=1.0, reserve_optimal_force=np.ones(n), inequalities=rows, solver=solver,
+            )  # fmt: skip
+        return solve_tension_batch(
+            jac, tau, f_iso=f_iso, f_max=fa + fp, reserve_optimal_force=np.ones(n),
+            inequalities=rows, solver=solver,
+        )  # fmt: skip
+
+    measured = rng.uniform(size=m) < 0.5
+    rng_ref = rng.uniform(0.0, 0.3, size=(n_frames, m))
+    seen: list[Any] = []
+    solve_blocks = problems._BatchQP.solve_blocks
+    monkeypatch.setattr(
+        problems._BatchQP, "solve_blocks",
+        lambda self, *a, **k: seen.append(self.blocks) or solve_blocks(self, *a, **k),
+    )  # fmt: skip
+    split = run()
+    assert len(seen) == 1
+    # 4 + 3 torque rows (pelvis left out), then the two inequality rows: with the second leg
+    (r1, _), (r2, c2) = seen[0]
+    assert list(r1) == [0, 1, 2, 3] and list(r2) == [4, 5, 6, 7, 8]
+    nv = m + (n - 2) + 2
+    assert set(c2) >= {nv - 2, nv - 1} and set(c2) >= set(range(m1, m))
+    whole = _whole_qp_reference(monkeypatch, run)
+    assert len(seen) == 1
+    assert (split.status == 0).all() and (whole.status == 0).all()
+    np.testing.assert_allclose(split.forces, whole.forces, rtol=0, atol=1e-8)
+    np.testing.assert_allclose(split.reserve_controls, whole.reserve_controls, atol=1e-10)
+    s, sw = split.inequality_reserves, whole.inequality_reserves
+    assert s is not None and sw is not None and split.inequality_names == ineq.names
+    np.testing.assert_allclose(s, sw, rtol=0, atol=1e-10)
+    assert np.nanmax(split.kkt) <= 1e-8
+    np.testing.assert_array_equal(split.reserve_controls[:, :2], 7.0)  # τ / F_res, exactly
+    held = ineq.offset + np.einsum("kim,km->ki", ineq.gain, split.forces) + s
+    free = run(None)
+    before = ineq.offset + np.einsum("kim,km->ki", ineq.gain, free.forces)
+    assert before.min() < -20.0 and held.min() >= -1e-9 and np.all(s >= 0.0)
+    other = run(solver="clarabel")
+    scale = np.abs(split.forces).max()
+    assert np.abs(other.forces - split.forces).max() <= 1e-4 * scale
+    assert other.inequality_reserves is not None
+    np.testing.assert_allclose(other.inequality_reserves, s, atol=1e-4 * max(1.0, s.max()))
+
+
+def test_inequality_rows_in_subproblems_keep_the_infeasible_frame_fallback(monkeypatch) -> None:
+    """A frame no tension can balance (no reserves, a torque beyond the first leg's capacity)
+    with the rows in the second leg's sub-problem: that frame is solved whole (status
+    ``infeasible``, the bounded least-squares point with the rows kept as constraints, the
+    same as without the split), the others split; ``strict`` names the frame."""
+    import msk.optimization.problems as problems
+
+    jac, tau, f_iso = _two_legs(30)
+    jac, tau = jac[:, :, 2:], tau[:, 2:]
+    taus = tau.copy()
+    taus[[5, 17], 1] = 1e5
+    ineq = _knee_rows(jac.shape[0], jac.shape[1], slice(18, None))
+
+    def run() -> Any:
+        return solve_tension_batch(jac, taus, f_iso=f_iso, inequalities=ineq)
+
+    split, whole = _whole_and_split(monkeypatch, run)
+    assert list(split.infeasible_frames) == [5, 17] == list(whole.infeasible_frames)
+    _assert_same(split, whole, atol=1e-9 * np.abs(taus).max())
+    assert split.inequality_reserves is not None and whole.inequality_reserves is not None
+    np.testing.assert_allclose(split.inequality_reserves, whole.inequality_reserves, atol=1e-9)
+    held = ineq.offset + np.einsum("kim,km->ki", ineq.gain, split.forces)
+    assert (held + split.inequality_reserves).min() >= -1e-9
+    monkeypatch.setattr(problems, "_MIN_BLOCK_UNKNOWNS", 16)
+    with pytest.raises(OptimizationError, match=r"frame 5: QP infeasible"):
+        solve_tension_batch(jac, taus, f_iso=f_iso, inequalities=ineq, strict=True)
+
+
+GC5_PS = Path(__file__).resolve().parents[1] / "pipelines" / "gc5_PS.toml"
+
+
+@pytest.mark.slow
+@pytest.mark.realdata
+def test_knee_compartment_rows_in_the_leg_subproblem_on_gc5_ps(monkeypatch, tmp_path) -> None:
+    """The shipped PS session (``emg_assisted``, ``compartment_nonnegative``: the left knee's
+    rows F_M, F_L ≥ 0): the tension stage's QPs split into the two legs (the back with one of
+    them), the knee's two rows and their reserves in the left leg's sub-problem (every muscle
+    of a nonzero gain is a left-leg muscle); forces within 1e-8 N and frontal reserves within
+    1e-10 N·m of every frame's whole QP (measured 1.3e-12 N), KKT figures ≤ 1e-8, Clarabel on
+    the whole QP within 1e-5 of the largest force (measured 1e-7 N of 2 kN)."""
+    import msk.optimization as o
+    import msk.optimization.problems as problems
+    from msk.pipeline import run_task_trials
+
+    if not (shared_dir() / "data" / "real").is_dir():
+        pytest.skip("shared real recordings absent")
+    calls: list[tuple[Any, tuple[Any, ...], dict[str, Any]]] = []
+    solve = o.solve_emg_assisted_batch
+
+    def capture(*a: Any, **k: Any) -> Any:
+        if k.get("inequalities") is not None and not calls:
+            calls.append((solve, a, {n: v for n, v in k.items() if n != "warm"}))
+        return solve(*a, **k)
+
+    monkeypatch.setattr(o, "solve_emg_assisted_batch", capture)
+    run_task_trials(GC5_PS, tmp_path / "out")
+    monkeypatch.undo()
+    assert calls, "the tension stage posed no compartment rows"
+    fn, args, kw = calls[0]
+    rows = kw["inequalities"]
+    assert rows.names == ("knee_l_medial", "knee_l_lateral")  # PS: the left knee
+    seen: list[Any] = []
+    solve_blocks = problems._BatchQP.solve_blocks
+    monkeypatch.setattr(
+        problems._BatchQP, "solve_blocks",
+        lambda self, *a, **k: seen.append(self.blocks) or solve_blocks(self, *a, **k),
+    )  # fmt: skip
+    split = fn(*args, **kw)
+    assert len(seen) == 1 and len(seen[0]) == 2
+    names, coords = split.muscle_names, split.coordinate_names
+    n_eq = len(coords)  # the actuated coordinates (the pelvis has none): then the two rows
+    left = [c for r, c in seen[0] if (r >= n_eq).any()]
+    assert len(left) == 1 and all((r >= n_eq).sum() in (0, 2) for r, _ in seen[0])
+    crossing = np.flatnonzero((rows.gain != 0).any(axis=(0, 1)))
+    assert crossing.size and all(names[i].endswith("_l") for i in crossing)
+    assert set(crossing) <= set(left[0])
+    whole = _whole_qp_reference(monkeypatch, lambda: fn(*args, **kw))
+    assert len(seen) == 1
+    assert (split.status == 0).all() and (whole.status == 0).all()
+    np.testing.assert_allclose(split.forces, whole.forces, rtol=0, atol=1e-8)
+    s, sw = split.inequality_reserves, whole.inequality_reserves
+    assert s is not None and sw is not None
+    np.testing.assert_allclose(s, sw, rtol=0, atol=1e-10)
+    assert np.nanmax(split.kkt) <= 1e-8
+    other = fn(*args, **dict(kw, solver="clarabel"))
+    assert np.abs(other.forces - split.forces).max() <= 1e-5 * np.abs(split.forces).max()

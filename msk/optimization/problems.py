@@ -137,6 +137,14 @@ class TensionInequalities:
     def n_rows(self) -> int:
         return int(np.asarray(self.offset).shape[1])
 
+    def take(self, frames: slice | NDArray[np.intp]) -> TensionInequalities:
+        """The rows of ``frames`` only (a slice gives views, no copy): for a batch solved in
+        several calls on consecutive frames."""
+        return TensionInequalities(
+            np.asarray(self.offset)[frames], np.asarray(self.gain)[frames], self.names,
+            self.reserve_optimal,
+        )  # fmt: skip
+
     def check(self, n_frames: int, m: int) -> None:
         """Typed error unless the rows cover ``n_frames`` frames of ``m`` muscles."""
         g = np.asarray(self.gain)
@@ -917,8 +925,9 @@ class _Reduction:
 
     ``expand`` puts the dropped reserves' controls (``values`` ``(N, d)``) into the reduced
     solution, giving the ``x`` of the whole QP (muscles, then every reserve in coordinate
-    order); ``full(k)`` is the whole QP of frame ``k``, for its KKT figures and for a frame that
-    is not optimal (solved whole, so that its bounded least-squares point is unchanged)."""
+    order, then the reserves of inequality rows, which ``kept`` lists last); ``full(k)`` is
+    the whole QP of frame ``k``, for its KKT figures and for a frame that is not optimal
+    (solved whole, so that its bounded least-squares point is unchanged)."""
 
     kept: NDArray[np.intp]
     dropped: NDArray[np.intp]
@@ -996,7 +1005,10 @@ class _BatchQP:
     left out when ``decouple`` is true; ``reduction`` then says how the solutions map back.
     With ``decouple`` and the output map ``f = out_scale ⊙ x + out_offset`` given, the QPs
     that split into independent sub-problems (:func:`_independent_blocks`) have ``blocks``
-    and are solved by :meth:`solve_blocks` (:func:`_run_blocks`)."""
+    and are solved by :meth:`solve_blocks` (:func:`_run_blocks`). ``inequalities``
+    (:class:`TensionInequalities`) add the rows ``C x ≥ cl`` and their reserves (the last
+    unknowns); each row takes part in the split like an equality row over the muscles of its
+    nonzero gains and its own reserve (:meth:`whole` is a frame's QP with every unknown)."""
 
     def __init__(
         self,
@@ -1018,14 +1030,15 @@ class _BatchQP:
         out_offset: FloatArray | None = None,
         inequalities: TensionInequalities | None = None,
     ) -> None:
-        _, m, n = jac.shape
+        n_fr, m, n = jac.shape
         nres = idx.shape[0]
         drop = np.zeros(nres, dtype=bool)
+        if decouple:  # on the coordinate reserves' own bounds (before the rows' reserves)
+            drop = _decoupled_reserves(jac, tau, idx, opt, lb[..., m:], ub[..., m:])
         self.ineq = inequalities
-        if inequalities is not None:  # the rows couple the knee's muscles: one whole QP
-            decouple = False
+        n_in = 0
+        if inequalities is not None:  # their reserves s ≥ 0 after the coordinate reserves
             n_in = inequalities.n_rows
-            n_fr = jac.shape[0]
             inequalities.check(n_fr, m)
             lb = np.concatenate([lb, np.zeros((*lb.shape[:-1], n_in))], axis=-1)
             ub = np.concatenate([ub, np.full((*ub.shape[:-1], n_in), np.inf)], axis=-1)
@@ -1034,13 +1047,10 @@ class _BatchQP:
             hh[: h.shape[0], : h.shape[0]] = h
             hh[h.shape[0] :, h.shape[0] :] = 2.0 * np.eye(n_in)  # (s/s_opt)², as a reserve
             h = hh
-        if decouple:
-            drop = _decoupled_reserves(jac, tau, idx, opt, lb[..., m:], ub[..., m:])
         keep = ~drop
         rows = np.setdiff1d(np.arange(n), idx[drop])
-        cols = np.concatenate([np.arange(m), m + np.flatnonzero(keep)])
-        if inequalities is not None:
-            cols = np.concatenate([cols, m + nres + np.arange(inequalities.n_rows)])
+        ineq_cols = m + nres + np.arange(n_in)  # the rows' reserves in the whole QP's x
+        cols = np.concatenate([np.arange(m), m + np.flatnonzero(keep), ineq_cols])
         k = int(keep.sum())
         self.jac, self.tau, self.m = jac, tau, m
         self.neg_scale = -scale  # R S = −Jᵀ S = Jᵀ (−S), the same numbers
@@ -1050,32 +1060,56 @@ class _BatchQP:
             slice(int(rows[0]), int(rows[-1]) + 1) if contiguous else rows
         )
         self.coords = rows  # the coordinates of the QP's rows
-        n_ex = 0 if inequalities is None else inequalities.n_rows
-        self.a = np.zeros((rows.size, m + k + n_ex))
+        self.a = np.zeros((rows.size, m + k + n_in))
         self.a[np.searchsorted(rows, idx[keep]), m + np.arange(k)] = opt[keep]
         self.n_reserves = k
         self.lb, self.ub = lb[..., cols], ub[..., cols]
         self.h = h[np.ix_(cols, cols)] if drop.any() else h
         self.g = g[..., cols]
         self.layout = layout
+        self.whole_h = h  # the whole QP's H (every reserve, the rows' reserves last)
+        self.full_qp = full
         self.reduction: _Reduction | None = None
         if drop.any():
             self.reduction = _Reduction(
-                kept=m + np.flatnonzero(keep),
+                kept=np.concatenate([m + np.flatnonzero(keep), ineq_cols]),
                 dropped=m + np.flatnonzero(drop),
                 values=tau[:, idx[drop]] / opt[drop],
-                full=full,
+                full=self.whole if inequalities is not None else full,
             )
-        # independent sub-problems (e.g. each leg, the back): solved apart, same solution
+        # independent sub-problems (e.g. each leg, the back): solved apart, same solution. The
+        # inequality rows join the muscles they involve (a knee's compartment rows: the
+        # muscles crossing that knee, all in its leg's sub-problem) and their own reserves.
         self.blocks: list[tuple[NDArray[np.intp], NDArray[np.intp]]] | None = None
         self.out_scale, self.out_offset = out_scale, out_offset
         if decouple and out_scale is not None and out_offset is not None and rows.size:
-            pattern = np.zeros((rows.size, m + k), dtype=bool)
-            pattern[:, :m] = _nonzero_pattern(jac)[:, rows].T
-            pattern[:, m:] = self.a[:, m:] != 0
+            pattern = np.zeros((rows.size + n_in, m + k + n_in), dtype=bool)
+            pattern[: rows.size, :m] = _nonzero_pattern(jac)[:, rows].T
+            pattern[: rows.size, m:] = self.a[:, m:] != 0
+            if inequalities is not None:
+                gain = np.asarray(inequalities.gain)
+                pattern[rows.size :, :m] = (gain != 0).any(axis=0)
+                pattern[rows.size :, m + k :] = np.eye(n_in, dtype=bool)
             blocks = _independent_blocks(pattern, self.h)
             if len(blocks) > 1:
                 self.blocks = blocks
+
+    def whole(self, k: int) -> StandardQP:
+        """Frame ``k``'s whole QP (every reserve; with inequality rows, their reserves after
+        the coordinate reserves and the rows ``C x ≥ cl``): for its KKT figures and for a
+        frame that is not optimal."""
+        qp = self.full_qp(k)
+        if self.ineq is None:
+            return qp
+        n_in = self.ineq.n_rows
+        lay = self.layout(k)
+        c_mat, cl = self.ineq.rows(k, lay.scale, lay.offset, qp.n - self.m)
+        return StandardQP(
+            H=self.whole_h, g=np.concatenate([qp.g, np.zeros(n_in)]),
+            A=np.hstack([qp.A, np.zeros((qp.m_eq, n_in))]), b=qp.b,
+            lb=np.concatenate([qp.lb, np.zeros(n_in)]),
+            ub=np.concatenate([qp.ub, np.full(n_in, np.inf)]), C=c_mat, cl=cl,
+        )  # fmt: skip
 
     def __call__(self, k: int) -> tuple[StandardQP, _Layout]:
         m, a = self.m, self.a
@@ -1110,6 +1144,7 @@ class _BatchQP:
         assert self.blocks is not None
         n_frames, m = self.tau.shape[0], self.m
         nv = self.a.shape[1]
+        n_eq = self.coords.size
         x_all = np.empty((n_frames, nv))
         ok = np.ones(n_frames, dtype=bool)
         iters = np.zeros(n_frames, dtype=np.int64)
@@ -1119,8 +1154,12 @@ class _BatchQP:
         senses = []
         for r, c in self.blocks:
             sense = np.zeros(c.size + r.size, dtype=np.int32)
-            sense[c.size :] = 5  # ACTIVE + IMMUTABLE: equality
-            senses.append(sense)
+            sense[c.size : c.size + int(np.count_nonzero(r < n_eq))] = 5  # equalities
+            senses.append(sense)  # (ACTIVE + IMMUTABLE); inequality rows 0, after them
+        ineq = self.ineq
+        if ineq is not None:  # the rows' reserves s = s_opt x_s: C's constant columns
+            c_fix = np.zeros((ineq.n_rows, nv))
+            c_fix[:, nv - ineq.n_rows :] = np.diag(np.asarray(ineq.reserve_optimal))
         for s0 in range(0, n_frames, _BLOCK_CHUNK):
             s1 = min(s0 + _BLOCK_CHUNK, n_frames)
             jc = self.jac[s0:s1]
@@ -1134,17 +1173,31 @@ class _BatchQP:
                 np.broadcast_to(v if v.ndim == 1 else v[s0:s1], (s1 - s0, nv))
                 for v in (self.lb, self.ub, self.g)
             )
+            if ineq is not None:  # C x ≥ cl with f = scale ⊙ x + offset (TensionInequalities)
+                gc = np.asarray(ineq.gain)[s0:s1]
+                cl = -np.asarray(ineq.offset)[s0:s1]
+                if self.passive is not None:
+                    cl = cl - np.einsum("kim,km->ki", gc, self.passive[s0:s1])
             data = []
             for (r, c), (hb, _), sense in zip(self.blocks, cost, senses, strict=True):
                 cm, cr = c[c < m], c[c >= m]
+                re, ri = r[r < n_eq], r[r >= n_eq] - n_eq
                 ab = np.empty((s1 - s0, r.size, c.size))
                 # R S = Jᵀ (−S) of the block's coordinates and muscles
-                jb = jc[:, cm[:, None], self.coords[r][None, :]]  # (c, muscles, rows)
+                jb = jc[:, cm[:, None], self.coords[re][None, :]]  # (c, muscles, rows)
                 sb = s[cm] if s.ndim == 1 else s[:, None, cm]
-                np.multiply(np.swapaxes(jb, 1, 2), sb, out=ab[:, :, : cm.size])
-                ab[:, :, cm.size :] = self.a[np.ix_(r, cr)]
-                bu = np.ascontiguousarray(np.concatenate([ub[:, c], bb[:, r]], axis=1))
-                bl = np.ascontiguousarray(np.concatenate([lb[:, c], bb[:, r]], axis=1))
+                np.multiply(np.swapaxes(jb, 1, 2), sb, out=ab[:, : re.size, : cm.size])
+                ab[:, : re.size, cm.size :] = self.a[np.ix_(re, cr)]
+                bu_rows, bl_rows = bb[:, re], bb[:, re]
+                if ri.size:  # G S of the block's rows and muscles, then the rows' reserves
+                    gr = gc[:, ri[:, None], cm[None, :]]
+                    np.multiply(gr, -sb, out=ab[:, re.size :, : cm.size])
+                    ab[:, re.size :, cm.size :] = c_fix[np.ix_(ri, cr)]
+                    up = np.full((s1 - s0, ri.size), np.inf)  # one-sided: c + G f + s ≥ 0
+                    bu_rows = np.concatenate([bu_rows, up], axis=1)
+                    bl_rows = np.concatenate([bl_rows, cl[:, ri]], axis=1)
+                bu = np.ascontiguousarray(np.concatenate([ub[:, c], bu_rows], axis=1))
+                bl = np.ascontiguousarray(np.concatenate([lb[:, c], bl_rows], axis=1))
                 gb = np.ascontiguousarray(g[:, c]) if self.g.ndim == 2 else None
                 data.append((ab, bu, bl, gb, hb, sense, np.empty((s1 - s0, c.size))))
             for j in range(s1 - s0):
@@ -1233,6 +1286,20 @@ def _run_batch(
     _, m, n = jac.shape
     assert reduction is None or power is None
     whole = reduction is None
+    if (
+        isinstance(build, _BatchQP)
+        and build.blocks is not None
+        and power is None
+        and warm_start
+        and solver == _EXACT_SOLVER
+    ):
+        return _run_blocks(
+            n_frames, build, jac, tau, strict=strict, compute_kkt=compute_kkt,
+            activations=activations, muscle_names=muscle_names,
+            coordinate_names=coordinate_names, time=time, reduction=reduction, carry=carry,
+            inequality_names=inequality_names,
+        )  # fmt: skip
+    # the frame-by-frame outputs (not allocated for the sub-problem path above)
     forces = np.empty((n_frames, m))
     acts = np.empty((n_frames, m)) if activations else None
     rc = np.zeros((n_frames, n))
@@ -1245,18 +1312,6 @@ def _run_batch(
     iters = np.zeros(n_frames, dtype=np.int64)
     times = np.zeros(n_frames)
     ineq: FloatArray | None = None
-    if (
-        isinstance(build, _BatchQP)
-        and build.blocks is not None
-        and power is None
-        and warm_start
-        and solver == _EXACT_SOLVER
-    ):
-        return _run_blocks(
-            n_frames, build, jac, tau, strict=strict, compute_kkt=compute_kkt,
-            activations=activations, muscle_names=muscle_names,
-            coordinate_names=coordinate_names, time=time, reduction=reduction, carry=carry,
-        )  # fmt: skip
     warm = None
     if warm_start:
         warm = carry.state if carry is not None and carry.started else new_warm(solver)
@@ -1342,13 +1397,15 @@ def _run_blocks(
     time: ArrayLike | None,
     reduction: _Reduction | None,
     carry: WarmStart | None = None,
+    inequality_names: tuple[str, ...] = (),
 ) -> BatchSolution:
     """:func:`_run_batch` for a batch whose QPs split into independent sub-problems
     (:attr:`_BatchQP.blocks`, DAQP, warm-started): every frame solved by
     :meth:`_BatchQP.solve_blocks`, the outputs assembled for all frames at once. A frame that
     some sub-problem could not solve is solved whole, cold, by :func:`solve_standard` (status,
     bounded least-squares point and ``strict`` exactly as in :func:`_run_batch`); KKT figures
-    are those of the whole QP of each frame."""
+    are those of the whole QP of each frame. With inequality rows (:class:`TensionInequalities`)
+    their reserves are the last unknowns of every frame's ``x``, whole or reduced."""
     _, m, n = jac.shape
     state = carry.state if carry is not None and carry.started else None
     models = state.models if isinstance(state, _BlockWarm) and state.fits(build) else None
@@ -1383,15 +1440,22 @@ def _run_blocks(
     forces = build.out_scale * x[:, :m] + build.out_offset
     acts = x[:, :m].copy() if activations else None
     lay = build.layout(0)
+    nres = lay.reserve_idx.shape[0]
     rc = np.zeros((n_frames, n))
-    rc[:, lay.reserve_idx] = x[:, m:]
+    rc[:, lay.reserve_idx] = x[:, m : m + nres]
     rt = np.zeros((n_frames, n))
-    rt[:, lay.reserve_idx] = lay.reserve_opt * x[:, m:]
+    rt[:, lay.reserve_idx] = lay.reserve_opt * x[:, m : m + nres]
     lbs = np.broadcast_to(build.lb[..., :m], (n_frames, m))
     ubs = np.broadcast_to(build.ub[..., :m], (n_frames, m))
-    return _batch_solution(
+    out = _batch_solution(
         x[:, :m], lbs, ubs, forces, acts, rc, rt, tau, jac, kk, status, iters, times,
         _EXACT_SOLVER, muscle_names, coordinate_names, time,
+    )  # fmt: skip
+    if build.ineq is None:
+        return out
+    return dataclasses.replace(
+        out, inequality_reserves=np.asarray(build.ineq.reserve_optimal) * x[:, m + nres :],
+        inequality_names=tuple(inequality_names),
     )  # fmt: skip
 
 
@@ -1574,8 +1638,10 @@ def solve_static_optimization_batch(
 
     ``inequalities`` (:class:`TensionInequalities`, e.g. knee compartment forces ≥ 0): rows
     ``c + G f + s ≥ 0`` added to every frame's QP with reserves ``s ≥ 0`` costing
-    ``(s/s_opt)²`` like the coordinate reserves; the QP is then solved whole (no decoupled
-    reserves, no sub-problems: the rows join the knee's muscles)."""
+    ``(s/s_opt)²`` like the coordinate reserves. A row joins the sub-problem of the muscles
+    whose gain is nonzero in some frame, with its reserve (a knee's compartment rows: the
+    muscles crossing that knee, all in its leg's sub-problem), so the split and the decoupled
+    reserves are kept; the solution is that of the whole QP to round-off."""
     jac, tau, mn, cn = _batch_inputs(jacobians, taus, muscle_names, coordinate_names)
     n_frames, m, n = jac.shape
     fa = as_float(f_active, (n_frames, m), "f_active")
