@@ -512,3 +512,53 @@ def joint_reaction(
         moment=moment,
         with_muscles=mw is not None,
     )
+
+
+def coordinates_carrying(model: Model, body: str) -> tuple[str, ...]:
+    """The coordinates whose generalised force carries a load applied to ``body``: those of the
+    joints between ``body`` and the root (a coordinate moves ``body`` when perturbed; measured at
+    the model's default pose, a small rotation or translation of each coordinate in turn)."""
+    data = model.create_data()
+    th0 = model.default_coordinates().astype(float)
+    fid = model.body_frame[body]
+    pin.framesForwardKinematics(model.pin_model, data, model.coupling.q(th0))
+    ref = pin.SE3(data.oMf[fid])
+    out = []
+    for i, c in enumerate(model.coordinate_names):
+        th = th0.copy()
+        th[i] += 1e-4
+        pin.framesForwardKinematics(model.pin_model, data, model.coupling.q(th))
+        if np.linalg.norm(pin.log6(ref.actInv(data.oMf[fid])).vector) > 1e-9:
+            out.append(c)
+    return tuple(out)
+
+
+def without_unmeasured_contact(
+    model: Model,
+    torques: JointTorques,
+    unmeasured: NDArray[np.bool_],
+    feet: Sequence[str],
+) -> JointTorques:
+    """``torques`` with NaN where a foot's ground reaction is missing: at frame i, every
+    non-root coordinate between a foot with ``unmeasured[i, k]`` and the pelvis
+    (:func:`coordinates_carrying`). RNEA's torque at a joint balances the loads on its distal
+    subtree (Featherstone 2008, §5.3), so a missing reaction on a foot falsifies the torques of
+    that leg's joints only; the other leg's, the trunk's and the pelvis residuals (the measure of
+    the missing load) are kept."""
+    tau = np.array(torques.tau, dtype=float, copy=True)
+    miss = np.asarray(unmeasured, dtype=bool)
+    if miss.shape != (tau.shape[0], len(feet)):
+        raise ShapeMismatchError(
+            f"unmeasured {miss.shape} for {tau.shape[0]} frames × {len(feet)} feet"
+        )
+    names = list(torques.coordinate_names)
+    for k, foot in enumerate(feet):
+        if not miss[:, k].any():
+            continue
+        carry = coordinates_carrying(model, foot)
+        cols = np.array(
+            [names.index(c) for c in carry if c in names and c not in torques.root_coordinates],
+            dtype=int,
+        )
+        tau[np.ix_(miss[:, k], cols)] = np.nan
+    return dataclasses.replace(torques, tau=tau)

@@ -88,6 +88,13 @@ def _edges(loaded: NDArray[np.bool_], observed: NDArray[np.bool_], t: Array,
     return out
 
 
+def _travel(x: Array, a: int, b: int, up: Array) -> float:
+    """Horizontal distance (m) between the positions ``x`` at indices a and b (clipped)."""
+    a, b = max(a, 0), min(b, x.shape[0] - 1)
+    d = x[b] - x[a]
+    return float(np.linalg.norm(d - (d @ up) * up))
+
+
 def detect_gait_events(
     model: Any,
     kinematics: Any,
@@ -100,6 +107,7 @@ def detect_gait_events(
     min_step_s: float = 0.3,
     prominence_m: float = 0.05,
     match_s: float = 0.15,
+    min_travel_m: float = 0.1,
 ) -> GaitEvents:
     """Foot strikes and foot offs of both feet (module docstring).
 
@@ -113,6 +121,8 @@ def detect_gait_events(
         min_step_s: shortest time between two events of one kind on one foot (kinematics).
         prominence_m: smallest prominence of the heel/toe excursion peaks (m).
         match_s: a kinematic event this close to a plate event is replaced by it.
+        min_travel_m: a kinematic strike (foot off) needs the heel (toe) to have moved this far
+            horizontally in the ``min_step_s`` before (after) it: a step, not a squat.
     """
     t = np.asarray(kinematics.time, dtype=float)
     q = np.asarray(kinematics.q, dtype=float)
@@ -134,6 +144,7 @@ def detect_gait_events(
     }
     # one forward-kinematics pass: pelvis forward axis, heel and toe positions (Zeni 2008)
     rel: dict[str, tuple[Array, Array]] = {}
+    world: dict[str, tuple[Array, Array]] = {}
     if gidx.size > 10 and pelvis in model.body_frame:
         fp = model.body_frame[pelvis]
         data = model.create_data()
@@ -154,6 +165,7 @@ def detect_gait_events(
         fwd -= (fwd @ up)[:, None] * up
         fwd /= np.maximum(np.linalg.norm(fwd, axis=1, keepdims=True), 1e-12)
         for side in ids:
+            world[side] = (ph[side], pt[side])
             rel[side] = (
                 np.einsum("ij,ij->i", ph[side] - xp, fwd),
                 np.einsum("ij,ij->i", pt[side] - xp, fwd),
@@ -181,8 +193,14 @@ def detect_gait_events(
             dist = max(1, int(min_step_s * rate))
             hs = find_peaks(xh, distance=dist, prominence=prominence_m)
             to = find_peaks(-xt, distance=dist, prominence=prominence_m)
-            k_hs = [float(t[gidx[i]]) for i in hs]
-            k_to = [float(t[gidx[i]]) for i in to]
+            # a strike ends a swing and a foot off starts one: the foot travels ≥ min_travel_m
+            # in the world over the min_step_s before (strike) / after (off) — the heel and
+            # pelvis of a squat or a sway move against each other with the feet still
+            wh, wt = world[side]
+            k_hs = [float(t[gidx[i]]) for i in hs
+                    if _travel(wh, i - dist, i, up) >= min_travel_m]  # fmt: skip
+            k_to = [float(t[gidx[i]]) for i in to
+                    if _travel(wt, i, i + dist, up) >= min_travel_m]  # fmt: skip
 
         def merge(plate: list[float], kin: list[float]) -> tuple[tuple[float, ...], str]:
             kept = [x for x in kin if not any(abs(x - p) <= match_s for p in plate)]

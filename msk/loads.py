@@ -1015,6 +1015,7 @@ def contact_measured(
     height_m: float = 0.08,
     speed_mps: float = 0.5,
     pad_s: float | None = None,
+    shortfall_bw: float = 0.15,
 ) -> NDArray[np.bool_]:
     """(N,) bool: the frames whose ground contact is all measured — every foot on the ground
     carries a plate load.
@@ -1048,15 +1049,83 @@ def contact_measured(
     2.47 s (slowest point 1.2 m/s, 9 mm above the floor) and again from 2.90 s (0.8 m/s), with
     the plate's vertical force 164 and 370 N short of m(g + a_com,z) there.
     """
+    contact = foot_contact(
+        model, kinematics, loads, feet=feet, threshold_n=threshold_n, height_m=height_m,
+        speed_mps=speed_mps, pad_s=pad_s, shortfall_bw=shortfall_bw,
+    )  # fmt: skip
+    return contact.known & ~contact.unmeasured.any(axis=1) & ~loads.flagged()
+
+
+#: a foot standing on a surface lasts at least this long (s): a stance on a step or beside a
+#: plate takes ≥ 0.2 s even running; the unloaded frames a heel strike's low-pass spreads ≤ 0.05 s
+STANDING_S = 0.15
+
+
+@dataclass(frozen=True)
+class FootContact:
+    """Per frame and foot (``feet``): ``grounded`` (N, F) — the foot stands on the floor or a
+    plate's surface (:func:`contact_measured`'s test); ``unmeasured`` (N, F) — grounded and
+    carrying no plate load (its ground reaction is missing from the loads); ``known`` (N,) —
+    the pose and the feet's speeds are known; ``time`` (N,) s; ``on_floor`` (N, F) grounded at
+    the floor's height (the lowest still level; never on a treadmill)."""
+
+    feet: tuple[str, ...]
+    grounded: NDArray[np.bool_]
+    unmeasured: NDArray[np.bool_]
+    known: NDArray[np.bool_]
+    time: NDArray[np.float64] | None = None
+    on_floor: NDArray[np.bool_] | None = None
+
+    def standing(self, min_s: float = STANDING_S) -> NDArray[np.bool_]:
+        """(N, F) the unmeasured runs that last ``min_s`` or longer: a foot standing on an
+        unmeasured surface. Shorter runs are the frame or two before a heel strike that the
+        low-pass filter spreads (a foot not yet loaded: conservative for the residuals, but its
+        reaction is truly zero, so the joint torques there are right)."""
+        out = np.zeros_like(self.unmeasured)
+        t = self.time
+        for k in range(out.shape[1]):
+            for a, b in true_runs(self.unmeasured[:, k]):
+                long = (b - a) > 1 and t is not None and float(t[b - 1] - t[a]) >= min_s - 1e-9
+                out[a:b, k] = long
+        return out
+
+
+def foot_contact(
+    model: Model,
+    kinematics: Any,
+    loads: ExternalLoads,
+    *,
+    feet: Sequence[str] | None = None,
+    threshold_n: float = 20.0,
+    height_m: float = 0.08,
+    speed_mps: float = 0.5,
+    pad_s: float | None = None,
+    shortfall_bw: float = 0.15,
+) -> FootContact:
+    """Which foot stands on a surface without a plate load, frame by frame (the per-foot test
+    of :func:`contact_measured`, whose docstring gives the criteria and their source): an
+    uninstrumented stair step, the floor beside a walkway's plates, a foot off a plate's edge.
+    Inverse dynamics misses that foot's ground reaction, so the torques of every joint between
+    it and the pelvis (and the pelvis residual) are wrong there.
+
+    A surface no plate marks (the upper steps of a stair, a box) is found by the dynamics: in a
+    frame where the plates' vertical force falls short of m (g + z̈_G) — the whole body's
+    vertical momentum balance, m the model's mass, z̈_G its centre of mass's acceleration — by
+    more than ``shortfall_bw`` of the body weight, a foot whose slowest point moves slower than
+    ``speed_mps`` stands on something (it is grounded at any height; not on a treadmill, whose
+    swinging feet stop in the lab at each turn while a handrail takes the shortfall). 15 % BW is
+    three times the pelvis residual force a walk's plates and markers leave (2–5 % BW,
+    docs/validation.md)."""
     t = np.asarray(kinematics.time, dtype=float)
     q = np.asarray(kinematics.q, dtype=float)
     n = t.size
     known = np.isfinite(q).all(axis=1)
+    feet = tuple(feet) if feet is not None else _default_feet(model)
     if n < 3 or not known.any():
-        return known
+        none = np.zeros((n, len(feet)), dtype=bool)
+        return FootContact(feet, none, none.copy(), known, t, none.copy())
     g = np.asarray(model.gravity, dtype=float)
     up = -g / np.linalg.norm(g) if np.linalg.norm(g) > 0 else np.array([0.0, 1.0, 0.0])
-    feet = tuple(feet) if feet is not None else _default_feet(model)
     pts = _foot_points(model, q, feet, np.arange(n))
     with warnings.catch_warnings():  # all-NaN frames (unknown pose): NaN, excluded below
         warnings.simplefilter("ignore", RuntimeWarning)
@@ -1086,6 +1155,22 @@ def contact_measured(
                 for k, x in enumerate(vel):
                     speed[sl, k] = np.nanmin(np.linalg.norm(x[sl] - v, axis=2), axis=1)
             grounded |= (np.abs(low - h) <= height_m) & (speed <= speed_mps)
+    # on the floor (the lowest still level), as the steps before and after a walkway's plates
+    on_floor = grounded & (np.abs(low - floor) <= height_m) if not treadmill else grounded & False
+    short = _support_shortfall(model, t, q, loads, up) > shortfall_bw * model.total_mass * float(
+        np.linalg.norm(g)
+    )
+    if short.any() and not treadmill:  # on belts a shortfall is a handrail, not a foot
+        with warnings.catch_warnings(), np.errstate(invalid="ignore"):
+            warnings.simplefilter("ignore", RuntimeWarning)
+            for k, x in enumerate(vel):
+                # a run of frames in which the foot stays still and the plates fall short in
+                # any of them: the foot stands on something through the whole run (its load
+                # builds up from 0 at its first frames, under the shortfall's threshold)
+                still = np.nanmin(np.linalg.norm(x, axis=2), axis=1) <= speed_mps
+                for i0, i1 in true_runs(still):
+                    if short[i0:i1].any():
+                        grounded[i0:i1, k] = True
     if pad_s is None:
         cut = getattr(kinematics, "cutoff_hz", None)
         pad_s = 0.25 / float(cut) if cut else 0.0
@@ -1094,9 +1179,13 @@ def contact_measured(
         w = round(pad_s / dt) if dt > 0 else 0
         if w > 0:
             # widen every grounded run by w frames each side (a running maximum)
-            g = np.pad(grounded, ((w, w), (0, 0)))
-            c = np.concatenate([np.zeros((1, g.shape[1]), int), np.cumsum(g, axis=0)])
-            grounded = (c[2 * w + 1 :] - c[: -(2 * w + 1)]) > 0
+            def widen(x: NDArray[np.bool_]) -> NDArray[np.bool_]:
+                g = np.pad(x, ((w, w), (0, 0)))
+                c = np.concatenate([np.zeros((1, g.shape[1]), int), np.cumsum(g, axis=0)])
+                return np.asarray((c[2 * w + 1 :] - c[: -(2 * w + 1)]) > 0)
+
+            grounded = widen(grounded)
+            on_floor = widen(on_floor)
     fv = np.zeros((n, len(feet)))
     for k, foot in enumerate(feet):
         for b in model.subtree(foot):
@@ -1108,7 +1197,27 @@ def contact_measured(
         [np.asarray(np.isfinite(x).all(axis=2)).any(axis=1) for x in vel], axis=1
     )
     known &= speed_known.all(axis=1)
-    return known & ~(grounded & ~(fv > threshold_n)).any(axis=1) & ~loads.flagged()
+    unmeasured = grounded & ~(fv > threshold_n)
+    return FootContact(feet, grounded, unmeasured, known, t, on_floor)
+
+
+def _support_shortfall(model: Model, t: Array, q: Array, loads: ExternalLoads, up: Array) -> Array:
+    """(N,) m (g + a_G)·up − Σ F_ext·up (N): the vertical force the body's motion needs beyond
+    what the loads supply (NaN where the pose or its derivatives are unknown)."""
+    from msk.signal import derivative
+
+    n = q.shape[0]
+    data = model.create_data()
+    com = np.full((n, 3), np.nan)
+    for i in range(n):
+        if np.isfinite(q[i]).all():
+            com[i] = pin.centerOfMass(model.pin_model, data, model.coupling.q(q[i]))
+    dt = float(np.median(np.diff(t))) if t.size > 1 else 1.0
+    acc = derivative(com, dt=dt, order=2) if n > 4 else np.zeros((n, 3))
+    g = float(np.linalg.norm(model.gravity))
+    need = model.total_mass * (g + acc @ up)
+    have = np.einsum("nbi,i->n", np.nan_to_num(np.asarray(loads.force, dtype=float)), up)
+    return np.asarray(need - have)
 
 
 def _beside(

@@ -49,6 +49,7 @@ Thresholds and their sources (:data:`THRESHOLDS`):
 
 from __future__ import annotations
 
+import warnings
 from collections.abc import Mapping, Sequence
 from dataclasses import asdict, dataclass
 from typing import Any
@@ -92,6 +93,9 @@ THRESHOLDS: Mapping[str, float] = {
     "still_trial_coordinate_std_deg": 2.0,
     "unobserved_segment_frames_pct": 5.0,
     "observed_measured_frames_min_pct": 50.0,
+    # a foot on an unmeasured surface inside the measured span (stair steps without plates, a
+    # foot off a plate mid-task): more than this share of the span's frames lose that leg's torques
+    "unmeasured_contact_inside_pct": 5.0,
     "saturated_frames_pct": 25.0,
     "reserve_rms_pct_peak_torque": 10.0,
     "frontal_reserve_pct_peak_moment": 10.0,
@@ -206,12 +210,16 @@ def inconsistent_static_markers(
     min_frames: int = 10,
     threshold_m: float = THRESHOLDS["static_marker_discrepancy_m"],
     skip: Sequence[str] = (),
+    still_m: float = 0.01,
 ) -> dict[str, float]:
     """Static-trial markers whose labels the motion trial contradicts.
 
     Two markers on one segment keep their distance through a motion (skin motion aside):
     d_ab(t) = ‖x_a(t) − x_b(t)‖ with a standard deviation below ``rigid_sd_m`` over the
-    motion's frames (``min_frames`` frames seeing both) makes (a, b) a *rigid pair*. A
+    motion's frames (``min_frames`` frames seeing both) makes (a, b) a *rigid pair* — unless
+    both stay still (position SD < ``still_m`` on every axis): markers of two still segments
+    keep their distance too (the two feet of a squat, the lab's axis markers), so a pair of
+    still markers says nothing of one segment. A
     static label names the same marker as the motion's when the static distance (median over
     its frames) matches the motion's median, e_ab = |d̄_ab^static − d̄_ab^motion|. A marker
     with at least ``min_partners`` rigid partners whose median discrepancy med_b e_ab exceeds
@@ -236,8 +244,14 @@ def inconsistent_static_markers(
     jm = {lab: i for i, lab in reversed(list(enumerate(motion_labels)))}
     common = [lab for lab in js if lab in jm and lab not in set(skip)]
     err: dict[str, list[float]] = {lab: [] for lab in common}
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", RuntimeWarning)
+        spread = {lab: float(np.nan_to_num(np.nanstd(xm[:, jm[lab]], axis=0)).max())
+                  for lab in common}  # fmt: skip
     for k, a in enumerate(common):
         for b in common[k + 1 :]:
+            if spread[a] < still_m and spread[b] < still_m:
+                continue  # two still markers keep any distance (both feet in a squat, lab axes)
             dm = np.linalg.norm(xm[:, jm[a]] - xm[:, jm[b]], axis=1)
             dm = dm[np.isfinite(dm)]
             if dm.size < min_frames or float(np.std(dm)) > rigid_sd_m:
@@ -710,7 +724,7 @@ def gait_flags(
                   f"no frame of the {quality['frames']} in which the plates measure every foot's "
                   "ground contact (no plate loaded, a foot off the plates, or contact at the "
                   "trial's edges only): no residuals, plate mass, muscle forces or knee contact "
-                  "for this trial — its joint torques assume no ground reaction")
+                  "for this trial, and no joint torque of a leg whose foot stands unmeasured")
         )  # fmt: skip
     pct = 100.0 * n_obs / n_meas if n_meas and n_obs is not None else 100.0
     if pct < th["observed_measured_frames_min_pct"]:
@@ -721,6 +735,29 @@ def gait_flags(
                   f"({pct:.0f} %) have every leg segment observed by its markers "
                   "(msk.observation): the residuals, the plate mass and the identifications "
                   "rest on those few")
+        )  # fmt: skip
+    raised = quality.get("unmeasured_contact_raised_frames") or 0
+    if raised and quality.get("frames"):
+        out.append(
+            _flag(trial_name, "unmeasured_contact_raised_frames", float(raised), 0.0,
+                  f"a foot stands on a raised surface no plate measures (an uninstrumented step "
+                  f"or box, found by the plates' vertical force falling short of the body's "
+                  f"momentum balance) in {raised} of the {quality['frames']} frames: that "
+                  "leg's joint torques are not written there, and no residual, muscle force or "
+                  "knee contact comes from those frames")
+        )  # fmt: skip
+    ui = quality.get("unmeasured_contact_inside_pct")
+    if ui is not None and ui > th["unmeasured_contact_inside_pct"]:
+        span = quality.get("unmeasured_contact_inside_s") or [float("nan")] * 2
+        feet = quality.get("unmeasured_contact_frames_by_foot") or {}
+        out.append(
+            _flag(trial_name, "unmeasured_contact_inside_pct", float(ui),
+                  th["unmeasured_contact_inside_pct"],
+                  f"a foot stands on a surface no plate measures in {ui:.0f} % of the frames "
+                  f"between the first and last measured one ({span[0]:.2f}–{span[1]:.2f} s; "
+                  + ", ".join(f"{f} {n}" for f, n in feet.items() if n) + " frames in the "
+                  "trial): that leg's joint torques are not written there, and no residual, "
+                  "muscle force or knee contact comes from those frames")
         )  # fmt: skip
     rf = quality.get("residual_force_rms_pct_bw")
     if rf is not None and np.isfinite(rf) and rf > th["residual_force_rms_pct_bw"]:

@@ -368,6 +368,11 @@ class Quality(_Record):
     ik_worst_marker: str | None = None
     contact_measured_frames: int | None = None
     observed_measured_frames: int | None = None
+    unmeasured_contact_frames: int | None = None
+    unmeasured_contact_frames_by_foot: Mapping[str, int | None] | None = None
+    unmeasured_contact_raised_frames: int | None = None
+    unmeasured_contact_inside_pct: float | None = None
+    unmeasured_contact_inside_s: tuple[float, ...] | None = None
     unobserved_segment_frames: Mapping[str, int | None] | None = None
     residual_force_rms_n: float | None = None
     residual_force_rms_pct_bw: float | None = None

@@ -374,3 +374,25 @@ def test_subject01_gait2392_ik_and_id_live_against_opensim_4_6(needs_opensim, tm
         rms = float(np.sqrt(np.mean(diff[inner] ** 2)))
         print(f"gait2392 {c}: RMS difference to OpenSim 4.6 ID (live) {rms:.2f} N·m")
         assert rms < 2.0
+
+
+def test_without_unmeasured_contact_blanks_only_the_leg_whose_reaction_is_missing():
+    """A missing ground reaction under the right foot (frames 10–19) falsifies the torques of
+    the right leg's joints only (RNEA: a joint's torque balances its distal subtree): those are
+    NaN there; the left leg's and the pelvis residuals (root rows) are kept, as every frame
+    outside."""
+    from msk.dynamics import coordinates_carrying, without_unmeasured_contact
+
+    kin = kinematics_from_coordinates(TRIAL.time, TRIAL.q, MODEL.coordinate_names, cutoff_hz=None)
+    kin = dataclasses.replace(kin, v=TRIAL.v, a=TRIAL.a)
+    jt = inverse_dynamics(MODEL, kin, external_loads(MODEL, kin, TRIAL.plates))
+    right = set(coordinates_carrying(MODEL, "foot_r")) - set(jt.root_coordinates)
+    assert right == {c for c in MODEL.coordinate_names if c.endswith("_r")}
+    miss = np.zeros((TRIAL.time.size, 2), dtype=bool)
+    miss[10:20, 0] = True
+    out = without_unmeasured_contact(MODEL, jt, miss, ("foot_r", "foot_l"))
+    cols = [jt.coordinate_names.index(c) for c in right]
+    assert np.isnan(out.tau[10:20][:, cols]).all()
+    keep = np.ones(out.tau.shape, dtype=bool)
+    keep[np.ix_(np.arange(10, 20), cols)] = False
+    np.testing.assert_array_equal(out.tau[keep], jt.tau[keep])

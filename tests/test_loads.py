@@ -281,7 +281,11 @@ def test_contact_measured_flags_a_foot_on_the_floor_beside_the_plates():
     hop_q[window, MODEL.coordinate_index("pelvis_ty")] += 0.2
     hop = dataclasses.replace(still, q=hop_q)
     both_off = tuple(_unloaded_between(p, 0.3, 0.6) for p in TRIAL.plates)
-    assert contact_measured(MODEL, hop, external_loads(MODEL, hop, both_off)).all()
+    # the hop teleports the body (held 0.2 m up without support: no momentum balance), so the
+    # dynamics' test of an unmarked support (shortfall_bw) is off here
+    assert contact_measured(
+        MODEL, hop, external_loads(MODEL, hop, both_off), shortfall_bw=np.inf
+    ).all()
     gap_q = q.copy()
     gap_q[5] = np.nan
     gap = dataclasses.replace(still, q=gap_q)
@@ -305,15 +309,17 @@ def test_contact_measured_widens_ground_contact_by_the_kinematic_filter_spread()
     hop_q[window, MODEL.coordinate_index("pelvis_ty")] += 0.2
     hop = dataclasses.replace(still, q=hop_q)
     loads = external_loads(MODEL, hop, tuple(_unloaded_between(p, 0.3, 0.6) for p in TRIAL.plates))
-    assert contact_measured(MODEL, hop, loads).all()
+    # the body is held up without support (non-physical): the shortfall test is off
+    off = {"shortfall_bw": np.inf}
+    assert contact_measured(MODEL, hop, loads, **off).all()
     idx = np.flatnonzero(window)
-    padded = contact_measured(MODEL, hop, loads, pad_s=0.05)
+    padded = contact_measured(MODEL, hop, loads, pad_s=0.05, **off)
     # the frame next to each jump moves fast (central differences): it is not on the ground,
     # so the pad reaches 4 frames into the flight
     assert not padded[idx[:4]].any() and not padded[idx[-4:]].any()
     assert padded[idx[5:-5]].all() and padded[~window].all()
     filtered = dataclasses.replace(hop, cutoff_hz=5.0)  # 1/(4·5 Hz) = 0.05 s
-    np.testing.assert_array_equal(contact_measured(MODEL, filtered, loads), padded)
+    np.testing.assert_array_equal(contact_measured(MODEL, filtered, loads, **off), padded)
 
 
 def test_a_few_shared_frames_inside_one_foots_stance_take_that_foot():
@@ -360,3 +366,33 @@ def test_recorded_force_is_kept_beside_the_low_passed_one():
     bare = dataclasses.replace(loads, force_recorded=None)
     assert peak_measured_force_n(bare, every) == pytest.approx(filtered)
     assert loads.take(half).force_recorded.shape == (int(half.sum()), 3)
+
+
+def test_foot_contact_finds_feet_on_an_unmarked_support_by_the_momentum_balance():
+    """Standing still 0.2 m up on a box no plate measures (0.3–0.6 s; plates unloaded there):
+    the feet are at no plate's or the floor's height, but the plates' vertical force is
+    m g short of m (g + z̈_G) while they stand still, so both feet are in unmeasured contact
+    inside the box's run (the kinematic jumps onto and off it aside); off the box every foot's
+    contact is measured. With the momentum test off (``shortfall_bw`` = ∞) nothing on the box
+    counts as contact (the behaviour before: torques computed without the box's reaction)."""
+    from msk.loads import contact_measured, foot_contact
+
+    t = KIN.time
+    q = np.repeat(TRIAL.q[:1], t.size, axis=0)
+    box = (t > 0.3) & (t < 0.6)
+    q[box, MODEL.coordinate_index("pelvis_ty")] += 0.2
+    still = dataclasses.replace(KIN, q=q, v=np.zeros_like(q), a=np.zeros_like(q))
+    loads = external_loads(
+        MODEL, still, tuple(_unloaded_between(p, 0.3, 0.6) for p in TRIAL.plates)
+    )
+    c = foot_contact(MODEL, still, loads)
+    inner = box & (t > 0.33) & (t < 0.57)
+    assert c.unmeasured[inner].all() and c.standing()[inner].all()
+    away = (t < 0.28) | (t > 0.62)  # the frames next to the jumps move (central differences)
+    assert c.on_floor is not None and not c.on_floor[inner].any() and c.on_floor[away].all()
+    assert not c.unmeasured[~box].any()
+    np.testing.assert_array_equal(
+        contact_measured(MODEL, still, loads), c.known & ~c.unmeasured.any(axis=1)
+    )
+    off = foot_contact(MODEL, still, loads, shortfall_bw=np.inf)
+    assert not off.unmeasured.any()

@@ -273,3 +273,73 @@ def test_a_still_trial_raises_no_frozen_coordinate_flag():
     kin.q[:, model.coordinate_names.index("knee_angle_l")] = np.linspace(-0.1, -1.0, 100)
     by = {f.quantity for f in _flags(model, kin)}
     assert "hip_flexion_r_std_deg" in by
+
+
+def test_two_still_markers_are_no_rigid_pair_of_the_static_check():
+    """Markers on two segments that both stay still through the task (the two feet of a squat)
+    keep their distance without being on one segment: the static, with the feet placed
+    otherwise (4 cm wider), names none of them; moving, the same pairs are not rigid."""
+    from msk.quality import inconsistent_static_markers
+
+    rng = np.random.default_rng(5)
+    feet = np.array([[0, 0, 0.1], [0.2, 0, 0.1], [0.1, 0.05, 0.12],
+                     [0, 0, -0.1], [0.2, 0, -0.1], [0.1, 0.05, -0.12]])  # fmt: skip
+    labels = ("R0", "R1", "R2", "L0", "L1", "L2")
+    motion = np.repeat(feet[None], 200, axis=0) + rng.normal(0.0, 0.0015, (200, 6, 3))
+    wide = feet.copy()
+    wide[:3, 2] += 0.04
+    static = np.repeat(wide[None], 30, axis=0) + rng.normal(0.0, 0.0015, (30, 6, 3))
+    assert inconsistent_static_markers(static, labels, motion, labels) == {}
+    # without the still exemption the cross-foot pairs would read as rigid and name them
+    assert inconsistent_static_markers(static, labels, motion, labels, still_m=0.0) != {}
+
+
+def test_unmeasured_contact_inside_the_measured_span_is_flagged_outside_it_is_not():
+    """The gate ``unmeasured_contact_inside_pct``: a foot standing (≥ 0.15 s) on an unmeasured
+    surface in more than 5 % of the frames between the first and last measured frame (a
+    stair's upper steps); before and after the plates (a walkway's steps) and a run of a few
+    frames (before a heel strike) do not count."""
+    from types import SimpleNamespace as NS
+
+    from msk.loads import FootContact
+    from msk.pipeline.summary import unmeasured_contact_figures
+
+    t = np.arange(100) / 100.0
+    miss = np.zeros((100, 2), dtype=bool)
+    measured = np.zeros(100, dtype=bool)
+    measured[20:80] = True
+    miss[:20, 0] = True  # before the plates: a walkway's first step
+    miss[80:, 1] = True
+    miss[30:33, 1] = True  # 20 ms before a heel strike
+    known = np.ones(100, dtype=bool)
+    contact = FootContact(("calcn_r", "calcn_l"), miss, miss, known, t)
+    q = unmeasured_contact_figures(NS(contact=contact, measured=measured), t)
+    assert q["unmeasured_contact_frames"] == 40 and q["unmeasured_contact_inside_pct"] == 0.0
+    model = two_leg_model()
+    kin = _still(model, 100)
+    kin.coordinate_names = kin_names(model)
+    assert not [f for f in _flags(model, kin, frames=100, **q)
+                if f.quantity == "unmeasured_contact_inside_pct"]  # fmt: skip
+    miss[40:60, 0] = True  # a step without a plate, inside
+    contact = FootContact(("calcn_r", "calcn_l"), miss, miss, known, t)
+    q = unmeasured_contact_figures(NS(contact=contact, measured=measured & ~miss[:, 0]), t)
+    assert q["unmeasured_contact_inside_pct"] == pytest.approx(100 * 20 / 60)
+    assert q["unmeasured_contact_inside_s"] == [0.4, 0.59]
+    (flag,) = [f for f in _flags(model, kin, frames=100, **q)
+               if f.quantity == "unmeasured_contact_inside_pct"]  # fmt: skip
+    assert "0.40–0.59 s" in flag.message and "calcn_r 40" in flag.message
+
+
+def test_unmeasured_contact_on_a_raised_surface_is_flagged():
+    """A foot standing on a raised surface no plate measures (a stair's upper steps, found by
+    the momentum balance) raises ``unmeasured_contact_raised_frames`` wherever it lies in the
+    trial; none raises nothing."""
+    model = two_leg_model()
+    kin = _still(model, 100)
+    kin.coordinate_names = kin_names(model)
+    q = {"frames": 100, "unmeasured_contact_raised_frames": 30}
+    (flag,) = [f for f in _flags(model, kin, **q)
+               if f.quantity == "unmeasured_contact_raised_frames"]  # fmt: skip
+    assert flag.value == 30.0 and "30 of the 100 frames" in flag.message
+    q["unmeasured_contact_raised_frames"] = 0
+    assert not [f for f in _flags(model, kin, **q) if f.quantity.startswith("unmeasured")]

@@ -12,7 +12,7 @@ from msk.pipeline.loads import Loads
 from msk.pipeline.mass_identification import MassIdentification, identified_model
 from msk.pipeline.model import BuiltModel
 
-__all__ = ["InverseDynamics", "run"]
+__all__ = ["InverseDynamics", "contact_gated_torques", "run"]
 
 
 @dataclass(frozen=True)
@@ -38,8 +38,27 @@ def run(
 ) -> InverseDynamics:
     from msk.dynamics import inverse_dynamics
 
-    generic = inverse_dynamics(model.model, kinematics, loads.external)
+    generic = contact_gated_torques(
+        model.model, inverse_dynamics(model.model, kinematics, loads.external), loads
+    )
     if mass_identification is None:
         return InverseDynamics(generic)
     m_id = identified_model(model.model, mass_identification)
-    return InverseDynamics(generic, inverse_dynamics(m_id, kinematics, loads.external))
+    return InverseDynamics(
+        generic,
+        contact_gated_torques(m_id, inverse_dynamics(m_id, kinematics, loads.external), loads),
+    )
+
+
+def contact_gated_torques(model: Any, torques: Any, loads: Loads) -> Any:
+    """``torques`` without the frames and legs whose ground reaction the plates miss
+    (:func:`msk.dynamics.without_unmeasured_contact`): a foot standing on an unmeasured surface
+    (``loads.contact``, runs of at least :data:`msk.loads.STANDING_S`), and every foot in a
+    frame whose plate load went to no foot or to two (:meth:`msk.loads.ExternalLoads.flagged`)."""
+    from msk.dynamics import without_unmeasured_contact
+
+    contact = loads.contact
+    if contact is None:
+        return torques
+    miss = contact.standing() | loads.external.flagged()[:, None]
+    return without_unmeasured_contact(model, torques, miss, contact.feet)

@@ -40,12 +40,15 @@ class Loads:
     ``observation``: :class:`msk.observation.Observation`, the frames whose leg segments the
     markers observe (a segment out of the capture volume or a marker dropping out: its pose,
     hence q̈, is guessed there); ``usable``: measured and observed frames with finite q and q̈
-    — the frames every dynamics-based figure and fit uses."""
+    — the frames every dynamics-based figure and fit uses; ``contact``:
+    :class:`msk.loads.FootContact`, which foot stands on an unmeasured surface in which frame
+    (its leg's joint torques are not written there: :func:`msk.pipeline.dynamics.run`)."""
 
     external: Any
     measured: np.ndarray
     usable: np.ndarray
     observation: Any = None
+    contact: Any = None
 
     @property
     def measured_observed(self) -> np.ndarray:
@@ -114,7 +117,7 @@ def rotated_plate(plate: Any, rot: np.ndarray) -> Any:
 def run(inputs: SessionInputs, read: ReadResult, model: BuiltModel, kinematics: Any) -> Loads:
     """The read trial's plates (a C3D's, or its GRF file's) in the model frame (rotated here,
     not kept by the model stage), assigned to the feet."""
-    from msk.loads import contact_measured
+    from msk.loads import foot_contact
     from msk.observation import observed_frames
 
     rot = model.rotation
@@ -122,7 +125,9 @@ def run(inputs: SessionInputs, read: ReadResult, model: BuiltModel, kinematics: 
     # model frame is held at a time (issue 18)
     plates: Iterator[Any] = (rotated_plate(p, rot) for p in read.plates or ())
     ext = assign_loads(inputs, model.model, read.trial, kinematics, plates, read.assignment)
-    measured = contact_measured(model.model, kinematics, ext)
+    contact = foot_contact(model.model, kinematics, ext)
+    # contact_measured's frames (msk.loads), from the same per-foot test
+    measured = contact.known & ~contact.unmeasured.any(axis=1) & ~ext.flagged()
     obs = observed_frames(model.model, kinematics)
     usable = (
         np.isfinite(kinematics.q).all(axis=1)
@@ -130,4 +135,4 @@ def run(inputs: SessionInputs, read: ReadResult, model: BuiltModel, kinematics: 
         & measured
         & obs.observed
     )
-    return Loads(ext, measured, usable, obs)
+    return Loads(ext, measured, usable, obs, contact)

@@ -95,6 +95,43 @@ def base_summary(inputs: SessionInputs) -> dict[str, Any]:
     }
 
 
+def unmeasured_contact_figures(loads: Any, time: Any) -> dict[str, Any]:
+    """``quality.unmeasured_contact_frames`` (frames in which a foot stands on a surface no plate
+    measures for at least :data:`msk.loads.STANDING_S`, :meth:`msk.loads.FootContact.standing`;
+    its leg's joint torques are not written there),
+    ``unmeasured_contact_frames_by_foot``, ``unmeasured_contact_raised_frames`` (those off the
+    floor's level: a stair's upper steps, a box) and ``unmeasured_contact_inside_pct``: the share
+    of the frames between the first and the last measured frame that have one (a walkway's
+    steps before and after the plates lie outside; a foot off a plate in the middle of the task
+    inside)."""
+    contact = getattr(loads, "contact", None)
+    if contact is None:
+        return {}
+    miss = np.asarray(contact.standing(), dtype=bool)
+    anym: np.ndarray[Any, np.dtype[np.bool_]] = np.asarray(miss.any(axis=1), dtype=bool)
+    meas = np.flatnonzero(np.asarray(loads.measured, dtype=bool))
+    inside = None
+    span = None
+    if meas.size:
+        a, b = int(meas[0]), int(meas[-1])
+        inside = 100.0 * float(anym[a : b + 1].mean())
+        t = np.asarray(time, dtype=float)
+        hit = np.flatnonzero(anym[a : b + 1])
+        if hit.size:
+            span = [float(t[a + hit[0]]), float(t[a + hit[-1]])]
+    floor = getattr(contact, "on_floor", None)
+    raised = miss & ~np.asarray(floor, dtype=bool) if floor is not None else miss & False
+    return {
+        "unmeasured_contact_frames": int(anym.sum()),
+        "unmeasured_contact_raised_frames": int(raised.any(axis=1).sum()),
+        "unmeasured_contact_frames_by_foot": {
+            f: int(miss[:, k].sum()) for k, f in enumerate(contact.feet)
+        },
+        "unmeasured_contact_inside_pct": inside,
+        "unmeasured_contact_inside_s": span,
+    }
+
+
 def _mode(names: Sequence[str]) -> str:
     vals = [n for n in names if n]
     return max(set(vals), key=vals.count) if vals else ""
@@ -410,6 +447,7 @@ def run(
         model.trial, kin, jt, loads.external, emg, sol, strength, ident, inputs.body_weight,
         loads.measured, loads.measured_observed, loads.observation,
     )  # fmt: skip
+    quality.update(unmeasured_contact_figures(loads, kin.time))
     plate_mass = body_mass_from_loads(mdl, kin, loads.external, loads.measured_observed)
     quality["plate_mass_kg"] = plate_mass
     pairs = () if swapped_markers is None else swapped_markers

@@ -950,8 +950,9 @@ def _mass_section(res: SessionResults, figs: Mapping[str, str]) -> str:
 
 
 def _gait_section(res: SessionResults, figs: Mapping[str, str]) -> str:
-    out = ["<h2>3. Joint angles, moments, powers and muscle forces over the gait cycle</h2>"]
     cyc = res.summary.gait_cycle_s
+    over = "the gait cycle" if cyc else "the trial"
+    out = [f"<h2>3. Joint angles, moments, powers and muscle forces over {over}</h2>"]
     side = _or(res.summary.subject.side, "right")
     if cyc:
         out.append(
@@ -963,8 +964,10 @@ def _gait_section(res: SessionResults, figs: Mapping[str, str]) -> str:
         )
     else:
         out.append(
-            '<p class="warn">No two foot-strike events of the side of interest in the '
-            "C3D file: curves are shown against time.</p>"
+            '<p class="note">No gait cycle: no two foot strikes of the side of interest (a '
+            "task without steps — standing, a squat — or events missing): curves are shown "
+            "against time. Moments: internal net joint moments per kg body mass; frames in which "
+            "a foot stands on a surface no plate measures are left blank for that leg.</p>"
         )
     if "joints" in figs:
         out.append(f"<figure>{figs['joints']}</figure>")
@@ -1123,6 +1126,17 @@ def _quality_section(res: SessionResults) -> str:
             f"{_e(_or(q.observed_measured_frames, '—'))}",
             f"≥ {TH['observed_measured_frames_min_pct']:g} %",
             "—",
+        ],
+        [
+            "frames with a foot on an unmeasured surface (that leg's torques not written)",
+            f"{_e(_or(q.unmeasured_contact_frames, '—'))} "
+            f"({_num(q.unmeasured_contact_inside_pct, '.0f', '%')} of the measured span)",
+            f"≤ {TH['unmeasured_contact_inside_pct']:g} % of the span",
+            _check(
+                q.unmeasured_contact_inside_pct,
+                TH["unmeasured_contact_inside_pct"],
+                flagged=gate("unmeasured_contact_inside_pct"),
+            ),
         ],
         [
             "pelvis residual force (RMS)",
