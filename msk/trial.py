@@ -27,7 +27,7 @@ from msk.exceptions import MissingDataError, ShapeMismatchError
 from msk.signal import block_average, resample_to
 
 if TYPE_CHECKING:
-    from msk.io.analogs import StoredAnalogs
+    from msk.analogs import StoredAnalogs
 
 __all__ = ["Event", "ForcePlate", "GapReport", "ModelOutputs", "Subject", "Trial"]
 

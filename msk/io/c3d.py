@@ -44,8 +44,8 @@ from typing import Any
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from msk.analogs import StoredAnalogs
 from msk.exceptions import C3DError, ForcePlateError, MskError, UnitsError
-from msk.io.analogs import StoredAnalogs
 from msk.io.validate import MAX_ABS_COORDINATE_M, MAX_ABS_FORCE_N, check_regular_file
 from msk.trial import Event, ForcePlate, GapReport, ModelOutputs, Subject, Trial
 
@@ -367,7 +367,7 @@ def _read_data(
     invalid flags ``(N, P)`` (negative residual word) and the analog ``analog_columns``
     ``(N * samples, C)`` scaled as ``(raw - OFFSET) * SCALE * GEN_SCALE``, read from the data
     section block by block (:data:`_READ_BLOCK` frames): only the outputs are held whole.
-    ``stored``: the analogs as a :class:`msk.io.analogs.StoredAnalogs` (the stored samples,
+    ``stored``: the analogs as a :class:`msk.analogs.StoredAnalogs` (the stored samples,
     scaled when indexed: the same values) unless the file is a DEC one."""
     endian = ">" if lay.proc == 86 else "<"
     dtype = np.dtype(endian + ("f4" if lay.is_float else "i2"))
@@ -1136,7 +1136,7 @@ def read_c3d(
     file of more than 65 535 frames is read whole when ``TRIAL:ACTUAL_START_FIELD`` /
     ``ACTUAL_END_FIELD`` give its frames (the header's last frame saturates; ezc3d 1.7 reads
     the first 65 535 or ``POINT:FRAMES``). ``stored_analogs=True`` (with
-    ``plate_channels=False``) holds the kept channels as stored (:class:`msk.io.analogs.
+    ``plate_channels=False``) holds the kept channels as stored (:class:`msk.analogs.
     StoredAnalogs`: int16 or float32, scaled per channel when indexed, the same float64 values;
     a DEC file's as float64). ``plate_channels=False`` leaves the force
     platforms' analog channels out of :attr:`Trial.analogs` (the plates are computed from them,

@@ -45,7 +45,7 @@ from msk.signal import filtfilt_butter, resample_to
 from msk.timeseries import FrameAxis
 
 if TYPE_CHECKING:
-    from msk.io.analogs import StoredAnalogs
+    from msk.analogs import StoredAnalogs
 
 Array = NDArray[np.float64]
 NormalisationSource = Literal["mvc", "session_peak"]
@@ -379,7 +379,7 @@ def process_emg(
     :meth:`EmgEnvelopes.resampled` of the result without ``time`` (synergists' means to
     round-off), holding one channel at the analog rate at a time (issue 18: a long trial).
     """
-    from msk.io.analogs import StoredAnalogs
+    from msk.analogs import StoredAnalogs
 
     labels = tuple(str(s).strip() for s in labels)
     x: Array | StoredAnalogs

@@ -1,4 +1,4 @@
-"""``msk.io.analogs.StoredAnalogs`` (the session's C3D read: analogs as stored, scaled per
+"""``msk.analogs.StoredAnalogs`` (the session's C3D read: analogs as stored, scaled per
 channel when read) against the float64 read of the same file: bit-identical values, less held."""
 
 from __future__ import annotations
@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 from msk._data import real_data_dir
-from msk.io.analogs import StoredAnalogs
+from msk.analogs import StoredAnalogs
 from msk.io.c3d import PlateSpec, read_c3d, write_c3d
 from msk.muscles.emg import process_emg
 
