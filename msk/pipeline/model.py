@@ -26,14 +26,22 @@ from msk.pipeline.inputs import SessionInputs
 from msk.pipeline.read import ReadResult, read_static_markers
 
 __all__ = [
+    "CHOICE_MAX_FRAMES",
+    "CHOICE_TOLERANCE_M",
+    "DESCENT_MAX_ROUNDS",
+    "DESCENT_PASSES",
+    "DESCENT_TOLERANCE_M",
     "HELD_COORDINATE_WEIGHT",
     "STATIC_CHECK_MIN_TASK_S",
     "BuiltModel",
+    "choose_placement",
     "held_static_knees",
     "knee_flexion_to_physiological",
+    "lab_origin_offset",
     "leg_split",
     "load_model_file",
     "model_frame_columns",
+    "placement_cost",
     "run",
     "settings",
 ]
@@ -174,8 +182,14 @@ def knee_flexion_to_physiological(model: Any) -> tuple[Any, dict[str, list[float
 
 
 def _scale_and_place(
-    inputs: SessionInputs, read: ReadResult, functional: Mapping[str, float] | None = None
+    inputs: SessionInputs,
+    read: ReadResult,
+    functional: Mapping[str, float] | None = None,
+    placement: Mapping[str, Any] | None = None,
 ) -> dict[str, Any]:
+    """Scale the model and place the lab's markers (static trial, else the task). ``placement``:
+    extra keywords of :func:`msk.scaling.place_markers_from_motion` (``regularize``,
+    ``frame_phase``) when there is no static trial (a candidate of :func:`run`)."""
     from msk.io.c3d import is_measured_marker
     from msk.io.frames import pelvis_heading_rotation
     from msk.markersets import (
@@ -243,6 +257,7 @@ def _scale_and_place(
     }
     report = None
     generic = model
+    placement_call: tuple[Any, ...] | None = None
     # a static the task contradicts so much that it cannot be posed (another subject's, or
     # another labelling): the task's own markers scale and place, and the flag says so
     rejected: str | None = None
@@ -320,6 +335,11 @@ def _scale_and_place(
         # no static trial: the task trial's own markers scale and place (the segment lengths
         # are constant over a motion; msk.scaling.scale_from_motion)
         xm, mlabels = model_frame_columns(trial, rot, match)
+        # where the lab put its origin cannot matter: the markers are translated so that their
+        # median sits at the generic model's markers' centroid in its default pose (the
+        # inverse kinematics of scaling and placement start from that pose, and the pelvis
+        # translations have bounds; scale factors and body-frame offsets are invariant)
+        xm = xm - lab_origin_offset(model, xm)
         if mc.scale:
             model, report = scale_from_motion(
                 model, xm, mlabels, trial.time, height_m=cfg.subject.height_m,
@@ -331,11 +351,14 @@ def _scale_and_place(
         present = [mk.name for mk in model.markers if mk.name in set(mlabels)]
         feet = [m for m in foot_markers(present) if m not in cfg.marker_move]
         moved = [*cfg.marker_move, *feet]
-        model, placed = place_markers_from_motion(
-            model, xm, mlabels, trial.time, move=moved,
-            median_neutral=free_foot_coordinates(model, moved, present),
+        kw: dict[str, Any] = dict(
+            move=moved, median_neutral=free_foot_coordinates(model, moved, present),
             hints=match.body_hints([b.name for b in model.bodies]),
         )  # fmt: skip
+        placement_call = (model, xm, mlabels, trial.time, kw)
+        model, placed = place_markers_from_motion(
+            model, xm, mlabels, trial.time, **kw, **dict(placement or {})
+        )
     info["marker_placement"] = placed
     if model.metadata.get("knee_alignment"):
         info["knee_alignment"] = dict(model.metadata["knee_alignment"])
@@ -343,7 +366,28 @@ def _scale_and_place(
         info["scaling"] = report.summary()
         info["scale_ratios"] = dict(model.metadata.get("scale_ratios", {}))
     info["mass_kg"] = model.total_mass
-    return {"model": model, "info": info, "rotation": rot, "rename": dict(match.rename)}
+    return {
+        "model": model, "info": info, "rotation": rot, "rename": dict(match.rename),
+        "placement_call": placement_call,
+    }  # fmt: skip
+
+
+def lab_origin_offset(model: Any, markers: Any) -> np.ndarray:
+    """(3,) m to subtract from a motion trial's markers (model frame) so that their median
+    (over frames and markers, per axis) sits at the centroid of ``model``'s markers in its
+    default pose: the trial then no longer depends on where the lab put its origin (the
+    inverse kinematics of :func:`msk.scaling.scale_from_motion` and
+    :func:`msk.scaling.place_markers_from_motion` start from the default pose and bound the
+    pelvis translations). Zero when no marker is finite."""
+    from msk.model import marker_positions
+
+    x = np.asarray(markers, dtype=float)
+    finite = np.isfinite(x).all(axis=-1)
+    if not finite.any() or not model.markers:
+        return np.zeros(3)
+    med = np.median(x[finite], axis=0)
+    pts = marker_positions(model, model.default_coordinates())[0]
+    return np.asarray(med - pts.mean(axis=0), dtype=float)
 
 
 def model_frame_columns(
@@ -631,6 +675,171 @@ def _placement_rms(info: Mapping[str, Any]) -> float:
     return float("nan") if v is None else float(v)
 
 
+#: placement passes per round of :func:`choose_placement`'s alternation
+DESCENT_PASSES = 2
+
+#: decrease of the task's IK cost (m) below which :func:`choose_placement` stops alternating
+DESCENT_TOLERANCE_M = 1e-5
+
+#: most rounds of :func:`choose_placement`'s alternation
+DESCENT_MAX_ROUNDS = 12
+
+#: how much worse (m) than the least task IK cost a candidate of :func:`choose_placement` may be
+#: and still be preferred (the split before the leg factor, the pulled start before the other):
+#: the candidates' costs move by up to 0.15 mm under ``scripts/placement_jitter.py``'s
+#: perturbations (DM og1), so that a choice by the bare minimum between candidates closer than
+#: that flipped the femur and tibia factors from run to run
+CHOICE_TOLERANCE_M = 0.0002
+
+#: most task frames the choice among motion placements is judged on (:func:`choose_placement`):
+#: evenly strided over the trial
+CHOICE_MAX_FRAMES = 300
+
+
+def placement_cost(
+    model: Any, x: np.ndarray, time: np.ndarray, labels: Sequence[str],
+    weights: Mapping[str, float], markers: Sequence[str],
+    loose: Mapping[str, tuple[str, Sequence[float]]] | None = None,
+) -> float:  # fmt: skip
+    """The task's inverse kinematics cost of a placed model (m): the kinematics stage's IK
+    (:func:`msk.pipeline.kinematics.solve_trial`: the configured marker weights, the held foot
+    coordinates, physiological knee ranges; no filter) of the frames ``x`` (model frame), then
+    the weighted RMS over ``markers`` of each frame's distances, averaged over the frames — the
+    quantity the task's IK minimises, on one marker set for every candidate compared. A
+    marker of ``markers`` the model does not carry (left out as too loose: ``loose``, name →
+    (body, offset)) is measured at the pose the others give, so that dropping a marker does
+    not lower the cost by itself."""
+    from types import SimpleNamespace
+
+    from msk.model import Marker, marker_positions
+    from msk.pipeline.kinematics import solve_trial
+
+    final, _ = knee_flexion_to_physiological(model)
+    held = held_foot_coordinates(final, x, tuple(labels))
+    kin = solve_trial(
+        final, SimpleNamespace(markers=x, time=time), tuple(labels), weights=weights,
+        held=held, cutoff_hz=None,
+    )  # fmt: skip
+    extra = [Marker(k, b, np.asarray(o, dtype=float)) for k, (b, o) in (loose or {}).items()
+             if k not in set(final.marker_names)]  # fmt: skip
+    scored = final.with_markers([*final.markers, *extra]) if extra else final
+    names = list(scored.marker_names)
+    use = [m for m in markers if m in names and m in labels]
+    ok = np.isfinite(kin.q_raw).all(axis=1)
+    if not use or not ok.any():
+        return float("inf")
+    pos = marker_positions(scored, kin.q_raw[ok])[:, [names.index(m) for m in use]]
+    meas = x[ok][:, [list(labels).index(m) for m in use]]
+    d2 = ((pos - meas) ** 2).sum(axis=2)
+    w = np.array([float(weights.get(m, 1.0)) for m in use])[None, :] * np.isfinite(d2)
+    den = w.sum(axis=1)
+    fine = den > 0
+    per_frame = np.sqrt(np.where(w > 0, np.nan_to_num(d2) * w, 0.0)[fine].sum(axis=1) / den[fine])
+    return float(per_frame.mean()) if per_frame.size else float("inf")
+
+
+def choose_placement(
+    inputs: SessionInputs, read: ReadResult, built: Mapping[str, Any],
+    functional: Mapping[str, float] | None,
+) -> tuple[dict[str, Any], dict[str, Any]]:  # fmt: skip
+    """The motion placement (no static trial) of least task IK cost (:func:`placement_cost`,
+    one objective on one marker set and the same frames for every candidate) among a fixed
+    set: with and without the functional femur : tibia split (``functional``, when there is
+    one), each started from the placement as it was (plain, pulled when plain is worse than
+    :data:`msk.scaling.PLACEMENT_RETRY_RMS_M`) and from the placement pulled towards neutral
+    (``regularize=True`` of :func:`msk.scaling.place_markers_from_motion`), each start then
+    alternating placement and inverse kinematics (:data:`DESCENT_PASSES` unpulled passes per
+    round, continuing the last) for as long as the task's cost decreases by more than
+    :data:`DESCENT_TOLERANCE_M` (at most :data:`DESCENT_MAX_ROUNDS` rounds).
+
+    Why. The placement passes are a fixed-point iteration with several basins: which one a run
+    lands in moved with perturbations no physical argument can care about (markers + 0.1 mm
+    noise, one frame less, leg factors × (1 ± 1e-4): DM og1's task IK 8.5–9.5 mm, UWA fast
+    walking's 9.2–10.8 mm; ``scripts/placement_jitter.py``), and the plain/pulled and
+    split/no-split choices made on the placement's own RMS flipped with it. The pulled start is
+    unique (the pull resolves the flat directions of the anatomical markers' IK); the
+    alternation then descends, on the task's own objective, to where the markers alone put the
+    placement. The plain start as it was is a candidate, so by this objective the choice is
+    never worse than the route before it by more than :data:`CHOICE_TOLERANCE_M` (the first
+    candidate in order of preference within it of the least is kept).
+
+    Returns the chosen ``_scale_and_place`` result and the record of the choice
+    (``summary.json`` ``model.placement_choice``)."""
+    from msk.markersets import zeros_as_gaps
+    from msk.scaling import place_markers_from_motion
+
+    trial = read.trial
+    n = np.shape(trial.markers)[0]
+    idx = np.arange(0, n, max(1, int(np.ceil(n / CHOICE_MAX_FRAMES))))
+    rot = np.asarray(built["rotation"], dtype=float)
+    x = zeros_as_gaps(np.asarray(trial.markers, dtype=float)[idx] @ rot.T)
+    t = np.asarray(trial.time, dtype=float)[idx]
+    inv = {v: k for k, v in built["rename"].items()}
+    labels = tuple(inv.get(lab, lab) for lab in trial.marker_labels)
+    weights = dict(inputs.cfg.marker_weights)
+
+    starts: list[tuple[dict[str, Any], dict[str, Any]]] = []
+    for f in [None, *([functional] if functional else [])]:
+        for reg in (None, True):
+            spec = {"leg_split": f is not None, "start": "as before" if reg is None else "pulled"}
+            starts.append((spec, _scale_and_place(inputs, read, f, {"regularize": reg})))
+    # one marker set for all: every marker any start places, the model's own included (a
+    # candidate that leaves one out as too loose is measured on it at its pose)
+    union = set().union(*(set(c["model"].marker_names) for _, c in starts))
+    markers = sorted(union & set(labels))
+
+    def cost(model: Any, mp: Mapping[str, Any]) -> float:
+        state = dict(mp.get("state", {}))
+        loose = {k: (str(state[k][0]), state[k][2]) for k in mp.get("too_loose", {}) if k in state}
+        return placement_cost(model, x, t, labels, weights, markers, loose)
+
+    records, results, costs = [], [], []
+    for spec, c in starts:
+        cur_model, cur = c["model"], dict(c["info"]["marker_placement"])
+        path = [cost(cur_model, cur)]
+        base, xm, mlabels, time, kw = c["placement_call"]
+        for _ in range(DESCENT_MAX_ROUNDS):
+            own = set(base.marker_names)
+            nxt_model, nxt = place_markers_from_motion(
+                base.with_markers([mk for mk in cur_model.markers if mk.name in own]),
+                xm, mlabels, time, **{**kw, "regularize": False, "iterations": DESCENT_PASSES,
+                                      "start": cur["state"]},
+            )  # fmt: skip
+            v = cost(nxt_model, nxt)
+            if not v < path[-1] - DESCENT_TOLERANCE_M:
+                break
+            path.append(v)
+            cur_model, cur = nxt_model, {**nxt, "regularized": cur["regularized"]}
+        info = {**c["info"], "marker_placement": {**cur, "descent_cost_m": path}}
+        results.append({**c, "model": cur_model, "info": info})
+        records.append({**spec, "cost_m": path[-1], "rounds": len(path) - 1})
+        costs.append(path[-1])
+    # the first in order of preference within CHOICE_TOLERANCE_M of the least: the split
+    # (the functional knee) before the leg factor, the pulled start (unique) before the other
+    order = sorted(range(len(records)), key=lambda i: (
+        not records[i]["leg_split"], records[i]["start"] != "pulled"))  # fmt: skip
+    best = next(i for i in order if costs[i] <= min(costs) + CHOICE_TOLERANCE_M)
+    record = {
+        "objective": "task IK (weights, held feet, no filter): weighted marker RMS over every "
+        "marker a candidate places, mean over frames",
+        "frames": int(idx.size),
+        "candidates": records,
+        "chosen": best,
+    }
+    return results[best], record
+
+
+def _split_refused(split: Mapping[str, Any], note: str) -> dict[str, Any]:
+    """Every side of ``split`` back to its leg factor, ``note`` saying why."""
+    return {
+        side: sp if sp.method == "leg factor" else dataclasses.replace(
+            sp, method="leg factor", reason=f"{sp.method}: {note}",
+            femur_factor=sp.leg_factor, tibia_factor=sp.leg_factor,
+        )
+        for side, sp in split.items()
+    }  # fmt: skip
+
+
 def run(inputs: SessionInputs, read: ReadResult) -> BuiltModel:
 
     cfg = inputs.cfg
@@ -638,31 +847,40 @@ def run(inputs: SessionInputs, read: ReadResult) -> BuiltModel:
     trial = read.trial
     built = _scale_and_place(inputs, read)
     split = leg_split(inputs, trial, built)
+    motion = "regularized" in built["info"].get("marker_placement", {})
+    if motion and (split is None or all(sp.method == "leg factor" for sp in split.values())):
+        built, choice = choose_placement(inputs, read, built, None)
+        built["info"]["placement_choice"] = choice
     if split is not None:
         functional = {
             f"{b}_{side}": f
             for side, sp in split.items() if sp.method != "leg factor"
             for b, f in (("femur", sp.femur_factor), ("tibia", sp.tibia_factor))
         }  # fmt: skip
-        if functional:
-            # kept when the lab's markers fit the split model no worse than the leg-factor one
-            # (the placement's marker RMS: the markers' own verdict, not the plates')
+        if functional and "regularized" not in built["info"].get("marker_placement", {}):
+            # (static trial) kept when the lab's markers fit the split model no worse than the
+            # leg-factor one (the placement's marker RMS: the markers' own verdict, not the
+            # plates')
             again = _scale_and_place(inputs, read, functional)
             rms0, rms1 = _placement_rms(built["info"]), _placement_rms(again["info"])
             if rms1 <= rms0:
                 built = again
             else:
-                note = (
+                split = _split_refused(split, (
                     f"the markers fit the split model worse (placement marker RMS "
                     f"{1000 * rms0:.1f} → {1000 * rms1:.1f} mm): leg factor kept"
-                )
-                split = {
-                    side: sp if sp.method == "leg factor" else dataclasses.replace(
-                        sp, method="leg factor", reason=f"{sp.method}: {note}",
-                        femur_factor=sp.leg_factor, tibia_factor=sp.leg_factor,
-                    )
-                    for side, sp in split.items()
-                }  # fmt: skip
+                ))  # fmt: skip
+        elif functional:
+            built, choice = choose_placement(inputs, read, built, functional)
+            chosen = choice["candidates"][choice["chosen"]]
+            if not chosen["leg_split"]:
+                c_split = min(c["cost_m"] for c in choice["candidates"] if c["leg_split"])
+                split = _split_refused(split, (
+                    f"the task's markers fit the split model worse (task IK "
+                    f"{1000 * chosen['cost_m']:.2f} → {1000 * c_split:.2f} mm at best): leg "
+                    "factor kept"
+                ))  # fmt: skip
+            built["info"]["placement_choice"] = choice
         built["info"]["leg_split"] = {side: sp.summary() for side, sp in split.items()}
     if swapped:
         built["info"]["marker_set"]["swapped_back"] = swapped
