@@ -766,7 +766,7 @@ def choose_placement(
     Returns the chosen ``_scale_and_place`` result and the record of the choice
     (``summary.json`` ``model.placement_choice``)."""
     from msk.markersets import zeros_as_gaps
-    from msk.scaling import place_markers_from_motion
+    from msk.scaling import refine_placement_from_motion
 
     trial = read.trial
     n = np.shape(trial.markers)[0]
@@ -795,23 +795,15 @@ def choose_placement(
 
     records, results, costs = [], [], []
     for spec, c in starts:
-        cur_model, cur = c["model"], dict(c["info"]["marker_placement"])
-        path = [cost(cur_model, cur)]
         base, xm, mlabels, time, kw = c["placement_call"]
-        for _ in range(DESCENT_MAX_ROUNDS):
-            own = set(base.marker_names)
-            nxt_model, nxt = place_markers_from_motion(
-                base.with_markers([mk for mk in cur_model.markers if mk.name in own]),
-                xm, mlabels, time, **{**kw, "regularize": False, "iterations": DESCENT_PASSES,
-                                      "start": cur["state"]},
-            )  # fmt: skip
-            v = cost(nxt_model, nxt)
-            if not v < path[-1] - DESCENT_TOLERANCE_M:
-                break
-            path.append(v)
-            cur_model, cur = nxt_model, {**nxt, "regularized": cur["regularized"]}
-        info = {**c["info"], "marker_placement": {**cur, "descent_cost_m": path}}
-        results.append({**c, "model": cur_model, "info": info})
+        mp = c["info"]["marker_placement"]
+        got_model, got = refine_placement_from_motion(
+            base, xm, mlabels, time, (c["model"], mp), cost, passes=DESCENT_PASSES,
+            max_rounds=DESCENT_MAX_ROUNDS, tolerance_m=DESCENT_TOLERANCE_M, **kw,
+        )  # fmt: skip
+        path = got["descent_cost_m"]
+        results.append({**c, "model": got_model,
+                        "info": {**c["info"], "marker_placement": got}})  # fmt: skip
         records.append({**spec, "cost_m": path[-1], "rounds": len(path) - 1})
         costs.append(path[-1])
     # the first in order of preference within CHOICE_TOLERANCE_M of the least: the split
