@@ -3,6 +3,7 @@ static trial."""
 
 from __future__ import annotations
 
+import itertools
 from pathlib import Path
 
 import numpy as np
@@ -983,7 +984,7 @@ def test_refined_motion_placement_descends_to_the_truth_and_is_stable(gait2392):
     x, labels, t, clusters = _pelvis_and_feet_walk(gait2392)
     start, ref_model, ref = _placed_and_refined(gait2392, x, labels, t)
     path = ref["descent_cost_m"]
-    assert all(b < a for a, b in zip(path, path[1:])) and len(path) > 5
+    assert all(b < a for a, b in itertools.pairwise(path)) and len(path) > 5
     assert path[0] > 0.010 and path[-1] < 0.003
     assert ref["regularized"] is True
     truth = {k: b for k, (b, _) in clusters.items()}

@@ -13,7 +13,7 @@ from __future__ import annotations
 
 import dataclasses
 import warnings
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -740,28 +740,31 @@ def placement_cost(
 
 def choose_placement(
     inputs: SessionInputs, read: ReadResult, built: Mapping[str, Any],
-    functional: Mapping[str, float] | None,
+    split_of: Callable[[Mapping[str, Any]], Mapping[str, float] | None] | None = None,
 ) -> tuple[dict[str, Any], dict[str, Any]]:  # fmt: skip
     """The motion placement (no static trial) of least task IK cost (:func:`placement_cost`,
     one objective on one marker set and the same frames for every candidate) among a fixed
-    set: with and without the functional femur : tibia split (``functional``, when there is
-    one), each started from the placement as it was (plain, pulled when plain is worse than
-    :data:`msk.scaling.PLACEMENT_RETRY_RMS_M`) and from the placement pulled towards neutral
-    (``regularize=True`` of :func:`msk.scaling.place_markers_from_motion`), each start then
-    alternating placement and inverse kinematics (:data:`DESCENT_PASSES` unpulled passes per
-    round, continuing the last) for as long as the task's cost decreases by more than
-    :data:`DESCENT_TOLERANCE_M` (at most :data:`DESCENT_MAX_ROUNDS` rounds).
+    set: the placement as it was (``built``: plain, pulled when plain is worse than
+    :data:`msk.scaling.PLACEMENT_RETRY_RMS_M`) and the placement pulled towards neutral
+    (``regularize=True`` of :func:`msk.scaling.place_markers_from_motion`), each continued by
+    :func:`msk.scaling.refine_placement_from_motion` (:data:`DESCENT_PASSES` unpulled passes per
+    round, while the cost decreases by more than :data:`DESCENT_TOLERANCE_M`, at most
+    :data:`DESCENT_MAX_ROUNDS` rounds); then, when ``split_of`` gives femur and tibia factors
+    for the best of these (the functional leg split, :func:`leg_split`), the same two starts
+    scaled with them. The first candidate in order of preference — the split before the leg
+    factor, the pulled start before the other — within :data:`CHOICE_TOLERANCE_M` of the least
+    cost is kept.
 
     Why. The placement passes are a fixed-point iteration with several basins: which one a run
-    lands in moved with perturbations no physical argument can care about (markers + 0.1 mm
+    landed in moved with perturbations no physical argument can care about (markers + 0.1 mm
     noise, one frame less, leg factors × (1 ± 1e-4): DM og1's task IK 8.5–9.5 mm, UWA fast
-    walking's 9.2–10.8 mm; ``scripts/placement_jitter.py``), and the plain/pulled and
-    split/no-split choices made on the placement's own RMS flipped with it. The pulled start is
-    unique (the pull resolves the flat directions of the anatomical markers' IK); the
-    alternation then descends, on the task's own objective, to where the markers alone put the
-    placement. The plain start as it was is a candidate, so by this objective the choice is
-    never worse than the route before it by more than :data:`CHOICE_TOLERANCE_M` (the first
-    candidate in order of preference within it of the least is kept).
+    walking's 9.2–10.8 mm; ``scripts/placement_jitter.py``), and so did the plain/pulled and
+    split/no-split choices made on the placement's own RMS, and the split's factors measured on
+    that placement. The pulled start is unique (the pull resolves the flat directions of the
+    anatomical markers' IK) and the descent from it ends where the markers alone put the
+    placement; the split is measured on the best of the descended placements. The placement as
+    it was is a candidate, so by this objective the choice is never worse than the route
+    before it by more than :data:`CHOICE_TOLERANCE_M`.
 
     Returns the chosen ``_scale_and_place`` result and the record of the choice
     (``summary.json`` ``model.placement_choice``)."""
@@ -778,14 +781,19 @@ def choose_placement(
     labels = tuple(inv.get(lab, lab) for lab in trial.marker_labels)
     weights = dict(inputs.cfg.marker_weights)
 
-    starts: list[tuple[dict[str, Any], dict[str, Any]]] = []
-    for f in [None, *([functional] if functional else [])]:
+    def starts(f: Mapping[str, float] | None) -> list[tuple[dict[str, Any], dict[str, Any]]]:
+        out = []
         for reg in (None, True):
             spec = {"leg_split": f is not None, "start": "as before" if reg is None else "pulled"}
-            starts.append((spec, _scale_and_place(inputs, read, f, {"regularize": reg})))
-    # one marker set for all: every marker any start places, the model's own included (a
+            got = built if f is None and reg is None else _scale_and_place(
+                inputs, read, f, {"regularize": reg})  # fmt: skip
+            out.append((spec, dict(got)))
+        return out
+
+    first = starts(None)
+    # one marker set for all: every marker the two starts place, the model's own included (a
     # candidate that leaves one out as too loose is measured on it at its pose)
-    union = set().union(*(set(c["model"].marker_names) for _, c in starts))
+    union = set().union(*(set(c["model"].marker_names) for _, c in first))
     markers = sorted(union & set(labels))
 
     def cost(model: Any, mp: Mapping[str, Any]) -> float:
@@ -793,32 +801,50 @@ def choose_placement(
         loose = {k: (str(state[k][0]), state[k][2]) for k in mp.get("too_loose", {}) if k in state}
         return placement_cost(model, x, t, labels, weights, markers, loose)
 
-    records, results, costs = [], [], []
-    for spec, c in starts:
-        base, xm, mlabels, time, kw = c["placement_call"]
-        mp = c["info"]["marker_placement"]
-        got_model, got = refine_placement_from_motion(
-            base, xm, mlabels, time, (c["model"], mp), cost, passes=DESCENT_PASSES,
-            max_rounds=DESCENT_MAX_ROUNDS, tolerance_m=DESCENT_TOLERANCE_M, **kw,
-        )  # fmt: skip
-        path = got["descent_cost_m"]
-        results.append({**c, "model": got_model,
-                        "info": {**c["info"], "marker_placement": got}})  # fmt: skip
-        records.append({**spec, "cost_m": path[-1], "rounds": len(path) - 1})
-        costs.append(path[-1])
-    # the first in order of preference within CHOICE_TOLERANCE_M of the least: the split
-    # (the functional knee) before the leg factor, the pulled start (unique) before the other
-    order = sorted(range(len(records)), key=lambda i: (
-        not records[i]["leg_split"], records[i]["start"] != "pulled"))  # fmt: skip
-    best = next(i for i in order if costs[i] <= min(costs) + CHOICE_TOLERANCE_M)
+    records: list[dict[str, Any]] = []
+    results: list[dict[str, Any]] = []
+
+    def descend(cands: list[tuple[dict[str, Any], dict[str, Any]]]) -> None:
+        for spec, c in cands:
+            base, xm, mlabels, time, kw = c["placement_call"]
+            got_model, got = refine_placement_from_motion(
+                base, xm, mlabels, time, (c["model"], c["info"]["marker_placement"]), cost,
+                passes=DESCENT_PASSES, max_rounds=DESCENT_MAX_ROUNDS,
+                tolerance_m=DESCENT_TOLERANCE_M, **kw,
+            )  # fmt: skip
+            path = got["descent_cost_m"]
+            results.append({**c, "model": got_model,
+                            "info": {**c["info"], "marker_placement": got}})  # fmt: skip
+            records.append({**spec, "cost_m": path[-1], "rounds": len(path) - 1})
+
+    def pick() -> int:
+        costs = [r["cost_m"] for r in records]
+        order = sorted(range(len(records)), key=lambda i: (
+            not records[i]["leg_split"], records[i]["start"] != "pulled"))  # fmt: skip
+        return next(i for i in order if costs[i] <= min(costs) + CHOICE_TOLERANCE_M)
+
+    descend(first)
+    functional = split_of(results[pick()]) if split_of is not None else None
+    if functional:
+        descend(starts(functional))
+    best = pick()
     record = {
         "objective": "task IK (weights, held feet, no filter): weighted marker RMS over every "
-        "marker a candidate places, mean over frames",
+        "marker the unsplit starts place, mean over frames",
         "frames": int(idx.size),
         "candidates": records,
         "chosen": best,
     }
     return results[best], record
+
+
+def _functional(split: Mapping[str, Any]) -> dict[str, float]:
+    """The femur and tibia factors of the sides ``split`` scales by the functional knee."""
+    return {
+        f"{b}_{side}": f
+        for side, sp in split.items() if sp.method != "leg factor"
+        for b, f in (("femur", sp.femur_factor), ("tibia", sp.tibia_factor))
+    }  # fmt: skip
 
 
 def _split_refused(split: Mapping[str, Any], note: str) -> dict[str, Any]:
@@ -838,21 +864,33 @@ def run(inputs: SessionInputs, read: ReadResult) -> BuiltModel:
     read, swapped = _swap_back(read)
     trial = read.trial
     built = _scale_and_place(inputs, read)
-    split = leg_split(inputs, trial, built)
-    motion = "regularized" in built["info"].get("marker_placement", {})
-    if motion and (split is None or all(sp.method == "leg factor" for sp in split.values())):
-        built, choice = choose_placement(inputs, read, built, None)
+    split: Mapping[str, Any] | None = None
+    if "regularized" in built["info"].get("marker_placement", {}):
+        # no static trial: the placement of least task IK cost among fixed candidates, the
+        # leg split measured on the best unsplit one (choose_placement)
+        measured: dict[str, Any] = {}
+
+        def split_of(b: Mapping[str, Any]) -> dict[str, float] | None:
+            measured["split"] = leg_split(inputs, trial, b)
+            return _functional(measured["split"]) or None
+
+        built, choice = choose_placement(inputs, read, built, split_of)
         built["info"]["placement_choice"] = choice
-    if split is not None:
-        functional = {
-            f"{b}_{side}": f
-            for side, sp in split.items() if sp.method != "leg factor"
-            for b, f in (("femur", sp.femur_factor), ("tibia", sp.tibia_factor))
-        }  # fmt: skip
-        if functional and "regularized" not in built["info"].get("marker_placement", {}):
-            # (static trial) kept when the lab's markers fit the split model no worse than the
-            # leg-factor one (the placement's marker RMS: the markers' own verdict, not the
-            # plates')
+        split = measured.get("split")
+        chosen = choice["candidates"][choice["chosen"]]
+        if split is not None and _functional(split) and not chosen["leg_split"]:
+            c_split = min(c["cost_m"] for c in choice["candidates"] if c["leg_split"])
+            split = _split_refused(split, (
+                f"the task's markers fit the split model worse (task IK "
+                f"{1000 * chosen['cost_m']:.2f} → {1000 * c_split:.2f} mm at best): leg "
+                "factor kept"
+            ))  # fmt: skip
+    else:
+        split = leg_split(inputs, trial, built)
+        functional = _functional(split) if split is not None else {}
+        if split is not None and functional:
+            # kept when the lab's markers fit the split model no worse than the leg-factor one
+            # (the placement's marker RMS: the markers' own verdict, not the plates')
             again = _scale_and_place(inputs, read, functional)
             rms0, rms1 = _placement_rms(built["info"]), _placement_rms(again["info"])
             if rms1 <= rms0:
@@ -862,17 +900,7 @@ def run(inputs: SessionInputs, read: ReadResult) -> BuiltModel:
                     f"the markers fit the split model worse (placement marker RMS "
                     f"{1000 * rms0:.1f} → {1000 * rms1:.1f} mm): leg factor kept"
                 ))  # fmt: skip
-        elif functional:
-            built, choice = choose_placement(inputs, read, built, functional)
-            chosen = choice["candidates"][choice["chosen"]]
-            if not chosen["leg_split"]:
-                c_split = min(c["cost_m"] for c in choice["candidates"] if c["leg_split"])
-                split = _split_refused(split, (
-                    f"the task's markers fit the split model worse (task IK "
-                    f"{1000 * chosen['cost_m']:.2f} → {1000 * c_split:.2f} mm at best): leg "
-                    "factor kept"
-                ))  # fmt: skip
-            built["info"]["placement_choice"] = choice
+    if split is not None:
         built["info"]["leg_split"] = {side: sp.summary() for side, sp in split.items()}
     if swapped:
         built["info"]["marker_set"]["swapped_back"] = swapped
