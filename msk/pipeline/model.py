@@ -871,8 +871,8 @@ def run(inputs: SessionInputs, read: ReadResult) -> BuiltModel:
         measured: dict[str, Any] = {}
 
         def split_of(b: Mapping[str, Any]) -> dict[str, float] | None:
-            measured["split"] = leg_split(inputs, trial, b)
-            return _functional(measured["split"]) or None
+            measured["split"] = sp = leg_split(inputs, trial, b)
+            return (_functional(sp) or None) if sp is not None else None
 
         built, choice = choose_placement(inputs, read, built, split_of)
         built["info"]["placement_choice"] = choice
