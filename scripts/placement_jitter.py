@@ -93,7 +93,7 @@ def run_once(name: str, kind: str, k: int, seed: int) -> dict[str, Any]:
             calls.append(out[1])
         return out
 
-    def scale_and_place(inputs, read, functional=None):  # type: ignore[no-untyped-def]
+    def scale_and_place(inputs, read, functional=None, placement=None):  # type: ignore[no-untyped-def]
         tr = read.trial
         if kind == "noise":
             m = np.asarray(tr.markers, dtype=float)
@@ -102,7 +102,7 @@ def run_once(name: str, kind: str, k: int, seed: int) -> dict[str, Any]:
         elif kind == "shift":
             n = 1 + k // 3
             tr = dataclasses.replace(tr, markers=tr.markers[n:], time=tr.time[n:])
-        return orig_sp(inputs, dataclasses.replace(read, trial=tr), functional)
+        return orig_sp(inputs, dataclasses.replace(read, trial=tr), functional, placement)
 
     scaling.scale_from_motion = scale  # type: ignore[assignment]
     scaling.place_markers_from_motion = place  # type: ignore[assignment]
@@ -128,6 +128,7 @@ def run_once(name: str, kind: str, k: int, seed: int) -> dict[str, Any]:
         "split_rms_mm": rms_pairs,
         "offsets": offsets,
         "leg_split": {s: v["method"] for s, v in dict(info.get("leg_split", {})).items()},
+        "choice": info.get("placement_choice"),
         "factors": {
             b: float(v["factors"][0])
             for b, v in dict(info.get("scaling", {}).get("bodies", {})).items()
@@ -178,6 +179,11 @@ def summarise(name: str, runs: int, seed: int = 0) -> dict[str, Any]:
         "factor_spread": fac,
         "flips": flips,
         "split_rms_mm": [o["split_rms_mm"] for o in outs],
+        "choice_mm": [
+            [1000 * c["cost_m"] for c in o["choice"]["candidates"]] if o["choice"] else []
+            for o in outs
+        ],
+        "chosen": [o["choice"]["chosen"] if o["choice"] else None for o in outs],
     }
 
 
@@ -204,6 +210,9 @@ def main() -> None:
         print("    IK per run: " + " ".join(f"{k}:{v:.2f}" for k, v in zip(r["kinds"], ik)))
         print("    leg split placement RMS (leg factor, split) mm: " + " ".join(
             "/".join(f"{v:.2f}" for v in p) for p in r["split_rms_mm"]))  # fmt: skip
+        print("    candidates' task IK cost (mm, * chosen): " + " | ".join(
+            " ".join(f"{v:.2f}" + ("*" if i == ch else "") for i, v in enumerate(c))
+            for c, ch in zip(r["choice_mm"], r["chosen"])))  # fmt: skip
         print("    flips: " + ("; ".join(r["flips"]) or "none"), flush=True)
     if a.json:
         Path(a.json).write_text(json.dumps(records, indent=1, default=str))

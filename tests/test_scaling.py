@@ -3,6 +3,7 @@ static trial."""
 
 from __future__ import annotations
 
+import itertools
 from pathlib import Path
 
 import numpy as np
@@ -907,3 +908,138 @@ def test_motion_placement_gives_near_ties_to_the_landmarks_body(gait2392):
         gait2392, x, labels, t, max_frames=40, hints={"LPSI": "femur_l"}
     )
     assert wrong["placed"]["LPSI"] == plain["placed"]["LPSI"]
+
+
+def _pelvis_and_feet_walk(gait2392, noise_m=0.001, seed=4):
+    """A walk with gait2392's pelvis and foot markers only (UWA, DM: no knee, thigh or shank
+    model marker) and a lab's thigh and shank clusters, each marker with 4 mm of skin motion;
+    the hips rotate ±8° about their long axes (the direction pelvis and feet leave free)."""
+    clusters = {
+        "RTH1": ("femur_r", (0.03, -0.20, 0.07)),
+        "RTH2": ("femur_r", (0.06, -0.28, 0.05)),
+        "RTH3": ("femur_r", (0.00, -0.24, 0.08)),
+        "RTB1": ("tibia_r", (0.04, -0.15, 0.05)),
+        "RTB2": ("tibia_r", (0.03, -0.22, 0.06)),
+        "LTH1": ("femur_l", (0.03, -0.20, -0.07)),
+        "LTH2": ("femur_l", (0.06, -0.28, -0.05)),
+        "LTB1": ("tibia_l", (0.04, -0.15, -0.05)),
+        "LTB2": ("tibia_l", (0.03, -0.22, -0.06)),
+    }
+    truth = gait2392.with_markers(
+        [*gait2392.markers, *(Marker(k, b, np.array(p)) for k, (b, p) in clusters.items())]
+    )
+    th = _gait_poses(truth, n=160)
+    c = truth.coordinate_names
+    ph = np.linspace(0.0, 2 * np.pi, len(th))
+    th[:, c.index("hip_rotation_r")] = np.radians(8.0) * np.sin(ph + 1.0)
+    th[:, c.index("hip_rotation_l")] = np.radians(8.0) * np.sin(ph - 1.0)
+    rng = np.random.default_rng(seed)
+    x = marker_positions(truth, th) + rng.normal(0.0, noise_m, (len(th), len(truth.markers), 3))
+    labels = list(truth.marker_names)
+    for k in clusters:
+        x[:, labels.index(k)] += rng.normal(0.0, 0.004 / np.sqrt(3.0), (len(th), 3))
+    keep = {m.name for m in gait2392.markers if m.body.startswith(("pelvis", "calcn", "toes"))}
+    for i, lab in enumerate(labels):
+        if lab not in keep and lab not in clusters:
+            x[:, i] = np.nan
+    return x, labels, np.arange(len(th)) / 100.0, clusters
+
+
+def _ik_cost(x, labels, t):
+    """The walk's own IK cost of a placed model: mean over frames of the marker RMS (the
+    unobserved knees on their flexion branch, as in the placement passes)."""
+    from msk.kinematics import solve_kinematics
+    from msk.scaling import unobserved_knees_flexed
+
+    def cost(model, info):
+        flexed = unobserved_knees_flexed(model, x, labels, 10)
+        on = model.with_coordinate_ranges(flexed) if flexed else model
+        kin = solve_kinematics(on, x, labels, t, cutoff_hz=None, min_markers=3)
+        return float(np.nanmean(kin.marker_rms))
+
+    return cost
+
+
+def _placed_and_refined(model, x, labels, t):
+    from msk.scaling import place_markers_from_motion, refine_placement_from_motion
+
+    start = place_markers_from_motion(model, x, labels, t, max_frames=40, regularize=True)
+    got_model, got = refine_placement_from_motion(
+        model, x, labels, t, start, _ik_cost(x, labels, t), max_frames=40
+    )
+    return start, got_model, got
+
+
+@pytest.mark.slow
+def test_refined_motion_placement_descends_to_the_truth_and_is_stable(gait2392):
+    """Issue 15, tenth pass: the placement pulled towards neutral (unique, but the pull holds
+    the ±8° hip rotation pelvis and feet do not observe: clusters up to 67 mm off their true
+    offsets), then alternated with IK while the walk's own IK cost decreases
+    (:func:`msk.scaling.refine_placement_from_motion`): the cost falls at every kept round,
+    12 → < 3 mm, and every cluster ends within 8 mm of its truth (measured 4.3 mm). Repeated
+    with the markers + 0.1 mm noise and with the first frame dropped
+    (``scripts/placement_jitter.py``'s perturbations): the same bodies, the cost within
+    0.05 mm, the offsets within 6 mm of the unperturbed run's (measured 0.3 and 4.8 mm: the
+    rounds stop at the 12-round cap on a valley along which the cost moves by 0.02 mm)."""
+    x, labels, t, clusters = _pelvis_and_feet_walk(gait2392)
+    start, ref_model, ref = _placed_and_refined(gait2392, x, labels, t)
+    path = ref["descent_cost_m"]
+    assert all(b < a for a, b in itertools.pairwise(path)) and len(path) > 5
+    assert path[0] > 0.010 and path[-1] < 0.003
+    assert ref["regularized"] is True
+    truth = {k: b for k, (b, _) in clusters.items()}
+    assert {k: ref["placed"][k] for k in clusters} == truth
+    off0 = {m.name: np.asarray(m.offset) for m in start[0].markers}
+    off = {m.name: np.asarray(m.offset) for m in ref_model.markers}
+    assert max(np.linalg.norm(off0[k] - np.array(p)) for k, (_, p) in clusters.items()) > 0.05
+    for k, (_, p) in clusters.items():
+        assert np.linalg.norm(off[k] - np.array(p)) < 0.008, k
+    rng = np.random.default_rng(5)
+    for xr, tr in [(x + rng.normal(0.0, 1e-4, x.shape), t), (x[1:], t[1:])]:
+        _, got_model, got = _placed_and_refined(gait2392, xr, labels, tr)
+        assert {k: got["placed"][k] for k in clusters} == truth
+        assert abs(got["descent_cost_m"][-1] - path[-1]) < 5e-5
+        got_off = {m.name: np.asarray(m.offset) for m in got_model.markers}
+        for k in clusters:
+            assert np.linalg.norm(got_off[k] - off[k]) < 0.006, k
+
+
+@pytest.mark.slow
+def test_motion_scaling_and_placement_do_not_depend_on_the_lab_frame(gait2392):
+    """Issue 15, tenth pass: the same walk recorded in a lab frame rotated 37° about the
+    vertical and translated by metres (4.5 m sideways: beyond gait2392's ±3 m bound on
+    ``pelvis_tz``), brought to the model frame as the model stage does (the progression's
+    heading, :func:`msk.io.lab_to_model_rotation`, then :func:`msk.pipeline.model.
+    lab_origin_offset`): the same scale factors and marker offsets to 1e-9. Without the
+    translation (the markers as the lab gives them) the placement loses the clusters."""
+    from msk.io.frames import lab_to_model_rotation
+    from msk.pipeline.model import lab_origin_offset
+    from msk.scaling import scale_from_motion
+
+    x, labels, t, clusters = _pelvis_and_feet_walk(gait2392)
+    up = (0.0, 1.0, 0.0)
+
+    def in_lab(yaw_deg, shift):
+        a = np.radians(yaw_deg)
+        r = np.array([[np.cos(a), 0, np.sin(a)], [0, 1, 0], [-np.sin(a), 0, np.cos(a)]])
+        return x @ r.T + np.asarray(shift)
+
+    def built(xl, centre=True):
+        xm = xl @ lab_to_model_rotation(up, up, xl).T
+        if centre:
+            xm = xm - lab_origin_offset(gait2392, xm)
+        scaled, rep = scale_from_motion(gait2392, xm, labels, t, height_m=1.8)
+        _, got_model, _ = _placed_and_refined(scaled, xm, labels, t)
+        return rep.factors, {m.name: np.asarray(m.offset) for m in got_model.markers}
+
+    ref_f, ref_o = built(in_lab(0.0, (0.0, 0.0, 0.0)))
+    got_f, got_o = built(in_lab(37.0, (4.0, 1.5, 4.5)))
+    for b in ref_f:
+        np.testing.assert_allclose(got_f[b], ref_f[b], atol=1e-9)
+    assert set(got_o) == set(ref_o)
+    for k in ref_o:
+        np.testing.assert_allclose(got_o[k], ref_o[k], atol=1e-9)
+    _, raw_o = built(in_lab(37.0, (4.0, 1.5, 4.5)), centre=False)
+    assert not set(clusters) <= set(raw_o) or any(
+        np.linalg.norm(raw_o[k] - ref_o[k]) > 0.01 for k in clusters
+    )

@@ -13,7 +13,7 @@ from __future__ import annotations
 
 import dataclasses
 import warnings
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -26,14 +26,22 @@ from msk.pipeline.inputs import SessionInputs
 from msk.pipeline.read import ReadResult, read_static_markers
 
 __all__ = [
+    "CHOICE_MAX_FRAMES",
+    "CHOICE_TOLERANCE_M",
+    "DESCENT_MAX_ROUNDS",
+    "DESCENT_PASSES",
+    "DESCENT_TOLERANCE_M",
     "HELD_COORDINATE_WEIGHT",
     "STATIC_CHECK_MIN_TASK_S",
     "BuiltModel",
+    "choose_placement",
     "held_static_knees",
     "knee_flexion_to_physiological",
+    "lab_origin_offset",
     "leg_split",
     "load_model_file",
     "model_frame_columns",
+    "placement_cost",
     "run",
     "settings",
     "without_markers",
@@ -177,8 +185,14 @@ def knee_flexion_to_physiological(model: Any) -> tuple[Any, dict[str, list[float
 
 
 def _scale_and_place(
-    inputs: SessionInputs, read: ReadResult, functional: Mapping[str, float] | None = None
+    inputs: SessionInputs,
+    read: ReadResult,
+    functional: Mapping[str, float] | None = None,
+    placement: Mapping[str, Any] | None = None,
 ) -> dict[str, Any]:
+    """Scale the model and place the lab's markers (static trial, else the task). ``placement``:
+    extra keywords of :func:`msk.scaling.place_markers_from_motion` (``regularize``,
+    ``frame_phase``) when there is no static trial (a candidate of :func:`run`)."""
     from msk.io.c3d import is_measured_marker
     from msk.io.frames import pelvis_heading_rotation
     from msk.markersets import (
@@ -246,6 +260,7 @@ def _scale_and_place(
     }
     report = None
     generic = model
+    placement_call: tuple[Any, ...] | None = None
     # a static the task contradicts so much that it cannot be posed (another subject's, or
     # another labelling): the task's own markers scale and place, and the flag says so
     rejected: str | None = None
@@ -323,6 +338,11 @@ def _scale_and_place(
         # no static trial: the task trial's own markers scale and place (the segment lengths
         # are constant over a motion; msk.scaling.scale_from_motion)
         xm, mlabels = model_frame_columns(trial, rot, match)
+        # where the lab put its origin cannot matter: the markers are translated so that their
+        # median sits at the generic model's markers' centroid in its default pose (the
+        # inverse kinematics of scaling and placement start from that pose, and the pelvis
+        # translations have bounds; scale factors and body-frame offsets are invariant)
+        xm = xm - lab_origin_offset(model, xm)
         if mc.scale:
             model, report = scale_from_motion(
                 model, xm, mlabels, trial.time, height_m=cfg.subject.height_m,
@@ -334,11 +354,14 @@ def _scale_and_place(
         present = [mk.name for mk in model.markers if mk.name in set(mlabels)]
         feet = [m for m in foot_markers(present) if m not in cfg.marker_move]
         moved = [*cfg.marker_move, *feet]
-        model, placed = place_markers_from_motion(
-            model, xm, mlabels, trial.time, move=moved,
-            median_neutral=free_foot_coordinates(model, moved, present),
+        kw: dict[str, Any] = dict(
+            move=moved, median_neutral=free_foot_coordinates(model, moved, present),
             hints=match.body_hints([b.name for b in model.bodies]),
         )  # fmt: skip
+        placement_call = (model, xm, mlabels, trial.time, kw)
+        model, placed = place_markers_from_motion(
+            model, xm, mlabels, trial.time, **kw, **dict(placement or {})
+        )
     info["marker_placement"] = placed
     if model.metadata.get("knee_alignment"):
         info["knee_alignment"] = dict(model.metadata["knee_alignment"])
@@ -346,7 +369,28 @@ def _scale_and_place(
         info["scaling"] = report.summary()
         info["scale_ratios"] = dict(model.metadata.get("scale_ratios", {}))
     info["mass_kg"] = model.total_mass
-    return {"model": model, "info": info, "rotation": rot, "rename": dict(match.rename)}
+    return {
+        "model": model, "info": info, "rotation": rot, "rename": dict(match.rename),
+        "placement_call": placement_call,
+    }  # fmt: skip
+
+
+def lab_origin_offset(model: Any, markers: Any) -> np.ndarray:
+    """(3,) m to subtract from a motion trial's markers (model frame) so that their median
+    (over frames and markers, per axis) sits at the centroid of ``model``'s markers in its
+    default pose: the trial then no longer depends on where the lab put its origin (the
+    inverse kinematics of :func:`msk.scaling.scale_from_motion` and
+    :func:`msk.scaling.place_markers_from_motion` start from the default pose and bound the
+    pelvis translations). Zero when no marker is finite."""
+    from msk.model import marker_positions
+
+    x = np.asarray(markers, dtype=float)
+    finite = np.isfinite(x).all(axis=-1)
+    if not finite.any() or not model.markers:
+        return np.zeros(3)
+    med = np.median(x[finite], axis=0)
+    pts = marker_positions(model, model.default_coordinates())[0]
+    return np.asarray(med - pts.mean(axis=0), dtype=float)
 
 
 def model_frame_columns(
@@ -645,20 +689,220 @@ def without_markers(model: BuiltModel) -> BuiltModel:
     return dataclasses.replace(model, trial=dataclasses.replace(trial, markers=empty))
 
 
+#: placement passes per round of :func:`choose_placement`'s alternation
+DESCENT_PASSES = 2
+
+#: decrease of the task's IK cost (m) below which :func:`choose_placement` stops alternating
+DESCENT_TOLERANCE_M = 1e-5
+
+#: most rounds of :func:`choose_placement`'s alternation
+DESCENT_MAX_ROUNDS = 12
+
+#: how much worse (m) than the least task IK cost a candidate of :func:`choose_placement` may be
+#: and still be preferred (the split before the leg factor, the pulled start before the other):
+#: the candidates' costs move by up to 0.15 mm under ``scripts/placement_jitter.py``'s
+#: perturbations (DM og1), so that a choice by the bare minimum between candidates closer than
+#: that flipped the femur and tibia factors from run to run
+CHOICE_TOLERANCE_M = 0.0002
+
+#: most task frames the choice among motion placements is judged on (:func:`choose_placement`):
+#: evenly strided over the trial
+CHOICE_MAX_FRAMES = 300
+
+
+def placement_cost(
+    model: Any, x: np.ndarray, time: np.ndarray, labels: Sequence[str],
+    weights: Mapping[str, float], markers: Sequence[str],
+    loose: Mapping[str, tuple[str, Sequence[float]]] | None = None,
+) -> float:  # fmt: skip
+    """The task's inverse kinematics cost of a placed model (m): the kinematics stage's IK
+    (:func:`msk.pipeline.kinematics.solve_trial`: the configured marker weights, the held foot
+    coordinates, physiological knee ranges; no filter) of the frames ``x`` (model frame), then
+    the weighted RMS over ``markers`` of each frame's distances, averaged over the frames — the
+    quantity the task's IK minimises, on one marker set for every candidate compared. A
+    marker of ``markers`` the model does not carry (left out as too loose: ``loose``, name →
+    (body, offset)) is measured at the pose the others give, so that dropping a marker does
+    not lower the cost by itself."""
+    from types import SimpleNamespace
+
+    from msk.model import Marker, marker_positions
+    from msk.pipeline.kinematics import solve_trial
+
+    final, _ = knee_flexion_to_physiological(model)
+    held = held_foot_coordinates(final, x, tuple(labels))
+    kin = solve_trial(
+        final, SimpleNamespace(markers=x, time=time), tuple(labels), weights=weights,
+        held=held, cutoff_hz=None,
+    )  # fmt: skip
+    extra = [Marker(k, b, np.asarray(o, dtype=float)) for k, (b, o) in (loose or {}).items()
+             if k not in set(final.marker_names)]  # fmt: skip
+    scored = final.with_markers([*final.markers, *extra]) if extra else final
+    names = list(scored.marker_names)
+    use = [m for m in markers if m in names and m in labels]
+    ok = np.isfinite(kin.q_raw).all(axis=1)
+    if not use or not ok.any():
+        return float("inf")
+    pos = marker_positions(scored, kin.q_raw[ok])[:, [names.index(m) for m in use]]
+    meas = x[ok][:, [list(labels).index(m) for m in use]]
+    d2 = ((pos - meas) ** 2).sum(axis=2)
+    w = np.array([float(weights.get(m, 1.0)) for m in use])[None, :] * np.isfinite(d2)
+    den = w.sum(axis=1)
+    fine = den > 0
+    per_frame = np.sqrt(np.where(w > 0, np.nan_to_num(d2) * w, 0.0)[fine].sum(axis=1) / den[fine])
+    return float(per_frame.mean()) if per_frame.size else float("inf")
+
+
+def choose_placement(
+    inputs: SessionInputs, read: ReadResult, built: Mapping[str, Any],
+    split_of: Callable[[Mapping[str, Any]], Mapping[str, float] | None] | None = None,
+) -> tuple[dict[str, Any], dict[str, Any]]:  # fmt: skip
+    """The motion placement (no static trial) of least task IK cost (:func:`placement_cost`,
+    one objective on one marker set and the same frames for every candidate) among a fixed
+    set: the placement as it was (``built``: plain, pulled when plain is worse than
+    :data:`msk.scaling.PLACEMENT_RETRY_RMS_M`) and the placement pulled towards neutral
+    (``regularize=True`` of :func:`msk.scaling.place_markers_from_motion`), each continued by
+    :func:`msk.scaling.refine_placement_from_motion` (:data:`DESCENT_PASSES` unpulled passes per
+    round, while the cost decreases by more than :data:`DESCENT_TOLERANCE_M`, at most
+    :data:`DESCENT_MAX_ROUNDS` rounds); then, when ``split_of`` gives femur and tibia factors
+    for the best of these (the functional leg split, :func:`leg_split`), the same two starts
+    scaled with them. The first candidate in order of preference — the split before the leg
+    factor, the pulled start before the other — within :data:`CHOICE_TOLERANCE_M` of the least
+    cost is kept.
+
+    Why. The placement passes are a fixed-point iteration with several basins: which one a run
+    landed in moved with perturbations no physical argument can care about (markers + 0.1 mm
+    noise, one frame less, leg factors × (1 ± 1e-4): DM og1's task IK 8.5–9.5 mm, UWA fast
+    walking's 9.2–10.8 mm; ``scripts/placement_jitter.py``), and so did the plain/pulled and
+    split/no-split choices made on the placement's own RMS, and the split's factors measured on
+    that placement. The pulled start is unique (the pull resolves the flat directions of the
+    anatomical markers' IK) and the descent from it ends where the markers alone put the
+    placement; the split is measured on the best of the descended placements. The placement as
+    it was is a candidate, so by this objective the choice is never worse than the route
+    before it by more than :data:`CHOICE_TOLERANCE_M`.
+
+    Returns the chosen ``_scale_and_place`` result and the record of the choice
+    (``summary.json`` ``model.placement_choice``)."""
+    from msk.markersets import zeros_as_gaps
+    from msk.scaling import refine_placement_from_motion
+
+    trial = read.trial
+    n = np.shape(trial.markers)[0]
+    idx = np.arange(0, n, max(1, int(np.ceil(n / CHOICE_MAX_FRAMES))))
+    rot = np.asarray(built["rotation"], dtype=float)
+    x = zeros_as_gaps(np.asarray(trial.markers, dtype=float)[idx] @ rot.T)
+    t = np.asarray(trial.time, dtype=float)[idx]
+    inv = {v: k for k, v in built["rename"].items()}
+    labels = tuple(inv.get(lab, lab) for lab in trial.marker_labels)
+    weights = dict(inputs.cfg.marker_weights)
+
+    def starts(f: Mapping[str, float] | None) -> list[tuple[dict[str, Any], dict[str, Any]]]:
+        out = []
+        for reg in (None, True):
+            spec = {"leg_split": f is not None, "start": "as before" if reg is None else "pulled"}
+            got = built if f is None and reg is None else _scale_and_place(
+                inputs, read, f, {"regularize": reg})  # fmt: skip
+            out.append((spec, dict(got)))
+        return out
+
+    first = starts(None)
+    # one marker set for all: every marker the two starts place, the model's own included (a
+    # candidate that leaves one out as too loose is measured on it at its pose)
+    union = set().union(*(set(c["model"].marker_names) for _, c in first))
+    markers = sorted(union & set(labels))
+
+    def cost(model: Any, mp: Mapping[str, Any]) -> float:
+        state = dict(mp.get("state", {}))
+        loose = {k: (str(state[k][0]), state[k][2]) for k in mp.get("too_loose", {}) if k in state}
+        return placement_cost(model, x, t, labels, weights, markers, loose)
+
+    records: list[dict[str, Any]] = []
+    results: list[dict[str, Any]] = []
+
+    def descend(cands: list[tuple[dict[str, Any], dict[str, Any]]]) -> None:
+        for spec, c in cands:
+            base, xm, mlabels, time, kw = c["placement_call"]
+            got_model, got = refine_placement_from_motion(
+                base, xm, mlabels, time, (c["model"], c["info"]["marker_placement"]), cost,
+                passes=DESCENT_PASSES, max_rounds=DESCENT_MAX_ROUNDS,
+                tolerance_m=DESCENT_TOLERANCE_M, **kw,
+            )  # fmt: skip
+            path = got["descent_cost_m"]
+            results.append({**c, "model": got_model,
+                            "info": {**c["info"], "marker_placement": got}})  # fmt: skip
+            records.append({**spec, "cost_m": path[-1], "rounds": len(path) - 1})
+
+    def pick() -> int:
+        costs = [r["cost_m"] for r in records]
+        order = sorted(range(len(records)), key=lambda i: (
+            not records[i]["leg_split"], records[i]["start"] != "pulled"))  # fmt: skip
+        return next(i for i in order if costs[i] <= min(costs) + CHOICE_TOLERANCE_M)
+
+    descend(first)
+    functional = split_of(results[pick()]) if split_of is not None else None
+    if functional:
+        descend(starts(functional))
+    best = pick()
+    record = {
+        "objective": "task IK (weights, held feet, no filter): weighted marker RMS over every "
+        "marker the unsplit starts place, mean over frames",
+        "frames": int(idx.size),
+        "candidates": records,
+        "chosen": best,
+    }
+    return results[best], record
+
+
+def _functional(split: Mapping[str, Any]) -> dict[str, float]:
+    """The femur and tibia factors of the sides ``split`` scales by the functional knee."""
+    return {
+        f"{b}_{side}": f
+        for side, sp in split.items() if sp.method != "leg factor"
+        for b, f in (("femur", sp.femur_factor), ("tibia", sp.tibia_factor))
+    }  # fmt: skip
+
+
+def _split_refused(split: Mapping[str, Any], note: str) -> dict[str, Any]:
+    """Every side of ``split`` back to its leg factor, ``note`` saying why."""
+    return {
+        side: sp if sp.method == "leg factor" else dataclasses.replace(
+            sp, method="leg factor", reason=f"{sp.method}: {note}",
+            femur_factor=sp.leg_factor, tibia_factor=sp.leg_factor,
+        )
+        for side, sp in split.items()
+    }  # fmt: skip
+
+
 def run(inputs: SessionInputs, read: ReadResult) -> BuiltModel:
 
     cfg = inputs.cfg
     read, swapped = _swap_back(read)
     trial = read.trial
     built = _scale_and_place(inputs, read)
-    split = leg_split(inputs, trial, built)
-    if split is not None:
-        functional = {
-            f"{b}_{side}": f
-            for side, sp in split.items() if sp.method != "leg factor"
-            for b, f in (("femur", sp.femur_factor), ("tibia", sp.tibia_factor))
-        }  # fmt: skip
-        if functional:
+    split: Mapping[str, Any] | None = None
+    if "regularized" in built["info"].get("marker_placement", {}):
+        # no static trial: the placement of least task IK cost among fixed candidates, the
+        # leg split measured on the best unsplit one (choose_placement)
+        measured: dict[str, Any] = {}
+
+        def split_of(b: Mapping[str, Any]) -> dict[str, float] | None:
+            measured["split"] = sp = leg_split(inputs, trial, b)
+            return (_functional(sp) or None) if sp is not None else None
+
+        built, choice = choose_placement(inputs, read, built, split_of)
+        built["info"]["placement_choice"] = choice
+        split = measured.get("split")
+        chosen = choice["candidates"][choice["chosen"]]
+        if split is not None and _functional(split) and not chosen["leg_split"]:
+            c_split = min(c["cost_m"] for c in choice["candidates"] if c["leg_split"])
+            split = _split_refused(split, (
+                f"the task's markers fit the split model worse (task IK "
+                f"{1000 * chosen['cost_m']:.2f} → {1000 * c_split:.2f} mm at best): leg "
+                "factor kept"
+            ))  # fmt: skip
+    else:
+        split = leg_split(inputs, trial, built)
+        functional = _functional(split) if split is not None else {}
+        if split is not None and functional:
             # kept when the lab's markers fit the split model no worse than the leg-factor one
             # (the placement's marker RMS: the markers' own verdict, not the plates')
             again = _scale_and_place(inputs, read, functional)
@@ -666,17 +910,11 @@ def run(inputs: SessionInputs, read: ReadResult) -> BuiltModel:
             if rms1 <= rms0:
                 built = again
             else:
-                note = (
+                split = _split_refused(split, (
                     f"the markers fit the split model worse (placement marker RMS "
                     f"{1000 * rms0:.1f} → {1000 * rms1:.1f} mm): leg factor kept"
-                )
-                split = {
-                    side: sp if sp.method == "leg factor" else dataclasses.replace(
-                        sp, method="leg factor", reason=f"{sp.method}: {note}",
-                        femur_factor=sp.leg_factor, tibia_factor=sp.leg_factor,
-                    )
-                    for side, sp in split.items()
-                }  # fmt: skip
+                ))  # fmt: skip
+    if split is not None:
         built["info"]["leg_split"] = {side: sp.summary() for side, sp in split.items()}
     if swapped:
         built["info"]["marker_set"]["swapped_back"] = swapped
