@@ -58,6 +58,7 @@ import numpy as np
 import pinocchio as pin
 from numpy.typing import ArrayLike, NDArray
 
+from msk.markersets import LANDMARK_BODIES, parse_label
 from msk.signal import true_runs
 
 Array = NDArray[np.float64]
@@ -219,7 +220,11 @@ def inconsistent_static_markers(
     motion's frames (``min_frames`` frames seeing both) makes (a, b) a *rigid pair* — unless
     both stay still (position SD < ``still_m`` on every axis): markers of two still segments
     keep their distance too (the two feet of a squat, the lab's axis markers), so a pair of
-    still markers says nothing of one segment. A
+    still markers says nothing of one segment — or unless the two are on opposite sides
+    (:func:`msk.markersets.parse_label`) and not both on the pelvis or trunk
+    (:data:`msk.markersets.LANDMARK_BODIES`; a sided label of unknown landmark counts as a
+    limb's): the legs of a squat move alike, so a right and a left shank marker keep their
+    distance without being on one segment, at the task's stance width, not the static's. A
     static label names the same marker as the motion's when the static distance (median over
     its frames) matches the motion's median, e_ab = |d̄_ab^static − d̄_ab^motion|. A marker
     with at least ``min_partners`` rigid partners whose median discrepancy med_b e_ab exceeds
@@ -243,6 +248,11 @@ def inconsistent_static_markers(
     js = {lab: i for i, lab in reversed(list(enumerate(static_labels)))}
     jm = {lab: i for i, lab in reversed(list(enumerate(motion_labels)))}
     common = [lab for lab in js if lab in jm and lab not in set(skip)]
+    parsed = {lab: parse_label(lab) for lab in common}
+    axial = {
+        lab for lab, p in parsed.items()
+        if LANDMARK_BODIES.get(p.landmark or "") in ("pelvis", "torso")
+    }  # fmt: skip
     err: dict[str, list[float]] = {lab: [] for lab in common}
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", RuntimeWarning)
@@ -252,6 +262,9 @@ def inconsistent_static_markers(
         for b in common[k + 1 :]:
             if spread[a] < still_m and spread[b] < still_m:
                 continue  # two still markers keep any distance (both feet in a squat, lab axes)
+            sa, sb = parsed[a].side, parsed[b].side
+            if sa is not None and sb is not None and sa != sb and not {a, b} <= axial:
+                continue  # a right and a left limb marker are never on one segment
             dm = np.linalg.norm(xm[:, jm[a]] - xm[:, jm[b]], axis=1)
             dm = dm[np.isfinite(dm)]
             if dm.size < min_frames or float(np.std(dm)) > rigid_sd_m:
@@ -275,7 +288,6 @@ def _pairs_and_pelvis(
 ) -> tuple[list[tuple[str, str]], dict[tuple[str, str], str], list[str]]:
     """Left/right pairs of one landmark among ``labels`` (:func:`msk.markersets.parse_label`),
     the labels by (landmark, side) and the posterior pelvis labels (sacrum, PSIS)."""
-    from msk.markersets import parse_label
 
     by_side: dict[tuple[str, str], str] = {}
     posterior: list[str] = []

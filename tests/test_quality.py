@@ -343,3 +343,37 @@ def test_unmeasured_contact_on_a_raised_surface_is_flagged():
     assert flag.value == 30.0 and "30 of the 100 frames" in flag.message
     q["unmeasured_contact_raised_frames"] = 0
     assert not [f for f in _flags(model, kin, **q) if f.quantity.startswith("unmeasured")]
+
+
+def test_right_and_left_limb_markers_moving_alike_are_no_rigid_pair():
+    """The legs of a squat move alike: a right and a left shank marker keep their distance
+    (the task's stance width) without being on one segment. With the static's stance 6 cm
+    wider, no shank marker is named; the pelvis' ASIS pair (one segment, opposite sides) is
+    still checked: a static with its left ASIS 40 mm off is named."""
+    from msk.quality import inconsistent_static_markers
+
+    rng = np.random.default_rng(8)
+    t = np.linspace(0.0, 8.0, 400)
+    sink = 0.15 * (1 - np.cos(2 * np.pi * t / 2.0))  # 4 squats
+    base = {
+        "R.Shank.Up": [0.02, 0.45, 0.12], "R.Shank.Down": [0.03, 0.25, 0.12],
+        "R.Shank.Front": [0.08, 0.35, 0.10], "L.Shank.Up": [0.02, 0.45, -0.12],
+        "L.Shank.Down": [0.03, 0.25, -0.12], "L.Shank.Front": [0.08, 0.35, -0.10],
+        "RASI": [0.10, 0.95, 0.12], "LASI": [0.10, 0.95, -0.12], "SACR": [-0.08, 0.97, 0.0],
+        "RPSI": [-0.07, 0.98, 0.05], "LPSI": [-0.07, 0.98, -0.05],
+    }  # fmt: skip
+    labels = tuple(base)
+    x0 = np.array([base[k] for k in labels])
+    motion = np.repeat(x0[None], t.size, axis=0)
+    shank = np.array(["Shank" in k for k in labels])
+    motion[:, shank, 1] -= 0.5 * sink[:, None]  # the shanks tilt and sink alike
+    motion[:, shank, 0] += 0.3 * sink[:, None]
+    motion[:, ~shank, 1] -= sink[:, None]  # the pelvis sinks
+    motion += rng.normal(0.0, 0.001, motion.shape)
+    wide = x0.copy()
+    wide[[labels.index(k) for k in labels if k.startswith("R.")], 2] += 0.06
+    static = np.repeat(wide[None], 30, axis=0) + rng.normal(0.0, 0.001, (30, len(labels), 3))
+    assert inconsistent_static_markers(static, labels, motion, labels) == {}
+    ghost = static.copy()
+    ghost[:, labels.index("LASI"), 2] -= 0.04
+    assert set(inconsistent_static_markers(ghost, labels, motion, labels)) == {"LASI"}
