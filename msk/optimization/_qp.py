@@ -15,12 +15,12 @@ and solved by a registered solver. The KKT figures are recomputed from the retur
 from __future__ import annotations
 
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
-from numpy.typing import NDArray
+from numpy.typing import ArrayLike, NDArray
 
 from msk.exceptions import OptimizationError
 
@@ -194,6 +194,153 @@ def kkt(qp: StandardQP, x: FloatArray) -> KKT:
         rs = np.where(ilo[iact], cx[iact] - cl[iact], cu[iact] - cx[iact])
         comp = max(comp, float(np.max(np.abs(lam * rs))))
     return KKT(stat, primal, dual, comp)
+
+
+def kkt_scale(qp: StandardQP, x: FloatArray) -> FloatArray:
+    """The magnitudes the four KKT figures of ``x`` are judged against (:data:`KKT_COLUMNS`
+    order): stationarity and dual feasibility against ``1 + ‖Hx + g‖∞`` (the multipliers are
+    components of the gradient), primal feasibility against ``1 + max(‖b‖∞, ‖Ax‖∞, ‖Cx‖∞)``
+    (the right-hand sides, e.g. scaled joint torques), complementarity (a multiplier times a
+    slack) against ``(1 + ‖Hx + g‖∞)(1 + ‖x‖∞)``."""
+    c_mat, _, _ = qp.inequality_rows()
+    x2 = x[None, :]
+    return _scales(
+        (qp.H @ x + qp.g)[None, :], qp.b[None, :], (qp.A @ x)[None, :], (c_mat @ x)[None, :], x2
+    )[0]
+
+
+def _scales(
+    grad: FloatArray, b: FloatArray, ax: FloatArray, cx: FloatArray, x: FloatArray
+) -> FloatArray:
+    """:func:`kkt_scale` of frames stacked on axis 0."""
+    g_mag = 1.0 + np.max(np.abs(grad), axis=1, initial=0.0)
+    rhs_mag = 1.0 + np.max(
+        np.abs(np.concatenate([b, ax, np.where(np.isfinite(cx), cx, 0.0)], axis=1)),
+        axis=1, initial=0.0,
+    )  # fmt: skip
+    x_mag = 1.0 + np.max(np.abs(x), axis=1, initial=0.0)
+    return np.stack([g_mag, rhs_mag, g_mag, g_mag * x_mag], axis=1)
+
+
+@dataclass(frozen=True)
+class KKTBatch:
+    """KKT figures of frames stacked on axis 0: ``figures`` ``(K, 4)`` as
+    :meth:`KKT.as_array` (columns :data:`KKT_COLUMNS`), ``scale`` ``(K, 4)`` the magnitudes
+    they are judged against (:func:`kkt_scale`), ``fallback`` ``(K,)`` the frames whose
+    multipliers the free columns did not determine (figures by :func:`kkt`'s bounded least
+    squares)."""
+
+    figures: FloatArray
+    scale: FloatArray
+    fallback: NDArray[np.bool_]
+
+    @property
+    def relative(self) -> FloatArray:
+        """``figures / scale`` ``(K, 4)``."""
+        return np.asarray(self.figures / self.scale)
+
+
+#: frames per stacked SVD of :func:`kkt_batch` (bounds its working memory)
+KKT_CHUNK = 256
+
+
+def kkt_batch(qps: Sequence[StandardQP], xs: ArrayLike) -> KKTBatch:
+    """:func:`kkt` of every ``(qps[k], xs[k])`` (QPs of equal dimensions), computed over the
+    frames at once, and the figures' scales (:func:`kkt_scale`).
+
+    Each frame's least-squares fit of the multipliers ν of its equality rows and active
+    inequality rows over its free variables (:func:`kkt`) is one stacked SVD of the matrix of
+    every row and every variable with the columns of active variables and the rows of inactive
+    inequalities zeroed: its minimum-norm solution is :func:`numpy.linalg.lstsq`'s on the
+    frame's own submatrix (ν = 0 on the zeroed rows), with the same rank cutoff
+    (ε · max(free, rows) · σ_max). A frame whose free columns do not determine ν (rank below its
+    number of rows, some bound or row active) is computed by :func:`kkt` itself (bounded least
+    squares). Equal to :func:`kkt` frame by frame to round-off (``tests/test_optimization.py``,
+    random QPs with random active sets)."""
+    x_all = np.asarray(xs, dtype=float)
+    n_fr = len(qps)
+    figs = np.zeros((n_fr, 4))
+    scale = np.ones((n_fr, 4))
+    fb = np.zeros(n_fr, dtype=bool)
+    for a in range(0, n_fr, KKT_CHUNK):
+        b = min(a + KKT_CHUNK, n_fr)
+        figs[a:b], scale[a:b], fb[a:b] = _kkt_chunk(qps[a:b], x_all[a:b])
+    return KKTBatch(figs, scale, fb)
+
+
+def _kkt_chunk(
+    qps: Sequence[StandardQP], x: FloatArray
+) -> tuple[FloatArray, FloatArray, NDArray[np.bool_]]:
+    k_fr = x.shape[0]
+    h0 = qps[0].H
+    grad = (
+        x @ h0.T if all(q.H is h0 for q in qps) else np.einsum("kij,kj->ki", _stack(qps, "H"), x)
+    ) + _stack(qps, "g")
+    lb, ub = _stack(qps, "lb"), _stack(qps, "ub")
+    a_mat, b_vec = _stack(qps, "A"), _stack(qps, "b")
+    m_eq = a_mat.shape[1]
+    ineq = [q.inequality_rows() for q in qps]
+    c_mat = np.stack([c for c, _, _ in ineq])
+    cl = np.stack([v for _, v, _ in ineq])
+    cu = np.stack([v for _, _, v in ineq])
+    lo, up = active_masks(x, lb, ub)
+    free = ~(lo | up)
+    ax = np.einsum("kij,kj->ki", a_mat, x)
+    cx = np.einsum("kij,kj->ki", c_mat, x)
+    ilo, iup = active_masks(cx, cl, cu)
+    iact = ilo | iup
+    rows = np.concatenate([a_mat, c_mat], axis=1)
+    row_on = np.concatenate([np.ones((k_fr, m_eq), dtype=bool), iact], axis=1)
+    n_rows = row_on.sum(axis=1)
+    r_tot = rows.shape[1]
+    nu = np.zeros((k_fr, r_tot))
+    need = np.zeros(k_fr, dtype=bool)
+    if r_tot:
+        rm = np.where(row_on[:, :, None], rows, 0.0)
+        mt = np.where(free[:, :, None], np.swapaxes(rm, 1, 2), 0.0)  # (K, n, r): af.T padded
+        u, s, vt = np.linalg.svd(mt, full_matrices=False)
+        n_free = free.sum(axis=1)
+        smax = s[:, :1] if s.shape[1] else np.zeros((k_fr, 1))
+        cut = np.finfo(float).eps * np.maximum(n_free, n_rows)[:, None] * smax
+        keep = s > cut
+        rank = keep.sum(axis=1)
+        inv = np.where(keep, 1.0 / np.where(keep, s, 1.0), 0.0)
+        rhs = np.where(free, -grad, 0.0)
+        nu = np.einsum("kpr,kp->kr", vt, inv * np.einsum("knp,kn->kp", u, rhs))
+        need = (rank < n_rows) & ((lo | up).any(axis=1) | iact.any(axis=1))
+        full = grad + np.einsum("krn,kr->kn", rm, nu)
+    else:
+        full = grad
+    stat = np.max(np.where(free, np.abs(full), 0.0), axis=1, initial=0.0)
+    mu = np.where(lo, full, np.where(up, -full, 0.0))
+    nu_in = nu[:, m_eq:]
+    lam = np.where(iact, np.where(ilo, -nu_in, nu_in), 0.0)
+    with np.errstate(invalid="ignore"):
+        viol = np.concatenate(
+            [np.maximum(lb - x, 0.0), np.maximum(x - ub, 0.0), np.maximum(cl - cx, 0.0),
+             np.maximum(cx - cu, 0.0)],
+            axis=1,
+        )  # fmt: skip
+    viol = np.where(np.isfinite(viol), viol, 0.0)
+    eq = np.max(np.abs(ax - b_vec), axis=1, initial=0.0)
+    primal = np.maximum(eq, np.max(viol, axis=1, initial=0.0))
+    dual = np.maximum(
+        0.0, np.maximum(np.max(-mu, axis=1, initial=0.0), np.max(-lam, axis=1, initial=0.0))
+    )
+    slack = np.where(lo, x - lb, np.where(up, ub - x, 0.0))
+    rs = np.where(iact, np.where(ilo, cx - cl, cu - cx), 0.0)
+    comp = np.maximum(
+        np.max(np.abs(mu * slack), axis=1, initial=0.0),
+        np.max(np.abs(lam * rs), axis=1, initial=0.0),
+    )
+    figs = np.stack([stat, primal, dual, comp], axis=1)
+    for k in np.flatnonzero(need):
+        figs[k] = kkt(qps[k], x[k]).as_array()
+    return figs, _scales(grad, b_vec, ax, cx, x), need
+
+
+def _stack(qps: Sequence[StandardQP], name: str) -> FloatArray:
+    return np.stack([getattr(q, name) for q in qps])
 
 
 # ---------------------------------------------------------------------------------------------
@@ -443,6 +590,8 @@ class RawResult:
     iterations: int
     solve_time_s: float
     kkt: KKT | None
+    #: :func:`kkt_scale` of ``x`` (with ``kkt``)
+    kkt_scale: FloatArray | None = None
 
 
 def least_squares_fallback(qp: StandardQP, solver: str) -> StandardQP:
@@ -499,6 +648,7 @@ def solve_standard(
         iterations=out.iterations,
         solve_time_s=elapsed,
         kkt=kkt(qp, x) if compute_kkt else None,
+        kkt_scale=kkt_scale(qp, x) if compute_kkt else None,
     )
     if strict and status != STATUS_OPTIMAL:
         where = f"frame {frame}" if frame is not None else "the frame"

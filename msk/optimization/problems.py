@@ -39,6 +39,7 @@ from msk.optimization._qp import (
     DAQP_OPTIONS,
     DEFAULT_SOLVER,
     KKT,
+    KKT_CHUNK,
     KKT_COLUMNS,
     STATUS_NAMES,
     STATUS_OPTIMAL,
@@ -49,6 +50,8 @@ from msk.optimization._qp import (
     active_masks,
     get_solver,
     kkt,
+    kkt_batch,
+    kkt_scale,
     new_warm,
     solve_standard,
 )
@@ -312,12 +315,14 @@ def _solve_power(
         raise OptimizationError(
             f"{where}: power criterion (p = {p:g}) did not converge with solver {solver!r}"
         )
+    pm = _power_model(qp, x, m, w, p) if compute_kkt else None
     res = RawResult(
         x=x,
         status=status,
         iterations=iters,
         solve_time_s=t0,
-        kkt=kkt(_power_model(qp, x, m, w, p), x) if compute_kkt else None,
+        kkt=None if pm is None else kkt(pm, x),
+        kkt_scale=None if pm is None else kkt_scale(pm, x),
     )
     return res, warm
 
@@ -841,7 +846,8 @@ class BatchSolution:
     """Per-frame solutions stacked over time (axis 0); fields as in :class:`QPSolution`.
 
     ``status`` ``(N,)`` int8 codes (0 optimal, 1 infeasible, 2 solver failed; names in
-    ``STATUS_NAMES``); ``kkt`` ``(N, 4)`` with columns ``kkt_columns``; ``solve_time_s`` per
+    ``STATUS_NAMES``); ``kkt`` ``(N, 4)`` with columns ``kkt_columns`` (NaN without
+    ``compute_kkt``) and ``kkt_scale`` the magnitudes they are judged against; ``solve_time_s`` per
     frame (solver call, incl. fallback); ``time`` optional frame times in s;
     ``inequality_reserves`` ``(N, k)`` the reserves ``s_k`` of :class:`TensionInequalities`
     rows (row units, ``inequality_names``), None when the batch had none.
@@ -869,6 +875,9 @@ class BatchSolution:
     #: ``(N, k)`` reserves of the :class:`TensionInequalities` rows (row units; None without)
     inequality_reserves: FloatArray | None = None
     inequality_names: tuple[str, ...] = ()
+    #: ``(N, 4)`` the magnitudes the ``kkt`` figures are judged against
+    #: (:func:`~msk.optimization.kkt_scale`; NaN where ``kkt`` is)
+    kkt_scale: FloatArray | None = None
 
     @property
     def infeasible_frames(self) -> NDArray[np.intp]:
@@ -1283,6 +1292,7 @@ def _run_batch(
     rc = np.zeros((n_frames, n))
     rt = np.zeros((n_frames, n))
     kk = np.full((n_frames, 4), np.nan)
+    ks = np.full((n_frames, 4), np.nan)
     xs = np.empty((n_frames, m))  # muscle unknowns and their bounds, for the active sets
     lbs = np.empty((n_frames, m))
     ubs = np.empty((n_frames, m))
@@ -1336,7 +1346,8 @@ def _run_batch(
             if raw.status == STATUS_OPTIMAL:
                 x = reduction.expand(x, k)
                 if compute_kkt:
-                    kk[k] = kkt(reduction.full(k), x).as_array()
+                    kb = kkt_batch([reduction.full(k)], x[None, :])
+                    kk[k], ks[k] = kb.figures[0], kb.scale[0]
             else:
                 qp = reduction.full(k)
                 raw, _ = solve_standard(
@@ -1355,6 +1366,8 @@ def _run_batch(
         rt[k, lay.reserve_idx] = lay.reserve_opt * r[lay.reserve_idx]
         if raw.kkt is not None:
             kk[k] = raw.kkt.as_array()
+        if raw.kkt_scale is not None:
+            ks[k] = raw.kkt_scale
         xs[k], lbs[k], ubs[k] = x[:m], qp.lb[:m], qp.ub[:m]
         status[k] = raw.status
         iters[k] = raw.iterations
@@ -1363,7 +1376,7 @@ def _run_batch(
         carry.state, carry.started = warm, True
     out = _batch_solution(
         xs, lbs, ubs, forces, acts, rc, rt, tau, jac, kk, status, iters, times, solver,
-        muscle_names, coordinate_names, time,
+        muscle_names, coordinate_names, time, ks,
     )  # fmt: skip
     if inequality_names:
         if ineq is None:
@@ -1411,9 +1424,15 @@ def _run_blocks(
         x = xf
     status = np.full(n_frames, STATUS_OPTIMAL, dtype=np.int8)
     kk = np.full((n_frames, 4), np.nan)
+    ks = np.full((n_frames, 4), np.nan)
 
     def whole(k: int) -> StandardQP:
         return reduction.full(k) if reduction is not None else build(k)[0]
+
+    def owned(qp: StandardQP) -> StandardQP:
+        """``qp`` with its own constraint matrix (``build(k)`` writes every frame's into one
+        buffer), to be held with other frames' QPs."""
+        return qp if reduction is not None else dataclasses.replace(qp, A=qp.A.copy())
 
     for k in np.flatnonzero(~ok):
         raw, _ = solve_standard(
@@ -1424,9 +1443,14 @@ def _run_blocks(
         times[k] += raw.solve_time_s
         if raw.kkt is not None:
             kk[k] = raw.kkt.as_array()
-    if compute_kkt:
-        for k in np.flatnonzero(ok):
-            kk[k] = kkt(whole(int(k)), x[k]).as_array()
+        if raw.kkt_scale is not None:
+            ks[k] = raw.kkt_scale
+    if compute_kkt:  # the solved frames' figures over frames at once (:func:`kkt_batch`)
+        solved = np.flatnonzero(ok)
+        for a in range(0, solved.size, KKT_CHUNK):
+            fr = solved[a : a + KKT_CHUNK]
+            kb = kkt_batch([owned(whole(int(k))) for k in fr], x[fr])
+            kk[fr], ks[fr] = kb.figures, kb.scale
     assert build.out_scale is not None and build.out_offset is not None
     forces = build.out_scale * x[:, :m] + build.out_offset
     acts = x[:, :m].copy() if activations else None
@@ -1440,7 +1464,7 @@ def _run_blocks(
     ubs = np.broadcast_to(build.ub[..., :m], (n_frames, m))
     out = _batch_solution(
         x[:, :m], lbs, ubs, forces, acts, rc, rt, tau, jac, kk, status, iters, times,
-        _EXACT_SOLVER, muscle_names, coordinate_names, time,
+        _EXACT_SOLVER, muscle_names, coordinate_names, time, ks,
     )  # fmt: skip
     if build.ineq is None:
         return out
@@ -1468,6 +1492,7 @@ def _batch_solution(
     muscle_names: Any,
     coordinate_names: Any,
     time: ArrayLike | None,
+    kkt_scale: FloatArray | None = None,
 ) -> BatchSolution:
     """The :class:`BatchSolution` of solved frames: active bounds from the muscle variables
     ``x_muscles`` and their bounds, torque error τ + Jᵀf and residual (error − reserves)."""
@@ -1494,6 +1519,7 @@ def _batch_solution(
         muscle_names=muscle_names,
         coordinate_names=coordinate_names,
         time=t,
+        kkt_scale=kkt_scale,
     )
 
 
