@@ -322,7 +322,7 @@ def _kkt_chunk(
     viol = np.where(np.isfinite(viol), viol, 0.0)
     eq = np.max(np.abs(ax - b_vec), axis=1, initial=0.0)
     primal = np.maximum(eq, np.max(viol, axis=1, initial=0.0))
-    dual = np.maximum(
+    dual = 0.0 + np.maximum(  # + 0.0: no −0.0
         0.0, np.maximum(np.max(-mu, axis=1, initial=0.0), np.max(-lam, axis=1, initial=0.0))
     )
     slack = np.where(lo, x - lb, np.where(up, ub - x, 0.0))
@@ -332,7 +332,7 @@ def _kkt_chunk(
         np.max(np.abs(lam * rs), axis=1, initial=0.0),
     )
     figs = np.stack([stat, primal, dual, comp], axis=1)
-    for k in np.flatnonzero(need):
+    for k in np.flatnonzero(need).tolist():
         figs[k] = kkt(qps[k], x[k]).as_array()
     return figs, _scales(grad, b_vec, ax, cx, x), need
 
@@ -350,7 +350,8 @@ def _fit_multipliers(
     k_fr, r_tot, _ = af.shape
     gram = af @ np.swapaxes(af, 1, 2)
     gram += np.eye(r_tot) * ~row_on[:, None, :]  # a row that is off: ν = 0 alone
-    dead = ~(np.diagonal(gram, axis1=1, axis2=2) > 0).all(axis=1)  # a row with no free column
+    # a row with no free column
+    dead = np.asarray(~(np.diagonal(gram, axis1=1, axis2=2) > 0).all(axis=1), dtype=bool)
     gram[dead] = np.eye(r_tot)
     try:
         ginv = np.linalg.inv(gram)
