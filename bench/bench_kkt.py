@@ -28,8 +28,8 @@ from _timing import replace_doc_section
 from threadpoolctl import threadpool_limits
 
 import msk.optimization.problems as problems
-from msk.optimization import KKTBatch, StandardQP, kkt, kkt_scale
 from msk.config import load_config
+from msk.optimization import KKTBatch, StandardQP, kkt, kkt_scale
 from msk.pipeline.inputs import session_inputs
 from msk.pipeline.mass_identification import identified_model
 from msk.pipeline.session import run_stages
@@ -102,9 +102,7 @@ def measure(repeat: int) -> dict[str, Any]:
 
 def _section(m: dict[str, Any]) -> str:
     b, med = m["best"], m["median"]
-    rows = "\n".join(
-        f"| {v} | {b[v]:.0f} | {med[v]:.0f} | {b[v] - b['none']:+.0f} |" for v in b
-    )
+    rows = "\n".join(f"| {v} | {b[v]:.0f} | {med[v]:.0f} | {b[v] - b['none']:+.0f} |" for v in b)
     return (
         f"{SECTION}\n\n"
         f"gc5_PS ngait_og_ss1 ({m['frames']} solved frames; emg_assisted with the knee "

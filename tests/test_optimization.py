@@ -1167,8 +1167,8 @@ def test_batch_kkt_scale_and_a_solver_that_stops_short() -> None:
         d.jacobians, d.taus, f_iso=d.f_iso, reserve_optimal_force=res, solver="test-sloppy"
     )
     assert np.all(b.status == 0)
-    value, rel, frame, n = worst_kkt(b.kkt, b.kkt_scale, b.status == 0, np.arange(15) + 100)
+    _, rel, frame, n = worst_kkt(b.kkt, b.kkt_scale, b.status == 0, np.arange(15) + 100)
     assert n == 15 and rel.max() > THRESHOLDS["kkt_relative"] and np.all(frame >= 100)
     # an infeasible frame (status ≠ 0) is not checked
-    value2, rel2, _, n2 = worst_kkt(b.kkt, b.kkt_scale, np.zeros(15, dtype=bool), np.arange(15))
+    _, rel2, _, n2 = worst_kkt(b.kkt, b.kkt_scale, np.zeros(15, dtype=bool), np.arange(15))
     assert n2 == 0 and np.all(rel2 == 0)

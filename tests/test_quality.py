@@ -289,7 +289,10 @@ def test_kkt_flags_name_trial_figure_frame_value_and_threshold() -> None:
     )  # fmt: skip
     (f,) = kkt_flags("walk", SimpleNamespace(kkt=worst))
     assert (f.trial, f.quantity, f.value, f.threshold) == (
-        "walk", "optimization_kkt_stationarity", 2e-5, THRESHOLDS["kkt_relative"]
+        "walk",
+        "optimization_kkt_stationarity",
+        2e-5,
+        THRESHOLDS["kkt_relative"],
     )
     assert "frame 41" in f.message and "t = 1.250 s" in f.message
     assert not kkt_flags("walk", SimpleNamespace(kkt=worst), {"kkt_relative": 1e-4})
