@@ -1172,3 +1172,55 @@ def test_batch_kkt_scale_and_a_solver_that_stops_short() -> None:
     # an infeasible frame (status ≠ 0) is not checked
     _, rel2, _, n2 = worst_kkt(b.kkt, b.kkt_scale, np.zeros(15, dtype=bool), np.arange(15))
     assert n2 == 0 and np.all(rel2 == 0)
+
+
+@pytest.mark.parametrize("with_rows", [False, True])
+def test_whole_qps_stacked_for_the_kkt_check_are_each_frames_whole_qp(monkeypatch, with_rows):
+    """The stacked whole QPs the split batches check KKT on (``_BatchQP.whole_stack``) are,
+    frame by frame, the whole QP (``_BatchQP.whole``) of static optimisation with passive
+    forces, emg_assisted and bounded_qp, with and without inequality rows and decoupled
+    reserves (pelvis columns no muscle crosses)."""
+    import msk.optimization as o
+    import msk.optimization.problems as problems
+
+    jac, tau, f_iso = _two_legs(12)
+    n_frames, m, _ = jac.shape
+    rng = np.random.default_rng(5)
+    fa = f_iso * rng.uniform(0.6, 1.0, size=(n_frames, m))
+    fp = f_iso * rng.uniform(0.0, 0.02, size=(n_frames, m))
+    rows = None
+    if with_rows:
+        gain = rng.normal(size=(n_frames, 2, m)) * (np.arange(m) < 18)  # the first leg's
+        rows = o.TensionInequalities(rng.normal(size=(n_frames, 2)), gain, ("a", "b"))
+    checked = []
+    stack = problems._BatchQP.whole_stack
+
+    def spy(self, fr):
+        out = stack(self, fr)
+        h, g, a, b, lb, ub, c, cl = out
+        for i, k in enumerate(fr):
+            qp = self.whole(int(k))
+            np.testing.assert_array_equal(h, qp.H)
+            for mine, ref in ((g, qp.g), (lb, qp.lb), (ub, qp.ub)):
+                np.testing.assert_array_equal(mine if mine.ndim == 1 else mine[i], ref)
+            np.testing.assert_array_equal(a[i], qp.A)
+            np.testing.assert_allclose(b[i], qp.b, rtol=1e-14, atol=1e-12)
+            if qp.C is None:
+                assert c is None
+            else:
+                np.testing.assert_array_equal(c[i], qp.C)
+                np.testing.assert_allclose(cl[i], qp.cl, rtol=1e-14, atol=1e-12)
+            checked.append(int(k))
+        return out
+
+    monkeypatch.setattr(problems._BatchQP, "whole_stack", spy)
+    monkeypatch.setattr(problems, "_MIN_BLOCK_UNKNOWNS", 16)  # split the small QPs too
+    res = np.ones(jac.shape[2])
+    kw = {"reserve_optimal_force": res, "inequalities": rows}
+    solve_static_optimization_batch(jac, tau, f_active=fa, f_passive=fp, **kw)
+    solve_emg_assisted_batch(
+        jac, tau, f_active=fa, f_passive=fp, a_ref=rng.uniform(0, 0.3, size=(n_frames, m)),
+        measured=rng.uniform(size=m) < 0.5, w_track=1.0, **kw,
+    )  # fmt: skip
+    solve_tension_batch(jac, tau, f_iso=f_iso, f_max=fa + fp, **kw)
+    assert len(checked) >= 3 * n_frames - 6  # every solved frame of the three batches

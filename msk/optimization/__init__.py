@@ -36,6 +36,7 @@ from msk.optimization._qp import (
     kkt,
     kkt_batch,
     kkt_scale,
+    kkt_stacked,
     register_solver,
 )
 from msk.optimization.closed_form import (
@@ -98,6 +99,7 @@ __all__ = [
     "kkt",
     "kkt_batch",
     "kkt_scale",
+    "kkt_stacked",
     "lagrange_coefficients",
     "register_solver",
     "solve",

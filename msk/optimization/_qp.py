@@ -253,43 +253,83 @@ KKT_BATCH_CONDITION = 1e10
 
 def kkt_batch(qps: Sequence[StandardQP], xs: ArrayLike) -> KKTBatch:
     """:func:`kkt` of every ``(qps[k], xs[k])`` (QPs of equal dimensions), computed over the
-    frames at once, and the figures' scales (:func:`kkt_scale`).
+    frames at once (:func:`kkt_stacked` on their stacked arrays), and the figures' scales
+    (:func:`kkt_scale`)."""
+    h0 = qps[0].H
+    ineq = [q.inequality_rows() for q in qps]
+    return kkt_stacked(
+        h0 if all(q.H is h0 for q in qps) else _stack(qps, "H"), _stack(qps, "g"),
+        _stack(qps, "A"), _stack(qps, "b"), _stack(qps, "lb"), _stack(qps, "ub"),
+        np.asarray(xs, dtype=float), np.stack([c for c, _, _ in ineq]),
+        np.stack([v for _, v, _ in ineq]), np.stack([v for _, _, v in ineq]),
+    )  # fmt: skip
+
+
+def kkt_stacked(
+    h: FloatArray,
+    g: FloatArray,
+    a: FloatArray,
+    b: FloatArray,
+    lb: FloatArray,
+    ub: FloatArray,
+    x: FloatArray,
+    c: FloatArray | None = None,
+    cl: FloatArray | None = None,
+    cu: FloatArray | None = None,
+) -> KKTBatch:
+    """:func:`kkt` and :func:`kkt_scale` of ``K`` frames given as stacked arrays: ``h``
+    ``(n, n)`` shared or ``(K, n, n)``; ``g``, ``lb``, ``ub`` ``(n,)`` shared or ``(K, n)``;
+    ``a`` ``(K, m_eq, n)``, ``b`` ``(K, m_eq)``; ``x`` ``(K, n)``; inequality rows ``c``
+    ``(K, m_in, n)`` with ``cl``, ``cu`` ``(K, m_in)`` (None: ±inf), or None.
 
     Each frame's least-squares fit of the multipliers ν of its equality rows and active
-    inequality rows over its free variables (:func:`kkt`) is one stacked SVD of the matrix of
-    every row and every variable with the columns of active variables and the rows of inactive
-    inequalities zeroed: its minimum-norm solution is :func:`numpy.linalg.lstsq`'s on the
-    frame's own submatrix (ν = 0 on the zeroed rows), with the same rank cutoff
-    (ε · max(free, rows) · σ_max). A frame whose free columns do not determine ν (rank below its
-    number of rows, some bound or row active) is computed by :func:`kkt` itself (bounded least
-    squares). Equal to :func:`kkt` frame by frame to round-off (``tests/test_optimization.py``,
-    random QPs with random active sets)."""
-    x_all = np.asarray(xs, dtype=float)
-    n_fr = len(qps)
+    inequality rows over its free variables (:func:`kkt`) is done for all frames at once, on
+    the ``(K, rows, n)`` stack of their matrices with the columns of active variables and the
+    rows of inactive inequalities zeroed (:func:`_fit_multipliers`: corrected semi-normal
+    equations). A frame whose fit is ill-conditioned (1-norm condition number of its Gram
+    matrix above :data:`KKT_BATCH_CONDITION`) or singular — among them every frame whose
+    free columns do not determine ν, which :func:`kkt` fits by bounded least squares — is
+    computed by :func:`kkt` itself (``fallback``). Equal to :func:`kkt` frame by frame to
+    round-off, 1e-12 of :func:`kkt_scale` (``tests/test_optimization.py``: random QPs with
+    random active sets, rank-deficient frames among them)."""
+    n_fr, n = x.shape
+    if c is None:
+        c, cl, cu = np.zeros((n_fr, 0, n)), np.zeros((n_fr, 0)), np.zeros((n_fr, 0))
+    m_in = c.shape[1]
+    cl = np.full((n_fr, m_in), -np.inf) if cl is None else cl
+    cu = np.full((n_fr, m_in), np.inf) if cu is None else cu
     figs = np.zeros((n_fr, 4))
     scale = np.ones((n_fr, 4))
     fb = np.zeros(n_fr, dtype=bool)
-    for a in range(0, n_fr, KKT_CHUNK):
-        b = min(a + KKT_CHUNK, n_fr)
-        figs[a:b], scale[a:b], fb[a:b] = _kkt_chunk(qps[a:b], x_all[a:b])
+
+    def part(v: FloatArray, sl: slice, ndim: int) -> FloatArray:
+        return v if v.ndim < ndim else v[sl]
+
+    for i in range(0, n_fr, KKT_CHUNK):
+        sl = slice(i, min(i + KKT_CHUNK, n_fr))
+        figs[sl], scale[sl], fb[sl] = _kkt_chunk(
+            part(h, sl, 3), part(g, sl, 2), a[sl], b[sl], part(lb, sl, 2), part(ub, sl, 2),
+            x[sl], c[sl], cl[sl], cu[sl],
+        )  # fmt: skip
     return KKTBatch(figs, scale, fb)
 
 
 def _kkt_chunk(
-    qps: Sequence[StandardQP], x: FloatArray
+    h: FloatArray,
+    g: FloatArray,
+    a_mat: FloatArray,
+    b_vec: FloatArray,
+    lb: FloatArray,
+    ub: FloatArray,
+    x: FloatArray,
+    c_mat: FloatArray,
+    cl: FloatArray,
+    cu: FloatArray,
 ) -> tuple[FloatArray, FloatArray, NDArray[np.bool_]]:
     k_fr = x.shape[0]
-    h0 = qps[0].H
-    grad = (
-        x @ h0.T if all(q.H is h0 for q in qps) else np.einsum("kij,kj->ki", _stack(qps, "H"), x)
-    ) + _stack(qps, "g")
-    lb, ub = _stack(qps, "lb"), _stack(qps, "ub")
-    a_mat, b_vec = _stack(qps, "A"), _stack(qps, "b")
+    grad = (x @ h.T if h.ndim == 2 else (h @ x[:, :, None])[:, :, 0]) + g
+    lb, ub = np.broadcast_to(lb, x.shape), np.broadcast_to(ub, x.shape)
     m_eq = a_mat.shape[1]
-    ineq = [q.inequality_rows() for q in qps]
-    c_mat = np.stack([c for c, _, _ in ineq])
-    cl = np.stack([v for _, v, _ in ineq])
-    cu = np.stack([v for _, _, v in ineq])
     lo, up = active_masks(x, lb, ub)
     free = ~(lo | up)
     ax = (a_mat @ x[:, :, None])[:, :, 0]
@@ -333,7 +373,11 @@ def _kkt_chunk(
     )
     figs = np.stack([stat, primal, dual, comp], axis=1)
     for k in np.flatnonzero(need).tolist():
-        figs[k] = kkt(qps[k], x[k]).as_array()
+        qp = StandardQP(
+            h if h.ndim == 2 else h[k], g if g.ndim == 1 else g[k], a_mat[k], b_vec[k], lb[k],
+            ub[k], c_mat[k] if c_mat.shape[1] else None, cl[k], cu[k],
+        )  # fmt: skip
+        figs[k] = kkt(qp, x[k]).as_array()
     return figs, _scales(grad, b_vec, ax, cx, x), need
 
 

@@ -52,6 +52,7 @@ from msk.optimization._qp import (
     kkt,
     kkt_batch,
     kkt_scale,
+    kkt_stacked,
     new_warm,
     solve_standard,
 )
@@ -1069,6 +1070,8 @@ class _BatchQP:
         self.g = g[..., cols]
         self.layout = layout
         self.whole_h = h  # the whole QP's H (every reserve, the rows' reserves last)
+        self.whole_g, self.whole_lb, self.whole_ub = g, lb, ub  # and its g and bounds
+        self.res_idx, self.res_opt = idx, opt
         self.full_qp = full
         self.reduction: _Reduction | None = None
         if drop.any():
@@ -1111,6 +1114,42 @@ class _BatchQP:
             lb=np.concatenate([qp.lb, np.zeros(n_in)]),
             ub=np.concatenate([qp.ub, np.full(n_in, np.inf)]), C=c_mat, cl=cl,
         )  # fmt: skip
+
+    def whole_stack(self, fr: NDArray[np.intp]) -> tuple[Any, ...]:
+        """The whole QPs of frames ``fr`` (:meth:`whole`) as stacked arrays ``(H, g, A, b,
+        lb, ub, C, cl)`` (``H`` and, when the same for every frame, ``g``, ``lb``, ``ub``
+        shared; ``C``, ``cl`` None without inequality rows), for
+        :func:`~msk.optimization.kkt_stacked`; needs the output map (``out_scale``,
+        ``out_offset``)."""
+        assert self.out_scale is not None and self.out_offset is not None
+        m, n_fr = self.m, fr.size
+        jac = self.jac[fr]
+        idx, opt = self.res_idx, self.res_opt
+        nres = idx.shape[0]
+        n_in = 0 if self.ineq is None else self.ineq.n_rows
+        n = jac.shape[2]
+        a = np.zeros((n_fr, n, m + nres + n_in))
+        s = self.neg_scale if self.neg_scale.ndim == 1 else self.neg_scale[fr][:, None, :]
+        a[:, :, :m] = np.swapaxes(jac, 1, 2) * s  # R S = −Jᵀ S
+        a[:, idx, m + np.arange(nres)] = opt
+        b = self.tau[fr]
+        if self.passive is not None:
+            b = b + np.einsum("kmn,km->kn", jac, self.passive[fr])  # τ − R f_p
+
+        def rows(v: FloatArray) -> FloatArray:
+            return v if v.ndim == 1 else v[fr]
+
+        g, lb, ub = rows(self.whole_g), rows(self.whole_lb), rows(self.whole_ub)
+        if self.ineq is None:
+            return self.whole_h, g, a, b, lb, ub, None, None
+        gain = np.asarray(self.ineq.gain)[fr]
+        scale = np.broadcast_to(self.out_scale, (self.tau.shape[0], m))[fr]
+        offset = np.broadcast_to(self.out_offset, (self.tau.shape[0], m))[fr]
+        c = np.zeros((n_fr, n_in, m + nres + n_in))
+        c[:, :, :m] = gain * scale[:, None, :]
+        c[:, :, m + nres :] = np.diag(np.asarray(self.ineq.reserve_optimal))
+        cl = -np.asarray(self.ineq.offset)[fr] - (gain @ offset[:, :, None])[:, :, 0]
+        return self.whole_h, g, a, b, lb, ub, c, cl
 
     def __call__(self, k: int) -> tuple[StandardQP, _Layout]:
         m, a = self.m, self.a
@@ -1429,11 +1468,6 @@ def _run_blocks(
     def whole(k: int) -> StandardQP:
         return reduction.full(k) if reduction is not None else build(k)[0]
 
-    def owned(qp: StandardQP) -> StandardQP:
-        """``qp`` with its own constraint matrix (``build(k)`` writes every frame's into one
-        buffer), to be held with other frames' QPs."""
-        return qp if reduction is not None else dataclasses.replace(qp, A=qp.A.copy())
-
     for k in np.flatnonzero(~ok):
         raw, _ = solve_standard(
             whole(int(k)), solver=_EXACT_SOLVER, compute_kkt=compute_kkt, frame=int(k),
@@ -1445,11 +1479,12 @@ def _run_blocks(
             kk[k] = raw.kkt.as_array()
         if raw.kkt_scale is not None:
             ks[k] = raw.kkt_scale
-    if compute_kkt:  # the solved frames' figures over frames at once (:func:`kkt_batch`)
+    if compute_kkt:  # the solved frames' whole QPs, stacked, their figures over frames at once
         solved = np.flatnonzero(ok)
         for a in range(0, solved.size, KKT_CHUNK):
             fr = solved[a : a + KKT_CHUNK]
-            kb = kkt_batch([owned(whole(int(k))) for k in fr], x[fr])
+            h, g, am, b, lb, ub, c, cl = build.whole_stack(fr)
+            kb = kkt_stacked(h, g, am, b, lb, ub, x[fr], c, cl)
             kk[fr], ks[fr] = kb.figures, kb.scale
     assert build.out_scale is not None and build.out_offset is not None
     forces = build.out_scale * x[:, :m] + build.out_offset
