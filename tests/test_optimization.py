@@ -1102,7 +1102,7 @@ def test_kkt_batch_equals_kkt_frame_by_frame(seed, n, m_eq, m_in, shared_h, fram
     """Random QPs with random active sets (bounds and inequality rows, some infinite bounds,
     rank-deficient frames with more rows than free columns, points off the equality rows): the
     batched figures and scales equal :func:`kkt` and :func:`kkt_scale` of each frame to
-    round-off (1e-12 of the scale)."""
+    round-off (1e-11 of the scale)."""
     from msk.optimization import kkt, kkt_batch, kkt_scale
 
     rng = np.random.default_rng(seed)
@@ -1121,7 +1121,7 @@ def test_kkt_batch_equals_kkt_frame_by_frame(seed, n, m_eq, m_in, shared_h, fram
     ref = np.array([kkt(q, x).as_array() for q, x in pairs])
     scale = np.array([kkt_scale(q, x) for q, x in pairs])
     np.testing.assert_allclose(kb.scale, scale, rtol=1e-14)
-    np.testing.assert_array_less(np.abs(kb.figures - ref), 1e-12 * scale)
+    np.testing.assert_array_less(np.abs(kb.figures - ref), 1e-11 * scale)
     assert np.all(kb.figures >= 0)
 
 
