@@ -26,7 +26,12 @@ use ~4 000 and 12 000 frames): per node the bytes live before it, its transient 
 it minus live before) and the size of its result, and between two lengths their slopes in
 bytes per frame — what each stage adds to the peak of a longer trial.
 
-Usage: ``.venv/bin/python bench/bench_long_trial.py [--frames 10000 30000 100000] [--trace]``.
+``--stage-peaks``: the child's VmHWM is reset after each stage (``/proc/self/clear_refs``, Linux
+≥ 4.0), so each row's high-water is that stage's own peak — a stage under an earlier stage's
+high-water shows its figure too; the peak RSS printed is then the largest of them.
+
+Usage: ``.venv/bin/python bench/bench_long_trial.py [--frames 10000 30000 100000] [--trace]
+[--stage-peaks]``.
 """
 
 from __future__ import annotations
@@ -58,17 +63,32 @@ def _status_kib(field: str) -> int:
     return 0
 
 
-class _StageMemory:
-    """A progress stream that records VmHWM and VmRSS after every stage line."""
+def _reset_hwm() -> bool:
+    """Reset this process's VmHWM to its current resident set (``/proc/self/clear_refs``
+    value 5, Linux ≥ 4.0); False where that is not possible."""
+    try:
+        Path("/proc/self/clear_refs").write_text("5")
+    except OSError:
+        return False
+    return True
 
-    def __init__(self) -> None:
+
+class _StageMemory:
+    """A progress stream that records VmHWM and VmRSS after every stage line; with
+    ``per_stage``, VmHWM is reset after each record, so each row's high-water is the peak
+    during that stage alone (since the previous stage's record)."""
+
+    def __init__(self, per_stage: bool = False) -> None:
         self.rows: list[tuple[str, float, int, int]] = []
+        self.per_stage = per_stage
 
     def write(self, text: str) -> int:
         if text.startswith("["):
             parts = text.split("]", 1)[1].split()
             hwm, rss = _status_kib("VmHWM"), _status_kib("VmRSS")
             self.rows.append((parts[0], float(parts[1]), hwm, rss))
+            if self.per_stage and not _reset_hwm():
+                raise OSError("--stage-peaks: cannot reset VmHWM (/proc/self/clear_refs)")
         return len(text)
 
     def flush(self) -> None:
@@ -195,7 +215,9 @@ def _traced(node: Any, rows: list[tuple[str, int, int, int]]) -> Any:
     return dataclasses.replace(node, run=wrapped)
 
 
-def child(n_frames: int, c3d: Path, out: Path, trace: bool = False) -> dict[str, Any]:
+def child(
+    n_frames: int, c3d: Path, out: Path, trace: bool = False, stage_peaks: bool = False
+) -> dict[str, Any]:
     """Run the session on the tiled C3D ``c3d`` in this process; figures as a dict."""
     import tracemalloc
 
@@ -212,7 +234,7 @@ def child(n_frames: int, c3d: Path, out: Path, trace: bool = False) -> dict[str,
         tracemalloc.start()
         nodes = tuple(_traced(n, traced) for n in nodes)
     session.run_graph = functools.partial(graph.run_graph, graph=nodes)  # type: ignore[assignment]
-    mem = _StageMemory()
+    mem = _StageMemory(per_stage=stage_peaks)
     hwm0 = _status_kib("VmHWM")
     t0 = time.perf_counter()
     res = session.run_session(cfg, out, progress=mem, use_cache=False)  # type: ignore[arg-type]
@@ -225,6 +247,7 @@ def child(n_frames: int, c3d: Path, out: Path, trace: bool = False) -> dict[str,
         "stages": mem.rows,
         "failed": failed,
         "traced": traced,
+        "stage_peaks": stage_peaks,
     }
 
 
@@ -249,6 +272,10 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--frames", type=int, nargs="+", default=[10_000, 30_000, 100_000])
     ap.add_argument("--trace", action="store_true", help="per-node bytes under tracemalloc")
+    ap.add_argument(
+        "--stage-peaks", action="store_true",
+        help="reset the child's VmHWM after each stage: each stage's own high-water",
+    )  # fmt: skip
     ap.add_argument("--child", type=int, help=argparse.SUPPRESS)
     ap.add_argument("--write", type=int, help=argparse.SUPPRESS)
     ap.add_argument("--c3d", type=Path, help=argparse.SUPPRESS)
@@ -258,7 +285,7 @@ def main() -> None:
         write_tiled(args.write, args.c3d)
         return
     if args.child:
-        print(json.dumps(child(args.child, args.c3d, args.out, args.trace)))
+        print(json.dumps(child(args.child, args.c3d, args.out, args.trace, args.stage_peaks)))
         return
     rows = []
     for n in args.frames:
@@ -279,7 +306,8 @@ def main() -> None:
             before = resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss
             p = subprocess.run(
                 [sys.executable, __file__, "--child", str(n), "--c3d", str(c3d),
-                 "--out", str(Path(tmp) / "out")] + (["--trace"] if args.trace else []),
+                 "--out", str(Path(tmp) / "out")] + (["--trace"] if args.trace else [])
+                + (["--stage-peaks"] if args.stage_peaks else []),
                 capture_output=True, text=True, check=False,
             )  # fmt: skip
             peak = resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss
@@ -289,6 +317,8 @@ def main() -> None:
         # ru_maxrss of the children is the largest of any child so far: valid for this one
         # when it grew (lengths are run in increasing order)
         r["peak_kib"] = peak if peak > before else r["stages"][-1][2]
+        if r["stage_peaks"]:  # the resets lowered the child's own record: the stages' largest
+            r["peak_kib"] = max([r["hwm_before_kib"]] + [row[2] for row in r["stages"]])
         rows.append(r)
         print(
             f"{n:7d} frames  peak RSS {r['peak_kib'] / 1024:7.0f} MiB  {r['seconds']:7.1f} s  "
@@ -297,9 +327,10 @@ def main() -> None:
             flush=True,
         )
         print(f"    after imports {r['hwm_before_kib'] / 1024:6.0f} MiB")
+        hw_label = "stage peak" if r["stage_peaks"] else "high-water"
         for name, sec, hwm, rss in r["stages"]:
             print(
-                f"    {name:<26}{sec:8.2f} s  high-water {hwm / 1024:6.0f} MiB  "
+                f"    {name:<26}{sec:8.2f} s  {hw_label} {hwm / 1024:6.0f} MiB  "
                 f"resident after {rss / 1024:6.0f} MiB"
             )
     if args.trace:

@@ -18,13 +18,16 @@ import dataclasses
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from msk.exceptions import MissingDataError, ShapeMismatchError
 from msk.signal import block_average, resample_to
+
+if TYPE_CHECKING:
+    from msk.io.analogs import StoredAnalogs
 
 __all__ = ["Event", "ForcePlate", "GapReport", "ModelOutputs", "Subject", "Trial"]
 
@@ -194,7 +197,7 @@ class Trial:
     model_outputs: ModelOutputs
     analog_rate_hz: float
     analog_time: NDArray[np.float64]
-    analogs: NDArray[np.float64]
+    analogs: NDArray[np.float64] | StoredAnalogs
     analog_labels: tuple[str, ...]
     analog_units: tuple[str, ...]
     plates: tuple[ForcePlate, ...]

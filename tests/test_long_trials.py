@@ -109,6 +109,119 @@ def test_warm_start_carried_across_blocks_equals_one_call(exponent: float) -> No
     np.testing.assert_array_equal(np.concatenate([p.iterations for p in parts]), whole.iterations)
 
 
+@pytest.mark.parametrize("criterion", ["static", "static_p3", "assisted", "weighted", "tension"])
+def test_batch_with_inequality_rows_in_parts_equals_one_call(criterion: str) -> None:
+    """With inequality rows (the knee compartment rows) every frame's QP is whole, solved in
+    turn: the frames solved in three calls, the warm start carried (``WarmStart``) and the
+    rows taken per part (``TensionInequalities.take``), give one call's forces, activations,
+    reserves, inequality reserves, statuses and active-set iterations bit for bit (the tension
+    stage's solve parts, :data:`msk.pipeline.blocks.SOLVE_BLOCK`); rows that bind on some
+    frames (offsets around −20, gains ~0.02 per N)."""
+    d = leg_like_frames(12, 4, 60, seed=7)
+    rng = np.random.default_rng(4)
+    fa = np.tile(d.f_iso, (60, 1))
+    fp = rng.uniform(0.0, 30.0, (60, 12))
+    rows = o.TensionInequalities(
+        rng.normal(-20.0, 10.0, (60, 2)), rng.normal(0.0, 0.02, (60, 2, 12)), ("a", "b")
+    )
+    meas = np.arange(12) % 3 == 0
+
+    def run(sl: slice, warm: Any) -> Any:
+        kw: dict[str, Any] = {"solver": "daqp", "warm": warm, "inequalities": rows.take(sl)}
+        jac, tau = d.jacobians[sl], d.taus[sl]
+        res = np.ones(4)
+        if criterion in ("static", "static_p3"):
+            p = 3.0 if criterion == "static_p3" else 2.0
+            return o.solve_static_optimization_batch(
+                jac, tau, f_active=fa[sl], f_passive=fp[sl], reserve_optimal_force=res,
+                activation_exponent=p, **kw,
+            )  # fmt: skip
+        if criterion == "assisted":
+            return o.solve_emg_assisted_batch(
+                jac, tau, f_active=fa[sl], f_passive=fp[sl], a_ref=np.full((60, 12), 0.1)[sl],
+                measured=meas, reserve_optimal_force=res, **kw,
+            )  # fmt: skip
+        if criterion == "weighted":
+            return o.solve_emg_weighted_batch(
+                jac, tau, f_ref=np.full((60, 12), 100.0)[sl], measured=meas, w_emg=0.1,
+                f_max=fa[sl], **kw,
+            )  # fmt: skip
+        return o.solve_tension_batch(
+            jac, tau, f_iso=d.f_iso, f_max=fa[sl], reserve_optimal_force=res, **kw
+        )
+
+    whole = run(slice(0, 60), o.WarmStart())
+    assert whole.inequality_reserves is not None and (whole.inequality_reserves > 1e-6).any()
+    carry = o.WarmStart()
+    parts = [run(sl, carry) for sl in (slice(0, 17), slice(17, 40), slice(40, 60))]
+    for name in ("forces", "activations", "reserve_torques", "inequality_reserves", "status",
+                 "iterations"):  # fmt: skip
+        a = getattr(whole, name)
+        if a is None:
+            assert all(getattr(p, name) is None for p in parts), name
+            continue
+        np.testing.assert_array_equal(
+            np.concatenate([getattr(p, name) for p in parts]), a, err_msg=name
+        )
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("frame_block", [40, 4096])
+def test_tension_and_contact_in_solve_parts_equal_whole_blocks(
+    monkeypatch: pytest.MonkeyPatch, frame_block: int
+) -> None:
+    """gc5_PS (``emg_assisted`` with the knee compartment rows): the tension stage and the
+    knee contact stage (its subject-specific re-solve handed to the contact per block) with
+    each block solved in parts of 16 frames (:data:`msk.pipeline.blocks.SOLVE_BLOCK`; blocks of
+    40 frames with the Jacobian recomputed per block, or the trial in one block) give the
+    stages' results of whole-block solves bit for bit: forces, activations, reserve torques,
+    frontal reserves, the EMG gains, the contact forces and their medial/lateral split."""
+    from threadpoolctl import threadpool_limits
+
+    from msk.config import load_config
+    from msk.pipeline import contact, run_stages, tension
+    from msk.pipeline.inputs import session_inputs
+
+    cfg = load_config(REPO / "pipelines" / "gc5_PS.toml")
+    assert cfg.optimization.compartment_nonnegative
+    monkeypatch.setattr(blocks, "FRAME_BLOCK", frame_block)
+    monkeypatch.setattr(blocks, "SOLVE_BLOCK", 4096)
+    r = run_stages(cfg, until="knee_contact")
+    monkeypatch.setattr(blocks, "SOLVE_BLOCK", 16)
+    inputs = session_inputs(cfg)
+    args = (inputs, r["model"], r["kinematics"], r["loads"], r["mass_identification"],
+            r["inverse_dynamics"])  # fmt: skip
+    with threadpool_limits(limits=1, user_api="blas"):
+        ten = tension.run(*args, r["muscle_geometry"], r["emg"])
+        con = contact.run(
+            *args, r["emg"], r["muscle_geometry"], r["tension_optimization"],
+            r["strength_identification"], r["measured_contact"],
+        )  # fmt: skip
+    ref = r["tension_optimization"]
+    for f in dataclasses.fields(ref):
+        a, b = getattr(ref, f.name), getattr(ten, f.name)
+        if isinstance(a, np.ndarray):
+            np.testing.assert_array_equal(b, a, err_msg=f.name)
+        else:
+            assert b == a, f.name
+    assert np.isfinite(ref.forces).sum() > 100 * len(ref.muscles)
+    assert ref.frontal_reserve_moments is not None
+    assert set(con.variants) == set(r["knee_contact"].variants) == {"generic", "subject_specific"}
+    for name, v in r["knee_contact"].variants.items():
+        for f in dataclasses.fields(v):
+            np.testing.assert_array_equal(
+                getattr(con.variants[name], f.name), getattr(v, f.name), err_msg=f.name
+            )
+
+
+def test_solve_parts_cover_a_block(monkeypatch: pytest.MonkeyPatch) -> None:
+    monkeypatch.setattr(blocks, "SOLVE_BLOCK", 4)
+    parts = blocks.solve_parts(10)
+    assert [(p.start, p.stop) for p in parts] == [(0, 4), (4, 8), (8, 10)]
+    assert blocks.solve_parts(4) == [slice(0, 4)]
+    assert blocks.solve_parts(0) == [slice(0, 0)]
+
+
 @pytest.fixture(scope="module")
 def gait2392() -> object:
     from msk.model_files import load_model

@@ -45,6 +45,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from msk.exceptions import C3DError, ForcePlateError, MskError, UnitsError
+from msk.io.analogs import StoredAnalogs
 from msk.io.validate import MAX_ABS_COORDINATE_M, MAX_ABS_FORCE_N, check_regular_file
 from msk.trial import Event, ForcePlate, GapReport, ModelOutputs, Subject, Trial
 
@@ -360,11 +361,14 @@ def _read_data(
     analog_columns: Sequence[int] | NDArray[np.int64],
     *,
     points: bool = True,
-) -> tuple[NDArray[np.float64], NDArray[np.bool_], NDArray[np.float64]]:
+    stored: bool = False,
+) -> tuple[NDArray[np.float64], NDArray[np.bool_], NDArray[np.float64] | StoredAnalogs]:
     """Points ``(N, P, 3)`` (file units; integer storage times ``|POINT:SCALE|``), their
     invalid flags ``(N, P)`` (negative residual word) and the analog ``analog_columns``
     ``(N * samples, C)`` scaled as ``(raw - OFFSET) * SCALE * GEN_SCALE``, read from the data
-    section block by block (:data:`_READ_BLOCK` frames): only the outputs are held whole."""
+    section block by block (:data:`_READ_BLOCK` frames): only the outputs are held whole.
+    ``stored``: the analogs as a :class:`msk.io.analogs.StoredAnalogs` (the stored samples,
+    scaled when indexed: the same values) unless the file is a DEC one."""
     endian = ">" if lay.proc == 86 else "<"
     dtype = np.dtype(endian + ("f4" if lay.is_float else "i2"))
     n, n_pts, samples = lay.n_frames, lay.n_points, lay.analog_per_frame
@@ -399,7 +403,15 @@ def _read_data(
     off = offset[cols] if cols.size else np.zeros(0)
     xyz = np.empty((n if points else 0, n_pts, 3))
     invalid = np.zeros((n if points else 0, n_pts), dtype=bool)
-    analogs = np.empty((n * samples, cols.size))
+    lazy = stored and lay.proc != 85
+    if lazy:
+        kind = "f4" if lay.is_float else ("u2" if unsigned else "i2")
+        held = np.empty((n * samples, cols.size), dtype=np.dtype(kind))
+    else:
+        held = np.empty((n * samples, cols.size))
+    analogs: NDArray[np.float64] | StoredAnalogs = (
+        StoredAnalogs(held, off, factor) if lazy else held
+    )
     if not n or not per_frame:
         return xyz, invalid, analogs
     with path.open("rb") as fh:
@@ -418,7 +430,10 @@ def _read_data(
                 aw = raw[:, 4 * n_pts :].reshape((b - a) * samples, n_ana)[:, cols]
                 if unsigned and not lay.is_float:
                     aw = aw.view(np.dtype(endian + "u2"))
-                analogs[a * samples : b * samples] = (_data_words(lay, aw) - off) * factor
+                if lazy:  # exact: the same numbers in the native byte order
+                    held[a * samples : b * samples] = aw
+                else:
+                    held[a * samples : b * samples] = (_data_words(lay, aw) - off) * factor
     return xyz, invalid, analogs
 
 
@@ -995,14 +1010,22 @@ TIMEOUT_ENV = "MSK_C3D_TIMEOUT_S"
 
 
 def _child_read(
-    conn: Any, path: str, cop_threshold_n: float, plate_channels: bool = True
+    conn: Any,
+    path: str,
+    cop_threshold_n: float,
+    plate_channels: bool = True,
+    stored_analogs: bool = False,
 ) -> None:  # pragma: no cover
     """Body of the isolated reader (runs in a spawned child)."""
     try:
         out: Any = (
             "ok",
             read_c3d(
-                path, cop_threshold_n=cop_threshold_n, isolate=False, plate_channels=plate_channels
+                path,
+                cop_threshold_n=cop_threshold_n,
+                isolate=False,
+                plate_channels=plate_channels,
+                stored_analogs=stored_analogs,
             ),
         )
     except MskError as exc:
@@ -1034,6 +1057,7 @@ def _read_isolated(
     target: Any = None,
     *,
     plate_channels: bool = True,
+    stored_analogs: bool = False,
 ) -> Trial:
     """:func:`read_c3d` in a spawned child: a native crash or a hang of the reader costs this
     file (a :class:`C3DError`), never the calling process or its pool. (A daemonic process,
@@ -1044,11 +1068,17 @@ def _read_isolated(
 
     if mp.current_process().daemon:
         return read_c3d(
-            path, cop_threshold_n=cop_threshold_n, isolate=False, plate_channels=plate_channels
+            path,
+            cop_threshold_n=cop_threshold_n,
+            isolate=False,
+            plate_channels=plate_channels,
+            stored_analogs=stored_analogs,
         )
     ctx = _reader_context()
     recv, send = ctx.Pipe(duplex=False)
-    args = (send, str(path), cop_threshold_n) + (() if plate_channels else (False,))
+    args = (send, str(path), cop_threshold_n) + (
+        () if plate_channels and not stored_analogs else (plate_channels, stored_analogs)
+    )
     proc = ctx.Process(target=target or _child_read, args=args, daemon=True)
     proc.start()
     send.close()
@@ -1093,6 +1123,7 @@ def read_c3d(
     cop_threshold_n: float = 20.0,
     isolate: bool | None = None,
     plate_channels: bool = True,
+    stored_analogs: bool = False,
 ) -> Trial:
     """Read a C3D file into a :class:`Trial` (SI units, time on axis 0).
 
@@ -1104,7 +1135,10 @@ def read_c3d(
     data section block by block, float or integer storage, Intel, DEC and MIPS processors); a
     file of more than 65 535 frames is read whole when ``TRIAL:ACTUAL_START_FIELD`` /
     ``ACTUAL_END_FIELD`` give its frames (the header's last frame saturates; ezc3d 1.7 reads
-    the first 65 535 or ``POINT:FRAMES``). ``plate_channels=False`` leaves the force
+    the first 65 535 or ``POINT:FRAMES``). ``stored_analogs=True`` (with
+    ``plate_channels=False``) holds the kept channels as stored (:class:`msk.io.analogs.
+    StoredAnalogs`: int16 or float32, scaled per channel when indexed, the same float64 values;
+    a DEC file's as float64). ``plate_channels=False`` leaves the force
     platforms' analog channels out of :attr:`Trial.analogs` (the plates are computed from them,
     one plate at a time): what a session keeps of a long trial.
 
@@ -1124,7 +1158,13 @@ def read_c3d(
         except ValueError:
             timeout_s = 300.0
         timeout_s = timeout_s if math.isfinite(timeout_s) and timeout_s > 0 else 300.0
-        return _read_isolated(path, cop_threshold_n, timeout_s, plate_channels=plate_channels)
+        return _read_isolated(
+            path,
+            cop_threshold_n,
+            timeout_s,
+            plate_channels=plate_channels,
+            stored_analogs=stored_analogs,
+        )
     params = _parameter_values(lay.params, lay.proc)
     n_pts, n_frames, samples = lay.n_points, lay.n_frames, lay.analog_per_frame
     n_ana = lay.n_analog_words // samples if samples else 0
@@ -1138,7 +1178,8 @@ def read_c3d(
     analog_labels = tuple(_labels(params, "ANALOG", "LABELS", n_ana, "ANALOG"))
     analog_units = tuple(_labels(params, "ANALOG", "UNITS", n_ana, None))
     if plate_channels:
-        pts, invalid, analogs = _read_data(path, lay, range(n_ana))
+        pts, invalid, all_analogs = _read_data(path, lay, range(n_ana))
+        analogs = np.asarray(all_analogs)
         plate_used: set[int] = set()
 
         def columns(idx: NDArray[np.int64]) -> NDArray[np.float64]:
@@ -1148,7 +1189,7 @@ def read_c3d(
 
         def columns(idx: NDArray[np.int64]) -> NDArray[np.float64]:
             plate_used.update(int(i) for i in idx)
-            return _read_data(path, lay, idx, points=False)[2]
+            return np.asarray(_read_data(path, lay, idx, points=False)[2])
 
     # --- units
     # --- units
@@ -1176,7 +1217,7 @@ def read_c3d(
             path, params, columns, n_ana, analog_labels, pos_scale, analog_rate, cop_threshold_n
         )
         keep = [i for i in range(n_ana) if i not in plate_used]
-        pts, invalid, analogs = _read_data(path, lay, keep)
+        pts, invalid, kept = _read_data(path, lay, keep, stored=stored_analogs)
         analog_labels = tuple(analog_labels[i] for i in keep)
         analog_units = tuple(analog_units[i] for i in keep)
     xyz = pts if n_pts else np.zeros((n_frames, 0, 3))
@@ -1215,8 +1256,9 @@ def read_c3d(
     model_outputs = ModelOutputs(out_labels, out_kinds, tuple(out_units), out_data)
 
     # --- analogs
+    held: NDArray[np.float64] | StoredAnalogs = analogs if plate_channels else kept
     if not n_ana:
-        analogs = np.zeros((n_frames * samples, 0))
+        held = np.zeros((n_frames * samples, 0))
     t0 = first / point_rate if point_rate > 0 else 0.0
     time = t0 + np.arange(n_frames) / point_rate if point_rate > 0 else np.zeros(0)
     analog_time = t0 + np.arange(n_frames * samples) / analog_rate if analog_rate else np.zeros(0)
@@ -1259,7 +1301,7 @@ def read_c3d(
         model_outputs=model_outputs,
         analog_rate_hz=analog_rate,
         analog_time=analog_time,
-        analogs=analogs,
+        analogs=held,
         analog_labels=analog_labels,
         analog_units=analog_units,
         plates=plates,

@@ -35,7 +35,7 @@ from __future__ import annotations
 import dataclasses
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
-from typing import Any, ClassVar, Literal, Protocol
+from typing import TYPE_CHECKING, Any, ClassVar, Literal, Protocol
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -43,6 +43,9 @@ from numpy.typing import ArrayLike, NDArray
 from msk.exceptions import EmgError, MissingDataError
 from msk.signal import filtfilt_butter, resample_to
 from msk.timeseries import FrameAxis
+
+if TYPE_CHECKING:
+    from msk.io.analogs import StoredAnalogs
 
 Array = NDArray[np.float64]
 NormalisationSource = Literal["mvc", "session_peak"]
@@ -342,7 +345,7 @@ def missing_channels(
 
 
 def process_emg(
-    emg: ArrayLike,
+    emg: ArrayLike | StoredAnalogs,
     *,
     rate_hz: float,
     labels: Sequence[str],
@@ -376,8 +379,14 @@ def process_emg(
     :meth:`EmgEnvelopes.resampled` of the result without ``time`` (synergists' means to
     round-off), holding one channel at the analog rate at a time (issue 18: a long trial).
     """
+    from msk.io.analogs import StoredAnalogs
+
     labels = tuple(str(s).strip() for s in labels)
-    x = _as_channels(emg, len(labels))
+    x: Array | StoredAnalogs
+    if isinstance(emg, StoredAnalogs) and emg.shape[1] == len(labels):
+        x = emg  # held as stored (a long trial's C3D): each channel scaled as it is read
+    else:
+        x = _as_channels(emg, len(labels))
     n = x.shape[0]
     if muscles is None:
         muscles = {lab: lab for lab in labels}
@@ -566,7 +575,7 @@ def envelopes_from_trial(
         muscles = {str(c).strip(): str(c).strip() for c in channels or ()}
     t = np.asarray(trial.analog_time, dtype=float)
     return process_emg(
-        np.asarray(trial.analogs, dtype=float),
+        trial.analogs,  # a StoredAnalogs is scaled channel by channel as process_emg reads it
         rate_hz=float(trial.analog_rate_hz),
         labels=labels,
         muscles=muscles,

@@ -843,8 +843,14 @@ class GeometryPlan:
         theta_dot: ArrayLike | None = None,
         *,
         distal_wrench_joints: Sequence[str] = (),
+        compact: bool = False,
     ) -> MuscleGeometry:
         """Lengths, Jacobians ∂l/∂θ (and l̇ when θ̇ is given) for θ of shape (N, n_coords).
+
+        ``compact``: the Jacobian as a :class:`msk.timeseries.FrameSparse` of the entries at
+        :meth:`jacobian_positions` (the values the dense one has there, copied from the same
+        pass: bit for bit), never allocated dense — ``(N, n_muscles, n_coords)`` float64 is
+        17 kB a frame for gait2392, 69 MB for a block of 4 096 frames (issue 18).
 
         ``distal_wrench_joints``: model joints (e.g. ``("knee_r",)``) for which the same pass
         also returns :attr:`MuscleGeometry.distal_wrenches`, the unit wrench ∂l_i/∂ξ of each
@@ -864,7 +870,7 @@ class GeometryPlan:
         n = th.shape[0]
         m, nc = self.n_muscles, len(self.coordinate_names)
         lengths = np.empty((n, m))
-        jl = np.zeros((n, m, nc))
+        jl = np.empty((n, self._target_cols.size)) if compact else np.zeros((n, m, nc))
         vel = None if thd is None else np.empty((n, m))
         joints = tuple(dict.fromkeys(distal_wrench_joints))
         dw = {j: np.zeros((n, m, 6)) for j in joints}
@@ -885,7 +891,10 @@ class GeometryPlan:
         for j, r in by_row.items():
             if r is None and n:
                 dw[j][:] = self._distal_by_twists(th, self._joint_dofs(j))
-        return MuscleGeometry(self.muscle_names, self.coordinate_names, lengths, jl, vel, dw)
+        jac: Array | FrameSparse = (
+            FrameSparse(jl, self._target_cols.copy(), (m, nc)) if compact else jl
+        )
+        return MuscleGeometry(self.muscle_names, self.coordinate_names, lengths, jac, vel, dw)
 
     def jacobian_positions(self) -> NDArray[np.intp]:
         """Flat (muscle, coordinate) positions, increasing, of the Jacobian entries
@@ -972,8 +981,10 @@ class GeometryPlan:
         vel: Array | None,
         distal: Mapping[str, tuple[NDArray[np.intp], NDArray[np.intp], Array]] | None = None,
     ) -> None:
-        """One chunk of :meth:`evaluate`, written into the given output views; ``distal``: per
-        joint (its rows, their muscles, the (n, M, 6) view their wrenches go to)."""
+        """One chunk of :meth:`evaluate`, written into the given output views (``jl`` dense
+        ``(n, M, n_coords)`` or compact ``(n, U)``, the entries at :attr:`_target_cols`);
+        ``distal``: per joint (its rows, their muscles, the (n, M, 6) view their wrenches go
+        to)."""
         n = th.shape[0]
         q, dg = self._embed_diag(th)
         jac, rot, trans = self._body_kinematics(q)
@@ -998,7 +1009,10 @@ class GeometryPlan:
             term = np.einsum("eni,eni->en", rows[self._mv_row, :, :3], col) * dloc.T
             vals = np.concatenate([vals, term])
         v = self._target_sum @ vals  # (U, N)
-        jl.reshape(n, -1)[:, self._target_cols] = v.T
+        if jl.ndim == 2:  # compact: the entries at _target_cols, in their order
+            jl[:] = v.T
+        else:
+            jl.reshape(n, -1)[:, self._target_cols] = v.T
         if vel is not None and thd is not None:
             vel[:] = (self._muscle_of_target @ (v * thd.T[self._target_coord])).T
 
@@ -1812,17 +1826,34 @@ _PLANS: weakref.WeakKeyDictionary[Model, GeometryPlan] = weakref.WeakKeyDictiona
 FRAME_BLOCK = 2048
 
 
+def _compact_columns(
+    jacobian: FrameSparse, cols: NDArray[np.intp]
+) -> tuple[NDArray[np.intp], NDArray[np.intp], NDArray[np.intp]]:
+    """Of a compact Jacobian's positions: those in coordinate ``cols`` (indices into its
+    values), their muscles and their places in ``cols``."""
+    mus, coord = np.divmod(jacobian.positions, jacobian.trailing[1])
+    place = np.full(jacobian.trailing[1], -1, dtype=np.intp)
+    place[cols] = np.arange(cols.size)
+    keep = np.flatnonzero(place[coord] >= 0)
+    return keep, mus[keep], place[coord[keep]]
+
+
 def finite_frames(
     jacobian: Array | FrameSparse, columns: Sequence[int] | NDArray[np.intp]
 ) -> NDArray[np.bool_]:
     """(N,) frames whose Jacobian ``(N, M, n)`` is finite in the coordinate ``columns``,
-    block by block (no (N, M, len(columns)) temporary)."""
+    block by block (no (N, M, len(columns)) temporary; a compact one's stored entries in
+    those columns only: the others are 0)."""
     cols = np.asarray(columns, dtype=np.intp)
     n = jacobian.shape[0]
     out = np.empty(n, dtype=bool)
+    keep = _compact_columns(jacobian, cols)[0] if isinstance(jacobian, FrameSparse) else None
     for c0 in range(0, n, FRAME_BLOCK):
-        blk = jacobian[c0 : c0 + FRAME_BLOCK][:, :, cols]
-        out[c0 : c0 + FRAME_BLOCK] = np.isfinite(blk).all(axis=(1, 2))
+        sl = slice(c0, c0 + FRAME_BLOCK)
+        if isinstance(jacobian, FrameSparse) and keep is not None:
+            out[sl] = np.isfinite(np.asarray(jacobian.values[sl])[:, keep]).all(axis=1)
+        else:
+            out[sl] = np.isfinite(jacobian[sl][:, :, cols]).all(axis=(1, 2))
     return out
 
 
@@ -1832,12 +1863,20 @@ def jacobian_frames(
     columns: Sequence[int] | NDArray[np.intp] | None = None,
 ) -> Array:
     """``jacobian[frames][:, :, columns]`` (the same values) gathered block by block, without
-    the intermediate full-width copy of ``jacobian[frames]``. The result has numpy's memory
-    layout of that expression (coordinate-major: the arithmetic downstream, whose summation
-    order follows the strides, gives the same bits)."""
+    the intermediate full-width copy of ``jacobian[frames]`` (of a compact Jacobian, its
+    stored entries in ``columns`` put in place: no dense block of every coordinate). The
+    result has numpy's memory layout of that expression (coordinate-major: the arithmetic
+    downstream, whose summation order follows the strides, gives the same bits)."""
     idx = np.flatnonzero(frames) if np.asarray(frames).dtype == bool else np.asarray(frames)
     cols = np.arange(jacobian.shape[2]) if columns is None else np.asarray(columns, np.intp)
     out = np.empty((cols.size, idx.size, jacobian.shape[1])).transpose(1, 2, 0)
+    if isinstance(jacobian, FrameSparse):
+        keep, mus, place = _compact_columns(jacobian, cols)
+        for c0 in range(0, idx.size, FRAME_BLOCK):
+            sl = slice(c0, c0 + FRAME_BLOCK)
+            out[sl] = 0.0
+            out[sl, mus, place] = np.asarray(jacobian.values[idx[sl]])[:, keep]
+        return out
     for c0 in range(0, idx.size, FRAME_BLOCK):
         out[c0 : c0 + FRAME_BLOCK] = jacobian[idx[c0 : c0 + FRAME_BLOCK]][:, :, cols]
     return out
@@ -1859,16 +1898,19 @@ def muscle_geometry(
     *,
     plan: GeometryPlan | None = None,
     distal_wrench_joints: Sequence[str] = (),
+    compact: bool = False,
 ) -> MuscleGeometry:
     """Lengths l(θ), Jacobians ∂l/∂θ and lengthening velocities of every muscle of ``model``
     over a trial: ``q`` (N, n_coords) independent coordinates θ, ``qdot`` θ̇ (optional).
     ``distal_wrench_joints`` (e.g. ``("knee_r",)``): also the unit wrenches ∂l/∂ξ of the muscles
     on the side distal to these joints, from the same pass
     (:attr:`MuscleGeometry.distal_wrenches`, used by :func:`msk.contact.knee_contact_force`).
+    ``compact``: the Jacobian as a :class:`msk.timeseries.FrameSparse`, never dense
+    (:meth:`GeometryPlan.evaluate`).
 
     See the module docstring for the maths (seed 002 Eq. 6–7; seed 004 §2.1).
     """
     plan = plan if plan is not None else geometry_plan(model)
     if plan.model is not model:
         raise ModelError(f"geometry plan was built for model {plan.model_name!r}, not this one")
-    return plan.evaluate(q, qdot, distal_wrench_joints=distal_wrench_joints)
+    return plan.evaluate(q, qdot, distal_wrench_joints=distal_wrench_joints, compact=compact)

@@ -141,6 +141,14 @@ class TensionInequalities:
     def n_rows(self) -> int:
         return int(np.asarray(self.offset).shape[1])
 
+    def take(self, frames: slice | NDArray[np.intp]) -> TensionInequalities:
+        """The rows of ``frames`` only (a slice gives views, no copy): for a batch solved in
+        several calls on consecutive frames."""
+        return TensionInequalities(
+            np.asarray(self.offset)[frames], np.asarray(self.gain)[frames], self.names,
+            self.reserve_optimal,
+        )  # fmt: skip
+
     def check(self, n_frames: int, m: int) -> None:
         """Typed error unless the rows cover ``n_frames`` frames of ``m`` muscles."""
         g = np.asarray(self.gain)
@@ -1326,19 +1334,6 @@ def _run_batch(
     _, m, n = jac.shape
     assert reduction is None or power is None
     whole = reduction is None
-    forces = np.empty((n_frames, m))
-    acts = np.empty((n_frames, m)) if activations else None
-    rc = np.zeros((n_frames, n))
-    rt = np.zeros((n_frames, n))
-    kk = np.full((n_frames, 4), np.nan)
-    ks = np.full((n_frames, 4), np.nan)
-    xs = np.empty((n_frames, m))  # muscle unknowns and their bounds, for the active sets
-    lbs = np.empty((n_frames, m))
-    ubs = np.empty((n_frames, m))
-    status = np.zeros(n_frames, dtype=np.int8)
-    iters = np.zeros(n_frames, dtype=np.int64)
-    times = np.zeros(n_frames)
-    ineq: FloatArray | None = None
     if (
         isinstance(build, _BatchQP)
         and build.blocks is not None
@@ -1352,6 +1347,20 @@ def _run_batch(
             coordinate_names=coordinate_names, time=time, reduction=reduction, carry=carry,
             inequality_names=inequality_names,
         )  # fmt: skip
+    # the frame-by-frame outputs (not allocated for the sub-problem path above)
+    forces = np.empty((n_frames, m))
+    acts = np.empty((n_frames, m)) if activations else None
+    rc = np.zeros((n_frames, n))
+    rt = np.zeros((n_frames, n))
+    kk = np.full((n_frames, 4), np.nan)
+    ks = np.full((n_frames, 4), np.nan)
+    xs = np.empty((n_frames, m))  # muscle unknowns and their bounds, for the active sets
+    lbs = np.empty((n_frames, m))
+    ubs = np.empty((n_frames, m))
+    status = np.zeros(n_frames, dtype=np.int8)
+    iters = np.zeros(n_frames, dtype=np.int64)
+    times = np.zeros(n_frames)
+    ineq: FloatArray | None = None
     warm = None
     if warm_start:
         warm = carry.state if carry is not None and carry.started else new_warm(solver)

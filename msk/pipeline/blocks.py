@@ -7,6 +7,11 @@ whole: memory is bounded by the block, not the trial. A trial of at most ``FRAME
 frames (every shipped session) is one block, computed exactly as without blocks; on longer
 ones the warm-started solvers carry their warm start from one block to the next, so results do
 not depend on the block size beyond round-off.
+
+Inside a block, the tension QPs with the knee compartment rows (whole per frame, solved one
+frame after the other) are solved in parts of :data:`SOLVE_BLOCK` frames, the warm start
+carried: bit for bit the block's one call (``tests/test_long_trials.py``), while the block's
+geometry passes (whose wrapped paths iterate the block's frames together) stay per block.
 """
 
 from __future__ import annotations
@@ -16,10 +21,15 @@ import itertools
 import numpy as np
 from numpy.typing import NDArray
 
-__all__ = ["FRAME_BLOCK", "frame_blocks"]
+__all__ = ["FRAME_BLOCK", "SOLVE_BLOCK", "frame_blocks", "solve_parts"]
 
 #: frames per block (a block of gait2392's 92 muscles × 23 coordinates: ~100 MB of temporaries)
 FRAME_BLOCK = 4096
+
+#: frames per QP solve call inside a block, where the frames' QPs are solved one after the
+#: other and only the warm start joins them (:func:`solve_parts`): the block's dense Jacobian
+#: and the solver's (frames, muscles) arrays are this many frames' (issue 18, eighth pass)
+SOLVE_BLOCK = 1024
 
 
 def frame_blocks(frames: int | NDArray[np.intp]) -> list[NDArray[np.intp]]:
@@ -30,3 +40,9 @@ def frame_blocks(frames: int | NDArray[np.intp]) -> list[NDArray[np.intp]]:
     k = max(1, -(-n // FRAME_BLOCK))
     bounds = [c * n // k for c in range(k + 1)]
     return [idx[a:b] for a, b in itertools.pairwise(bounds)]
+
+
+def solve_parts(n: int) -> list[slice]:
+    """Positions ``0 … n−1`` of a block's frames in consecutive slices of at most
+    :data:`SOLVE_BLOCK` (one slice, possibly empty, for ≤ SOLVE_BLOCK)."""
+    return [slice(a, min(a + SOLVE_BLOCK, n)) for a in range(0, n, SOLVE_BLOCK)] or [slice(0, 0)]

@@ -124,7 +124,9 @@ def run(
         if not fr.size:
             return np.zeros((0, plan.n_muscles, 6))
         return np.asarray(
-            plan.evaluate(kin.q[fr], distal_wrench_joints=(joint,)).distal_wrenches[joint]
+            plan.evaluate(kin.q[fr], distal_wrench_joints=(joint,), compact=True).distal_wrenches[
+                joint
+            ]
         )
 
     def variant(m: Any) -> _VariantArrays:

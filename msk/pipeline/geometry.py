@@ -27,7 +27,7 @@ from msk.pipeline.loads import Loads
 from msk.pipeline.model import BuiltModel
 from msk.pipeline.runner import StageUnavailable
 
-__all__ = ["JacobianRows", "posed_geometry", "run"]
+__all__ = ["JacobianRows", "compact_values", "posed_geometry", "run"]
 
 
 class JacobianRows:
@@ -68,7 +68,7 @@ class JacobianRows:
             return self._cached[1]
         sl = slice(int(self._bounds[k]), int(self._bounds[k + 1]))
         g = posed_geometry(self._model, self._q, self._v, self._ok, sl, self._plan)
-        vals = np.asarray(g.jacobian).reshape(sl.stop - sl.start, -1)[:, self._positions]
+        vals = compact_values(g.jacobian, self._positions)
         self._cached = (k, vals)
         return vals
 
@@ -100,13 +100,26 @@ def posed_geometry(
     plan: Any,
 ) -> Any:
     """:func:`msk.muscles.geometry.muscle_geometry` of the ``frames`` of a trial, the frames
-    that are not ``usable`` at the default pose, at rest."""
+    that are not ``usable`` at the default pose, at rest; the Jacobian compact
+    (:class:`msk.timeseries.FrameSparse` at the plan's positions: never dense, issue 18)."""
     from msk.muscles.geometry import muscle_geometry
 
     ok = usable[frames, None]
     qb = np.where(ok, q[frames], model.default_coordinates()[None, :])
     vb = np.where(ok, v[frames], 0.0)
-    return muscle_geometry(model, qb, vb, plan=plan)
+    return muscle_geometry(model, qb, vb, plan=plan, compact=True)
+
+
+def compact_values(jacobian: Any, positions: NDArray[np.intp]) -> NDArray[np.float64]:
+    """The values ``(N, k)`` of a compact Jacobian (:class:`msk.timeseries.FrameSparse`) at
+    the flat ``positions`` (a subset of its own, increasing): its values array itself when the
+    positions are its own."""
+    if np.array_equal(jacobian.positions, positions):
+        return cast(NDArray[np.float64], jacobian.values)
+    return cast(
+        NDArray[np.float64],
+        jacobian.values[:, np.searchsorted(jacobian.positions, positions)],
+    )
 
 
 def run(inputs: SessionInputs, model: BuiltModel, kinematics: Any, loads: Loads) -> Any:
@@ -138,7 +151,7 @@ def run(inputs: SessionInputs, model: BuiltModel, kinematics: Any, loads: Loads)
         lengths[sl] = g.lengths
         vel[sl] = g.velocities
         if held:
-            values[sl] = np.asarray(g.jacobian).reshape(b.size, -1)[:, jpos]
+            values[sl] = compact_values(g.jacobian, jpos)
         del g
     jac = FrameSparse(cast(NDArray[np.float64], values), jpos, (n_mus, len(plan.coordinate_names)))
     return MuscleGeometry(tuple(plan.muscle_names), tuple(plan.coordinate_names), lengths, jac, vel)

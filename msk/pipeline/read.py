@@ -82,8 +82,8 @@ def for_session(inputs: SessionInputs, read: ReadResult) -> ReadResult:
     plates = read.plates if read.plates is not None else plates_from_trial(trial)
     plate_channels = {c for p in trial.plates for c in p.channels}
     keep = [i for i, lab in enumerate(trial.analog_labels) if lab not in plate_channels]
-    analogs = np.asarray(trial.analogs)
-    if analogs.ndim == 2 and keep != list(range(analogs.shape[1])):
+    analogs = trial.analogs  # (a C3D read for the session: the stored samples, not scaled)
+    if np.ndim(analogs) == 2 and keep != list(range(np.shape(analogs)[1])):
         analogs = np.ascontiguousarray(analogs[:, keep])  # (a C3D read for the session: none)
     light = dataclasses.replace(
         trial,
@@ -104,7 +104,7 @@ def read_task(inputs: SessionInputs) -> ReadResult:
     assert task is not None  # a gait stage
     if Path(task.file).suffix.lower() == ".c3d":
         # the plates' channels are not kept (no stage reads them; a long trial's largest array)
-        trial = read_c3d(task.file, plate_channels=False)
+        trial = read_c3d(task.file, plate_channels=False, stored_analogs=True)
     else:
         trial = read_trial(task.file)  # by suffix (a .trc: OpenSim ground, +y up)
     grf, assignment = None, {}

@@ -21,7 +21,7 @@ from typing import Any
 
 import numpy as np
 
-from msk.pipeline.blocks import frame_blocks
+from msk.pipeline.blocks import frame_blocks, solve_parts
 from msk.pipeline.dynamics import InverseDynamics
 from msk.pipeline.emg import EmgActivations
 from msk.pipeline.inputs import SessionInputs
@@ -197,7 +197,9 @@ class _Compartments:
         from msk.contact import compartment_force_map
         from msk.optimization import TensionInequalities
 
-        w = self.plan.evaluate(self.kinematics.q[fr], distal_wrench_joints=(self.joint,))
+        w = self.plan.evaluate(
+            self.kinematics.q[fr], distal_wrench_joints=(self.joint,), compact=True
+        )
         ext = None if self.external is None else self.external.take(fr)
         cmap = compartment_force_map(
             model, self.kinematics.take(fr), ext, joint=self.joint, geometry=self.geometry,
@@ -355,6 +357,8 @@ def optimise(
             params.names, weights, reserves, cn,
         )  # fmt: skip
         del fa, fp
+        if gain_fit is not None:  # the fit's last a-step (its frames' solution) is not read
+            gain_fit = dataclasses.replace(gain_fit, solution=None)
     gains = (
         None if gain_fit is None else dict(zip(gain_fit.group_names, map(float, gain_fit.gains)))
     )
@@ -368,44 +372,34 @@ def optimise(
     infeasible = 0
     kkt_val, kkt_rel = np.zeros(4), np.full(4, -1.0)
     kkt_at, kkt_n = np.full(4, -1), 0
-    for fr in frame_blocks(idx_ok):
+
+    def solve(fr: np.ndarray, common: dict[str, Any]) -> tuple[np.ndarray, Any, Any]:
+        """Forces, activations and the batch solution (None for ``closed_form``) of the frames
+        ``fr``, warm-started from ``carry``."""
         jac = jacobian_frames(geometry.jacobian, fr, act_idx)
         tq = torques.tau[fr][:, act_idx]
         fa, fp = _force_curves(params, geometry, fr)
-        common: dict[str, Any] = {
-            "muscle_names": params.names,
-            "coordinate_names": cn,
-            "time": time[fr],
-            # a re-solve that reads the forces alone does not check them
-            "compute_kkt": not forces_only,
-        }
-        if comp is not None:  # never with closed_form (comp is built for the QP methods)
-            rows, peak = comp.rows(model, fr, tuple(params.names))
-            common["inequalities"] = rows
-            id_peak = max(id_peak, peak)
         if meth == "static_optimization":
             sol = o.solve_static_optimization_batch(
                 jac, tq, f_active=fa, f_passive=fp, reserve_optimal_force=reserves,
                 activation_weights=weights, activation_exponent=opt.activation_exponent,
                 solver=solver, warm=carry, **common,
             )  # fmt: skip
-            forces, acts = sol.forces, sol.activations
-        elif meth == "bounded_qp":
+            return sol.forces, sol.activations, sol
+        if meth == "bounded_qp":
             sol = o.solve_tension_batch(
                 jac, tq, f_iso=params.max_isometric_force, f_max=fa + fp,
                 reserve_optimal_force=reserves, solver=solver, warm=carry, **common,
             )  # fmt: skip
-            forces = sol.forces
-            acts = np.clip(forces / np.maximum(fa, 1e-9), 0, None)
-        elif meth == "emg_weighted":
+            return sol.forces, np.clip(sol.forces / np.maximum(fa, 1e-9), 0, None), sol
+        if meth == "emg_weighted":
             assert meas is not None
             sol = o.solve_emg_weighted_batch(
                 jac, tq, f_ref=emg_reference(fr) * fa, measured=meas, w_emg=opt.w_emg,
                 f_max=fa + fp, solver=solver, warm=carry, **common,
             )  # fmt: skip
-            forces = sol.forces
-            acts = np.clip(forces / np.maximum(fa, 1e-9), 0, None)
-        elif meth == "emg_assisted":
+            return sol.forces, np.clip(sol.forces / np.maximum(fa, 1e-9), 0, None), sol
+        if meth == "emg_assisted":
             a_ref, tracked = (
                 (np.zeros_like(fa), np.zeros(fa.shape[1], dtype=bool))
                 if gain_fit is None
@@ -416,35 +410,62 @@ def optimise(
                 measured=tracked, w_track=opt.w_track, activation_weights=weights,
                 reserve_optimal_force=reserves, solver=solver, warm=carry, **common,
             )  # fmt: skip
-            forces, acts = sol.forces, sol.activations
-        else:  # closed_form (unbounded Lagrange solution)
-            lag = o.solve_lagrange_batch(
-                jac, tq, area=params.max_isometric_force, muscle_names=params.names
-            )
-            forces = lag.forces
-            acts = forces / np.maximum(fa, 1e-9)
-            sol = None
-        del jac, fa, fp
+            return sol.forces, sol.activations, sol
+        # closed_form (unbounded Lagrange solution)
+        lag = o.solve_lagrange_batch(
+            jac, tq, area=params.max_isometric_force, muscle_names=params.names
+        )
+        return lag.forces, lag.forces / np.maximum(fa, 1e-9), None
+
+    # with the knee compartment rows every frame's QP is one whole QP (no reserve decoupled nor
+    # sub-problem split over a batch's frames): the frames are solved one after the other, the
+    # warm start joining them, so a block is solved in parts of SOLVE_BLOCK frames (its dense
+    # Jacobian and the solver's arrays are a part's: issue 18) with the same results
+    split = comp is not None
+    for fr in frame_blocks(idx_ok):
+        rows = None
+        if comp is not None:  # never with closed_form (comp is built for the QP methods)
+            # the block's geometry pass (its wrapped paths iterate the block's frames together),
+            # before the block's Jacobian is read
+            rows, peak = comp.rows(model, fr, tuple(params.names))
+            id_peak = max(id_peak, peak)
+        block_forces = None if on_block is None else np.empty((fr.size, len(params.names)))
+        for part in solve_parts(fr.size) if split else [slice(0, fr.size)]:
+            f_idx = fr[part]
+            common: dict[str, Any] = {
+                "muscle_names": params.names,
+                "coordinate_names": cn,
+                "time": time[f_idx],
+                # a re-solve that reads the forces alone does not check them
+                "compute_kkt": not forces_only,
+            }
+            if rows is not None:
+                common["inequalities"] = rows.take(part)
+            forces, acts, sol = solve(f_idx, common)
+            if block_forces is not None:
+                block_forces[part] = forces
+            else:
+                f_all[f_idx] = forces
+            if not forces_only:
+                a_all[f_idx] = acts
+            if sol is not None:
+                if rt is not None:
+                    rt[f_idx] = sol.reserve_torques
+                if frontal is not None and sol.inequality_reserves is not None:
+                    frontal[f_idx] = sol.inequality_reserves
+                infeasible += int(sol.infeasible_frames.size)
+                if sol.kkt_scale is not None:
+                    v, r, at, n_ok = worst_kkt(
+                        sol.kkt, sol.kkt_scale, sol.status == o.STATUS_OPTIMAL, f_idx
+                    )
+                    kkt_val, kkt_n = np.maximum(kkt_val, v), kkt_n + n_ok
+                    better = r > kkt_rel
+                    kkt_rel, kkt_at = np.where(better, r, kkt_rel), np.where(better, at, kkt_at)
+            del sol, forces, acts
         if on_block is not None:
-            on_block(fr, forces)
-        else:
-            f_all[fr] = forces
-        if not forces_only:
-            a_all[fr] = acts
-        if sol is not None:
-            if rt is not None:
-                rt[fr] = sol.reserve_torques
-            if frontal is not None and sol.inequality_reserves is not None:
-                frontal[fr] = sol.inequality_reserves
-            infeasible += int(sol.infeasible_frames.size)
-            if sol.kkt_scale is not None:
-                v, r, at, n_ok = worst_kkt(
-                    sol.kkt, sol.kkt_scale, sol.status == o.STATUS_OPTIMAL, fr
-                )
-                kkt_val, kkt_n = np.maximum(kkt_val, v), kkt_n + n_ok
-                better = r > kkt_rel
-                kkt_rel, kkt_at = np.where(better, r, kkt_rel), np.where(better, at, kkt_at)
-        del sol, forces, acts
+            assert block_forces is not None
+            on_block(fr, block_forces)
+        del rows, block_forces
     w = "V_i " if opt.activation_weights == "volume" else ""
     criterion = None
     if meth == "static_optimization":

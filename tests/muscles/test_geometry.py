@@ -293,6 +293,64 @@ def test_batch_result_shapes_names_velocities_and_moment_arm_sign():
         geo.muscle_index("nope")
 
 
+@pytest.mark.parametrize("four_bar", [False, True])
+def test_compact_jacobian_equals_the_dense_one_bit_for_bit(four_bar):
+    """``compact=True`` (issue 18: no dense (N, muscles, coordinates) array) gives, at
+    :meth:`GeometryPlan.jacobian_positions`, the dense Jacobian's entries bit for bit, zeros
+    elsewhere, and the same lengths, velocities and distal wrenches; on wrapped paths (the
+    frames iterate together) and on a plan without wraps (evaluated in frame chunks)."""
+    from msk.timeseries import FrameSparse
+
+    model = leg_with_muscles(four_bar=four_bar)
+    static = model.with_muscles([m for m in muscles_for_leg() if not m.wraps])
+    for mdl in (model, static):
+        th = random_poses(mdl, 40, seed=11)
+        thd = np.random.default_rng(2).normal(size=th.shape)
+        dense = muscle_geometry(mdl, th, thd, distal_wrench_joints=("knee",))
+        comp = muscle_geometry(mdl, th, thd, distal_wrench_joints=("knee",), compact=True)
+        assert isinstance(comp.jacobian, FrameSparse) and not isinstance(
+            dense.jacobian, FrameSparse
+        )
+        pos = geometry_plan(mdl).jacobian_positions()
+        np.testing.assert_array_equal(comp.jacobian.positions, pos)
+        assert comp.jacobian.values.shape == (40, pos.size)
+        assert pos.size < dense.jacobian[0].size  # some entries are structurally zero
+        np.testing.assert_array_equal(comp.jacobian[:], dense.jacobian)
+        np.testing.assert_array_equal(comp.lengths, dense.lengths)
+        np.testing.assert_array_equal(comp.velocities, dense.velocities)
+        np.testing.assert_array_equal(comp.distal_wrenches["knee"], dense.distal_wrenches["knee"])
+
+
+def test_frames_of_a_compact_jacobian_equal_those_of_the_dense_one():
+    """``jacobian_frames`` and ``finite_frames`` of a compact Jacobian (FrameSparse) read its
+    stored entries only: the same values, zeros, memory layout (coordinate-major) and finite
+    flags as of the dense array, for frames in any order, a mask, columns in any order, and
+    frames with a NaN entry inside or outside the columns asked for."""
+    from msk.muscles.geometry import finite_frames, jacobian_frames
+    from msk.timeseries import FrameSparse
+
+    mdl = leg_with_muscles()
+    g = muscle_geometry(mdl, random_poses(mdl, 30, seed=4), compact=True)
+    sparse_j = g.jacobian
+    assert isinstance(sparse_j, FrameSparse)
+    vals = sparse_j.values.copy()
+    nc = sparse_j.trailing[1]
+    vals[3, 0] = np.nan  # a NaN at the first stored entry's coordinate
+    sparse_j = FrameSparse(vals, sparse_j.positions, sparse_j.trailing)
+    dense = sparse_j[:]
+    nan_col = int(sparse_j.positions[0] % nc)
+    rng = np.random.default_rng(0)
+    for cols in (np.arange(nc), np.array([nan_col, 1, 0]), np.array([c for c in range(nc)
+                                                                   if c != nan_col])):  # fmt: skip
+        for frames in (np.arange(30), rng.permutation(30)[:11], rng.random(30) < 0.5):
+            a = jacobian_frames(sparse_j, frames, cols)
+            b = jacobian_frames(dense, frames, cols)
+            np.testing.assert_array_equal(a, b)
+            assert a.strides == b.strides
+        np.testing.assert_array_equal(finite_frames(sparse_j, cols), finite_frames(dense, cols))
+        assert finite_frames(sparse_j, cols)[3] == (nan_col not in cols)
+
+
 def test_tau_equals_minus_jacobian_transpose_force_against_pinocchio_rnea():
     """τ = −J_lᵀ f (seed 002 Eq. 7): the tension f of a straight muscle applied as two opposite
     point forces on its bodies gives, through Pinocchio's RNEA (no gravity, at rest), the same
