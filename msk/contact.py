@@ -318,6 +318,29 @@ def knee_contact_force(
     Returns:
         :class:`KneeContact`; frames whose kinematics are NaN are NaN.
     """
+    return _knee_contact(
+        model, kinematics, loads, muscle_forces=muscle_forces, muscle_names=muscle_names,
+        joint=joint, plateau_offset=plateau_offset, body_mass_kg=body_mass_kg, variant=variant,
+        plan=plan, distal_wrenches=distal_wrenches,
+    )[0]  # fmt: skip
+
+
+def _knee_contact(
+    model: Model,
+    kinematics: Any,
+    loads: Any = None,
+    *,
+    muscle_forces: Any = None,
+    muscle_names: Sequence[str] | None = None,
+    joint: str = "knee_r",
+    plateau_offset: pin.SE3 | None = None,
+    body_mass_kg: float | None = None,
+    variant: Variant = "full",
+    plan: GeometryPlan | None = None,
+    distal_wrenches: ArrayLike | None = None,
+) -> tuple[KneeContact, Array, Array]:
+    """:func:`knee_contact_force` and the plateau frame's world rotation (N, 3, 3) and origin
+    (N, 3) it computed (NaN on the frames it did not: non-finite kinematics)."""
     spec = next((j for j in model.joints if j.name == joint), None)
     if spec is None:
         raise ModelError(f"model {model.name}: no joint {joint!r}")
@@ -393,7 +416,7 @@ def knee_contact_force(
     mass = float(model.total_mass if body_mass_kg is None else body_mass_kg)
     if not (np.isfinite(mass) and mass > 0):
         raise ModelError(f"knee contact: body mass must be > 0 kg, got {mass!r}")
-    return KneeContact(
+    contact = KneeContact(
         time=time,
         joint=joint,
         body=spec.child,
@@ -404,6 +427,7 @@ def knee_contact_force(
         muscles_included=with_muscles,
         metadata={"variant": variant, "plateau_offset": plateau_offset is not None},
     )
+    return contact, rot, origin
 
 
 def _plateau_placement(
@@ -908,7 +932,7 @@ def compartment_force_map(
     from the geometry pass, or computed here. Frames with non-finite kinematics are NaN.
     """
     geo = PlateauGeometry() if geometry is None else geometry
-    contact = knee_contact_force(
+    contact, rot, origin = _knee_contact(
         model, kinematics, loads, joint=joint, plateau_offset=plateau_offset, variant=variant,
         plan=plan,
     )  # fmt: skip
@@ -924,13 +948,12 @@ def compartment_force_map(
             raise ShapeMismatchError(
                 f"distal wrenches {w.shape} must be (frames {n}, muscles {k}, 6)"
             )
-    tree = _distal_tree(model, joint)
-    rot = np.full((n, 3, 3), np.nan)
-    origin = np.full((n, 3), np.nan)
-    ok = np.isfinite(th).all(axis=1)
+    # the plateau frame as the contact computed it; its forward kinematics again only on the
+    # frames it left out with finite positions (non-finite velocities of the "full" variant)
+    ok = np.isfinite(th).all(axis=1) & ~np.isfinite(origin).all(axis=1)
     if ok.any():
-        st = _chain_states(model, tree, th[ok], None, None)
-        rot[ok], origin[ok] = _plateau_placement(tree, st, plateau_offset)
+        st = _chain_states(model, _distal_tree(model, joint), th[ok], None, None)
+        rot[ok], origin[ok] = _plateau_placement(_distal_tree(model, joint), st, plateau_offset)
     # each muscle's unit wrench in the plateau frame, moment about its origin
     f_w, m_w = w[..., :3], w[..., 3:]
     m_o = m_w - _cross(origin[:, None, :], f_w)

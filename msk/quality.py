@@ -40,7 +40,8 @@ Thresholds and their sources (:data:`THRESHOLDS`):
   held ≥ 0 (``compartment_nonnegative``), a frontal reserve moment whose peak exceeds 10 % of
   the peak frontal moment of the knee's inverse-dynamics load (:func:`frontal_reserve_flags`:
   OpenSim's guideline for reserve actuators, peak below 10 % of the peak joint moment, applied
-  to the frontal plane — the reserve stands for the ligaments the model lacks).
+  to the frontal plane — the reserve stands for the ligaments the model lacks); a frame the
+  QP solver called optimal whose KKT figure exceeds 1e-6 of its scale (:func:`kkt_flags`).
 * Duplicate marker labels in the file; segments left at the generic size (no scaling).
 * Static-trial markers whose distances to the markers of their own segment disagree with the
   motion trial's by more than 25 mm (median over at least 3 partners,
@@ -77,6 +78,7 @@ __all__ = [
     "frontal_reserve_flags",
     "gait_flags",
     "inconsistent_static_markers",
+    "kkt_flags",
     "swapped_label_pairs",
     "swapped_sides",
 ]
@@ -100,6 +102,9 @@ THRESHOLDS: Mapping[str, float] = {
     "saturated_frames_pct": 25.0,
     "reserve_rms_pct_peak_torque": 10.0,
     "frontal_reserve_pct_peak_moment": 10.0,
+    # a KKT figure of a frame the QP solver called optimal, relative to its scale
+    # (msk.optimization.kkt_scale): DAQP's solutions sit at 1e-15–1e-12
+    "kkt_relative": 1e-6,
     "saturation_activation": 0.99,
     "static_marker_discrepancy_m": 0.025,
     "coordinate_at_bound_frames_pct": 5.0,
@@ -587,6 +592,36 @@ def _optimization_flags(trial: str, sol: Any, jt: Any, th: Mapping[str, float]) 
                           "torque (RMS): the muscles cannot produce that moment")
                 )  # fmt: skip
     out += frontal_reserve_flags(trial, sol, th)
+    out += kkt_flags(trial, sol, th)
+    return out
+
+
+def kkt_flags(trial: str, sol: Any, thresholds: Mapping[str, float] = THRESHOLDS) -> list[Flag]:
+    """A KKT figure (stationarity, primal feasibility, dual feasibility, complementarity;
+    :func:`msk.optimization.kkt`) of a frame the tension QP's solver called optimal above
+    ``kkt_relative`` (1e-6) of its scale (:func:`msk.optimization.kkt_scale`: the gradient's
+    magnitude, the right-hand sides' — the scaled joint torques — for primal feasibility):
+    the solver's "optimal" is not one. DAQP's solutions sit at round-off (1e-15–1e-12 of
+    the scale), an iterative solver's at its own tolerance; the infeasible frames (bounded
+    least-squares point) are not checked here but flagged by
+    ``optimization_infeasible_frames``. ``sol``: a
+    :class:`msk.pipeline.tension.MuscleTensions` (its ``kkt``)."""
+    th = {**THRESHOLDS, **thresholds}
+    worst = getattr(sol, "kkt", None)
+    if worst is None:
+        return []
+    out: list[Flag] = []
+    tol = th["kkt_relative"]
+    for k, c in enumerate(worst.columns):
+        rel = float(worst.relative[k])
+        if rel > tol:
+            out.append(
+                _flag(trial, f"optimization_kkt_{c}", rel, tol,
+                      f"the tension QP of frame {int(worst.frame[k])} "
+                      f"(t = {float(worst.time_s[k]):.3f} s), solved as optimal, fails its KKT "
+                      f"check: {c.replace('_', ' ')} {rel:.1e} of its scale (tolerance "
+                      f"{tol:.0e}; {float(worst.value[k]):.2e} in the QP's scaled variables)")
+            )  # fmt: skip
     return out
 
 

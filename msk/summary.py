@@ -65,6 +65,8 @@ __all__ = [
     "InputFile",
     "JointStrength",
     "JsonObject",
+    "Kkt",
+    "KktFigure",
     "MarkerGap",
     "Methods",
     "ModelInfo",
@@ -586,9 +588,36 @@ class Comparison(_Record):
 
 
 @dataclass(frozen=True, kw_only=True)
+class KktFigure(_Record):
+    """``optimization.kkt.<figure>``: the largest value of a KKT figure over the frames the
+    solver called optimal (scaled variables of the standard-form QP), the largest value
+    relative to its scale (:func:`msk.optimization.kkt_scale`) and the frame (index on the
+    trial's time base) and time (s) of that relative value."""
+
+    max: float | None = None
+    relative_max: float | None = None
+    frame: int | None = None
+    time_s: float | None = None
+
+
+@dataclass(frozen=True, kw_only=True)
+class Kkt(_Record):
+    """``optimization.kkt``: the KKT check of the tension QPs (frames checked, the relative
+    tolerance of the quality gate, the four figures)."""
+
+    frames: int | None = None
+    relative_tolerance: float | None = None
+    stationarity: KktFigure | None = None
+    primal_feasibility: KktFigure | None = None
+    dual_feasibility: KktFigure | None = None
+    complementarity: KktFigure | None = None
+
+
+@dataclass(frozen=True, kw_only=True)
 class Optimization(_Record):
     """``optimization``: the tension optimisation (method, criterion, EMG gains per channel
-    and their status, infeasible frames, reserve torques RMS per coordinate N·m)."""
+    and their status, infeasible frames, reserve torques RMS per coordinate N·m, the worst
+    KKT figures of the frames solved optimal)."""
 
     method: str | None = None
     criterion: str | None = None
@@ -596,6 +625,7 @@ class Optimization(_Record):
     emg_gain_status: Mapping[str, str] | None = None
     infeasible_frames: int | None = None
     reserve_torque_rms_nm: Mapping[str, float | None] | None = None
+    kkt: Kkt | None = None
 
 
 @dataclass(frozen=True, kw_only=True)

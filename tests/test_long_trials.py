@@ -202,6 +202,10 @@ def test_tension_and_contact_in_solve_parts_equal_whole_blocks(
         a, b = getattr(ref, f.name), getattr(ten, f.name)
         if isinstance(a, np.ndarray):
             np.testing.assert_array_equal(b, a, err_msg=f.name)
+        elif f.name == "kkt":  # the worst KKT figures: round-off, their frames the same
+            assert b.frames == a.frames and b.columns == a.columns
+            np.testing.assert_array_equal(b.frame, a.frame)
+            np.testing.assert_allclose(b.value, a.value, rtol=0, atol=1e-13)
         else:
             assert b == a, f.name
     assert np.isfinite(ref.forces).sum() > 100 * len(ref.muscles)

@@ -1064,3 +1064,163 @@ def test_knee_compartment_rows_in_the_leg_subproblem_on_gc5_ps(monkeypatch, tmp_
     assert np.nanmax(split.kkt) <= 1e-8
     other = fn(*args, **dict(kw, solver="clarabel"))
     assert np.abs(other.forces - split.forces).max() <= 1e-5 * np.abs(split.forces).max()
+
+
+# ---------------------------------------------------------------------------------------------
+# KKT figures over frames at once (kkt_batch) and their scales
+# ---------------------------------------------------------------------------------------------
+
+
+def _random_frame(rng, n, m_eq, m_in, h, p_act):
+    """A QP and a point with a random active set: bounds and inequality rows put exactly at
+    ``x`` (active), others at a distance or infinite; an optional residual on ``A x = b``."""
+    x = rng.normal(size=n)
+    lo = rng.random(n) < p_act / 2
+    up = ~lo & (rng.random(n) < p_act / 2)
+    lb = np.where(rng.random(n) < 0.1, -np.inf, x - rng.uniform(0.1, 2.0, n))
+    ub = np.where(rng.random(n) < 0.1, np.inf, x + rng.uniform(0.1, 2.0, n))
+    lb, ub = np.where(lo, x, lb), np.where(up, x, ub)
+    a = rng.normal(size=(m_eq, n))
+    b = a @ x + rng.normal(scale=1e-3, size=m_eq) * rng.integers(0, 2)
+    c = cl = cu = None
+    if m_in:
+        c = rng.normal(size=(m_in, n))
+        cx = c @ x
+        il = rng.random(m_in) < 0.4
+        iu = ~il & (rng.random(m_in) < 0.4)
+        cl, cu = np.where(il, cx, cx - 1.0), np.where(iu, cx, np.inf)
+    g = rng.normal(size=n)
+    return StandardQP(h, g, a, b, lb, ub, c, cl, cu), x
+
+
+@settings(max_examples=60, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(
+    seed=st.integers(0, 2**31 - 1), n=st.integers(1, 12), m_eq=st.integers(0, 6),
+    m_in=st.integers(0, 3), shared_h=st.booleans(), frames=st.integers(1, 9),
+)  # fmt: skip
+def test_kkt_batch_equals_kkt_frame_by_frame(seed, n, m_eq, m_in, shared_h, frames) -> None:
+    """Random QPs with random active sets (bounds and inequality rows, some infinite bounds,
+    rank-deficient frames with more rows than free columns, points off the equality rows): the
+    batched figures and scales equal :func:`kkt` and :func:`kkt_scale` of each frame to
+    round-off (1e-11 of the scale)."""
+    from msk.optimization import kkt, kkt_batch, kkt_scale
+
+    rng = np.random.default_rng(seed)
+
+    def spd():
+        q = rng.normal(size=(n, n))
+        return q @ q.T
+
+    h = spd() if shared_h else None
+    pairs = [
+        _random_frame(rng, n, m_eq, m_in, h if shared_h else spd(), rng.uniform(0, 1))
+        for _ in range(frames)
+    ]
+    qps, xs = [p[0] for p in pairs], np.array([p[1] for p in pairs])
+    kb = kkt_batch(qps, xs)
+    ref = np.array([kkt(q, x).as_array() for q, x in pairs])
+    scale = np.array([kkt_scale(q, x) for q, x in pairs])
+    np.testing.assert_allclose(kb.scale, scale, rtol=1e-14)
+    np.testing.assert_array_less(np.abs(kb.figures - ref), 1e-11 * scale)
+    assert np.all(kb.figures >= 0)
+
+
+def test_kkt_batch_leaves_the_undetermined_frames_to_kkt() -> None:
+    """A frame with more equality rows than free columns (two bounds active: multipliers not
+    determined by the free columns: kkt's bounded least squares) is computed by kkt; a
+    well-posed frame next to it by the stacked fit; both as kkt finds them."""
+    from msk.optimization import kkt, kkt_batch
+
+    rng = np.random.default_rng(3)
+    n = 4
+    x = rng.normal(size=n)
+    a = rng.normal(size=(3, n))
+    tight = StandardQP(np.eye(n), rng.normal(size=n), a, a @ x, x - [0, 0, 1, 1], x + 1.0)
+    loose = StandardQP(np.eye(n), rng.normal(size=n), a, a @ x, x - 1.0, x + 1.0)
+    kb = kkt_batch([tight, loose], np.array([x, x]))
+    assert kb.fallback.tolist() == [True, False]
+    for k, q in enumerate((tight, loose)):
+        np.testing.assert_allclose(kb.figures[k], kkt(q, x).as_array(), atol=1e-13)
+    assert kb.figures[0, 0] < 1e-12  # 3 rows span the 2 free columns
+
+
+def test_batch_kkt_scale_and_a_solver_that_stops_short() -> None:
+    """The batch solvers report each frame's KKT scales; DAQP's frames sit at round-off of
+    them, while a solver that returns a point off the optimum (a registered one that returns
+    the least-norm point of the rows) is called optimal by its status but fails the check —
+    what the tension stage's gate ``kkt_relative`` catches."""
+    from msk.pipeline.tension import worst_kkt
+    from msk.quality import THRESHOLDS
+
+    d = leg_like_frames(12, 4, 15, seed=4)
+    res = np.ones(4)
+    a = solve_tension_batch(d.jacobians, d.taus, f_iso=d.f_iso, reserve_optimal_force=res)
+    assert a.kkt_scale is not None and np.all(a.kkt_scale >= 1.0)
+    assert np.all(a.kkt / a.kkt_scale < 1e-12)
+
+    def sloppy(qp, warm):  # the least-norm point of the rows, in the bounds: no optimum
+        x = np.linalg.lstsq(qp.A, qp.b, rcond=None)[0]
+        return SolveOutput(x=np.clip(x, qp.lb, qp.ub), ok=True, infeasible=False)
+
+    register_solver(SolverSpec("test-sloppy", sloppy, description="least-norm point (tests)"))
+    b = solve_tension_batch(
+        d.jacobians, d.taus, f_iso=d.f_iso, reserve_optimal_force=res, solver="test-sloppy"
+    )
+    assert np.all(b.status == 0)
+    _, rel, frame, n = worst_kkt(b.kkt, b.kkt_scale, b.status == 0, np.arange(15) + 100)
+    assert n == 15 and rel.max() > THRESHOLDS["kkt_relative"] and np.all(frame >= 100)
+    # an infeasible frame (status ≠ 0) is not checked
+    _, rel2, _, n2 = worst_kkt(b.kkt, b.kkt_scale, np.zeros(15, dtype=bool), np.arange(15))
+    assert n2 == 0 and np.all(rel2 == 0)
+
+
+@pytest.mark.parametrize("with_rows", [False, True])
+def test_whole_qps_stacked_for_the_kkt_check_are_each_frames_whole_qp(monkeypatch, with_rows):
+    """The stacked whole QPs the split batches check KKT on (``_BatchQP.whole_stack``) are,
+    frame by frame, the whole QP (``_BatchQP.whole``) of static optimisation with passive
+    forces, emg_assisted and bounded_qp, with and without inequality rows and decoupled
+    reserves (pelvis columns no muscle crosses)."""
+    import msk.optimization as o
+    import msk.optimization.problems as problems
+
+    jac, tau, f_iso = _two_legs(12)
+    n_frames, m, _ = jac.shape
+    rng = np.random.default_rng(5)
+    fa = f_iso * rng.uniform(0.6, 1.0, size=(n_frames, m))
+    fp = f_iso * rng.uniform(0.0, 0.02, size=(n_frames, m))
+    rows = None
+    if with_rows:
+        gain = rng.normal(size=(n_frames, 2, m)) * (np.arange(m) < 18)  # the first leg's
+        rows = o.TensionInequalities(rng.normal(size=(n_frames, 2)), gain, ("a", "b"))
+    checked = []
+    stack = problems._BatchQP.whole_stack
+
+    def spy(self, fr):
+        out = stack(self, fr)
+        h, g, a, b, lb, ub, c, cl = out
+        for i, k in enumerate(fr):
+            qp = self.whole(int(k))
+            np.testing.assert_array_equal(h, qp.H)
+            for mine, ref in ((g, qp.g), (lb, qp.lb), (ub, qp.ub)):
+                np.testing.assert_array_equal(mine if mine.ndim == 1 else mine[i], ref)
+            np.testing.assert_array_equal(a[i], qp.A)
+            np.testing.assert_allclose(b[i], qp.b, rtol=1e-14, atol=1e-12)
+            if qp.C is None:
+                assert c is None
+            else:
+                np.testing.assert_array_equal(c[i], qp.C)
+                np.testing.assert_allclose(cl[i], qp.cl, rtol=1e-14, atol=1e-12)
+            checked.append(int(k))
+        return out
+
+    monkeypatch.setattr(problems._BatchQP, "whole_stack", spy)
+    monkeypatch.setattr(problems, "_MIN_BLOCK_UNKNOWNS", 16)  # split the small QPs too
+    res = np.ones(jac.shape[2])
+    kw = {"reserve_optimal_force": res, "inequalities": rows}
+    solve_static_optimization_batch(jac, tau, f_active=fa, f_passive=fp, **kw)
+    solve_emg_assisted_batch(
+        jac, tau, f_active=fa, f_passive=fp, a_ref=rng.uniform(0, 0.3, size=(n_frames, m)),
+        measured=rng.uniform(size=m) < 0.5, w_track=1.0, **kw,
+    )  # fmt: skip
+    solve_tension_batch(jac, tau, f_iso=f_iso, f_max=fa + fp, **kw)
+    assert len(checked) >= 3 * n_frames - 6  # every solved frame of the three batches

@@ -256,6 +256,12 @@ def test_bundled_session_with_emg_informed_tension_optimization(tmp_path, method
     opt = res.summary["optimization"]
     assert opt["method"] == method and opt["infeasible_frames"] == 0
     forces = read_session(res.out_dir).table("muscle_forces").data
+    # the KKT check of every solved frame, reported: DAQP at round-off of the scales
+    kkt = opt["kkt"]
+    assert kkt["frames"] == int(np.isfinite(forces).all(axis=1).sum()) > 0
+    for c in ("stationarity", "primal_feasibility", "dual_feasibility", "complementarity"):
+        assert 0.0 <= kkt[c]["relative_max"] < 1e-12 and kkt[c]["max"] >= 0.0, (c, kkt[c])
+    assert "KKT check of the" in (res.out_dir / "report.html").read_text(encoding="utf-8")
     assert np.all(np.nan_to_num(forces) >= -1e-6)
     if method == "emg_assisted":
         gains = opt["emg_gains"]

@@ -377,3 +377,27 @@ def test_right_and_left_limb_markers_moving_alike_are_no_rigid_pair():
     ghost = static.copy()
     ghost[:, labels.index("LASI"), 2] -= 0.04
     assert set(inconsistent_static_markers(ghost, labels, motion, labels)) == {"LASI"}
+
+
+def test_kkt_flags_name_trial_figure_frame_value_and_threshold() -> None:
+    """A KKT figure above ``kkt_relative`` of its scale on a frame solved as optimal is
+    flagged with the trial, the figure, the frame and time, the value and the threshold; at
+    round-off (DAQP's 1e-15) nothing is, nor without a KKT check (closed_form)."""
+    from msk.pipeline.tension import KktWorst
+    from msk.quality import kkt_flags
+
+    cols = ("stationarity", "primal_feasibility", "dual_feasibility", "complementarity")
+    worst = KktWorst(
+        cols, np.array([3e-4, 1e-13, 0.0, 1e-16]), np.array([2e-5, 1e-15, 0.0, 1e-17]),
+        np.array([41, 7, 0, 3]), np.array([1.25, 0.5, 0.0, 0.1]), 120,
+    )  # fmt: skip
+    (f,) = kkt_flags("walk", SimpleNamespace(kkt=worst))
+    assert (f.trial, f.quantity, f.value, f.threshold) == (
+        "walk",
+        "optimization_kkt_stationarity",
+        2e-5,
+        THRESHOLDS["kkt_relative"],
+    )
+    assert "frame 41" in f.message and "t = 1.250 s" in f.message
+    assert not kkt_flags("walk", SimpleNamespace(kkt=worst), {"kkt_relative": 1e-4})
+    assert not kkt_flags("walk", SimpleNamespace(kkt=None))

@@ -116,6 +116,13 @@ def test_shipped_session_runs_and_flags_what_is_wrong(cfg: Path, tmp_path: Path)
     for f in q["flags"]:  # the contract: every flag names trial, quantity, value, threshold
         assert {"trial", "quantity", "value", "threshold", "message"} <= set(f)
         assert f["trial"] == s["trial"] and np.isfinite(f["value"])
+    # the tension QPs' KKT check is reported and passes on every frame solved as optimal
+    kkt = (s.get("optimization") or {}).get("kkt")
+    if kkt is not None:
+        tol = kkt["relative_tolerance"]
+        assert kkt["frames"] > 0 and not {f for f in flags if f.startswith("optimization_kkt")}
+        for c in ("stationarity", "primal_feasibility", "dual_feasibility", "complementarity"):
+            assert kkt[c]["relative_max"] <= tol, (c, kkt[c])
     e = EXPECT[cfg.stem]
     n_meas, n_obs = q["contact_measured_frames"], q["observed_measured_frames"]
     assert (n_obs < n_meas) if cfg.stem in PARTLY_OBSERVED else (n_obs == n_meas), (n_obs, n_meas)

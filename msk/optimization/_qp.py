@@ -15,12 +15,12 @@ and solved by a registered solver. The KKT figures are recomputed from the retur
 from __future__ import annotations
 
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
-from numpy.typing import NDArray
+from numpy.typing import ArrayLike, NDArray
 
 from msk.exceptions import OptimizationError
 
@@ -194,6 +194,229 @@ def kkt(qp: StandardQP, x: FloatArray) -> KKT:
         rs = np.where(ilo[iact], cx[iact] - cl[iact], cu[iact] - cx[iact])
         comp = max(comp, float(np.max(np.abs(lam * rs))))
     return KKT(stat, primal, dual, comp)
+
+
+def kkt_scale(qp: StandardQP, x: FloatArray) -> FloatArray:
+    """The magnitudes the four KKT figures of ``x`` are judged against (:data:`KKT_COLUMNS`
+    order): stationarity and dual feasibility against ``1 + ‖Hx + g‖∞`` (the multipliers are
+    components of the gradient), primal feasibility against ``1 + max(‖b‖∞, ‖Ax‖∞, ‖Cx‖∞)``
+    (the right-hand sides, e.g. scaled joint torques), complementarity (a multiplier times a
+    slack) against ``(1 + ‖Hx + g‖∞)(1 + ‖x‖∞)``."""
+    c_mat, _, _ = qp.inequality_rows()
+    x2 = x[None, :]
+    return _scales(
+        (qp.H @ x + qp.g)[None, :], qp.b[None, :], (qp.A @ x)[None, :], (c_mat @ x)[None, :], x2
+    )[0]
+
+
+def _scales(
+    grad: FloatArray, b: FloatArray, ax: FloatArray, cx: FloatArray, x: FloatArray
+) -> FloatArray:
+    """:func:`kkt_scale` of frames stacked on axis 0."""
+    g_mag = 1.0 + np.max(np.abs(grad), axis=1, initial=0.0)
+    rhs_mag = 1.0 + np.max(
+        np.abs(np.concatenate([b, ax, np.where(np.isfinite(cx), cx, 0.0)], axis=1)),
+        axis=1, initial=0.0,
+    )  # fmt: skip
+    x_mag = 1.0 + np.max(np.abs(x), axis=1, initial=0.0)
+    return np.stack([g_mag, rhs_mag, g_mag, g_mag * x_mag], axis=1)
+
+
+@dataclass(frozen=True)
+class KKTBatch:
+    """KKT figures of frames stacked on axis 0: ``figures`` ``(K, 4)`` as
+    :meth:`KKT.as_array` (columns :data:`KKT_COLUMNS`), ``scale`` ``(K, 4)`` the magnitudes
+    they are judged against (:func:`kkt_scale`), ``fallback`` ``(K,)`` the frames whose
+    multipliers the free columns did not determine (figures by :func:`kkt`'s bounded least
+    squares)."""
+
+    figures: FloatArray
+    scale: FloatArray
+    fallback: NDArray[np.bool_]
+
+    @property
+    def relative(self) -> FloatArray:
+        """``figures / scale`` ``(K, 4)``."""
+        return np.asarray(self.figures / self.scale)
+
+
+#: frames per stacked factorisation of :func:`kkt_batch` (bounds its working memory)
+KKT_CHUNK = 256
+
+#: largest 1-norm condition number of a frame's Gram matrix ``af afᵀ`` (rows × free columns)
+#: whose multipliers :func:`kkt_batch` fits by the stacked semi-normal equations: there the
+#: figures equal :func:`kkt`'s to 1e-11 of their scale (random QPs: ≤ 3e-12 up to 1e6, up to
+#: 2e-9 between 1e6 and 1e8, where both are round-off of a badly conditioned fit), and the
+#: fit is far from the rank cutoff of :func:`numpy.linalg.lstsq` (κ ~ 1e13): every such
+#: frame is one whose rows its free columns determine, as :func:`kkt` finds. A frame above it
+#: is computed by :func:`kkt` itself. The tension QPs of gc5_PS and UWA running: 3e4–7e4.
+KKT_BATCH_CONDITION = 1e6
+
+
+def kkt_batch(qps: Sequence[StandardQP], xs: ArrayLike) -> KKTBatch:
+    """:func:`kkt` of every ``(qps[k], xs[k])`` (QPs of equal dimensions), computed over the
+    frames at once (:func:`kkt_stacked` on their stacked arrays), and the figures' scales
+    (:func:`kkt_scale`)."""
+    h0 = qps[0].H
+    ineq = [q.inequality_rows() for q in qps]
+    return kkt_stacked(
+        h0 if all(q.H is h0 for q in qps) else _stack(qps, "H"), _stack(qps, "g"),
+        _stack(qps, "A"), _stack(qps, "b"), _stack(qps, "lb"), _stack(qps, "ub"),
+        np.asarray(xs, dtype=float), np.stack([c for c, _, _ in ineq]),
+        np.stack([v for _, v, _ in ineq]), np.stack([v for _, _, v in ineq]),
+    )  # fmt: skip
+
+
+def kkt_stacked(
+    h: FloatArray,
+    g: FloatArray,
+    a: FloatArray,
+    b: FloatArray,
+    lb: FloatArray,
+    ub: FloatArray,
+    x: FloatArray,
+    c: FloatArray | None = None,
+    cl: FloatArray | None = None,
+    cu: FloatArray | None = None,
+) -> KKTBatch:
+    """:func:`kkt` and :func:`kkt_scale` of ``K`` frames given as stacked arrays: ``h``
+    ``(n, n)`` shared or ``(K, n, n)``; ``g``, ``lb``, ``ub`` ``(n,)`` shared or ``(K, n)``;
+    ``a`` ``(K, m_eq, n)``, ``b`` ``(K, m_eq)``; ``x`` ``(K, n)``; inequality rows ``c``
+    ``(K, m_in, n)`` with ``cl``, ``cu`` ``(K, m_in)`` (None: ±inf), or None.
+
+    Each frame's least-squares fit of the multipliers ν of its equality rows and active
+    inequality rows over its free variables (:func:`kkt`) is done for all frames at once, on
+    the ``(K, rows, n)`` stack of their matrices with the columns of active variables and the
+    rows of inactive inequalities zeroed (:func:`_fit_multipliers`: corrected semi-normal
+    equations). A frame whose fit is ill-conditioned (1-norm condition number of its Gram
+    matrix above :data:`KKT_BATCH_CONDITION`) or singular — among them every frame whose
+    free columns do not determine ν, which :func:`kkt` fits by bounded least squares — is
+    computed by :func:`kkt` itself (``fallback``). Equal to :func:`kkt` frame by frame to
+    round-off, 1e-11 of :func:`kkt_scale` (``tests/test_optimization.py``: random QPs with
+    random active sets, rank-deficient and ill-conditioned frames among them)."""
+    n_fr, n = x.shape
+    if c is None:
+        c, cl, cu = np.zeros((n_fr, 0, n)), np.zeros((n_fr, 0)), np.zeros((n_fr, 0))
+    m_in = c.shape[1]
+    cl = np.full((n_fr, m_in), -np.inf) if cl is None else cl
+    cu = np.full((n_fr, m_in), np.inf) if cu is None else cu
+    figs = np.zeros((n_fr, 4))
+    scale = np.ones((n_fr, 4))
+    fb = np.zeros(n_fr, dtype=bool)
+
+    def part(v: FloatArray, sl: slice, ndim: int) -> FloatArray:
+        return v if v.ndim < ndim else v[sl]
+
+    for i in range(0, n_fr, KKT_CHUNK):
+        sl = slice(i, min(i + KKT_CHUNK, n_fr))
+        figs[sl], scale[sl], fb[sl] = _kkt_chunk(
+            part(h, sl, 3), part(g, sl, 2), a[sl], b[sl], part(lb, sl, 2), part(ub, sl, 2),
+            x[sl], c[sl], cl[sl], cu[sl],
+        )  # fmt: skip
+    return KKTBatch(figs, scale, fb)
+
+
+def _kkt_chunk(
+    h: FloatArray,
+    g: FloatArray,
+    a_mat: FloatArray,
+    b_vec: FloatArray,
+    lb: FloatArray,
+    ub: FloatArray,
+    x: FloatArray,
+    c_mat: FloatArray,
+    cl: FloatArray,
+    cu: FloatArray,
+) -> tuple[FloatArray, FloatArray, NDArray[np.bool_]]:
+    k_fr = x.shape[0]
+    grad = (x @ h.T if h.ndim == 2 else (h @ x[:, :, None])[:, :, 0]) + g
+    lb, ub = np.broadcast_to(lb, x.shape), np.broadcast_to(ub, x.shape)
+    m_eq = a_mat.shape[1]
+    lo, up = active_masks(x, lb, ub)
+    free = ~(lo | up)
+    ax = (a_mat @ x[:, :, None])[:, :, 0]
+    cx = (c_mat @ x[:, :, None])[:, :, 0]
+    ilo, iup = active_masks(cx, cl, cu)
+    iact = ilo | iup
+    rows = np.concatenate([a_mat, c_mat], axis=1)
+    row_on = np.concatenate([np.ones((k_fr, m_eq), dtype=bool), iact], axis=1)
+    r_tot = rows.shape[1]
+    nu = np.zeros((k_fr, r_tot))
+    need = np.zeros(k_fr, dtype=bool)
+    if r_tot:
+        # each frame's af (rows × free columns) as one (K, r, n) stack, the other entries zeroed
+        rm = np.where(row_on[:, :, None], rows, 0.0)
+        af = np.where(free[:, None, :], rm, 0.0)
+        nu, need = _fit_multipliers(af, np.where(free, -grad, 0.0), row_on)
+        full = grad + (nu[:, None, :] @ rm)[:, 0]
+    else:
+        full = grad
+    stat = np.max(np.where(free, np.abs(full), 0.0), axis=1, initial=0.0)
+    mu = np.where(lo, full, np.where(up, -full, 0.0))
+    nu_in = nu[:, m_eq:]
+    lam = np.where(iact, np.where(ilo, -nu_in, nu_in), 0.0)
+    with np.errstate(invalid="ignore"):
+        viol = np.concatenate(
+            [np.maximum(lb - x, 0.0), np.maximum(x - ub, 0.0), np.maximum(cl - cx, 0.0),
+             np.maximum(cx - cu, 0.0)],
+            axis=1,
+        )  # fmt: skip
+    viol = np.where(np.isfinite(viol), viol, 0.0)
+    eq = np.max(np.abs(ax - b_vec), axis=1, initial=0.0)
+    primal = np.maximum(eq, np.max(viol, axis=1, initial=0.0))
+    dual = 0.0 + np.maximum(  # + 0.0: no −0.0
+        0.0, np.maximum(np.max(-mu, axis=1, initial=0.0), np.max(-lam, axis=1, initial=0.0))
+    )
+    slack = np.where(lo, x - lb, np.where(up, ub - x, 0.0))
+    rs = np.where(iact, np.where(ilo, cx - cl, cu - cx), 0.0)
+    comp = np.maximum(
+        np.max(np.abs(mu * slack), axis=1, initial=0.0),
+        np.max(np.abs(lam * rs), axis=1, initial=0.0),
+    )
+    figs = np.stack([stat, primal, dual, comp], axis=1)
+    for k in np.flatnonzero(need).tolist():
+        qp = StandardQP(
+            h if h.ndim == 2 else h[k], g if g.ndim == 1 else g[k], a_mat[k], b_vec[k], lb[k],
+            ub[k], c_mat[k] if c_mat.shape[1] else None, cl[k], cu[k],
+        )  # fmt: skip
+        figs[k] = kkt(qp, x[k]).as_array()
+    return figs, _scales(grad, b_vec, ax, cx, x), need
+
+
+def _fit_multipliers(
+    af: FloatArray, rhs: FloatArray, row_on: NDArray[np.bool_]
+) -> tuple[FloatArray, NDArray[np.bool_]]:
+    """``ν = argmin ‖afᵀ ν − rhs‖`` of every frame (``af`` ``(K, r, n)``, rows that are off
+    all zero and given ν = 0) by the corrected semi-normal equations (Björck 1987, "Stability
+    analysis of the method of seminormal equations for linear least squares problems", Linear
+    Algebra Appl. 88–89:31–48, §4: one step of refinement makes them as accurate as a QR
+    solution while κ(af)² ε < 1), and the frames left to :func:`kkt`: those whose Gram matrix
+    ``af afᵀ`` is singular or has a 1-norm condition number above
+    :data:`KKT_BATCH_CONDITION`."""
+    k_fr, r_tot, _ = af.shape
+    gram = af @ np.swapaxes(af, 1, 2)
+    gram += np.eye(r_tot) * ~row_on[:, None, :]  # a row that is off: ν = 0 alone
+    # a row with no free column
+    dead = np.asarray(~(np.diagonal(gram, axis1=1, axis2=2) > 0).all(axis=1), dtype=bool)
+    gram[dead] = np.eye(r_tot)
+    try:
+        ginv = np.linalg.inv(gram)
+    except np.linalg.LinAlgError:  # an exactly singular frame: frame by frame
+        ginv = np.empty_like(gram)
+        for k in range(k_fr):
+            try:
+                ginv[k] = np.linalg.inv(gram[k])
+            except np.linalg.LinAlgError:
+                ginv[k], dead[k] = np.eye(r_tot), True
+    nu = ginv @ (af @ rhs[:, :, None])  # (K, r, 1)
+    resid = rhs[:, :, None] - np.swapaxes(af, 1, 2) @ nu
+    nu += ginv @ (af @ resid)
+    cond = np.abs(gram).sum(axis=1).max(axis=1) * np.abs(ginv).sum(axis=1).max(axis=1)
+    return nu[:, :, 0], dead | ~(cond <= KKT_BATCH_CONDITION)
+
+
+def _stack(qps: Sequence[StandardQP], name: str) -> FloatArray:
+    return np.stack([getattr(q, name) for q in qps])
 
 
 # ---------------------------------------------------------------------------------------------
@@ -443,6 +666,8 @@ class RawResult:
     iterations: int
     solve_time_s: float
     kkt: KKT | None
+    #: :func:`kkt_scale` of ``x`` (with ``kkt``)
+    kkt_scale: FloatArray | None = None
 
 
 def least_squares_fallback(qp: StandardQP, solver: str) -> StandardQP:
@@ -499,6 +724,7 @@ def solve_standard(
         iterations=out.iterations,
         solve_time_s=elapsed,
         kkt=kkt(qp, x) if compute_kkt else None,
+        kkt_scale=kkt_scale(qp, x) if compute_kkt else None,
     )
     if strict and status != STATUS_OPTIMAL:
         where = f"frame {frame}" if frame is not None else "the frame"

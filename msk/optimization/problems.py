@@ -39,6 +39,7 @@ from msk.optimization._qp import (
     DAQP_OPTIONS,
     DEFAULT_SOLVER,
     KKT,
+    KKT_CHUNK,
     KKT_COLUMNS,
     STATUS_NAMES,
     STATUS_OPTIMAL,
@@ -49,6 +50,9 @@ from msk.optimization._qp import (
     active_masks,
     get_solver,
     kkt,
+    kkt_batch,
+    kkt_scale,
+    kkt_stacked,
     new_warm,
     solve_standard,
 )
@@ -320,12 +324,14 @@ def _solve_power(
         raise OptimizationError(
             f"{where}: power criterion (p = {p:g}) did not converge with solver {solver!r}"
         )
+    pm = _power_model(qp, x, m, w, p) if compute_kkt else None
     res = RawResult(
         x=x,
         status=status,
         iterations=iters,
         solve_time_s=t0,
-        kkt=kkt(_power_model(qp, x, m, w, p), x) if compute_kkt else None,
+        kkt=None if pm is None else kkt(pm, x),
+        kkt_scale=None if pm is None else kkt_scale(pm, x),
     )
     return res, warm
 
@@ -849,7 +855,8 @@ class BatchSolution:
     """Per-frame solutions stacked over time (axis 0); fields as in :class:`QPSolution`.
 
     ``status`` ``(N,)`` int8 codes (0 optimal, 1 infeasible, 2 solver failed; names in
-    ``STATUS_NAMES``); ``kkt`` ``(N, 4)`` with columns ``kkt_columns``; ``solve_time_s`` per
+    ``STATUS_NAMES``); ``kkt`` ``(N, 4)`` with columns ``kkt_columns`` (NaN without
+    ``compute_kkt``) and ``kkt_scale`` the magnitudes they are judged against; ``solve_time_s`` per
     frame (solver call, incl. fallback); ``time`` optional frame times in s;
     ``inequality_reserves`` ``(N, k)`` the reserves ``s_k`` of :class:`TensionInequalities`
     rows (row units, ``inequality_names``), None when the batch had none.
@@ -877,6 +884,9 @@ class BatchSolution:
     #: ``(N, k)`` reserves of the :class:`TensionInequalities` rows (row units; None without)
     inequality_reserves: FloatArray | None = None
     inequality_names: tuple[str, ...] = ()
+    #: ``(N, 4)`` the magnitudes the ``kkt`` figures are judged against
+    #: (:func:`~msk.optimization.kkt_scale`; NaN where ``kkt`` is)
+    kkt_scale: FloatArray | None = None
 
     @property
     def infeasible_frames(self) -> NDArray[np.intp]:
@@ -1068,6 +1078,8 @@ class _BatchQP:
         self.g = g[..., cols]
         self.layout = layout
         self.whole_h = h  # the whole QP's H (every reserve, the rows' reserves last)
+        self.whole_g, self.whole_lb, self.whole_ub = g, lb, ub  # and its g and bounds
+        self.res_idx, self.res_opt = idx, opt
         self.full_qp = full
         self.reduction: _Reduction | None = None
         if drop.any():
@@ -1110,6 +1122,42 @@ class _BatchQP:
             lb=np.concatenate([qp.lb, np.zeros(n_in)]),
             ub=np.concatenate([qp.ub, np.full(n_in, np.inf)]), C=c_mat, cl=cl,
         )  # fmt: skip
+
+    def whole_stack(self, fr: NDArray[np.intp]) -> tuple[Any, ...]:
+        """The whole QPs of frames ``fr`` (:meth:`whole`) as stacked arrays ``(H, g, A, b,
+        lb, ub, C, cl)`` (``H`` and, when the same for every frame, ``g``, ``lb``, ``ub``
+        shared; ``C``, ``cl`` None without inequality rows), for
+        :func:`~msk.optimization.kkt_stacked`; needs the output map (``out_scale``,
+        ``out_offset``)."""
+        assert self.out_scale is not None and self.out_offset is not None
+        m, n_fr = self.m, fr.size
+        jac = self.jac[fr]
+        idx, opt = self.res_idx, self.res_opt
+        nres = idx.shape[0]
+        n_in = 0 if self.ineq is None else self.ineq.n_rows
+        n = jac.shape[2]
+        a = np.zeros((n_fr, n, m + nres + n_in))
+        s = self.neg_scale if self.neg_scale.ndim == 1 else self.neg_scale[fr][:, None, :]
+        a[:, :, :m] = np.swapaxes(jac, 1, 2) * s  # R S = −Jᵀ S
+        a[:, idx, m + np.arange(nres)] = opt
+        b = self.tau[fr]
+        if self.passive is not None:
+            b = b + np.einsum("kmn,km->kn", jac, self.passive[fr])  # τ − R f_p
+
+        def rows(v: FloatArray) -> FloatArray:
+            return v if v.ndim == 1 else v[fr]
+
+        g, lb, ub = rows(self.whole_g), rows(self.whole_lb), rows(self.whole_ub)
+        if self.ineq is None:
+            return self.whole_h, g, a, b, lb, ub, None, None
+        gain = np.asarray(self.ineq.gain)[fr]
+        scale = np.broadcast_to(self.out_scale, (self.tau.shape[0], m))[fr]
+        offset = np.broadcast_to(self.out_offset, (self.tau.shape[0], m))[fr]
+        c = np.zeros((n_fr, n_in, m + nres + n_in))
+        c[:, :, :m] = gain * scale[:, None, :]
+        c[:, :, m + nres :] = np.diag(np.asarray(self.ineq.reserve_optimal))
+        cl = -np.asarray(self.ineq.offset)[fr] - (gain @ offset[:, :, None])[:, :, 0]
+        return self.whole_h, g, a, b, lb, ub, c, cl
 
     def __call__(self, k: int) -> tuple[StandardQP, _Layout]:
         m, a = self.m, self.a
@@ -1305,6 +1353,7 @@ def _run_batch(
     rc = np.zeros((n_frames, n))
     rt = np.zeros((n_frames, n))
     kk = np.full((n_frames, 4), np.nan)
+    ks = np.full((n_frames, 4), np.nan)
     xs = np.empty((n_frames, m))  # muscle unknowns and their bounds, for the active sets
     lbs = np.empty((n_frames, m))
     ubs = np.empty((n_frames, m))
@@ -1345,7 +1394,8 @@ def _run_batch(
             if raw.status == STATUS_OPTIMAL:
                 x = reduction.expand(x, k)
                 if compute_kkt:
-                    kk[k] = kkt(reduction.full(k), x).as_array()
+                    kb = kkt_batch([reduction.full(k)], x[None, :])
+                    kk[k], ks[k] = kb.figures[0], kb.scale[0]
             else:
                 qp = reduction.full(k)
                 raw, _ = solve_standard(
@@ -1364,6 +1414,8 @@ def _run_batch(
         rt[k, lay.reserve_idx] = lay.reserve_opt * r[lay.reserve_idx]
         if raw.kkt is not None:
             kk[k] = raw.kkt.as_array()
+        if raw.kkt_scale is not None:
+            ks[k] = raw.kkt_scale
         xs[k], lbs[k], ubs[k] = x[:m], qp.lb[:m], qp.ub[:m]
         status[k] = raw.status
         iters[k] = raw.iterations
@@ -1372,7 +1424,7 @@ def _run_batch(
         carry.state, carry.started = warm, True
     out = _batch_solution(
         xs, lbs, ubs, forces, acts, rc, rt, tau, jac, kk, status, iters, times, solver,
-        muscle_names, coordinate_names, time,
+        muscle_names, coordinate_names, time, ks,
     )  # fmt: skip
     if inequality_names:
         if ineq is None:
@@ -1420,6 +1472,7 @@ def _run_blocks(
         x = xf
     status = np.full(n_frames, STATUS_OPTIMAL, dtype=np.int8)
     kk = np.full((n_frames, 4), np.nan)
+    ks = np.full((n_frames, 4), np.nan)
 
     def whole(k: int) -> StandardQP:
         return reduction.full(k) if reduction is not None else build(k)[0]
@@ -1433,9 +1486,15 @@ def _run_blocks(
         times[k] += raw.solve_time_s
         if raw.kkt is not None:
             kk[k] = raw.kkt.as_array()
-    if compute_kkt:
-        for k in np.flatnonzero(ok):
-            kk[k] = kkt(whole(int(k)), x[k]).as_array()
+        if raw.kkt_scale is not None:
+            ks[k] = raw.kkt_scale
+    if compute_kkt:  # the solved frames' whole QPs, stacked, their figures over frames at once
+        solved = np.flatnonzero(ok)
+        for a in range(0, solved.size, KKT_CHUNK):
+            fr = solved[a : a + KKT_CHUNK]
+            h, g, am, b, lb, ub, c, cl = build.whole_stack(fr)
+            kb = kkt_stacked(h, g, am, b, lb, ub, x[fr], c, cl)
+            kk[fr], ks[fr] = kb.figures, kb.scale
     assert build.out_scale is not None and build.out_offset is not None
     forces = build.out_scale * x[:, :m] + build.out_offset
     acts = x[:, :m].copy() if activations else None
@@ -1449,7 +1508,7 @@ def _run_blocks(
     ubs = np.broadcast_to(build.ub[..., :m], (n_frames, m))
     out = _batch_solution(
         x[:, :m], lbs, ubs, forces, acts, rc, rt, tau, jac, kk, status, iters, times,
-        _EXACT_SOLVER, muscle_names, coordinate_names, time,
+        _EXACT_SOLVER, muscle_names, coordinate_names, time, ks,
     )  # fmt: skip
     if build.ineq is None:
         return out
@@ -1477,6 +1536,7 @@ def _batch_solution(
     muscle_names: Any,
     coordinate_names: Any,
     time: ArrayLike | None,
+    kkt_scale: FloatArray | None = None,
 ) -> BatchSolution:
     """The :class:`BatchSolution` of solved frames: active bounds from the muscle variables
     ``x_muscles`` and their bounds, torque error τ + Jᵀf and residual (error − reserves)."""
@@ -1503,6 +1563,7 @@ def _batch_solution(
         muscle_names=muscle_names,
         coordinate_names=coordinate_names,
         time=t,
+        kkt_scale=kkt_scale,
     )
 
 

@@ -290,21 +290,43 @@ def _optimization_summary(sol: MuscleTensions, sfx: str) -> dict[str, Any]:
             "id_frontal_moment_peak_nm": sol.id_frontal_moment_peak_nm or 0.0,
             **frontal_reserve_figures(sol),
         }
-    return extra | {
-        "method": sol.method,
-        "criterion": sol.criterion,
-        "emg_gains": None if sol.emg_gains is None else dict(sol.emg_gains),
-        "emg_gain_status": None
-        if not sol.emg_gains
-        else {c: gain_status(float(g)).value for c, g in sol.emg_gains.items()},
-        "infeasible_frames": sol.infeasible_frames,
-        "reserve_torque_rms_nm": None
-        if sol.reserve_torques is None or sol.reserve_coordinates is None
-        else {
-            c: float(np.sqrt(np.nanmean(sol.reserve_torques[:, k] ** 2)))
-            for k, c in enumerate(sol.reserve_coordinates)
-            if c.endswith(sfx)
-        },
+    return (
+        extra
+        | {
+            "method": sol.method,
+            "criterion": sol.criterion,
+            "emg_gains": None if sol.emg_gains is None else dict(sol.emg_gains),
+            "emg_gain_status": None
+            if not sol.emg_gains
+            else {c: gain_status(float(g)).value for c, g in sol.emg_gains.items()},
+            "infeasible_frames": sol.infeasible_frames,
+            "reserve_torque_rms_nm": None
+            if sol.reserve_torques is None or sol.reserve_coordinates is None
+            else {
+                c: float(np.sqrt(np.nanmean(sol.reserve_torques[:, k] ** 2)))
+                for k, c in enumerate(sol.reserve_coordinates)
+                if c.endswith(sfx)
+            },
+        }
+        | ({} if sol.kkt is None else {"kkt": kkt_summary(sol.kkt)})
+    )
+
+
+def kkt_summary(worst: Any) -> dict[str, Any]:
+    """``optimization.kkt`` of a :class:`msk.pipeline.tension.KktWorst`."""
+    from msk.quality import THRESHOLDS
+
+    return {
+        "frames": int(worst.frames),
+        "relative_tolerance": THRESHOLDS["kkt_relative"],
+    } | {
+        c: {
+            "max": float(worst.value[k]),
+            "relative_max": float(worst.relative[k]),
+            "frame": int(worst.frame[k]),
+            "time_s": float(worst.time_s[k]),
+        }
+        for k, c in enumerate(worst.columns)
     }
 
 

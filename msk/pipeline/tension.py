@@ -30,7 +30,17 @@ from msk.pipeline.mass_identification import MassIdentification, identified_mode
 from msk.pipeline.model import BuiltModel
 from msk.pipeline.runner import StageUnavailable
 
-__all__ = ["MuscleTensions", "compartments", "knee_plateau", "needs", "optimise", "run", "settings"]
+__all__ = [
+    "KktWorst",
+    "MuscleTensions",
+    "compartments",
+    "knee_plateau",
+    "needs",
+    "optimise",
+    "run",
+    "settings",
+    "worst_kkt",
+]
 
 
 @dataclass(frozen=True)
@@ -44,7 +54,8 @@ class MuscleTensions:
     moment about the opposite contact point that no admissible tension balances, which
     ligaments would carry), the largest frontal moment of the inverse-dynamics load about the
     contact midpoint over the solved frames (``id_frontal_moment_peak_nm``, the reference of
-    the quality gate)."""
+    the quality gate). The QP methods' KKT check of the frames the solver called optimal
+    (:class:`KktWorst`, None for ``closed_form`` or without such a frame)."""
 
     forces: np.ndarray
     activations: np.ndarray
@@ -60,6 +71,40 @@ class MuscleTensions:
     frontal_reserve_moments: np.ndarray | None = None
     compartment_rows: tuple[str, ...] = ()
     id_frontal_moment_peak_nm: float | None = None
+    kkt: KktWorst | None = None
+
+
+@dataclass(frozen=True)
+class KktWorst:
+    """The worst KKT figures of a trial's tension QPs over the frames the solver called
+    optimal (the infeasible frames, whose bounded least-squares point is no optimum, are left
+    out: flagged apart): per figure of ``columns`` (:data:`msk.optimization.KKT_COLUMNS`) the
+    largest value ``value`` (scaled variables of the standard form), the largest value
+    relative to its scale ``relative`` (:func:`msk.optimization.kkt_scale`: the gradient's
+    magnitude, the right-hand sides' for primal feasibility) and the frame ``frame`` (index on
+    the kinematics' time base) and ``time_s`` where that relative value is reached;
+    ``frames`` the number of frames checked."""
+
+    columns: tuple[str, ...]
+    value: np.ndarray
+    relative: np.ndarray
+    frame: np.ndarray
+    time_s: np.ndarray
+    frames: int
+
+
+def worst_kkt(
+    kkt: np.ndarray, scale: np.ndarray, optimal: np.ndarray, frames: np.ndarray
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, int]:
+    """Of one solve block: per KKT figure the largest value, the largest relative value and
+    its frame (from ``frames``) over the rows ``optimal`` with finite figures (−1 and 0
+    without any), and how many rows were checked."""
+    use = optimal & np.isfinite(kkt).all(axis=1) & np.isfinite(scale).all(axis=1)
+    if not use.any():
+        return np.zeros(4), np.zeros(4), np.full(4, -1), 0
+    rel = kkt[use] / scale[use]
+    at = np.argmax(rel, axis=0)
+    return kkt[use].max(axis=0), rel[at, np.arange(4)], frames[use][at], int(use.sum())
 
 
 def actuated(torques: Any) -> list[int]:
@@ -225,9 +270,9 @@ def optimise(
     shortening faster than its maximal velocity produces no active force (the force–velocity
     curve's extrapolation below zero is clipped to 0 rather than costing the frame).
 
-    ``forces_only`` (a re-solve that reads the forces alone): the activations and reserve
-    torques are not kept — ``activations`` is then ``(N, 0)`` and ``reserve_torques`` None —
-    so that a long trial does not hold them (issue 18).
+    ``forces_only`` (a re-solve that reads the forces alone): no KKT check, and the
+    activations and reserve torques are not kept — ``activations`` is then ``(N, 0)`` and
+    ``reserve_torques`` None — so that a long trial does not hold them (issue 18).
 
     ``on_block(frames, forces)``: each solve block's frames (indices) and forces are handed to
     it as they are solved, and not kept — it implies ``forces_only``, and ``forces`` is then
@@ -325,6 +370,8 @@ def optimise(
     a_all = np.full((n, 0 if forces_only else len(params.names)), np.nan)
     rt = None if forces_only else np.full((n, len(act_idx)), np.nan)
     infeasible = 0
+    kkt_val, kkt_rel = np.zeros(4), np.full(4, -1.0)
+    kkt_at, kkt_n = np.full(4, -1), 0
 
     def solve(fr: np.ndarray, common: dict[str, Any]) -> tuple[np.ndarray, Any, Any]:
         """Forces, activations and the batch solution (None for ``closed_form``) of the frames
@@ -389,6 +436,8 @@ def optimise(
                 "muscle_names": params.names,
                 "coordinate_names": cn,
                 "time": time[f_idx],
+                # a re-solve that reads the forces alone does not check them
+                "compute_kkt": not forces_only,
             }
             if rows is not None:
                 common["inequalities"] = rows.take(part)
@@ -405,6 +454,13 @@ def optimise(
                 if frontal is not None and sol.inequality_reserves is not None:
                     frontal[f_idx] = sol.inequality_reserves
                 infeasible += int(sol.infeasible_frames.size)
+                if sol.kkt_scale is not None:
+                    v, r, at, n_ok = worst_kkt(
+                        sol.kkt, sol.kkt_scale, sol.status == o.STATUS_OPTIMAL, f_idx
+                    )
+                    kkt_val, kkt_n = np.maximum(kkt_val, v), kkt_n + n_ok
+                    better = r > kkt_rel
+                    kkt_rel, kkt_at = np.where(better, r, kkt_rel), np.where(better, at, kkt_at)
             del sol, forces, acts
         if on_block is not None:
             assert block_forces is not None
@@ -428,8 +484,13 @@ def optimise(
     )  # fmt: skip
     if meth == "closed_form":
         return out
+    worst = None
+    if kkt_n:
+        worst = KktWorst(
+            o.KKT_COLUMNS, kkt_val, kkt_rel, kkt_at, np.asarray(time, dtype=float)[kkt_at], kkt_n
+        )
     out = dataclasses.replace(
-        out, infeasible_frames=infeasible, reserve_torques=rt, reserve_coordinates=cn
+        out, infeasible_frames=infeasible, reserve_torques=rt, reserve_coordinates=cn, kkt=worst
     )
     if comp is None:
         return out

@@ -524,6 +524,35 @@ def _finite(x: Any) -> TypeGuard[float]:
     return isinstance(x, (int, float)) and bool(np.isfinite(x))
 
 
+def _kkt_table(kkt: Any) -> str:
+    """The worst KKT figures of the tension QPs (``optimization.kkt``) and their gate."""
+    tol = kkt.relative_tolerance
+    rows = []
+    for name in ("stationarity", "primal_feasibility", "dual_feasibility", "complementarity"):
+        f = getattr(kkt, name)
+        if f is None:
+            continue
+        rows.append(
+            [
+                _e(name.replace("_", " ")),
+                _num(f.max, ".1e"),
+                _num(f.relative_max, ".1e"),
+                _e(_or(f.frame, "—")),
+                _num(f.time_s, ".3f", "s"),
+                _check(f.relative_max, tol) if tol is not None else "—",
+            ]
+        )
+    note = (
+        f'<p class="note">KKT check of the {_e(_or(kkt.frames, "—"))} frames the QP solver '
+        "called optimal (infeasible frames excluded): the largest figure (scaled variables), "
+        "the largest relative to its scale (the gradient's magnitude; the torques' for primal "
+        f"feasibility) and its frame; gate ≤ {_num(tol, '.0e')}.</p>"
+    )
+    return note + _table(
+        ["KKT figure", "max", "max relative", "frame", "time", "check"], rows, "kkt"
+    )
+
+
 def _status_html(word: str) -> str:
     """A status word with its colour swatch and its meaning as a tooltip."""
     col = STATUS_COLOURS.get(word, "#9e9e9e")
@@ -1466,6 +1495,8 @@ def _methods_section(res: SessionResults, number: int = 6, *, gait: bool = True)
     if opt:
         crit = f" ({_e(opt.criterion)})" if opt.criterion else ""
         out.append(f'<p class="note">Tension optimisation: {_e(opt.method)}{crit}.</p>')
+        if opt.kkt is not None:
+            out.append(_kkt_table(opt.kkt))
         if opt.emg_gains:
             gst = opt.emg_gain_status or {}
             rows = [
