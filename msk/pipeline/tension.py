@@ -417,10 +417,12 @@ def optimise(
         )
         return lag.forces, lag.forces / np.maximum(fa, 1e-9), None
 
-    # with the knee compartment rows every frame's QP is one whole QP (no reserve decoupled nor
-    # sub-problem split over a batch's frames): the frames are solved one after the other, the
-    # warm start joining them, so a block is solved in parts of SOLVE_BLOCK frames (its dense
-    # Jacobian and the solver's arrays are a part's: issue 18) with the same results
+    # with the knee compartment rows a block is solved in parts of SOLVE_BLOCK frames (its
+    # Jacobian and the solver's arrays are a part's, and the rows' per-frame arrays: issue 18),
+    # the warm start carried from part to part; each frame's QP is the same as in one call
+    # (the sub-problem split follows the muscles' moment-arm pattern, the same in every part
+    # of a trial in practice: tests/test_long_trials.py checks gc5_PS in 16-frame parts equal
+    # to one call bit for bit)
     split = comp is not None
     for fr in frame_blocks(idx_ok):
         rows = None
