@@ -43,6 +43,7 @@ import pinocchio as pin
 from numpy.typing import NDArray
 from scipy.interpolate import make_interp_spline
 
+from msk.io.c3d import plate_axes
 from msk.model import Model, marker_positions
 from msk.synthetic_trials import root_wrench
 
@@ -632,16 +633,6 @@ class LabPlate:
     channels: tuple[str, ...]
 
 
-def _plate_axes(corners: Array) -> Array:
-    ax = corners[0] - corners[1]
-    ay = corners[0] - corners[3]
-    az = np.cross(ax, ay)
-    ay = np.cross(az, ax)
-    return np.column_stack(
-        [ax / np.linalg.norm(ax), ay / np.linalg.norm(ay), az / np.linalg.norm(az)]
-    )
-
-
 #: EMG channel (substring of the label) → the coordinates whose torque of the given sign its
 #: muscle produces (gait2392 signs: knee extensors give a positive knee_angle torque, hip
 #: extensors a negative hip_flexion one, plantarflexors a negative ankle_angle one)
@@ -752,7 +743,7 @@ def write_lab_c3d(
     src = np.clip(np.searchsorted(rt, ta - 1e-9), 0, rt.size - 1)
     for pl in plates:
         corners_lab = pl.corners @ rot.T + org
-        axes = _plate_axes(corners_lab)
+        axes = plate_axes(corners_lab)
         centre = corners_lab.mean(axis=0)
         f_lab = np.zeros((na, 3))
         m_c = np.zeros((na, 3))

@@ -33,6 +33,7 @@ import pinocchio as pin
 from numpy.typing import NDArray
 
 from msk.identification import IdentificationTrial, root_generalized_forces
+from msk.io.c3d import plate_axes
 from msk.loads import PlateWrench
 from msk.model import Model, marker_positions
 from msk.signal import derivative, filtfilt_butter
@@ -167,7 +168,7 @@ class SyntheticTrial:
             if corners is None:
                 raise ValueError(f"plate {pl.name} has no corners")
             centre = corners.mean(axis=0)
-            rot = _plate_rotation(corners)
+            rot = plate_axes(corners)
             m_centre = np.cross(pl.cop - centre, pl.force) + pl.free_moment
             f_loc = pl.force @ rot
             m_loc = m_centre @ rot * 1000.0
@@ -187,17 +188,6 @@ class SyntheticTrial:
             analog_ratio=self.analog_ratio,
             plates=specs,
         )
-
-
-def _plate_rotation(corners: Array) -> Array:
-    """Plate axes as msk.io reads them from the corners (x = c0 − c1, z = x × (c0 − c3))."""
-    ax = corners[0] - corners[1]
-    ay = corners[0] - corners[3]
-    az = np.cross(ax, ay)
-    ay = np.cross(az, ax)
-    return np.column_stack(
-        [ax / np.linalg.norm(ax), ay / np.linalg.norm(ay), az / np.linalg.norm(az)]
-    )
 
 
 def plate_corners(centre: Array, half_x: float = 0.50, half_z: float = 0.14) -> Array:

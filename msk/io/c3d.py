@@ -55,6 +55,7 @@ __all__ = [
     "NON_MARKER_POINT",
     "PlateSpec",
     "is_measured_marker",
+    "plate_axes",
     "read_c3d",
     "write_c3d",
 ]
@@ -790,16 +791,12 @@ def _plates(
         o = origin_all[:, p].copy()
         if o[2] > 0:
             o = -o
-        ax = c[0] - c[1]
-        ay = c[0] - c[3]
-        az = np.cross(ax, ay)
-        nx, nz = np.linalg.norm(ax), np.linalg.norm(az)
-        if nx == 0 or nz == 0:
+        try:
+            rot = plate_axes(c)
+        except ValueError:
             raise ForcePlateError(
                 f"{path}: force platform {p + 1} has degenerate corners {c.tolist()}"
-            )
-        ay = np.cross(az, ax)
-        rot = np.column_stack([ax / nx, ay / np.linalg.norm(ay), az / nz])
+            ) from None
         centre = c.mean(axis=0)
         ch = columns(idx)  # (Na, nchan) file units
         if typ == 1:
@@ -1115,6 +1112,25 @@ def _death(code: int | None) -> str:
             name = f"signal {-code}"
         return f"crashed ({name}): the file is corrupt in a way msk does not detect"
     return f"exited with status {code} without an answer"
+
+
+def plate_axes(corners: ArrayLike) -> NDArray[np.float64]:
+    """A force plate's axes in the lab from its four ``FORCE_PLATFORM:CORNERS`` (4, 3) (C3D User
+    Guide, Motion Lab Systems 2008, "The FORCE_PLATFORM group"; corners numbered around the
+    plate, the first in the plate's +x +y quadrant): x along c₀ − c₁, z = x × (c₀ − c₃), y = z × x;
+    returned as the columns of a rotation (3, 3).
+
+    Raises:
+        ValueError: degenerate corners (coincident or collinear).
+    """
+    c = np.asarray(corners, dtype=float)
+    ax = c[0] - c[1]
+    az = np.cross(ax, c[0] - c[3])
+    nx, nz = float(np.linalg.norm(ax)), float(np.linalg.norm(az))
+    if nx == 0 or nz == 0:
+        raise ValueError(f"degenerate force-plate corners {c.tolist()}")
+    ay = np.cross(az, ax)
+    return np.column_stack([ax / nx, ay / np.linalg.norm(ay), az / nz])
 
 
 def read_c3d(
