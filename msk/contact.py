@@ -952,8 +952,9 @@ def compartment_force_map(
     # frames it left out with finite positions (non-finite velocities of the "full" variant)
     ok = np.isfinite(th).all(axis=1) & ~np.isfinite(origin).all(axis=1)
     if ok.any():
-        st = _chain_states(model, _distal_tree(model, joint), th[ok], None, None)
-        rot[ok], origin[ok] = _plateau_placement(_distal_tree(model, joint), st, plateau_offset)
+        tree = _distal_tree(model, joint)
+        st = _chain_states(model, tree, th[ok], None, None)
+        rot[ok], origin[ok] = _plateau_placement(tree, st, plateau_offset)
     # each muscle's unit wrench in the plateau frame, moment about its origin
     f_w, m_w = w[..., :3], w[..., 3:]
     m_o = m_w - _cross(origin[:, None, :], f_w)
