@@ -676,6 +676,53 @@ def test_a_lateral_muscle_loads_the_lateral_compartment_of_either_knee(side: str
     np.testing.assert_allclose(ml.lateral - ml.medial, 625.0, atol=1e-8)
 
 
+@pytest.mark.parametrize("side", ["r", "l"])
+@pytest.mark.parametrize("psi_deg", [-5.0, 3.0])
+def test_turning_the_plateau_about_the_tibia_mixes_the_sagittal_moment_into_the_split(
+    side: str, psi_deg: float
+) -> None:
+    """Docs, medial/lateral contact item 11: the split's frame turned by ψ about the tibia's long
+    axis (``plateau_offset``) sees the frontal moment cos ψ M_C,x − sin ψ M_C,z about the same
+    contact midpoint C (on that axis) and the same normal force, so a frame error moves the
+    lateral force by ((cos ψ − 1) M_C,x − sin ψ M_C,z)/d — first order in the sagittal moment
+    at C, which the muscles balance. A flexed knee, a reaction 30 mm medial and 50 mm anterior
+    of the knee (both moments non-zero), and muscle tensions: the exact identity."""
+    model = _one_knee_four(side)
+    n = 3
+    kin = _static(model, [[-0.4]] * n)
+    z = -0.03 if side == "r" else 0.03
+    force = np.zeros((n, 1, 3))
+    force[:, :, 1] = 700.0
+    point = np.tile(HIP + np.array([0.05, -0.4, z]), (n, 1, 1))
+    from msk.loads import ExternalLoads
+
+    loads = ExternalLoads(
+        time=np.arange(n) * 0.01, bodies=("tibia",), force=force,
+        moment=np.cross(point, force), point=point,
+    )  # fmt: skip
+    f = np.tile([300.0, 50.0, 120.0, 10.0], (n, 1))
+    geo = PlateauGeometry(0.04, (0.0, -0.022, 0.0))
+    psi = np.radians(psi_deg)
+    turned = pin.SE3(pin.exp3(np.array([0.0, psi, 0.0])), np.zeros(3))
+    c0 = knee_contact_force(model, kin, loads, muscle_forces=f, joint=f"knee_{side}")
+    c1 = knee_contact_force(
+        model, kin, loads, muscle_forces=f, joint=f"knee_{side}", plateau_offset=turned
+    )
+    ml0, ml1 = split_medial_lateral(c0, geo), split_medial_lateral(c1, geo)
+    m_c = c0.moment - np.cross(np.array(geo.centre_m), c0.force)  # about C, unturned frame
+    assert np.all(np.abs(m_c[:, 0]) > 5.0) and np.all(np.abs(m_c[:, 2]) > 5.0)
+    np.testing.assert_allclose(
+        ml1.frontal_moment, np.cos(psi) * m_c[:, 0] - np.sin(psi) * m_c[:, 2], atol=1e-9
+    )
+    np.testing.assert_allclose(ml1.normal, ml0.normal, atol=1e-9)
+    sign = 1.0 if side == "r" else -1.0  # + M_C,x loads the lateral compartment on the right
+    np.testing.assert_allclose(
+        ml1.lateral - ml0.lateral,
+        sign * ((np.cos(psi) - 1.0) * m_c[:, 0] - np.sin(psi) * m_c[:, 2]) / 0.04,
+        atol=1e-7,
+    )
+
+
 # ---------------------------------------------------------------------------------------------
 # compartment forces affine in the tensions; F_M, F_L ≥ 0 in static optimisation (issue 16,
 # seventh pass)
