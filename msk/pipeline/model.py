@@ -27,10 +27,10 @@ from msk.pipeline.read import ReadResult, read_static_markers
 
 __all__ = [
     "CHOICE_MAX_FRAMES",
+    "CHOICE_MISSING_MARKERS",
     "CHOICE_TOLERANCE_M",
     "DESCENT_MAX_ROUNDS",
-    "DESCENT_PASSES",
-    "DESCENT_TOLERANCE_M",
+    "DESCENT_REL_TOLERANCE",
     "HELD_COORDINATE_WEIGHT",
     "STATIC_CHECK_MIN_TASK_S",
     "BuiltModel",
@@ -41,7 +41,9 @@ __all__ = [
     "leg_split",
     "load_model_file",
     "model_frame_columns",
+    "continued_placement",
     "placement_cost",
+    "placement_frames",
     "run",
     "settings",
     "without_markers",
@@ -189,10 +191,15 @@ def _scale_and_place(
     read: ReadResult,
     functional: Mapping[str, float] | None = None,
     placement: Mapping[str, Any] | None = None,
+    continue_from: tuple[Any, Mapping[str, Any]] | None = None,
 ) -> dict[str, Any]:
     """Scale the model and place the lab's markers (static trial, else the task). ``placement``:
     extra keywords of :func:`msk.scaling.place_markers_from_motion` (``regularize``,
-    ``frame_phase``) when there is no static trial (a candidate of :func:`run`)."""
+    ``frame_phase``) when there is no static trial (a candidate of :func:`run`).
+    ``continue_from`` (no static trial; an earlier motion placement: its model and
+    ``info["marker_placement"]``): the placement is one unpulled pass continuing that one — its
+    placed markers' state and its moved model markers' offsets — on the model scaled here
+    (the split candidates of :func:`choose_placement`)."""
     from msk.io.c3d import is_measured_marker
     from msk.io.frames import pelvis_heading_rotation
     from msk.markersets import (
@@ -359,9 +366,12 @@ def _scale_and_place(
             hints=match.body_hints([b.name for b in model.bodies]),
         )  # fmt: skip
         placement_call = (model, xm, mlabels, trial.time, kw)
-        model, placed = place_markers_from_motion(
-            model, xm, mlabels, trial.time, **kw, **dict(placement or {})
-        )
+        if continue_from is None:
+            model, placed = place_markers_from_motion(
+                model, xm, mlabels, trial.time, **kw, **dict(placement or {}), warm={}
+            )
+        else:
+            model, placed = continued_placement(placement_call, *continue_from)
     info["marker_placement"] = placed
     if model.metadata.get("knee_alignment"):
         info["knee_alignment"] = dict(model.metadata["knee_alignment"])
@@ -373,6 +383,28 @@ def _scale_and_place(
         "model": model, "info": info, "rotation": rot, "rename": dict(match.rename),
         "placement_call": placement_call,
     }  # fmt: skip
+
+
+def continued_placement(
+    call: tuple[Any, ...], prev_model: Any, prev: Mapping[str, Any]
+) -> tuple[Any, dict[str, Any]]:
+    """One unpulled pass of :func:`msk.scaling.place_markers_from_motion` (``call``: the model
+    before placement, the markers, labels, time and keywords ``_scale_and_place`` placed
+    with) continuing an earlier motion placement (``prev_model`` and its
+    ``info["marker_placement"]``, possibly on a model scaled otherwise): its placed markers'
+    state and its moved model markers' offsets (on the same body) are the pass's start;
+    ``"regularized"`` is the earlier one's."""
+    from msk.scaling import place_markers_from_motion
+
+    base, xm, mlabels, time, kw = call
+    was = {mk.name: mk for mk in prev_model.markers if mk.name in prev.get("moved", {})}
+    own = [was[mk.name] if mk.name in was and was[mk.name].body == mk.body else mk
+           for mk in base.markers]  # fmt: skip
+    model, placed = place_markers_from_motion(
+        base.with_markers(own), xm, mlabels, time, **kw, regularize=False, iterations=1,
+        start=prev["state"],
+    )  # fmt: skip
+    return model, {**placed, "regularized": prev["regularized"]}
 
 
 def lab_origin_offset(model: Any, markers: Any) -> np.ndarray:
@@ -689,14 +721,12 @@ def without_markers(model: BuiltModel) -> BuiltModel:
     return dataclasses.replace(model, trial=dataclasses.replace(trial, markers=empty))
 
 
-#: placement passes per round of :func:`choose_placement`'s alternation
-DESCENT_PASSES = 2
+#: relative decrease of the task's IK cost per round below which :func:`choose_placement`
+#: stops its descents
+DESCENT_REL_TOLERANCE = 2e-2
 
-#: decrease of the task's IK cost (m) below which :func:`choose_placement` stops alternating
-DESCENT_TOLERANCE_M = 1e-5
-
-#: most rounds of :func:`choose_placement`'s alternation
-DESCENT_MAX_ROUNDS = 12
+#: most rounds of a descent of :func:`choose_placement` (a safeguard, not the stopping rule)
+DESCENT_MAX_ROUNDS = 30
 
 #: how much worse (m) than the least task IK cost a candidate of :func:`choose_placement` may be
 #: and still be preferred (the split before the leg factor, the pulled start before the other):
@@ -705,9 +735,31 @@ DESCENT_MAX_ROUNDS = 12
 #: that flipped the femur and tibia factors from run to run
 CHOICE_TOLERANCE_M = 0.0002
 
-#: most task frames the choice among motion placements is judged on (:func:`choose_placement`):
-#: evenly strided over the trial
-CHOICE_MAX_FRAMES = 300
+#: most task frames the choice among motion placements is judged on (:func:`choose_placement`,
+#: :func:`placement_frames`): interleaved evenly over the trial's well-tracked frames
+CHOICE_MAX_FRAMES = 120
+
+#: a frame is well tracked (:func:`placement_frames`) when it misses at most this many more
+#: markers than the best-tracked frame
+CHOICE_MISSING_MARKERS = 2
+
+
+def placement_frames(markers: Any, max_frames: int = CHOICE_MAX_FRAMES) -> np.ndarray:
+    """Indices of at most ``max_frames`` frames of ``markers`` ((N, M, 3), NaN or exact zeros
+    for gaps), interleaved evenly over the trial's well-tracked frames — those missing at most
+    :data:`CHOICE_MISSING_MARKERS` more markers than the best-tracked frame, widened to the
+    ``max_frames`` best-tracked when fewer — so that the frames span every phase of the gait
+    cycles the trial holds and no marker's drop-out weighs on the choice. Deterministic:
+    every candidate of :func:`choose_placement` is judged on the same frames."""
+    x = np.asarray(markers)
+    n = x.shape[0]
+    if n == 0:
+        return np.zeros(0, dtype=int)
+    seen = (np.isfinite(x).all(axis=-1) & (x != 0.0).any(axis=-1)).sum(axis=1)
+    m = min(max_frames, n)
+    k = min(int(seen.max()) - CHOICE_MISSING_MARKERS, int(np.sort(seen)[-m]))
+    well = np.flatnonzero(seen >= k)
+    return well[np.round(np.linspace(0, well.size - 1, m)).astype(int)]
 
 
 def placement_cost(
@@ -725,7 +777,7 @@ def placement_cost(
     not lower the cost by itself."""
     from types import SimpleNamespace
 
-    from msk.model import Marker, marker_positions
+    from msk.model import Marker, frame_placements
     from msk.pipeline.kinematics import solve_trial
 
     final, _ = knee_flexion_to_physiological(model)
@@ -742,7 +794,7 @@ def placement_cost(
     ok = np.isfinite(kin.q_raw).all(axis=1)
     if not use or not ok.any():
         return float("inf")
-    pos = marker_positions(scored, kin.q_raw[ok])[:, [names.index(m) for m in use]]
+    _, pos = frame_placements(scored, kin.q_raw[ok], [scored.marker_frame[m] for m in use])
     meas = x[ok][:, [list(labels).index(m) for m in use]]
     d2 = ((pos - meas) ** 2).sum(axis=2)
     w = np.array([float(weights.get(m, 1.0)) for m in use])[None, :] * np.isfinite(d2)
@@ -783,11 +835,10 @@ def choose_placement(
     Returns the chosen ``_scale_and_place`` result and the record of the choice
     (``summary.json`` ``model.placement_choice``)."""
     from msk.markersets import zeros_as_gaps
-    from msk.scaling import refine_placement_from_motion
+    from msk.scaling import place_markers_from_motion, refine_placement_from_motion
 
     trial = read.trial
-    n = np.shape(trial.markers)[0]
-    idx = np.arange(0, n, max(1, int(np.ceil(n / CHOICE_MAX_FRAMES))))
+    idx = placement_frames(trial.markers)
     rot = np.asarray(built["rotation"], dtype=float)
     x = zeros_as_gaps(np.asarray(trial.markers, dtype=float)[idx] @ rot.T)
     t = np.asarray(trial.time, dtype=float)[idx]
@@ -795,16 +846,39 @@ def choose_placement(
     labels = tuple(inv.get(lab, lab) for lab in trial.marker_labels)
     weights = dict(inputs.cfg.marker_weights)
 
-    def starts(f: Mapping[str, float] | None) -> list[tuple[dict[str, Any], dict[str, Any]]]:
-        out = []
-        for reg in (None, True):
-            spec = {"leg_split": f is not None, "start": "as before" if reg is None else "pulled"}
-            got = built if f is None and reg is None else _scale_and_place(
-                inputs, read, f, {"regularize": reg})  # fmt: skip
-            out.append((spec, dict(got)))
-        return out
+    def starts() -> list[tuple[dict[str, Any], dict[str, Any]]]:
+        # the pulled start places on the model the start as before was scaled to (scaling does
+        # not depend on the placement): the scaling is not run twice
+        base, xm, mlabels, time, kw = built["placement_call"]
+        if built["info"]["marker_placement"]["regularized"] is True:  # the route before pulled
+            pulled = built["model"], built["info"]["marker_placement"]
+        else:
+            pulled = place_markers_from_motion(
+                base, xm, mlabels, time, **kw, regularize=True, warm={}
+            )
+        info = {**built["info"], "marker_placement": pulled[1]}
+        return [
+            ({"leg_split": False, "start": "as before"}, dict(built)),
+            ({"leg_split": False, "start": "pulled"},
+             {**built, "model": pulled[0], "info": info}),
+        ]  # fmt: skip
 
-    first = starts(None)
+    def split_starts(f: Mapping[str, float]) -> list[tuple[dict[str, Any], dict[str, Any]]]:
+        # each start's descended placement continued on the split model (scaled once): the
+        # femur and tibia change by a few per cent, the markers' offsets by millimetres
+        prev = [(r["model"], r["info"]["marker_placement"]) for r in results[:2]]
+        split = _scale_and_place(inputs, read, f, continue_from=prev[0])
+        if prev[1][1] is prev[0][1]:  # the two starts were one (a pulled route before)
+            model, placed = split["model"], split["info"]["marker_placement"]
+        else:
+            model, placed = continued_placement(split["placement_call"], *prev[1])
+        return [
+            ({"leg_split": True, "start": "as before"}, split),
+            ({"leg_split": True, "start": "pulled"}, {**split, "model": model,
+             "info": {**split["info"], "marker_placement": placed}}),
+        ]  # fmt: skip
+
+    first = starts()
     # one marker set for all: every marker the two starts place, the model's own included (a
     # candidate that leaves one out as too loose is measured on it at its pose)
     union = set().union(*(set(c["model"].marker_names) for _, c in first))
@@ -819,17 +893,24 @@ def choose_placement(
     results: list[dict[str, Any]] = []
 
     def descend(cands: list[tuple[dict[str, Any], dict[str, Any]]]) -> None:
+        done: list[tuple[Any, dict[str, Any]]] = []  # (start placement, descended result)
         for spec, c in cands:
-            base, xm, mlabels, time, kw = c["placement_call"]
-            got_model, got = refine_placement_from_motion(
-                base, xm, mlabels, time, (c["model"], c["info"]["marker_placement"]), cost,
-                passes=DESCENT_PASSES, max_rounds=DESCENT_MAX_ROUNDS,
-                tolerance_m=DESCENT_TOLERANCE_M, **kw,
-            )  # fmt: skip
+            mp = c["info"]["marker_placement"]
+            same = [r for m, r in done if m is mp]  # the same start (a pulled route before)
+            if same:
+                got_model, got = same[0]["model"], same[0]["info"]["marker_placement"]
+            else:
+                base, xm, mlabels, time, kw = c["placement_call"]
+                got_model, got = refine_placement_from_motion(
+                    base, xm, mlabels, time, (c["model"], mp), cost,
+                    max_rounds=DESCENT_MAX_ROUNDS, rel_tolerance=DESCENT_REL_TOLERANCE, **kw,
+                )  # fmt: skip
             path = got["descent_cost_m"]
             results.append({**c, "model": got_model,
                             "info": {**c["info"], "marker_placement": got}})  # fmt: skip
-            records.append({**spec, "cost_m": path[-1], "rounds": len(path) - 1})
+            done.append((mp, results[-1]))
+            records.append({**spec, "cost_m": path[-1], "rounds": len(path) - 1,
+                            "stop": got["descent_stop"]})  # fmt: skip
 
     def pick() -> int:
         costs = [r["cost_m"] for r in records]
@@ -840,7 +921,7 @@ def choose_placement(
     descend(first)
     functional = split_of(results[pick()]) if split_of is not None else None
     if functional:
-        descend(starts(functional))
+        descend(split_starts(functional))
     best = pick()
     record = {
         "objective": "task IK (weights, held feet, no filter): weighted marker RMS over every "
