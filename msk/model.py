@@ -440,9 +440,7 @@ def forward_kinematics(model: Model, data: pin.Data, theta: ArrayLike) -> Array:
     return q
 
 
-def frame_placements(
-    model: Model, theta: ArrayLike, frames: Sequence[int]
-) -> tuple[Array, Array]:
+def frame_placements(model: Model, theta: ArrayLike, frames: Sequence[int]) -> tuple[Array, Array]:
     """World rotations (N, K, 3, 3) and translations (N, K, 3) of the Pinocchio frames
     ``frames`` (ids: ``model.body_frame``, ``model.marker_frame``) for θ of shape (N, n_coords):
     the embedding g(θ) of every frame in one vectorised call, Pinocchio's joint placements

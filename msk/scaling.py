@@ -1691,7 +1691,7 @@ def refine_placement_from_motion(
         )  # fmt: skip
 
     def extrapolated(
-        states: list[tuple[Model, dict[str, Any]]]
+        states: list[tuple[Model, dict[str, Any]]],
     ) -> tuple[Model, dict[str, Any]] | None:
         o0, o1, o2 = (_placement_offsets(m, i, own) for m, i in states)
         common = [k for k in o2 if k in o0 and k in o1 and o0[k][0] == o1[k][0] == o2[k][0]]
