@@ -388,12 +388,16 @@ def _scale_and_place(
 def continued_placement(
     call: tuple[Any, ...], prev_model: Any, prev: Mapping[str, Any]
 ) -> tuple[Any, dict[str, Any]]:
-    """One unpulled pass of :func:`msk.scaling.place_markers_from_motion` (``call``: the model
-    before placement, the markers, labels, time and keywords ``_scale_and_place`` placed
-    with) continuing an earlier motion placement (``prev_model`` and its
-    ``info["marker_placement"]``, possibly on a model scaled otherwise): its placed markers'
-    state and its moved model markers' offsets (on the same body) are the pass's start;
-    ``"regularized"`` is the earlier one's."""
+    """One pass of :func:`msk.scaling.place_markers_from_motion` pulled towards neutral
+    (``call``: the model before placement, the markers, labels, time and keywords
+    ``_scale_and_place`` placed with) continuing an earlier motion placement (``prev_model``
+    and its ``info["marker_placement"]``, possibly on a model scaled otherwise): its placed
+    markers' state and its moved model markers' offsets (on the same body) are the pass's
+    start; ``"regularized"`` is the earlier one's. Pulled for the reason the pulled start is
+    (the weak pull resolves the flat directions of the anatomical markers' IK): unpulled, the
+    first pass on UWA fast walking's split model (femur × 1.02–1.04) with the leg factors
+    × (1 − 1e-4) lost the thigh clusters (task IK 74.6 mm against 8.96 mm pulled; the
+    descent that follows is unpulled)."""
     from msk.scaling import place_markers_from_motion
 
     base, xm, mlabels, time, kw = call
@@ -401,7 +405,7 @@ def continued_placement(
     own = [was[mk.name] if mk.name in was and was[mk.name].body == mk.body else mk
            for mk in base.markers]  # fmt: skip
     model, placed = place_markers_from_motion(
-        base.with_markers(own), xm, mlabels, time, **kw, regularize=False, iterations=1,
+        base.with_markers(own), xm, mlabels, time, **kw, regularize=True, iterations=1,
         start=prev["state"],
     )  # fmt: skip
     return model, {**placed, "regularized": prev["regularized"]}
