@@ -1088,6 +1088,7 @@ def scale_from_motion(
     max_frames: int = 120,
     min_frames: int = 10,
     functional: Mapping[str, float] | None = None,
+    workspace: dict[str, Any] | None = None,
 ) -> tuple[Model, ScalingReport]:
     """Scale ``model`` from a motion trial (no static), completing with the stature.
 
@@ -1107,6 +1108,11 @@ def scale_from_motion(
 
     A measurement whose markers are too seldom tracked is skipped (named in ``messages``) and
     its bodies fall to the height.
+
+    ``workspace``: a dict (empty to begin with) keeping step 3's poses; a later call with the
+    same ``model`` and markers — another ``functional`` split, which step 3 does not depend on
+    — reuses them instead of solving that IK again (the model stage scales a trial once per
+    candidate split, :func:`msk.pipeline.model.choose_placement`).
 
     Returns:
         (the scaled model, :class:`ScalingReport`).
@@ -1147,15 +1153,21 @@ def scale_from_motion(
         flexed = unobserved_knees_flexed(first, x[idx], labels, min_frames)
         if flexed:
             first = first.with_coordinate_ranges(flexed)
+        key = (x.shape, labels, model.name, model.n_coords)
         try:
-            kin = solve_kinematics(
-                first, x[idx], labels, t[idx], cutoff_hz=None, min_markers=3,
-                coordinate_tasks={
-                    k: (0.0, SCALING_NEUTRAL_WEIGHT) for k in _neutral_tasks(first)
-                } if flexed else None,
-            )  # fmt: skip
-            q = np.full((x.shape[0], model.n_coords), np.nan)
-            q[idx] = kin.q_raw
+            if workspace is not None and workspace.get("key") == key:
+                q = workspace["q"]
+            else:
+                kin = solve_kinematics(
+                    first, x[idx], labels, t[idx], cutoff_hz=None, min_markers=3,
+                    coordinate_tasks={
+                        k: (0.0, SCALING_NEUTRAL_WEIGHT) for k in _neutral_tasks(first)
+                    } if flexed else None,
+                )  # fmt: skip
+                q = np.full((x.shape[0], model.n_coords), np.nan)
+                q[idx] = kin.q_raw
+                if workspace is not None:
+                    workspace["key"], workspace["q"] = key, q
             measured, ratios, details = measure_scale_factors_from_motion(
                 model, x, labels, ok_meas, q=q, min_frames=min_frames
             )

@@ -192,6 +192,7 @@ def _scale_and_place(
     functional: Mapping[str, float] | None = None,
     placement: Mapping[str, Any] | None = None,
     continue_from: tuple[Any, Mapping[str, Any]] | None = None,
+    workspace: dict[str, Any] | None = None,
 ) -> dict[str, Any]:
     """Scale the model and place the lab's markers (static trial, else the task). ``placement``:
     extra keywords of :func:`msk.scaling.place_markers_from_motion` (``regularize``,
@@ -199,7 +200,9 @@ def _scale_and_place(
     ``continue_from`` (no static trial; an earlier motion placement: its model and
     ``info["marker_placement"]``): the placement is one unpulled pass continuing that one — its
     placed markers' state and its moved model markers' offsets — on the model scaled here
-    (the split candidates of :func:`choose_placement`)."""
+    (the split candidates of :func:`choose_placement`). ``workspace``: that of
+    :func:`msk.scaling.scale_from_motion` (a new one when None; returned as ``"workspace"``),
+    so that scaling the same trial again with a split reuses the pose-matched IK."""
     from msk.io.c3d import is_measured_marker
     from msk.io.frames import pelvis_heading_rotation
     from msk.markersets import (
@@ -219,6 +222,7 @@ def _scale_and_place(
 
     cfg, trial, mc = inputs.cfg, read.trial, inputs.model_cfg
     assert mc is not None and inputs.model_source is not None  # a gait stage
+    workspace = {} if workspace is None else workspace
     model = load_model_file(inputs.model_source, mc.markers)
     bodies = [b.name for b in model.bodies]
     info: dict[str, Any] = {"source": str(inputs.model_source), "generic_mass_kg": model.total_mass}
@@ -353,7 +357,7 @@ def _scale_and_place(
         if mc.scale:
             model, report = scale_from_motion(
                 model, xm, mlabels, trial.time, height_m=cfg.subject.height_m,
-                body_mass=cfg.subject.mass_kg, functional=functional,
+                body_mass=cfg.subject.mass_kg, functional=functional, workspace=workspace,
             )  # fmt: skip
         model = _aligned(inputs, model, xm, mlabels)
         # the lab's foot markers: where they sit on the foot is the lab's choice and nothing
@@ -381,7 +385,7 @@ def _scale_and_place(
     info["mass_kg"] = model.total_mass
     return {
         "model": model, "info": info, "rotation": rot, "rename": dict(match.rename),
-        "placement_call": placement_call,
+        "placement_call": placement_call, "workspace": workspace,
     }  # fmt: skip
 
 
@@ -883,7 +887,9 @@ def choose_placement(
         # each start's descended placement continued on the split model (scaled once): the
         # femur and tibia change by a few per cent, the markers' offsets by millimetres
         prev = [(r["model"], r["info"]["marker_placement"]) for r in results[:2]]
-        split = _scale_and_place(inputs, read, f, continue_from=prev[0])
+        split = _scale_and_place(
+            inputs, read, f, continue_from=prev[0], workspace=built.get("workspace")
+        )
         if prev[1][1] is prev[0][1]:  # the two starts were one (a pulled route before)
             model, placed = split["model"], split["info"]["marker_placement"]
         else:
