@@ -64,6 +64,7 @@ from msk.muscles.path import ConditionalPathPoint, MovingPathPoint, Muscle, Path
 Array = NDArray[np.float64]
 
 __all__ = [
+    "DESCENT_MAX_STEP",
     "LOOSE_KEPT_SPREAD_FACTOR",
     "MODEL_HEIGHT_M",
     "SCALING_METHODS",
