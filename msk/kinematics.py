@@ -508,7 +508,11 @@ def solve_kinematics(
         coordinate_tasks: coordinate name → (value, weight): adds w (θ_i − value)² to E
             (OpenSim's ``IKCoordinateTask``).
         cutoff_hz: low-pass cutoff for θ before differentiation (None: no filter).
-        initial_q: start of the first frame (default: the model defaults, then a root-only fit).
+        initial_q: start of the first frame (default: the model defaults, then a root-only fit);
+            or (N, n): each frame's own start (a frame whose row is not finite starts from the
+            prediction of the frames before it) — a warm start from an earlier solution of
+            the same frames, e.g. the previous pass of a placement
+            (:func:`msk.scaling.place_markers_from_motion` ``warm``).
         min_markers: fewest markers for a frame to be solved.
         max_iterations, tolerance, rel_tolerance: LM stopping rules: the largest coordinate
             step (rad or m) below ``tolerance``, or a relative cost decrease below
@@ -563,6 +567,14 @@ def solve_kinematics(
     lo, hi = model.coordinate_bounds()
     locked = np.array([c.locked for c in model.coordinates])
     free = ~locked
+    per_frame = None
+    if initial_q is not None and np.ndim(initial_q) == 2:
+        per_frame = np.asarray(initial_q, dtype=float)
+        if per_frame.shape != (t.size, n_c):
+            raise ShapeMismatchError(
+                f"initial_q has shape {per_frame.shape}, need ({t.size}, {n_c}) per frame"
+            )
+        initial_q = None
     theta = model.default_coordinates() if initial_q is None else np.asarray(initial_q, float)
     if theta.shape != (n_c,):
         raise ShapeMismatchError(f"initial_q has shape {theta.shape}, the model has ({n_c},)")
@@ -600,13 +612,18 @@ def solve_kinematics(
                     f"need {max(min_markers, int(np.ceil((free.sum() - n_tasks) / 3)))}"
                 )
             continue
-        if first and initial_q is None and root_free.any():
+        warm = per_frame is not None and bool(np.isfinite(per_frame[n]).all())
+        if first and initial_q is None and root_free.any() and not warm:
             theta, _, _, _ = _levenberg_marquardt(
                 prob, theta, xn, sw, present, root_free, lo, hi, max_iterations, tolerance
             )
         first = False
-        # polynomial prediction from the previous frames (constant velocity / acceleration)
-        if len(hist) >= 3:
+        # the frame's own start, else a polynomial prediction from the previous frames
+        # (constant velocity / acceleration)
+        if warm:
+            assert per_frame is not None
+            start = per_frame[n].copy()
+        elif len(hist) >= 3:
             start = 3.0 * hist[-1] - 3.0 * hist[-2] + hist[-3]
         elif len(hist) == 2:
             start = 2.0 * hist[-1] - hist[-2]

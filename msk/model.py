@@ -440,6 +440,30 @@ def forward_kinematics(model: Model, data: pin.Data, theta: ArrayLike) -> Array:
     return q
 
 
+def frame_placements(model: Model, theta: ArrayLike, frames: Sequence[int]) -> tuple[Array, Array]:
+    """World rotations (N, K, 3, 3) and translations (N, K, 3) of the Pinocchio frames
+    ``frames`` (ids: ``model.body_frame``, ``model.marker_frame``) for θ of shape (N, n_coords):
+    the embedding g(θ) of every frame in one vectorised call, Pinocchio's joint placements
+    per frame, then each frame's placement on its parent joint composed in one product
+    (oMf = oMi · iMf). The same placements as :func:`forward_kinematics`'s ``data.oMf``,
+    without its per-frame Python evaluation of the coupling."""
+    th = np.atleast_2d(np.asarray(theta, dtype=float))
+    pm = model.pin_model
+    data = model.create_data()
+    parents = [pm.frames[f].parentJoint for f in frames]
+    joints = sorted(set(parents))
+    which = [joints.index(j) for j in parents]
+    fh = np.array([pm.frames[f].placement.homogeneous for f in frames]).reshape(-1, 4, 4)
+    q = model.coupling.q(th)
+    omi = data.oMi
+    h = np.empty((th.shape[0], len(joints), 4, 4))
+    for n in range(th.shape[0]):
+        pin.forwardKinematics(pm, data, q[n])
+        h[n] = [omi[j].homogeneous for j in joints]
+    out = h[:, which] @ fh  # (N, K, 4, 4)
+    return out[..., :3, :3], out[..., :3, 3]
+
+
 def marker_positions(model: Model, theta: ArrayLike) -> Array:
     """World positions of every model marker, (N, n_markers, 3) for θ of shape (N, n_coords)."""
     th = np.atleast_2d(np.asarray(theta, dtype=float))

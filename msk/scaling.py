@@ -49,12 +49,22 @@ from msk.exceptions import FileFormatError, MissingDataError, ModelError, MskErr
 from msk.functional_joints import segment_poses
 from msk.joints import Constant, CoordinateFunction, Multiplier
 from msk.markersets import parse_label, shoulder_girdle_markers
-from msk.model import GROUND, Axis, Body, Joint, Marker, Model, forward_kinematics
+from msk.model import (
+    GROUND,
+    Axis,
+    Body,
+    Joint,
+    Marker,
+    Model,
+    forward_kinematics,
+    frame_placements,
+)
 from msk.muscles.path import ConditionalPathPoint, MovingPathPoint, Muscle, PathPoint, WrapObject
 
 Array = NDArray[np.float64]
 
 __all__ = [
+    "DESCENT_MAX_STEP",
     "LOOSE_KEPT_SPREAD_FACTOR",
     "MODEL_HEIGHT_M",
     "SCALING_METHODS",
@@ -483,6 +493,20 @@ def point_segment_distance(p: ArrayLike, a: ArrayLike, b: ArrayLike) -> float:
     d = b - a
     t = float(np.clip((p - a) @ d / max(float(d @ d), 1e-12), 0.0, 1.0))
     return float(np.linalg.norm(p - (a + t * d)))
+
+
+def _bone_distances(
+    points: Array, seg_a: Array, seg_d: Array, seg_body: NDArray[np.int64], n_bodies: int
+) -> Array:
+    """(B,) distance from ``points[k]`` (each body's own point, (B, 3)) to the nearest bone
+    segment of body k (segments a + t d, t ∈ [0, 1], of body ``seg_body``): the
+    :func:`point_segment_distance` of every segment at once."""
+    p = points[seg_body] - seg_a
+    t = np.clip((p * seg_d).sum(axis=1) / np.maximum((seg_d * seg_d).sum(axis=1), 1e-12), 0, 1)
+    d = np.linalg.norm(p - t[:, None] * seg_d, axis=1)
+    out = np.full(n_bodies, np.inf)
+    np.minimum.at(out, seg_body, d)
+    return out
 
 
 def _girdle_moved(model: Model, labels: Sequence[str], move: Sequence[str]) -> tuple[str, ...]:
@@ -1065,6 +1089,7 @@ def scale_from_motion(
     max_frames: int = 120,
     min_frames: int = 10,
     functional: Mapping[str, float] | None = None,
+    workspace: dict[str, Any] | None = None,
 ) -> tuple[Model, ScalingReport]:
     """Scale ``model`` from a motion trial (no static), completing with the stature.
 
@@ -1084,6 +1109,11 @@ def scale_from_motion(
 
     A measurement whose markers are too seldom tracked is skipped (named in ``messages``) and
     its bodies fall to the height.
+
+    ``workspace``: a dict (empty to begin with) keeping step 3's poses; a later call with the
+    same ``model`` and markers — another ``functional`` split, which step 3 does not depend on
+    — reuses them instead of solving that IK again (the model stage scales a trial once per
+    candidate split, :func:`msk.pipeline.model.choose_placement`).
 
     Returns:
         (the scaled model, :class:`ScalingReport`).
@@ -1124,15 +1154,21 @@ def scale_from_motion(
         flexed = unobserved_knees_flexed(first, x[idx], labels, min_frames)
         if flexed:
             first = first.with_coordinate_ranges(flexed)
+        key = (x.shape, labels, model.name, model.n_coords)
         try:
-            kin = solve_kinematics(
-                first, x[idx], labels, t[idx], cutoff_hz=None, min_markers=3,
-                coordinate_tasks={
-                    k: (0.0, SCALING_NEUTRAL_WEIGHT) for k in _neutral_tasks(first)
-                } if flexed else None,
-            )  # fmt: skip
-            q = np.full((x.shape[0], model.n_coords), np.nan)
-            q[idx] = kin.q_raw
+            if workspace is not None and workspace.get("key") == key:
+                q = workspace["q"]
+            else:
+                kin = solve_kinematics(
+                    first, x[idx], labels, t[idx], cutoff_hz=None, min_markers=3,
+                    coordinate_tasks={
+                        k: (0.0, SCALING_NEUTRAL_WEIGHT) for k in _neutral_tasks(first)
+                    } if flexed else None,
+                )  # fmt: skip
+                q = np.full((x.shape[0], model.n_coords), np.nan)
+                q[idx] = kin.q_raw
+                if workspace is not None:
+                    workspace["key"], workspace["q"] = key, q
             measured, ratios, details = measure_scale_factors_from_motion(
                 model, x, labels, ok_meas, q=q, min_frames=min_frames
             )
@@ -1327,6 +1363,7 @@ def place_markers_from_motion(
     median_neutral: Sequence[str] = (),
     hints: Mapping[str, str] | None = None,
     start: Mapping[str, Sequence[Any]] | None = None,
+    warm: dict[str, Any] | None = None,
 ) -> tuple[Model, dict[str, Any]]:
     """Add a motion trial's non-model markers to ``model`` when there is no static trial.
 
@@ -1385,6 +1422,13 @@ def place_markers_from_motion(
     limit), so the passes continue that placement (:func:`msk.pipeline.model.choose_placement`
     alternates placement and inverse kinematics so until the task's fit stops improving).
 
+    ``warm``: a workspace (an empty dict to begin with) in which every pass leaves its IK
+    solution (``"frames"``, ``"q"``) and from which the next pass — of this call or of a later
+    one on the same frames — starts each frame (:func:`msk.kinematics.solve_kinematics`'s
+    per-frame ``initial_q``): the passes of :func:`refine_placement_from_motion` move the
+    offsets by millimetres, and each frame's pose from the previous pass is nearer than the
+    prediction from the frames before it.
+
     Returns:
         The model with the markers added, and ``{"placed": marker → body, "spread_m": marker →
         σ (m), "too_loose": marker → [body, σ], "kept_loose": marker → [body, σ],
@@ -1402,10 +1446,16 @@ def place_markers_from_motion(
             min_frames=min_frames, min_markers=min_markers, iterations=iterations, move=move,
             median_neutral=median_neutral, hints=hints, start=start,
         )  # fmt: skip
-        plain = place_markers_from_motion(model, markers, labels, time, regularize=False, **args)
+        plain = place_markers_from_motion(
+            model, markers, labels, time, regularize=False, warm=None if warm is None else {},
+            **args,
+        )  # fmt: skip
         if plain[1]["ik_marker_rms_m"] <= PLACEMENT_RETRY_RMS_M:
             return plain
-        pulled = place_markers_from_motion(model, markers, labels, time, regularize=True, **args)
+        pulled = place_markers_from_motion(
+            model, markers, labels, time, regularize=True, warm=None if warm is None else {},
+            **args,
+        )  # fmt: skip
         return pulled if pulled[1]["ik_marker_rms_m"] < plain[1]["ik_marker_rms_m"] else plain
     from msk.io.c3d import is_measured_marker
     from msk.kinematics import solve_kinematics
@@ -1439,6 +1489,10 @@ def place_markers_from_motion(
     for nm, a, e in bone_segments(model, d0):
         o = d0.oMf[model.body_frame[nm]]
         local_segs[nm].append((np.asarray(o.actInv(a)), np.asarray(o.actInv(e))))
+    # the same, stacked: start, direction and body of every segment
+    seg_body = np.array([k for k, b in enumerate(local_segs) for _ in local_segs[b]], dtype=int)
+    seg_a = np.array([a for b in local_segs for a, _ in local_segs[b]]).reshape(-1, 3)
+    seg_d = np.array([e - a for b in local_segs for a, e in local_segs[b]]).reshape(-1, 3)
     # the knees no model marker observes take the flexion branch in the placement passes
     flexed = unobserved_knees_flexed(model, xs, labels, min_frames)
     solve_on = model.with_coordinate_ranges(flexed) if flexed else model
@@ -1471,9 +1525,15 @@ def place_markers_from_motion(
             **unobserved,
             **(_neutral_tasks(model) if regularize else {}),
         } or None
+        q0 = None
+        if warm is not None and np.array_equal(warm.get("frames", ()), idx):
+            q0 = warm["q"]
         kin = solve_kinematics(
-            ik_model, xs, labels, ts, cutoff_hz=None, min_markers=3, coordinate_tasks=tasks
-        )
+            ik_model, xs, labels, ts, cutoff_hz=None, min_markers=3, coordinate_tasks=tasks,
+            initial_q=q0,
+        )  # fmt: skip
+        if warm is not None:
+            warm["frames"], warm["q"] = idx, kin.q_raw
         ok = np.isfinite(kin.q_raw).all(axis=1)
         if not ok.any():
             raise MissingDataError("motion trial: no frame could be solved for marker placement")
@@ -1487,16 +1547,9 @@ def place_markers_from_motion(
                 neutral_shift[c] = float(np.median(q[:, j]))
                 q[:, j] -= neutral_shift[c]
         xo = xs[ok]
-        data = model.create_data()
         # body poses per solved frame: rotations (F, B, 3, 3) and translations (F, B, 3)
         names = [b.name for b in model.bodies]
-        rot = np.empty((len(q), len(names), 3, 3))
-        tra = np.empty((len(q), len(names), 3))
-        for f, qf in enumerate(q):
-            forward_kinematics(model, data, qf)
-            for k, b in enumerate(names):
-                o = data.oMf[model.body_frame[b]]
-                rot[f, k], tra[f, k] = o.rotation, o.translation
+        rot, tra = frame_placements(model, q, [model.body_frame[b] for b in names])
         placed, spread, local, too_far, unseen = {}, {}, {}, {}, []
         for i in cand:
             lab = labels[i]
@@ -1507,12 +1560,7 @@ def place_markers_from_motion(
             p = np.einsum("fbji,fbj->fbi", rot[seen], xo[seen, i][:, None, :] - tra[seen])
             med = np.median(p, axis=0)  # (B, 3)
             sig = np.sqrt(((p - med) ** 2).sum(axis=2).mean(axis=0))  # (B,)
-            dist = np.array(
-                [
-                    min(point_segment_distance(med[k], a, e) for a, e in local_segs[b])
-                    for k, b in enumerate(names)
-                ]
-            )
+            dist = _bone_distances(med, seg_a, seg_d, seg_body, len(names))
             near = dist <= max_distance_m
             if not near.any():
                 k = int(np.argmin(dist))
@@ -1588,6 +1636,23 @@ JOINT_CENTRE_PAIRS: Mapping[str, tuple[str, str]] = {
 }
 
 
+#: largest step length |α| of :func:`refine_placement_from_motion`'s squared extrapolation
+#: (Varadhan & Roland 2008's SQUAREM; |α| = 1 is the plain iteration's two passes)
+DESCENT_MAX_STEP = 8.0
+
+
+def _placement_offsets(
+    model: Model, info: Mapping[str, Any], own: set[str]
+) -> dict[str, tuple[str, Array]]:
+    """marker → (body, offset) of a motion placement's state: the model's own markers (those a
+    pass moves) and every marker it placed (``info["state"]``, loose ones included)."""
+    out = {mk.name: (mk.body, np.asarray(mk.offset, dtype=float)) for mk in model.markers
+           if mk.name in own}  # fmt: skip
+    for k, v in dict(info.get("state", {})).items():
+        out[k] = (str(v[0]), np.asarray(v[2], dtype=float))
+    return out
+
+
 def refine_placement_from_motion(
     model: Model,
     markers: ArrayLike,
@@ -1596,46 +1661,94 @@ def refine_placement_from_motion(
     placed: tuple[Model, Mapping[str, Any]],
     cost: Callable[[Model, Mapping[str, Any]], float],
     *,
-    passes: int = 2,
-    max_rounds: int = 12,
-    tolerance_m: float = 1e-5,
+    max_rounds: int = 30,
+    rel_tolerance: float = 1e-3,
+    accelerate: bool = True,
     **kwargs: Any,
 ) -> tuple[Model, dict[str, Any]]:
     """Continue a motion placement (``placed``: the result of :func:`place_markers_from_motion`
-    on ``model``, the model without the lab's markers) by rounds of ``passes`` unpulled passes
-    (``start`` = the last round's ``info["state"]``, ``regularize=False``; ``kwargs``: the
-    other keywords it was placed with), for as long as ``cost(model, info)`` — the fit the
+    on ``model``, the model without the lab's markers) by rounds of unpulled passes
+    (``start`` = the last state, ``regularize=False``, one pass per call; ``kwargs``: the
+    other keywords it was placed with) for as long as ``cost(model, info)`` — the fit the
     placement is for, e.g. the task's own inverse kinematics cost
-    (:func:`msk.pipeline.model.placement_cost`) — decreases by more than ``tolerance_m``, at most
-    ``max_rounds`` rounds.
+    (:func:`msk.pipeline.model.placement_cost`) — falls by more than ``rel_tolerance`` of
+    itself per round (at most ``max_rounds`` rounds, a safeguard: ``info["descent_stop"]``
+    says which rule stopped it).
 
     Each pass is one block of a block-coordinate descent of the markers' distances over the
     poses (inverse kinematics) and the markers' body-frame offsets (their median position in
     the body), the two-level fit of a subject's model to its motion (Reinbolt et al. 2005,
-    J Biomech 38:621–626, the outer level being here the offsets only); a round is kept only
-    when it lowers the fixed ``cost``, so the result is never worse by it than ``placed``.
-    Started from the placement pulled towards neutral (unique: the pull resolves the flat
-    directions of the anatomical markers' IK), the descent ends where the markers alone put
-    the placement: DM og1's task IK 9.3 → 7.7 mm, the same to 0.15 mm under the perturbations
-    of ``scripts/placement_jitter.py`` (issue 15, tenth pass).
+    J Biomech 38:621–626, the outer level being here the offsets only). That iteration
+    x ↦ F(x) of the offsets x converges linearly and slowly along the valley the anatomical
+    markers leave (DM og1: the cost still falling 0.06 mm per two passes after 12 rounds), so
+    each round is a squared extrapolation (``accelerate``; SQUAREM, Varadhan & Roland 2008,
+    Scand J Stat 35:335–353, scheme S3): x₁ = F(x₀), x₂ = F(x₁), r = x₁ − x₀,
+    v = x₂ − 2x₁ + x₀, α = −‖r‖/‖v‖ clamped to [−:data:`DESCENT_MAX_STEP`, −1],
+    x' = x₀ − 2αr + α²v (their Eq. 9; α = −1 gives x₂), then one more pass from x' (their
+    stabilisation step). A marker whose body differs between x₀, x₁, x₂ takes x₂'s offset. The
+    round's result is kept only when it lowers the fixed ``cost`` (else x₂, the plain
+    iteration's, when that does; else the descent stops), so the result is never worse by it
+    than ``placed``.
 
     Returns the model and the last kept round's ``info`` with ``"descent_cost_m"`` (the cost
-    of ``placed``, then of each kept round) and the ``"regularized"`` of ``placed``."""
-    cur_model, cur = placed[0], dict(placed[1])
-    path = [float(cost(cur_model, cur))]
+    of ``placed``, then of each kept round), ``"descent_stop"`` and the ``"regularized"`` of
+    ``placed``."""
     own = set(model.marker_names)
-    for _ in range(max(0, max_rounds)):
-        nxt_model, nxt = place_markers_from_motion(
-            model.with_markers([mk for mk in cur_model.markers if mk.name in own]),
-            markers, labels, time,
-            **{**kwargs, "regularize": False, "iterations": passes, "start": cur["state"]},
+    kw = {**kwargs, "regularize": False, "iterations": 1}
+    warm: dict[str, Any] = {}  # each pass's IK starts from the previous pass's poses
+
+    def step(m: Model, info: Mapping[str, Any]) -> tuple[Model, dict[str, Any]]:
+        return place_markers_from_motion(
+            model.with_markers([mk for mk in m.markers if mk.name in own]),
+            markers, labels, time, **kw, start=info["state"], warm=warm,
         )  # fmt: skip
-        v = float(cost(nxt_model, nxt))
-        if not v < path[-1] - tolerance_m:
+
+    def extrapolated(
+        states: list[tuple[Model, dict[str, Any]]],
+    ) -> tuple[Model, dict[str, Any]] | None:
+        o0, o1, o2 = (_placement_offsets(m, i, own) for m, i in states)
+        common = [k for k in o2 if k in o0 and k in o1 and o0[k][0] == o1[k][0] == o2[k][0]]
+        if not common:
+            return None
+        a0, a1, a2 = (np.array([o[k][1] for k in common]) for o in (o0, o1, o2))
+        r, v = a1 - a0, a2 - 2.0 * a1 + a0
+        nr, nv = float(np.linalg.norm(r)), float(np.linalg.norm(v))
+        if nv == 0.0 or nr == 0.0:
+            return None
+        alpha = float(np.clip(-nr / nv, -DESCENT_MAX_STEP, -1.0))
+        new = dict(zip(common, a0 - 2.0 * alpha * r + alpha**2 * v, strict=True))
+        m2, i2 = states[2]
+        own_markers = [Marker(mk.name, mk.body, new.get(mk.name, mk.offset)) for mk in m2.markers
+                       if mk.name in own]  # fmt: skip
+        state = {k: [b, s, (new[k].tolist() if k in new else off)]
+                 for k, (b, s, off) in dict(i2["state"]).items()}  # fmt: skip
+        return model.with_markers(own_markers), {**i2, "state": state}
+
+    cur = (placed[0], dict(placed[1]))
+    path = [float(cost(*cur))]
+    stop = "max_rounds"
+    for _ in range(max(0, max_rounds)):
+        x1 = step(*cur)
+        x2 = step(*x1)
+        best, c_best = x2, float("nan")
+        xe = extrapolated([cur, x1, x2]) if accelerate else None
+        if xe is not None:
+            x3 = step(*xe)
+            c3 = float(cost(*x3))
+            if c3 < path[-1]:
+                best, c_best = x3, c3
+        if not c_best < path[-1]:
+            best, c_best = x2, float(cost(*x2))
+        if not c_best < path[-1]:
+            stop = "no decrease"
             break
-        path.append(v)
-        cur_model, cur = nxt_model, {**nxt, "regularized": cur["regularized"]}
-    return cur_model, {**cur, "descent_cost_m": path}
+        decrease = path[-1] - c_best
+        path.append(c_best)
+        cur = (best[0], {**best[1], "regularized": placed[1]["regularized"]})
+        if decrease <= rel_tolerance * c_best:
+            stop = "relative decrease"
+            break
+    return cur[0], {**cur[1], "descent_cost_m": path, "descent_stop": stop}
 
 
 def _mid_psis(means: Mapping[str, Array]) -> Array | None:

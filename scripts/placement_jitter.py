@@ -93,7 +93,9 @@ def run_once(name: str, kind: str, k: int, seed: int) -> dict[str, Any]:
             calls.append(out[1])
         return out
 
-    def scale_and_place(inputs, read, functional=None, placement=None):  # type: ignore[no-untyped-def]
+    def scale_and_place(  # type: ignore[no-untyped-def]
+        inputs, read, functional=None, placement=None, continue_from=None, workspace=None
+    ):
         tr = read.trial
         if kind == "noise":
             m = np.asarray(tr.markers, dtype=float)
@@ -102,7 +104,14 @@ def run_once(name: str, kind: str, k: int, seed: int) -> dict[str, Any]:
         elif kind == "shift":
             n = 1 + k // 3
             tr = dataclasses.replace(tr, markers=tr.markers[n:], time=tr.time[n:])
-        return orig_sp(inputs, dataclasses.replace(read, trial=tr), functional, placement)
+        return orig_sp(
+            inputs,
+            dataclasses.replace(read, trial=tr),
+            functional,
+            placement,
+            continue_from,
+            workspace,
+        )
 
     scaling.scale_from_motion = scale  # type: ignore[assignment]
     scaling.place_markers_from_motion = place  # type: ignore[assignment]

@@ -186,3 +186,29 @@ def test_invalid_models_raise_model_error_naming_the_culprit():
             Joint("j", "ground", "a", axes=(Axis("revolute", [0, 0, 1], None, Constant(0.1)),))
         ],
     )
+
+
+def test_frame_placements_equal_forward_kinematics_frame_by_frame():
+    """:func:`msk.model.frame_placements` (one vectorised coupling, one product for every
+    frame) gives the placements :func:`msk.model.forward_kinematics` leaves in ``data.oMf``,
+    for bodies and markers, over many poses."""
+    from msk.model import forward_kinematics, frame_placements
+
+    model = leg_model()
+    rng = np.random.default_rng(1)
+    lo, hi = model.coordinate_bounds()
+    th = rng.uniform(np.maximum(lo, -1.0), np.minimum(hi, 1.0), (7, model.n_coords))
+    frames = [model.body_frame[b.name] for b in model.bodies]
+    frames += [model.marker_frame[m.name] for m in model.markers]
+    rot, tra = frame_placements(model, th, frames)
+    assert rot.shape == (7, len(frames), 3, 3) and tra.shape == (7, len(frames), 3)
+    data = model.create_data()
+    for n in range(7):
+        forward_kinematics(model, data, th[n])
+        for k, f in enumerate(frames):
+            np.testing.assert_allclose(rot[n, k], data.oMf[f].rotation, atol=1e-14)
+            np.testing.assert_allclose(tra[n, k], data.oMf[f].translation, atol=1e-14)
+    np.testing.assert_allclose(
+        frame_placements(model, th, [model.marker_frame[m.name] for m in model.markers])[1],
+        marker_positions(model, th), atol=1e-14,
+    )  # fmt: skip

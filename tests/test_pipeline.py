@@ -503,3 +503,32 @@ def test_a_trial_no_plate_measures_runs_kinematics_and_says_why_no_dynamics(tmp_
     assert why["mass_identification"].startswith("fewer than 2 frames"), why
     assert not any("internal error" in r for r in why.values()), why
     assert not [r for r in res.summary["not_available"] if r["status"] == "failed"]
+
+
+def test_placement_frames_are_interleaved_over_the_well_tracked_frames():
+    """:func:`msk.pipeline.model.placement_frames` (issue 15, eleventh pass): at most
+    ``max_frames`` frames, evenly interleaved from the first to the last well-tracked frame,
+    none of a stretch where three markers drop out (NaN or exact zeros), the same on every
+    call; a trial shorter than ``max_frames`` gives all its well-tracked frames, and one where
+    most frames miss markers still gives ``max_frames`` (from the best-tracked)."""
+    from msk.pipeline.model import placement_frames
+
+    rng = np.random.default_rng(0)
+    x = rng.normal(size=(1000, 10, 3))
+    x[300:400, :3] = np.nan  # three markers lost
+    x[600:650, 4:7] = 0.0  # three more, written as zeros (TRC)
+    x[800:820, 9] = np.nan  # one: still well tracked
+    idx = placement_frames(x, 100)
+    assert idx.size == 100 and np.all(np.diff(idx) > 0)
+    assert idx[0] == 0 and idx[-1] == 999
+    assert not np.isin(idx, np.r_[300:400, 600:650]).any()
+    assert np.isin(idx, np.r_[800:820]).any()
+    well = np.setdiff1d(np.arange(1000), np.r_[300:400, 600:650])
+    assert np.ptp(np.diff(np.searchsorted(well, idx))) <= 1  # evenly over the 850 of them
+    np.testing.assert_array_equal(idx, placement_frames(x, 100))
+    assert placement_frames(x[:50], 100).tolist() == list(range(50))
+    y = x.copy()
+    y[100:, :3] = np.nan  # only the first 100 frames see every marker, most miss three
+    worse = placement_frames(y, 150)
+    assert worse.size == 150 and worse[-1] == 999
+    assert not np.isin(worse, np.r_[600:650]).any()  # these miss six

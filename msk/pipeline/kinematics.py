@@ -25,12 +25,14 @@ def solve_trial(
     weights: Mapping[str, float] | None,
     held: Mapping[str, tuple[float, float]] | None,
     cutoff_hz: float | None,
+    initial_q: Any = None,
 ) -> Any:
     """IK of a trial in the model frame; a frame that sees fewer than half of the model markers
     the trial tracks at best is not solved (a subject walking out of the capture volume leaves
     the acromia alone in view: IK there would give the legs any pose), nor a frame where a leg
     segment carrying markers in this trial has none in view (its pose would come from the
-    neighbours only, and joint torques there from a guessed pose)."""
+    neighbours only, and joint torques there from a guessed pose). ``initial_q``: as
+    :func:`msk.kinematics.solve_kinematics`'s (a warm start)."""
     from msk.kinematics import solve_kinematics
 
     names = set(model.marker_names)
@@ -57,6 +59,7 @@ def solve_trial(
         coordinate_tasks=dict(held or {}) or None,
         cutoff_hz=cutoff_hz,
         min_markers=max(3, int(np.ceil(MIN_MARKER_FRACTION * seen.sum(axis=1).max()))),
+        initial_q=initial_q,
     )
 
 
