@@ -1,7 +1,8 @@
 """The hidden task kinds (issue 15, ninth pass): a two-leg squat and a stair ascent of Grand
 Challenge subject JW made with a known truth in JW's lab format (:mod:`msk.synthetic_tasks`)
-and run through ``pipelines/gc4_JW.toml`` with only the task swapped (``scripts/hidden_tasks.py``
-prints the same figures for JW and PS). Slow: each builds JW's model and runs the session."""
+and run through ``pipelines/gc4_JW.toml`` with only the task swapped (``scripts/task_swap.py
+--synthetic`` prints the same figures for JW and PS). Slow: each builds JW's model and runs the
+session."""
 
 from __future__ import annotations
 
@@ -31,12 +32,10 @@ KNOWN = {"static_markers_contradicted_m"}
 
 
 def _script():
-    spec = importlib.util.spec_from_file_location(
-        "hidden_tasks", REPO / "scripts" / "hidden_tasks.py"
-    )
+    spec = importlib.util.spec_from_file_location("task_swap", REPO / "scripts" / "task_swap.py")
     assert spec is not None and spec.loader is not None
     mod = importlib.util.module_from_spec(spec)
-    sys.modules["hidden_tasks"] = mod
+    sys.modules["task_swap"] = mod
     spec.loader.exec_module(mod)
     return mod
 
@@ -49,9 +48,9 @@ def _run(kind: str, folder: Path):
     ht = _script()
     folder.mkdir(parents=True, exist_ok=True)
     task = lab_task(JW, kind, folder / f"{kind}.c3d", seed=1)
-    cfg = ht.swapped_config("gc4_JW", task.path, folder, kind)
+    cfg = ht.swapped_config("gc4_JW", kind, {"file": task.path}, folder)
     (res,) = run_task_trials(cfg, folder / "out")
-    return task, res, ht.compare(task, cfg)
+    return task, res, ht.compare_to_truth(task, cfg)
 
 
 @pytest.fixture(scope="module")
