@@ -27,7 +27,8 @@ that each foot's centre of pressure stays on its sole; for the squat between the
 centres, as :func:`msk.synthetic_trials.split_wrench`), both feet's centres of pressure
 displaced by one horizontal offset and the free moment shared, so that the feet's wrenches add
 up exactly to the total (the same construction as :func:`~msk.synthetic_trials.split_wrench`,
-with each foot on its own surface height). :func:`true_torques` are RNEA's joint torques with those foot wrenches.
+with each foot on its own surface height). :func:`true_torques` are RNEA's joint torques with
+those foot wrenches.
 :func:`write_lab_c3d` writes the trial in a lab's format — the template C3D's marker labels
 (the model's markers by forward kinematics + Gaussian noise; labels the model lacks fixed
 where the template has them still — lab axes — else gaps), its plates' channel labels and type,
