@@ -131,18 +131,38 @@ def plates_from_table(
 
 
 def _plates_from_sets(
-    time: Array, data: Array, columns: Sequence[str], sets: Sequence[Any]
+    path: Path, time: Array, data: Array, columns: Sequence[str], sets: Sequence[Any]
 ) -> tuple[PlateWrench, ...]:
-    """PlateWrenches of :class:`msk.io.grf.GrfForceSet` column sets (missing torque → 0)."""
+    """PlateWrenches of :class:`msk.io.grf.GrfForceSet` column sets (missing torque → 0): a
+    set whose point is fixed (a plate origin) brought to its COP, the file's length unit
+    decided (:mod:`msk.io.grf`) and converted to metres."""
+    from msk.io.grf import grf_length_unit, grf_vertical_axis, is_fixed_point, wrench_at_cop
+
     col = {c: i for i, c in enumerate(columns)}
-    out = []
+    raw = []
     for s in sets:
         f = data[:, [col[c] for c in s.force]]
-        c = data[:, [col[c] for c in s.point]].copy()
+        p = data[:, [col[c] for c in s.point]]
         tq = np.zeros_like(f)
         for k, name in enumerate(s.torque):
             if name is not None:
                 tq[:, k] = data[:, col[name]]
+        raw.append((f, p, tq))
+    vertical = grf_vertical_axis([f for f, _, _ in raw])
+    brought = []
+    for f, p, tq in raw:
+        if is_fixed_point(f, p, vertical):
+            p, tq = wrench_at_cop(f, p, tq, vertical)
+        brought.append((f, p, tq))
+    unit = grf_length_unit(
+        path, [c for _, c, _ in brought], [f for f, _, _ in brought],
+        [s.point[0] for s in sets], vertical,
+    )  # fmt: skip
+    out = []
+    for s, (f, c, tq) in zip(sets, brought):
+        if unit.metres != 1.0:
+            c, tq = c * unit.metres, tq * unit.metres
+        c = np.array(c, dtype=float)
         c[(np.linalg.norm(f, axis=1) == 0.0) | ~np.isfinite(c).all(axis=1)] = np.nan
         out.append(PlateWrench(s.name, time, f, c, tq, None))
     return tuple(out)
@@ -163,12 +183,17 @@ def plates_from_grf_file(
     automatic assignment then works from the COP (:func:`external_loads`).
 
     Measured: force (N) and COP (m) in the lab (= file) frame, torque (N·m) taken as the free
-    moment about the COP (the OpenSim convention for plate-derived files). The COP is NaN where
-    the force is exactly zero or the COP is not finite.
+    moment about the COP (the OpenSim convention for plate-derived files). The per-plate vector
+    columns of OpenSim's ``C3DFileAdapter`` (``f1_1 … p1_1 … m1_1 …``) are read too; a set
+    whose point is fixed (a plate origin, the moment about it) is brought to its COP and free
+    moment (:func:`msk.io.grf.wrench_at_cop`); points and moments in millimetres are converted,
+    the unit read from the header or decided from the data (:func:`msk.io.grf.grf_length_unit`).
+    The COP is NaN where the force is exactly zero or the COP is not finite.
 
     Raises:
         FileFormatError / MissingDataError: unreadable file, no force set, or a set without
             its three force or point columns (names the file and the columns).
+        UnitsError: the length unit is neither in the header nor decided by the data.
     """
     from msk.io import read_sto
     from msk.io.grf import external_force_sets, grf_force_sets, read_external_loads_xml
@@ -181,8 +206,9 @@ def plates_from_grf_file(
         spec = read_external_loads_xml(external_loads_xml)
         sets = external_force_sets(spec, tab.columns, source=str(path))
     return _plates_from_sets(
-        np.asarray(tab.time, dtype=float), np.asarray(tab.data, dtype=float), tab.columns, sets
-    )
+        path, np.asarray(tab.time, dtype=float), np.asarray(tab.data, dtype=float), tab.columns,
+        sets,
+    )  # fmt: skip
 
 
 def external_loads_assignment(

@@ -9,20 +9,26 @@ JW by ``msk run``'s model stage):
   goes down and back and tilts forward; the legs solved by inverse kinematics to the feet's
   standing placements);
 * :func:`stair_motion` — step-over-step ascent of a flight of 3–4 steps: each foot goes from its
-  foothold to the one two steps up (minimum-jerk swing, Flash & Hogan 1985), the pelvis follows
-  the feet (its height the lower supporting foot's + the standing hip height − 5 cm), the legs
-  solved to the feet's placements; the feet stay flat (a simplification: no heel rise).
+  foothold to the one two steps up (minimum-jerk swing, Flash & Hogan 1985; the trailing heel
+  rising before lift-off), the pelvis rising steadily from step to step, as high as the legs
+  reach, and carried forward and sideways so that the motion's zero-moment point — the centre
+  of pressure its ground reaction needs — stays on the sole of the supporting foot (mid-foot
+  to ball) and goes from the trailing to the leading foot over each double support (the
+  cart-table model, Kajita et al. 2003, corrected by the motion's own RNEA root wrench); the
+  legs solved to the feet's placements.
 
 Both return a :class:`TaskMotion` whose coordinates θ are a quintic spline through the IK
 solutions at the marker rate, so θ̇ and θ̈ are exact at any rate. :func:`task_reactions` gives the
 ground reactions the motion needs — the root (base-link) rows of Pinocchio's RNEA (the pelvis
 residual of a perfect model is the ground reaction) — distributed to the feet in contact: all to
-a single support, and in double support a share α that moves from the trailing to the leading
-foot (minimum jerk; for the squat the centre of pressure's projection between the feet, as
-:func:`msk.synthetic_trials.split_wrench`), both feet's centres of pressure displaced by one
-horizontal offset and the free moment shared, so that the feet's wrenches add up exactly to the
-total (the same construction as :func:`~msk.synthetic_trials.split_wrench`, with each foot on its
-own surface height). :func:`true_torques` are RNEA's joint torques with those foot wrenches.
+a single support, and in double support a share α: the total centre of pressure's projection
+between the feet (for the stair between the points where its design has each foot press, so
+that each foot's centre of pressure stays on its sole; for the squat between the feet's
+centres, as :func:`msk.synthetic_trials.split_wrench`), both feet's centres of pressure
+displaced by one horizontal offset and the free moment shared, so that the feet's wrenches add
+up exactly to the total (the same construction as :func:`~msk.synthetic_trials.split_wrench`,
+with each foot on its own surface height). :func:`true_torques` are RNEA's joint torques with
+those foot wrenches.
 :func:`write_lab_c3d` writes the trial in a lab's format — the template C3D's marker labels
 (the model's markers by forward kinematics + Gaussian noise; labels the model lacks fixed
 where the template has them still — lab axes — else gaps), its plates' channel labels and type,
@@ -74,6 +80,18 @@ _LEGS = {
 }  # fmt: skip
 #: the lowest foot marker's height above the sole when standing (marker radius + skin), m
 _SOLE_M = 0.02
+#: passes correcting a stair's pelvis path to its zero-moment point design (:func:`stair_motion`)
+_ZMP_PASSES = 3
+#: stair ascent posture and timing (:func:`stair_motion`): pelvis tilted forward and the trunk
+#: flexed at the lumbar joint (deg), the trailing heel's rise at lift-off (deg) and how long
+#: before the double support it begins (s), the pelvis below its straight-leg height (m), the
+#: feet's start behind the first riser (m)
+_TILT_DEG, _LEAN_DEG = 8.0, 15.0
+_HEEL_DEG, _HEEL_PRE_S = 45.0, 0.25
+_DROP_M, _X_START_M = 0.04, -0.12
+#: where a stance foot presses, as a fraction of its sole from the heel to the toe marker: the
+#: leading foot at the start of its stance, the trailing foot at its end
+_PHI_LEAD, _PHI_TRAIL = 0.4, 0.75
 
 
 def _mj(s: Array) -> Array:
@@ -109,6 +127,9 @@ class TaskMotion:
     kind: str
     foot_error_m: float
     spline: Any = field(repr=False, default=None)
+    #: (N, F, 3) where each foot presses when on a foothold (world; a stair's design points,
+    #: :func:`stair_motion`), ``None``: the foot's centre (:func:`task_reactions`)
+    pressure: Array | None = field(repr=False, default=None)
 
     def at(self, t: Array) -> tuple[Array, Array, Array]:
         """θ, θ̇, θ̈ at times ``t`` (the quintic spline through the IK solutions)."""
@@ -198,6 +219,36 @@ def _toe_point(model: Model, foot: str, stand: pin.SE3) -> Array:
     return np.asarray(stand.actInv(tip), dtype=float)
 
 
+def _heel_point(model: Model, foot: str, stand: pin.SE3) -> Array:
+    """The foot's most posterior marker (its subtree's) at the sole, in the foot frame of the
+    standing placement ``stand`` (as :func:`_toe_point`)."""
+    th, _, _ = _standing(model)
+    mk = marker_positions(model, th)[0]
+    sub = set(model.subtree(foot))
+    idx = [i for i, m in enumerate(model.markers) if m.body in sub]
+    heel = mk[idx[int(np.argmin(mk[idx, 0]))]].copy()
+    heel[1] = 0.0
+    return np.asarray(stand.actInv(heel), dtype=float)
+
+
+def com_from_zmp(zmp: Array, dt: float, height_m: float, g: float = 9.81) -> Array:
+    """The centre of mass path x whose zero-moment point is ``zmp`` (one horizontal axis,
+    sampled every ``dt`` s) for a centre of mass at ``height_m`` above the support: the
+    cart-table model x − (h/g) ẍ = p (Kajita et al. 2003, Eq. 2), solved as a boundary-value
+    problem by central differences with x = p at both ends (still at the start and the end)."""
+    from scipy.linalg import solve_banded
+
+    p = np.asarray(zmp, dtype=float)
+    n = p.size
+    c = height_m / (g * dt * dt)
+    ab = np.zeros((3, n))
+    ab[0, 2:] = -c
+    ab[1, :] = 1.0 + 2.0 * c
+    ab[2, :-2] = -c
+    ab[1, 0] = ab[1, -1] = 1.0
+    return np.asarray(solve_banded((1, 1), ab, p), dtype=float)
+
+
 def _com_x(model: Model, th: Array) -> Array:
     """(N,) the whole-body centre of mass's forward coordinate of each pose."""
     data = model.create_data()
@@ -246,9 +297,10 @@ def _motion(
     footholds: Sequence[Foothold],
     kind: str,
     err_m: float,
+    pressure: Array | None = None,
 ) -> TaskMotion:
     spline = make_interp_spline(t, th, k=5)
-    return TaskMotion(model, t, th, tuple(footholds), kind, err_m, spline)
+    return TaskMotion(model, t, th, tuple(footholds), kind, err_m, spline, pressure)
 
 
 def squat_motion(
@@ -340,21 +392,33 @@ def stair_motion(
     steps: int = 4,
     step_height_m: float = 0.17,
     tread_m: float = 0.28,
-    swing_s: float = 0.55,
-    double_s: float = 0.25,
+    swing_s: float = 0.5,
+    double_s: float = 0.3,
     still_s: float = 0.6,
     rate_hz: float = 120.0,
 ) -> TaskMotion:
     """A step-over-step ascent of ``steps`` steps (riser ``step_height_m``, tread ``tread_m``;
     step k's tread spans x ∈ [(k − 1) tread, k tread] at height k × riser): both feet start on the
-    floor at x = −0.25 m; the right foot steps onto step 1, the left onto step 2, and so on, each
-    swing ``swing_s``, each double support ``double_s``, ``still_s`` standing at both ends. The
-    footholds are named ``floor_r``/``floor_l`` (each foot's place on the floor), ``step1`` …
-    (the surfaces a lab instruments or not)."""
+    floor at x = −0.12 m; the right foot steps onto step 1, the left onto step 2, and so on, each
+    swing ``swing_s``, each double support ``double_s`` (a 1.6 s stride, 69 % stance),
+    ``still_s`` standing at both ends. The footholds are named ``floor_r``/``floor_l`` (each
+    foot's place on the floor), ``step1`` … (the surfaces a lab instruments or not).
+
+    Balance (issue 15, twelfth pass): the pelvis path is chosen so that the ground reaction the
+    motion needs has its centre of pressure on the supporting sole — a zero-moment point
+    designed on the feet (:data:`_PHI_LEAD` → :data:`_PHI_TRAIL` of the sole in single support,
+    trailing → leading foot over each double support), the centre of mass from it by the
+    cart-table model (:func:`com_from_zmp`), then :data:`_ZMP_PASSES` damped corrections by the
+    motion's own zero-moment point (RNEA's root wrench), keeping the closest path whose feet are
+    all reached. Without it the pelvis followed the feet and the centre of pressure left the
+    foot by up to 0.5 m, the leg torques 2–3× published stair values. The body rises at a steady
+    rate through each step (the trailing heel rising 45° from 0.25 s before the double
+    support), the pelvis 4 cm below its straight-leg height or lower where the legs do not
+    reach, the pelvis tilted 8° and the trunk 15° forward."""
     th0, h_stand, place = _standing(model)
     names = list(model.coordinate_names)
     half_w = {f: float(place[f].translation[2]) for f in FEET}
-    x_start = -0.25
+    x_start = _X_START_M
     # footholds: (foot, x, height, surface) in order of landing, each foot alternating
     order: list[tuple[str, float, float, str]] = [
         ("calcn_r", x_start, 0.0, "floor_r"),
@@ -395,7 +459,8 @@ def stair_motion(
             if g == f and a <= tt <= b:
                 s = (tt - a) / (b - a)
                 # lift over the nosing first, then forward; 5 cm clearance over the higher end
-                y = ha + (hb - ha) * float(_mj(np.array(s / 0.6))) + 0.05 * np.sin(np.pi * s)
+                # (sin²: the foot leaves and lands with no vertical speed)
+                y = ha + (hb - ha) * float(_mj(np.array(s / 0.6))) + 0.05 * np.sin(np.pi * s) ** 2
                 x = xa + (xb - xa) * float(_mj(np.array((s - 0.15) / 0.85)))
                 return x, y
         raise AssertionError(f"{f} at {tt}")
@@ -406,36 +471,105 @@ def stair_motion(
     rise = np.zeros((ts.size, 2))
     for g, a, _, _, _ in swings:
         j = FEET.index(g)
-        pre = (ts >= a - double_s) & (ts < a)
-        rise[pre, j] = np.deg2rad(30.0) * _mj((ts[pre] - (a - double_s)) / double_s)
+        pre_s = double_s + _HEEL_PRE_S
+        pre = (ts >= a - pre_s) & (ts < a)
+        rise[pre, j] = np.deg2rad(_HEEL_DEG) * _mj((ts[pre] - (a - pre_s)) / pre_s)
     toes = {f: _toe_point(model, f, place[f]) for f in FEET}
     origin = np.zeros(3)
-    # the support: the lower of the standing feet's surfaces, ramped over each swing of the
-    # lower foot to the next lower one (minimum jerk)
-    support = np.zeros(ts.size)
+    # the support: the lower of the standing feet's surfaces, rising at a steady rate from
+    # the double support before each swing of the lower foot to the landing that raises it
+    # (the body climbs through the whole step, not only in single support: a linear path
+    # through those knots, its corners rounded by a 1.5 Hz low-pass)
+    knots_t, knots_h = [0.0], [0.0]
     level = 0.0
     for g, a, b, _, (_, hb) in swings:
         other = [fh for fh in holds if fh.foot != g and fh.t_on <= a <= fh.t_off]
-        new = min(hb, other[0].height_m) if other else hb
-        new_level = min(new, other[0].height_m) if other else new
-        ramp = _mj((ts - a) / (b - a))
-        support = np.where(ts >= a, level + (new_level - level) * ramp, support)
-        level = new_level
+        new_level = min(hb, other[0].height_m) if other else hb
+        if new_level != level:
+            a0 = max(a - double_s, knots_t[-1])
+            if a0 > knots_t[-1]:
+                knots_t.append(a0)
+                knots_h.append(level)
+            knots_t.append(b)
+            knots_h.append(new_level)
+            level = new_level
     from msk.signal import filtfilt_butter
 
-    x_mid = fx[:, :, 0].mean(axis=1)
     pad = round(rate_hz)
-    x_p = filtfilt_butter(np.pad(x_mid, pad, mode="edge"), rate_hz=rate_hz, cutoff_hz=1.0)
-    x_p = x_p[pad:-pad]
-    on_r = np.array([any(fh.foot == "calcn_r" and fh.t_on <= tt <= fh.t_off for fh in holds)
-                     for tt in ts])  # fmt: skip
-    on_l = np.array([any(fh.foot == "calcn_l" and fh.t_on <= tt <= fh.t_off for fh in holds)
-                     for tt in ts])  # fmt: skip
-    sway = np.where(on_r & ~on_l, 1.0, np.where(on_l & ~on_r, -1.0, 0.0)) * 0.025
-    sway = filtfilt_butter(np.pad(sway, pad, mode="edge"), rate_hz=rate_hz, cutoff_hz=1.5)[pad:-pad]
-    ix, iy, iz = (names.index(c) for c in ("pelvis_tx", "pelvis_ty", "pelvis_tz"))
-    itilt = names.index("pelvis_tilt")
+    support = np.interp(ts, knots_t, knots_h)
+    support = filtfilt_butter(np.pad(support, pad, mode="edge"), rate_hz=rate_hz,
+                              cutoff_hz=1.5)[pad:-pad]  # fmt: skip
+    ix, iz = names.index("pelvis_tx"), names.index("pelvis_tz")
+    iy, itilt = names.index("pelvis_ty"), names.index("pelvis_tilt")
     ia = [names.index(c) for c in ("ankle_angle_r", "ankle_angle_l")]
+    ilumb = names.index("lumbar_extension") if "lumbar_extension" in names else None
+
+    # where each foot presses (its sole between the heel and the toe markers, on the foot's
+    # centre line): in single support from 40 % to 75 % of the foot (mid-foot to the ball), the
+    # trailing foot at 75 % in double support (its heel rising about the toes), the leading foot
+    # at 40 %; the zero-moment point goes from foot to foot over each double support (minimum
+    # jerk), to the left foot over the last 0.4 s of the start, and half-way between the feet
+    # over the end's double support
+    heels = {f: _heel_point(model, f, place[f]) for f in FEET}
+    feet_mk = {f: [i for i, m in enumerate(model.markers) if m.body in set(model.subtree(f))]
+               for f in FEET}  # fmt: skip
+    mk0 = marker_positions(model, th0)[0]
+    mid_z = {f: float(np.mean([place[f].actInv(mk0[i])[2] for i in feet_mk[f]])) for f in FEET}
+
+    def press(j: int, k: int, phi: float) -> Array:
+        f = FEET[j]
+        q = heels[f] + phi * (toes[f] - heels[f])
+        q[2] = mid_z[f]
+        return np.asarray(place[f].act(q), dtype=float) + np.array([fx[k, j, 0], fx[k, j, 1], 0.0])
+
+    on = np.array([[any(fh.foot == f and fh.t_on <= tt <= fh.t_off for fh in holds) for f in FEET]
+                   for tt in ts])  # fmt: skip
+    pressure = np.full((ts.size, 2, 3), np.nan)
+    zmp = np.empty((ts.size, 3))
+    k = 0
+    while k < ts.size:
+        e = k
+        while e < ts.size and (on[e] == on[k]).all():
+            e += 1
+        u = (np.arange(k, e) - k + 0.5) / (e - k)
+        if on[k].all():
+            # the trailing foot lifts at the end of this double support (none at the end)
+            lifts = [j for j in range(2) if e < ts.size and not on[e, j]]
+            trail = lifts[0] if lifts else -1
+            if k == 0:  # the start: from between the feet to the left (stance) foot
+                ramp = 0.4 / (ts[e - 1] - ts[k] + 1e-9)
+                w = 0.5 + 0.5 * _mj((u - 1.0 + ramp) / ramp)
+            elif trail < 0:  # the end: to half-way between the feet
+                w = 0.5 * _mj(u * (ts[e - 1] - ts[k]) / 0.4)
+            else:
+                w = _mj(u)
+            # at the end, the foot that stood alone before is the one the load leaves
+            tr = trail if trail >= 0 else (0 if k > 0 and on[k - 1, 0] else 1)
+            lead = 1 - tr
+            if trail >= 0:
+                phi = (_PHI_TRAIL, _PHI_LEAD)
+            else:  # standing on two steps (or still): the other foot nearer its mid-foot
+                phi = (_PHI_TRAIL, _PHI_LEAD + 0.05) if k > 0 else (_PHI_LEAD, _PHI_LEAD)
+            for i, kk in enumerate(range(k, e)):
+                pts = [press(j, kk, phi[0] if j == tr else phi[1]) for j in range(2)]
+                pressure[kk] = pts
+                zmp[kk] = (1.0 - w[i]) * pts[tr] + w[i] * pts[lead]
+        else:
+            j = int(np.flatnonzero(on[k])[0])
+            for i, kk in enumerate(range(k, e)):
+                one = press(j, kk, _PHI_LEAD + (_PHI_TRAIL - _PHI_LEAD) * float(u[i]))
+                pressure[kk, j] = one
+                zmp[kk] = one
+        k = e
+    # laterally 85 % of the way from the mid-line to the foot's centre line (the zero-moment
+    # point inside the stance foot's medial half: less sway)
+    mid_line = float(np.mean([place[f].translation[2] for f in FEET]))
+    zmp_z = mid_line + 0.85 * (zmp[:, 2] - mid_line)
+    dt = 1.0 / rate_hz
+    com0 = pin.centerOfMass(model.pin_model, model.create_data(), model.coupling.q(th0))
+    h_com = float(com0[1])
+    x_p = com_from_zmp(zmp[:, 0], dt, h_com) - float(com0[0])
+    z_p = com_from_zmp(zmp_z, dt, h_com) - float(com0[2])
 
     def solve(pitch: Array) -> tuple[Array, float]:
         th = np.empty((ts.size, th0.size))
@@ -444,9 +578,11 @@ def stair_motion(
         for k in range(ts.size):
             cur = prev.copy()
             cur[ix] = th0[ix] + x_p[k]
-            cur[iy] = h_stand - 0.05 + support[k]
-            cur[iz] = th0[iz] + sway[k]
-            cur[itilt] = th0[itilt] - np.deg2rad(8.0)
+            cur[iy] = h_stand - drop + support[k]
+            cur[iz] = th0[iz] + z_p[k]
+            cur[itilt] = th0[itilt] - np.deg2rad(_TILT_DEG)
+            if ilumb is not None:
+                cur[ilumb] = th0[ilumb] - np.deg2rad(_LEAN_DEG)
             targets = {}
             for j, f in enumerate(FEET):
                 pl = _foot_target(place[f], float(fx[k, j, 0]), 0.0, float(fx[k, j, 1]),
@@ -467,31 +603,14 @@ def stair_motion(
     rise_sw = np.zeros((ts.size, 2))
     for g, a, b, _, _ in swings:
         sw = (ts >= a) & (ts <= b)
-        rise_sw[sw, FEET.index(g)] = np.deg2rad(30.0) * (1.0 - _mj((ts[sw] - a) / (b - a)))
-    # the centre of mass over the stance foot in single support and carried from the trailing
-    # to the leading foot in double support (minimum jerk), smoothed at 1.5 Hz: the pelvis moved
-    # with it
-    com_t = np.empty(ts.size)
-    for k, tt in enumerate(ts):
-        on = [fh for fh in holds if fh.t_on <= tt <= fh.t_off]
-        if len(on) == 1:
-            com_t[k] = on[0].x_m + x_start
-        else:
-            lead = max(on, key=lambda fh: fh.height_m)
-            trail = min(on, key=lambda fh: fh.height_m)
-            if lead.height_m == trail.height_m:
-                com_t[k] = 0.5 * (lead.x_m + trail.x_m) + x_start
-                continue
-            u = (tt - lead.t_on) / max(min(trail.t_off, lead.t_off) - lead.t_on, 1e-9)
-            # the last double support (standing on two steps at the end) ends half-way
-            part = 0.5 if min(trail.t_off, lead.t_off) >= t_end else 1.0
-            com_t[k] = trail.x_m + part * (lead.x_m - trail.x_m) * float(_mj(np.array(u))) + x_start
-    com_t = filtfilt_butter(np.pad(com_t, pad, mode="edge"), rate_hz=rate_hz, cutoff_hz=1.5)[
-        pad:-pad
-    ]
-    # the pelvis moved with it (the centre of mass's standing offset to the feet's centre kept)
-    x_p = com_t
+        rise_sw[sw, FEET.index(g)] = np.deg2rad(_HEEL_DEG) * (1.0 - _mj((ts[sw] - a) / (b - a)))
+    # the pelvis as high as the legs reach: its drop below the straight-leg height grown by
+    # 1 cm until every foot placement is reached (< 0.1 mm) on the first path
+    drop = _DROP_M
     th, err = solve(np.zeros((ts.size, 2)))
+    while err > 1e-4 and drop < _DROP_M + 0.05:
+        drop += 0.01
+        th, err = solve(np.zeros((ts.size, 2)))
     pitch = np.zeros((ts.size, 2))
     for g, a, b, _, _ in swings:
         j = FEET.index(g)
@@ -500,9 +619,31 @@ def stair_motion(
         u = (ts[sw] - a) / (b - a)
         want = th[ka, ia[j]] + (th[kb, ia[j]] - th[ka, ia[j]]) * _mj(u)
         pitch[sw, j] = (th[sw, ia[j]] - want) * np.sin(np.pi * u) ** 2
-    th, err = solve(pitch)
+    # the pelvis path corrected until the motion's own zero-moment point (RNEA's root wrench:
+    # swing leg, trunk, vertical accelerations) follows the design: each pass moves the centre
+    # of mass by the cart-table answer to the remaining error
+    best = None
+    for _ in range(_ZMP_PASSES + 1):
+        th, err = solve(pitch)
+        spline = make_interp_spline(ts, th, k=5)
+        force, moment = root_wrench(model, th, spline(ts, 1), spline(ts, 2))
+        hgt = zmp[:, 1]
+        cx = (moment[:, 2] + hgt * force[:, 0]) / force[:, 1]
+        cz = (hgt * force[:, 2] - moment[:, 0]) / force[:, 1]
+        miss = float(np.sqrt(np.mean((zmp[:, 0] - cx) ** 2 + (zmp_z - cz) ** 2)))
+        # kept: the path whose zero-moment point is nearest the design with every foot
+        # placement reached (a pass that leaves the legs' reach is not taken)
+        if err <= 1e-4 and (best is None or miss < best[0]):
+            best = (miss, th, err)
+        elif best is not None:
+            break
+        # damped, each pass's correction at most 5 cm
+        x_p = x_p + np.clip(0.7 * com_from_zmp(zmp[:, 0] - cx, dt, h_com), -0.05, 0.05)
+        z_p = z_p + np.clip(0.7 * com_from_zmp(zmp_z - cz, dt, h_com), -0.05, 0.05)
+    if best is not None:
+        _, th, err = best
     del half_w, t_land
-    return _motion(model, ts, th, holds, "stair", err)
+    return _motion(model, ts, th, holds, "stair", err, pressure)
 
 
 @dataclass(frozen=True)
@@ -547,13 +688,32 @@ def task_reactions(motion: TaskMotion, rate_hz: float) -> FootReactions:
         for fh in motion.footholds:
             if fh.foot == f:
                 surf[(t >= fh.t_on) & (t <= fh.t_off), j] = fh.surface
+    if motion.pressure is not None:  # the design's pressure points (a stair's)
+        for j in range(len(FEET)):
+            for a in range(3):
+                col = motion.pressure[:, j, a]
+                ok = np.isfinite(col)
+                pts[:, j, a] = np.interp(t, motion.time[ok], col[ok]) if ok.any() else np.nan
     pts[..., 1] = np.where(on, hgt, np.nan)
-    # the right foot's share α of the total: 1 or 0 in single support; in double support a
-    # minimum-jerk transfer from the trailing to the leading foot (stair), or the COP's
-    # projection between the feet clipped to [0.15, 0.85] (squat)
+    # the right foot's share α of the total: 1 or 0 in single support; in double support the
+    # total COP's projection between the feet's pressure points clipped to [0, 1] (stair: the
+    # motion's zero-moment point goes from the trailing to the leading foot), to [0.15, 0.85]
+    # (squat), or a minimum-jerk transfer (a stair without pressure points)
     alpha = np.where(on[:, 0], 1.0, 0.0)
     both: NDArray[np.bool_] = np.asarray(on.all(axis=1), dtype=bool)
-    if motion.kind == "squat":
+    if motion.kind == "stair" and motion.pressure is not None:
+        h = np.nan_to_num(pts[:, :, 1]).mean(axis=1)
+        fy = force[:, 1]
+        c = np.column_stack([(moment[:, 2] + h * force[:, 0]) / fy, h,
+                             (h * force[:, 2] - moment[:, 0]) / fy])  # fmt: skip
+        d = np.nan_to_num(pts[:, 0] - pts[:, 1])
+        d[:, 1] = 0.0
+        rel = c - np.nan_to_num(pts[:, 1])
+        rel[:, 1] = 0.0
+        dd = np.einsum("ki,ki->k", d, d)
+        proj = np.einsum("ki,ki->k", rel, d) / np.where(dd > 0.0, dd, 1.0)
+        alpha = np.where(both, np.clip(proj, 0.0, 1.0), alpha)
+    elif motion.kind == "squat":
         fy = force[:, 1]
         c = np.column_stack([moment[:, 2] / fy, np.zeros_like(fy), -moment[:, 0] / fy])
         d = pts[:, 0] - pts[:, 1]

@@ -48,10 +48,10 @@ def _config(name: str) -> Any:
     cfg = load_config(REPO / "pipelines" / f"{stem}.toml")
     if not alt:
         return cfg
-    from task_swap import ALTERNATIVES, _swap  # type: ignore[import-not-found]
+    from task_swap import ALTERNATIVES, swap_task  # type: ignore[import-not-found]
 
     files = dict(ALTERNATIVES[stem])[alt]
-    return _swap(cfg, alt, files)
+    return swap_task(cfg, alt, files)
 
 
 def run_once(name: str, kind: str, k: int, seed: int) -> dict[str, Any]:

@@ -10,7 +10,18 @@ force (% BW), the measured contact force's RMSE and r where there is one, and th
 flags raised. Nothing here is asserted: it is the
 check that the configs are written for the kinds of data, not for their files.
 
-Usage: ``.venv/bin/python scripts/task_swap.py [--only gc5_PS,gc6_DM_og1]``.
+``--synthetic`` adds the hidden task kinds (issue 15, ninth pass): a two-leg squat and a stair
+ascent of the session's own placed model with a known truth, written in its lab's C3D format
+(:func:`msk.synthetic_tasks.lab_task`; the configs of :data:`SYNTHETIC`), run with only the task
+swapped like the real alternatives. Besides the row of the table, each prints its figures
+against the truth (:func:`compare_to_truth`): the leg coordinates' RMS difference (deg, over
+the frames IK solved; the knee flexion's range solved vs true), the leg joint torques' RMSE
+(N·m, over the frames the run writes a torque) and the true peaks, and the frames written as
+unmeasured contact (NaN torques) against the truth's count (``tests/test_synthetic_tasks.py``
+asserts them on JW).
+
+Usage: ``.venv/bin/python scripts/task_swap.py [--only gc5_PS,gc6_DM_og1] [--synthetic
+[--kinds squat,stair] [--keep DIR]]``; ``--synthetic-only`` runs the synthetic trials alone.
 """
 
 from __future__ import annotations
@@ -21,6 +32,9 @@ import sys
 import tempfile
 import time
 from pathlib import Path
+from typing import Any
+
+import numpy as np
 
 REPO = Path(__file__).resolve().parents[1]
 REAL = REPO.parent / "shared" / "data" / "real"
@@ -95,7 +109,16 @@ ALTERNATIVES: dict[str, list[tuple[str, dict[str, Path]]]] = {
 }  # fmt: skip
 
 
-def _swap(cfg, name: str, files: dict[str, Path]):
+#: configs whose lab format :func:`msk.synthetic_tasks.lab_task` writes (a C3D task)
+SYNTHETIC = ("gc4_JW", "gc5_PS")
+#: the leg coordinates compared with a synthetic task's truth
+LEG = ("hip_flexion", "hip_adduction", "hip_rotation", "knee_angle", "ankle_angle")
+
+
+def swap_task(cfg: Any, name: str, files: dict[str, Path]) -> Any:
+    """``cfg`` (a loaded config) with its task trial named ``name`` and its files replaced by
+    ``files`` ({field: path}); the task's ``contact_force``, ``grf`` and ``external_loads``
+    that ``files`` does not give are dropped (they belong to the shipped task)."""
     trials = []
     for t in cfg.trials:
         if t.role == "task":
@@ -105,51 +128,158 @@ def _swap(cfg, name: str, files: dict[str, Path]):
     return dataclasses.replace(cfg, trials=tuple(trials))
 
 
+def swapped_config(stem: str, name: str, files: dict[str, Path], folder: Path) -> Path:
+    """The shipped config ``stem`` with its task swapped (:func:`swap_task`), written into
+    ``folder`` as ``<stem>_<name>.toml``."""
+    from msk.config import load_config, render_config
+
+    cfg = load_config(REPO / "pipelines" / f"{stem}.toml")
+    path = folder / f"{stem}_{name}.toml"
+    path.write_text(render_config(swap_task(cfg, name, files)), encoding="utf-8")
+    return path
+
+
+def compare_to_truth(task: Any, cfg: Path) -> dict[str, Any]:
+    """IK and joint torques of the run of ``cfg`` (up to inverse dynamics) against the truth
+    of ``task`` (a :class:`msk.synthetic_tasks.LabTask`): per leg coordinate the RMS
+    difference (deg, frames IK solved) and the torque RMSE (N·m, frames with a written
+    torque) and true peak; frames written as unmeasured contact; frames of the truth's
+    unmeasured contact whose leg torque was written anyway (must be none)."""
+    from msk.pipeline import run_stages
+
+    res = run_stages(cfg, until="inverse_dynamics")
+    kin, jt = res["kinematics"], res["inverse_dynamics"].generic
+    names = list(task.motion.model.coordinate_names)
+    true_t = task.motion.time
+    out: dict[str, Any] = {"ik_deg": {}, "tau_rmse_nm": {}, "tau_peak_nm": {}}
+    t = np.asarray(kin.time)
+    # the trial starts at the truth's first sample
+    idx = np.clip(np.round((t - t[0]) * (true_t.size - 1) / (true_t[-1] - true_t[0])), 0,
+                  true_t.size - 1).astype(int)  # fmt: skip
+    tau_w = np.asarray(jt.tau)
+    for side in ("r", "l"):
+        for c in LEG:
+            n = f"{c}_{side}"
+            q = np.rad2deg(kin.coordinate(n))
+            qt = np.rad2deg(task.motion.q[idx, names.index(n)])
+            ok = np.isfinite(q)
+            out["ik_deg"][n] = float(np.sqrt(np.mean((q[ok] - qt[ok]) ** 2)))
+            tau = tau_w[:, list(jt.coordinate_names).index(n)]
+            tt = task.tau[idx, names.index(n)]
+            ok = np.isfinite(tau)
+            out["tau_rmse_nm"][n] = (
+                float(np.sqrt(np.mean((tau[ok] - tt[ok]) ** 2))) if ok.any() else None
+            )
+            out["tau_peak_nm"][n] = float(np.abs(tt).max())
+    out["frames"] = int(t.size)
+    out["written_unmeasured"] = int(
+        (~np.isfinite(tau_w[:, list(jt.coordinate_names).index("knee_angle_r")])).sum()
+    )
+    bad = 0
+    for side in ("r", "l"):
+        foot_on = np.zeros(true_t.size, dtype=bool)
+        for fh in task.motion.footholds:
+            if fh.foot.endswith(side) and fh.surface not in task.measured_surfaces:
+                foot_on |= (true_t >= fh.t_on) & (true_t <= fh.t_off)
+        col = list(jt.coordinate_names).index(f"knee_angle_{side}")
+        bad += int((foot_on[idx] & np.isfinite(tau_w[:, col])).sum())
+    out["unblanked_true_unmeasured"] = bad
+    out["true_unmeasured"] = int(task.unmeasured[idx].sum())
+    knee = names.index("knee_angle_r")
+    out["knee_r_range_deg"] = (
+        float(np.nanmin(np.rad2deg(-kin.coordinate("knee_angle_r")))),
+        float(np.nanmax(np.rad2deg(-kin.coordinate("knee_angle_r")))),
+    )
+    out["knee_r_true_deg"] = (
+        float(np.rad2deg(-task.motion.q[:, knee]).min()),
+        float(np.rad2deg(-task.motion.q[:, knee]).max()),
+    )
+    return out
+
+
+def _row(stem: str, name: str, path: Path, out: Path) -> Any:
+    """Run one swapped config and print its row; the result, or None after an error."""
+    from msk.exceptions import MskError
+    from msk.pipeline import run_task_trials
+
+    t0 = time.perf_counter()
+    try:
+        (res,) = run_task_trials(path, out)
+    except MskError as exc:  # the CLI's exit 2: a refusal with a message
+        msg = " ".join(str(exc).split())[:150]
+        print(f"| {stem} | {name} | error: {msg} | | | | |")
+        return None
+    except Exception as exc:  # a crash (a traceback), reported per run
+        msg = " ".join(f"{type(exc).__name__}: {exc}".split())[:150]
+        print(f"| {stem} | {name} | CRASH {msg} | | | | |")
+        return None
+    q = res.summary["quality"]
+    ik = 1000 * (q.get("ik_marker_rms_mean_m") or float("nan"))
+    r = q.get("residual_force_rms_pct_bw")
+    comp = res.summary.get("comparison") or {}
+    con = " · ".join(
+        f"{k.removeprefix('knee_contact_')} {v['rms_bw']:.2f} / {v['pearson_r']:.2f}"
+        for k, v in comp.items() if k.startswith("knee_contact_")
+        and isinstance(v, dict) and "rms_bw" in v
+    )  # fmt: skip
+    flags = ", ".join(sorted({f["quantity"] for f in q.get("flags", [])}))
+    print(f"| {stem} | {name} | ok ({time.perf_counter() - t0:.0f} s) | {ik:.1f} | "
+          f"{'' if r is None else f'{r:.1f}'} | {con} | {flags or '—'} |")  # fmt: skip
+    return res
+
+
+def _print_truth(stem: str, kind: str, cmp: dict[str, Any]) -> None:
+    ik = {k: round(v, 2) for k, v in cmp["ik_deg"].items()}
+    tau = {k: None if v is None else round(v, 1) for k, v in cmp["tau_rmse_nm"].items()}
+    peak = {k: round(v, 1) for k, v in cmp["tau_peak_nm"].items()}
+    print(f"   {stem} {kind}: IK − truth (deg RMS): {ik}")
+    print(f"   torque RMSE (N·m): {tau}")
+    print(f"   true peak (N·m): {peak}")
+    print(f"   knee_r flexion solved {cmp['knee_r_range_deg']}, true {cmp['knee_r_true_deg']}")
+    print(f"   frames {cmp['frames']}, unmeasured written {cmp['written_unmeasured']}, "
+          f"true {cmp['true_unmeasured']}, of those written: "
+          f"{cmp['unblanked_true_unmeasured']}")  # fmt: skip
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--only", default="", help="comma-separated config stems")
+    ap.add_argument("--synthetic", action="store_true", help="add the synthetic hidden tasks")
+    ap.add_argument("--synthetic-only", action="store_true", help="the synthetic tasks alone")
+    ap.add_argument("--kinds", default="squat,stair", help="synthetic task kinds")
+    ap.add_argument("--keep", default="", help="folder to keep the synthetic trials and runs")
     args = ap.parse_args()
-    from msk.config import load_config, render_config
-    from msk.exceptions import MskError
-    from msk.pipeline import run_task_trials
 
     only = set(filter(None, args.only.split(",")))
     print("| config | task | status | IK (mm) | residual (% BW) | contact RMSE (BW) / r | flags |")
     print("| --- | --- | --- | --- | --- | --- | --- |")
     for stem, alts in ALTERNATIVES.items():
-        if only and stem not in only:
+        if (only and stem not in only) or args.synthetic_only:
             continue
-        cfg = load_config(REPO / "pipelines" / f"{stem}.toml")
         for name, files in alts:
             if not all(p.exists() for p in files.values()):
                 print(f"| {stem} | {name} | files missing | | | | |")
                 continue
             with tempfile.TemporaryDirectory() as tmp:
-                path = Path(tmp) / f"{stem}_{name}.toml"
-                path.write_text(render_config(_swap(cfg, name, files)), encoding="utf-8")
-                t0 = time.perf_counter()
-                try:
-                    (res,) = run_task_trials(path, Path(tmp) / "out")
-                except MskError as exc:  # the CLI's exit 2: a refusal with a message
-                    msg = " ".join(str(exc).split())[:150]
-                    print(f"| {stem} | {name} | error: {msg} | | | | |")
-                    continue
-                except Exception as exc:  # a crash (a traceback), reported per run
-                    msg = " ".join(f"{type(exc).__name__}: {exc}".split())[:150]
-                    print(f"| {stem} | {name} | CRASH {msg} | | | | |")
-                    continue
-                q = res.summary["quality"]
-                ik = 1000 * (q.get("ik_marker_rms_mean_m") or float("nan"))
-                r = q.get("residual_force_rms_pct_bw")
-                comp = res.summary.get("comparison") or {}
-                con = " · ".join(
-                    f"{k.removeprefix('knee_contact_')} {v['rms_bw']:.2f} / {v['pearson_r']:.2f}"
-                    for k, v in comp.items() if k.startswith("knee_contact_")
-                    and isinstance(v, dict) and "rms_bw" in v
-                )  # fmt: skip
-                flags = ", ".join(sorted({f["quantity"] for f in q.get("flags", [])}))
-                print(f"| {stem} | {name} | ok ({time.perf_counter() - t0:.0f} s) | {ik:.1f} | "
-                      f"{'' if r is None else f'{r:.1f}'} | {con} | {flags or '—'} |")  # fmt: skip
+                path = swapped_config(stem, name, files, Path(tmp))
+                _row(stem, name, path, Path(tmp) / "out")
+            sys.stdout.flush()
+    if not (args.synthetic or args.synthetic_only):
+        return
+    from msk.synthetic_tasks import lab_task
+
+    for stem in SYNTHETIC:
+        if only and stem not in only:
+            continue
+        for kind in filter(None, args.kinds.split(",")):
+            with tempfile.TemporaryDirectory() as tmp:
+                folder = Path(args.keep) / stem if args.keep else Path(tmp)
+                folder.mkdir(parents=True, exist_ok=True)
+                cfg = REPO / "pipelines" / f"{stem}.toml"
+                task = lab_task(cfg, kind, folder / f"{kind}.c3d")
+                path = swapped_config(stem, f"synthetic_{kind}", {"file": task.path}, folder)
+                if _row(stem, f"synthetic_{kind}", path, folder / f"out_{kind}") is not None:
+                    _print_truth(stem, kind, compare_to_truth(task, path))
             sys.stdout.flush()
 
 

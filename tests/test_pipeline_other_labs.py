@@ -257,3 +257,31 @@ def test_a_static_of_another_subject_is_not_used_and_flagged(real_dir: Path, tmp
     model = res.summary["model"]
     assert "static_window" not in model and "static_rejected" in model
     assert res.summary["quality"]["ik_marker_rms_mean_m"] < 0.02  # placed on the walk itself
+
+
+@pytest.mark.slow
+@pytest.mark.realdata
+def test_a_trc_and_grf_of_a_z_up_lab_are_levelled_by_the_ground_reactions(
+    real_dir: Path, tmp_path: Path
+) -> None:
+    """opensim-core's walking2 as OpenSim's C3DFileAdapter wrote it — markers ``.trc`` and
+    plate-origin GRFs ``f1_1 … p1_1 … m1_1`` in mm and N·mm, both in the C3D's z-up lab, the
+    GRFs subsampled to 20 Hz — as the task of the subject01 session: the lab's up is taken from
+    the ground reactions (+z, not the TRC's default +y), and each plate's stance goes to one
+    foot (right on plate 1, left on plate 2), none left unassigned."""
+    d = real_dir / "opensim-core-c3d"
+    trc, grf = d / "std_walking2_markers.trc", d / "std_walking2_grfs.sto"
+    _need(trc, grf)
+    cfg = subject01_config(real_dir, tmp_path)
+    s01 = real_dir / "opensim-subject01-walk"
+    text = cfg.read_text().replace(str(s01 / "subject01_walk.trc"), str(trc))
+    cfg.write_text(text.replace(str(s01 / "subject01_walk_grf.mot"), str(grf)))
+    res = run_session(cfg, tmp_path / "out")
+    s = res.summary
+    assert s["frame"]["lab_up"] == pytest.approx([0.0, 0.0, 1.0])
+    rot = np.asarray(s["frame"]["lab_to_model_rotation"])
+    assert rot[:, 2] == pytest.approx([0.0, 1.0, 0.0], abs=1e-9)  # lab z → model y
+    q = s["quality"]
+    bodies = {a["plate"]: a["body"] for a in q["plate_assignments"]}
+    assert bodies == {"plate1": "calcn_r", "plate2": "calcn_l"}
+    assert "plate_unassigned_contact_frames" not in {f["quantity"] for f in q["flags"]}

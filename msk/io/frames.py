@@ -54,6 +54,7 @@ __all__ = [
     "rotate_trial",
     "rotation_between",
     "to_model_frame",
+    "up_from_ground_reactions",
 ]
 
 #: horizontal progression (m) of the marker centroid below which no heading is applied
@@ -323,6 +324,35 @@ def pelvis_heading_rotation(
         )
     why += "; progression < 0.3 m"
     return Heading(r0, "none", 0.0, (), 0, math.nan, prog_deg, why)
+
+
+def up_from_ground_reactions(
+    markers: ArrayLike, forces: Sequence[ArrayLike], cops: Sequence[ArrayLike]
+) -> Array | None:
+    """The lab's up axis of a marker file that does not state it (a TRC: OpenSim's ground is
+    +y, but OpenSim's ``C3DFileAdapter`` writes a C3D lab's markers unrotated, often +z up),
+    from the ground reactions recorded with it in the same frame: the axis of the largest RMS
+    force (:func:`msk.io.grf.grf_vertical_axis`: a ground reaction is mostly vertical),
+    pointing to the side of the loaded COPs' surface where the markers are (the median marker
+    coordinate along it minus the median loaded COP coordinate: a subject stands on the
+    plates). ``markers`` (N, M, 3), ``forces``/``cops`` (Na, 3) per plate, one frame and unit
+    (m). ``None`` without a loaded COP (vertical force above 20 N) or a marker."""
+    from msk.io.grf import grf_vertical_axis
+
+    k = grf_vertical_axis([np.asarray(f, dtype=float) for f in forces])
+    heights = []
+    for f, c in zip(forces, cops):
+        f, c = np.asarray(f, dtype=float), np.asarray(c, dtype=float)
+        loaded = (np.abs(f[:, k]) > 20.0) & np.isfinite(c).all(axis=1)
+        heights.append(c[loaded, k])
+    surface = np.concatenate(heights) if heights else np.zeros(0)
+    m = np.asarray(markers, dtype=float)[..., k]
+    m = m[np.isfinite(m)]
+    if surface.size == 0 or m.size == 0:
+        return None
+    up = np.zeros(3)
+    up[k] = 1.0 if float(np.median(m) - np.median(surface)) >= 0.0 else -1.0
+    return up
 
 
 def rotate_plate(plate: ForcePlate, rotation: ArrayLike) -> ForcePlate:

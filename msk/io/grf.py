@@ -31,6 +31,29 @@ The ExternalLoads ``.xml`` (``<ExternalForce>`` elements with ``applied_to_body`
 ``force_expressed_in_body``, ``point_expressed_in_body``; ``<datafile>``) says which body each
 set is applied to. msk reads forces and points expressed in ``ground`` (the lab), the only
 choice of the plate-derived files in use; other frames raise :class:`ForcePlateError`.
+
+**Per-plate vector columns** (OpenSim's ``C3DFileAdapter`` forces table flattened by
+``TimeSeriesTableVec3.flatten()``, e.g. ``std_walking2_grfs.sto`` of opensim-core, pyCGM2's
+``*_GRF.mot``): ``f<k>_1 f<k>_2 f<k>_3`` (force of plate k), ``p<k>_…`` (its point),
+``m<k>_…`` (the moment about that point); ``flatten(['_x', '_y', '_z'])`` gives
+``f<k>_x …``, read alike. The point is, by the adapter's ``ForceLocation``, the plate origin
+(``OriginOfForcePlate``: fixed, the moment has all three components), the COP
+(``CenterOfPressure``: the free moment only) or the point of wrench application. Names such as
+``F1X`` or ``Fx1`` were not found in OpenSim GRF files (only in lab CSV exports) and are not
+read.
+
+**A fixed point** (:func:`is_fixed_point`: the same point at every loaded frame, to 1e-9 of its
+size — a COP always moves) is not where the foot presses: the COP and the free moment are
+computed from the force F and the moment M_P about P (:func:`wrench_at_cop`), on the plane
+through P normal to the file's vertical (the axis of its largest force).
+
+**Units** (:func:`grf_length_unit`): forces in N; points in a length unit L and moments in
+N·L. L is read from the header when it has a ``Units=`` line (``m``, ``cm``, ``mm``) or
+OpenSim's ``Units are S.I. units`` line; otherwise from the data: over the loaded frames (the
+vertical force above max(20 N, 10 % of its peak)) the largest COP coordinate is ≤ 20 (a lab
+point within 20 m of its origin: metres) or ≥ 100 (beyond 100 m no lab reaches: millimetres);
+in between (20–100) the file is ambiguous and :class:`~msk.exceptions.UnitsError` names the
+file and the column.
 """
 
 from __future__ import annotations
@@ -41,18 +64,45 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
-from msk.exceptions import FileFormatError, ForcePlateError, MissingDataError
+import numpy as np
+from numpy.typing import NDArray
+
+from msk.exceptions import FileFormatError, ForcePlateError, MissingDataError, UnitsError
 
 __all__ = [
     "ExternalForceSpec",
     "ExternalLoadsSpec",
     "GrfForceSet",
+    "GrfLengthUnit",
     "external_force_sets",
     "grf_force_sets",
+    "grf_length_unit",
+    "grf_vertical_axis",
+    "header_length_unit",
+    "is_fixed_point",
     "read_external_loads_xml",
+    "wrench_at_cop",
 ]
 
+Array = NDArray[np.float64]
+
 _FORCE_X = re.compile(r"^(?P<stem>.*force.*)v(?P<ax>x)$", re.IGNORECASE)
+#: ``f1_1``/``p1_1``/``m1_1`` (flatten's default suffixes) or ``f1_x``/…
+_VEC = re.compile(r"^(?P<kind>[fpm])(?P<plate>\d+)_(?P<ax>[123xyz])$", re.IGNORECASE)
+_VEC_AXES = ("123", "xyz")
+
+#: length unit names → metres (a GRF file's points; its moments are N·unit)
+LENGTH_UNITS_M: dict[str, float] = {
+    "m": 1.0, "meter": 1.0, "meters": 1.0, "metre": 1.0, "metres": 1.0,
+    "cm": 1e-2, "centimeter": 1e-2, "centimeters": 1e-2, "centimetre": 1e-2,
+    "centimetres": 1e-2,
+    "mm": 1e-3, "millimeter": 1e-3, "millimeters": 1e-3, "millimetre": 1e-3,
+    "millimetres": 1e-3,
+}  # fmt: skip
+#: the data rule: the largest loaded COP coordinate ≤ this → metres …
+METRES_MAX = 20.0
+#: … ≥ this → millimetres; in between: ambiguous
+MILLIMETRES_MIN = 100.0
 
 
 @dataclass(frozen=True)
@@ -130,12 +180,189 @@ def grf_force_sets(columns: Sequence[str], *, source: str = "GRF table") -> tupl
         if m is None:
             continue
         found.append(_set_from_identifiers(c[:-1], None, None, low, source))
+    found += _vector_sets(cols, low, source)
     if not found:
         raise MissingDataError(
             f"{source}: no ground-reaction columns (…force…vx, e.g. ground_force_vx, "
-            f"ground_force_1_vx, 1_ground_force_vx); columns: {list(cols)[:12]}"
+            f"ground_force_1_vx, 1_ground_force_vx; or f1_1 p1_1 m1_1); columns: "
+            f"{list(cols)[:12]}"
         )
     return _name_sets(found, list(columns))
+
+
+def _vector_sets(cols: Sequence[str], low: dict[str, str], source: str) -> list[GrfForceSet]:
+    """The ``f<k>_1 … p<k>_1 … m<k>_1 …`` sets (module docstring), one per plate k whose
+    force-x column is present."""
+    out = []
+    for c in cols:
+        m = _VEC.match(c)
+        if m is None or m["kind"].lower() != "f" or m["ax"].lower() not in "1x":
+            continue
+        axes = _VEC_AXES[0] if m["ax"] == "1" else _VEC_AXES[1]
+        k = m["plate"]
+
+        def names(kind: str, k: str = k, axes: str = axes, f: str = m["kind"]) -> list[str]:
+            # the plate's kind letter in the force column's case
+            letter = kind.upper() if f.isupper() else kind
+            return [f"{letter}{k}_{a}" for a in axes]
+
+        got = {kind: [low.get(n.lower()) for n in names(kind)] for kind in "fpm"}
+        for kind, what in (("f", "force"), ("p", "point")):
+            if None in got[kind]:
+                raise MissingDataError(
+                    f"{source}: plate {k}'s {what} needs columns {names(kind)}; missing "
+                    f"{[n for n, g in zip(names(kind), got[kind]) if g is None]}"
+                )
+        f, p, tq = got["f"], got["p"], got["m"]
+        out.append(
+            GrfForceSet(
+                "",
+                f"f{k}_",
+                (f[0], f[1], f[2]),  # type: ignore[arg-type]
+                (p[0], p[1], p[2]),  # type: ignore[arg-type]
+                (tq[0], tq[1], tq[2]),
+            )
+        )
+    return out
+
+
+def grf_vertical_axis(forces: Sequence[Array]) -> int:
+    """The file's vertical axis (0, 1, 2): the axis of the largest RMS force summed over the
+    force sets ``forces`` (each (N, 3) N) — a ground reaction is mostly vertical."""
+    rms = np.zeros(3)
+    for f in forces:
+        f = np.asarray(f, dtype=float)
+        rms += np.sqrt(np.nanmean(f**2, axis=0)) if f.size else 0.0
+    return int(np.argmax(rms))
+
+
+def is_fixed_point(force: Array, point: Array, vertical: int) -> bool:
+    """Is ``point`` (N, 3) one fixed point (a plate origin) rather than a COP? True when it
+    is the same at every loaded frame (vertical force above max(20 N, 10 % of its peak)) to
+    1e-9 of its size: a foot's COP always moves (it rolls from heel to toe in gait, sways by
+    millimetres in standing). False without loaded frames."""
+    fv = np.abs(np.asarray(force, dtype=float)[:, vertical])
+    peak = float(np.nanmax(fv)) if fv.size else 0.0
+    loaded = fv > max(20.0, 0.1 * peak)
+    p = np.asarray(point, dtype=float)[loaded]
+    if p.shape[0] < 2 or not np.isfinite(p).all():
+        return False
+    spread = float(np.max(np.ptp(p, axis=0)))
+    return spread <= 1e-9 * (1.0 + float(np.max(np.abs(p))))
+
+
+def wrench_at_cop(force: Array, point: Array, moment: Array, vertical: int) -> tuple[Array, Array]:
+    """The COP and free moment of a ground reaction given as a force F and the moment M_P
+    about a point P of the plate's surface (a plate origin): the COP c = P + r, r normal to
+    the vertical n, is where the moment has no horizontal part, M_P = r × F + T n. With
+    (i, j, k) the cyclic axes ending in the vertical k (the COP of btk's
+    ``GroundReactionWrenchFilter``, Barre & Armand 2014, which OpenSim's ``C3DFileAdapter``
+    writes in ``CenterOfPressure`` mode)::
+
+        r_i = −M_j / F_k,   r_j = M_i / F_k,   T = M_k − (r_i F_j − r_j F_i)
+
+    Returns ``(cop, free_moment)``, (N, 3) each, in the units of ``point`` and ``moment``;
+    the COP is NaN where F_k = 0 (the moment is then 0). The wrench is unchanged:
+    c × F + T n = P × F + M_P wherever F_k ≠ 0."""
+    f = np.asarray(force, dtype=float)
+    p = np.asarray(point, dtype=float)
+    m = np.asarray(moment, dtype=float)
+    k = int(vertical)
+    i, j = (k + 1) % 3, (k + 2) % 3
+    fk = f[:, k]
+    ok = fk != 0.0
+    safe = np.where(ok, fk, 1.0)
+    r = np.zeros_like(f)
+    r[:, i] = -m[:, j] / safe
+    r[:, j] = m[:, i] / safe
+    cop = p + r
+    cop[~ok] = np.nan
+    tq = np.zeros_like(f)
+    tq[:, k] = np.where(ok, m[:, k] - (r[:, i] * f[:, j] - r[:, j] * f[:, i]), 0.0)
+    return cop, tq
+
+
+@dataclass(frozen=True)
+class GrfLengthUnit:
+    """The length unit of a GRF file's points (its moments are N·unit): ``metres`` per unit,
+    ``source`` ``"header"`` or ``"data"``, ``detail`` what decided it (module docstring)."""
+
+    metres: float
+    source: str
+    detail: str
+
+
+def header_length_unit(path: str | Path) -> float | None:
+    """Metres per length unit of an OpenSim ``.sto/.mot`` header: a ``Units=<unit>`` line
+    (``m``, ``cm``, ``mm``, spelled out or not, any case) or OpenSim's ``Units are S.I.
+    units`` line; ``None`` when the header says nothing of units.
+
+    Raises:
+        UnitsError: a ``Units=`` value that is not a length unit (names the file and value).
+    """
+    path = Path(path)
+    with open(path, encoding="utf-8", errors="replace") as fh:
+        for line in fh:
+            s = line.strip()
+            if s.lower() == "endheader":
+                break
+            if s.lower().startswith("units are s.i."):
+                return 1.0
+            if "=" in s:
+                key, val = (x.strip() for x in s.split("=", 1))
+                if key.lower() == "units":
+                    unit = val.split()[0].lower() if val.split() else ""
+                    if unit not in LENGTH_UNITS_M:
+                        raise UnitsError(
+                            f"{path}: header Units={val!r} is not a length unit "
+                            f"({', '.join(sorted(LENGTH_UNITS_M))})"
+                        )
+                    return LENGTH_UNITS_M[unit]
+    return None
+
+
+def grf_length_unit(
+    path: str | Path,
+    cops: Sequence[Array],
+    forces: Sequence[Array],
+    point_columns: Sequence[str],
+    vertical: int,
+) -> GrfLengthUnit:
+    """The length unit of a GRF file (module docstring): the header's, else the data's —
+    the largest |coordinate| of the COPs ``cops`` (file units, (N, 3) each, for a fixed-point
+    set the COP :func:`wrench_at_cop` gives) over the frames whose vertical force
+    (``forces``, N) exceeds max(20 N, 10 % of its peak): ≤ :data:`METRES_MAX` metres,
+    ≥ :data:`MILLIMETRES_MIN` millimetres. Metres when no frame is loaded (nothing to apply).
+
+    Raises:
+        UnitsError: the largest coordinate between the two (names the file, the point column
+            and the value).
+    """
+    u = header_length_unit(path)
+    if u is not None:
+        return GrfLengthUnit(u, "header", f"{path}: header")
+    best, col = 0.0, ""
+    for c, f, names in zip(cops, forces, point_columns):
+        fv = np.abs(np.asarray(f, dtype=float)[:, vertical])
+        if not fv.size:
+            continue
+        loaded = (fv > max(20.0, 0.1 * float(np.nanmax(fv)))) & np.isfinite(c).all(axis=1)
+        if not loaded.any():
+            continue
+        a = np.abs(np.asarray(c, dtype=float)[loaded])
+        if float(a.max()) > best:
+            best, col = float(a.max()), str(names)
+    if best <= METRES_MAX:
+        return GrfLengthUnit(1.0, "data", f"largest loaded COP coordinate {best:.4g} ≤ "
+                                          f"{METRES_MAX:g}: metres")  # fmt: skip
+    if best >= MILLIMETRES_MIN:
+        return GrfLengthUnit(1e-3, "data", f"largest loaded COP coordinate {best:.4g} ({col}) "
+                                           f"≥ {MILLIMETRES_MIN:g}: millimetres")  # fmt: skip
+    raise UnitsError(
+        f"{path}: units of the points not determined: the largest loaded COP coordinate is "
+        f"{best:.4g} ({col}), between {METRES_MAX:g} (metres) and {MILLIMETRES_MIN:g} "
+        "(millimetres); add a header line Units=m or Units=mm"
+    )
 
 
 def _set_from_identifiers(

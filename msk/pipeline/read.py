@@ -119,6 +119,19 @@ def without_plates(read: ReadResult) -> ReadResult:
     return dataclasses.replace(read, plates=())
 
 
+def _with_up_of(trial: Any, grf: tuple[Any, ...]) -> Any:
+    """A marker file without a vertical (a TRC, read as OpenSim's +y up) given the up of its
+    GRF file's lab (:func:`msk.io.frames.up_from_ground_reactions`) where the two differ: a
+    C3D lab's markers written by OpenSim's ``C3DFileAdapter`` unrotated (+z up) with its
+    plates."""
+    from msk.io.frames import up_from_ground_reactions
+
+    up = up_from_ground_reactions(trial.markers, [p.force for p in grf], [p.cop for p in grf])
+    if up is None or np.allclose(up, trial.up):
+        return trial
+    return dataclasses.replace(trial, up=up, vertical_axis=int(np.argmax(np.abs(up))))
+
+
 def read_task(inputs: SessionInputs) -> ReadResult:
     """The task trial, its GRF file's plates, assignment and measured contact as read."""
     from msk.io import read_c3d, read_trial
@@ -136,6 +149,8 @@ def read_task(inputs: SessionInputs) -> ReadResult:
 
         # every common OpenSim column naming; with an ExternalLoads .xml, its force sets
         grf = tuple(plates_from_grf_file(task.grf, task.external_loads))
+        if Path(task.file).suffix.lower() != ".c3d":
+            trial = _with_up_of(trial, grf)
         if task.external_loads is not None:
             assignment = dict(external_loads_assignment(task.external_loads, task.grf))
     contact = None

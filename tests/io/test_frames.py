@@ -320,3 +320,28 @@ def test_pelvis_heading_on_real_walks(gait2392):
     heel = tr.markers[:, tr.marker_labels.index("R_Heel")] @ h.rotation.T
     span = np.nanpercentile(heel, 95, axis=0) - np.nanpercentile(heel, 5, axis=0)
     assert span[0] > 3 * abs(span[2])
+
+
+@pytest.mark.parametrize("k", [1, 2])
+@pytest.mark.parametrize("sign", [1.0, -1.0])
+def test_up_from_ground_reactions_finds_the_axis_and_its_side(k, sign):
+    """Markers standing on a plate in a lab whose up is ±axis k: the largest force axis and
+    the markers' side of the COPs' surface give it; no loaded COP gives None."""
+    from msk.io.frames import up_from_ground_reactions
+
+    rng = np.random.default_rng(k)
+    n = 50
+    f = rng.normal(0.0, 20.0, (n, 3))
+    f[:, k] = sign * (600.0 + rng.normal(0.0, 30.0, n))  # the reaction on the subject: up
+    cop = rng.uniform(0.2, 0.8, (n, 3))
+    cop[:, k] = 0.02 * sign
+    markers = rng.uniform(0.0, 1.0, (n, 10, 3))
+    markers[..., k] = sign * rng.uniform(0.05, 1.7, (n, 10))
+    markers[3, 4] = np.nan
+    up = up_from_ground_reactions(markers, [f], [cop])
+    want = np.zeros(3)
+    want[k] = sign
+    assert up is not None and np.array_equal(up, want)
+    # a lab with the action recorded (force down) still stands the subject on the plates
+    assert np.array_equal(up_from_ground_reactions(markers, [-f], [cop]), want)
+    assert up_from_ground_reactions(markers, [0.0 * f], [cop]) is None

@@ -7,8 +7,15 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from msk.exceptions import FileFormatError, ForcePlateError, MissingDataError, MskError
+from msk.exceptions import (
+    FileFormatError,
+    ForcePlateError,
+    MissingDataError,
+    MskError,
+    UnitsError,
+)
 from msk.io import grf_force_sets, read_external_loads_xml, write_sto
+from msk.io.grf import header_length_unit
 from msk.loads import external_loads_assignment, plates_from_grf_file
 
 T = np.linspace(0.0, 1.0, 11)
@@ -232,3 +239,129 @@ def test_every_real_external_loads_xml(real_dir):
         "opensim-rajagopal-walk/grf_walk.xml": {"plate1": "calcn_r", "plate2": "calcn_l"},
         "opensim-subject01-walk/subject01_walk_grf.xml": {"plate1": "calcn_r", "plate2": "calcn_l"},
     }
+
+
+# --- per-plate vector columns (OpenSim's C3DFileAdapter, flattened): f1_1 … p1_1 … m1_1 …
+
+
+def _plate_wrenches(up: int, rng: np.random.Generator, n: int = 200):
+    """Two plates' known ground reactions: force (N), COP on the floor (m), free moment
+    (N·m, about the vertical ``up``): a stance rolling 0.25 m heel to toe with noise."""
+    out = []
+    s = np.linspace(0.0, 1.0, n)
+    for k, (x0, y0) in enumerate([(0.9, 0.6), (0.3, 0.6)]):
+        f = np.zeros((n, 3))
+        f[:, up] = 700.0 * np.sin(np.pi * s) + 5.0 * rng.standard_normal(n) + 30.0
+        h = [a for a in range(3) if a != up]
+        f[:, h[0]] = 80.0 * np.sin(2 * np.pi * s) + rng.standard_normal(n)
+        f[:, h[1]] = -20.0 * np.sin(np.pi * s) + rng.standard_normal(n)
+        c = np.zeros((n, 3))
+        c[:, h[0]] = x0 - 0.12 + 0.25 * s + 0.002 * rng.standard_normal(n) + 0.1 * k
+        c[:, h[1]] = y0 + 0.01 * np.sin(3 * s) + 0.002 * rng.standard_normal(n)
+        tq = np.zeros((n, 3))
+        tq[:, up] = 4.0 * np.sin(2 * np.pi * s) + 0.1 * rng.standard_normal(n)
+        out.append((f, c, tq))
+    return np.linspace(0.0, 1.0, n), out
+
+
+def _write_vector(path: Path, time, wrenches, *, at: str, unit: float, suffix: str = "123",
+                  origins=((0.9186, 0.6111, 0.0), (0.3048, 0.6096, 0.0)), up: int = 2,
+                  header: str | None = None) -> Path:  # fmt: skip
+    """A C3DFileAdapter-style file: ``at`` "origin" (point = the plate origin, moment about
+    it) or "cop" (point = COP, free moment); lengths in ``unit`` metres (moments N·unit)."""
+    cols, data = [], []
+    for k, ((f, c, tq), o) in enumerate(zip(wrenches, origins)):
+        o3 = np.zeros(3)
+        o3[[a for a in range(3) if a != up]] = [o[0], o[1]]
+        if at == "origin":
+            p = np.tile(o3, (f.shape[0], 1))
+            m = np.cross(c - p, f) + tq  # M_P = (c − P) × F + T n
+        else:
+            p, m = c, tq
+        for kind, v in (("f", f), ("p", p / unit), ("m", m / unit)):
+            for a in range(3):
+                cols.append(f"{kind}{k + 1}_{suffix[a]}")
+                data.append(v[:, a])
+    path = write_sto(path, time=time, data=np.column_stack(data), columns=cols)
+    if header is not None:  # an extra header line before endheader
+        text = path.read_text(encoding="utf-8").replace("endheader", f"{header}\nendheader", 1)
+        path.write_text(text, encoding="utf-8")
+    return path
+
+
+@pytest.mark.parametrize("at", ["origin", "cop"])
+@pytest.mark.parametrize("unit", [1.0, 1e-3])
+@pytest.mark.parametrize("up,suffix", [(2, "123"), (1, "123"), (2, "xyz")])
+def test_vector_columns_round_trip_the_known_wrenches(tmp_path, at, unit, up, suffix):
+    """Known wrenches written as a plate-origin or a COP file, in metres or millimetres (no
+    units header: decided from the data), z or y up: the COP to 1e-9 m, the free moment to
+    1e-9 N·m, the force exactly."""
+    rng = np.random.default_rng(7)
+    time, truth = _plate_wrenches(up, rng)
+    path = _write_vector(tmp_path / "grfs.sto", time, truth, at=at, unit=unit, up=up,
+                         suffix=suffix)  # fmt: skip
+    plates = plates_from_grf_file(path)
+    assert [p.name for p in plates] == ["plate1", "plate2"]
+    for p, (f, c, tq) in zip(plates, truth):
+        np.testing.assert_allclose(p.force, f, rtol=0, atol=1e-9)
+        np.testing.assert_allclose(p.cop, c, rtol=0, atol=1e-9)
+        np.testing.assert_allclose(p.free_moment, tq, rtol=0, atol=1e-9)
+        np.testing.assert_allclose(p.moment_about_origin(), np.cross(c, f) + tq, atol=1e-7)
+
+
+def test_vector_columns_units_from_the_header_and_ambiguous_units_raise(tmp_path):
+    rng = np.random.default_rng(3)
+    time, truth = _plate_wrenches(2, rng)
+    # a short sway near the lab origin, in mm: the largest loaded COP coordinate (~70 mm)
+    # lies between 20 and 100 — metres or millimetres is not decided by the data
+    near = ((0.0, 0.0, 0.0), (0.0, 0.0, 0.0))
+    close = [(f, 0.2 * (c - c.mean(axis=0)) + [0.04, 0.02, 0.0], tq) for f, c, tq in truth]
+    bad = _write_vector(tmp_path / "near_mm.sto", time, close, at="cop", unit=1e-3,
+                        origins=near)  # fmt: skip
+    with pytest.raises(UnitsError, match=r"near_mm\.sto: units of the points .* \(p\d_\d\)"):
+        plates_from_grf_file(bad)
+    # the same file with a units header reads
+    ok = _write_vector(tmp_path / "near_mm_units.sto", time, close, at="cop", unit=1e-3,
+                       origins=near, header="Units=mm")  # fmt: skip
+    for p, (_f, c, _tq) in zip(plates_from_grf_file(ok), close):
+        np.testing.assert_allclose(p.cop, c, atol=1e-9)
+    assert header_length_unit(ok) == 1e-3
+    wrong = _write_vector(tmp_path / "furlong.sto", time, truth, at="cop", unit=1.0,
+                          header="Units=furlong")  # fmt: skip
+    with pytest.raises(UnitsError, match=r"furlong\.sto: header Units='furlong'"):
+        plates_from_grf_file(wrong)
+
+
+def test_vector_columns_missing_point_names_the_plate(tmp_path):
+    cols = ["f1_1", "f1_2", "f1_3", "p1_1", "p1_2"]
+    with pytest.raises(MissingDataError, match=r"plate 1's point needs .* missing \['p1_3'\]"):
+        grf_force_sets(["time", *cols], source="x.sto")
+
+
+@pytest.mark.realdata
+def test_opensim_c3d_adapter_files_agree_with_each_other_and_with_the_c3d(real_dir):
+    """opensim-core's walking2 GRFs as OpenSim wrote them at the plate origins (mm, N·mm,
+    no units header) and at the COP: the same loads — COP within 1e-9 m and free moment within
+    1e-8 N·m over the loaded samples (vertical > 100 N; measured 5e-11 m, 1.4e-9 N·m: the
+    files' 8 decimals) — and the same as msk's own extraction of walking2.c3d at those samples
+    (force within 1e-7 N, COP 1e-9 m, free moment 1e-8 N·m)."""
+    from msk.io import read_c3d
+
+    d = real_dir / "opensim-core-c3d"
+    origin = plates_from_grf_file(d / "std_walking2_grfs.sto")
+    cop = plates_from_grf_file(d / "std_cop_walking2_grfs.sto")
+    trial = read_c3d(d / "walking2.c3d")
+    assert len(origin) == len(cop) == len(trial.plates) == 2
+    for a, b, c in zip(origin, cop, trial.plates):
+        loaded = a.force[:, 2] > 100.0
+        assert loaded.sum() >= 9
+        np.testing.assert_allclose(a.force, b.force, atol=1e-7)
+        np.testing.assert_allclose(a.cop[loaded], b.cop[loaded], rtol=0, atol=1e-9)
+        np.testing.assert_allclose(a.free_moment[loaded], b.free_moment[loaded], atol=1e-8)
+        idx = np.searchsorted(trial.analog_time, a.time - 1e-9)  # the 20 Hz subsample
+        np.testing.assert_allclose(a.force, c.force[idx], rtol=0, atol=1e-7)
+        np.testing.assert_allclose(a.cop[loaded], c.cop[idx][loaded], rtol=0, atol=1e-9)
+        np.testing.assert_allclose(a.free_moment[loaded], c.free_moment[idx][loaded], atol=1e-8)
+        # on the plate: the COP inside the C3D's outline
+        lo, hi = c.corners.min(axis=0), c.corners.max(axis=0)
+        assert ((a.cop[loaded, :2] >= lo[:2]) & (a.cop[loaded, :2] <= hi[:2])).all()
