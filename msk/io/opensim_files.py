@@ -63,6 +63,8 @@ class MarkerTable:
     rate_hz: float
     units_in_file: str
     frame_numbers: NDArray[np.int64]
+    #: what the reader noticed and decided (e.g. a header rate its time column contradicts)
+    warnings: tuple[str, ...] = ()
 
     def marker(self, label: str) -> NDArray[np.float64]:
         try:
@@ -245,7 +247,13 @@ write_mot = write_sto
 # .trc
 # ---------------------------------------------------------------------------------------------
 def read_trc(path: str | Path) -> MarkerTable:
-    """Read a TRC marker file; coordinates converted to metres from its ``Units``."""
+    """Read a TRC marker file; coordinates converted to metres from its ``Units``.
+
+    The rows are placed in time by the ``Time`` column (as OpenSim does); when the header's
+    ``DataRate`` contradicts that column's median step by more than 1 % (a file subsampled
+    without its header updated, e.g. opensim-core's ``std_walking2_markers.trc``: 250 Hz
+    declared, 25 Hz rows), ``rate_hz`` is the column's and the contradiction is in
+    ``warnings``."""
     path = Path(path)
     lines = _read_text(path)
     if len(lines) < 5 or not lines[0].startswith("PathFileType"):
@@ -279,6 +287,15 @@ def read_trc(path: str | Path) -> MarkerTable:
             f"{path}: header announces NumFrames={n_frames}, file has {data.shape[0]} rows"
         )
     check_time_axis(path, data[:, 1], FileFormatError, "time")
+    warnings: tuple[str, ...] = ()
+    if data.shape[0] >= 3:
+        column_rate = 1.0 / float(np.median(np.diff(data[:, 1])))
+        if abs(column_rate / rate - 1.0) > 0.01:
+            warnings = (
+                f"TRC header DataRate = {rate:g} Hz but its Time column steps at "
+                f"{column_rate:.6g} Hz: the Time column's rate is used",
+            )
+            rate = column_rate
     markers = data[:, 2:].reshape(-1, n_markers, 3) * _TRC_UNITS_M[units]
     with np.errstate(invalid="ignore"):
         far = np.isinf(markers) | (np.abs(markers) > MAX_ABS_COORDINATE_M)
@@ -295,6 +312,7 @@ def read_trc(path: str | Path) -> MarkerTable:
         rate_hz=rate,
         units_in_file=units,
         frame_numbers=np.nan_to_num(data[:, 0]).astype(np.int64),
+        warnings=warnings,
     )
 
 
@@ -327,6 +345,7 @@ def read_trc_trial(path: str | Path, *, up: ArrayLike = (0.0, 1.0, 0.0)) -> Tria
         vertical_axis=int(np.argmax(np.abs(u))),
         up=u / np.linalg.norm(u),
         point_units_in_file=t.units_in_file,
+        metadata={"warnings": t.warnings} if t.warnings else {},
     )
 
 

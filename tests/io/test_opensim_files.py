@@ -58,6 +58,26 @@ def test_sto_mot_round_trip_is_identity(tmp_path, tab, ext, deg):
         np.testing.assert_array_equal(back.data, tab.data)
 
 
+def test_a_trc_header_rate_its_time_column_contradicts_yields_to_the_column(tmp_path):
+    """A TRC subsampled without its header updated (opensim-core's std_walking2_markers.trc:
+    250 Hz declared, 25 Hz rows): the Time column's rate is used and the contradiction is
+    reported as the trial's input warning; a consistent header is kept silently."""
+    from msk.io import read_trc_trial
+
+    x = np.random.default_rng(2).uniform(-1, 1, size=(8, 2, 3))
+    t = np.arange(8) / 25.0
+    bad = write_trc(tmp_path / "b.trc", time=t, markers=x, labels=["A", "B"], rate_hz=250.0)
+    table = read_trc(bad)
+    assert table.rate_hz == pytest.approx(25.0)
+    assert len(table.warnings) == 1 and "250 Hz" in table.warnings[0]
+    assert "25 Hz" in table.warnings[0]
+    trial = read_trc_trial(bad)
+    assert trial.point_rate_hz == pytest.approx(25.0)
+    assert trial.metadata["warnings"] == table.warnings
+    good = write_trc(tmp_path / "g.trc", time=t, markers=x, labels=["A", "B"], rate_hz=25.0)
+    assert read_trc(good).warnings == () and read_trc_trial(good).metadata == {}
+
+
 @settings(
     max_examples=30, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture]
 )
