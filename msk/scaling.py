@@ -1017,10 +1017,23 @@ SCALING_NEUTRAL_WEIGHT = 1e-5
 PLACEMENT_RETRY_RMS_M = 0.030
 
 
-def _neutral_tasks(model: Model) -> dict[str, tuple[float, float]]:
-    """Coordinate tasks pulling every free rotation of ``model`` towards 0 (not translations)."""
+#: weight (per rad²) of the pull towards neutral in the passes of
+#: :func:`refine_placement_from_motion` (the value of :data:`SCALING_NEUTRAL_WEIGHT`, for the same
+#: reason): 1 rad costs as much as one marker 3 mm off, which makes each pass's minimum along
+#: the flat directions of a cluster-only leg unique (without it UWA fast walking's passes jumped
+#: from a task IK cost of 9.9 mm to 40–118 mm in most rounds, and where the descent stopped
+#: moved with 1e-4 of its input: 8.4–9.9 mm); it moves a walk's ±8° hip rotation by nothing
+#: the markers can see (synthetic: ``tests/test_scaling.py``; issue 15, twelfth pass)
+DESCENT_NEUTRAL_WEIGHT = 1e-5
+
+
+def _neutral_tasks(
+    model: Model, weight: float = NEUTRAL_TASK_WEIGHT
+) -> dict[str, tuple[float, float]]:
+    """Coordinate tasks pulling every free rotation of ``model`` towards 0 (not translations)
+    with ``weight`` (per rad²)."""
     return {
-        c.name: (0.0, NEUTRAL_TASK_WEIGHT)
+        c.name: (0.0, weight)
         for c in model.coordinates
         if not c.locked and not c.name.endswith(("_tx", "_ty", "_tz"))
     }
@@ -1327,6 +1340,7 @@ def place_markers_from_motion(
     median_neutral: Sequence[str] = (),
     hints: Mapping[str, str] | None = None,
     start: Mapping[str, Sequence[Any]] | None = None,
+    neutral_weight: float = NEUTRAL_TASK_WEIGHT,
 ) -> tuple[Model, dict[str, Any]]:
     """Add a motion trial's non-model markers to ``model`` when there is no static trial.
 
@@ -1377,8 +1391,9 @@ def place_markers_from_motion(
     ``regularize`` None (default): the passes run without any pull on the coordinates; when
     their final marker RMS exceeds :data:`PLACEMENT_RETRY_RMS_M` (the anatomical markers leave
     the legs free: pelvis and feet only, e.g. UWA's cluster-only set), they are run again with
-    every rotation pulled weakly towards neutral (:data:`NEUTRAL_TASK_WEIGHT`) and the placement
-    with the lower RMS is kept (``info["regularized"]`` says which); True / False: only that.
+    every rotation pulled weakly towards neutral (``neutral_weight``, per rad²; default
+    :data:`NEUTRAL_TASK_WEIGHT`) and the placement with the lower RMS is kept
+    (``info["regularized"]`` says which); True / False: only that.
 
     ``start`` (``info["state"]`` of an earlier placement: marker → [body, σ, offset]): the
     first pass solves with those markers placed too (those within the later passes' spread
@@ -1401,6 +1416,7 @@ def place_markers_from_motion(
             max_spread_m=max_spread_m, max_distance_m=max_distance_m, max_frames=max_frames,
             min_frames=min_frames, min_markers=min_markers, iterations=iterations, move=move,
             median_neutral=median_neutral, hints=hints, start=start,
+            neutral_weight=neutral_weight,
         )  # fmt: skip
         plain = place_markers_from_motion(model, markers, labels, time, regularize=False, **args)
         if plain[1]["ik_marker_rms_m"] <= PLACEMENT_RETRY_RMS_M:
@@ -1469,7 +1485,7 @@ def place_markers_from_motion(
         unobserved = unobserved_end_rotations(ik_model, xs, labels, min_frames)
         tasks = {
             **unobserved,
-            **(_neutral_tasks(model) if regularize else {}),
+            **(_neutral_tasks(model, neutral_weight) if regularize else {}),
         } or None
         kin = solve_kinematics(
             ik_model, xs, labels, ts, cutoff_hz=None, min_markers=3, coordinate_tasks=tasks
@@ -1602,12 +1618,13 @@ def refine_placement_from_motion(
     **kwargs: Any,
 ) -> tuple[Model, dict[str, Any]]:
     """Continue a motion placement (``placed``: the result of :func:`place_markers_from_motion`
-    on ``model``, the model without the lab's markers) by rounds of ``passes`` unpulled passes
-    (``start`` = the last round's ``info["state"]``, ``regularize=False``; ``kwargs``: the
-    other keywords it was placed with), for as long as ``cost(model, info)`` — the fit the
-    placement is for, e.g. the task's own inverse kinematics cost
-    (:func:`msk.pipeline.model.placement_cost`) — decreases by more than ``tolerance_m``, at most
-    ``max_rounds`` rounds.
+    on ``model``, the model without the lab's markers) by rounds of ``passes`` passes
+    (``start`` = the last round's ``info["state"]``; every rotation pulled towards neutral by
+    :data:`DESCENT_NEUTRAL_WEIGHT` only, which leaves the fit to the markers and makes each
+    pass's minimum unique; ``kwargs``: the other keywords it was placed with), for as long as
+    ``cost(model, info)`` — the fit the placement is for, e.g. the task's own inverse
+    kinematics cost (:func:`msk.pipeline.model.placement_cost`) — decreases by more than
+    ``tolerance_m``, at most ``max_rounds`` rounds.
 
     Each pass is one block of a block-coordinate descent of the markers' distances over the
     poses (inverse kinematics) and the markers' body-frame offsets (their median position in
@@ -1617,7 +1634,9 @@ def refine_placement_from_motion(
     Started from the placement pulled towards neutral (unique: the pull resolves the flat
     directions of the anatomical markers' IK), the descent ends where the markers alone put
     the placement: DM og1's task IK 9.3 → 7.7 mm, the same to 0.15 mm under the perturbations
-    of ``scripts/placement_jitter.py`` (issue 15, tenth pass).
+    of ``scripts/placement_jitter.py`` (issue 15, tenth pass). Unpulled, the passes of a
+    cluster-only leg (UWA) jumped to another basin or diverged in most rounds, so that where
+    the descent stopped was a lottery (issue 15, twelfth pass: :data:`DESCENT_NEUTRAL_WEIGHT`).
 
     Returns the model and the last kept round's ``info`` with ``"descent_cost_m"`` (the cost
     of ``placed``, then of each kept round) and the ``"regularized"`` of ``placed``."""
@@ -1628,7 +1647,8 @@ def refine_placement_from_motion(
         nxt_model, nxt = place_markers_from_motion(
             model.with_markers([mk for mk in cur_model.markers if mk.name in own]),
             markers, labels, time,
-            **{**kwargs, "regularize": False, "iterations": passes, "start": cur["state"]},
+            **{**kwargs, "regularize": True, "neutral_weight": DESCENT_NEUTRAL_WEIGHT,
+               "iterations": passes, "start": cur["state"]},
         )  # fmt: skip
         v = float(cost(nxt_model, nxt))
         if not v < path[-1] - tolerance_m:
