@@ -1047,7 +1047,11 @@ def _ik_frames(
     (subsampled to at most ``max_rate_hz``) around the middle of the trial: inverse kinematics
     warm-starts each frame from the previous one, which keeps it on the right branch when few
     markers pin the legs (pelvis and feet only: crouch gait jumped between hip ±120° with
-    frames a second apart)."""
+    frames a second apart). When fewer than ``max_frames`` frames remain at that rate, all of
+    them at the highest rate that gives at most ``max_frames``: UWA ``Running_1`` tracks its
+    markers over ~1 s at 250 Hz, whose middle 120 frames (0.48 s, less than a stride) had
+    placed the clusters and measured the legs on one phase of the run (task IK 13.9 mm; over
+    the whole window 10.9 mm; issue 15, twelfth pass)."""
     cols = [i for i, lab in enumerate(labels) if lab in set(names)]
     n_seen = np.isfinite(x[:, cols]).all(axis=2).sum(axis=1) if cols else np.zeros(len(x))
     good = np.flatnonzero(n_seen >= min_markers)
@@ -1059,7 +1063,9 @@ def _ik_frames(
         if t.size > 1 and t[-1] > t[0]:
             rate = (t.size - 1) / (t[-1] - t[0])
             step = max(1, int(np.ceil(rate / max_rate_hz)))
-    sub = good[::step] if good.size // step >= max_frames else good
+    # a window shorter than max_frames at that rate (a running trial's ~1 s of tracked
+    # markers): all of it, at the highest rate that fits, not its middle max_frames frames
+    sub = good[::step] if good.size // step >= max_frames else good[:: -(-good.size // max_frames)]
     mid = sub.size // 2
     lo = max(0, min(mid - max_frames // 2, sub.size - max_frames))
     return sub[lo : lo + max_frames]

@@ -845,6 +845,36 @@ def test_motion_placement_takes_the_walks_median_subtalar_as_neutral(gait2392):
     assert abs(medians[("subtalar_angle_r",)]) < 2.0
 
 
+def test_a_short_tracked_window_is_placed_over_all_of_it_not_its_middle(gait2392):
+    """Issue 15, twelfth pass: a running trial tracks its markers over ~1 s at 250 Hz, fewer
+    frames than the placement takes (120) at its 60 Hz; the placement then uses all of the
+    window at the highest rate that fits, not its middle 120 frames (0.48 s, one phase of a
+    stride). Truth: the subtalar at 0 except a 20° bump over the middle 40 % of the window
+    (250 frames), every foot marker moved: the walk's median (0) becomes the joint's neutral
+    and the trial's IK sees the subtalar at a median within 2° of 0 (from the middle frames
+    alone the median would be ~20°, and the trial's IK at ~−20°)."""
+    from msk.kinematics import solve_kinematics
+    from msk.scaling import place_markers_from_motion
+
+    n = 250
+    th = _gait_poses(gait2392, n=n)
+    c = gait2392.coordinate_names
+    i = np.arange(n)
+    th[:, c.index("subtalar_angle_r")] = np.radians(20.0) * np.exp(-(((i - 125) / 50.0) ** 16))
+    x = marker_positions(gait2392, th) + np.random.default_rng(3).normal(0.0, 0.001, (n, 1, 3))
+    labels = list(gait2392.marker_names)
+    feet = [m.name for m in gait2392.markers if m.body == "calcn_r"]
+    t = i / 250.0
+    assert np.degrees(np.median(th[65:185, c.index("subtalar_angle_r")])) > 15.0
+    model, info = place_markers_from_motion(
+        gait2392, x, labels, t, move=feet, median_neutral=("subtalar_angle_r",)
+    )
+    assert info["frames"] == 84  # every third frame of the 250
+    assert abs(np.degrees(info["median_neutral"]["subtalar_angle_r"])) < 2.0
+    kin = solve_kinematics(model, x, labels, t, cutoff_hz=None)
+    assert abs(np.degrees(np.median(kin.q_raw[:, c.index("subtalar_angle_r")]))) < 2.0
+
+
 def test_a_trunk_with_one_tracked_marker_is_pulled_to_neutral_in_placement(gait2392):
     """A terminal body its tracked markers do not pin (a trunk with its sternum only, the lab's
     neck and shoulder markers still to place; toes with none) has its joint's rotations pulled
