@@ -1041,10 +1041,23 @@ SCALING_NEUTRAL_WEIGHT = 1e-5
 PLACEMENT_RETRY_RMS_M = 0.030
 
 
-def _neutral_tasks(model: Model) -> dict[str, tuple[float, float]]:
-    """Coordinate tasks pulling every free rotation of ``model`` towards 0 (not translations)."""
+#: weight (per rad²) of the pull towards neutral in the passes of
+#: :func:`refine_placement_from_motion` (the value of :data:`SCALING_NEUTRAL_WEIGHT`, for the same
+#: reason): 1 rad costs as much as one marker 3 mm off, which makes each pass's minimum along
+#: the flat directions of a cluster-only leg unique (without it UWA fast walking's passes jumped
+#: from a task IK cost of 9.9 mm to 40–118 mm in most rounds, and where the descent stopped
+#: moved with 1e-4 of its input: 8.4–9.9 mm); it moves a walk's ±8° hip rotation by nothing
+#: the markers can see (synthetic: ``tests/test_scaling.py``; issue 15, twelfth pass)
+DESCENT_NEUTRAL_WEIGHT = 1e-5
+
+
+def _neutral_tasks(
+    model: Model, weight: float = NEUTRAL_TASK_WEIGHT
+) -> dict[str, tuple[float, float]]:
+    """Coordinate tasks pulling every free rotation of ``model`` towards 0 (not translations)
+    with ``weight`` (per rad²)."""
     return {
-        c.name: (0.0, NEUTRAL_TASK_WEIGHT)
+        c.name: (0.0, weight)
         for c in model.coordinates
         if not c.locked and not c.name.endswith(("_tx", "_ty", "_tz"))
     }
@@ -1058,7 +1071,11 @@ def _ik_frames(
     (subsampled to at most ``max_rate_hz``) around the middle of the trial: inverse kinematics
     warm-starts each frame from the previous one, which keeps it on the right branch when few
     markers pin the legs (pelvis and feet only: crouch gait jumped between hip ±120° with
-    frames a second apart)."""
+    frames a second apart). When fewer than ``max_frames`` frames remain at that rate, all of
+    them at the highest rate that gives at most ``max_frames``: UWA ``Running_1`` tracks its
+    markers over ~1 s at 250 Hz, whose middle 120 frames (0.48 s, less than a stride) had
+    placed the clusters and measured the legs on one phase of the run (task IK 13.9 mm; over
+    the whole window 10.9 mm; issue 15, twelfth pass)."""
     cols = [i for i, lab in enumerate(labels) if lab in set(names)]
     n_seen = np.isfinite(x[:, cols]).all(axis=2).sum(axis=1) if cols else np.zeros(len(x))
     good = np.flatnonzero(n_seen >= min_markers)
@@ -1070,7 +1087,9 @@ def _ik_frames(
         if t.size > 1 and t[-1] > t[0]:
             rate = (t.size - 1) / (t[-1] - t[0])
             step = max(1, int(np.ceil(rate / max_rate_hz)))
-    sub = good[::step] if good.size // step >= max_frames else good
+    # a window shorter than max_frames at that rate (a running trial's ~1 s of tracked
+    # markers): all of it, at the highest rate that fits, not its middle max_frames frames
+    sub = good[::step] if good.size // step >= max_frames else good[:: -(-good.size // max_frames)]
     mid = sub.size // 2
     lo = max(0, min(mid - max_frames // 2, sub.size - max_frames))
     return sub[lo : lo + max_frames]
@@ -1364,6 +1383,7 @@ def place_markers_from_motion(
     hints: Mapping[str, str] | None = None,
     start: Mapping[str, Sequence[Any]] | None = None,
     warm: dict[str, Any] | None = None,
+    neutral_weight: float = NEUTRAL_TASK_WEIGHT,
 ) -> tuple[Model, dict[str, Any]]:
     """Add a motion trial's non-model markers to ``model`` when there is no static trial.
 
@@ -1414,8 +1434,9 @@ def place_markers_from_motion(
     ``regularize`` None (default): the passes run without any pull on the coordinates; when
     their final marker RMS exceeds :data:`PLACEMENT_RETRY_RMS_M` (the anatomical markers leave
     the legs free: pelvis and feet only, e.g. UWA's cluster-only set), they are run again with
-    every rotation pulled weakly towards neutral (:data:`NEUTRAL_TASK_WEIGHT`) and the placement
-    with the lower RMS is kept (``info["regularized"]`` says which); True / False: only that.
+    every rotation pulled weakly towards neutral (``neutral_weight``, per rad²; default
+    :data:`NEUTRAL_TASK_WEIGHT`) and the placement with the lower RMS is kept
+    (``info["regularized"]`` says which); True / False: only that.
 
     ``start`` (``info["state"]`` of an earlier placement: marker → [body, σ, offset]): the
     first pass solves with those markers placed too (those within the later passes' spread
@@ -1445,6 +1466,7 @@ def place_markers_from_motion(
             max_spread_m=max_spread_m, max_distance_m=max_distance_m, max_frames=max_frames,
             min_frames=min_frames, min_markers=min_markers, iterations=iterations, move=move,
             median_neutral=median_neutral, hints=hints, start=start,
+            neutral_weight=neutral_weight,
         )  # fmt: skip
         plain = place_markers_from_motion(
             model, markers, labels, time, regularize=False, warm=None if warm is None else {},
@@ -1523,7 +1545,7 @@ def place_markers_from_motion(
         unobserved = unobserved_end_rotations(ik_model, xs, labels, min_frames)
         tasks = {
             **unobserved,
-            **(_neutral_tasks(model) if regularize else {}),
+            **(_neutral_tasks(model, neutral_weight) if regularize else {}),
         } or None
         q0 = None
         if warm is not None and np.array_equal(warm.get("frames", ()), idx):
@@ -1667,10 +1689,13 @@ def refine_placement_from_motion(
     **kwargs: Any,
 ) -> tuple[Model, dict[str, Any]]:
     """Continue a motion placement (``placed``: the result of :func:`place_markers_from_motion`
-    on ``model``, the model without the lab's markers) by rounds of unpulled passes
-    (``start`` = the last state, ``regularize=False``, one pass per call; ``kwargs``: the
-    other keywords it was placed with) for as long as ``cost(model, info)`` — the fit the
-    placement is for, e.g. the task's own inverse kinematics cost
+    on ``model``, the model without the lab's markers) by rounds of passes (``start`` = the
+    last state, one pass per call; every rotation pulled towards neutral by
+    :data:`DESCENT_NEUTRAL_WEIGHT` only, which leaves the fit to the markers and makes each
+    pass's minimum unique — unpulled, the passes of a cluster-only leg (UWA) jumped to another
+    basin or diverged, so where the descent stopped was a lottery, issue 15 twelfth pass;
+    ``kwargs``: the other keywords it was placed with) for as long as ``cost(model, info)``
+    — the fit the placement is for, e.g. the task's own inverse kinematics cost
     (:func:`msk.pipeline.model.placement_cost`) — falls by more than ``rel_tolerance`` of
     itself per round (at most ``max_rounds`` rounds, a safeguard: ``info["descent_stop"]``
     says which rule stopped it).
@@ -1694,7 +1719,7 @@ def refine_placement_from_motion(
     of ``placed``, then of each kept round), ``"descent_stop"`` and the ``"regularized"`` of
     ``placed``."""
     own = set(model.marker_names)
-    kw = {**kwargs, "regularize": False, "iterations": 1}
+    kw = {**kwargs, "regularize": True, "neutral_weight": DESCENT_NEUTRAL_WEIGHT, "iterations": 1}
     warm: dict[str, Any] = {}  # each pass's IK starts from the previous pass's poses
 
     def step(m: Model, info: Mapping[str, Any]) -> tuple[Model, dict[str, Any]]:

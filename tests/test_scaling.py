@@ -845,6 +845,36 @@ def test_motion_placement_takes_the_walks_median_subtalar_as_neutral(gait2392):
     assert abs(medians[("subtalar_angle_r",)]) < 2.0
 
 
+def test_a_short_tracked_window_is_placed_over_all_of_it_not_its_middle(gait2392):
+    """Issue 15, twelfth pass: a running trial tracks its markers over ~1 s at 250 Hz, fewer
+    frames than the placement takes (120) at its 60 Hz; the placement then uses all of the
+    window at the highest rate that fits, not its middle 120 frames (0.48 s, one phase of a
+    stride). Truth: the subtalar at 0 except a 20° bump over the middle 40 % of the window
+    (250 frames), every foot marker moved: the walk's median (0) becomes the joint's neutral
+    and the trial's IK sees the subtalar at a median within 2° of 0 (from the middle frames
+    alone the median would be ~20°, and the trial's IK at ~−20°)."""
+    from msk.kinematics import solve_kinematics
+    from msk.scaling import place_markers_from_motion
+
+    n = 250
+    th = _gait_poses(gait2392, n=n)
+    c = gait2392.coordinate_names
+    i = np.arange(n)
+    th[:, c.index("subtalar_angle_r")] = np.radians(20.0) * np.exp(-(((i - 125) / 50.0) ** 16))
+    x = marker_positions(gait2392, th) + np.random.default_rng(3).normal(0.0, 0.001, (n, 1, 3))
+    labels = list(gait2392.marker_names)
+    feet = [m.name for m in gait2392.markers if m.body == "calcn_r"]
+    t = i / 250.0
+    assert np.degrees(np.median(th[65:185, c.index("subtalar_angle_r")])) > 15.0
+    model, info = place_markers_from_motion(
+        gait2392, x, labels, t, move=feet, median_neutral=("subtalar_angle_r",)
+    )
+    assert info["frames"] == 84  # every third frame of the 250
+    assert abs(np.degrees(info["median_neutral"]["subtalar_angle_r"])) < 2.0
+    kin = solve_kinematics(model, x, labels, t, cutoff_hz=None)
+    assert abs(np.degrees(np.median(kin.q_raw[:, c.index("subtalar_angle_r")]))) < 2.0
+
+
 def test_a_trunk_with_one_tracked_marker_is_pulled_to_neutral_in_placement(gait2392):
     """A terminal body its tracked markers do not pin (a trunk with its sternum only, the lab's
     neck and shoulder markers still to place; toes with none) has its joint's rotations pulled
@@ -1004,6 +1034,38 @@ def test_refined_motion_placement_descends_to_the_truth_and_is_stable(gait2392):
         got_off = {m.name: np.asarray(m.offset) for m in got_model.markers}
         for k in clusters:
             assert np.linalg.norm(got_off[k] - off[k]) < 0.006, k
+
+
+@pytest.mark.slow
+def test_the_descents_weak_pull_does_not_bias_the_placement(gait2392, monkeypatch):
+    """Issue 15, twelfth pass: the descent's passes pull every rotation towards neutral by
+    :data:`msk.scaling.DESCENT_NEUTRAL_WEIGHT` (1e-5 /rad²: one marker 3 mm off per rad), which
+    makes each pass's minimum unique on UWA's cluster-only legs (its unpulled passes jumped
+    between basins). On the synthetic walk (±8° of hip rotation pelvis and feet do not see,
+    known offsets) the pull changes nothing the markers can see: the same final cost to
+    0.05 mm, every cluster within 0.5 mm of the unpulled descent's offsets (0.07 mm measured)
+    and within 8 mm of its truth; the placement's own pull (:data:`msk.scaling.
+    NEUTRAL_TASK_WEIGHT`, 100× more) kept in the passes would move them by more than 2 mm
+    (4.4 mm measured)."""
+    import msk.scaling as scaling
+
+    x, labels, t, clusters = _pelvis_and_feet_walk(gait2392)
+    _, pulled_model, pulled = _placed_and_refined(gait2392, x, labels, t)
+    ref = {m.name: np.asarray(m.offset) for m in pulled_model.markers}
+    moved = {}
+    for w in (0.0, scaling.NEUTRAL_TASK_WEIGHT):
+        monkeypatch.setattr(scaling, "DESCENT_NEUTRAL_WEIGHT", w)
+        _, got_model, got = _placed_and_refined(gait2392, x, labels, t)
+        off = {m.name: np.asarray(m.offset) for m in got_model.markers}
+        moved[w] = max(np.linalg.norm(off[k] - ref[k]) for k in clusters)
+        if w == 0.0:
+            assert abs(got["descent_cost_m"][-1] - pulled["descent_cost_m"][-1]) < 5e-5
+    assert moved[0.0] < 0.0005
+    assert moved[scaling.NEUTRAL_TASK_WEIGHT] > 0.002
+    assert max(
+        np.linalg.norm(np.asarray(m.offset) - np.array(clusters[m.name][1]))
+        for m in pulled_model.markers if m.name in clusters
+    ) < 0.008  # fmt: skip
 
 
 @pytest.mark.slow

@@ -615,11 +615,20 @@ def held_foot_coordinates(
     """Foot joints the markers cannot observe (fewer than 3 markers on the bodies distal to the
     joint: e.g. Plug-in Gait's heel + toe), held near neutral by an IK coordinate task
     (OpenSim's IKCoordinateTask) instead of wandering to −75°. A marker counts when the trial
-    tracks it in at least half of the frames it tracks anything (metatarsal-head markers lost
-    in most frames do not observe the subtalar)."""
+    tracks it in at least half of the frames the IK solves (those that see
+    :data:`msk.pipeline.kinematics.MIN_MARKER_FRACTION` of the most model markers any frame
+    sees: metatarsal-head markers lost in most of them do not observe the subtalar). Not the
+    frames that track anything: a running trial's unlabelled trajectories (``*33``…) and
+    acromia outlast its feet's markers by 150 frames, and the right subtalar of UWA's
+    ``Running_1``, whose metatarsal heads are tracked in 93 % of the solved frames, was held
+    (issue 15, twelfth pass)."""
+    from msk.pipeline.kinematics import MIN_MARKER_FRACTION
+
     vis = np.isfinite(markers).all(axis=2)
-    anyvis = vis.any(axis=1)
-    frac = vis[anyvis].mean(axis=0) if anyvis.any() else np.zeros(len(labels))
+    on_model = np.array([lab in set(model.marker_names) for lab in labels], dtype=bool)
+    count = vis[:, on_model].sum(axis=1)
+    solved = count >= max(3, MIN_MARKER_FRACTION * count.max()) if count.size else count > 0
+    frac = vis[solved].mean(axis=0) if solved.any() else np.zeros(len(labels))
     seen = {
         lab for k, lab in enumerate(labels) if lab in model.marker_names and frac[k] >= 0.5
     }  # fmt: skip
