@@ -175,3 +175,17 @@ def test_left_out_is_the_component_holding_the_coordinate() -> None:
     mus, coords = left_out(pattern, np.array([False, False, False, True]))
     np.testing.assert_array_equal(mus, [False, False, False, True])
     np.testing.assert_array_equal(coords, [False, False, False, True])
+
+
+def test_frames_solved_counts_each_leg() -> None:
+    """summary.json's ``optimization.frames_solved``: per leg the frames with every one of its
+    muscle forces (the right leg in all 5 frames, the left one in 2)."""
+    from msk.pipeline.summary import frames_solved
+    from msk.pipeline.tension import MuscleTensions
+
+    f = np.ones((5, 4))
+    f[[1, 2], 2] = np.nan
+    f[0] = np.nan
+    f[0, :2] = 1.0
+    sol = MuscleTensions(f, f, ("a_r", "b_r", "a_l", "b_l"), "bounded_qp", 0)
+    assert frames_solved(sol) == {"r": 5, "l": 2}

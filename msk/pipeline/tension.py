@@ -119,7 +119,7 @@ def left_out(pattern: np.ndarray, unbalanced: np.ndarray) -> tuple[np.ndarray, n
     pattern = np.asarray(pattern, dtype=bool)
     coords = np.asarray(unbalanced, dtype=bool).copy()
     while True:
-        muscles = pattern[:, coords].any(axis=1)
+        muscles = np.asarray(pattern[:, coords].any(axis=1))
         grown = coords | pattern[muscles].any(axis=0)
         if (grown == coords).all():
             return muscles, coords
@@ -418,8 +418,8 @@ def optimise(
         from msk.dynamics import coordinates_carrying
 
         child = next(j.child for j in model.joints if j.name == comp.joint)
-        carry = set(coordinates_carrying(model, child))
-        knee_out = drop_c[:, [k for k, c in enumerate(cn) if c in carry]].any(axis=1)
+        above = set(coordinates_carrying(model, child))
+        knee_out = np.asarray(drop_c[:, [k for k, c in enumerate(cn) if c in above]].any(axis=1))
     id_peak = 0.0
     gain_fit = None
     if meth == "emg_assisted":  # gains first (on a bounded frame sample), then every block
