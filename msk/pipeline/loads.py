@@ -37,11 +37,12 @@ PLATE_ASSIGNMENT = (
 class Loads:
     """``external``: :class:`msk.loads.ExternalLoads`; ``measured``: (N,) frames whose every
     foot on the floor stands on a plate (a walkway's steps before and after the plates miss a
-    ground reaction: no residual, identification equation or muscle force comes from them);
+    ground reaction: no residual or identification equation comes from them; a leg whose own
+    foot is measured there is still solved, ``legs``);
     ``observation``: :class:`msk.observation.Observation`, the frames whose leg segments the
     markers observe (a segment out of the capture volume or a marker dropping out: its pose,
     hence q̈, is guessed there); ``usable``: measured and observed frames with finite q and q̈
-    — the frames every dynamics-based figure and fit uses; ``contact``:
+    — the frames the whole-body figures and fits use; ``contact``:
     :class:`msk.loads.FootContact`, which foot stands on an unmeasured surface in which frame
     (its leg's joint torques are not written there: :func:`msk.pipeline.dynamics.run`);
     ``legs``: (N, F) the frames in which the leg of foot k of ``contact.feet`` can be solved on
