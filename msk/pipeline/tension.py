@@ -1,5 +1,6 @@
 """Stage ``tension_optimization``: muscle tensions that produce the joint torques, by the
-configured criterion (:mod:`msk.optimization` batch solvers) on the usable frames.
+configured criterion (:mod:`msk.optimization` batch solvers) on the frames each leg can be
+solved in (a leg whose foot stands off the plates is left out of that frame: :func:`optimise`).
 
 Criteria (``[optimization] method``): ``static_optimization`` min Σ w_i a_i^p with activation
 bounds and reserve actuators (Crowninshield & Brand 1981; ``activation_weights = "volume"``:
