@@ -617,13 +617,16 @@ class Kkt(_Record):
 class Optimization(_Record):
     """``optimization``: the tension optimisation (method, criterion, EMG gains per channel
     and their status, infeasible frames, reserve torques RMS per coordinate N·m, the worst
-    KKT figures of the frames solved optimal)."""
+    KKT figures of the frames solved optimal; ``frames_solved``: per leg (model side suffix
+    ``r``/``l``) the frames whose muscle forces were solved — a leg is left out of a frame
+    where its foot stands off the plates, the other one solved)."""
 
     method: str | None = None
     criterion: str | None = None
     emg_gains: Mapping[str, float | None] | None = None
     emg_gain_status: Mapping[str, str] | None = None
     infeasible_frames: int | None = None
+    frames_solved: Mapping[str, int] | None = None
     reserve_torque_rms_nm: Mapping[str, float | None] | None = None
     kkt: Kkt | None = None
 

@@ -18,6 +18,7 @@ import msk.optimization as o
 from msk.cache import decode, encode
 from msk.optimization.synthetic import leg_like_frames
 from msk.pipeline import blocks
+from msk.pipeline.loads import unbalanced_coordinates
 from msk.timeseries import FrameSparse
 
 REPO = Path(__file__).resolve().parents[1]
@@ -328,12 +329,16 @@ def test_tension_forces_only_are_the_stage_forces() -> None:
     cfg = load_config(REPO / "pipelines" / "gc5_PS.toml")
     r = run_stages(cfg, until="tension_optimization")
     full = r["tension_optimization"]
+    torques = r["inverse_dynamics"].torques
     with threadpool_limits(limits=1, user_api="blas"):
         only = tension.optimise(
             session_inputs(cfg), identified_model(r["model"].model, r["mass_identification"]),
-            r["inverse_dynamics"].torques, r["muscle_geometry"], r["kinematics"].time,
-            r["loads"].usable, r["emg"], forces_only=True, kinematics=r["kinematics"],
+            torques, r["muscle_geometry"], r["kinematics"].time,
+            r["loads"].solvable, r["emg"], forces_only=True, kinematics=r["kinematics"],
             external=r["loads"].external,
+            unbalanced=unbalanced_coordinates(
+                r["model"].model, r["loads"], torques.coordinate_names
+            ),
         )  # fmt: skip
     np.testing.assert_array_equal(only.forces, full.forces)
     assert np.isfinite(full.forces).any()
@@ -748,20 +753,27 @@ def test_knee_contact_in_blocks_equals_one_pass(monkeypatch: pytest.MonkeyPatch)
     joint = got.joint
     m_id = identified_model(mdl, r["mass_identification"])  # both variants' inertias
     spec = with_strength(m_id, r["strength_identification"].profile)
+    torques = r["inverse_dynamics"].torques
     with threadpool_limits(limits=1, user_api="blas"):
         resolve = tension.optimise(
-            inputs, spec, r["inverse_dynamics"].torques, r["muscle_geometry"], kin.time,
-            r["loads"].usable, r["emg"], forces_only=True, kinematics=kin,
+            inputs, spec, torques, r["muscle_geometry"], kin.time,
+            r["loads"].solvable, r["emg"], forces_only=True, kinematics=kin,
             external=r["loads"].external,
+            unbalanced=unbalanced_coordinates(mdl, r["loads"], torques.coordinate_names),
         )  # fmt: skip
     forces = {"generic": r["tension_optimization"].forces, "subject_specific": resolve.forces}
     models = {"generic": m_id, "subject_specific": spec}
+    # the knee's leg: its muscles (the side's suffix) solved; the other leg's forces (NaN where
+    # its foot stands off the plates) load no part of this knee's distal side: 0
+    side = [k for k, m in enumerate(r["tension_optimization"].muscles) if m.endswith(joint[-2:])]
     for name, f in forces.items():
-        ok = np.flatnonzero(r["loads"].usable & np.isfinite(f).all(axis=1))
+        ok = np.flatnonzero(r["loads"].solvable & np.isfinite(f[:, side]).all(axis=1))
         assert ok.size > 100
+        assert (~np.isfinite(f[ok])).any()  # frames whose other leg is left out
         w = muscle_geometry(mdl, kin.q[ok], distal_wrench_joints=(joint,)).distal_wrenches[joint]
         c = knee_contact_force(
-            models[name], kin.take(ok), r["loads"].external.take(ok), muscle_forces=f[ok],
+            models[name], kin.take(ok), r["loads"].external.take(ok),
+            muscle_forces=np.nan_to_num(f[ok], nan=0.0),
             muscle_names=r["tension_optimization"].muscles, joint=joint, distal_wrenches=w,
         )  # fmt: skip
         cc = cfg.contact
@@ -858,7 +870,7 @@ def test_recomputed_jacobian_rows_are_the_geometry_stages_values(
     monkeypatch.setattr(blocks, "FRAME_BLOCK", 40)
     cfg = load_config(REPO / "pipelines" / "gc5_PS.toml")
     r = run_stages(cfg, until="emg")
-    mdl, kin, ok = r["model"].model, r["kinematics"], r["loads"].usable
+    mdl, kin, ok = r["model"].model, r["kinematics"], r["loads"].solvable
     geo = geometry.run(session_inputs(cfg), r["model"], kin, r["loads"])
     rows = geo.jacobian.values
     assert isinstance(rows, JacobianRows)

@@ -20,7 +20,7 @@ from msk.pipeline.blocks import frame_blocks
 from msk.pipeline.dynamics import InverseDynamics
 from msk.pipeline.emg import EmgActivations
 from msk.pipeline.inputs import SessionInputs
-from msk.pipeline.loads import Loads
+from msk.pipeline.loads import Loads, unbalanced_coordinates
 from msk.pipeline.mass_identification import MassIdentification, identified_model
 from msk.pipeline.model import BuiltModel
 from msk.pipeline.runner import StageUnavailable
@@ -69,9 +69,16 @@ class _VariantArrays:
 
     def fill(self, fr: np.ndarray, forces: np.ndarray, w: np.ndarray, names: Any) -> None:
         """The contact on frames ``fr`` (indices) with these muscle ``forces`` (columns
-        ``names``) and the knee's unit wrenches ``w`` (N, muscles, 6) of those frames."""
+        ``names``) and the knee's unit wrenches ``w`` (N, muscles, 6) of those frames. Only the
+        frames where every muscle with a wrench on the knee's distal subtree has a force are
+        filled: a muscle without one (NaN: the other leg, left out of the tension QP where its
+        foot stands off the plates) does not load this knee and counts as 0."""
         from msk.contact import knee_contact_force, split_medial_lateral
 
+        loads_knee = (np.asarray(w) != 0).any(axis=2)
+        known = np.isfinite(forces)
+        keep = (known | ~loads_knee).all(axis=1)
+        fr, forces, w = fr[keep], np.where(known, forces, 0.0)[keep], w[keep]
         if not fr.size:
             return
         contact = knee_contact_force(
@@ -133,8 +140,10 @@ def run(
         return _VariantArrays(m, knee_plateau(inputs, m, joint), kin, loads.external, joint)
 
     gen_forces, names = tension_optimization.forces, tension_optimization.muscles
-    # frames without muscle forces get no contact force (never zero muscle force)
-    gen_ok = loads.usable & np.isfinite(gen_forces).all(axis=1)
+    # frames without the knee's muscle forces get no contact force (never zero muscle force;
+    # a frame whose other leg is left out of the tension QP is solved for this knee:
+    # _VariantArrays.fill)
+    gen_ok = loads.solvable & np.isfinite(gen_forces).any(axis=1)
     # both variants on the inertias the muscle forces balance (the tension stage's torques are
     # the identified model's): the joint reaction of the generic model's inertias with those
     # forces mixed two models (PS ss1: up to 82/111 N on the medial/lateral split)
@@ -153,15 +162,17 @@ def run(
             (the wrenches computed once), its forces then dropped — a long trial never holds
             the re-solve's forces whole (issue 18)."""
             w = wrenches(fr)
-            ks = np.isfinite(forces).all(axis=1)
+            ks = np.isfinite(forces).any(axis=1)
             spec.fill(fr[ks], forces[ks], w[ks], names)
             kg = gen_ok[fr]
             generic.fill(fr[kg], gen_forces[fr[kg]], w[kg], names)
             done[fr] = True
 
+        torques = inverse_dynamics.torques
         optimise(
-            inputs, m_spec, inverse_dynamics.torques, muscle_geometry, kin.time,
-            loads.usable, emg, on_block=on_block, kinematics=kin, external=loads.external,
+            inputs, m_spec, torques, muscle_geometry, kin.time, loads.solvable, emg,
+            on_block=on_block, kinematics=kin, external=loads.external,
+            unbalanced=unbalanced_coordinates(mdl, loads, torques.coordinate_names),
         )  # fmt: skip
         gen_ok &= ~done  # generic frames no re-solve block had (normally none)
     for fr in frame_blocks(np.flatnonzero(gen_ok)):  # block by block: memory bounded

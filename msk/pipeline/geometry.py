@@ -124,10 +124,11 @@ def compact_values(jacobian: Any, positions: NDArray[np.intp]) -> NDArray[np.flo
 
 def run(inputs: SessionInputs, model: BuiltModel, kinematics: Any, loads: Loads) -> Any:
     """:class:`msk.muscles.geometry.MuscleGeometry` with a compact ``jacobian`` (no
-    ``distal_wrenches``); frames that are not usable are evaluated at the default pose, at rest
+    ``distal_wrenches``); frames in which no leg is solvable
+    (:attr:`msk.pipeline.loads.Loads.solvable`) are evaluated at the default pose, at rest
     (their values are never used). On a trial of more than one block the compact values are
     :class:`JacobianRows` (recomputed where read, not held)."""
-    mdl, kin, ok = model.model, kinematics, loads.usable
+    mdl, kin, ok = model.model, kinematics, loads.solvable
     if not mdl.muscles:
         raise StageUnavailable(f"model {mdl.name} has no muscles")
     from msk.muscles.geometry import MuscleGeometry, geometry_plan

@@ -23,6 +23,7 @@ __all__ = [
     "rotated_plate",
     "run",
     "settings",
+    "unbalanced_coordinates",
 ]
 
 #: How msk.loads assigns plate contacts to feet (recorded in summary.json, part of the cache key).
@@ -36,19 +37,37 @@ PLATE_ASSIGNMENT = (
 class Loads:
     """``external``: :class:`msk.loads.ExternalLoads`; ``measured``: (N,) frames whose every
     foot on the floor stands on a plate (a walkway's steps before and after the plates miss a
-    ground reaction: no residual, identification equation or muscle force comes from them);
+    ground reaction: no residual or identification equation comes from them; a leg whose own
+    foot is measured there is still solved, ``legs``);
     ``observation``: :class:`msk.observation.Observation`, the frames whose leg segments the
     markers observe (a segment out of the capture volume or a marker dropping out: its pose,
     hence q̈, is guessed there); ``usable``: measured and observed frames with finite q and q̈
-    — the frames every dynamics-based figure and fit uses; ``contact``:
+    — the frames the whole-body figures and fits use; ``contact``:
     :class:`msk.loads.FootContact`, which foot stands on an unmeasured surface in which frame
-    (its leg's joint torques are not written there: :func:`msk.pipeline.dynamics.run`)."""
+    (its leg's joint torques are not written there: :func:`msk.pipeline.dynamics.run`);
+    ``legs``: (N, F) the frames in which the leg of foot k of ``contact.feet`` can be solved on
+    its own — observed and known with finite q and q̈, no plate load flagged, and THAT foot
+    measured or off the floor, whatever the other feet stand on (RNEA's torque at a joint
+    balances its distal subtree, Featherstone 2008 §5.3: a missing reaction under the other
+    foot does not enter this leg's torques). The stages that work leg by leg (muscle tensions,
+    knee contact) use these frames (:attr:`solvable`, :func:`unbalanced_coordinates`); the
+    whole-body ones (residuals, mass identification, plate-mass check, gait events)
+    ``usable``."""
 
     external: Any
     measured: np.ndarray
     usable: np.ndarray
     observation: Any = None
     contact: Any = None
+    legs: np.ndarray | None = None
+
+    @property
+    def solvable(self) -> np.ndarray:
+        """(N,) frames in which at least one leg can be solved (``usable`` without ``legs``
+        or without feet)."""
+        if self.legs is None or self.legs.shape[1] == 0:
+            return self.usable
+        return self.usable | self.legs.any(axis=1)
 
     @property
     def measured_observed(self) -> np.ndarray:
@@ -135,4 +154,35 @@ def run(inputs: SessionInputs, read: ReadResult, model: BuiltModel, kinematics: 
         & measured
         & obs.observed
     )
-    return Loads(ext, measured, usable, obs, contact)
+    # per leg: the same tests with only that foot's contact (the other foot may stand off the
+    # plates: its reaction does not enter this leg's torques)
+    body = (
+        np.isfinite(kinematics.q).all(axis=1)
+        & np.isfinite(kinematics.a).all(axis=1)
+        & contact.known
+        & ~ext.flagged()
+        & obs.observed
+    )
+    legs = body[:, None] & ~contact.unmeasured
+    return Loads(ext, measured, usable, obs, contact, legs)
+
+
+def unbalanced_coordinates(model: Any, loads: Loads, coordinate_names: Any) -> np.ndarray:
+    """(N, len(coordinate_names)) the coordinates whose torque would balance a missing ground
+    reaction on the :attr:`Loads.solvable` frames: those between a foot whose leg is not
+    solvable there (``loads.legs``) and the root (:func:`msk.dynamics.coordinates_carrying`).
+    All False without ``legs``."""
+    from msk.dynamics import coordinates_carrying
+
+    names = list(coordinate_names)
+    out = np.zeros((loads.usable.shape[0], len(names)), dtype=bool)
+    if loads.legs is None or loads.contact is None:
+        return out
+    solvable = loads.solvable
+    for k, foot in enumerate(loads.contact.feet):
+        off = solvable & ~loads.legs[:, k]
+        if not off.any():
+            continue
+        cols = [names.index(c) for c in coordinates_carrying(model, foot) if c in names]
+        out[np.ix_(off, np.asarray(cols, dtype=int))] = True
+    return out

@@ -30,6 +30,7 @@ from msk.pipeline.tension import MuscleTensions
 __all__ = [
     "DEFAULT_MEASUREMENTS",
     "base_summary",
+    "frames_solved",
     "peak_measured_force_n",
     "run",
     "strength_summary",
@@ -279,6 +280,18 @@ def strength_summary(
     }
 
 
+def frames_solved(sol: MuscleTensions) -> dict[str, int]:
+    """Per leg (the side suffix ``r``/``l`` of the muscles' names) the frames in which every
+    muscle of that leg has a force (the tension stage leaves a leg out where its foot stands
+    off the plates, :func:`msk.pipeline.tension.optimise`)."""
+    out = {}
+    for side in ("r", "l"):
+        cols = [k for k, n in enumerate(sol.muscles) if n.endswith(f"_{side}")]
+        if cols and sol.forces.shape[1]:
+            out[side] = int(np.isfinite(sol.forces[:, cols]).all(axis=1).sum())
+    return out
+
+
 def _optimization_summary(sol: MuscleTensions, sfx: str) -> dict[str, Any]:
     from msk.status import gain_status
 
@@ -300,6 +313,7 @@ def _optimization_summary(sol: MuscleTensions, sfx: str) -> dict[str, Any]:
             if not sol.emg_gains
             else {c: gain_status(float(g)).value for c, g in sol.emg_gains.items()},
             "infeasible_frames": sol.infeasible_frames,
+            "frames_solved": frames_solved(sol),
             "reserve_torque_rms_nm": None
             if sol.reserve_torques is None or sol.reserve_coordinates is None
             else {

@@ -1,5 +1,6 @@
 """Stage ``tension_optimization``: muscle tensions that produce the joint torques, by the
-configured criterion (:mod:`msk.optimization` batch solvers) on the usable frames.
+configured criterion (:mod:`msk.optimization` batch solvers) on the frames each leg can be
+solved in (a leg whose foot stands off the plates is left out of that frame: :func:`optimise`).
 
 Criteria (``[optimization] method``): ``static_optimization`` min Σ w_i a_i^p with activation
 bounds and reserve actuators (Crowninshield & Brand 1981; ``activation_weights = "volume"``:
@@ -35,6 +36,7 @@ __all__ = [
     "MuscleTensions",
     "compartments",
     "knee_plateau",
+    "left_out",
     "needs",
     "optimise",
     "run",
@@ -105,6 +107,24 @@ def worst_kkt(
     rel = kkt[use] / scale[use]
     at = np.argmax(rel, axis=0)
     return kkt[use].max(axis=0), rel[at, np.arange(4)], frames[use][at], int(use.sum())
+
+
+def left_out(pattern: np.ndarray, unbalanced: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The muscles (m,) and coordinates (n,) left out of a frame's tension QP when the
+    coordinates ``unbalanced`` (n,) balance a missing ground reaction: the connected components
+    of the graph joining a muscle to the coordinates it has a moment arm about (``pattern``
+    (m, n), in any frame) that hold an unbalanced coordinate. Every criterion here sums its
+    cost over muscles and reserves (Crowninshield & Brand 1981; Hayashibe et al. 2011, Eq. 17,
+    whose ‖R f − τ‖² couples only muscles sharing a coordinate) with one equality row or torque
+    penalty per coordinate, so the other components are independent sub-problems."""
+    pattern = np.asarray(pattern, dtype=bool)
+    coords = np.asarray(unbalanced, dtype=bool).copy()
+    while True:
+        muscles = np.asarray(pattern[:, coords].any(axis=1))
+        grown = coords | pattern[muscles].any(axis=0)
+        if (grown == coords).all():
+            return muscles, coords
+        coords = grown
 
 
 def actuated(torques: Any) -> list[int]:
@@ -189,11 +209,14 @@ class _Compartments:
     kinematics: Any
     external: Any
 
-    def rows(self, model: Any, fr: np.ndarray, names: tuple[str, ...]) -> tuple[Any, float]:
+    def rows(
+        self, model: Any, fr: np.ndarray, names: tuple[str, ...], keep: np.ndarray | None = None
+    ) -> tuple[Any, float]:
         """The rows ``d·F_M(f) + s_M ≥ 0``, ``d·F_L(f) + s_L ≥ 0`` (N·m: d·F_L is the frontal
         moment about the medial contact point, Winby et al. 2009) on frames ``fr`` and the
-        largest |frontal moment| of the inverse-dynamics load there (N·m). A frame whose map
-        is not finite gets the trivial row 0 ≥ 0."""
+        largest |frontal moment| of the inverse-dynamics load there (N·m; over the frames
+        ``keep`` (bool, like ``fr``) alone when given: those whose knee is solved). A frame
+        whose map is not finite gets the trivial row 0 ≥ 0."""
         from msk.contact import compartment_force_map
         from msk.optimization import TensionInequalities
 
@@ -212,7 +235,8 @@ class _Compartments:
         bad = ~(np.isfinite(off).all(axis=1) & np.isfinite(gain).all(axis=(1, 2)))
         off[bad], gain[bad] = 0.0, 0.0
         # the frontal moment about the midpoint: d (F_L − F_M)/2 on a right knee (sign aside)
-        peak = float(np.max(np.abs(off[:, 1] - off[:, 0]), initial=0.0)) / 2.0
+        mom = np.abs(off[:, 1] - off[:, 0]) if keep is None else np.abs(off[keep, 1] - off[keep, 0])
+        peak = float(np.max(mom, initial=0.0)) / 2.0
         rows = TensionInequalities(
             off, gain, (f"{self.joint}_medial", f"{self.joint}_lateral"),
             FRONTAL_RESERVE_OPTIMAL_NM,
@@ -263,6 +287,7 @@ def optimise(
     on_block: Callable[[np.ndarray, np.ndarray], None] | None = None,
     kinematics: Any = None,
     external: Any = None,
+    unbalanced: np.ndarray | None = None,
 ) -> MuscleTensions:
     """Muscle tensions of ``model`` for ``torques`` by the configured method on the ``usable``
     frames. A frame whose inputs cannot be posed (non-finite geometry or torques, negative
@@ -282,7 +307,20 @@ def optimise(
     ``kinematics``, ``external`` (the trial's kinematics and external loads): needed with
     ``[optimization] compartment_nonnegative``, which adds to every frame's QP the rows
     F_M(f) ≥ 0 and F_L(f) ≥ 0 of the side of interest's knee (:func:`compartments`), each
-    with a frontal reserve moment ≥ 0 priced as a coordinate reserve."""
+    with a frontal reserve moment ≥ 0 priced as a coordinate reserve.
+
+    ``unbalanced`` (N, coordinates of ``torques``;
+    :func:`msk.pipeline.loads.unbalanced_coordinates`): per frame the coordinates whose torque
+    balances a missing ground reaction (a leg whose foot stands off the plates). The muscles
+    and coordinates of the independent sub-problems holding them (:func:`left_out`: that leg)
+    are left out of that frame — their forces, activations and reserve torques NaN — and the
+    rest solved: each criterion's cost is a sum over muscles and reserves and each equality
+    row a coordinate's, so the rest's solution is that of the whole frame's QP (the left-out
+    rows are posed with zero torque, their solution discarded;
+    ``tests/test_pipeline_tension.py`` checks each criterion). The EMG gains of
+    ``emg_assisted`` are fitted with the left-out rows at zero torque and zero EMG, which add
+    nothing to the gains (g_c = Σ a ê / Σ ê²): each leg's channels on the frames it is solved
+    in (the other leg's gains equal the fully measured trial's to the fit's tolerance)."""
     import msk.optimization as o
     from msk.muscles.geometry import finite_frames, jacobian_frames, muscle_parameters
 
@@ -299,16 +337,43 @@ def optimise(
         fa, fp = _force_curves(params, geometry, sl)
         curves_finite[sl] = np.isfinite(fa).all(axis=1) & np.isfinite(fp).all(axis=1)
         del fa, fp
+    # the coordinates whose torque balances a missing ground reaction (the other legs' are
+    # solved without them); their torques need not be finite
+    miss = (
+        np.zeros((n_all, len(act_idx)), dtype=bool)
+        if unbalanced is None
+        else np.asarray(unbalanced, dtype=bool)[:, act_idx]
+    )
     posable = (
         finite_frames(geometry.jacobian, act_idx)
-        & np.isfinite(torques.tau[:, act_idx]).all(axis=1)
+        & (np.isfinite(torques.tau[:, act_idx]) | miss).all(axis=1)
         & curves_finite
     )
     ok = usable & posable
+    n_mus = len(params.names)
+    # per frame: the muscles and coordinates left out (the components holding an unbalanced
+    # coordinate), as an index into the distinct patterns ``drops`` (0: nothing left out)
+    drops: list[tuple[np.ndarray, np.ndarray]] = [
+        (np.zeros(n_mus, dtype=bool), np.zeros(len(act_idx), dtype=bool))
+    ]
+    drop_id = np.zeros(n_all, dtype=np.intp)
+    if (miss[ok]).any():
+        pattern = np.zeros((n_mus, len(act_idx)), dtype=bool)
+        for fr in frame_blocks(np.flatnonzero(ok)):
+            pattern |= (jacobian_frames(geometry.jacobian, fr, act_idx) != 0).any(axis=0)
+        distinct, inv = np.unique(miss[ok], axis=0, return_inverse=True)
+        ids = np.zeros(distinct.shape[0], dtype=np.intp)
+        for u, row in enumerate(distinct):
+            if row.any():
+                ids[u] = len(drops)
+                drops.append(left_out(pattern, row))
+        drop_id[ok] = ids[np.asarray(inv).reshape(-1)]
+        # a frame whose every coordinate is left out has nothing to solve
+        ok &= ~np.array([d[1].all() for d in drops])[drop_id]
     if not ok.any():  # e.g. a trial no foot stands on a plate in: a reason, not a traceback
         raise StageUnavailable(
-            "no frame to optimise: none in which the plates measure every foot's contact and "
-            "the markers observe every leg segment"
+            "no frame to optimise: none in which the plates measure a leg's foot contact (or "
+            "it swings) and the markers observe every leg segment"
             + (f" ({int(usable.sum())} such frames, none posable)" if usable.any() else "")
         )
     excluded = int((usable & ~posable).sum())
@@ -345,16 +410,32 @@ def optimise(
             raise StageUnavailable("compartment_nonnegative needs the kinematics and loads")
         comp = compartments(inputs, model, kinematics, external)
     frontal = None if comp is None else np.full((time.size, 2), np.nan)
+    drop_m = np.array([d[0] for d in drops])  # (patterns, m)
+    drop_c = np.array([d[1] for d in drops])  # (patterns, coordinates)
+    # per pattern: whether the compartment rows' knee is left out (a coordinate between its
+    # tibia and the root is): no frontal reserve or peak from such a frame
+    knee_out = np.zeros(len(drops), dtype=bool)
+    if comp is not None:
+        from msk.dynamics import coordinates_carrying
+
+        child = next(j.child for j in model.joints if j.name == comp.joint)
+        above = set(coordinates_carrying(model, child))
+        knee_out = np.asarray(drop_c[:, [k for k, c in enumerate(cn) if c in above]].any(axis=1))
     id_peak = 0.0
     gain_fit = None
     if meth == "emg_assisted":  # gains first (on a bounded frame sample), then every block
         assert meas is not None
         fit_fr = fit_frames(idx_ok)
         fa, fp = _force_curves(params, geometry, fit_fr)
+        # a left-out leg's rows posed with zero torque and zero EMG: they add nothing to its
+        # channels' gains (g_c = Σ a ê / Σ ê², msk.strength.fit_emg_gains), fitted on the
+        # frames that leg is solved in
+        gone = drop_id[fit_fr]
         gain_fit = _emg_gains(
             inputs, jacobian_frames(geometry.jacobian, fit_fr, act_idx),
-            torques.tau[fit_fr][:, act_idx], fa, fp, emg_reference(fit_fr), meas,
-            params.names, weights, reserves, cn,
+            np.where(drop_c[gone], 0.0, torques.tau[fit_fr][:, act_idx]), fa, fp,
+            np.where(drop_m[gone], 0.0, emg_reference(fit_fr)), meas, params.names, weights,
+            reserves, cn,
         )  # fmt: skip
         del fa, fp
         if gain_fit is not None:  # the fit's last a-step (its frames' solution) is not read
@@ -377,7 +458,7 @@ def optimise(
         """Forces, activations and the batch solution (None for ``closed_form``) of the frames
         ``fr``, warm-started from ``carry``."""
         jac = jacobian_frames(geometry.jacobian, fr, act_idx)
-        tq = torques.tau[fr][:, act_idx]
+        tq = np.where(drop_c[drop_id[fr]], 0.0, torques.tau[fr][:, act_idx])
         fa, fp = _force_curves(params, geometry, fr)
         if meth == "static_optimization":
             sol = o.solve_static_optimization_batch(
@@ -429,7 +510,7 @@ def optimise(
         if comp is not None:  # never with closed_form (comp is built for the QP methods)
             # the block's geometry pass (its wrapped paths iterate the block's frames together),
             # before the block's Jacobian is read
-            rows, peak = comp.rows(model, fr, tuple(params.names))
+            rows, peak = comp.rows(model, fr, tuple(params.names), keep=~knee_out[drop_id[fr]])
             id_peak = max(id_peak, peak)
         block_forces = None if on_block is None else np.empty((fr.size, len(params.names)))
         for part in solve_parts(fr.size) if split else [slice(0, fr.size)]:
@@ -444,6 +525,10 @@ def optimise(
             if rows is not None:
                 common["inequalities"] = rows.take(part)
             forces, acts, sol = solve(f_idx, common)
+            gone = drop_m[drop_id[f_idx]]  # the left-out muscles of these frames
+            if gone.any():
+                forces = np.where(gone, np.nan, forces)
+                acts = np.where(gone, np.nan, acts)
             if block_forces is not None:
                 block_forces[part] = forces
             else:
@@ -452,9 +537,13 @@ def optimise(
                 a_all[f_idx] = acts
             if sol is not None:
                 if rt is not None:
-                    rt[f_idx] = sol.reserve_torques
+                    rt[f_idx] = np.where(drop_c[drop_id[f_idx]], np.nan, sol.reserve_torques)
                 if frontal is not None and sol.inequality_reserves is not None:
-                    frontal[f_idx] = sol.inequality_reserves
+                    frontal[f_idx] = np.where(
+                        knee_out[drop_id[f_idx]][:, None],
+                        np.nan,
+                        sol.inequality_reserves,
+                    )
                 infeasible += int(sol.infeasible_frames.size)
                 if sol.kkt_scale is not None:
                     v, r, at, n_ok = worst_kkt(
@@ -526,8 +615,12 @@ def run(
     muscle_geometry: Any,
     emg: EmgActivations | None,
 ) -> MuscleTensions:
+    from msk.pipeline.loads import unbalanced_coordinates
+
+    torques = inverse_dynamics.torques
     return optimise(
-        inputs, identified_model(model.model, mass_identification), inverse_dynamics.torques,
-        muscle_geometry, kinematics.time, loads.usable, emg, kinematics=kinematics,
+        inputs, identified_model(model.model, mass_identification), torques,
+        muscle_geometry, kinematics.time, loads.solvable, emg, kinematics=kinematics,
         external=loads.external,
+        unbalanced=unbalanced_coordinates(model.model, loads, torques.coordinate_names),
     )  # fmt: skip

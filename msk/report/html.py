@@ -1495,6 +1495,12 @@ def _methods_section(res: SessionResults, number: int = 6, *, gait: bool = True)
     if opt:
         crit = f" ({_e(opt.criterion)})" if opt.criterion else ""
         out.append(f'<p class="note">Tension optimisation: {_e(opt.method)}{crit}.</p>')
+        if opt.frames_solved:
+            legs = ", ".join(f"{_e(k)} {int(v)}" for k, v in opt.frames_solved.items())
+            out.append(
+                f'<p class="note">Frames solved per leg (a leg whose foot stands off the '
+                f"plates is left out, the other solved): {legs}.</p>"
+            )
         if opt.kkt is not None:
             out.append(_kkt_table(opt.kkt))
         if opt.emg_gains:

@@ -1,0 +1,191 @@
+"""The tension stage's per-leg frames (:func:`msk.pipeline.tension.optimise` ``unbalanced``):
+a leg whose foot stands off the plates is left out of a frame's QP and the other leg solved,
+with the forces of the fully measured frame (the tension QP is separable by leg)."""
+
+from __future__ import annotations
+
+from types import SimpleNamespace
+from typing import Any
+
+import numpy as np
+import pytest
+
+from msk.config.options import ContactConfig, EmgConfig, OptimizationConfig
+from msk.dynamics import coordinates_carrying, inverse_dynamics
+from msk.kinematics import kinematics_from_coordinates
+from msk.muscles.geometry import muscle_geometry
+from msk.muscles.path import Muscle, PathPoint
+from msk.pipeline.tension import left_out, optimise
+from msk.synthetic_models import two_leg_model
+
+#: muscle → (origin body, origin (m), insertion body, insertion (m)), each side (z mirrored)
+_PATHS = {
+    "iliacus": ("pelvis", (0.05, -0.05, 0.08), "femur", (0.02, -0.08, 0.0)),
+    "glmax": ("pelvis", (-0.12, -0.02, 0.07), "femur", (-0.03, -0.10, 0.0)),
+    "glmed": ("pelvis", (-0.02, 0.05, 0.12), "femur", (0.0, -0.05, 0.06)),
+    "addlong": ("pelvis", (0.03, -0.08, 0.03), "femur", (0.0, -0.20, -0.02)),
+    "recfem": ("pelvis", (0.04, -0.03, 0.09), "tibia", (0.05, -0.05, 0.0)),
+    "vasti": ("femur", (0.03, -0.15, 0.0), "tibia", (0.05, -0.06, 0.0)),
+    "hams": ("pelvis", (-0.10, -0.08, 0.06), "tibia", (-0.03, -0.05, 0.0)),
+    "gastroc": ("femur", (-0.02, -0.38, 0.0), "foot", (-0.05, 0.0, 0.0)),
+    "soleus": ("tibia", (-0.02, -0.15, 0.0), "foot", (-0.05, 0.0, 0.0)),
+    "tibant": ("tibia", (0.03, -0.15, 0.0), "foot", (0.10, -0.01, 0.0)),
+}
+
+
+def _muscled_two_legs() -> Any:
+    """:func:`msk.synthetic_models.two_leg_model` with ten muscles a leg, their tendon slack
+    lengths such that every fibre is at its optimal length in the default pose."""
+    model = two_leg_model()
+
+    def build(slack: dict[str, float]) -> Any:
+        muscles = []
+        for side, s in (("r", 1.0), ("l", -1.0)):
+            for name, (b0, p0, b1, p1) in _PATHS.items():
+                n = f"{name}_{side}"
+                pts = []
+                for tag, body, xyz in (("o", b0, p0), ("i", b1, p1)):
+                    seg = body if body == "pelvis" else f"{body}_{side}"
+                    pts.append(PathPoint(f"{n}_{tag}", seg, np.array([xyz[0], xyz[1], s * xyz[2]])))
+                muscles.append(Muscle(n, tuple(pts), 1500.0, 0.1, slack.get(n, 0.2), 0.0, 10.0))
+        return model.with_muscles(muscles)
+
+    first = build({})
+    geo = muscle_geometry(first, first.default_coordinates()[None, :])
+    length = dict(zip(geo.muscle_names, geo.lengths[0], strict=True))
+    return build({n: float(v) - 0.1 for n, v in length.items()})
+
+
+def _trial(model: Any) -> tuple[Any, Any, Any]:
+    """A 40-frame movement of both legs (smooth, 100 Hz), its torques (no external load: every
+    torque finite) and its muscle geometry."""
+    t = np.arange(40) / 100.0
+    q0 = model.default_coordinates()
+    q = np.repeat(q0[None, :], t.size, axis=0)
+    names = list(model.coordinate_names)
+    for k, c in enumerate(names):
+        if c.startswith(("hip_", "knee_", "ankle_")):
+            q[:, k] += 0.3 * np.sin(2 * np.pi * (1.0 + 0.1 * k) * t + k)
+    kin = kinematics_from_coordinates(t, q, names, cutoff_hz=None, model=model)
+    tq = inverse_dynamics(model, kin)
+    geo = muscle_geometry(model, kin.q, kin.v)
+    return kin, tq, geo
+
+
+def _inputs(method: str, channels: dict[str, str] | None = None) -> Any:
+    rows = method.endswith("+compartments")
+    cfg = SimpleNamespace(
+        optimization=OptimizationConfig(
+            method=method.removesuffix("+compartments"), compartment_nonnegative=rows
+        ),
+        emg=EmgConfig(channels=channels or {}),
+        contact=ContactConfig(),
+    )
+    return SimpleNamespace(cfg=cfg, sfx="_r")
+
+
+def _emg(model: Any, n: int) -> Any:
+    """Smooth activations of three muscles a leg (channel per muscle)."""
+    names = tuple(m for m in (mu.name for mu in model.muscles) if m.split("_")[0] in
+                  ("vasti", "hams", "soleus"))  # fmt: skip
+    t = np.arange(n) / 100.0
+    act = np.stack([0.2 + 0.1 * np.sin(2 * np.pi * t + k) for k in range(len(names))], axis=1)
+    return SimpleNamespace(
+        muscles=names, activation=act, usable=np.ones(len(names), dtype=bool),
+        column=names.index,
+    )  # fmt: skip
+
+
+@pytest.mark.parametrize(
+    "method",
+    [
+        "static_optimization",
+        "bounded_qp",
+        "closed_form",
+        "emg_weighted",
+        "emg_assisted",
+        "static_optimization+compartments",
+    ],
+)
+def test_a_leg_off_the_plates_leaves_the_other_legs_forces(method: str) -> None:
+    """Frames 10–24: the left foot stands off the plates (its leg's torques NaN, as
+    :func:`msk.dynamics.without_unmeasured_contact` leaves them). The right leg's forces there
+    equal those of the fully measured trial (every criterion: the QP is separable by leg), the
+    left leg's are NaN, and every other frame is as before."""
+    model = _muscled_two_legs()
+    kin, tq, geo = _trial(model)
+    n = kin.time.size
+    emg = _emg(model, n) if method.startswith("emg") else None
+    channels = None if emg is None else {m: m for m in emg.muscles}
+    inputs = _inputs(method, channels)
+    usable = np.ones(n, dtype=bool)
+    kw = {"kinematics": kin, "external": None}
+    full = optimise(inputs, model, tq, geo, kin.time, usable, emg, **kw)
+
+    off = np.zeros(n, dtype=bool)
+    off[10:25] = True
+    left = [c for c in coordinates_carrying(model, "foot_l") if c not in tq.root_coordinates]
+    cols = [tq.coordinate_names.index(c) for c in left]
+    tau = tq.tau.copy()
+    tau[np.ix_(off, cols)] = np.nan
+    gated = type(tq)(**{**tq.__dict__, "tau": tau})
+    unbalanced = np.zeros_like(tau, dtype=bool)
+    unbalanced[np.ix_(off, cols)] = True
+    one = optimise(inputs, model, gated, geo, kin.time, usable, emg, unbalanced=unbalanced, **kw)
+
+    names = one.muscles
+    right = np.array([m.endswith("_r") for m in names])
+    assert np.isfinite(full.forces).all()
+    # emg_assisted: the right channels' gains are the same fixed point, to the fit's tolerance
+    # (1e-5 on a gain); the left ones are fitted on the frames the left leg is solved in
+    tol = 1e-3 if method == "emg_assisted" else 1e-6
+    np.testing.assert_allclose(one.forces[:, right], full.forces[:, right], rtol=tol, atol=tol)
+    assert np.isnan(one.forces[np.ix_(off, ~right)]).all()
+    if method != "emg_assisted":
+        np.testing.assert_allclose(
+            one.forces[np.ix_(~off, ~right)], full.forces[np.ix_(~off, ~right)], rtol=tol,
+            atol=tol,
+        )  # fmt: skip
+    if one.reserve_torques is not None:
+        rc = [one.reserve_coordinates.index(c) for c in left]
+        assert np.isnan(one.reserve_torques[np.ix_(off, rc)]).all()
+        assert np.isfinite(one.reserve_torques[~off]).all()
+    if one.frontal_reserve_moments is not None:  # the right knee's rows: solved throughout
+        np.testing.assert_allclose(
+            one.frontal_reserve_moments, full.frontal_reserve_moments, rtol=tol, atol=tol
+        )
+        assert one.id_frontal_moment_peak_nm == pytest.approx(full.id_frontal_moment_peak_nm)
+    if method == "emg_assisted":
+        assert one.emg_gains is not None and full.emg_gains is not None
+        for ch, g in full.emg_gains.items():
+            if ch.endswith("_r"):
+                assert one.emg_gains[ch] == pytest.approx(g, abs=1e-4), ch
+    # without ``unbalanced`` a frame with NaN torques is excluded whole (never solved)
+    whole = optimise(inputs, model, gated, geo, kin.time, usable, emg, **kw)
+    assert np.isnan(whole.forces[off]).all() and whole.excluded_frames == off.sum()
+
+
+def test_left_out_is_the_component_holding_the_coordinate() -> None:
+    """Muscles 0–1 span coordinates 0–1, muscle 2 coordinates 1–2 (joined to them), muscle 3
+    coordinate 3 alone: leaving out coordinate 0 leaves out muscles 0–2 and coordinates 0–2."""
+    pattern = np.array([[1, 1, 0, 0], [1, 0, 0, 0], [0, 1, 1, 0], [0, 0, 0, 1]], dtype=bool)
+    mus, coords = left_out(pattern, np.array([True, False, False, False]))
+    np.testing.assert_array_equal(mus, [True, True, True, False])
+    np.testing.assert_array_equal(coords, [True, True, True, False])
+    mus, coords = left_out(pattern, np.array([False, False, False, True]))
+    np.testing.assert_array_equal(mus, [False, False, False, True])
+    np.testing.assert_array_equal(coords, [False, False, False, True])
+
+
+def test_frames_solved_counts_each_leg() -> None:
+    """summary.json's ``optimization.frames_solved``: per leg the frames with every one of its
+    muscle forces (the right leg in all 5 frames, the left one in 2)."""
+    from msk.pipeline.summary import frames_solved
+    from msk.pipeline.tension import MuscleTensions
+
+    f = np.ones((5, 4))
+    f[[1, 2], 2] = np.nan
+    f[0] = np.nan
+    f[0, :2] = 1.0
+    sol = MuscleTensions(f, f, ("a_r", "b_r", "a_l", "b_l"), "bounded_qp", 0)
+    assert frames_solved(sol) == {"r": 5, "l": 2}
