@@ -207,28 +207,17 @@ def _solve_legs(
     return th, err_m
 
 
-def _toe_point(model: Model, foot: str, stand: pin.SE3) -> Array:
-    """The foot's most anterior marker (its subtree's) at the sole, in the foot frame of the
-    standing placement ``stand``."""
+def _sole_end(model: Model, foot: str, stand: pin.SE3, *, toe: bool) -> Array:
+    """The foot's most anterior (``toe``) or posterior marker (its subtree's) at the sole, in
+    the foot frame of the standing placement ``stand``."""
     th, _, _ = _standing(model)
     mk = marker_positions(model, th)[0]
     sub = set(model.subtree(foot))
     idx = [i for i, m in enumerate(model.markers) if m.body in sub]
-    tip = mk[idx[int(np.argmax(mk[idx, 0]))]].copy()
-    tip[1] = 0.0
-    return np.asarray(stand.actInv(tip), dtype=float)
-
-
-def _heel_point(model: Model, foot: str, stand: pin.SE3) -> Array:
-    """The foot's most posterior marker (its subtree's) at the sole, in the foot frame of the
-    standing placement ``stand`` (as :func:`_toe_point`)."""
-    th, _, _ = _standing(model)
-    mk = marker_positions(model, th)[0]
-    sub = set(model.subtree(foot))
-    idx = [i for i, m in enumerate(model.markers) if m.body in sub]
-    heel = mk[idx[int(np.argmin(mk[idx, 0]))]].copy()
-    heel[1] = 0.0
-    return np.asarray(stand.actInv(heel), dtype=float)
+    pick = np.argmax if toe else np.argmin
+    end = mk[idx[int(pick(mk[idx, 0]))]].copy()
+    end[1] = 0.0
+    return np.asarray(stand.actInv(end), dtype=float)
 
 
 def com_from_zmp(zmp: Array, dt: float, height_m: float, g: float = 9.81) -> Array:
@@ -474,7 +463,7 @@ def stair_motion(
         pre_s = double_s + _HEEL_PRE_S
         pre = (ts >= a - pre_s) & (ts < a)
         rise[pre, j] = np.deg2rad(_HEEL_DEG) * _mj((ts[pre] - (a - pre_s)) / pre_s)
-    toes = {f: _toe_point(model, f, place[f]) for f in FEET}
+    toes = {f: _sole_end(model, f, place[f], toe=True) for f in FEET}
     origin = np.zeros(3)
     # the support: the lower of the standing feet's surfaces, rising at a steady rate from
     # the double support before each swing of the lower foot to the landing that raises it
@@ -510,7 +499,7 @@ def stair_motion(
     # at 40 %; the zero-moment point goes from foot to foot over each double support (minimum
     # jerk), to the left foot over the last 0.4 s of the start, and half-way between the feet
     # over the end's double support
-    heels = {f: _heel_point(model, f, place[f]) for f in FEET}
+    heels = {f: _sole_end(model, f, place[f], toe=False) for f in FEET}
     feet_mk = {f: [i for i, m in enumerate(model.markers) if m.body in set(model.subtree(f))]
                for f in FEET}  # fmt: skip
     mk0 = marker_positions(model, th0)[0]
