@@ -148,14 +148,8 @@ def run(inputs: SessionInputs, read: ReadResult, model: BuiltModel, kinematics: 
     # contact_measured's frames (msk.loads), from the same per-foot test
     measured = contact.known & ~contact.unmeasured.any(axis=1) & ~ext.flagged()
     obs = observed_frames(model.model, kinematics)
-    usable = (
-        np.isfinite(kinematics.q).all(axis=1)
-        & np.isfinite(kinematics.a).all(axis=1)
-        & measured
-        & obs.observed
-    )
-    # per leg: the same tests with only that foot's contact (the other foot may stand off the
-    # plates: its reaction does not enter this leg's torques)
+    # every test but the feet's: per leg, only that foot's contact counts (the other foot may
+    # stand off the plates: its reaction does not enter this leg's torques)
     body = (
         np.isfinite(kinematics.q).all(axis=1)
         & np.isfinite(kinematics.a).all(axis=1)
@@ -163,6 +157,7 @@ def run(inputs: SessionInputs, read: ReadResult, model: BuiltModel, kinematics: 
         & ~ext.flagged()
         & obs.observed
     )
+    usable = body & ~contact.unmeasured.any(axis=1)
     legs = body[:, None] & ~contact.unmeasured
     return Loads(ext, measured, usable, obs, contact, legs)
 
