@@ -1365,6 +1365,13 @@ def unobserved_knees_flexed(
     return {k: v for k, v in out.items() if v != coords[k].range}
 
 
+#: segments whose markers a label names unambiguously (a thigh or shank cluster, a knee or ankle
+#: landmark): placed from the motion on the body the label names whenever they are rigid enough
+#: there (≤ ``max_spread_m``), not only in a near-tie — a knee no marker pins lets a thigh
+#: marker look as rigid on the tibia as on the femur (issue 15, thirteenth pass)
+_LABELLED_SEGMENTS = ("femur", "tibia")
+
+
 def place_markers_from_motion(
     model: Model,
     markers: ArrayLike,
@@ -1593,7 +1600,9 @@ def place_markers_from_motion(
             best = float(sig[near].min())
             tie = near & (sig <= best + max(0.002, 0.25 * best))
             hint = (hints or {}).get(lab)
-            if hint in names and tie[names.index(hint)]:
+            if hint in names and (tie[names.index(hint)] or (
+                    hint.startswith(_LABELLED_SEGMENTS) and near[names.index(hint)]
+                    and sig[names.index(hint)] <= max_spread_m)):  # fmt: skip
                 k = names.index(hint)
             else:
                 k = int(np.flatnonzero(tie)[np.argmin(dist[tie])])
