@@ -549,28 +549,35 @@ _KNEE_SEGMENTS = ("femur", "tibia")
 def placement_label_conflicts(
     placed: Mapping[str, str], bodies: Sequence[str]
 ) -> dict[str, tuple[str, str]]:
-    """Markers placed on a thigh or shank body other than the one their label names: label →
-    (body placed on, body named). ``placed``: lab label → body of a placement from the motion
+    """Markers placed on a thigh or shank body other than the one their label names, or on a
+    body of the other side than their label's: label → (body placed on, body named).
+    ``placed``: lab label → body of a placement from the motion
     (:func:`msk.scaling.place_markers_from_motion`'s ``"placed"``); the named body is the
     label's landmark's (:data:`msk.markersets.LANDMARK_BODIES`: a thigh cluster or knee marker
-    on the femur, a shank cluster or malleolus on the tibia) on its side, when the model has it.
-
-    Without a static the body is the one the marker moves least on in the passes' inverse
+    on the femur, a shank cluster or malleolus on the tibia) on its side, when the model has
+    it. Without a static the body is the one the marker moves least on in the passes' inverse
     kinematics, and a knee no marker pins can make a thigh marker as still on the tibia as on
     the femur: issue 15, thirteenth pass — a synthetic DM walk of a subject with a 7 % longer
     femur and 6 % shorter tibia had R_Thigh_Inferior placed on tibia_r and R_Shank_Superior,
-    R_Shank_Lateral on femur_r, its right knee then solved 31° RMS from the truth at an IK
-    marker RMS of 8.2 mm, unflagged."""
+    R_Shank_Lateral on femur_r, its right knee then solved 43.7° RMS from the truth at an IK
+    marker RMS of 8.2 mm, unflagged; a synthetic squat's R_Midfoot_Medial on toes_l (still feet
+    are as rigid to either foot). :func:`msk.scaling.place_markers_from_motion` now avoids
+    both; the check stays for any placement that does not."""
     have = set(bodies)
     out: dict[str, tuple[str, str]] = {}
     for lab, body in placed.items():
         pl = parse_label(lab)
+        body = str(body)
+        if pl.side and body.endswith(("_r", "_l")) and not body.endswith(f"_{pl.side.lower()}"):
+            # a sided label on the other side's body
+            out[lab] = (body, f"a {pl.side.upper()} body")
+            continue
         stem = LANDMARK_BODIES.get(pl.landmark or "")
-        if stem not in _KNEE_SEGMENTS or not str(body).startswith(_KNEE_SEGMENTS):
+        if stem not in _KNEE_SEGMENTS or not body.startswith(_KNEE_SEGMENTS):
             continue
         named = f"{stem}_{pl.side.lower()}" if pl.side else stem
         if named in have and body != named:
-            out[lab] = (str(body), named)
+            out[lab] = (body, named)
     return out
 
 

@@ -423,6 +423,10 @@ def test_markers_placed_across_the_knee_against_their_label_are_flagged():
     assert "R_Thigh_Inferior on tibia_r" in flags[0].message
     ok = {k: v for k, v in placed.items() if k not in got}
     assert model_flags("t", {"marker_placement": {"placed": ok}}, bodies) == []
+    # a sided label on the other side's body, whatever the segment
+    assert placement_label_conflicts(
+        {"R_Midfoot_Medial": "toes_l", "L_Heel": "calcn_l"}, bodies
+    ) == {"R_Midfoot_Medial": ("toes_l", "a R body")}
 
 
 @pytest.mark.parametrize(("functional", "flagged"), [(0.80, False), (0.83, True), (0.74, True)])
