@@ -316,13 +316,14 @@ def run_subject(subject: str, folder: Path) -> list[dict[str, Any]]:
     return rows
 
 
-def subject_scores(rows: list[dict[str, Any]]) -> dict[str, dict[str, float]]:
-    """subject → criterion → median over channels of the channel's trial-mean Pearson r."""
+def subject_scores(rows: list[dict[str, Any]], metric: str = "r") -> dict[str, dict[str, float]]:
+    """subject → criterion → median over channels of the channel's trial-mean ``metric`` (``r``,
+    ``rho`` or ``on_off``)."""
     acc: dict[tuple[str, str, str], list[float]] = {}
     for row in rows:
         if "error" in row:
             continue
-        for ch, v in zip(row["channels"], row["r"]):
+        for ch, v in zip(row["channels"], row[metric]):
             acc.setdefault((row["subject"], row["variant"], ch), []).append(float(v))
     per: dict[tuple[str, str], list[float]] = {}
     for (s, v, _), vals in acc.items():
@@ -334,32 +335,19 @@ def subject_scores(rows: list[dict[str, Any]]) -> dict[str, dict[str, float]]:
     return out
 
 
-def decide(scores: dict[str, dict[str, float]]) -> tuple[str | None, list[str]]:
-    """The decision rule of the module docstring: the winning criterion (None: keep the
-    incumbent) and the lines that justify it."""
-    subjects = sorted(scores)
-    crits = [c for c in VARIANTS if all(c in scores[s] for s in subjects)]
-    pooled = {c: float(np.median([scores[s][c] for s in subjects])) for c in crits}
-    best = max(crits, key=lambda c: pooled[c])
-    lines = ["pooled median r: " + ", ".join(f"{c} {pooled[c]:.3f}" for c in crits)]
-    folds, wins = [], 0
-    for held in subjects:
-        rest = [s for s in subjects if s != held]
-        pick = max(crits, key=lambda c: float(np.median([scores[s][c] for s in rest])))
-        folds.append(pick)
-        wins += int(scores[held][pick] > scores[held][INCUMBENT])
-        lines.append(
-            f"held out {held}: best on the others {pick} "
-            f"(held-out {scores[held][pick]:.3f} vs incumbent {scores[held][INCUMBENT]:.3f})"
-        )
-    ok = (
-        best != INCUMBENT
-        and pooled[best] - pooled[INCUMBENT] >= 0.05
-        and all(f == best for f in folds)
-        and wins > len(subjects) / 2
-    )
-    lines.append(f"winner: {best if ok else 'none (keep ' + INCUMBENT + ')'}")
-    return (best if ok else None), lines
+def decide(scores: dict[str, dict[str, float]]) -> list[str]:
+    """The decision rule of the module docstring (:func:`msk.optimization.criterion_selection.
+    choose_criterion`, margin 0.05), in lines."""
+    from msk.optimization.criterion_selection import choose_criterion
+
+    ch = choose_criterion(scores, INCUMBENT, margin=0.05)
+    lines = ["median over subjects: " + ", ".join(
+        f"{c} {v:.3f}" for c, v in zip(ch.candidates, ch.pooled)
+    )]  # fmt: skip
+    for sub, pick, gain in zip(ch.subjects, ch.fold_picks, ch.fold_gain):
+        lines.append(f"held out {sub}: best on the others {pick} (held-out gain {gain:+.3f})")
+    lines.append(f"winner: {ch.chosen or 'none, keep ' + INCUMBENT} ({ch.reason})")
+    return lines
 
 
 def markdown(rows: list[dict[str, Any]]) -> list[str]:
@@ -384,22 +372,79 @@ def markdown(rows: list[dict[str, Any]]) -> list[str]:
     return out
 
 
+def _criterion_edit(method: str, p: float, w: str) -> Callable[[str], str]:
+    def edit(text: str) -> str:
+        text = re.sub(r'(?m)^method = ".*"$', f'method = "{method}"', text, count=1)
+        text = re.sub(r'(?m)^activation_weights = ".*"$', f'activation_weights = "{w}"', text)
+        text = re.sub(r"(?m)^activation_exponent = .*$", "", text)
+        return text.replace("[optimization]\n", f"[optimization]\nactivation_exponent = {p}\n", 1)
+
+    return edit
+
+
+def contact_rows(subjects: list[str], folder: Path) -> list[str]:
+    """The contact figures of every criterion variant (the whole pipeline, spline knee) on the
+    subjects with a measured contact force: the consequence of a criterion, never its reason."""
+    from msk.pipeline import run_task_trials
+
+    rows = [
+        "| subject | trial | criterion | total RMSE (BW) | total r | peak pred / meas (BW) "
+        "| medial RMSE | medial r | lateral RMSE | lateral r |",
+        "| --- | --- | --- | --- | --- | --- | --- | --- | --- | --- |",
+    ]
+    for subject in subjects:
+        for trial, name, swap, _ in SESSIONS[subject]:
+            for label, (method, p, w) in VARIANTS.items():
+                tag = f"{subject}{trial}{label}"
+                edit = _criterion_edit(method, p, w)
+                cfg = cv._config(name, swap, "spline", folder, edit, tag)
+                out = folder / re.sub(r"[^A-Za-z0-9_]", "", tag)
+                (res,) = run_task_trials(cfg, out)
+                comp = res.summary["comparison"] or {}
+                cells = []
+                for part in ("", "_medial", "_lateral"):
+                    c = comp.get(f"knee_contact_generic{part}")
+                    cells += [f"{c['rms_bw']:.2f}", f"{c['pearson_r']:.2f}"] if c else ["—", "—"]
+                    if part == "" and c:
+                        cells.append(f"{c['peak_predicted_bw']:.2f} / {c['peak_measured_bw']:.2f}")
+                rows.append(f"| {subject} | {trial} | {label} | " + " | ".join(cells) + " |")
+                print(rows[-1], flush=True)
+    return rows
+
+
 def main(argv: list[str] | None = None) -> int:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("--subjects", default=",".join(SESSIONS))
     p.add_argument("--out", type=Path, help="write the markdown table and the decision here")
+    p.add_argument(
+        "--contact",
+        action="store_true",
+        help="instead: the knee contact figures of every criterion on PS, DM and JW",
+    )
     args = p.parse_args(argv)
     folder = Path(tempfile.mkdtemp())
+    if args.contact:
+        subjects = [s for s in args.subjects.split(",") if s in ("PS", "DM", "JW")]
+        text = "\n".join(contact_rows(subjects, folder))
+        print(text)
+        if args.out:
+            args.out.write_text(text + "\n", encoding="utf-8")
+        return 0
     rows: list[dict[str, Any]] = []
     for s in args.subjects.split(","):
         rows += run_subject(s.strip(), folder)
     lines = markdown(rows)
-    scores = subject_scores(rows)
-    lines += ["", "per-subject score (median over channels of the trial-mean r):"]
-    for s, sc in scores.items():
-        lines.append(f"  {s}: " + ", ".join(f"{c} {v:.3f}" for c, v in sc.items()))
-    if len(scores) > 1:
-        lines += decide(scores)[1]
+    for metric in ("r", "rho", "on_off"):
+        scores = subject_scores(rows, metric)
+        head = "THE RULE" if metric == "r" else "sensitivity only, not the rule"
+        lines += [
+            "",
+            f"per-subject score, median over channels of the trial-mean {metric} ({head}):",
+        ]
+        for s, sc in scores.items():
+            lines.append(f"  {s}: " + ", ".join(f"{c} {v:.3f}" for c, v in sc.items()))
+        if len(scores) > 1:
+            lines += decide(scores)
     text = "\n".join(lines)
     print(text)
     if args.out:

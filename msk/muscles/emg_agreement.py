@@ -6,8 +6,8 @@ static-optimisation criteria with EMG in the literature:
 
 - **Pearson r** and **Spearman ρ** over the compared frames of one muscle (as Heintz &
   Gutierrez-Farewik 2007, Gait Posture 26:279, compare static-optimisation forces with EMG):
-  the shape of the activation over the cycle, blind to its scale — EMG normalised to the session's peak is a
-  relative activation (no MVC), so only the shape is comparable.
+  the shape of the activation over the cycle, blind to its scale — EMG normalised to the
+  session's peak is a relative activation (no MVC), so only the shape is comparable.
 - **On/off agreement**: each signal divided by its own peak over the compared frames and called
   "on" above ``threshold`` (default 25 % of the peak: a choice of this module, not a
   published constant); the fraction of frames where both are on or both off. A prediction whose
@@ -141,9 +141,7 @@ def channel_agreement(
     p = np.asarray(predicted, dtype=float)
     e = np.asarray(emg, dtype=float)
     if p.ndim != 2 or p.shape != e.shape or p.shape[1] != len(channels):
-        raise ValueError(
-            f"predicted {p.shape} and emg {e.shape} must both be (N, {len(channels)})"
-        )
+        raise ValueError(f"predicted {p.shape} and emg {e.shape} must both be (N, {len(channels)})")
     k = p.shape[1]
     r, rho, onoff = np.full(k, np.nan), np.full(k, np.nan), np.full(k, np.nan)
     n = np.zeros(k, dtype=np.int64)
