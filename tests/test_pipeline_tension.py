@@ -191,3 +191,136 @@ def test_frames_solved_counts_each_leg() -> None:
     f[0, :2] = 1.0
     sol = MuscleTensions(f, f, ("a_r", "b_r", "a_l", "b_l"), "bounded_qp", 0)
     assert frames_solved(sol) == {"r": 5, "l": 2}
+
+
+def _left_off(model: Any, tq: Any, frames: slice = slice(10, 25)) -> tuple[Any, np.ndarray, Any]:
+    """The trial's torques with the left leg's NaN on ``frames`` (its foot off the plates), the
+    ``unbalanced`` mask of those frames, and the left leg's coordinates."""
+    n = tq.tau.shape[0]
+    off = np.zeros(n, dtype=bool)
+    off[frames] = True
+    left = [c for c in coordinates_carrying(model, "foot_l") if c not in tq.root_coordinates]
+    cols = [tq.coordinate_names.index(c) for c in left]
+    tau = tq.tau.copy()
+    tau[np.ix_(off, cols)] = np.nan
+    unbalanced = np.zeros_like(tau, dtype=bool)
+    unbalanced[np.ix_(off, cols)] = True
+    return type(tq)(**{**tq.__dict__, "tau": tau}), unbalanced, off
+
+
+@pytest.mark.parametrize("method", ["static_optimization", "static_optimization+compartments"])
+def test_a_left_out_leg_is_not_posed(method: str, monkeypatch: pytest.MonkeyPatch) -> None:
+    """The solver never sees a left-out leg: the QPs of the frames whose left foot is off the
+    plates hold the right leg's muscles and coordinates only (and the right knee's compartment
+    rows), so the KKT figures and the infeasible count are those of what was solved; every
+    frame is checked once."""
+    import msk.optimization as o
+
+    model = _muscled_two_legs()
+    kin, tq, geo = _trial(model)
+    gated, unbalanced, off = _left_off(model, tq)
+    calls: list[tuple[np.ndarray, tuple[str, ...], tuple[str, ...], bool]] = []
+    real = o.solve_static_optimization_batch
+
+    def spy(jac: Any, tau: Any, **kw: Any) -> Any:
+        times = np.asarray(kw["time"])
+        calls.append(
+            (times, tuple(kw["muscle_names"]), tuple(kw["coordinate_names"]),
+             kw.get("inequalities") is not None)
+        )  # fmt: skip
+        return real(jac, tau, **kw)
+
+    monkeypatch.setattr(o, "solve_static_optimization_batch", spy)
+    n = kin.time.size
+    one = optimise(
+        _inputs(method), model, gated, geo, kin.time, np.ones(n, dtype=bool), None,
+        kinematics=kin, external=None, unbalanced=unbalanced,
+    )  # fmt: skip
+    left_c = {tq.coordinate_names[k] for k in np.flatnonzero(unbalanced.any(axis=0))}
+    seen = np.zeros(n, dtype=int)
+    for times, mus, coords, rows in calls:
+        fr = np.searchsorted(kin.time, times)
+        seen[fr] += 1
+        if off[fr].all():
+            assert not [m for m in mus if m.endswith("_l")] and not (left_c & set(coords))
+            assert rows == method.endswith("+compartments")  # the right knee's rows
+        else:
+            assert not off[fr].any() and len(mus) == len(one.muscles)
+    assert (seen == 1).all()
+    assert one.kkt is not None and one.kkt.frames == n and one.infeasible_frames == 0
+    assert np.isfinite(one.activations[np.ix_(off, [m.endswith("_r") for m in one.muscles])]).all()
+
+
+def test_a_left_out_legs_unposable_inputs_do_not_exclude_the_frame() -> None:
+    """Where the left foot is off the plates, the left leg's moment arms are never read:
+    non-finite there, the frame is still solved for the right leg (equal to the
+    fully measured trial's forces) and not counted as excluded; without ``unbalanced`` the
+    frame is excluded whole."""
+    model = _muscled_two_legs()
+    kin, tq, geo = _trial(model)
+    n = kin.time.size
+    inputs, usable = _inputs("static_optimization"), np.ones(n, dtype=bool)
+    full = optimise(inputs, model, tq, geo, kin.time, usable, None)
+    gated, unbalanced, off = _left_off(model, tq)
+    lm = np.array([m.endswith("_l") for m in geo.muscle_names])
+    jac = geo.jacobian.copy()
+    jac[np.ix_(off, lm)] = np.nan
+    bad = type(geo)(**{**geo.__dict__, "jacobian": jac})
+    one = optimise(inputs, model, gated, bad, kin.time, usable, None, unbalanced=unbalanced)
+    right = np.array([m.endswith("_r") for m in one.muscles])
+    assert one.excluded_frames == 0
+    np.testing.assert_allclose(one.forces[:, right], full.forces[:, right], rtol=1e-6, atol=1e-6)
+    assert np.isnan(one.forces[np.ix_(off, ~right)]).all()
+    whole = optimise(inputs, model, gated, bad, kin.time, usable, None)
+    assert whole.excluded_frames == off.sum() and np.isnan(whole.forces[off]).all()
+
+
+@pytest.mark.parametrize("method", ["static_optimization", "emg_assisted", "closed_form"])
+def test_nothing_left_out_is_the_call_without_unbalanced(method: str) -> None:
+    """An all-False ``unbalanced`` (every foot measured) gives bit for bit the result of a
+    call without it: forces, activations, reserves and KKT figures."""
+    model = _muscled_two_legs()
+    kin, tq, geo = _trial(model)
+    n = kin.time.size
+    emg = _emg(model, n) if method.startswith("emg") else None
+    inputs = _inputs(method, None if emg is None else {m: m for m in emg.muscles})
+    usable = np.ones(n, dtype=bool)
+    a = optimise(inputs, model, tq, geo, kin.time, usable, emg)
+    b = optimise(inputs, model, tq, geo, kin.time, usable, emg,
+                 unbalanced=np.zeros_like(tq.tau, dtype=bool))  # fmt: skip
+    np.testing.assert_array_equal(a.forces, b.forces)
+    np.testing.assert_array_equal(a.activations, b.activations)
+    if a.reserve_torques is not None:
+        np.testing.assert_array_equal(a.reserve_torques, b.reserve_torques)
+    if a.kkt is not None:
+        assert b.kkt is not None
+        np.testing.assert_array_equal(a.kkt.value, b.kkt.value)
+        np.testing.assert_array_equal(a.kkt.frame, b.kkt.frame)
+
+
+def test_optimization_figures_count_the_solved_leg_only() -> None:
+    """summary.json's ``optimization`` figures and the quality gates that read muscle forces,
+    on a result whose left leg is left out of frames 0–5 of 10: the right leg's activations
+    there count in its saturation (saturated in 3 of its 10 frames: 30 % > 25 %, flagged; a
+    whole-row count saw 0 of 4), the left leg's over its 4 solved frames only; the reserve
+    RMS of a left coordinate over its solved frames."""
+    from msk.pipeline.summary import frames_solved
+    from msk.pipeline.tension import MuscleTensions
+    from msk.quality import optimization_flags
+
+    acts = np.full((10, 4), 0.2)
+    acts[:6, 2:] = np.nan  # left leg left out
+    acts[[0, 2, 4], 0] = 1.0  # a_r saturated where only the right leg was solved
+    rt = np.zeros((10, 2))
+    rt[:6, 1] = np.nan
+    rt[6:, 1] = 3.0
+    sol = MuscleTensions(
+        acts * 1000.0, acts, ("a_r", "b_r", "a_l", "b_l"), "static_optimization", 0,
+        infeasible_frames=0, reserve_torques=rt, reserve_coordinates=("knee_r", "knee_l"),
+    )  # fmt: skip
+    assert frames_solved(sol) == {"r": 10, "l": 4}
+    jt = SimpleNamespace(coordinate_names=("knee_r", "knee_l"), tau=np.full((10, 2), 20.0))
+    flags = {f.quantity: f for f in optimization_flags("t", sol, jt)}
+    assert flags["a_r_saturated_frames_pct"].value == pytest.approx(30.0)
+    assert flags["knee_l_reserve_rms_pct"].value == pytest.approx(15.0)  # 3 of 20 N·m
+    assert "knee_r_reserve_rms_pct" not in flags
