@@ -309,8 +309,8 @@ def optimise(
     F_M(f) ≥ 0 and F_L(f) ≥ 0 of the side of interest's knee (:func:`compartments`), each
     with a frontal reserve moment ≥ 0 priced as a coordinate reserve.
 
-    ``unbalanced`` (N, coordinates of ``torques``;
-    :func:`msk.pipeline.loads.unbalanced_coordinates`): per frame the coordinates whose torque
+    ``unbalanced`` (N, coordinates of ``torques``; the loads stage's,
+    :meth:`msk.pipeline.loads.Loads.unbalanced_for`): per frame the coordinates whose torque
     balances a missing ground reaction (a leg whose foot stands off the plates). The muscles
     and coordinates of the independent sub-problems holding them (:func:`left_out`: that leg)
     are left out of that frame — their forces, activations and reserve torques NaN — and the
@@ -391,7 +391,7 @@ def optimise(
         del jac, fa, fp
     ok = usable & posable
     # a frame whose every coordinate is left out has nothing to solve
-    ok &= ~drop_c.all(axis=1)[drop_id]
+    ok &= ~np.asarray(drop_c.all(axis=1))[drop_id]
     if not ok.any():  # e.g. a trial no foot stands on a plate in: a reason, not a traceback
         raise StageUnavailable(
             "no frame to optimise: none in which the plates measure a leg's foot contact (or "
@@ -678,12 +678,9 @@ def run(
     muscle_geometry: Any,
     emg: EmgActivations | None,
 ) -> MuscleTensions:
-    from msk.pipeline.loads import unbalanced_coordinates
-
     torques = inverse_dynamics.torques
     return optimise(
         inputs, identified_model(model.model, mass_identification), torques,
         muscle_geometry, kinematics.time, loads.solvable, emg, kinematics=kinematics,
-        external=loads.external,
-        unbalanced=unbalanced_coordinates(model.model, loads, torques.coordinate_names),
+        external=loads.external, unbalanced=loads.unbalanced_for(torques.coordinate_names),
     )  # fmt: skip
