@@ -34,9 +34,11 @@ Thresholds and their sources (:data:`THRESHOLDS`):
   the plates (no residual, plate mass, muscle forces or knee contact can be computed).
 * Unobserved segments: solved frames in which no marker on a leg segment was used by IK.
 * Tension optimisation: infeasible frames, frames excluded from it (non-finite or invalid
-  inputs), a muscle saturated (activation ≥ 0.99) on more than 25 % of frames (the generic
-  strength is short of the task for a quarter of it), reserve actuators
-  carrying more than 10 % of a leg coordinate's peak joint torque (RMS); with knee compartments
+  inputs), a muscle saturated (activation ≥ 0.99) on more than 25 % of the frames it was
+  solved in (the generic strength is short of the task for a quarter of it; a leg left out
+  of a frame, its foot on unmeasured ground, is not counted there), reserve actuators
+  carrying more than 10 % of a leg coordinate's peak joint torque (RMS over the frames its
+  reserve was solved in); with knee compartments
   held ≥ 0 (``compartment_nonnegative``), a frontal reserve moment whose peak exceeds 10 % of
   the peak frontal moment of the knee's inverse-dynamics load (:func:`frontal_reserve_flags`:
   OpenSim's guideline for reserve actuators, peak below 10 % of the peak joint moment, applied
@@ -80,6 +82,7 @@ __all__ = [
     "inconsistent_static_markers",
     "kkt_flags",
     "model_flags",
+    "optimization_flags",
     "placement_label_conflicts",
     "swapped_label_pairs",
     "swapped_sides",
@@ -627,7 +630,17 @@ def model_flags(
     return out
 
 
-def _optimization_flags(trial: str, sol: Any, jt: Any, th: Mapping[str, float]) -> list[Flag]:
+def optimization_flags(
+    trial: str, sol: Any, jt: Any, thresholds: Mapping[str, float] = THRESHOLDS
+) -> list[Flag]:
+    """The tension optimisation's gates (``sol``: a
+    :class:`msk.pipeline.tension.MuscleTensions`; ``jt`` the joint torques its reserves are
+    judged against): infeasible and excluded frames, a muscle saturated on more than
+    ``saturated_frames_pct`` of the frames it was solved in, a leg coordinate's reserve RMS
+    over its solved frames above ``reserve_rms_pct_peak_torque`` of its peak torque, the
+    frontal reserves (:func:`frontal_reserve_flags`) and the KKT check (:func:`kkt_flags`).
+    A leg left out of a frame (NaN there) counts in none of them."""
+    th = {**THRESHOLDS, **thresholds}
     out: list[Flag] = []
     n_inf = int(getattr(sol, "infeasible_frames", 0) or 0)
     if n_inf:
@@ -647,9 +660,13 @@ def _optimization_flags(trial: str, sol: Any, jt: Any, th: Mapping[str, float]) 
     acts = np.asarray(getattr(sol, "activations", np.zeros((0, 0))), dtype=float)
     names = tuple(getattr(sol, "muscles", ()))
     if acts.ndim == 2 and acts.size:
-        rows = np.isfinite(acts).all(axis=1)
-        if rows.any():
-            sat = 100.0 * (acts[rows] >= th["saturation_activation"]).mean(axis=0)
+        # per muscle over the frames it was solved in (a leg left out of a frame's tension QP
+        # has NaN activations there; the other leg's, solved, count)
+        fin = np.isfinite(acts)
+        n_fin = fin.sum(axis=0)
+        if n_fin.any():
+            hit = (np.where(fin, acts, 0.0) >= th["saturation_activation"]).sum(axis=0)
+            sat = np.where(n_fin > 0, 100.0 * hit / np.maximum(n_fin, 1), 0.0)
             worst = int(np.argmax(sat))
             if sat[worst] > th["saturated_frames_pct"]:
                 out.append(
@@ -942,5 +959,5 @@ def gait_flags(
                   f"duplicate marker labels in the file: {', '.join(dup[:5])}")
         )  # fmt: skip
     if optimization is not None:
-        out += _optimization_flags(trial_name, optimization, joint_torques, th)
+        out += optimization_flags(trial_name, optimization, joint_torques, th)
     return out

@@ -159,7 +159,7 @@ def main(argv: list[str] | None = None) -> int:
                                         + " |" * 8)  # fmt: skip
                             print(rows[-1], flush=True)
                             continue
-                        comp = res.summary["comparison"] or {}
+                        comp = res.summary.to_dict()["comparison"] or {}
                         cells = []
                         for part in ("", "_medial", "_lateral"):
                             c = comp.get(f"knee_contact_generic{part}")
@@ -171,7 +171,7 @@ def main(argv: list[str] | None = None) -> int:
                                     f"{c['peak_predicted_bw']:.2f} / {c['peak_measured_bw']:.2f}"
                                 )
                                 cells.append(peaks)
-                        ik = 1000 * res.summary["quality"]["ik_marker_rms_mean_m"]
+                        ik = 1000 * res.summary.to_dict()["quality"]["ik_marker_rms_mean_m"]
                         row = head + " | ".join(cells)
                         rows.append(row + f" | {ik:.1f} |")
                         print(rows[-1], flush=True)

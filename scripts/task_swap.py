@@ -233,10 +233,10 @@ def _row(stem: str, name: str, path: Path, out: Path) -> Any:
         msg = " ".join(f"{type(exc).__name__}: {exc}".split())[:150]
         print(f"| {stem} | {name} | CRASH {msg} | | | | |")
         return None
-    q = res.summary["quality"]
+    q = res.summary.to_dict()["quality"]
     ik = 1000 * (q.get("ik_marker_rms_mean_m") or float("nan"))
     r = q.get("residual_force_rms_pct_bw")
-    comp = res.summary.get("comparison") or {}
+    comp = res.summary.to_dict().get("comparison") or {}
     con = " · ".join(
         f"{k.removeprefix('knee_contact_')} {v['rms_bw']:.2f} / {v['pearson_r']:.2f}"
         for k, v in comp.items() if k.startswith("knee_contact_")

@@ -38,7 +38,7 @@ def _flags(cfg, folder: Path, **changes) -> dict[str, dict]:
     path.parent.mkdir(parents=True, exist_ok=True)
     path.write_text(render_config(dataclasses.replace(cfg, **changes)), encoding="utf-8")
     res = run_task_trials(path, folder / "out")[0]
-    return {f["quantity"]: f for f in res.summary["quality"]["flags"]}
+    return {f["quantity"]: f for f in res.summary.to_dict()["quality"]["flags"]}
 
 
 def _asis_pair(matched: dict[str, str]) -> tuple[str, str]:

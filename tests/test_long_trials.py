@@ -18,7 +18,6 @@ import msk.optimization as o
 from msk.cache import decode, encode
 from msk.optimization.synthetic import leg_like_frames
 from msk.pipeline import blocks
-from msk.pipeline.loads import unbalanced_coordinates
 from msk.timeseries import FrameSparse
 
 REPO = Path(__file__).resolve().parents[1]
@@ -336,9 +335,7 @@ def test_tension_forces_only_are_the_stage_forces() -> None:
             torques, r["muscle_geometry"], r["kinematics"].time,
             r["loads"].solvable, r["emg"], forces_only=True, kinematics=r["kinematics"],
             external=r["loads"].external,
-            unbalanced=unbalanced_coordinates(
-                r["model"].model, r["loads"], torques.coordinate_names
-            ),
+            unbalanced=r["loads"].unbalanced_for(torques.coordinate_names),
         )  # fmt: skip
     np.testing.assert_array_equal(only.forces, full.forces)
     assert np.isfinite(full.forces).any()
@@ -759,7 +756,7 @@ def test_knee_contact_in_blocks_equals_one_pass(monkeypatch: pytest.MonkeyPatch)
             inputs, spec, torques, r["muscle_geometry"], kin.time,
             r["loads"].solvable, r["emg"], forces_only=True, kinematics=kin,
             external=r["loads"].external,
-            unbalanced=unbalanced_coordinates(mdl, r["loads"], torques.coordinate_names),
+            unbalanced=r["loads"].unbalanced_for(torques.coordinate_names),
         )  # fmt: skip
     forces = {"generic": r["tension_optimization"].forces, "subject_specific": resolve.forces}
     models = {"generic": m_id, "subject_specific": spec}

@@ -245,6 +245,6 @@ def test_gait_and_fes_in_one_session(tmp_path: Path) -> None:
     html = (res.out_dir / "report.html").read_text()
     assert "Gait analysis report" in html
     assert "6. FES knee model" in html and "7. Methods, stages and software" in html
-    assert res.summary["fes"]["parameters"]["knee.K"]["value"] == pytest.approx(
+    assert res.summary.to_dict()["fes"]["parameters"]["knee.K"]["value"] == pytest.approx(
         TRUTH.knee.K, rel=0.05
     )

@@ -11,65 +11,9 @@ import numpy as np
 import pytest
 
 from msk.config.options import ContactConfig, EmgConfig, OptimizationConfig
-from msk.dynamics import coordinates_carrying, inverse_dynamics
-from msk.kinematics import kinematics_from_coordinates
-from msk.muscles.geometry import muscle_geometry
-from msk.muscles.path import Muscle, PathPoint
+from msk.dynamics import coordinates_carrying
 from msk.pipeline.tension import left_out, optimise
-from msk.synthetic_models import two_leg_model
-
-#: muscle → (origin body, origin (m), insertion body, insertion (m)), each side (z mirrored)
-_PATHS = {
-    "iliacus": ("pelvis", (0.05, -0.05, 0.08), "femur", (0.02, -0.08, 0.0)),
-    "glmax": ("pelvis", (-0.12, -0.02, 0.07), "femur", (-0.03, -0.10, 0.0)),
-    "glmed": ("pelvis", (-0.02, 0.05, 0.12), "femur", (0.0, -0.05, 0.06)),
-    "addlong": ("pelvis", (0.03, -0.08, 0.03), "femur", (0.0, -0.20, -0.02)),
-    "recfem": ("pelvis", (0.04, -0.03, 0.09), "tibia", (0.05, -0.05, 0.0)),
-    "vasti": ("femur", (0.03, -0.15, 0.0), "tibia", (0.05, -0.06, 0.0)),
-    "hams": ("pelvis", (-0.10, -0.08, 0.06), "tibia", (-0.03, -0.05, 0.0)),
-    "gastroc": ("femur", (-0.02, -0.38, 0.0), "foot", (-0.05, 0.0, 0.0)),
-    "soleus": ("tibia", (-0.02, -0.15, 0.0), "foot", (-0.05, 0.0, 0.0)),
-    "tibant": ("tibia", (0.03, -0.15, 0.0), "foot", (0.10, -0.01, 0.0)),
-}
-
-
-def _muscled_two_legs() -> Any:
-    """:func:`msk.synthetic_models.two_leg_model` with ten muscles a leg, their tendon slack
-    lengths such that every fibre is at its optimal length in the default pose."""
-    model = two_leg_model()
-
-    def build(slack: dict[str, float]) -> Any:
-        muscles = []
-        for side, s in (("r", 1.0), ("l", -1.0)):
-            for name, (b0, p0, b1, p1) in _PATHS.items():
-                n = f"{name}_{side}"
-                pts = []
-                for tag, body, xyz in (("o", b0, p0), ("i", b1, p1)):
-                    seg = body if body == "pelvis" else f"{body}_{side}"
-                    pts.append(PathPoint(f"{n}_{tag}", seg, np.array([xyz[0], xyz[1], s * xyz[2]])))
-                muscles.append(Muscle(n, tuple(pts), 1500.0, 0.1, slack.get(n, 0.2), 0.0, 10.0))
-        return model.with_muscles(muscles)
-
-    first = build({})
-    geo = muscle_geometry(first, first.default_coordinates()[None, :])
-    length = dict(zip(geo.muscle_names, geo.lengths[0], strict=True))
-    return build({n: float(v) - 0.1 for n, v in length.items()})
-
-
-def _trial(model: Any) -> tuple[Any, Any, Any]:
-    """A 40-frame movement of both legs (smooth, 100 Hz), its torques (no external load: every
-    torque finite) and its muscle geometry."""
-    t = np.arange(40) / 100.0
-    q0 = model.default_coordinates()
-    q = np.repeat(q0[None, :], t.size, axis=0)
-    names = list(model.coordinate_names)
-    for k, c in enumerate(names):
-        if c.startswith(("hip_", "knee_", "ankle_")):
-            q[:, k] += 0.3 * np.sin(2 * np.pi * (1.0 + 0.1 * k) * t + k)
-    kin = kinematics_from_coordinates(t, q, names, cutoff_hz=None, model=model)
-    tq = inverse_dynamics(model, kin)
-    geo = muscle_geometry(model, kin.q, kin.v)
-    return kin, tq, geo
+from tests.support.two_legs import muscled_two_legs, two_leg_trial
 
 
 def _inputs(method: str, channels: dict[str, str] | None = None) -> Any:
@@ -112,8 +56,8 @@ def test_a_leg_off_the_plates_leaves_the_other_legs_forces(method: str) -> None:
     :func:`msk.dynamics.without_unmeasured_contact` leaves them). The right leg's forces there
     equal those of the fully measured trial (every criterion: the QP is separable by leg), the
     left leg's are NaN, and every other frame is as before."""
-    model = _muscled_two_legs()
-    kin, tq, geo = _trial(model)
+    model = muscled_two_legs()
+    kin, tq, geo = two_leg_trial(model)
     n = kin.time.size
     emg = _emg(model, n) if method.startswith("emg") else None
     channels = None if emg is None else {m: m for m in emg.muscles}
@@ -137,8 +81,10 @@ def test_a_leg_off_the_plates_leaves_the_other_legs_forces(method: str) -> None:
     right = np.array([m.endswith("_r") for m in names])
     assert np.isfinite(full.forces).all()
     # emg_assisted: the right channels' gains are the same fixed point, to the fit's tolerance
-    # (1e-5 on a gain); the left ones are fitted on the frames the left leg is solved in
-    tol = 1e-3 if method == "emg_assisted" else 1e-6
+    # (1e-5 on a gain); the left ones are fitted on the frames the left leg is solved in.
+    # emg_weighted: its Tikhonov weight ε = 1e-6 · mean_i ‖r_i‖² averages over the muscles
+    # posed, and a left-out leg's are not posed (2e-6 relative here)
+    tol = {"emg_assisted": 1e-3, "emg_weighted": 1e-5}.get(method, 1e-6)
     np.testing.assert_allclose(one.forces[:, right], full.forces[:, right], rtol=tol, atol=tol)
     assert np.isnan(one.forces[np.ix_(off, ~right)]).all()
     if method != "emg_assisted":
@@ -189,3 +135,136 @@ def test_frames_solved_counts_each_leg() -> None:
     f[0, :2] = 1.0
     sol = MuscleTensions(f, f, ("a_r", "b_r", "a_l", "b_l"), "bounded_qp", 0)
     assert frames_solved(sol) == {"r": 5, "l": 2}
+
+
+def _left_off(model: Any, tq: Any, frames: slice = slice(10, 25)) -> tuple[Any, np.ndarray, Any]:
+    """The trial's torques with the left leg's NaN on ``frames`` (its foot off the plates), the
+    ``unbalanced`` mask of those frames, and the left leg's coordinates."""
+    n = tq.tau.shape[0]
+    off = np.zeros(n, dtype=bool)
+    off[frames] = True
+    left = [c for c in coordinates_carrying(model, "foot_l") if c not in tq.root_coordinates]
+    cols = [tq.coordinate_names.index(c) for c in left]
+    tau = tq.tau.copy()
+    tau[np.ix_(off, cols)] = np.nan
+    unbalanced = np.zeros_like(tau, dtype=bool)
+    unbalanced[np.ix_(off, cols)] = True
+    return type(tq)(**{**tq.__dict__, "tau": tau}), unbalanced, off
+
+
+@pytest.mark.parametrize("method", ["static_optimization", "static_optimization+compartments"])
+def test_a_left_out_leg_is_not_posed(method: str, monkeypatch: pytest.MonkeyPatch) -> None:
+    """The solver never sees a left-out leg: the QPs of the frames whose left foot is off the
+    plates hold the right leg's muscles and coordinates only (and the right knee's compartment
+    rows), so the KKT figures and the infeasible count are those of what was solved; every
+    frame is checked once."""
+    import msk.optimization as o
+
+    model = muscled_two_legs()
+    kin, tq, geo = two_leg_trial(model)
+    gated, unbalanced, off = _left_off(model, tq)
+    calls: list[tuple[np.ndarray, tuple[str, ...], tuple[str, ...], bool]] = []
+    real = o.solve_static_optimization_batch
+
+    def spy(jac: Any, tau: Any, **kw: Any) -> Any:
+        times = np.asarray(kw["time"])
+        calls.append(
+            (times, tuple(kw["muscle_names"]), tuple(kw["coordinate_names"]),
+             kw.get("inequalities") is not None)
+        )  # fmt: skip
+        return real(jac, tau, **kw)
+
+    monkeypatch.setattr(o, "solve_static_optimization_batch", spy)
+    n = kin.time.size
+    one = optimise(
+        _inputs(method), model, gated, geo, kin.time, np.ones(n, dtype=bool), None,
+        kinematics=kin, external=None, unbalanced=unbalanced,
+    )  # fmt: skip
+    left_c = {tq.coordinate_names[k] for k in np.flatnonzero(unbalanced.any(axis=0))}
+    seen = np.zeros(n, dtype=int)
+    for times, mus, coords, rows in calls:
+        fr = np.searchsorted(kin.time, times)
+        seen[fr] += 1
+        if off[fr].all():
+            assert not [m for m in mus if m.endswith("_l")] and not (left_c & set(coords))
+            assert rows == method.endswith("+compartments")  # the right knee's rows
+        else:
+            assert not off[fr].any() and len(mus) == len(one.muscles)
+    assert (seen == 1).all()
+    assert one.kkt is not None and one.kkt.frames == n and one.infeasible_frames == 0
+    assert np.isfinite(one.activations[np.ix_(off, [m.endswith("_r") for m in one.muscles])]).all()
+
+
+def test_a_left_out_legs_unposable_inputs_do_not_exclude_the_frame() -> None:
+    """Where the left foot is off the plates, the left leg's moment arms are never read:
+    non-finite there, the frame is still solved for the right leg (equal to the
+    fully measured trial's forces) and not counted as excluded; without ``unbalanced`` the
+    frame is excluded whole."""
+    model = muscled_two_legs()
+    kin, tq, geo = two_leg_trial(model)
+    n = kin.time.size
+    inputs, usable = _inputs("static_optimization"), np.ones(n, dtype=bool)
+    full = optimise(inputs, model, tq, geo, kin.time, usable, None)
+    gated, unbalanced, off = _left_off(model, tq)
+    lm = np.array([m.endswith("_l") for m in geo.muscle_names])
+    jac = geo.jacobian.copy()
+    jac[np.ix_(off, lm)] = np.nan
+    bad = type(geo)(**{**geo.__dict__, "jacobian": jac})
+    one = optimise(inputs, model, gated, bad, kin.time, usable, None, unbalanced=unbalanced)
+    right = np.array([m.endswith("_r") for m in one.muscles])
+    assert one.excluded_frames == 0
+    np.testing.assert_allclose(one.forces[:, right], full.forces[:, right], rtol=1e-6, atol=1e-6)
+    assert np.isnan(one.forces[np.ix_(off, ~right)]).all()
+    whole = optimise(inputs, model, gated, bad, kin.time, usable, None)
+    assert whole.excluded_frames == off.sum() and np.isnan(whole.forces[off]).all()
+
+
+@pytest.mark.parametrize("method", ["static_optimization", "emg_assisted", "closed_form"])
+def test_nothing_left_out_is_the_call_without_unbalanced(method: str) -> None:
+    """An all-False ``unbalanced`` (every foot measured) gives bit for bit the result of a
+    call without it: forces, activations, reserves and KKT figures."""
+    model = muscled_two_legs()
+    kin, tq, geo = two_leg_trial(model)
+    n = kin.time.size
+    emg = _emg(model, n) if method.startswith("emg") else None
+    inputs = _inputs(method, None if emg is None else {m: m for m in emg.muscles})
+    usable = np.ones(n, dtype=bool)
+    a = optimise(inputs, model, tq, geo, kin.time, usable, emg)
+    b = optimise(inputs, model, tq, geo, kin.time, usable, emg,
+                 unbalanced=np.zeros_like(tq.tau, dtype=bool))  # fmt: skip
+    np.testing.assert_array_equal(a.forces, b.forces)
+    np.testing.assert_array_equal(a.activations, b.activations)
+    if a.reserve_torques is not None:
+        np.testing.assert_array_equal(a.reserve_torques, b.reserve_torques)
+    if a.kkt is not None:
+        assert b.kkt is not None
+        np.testing.assert_array_equal(a.kkt.value, b.kkt.value)
+        np.testing.assert_array_equal(a.kkt.frame, b.kkt.frame)
+
+
+def test_optimization_figures_count_the_solved_leg_only() -> None:
+    """summary.json's ``optimization`` figures and the quality gates that read muscle forces,
+    on a result whose left leg is left out of frames 0–5 of 10: the right leg's activations
+    there count in its saturation (saturated in 3 of its 10 frames: 30 % > 25 %, flagged; a
+    whole-row count saw 0 of 4), the left leg's over its 4 solved frames only; the reserve
+    RMS of a left coordinate over its solved frames."""
+    from msk.pipeline.summary import frames_solved
+    from msk.pipeline.tension import MuscleTensions
+    from msk.quality import optimization_flags
+
+    acts = np.full((10, 4), 0.2)
+    acts[:6, 2:] = np.nan  # left leg left out
+    acts[[0, 2, 4], 0] = 1.0  # a_r saturated where only the right leg was solved
+    rt = np.zeros((10, 2))
+    rt[:6, 1] = np.nan
+    rt[6:, 1] = 3.0
+    sol = MuscleTensions(
+        acts * 1000.0, acts, ("a_r", "b_r", "a_l", "b_l"), "static_optimization", 0,
+        infeasible_frames=0, reserve_torques=rt, reserve_coordinates=("knee_r", "knee_l"),
+    )  # fmt: skip
+    assert frames_solved(sol) == {"r": 10, "l": 4}
+    jt = SimpleNamespace(coordinate_names=("knee_r", "knee_l"), tau=np.full((10, 2), 20.0))
+    flags = {f.quantity: f for f in optimization_flags("t", sol, jt)}
+    assert flags["a_r_saturated_frames_pct"].value == pytest.approx(30.0)
+    assert flags["knee_l_reserve_rms_pct"].value == pytest.approx(15.0)  # 3 of 20 N·m
+    assert "knee_r_reserve_rms_pct" not in flags

@@ -108,7 +108,7 @@ def test_shipped_session_runs_and_flags_what_is_wrong(cfg: Path, tmp_path: Path)
         pytest.skip(f"{cfg.name}: its recordings are not here")
     assert cfg.stem in EXPECT, f"add {cfg.stem} to EXPECT with its measured figures"
     res = _run(cfg, tmp_path / "out")
-    s = res.summary
+    s = res.summary.to_dict()
     text = (res.out_dir / "summary.json").read_text()
     assert Summary.from_json(text).to_json() == text  # the typed summary round-trips exactly
     status = {r.name: r.status for r in res.stages}
@@ -159,7 +159,7 @@ def test_shipped_session_runs_and_flags_what_is_wrong(cfg: Path, tmp_path: Path)
         assert (functional == "functional joint centres") == (sp["method"] != "leg factor")
     if split:
         assert "Femur : tibia split" in (res.out_dir / "report.html").read_text()
-    if "knee_contact" in res.summary.get("tables", []):
+    if "knee_contact" in res.summary.to_dict().get("tables", []):
         side = s["subject"]["side"]
         assert s["comparison"] is not None or side
     _check_report_renders(res.out_dir, s)
@@ -241,7 +241,7 @@ def test_short_trial_progressing_under_0p3_m_is_headed_by_the_pelvis(tmp_path: P
     var = _variant(cfg, tmp_path, lambda t: t.replace(str(src), str(short)))
     full = _run(cfg, tmp_path / "full")
     res = _run(var, tmp_path / "short")
-    s = res.summary
+    s = res.summary.to_dict()
     assert s["model"]["heading"]["source"] == "pelvis markers"
     prog = s["model"]["heading"]["progression_yaw_deg"]
     assert prog is None or not np.isfinite(prog)  # < 0.3 m: no progression heading
@@ -275,7 +275,7 @@ def test_both_feet_on_one_plate_is_flagged_and_left_out(tmp_path: Path) -> None:
                       plate_corners(centre, half_x=half[0], half_z=half[2]))  # fmt: skip
     dataclasses.replace(tr, plates=(one,)).write_c3d(cfg.parent / "synth.c3d")
     (res,) = run_task_trials(cfg, tmp_path / "out")
-    q = res.summary["quality"]
+    q = res.summary.to_dict()["quality"]
     flag = {f["quantity"]: f for f in q["flags"]}["plate_shared_contact_frames"]
     assert flag["value"] > 0.5 * tr.time.size and "both feet" in flag["message"]
     assert q["contact_measured_frames"] <= tr.time.size - flag["value"]

@@ -66,7 +66,7 @@ def test_jw_squat_no_false_flag_no_cycle_ik_and_torques_near_the_truth(tmp_modul
     flexion within 1°, the leg torques within 3 N·m RMS (the plates' 6 Hz low-pass), no frame
     of unmeasured contact."""
     _, res, cmp = _run("squat", tmp_module)
-    s = res.summary
+    s = res.summary.to_dict()
     assert not [x for x in s["stages"] if x["status"] not in ("computed", "not requested")]
     assert s["gait_cycle_s"] is None and s["events"] == []
     flags = {f["quantity"] for f in s["quality"]["flags"]}
@@ -89,7 +89,7 @@ def test_jw_stair_unmeasured_steps_are_found_blanked_counted_and_flagged(tmp_mod
     frames the knee torques are within 8 N·m RMS of the truth and IK within 0.5°; the pelvis
     residual over the measured frames stays under the 5 % BW gate."""
     _, res, cmp = _run("stair", tmp_module / "stair")
-    q = res.summary["quality"]
+    q = res.summary.to_dict()["quality"]
     flags = {f["quantity"] for f in q["flags"]}
     assert flags == {"unmeasured_contact_raised_frames"}, flags
     assert "residual_force_rms_pct_bw" not in flags and q["residual_force_rms_pct_bw"] < 5.0

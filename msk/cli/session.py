@@ -50,10 +50,10 @@ def _run_sessions(args: argparse.Namespace) -> int:
         missing = res.not_available
         if missing and not args.quiet:
             sys.stderr.write(f"{res.out_dir}: stages not available: {', '.join(missing)}\n")
-        flags = (res.summary.get("quality") or {}).get("flags") or []
+        flags = res.summary.quality.flags or ()
         raised += len(flags)
         for f in flags:
-            sys.stderr.write(f"{res.out_dir}: quality flag: {f['message']}\n")
+            sys.stderr.write(f"{res.out_dir}: quality flag: {f.message}\n")
     return 3 if args.strict and raised else 0
 
 

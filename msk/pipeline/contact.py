@@ -20,7 +20,7 @@ from msk.pipeline.blocks import frame_blocks
 from msk.pipeline.dynamics import InverseDynamics
 from msk.pipeline.emg import EmgActivations
 from msk.pipeline.inputs import SessionInputs
-from msk.pipeline.loads import Loads, unbalanced_coordinates
+from msk.pipeline.loads import Loads
 from msk.pipeline.mass_identification import MassIdentification, identified_model
 from msk.pipeline.model import BuiltModel
 from msk.pipeline.runner import StageUnavailable
@@ -172,7 +172,7 @@ def run(
         optimise(
             inputs, m_spec, torques, muscle_geometry, kin.time, loads.solvable, emg,
             on_block=on_block, kinematics=kin, external=loads.external,
-            unbalanced=unbalanced_coordinates(mdl, loads, torques.coordinate_names),
+            unbalanced=loads.unbalanced_for(torques.coordinate_names),
         )  # fmt: skip
         gen_ok &= ~done  # generic frames no re-solve block had (normally none)
     for fr in frame_blocks(np.flatnonzero(gen_ok)):  # block by block: memory bounded

@@ -50,9 +50,12 @@ class Loads:
     measured or off the floor, whatever the other feet stand on (RNEA's torque at a joint
     balances its distal subtree, Featherstone 2008 §5.3: a missing reaction under the other
     foot does not enter this leg's torques). The stages that work leg by leg (muscle tensions,
-    knee contact) use these frames (:attr:`solvable`, :func:`unbalanced_coordinates`); the
-    whole-body ones (residuals, mass identification, plate-mass check, gait events)
-    ``usable``."""
+    knee contact, strength identification) use these frames (:attr:`solvable`,
+    ``unbalanced``); the whole-body ones (residuals, mass identification, plate-mass check,
+    gait events) ``usable``. ``unbalanced`` (N, len(``coordinate_names``)), computed here
+    once (:func:`unbalanced_coordinates`) and read by the tension and knee contact stages
+    (:meth:`unbalanced_for`): per :attr:`solvable` frame the coordinates between a foot whose
+    leg is not solvable there and the root."""
 
     external: Any
     measured: np.ndarray
@@ -60,6 +63,22 @@ class Loads:
     observation: Any = None
     contact: Any = None
     legs: np.ndarray | None = None
+    unbalanced: np.ndarray | None = None
+    coordinate_names: tuple[str, ...] = ()
+
+    def unbalanced_for(self, coordinate_names: Any) -> np.ndarray:
+        """``unbalanced`` in the columns ``coordinate_names`` (e.g. the joint torques'): a
+        coordinate this result does not name is never unbalanced (all False without
+        ``unbalanced``)."""
+        names = list(coordinate_names)
+        out = np.zeros((self.usable.shape[0], len(names)), dtype=bool)
+        if self.unbalanced is None:
+            return out
+        have = {c: k for k, c in enumerate(self.coordinate_names)}
+        for j, c in enumerate(names):
+            if c in have:
+                out[:, j] = self.unbalanced[:, have[c]]
+        return out
 
     @property
     def solvable(self) -> np.ndarray:
@@ -159,7 +178,11 @@ def run(inputs: SessionInputs, read: ReadResult, model: BuiltModel, kinematics: 
     )
     usable = body & ~contact.unmeasured.any(axis=1)
     legs = body[:, None] & ~contact.unmeasured
-    return Loads(ext, measured, usable, obs, contact, legs)
+    out = Loads(ext, measured, usable, obs, contact, legs)
+    names = tuple(model.model.coordinate_names)
+    return dataclasses.replace(
+        out, unbalanced=unbalanced_coordinates(model.model, out, names), coordinate_names=names
+    )
 
 
 def unbalanced_coordinates(model: Any, loads: Loads, coordinate_names: Any) -> np.ndarray:

@@ -19,7 +19,6 @@ import hashlib
 import json
 import time
 import traceback
-from collections.abc import Mapping
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, TextIO
@@ -28,6 +27,7 @@ from msk import __version__
 from msk.cache import StageCache, code_fingerprint, dependency_versions
 from msk.exceptions import ConfigError, MskError
 from msk.results import json_default
+from msk.summary import Summary
 
 __all__ = [
     "RunResult",
@@ -54,10 +54,12 @@ class StageRecord:
 
 @dataclass(frozen=True)
 class RunResult:
-    """A finished run: the session folder, its summary and the stage records."""
+    """A finished run: the session folder, its summary (:class:`msk.summary.Summary`, read
+    back from the ``summary.json`` the run wrote: the typed value of exactly that file) and the
+    stage records."""
 
     out_dir: Path
-    summary: Mapping[str, Any]
+    summary: Summary
     stages: tuple[StageRecord, ...]
     seconds: float
 

@@ -22,6 +22,7 @@ from msk.pipeline.graph import CORE_STAGES, GRAPH, STAGES, run_graph
 from msk.pipeline.inputs import session_inputs
 from msk.pipeline.runner import Runner, RunResult
 from msk.results import SessionResults, check_replaceable, write_session
+from msk.summary import Summary
 
 __all__ = ["run_session", "run_stages", "run_task_trials", "split_task_trials"]
 
@@ -132,4 +133,7 @@ def run_session(
     write_session(out, SessionResults(tables, summary, None, angles), report=report)
     if progress is not None:
         progress.write(f"wrote {out} in {time.perf_counter() - t_start:.2f} s\n")
-    return RunResult(out, summary, tuple(runner.records), time.perf_counter() - t_start)
+    # the public result is typed: the summary.json just written, read back (its text
+    # round-trips: Summary.from_json(text).to_json() == text)
+    typed = Summary.from_json((out / "summary.json").read_text(encoding="utf-8"))
+    return RunResult(out, typed, tuple(runner.records), time.perf_counter() - t_start)

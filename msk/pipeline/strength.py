@@ -1,6 +1,16 @@
 """Stage ``strength_identification``: one strength factor per EMG channel's muscle group from
 the EMG activations, the moment-arm Jacobians and the joint torques, with bootstrap intervals
-(:class:`msk.strength.StrengthIdentifier`; Hayashibe et al. 2011, §V, Eq. 12–14)."""
+(:class:`msk.strength.StrengthIdentifier`; Hayashibe et al. 2011, §V, Eq. 12–16).
+
+Frames per leg: the regression's rows are (frame, coordinate) pairs of Eq. 16, and a row of
+coordinate j holds only the groups whose muscles cross j — the groups of one leg never share
+a row with the other leg's coordinates. A frame where the OTHER foot stands on a surface no
+plate measures leaves this leg's torques exact (RNEA's torque at a joint balances its distal
+subtree, Featherstone 2008 §5.3), so the stage uses every frame in which no coordinate the
+groups' muscles cross is unbalanced (:attr:`msk.pipeline.loads.Loads.unbalanced`): with EMG on
+one leg, that leg's own frames (its foot measured or swinging); with EMG on both legs, the
+frames where both are solvable. The unbalanced coordinates of such a frame (the other leg's,
+crossed by no group) are not regressed."""
 
 from __future__ import annotations
 
@@ -18,7 +28,7 @@ from msk.pipeline.loads import Loads
 from msk.pipeline.model import BuiltModel
 from msk.pipeline.runner import StageUnavailable
 
-__all__ = ["StrengthIdentification", "run"]
+__all__ = ["StrengthIdentification", "crossed_coordinates", "run"]
 
 
 @dataclass(frozen=True)
@@ -46,25 +56,36 @@ def run(
     from msk.timeseries import FrameSparse
 
     jt = inverse_dynamics.torques
-    good = loads.usable & np.isfinite(jt.tau).all(axis=1)
-    frames = np.flatnonzero(good)
-    if frames.size == 0:  # e.g. a trial no foot stands on a plate in: a reason, not a traceback
-        raise StageUnavailable(
-            "no frame with every foot's contact measured, every leg segment observed and "
-            "finite joint torques"
-        )
-    # the Hill state of the frames used, computed block by block as the identifier needs it
-    # (its ten (N, M) arrays are never held whole); the compact Jacobian of those frames only
     params = muscle_parameters(model.model)
-    state = RigidTendonStateBlocks(
-        params, muscle_geometry.lengths, muscle_geometry.velocities, frames
-    )
     groups: dict[str, list[str]] = {}
     for k, m in enumerate(emg.muscles):
         if emg.usable[k]:
             groups.setdefault(emg.sources[k], []).append(m)
     if not groups:
         raise StageUnavailable("no usable EMG channel")
+    # per leg (module docstring): no coordinate a group's muscle crosses may be unbalanced;
+    # the others' torques (NaN where unbalanced) are not regressed
+    unbalanced = loads.unbalanced_for(jt.coordinate_names)
+    crossed = crossed_coordinates(
+        muscle_geometry.jacobian, [params.names.index(m) for v in groups.values() for m in v]
+    )
+    good = (
+        loads.solvable
+        & ~(unbalanced & crossed).any(axis=1)
+        & (np.isfinite(jt.tau) | unbalanced).all(axis=1)
+    )
+    frames = np.flatnonzero(good)
+    if frames.size == 0:  # e.g. a trial no foot stands on a plate in: a reason, not a traceback
+        raise StageUnavailable(
+            "no frame in which the EMG groups' legs have their foot contact measured (or "
+            "swing), every leg segment observed and finite joint torques"
+        )
+    tau = np.where(unbalanced, 0.0, jt.tau)
+    # the Hill state of the frames used, computed block by block as the identifier needs it
+    # (its ten (N, M) arrays are never held whole); the compact Jacobian of those frames only
+    state = RigidTendonStateBlocks(
+        params, muscle_geometry.lengths, muscle_geometry.velocities, frames
+    )
     # the measured muscles' columns only (compact over the muscles: the others are 0, and a
     # long trial's (N, M) activation was the stage's largest array, issue 18)
     cols = sorted({params.names.index(m) for k, m in enumerate(emg.muscles) if emg.usable[k]})
@@ -82,7 +103,7 @@ def run(
         est.fit(
             jac,
             act,
-            jt.tau[good],
+            tau[good],
             state,
             coordinate_names=jt.coordinate_names,
             frames=frames,
@@ -91,8 +112,28 @@ def run(
         # the measured frames do not determine any group (e.g. no window passes the
         # correlation gate on a trial with one stance on the plates): not available, said why
         raise StageUnavailable(
-            f"the {int(good.sum())} measured frames determine no strength: {exc}"
+            f"the {int(good.sum())} solvable frames determine no strength: {exc}"
         ) from None
     return StrengthIdentification(
         est.profile_, {g: list(v) for g, v in groups.items()}, float(kinematics.time[good][0])
     )
+
+
+def crossed_coordinates(jacobian: Any, muscles: Any) -> np.ndarray:
+    """(n,) the coordinates any of ``muscles`` (indices) has a moment arm about in some frame
+    of ``jacobian`` (N, M, n): a compact one's stored positions, a dense one's nonzero
+    entries (block by block)."""
+    from msk.pipeline.blocks import frame_blocks
+    from msk.timeseries import FrameSparse
+
+    idx = np.asarray(sorted(set(int(m) for m in muscles)), dtype=np.intp)
+    n_mus, n = jacobian.shape[1], jacobian.shape[2]
+    out = np.zeros(n, dtype=bool)
+    if isinstance(jacobian, FrameSparse):
+        rows, cols = np.unravel_index(np.asarray(jacobian.positions), (n_mus, n))
+        out[cols[np.isin(rows, idx)]] = True
+        return out
+    for fr in frame_blocks(jacobian.shape[0]):
+        blk = np.asarray(jacobian[fr])[:, idx]
+        out |= ((blk != 0) & np.isfinite(blk)).any(axis=(0, 1))
+    return out

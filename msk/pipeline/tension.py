@@ -309,18 +309,22 @@ def optimise(
     F_M(f) ≥ 0 and F_L(f) ≥ 0 of the side of interest's knee (:func:`compartments`), each
     with a frontal reserve moment ≥ 0 priced as a coordinate reserve.
 
-    ``unbalanced`` (N, coordinates of ``torques``;
-    :func:`msk.pipeline.loads.unbalanced_coordinates`): per frame the coordinates whose torque
+    ``unbalanced`` (N, coordinates of ``torques``; the loads stage's,
+    :meth:`msk.pipeline.loads.Loads.unbalanced_for`): per frame the coordinates whose torque
     balances a missing ground reaction (a leg whose foot stands off the plates). The muscles
     and coordinates of the independent sub-problems holding them (:func:`left_out`: that leg)
     are left out of that frame — their forces, activations and reserve torques NaN — and the
     rest solved: each criterion's cost is a sum over muscles and reserves and each equality
-    row a coordinate's, so the rest's solution is that of the whole frame's QP (the left-out
-    rows are posed with zero torque, their solution discarded;
-    ``tests/test_pipeline_tension.py`` checks each criterion). The EMG gains of
-    ``emg_assisted`` are fitted with the left-out rows at zero torque and zero EMG, which add
-    nothing to the gains (g_c = Σ a ê / Σ ê²): each leg's channels on the frames it is solved
-    in (the other leg's gains equal the fully measured trial's to the fit's tolerance)."""
+    row a coordinate's, so the rest's solution is that of the whole frame's QP
+    (``tests/test_pipeline_tension.py`` checks each criterion). The left-out part is not
+    posed: such a frame's QP holds the kept muscles and coordinates only (and the compartment
+    rows only when their knee is kept), so the infeasible count, the KKT figures, the
+    reserves and the activations describe what was solved; a frame is posable when the kept
+    part's geometry, force curves and torques are finite. The EMG gains of ``emg_assisted``
+    are fitted with the left-out rows at zero torque and zero EMG, which add nothing to the
+    gains (g_c = Σ a ê / Σ ê²): each leg's channels on the frames it is solved in (the other
+    leg's gains equal the fully measured trial's to the fit's tolerance); nothing of that
+    fit's solution is reported."""
     import msk.optimization as o
     from msk.muscles.geometry import finite_frames, jacobian_frames, muscle_parameters
 
@@ -349,7 +353,6 @@ def optimise(
         & (np.isfinite(torques.tau[:, act_idx]) | miss).all(axis=1)
         & curves_finite
     )
-    ok = usable & posable
     n_mus = len(params.names)
     # per frame: the muscles and coordinates left out (the components holding an unbalanced
     # coordinate), as an index into the distinct patterns ``drops`` (0: nothing left out)
@@ -357,19 +360,38 @@ def optimise(
         (np.zeros(n_mus, dtype=bool), np.zeros(len(act_idx), dtype=bool))
     ]
     drop_id = np.zeros(n_all, dtype=np.intp)
-    if (miss[ok]).any():
+    # frames with a leg left out that are not posable whole: posable when what is not posable
+    # lies in the left-out part (its geometry, curves or torques are never read)
+    retry = usable & ~posable & miss.any(axis=1)
+    ok = usable & posable
+    if miss[ok | retry].any():
         pattern = np.zeros((n_mus, len(act_idx)), dtype=bool)
         for fr in frame_blocks(np.flatnonzero(ok)):
             pattern |= (jacobian_frames(geometry.jacobian, fr, act_idx) != 0).any(axis=0)
-        distinct, inv = np.unique(miss[ok], axis=0, return_inverse=True)
+        both = ok | retry
+        distinct, inv = np.unique(miss[both], axis=0, return_inverse=True)
         ids = np.zeros(distinct.shape[0], dtype=np.intp)
         for u, row in enumerate(distinct):
             if row.any():
                 ids[u] = len(drops)
                 drops.append(left_out(pattern, row))
-        drop_id[ok] = ids[np.asarray(inv).reshape(-1)]
-        # a frame whose every coordinate is left out has nothing to solve
-        ok &= ~np.array([d[1].all() for d in drops])[drop_id]
+        drop_id[both] = ids[np.asarray(inv).reshape(-1)]
+    drop_m = np.array([d[0] for d in drops])  # (patterns, m)
+    drop_c = np.array([d[1] for d in drops])  # (patterns, coordinates)
+    for fr in frame_blocks(np.flatnonzero(retry)) if retry.any() else ():
+        gone_m, gone_c = drop_m[drop_id[fr]], drop_c[drop_id[fr]]
+        jac = jacobian_frames(geometry.jacobian, fr, act_idx)
+        fa, fp = _force_curves(params, geometry, fr)
+        kept = (
+            (np.isfinite(jac) | gone_m[:, :, None] | gone_c[:, None, :]).all(axis=(1, 2))
+            & ((np.isfinite(fa) & np.isfinite(fp)) | gone_m).all(axis=1)
+            & (np.isfinite(torques.tau[fr][:, act_idx]) | gone_c).all(axis=1)
+        )
+        posable[fr[kept]] = True
+        del jac, fa, fp
+    ok = usable & posable
+    # a frame whose every coordinate is left out has nothing to solve
+    ok &= ~np.asarray(drop_c.all(axis=1))[drop_id]
     if not ok.any():  # e.g. a trial no foot stands on a plate in: a reason, not a traceback
         raise StageUnavailable(
             "no frame to optimise: none in which the plates measure a leg's foot contact (or "
@@ -410,8 +432,6 @@ def optimise(
             raise StageUnavailable("compartment_nonnegative needs the kinematics and loads")
         comp = compartments(inputs, model, kinematics, external)
     frontal = None if comp is None else np.full((time.size, 2), np.nan)
-    drop_m = np.array([d[0] for d in drops])  # (patterns, m)
-    drop_c = np.array([d[1] for d in drops])  # (patterns, coordinates)
     # per pattern: whether the compartment rows' knee is left out (a coordinate between its
     # tibia and the root is): no frontal reserve or peak from such a frame
     knee_out = np.zeros(len(drops), dtype=bool)
@@ -443,7 +463,9 @@ def optimise(
     gains = (
         None if gain_fit is None else dict(zip(gain_fit.group_names, map(float, gain_fit.gains)))
     )
-    carry = o.WarmStart()
+    # one warm start per left-out pattern: each pattern's QPs have their own unknowns, and
+    # the fully measured frames continue from one another as in one call on them all
+    carries: dict[int, Any] = {}
     n = time.size
     forces_only = forces_only or on_block is not None
     # filled block by block (no list of every block's forces concatenated at the end)
@@ -454,56 +476,88 @@ def optimise(
     kkt_val, kkt_rel = np.zeros(4), np.full(4, -1.0)
     kkt_at, kkt_n = np.full(4, -1), 0
 
-    def solve(fr: np.ndarray, common: dict[str, Any]) -> tuple[np.ndarray, Any, Any]:
+    def solve(fr: np.ndarray, common: dict[str, Any], pid: int) -> tuple[np.ndarray, Any, Any]:
         """Forces, activations and the batch solution (None for ``closed_form``) of the frames
-        ``fr``, warm-started from ``carry``."""
-        jac = jacobian_frames(geometry.jacobian, fr, act_idx)
-        tq = np.where(drop_c[drop_id[fr]], 0.0, torques.tau[fr][:, act_idx])
+        ``fr``, all of left-out pattern ``pid``: the QP of the muscles and coordinates that
+        pattern keeps (every one for 0) — the left-out leg is not posed at all —,
+        warm-started from that pattern's last call."""
+        km = None if pid == 0 else ~drop_m[pid]
+        cols = act_idx if pid == 0 else np.asarray(act_idx)[~drop_c[pid]]
+        jac = jacobian_frames(geometry.jacobian, fr, cols)
+        tq = torques.tau[fr][:, cols]
         fa, fp = _force_curves(params, geometry, fr)
+        names, w_act, res_opt = params.names, weights, reserves
+        if km is not None:
+            jac, fa, fp = jac[:, km], fa[:, km], fp[:, km]
+            names = tuple(np.asarray(params.names, dtype=object)[km])
+            w_act = None if weights is None else weights[km]
+            res_opt = reserves[~drop_c[pid]]
+        carry = carries.setdefault(pid, o.WarmStart())
+        common = {
+            **common,
+            "muscle_names": names,
+            "coordinate_names": tuple(cn[k] for k in np.flatnonzero(~drop_c[pid])),
+        }
+
+        def kept(x: np.ndarray) -> np.ndarray:
+            return x if km is None else x[:, km]
+
         if meth == "static_optimization":
             sol = o.solve_static_optimization_batch(
-                jac, tq, f_active=fa, f_passive=fp, reserve_optimal_force=reserves,
-                activation_weights=weights, activation_exponent=opt.activation_exponent,
+                jac, tq, f_active=fa, f_passive=fp, reserve_optimal_force=res_opt,
+                activation_weights=w_act, activation_exponent=opt.activation_exponent,
                 solver=solver, warm=carry, **common,
             )  # fmt: skip
             return sol.forces, sol.activations, sol
         if meth == "bounded_qp":
             sol = o.solve_tension_batch(
-                jac, tq, f_iso=params.max_isometric_force, f_max=fa + fp,
-                reserve_optimal_force=reserves, solver=solver, warm=carry, **common,
+                jac, tq, f_iso=kept(params.max_isometric_force[None, :])[0], f_max=fa + fp,
+                reserve_optimal_force=res_opt, solver=solver, warm=carry, **common,
             )  # fmt: skip
             return sol.forces, np.clip(sol.forces / np.maximum(fa, 1e-9), 0, None), sol
         if meth == "emg_weighted":
             assert meas is not None
             sol = o.solve_emg_weighted_batch(
-                jac, tq, f_ref=emg_reference(fr) * fa, measured=meas, w_emg=opt.w_emg,
-                f_max=fa + fp, solver=solver, warm=carry, **common,
+                jac, tq, f_ref=kept(emg_reference(fr)) * fa, measured=kept(meas[None, :])[0],
+                w_emg=opt.w_emg, f_max=fa + fp, solver=solver, warm=carry, **common,
             )  # fmt: skip
             return sol.forces, np.clip(sol.forces / np.maximum(fa, 1e-9), 0, None), sol
         if meth == "emg_assisted":
             a_ref, tracked = (
                 (np.zeros_like(fa), np.zeros(fa.shape[1], dtype=bool))
                 if gain_fit is None
-                else (gain_fit.reference(emg_reference(fr)), gain_fit.measured)
+                else (
+                    kept(gain_fit.reference(emg_reference(fr))),
+                    kept(np.asarray(gain_fit.measured)[None, :])[0],
+                )
             )
             sol = o.solve_emg_assisted_batch(
                 jac, tq, f_active=fa, f_passive=fp, a_ref=a_ref,
-                measured=tracked, w_track=opt.w_track, activation_weights=weights,
-                reserve_optimal_force=reserves, solver=solver, warm=carry, **common,
+                measured=tracked, w_track=opt.w_track, activation_weights=w_act,
+                reserve_optimal_force=res_opt, solver=solver, warm=carry, **common,
             )  # fmt: skip
             return sol.forces, sol.activations, sol
         # closed_form (unbounded Lagrange solution)
         lag = o.solve_lagrange_batch(
-            jac, tq, area=params.max_isometric_force, muscle_names=params.names
+            jac, tq, area=kept(params.max_isometric_force[None, :])[0], muscle_names=names
         )
         return lag.forces, lag.forces / np.maximum(fa, 1e-9), None
+
+    def widen(x: np.ndarray, keep: np.ndarray | None, width: int) -> np.ndarray:
+        """``x`` (frames, kept columns) in ``width`` columns, NaN in the left-out ones."""
+        if keep is None:
+            return x
+        out = np.full((x.shape[0], width), np.nan)
+        out[:, keep] = x
+        return out
 
     # with the knee compartment rows a block is solved in parts of SOLVE_BLOCK frames (its
     # Jacobian and the solver's arrays are a part's, and the rows' per-frame arrays: issue 18),
     # the warm start carried from part to part; each frame's QP is the same as in one call
     # (the sub-problem split follows the muscles' moment-arm pattern, the same in every part
     # of a trial in practice: tests/test_long_trials.py checks gc5_PS in 16-frame parts equal
-    # to one call bit for bit)
+    # to one call bit for bit). A block's frames are solved pattern by pattern of left-out
+    # legs (the fully measured frames first, then each pattern's own smaller QP).
     split = comp is not None
     for fr in frame_blocks(idx_ok):
         rows = None
@@ -513,46 +567,55 @@ def optimise(
             rows, peak = comp.rows(model, fr, tuple(params.names), keep=~knee_out[drop_id[fr]])
             id_peak = max(id_peak, peak)
         block_forces = None if on_block is None else np.empty((fr.size, len(params.names)))
-        for part in solve_parts(fr.size) if split else [slice(0, fr.size)]:
-            f_idx = fr[part]
-            common: dict[str, Any] = {
-                "muscle_names": params.names,
-                "coordinate_names": cn,
-                "time": time[f_idx],
-                # a re-solve that reads the forces alone does not check them
-                "compute_kkt": not forces_only,
-            }
-            if rows is not None:
-                common["inequalities"] = rows.take(part)
-            forces, acts, sol = solve(f_idx, common)
-            gone = drop_m[drop_id[f_idx]]  # the left-out muscles of these frames
-            if gone.any():
-                forces = np.where(gone, np.nan, forces)
-                acts = np.where(gone, np.nan, acts)
-            if block_forces is not None:
-                block_forces[part] = forces
-            else:
-                f_all[f_idx] = forces
-            if not forces_only:
-                a_all[f_idx] = acts
-            if sol is not None:
-                if rt is not None:
-                    rt[f_idx] = np.where(drop_c[drop_id[f_idx]], np.nan, sol.reserve_torques)
-                if frontal is not None and sol.inequality_reserves is not None:
-                    frontal[f_idx] = np.where(
-                        knee_out[drop_id[f_idx]][:, None],
-                        np.nan,
-                        sol.inequality_reserves,
-                    )
-                infeasible += int(sol.infeasible_frames.size)
-                if sol.kkt_scale is not None:
-                    v, r, at, n_ok = worst_kkt(
-                        sol.kkt, sol.kkt_scale, sol.status == o.STATUS_OPTIMAL, f_idx
-                    )
-                    kkt_val, kkt_n = np.maximum(kkt_val, v), kkt_n + n_ok
-                    better = r > kkt_rel
-                    kkt_rel, kkt_at = np.where(better, r, kkt_rel), np.where(better, at, kkt_at)
-            del sol, forces, acts
+        pids = drop_id[fr]
+        for pid in np.unique(pids).tolist():
+            # positions in the block: a slice when the whole block has this pattern (the calls
+            # of a trial without left-out legs are those of one pattern, as before)
+            where: slice | np.ndarray = (
+                slice(0, fr.size) if (pids == pid).all() else np.flatnonzero(pids == pid)
+            )
+            n_here = fr[where].size
+            keep_m = None if pid == 0 else ~drop_m[pid]
+            keep_c = None if pid == 0 else ~drop_c[pid]
+            for part in solve_parts(n_here) if split else [slice(0, n_here)]:
+                at = part if isinstance(where, slice) else where[part]
+                f_idx = fr[at]
+                common: dict[str, Any] = {
+                    "time": time[f_idx],
+                    # a re-solve that reads the forces alone does not check them
+                    "compute_kkt": not forces_only,
+                }
+                if rows is not None and not knee_out[pid]:
+                    ineq = rows.take(at)
+                    if keep_m is not None:
+                        ineq = o.TensionInequalities(
+                            ineq.offset, np.asarray(ineq.gain)[:, :, keep_m], ineq.names,
+                            ineq.reserve_optimal,
+                        )  # fmt: skip
+                    common["inequalities"] = ineq
+                forces, acts, sol = solve(f_idx, common, pid)
+                forces = widen(forces, keep_m, n_mus)
+                if block_forces is not None:
+                    block_forces[at] = forces
+                else:
+                    f_all[f_idx] = forces
+                if not forces_only:
+                    a_all[f_idx] = widen(acts, keep_m, n_mus)
+                if sol is not None:
+                    if rt is not None:
+                        rt[f_idx] = widen(sol.reserve_torques, keep_c, len(act_idx))
+                    if frontal is not None and sol.inequality_reserves is not None:
+                        frontal[f_idx] = sol.inequality_reserves
+                    infeasible += int(sol.infeasible_frames.size)
+                    if sol.kkt_scale is not None:
+                        v, r, at_k, n_ok = worst_kkt(
+                            sol.kkt, sol.kkt_scale, sol.status == o.STATUS_OPTIMAL, f_idx
+                        )
+                        kkt_val, kkt_n = np.maximum(kkt_val, v), kkt_n + n_ok
+                        better = r > kkt_rel
+                        kkt_rel = np.where(better, r, kkt_rel)
+                        kkt_at = np.where(better, at_k, kkt_at)
+                del sol, forces, acts
         if on_block is not None:
             assert block_forces is not None
             on_block(fr, block_forces)
@@ -615,12 +678,9 @@ def run(
     muscle_geometry: Any,
     emg: EmgActivations | None,
 ) -> MuscleTensions:
-    from msk.pipeline.loads import unbalanced_coordinates
-
     torques = inverse_dynamics.torques
     return optimise(
         inputs, identified_model(model.model, mass_identification), torques,
         muscle_geometry, kinematics.time, loads.solvable, emg, kinematics=kinematics,
-        external=loads.external,
-        unbalanced=unbalanced_coordinates(model.model, loads, torques.coordinate_names),
+        external=loads.external, unbalanced=loads.unbalanced_for(torques.coordinate_names),
     )  # fmt: skip
