@@ -180,7 +180,7 @@ def test_dm_og1_recovers_a_known_subjects_walk_and_flags_what_it_does_not(tmp_pa
     files = {"file": task.trc, "grf": task.grf, "external_loads": task.external_loads}
     cfg = ts.swapped_config("gc6_DM_og1", "synthetic_walk", files, tmp_path)
     (res,) = run_task_trials(cfg, tmp_path / "out")
-    s = res.summary
+    s = res.summary.to_dict()
     assert not [x for x in s["stages"] if x["status"] == "failed"]
     assert {x["name"]: x["status"] for x in s["stages"]}["inverse_dynamics"] == "computed"
     flags = {f["quantity"] for f in s["quality"]["flags"]}
