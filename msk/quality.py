@@ -81,7 +81,9 @@ __all__ = [
     "gait_flags",
     "inconsistent_static_markers",
     "kkt_flags",
+    "model_flags",
     "optimization_flags",
+    "placement_label_conflicts",
     "swapped_label_pairs",
     "swapped_sides",
 ]
@@ -111,6 +113,9 @@ THRESHOLDS: Mapping[str, float] = {
     "saturation_activation": 0.99,
     "static_marker_discrepancy_m": 0.025,
     "coordinate_at_bound_frames_pct": 5.0,
+    # the leg's two length measures without a static (msk.leg_split): hip to the functional
+    # knee and ankle against the ASIS-to-heel leg; the split's own limit for using the ankle
+    "leg_length_disagreement_pct": 5.0,
 }
 
 #: a solved coordinate within this of its model range bound is "at the bound" (rad or m)
@@ -536,6 +541,91 @@ def _unobserved_flags(trial: str, model: Any, kin: Any, th: Mapping[str, float])
                       th["unobserved_segment_frames_pct"],
                       f"no marker observes {body} in {pct:.0f} % of the solved frames: its pose "
                       "there comes from the neighbouring segments only")
+            )  # fmt: skip
+    return out
+
+
+#: the segments across the knee whose markers a placement from the motion must not exchange
+_KNEE_SEGMENTS = ("femur", "tibia")
+
+
+def placement_label_conflicts(
+    placed: Mapping[str, str], bodies: Sequence[str]
+) -> dict[str, tuple[str, str]]:
+    """Markers placed on a thigh or shank body other than the one their label names, or on a
+    body of the other side than their label's: label → (body placed on, body named).
+    ``placed``: lab label → body of a placement from the motion
+    (:func:`msk.scaling.place_markers_from_motion`'s ``"placed"``); the named body is the
+    label's landmark's (:data:`msk.markersets.LANDMARK_BODIES`: a thigh cluster or knee marker
+    on the femur, a shank cluster or malleolus on the tibia) on its side, when the model has
+    it. Without a static the body is the one the marker moves least on in the passes' inverse
+    kinematics, and a knee no marker pins can make a thigh marker as still on the tibia as on
+    the femur: issue 15, thirteenth pass — a synthetic DM walk of a subject with a 7 % longer
+    femur and 6 % shorter tibia had R_Thigh_Inferior placed on tibia_r and R_Shank_Superior,
+    R_Shank_Lateral on femur_r, its right knee then solved 43.7° RMS from the truth at an IK
+    marker RMS of 8.2 mm, unflagged; a synthetic squat's R_Midfoot_Medial on toes_l (still feet
+    are as rigid to either foot). :func:`msk.scaling.place_markers_from_motion` now avoids
+    both; the check stays for any placement that does not."""
+    have = set(bodies)
+    out: dict[str, tuple[str, str]] = {}
+    for lab, body in placed.items():
+        pl = parse_label(lab)
+        body = str(body)
+        if pl.side and body.endswith(("_r", "_l")) and not body.endswith(f"_{pl.side.lower()}"):
+            # a sided label on the other side's body
+            out[lab] = (body, f"a {pl.side.upper()} body")
+            continue
+        stem = LANDMARK_BODIES.get(pl.landmark or "")
+        if stem not in _KNEE_SEGMENTS or not body.startswith(_KNEE_SEGMENTS):
+            continue
+        named = f"{stem}_{pl.side.lower()}" if pl.side else stem
+        if named in have and body != named:
+            out[lab] = (body, named)
+    return out
+
+
+def model_flags(
+    trial: str,
+    info: Mapping[str, Any],
+    bodies: Sequence[str],
+    thresholds: Mapping[str, float] = THRESHOLDS,
+) -> list[Flag]:
+    """The gates on how the model was made from the task without a static (``info``: the model
+    stage's record, ``summary.json`` ``model``): thigh or shank markers placed on the other
+    segment (:func:`placement_label_conflicts`), and a leg whose two length measures disagree —
+    hip to the functional knee plus knee to the functional ankle (``msk.leg_split``,
+    ``femur_length_m + tibia_length_m``) against the ASIS-to-heel leg the model was scaled to
+    (``model_femur_m + model_tibia_m``) by more than ``leg_length_disagreement_pct``: the leg's
+    scale, and the tibia's (the rest of the leg), are uncertain by that much. Both are true of
+    the synthetic DM walks of issue 15's thirteenth pass, the second of DM's real crouch trial
+    (left leg +7.7 %; its legs scaled 5–6 % shorter than by the same subject's overground
+    walk); neither of DM's overground and treadmill walks (≤ 2.5 %)."""
+    th = {**THRESHOLDS, **thresholds}
+    out: list[Flag] = []
+    placed = (info.get("marker_placement") or {}).get("placed") or {}
+    bad = placement_label_conflicts(placed, bodies)
+    if bad:
+        out.append(
+            _flag(trial, "markers_placed_against_label", float(len(bad)), 0.0,
+                  "placed from the motion on the other segment than their label names: "
+                  + ", ".join(f"{lab} on {b} (label: {n})" for lab, (b, n) in sorted(bad.items()))
+                  + " — the knee between them is solved from exchanged markers")
+        )  # fmt: skip
+    for side, v in sorted((info.get("leg_split") or {}).items()):
+        lengths = [v.get(k) for k in ("femur_length_m", "tibia_length_m", "model_femur_m",
+                                      "model_tibia_m")]  # fmt: skip
+        if any(x is None or not np.isfinite(x) for x in lengths):
+            continue
+        lf, lt, mf, mt = (float(x) for x in lengths)
+        diff = 100.0 * ((lf + lt) / (mf + mt) - 1.0)
+        if abs(diff) > th["leg_length_disagreement_pct"]:
+            out.append(
+                _flag(trial, f"leg_length_disagreement_pct_{side}", abs(diff),
+                      th["leg_length_disagreement_pct"],
+                      f"leg {side}: hip to functional ankle {1000 * (lf + lt):.0f} mm is "
+                      f"{diff:+.1f} % of the ASIS-to-heel leg's {1000 * (mf + mt):.0f} mm the "
+                      "model was scaled to: the leg's and the tibia's scale factors are "
+                      "uncertain by that much (no static trial; msk.leg_split)")
             )  # fmt: skip
     return out
 

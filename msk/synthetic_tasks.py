@@ -385,6 +385,10 @@ def stair_motion(
     double_s: float = 0.3,
     still_s: float = 0.6,
     rate_hz: float = 120.0,
+    tilt_deg: float = _TILT_DEG,
+    lean_deg: float = _LEAN_DEG,
+    heel_deg: float = _HEEL_DEG,
+    drop_m: float = _DROP_M,
 ) -> TaskMotion:
     """A step-over-step ascent of ``steps`` steps (riser ``step_height_m``, tread ``tread_m``;
     step k's tread spans x ∈ [(k − 1) tread, k tread] at height k × riser): both feet start on the
@@ -403,7 +407,9 @@ def stair_motion(
     foot by up to 0.5 m, the leg torques 2–3× published stair values. The body rises at a steady
     rate through each step (the trailing heel rising 45° from 0.25 s before the double
     support), the pelvis 4 cm below its straight-leg height or lower where the legs do not
-    reach, the pelvis tilted 8° and the trunk 15° forward."""
+    reach, the pelvis tilted 8° and the trunk 15° forward (``tilt_deg``, ``lean_deg``,
+    ``heel_deg`` and ``drop_m`` change those four: level walking on zero risers,
+    :func:`msk.synthetic_trc.walk_motion`)."""
     th0, h_stand, place = _standing(model)
     names = list(model.coordinate_names)
     half_w = {f: float(place[f].translation[2]) for f in FEET}
@@ -462,7 +468,7 @@ def stair_motion(
         j = FEET.index(g)
         pre_s = double_s + _HEEL_PRE_S
         pre = (ts >= a - pre_s) & (ts < a)
-        rise[pre, j] = np.deg2rad(_HEEL_DEG) * _mj((ts[pre] - (a - pre_s)) / pre_s)
+        rise[pre, j] = np.deg2rad(heel_deg) * _mj((ts[pre] - (a - pre_s)) / pre_s)
     toes = {f: _sole_end(model, f, place[f], toe=True) for f in FEET}
     origin = np.zeros(3)
     # the support: the lower of the standing feet's surfaces, rising at a steady rate from
@@ -569,9 +575,9 @@ def stair_motion(
             cur[ix] = th0[ix] + x_p[k]
             cur[iy] = h_stand - drop + support[k]
             cur[iz] = th0[iz] + z_p[k]
-            cur[itilt] = th0[itilt] - np.deg2rad(_TILT_DEG)
+            cur[itilt] = th0[itilt] - np.deg2rad(tilt_deg)
             if ilumb is not None:
-                cur[ilumb] = th0[ilumb] - np.deg2rad(_LEAN_DEG)
+                cur[ilumb] = th0[ilumb] - np.deg2rad(lean_deg)
             targets = {}
             for j, f in enumerate(FEET):
                 pl = _foot_target(place[f], float(fx[k, j, 0]), 0.0, float(fx[k, j, 1]),
@@ -592,12 +598,12 @@ def stair_motion(
     rise_sw = np.zeros((ts.size, 2))
     for g, a, b, _, _ in swings:
         sw = (ts >= a) & (ts <= b)
-        rise_sw[sw, FEET.index(g)] = np.deg2rad(_HEEL_DEG) * (1.0 - _mj((ts[sw] - a) / (b - a)))
+        rise_sw[sw, FEET.index(g)] = np.deg2rad(heel_deg) * (1.0 - _mj((ts[sw] - a) / (b - a)))
     # the pelvis as high as the legs reach: its drop below the straight-leg height grown by
     # 1 cm until every foot placement is reached (< 0.1 mm) on the first path
-    drop = _DROP_M
+    drop = drop_m
     th, err = solve(np.zeros((ts.size, 2)))
-    while err > 1e-4 and drop < _DROP_M + 0.05:
+    while err > 1e-4 and drop < drop_m + 0.05:
         drop += 0.01
         th, err = solve(np.zeros((ts.size, 2)))
     pitch = np.zeros((ts.size, 2))

@@ -20,8 +20,16 @@ the frames IK solved; the knee flexion's range solved vs true), the leg joint to
 unmeasured contact (NaN torques) against the truth's count (``tests/test_synthetic_tasks.py``
 asserts them on JW).
 
+The DM configs (:data:`SYNTHETIC_TRC`: a ``.trc`` task with an OpenSim GRF ``.sto`` and, for
+the overground one, its ExternalLoads ``.xml``; no static) get a level walk and a two-leg squat
+of a *known* subject (:func:`msk.synthetic_trc.trc_task`: the session's placed model scaled
+again by known per-segment factors), written in DM's files' naming; their truth comparison adds
+the scale factors the run chose against the subject's and the model's mass (issue 15,
+thirteenth pass).
+
 Usage: ``.venv/bin/python scripts/task_swap.py [--only gc5_PS,gc6_DM_og1] [--synthetic
-[--kinds squat,stair] [--keep DIR]]``; ``--synthetic-only`` runs the synthetic trials alone.
+[--kinds squat,stair,walk] [--keep DIR]]``; ``--synthetic-only`` runs the synthetic trials
+alone.
 """
 
 from __future__ import annotations
@@ -111,6 +119,11 @@ ALTERNATIVES: dict[str, list[tuple[str, dict[str, Path]]]] = {
 
 #: configs whose lab format :func:`msk.synthetic_tasks.lab_task` writes (a C3D task)
 SYNTHETIC = ("gc4_JW", "gc5_PS")
+#: configs whose lab format :func:`msk.synthetic_trc.trc_task` writes (a .trc task with an
+#: OpenSim GRF file): a known subject, not the session's own model (issue 15, thirteenth pass)
+SYNTHETIC_TRC = ("gc6_DM_og1", "gc6_DM_ngait_tm_ss", "gc6_DM_crouch_tm")
+#: the kinds each writer makes
+KINDS_C3D, KINDS_TRC = ("squat", "stair"), ("walk", "squat")
 #: the leg coordinates compared with a synthetic task's truth
 LEG = ("hip_flexion", "hip_adduction", "hip_rotation", "knee_angle", "ankle_angle")
 
@@ -153,8 +166,9 @@ def compare_to_truth(task: Any, cfg: Path) -> dict[str, Any]:
     true_t = task.motion.time
     out: dict[str, Any] = {"ik_deg": {}, "tau_rmse_nm": {}, "tau_peak_nm": {}}
     t = np.asarray(kin.time)
-    # the trial starts at the truth's first sample
-    idx = np.clip(np.round((t - t[0]) * (true_t.size - 1) / (true_t[-1] - true_t[0])), 0,
+    # the trial starts at the truth's first sample (a .trc task: at its files' time offset)
+    t0 = float(getattr(task, "time_offset_s", t[0]))
+    idx = np.clip(np.round((t - t0) * (true_t.size - 1) / (true_t[-1] - true_t[0])), 0,
                   true_t.size - 1).astype(int)  # fmt: skip
     tau_w = np.asarray(jt.tau)
     for side in ("r", "l"):
@@ -194,6 +208,12 @@ def compare_to_truth(task: Any, cfg: Path) -> dict[str, Any]:
         float(np.rad2deg(-task.motion.q[:, knee]).min()),
         float(np.rad2deg(-task.motion.q[:, knee]).max()),
     )
+    truth_sf = getattr(task, "scale_factors", None)
+    if truth_sf:  # a known subject (msk.synthetic_trc): its segments and mass
+        bodies = res["model"].info["scaling"]["bodies"]
+        out["scale"] = {b: (float(bodies[b]["factors"][0]), float(f))
+                        for b, f in truth_sf.items() if b in bodies}  # fmt: skip
+        out["mass_kg"] = (float(res["model"].model.total_mass), float(task.mass_kg))
     return out
 
 
@@ -239,6 +259,11 @@ def _print_truth(stem: str, kind: str, cmp: dict[str, Any]) -> None:
     print(f"   frames {cmp['frames']}, unmeasured written {cmp['written_unmeasured']}, "
           f"true {cmp['true_unmeasured']}, of those written: "
           f"{cmp['unblanked_true_unmeasured']}")  # fmt: skip
+    if "scale" in cmp:
+        sc = {b: f"{r:.3f}/{t:.3f}" for b, (r, t) in cmp["scale"].items()
+              if not b.startswith(("talus", "toes"))}  # fmt: skip
+        print(f"   scale factors run/truth: {sc}")
+        print(f"   model mass run/truth (kg): {cmp['mass_kg'][0]:.1f}/{cmp['mass_kg'][1]:.1f}")
 
 
 def main() -> None:
@@ -246,7 +271,11 @@ def main() -> None:
     ap.add_argument("--only", default="", help="comma-separated config stems")
     ap.add_argument("--synthetic", action="store_true", help="add the synthetic hidden tasks")
     ap.add_argument("--synthetic-only", action="store_true", help="the synthetic tasks alone")
-    ap.add_argument("--kinds", default="squat,stair", help="synthetic task kinds")
+    ap.add_argument(
+        "--kinds",
+        default="squat,stair,walk",
+        help="synthetic task kinds (C3D labs: squat, stair; .trc labs: walk, squat)",
+    )
     ap.add_argument("--keep", default="", help="folder to keep the synthetic trials and runs")
     args = ap.parse_args()
 
@@ -267,11 +296,14 @@ def main() -> None:
     if not (args.synthetic or args.synthetic_only):
         return
     from msk.synthetic_tasks import lab_task
+    from msk.synthetic_trc import trc_task
 
     for stem in SYNTHETIC:
         if only and stem not in only:
             continue
         for kind in filter(None, args.kinds.split(",")):
+            if kind not in KINDS_C3D:
+                continue
             with tempfile.TemporaryDirectory() as tmp:
                 folder = Path(args.keep) / stem if args.keep else Path(tmp)
                 folder.mkdir(parents=True, exist_ok=True)
@@ -280,6 +312,23 @@ def main() -> None:
                 path = swapped_config(stem, f"synthetic_{kind}", {"file": task.path}, folder)
                 if _row(stem, f"synthetic_{kind}", path, folder / f"out_{kind}") is not None:
                     _print_truth(stem, kind, compare_to_truth(task, path))
+            sys.stdout.flush()
+    for stem in SYNTHETIC_TRC:
+        if only and stem not in only:
+            continue
+        for kind in filter(None, args.kinds.split(",")):
+            if kind not in KINDS_TRC:
+                continue
+            with tempfile.TemporaryDirectory() as tmp:
+                folder = Path(args.keep) / stem if args.keep else Path(tmp)
+                cfg = REPO / "pipelines" / f"{stem}.toml"
+                ttask = trc_task(cfg, kind, folder)
+                files = {"file": ttask.trc, "grf": ttask.grf}
+                if ttask.external_loads is not None:
+                    files["external_loads"] = ttask.external_loads
+                path = swapped_config(stem, f"synthetic_{kind}", files, folder)
+                if _row(stem, f"synthetic_{kind}", path, folder / f"out_{kind}") is not None:
+                    _print_truth(stem, kind, compare_to_truth(ttask, path))
             sys.stdout.flush()
 
 

@@ -401,3 +401,49 @@ def test_kkt_flags_name_trial_figure_frame_value_and_threshold() -> None:
     assert "frame 41" in f.message and "t = 1.250 s" in f.message
     assert not kkt_flags("walk", SimpleNamespace(kkt=worst), {"kkt_relative": 1e-4})
     assert not kkt_flags("walk", SimpleNamespace(kkt=None))
+
+
+def test_markers_placed_across_the_knee_against_their_label_are_flagged():
+    """A thigh-cluster marker on the tibia and a shank-cluster marker on the femur (issue 15,
+    thirteenth pass: a synthetic DM walk) are reported with the body their label names; the
+    same markers on their own segments, markers without a leg landmark and a foot marker on the
+    talus are not; a side the model lacks is not judged."""
+    from msk.quality import model_flags, placement_label_conflicts
+
+    bodies = ["pelvis", "femur_r", "tibia_r", "talus_r", "calcn_r", "femur_l", "tibia_l"]
+    placed = {"R_Thigh_Inferior": "tibia_r", "R_Shank_Superior": "femur_r",
+              "R_Thigh_Superior": "femur_r", "L_Shank_Lateral": "tibia_l",
+              "Lumbar": "pelvis", "R_Heel": "talus_r", "R_Shoulder": "torso"}  # fmt: skip
+    got = placement_label_conflicts(placed, bodies)
+    assert got == {"R_Thigh_Inferior": ("tibia_r", "femur_r"),
+                   "R_Shank_Superior": ("femur_r", "tibia_r")}  # fmt: skip
+    assert placement_label_conflicts({"R_Thigh_Inferior": "tibia_r"}, ["femur", "tibia"]) == {}
+    flags = model_flags("t", {"marker_placement": {"placed": placed}}, bodies)
+    assert [(f.quantity, f.value) for f in flags] == [("markers_placed_against_label", 2.0)]
+    assert "R_Thigh_Inferior on tibia_r" in flags[0].message
+    ok = {k: v for k, v in placed.items() if k not in got}
+    assert model_flags("t", {"marker_placement": {"placed": ok}}, bodies) == []
+    # a sided label on the other side's body, whatever the segment
+    assert placement_label_conflicts(
+        {"R_Midfoot_Medial": "toes_l", "L_Heel": "calcn_l"}, bodies
+    ) == {"R_Midfoot_Medial": ("toes_l", "a R body")}
+
+
+@pytest.mark.parametrize(("functional", "flagged"), [(0.80, False), (0.83, True), (0.74, True)])
+def test_a_leg_whose_two_length_measures_disagree_is_flagged(functional, flagged):
+    """Hip to functional ankle against the ASIS-to-heel leg (0.78 m): 2.6 % passes, +6.4 % and
+    −5.1 % are over the 5 % gate, with the side in the quantity; a side without both lengths
+    (the leg factor kept) is not judged."""
+    from msk.quality import model_flags
+
+    info = {"leg_split": {
+        "r": {"femur_length_m": 0.40, "tibia_length_m": functional - 0.40,
+              "model_femur_m": 0.39, "model_tibia_m": 0.39},
+        "l": {"femur_length_m": None, "tibia_length_m": None,
+              "model_femur_m": None, "model_tibia_m": None},
+    }}  # fmt: skip
+    flags = model_flags("t", info, [])
+    assert [f.quantity for f in flags] == (["leg_length_disagreement_pct_r"] if flagged else [])
+    if flagged:
+        assert flags[0].value == pytest.approx(100 * abs(functional / 0.78 - 1))
+        assert flags[0].threshold == THRESHOLDS["leg_length_disagreement_pct"]

@@ -1145,3 +1145,23 @@ def test_squared_extrapolation_descends_as_far_in_fewer_passes(gait2392, monkeyp
     assert fast["descent_stop"] in ("relative decrease", "no decrease")
     assert n_fast <= n_plain // 2  # measured: 12 passes, 2.70 mm; plain 24 passes, 2.72 mm
     assert fast["descent_cost_m"][-1] <= plain["descent_cost_m"][-1] + 1e-5
+
+
+def test_place_markers_from_motion_never_puts_a_sided_label_on_the_other_side(gait2392):
+    """A marker labelled right (R_Midfoot_Medial) that rides on the left foot — as rigid there as
+    a still right foot marker is on either still foot in a squat (issue 15, thirteenth pass:
+    R_Midfoot_Medial went to toes_l) — is not placed on any left body; an unsided marker on the
+    left foot is."""
+    from msk.scaling import place_markers_from_motion
+
+    extra = {"R_Midfoot_Medial": ("calcn_l", (0.12, 0.03, 0.03)),
+             "Midfoot_X": ("calcn_l", (0.12, 0.03, 0.03))}  # fmt: skip
+    truth = gait2392.with_markers(
+        [*gait2392.markers, *(Marker(k, b, np.array(p)) for k, (b, p) in extra.items())]
+    )
+    x, labels, t = _motion(gait2392, truth, noise_m=0.001)
+    _, info = place_markers_from_motion(gait2392, x, labels, t, max_frames=40)
+    assert info["placed"]["Midfoot_X"] == "calcn_l"
+    body = info["placed"].get("R_Midfoot_Medial") or info["too_far"].get("R_Midfoot_Medial",
+                                                                          [""])[0]  # fmt: skip
+    assert not str(body).endswith("_l"), info

@@ -376,6 +376,7 @@ def _flags(
         com_height,
         contact_flags,
         gait_flags,
+        model_flags,
     )
 
     cfg, task, mdl = inputs.cfg, inputs.task, model.model
@@ -395,6 +396,8 @@ def _flags(
         )
     ]  # fmt: skip
     flags += [f.as_dict() for f in contact_flags(task.name, ext)]
+    flags += [f.as_dict() for f in model_flags(task.name, model.info,
+                                               [b.name for b in mdl.bodies])]  # fmt: skip
     for r, lft, dz in swapped_pairs:
         flags.append(
             {"trial": task.name, "quantity": f"{r}/{lft}_swapped", "value": dz,
