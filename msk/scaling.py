@@ -1166,7 +1166,7 @@ def _leg_start_notes(
         details[name]["start"] = dict(st)
         r = float(ratios[name])
         if st["source"] == "stature" and abs(r / st["start"] - 1.0) <= LEG_START_TOLERANCE:
-            details[name]["determined"] = False
+            details[name]["determined"] = details[name]["start"]["determined"] = False
             notes.append(
                 f"{name}: × {r:.3f}, the stature's leg (× {st['start']:.3f}; default pose "
                 f"× {st['default_pose']:.3f}): the stature's leg reaches the feet, the motion's "

@@ -716,7 +716,28 @@ def leg_split(inputs: SessionInputs, trial: Any, built: Mapping[str, Any]) -> di
         segments.setdefault(mk.body, []).append(mk.name)
     for lab, (body, _) in dict(placed.get("too_loose", {})).items():
         segments.setdefault(body, []).append(lab)
-    return dict(functional_leg_split(model, x, labels, legs, segments=segments))
+    # a leg whose length the motion did not determine (the stature's: msk.scaling.
+    # unobserved_leg_starts) has its tibia from the functional ankle, where the checks find it
+    # determined — the clusters' only measurement of it — rather than as the rest of a leg the
+    # markers did not measure (issue 15, thirteenth pass)
+    starts = dict(built["info"].get("scaling", {}).get("leg_starts", {}))
+    free = {s: f for s, f in legs.items() if starts.get(f"leg_{s}", {}).get("determined") is False}
+    out = (
+        dict(
+            functional_leg_split(
+                model,
+                x,
+                labels,
+                {s: f for s, f in legs.items() if s not in free},
+                segments=segments,
+            )
+        )
+        if len(free) < len(legs)
+        else {}
+    )
+    if free:
+        out.update(functional_leg_split(model, x, labels, free, segments=segments, use_ankle=True))
+    return {s: out[s] for s in legs}
 
 
 def _placement_rms(info: Mapping[str, Any]) -> float:
@@ -903,10 +924,18 @@ def choose_placement(
             model, placed = split["model"], split["info"]["marker_placement"]
         else:
             model, placed = continued_placement(split["placement_call"], *prev[1])
+        # and the split model placed anew, pulled towards neutral (unique, as the pulled start):
+        # a continued placement keeps clusters the unsplit model had lost (UWA running, left
+        # leg at the stature's length: thigh and shank clusters 55–62 mm loose, continued on
+        # the split model as they were; issue 15, thirteenth pass)
+        base, xm, mlabels, time, kw = split["placement_call"]
+        anew = place_markers_from_motion(base, xm, mlabels, time, **kw, regularize=True, warm={})
         return [
             ({"leg_split": True, "start": "as before"}, split),
             ({"leg_split": True, "start": "pulled"}, {**split, "model": model,
              "info": {**split["info"], "marker_placement": placed}}),
+            ({"leg_split": True, "start": "pulled anew"}, {**split, "model": anew[0],
+             "info": {**split["info"], "marker_placement": anew[1]}}),
         ]  # fmt: skip
 
     first = starts()
@@ -945,18 +974,28 @@ def choose_placement(
 
     def pick() -> int:
         costs = [r["cost_m"] for r in records]
+        rank = {"pulled": 0, "as before": 1, "pulled anew": 2}
         order = sorted(range(len(records)), key=lambda i: (
-            not records[i]["leg_split"], records[i]["start"] != "pulled"))  # fmt: skip
+            not records[i]["leg_split"], rank[records[i]["start"]]))  # fmt: skip
         return next(i for i in order if costs[i] <= min(costs) + CHOICE_TOLERANCE_M)
 
     descend(first)
     functional = split_of(results[pick()]) if split_of is not None else None
     if functional:
         descend(split_starts(functional))
+    # judged on every marker any candidate places: a marker the unsplit starts left out as too
+    # loose that a split candidate places again counts for all (measured at its pose where a
+    # candidate left it out), so that losing a cluster does not lower a candidate's cost
+    every = set().union(*(set(r["model"].marker_names) for r in results)) & set(labels)
+    if every - set(markers):
+        markers[:] = sorted(every)
+        for rec, res in zip(records, results):
+            rec["descent_cost_m"] = rec["cost_m"]
+            rec["cost_m"] = cost(res["model"], res["info"]["marker_placement"])
     best = pick()
     record = {
         "objective": "task IK (weights, held feet, no filter): weighted marker RMS over every "
-        "marker the unsplit starts place, mean over frames",
+        "marker a candidate places, mean over frames",
         "frames": int(idx.size),
         "candidates": records,
         "chosen": best,
