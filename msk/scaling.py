@@ -65,6 +65,7 @@ Array = NDArray[np.float64]
 
 __all__ = [
     "DESCENT_MAX_STEP",
+    "LEG_START_MAX_SHORTFALL",
     "LEG_START_TOLERANCE",
     "LOOSE_KEPT_SPREAD_FACTOR",
     "MODEL_HEIGHT_M",
@@ -1105,13 +1106,24 @@ def _ik_frames(
 LEG_START_TOLERANCE = 0.005
 
 
+#: how far below the stature's leg the default-pose ratio of a leg measured across an
+#: unobserved knee must be for :func:`unobserved_leg_starts` to start it from the stature: the
+#: median pelvis-to-heel distance of a walk is 0–5 % short of the extended leg (DM og1 / treadmill
+#: 0–0.4 %, UWA fast walking 5 % below the stature's), of a run 17–18 % (UWA running): 10 %
+#: is more than adults' legs differ at one stature, so a ratio that far below it measures a
+#: knee flexed through the trial, not a short leg
+LEG_START_MAX_SHORTFALL = 0.10
+
+
 def unobserved_leg_starts(
     ratios: Mapping[str, float], measurements: Sequence[Measurement], height_factor: float | None
 ) -> dict[str, dict[str, Any]]:
     """The factor each leg measured across a knee no marker observes (``leg_<side>``, the
     pelvis-to-heel pair of :data:`SEGMENT_MEASUREMENTS`) is given before the pose-matched
-    inverse kinematics of :func:`scale_from_motion`: the larger of its default-pose ratio and
-    the stature ratio ``height_factor`` (None: the default-pose ratio, as for any other pair).
+    inverse kinematics of :func:`scale_from_motion`: the stature ratio ``height_factor`` for
+    both legs when either's default-pose ratio is more than :data:`LEG_START_MAX_SHORTFALL`
+    below it (a leg whose own ratio is above the stature's keeps its own), else the default-pose
+    ratio (as for any other pair; also when no stature is given).
 
     Why. The default-pose ratio of that pair is the median hip-to-heel distance over the
     standing model's: a lower bound of the leg, by the knee's flexion through the trial (UWA
@@ -1121,7 +1133,9 @@ def unobserved_leg_starts(
     marker noise (a 6 % left/right difference). The pose-matched measurement corrects a leg
     too short (frames it cannot reach lengthen it: DM og1 started at the stature's 0.956 ends at
     0.999 / 0.990, as from its default pose) but not one long enough to reach every foot — a
-    flexed knee reaches it with any such length — so the start is the stature's leg, the
+    flexed knee reaches it with any such length — so a walk (whose default pose is a few per
+    cent short) keeps the rule before, and a leg whose default pose measures a knee flexed
+    through the trial starts from the stature's leg, the
     anthropometric proportion (segment lengths ∝ stature, Winter 2009, Table 4.1; Dempster
     1955) that is the same for both legs (anatomical leg-length inequality: 5 mm mean, under
     20 mm in ~95 % of adults; Knutson 2005, Chiropr Osteopat 13:11), unless the markers show
@@ -1129,13 +1143,17 @@ def unobserved_leg_starts(
 
     Returns measurement name → {"default_pose": ratio, "stature": height_factor, "start":
     the factor used, "source": "stature" or "default pose"}."""
+    legs = {m.name: float(ratios[m.name]) for m in measurements
+            if m.name.startswith("leg_") and m.name in ratios}  # fmt: skip
+    # both legs or neither: they ran the same trial (a leg whose default pose is 7 % short
+    # beside one 11 % short is a longer leg in the same flexed running, not a walk's)
+    flexed = height_factor is not None and any(
+        r < (1.0 - LEG_START_MAX_SHORTFALL) * height_factor for r in legs.values()
+    )
     out: dict[str, dict[str, Any]] = {}
-    for m in measurements:
-        if not m.name.startswith("leg_") or m.name not in ratios:
-            continue
-        r = float(ratios[m.name])
-        use_h = height_factor is not None and height_factor > r
-        out[m.name] = {
+    for name, r in legs.items():
+        use_h = flexed and height_factor is not None and height_factor > r
+        out[name] = {
             "default_pose": r,
             "stature": height_factor,
             "start": float(height_factor) if use_h else r,

@@ -1153,13 +1153,23 @@ def test_unobserved_leg_starts_take_the_larger_of_default_pose_and_stature():
     have = ["R.ASIS", "L.ASIS", "V.Sacral", "R.Heel", "L.Heel", "R.Toe.Tip", "L.Toe.Tip"]
     meas = choose_measurements(SEGMENT_MEASUREMENTS, have)
     assert {m.name for m in meas} >= {"leg_r", "leg_l", "pelvis"}
-    ratios = {"pelvis": 1.0, "leg_r": 0.83, "leg_l": 1.02, "foot_r": 0.9, "foot_l": 0.9}
+    ratios = {"pelvis": 1.0, "leg_r": 0.83, "leg_l": 0.95, "foot_r": 0.9, "foot_l": 0.9}
     got = unobserved_leg_starts(ratios, meas, 1.0)
     assert set(got) == {"leg_r", "leg_l"}  # pairs across an unobserved knee only
+    # 17 % short of the stature's leg: a knee flexed through the trial (a run), both legs
     assert got["leg_r"]["start"] == 1.0 and got["leg_r"]["source"] == "stature"
-    assert got["leg_l"]["start"] == 1.02 and got["leg_l"]["source"] == "default pose"
+    assert got["leg_l"]["start"] == 1.0 and got["leg_l"]["source"] == "stature"
+    # 5 % short: a walk's median knee flexion, the default pose kept (the rule before)
+    walk = unobserved_leg_starts({**ratios, "leg_r": 0.96}, meas, 1.0)
+    assert {k: (v["start"], v["source"]) for k, v in walk.items()} == {
+        "leg_r": (0.96, "default pose"),
+        "leg_l": (0.95, "default pose"),
+    }
+    # a run whose other leg measures above the stature's keeps that one's own
+    above = unobserved_leg_starts({**ratios, "leg_l": 1.02}, meas, 1.0)
+    assert above["leg_l"]["start"] == 1.02 and above["leg_r"]["source"] == "stature"
     none = unobserved_leg_starts(ratios, meas, None)  # no stature: the default pose, as before
-    assert {k: v["start"] for k, v in none.items()} == {"leg_r": 0.83, "leg_l": 1.02}
+    assert {k: v["start"] for k, v in none.items()} == {"leg_r": 0.83, "leg_l": 0.95}
     # a knee marker measures the femur itself: no leg measurement, no start
     knees = choose_measurements(SEGMENT_MEASUREMENTS, [*have, "R.Knee.Lat", "L.Knee.Lat"])
     assert unobserved_leg_starts({"femur_r": 0.8, "femur_l": 0.8}, knees, 1.0) == {}
