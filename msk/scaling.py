@@ -1152,11 +1152,14 @@ def unobserved_leg_starts(
     )
     out: dict[str, dict[str, Any]] = {}
     for name, r in legs.items():
-        use_h = flexed and height_factor is not None and height_factor > r
+        start = (
+            height_factor if flexed and height_factor is not None and height_factor > r else None
+        )
+        use_h = start is not None
         out[name] = {
             "default_pose": r,
             "stature": height_factor,
-            "start": float(height_factor) if use_h else r,
+            "start": r if start is None else float(start),
             "source": "stature" if use_h else "default pose",
         }
     return out
