@@ -1107,9 +1107,9 @@ LEG_START_TOLERANCE = 0.005
 
 
 #: how far below the stature's leg the default-pose ratio of a leg measured across an
-#: unobserved knee must be for :func:`unobserved_leg_starts` to start it from the stature: the
-#: median pelvis-to-heel distance of a walk is 0–5 % short of the extended leg (DM og1 / treadmill
-#: 0–0.4 %, UWA fast walking 5 % below the stature's), of a run 17–18 % (UWA running): 10 %
+#: unobserved knee must be for :func:`unobserved_leg_starts` to start it from the stature: a
+#: walk's ratio is within 5 % of the stature's leg (DM og1 +0.4/+0.6 %, treadmill −0.3/−0.4 %,
+#: UWA fast walking −5 %; DM's crouch −7/−9 %), a run's 17–18 % below it (UWA running): 10 %
 #: is more than adults' legs differ at one stature, so a ratio that far below it measures a
 #: knee flexed through the trial, not a short leg
 LEG_START_MAX_SHORTFALL = 0.10

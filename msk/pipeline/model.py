@@ -695,7 +695,10 @@ def leg_split(inputs: SessionInputs, trial: Any, built: Mapping[str, Any]) -> di
     (``built``); None when no leg was scaled that way. The model stage scales and places again
     with the sides it determines, keeps that model when the lab's markers fit it no worse (the
     placement's marker RMS, :func:`_placement_rms`; else every side keeps its leg factor, and
-    says why) and reports every side in ``summary.json`` ``model.leg_split``."""
+    says why) and reports every side in ``summary.json`` ``model.leg_split``. A leg the
+    scaling reports as not determined by the motion (the stature's leg of a run,
+    :func:`msk.scaling.unobserved_leg_starts`) is split by the functional knee and ankle
+    (``use_ankle``) where its checks pass."""
     from msk.leg_split import functional_leg_split
     from msk.markersets import zeros_as_gaps
 
@@ -862,9 +865,16 @@ def choose_placement(
     :data:`DESCENT_REL_TOLERANCE` of itself, at most :data:`DESCENT_MAX_ROUNDS` rounds); then,
     when ``split_of`` gives femur and tibia factors for the best of these (the functional leg
     split, :func:`leg_split`), each of the two descended placements continued on the model
-    scaled with them (:func:`continued_placement`, then descended the same way). The first
-    candidate in order of preference — the split before the leg factor, the pulled start
-    before the other — within :data:`CHOICE_TOLERANCE_M` of the least cost is kept.
+    scaled with them (:func:`continued_placement`, then descended the same way) and the split
+    model placed anew, pulled towards neutral (descended too). The candidates are then judged
+    on every marker any of them places. The first candidate in order of preference — the split
+    before the leg factor; the pulled start, then the other, then the split placed anew —
+    within :data:`CHOICE_TOLERANCE_M` of the least cost is kept.
+
+    Issue 15, thirteenth pass: the split placed anew and the wider marker set, because the
+    continued split placements keep the clusters an unsplit placement lost (UWA running with
+    its legs at the stature's length: the left thigh and shank clusters 55–62 mm loose, judged
+    on the unsplit starts' markers only, without them, at a lower cost).
 
     Issue 15, eleventh pass: the split candidates continue the unsplit descents instead of
     starting again from the generic offsets (the femur and tibia change by a few per cent, the
