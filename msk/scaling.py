@@ -65,6 +65,8 @@ Array = NDArray[np.float64]
 
 __all__ = [
     "DESCENT_MAX_STEP",
+    "LEG_START_MAX_SHORTFALL",
+    "LEG_START_TOLERANCE",
     "LOOSE_KEPT_SPREAD_FACTOR",
     "MODEL_HEIGHT_M",
     "SCALING_METHODS",
@@ -93,6 +95,7 @@ __all__ = [
     "static_joint_centres",
     "unobserved_end_rotations",
     "unobserved_knees_flexed",
+    "unobserved_leg_starts",
     "usable_measurements",
 ]
 
@@ -862,6 +865,7 @@ class ScalingReport:
             "height_factor": self.height_factor,
             "model_height_m": None if self.model_height_m is None else self.model_height_m[0],
             "messages": list(self.messages),
+            "leg_starts": {k: dict(v["start"]) for k, v in self.details.items() if "start" in v},
         }
 
 
@@ -1095,6 +1099,103 @@ def _ik_frames(
     return sub[lo : lo + max_frames]
 
 
+#: relative difference within which a leg's pose-matched factor is said to be its stature start
+#: (:func:`unobserved_leg_starts`): the motion did not lengthen or shorten the stature's leg by
+#: more than the 0.5 % (~4 mm of an adult's 0.9 m leg) the measurement's own spread under 0.1 mm
+#: of marker noise is below (issue 15, thirteenth pass)
+LEG_START_TOLERANCE = 0.005
+
+
+#: how far below the stature's leg the default-pose ratio of a leg measured across an
+#: unobserved knee must be for :func:`unobserved_leg_starts` to start it from the stature: a
+#: walk's ratio is within 5 % of the stature's leg (DM og1 +0.4/+0.6 %, treadmill −0.3/−0.4 %,
+#: UWA fast walking −5 %; DM's crouch −7/−9 %), a run's 17–18 % below it (UWA running): 10 %
+#: is more than adults' legs differ at one stature, so a ratio that far below it measures a
+#: knee flexed through the trial, not a short leg
+LEG_START_MAX_SHORTFALL = 0.10
+
+
+def unobserved_leg_starts(
+    ratios: Mapping[str, float], measurements: Sequence[Measurement], height_factor: float | None
+) -> dict[str, dict[str, Any]]:
+    """The factor each leg measured across a knee no marker observes (``leg_<side>``, the
+    pelvis-to-heel pair of :data:`SEGMENT_MEASUREMENTS`) is given before the pose-matched
+    inverse kinematics of :func:`scale_from_motion`: the stature ratio ``height_factor`` for
+    both legs when either's default-pose ratio is more than :data:`LEG_START_MAX_SHORTFALL`
+    below it (a leg whose own ratio is above the stature's keeps its own), else the default-pose
+    ratio (as for any other pair; also when no stature is given).
+
+    Why. The default-pose ratio of that pair is the median hip-to-heel distance over the
+    standing model's: a lower bound of the leg, by the knee's flexion through the trial (UWA
+    running, knee flexed 20–120°: 0.83). A leg scaled that short cannot reach its feet in most
+    frames; the IK of pelvis and foot markers then wandered to the hip's ±120° bounds in a third
+    of the frames and the left leg's pose-matched factor landed at 0.92–1.05 with 0.1 mm of
+    marker noise (a 6 % left/right difference). The pose-matched measurement corrects a leg
+    too short (frames it cannot reach lengthen it: DM og1 started at the stature's 0.956 ends at
+    0.999 / 0.990, as from its default pose) but not one long enough to reach every foot — a
+    flexed knee reaches it with any such length — so a walk (whose default pose is a few per
+    cent short) keeps the rule before, and a leg whose default pose measures a knee flexed
+    through the trial starts from the stature's leg, the
+    anthropometric proportion (segment lengths ∝ stature, Winter 2009, Table 4.1; Dempster
+    1955) that is the same for both legs (anatomical leg-length inequality: 5 mm mean, under
+    20 mm in ~95 % of adults; Knutson 2005, Chiropr Osteopat 13:11), unless the markers show
+    the leg longer. Issue 15, thirteenth pass (docs/validation.md).
+
+    Returns measurement name → {"default_pose": ratio, "stature": height_factor, "start":
+    the factor used, "source": "stature" or "default pose"}."""
+    legs = {m.name: float(ratios[m.name]) for m in measurements
+            if m.name.startswith("leg_") and m.name in ratios}  # fmt: skip
+    # both legs or neither: they ran the same trial (a leg whose default pose is 7 % short
+    # beside one 11 % short is a longer leg in the same flexed running, not a walk's)
+    flexed = height_factor is not None and any(
+        r < (1.0 - LEG_START_MAX_SHORTFALL) * height_factor for r in legs.values()
+    )
+    out: dict[str, dict[str, Any]] = {}
+    for name, r in legs.items():
+        start = (
+            height_factor if flexed and height_factor is not None and height_factor > r else None
+        )
+        use_h = start is not None
+        out[name] = {
+            "default_pose": r,
+            "stature": height_factor,
+            "start": r if start is None else float(start),
+            "source": "stature" if use_h else "default pose",
+        }
+    return out
+
+
+def _start_factors(
+    starts: Mapping[str, Mapping[str, Any]], measurements: Sequence[Measurement]
+) -> dict[str, Array]:
+    return {
+        b: np.full(3, float(starts[m.name]["start"]))
+        for m in measurements if m.name in starts
+        for b in m.bodies
+    }  # fmt: skip
+
+
+def _leg_start_notes(
+    starts: Mapping[str, Mapping[str, Any]],
+    ratios: Mapping[str, float],
+    details: dict[str, dict[str, Any]],
+) -> list[str]:
+    """Record each leg's start in ``details`` and say which legs the motion did not determine
+    beyond the stature (their pose-matched factor within :data:`LEG_START_TOLERANCE` of it)."""
+    notes = []
+    for name, st in starts.items():
+        details[name]["start"] = dict(st)
+        r = float(ratios[name])
+        if st["source"] == "stature" and abs(r / st["start"] - 1.0) <= LEG_START_TOLERANCE:
+            details[name]["determined"] = details[name]["start"]["determined"] = False
+            notes.append(
+                f"{name}: × {r:.3f}, the stature's leg (× {st['start']:.3f}; default pose "
+                f"× {st['default_pose']:.3f}): the stature's leg reaches the feet, the motion's "
+                "markers do not determine its length"
+            )
+    return notes
+
+
 def scale_from_motion(
     model: Model,
     markers: ArrayLike,
@@ -1163,7 +1264,9 @@ def scale_from_motion(
         from msk.exceptions import KinematicsError
         from msk.kinematics import solve_kinematics
 
-        first = apply_scale_factors(model, measured)
+        hf_start = None if height_m is None else float(height_m) / model_height(model)[0]
+        starts = unobserved_leg_starts(ratios, ok_meas, hf_start)
+        first = apply_scale_factors(model, {**measured, **_start_factors(starts, ok_meas)})
         idx = _ik_frames(x, labels, have, max_frames, 3, t)
         # knees no model marker observes: the flexion branch and a very weak pull towards
         # neutral (SCALING_NEUTRAL_WEIGHT), else the pose each frame is compared in is
@@ -1191,6 +1294,7 @@ def scale_from_motion(
             measured, ratios, details = measure_scale_factors_from_motion(
                 model, x, labels, ok_meas, q=q, min_frames=min_frames
             )
+            messages.extend(_leg_start_notes(starts, ratios, details))
         except (KinematicsError, MissingDataError) as exc:
             messages.append(f"pose-matched measurement not done ({exc}): default pose used")
     _functional_override(measured, ratios, functional)

@@ -1165,3 +1165,112 @@ def test_place_markers_from_motion_never_puts_a_sided_label_on_the_other_side(ga
     body = info["placed"].get("R_Midfoot_Medial") or info["too_far"].get("R_Midfoot_Medial",
                                                                           [""])[0]  # fmt: skip
     assert not str(body).endswith("_l"), info
+
+
+def test_unobserved_leg_starts_take_the_larger_of_default_pose_and_stature():
+    from msk.scaling import SEGMENT_MEASUREMENTS, choose_measurements, unobserved_leg_starts
+
+    have = ["R.ASIS", "L.ASIS", "V.Sacral", "R.Heel", "L.Heel", "R.Toe.Tip", "L.Toe.Tip"]
+    meas = choose_measurements(SEGMENT_MEASUREMENTS, have)
+    assert {m.name for m in meas} >= {"leg_r", "leg_l", "pelvis"}
+    ratios = {"pelvis": 1.0, "leg_r": 0.83, "leg_l": 0.95, "foot_r": 0.9, "foot_l": 0.9}
+    got = unobserved_leg_starts(ratios, meas, 1.0)
+    assert set(got) == {"leg_r", "leg_l"}  # pairs across an unobserved knee only
+    # 17 % short of the stature's leg: a knee flexed through the trial (a run), both legs
+    assert got["leg_r"]["start"] == 1.0 and got["leg_r"]["source"] == "stature"
+    assert got["leg_l"]["start"] == 1.0 and got["leg_l"]["source"] == "stature"
+    # 5 % short: a walk's median knee flexion, the default pose kept (the rule before)
+    walk = unobserved_leg_starts({**ratios, "leg_r": 0.96}, meas, 1.0)
+    assert {k: (v["start"], v["source"]) for k, v in walk.items()} == {
+        "leg_r": (0.96, "default pose"),
+        "leg_l": (0.95, "default pose"),
+    }
+    # a run whose other leg measures above the stature's keeps that one's own
+    above = unobserved_leg_starts({**ratios, "leg_l": 1.02}, meas, 1.0)
+    assert above["leg_l"]["start"] == 1.02 and above["leg_r"]["source"] == "stature"
+    none = unobserved_leg_starts(ratios, meas, None)  # no stature: the default pose, as before
+    assert {k: v["start"] for k, v in none.items()} == {"leg_r": 0.83, "leg_l": 0.95}
+    # a knee marker measures the femur itself: no leg measurement, no start
+    knees = choose_measurements(SEGMENT_MEASUREMENTS, [*have, "R.Knee.Lat", "L.Knee.Lat"])
+    assert unobserved_leg_starts({"femur_r": 0.8, "femur_l": 0.8}, knees, 1.0) == {}
+
+
+def _pelvis_and_feet_window(gait2392, legs, knee_deg, seed, n=250):
+    """One stride over ``n`` frames at 250 Hz (1 s: a running trial's tracked window) of a
+    gait2392 whose femur and tibia are scaled by ``legs`` (r, l), with its pelvis and foot
+    markers only (no knee, thigh or shank marker: the leg is measured ASIS to heel), 1 mm of
+    marker noise; the knees flex between ``knee_deg`` (never straight in a run)."""
+    f = {f"{b}_{s}": v for s, v in zip("rl", legs) for b in ("femur", "tibia")}
+    truth = apply_scale_factors(gait2392, f)
+    th = np.repeat(truth.default_coordinates()[None], n, axis=0)
+    ph = np.linspace(0.0, 2 * np.pi, n)
+    c = truth.coordinate_names
+    lo, hi = np.radians(knee_deg)
+    for name, v in {
+        "pelvis_tx": np.linspace(0.0, 2.0, n),
+        "hip_flexion_r": 0.4 * np.sin(ph),
+        "hip_flexion_l": -0.4 * np.sin(ph),
+        "knee_angle_r": -(lo + (hi - lo) * 0.5 * (1 - np.cos(ph))),
+        "knee_angle_l": -(lo + (hi - lo) * 0.5 * (1 + np.cos(ph))),
+        "ankle_angle_r": 0.3 * np.sin(ph),
+        "ankle_angle_l": -0.3 * np.sin(ph),
+    }.items():
+        th[:, c.index(name)] = v
+    x = marker_positions(truth, th)
+    x = x + np.random.default_rng(seed).normal(0.0, 0.001, x.shape)
+    keep = [
+        i for i, mk in enumerate(truth.markers) if mk.body.startswith(("pelvis", "calcn", "toes"))
+    ]
+    labels = [truth.marker_names[i] for i in keep]
+    return x[:, keep], labels, np.arange(n) / 250.0
+
+
+def test_a_running_windows_legs_start_from_the_stature_and_come_out_equal(gait2392):
+    """Issue 15, thirteenth pass: a 1 s running window (knees flexed 20–92° throughout) with
+    pelvis and foot markers only. Truth: both legs the stature's (× 1.00 of gait2392, 1.80 m).
+    The default-pose ratio of ASIS to heel measures the flexed knee (~0.83 of the leg); from
+    there (no stature given, the rule before) the pose-matched measurement ends 7–10 % short.
+    From the stature's leg, both legs end within 0.5 % of the truth and of each other in every
+    noise draw, and the report says the motion did not determine them (a flexed knee reaches
+    the feet with any leg at least that long)."""
+    from msk.scaling import scale_from_motion
+
+    for seed in range(3):
+        x, labels, t = _pelvis_and_feet_window(gait2392, (1.0, 1.0), (20.0, 92.0), seed)
+        _, rep = scale_from_motion(gait2392, x, labels, t, height_m=1.80)
+        r, lft = rep.ratios["leg_r"], rep.ratios["leg_l"]
+        assert r == pytest.approx(1.0, abs=0.005) and lft == pytest.approx(1.0, abs=0.005), seed
+        assert abs(lft / r - 1.0) < 0.005
+        for side in ("leg_r", "leg_l"):
+            assert rep.details[side]["start"]["source"] == "stature"
+            assert rep.details[side]["start"]["default_pose"] < 0.9
+            assert rep.details[side]["determined"] is False
+        assert sum("do not determine its length" in m for m in rep.messages) == 2
+        assert rep.summary()["leg_starts"]["leg_l"]["start"] == pytest.approx(1.0)
+        _, before = scale_from_motion(gait2392, x, labels, t)  # no stature: the default pose
+        assert before.ratios["leg_r"] < 0.95 and before.ratios["leg_l"] < 0.95
+
+
+def test_legs_the_motion_does_not_determine_are_said_so_not_identified(gait2392):
+    """The limit of the rule, measured: in the running window a left leg 4 % longer than the
+    right, or both legs 4 % shorter than the stature's, come out as the stature's leg (within
+    0.5 %) — pelvis and foot markers of a run whose knees never straighten do not tell a
+    longer or shorter leg from a more or less flexed knee — and the report names both legs as
+    not determined. In a walk whose knees straighten (0–57°) and whose default-pose ratio is
+    above the stature's (legs × 1.05) the start is the default pose, the rule before: the
+    result is the one without the stature, to the digit."""
+    from msk.scaling import scale_from_motion
+
+    for legs in ((1.0, 1.04), (0.96, 0.96)):
+        x, labels, t = _pelvis_and_feet_window(gait2392, legs, (20.0, 92.0), 0)
+        _, rep = scale_from_motion(gait2392, x, labels, t, height_m=1.80)
+        for side in ("leg_r", "leg_l"):
+            assert rep.ratios[side] == pytest.approx(1.0, abs=0.005), (legs, side)
+            assert rep.details[side]["determined"] is False
+    x, labels, t = _pelvis_and_feet_window(gait2392, (1.05, 1.05), (0.0, 57.0), 0)
+    _, rep = scale_from_motion(gait2392, x, labels, t, height_m=1.80)
+    _, plain = scale_from_motion(gait2392, x, labels, t)
+    for side in ("leg_r", "leg_l"):
+        assert rep.details[side]["start"]["source"] == "default pose"
+        assert rep.ratios[side] == plain.ratios[side]
+        assert "determined" not in rep.details[side]

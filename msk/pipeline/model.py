@@ -695,7 +695,10 @@ def leg_split(inputs: SessionInputs, trial: Any, built: Mapping[str, Any]) -> di
     (``built``); None when no leg was scaled that way. The model stage scales and places again
     with the sides it determines, keeps that model when the lab's markers fit it no worse (the
     placement's marker RMS, :func:`_placement_rms`; else every side keeps its leg factor, and
-    says why) and reports every side in ``summary.json`` ``model.leg_split``."""
+    says why) and reports every side in ``summary.json`` ``model.leg_split``. A leg the
+    scaling reports as not determined by the motion (the stature's leg of a run,
+    :func:`msk.scaling.unobserved_leg_starts`) is split by the functional knee and ankle
+    (``use_ankle``) where its checks pass."""
     from msk.leg_split import functional_leg_split
     from msk.markersets import zeros_as_gaps
 
@@ -716,7 +719,28 @@ def leg_split(inputs: SessionInputs, trial: Any, built: Mapping[str, Any]) -> di
         segments.setdefault(mk.body, []).append(mk.name)
     for lab, (body, _) in dict(placed.get("too_loose", {})).items():
         segments.setdefault(body, []).append(lab)
-    return dict(functional_leg_split(model, x, labels, legs, segments=segments))
+    # a leg whose length the motion did not determine (the stature's: msk.scaling.
+    # unobserved_leg_starts) has its tibia from the functional ankle, where the checks find it
+    # determined — the clusters' only measurement of it — rather than as the rest of a leg the
+    # markers did not measure (issue 15, thirteenth pass)
+    starts = dict(built["info"].get("scaling", {}).get("leg_starts", {}))
+    free = {s: f for s, f in legs.items() if starts.get(f"leg_{s}", {}).get("determined") is False}
+    out = (
+        dict(
+            functional_leg_split(
+                model,
+                x,
+                labels,
+                {s: f for s, f in legs.items() if s not in free},
+                segments=segments,
+            )
+        )
+        if len(free) < len(legs)
+        else {}
+    )
+    if free:
+        out.update(functional_leg_split(model, x, labels, free, segments=segments, use_ankle=True))
+    return {s: out[s] for s in legs}
 
 
 def _placement_rms(info: Mapping[str, Any]) -> float:
@@ -841,9 +865,16 @@ def choose_placement(
     :data:`DESCENT_REL_TOLERANCE` of itself, at most :data:`DESCENT_MAX_ROUNDS` rounds); then,
     when ``split_of`` gives femur and tibia factors for the best of these (the functional leg
     split, :func:`leg_split`), each of the two descended placements continued on the model
-    scaled with them (:func:`continued_placement`, then descended the same way). The first
-    candidate in order of preference — the split before the leg factor, the pulled start
-    before the other — within :data:`CHOICE_TOLERANCE_M` of the least cost is kept.
+    scaled with them (:func:`continued_placement`, then descended the same way) and the split
+    model placed anew, pulled towards neutral (descended too). The candidates are then judged
+    on every marker any of them places. The first candidate in order of preference — the split
+    before the leg factor; the pulled start, then the other, then the split placed anew —
+    within :data:`CHOICE_TOLERANCE_M` of the least cost is kept.
+
+    Issue 15, thirteenth pass: the split placed anew and the wider marker set, because the
+    continued split placements keep the clusters an unsplit placement lost (UWA running with
+    its legs at the stature's length: the left thigh and shank clusters 55–62 mm loose, judged
+    on the unsplit starts' markers only, without them, at a lower cost).
 
     Issue 15, eleventh pass: the split candidates continue the unsplit descents instead of
     starting again from the generic offsets (the femur and tibia change by a few per cent, the
@@ -903,10 +934,18 @@ def choose_placement(
             model, placed = split["model"], split["info"]["marker_placement"]
         else:
             model, placed = continued_placement(split["placement_call"], *prev[1])
+        # and the split model placed anew, pulled towards neutral (unique, as the pulled start):
+        # a continued placement keeps clusters the unsplit model had lost (UWA running, left
+        # leg at the stature's length: thigh and shank clusters 55–62 mm loose, continued on
+        # the split model as they were; issue 15, thirteenth pass)
+        base, xm, mlabels, time, kw = split["placement_call"]
+        anew = place_markers_from_motion(base, xm, mlabels, time, **kw, regularize=True, warm={})
         return [
             ({"leg_split": True, "start": "as before"}, split),
             ({"leg_split": True, "start": "pulled"}, {**split, "model": model,
              "info": {**split["info"], "marker_placement": placed}}),
+            ({"leg_split": True, "start": "pulled anew"}, {**split, "model": anew[0],
+             "info": {**split["info"], "marker_placement": anew[1]}}),
         ]  # fmt: skip
 
     first = starts()
@@ -945,18 +984,28 @@ def choose_placement(
 
     def pick() -> int:
         costs = [r["cost_m"] for r in records]
+        rank = {"pulled": 0, "as before": 1, "pulled anew": 2}
         order = sorted(range(len(records)), key=lambda i: (
-            not records[i]["leg_split"], records[i]["start"] != "pulled"))  # fmt: skip
+            not records[i]["leg_split"], rank[records[i]["start"]]))  # fmt: skip
         return next(i for i in order if costs[i] <= min(costs) + CHOICE_TOLERANCE_M)
 
     descend(first)
     functional = split_of(results[pick()]) if split_of is not None else None
     if functional:
         descend(split_starts(functional))
+    # judged on every marker any candidate places: a marker the unsplit starts left out as too
+    # loose that a split candidate places again counts for all (measured at its pose where a
+    # candidate left it out), so that losing a cluster does not lower a candidate's cost
+    every = set().union(*(set(r["model"].marker_names) for r in results)) & set(labels)
+    if every - set(markers):
+        markers[:] = sorted(every)
+        for rec, res in zip(records, results):
+            rec["descent_cost_m"] = rec["cost_m"]
+            rec["cost_m"] = cost(res["model"], res["info"]["marker_placement"])
     best = pick()
     record = {
         "objective": "task IK (weights, held feet, no filter): weighted marker RMS over every "
-        "marker the unsplit starts place, mean over frames",
+        "marker a candidate places, mean over frames",
         "frames": int(idx.size),
         "candidates": records,
         "chosen": best,
