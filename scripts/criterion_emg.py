@@ -58,7 +58,7 @@ VARIANTS: dict[str, tuple[str, float, str]] = {
 }
 INCUMBENT = "p2 volume"
 
-#: DM's moissenet envelope → gait2392 right-leg muscles (as scripts/dm_emg_assisted.py)
+#: DM's moissenet envelope → gait2392 right-leg muscles (scripts/dm_emg_assisted.py reads it here)
 DM_MAP = {
     "semimem": ["semimem_r", "semiten_r"],
     "bifem": ["bifemlh_r"],

@@ -23,6 +23,7 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 import contact_validation as cv
+from criterion_emg import DM_MAP
 from scipy.io import loadmat
 
 import msk.optimization as o
@@ -36,23 +37,7 @@ from msk.pipeline import run_stages
 from msk.strength import fit_emg_gains
 
 DM = cv.REAL / "knee-grand-challenge-gc6-DM"
-MAP = {
-    "semimem": ["semimem_r", "semiten_r"],
-    "bifem": ["bifemlh_r"],
-    "vasmed": ["vas_med_r"],
-    "vaslat": ["vas_lat_r"],
-    "rf": ["rect_fem_r"],
-    "medgas": ["med_gas_r"],
-    "latgas": ["lat_gas_r"],
-    "tfl": ["tfl_r"],
-    "tibant": ["tib_ant_r"],
-    "peronl": ["per_long_r", "per_brev_r"],
-    "soleus": ["soleus_r"],
-    "addmagnus": ["add_mag1_r", "add_mag2_r", "add_mag3_r"],
-    "gmax": ["glut_max1_r", "glut_max2_r", "glut_max3_r"],
-    "gmed": ["glut_med1_r", "glut_med2_r", "glut_med3_r"],
-    "sartorius": ["sar_r"],
-}
+MAP = DM_MAP  # DM's moissenet envelope → gait2392 right-leg muscles
 folder = Path(tempfile.mkdtemp())
 for trial, swap in (("og1", None), ("og3", {"og1": "og3"}), ("og4", {"og1": "og4"})):
     cfg = load_config(cv._config("gc6_DM_og1", swap, "spline", folder, None, trial))
