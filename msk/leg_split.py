@@ -15,11 +15,12 @@ through the knee's and the ankle's range, and their functional centres measure t
   ``hinge=True``); the femur's length is the distance from the hip centre to that axis
   (median over the frames), its factor the present one times that length over the model's own
   femur measured the same way (SCoRE of the model's femur and tibia moved over the same range);
-* the tibia: with ``use_ankle`` (the pipeline's choice, :func:`msk.pipeline.model.leg_split`)
+* the tibia: with ``use_ankle`` (the pipeline's choice for a leg scaled without a static,
+  :func:`msk.pipeline.model.leg_split`)
   measured where the ankle is determined: SCoRE between the shank's and the calcaneus' markers,
   its main axis left free too, the tibia the distance from the knee axis to that point;
   otherwise the rest of the leg — the model's hip-to-ankle length (the ASIS-to-heel
-  measurement) minus the functional femur. The ASIS-to-heel leg is a median of per-frame
+  measurement) minus the functional femur. A motion's ASIS-to-heel leg is a median of per-frame
   pose-matched distances from pelvis and foot markers alone: a flexed knee reaches the feet
   with any longer leg, so where the knee is flexed in most frames (a walk whose stance knee
   never straightens, a squat, a crouch) it is short, and the rest of the leg takes all of that
