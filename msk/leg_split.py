@@ -26,12 +26,13 @@ through the knee's and the ankle's range, and their functional centres measure t
   never straightens, a squat, a crouch) it is short, and the rest of the leg takes all of that
   error; the functional hip-to-ankle length is measured across the knee's flexion axis and
   does not depend on the flexion (docs/validation.md, issue 15, fourteenth pass: on a known
-  subject's synthetic DM walk and squat the tibia 5–19 % short as the rest of the leg, within
-  0.7 % from the ankle). Its cost: a shank cluster sliding on the bone moves the knee's
+  subject's synthetic DM walks and squats the tibia 1.5–15 % short as the rest of the leg,
+  within 0.8 % from the ankle). Its cost: a shank cluster sliding on the bone moves the knee's
   estimate along the tibia (synthetic: 8 mm of slide, −5 mm of tibia; seventh pass), and
-  between trials of one subject this tibia varies by 14–24 mm (Grand Challenge DM, less than
-  the rest of the leg's 20–49 mm). ``straightest_knee_deg`` among the ankle's figures is the
-  5th percentile of the angle between hip→knee and knee→ankle across the knee's axis.
+  between trials of one subject this tibia varies by 14–24 mm where the ankle passes its
+  checks (Grand Challenge DM, seven trials; the rest of the leg's: 20–49 mm).
+  ``straightest_knee_deg`` among the ankle's figures is the 5th percentile of the angle
+  between hip→knee and knee→ankle across the knee's axis.
 
 Each centre is used only when the data determine it (:data:`CHECKS`): enough frames, enough
 rotation about the joint's axis (SCoRE's error grows as the range of motion shrinks, Ehrig et
