@@ -15,24 +15,14 @@ through the knee's and the ankle's range, and their functional centres measure t
   ``hinge=True``); the femur's length is the distance from the hip centre to that axis
   (median over the frames), its factor the present one times that length over the model's own
   femur measured the same way (SCoRE of the model's femur and tibia moved over the same range);
-* the tibia: with ``use_ankle`` (the pipeline's choice for a leg scaled without a static,
-  :func:`msk.pipeline.model.leg_split`)
-  measured where the ankle is determined: SCoRE between the shank's and the calcaneus' markers,
-  its main axis left free too, the tibia the distance from the knee axis to that point;
-  otherwise the rest of the leg — the model's hip-to-ankle length (the ASIS-to-heel
-  measurement) minus the functional femur. A motion's ASIS-to-heel leg is a median of per-frame
-  pose-matched distances from pelvis and foot markers alone: a flexed knee reaches the feet
-  with any longer leg, so where the knee is flexed in most frames (a walk whose stance knee
-  never straightens, a squat, a crouch) it is short, and the rest of the leg takes all of that
-  error; the functional hip-to-ankle length is measured across the knee's flexion axis and
-  does not depend on the flexion (docs/validation.md, issue 15, fourteenth pass: on a known
-  subject's synthetic DM walks and squats the tibia 1.5–15 % short as the rest of the leg,
-  within 0.8 % from the ankle). Its cost: a shank cluster sliding on the bone moves the knee's
-  estimate along the tibia (synthetic: 8 mm of slide, −5 mm of tibia; seventh pass), and
-  between trials of one subject this tibia varies by 14–24 mm where the ankle passes its
-  checks (Grand Challenge DM, seven trials; the rest of the leg's: 20–49 mm).
-  ``straightest_knee_deg`` among the ankle's figures is the 5th percentile of the angle
-  between hip→knee and knee→ankle across the knee's axis.
+* the tibia: the rest of the leg — the model's hip-to-ankle length (the ASIS-to-heel
+  measurement) minus the functional femur. With ``use_ankle`` it is measured instead, where the
+  ankle is determined: SCoRE between the shank's and the calcaneus' markers, its main axis left
+  free too, the tibia the distance from the knee axis to that point. The pipeline does not use
+  it (its figures are reported): between trials of one subject the functional femur agrees to
+  ~10 mm and this tibia does not (Grand Challenge DM, left: 411 / 430 / 431 mm in three trials),
+  and a shank cluster sliding on the bone moves the knee's estimate along the tibia (synthetic:
+  8 mm of slide, −5 mm of tibia; docs/validation.md, issue 15, seventh pass).
 
 Each centre is used only when the data determine it (:data:`CHECKS`): enough frames, enough
 rotation about the joint's axis (SCoRE's error grows as the range of motion shrinks, Ehrig et
@@ -40,9 +30,8 @@ al. 2006: we ask the knee for 30°, half of a walking knee's flexion, and the an
 half of a walking ankle's range), a mismatch of its two estimates within soft tissue's (thigh
 clusters move 10–30 mm on the femur in gait, Leardini et al. 2005, Gait Posture 21:212–225;
 shank clusters less), a femur and tibia within 15 % of the leg factor's (a cluster on the wrong
-segment, not a subject) and, for the ankle, hip-to-ankle not more than 5 % shorter than the
-ASIS-to-heel measurement (longer is a knee never straight: see above). Otherwise the side keeps
-the leg factor (or, without an ankle, the rest of the leg), and the reason is said.
+segment, not a subject) and, for the ankle, hip-to-ankle within 5 % of the ASIS-to-heel
+measurement. Otherwise the side keeps the leg factor, and the reason is said.
 """
 
 from __future__ import annotations
@@ -69,7 +58,7 @@ CHECKS: Mapping[str, float] = {
     "ankle_min_range_deg": 15.0,
     "ankle_max_mismatch_m": 0.010,
     "max_change": 0.15,
-    "ankle_max_leg_shortfall": 0.05,
+    "ankle_max_leg_difference": 0.05,
 }
 
 #: how a side's femur and tibia were split (``LegSplit.method``)
@@ -230,11 +219,6 @@ def _centred_angles(model: Model, coordinate: str, range_rad: float, n: int = 25
     return np.linspace(max(lo, -range_rad / 2), min(hi, range_rad / 2), n)
 
 
-def _across(d: Array, n: Array) -> Array:
-    """(N, 3) the vectors ``d`` without their components along the unit vectors ``n``."""
-    return d - np.einsum("ni,ni->n", d, n)[:, None] * n
-
-
 def _perp_length(d: Array, n: Array) -> Array:
     """‖d − (d·n) n‖ per row (d (N, 3), n (N, 3) unit)."""
     return np.linalg.norm(d - np.sum(d * n, axis=1)[:, None] * n, axis=1)
@@ -272,8 +256,8 @@ def functional_leg_split(
             shape, the pelvis on the model's pelvis markers.
         checks: overrides of :data:`CHECKS`.
         use_ankle: the tibia from the functional ankle where it is determined (else, and by
-            default, the rest of the leg; the ankle's figures are reported either way; the
-            pipeline uses it: see the module docstring).
+            default, the rest of the leg; the ankle's figures are reported either way: see
+            the module docstring for why the pipeline does not use it).
 
     Returns:
         side → :class:`LegSplit`.
@@ -389,23 +373,8 @@ def functional_leg_split(
                 n_shank = np.einsum("nij,j->ni", shank.rotation, knee.axis_b)
                 d = ankle.centres[both] - knee.centres[both]
                 l_t = float(np.median(_perp_length(d, n_shank[both])))
-                # how straight the leg gets: the angle between hip→knee and knee→ankle, each
-                # across the knee's flexion axis (0° a straight leg), its 5th percentile
-                u = _across(knee.centres[both] - hip[both], n_thigh[both])
-                w = _across(d, n_shank[both])
-                cos = np.einsum("ni,ni->n", u, w) / (
-                    np.linalg.norm(u, axis=1) * np.linalg.norm(w, axis=1)
-                )
-                ok = np.isfinite(cos)
-                if ok.any():
-                    ankle_fig["straightest_knee_deg"] = float(
-                        np.percentile(np.degrees(np.arccos(np.clip(cos[ok], -1, 1))), 5)
-                    )
-                # one-sided: the ASIS-to-heel distance is the leg's only with the knee straight
-                # (a flexed knee shortens it, never lengthens it), so a functional leg longer
-                # than it is a knee never straight, one shorter an ankle in error
                 diff = (l_f + l_t) / (lf_m + lt_m) - 1.0
-                if diff < -ck["ankle_max_leg_shortfall"]:
+                if abs(diff) > ck["ankle_max_leg_difference"]:
                     ankle_why.append(
                         f"hip to functional ankle {1000 * (l_f + l_t):.0f} mm is "
                         f"{100 * diff:+.1f} % of the ASIS-to-heel leg's "

@@ -216,35 +216,3 @@ def test_by_default_the_tibia_is_the_rest_of_the_leg_and_the_ankle_is_reported()
     assert split.tibia_factor == pytest.approx(tibia / TIBIA_0, rel=0.02)
     assert split.tibia_length_m == pytest.approx(tibia, abs=0.010)  # measured, not used
     assert split.summary()["ankle"]["range_deg"] > 15.0
-
-
-def test_a_leg_measured_short_by_a_flexed_knee_gets_its_tibia_from_the_ankle():
-    """The ASIS-to-heel leg 5 % short (a knee flexed in most frames: the pose-matched median
-    reaches the feet with a shorter leg): the rest of the leg would put all of it on the tibia
-    (~10 % short); the functional ankle measures the tibia across the knee's axis, whatever the
-    leg factor. The knee's straightest angle (hip→knee against knee→ankle) is reported."""
-    femur, tibia = 0.435, 0.395
-    subject = _leg(femur, tibia)
-    x, labels = _trial(subject, _walk(subject))
-    leg = 0.95 * (femur + tibia) / (FEMUR_0 + TIBIA_0)
-    rest = functional_leg_split(_scaled(leg), x, labels, {"r": leg})["r"]
-    assert rest.tibia_factor < 0.92 * tibia / TIBIA_0  # the leg's whole error on the tibia
-    split = functional_leg_split(_scaled(leg), x, labels, {"r": leg}, use_ankle=True)["r"]
-    assert split.method == "functional knee and ankle", split.reason
-    assert split.femur_factor == pytest.approx(femur / FEMUR_0, rel=0.015)
-    assert split.tibia_factor == pytest.approx(tibia / TIBIA_0, rel=0.025)
-    # the walk's knee straightens to 5° (the 5th percentile of its frames: 5–8°)
-    assert 3.0 < split.ankle["straightest_knee_deg"] < 12.0
-
-
-def test_a_functional_leg_much_shorter_than_the_asis_to_heel_one_is_not_used():
-    """One-sided check: hip to the functional ankle 7 % shorter than the ASIS-to-heel leg (a
-    flexed knee cannot make the pelvis-to-heel distance longer than the leg) is an ankle in
-    error: the tibia is the rest of the leg and the reason says so."""
-    femur, tibia = 0.435, 0.395
-    subject = _leg(femur, tibia)
-    x, labels = _trial(subject, _walk(subject))
-    leg = 1.07 * (femur + tibia) / (FEMUR_0 + TIBIA_0)
-    split = functional_leg_split(_scaled(leg), x, labels, {"r": leg}, use_ankle=True)["r"]
-    assert split.method == "functional knee, tibia the rest of the leg"
-    assert "ankle not determined" in split.reason and "% of the ASIS-to-heel" in split.reason

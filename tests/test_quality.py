@@ -444,9 +444,6 @@ def test_a_leg_whose_two_length_measures_disagree_is_flagged(functional, flagged
     }}  # fmt: skip
     flags = model_flags("t", info, [])
     assert [f.quantity for f in flags] == (["leg_length_disagreement_pct_r"] if flagged else [])
-    # a side whose tibia is the functional ankle's: the model's leg is the functional one
-    info["leg_split"]["r"]["method"] = "functional knee and ankle"
-    assert model_flags("t", info, []) == []
     if flagged:
         assert flags[0].value == pytest.approx(100 * abs(functional / 0.78 - 1))
         assert flags[0].threshold == THRESHOLDS["leg_length_disagreement_pct"]

