@@ -500,7 +500,8 @@ def optimise(
         }
 
         def kept(x: np.ndarray) -> np.ndarray:
-            return x if km is None else x[:, km]
+            """``x``'s kept muscles (its last axis: (m,) or (frames, m))."""
+            return x if km is None else x[..., km]
 
         if meth == "static_optimization":
             sol = o.solve_static_optimization_batch(
@@ -511,14 +512,14 @@ def optimise(
             return sol.forces, sol.activations, sol
         if meth == "bounded_qp":
             sol = o.solve_tension_batch(
-                jac, tq, f_iso=kept(params.max_isometric_force[None, :])[0], f_max=fa + fp,
+                jac, tq, f_iso=kept(params.max_isometric_force), f_max=fa + fp,
                 reserve_optimal_force=res_opt, solver=solver, warm=carry, **common,
             )  # fmt: skip
             return sol.forces, np.clip(sol.forces / np.maximum(fa, 1e-9), 0, None), sol
         if meth == "emg_weighted":
             assert meas is not None
             sol = o.solve_emg_weighted_batch(
-                jac, tq, f_ref=kept(emg_reference(fr)) * fa, measured=kept(meas[None, :])[0],
+                jac, tq, f_ref=kept(emg_reference(fr)) * fa, measured=kept(meas),
                 w_emg=opt.w_emg, f_max=fa + fp, solver=solver, warm=carry, **common,
             )  # fmt: skip
             return sol.forces, np.clip(sol.forces / np.maximum(fa, 1e-9), 0, None), sol
@@ -528,7 +529,7 @@ def optimise(
                 if gain_fit is None
                 else (
                     kept(gain_fit.reference(emg_reference(fr))),
-                    kept(np.asarray(gain_fit.measured)[None, :])[0],
+                    kept(np.asarray(gain_fit.measured)),
                 )
             )
             sol = o.solve_emg_assisted_batch(
@@ -539,7 +540,7 @@ def optimise(
             return sol.forces, sol.activations, sol
         # closed_form (unbounded Lagrange solution)
         lag = o.solve_lagrange_batch(
-            jac, tq, area=kept(params.max_isometric_force[None, :])[0], muscle_names=names
+            jac, tq, area=kept(params.max_isometric_force), muscle_names=names
         )
         return lag.forces, lag.forces / np.maximum(fa, 1e-9), None
 
