@@ -11,6 +11,17 @@ does not work, |a| ~ 1e-16) is not compared to 1e-9 of its own noise (issue 20: 
 leg's QP apart moves such values by ~1e-16). Refresh after an
 intended change of the numbers with ``MSK_UPDATE_GOLDEN=1 pytest tests/test_shipped_sessions.py``
 and say in the CHANGELOG why they changed.
+
+1e-9 holds only on the machine and packages the golden was written with (its
+``environment``: :func:`environment`). Elsewhere the round-off of the BLAS kernels differs
+(OpenBLAS picks them by CPU: SkylakeX vs Haswell) and the sessions' iterative solvers (IK,
+placement, QPs stopping at their tolerances) carry a last-digit difference up to their
+tolerances: measured 2026-11-25, the goldens of a Haswell-kernel machine against a
+Sapphire-Rapids one, same package versions — q up to 1.3 % of a column's largest value
+(lumbar rotation, a coordinate the markers barely determine), one crouch frame solved on one
+machine and excluded on the other. There :func:`compare` uses :data:`RTOL_PORTABLE` (a
+change of the numbers a reader would see) and allows :data:`ROWS_PORTABLE` of a table's rows
+to change between finite and NaN.
 """
 
 from __future__ import annotations
@@ -26,7 +37,38 @@ import numpy as np
 
 GOLDEN = Path(__file__).resolve().parents[1] / "golden"
 RTOL = 1e-9
+#: tolerance relative to a column's largest value (at least 1e-3 of its table's largest) on
+#: another machine or other package versions than the golden's
+RTOL_PORTABLE = 0.05
+#: fraction of a table's rows that may change between finite and NaN there
+ROWS_PORTABLE = 0.01
+#: sessions whose numbers another machine does not reproduce even portably (their tables'
+#: shapes, columns and the report's sections are still compared): config stem → why
+NOT_PORTABLE = {
+    "gc6_DM_crouch_tm": "the motion placement of this crouch walk (no static) lands in another "
+    "basin on another CPU's round-off: mean knee flexion 33.4° vs 28.5° (right), 45.7° vs "
+    "41.3° (left), Haswell-kernel vs Sapphire-Rapids machine, same packages (2026-11-25)",
+}
 N_SAMPLES = 9
+PACKAGES = ("numpy", "scipy", "pin", "casadi", "daqp", "osqp", "clarabel", "qpsolvers", "ezc3d")
+
+
+def environment() -> dict[str, str]:
+    """What decides the last digits of a run: the package versions and the BLAS kernels."""
+    from importlib.metadata import PackageNotFoundError, version
+
+    from threadpoolctl import threadpool_info
+
+    env = {}
+    for name in PACKAGES:
+        try:
+            env[name] = version(name)
+        except PackageNotFoundError:
+            env[name] = "absent"
+    blas = [f"{i.get('internal_api')} {i.get('version')} {i.get('architecture')}"
+            for i in threadpool_info() if i.get("user_api") == "blas"]  # fmt: skip
+    env["blas"] = "; ".join(sorted(set(blas)))
+    return env
 
 
 def _num(x: float) -> float | None:
@@ -57,14 +99,20 @@ def fingerprint(folder: Path) -> dict[str, Any]:
     return {"tables": tables, "report_sections": sections}
 
 
-def _close(a: float | None, b: float | None, scale: float, floor: float = 0.0) -> bool:
+def _close(
+    a: float | None, b: float | None, scale: float, floor: float = 0.0, rtol: float = RTOL
+) -> bool:
     if a is None or b is None:
         return a is b
-    return abs(a - b) <= max(RTOL * scale, floor) + 1e-300
+    return abs(a - b) <= max(rtol * scale, floor) + 1e-300
 
 
-def compare(expected: dict[str, Any], actual: dict[str, Any]) -> list[str]:
-    """Differences of ``actual`` from ``expected`` beyond :data:`RTOL` (empty when equal)."""
+def compare(expected: dict[str, Any], actual: dict[str, Any], exact: bool = True) -> list[str]:
+    """Differences of ``actual`` from ``expected`` beyond :data:`RTOL` (empty when equal);
+    with ``exact=False`` beyond :data:`RTOL_PORTABLE` and :data:`ROWS_PORTABLE` (another
+    machine: the module docstring)."""
+    if not exact:
+        return _compare_portable(expected, actual)
     out: list[str] = []
     if expected["report_sections"] != actual["report_sections"]:
         out.append(f"report sections {expected['report_sections']} → {actual['report_sections']}")
@@ -93,15 +141,57 @@ def compare(expected: dict[str, Any], actual: dict[str, Any]) -> list[str]:
     return out
 
 
+def _compare_portable(
+    expected: dict[str, Any], actual: dict[str, Any], values: bool = True
+) -> list[str]:
+    out: list[str] = []
+    if expected["report_sections"] != actual["report_sections"]:
+        out.append(f"report sections {expected['report_sections']} → {actual['report_sections']}")
+    et, at = expected["tables"], actual["tables"]
+    if set(et) != set(at):
+        out.append(f"tables {sorted(et)} → {sorted(at)}")
+    for name in sorted(set(et) & set(at)):
+        e, a = et[name], at[name]
+        if e["rows"] != a["rows"] or list(e["columns"]) != list(a["columns"]):
+            out.append(f"{name}: shape or columns changed")
+            continue
+        if not values:
+            continue
+        largest = max((c["max_abs"] or 0.0 for c in e["columns"].values()), default=0.0)
+        floor = e["rows"] * float(np.finfo(float).eps) * largest  # round-off of the table
+        for col, ec in e["columns"].items():
+            ac = a["columns"][col]
+            scale = max(ec["max_abs"] or 0.0, 1e-3 * largest)
+            ok = abs(ec["n_finite"] - ac["n_finite"]) <= ROWS_PORTABLE * e["rows"]
+            ok = ok and _close(ec["max_abs"], ac["max_abs"], scale, rtol=RTOL_PORTABLE)
+            # a sum moves by a column's largest value per row that changed finite ↔ NaN
+            per_row = floor + RTOL_PORTABLE * (ec["sum_abs"] or 0.0) + abs(
+                ec["n_finite"] - ac["n_finite"]) * (ec["max_abs"] or 0.0)  # fmt: skip
+            ok = ok and _close(ec["sum"], ac["sum"], 1.0, per_row, rtol=0.0)
+            ok = ok and _close(ec["sum_abs"], ac["sum_abs"], 1.0, per_row, rtol=0.0)
+            ok = ok and all(
+                u is None or v is None or _close(u, v, scale, rtol=RTOL_PORTABLE)
+                for u, v in zip(ec["samples"], ac["samples"])
+            )
+            if not ok:
+                out.append(f"{name}.{col} (portable): {ec} → {ac}")
+    return out
+
+
 def check(config_stem: str, folder: Path) -> list[str]:
     """Compare ``folder`` with the golden file of ``config_stem`` (write it under
-    ``MSK_UPDATE_GOLDEN=1``)."""
+    ``MSK_UPDATE_GOLDEN=1``): to :data:`RTOL` in the golden's environment, else portably."""
     path = GOLDEN / f"{config_stem}.json"
     actual = fingerprint(folder)
+    env = environment()
     if os.environ.get("MSK_UPDATE_GOLDEN") == "1":
         path.parent.mkdir(parents=True, exist_ok=True)
-        path.write_text(json.dumps(actual, separators=(",", ":")) + "\n", encoding="utf-8")
+        text = json.dumps({**actual, "environment": env}, separators=(",", ":"))
+        path.write_text(text + "\n", encoding="utf-8")
         return []
     if not path.is_file():
         return [f"no golden file {path.name}: run with MSK_UPDATE_GOLDEN=1"]
-    return compare(json.loads(path.read_text(encoding="utf-8")), actual)
+    expected = json.loads(path.read_text(encoding="utf-8"))
+    if expected.get("environment") == env:
+        return compare(expected, actual)
+    return _compare_portable(expected, actual, values=config_stem not in NOT_PORTABLE)
