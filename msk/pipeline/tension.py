@@ -326,7 +326,12 @@ def optimise(
     leg's gains equal the fully measured trial's to the fit's tolerance); nothing of that
     fit's solution is reported."""
     import msk.optimization as o
-    from msk.muscles.geometry import finite_frames, jacobian_frames, muscle_parameters
+    from msk.muscles.geometry import (
+        finite_frames,
+        jacobian_frames,
+        moment_arm_pattern,
+        muscle_parameters,
+    )
 
     act_idx = actuated(torques)
     params = muscle_parameters(model)
@@ -365,9 +370,7 @@ def optimise(
     retry = usable & ~posable & miss.any(axis=1)
     ok = usable & posable
     if miss[ok | retry].any():
-        pattern = np.zeros((n_mus, len(act_idx)), dtype=bool)
-        for fr in frame_blocks(np.flatnonzero(ok)):
-            pattern |= (jacobian_frames(geometry.jacobian, fr, act_idx) != 0).any(axis=0)
+        pattern = moment_arm_pattern(geometry.jacobian, ok, act_idx)
         both = ok | retry
         distinct, inv = np.unique(miss[both], axis=0, return_inverse=True)
         ids = np.zeros(distinct.shape[0], dtype=np.intp)
