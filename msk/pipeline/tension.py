@@ -534,23 +534,18 @@ def optimise(
     gains = (
         None if gain_fit is None else dict(zip(gain_fit.group_names, map(float, gain_fit.gains)))
     )
-    # each pattern's kept part (:class:`_Kept`), built on its first frames
-    subs: dict[int, _Kept] = {}
-
-    def kept_part(pid: int) -> _Kept:
-        """Pattern ``pid``'s :class:`_Kept` (every muscle and coordinate for 0)."""
-        if pid not in subs:
-            km = None if pid == 0 else ~drop_m[pid]
-            kc = None if pid == 0 else ~drop_c[pid]
-            subs[pid] = _Kept(
-                km, kc, act_idx if kc is None else np.asarray(act_idx)[kc],
-                params.names if km is None else tuple(np.asarray(params.names, dtype=object)[km]),
-                tuple(cn[k] for k in np.flatnonzero(~drop_c[pid])),
-                weights if weights is None or km is None else weights[km],
-                reserves if kc is None else reserves[kc], bool(knee_out[pid]), o.WarmStart(),
-            )  # fmt: skip
-        return subs[pid]
-
+    # each pattern's kept part (pattern 0, the fully measured frames', keeps every one)
+    subs: list[_Kept] = []
+    for pid in range(drop_m.shape[0]):
+        km = None if pid == 0 else ~drop_m[pid]
+        kc = None if pid == 0 else ~drop_c[pid]
+        subs.append(_Kept(
+            km, kc, act_idx if kc is None else np.asarray(act_idx)[kc],
+            params.names if km is None else tuple(np.asarray(params.names, dtype=object)[km]),
+            tuple(cn[k] for k in np.flatnonzero(~drop_c[pid])),
+            weights if weights is None or km is None else weights[km],
+            reserves if kc is None else reserves[kc], bool(knee_out[pid]), o.WarmStart(),
+        ))  # fmt: skip
     n = time.size
     forces_only = forces_only or on_block is not None
     # filled block by block (no list of every block's forces concatenated at the end)
@@ -561,11 +556,11 @@ def optimise(
     kkt_val, kkt_rel = np.zeros(4), np.full(4, -1.0)
     kkt_at, kkt_n = np.full(4, -1), 0
 
-    def solve(fr: np.ndarray, common: dict[str, Any], sub: _Kept) -> tuple[np.ndarray, Any, Any]:
+    def solve(fr: np.ndarray, sub: _Kept, ineq: Any) -> tuple[np.ndarray, Any, Any]:
         """Forces, activations and the batch solution (None for ``closed_form``) of the frames
         ``fr``, all of one left-out pattern: the QP of the muscles and coordinates ``sub``
-        keeps — the left-out leg is not posed at all —, warm-started from that pattern's last
-        call."""
+        keeps — the left-out leg is not posed at all — with the compartment rows ``ineq`` of
+        those frames (None: without), warm-started from that pattern's last call."""
         jac = jacobian_frames(geometry.jacobian, fr, sub.columns)
         tq = torques.tau[fr][:, sub.columns]
         fa, fp = _force_curves(params, geometry, fr)
@@ -573,7 +568,19 @@ def optimise(
             jac, fa, fp = jac[:, sub.muscles], fa[:, sub.muscles], fp[:, sub.muscles]
         names, w_act, res_opt = sub.muscle_names, sub.activation_weights, sub.reserve_optimal_force
         carry, kept = sub.warm, sub.kept
-        common = {**common, "muscle_names": names, "coordinate_names": sub.coordinate_names}
+        common: dict[str, Any] = {
+            "time": time[fr],
+            # a re-solve that reads the forces alone does not check them
+            "compute_kkt": not forces_only,
+            "muscle_names": names,
+            "coordinate_names": sub.coordinate_names,
+        }
+        if ineq is not None and sub.muscles is not None:  # the kept muscles' gains
+            ineq = o.TensionInequalities(
+                ineq.offset, kept(np.asarray(ineq.gain)), ineq.names, ineq.reserve_optimal
+            )
+        if ineq is not None:
+            common["inequalities"] = ineq
 
         if meth == "static_optimization":
             sol = o.solve_static_optimization_batch(
@@ -640,24 +647,12 @@ def optimise(
                 slice(0, fr.size) if (pids == pid).all() else np.flatnonzero(pids == pid)
             )
             n_here = fr[where].size
-            sub = kept_part(pid)
+            sub = subs[pid]
             for part in solve_parts(n_here) if split else [slice(0, n_here)]:
                 at = part if isinstance(where, slice) else where[part]
                 f_idx = fr[at]
-                common: dict[str, Any] = {
-                    "time": time[f_idx],
-                    # a re-solve that reads the forces alone does not check them
-                    "compute_kkt": not forces_only,
-                }
-                if rows is not None and not sub.knee_out:
-                    ineq = rows.take(at)
-                    if sub.muscles is not None:
-                        ineq = o.TensionInequalities(
-                            ineq.offset, sub.kept(np.asarray(ineq.gain)), ineq.names,
-                            ineq.reserve_optimal,
-                        )  # fmt: skip
-                    common["inequalities"] = ineq
-                forces, acts, sol = solve(f_idx, common, sub)
+                ineq = None if rows is None or sub.knee_out else rows.take(at)
+                forces, acts, sol = solve(f_idx, sub, ineq)
                 forces = sub.widen_muscles(forces)
                 if block_forces is not None:
                     block_forces[at] = forces
