@@ -71,6 +71,7 @@ from numpy.typing import ArrayLike, NDArray
 from msk.exceptions import ShapeMismatchError
 
 __all__ = [
+    "KNEE_SEGMENTS",
     "LANDMARKS",
     "LANDMARK_BODIES",
     "MIDLINE_SYNONYMS",
@@ -78,6 +79,8 @@ __all__ = [
     "MarkerSetMatch",
     "ParsedLabel",
     "foot_markers",
+    "is_knee_segment",
+    "other_side",
     "parse_label",
     "recognise",
     "reconstructed_markers",
@@ -159,6 +162,14 @@ LANDMARK_BODIES: Mapping[str, str] = {
     "clavicle": "torso",
     "acromion": "torso",
 }
+
+#: the segments across the knee whose markers a label names unambiguously (:data:`LANDMARK_BODIES`:
+#: a thigh cluster, the greater trochanter or a femoral epicondyle on the femur; a shank
+#: cluster, the fibular head, the tibial tuberosity or a malleolus on the tibia). A knee no
+#: marker pins lets a thigh marker look as rigid on the tibia as on the femur, so a placement
+#: from the motion must not exchange them (issue 15, thirteenth pass)
+KNEE_SEGMENTS = ("femur", "tibia")
+
 
 #: normalised name (lower case, no separators, side removed) → landmark key, sided landmarks
 SIDED_SYNONYMS: Mapping[str, str] = {
@@ -392,6 +403,23 @@ def parse_label(label: str) -> ParsedLabel:
         if lm is not None:
             return ParsedLabel(label, name, side, lm, "landmark")
     return ParsedLabel(label, name, None, None, "unknown")
+
+
+def is_knee_segment(body: str) -> bool:
+    """Whether the model body (or :data:`LANDMARK_BODIES` stem) ``body`` is a femur or a tibia
+    (:data:`KNEE_SEGMENTS`: ``femur``, ``femur_r``, ``tibia_l``…)."""
+    return body.startswith(KNEE_SEGMENTS)
+
+
+def other_side(label: str, bodies: Sequence[str]) -> NDArray[np.bool_]:
+    """(B,) whether each of ``bodies`` belongs to the other side than the lab label ``label``'s
+    (:func:`parse_label`; sided bodies end in ``_r``/``_l``): none for an unsided label, never
+    an unsided body."""
+    side = parse_label(label).side
+    if not side:
+        return np.zeros(len(bodies), dtype=bool)
+    other = "_l" if side.lower() == "r" else "_r"
+    return np.array([b.endswith(other) for b in bodies], dtype=bool)
 
 
 #: landmarks of the arm and of the head (excluded when the model has no such segment)

@@ -61,7 +61,7 @@ import numpy as np
 import pinocchio as pin
 from numpy.typing import ArrayLike, NDArray
 
-from msk.markersets import LANDMARK_BODIES, parse_label
+from msk.markersets import LANDMARK_BODIES, is_knee_segment, other_side, parse_label
 from msk.signal import true_runs
 
 Array = NDArray[np.float64]
@@ -545,10 +545,6 @@ def _unobserved_flags(trial: str, model: Any, kin: Any, th: Mapping[str, float])
     return out
 
 
-#: the segments across the knee whose markers a placement from the motion must not exchange
-_KNEE_SEGMENTS = ("femur", "tibia")
-
-
 def placement_label_conflicts(
     placed: Mapping[str, str], bodies: Sequence[str]
 ) -> dict[str, tuple[str, str]]:
@@ -571,12 +567,11 @@ def placement_label_conflicts(
     for lab, body in placed.items():
         pl = parse_label(lab)
         body = str(body)
-        if pl.side and body.endswith(("_r", "_l")) and not body.endswith(f"_{pl.side.lower()}"):
-            # a sided label on the other side's body
-            out[lab] = (body, f"a {pl.side.upper()} body")
+        if other_side(lab, (body,))[0]:  # a sided label on the other side's body
+            out[lab] = (body, f"a {str(pl.side).upper()} body")
             continue
         stem = LANDMARK_BODIES.get(pl.landmark or "")
-        if stem not in _KNEE_SEGMENTS or not body.startswith(_KNEE_SEGMENTS):
+        if stem is None or not (is_knee_segment(stem) and is_knee_segment(body)):
             continue
         named = f"{stem}_{pl.side.lower()}" if pl.side else stem
         if named in have and body != named:

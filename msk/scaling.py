@@ -48,7 +48,7 @@ from numpy.typing import ArrayLike, NDArray
 from msk.exceptions import FileFormatError, MissingDataError, ModelError, MskError
 from msk.functional_joints import segment_poses
 from msk.joints import Constant, CoordinateFunction, Multiplier
-from msk.markersets import parse_label, shoulder_girdle_markers
+from msk.markersets import is_knee_segment, other_side, parse_label, shoulder_girdle_markers
 from msk.model import (
     GROUND,
     Axis,
@@ -1469,23 +1469,6 @@ def unobserved_knees_flexed(
     return {k: v for k, v in out.items() if v != coords[k].range}
 
 
-#: segments whose markers a label names unambiguously (a thigh or shank cluster, a knee or ankle
-#: landmark): placed from the motion on the body the label names whenever they are rigid enough
-#: there (≤ ``max_spread_m``), not only in a near-tie — a knee no marker pins lets a thigh
-#: marker look as rigid on the tibia as on the femur (issue 15, thirteenth pass)
-_LABELLED_SEGMENTS = ("femur", "tibia")
-
-
-def _other_side(label: str, bodies: Sequence[str]) -> NDArray[np.bool_]:
-    """(B,) the bodies of the other side than ``label``'s (``_r``/``_l`` names; none for an
-    unsided label)."""
-    side = parse_label(label).side
-    if not side:
-        return np.zeros(len(bodies), dtype=bool)
-    other = "_l" if side.lower() == "r" else "_r"
-    return np.array([b.endswith(other) for b in bodies], dtype=bool)
-
-
 def place_markers_from_motion(
     model: Model,
     markers: ArrayLike,
@@ -1522,8 +1505,9 @@ def place_markers_from_motion(
        such as the lumbar joint, leaves a PSIS as rigid on the torso as on the pelvis) go to the
        body of the marker's landmark when ``hints`` (lab label → body,
        :meth:`msk.markersets.MarkerSetMatch.body_hints`) names one of them, else to the nearest
-       bone; a thigh or shank marker (hint on a femur or tibia, :data:`_LABELLED_SEGMENTS`)
-       goes to its hinted body whenever it is rigid enough there (σ ≤ ``max_spread_m``), and a
+       bone; a thigh or shank marker (hint on a femur or tibia,
+       :data:`msk.markersets.KNEE_SEGMENTS`) goes to its hinted body whenever it is rigid
+       enough there (σ ≤ ``max_spread_m``, not only in a near-tie), and a
        sided label never to a body of the other side (issue 15, thirteenth pass: a synthetic
        DM walk had thigh and shank markers exchanged across the knee, a squat a right foot
        marker on the left toes);
@@ -1711,7 +1695,7 @@ def place_markers_from_motion(
             near = dist <= max_distance_m
             # a sided label is never placed on the other side's body (still feet in a squat are
             # as rigid to either foot: R_Midfoot_Medial went to toes_l, issue 15, 13th pass)
-            near &= ~_other_side(lab, names)
+            near &= ~other_side(lab, names)
             if not near.any():
                 k = int(np.argmin(dist))
                 too_far[lab] = [names[k], float(dist[k])]
@@ -1722,7 +1706,7 @@ def place_markers_from_motion(
             tie = near & (sig <= best + max(0.002, 0.25 * best))
             hint = (hints or {}).get(lab)
             if hint in names and (tie[names.index(hint)] or (
-                    hint.startswith(_LABELLED_SEGMENTS) and near[names.index(hint)]
+                    is_knee_segment(hint) and near[names.index(hint)]
                     and sig[names.index(hint)] <= max_spread_m)):  # fmt: skip
                 k = names.index(hint)
             else:

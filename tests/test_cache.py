@@ -12,6 +12,7 @@ import json
 import math
 import os
 import pickle
+import re
 import subprocess
 import sys
 import time
@@ -420,6 +421,13 @@ class _Boom:
 
 @pytest.fixture
 def spies(monkeypatch):
+    """Spies on os.system, subprocess.Popen, eval and importlib.import_module. The msk modules
+    the poisoned trees name are imported first: importing one runs Python's own eval (a
+    NamedTuple's ``__new__``, ``typing.get_type_hints`` of the config dataclasses), which is
+    not the loader's doing — a test run alone would otherwise import ``msk.pipeline`` under
+    the spies and see those calls (the whole suite had imported it already)."""
+    for module in sorted(set(re.findall(r'"(msk(?:\.[a-z_0-9]+)*):', json.dumps(POISON)))):
+        importlib.import_module(module)
     calls: list[str] = []
     imported: list[str] = []
     real_import = importlib.import_module

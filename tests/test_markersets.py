@@ -316,3 +316,26 @@ def test_unipd_cast_landmarks_are_reconstructed(real_dir):
     kinds = ("ASIS", "PSIS", "GT", "LE", "ME", "HF", "TT", "LM", "MM")
     sides = {s + m for s in "RL" for m in kinds}
     assert rec == sides
+
+
+def test_other_side_and_knee_segments_of_labels_and_bodies():
+    """``other_side``: the bodies of the other side than a sided label's, whatever the label's
+    spelling, none for a midline label and never a midline body; ``is_knee_segment``: the
+    femur and tibia bodies (either side) and stems, which the thigh and shank landmarks name."""
+    from msk.markersets import LANDMARK_BODIES, is_knee_segment, other_side
+
+    bodies = ["pelvis", "femur_r", "tibia_r", "calcn_r", "femur_l", "tibia_l", "toes_l", "torso"]
+    right = [False, False, False, False, True, True, True, False]
+    for lab in ("R_Thigh_Inferior", "RKNE", "RightAnkleLateral", "R.Knee.Lat", "JW:RAsis"):
+        assert other_side(lab, bodies).tolist() == right, lab
+    left = [b.endswith("_r") for b in bodies]
+    for lab in ("L_Shank_Superior", "LANK", "Left_Heel"):
+        assert other_side(lab, bodies).tolist() == left, lab
+    for lab in ("Sternum", "SACR", "C7", "Oglobal"):
+        assert not other_side(lab, bodies).any(), lab
+    assert other_side("RKNE", []).shape == (0,)
+    assert [is_knee_segment(b) for b in bodies] == [
+        False, True, True, False, True, True, False, False]  # fmt: skip
+    knee = {lm for lm, stem in LANDMARK_BODIES.items() if is_knee_segment(stem)}
+    assert {"knee_lat", "thigh_cluster", "ankle_med", "shank_cluster"} <= knee
+    assert not knee & {"asis", "heel", "toe_tip", "sternum"}

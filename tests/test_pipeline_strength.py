@@ -95,21 +95,3 @@ def test_a_group_whose_leg_is_unbalanced_leaves_the_frame_out() -> None:
         s.geometry,
     )  # fmt: skip
     assert out.t0 == s.kinematics.time[np.flatnonzero(~s.off)[0]]
-
-
-def test_crossed_coordinates_of_a_compact_and_a_dense_jacobian() -> None:
-    """The coordinates the given muscles cross: the same from the dense Jacobian and from its
-    compact form (the pipeline's)."""
-    from msk.timeseries import FrameSparse
-
-    model = muscled_two_legs()
-    _, _, geo = two_leg_trial(model)
-    jac = np.asarray(geo.jacobian)
-    pos = np.flatnonzero((jac != 0).any(axis=0).ravel())
-    compact = FrameSparse.from_dense(jac, pos)
-    names = geo.muscle_names
-    mus = [names.index("soleus_r"), names.index("vasti_r")]
-    dense = strength.crossed_coordinates(jac, mus)
-    np.testing.assert_array_equal(dense, strength.crossed_coordinates(compact, mus))
-    crossed = {c for c, k in zip(geo.coordinate_names, dense) if k}
-    assert crossed and all(c.endswith("_r") for c in crossed), crossed

@@ -219,6 +219,41 @@ def test_a_left_out_legs_unposable_inputs_do_not_exclude_the_frame() -> None:
     assert whole.excluded_frames == off.sum() and np.isnan(whole.forces[off]).all()
 
 
+def test_left_out_patterns_of_a_leg_off_the_plates() -> None:
+    """``left_out_patterns``: with the left foot off the plates in frames 10–24, one pattern
+    besides the empty one — the left leg's muscles and coordinates —, those frames' index 1;
+    a left moment arm NaN there leaves the frame posable, a right one (frame 12) or a left
+    one where the left foot is measured (frame 30) does not."""
+    from msk.muscles.geometry import muscle_parameters
+    from msk.pipeline.tension import actuated, left_out_patterns
+
+    model = muscled_two_legs()
+    kin, tq, geo = two_leg_trial(model)
+    n = kin.time.size
+    gated, unbalanced, off = _left_off(model, tq)
+    act = actuated(tq)
+    lm = np.array([m.endswith("_l") for m in geo.muscle_names])
+    jac = geo.jacobian.copy()
+    jac[np.ix_(off, lm)] = np.nan
+    jac[12, ~lm] = np.nan
+    jac[30, lm] = np.nan
+    bad = type(geo)(**{**geo.__dict__, "jacobian": jac})
+    posable = np.isfinite(jac[:, :, act]).all(axis=(1, 2))
+    drop_m, drop_c, drop_id, pos = left_out_patterns(
+        bad, muscle_parameters(model), gated.tau, act, np.ones(n, dtype=bool), posable,
+        unbalanced[:, act],
+    )  # fmt: skip
+    np.testing.assert_array_equal(drop_m, [np.zeros_like(lm), lm])
+    left_c = [tq.coordinate_names[k] in coordinates_carrying(model, "foot_l") for k in act]
+    np.testing.assert_array_equal(drop_c, [np.zeros(len(act), dtype=bool), left_c])
+    np.testing.assert_array_equal(drop_id[off], 1)
+    np.testing.assert_array_equal(drop_id[~off], 0)
+    expect = np.ones(n, dtype=bool)
+    expect[[12, 30]] = False
+    np.testing.assert_array_equal(pos, expect)
+    assert not posable[off].any()  # the input is not changed
+
+
 @pytest.mark.parametrize("method", ["static_optimization", "emg_assisted", "closed_form"])
 def test_nothing_left_out_is_the_call_without_unbalanced(method: str) -> None:
     """An all-False ``unbalanced`` (every foot measured) gives bit for bit the result of a

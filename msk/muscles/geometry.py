@@ -108,6 +108,7 @@ __all__ = [
     "finite_frames",
     "geometry_plan",
     "jacobian_frames",
+    "moment_arm_pattern",
     "muscle_geometry",
     "muscle_parameters",
     "wrap_cylinder",
@@ -1879,6 +1880,37 @@ def jacobian_frames(
         return out
     for c0 in range(0, idx.size, FRAME_BLOCK):
         out[c0 : c0 + FRAME_BLOCK] = jacobian[idx[c0 : c0 + FRAME_BLOCK]][:, :, cols]
+    return out
+
+
+def moment_arm_pattern(
+    jacobian: Array | FrameSparse,
+    frames: NDArray[np.bool_] | NDArray[np.intp] | None = None,
+    columns: Sequence[int] | NDArray[np.intp] | None = None,
+) -> NDArray[np.bool_]:
+    """(M, len(columns)) whether muscle m has a moment arm about coordinate ``columns[c]`` (all
+    coordinates: None) in some of ``frames`` (indices or a mask; all: None) of ``jacobian``
+    ``(N, M, n)``: the entry ∂l_m/∂θ_c is nonzero and finite there (r = −J_l, module
+    docstring: the moment arm is zero exactly where the Jacobian entry is). Block by block,
+    without a dense copy; of a compact Jacobian its stored entries only (the others are 0)."""
+    n_frames, n_mus, n = jacobian.shape
+    if frames is None:
+        idx = np.arange(n_frames)
+    else:
+        idx = np.flatnonzero(frames) if np.asarray(frames).dtype == bool else np.asarray(frames)
+    cols = np.arange(n) if columns is None else np.asarray(columns, np.intp)
+    out = np.zeros((n_mus, cols.size), dtype=bool)
+    if isinstance(jacobian, FrameSparse):
+        keep, mus, place = _compact_columns(jacobian, cols)
+        hit = np.zeros(keep.size, dtype=bool)
+        for c0 in range(0, idx.size, FRAME_BLOCK):
+            v = np.asarray(jacobian.values[idx[c0 : c0 + FRAME_BLOCK]])[:, keep]
+            hit |= ((v != 0) & np.isfinite(v)).any(axis=0)
+        out[mus[hit], place[hit]] = True
+        return out
+    for c0 in range(0, idx.size, FRAME_BLOCK):
+        blk = np.asarray(jacobian[idx[c0 : c0 + FRAME_BLOCK]])[:, :, cols]
+        out |= ((blk != 0) & np.isfinite(blk)).any(axis=0)
     return out
 
 

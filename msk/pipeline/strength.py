@@ -28,7 +28,7 @@ from msk.pipeline.loads import Loads
 from msk.pipeline.model import BuiltModel
 from msk.pipeline.runner import StageUnavailable
 
-__all__ = ["StrengthIdentification", "crossed_coordinates", "run"]
+__all__ = ["StrengthIdentification", "run"]
 
 
 @dataclass(frozen=True)
@@ -50,7 +50,7 @@ def run(
     emg: EmgActivations,
     muscle_geometry: Any,
 ) -> StrengthIdentification:
-    from msk.muscles.geometry import muscle_parameters
+    from msk.muscles.geometry import moment_arm_pattern, muscle_parameters
     from msk.muscles.hill import RigidTendonStateBlocks
     from msk.strength import StrengthIdentifier
     from msk.timeseries import FrameSparse
@@ -63,12 +63,12 @@ def run(
             groups.setdefault(emg.sources[k], []).append(m)
     if not groups:
         raise StageUnavailable("no usable EMG channel")
-    # per leg (module docstring): no coordinate a group's muscle crosses may be unbalanced;
-    # the others' torques (NaN where unbalanced) are not regressed
+    # per leg (module docstring): no coordinate a group's muscle crosses (has a moment arm
+    # about in some frame) may be unbalanced; the others' torques (NaN where unbalanced) are
+    # not regressed
     unbalanced = loads.unbalanced_for(jt.coordinate_names)
-    crossed = crossed_coordinates(
-        muscle_geometry.jacobian, [params.names.index(m) for v in groups.values() for m in v]
-    )
+    grouped = [params.names.index(m) for v in groups.values() for m in v]
+    crossed = moment_arm_pattern(muscle_geometry.jacobian)[grouped].any(axis=0)
     good = (
         loads.solvable
         & ~(unbalanced & crossed).any(axis=1)
@@ -117,23 +117,3 @@ def run(
     return StrengthIdentification(
         est.profile_, {g: list(v) for g, v in groups.items()}, float(kinematics.time[good][0])
     )
-
-
-def crossed_coordinates(jacobian: Any, muscles: Any) -> np.ndarray:
-    """(n,) the coordinates any of ``muscles`` (indices) has a moment arm about in some frame
-    of ``jacobian`` (N, M, n): a compact one's stored positions, a dense one's nonzero
-    entries (block by block)."""
-    from msk.pipeline.blocks import frame_blocks
-    from msk.timeseries import FrameSparse
-
-    idx = np.asarray(sorted(set(int(m) for m in muscles)), dtype=np.intp)
-    n_mus, n = jacobian.shape[1], jacobian.shape[2]
-    out = np.zeros(n, dtype=bool)
-    if isinstance(jacobian, FrameSparse):
-        rows, cols = np.unravel_index(np.asarray(jacobian.positions), (n_mus, n))
-        out[cols[np.isin(rows, idx)]] = True
-        return out
-    for fr in frame_blocks(jacobian.shape[0]):
-        blk = np.asarray(jacobian[fr])[:, idx]
-        out |= ((blk != 0) & np.isfinite(blk)).any(axis=(0, 1))
-    return out

@@ -37,6 +37,7 @@ __all__ = [
     "compartments",
     "knee_plateau",
     "left_out",
+    "left_out_patterns",
     "needs",
     "optimise",
     "run",
@@ -125,6 +126,63 @@ def left_out(pattern: np.ndarray, unbalanced: np.ndarray) -> tuple[np.ndarray, n
         if (grown == coords).all():
             return muscles, coords
         coords = grown
+
+
+def left_out_patterns(
+    geometry: Any,
+    params: Any,
+    tau: np.ndarray,
+    act_idx: list[int],
+    usable: np.ndarray,
+    posable: np.ndarray,
+    miss: np.ndarray,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """The left-out legs of the ``usable`` frames (:func:`left_out`): the muscles (P, m) and
+    coordinates (P, len(act_idx)) each distinct pattern leaves out (row 0: nothing, the fully
+    measured frames'), each frame's pattern (N,) and the frames posable (N,): ``posable``
+    (the whole frame's geometry, force curves and torques finite) or, for a frame with a leg
+    left out, finite in the part kept (the left-out part's are never read). ``miss`` (N,
+    len(act_idx)): per frame the coordinates whose torque balances a missing ground
+    reaction; ``tau`` the joint torques (N, coordinates), ``act_idx`` the actuated columns.
+    The muscles' moment-arm pattern is read on the frames posable whole."""
+    from msk.muscles.geometry import jacobian_frames, moment_arm_pattern
+
+    n_all = miss.shape[0]
+    n_mus = len(params.names)
+    # the distinct patterns ``drops`` (0: nothing left out) and each frame's index into them
+    drops: list[tuple[np.ndarray, np.ndarray]] = [
+        (np.zeros(n_mus, dtype=bool), np.zeros(len(act_idx), dtype=bool))
+    ]
+    drop_id = np.zeros(n_all, dtype=np.intp)
+    retry = usable & ~posable & miss.any(axis=1)
+    ok = usable & posable
+    if miss[ok | retry].any():
+        pattern = moment_arm_pattern(geometry.jacobian, ok, act_idx)
+        both = ok | retry
+        distinct, inv = np.unique(miss[both], axis=0, return_inverse=True)
+        ids = np.zeros(distinct.shape[0], dtype=np.intp)
+        for u, row in enumerate(distinct):
+            if row.any():
+                ids[u] = len(drops)
+                drops.append(left_out(pattern, row))
+        drop_id[both] = ids[np.asarray(inv).reshape(-1)]
+    drop_m = np.array([d[0] for d in drops])  # (patterns, m)
+    drop_c = np.array([d[1] for d in drops])  # (patterns, coordinates)
+    # a frame with a leg left out that is not posable whole is when what is not posable lies
+    # in the left-out part (its geometry, curves or torques are never read)
+    posable = posable.copy()
+    for fr in frame_blocks(np.flatnonzero(retry)) if retry.any() else ():
+        gone_m, gone_c = drop_m[drop_id[fr]], drop_c[drop_id[fr]]
+        jac = jacobian_frames(geometry.jacobian, fr, act_idx)
+        fa, fp = _force_curves(params, geometry, fr)
+        kept = (
+            (np.isfinite(jac) | gone_m[:, :, None] | gone_c[:, None, :]).all(axis=(1, 2))
+            & ((np.isfinite(fa) & np.isfinite(fp)) | gone_m).all(axis=1)
+            & (np.isfinite(tau[fr][:, act_idx]) | gone_c).all(axis=1)
+        )
+        posable[fr[kept]] = True
+        del jac, fa, fp
+    return drop_m, drop_c, drop_id, posable
 
 
 def actuated(torques: Any) -> list[int]:
@@ -274,6 +332,50 @@ def knee_plateau(inputs: SessionInputs, model: Any, joint: str) -> Any:
     )
 
 
+@dataclass(frozen=True)
+class _Kept:
+    """What one left-out pattern keeps of a frame's tension QP (:func:`left_out_patterns`):
+    the muscles ``muscles`` (m,) and actuated coordinates ``coordinates`` kept (None: every
+    one, the fully measured frames' pattern), their Jacobian ``columns``, names, activation
+    weights and reserve optimal forces, whether the compartment rows' knee is left out
+    (``knee_out``: no rows, no frontal reserve or peak), and the pattern's warm start (its
+    QPs have their own unknowns; the fully measured frames continue from one another as in
+    one call on them all)."""
+
+    muscles: np.ndarray | None
+    coordinates: np.ndarray | None
+    columns: list[int] | np.ndarray
+    muscle_names: tuple[str, ...]
+    coordinate_names: tuple[str, ...]
+    activation_weights: np.ndarray | None
+    reserve_optimal_force: np.ndarray
+    knee_out: bool
+    warm: Any
+
+    def kept(self, x: np.ndarray) -> np.ndarray:
+        """``x``'s kept muscles (its last axis: (m,), (frames, m) or (frames, rows, m))."""
+        return x if self.muscles is None else x[..., self.muscles]
+
+    def widen_muscles(self, x: np.ndarray) -> np.ndarray:
+        """``x`` (frames, kept muscles) in every muscle's column, NaN in the left-out ones."""
+        return _widen(x, self.muscles)
+
+    def widen_coordinates(self, x: np.ndarray) -> np.ndarray:
+        """``x`` (frames, kept coordinates) in every actuated coordinate's column, NaN in the
+        left-out ones."""
+        return _widen(x, self.coordinates)
+
+
+def _widen(x: np.ndarray, keep: np.ndarray | None) -> np.ndarray:
+    """``x`` (frames, kept columns) in ``keep.size`` columns, NaN in the left-out ones (``x``
+    itself when every column is kept: None)."""
+    if keep is None:
+        return x
+    out = np.full((x.shape[0], keep.size), np.nan)
+    out[:, keep] = x
+    return out
+
+
 def optimise(
     inputs: SessionInputs,
     model: Any,
@@ -353,42 +455,11 @@ def optimise(
         & (np.isfinite(torques.tau[:, act_idx]) | miss).all(axis=1)
         & curves_finite
     )
-    n_mus = len(params.names)
     # per frame: the muscles and coordinates left out (the components holding an unbalanced
-    # coordinate), as an index into the distinct patterns ``drops`` (0: nothing left out)
-    drops: list[tuple[np.ndarray, np.ndarray]] = [
-        (np.zeros(n_mus, dtype=bool), np.zeros(len(act_idx), dtype=bool))
-    ]
-    drop_id = np.zeros(n_all, dtype=np.intp)
-    # frames with a leg left out that are not posable whole: posable when what is not posable
-    # lies in the left-out part (its geometry, curves or torques are never read)
-    retry = usable & ~posable & miss.any(axis=1)
-    ok = usable & posable
-    if miss[ok | retry].any():
-        pattern = np.zeros((n_mus, len(act_idx)), dtype=bool)
-        for fr in frame_blocks(np.flatnonzero(ok)):
-            pattern |= (jacobian_frames(geometry.jacobian, fr, act_idx) != 0).any(axis=0)
-        both = ok | retry
-        distinct, inv = np.unique(miss[both], axis=0, return_inverse=True)
-        ids = np.zeros(distinct.shape[0], dtype=np.intp)
-        for u, row in enumerate(distinct):
-            if row.any():
-                ids[u] = len(drops)
-                drops.append(left_out(pattern, row))
-        drop_id[both] = ids[np.asarray(inv).reshape(-1)]
-    drop_m = np.array([d[0] for d in drops])  # (patterns, m)
-    drop_c = np.array([d[1] for d in drops])  # (patterns, coordinates)
-    for fr in frame_blocks(np.flatnonzero(retry)) if retry.any() else ():
-        gone_m, gone_c = drop_m[drop_id[fr]], drop_c[drop_id[fr]]
-        jac = jacobian_frames(geometry.jacobian, fr, act_idx)
-        fa, fp = _force_curves(params, geometry, fr)
-        kept = (
-            (np.isfinite(jac) | gone_m[:, :, None] | gone_c[:, None, :]).all(axis=(1, 2))
-            & ((np.isfinite(fa) & np.isfinite(fp)) | gone_m).all(axis=1)
-            & (np.isfinite(torques.tau[fr][:, act_idx]) | gone_c).all(axis=1)
-        )
-        posable[fr[kept]] = True
-        del jac, fa, fp
+    # coordinate), as an index into the distinct patterns (0: nothing left out)
+    drop_m, drop_c, drop_id, posable = left_out_patterns(
+        geometry, params, torques.tau, act_idx, usable, posable, miss
+    )
     ok = usable & posable
     # a frame whose every coordinate is left out has nothing to solve
     ok &= ~np.asarray(drop_c.all(axis=1))[drop_id]
@@ -434,7 +505,7 @@ def optimise(
     frontal = None if comp is None else np.full((time.size, 2), np.nan)
     # per pattern: whether the compartment rows' knee is left out (a coordinate between its
     # tibia and the root is): no frontal reserve or peak from such a frame
-    knee_out = np.zeros(len(drops), dtype=bool)
+    knee_out = np.zeros(drop_c.shape[0], dtype=bool)
     if comp is not None:
         from msk.dynamics import coordinates_carrying
 
@@ -463,9 +534,18 @@ def optimise(
     gains = (
         None if gain_fit is None else dict(zip(gain_fit.group_names, map(float, gain_fit.gains)))
     )
-    # one warm start per left-out pattern: each pattern's QPs have their own unknowns, and
-    # the fully measured frames continue from one another as in one call on them all
-    carries: dict[int, Any] = {}
+    # each pattern's kept part (pattern 0, the fully measured frames', keeps every one)
+    subs: list[_Kept] = []
+    for pid in range(drop_m.shape[0]):
+        km = None if pid == 0 else ~drop_m[pid]
+        kc = None if pid == 0 else ~drop_c[pid]
+        subs.append(_Kept(
+            km, kc, act_idx if kc is None else np.asarray(act_idx)[kc],
+            params.names if km is None else tuple(np.asarray(params.names, dtype=object)[km]),
+            tuple(cn[k] for k in np.flatnonzero(~drop_c[pid])),
+            weights if weights is None or km is None else weights[km],
+            reserves if kc is None else reserves[kc], bool(knee_out[pid]), o.WarmStart(),
+        ))  # fmt: skip
     n = time.size
     forces_only = forces_only or on_block is not None
     # filled block by block (no list of every block's forces concatenated at the end)
@@ -476,32 +556,31 @@ def optimise(
     kkt_val, kkt_rel = np.zeros(4), np.full(4, -1.0)
     kkt_at, kkt_n = np.full(4, -1), 0
 
-    def solve(fr: np.ndarray, common: dict[str, Any], pid: int) -> tuple[np.ndarray, Any, Any]:
+    def solve(fr: np.ndarray, sub: _Kept, ineq: Any) -> tuple[np.ndarray, Any, Any]:
         """Forces, activations and the batch solution (None for ``closed_form``) of the frames
-        ``fr``, all of left-out pattern ``pid``: the QP of the muscles and coordinates that
-        pattern keeps (every one for 0) — the left-out leg is not posed at all —,
-        warm-started from that pattern's last call."""
-        km = None if pid == 0 else ~drop_m[pid]
-        cols = act_idx if pid == 0 else np.asarray(act_idx)[~drop_c[pid]]
-        jac = jacobian_frames(geometry.jacobian, fr, cols)
-        tq = torques.tau[fr][:, cols]
+        ``fr``, all of one left-out pattern: the QP of the muscles and coordinates ``sub``
+        keeps — the left-out leg is not posed at all — with the compartment rows ``ineq`` of
+        those frames (None: without), warm-started from that pattern's last call."""
+        jac = jacobian_frames(geometry.jacobian, fr, sub.columns)
+        tq = torques.tau[fr][:, sub.columns]
         fa, fp = _force_curves(params, geometry, fr)
-        names, w_act, res_opt = params.names, weights, reserves
-        if km is not None:
-            jac, fa, fp = jac[:, km], fa[:, km], fp[:, km]
-            names = tuple(np.asarray(params.names, dtype=object)[km])
-            w_act = None if weights is None else weights[km]
-            res_opt = reserves[~drop_c[pid]]
-        carry = carries.setdefault(pid, o.WarmStart())
-        common = {
-            **common,
+        if sub.muscles is not None:
+            jac, fa, fp = jac[:, sub.muscles], fa[:, sub.muscles], fp[:, sub.muscles]
+        names, w_act, res_opt = sub.muscle_names, sub.activation_weights, sub.reserve_optimal_force
+        carry, kept = sub.warm, sub.kept
+        common: dict[str, Any] = {
+            "time": time[fr],
+            # a re-solve that reads the forces alone does not check them
+            "compute_kkt": not forces_only,
             "muscle_names": names,
-            "coordinate_names": tuple(cn[k] for k in np.flatnonzero(~drop_c[pid])),
+            "coordinate_names": sub.coordinate_names,
         }
-
-        def kept(x: np.ndarray) -> np.ndarray:
-            """``x``'s kept muscles (its last axis: (m,) or (frames, m))."""
-            return x if km is None else x[..., km]
+        if ineq is not None and sub.muscles is not None:  # the kept muscles' gains
+            ineq = o.TensionInequalities(
+                ineq.offset, kept(np.asarray(ineq.gain)), ineq.names, ineq.reserve_optimal
+            )
+        if ineq is not None:
+            common["inequalities"] = ineq
 
         if meth == "static_optimization":
             sol = o.solve_static_optimization_batch(
@@ -544,14 +623,6 @@ def optimise(
         )
         return lag.forces, lag.forces / np.maximum(fa, 1e-9), None
 
-    def widen(x: np.ndarray, keep: np.ndarray | None, width: int) -> np.ndarray:
-        """``x`` (frames, kept columns) in ``width`` columns, NaN in the left-out ones."""
-        if keep is None:
-            return x
-        out = np.full((x.shape[0], width), np.nan)
-        out[:, keep] = x
-        return out
-
     # with the knee compartment rows a block is solved in parts of SOLVE_BLOCK frames (its
     # Jacobian and the solver's arrays are a part's, and the rows' per-frame arrays: issue 18),
     # the warm start carried from part to part; each frame's QP is the same as in one call
@@ -576,35 +647,22 @@ def optimise(
                 slice(0, fr.size) if (pids == pid).all() else np.flatnonzero(pids == pid)
             )
             n_here = fr[where].size
-            keep_m = None if pid == 0 else ~drop_m[pid]
-            keep_c = None if pid == 0 else ~drop_c[pid]
+            sub = subs[pid]
             for part in solve_parts(n_here) if split else [slice(0, n_here)]:
                 at = part if isinstance(where, slice) else where[part]
                 f_idx = fr[at]
-                common: dict[str, Any] = {
-                    "time": time[f_idx],
-                    # a re-solve that reads the forces alone does not check them
-                    "compute_kkt": not forces_only,
-                }
-                if rows is not None and not knee_out[pid]:
-                    ineq = rows.take(at)
-                    if keep_m is not None:
-                        ineq = o.TensionInequalities(
-                            ineq.offset, np.asarray(ineq.gain)[:, :, keep_m], ineq.names,
-                            ineq.reserve_optimal,
-                        )  # fmt: skip
-                    common["inequalities"] = ineq
-                forces, acts, sol = solve(f_idx, common, pid)
-                forces = widen(forces, keep_m, n_mus)
+                ineq = None if rows is None or sub.knee_out else rows.take(at)
+                forces, acts, sol = solve(f_idx, sub, ineq)
+                forces = sub.widen_muscles(forces)
                 if block_forces is not None:
                     block_forces[at] = forces
                 else:
                     f_all[f_idx] = forces
                 if not forces_only:
-                    a_all[f_idx] = widen(acts, keep_m, n_mus)
+                    a_all[f_idx] = sub.widen_muscles(acts)
                 if sol is not None:
                     if rt is not None:
-                        rt[f_idx] = widen(sol.reserve_torques, keep_c, len(act_idx))
+                        rt[f_idx] = sub.widen_coordinates(sol.reserve_torques)
                     if frontal is not None and sol.inequality_reserves is not None:
                         frontal[f_idx] = sol.inequality_reserves
                     infeasible += int(sol.infeasible_frames.size)

@@ -351,6 +351,43 @@ def test_frames_of_a_compact_jacobian_equal_those_of_the_dense_one():
         assert finite_frames(sparse_j, cols)[3] == (nan_col not in cols)
 
 
+def test_moment_arm_pattern_finds_the_coordinates_each_muscle_crosses():
+    """``moment_arm_pattern``: (muscle, coordinate) with a nonzero finite moment arm in some of
+    the frames asked for — against the finite-difference Jacobian's (an estimate independent
+    of the analytic one), the same of a compact and a dense Jacobian, for a subset of frames
+    (indices or mask) and columns in any order; an entry zero or NaN in those frames is not
+    a moment arm."""
+    from msk.muscles.geometry import moment_arm_pattern
+    from msk.timeseries import FrameSparse
+
+    mdl = leg_with_muscles()
+    th = random_poses(mdl, 12, seed=5)
+    truth = (np.abs(fd_jacobian(mdl, th)) > 1e-6).any(axis=0)
+    assert truth.any() and not truth.all()  # the root coordinates carry every path
+    g = muscle_geometry(mdl, th, compact=True)
+    sparse_j = g.jacobian
+    assert isinstance(sparse_j, FrameSparse)
+    np.testing.assert_array_equal(moment_arm_pattern(sparse_j), truth)
+    np.testing.assert_array_equal(moment_arm_pattern(sparse_j[:]), truth)
+    # a stored entry nonzero in frame 5 only, another NaN in frame 5 and zero elsewhere
+    vals = sparse_j.values.copy()
+    nc = sparse_j.trailing[1]
+    (m0, c0), (m1, c1) = (divmod(int(p), nc) for p in sparse_j.positions[:2])
+    vals[:, 0], vals[5, 0] = 0.0, 0.03
+    vals[:, 1], vals[5, 1] = 0.0, np.nan
+    sparse_j = FrameSparse(vals, sparse_j.positions, sparse_j.trailing)
+    with_5, without_5 = np.array([7, 5, 0]), np.arange(12) != 5
+    cols = np.array([c1, c0, nc - 1])
+    for jac in (sparse_j, sparse_j[:]):
+        full = moment_arm_pattern(jac)
+        assert full[m0, c0] and not full[m1, c1]
+        assert moment_arm_pattern(jac, with_5)[m0, c0]
+        assert not moment_arm_pattern(jac, without_5)[m0, c0]
+        np.testing.assert_array_equal(moment_arm_pattern(jac, without_5, cols),
+                                      moment_arm_pattern(jac, without_5)[:, cols])  # fmt: skip
+        assert not moment_arm_pattern(jac, np.zeros(12, dtype=bool)).any()
+
+
 def test_tau_equals_minus_jacobian_transpose_force_against_pinocchio_rnea():
     """τ = −J_lᵀ f (seed 002 Eq. 7): the tension f of a straight muscle applied as two opposite
     point forces on its bodies gives, through Pinocchio's RNEA (no gravity, at rest), the same
