@@ -155,9 +155,9 @@ def _filtered_derivatives(
     The window's ends are the signal's ends: each is padded by the odd reflection of
     :func:`_reflect` before the zero-lag filter, as the trial's own ends are. A subject running
     through the capture volume is tracked for under a second of a longer trial; holding θ
-    constant outside that window (its velocity stepping to zero) would leave the filter a kink
-    at each end whose second derivative, spread over ≈ 1/f_c, is the running speed times
-    ≈ 2π f_c: 3,700–4,200 N of pelvis residual on UWA's Running_1 (4 m/s, 6 Hz)."""
+    constant outside that window (its velocity stepping to zero) leaves the filter a kink at
+    each end, which the zero-lag low-pass spreads into the accelerations over ≈ 1/f_c: 3,700–4,200
+    N of pelvis residual at the ends of UWA's Running_1 window (4.9 m/s, 6 Hz)."""
     bad = np.asarray(~np.isfinite(q).all(axis=1), dtype=bool)
     if bad.all():
         nan = np.full_like(q, np.nan)
