@@ -859,6 +859,7 @@ def _plate_state(
     c2 = p.cop[k] @ hz.T
     poly = None if p.corners is None else np.asarray(p.corners, dtype=float) @ hz.T
     on = np.zeros((k.size, nf), dtype=bool)
+    within = np.zeros((k.size, nf), dtype=bool)  # over the outline (or within the COP radius)
     near = np.full((k.size, nf), np.inf)
     slow_v = np.full((k.size, nf, 3), np.nan)
     for f, pts in enumerate(fpts):
@@ -872,11 +873,16 @@ def _plate_state(
                 inside = _inside_grown(p2, poly, crit.margin_m).any(axis=1)
             else:
                 inside = near[:, f] <= crit.cop_radius_m
+            within[:, f] = inside
             on[:, f] = inside & (low.min(axis=1) <= crit.floor_m)
             sp = np.linalg.norm(vel[f][k], axis=2)
             sp = np.where(np.isfinite(sp), sp, np.inf)
             j = np.argmin(sp, axis=1)
             slow_v[:, f] = vel[f][k][np.arange(k.size), j]
+    # the COP lies under the foot that bears the load: where the foot nearest it (of those over
+    # the plate) is off the surface, no farther foot stands on the plate in its place
+    nearest_within = np.argmin(np.where(within, near, np.inf), axis=1)
+    on[within.any(axis=1) & ~on[np.arange(k.size), nearest_within]] = False
     any_on = on.any(axis=1)
     surface_v = np.zeros(3)
     if any_on.any():
