@@ -879,11 +879,12 @@ def _plate_state(
             sp = np.where(np.isfinite(sp), sp, np.inf)
             j = np.argmin(sp, axis=1)
             slow_v[:, f] = vel[f][k][np.arange(k.size), j]
-    # the COP lies under the foot that bears the load: where the foot nearest it (of those over
-    # the plate) is off the surface, no farther foot stands on the plate in its place
+    # the foot nearest the COP of those over the plate, and the frames in which it is posed off
+    # the surface (swinging over the plate, or a stance foot whose pose is wrong)
+    i = np.arange(k.size)
     nearest_within = np.argmin(np.where(within, near, np.inf), axis=1)
-    on[within.any(axis=1) & ~on[np.arange(k.size), nearest_within]] = False
-    any_on = on.any(axis=1)
+    lifted = within[i, nearest_within] & ~on[i, nearest_within]
+    any_on = on.any(axis=1) & ~lifted
     surface_v = np.zeros(3)
     if any_on.any():
         nearest = np.argmin(np.where(on, near, np.inf), axis=1)
@@ -896,6 +897,10 @@ def _plate_state(
         with np.errstate(invalid="ignore"):
             s = np.linalg.norm(vel[f][k] - surface_v, axis=2)
         speed[:, f] = np.where(np.isfinite(s), s, np.inf).min(axis=1)
+    # the COP lies under the foot that bears the load: where the foot nearest it (of those over
+    # the plate) is posed off the surface but not swinging, no farther foot stands on the plate
+    # in its place (it is that foot's load and its pose is wrong, or a load no foot explains)
+    on[lifted & (speed[i, nearest_within] <= crit.speed_mps)] = False
     st = _standing(on, speed, near, crit.speed_mps)
     if poly is not None:
         # a foot known to stand beside the plate does not share its load with a foot on it
