@@ -348,7 +348,7 @@ def test_a_swinging_foot_does_not_take_the_load_of_a_stance_foot_posed_too_high(
     scaled too long) rises 12 cm off the surface over 0.2 s from ``lift`` s on, past the 10 cm
     floor test; the left foot swings low (sole ≤ 8 cm) over the plate at 2.4 m/s beside it and
     lands beyond it. The load is never given to the swinging left foot (as on the Grand
-    Challenge DM crouch treadmill's files, issue 15: 16 frames of a belt's load on the left
+    Challenge DM crouch treadmill's files, issue 15: 27 frames of a belt's load on the left
     foot): a short lift takes the right foot's label from the frames before it, a long one is
     flagged unassigned."""
     t = np.arange(0, 0.7, 1 / RATE)
