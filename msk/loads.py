@@ -19,7 +19,14 @@ for its points (origins of the foot bodies and their descendants, and their mark
 * it is not swinging over the plate: a foot whose slowest point moves faster than
   ``speed_mps`` does not stand on the plate while another foot on it is both slower and nearer
   the centre of pressure (a supporting foot is still, or rolls about the heel or the toes; a
-  swinging foot passing over the plate moves at metres per second).
+  swinging foot passing over the plate moves at metres per second);
+* the foot nearest the COP (of those whose floor projection passes the first test) is not
+  posed off the surface while slower than ``speed_mps``: the COP lies within the support of the
+  feet that bear the load, so a still foot at the COP whose pose is too high (the kinematics
+  of a leg scaled too long) is the one bearing it, and no farther foot stands on the plate in
+  its place. Without this, on a treadmill's belts (no outline: the COP radius, wide enough to
+  take the other foot) a foot swinging past at 3 m/s got a belt's load (the Grand Challenge
+  DM crouch walk's files, issue 15). Such frames are judged as frames with no foot on the plate.
 
 The outline test alone counts a foot swinging over the plate, or a foot standing on the next
 plate with its toes within the margin, as standing on it (overground gait, e.g. the Grand
@@ -850,15 +857,16 @@ def _plate_state(
 ) -> tuple[NDArray[np.bool_], NDArray[np.bool_], NDArray[np.int64], Array]:
     """Per frame of contact, which feet are over the plate ``p`` (N, F), which of them stand
     on it (N, F) and the standing one nearest the COP (N,) (-1: none); also the velocity of
-    the plate surface (3,). Module docstring: outline (or COP radius), surface height, swing
-    test with speeds relative to the plate surface (its velocity: the median velocity of the
-    slowest point of the foot nearest the COP — zero for a floor plate, the belt's for a
-    treadmill)."""
+    the plate surface (3,). Module docstring: outline (or COP radius), surface height, the
+    nearest foot's height, swing test with speeds relative to the plate surface (its velocity:
+    the median velocity of the slowest point of the foot nearest the COP, over the frames that
+    foot is on the surface — zero for a floor plate, the belt's for a treadmill)."""
     n, nf = p.contact.size, len(fpts)
     k = np.flatnonzero(p.contact)
     c2 = p.cop[k] @ hz.T
     poly = None if p.corners is None else np.asarray(p.corners, dtype=float) @ hz.T
     on = np.zeros((k.size, nf), dtype=bool)
+    within = np.zeros((k.size, nf), dtype=bool)  # over the outline (or within the COP radius)
     near = np.full((k.size, nf), np.inf)
     slow_v = np.full((k.size, nf, 3), np.nan)
     for f, pts in enumerate(fpts):
@@ -872,16 +880,22 @@ def _plate_state(
                 inside = _inside_grown(p2, poly, crit.margin_m).any(axis=1)
             else:
                 inside = near[:, f] <= crit.cop_radius_m
+            within[:, f] = inside
             on[:, f] = inside & (low.min(axis=1) <= crit.floor_m)
             sp = np.linalg.norm(vel[f][k], axis=2)
             sp = np.where(np.isfinite(sp), sp, np.inf)
             j = np.argmin(sp, axis=1)
             slow_v[:, f] = vel[f][k][np.arange(k.size), j]
-    any_on = on.any(axis=1)
+    # the foot nearest the COP of those over the plate, and the frames in which it is posed off
+    # the surface (swinging over the plate, or a stance foot whose pose is wrong)
+    i = np.arange(k.size)
+    nearest_within = np.argmin(np.where(within, near, np.inf), axis=1)
+    lifted = within[i, nearest_within] & ~on[i, nearest_within]
+    any_on = on.any(axis=1) & ~lifted
     surface_v = np.zeros(3)
     if any_on.any():
         nearest = np.argmin(np.where(on, near, np.inf), axis=1)
-        v = slow_v[np.arange(k.size), nearest][any_on]
+        v = slow_v[i, nearest][any_on]
         v = v[np.isfinite(v).all(axis=1)]
         if v.size:
             surface_v = np.median(v, axis=0)
@@ -890,6 +904,10 @@ def _plate_state(
         with np.errstate(invalid="ignore"):
             s = np.linalg.norm(vel[f][k] - surface_v, axis=2)
         speed[:, f] = np.where(np.isfinite(s), s, np.inf).min(axis=1)
+    # the COP lies under the foot that bears the load: where the foot nearest it (of those over
+    # the plate) is posed off the surface but not swinging, no farther foot stands on the plate
+    # in its place (it is that foot's load and its pose is wrong, or a load no foot explains)
+    on[lifted & (speed[i, nearest_within] <= crit.speed_mps)] = False
     st = _standing(on, speed, near, crit.speed_mps)
     if poly is not None:
         # a foot known to stand beside the plate does not share its load with a foot on it

@@ -339,6 +339,39 @@ def test_split_belt_treadmill_feet_on_own_belts_then_crossing():
     _both_ways(run)
 
 
+@pytest.mark.parametrize(
+    ("lift", "flagged"), [(0.3, []), (0.1, [("plate1", "unassigned", 0.27, 0.6)])]
+)
+def test_a_swinging_foot_does_not_take_the_load_of_a_stance_foot_posed_too_high(lift, flagged):
+    """A long plate (a single-belt treadmill, or both feet within the COP radius): the right
+    foot stands on it 0–0.6 s with the COP under it, but its pose (the kinematics of a leg
+    scaled too long) rises 12 cm off the surface over 0.2 s from ``lift`` s on, past the 10 cm
+    floor test; the left foot swings low (sole ≤ 8 cm) over the plate at 2.4 m/s beside it and
+    lands beyond it. The load is never given to the swinging left foot (as on the Grand
+    Challenge DM crouch treadmill's files, issue 15: 27 frames of a belt's load on the left
+    foot): a short lift takes the right foot's label from the frames before it, a long one is
+    flagged unassigned."""
+    t = np.arange(0, 0.7, 1 / RATE)
+    r_true = foot_path(t, [(0.0, 0.3, 0.09, 0.0), (0.7, 0.3, 0.09, 0.0)])
+    r_posed = r_true + np.outer(np.clip((t - lift) / 0.2, 0.0, 1.0), [0.0, 0.12, 0.0])
+    l_ = foot_path(t, [(0.0, -0.3, -0.09, 0.0)], swing(0.1, 0.6, -0.3, 0.9, -0.09, -0.09))
+    kin = kinematics(t, {"foot_r": r_posed, "foot_l": l_})
+    w_r = stance(t, (0.0, 0.6))
+
+    def run(on: bool) -> None:
+        pl = plate("plate1", t, [(w_r, r_true)], outline(on, 0.0, 0.7, -0.3, 0.3))
+        loads = external_loads(MODEL, kin, [pl])
+        assert "foot_l" not in loads.bodies
+        got = [(f.plate, f.reason, round(f.start_time, 2), round(f.end_time, 2))
+               for f in loads.flags]  # fmt: skip
+        assert got == flagged
+        off = loads.unassigned_contact
+        np.testing.assert_allclose(on_body(loads, "foot_r")[~off, 1], w_r[~off])
+        assert spans(loads)[0][:3] == ("plate1", "foot_r", 0.0)
+
+    _both_ways(run)
+
+
 def test_explicit_assignment_overrides_one_plate_and_explains_its_foot():
     """assignment= names one plate's body for all its frames (even a wrong-looking one); the
     other plate is still assigned automatically."""

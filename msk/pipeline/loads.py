@@ -29,7 +29,7 @@ __all__ = [
 #: How msk.loads assigns plate contacts to feet (recorded in summary.json, part of the cache key).
 PLATE_ASSIGNMENT = (
     "msk.loads: the foot standing on the plate (inside the outline, near the floor, not "
-    "swinging over it)"
+    "swinging over it; none while the still foot nearest the COP is posed off the surface)"
 )
 
 
