@@ -408,8 +408,13 @@ def test_identification_regressor_in_blocks_equals_one_pass(
     for x in ("_h", "_g", "_c"):
         a, b = getattr(one, x), getattr(many, x)
         np.testing.assert_allclose(b, a, rtol=0, atol=1e-12 * np.abs(a).max(), err_msg=x)
+    # (on the scale of the whole parameter vector, which the solver's stopping test is on:
+    # on a SkylakeX-kernel BLAS the humerus' mass moved 7e-6 kg, 4e-6 of itself)
+    scale = max(float(np.abs(phi).max()) for phi in one.parameters_.values())
     for name, phi in one.parameters_.items():
-        np.testing.assert_allclose(many.parameters_[name], phi, rtol=1e-6, atol=1e-9, err_msg=name)
+        np.testing.assert_allclose(
+            many.parameters_[name], phi, rtol=1e-6, atol=1e-6 * scale, err_msg=name
+        )
 
 
 def test_table_rows_formatted_in_blocks_are_the_same_text(

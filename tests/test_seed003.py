@@ -29,7 +29,10 @@ def test_seed003_tables_are_produced_by_one_call(real_dir, ref_dir):
         for t in tabs.values():
             assert t.row_names == THESIS_NAMES
             assert t.column_names == ("scaled/optimized", "emg/scaled", "emg/optimized")
-            assert np.isfinite(t.values).all() and (t.values > 0).all()
+            # +inf where the denominator's muscle is silent over the stance (OpenSim's static
+            # optimisation leaves RF at exactly 0 on some machines' round-off): "> 100" in the
+            # markdown; never NaN, never ≤ 0
+            assert not np.isnan(t.values).any() and (t.values > 0).all()
     for s in stances:
         for joint in ("knee", "ankle"):
             t = res.net[s][joint]

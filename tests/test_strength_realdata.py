@@ -143,12 +143,15 @@ def test_calibration_without_mvc_reaches_the_seed_r2(real_dir, ref_dir, tendon):
     ankle 0.954). Measured (2026-11-22), calibration / held-out r² knee, ankle: rigid 0.949,
     0.975 / 0.575, 0.086; elastic 0.957, 0.991 / 0.579, 0.446; knee-extensor factor 0.12–0.13.
     The held-out stance is worse than with [0.5, 2] (elastic 0.78 / 0.60): with one walk to
-    calibrate on, the freer scale over-fits — the held-out figures are the ones to quote."""
+    calibrate on, the freer scale over-fits — the held-out figures are the ones to quote.
+    The rigid tendon's fit is multimodal: with 3 starts another machine's round-off (SkylakeX
+    BLAS kernels, 2026-11-25) ended at knee r² 0.911; 6 starts of 200 iterations reach 0.945,
+    0.989 / 0.610, 0.597 there (elastic unchanged, 0.957, 0.991 / 0.592, 0.421)."""
     params, full = _load(real_dir, ref_dir)
     calib = _trial(full, 0.45, 1.30, "right stance 1 + swing")
     held_out = _trial(full, 1.30, 1.80, "right stance 2 (held out)")
     cal = EMGDrivenCalibration(
-        params, GROUPS, tendon=tendon, n_starts=3, max_iter=150, regularization=1e-2,
+        params, GROUPS, tendon=tendon, n_starts=6, max_iter=200, regularization=1e-2,
         random_state=0, bounds={"strength_factor": (0.1, 2.0)},
     ).fit([calib])  # fmt: skip
     fit, val = cal.result_.calibration, cal.validate([held_out])
