@@ -107,43 +107,37 @@ def _close(
     return abs(a - b) <= max(rtol * scale, floor) + 1e-300
 
 
-def compare(expected: dict[str, Any], actual: dict[str, Any], exact: bool = True) -> list[str]:
+def _column_ok(
+    ec: dict[str, Any], ac: dict[str, Any], rows: int, largest: float, exact: bool
+) -> bool:
+    floor = rows * float(np.finfo(float).eps) * largest  # round-off of the table
+    if exact:
+        scale = ec["max_abs"] or 0.0
+        return (
+            ec["n_finite"] == ac["n_finite"]
+            and all(_close(ec[k], ac[k], scale, floor) for k in ("max_abs", "sum", "sum_abs"))
+            and all(_close(u, v, scale, floor) for u, v in zip(ec["samples"], ac["samples"]))
+        )
+    scale = max(ec["max_abs"] or 0.0, 1e-3 * largest)
+    changed = abs(ec["n_finite"] - ac["n_finite"])
+    # a sum moves by up to a column's largest value per row that changed finite ↔ NaN
+    sum_tol = floor + RTOL_PORTABLE * (ec["sum_abs"] or 0.0) + changed * (ec["max_abs"] or 0.0)
+    return (
+        changed <= ROWS_PORTABLE * rows
+        and _close(ec["max_abs"], ac["max_abs"], scale, rtol=RTOL_PORTABLE)
+        and all(_close(ec[k], ac[k], 1.0, sum_tol, rtol=0.0) for k in ("sum", "sum_abs"))
+        and all(u is None or v is None or _close(u, v, scale, rtol=RTOL_PORTABLE)
+                for u, v in zip(ec["samples"], ac["samples"]))
+    )  # fmt: skip
+
+
+def compare(
+    expected: dict[str, Any], actual: dict[str, Any], exact: bool = True, values: bool = True
+) -> list[str]:
     """Differences of ``actual`` from ``expected`` beyond :data:`RTOL` (empty when equal);
     with ``exact=False`` beyond :data:`RTOL_PORTABLE` and :data:`ROWS_PORTABLE` (another
-    machine: the module docstring)."""
-    if not exact:
-        return _compare_portable(expected, actual)
-    out: list[str] = []
-    if expected["report_sections"] != actual["report_sections"]:
-        out.append(f"report sections {expected['report_sections']} → {actual['report_sections']}")
-    et, at = expected["tables"], actual["tables"]
-    if set(et) != set(at):
-        out.append(f"tables {sorted(et)} → {sorted(at)}")
-    for name in sorted(set(et) & set(at)):
-        e, a = et[name], at[name]
-        if e["rows"] != a["rows"] or list(e["columns"]) != list(a["columns"]):
-            out.append(f"{name}: shape or columns changed")
-            continue
-        largest = max((c["max_abs"] or 0.0 for c in e["columns"].values()), default=0.0)
-        floor = e["rows"] * float(np.finfo(float).eps) * largest  # round-off of the table
-        for col, ec in e["columns"].items():
-            ac = a["columns"][col]
-            scale = ec["max_abs"] or 0.0
-            ok = ec["n_finite"] == ac["n_finite"]
-            ok = ok and _close(ec["max_abs"], ac["max_abs"], scale, floor)
-            ok = ok and _close(ec["sum"], ac["sum"], scale, floor)
-            ok = ok and _close(ec["sum_abs"], ac["sum_abs"], scale, floor)
-            ok = ok and all(
-                _close(u, v, scale, floor) for u, v in zip(ec["samples"], ac["samples"])
-            )
-            if not ok:
-                out.append(f"{name}.{col}: {ec} → {ac}")
-    return out
-
-
-def _compare_portable(
-    expected: dict[str, Any], actual: dict[str, Any], values: bool = True
-) -> list[str]:
+    machine: the module docstring); with ``values=False`` the report's sections and the
+    tables' shapes and columns only."""
     out: list[str] = []
     if expected["report_sections"] != actual["report_sections"]:
         out.append(f"report sections {expected['report_sections']} → {actual['report_sections']}")
@@ -158,23 +152,10 @@ def _compare_portable(
         if not values:
             continue
         largest = max((c["max_abs"] or 0.0 for c in e["columns"].values()), default=0.0)
-        floor = e["rows"] * float(np.finfo(float).eps) * largest  # round-off of the table
         for col, ec in e["columns"].items():
             ac = a["columns"][col]
-            scale = max(ec["max_abs"] or 0.0, 1e-3 * largest)
-            ok = abs(ec["n_finite"] - ac["n_finite"]) <= ROWS_PORTABLE * e["rows"]
-            ok = ok and _close(ec["max_abs"], ac["max_abs"], scale, rtol=RTOL_PORTABLE)
-            # a sum moves by a column's largest value per row that changed finite ↔ NaN
-            per_row = floor + RTOL_PORTABLE * (ec["sum_abs"] or 0.0) + abs(
-                ec["n_finite"] - ac["n_finite"]) * (ec["max_abs"] or 0.0)  # fmt: skip
-            ok = ok and _close(ec["sum"], ac["sum"], 1.0, per_row, rtol=0.0)
-            ok = ok and _close(ec["sum_abs"], ac["sum_abs"], 1.0, per_row, rtol=0.0)
-            ok = ok and all(
-                u is None or v is None or _close(u, v, scale, rtol=RTOL_PORTABLE)
-                for u, v in zip(ec["samples"], ac["samples"])
-            )
-            if not ok:
-                out.append(f"{name}.{col} (portable): {ec} → {ac}")
+            if not _column_ok(ec, ac, e["rows"], largest, exact):
+                out.append(f"{name}.{col}{'' if exact else ' (portable)'}: {ec} → {ac}")
     return out
 
 
@@ -194,4 +175,4 @@ def check(config_stem: str, folder: Path) -> list[str]:
     expected = json.loads(path.read_text(encoding="utf-8"))
     if expected.get("environment") == env:
         return compare(expected, actual)
-    return _compare_portable(expected, actual, values=config_stem not in NOT_PORTABLE)
+    return compare(expected, actual, exact=False, values=config_stem not in NOT_PORTABLE)
