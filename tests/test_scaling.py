@@ -1147,6 +1147,105 @@ def test_squared_extrapolation_descends_as_far_in_fewer_passes(gait2392, monkeyp
     assert fast["descent_cost_m"][-1] <= plain["descent_cost_m"][-1] + 1e-5
 
 
+def _crouch_walk(gait2392, seed):
+    """A crouch walk (knees flexed 20–55°, mean 37°; hips 15–50°; ankles dorsiflexed 0–23°) with
+    gait2392's pelvis and foot markers only, the foot markers 21 mm from where gait2392 puts
+    them (the lab's: moved from the motion), and three-marker thigh and shank clusters with
+    4 mm of skin motion: DM's crouch marker set, no knee or ankle marker."""
+    clusters = {
+        f"{s}{seg}{k}": (f"{body}_{s.lower()}", (x, y, z if s == "R" else -z))
+        for s in ("R", "L")
+        for seg, body, pts in (
+            ("TH", "femur", ((0.03, -0.20, 0.07), (0.06, -0.28, 0.05), (0.00, -0.24, 0.08))),
+            ("TB", "tibia", ((0.04, -0.15, 0.05), (0.03, -0.22, 0.06), (0.06, -0.25, 0.03))),
+        )
+        for k, (x, y, z) in enumerate(pts, 1)
+    }  # fmt: skip
+    feet = [m.name for m in gait2392.markers if m.body.startswith("calcn")]
+    lab = np.array([0.015, 0.010, -0.012])  # the lab's foot markers: 21 mm off gait2392's
+    own = [Marker(m.name, m.body, np.asarray(m.offset) + (lab if m.name in feet else 0.0))
+           for m in gait2392.markers]  # fmt: skip
+    truth = gait2392.with_markers(
+        [*own, *(Marker(k, b, np.array(p)) for k, (b, p) in clusters.items())]
+    )
+    n = 160
+    th = np.repeat(gait2392.default_coordinates()[None], n, axis=0)
+    ph = np.linspace(0.0, 2 * np.pi, n)
+    c = gait2392.coordinate_names
+    for name, v in {
+        "pelvis_tx": np.linspace(0.0, 1.0, n),
+        "hip_flexion_r": 0.5 + 0.35 * np.sin(ph), "hip_flexion_l": 0.5 - 0.35 * np.sin(ph),
+        "knee_angle_r": -0.65 - 0.3 * np.cos(ph), "knee_angle_l": -0.65 + 0.3 * np.cos(ph),
+        "ankle_angle_r": 0.2 + 0.2 * np.sin(ph), "ankle_angle_l": 0.2 - 0.2 * np.sin(ph),
+        "hip_rotation_r": np.radians(8.0) * np.sin(ph + 1.0),
+        "hip_rotation_l": np.radians(8.0) * np.sin(ph - 1.0),
+    }.items():  # fmt: skip
+        th[:, c.index(name)] = v
+    rng = np.random.default_rng(seed)
+    x = marker_positions(truth, th) + rng.normal(0.0, 0.001, (n, len(truth.markers), 3))
+    labels = list(truth.marker_names)
+    for k in clusters:
+        x[:, labels.index(k)] += rng.normal(0.0, 0.004 / np.sqrt(3.0), (n, 3))
+    for i, m in enumerate(truth.markers):
+        if m.name not in clusters and not m.body.startswith(("pelvis", "calcn")):
+            x[:, i] = np.nan
+    knees = [c.index("knee_angle_r"), c.index("knee_angle_l")]
+    return x, labels, np.arange(n) / 100.0, feet, np.degrees(-th[:, knees].mean(axis=0))
+
+
+@pytest.mark.slow
+def test_the_pipelines_descent_does_not_stop_on_the_slope_of_a_crouch(gait2392):
+    """Issue 15, fourteenth pass: with no knee or ankle marker and the foot markers moved from
+    the motion (DM's crouch), the placement's descent creeps along a flat valley — more knee
+    flexion, lower cost — and the thirteenth pass's rule (stop when a round gains less than 2 %
+    of the cost) stopped it on the slope: DM's real crouch at a mean knee flexion of 28.5–34.0°
+    (right) depending on 0.05 mm of marker noise. On a synthetic crouch walk (knees 37.3° /
+    37.1° on average), descending to :data:`msk.pipeline.model.DESCENT_REL_TOLERANCE` (0.1 %)
+    fits the markers better than the 2 % rule (measured 4.9 mm against 7.8 mm) and ends each
+    knee nearer its truth (40.4° / 31.1° against 30.9° / 15.2°); the unperturbed and the noisy
+    (+ 0.1 mm) runs end within 1.5° of each other (1.1° measured). Not a unique minimum: the
+    descent is still falling at the left knee, and with another noise draw (``seed=7``,
+    measured, not asserted) the left leg starts in the extended basin and stays there (12°),
+    the right knees of the two runs 4.3° apart — nearer the truth and better fitted than the
+    2 % rule's all the same."""
+    from msk.kinematics import solve_kinematics
+    from msk.pipeline.model import DESCENT_MAX_ROUNDS, DESCENT_REL_TOLERANCE
+    from msk.scaling import (
+        place_markers_from_motion,
+        refine_placement_from_motion,
+        unobserved_knees_flexed,
+    )
+
+    x, labels, t, feet, truth = _crouch_walk(gait2392, seed=4)
+    kw = dict(max_frames=40, move=feet, median_neutral=("subtalar_angle_r", "subtalar_angle_l"))
+    c = gait2392.coordinate_names
+    knees = [c.index("knee_angle_r"), c.index("knee_angle_l")]
+
+    def descended(xr, tol):
+        seen = {}
+
+        def cost(model, info):
+            flexed = unobserved_knees_flexed(model, xr, labels, 10)
+            on = model.with_coordinate_ranges(flexed) if flexed else model
+            kin = solve_kinematics(on, xr, labels, t, cutoff_hz=None, min_markers=3)
+            seen["knee"] = np.degrees(-np.nanmean(kin.q_raw[:, knees], axis=0))
+            return float(np.nanmean(kin.marker_rms))
+
+        start = place_markers_from_motion(gait2392, xr, labels, t, regularize=True, **kw)
+        model, info = refine_placement_from_motion(
+            gait2392, xr, labels, t, start, cost, max_rounds=DESCENT_MAX_ROUNDS,
+            rel_tolerance=tol, **kw,
+        )  # fmt: skip
+        return cost(model, info), seen["knee"]
+
+    noisy = x + np.random.default_rng(5).normal(0.0, 1e-4, x.shape)
+    (c0, k0), (c1, k1) = (descended(xr, DESCENT_REL_TOLERANCE) for xr in (x, noisy))
+    early, k_early = descended(x, 2e-2)
+    assert early > max(c0, c1) + 0.002
+    assert (np.abs(k0 - truth) < np.abs(k_early - truth) - 3.0).all()
+    assert np.abs(k0 - k1).max() < 1.5
+
+
 def test_place_markers_from_motion_never_puts_a_sided_label_on_the_other_side(gait2392):
     """A marker labelled right (R_Midfoot_Medial) that rides on the left foot — as rigid there as
     a still right foot marker is on either still foot in a squat (issue 15, thirteenth pass:
