@@ -495,7 +495,6 @@ def foot_markers(labels: Sequence[str]) -> tuple[str, ...]:
 #: heel–ankle 0.86 mm); reconstructed points keep 0.00–0.03 mm. Not for a still trial: in PS's
 #: static, measured foot markers keep 0.03 mm
 RECONSTRUCTED_DISTANCE_SD_M = 1e-4
-RECONSTRUCTED_DISTANCE_SD_M = 1e-4
 
 
 def reconstructed_markers(
