@@ -1858,6 +1858,15 @@ def finite_frames(
     return out
 
 
+def _frame_indices(
+    frames: NDArray[np.bool_] | NDArray[np.intp] | None, n_frames: int
+) -> NDArray[np.intp]:
+    """Frame indices of ``frames``: a mask, indices, or None (all ``n_frames``)."""
+    if frames is None:
+        return np.arange(n_frames)
+    return np.flatnonzero(frames) if np.asarray(frames).dtype == bool else np.asarray(frames)
+
+
 def jacobian_frames(
     jacobian: Array | FrameSparse,
     frames: NDArray[np.bool_] | NDArray[np.intp],
@@ -1868,7 +1877,7 @@ def jacobian_frames(
     stored entries in ``columns`` put in place: no dense block of every coordinate). The
     result has numpy's memory layout of that expression (coordinate-major: the arithmetic
     downstream, whose summation order follows the strides, gives the same bits)."""
-    idx = np.flatnonzero(frames) if np.asarray(frames).dtype == bool else np.asarray(frames)
+    idx = _frame_indices(frames, jacobian.shape[0])
     cols = np.arange(jacobian.shape[2]) if columns is None else np.asarray(columns, np.intp)
     out = np.empty((cols.size, idx.size, jacobian.shape[1])).transpose(1, 2, 0)
     if isinstance(jacobian, FrameSparse):
@@ -1894,10 +1903,7 @@ def moment_arm_pattern(
     docstring: the moment arm is zero exactly where the Jacobian entry is). Block by block,
     without a dense copy; of a compact Jacobian its stored entries only (the others are 0)."""
     n_frames, n_mus, n = jacobian.shape
-    if frames is None:
-        idx = np.arange(n_frames)
-    else:
-        idx = np.flatnonzero(frames) if np.asarray(frames).dtype == bool else np.asarray(frames)
+    idx = _frame_indices(frames, n_frames)
     cols = np.arange(n) if columns is None else np.asarray(columns, np.intp)
     out = np.zeros((n_mus, cols.size), dtype=bool)
     if isinstance(jacobian, FrameSparse):

@@ -725,21 +725,15 @@ def leg_split(inputs: SessionInputs, trial: Any, built: Mapping[str, Any]) -> di
     # markers did not measure (issue 15, thirteenth pass)
     starts = dict(built["info"].get("scaling", {}).get("leg_starts", {}))
     free = {s: f for s, f in legs.items() if starts.get(f"leg_{s}", {}).get("determined") is False}
-    out = (
-        dict(
-            functional_leg_split(
-                model,
-                x,
-                labels,
-                {s: f for s, f in legs.items() if s not in free},
-                segments=segments,
+    out: dict[str, Any] = {}
+    for use_ankle in (False, True):
+        sides = {s: f for s, f in legs.items() if (s in free) == use_ankle}
+        if sides:
+            out.update(
+                functional_leg_split(
+                    model, x, labels, sides, segments=segments, use_ankle=use_ankle
+                )
             )
-        )
-        if len(free) < len(legs)
-        else {}
-    )
-    if free:
-        out.update(functional_leg_split(model, x, labels, free, segments=segments, use_ankle=True))
     return {s: out[s] for s in legs}
 
 
