@@ -27,6 +27,10 @@ Printed per session, at the pipeline's own kinematics, loads and masses (generic
 4. in flight runs of at least 20 frames: the COM of the unfiltered IK fitted by a parabola
    (its acceleration must be g: no external force), and each segment's share m_b (a_b − g).
 
+5. a known truth: the unfiltered IK low-passed at 20 Hz taken as the true motion θ_s, plates
+   reading exactly F = M (a_G(θ_s) − g); the pipeline's method, θ_s and F both low-passed at the
+   cut-off, leaves a residual where the truth has none: the share of the filter's domain alone.
+
 Diagnosis only: nothing here is chosen on these figures.
 """
 
@@ -42,6 +46,7 @@ import pinocchio as pin
 REPO = Path(__file__).resolve().parent.parent
 THRESHOLD_N = 20.0  # msk.loads' default contact threshold
 MIN_FLIGHT = 20  # frames of a flight run fitted by a parabola
+TRUTH_HZ = 20.0  # the known-truth motion: the unfiltered IK low-passed at this cut-off
 
 
 def _runs(mask: np.ndarray) -> list[tuple[int, int]]:
@@ -71,6 +76,29 @@ def _pct(x: np.ndarray, bw: float) -> str:
     per = 100 * np.sqrt(np.mean(x**2, axis=0)) / bw
     tot = 100 * np.sqrt(np.mean(x**2)) / bw
     return f"{tot:5.2f} (x {per[0]:.1f}, y {per[1]:.1f}, z {per[2]:.1f})"
+
+
+def known_truth(model: Any, kin: Any) -> np.ndarray:
+    """(N, 3) residual force of the pipeline's method on a known truth (item 5 of the module
+    docstring): zero but for low-passing θ instead of the COM."""
+    from msk.kinematics import kinematics_from_coordinates as wrap
+
+    t, names, cut = kin.time, kin.coordinate_names, kin.cutoff_hz
+    g = np.asarray(model.gravity, dtype=float)
+    xyz = ("x", "y", "z")
+
+    def com(theta: np.ndarray) -> np.ndarray:
+        coms, mass, _ = _segment_coms(model, theta)
+        out = np.einsum("njk,j->nk", np.nan_to_num(coms), mass) / mass.sum()
+        out[~np.isfinite(theta).all(axis=1)] = np.nan
+        return out
+
+    mass = sum(model.pin_model.inertias[j].mass for j in range(model.pin_model.njoints))
+    theta_s = wrap(t, kin.q_raw, names, cutoff_hz=TRUTH_HZ).q
+    force = mass * (wrap(t, com(theta_s), xyz, cutoff_hz=None).a - g)
+    force_f = wrap(t, force, xyz, cutoff_hz=cut).q
+    a_theta = wrap(t, com(wrap(t, theta_s, names, cutoff_hz=cut).q), xyz, cutoff_hz=None).a
+    return mass * (a_theta - g) - force_f
 
 
 def report(config: Path) -> None:
@@ -106,6 +134,10 @@ def report(config: Path) -> None:
     flight = ok & ~stance & ~(np.abs(ext.force_recorded @ up) > THRESHOLD_N)
     print(f"\n== {config.name}: {ok.sum()} frames (stance {stance.sum()}, flight {flight.sum()}), "
           f"θ cut-off {cut} Hz, BW {bw:.0f} N")  # fmt: skip
+    r_truth = known_truth(built.model, kin)
+    fin = ok & np.isfinite(r_truth).all(axis=1)
+    print(f"  known truth (θ_s = IK at {TRUTH_HZ:.0f} Hz, generic masses), θ_s and F low-passed: "
+          f"{_pct(r_truth[fin], bw)} (truth 0)")  # fmt: skip
     models = [("generic", built.model, dyn.generic)]
     if dyn.identified is not None and ident is not None:
         models.append(("identified", identified_model(built.model, ident), dyn.identified))
