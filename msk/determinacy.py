@@ -175,13 +175,13 @@ def placement_profile(
     shift_deg: float = PROFILE_SHIFT_DEG,
     stems: Sequence[str] = PROFILE_COORDINATE_STEMS,
 ) -> PlacementProfile:
-    """The profile (module docstring) of each coordinate of ``model`` named ``<stem>_r`` /
-    ``<stem>_l`` (``stems``) at ±``shift_deg``: ``fit`` the placement's frames with ``model``
-    (the reference poses; θ̄ their median), then with the ``free`` markers (placed or moved
-    from the motion) distal to the coordinate's joint gauge-shifted, warm-started at the
-    reference poses with the coordinate shifted. ``observed``: the markers the trial has (a
-    model marker it lacks observes nothing; counted neither free nor fixed). A coordinate
-    without a marker distal to its joint is left out."""
+    """The profile (module docstring) of each coordinate of ``model`` named ``<stem>``,
+    ``<stem>_r`` or ``<stem>_l`` (``stems``) at ±``shift_deg``: ``fit`` the placement's frames
+    with ``model`` (the reference poses; θ̄ their median), then with the ``free`` markers
+    (placed or moved from the motion) distal to the coordinate's joint gauge-shifted,
+    warm-started at the reference poses with the coordinate shifted. ``observed``: the
+    markers the trial has (a model marker it lacks observes nothing; counted neither free nor
+    fixed). A coordinate without a marker distal to its joint is left out."""
     q_ref, cost0 = fit(model, None)
     q_ref = np.asarray(q_ref, dtype=float)
     ok = np.isfinite(q_ref).all(axis=1)
@@ -192,8 +192,9 @@ def placement_profile(
     seen = set(observed)
     body_of: Mapping[str, str] = {mk.name: mk.body for mk in model.markers if mk.name in seen}
     out = []
-    for coord in (f"{s}{sfx}" for s in stems for sfx in ("_r", "_l")):
-        if coord not in model.coordinate_names:
+    wanted = set(stems)
+    for coord in model.coordinate_names:
+        if (coord[:-2] if coord.endswith(("_r", "_l")) else coord) not in wanted:
             continue
         ci = model.coordinate_index(coord)
         sub = set(model.subtree(_joint_child(model, coord)))
