@@ -54,7 +54,9 @@ def _not_determined(*coordinates: str) -> set[str]:
 #: no static trial, every marker below the hip placed from the motion: the mean knee flexion
 #: and ankle angle are not determined by the markers (msk.determinacy: a placement with them
 #: 5° away fits within 0.2 mm of task IK cost; the ankles' within 0.05 mm — every foot marker
-#: moved); DM crouch's hip flexions too; Rajagopal's knees are (its knee markers)
+#: moved); DM crouch's hip flexions too here (right −0.34 mm, left +0.10 mm: the left one's
+#: verdict flips under 0.01 mm of marker noise, so not asserted); Rajagopal's knees are
+#: determined (its knee markers)
 NOT_DETERMINED = _not_determined("knee_angle_r", "knee_angle_l", "ankle_angle_r", "ankle_angle_l")
 
 EXPECT: dict[str, dict] = {
@@ -68,8 +70,7 @@ EXPECT: dict[str, dict] = {
     # knee throughout; the legs scaled 5–6 % shorter than from the same subject's og1 walk)
     "gc6_DM_crouch_tm": {"ik_mm": 13, "res_pct": None,
                          "must": {"plate_mass_difference_pct", "residual_force_rms_pct_bw",
-                                  "leg_length_disagreement_pct_l", *NOT_DETERMINED,
-                                  *_not_determined("hip_flexion_r", "hip_flexion_l")},
+                                  "leg_length_disagreement_pct_l", *NOT_DETERMINED},
                          "may": None},
     "gc4_JW": {"ik_mm": 12, "res_pct": 5, "must": set(), "may": {"hip_flexion_l_deg"}},
     "opensim_subject01": {"ik_mm": 13, "res_pct": 4, "must": set(), "may": set()},
