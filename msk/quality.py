@@ -637,13 +637,15 @@ def model_flags(
         c = dict(det["coordinates"][name])
         dc, dm = c["cost_change_m"], c["mean_change_deg"]
         k = int(np.argmin(dc))
+        why = "every marker distal to its joint placed from the motion; " if not c.get(
+            "fixed_markers") else ""  # fmt: skip
         out.append(
             _flag(trial, f"placement_not_determined_{name}", float(dc[k]), tol,
                   f"mean {name} {c['mean_deg']:.1f}° not determined by the markers (no static "
                   f"trial): a placement with it {dm[k]:+.1f}° away fits the task's markers "
-                  f"{'as well' if dc[k] >= 0 else 'better'} (IK cost {1000 * dc[k]:+.3f} mm, "
-                  f"within {1000 * tol:.1f} mm or below; every marker distal to the joint is "
-                  "placed from the motion; msk.determinacy)")
+                  f"{'as well' if dc[k] >= 0 else 'better'} (task IK cost {1000 * dc[k]:+.3f} "
+                  f"mm; a change under {1000 * tol:.1f} mm is one the placement cannot resolve; "
+                  f"{why}msk.determinacy)")
         )  # fmt: skip
     return out
 
