@@ -632,6 +632,12 @@ def model_flags(
                       "uncertain by that much (no static trial; msk.leg_split)")
             )  # fmt: skip
     det = dict(info.get("placement_determinacy") or {})
+    if det.get("not_run"):
+        out.append(
+            _flag(trial, "placement_determinacy_not_run", 1.0, 0.0,
+                  f"what the placement from the motion determines was not checked: "
+                  f"{det['not_run']} (msk.determinacy)")
+        )  # fmt: skip
     tol = float(det.get("tolerance_m", 0.0))
     for name in det.get("not_determined", ()):
         c = dict(det["coordinates"][name])

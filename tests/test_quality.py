@@ -467,3 +467,5 @@ def test_a_leg_coordinate_the_placement_does_not_determine_is_flagged():
     assert flag.value == pytest.approx(-3e-5) and flag.threshold == pytest.approx(2e-4)
     assert "not determined by the markers (no static trial)" in flag.message
     assert "-4.9°" in flag.message and "better" in flag.message
+    (flag,) = model_flags("t", {"placement_determinacy": {"not_run": "no frame fitted"}}, [])
+    assert flag.quantity == "placement_determinacy_not_run" and "no frame fitted" in flag.message

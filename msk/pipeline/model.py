@@ -1038,7 +1038,7 @@ def placement_determinacy(
     model carries, the free markers those the placement placed or moved, the cost's resolution
     :data:`CHOICE_TOLERANCE_M` (a cost change the choice itself does not tell from a tie) —
     ``summary.json`` ``model.placement_determinacy`` (its quality flag:
-    :func:`msk.quality.model_flags`)."""
+    :func:`msk.quality.model_flags`); ``{"not_run": why}`` when the frames cannot be fitted."""
     from msk.determinacy import placement_profile
 
     x, t, labels = _choice_frames(read.trial, built)
@@ -1053,7 +1053,11 @@ def placement_determinacy(
         return placement_fit(m, x, t, labels, weights, markers, initial_q=q0)
 
     free = [*dict(mp.get("moved", {})), *dict(mp.get("placed", {}))]
-    return placement_profile(model, fit, free, observed, tolerance_m=CHOICE_TOLERANCE_M).summary()
+    try:
+        profile = placement_profile(model, fit, free, observed, tolerance_m=CHOICE_TOLERANCE_M)
+    except ModelError as exc:  # reported (and flagged), not a failed model stage
+        return {"not_run": str(exc)}
+    return profile.summary()
 
 
 def _functional(split: Mapping[str, Any]) -> dict[str, float]:
