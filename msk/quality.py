@@ -48,6 +48,11 @@ Thresholds and their sources (:data:`THRESHOLDS`):
 * Static-trial markers whose distances to the markers of their own segment disagree with the
   motion trial's by more than 25 mm (median over at least 3 partners,
   :func:`inconsistent_static_markers`): a mislabelled, swapped or ghost marker in the static.
+* No static trial: a leg coordinate whose mean over the task the marker placement does not
+  determine — a placement with it ~5° away (:data:`msk.determinacy.PROFILE_SHIFT_DEG`, the
+  error above which a gait measurement "should raise concern", McGinley et al. 2009) fits the
+  markers within 0.2 mm of task IK cost or better (:func:`msk.determinacy.placement_profile`,
+  the resolution the placement's own choice has: ``msk.pipeline.model.CHOICE_TOLERANCE_M``).
 """
 
 from __future__ import annotations
@@ -594,7 +599,11 @@ def model_flags(
     scale, and the tibia's (the rest of the leg), are uncertain by that much. Both are true of
     the synthetic DM walks of issue 15's thirteenth pass, the second of DM's real crouch trial
     (left leg +7.7 %; its legs scaled 5–6 % shorter than by the same subject's overground
-    walk); neither of DM's overground and treadmill walks (≤ 2.5 %)."""
+    walk); neither of DM's overground and treadmill walks (≤ 2.5 %). And a leg coordinate whose
+    mean the placement does not determine (``placement_determinacy``,
+    :func:`msk.determinacy.placement_profile`: a placement with it shifted by about
+    :data:`msk.determinacy.PROFILE_SHIFT_DEG` fits the markers within the cost's resolution or
+    better; value: the cost change, m; threshold: that resolution)."""
     th = {**THRESHOLDS, **thresholds}
     out: list[Flag] = []
     placed = (info.get("marker_placement") or {}).get("placed") or {}
@@ -622,6 +631,28 @@ def model_flags(
                       "model was scaled to: the leg's and the tibia's scale factors are "
                       "uncertain by that much (no static trial; msk.leg_split)")
             )  # fmt: skip
+    det = dict(info.get("placement_determinacy") or {})
+    if det.get("not_run"):
+        out.append(
+            _flag(trial, "placement_determinacy_not_run", 1.0, 0.0,
+                  f"what the placement from the motion determines was not checked: "
+                  f"{det['not_run']} (msk.determinacy)")
+        )  # fmt: skip
+    tol = float(det.get("tolerance_m", 0.0))
+    for name in det.get("not_determined", ()):
+        c = dict(det["coordinates"][name])
+        dc, dm = c["cost_change_m"], c["mean_change_deg"]
+        k = int(np.argmin(dc))
+        why = "every marker distal to its joint placed from the motion; " if not c.get(
+            "fixed_markers") else ""  # fmt: skip
+        out.append(
+            _flag(trial, f"placement_not_determined_{name}", float(dc[k]), tol,
+                  f"mean {name} {c['mean_deg']:.1f}° not determined by the markers (no static "
+                  f"trial): a placement with it {dm[k]:+.1f}° away fits the task's markers "
+                  f"{'as well' if dc[k] >= 0 else 'better'} (task IK cost {1000 * dc[k]:+.3f} "
+                  f"mm; a change under {1000 * tol:.1f} mm is one the placement cannot resolve; "
+                  f"{why}msk.determinacy)")
+        )  # fmt: skip
     return out
 
 

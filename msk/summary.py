@@ -290,9 +290,11 @@ class ModelInfo(_Record):
     """``model``: the model file, generic and scaled mass (kg), muscles (count), what
     scaling and marker placement did (JSON objects as :mod:`msk.scaling` reports them), the
     femur : tibia split of a leg without knee or ankle markers (``leg_split``: side →
-    :meth:`msk.leg_split.LegSplit.summary`, which split each side got and why) and the
+    :meth:`msk.leg_split.LegSplit.summary`, which split each side got and why), the
     part of the static trial used (``static_window``,
-    :meth:`msk.static_window.StillWindow.summary`)."""
+    :meth:`msk.static_window.StillWindow.summary`) and, without a static trial, which leg
+    coordinates' means the placement from the motion does not determine
+    (``placement_determinacy``, :meth:`msk.determinacy.PlacementProfile.summary`)."""
 
     source: str | None = None
     generic_mass_kg: float | None = None
@@ -306,6 +308,7 @@ class ModelInfo(_Record):
     muscles: int | None = None
     static_window: JsonObject | None = None
     leg_split: JsonObject | None = None
+    placement_determinacy: JsonObject | None = None
 
 
 @dataclass(frozen=True, kw_only=True)

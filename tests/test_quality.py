@@ -447,3 +447,25 @@ def test_a_leg_whose_two_length_measures_disagree_is_flagged(functional, flagged
     if flagged:
         assert flags[0].value == pytest.approx(100 * abs(functional / 0.78 - 1))
         assert flags[0].threshold == THRESHOLDS["leg_length_disagreement_pct"]
+
+
+def test_a_leg_coordinate_the_placement_does_not_determine_is_flagged():
+    """``model.placement_determinacy`` (msk.determinacy): a flag per coordinate it lists as not
+    determined, its value the smaller cost change (a better fit: negative), its threshold the
+    profile's tolerance, its message the coordinate, the shift and "not determined by the
+    markers"; a coordinate with no flat direction found raises nothing."""
+    from msk.determinacy import CoordinateProfile, PlacementProfile
+    from msk.quality import model_flags
+
+    coords = (
+        CoordinateProfile("knee_angle_r", -0.5, (0.084, -0.085), (1.2e-4, -3e-5), 10, 0),
+        CoordinateProfile("hip_flexion_r", 0.4, (0.08, -0.08), (6e-4, 9e-4), 13, 0),
+    )
+    info = {"placement_determinacy": PlacementProfile(0.087, 2e-4, 120, 0.007, coords).summary()}
+    (flag,) = model_flags("t", info, [])
+    assert flag.trial == "t" and flag.quantity == "placement_not_determined_knee_angle_r"
+    assert flag.value == pytest.approx(-3e-5) and flag.threshold == pytest.approx(2e-4)
+    assert "not determined by the markers (no static trial)" in flag.message
+    assert "-4.9°" in flag.message and "better" in flag.message
+    (flag,) = model_flags("t", {"placement_determinacy": {"not_run": "no frame fitted"}}, [])
+    assert flag.quantity == "placement_determinacy_not_run" and "no frame fitted" in flag.message

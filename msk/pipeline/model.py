@@ -43,6 +43,8 @@ __all__ = [
     "load_model_file",
     "model_frame_columns",
     "placement_cost",
+    "placement_determinacy",
+    "placement_fit",
     "placement_frames",
     "run",
     "settings",
@@ -801,19 +803,21 @@ def placement_frames(markers: Any, max_frames: int = CHOICE_MAX_FRAMES) -> np.nd
     return well[np.round(np.linspace(0, well.size - 1, m)).astype(int)]
 
 
-def placement_cost(
+def placement_fit(
     model: Any, x: np.ndarray, time: np.ndarray, labels: Sequence[str],
     weights: Mapping[str, float], markers: Sequence[str],
     loose: Mapping[str, tuple[str, Sequence[float]]] | None = None,
-) -> float:  # fmt: skip
-    """The task's inverse kinematics cost of a placed model (m): the kinematics stage's IK
-    (:func:`msk.pipeline.kinematics.solve_trial`: the configured marker weights, the held foot
-    coordinates, physiological knee ranges; no filter) of the frames ``x`` (model frame), then
-    the weighted RMS over ``markers`` of each frame's distances, averaged over the frames — the
-    quantity the task's IK minimises, on one marker set for every candidate compared. A
-    marker of ``markers`` the model does not carry (left out as too loose: ``loose``, name →
-    (body, offset)) is measured at the pose the others give, so that dropping a marker does
-    not lower the cost by itself."""
+    initial_q: np.ndarray | None = None,
+) -> tuple[np.ndarray, float]:  # fmt: skip
+    """The task's inverse kinematics of a placed model on the frames ``x`` (model frame) and
+    its cost (m): the kinematics stage's IK (:func:`msk.pipeline.kinematics.solve_trial`: the
+    configured marker weights, the held foot coordinates, physiological knee ranges; no filter;
+    ``initial_q`` its warm start), then the weighted RMS over ``markers`` of each frame's
+    distances, averaged over the frames — the quantity the task's IK minimises, on one marker
+    set for every candidate compared. A marker of ``markers`` the model does not carry (left
+    out as too loose: ``loose``, name → (body, offset)) is measured at the pose the others
+    give, so that dropping a marker does not lower the cost by itself. Returns the poses
+    (``q_raw``, NaN rows for frames not solved) and the cost (inf when nothing is solved)."""
     from types import SimpleNamespace
 
     from msk.model import Marker, frame_placements
@@ -823,24 +827,34 @@ def placement_cost(
     held = held_foot_coordinates(final, x, tuple(labels))
     kin = solve_trial(
         final, SimpleNamespace(markers=x, time=time), tuple(labels), weights=weights,
-        held=held, cutoff_hz=None,
+        held=held, cutoff_hz=None, initial_q=initial_q,
     )  # fmt: skip
     extra = [Marker(k, b, np.asarray(o, dtype=float)) for k, (b, o) in (loose or {}).items()
              if k not in set(final.marker_names)]  # fmt: skip
     scored = final.with_markers([*final.markers, *extra]) if extra else final
     names = list(scored.marker_names)
     use = [m for m in markers if m in names and m in labels]
-    ok = np.isfinite(kin.q_raw).all(axis=1)
+    q = np.asarray(kin.q_raw, dtype=float)
+    ok = np.isfinite(q).all(axis=1)
     if not use or not ok.any():
-        return float("inf")
-    _, pos = frame_placements(scored, kin.q_raw[ok], [scored.marker_frame[m] for m in use])
+        return q, float("inf")
+    _, pos = frame_placements(scored, q[ok], [scored.marker_frame[m] for m in use])
     meas = x[ok][:, [list(labels).index(m) for m in use]]
     d2 = ((pos - meas) ** 2).sum(axis=2)
     w = np.array([float(weights.get(m, 1.0)) for m in use])[None, :] * np.isfinite(d2)
     den = w.sum(axis=1)
     fine = den > 0
     per_frame = np.sqrt(np.where(w > 0, np.nan_to_num(d2) * w, 0.0)[fine].sum(axis=1) / den[fine])
-    return float(per_frame.mean()) if per_frame.size else float("inf")
+    return q, float(per_frame.mean()) if per_frame.size else float("inf")
+
+
+def placement_cost(
+    model: Any, x: np.ndarray, time: np.ndarray, labels: Sequence[str],
+    weights: Mapping[str, float], markers: Sequence[str],
+    loose: Mapping[str, tuple[str, Sequence[float]]] | None = None,
+) -> float:  # fmt: skip
+    """The task's inverse kinematics cost of a placed model (m): :func:`placement_fit`'s."""
+    return placement_fit(model, x, time, labels, weights, markers, loose)[1]
 
 
 def choose_placement(
@@ -888,16 +902,9 @@ def choose_placement(
 
     Returns the chosen ``_scale_and_place`` result and the record of the choice
     (``summary.json`` ``model.placement_choice``)."""
-    from msk.markersets import zeros_as_gaps
     from msk.scaling import place_markers_from_motion, refine_placement_from_motion
 
-    trial = read.trial
-    idx = placement_frames(trial.markers)
-    rot = np.asarray(built["rotation"], dtype=float)
-    x = zeros_as_gaps(np.asarray(trial.markers, dtype=float)[idx] @ rot.T)
-    t = np.asarray(trial.time, dtype=float)[idx]
-    inv = {v: k for k, v in built["rename"].items()}
-    labels = tuple(inv.get(lab, lab) for lab in trial.marker_labels)
+    x, t, labels = _choice_frames(read.trial, built)
     weights = dict(inputs.cfg.marker_weights)
 
     def starts() -> list[tuple[dict[str, Any], dict[str, Any]]]:
@@ -1000,11 +1007,57 @@ def choose_placement(
     record = {
         "objective": "task IK (weights, held feet, no filter): weighted marker RMS over every "
         "marker a candidate places, mean over frames",
-        "frames": int(idx.size),
+        "frames": int(t.size),
         "candidates": records,
         "chosen": best,
     }
     return results[best], record
+
+
+def _choice_frames(
+    trial: Any, built: Mapping[str, Any]
+) -> tuple[np.ndarray, np.ndarray, tuple[str, ...]]:
+    """The frames the choice among motion placements is judged on (:func:`placement_frames`)
+    in the model frame (exact zeros as gaps), their times and the labels in model names."""
+    from msk.markersets import zeros_as_gaps
+
+    idx = placement_frames(trial.markers)
+    rot = np.asarray(built["rotation"], dtype=float)
+    x = zeros_as_gaps(np.asarray(trial.markers, dtype=float)[idx] @ rot.T)
+    t = np.asarray(trial.time, dtype=float)[idx]
+    inv = {v: k for k, v in built["rename"].items()}
+    return x, t, tuple(inv.get(lab, lab) for lab in trial.marker_labels)
+
+
+def placement_determinacy(
+    inputs: SessionInputs, read: ReadResult, built: Mapping[str, Any]
+) -> dict[str, Any]:
+    """What the chosen motion placement (no static trial; ``built``) leaves undetermined:
+    :func:`msk.determinacy.placement_profile` of its leg coordinates on the choice's frames
+    (:func:`placement_frames`), fitted as :func:`placement_fit` fits them on the markers the
+    model carries, the free markers those the placement placed or moved, the cost's resolution
+    :data:`CHOICE_TOLERANCE_M` (a cost change the choice itself does not tell from a tie) —
+    ``summary.json`` ``model.placement_determinacy`` (its quality flag:
+    :func:`msk.quality.model_flags`); ``{"not_run": why}`` when the frames cannot be fitted."""
+    from msk.determinacy import placement_profile
+
+    x, t, labels = _choice_frames(read.trial, built)
+    weights = dict(inputs.cfg.marker_weights)
+    model = built["model"]
+    mp = dict(built["info"].get("marker_placement", {}))
+    markers = sorted(set(model.marker_names) & set(labels))
+    seen = np.isfinite(x).all(axis=-1).any(axis=0)
+    observed = [lab for k, lab in enumerate(labels) if seen[k]]
+
+    def fit(m: Any, q0: np.ndarray | None) -> tuple[np.ndarray, float]:
+        return placement_fit(m, x, t, labels, weights, markers, initial_q=q0)
+
+    free = [*dict(mp.get("moved", {})), *dict(mp.get("placed", {}))]
+    try:
+        profile = placement_profile(model, fit, free, observed, tolerance_m=CHOICE_TOLERANCE_M)
+    except ModelError as exc:  # reported (and flagged), not a failed model stage
+        return {"not_run": str(exc)}
+    return profile.summary()
 
 
 def _functional(split: Mapping[str, Any]) -> dict[str, float]:
@@ -1045,6 +1098,7 @@ def run(inputs: SessionInputs, read: ReadResult) -> BuiltModel:
 
         built, choice = choose_placement(inputs, read, built, split_of)
         built["info"]["placement_choice"] = choice
+        built["info"]["placement_determinacy"] = placement_determinacy(inputs, read, built)
         split = measured.get("split")
         chosen = choice["candidates"][choice["chosen"]]
         if split is not None and _functional(split) and not chosen["leg_split"]:

@@ -1428,6 +1428,32 @@ def _scaling_note(model: Any) -> str:
     return _e(text)
 
 
+def _placement_note(model: Any) -> str:
+    """Which leg coordinates' means a placement from the motion leaves undetermined
+    (``summary.json`` ``model.placement_determinacy``), escaped HTML; "" without one."""
+    det = dict((model.placement_determinacy or {}) if model is not None else {})
+    coords = dict(det.get("coordinates") or {})
+    if not coords:
+        return ""
+    tol_mm = 1000 * float(det.get("tolerance_m", 0.0))
+
+    def part(name: str, c: Mapping[str, Any]) -> str:
+        dm = [float(v) for v in c.get("mean_change_deg", ())]
+        dc = [1000 * float(v) for v in c.get("cost_change_m", ())]
+        shifts = ", ".join(f"{m:+.1f}° → {d:+.3f} mm" for m, d in zip(dm, dc))
+        return f"{name} {float(c.get('mean_deg', 0.0)):.1f}° ({shifts}): {c.get('status')}"
+
+    text = (
+        "Marker placement from the task (no static trial): each leg coordinate's mean shifted "
+        f"by ±{float(det.get('shift_deg', 0.0)):g}° with the markers distal to its joint kept "
+        "in place, the task's frames refitted (change of the mean → change of the task IK "
+        f"cost; within {tol_mm:.1f} mm or below: not determined by the markers): "
+        + "; ".join(part(n, c) for n, c in coords.items())
+        + "."
+    )
+    return _e(text)
+
+
 def _methods_section(res: SessionResults, number: int = 6, *, gait: bool = True) -> str:
     s = res.summary
     out = [f"<h2>{number}. Methods, stages and software</h2>"]
@@ -1457,6 +1483,9 @@ def _methods_section(res: SessionResults, number: int = 6, *, gait: bool = True)
         scaling_note = _scaling_note(s.model)
         if scaling_note:
             out.append(f'<p class="note">{scaling_note}</p>')
+        placement_note = _placement_note(s.model)
+        if placement_note:
+            out.append(f'<p class="note">{placement_note}</p>')
         win = s.model.static_window if s.model is not None else None
         if win:
             rule = (
