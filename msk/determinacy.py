@@ -59,9 +59,12 @@ __all__ = [
 #: from one 5° away is not a measurement
 PROFILE_SHIFT_DEG = 5.0
 
-#: the leg coordinates profiled (gait2392 / Rajagopal stems, each side): the sagittal angles
-#: whose means a report reads
-PROFILE_COORDINATE_STEMS = ("hip_flexion", "knee_angle", "ankle_angle")
+#: the leg coordinates profiled (gait2392 / Rajagopal stems, each side): the angles whose means
+#: a report reads; the hip's three (a thigh cluster's rotation about the femur is the same kind
+#: of gauge as a shank cluster's about the knee)
+PROFILE_COORDINATE_STEMS = (
+    "hip_flexion", "hip_adduction", "hip_rotation", "knee_angle", "ankle_angle",
+)  # fmt: skip
 
 #: a fit of the placement's frames: (model, initial poses (N, n) or None) → (poses (N, n) with
 #: NaN rows where a frame is not solved, cost in m)

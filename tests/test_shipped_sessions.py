@@ -43,21 +43,27 @@ CONFIGS = sorted((REPO / "pipelines").glob("*.toml"))
 #: flags allowed (true findings on these data); None: any
 #: gates whose value sits near its threshold on some sessions: a last-digit difference on
 #: another machine may raise them; never asserted absent
+#: (the hip adductions' placement profiles: 0.16–0.36 mm of cost for 5° on UWA fast walking,
+#: around the 0.2 mm tolerance)
 BORDERLINE = {"residual_moment_rms_pct_com_height_peak_force", "residual_force_rms_pct_bw",
-              "optimization_excluded_frames"}  # fmt: skip
+              "optimization_excluded_frames", "placement_not_determined_hip_adduction_r",
+              "placement_not_determined_hip_adduction_l"}  # fmt: skip
 
 
 def _not_determined(*coordinates: str) -> set[str]:
     return {f"placement_not_determined_{c}" for c in coordinates}
 
 
-#: no static trial, every marker below the hip placed from the motion: the mean knee flexion
-#: and ankle angle are not determined by the markers (msk.determinacy: a placement with them
-#: 5° away fits within 0.2 mm of task IK cost; the ankles' within 0.05 mm — every foot marker
-#: moved); DM crouch's hip flexions too here (right −0.34 mm, left +0.10 mm: the left one's
-#: verdict flips under 0.01 mm of marker noise, so not asserted); Rajagopal's knees are
+#: no static trial, every marker below the hip placed from the motion: the mean knee flexion,
+#: ankle angle and hip rotation are not determined by the markers (msk.determinacy: a placement
+#: with them 5° away fits within 0.2 mm of task IK cost; the ankles' within 0.05 mm — every foot
+#: marker moved); DM crouch's hip flexions too here (right −0.34 mm, left +0.10 mm: the left
+#: one's verdict flips under 0.01 mm of marker noise, so not asserted); Rajagopal's knees are
 #: determined (its knee markers)
-NOT_DETERMINED = _not_determined("knee_angle_r", "knee_angle_l", "ankle_angle_r", "ankle_angle_l")
+NOT_DETERMINED = _not_determined(
+    "knee_angle_r", "knee_angle_l", "ankle_angle_r", "ankle_angle_l", "hip_rotation_r",
+    "hip_rotation_l",
+)  # fmt: skip
 
 EXPECT: dict[str, dict] = {
     "gc5_PS": {"ik_mm": 9, "res_pct": 5, "must": set(), "may": set()},
