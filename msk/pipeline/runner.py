@@ -19,6 +19,7 @@ import hashlib
 import json
 import time
 import traceback
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, TextIO
@@ -145,9 +146,13 @@ class Runner:
         reads: tuple[str, ...] = (),
         settings: Any = None,
         cache: bool = True,
+        to_cache: Callable[[Any], Any] | None = None,
+        from_cache: Callable[[Any], Any] | None = None,
     ) -> Any:
         """Run ``fn()`` as stage ``name``: not available when a stage of ``needs`` is missing;
-        the key holds the keys of ``needs`` and of the optional ``reads`` that ran."""
+        the key holds the keys of ``needs`` and of the optional ``reads`` that ran. ``to_cache``
+        and ``from_cache`` (optional, together): the value's form in the cache and back — the
+        cache keeps ``to_cache(value)``, a hit gives ``from_cache`` of what it kept."""
         t0 = time.perf_counter()
         missing = [n for n in needs if n not in self.keys]
         if missing:
@@ -158,6 +163,11 @@ class Runner:
         store = self.cache if cache else None
         if store is not None:
             hit, value = store.load(name, key)
+            if hit and from_cache is not None:
+                try:
+                    value = from_cache(value)
+                except Exception:  # an entry that does not make a value: computed again
+                    hit, value = False, None
             if hit:
                 self.keys[name] = key
                 self._record(StageRecord(name, "cached", time.perf_counter() - t0, "", key))
@@ -190,8 +200,10 @@ class Runner:
             self._record(StageRecord(name, "failed", time.perf_counter() - t0, msg, key))
             return None
         note = ""
-        if store is not None and not store.save(name, key, value):
-            note = store.last_reason  # e.g. the model stage: a Model is not storable
+        if store is not None and not store.save(
+            name, key, value if to_cache is None else to_cache(value)
+        ):
+            note = store.last_reason  # e.g. a long trial's model stage (graph.model_to_cache)
         self.keys[name] = key
         self._record(StageRecord(name, "computed", time.perf_counter() - t0, note, key))
         return value
