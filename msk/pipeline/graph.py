@@ -84,6 +84,7 @@ class Node:
     requested: Callable[[SessionInputs], str | None] | None = None
     to_cache: Callable[[Any], Any] | None = None
     from_cache: Callable[[Any], Any] | None = None
+    cached: bool = False
 
     @property
     def parameters(self) -> tuple[str, ...]:
@@ -142,6 +143,8 @@ GRAPH: tuple[Node, ...] = (
          ("mass_identification", "emg", "strength_identification", "measured_contact"),
          settings=contact.settings),
     Node("gait_cycle", cycle.run, _ALL, ("knee_contact",), recorded=False),
+    Node("joint_strength", summary.joint_strength, (), ("model", "strength_identification"),
+         settings=summary.joint_strength_settings, recorded=False, cached=True),
     Node("comparison", comparison.run, ("loads", "inverse_dynamics"),
          ("knee_contact", "strength_identification", "gait_cycle")),
     Node("fes", fes.run, settings=fes.settings, gait=False, requested=fes.requested),
@@ -152,7 +155,7 @@ GRAPH: tuple[Node, ...] = (
     Node("summary", summary.run, (),
          (*_ALL, "mass_identification", "inverse_dynamics", "emg",
           "tension_optimization", "strength_identification", "gait_cycle", "comparison", "fes",
-          "swapped_markers"),
+          "swapped_markers", "joint_strength"),
          recorded=False, gait=False),
     Node("report", report.run, ("tables", "summary"), settings=report.settings, core=True,
          gait=False),
@@ -250,13 +253,15 @@ def run_graph(
         def call(node: Node = node) -> Any:
             return _call(node.run, inputs, results)
 
-        if not node.recorded:
-            results[node.name] = runner.derive(node.name, call, needs + node.reads)
-            continue
         ready = all(n in runner.keys for n in needs)  # else the runner says "not available"
         settings = None
         if node.settings is not None and ready:
             settings = _call(node.settings, inputs, results)
+        if not node.recorded:
+            results[node.name] = runner.derive(
+                node.name, call, needs + node.reads, settings=settings, cache=node.cached
+            )
+            continue
         results[node.name] = runner.run(
             node.name, call, needs=needs, reads=node.reads, settings=settings,
             to_cache=node.to_cache, from_cache=node.from_cache,

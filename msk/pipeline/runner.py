@@ -131,11 +131,32 @@ class Runner:
         """Record a stage the configuration does not ask for (not an error)."""
         self._record(StageRecord(name, "not requested", 0.0, reason))
 
-    def derive(self, name: str, fn: Any, inputs: tuple[str, ...]) -> Any:
-        """An unrecorded, uncached step (cheap formatting of upstream results): its key is the
-        hash of the keys it reads, so that nodes downstream of it have one."""
-        self.keys[name] = stage_key(name, [self.keys.get(n) for n in inputs])
-        return fn()
+    def derive(
+        self,
+        name: str,
+        fn: Any,
+        inputs: tuple[str, ...],
+        *,
+        settings: Any = None,
+        cache: bool = False,
+    ) -> Any:
+        """An unrecorded step (formatting of upstream results): its key is the hash of the
+        keys it reads, so that nodes downstream of it have one. With ``cache`` its value is
+        kept in the stage cache like a stage's (key: also the code fingerprint and
+        ``settings``), without a status record."""
+        upstream = [self.keys.get(n) for n in inputs]
+        if not cache:
+            self.keys[name] = stage_key(name, upstream)
+            return fn()
+        key = self.keys[name] = stage_key(name, code_fingerprint(), settings, upstream)
+        if self.cache is not None:
+            hit, value = self.cache.load(name, key)
+            if hit:
+                return value
+        value = fn()
+        if self.cache is not None:
+            self.cache.save(name, key, value)
+        return value
 
     def run(
         self,
