@@ -153,7 +153,13 @@ def source_fingerprint(root: str | Path) -> str:
 
 
 def dependency_versions() -> dict[str, str]:
-    """Versions of Python and of the numerical dependencies (``"not installed"`` if absent)."""
+    """Versions of Python and of the numerical dependencies (``"not installed"`` if absent),
+    read once per process (the package metadata: the code fingerprint and the summary ask)."""
+    return dict(_dependency_versions())
+
+
+@functools.cache
+def _dependency_versions() -> tuple[tuple[str, str], ...]:
     out = {
         "python": platform.python_version(),
         "implementation": sys.implementation.name,
@@ -164,7 +170,7 @@ def dependency_versions() -> dict[str, str]:
             out[name] = _md.version(name)
         except _md.PackageNotFoundError:
             out[name] = "not installed"
-    return out
+    return tuple(out.items())
 
 
 @functools.cache
