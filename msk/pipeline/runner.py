@@ -25,6 +25,7 @@ from pathlib import Path
 from typing import Any, TextIO
 
 from msk import __version__
+from msk._fork import start_deferred
 from msk.cache import StageCache, code_fingerprint, dependency_versions
 from msk.exceptions import ConfigError, MskError
 from msk.results import json_default
@@ -193,6 +194,7 @@ class Runner:
                 self.keys[name] = key
                 self._record(StageRecord(name, "cached", time.perf_counter() - t0, "", key))
                 return value
+        start_deferred()  # a stage is computed: the servers msk run registered (msk._fork)
         try:
             if self.fail_stage == name:
                 raise RuntimeError(f"stage {name} failed on purpose (test hook)")
