@@ -33,7 +33,9 @@ What can be stored
     ``__post_init__`` (``object.__new__`` + ``object.__setattr__``), so the rebuilt object has
     exactly the state that was saved. Anything else — a :class:`msk.model.Model`, a Pinocchio or
     casadi object, an object array, a class from another package — makes :meth:`StageCache.save`
-    return False: the stage is computed again next time. There is no pickle fallback.
+    return False: the stage is computed again next time. There is no pickle fallback. (The
+    model stage stores its model's plain-data state, :class:`msk.model.ModelState`, and builds
+    the model again from it: :func:`msk.pipeline.graph.model_to_cache`.)
 
 Threat model
     A results folder may come from someone else (a colleague, a download). Loading its cache
