@@ -18,7 +18,11 @@ model stage, the plates after the loads stage; the model's own markers after the
       ├─ emg ───────────────────────────────────────────────────────────────────────┤
       └─ muscle_geometry ─ tension_optimization ────────────────────────────────────┤
          strength_identification (emg, geometry, torques) ─ knee_contact ─ gait_cycle*
-         ─ comparison ─ fes ─ tables* ─ summary* ─ report          (* unrecorded)
+         ─ joint_strength* ─ comparison ─ fes ─ tables* ─ summary* ─ report   (* unrecorded)
+
+A node's result is kept in the stage cache (:mod:`msk.cache`) as it is, or in the form its
+``to_cache`` gives and ``from_cache`` reads back (the model stage: :func:`model_to_cache`);
+an unrecorded node with ``cached`` is kept too (``joint_strength``, the summary's curves).
 """
 
 from __future__ import annotations
