@@ -12,10 +12,12 @@ of the mass-identification cross-validation): only in the main thread of a top-l
 (never inside a batch worker, whose siblings use the other CPUs), with at least two CPUs in
 its affinity mask, where ``os.fork`` exists, and unless ``MSK_FORK=0``.
 
-A :class:`Server` is a child forked early (``msk run`` forks one before its own imports) that
-imports a module on the free CPU while the caller works, then computes one function of that
-module for it: the report's figures cost the caller neither matplotlib's import nor their
-drawing time beyond the caller's wait.
+A :class:`Server` is a child forked early that imports a module on the free CPU while the
+caller works, then computes one function of that module for it: the report's figures cost the
+caller neither matplotlib's import nor their drawing time beyond the caller's wait. ``msk run``
+registers it with :func:`defer_server` and the stage runner forks it
+(:func:`start_deferred`) when it first computes a stage: a run whose stages all come from the
+cache (its figures too) forks no child, whose import would only take CPU from it.
 """
 
 from __future__ import annotations
@@ -26,7 +28,17 @@ import pickle
 from collections.abc import Callable
 from typing import Any, Generic, TypeVar
 
-__all__ = ["ENV", "Forked", "Server", "spare_cpu", "start_server", "stop_servers", "take_server"]
+__all__ = [
+    "ENV",
+    "Forked",
+    "Server",
+    "defer_server",
+    "spare_cpu",
+    "start_deferred",
+    "start_server",
+    "stop_servers",
+    "take_server",
+]
 
 #: environment switch: ``MSK_FORK=0`` computes everything in the calling process
 ENV = "MSK_FORK"
@@ -162,6 +174,7 @@ class Server:
 
 
 _SERVERS: dict[str, Server] = {}
+_DEFERRED: dict[str, tuple[str, str, str | None]] = {}
 
 
 def start_server(key: str, module: str, function: str, warm: str | None = None) -> None:
@@ -170,12 +183,26 @@ def start_server(key: str, module: str, function: str, warm: str | None = None) 
         _SERVERS[key] = Server(module, function, warm)
 
 
+def defer_server(key: str, module: str, function: str, warm: str | None = None) -> None:
+    """Register a :class:`Server` for ``module.function`` under ``key``, forked by the next
+    :func:`start_deferred` (never, if nothing calls it before :func:`stop_servers`)."""
+    _DEFERRED[key] = (module, function, warm)
+
+
+def start_deferred() -> None:
+    """Fork the servers registered by :func:`defer_server` (:func:`start_server`; once)."""
+    while _DEFERRED:
+        key, (module, function, warm) = _DEFERRED.popitem()
+        start_server(key, module, function, warm)
+
+
 def take_server(key: str) -> Server | None:
     """The server started under ``key`` (once; ``None`` if there is none)."""
     return _SERVERS.pop(key, None)
 
 
 def stop_servers() -> None:
-    """Release every server not used."""
+    """Release every server not used (and forget the ones not started)."""
+    _DEFERRED.clear()
     while _SERVERS:
         _SERVERS.popitem()[1].close()

@@ -33,7 +33,9 @@ What can be stored
     ``__post_init__`` (``object.__new__`` + ``object.__setattr__``), so the rebuilt object has
     exactly the state that was saved. Anything else — a :class:`msk.model.Model`, a Pinocchio or
     casadi object, an object array, a class from another package — makes :meth:`StageCache.save`
-    return False: the stage is computed again next time. There is no pickle fallback.
+    return False: the stage is computed again next time. There is no pickle fallback. (The
+    model stage stores its model's plain-data state, :class:`msk.model.ModelState`, and builds
+    the model again from it: :func:`msk.pipeline.graph.model_to_cache`.)
 
 Threat model
     A results folder may come from someone else (a colleague, a download). Loading its cache
@@ -153,7 +155,13 @@ def source_fingerprint(root: str | Path) -> str:
 
 
 def dependency_versions() -> dict[str, str]:
-    """Versions of Python and of the numerical dependencies (``"not installed"`` if absent)."""
+    """Versions of Python and of the numerical dependencies (``"not installed"`` if absent),
+    read once per process (the package metadata: the code fingerprint and the summary ask)."""
+    return dict(_dependency_versions())
+
+
+@functools.cache
+def _dependency_versions() -> tuple[tuple[str, str], ...]:
     out = {
         "python": platform.python_version(),
         "implementation": sys.implementation.name,
@@ -164,7 +172,7 @@ def dependency_versions() -> dict[str, str]:
             out[name] = _md.version(name)
         except _md.PackageNotFoundError:
             out[name] = "not installed"
-    return out
+    return tuple(out.items())
 
 
 @functools.cache

@@ -37,7 +37,6 @@ from typing import Any, ClassVar
 import numpy as np
 import pinocchio as pin
 from numpy.typing import ArrayLike, NDArray
-from scipy.linalg.lapack import dposv as _dposv
 
 from msk.exceptions import (
     FileFormatError,
@@ -738,6 +737,9 @@ def _levenberg_marquardt(
 ) -> tuple[Array, int, bool, Array]:
     """Projected LM on r = √w (p(θ) − x) over the free coordinates; returns θ, iterations, ok
     and the marker positions at θ."""
+    # on use: a run whose kinematics come from the stage cache does not import scipy.linalg
+    from scipy.linalg.lapack import dposv as _dposv
+
     th = np.minimum(np.maximum(theta, lo), hi)
     rows: Any = slice(None) if present.all() else np.repeat(present, 3)
     swr = np.repeat(sw, 3)[rows]

@@ -138,6 +138,47 @@ class Marker:
         object.__setattr__(self, "offset", _as_vec3(self.offset, f"marker {self.name} offset"))
 
 
+def _offset_arrays(x: pin.SE3 | None) -> tuple[Array | None, Array | None]:
+    return (None, None) if x is None else (x.rotation.copy(), x.translation.copy())
+
+
+def _offset(rotation: Array | None, translation: Array | None) -> pin.SE3 | None:
+    return None if rotation is None or translation is None else pin.SE3(rotation, translation)
+
+
+@dataclass(frozen=True, eq=False)
+class JointState:
+    """A :class:`Joint` as plain arrays: each offset's rotation matrix and translation (both
+    ``None`` for an offset given as ``None``, the identity)."""
+
+    name: str
+    parent: str
+    child: str
+    parent_rotation: Array | None
+    parent_translation: Array | None
+    child_rotation: Array | None
+    child_translation: Array | None
+    axes: tuple[Axis, ...]
+
+
+@dataclass(frozen=True, eq=False)
+class ModelState:
+    """What a :class:`Model` is built from, as plain data (msk dataclasses, numpy arrays,
+    strings, numbers): the form the stage cache (:mod:`msk.cache`, which stores no Pinocchio
+    object) keeps of a model. :meth:`Model.from_state` builds the model again from it with the
+    same specifications, entry for entry (an offset SE(3) from its stored rotation and
+    translation), hence the same Pinocchio model."""
+
+    name: str
+    bodies: tuple[Body, ...]
+    joints: tuple[JointState, ...]
+    coordinates: tuple[Coordinate, ...]
+    markers: tuple[Marker, ...]
+    muscles: tuple[Any, ...]
+    gravity: Array
+    metadata: dict[str, Any]
+
+
 def _axis_joint_model(ax: Axis) -> pin.JointModel:
     unit = ax.axis
     aligned = np.flatnonzero(np.abs(np.abs(unit) - 1.0) < 1e-12)
@@ -417,6 +458,33 @@ class Model:
 
     def with_metadata(self, **metadata: Any) -> Model:
         return self._rebuilt(metadata={**self.metadata, **metadata})
+
+    # ---------------------------------------------------------------- plain-data form
+    def state(self) -> ModelState:
+        """The specifications of this model as plain data (:class:`ModelState`)."""
+        joints = tuple(
+            JointState(j.name, j.parent, j.child, *_offset_arrays(j.parent_offset),
+                       *_offset_arrays(j.child_offset), tuple(j.axes))
+            for j in self.joints
+        )  # fmt: skip
+        return ModelState(
+            self.name, self.bodies, joints, self.coordinates, self.markers, self.muscles,
+            self.gravity.copy(), dict(self.metadata),
+        )  # fmt: skip
+
+    @staticmethod
+    def from_state(state: ModelState) -> Model:
+        """The model whose :meth:`state` is ``state`` (built and checked as any model)."""
+        joints = [
+            Joint(j.name, j.parent, j.child, _offset(j.parent_rotation, j.parent_translation),
+                  _offset(j.child_rotation, j.child_translation), tuple(j.axes))
+            for j in state.joints
+        ]  # fmt: skip
+        return Model(
+            name=state.name, bodies=state.bodies, joints=joints, coordinates=state.coordinates,
+            markers=state.markers, muscles=state.muscles, gravity=state.gravity,
+            metadata=state.metadata,
+        )  # fmt: skip
 
     def __repr__(self) -> str:
         return (

@@ -210,9 +210,8 @@ def com_height(
     up = -g_vec / g
     data = model.create_data()
     z = np.empty(idx.size)
-    zero = np.zeros((1, q.shape[1]))
     for i, k in enumerate(idx.tolist()):
-        qp, _, _ = model.coupling.embed(q[k : k + 1], zero, zero)
+        qp = model.coupling.q(q[k : k + 1])  # g(θ) alone: the position needs no G, no Ġθ̇
         pin.centerOfMass(model.pin_model, data, qp[0])
         z[i] = float(np.asarray(data.com[0]) @ up)
     return float(np.median(z)) - floor_m

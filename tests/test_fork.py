@@ -9,7 +9,16 @@ import numpy as np
 import pytest
 
 from msk import _fork
-from msk._fork import Forked, Server, spare_cpu, start_server, stop_servers, take_server
+from msk._fork import (
+    Forked,
+    Server,
+    defer_server,
+    spare_cpu,
+    start_deferred,
+    start_server,
+    stop_servers,
+    take_server,
+)
 
 
 def _work(n: int) -> dict[str, np.ndarray]:
@@ -55,3 +64,33 @@ def test_servers_by_key(monkeypatch):
     start_server("k", "math", "fsum")
     assert take_server("k") is None
     stop_servers()
+
+
+@pytest.mark.skipif(not hasattr(os, "fork"), reason="no os.fork")
+def test_a_deferred_server_is_forked_by_start_deferred_only(monkeypatch):
+    """``msk run`` registers the figure server; the runner forks it when a stage is computed,
+    so that a run whose every stage comes from the cache forks nothing."""
+    monkeypatch.setattr(_fork, "spare_cpu", lambda: True)
+    defer_server("k", "math", "fsum")
+    assert take_server("k") is None  # registered, not forked
+    start_deferred()
+    srv = take_server("k")
+    assert srv is not None and srv.call([0.1] * 10) == 1.0
+    start_deferred()  # once
+    assert take_server("k") is None
+    defer_server("k", "math", "fsum")
+    stop_servers()  # a registered server never started is forgotten
+    start_deferred()
+    assert take_server("k") is None
+
+
+def test_a_cached_run_forks_no_figure_server(tmp_path, monkeypatch):
+    """The runner starts the registered servers before it computes a stage, never on a hit."""
+    from msk.pipeline.runner import Runner
+
+    started: list[int] = []
+    monkeypatch.setattr("msk.pipeline.runner.start_deferred", lambda: started.append(1))
+    for expect in (1, 1):  # computed, then a hit: still the one start
+        runner = Runner(tmp_path, None, stages=("s",), core=frozenset())
+        assert runner.run("s", lambda: {"x": 1.0}, settings=1) == {"x": 1.0}
+        assert len(started) == expect

@@ -212,3 +212,34 @@ def test_frame_placements_equal_forward_kinematics_frame_by_frame():
         frame_placements(model, th, [model.marker_frame[m.name] for m in model.markers])[1],
         marker_positions(model, th), atol=1e-14,
     )  # fmt: skip
+
+
+def test_state_round_trip_through_the_stage_cache_builds_the_same_model(tmp_path):
+    """The cache stores no Model (Pinocchio objects), but its plain-data state, from which the
+    same Pinocchio model is built: every frame placement, inertia and marker position exact."""
+    from msk.cache import StageCache
+    from msk.synthetic_models import two_leg_model
+
+    rng = np.random.default_rng(3)
+    base = two_leg_model()
+    j = base.joints[1]
+    tilt = pin.SE3(pin.exp3(rng.normal(size=3)), 0.05 * rng.normal(size=3))
+    tilted = Joint(j.name, j.parent, j.child, tilt, None, j.axes)  # type: ignore[arg-type]
+    model = base.with_joints({j.name: tilted}).with_metadata(knee={"varus_rad": 0.07})
+    cache = StageCache(tmp_path)
+    assert not cache.save("model", "k", {"model": model})  # a Model itself is not storable
+    assert cache.save("model", "k", {"model": model.state()}), cache.last_reason
+    hit, stored = cache.load("model", "k")
+    assert hit
+    again = Model.from_state(stored["model"])
+    assert again.pin_model == model.pin_model
+    for a, b in zip(model.pin_model.frames, again.pin_model.frames):
+        assert np.array_equal(a.placement.homogeneous, b.placement.homogeneous)
+    assert again.joints[1].child_offset is None
+    assert np.array_equal(again.joints[1].parent_offset.homogeneous, tilt.homogeneous)
+    assert again.coupling == model.coupling and again.metadata == model.metadata
+    theta = 0.3 * rng.normal(size=(5, model.n_coords))
+    assert np.array_equal(marker_positions(again, theta), marker_positions(model, theta))
+    # a changed specification is seen: the state is the model's, not a generic one
+    heavier = model.with_bodies({"pelvis": Body("pelvis", 12.0)})
+    assert Model.from_state(heavier.state()).pin_model != model.pin_model

@@ -3,9 +3,11 @@ the content-hash cache, the CLI verbs, and the bundled Grand Challenge session e
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import re
 from pathlib import Path
+from types import SimpleNamespace
 
 import numpy as np
 import pytest
@@ -15,6 +17,9 @@ from msk.config import TEMPLATE, config_reference, load_config, render_config
 from msk.exceptions import ConfigError
 from msk.io.opensim_files import read_sto
 from msk.pipeline import STAGES, file_sha256, lab_to_model_rotation, run_session, run_stages
+from msk.pipeline.blocks import FRAME_BLOCK
+from msk.pipeline.inputs import session_inputs
+from msk.pipeline.runner import Runner
 from msk.results import TABLES, read_session
 from msk.summary import Summary
 from msk.synthetic_trials import write_synthetic_session
@@ -147,18 +152,19 @@ def test_cache_reuses_and_invalidates(tmp_path):
     cfg, _ = write_synthetic_session(tmp_path / "s")
     out = tmp_path / "out"
     first = run_session(cfg, out)
+    a0 = read_session(out).table("joint_torques").data
     second = run_session(cfg, out)
     st1 = {r.name: r.status for r in first.stages}
     st2 = {r.name: r.status for r in second.stages}
     assert {s for s in st1.values()} <= {"computed", "not available", "not requested"}
     assert st1["fes"] == "not requested"  # no FES trial in the configuration
-    # every computed stage comes from the cache, but the model (a msk.model.Model is not
-    # storable without pickle: msk.cache; it is rebuilt, its key unchanged)
-    assert all(st2[n] == "cached" for n, s in st1.items() if s == "computed" and n != "model")
-    assert st2["model"] == "computed"
+    # every computed stage comes from the cache, the model too (its plain-data state:
+    # msk.pipeline.graph.model_to_cache; a msk.model.Model is not storable without pickle)
+    assert all(st2[n] == "cached" for n, s in st1.items() if s == "computed")
     assert not list((out / ".cache").glob("*.pkl"))
     # identical numbers from the cache
     a = read_session(out).table("joint_torques").data
+    assert np.array_equal(a, a0, equal_nan=True)
     # a changed setting recomputes exactly the stages downstream of it
     cfg.write_text(cfg.read_text().replace("grf_cutoff_hz = 15.0", "grf_cutoff_hz = 12.0"))
     third = run_session(cfg, out)
@@ -176,6 +182,51 @@ def test_cache_reuses_and_invalidates(tmp_path):
     st4 = {r.name: r.status for r in fourth.stages}
     assert "cached" not in st4.values()
     assert np.array_equal(read_session(out).table("joint_torques").data, b, equal_nan=True)
+
+
+def test_model_stage_from_the_cache_gives_the_later_stages_the_same_numbers(tmp_path):
+    """The later stages computed on the model rebuilt from the cache (every entry but the read
+    and model stages' removed) write the tables of the run that computed it, bit for bit; an
+    entry that does not make a model is computed again, never fatal."""
+    from msk.pipeline import graph
+
+    cfg, _ = write_synthetic_session(tmp_path / "s")
+    out = tmp_path / "out"
+    run_session(cfg, out)
+    before = read_session(out)
+    for f in (out / ".cache").iterdir():
+        if not f.name.startswith(("read-", "model-")):
+            f.unlink()
+    again = run_session(cfg, out)
+    status = {r.name: r.status for r in again.stages}
+    assert status["model"] == "cached" and status["kinematics"] == "computed"
+    after = read_session(out)
+    assert set(after.tables) == set(before.tables)
+    for name, tb in before.tables.items():
+        assert np.array_equal(after.table(name).data, tb.data, equal_nan=True), name
+    # a stored model state that cannot be built (an unknown body): the stage is computed again
+    for f in (out / ".cache").glob("model-*.json"):
+        f.unlink()
+
+    def broken(stored):
+        bad = dataclasses.replace(stored.model, bodies=stored.model.bodies[1:])
+        return graph.model_from_cache(dataclasses.replace(stored, model=bad))
+
+    runs = []
+    nodes = tuple(
+        dataclasses.replace(n, from_cache=broken) if n.name == "model" else n for n in graph.GRAPH
+    )
+    for _ in range(2):
+        runner = Runner(out / ".cache", None, stages=graph.STAGES, core=graph.CORE_STAGES)
+        graph.run_graph(session_inputs(load_config(cfg)), runner, nodes[:4])
+        runs.append({r.name: r.status for r in runner.records})
+    assert runs[0]["model"] == "computed" and runs[1]["model"] == "computed"
+    assert runs[1]["kinematics"] == "cached"
+    # a long trial's model stage is not written (its model-frame markers: issue 18's bound)
+    built = run_stages(cfg, until="model")["model"]
+    assert graph.model_to_cache(built).model is not built.model
+    long = dataclasses.replace(built, trial=SimpleNamespace(time=np.zeros(FRAME_BLOCK + 1)))
+    assert graph.model_to_cache(long) is long
 
 
 def test_cli_run_print_config_and_errors(tmp_path, capsys):

@@ -91,7 +91,6 @@ from typing import Any, ClassVar
 import numpy as np
 import pinocchio as pin
 from numpy.typing import ArrayLike, NDArray
-from scipy import sparse
 
 from msk.exceptions import ModelError, ShapeMismatchError
 from msk.joints import Linear, Multiplier, SimmSpline
@@ -415,6 +414,8 @@ class GeometryPlan:
     """
 
     def __init__(self, model: Model) -> None:
+        from scipy import sparse  # on use: a cached run's geometry needs no scipy.sparse
+
         # a weak reference: the per-model cache (weak keys) must not keep its model alive
         self._model = weakref.ref(model)
         self.model_name = model.name
@@ -684,6 +685,8 @@ class GeometryPlan:
         muscle m's bodies (the unit wrenches of a muscle sum to zero: a joint that carries the
         whole path, or none of it, contributes nothing).
         """
+        from scipy import sparse  # on use: a cached run's geometry needs no scipy.sparse
+
         nb = len(self.body_names)
         nv = self.nv
         sup = self.support[:nb].astype(bool)  # (B, nv)
@@ -762,6 +765,8 @@ class GeometryPlan:
         (Plücker coordinates: the same at both ends) and σ_s = A[:, end] − A[:, start]
         static, except for a segment followed by conditional points, whose end is one of a few
         candidates (the next points up to the first unconditional one)."""
+        from scipy import sparse  # on use: a cached run's geometry needs no scipy.sparse
+
         self._static = not self.wraps
         if not self._static:
             return

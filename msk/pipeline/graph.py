@@ -18,16 +18,22 @@ model stage, the plates after the loads stage; the model's own markers after the
       ├─ emg ───────────────────────────────────────────────────────────────────────┤
       └─ muscle_geometry ─ tension_optimization ────────────────────────────────────┤
          strength_identification (emg, geometry, torques) ─ knee_contact ─ gait_cycle*
-         ─ comparison ─ fes ─ tables* ─ summary* ─ report          (* unrecorded)
+         ─ joint_strength* ─ comparison ─ fes ─ tables* ─ summary* ─ report   (* unrecorded)
+
+A node's result is kept in the stage cache (:mod:`msk.cache`) as it is, or in the form its
+``to_cache`` gives and ``from_cache`` reads back (the model stage: :func:`model_to_cache`);
+an unrecorded node with ``cached`` is kept too (``joint_strength``, the summary's curves).
 """
 
 from __future__ import annotations
 
+import dataclasses
 import inspect
 from collections.abc import Callable, Collection, Mapping
 from dataclasses import dataclass
 from typing import Any
 
+from msk.model import Model
 from msk.pipeline import (
     comparison,
     contact,
@@ -47,10 +53,21 @@ from msk.pipeline import (
     tables,
     tension,
 )
+from msk.pipeline.blocks import FRAME_BLOCK
 from msk.pipeline.inputs import SessionInputs
 from msk.pipeline.runner import Runner
 
-__all__ = ["CORE_STAGES", "GRAPH", "STAGES", "TRIMS", "Node", "last_readers", "run_graph"]
+__all__ = [
+    "CORE_STAGES",
+    "GRAPH",
+    "STAGES",
+    "TRIMS",
+    "Node",
+    "last_readers",
+    "model_from_cache",
+    "model_to_cache",
+    "run_graph",
+]
 
 #: why a gait node does not run in a session without a task trial
 NO_GAIT = "no gait trial (role 'task') in the configuration"
@@ -69,6 +86,9 @@ class Node:
     core: bool = False
     gait: bool = True
     requested: Callable[[SessionInputs], str | None] | None = None
+    to_cache: Callable[[Any], Any] | None = None
+    from_cache: Callable[[Any], Any] | None = None
+    cached: bool = False
 
     @property
     def parameters(self) -> tuple[str, ...]:
@@ -87,11 +107,29 @@ class Node:
         return self.needs(inputs) if callable(self.needs) else self.needs
 
 
+def model_to_cache(built: model.BuiltModel) -> Any:
+    """The model stage's result as the stage cache keeps it: its :class:`msk.model.Model` as
+    plain data (:meth:`msk.model.Model.state`; the cache stores no Pinocchio object). A trial
+    of more than :data:`~msk.pipeline.blocks.FRAME_BLOCK` frames is given as it is, not
+    storable: its model-frame markers are not written to the cache (issue 18's memory bound),
+    the stage is computed again next time."""
+    if len(built.trial.time) > FRAME_BLOCK:
+        return built
+    return dataclasses.replace(built, model=built.model.state())
+
+
+def model_from_cache(stored: model.BuiltModel) -> model.BuiltModel:
+    """The model stage's result from what :func:`model_to_cache` kept (the model built again
+    from its specifications: :meth:`msk.model.Model.from_state`)."""
+    return dataclasses.replace(stored, model=Model.from_state(stored.model))
+
+
 _ALL = ("model", "kinematics", "loads")
 GRAPH: tuple[Node, ...] = (
     Node("read", read.run, settings=read.settings, core=True),
     Node("measured_contact", read.measured_contact, ("read",), recorded=False),
-    Node("model", model.run, ("read",), settings=model.settings, core=True),
+    Node("model", model.run, ("read",), settings=model.settings, core=True,
+         to_cache=model_to_cache, from_cache=model_from_cache),
     Node("kinematics", kinematics.run, ("model",), settings=kinematics.settings, core=True),
     Node("swapped_markers", summary.swapped_markers, ("model", "kinematics"), recorded=False),
     Node("loads", loads.run, ("read", "model", "kinematics"), settings=loads.settings, core=True),
@@ -109,6 +147,8 @@ GRAPH: tuple[Node, ...] = (
          ("mass_identification", "emg", "strength_identification", "measured_contact"),
          settings=contact.settings),
     Node("gait_cycle", cycle.run, _ALL, ("knee_contact",), recorded=False),
+    Node("joint_strength", summary.joint_strength, (), ("model", "strength_identification"),
+         settings=summary.joint_strength_settings, recorded=False, cached=True),
     Node("comparison", comparison.run, ("loads", "inverse_dynamics"),
          ("knee_contact", "strength_identification", "gait_cycle")),
     Node("fes", fes.run, settings=fes.settings, gait=False, requested=fes.requested),
@@ -119,7 +159,7 @@ GRAPH: tuple[Node, ...] = (
     Node("summary", summary.run, (),
          (*_ALL, "mass_identification", "inverse_dynamics", "emg",
           "tension_optimization", "strength_identification", "gait_cycle", "comparison", "fes",
-          "swapped_markers"),
+          "swapped_markers", "joint_strength"),
          recorded=False, gait=False),
     Node("report", report.run, ("tables", "summary"), settings=report.settings, core=True,
          gait=False),
@@ -217,16 +257,19 @@ def run_graph(
         def call(node: Node = node) -> Any:
             return _call(node.run, inputs, results)
 
-        if not node.recorded:
-            results[node.name] = runner.derive(node.name, call, needs + node.reads)
-            continue
         ready = all(n in runner.keys for n in needs)  # else the runner says "not available"
         settings = None
         if node.settings is not None and ready:
             settings = _call(node.settings, inputs, results)
+        if not node.recorded:
+            results[node.name] = runner.derive(
+                node.name, call, needs + node.reads, settings=settings, cache=node.cached
+            )
+            continue
         results[node.name] = runner.run(
-            node.name, call, needs=needs, reads=node.reads, settings=settings
-        )
+            node.name, call, needs=needs, reads=node.reads, settings=settings,
+            to_cache=node.to_cache, from_cache=node.from_cache,
+        )  # fmt: skip
     if keep is not None:
         return {n: v for n, v in results.items() if n in keep}
     return results

@@ -115,6 +115,12 @@ def settings(inputs: SessionInputs) -> Any:
         "height": cfg.subject.height_m,
         "rename": dict(cfg.marker_rename),
         "move": list(cfg.marker_move),
+        # also read by the stage (the key is complete: its result is kept in the cache): the
+        # weights (placement without a static; their names checked), the side (knee alignment
+        # from markers), the model file's path (summary.json model.source)
+        "weights": dict(cfg.marker_weights),
+        "side": cfg.subject.side,
+        "source": str(inputs.model_source),
     }
 
 

@@ -19,11 +19,13 @@ import hashlib
 import json
 import time
 import traceback
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, TextIO
 
 from msk import __version__
+from msk._fork import start_deferred
 from msk.cache import StageCache, code_fingerprint, dependency_versions
 from msk.exceptions import ConfigError, MskError
 from msk.results import json_default
@@ -130,11 +132,32 @@ class Runner:
         """Record a stage the configuration does not ask for (not an error)."""
         self._record(StageRecord(name, "not requested", 0.0, reason))
 
-    def derive(self, name: str, fn: Any, inputs: tuple[str, ...]) -> Any:
-        """An unrecorded, uncached step (cheap formatting of upstream results): its key is the
-        hash of the keys it reads, so that nodes downstream of it have one."""
-        self.keys[name] = stage_key(name, [self.keys.get(n) for n in inputs])
-        return fn()
+    def derive(
+        self,
+        name: str,
+        fn: Any,
+        inputs: tuple[str, ...],
+        *,
+        settings: Any = None,
+        cache: bool = False,
+    ) -> Any:
+        """An unrecorded step (formatting of upstream results): its key is the hash of the
+        keys it reads, so that nodes downstream of it have one. With ``cache`` its value is
+        kept in the stage cache like a stage's (key: also the code fingerprint and
+        ``settings``), without a status record."""
+        upstream = [self.keys.get(n) for n in inputs]
+        if not cache:
+            self.keys[name] = stage_key(name, upstream)
+            return fn()
+        key = self.keys[name] = stage_key(name, code_fingerprint(), settings, upstream)
+        if self.cache is not None:
+            hit, value = self.cache.load(name, key)
+            if hit:
+                return value
+        value = fn()
+        if self.cache is not None:
+            self.cache.save(name, key, value)
+        return value
 
     def run(
         self,
@@ -145,9 +168,13 @@ class Runner:
         reads: tuple[str, ...] = (),
         settings: Any = None,
         cache: bool = True,
+        to_cache: Callable[[Any], Any] | None = None,
+        from_cache: Callable[[Any], Any] | None = None,
     ) -> Any:
         """Run ``fn()`` as stage ``name``: not available when a stage of ``needs`` is missing;
-        the key holds the keys of ``needs`` and of the optional ``reads`` that ran."""
+        the key holds the keys of ``needs`` and of the optional ``reads`` that ran. ``to_cache``
+        and ``from_cache`` (optional, together): the value's form in the cache and back — the
+        cache keeps ``to_cache(value)``, a hit gives ``from_cache`` of what it kept."""
         t0 = time.perf_counter()
         missing = [n for n in needs if n not in self.keys]
         if missing:
@@ -158,10 +185,16 @@ class Runner:
         store = self.cache if cache else None
         if store is not None:
             hit, value = store.load(name, key)
+            if hit and from_cache is not None:
+                try:
+                    value = from_cache(value)
+                except Exception:  # an entry that does not make a value: computed again
+                    hit, value = False, None
             if hit:
                 self.keys[name] = key
                 self._record(StageRecord(name, "cached", time.perf_counter() - t0, "", key))
                 return value
+        start_deferred()  # a stage is computed: the servers msk run registered (msk._fork)
         try:
             if self.fail_stage == name:
                 raise RuntimeError(f"stage {name} failed on purpose (test hook)")
@@ -190,8 +223,10 @@ class Runner:
             self._record(StageRecord(name, "failed", time.perf_counter() - t0, msg, key))
             return None
         note = ""
-        if store is not None and not store.save(name, key, value):
-            note = store.last_reason  # e.g. the model stage: a Model is not storable
+        if store is not None and not store.save(
+            name, key, value if to_cache is None else to_cache(value)
+        ):
+            note = store.last_reason  # e.g. a long trial's model stage (graph.model_to_cache)
         self.keys[name] = key
         self._record(StageRecord(name, "computed", time.perf_counter() - t0, note, key))
         return value

@@ -31,6 +31,8 @@ __all__ = [
     "DEFAULT_MEASUREMENTS",
     "base_summary",
     "frames_solved",
+    "joint_strength",
+    "joint_strength_settings",
     "peak_measured_force_n",
     "run",
     "strength_summary",
@@ -228,29 +230,62 @@ def _anthropometry(cfg: SessionConfig, model: Any) -> dict[str, Any] | None:
     return {"segments": out, "table": "Dumas et al. 2007", "sex": cfg.subject.sex}
 
 
+def _joint_strength(
+    strength: StrengthIdentification, model: Any, side: str, mass_kg: float | None
+) -> dict[str, Any] | None:
+    """The ``joint_strength`` part of :func:`strength_summary` (None without muscles)."""
+    if model is None or not model.muscles:
+        return None
+    from msk.strength import joint_strength_summary
+
+    try:
+        return joint_strength_summary(model, strength.profile, side=side, mass_kg=mass_kg)
+    except Exception as exc:  # the curves must not cost the run its strength summary
+        return {"error": f"{type(exc).__name__}: {' '.join(str(exc).split())[:200]}"}
+
+
+def joint_strength_settings(inputs: SessionInputs) -> Any:
+    return {"side": inputs.sfx, "mass": inputs.cfg.subject.mass_kg}
+
+
+def joint_strength(
+    inputs: SessionInputs,
+    model: BuiltModel | None,
+    strength_identification: StrengthIdentification | None,
+) -> dict[str, Any] | None:
+    """The summary's ``strength.joint_strength`` (the maximal isometric moment curves of the
+    generic and the identified model, :func:`msk.strength.joint_strength_summary`): a step of
+    its own so that the stage cache keeps it (a run whose stages all come from the cache does
+    not evaluate the muscle geometry over the curves' grids again)."""
+    if model is None or strength_identification is None:
+        return None
+    return _joint_strength(
+        strength_identification, model.model, inputs.sfx, inputs.cfg.subject.mass_kg
+    )
+
+
+_COMPUTE = object()  # strength_summary's default: compute the joint curves
+
+
 def strength_summary(
     strength: StrengthIdentification,
     *,
     model: Any = None,
     side: str = "_r",
     mass_kg: float | None = None,
+    joint: Any = _COMPUTE,
 ) -> dict[str, Any]:
     """``identified`` = status "identified" (:mod:`msk.status`); ``gated`` = the group passed
     the correlation gate. With the (generic, scaled) ``model``: ``joint_strength``, the maximal
     isometric moment curves of the generic and the identified model
-    (:func:`msk.strength.joint_strength_summary`), N·m and N·m/kg."""
+    (:func:`msk.strength.joint_strength_summary`), N·m and N·m/kg; ``joint``: those already
+    computed (:func:`joint_strength`)."""
     from msk.status import STATUS_CODES, STATUS_MEANING, STRENGTH_R2_MIN
 
     p = strength.profile
     status = p.statuses()
-    joint: dict[str, Any] | None = None
-    if model is not None and model.muscles:
-        from msk.strength import joint_strength_summary
-
-        try:
-            joint = joint_strength_summary(model, p, side=side, mass_kg=mass_kg)
-        except Exception as exc:  # the curves must not cost the run its strength summary
-            joint = {"error": f"{type(exc).__name__}: {' '.join(str(exc).split())[:200]}"}
+    if joint is _COMPUTE:
+        joint = _joint_strength(strength, model, side, mass_kg)
     return {
         "groups": [
             {
@@ -469,6 +504,7 @@ def run(
     comparison: Mapping[str, Any] | None,
     fes: FesResult | None,
     swapped_markers: Sequence[tuple[str, str, float]] | None,
+    joint_strength: Mapping[str, Any] | None,
 ) -> dict[str, Any]:
     """``summary.json`` without the stage records; a pure FES session has the base summary,
     no angle columns, an empty quality block and the ``fes`` section."""
@@ -517,9 +553,7 @@ def run(
             "advice": ident.advice,
         },
         "anthropometry": _anthropometry(cfg, mdl),
-        "strength": None
-        if strength is None
-        else strength_summary(strength, model=mdl, side=inputs.sfx, mass_kg=cfg.subject.mass_kg),
+        "strength": None if strength is None else strength_summary(strength, joint=joint_strength),
         "comparison": comparison,
         "optimization": None if sol is None else _optimization_summary(sol, inputs.sfx),
         "fes": fes_part,
