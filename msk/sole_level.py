@@ -36,7 +36,7 @@ keeps the placement's ankle as it is, and says so.
 from __future__ import annotations
 
 from collections.abc import Callable, Mapping, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Any
 
 import numpy as np
@@ -77,10 +77,6 @@ MIN_FLAT_FRAMES = 5
 
 #: the prior's name in ``summary.json`` and the report
 SOLE_PRIOR = "sole level at foot flat"
-
-#: a fit of frames: (model, initial poses or None) → (poses (F, n) NaN rows unsolved, cost m)
-Fit = Callable[[Model, Array | None], tuple[Array, float]]
-
 
 @dataclass(frozen=True)
 class SoleLevel:
@@ -191,7 +187,8 @@ def level_sole_gauge(
     ``frames`` (indices into ``markers``) fitted with ``model`` and their cost; ``free``: the
     markers placed or moved from this motion. ``sides``: ankle coordinate → foot body (its
     markers tell foot flat: on gait2392 the heel, midfoot and metatarsal heads, not the toes
-    whose marker is lowest at toe-off); default gait2392's ``ankle_angle_<s>`` → ``calcn_<s>``. A side is left as it is when the model lacks it, a foot
+    whose marker is lowest at toe-off); default gait2392's ``ankle_angle_<s>`` →
+    ``calcn_<s>``. A side is left as it is when the model lacks it, a foot
     marker distal to the ankle is not free (the gauge is not free then), or fewer than
     :data:`MIN_FLAT_FRAMES` foot-flat frames are found. Up to ``max_frames`` foot-flat frames
     (evenly spread) are fitted; the shift is applied at their median pose."""
@@ -211,23 +208,20 @@ def level_sole_gauge(
         distal = [mk.name for mk in model.markers if mk.body in ankle_sub and mk.name in labels]
         foot = [mk.name for mk in model.markers if mk.body == body and mk.name in labels]
 
-        def skip(reason: str, n_flat: int = 0) -> None:
-            out.append(SoleLevel(coord, body, n_flat, 0, float("nan"), 0.0, False, reason))
-
+        kept = SoleLevel(coord, body, 0, 0, float("nan"), 0.0, False)
         if not foot:
-            skip("no foot marker in the trial")
+            out.append(replace(kept, reason="no foot marker in the trial"))
             continue
         if not set(distal) <= free_set:
-            skip("a foot marker is not placed from the motion: the ankle's mean is observed")
+            out.append(replace(kept, reason="a foot marker is not placed from the motion: the "
+                               "ankle's mean is observed"))  # fmt: skip
             continue
         h = x[:, [labels.index(m) for m in foot]] @ up
         flat = np.flatnonzero(foot_flat_frames(h, t))
         if flat.size < MIN_FLAT_FRAMES:
-            skip(
+            out.append(replace(kept, flat_frames=int(flat.size), reason=(
                 f"{flat.size} foot-flat frames (fewer than {MIN_FLAT_FRAMES}: no stance with "
-                "the foot flat, e.g. toe walking): the placement's ankle kept",
-                int(flat.size),
-            )
+                "the foot flat, e.g. toe walking): the placement's ankle kept")))  # fmt: skip
             continue
         pick = flat[np.round(np.linspace(0, flat.size - 1, min(max_frames, flat.size)))
                     .astype(int)]  # fmt: skip
@@ -235,7 +229,8 @@ def level_sole_gauge(
         q = np.asarray(q, dtype=float)
         ok = np.isfinite(q).all(axis=1)
         if ok.sum() < MIN_FLAT_FRAMES:
-            skip("the foot-flat frames could not be fitted", int(flat.size))
+            out.append(replace(kept, flat_frames=int(flat.size),
+                               reason="the foot-flat frames could not be fitted"))  # fmt: skip
             continue
         ci = model.coordinate_index(coord)
         p0, delta = _root(model, q[ok], body, ci)

@@ -21,8 +21,10 @@ def main(paths: list[str]) -> None:
         up = -np.asarray(model.gravity, dtype=float)
         up /= np.linalg.norm(up)
         x, labels, t = built.trial.markers, built.labels, np.asarray(kin.time, dtype=float)
-        line = [path.split("/")[-1].removesuffix(".toml"),
-                f"IK rms {1000 * np.nanmedian(kin.marker_rms):.2f} mm"]
+        line = [
+            path.split("/")[-1].removesuffix(".toml"),
+            f"IK rms {1000 * np.nanmedian(kin.marker_rms):.2f} mm",
+        ]
         for s in ("r", "l"):
             foot = [m.name for m in model.markers if m.body == f"calcn_{s}" and m.name in labels]
             h = x[:, [labels.index(m) for m in foot]] @ up
@@ -33,10 +35,12 @@ def main(paths: list[str]) -> None:
             a = np.degrees(np.nanpercentile(q[:, ci], [1, 50, 99]))
             if ok.sum():
                 p = np.degrees(sole_pitch(model, q[ok], f"calcn_{s}"))
-                pt = f"pitch med {np.median(p):+.1f} (IQR {np.percentile(p, 25):+.1f}…{np.percentile(p, 75):+.1f})"
+                lo, hi = np.percentile(p, [25, 75])
+                pt = f"pitch med {np.median(p):+.1f} (IQR {lo:+.1f}…{hi:+.1f})"
             else:
                 pt = "pitch: no flat frame"
-            line.append(f"{s}: flat {ok.sum()}/{len(t)} {pt}; ankle p1/50/99 {a[0]:+.1f}/{a[1]:+.1f}/{a[2]:+.1f}")
+            pct = "/".join(f"{v:+.1f}" for v in a)
+            line.append(f"{s}: flat {ok.sum()}/{len(t)} {pt}; ankle p1/50/99 {pct}")
         print(" | ".join(line), flush=True)
 
 

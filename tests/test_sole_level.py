@@ -123,7 +123,7 @@ def test_ankle_mean_recovered_from_a_placement_started_off():
 
 def test_no_foot_flat_keeps_the_placement_and_says_so():
     truth = _shank_foot()
-    x, t, q = _walk(truth, stance=False)
+    x, t, _ = _walk(truth, stance=False)
     labels = list(truth.marker_names)
     out, (side,) = level_sole_gauge(truth, x, labels, t, _fit(x, labels, t), FOOT)
     assert out is truth
