@@ -1050,8 +1050,15 @@ def sole_level(inputs: SessionInputs, read: ReadResult, built: dict[str, Any]) -
     mp = dict(built["info"].get("marker_placement", {}))
     free = [*dict(mp.get("moved", {})), *dict(mp.get("placed", {}))]
 
+    # the foot-flat frames fitted among the choice's (placement_frames: spread over the whole
+    # trial), in time order: the IK carries each frame's pose to the next, and the foot-flat
+    # frames alone, a stance apart, start cold (DM crouch: 59–87 mm, the knees 7–11° off)
+    spread = placement_frames(trial.markers)
+
     def fit(m: Any, frames: np.ndarray) -> tuple[np.ndarray, float]:
-        return placement_fit(m, x[frames], t[frames], labels, weights, markers)
+        every = np.union1d(spread, frames)
+        q, cost = placement_fit(m, x[every], t[every], labels, weights, markers)
+        return q[np.searchsorted(every, frames)], cost
 
     model, sides = level_sole_gauge(built["model"], x, labels, t, fit, free)
     built["info"]["sole_level"] = {s.coordinate: s.summary() for s in sides}
