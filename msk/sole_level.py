@@ -78,6 +78,7 @@ MIN_FLAT_FRAMES = 5
 #: the prior's name in ``summary.json`` and the report
 SOLE_PRIOR = "sole level at foot flat"
 
+
 @dataclass(frozen=True)
 class SoleLevel:
     """One side's gauge: the ankle coordinate, its foot body, the foot-flat frames found (of the
@@ -100,7 +101,9 @@ class SoleLevel:
             "body": self.body,
             "foot_flat_frames": self.flat_frames,
             "fitted_frames": self.fitted_frames,
-            "sole_pitch_before_deg": float(np.degrees(self.pitch_before_rad)),
+            "sole_pitch_before_deg": float(np.degrees(self.pitch_before_rad))
+            if self.applied
+            else None,
             "ankle_shift_deg": float(np.degrees(self.shift_rad)),
             **({"reason": self.reason} if self.reason else {}),
         }
@@ -219,9 +222,11 @@ def level_sole_gauge(
         h = x[:, [labels.index(m) for m in foot]] @ up
         flat = np.flatnonzero(foot_flat_frames(h, t))
         if flat.size < MIN_FLAT_FRAMES:
-            out.append(replace(kept, flat_frames=int(flat.size), reason=(
-                f"{flat.size} foot-flat frames (fewer than {MIN_FLAT_FRAMES}: no stance with "
-                "the foot flat, e.g. toe walking): the placement's ankle kept")))  # fmt: skip
+            why = (
+                f"{flat.size} foot-flat frames (fewer than {MIN_FLAT_FRAMES}: no stance with the "
+                "foot flat and still: running, toe walking): the placement's ankle kept"
+            )
+            out.append(replace(kept, flat_frames=int(flat.size), reason=why))
             continue
         pick = flat[np.round(np.linspace(0, flat.size - 1, min(max_frames, flat.size)))
                     .astype(int)]  # fmt: skip
