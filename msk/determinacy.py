@@ -26,7 +26,9 @@ poses refitted to the markers with these offsets (J(δ), the placement's own cos
 J(δ) − J(0) ≤ ε shows a placement with the mean of c shifted (by the refitted poses' mean
 change Δc̄) that fits the markers as well: c̄ is *not determined* by the markers to within Δc̄.
 A rise above ε does not prove the converse (the offsets could compensate further); such a
-coordinate is reported as "no flat direction found", never as identified.
+coordinate is reported as "no flat direction found", never as identified. A coordinate whose
+mean a stated prior sets instead of the markers (:mod:`msk.sole_level`: the ankles, "sole level
+at foot flat") keeps its profile but is reported with status "prior", not "not determined".
 """
 
 from __future__ import annotations

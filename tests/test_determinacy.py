@@ -86,6 +86,11 @@ def test_profile_finds_the_knee_gauge_only_when_every_distal_marker_is_free():
     summary = free.summary()
     assert summary["not_determined"] == ["knee_angle"]
     assert summary["coordinates"]["knee_angle"]["status"] == "not determined"
+    # a stated prior that sets the mean: status "prior", no longer "not determined"
+    prior = free.summary({"knee_angle": "a test prior"})
+    assert prior["not_determined"] == [] and free.not_determined({"knee_angle": "x"}) == ()
+    assert prior["coordinates"]["knee_angle"]["status"] == "prior"
+    assert prior["coordinates"]["knee_angle"]["prior"] == "set by prior: a test prior"
 
     held = placement_profile(model, fit, ["TIB", "HEE", "TOE"], labels,
                              tolerance_m=TOL_M, stems=("knee_angle",))  # fmt: skip
