@@ -3,13 +3,13 @@ when the foot is flat on the ground.
 
 Without a static trial every foot marker is moved from the motion
 (:func:`msk.scaling.place_markers_from_motion`), so the mean ankle angle is an exact gauge
-(:mod:`msk.determinacy`): rotating the foot's marker offsets about the ankle axis by δ while
-the ankle coordinate moves by δ leaves every marker in place, and the mean is wherever the
+(:mod:`msk.determinacy`): rotating the foot's marker offsets about the ankle axis by −δ while
+the ankle coordinate moves by +δ leaves every marker in place, and the mean is wherever the
 placement's start and stop put it. The prior that fixes it: in the foot-flat phase of stance
 (loading response to heel rise: the heel and the forefoot both on the ground, Perry J, Burnfield
 JM (2010) Gait Analysis: Normal and Pathological Function, 2nd ed., ch. 4 "Ankle–foot
-complex") the plantar surface lies on the floor, and in gait2392 / Rajagopal the calcaneus
-frame's x axis is that surface's heel-to-metatarsal line — at zero ankle and subtalar angles
+complex") the plantar surface lies on the floor, and in gait2392 the calcaneus frame's x
+axis is that surface's heel-to-metatarsal line — at zero ankle and subtalar angles
 with the tibia vertical the MTP joint centre sits 2 mm below the calcaneus origin 179 mm in
 front of it (gait2392's ``mtp_r`` offset [0.1788, −0.002, 0.00108] m: a pitch of −0.6°; Delp
 SL et al. (1990) IEEE Trans Biomed Eng 37:757–767). So its pitch
@@ -20,17 +20,20 @@ is 0 at foot flat. The gauge's shift δ of a side's ankle solves
 
     median_{t ∈ F} φ(q_t + δ e_ankle) = 0      (F: that foot's foot-flat frames)
 
-(a scalar root, found by the secant method; φ is monotone in δ over ±60° since the ankle axis is
-within 20° of the medio-lateral axis), and :func:`msk.determinacy.gauge_shifted_markers` moves
+(a scalar root, found by the secant method; φ is monotone in δ near the root: gait2392's ankle
+axis is 12° off the medio-lateral axis), and :func:`msk.determinacy.gauge_shifted_markers` moves
 the free foot markers so that the refitted poses carry that δ.
 
 Foot-flat frames (:func:`foot_flat_frames`) come from the markers alone: the foot's markers
 (on the calcaneus) all moving vertically slower than :data:`FLAT_VERTICAL_SPEED_M_S` with
 their mean height above their own lowest within :data:`FLAT_HEIGHT_TOLERANCE_M` of that mean's
-lowest — heights and vertical speeds only, so a treadmill's belt,
-which carries the foot forward in stance, does not hide it. A trial with fewer than
-:data:`MIN_FLAT_FRAMES` such frames on a side (no stance, toe walking whose heel never rests)
-keeps the placement's ankle as it is, and says so.
+lowest — heights and vertical speeds only, so a treadmill's belt, which carries the foot
+forward in stance, does not hide it. A trial with fewer than :data:`MIN_FLAT_FRAMES` such
+frames on a side (no stance, running, toe walking whose heel never rests) keeps the
+placement's ankle as it is, and says so (:class:`SoleLevel`, ``reason``).
+
+The prior sets the foot's orientation, not the shank's: an ankle still moves with its knee's
+own gauge when that is free (docs/validation.md, issue 15 ankle pass).
 """
 
 from __future__ import annotations
@@ -68,8 +71,8 @@ __all__ = [
 FLAT_HEIGHT_TOLERANCE_M = 0.020
 
 #: a foot marker is still when its vertical speed is under 0.1 m/s: a heel marker at heel
-#: strike or heel rise moves vertically at 0.3–2 m/s; at foot flat its speed is ≤ 0.05 m/s
-#: (the same walk)
+#: strike or heel rise moves vertically at 0.3–2 m/s; at foot flat mostly ≤ 0.05 m/s (the
+#: same walk)
 FLAT_VERTICAL_SPEED_M_S = 0.10
 
 #: fewer foot-flat frames than this on a side: no prior applied there
