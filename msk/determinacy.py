@@ -26,7 +26,9 @@ poses refitted to the markers with these offsets (J(δ), the placement's own cos
 J(δ) − J(0) ≤ ε shows a placement with the mean of c shifted (by the refitted poses' mean
 change Δc̄) that fits the markers as well: c̄ is *not determined* by the markers to within Δc̄.
 A rise above ε does not prove the converse (the offsets could compensate further); such a
-coordinate is reported as "no flat direction found", never as identified.
+coordinate is reported as "no flat direction found", never as identified. A coordinate whose
+mean a stated prior sets instead of the markers (:mod:`msk.sole_level`: the ankles, "sole level
+at foot flat") keeps its profile but is reported with status "prior", not "not determined".
 """
 
 from __future__ import annotations
@@ -49,6 +51,7 @@ __all__ = [
     "CoordinateProfile",
     "PlacementProfile",
     "gauge_shifted_markers",
+    "joint_child",
     "placement_profile",
 ]
 
@@ -87,16 +90,23 @@ class CoordinateProfile:
         """False when a shifted placement fits within ``tolerance_m`` of the fit (or better)."""
         return min(self.cost_change_m) > tolerance_m
 
-    def summary(self, tolerance_m: float) -> dict[str, Any]:
+    def summary(self, tolerance_m: float, prior: str | None = None) -> dict[str, Any]:
+        """``prior``: the stated prior that sets this coordinate's mean (status "prior": the
+        profile is still reported, the markers do not determine it, the prior does)."""
+        if prior is not None:
+            status = "prior"
+        elif self.determined(tolerance_m):
+            status = "no flat direction found"
+        else:
+            status = "not determined"
         return {
             "mean_deg": float(np.degrees(self.mean_rad)),
             "mean_change_deg": [float(np.degrees(v)) for v in self.mean_change_rad],
             "cost_change_m": [float(v) for v in self.cost_change_m],
             "free_markers": self.free_markers,
             "fixed_markers": self.fixed_markers,
-            "status": "no flat direction found"
-            if self.determined(tolerance_m)
-            else "not determined",
+            "status": status,
+            **({"prior": f"set by prior: {prior}"} if prior is not None else {}),
         }
 
 
@@ -112,12 +122,20 @@ class PlacementProfile:
     cost_m: float
     coordinates: tuple[CoordinateProfile, ...]
 
-    @property
-    def not_determined(self) -> tuple[CoordinateProfile, ...]:
-        return tuple(c for c in self.coordinates if not c.determined(self.tolerance_m))
+    def not_determined(
+        self, priors: Mapping[str, str] | None = None
+    ) -> tuple[CoordinateProfile, ...]:
+        """The coordinates the markers leave free, less those a stated prior sets (``priors``:
+        coordinate → the prior)."""
+        return tuple(
+            c for c in self.coordinates
+            if not c.determined(self.tolerance_m) and c.coordinate not in (priors or {})
+        )  # fmt: skip
 
-    def summary(self) -> dict[str, Any]:
-        """``summary.json`` ``model.placement_determinacy``."""
+    def summary(self, priors: Mapping[str, str] | None = None) -> dict[str, Any]:
+        """``summary.json`` ``model.placement_determinacy``; ``priors``: coordinate → the stated
+        prior that sets its mean (status "prior", not "not determined")."""
+        priors = dict(priors or {})
         return {
             "method": "profile of the placement's task IK cost along each joint's gauge "
             "(msk.determinacy): the free marker offsets distal to the joint kept in place at "
@@ -128,12 +146,17 @@ class PlacementProfile:
             "tolerance_m": self.tolerance_m,
             "frames": self.frames,
             "cost_m": self.cost_m,
-            "coordinates": {c.coordinate: c.summary(self.tolerance_m) for c in self.coordinates},
-            "not_determined": [c.coordinate for c in self.not_determined],
+            "coordinates": {
+                c.coordinate: c.summary(self.tolerance_m, priors.get(c.coordinate))
+                for c in self.coordinates
+            },
+            "not_determined": [c.coordinate for c in self.not_determined(priors)],
+            "set_by_prior": {k: f"set by prior: {v}" for k, v in priors.items()},
         }
 
 
-def _joint_child(model: Model, coordinate: str) -> str:
+def joint_child(model: Model, coordinate: str) -> str:
+    """The child body of the joint a revolute axis of which ``coordinate`` drives."""
     for j in model.joints:
         if any(ax.coordinate == coordinate and ax.kind == "revolute" for ax in j.axes):
             return j.child
@@ -146,7 +169,7 @@ def gauge_shifted_markers(
     """``model`` whose ``free`` markers on the bodies distal to ``coordinate``'s joint are
     re-expressed so that at ``pose`` with ``coordinate`` + ``shift_rad`` they sit where they
     sat at ``pose``: p' = T_B(θ̄ + δ e_c)⁻¹ T_B(θ̄) p (the module docstring's gauge move)."""
-    sub = set(model.subtree(_joint_child(model, coordinate)))
+    sub = set(model.subtree(joint_child(model, coordinate)))
     free_set = set(free)
     moving = [mk for mk in model.markers if mk.body in sub and mk.name in free_set]
     if not moving:
@@ -200,7 +223,7 @@ def placement_profile(
         if (coord[:-2] if coord.endswith(("_r", "_l")) else coord) not in wanted:
             continue
         ci = model.coordinate_index(coord)
-        sub = set(model.subtree(_joint_child(model, coord)))
+        sub = set(model.subtree(joint_child(model, coord)))
         distal = [m for m, b in body_of.items() if b in sub]
         if not distal:
             continue

@@ -294,7 +294,9 @@ class ModelInfo(_Record):
     part of the static trial used (``static_window``,
     :meth:`msk.static_window.StillWindow.summary`) and, without a static trial, which leg
     coordinates' means the placement from the motion does not determine
-    (``placement_determinacy``, :meth:`msk.determinacy.PlacementProfile.summary`)."""
+    (``placement_determinacy``, :meth:`msk.determinacy.PlacementProfile.summary`) and the
+    ankles' means set by the prior "sole level at foot flat" instead (``sole_level``: ankle
+    coordinate → :meth:`msk.sole_level.SoleLevel.summary`)."""
 
     source: str | None = None
     generic_mass_kg: float | None = None
@@ -309,6 +311,7 @@ class ModelInfo(_Record):
     static_window: JsonObject | None = None
     leg_split: JsonObject | None = None
     placement_determinacy: JsonObject | None = None
+    sole_level: JsonObject | None = None
 
 
 @dataclass(frozen=True, kw_only=True)

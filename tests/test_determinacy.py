@@ -82,10 +82,15 @@ def test_profile_finds_the_knee_gauge_only_when_every_distal_marker_is_free():
     assert abs(c.mean_rad - truth) < np.radians(0.5)
     assert np.allclose(np.degrees(c.mean_change_rad), (5.0, -5.0), atol=0.5)
     assert max(abs(v) for v in c.cost_change_m) < TOL_M
-    assert [p.coordinate for p in free.not_determined] == ["knee_angle"]
+    assert [p.coordinate for p in free.not_determined()] == ["knee_angle"]
     summary = free.summary()
     assert summary["not_determined"] == ["knee_angle"]
     assert summary["coordinates"]["knee_angle"]["status"] == "not determined"
+    # a stated prior that sets the mean: status "prior", no longer "not determined"
+    prior = free.summary({"knee_angle": "a test prior"})
+    assert prior["not_determined"] == [] and free.not_determined({"knee_angle": "x"}) == ()
+    assert prior["coordinates"]["knee_angle"]["status"] == "prior"
+    assert prior["coordinates"]["knee_angle"]["prior"] == "set by prior: a test prior"
 
     held = placement_profile(model, fit, ["TIB", "HEE", "TOE"], labels,
                              tolerance_m=TOL_M, stems=("knee_angle",))  # fmt: skip
@@ -93,7 +98,7 @@ def test_profile_finds_the_knee_gauge_only_when_every_distal_marker_is_free():
     assert (c.free_markers, c.fixed_markers) == (3, 1)
     assert abs(c.mean_rad - truth) < np.radians(0.5)
     assert min(c.cost_change_m) > 10 * TOL_M
-    assert held.not_determined == ()
+    assert held.not_determined() == ()
     assert held.summary()["coordinates"]["knee_angle"]["status"] == "no flat direction found"
 
 
@@ -106,4 +111,4 @@ def test_profile_of_a_hip_whose_thigh_and_knee_markers_are_anatomical():
     prof = placement_profile(model, _fit(labels, x, t), ["TIB", "HEE", "TOE"], labels,
                              tolerance_m=TOL_M, stems=("hip_flexion", "no_such"))  # fmt: skip
     assert [c.coordinate for c in prof.coordinates] == ["hip_flexion"]
-    assert prof.not_determined == ()
+    assert prof.not_determined() == ()

@@ -48,6 +48,7 @@ __all__ = [
     "placement_frames",
     "run",
     "settings",
+    "sole_level",
     "without_markers",
 ]
 
@@ -1035,6 +1036,41 @@ def _choice_frames(
     return x, t, tuple(inv.get(lab, lab) for lab in trial.marker_labels)
 
 
+def sole_level(inputs: SessionInputs, read: ReadResult, built: dict[str, Any]) -> dict[str, Any]:
+    """The chosen motion placement (no static trial; ``built``) with each ankle's gauge set by
+    the prior "sole level at foot flat" (:func:`msk.sole_level.level_sole_gauge`: the foot-flat
+    frames of the whole task, fitted as :func:`placement_fit` fits the choice's frames; the
+    free markers those the placement placed or moved) — ``built`` with its model replaced and
+    ``summary.json`` ``model.sole_level`` (ankle coordinate → what was done or why not)."""
+    from msk.markersets import zeros_as_gaps
+    from msk.sole_level import level_sole_gauge
+
+    trial = read.trial
+    rot = np.asarray(built["rotation"], dtype=float)
+    x = zeros_as_gaps(np.asarray(trial.markers, dtype=float) @ rot.T)
+    t = np.asarray(trial.time, dtype=float)
+    inv = {v: k for k, v in built["rename"].items()}
+    labels = tuple(inv.get(lab, lab) for lab in trial.marker_labels)
+    weights = dict(inputs.cfg.marker_weights)
+    markers = sorted(set(built["model"].marker_names) & set(labels))
+    mp = dict(built["info"].get("marker_placement", {}))
+    free = [*dict(mp.get("moved", {})), *dict(mp.get("placed", {}))]
+
+    # the foot-flat frames fitted among the choice's (placement_frames: spread over the whole
+    # trial), in time order: the IK carries each frame's pose to the next, and the foot-flat
+    # frames alone, a stance apart, start cold (DM crouch: 59–87 mm, the knees 7–11° off)
+    spread = placement_frames(trial.markers)
+
+    def fit(m: Any, frames: np.ndarray) -> tuple[np.ndarray, float]:
+        every = np.union1d(spread, frames)
+        q, cost = placement_fit(m, x[every], t[every], labels, weights, markers)
+        return q[np.searchsorted(every, frames)], cost
+
+    model, sides = level_sole_gauge(built["model"], x, labels, t, fit, free)
+    built["info"]["sole_level"] = {s.coordinate: s.summary() for s in sides}
+    return {**built, "model": model}
+
+
 def placement_determinacy(
     inputs: SessionInputs, read: ReadResult, built: Mapping[str, Any]
 ) -> dict[str, Any]:
@@ -1059,11 +1095,13 @@ def placement_determinacy(
         return placement_fit(m, x, t, labels, weights, markers, initial_q=q0)
 
     free = [*dict(mp.get("moved", {})), *dict(mp.get("placed", {}))]
+    priors = {c: str(v["prior"]) for c, v in dict(built["info"].get("sole_level", {})).items()
+              if v.get("status") == "prior"}  # fmt: skip
     try:
         profile = placement_profile(model, fit, free, observed, tolerance_m=CHOICE_TOLERANCE_M)
     except ModelError as exc:  # reported (and flagged), not a failed model stage
         return {"not_run": str(exc)}
-    return profile.summary()
+    return profile.summary(priors)
 
 
 def _functional(split: Mapping[str, Any]) -> dict[str, float]:
@@ -1104,6 +1142,9 @@ def run(inputs: SessionInputs, read: ReadResult) -> BuiltModel:
 
         built, choice = choose_placement(inputs, read, built, split_of)
         built["info"]["placement_choice"] = choice
+        # the ankles' gauge (every foot marker moved: the markers leave their means free) set
+        # by the prior "sole level at foot flat" (msk.sole_level)
+        built = sole_level(inputs, read, built)
         built["info"]["placement_determinacy"] = placement_determinacy(inputs, read, built)
         split = measured.get("split")
         chosen = choice["candidates"][choice["chosen"]]

@@ -1441,7 +1441,8 @@ def _placement_note(model: Any) -> str:
         dm = [float(v) for v in c.get("mean_change_deg", ())]
         dc = [1000 * float(v) for v in c.get("cost_change_m", ())]
         shifts = ", ".join(f"{m:+.1f}° → {d:+.3f} mm" for m, d in zip(dm, dc))
-        return f"{name} {float(c.get('mean_deg', 0.0)):.1f}° ({shifts}): {c.get('status')}"
+        verdict = c.get("prior") or c.get("status")  # "set by prior: …" when a prior sets it
+        return f"{name} {float(c.get('mean_deg', 0.0)):.1f}° ({shifts}): {verdict}"
 
     text = (
         "Marker placement from the task (no static trial): each leg coordinate's mean shifted "
