@@ -145,7 +145,7 @@ def _reflect(x: Array, pad: int) -> Array:
     return ext[::-1]
 
 
-def _filtered_derivatives(
+def filtered_derivatives(
     time: Array, q: Array, cutoff_hz: float | None, order: int
 ) -> tuple[Array, Array, Array]:
     """Filter θ and differentiate over the solved window (first to last finite frame; interior
@@ -222,7 +222,7 @@ def kinematics_from_coordinates(
             raise MissingDataError(f"coordinates absent from the table: {missing}")
         x = x[:, [names.index(c) for c in model.coordinate_names]]
         names = model.coordinate_names
-    qf, v, a = _filtered_derivatives(t, x, cutoff_hz, filter_order)
+    qf, v, a = filtered_derivatives(t, x, cutoff_hz, filter_order)
     n = t.size
     nan = np.full(n, np.nan)
     return Kinematics(
@@ -699,7 +699,7 @@ def solve_kinematics(
             np.where(np.isfinite(both), both**2, 0.0)[solved].sum(axis=1) / cnt[solved]
         )
     q_out[status == STATUS_TOO_FEW_MARKERS] = np.nan
-    qf, v, a = _filtered_derivatives(t, q_out, cutoff_hz, filter_order)
+    qf, v, a = filtered_derivatives(t, q_out, cutoff_hz, filter_order)
     return Kinematics(
         time=t,
         q=qf,

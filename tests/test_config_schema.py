@@ -188,7 +188,7 @@ def _loaded(cfg: SessionConfig, table: str) -> Any:
 def test_every_key_of_the_reference_is_accepted_with_its_default(tree: Path) -> None:
     classes = {s.name: s.options for s in SECTIONS} | {"fes_trial": FesTrialConfig}
     with_default = {k: v for k, v in reference_keys().items() if v is not None}
-    assert len(with_default) == 38  # plateau_depth_m, grf_cutoff_hz have no default
+    assert len(with_default) == 39  # plateau_depth_m, grf_cutoff_hz have no default
     for (table, key), literal in with_default.items():
         line = f"{key} = {literal}\n"
         if table == "fes_trial":
@@ -270,7 +270,8 @@ def test_every_key_refuses_a_bad_value_in_one_line(tree: Path, table: str, cls: 
 def test_unknown_keys_name_a_suggestion_or_the_allowed_keys(tree: Path) -> None:
     with pytest.raises(ConfigError, match=r"unknown key emg\.lowpas_hz \(did you mean lowpass_hz"):
         _load(tree, _session({"emg": "lowpas_hz = 6.0\n"}))
-    with pytest.raises(ConfigError, match=r"allowed: kinematics_cutoff_hz, grf_cutoff_hz$"):
+    allowed = r"allowed: kinematics_cutoff_hz, grf_cutoff_hz, acceleration_domain$"
+    with pytest.raises(ConfigError, match=allowed):
         _load(tree, _session({"filters": "colour = 3\n"}))
     with pytest.raises(ConfigError, match=r"unknown key optimisation \(did you mean optimization"):
         _load(tree, _session({"optimisation": "w_emg = 0.2\n"}))

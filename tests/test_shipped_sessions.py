@@ -98,8 +98,10 @@ EXPECT: dict[str, dict] = {
     # measured: the ends of the tracked window are left out, msk.observation), the swing
     # knees solved past gait2392's 120° (knee_flexion_to_physiological): IK 17.4 mm, 18.7 % BW;
     # issue 15's IK ≤ 15 mm since its twelfth pass (10.9 mm: the whole tracked window placed,
-    # the right subtalar no longer held)
-    "uwa_running": {"ik_mm": 15, "res_pct": 20,
+    # the right subtalar no longer held); residual 12.1 % BW with θ low-passed, 6.3 % with each
+    # segment's COM low-passed as the plates are (the config's acceleration_domain, issue 15 COM
+    # pass): still over the 5 % aim, flagged
+    "uwa_running": {"ik_mm": 15, "res_pct": 8,
                     "must": {"residual_force_rms_pct_bw", *NOT_DETERMINED,
                              *_not_determined("ankle_angle_r", "ankle_angle_l")},
                     "may": None},

@@ -43,6 +43,10 @@ FES_STEPS_NEEDED = {
     "validation": 1,
 }
 
+#: where the low-pass the plates also get is applied for the whole-body COM acceleration: to the
+#: coordinates θ only, or to every segment's COM (:mod:`msk.com_consistency`)
+ACCELERATION_DOMAINS = ("coordinates", "segment_com")
+
 #: filter cut-offs (Hz): above ~0.01 Hz (a smaller one is no filter: a constant) and at most
 #: 500 Hz (the Nyquist frequency of a 1 kHz analog rate)
 MIN_CUTOFF_HZ = 0.01
@@ -262,6 +266,14 @@ class FilterConfig:
         None,
         unit="Hz",
         bounds=_CUTOFF,
+    )
+    acceleration_domain: str = opt(
+        "where the whole-body COM acceleration is low-passed: 'coordinates' (θ low-passed, then "
+        "differentiated) or 'segment_com' (each segment's COM low-passed as the plates are, the "
+        "difference taken by the root's translations; msk.com_consistency): for fast segment "
+        "rotations (running), where a COM of low-passed θ is not the low-passed COM",
+        "coordinates",
+        choices=ACCELERATION_DOMAINS,
     )
 
 

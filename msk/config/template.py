@@ -68,6 +68,7 @@ assign = {}
 [filters]
 kinematics_cutoff_hz = 6.0
 grf_cutoff_hz = 6.0               # default: the kinematics' cut-off (the same filter on both)
+acceleration_domain = "coordinates"  # or "segment_com": the COM low-passed as the plates (running)
 
 [optimization]
 # static_optimization | bounded_qp | emg_weighted | emg_assisted | closed_form

@@ -26,13 +26,16 @@ def solve_trial(
     held: Mapping[str, tuple[float, float]] | None,
     cutoff_hz: float | None,
     initial_q: Any = None,
+    acceleration_domain: str = "coordinates",
 ) -> Any:
     """IK of a trial in the model frame; a frame that sees fewer than half of the model markers
     the trial tracks at best is not solved (a subject walking out of the capture volume leaves
     the acromia alone in view: IK there would give the legs any pose), nor a frame where a leg
     segment carrying markers in this trial has none in view (its pose would come from the
     neighbours only, and joint torques there from a guessed pose). ``initial_q``: as
-    :func:`msk.kinematics.solve_kinematics`'s (a warm start)."""
+    :func:`msk.kinematics.solve_kinematics`'s (a warm start). ``acceleration_domain``
+    ``"segment_com"``: θ̈ made consistent with the low-passed segment COMs
+    (:func:`msk.com_consistency.com_consistent_kinematics`)."""
     from msk.kinematics import solve_kinematics
 
     names = set(model.marker_names)
@@ -50,7 +53,7 @@ def solve_trial(
     if blind.any():  # a copy only when frames are blanked (issue 18: no copy of a long trial)
         markers = markers.copy()
         markers[blind] = np.nan
-    return solve_kinematics(
+    kin = solve_kinematics(
         model,
         markers,
         labels,
@@ -61,12 +64,18 @@ def solve_trial(
         min_markers=max(3, int(np.ceil(MIN_MARKER_FRACTION * seen.sum(axis=1).max()))),
         initial_q=initial_q,
     )
+    if acceleration_domain == "segment_com":
+        from msk.com_consistency import com_consistent_kinematics
+
+        kin = com_consistent_kinematics(model, kin)
+    return kin
 
 
 def settings(inputs: SessionInputs, model: BuiltModel) -> Any:
     return {
         "weights": dict(inputs.cfg.marker_weights),
         "cut": inputs.cfg.filters.kinematics_cutoff_hz,
+        "domain": inputs.cfg.filters.acceleration_domain,
         "held": dict(model.held),
     }
 
@@ -76,4 +85,5 @@ def run(inputs: SessionInputs, model: BuiltModel) -> Any:
     return solve_trial(
         model.model, model.trial, model.labels, weights=inputs.cfg.marker_weights,
         held=model.held, cutoff_hz=inputs.cfg.filters.kinematics_cutoff_hz,
+        acceleration_domain=inputs.cfg.filters.acceleration_domain,
     )  # fmt: skip

@@ -85,6 +85,7 @@ def run(
         k_i = solve_trial(
             mdl, tr_i, inputs.labels_of(tr_i.marker_labels), weights=cfg.marker_weights,
             held=model.held, cutoff_hz=cfg.filters.kinematics_cutoff_hz,
+            acceleration_domain=cfg.filters.acceleration_domain,
         )  # fmt: skip
         l_i = assign_loads(inputs, mdl, tr_i, k_i, assignment=read.assignment)
         seen = observed_frames(mdl, k_i).observed
