@@ -52,6 +52,15 @@ __all__ = [
 ]
 
 
+#: frames per block (a long trial's per-frame joint placements and COM Jacobians, ~20 kB a frame
+#: on gait2392, are never held whole; issue 18)
+BLOCK = 4096
+
+
+def _blocks(rows: NDArray[np.intp]) -> list[NDArray[np.intp]]:
+    return [rows[i : i + BLOCK] for i in range(0, rows.size, BLOCK)]
+
+
 def _mass_bodies(model: Model) -> list[tuple[int, Array, float]]:
     """(joint id, COM in the joint frame, mass) of every body with mass on a moving joint."""
     out = []
@@ -98,10 +107,10 @@ def low_passed_com_accelerations(
     n = th.shape[0]
     ok = np.isfinite(th).all(axis=1)
     coms = np.full((n, len(bodies), 3), np.nan)
-    if ok.any():
-        q = model.coupling.q(th[ok])
+    for rows in _blocks(np.flatnonzero(ok)):
+        q = model.coupling.q(th[rows])
         zero = np.zeros_like(q)
-        coms[ok] = _world_coms(spatial_kinematics(model, q, zero, zero), bodies)
+        coms[rows] = _world_coms(spatial_kinematics(model, q, zero, zero), bodies)
     _, _, acc = filtered_derivatives(
         np.asarray(kinematics.time, dtype=float),
         coms.reshape(n, -1),
@@ -158,11 +167,12 @@ def com_consistent_kinematics(
     ok = np.isfinite(th).all(axis=1) & np.isfinite(thd).all(axis=1)
     ok &= np.isfinite(thdd).all(axis=1) & np.isfinite(target).all(axis=(1, 2))
     a_new = thdd.copy()
-    if ok.any():
-        acc, jac = com_accelerations(model, th[ok], thd[ok], thdd[ok])
-        delta = np.einsum("kbi,b->ki", target[ok] - acc, masses) / masses.sum()  # ā_G − a_G
+    cols = np.asarray(trans, dtype=np.intp)
+    for rows in _blocks(np.flatnonzero(ok)):
+        acc, jac = com_accelerations(model, th[rows], thd[rows], thdd[rows])
+        delta = np.einsum("kbi,b->ki", target[rows] - acc, masses) / masses.sum()  # ā_G − a_G
         t_cols = jac[:, 0][:, :, trans]  # (K, 3, n_t): the same for every body
         step = (np.linalg.pinv(t_cols) @ delta[..., None])[..., 0]  # T⁺ (ā_G − a_G)
-        a_new[np.ix_(np.flatnonzero(ok), np.asarray(trans, dtype=np.intp))] += step
+        a_new[np.ix_(rows, cols)] += step
     meta = {**dict(kinematics.metadata), "acceleration_domain": "segment_com"}
     return dataclasses.replace(kinematics, a=a_new, metadata=meta)

@@ -178,3 +178,13 @@ def test_gaps_stay_nan_and_no_cutoff_is_a_no_op(model):
     assert np.isfinite(fixed.a[:100]).all() and np.isfinite(fixed.a[110:]).all()
     raw = dataclasses.replace(kin, cutoff_hz=None)
     assert com_consistent_kinematics(model, raw) is raw
+
+
+def test_blocks_give_the_one_pass_result(model, monkeypatch):
+    """A long trial is processed in blocks of frames (issue 18): the same numbers."""
+    import msk.com_consistency as cc
+
+    kin, _ = _known_truth(model, speed=1.0)
+    whole = com_consistent_kinematics(model, kin)
+    monkeypatch.setattr(cc, "BLOCK", 37)
+    np.testing.assert_array_equal(com_consistent_kinematics(model, kin).a, whole.a)
