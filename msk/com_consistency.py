@@ -27,7 +27,9 @@ only by the inertial force m δ of the segments beyond it, δ = ā_G − a_G(θ�
 generic model: hip 3–4, knee 1.2, lumbar 7 N·m RMS, against 22–27 N·m when every θ̈ is fitted
 to every segment's low-passed COM, a fit that drives the feet's rotations to several hundred
 rad/s² — tried, not shipped). The residual *moment* is not made consistent (the angular
-momentum is not linear in θ either).
+momentum is not linear in θ either). The masses m_b are the model's own (in the pipeline the
+generic model's, at the kinematics stage): with masses identified later the whole-body match
+holds to the degree the two distributions move their COM alike.
 """
 
 from __future__ import annotations
