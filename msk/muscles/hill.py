@@ -314,7 +314,10 @@ class LloydBesierCurves:
         conc = np.maximum((b - a * v) / (b + v), 0.0)
         slope_c = (1.0 + a) / b
         bp = (self.f_ecc - 1.0) / (self.ecc_slope_ratio * slope_c)
-        ecc = self.f_ecc - (self.f_ecc - 1.0) * bp / (bp - v)
+        # the eccentric branch (v < 0) at the lengthening speeds only: at a shortening speed
+        # v = b' its formula divides by zero (a speed the concentric branch answers)
+        v_ecc = np.minimum(v, 0.0)
+        ecc = self.f_ecc - (self.f_ecc - 1.0) * bp / (bp - v_ecc)
         return np.where(v >= 0, conc, ecc)
 
     def optimal_length_scale(self, activation: ArrayLike) -> Array:

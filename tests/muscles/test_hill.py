@@ -352,3 +352,16 @@ def test_against_opensim_thelen2003(needs_opensim, ref_dir):
     np.testing.assert_allclose(  # measured: 4e-12
         rs.max_active_force_along_tendon, get("rigid"), rtol=1e-8, atol=1e-9
     )
+
+
+def test_lloyd_besier_force_velocity_is_finite_at_the_eccentric_pole_speed():
+    """The eccentric formula's pole b' = (f_ecc − 1)/(r (1 + a)/b) lies at a *shortening* speed
+    (0.08 with the defaults), where the concentric branch answers: no division by zero there
+    (found by hypothesis in tests/test_strength_calibration.py)."""
+    c = LloydBesierCurves()
+    b = c.hill_curvature
+    pole = (c.f_ecc - 1.0) / (c.ecc_slope_ratio * (1.0 + c.hill_curvature) / b)
+    with np.errstate(all="raise"):
+        f = c.force_velocity(np.array([-pole, 0.0, pole]))
+    assert np.isfinite(f).all()
+    assert f[2] == pytest.approx((b - b * pole) / (b + pole))  # the concentric branch
