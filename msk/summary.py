@@ -405,6 +405,7 @@ class Methods(_Record):
     plate_assignment: str | None = None
     scaling_measurements: tuple[str, ...] | None = None
     task_trial: str | None = None
+    filtering: str | None = None
 
 
 @dataclass(frozen=True, kw_only=True)

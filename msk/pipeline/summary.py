@@ -20,7 +20,7 @@ from msk.pipeline.dynamics import InverseDynamics
 from msk.pipeline.emg import EmgActivations
 from msk.pipeline.fes import FesResult, fes_summary
 from msk.pipeline.inputs import SessionInputs, plain_settings
-from msk.pipeline.loads import PLATE_ASSIGNMENT, Loads
+from msk.pipeline.loads import PLATE_ASSIGNMENT, Loads, grf_cutoff_hz
 from msk.pipeline.mass_identification import MassIdentification
 from msk.pipeline.model import BuiltModel
 from msk.pipeline.runner import file_sha256, versions
@@ -71,6 +71,22 @@ def peak_measured_force_n(ext: Any, measured: np.ndarray) -> float:
     f = ext.force_recorded
     net = f[measured] if f is not None else np.nansum(ext.force[measured], axis=1)
     return float(np.nanmax(np.linalg.norm(net, axis=1), initial=0.0))
+
+
+def filtering(cfg: SessionConfig) -> str:
+    """What was low-passed, in words (``methods.filtering``)."""
+    f = cfg.filters
+    where = (
+        "each segment's centre of mass low-passed like the plates for the whole-body "
+        "acceleration (the difference taken by the pelvis translations; msk.com_consistency)"
+        if f.acceleration_domain == "segment_com"
+        else "velocities and accelerations differentiated from the low-passed coordinates"
+    )
+    return (
+        f"joint coordinates low-passed at {f.kinematics_cutoff_hz:g} Hz and ground reactions "
+        f"at {grf_cutoff_hz(cfg):g} Hz (4th-order Butterworth run forward and backward: zero "
+        f"lag); {where}"
+    )
 
 
 def base_summary(inputs: SessionInputs) -> dict[str, Any]:
@@ -543,6 +559,7 @@ def run(
             "plate_assignment": PLATE_ASSIGNMENT,
             "scaling_measurements": [m[0] for m in DEFAULT_MEASUREMENTS],
             "task_trial": inputs.task.name,
+            "filtering": filtering(cfg),
         },
         "identification": None
         if ident is None

@@ -1481,6 +1481,9 @@ def _methods_section(res: SessionResults, number: int = 6, *, gait: bool = True)
             f"along +x); force-plate contacts: {_or(plate_assignment, '?')}."
             "</p>"
         )
+        filtering = s.methods.filtering if s.methods else None
+        if filtering:
+            out.append(f'<p class="note">Filtering: {_e(filtering)}.</p>')
         scaling_note = _scaling_note(s.model)
         if scaling_note:
             out.append(f'<p class="note">{scaling_note}</p>')
