@@ -30,6 +30,7 @@ from msk.pipeline.tension import MuscleTensions
 __all__ = [
     "DEFAULT_MEASUREMENTS",
     "base_summary",
+    "filtering",
     "frames_solved",
     "joint_strength",
     "joint_strength_settings",
