@@ -35,6 +35,7 @@ holds to the degree the two distributions move their COM alike.
 from __future__ import annotations
 
 import dataclasses
+from collections.abc import Sequence
 from typing import Any
 
 import numpy as np
@@ -123,10 +124,16 @@ def low_passed_com_accelerations(
 
 
 def com_accelerations(
-    model: Model, theta: Array, theta_dot: Array, theta_ddot: Array
+    model: Model,
+    theta: Array,
+    theta_dot: Array,
+    theta_ddot: Array,
+    *,
+    columns: Sequence[int] | None = None,
 ) -> tuple[Array, Array]:
     """World COM accelerations a_b = β_b + J_b θ̈ of every massive body at (θ, θ̇, θ̈), (K, B, 3),
-    and the COM Jacobians J_b (K, B, 3, n_coords)."""
+    and the COM Jacobians J_b (K, B, 3, n_coords) — only their ``columns`` (coordinate indices,
+    in that order) when given."""
     bodies = _mass_bodies(model)
     q, v, a = model.coupling.embed(theta, theta_dot, theta_ddot)
     g = model.coupling.jacobian(theta)  # (K, nq, n)
@@ -136,7 +143,9 @@ def com_accelerations(
     coms = _world_coms(kin, bodies)
     k = theta.shape[0]
     acc = np.empty((k, len(bodies), 3))
-    jac = np.zeros((k, len(bodies), 3, theta.shape[1]))
+    cols = range(theta.shape[1]) if columns is None else columns
+    where = {int(c): p for p, c in enumerate(cols)}
+    jac = np.zeros((k, len(bodies), 3, len(where)))
     dof_joint = {pm.joints[j].idx_v: j for j in range(1, pm.njoints)}
     for i, (jid, _, _) in enumerate(bodies):
         c = coms[:, i]
@@ -146,10 +155,11 @@ def com_accelerations(
         acc[:, i] = ac[:, :3] + np.cross(ac[:, 3:], c) + np.cross(w, v_c) + gravity
         for dof, coord in enumerate(model.coupling.coordinate):
             j = dof_joint[dof]
-            if coord < 0 or j not in pm.supports[jid]:
+            if coord not in where or j not in pm.supports[jid]:
                 continue
             s = kin.subspace[j]
-            jac[:, i, :, coord] += g[:, dof, coord, None] * (s[:, :3] + np.cross(s[:, 3:], c))
+            col = where[coord]
+            jac[:, i, :, col] += g[:, dof, coord, None] * (s[:, :3] + np.cross(s[:, 3:], c))
     return acc, jac
 
 
@@ -171,10 +181,10 @@ def com_consistent_kinematics(
     a_new = thdd.copy()
     cols = np.asarray(trans, dtype=np.intp)
     for rows in _blocks(np.flatnonzero(ok)):
-        acc, jac = com_accelerations(model, th[rows], thd[rows], thdd[rows])
+        acc, jac = com_accelerations(model, th[rows], thd[rows], thdd[rows], columns=trans)
         delta = np.einsum("kbi,b->ki", target[rows] - acc, masses) / masses.sum()  # ā_G − a_G
-        t_cols = jac[:, 0][:, :, trans]  # (K, 3, n_t): the same for every body
-        step = (np.linalg.pinv(t_cols) @ delta[..., None])[..., 0]  # T⁺ (ā_G − a_G)
+        # T (K, 3, n_t): the translations' columns, the same for every body
+        step = (np.linalg.pinv(jac[:, 0]) @ delta[..., None])[..., 0]  # T⁺ (ā_G − a_G)
         a_new[np.ix_(rows, cols)] += step
     meta = {**dict(kinematics.metadata), "acceleration_domain": "segment_com"}
     return dataclasses.replace(kinematics, a=a_new, metadata=meta)
