@@ -1,7 +1,7 @@
 """Benchmark: ``msk batch`` of 20 sessions on a Dask ``LocalCluster`` (2 worker processes).
 
 The cohort is the bundled Grand Challenge session (real), 18 simulated sessions
-(``msk.synthetic_trials.write_synthetic_session``: the synthetic two-leg model with 1–3 mm marker
+(``msk.datasets.trials.write_synthetic_session``: the synthetic two-leg model with 1–3 mm marker
 noise) and one deliberately broken session (truncated C3D). Times, in the same run: the first
 batch (empty stage caches), then a re-run with nothing changed (every stage from the
 content-hash cache); prints the ratio (target < 10 %) and checks that exactly the broken
@@ -17,8 +17,8 @@ import tempfile
 import time
 from pathlib import Path
 
-from msk.batch import run_batch
-from msk.synthetic_trials import write_synthetic_session
+from msk.datasets.trials import write_synthetic_session
+from msk.pipeline.batch import run_batch
 
 REPO = Path(__file__).resolve().parents[1]
 

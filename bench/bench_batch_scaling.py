@@ -1,9 +1,10 @@
 """Benchmark: how ``msk batch`` scales from one worker to two on the local process pool.
 
 16 copies of the bundled Grand Challenge session (``pipelines/gc5_PS.toml``), every stage
-computed (``use_cache=False``), run by :func:`msk.batch.run_batch` with 1 and then 2 workers,
+computed (``use_cache=False``), run by :func:`msk.pipeline.batch.run_batch` with 1 and then 2
+workers,
 for each worker start method in the same run: ``forkserver`` (workers forked from a server
-that imported msk once, :data:`msk.batch.WORKER_PRELOAD`; the default) and ``spawn`` (each
+that imported msk once, :data:`msk.pipeline.batch.WORKER_PRELOAD`; the default) and ``spawn`` (each
 worker imports everything afresh; the former default). Prints the wall times, the speed-up
 2 workers / 1 worker, the per-session seconds and the load average before and after each
 batch: the machine is shared, and other jobs on its 2 cores take from the 2-worker runs first.
@@ -22,7 +23,7 @@ import tempfile
 import time
 from pathlib import Path
 
-import msk.batch as batch
+import msk.pipeline.batch as batch
 
 REPO = Path(__file__).resolve().parents[1]
 CONFIG = REPO / "pipelines" / "gc5_PS.toml"

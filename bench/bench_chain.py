@@ -33,18 +33,18 @@ from typing import Any
 import numpy as np
 from _timing import replace_doc_section
 
-from msk.contact import (
+from msk.contact.knee import (
     compartment_force_map,
     knee_contact_force,
     plateau_geometry,
     split_medial_lateral,
 )
-from msk.dynamics import inverse_dynamics
-from msk.kinematics import kinematics_from_coordinates
-from msk.loads import external_loads
+from msk.datasets.opensim_subject01 import load_subject01
+from msk.dynamics.inverse import inverse_dynamics
+from msk.dynamics.loads import external_loads
+from msk.kinematics.ik import kinematics_from_coordinates
 from msk.muscles.geometry import geometry_plan, muscle_parameters
 from msk.muscles.hill import Thelen2003Curves, rigid_tendon_state
-from msk.opensim_subject01 import load_subject01
 from msk.optimization import TensionInequalities, solve_static_optimization_batch
 from msk.optimization.opensim_reference import (
     compare_static_optimization,
@@ -226,10 +226,10 @@ def _write_docs(figures: str) -> None:
     section = (
         f"{SECTION} (`bench/bench_chain.py`)\n\n"
         "`.venv/bin/python bench/bench_chain.py [--write-docs]`: inverse dynamics "
-        "(`msk.dynamics.inverse_dynamics`), muscle geometry and Thelen2003 rigid-tendon "
+        "(`msk.dynamics.inverse.inverse_dynamics`), muscle geometry and Thelen2003 rigid-tendon "
         "`f_active` (`GeometryPlan.evaluate`, `rigid_tendon_state`), OpenSim-equivalent static "
         "optimisation (`solve_static_optimization_batch`, DAQP warm-started, no KKT report) and "
-        "the knee contact force with its medial/lateral split (`msk.contact`, from the knee's "
+        "the knee contact force with its medial/lateral split (`msk.contact.knee`, from the knee's "
         "∂l/∂ξ of the geometry pass; part of the chain figure), each a batch call "
         "over the trial, best of repeated runs after a warm-up; OpenSim 4.6 StaticOptimization "
         "on the same states timed inside its child process.\n\n"
@@ -252,7 +252,7 @@ def _write_docs(figures: str) -> None:
         "only the muscles crossing that knee, so the rows and their two frontal reserves join "
         "that leg's sub-problem and the split stays (issue 16, tenth pass; before, the QP with "
         "the rows was solved whole: 83 against 28 µs/frame); what they add is mostly building "
-        "the rows (`msk.contact.compartment_force_map`). Geometry is the batched evaluation "
+        "the rows (`msk.contact.knee.compartment_force_map`). Geometry is the batched evaluation "
         'of "Muscle geometry" above plus the Thelen curves; ID is RNEA per frame. The knee '
         "contact force takes the knee rows of the length Jacobian from the geometry pass and "
         'balances the distal bodies for all frames at once (see "Knee contact" below).\n'

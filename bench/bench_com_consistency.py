@@ -1,12 +1,13 @@
-"""Cost of the segment-COM acceleration domain (:mod:`msk.com_consistency`) against the inverse
+"""Cost of the segment-COM acceleration domain (:mod:`msk.kinematics.com_consistency`) against the
+inverse
 kinematics it follows, in the same run.
 
 Trial: the UWA running session as shipped (``pipelines/uwa_running.toml``, Running_1: 1,436
 frames at 250 Hz, the tracked window solved), its kinematics computed once by the pipeline's
 own stages (:func:`msk.pipeline.run_stages`). Timed, best of ``--repeats``:
 
-* :func:`msk.com_consistency.com_consistent_kinematics` on that kinematics;
-* :func:`msk.kinematics.solve_kinematics` of the same trial (the pipeline's kinematics stage,
+* :func:`msk.kinematics.com_consistency.com_consistent_kinematics` on that kinematics;
+* :func:`msk.kinematics.ik.solve_kinematics` of the same trial (the pipeline's kinematics stage,
   ``msk.pipeline.kinematics.run``): the baseline.
 
 Run: ``.venv/bin/python bench/bench_com_consistency.py [--repeats N] [--no-write]``; writes the
@@ -24,8 +25,8 @@ from pathlib import Path
 import numpy as np
 from _timing import best_of, replace_doc_section
 
-from msk.com_consistency import com_consistent_kinematics
 from msk.config import load_config
+from msk.kinematics.com_consistency import com_consistent_kinematics
 from msk.pipeline import kinematics as kinematics_stage
 from msk.pipeline import run_stages
 from msk.pipeline.inputs import session_inputs

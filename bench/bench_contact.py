@@ -1,6 +1,6 @@
 """Knee contact force on gait2392 (92 muscles), subject01 walk: the former route (RNEA per frame,
 a path evaluation per pair of unit twists, a forward-kinematics pass per frame) against the
-vectorised one (``msk.contact.knee_contact_force`` with the unit wrenches ∂l/∂ξ of the geometry
+vectorised one (``msk.contact.knee.knee_contact_force`` with the unit wrenches ∂l/∂ξ of the geometry
 stage), both with the medial/lateral split, and the whole chain ID + geometry + SO + contact,
 in µs per frame, all measured in the same run (their ratios are what to compare: on the shared
 machine absolute times move ×2–3 with the load).
@@ -31,21 +31,21 @@ from typing import Any
 import numpy as np
 from _timing import replace_doc_section
 
-from msk._legacy_contact import legacy_knee_contact_force
-from msk.contact import (
+from msk.contact.knee import (
     KneeContact,
     compartment_force_map,
     knee_contact_force,
     plateau_geometry,
     split_medial_lateral,
 )
-from msk.dynamics import inverse_dynamics
-from msk.kinematics import kinematics_from_coordinates
-from msk.loads import external_loads
+from msk.datasets.opensim_subject01 import load_subject01
+from msk.dynamics.inverse import inverse_dynamics
+from msk.dynamics.loads import external_loads
+from msk.kinematics.ik import kinematics_from_coordinates
 from msk.muscles.geometry import geometry_plan, muscle_parameters
 from msk.muscles.hill import Thelen2003Curves, rigid_tendon_state
-from msk.opensim_subject01 import load_subject01
 from msk.optimization import TensionInequalities, solve_static_optimization_batch
+from tests.support.legacy_contact import legacy_knee_contact_force
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -213,7 +213,7 @@ def _write_docs(figures: str) -> None:
     section = (
         f"{SECTION} (`bench/bench_contact.py`)\n\n"
         "`.venv/bin/python bench/bench_contact.py [--write-docs]`: tibiofemoral contact force "
-        "(`msk.contact.knee_contact_force`) and its medial/lateral split "
+        "(`msk.contact.knee.knee_contact_force`) and its medial/lateral split "
         "(`split_medial_lateral`), former route against the vectorised one, and the whole "
         "chain with it, all in one run.\n\n"
         f"**Target: ≤ {TARGET_US:.0f} µs per frame for the contact stage, split included.**\n\n"

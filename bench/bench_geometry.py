@@ -32,10 +32,10 @@ from pathlib import Path
 
 import numpy as np
 
-from msk._data import reference_dir, shared_dir
-from msk.model import Model
+from msk._runtime.opensim_peer import POSE_PRELUDE, opensim_available, run_opensim_script
+from msk.datasets.shared import reference_dir, shared_dir
+from msk.model.core import Model
 from msk.muscles.geometry import GeometryPlan
-from msk.opensim_peer import POSE_PRELUDE, opensim_available, run_opensim_script
 
 SECTION = "## Muscle geometry"
 PEER = shared_dir() / "tools" / "opensim-peer" / "data"
@@ -121,7 +121,7 @@ def baseline_plan_class(rev: str) -> type:
 def bench_model(
     path: Path, label: str, *, repeat: int, osim_frames: int, baseline: type | None = None
 ) -> dict:
-    from msk.osim import load_osim
+    from msk.model.osim import load_osim
 
     model = lower_limb(load_osim(path))
     th = walk(model, model)

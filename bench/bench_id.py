@@ -4,13 +4,13 @@ Trial: OpenSim's gait2392 subject01 walk (0.5–2.5 s, 121 marker frames at 60 H
 600 Hz) played forwards and backwards until it has about 1,000 frames (a palindrome keeps every
 trajectory continuous), written as .trc / .mot so both tools read the same inputs.
 
-* msk IK: :func:`msk.kinematics.solve_kinematics` with the setup's marker weights and coordinate
+* msk IK: :func:`msk.kinematics.ik.solve_kinematics` with the setup's marker weights and coordinate
   tasks (wall clock of the whole call, best of 3).
 * msk ID: filtering at 6 Hz + derivatives (:func:`kinematics_from_coordinates`), plate
   assignment and resampling (:func:`external_loads`) and RNEA (:func:`inverse_dynamics`), on
   msk's own IK result (best of 5).
 * OpenSim 4.6: ``InverseKinematicsTool.run()`` and ``InverseDynamicsTool.run()`` (6 Hz) timed
-  inside a child interpreter (:func:`msk.opensim_peer.run_opensim_script`), same files.
+  inside a child interpreter (:func:`msk._runtime.opensim_peer.run_opensim_script`), same files.
 
 Run: ``.venv/bin/python bench/bench_id.py [--repeats N] [--no-write]``; writes the section
 "Inverse kinematics and dynamics" of ``docs/benchmarks.md`` (other sections are kept).
@@ -28,12 +28,12 @@ from pathlib import Path
 import numpy as np
 from _timing import best_of
 
-from msk.dynamics import inverse_dynamics
+from msk._runtime.opensim_peer import opensim_available, run_opensim_script
+from msk.datasets.opensim_subject01 import OPENSIM_IK_ID_SCRIPT, load_subject01
+from msk.dynamics.inverse import inverse_dynamics
+from msk.dynamics.loads import external_loads, plates_from_table
 from msk.io.opensim_files import write_sto, write_trc
-from msk.kinematics import kinematics_from_coordinates, solve_kinematics
-from msk.loads import external_loads, plates_from_table
-from msk.opensim_peer import opensim_available, run_opensim_script
-from msk.opensim_subject01 import OPENSIM_IK_ID_SCRIPT, load_subject01
+from msk.kinematics.ik import kinematics_from_coordinates, solve_kinematics
 
 ROOT = Path(__file__).resolve().parent.parent
 
@@ -156,7 +156,8 @@ def main() -> None:
         f"`bench/bench_id.py` ({time.strftime('%Y-%m-%d')}, {platform.machine()}, "
         f"{os.cpu_count()} cores shared with other jobs, load average "
         f"{os.getloadavg()[0]:.1f}; Python {platform.python_version()}). Trial: gait2392 "
-        f"subject01 walk (scaled model imported by `msk.osim`, 23 coordinates, 39 markers, 31 "
+        f"subject01 walk (scaled model imported by `msk.model.osim`, 23 coordinates, 39 "
+        f"markers, 31 "
         f"weighted), 0.5–2.5 s played forwards and backwards to {n} frames at 60 Hz, plates at "
         "600 Hz. msk IK is `solve_kinematics` with the setup's marker weights and coordinate "
         f"tasks ({iters:.1f} Levenberg–Marquardt iterations per frame, mean marker RMS "

@@ -1,6 +1,6 @@
 """Mass-distribution identification from 10,000 frames: regressor stacking vs constrained solve.
 
-The whole-body model of ``msk.synthetic_models.whole_body_model`` (15 bodies, upper body lumped into
+The whole-body model of ``msk.datasets.models.whole_body_model`` (15 bodies, upper body lumped into
 one link: 8 identified segments, 4 free with left/right symmetry... 50 scaled parameters), a
 100 s trial at 100 Hz of sums of sines with 2 mm-marker-equivalent kinematic noise and 1 %
 force-plate noise. Times (best of 5 wall-clock, same run):
@@ -28,10 +28,10 @@ from pathlib import Path
 
 from _timing import best_of
 
-from msk.identification import InertialIdentifier, lump_subtrees
-from msk.regressors import base_link_regressor, regressor_layout
-from msk.synthetic_models import subject_bodies, whole_body_model
-from msk.synthetic_trials import identification_trial
+from msk.datasets.models import subject_bodies, whole_body_model
+from msk.datasets.trials import identification_trial
+from msk.dynamics.identification import InertialIdentifier, lump_subtrees
+from msk.dynamics.regressors import base_link_regressor, regressor_layout
 
 ROOT = Path(__file__).resolve().parents[1]
 

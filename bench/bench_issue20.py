@@ -11,7 +11,7 @@
 1–3 come from :func:`bench_chain.measure` (gait2392 subject01 walk, OpenSim on the same states,
 ``--repeat`` batch calls per stage after a warm-up: min and median; the verdict uses the min
 wall time, the ratio the CPU times), 4 from ``bench_run_cold`` (``--cold`` runs after one
-untimed run: min and median, verdict on the median), 5 from :func:`msk.batch.run_batch`
+untimed run: min and median, verdict on the median), 5 from :func:`msk.pipeline.batch.run_batch`
 (``forkserver`` workers, every stage computed). The machine is shared: the load average is
 printed before and after each part; only figures of the same run compare.
 
@@ -102,7 +102,7 @@ def _batch_speedup(
 ) -> tuple[str, ...]:
     """The table row of ``msk batch`` of ``sessions`` × gc5_PS on 1 then 2 workers of
     ``where`` (every stage computed); a note per batch."""
-    import msk.batch as batch
+    import msk.pipeline.batch as batch
 
     wall: dict[int, float] = {}
     for workers in (1, 2):

@@ -15,7 +15,7 @@ import platform
 import numpy as np
 from _timing import best_of
 
-from msk._data import reference_dir
+from msk.datasets.shared import reference_dir
 from msk.muscles import (
     MuscleParameters,
     Thelen2003Curves,

@@ -1,6 +1,6 @@
 """Per-frame tension-optimisation solve time: DAQP warm/cold, OSQP, Clarabel, SLSQP, closed form.
 
-Leg-like synthetic frames (msk.optimization.synthetic: each muscle crosses 1–3 adjacent
+Leg-like synthetic frames (msk.datasets.optimization: each muscle crosses 1–3 adjacent
 coordinates, 1–6 cm moment arms varying smoothly over a cycle, torques from known activations),
 the bounded QP ``min Σ(f/F_iso)²  s.t. R f = τ, 0 ≤ f ≤ F_iso``.
 
@@ -26,6 +26,7 @@ import numpy as np
 from _timing import best_of
 from scipy.optimize import minimize
 
+from msk.datasets.optimization import leg_like_frames
 from msk.optimization import (
     TensionProblem,
     build_coefficient_table,
@@ -33,7 +34,6 @@ from msk.optimization import (
     solve_static_optimization_batch,
     solve_tension_batch,
 )
-from msk.optimization.synthetic import leg_like_frames
 
 warnings.filterwarnings("ignore")  # qpsolvers' dense → sparse conversion notices
 
@@ -218,8 +218,8 @@ def run_opensim(t0: float = 0.6, t1: float = 1.4) -> list[dict[str, object]]:
     """OpenSim 4.6 SO on gait2392 subject01 walking vs msk on the same states (right leg)."""
     import tempfile
 
-    from msk._data import shared_dir
-    from msk.opensim_peer import opensim_available
+    from msk._runtime.opensim_peer import opensim_available
+    from msk.datasets.shared import shared_dir
     from msk.optimization.opensim_reference import opensim_static_optimization_reference
 
     data = shared_dir() / "tools" / "opensim-peer" / "data"

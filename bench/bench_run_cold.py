@@ -163,7 +163,7 @@ def main() -> None:
             "constraints are now built once per fit, each fold's first noise system once for "
             "all λ — same solver inputs, same result), the report ~0.4 s. The report's "
             "figures are drawn by a child that `msk run` forks when its first stage is "
-            "computed (`msk._fork.Server`; none when every stage comes from the cache): it "
+            "computed (`msk._runtime.fork.Server`; none when every stage comes from the cache): it "
             "imports matplotlib and warms its fonts on the free CPU "
             "while the stages run, then draws half of the figures while a grandchild draws "
             "the other half (the parent never imports matplotlib; `MSK_FORK=0` draws in the "

@@ -2,7 +2,7 @@
 
     .venv/bin/python bench/bench_strength.py
 
-Subject: the synthetic leg of :mod:`msk.strength.synthetic` (15 muscles, 3 coordinates, knee
+Subject: the synthetic leg of :mod:`msk.datasets.strength` (15 muscles, 3 coordinates, knee
 extensors ×1.7 and plantar flexors ×0.6 of generic), 3 gait trials of 4 cycles at 100 Hz with
 EMG envelope noise (10 % multiplicative, 0.01 additive) and torque noise (3 % of range).
 
@@ -30,10 +30,7 @@ import time
 
 import numpy as np
 
-from msk.muscles.activation import emg_to_activation
-from msk.muscles.hill import rigid_tendon_state
-from msk.strength import EMGDrivenCalibration, StrengthIdentifier
-from msk.strength.synthetic import (
+from msk.datasets.strength import (
     CALIBRATION_GROUPS,
     LEG_TRUE_FACTORS,
     calibration_trial,
@@ -41,6 +38,9 @@ from msk.strength.synthetic import (
     gait_trial,
     synthetic_leg,
 )
+from msk.muscles.activation import emg_to_activation
+from msk.muscles.hill import rigid_tendon_state
+from msk.strength import EMGDrivenCalibration, StrengthIdentifier
 
 
 def main() -> None:

@@ -7,13 +7,13 @@ from pathlib import Path
 
 import numpy as np
 
-from msk.dynamics import inverse_dynamics
+from msk.dynamics.inverse import inverse_dynamics
+from msk.dynamics.loads import external_loads, plates_from_trial
 from msk.io import read_c3d, read_trc_trial, to_model_frame
-from msk.kinematics import solve_kinematics
-from msk.loads import external_loads, plates_from_trial
-from msk.markersets import recognise
-from msk.model_files import load_model
-from msk.scaling import place_markers, scale_from_static
+from msk.kinematics.ik import solve_kinematics
+from msk.model.files import load_model
+from msk.model.markersets import recognise
+from msk.personalise.scaling import place_markers, scale_from_static
 
 REPO = Path(__file__).resolve().parents[1]
 model = load_model(REPO / "models/gait2392.toml")

@@ -8,17 +8,17 @@ from pathlib import Path
 
 import numpy as np
 
-from msk.contact import knee_contact_force, plateau_geometry, split_medial_lateral
-from msk.dynamics import inverse_dynamics
+from msk.contact.knee import knee_contact_force, plateau_geometry, split_medial_lateral
+from msk.dynamics.inverse import inverse_dynamics
+from msk.dynamics.loads import contact_measured, external_loads, plates_from_trial
 from msk.io import read_c3d, to_model_frame
-from msk.kinematics import solve_kinematics
-from msk.loads import contact_measured, external_loads, plates_from_trial
-from msk.markersets import recognise
-from msk.model_files import load_model
+from msk.kinematics.ik import solve_kinematics
+from msk.model.files import load_model
+from msk.model.markersets import recognise
 from msk.muscles.geometry import muscle_geometry, muscle_parameters
 from msk.muscles.hill import rigid_tendon_state
 from msk.optimization import solve_static_optimization_batch
-from msk.scaling import place_markers_from_motion, scale_from_motion
+from msk.personalise.scaling import place_markers_from_motion, scale_from_motion
 
 REPO = Path(__file__).resolve().parents[1]
 model = load_model(REPO / "models/gait2392.toml")

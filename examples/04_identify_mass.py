@@ -8,14 +8,14 @@ from pathlib import Path
 
 import numpy as np
 
-from msk.dynamics import inverse_dynamics
-from msk.identification import IdentificationTrial, InertialIdentifier
+from msk.dynamics.identification import IdentificationTrial, InertialIdentifier
+from msk.dynamics.inverse import inverse_dynamics
+from msk.dynamics.loads import contact_measured, external_loads, plates_from_trial
 from msk.io import read_c3d, to_model_frame
-from msk.kinematics import solve_kinematics
-from msk.loads import contact_measured, external_loads, plates_from_trial
-from msk.markersets import recognise
-from msk.model_files import load_model
-from msk.scaling import place_markers_from_motion, scale_from_motion
+from msk.kinematics.ik import solve_kinematics
+from msk.model.files import load_model
+from msk.model.markersets import recognise
+from msk.personalise.scaling import place_markers_from_motion, scale_from_motion
 
 REPO = Path(__file__).resolve().parents[1]
 model = load_model(REPO / "models/gait2392.toml")

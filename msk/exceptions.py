@@ -80,7 +80,8 @@ class BatchError(MskError):
 
 
 class SummaryError(FileFormatError):
-    """A ``summary.json`` does not follow the results contract (:class:`msk.summary.Summary`):
+    """A ``summary.json`` does not follow the results contract
+    (:class:`msk.results.summary.Summary`):
     a value of the wrong type, or not a session summary. ``key`` names the offending key
     (``strength.groups[2].factor``)."""
 

@@ -49,9 +49,11 @@ Thresholds and their sources (:data:`THRESHOLDS`):
   motion trial's by more than 25 mm (median over at least 3 partners,
   :func:`inconsistent_static_markers`): a mislabelled, swapped or ghost marker in the static.
 * No static trial: a leg coordinate whose mean over the task the marker placement does not
-  determine — a placement with it ~5° away (:data:`msk.determinacy.PROFILE_SHIFT_DEG`, the
+  determine — a placement with it ~5° away (:data:`msk.personalise.determinacy.PROFILE_SHIFT_DEG`,
+  the
   error above which a gait measurement "should raise concern", McGinley et al. 2009) fits the
-  markers within 0.2 mm of task IK cost or better (:func:`msk.determinacy.placement_profile`,
+  markers within 0.2 mm of task IK cost or better
+  (:func:`msk.personalise.determinacy.placement_profile`,
   the resolution the placement's own choice has: ``msk.pipeline.model.CHOICE_TOLERANCE_M``).
 """
 
@@ -66,7 +68,7 @@ import numpy as np
 import pinocchio as pin
 from numpy.typing import ArrayLike, NDArray
 
-from msk.markersets import LANDMARK_BODIES, is_knee_segment, other_side, parse_label
+from msk.model.markersets import LANDMARK_BODIES, is_knee_segment, other_side, parse_label
 from msk.signal import true_runs
 
 Array = NDArray[np.float64]
@@ -118,7 +120,8 @@ THRESHOLDS: Mapping[str, float] = {
     "saturation_activation": 0.99,
     "static_marker_discrepancy_m": 0.025,
     "coordinate_at_bound_frames_pct": 5.0,
-    # the leg's two length measures without a static (msk.leg_split): hip to the functional
+    # the leg's two length measures without a static (msk.personalise.leg_split): hip to the
+    # functional
     # knee and ankle against the ASIS-to-heel leg; the split's own limit for using the ankle
     "leg_length_disagreement_pct": 5.0,
 }
@@ -238,8 +241,8 @@ def inconsistent_static_markers(
     both stay still (position SD < ``still_m`` on every axis): markers of two still segments
     keep their distance too (the two feet of a squat, the lab's axis markers), so a pair of
     still markers says nothing of one segment — or unless the two are on opposite sides
-    (:func:`msk.markersets.parse_label`) and not both on the pelvis or trunk
-    (:data:`msk.markersets.LANDMARK_BODIES`; a sided label of unknown landmark counts as a
+    (:func:`msk.model.markersets.parse_label`) and not both on the pelvis or trunk
+    (:data:`msk.model.markersets.LANDMARK_BODIES`; a sided label of unknown landmark counts as a
     limb's): the legs of a squat move alike, so a right and a left shank marker keep their
     distance without being on one segment, at the task's stance width, not the static's. A
     static label names the same marker as the motion's when the static distance (median over
@@ -254,7 +257,7 @@ def inconsistent_static_markers(
     ``skip``: labels neither checked nor used as partners — markers that are not fixed to a
     bone of the model between the two trials (acromia on a model without shoulder girdle:
     the scapula moves with the arms, 29–34 mm against C7 between UNIPD's arms-out static and
-    its walks, :func:`msk.markersets.shoulder_girdle_markers`).
+    its walks, :func:`msk.model.markersets.shoulder_girdle_markers`).
 
     Both trials (N, M, 3) in metres with NaN gaps, any frame (distances only). Returns
     label → median discrepancy (m) for the contradicted markers (UNIPD's ``Static1``: ``RIMH``
@@ -303,7 +306,7 @@ def inconsistent_static_markers(
 def _pairs_and_pelvis(
     labels: Sequence[str],
 ) -> tuple[list[tuple[str, str]], dict[tuple[str, str], str], list[str]]:
-    """Left/right pairs of one landmark among ``labels`` (:func:`msk.markersets.parse_label`),
+    """Left/right pairs of one landmark among ``labels`` (:func:`msk.model.markersets.parse_label`),
     the labels by (landmark, side) and the posterior pelvis labels (sacrum, PSIS)."""
 
     by_side: dict[tuple[str, str], str] = {}
@@ -387,7 +390,7 @@ def swapped_sides(
 ) -> list[tuple[str, str, float]]:
     """Left/right marker pairs whose labels look swapped: the median over the solved frames of
     (right marker − left marker) · r̂ is negative, r̂ the subject's right. Pairs are model
-    markers of one landmark on both sides (:func:`msk.markersets.parse_label`).
+    markers of one landmark on both sides (:func:`msk.model.markersets.parse_label`).
 
     r̂ comes from the pelvis markers themselves where the trial has both ASIS and a posterior
     pelvis marker (sacrum or PSIS): r̂ = f̂ × û, f̂ the horizontal direction from the posterior
@@ -555,8 +558,9 @@ def placement_label_conflicts(
     """Markers placed on a thigh or shank body other than the one their label names, or on a
     body of the other side than their label's: label → (body placed on, body named).
     ``placed``: lab label → body of a placement from the motion
-    (:func:`msk.scaling.place_markers_from_motion`'s ``"placed"``); the named body is the
-    label's landmark's (:data:`msk.markersets.LANDMARK_BODIES`: a thigh cluster or knee marker
+    (:func:`msk.personalise.scaling.place_markers_from_motion`'s ``"placed"``); the named body is
+    the
+    label's landmark's (:data:`msk.model.markersets.LANDMARK_BODIES`: a thigh cluster or knee marker
     on the femur, a shank cluster or malleolus on the tibia) on its side, when the model has
     it. Without a static the body is the one the marker moves least on in the passes' inverse
     kinematics, and a knee no marker pins can make a thigh marker as still on the tibia as on
@@ -564,7 +568,8 @@ def placement_label_conflicts(
     femur and 6 % shorter tibia had R_Thigh_Inferior placed on tibia_r and R_Shank_Superior,
     R_Shank_Lateral on femur_r, its right knee then solved 43.7° RMS from the truth at an IK
     marker RMS of 8.2 mm, unflagged; a synthetic squat's R_Midfoot_Medial on toes_l (still feet
-    are as rigid to either foot). :func:`msk.scaling.place_markers_from_motion` now avoids
+    are as rigid to either foot). :func:`msk.personalise.scaling.place_markers_from_motion` now
+    avoids
     both; the check stays for any placement that does not."""
     have = set(bodies)
     out: dict[str, tuple[str, str]] = {}
@@ -592,7 +597,7 @@ def model_flags(
     """The gates on how the model was made from the task without a static (``info``: the model
     stage's record, ``summary.json`` ``model``): thigh or shank markers placed on the other
     segment (:func:`placement_label_conflicts`), and a leg whose two length measures disagree —
-    hip to the functional knee plus knee to the functional ankle (``msk.leg_split``,
+    hip to the functional knee plus knee to the functional ankle (``msk.personalise.leg_split``,
     ``femur_length_m + tibia_length_m``) against the ASIS-to-heel leg the model was scaled to
     (``model_femur_m + model_tibia_m``) by more than ``leg_length_disagreement_pct``: the leg's
     scale, and the tibia's (the rest of the leg), are uncertain by that much. Both are true of
@@ -600,8 +605,9 @@ def model_flags(
     (left leg +7.7 %; its legs scaled 5–6 % shorter than by the same subject's overground
     walk); neither of DM's overground and treadmill walks (≤ 2.5 %). And a leg coordinate whose
     mean the placement does not determine (``placement_determinacy``,
-    :func:`msk.determinacy.placement_profile`: a placement with it shifted by about
-    :data:`msk.determinacy.PROFILE_SHIFT_DEG` fits the markers within the cost's resolution or
+    :func:`msk.personalise.determinacy.placement_profile`: a placement with it shifted by about
+    :data:`msk.personalise.determinacy.PROFILE_SHIFT_DEG` fits the markers within the cost's
+    resolution or
     better; value: the cost change, m; threshold: that resolution)."""
     th = {**THRESHOLDS, **thresholds}
     out: list[Flag] = []
@@ -628,14 +634,14 @@ def model_flags(
                       f"leg {side}: hip to functional ankle {1000 * (lf + lt):.0f} mm is "
                       f"{diff:+.1f} % of the ASIS-to-heel leg's {1000 * (mf + mt):.0f} mm the "
                       "model was scaled to: the leg's and the tibia's scale factors are "
-                      "uncertain by that much (no static trial; msk.leg_split)")
+                      "uncertain by that much (no static trial; msk.personalise.leg_split)")
             )  # fmt: skip
     det = dict(info.get("placement_determinacy") or {})
     if det.get("not_run"):
         out.append(
             _flag(trial, "placement_determinacy_not_run", 1.0, 0.0,
                   f"what the placement from the motion determines was not checked: "
-                  f"{det['not_run']} (msk.determinacy)")
+                  f"{det['not_run']} (msk.personalise.determinacy)")
         )  # fmt: skip
     tol = float(det.get("tolerance_m", 0.0))
     for name in det.get("not_determined", ()):
@@ -650,7 +656,7 @@ def model_flags(
                   f"trial): a placement with it {dm[k]:+.1f}° away fits the task's markers "
                   f"{'as well' if dc[k] >= 0 else 'better'} (task IK cost {1000 * dc[k]:+.3f} "
                   f"mm; a change under {1000 * tol:.1f} mm is one the placement cannot resolve; "
-                  f"{why}msk.determinacy)")
+                  f"{why}msk.personalise.determinacy)")
         )  # fmt: skip
     return out
 
@@ -813,11 +819,13 @@ def frontal_reserve_flags(
 
 
 def contact_flags(trial: str, loads: Any, *, unassigned_pct: float = 1.0) -> list[Flag]:
-    """Plate contacts whose load went to no body (:attr:`msk.loads.ExternalLoads.flags`): both
+    """Plate contacts whose load went to no body (:attr:`msk.dynamics.loads.ExternalLoads.flags`):
+    both
     feet on one plate (its single wrench cannot be split between them: one resultant and one
     centre of pressure for two feet) or a load with no foot over the plate. Their frames are
     excluded from the residuals, the identification and the muscle forces
-    (:func:`msk.loads.contact_measured`): the flag says how many and where. A shared contact
+    (:func:`msk.dynamics.loads.contact_measured`): the flag says how many and where. A shared
+    contact
     is always flagged; an unassigned one above ``unassigned_pct`` % of the frames (a
     treadmill's first frame with a belt's load and the foot not yet tracked is no finding)."""
     out: list[Flag] = []
@@ -912,7 +920,8 @@ def gait_flags(
                   th["observed_measured_frames_min_pct"],
                   f"only {n_obs} of the {n_meas} frames whose ground contact the plates measure "
                   f"({pct:.0f} %) have every leg segment observed by its markers "
-                  "(msk.observation): the residuals, the plate mass and the identifications "
+                  "(msk.kinematics.observation): the residuals, the plate mass and the "
+                  "identifications "
                   "rest on those few")
         )  # fmt: skip
     raised = quality.get("unmeasured_contact_raised_frames") or 0

@@ -103,12 +103,13 @@ BOUND_REL_TOL = 1e-6
 #: FES parameters): 0.1 %, well below the precision any of them is identified to.
 PRIOR_REL_TOL = 1e-3
 #: Posterior relative std of a segment mass at or below which it is ``identified`` (the
-#: "well identified" criterion of :mod:`msk.identification`, seeds/002 Fig. 3 colour coding).
+#: "well identified" criterion of :mod:`msk.dynamics.identification`, seeds/002 Fig. 3 colour
+# coding).
 WELL_IDENTIFIED_MASS_REL_STD = 0.02
 #: Posterior std (m) of every COM coordinate at or below which a segment is ``identified``.
 WELL_IDENTIFIED_COM_STD_M = 0.004
 #: Prior spread of a segment mass (relative) and COM (m): the defaults of
-#: :func:`msk.identification.default_prior_std`.
+#: :func:`msk.dynamics.identification.default_prior_std`.
 SEGMENT_MASS_PRIOR_REL_STD = 0.3
 SEGMENT_COM_PRIOR_STD_M = 0.03
 #: A segment is ``prior`` only while its mass and COM stay within this fraction of their prior

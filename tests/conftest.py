@@ -10,8 +10,8 @@ from pathlib import Path
 import pytest
 from hypothesis import settings
 
-from msk._data import real_data_dir, reference_dir
-from msk.opensim_peer import opensim_available
+from msk._runtime.opensim_peer import opensim_available
+from msk.datasets.shared import real_data_dir, reference_dir
 
 TESTS_DATA = Path(__file__).parent / "data"
 # CI runs property tests on a fixed example sequence (reproducible, never flaky); locally they

@@ -6,8 +6,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from msk._data import real_data_dir
 from msk.analogs import StoredAnalogs
+from msk.datasets.shared import real_data_dir
 from msk.io.c3d import PlateSpec, read_c3d, write_c3d
 from msk.muscles.emg import process_emg
 

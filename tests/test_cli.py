@@ -143,7 +143,7 @@ def test_help_imports_no_numerical_library():
         "from msk.cli import main\n"
         "with contextlib.suppress(SystemExit), contextlib.redirect_stdout(io.StringIO()):\n"
         "    main(['--help'])\n"
-        "heavy = ('pinocchio', 'casadi', 'matplotlib', 'scipy', 'msk.pipeline', 'msk.model')\n"
+        "heavy = ('pinocchio', 'casadi', 'matplotlib', 'scipy', 'msk.pipeline', 'msk.model.core')\n"
         "print(' '.join(m for m in heavy if m in sys.modules))\n"
     )
     proc = subprocess.run(

@@ -1,4 +1,4 @@
-"""Tests of msk.compare against scipy / hand computations and textbook data."""
+"""Tests of msk.metrics against scipy / hand computations and textbook data."""
 
 from __future__ import annotations
 
@@ -9,7 +9,7 @@ from hypothesis import strategies as st
 from hypothesis.extra.numpy import arrays
 from scipy import stats
 
-from msk import compare
+from msk import metrics as compare
 from msk.exceptions import MissingDataError, MskError, ShapeMismatchError
 
 # Shrout & Fleiss (1979), Table 2: 6 targets rated by 4 judges, and their Table 4 results.

@@ -23,8 +23,8 @@ from pathlib import Path
 
 import pytest
 
-from msk._data import real_data_dir
 from msk.config import TEMPLATE
+from msk.datasets.shared import real_data_dir
 from tests.support.c3d_mutants import label_width, parameters, retype, set_dim, set_text, set_value
 
 REAL = real_data_dir()

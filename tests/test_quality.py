@@ -7,6 +7,7 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 
+from msk.datasets.models import two_leg_model
 from msk.quality import (
     SWAP_MIN_SEPARATION_M,
     THRESHOLDS,
@@ -15,7 +16,6 @@ from msk.quality import (
     swapped_label_pairs,
     swapped_sides,
 )
-from msk.synthetic_models import two_leg_model
 
 
 def _still(model, n, ty=0.93):
@@ -301,7 +301,7 @@ def test_unmeasured_contact_inside_the_measured_span_is_flagged_outside_it_is_no
     frames (before a heel strike) do not count."""
     from types import SimpleNamespace as NS
 
-    from msk.loads import FootContact
+    from msk.dynamics.loads import FootContact
     from msk.pipeline.summary import unmeasured_contact_figures
 
     t = np.arange(100) / 100.0
@@ -450,11 +450,12 @@ def test_a_leg_whose_two_length_measures_disagree_is_flagged(functional, flagged
 
 
 def test_a_leg_coordinate_the_placement_does_not_determine_is_flagged():
-    """``model.placement_determinacy`` (msk.determinacy): a flag per coordinate it lists as not
+    """``model.placement_determinacy`` (msk.personalise.determinacy): a flag per coordinate it lists
+    as not
     determined, its value the smaller cost change (a better fit: negative), its threshold the
     profile's tolerance, its message the coordinate, the shift and "not determined by the
     markers"; a coordinate with no flat direction found raises nothing."""
-    from msk.determinacy import CoordinateProfile, PlacementProfile
+    from msk.personalise.determinacy import CoordinateProfile, PlacementProfile
     from msk.quality import model_flags
 
     coords = (

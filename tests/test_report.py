@@ -16,7 +16,7 @@ from msk.io.opensim_files import Table
 from msk.pipeline import run_session
 from msk.report import render_html, write_pdf
 from msk.report.html import chromium_args, chromium_executable
-from msk.results import SessionResults, read_session
+from msk.results.folder import SessionResults, read_session
 
 REPO = Path(__file__).resolve().parents[1]
 
@@ -137,7 +137,7 @@ def test_missing_stages_are_visible():
 
 
 def test_strength_status_flags_factors_on_the_regression_bounds():
-    from msk.summary import Strength
+    from msk.results.summary import Strength
 
     st = {"bounds": [0.5, 2.0], "r2": 0.8}
 
@@ -155,7 +155,8 @@ def test_strength_status_flags_factors_on_the_regression_bounds():
     assert status(1.0, None, None, gated=False) == "prior"
 
 
-#: the keys every summary.json has (msk.summary.Summary's required ones) besides subject, quality
+#: the keys every summary.json has (msk.results.summary.Summary's required ones) besides subject,
+# quality
 BASE_SUMMARY = {
     "session": "X",
     "created_utc": "2026-01-01T00:00:00Z",
@@ -310,7 +311,7 @@ def test_no_group_at_a_bound_is_called_identified_anywhere(tmp_path):
     sits on the 0.5–2.0 bound "identified"."""
     import csv
 
-    from msk.batch import run_batch
+    from msk.pipeline.batch import run_batch
     from msk.status import STATUS_CODES, at_bound
 
     res = run_batch([REPO / "pipelines" / "gc5_PS.toml"], tmp_path, workers=1)
@@ -342,7 +343,7 @@ def test_no_group_at_a_bound_is_called_identified_anywhere(tmp_path):
     assert int(row["strength_groups_identified"]) == sum(w == "identified" for w in words.values())
     assert int(row["strength_groups_at_bound"]) == len(bound)
     # msk compare
-    from msk.batch import compare_sessions
+    from msk.pipeline.batch import compare_sessions
 
     notes = {
         r["item"]: r["note"]

@@ -1,6 +1,6 @@
 """``seeds/003`` Tables 4.1, 4.5–4.7 are produced by one call (issue 19):
-:func:`msk.strength.seed003.seed003_comparison` on the Rajagopal walk with OpenSim 4.6 as the
-peer (``scripts/seed003_tables.py`` writes them to ``docs/seed003.md``). Asserted: the tables'
+:func:`studies.seed003.seed003_comparison` on the Rajagopal walk with OpenSim 4.6 as the
+peer (``studies/seed003_tables.py`` writes them to ``docs/seed003.md``). Asserted: the tables'
 structure (the thesis' twelve muscles, three comparisons, both stances, both joints), finite
 values, the thesis' published numbers carried beside ours, and two findings that hold on this
 recording — the EMG-driven model reproduces the calibration window's ankle moment at least as
@@ -13,8 +13,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from msk.opensim_peer import opensim_available
-from msk.strength.seed003 import PAPER, THESIS_NAMES, seed003_comparison
+from msk._runtime.opensim_peer import opensim_available
+from studies.seed003 import PAPER, THESIS_NAMES, seed003_comparison
 
 
 @pytest.mark.slow

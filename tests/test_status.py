@@ -160,7 +160,7 @@ def test_gain_and_fes_status():
 
 @pytest.mark.parametrize("name", ["WELL_IDENTIFIED_MASS_REL_STD", "WELL_IDENTIFIED_COM_STD_M"])
 def test_thresholds_agree_with_the_identification_flags(name):
-    import msk.identification as ident
+    import msk.dynamics.identification as ident
     import msk.status as status
 
     assert getattr(status, name) == getattr(ident, name)

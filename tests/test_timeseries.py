@@ -17,11 +17,11 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from msk.contact import CompartmentMap, KneeContact, MedialLateral, PlateauGeometry
-from msk.dynamics import JointReaction, JointTorques
+from msk.contact.knee import CompartmentMap, KneeContact, MedialLateral, PlateauGeometry
+from msk.dynamics.inverse import JointReaction, JointTorques
+from msk.dynamics.loads import ContactFlag, ExternalLoads
 from msk.exceptions import ShapeMismatchError
-from msk.kinematics import Kinematics
-from msk.loads import ContactFlag, ExternalLoads
+from msk.kinematics.ik import Kinematics
 from msk.muscles.contraction import ContractionState
 from msk.muscles.emg import ChannelQuality, EmgEnvelopes
 from msk.muscles.geometry import MuscleGeometry

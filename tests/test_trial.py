@@ -39,8 +39,8 @@ def test_public_paths_of_moved_types_still_work():
     import msk.io.c3d
     import msk.io.opensim_files
     import msk.io.tables
-    import msk.joints
-    import msk.osim
+    import msk.model.joints
+    import msk.model.osim
     import msk.trial
 
     for name in ("Trial", "ForcePlate", "Event", "Subject", "GapReport", "ModelOutputs"):
@@ -50,8 +50,8 @@ def test_public_paths_of_moved_types_still_work():
     assert msk.io.Table is msk.io.opensim_files.Table is msk.io.tables.Table
     assert msk.io.tables.Table.__module__ == "msk.io.tables"
     for name in ("PiecewiseLinear", "Composite"):
-        assert getattr(msk.osim, name) is getattr(msk.joints, name)
-        assert getattr(msk.joints, name).__module__ == "msk.joints"
+        assert getattr(msk.model.osim, name) is getattr(msk.model.joints, name)
+        assert getattr(msk.model.joints, name).__module__ == "msk.model.joints"
 
 
 def _longest_by_hand(col: np.ndarray) -> int:

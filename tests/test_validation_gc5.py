@@ -5,7 +5,8 @@ Full chain per trial: gait2392 (``models/gait2392.toml``) scaled to ``PS_static_
 (75 kg, the mass the data's source assumes) → IK → plate loads → ID → muscle geometry →
 OpenSim-equivalent static optimisation (Σ a², Thelen2003 curves of gait2392, rigid tendon,
 ``a ∈ [0.01, 1]``, pelvis residual actuators of optimal force 1) → knee contact force of the
-instrumented LEFT knee (:mod:`msk.contact`) → 101 samples over Left Foot Strike → next Left Foot
+instrumented LEFT knee (:mod:`msk.contact.knee`) → 101 samples over Left Foot Strike → next Left
+Foot
 Strike (the interval the eTibia curves support, see ``test_etibia_interval_is_the_gait_cycle``).
 
 The marker names of the data differ from gait2392's marker set: the model marker → lab label
@@ -14,7 +15,7 @@ file) when present, else :data:`RENAME` (the same mapping). Mapping gait2392's a
 markers to the lab's ``RShoulder``/``LShoulder`` makes IK worse (30 vs 22 mm RMS): they are
 left to be placed. The
 static trial's other markers (thigh/shank clusters, PSIS…) are added to the scaled model where
-they sit (:func:`msk.scaling.place_markers`), as the pipeline does.
+they sit (:func:`msk.personalise.scaling.place_markers`), as the pipeline does.
 
 Issue 7 variants (:class:`Variant`, table in ``docs/validation.md``): body mass from the plates
 instead of 75 kg, the lab's foot markers moved to their static positions (``FOOT_MARKERS``),
@@ -34,7 +35,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from msk.contact import G0
+from msk.contact.knee import G0
 from msk.optimization import STATUS_SOLVER_FAILED
 from tests.support.gc5 import (
     BASELINE,

@@ -6,13 +6,15 @@ body mass: N·mm/kg, read by :func:`msk.io.read_c3d` as N·m/kg). msk's chain on
 and plates is compared with them, sagittal hip, knee and ankle, over every stance phase
 (events of the file: Foot Strike → next Foot Off of that side) whose foot stands on a plate.
 
-Chain (both files): gait2392 (``models/gait2392.toml``) → :func:`msk.scaling.scale_model`
+Chain (both files): gait2392 (``models/gait2392.toml``) →
+:func:`msk.personalise.scaling.scale_model`
 (:data:`msk.pipeline.DEFAULT_MEASUREMENTS` where both markers exist; the feet, which have no
 usable pair — PiG's toe marker is not gait2392's toe tip — take the mean tibia factor) →
-:func:`msk.scaling.place_markers` (THI/TIB wands, PSIS, toe, C7…) → lab → model frame
+:func:`msk.personalise.scaling.place_markers` (THI/TIB wands, PSIS, toe, C7…) → lab → model frame
 (:func:`msk.io.lab_to_model_rotation`: lab up → model up, walking along +x) →
-:func:`msk.kinematics.solve_kinematics` → :func:`msk.loads.plates_from_trial` /
-:func:`msk.loads.external_loads` → :func:`msk.dynamics.inverse_dynamics`, moments ÷ body mass.
+:func:`msk.kinematics.ik.solve_kinematics` → :func:`msk.dynamics.loads.plates_from_trial` /
+:func:`msk.dynamics.loads.external_loads` → :func:`msk.dynamics.inverse.inverse_dynamics`, moments ÷
+body mass.
 Marker names: the Plug-in Gait → gait2392 map ``pipelines/markersets/plug_in_gait_to_gait2392
 .toml`` (read, not copied). PiG's own virtual segment points (``PELO``, ``LFEO``…, ``*1``…)
 are model outputs of the reference, not measurements: they are not used.
@@ -20,7 +22,8 @@ are model outputs of the reference, not measurements: they are not used.
 ``PiG_Motion3_FF.c3d``: static ``PiG_Calibration3_FF.c3d`` for scaling and marker placement,
 74 kg (file). ``PlugInC3D.c3d``: no static trial and no mass in the file. Scale factors are the
 median over the walking frames of the per-frame measured factors (one
-:func:`msk.scaling.measure_scale_factors` call per frame: a walking trial's *mean* marker
+:func:`msk.personalise.scaling.measure_scale_factors` call per frame: a walking trial's *mean*
+marker
 positions mean nothing); the non-model markers are placed from one frame (right mid-stance);
 the mass is the one PiG normalised by: median over stance frames of |plate force| /
 |PiG ``GroundReactionForce``| (N / (N/kg)) — the same ratio gives 74.0 kg on PiG_Motion3_FF,
@@ -54,15 +57,15 @@ from typing import Any
 import numpy as np
 import pytest
 
-from msk.compare import pearson_r
-from msk.dynamics import inverse_dynamics
+from msk.dynamics.inverse import inverse_dynamics
+from msk.dynamics.loads import external_loads, plates_from_trial
 from msk.io import lab_to_model_rotation, read_c3d
-from msk.kinematics import solve_kinematics
-from msk.loads import external_loads, plates_from_trial
-from msk.model import forward_kinematics
-from msk.model_files import load_model
+from msk.kinematics.ik import solve_kinematics
+from msk.metrics import pearson_r
+from msk.model.core import forward_kinematics
+from msk.model.files import load_model
+from msk.personalise.scaling import Measurement, measure_scale_factors, place_markers, scale_model
 from msk.pipeline import DEFAULT_MEASUREMENTS
-from msk.scaling import Measurement, measure_scale_factors, place_markers, scale_model
 from msk.signal import filtfilt_butter
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -140,7 +143,7 @@ def _rename() -> dict[str, str]:
 
 
 def _btk(name: str) -> Path:
-    from msk._data import real_data_dir
+    from msk.datasets.shared import real_data_dir
 
     return real_data_dir() / "btkdata" / f"{name}.c3d"
 

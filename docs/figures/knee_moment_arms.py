@@ -2,9 +2,9 @@
 
     .venv/bin/python docs/figures/knee_moment_arms.py   # writes docs/figures/knee_moment_arms.png
 
-The scaled gait2392 of the OpenSim subject01 example (``msk.osim.load_osim``); the four-bar
+The scaled gait2392 of the OpenSim subject01 example (``msk.model.osim.load_osim``); the four-bar
 (seed 004 §2.1) is fitted to the model's own knee translation splines over 0–120° flexion
-(``msk.fourbar_fit.fit_four_bar_to_joint``) and swapped in for ``knee_r``. Moment arms are
+(``msk.model.fourbar_fit.fit_four_bar_to_joint``) and swapped in for ``knee_r``. Moment arms are
 r = −∂l/∂θ_knee from :func:`msk.muscles.geometry.muscle_geometry` (the four-bar's rolling–gliding
 p'(θ) enters through G = ∂q/∂θ), hip at 0, ankle at 0. The grey band is the in-vivo quadriceps
 range 4–6 cm cited by seed 000 (from its ref. [3]).
@@ -16,8 +16,8 @@ from pathlib import Path
 
 import numpy as np
 
-from msk._data import shared_dir
-from msk.model import Model
+from msk.datasets.shared import shared_dir
+from msk.model.core import Model
 from msk.muscles.geometry import muscle_geometry
 
 QUADRICEPS = ("rect_fem_r", "vas_med_r", "vas_int_r", "vas_lat_r")
@@ -31,8 +31,8 @@ OUT = Path(__file__).with_suffix(".png")
 
 def knee_models(path: Path = MODEL) -> dict[str, Model]:
     """The spline-knee gait2392 and the same model with a fitted four-bar right knee."""
-    from msk.fourbar_fit import fit_four_bar_to_joint, four_bar_joint
-    from msk.osim import load_osim
+    from msk.model.fourbar_fit import fit_four_bar_to_joint, four_bar_joint
+    from msk.model.osim import load_osim
 
     spline = load_osim(path)
     knee = next(j for j in spline.joints if j.name == "knee_r")

@@ -1,5 +1,5 @@
 """``msk batch`` (many sessions in parallel: local pool or Dask) and ``msk compare`` (generic
-against identified parameters across session folders): :mod:`msk.batch`."""
+against identified parameters across session folders): :mod:`msk.pipeline.batch`."""
 
 from __future__ import annotations
 
@@ -42,7 +42,7 @@ def batch_args(p: argparse.ArgumentParser) -> None:
 
 
 def _batch(args: argparse.Namespace) -> int:
-    from msk.batch import run_batch
+    from msk.pipeline.batch import run_batch
 
     res = run_batch(
         args.sessions,
@@ -66,7 +66,7 @@ def cmp_args(p: argparse.ArgumentParser) -> None:
 
 
 def _compare(args: argparse.Namespace) -> int:
-    from msk.batch import COMPARE_COLUMNS, compare_sessions
+    from msk.pipeline.batch import COMPARE_COLUMNS, compare_sessions
 
     rows = compare_sessions(args.folders)
     widths = {

@@ -25,7 +25,7 @@ def _run_args(p: argparse.ArgumentParser) -> None:
 
 
 def _run(args: argparse.Namespace) -> int:
-    from msk import _fork
+    from msk._runtime import fork as _fork
 
     # the report's figures: a child forked when the first stage is computed (none if every
     # stage comes from the cache) imports matplotlib on the free CPU while the stages run, and
@@ -91,7 +91,7 @@ def _report_args(p: argparse.ArgumentParser) -> None:
 
 def _report(args: argparse.Namespace) -> int:
     from msk.report import write_report
-    from msk.results import read_session
+    from msk.results.folder import read_session
 
     path = write_report(read_session(args.folder), args.folder, pdf=args.pdf)
     sys.stdout.write(f"{path}\n")

@@ -44,7 +44,7 @@ FES_STEPS_NEEDED = {
 }
 
 #: where the low-pass the plates also get is applied for the whole-body COM acceleration: to the
-#: coordinates θ only, or to every segment's COM (:mod:`msk.com_consistency`)
+#: coordinates θ only, or to every segment's COM (:mod:`msk.kinematics.com_consistency`)
 ACCELERATION_DOMAINS = ("coordinates", "segment_com")
 
 #: filter cut-offs (Hz): above ~0.01 Hz (a smaller one is no filter: a constant) and at most
@@ -109,7 +109,7 @@ class ModelConfig:
     knee_varus_deg: float = opt(
         "frontal alignment of the side of interest's knee, given (imaging, implant record, the "
         "subject's own model; never fitted): tibia varus after flexion, valgus < 0 "
-        "(msk.alignment; Lerner et al. 2015); 0: the generic model's neutral alignment",
+        "(msk.model.alignment; Lerner et al. 2015); 0: the generic model's neutral alignment",
         0.0,
         unit="deg",
         bounds=Range(-20.0, 20.0),
@@ -118,13 +118,13 @@ class ModelConfig:
         "where the side of interest's knee alignment comes from: given (knee_varus_deg, "
         "knee_medial_shift_m) or from_markers (estimated from the static trial's epicondyle "
         "and malleolus markers against the scaled model's, ±2–3°: "
-        "msk.alignment.knee_varus_from_markers; then knee_varus_deg and the shift must be 0)",
+        "msk.model.alignment.knee_varus_from_markers; then knee_varus_deg and the shift must be 0)",
         "given",
         choices=("given", "from_markers"),
     )
     knee_medial_shift_m: float = opt(
         "medio-lateral offset of that knee's tibia on the femur, medial > 0, given as "
-        "knee_varus_deg (msk.alignment)",
+        "knee_varus_deg (msk.model.alignment)",
         0.0,
         unit="m",
         bounds=Range(-0.03, 0.03),
@@ -270,7 +270,8 @@ class FilterConfig:
     acceleration_domain: str = opt(
         "where the whole-body COM acceleration is low-passed: 'coordinates' (θ low-passed, then "
         "differentiated) or 'segment_com' (each segment's COM low-passed as the plates are, the "
-        "difference taken by the root's translations; msk.com_consistency): for fast segment "
+        "difference taken by the root's translations; msk.kinematics.com_consistency): for "
+        "fast segment "
         "rotations (running), where a COM of low-passed θ is not the low-passed COM",
         "coordinates",
         choices=ACCELERATION_DOMAINS,
@@ -336,7 +337,7 @@ class ContactConfig:
     )
     plateau_depth_m: float | None = opt(
         "depth of the contact points below the knee centre (tibia-frame origin), given (imaging, "
-        "the implant's geometry); absent: 22 mm scaled by the model's tibia (msk.contact)",
+        "the implant's geometry); absent: 22 mm scaled by the model's tibia (msk.contact.knee)",
         None,
         unit="m",
         bounds=Range(0.0, 0.08),

@@ -2,7 +2,7 @@
 
 Every step is a free function returning a frozen result with its identified values, the
 measured/predicted series it was fitted on (with column names) and its quality figures
-``nrmsd`` (seeds/000 Eq. 9, %) and ``nrmse`` (seeds/001 §V, %), both from :mod:`msk.compare`.
+``nrmsd`` (seeds/000 Eq. 9, %) and ``nrmse`` (seeds/001 §V, %), both from :mod:`msk.metrics`.
 
 Steps (in protocol order):
 
@@ -40,7 +40,6 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 from scipy.optimize import least_squares
 
-from msk.compare import nrmsd, nrmse
 from msk.exceptions import IdentificationError, MissingDataError
 from msk.fes.model import (
     GEOMETRY_POLY_FROM_HEIGHT,
@@ -57,6 +56,7 @@ from msk.fes.model import (
 from msk.fes.priors import k_s_lower_bound
 from msk.fes.simulate import DT, simulate, step_function
 from msk.fes.stimulation import Stimulation, calcium_pi, sample_on_grid
+from msk.metrics import nrmsd, nrmse
 
 __all__ = [
     "WINTER_FOOT_AND_LEG",

@@ -2,7 +2,7 @@
 
 :func:`read_measured_contact` reads
 
-* a CSV whose first column is ``time`` (s), e.g. the output of ``scripts/dm_contact_to_csv.py``;
+* a CSV whose first column is ``time`` (s), e.g. the output of ``studies/dm_contact_to_csv.py``;
 * a cycle-normalised CSV such as the Grand Challenge PS eTibia files (first column a 0..100
   sample index or percentage, columns ``F_medial_N``, ``F_lateral_N``, ``F_total_magnitude_N``):
   column names are matched loosely (``total`` / ``medial`` / ``lateral``, with or without an

@@ -41,7 +41,7 @@ from msk.exceptions import ShapeMismatchError
 from msk.trial import ForcePlate, Trial
 
 if TYPE_CHECKING:
-    from msk.model import Model
+    from msk.model.core import Model
 
 Array = NDArray[np.float64]
 
@@ -208,7 +208,7 @@ def _circular_median(angles: Array, *, window: float = math.pi / 4) -> float:
 
 def _root_markers(model: Model) -> list[str]:
     """Markers on the body the floating base carries (the pelvis of a gait model)."""
-    from msk.model import GROUND
+    from msk.model.core import GROUND
 
     roots = {j.child for j in model.joints if j.parent == GROUND}
     return [mk.name for mk in model.markers if mk.body in roots]
@@ -250,7 +250,7 @@ def pelvis_heading_rotation(
     Returns:
         :class:`Heading`.
     """
-    from msk.model import forward_kinematics
+    from msk.model.core import forward_kinematics
 
     u = np.asarray(up_model, dtype=float)
     u = u / np.linalg.norm(u)

@@ -93,8 +93,8 @@ import pinocchio as pin
 from numpy.typing import ArrayLike, NDArray
 
 from msk.exceptions import ModelError, ShapeMismatchError
-from msk.joints import Linear, Multiplier, SimmSpline
-from msk.model import Model
+from msk.model.core import Model
+from msk.model.joints import Linear, Multiplier, SimmSpline
 from msk.muscles.hill import MuscleParameters
 from msk.muscles.path import ConditionalPathPoint, MovingPathPoint, Muscle, PathPoint, WrapObject
 from msk.timeseries import FrameAxis, FrameSparse
@@ -1348,7 +1348,7 @@ class GeometryPlan:
 
     def _paths(self, th: Array, jac: Array, rot: Array, trans: Array) -> tuple[Array, Array, Array]:
         """Lengths (N, M), ∂l/∂q_pin (N, M, nv) and the moving-point part of ∂l/∂θ (N, M, nc)
-        for any joint Jacobians ``jac`` (N, 6, nv) (used by :mod:`msk.contact`; ``evaluate``
+        for any joint Jacobians ``jac`` (N, 6, nv) (used by :mod:`msk.contact.knee`; ``evaluate``
         aggregates in θ directly)."""
         n = th.shape[0]
         m = self.n_muscles
@@ -1947,7 +1947,7 @@ def muscle_geometry(
     over a trial: ``q`` (N, n_coords) independent coordinates θ, ``qdot`` θ̇ (optional).
     ``distal_wrench_joints`` (e.g. ``("knee_r",)``): also the unit wrenches ∂l/∂ξ of the muscles
     on the side distal to these joints, from the same pass
-    (:attr:`MuscleGeometry.distal_wrenches`, used by :func:`msk.contact.knee_contact_force`).
+    (:attr:`MuscleGeometry.distal_wrenches`, used by :func:`msk.contact.knee.knee_contact_force`).
     ``compact``: the Jacobian as a :class:`msk.timeseries.FrameSparse`, never dense
     (:meth:`GeometryPlan.evaluate`).
 

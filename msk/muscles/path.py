@@ -12,7 +12,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from numpy.typing import NDArray
 
-from msk.joints import CoordinateFunction
+from msk.model.joints import CoordinateFunction
 
 Array = NDArray[np.float64]
 

@@ -292,7 +292,8 @@ def kkt_stacked(
     matrix above :data:`KKT_BATCH_CONDITION`) or singular — among them every frame whose
     free columns do not determine ν, which :func:`kkt` fits by bounded least squares — is
     computed by :func:`kkt` itself (``fallback``). Equal to :func:`kkt` frame by frame to
-    round-off, 1e-11 of :func:`kkt_scale` (``tests/test_optimization.py``: random QPs with
+    round-off, 1e-11 of :func:`kkt_scale` (``tests/optimization/test_optimization.py``: random QPs
+    with
     random active sets, rank-deficient and ill-conditioned frames among them)."""
     n_fr, n = x.shape
     if c is None:

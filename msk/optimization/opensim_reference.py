@@ -12,7 +12,7 @@ inputs.
 :func:`opensim_full_static_optimization` runs SO on the whole model (every muscle, the pelvis
 residuals) and returns the states SO used, so that msk's whole chain (inverse dynamics,
 geometry, SO) can run on them; :func:`compare_static_optimization` compares the two solutions.
-``opensim`` is never imported in this process (see :mod:`msk.opensim_peer`).
+``opensim`` is never imported in this process (see :mod:`msk._runtime.opensim_peer`).
 """
 
 from __future__ import annotations
@@ -25,7 +25,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from msk.opensim_peer import run_opensim_script
+from msk._runtime.opensim_peer import run_opensim_script
 
 FloatArray = NDArray[np.float64]
 
@@ -195,7 +195,7 @@ IPOPT_TIGHT = {"convergence_criterion": 1e-8, "max_iterations": 1000}
 
 
 def _peer_data_dir() -> Path:
-    from msk._data import shared_dir
+    from msk.datasets.shared import shared_dir
 
     return shared_dir() / "tools" / "opensim-peer" / "data"
 

@@ -103,7 +103,7 @@ class TensionInequalities:
         c_k + Σ_i G_ki f_i + s_k ≥ 0,   s_k ≥ 0,   cost + Σ_k (s_k / s_opt,k)²
 
     e.g. the medial and lateral compartment forces of a knee, F_M(f) ≥ 0 and F_L(f) ≥ 0, in
-    moment units (:func:`msk.contact.compartment_force_map`: a compartment cannot pull). The
+    moment units (:func:`msk.contact.knee.compartment_force_map`: a compartment cannot pull). The
     reserve ``s_k`` carries what no admissible tension can (a frontal moment of the ligaments
     the model lacks); like a coordinate reserve of optimal force ``s_opt`` it costs
     ``(s/s_opt)²``, i.e. a reserve of ``s_opt`` costs as much as a fully active muscle.
@@ -439,7 +439,8 @@ class StaticOptimizationProblem:
     * coordinates crossed by no actuator but the muscles decouple: in gait2392 the pelvis
       residuals act on the pelvis coordinates only, so the right-leg rows form their own QP.
 
-    Checked against OpenSim 4.6 on gait2392 subject01 walking (``tests/test_optimization.py``,
+    Checked against OpenSim 4.6 on gait2392 subject01 walking
+    (``tests/optimization/test_optimization.py``,
     13 frames, 43 right-leg muscles × 7 coordinates, same states, ``f_passive = 0``):
     activations agree to 0.005 max / 0.0008 RMS and msk's cost is never above OpenSim's
     (≈ 3e-4 lower: IPOPT's tolerance).

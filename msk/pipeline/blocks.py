@@ -10,7 +10,8 @@ not depend on the block size beyond round-off.
 
 Inside a block, the tension QPs with the knee compartment rows (whole per frame, solved one
 frame after the other) are solved in parts of :data:`SOLVE_BLOCK` frames, the warm start
-carried: bit for bit the block's one call (``tests/test_long_trials.py``), while the block's
+carried: bit for bit the block's one call (``tests/pipeline/test_long_trials.py``), while the
+block's
 geometry passes (whose wrapped paths iterate the block's frames together) stay per block.
 """
 

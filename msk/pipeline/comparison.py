@@ -1,6 +1,6 @@
 """Stage ``comparison``: subject-specific against generic — joint torques and pelvis residuals
 with identified against generic inertias, predicted knee contact against the measured force
-(:mod:`msk.compare` figures), identified strength factors against 1."""
+(:mod:`msk.metrics` figures), identified strength factors against 1."""
 
 from __future__ import annotations
 
@@ -25,9 +25,9 @@ def rms(x: np.ndarray) -> float:
 
 
 def contact_agreement(measured: np.ndarray, predicted: np.ndarray, bw: float) -> dict[str, Any]:
-    """Agreement figures (:mod:`msk.compare`) of a predicted knee contact force with the
+    """Agreement figures (:mod:`msk.metrics`) of a predicted knee contact force with the
     measured one; ``bw`` body weight (N)."""
-    from msk import compare
+    from msk import metrics as compare
 
     a, b = measured, predicted
     return {
@@ -52,7 +52,7 @@ def run(
     strength_identification: StrengthIdentification | None,
     gait_cycle: GaitCycle | None,
 ) -> dict[str, Any]:
-    from msk import compare
+    from msk import metrics as compare
 
     out: dict[str, Any] = {}
     sfx, bw = inputs.sfx, inputs.body_weight

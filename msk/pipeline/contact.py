@@ -1,7 +1,7 @@
 """Stage ``knee_contact``: tibiofemoral contact force of the generic and the subject-specific
-model (:func:`msk.contact.knee_contact_force`: the joint reaction with the muscle forces, from
+model (:func:`msk.contact.knee.knee_contact_force`: the joint reaction with the muscle forces, from
 the knee's unit wrenches of a geometry pass) and its two-point medial/lateral split
-(:func:`msk.contact.split_medial_lateral`; Winby et al. 2009; Lerner et al. 2015).
+(:func:`msk.contact.knee.split_medial_lateral`; Winby et al. 2009; Lerner et al. 2015).
 
 Block by block of frames (issue 18): the knee's unit wrenches are recomputed for each block
 from the model's paths (the geometry stage does not hold them for the whole trial), and the
@@ -55,8 +55,8 @@ class KneeContact:
 
 class _VariantArrays:
     """One model's contact force and medial/lateral split on every frame (NaN until filled),
-    filled block by block of frames (:func:`msk.contact.knee_contact_force`,
-    :func:`msk.contact.split_medial_lateral`)."""
+    filled block by block of frames (:func:`msk.contact.knee.knee_contact_force`,
+    :func:`msk.contact.knee.split_medial_lateral`)."""
 
     def __init__(self, model: Any, geo: Any, kin: Any, external: Any, joint: str) -> None:
         n = kin.time.size
@@ -73,7 +73,7 @@ class _VariantArrays:
         frames where every muscle with a wrench on the knee's distal subtree has a force are
         filled: a muscle without one (NaN: the other leg, left out of the tension QP where its
         foot stands off the plates) does not load this knee and counts as 0."""
-        from msk.contact import knee_contact_force, split_medial_lateral
+        from msk.contact.knee import knee_contact_force, split_medial_lateral
 
         loads_knee = (np.asarray(w) != 0).any(axis=2)
         known = np.isfinite(forces)

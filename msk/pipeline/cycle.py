@@ -21,7 +21,8 @@ __all__ = ["GaitCycle", "run"]
 
 @dataclass(frozen=True)
 class GaitCycle:
-    """``events`` (:class:`msk.events.GaitEvents`: times, sources, notes), the analysed side's
+    """``events`` (:class:`msk.kinematics.events.GaitEvents`: times, sources, notes), the analysed
+    side's
     cycle ``(start, end)`` in s (None without two foot strikes) and ``measured_contact``:
     component (total/medial/lateral) → measured force (N) on the kinematics' time base, NaN
     outside the measured cycle (None without a measured force or contact stage)."""
@@ -42,7 +43,7 @@ def run(
     loads: Loads,
     knee_contact: KneeContact | None,
 ) -> GaitCycle:
-    from msk.events import detect_gait_events, reconcile
+    from msk.kinematics.events import detect_gait_events, reconcile
 
     events = reconcile(
         model.trial.events,

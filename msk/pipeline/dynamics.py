@@ -1,6 +1,7 @@
 """Stage ``inverse_dynamics``: joint torques and pelvis residuals of the generic model and,
 when the mass distribution was identified, of the identified one
-(:func:`msk.dynamics.inverse_dynamics`, Pinocchio RNEA with the measured ground reactions)."""
+(:func:`msk.dynamics.inverse.inverse_dynamics`, Pinocchio RNEA with the measured ground
+reactions)."""
 
 from __future__ import annotations
 
@@ -17,7 +18,7 @@ __all__ = ["InverseDynamics", "contact_gated_torques", "run"]
 
 @dataclass(frozen=True)
 class InverseDynamics:
-    """:class:`msk.dynamics.JointTorques` of the generic model and of the identified one
+    """:class:`msk.dynamics.inverse.JointTorques` of the generic model and of the identified one
     (``None`` without mass identification)."""
 
     generic: Any
@@ -36,7 +37,7 @@ def run(
     loads: Loads,
     mass_identification: MassIdentification | None,
 ) -> InverseDynamics:
-    from msk.dynamics import inverse_dynamics
+    from msk.dynamics.inverse import inverse_dynamics
 
     generic = contact_gated_torques(
         model.model, inverse_dynamics(model.model, kinematics, loads.external), loads
@@ -52,10 +53,12 @@ def run(
 
 def contact_gated_torques(model: Any, torques: Any, loads: Loads) -> Any:
     """``torques`` without the frames and legs whose ground reaction the plates miss
-    (:func:`msk.dynamics.without_unmeasured_contact`): a foot standing on an unmeasured surface
-    (``loads.contact``, runs of at least :data:`msk.loads.STANDING_S`), and every foot in a
-    frame whose plate load went to no foot or to two (:meth:`msk.loads.ExternalLoads.flagged`)."""
-    from msk.dynamics import without_unmeasured_contact
+    (:func:`msk.dynamics.inverse.without_unmeasured_contact`): a foot standing on an unmeasured
+    surface
+    (``loads.contact``, runs of at least :data:`msk.dynamics.loads.STANDING_S`), and every foot in a
+    frame whose plate load went to no foot or to two
+    (:meth:`msk.dynamics.loads.ExternalLoads.flagged`)."""
+    from msk.dynamics.inverse import without_unmeasured_contact
 
     contact = loads.contact
     if contact is None:

@@ -20,7 +20,7 @@ model stage, the plates after the loads stage; the model's own markers after the
          strength_identification (emg, geometry, torques) ─ knee_contact ─ gait_cycle*
          ─ joint_strength* ─ comparison ─ fes ─ tables* ─ summary* ─ report   (* unrecorded)
 
-A node's result is kept in the stage cache (:mod:`msk.cache`) as it is, or in the form its
+A node's result is kept in the stage cache (:mod:`msk.pipeline.cache`) as it is, or in the form its
 ``to_cache`` gives and ``from_cache`` reads back (the model stage: :func:`model_to_cache`);
 an unrecorded node with ``cached`` is kept too (``joint_strength``, the summary's curves).
 """
@@ -33,7 +33,7 @@ from collections.abc import Callable, Collection, Mapping
 from dataclasses import dataclass
 from typing import Any
 
-from msk.model import Model
+from msk.model.core import Model
 from msk.pipeline import (
     comparison,
     contact,
@@ -108,8 +108,8 @@ class Node:
 
 
 def model_to_cache(built: model.BuiltModel) -> Any:
-    """The model stage's result as the stage cache keeps it: its :class:`msk.model.Model` as
-    plain data (:meth:`msk.model.Model.state`; the cache stores no Pinocchio object). A trial
+    """The model stage's result as the stage cache keeps it: its :class:`msk.model.core.Model` as
+    plain data (:meth:`msk.model.core.Model.state`; the cache stores no Pinocchio object). A trial
     of more than :data:`~msk.pipeline.blocks.FRAME_BLOCK` frames is given as it is, not
     storable: its model-frame markers are not written to the cache (issue 18's memory bound),
     the stage is computed again next time."""
@@ -120,7 +120,7 @@ def model_to_cache(built: model.BuiltModel) -> Any:
 
 def model_from_cache(stored: model.BuiltModel) -> model.BuiltModel:
     """The model stage's result from what :func:`model_to_cache` kept (the model built again
-    from its specifications: :meth:`msk.model.Model.from_state`)."""
+    from its specifications: :meth:`msk.model.core.Model.from_state`)."""
     return dataclasses.replace(stored, model=Model.from_state(stored.model))
 
 

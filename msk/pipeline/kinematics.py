@@ -1,5 +1,5 @@
 """Stage ``kinematics``: inverse kinematics of the task trial
-(:func:`msk.kinematics.solve_kinematics`)."""
+(:func:`msk.kinematics.ik.solve_kinematics`)."""
 
 from __future__ import annotations
 
@@ -33,10 +33,10 @@ def solve_trial(
     the acromia alone in view: IK there would give the legs any pose), nor a frame where a leg
     segment carrying markers in this trial has none in view (its pose would come from the
     neighbours only, and joint torques there from a guessed pose). ``initial_q``: as
-    :func:`msk.kinematics.solve_kinematics`'s (a warm start). ``acceleration_domain``
+    :func:`msk.kinematics.ik.solve_kinematics`'s (a warm start). ``acceleration_domain``
     ``"segment_com"``: θ̈ made consistent with the low-passed segment COMs
-    (:func:`msk.com_consistency.com_consistent_kinematics`)."""
-    from msk.kinematics import solve_kinematics
+    (:func:`msk.kinematics.com_consistency.com_consistent_kinematics`)."""
+    from msk.kinematics.ik import solve_kinematics
 
     names = set(model.marker_names)
     cols = [i for i, lab in enumerate(labels) if lab in names]
@@ -65,7 +65,7 @@ def solve_trial(
         initial_q=initial_q,
     )
     if acceleration_domain == "segment_com":
-        from msk.com_consistency import com_consistent_kinematics
+        from msk.kinematics.com_consistency import com_consistent_kinematics
 
         kin = com_consistent_kinematics(model, kin)
     return kin
@@ -81,7 +81,7 @@ def settings(inputs: SessionInputs, model: BuiltModel) -> Any:
 
 
 def run(inputs: SessionInputs, model: BuiltModel) -> Any:
-    """:class:`msk.kinematics.Kinematics` of the task trial."""
+    """:class:`msk.kinematics.ik.Kinematics` of the task trial."""
     return solve_trial(
         model.model, model.trial, model.labels, weights=inputs.cfg.marker_weights,
         held=model.held, cutoff_hz=inputs.cfg.filters.kinematics_cutoff_hz,

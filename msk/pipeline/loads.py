@@ -1,5 +1,7 @@
-"""Stage ``loads``: the ground reactions assigned to the feet (:func:`msk.loads.external_loads`)
-and the frames whose ground contact the plates measure (:func:`msk.loads.contact_measured`)."""
+"""Stage ``loads``: the ground reactions assigned to the feet
+(:func:`msk.dynamics.loads.external_loads`)
+and the frames whose ground contact the plates measure
+(:func:`msk.dynamics.loads.contact_measured`)."""
 
 from __future__ import annotations
 
@@ -26,24 +28,28 @@ __all__ = [
     "unbalanced_coordinates",
 ]
 
-#: How msk.loads assigns plate contacts to feet (recorded in summary.json, part of the cache key).
+#: How msk.dynamics.loads assigns plate contacts to feet (recorded in summary.json, part of the
+# cache key).
 PLATE_ASSIGNMENT = (
-    "msk.loads: the foot standing on the plate (inside the outline, near the floor, not "
+    "msk.dynamics.loads: the foot standing on the plate (inside the outline, near the floor, not "
     "swinging over it; none while the still foot nearest the COP is posed off the surface)"
 )
 
 
 @dataclass(frozen=True)
 class Loads:
-    """``external``: :class:`msk.loads.ExternalLoads`; ``measured``: (N,) frames whose every
+    """``external``: :class:`msk.dynamics.loads.ExternalLoads`; ``measured``: (N,) frames whose
+    every
     foot on the floor stands on a plate (a walkway's steps before and after the plates miss a
     ground reaction: no residual or identification equation comes from them; a leg whose own
     foot is measured there is still solved, ``legs``);
-    ``observation``: :class:`msk.observation.Observation`, the frames whose leg segments the
+    ``observation``: :class:`msk.kinematics.observation.Observation`, the frames whose leg segments
+    the
     markers observe (a segment out of the capture volume or a marker dropping out: its pose,
     hence q̈, is guessed there); ``usable``: measured and observed frames with finite q and q̈
     — the frames the whole-body figures and fits use; ``contact``:
-    :class:`msk.loads.FootContact`, which foot stands on an unmeasured surface in which frame
+    :class:`msk.dynamics.loads.FootContact`, which foot stands on an unmeasured surface in which
+    frame
     (its leg's joint torques are not written there: :func:`msk.pipeline.dynamics.run`);
     ``legs``: (N, F) the frames in which the leg of foot k of ``contact.feet`` can be solved on
     its own — observed and known with finite q and q̈, no plate load flagged, and THAT foot
@@ -99,7 +105,8 @@ class Loads:
 
 #: Which frames the dynamics-based figures use (recorded in the cache key).
 OBSERVATION = (
-    "msk.observation: every leg segment sees min(3, its tracked markers), 1/(4 f_c) from any "
+    "msk.kinematics.observation: every leg segment sees min(3, its tracked markers), 1/(4 f_c) "
+    "from any "
     "frame where one does not or IK did not solve"
 )
 
@@ -112,9 +119,10 @@ def assign_loads(
     plates: Any = None,
     assignment: Mapping[str, str] | None = None,
 ) -> Any:
-    """:func:`msk.loads.external_loads` of a trial: its plates (a C3D's, or ``plates``), with the
+    """:func:`msk.dynamics.loads.external_loads` of a trial: its plates (a C3D's, or ``plates``),
+    with the
     explicit assignment of the ExternalLoads ``.xml`` then of the config's ``[loads] assign``."""
-    from msk.loads import external_loads, plates_from_trial
+    from msk.dynamics.loads import external_loads, plates_from_trial
 
     plates = plates_from_trial(trial) if plates is None else plates
     assign = {**(assignment or {}), **inputs.cfg.loads.assign} or None
@@ -140,7 +148,7 @@ def settings(inputs: SessionInputs) -> Any:
 
 
 def rotated_plate(plate: Any, rot: np.ndarray) -> Any:
-    """A :class:`msk.loads.PlateWrench` rotated by ``rot`` about the origin (force, COP,
+    """A :class:`msk.dynamics.loads.PlateWrench` rotated by ``rot`` about the origin (force, COP,
     free moment, corners)."""
     r = np.asarray(rot, dtype=float)
     return dataclasses.replace(
@@ -155,8 +163,8 @@ def rotated_plate(plate: Any, rot: np.ndarray) -> Any:
 def run(inputs: SessionInputs, read: ReadResult, model: BuiltModel, kinematics: Any) -> Loads:
     """The read trial's plates (a C3D's, or its GRF file's) in the model frame (rotated here,
     not kept by the model stage), assigned to the feet."""
-    from msk.loads import foot_contact
-    from msk.observation import observed_frames
+    from msk.dynamics.loads import foot_contact
+    from msk.kinematics.observation import observed_frames
 
     rot = model.rotation
     # rotated one at a time, as external_loads resamples them: one analog-rate plate in the
@@ -164,7 +172,7 @@ def run(inputs: SessionInputs, read: ReadResult, model: BuiltModel, kinematics: 
     plates: Iterator[Any] = (rotated_plate(p, rot) for p in read.plates or ())
     ext = assign_loads(inputs, model.model, read.trial, kinematics, plates, read.assignment)
     contact = foot_contact(model.model, kinematics, ext)
-    # contact_measured's frames (msk.loads), from the same per-foot test
+    # contact_measured's frames (msk.dynamics.loads), from the same per-foot test
     measured = contact.known & ~contact.unmeasured.any(axis=1) & ~ext.flagged()
     obs = observed_frames(model.model, kinematics)
     # every test but the feet's: per leg, only that foot's contact counts (the other foot may
@@ -188,9 +196,10 @@ def run(inputs: SessionInputs, read: ReadResult, model: BuiltModel, kinematics: 
 def unbalanced_coordinates(model: Any, loads: Loads, coordinate_names: Any) -> np.ndarray:
     """(N, len(coordinate_names)) the coordinates whose torque would balance a missing ground
     reaction on the :attr:`Loads.solvable` frames: those between a foot whose leg is not
-    solvable there (``loads.legs``) and the root (:func:`msk.dynamics.coordinates_carrying`).
+    solvable there (``loads.legs``) and the root
+    (:func:`msk.dynamics.inverse.coordinates_carrying`).
     All False without ``legs``."""
-    from msk.dynamics import coordinates_carrying
+    from msk.dynamics.inverse import coordinates_carrying
 
     names = list(coordinate_names)
     out = np.zeros((loads.usable.shape[0], len(names)), dtype=bool)

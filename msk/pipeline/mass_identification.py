@@ -1,5 +1,6 @@
 """Stage ``mass_identification``: segment inertial parameters from the floating-base equations
-of the task trial and the dedicated exciting trials (:class:`msk.identification.InertialIdentifier`,
+of the task trial and the dedicated exciting trials
+(:class:`msk.dynamics.identification.InertialIdentifier`,
 physically consistent, symmetric, prior weight chosen by held-out residuals)."""
 
 from __future__ import annotations
@@ -69,15 +70,16 @@ def settings(inputs: SessionInputs) -> Any:
 def run(
     inputs: SessionInputs, read: ReadResult, model: BuiltModel, kinematics: Any, loads: Loads
 ) -> MassIdentification:
-    from msk.identification import IdentificationTrial, InertialIdentifier
+    from msk.dynamics.identification import IdentificationTrial, InertialIdentifier
+    from msk.dynamics.loads import contact_measured
     from msk.io import read_trial, to_model_frame
-    from msk.loads import contact_measured
-    from msk.observation import observed_frames
+    from msk.kinematics.observation import observed_frames
 
     cfg, mdl, kin = inputs.cfg, model.model, kinematics
     assert inputs.task is not None  # a gait stage
     up = -np.asarray(mdl.gravity, dtype=float)
-    # measured and observed frames only (msk.observation: a guessed pose's q̈ is no equation)
+    # measured and observed frames only (msk.kinematics.observation: a guessed pose's q̈ is no
+    # equation)
     runs = [(inputs.task.name, kin, loads.external, loads.usable)]
     # the task and the dedicated exciting motions (Hayashibe et al. 2011, §VI)
     for tc in inputs.mass_trials:

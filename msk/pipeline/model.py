@@ -5,8 +5,9 @@ model frame and the foot joints its markers cannot observe.
 Frames (:func:`msk.io.lab_to_model_rotation`, :func:`msk.io.frames.pelvis_heading_rotation`):
 lab vertical → the model's up (−gravity) and the walking direction → the model's +x (OpenSim's
 convention), or the pelvis markers' heading where the progression disagrees with it by more
-than 30° (treadmill, turning, short trials). Marker placement: :func:`msk.scaling.place_markers`
-(static trial) or :func:`msk.scaling.place_markers_from_motion`.
+than 30° (treadmill, turning, short trials). Marker placement:
+:func:`msk.personalise.scaling.place_markers`
+(static trial) or :func:`msk.personalise.scaling.place_markers_from_motion`.
 """
 
 from __future__ import annotations
@@ -89,14 +90,14 @@ class BuiltModel:
 def load_model_file(path: Path, markers: Path | None = None) -> Any:
     """An msk model file or an OpenSim ``.osim`` (with its marker-set ``.xml`` when given)."""
     if path.suffix.lower() == ".osim":
-        from msk.osim import load_osim
+        from msk.model.osim import load_osim
 
         return load_osim(path, marker_set=markers)
-    from msk.model_files import load_model
+    from msk.model.files import load_model
 
     model = load_model(path)
     if markers is not None:
-        from msk.osim import read_marker_set
+        from msk.model.osim import read_marker_set
 
         model = read_marker_set(markers, model)
     return model
@@ -128,9 +129,9 @@ def settings(inputs: SessionInputs) -> Any:
 def _aligned(inputs: SessionInputs, model: Any, markers: Any, labels: Any) -> Any:
     """The model with the frontal alignment of the side of interest's knee: the configured one,
     or (``knee_alignment = "from_markers"``) the one the trial's epicondyle and malleolus
-    markers show against ``model``'s (:func:`msk.alignment.knee_varus_from_markers`, on the
+    markers show against ``model``'s (:func:`msk.model.alignment.knee_varus_from_markers`, on the
     static trial when there is one, else the task); the model itself without one
-    (:func:`msk.alignment.with_knee_alignment`)."""
+    (:func:`msk.model.alignment.with_knee_alignment`)."""
     mc = inputs.model_cfg
     assert mc is not None  # a gait stage
     from_markers = mc.knee_alignment == "from_markers"
@@ -141,8 +142,8 @@ def _aligned(inputs: SessionInputs, model: Any, markers: Any, labels: Any) -> An
         )
     if not from_markers and mc.knee_varus_deg == 0.0 and mc.knee_medial_shift_m == 0.0:
         return model
-    from msk.alignment import knee_varus_from_markers, with_knee_alignment
     from msk.exceptions import MissingDataError
+    from msk.model.alignment import knee_varus_from_markers, with_knee_alignment
 
     joint = f"knee{inputs.sfx}"
     if joint not in {j.name for j in model.joints}:
@@ -204,30 +205,31 @@ def _scale_and_place(
     workspace: dict[str, Any] | None = None,
 ) -> dict[str, Any]:
     """Scale the model and place the lab's markers (static trial, else the task). ``placement``:
-    extra keywords of :func:`msk.scaling.place_markers_from_motion` (``regularize``,
+    extra keywords of :func:`msk.personalise.scaling.place_markers_from_motion` (``regularize``,
     ``frame_phase``) when there is no static trial (a candidate of :func:`run`).
     ``continue_from`` (no static trial; an earlier motion placement: its model and
     ``info["marker_placement"]``): the placement is one unpulled pass continuing that one — its
     placed markers' state and its moved model markers' offsets — on the model scaled here
     (the split candidates of :func:`choose_placement`). ``workspace``: that of
-    :func:`msk.scaling.scale_from_motion` (a new one when None; returned as ``"workspace"``),
+    :func:`msk.personalise.scaling.scale_from_motion` (a new one when None; returned as
+    ``"workspace"``),
     so that scaling the same trial again with a split reuses the pose-matched IK."""
     from msk.io.c3d import is_measured_marker
     from msk.io.frames import pelvis_heading_rotation
-    from msk.markersets import (
+    from msk.model.markersets import (
         foot_markers,
         recognise,
         shoulder_girdle_markers,
         zeros_as_gaps,
         zeros_as_gaps_view,
     )
-    from msk.quality import inconsistent_static_markers
-    from msk.scaling import (
+    from msk.personalise.scaling import (
         place_markers,
         place_markers_from_motion,
         scale_from_motion,
         scale_from_static,
     )
+    from msk.quality import inconsistent_static_markers
 
     cfg, trial, mc = inputs.cfg, read.trial, inputs.model_cfg
     assert mc is not None and inputs.model_source is not None  # a gait stage
@@ -286,7 +288,8 @@ def _scale_and_place(
     rejected: str | None = None
     if static_read is not None:
         sm, slabels_raw, stime, ssubj, window = static_read
-        # the still, double-stance part of the static only (msk.static_window.still_window)
+        # the still, double-stance part of the static only
+        # (msk.personalise.static_window.still_window)
         sm, stime = sm[window.frames], stime[window.frames]
         info["static_window"] = window.summary()
         # the lab's joint widths (Plug-in Gait subject parameters): the static's, else the task's
@@ -356,7 +359,7 @@ def _scale_and_place(
                 info["static_check"] = check
     if static_read is None or rejected is not None:
         # no static trial: the task trial's own markers scale and place (the segment lengths
-        # are constant over a motion; msk.scaling.scale_from_motion)
+        # are constant over a motion; msk.personalise.scaling.scale_from_motion)
         xm, mlabels = model_frame_columns(trial, rot, match)
         # where the lab put its origin cannot matter: the markers are translated so that their
         # median sits at the generic model's markers' centroid in its default pose (the
@@ -370,7 +373,7 @@ def _scale_and_place(
             )  # fmt: skip
         model = _aligned(inputs, model, xm, mlabels)
         # the lab's foot markers: where they sit on the foot is the lab's choice and nothing
-        # but the motion tells (msk.markersets.foot_markers), so they are moved too
+        # but the motion tells (msk.model.markersets.foot_markers), so they are moved too
         present = [mk.name for mk in model.markers if mk.name in set(mlabels)]
         feet = [m for m in foot_markers(present) if m not in cfg.marker_move]
         moved = [*cfg.marker_move, *feet]
@@ -401,7 +404,7 @@ def _scale_and_place(
 def continued_placement(
     call: tuple[Any, ...], prev_model: Any, prev: Mapping[str, Any]
 ) -> tuple[Any, dict[str, Any]]:
-    """One pass of :func:`msk.scaling.place_markers_from_motion` pulled towards neutral
+    """One pass of :func:`msk.personalise.scaling.place_markers_from_motion` pulled towards neutral
     (``call``: the model before placement, the markers, labels, time and keywords
     ``_scale_and_place`` placed with) continuing an earlier motion placement (``prev_model``
     and its ``info["marker_placement"]``, possibly on a model scaled otherwise): its placed
@@ -411,7 +414,7 @@ def continued_placement(
     first pass on UWA fast walking's split model (femur × 1.02–1.04) with the leg factors
     × (1 − 1e-4) lost the thigh clusters (task IK 74.6 mm against 8.96 mm pulled; the
     descent that follows is unpulled)."""
-    from msk.scaling import place_markers_from_motion
+    from msk.personalise.scaling import place_markers_from_motion
 
     base, xm, mlabels, time, kw = call
     was = {mk.name: mk for mk in prev_model.markers if mk.name in prev.get("moved", {})}
@@ -428,10 +431,11 @@ def lab_origin_offset(model: Any, markers: Any) -> np.ndarray:
     """(3,) m to subtract from a motion trial's markers (model frame) so that their median
     (over frames and markers, per axis) sits at the centroid of ``model``'s markers in its
     default pose: the trial then no longer depends on where the lab put its origin (the
-    inverse kinematics of :func:`msk.scaling.scale_from_motion` and
-    :func:`msk.scaling.place_markers_from_motion` start from the default pose and bound the
+    inverse kinematics of :func:`msk.personalise.scaling.scale_from_motion` and
+    :func:`msk.personalise.scaling.place_markers_from_motion` start from the default pose and bound
+    the
     pelvis translations). Zero when no marker is finite."""
-    from msk.model import marker_positions
+    from msk.model.core import marker_positions
 
     x = np.asarray(markers, dtype=float)
     finite = np.isfinite(x).all(axis=-1)
@@ -470,11 +474,12 @@ def _place_from_task(
     model: Any, trial: Any, rot: np.ndarray, match: Any, bad: Mapping[str, float]
 ) -> tuple[Any, dict[str, float], dict[str, Any], list[str]]:
     """After the static placement, the markers the static cannot place for the task, placed
-    from the task (:func:`msk.scaling.place_markers_from_motion` on the task with the model's
+    from the task (:func:`msk.personalise.scaling.place_markers_from_motion` on the task with the
+    model's
     markers and these only):
 
     * shoulder-girdle markers of a model without that segment (gait2392's acromia on its rigid
-      torso, :func:`msk.markersets.shoulder_girdle_markers`): the scapula follows the arms, so
+      torso, :func:`msk.model.markersets.shoulder_girdle_markers`): the scapula follows the arms, so
       where the static (arms out) puts them is not where they ride in the task (UNIPD's acromia
       22–26 mm off through the walk when placed from its static, IK 17.5 → 16.3 mm); moved on
       their body to their median position in the task;
@@ -482,7 +487,7 @@ def _place_from_task(
       :func:`msk.quality.inconsistent_static_markers`): a model marker moved on its body,
       another marker fixed to its most rigid body;
     * model markers the lab rebuilds from a technical cluster (calibrated anatomical landmarks,
-      :func:`msk.markersets.reconstructed_markers`: rigid with another marker to < 0.1 mm
+      :func:`msk.model.markersets.reconstructed_markers`: rigid with another marker to < 0.1 mm
       through the task): they ride the cluster's soft tissue, which sits differently on the
       bone in a standing static and in the task, so they are moved on their body to their
       median position in the task (UNIPD's ASIS/PSIS, GT, epicondyles, HF, TT, malleoli:
@@ -492,8 +497,8 @@ def _place_from_task(
     Returns the model, marker → displacement (m) of the markers moved, the record for
     ``summary.json`` ``model.static_check`` (empty without ``bad``; its quality flag) and the
     reconstructed markers moved."""
-    from msk.markersets import reconstructed_markers, shoulder_girdle_markers
-    from msk.scaling import place_markers_from_motion
+    from msk.model.markersets import reconstructed_markers, shoulder_girdle_markers
+    from msk.personalise.scaling import place_markers_from_motion
 
     xm, mlabels = model_frame_columns(trial, rot, match)
     to_model = dict(match.lab_to_model)
@@ -501,7 +506,7 @@ def _place_from_task(
     known = set(model.marker_names)
     girdle = set(shoulder_girdle_markers(list(mlabels), [b.name for b in model.bodies]))
     # landmarks the lab rebuilds from a cluster (rigid with it through the task): placed where
-    # the task's reconstruction puts them (msk.markersets.reconstructed_markers)
+    # the task's reconstruction puts them (msk.model.markersets.reconstructed_markers)
     recon = {m for m in reconstructed_markers(xm, mlabels) if m in known} - bad_names
     if not bad_names and not recon and not girdle & known:
         return model, {}, {}, []
@@ -529,15 +534,17 @@ def _chord_centres(
     mdiam: float | None,
 ) -> tuple[dict[str, tuple[str, np.ndarray, np.ndarray]], list[str]]:  # fmt: skip
     """The static pose of a lateral-marker protocol (no medial knee marker) as Plug-in Gait
-    defines it (Davis et al. 1991): virtual markers for :func:`msk.scaling.place_markers` at the
-    knee and ankle centres of the chord function (:func:`msk.scaling.static_joint_centres`;
+    defines it (Davis et al. 1991): virtual markers for
+    :func:`msk.personalise.scaling.place_markers` at the
+    knee and ankle centres of the chord function
+    (:func:`msk.personalise.scaling.static_joint_centres`;
     the tibia's and the talus' origins) and the lateral knee marker on the knee flexion axis
     at r = (knee width + marker diameter)/2 from the knee centre; the lateral knee and ankle
     markers are then placed (moved) where the static puts them, not held at the generic
     model's offsets (which differ from the subject's measured widths by 10–20 mm).
     Returns (virtual markers, markers to move)."""
-    from msk.markersets import parse_label
-    from msk.scaling import static_joint_centres
+    from msk.model.markersets import parse_label
+    from msk.personalise.scaling import static_joint_centres
 
     if not widths:
         return {}, []
@@ -595,7 +602,8 @@ def free_foot_coordinates(
 ) -> tuple[str, ...]:
     """Foot coordinates (subtalar, MTP) whose offset a placement from the motion leaves free:
     every model marker distal to the joint that the trial has (``present``; None: every model
-    marker) is moved (:func:`msk.scaling.place_markers_from_motion`, ``median_neutral``), and
+    marker) is moved (:func:`msk.personalise.scaling.place_markers_from_motion`,
+    ``median_neutral``), and
     there is at least one. A generic marker the trial lacks observes nothing."""
     body_of = {m.name: m.body for m in model.markers}
     out: list[str] = []
@@ -652,16 +660,16 @@ def held_foot_coordinates(
 def held_static_knees(model: Any, labels: tuple[str, ...]) -> dict[str, tuple[float, float]]:
     """Knee flexion a static trial's markers cannot observe, held at 0 rad (the anatomical
     standing pose a static is recorded in) by an IK coordinate task in the static pose θ̄ of
-    the marker placement (:func:`msk.scaling.place_markers`).
+    the marker placement (:func:`msk.personalise.scaling.place_markers`).
 
     A side's knee flexion is observed when the static has a femoral epicondyle and a malleolus
     marker of that side (with the pelvis' hip centre: the thigh's and the shank's long axes;
-    :func:`msk.markersets.parse_label`). Without them (thigh and shank clusters only: the
+    :func:`msk.model.markersets.parse_label`). Without them (thigh and shank clusters only: the
     Grand Challenge's JW) θ̄ puts the knee wherever the generic model's cluster offsets fit,
     and every cluster marker placed from that pose carries the error into the motion:
     ``jw_1legstand1`` posed 9.6° hyperextended by its clusters where JW's knee goniometer reads
     5.4° of flexion. Weight :data:`HELD_COORDINATE_WEIGHT`."""
-    from msk.markersets import parse_label
+    from msk.model.markersets import parse_label
 
     seen = {(p.side, p.landmark) for p in map(parse_label, labels) if p.side and p.landmark}
     held: dict[str, tuple[float, float]] = {}
@@ -680,7 +688,7 @@ def _swap_back(read: ReadResult) -> tuple[ReadResult, dict[str, float]]:
     the subject's left in ≥ 80 % of the frames, judged from the pelvis markers, before any
     model sees them), and "right/left" → median signed separation (m) of each pair exchanged
     (``summary.json`` ``model.marker_set.swapped_back``; a quality flag says so)."""
-    from msk.markersets import zeros_as_gaps_view
+    from msk.model.markersets import zeros_as_gaps_view
     from msk.quality import swapped_label_pairs
 
     trial = read.trial
@@ -700,16 +708,16 @@ def leg_split(inputs: SessionInputs, trial: Any, built: Mapping[str, Any]) -> di
     """The femur : tibia split of each leg scaled by one pelvis-to-heel factor (no knee or
     ankle marker: ``leg_<side>`` among the scaling ratios), from the functional knee and ankle
     centres of the task trial's thigh, shank and calcaneus markers
-    (:func:`msk.leg_split.functional_leg_split`) on the model as first scaled and placed
+    (:func:`msk.personalise.leg_split.functional_leg_split`) on the model as first scaled and placed
     (``built``); None when no leg was scaled that way. The model stage scales and places again
     with the sides it determines, keeps that model when the lab's markers fit it no worse (the
     placement's marker RMS, :func:`_placement_rms`; else every side keeps its leg factor, and
     says why) and reports every side in ``summary.json`` ``model.leg_split``. A leg the
     scaling reports as not determined by the motion (the stature's leg of a run,
-    :func:`msk.scaling.unobserved_leg_starts`) is split by the functional knee and ankle
+    :func:`msk.personalise.scaling.unobserved_leg_starts`) is split by the functional knee and ankle
     (``use_ankle``) where its checks pass."""
-    from msk.leg_split import functional_leg_split
-    from msk.markersets import zeros_as_gaps
+    from msk.model.markersets import zeros_as_gaps
+    from msk.personalise.leg_split import functional_leg_split
 
     mc = inputs.model_cfg
     ratios = dict(built["info"].get("scaling", {}).get("ratios", {}))
@@ -728,7 +736,7 @@ def leg_split(inputs: SessionInputs, trial: Any, built: Mapping[str, Any]) -> di
         segments.setdefault(mk.body, []).append(mk.name)
     for lab, (body, _) in dict(placed.get("too_loose", {})).items():
         segments.setdefault(body, []).append(lab)
-    # a leg whose length the motion did not determine (the stature's: msk.scaling.
+    # a leg whose length the motion did not determine (the stature's: msk.personalise.scaling.
     # unobserved_leg_starts) has its tibia from the functional ankle, where the checks find it
     # determined — the clusters' only measurement of it — rather than as the rest of a leg the
     # markers did not measure (issue 15, thirteenth pass)
@@ -767,7 +775,7 @@ def without_markers(model: BuiltModel) -> BuiltModel:
 
 #: relative decrease of the task's IK cost per round below which :func:`choose_placement`
 #: stops its descents: 2 % is 0.14–0.3 mm on the shipped walks (7–15 mm), as much as the
-#: candidates' costs move under ``scripts/placement_jitter.py``'s perturbations (0.15 mm,
+#: candidates' costs move under ``studies/placement_jitter.py``'s perturbations (0.15 mm,
 #: tenth pass) and under :data:`CHOICE_TOLERANCE_M` — a smaller gain is not one the choice
 #: can tell from those perturbations (the tenth pass's absolute 0.01 mm left DM og1 at its
 #: 12-round cap, still falling by 0.06 mm per round)
@@ -778,7 +786,7 @@ DESCENT_MAX_ROUNDS = 30
 
 #: how much worse (m) than the least task IK cost a candidate of :func:`choose_placement` may be
 #: and still be preferred (the split before the leg factor, the pulled start before the other):
-#: the candidates' costs move by up to 0.15 mm under ``scripts/placement_jitter.py``'s
+#: the candidates' costs move by up to 0.15 mm under ``studies/placement_jitter.py``'s
 #: perturbations (DM og1), so that a choice by the bare minimum between candidates closer than
 #: that flipped the femur and tibia factors from run to run
 CHOICE_TOLERANCE_M = 0.0002
@@ -827,7 +835,7 @@ def placement_fit(
     (``q_raw``, NaN rows for frames not solved) and the cost (inf when nothing is solved)."""
     from types import SimpleNamespace
 
-    from msk.model import Marker, frame_placements
+    from msk.model.core import Marker, frame_placements
     from msk.pipeline.kinematics import solve_trial
 
     final, _ = knee_flexion_to_physiological(model)
@@ -872,10 +880,10 @@ def choose_placement(
     one objective on one marker set and the same frames — :func:`placement_frames`, at most
     :data:`CHOICE_MAX_FRAMES` — for every candidate) among a fixed set: the placement as it
     was (``built``: plain, pulled when plain is worse than
-    :data:`msk.scaling.PLACEMENT_RETRY_RMS_M`) and the placement pulled towards neutral
-    (``regularize=True`` of :func:`msk.scaling.place_markers_from_motion`, on the model
+    :data:`msk.personalise.scaling.PLACEMENT_RETRY_RMS_M`) and the placement pulled towards neutral
+    (``regularize=True`` of :func:`msk.personalise.scaling.place_markers_from_motion`, on the model
     ``built`` was scaled to; the same placement when ``built`` was itself pulled), each
-    continued by :func:`msk.scaling.refine_placement_from_motion` (rounds of squared
+    continued by :func:`msk.personalise.scaling.refine_placement_from_motion` (rounds of squared
     extrapolation of the passes, while a round lowers the cost by more than
     :data:`DESCENT_REL_TOLERANCE` of itself, at most :data:`DESCENT_MAX_ROUNDS` rounds); then,
     when ``split_of`` gives femur and tibia factors for the best of these (the functional leg
@@ -899,7 +907,7 @@ def choose_placement(
     Why. The placement passes are a fixed-point iteration with several basins: which one a run
     landed in moved with perturbations no physical argument can care about (markers + 0.1 mm
     noise, one frame less, leg factors × (1 ± 1e-4): DM og1's task IK 8.5–9.5 mm, UWA fast
-    walking's 9.2–10.8 mm; ``scripts/placement_jitter.py``), and so did the plain/pulled and
+    walking's 9.2–10.8 mm; ``studies/placement_jitter.py``), and so did the plain/pulled and
     split/no-split choices made on the placement's own RMS, and the split's factors measured on
     that placement. The pulled start is unique (the pull resolves the flat directions of the
     anatomical markers' IK) and the descent from it ends where the markers alone put the
@@ -909,7 +917,7 @@ def choose_placement(
 
     Returns the chosen ``_scale_and_place`` result and the record of the choice
     (``summary.json`` ``model.placement_choice``)."""
-    from msk.scaling import place_markers_from_motion, refine_placement_from_motion
+    from msk.personalise.scaling import place_markers_from_motion, refine_placement_from_motion
 
     x, t, labels = _choice_frames(read.trial, built)
     weights = dict(inputs.cfg.marker_weights)
@@ -1026,7 +1034,7 @@ def _choice_frames(
 ) -> tuple[np.ndarray, np.ndarray, tuple[str, ...]]:
     """The frames the choice among motion placements is judged on (:func:`placement_frames`)
     in the model frame (exact zeros as gaps), their times and the labels in model names."""
-    from msk.markersets import zeros_as_gaps
+    from msk.model.markersets import zeros_as_gaps
 
     idx = placement_frames(trial.markers)
     rot = np.asarray(built["rotation"], dtype=float)
@@ -1038,12 +1046,13 @@ def _choice_frames(
 
 def sole_level(inputs: SessionInputs, read: ReadResult, built: dict[str, Any]) -> dict[str, Any]:
     """The chosen motion placement (no static trial; ``built``) with each ankle's gauge set by
-    the prior "sole level at foot flat" (:func:`msk.sole_level.level_sole_gauge`: the foot-flat
+    the prior "sole level at foot flat" (:func:`msk.personalise.sole_level.level_sole_gauge`: the
+    foot-flat
     frames of the whole task, fitted as :func:`placement_fit` fits the choice's frames; the
     free markers those the placement placed or moved) — ``built`` with its model replaced and
     ``summary.json`` ``model.sole_level`` (ankle coordinate → what was done or why not)."""
-    from msk.markersets import zeros_as_gaps
-    from msk.sole_level import level_sole_gauge
+    from msk.model.markersets import zeros_as_gaps
+    from msk.personalise.sole_level import level_sole_gauge
 
     trial = read.trial
     rot = np.asarray(built["rotation"], dtype=float)
@@ -1075,13 +1084,14 @@ def placement_determinacy(
     inputs: SessionInputs, read: ReadResult, built: Mapping[str, Any]
 ) -> dict[str, Any]:
     """What the chosen motion placement (no static trial; ``built``) leaves undetermined:
-    :func:`msk.determinacy.placement_profile` of its leg coordinates on the choice's frames
+    :func:`msk.personalise.determinacy.placement_profile` of its leg coordinates on the choice's
+    frames
     (:func:`placement_frames`), fitted as :func:`placement_fit` fits them on the markers the
     model carries, the free markers those the placement placed or moved, the cost's resolution
     :data:`CHOICE_TOLERANCE_M` (a cost change the choice itself does not tell from a tie) —
     ``summary.json`` ``model.placement_determinacy`` (its quality flag:
     :func:`msk.quality.model_flags`); ``{"not_run": why}`` when the frames cannot be fitted."""
-    from msk.determinacy import placement_profile
+    from msk.personalise.determinacy import placement_profile
 
     x, t, labels = _choice_frames(read.trial, built)
     weights = dict(inputs.cfg.marker_weights)
@@ -1143,7 +1153,7 @@ def run(inputs: SessionInputs, read: ReadResult) -> BuiltModel:
         built, choice = choose_placement(inputs, read, built, split_of)
         built["info"]["placement_choice"] = choice
         # the ankles' gauge (every foot marker moved: the markers leave their means free) set
-        # by the prior "sole level at foot flat" (msk.sole_level)
+        # by the prior "sole level at foot flat" (msk.personalise.sole_level)
         built = sole_level(inputs, read, built)
         built["info"]["placement_determinacy"] = placement_determinacy(inputs, read, built)
         split = measured.get("split")

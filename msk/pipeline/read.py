@@ -1,7 +1,7 @@
 """Stage ``read``: the task trial (C3D, or OpenSim TRC + GRF), its explicit plate assignment
 and the measured knee contact force, read from the files (lab frame, SI) and kept as the later
 stages read them: the markers, the analog channels that are not plate channels (the EMG), the
-plates' force, COP and free moment (:class:`msk.loads.PlateWrench`), no model outputs. A
+plates' force, COP and free moment (:class:`msk.dynamics.loads.PlateWrench`), no model outputs. A
 long trial thus holds ~4.9 kB per frame after this stage instead of ~7.1 kB (gc5_PS: 16 EMG
 and 3 plates; issue 18)."""
 
@@ -39,9 +39,11 @@ class ReadResult:
 
     As :func:`read_task` returns it, ``trial`` is the file's (a C3D's without its plates' analog
     channels) and ``plates`` the
-    :class:`msk.loads.PlateWrench` of a GRF file (None for a C3D's own plates); as the stage
+    :class:`msk.dynamics.loads.PlateWrench` of a GRF file (None for a C3D's own plates); as the
+    stage
     returns it (:func:`for_session`), ``trial`` has no plates, no plate channels and no model
-    outputs, and ``plates`` are the :class:`msk.loads.PlateWrench` of either (lab frame)."""
+    outputs, and ``plates`` are the :class:`msk.dynamics.loads.PlateWrench` of either (lab
+    frame)."""
 
     trial: Any
     plates: tuple[Any, ...] | None = None
@@ -73,11 +75,12 @@ def run(inputs: SessionInputs) -> ReadResult:
 
 def for_session(inputs: SessionInputs, read: ReadResult) -> ReadResult:
     """``read`` (as :func:`read_task` returns it) reduced to what the later stages read: the
-    plates as :class:`msk.loads.PlateWrench` (a C3D's: force, COP and free moment shared with
+    plates as :class:`msk.dynamics.loads.PlateWrench` (a C3D's: force, COP and free moment shared
+    with
     its :class:`msk.trial.ForcePlate`, not copied; the moment about the plate origin, which no
     stage reads, left out), the analog channels of no plate (the EMG: ``[emg] channels`` may
     name any of them), the markers (shared); no model outputs (no stage reads them)."""
-    from msk.loads import plates_from_trial
+    from msk.dynamics.loads import plates_from_trial
     from msk.trial import ModelOutputs
 
     trial = read.trial
@@ -145,7 +148,7 @@ def read_task(inputs: SessionInputs) -> ReadResult:
         trial = read_trial(task.file)  # by suffix (a .trc: OpenSim ground, +y up)
     grf, assignment = None, {}
     if task.grf is not None:
-        from msk.loads import external_loads_assignment, plates_from_grf_file
+        from msk.dynamics.loads import external_loads_assignment, plates_from_grf_file
 
         # every common OpenSim column naming; with an ExternalLoads .xml, its force sets
         grf = tuple(plates_from_grf_file(task.grf, task.external_loads))
@@ -172,7 +175,8 @@ def read_static_markers(
     """Markers of a static trial in the model frame (any format :func:`msk.io.read_trial`
     reads, rotated so that its vertical is the model's ``up``; no heading: the subject stands
     still), the file's :class:`msk.trial.Subject` and the part of the trial that is still in
-    double stance (:func:`msk.static_window.still_window` on its measured markers and, where
+    double stance (:func:`msk.personalise.static_window.still_window` on its measured markers and,
+    where
     the file has plates, their vertical loads at the marker frames; the markers and time
     returned are the whole trial's).
 
@@ -182,8 +186,8 @@ def read_static_markers(
     from msk.exceptions import StaticTrialError
     from msk.io import read_trial, to_model_frame
     from msk.io.c3d import is_measured_marker
-    from msk.markersets import zeros_as_gaps
-    from msk.static_window import still_window
+    from msk.model.markersets import zeros_as_gaps
+    from msk.personalise.static_window import still_window
 
     tr = to_model_frame(read_trial(path), up=up, forward=None)
     keep = [i for i, lab in enumerate(tr.marker_labels) if is_measured_marker(lab)]

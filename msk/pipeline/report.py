@@ -12,7 +12,7 @@ import numpy as np
 
 from msk.io.tables import Table
 from msk.pipeline.inputs import SessionInputs
-from msk.results import SessionResults
+from msk.results.folder import SessionResults
 
 __all__ = ["run", "settings"]
 

@@ -1,10 +1,11 @@
 """The stage runner: content-hash cache, status records, progress lines.
 
 :class:`Runner` runs the nodes of :data:`msk.pipeline.graph.GRAPH` in their declared order. A
-node's cache key is the sha256 of its name, :func:`msk.cache.code_fingerprint` (the source of
+node's cache key is the sha256 of its name, :func:`msk.pipeline.cache.code_fingerprint` (the source
+of
 msk and the versions of its numerical dependencies), its settings and the keys of the nodes it
 reads, so a changed setting recomputes exactly the stages downstream of it. Values are stored
-by :class:`msk.cache.StageCache` (``.npz`` + JSON, checksummed, never pickled).
+by :class:`msk.pipeline.cache.StageCache` (``.npz`` + JSON, checksummed, never pickled).
 
 Status of a recorded stage: ``computed`` / ``cached`` / ``not requested`` (the configuration
 has no trial for it) / ``not available`` (a prerequisite or library piece is missing, recorded
@@ -25,11 +26,11 @@ from pathlib import Path
 from typing import Any, TextIO
 
 from msk import __version__
-from msk._fork import start_deferred
-from msk.cache import StageCache, code_fingerprint, dependency_versions
+from msk._runtime.fork import start_deferred
 from msk.exceptions import ConfigError, MskError
-from msk.results import json_default
-from msk.summary import Summary
+from msk.pipeline.cache import StageCache, code_fingerprint, dependency_versions
+from msk.results.folder import json_default
+from msk.results.summary import Summary
 
 __all__ = [
     "RunResult",
@@ -56,7 +57,7 @@ class StageRecord:
 
 @dataclass(frozen=True)
 class RunResult:
-    """A finished run: the session folder, its summary (:class:`msk.summary.Summary`, read
+    """A finished run: the session folder, its summary (:class:`msk.results.summary.Summary`, read
     back from the ``summary.json`` the run wrote: the typed value of exactly that file) and the
     stage records."""
 
@@ -90,7 +91,8 @@ def stage_key(*parts: Any) -> str:
 
 
 def versions() -> dict[str, str]:
-    """msk, Python and the numerical dependencies (:func:`msk.cache.dependency_versions`)."""
+    """msk, Python and the numerical dependencies
+    (:func:`msk.pipeline.cache.dependency_versions`)."""
     return {"msk": __version__, **dependency_versions()}
 
 
@@ -194,7 +196,7 @@ class Runner:
                 self.keys[name] = key
                 self._record(StageRecord(name, "cached", time.perf_counter() - t0, "", key))
                 return value
-        start_deferred()  # a stage is computed: the servers msk run registered (msk._fork)
+        start_deferred()  # a stage is computed: the servers msk run registered (msk._runtime.fork)
         try:
             if self.fail_stage == name:
                 raise RuntimeError(f"stage {name} failed on purpose (test hook)")

@@ -1,4 +1,4 @@
-"""Running a session: a configuration → the results folder of :mod:`msk.results`.
+"""Running a session: a configuration → the results folder of :mod:`msk.results.folder`.
 
 :func:`run_session` resolves the inputs (:func:`~msk.pipeline.inputs.session_inputs`), runs the
 stage graph (:func:`~msk.pipeline.graph.run_graph`) with the cache in ``<out>/.cache``, adds
@@ -15,14 +15,14 @@ from typing import Any, TextIO
 
 from threadpoolctl import threadpool_limits
 
-from msk._memory import map_large_blocks
+from msk._runtime.memory import map_large_blocks
 from msk.config import SessionConfig, load_config
 from msk.exceptions import ConfigError
 from msk.pipeline.graph import CORE_STAGES, GRAPH, STAGES, run_graph
 from msk.pipeline.inputs import session_inputs
 from msk.pipeline.runner import Runner, RunResult
-from msk.results import SessionResults, check_replaceable, write_session
-from msk.summary import Summary
+from msk.results.folder import SessionResults, check_replaceable, write_session
+from msk.results.summary import Summary
 
 __all__ = ["run_session", "run_stages", "run_task_trials", "split_task_trials"]
 

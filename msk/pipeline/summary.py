@@ -64,7 +64,7 @@ _ANTHRO_MAP = {
 
 def peak_measured_force_n(ext: Any, measured: np.ndarray) -> float:
     """The largest magnitude of the net ground reaction over the ``measured`` frames, as the
-    plates **recorded** it (:attr:`msk.loads.ExternalLoads.force_recorded`; the low-passed
+    plates **recorded** it (:attr:`msk.dynamics.loads.ExternalLoads.force_recorded`; the low-passed
     force where it is not kept). Hicks et al. 2015 (J Biomech Eng 137:020905) bound
     the residual moment by 1 % of the COM height × the magnitude of the measured external
     force; a 6 Hz low-pass lowers the shipped walks' peaks by 3–13 % (JW 923 → 895 N, Plug-in
@@ -79,7 +79,8 @@ def filtering(cfg: SessionConfig) -> str:
     f = cfg.filters
     where = (
         "each segment's centre of mass low-passed like the plates for the whole-body "
-        "acceleration (the difference taken by the pelvis translations; msk.com_consistency)"
+        "acceleration (the difference taken by the pelvis translations; "
+        "msk.kinematics.com_consistency)"
         if f.acceleration_domain == "segment_com"
         else "velocities and accelerations differentiated from the low-passed coordinates"
     )
@@ -117,7 +118,8 @@ def base_summary(inputs: SessionInputs) -> dict[str, Any]:
 
 def unmeasured_contact_figures(loads: Any, time: Any) -> dict[str, Any]:
     """``quality.unmeasured_contact_frames`` (frames in which a foot stands on a surface no plate
-    measures for at least :data:`msk.loads.STANDING_S`, :meth:`msk.loads.FootContact.standing`;
+    measures for at least :data:`msk.dynamics.loads.STANDING_S`,
+    :meth:`msk.dynamics.loads.FootContact.standing`;
     its leg's joint torques are not written there),
     ``unmeasured_contact_frames_by_foot``, ``unmeasured_contact_raised_frames`` (those off the
     floor's level: a stair's upper steps, a box) and ``unmeasured_contact_inside_pct``: the share
@@ -172,8 +174,9 @@ def _quality(
     observation: Any = None,
 ) -> dict[str, Any]:
     """Data-quality figures; the residuals over the frames whose ground contact the plates
-    measure (``measured``, :func:`msk.loads.contact_measured`) and the markers observe
-    (``observed`` ⊆ ``measured``; ``observation``: :func:`msk.observation.observed_frames`),
+    measure (``measured``, :func:`msk.dynamics.loads.contact_measured`) and the markers observe
+    (``observed`` ⊆ ``measured``; ``observation``:
+    :func:`msk.kinematics.observation.observed_frames`),
     None when there is none."""
     ok = np.isfinite(jt.residual_force).all(axis=1) & observed
     res_f = rms(jt.residual_force[ok]) if ok.any() else None
@@ -221,7 +224,7 @@ def _anthropometry(cfg: SessionConfig, model: Any) -> dict[str, Any] | None:
     """Generic segment masses of the anthropometric table (Dumas et al. 2007) mapped on the
     model's segments (the foot = talus + calcaneus + toes; the torso = trunk, head and arms)."""
     try:
-        from msk.anthropometry import generic_segments
+        from msk.model.anthropometry import generic_segments
 
         # segment masses are fractions of body mass: the stature (default 1.75 m when the
         # config has none) only sets lengths and inertias, which are not reported

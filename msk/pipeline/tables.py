@@ -1,4 +1,4 @@
-"""Step ``tables`` (not a recorded stage): the result tables of :mod:`msk.results` from the
+"""Step ``tables`` (not a recorded stage): the result tables of :mod:`msk.results.folder` from the
 stage results (time axis 0, named columns, SI)."""
 
 from __future__ import annotations
@@ -22,7 +22,7 @@ __all__ = ["inertial_table", "run", "strength_table"]
 
 def inertial_table(ident: MassIdentification) -> Table:
     """One row (``time`` = start of the data): ``<segment>.<parameter>`` in Pinocchio order."""
-    from msk.model import INERTIAL_PARAMETER_NAMES
+    from msk.model.core import INERTIAL_PARAMETER_NAMES
 
     cols, vals = [], []
     for b, phi in ident.parameters.items():

@@ -259,7 +259,7 @@ FRONTAL_RESERVE_OPTIMAL_NM = 1.0
 class _Compartments:
     """What the knee compartment rows of one model need: the knee, its contact points, the
     geometry plan for its unit wrenches, and the kinematics and external loads they are
-    evaluated on (:func:`msk.contact.compartment_force_map`)."""
+    evaluated on (:func:`msk.contact.knee.compartment_force_map`)."""
 
     joint: str
     geometry: Any
@@ -275,7 +275,7 @@ class _Compartments:
         largest |frontal moment| of the inverse-dynamics load there (N·m; over the frames
         ``keep`` (bool, like ``fr``) alone when given: those whose knee is solved). A frame
         whose map is not finite gets the trivial row 0 ≥ 0."""
-        from msk.contact import compartment_force_map
+        from msk.contact.knee import compartment_force_map
         from msk.optimization import TensionInequalities
 
         w = self.plan.evaluate(
@@ -307,7 +307,7 @@ def compartments(
 ) -> _Compartments | None:
     """The knee compartment rows of ``[optimization] compartment_nonnegative`` for ``model``
     (None when the option is off): the side of interest's knee, the ``[contact]`` points as
-    the knee contact stage splits them (:func:`msk.contact.plateau_geometry`)."""
+    the knee contact stage splits them (:func:`msk.contact.knee.plateau_geometry`)."""
     if not inputs.cfg.optimization.compartment_nonnegative:
         return None
     from msk.muscles.geometry import geometry_plan
@@ -321,9 +321,9 @@ def compartments(
 
 def knee_plateau(inputs: SessionInputs, model: Any, joint: str) -> Any:
     """The two contact points of ``joint`` as the configuration's ``[contact]`` places them
-    (:func:`msk.contact.plateau_geometry`): the same for the compartment rows and the knee
+    (:func:`msk.contact.knee.plateau_geometry`): the same for the compartment rows and the knee
     contact stage's split."""
-    from msk.contact import plateau_geometry
+    from msk.contact.knee import plateau_geometry
 
     cc = inputs.cfg.contact
     centre = None if cc.plateau_depth_m is None else (0.0, -cc.plateau_depth_m, 0.0)
@@ -418,7 +418,7 @@ def optimise(
     are left out of that frame — their forces, activations and reserve torques NaN — and the
     rest solved: each criterion's cost is a sum over muscles and reserves and each equality
     row a coordinate's, so the rest's solution is that of the whole frame's QP
-    (``tests/test_pipeline_tension.py`` checks each criterion). The left-out part is not
+    (``tests/pipeline/test_pipeline_tension.py`` checks each criterion). The left-out part is not
     posed: such a frame's QP holds the kept muscles and coordinates only (and the compartment
     rows only when their knee is kept), so the infeasible count, the KKT figures, the
     reserves and the activations describe what was solved; a frame is posable when the kept
@@ -507,7 +507,7 @@ def optimise(
     # tibia and the root is): no frontal reserve or peak from such a frame
     knee_out = np.zeros(drop_c.shape[0], dtype=bool)
     if comp is not None:
-        from msk.dynamics import coordinates_carrying
+        from msk.dynamics.inverse import coordinates_carrying
 
         child = next(j.child for j in model.joints if j.name == comp.joint)
         above = set(coordinates_carrying(model, child))
@@ -627,7 +627,8 @@ def optimise(
     # Jacobian and the solver's arrays are a part's, and the rows' per-frame arrays: issue 18),
     # the warm start carried from part to part; each frame's QP is the same as in one call
     # (the sub-problem split follows the muscles' moment-arm pattern, the same in every part
-    # of a trial in practice: tests/test_long_trials.py checks gc5_PS in 16-frame parts equal
+    # of a trial in practice: tests/pipeline/test_long_trials.py checks gc5_PS in 16-frame parts
+    # equal
     # to one call bit for bit). A block's frames are solved pattern by pattern of left-out
     # legs (the fully measured frames first, then each pattern's own smaller QP).
     split = comp is not None

@@ -1,10 +1,10 @@
 """The clinician report: a self-contained HTML page (and a PDF when Chromium is available).
 
-Built from result objects only (:class:`msk.results.SessionResults`: the tables and
-``summary.json`` of a run as a typed :class:`msk.summary.Summary`, read by attribute), never
+Built from result objects only (:class:`msk.results.folder.SessionResults`: the tables and
+``summary.json`` of a run as a typed :class:`msk.results.summary.Summary`, read by attribute), never
 from the pipeline's internals, so ``msk report DIR`` can rebuild it from a session folder. A
 ``SessionResults`` built with a plain summary mapping converts it on construction
-(:func:`msk.summary.as_summary`). Figures are inline SVG made by matplotlib (Agg backend);
+(:func:`msk.results.summary.as_summary`). Figures are inline SVG made by matplotlib (Agg backend);
 CSS is inline. Every number carries its unit; every plot has labelled axes with units and a
 legend.
 """

@@ -16,7 +16,8 @@ from typing import Any, TypeGuard
 
 import numpy as np
 
-from msk.results import SessionResults
+from msk.results.folder import SessionResults
+from msk.results.summary import Strength, Summary
 from msk.status import (
     FES_DETERMINED_BY_PROTOCOL,
     FES_NRMSD_MAX_PCT,
@@ -26,7 +27,6 @@ from msk.status import (
     fes_status,
     gain_status,
 )
-from msk.summary import Strength, Summary
 
 __all__ = ["build_figures", "chromium_executable", "render_html", "write_pdf", "write_report"]
 
@@ -432,12 +432,12 @@ def _draw(res: SessionResults, names: Sequence[str]) -> dict[str, str]:
 def build_figures(res: SessionResults) -> dict[str, str]:
     """Inline SVG figures by name (strength, strength_curves, mass, joints, muscles, contact,
     fes). Drawing them is most of a session's report (~0.05–0.25 s a figure with matplotlib);
-    with a second CPU free (:func:`msk._fork.spare_cpu`) a forked child draws half of them
+    with a second CPU free (:func:`msk._runtime.fork.spare_cpu`) a forked child draws half of them
     meanwhile — the same figures, in about half the wall time."""
-    from msk._fork import take_server
+    from msk._runtime.fork import take_server
 
     server = take_server(FIGURE_SERVER)
-    if server is not None:  # forked by `msk run` before its imports (msk._fork.Server)
+    if server is not None:  # forked by `msk run` before its imports (msk._runtime.fork.Server)
         try:
             return dict(server.call(res))
         except RuntimeError:
@@ -445,7 +445,7 @@ def build_figures(res: SessionResults) -> dict[str, str]:
     return _draw_all(res)
 
 
-#: key of the :class:`msk._fork.Server` that draws the figures (``msk run`` starts it)
+#: key of the :class:`msk._runtime.fork.Server` that draws the figures (``msk run`` starts it)
 FIGURE_SERVER = "figures"
 
 
@@ -460,7 +460,7 @@ def _warm() -> None:
 
 
 def _draw_all(res: SessionResults) -> dict[str, str]:
-    from msk._fork import Forked, spare_cpu
+    from msk._runtime.fork import Forked, spare_cpu
 
     names = [n for n, _ in _FIGURES]
     if not spare_cpu():
@@ -842,7 +842,7 @@ def _segment_words(name: str) -> str:
 
 
 def weak_direction_words(text: str) -> str | None:
-    """A weak direction of the mass identification (``msk.identification`` advice line
+    """A weak direction of the mass identification (``msk.dynamics.identification`` advice line
     ``weak direction (…): -0.59·pelvis.my +0.31·torso.m …``) in words, or None when ``text``
     is not one."""
     m = re.match(r"weak direction \((.*?)\):\s*(.*)$", text.strip())

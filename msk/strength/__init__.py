@@ -9,7 +9,7 @@
 * :func:`max_isometric_moment_curves` — maximal isometric joint-moment curves per action
   (knee, ankle, hip) of a model → :class:`JointStrengthCurves`;
 * :func:`w_emg_stability` and the comparison tables of :mod:`msk.strength.studies`;
-* :mod:`msk.strength.synthetic` — a synthetic leg with known strengths.
+* :mod:`msk.datasets.strength` — a synthetic leg with known strengths.
 """
 
 from __future__ import annotations

@@ -57,7 +57,7 @@ from numpy.typing import ArrayLike, NDArray
 if TYPE_CHECKING:
     from scipy import sparse
 
-from msk import compare
+from msk import metrics as compare
 from msk.exceptions import IdentificationError, ShapeMismatchError
 from msk.muscles.activation import nonlinear_activation, recursive_filter
 from msk.muscles.contraction import contraction_dynamics, trajectory_function

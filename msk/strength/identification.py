@@ -45,7 +45,7 @@ the standard deviation of its torque so that joints weigh equally. It is solved 
 equations XᵀX β = Xᵀy accumulated window by window (bounded: BVLS on the Cholesky factor of
 XᵀX, ``scipy.optimize.lsq_linear``), so the stacked rows are never held: a long trial's design
 (one row per frame and coordinate) costs no memory beyond its windows' (p, p) sums. Same
-minimiser as BVLS on the rows (tests/test_long_trials.py: to 1e-9 on random designs with
+minimiser as BVLS on the rows (tests/pipeline/test_long_trials.py: to 1e-9 on random designs with
 active bounds); against the previous BVLS on the stacked rows, the strength factors of the
 shipped sessions (gc4_JW, gc5_PS, gc6_DM_crouch_tm) moved by at most 2e-14 relative.
 
@@ -132,7 +132,7 @@ from typing import Any, Literal
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from msk import compare
+from msk import metrics as compare
 from msk.exceptions import IdentificationError, ShapeMismatchError
 from msk.muscles.hill import MuscleParameters, RigidTendonState, RigidTendonStateBlocks
 from msk.timeseries import FrameSparse
@@ -480,8 +480,8 @@ class StrengthProfile:
 
 
 def with_strength(model: Any, strength: StrengthProfile | Mapping[str, float]) -> Any:
-    """A new :class:`msk.model.Model` whose muscles take the identified F_iso
-    (:meth:`msk.model.Model.with_strength` with the profile's per-muscle factors)."""
+    """A new :class:`msk.model.core.Model` whose muscles take the identified F_iso
+    (:meth:`msk.model.core.Model.with_strength` with the profile's per-muscle factors)."""
     factors = strength.strength_factors() if isinstance(strength, StrengthProfile) else strength
     return model.with_strength(factors)
 

@@ -1,7 +1,7 @@
 """Studies with identified strengths: W_emg stability (seeds/002 Table I) and comparison tables
 of generic vs identified parameters (seeds/003 Tables 4.1, 4.5–4.7).
 
-All metric primitives come from :mod:`msk.compare` (r², RMS, NRMSD, trapezoidal area ratio, peak
+All metric primitives come from :mod:`msk.metrics` (r², RMS, NRMSD, trapezoidal area ratio, peak
 difference); this module only arranges them into frozen tables.
 """
 
@@ -13,7 +13,7 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from msk import compare
+from msk import metrics as compare
 from msk.exceptions import ShapeMismatchError
 from msk.optimization import EMGWeightSweep, emg_weight_sweep
 
@@ -193,7 +193,7 @@ def area_ratio_table(
     title: str = "area-under-curve ratios (trapezoidal rule, seeds/003 Tables 4.5-4.6)",
 ) -> MetricTable:
     """Per-muscle ratio of trapezoidal areas ``∫a/∫b`` for each pair ``(a, b)`` of named series
-    ``(N, M)`` (activations → Table 4.5, forces → Table 4.6), via :func:`msk.compare.area_ratio`.
+    ``(N, M)`` (activations → Table 4.5, forces → Table 4.6), via :func:`msk.metrics.area_ratio`.
     Columns are named ``"a/b"``."""
     s = _series(series, muscle_names)
     cols = []

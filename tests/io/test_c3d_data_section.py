@@ -10,7 +10,7 @@ import ezc3d
 import numpy as np
 import pytest
 
-from msk._data import real_data_dir
+from msk.datasets.shared import real_data_dir
 from msk.io import c3d as c3d_mod
 from msk.io.c3d import PlateSpec, read_c3d, write_c3d
 

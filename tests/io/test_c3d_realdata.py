@@ -8,8 +8,8 @@ import ezc3d
 import numpy as np
 import pytest
 
-from msk._data import real_data_dir
 from msk.cli import main
+from msk.datasets.shared import real_data_dir
 from msk.io import read_c3d
 from msk.io.opensim_files import read_sto
 

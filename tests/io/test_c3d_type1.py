@@ -73,8 +73,8 @@ def test_type1_round_trip_recovers_force_cop_and_free_moment(tmp_path, rot):
     m = np.cross(cop[ok] - centre, f[ok]) + np.outer(tz[ok], [0, 1, 0])
     np.testing.assert_allclose(pl.moment[ok], m, rtol=1e-5, atol=1e-3)
     assert tr.vertical_axis == 1
-    # through msk.loads: the plate wrench at its COP
-    from msk.loads import plates_from_trial
+    # through msk.dynamics.loads: the plate wrench at its COP
+    from msk.dynamics.loads import plates_from_trial
 
     (pw,) = plates_from_trial(tr)
     mo = np.cross(cop[ok], f[ok]) + np.outer(tz[ok], [0, 1, 0])

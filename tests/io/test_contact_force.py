@@ -162,7 +162,7 @@ def test_jw_load_cells_in_pound_force_bound_the_inverse_dynamics_reaction(real_d
     the knee's inverse-dynamics reaction without muscles (compressive contact ≥ that bound) on
     the measured frames of jw_ngait_og3, peaks at 2.3–2.7 BW; in N it would be below it."""
     from msk.config import load_config
-    from msk.contact import knee_contact_force
+    from msk.contact.knee import knee_contact_force
     from msk.pipeline import run_stages
 
     cfg = load_config(ROOT / "pipelines" / "gc4_JW.toml")
@@ -252,9 +252,9 @@ def test_dm_trials_align_to_their_trc_by_the_markers(real_dir: Path, trial: str)
 
 @pytest.mark.realdata
 def test_conversion_script_regenerates_the_bundled_csv(real_dir: Path, tmp_path: Path) -> None:
-    """scripts/dm_contact_to_csv.py on og1: the CSV reads back aligned and equals the file
+    """studies/dm_contact_to_csv.py on og1: the CSV reads back aligned and equals the file
     bundled in data/gc6-DM (run in-process: ≈ 0.5 s)."""
-    path = ROOT / "scripts" / "dm_contact_to_csv.py"
+    path = ROOT / "studies" / "dm_contact_to_csv.py"
     spec = importlib.util.spec_from_file_location("dm_contact_to_csv", path)
     assert spec is not None and spec.loader is not None
     script = importlib.util.module_from_spec(spec)

@@ -183,7 +183,7 @@ _Y_TO_Z = rotation_between([0, 1.0, 0], [0, 0, 1.0])  # model (Y-up) → a Z-up 
 
 @pytest.fixture(scope="module")
 def gait2392():
-    from msk.model_files import load_model
+    from msk.model.files import load_model
 
     return load_model(MODELS / "gait2392.toml")
 
@@ -192,7 +192,7 @@ def _walk(model, yaw_deg, *, speed=1.2, n=120, turn_at=None, seed=0):
     """Z-up lab markers of gait2392 in its default pose, facing ``yaw_deg`` (about lab z, from
     lab +x), walking forward at ``speed`` (0: treadmill), pelvis yaw swinging ±5°, 2 mm noise;
     after frame ``turn_at`` the subject has turned round and walks back."""
-    from msk.model import forward_kinematics
+    from msk.model.core import forward_kinematics
 
     data = model.create_data()
     forward_kinematics(model, data, model.default_coordinates())
@@ -297,7 +297,7 @@ def test_pelvis_heading_on_real_walks(gait2392):
     TRC, standing in place): only the pelvis can tell, and it faces the belt's direction."""
     from msk.io import read_trc_trial
     from msk.io.frames import pelvis_heading_rotation
-    from msk.markersets import recognise
+    from msk.model.markersets import recognise
 
     tr = read_c3d(GC5 / "PS_ngait_og_ss1.c3d")
     m = recognise(tr.marker_labels, gait2392.marker_names)

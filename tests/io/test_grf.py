@@ -7,6 +7,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from msk.dynamics.loads import external_loads_assignment, plates_from_grf_file
 from msk.exceptions import (
     FileFormatError,
     ForcePlateError,
@@ -16,7 +17,6 @@ from msk.exceptions import (
 )
 from msk.io import grf_force_sets, read_external_loads_xml, write_sto
 from msk.io.grf import header_length_unit
-from msk.loads import external_loads_assignment, plates_from_grf_file
 
 T = np.linspace(0.0, 1.0, 11)
 # two known wrenches: force (N), COP (m), free moment (N·m)

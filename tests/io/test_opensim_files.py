@@ -263,7 +263,7 @@ def test_peer_tool_files(real_dir):
 # ---------------------------------------------------------------------------------------------
 @pytest.mark.opensim
 def test_opensim_reads_what_we_write(tmp_path, needs_opensim):
-    from msk.opensim_peer import run_opensim_script
+    from msk._runtime.opensim_peer import run_opensim_script
 
     rng = np.random.default_rng(3)
     t = np.arange(25) / 50.0

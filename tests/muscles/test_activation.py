@@ -209,7 +209,7 @@ def test_on_rajagopal_processed_emg(real_dir):
 
 @pytest.mark.opensim
 def test_thelen_form_matches_opensim_activation_model(needs_opensim):
-    from msk.opensim_peer import run_opensim_script
+    from msk._runtime.opensim_peer import run_opensim_script
 
     rng = np.random.default_rng(4)
     pts = np.column_stack([rng.uniform(0.01, 1, 30), rng.uniform(0, 1, 30)])

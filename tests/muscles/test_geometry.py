@@ -9,9 +9,11 @@ import numpy as np
 import pinocchio as pin
 import pytest
 
+from msk._runtime.opensim_peer import POSE_PRELUDE
+from msk.datasets.models import leg_model
 from msk.exceptions import ModelError, ShapeMismatchError
-from msk.joints import FourBarKnee, FourBarTranslation, Linear, SimmSpline
-from msk.model import Axis, Joint, Model
+from msk.model.core import Axis, Joint, Model
+from msk.model.joints import FourBarKnee, FourBarTranslation, Linear, SimmSpline
 from msk.muscles.geometry import (
     GeometryPlan,
     MuscleGeometry,
@@ -28,10 +30,8 @@ from msk.muscles.path import (
     PathWrap,
     WrapObject,
 )
-from msk.opensim_peer import POSE_PRELUDE
-from msk.synthetic_models import leg_model
 
-# the crossed four-bar of tests/test_joints.py (femur frame: x anterior, y proximal)
+# the crossed four-bar of tests/model/test_joints.py (femur frame: x anterior, y proximal)
 KNEE = FourBarKnee(
     femur_a=(-0.010, -0.395),
     femur_b=(0.008, -0.400),
@@ -478,7 +478,7 @@ def test_batched_forward_kinematics_equals_pinocchio():
 
 
 # --------------------------------------------------------------------------------------------
-# real models (need msk.osim) and OpenSim 4.6 (child process)
+# real models (need msk.model.osim) and OpenSim 4.6 (child process)
 # --------------------------------------------------------------------------------------------
 GAIT2392_SUBJECT01 = "Pipelines/Gait2392_Simbody/OutputReference/subject01_simbody.osim"
 GAIT2392_IK = "Pipelines/Gait2392_Simbody/OutputReference/subject01_walk1_ik.mot"
@@ -504,7 +504,7 @@ RESULT["R"] = R
 
 
 def _load_osim(path):
-    import msk.osim as osim
+    import msk.model.osim as osim
 
     if not path.is_file():
         pytest.skip(f"model file absent: {path}")
@@ -512,7 +512,7 @@ def _load_osim(path):
 
 
 def _peer_data():
-    from msk._data import shared_dir
+    from msk.datasets.shared import shared_dir
 
     d = shared_dir() / "tools" / "opensim-peer" / "data"
     if not d.is_dir():
@@ -549,7 +549,7 @@ def right_leg(model: Model) -> tuple[list[int], list[int]]:
 
 
 def opensim_geometry(path, model: Model, theta, muscles, coords):
-    from msk.opensim_peer import run_opensim_script
+    from msk._runtime.opensim_peer import run_opensim_script
 
     out = run_opensim_script(
         OPENSIM_GEOMETRY,
@@ -644,10 +644,10 @@ def test_rajagopal_right_leg_with_wrap_cylinders_matches_opensim(needs_opensim, 
 @pytest.mark.realdata
 def test_knee_moment_arms_spline_vs_four_bar_are_plausible():
     """Quadriceps and hamstrings knee moment arms, 0–120° flexion, gait2392 spline knee vs a
-    four-bar fitted to it (msk.fourbar_fit): quadriceps extend with 2–6 cm and average 4–6 cm
+    four-bar fitted to it (msk.model.fourbar_fit): quadriceps extend with 2–6 cm and average 4–6 cm
     over 0–60° (in-vivo range cited by seed 000); hamstrings flex; both knees agree within 4 mm
     (the four-bar reproduces the spline path, its rolling–gliding enters through G)."""
-    import msk.fourbar_fit as fourbar_fit
+    import msk.model.fourbar_fit as fourbar_fit
 
     model = _load_osim(_peer_data() / GAIT2392_SUBJECT01)
     knee = next(j for j in model.joints if j.name == "knee_r")
@@ -679,7 +679,7 @@ def test_knee_moment_arms_spline_vs_four_bar_are_plausible():
 
 
 def test_grouped_function_evaluation_equals_the_functions_and_the_coupling():
-    from msk.joints import Multiplier, Polynomial
+    from msk.model.joints import Multiplier, Polynomial
     from msk.muscles.geometry import _group_functions
 
     knots = (-2.0, -1.2, -0.5, 0.0, 0.1)
@@ -727,7 +727,7 @@ def test_plan_cache_does_not_keep_models_alive_and_plans_are_not_mixed():
 # the fast evaluation paths (issue 6 speed work): same results as the direct definitions
 # --------------------------------------------------------------------------------------------
 def test_function_bank_equals_the_functions_whatever_their_knots():
-    from msk.joints import Constant, Multiplier, Polynomial
+    from msk.model.joints import Constant, Multiplier, Polynomial
     from msk.muscles.geometry import _FunctionBank
 
     funs = [

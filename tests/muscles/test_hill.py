@@ -307,7 +307,7 @@ RESULT["rows"] = rows
 
 @pytest.mark.opensim
 def test_against_opensim_thelen2003(needs_opensim, ref_dir):
-    from msk.opensim_peer import run_opensim_script
+    from msk._runtime.opensim_peer import run_opensim_script
 
     model = ref_dir / "opensim-models" / "gait2392_thelen2003muscle.osim"
     muscles = [
@@ -357,7 +357,7 @@ def test_against_opensim_thelen2003(needs_opensim, ref_dir):
 def test_lloyd_besier_force_velocity_is_finite_at_the_eccentric_pole_speed():
     """The eccentric formula's pole b' = (f_ecc − 1)/(r (1 + a)/b) lies at a *shortening* speed
     (0.08 with the defaults), where the concentric branch answers: no division by zero there
-    (found by hypothesis in tests/test_strength_calibration.py)."""
+    (found by hypothesis in tests/strength/test_strength_calibration.py)."""
     c = LloydBesierCurves()
     b = c.hill_curvature
     pole = (c.f_ecc - 1.0) / (c.ecc_slope_ratio * (1.0 + c.hill_curvature) / b)

@@ -182,8 +182,8 @@ def _overlapping_cylinders_model():
     shank cylinder (tibia, quadrant +x) that overlap near the knee: at some poses a tangent
     point of one wrap lies inside the other cylinder and the wrap rules have no consistent
     path (as Rajagopal 2016's gastrocnemii over the subject01 walk)."""
+    from msk.datasets.models import leg_model
     from msk.muscles.path import Muscle, PathPoint, PathWrap, WrapObject
-    from msk.synthetic_models import leg_model
 
     condyles = WrapObject(
         "condyles", "femur", "cylinder", np.array([-0.005, -0.41, 0.0]),

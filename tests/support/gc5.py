@@ -13,14 +13,14 @@ from typing import Any
 import numpy as np
 import pytest
 
-from msk.compare import spearman
-from msk.contact import G0, KneeContact, knee_contact_force
-from msk.dynamics import inverse_dynamics
+from msk.contact.knee import G0, KneeContact, knee_contact_force
+from msk.dynamics.inverse import inverse_dynamics
+from msk.dynamics.loads import external_loads, plates_from_trial
 from msk.io import read_c3d
 from msk.io.opensim_files import read_trc
-from msk.kinematics import solve_kinematics
-from msk.loads import external_loads, plates_from_trial
-from msk.model_files import load_model
+from msk.kinematics.ik import solve_kinematics
+from msk.metrics import spearman
+from msk.model.files import load_model
 from msk.muscles.activation import first_order_activation
 from msk.muscles.emg import envelopes_from_trial
 from msk.muscles.geometry import muscle_geometry, muscle_parameters
@@ -32,8 +32,8 @@ from msk.optimization import (
     solve_static_optimization_batch,
     solve_tension_batch,
 )
+from msk.personalise.scaling import Measurement, place_markers, scale_model
 from msk.pipeline import DEFAULT_MEASUREMENTS, lab_to_model_rotation
-from msk.scaling import Measurement, place_markers, scale_model
 from msk.strength import StrengthIdentifier, fit_emg_gains
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -106,7 +106,7 @@ def marker_rename() -> dict[str, str]:
 
 
 def gc5_dir() -> Path:
-    from msk._data import real_data_dir
+    from msk.datasets.shared import real_data_dir
 
     return real_data_dir() / "knee-grand-challenge-gc5"
 
@@ -392,7 +392,7 @@ def emg_inputs(name: str, mass: str, move: tuple[str, ...]) -> dict[str, Any]:
 
 #: synergist groups sharing one gain in the StrengthIdentifier reading and the coordinates of
 #: its regression (hip rotation and the foot joints left out: the measured groups explain
-#: little of them); tests/test_strength_wemg_realdata.py uses them too
+#: little of them); tests/strength/test_strength_wemg_realdata.py uses them too
 GAIN_GROUPS: dict[str, tuple[str, ...]] = {
     "knee_extensors": ("vas_med_l", "vas_lat_l", "rect_fem_l"),
     "knee_flexors": ("semimem_l", "semiten_l", "bifemlh_l"),

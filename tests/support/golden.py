@@ -9,7 +9,8 @@ anywhere moves the sums by as much —, and never less than the round-off of the
 (rows × ε × the table's largest value): a column that is round-off around zero (a muscle that
 does not work, |a| ~ 1e-16) is not compared to 1e-9 of its own noise (issue 20: solving each
 leg's QP apart moves such values by ~1e-16). Refresh after an
-intended change of the numbers with ``MSK_UPDATE_GOLDEN=1 pytest tests/test_shipped_sessions.py``
+intended change of the numbers with ``MSK_UPDATE_GOLDEN=1 pytest
+tests/pipeline/test_shipped_sessions.py``
 and say in the CHANGELOG why they changed.
 
 1e-9 holds only on the machine and packages the golden was written with (its

@@ -6,8 +6,8 @@ from __future__ import annotations
 import numpy as np
 import pinocchio as pin
 
-from msk.joints import Linear
-from msk.model import Axis, Body, Coordinate, Joint, Model
+from msk.model.core import Axis, Body, Coordinate, Joint, Model
+from msk.model.joints import Linear
 
 #: knee centre in the world (the femur is welded there)
 HIP = np.array([0.0, 1.0, 0.0])

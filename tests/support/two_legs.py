@@ -1,6 +1,6 @@
 """A two-leg model with ten muscles a leg and a smooth movement of it (the tension and
-strength stages' per-leg tests: ``tests/test_pipeline_tension.py``,
-``tests/test_pipeline_strength.py``)."""
+strength stages' per-leg tests: ``tests/pipeline/test_pipeline_tension.py``,
+``tests/pipeline/test_pipeline_strength.py``)."""
 
 from __future__ import annotations
 
@@ -8,11 +8,11 @@ from typing import Any
 
 import numpy as np
 
-from msk.dynamics import inverse_dynamics
-from msk.kinematics import kinematics_from_coordinates
+from msk.datasets.models import two_leg_model
+from msk.dynamics.inverse import inverse_dynamics
+from msk.kinematics.ik import kinematics_from_coordinates
 from msk.muscles.geometry import muscle_geometry
 from msk.muscles.path import Muscle, PathPoint
-from msk.synthetic_models import two_leg_model
 
 #: muscle → (origin body, origin (m), insertion body, insertion (m)), each side (z mirrored)
 _PATHS = {
@@ -30,7 +30,7 @@ _PATHS = {
 
 
 def muscled_two_legs() -> Any:
-    """:func:`msk.synthetic_models.two_leg_model` with ten muscles a leg, their tendon slack
+    """:func:`msk.datasets.models.two_leg_model` with ten muscles a leg, their tendon slack
     lengths such that every fibre is at its optimal length in the default pose."""
     model = two_leg_model()
 

@@ -1,0 +1,2 @@
+"""Private runtime helpers: forked half-jobs, memory release of long runs, the OpenSim peer in a
+child process."""

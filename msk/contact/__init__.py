@@ -1,0 +1,2 @@
+"""Joint contact forces: the tibiofemoral contact from the tibia free-body diagram, medial/lateral
+split."""

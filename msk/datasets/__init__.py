@@ -1,0 +1,3 @@
+"""Sample, synthetic and reference data generators (known-truth trials, models, tasks; the shared
+recordings'
+location). Used by tests, benchmarks, examples and studies; no algorithm lives here."""

@@ -1,0 +1,3 @@
+"""External loads (plates assigned to feet), inverse dynamics and pelvis residuals, the
+inertial-parameter
+regressors and the subject's mass distribution identified from them."""

@@ -1,0 +1,456 @@
+"""Many sessions at once: a local process pool by default, a Dask distributed cluster on demand.
+
+``run_batch(configs, out)`` runs :func:`msk.pipeline.run_session` for every configuration into
+``out/<session>/`` (``<session>`` = the config file's stem, made unique), in parallel:
+
+* ``scheduler=None``: a local :class:`concurrent.futures.ProcessPoolExecutor` (``forkserver``
+  start method: every worker is forked from a server that imported msk once, no forked
+  solver state; ``spawn`` where there is no forkserver);
+* ``scheduler="tcp://host:8786"`` (or a ``distributed.Client``): the sessions are mapped on a
+  Dask distributed cluster; the workers need msk installed and the paths visible.
+
+A failing session never stops the others: its error is kept as one line (type and message), the
+others complete and are written, and :attr:`BatchResult.failed` lists it. The cohort table
+``out/cohort.csv`` has one row per session with its key quality figures (:data:`COHORT_COLUMNS`);
+its strength columns count the groups per :mod:`msk.status` word and list each group's word
+(``strength_group_status``: ``group: status; …``).
+
+``compare_sessions(folders)`` builds the table of generic vs identified differences across
+session folders (``msk compare``), with the metrics of :mod:`msk.metrics`.
+"""
+
+from __future__ import annotations
+
+import csv
+import io
+import os
+import re
+import tempfile
+import time as _time
+import traceback
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from msk.exceptions import BatchError, MskError
+from msk.results.summary import Summary, as_summary
+
+__all__ = [
+    "COHORT_COLUMNS",
+    "BatchResult",
+    "SessionOutcome",
+    "compare_sessions",
+    "run_batch",
+    "run_one",
+    "write_cohort_csv",
+]
+
+#: Columns of ``cohort.csv`` (units in the names).
+COHORT_COLUMNS: tuple[str, ...] = (
+    "session",
+    "config",
+    "status",
+    "error",
+    "run_s",
+    "frames",
+    "ik_marker_rms_mean_mm",
+    "ik_failed_frames",
+    "residual_force_rms_pct_bw",
+    "residual_moment_rms_nm",
+    "emg_flat_channels",
+    "identified_mass_kg",
+    "strength_fit_r2",
+    "strength_groups_identified",
+    "strength_groups_at_bound",
+    "strength_groups_not_determined",
+    "strength_group_status",
+    "knee_contact_rms_bw",
+    "knee_contact_icc",
+    "stages_not_available",
+)
+
+
+@dataclass(frozen=True)
+class SessionOutcome:
+    """One session of a batch: ``ok`` or the one-line ``error``; ``row`` its cohort row."""
+
+    config: str
+    out_dir: str
+    ok: bool
+    seconds: float
+    error: str = ""
+    row: Mapping[str, Any] = field(default_factory=dict)
+
+
+@dataclass(frozen=True)
+class BatchResult:
+    out_dir: Path
+    outcomes: tuple[SessionOutcome, ...]
+    cohort_csv: Path
+    seconds: float
+
+    @property
+    def failed(self) -> tuple[SessionOutcome, ...]:
+        return tuple(o for o in self.outcomes if not o.ok)
+
+
+def _one_line(exc: BaseException) -> str:
+    return f"{type(exc).__name__}: {' '.join(str(exc).split())}"
+
+
+def _nan(x: float | None) -> float:
+    """A summary number (``None`` where the run computed a non-finite one) as a float."""
+    return float("nan") if x is None else x
+
+
+def _row(
+    config: str,
+    summary: Summary | Mapping[str, Any] | None,
+    status: str,
+    error: str,
+    seconds: float,
+) -> dict[str, Any]:
+    name = Path(config).stem
+    row: dict[str, Any] = dict.fromkeys(COHORT_COLUMNS, "")
+    row.update(session=name, config=config, status=status, error=error, run_s=round(seconds, 3))
+    if not summary:
+        return row
+    s = as_summary(summary)
+    q = s.quality
+    row["session"] = s.session or name
+    row["frames"] = "" if q.frames is None else q.frames
+    if q.ik_marker_rms_mean_m is not None:
+        row["ik_marker_rms_mean_mm"] = round(1000 * q.ik_marker_rms_mean_m, 3)
+    row["ik_failed_frames"] = "" if q.ik_failed_frames is None else q.ik_failed_frames
+    for k, v in (
+        ("residual_force_rms_pct_bw", q.residual_force_rms_pct_bw),
+        ("residual_moment_rms_nm", q.residual_moment_rms_nm),
+        ("strength_fit_r2", q.strength_fit_r2),
+    ):
+        row[k] = "" if v is None else round(float(v), 4)
+    row["emg_flat_channels"] = " ".join(q.emg_flat_channels or ())
+    ident = s.identification
+    if ident:
+        row["identified_mass_kg"] = round(sum(_nan(g.mass_kg) for g in ident.segments), 3)
+    st = s.strength
+    if st:
+        statuses = [(g.group, st.group_status(g)) for g in st.groups]
+        for col, word in (
+            ("strength_groups_identified", "identified"),
+            ("strength_groups_at_bound", "at bound"),
+            ("strength_groups_not_determined", "not determined"),
+        ):
+            row[col] = sum(s == word for _, s in statuses)
+        row["strength_group_status"] = "; ".join(f"{n}: {s}" for n, s in statuses)
+    comp = s.comparison and (
+        s.comparison.knee_contact_subject_specific or s.comparison.knee_contact_generic
+    )
+    if comp:
+        row["knee_contact_rms_bw"] = round(_nan(comp.rms_bw), 4)
+        row["knee_contact_icc"] = round(_nan(comp.icc), 4)
+    row["stages_not_available"] = " ".join(i.stage for i in s.not_available or ())
+    return row
+
+
+def run_one(config: str, out_dir: str, use_cache: bool = True) -> SessionOutcome:
+    """Run one session, never raising: the outcome carries the error as one line."""
+    from msk.io.c3d import ISOLATE_ENV
+    from msk.pipeline import run_session
+
+    t0 = _time.perf_counter()
+    # C3D files are read in a child process: a native crash of the reader costs this session
+    # (one line), never the worker and with it the pool (BrokenProcessPool)
+    isolate_set = ISOLATE_ENV not in os.environ
+    if isolate_set:
+        os.environ[ISOLATE_ENV] = "1"
+    try:
+        res = run_session(config, out_dir, progress=None, use_cache=use_cache)
+    except MskError as exc:
+        dt = _time.perf_counter() - t0
+        msg = _one_line(exc)
+        return SessionOutcome(
+            config, out_dir, False, dt, msg, _row(config, None, "failed", msg, dt)
+        )
+    except Exception as exc:  # a bug in one session must not take the cohort down
+        dt = _time.perf_counter() - t0
+        tb = traceback.extract_tb(exc.__traceback__)
+        where = f" ({tb[-1].filename}:{tb[-1].lineno})" if tb else ""
+        msg = _one_line(exc) + where
+        return SessionOutcome(
+            config, out_dir, False, dt, msg, _row(config, None, "failed", msg, dt)
+        )
+    finally:
+        if isolate_set:
+            os.environ.pop(ISOLATE_ENV, None)
+    dt = _time.perf_counter() - t0
+    return SessionOutcome(config, out_dir, True, dt, "", _row(config, res.summary, "ok", "", dt))
+
+
+def _session_dirs(configs: Sequence[str | Path], out: Path) -> list[Path]:
+    seen: dict[str, int] = {}
+    dirs = []
+    for c in configs:
+        stem = Path(c).stem
+        k = seen.get(stem, 0)
+        seen[stem] = k + 1
+        dirs.append(out / (stem if k == 0 else f"{stem}-{k + 1}"))
+    return dirs
+
+
+def write_cohort_csv(path: str | Path, rows: Sequence[Mapping[str, Any]]) -> Path:
+    """The cohort table (one row per session, :data:`COHORT_COLUMNS`), written atomically."""
+    path = Path(path)
+    buf = io.StringIO()
+    w = csv.DictWriter(buf, fieldnames=list(COHORT_COLUMNS), lineterminator="\n")
+    w.writeheader()
+    for r in rows:
+        w.writerow({k: r.get(k, "") for k in COHORT_COLUMNS})
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", dir=path.parent)
+    with os.fdopen(fd, "w", encoding="utf-8", newline="") as fh:
+        fh.write(buf.getvalue())
+    os.chmod(tmp, 0o644)
+    os.replace(tmp, path)
+    return path
+
+
+#: what a session imports, imported once by the forkserver the pool's workers are forked from
+WORKER_PRELOAD = (
+    "msk.pipeline",
+    "msk.personalise.scaling",
+    "msk.dynamics.identification",
+    "msk.strength",
+    "msk.contact.knee",
+    "msk.report.html",
+    "matplotlib.figure",
+    "matplotlib.backends.backend_svg",
+)
+
+
+def _pool_context() -> Any:
+    """Start method of the local pool's workers: forked from a server process that imported
+    :data:`WORKER_PRELOAD` once (``forkserver``), so that a worker starts in ~10 ms instead of
+    importing numpy, scipy, Pinocchio and matplotlib afresh (~1 s a worker, on the CPUs the
+    others are working with); like ``spawn`` (the fallback where there is no forkserver), a
+    worker inherits no state from the caller, only those imports."""
+    import multiprocessing as mp
+
+    if "forkserver" not in mp.get_all_start_methods():  # pragma: no cover - Windows
+        return mp.get_context("spawn")
+    ctx = mp.get_context("forkserver")
+    ctx.set_forkserver_preload(list(WORKER_PRELOAD))
+    return ctx
+
+
+def run_batch(
+    configs: Sequence[str | Path],
+    out_dir: str | Path,
+    *,
+    scheduler: Any = None,
+    workers: int | None = None,
+    use_cache: bool = True,
+    progress: Any = None,
+) -> BatchResult:
+    """Run every session configuration into ``out_dir/<session>/`` (see the module docstring)."""
+    t0 = _time.perf_counter()
+    if not configs:
+        raise BatchError("no session configurations given")
+    if workers is not None and (isinstance(workers, bool) or not isinstance(workers, int)):
+        raise BatchError(f"workers = {workers!r} should be an integer ≥ 1")
+    if workers is not None and workers < 1:
+        raise BatchError(f"workers = {workers} should be ≥ 1 (local pool size)")
+    if isinstance(scheduler, str) and not re.fullmatch(
+        r"(tcp|tls|inproc|ucx|ws|wss)://[^\s/]+(:\d{1,5})?/?", scheduler
+    ):
+        raise BatchError(
+            f"--scheduler {scheduler!r} is not a Dask scheduler address (tcp://host:8786)"
+        )
+    out = Path(out_dir).resolve()
+    out.mkdir(parents=True, exist_ok=True)
+    cfgs = [str(Path(c).resolve()) for c in configs]
+    dirs = [str(d) for d in _session_dirs(cfgs, out)]
+    done: dict[int, SessionOutcome] = {}
+
+    def collect(k: int, fut: Any) -> None:
+        """Session ``k``'s outcome from its finished future (a dead or lost worker: failed)."""
+        try:
+            o = fut.result()
+        except Exception as exc:  # worker died or was lost
+            msg = _one_line(exc)
+            o = SessionOutcome(
+                cfgs[k], dirs[k], False, 0.0, msg, _row(cfgs[k], None, "failed", msg, 0.0)
+            )
+        done[k] = o
+        if progress is None:
+            return
+        if o.ok:
+            progress.write(f"ok      {Path(o.config).name} → {o.out_dir} ({o.seconds:.1f} s)\n")
+        else:
+            progress.write(f"FAILED  {Path(o.config).name}: {o.error}\n")
+        progress.flush()
+
+    if scheduler is None:
+        from concurrent.futures import ProcessPoolExecutor, as_completed
+
+        n = workers or min(len(cfgs), os.cpu_count() or 1) or 1
+        # worker BLAS threads sleep between calls instead of spinning on the CPUs the other
+        # workers need (same thread count, same results; see msk.cli), set before they start
+        os.environ.setdefault("OPENBLAS_THREAD_TIMEOUT", "4")
+        with ProcessPoolExecutor(max_workers=n, mp_context=_pool_context()) as pool:
+            futs = {
+                pool.submit(run_one, c, d, use_cache): k for k, (c, d) in enumerate(zip(cfgs, dirs))
+            }
+            for f in as_completed(futs):
+                collect(futs[f], f)
+    else:
+        try:
+            from distributed import Client
+            from distributed import as_completed as dask_as_completed
+        except ImportError:
+            raise BatchError(
+                "--scheduler needs Dask distributed: pip install 'msk[dask]'"
+            ) from None
+        try:
+            client = scheduler if isinstance(scheduler, Client) else Client(scheduler, timeout=20)
+        except (OSError, ValueError, TypeError) as exc:
+            raise BatchError(f"Dask scheduler {scheduler!r} unreachable: {exc}") from None
+        try:
+            dask_futs = client.map(run_one, cfgs, dirs, [use_cache] * len(cfgs), pure=False)
+            index = {f.key: k for k, f in enumerate(dask_futs)}
+            for df in dask_as_completed(dask_futs):
+                collect(index[df.key], df)
+        finally:
+            if client is not scheduler:
+                client.close()
+    outcomes = [done[k] for k in range(len(cfgs))]
+    cohort = write_cohort_csv(out / "cohort.csv", [o.row for o in outcomes])
+    return BatchResult(out, tuple(outcomes), cohort, _time.perf_counter() - t0)
+
+
+# ---------------------------------------------------------------------------------------------
+# compare across session folders
+# ---------------------------------------------------------------------------------------------
+COMPARE_COLUMNS = (
+    "session",
+    "quantity",
+    "item",
+    "generic",
+    "identified",
+    "difference",
+    "unit",
+    "note",
+)
+
+
+def compare_sessions(folders: Sequence[str | Path]) -> list[dict[str, Any]]:
+    """Generic vs identified, per session folder: segment masses (kg), strength factors (×),
+    pelvis residuals (N, N·m) and the knee contact force against the measured one (RMS in BW,
+    NRMSD %, Pearson r, ICC from :mod:`msk.metrics` on the ``knee_contact`` table). The
+    ``note`` of a mass or strength row is its :mod:`msk.status` word (``identified``,
+    ``at bound``, ``not determined``, ``prior``)."""
+    from msk import metrics as compare
+    from msk.results.folder import read_session
+
+    rows: list[dict[str, Any]] = []
+
+    def add(
+        sess: str,
+        qty: str,
+        item: str,
+        gen: float | None,
+        ide: float | None,
+        unit: str,
+        note: str = "",
+    ) -> None:
+        gen, ide = _nan(gen), _nan(ide)
+        rows.append(
+            {
+                "session": sess,
+                "quantity": qty,
+                "item": item,
+                "generic": gen,
+                "identified": ide,
+                "difference": ide - gen,
+                "unit": unit,
+                "note": note,
+            }
+        )
+
+    for folder in folders:
+        res = read_session(folder)
+        s = res.summary
+        sess = str(s.session or Path(folder).name)
+        ident = s.identification
+        if ident:
+            for seg in ident.segments:
+                add(
+                    sess,
+                    "segment mass",
+                    seg.name,
+                    seg.prior_mass_kg,
+                    seg.mass_kg,
+                    "kg",
+                    seg.status_word(),
+                )
+        st = s.strength
+        if st:
+            for grp in st.groups:
+                add(
+                    sess,
+                    "strength factor",
+                    grp.group,
+                    1.0,
+                    grp.factor,
+                    "x generic",
+                    st.group_status(grp),
+                )
+        comp = s.comparison
+        for key, unit, pair in (
+            ("residual_force_rms_n", "N", comp.residual_force_rms_n if comp else None),
+            ("residual_moment_rms_nm", "N·m", comp.residual_moment_rms_nm if comp else None),
+        ):
+            if pair is not None:
+                add(
+                    sess,
+                    "pelvis residual RMS",
+                    key.split("_rms")[0],
+                    pair.generic,
+                    pair.identified,
+                    unit,
+                )
+
+        if res.has("knee_contact"):
+            kc = res.table("knee_contact")
+            if {"measured_total_bw", "generic_total_bw"} <= set(kc.columns):
+                meas = kc.column("measured_total_bw")
+                gen = kc.column("generic_total_bw")
+                spec = (
+                    kc.column("subject_specific_total_bw")
+                    if "subject_specific_total_bw" in kc.columns
+                    else None
+                )
+                m = np.isfinite(meas) & np.isfinite(gen)
+                if spec is not None:
+                    m &= np.isfinite(spec)
+                if m.sum() >= 5:
+                    for name, fn, unit in (
+                        ("RMS error", compare.rms, "BW"),
+                        ("NRMSD", compare.nrmsd, "%"),
+                        ("Pearson r", compare.pearson_r, "1"),
+                        ("ICC(2,1)", compare.icc, "1"),
+                    ):
+                        g = float(fn(meas[m], gen[m]))
+                        i = float(fn(meas[m], spec[m])) if spec is not None else float("nan")
+                        add(
+                            sess,
+                            "knee contact vs measured",
+                            name,
+                            g,
+                            i,
+                            unit,
+                            f"{int(m.sum())} frames",
+                        )
+    return rows

@@ -1,0 +1,2 @@
+"""The results contract: the typed ``summary.json`` and the results folder ``msk run`` writes, read
+back typed."""

@@ -1,0 +1,178 @@
+"""TOML model files: exact round trip, the shipped models, bad files."""
+
+from __future__ import annotations
+
+import numpy as np
+import pinocchio as pin
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from msk.datasets.models import leg_model
+from msk.datasets.shared import REPO_ROOT
+from msk.exceptions import FileFormatError, ModelError
+from msk.model.core import marker_positions
+from msk.model.files import function_from_dict, function_to_dict, load_model, save_model
+from msk.model.joints import (
+    Composite,
+    Constant,
+    FourBarKnee,
+    FourBarTranslation,
+    Linear,
+    Multiplier,
+    PiecewiseLinear,
+    Polynomial,
+    SimmSpline,
+)
+from msk.model.osim import load_osim
+from msk.muscles.path import MovingPathPoint
+
+MODELS = REPO_ROOT / "models"
+
+
+def _same_model(a, b, rng):
+    assert a.name == b.name and a.coordinate_names == b.coordinate_names
+    np.testing.assert_array_equal(a.gravity, b.gravity)
+    for x, y in zip(a.bodies, b.bodies):
+        assert x.name == y.name and x.mass == y.mass
+        np.testing.assert_array_equal(x.com, y.com)
+        np.testing.assert_array_equal(x.inertia, y.inertia)
+    for x, y in zip(a.coordinates, b.coordinates):
+        assert x == y
+    lo, hi = a.coordinate_bounds()
+    th = rng.uniform(np.maximum(lo, -1.0), np.minimum(hi, 1.0), size=(5, a.n_coords))
+    if a.markers:
+        np.testing.assert_array_equal(marker_positions(a, th), marker_positions(b, th))
+    np.testing.assert_array_equal(a.coupling.q(th), b.coupling.q(th))
+    np.testing.assert_array_equal(a.coupling.jacobian(th), b.coupling.jacobian(th))
+    da, db = a.create_data(), b.create_data()
+    for t in th:
+        q = a.coupling.q(t)
+        pin.framesForwardKinematics(a.pin_model, da, q)
+        pin.framesForwardKinematics(b.pin_model, db, q)
+        for name in a.body_frame:
+            np.testing.assert_array_equal(
+                da.oMf[a.body_frame[name]].homogeneous, db.oMf[b.body_frame[name]].homogeneous
+            )
+    assert len(a.muscles) == len(b.muscles)
+    for m, n in zip(a.muscles, b.muscles):
+        assert (m.name, m.kind, m.max_isometric_force, m.optimal_fiber_length) == (
+            n.name,
+            n.kind,
+            n.max_isometric_force,
+            n.optimal_fiber_length,
+        )
+        assert (m.tendon_slack_length, m.pennation_angle) == (
+            n.tendon_slack_length,
+            n.pennation_angle,
+        )
+        assert m.extra == n.extra
+        assert [type(p) for p in m.points] == [type(p) for p in n.points]
+        for p, r in zip(m.points, n.points):
+            np.testing.assert_array_equal(p.location, r.location)
+            if isinstance(p, MovingPathPoint):
+                assert p.coordinates == r.coordinates
+        assert [(w.wrap_object, w.method, w.range) for w in m.wraps] == [
+            (w.wrap_object, w.method, w.range) for w in n.wraps
+        ]
+
+
+@pytest.mark.parametrize(
+    "rel", ["opensim-models/gait2392_thelen2003muscle.osim", "opensim-models/Rajagopal2016.osim"]
+)
+def test_round_trip_of_imported_models_is_exact(ref_dir, tmp_path, rel):
+    model = load_osim(ref_dir / rel)
+    back = load_model(save_model(model, tmp_path / "m.toml", header="test\nheader"))
+    _same_model(model, back, np.random.default_rng(0))
+    assert len(back.metadata.get("wrap_objects", ())) == len(model.metadata.get("wrap_objects", ()))
+    assert (tmp_path / "m.toml").read_text().startswith("# test\n# header\n")
+
+
+def test_round_trip_of_code_built_model_with_four_bar(tmp_path):
+    knee = FourBarKnee((-0.01, -0.395), (0.008, -0.4), (0.012, -0.01), (-0.018, -0.022))
+    model = leg_model(FourBarTranslation(knee, 0), FourBarTranslation(knee, 1))
+    back = load_model(save_model(model, tmp_path / "leg.toml"))
+    _same_model(model, back, np.random.default_rng(1))
+
+
+def test_shipped_models_load_and_match_their_source(ref_dir):
+    spline = load_model(MODELS / "gait2392.toml")
+    four = load_model(MODELS / "gait2392_fourbar.toml")
+    osim = load_osim(ref_dir / "opensim-models/gait2392_thelen2003muscle.osim")
+    for m in (spline, four):
+        assert len(m.muscles) == 92 and len(m.markers) == 39 and m.n_coords == 23
+        assert m.total_mass == pytest.approx(osim.total_mass, rel=1e-15)
+        assert m.root_joint == "ground_pelvis"
+    th = np.zeros((1, 23))
+    np.testing.assert_array_equal(spline.coupling.q(th), osim.coupling.q(th))
+    knee = next(j for j in four.joints if j.name == "knee_r")
+    assert isinstance(knee.axes[0].function, FourBarTranslation)
+    # the four-bar knee keeps the tibia within 1 mm of the spline knee over 0–120°
+    k = four.coordinate_index("knee_angle_r")
+    th = np.zeros((121, 23))
+    th[:, k] = np.linspace(0.0, -2.094, 121)
+    d = np.linalg.norm(spline.coupling.q(th)[:, 9:11] - four.coupling.q(th)[:, 9:11], axis=1)
+    assert np.sqrt(np.mean(d**2)) < 1e-3
+
+
+_FUNCS = st.sampled_from(
+    [
+        Constant(0.3),
+        Linear(-1.5, 0.25),
+        Polynomial((0.1, -0.2, 0.3, 1e-7)),
+        SimmSpline((0.0, 0.5, 1.5, 2.0), (0.1, 0.2, -0.3, 0.05)),
+        PiecewiseLinear((0.0, 1.0, 2.0), (1.0, -1.0, 0.5)),
+        Multiplier(SimmSpline((0.0, 1.0, 2.0), (0.0, 1.0, 0.0)), 1.1472),
+        Composite(Polynomial((1.0, 0.0, 0.0)), Linear(0.5, 0.1)),
+        FourBarTranslation(
+            FourBarKnee((-0.01, -0.395), (0.008, -0.4), (0.012, -0.01), (-0.018, -0.022)), 1
+        ),
+    ]
+)
+
+
+@settings(max_examples=40, deadline=None)
+@given(_FUNCS, st.floats(-1.5, 0.0))
+def test_function_dicts_round_trip(f, x):
+    g = function_from_dict(function_to_dict(f))
+    assert g(x) == f(x)
+    assert g.d1(x) == f.d1(x)
+
+
+def test_bad_files_raise_typed_errors(tmp_path):
+    p = tmp_path / "bad.toml"
+    p.write_text("[model\nname=1")
+    with pytest.raises(FileFormatError, match="invalid TOML"):
+        load_model(p)
+    p.write_text('[model]\nname = "x"\n')
+    with pytest.raises(FileFormatError, match="not an msk model"):
+        load_model(p)
+    p.write_text(
+        '[model]\nformat = "msk-model"\nname = "x"\n[[bodies]]\nname = "b"\nmass = 1.0\n'
+        "com = [0.0, 0.0]\ninertia = [[1.0, 0, 0], [0, 1.0, 0], [0, 0, 1.0]]\n"
+    )
+    with pytest.raises(FileFormatError, match=r"body b: com must have shape \(3,\)"):
+        load_model(p)
+    p.write_text(
+        '[model]\nformat = "msk-model"\nname = "x"\n[[joints]]\nname = "j"\nparent = "ground"\n'
+        'child = "nobody"\n'
+    )
+    with pytest.raises(ModelError, match="unknown child body 'nobody'"):
+        load_model(p)
+    with pytest.raises(FileFormatError, match="unknown function type 'Sine'"):
+        function_from_dict({"type": "Sine"}, "here")
+
+
+def test_scaled_four_bar_model_round_trips(tmp_path):
+    from msk.personalise.scaling import apply_scale_factors
+
+    model = apply_scale_factors(
+        load_model(MODELS / "gait2392_fourbar.toml"),
+        {"femur_r": [1.1, 1.05, 1.0], "tibia_r": 0.95},
+        body_mass=80.0,
+    )
+    knee = next(j for j in model.joints if j.name == "knee_r")
+    assert isinstance(knee.axes[0].function, Multiplier)
+    back = load_model(save_model(model, tmp_path / "scaled.toml"))
+    _same_model(model, back, np.random.default_rng(3))
+    assert back.metadata["scale_factors"]["femur_r"] == [1.1, 1.05, 1.0]

@@ -1,0 +1,114 @@
+"""msk.personalise.determinacy: the profile of a motion placement's fit along a joint's gauge."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from msk.datasets.models import leg_model
+from msk.exceptions import ModelError
+from msk.kinematics.ik import solve_kinematics
+from msk.model.core import marker_positions
+from msk.personalise.determinacy import gauge_shifted_markers, placement_profile
+
+#: the placement's cost resolution the pipeline uses (msk.pipeline.model.CHOICE_TOLERANCE_M)
+TOL_M = 2e-4
+
+
+def _walk(model, n=60, noise_m=0.001, seed=3):
+    """Markers of a known motion of ``leg_model`` (knee 5–65° of flexion, hip ±25°) + noise."""
+    t = np.linspace(0.0, 1.2, n)
+    ph = 2 * np.pi * t / 1.2
+    q = np.tile(model.default_coordinates(), (n, 1))
+    q[:, model.coordinate_index("pelvis_tx")] = 1.2 * t
+    q[:, model.coordinate_index("hip_flexion")] = np.radians(10 + 25 * np.sin(ph))
+    q[:, model.coordinate_index("knee_angle")] = -np.radians(35 + 30 * np.sin(ph + 1.0))
+    x = marker_positions(model, q)
+    x = x + np.random.default_rng(seed).normal(0.0, noise_m, x.shape)
+    return x, t, q
+
+
+def _fit(labels, x, t):
+    def fit(model, q0):
+        kin = solve_kinematics(model, x, labels, t, cutoff_hz=None, initial_q=q0)
+        q = np.asarray(kin.q_raw, dtype=float)
+        ok = np.isfinite(q).all(axis=1)
+        pos = marker_positions(model, q[ok])
+        cols = [labels.index(m) for m in model.marker_names]
+        d2 = ((pos - x[ok][:, cols]) ** 2).sum(axis=2)
+        return q, float(np.sqrt(d2.mean(axis=1)).mean())
+
+    return fit
+
+
+def test_gauge_move_keeps_the_markers_at_the_reference_pose():
+    model = leg_model()
+    pose = model.default_coordinates()
+    pose[model.coordinate_index("knee_angle")] = -0.6
+    moved = gauge_shifted_markers(model, "knee_angle", 0.1, pose, ["TIB", "ANK", "THI"])
+    shifted = pose.copy()
+    shifted[model.coordinate_index("knee_angle")] += 0.1
+    before = marker_positions(model, pose)[0]
+    after = marker_positions(moved, shifted)[0]
+    names = list(model.marker_names)
+    for m in ("TIB", "ANK"):  # distal and free: kept in place
+        assert np.allclose(after[names.index(m)], before[names.index(m)], atol=1e-12)
+    for m in ("HEE", "TOE"):  # distal, not free: carried by the shifted knee
+        assert np.linalg.norm(after[names.index(m)] - before[names.index(m)]) > 0.02
+    # proximal (THI is free but on the femur, above the knee): untouched
+    assert np.allclose(moved.markers[names.index("THI")].offset, model.markers[2].offset)
+    with pytest.raises(ModelError, match="no revolute joint axis"):
+        gauge_shifted_markers(model, "pelvis_tx", 0.1, pose, ["TIB"])
+
+
+def test_profile_finds_the_knee_gauge_only_when_every_distal_marker_is_free():
+    """Every marker below the knee placed from the motion (a shank cluster and foot markers,
+    no malleolus held at its anatomical offset): the knee's mean is a near-gauge (exact for a
+    hinge; here the knee's coupled translations break it by < 0.2 mm) — a placement with the
+    mean knee flexion 5° away fits the noisy markers as well. With the ankle marker held (an
+    anatomical landmark the placement does not move) the same shift costs centimetres: no flat
+    direction. The mean itself is the truth's (IK of the true model) in both."""
+    model = leg_model()
+    x, t, q_true = _walk(model)
+    labels = list(model.marker_names)
+    fit = _fit(labels, x, t)
+    knee = model.coordinate_index("knee_angle")
+    truth = float(np.mean(q_true[:, knee]))
+
+    free = placement_profile(model, fit, ["TIB", "ANK", "HEE", "TOE"], labels,
+                             tolerance_m=TOL_M, stems=("knee_angle",))  # fmt: skip
+    (c,) = free.coordinates
+    assert c.coordinate == "knee_angle" and (c.free_markers, c.fixed_markers) == (4, 0)
+    assert abs(c.mean_rad - truth) < np.radians(0.5)
+    assert np.allclose(np.degrees(c.mean_change_rad), (5.0, -5.0), atol=0.5)
+    assert max(abs(v) for v in c.cost_change_m) < TOL_M
+    assert [p.coordinate for p in free.not_determined()] == ["knee_angle"]
+    summary = free.summary()
+    assert summary["not_determined"] == ["knee_angle"]
+    assert summary["coordinates"]["knee_angle"]["status"] == "not determined"
+    # a stated prior that sets the mean: status "prior", no longer "not determined"
+    prior = free.summary({"knee_angle": "a test prior"})
+    assert prior["not_determined"] == [] and free.not_determined({"knee_angle": "x"}) == ()
+    assert prior["coordinates"]["knee_angle"]["status"] == "prior"
+    assert prior["coordinates"]["knee_angle"]["prior"] == "set by prior: a test prior"
+
+    held = placement_profile(model, fit, ["TIB", "HEE", "TOE"], labels,
+                             tolerance_m=TOL_M, stems=("knee_angle",))  # fmt: skip
+    (c,) = held.coordinates
+    assert (c.free_markers, c.fixed_markers) == (3, 1)
+    assert abs(c.mean_rad - truth) < np.radians(0.5)
+    assert min(c.cost_change_m) > 10 * TOL_M
+    assert held.not_determined() == ()
+    assert held.summary()["coordinates"]["knee_angle"]["status"] == "no flat direction found"
+
+
+def test_profile_of_a_hip_whose_thigh_and_knee_markers_are_anatomical():
+    """The hip with its thigh markers held (THI, KNE at their offsets) is determined; a
+    coordinate of the model without a marker distal to its joint is left out."""
+    model = leg_model()
+    x, t, _ = _walk(model, n=40)
+    labels = list(model.marker_names)
+    prof = placement_profile(model, _fit(labels, x, t), ["TIB", "HEE", "TOE"], labels,
+                             tolerance_m=TOL_M, stems=("hip_flexion", "no_such"))  # fmt: skip
+    assert [c.coordinate for c in prof.coordinates] == ["hip_flexion"]
+    assert prof.not_determined() == ()

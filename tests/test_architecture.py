@@ -1,0 +1,76 @@
+"""The package's layout: docs/architecture.md lists every module, the library never reaches into
+the pipeline, studies or tests, and stages do not import one another."""
+
+from __future__ import annotations
+
+import ast
+import re
+from pathlib import Path
+
+REPO = Path(__file__).resolve().parents[1]
+PACKAGE = REPO / "msk"
+#: the modules the top level of ``msk/`` may hold besides its subpackages: the package's face
+#: and the core types every room shares
+TOP_LEVEL = {
+    "__init__.py",
+    "analogs.py",
+    "exceptions.py",
+    "metrics.py",
+    "quality.py",
+    "signal.py",
+    "status.py",
+    "timeseries.py",
+    "trial.py",
+}
+
+
+def _modules() -> set[str]:
+    return {p.relative_to(REPO).as_posix() for p in PACKAGE.rglob("*.py")}
+
+
+def _imports(path: Path) -> set[str]:
+    names: set[str] = set()
+    for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"))):
+        if isinstance(node, ast.Import):
+            names.update(a.name for a in node.names)
+        elif isinstance(node, ast.ImportFrom) and node.module:
+            names.add(node.module)
+            names.update(f"{node.module}.{a.name}" for a in node.names)
+    return names
+
+
+def test_module_map_lists_every_module():
+    text = (REPO / "docs" / "architecture.md").read_text(encoding="utf-8")
+    listed = set(re.findall(r"^\| `(msk/[\w/]+\.py)` \|", text, flags=re.M))
+    modules = _modules()
+    assert not modules - listed, f"modules missing from docs/architecture.md: {modules - listed}"
+    assert not listed - modules, f"docs/architecture.md lists modules that do not exist: {listed - modules}"
+
+
+def test_top_level_holds_only_core_modules():
+    top = {p.name for p in PACKAGE.glob("*.py")}
+    assert top <= TOP_LEVEL, f"new top-level modules (give them a room): {top - TOP_LEVEL}"
+
+
+def test_library_never_imports_studies_tests_or_the_pipeline():
+    for path in PACKAGE.rglob("*.py"):
+        rel = path.relative_to(PACKAGE).parts
+        for name in _imports(path):
+            root = name.split(".")[0]
+            assert root not in {"studies", "tests"}, f"{path} imports {name}"
+            if rel[0] not in {"pipeline", "cli", "report"} and name.startswith("msk.pipeline"):
+                # the library below the pipeline never calls back into it
+                assert False, f"{path} imports {name}"
+
+
+def test_stages_do_not_import_one_another():
+    stages = {
+        p.stem
+        for p in (PACKAGE / "pipeline").glob("*.py")
+        if p.stem not in {"__init__", "graph", "runner", "session", "inputs", "blocks", "cache", "batch"}
+    }
+    for stage in stages:
+        for name in _imports(PACKAGE / "pipeline" / f"{stage}.py"):
+            parts = name.split(".")
+            if parts[:2] == ["msk", "pipeline"] and len(parts) > 2:
+                assert parts[2] not in stages - {stage}, f"stage {stage} imports stage {parts[2]}"
