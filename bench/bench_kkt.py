@@ -1,6 +1,7 @@
 """The tension stage's KKT check on gc5_PS (``pipelines/gc5_PS.toml``: emg_assisted with the
 knee compartment rows, DAQP on its sub-problems): µs per solved frame of the whole stage
-(:func:`msk.pipeline.tension.optimise`) with the KKT figures (what the pipeline runs) and
+(:func:`msk.optimization.muscle_forces.solve_muscle_forces`) with the KKT figures (what the pipeline
+runs) and
 without them (``compute_kkt=False``), the two alternating round by round in one process; the
 difference is the check's cost. One child process per source tree — this one (the figures
 over frames at once, :func:`msk.optimization.kkt_stacked`) and ``--against`` (default
@@ -41,10 +42,10 @@ def child(repeat: int) -> dict[str, Any]:
     import msk
     import msk.optimization.problems as problems
     from msk.config import load_config
+    from msk.dynamics.identification import identified_model
+    from msk.optimization.muscle_forces import solve_muscle_forces
     from msk.pipeline.inputs import session_inputs
-    from msk.pipeline.mass_identification import identified_model
     from msk.pipeline.session import run_stages
-    from msk.pipeline.tension import optimise
 
     r = run_stages(CONFIG, until="muscle_geometry")
     inputs = session_inputs(load_config(CONFIG))
@@ -63,10 +64,10 @@ def child(repeat: int) -> dict[str, Any]:
                 problems._run_batch = rb
                 try:
                     t0 = time.perf_counter()
-                    out = optimise(
-                        inputs, model, r["inverse_dynamics"].torques, r["muscle_geometry"],
+                    out = solve_muscle_forces(
+                        model, r["inverse_dynamics"].torques, r["muscle_geometry"],
                         kin.time, loads.usable, r["emg"], kinematics=kin,
-                        external=loads.external,
+                        external=loads.external, **inputs.muscle_force_options(model),
                     )  # fmt: skip
                     dt = time.perf_counter() - t0
                 finally:
@@ -108,7 +109,8 @@ def _section(runs: list[dict[str, Any]], repeat: int) -> str:
         f"{SECTION}\n\n"
         f"gc5_PS ngait_og_ss1 ({runs[0]['frames']} solved frames; emg_assisted with the knee "
         "compartment rows, DAQP on its sub-problems): the whole tension stage "
-        "(`msk.pipeline.tension.optimise`) in µs per solved frame with the KKT figures and "
+        "(`msk.optimization.muscle_forces.solve_muscle_forces`) in µs per solved frame with the "
+        "KKT figures and "
         f"without them (`compute_kkt=False`), alternating, best of {repeat} rounds each; one "
         "process per source tree, the trees alternating "
         f"({datetime.date.today().isoformat()}, {platform.machine()}, one BLAS thread, shared "

@@ -81,7 +81,7 @@ class BatchError(MskError):
 
 class SummaryError(FileFormatError):
     """A ``summary.json`` does not follow the results contract
-    (:class:`msk.results.summary.Summary`):
+    (:class:`msk.results.folder.folder.summary.Summary`):
     a value of the wrong type, or not a session summary. ``key`` names the offending key
     (``strength.groups[2].factor``)."""
 
@@ -96,3 +96,8 @@ class SummaryKeyError(SummaryError):
 
 class SummaryVersionError(SummaryError):
     """A ``summary.json`` has a newer schema version than this msk reads (``key`` = ``format``)."""
+
+
+class NotAvailableError(MskError):
+    """A result the data cannot give (a missing prerequisite: no EMG for an EMG criterion, no
+    frame to solve): a pipeline records its stage as ``not available`` with this reason."""

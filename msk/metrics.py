@@ -39,6 +39,7 @@ __all__ = [
     "pearson_r",
     "r2",
     "rms",
+    "root_mean_square",
     "sem",
     "spearman",
 ]
@@ -66,6 +67,12 @@ def _pair(a: ArrayLike, b: ArrayLike, what: str) -> tuple[NDArray[np.float64], N
 def _out(v: NDArray[np.float64] | np.floating) -> Metric:
     v = np.asarray(v, dtype=float)
     return float(v) if v.ndim == 0 else v
+
+
+def root_mean_square(x: ArrayLike) -> float:
+    """Root mean square ``sqrt(mean(x²))`` over every element (same units as input)."""
+    v = np.asarray(x, dtype=float)
+    return float(np.sqrt(np.mean(v**2)))
 
 
 def rms(a: ArrayLike, b: ArrayLike) -> Metric:

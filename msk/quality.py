@@ -665,7 +665,7 @@ def optimization_flags(
     trial: str, sol: Any, jt: Any, thresholds: Mapping[str, float] = THRESHOLDS
 ) -> list[Flag]:
     """The tension optimisation's gates (``sol``: a
-    :class:`msk.pipeline.tension.MuscleTensions`; ``jt`` the joint torques its reserves are
+    :class:`msk.optimization.muscle_forces.MuscleForces`; ``jt`` the joint torques its reserves are
     judged against): infeasible and excluded frames, a muscle saturated on more than
     ``saturated_frames_pct`` of the frames it was solved in, a leg coordinate's reserve RMS
     over its solved frames above ``reserve_rms_pct_peak_torque`` of its peak torque, the
@@ -743,7 +743,7 @@ def kkt_flags(trial: str, sol: Any, thresholds: Mapping[str, float] = THRESHOLDS
     the scale), an iterative solver's at its own tolerance; the infeasible frames (bounded
     least-squares point) are not checked here but flagged by
     ``optimization_infeasible_frames``. ``sol``: a
-    :class:`msk.pipeline.tension.MuscleTensions` (its ``kkt``)."""
+    :class:`msk.optimization.muscle_forces.MuscleForces` (its ``kkt``)."""
     th = {**THRESHOLDS, **thresholds}
     worst = getattr(sol, "kkt", None)
     if worst is None:
@@ -765,7 +765,7 @@ def kkt_flags(trial: str, sol: Any, thresholds: Mapping[str, float] = THRESHOLDS
 
 def frontal_reserve_figures(sol: Any) -> dict[str, dict[str, Any]]:
     """Per knee compartment row of ``compartment_nonnegative`` (``sol``: a
-    :class:`msk.pipeline.tension.MuscleTensions`), its frontal reserve moments' ``peak_nm``,
+    :class:`msk.optimization.muscle_forces.MuscleForces`), its frontal reserve moments' ``peak_nm``,
     ``rms_nm`` (None without a finite frame) and ``frames_above_1pct`` (frames above 1 % of the
     knee's peak inverse-dynamics frontal moment); empty without rows."""
     res = getattr(sol, "frontal_reserve_moments", None)
@@ -791,7 +791,8 @@ def frontal_reserve_flags(
     """Knee compartment rows (``[optimization] compartment_nonnegative``) whose frontal reserve
     moment peaks above ``frontal_reserve_pct_peak_moment`` (10 %) of the peak frontal moment of
     the knee's inverse-dynamics load about the contact midpoint (``sol``: a
-    :class:`msk.pipeline.tension.MuscleTensions`; figures of :func:`frontal_reserve_figures`).
+    :class:`msk.optimization.muscle_forces.MuscleForces`; figures of
+    :func:`frontal_reserve_figures`).
     The reserve is the moment about the opposite contact point that no admissible tension
     balances — in a knee, the collateral ligaments' share, absent from the model. The bound
     transposes OpenSim's guideline for reserve actuators (peak reserve below 10 % of the peak
@@ -876,7 +877,8 @@ def gait_flags(
 
     ``quality`` is the quality block of the run (``ik_marker_rms_mean_m``,
     ``residual_force_rms_pct_bw``, ``residual_moment_rms_nm`` …, None where not computed);
-    ``optimization`` the tension result (:class:`msk.pipeline.tension.MuscleTensions`: forces,
+    ``optimization`` the tension result (:class:`msk.optimization.muscle_forces.MuscleForces`:
+    forces,
     activations, excluded and infeasible frames, reserve torques); ``plate_mass_kg``
     :func:`body_mass_from_loads` of the trial; ``peak_external_force_n`` the
     largest ground-reaction magnitude as recorded (Hicks et al. 2015 state the moment bound on

@@ -104,8 +104,8 @@ class Trial:
 
         from msk.config import load_config
         from msk.contact.knee import PlateauGeometry, knee_contact_force, split_medial_lateral
+        from msk.dynamics.identification import identified_model
         from msk.model.core import forward_kinematics
-        from msk.pipeline.mass_identification import identified_model
 
         self.pin = pin
         st = _run_stages(cfg, sigma_m, seed)

@@ -104,11 +104,11 @@ def known_truth(model: Any, kin: Any) -> np.ndarray:
 
 def report(config: Path) -> None:
     from msk.config import load_config
+    from msk.dynamics.identification import identified_model
     from msk.dynamics.loads import sample_plate
     from msk.kinematics.ik import kinematics_from_coordinates
     from msk.pipeline.inputs import session_inputs
     from msk.pipeline.loads import rotated_plate
-    from msk.pipeline.mass_identification import identified_model
     from msk.pipeline.read import run as read_stage
     from msk.pipeline.session import run_stages
 

@@ -301,12 +301,11 @@ def test_emg_mvc_values(tmp_path):
 def test_grf_cutoff_defaults_to_the_kinematics_cutoff(session_dir: Path):
     """Absent ``grf_cutoff_hz``: the plates are low-passed at the kinematics' cut-off (one
     filter on both, Kristianslund et al. 2012); given, it is used as given."""
-    from msk.pipeline.loads import grf_cutoff_hz
 
     path = session_dir / "pipelines" / "session.toml"
     text = TEMPLATE.replace("kinematics_cutoff_hz = 6.0", "kinematics_cutoff_hz = 8.0")
     path.write_text("\n".join(ln for ln in text.splitlines() if "grf_cutoff_hz" not in ln))
     cfg = load_config(path)
-    assert cfg.filters.grf_cutoff_hz is None and grf_cutoff_hz(cfg) == 8.0
+    assert cfg.filters.grf_cutoff_hz is None and cfg.filters.grf_cutoff_used_hz == 8.0
     path.write_text(text.replace("grf_cutoff_hz = 6.0", "grf_cutoff_hz = 15.0"))
-    assert grf_cutoff_hz(load_config(path)) == 15.0
+    assert load_config(path).filters.grf_cutoff_used_hz == 15.0

@@ -383,7 +383,7 @@ def test_kkt_flags_name_trial_figure_frame_value_and_threshold() -> None:
     """A KKT figure above ``kkt_relative`` of its scale on a frame solved as optimal is
     flagged with the trial, the figure, the frame and time, the value and the threshold; at
     round-off (DAQP's 1e-15) nothing is, nor without a KKT check (closed_form)."""
-    from msk.pipeline.tension import KktWorst
+    from msk.optimization.muscle_forces import KktWorst
     from msk.quality import kkt_flags
 
     cols = ("stationarity", "primal_feasibility", "dual_feasibility", "complementarity")

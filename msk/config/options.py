@@ -277,6 +277,14 @@ class FilterConfig:
         choices=ACCELERATION_DOMAINS,
     )
 
+    @property
+    def grf_cutoff_used_hz(self) -> float:
+        """The ground reactions' low-pass cut-off: ``grf_cutoff_hz``, absent: the kinematics'
+        (Kristianslund et al. 2012: the same cut-off on both)."""
+        return float(
+            self.kinematics_cutoff_hz if self.grf_cutoff_hz is None else self.grf_cutoff_hz
+        )
+
 
 @dataclass(frozen=True, kw_only=True)
 class OptimizationConfig:

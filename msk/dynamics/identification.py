@@ -106,14 +106,17 @@ __all__ = [
     "IdentificationTrial",
     "InertialIdentifier",
     "LumpedModel",
+    "MassIdentification",
     "SegmentEstimate",
     "SegmentExcitation",
     "WeakDirection",
     "base_residuals",
     "default_prior_std",
     "excitation_report",
+    "identified_model",
     "lump_subtrees",
     "root_generalized_forces",
+    "segment_summary",
 ]
 
 #: Sign pattern of the sagittal mirror z → −z on φ (flips m·c_z, I_xz and I_yz).
@@ -1746,3 +1749,42 @@ def _structural_base(model: Model, layout: RegressorLayout, n_states: int = 120)
     thdd = rng.normal(size=th.shape)
     y = base_link_regressor(model, th, thd, thdd, layout=layout)
     return base_parameters(y, layout.parameter_names)
+
+
+@dataclass(frozen=True)
+class MassIdentification:
+    """Identified inertial parameters per body (Pinocchio order ``m, mx, my, mz, Ixx, Ixy, Iyy,
+    Ixz, Iyz, Izz``), per-segment figures with their status (:func:`segment_summary`), the
+    condition number of the identification, the frames used, advice on the motions that would
+    excite the rest, and ``t0`` the start (s) of the data identified from."""
+
+    parameters: Mapping[str, np.ndarray]
+    segments: Sequence[Mapping[str, Any]]
+    condition_number: float
+    n_frames: int
+    advice: Sequence[str]
+    t0: float
+
+
+def segment_summary(s: Any) -> dict[str, Any]:
+    """One identified segment as JSON-ready figures with its :mod:`msk.status` word (a segment
+    that moved from its prior without becoming precise is "not determined", never "prior")."""
+    from msk.status import segment_status
+
+    out = {
+        "name": s.name,
+        "mass_kg": s.mass,
+        "mass_std_kg": s.mass_std,
+        "prior_mass_kg": s.prior_mass,
+        "com_m": s.com,
+        "com_std_m": s.com_std,
+        "prior_com_m": s.prior_com,
+        "flag": s.flag,
+    }
+    out["status"] = segment_status(out).value
+    return out
+
+
+def identified_model(model: Any, ident: MassIdentification | None) -> Any:
+    """``model`` with the identified inertias (``model`` itself when nothing was identified)."""
+    return model if ident is None else model.with_inertias(ident.parameters)

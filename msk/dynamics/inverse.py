@@ -562,3 +562,17 @@ def without_unmeasured_contact(
         )
         tau[np.ix_(miss[:, k], cols)] = np.nan
     return dataclasses.replace(torques, tau=tau)
+
+
+@dataclass(frozen=True)
+class InverseDynamics:
+    """:class:`msk.dynamics.inverse.JointTorques` of the generic model and of the identified one
+    (``None`` without mass identification)."""
+
+    generic: Any
+    identified: Any = None
+
+    @property
+    def torques(self) -> Any:
+        """The torques the muscles must produce: identified where available, else generic."""
+        return self.generic if self.identified is None else self.identified

@@ -47,6 +47,7 @@ of the Pinocchio joint carrying it: ``fext[j] = data.oMi[j].actInv(f_O)``
 
 from __future__ import annotations
 
+import dataclasses
 import warnings
 from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass, field
@@ -1325,3 +1326,24 @@ def _standing(
                 beaten = on[:, b] & (speed[:, b] < speed[:, a]) & (near[:, b] < near[:, a])
                 out[:, a] &= ~(beaten & (speed[:, a] > speed_mps))
     return out
+
+
+#: How msk.dynamics.loads assigns plate contacts to feet (recorded in summary.json, part of the
+# cache key).
+ASSIGNMENT_METHOD = (
+    "msk.dynamics.loads: the foot standing on the plate (inside the outline, near the floor, not "
+    "swinging over it; none while the still foot nearest the COP is posed off the surface)"
+)
+
+
+def rotated_plate(plate: Any, rot: np.ndarray) -> Any:
+    """A :class:`msk.dynamics.loads.PlateWrench` rotated by ``rot`` about the origin (force, COP,
+    free moment, corners)."""
+    r = np.asarray(rot, dtype=float)
+    return dataclasses.replace(
+        plate,
+        force=np.asarray(plate.force) @ r.T,
+        cop=np.asarray(plate.cop) @ r.T,
+        free_moment=np.asarray(plate.free_moment) @ r.T,
+        corners=None if plate.corners is None else np.asarray(plate.corners) @ r.T,
+    )

@@ -22,9 +22,15 @@ from numpy.typing import NDArray
 from msk.exceptions import FileFormatError, MissingDataError, UnitsError
 from msk.fes.protocol import DynamicTrial, IsometricTrial, PendulumTrial
 from msk.fes.stimulation import StimKind, Stimulation, stimulation_from_profile
+from msk.io.tables import Table
 
 __all__ = [
+    "FES_PARAMETER_UNITS",
+    "FES_STEP_FIGURES",
     "FesRecording",
+    "fes_parameters",
+    "fes_step_figures",
+    "fes_tables",
     "read_fes_csv",
     "recording_from_trial",
     "write_result_csv",
@@ -189,3 +195,73 @@ def write_result_csv(result: Any, path: str | Path) -> Path:
         Path(tmp).unlink(missing_ok=True)
         raise
     return p
+
+
+#: Units of the identified FES parameters (``fes_parameters.csv`` columns, SI).
+FES_PARAMETER_UNITS: dict[str, str] = {
+    "geometry.L_ext": "m",
+    "geometry.r_q": "m",
+    "knee.J": "kg·m²",
+    "knee.B": "N·m·s/rad",
+    "knee.K": "N·m/rad",
+    "muscle.F_cm": "N",
+    "muscle.K_cm": "N/m",
+    "muscle.L_c0": "m",
+    "muscle.b": "1",
+    "muscle.k_s": "N/m",
+    "muscle.L_s": "m",
+    "recruitment.c1": "1",
+    "recruitment.c2": "1",
+    "recruitment.c3": "1 (PW/PW_max)",
+}
+
+
+#: Figures per protocol step of ``fes_steps.csv`` (Benoussaad et al. 2013, Table 2 rows).
+FES_STEP_FIGURES = ("nrmsd_pct", "nrmse_pct")
+
+
+def fes_parameters(res: Any) -> dict[str, float]:
+    """The identified parameters of a :class:`msk.fes.protocol.ProtocolResult` by name
+    (:data:`FES_PARAMETER_UNITS`), SI."""
+    subj = res.subject
+    return {
+        name: float(getattr(getattr(subj, name.split(".")[0]), name.split(".")[1]))
+        for name in FES_PARAMETER_UNITS
+    }
+
+
+def fes_step_figures(res: Any) -> dict[str, dict[str, float]]:
+    """NRMSD and NRMSE (%) of every protocol step of a :class:`msk.fes.protocol.ProtocolResult`."""
+    steps = {
+        "static_torque": res.static,
+        "joint_mechanics": res.pendulum,
+        "force_length": res.force_length,
+        "recruitment": res.recruitment,
+        "nlp_ks": res.series_stiffness,
+        "cross_validation_initial": res.cross_validation_initial,
+        "cross_validation": res.cross_validation,
+    }
+    return {k: {"nrmsd_pct": float(v.nrmsd), "nrmse_pct": float(v.nrmse)} for k, v in steps.items()}
+
+
+def fes_tables(res: Any) -> dict[str, Table]:
+    """``fes_parameters`` and ``fes_steps`` (one row, ``time`` = 0: the start of the data they
+    were identified from) and ``fes_validation`` (a time series: measured and simulated knee
+    angle of the cross-validation trial, rad)."""
+    par = fes_parameters(res)
+    steps = fes_step_figures(res)
+    cols = tuple(f"{k}.{f}" for k in steps for f in FES_STEP_FIGURES)
+    vals = [steps[k][f] for k in steps for f in FES_STEP_FIGURES]
+    cv, cv0 = res.cross_validation, res.cross_validation_initial
+    rest = res.subject.knee.theta_rest
+    t0 = np.zeros(1)
+    return {
+        "fes_parameters": Table(t0, np.array([list(par.values())]), tuple(par), "fes_parameters"),
+        "fes_steps": Table(t0, np.array([vals]), cols, "fes_steps"),
+        "fes_validation": Table(
+            np.asarray(cv.time, dtype=float),
+            np.column_stack([rest - cv.theta_r, rest - cv.theta_r_sim, rest - cv0.theta_r_sim]),
+            ("knee_angle_measured", "knee_angle_simulated", "knee_angle_simulated_k_s0"),
+            "fes_validation",
+        ),
+    }

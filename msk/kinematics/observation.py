@@ -38,7 +38,13 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-__all__ = ["LEG_BODIES", "MARKERS_TO_POSE", "Observation", "observed_frames"]
+__all__ = [
+    "LEG_BODIES",
+    "MARKERS_TO_POSE",
+    "OBSERVATION_METHOD",
+    "Observation",
+    "observed_frames",
+]
 
 #: body-name prefixes of the segments whose observation is checked (gait2392 / Rajagopal names)
 LEG_BODIES = ("pelvis", "femur", "tibia", "calcn", "foot")
@@ -107,3 +113,11 @@ def observed_frames(model: Any, kinematics: Any, *, pad_s: float | None = None) 
         hi = np.searchsorted(idx, np.arange(n) + pad, side="right")
         wide = hi > lo
     return Observation(solved & ~wide, short, needed, pad)
+
+
+#: Which frames the dynamics-based figures use (recorded in the cache key).
+OBSERVATION_METHOD = (
+    "msk.kinematics.observation: every leg segment sees min(3, its tracked markers), 1/(4 f_c) "
+    "from any "
+    "frame where one does not or IK did not solve"
+)

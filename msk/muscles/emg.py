@@ -582,3 +582,65 @@ def envelopes_from_trial(
         t0=float(t[0]) if t.size else 0.0,
         **options,
     )
+
+
+@dataclass(frozen=True)
+class EmgActivations:
+    """Per model muscle with an EMG channel: ``envelopes`` and ``activation`` (N, m) on the
+    kinematics' time base (activation NaN for unusable channels), the channel each muscle reads
+    (``sources``), ``usable`` (m,), the normalisation used, the reader's warnings and the
+    per-channel :class:`ChannelQuality`."""
+
+    normalisation: str
+    muscles: tuple[str, ...]
+    sources: tuple[str, ...]
+    envelopes: np.ndarray
+    activation: np.ndarray
+    usable: np.ndarray
+    warnings: Sequence[str]
+    quality: Any
+
+    def column(self, muscle: str) -> int:
+        """Index of ``muscle`` in :attr:`muscles`."""
+        return self.muscles.index(muscle)
+
+
+def emg_activations(
+    trial: Any,
+    *,
+    muscles: Mapping[str, str],
+    highpass_hz: float,
+    lowpass_hz: float,
+    delay_s: float,
+    time: np.ndarray,
+    mvc_trials: Sequence[tuple[Any, float, Sequence[str]]] = (),
+    mvc: Mapping[str, float] | None = None,
+) -> EmgActivations:
+    """Activations of the model muscles ``muscles`` (model muscle → analog channel of
+    ``trial``) on the time base ``time``: each channel's linear envelope
+    (:func:`envelopes_from_trial`: high-pass, rectify, low-pass, electromechanical delay
+    ``delay_s``, normalised by the MVC recordings ``mvc_trials`` or the MVC values ``mvc``,
+    else by the trial's own peak), clipped to [0, 1] and passed through first-order activation
+    dynamics (:func:`msk.muscles.activation.first_order_activation`); an unusable channel's
+    activation is NaN. ``normalisation`` says which reference the activations are relative
+    to."""
+    from msk.muscles.activation import first_order_activation
+
+    options: dict[str, Any] = {}
+    if mvc_trials:
+        options["mvc_trials"] = list(mvc_trials)
+    if mvc:
+        options["mvc"] = {k: float(v) for k, v in mvc.items()}
+    env = envelopes_from_trial(
+        trial, muscles=dict(muscles), highpass_hz=highpass_hz, lowpass_hz=lowpass_hz,
+        delay_s=delay_s, time=time, **options,
+    )  # fmt: skip
+    e = np.clip(np.nan_to_num(env.envelopes, nan=0.0), 0.0, 1.0)
+    act = first_order_activation(e, rate_hz=trial.point_rate_hz)
+    act[:, ~env.usable] = np.nan
+    return EmgActivations(
+        "MVC" if (mvc_trials or mvc) else "this session's peak (relative activations, not "
+        "strength)",
+        tuple(env.muscle_names), tuple(env.muscle_sources), env.envelopes, act,
+        np.asarray(env.usable), list(env.warnings), env.quality,
+    )  # fmt: skip

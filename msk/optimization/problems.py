@@ -1300,7 +1300,7 @@ class WarmStart:
     """A batch solver's warm start carried from one call to the next (``warm=`` of the
     ``*_batch`` functions): the calls on consecutive frame blocks of one trial, given the same
     object, each start from the previous block's last working set, as one call on all the
-    frames would (a long trial solved block by block, :mod:`msk.pipeline.blocks`). A fresh
+    frames would (a long trial solved block by block, :mod:`msk._runtime.blocks`). A fresh
     object starts cold, like a call without it."""
 
     def __init__(self) -> None:

@@ -29,7 +29,6 @@ from __future__ import annotations
 
 from msk.io.frames import lab_to_model_rotation
 from msk.pipeline.graph import CORE_STAGES, GRAPH, STAGES, Node
-from msk.pipeline.loads import PLATE_ASSIGNMENT
 from msk.pipeline.runner import RunResult, StageRecord, file_sha256
 from msk.pipeline.session import run_session, run_stages, run_task_trials, split_task_trials
 from msk.pipeline.summary import DEFAULT_MEASUREMENTS
@@ -38,7 +37,6 @@ __all__ = [
     "CORE_STAGES",
     "DEFAULT_MEASUREMENTS",
     "GRAPH",
-    "PLATE_ASSIGNMENT",
     "STAGES",
     "Node",
     "RunResult",

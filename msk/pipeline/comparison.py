@@ -8,20 +8,13 @@ from typing import Any
 
 import numpy as np
 
-from msk.pipeline.contact import KneeContact
-from msk.pipeline.cycle import GaitCycle
-from msk.pipeline.dynamics import InverseDynamics
+from msk.dynamics.inverse import InverseDynamics
+from msk.metrics import root_mean_square as rms
 from msk.pipeline.inputs import SessionInputs
-from msk.pipeline.loads import Loads
+from msk.pipeline.records import GaitCycle, KneeContact, Loads, StrengthIdentification
 from msk.pipeline.runner import StageUnavailable
-from msk.pipeline.strength import StrengthIdentification
 
-__all__ = ["contact_agreement", "rms", "run"]
-
-
-def rms(x: np.ndarray) -> float:
-    """Root mean square over every element."""
-    return float(np.sqrt(np.mean(x**2)))
+__all__ = ["contact_agreement", "run"]
 
 
 def contact_agreement(measured: np.ndarray, predicted: np.ndarray, bw: float) -> dict[str, Any]:

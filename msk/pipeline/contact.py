@@ -3,54 +3,29 @@ model (:func:`msk.contact.knee.knee_contact_force`: the joint reaction with the 
 the knee's unit wrenches of a geometry pass) and its two-point medial/lateral split
 (:func:`msk.contact.knee.split_medial_lateral`; Winby et al. 2009; Lerner et al. 2015).
 
-Block by block of frames (issue 18): the knee's unit wrenches are recomputed for each block
+Block by block of frames: the knee's unit wrenches are recomputed for each block
 from the model's paths (the geometry stage does not hold them for the whole trial), and the
 subject-specific re-solve hands each solved block's forces to both variants' contact
-(:func:`msk.pipeline.tension.optimise` ``on_block``) — its forces are never held whole."""
+(:func:`msk.optimization.muscle_forces.solve_muscle_forces` ``on_block``) — its forces are never
+held whole."""
 
 from __future__ import annotations
 
-from collections.abc import Mapping
-from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
 
-from msk.pipeline.blocks import frame_blocks
-from msk.pipeline.dynamics import InverseDynamics
-from msk.pipeline.emg import EmgActivations
+from msk._runtime.blocks import frame_blocks
+from msk.dynamics.identification import MassIdentification, identified_model
+from msk.dynamics.inverse import InverseDynamics
+from msk.muscles.emg import EmgActivations
+from msk.optimization.muscle_forces import MuscleForces, solve_muscle_forces
 from msk.pipeline.inputs import SessionInputs
-from msk.pipeline.loads import Loads
-from msk.pipeline.mass_identification import MassIdentification, identified_model
 from msk.pipeline.model import BuiltModel
+from msk.pipeline.records import ContactVariant, KneeContact, Loads, StrengthIdentification
 from msk.pipeline.runner import StageUnavailable
-from msk.pipeline.strength import StrengthIdentification
-from msk.pipeline.tension import MuscleTensions, knee_plateau, optimise
 
-__all__ = ["ContactVariant", "KneeContact", "run", "settings"]
-
-
-@dataclass(frozen=True)
-class ContactVariant:
-    """One model's knee contact force (N, 3) in the knee joint frame fixed in the tibia, its
-    magnitude and medial/lateral compartment forces (N); NaN where there is no muscle force."""
-
-    force: np.ndarray
-    total: np.ndarray
-    medial: np.ndarray
-    lateral: np.ndarray
-
-
-@dataclass(frozen=True)
-class KneeContact:
-    """Contact of the ``generic`` model (generic strength; the identified inertias, which the
-    muscle forces balance) and, with identified strength, of the ``subject_specific`` one; the
-    plateau geometry of the split; the measured force (as read)."""
-
-    joint: str
-    variants: Mapping[str, ContactVariant]
-    plateau: Mapping[str, Any]
-    measured: Any = None
+__all__ = ["run", "settings"]
 
 
 class _VariantArrays:
@@ -112,7 +87,7 @@ def run(
     inverse_dynamics: InverseDynamics,
     emg: EmgActivations | None,
     muscle_geometry: Any,
-    tension_optimization: MuscleTensions,
+    tension_optimization: MuscleForces,
     strength_identification: StrengthIdentification | None,
     measured_contact: Any,
 ) -> KneeContact:
@@ -123,7 +98,7 @@ def run(
     from msk.muscles.geometry import geometry_plan
 
     # ∂l/∂ξ of the knee recomputed block by block from the model's paths (the geometry stage
-    # does not keep them for the whole trial: issue 18); the same paths and muscle order in
+    # does not keep them for the whole trial); the same paths and muscle order in
     # both variants (with_strength only scales F_iso)
     plan = geometry_plan(mdl)
 
@@ -137,7 +112,7 @@ def run(
         )
 
     def variant(m: Any) -> _VariantArrays:
-        return _VariantArrays(m, knee_plateau(inputs, m, joint), kin, loads.external, joint)
+        return _VariantArrays(m, inputs.knee_plateau(m, joint), kin, loads.external, joint)
 
     gen_forces, names = tension_optimization.forces, tension_optimization.muscles
     # frames without the knee's muscle forces get no contact force (never zero muscle force;
@@ -160,7 +135,7 @@ def run(
         def on_block(fr: np.ndarray, forces: np.ndarray) -> None:
             """One block of the subject-specific re-solve: both variants' contact on its frames
             (the wrenches computed once), its forces then dropped — a long trial never holds
-            the re-solve's forces whole (issue 18)."""
+            the re-solve's forces whole."""
             w = wrenches(fr)
             ks = np.isfinite(forces).any(axis=1)
             spec.fill(fr[ks], forces[ks], w[ks], names)
@@ -169,10 +144,11 @@ def run(
             done[fr] = True
 
         torques = inverse_dynamics.torques
-        optimise(
-            inputs, m_spec, torques, muscle_geometry, kin.time, loads.solvable, emg,
+        solve_muscle_forces(
+            m_spec, torques, muscle_geometry, kin.time, loads.solvable, emg,
             on_block=on_block, kinematics=kin, external=loads.external,
             unbalanced=loads.unbalanced_for(torques.coordinate_names),
+            **inputs.muscle_force_options(m_spec),
         )  # fmt: skip
         gen_ok &= ~done  # generic frames no re-solve block had (normally none)
     for fr in frame_blocks(np.flatnonzero(gen_ok)):  # block by block: memory bounded

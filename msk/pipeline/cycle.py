@@ -5,35 +5,15 @@ cycle of the report, and the measured knee contact force on the kinematics' time
 from __future__ import annotations
 
 import itertools
-from collections.abc import Mapping, Sequence
-from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
 
-from msk.pipeline.contact import KneeContact
 from msk.pipeline.inputs import SessionInputs
-from msk.pipeline.loads import Loads
 from msk.pipeline.model import BuiltModel
+from msk.pipeline.records import GaitCycle, KneeContact, Loads
 
-__all__ = ["GaitCycle", "run"]
-
-
-@dataclass(frozen=True)
-class GaitCycle:
-    """``events`` (:class:`msk.kinematics.events.GaitEvents`: times, sources, notes), the analysed
-    side's
-    cycle ``(start, end)`` in s (None without two foot strikes) and ``measured_contact``:
-    component (total/medial/lateral) → measured force (N) on the kinematics' time base, NaN
-    outside the measured cycle (None without a measured force or contact stage)."""
-
-    events: Any
-    cycle: tuple[float, float] | None
-    measured_contact: Mapping[str, np.ndarray] | None
-
-    def as_list(self) -> Sequence[Any]:
-        """The events as ``summary.json`` lists them."""
-        return self.events.as_list()
+__all__ = ["run"]
 
 
 def run(

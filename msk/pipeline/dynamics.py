@@ -5,29 +5,15 @@ reactions)."""
 
 from __future__ import annotations
 
-from dataclasses import dataclass
 from typing import Any
 
+from msk.dynamics.identification import MassIdentification, identified_model
+from msk.dynamics.inverse import InverseDynamics
 from msk.pipeline.inputs import SessionInputs
-from msk.pipeline.loads import Loads
-from msk.pipeline.mass_identification import MassIdentification, identified_model
 from msk.pipeline.model import BuiltModel
+from msk.pipeline.records import Loads
 
-__all__ = ["InverseDynamics", "contact_gated_torques", "run"]
-
-
-@dataclass(frozen=True)
-class InverseDynamics:
-    """:class:`msk.dynamics.inverse.JointTorques` of the generic model and of the identified one
-    (``None`` without mass identification)."""
-
-    generic: Any
-    identified: Any = None
-
-    @property
-    def torques(self) -> Any:
-        """The torques the muscles must produce: identified where available, else generic."""
-        return self.generic if self.identified is None else self.identified
+__all__ = ["contact_gated_torques", "run"]
 
 
 def run(

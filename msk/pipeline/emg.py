@@ -6,40 +6,16 @@ first_order_activation`)."""
 
 from __future__ import annotations
 
-from collections.abc import Sequence
-from dataclasses import dataclass
 from typing import Any
 
-import numpy as np
-
 from msk.exceptions import ConfigError
+from msk.muscles.emg import EmgActivations
 from msk.pipeline.inputs import SessionInputs
 from msk.pipeline.model import BuiltModel
-from msk.pipeline.read import ReadResult
+from msk.pipeline.records import ReadResult
 from msk.pipeline.runner import StageUnavailable, file_sha256
 
-__all__ = ["EmgActivations", "run", "settings"]
-
-
-@dataclass(frozen=True)
-class EmgActivations:
-    """Per model muscle with an EMG channel: ``envelopes`` and ``activation`` (N, m) on the
-    kinematics' time base (activation NaN for unusable channels), the channel each muscle reads
-    (``sources``), ``usable`` (m,), the normalisation used, the reader's warnings and the
-    per-channel :class:`msk.muscles.emg.ChannelQuality`."""
-
-    normalisation: str
-    muscles: tuple[str, ...]
-    sources: tuple[str, ...]
-    envelopes: np.ndarray
-    activation: np.ndarray
-    usable: np.ndarray
-    warnings: Sequence[str]
-    quality: Any
-
-    def column(self, muscle: str) -> int:
-        """Index of ``muscle`` in :attr:`muscles`."""
-        return self.muscles.index(muscle)
+__all__ = ["run", "settings"]
 
 
 def settings(inputs: SessionInputs) -> Any:
@@ -61,8 +37,7 @@ def run(
     if not cfg.emg.channels:
         raise StageUnavailable("no [emg] channels in the configuration")
     from msk.io import read_c3d
-    from msk.muscles.activation import first_order_activation
-    from msk.muscles.emg import envelopes_from_trial, missing_channels
+    from msk.muscles.emg import emg_activations, missing_channels
 
     unknown = sorted(set(cfg.emg.channels) - {m.name for m in model.model.muscles})
     if unknown:
@@ -86,27 +61,8 @@ def run(
     for tc in inputs.mvc_trials:
         tr_m = read_c3d(tc.file)
         mvc.append((tr_m.analogs, tr_m.analog_rate_hz, tr_m.analog_labels))
-    mvc_options: dict[str, Any] = {}
-    if mvc:
-        mvc_options["mvc_trials"] = mvc
-    if cfg.emg.mvc:
-        mvc_options["mvc"] = {k: float(v) for k, v in cfg.emg.mvc.items()}
-    env = envelopes_from_trial(
-        trial,
-        muscles=channels,
-        highpass_hz=cfg.emg.highpass_hz,
-        lowpass_hz=cfg.emg.lowpass_hz,
-        delay_s=cfg.emg.electromechanical_delay_s,
-        time=kinematics.time,  # each channel resampled once processed (issue 18)
-        **mvc_options,
-    )
-    env_k = env
-    e = np.clip(np.nan_to_num(env_k.envelopes, nan=0.0), 0.0, 1.0)
-    act = first_order_activation(e, rate_hz=trial.point_rate_hz)
-    act[:, ~env_k.usable] = np.nan
-    return EmgActivations(
-        "MVC" if (mvc or cfg.emg.mvc) else "this session's peak (relative activations, not "
-        "strength)",
-        tuple(env_k.muscle_names), tuple(env_k.muscle_sources), env_k.envelopes, act,
-        np.asarray(env_k.usable), list(env.warnings), env.quality,
+    return emg_activations(
+        trial, muscles=channels, highpass_hz=cfg.emg.highpass_hz, lowpass_hz=cfg.emg.lowpass_hz,
+        delay_s=cfg.emg.electromechanical_delay_s, time=kinematics.time, mvc_trials=mvc,
+        mvc=cfg.emg.mvc,
     )  # fmt: skip

@@ -8,56 +8,22 @@ from __future__ import annotations
 
 import dataclasses
 from collections.abc import Sequence
-from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
 
 from msk.config import FesTrialConfig, SessionConfig, TrialConfig
 from msk.exceptions import ConfigError, MissingDataError
-from msk.io.tables import Table
 from msk.pipeline.inputs import SessionInputs
+from msk.pipeline.records import FesResult
 
 __all__ = [
-    "FES_PARAMETER_UNITS",
-    "FES_STEP_FIGURES",
-    "FesResult",
     "fes_recording",
     "fes_session",
-    "fes_summary",
-    "fes_tables",
     "requested",
     "run",
     "settings",
 ]
-
-
-@dataclass(frozen=True)
-class FesResult:
-    """The :class:`msk.fes.protocol.ProtocolResult` of the session."""
-
-    result: Any
-
-
-#: Units of the identified FES parameters (``fes_parameters.csv`` columns, SI).
-FES_PARAMETER_UNITS: dict[str, str] = {
-    "geometry.L_ext": "m",
-    "geometry.r_q": "m",
-    "knee.J": "kg·m²",
-    "knee.B": "N·m·s/rad",
-    "knee.K": "N·m/rad",
-    "muscle.F_cm": "N",
-    "muscle.K_cm": "N/m",
-    "muscle.L_c0": "m",
-    "muscle.b": "1",
-    "muscle.k_s": "N/m",
-    "muscle.L_s": "m",
-    "recruitment.c1": "1",
-    "recruitment.c2": "1",
-    "recruitment.c3": "1 (PW/PW_max)",
-}
-#: Figures per protocol step of ``fes_steps.csv`` (Benoussaad et al. 2013, Table 2 rows).
-FES_STEP_FIGURES = ("nrmsd_pct", "nrmse_pct")
 
 
 def fes_recording(tc: Any) -> Any:
@@ -135,67 +101,6 @@ def fes_session(cfg: SessionConfig, trials: Sequence[Any]) -> Any:
         va.dynamic_trial(frequency_hz=opt.frequency_hz, theta_rest=rest),
         opt.frequency_hz,
     )
-
-
-def _parameters(res: Any) -> dict[str, float]:
-    subj = res.subject
-    return {
-        name: float(getattr(getattr(subj, name.split(".")[0]), name.split(".")[1]))
-        for name in FES_PARAMETER_UNITS
-    }
-
-
-def _steps(res: Any) -> dict[str, dict[str, float]]:
-    steps = {
-        "static_torque": res.static,
-        "joint_mechanics": res.pendulum,
-        "force_length": res.force_length,
-        "recruitment": res.recruitment,
-        "nlp_ks": res.series_stiffness,
-        "cross_validation_initial": res.cross_validation_initial,
-        "cross_validation": res.cross_validation,
-    }
-    return {k: {"nrmsd_pct": float(v.nrmsd), "nrmse_pct": float(v.nrmse)} for k, v in steps.items()}
-
-
-def fes_tables(res: Any) -> dict[str, Table]:
-    """``fes_parameters`` and ``fes_steps`` (one row, ``time`` = 0: the start of the data they
-    were identified from) and ``fes_validation`` (a time series: measured and simulated knee
-    angle of the cross-validation trial, rad)."""
-    par = _parameters(res)
-    steps = _steps(res)
-    cols = tuple(f"{k}.{f}" for k in steps for f in FES_STEP_FIGURES)
-    vals = [steps[k][f] for k in steps for f in FES_STEP_FIGURES]
-    cv, cv0 = res.cross_validation, res.cross_validation_initial
-    rest = res.subject.knee.theta_rest
-    t0 = np.zeros(1)
-    return {
-        "fes_parameters": Table(t0, np.array([list(par.values())]), tuple(par), "fes_parameters"),
-        "fes_steps": Table(t0, np.array([vals]), cols, "fes_steps"),
-        "fes_validation": Table(
-            np.asarray(cv.time, dtype=float),
-            np.column_stack([rest - cv.theta_r, rest - cv.theta_r_sim, rest - cv0.theta_r_sim]),
-            ("knee_angle_measured", "knee_angle_simulated", "knee_angle_simulated_k_s0"),
-            "fes_validation",
-        ),
-    }
-
-
-def fes_summary(res: Any, cfg: SessionConfig, trials: Sequence[Any]) -> dict[str, Any]:
-    par = _parameters(res)
-    return {
-        "parameters": {k: {"value": v, "unit": FES_PARAMETER_UNITS[k]} for k, v in par.items()},
-        "initial_parameters": {
-            k: float(getattr(getattr(res.subject_initial, k.split(".")[0]), k.split(".")[1]))
-            for k in FES_PARAMETER_UNITS
-        },
-        "steps": _steps(res),
-        "k_s_history_n_per_m": list(res.k_s_history),
-        "solver_status": res.series_stiffness.solver_status,
-        "seconds": dict(res.seconds),
-        "trials": [{"name": tc.name, "step": tc.fes.step, "file": str(tc.file)} for tc in trials],
-        "options": dataclasses.asdict(cfg.fes),
-    }
 
 
 def _trial_settings(tc: TrialConfig) -> FesTrialConfig:

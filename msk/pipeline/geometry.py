@@ -2,12 +2,12 @@
 usable frames (:func:`msk.muscles.geometry.muscle_geometry`).
 
 The Jacobian is kept compact (:class:`msk.timeseries.FrameSparse`: only the coordinates each
-muscle crosses), evaluated block by block (:mod:`msk.pipeline.blocks`): a long trial never holds
+muscle crosses), evaluated block by block (:mod:`msk._runtime.blocks`): a long trial never holds
 it dense. The knee's unit wrenches ∂l/∂ξ are not kept: the knee contact stage recomputes them
 block by block from the same paths, where it consumes them (issue 18: held from this stage to
 the contact stage, they were 0.6 kB/frame of a long trial's resident set).
 
-On a trial longer than one block (:data:`msk.pipeline.blocks.FRAME_BLOCK`) the Jacobian is not
+On a trial longer than one block (:data:`msk._runtime.blocks.FRAME_BLOCK`) the Jacobian is not
 held either: its compact values are :class:`JacobianRows`, which recompute the rows asked for
 block by block, each block exactly as this stage evaluated it (the same frames in one call:
 bit for bit the values a held Jacobian would give). The tension, strength and knee contact
@@ -21,10 +21,10 @@ from typing import Any, cast
 import numpy as np
 from numpy.typing import NDArray
 
-from msk.pipeline.blocks import frame_blocks
+from msk._runtime.blocks import frame_blocks
 from msk.pipeline.inputs import SessionInputs
-from msk.pipeline.loads import Loads
 from msk.pipeline.model import BuiltModel
+from msk.pipeline.records import Loads
 from msk.pipeline.runner import StageUnavailable
 
 __all__ = ["JacobianRows", "compact_values", "posed_geometry", "run"]

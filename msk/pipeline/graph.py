@@ -33,6 +33,7 @@ from collections.abc import Callable, Collection, Mapping
 from dataclasses import dataclass
 from typing import Any
 
+from msk._runtime.blocks import FRAME_BLOCK
 from msk.model.core import Model
 from msk.pipeline import (
     comparison,
@@ -53,7 +54,6 @@ from msk.pipeline import (
     tables,
     tension,
 )
-from msk.pipeline.blocks import FRAME_BLOCK
 from msk.pipeline.inputs import SessionInputs
 from msk.pipeline.runner import Runner
 
@@ -110,7 +110,7 @@ class Node:
 def model_to_cache(built: model.BuiltModel) -> Any:
     """The model stage's result as the stage cache keeps it: its :class:`msk.model.core.Model` as
     plain data (:meth:`msk.model.core.Model.state`; the cache stores no Pinocchio object). A trial
-    of more than :data:`~msk.pipeline.blocks.FRAME_BLOCK` frames is given as it is, not
+    of more than :data:`~msk._runtime.blocks.FRAME_BLOCK` frames is given as it is, not
     storable: its model-frame markers are not written to the cache (issue 18's memory bound),
     the stage is computed again next time."""
     if len(built.trial.time) > FRAME_BLOCK:

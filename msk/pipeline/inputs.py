@@ -63,6 +63,57 @@ class SessionInputs:
         """Lab marker labels in model names (``[markers] rename``)."""
         return tuple(self.inv_rename.get(lab, lab) for lab in labels)
 
+    def external_loads(
+        self,
+        model: Any,
+        trial: Any,
+        kinematics: Any,
+        plates: Any = None,
+        assignment: Mapping[str, str] | None = None,
+    ) -> Any:
+        """:func:`msk.dynamics.loads.external_loads` of a trial: its plates (a C3D's, or
+        ``plates``), with the explicit assignment of the ExternalLoads ``.xml`` then of the
+        config's ``[loads] assign``, low-passed at ``[filters]``' ground-reaction cut-off."""
+        from msk.dynamics.loads import external_loads, plates_from_trial
+
+        plates = plates_from_trial(trial) if plates is None else plates
+        assign = {**(assignment or {}), **self.cfg.loads.assign} or None
+        return external_loads(
+            model, kinematics, plates, assignment=assign,
+            cutoff_hz=self.cfg.filters.grf_cutoff_used_hz,
+        )  # fmt: skip
+
+    def knee_plateau(self, model: Any, joint: str) -> Any:
+        """The two contact points of ``joint`` as ``[contact]`` places them
+        (:func:`msk.contact.knee.plateau_geometry`): the same for the compartment rows of the
+        muscle forces and the knee contact's split."""
+        from msk.contact.knee import plateau_geometry
+
+        cc = self.cfg.contact
+        centre = None if cc.plateau_depth_m is None else (0.0, -cc.plateau_depth_m, 0.0)
+        return plateau_geometry(
+            model, joint=joint, intercondylar_distance_m=cc.intercondylar_distance_m,
+            centre_m=centre,
+        )  # fmt: skip
+
+    def muscle_force_options(self, model: Any) -> dict[str, Any]:
+        """The keyword arguments of :func:`msk.optimization.muscle_forces.solve_muscle_forces`
+        this session's configuration sets for ``model``: ``[optimization]``, the EMG channels
+        (the groups of ``emg_assisted``'s gains) and the side's knee with its contact points
+        (the compartment rows of ``compartment_nonnegative``)."""
+        joint = f"knee{self.sfx}"
+        plateau = None
+        if self.cfg.optimization.compartment_nonnegative and joint in {
+            j.name for j in model.joints
+        }:
+            plateau = self.knee_plateau(model, joint)
+        return {
+            "options": self.cfg.optimization,
+            "emg_channels": self.cfg.emg.channels,
+            "knee_joint": joint,
+            "knee_plateau": plateau,
+        }
+
 
 def model_source(cfg: SessionConfig) -> Path:
     """The model file of ``[model]``; with ``knee = "four_bar"`` its ``_fourbar`` twin."""

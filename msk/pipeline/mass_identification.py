@@ -5,59 +5,18 @@ physically consistent, symmetric, prior weight chosen by held-out residuals)."""
 
 from __future__ import annotations
 
-from collections.abc import Mapping, Sequence
-from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
 
+from msk.dynamics.identification import MassIdentification, segment_summary
 from msk.pipeline.inputs import SessionInputs
 from msk.pipeline.kinematics import solve_trial
-from msk.pipeline.loads import Loads, assign_loads
 from msk.pipeline.model import BuiltModel
-from msk.pipeline.read import ReadResult
+from msk.pipeline.records import Loads, ReadResult
 from msk.pipeline.runner import StageUnavailable, file_sha256
 
-__all__ = ["MassIdentification", "identified_model", "run", "segment_summary", "settings"]
-
-
-@dataclass(frozen=True)
-class MassIdentification:
-    """Identified inertial parameters per body (Pinocchio order ``m, mx, my, mz, Ixx, Ixy, Iyy,
-    Ixz, Iyz, Izz``), per-segment figures with their status (:func:`segment_summary`), the
-    condition number of the identification, the frames used, advice on the motions that would
-    excite the rest, and ``t0`` the start (s) of the data identified from."""
-
-    parameters: Mapping[str, np.ndarray]
-    segments: Sequence[Mapping[str, Any]]
-    condition_number: float
-    n_frames: int
-    advice: Sequence[str]
-    t0: float
-
-
-def segment_summary(s: Any) -> dict[str, Any]:
-    """One identified segment as JSON-ready figures with its :mod:`msk.status` word (a segment
-    that moved from its prior without becoming precise is "not determined", never "prior")."""
-    from msk.status import segment_status
-
-    out = {
-        "name": s.name,
-        "mass_kg": s.mass,
-        "mass_std_kg": s.mass_std,
-        "prior_mass_kg": s.prior_mass,
-        "com_m": s.com,
-        "com_std_m": s.com_std,
-        "prior_com_m": s.prior_com,
-        "flag": s.flag,
-    }
-    out["status"] = segment_status(out).value
-    return out
-
-
-def identified_model(model: Any, ident: MassIdentification | None) -> Any:
-    """``model`` with the identified inertias (``model`` itself when nothing was identified)."""
-    return model if ident is None else model.with_inertias(ident.parameters)
+__all__ = ["run", "settings"]
 
 
 def settings(inputs: SessionInputs) -> Any:
@@ -89,7 +48,7 @@ def run(
             held=model.held, cutoff_hz=cfg.filters.kinematics_cutoff_hz,
             acceleration_domain=cfg.filters.acceleration_domain,
         )  # fmt: skip
-        l_i = assign_loads(inputs, mdl, tr_i, k_i, assignment=read.assignment)
+        l_i = inputs.external_loads(mdl, tr_i, k_i, assignment=read.assignment)
         seen = observed_frames(mdl, k_i).observed
         runs.append((tc.name, k_i, l_i, contact_measured(mdl, k_i, l_i) & seen))
     its = []

@@ -24,7 +24,8 @@ import numpy as np
 from msk.exceptions import ConfigError, KinematicsError, ModelError
 from msk.io.frames import lab_to_model_rotation
 from msk.pipeline.inputs import SessionInputs
-from msk.pipeline.read import ReadResult, read_static_markers
+from msk.pipeline.read import read_static_markers
+from msk.pipeline.records import ReadResult
 
 __all__ = [
     "CHOICE_MAX_FRAMES",
@@ -451,10 +452,10 @@ def model_frame_columns(
 ) -> tuple[np.ndarray, tuple[str, ...]]:
     """``match.apply(trial.rotated(rot).markers, trial.marker_labels)`` (the matched columns in
     the model frame, model names, exact zeros as gaps) rotated block by block of
-    :data:`msk.pipeline.blocks.FRAME_BLOCK` frames into the one array returned: a long trial's
+    :data:`msk._runtime.blocks.FRAME_BLOCK` frames into the one array returned: a long trial's
     markers are not rotated whole first (issue 18). Each frame's values are the whole
     product's."""
-    from msk.pipeline.blocks import FRAME_BLOCK
+    from msk._runtime.blocks import FRAME_BLOCK
 
     x = np.asarray(trial.markers, dtype=float)
     r = np.asarray(rot, dtype=float)

@@ -8,8 +8,6 @@ and 3 plates; issue 18)."""
 from __future__ import annotations
 
 import dataclasses
-from collections.abc import Mapping
-from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
@@ -17,9 +15,9 @@ import numpy as np
 
 from msk.exceptions import MissingDataError
 from msk.pipeline.inputs import SessionInputs
+from msk.pipeline.records import ReadResult
 
 __all__ = [
-    "ReadResult",
     "for_session",
     "measured_contact",
     "read_static_markers",
@@ -29,26 +27,6 @@ __all__ = [
     "without_markers",
     "without_plates",
 ]
-
-
-@dataclass(frozen=True)
-class ReadResult:
-    """The task trial (:class:`msk.io.Trial`), its plates (``plates``), the ExternalLoads
-    assignment plate → body, and the measured knee contact force
-    (:class:`msk.io.contact_force.MeasuredContact`).
-
-    As :func:`read_task` returns it, ``trial`` is the file's (a C3D's without its plates' analog
-    channels) and ``plates`` the
-    :class:`msk.dynamics.loads.PlateWrench` of a GRF file (None for a C3D's own plates); as the
-    stage
-    returns it (:func:`for_session`), ``trial`` has no plates, no plate channels and no model
-    outputs, and ``plates`` are the :class:`msk.dynamics.loads.PlateWrench` of either (lab
-    frame)."""
-
-    trial: Any
-    plates: tuple[Any, ...] | None = None
-    assignment: Mapping[str, str] = field(default_factory=dict)
-    contact: Any = None
 
 
 def _read_contact(path: Path, trial: Path, grf: Path | None) -> Any:

@@ -27,7 +27,7 @@ from typing import Any, TextIO
 
 from msk import __version__
 from msk._runtime.fork import start_deferred
-from msk.exceptions import ConfigError, MskError
+from msk.exceptions import ConfigError, MskError, NotAvailableError
 from msk.pipeline.cache import StageCache, code_fingerprint, dependency_versions
 from msk.results.folder import json_default
 from msk.results.summary import Summary
@@ -201,7 +201,7 @@ class Runner:
             if self.fail_stage == name:
                 raise RuntimeError(f"stage {name} failed on purpose (test hook)")
             value = fn()
-        except StageUnavailable as exc:
+        except (StageUnavailable, NotAvailableError) as exc:
             self._record(
                 StageRecord(name, "not available", time.perf_counter() - t0, str(exc), key)
             )

@@ -14,31 +14,19 @@ crossed by no group) are not regressed."""
 
 from __future__ import annotations
 
-from collections.abc import Mapping, Sequence
-from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
 
+from msk.dynamics.inverse import InverseDynamics
 from msk.exceptions import IdentificationError
-from msk.pipeline.dynamics import InverseDynamics
-from msk.pipeline.emg import EmgActivations
+from msk.muscles.emg import EmgActivations
 from msk.pipeline.inputs import SessionInputs
-from msk.pipeline.loads import Loads
 from msk.pipeline.model import BuiltModel
+from msk.pipeline.records import Loads, StrengthIdentification
 from msk.pipeline.runner import StageUnavailable
 
-__all__ = ["StrengthIdentification", "run"]
-
-
-@dataclass(frozen=True)
-class StrengthIdentification:
-    """The :class:`msk.strength.StrengthProfile` (factors × generic, intervals, statuses), the
-    muscles of each group, and ``t0`` the start (s) of the data identified from."""
-
-    profile: Any
-    groups: Mapping[str, Sequence[str]]
-    t0: float
+__all__ = ["run"]
 
 
 def run(

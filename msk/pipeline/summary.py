@@ -5,6 +5,7 @@ comparison, FES. The stage records are added by :func:`msk.pipeline.session.run_
 
 from __future__ import annotations
 
+import dataclasses
 from collections.abc import Mapping, Sequence
 from datetime import UTC, datetime
 from pathlib import Path
@@ -13,23 +14,23 @@ from typing import Any, Literal, cast
 import numpy as np
 
 from msk.config import SessionConfig
+from msk.dynamics.identification import MassIdentification
+from msk.dynamics.inverse import InverseDynamics
+from msk.dynamics.loads import ASSIGNMENT_METHOD
 from msk.exceptions import MskError
-from msk.pipeline.comparison import rms
-from msk.pipeline.cycle import GaitCycle
-from msk.pipeline.dynamics import InverseDynamics
-from msk.pipeline.emg import EmgActivations
-from msk.pipeline.fes import FesResult, fes_summary
+from msk.fes.io import FES_PARAMETER_UNITS, fes_parameters, fes_step_figures
+from msk.metrics import root_mean_square as rms
+from msk.muscles.emg import EmgActivations
+from msk.optimization.muscle_forces import MuscleForces
 from msk.pipeline.inputs import SessionInputs, plain_settings
-from msk.pipeline.loads import PLATE_ASSIGNMENT, Loads, grf_cutoff_hz
-from msk.pipeline.mass_identification import MassIdentification
 from msk.pipeline.model import BuiltModel
+from msk.pipeline.records import FesResult, GaitCycle, Loads, StrengthIdentification
 from msk.pipeline.runner import file_sha256, versions
-from msk.pipeline.strength import StrengthIdentification
-from msk.pipeline.tension import MuscleTensions
 
 __all__ = [
     "DEFAULT_MEASUREMENTS",
     "base_summary",
+    "fes_summary",
     "filtering",
     "frames_solved",
     "joint_strength",
@@ -86,7 +87,8 @@ def filtering(cfg: SessionConfig) -> str:
     )
     return (
         f"joint coordinates low-passed at {f.kinematics_cutoff_hz:g} Hz and ground reactions "
-        f"at {grf_cutoff_hz(cfg):g} Hz (4th-order Butterworth run forward and backward: zero "
+        f"at {cfg.filters.grf_cutoff_used_hz:g} Hz (4th-order Butterworth run forward and "
+        "backward: zero "
         f"lag); {where}"
     )
 
@@ -165,7 +167,7 @@ def _quality(
     jt: Any,
     loads: Any,
     emg: EmgActivations | None,
-    sol: MuscleTensions | None,
+    sol: MuscleForces | None,
     strength: StrengthIdentification | None,
     ident: MassIdentification | None,
     body_weight: float,
@@ -335,10 +337,10 @@ def strength_summary(
     }
 
 
-def frames_solved(sol: MuscleTensions) -> dict[str, int]:
+def frames_solved(sol: MuscleForces) -> dict[str, int]:
     """Per leg (the side suffix ``r``/``l`` of the muscles' names) the frames in which every
     muscle of that leg has a force (the tension stage leaves a leg out where its foot stands
-    off the plates, :func:`msk.pipeline.tension.optimise`)."""
+    off the plates, :func:`msk.optimization.muscle_forces.solve_muscle_forces`)."""
     out = {}
     for side in ("r", "l"):
         cols = [k for k, n in enumerate(sol.muscles) if n.endswith(f"_{side}")]
@@ -347,7 +349,7 @@ def frames_solved(sol: MuscleTensions) -> dict[str, int]:
     return out
 
 
-def _optimization_summary(sol: MuscleTensions, sfx: str) -> dict[str, Any]:
+def _optimization_summary(sol: MuscleForces, sfx: str) -> dict[str, Any]:
     from msk.status import gain_status
 
     extra = {}
@@ -382,7 +384,7 @@ def _optimization_summary(sol: MuscleTensions, sfx: str) -> dict[str, Any]:
 
 
 def kkt_summary(worst: Any) -> dict[str, Any]:
-    """``optimization.kkt`` of a :class:`msk.pipeline.tension.KktWorst`."""
+    """``optimization.kkt`` of a :class:`msk.optimization.muscle_forces.KktWorst`."""
     from msk.quality import THRESHOLDS
 
     return {
@@ -420,7 +422,7 @@ def _flags(
     loads: Loads,
     swapped_pairs: Sequence[tuple[str, str, float]],
     jt: Any,
-    sol: MuscleTensions | None,
+    sol: MuscleForces | None,
     plate_mass: float | None,
 ) -> list[dict[str, Any]]:
     """The quality gates raised (:func:`msk.quality.gait_flags`), swapped left/right labels and
@@ -518,7 +520,7 @@ def run(
     mass_identification: MassIdentification | None,
     inverse_dynamics: InverseDynamics | None,
     emg: EmgActivations | None,
-    tension_optimization: MuscleTensions | None,
+    tension_optimization: MuscleForces | None,
     strength_identification: StrengthIdentification | None,
     gait_cycle: GaitCycle | None,
     comparison: Mapping[str, Any] | None,
@@ -560,7 +562,7 @@ def run(
         "angle_columns": [c for c in kin.coordinate_names if not c.endswith(("_tx", "_ty", "_tz"))],
         "quality": quality,
         "methods": {
-            "plate_assignment": PLATE_ASSIGNMENT,
+            "plate_assignment": ASSIGNMENT_METHOD,
             "scaling_measurements": [m[0] for m in DEFAULT_MEASUREMENTS],
             "task_trial": inputs.task.name,
             "filtering": filtering(cfg),
@@ -578,4 +580,21 @@ def run(
         "comparison": comparison,
         "optimization": None if sol is None else _optimization_summary(sol, inputs.sfx),
         "fes": fes_part,
+    }
+
+
+def fes_summary(res: Any, cfg: SessionConfig, trials: Sequence[Any]) -> dict[str, Any]:
+    par = fes_parameters(res)
+    return {
+        "parameters": {k: {"value": v, "unit": FES_PARAMETER_UNITS[k]} for k, v in par.items()},
+        "initial_parameters": {
+            k: float(getattr(getattr(res.subject_initial, k.split(".")[0]), k.split(".")[1]))
+            for k in FES_PARAMETER_UNITS
+        },
+        "steps": fes_step_figures(res),
+        "k_s_history_n_per_m": list(res.k_s_history),
+        "solver_status": res.series_stiffness.solver_status,
+        "seconds": dict(res.seconds),
+        "trials": [{"name": tc.name, "step": tc.fes.step, "file": str(tc.file)} for tc in trials],
+        "options": dataclasses.asdict(cfg.fes),
     }

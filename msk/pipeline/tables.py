@@ -7,15 +7,13 @@ from typing import Any
 
 import numpy as np
 
+from msk.dynamics.identification import MassIdentification
+from msk.dynamics.inverse import InverseDynamics
+from msk.fes.io import fes_tables
 from msk.io.tables import Table
-from msk.pipeline.contact import KneeContact
-from msk.pipeline.cycle import GaitCycle
-from msk.pipeline.dynamics import InverseDynamics
-from msk.pipeline.fes import FesResult, fes_tables
+from msk.optimization.muscle_forces import MuscleForces
 from msk.pipeline.inputs import SessionInputs
-from msk.pipeline.mass_identification import MassIdentification
-from msk.pipeline.strength import StrengthIdentification
-from msk.pipeline.tension import MuscleTensions
+from msk.pipeline.records import FesResult, GaitCycle, KneeContact, StrengthIdentification
 
 __all__ = ["inertial_table", "run", "strength_table"]
 
@@ -79,7 +77,7 @@ def run(
     kinematics: Any,
     inverse_dynamics: InverseDynamics | None,
     mass_identification: MassIdentification | None,
-    tension_optimization: MuscleTensions | None,
+    tension_optimization: MuscleForces | None,
     strength_identification: StrengthIdentification | None,
     knee_contact: KneeContact | None,
     gait_cycle: GaitCycle | None,

@@ -825,7 +825,7 @@ def test_a_varus_load_no_muscle_can_balance_takes_a_frontal_reserve_and_is_flagg
     """The same knee with muscles of 50 N capacity: the lateral muscles saturate, the frontal
     reserve of the lateral row carries the rest (d·F_L + s = 0, s > 0), the compartments stay ≥ 0
     once the reserve is counted, and the quality gate names it."""
-    from msk.pipeline.tension import MuscleTensions
+    from msk.optimization.muscle_forces import MuscleForces
     from msk.quality import frontal_reserve_flags
 
     model = _one_knee_four("r")
@@ -837,7 +837,7 @@ def test_a_varus_load_no_muscle_can_balance_takes_a_frontal_reserve_and_is_flagg
     assert np.all(held.activations[:, names.index("lat_ext")] > 0.999)
     np.testing.assert_allclose(0.04 * cm.forces(held.forces)[:, 1] + s[:, 1], 0.0, atol=1e-8)
     n = held.forces.shape[0]
-    ten = MuscleTensions(
+    ten = MuscleForces(
         held.forces, held.activations, names, "static_optimization", 0,
         frontal_reserve_moments=s, compartment_rows=("knee_r_medial", "knee_r_lateral"),
         id_frontal_moment_peak_nm=float(np.max(np.abs(0.02 * (cm.offset[:, 1] - cm.offset[:, 0])))),
@@ -845,7 +845,7 @@ def test_a_varus_load_no_muscle_can_balance_takes_a_frontal_reserve_and_is_flagg
     flags = frontal_reserve_flags("trial", ten)
     assert [f.quantity for f in flags] == ["knee_r_lateral_frontal_reserve_pct"]
     assert flags[0].value > 10.0 and "knee_r_lateral" in flags[0].message
-    quiet = MuscleTensions(
+    quiet = MuscleForces(
         held.forces, held.activations, names, "static_optimization", 0,
         frontal_reserve_moments=np.zeros((n, 2)),
         compartment_rows=("knee_r_medial", "knee_r_lateral"), id_frontal_moment_peak_nm=21.0,

@@ -1149,7 +1149,7 @@ def test_batch_kkt_scale_and_a_solver_that_stops_short() -> None:
     them, while a solver that returns a point off the optimum (a registered one that returns
     the least-norm point of the rows) is called optimal by its status but fails the check —
     what the tension stage's gate ``kkt_relative`` catches."""
-    from msk.pipeline.tension import worst_kkt
+    from msk.optimization.muscle_forces import worst_kkt
     from msk.quality import THRESHOLDS
 
     d = leg_like_frames(12, 4, 15, seed=4)

@@ -1,7 +1,7 @@
 """Long trials in bounded memory (issue 18): the compact per-frame Jacobian
 (:class:`msk.timeseries.FrameSparse`), batch solvers warm-started across calls
 (:class:`msk.optimization.WarmStart`) and the pipeline's frame blocks
-(:mod:`msk.pipeline.blocks`): blocked results equal unblocked ones to round-off."""
+(:mod:`msk._runtime.blocks`): blocked results equal unblocked ones to round-off."""
 
 from __future__ import annotations
 
@@ -115,7 +115,7 @@ def test_batch_with_inequality_rows_in_parts_equals_one_call(criterion: str) -> 
     turn: the frames solved in three calls, the warm start carried (``WarmStart``) and the
     rows taken per part (``TensionInequalities.take``), give one call's forces, activations,
     reserves, inequality reserves, statuses and active-set iterations bit for bit (the tension
-    stage's solve parts, :data:`msk.pipeline.blocks.SOLVE_BLOCK`); rows that bind on some
+    stage's solve parts, :data:`msk._runtime.blocks.SOLVE_BLOCK`); rows that bind on some
     frames (offsets around −20, gains ~0.02 per N)."""
     d = leg_like_frames(12, 4, 60, seed=7)
     rng = np.random.default_rng(4)
@@ -172,7 +172,7 @@ def test_tension_and_contact_in_solve_parts_equal_whole_blocks(
 ) -> None:
     """gc5_PS (``emg_assisted`` with the knee compartment rows): the tension stage and the
     knee contact stage (its subject-specific re-solve handed to the contact per block) with
-    each block solved in parts of 16 frames (:data:`msk.pipeline.blocks.SOLVE_BLOCK`; blocks of
+    each block solved in parts of 16 frames (:data:`msk._runtime.blocks.SOLVE_BLOCK`; blocks of
     40 frames with the Jacobian recomputed per block, or the trial in one block) give the
     stages' results of whole-block solves bit for bit: forces, activations, reserve torques,
     frontal reserves, the EMG gains, the contact forces and their medial/lateral split."""
@@ -279,12 +279,12 @@ def test_session_in_small_blocks_equals_one_block(
 def test_gain_fit_frames_are_all_or_evenly_spaced(n: int, cap: int) -> None:
     """The ``emg_assisted`` gain fit sees every frame up to the cap, else ``cap`` distinct,
     sorted frames spanning the first to the last."""
-    from msk.pipeline import tension
+    from msk.optimization import muscle_forces
 
     frames = np.arange(n) * 3 + 5
     with pytest.MonkeyPatch.context() as mp:
-        mp.setattr(tension, "GAIN_FIT_FRAMES", cap)
-        fit = tension.fit_frames(frames)
+        mp.setattr(muscle_forces, "GAIN_FIT_FRAMES", cap)
+        fit = muscle_forces.fit_frames(frames)
     if n <= cap:
         np.testing.assert_array_equal(fit, frames)
     else:
@@ -299,12 +299,13 @@ def test_emg_assisted_gains_from_a_frame_sample(
     those of all frames within 15 %, and the trial solved in blocks of 40 frames meets its
     torques on every frame."""
     from msk.config import load_config
-    from msk.pipeline import run_stages, tension
+    from msk.optimization import muscle_forces
+    from msk.pipeline import run_stages
 
     cfg = load_config(REPO / "pipelines" / "gc5_PS.toml")
     assert cfg.optimization.method == "emg_assisted"
     full = run_stages(cfg, until="tension_optimization")["tension_optimization"]
-    monkeypatch.setattr(tension, "GAIN_FIT_FRAMES", 70)
+    monkeypatch.setattr(muscle_forces, "GAIN_FIT_FRAMES", 70)
     monkeypatch.setattr(blocks, "FRAME_BLOCK", 40)
     part = run_stages(cfg, until="tension_optimization")["tension_optimization"]
     assert full.emg_gains is not None and part.emg_gains is not None
@@ -321,21 +322,23 @@ def test_tension_forces_only_are_the_stage_forces() -> None:
     from threadpoolctl import threadpool_limits
 
     from msk.config import load_config
-    from msk.pipeline import run_stages, tension
+    from msk.dynamics.identification import identified_model
+    from msk.optimization.muscle_forces import solve_muscle_forces
+    from msk.pipeline import run_stages
     from msk.pipeline.inputs import session_inputs
-    from msk.pipeline.mass_identification import identified_model
 
     cfg = load_config(REPO / "pipelines" / "gc5_PS.toml")
     r = run_stages(cfg, until="tension_optimization")
     full = r["tension_optimization"]
     torques = r["inverse_dynamics"].torques
     with threadpool_limits(limits=1, user_api="blas"):
-        only = tension.optimise(
-            session_inputs(cfg), identified_model(r["model"].model, r["mass_identification"]),
-            torques, r["muscle_geometry"], r["kinematics"].time,
+        m_id = identified_model(r["model"].model, r["mass_identification"])
+        only = solve_muscle_forces(
+            m_id, torques, r["muscle_geometry"], r["kinematics"].time,
             r["loads"].solvable, r["emg"], forces_only=True, kinematics=r["kinematics"],
             external=r["loads"].external,
             unbalanced=r["loads"].unbalanced_for(torques.coordinate_names),
+            **session_inputs(cfg).muscle_force_options(m_id),
         )  # fmt: skip
     np.testing.assert_array_equal(only.forces, full.forces)
     assert np.isfinite(full.forces).any()
@@ -739,10 +742,11 @@ def test_knee_contact_in_blocks_equals_one_pass(monkeypatch: pytest.MonkeyPatch)
 
     from msk.config import load_config
     from msk.contact.knee import knee_contact_force, plateau_geometry, split_medial_lateral
+    from msk.dynamics.identification import identified_model
     from msk.muscles.geometry import muscle_geometry
-    from msk.pipeline import run_stages, tension
+    from msk.optimization.muscle_forces import solve_muscle_forces
+    from msk.pipeline import run_stages
     from msk.pipeline.inputs import session_inputs
-    from msk.pipeline.mass_identification import identified_model
     from msk.strength import with_strength
 
     cfg = load_config(REPO / "pipelines" / "gc5_PS.toml")
@@ -758,11 +762,12 @@ def test_knee_contact_in_blocks_equals_one_pass(monkeypatch: pytest.MonkeyPatch)
     spec = with_strength(m_id, r["strength_identification"].profile)
     torques = r["inverse_dynamics"].torques
     with threadpool_limits(limits=1, user_api="blas"):
-        resolve = tension.optimise(
-            inputs, spec, torques, r["muscle_geometry"], kin.time,
+        resolve = solve_muscle_forces(
+            spec, torques, r["muscle_geometry"], kin.time,
             r["loads"].solvable, r["emg"], forces_only=True, kinematics=kin,
             external=r["loads"].external,
             unbalanced=r["loads"].unbalanced_for(torques.coordinate_names),
+            **inputs.muscle_force_options(spec),
         )  # fmt: skip
     forces = {"generic": r["tension_optimization"].forces, "subject_specific": resolve.forces}
     models = {"generic": m_id, "subject_specific": spec}

@@ -12,13 +12,13 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 
+from msk._runtime.blocks import FRAME_BLOCK
 from msk.cli import main
 from msk.config import TEMPLATE, config_reference, load_config, render_config
 from msk.datasets.trials import write_synthetic_session
 from msk.exceptions import ConfigError
 from msk.io.opensim_files import read_sto
 from msk.pipeline import STAGES, file_sha256, lab_to_model_rotation, run_session, run_stages
-from msk.pipeline.blocks import FRAME_BLOCK
 from msk.pipeline.inputs import session_inputs
 from msk.pipeline.runner import Runner
 from msk.results.folder import TABLES, read_session

@@ -1,6 +1,7 @@
-"""The tension stage's per-leg frames (:func:`msk.pipeline.tension.optimise` ``unbalanced``):
-a leg whose foot stands off the plates is left out of a frame's QP and the other leg solved,
-with the forces of the fully measured frame (the tension QP is separable by leg)."""
+"""Muscle forces on the frames each leg can be solved in
+(:func:`msk.optimization.muscle_forces.solve_muscle_forces` ``unbalanced``): a leg whose foot
+stands off the plates is left out of a frame's QP and the other leg solved, with the forces of
+the fully measured frame (the tension QP is separable by leg)."""
 
 from __future__ import annotations
 
@@ -12,7 +13,8 @@ import pytest
 
 from msk.config.options import ContactConfig, EmgConfig, OptimizationConfig
 from msk.dynamics.inverse import coordinates_carrying
-from msk.pipeline.tension import left_out, optimise
+from msk.optimization.muscle_forces import left_out, solve_muscle_forces
+from msk.pipeline.inputs import SessionInputs
 from tests.support.two_legs import muscled_two_legs, two_leg_trial
 
 
@@ -26,6 +28,14 @@ def _inputs(method: str, channels: dict[str, str] | None = None) -> Any:
         contact=ContactConfig(),
     )
     return SimpleNamespace(cfg=cfg, sfx="_r")
+
+
+def optimise(inputs: Any, model: Any, *args: Any, **kw: Any) -> Any:
+    """:func:`solve_muscle_forces` with the options a session's configuration ``inputs`` sets
+    (:meth:`msk.pipeline.inputs.SessionInputs.muscle_force_options`)."""
+    inputs.knee_plateau = lambda m, joint: SessionInputs.knee_plateau(inputs, m, joint)
+    options = SessionInputs.muscle_force_options(inputs, model)
+    return solve_muscle_forces(model, *args, **kw, **options)
 
 
 def _emg(model: Any, n: int) -> Any:
@@ -127,14 +137,14 @@ def test_left_out_is_the_component_holding_the_coordinate() -> None:
 def test_frames_solved_counts_each_leg() -> None:
     """summary.json's ``optimization.frames_solved``: per leg the frames with every one of its
     muscle forces (the right leg in all 5 frames, the left one in 2)."""
+    from msk.optimization.muscle_forces import MuscleForces
     from msk.pipeline.summary import frames_solved
-    from msk.pipeline.tension import MuscleTensions
 
     f = np.ones((5, 4))
     f[[1, 2], 2] = np.nan
     f[0] = np.nan
     f[0, :2] = 1.0
-    sol = MuscleTensions(f, f, ("a_r", "b_r", "a_l", "b_l"), "bounded_qp", 0)
+    sol = MuscleForces(f, f, ("a_r", "b_r", "a_l", "b_l"), "bounded_qp", 0)
     assert frames_solved(sol) == {"r": 5, "l": 2}
 
 
@@ -226,7 +236,7 @@ def test_left_out_patterns_of_a_leg_off_the_plates() -> None:
     a left moment arm NaN there leaves the frame posable, a right one (frame 12) or a left
     one where the left foot is measured (frame 30) does not."""
     from msk.muscles.geometry import muscle_parameters
-    from msk.pipeline.tension import actuated, left_out_patterns
+    from msk.optimization.muscle_forces import actuated, left_out_patterns
 
     model = muscled_two_legs()
     kin, tq, geo = two_leg_trial(model)
@@ -284,8 +294,8 @@ def test_optimization_figures_count_the_solved_leg_only() -> None:
     there count in its saturation (saturated in 3 of its 10 frames: 30 % > 25 %, flagged; a
     whole-row count saw 0 of 4), the left leg's over its 4 solved frames only; the reserve
     RMS of a left coordinate over its solved frames."""
+    from msk.optimization.muscle_forces import MuscleForces
     from msk.pipeline.summary import frames_solved
-    from msk.pipeline.tension import MuscleTensions
     from msk.quality import optimization_flags
 
     acts = np.full((10, 4), 0.2)
@@ -294,7 +304,7 @@ def test_optimization_figures_count_the_solved_leg_only() -> None:
     rt = np.zeros((10, 2))
     rt[:6, 1] = np.nan
     rt[6:, 1] = 3.0
-    sol = MuscleTensions(
+    sol = MuscleForces(
         acts * 1000.0, acts, ("a_r", "b_r", "a_l", "b_l"), "static_optimization", 0,
         infeasible_frames=0, reserve_torques=rt, reserve_coordinates=("knee_r", "knee_l"),
     )  # fmt: skip
