@@ -53,7 +53,7 @@ from msk.strength.isometric import (
     model_isometric_torque,
     session_mvc,
     subject_model,
-    test_strength,
+    group_strength,
 )
 
 __all__ = [
@@ -387,7 +387,7 @@ def run_dynamometry(
     for tc, tr in zip(cfg.tests, trials):
         mt = model_isometric_torque(model, tc.test, side=s["side"])
         lever = None if tr.is_torque else _lever(cfg, tc)
-        r = test_strength(tr, tc.test, lever=lever, model=mt, mass_kg=s["mass_kg"], mvc=mvc,
+        r = group_strength(tr, tc.test, lever=lever, model=mt, mass_kg=s["mass_kg"], mvc=mvc,
                           own_mvc=own)  # fmt: skip
         results.append(r)
         rec_d = r.as_dict()

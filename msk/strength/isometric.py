@@ -109,7 +109,7 @@ __all__ = [
     "session_mvc",
     "subject_model",
     "target_check",
-    "test_strength",
+    "group_strength",
 ]
 
 #: the checks whose flag makes the test's group ``not determined``
@@ -593,7 +593,7 @@ def model_isometric_torque(
     return ModelTorque((lo, float(ag[1]), hi), float(ant[1]), posture, muscles)
 
 
-def test_strength(
+def group_strength(
     trial: IsometricTrial,
     test: IsometricTest,
     *,
