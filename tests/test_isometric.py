@@ -21,9 +21,9 @@ from msk.strength.isometric import (
     ModelTorque,
     agonist_mvc,
     analyse_isometric,
+    group_strength,
     lever_arm_from_height,
     session_mvc,
-    group_strength,
 )
 
 RATE = 2000.0
@@ -72,8 +72,14 @@ def test_synthetic_trial_recovers_torque_offset_and_factor() -> None:
         tr = analyse_isometric(rec, KNEE)
         assert tr.baseline_n == pytest.approx(40.0, abs=0.6)
         assert "pre-effort" in tr.baseline_source
-        r = group_strength(tr, KNEE, lever=LeverArm(0.35, 0.01, "given"), model=_model(),
-                          mass_kg=75.0, mvc=session_mvc([tr]))  # fmt: skip
+        r = group_strength(
+            tr,
+            KNEE,
+            lever=LeverArm(0.35, 0.01, "given"),
+            model=_model(),
+            mass_kg=75.0,
+            mvc=session_mvc([tr]),
+        )
         # antagonist BF at 100 % of its (only) session maximum: co-contraction = 80 N·m
         assert r.measured_net_nm == pytest.approx(120.0, rel=0.01)
         errs.append(r.measured_net_nm / 120.0 - 1.0)
@@ -83,12 +89,20 @@ def test_synthetic_trial_recovers_torque_offset_and_factor() -> None:
 
 def test_cocontraction_uses_the_antagonists_own_test() -> None:
     ext = analyse_isometric(_trial(amps=(300e-6, 30e-6, 20e-6, 20e-6)), KNEE)
-    flex_test = IsometricTest(name="knee_flexion", action="knee flexion", angle_deg=90.0,
-                              target="BF", antagonist="VL")  # fmt: skip
+    flex_test = IsometricTest(
+        name="knee_flexion", action="knee flexion", angle_deg=90.0, target="BF", antagonist="VL"
+    )
     flex = analyse_isometric(_trial(amps=(20e-6, 150e-6, 20e-6, 20e-6), seed=1), flex_test)
     own = agonist_mvc([ext, flex], [KNEE, flex_test])
-    r = group_strength(ext, KNEE, lever=LeverArm(0.35, 0.01, "given"), model=_model(),
-                      mass_kg=75.0, mvc=session_mvc([ext, flex]), own_mvc=own)  # fmt: skip
+    r = group_strength(
+        ext,
+        KNEE,
+        lever=LeverArm(0.35, 0.01, "given"),
+        model=_model(),
+        mass_kg=75.0,
+        mvc=session_mvc([ext, flex]),
+        own_mvc=own,
+    )
     # BF at ~20 % of its own test's plateau × 80 N·m antagonist torque
     assert r.cocontraction_nm == pytest.approx(0.2 * 80.0, rel=0.15)
     assert r.torque_nm == pytest.approx(r.measured_net_nm + r.cocontraction_nm)
@@ -110,8 +124,14 @@ def _fails(rec: DynamometerRecording, quantity: str, **kw: object) -> None:
     tr = analyse_isometric(rec, KNEE, settings=settings)
     # the session's other test: every channel at 400 µV (the session maxima)
     other = analyse_isometric(_trial(amps=(400e-6,) * 4, seed=9), KNEE)
-    r = group_strength(tr, KNEE, lever=LeverArm(0.35, 0.01, "given"), model=_model(),
-                      mass_kg=75.0, mvc=session_mvc([tr, other]))  # fmt: skip
+    r = group_strength(
+        tr,
+        KNEE,
+        lever=LeverArm(0.35, 0.01, "given"),
+        model=_model(),
+        mass_kg=75.0,
+        mvc=session_mvc([tr, other]),
+    )
     hit = [f for f in r.flags if f.quantity == quantity]
     assert hit, [f.quantity for f in r.flags]
     assert r.status == "not determined"
@@ -128,8 +148,10 @@ def test_each_check_fires_on_a_bad_trial() -> None:
     clip = _trial()
     assert clip.force is not None
     f = np.minimum(clip.force, 300.0)
-    _fails(DynamometerRecording(clip.source, clip.time, f, None, clip.emg, LABELS, RATE, "f"),
-           "saturated")  # fmt: skip
+    _fails(
+        DynamometerRecording(clip.source, clip.time, f, None, clip.emg, LABELS, RATE, "f"),
+        "saturated",
+    )
     # too short a plateau
     _fails(_trial(hold_s=0.4), "plateau_short")
     # baseline drift in a pre-effort window
@@ -137,21 +159,30 @@ def test_each_check_fires_on_a_bad_trial() -> None:
     assert drift.force is not None
     d = drift.force.copy()
     d[: int(0.25 * RATE)] += np.linspace(0.0, 80.0, int(0.25 * RATE))
-    _fails(DynamometerRecording(drift.source, drift.time, d, None, drift.emg, LABELS, RATE, "f"),
-           "baseline_drift", baseline="pre_effort")  # fmt: skip
+    _fails(
+        DynamometerRecording(drift.source, drift.time, d, None, drift.emg, LABELS, RATE, "f"),
+        "baseline_drift",
+        baseline="pre_effort",
+    )
     # target not the most active: VL quiet, TA loud
     _fails(_trial(amps=(20e-6, 30e-6, 300e-6, 20e-6)), "target_not_most_active")
     # dead target channel
     dead = _trial()
     e = dead.emg.copy()
     e[:, 0] = 2.44e-6 * np.round(np.random.default_rng(3).standard_normal(e.shape[0]) * 0.5)
-    _fails(DynamometerRecording(dead.source, dead.time, dead.force, None, e, LABELS, RATE, "f"),
-           "emg_flat_target")  # fmt: skip
+    _fails(
+        DynamometerRecording(dead.source, dead.time, dead.force, None, e, LABELS, RATE, "f"),
+        "emg_flat_target",
+    )
     # pulling the wrong way
     wrong = _trial()
     assert wrong.force is not None
-    _fails(DynamometerRecording(wrong.source, wrong.time, 80.0 - wrong.force, None, wrong.emg,
-                                LABELS, RATE, "f"), "wrong_direction")  # fmt: skip
+    _fails(
+        DynamometerRecording(
+            wrong.source, wrong.time, 80.0 - wrong.force, None, wrong.emg, LABELS, RATE, "f"
+        ),
+        "wrong_direction",
+    )
 
 
 def test_lever_arm_from_height_says_which_and_scales_with_height() -> None:
@@ -170,8 +201,13 @@ def test_reader_csv_gzip_tab_and_bad_cells(tmp_path: Path) -> None:
     text = "time_s,force_kgf,emg_VL_uV\n0,1.0,10\n0.0005,2.0,-10\n0.001,3.0,5\n"
     p = tmp_path / "a.csv.gz"
     p.write_bytes(gzip.compress(text.encode()))
-    r = read_dynamometer(p, force_column="force_kgf", force_unit="kgf",
-                         emg_columns={"VL": "emg_VL_uV"}, emg_unit="uV")  # fmt: skip
+    r = read_dynamometer(
+        p,
+        force_column="force_kgf",
+        force_unit="kgf",
+        emg_columns={"VL": "emg_VL_uV"},
+        emg_unit="uV",
+    )
     assert r.rate_hz == pytest.approx(2000.0)
     assert r.force is not None and r.force[1] == pytest.approx(2.0 * G_STANDARD)
     assert r.emg[0, 0] == pytest.approx(10e-6)

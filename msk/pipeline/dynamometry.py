@@ -49,11 +49,11 @@ from msk.strength.isometric import (
     TestStrength,
     agonist_mvc,
     analyse_isometric,
+    group_strength,
     lever_arm_from_height,
     model_isometric_torque,
     session_mvc,
     subject_model,
-    group_strength,
 )
 
 __all__ = [
@@ -131,8 +131,14 @@ def is_dynamometry_config(path: str | Path) -> bool:
     return raw.get("kind") == KIND
 
 
-def _get(table: Mapping[str, Any], key: str, kind: type | tuple[type, ...], where: str,
-         src: Path, default: Any = ...) -> Any:  # fmt: skip
+def _get(
+    table: Mapping[str, Any],
+    key: str,
+    kind: type | tuple[type, ...],
+    where: str,
+    src: Path,
+    default: Any = ...,
+) -> Any:
     if key not in table:
         if default is ...:
             raise ConfigError(f"{src}: missing key {where}.{key}")
@@ -206,9 +212,20 @@ def load_dynamometry_config(path: str | Path) -> DynamometryConfig:
     dyn = raw.get("dynamometer", {})
     if not isinstance(dyn, dict):
         raise ConfigError(f"{src}: [dynamometer] should be a table")
-    keys = {"time_column", "force_column", "force_unit", "torque_column", "torque_unit",
-            "emg_unit", "emg", "capacity", "baseline", "baseline_window_s",
-            "plateau_window_s", "zero_sd"}  # fmt: skip
+    keys = {
+        "time_column",
+        "force_column",
+        "force_unit",
+        "torque_column",
+        "torque_unit",
+        "emg_unit",
+        "emg",
+        "capacity",
+        "baseline",
+        "baseline_window_s",
+        "plateau_window_s",
+        "zero_sd",
+    }
     _check_keys(dyn, keys, "dynamometer", src)
     emg = dyn.get("emg", {})
     if not isinstance(emg, dict) or not all(isinstance(v, str) for v in emg.values()):
@@ -216,22 +233,29 @@ def load_dynamometry_config(path: str | Path) -> DynamometryConfig:
     force_unit = _get(dyn, "force_unit", str, "dynamometer", src, "N")
     torque_unit = _get(dyn, "torque_unit", str, "dynamometer", src, "N.m")
     emg_unit = _get(dyn, "emg_unit", str, "dynamometer", src, "V")
-    for key, val, table in (("force_unit", force_unit, FORCE_UNITS),
-                            ("torque_unit", torque_unit, TORQUE_UNITS),
-                            ("emg_unit", emg_unit, EMG_UNITS)):  # fmt: skip
+    for key, val, table in (
+        ("force_unit", force_unit, FORCE_UNITS),
+        ("torque_unit", torque_unit, TORQUE_UNITS),
+        ("emg_unit", emg_unit, EMG_UNITS),
+    ):
         if val.replace("·", ".").replace("µ", "u") not in table:
             raise ConfigError(f"{src}: dynamometer.{key} = {val!r}; allowed: {', '.join(table)}")
     force_col = _get(dyn, "force_column", str, "dynamometer", src, None)
     torque_col = _get(dyn, "torque_column", str, "dynamometer", src, None)
     if (force_col is None) == (torque_col is None):
-        raise ConfigError(f"{src}: give exactly one of dynamometer.force_column and "
-                          "dynamometer.torque_column")  # fmt: skip
-    to_si = FORCE_UNITS[force_unit.replace("·", ".")] if force_col else TORQUE_UNITS[
-        torque_unit.replace("·", ".")]  # fmt: skip
+        raise ConfigError(
+            f"{src}: give exactly one of dynamometer.force_column and dynamometer.torque_column"
+        )
+    to_si = (
+        FORCE_UNITS[force_unit.replace("·", ".")]
+        if force_col
+        else TORQUE_UNITS[torque_unit.replace("·", ".")]
+    )
     baseline = _get(dyn, "baseline", str, "dynamometer", src, "auto")
     if baseline not in ("auto", "pre_effort", "tared"):
-        raise ConfigError(f"{src}: dynamometer.baseline = {baseline!r}; allowed: auto, "
-                          "pre_effort, tared")  # fmt: skip
+        raise ConfigError(
+            f"{src}: dynamometer.baseline = {baseline!r}; allowed: auto, pre_effort, tared"
+        )
     cap = _get(dyn, "capacity", float, "dynamometer", src, None)
     zero = _get(dyn, "zero_sd", float, "dynamometer", src, 1.0 if force_unit == "kgf" else None)
     settings = IsometricSettings(
@@ -254,8 +278,20 @@ def load_dynamometry_config(path: str | Path) -> DynamometryConfig:
     if not isinstance(raw_tests, list) or not raw_tests:
         raise ConfigError(f"{src}: no [[tests]] given")
     tests = []
-    tkeys = {"name", "file", "action", "angle_deg", "angle_range_deg", "posture_deg", "target",
-             "antagonist", "sign", "segment", "lever_arm_m", "lever_arm_sd_m"}  # fmt: skip
+    tkeys = {
+        "name",
+        "file",
+        "action",
+        "angle_deg",
+        "angle_range_deg",
+        "posture_deg",
+        "target",
+        "antagonist",
+        "sign",
+        "segment",
+        "lever_arm_m",
+        "lever_arm_sd_m",
+    }
     for i, t in enumerate(raw_tests):
         w = f"tests[{i}]"
         if not isinstance(t, dict):
@@ -273,8 +309,10 @@ def load_dynamometry_config(path: str | Path) -> DynamometryConfig:
         antagonist = _get(t, "antagonist", str, w, src, "")
         for key, ch in (("target", target), ("antagonist", antagonist)):
             if ch and ch not in emg:
-                raise ConfigError(f"{src}: {w}.{key} = {ch!r} is not a channel of "
-                                  f"[dynamometer.emg] ({', '.join(emg) or 'none'})")  # fmt: skip
+                raise ConfigError(
+                    f"{src}: {w}.{key} = {ch!r} is not a channel of "
+                    f"[dynamometer.emg] ({', '.join(emg) or 'none'})"
+                )
         segment = _get(t, "segment", str, w, src, "shank")
         if segment not in ("shank", "foot"):
             raise ConfigError(f"{src}: {w}.segment = {segment!r}; allowed: shank, foot")
@@ -296,8 +334,7 @@ def load_dynamometry_config(path: str | Path) -> DynamometryConfig:
             segment=segment,
         )
         file = (src.parent / _get(t, "file", str, w, src)).resolve()
-        tests.append(TestConfig(test, file, lever, _get(t, "lever_arm_sd_m", float, w, src,
-                                                        0.01)))  # fmt: skip
+        tests.append(TestConfig(test, file, lever, _get(t, "lever_arm_sd_m", float, w, src, 0.01)))
     names = [tc.test.name for tc in tests]
     if len(set(names)) != len(names):
         raise ConfigError(f"{src}: test names must be unique, got {names}")
@@ -306,9 +343,11 @@ def load_dynamometry_config(path: str | Path) -> DynamometryConfig:
 
 def _lever(cfg: DynamometryConfig, tc: TestConfig) -> LeverArm:
     if tc.lever_arm_m is not None:
-        return LeverArm(tc.lever_arm_m, tc.lever_arm_sd_m,
-                        f"given by the configuration: {tc.lever_arm_m:.3f} ± "
-                        f"{tc.lever_arm_sd_m:.3f} m")  # fmt: skip
+        return LeverArm(
+            tc.lever_arm_m,
+            tc.lever_arm_sd_m,
+            f"given by the configuration: {tc.lever_arm_m:.3f} ± {tc.lever_arm_sd_m:.3f} m",
+        )
     s = cfg.subject
     return lever_arm_from_height(tc.test.segment, s["height_m"], sex=s["sex"])
 
@@ -371,8 +410,9 @@ def run_dynamometry(
     s = cfg.subject
     if not cfg.model_source.is_file():
         raise ConfigError(f"{cfg.path}: model.source {cfg.model_source} not found")
-    model = subject_model(load_model(cfg.model_source), height_m=s["height_m"],
-                          mass_kg=s["mass_kg"])  # fmt: skip
+    model = subject_model(
+        load_model(cfg.model_source), height_m=s["height_m"], mass_kg=s["mass_kg"]
+    )
     trials = []
     for tc in cfg.tests:
         rec = read_dynamometer(tc.file, **cfg.reader)
@@ -387,8 +427,9 @@ def run_dynamometry(
     for tc, tr in zip(cfg.tests, trials):
         mt = model_isometric_torque(model, tc.test, side=s["side"])
         lever = None if tr.is_torque else _lever(cfg, tc)
-        r = group_strength(tr, tc.test, lever=lever, model=mt, mass_kg=s["mass_kg"], mvc=mvc,
-                          own_mvc=own)  # fmt: skip
+        r = group_strength(
+            tr, tc.test, lever=lever, model=mt, mass_kg=s["mass_kg"], mvc=mvc, own_mvc=own
+        )
         results.append(r)
         rec_d = r.as_dict()
         rec_d.update(
@@ -411,8 +452,11 @@ def run_dynamometry(
         "session": s["name"],
         "subject": dict(s),
         "config": str(cfg.path),
-        "model": {"source": str(cfg.model_source), "scaled": "every body by the subject's "
-                  "stature over the model's, masses to the body mass, F_iso unchanged"},
+        "model": {
+            "source": str(cfg.model_source),
+            "scaled": "every body by the subject's "
+            "stature over the model's, masses to the body mass, F_iso unchanged",
+        },
         "settings": {k: getattr(cfg.settings, k) for k in cfg.settings.__dataclass_fields__},
         "emg_mvc_v": {"session_max": mvc, "own_test": own},
         "tests": records,
@@ -430,8 +474,9 @@ def run_dynamometry(
             w = csv.DictWriter(fh, fieldnames=STRENGTH_COLUMNS)
             w.writeheader()
             w.writerows(rows)
-        (tmp / "summary.json").write_text(json.dumps(summary, indent=1, default=str) + "\n",
-                                          encoding="utf-8")  # fmt: skip
+        (tmp / "summary.json").write_text(
+            json.dumps(summary, indent=1, default=str) + "\n", encoding="utf-8"
+        )
         (tmp / "report.html").write_text(report_html(summary, results), encoding="utf-8")
         if out.exists():
             shutil.rmtree(out)
@@ -464,17 +509,19 @@ def report_html(summary: Mapping[str, Any], results: tuple[TestStrength, ...] | 
     def table(rows: list[Any], identified: bool) -> str:
         if not rows:
             return "<p>None.</p>"
-        h = ("<tr><th>Test</th><th>Torque (N·m)</th><th>95 % interval</th><th>N·m/kg</th>"
-             "<th>× scaled generic</th><th>Lever arm</th>"
-             + ("" if identified else "<th>Why not determined</th>") + "</tr>")  # fmt: skip
+        h = (
+            "<tr><th>Test</th><th>Torque (N·m)</th><th>95 % interval</th><th>N·m/kg</th>"
+            "<th>× scaled generic</th><th>Lever arm</th>"
+            + ("" if identified else "<th>Why not determined</th>")
+            + "</tr>"
+        )
         body = []
         for r in rows:
             cells = [
                 e(r.test),
                 f"{r.torque_nm:.1f}",
                 f"[{r.torque_ci_nm[0]:.1f}, {r.torque_ci_nm[1]:.1f}]",
-                f"{r.torque_per_kg:.2f} [{r.torque_per_kg_ci[0]:.2f}, "
-                f"{r.torque_per_kg_ci[1]:.2f}]",
+                f"{r.torque_per_kg:.2f} [{r.torque_per_kg_ci[0]:.2f}, {r.torque_per_kg_ci[1]:.2f}]",
                 f"{r.factor:.2f} [{r.factor_ci[0]:.2f}, {r.factor_ci[1]:.2f}]",
                 f"{r.lever_arm_m * 100:.1f} ± {r.lever_arm_sd_m * 100:.1f} cm "
                 f"({e(r.lever_arm_source.split(':')[0])})",

@@ -32,7 +32,8 @@ result always states which (:attr:`TestStrength.lever_arm_source`).
 lever arm's, the tared zero's (``σ_0``, only when the zero is the tare) and half the
 co-contraction correction (below)::
 
-    u_rel = sqrt((σ_F / F̄)² + (σ_0 / F̄)² + (σ_d / d)² + (½ τ_co / τ_ag)²),   τ_ag ∈ τ_ag (1 ± 1.96 u_rel)
+    u_rel = sqrt((σ_F / F̄)² + (σ_0 / F̄)² + (σ_d / d)² + (½ τ_co / τ_ag)²)
+    95 % interval: τ_ag (1 ± 1.96 u_rel)
 
 **Co-contraction.** The antagonist's activation ``a_ant`` is its plateau envelope divided by
 its own MVC amplitude (the largest plateau envelope of that channel over the session's tests);
@@ -96,20 +97,20 @@ Array = NDArray[np.float64]
 
 __all__ = [
     "CHECKS_FAILING",
-    "agonist_mvc",
     "IsometricSettings",
     "IsometricTest",
     "IsometricTrial",
     "LeverArm",
     "ModelTorque",
     "TestStrength",
+    "agonist_mvc",
     "analyse_isometric",
+    "group_strength",
     "lever_arm_from_height",
     "model_isometric_torque",
     "session_mvc",
     "subject_model",
     "target_check",
-    "group_strength",
 ]
 
 #: the checks whose flag makes the test's group ``not determined``
@@ -146,7 +147,8 @@ class IsometricSettings:
     offset_max_n: float = 20.0
     capacity: float | None = None  #: the cell's capacity, N (or N·m); None: not known
     clip_run_s: float = 0.02
-    flat_rms_lsb: float = 3.0  #: a channel whose high-passed RMS is below this many ADC steps is dead
+    #: a channel whose high-passed RMS is below this many ADC steps is dead
+    flat_rms_lsb: float = 3.0
     highpass_hz: float = 20.0
     lowpass_hz: float = 6.0
 
@@ -290,8 +292,8 @@ def analyse_isometric(
     y = rec.torque if is_torque else rec.force
     assert y is not None
     n = y.shape[0]
-    nb = max(int(round(st.baseline_window_s * rate)), 2)
-    nw = max(int(round(st.plateau_window_s * rate)), 1)
+    nb = max(round(st.baseline_window_s * rate), 2)
+    nw = max(round(st.plateau_window_s * rate), 1)
     if n < nb + 2:
         raise MissingDataError(
             f"{rec.source}: test {test.name!r} has {n} samples: shorter than the baseline "
@@ -315,14 +317,22 @@ def analyse_isometric(
     emg_base: dict[str, float] = {}
     emg_flat: dict[str, bool] = {}
     if labels:
-        env = linear_envelope(rec.emg, rate_hz=rate, highpass_hz=st.highpass_hz,
-                              lowpass_hz=st.lowpass_hz)  # fmt: skip
+        env = linear_envelope(
+            rec.emg, rate_hz=rate, highpass_hz=st.highpass_hz, lowpass_hz=st.lowpass_hz
+        )
         # an MVC trial is contracted throughout: no envelope-modulation criterion (a sustained
         # contraction is not modulated); dead = RMS within a few quantisation steps or far
         # below the other channels'
-        q = channel_quality(rec.emg, rate_hz=rate, labels=labels, highpass_hz=st.highpass_hz,
-                            lowpass_hz=st.lowpass_hz, flat_modulation=0.0,
-                            flat_rms_lsb=st.flat_rms_lsb, flat_rel_rms=0.0)  # fmt: skip
+        q = channel_quality(
+            rec.emg,
+            rate_hz=rate,
+            labels=labels,
+            highpass_hz=st.highpass_hz,
+            lowpass_hz=st.lowpass_hz,
+            flat_modulation=0.0,
+            flat_rms_lsb=st.flat_rms_lsb,
+            flat_rel_rms=0.0,
+        )
         for j, lab in enumerate(labels):
             emg_plateau[lab] = float(env[i0 : i0 + nw_eff, j].mean())
             emg_base[lab] = float(env[:nb, j].mean())
@@ -336,15 +346,29 @@ def analyse_isometric(
                     if raw_sd > 3.0 * q.rms[j]
                     else ""
                 )
-                flags.append(_flag(test.name, f"emg_flat_{role}", float(q.rms_lsb[j]), st.flat_rms_lsb,
-                                   f"{test.name}: EMG {lab}: flat/dead channel (RMS "
-                                   f"{q.rms[j] * 1e6:.1f} µV = {q.rms_lsb[j]:.1f} quantisation "
-                                   f"steps above the high-pass{low})"))  # fmt: skip
+                flags.append(
+                    _flag(
+                        test.name,
+                        f"emg_flat_{role}",
+                        float(q.rms_lsb[j]),
+                        st.flat_rms_lsb,
+                        f"{test.name}: EMG {lab}: flat/dead channel (RMS "
+                        f"{q.rms[j] * 1e6:.1f} µV = {q.rms_lsb[j]:.1f} quantisation "
+                        f"steps above the high-pass{low})",
+                    )
+                )
             if float(rec.emg[:, j].min()) >= 0.0:
-                flags.append(_flag(test.name, "emg_one_sided", float(rec.emg[:, j].min()), 0.0,
-                                   f"{test.name}: EMG {lab}: no negative sample (offset "
-                                   f"{float(np.median(rec.emg[:, j])) * 1e6:.0f} µV, one-sided "
-                                   "signal): its envelope is a relative amplitude"))  # fmt: skip
+                flags.append(
+                    _flag(
+                        test.name,
+                        "emg_one_sided",
+                        float(rec.emg[:, j].min()),
+                        0.0,
+                        f"{test.name}: EMG {lab}: no negative sample (offset "
+                        f"{float(np.median(rec.emg[:, j])) * 1e6:.0f} µV, one-sided "
+                        "signal): its envelope is a relative amplitude",
+                    )
+                )
     elif test.target:
         raise MissingDataError(
             f"{rec.source}: test {test.name!r}: target EMG channel {test.target!r} not read"
@@ -355,24 +379,35 @@ def analyse_isometric(
     if t and t in emg_plateau and not emg_flat[t]:
         p = emg_plateau[t]
         if p > 0 and emg_base[t] > st.rest_fraction * p:
-            rest_flags.append(_flag(test.name, "effort_before_baseline", emg_base[t] / p,
-                                    st.rest_fraction,
-                                    f"{test.name}: EMG {t}: {100 * emg_base[t] / p:.0f} % of its "
-                                    "plateau already in the pre-effort window: the effort was "
-                                    "under way"))  # fmt: skip
+            rest_flags.append(
+                _flag(
+                    test.name,
+                    "effort_before_baseline",
+                    emg_base[t] / p,
+                    st.rest_fraction,
+                    f"{test.name}: EMG {t}: {100 * emg_base[t] / p:.0f} % of its "
+                    "plateau already in the pre-effort window: the effort was "
+                    "under way",
+                )
+            )
     level = float(np.mean(after_raw[k : k + nw_eff])) - test.sign * b_mean
     if level > 0.0 and abs(drift) > st.drift_fraction * level:
-        rest_flags.append(_flag(test.name, "baseline_drift", drift, st.drift_fraction * level,
-                                f"{test.name}: {col}: the force changes by {drift:.1f} {unit} "
-                                f"within the {st.baseline_window_s:g}-s pre-effort window "
-                                f"(> {100 * st.drift_fraction:.0f} % of the effort above it)"))  # fmt: skip
+        rest_flags.append(
+            _flag(
+                test.name,
+                "baseline_drift",
+                drift,
+                st.drift_fraction * level,
+                f"{test.name}: {col}: the force changes by {drift:.1f} {unit} "
+                f"within the {st.baseline_window_s:g}-s pre-effort window "
+                f"(> {100 * st.drift_fraction:.0f} % of the effort above it)",
+            )
+        )
     at_rest = not rest_flags
     if st.baseline == "tared" or (st.baseline == "auto" and not at_rest):
         f0, f0_sd = 0.0, st.zero_sd
         why = "the pre-effort window is not a rest" if not at_rest else "configured"
-        source = (
-            f"the cell's tared zero (0 {unit} in the file, ± {st.zero_sd:g} {unit}): {why}"
-        )
+        source = f"the cell's tared zero (0 {unit} in the file, ± {st.zero_sd:g} {unit}): {why}"
         for f in rest_flags:  # they chose the zero; informational
             flags.append(dataclasses.replace(f, quantity=f.quantity + "_info"))
     else:
@@ -380,50 +415,98 @@ def analyse_isometric(
         source = f"mean of the first {st.baseline_window_s:g} s (pre-effort window)"
         flags.extend(rest_flags)
         if not is_torque and at_rest and abs(f0) > st.offset_max_n:
-            flags.append(_flag(test.name, "baseline_offset", f0, st.offset_max_n,
-                               f"{test.name}: {col}: the load cell reads {f0:.1f} N "
-                               f"({f0 / 9.80665:.1f} kgf) at rest before the effort; removed as "
-                               "the baseline"))  # fmt: skip
+            flags.append(
+                _flag(
+                    test.name,
+                    "baseline_offset",
+                    f0,
+                    st.offset_max_n,
+                    f"{test.name}: {col}: the load cell reads {f0:.1f} N "
+                    f"({f0 / 9.80665:.1f} kgf) at rest before the effort; removed as "
+                    "the baseline",
+                )
+            )
     eff = test.sign * (y - f0)
     after = eff[nb:]
     win = after[k : k + nw_eff]
     mean, sd = float(win.mean()), float(win.std())
     start_s = float(rec.time[i0] - rec.time[0])
     if nw_eff < nw:
-        flags.append(_flag(test.name, "plateau_short", after.shape[0] / rate, st.plateau_window_s,
-                           f"{test.name}: {col}: {after.shape[0] / rate:.2f} s after the baseline "
-                           f"window, shorter than the {st.plateau_window_s:g}-s plateau window"))  # fmt: skip
+        flags.append(
+            _flag(
+                test.name,
+                "plateau_short",
+                after.shape[0] / rate,
+                st.plateau_window_s,
+                f"{test.name}: {col}: {after.shape[0] / rate:.2f} s after the baseline "
+                f"window, shorter than the {st.plateau_window_s:g}-s plateau window",
+            )
+        )
     if mean <= 0.0:
-        flags.append(_flag(test.name, "no_effort", mean, 0.0,
-                           f"{test.name}: {col}: no effort above the baseline "
-                           f"(best window {mean:.1f} {unit})"))  # fmt: skip
+        flags.append(
+            _flag(
+                test.name,
+                "no_effort",
+                mean,
+                0.0,
+                f"{test.name}: {col}: no effort above the baseline (best window {mean:.1f} {unit})",
+            )
+        )
     mm_opp = _moving_mean(-after, nw_eff)
     if mean > 0.0 and float(mm_opp.max()) > mean:
-        flags.append(_flag(test.name, "wrong_direction", float(mm_opp.max()), mean,
-                           f"{test.name}: {col}: the largest sustained excursion "
-                           f"({float(mm_opp.max()):.1f} {unit}) is opposite to the test's "
-                           f"direction ({mean:.1f} {unit}): check the cell's sign"))  # fmt: skip
+        flags.append(
+            _flag(
+                test.name,
+                "wrong_direction",
+                float(mm_opp.max()),
+                mean,
+                f"{test.name}: {col}: the largest sustained excursion "
+                f"({float(mm_opp.max()):.1f} {unit}) is opposite to the test's "
+                f"direction ({mean:.1f} {unit}): check the cell's sign",
+            )
+        )
     held = 0.0
     if mean > 0.0:
-        ns = max(int(round(0.1 * rate)), 1)
+        ns = max(round(0.1 * rate), 1)
         sm = _moving_mean(after, min(ns, after.shape[0]))
         held = _longest_run(sm >= st.plateau_fraction * mean) / rate
         if held < st.plateau_window_s and nw_eff == nw:
-            flags.append(_flag(test.name, "plateau_short", held, st.plateau_window_s,
-                               f"{test.name}: {col}: the effort held ≥ "
-                               f"{100 * st.plateau_fraction:.0f} % of its best "
-                               f"{st.plateau_window_s:g}-s mean for {held:.2f} s only"))  # fmt: skip
+            flags.append(
+                _flag(
+                    test.name,
+                    "plateau_short",
+                    held,
+                    st.plateau_window_s,
+                    f"{test.name}: {col}: the effort held ≥ "
+                    f"{100 * st.plateau_fraction:.0f} % of its best "
+                    f"{st.plateau_window_s:g}-s mean for {held:.2f} s only",
+                )
+            )
     top = float(y.max()) if test.sign > 0 else float(y.min())
     if st.capacity is not None and abs(top) >= 0.995 * st.capacity:
-        flags.append(_flag(test.name, "saturated", abs(top), st.capacity,
-                           f"{test.name}: {col}: reaches {abs(top):.1f} {unit}, the cell's "
-                           f"capacity ({st.capacity:g} {unit})"))  # fmt: skip
+        flags.append(
+            _flag(
+                test.name,
+                "saturated",
+                abs(top),
+                st.capacity,
+                f"{test.name}: {col}: reaches {abs(top):.1f} {unit}, the cell's "
+                f"capacity ({st.capacity:g} {unit})",
+            )
+        )
     else:
         run = _longest_run(y == top) / rate
         if run >= st.clip_run_s:
-            flags.append(_flag(test.name, "saturated", run, st.clip_run_s,
-                               f"{test.name}: {col}: stays on its extreme value {top:.2f} "
-                               f"{unit} for {run * 1000:.0f} ms: clipped"))  # fmt: skip
+            flags.append(
+                _flag(
+                    test.name,
+                    "saturated",
+                    run,
+                    st.clip_run_s,
+                    f"{test.name}: {col}: stays on its extreme value {top:.2f} "
+                    f"{unit} for {run * 1000:.0f} ms: clipped",
+                )
+            )
     return IsometricTrial(
         test=test.name,
         is_torque=is_torque,
@@ -483,10 +566,15 @@ def target_check(
     top = max(rel, key=lambda lab: rel[lab])
     if top == t or rel[top] <= rel[t]:
         return None
-    return _flag(test.name, "target_not_most_active", rel[t], rel[top],
-                 f"{test.name}: EMG {t} (the target) at {100 * rel[t]:.0f} % of its session "
-                 f"maximum, {top} at {100 * rel[top]:.0f} % of its own: the target is not the "
-                 "most active channel")  # fmt: skip
+    return _flag(
+        test.name,
+        "target_not_most_active",
+        rel[t],
+        rel[top],
+        f"{test.name}: EMG {t} (the target) at {100 * rel[t]:.0f} % of its session "
+        f"maximum, {top} at {100 * rel[top]:.0f} % of its own: the target is not the "
+        "most active channel",
+    )
 
 
 # de Leva (1996) Table 4 lengths (mm) and reference statures (mm) by sex
@@ -533,8 +621,9 @@ def lever_arm_from_height(
         )
     else:
         d = foot_fraction * length
-        sd = math.hypot(foot_fraction * ratio_rel_sd * length, foot_fraction_sd * length,
-                        foot_fraction * sex_sd)  # fmt: skip
+        sd = math.hypot(
+            foot_fraction * ratio_rel_sd * length, foot_fraction_sd * length, foot_fraction * sex_sd
+        )
         src = (
             f"anthropometric: {foot_fraction:.2f} ± {foot_fraction_sd:.2f} × foot length "
             f"{length:.3f} m (heel to toe tip, de Leva (1996) Table 4 ratio × height "
@@ -555,9 +644,7 @@ def subject_model(model: Any, *, height_m: float, mass_kg: float) -> Any:
     return apply_scale_factors(model, factors, body_mass=float(mass_kg))
 
 
-def model_isometric_torque(
-    model: Any, test: IsometricTest, *, side: str
-) -> ModelTorque:
+def model_isometric_torque(model: Any, test: IsometricTest, *, side: str) -> ModelTorque:
     """The model's maximal isometric agonist and antagonist torques at the test's posture
     (module docstring), over ``angle_deg ± angle_range_deg``."""
     from msk.muscles.geometry import muscle_geometry, muscle_parameters
@@ -565,7 +652,9 @@ def model_isometric_torque(
     from msk.strength.joint_strength import ACTIONS
 
     if test.action not in ACTIONS:
-        raise ModelError(f"test {test.name!r}: unknown action {test.action!r}; have {sorted(ACTIONS)}")
+        raise ModelError(
+            f"test {test.name!r}: unknown action {test.action!r}; have {sorted(ACTIONS)}"
+        )
     spec = ACTIONS[test.action]
     sfx = "_r" if side.lower() in ("right", "r") else "_l"
     base = np.asarray(model.default_coordinates(), dtype=float).copy()
@@ -577,8 +666,13 @@ def model_isometric_torque(
         base[model.coordinate_index(stem + sfx)] = math.radians(deg)
         posture[stem + sfx] = float(deg)
     k = model.coordinate_index(spec.coordinate + sfx)
-    angles = np.array([test.angle_deg - test.angle_range_deg, test.angle_deg,
-                       test.angle_deg + test.angle_range_deg])  # fmt: skip
+    angles = np.array(
+        [
+            test.angle_deg - test.angle_range_deg,
+            test.angle_deg,
+            test.angle_deg + test.angle_range_deg,
+        ]
+    )
     q = np.tile(base, (3, 1))
     q[:, k] = np.deg2rad(spec.coordinate_sign * angles)
     posture[spec.coordinate + sfx] = float(spec.coordinate_sign * test.angle_deg)
@@ -634,9 +728,16 @@ def group_strength(
                 f"antagonist {a} at {100 * act:.0f} % of its own MVC test's plateau (cross-talk "
                 "or a submaximal MVC test): no co-contraction correction"
             )
-            flags.append(_flag(test.name, "cocontraction_above_mvc", act, 1.0,
-                               f"{test.name}: EMG {a} (antagonist) at {100 * act:.0f} % of its "
-                               "own MVC test: co-contraction not corrected"))  # fmt: skip
+            flags.append(
+                _flag(
+                    test.name,
+                    "cocontraction_above_mvc",
+                    act,
+                    1.0,
+                    f"{test.name}: EMG {a} (antagonist) at {100 * act:.0f} % of its "
+                    "own MVC test: co-contraction not corrected",
+                )
+            )
         else:
             co = act * model.antagonist_nm
             note = (
