@@ -225,6 +225,99 @@ def test_reader_csv_gzip_tab_and_bad_cells(tmp_path: Path) -> None:
         read_dynamometer(tmp_path / "none.csv", force_column="F")
 
 
+MODEL = Path(__file__).resolve().parents[1] / "models" / "gait2392.toml"
+
+
+def _write_csv(path: Path, rec: DynamometerRecording) -> None:
+    assert rec.force is not None
+    lines = ["time_s\tforce_kgf\t" + "\t".join(f"emg_{c}_uV" for c in LABELS)]
+    for i in range(rec.n_samples):
+        emg = "\t".join(f"{v * 1e6:.4f}" for v in rec.emg[i])
+        lines.append(f"{rec.time[i]:.4f}\t{rec.force[i] / G_STANDARD:.6f}\t{emg}")
+    path.write_bytes(gzip.compress(("\n".join(lines) + "\n").encode()))
+
+
+def _config(tmp: Path, files: dict[str, Path], extra: str = "") -> Path:
+    tests = {
+        "knee_extension": ("knee extension", 90.0, "VL", "BF", "shank"),
+        "knee_flexion": ("knee flexion", 90.0, "BF", "VL", "shank"),
+    }
+    text = f"""kind = "dynamometry"
+[subject]
+name = "synthetic"
+mass_kg = 70.0
+height_m = 1.70
+[model]
+source = "{MODEL.as_posix()}"
+[dynamometer]
+force_column = "force_kgf"
+force_unit = "kgf"
+emg_unit = "uV"
+{extra}
+[dynamometer.emg]
+VL = "emg_VL_uV"
+BF = "emg_BF_uV"
+TA = "emg_TA_uV"
+GL = "emg_GL_uV"
+"""
+    for name, (action, angle, target, ant, seg) in tests.items():
+        text += f"""
+[[tests]]
+name = "{name}"
+file = "{files[name].name}"
+action = "{action}"
+angle_deg = {angle}
+posture_deg = {{ hip_flexion = 90.0 }}
+target = "{target}"
+antagonist = "{ant}"
+segment = "{seg}"
+lever_arm_m = 0.35
+lever_arm_sd_m = 0.005
+"""
+    p = tmp / "session.toml"
+    p.write_text(text)
+    return p
+
+
+def test_msk_run_recovers_a_synthetic_session(tmp_path: Path) -> None:
+    from msk.cli import main
+
+    files = {"knee_extension": tmp_path / "ext.tsv.gz", "knee_flexion": tmp_path / "flex.tsv.gz"}
+    _write_csv(files["knee_extension"], _trial(torque_nm=100.0, offset_n=50.0, seed=1))
+    flex = _trial(torque_nm=40.0, offset_n=10.0, seed=2, amps=(10e-6, 200e-6, 20e-6, 20e-6))
+    _write_csv(files["knee_flexion"], flex)
+    cfg = _config(tmp_path, files)
+    assert main(["run", str(cfg), "--out", str(tmp_path / "out"), "--quiet"]) == 0
+    s = json.loads((tmp_path / "out" / "summary.json").read_text())
+    by = {t["test"]: t for t in s["tests"]}
+    ext, fl = by["knee_extension"], by["knee_flexion"]
+    assert ext["measured_net_nm"] == pytest.approx(100.0, rel=0.02)
+    assert fl["measured_net_nm"] == pytest.approx(40.0, rel=0.02)
+    assert ext["status"] == "identified", ext["reason"]
+    assert ext["lever_arm_source"].startswith("given")
+    assert 50.0 < ext["model_nm"] < 300.0
+    assert ext["factor"] == pytest.approx(ext["torque_nm"] / ext["model_nm"])
+    # the antagonist BF at ~15 % of its own test's plateau: a co-contraction correction
+    assert 0.0 < ext["cocontraction_nm"] < 0.3 * 100.0
+    report = (tmp_path / "out" / "report.html").read_text()
+    assert "knee_extension" in report and "N·m/kg" in report
+    # same folder again: replaced
+    assert main(["run", str(cfg), "--out", str(tmp_path / "out"), "--quiet"]) == 0
+
+
+def test_config_errors_name_the_key(tmp_path: Path) -> None:
+    from msk.pipeline.dynamometry import load_dynamometry_config
+
+    files = {"knee_extension": tmp_path / "a.csv", "knee_flexion": tmp_path / "b.csv"}
+    cfg = _config(tmp_path, files, extra="baseline = 'sometimes'\n")
+    with pytest.raises(MskError, match=r"dynamometer.baseline = 'sometimes'"):
+        load_dynamometry_config(cfg)
+    text = _config(tmp_path, files).read_text().replace('target = "VL"', 'target = "XX"')
+    (tmp_path / "session.toml").write_text(text)
+    with pytest.raises(MskError, match=r"tests\[0\].target = 'XX'"):
+        load_dynamometry_config(tmp_path / "session.toml")
+
+
 REAL = Path(__file__).resolve().parents[1] / "pipelines" / "dynamometry_elderly"
 
 
@@ -242,9 +335,10 @@ def test_the_twenty_subjects_run_with_sane_figures(tmp_path: Path) -> None:
         pytest.skip("dynamometry-elderly data absent")
     knee_ext = []
     passed = 0
+    assert main(["batch", *map(str, configs), "--out", str(tmp_path)]) == 0
+    assert (tmp_path / "strength_cohort.csv").read_text().count("\n") == 1 + 4 * len(configs)
     for c in configs:
         out = tmp_path / c.stem
-        assert main(["run", str(c), "--out", str(out), "--quiet"]) == 0
         s = json.loads((out / "summary.json").read_text())
         assert s["n_tests"] == 4
         passed += s["n_identified"]

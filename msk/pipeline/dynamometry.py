@@ -34,7 +34,7 @@ import shutil
 import tempfile
 import time
 import tomllib
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -65,6 +65,8 @@ __all__ = [
     "is_dynamometry_config",
     "load_dynamometry_config",
     "run_dynamometry",
+    "strength_rows",
+    "write_strength_csv",
 ]
 
 KIND = "dynamometry"
@@ -352,6 +354,22 @@ def _lever(cfg: DynamometryConfig, tc: TestConfig) -> LeverArm:
     return lever_arm_from_height(tc.test.segment, s["height_m"], sex=s["sex"])
 
 
+def strength_rows(subject: str, results: Sequence[TestStrength]) -> list[dict[str, Any]]:
+    """The rows of ``tables/strength.csv`` (:data:`STRENGTH_COLUMNS`) of one subject."""
+    return [_row(subject, r) for r in results]
+
+
+def write_strength_csv(path: str | Path, rows: Sequence[Mapping[str, Any]]) -> Path:
+    """A strength table (:data:`STRENGTH_COLUMNS`, one row per subject and test)."""
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    with open(path, "w", newline="", encoding="utf-8") as fh:
+        w = csv.DictWriter(fh, fieldnames=STRENGTH_COLUMNS, lineterminator="\n")
+        w.writeheader()
+        w.writerows({k: r.get(k, "") for k in STRENGTH_COLUMNS} for r in rows)
+    return path
+
+
 def _row(subject: str, r: TestStrength) -> dict[str, Any]:
     return {
         "subject": subject,
@@ -465,15 +483,12 @@ def run_dynamometry(
         "flags": flags,
         "run_seconds": time.perf_counter() - t0,
     }
-    rows = [_row(s["name"], r) for r in results]
+    rows = strength_rows(s["name"], results)
     out.parent.mkdir(parents=True, exist_ok=True)
     tmp = Path(tempfile.mkdtemp(prefix=f".{out.name}.", dir=out.parent))
     try:
         (tmp / "tables").mkdir()
-        with open(tmp / "tables" / "strength.csv", "w", newline="", encoding="utf-8") as fh:
-            w = csv.DictWriter(fh, fieldnames=STRENGTH_COLUMNS)
-            w.writeheader()
-            w.writerows(rows)
+        write_strength_csv(tmp / "tables" / "strength.csv", rows)
         (tmp / "summary.json").write_text(
             json.dumps(summary, indent=1, default=str) + "\n", encoding="utf-8"
         )
