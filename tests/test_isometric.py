@@ -353,3 +353,23 @@ def test_the_twenty_subjects_run_with_sane_figures(tmp_path: Path) -> None:
     assert len(knee_ext) >= 8
     assert 30.0 < float(np.median(knee_ext)) < 200.0
     assert all(10.0 < x < 250.0 for x in knee_ext)
+
+
+def test_model_torque_matches_the_joint_strength_curves() -> None:
+    from msk.model_files import load_model
+    from msk.strength.isometric import model_isometric_torque, subject_model
+    from msk.strength.joint_strength import max_isometric_moment_curves
+
+    gen = load_model(MODEL)
+    small = subject_model(gen, height_m=1.60, mass_kg=60.0)
+    # the posture of joint_strength's knee curves: hip 0, ankle 0, knee swept
+    test = IsometricTest(name="k", action="knee extension", angle_deg=60.0, angle_range_deg=5.0)
+    mt = model_isometric_torque(small, test, side="right")
+    curve = max_isometric_moment_curves(
+        small, side="right", joints=["knee extension"], angles_deg={"knee extension": [55, 60, 65]}
+    )["knee extension"]
+    assert mt.agonist_nm[1] == pytest.approx(curve.moment_nm[1], rel=1e-9)
+    assert mt.antagonist_nm > 0.0
+    # the same test on the generic (1.80 m) model: longer moment arms, more torque
+    big = model_isometric_torque(gen, test, side="right")
+    assert big.agonist_nm[1] > mt.agonist_nm[1]

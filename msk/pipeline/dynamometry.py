@@ -442,11 +442,24 @@ def run_dynamometry(
     own = agonist_mvc(trials, tests)
     results = []
     records = []
-    for tc, tr in zip(cfg.tests, trials):
-        mt = model_isometric_torque(model, tc.test, side=s["side"])
-        lever = None if tr.is_torque else _lever(cfg, tc)
+    models = [model_isometric_torque(model, tc.test, side=s["side"]) for tc in cfg.tests]
+    levers = [None if tr.is_torque else _lever(cfg, tc) for tc, tr in zip(cfg.tests, trials)]
+    # the subject's own net torque per target channel: the antagonists' maximal torque
+    own_torque: dict[str, tuple[str, float]] = {}
+    for tc, tr, lv in zip(cfg.tests, trials, levers):
+        net = tr.plateau_mean * (lv.value_m if lv is not None else 1.0)
+        if tc.test.target and net > own_torque.get(tc.test.target, ("", 0.0))[1]:
+            own_torque[tc.test.target] = (tc.test.name, net)
+    for tc, tr, mt, lever in zip(cfg.tests, trials, models, levers):
         r = group_strength(
-            tr, tc.test, lever=lever, model=mt, mass_kg=s["mass_kg"], mvc=mvc, own_mvc=own
+            tr,
+            tc.test,
+            lever=lever,
+            model=mt,
+            mass_kg=s["mass_kg"],
+            mvc=mvc,
+            own_mvc=own,
+            own_torque_nm=own_torque,
         )
         results.append(r)
         rec_d = r.as_dict()

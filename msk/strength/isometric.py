@@ -37,8 +37,10 @@ co-contraction correction (below)::
 
 **Co-contraction.** The antagonist's activation ``a_ant`` is its plateau envelope divided by
 its own MVC amplitude (the largest plateau envelope of that channel over the session's tests);
-the antagonists' torque at the posture is ``τ_co = a_ant · τ_ant,model`` and the agonists
-produced ``τ_ag = τ_meas + τ_co`` (the net torque the cell measures is agonists minus
+the antagonists' torque at the posture is ``τ_co = a_ant · τ_ant,max`` and the agonists
+produced ``τ_ag = τ_meas + τ_co``. ``τ_ant,max`` is the subject's own measured net torque in
+the antagonist's test when the session has one (same posture in the usual protocols), else
+the scaled model's antagonist torque (below); the result says which (the net torque the cell measures is agonists minus
 antagonists). Without a usable antagonist channel ``τ_co = 0``, stated.
 
 **Model torque.** For the generic model scaled to the subject (gait2392, every body by
@@ -696,12 +698,15 @@ def group_strength(
     mass_kg: float,
     mvc: Mapping[str, float],
     own_mvc: Mapping[str, float] | None = None,
+    own_torque_nm: Mapping[str, tuple[str, float]] | None = None,
 ) -> TestStrength:
     """The targeted group's strength from an analysed trial (module docstring): torque,
     per kg, 95 % interval, factor vs the model, status and reason. ``lever`` None for a torque
     export; ``mvc`` each channel's session maximum (:func:`session_mvc`, the target check);
     ``own_mvc`` each channel's plateau in the test that targets it (:func:`agonist_mvc`, the
-    antagonist's activation; absent: ``mvc``)."""
+    antagonist's activation; absent: ``mvc``); ``own_torque_nm`` channel → (test, the
+    subject's measured net torque in the test that targets it): the antagonists' maximal
+    torque of the co-contraction correction (absent: the scaled model's)."""
     flags = list(trial.flags)
     tc = target_check(trial, test, mvc)
     if tc is not None:
@@ -738,10 +743,17 @@ def group_strength(
                     "own MVC test: co-contraction not corrected",
                 )
             )
+        elif own_torque_nm is not None and own_torque_nm.get(a, ("", 0.0))[1] > 0.0:
+            name, ant = own_torque_nm[a]
+            co = act * ant
+            note = (
+                f"{a} at {100 * act:.0f} % of its own MVC test's plateau × the subject's "
+                f"measured {name} torque {ant:.1f} N·m"
+            )
         else:
             co = act * model.antagonist_nm
             note = (
-                f"{a} at {100 * act:.0f} % of its own MVC test's plateau × the model's "
+                f"{a} at {100 * act:.0f} % of its own MVC test's plateau × the scaled model's "
                 f"antagonist torque {model.antagonist_nm:.1f} N·m"
             )
     tau = net + co
