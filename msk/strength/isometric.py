@@ -40,8 +40,9 @@ its own MVC amplitude (the largest plateau envelope of that channel over the ses
 the antagonists' torque at the posture is ``τ_co = a_ant · τ_ant,max`` and the agonists
 produced ``τ_ag = τ_meas + τ_co``. ``τ_ant,max`` is the subject's own measured net torque in
 the antagonist's test when the session has one (same posture in the usual protocols), else
-the scaled model's antagonist torque (below); the result says which (the net torque the cell measures is agonists minus
-antagonists). Without a usable antagonist channel ``τ_co = 0``, stated.
+the scaled model's antagonist torque (below); the result says which. (The net torque the
+cell measures is agonists minus antagonists.) Without a usable antagonist channel
+``τ_co = 0``, stated.
 
 **Model torque.** For the generic model scaled to the subject (gait2392, every body by
 ``H / H_model``, masses by the body mass, F_iso unchanged as OpenSim's scale tool leaves it),
