@@ -373,3 +373,32 @@ def test_model_torque_matches_the_joint_strength_curves() -> None:
     # the same test on the generic (1.80 m) model: longer moment arms, more torque
     big = model_isometric_torque(gen, test, side="right")
     assert big.agonist_nm[1] > mt.agonist_nm[1]
+
+
+def test_interval_covers_the_true_torque_when_the_lever_arm_is_uncertain() -> None:
+    """True lever arms drawn from N(0.35, 0.02²) m; the analysis is told 0.35 ± 0.02 m."""
+    rng = np.random.default_rng(42)
+    hits = 0
+    n = 100
+    for seed in range(n):
+        d_true = 0.35 + 0.02 * rng.standard_normal()
+        force_n = 100.0 / 0.35
+        rec = _trial(torque_nm=force_n * d_true, lever_m=d_true, seed=seed, hold_s=1.5)
+        tr = analyse_isometric(rec, KNEE)
+        r = group_strength(tr, KNEE, lever=LeverArm(0.35, 0.02, "given"), model=_model(),
+                           mass_kg=75.0, mvc=session_mvc([tr]), own_mvc={})  # fmt: skip
+        true = force_n * d_true
+        hits += r.torque_ci_nm[0] <= true <= r.torque_ci_nm[1]
+    assert hits / n >= 0.9
+
+
+def test_a_torque_export_needs_no_lever_arm() -> None:
+    rec = _trial(torque_nm=80.0, lever_m=1.0, offset_n=3.0, noise_n=0.5)
+    tq = DynamometerRecording(rec.source, rec.time, None, rec.force, rec.emg, LABELS, RATE, "T")
+    tr = analyse_isometric(tq, KNEE)
+    assert tr.is_torque
+    r = group_strength(tr, KNEE, lever=None, model=_model(), mass_kg=80.0, mvc=session_mvc([tr]),
+                       own_mvc={})  # fmt: skip
+    assert r.measured_net_nm == pytest.approx(80.0, rel=0.01)
+    assert r.lever_arm_source.startswith("not used")
+    assert r.torque_per_kg == pytest.approx(r.torque_nm / 80.0)
