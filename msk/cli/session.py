@@ -39,7 +39,15 @@ def _run(args: argparse.Namespace) -> int:
 
 def _run_sessions(args: argparse.Namespace) -> int:
     from msk.pipeline import run_task_trials
+    from msk.pipeline.dynamometry import is_dynamometry_config, run_dynamometry
 
+    if is_dynamometry_config(args.config):
+        dyn = run_dynamometry(args.config, args.out, progress=None if args.quiet else sys.stderr)
+        for f in dyn.summary["flags"]:
+            if not args.quiet:
+                sys.stderr.write(f"{dyn.out_dir}: flag: {f['message']}\n")
+        failed = [r for r in dyn.strengths if r.status != "identified"]
+        return 3 if args.strict and failed else 0
     raised = 0
     for res in run_task_trials(
         args.config,

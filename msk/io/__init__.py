@@ -1,10 +1,12 @@
 """Input/output: C3D trials (via ezc3d), OpenSim ``.trc/.mot/.sto`` files, CSV result tables;
-:func:`read_trial` reads a trial file by its suffix.
+:func:`read_trial` reads a trial file by its suffix; :func:`read_dynamometer` a dynamometer
+export (CSV, tab-separated, gzip).
 
 Everything returned is SI (m, s, rad, N, N·m, kg) with time on axis 0.
 """
 
 from msk.io.c3d import PlateSpec, is_measured_marker, read_c3d, write_c3d
+from msk.io.dynamometer import DynamometerRecording, read_dynamometer
 from msk.io.frames import (
     lab_to_model_rotation,
     rotate_plate,
@@ -35,6 +37,7 @@ from msk.io.tables import Table, read_csv_table, write_csv_table
 from msk.trial import Event, ForcePlate, GapReport, ModelOutputs, Subject, Trial
 
 __all__ = [
+    "DynamometerRecording",
     "Event",
     "ExternalForceSpec",
     "ExternalLoadsSpec",
@@ -54,6 +57,7 @@ __all__ = [
     "lab_to_model_rotation",
     "read_c3d",
     "read_csv_table",
+    "read_dynamometer",
     "read_external_loads_xml",
     "read_mot",
     "read_sto",

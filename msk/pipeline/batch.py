@@ -13,7 +13,9 @@ A failing session never stops the others: its error is kept as one line (type an
 others complete and are written, and :attr:`BatchResult.failed` lists it. The cohort table
 ``out/cohort.csv`` has one row per session with its key quality figures (:data:`COHORT_COLUMNS`);
 its strength columns count the groups per :mod:`msk.status` word and list each group's word
-(``strength_group_status``: ``group: status; …``).
+(``strength_group_status``: ``group: status; …``). Dynamometry sessions
+(:mod:`msk.pipeline.dynamometry`) also give ``out/strength_cohort.csv``: one row per subject
+and test (torque, N·m/kg, interval, factor, status, reason).
 
 ``compare_sessions(folders)`` builds the table of generic vs identified differences across
 session folders (``msk compare``), with the metrics of :mod:`msk.metrics`.
@@ -155,11 +157,43 @@ def _row(
     return row
 
 
+def _run_dynamometry(config: str, out_dir: str) -> SessionOutcome:
+    """A ``kind = "dynamometry"`` session (:mod:`msk.pipeline.dynamometry`): its cohort row
+    counts the tests per status word; ``row["strength_rows"]`` holds its strength table rows
+    (``strength_cohort.csv``)."""
+    from msk.pipeline.dynamometry import run_dynamometry, strength_rows
+
+    t0 = _time.perf_counter()
+    try:
+        res = run_dynamometry(config, out_dir)
+    except MskError as exc:
+        dt = _time.perf_counter() - t0
+        msg = _one_line(exc)
+        return SessionOutcome(
+            config, out_dir, False, dt, msg, _row(config, None, "failed", msg, dt)
+        )
+    dt = _time.perf_counter() - t0
+    row = _row(config, None, "ok", "", dt)
+    words = [(r.test, r.status) for r in res.strengths]
+    row.update(
+        session=res.summary["session"],
+        strength_groups_identified=sum(w == "identified" for _, w in words),
+        strength_groups_at_bound=0,
+        strength_groups_not_determined=sum(w == "not determined" for _, w in words),
+        strength_group_status="; ".join(f"{t}: {w}" for t, w in words),
+        strength_rows=strength_rows(res.summary["session"], res.strengths),
+    )
+    return SessionOutcome(config, out_dir, True, dt, "", row)
+
+
 def run_one(config: str, out_dir: str, use_cache: bool = True) -> SessionOutcome:
     """Run one session, never raising: the outcome carries the error as one line."""
     from msk.io.c3d import ISOLATE_ENV
     from msk.pipeline import run_session
+    from msk.pipeline.dynamometry import is_dynamometry_config
 
+    if is_dynamometry_config(config):
+        return _run_dynamometry(config, out_dir)
     t0 = _time.perf_counter()
     # C3D files are read in a child process: a native crash of the reader costs this session
     # (one line), never the worker and with it the pool (BrokenProcessPool)
@@ -327,6 +361,11 @@ def run_batch(
                 client.close()
     outcomes = [done[k] for k in range(len(cfgs))]
     cohort = write_cohort_csv(out / "cohort.csv", [o.row for o in outcomes])
+    per_test = [r for o in outcomes for r in o.row.get("strength_rows", ())]
+    if per_test:
+        from msk.pipeline.dynamometry import write_strength_csv
+
+        write_strength_csv(out / "strength_cohort.csv", per_test)
     return BatchResult(out, tuple(outcomes), cohort, _time.perf_counter() - t0)
 
 
