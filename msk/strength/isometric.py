@@ -637,9 +637,10 @@ def lever_arm_from_height(
 
 def subject_model(model: Any, *, height_m: float, mass_kg: float) -> Any:
     """The generic ``model`` scaled to a subject known by stature and mass: every body by
-    ``height_m / H_model`` (:func:`msk.scaling.model_height`), segment masses to ``mass_kg``,
+    ``height_m / H_model`` (:func:`msk.personalise.scaling.model_height`), segment masses to
+    ``mass_kg``,
     fibre and tendon slack lengths with the paths, F_iso unchanged."""
-    from msk.scaling import apply_scale_factors, model_height
+    from msk.personalise.scaling import apply_scale_factors, model_height
 
     h_model, _ = model_height(model)
     s = float(height_m) / h_model

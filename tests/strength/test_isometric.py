@@ -225,7 +225,7 @@ def test_reader_csv_gzip_tab_and_bad_cells(tmp_path: Path) -> None:
         read_dynamometer(tmp_path / "none.csv", force_column="F")
 
 
-MODEL = Path(__file__).resolve().parents[1] / "models" / "gait2392.toml"
+MODEL = Path(__file__).resolve().parents[2] / "models" / "gait2392.toml"
 
 
 def _write_csv(path: Path, rec: DynamometerRecording) -> None:
@@ -318,7 +318,7 @@ def test_config_errors_name_the_key(tmp_path: Path) -> None:
         load_dynamometry_config(tmp_path / "session.toml")
 
 
-REAL = Path(__file__).resolve().parents[1] / "pipelines" / "dynamometry_elderly"
+REAL = Path(__file__).resolve().parents[2] / "pipelines" / "dynamometry_elderly"
 
 
 @pytest.mark.slow
@@ -356,7 +356,7 @@ def test_the_twenty_subjects_run_with_sane_figures(tmp_path: Path) -> None:
 
 
 def test_model_torque_matches_the_joint_strength_curves() -> None:
-    from msk.model_files import load_model
+    from msk.model.files import load_model
     from msk.strength.isometric import model_isometric_torque, subject_model
     from msk.strength.joint_strength import max_isometric_moment_curves
 
