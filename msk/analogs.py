@@ -17,6 +17,8 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+__all__ = ["StoredAnalogs"]
+
 
 @dataclass(frozen=True, eq=False)
 class StoredAnalogs:

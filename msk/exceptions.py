@@ -6,6 +6,31 @@ value, so that the CLI can print it on one line and exit with status 2.
 
 from __future__ import annotations
 
+__all__ = [
+    "AnthropometryError",
+    "BatchError",
+    "C3DError",
+    "ConfigError",
+    "EmgError",
+    "FileFormatError",
+    "ForcePlateError",
+    "IdentificationError",
+    "InertiaError",
+    "KinematicsError",
+    "MissingDataError",
+    "ModelError",
+    "MskError",
+    "MuscleModelError",
+    "NotAvailableError",
+    "OptimizationError",
+    "ShapeMismatchError",
+    "StaticTrialError",
+    "SummaryError",
+    "SummaryKeyError",
+    "SummaryVersionError",
+    "UnitsError",
+]
+
 
 class MskError(Exception):
     """Base class of every error msk raises on purpose."""

@@ -70,8 +70,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from msk.model.markersets import LANDMARK_BODIES, is_knee_segment, other_side, parse_label
 from msk.signal import true_runs
-
-Array = NDArray[np.float64]
+from msk.units import G0, Array
 
 __all__ = [
     "AT_BOUND_TOLERANCE",
@@ -960,7 +959,7 @@ def gait_flags(
     if rm is not None and np.isfinite(rm):
         # COM height: the model's over the trial, else ≈ 55 % of stature (de Leva 1996)
         com_h = com_height_m if com_height_m else 0.55 * (height_m if height_m else 1.75)
-        f_ext = peak_external_force_n if peak_external_force_n else mass_kg * 9.80665
+        f_ext = peak_external_force_n if peak_external_force_n else mass_kg * G0
         pct = 100.0 * rm / (com_h * f_ext)
         if pct > th["residual_moment_rms_pct_com_height_peak_force"]:
             out.append(

@@ -13,6 +13,19 @@ from numpy.typing import ArrayLike, NDArray
 
 from msk.exceptions import MissingDataError, MskError
 
+__all__ = [
+    "FilterType",
+    "GapMethod",
+    "block_average",
+    "derivative",
+    "fill_gaps",
+    "filtfilt_butter",
+    "find_peaks",
+    "lowpass_filtfilt_numpy",
+    "resample_to",
+    "true_runs",
+]
+
 FilterType = Literal["lowpass", "highpass", "bandpass", "bandstop"]
 GapMethod = Literal["linear", "pchip", "cubic"]
 

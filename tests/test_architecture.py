@@ -21,6 +21,7 @@ TOP_LEVEL = {
     "status.py",
     "timeseries.py",
     "trial.py",
+    "units.py",
 }
 
 
@@ -81,3 +82,24 @@ def test_stages_do_not_import_one_another():
             parts = name.split(".")
             if parts[:2] == ["msk", "pipeline"] and len(parts) > 2:
                 assert parts[2] not in stages - {stage}, f"stage {stage} imports stage {parts[2]}"
+
+
+def test_every_module_declares_its_public_names():
+    missing = [
+        p.relative_to(REPO).as_posix()
+        for p in PACKAGE.rglob("*.py")
+        if p.name != "__main__.py" and "__all__" not in p.read_text(encoding="utf-8")
+    ]
+    assert not missing, f"modules without __all__: {missing}"
+
+
+def test_the_package_face_is_light_and_complete():
+    """``import msk`` loads no numerical library; every name of ``msk.__all__`` resolves."""
+    import subprocess
+    import sys
+
+    code = (
+        "import sys, msk; heavy = [m for m in ('pinocchio', 'scipy', 'casadi') if m in sys.modules]"
+        "; assert not heavy, heavy; [getattr(msk, n) for n in msk.__all__]"
+    )
+    subprocess.run([sys.executable, "-c", code], check=True, cwd=REPO)

@@ -26,6 +26,8 @@ from typing import Any
 
 from msk.exceptions import MskError
 
+__all__ = ["POSE_PRELUDE", "opensim_available", "run_opensim_script"]
+
 _PRELUDE = """
 import json, sys
 ARGS = json.loads(sys.argv[1])

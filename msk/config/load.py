@@ -22,6 +22,8 @@ from msk.config.options import (
 from msk.config.schema import _file_kind, as_table, check_keys, key_of, option_fields, read_options
 from msk.exceptions import ConfigError
 
+__all__ = ["FES_TRIAL_KEYS", "load_config"]
+
 #: Per-trial keys valid only with ``role = "fes"``.
 FES_TRIAL_KEYS = tuple(key_of(f, o) for f, o, _ in option_fields(FesTrialConfig))
 #: a trial name: it becomes a folder name under ``--out``

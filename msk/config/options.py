@@ -14,6 +14,35 @@ from pathlib import Path
 
 from msk.config.schema import Range, opt
 
+__all__ = [
+    "ACCELERATION_DOMAINS",
+    "ACTIVATION_WEIGHTS",
+    "FES_ANGLE_UNITS",
+    "FES_STEPS",
+    "FES_STEPS_NEEDED",
+    "FES_STIM_UNITS",
+    "KNEE_VARIANTS",
+    "MAX_CUTOFF_HZ",
+    "MAX_EMD_S",
+    "MIN_CUTOFF_HZ",
+    "OPTIMIZATION_METHODS",
+    "SECTIONS",
+    "TRIAL_ROLES",
+    "ContactConfig",
+    "EmgConfig",
+    "FesConfig",
+    "FesTrialConfig",
+    "FilterConfig",
+    "LoadsConfig",
+    "MarkersConfig",
+    "ModelConfig",
+    "OptimizationConfig",
+    "Section",
+    "SessionConfig",
+    "Subject",
+    "TrialConfig",
+]
+
 TRIAL_ROLES = ("static", "mass_identification", "mvc", "task", "fes")
 KNEE_VARIANTS = ("spline", "four_bar")
 OPTIMIZATION_METHODS = (

@@ -2,6 +2,8 @@
 the reference of every key, generated from the schema, is :func:`msk.config.config_reference`).
 """
 
+__all__ = ["TEMPLATE"]
+
 TEMPLATE = """\
 # msk session configuration. Paths are relative to this file. Units are SI unless the key says.
 

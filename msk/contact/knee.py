@@ -103,8 +103,7 @@ from msk.exceptions import ModelError, ShapeMismatchError
 from msk.model.core import Model
 from msk.muscles.geometry import GeometryPlan, geometry_plan
 from msk.timeseries import FrameAxis
-
-Array = NDArray[np.float64]
+from msk.units import G0, Array
 
 __all__ = [
     "CONTACT_COLUMNS",
@@ -122,8 +121,6 @@ __all__ = [
     "split_medial_lateral",
 ]
 
-#: standard gravity used to express forces in body weights (BW = m g)
-G0 = 9.80665
 
 #: columns of :attr:`KneeContact.values` (N, plateau frame; ``normal`` positive compressive)
 CONTACT_COLUMNS: tuple[str, ...] = (

@@ -16,13 +16,22 @@ from __future__ import annotations
 
 import numpy as np
 import pinocchio as pin
-from numpy.typing import NDArray
 
 from msk.model.anthropometry import generic_segments
 from msk.model.core import Axis, Body, Coordinate, Joint, Marker, Model
 from msk.model.joints import CoordinateFunction, Linear, Polynomial
+from msk.units import Array
 
-Array = NDArray[np.float64]
+__all__ = [
+    "WHOLE_BODY_SEGMENTS",
+    "free_pelvis",
+    "generic_bodies",
+    "inertia",
+    "leg_model",
+    "subject_bodies",
+    "two_leg_model",
+    "whole_body_model",
+]
 
 
 def _v(x: float, y: float, z: float) -> Array:

@@ -14,12 +14,12 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
-from numpy.typing import NDArray
 
 from msk.dynamics.loads import PlateWrench
 from msk.model.core import Model
+from msk.units import Array
 
-Array = NDArray[np.float64]
+__all__ = ["OPENSIM_IK_ID_SCRIPT", "Subject01", "load_subject01", "subject01_pipeline"]
 
 
 @dataclass(frozen=True)

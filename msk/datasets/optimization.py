@@ -11,20 +11,21 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from numpy.typing import NDArray
 
-FloatArray = NDArray[np.float64]
+from msk.units import Array
+
+__all__ = ["SyntheticFrames", "leg_like_frames"]
 
 
 @dataclass(frozen=True)
 class SyntheticFrames:
     """``jacobians`` ``(N, m, n)`` (``J = −Rᵀ``), ``taus`` ``(N, n)`` = ``R (F_iso a_true)``."""
 
-    jacobians: FloatArray
-    taus: FloatArray
-    f_iso: FloatArray
-    activations_true: FloatArray
-    phase: FloatArray
+    jacobians: Array
+    taus: Array
+    f_iso: Array
+    activations_true: Array
+    phase: Array
 
 
 def leg_like_frames(

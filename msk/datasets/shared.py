@@ -8,6 +8,8 @@ from __future__ import annotations
 import os
 from pathlib import Path
 
+__all__ = ["REPO_ROOT", "real_data_dir", "reference_dir", "shared_dir"]
+
 REPO_ROOT = Path(__file__).resolve().parents[2]
 
 

@@ -34,8 +34,23 @@ from scipy.signal import butter, sosfiltfilt
 from msk.muscles.activation import emg_to_activation
 from msk.muscles.hill import MuscleParameters, RigidTendonState, rigid_tendon_state
 from msk.strength.calibration import CalibrationParameters, CalibrationTrial, emg_driven_forces
+from msk.units import Array
 
-Array = NDArray[np.float64]
+__all__ = [
+    "CALIBRATION_GROUPS",
+    "CALIBRATION_TRUE_FACTORS",
+    "LEG_COORDINATES",
+    "LEG_GROUPS",
+    "LEG_TRUE_FACTORS",
+    "SyntheticLeg",
+    "SyntheticLegTrial",
+    "calibration_trial",
+    "calibration_truth",
+    "concatenate_trials",
+    "gait_trial",
+    "mvc_trials",
+    "synthetic_leg",
+]
 
 #: Coordinates of the synthetic leg.
 LEG_COORDINATES: tuple[str, ...] = ("hip_flexion", "knee_flexion", "ankle_dorsiflexion")

@@ -52,8 +52,7 @@ from scipy.interpolate import make_interp_spline
 from msk.datasets.trials import root_wrench
 from msk.io.c3d import plate_axes
 from msk.model.core import Model, marker_positions
-
-Array = NDArray[np.float64]
+from msk.units import G0, Array
 
 __all__ = [
     "FEET",
@@ -220,7 +219,7 @@ def _sole_end(model: Model, foot: str, stand: pin.SE3, *, toe: bool) -> Array:
     return np.asarray(stand.actInv(end), dtype=float)
 
 
-def com_from_zmp(zmp: Array, dt: float, height_m: float, g: float = 9.81) -> Array:
+def com_from_zmp(zmp: Array, dt: float, height_m: float, g: float = G0) -> Array:
     """The centre of mass path x whose zero-moment point is ``zmp`` (one horizontal axis,
     sampled every ``dt`` s) for a centre of mass at ``height_m`` above the support: the
     cart-table model x − (h/g) ẍ = p (Kajita et al. 2003, Eq. 2), solved as a boundary-value

@@ -54,8 +54,7 @@ from msk.datasets.tasks import (
 )
 from msk.model.core import Model, marker_positions
 from msk.personalise.scaling import apply_scale_factors
-
-Array = NDArray[np.float64]
+from msk.units import Array
 
 __all__ = [
     "SUBJECT_FACTORS",

@@ -30,7 +30,6 @@ from pathlib import Path
 
 import numpy as np
 import pinocchio as pin
-from numpy.typing import NDArray
 
 from msk.datasets.models import two_leg_model
 from msk.dynamics.identification import IdentificationTrial, root_generalized_forces
@@ -38,8 +37,24 @@ from msk.dynamics.loads import PlateWrench
 from msk.io.c3d import plate_axes
 from msk.model.core import Model, marker_positions
 from msk.signal import derivative, filtfilt_butter
+from msk.units import G0, Array
 
-Array = NDArray[np.float64]
+__all__ = [
+    "IDENTIFICATION_RATE_HZ",
+    "UP",
+    "SyntheticTrial",
+    "foot_points",
+    "ground_wrench",
+    "identification_trial",
+    "make_trial",
+    "motion",
+    "plate_corners",
+    "root_wrench",
+    "split_wrench",
+    "whole_body_motion",
+    "write_synthetic_session",
+]
+
 UP = np.array([0.0, 1.0, 0.0])
 #: sampling rate of :func:`identification_trial` (Hz)
 IDENTIFICATION_RATE_HZ = 100.0
@@ -395,7 +410,7 @@ def identification_trial(
     )
     dt = 1.0 / IDENTIFICATION_RATE_HZ
     thd_m, thdd_m = derivative(th_m, dt=dt), derivative(th_m, dt=dt, order=2)
-    weight = truth.total_mass * 9.80665
+    weight = truth.total_mass * G0
     df = rng.normal(scale=plate_noise * weight, size=f.shape)
     plate_centre = np.array([0.4, 0.0, 0.2])
     dm = np.cross(plate_centre, df) + rng.normal(scale=plate_noise * weight * 0.05, size=m.shape)

@@ -89,8 +89,7 @@ from msk.model.core import (
     Model,
     forward_kinematics,
 )
-
-Array = NDArray[np.float64]
+from msk.units import Array
 
 __all__ = [
     "DEFAULT_CV_GRID",

@@ -42,8 +42,21 @@ from numpy.typing import ArrayLike, NDArray
 from msk.exceptions import MissingDataError, ModelError, ShapeMismatchError
 from msk.model.core import GROUND, Model
 from msk.timeseries import FrameAxis
+from msk.units import Array
 
-Array = NDArray[np.float64]
+__all__ = [
+    "ID_BLOCK",
+    "InverseDynamics",
+    "JointReaction",
+    "JointTorques",
+    "Variant",
+    "coordinates_carrying",
+    "inverse_dynamics",
+    "joint_reaction",
+    "muscle_body_wrenches",
+    "without_unmeasured_contact",
+]
+
 Variant = Literal["full", "quasi_static", "geometric"]
 
 

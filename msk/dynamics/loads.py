@@ -62,8 +62,28 @@ from msk.exceptions import ForcePlateError, MissingDataError, ModelError, ShapeM
 from msk.model.core import Model
 from msk.signal import filtfilt_butter, resample_to, true_runs
 from msk.timeseries import FrameAxis
+from msk.units import Array
 
-Array = NDArray[np.float64]
+__all__ = [
+    "ASSIGNMENT_METHOD",
+    "STANDING_S",
+    "AppliedForce",
+    "Assignment",
+    "ContactFlag",
+    "ExternalLoads",
+    "FootContact",
+    "PlateWrench",
+    "SampledPlate",
+    "contact_measured",
+    "external_loads",
+    "external_loads_assignment",
+    "foot_contact",
+    "plates_from_grf_file",
+    "plates_from_table",
+    "plates_from_trial",
+    "rotated_plate",
+    "sample_plate",
+]
 
 
 @dataclass(frozen=True)

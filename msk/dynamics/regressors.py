@@ -31,8 +31,21 @@ from numpy.typing import ArrayLike, NDArray
 
 from msk.exceptions import IdentificationError
 from msk.model.core import INERTIAL_PARAMETER_NAMES, Model
+from msk.units import Array
 
-Array = NDArray[np.float64]
+__all__ = [
+    "BaseParameters",
+    "RegressorLayout",
+    "SpatialKinematics",
+    "base_link_regressor",
+    "base_parameters",
+    "external_generalized_forces",
+    "joint_torque_regressor",
+    "parameter_transform",
+    "regressor_layout",
+    "root_coordinate_indices",
+    "spatial_kinematics",
+]
 
 
 def _skew(x: Array) -> Array:

@@ -50,6 +50,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from msk.exceptions import ModelError
+from msk.units import G0
 
 __all__ = [
     "GEOMETRY_POLY_FROM_HEIGHT",
@@ -71,7 +72,7 @@ __all__ = [
     "subject_from_vector",
 ]
 
-G = 9.81  # m/s²
+G = G0  # m/s²
 
 #: Drillis & Contini segment fraction of stature for the leg (knee to ankle), ``ℓ_s = 0.246 H``.
 SHANK_LENGTH_FRACTION = 0.246

@@ -72,13 +72,11 @@ from typing import Any
 
 import numpy as np
 from numpy.lib.stride_tricks import sliding_window_view
-from numpy.typing import NDArray
 
 from msk.exceptions import FileFormatError, MissingDataError
 from msk.io.opensim_files import read_sto, read_trc
 from msk.io.tables import read_csv_table
-
-Array = NDArray[np.float64]
+from msk.units import G0, Array
 
 __all__ = [
     "DMAlignment",
@@ -88,8 +86,6 @@ __all__ = [
     "read_load_cells",
     "read_measured_contact",
 ]
-
-_G0 = 9.80665
 
 
 @dataclass(frozen=True)
@@ -140,7 +136,7 @@ class MeasuredContact:
         """(N, 3) total, medial, lateral divided by ``mass_kg`` × g."""
         if not (np.isfinite(mass_kg) and mass_kg > 0):
             raise MissingDataError(f"body mass must be > 0 kg, got {mass_kg!r}")
-        return self.values / (mass_kg * _G0)
+        return self.values / (mass_kg * G0)
 
 
 # ---------------------------------------------------------------------------------------------

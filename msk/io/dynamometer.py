@@ -25,11 +25,9 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
-from numpy.typing import NDArray
 
 from msk.exceptions import FileFormatError, MissingDataError, UnitsError
-
-Array = NDArray[np.float64]
+from msk.units import G0, Array
 
 __all__ = [
     "EMG_UNITS",
@@ -39,20 +37,18 @@ __all__ = [
     "read_dynamometer",
 ]
 
-#: g (m/s²) of the kilogram-force, the standard gravity (CGPM 1901).
-G_STANDARD = 9.80665
 #: force unit → N
 FORCE_UNITS: Mapping[str, float] = {
     "N": 1.0,
     "kN": 1000.0,
-    "kgf": G_STANDARD,
+    "kgf": G0,
     "lbf": 4.4482216152605,
 }
 #: torque unit → N·m
 TORQUE_UNITS: Mapping[str, float] = {
     "N.m": 1.0,
     "N.mm": 1e-3,
-    "kgf.m": G_STANDARD,
+    "kgf.m": G0,
     "ft.lbf": 1.3558179483314004,
 }
 #: EMG unit → V

@@ -35,15 +35,15 @@ from collections.abc import Iterator, Mapping, Sequence
 from typing import TYPE_CHECKING
 
 import numpy as np
-from numpy.typing import ArrayLike, NDArray
+from numpy.typing import ArrayLike
 
 from msk.exceptions import ShapeMismatchError
 from msk.trial import ForcePlate, Trial
+from msk.units import Array
 
 if TYPE_CHECKING:
     from msk.model.core import Model
 
-Array = NDArray[np.float64]
 
 __all__ = [
     "HEADING_SOURCES",

@@ -65,9 +65,9 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
-from numpy.typing import NDArray
 
 from msk.exceptions import FileFormatError, ForcePlateError, MissingDataError, UnitsError
+from msk.units import Array
 
 __all__ = [
     "ExternalForceSpec",
@@ -84,7 +84,6 @@ __all__ = [
     "wrench_at_cop",
 ]
 
-Array = NDArray[np.float64]
 
 _FORCE_X = re.compile(r"^(?P<stem>.*force.*)v(?P<ax>x)$", re.IGNORECASE)
 #: ``f1_1``/``p1_1``/``m1_1`` (flatten's default suffixes) or ``f1_x``/…

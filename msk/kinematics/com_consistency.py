@@ -44,8 +44,7 @@ from numpy.typing import NDArray
 from msk.dynamics.regressors import spatial_kinematics
 from msk.kinematics.ik import Kinematics, filtered_derivatives
 from msk.model.core import Model
-
-Array = NDArray[np.float64]
+from msk.units import Array
 
 __all__ = [
     "com_accelerations",

@@ -33,8 +33,7 @@ import pinocchio as pin
 from numpy.typing import NDArray
 
 from msk.signal import find_peaks
-
-Array = NDArray[np.float64]
+from msk.units import Array
 
 __all__ = ["GaitEvents", "detect_gait_events", "reconcile"]
 

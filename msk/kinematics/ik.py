@@ -49,8 +49,19 @@ from msk.model.core import Model
 from msk.model.joints import Constant, Linear, Multiplier, Polynomial, SimmSpline
 from msk.signal import derivative, filtfilt_butter
 from msk.timeseries import FrameAxis
+from msk.units import Array
 
-Array = NDArray[np.float64]
+__all__ = [
+    "STATUS_NAMES",
+    "STATUS_NOT_CONVERGED",
+    "STATUS_OK",
+    "STATUS_TOO_FEW_MARKERS",
+    "Kinematics",
+    "filtered_derivatives",
+    "ik_tasks_from_setup",
+    "kinematics_from_coordinates",
+    "solve_kinematics",
+]
 
 #: per-frame status codes of :class:`Kinematics`
 STATUS_OK = 0

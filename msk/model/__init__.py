@@ -2,3 +2,5 @@
 joints, the
 .osim import, msk's own model files, marker sets, anthropometric tables, knee alignment and the
 four-bar knee fit."""
+
+__all__: list[str] = []

@@ -26,8 +26,25 @@ from numpy.typing import ArrayLike, NDArray
 
 from msk.exceptions import ModelError
 from msk.model.joints import Constant, CoordinateFunction, Coupling, Linear
+from msk.units import G0, Array
 
-Array = NDArray[np.float64]
+__all__ = [
+    "GROUND",
+    "INERTIAL_PARAMETER_NAMES",
+    "Axis",
+    "Body",
+    "Coordinate",
+    "Joint",
+    "JointState",
+    "Marker",
+    "Model",
+    "ModelState",
+    "forward_kinematics",
+    "frame_placements",
+    "marker_positions",
+    "replace_body",
+]
+
 GROUND = "ground"
 
 #: Pinocchio's standard inertial-parameter order (inertia at the body origin, first moments m·c).
@@ -216,7 +233,7 @@ class Model:
         coordinates: Sequence[Coordinate],
         markers: Sequence[Marker] = (),
         muscles: Sequence[Any] = (),
-        gravity: ArrayLike = (0.0, -9.80665, 0.0),
+        gravity: ArrayLike = (0.0, -G0, 0.0),
         metadata: Mapping[str, Any] | None = None,
     ) -> None:
         self.name = name

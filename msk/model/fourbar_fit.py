@@ -29,15 +29,14 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from numpy.typing import ArrayLike, NDArray
+from numpy.typing import ArrayLike
 from scipy.optimize import least_squares
 
 from msk.exceptions import IdentificationError, ModelError, ShapeMismatchError
 from msk.model.core import Axis, Joint
 from msk.model.joints import FourBarKnee, FourBarTranslation, Linear
 from msk.personalise.functional_joints import segment_poses
-
-Array = NDArray[np.float64]
+from msk.units import Array
 
 __all__ = [
     "FourBarFit",

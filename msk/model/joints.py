@@ -25,8 +25,21 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from msk.exceptions import ModelError
+from msk.units import Array
 
-Array = NDArray[np.float64]
+__all__ = [
+    "Composite",
+    "Constant",
+    "CoordinateFunction",
+    "Coupling",
+    "FourBarKnee",
+    "FourBarTranslation",
+    "Linear",
+    "Multiplier",
+    "PiecewiseLinear",
+    "Polynomial",
+    "SimmSpline",
+]
 
 
 class CoordinateFunction(Protocol):

@@ -50,7 +50,7 @@ from typing import Any, Literal
 
 import numpy as np
 import pinocchio as pin
-from numpy.typing import ArrayLike, NDArray
+from numpy.typing import ArrayLike
 
 from msk.exceptions import FileFormatError, ModelError
 from msk.model.core import GROUND, Axis, Body, Coordinate, Joint, Marker, Model
@@ -72,8 +72,7 @@ from msk.muscles.path import (
     PathWrap,
     WrapObject,
 )
-
-Array = NDArray[np.float64]
+from msk.units import Array
 
 __all__ = [
     "Composite",

@@ -57,11 +57,23 @@ import math
 from typing import Literal
 
 import numpy as np
-from numpy.typing import ArrayLike, NDArray
+from numpy.typing import ArrayLike
 
 from msk.exceptions import MuscleModelError
+from msk.units import Array
 
-Array = NDArray[np.float64]
+__all__ = [
+    "PIECEWISE_BREAKPOINT",
+    "ActivationForm",
+    "NonlinearityForm",
+    "emg_to_activation",
+    "first_order_activation",
+    "nonlinear_activation",
+    "piecewise_coefficients",
+    "recursive_filter",
+    "recursive_filter_coefficients",
+]
+
 ActivationForm = Literal["seed002", "thelen", "zajac"]
 NonlinearityForm = Literal["piecewise", "exponential"]
 

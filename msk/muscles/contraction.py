@@ -72,13 +72,12 @@ from typing import Any, ClassVar
 
 import casadi as ca
 import numpy as np
-from numpy.typing import ArrayLike, NDArray
+from numpy.typing import ArrayLike
 
 from msk.exceptions import MuscleModelError
 from msk.muscles.hill import MAX_PENNATION_ANGLE, LloydBesierCurves, MuscleParameters
 from msk.timeseries import FrameAxis
-
-Array = NDArray[np.float64]
+from msk.units import Array
 
 __all__ = [
     "CONTRACTION_PARAMETER_ORDER",

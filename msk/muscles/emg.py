@@ -43,11 +43,25 @@ from numpy.typing import ArrayLike, NDArray
 from msk.exceptions import EmgError, MissingDataError
 from msk.signal import filtfilt_butter, resample_to
 from msk.timeseries import FrameAxis
+from msk.units import Array
 
 if TYPE_CHECKING:
     from msk.analogs import StoredAnalogs
 
-Array = NDArray[np.float64]
+__all__ = [
+    "ChannelQuality",
+    "EmgActivations",
+    "EmgEnvelopes",
+    "NormalisationSource",
+    "channel_quality",
+    "emg_activations",
+    "envelopes_from_trial",
+    "linear_envelope",
+    "missing_channels",
+    "mvc_peaks",
+    "process_emg",
+]
+
 NormalisationSource = Literal["mvc", "session_peak"]
 
 

@@ -26,6 +26,8 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from msk.units import Array
+
 __all__ = [
     "ChannelAgreement",
     "channel_agreement",
@@ -35,10 +37,8 @@ __all__ = [
     "spearman_rho",
 ]
 
-FloatArray = NDArray[np.float64]
 
-
-def _pairs(a: ArrayLike, b: ArrayLike) -> tuple[FloatArray, FloatArray]:
+def _pairs(a: ArrayLike, b: ArrayLike) -> tuple[Array, Array]:
     x = np.asarray(a, dtype=float).ravel()
     y = np.asarray(b, dtype=float).ravel()
     if x.shape != y.shape:
@@ -56,7 +56,7 @@ def pearson_r(a: ArrayLike, b: ArrayLike) -> float:
     return float(np.corrcoef(x, y)[0, 1])
 
 
-def _ranks(x: FloatArray) -> FloatArray:
+def _ranks(x: Array) -> Array:
     """Average ranks (ties share their mean rank)."""
     order = np.argsort(x, kind="mergesort")
     ranks = np.empty(x.size)
@@ -74,7 +74,7 @@ def spearman_rho(a: ArrayLike, b: ArrayLike) -> float:
     return pearson_r(_ranks(x), _ranks(y))
 
 
-def _on(x: FloatArray, threshold: float, floor: float) -> NDArray[np.bool_]:
+def _on(x: Array, threshold: float, floor: float) -> NDArray[np.bool_]:
     peak = float(np.max(x)) if x.size else 0.0
     if peak <= floor:
         return np.zeros(x.shape, dtype=bool)
@@ -117,9 +117,9 @@ class ChannelAgreement:
     (fractions) and the number of compared ``frames``, each (k,)."""
 
     channels: tuple[str, ...]
-    r: FloatArray
-    rho: FloatArray
-    on_off: FloatArray
+    r: Array
+    rho: Array
+    on_off: Array
     frames: NDArray[np.int64]
 
     def median_r(self) -> float:

@@ -98,8 +98,7 @@ from msk.model.joints import Linear, Multiplier, SimmSpline
 from msk.muscles.hill import MuscleParameters
 from msk.muscles.path import ConditionalPathPoint, MovingPathPoint, Muscle, PathPoint, WrapObject
 from msk.timeseries import FrameAxis, FrameSparse
-
-Array = NDArray[np.float64]
+from msk.units import Array
 
 __all__ = [
     "GeometryPlan",

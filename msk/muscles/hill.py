@@ -50,8 +50,25 @@ from numpy.typing import ArrayLike, NDArray
 
 from msk.exceptions import FileFormatError, MuscleModelError
 from msk.timeseries import FrameAxis
+from msk.units import Array
 
-Array = NDArray[np.float64]
+__all__ = [
+    "MAX_PENNATION_ANGLE",
+    "MUSCLE_PARAMETER_ORDER",
+    "CurveSet",
+    "EquilibriumState",
+    "LloydBesierCurves",
+    "MuscleParameters",
+    "RigidTendonState",
+    "RigidTendonStateBlocks",
+    "Thelen2003Curves",
+    "equilibrium",
+    "fl_gaussian",
+    "fv_stroeve",
+    "pennation_constant_height",
+    "reference_force",
+    "rigid_tendon_state",
+]
 
 #: Column order of :meth:`MuscleParameters.to_array` (checked by a round-trip test).
 MUSCLE_PARAMETER_ORDER: tuple[str, ...] = (

@@ -10,11 +10,18 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 import numpy as np
-from numpy.typing import NDArray
 
 from msk.model.joints import CoordinateFunction
+from msk.units import Array
 
-Array = NDArray[np.float64]
+__all__ = [
+    "ConditionalPathPoint",
+    "MovingPathPoint",
+    "Muscle",
+    "PathPoint",
+    "PathWrap",
+    "WrapObject",
+]
 
 
 @dataclass(frozen=True, eq=False)

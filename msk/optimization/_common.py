@@ -6,11 +6,20 @@ from collections.abc import Sequence
 from typing import Any
 
 import numpy as np
-from numpy.typing import ArrayLike, NDArray
+from numpy.typing import ArrayLike
 
 from msk.exceptions import OptimizationError
+from msk.units import Array
 
-FloatArray = NDArray[np.float64]
+__all__ = [
+    "as_float",
+    "check_finite",
+    "check_frame",
+    "check_jacobian",
+    "check_positive",
+    "names_or_default",
+    "set_fields",
+]
 
 
 def names_or_default(
@@ -24,7 +33,7 @@ def names_or_default(
     return out
 
 
-def as_float(value: ArrayLike, shape: tuple[int, ...], what: str) -> FloatArray:
+def as_float(value: ArrayLike, shape: tuple[int, ...], what: str) -> Array:
     """``value`` as a float array of ``shape`` (broadcast from a scalar), finite, else an error."""
     arr = np.asarray(value, dtype=float)
     try:
@@ -36,7 +45,7 @@ def as_float(value: ArrayLike, shape: tuple[int, ...], what: str) -> FloatArray:
     return arr
 
 
-def check_finite(arr: FloatArray, what: str, names: Sequence[str] | None = None) -> None:
+def check_finite(arr: Array, what: str, names: Sequence[str] | None = None) -> None:
     bad = ~np.isfinite(arr)
     if bad.any():
         idx = np.argwhere(bad)[0]
@@ -47,7 +56,7 @@ def check_finite(arr: FloatArray, what: str, names: Sequence[str] | None = None)
         )
 
 
-def check_positive(arr: FloatArray, what: str, names: Sequence[str]) -> None:
+def check_positive(arr: Array, what: str, names: Sequence[str]) -> None:
     bad = ~(arr > 0)
     if bad.any():
         i = int(np.argwhere(bad)[0][-1])
@@ -55,7 +64,7 @@ def check_positive(arr: FloatArray, what: str, names: Sequence[str]) -> None:
         raise OptimizationError(f"{what} must be > 0; muscle {names[i]!r} has {value!r}")
 
 
-def check_jacobian(jacobian: ArrayLike, ndim: int) -> FloatArray:
+def check_jacobian(jacobian: ArrayLike, ndim: int) -> Array:
     j = np.asarray(jacobian, dtype=float)
     if j.ndim != ndim:
         shape = "(n_muscles, n_coords)" if ndim == 2 else "(n_frames, n_muscles, n_coords)"
@@ -74,7 +83,7 @@ def check_frame(
     *,
     ndim: int = 2,
     tau_name: str = "tau",
-) -> tuple[FloatArray, FloatArray, tuple[str, ...], tuple[str, ...]]:
+) -> tuple[Array, Array, tuple[str, ...], tuple[str, ...]]:
     """The inputs every problem shares, checked: the jacobian ``(m, n)`` (or ``(N, m, n)`` with
     ``ndim=3``), the muscle and coordinate names (defaults ``muscle<i>``/``coord<j>``) and a
     finite ``tau`` ``(n,)`` (``(N, n)``). Returns ``(jacobian, tau, muscle_names,

@@ -23,8 +23,40 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from msk.exceptions import OptimizationError
+from msk.units import Array
 
-FloatArray = NDArray[np.float64]
+__all__ = [
+    "ACTIVE_TOL",
+    "CLARABEL_OPTIONS",
+    "DAQP_OPTIONS",
+    "DEFAULT_SOLVER",
+    "KKT",
+    "KKT_BATCH_CONDITION",
+    "KKT_CHUNK",
+    "KKT_COLUMNS",
+    "OSQP_OPTIONS",
+    "STATUS_INFEASIBLE",
+    "STATUS_NAMES",
+    "STATUS_OPTIMAL",
+    "STATUS_SOLVER_FAILED",
+    "KKTBatch",
+    "RawResult",
+    "SolveOutput",
+    "SolverSpec",
+    "StandardQP",
+    "active_bounds",
+    "active_masks",
+    "available_solvers",
+    "get_solver",
+    "kkt",
+    "kkt_batch",
+    "kkt_scale",
+    "kkt_stacked",
+    "least_squares_fallback",
+    "new_warm",
+    "register_solver",
+    "solve_standard",
+]
 
 #: Frame status codes of batch solutions (``status`` arrays) and their names.
 STATUS_OPTIMAL = 0
@@ -41,15 +73,15 @@ class StandardQP:
     """``min ½xᵀHx + gᵀx  s.t.  A x = b, cl ≤ C x ≤ cu, lb ≤ x ≤ ub`` (scaled variables;
     ``C`` None: no inequality rows)."""
 
-    H: FloatArray
-    g: FloatArray
-    A: FloatArray
-    b: FloatArray
-    lb: FloatArray
-    ub: FloatArray
-    C: FloatArray | None = None
-    cl: FloatArray | None = None
-    cu: FloatArray | None = None
+    H: Array
+    g: Array
+    A: Array
+    b: Array
+    lb: Array
+    ub: Array
+    C: Array | None = None
+    cl: Array | None = None
+    cu: Array | None = None
 
     @property
     def n(self) -> int:
@@ -63,7 +95,7 @@ class StandardQP:
     def m_in(self) -> int:
         return 0 if self.C is None else self.C.shape[0]
 
-    def inequality_rows(self) -> tuple[FloatArray, FloatArray, FloatArray]:
+    def inequality_rows(self) -> tuple[Array, Array, Array]:
         """``(C, cl, cu)``, empty ``(0, n)`` / ``(0,)`` when there are none."""
         if self.C is None:
             return np.zeros((0, self.n)), np.zeros(0), np.zeros(0)
@@ -93,7 +125,7 @@ class KKT:
             self.stationarity, self.primal_feasibility, self.dual_feasibility, self.complementarity
         )
 
-    def as_array(self) -> FloatArray:
+    def as_array(self) -> Array:
         return np.array(
             [
                 self.stationarity,
@@ -112,9 +144,7 @@ KKT_COLUMNS: tuple[str, ...] = (
 )
 
 
-def active_masks(
-    x: FloatArray, lb: FloatArray, ub: FloatArray
-) -> tuple[NDArray[np.bool_], NDArray[np.bool_]]:
+def active_masks(x: Array, lb: Array, ub: Array) -> tuple[NDArray[np.bool_], NDArray[np.bool_]]:
     """Masks of the lower and upper bounds active at ``x`` (relative tolerance ACTIVE_TOL);
     any shape (one frame, or frames stacked on axis 0)."""
     # x is finite, so x − (±inf) is ±inf (no NaN); infinite bounds are masked out
@@ -123,12 +153,12 @@ def active_masks(
     return lo, up
 
 
-def active_bounds(qp: StandardQP, x: FloatArray) -> tuple[NDArray[np.bool_], NDArray[np.bool_]]:
+def active_bounds(qp: StandardQP, x: Array) -> tuple[NDArray[np.bool_], NDArray[np.bool_]]:
     """Masks of the lower and upper bounds of ``qp`` active at ``x``."""
     return active_masks(x, qp.lb, qp.ub)
 
 
-def kkt(qp: StandardQP, x: FloatArray) -> KKT:
+def kkt(qp: StandardQP, x: Array) -> KKT:
     """Solver-independent KKT figures of ``x`` for ``qp`` (see :class:`KKT`).
 
     The equality multipliers ν are fitted by least squares on the free variables; when those do
@@ -196,7 +226,7 @@ def kkt(qp: StandardQP, x: FloatArray) -> KKT:
     return KKT(stat, primal, dual, comp)
 
 
-def kkt_scale(qp: StandardQP, x: FloatArray) -> FloatArray:
+def kkt_scale(qp: StandardQP, x: Array) -> Array:
     """The magnitudes the four KKT figures of ``x`` are judged against (:data:`KKT_COLUMNS`
     order): stationarity and dual feasibility against ``1 + ‖Hx + g‖∞`` (the multipliers are
     components of the gradient), primal feasibility against ``1 + max(‖b‖∞, ‖Ax‖∞, ‖Cx‖∞)``
@@ -209,9 +239,7 @@ def kkt_scale(qp: StandardQP, x: FloatArray) -> FloatArray:
     )[0]
 
 
-def _scales(
-    grad: FloatArray, b: FloatArray, ax: FloatArray, cx: FloatArray, x: FloatArray
-) -> FloatArray:
+def _scales(grad: Array, b: Array, ax: Array, cx: Array, x: Array) -> Array:
     """:func:`kkt_scale` of frames stacked on axis 0."""
     g_mag = 1.0 + np.max(np.abs(grad), axis=1, initial=0.0)
     rhs_mag = 1.0 + np.max(
@@ -230,12 +258,12 @@ class KKTBatch:
     multipliers the free columns did not determine (figures by :func:`kkt`'s bounded least
     squares)."""
 
-    figures: FloatArray
-    scale: FloatArray
+    figures: Array
+    scale: Array
     fallback: NDArray[np.bool_]
 
     @property
-    def relative(self) -> FloatArray:
+    def relative(self) -> Array:
         """``figures / scale`` ``(K, 4)``."""
         return np.asarray(self.figures / self.scale)
 
@@ -268,16 +296,16 @@ def kkt_batch(qps: Sequence[StandardQP], xs: ArrayLike) -> KKTBatch:
 
 
 def kkt_stacked(
-    h: FloatArray,
-    g: FloatArray,
-    a: FloatArray,
-    b: FloatArray,
-    lb: FloatArray,
-    ub: FloatArray,
-    x: FloatArray,
-    c: FloatArray | None = None,
-    cl: FloatArray | None = None,
-    cu: FloatArray | None = None,
+    h: Array,
+    g: Array,
+    a: Array,
+    b: Array,
+    lb: Array,
+    ub: Array,
+    x: Array,
+    c: Array | None = None,
+    cl: Array | None = None,
+    cu: Array | None = None,
 ) -> KKTBatch:
     """:func:`kkt` and :func:`kkt_scale` of ``K`` frames given as stacked arrays: ``h``
     ``(n, n)`` shared or ``(K, n, n)``; ``g``, ``lb``, ``ub`` ``(n,)`` shared or ``(K, n)``;
@@ -305,7 +333,7 @@ def kkt_stacked(
     scale = np.ones((n_fr, 4))
     fb = np.zeros(n_fr, dtype=bool)
 
-    def part(v: FloatArray, sl: slice, ndim: int) -> FloatArray:
+    def part(v: Array, sl: slice, ndim: int) -> Array:
         return v if v.ndim < ndim else v[sl]
 
     for i in range(0, n_fr, KKT_CHUNK):
@@ -318,17 +346,17 @@ def kkt_stacked(
 
 
 def _kkt_chunk(
-    h: FloatArray,
-    g: FloatArray,
-    a_mat: FloatArray,
-    b_vec: FloatArray,
-    lb: FloatArray,
-    ub: FloatArray,
-    x: FloatArray,
-    c_mat: FloatArray,
-    cl: FloatArray,
-    cu: FloatArray,
-) -> tuple[FloatArray, FloatArray, NDArray[np.bool_]]:
+    h: Array,
+    g: Array,
+    a_mat: Array,
+    b_vec: Array,
+    lb: Array,
+    ub: Array,
+    x: Array,
+    c_mat: Array,
+    cl: Array,
+    cu: Array,
+) -> tuple[Array, Array, NDArray[np.bool_]]:
     k_fr = x.shape[0]
     grad = (x @ h.T if h.ndim == 2 else (h @ x[:, :, None])[:, :, 0]) + g
     lb, ub = np.broadcast_to(lb, x.shape), np.broadcast_to(ub, x.shape)
@@ -385,8 +413,8 @@ def _kkt_chunk(
 
 
 def _fit_multipliers(
-    af: FloatArray, rhs: FloatArray, row_on: NDArray[np.bool_]
-) -> tuple[FloatArray, NDArray[np.bool_]]:
+    af: Array, rhs: Array, row_on: NDArray[np.bool_]
+) -> tuple[Array, NDArray[np.bool_]]:
     """``ν = argmin ‖afᵀ ν − rhs‖`` of every frame (``af`` ``(K, r, n)``, rows that are off
     all zero and given ν = 0) by the corrected semi-normal equations (Björck 1987, "Stability
     analysis of the method of seminormal equations for linear least squares problems", Linear
@@ -416,7 +444,7 @@ def _fit_multipliers(
     return nu[:, :, 0], dead | ~(cond <= KKT_BATCH_CONDITION)
 
 
-def _stack(qps: Sequence[StandardQP], name: str) -> FloatArray:
+def _stack(qps: Sequence[StandardQP], name: str) -> Array:
     return np.stack([getattr(q, name) for q in qps])
 
 
@@ -429,7 +457,7 @@ def _stack(qps: Sequence[StandardQP], name: str) -> FloatArray:
 class SolveOutput:
     """What a registered solver returns for one QP."""
 
-    x: FloatArray | None
+    x: Array | None
     ok: bool
     infeasible: bool
     iterations: int = -1
@@ -662,13 +690,13 @@ def new_warm(solver: str) -> Any:
 class RawResult:
     """A solved standard-form QP (scaled variables)."""
 
-    x: FloatArray
+    x: Array
     status: int
     iterations: int
     solve_time_s: float
     kkt: KKT | None
     #: :func:`kkt_scale` of ``x`` (with ``kkt``)
-    kkt_scale: FloatArray | None = None
+    kkt_scale: Array | None = None
 
 
 def least_squares_fallback(qp: StandardQP, solver: str) -> StandardQP:

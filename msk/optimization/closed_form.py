@@ -46,14 +46,25 @@ from msk.optimization._common import (
     set_fields,
 )
 from msk.optimization._qp import KKT, StandardQP, kkt
+from msk.units import Array
 
-FloatArray = NDArray[np.float64]
+__all__ = [
+    "SINGULAR_COND",
+    "CoefficientTable",
+    "LagrangeBatchSolution",
+    "LagrangeProblem",
+    "LagrangeSolution",
+    "build_coefficient_table",
+    "lagrange_coefficients",
+    "solve_lagrange",
+    "solve_lagrange_batch",
+]
 
 #: Condition number of ``C W Cᵀ`` beyond which a frame is declared singular (pseudo-inverse).
 SINGULAR_COND = 1e12
 
 
-def lagrange_coefficients(jacobian: ArrayLike, area: ArrayLike) -> FloatArray:
+def lagrange_coefficients(jacobian: ArrayLike, area: ArrayLike) -> Array:
     """``K = W Cᵀ (C W Cᵀ)⁻¹`` with ``C = −Jᵀ``, ``W = diag(A²)`` (seeds/004 Eq. 6, n coords).
 
     ``jacobian`` is ``(n_muscles, n_coords)`` or a stack ``(N, n_muscles, n_coords)``; the result
@@ -84,9 +95,9 @@ class LagrangeProblem:
     (PCSA in m², or ``F_iso`` in N: only ratios matter).
     """
 
-    jacobian: FloatArray
-    tau: FloatArray
-    area: FloatArray
+    jacobian: Array
+    tau: Array
+    area: Array
     muscle_names: tuple[str, ...] | None = None
     coordinate_names: tuple[str, ...] | None = None
 
@@ -111,10 +122,10 @@ class LagrangeSolution:
     complementarity are 0 by construction).
     """
 
-    forces: FloatArray
-    coefficients: FloatArray
-    multipliers: FloatArray
-    residual: FloatArray
+    forces: Array
+    coefficients: Array
+    multipliers: Array
+    residual: Array
     residual_norm: float
     negative: NDArray[np.bool_]
     singular: bool
@@ -160,8 +171,8 @@ def solve_lagrange(problem: LagrangeProblem) -> LagrangeSolution:
 class LagrangeBatchSolution:
     """Closed-form forces over frames (time on axis 0)."""
 
-    forces: FloatArray  # (N, n_muscles)
-    residual_norm: FloatArray  # (N,)
+    forces: Array  # (N, n_muscles)
+    residual_norm: Array  # (N,)
     negative: NDArray[np.bool_]  # (N, n_muscles)
     muscle_names: tuple[str, ...]
     solver: str = "lagrange-closed-form"
@@ -203,8 +214,8 @@ class CoefficientTable:
     :class:`~msk.exceptions.OptimizationError` (no extrapolation).
     """
 
-    grid: FloatArray
-    coefficients: FloatArray
+    grid: Array
+    coefficients: Array
     kind: Literal["linear", "cubic"] = "cubic"
     muscle_names: tuple[str, ...] | None = None
     coordinate_names: tuple[str, ...] | None = None
@@ -244,7 +255,7 @@ class CoefficientTable:
         )
         object.__setattr__(self, "_spline", make_interp_spline(g, k.reshape(len(g), -1), k=order))
 
-    def coefficients_at(self, s: ArrayLike) -> FloatArray:
+    def coefficients_at(self, s: ArrayLike) -> Array:
         """``K(s)``: ``(n_muscles, n_coords)`` for a scalar, ``(N, n_muscles, n_coords)`` else."""
         sv = np.asarray(s, dtype=float)
         flat = np.atleast_1d(sv)
@@ -258,7 +269,7 @@ class CoefficientTable:
         k = self._spline(flat).reshape(flat.shape[0], *self.coefficients.shape[1:])
         return k[0] if sv.ndim == 0 else k
 
-    def forces(self, s: ArrayLike, tau: ArrayLike) -> FloatArray:
+    def forces(self, s: ArrayLike, tau: ArrayLike) -> Array:
         """Run-time forces ``F = K(s) τ`` (``s`` scalar, ``tau`` (n,); or (N,) and (N, n))."""
         k = self.coefficients_at(s)
         t = np.asarray(tau, dtype=float)

@@ -23,11 +23,21 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-from numpy.typing import NDArray
 
 from msk._runtime.opensim_peer import run_opensim_script
+from msk.units import Array
 
-FloatArray = NDArray[np.float64]
+__all__ = [
+    "COMPARE_WINDOW",
+    "FULL_SO_WINDOW",
+    "GAIT2392_RIGHT_LEG",
+    "IPOPT_DEFAULT",
+    "IPOPT_TIGHT",
+    "OpenSimSOReference",
+    "compare_static_optimization",
+    "opensim_full_static_optimization",
+    "opensim_static_optimization_reference",
+]
 
 #: The right-leg coordinates of gait2392.
 GAIT2392_RIGHT_LEG: tuple[str, ...] = (
@@ -122,14 +132,14 @@ class OpenSimSOReference:
     time of OpenSim's AnalyzeTool run (``so_wall_s``, all its muscles and residuals).
     """
 
-    time: FloatArray
+    time: Array
     muscle_names: tuple[str, ...]
     coordinate_names: tuple[str, ...]
-    moment_arms: FloatArray
-    f_active: FloatArray
-    activations: FloatArray
-    min_control: FloatArray
-    max_control: FloatArray
+    moment_arms: Array
+    f_active: Array
+    activations: Array
+    min_control: Array
+    max_control: Array
     so_wall_s: float
 
 

@@ -56,8 +56,31 @@ from msk.optimization._qp import (
     new_warm,
     solve_standard,
 )
+from msk.units import Array
 
-FloatArray = NDArray[np.float64]
+__all__ = [
+    "POWER_CURVATURE_FLOOR",
+    "POWER_MAX_ITERATIONS",
+    "POWER_STEP_TOL",
+    "BatchSolution",
+    "BoolArray",
+    "EMGWeightSweep",
+    "EMGWeightedProblem",
+    "Problem",
+    "QPSolution",
+    "StaticOptimizationProblem",
+    "TensionInequalities",
+    "TensionProblem",
+    "WarmStart",
+    "emg_weight_sweep",
+    "solve",
+    "solve_emg_assisted_batch",
+    "solve_emg_weighted_batch",
+    "solve_static_optimization_batch",
+    "solve_tension_batch",
+    "volume_weights",
+]
+
 BoolArray = NDArray[np.bool_]
 
 
@@ -71,25 +94,25 @@ class _Layout:
     """How ``x`` maps back: ``f = scale ⊙ x[:m] + offset``, reserves ``r = x[m:]`` on ``idx``."""
 
     n_coords: int
-    scale: FloatArray
-    offset: FloatArray
+    scale: Array
+    offset: Array
     reserve_idx: NDArray[np.intp]
-    reserve_opt: FloatArray
+    reserve_opt: Array
     activations: bool
     objective_scale: float = 1.0
     objective_constant: float = 0.0
     #: optimal values of the reserves of :class:`TensionInequalities` rows, after the coordinate
     #: reserves in ``x`` (empty: no inequality rows)
-    inequality_opt: FloatArray = field(default_factory=lambda: np.zeros(0))
+    inequality_opt: Array = field(default_factory=lambda: np.zeros(0))
 
-    def unpack(self, x: FloatArray) -> tuple[FloatArray, FloatArray | None, FloatArray]:
+    def unpack(self, x: Array) -> tuple[Array, Array | None, Array]:
         m = self.scale.shape[0]
         f = self.scale * x[:m] + self.offset
         r = np.zeros(self.n_coords)
         r[self.reserve_idx] = x[m : m + self.reserve_idx.shape[0]]
         return f, (x[:m].copy() if self.activations else None), r
 
-    def inequality_reserves(self, x: FloatArray) -> FloatArray:
+    def inequality_reserves(self, x: Array) -> Array:
         """The reserves of the inequality rows (row units), ``(k,)``."""
         k = self.inequality_opt.shape[0]
         return self.inequality_opt * x[x.shape[0] - k :] if k else np.zeros(0)
@@ -113,10 +136,10 @@ class TensionInequalities:
     batch given them adds the rows and the reserves (:class:`BatchSolution`
     ``inequality_reserves``)."""
 
-    offset: FloatArray
-    gain: FloatArray
+    offset: Array
+    gain: Array
     names: tuple[str, ...]
-    reserve_optimal: FloatArray | float = 1.0
+    reserve_optimal: Array | float = 1.0
 
     def __post_init__(self) -> None:
         c = np.asarray(self.offset, dtype=float)
@@ -157,9 +180,7 @@ class TensionInequalities:
                 f"inequality gain {g.shape} does not match {n_frames} frames × {m} muscles"
             )
 
-    def rows(
-        self, k: int, scale: FloatArray, offset: FloatArray, n_before: int
-    ) -> tuple[FloatArray, FloatArray]:
+    def rows(self, k: int, scale: Array, offset: Array, n_before: int) -> tuple[Array, Array]:
         """Frame ``k``'s rows on the standard-form unknowns ``x = [x_m; (n_before others);
         x_s]`` with tensions ``f = scale ⊙ x_m + offset`` and reserves ``s = s_opt ⊙ x_s``:
         ``(C, cl)`` with ``C x ≥ cl``."""
@@ -174,7 +195,7 @@ class TensionInequalities:
 
 def _reserve_forces(
     reserve_optimal_force: ArrayLike | None, n: int, names: Sequence[str] | None
-) -> FloatArray | None:
+) -> Array | None:
     """``reserve_optimal_force`` as a checked ``(n,)`` array (≥ 0, finite), or ``None``."""
     if reserve_optimal_force is None:
         return None
@@ -190,7 +211,7 @@ def _reserve_forces(
 
 def _reserves(
     reserve_optimal_force: ArrayLike | None, n: int, names: Sequence[str] | None
-) -> tuple[NDArray[np.intp], FloatArray]:
+) -> tuple[NDArray[np.intp], Array]:
     """Coordinates with a reserve actuator (optimal force > 0) and their optimal forces."""
     opt = _reserve_forces(reserve_optimal_force, n, names)
     if opt is None:
@@ -200,15 +221,15 @@ def _reserves(
 
 
 def _assemble(
-    r_scaled: FloatArray,
-    b: FloatArray,
-    lb_m: FloatArray,
-    ub_m: FloatArray,
+    r_scaled: Array,
+    b: Array,
+    lb_m: Array,
+    ub_m: Array,
     res_idx: NDArray[np.intp],
-    res_opt: FloatArray,
-    res_lb: FloatArray,
-    res_ub: FloatArray,
-    cost: tuple[FloatArray, FloatArray] | None = None,
+    res_opt: Array,
+    res_lb: Array,
+    res_ub: Array,
+    cost: tuple[Array, Array] | None = None,
 ) -> StandardQP:
     """``min Σx² + Σr²  s.t. [R S, E diag(opt)] [x; r] = b`` with bounds (H = 2I), or the cost
     ``(H, g)`` given (e.g. :func:`_weighted_cost`)."""
@@ -227,10 +248,10 @@ def _assemble(
     return StandardQP(H=h, g=g, A=a, b=b, lb=lb, ub=ub)
 
 
-_COST_CACHE: dict[int, tuple[FloatArray, FloatArray]] = {}
+_COST_CACHE: dict[int, tuple[Array, Array]] = {}
 
 
-def _constant_cost(nv: int) -> tuple[FloatArray, FloatArray]:
+def _constant_cost(nv: int) -> tuple[Array, Array]:
     """``H = 2I``, ``g = 0`` as shared arrays (the same objects every frame, so the DAQP
     workspace is not re-factorised for an unchanged cost). Never modified in place (DAQP needs
     writable buffers, so they cannot be flagged read-only)."""
@@ -239,7 +260,7 @@ def _constant_cost(nv: int) -> tuple[FloatArray, FloatArray]:
     return _COST_CACHE[nv]
 
 
-def _weighted_cost(weights: FloatArray, n_reserves: int) -> tuple[FloatArray, FloatArray]:
+def _weighted_cost(weights: Array, n_reserves: int) -> tuple[Array, Array]:
     """``H = 2 diag(w, 1…1)``, ``g = 0``: the cost ``Σ w_i x_i² + Σ r_j²``."""
     return np.diag(2.0 * np.concatenate([weights, np.ones(n_reserves)])), np.zeros(
         weights.shape[0] + n_reserves
@@ -253,12 +274,12 @@ POWER_MAX_ITERATIONS = 100
 POWER_CURVATURE_FLOOR = 1e-3
 
 
-def _power_cost(x: FloatArray, m: int, w: FloatArray, p: float) -> float:
+def _power_cost(x: Array, m: int, w: Array, p: float) -> float:
     """``Σ w_i a_i^p + Σ r_j²`` of the standard-form unknowns ``x = [a; r]`` (a ≥ 0)."""
     return float(np.sum(w * np.maximum(x[:m], 0.0) ** p) + np.sum(x[m:] ** 2))
 
 
-def _power_model(qp: StandardQP, x: FloatArray, m: int, w: FloatArray, p: float) -> StandardQP:
+def _power_model(qp: StandardQP, x: Array, m: int, w: Array, p: float) -> StandardQP:
     """Second-order model at ``x`` of ``Σ w_i a_i^p + Σ r_j²`` on the constraints of ``qp``:
     ``H_ii = w_i p (p−1) max(a_i, ε)^(p−2)``, ``g = ∇F(x) − H x`` (its gradient at ``x`` is the
     true gradient, so a fixed point of the model is a KKT point of the power criterion)."""
@@ -272,7 +293,7 @@ def _power_model(qp: StandardQP, x: FloatArray, m: int, w: FloatArray, p: float)
 def _solve_power(
     qp: StandardQP,
     m: int,
-    w: FloatArray,
+    w: Array,
     p: float,
     *,
     solver: str,
@@ -355,12 +376,12 @@ class TensionProblem:
     1 N·m as much as a fully active muscle; with unbounded reserves every frame is feasible.
     """
 
-    jacobian: FloatArray
-    tau: FloatArray
-    f_iso: FloatArray
-    f_max: FloatArray | None = None
-    f_min: FloatArray | None = None
-    reserve_optimal_force: FloatArray | None = None
+    jacobian: Array
+    tau: Array
+    f_iso: Array
+    f_max: Array | None = None
+    f_min: Array | None = None
+    reserve_optimal_force: Array | None = None
     muscle_names: tuple[str, ...] | None = None
     coordinate_names: tuple[str, ...] | None = None
 
@@ -393,13 +414,13 @@ class TensionProblem:
 
 
 def _tension_qp(
-    r: FloatArray,
-    tau: FloatArray,
-    f_iso: FloatArray,
-    f_min: FloatArray,
-    f_max: FloatArray,
+    r: Array,
+    tau: Array,
+    f_iso: Array,
+    f_min: Array,
+    f_max: Array,
     idx: NDArray[np.intp],
-    opt: FloatArray,
+    opt: Array,
 ) -> tuple[StandardQP, _Layout]:
     k = idx.shape[0]
     inf = np.full(k, np.inf)
@@ -462,18 +483,18 @@ class StaticOptimizationProblem:
     figures are those of the power criterion at the returned point.
     """
 
-    jacobian: FloatArray
-    tau: FloatArray
-    f_active: FloatArray
-    f_passive: FloatArray | None = None
-    activation_min: FloatArray | float = 0.0
-    activation_max: FloatArray | float = 1.0
-    reserve_optimal_force: FloatArray | None = None
-    reserve_min_control: FloatArray | float = -np.inf
-    reserve_max_control: FloatArray | float = np.inf
+    jacobian: Array
+    tau: Array
+    f_active: Array
+    f_passive: Array | None = None
+    activation_min: Array | float = 0.0
+    activation_max: Array | float = 1.0
+    reserve_optimal_force: Array | None = None
+    reserve_min_control: Array | float = -np.inf
+    reserve_max_control: Array | float = np.inf
     muscle_names: tuple[str, ...] | None = None
     coordinate_names: tuple[str, ...] | None = None
-    activation_weights: FloatArray | None = None
+    activation_weights: Array | None = None
     activation_exponent: float = 2.0
 
     def __post_init__(self) -> None:
@@ -536,7 +557,7 @@ class StaticOptimizationProblem:
         )
 
 
-def volume_weights(max_isometric_force: ArrayLike, optimal_fiber_length: ArrayLike) -> FloatArray:
+def volume_weights(max_isometric_force: ArrayLike, optimal_fiber_length: ArrayLike) -> Array:
     """Activation weights ``w_i = V_i / mean(V)`` of the volume-weighted criterion ``Σ V_i a_i²``
     (Happee 1994; :class:`StaticOptimizationProblem`, "Other criteria").
 
@@ -573,17 +594,17 @@ def _check_exponent(p: float) -> None:
 
 
 def _static_qp(
-    r: FloatArray,
-    tau: FloatArray,
-    fa: FloatArray,
-    fp: FloatArray,
-    amin: FloatArray,
-    amax: FloatArray,
+    r: Array,
+    tau: Array,
+    fa: Array,
+    fp: Array,
+    amin: Array,
+    amax: Array,
     idx: NDArray[np.intp],
-    opt: FloatArray,
-    rmin: FloatArray,
-    rmax: FloatArray,
-    cost: tuple[FloatArray, FloatArray] | None = None,
+    opt: Array,
+    rmin: Array,
+    rmax: Array,
+    cost: tuple[Array, Array] | None = None,
 ) -> tuple[StandardQP, _Layout]:
     qp = _assemble(r * fa, tau - r @ fp, amin, amax, idx, opt, rmin, rmax, cost)
     return qp, _Layout(tau.shape[0], fa, fp, idx, opt, activations=True)
@@ -610,13 +631,13 @@ class EMGWeightedProblem:
     ``regularization = 1e-6``) biases the forces by about that relative amount.
     """
 
-    jacobian: FloatArray
-    tau: FloatArray
-    f_ref: FloatArray
+    jacobian: Array
+    tau: Array
+    f_ref: Array
     measured: NDArray[np.bool_]
     w_emg: float
-    f_max: FloatArray | None = None
-    f_min: FloatArray | None = None
+    f_max: Array | None = None
+    f_min: Array | None = None
     regularization: float = 1e-6
     muscle_names: tuple[str, ...] | None = None
     coordinate_names: tuple[str, ...] | None = None
@@ -684,7 +705,7 @@ def _check_weights(w_emg: float, regularization: float) -> None:
         raise OptimizationError(f"regularization must be finite and > 0: {regularization!r}")
 
 
-def _check_bounds(lo: FloatArray, hi: FloatArray, what: str, names: Sequence[str]) -> None:
+def _check_bounds(lo: Array, hi: Array, what: str, names: Sequence[str]) -> None:
     bad = ~(lo <= hi) | np.isnan(lo) | np.isnan(hi)
     if bad.any():
         i = int(np.argmax(bad))
@@ -694,7 +715,7 @@ def _check_bounds(lo: FloatArray, hi: FloatArray, what: str, names: Sequence[str
         )
 
 
-def _emg_scale(f_ref: FloatArray, f_max: FloatArray, measured: BoolArray) -> FloatArray:
+def _emg_scale(f_ref: Array, f_max: Array, measured: BoolArray) -> Array:
     """Per-muscle force scale (N) so that the scaled unknowns are O(1)."""
     fin = np.isfinite(f_max) & (f_max > 0)
     base = max(1.0, float(np.max(np.abs(f_ref[measured]))) if measured.any() else 1.0)
@@ -702,15 +723,15 @@ def _emg_scale(f_ref: FloatArray, f_max: FloatArray, measured: BoolArray) -> Flo
 
 
 def _emg_qp(
-    r: FloatArray,
-    tau: FloatArray,
-    f_ref: FloatArray,
+    r: Array,
+    tau: Array,
+    f_ref: Array,
     measured: BoolArray,
     w_emg: float,
     regularization: float,
-    f_min: FloatArray,
-    f_max: FloatArray,
-    scale: FloatArray,
+    f_min: Array,
+    f_max: Array,
+    scale: Array,
 ) -> tuple[StandardQP, _Layout]:
     m = f_ref.shape[0]
     rs = r * scale
@@ -768,12 +789,12 @@ class QPSolution:
     ``"infeasible"`` (bounded least-squares point returned) or ``"solver_failed"``.
     """
 
-    forces: FloatArray
-    activations: FloatArray | None
-    reserve_controls: FloatArray
-    reserve_torques: FloatArray
-    torque_error: FloatArray
-    residual: FloatArray
+    forces: Array
+    activations: Array | None
+    reserve_controls: Array
+    reserve_torques: Array
+    torque_error: Array
+    residual: Array
     residual_norm: float
     objective: float
     kkt: KKT
@@ -842,7 +863,7 @@ def solve(
     )
 
 
-def _power_of(problem: Problem) -> tuple[int, FloatArray, float] | None:
+def _power_of(problem: Problem) -> tuple[int, Array, float] | None:
     """``(m, w, p)`` of a static optimisation with ``activation_exponent > 2``, else None."""
     if not isinstance(problem, StaticOptimizationProblem) or problem.activation_exponent == 2.0:
         return None
@@ -863,31 +884,31 @@ class BatchSolution:
     rows (row units, ``inequality_names``), None when the batch had none.
     """
 
-    forces: FloatArray
-    activations: FloatArray | None
-    reserve_controls: FloatArray
-    reserve_torques: FloatArray
-    torque_error: FloatArray
-    residual: FloatArray
-    residual_norm: FloatArray
-    kkt: FloatArray
+    forces: Array
+    activations: Array | None
+    reserve_controls: Array
+    reserve_torques: Array
+    torque_error: Array
+    residual: Array
+    residual_norm: Array
+    kkt: Array
     active_lower: BoolArray
     active_upper: BoolArray
     status: NDArray[np.int8]
     iterations: NDArray[np.int64]
-    solve_time_s: FloatArray
+    solve_time_s: Array
     solver: str
     muscle_names: tuple[str, ...]
     coordinate_names: tuple[str, ...]
-    time: FloatArray | None = None
+    time: Array | None = None
     kkt_columns: tuple[str, ...] = KKT_COLUMNS
     status_names: tuple[str, ...] = STATUS_NAMES
     #: ``(N, k)`` reserves of the :class:`TensionInequalities` rows (row units; None without)
-    inequality_reserves: FloatArray | None = None
+    inequality_reserves: Array | None = None
     inequality_names: tuple[str, ...] = ()
     #: ``(N, 4)`` the magnitudes the ``kkt`` figures are judged against
     #: (:func:`~msk.optimization.kkt_scale`; NaN where ``kkt`` is)
-    kkt_scale: FloatArray | None = None
+    kkt_scale: Array | None = None
 
     @property
     def infeasible_frames(self) -> NDArray[np.intp]:
@@ -907,12 +928,12 @@ _EXACT_SOLVER = "daqp"
 
 
 def _decoupled_reserves(
-    jac: FloatArray,
-    tau: FloatArray,
+    jac: Array,
+    tau: Array,
     idx: NDArray[np.intp],
-    opt: FloatArray,
-    lo: FloatArray,
-    hi: FloatArray,
+    opt: Array,
+    lo: Array,
+    hi: Array,
 ) -> BoolArray:
     """Mask over the reserves ``idx`` that can leave the QP of every frame of a batch.
 
@@ -942,10 +963,10 @@ class _Reduction:
 
     kept: NDArray[np.intp]
     dropped: NDArray[np.intp]
-    values: FloatArray
+    values: Array
     full: Callable[[int], StandardQP]
 
-    def expand(self, x: FloatArray, k: int) -> FloatArray:
+    def expand(self, x: Array, k: int) -> Array:
         m = x.shape[0] - self.kept.shape[0]
         xf = np.empty(m + self.kept.shape[0] + self.dropped.shape[0])
         xf[:m] = x[:m]
@@ -961,7 +982,7 @@ _MIN_BLOCK_UNKNOWNS = 16
 _BLOCK_CHUNK = 512
 
 
-def _nonzero_pattern(jac: FloatArray) -> BoolArray:
+def _nonzero_pattern(jac: Array) -> BoolArray:
     """``(m, n)``: whether muscle ``i`` has a nonzero moment arm about coordinate ``j`` in any
     frame of ``jac`` ``(N, m, n)`` (in chunks of frames: no ``(N, m, n)`` temporary)."""
     out = np.zeros(jac.shape[1:], dtype=bool)
@@ -971,7 +992,7 @@ def _nonzero_pattern(jac: FloatArray) -> BoolArray:
 
 
 def _independent_blocks(
-    pattern: BoolArray, h: FloatArray
+    pattern: BoolArray, h: Array
 ) -> list[tuple[NDArray[np.intp], NDArray[np.intp]]]:
     """The independent sub-problems of QPs whose equality rows × unknowns have the nonzero
     ``pattern`` (rows, nv) in every frame and the cost matrix ``h`` (nv, nv): the connected
@@ -1023,22 +1044,22 @@ class _BatchQP:
 
     def __init__(
         self,
-        jac: FloatArray,
-        tau: FloatArray,
-        scale: FloatArray,
+        jac: Array,
+        tau: Array,
+        scale: Array,
         idx: NDArray[np.intp],
-        opt: FloatArray,
-        lb: FloatArray,
-        ub: FloatArray,
-        h: FloatArray,
-        g: FloatArray,
+        opt: Array,
+        lb: Array,
+        ub: Array,
+        h: Array,
+        g: Array,
         *,
-        passive: FloatArray | None = None,
+        passive: Array | None = None,
         layout: Callable[[int], _Layout],
         full: Callable[[int], StandardQP],
         decouple: bool = True,
-        out_scale: FloatArray | None = None,
-        out_offset: FloatArray | None = None,
+        out_scale: Array | None = None,
+        out_offset: Array | None = None,
         inequalities: TensionInequalities | None = None,
     ) -> None:
         n_fr, m, n = jac.shape
@@ -1145,7 +1166,7 @@ class _BatchQP:
         if self.passive is not None:
             b = b + np.einsum("kmn,km->kn", jac, self.passive[fr])  # τ − R f_p
 
-        def rows(v: FloatArray) -> FloatArray:
+        def rows(v: Array) -> Array:
             return v if v.ndim == 1 else v[fr]
 
         g, lb, ub = rows(self.whole_g), rows(self.whole_lb), rows(self.whole_ub)
@@ -1180,7 +1201,7 @@ class _BatchQP:
 
     def solve_blocks(
         self, models: list[Any] | None = None
-    ) -> tuple[FloatArray, BoolArray, NDArray[np.int64], FloatArray, list[Any]]:
+    ) -> tuple[Array, BoolArray, NDArray[np.int64], Array, list[Any]]:
         """Every frame's QP solved as its independent sub-problems (:attr:`blocks`), each with
         its own warm-started DAQP workspace: ``x`` ``(N, nv)`` (bounds made exact, as
         :func:`solve_standard` does), whether all sub-problems of a frame were solved, the
@@ -1311,8 +1332,8 @@ class WarmStart:
 def _run_batch(
     n_frames: int,
     build: Callable[[int], tuple[StandardQP, _Layout]],
-    jac: FloatArray,
-    tau: FloatArray,
+    jac: Array,
+    tau: Array,
     *,
     solver: str,
     warm_start: bool,
@@ -1323,7 +1344,7 @@ def _run_batch(
     muscle_names: tuple[str, ...],
     coordinate_names: tuple[str, ...],
     time: ArrayLike | None,
-    power: tuple[int, FloatArray, float] | None = None,
+    power: tuple[int, Array, float] | None = None,
     reduction: _Reduction | None = None,
     inequality_names: tuple[str, ...] = (),
 ) -> BatchSolution:
@@ -1361,7 +1382,7 @@ def _run_batch(
     status = np.zeros(n_frames, dtype=np.int8)
     iters = np.zeros(n_frames, dtype=np.int64)
     times = np.zeros(n_frames)
-    ineq: FloatArray | None = None
+    ineq: Array | None = None
     warm = None
     if warm_start:
         warm = carry.state if carry is not None and carry.started else new_warm(solver)
@@ -1439,8 +1460,8 @@ def _run_batch(
 def _run_blocks(
     n_frames: int,
     build: _BatchQP,
-    jac: FloatArray,
-    tau: FloatArray,
+    jac: Array,
+    tau: Array,
     *,
     strict: bool,
     compute_kkt: bool,
@@ -1520,16 +1541,16 @@ def _run_blocks(
 
 
 def _batch_solution(
-    x_muscles: FloatArray,
-    lbs: FloatArray,
-    ubs: FloatArray,
-    forces: FloatArray,
-    acts: FloatArray | None,
-    rc: FloatArray,
-    rt: FloatArray,
-    tau: FloatArray,
-    jac: FloatArray,
-    kk: FloatArray,
+    x_muscles: Array,
+    lbs: Array,
+    ubs: Array,
+    forces: Array,
+    acts: Array | None,
+    rc: Array,
+    rt: Array,
+    tau: Array,
+    jac: Array,
+    kk: Array,
     status: Any,
     iters: Any,
     times: Any,
@@ -1537,7 +1558,7 @@ def _batch_solution(
     muscle_names: Any,
     coordinate_names: Any,
     time: ArrayLike | None,
-    kkt_scale: FloatArray | None = None,
+    kkt_scale: Array | None = None,
 ) -> BatchSolution:
     """The :class:`BatchSolution` of solved frames: active bounds from the muscle variables
     ``x_muscles`` and their bounds, torque error τ + Jᵀf and residual (error − reserves)."""
@@ -1579,7 +1600,7 @@ def _batch_inputs(
     taus: ArrayLike,
     muscle_names: Sequence[str] | None,
     coordinate_names: Sequence[str] | None,
-) -> tuple[FloatArray, FloatArray, tuple[str, ...], tuple[str, ...]]:
+) -> tuple[Array, Array, tuple[str, ...], tuple[str, ...]]:
     return check_frame(jacobians, taus, muscle_names, coordinate_names, ndim=3, tau_name="taus")
 
 
@@ -1856,13 +1877,13 @@ class EMGWeightSweep:
     measured muscles and frames (N); ``forces`` ``(W, N, n_muscles)``; ``status`` ``(W, N)``.
     """
 
-    w_emg: FloatArray
-    torque_error_rms: FloatArray
-    torque_error_rms_per_coordinate: FloatArray
-    max_force: FloatArray
-    mean_force: FloatArray
-    emg_deviation_rms: FloatArray
-    forces: FloatArray
+    w_emg: Array
+    torque_error_rms: Array
+    torque_error_rms_per_coordinate: Array
+    max_force: Array
+    mean_force: Array
+    emg_deviation_rms: Array
+    forces: Array
     status: NDArray[np.int8]
     muscle_names: tuple[str, ...]
     coordinate_names: tuple[str, ...]

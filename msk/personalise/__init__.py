@@ -3,3 +3,5 @@ the motion),
 the static trial's still window, functional joint centres, the femur:tibia split, and what the
 markers leave
 undetermined (determinacy, the sole-level prior)."""
+
+__all__: list[str] = []

@@ -40,12 +40,10 @@ from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
-from numpy.typing import NDArray
 
 from msk.exceptions import ModelError
 from msk.model.core import Marker, Model, frame_placements
-
-Array = NDArray[np.float64]
+from msk.units import Array
 
 __all__ = [
     "PROFILE_COORDINATE_STEMS",

@@ -26,9 +26,9 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-__all__ = ["ScoreFit", "SegmentPoses", "cluster_shape", "score", "segment_poses"]
+from msk.units import Array
 
-Array = NDArray[np.float64]
+__all__ = ["ScoreFit", "SegmentPoses", "cluster_shape", "score", "segment_poses"]
 
 
 @dataclass(frozen=True)

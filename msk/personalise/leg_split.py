@@ -43,7 +43,7 @@ from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
-from numpy.typing import ArrayLike, NDArray
+from numpy.typing import ArrayLike
 
 from msk.model.core import Model, forward_kinematics
 from msk.personalise.functional_joints import (
@@ -53,10 +53,10 @@ from msk.personalise.functional_joints import (
     score,
     segment_poses,
 )
+from msk.units import Array
 
 __all__ = ["CHECKS", "LEG_SPLIT_METHODS", "LegSplit", "functional_leg_split"]
 
-Array = NDArray[np.float64]
 
 #: the quality checks of a functional centre (see the module docstring)
 CHECKS: Mapping[str, float] = {

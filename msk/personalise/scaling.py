@@ -60,8 +60,7 @@ from msk.model.joints import Constant, CoordinateFunction, Multiplier
 from msk.model.markersets import is_knee_segment, other_side, parse_label, shoulder_girdle_markers
 from msk.muscles.path import ConditionalPathPoint, MovingPathPoint, Muscle, PathPoint, WrapObject
 from msk.personalise.functional_joints import segment_poses
-
-Array = NDArray[np.float64]
+from msk.units import Array
 
 __all__ = [
     "DESCENT_MAX_STEP",

@@ -50,8 +50,7 @@ from numpy.typing import NDArray
 
 from msk.model.core import Model, frame_placements
 from msk.personalise.determinacy import gauge_shifted_markers, joint_child
-
-Array = NDArray[np.float64]
+from msk.units import Array
 
 __all__ = [
     "FLAT_HEIGHT_TOLERANCE_M",

@@ -15,11 +15,9 @@ from typing import Any
 from msk.config import ModelConfig, SessionConfig, TrialConfig
 from msk.exceptions import ConfigError
 from msk.pipeline.runner import file_sha256
+from msk.units import G0
 
 __all__ = ["G0", "SessionInputs", "plain_settings", "session_inputs"]
-
-#: Standard gravity (m/s²) converting the configured body mass to body weight.
-G0 = 9.80665
 
 
 @dataclass(frozen=True)

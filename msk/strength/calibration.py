@@ -63,8 +63,7 @@ from msk.muscles.activation import nonlinear_activation, recursive_filter
 from msk.muscles.contraction import contraction_dynamics, trajectory_function
 from msk.muscles.hill import LloydBesierCurves, MuscleParameters
 from msk.strength.identification import STRENGTH_FACTOR_BOUNDS, StrengthProfile
-
-Array = NDArray[np.float64]
+from msk.units import Array
 
 __all__ = [
     "CALIBRATION_BOUNDS",

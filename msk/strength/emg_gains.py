@@ -46,8 +46,9 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from msk.exceptions import IdentificationError
+from msk.units import Array
 
-Array = NDArray[np.float64]
+__all__ = ["ANDERSON_MEMORY", "EMGGainFit", "fit_emg_gains"]
 
 
 @dataclass(frozen=True)

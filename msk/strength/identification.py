@@ -136,8 +136,7 @@ from msk import metrics as compare
 from msk.exceptions import IdentificationError, ShapeMismatchError
 from msk.muscles.hill import MuscleParameters, RigidTendonState, RigidTendonStateBlocks
 from msk.timeseries import FrameSparse
-
-Array = NDArray[np.float64]
+from msk.units import Array
 
 #: Bounds on strength factors, ``seeds/003 Table 3.1`` (G_f, G_e ∈ [0.5, 2.0]).
 STRENGTH_FACTOR_BOUNDS: tuple[float, float] = (0.5, 2.0)

@@ -95,8 +95,7 @@ from msk.io.dynamometer import DynamometerRecording
 from msk.muscles.emg import channel_quality, linear_envelope
 from msk.quality import Flag
 from msk.status import STRENGTH_CI_REL_WIDTH_MAX, Status
-
-Array = NDArray[np.float64]
+from msk.units import Array
 
 __all__ = [
     "CHECKS_FAILING",

@@ -39,11 +39,10 @@ from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
-from numpy.typing import ArrayLike, NDArray
+from numpy.typing import ArrayLike
 
 from msk.exceptions import ModelError
-
-Array = NDArray[np.float64]
+from msk.units import Array
 
 __all__ = [
     "ACTIONS",

@@ -11,13 +11,12 @@ from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 
 import numpy as np
-from numpy.typing import ArrayLike, NDArray
+from numpy.typing import ArrayLike
 
 from msk import metrics as compare
 from msk.exceptions import ShapeMismatchError
 from msk.optimization import EMGWeightSweep, emg_weight_sweep
-
-Array = NDArray[np.float64]
+from msk.units import Array
 
 __all__ = [
     "TABLE_I_W_EMG",
