@@ -1,4 +1,4 @@
-"""One status vocabulary for every identified quantity (issue 17).
+"""One status vocabulary for every identified quantity.
 
 A strength group, a segment's inertia, an EMG gain and an FES parameter each get exactly one of
 
@@ -115,8 +115,8 @@ SEGMENT_MASS_PRIOR_REL_STD = 0.3
 SEGMENT_COM_PRIOR_STD_M = 0.03
 #: A segment is ``prior`` only while its mass and COM stay within this fraction of their prior
 #: std of the prior value (0.2 σ: 6 % of the mass, 6 mm of COM with the defaults). A segment
-#: that moved further is no longer "the prior", whatever its std (issue 17: segments labelled
-#: "prior" after moving 49–89 % on a rank-deficient trial).
+#: that moved further is no longer "the prior", whatever its std (otherwise segments that
+#: moved 49–89 % on a rank-deficient trial would be labelled "prior").
 PRIOR_SHIFT_PRIOR_STD = 0.2
 #: Largest NRMSD (% of the measured range, Benoussaad et al. 2013, Eq. 9) of an FES protocol step
 #: for its parameters to be ``identified``: a quarter of the movement range. The medians of every

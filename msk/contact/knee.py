@@ -872,7 +872,7 @@ def split_medial_lateral(
 
 
 # ---------------------------------------------------------------------------------------------
-# the compartment forces as affine functions of the muscle tensions (issue 16, seventh pass)
+# the compartment forces as affine functions of the muscle tensions
 # ---------------------------------------------------------------------------------------------
 @dataclass(frozen=True)
 class CompartmentMap(FrameAxis):

@@ -159,7 +159,7 @@ def root_generalized_forces(
     root = root_coordinate_indices(model)
     out = np.zeros((th.shape[0], root.size))
     # frame by frame maths, in blocks: the (N, n_dof, n_coords) coupling Jacobian and the
-    # per-joint motion subspaces of a long trial are never held whole (issue 18)
+    # per-joint motion subspaces of a long trial are never held whole
     for c0 in range(0, th.shape[0], REGRESSOR_BLOCK):
         sl = slice(c0, c0 + REGRESSOR_BLOCK)
         out[sl] = _root_forces_block(model, root, th[sl], f[sl], n_w[sl])

@@ -290,7 +290,7 @@ def _run_rnea(
     return tau, f_keep, m_keep, jac, org
 
 
-#: frames per block of a longer trial's inverse dynamics (issue 18): its per-frame states,
+#: frames per block of a longer trial's inverse dynamics: its per-frame states,
 #: world Jacobians and coupling Jacobians (~8 kB/frame on gait2392) are never held whole
 ID_BLOCK = 4096
 

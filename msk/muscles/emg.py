@@ -380,7 +380,7 @@ def process_emg(
     ``time``: the envelopes linearly interpolated at these times (s; the samples are at
     ``t0 + k / rate_hz``), each muscle's as soon as its channel is processed — the same as
     :meth:`EmgEnvelopes.resampled` of the result without ``time`` (synergists' means to
-    round-off), holding one channel at the analog rate at a time (issue 18: a long trial).
+    round-off), holding one channel at the analog rate at a time (a long trial).
     """
     from msk.analogs import StoredAnalogs
 

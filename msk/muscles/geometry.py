@@ -857,7 +857,7 @@ class GeometryPlan:
         ``compact``: the Jacobian as a :class:`msk.timeseries.FrameSparse` of the entries at
         :meth:`jacobian_positions` (the values the dense one has there, copied from the same
         pass: bit for bit), never allocated dense — ``(N, n_muscles, n_coords)`` float64 is
-        17 kB a frame for gait2392, 69 MB for a block of 4 096 frames (issue 18).
+        17 kB a frame for gait2392, 69 MB for a block of 4 096 frames.
 
         ``distal_wrench_joints``: model joints (e.g. ``("knee_r",)``) for which the same pass
         also returns :attr:`MuscleGeometry.distal_wrenches`, the unit wrench ∂l_i/∂ξ of each

@@ -191,7 +191,7 @@ class Thelen2003Curves:
       form, with the linear extrapolation OpenSim applies below f = 0 and above
       ``fv_linear_extrap_threshold · F_len``.
 
-    Defaults are the Thelen 2003 paper values named in the issue; :meth:`gait2392` gives those
+    Defaults are the values of the Thelen 2003 paper; :meth:`gait2392` gives those
     stored in ``gait2392_thelen2003muscle.osim`` and :meth:`opensim_defaults` OpenSim's own.
     """
 
@@ -494,7 +494,7 @@ def rigid_tendon_state(
 class RigidTendonStateBlocks:
     """The rigid-tendon state (:func:`rigid_tendon_state`) of ``params`` on muscle–tendon
     lengths and lengthening velocities ``(N_all, M)``, computed on demand for a block of frames:
-    the ten ``(N, M)`` state arrays of a long trial are never held whole (issue 18).
+    the ten ``(N, M)`` state arrays of a long trial are never held whole.
     :func:`rigid_tendon_state` works frame by frame, so a block's state equals the rows of the
     whole trial's. ``frames``: the rows of ``lengths``/``velocities`` that make up the trial
     (indices; None: all of them), so the caller need not copy a subset."""

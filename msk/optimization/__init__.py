@@ -1,4 +1,4 @@
-"""Tension optimisation per frame: muscle forces from generalised forces (GitHub issue 7 item 4).
+"""Tension optimisation per frame: muscle forces from generalised forces.
 
 Convention: the muscle Jacobian ``J = ∂l/∂θ`` (Hayashibe et al. 2011, Eq. 6) has shape
 ``(n_muscles, n_coords)``; tensions ``f ≥ 0`` produce ``τ = −Jᵀ f = R f`` (moment arms

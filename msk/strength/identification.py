@@ -107,7 +107,7 @@ flexors). It grows relative to the interval as √cycles, so with 10 % noise the
 honest up to ≈ 100 cycles, with 20 % noise only to ≈ 15–20 cycles (not measured beyond). Least
 squares stays the default because the instrument needs windows that are repetitions of one movement.
 
-**MVC trials** (issue 17). From gait alone some groups are weakly determined (synthetic leg,
+**MVC trials**. From gait alone some groups are weakly determined (synthetic leg,
 24 cycles, 3 % torque noise: dorsiflexors ±6 %, up to 21 % off over 120 subjects — torque noise,
 not a model mismatch: noise-free data give the factors exactly). The protocol of
 Hayashibe et al. 2011 (Hayashibe, Venture, Ayusawa & Nakamura, IROS 2011, §VI.A) records MVCs of
@@ -159,8 +159,8 @@ __all__ = [
 # ---------------------------------------------------------------------------------------------
 #: frames per block of the contribution matrices (:meth:`StrengthIdentifier._contributions`):
 #: a block's dense Jacobian and contributions of 92 muscles × 23 coordinates are ~9 MB each
-#: (at 2048 frames they were ~35 MB each, ~100 MB together: the strength stage's fixed part of
-#: a long trial's peak; issue 18). Each frame's values do not depend on the block.
+#: (at 2048 frames they would be ~35 MB each, ~100 MB together: the strength stage's fixed part
+#: of a long trial's peak). Each frame's values do not depend on the block.
 _FRAME_BLOCK = 512
 
 
@@ -697,7 +697,7 @@ class StrengthIdentifier:
         """Group contributions ``C_g`` ``(N, G, n)`` and the other muscles' ``(N, n)``.
         ``compact`` with a compact Jacobian: ``C_g`` as a :class:`FrameSparse` of the (group,
         coordinate) pairs the groups' muscles cross (:func:`_group_pattern`; a few of G × n on
-        gait2392, issue 18), else dense."""
+        gait2392), else dense."""
         if tuple(state.names) != self.params.names:
             raise ShapeMismatchError(
                 f"muscle state names {state.names[:3]}… differ from the parameters' "
@@ -878,14 +878,14 @@ class StrengthIdentifier:
         by the other windows of its movement only, which must then have ≥ 3 windows, and the
         intervals resample within movements (default: all windows repeat one movement).
         ``frames``: the rows of ``jacobian`` that the other arguments' rows are (default:
-        all), read block by block — a long trial's Jacobian rows are not copied (issue 18).
+        all), read block by block — a long trial's Jacobian rows are not copied.
         """
         from scipy import stats  # on use: decoding cached results need not pay for them
 
         if frames is not None:
             frames = np.asarray(frames, dtype=np.int64)
         # compact (the pairs the groups' muscles cross) when the Jacobian is: a long trial's
-        # (N, G, n) contributions are mostly structural zeros (issue 18)
+        # (N, G, n) contributions are mostly structural zeros
         cg, other = self._contributions(jacobian, activation, state, frames, compact=True)
         n_frames, n_groups, n_coords = cg.shape
         cnames = self._coords(coordinate_names, n_coords)
