@@ -13,9 +13,9 @@ divided by its frames; msk's are best-of-``--repeat`` batch calls after one warm
     .venv/bin/python bench/bench_chain.py --write-docs    # also update docs/benchmarks.md
 
 ``--write-docs`` replaces only the section "## Whole chain" of docs/benchmarks.md (appends it
-when absent). Targets (issue 20): ≤ 100 µs per frame for the chain with the
-contact, ≤ 10 µs for the contact; ≥ 500× OpenSim's SO per frame (seed 004
-reported < 2.5 ms per frame for its whole model as the real-time bound).
+when absent). Targets: ≤ 100 µs per frame for the chain with the
+contact, ≤ 10 µs for the contact; ≥ 500× OpenSim's SO per frame (the rehabilitation-robot
+lower-limb model paper reports < 2.5 ms per frame for its whole model as the real-time bound).
 """
 
 from __future__ import annotations
@@ -200,8 +200,8 @@ def main() -> None:
         f"each muscle's peak over the {keep.sum()} muscles OpenSim does not saturate "
         f"({c['not_converged_times'].size} frames where OpenSim's Σa² is > 1 % above msk's "
         f"left out; OpenSim at its default tolerance).",
-        f"- `compartment_nonnegative` (issue 16; the knee's rows in its leg's sub-problem "
-        f"since the tenth pass): SO with the rows / SO without, same run: "
+        f"- `compartment_nonnegative` (the knee's rows in its leg's sub-problem): "
+        f"SO with the rows / SO without, same run: "
         f"{best[SO_ROWS] / best[so]:.2f} (wall min), {med[SO_ROWS] / med[so]:.2f} (median); "
         f"with the rows' construction {with_rows[0]:+.1f} µs/frame on the chain (wall min).",
         f"- Chain target ≤ {TARGET_US:.0f} µs/frame (wall min): "
@@ -212,8 +212,8 @@ def main() -> None:
         + ("met." if so_ratio >= TARGET_RATIO else f"**not met** ({so_ratio:,.0f}×).")
         + f" Contact ≤ {TARGET_CONTACT_US:.0f} µs/frame: "
         + ("met." if best[CONTACT] <= TARGET_CONTACT_US else "**not met**."),
-        "- seed 004's real-time bound (2.5 ms per frame for its whole model): "
-        + ("met." if chain < 2500 else "not met."),
+        "- The real-time bound of the rehabilitation-robot lower-limb model paper (2.5 ms per "
+        "frame for its whole model): " + ("met." if chain < 2500 else "not met."),
     ]
     text = "\n".join(lines)
     print(text)
@@ -250,8 +250,8 @@ def _write_docs(figures: str) -> None:
         "third is the Python of two DAQP calls per frame. With `[optimization] "
         "compartment_nonnegative` the knee's rows d·F_M + s_M ≥ 0 and d·F_L + s_L ≥ 0 involve "
         "only the muscles crossing that knee, so the rows and their two frontal reserves join "
-        "that leg's sub-problem and the split stays (issue 16, tenth pass; before, the QP with "
-        "the rows was solved whole: 83 against 28 µs/frame); what they add is mostly building "
+        "that leg's sub-problem and the split stays (solved whole, the QP with the rows costs "
+        "83 against 28 µs/frame); what they add is mostly building "
         "the rows (`msk.contact.knee.compartment_force_map`). Geometry is the batched evaluation "
         'of "Muscle geometry" above plus the Thelen curves; ID is RNEA per frame. The knee '
         "contact force takes the knee rows of the length Jacobian from the geometry pass and "

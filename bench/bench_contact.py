@@ -187,12 +187,13 @@ def main() -> None:
         "",
         f"- Contact stage, former / new: **{old[0] / new[0]:,.0f}×** (min), "
         f"{old[1] / new[1]:,.0f}× (median); the contact is now "
-        f"{100 * new[0] / chain_c[0]:.0f} % of the chain (was {100 * old[0] / chain_o[0]:.0f} %).",
+        f"{100 * new[0] / chain_c[0]:.0f} % of the chain "
+        f"(the former route: {100 * old[0] / chain_o[0]:.0f} %).",
         f"- ∂l/∂ξ in the geometry pass: {res[names[5]][0] - res[names[4]][0]:+.1f} µs/frame "
         "(min; they are the knee rows of the length Jacobian, gathered).",
         f"- Same run, medial/lateral forces: largest difference {err:.1e} of the peak normal "
         "force between the two routes.",
-        f"- `compartment_nonnegative` (issue 16; since the tenth pass each knee's rows are "
+        f"- `compartment_nonnegative` (each knee's rows "
         "solved in its leg's sub-problem, `_BatchQP.solve_blocks`): the rows cost "
         f"{rows_t[0]:.1f} µs/frame and the QP with them {so_rows[0]:.1f} against "
         f"{so[0]:.1f} µs/frame without (min; ratio {so_rows[0] / so[0]:.2f}, median "

@@ -1,4 +1,4 @@
-"""Benchmark: peak memory and time of ``msk run`` on long trials (issue 18: a 100 000-frame
+"""Benchmark: peak memory and time of ``msk run`` on long trials (target: a 100 000-frame
 trial within 1 GB peak RSS and linear time).
 
 The long trials are the bundled Grand Challenge PS gait trial (``data/gc5-PS``, 145 frames at

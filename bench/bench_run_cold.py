@@ -155,7 +155,7 @@ def main() -> None:
             "(imports, model, every stage, the report), against the package at a git ref in the "
             "same run.\n\n"
             f"**Target: ≤ {TARGET_S:g} s wall on an idle machine.**\n\n"
-            "Where the time goes and what was done (issue 20): about 1 s is imports (numpy, "
+            "Where the time goes: about 1 s is imports (numpy, "
             "scipy — `scipy.signal` alone ~0.45 s, of which `scipy.stats` ~0.17 s and scipy's "
             "docstring processing, and it is needed for the filters —, Pinocchio, ezc3d, "
             "clarabel, daqp; most land in the `model` stage, the first to need them), the mass "

@@ -3,7 +3,7 @@
 A C3D file stores analog samples as 16-bit integers or 32-bit floats with a per-channel scale
 and offset (C3D User Guide, Motion Lab Systems 2008, ch. "The ANALOG group": value =
 ``(sample - OFFSET) * SCALE * GEN_SCALE``). A long trial's float64 copy of them is 4 (int16) or
-2 (float32) times the stored size (issue 18: 18 channels at 1200 Hz for 100 000 point frames,
+2 (float32) times the stored size (18 channels at 1200 Hz for 100 000 point frames,
 144 MB in float64). :class:`StoredAnalogs` keeps the stored samples and applies
 ``(float64(sample) - offset) * factor`` to the rows and channels a consumer indexes: element for
 element the same float64 operations as scaling the whole array, so the values are bit-identical.

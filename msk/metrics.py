@@ -7,16 +7,21 @@ their docstring.
 
 Definitions follow the seed documents:
 
-* ``nrmsd`` — seeds/000 Eq. 9: RMS deviation normalised by the *range* of the measured signal,
+* ``nrmsd`` — Benoussaad et al. 2013, Eq. 9: RMS deviation normalised by the *range* of the measured
+  signal,
   ``sqrt(mean((X_m - X_s)^2)) / |max(X_m) - min(X_m)| x 100``.
-* ``nrmse`` — seeds/001 §V: RMS error normalised by the *RMS value* of the measured signal,
+* ``nrmse`` — the implanted-FES identification paper, §V: RMS error normalised by the *RMS value* of
+  the measured signal,
   ``sqrt(mean((X_m - X_s)^2)) / sqrt(mean(X_m^2)) x 100``.
-* ``icc`` / ``sem`` — seeds/004 §2 (agreement of two methods, ICC and standard error of
+* ``icc`` / ``sem`` — the rehabilitation-robot lower-limb model paper, §2 (agreement of two methods,
+  ICC and standard error of
   measurement, SEM expressed as a percentage of the range, Tables 3, 5, 6); ICC forms are those of
   Shrout & Fleiss (1979) computed from the two-way ANOVA mean squares.
-* ``spearman`` — seeds/004 Table 4 (rank correlation).
-* ``area_ratio`` — seeds/003 Tables 4.5–4.6: ratio of trapezoidal areas under two curves.
-* ``r2``, ``rms`` — seeds/003 §3 (coefficient of determination and RMS difference).
+* ``spearman`` — the rehabilitation-robot lower-limb model paper, Table 4 (rank correlation).
+* ``area_ratio`` — the EMG-driven vs OpenSim thesis, Tables 4.5–4.6: ratio of trapezoidal areas
+  under two curves.
+* ``r2``, ``rms`` — the EMG-driven vs OpenSim thesis, §3 (coefficient of determination and RMS
+  difference).
 """
 
 from __future__ import annotations
@@ -82,7 +87,7 @@ def rms(a: ArrayLike, b: ArrayLike) -> Metric:
 
 
 def nrmsd(measured: ArrayLike, simulated: ArrayLike) -> Metric:
-    """Normalised RMS deviation in percent, seeds/000 Eq. 9.
+    """Normalised RMS deviation in percent, Benoussaad et al. 2013, Eq. 9.
 
     ``NRMSD = sqrt(1/N sum (X_m - X_s)^2) / |max(X_m) - min(X_m)| x 100``: the normalisation is
     the range of the *measured* data.  A constant measured signal has no range: the result is
@@ -96,7 +101,7 @@ def nrmsd(measured: ArrayLike, simulated: ArrayLike) -> Metric:
 
 
 def nrmse(measured: ArrayLike, simulated: ArrayLike) -> Metric:
-    """Normalised RMS error in percent, seeds/001 §V.
+    """Normalised RMS error in percent, the implanted-FES identification paper, §V.
 
     "The RMS error was normalized to the RMS value of the measured data":
     ``NRMSE = sqrt(mean((X_m - X_s)^2)) / sqrt(mean(X_m^2)) x 100``.  Note that it depends on the
@@ -136,7 +141,8 @@ def _rank(x: NDArray[np.float64]) -> NDArray[np.float64]:
 
 
 def spearman(a: ArrayLike, b: ArrayLike) -> Metric:
-    """Spearman rank correlation ρ: Pearson correlation of the (average-tie) ranks, seeds/004."""
+    """Spearman rank correlation ρ: Pearson correlation of the (average-tie) ranks, the
+    rehabilitation-robot lower-limb model paper."""
     x, y = _pair(a, b, "spearman")
     return pearson_r(_rank(x), _rank(y))
 
@@ -156,12 +162,13 @@ def _anova2(y: NDArray[np.float64]) -> tuple[float, float, float, float, int, in
 
 
 def icc(ratings: ArrayLike, other: ArrayLike | None = None, *, form: IccForm = "2,1") -> float:
-    """Intraclass correlation coefficient (Shrout & Fleiss 1979), as used in seeds/004.
+    """Intraclass correlation coefficient (Shrout & Fleiss 1979), as used in the
+    rehabilitation-robot lower-limb model paper.
 
     ``ratings`` is ``(n_targets, k_raters)``; with ``other`` given, the two 1-D series are the
-    two raters (e.g. model estimate and measurement, seeds/004 Table 6) and ``k = 2``.  With the
-    between-targets (BMS), between-raters (JMS), residual (EMS) and within-target (WMS) mean
-    squares of the two-way ANOVA:
+    two raters (e.g. model estimate and measurement, the rehabilitation-robot lower-limb model
+    paper, Table 6) and ``k = 2``.  With the between-targets (BMS), between-raters (JMS), residual
+    (EMS) and within-target (WMS) mean squares of the two-way ANOVA:
 
     * ICC(1,1) = (BMS − WMS) / (BMS + (k−1) WMS)
     * ICC(2,1) = (BMS − EMS) / (BMS + (k−1) EMS + k (JMS − EMS)/n)   (absolute agreement)
@@ -210,11 +217,13 @@ def sem(
     form: IccForm = "2,1",
     percent_of_range: bool = False,
 ) -> float:
-    """Standard error of measurement ``SEM = SD sqrt(1 − ICC)`` (seeds/004 Tables 3, 5, 6).
+    """Standard error of measurement ``SEM = SD sqrt(1 − ICC)`` (the rehabilitation-robot lower-limb
+    model paper, Tables 3, 5, 6).
 
     ``SD`` is the sample standard deviation (ddof=1) of all observations pooled; ICC is
     :func:`icc` of the given ``form``.  With ``percent_of_range`` the SEM is expressed, as in
-    seeds/004, as a percentage of the range (max − min) of all observations.
+    the rehabilitation-robot lower-limb model paper, as a percentage of the range (max − min) of all
+    observations.
     """
     if other is not None:
         x, y = _pair(ratings, other, "sem")
@@ -231,7 +240,8 @@ def sem(
 
 
 def area_ratio(a: ArrayLike, b: ArrayLike, *, t: ArrayLike | None = None) -> Metric:
-    """Ratio of trapezoidal areas under ``a`` and ``b``: ``∫a dt / ∫b dt`` (seeds/003 Tab. 4.5).
+    """Ratio of trapezoidal areas under ``a`` and ``b``: ``∫a dt / ∫b dt`` (the EMG-driven vs
+    OpenSim thesis Tab. 4.5).
 
     ``t`` (s) is the common time base; without it unit spacing is used (the ratio does not depend
     on a uniform spacing).

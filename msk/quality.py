@@ -563,7 +563,7 @@ def placement_label_conflicts(
     on the femur, a shank cluster or malleolus on the tibia) on its side, when the model has
     it. Without a static the body is the one the marker moves least on in the passes' inverse
     kinematics, and a knee no marker pins can make a thigh marker as still on the tibia as on
-    the femur: issue 15, thirteenth pass — a synthetic DM walk of a subject with a 7 % longer
+    the femur: a synthetic DM walk of a subject with a 7 % longer
     femur and 6 % shorter tibia had R_Thigh_Inferior placed on tibia_r and R_Shank_Superior,
     R_Shank_Lateral on femur_r, its right knee then solved 43.7° RMS from the truth at an IK
     marker RMS of 8.2 mm, unflagged; a synthetic squat's R_Midfoot_Medial on toes_l (still feet
@@ -600,10 +600,10 @@ def model_flags(
     ``femur_length_m + tibia_length_m``) against the ASIS-to-heel leg the model was scaled to
     (``model_femur_m + model_tibia_m``) by more than ``leg_length_disagreement_pct``: the leg's
     scale, and the tibia's (the rest of the leg), are uncertain by that much. Both are true of
-    the synthetic DM walks of issue 15's thirteenth pass, the second of DM's real crouch trial
-    (left leg +7.7 %; its legs scaled 5–6 % shorter than by the same subject's overground
-    walk); neither of DM's overground and treadmill walks (≤ 2.5 %). And a leg coordinate whose
-    mean the placement does not determine (``placement_determinacy``,
+    the synthetic DM walks of docs/validation.md (synthetic hidden tasks), the second of DM's real
+    crouch trial (left leg +7.7 %; its legs scaled 5–6 % shorter than by the same subject's
+    overground walk); neither of DM's overground and treadmill walks (≤ 2.5 %). And a leg coordinate
+    whose mean the placement does not determine (``placement_determinacy``,
     :func:`msk.personalise.determinacy.placement_profile`: a placement with it shifted by about
     :data:`msk.personalise.determinacy.PROFILE_SHIFT_DEG` fits the markers within the cost's
     resolution or

@@ -1,4 +1,4 @@
-"""One status vocabulary for every identified quantity (issue 17).
+"""One status vocabulary for every identified quantity.
 
 A strength group, a segment's inertia, an EMG gain and an FES parameter each get exactly one of
 
@@ -81,8 +81,8 @@ STATUS_MEANING: dict[str, str] = {
     Status.PRIOR.value: "the value equals its prior (generic model or protocol assumption)",
 }
 
-#: Minimum fit r² (dimensionless) of the strength regression (seeds/002 Eq. 16: the ID joint
-#: moments explained by the EMG-driven contributions) for any group to be ``identified``.
+#: Minimum fit r² (dimensionless) of the strength regression (Hayashibe et al. 2011, Eq. 16: the ID
+#: joint moments explained by the EMG-driven contributions) for any group to be ``identified``.
 #: Below 0.5 the EMG-driven model explains less than half of the joint-moment variance: most
 #: of the moment is then left to the residual, and the factors absorb model error rather than
 #: strength. The same threshold has been the report's "could not be estimated reliably" warning.
@@ -90,8 +90,8 @@ STRENGTH_R2_MIN = 0.5
 #: Largest width of a strength factor's 95 % interval, relative to the factor, for the group to
 #: be ``identified``: ``(ci_high − ci_low) ≤ STRENGTH_CI_REL_WIDTH_MAX · factor`` (a half-width
 #: of ±50 %). Healthy adults' strength relative to a scaled generic model spreads over about
-#: that much (seeds/002 identify factors of 0.6–1.6); an interval wider than the estimate
-#: itself cannot tell a half-strength group from a 1.5× one. An audit found a group called
+#: that much (Hayashibe et al. 2011 identify factors of 0.6–1.6); an interval wider than the
+#: estimate itself cannot tell a half-strength group from a 1.5× one. An audit found a group called
 #: identified with the interval [0.013, 0.880].
 STRENGTH_CI_REL_WIDTH_MAX = 1.0
 #: Relative tolerance for "on a bound": ``|x − b| ≤ BOUND_REL_TOL · max(1, |b|)``. The bounded
@@ -103,7 +103,8 @@ BOUND_REL_TOL = 1e-6
 #: FES parameters): 0.1 %, well below the precision any of them is identified to.
 PRIOR_REL_TOL = 1e-3
 #: Posterior relative std of a segment mass at or below which it is ``identified`` (the
-#: "well identified" criterion of :mod:`msk.dynamics.identification`, seeds/002 Fig. 3 colour
+#: "well identified" criterion of :mod:`msk.dynamics.identification`, Hayashibe et al. 2011, Fig. 3
+#: colour
 # coding).
 WELL_IDENTIFIED_MASS_REL_STD = 0.02
 #: Posterior std (m) of every COM coordinate at or below which a segment is ``identified``.
@@ -114,18 +115,18 @@ SEGMENT_MASS_PRIOR_REL_STD = 0.3
 SEGMENT_COM_PRIOR_STD_M = 0.03
 #: A segment is ``prior`` only while its mass and COM stay within this fraction of their prior
 #: std of the prior value (0.2 σ: 6 % of the mass, 6 mm of COM with the defaults). A segment
-#: that moved further is no longer "the prior", whatever its std (issue 17: segments labelled
-#: "prior" after moving 49–89 % on a rank-deficient trial).
+#: that moved further is no longer "the prior", whatever its std (otherwise segments that
+#: moved 49–89 % on a rank-deficient trial would be labelled "prior").
 PRIOR_SHIFT_PRIOR_STD = 0.2
-#: Largest NRMSD (% of the measured range, seeds/000 Eq. 9) of an FES protocol step for its
-#: parameters to be ``identified``: a quarter of the movement range. The medians of every step
-#: in seeds/000 Table 2 are 3–14 %; only 5 of its 70-odd step fits exceed 25 %.
+#: Largest NRMSD (% of the measured range, Benoussaad et al. 2013, Eq. 9) of an FES protocol step
+#: for its parameters to be ``identified``: a quarter of the movement range. The medians of every
+#: step in Benoussaad et al. 2013, Table 2 are 3–14 %; only 5 of its 70-odd step fits exceed 25 %.
 FES_NRMSD_MAX_PCT = 25.0
 #: FES model parameters the protocol's data determine (report keys): recovered within 15 % on
-#: at least 12 of the 13 synthetic seeds/000 Table 3 legs with population priors (docs/fes.md,
-#: asserted both ways by ``tests/fes/test_fes_recovery.py``). The others — ``b``, ``F_cm``,
-#: ``k_s``, ``c1``–``c3`` — follow the K_cm/F_cm prior (7–9 legs of 13 within 25–50 %): a good
-#: fit does not make them ``identified``.
+#: at least 12 of the 13 synthetic legs of Benoussaad et al. 2013, Table 3 with population priors
+#: (docs/fes.md, asserted both ways by ``tests/fes/test_fes_recovery.py``). The others — ``b``,
+#: ``F_cm``, ``k_s``, ``c1``–``c3`` — follow the K_cm/F_cm prior (7–9 legs of 13 within 25–50 %): a
+#: good fit does not make them ``identified``.
 FES_DETERMINED_BY_PROTOCOL: frozenset[str] = frozenset(
     {"knee.K", "knee.J", "knee.B", "muscle.L_c0"}
 )
@@ -166,11 +167,11 @@ def strength_status(
 ) -> Status:
     """Status of one strength group (factor × generic F_iso, bounded to [lower, upper]).
 
-    ``gated`` = the group passed the correlation gate (seeds/002 §VI.C); a group that did not
-    keeps the generic factor: ``prior``. Otherwise, in this order: a factor on or past a bound
-    is ``at bound``; a non-finite factor or interval, an interval touching a bound, an interval
-    wider than ``ci_rel_width_max`` × the factor, or a fit r² below ``r2_min`` (or unknown) is
-    ``not determined``; else ``identified``.
+    ``gated`` = the group passed the correlation gate (Hayashibe et al. 2011, §VI.C); a group that
+    did not keeps the generic factor: ``prior``. Otherwise, in this order: a factor on or past a
+    bound is ``at bound``; a non-finite factor or interval, an interval touching a bound, an
+    interval wider than ``ci_rel_width_max`` × the factor, or a fit r² below ``r2_min`` (or unknown)
+    is ``not determined``; else ``identified``.
     """
     if not gated:
         return Status.PRIOR
@@ -277,7 +278,7 @@ def fes_status(
     nrmsd_max_pct: float = FES_NRMSD_MAX_PCT,
     rel_tol: float = BOUND_REL_TOL,
 ) -> Status:
-    """Status of one FES model parameter (seeds/000 protocol).
+    """Status of one FES model parameter (the protocol of Benoussaad et al. 2013).
 
     ``from_prior``: the protocol sets it from an assumption (geometry from the height, the
     K_cm/F_cm and L_c0/(L_c0 + L_s) ratios) → ``prior``; so is a value equal to its ``prior``

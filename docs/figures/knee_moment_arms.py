@@ -3,11 +3,12 @@
     .venv/bin/python docs/figures/knee_moment_arms.py   # writes docs/figures/knee_moment_arms.png
 
 The scaled gait2392 of the OpenSim subject01 example (``msk.model.osim.load_osim``); the four-bar
-(seed 004 §2.1) is fitted to the model's own knee translation splines over 0–120° flexion
-(``msk.model.fourbar_fit.fit_four_bar_to_joint``) and swapped in for ``knee_r``. Moment arms are
-r = −∂l/∂θ_knee from :func:`msk.muscles.geometry.muscle_geometry` (the four-bar's rolling–gliding
-p'(θ) enters through G = ∂q/∂θ), hip at 0, ankle at 0. The grey band is the in-vivo quadriceps
-range 4–6 cm cited by seed 000 (from its ref. [3]).
+(the rehabilitation-robot lower-limb model paper, §2.1) is fitted to the model's own knee
+translation splines over 0–120° flexion (``msk.model.fourbar_fit.fit_four_bar_to_joint``) and
+swapped in for ``knee_r``. Moment arms are r = −∂l/∂θ_knee from
+:func:`msk.muscles.geometry.muscle_geometry` (the four-bar's rolling–gliding p'(θ) enters through G
+= ∂q/∂θ), hip at 0, ankle at 0. The grey band is the in-vivo quadriceps range 4–6 cm cited by
+Benoussaad et al. 2013 (from its ref. [3]).
 """
 
 from __future__ import annotations

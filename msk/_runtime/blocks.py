@@ -29,7 +29,7 @@ FRAME_BLOCK = 4096
 
 #: frames per QP solve call inside a block, where the frames' QPs are solved one after the
 #: other and only the warm start joins them (:func:`solve_parts`): the block's dense Jacobian
-#: and the solver's (frames, muscles) arrays are this many frames' (issue 18, eighth pass)
+#: and the solver's (frames, muscles) arrays are this many frames'
 SOLVE_BLOCK = 1024
 
 

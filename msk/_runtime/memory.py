@@ -1,4 +1,4 @@
-"""Keeping the resident memory of a long run close to its live arrays (issue 18).
+"""Keeping the resident memory of a long run close to its live arrays.
 
 glibc's allocator serves blocks below its mmap threshold from the process heap, and raises that
 threshold (up to 32 MiB) each time a mapped block is freed. The per-frame arrays of a long trial

@@ -54,13 +54,14 @@ OPTIMIZATION_METHODS = (
 )
 #: static optimisation activation weights: uniform (OpenSim's Σ a^p) or muscle volume (Happee)
 ACTIVATION_WEIGHTS = ("uniform", "volume")
-#: The step of the FES identification protocol a ``role = "fes"`` trial records (seeds/000 §2.3):
-#: passive static torques, pendulum drop, isometric trains at several knee angles (force–length),
-#: isometric trains of increasing level at one angle (recruitment), the dynamic trial of the
-#: ``k_s`` NLP, and the cross-validation trial.
+#: The step of the FES identification protocol a ``role = "fes"`` trial records
+#: (Benoussaad et al. 2013, §2.3): passive static torques, pendulum drop, isometric trains at
+#: several knee angles (force–length), isometric trains of increasing level at one angle
+#: (recruitment), the dynamic trial of the ``k_s`` NLP, and the cross-validation trial.
 FES_STEPS = ("static", "pendulum", "isometric", "recruitment", "dynamic", "validation")
 FES_ANGLE_UNITS = ("deg", "rad")
-#: ``us``/``s``: pulse-width modulation (seeds/000); ``mA``/``A``: current modulation (seeds/001).
+#: ``us``/``s``: pulse-width modulation (Benoussaad et al. 2013); ``mA``/``A``: current modulation
+#: (the implanted-FES identification paper).
 FES_STIM_UNITS = ("us", "s", "mA", "A")
 #: How many trials of each step a FES session needs (at least).
 FES_STEPS_NEEDED = {
@@ -130,7 +131,8 @@ class ModelConfig:
 
     source: Path = opt("an msk model file (.toml) or an OpenSim model (.osim)")
     knee: str = opt(
-        "knee joint: spline (the gait2392 knee) or four_bar (seed 004)",
+        "knee joint: spline (the gait2392 knee) or four_bar (the crossed four-bar knee of the "
+        "rehabilitation-robot lower-limb model paper)",
         "spline",
         choices=KNEE_VARIANTS,
     )
@@ -321,7 +323,9 @@ class OptimizationConfig:
 
     method: str = opt("muscle-force solution", "static_optimization", choices=OPTIMIZATION_METHODS)
     w_emg: float = opt(
-        "emg_weighted: EMG weight of the QP (seed 002 Eq. 18)", 0.1, bounds=Range(0.0, 1e6)
+        "emg_weighted: EMG weight of the QP (Hayashibe et al. 2011, Eq. 18)",
+        0.1,
+        bounds=Range(0.0, 1e6),
     )
     solver: str = opt("QP solver", "daqp", choices=_solvers)
     activation_weights: str = opt(
@@ -477,6 +481,6 @@ SECTIONS = (
         "fes",
         FesConfig,
         "fes",
-        "the FES knee-model identification (seeds/000; role = 'fes' trials)",
+        "the FES knee-model identification (Benoussaad et al. 2013; role = 'fes' trials)",
     ),
 )

@@ -16,7 +16,7 @@ side = "left"          # side of interest (instrumented knee, affected limb)
 
 [model]
 source = "../models/gait2392.toml"   # an msk model file (.toml) or an OpenSim model (.osim)
-knee = "spline"                      # "spline" (gait2392 knee) | "four_bar" (seed 004)
+knee = "spline"                      # "spline" (gait2392 knee) | "four_bar" (crossed four-bar knee)
 scale = true                         # scale to the static trial's marker distances
 # markers = "gait2392_Scale_MarkerSet.xml"   # OpenSim marker set of a .osim without markers
 
@@ -75,13 +75,13 @@ acceleration_domain = "coordinates"  # or "segment_com": the COM low-passed as t
 [optimization]
 # static_optimization | bounded_qp | emg_weighted | emg_assisted | closed_form
 method = "static_optimization"
-w_emg = 0.1                      # EMG weight of the EMG-weighted QP (seed 002 Eq. 18)
+w_emg = 0.1                      # EMG weight of the EMG-weighted QP (Hayashibe et al. 2011, Eq. 18)
 w_track = 1.0                    # emg_assisted: weight of Σ (a_i − g_c ê_i)², gains fitted
 solver = "daqp"
 activation_weights = "uniform"   # static_optimization, emg_assisted: uniform | volume (Σ V a^p)
 activation_exponent = 2.0        # static_optimization: p ≥ 2 (OpenSim's activation_exponent)
 
-# FES knee-model identification (seeds/000): one [[trials]] table per recording with
+# FES knee-model identification (Benoussaad et al. 2013): one [[trials]] table per recording with
 # role = "fes" and fes_step = static | pendulum | isometric | recruitment | dynamic | validation
 # (needs subject.height_m; at least 3 isometric and 3 recruitment trains). CSV files (header
 # row) or C3D files (analog channels). The keys below are valid only with role = "fes".

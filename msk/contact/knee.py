@@ -1,4 +1,5 @@
-"""Tibiofemoral (knee) contact force from the tibia free-body diagram (seed 004 §2.1).
+"""Tibiofemoral (knee) contact force from the tibia free-body diagram (the rehabilitation-robot
+lower-limb model paper, §2.1).
 
 The tibia side of the knee (the tibia and every body distal to it) is cut free at the knee. The
 wrench the femur side transmits to it through the joint, from inverse dynamics, is
@@ -288,7 +289,8 @@ def knee_contact_force(
     plan: GeometryPlan | None = None,
     distal_wrenches: ArrayLike | None = None,
 ) -> KneeContact:
-    """Tibiofemoral contact force per frame (see the module docstring, seed 004 §2.1).
+    """Tibiofemoral contact force per frame (see the module docstring, the rehabilitation-robot
+    lower-limb model paper, §2.1).
 
     All frames at once, no per-frame Python loop: the inverse-dynamics wrench transmitted to
     the distal side is the Newton–Euler balance of the distal bodies (:func:`_distal_balance`,
@@ -867,7 +869,7 @@ def split_medial_lateral(
 
 
 # ---------------------------------------------------------------------------------------------
-# the compartment forces as affine functions of the muscle tensions (issue 16, seventh pass)
+# the compartment forces as affine functions of the muscle tensions
 # ---------------------------------------------------------------------------------------------
 @dataclass(frozen=True)
 class CompartmentMap(FrameAxis):

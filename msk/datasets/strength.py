@@ -2,23 +2,24 @@
 
 15 muscles over 3 sagittal coordinates (hip flexion, knee flexion, ankle dorsiflexion; positive
 moment = positive coordinate direction), grouped into 6 synergist groups, one EMG electrode per
-group (``seeds/002 §V``: synergists share one activity level). Moment arms vary smoothly with the
-angle they act on, ``r(θ) = r0 (1 + c sin(θ + φ))`` with random ``c ∈ [0.1, 0.3]`` and ``φ``; the
-musculotendon length is its integral ``l(θ) = l0 − r0 θ + r0 c cos(θ + φ)`` so that
-``J = ∂l/∂θ = −r`` exactly (``seeds/002 Eq. 6``). Generic parameters come from ``seeds/003``
-Tables 4.2–4.3 (F_iso, l_opt, l_ts of RF, VM, VI, VL, BFLH, BFSH, SM, ST, MG, LG, Sol, TA) plus an
-iliopsoas (iliacus + psoas) and a gluteus maximus.
+group (Hayashibe et al. 2011, §V: synergists share one activity level). Moment arms vary smoothly
+with the angle they act on, ``r(θ) = r0 (1 + c sin(θ + φ))`` with random ``c ∈ [0.1, 0.3]`` and
+``φ``; the musculotendon length is its integral ``l(θ) = l0 − r0 θ + r0 c cos(θ + φ)`` so that
+``J = ∂l/∂θ = −r`` exactly (Hayashibe et al. 2011, Eq. 6). Generic parameters come from the
+EMG-driven vs OpenSim thesis Tables 4.2–4.3 (F_iso, l_opt, l_ts of RF, VM, VI, VL, BFLH, BFSH, SM,
+ST, MG, LG, Sol, TA) plus an iliopsoas (iliacus + psoas) and a gluteus maximus.
 
 The motion is a gait-like cycle (≈1 s, 100 Hz) with cycle-to-cycle variability of duration,
 amplitude and burst timing. Each group's excitation ``e(t)`` is a sum of phase-locked bursts; the
-true activation is the ``seeds/003 Eq. 1–6`` filter of ``e`` and the exponential nonlinearity
-(Lloyd & Besier 2003; ``form="exponential"``) with a known electromechanical delay;
+true activation is the EMG-driven vs OpenSim thesis, Eq. 1–6 filter of ``e`` and the exponential
+nonlinearity (Lloyd & Besier 2003; ``form="exponential"``) with a known electromechanical delay;
 the **recorded** EMG envelope is ``e (1 + σ_m η_m) + σ_a η_a`` (η: unit-variance Gaussian noise
 low-passed at 5 Hz — multiplicative envelope noise and additive baseline noise), clipped to
 [0, 1]. Joint torques are ``τ = −Jᵀ f + d + noise`` with the true strengths.
 
-:func:`calibration_trial` turns a gait trial into a seeds/003 calibration trial of the knee and
-ankle muscles whose moments come from known EMG-driven parameters (:func:`calibration_truth`).
+:func:`calibration_trial` turns a gait trial into the EMG-driven vs OpenSim thesis calibration trial
+of the knee and ankle muscles whose moments come from known EMG-driven parameters
+(:func:`calibration_truth`).
 """
 
 from __future__ import annotations
@@ -110,9 +111,10 @@ class SyntheticLegTrial:
     """One synthetic trial (time on axis 0, SI; muscles in :attr:`params` order).
 
     ``emg`` is the recorded (noisy) envelope per muscle (the group's electrode copied to each
-    member), ``excitation_true`` the noise-free one; ``activation_true`` = seeds/003 filter of
-    ``excitation_true``. ``tau`` ``(N, 3)`` are the "inverse-dynamics" torques (with noise and the
-    constant residual ``offset``); ``tau_true`` without noise. ``cycle`` labels frames by cycle.
+    member), ``excitation_true`` the noise-free one; ``activation_true`` = the EMG-driven vs OpenSim
+    thesis filter of ``excitation_true``. ``tau`` ``(N, 3)`` are the "inverse-dynamics" torques
+    (with noise and the constant residual ``offset``); ``tau_true`` without noise. ``cycle`` labels
+    frames by cycle.
     """
 
     time: Array
@@ -235,12 +237,13 @@ def gait_trial(
 
     ``factors`` (group → × generic F_iso) default to :data:`LEG_TRUE_FACTORS`. Noise levels:
     ``emg_mult_noise`` (relative, σ_m), ``emg_add_noise`` (absolute, σ_a, envelope units) and
-    ``tau_noise`` (× the range of each torque). The true forces are those of the seed 002
-    reference force with the rigid-tendon Thelen state, ``f = F_iso (a f_l f_v + f_P) cos α``
-    — or, if ``force_fn(params, activation, lmt, vmt)`` is given, whatever it returns (the
-    calibration tests use the seed 003 Hill model there). ``seed`` draws the motion and the
-    excitations, ``noise_seed`` (default ``seed + 10000``) the noise. ``silent_groups`` stay at
-    the baseline excitation (0.03) throughout: the data do not excite them.
+    ``tau_noise`` (× the range of each torque). The true forces are those of the
+    Hayashibe et al. 2011 reference force with the rigid-tendon Thelen state, ``f = F_iso (a f_l f_v
+    + f_P) cos α`` — or, if ``force_fn(params, activation, lmt, vmt)`` is given, whatever it returns
+    (the calibration tests use the EMG-driven vs OpenSim thesis Hill model there). ``seed`` draws
+    the motion and the excitations, ``noise_seed`` (default ``seed + 10000``) the noise.
+    ``silent_groups`` stay at the baseline excitation (0.03) throughout: the data do not excite
+    them.
     """
     rng = np.random.default_rng(seed)
     factors = dict(LEG_TRUE_FACTORS if factors is None else factors)
@@ -405,10 +408,10 @@ def mvc_trials(
 ) -> SyntheticLegTrial:
     """Isometric maximal voluntary contractions of the synthetic subject, concatenated.
 
-    The seeds/002 protocol (Hayashibe, Venture, Ayusawa & Nakamura, IROS 2011, §VI.A: "MVC for
-    the extension and flexion in each joint of lower limbs") with the joint torque recorded:
-    for each group of ``groups`` (default: every group, i.e. flexion and extension of hip, knee
-    and ankle), ``repetitions`` trials at a posture drawn within the gait range (hip 0–0.3,
+    The protocol of Hayashibe et al. 2011 (Hayashibe, Venture, Ayusawa & Nakamura, IROS 2011, §VI.A:
+    "MVC for the extension and flexion in each joint of lower limbs") with the joint torque
+    recorded: for each group of ``groups`` (default: every group, i.e. flexion and extension of hip,
+    knee and ankle), ``repetitions`` trials at a posture drawn within the gait range (hip 0–0.3,
     knee 0.3–0.8, ankle −0.1–0.1 rad), each 0.3 s rest, 0.5 s ramp up, 2 s hold at the
     excitation ``effort`` (drawn in that range, on the MVC scale of the gait trials), 0.5 s
     ramp down, 0.3 s rest; the other groups co-contract at 0–10 % of the effort over the
@@ -520,7 +523,7 @@ def concatenate_trials(*trials: SyntheticLegTrial) -> SyntheticLegTrial:
 
 
 #: The knee and ankle muscles of the synthetic leg (13) in the 4 functional groups of the
-#: seeds/003 calibration tests and benchmark.
+#: the EMG-driven vs OpenSim thesis calibration tests and benchmark.
 CALIBRATION_GROUPS: dict[str, tuple[str, ...]] = {
     "knee_extensors": ("RF", "VL", "VM", "VI"),
     "knee_flexors": ("BFLH", "SM", "ST", "BFSH"),
@@ -533,9 +536,9 @@ CALIBRATION_TRUE_FACTORS: tuple[float, ...] = (1.7, 1.0, 0.6, 1.2)
 
 
 def calibration_truth(seed: int = 1) -> CalibrationParameters:
-    """Known seeds/003 parameters of the :data:`CALIBRATION_GROUPS` muscles: strength factors
-    :data:`CALIBRATION_TRUE_FACTORS`, per-muscle scales, activation and delay parameters drawn
-    (``seed``) around the generic values, skew 0.12."""
+    """Known parameters (the EMG-driven vs OpenSim thesis) of the :data:`CALIBRATION_GROUPS`
+    muscles: strength factors :data:`CALIBRATION_TRUE_FACTORS`, per-muscle scales, activation and
+    delay parameters drawn (``seed``) around the generic values, skew 0.12."""
     names = tuple(m for g in CALIBRATION_GROUPS.values() for m in g)
     rng = np.random.default_rng(seed)
     m = len(names)
@@ -565,8 +568,9 @@ def calibration_trial(
     name: str = "trial",
 ) -> CalibrationTrial:
     """A knee/ankle trial of ``leg`` (:func:`gait_trial` motion, 100 Hz) for the EMG-driven
-    calibration: moments of the seeds/003 model (:func:`~msk.strength.calibration.
-    emg_driven_forces`) with the known parameters ``truth`` driven by the true excitations.
+    calibration: moments of the EMG-driven vs OpenSim thesis model
+    (:func:`~msk.strength.calibration. emg_driven_forces`) with the known parameters ``truth``
+    driven by the true excitations.
 
     ``excitation`` ``"recorded"`` gives the calibration the noisy EMG envelope of
     :func:`gait_trial` (``emg_mult_noise``), ``"true"`` the noise-free one; ``moment_noise`` adds

@@ -396,7 +396,7 @@ def stair_motion(
     ``still_s`` standing at both ends. The footholds are named ``floor_r``/``floor_l`` (each
     foot's place on the floor), ``step1`` … (the surfaces a lab instruments or not).
 
-    Balance (issue 15, twelfth pass): the pelvis path is chosen so that the ground reaction the
+    Balance: the pelvis path is chosen so that the ground reaction the
     motion needs has its centre of pressure on the supporting sole — a zero-moment point
     designed on the feet (:data:`_PHI_LEAD` → :data:`_PHI_TRAIL` of the sole in single support,
     trailing → leading foot over each double support), the centre of mass from it by the

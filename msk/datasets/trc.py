@@ -1,6 +1,5 @@
 """Synthetic task trials in OpenSim's file formats with a known subject: markers ``.trc``, ground
-reactions ``.sto`` and their ExternalLoads ``.xml``, in a lab's own naming (issue 15,
-thirteenth pass).
+reactions ``.sto`` and their ExternalLoads ``.xml``, in a lab's own naming.
 
 The Grand Challenge DM sessions are written so (``DM_<task>_new.trc``, ``DM_<task>_grf.sto``,
 ``DM_<task>_external_loads.xml``) and have no static trial: ``msk run`` scales the model and

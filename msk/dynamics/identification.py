@@ -2,9 +2,9 @@
 
 Identification of the standard inertial parameters φ (10 per segment,
 :data:`msk.model.core.INERTIAL_PARAMETER_NAMES`) from the **base-link equations** of the floating
-base (seeds/002 §II, Eq. 1–4), which need no joint torque::
+base (Hayashibe et al. 2011, §II, Eq. 1–4), which need no joint torque::
 
-    Y_root(θ, θ̇, θ̈) φ = τ_ext,root          (seeds/002 Eq. 2, upper rows)
+    Y_root(θ, θ̇, θ̈) φ = τ_ext,root          (Hayashibe et al. 2011, Eq. 2, upper rows)
 
 stacked over the frames of one or more exciting trials. τ_ext,root are the generalised forces of
 the measured external wrenches on the pelvis coordinates (:func:`root_generalized_forces`).
@@ -22,8 +22,8 @@ Estimator (:class:`InertialIdentifier`)
     subject to physical consistency of every segment, J(φ_b) ⪰ ε (the 4×4 pseudo-inertia,
     :func:`msk.model.anthropometry.pseudo_inertia`; Wensing, Kim & Slotine 2017), the
     density-realisability condition tr(Q_b J(φ_b)) ≥ 0 for a bounding ellipsoid Q_b of the
-    segment (seeds/002 ref. [9]), optionally Σ m_b = M (known total mass), left/right symmetry
-    (φ_l = S φ_r with the mirror z → −z) and segments held at the prior. The variables are
+    segment (Hayashibe et al. 2011, ref. [9]), optionally Σ m_b = M (known total mass), left/right
+    symmetry (φ_l = S φ_r with the mirror z → −z) and segments held at the prior. The variables are
     scaled by the prior standard deviations (well-conditioned: the prior term is ‖x − x_prior‖²)
     and the rows by σ_k. Directions of φ that the motion does not excite carry no data
     information and stay at the prior instead of drifting. The problem is a convex QP with 4×4
@@ -36,7 +36,7 @@ Uncertainty and identifiability
     their data-only standard deviations σ (Y_bᵀ W² Y_b)^{-1}, the condition number of the stacked
     column-normalised base regressor, the posterior covariance (H + Σ_p^{-1})^{-1} of φ
     (constraints inactive; includes the prior) and a per-segment flag, the colour coding of
-    seeds/002 Fig. 3:
+    Hayashibe et al. 2011, Fig. 3:
 
     - ``"well identified"``: posterior std of the mass ≤ :data:`WELL_IDENTIFIED_MASS_REL_STD`
       relative and of each COM coordinate ≤ :data:`WELL_IDENTIFIED_COM_STD_M`;
@@ -49,10 +49,11 @@ Uncertainty and identifiability
     scaled data information matrix whose data std exceeds the prior std) in parameter names.
 
 Identification model (:func:`lump_subtrees`)
-    As in seeds/002 §VI-B, the upper body (torso, head, arms) is identified as one link: its
-    subtree is lumped rigidly at a reference pose into one body; :meth:`LumpedModel.redistribute`
-    spreads the identified lump back over the musculoskeletal sub-links proportionally to their
-    generic masses while matching the lump's mass, first moment and inertia (limbs are copied).
+    As in Hayashibe et al. 2011, §VI-B, the upper body (torso, head, arms) is identified as one
+    link: its subtree is lumped rigidly at a reference pose into one body;
+    :meth:`LumpedModel.redistribute` spreads the identified lump back over the musculoskeletal
+    sub-links proportionally to their generic masses while matching the lump's mass, first moment
+    and inertia (limbs are copied).
 """
 
 from __future__ import annotations
@@ -157,7 +158,7 @@ def root_generalized_forces(
     root = root_coordinate_indices(model)
     out = np.zeros((th.shape[0], root.size))
     # frame by frame maths, in blocks: the (N, n_dof, n_coords) coupling Jacobian and the
-    # per-joint motion subspaces of a long trial are never held whole (issue 18)
+    # per-joint motion subspaces of a long trial are never held whole
     for c0 in range(0, th.shape[0], REGRESSOR_BLOCK):
         sl = slice(c0, c0 + REGRESSOR_BLOCK)
         out[sl] = _root_forces_block(model, root, th[sl], f[sl], n_w[sl])
@@ -305,7 +306,8 @@ def _phi_from_pseudo(jm: Any) -> list[Any]:
 @dataclass(frozen=True)
 class BoundingEllipsoid:
     """A segment-fixed ellipsoid {x : ‖diag(1/semi_axes) Rᵀ (x − center)‖ ≤ 1} (body frame, m)
-    that must contain the segment's mass (density realisability, seeds/002 ref. [9])."""
+    that must contain the segment's mass (density realisability, Hayashibe et al. 2011, ref.
+    [9])."""
 
     center: Array
     semi_axes: Array
@@ -425,7 +427,8 @@ def base_residuals(
     parameters: Mapping[str, ArrayLike] | None = None,
 ) -> BaseResiduals:
     """Pelvis (base-link) residual RMS of ``model`` — with its own inertias or with
-    ``parameters`` (φ per body) — on trials: the seeds/002 Eq. 2 misfit Y_root φ − τ_ext,root."""
+    ``parameters`` (φ per body) — on trials: the misfit of Hayashibe et al. 2011, Eq. 2 Y_root φ −
+    τ_ext,root."""
     layout = regressor_layout(model)
     phi = layout.parameters(model)
     for b, name in enumerate(layout.body_names):
@@ -506,7 +509,7 @@ class LumpedModel:
     def redistribute(
         self, parameters: Mapping[str, ArrayLike], *, generic: Model | None = None
     ) -> Model:
-        """The source model with identified inertias (seeds/002 §VI-B).
+        """The source model with identified inertias (Hayashibe et al. 2011, §VI-B).
 
         Bodies that are not lumps are copied. A lump's identified φ_L is split over its members
         i: masses m_i = m_i^g · m_L / Σ m^g (proportional to the generic masses of ``generic``,
@@ -787,7 +790,8 @@ class CrossValidation:
 
 
 class InertialIdentifier:
-    """Physically consistent segment inertial parameters from base-link equations (seeds/002 §II).
+    """Physically consistent segment inertial parameters from base-link equations
+    (Hayashibe et al. 2011, §II).
 
     Args:
         model: the identification model (e.g. ``lump_subtrees(full, ["torso"]).model``).
@@ -1159,7 +1163,7 @@ class InertialIdentifier:
     def fit(
         self, trials: IdentificationTrial | Sequence[IdentificationTrial]
     ) -> InertialIdentifier:
-        """Identify φ from the base-link equations of ``trials`` (seeds/002 Eq. 2).
+        """Identify φ from the base-link equations of ``trials`` (Hayashibe et al. 2011, Eq. 2).
 
         With ``prior_weight="cv"`` the weight λ of the prior term is chosen first by
         cross-validation (:meth:`cross_validate`), then φ is fitted on all frames with it."""

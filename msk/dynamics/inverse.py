@@ -1,7 +1,7 @@
 """Inverse dynamics on the embedded model, pelvis residuals and joint reaction forces.
 
-Joint torques (seed 002 Eq. 1, RNEA on the Pinocchio tree, mapped to the independent coordinates
-by virtual work)::
+Joint torques (Hayashibe et al. 2011, Eq. 1, RNEA on the Pinocchio tree, mapped to the independent
+coordinates by virtual work)::
 
     τ_pin = RNEA(q, v, a, f_ext),   (q, v, a) = (g(θ), G θ̇, G θ̈ + Ġ θ̇)
     τ_θ   = Gᵀ τ_pin
@@ -9,8 +9,8 @@ by virtual work)::
 so a coupled (spline or four-bar) knee gets one torque about its flexion coordinate. Variants:
 
 ``full``          the above;
-``quasi_static``  v = a = 0, gravity and external loads only (seed 004 §2.3, the SGM);
-``geometric``     v = a = 0 and no gravity: the external loads alone.
+``quasi_static``  v = a = 0, gravity and external loads only (the rehabilitation-robot lower-limb
+model paper, §2.3, the SGM); ``geometric``     v = a = 0 and no gravity: the external loads alone.
 
 **Pelvis residuals.** The root coordinates (the six pelvis DOFs) are unactuated, so their
 generalised forces are the residuals (OpenSim's FX…MZ), and the residual wrench is the spatial
@@ -303,7 +303,7 @@ def _run_rnea(
     return tau, f_keep, m_keep, jac, org
 
 
-#: frames per block of a longer trial's inverse dynamics (issue 18): its per-frame states,
+#: frames per block of a longer trial's inverse dynamics: its per-frame states,
 #: world Jacobians and coupling Jacobians (~8 kB/frame on gait2392) are never held whole
 ID_BLOCK = 4096
 

@@ -26,7 +26,7 @@ for its points (origins of the foot bodies and their descendants, and their mark
   of a leg scaled too long) is the one bearing it, and no farther foot stands on the plate in
   its place. Without this, on a treadmill's belts (no outline: the COP radius, wide enough to
   take the other foot) a foot swinging past at 3 m/s got a belt's load (the Grand Challenge
-  DM crouch walk's files, issue 15). Such frames are judged as frames with no foot on the plate.
+  DM crouch walk's files). Such frames are judged as frames with no foot on the plate.
 
 The outline test alone counts a foot swinging over the plate, or a foot standing on the next
 plate with its toes within the margin, as standing on it (overground gait, e.g. the Grand
@@ -473,7 +473,7 @@ def _foot_points(
 
 
 #: frames per block of :func:`_foot_points`' joint placements (~0.5 MB per 1 000 frames and
-#: joint; issue 18)
+#: joint)
 _POINT_BLOCK = 4096
 
 
@@ -594,7 +594,7 @@ def external_loads(
         return bodies.index(body)
 
     # one plate at a time: the previous one is let go before the next is made (a generator of
-    # rotated plates, the pipeline's, holds one analog-rate plate at a time; issue 18)
+    # rotated plates, the pipeline's, holds one analog-rate plate at a time)
     prepared = []
     for plate in plates:
         prepared.append(
@@ -783,8 +783,8 @@ def sample_plate(
     At the plate's rate: the sign (``"auto"``: the vertical force, along the unit ``up``,
     positive during contact), F and M_O zeroed where |F·up| ≤ ``threshold_n``, the optional
     zero-lag low-pass (:func:`msk.signal.filtfilt_butter`); then linear resampling on ``t``.
-    Component by component, so that the analog-rate temporaries are one column at a time
-    (issue 18); the same numbers as the whole-array computation, bit for bit."""
+    Component by component, so that the analog-rate temporaries are one column at a time;
+    the same numbers as the whole-array computation, bit for bit."""
     t = np.asarray(t, dtype=float)
     up = np.asarray(up, dtype=float)
     f_raw = np.asarray(pl.force, dtype=float)
@@ -1047,8 +1047,8 @@ def _velocity(p: Array, t: Array) -> Array:
 
     Block by block of :data:`_POINT_BLOCK` frames (each block with its neighbouring frames: the
     same operations on every element as in one pass, bit for bit), so that the differences'
-    and their mean's temporaries (~8 times the result) stay bounded on a long trial: they were
-    the loads stage's high-water (issue 18)."""
+    and their mean's temporaries (~8 times the result) stay bounded on a long trial: held whole,
+    they would be the loads stage's high-water."""
     n = p.shape[0]
     out = np.empty(p.shape)
     for a in range(0, n, _POINT_BLOCK):
@@ -1196,7 +1196,7 @@ def foot_contact(
         warnings.simplefilter("ignore", RuntimeWarning)
         low = np.stack([np.nanmin(p @ up, axis=1) for p in pts], axis=1)  # (N, F)
         vel = [_velocity(p, t) for p in pts]
-        del pts  # the lowest points and the velocities only, from here (issue 18)
+        del pts  # the lowest points and the velocities only, from here
         # the floor: a low percentile of the feet's lowest points, not their minimum (a frame
         # or two of a badly tracked foot below the floor must not lift every other foot off it)
         floor = np.nanpercentile(low, 2.0)

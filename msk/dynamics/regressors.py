@@ -2,12 +2,12 @@
 
 The inverse dynamics of a rigid multibody system is linear in the standard inertial parameters
 φ (10 per body, :data:`msk.model.core.INERTIAL_PARAMETER_NAMES`, each body's parameters in its own
-body frame)::
+body frame; Hayashibe et al. 2011, Eq. 1)::
 
-    τ_θ = Gᵀ (M(q) a + b(q, v)) − Gᵀ Jᵀ f_ext = Y_θ(θ, θ̇, θ̈) φ − τ_ext        (seed 002 Eq. 1)
+    τ_θ = Gᵀ (M(q) a + b(q, v)) − Gᵀ Jᵀ f_ext = Y_θ(θ, θ̇, θ̈) φ − τ_ext
 
 The first rows — the generalised forces of the floating-base (pelvis) coordinates, which no
-actuator drives — give the **base-link equations** (seed 002 Eq. 2)::
+actuator drives — give the **base-link equations** (Hayashibe et al. 2011, Eq. 2)::
 
     Y_root(θ, θ̇, θ̈) φ = τ_ext,root
 

@@ -1,7 +1,8 @@
-"""FES-driven knee: the quadriceps–shank model of seeds/000 (and seeds/001) and its
-identification protocol.
+"""FES-driven knee: the quadriceps–shank model of Benoussaad et al. 2013 (and the implanted-FES
+identification paper) and its identification protocol.
 
-* :mod:`msk.fes.model` — parameters (frozen dataclasses), seeds/000 Table 3 sets, seed 001's
+* :mod:`msk.fes.model` — parameters (frozen dataclasses), the Table 3 sets of
+  Benoussaad et al. 2013, the implanted-FES identification paper's
   subject, recruitment functions;
 * :mod:`msk.fes.stimulation` — pulse trains;
 * :mod:`msk.fes.simulate` — casadi simulation (RK4 on the stimulation grid, or CVODES);

@@ -1,8 +1,10 @@
-"""Identification steps of the quadriceps–shank model (seeds/000 §2.3, seeds/001 §IV).
+"""Identification steps of the quadriceps–shank model (Benoussaad et al. 2013, §2.3, the
+implanted-FES identification paper, §IV).
 
 Every step is a free function returning a frozen result with its identified values, the
 measured/predicted series it was fitted on (with column names) and its quality figures
-``nrmsd`` (seeds/000 Eq. 9, %) and ``nrmse`` (seeds/001 §V, %), both from :mod:`msk.metrics`.
+``nrmsd`` (Benoussaad et al. 2013, Eq. 9, %) and ``nrmse`` (the implanted-FES identification paper,
+§V, %), both from :mod:`msk.metrics`.
 
 Steps (in protocol order):
 
@@ -151,7 +153,7 @@ def geometry_from_height(
     shank_fraction: float = SHANK_LENGTH_FRACTION,
     n_angles: int = 10,
 ) -> GeometryResult:
-    """seeds/000 §2.3.1.1: ``L_ext``, ``r_q`` from stature only.
+    """Benoussaad et al. 2013, §2.3.1.1: ``L_ext``, ``r_q`` from stature only.
 
     Normalised lengths ``L/ℓ_s = Σ p_i θ^i`` at ``n_angles`` regularly spaced knee angles in
     [0°, 90°] times the shank length ``ℓ_s = shank_fraction · height``, then linear least
@@ -176,7 +178,8 @@ WINTER_FOOT_AND_LEG = {"mass": 0.061, "com": 0.606, "rho_proximal": 0.735, "leng
 
 @dataclass(frozen=True)
 class ShankAnthropometry:
-    """Shank + foot from regression tables (seeds/001 §IV.A), SI units."""
+    """Shank + foot from regression tables (the implanted-FES identification paper, §IV.A), SI
+    units."""
 
     mass: float
     length: float
@@ -185,7 +188,8 @@ class ShankAnthropometry:
 
     @property
     def gravity_stiffness(self) -> float:
-        """``M_s g L_og`` (N·m/rad): the gravity part of ``K_eq`` (seeds/001 Eq. 4)."""
+        """``M_s g L_og`` (N·m/rad): the gravity part of ``K_eq`` (the implanted-FES identification
+        paper, Eq. 4)."""
         return self.mass * G * self.L_og
 
 
@@ -194,10 +198,11 @@ def shank_anthropometry(
 ) -> ShankAnthropometry:
     """Shank+foot mass, COM distance from the knee and inertia about the knee.
 
-    seeds/001 §IV.A cites "regression equations [16]" without the table; its mass
-    (4.026 kg for 66 kg) is exactly Winter's foot-and-leg fraction 0.061, which we use.  With
-    Winter's COM (0.606) and proximal radius of gyration (0.735) and a 0.246 H leg length we
-    get ``L_og`` = 0.261 m and ``J`` = 0.403 kg·m² for seed 001's subject, against its reported
+    The implanted-FES identification paper, §IV.A cites "regression equations [16]" without the
+    table; its mass (4.026 kg for 66 kg) is exactly Winter's foot-and-leg fraction 0.061, which we
+    use.  With Winter's COM (0.606) and proximal radius of gyration (0.735) and a 0.246 H leg length
+    we get ``L_og`` = 0.261 m and ``J`` = 0.403 kg·m² for the implanted-FES identification paper's
+    subject, against its reported
     0.194 m and 0.343 kg·m² (whose table we could not identify); pass ``table`` to use others.
     """
     t = WINTER_FOOT_AND_LEG if table is None else table
@@ -211,7 +216,8 @@ def shank_anthropometry(
 # ------------------------------------------------------------------------ static torque (3)
 @dataclass(frozen=True)
 class StaticTorqueResult:
-    """``T_s = K sin θ_r`` (seeds/000 Eq. 7) fitted; columns ``theta_r, torque, torque_fit``."""
+    """``T_s = K sin θ_r`` (Benoussaad et al. 2013, Eq. 7) fitted; columns ``theta_r, torque,
+    torque_fit``."""
 
     K: float
     theta_r: F64
@@ -223,7 +229,7 @@ class StaticTorqueResult:
 
 
 def identify_static_torque(theta_r: ArrayLike, torque: ArrayLike) -> StaticTorqueResult:
-    """Linear least squares ``K = Σ T sin θ_r / Σ sin² θ_r`` (seeds/000 §2.3.1.2)."""
+    """Linear least squares ``K = Σ T sin θ_r / Σ sin² θ_r`` (Benoussaad et al. 2013, §2.3.1.2)."""
     th = np.asarray(theta_r, dtype=float)
     tq = np.asarray(torque, dtype=float)
     if th.shape != tq.shape or th.size < 2:
@@ -270,10 +276,10 @@ def identify_pendulum_linear(
 
     ``θ_r(t) = A e^{−ζω_n t} cos(ω_d t + φ) + c`` is fitted by nonlinear least squares
     (started from the zero crossings and the logarithmic decrement), ``ω_n² = ω_d² + σ²``,
-    ``ζ = σ/ω_n``.  Give exactly one of ``K_eq`` (seeds/000: ``K`` from the static test, then
-    ``J = K/ω_n²``) or ``J`` (seeds/001: anthropometric ``J``, then ``K_eq = ω_n² J``);
-    ``B = 2 ζ ω_n J`` in both cases.  The sine is linearised: large drops bias ``ω_n`` (use
-    :func:`identify_pendulum_nonlinear` to remove it).
+    ``ζ = σ/ω_n``.  Give exactly one of ``K_eq`` (Benoussaad et al. 2013: ``K`` from the static
+    test, then ``J = K/ω_n²``) or ``J`` (the implanted-FES identification paper: anthropometric
+    ``J``, then ``K_eq = ω_n² J``); ``B = 2 ζ ω_n J`` in both cases.  The sine is linearised: large
+    drops bias ``ω_n`` (use :func:`identify_pendulum_nonlinear` to remove it).
     """
     t = np.asarray(time, dtype=float)
     y = np.asarray(theta_r, dtype=float)
@@ -342,12 +348,13 @@ def identify_pendulum_nonlinear(
     init: PendulumResult | None = None,
     dt: float = DT,
 ) -> PendulumResult:
-    """Direct fit of ``J θ̈_r + B θ̇_r + K sin θ_r + K_e θ_r = 0`` (seeds/000 Eq. 6–7).
+    """Direct fit of ``J θ̈_r + B θ̇_r + K sin θ_r + K_e θ_r = 0`` (Benoussaad et al. 2013, Eq.
+    6–7).
 
     Free parameters: ``B``, the release angle and velocity, and ``J`` (when ``J`` is None,
-    seeds/000) or ``K_e`` (when ``J`` is given, seeds/001: the elastic part of ``K_eq``).
-    Gauss–Newton (scipy ``least_squares``) with the exact sensitivities of the casadi RK4
-    simulation; the measured series is resampled on the ``dt`` grid.
+    Benoussaad et al. 2013) or ``K_e`` (when ``J`` is given, the implanted-FES identification paper:
+    the elastic part of ``K_eq``). Gauss–Newton (scipy ``least_squares``) with the exact
+    sensitivities of the casadi RK4 simulation; the measured series is resampled on the ``dt`` grid.
     """
     t = np.asarray(time, dtype=float)
     y = np.asarray(theta_r, dtype=float)
@@ -404,7 +411,8 @@ def identify_pendulum_nonlinear(
 # ------------------------------------------------------------------------ force–length (5)
 @dataclass(frozen=True)
 class ForceLengthResult:
-    """``Fl(ε_c) = exp(−(ε_c/b)²)`` (seeds/000 Eq. 2) fitted, with normalised forces."""
+    """``Fl(ε_c) = exp(−(ε_c/b)²)`` (Benoussaad et al. 2013, Eq. 2) fitted, with normalised
+    forces."""
 
     b: float
     L_c0: float
@@ -426,7 +434,8 @@ def identify_force_length(
     fibre_fraction: float,
     k_s: float = np.inf,
 ) -> ForceLengthResult:
-    """``b``, ``L_c0`` by linear least squares on the logarithm of Eq. 2 (seeds/000 §2.3.1.3).
+    """``b``, ``L_c0`` by linear least squares on the logarithm of Eq. 2 (Benoussaad et al. 2013,
+    §2.3.1.3).
 
     With ``x = L(θ) − F/k_s = L_c + L_s`` (the CE length plus the constant slack length; the
     seed takes ``k_s = ∞``, "SE highly stiff", which is the default), ``ln F = a0 + a1 x +
@@ -479,8 +488,8 @@ def force_length_factor(
 def calcium_gain(calcium: CalciumParams, frequency_hz: float) -> float:
     """Steady isometric force per ``α F_cm Fl`` at ``frequency_hz``: ``κ = ⟨y⟩``.
 
-    ``y`` is the periodic solution of ``ẏ = −u(t) y + Π_c(t) U_c`` (seeds/000 Eq. 1 with
-    ``ε̇_c = 0``, Eq. 11–12); ``κ`` = 0.921 at 20 Hz with the seed's calcium constants and
+    ``y`` is the periodic solution of ``ẏ = −u(t) y + Π_c(t) U_c`` (Benoussaad et al. 2013, Eq. 1
+    with ``ε̇_c = 0``, Eq. 11–12); ``κ`` = 0.921 at 20 Hz with the seed's calcium constants and
     1 for a fused tetanus (``Π_c ≡ 1``).
     """
     period = 1.0 / frequency_hz
@@ -532,16 +541,17 @@ def identify_recruitment_pw(
     stiffness_ratio: float = 900.0,
     pw_max: float = 420e-6,
 ) -> RecruitmentPWResult:
-    """``c1, c2, c3`` by nonlinear least squares (seeds/000 §2.3.1.4), then ``F_cm``, ``K_cm``.
+    """``c1, c2, c3`` by nonlinear least squares (Benoussaad et al. 2013, §2.3.1.4), then ``F_cm``,
+    ``K_cm``.
 
     ``α_i = (F_i / Fl_i) / (F_max / Fl_max)``: steady isometric forces at the test angle
     normalised by the one at ``PW_max`` as in the seed, each first divided by its force–length
     factor ``Fl(ε_c)`` (with ``L_c = L − L_s − F/k_s`` from ``subject``'s current ``b``,
     ``L_c0``, ``L_s``, ``k_s``; the seed neglects this, exact only for a rigid tendon).  Only
     the product ``c1 F_cm`` is identifiable: the normalisation fixes ``α(PW_max) ≈ 1``.  The
-    seeds/000 Table 3 sets do not all satisfy it (their ``α(PW_max)`` spans 0.87 (S5L) to 1.03
-    (S9L)), so for such a leg ``c1`` and ``F_cm`` differ from the published ones by that factor
-    while ``F_cm α(PW_max)`` is recovered.  ``F_cm = F_max / (κ Fl_max α̂(PW_max))``
+    The Table 3 sets of Benoussaad et al. 2013 do not all satisfy it (their ``α(PW_max)`` spans 0.87
+    (S5L) to 1.03 (S9L)), so for such a leg ``c1`` and ``F_cm`` differ from the published ones by
+    that factor while ``F_cm α(PW_max)`` is recovered.  ``F_cm = F_max / (κ Fl_max α̂(PW_max))``
     with ``κ`` = :func:`calcium_gain`; ``K_cm = stiffness_ratio · F_cm`` ("proportional to
     F_cm according to the physiological model", ratio in 1/m).
     """
@@ -659,9 +669,9 @@ def identify_isometric_transients(
 ) -> IsometricFitResult:
     """Refit ``F_cm, b, L_c0, c2, c3`` on the isometric torque *time courses* (model in the loop).
 
-    Our addition to seeds/000 §2.3.1.3–4: with Table 3's ``K_cm/k_s`` the model's isometric
-    force rises at ≈ ``u k_s/(k_s + K_c)`` (time constants up to 1.3 s), so the seed's 1.5 s
-    trains never reach the steady state its steps assume.  Every trial (``knee_angle``,
+    Our addition to Benoussaad et al. 2013, §2.3.1.3–4: with Table 3's ``K_cm/k_s`` the model's
+    isometric force rises at ≈ ``u k_s/(k_s + K_c)`` (time constants up to 1.3 s), so the seed's 1.5
+    s trains never reach the steady state its steps assume.  Every trial (``knee_angle``,
     ``stim``, ``time``, ``torque`` from rest; e.g. :class:`msk.fes.protocol.IsometricTrial`) is
     simulated with the current ``k_s`` (``K_cm = stiffness_ratio F_cm``, ``L_s`` from the
     fibre fraction) and the torque errors are minimised by Gauss–Newton with exact casadi
@@ -750,15 +760,17 @@ def _traj_with_jac(
     return ca.Function("traj", [x0, w, p, q], [th, ca.jacobian(th, q)])
 
 
-#: Box on (a_I, B_r [1/mA], C_r, D_r) for the seed 001 fit: D_r and C_r trade off (for C_r ≪ 0
-#: the tanh pair is nearly exponential) and would otherwise drift without changing α(I) much.
+#: Box on (a_I, B_r [1/mA], C_r, D_r) for the fit of the implanted-FES identification paper: D_r and
+#: C_r trade off (for C_r ≪ 0 the tanh pair is nearly exponential) and would otherwise drift without
+#: changing α(I) much.
 _REC_I_LB = np.array([-0.9, 0.01, -3.0, 0.1])
 _REC_I_UB = np.array([2.0, 5.0, 3.0, 20.0])
 
 
 @dataclass(frozen=True)
 class RecruitmentCurrentResult:
-    """seeds/001 Eq. 7 identified from dynamic data; columns ``time, theta_r, theta_r_fit``."""
+    """The implanted-FES identification paper, Eq. 7 identified from dynamic data; columns ``time,
+    theta_r, theta_r_fit``."""
 
     a_I: float
     B_r: float
@@ -830,7 +842,8 @@ def identify_recruitment_current(
 
 @dataclass(frozen=True)
 class SeriesStiffnessResult:
-    """``k_s`` (N/m) by the NLP of seeds/000 Eq. 8; columns ``time, theta_r, theta_r_fit``."""
+    """``k_s`` (N/m) by the NLP of Benoussaad et al. 2013, Eq. 8; columns ``time, theta_r,
+    theta_r_fit``."""
 
     k_s: float
     k_s_initial: float
@@ -917,7 +930,8 @@ def identify_series_stiffness(
     free_K_cm: bool = False,
     K_cm_factor_bounds: tuple[float, float] = (0.1, 10.0),
 ) -> SeriesStiffnessResult:
-    """``min_{k_s} ∫ (θ_r − θ_s)² dt  s.t. k_s > 0`` (seeds/000 Eq. 8) with casadi + ipopt.
+    """``min_{k_s} ∫ (θ_r − θ_s)² dt  s.t. k_s > 0`` (Benoussaad et al. 2013, Eq. 8) with casadi +
+    ipopt.
 
     Direct multiple shooting: the state ``(θ_r, θ̇_r, K_c, F_c)`` is a decision variable every
     ``interval_steps`` RK4 steps (50 ms), continuity and the initial rest state are equality

@@ -1,17 +1,20 @@
-"""The FES-driven quadriceps–shank model of seeds/000 (and its seeds/001 variant).
+"""The FES-driven quadriceps–shank model of Benoussaad et al. 2013 (and the implanted-FES
+identification paper variant).
 
-Knee (seeds/000 Eq. 5–7, seeds/001 Eq. 1–2), with ``θ`` the knee angle (0 = full extension) and
-``θ_r = θ_rest − θ`` the angle from the rest (hanging) position, positive towards extension::
+Knee (Benoussaad et al. 2013, Eq. 5–7, the implanted-FES identification paper, Eq. 1–2), with ``θ``
+the knee angle (0 = full extension) and ``θ_r = θ_rest − θ`` the angle from the rest (hanging)
+position, positive towards extension::
 
     L(θ)  = L_ext + r_q θ                                      (000 Eq. 5; 001 Eq. 1)
     T_q   = J θ̈_r + B θ̇_r + K sin θ_r + K_e θ_r               (000 Eq. 6–7; 001 Eq. 2)
     T_q   = r_q F_c
 
-``K sin θ_r`` is seeds/000's lumped static torque (gravity + elasticity, Eq. 7); seeds/001 splits
-it into gravity ``M_s g L_og sin γ`` (→ ``K = M_s g L_og``) and a linear elastic torque
-``K_e γ`` (``γ = π/2 − θ = θ_r``).  Seeds/000 uses ``K_e = 0``.
+``K sin θ_r`` is Benoussaad et al.'s (2013) lumped static torque (gravity + elasticity, Eq. 7); the
+implanted-FES identification paper splits it into gravity ``M_s g L_og sin γ`` (→ ``K = M_s g
+L_og``) and a linear elastic torque ``K_e γ`` (``γ = π/2 − θ = θ_r``).  Benoussaad et al. 2013 uses
+``K_e = 0``.
 
-Quadriceps under electrical stimulation (seeds/000 Eq. 1–4 and Appendix Eq. 10–12)::
+Quadriceps under electrical stimulation (Benoussaad et al. 2013, Eq. 1–4 and Appendix Eq. 10–12)::
 
     α(PW) = c1 / (1 + exp(c2 (c3 − PW/PW_max)))                        (000 Eq. 10)
     α(I)  = D_r (tanh(R − C_r) + tanh(C_r)),  R = B_r (1 + a_I I/I_max) I   (001 Eq. 7)
@@ -30,13 +33,14 @@ Interpretations (the OCR'd seed leaves these open; they are ours):
   Eq. 1 substituted; we therefore compute the CE length algebraically,
   ``L_c = L(θ) − L_s − F_c/k_s``, with ``L_s`` the series-element (tendon) slack length.  This
   makes the state ``(θ_r, θ̇_r, K_c, F_c)``; ``L_s`` is not in Table 3: we derive it from the
-  angle of optimal force (seeds/000 §2.3.1.3: "rest position … position of the maximal
+  angle of optimal force (Benoussaad et al. 2013, §2.3.1.3: "rest position … position of the maximal
   isometric force") as ``L_s = L(θ_opt) − L_c0``.
 * ``sign`` and ``|·|`` are smoothed as ``x/sqrt(x² + δ²)`` (``δ`` tiny) so that the model can
   sit inside an NLP; ε̇_c itself is continuous through the switch.
 * In PW/I-modulated trains a pulse of zero width/amplitude is *no* pulse (``Π_c`` not reset):
   Eq. 10 gives ``α(0) = c1/(1+e^{c2 c3}) > 0`` which would otherwise produce force at PW = 0.
-* Seeds/001 uses a fused-tetanus simplification (``u`` constant while stimulating).  We keep
+* The implanted-FES identification paper uses a fused-tetanus simplification (``u`` constant while
+  stimulating).  We keep
   the same Eq. 1–4 model and obtain it with ``τ_c ≥ 1/f`` (``Π_c ≡ 1`` during a train).
 """
 
@@ -78,12 +82,13 @@ G = G0  # m/s²
 SHANK_LENGTH_FRACTION = 0.246
 
 #: Normalised quadriceps muscle–tendon length ``L/ℓ_s = Σ p_i θ^i`` (θ in rad, i = 0..5).
-#: seeds/000 §2.3.1.1 uses a fifth-order polynomial from its ref. [22] (Hawkins & Hull 1990)
-#: whose coefficients are not in the seed: these coefficients are *ours*, shaped so that the
+#: Benoussaad et al. 2013, §2.3.1.1 uses a fifth-order polynomial from its ref. [22] (Hawkins & Hull
+#: 1990) whose coefficients are not in the seed: these coefficients are *ours*, shaped so that the
 #: moment arm peaks mid-range, and calibrated so that the least-squares line over 10 angles
 #: in [0°, 90°] gives ``L_ext = 0.2355 H`` and ``r_q = 0.02765 H``, i.e. reproduces every
-#: ``L_ext``/``r_q`` pair of seeds/000 Table 3 and of seeds/001 Table I from the heights of
-#: seeds/000 Table 1 (S3 1.75 m → 41.2 cm, 4.84 cm) within rounding.
+#: ``L_ext``/``r_q`` pair of Benoussaad et al. 2013, Table 3 and of the implanted-FES identification
+#: paper, Table I from the heights of Benoussaad et al. 2013, Table 1 (S3 1.75 m → 41.2 cm, 4.84 cm)
+#: within rounding.
 GEOMETRY_POLY_FROM_HEIGHT: tuple[float, ...] = (
     0.959841,
     0.0894062,
@@ -170,9 +175,9 @@ class RecruitmentPW:
 class RecruitmentCurrent:
     """tanh recruitment in current amplitude (001 Eq. 7).
 
-    ``α(I) = D_r (tanh(R − C_r) + tanh(C_r))``, ``R = B_r (1 + a_I I/I_max) I``.  Seeds/001
-    gives ``B_r`` for ``I`` in mA (0–3 mA, ``I_max`` = 3 mA, α(3 mA) ≈ 0.92 with its Table I);
-    inputs here are SI (A) and are converted to mA inside.
+    ``α(I) = D_r (tanh(R − C_r) + tanh(C_r))``, ``R = B_r (1 + a_I I/I_max) I``.  The implanted-FES
+    identification paper gives ``B_r`` for ``I`` in mA (0–3 mA, ``I_max`` = 3 mA, α(3 mA) ≈ 0.92
+    with its Table I); inputs here are SI (A) and are converted to mA inside.
     """
 
     a_I: float
@@ -204,8 +209,8 @@ class FesSubject:
     muscle: MuscleParams
     recruitment: Recruitment
     calcium: CalciumParams = CalciumParams()
-    #: contractile-element equations: ``"000"`` (seeds/000 Eq. 1–4) or ``"001"`` (seeds/001
-    #: Eq. 3, 5–6; see :func:`msk.fes.simulate.rhs_function`)
+    #: contractile-element equations: ``"000"`` (Benoussaad et al. 2013, Eq. 1–4) or ``"001"`` (the
+    #: implanted-FES identification paper Eq. 3, 5–6; see :func:`msk.fes.simulate.rhs_function`)
     contractile: Literal["000", "001"] = "000"
 
     def with_knee(self, **kw: float) -> FesSubject:
@@ -344,9 +349,9 @@ def _table3(
     )
 
 
-#: Identified parameter sets of seeds/000 Table 3 (left legs share their subject's geometry,
-#: which the table gives once per subject).  S5R has no muscle parameters (Nsf) and is absent.
-#: ``L_s`` is derived with an assumed optimal angle of 60° (see module docstring).
+#: Identified parameter sets of Benoussaad et al. 2013, Table 3 (left legs share their subject's
+#: geometry, which the table gives once per subject).  S5R has no muscle parameters (Nsf) and is
+#: absent. ``L_s`` is derived with an assumed optimal angle of 60° (see module docstring).
 TABLE3: dict[str, FesSubject] = {
     s.name: s
     for s in (
@@ -367,9 +372,10 @@ TABLE3: dict[str, FesSubject] = {
 }
 
 
-#: seeds/000 Table 2: NRMSD (%) per identification step and leg (S3R, S3L, S4R, S4L, S5R, S5L,
-#: S6R, S6L, S7R, S7L, S9R, S9L, S10R, S10L); ``None`` where the seed reports nonsignificant
-#: force (Nsf). Rows are the keys of :meth:`msk.fes.protocol.ProtocolResult.nrmsd_table`.
+#: Benoussaad et al. 2013, Table 2: NRMSD (%) per identification step and leg (S3R, S3L, S4R, S4L,
+#: S5R, S5L, S6R, S6L, S7R, S7L, S9R, S9L, S10R, S10L); ``None`` where the seed reports
+#: nonsignificant force (Nsf). Rows are the keys of
+#: :meth:`msk.fes.protocol.ProtocolResult.nrmsd_table`.
 TABLE2_NRMSD_PCT: dict[str, tuple[float | None, ...]] = {
     "static_torque": (
         2.36,
@@ -426,17 +432,18 @@ TABLE2_NRMSD_PCT: dict[str, tuple[float | None, ...]] = {
 
 
 def _seed001_subject() -> FesSubject:
-    """Seeds/001 Table I subject (1.75 m, 66 kg, neural implant, current-modulated at 31.25 Hz).
+    """The implanted-FES identification paper, Table I subject (1.75 m, 66 kg, neural implant,
+    current-modulated at 31.25 Hz).
 
-    ``K = M_s g L_og`` and ``K_e`` (Table I), ``F_v`` → ``B``.  Seed 001's force–length is in
-    whole muscle–tendon length, ``F_0 = F_max exp(−((L_q/L_opt − 1)/b_l)²)`` (Eq. 5); with
-    ``L_c = L_q − L_s`` this is Eq. 2 with ``b L_c0 = b_l L_opt`` for any split: we take
-    ``L_c0 = 0.09 m`` (seeds/000's mean 9.2 cm), ``L_s = L_opt − L_c0`` and
-    ``b = b_l L_opt / L_c0``.  ``K_max = 10⁴`` (Eq. 6, taken by the seed from the literature;
-    read as N/m).  ``k_s`` is not identified in seed 001: we use 10 N/mm (Table 3 order).
-    The stimulation is fused (31.25 Hz, u = const), obtained with ``τ_c = 1/f``.  Its
-    contractile element is seed 001's own (Eq. 3, force–length on ``L_q``: ``contractile =
-    "001"``).
+    ``K = M_s g L_og`` and ``K_e`` (Table I), ``F_v`` → ``B``.  The implanted-FES identification
+    paper's force–length is in whole muscle–tendon length, ``F_0 = F_max exp(−((L_q/L_opt −
+    1)/b_l)²)`` (Eq. 5); with ``L_c = L_q − L_s`` this is Eq. 2 with ``b L_c0 = b_l L_opt`` for any
+    split: we take ``L_c0 = 0.09 m`` (Benoussaad et al.'s (2013) mean 9.2 cm), ``L_s = L_opt −
+    L_c0`` and ``b = b_l L_opt / L_c0``.  ``K_max = 10⁴`` (Eq. 6, taken by the seed from the
+    literature; read as N/m).  ``k_s`` is not identified in the implanted-FES identification paper:
+    we use 10 N/mm (Table 3 order). The stimulation is fused (31.25 Hz, u = const), obtained with
+    ``τ_c = 1/f``.  Its contractile element is the implanted-FES identification paper's own (Eq. 3,
+    force–length on ``L_q``: ``contractile = "001"``).
     """
     M_s, L_og, J = 4.026, 0.194, 0.343
     L_opt, b_l, L_c0 = 0.455, 0.054, 0.09

@@ -1,12 +1,13 @@
-"""Population priors for the FES protocol, from seeds/000 Table 3 (13 legs, 9 subjects).
+"""Population priors for the FES protocol, from Benoussaad et al. 2013, Table 3 (13 legs, 9
+subjects).
 
 The protocol cannot identify two quantities from its data and takes them as priors: the
-stiffness ratio ``K_cm/F_cm`` (1/m; seeds/000: "proportional to F_cm according to the
+stiffness ratio ``K_cm/F_cm`` (1/m; Benoussaad et al. 2013: "proportional to F_cm according to the
 physiological model") and the fibre fraction ``L_c0/(L_c0 + L_s)`` (the muscle/tendon split of
-the force–length optimum, seeds/000 ref. [10]).  :func:`population_priors` gives their mean and
-standard deviation over Table 3 — optionally leaving legs out, so that a leg is never identified
-with a prior that contains its own published values — together with those of every Table 3
-parameter.
+the force–length optimum, Benoussaad et al. 2013, ref. [10]).  :func:`population_priors` gives their
+mean and standard deviation over Table 3 — optionally leaving legs out, so that a leg is never
+identified with a prior that contains its own published values — together with those of every Table
+3 parameter.
 
 Caveat: Table 3 has no ``L_s``; :data:`msk.fes.model.TABLE3` derives it from an assumed optimal
 knee angle of 60° for every leg, so the Table 3 spread of the fibre fraction (0.191–0.201) is
@@ -129,7 +130,7 @@ KS_STRETCH_MARGIN: float = 2.0
 
 
 def k_s_lower_bound(F_cm: float, L_c0: float) -> float:
-    """Default lower bound of ``k_s`` (N/m) in the NLP of seeds/000 Eq. 8.
+    """Default lower bound of ``k_s`` (N/m) in the NLP of Benoussaad et al. 2013, Eq. 8.
 
     Eq. 8 only asks ``k_s > 0``; the bound keeps ipopt away from the singular ``k_s → 0``.  It
     lets the series element stretch at ``F_cm`` by up to twice the largest elongation of any

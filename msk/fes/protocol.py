@@ -1,6 +1,7 @@
 """The identification protocol: session data, standard stimulation profiles, synthetic
 sessions from known parameters, and :func:`run_protocol` composing the steps of
-:mod:`msk.fes.identify` (seeds/000 §2.3; seeds/001 §IV for :func:`run_protocol_seed001`).
+:mod:`msk.fes.identify` (Benoussaad et al. 2013, §2.3; the implanted-FES identification paper, §IV
+for :func:`run_protocol_seed001`).
 """
 
 from __future__ import annotations
@@ -70,7 +71,7 @@ __all__ = [
 
 F64 = NDArray[np.float64]
 
-#: seeds/000 Table 1: height (m) and weight (kg) per subject number.
+#: Benoussaad et al. 2013, Table 1: height (m) and weight (kg) per subject number.
 TABLE1: dict[int, tuple[float, float]] = {
     1: (1.92, 64.0),
     2: (1.75, 85.6),
@@ -86,7 +87,8 @@ TABLE1: dict[int, tuple[float, float]] = {
 
 @dataclass(frozen=True)
 class StaticTrial:
-    """Passive static torques (N·m) at angles ``theta_r`` (rad from rest), seeds/000 §2.3.1.2."""
+    """Passive static torques (N·m) at angles ``theta_r`` (rad from rest), Benoussaad et al. 2013,
+    §2.3.1.2."""
 
     theta_r: F64
     torque: F64
@@ -117,7 +119,8 @@ class IsometricTrial:
         return float(self.stim.levels.max()) if self.stim.levels.size else 0.0
 
     def steady_torque(self, window: float = 0.5) -> float:
-        """Mean torque over the last ``window`` s of the train (seeds/000 "steady-state phase")."""
+        """Mean torque over the last ``window`` s of the train (the "steady-state phase" of
+        Benoussaad et al. 2013)."""
         t_end = self.stim.end_time + 1e-9
         sel = (self.time >= t_end - window) & (self.time <= t_end)
         if not np.any(sel):
@@ -163,7 +166,8 @@ def fibre_fraction(subject: FesSubject) -> float:
 def identification_profile(
     *, kind: StimKind = "pw", level_max: float = 420e-6, frequency_hz: float = 20.0
 ) -> Stimulation:
-    """Dynamic stimulation for the ``k_s`` NLP, shaped after seeds/000 Fig. 3b (8.5 s).
+    """Dynamic stimulation for the ``k_s`` NLP, shaped after Benoussaad et al. 2013, Fig. 3b (8.5
+    s).
 
     Rest 1 s, ramp to the maximum in 1.5 s, hold 1 s, ramp down in 1 s, rest 1.5 s, a step at
     83 % for 1 s, rest.  (The seed's exact profile is not readable from the OCR text.)
@@ -178,7 +182,8 @@ def identification_profile(
 def validation_profile(
     *, kind: StimKind = "pw", level_max: float = 420e-6, frequency_hz: float = 20.0
 ) -> Stimulation:
-    """Cross-validation stimulation not used for identification (after seeds/000 Fig. 5a, 9.5 s).
+    """Cross-validation stimulation not used for identification (after Benoussaad et al. 2013, Fig.
+    5a, 9.5 s).
 
     A 2 s plateau at 71 %, a 1.5 s triangle 60 → 100 → 60 %, and a 1 s step at 100 %.
     """
@@ -233,7 +238,8 @@ def synthetic_session(
     torque_rate_hz: float = 500.0,
     drift_noise_deg: float = 0.0,
 ) -> FesSession:
-    """Simulate seeds/000's protocol on ``subject`` (known truth) with optional noise.
+    """Simulate Benoussaad et al.'s (2013) protocol on ``subject`` (known truth) with optional
+    noise.
 
     Static torques every 5° from rest to full extension, a pendulum drop from
     ``drop_angle_deg``, 7 isometric trains at ``force_length_level`` (300 µs), ``n_recruitment``
@@ -304,7 +310,7 @@ def synthetic_session(
 
 @dataclass(frozen=True)
 class ProtocolResult:
-    """All steps of seeds/000's protocol, the identified subject, and timings (s)."""
+    """All steps of Benoussaad et al.'s (2013) protocol, the identified subject, and timings (s)."""
 
     subject: FesSubject
     subject_initial: FesSubject
@@ -326,7 +332,7 @@ class ProtocolResult:
     notes: tuple[str, ...] = ()
 
     def nrmsd_table(self) -> dict[str, float]:
-        """Per-step NRMSD (%) in the rows of seeds/000 Table 2."""
+        """Per-step NRMSD (%) in the rows of Benoussaad et al. 2013, Table 2."""
         return {
             "static_torque": self.static.nrmsd,
             "joint_mechanics": self.pendulum.nrmsd,
@@ -358,7 +364,7 @@ def run_protocol(
     isometric_transients: bool = False,
     identify_stiffness_ratio: bool = False,
 ) -> ProtocolResult:
-    """seeds/000's protocol on one quadriceps–shank (PW-modulated stimulation).
+    """Benoussaad et al.'s (2013) protocol on one quadriceps–shank (PW-modulated stimulation).
 
     1. geometry from height; 2. ``K`` (static torques); 3. ``J``, ``B`` (pendulum: linear
     estimate, then the direct nonlinear fit with ``K`` fixed); 4. ``b``, ``L_c0`` (force–length,
@@ -377,10 +383,11 @@ def run_protocol(
     needed when the trains are too short to reach the steady state (the seed's 1.5 s).
 
     ``fibre_fraction`` and ``stiffness_ratio`` are priors (the data do not identify them);
-    ``None`` takes the seeds/000 Table 3 means (:func:`msk.fes.priors.population_priors`).
-    Every solver failure raises :class:`~msk.exceptions.IdentificationError` naming the leg,
-    the stage and the offending values; a failure in a refinement pass (≥ 1) instead stops the
-    passes and keeps the last complete one, with the reason in ``notes``.
+    ``None`` takes the means of Benoussaad et al. 2013, Table 3
+    (:func:`msk.fes.priors.population_priors`). Every solver failure raises
+    :class:`~msk.exceptions.IdentificationError` naming the leg, the stage and the offending values;
+    a failure in a refinement pass (≥ 1) instead stops the passes and keeps the last complete one,
+    with the reason in ``notes``.
 
     With ``identify_stiffness_ratio`` (our addition) the NLP of passes ≥ 1 also identifies
     ``K_cm`` (a factor in [0.1, 10] on ``stiffness_ratio · F_cm``) together with ``k_s``, and the
@@ -529,8 +536,9 @@ def run_protocol(
 
 @dataclass(frozen=True)
 class Seed001Result:
-    """seeds/001's protocol (Table I rows): anthropometry, geometry, pendulum, force–length,
-    recruitment from dynamic data, cross-validation; NRMSE as the seed reports it."""
+    """The implanted-FES identification paper's protocol (Table I rows): anthropometry, geometry,
+    pendulum, force–length, recruitment from dynamic data, cross-validation; NRMSE as the seed
+    reports it."""
 
     subject: FesSubject
     anthropometry: ShankAnthropometry
@@ -553,15 +561,17 @@ def run_protocol_seed001(
     calcium: CalciumParams,
     contractile: Literal["000", "001"] = "001",
 ) -> Seed001Result:
-    """seeds/001 §IV: ``J`` and ``M_s g L_og`` from anthropometry, pendulum → ``K_eq``, ``F_v``
-    (``K_e = K_eq − M_s g L_og``), force–length at maximal stimulation (``F_max`` read as
-    ``α = 1``: seed 001's ``D_r`` absorbs the scale), recruitment ``α(I)`` from the first part
-    of the dynamic data, cross-validation on the second part.  ``k_s`` and ``K_max`` are
-    literature values in the seed (``K_cm = stiffness_ratio F_cm``).
+    """The implanted-FES identification paper, §IV: ``J`` and ``M_s g L_og`` from anthropometry,
+    pendulum → ``K_eq``, ``F_v`` (``K_e = K_eq − M_s g L_og``), force–length at maximal stimulation
+    (``F_max`` read as ``α = 1``: the implanted-FES identification paper's ``D_r`` absorbs the
+    scale), recruitment ``α(I)`` from the first part of the dynamic data, cross-validation on the
+    second part.  ``k_s`` and ``K_max`` are literature values in the seed (``K_cm = stiffness_ratio
+    F_cm``).
 
-    The model is seeds/001's own contractile element (its Eq. 3, force–length on the whole
-    muscle length, Eq. 5–6; ``contractile = "001"``, the default) — the force–length step then
-    fits Eq. 5 on ``L_q`` directly (rigid series element) — or seeds/000's (``"000"``).
+    The model is the implanted-FES identification paper's own contractile element (its Eq. 3,
+    force–length on the whole muscle length, Eq. 5–6; ``contractile = "001"``, the default) — the
+    force–length step then fits Eq. 5 on ``L_q`` directly (rigid series element) — or Benoussaad et
+    al.'s (2013) (``"000"``).
     """
     geo = geometry_from_height(session.height)
     k_g = anthropometry.gravity_stiffness

@@ -1,4 +1,5 @@
-"""Parameter recovery of the FES protocol on synthetic legs (seeds/000 Table 3, seeds/001).
+"""Parameter recovery of the FES protocol on synthetic legs (Benoussaad et al. 2013, Table 3, the
+implanted-FES identification paper).
 
 One *recovery run* simulates the protocol's trials from a leg's published parameters (with
 noise, :func:`msk.fes.protocol.synthetic_session`), identifies the leg with

@@ -1,6 +1,6 @@
 """Simulation of the quadriceps–shank model with casadi.
 
-The right-hand side (seeds/000 Eq. 1–7, 10–12, see :mod:`msk.fes.model`) is one casadi
+The right-hand side (Benoussaad et al. 2013, Eq. 1–7, 10–12, see :mod:`msk.fes.model`) is one casadi
 function of the state ``x = (θ_r, θ̇_r, K_c, F_c)``, the step input ``w = (level, Π_c(t_k),
 Π_c(t_k + h/2), Π_c(t_k + h))`` and the parameter vector (:data:`~msk.fes.model.PARAM_NAMES`).
 
@@ -60,21 +60,21 @@ def _alpha_sym(kind: RecKind, level: ca.SX, r: list[ca.SX]) -> ca.SX:
 
 @functools.lru_cache(maxsize=8)
 def rhs_function(kind: RecKind = "pw", isometric: bool = False, ce: str = "000") -> ca.Function:
-    """``f(x, level, Π_c, p) → (ẋ, α, ε_c, ε̇_c)`` (seeds/000 Eq. 1–7, 10–12).
+    """``f(x, level, Π_c, p) → (ẋ, α, ε_c, ε̇_c)`` (Benoussaad et al. 2013, Eq. 1–7, 10–12).
 
-    ``ce = "001"`` uses seeds/001's contractile element (its Eq. 3, 5–6) instead: ``F_0 =
-    F_cm Fl(L)``, ``K_0 = K_cm Fl(L)`` with the force–length factor of the *whole* muscle
-    length ``L(θ)`` (seeds/001 Eq. 5–6: ``Fl = exp(−((L/L_opt − 1)/b_l)²)``, here ``L_opt =
-    L_c0 + L_s``, ``b_l L_opt = b L_c0``), and with ``p = 1/k_s``, ``q = 1/(L_c0 k_s)``,
-    ``D = 1 + p K_c − s_v q F_c``::
+    ``ce = "001"`` uses the implanted-FES identification paper's contractile element (its Eq. 3,
+    5–6) instead: ``F_0 = F_cm Fl(L)``, ``K_0 = K_cm Fl(L)`` with the force–length factor of the
+    *whole* muscle length ``L(θ)`` (the implanted-FES identification paper, Eq. 5–6: ``Fl =
+    exp(−((L/L_opt − 1)/b_l)²)``, here ``L_opt = L_c0 + L_s``, ``b_l L_opt = b L_c0``), and with ``p
+    = 1/k_s``, ``q = 1/(L_c0 k_s)``, ``D = 1 + p K_c − s_v q F_c``::
 
         Ḟ_c = [u (α F_0 − F_c) + (K_c − s_v F_c/L_c0) L̇] / D
         K̇_c = u (α K_0 − K_c) / D − |ε̇_c| K_c,   ε̇_c = (L̇/L_c0 + q u (F_c − α F_0)) / D
 
-    which is seeds/001 Eq. 3 with its fused-tetanus ``u = 1`` read as the calcium rate ``u``
-    (``U_c`` while stimulating, ``Π_c ≡ 1``; ``U_r`` after the train) and ``a ε̇ = L̇/L_c0``,
-    ``b ε̇ = L̇``.  ``Ḟ_c`` is seeds/000's (Eq. 1, 3 eliminated); ``K̇_c`` differs from it: its
-    relaxation term is divided by ``D``.
+    which is the implanted-FES identification paper, Eq. 3 with its fused-tetanus ``u = 1`` read as
+    the calcium rate ``u`` (``U_c`` while stimulating, ``Π_c ≡ 1``; ``U_r`` after the train) and ``a
+    ε̇ = L̇/L_c0``, ``b ε̇ = L̇``.  ``Ḟ_c`` is Benoussaad et al.'s (2013) (Eq. 1, 3 eliminated);
+    ``K̇_c`` differs from it: its relaxation term is divided by ``D``.
     """
     x = ca.SX.sym("x", 4)
     level = ca.SX.sym("level")
@@ -96,7 +96,7 @@ def rhs_function(kind: RecKind = "pw", isometric: bool = False, ce: str = "000")
         l_c = length - P["L_s"] - fc / k_s
         eps_c = (l_c - l_c0) / l_c0
         fl = ca.exp(-((eps_c / P["b"]) ** 2))
-    else:  # seeds/001 Eq. 5-6: force-length on the whole muscle length
+    else:  # the implanted-FES identification paper, Eq. 5-6: force-length on the whole muscle
         fl = ca.exp(-(((length - P["L_s"] - l_c0) / (l_c0 * P["b"])) ** 2))
         eps_c = (length - P["L_s"] - fc / k_s - l_c0) / l_c0
     drive = alpha * fl * pi * P["U_c"]
@@ -108,7 +108,7 @@ def rhs_function(kind: RecKind = "pw", isometric: bool = False, ce: str = "000")
     if ce == "000":
         kc_dot = -(u + abs_eps) * kc + drive * P["K_cm"]
         fc_dot = -(u + abs_eps) * fc + drive * P["F_cm"] + kc * l_c0 * eps_c_dot
-    else:  # seeds/001 Eq. 3 (D = den / (k_s L_c0))
+    else:  # the implanted-FES identification paper, Eq. 3 (D = den / (k_s L_c0))
         d = den / (k_s * l_c0)
         kc_dot = (drive * P["K_cm"] - u * kc) / d - abs_eps * kc
         fc_dot = (drive * P["F_cm"] - u * fc + (kc - s_v * fc / l_c0) * l_dot) / d

@@ -1,7 +1,8 @@
 """Stimulation pulse trains (the model's input) and their sampling on a simulation grid.
 
 A :class:`Stimulation` is a list of pulses, each with a time (s) and a level: the pulse width
-(s, seeds/000) or the current amplitude (A, seeds/001).  Zero-level pulses are no pulses.
+(s, Benoussaad et al. 2013) or the current amplitude (A, the implanted-FES identification paper).
+Zero-level pulses are no pulses.
 """
 
 from __future__ import annotations
@@ -98,7 +99,8 @@ def stimulation_from_profile(
 def calcium_pi(
     t: ArrayLike, pulse_times: NDArray[np.float64], tau_c: float, tau_r: float, *, left: bool
 ) -> NDArray[np.float64]:
-    """``Π_c(t)`` of seeds/000 Eq. 12 from the most recent pulse (``left``: pulses < t)."""
+    """``Π_c(t)`` of Benoussaad et al. 2013, Eq. 12 from the most recent pulse (``left``: pulses <
+    t)."""
     t = np.asarray(t, dtype=float)
     if pulse_times.size == 0:
         return np.zeros_like(t)

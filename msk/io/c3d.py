@@ -4,7 +4,7 @@ msk reads the file itself: header and parameter section checked first (:func:`_c
 the parameters decoded as ezc3d's Python binding gives them, the data section read block by
 block (float or integer storage; Intel, DEC and MIPS processors; analog samples as
 ``(raw - OFFSET) * SCALE * GEN_SCALE``, unsigned when ``ANALOG:FORMAT`` says so), so that a
-long trial never holds more than its outputs and one block (issue 18); ``tests/io`` checks
+long trial never holds more than its outputs and one block; ``tests/io`` checks
 every real C3D against ezc3d. ezc3d writes (:func:`write_c3d`).
 
 Everything is converted to SI once, here: positions m, forces N, moments N·m, time s, angles rad,

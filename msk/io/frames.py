@@ -146,7 +146,7 @@ def _about(u: Array, phi: float) -> Array:
 
 
 #: frames per block of the heading's rotated markers (a long trial's markers are not copied
-#: whole, issue 18)
+#: whole)
 HEADING_BLOCK = 4096
 
 
@@ -255,7 +255,7 @@ def pelvis_heading_rotation(
     u = np.asarray(up_model, dtype=float)
     u = u / np.linalg.norm(u)
     r0 = rotation_between(up_lab, u)
-    x = np.asarray(markers, dtype=float)  # not copied: levelled block by block (issue 18)
+    x = np.asarray(markers, dtype=float)  # not copied: levelled block by block
     labels = tuple(labels)
     if x.ndim != 3 or x.shape[2] != 3 or x.shape[1] != len(labels):
         raise ShapeMismatchError(f"markers {x.shape} must be (N, {len(labels)}, 3)")

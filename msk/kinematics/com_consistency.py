@@ -7,8 +7,8 @@ passed by the same filter (Kristianslund E, Krosshaug T, van den Bogert AJ (2012
 (:func:`msk.kinematics.ik.filtered_derivatives`), and a segment's COM is a product of its chain's
 rotations, not linear in θ: where segments turn fast (running) the COM acceleration of the
 low-passed θ differs from the low-passed COM acceleration, and that difference is left in the
-pelvis residual and the joint moments (docs/validation.md, issue 15 run-15 pass: 13.3 % BW of
-residual force from the method alone on a known running truth, 0.4–1.5 % on walks).
+pelvis residual and the joint moments (13.3 % BW of residual force from the method alone on a known
+running truth, 0.4–1.5 % on walks; docs/validation.md).
 
 This module keeps the low-passed θ and θ̇ and changes θ̈ only along the root's translations,
 which move every segment alike, so that the whole-body COM acceleration equals the low-passed
@@ -55,7 +55,7 @@ __all__ = [
 
 
 #: frames per block (a long trial's per-frame joint placements and COM Jacobians, ~20 kB a frame
-#: on gait2392, are never held whole; issue 18)
+#: on gait2392, are never held whole)
 BLOCK = 4096
 
 

@@ -1,4 +1,5 @@
-"""Fitting the crossed four-bar knee (seed 004 §2.1) to a knee path.
+"""Fitting the crossed four-bar knee (the rehabilitation-robot lower-limb model paper, §2.1) to a
+knee path.
 
 Two sources of the path p(θ) of the tibia-frame origin in the femur joint frame:
 

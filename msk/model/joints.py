@@ -12,8 +12,9 @@ and generalised forces map back as τ_θ = Gᵀ τ_pin (virtual work). A constan
 
 Functions here are the ones OpenSim uses (Constant, LinearFunction, PolynomialFunction, SimmSpline,
 MultiplierFunction, PiecewiseLinearFunction), the composition f(c(θ)) that eliminates a
-CoordinateCouplerConstraint (:class:`Composite`), and the four-bar knee of seed 004 (§2.1),
-whose tibia translation is an exact closed-form function of the flexion angle.
+CoordinateCouplerConstraint (:class:`Composite`), and the four-bar knee of the rehabilitation-robot
+lower-limb model paper (§2.1), whose tibia translation is an exact closed-form function of the
+flexion angle.
 """
 
 from __future__ import annotations
@@ -283,7 +284,7 @@ class Composite:
 
 
 # --------------------------------------------------------------------------------------------
-# four-bar knee (seed 004 §2.1)
+# four-bar knee (the rehabilitation-robot lower-limb model paper, §2.1)
 # --------------------------------------------------------------------------------------------
 _J2 = np.array([[0.0, -1.0], [1.0, 0.0]])
 
@@ -295,7 +296,8 @@ def _rot2(theta: Array) -> Array:
 
 @dataclass(frozen=True)
 class FourBarKnee:
-    """Crossed four-bar linkage of the knee in the sagittal plane (seed 004 §2.1).
+    """Crossed four-bar linkage of the knee in the sagittal plane (the rehabilitation-robot
+    lower-limb model paper, §2.1).
 
     Femur-fixed attachments A (anterior cruciate) and B (posterior cruciate), tibia-fixed
     attachments C and D, all in the plane (x anterior, y proximal) of the femur / tibia frames.

@@ -167,7 +167,7 @@ LANDMARK_BODIES: Mapping[str, str] = {
 #: a thigh cluster, the greater trochanter or a femoral epicondyle on the femur; a shank
 #: cluster, the fibular head, the tibial tuberosity or a malleolus on the tibia). A knee no
 #: marker pins lets a thigh marker look as rigid on the tibia as on the femur, so a placement
-#: from the motion must not exchange them (issue 15, thirteenth pass)
+#: from the motion must not exchange them
 KNEE_SEGMENTS = ("femur", "tibia")
 
 
@@ -321,7 +321,7 @@ def zeros_as_gaps(markers: ArrayLike) -> NDArray[np.float64]:
 def zeros_as_gaps_view(markers: NDArray[np.float64]) -> NDArray[np.float64]:
     """:func:`zeros_as_gaps` without the copy where there is nothing to blank: a read-only view
     of ``markers`` (float) when no sample is exactly (0, 0, 0), else the blanked copy (a long
-    trial's markers are not copied for reading, issue 18)."""
+    trial's markers are not copied for reading)."""
     x = np.asarray(markers)
     if x.dtype != np.float64 or (x == 0.0).all(axis=-1).any():
         return zeros_as_gaps(x)
@@ -523,7 +523,7 @@ def reconstructed_markers(
 
     ``markers``: (N, n, 3) positions (NaN or exact zeros: gaps), ``labels``: their n names.
     """
-    x = zeros_as_gaps_view(np.asarray(markers, dtype=float))  # read only (issue 18)
+    x = zeros_as_gaps_view(np.asarray(markers, dtype=float))  # read only
     if x.ndim != 3 or x.shape[1] != len(labels) or x.shape[2] != 3:
         raise ShapeMismatchError(
             f"markers of shape {x.shape} for {len(labels)} labels: expected (N, n, 3)"

@@ -2,7 +2,7 @@
 
 Two families, both taking ``e`` of shape ``(N, M)`` (time on axis 0, one column per muscle):
 
-* **first order** (:func:`first_order_activation`), ``seeds/002 Eq. 8``::
+* **first order** (:func:`first_order_activation`), Hayashibe et al. 2011, Eq. 8::
 
       ȧ = (u − a)/T,   T = T_a if u > a, T_d otherwise                       (form="seed002")
 
@@ -15,7 +15,8 @@ Two families, both taking ``e`` of shape ``(N, M)`` (time on axis 0, one column 
   forms (first-order accurate in h). Each update is a convex combination of a and u, so
   a ∈ [0, 1] whenever u ∈ [0, 1].
 
-* **second-order recursive filter** (:func:`recursive_filter`), ``seeds/003 Eq. 1–6``
+* **second-order recursive filter** (:func:`recursive_filter`), the EMG-driven vs OpenSim thesis,
+  Eq. 1–6
   (Lloyd & Besier 2003; Buchanan 2004)::
 
       u(t) = α e(t − d) − β1 u(t − 1) − β2 u(t − 2)                          (Eq. 1)
@@ -30,7 +31,8 @@ Two families, both taking ``e`` of shape ``(N, M)`` (time on axis 0, one column 
   followed by the neural → muscle activation nonlinearity (:func:`nonlinear_activation`), in one
   of two forms:
 
-  - ``form="piecewise"`` (default): ``seeds/003 Eq. 7`` as printed, the one-parameter model of
+  - ``form="piecewise"`` (default): the EMG-driven vs OpenSim thesis, Eq. 7 as printed, the
+    one-parameter model of
     Manal & Buchanan (2003, J Biomech 36:1197)::
 
         a = d ln(c u + 1)      0 ≤ u < 0.3085
@@ -40,9 +42,9 @@ Two families, both taking ``e`` of shape ``(N, M)`` (time on axis 0, one column 
     the construction its Fig. 2.3 describes: the linear piece runs from Q = (u₀, u₀ + A),
     u₀ = 0.3085 (A is the distance from P = (u₀, u₀) on the identity line to Q), to (1, 1), and
     the logarithmic piece passes through (0, 0) and meets the line at Q with the same slope
-    (value and slope continuous). A = 0 is the identity a = u; seeds/003 Table 3.1 bounds A to
-    [0.01, 0.12]. It is the default because it is the only form seeds/003 uses (Eq. 7,
-    Table 3.1).
+    (value and slope continuous). A = 0 is the identity a = u; the EMG-driven vs OpenSim thesis,
+    Table 3.1 bounds A to [0.01, 0.12]. It is the default because it is the only form the EMG-driven
+    vs OpenSim thesis uses (Eq. 7, Table 3.1).
   - ``form="exponential"``: Lloyd & Besier (2003, J Biomech 36:765, Eq. 8)::
 
         a = (e^{A u} − 1)/(e^{A} − 1),   −3 < A ≤ 0   (A → 0 gives a = u)
@@ -77,8 +79,8 @@ __all__ = [
 ActivationForm = Literal["seed002", "thelen", "zajac"]
 NonlinearityForm = Literal["piecewise", "exponential"]
 
-#: Neural activation at which seeds/003 Eq. 7 switches from the logarithmic to the linear piece
-#: (Manal & Buchanan 2003).
+#: Neural activation at which the EMG-driven vs OpenSim thesis, Eq. 7 switches from the logarithmic
+#: to the linear piece (Manal & Buchanan 2003).
 PIECEWISE_BREAKPOINT = 0.3085
 
 
@@ -119,7 +121,7 @@ def first_order_activation(
     substeps: int = 4,
     names: tuple[str, ...] | list[str] | None = None,
 ) -> Array:
-    """First-order activation dynamics (``seeds/002 Eq. 8``; Thelen 2003; Zajac 1989).
+    """First-order activation dynamics (Hayashibe et al. 2011, Eq. 8; Thelen 2003; Zajac 1989).
 
     ``excitation`` u is ``(N,)`` or ``(N, M)`` in [0, 1], held constant over each sample
     interval; ``initial`` defaults to u at the first sample (no start-up transient). Time
@@ -165,7 +167,8 @@ def first_order_activation(
 
 
 def recursive_filter_coefficients(gamma1: float, gamma2: float) -> tuple[float, float, float]:
-    """(α, β1, β2) of ``seeds/003 Eq. 2–6`` with α = 1 + β1 + β2 (unit steady-state gain)."""
+    """(α, β1, β2) of the EMG-driven vs OpenSim thesis, Eq. 2–6 with α = 1 + β1 + β2 (unit
+    steady-state gain)."""
     b1 = gamma1 + gamma2
     b2 = gamma1 * gamma2
     return 1.0 + b1 + b2, b1, b2
@@ -180,7 +183,8 @@ def recursive_filter(
     initial: Literal["steady", "zero"] = "steady",
     names: tuple[str, ...] | list[str] | None = None,
 ) -> Array:
-    """Neural activation u(t) from e(t) (``seeds/003 Eq. 1–6``), one filter per column.
+    """Neural activation u(t) from e(t) (the EMG-driven vs OpenSim thesis, Eq. 1–6), one filter per
+    column.
 
     ``gamma1``, ``gamma2`` and ``delay_samples`` (the electromechanical delay d, in samples)
     may be per muscle. |γ| ≥ 1 raises :class:`MuscleModelError` naming the muscle and value.
@@ -223,7 +227,8 @@ def recursive_filter(
 
 
 def piecewise_coefficients(shape_factor: float) -> tuple[float, float, float, float]:
-    """``(d, c, m, b)`` of ``seeds/003 Eq. 7`` (Manal & Buchanan 2003) for shape factor A.
+    """``(d, c, m, b)`` of the EMG-driven vs OpenSim thesis, Eq. 7 (Manal & Buchanan 2003) for shape
+    factor A.
 
     The line ``a = m u + b`` joins Q = (u₀, u₀ + A) to (1, 1) (u₀ = :data:`PIECEWISE_BREAKPOINT`);
     ``a = d ln(c u + 1)`` passes through the origin and matches the line's value and slope at
@@ -267,10 +272,11 @@ def nonlinear_activation(
     form: NonlinearityForm = "piecewise",
     names: tuple[str, ...] | list[str] | None = None,
 ) -> Array:
-    """Muscle activation a from neural activation u (``seeds/003 Eq. 7``), per column.
+    """Muscle activation a from neural activation u (the EMG-driven vs OpenSim thesis, Eq. 7), per
+    column.
 
-    ``form="piecewise"`` (default; Manal & Buchanan 2003, the form seeds/003 prints):
-    ``a = d ln(c u + 1)`` below u = 0.3085, ``a = m u + b`` above, coefficients from
+    ``form="piecewise"`` (default; Manal & Buchanan 2003, the form the EMG-driven vs OpenSim thesis
+    prints): ``a = d ln(c u + 1)`` below u = 0.3085, ``a = m u + b`` above, coefficients from
     :func:`piecewise_coefficients`, A ∈ [0, 0.6915). ``form="exponential"`` (Lloyd & Besier
     2003, Eq. 8): ``a = (e^{A u} − 1)/(e^{A} − 1)``, A ∈ (−3, 0]. A = 0 is a = u in both.
     A outside its form's range raises :class:`MuscleModelError` naming the muscle.
@@ -319,8 +325,8 @@ def emg_to_activation(
     form: NonlinearityForm = "piecewise",
     names: tuple[str, ...] | list[str] | None = None,
 ) -> Array:
-    """Recursive filter then nonlinearity (``seeds/003 Eq. 1–7``): e(t) → u(t) → a(t);
-    ``form`` and the range of ``shape_factor`` as in :func:`nonlinear_activation`."""
+    """Recursive filter then nonlinearity (the EMG-driven vs OpenSim thesis, Eq. 1–7): e(t) → u(t) →
+    a(t); ``form`` and the range of ``shape_factor`` as in :func:`nonlinear_activation`."""
     u = recursive_filter(
         excitation, gamma1=gamma1, gamma2=gamma2, delay_samples=delay_samples, names=names
     )

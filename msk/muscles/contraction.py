@@ -1,4 +1,5 @@
-"""Elastic-tendon contraction dynamics over time (``seeds/003 §2.2.2``, Eq. 8–18).
+"""Elastic-tendon contraction dynamics over time (the EMG-driven vs OpenSim thesis, §2.2.2, Eq.
+8–18).
 
 One ordinary differential equation per muscle, the fibre length ``l_m(t)``, driven by the
 activation ``a(t)`` and the muscle–tendon length ``l_MT(t)`` (Lloyd & Besier 2003; Buchanan
@@ -465,7 +466,7 @@ def contraction_dynamics(
         activation: a(t) ``(N, M)`` (broadcast), linear between samples.
         muscle_tendon_length: l_MT(t) ``(N, M)``, linear between samples.
         time: ``(N,)`` strictly increasing sample times (s).
-        curves: the seed 003 curves (skew λ and damping b_m included); default
+        curves: the EMG-driven vs OpenSim thesis curves (skew λ and damping b_m included); default
             :class:`LloydBesierCurves`.
         substeps: BDF2 steps per sample interval.
         tendon_stiffness: multiplier of the strain in Eq. 16–18 (> 1: a stiffer tendon; large

@@ -1,6 +1,7 @@
 """EMG processing: raw analog channels → normalised linear envelopes per muscle.
 
-Pipeline (``seeds/003 §2.2.1`` and §3.1.4; ``seeds/002 §IV``), per channel::
+Pipeline (the EMG-driven vs OpenSim thesis, §2.2.1 and §3.1.4; Hayashibe et al. 2011, §IV), per
+channel::
 
     x → high-pass (zero-lag Butterworth, default 30 Hz; removes offset and movement artefact)
       → full-wave rectification |·|
@@ -9,11 +10,12 @@ Pipeline (``seeds/003 §2.2.1`` and §3.1.4; ``seeds/002 §IV``), per channel::
       → electromechanical delay: e_d(t) = e(t − d)
 
 MVC is the peak of the envelope of the MVC trials, processed with the same filters (one peak per
-channel over all MVC trials together, as in ``seeds/003 §3.1.4``). Without an MVC for a channel,
-the session's own envelope peak is used and a warning is *recorded in the result*
+channel over all MVC trials together, as in the EMG-driven vs OpenSim thesis, §3.1.4). Without an
+MVC for a channel, the session's own envelope peak is used and a warning is *recorded in the result*
 (``normalisation_source == "session_peak"``, ``warnings``), because the activation is then relative
 (it always reaches 1). Muscles without an electrode take the mean envelope of named synergists
-(e.g. vastus intermedius from vastus medialis and lateralis, ``seeds/003 §3.2.1``).
+(e.g. vastus intermedius from vastus medialis and lateralis, the EMG-driven vs OpenSim thesis,
+§3.2.1).
 
 Quality checks (figures are reported for every channel in :class:`ChannelQuality`):
 
@@ -172,7 +174,8 @@ def linear_envelope(
     lowpass_hz: float = 6.0,
     order: int = 4,
 ) -> Array:
-    """High-pass, full-wave rectify, low-pass (``seeds/003 §2.2.1``); ``(N, C)`` → ``(N, C)``.
+    """High-pass, full-wave rectify, low-pass (the EMG-driven vs OpenSim thesis, §2.2.1); ``(N, C)``
+    → ``(N, C)``.
 
     Both filters are zero-lag Butterworth (:func:`msk.signal.filtfilt_butter`); the envelope is
     clipped at 0 (the low-pass can ring slightly below zero). Units are those of the input.
@@ -200,8 +203,8 @@ def mvc_peaks(
 ) -> dict[str, float]:
     """Peak envelope per channel label over all MVC trials ``(emg (N, C), rate_hz, labels)``.
 
-    One value per channel from all trials together (``seeds/003 §3.1.4``); the first and last
-    ``rate/lowpass`` samples of each trial are ignored (filter edge transients).
+    One value per channel from all trials together (the EMG-driven vs OpenSim thesis, §3.1.4); the
+    first and last ``rate/lowpass`` samples of each trial are ignored (filter edge transients).
     """
     peaks: dict[str, float] = {}
     for emg, rate, labels in trials:
@@ -391,7 +394,7 @@ def process_emg(
     ``time``: the envelopes linearly interpolated at these times (s; the samples are at
     ``t0 + k / rate_hz``), each muscle's as soon as its channel is processed — the same as
     :meth:`EmgEnvelopes.resampled` of the result without ``time`` (synergists' means to
-    round-off), holding one channel at the analog rate at a time (issue 18: a long trial).
+    round-off), holding one channel at the analog rate at a time (a long trial).
     """
     from msk.analogs import StoredAnalogs
 
@@ -474,7 +477,8 @@ def process_emg(
             xj, rate_hz=rate_hz, highpass_hz=highpass_hz, lowpass_hz=lowpass_hz,
             saturation_level=qopt.get("saturation_level"),
         )  # fmt: skip
-        # the envelope (seeds/003 §2.2.1): the quality pass's one when the orders agree
+        # the envelope (the EMG-driven vs OpenSim thesis, §2.2.1): the quality pass's one when the
+        # orders agree
         env = (
             st.envelope
             if order == 4

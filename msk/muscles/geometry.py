@@ -3,9 +3,10 @@
 A muscle path is a chain of points fixed in model bodies (origin, via points, insertion),
 **conditional** via points (active while one coordinate lies in a range), **moving** points
 (location in the body a function of coordinates, as gait2392's quadriceps insertions) and
-**wrapping cylinders** (seed 004 §2.1 "via cylinders"; OpenSim ``WrapCylinder`` with quadrant).
+**wrapping cylinders** (the rehabilitation-robot lower-limb model paper, §2.1 "via cylinders";
+OpenSim ``WrapCylinder`` with quadrant).
 
-Length (seed 002 Eq. 6–7)::
+Length (Hayashibe et al. 2011, Eq. 6–7)::
 
     l(θ) = Σ_s |x_{B,s} − x_{A,s}| + Σ_wraps (geodesic arc on the cylinder)
 
@@ -22,7 +23,7 @@ and with respect to the independent coordinates (q_pin = g(θ), G = ∂g/∂θ):
 where f_p is the net unit "pull" on point p (u of the segment arriving minus u of the segment
 leaving) and ∂p_b/∂θ the derivative of a moving point's location in its body b. Moment arms are
 r = −J_l (OpenSim's ``computeMomentArm`` convention) and the muscle–tendon force f maps to joint
-torques τ = −J_lᵀ f = rᵀ f (seed 002 Eq. 7); the lengthening velocity is l̇ = J_l θ̇.
+torques τ = −J_lᵀ f = rᵀ f (Hayashibe et al. 2011, Eq. 7); the lengthening velocity is l̇ = J_l θ̇.
 
 Translational Jacobians are never formed: with the world-frame joint Jacobian J (6×nv, columns
 are joint twists at the world origin, Pinocchio's ``computeJointJacobians``), a point x on body b
@@ -44,21 +45,21 @@ and J are computed for all frames at once from the Pinocchio tree (1-DOF joints:
 (o_j × a_j, a_j) for a revolute, (a_j, 0) for a prismatic joint), or, for a few frames, by
 Pinocchio itself frame by frame; tests check both against each other and against Pinocchio.
 
-Wrapping (cylinder, seed 004 §2.1): in the cylinder frame (axis z, radius R) the shortest path
-from P to S over the cylinder is a straight line in the developed surface: tangent points T1, T2
-on the circle (plane xy), heights interpolated linearly along the developed length, arc
-length sqrt((R Δφ)² + Δz²). By the envelope theorem (the geodesic length is stationary w.r.t. the
-tangent points) the derivative of P–T1–arc–T2–S is that of two straight segments P→T1 and
-T2→S whose inner ends T1, T2 are fixed in the cylinder's body; the arc adds nothing. The wrap
-decision follows OpenSim 4.6 (``WrapCylinder::wrapLine``, ``GeometryPath::applyWrapObjects``):
-unconstrained cylinders wrap when the segment crosses the cylinder; a quadrant (``+x``, ``-y``…)
-forces the path around the active side; no wrap when both tangent points lie beyond ±length/2;
-among the segments of the wrap range, a crossing segment wins, else the smallest length increase.
-Several wraps on one path are re-applied in turn on the current path (as OpenSim) until the
-tangent points stop moving (1e-12 m; OpenSim stops after 8 passes or 0.5 mm), so that the
-envelope theorem holds. The tangent points contract linearly (~0.3 a pass), so after every
-other pass Aitken's Δ² extrapolates them (x* = x₂ − (Δx₂)²/(Δx₂ − Δx₁), only where the steps
-shrink); convergence is still judged on a plain pass, hence the same fixed point in about 40 %
+Wrapping (cylinder, the rehabilitation-robot lower-limb model paper, §2.1): in the cylinder frame
+(axis z, radius R) the shortest path from P to S over the cylinder is a straight line in the
+developed surface: tangent points T1, T2 on the circle (plane xy), heights interpolated linearly
+along the developed length, arc length sqrt((R Δφ)² + Δz²). By the envelope theorem (the geodesic
+length is stationary w.r.t. the tangent points) the derivative of P–T1–arc–T2–S is that of two
+straight segments P→T1 and T2→S whose inner ends T1, T2 are fixed in the cylinder's body; the arc
+adds nothing. The wrap decision follows OpenSim 4.6 (``WrapCylinder::wrapLine``,
+``GeometryPath::applyWrapObjects``): unconstrained cylinders wrap when the segment crosses the
+cylinder; a quadrant (``+x``, ``-y``…) forces the path around the active side; no wrap when both
+tangent points lie beyond ±length/2; among the segments of the wrap range, a crossing segment wins,
+else the smallest length increase. Several wraps on one path are re-applied in turn on the current
+path (as OpenSim) until the tangent points stop moving (1e-12 m; OpenSim stops after 8 passes or 0.5
+mm), so that the envelope theorem holds. The tangent points contract linearly (~0.3 a pass), so
+after every other pass Aitken's Δ² extrapolates them (x* = x₂ − (Δx₂)²/(Δx₂ − Δx₁), only where the
+steps shrink); convergence is still judged on a plain pass, hence the same fixed point in about 40 %
 fewer passes. A path that alternates between two states (the wraps choose different segments
 in turn: a 2-cycle) has no path consistent with the wrap rules; some gastrocnemius poses of
 Rajagopal 2016 reach it where the condyle and shank cylinders overlap (a tangent point of one
@@ -855,7 +856,7 @@ class GeometryPlan:
         ``compact``: the Jacobian as a :class:`msk.timeseries.FrameSparse` of the entries at
         :meth:`jacobian_positions` (the values the dense one has there, copied from the same
         pass: bit for bit), never allocated dense — ``(N, n_muscles, n_coords)`` float64 is
-        17 kB a frame for gait2392, 69 MB for a block of 4 096 frames (issue 18).
+        17 kB a frame for gait2392, 69 MB for a block of 4 096 frames.
 
         ``distal_wrench_joints``: model joints (e.g. ``("knee_r",)``) for which the same pass
         also returns :attr:`MuscleGeometry.distal_wrenches`, the unit wrench ∂l_i/∂ξ of each
@@ -1950,7 +1951,8 @@ def muscle_geometry(
     ``compact``: the Jacobian as a :class:`msk.timeseries.FrameSparse`, never dense
     (:meth:`GeometryPlan.evaluate`).
 
-    See the module docstring for the maths (seed 002 Eq. 6–7; seed 004 §2.1).
+    See the module docstring for the maths (Hayashibe et al. 2011, Eq. 6–7; the rehabilitation-robot
+    lower-limb model paper, §2.1).
     """
     plan = plan if plan is not None else geometry_plan(model)
     if plan.model is not model:

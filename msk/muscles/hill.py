@@ -3,7 +3,7 @@
 Three families of curves are provided, all vectorised over arrays of any shape (typically
 ``(N frames, M muscles)``):
 
-* **seed 002** (reference force, ``seeds/002 Eq. 9–11``)::
+* **Hayashibe et al. 2011** (reference force, Eq. 9–11)::
 
       f* = a · f_l(l) · f_v(l̇) · F_iso                                   (Eq. 9)
       f_l(l̃) = exp(−((l̃ − 1)/K)²)                                        (Eq. 10)
@@ -15,7 +15,7 @@ Three families of curves are provided, all vectorised over arrays of any shape (
   Stroeve's constants V_sh = 0.3, V_shl = 0.23, V_ml = 1.3. The OCR of Eq. 10 lost the value of
   K: the default ``K = sqrt(0.45)`` makes Eq. 10 coincide with Thelen's Gaussian (width 0.45).
 
-* **seed 003** (``seeds/003 §2.2.2``, Lloyd & Besier 2003 / Buchanan 2004), see
+* **the EMG-driven vs OpenSim thesis** (§2.2.2, Lloyd & Besier 2003 / Buchanan 2004), see
   :class:`LloydBesierCurves`: passive ``F̃_P = e^{10(l̃−1)}/e^5`` (Eq. 10), tendon
   ``F̃_t = 0 (ε ≤ 0); 1480.3 ε² (0 < ε < 0.0127); 37.5 ε − 0.2375 (ε ≥ 0.0127)`` (Eq. 15–18),
   Epstein–Herzog force–velocity (Eq. 11–12), damping ``b_m ṽ`` (Eq. 8, 13), activation-dependent
@@ -208,7 +208,7 @@ class Thelen2003Curves:
       form, with the linear extrapolation OpenSim applies below f = 0 and above
       ``fv_linear_extrap_threshold · F_len``.
 
-    Defaults are the Thelen 2003 paper values named in the issue; :meth:`gait2392` gives those
+    Defaults are the values of the Thelen 2003 paper; :meth:`gait2392` gives those
     stored in ``gait2392_thelen2003muscle.osim`` and :meth:`opensim_defaults` OpenSim's own.
     """
 
@@ -289,10 +289,11 @@ class Thelen2003Curves:
 
 @dataclass(frozen=True)
 class LloydBesierCurves:
-    """Curves of the EMG-driven model of ``seeds/003 §2.2.2`` (Lloyd & Besier 2003).
+    """Curves of the EMG-driven model of the EMG-driven vs OpenSim thesis, §2.2.2 (Lloyd & Besier
+    2003).
 
     * active force–length: Gaussian ``exp(−((l̃ − 1)/K)²)`` (the thesis shows Gordon's curve
-      only as a figure; we use the seed 002 Eq. 10 form with ``width`` = K);
+      only as a figure; we use the form of Hayashibe et al. 2011, Eq. 10 with ``width`` = K);
     * passive ``F̃_P = e^{10(l̃ − 1)}/e^5`` (Eq. 10, as printed: non-zero below l̃ = 1);
     * tendon (Eq. 15–18): ``1480.3 ε²`` up to ε = 0.0127, then ``37.5 ε − 0.2375``;
     * force–velocity (Eq. 11–12, ṽ = shortening velocity / v_max > 0 concentric):
@@ -349,7 +350,8 @@ class LloydBesierCurves:
         cos_pennation: ArrayLike,
         max_isometric_force: ArrayLike,
     ) -> Array:
-        """Eq. 8: ``F_t = F_iso [F̃_A F̃_V a + F̃_P + b_m ṽ] cos φ`` (ṽ lengthening = −shortening)."""
+        """Eq. 8: ``F_t = F_iso [F̃_A F̃_V a + F̃_P + b_m ṽ] cos φ`` (ṽ lengthening =
+        −shortening)."""
         fa, _ = self.active_force_length(l_norm)
         fp, _ = self.passive_force_length(l_norm)
         fv = self.force_velocity(v_shortening_norm)
@@ -362,7 +364,7 @@ class LloydBesierCurves:
 
 
 def fl_gaussian(l_norm: ArrayLike, *, width: float = float(np.sqrt(0.45))) -> Array:
-    """``seeds/002 Eq. 10``: ``f_l(l̃) = exp(−((l̃ − 1)/K)²)`` with K = ``width``."""
+    """Hayashibe et al. 2011, Eq. 10: ``f_l(l̃) = exp(−((l̃ − 1)/K)²)`` with K = ``width``."""
     return np.exp(-(((np.asarray(l_norm, dtype=float) - 1.0) / width) ** 2))
 
 
@@ -374,7 +376,8 @@ def fv_stroeve(
     v_shl: float = 0.23,
     v_ml: float = 1.3,
 ) -> Array:
-    """``seeds/002 Eq. 11`` (Stroeve 1999); ``v_norm`` = lengthening velocity in l_opt/s."""
+    """Hayashibe et al. 2011, Eq. 11 (Stroeve 1999); ``v_norm`` = lengthening velocity in
+    l_opt/s."""
     v = np.asarray(v_norm, dtype=float)
     vm = np.asarray(v_max, dtype=float)
     conc = v_sh * (vm + v) / (v_sh * vm - v)
@@ -390,7 +393,7 @@ def reference_force(
     *,
     width: float = float(np.sqrt(0.45)),
 ) -> Array:
-    """``seeds/002 Eq. 9``: ``f* = a f_l(l) f_v(l̇) F_iso`` for arrays ``(N, M)`` (SI)."""
+    """Hayashibe et al. 2011, Eq. 9: ``f* = a f_l(l) f_v(l̇) F_iso`` for arrays ``(N, M)`` (SI)."""
     lopt = params.optimal_fiber_length
     fl = fl_gaussian(np.asarray(fiber_length) / lopt, width=width)
     fv = fv_stroeve(np.asarray(fiber_velocity) / lopt, v_max=params.max_contraction_velocity)
@@ -400,7 +403,8 @@ def reference_force(
 def pennation_constant_height(
     fiber_length: ArrayLike, params: MuscleParameters
 ) -> tuple[Array, Array]:
-    """``seeds/003 Eq. 14``: ``sin φ = l_opt sin φ_0 / l_m``; returns (φ, cos φ)."""
+    """the EMG-driven vs OpenSim thesis, Eq. 14: ``sin φ = l_opt sin φ_0 / l_m``; returns (φ, cos
+    φ)."""
     h = params.optimal_fiber_length * np.sin(params.pennation_angle_at_optimal)
     s = np.clip(h / np.asarray(fiber_length, dtype=float), 0.0, 1.0)
     return np.arcsin(s), np.sqrt(1.0 - s**2)
@@ -464,8 +468,8 @@ def rigid_tendon_state(
     ``l_f = sqrt(h² + (l_MT − l_TS)²)`` with ``h = l_opt sin α_0`` (constant height), clamped at
     ``h / sin(α_max)`` (α_max = acos 0.1, OpenSim's default); ``cos α = (l_MT − l_TS)/l_f``
     (0 when the path is shorter than the tendon); ``l̇_f = l̇_MT cos α``;
-    ``F_max,along = F_iso f_l(l̃_f) f_v(ṽ_f) cos α`` (``seeds/002 Eq. 9`` with a = 1) — the same
-    quantity as OpenSim's ``calcInextensibleTendonActiveFiberForce(s, 1.0)``.
+    ``F_max,along = F_iso f_l(l̃_f) f_v(ṽ_f) cos α`` (Hayashibe et al. 2011, Eq. 9 with a = 1) — the
+    same quantity as OpenSim's ``calcInextensibleTendonActiveFiberForce(s, 1.0)``.
     """
     curves = curves or Thelen2003Curves()
     lmt = _check_lengths(params, muscle_tendon_length, "muscle_tendon_length")
@@ -507,7 +511,7 @@ def rigid_tendon_state(
 class RigidTendonStateBlocks:
     """The rigid-tendon state (:func:`rigid_tendon_state`) of ``params`` on muscle–tendon
     lengths and lengthening velocities ``(N_all, M)``, computed on demand for a block of frames:
-    the ten ``(N, M)`` state arrays of a long trial are never held whole (issue 18).
+    the ten ``(N, M)`` state arrays of a long trial are never held whole.
     :func:`rigid_tendon_state` works frame by frame, so a block's state equals the rows of the
     whole trial's. ``frames``: the rows of ``lengths``/``velocities`` that make up the trial
     (indices; None: all of them), so the caller need not copy a subset."""

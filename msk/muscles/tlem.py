@@ -18,7 +18,7 @@ Everything is converted to SI once, here. The maximal isometric force is
     F_iso = σ · PCSA,
 
 with the specific tension σ configurable (default 37 N/cm² = 3.7·10⁵ Pa, the value chosen for
-msk's TLEM models in issue 6; reported human values span ~20–100 N/cm², and a recent systematic
+msk's TLEM models; reported human values span ~20–100 N/cm², and a recent systematic
 review recommends 26.8 N/cm²: Persad et al. 2024, J Appl Physiol 137:945–962).
 
 The A5 cylinders are not linked to muscles in the tables; msk links them by name: "Gluteus

@@ -1,19 +1,22 @@
-"""Tension optimisation per frame: muscle forces from generalised forces (GitHub issue 7 item 4).
+"""Tension optimisation per frame: muscle forces from generalised forces.
 
-Convention: the muscle Jacobian ``J = ∂l/∂θ`` (seeds/002 Eq. 6) has shape
+Convention: the muscle Jacobian ``J = ∂l/∂θ`` (Hayashibe et al. 2011, Eq. 6) has shape
 ``(n_muscles, n_coords)``; tensions ``f ≥ 0`` produce ``τ = −Jᵀ f = R f`` (moment arms
 ``R = −Jᵀ``, OpenSim's ``computeMomentArm``). Batch functions take ``(N, n_muscles, n_coords)``
 and ``(N, n_coords)``, time on axis 0.
 
 Methods (each a frozen Problem → Solution pair):
 
-- :class:`LagrangeProblem` → :class:`LagrangeSolution`: closed form, seeds/004 Eq. 6,
-  unbounded; :class:`CoefficientTable` tabulates it over a functional DOF (seeds/004 §2.2);
+- :class:`LagrangeProblem` → :class:`LagrangeSolution`: closed form, the rehabilitation-robot
+  lower-limb model paper, Eq. 6,
+  unbounded; :class:`CoefficientTable` tabulates it over a functional DOF (the rehabilitation-robot
+  lower-limb model paper, §2.2);
 - :class:`TensionProblem` → :class:`QPSolution`: ``min Σ(f/F_iso)²``, ``R f = τ``, bounds,
   optional reserves;
 - :class:`StaticOptimizationProblem`: OpenSim's StaticOptimization (activations², muscle
   physiology, residual/reserve actuators);
-- :class:`EMGWeightedProblem`: seeds/002 Eq. 17–18, and :func:`emg_weight_sweep` (Table I).
+- :class:`EMGWeightedProblem`: Hayashibe et al. 2011, Eq. 17–18, and :func:`emg_weight_sweep` (Table
+  I).
 
 Solvers: a registry (:func:`available_solvers`, :func:`register_solver`); DAQP through its own
 API by default (exact, warm-started across frames), OSQP and Clarabel through ``qpsolvers``

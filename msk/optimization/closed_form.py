@@ -1,14 +1,15 @@
-"""Closed-form Lagrange-multiplier solution and its precomputed-coefficient table (seeds/004).
+"""Closed-form Lagrange-multiplier solution and its precomputed-coefficient table (the
+rehabilitation-robot lower-limb model paper).
 
 Sign convention (all of :mod:`msk.optimization`): the muscle Jacobian is ``J = ∂l/∂θ``
-(seeds/002 Eq. 6), shape ``(n_muscles, n_coords)``; a tension ``f ≥ 0`` shortens the muscle, so
-the generalised force it produces is ``τ = −Jᵀ f = R f`` with the moment-arm matrix
+(Hayashibe et al. 2011, Eq. 6), shape ``(n_muscles, n_coords)``; a tension ``f ≥ 0`` shortens the
+muscle, so the generalised force it produces is ``τ = −Jᵀ f = R f`` with the moment-arm matrix
 ``R = −Jᵀ`` (OpenSim's ``computeMomentArm`` is ``−∂L/∂q``, i.e. a column of ``R``ᵀ).
 
-seeds/004 Eq. 5 writes the muscle generalised force as ``τ_Mus = Σ_i C_i F_i``, so ``C = R``,
-and minimises the squared sum of muscle stresses ``Σ (F_i/A_i)²`` (``A_i`` the physiological
-cross-section area; any quantity proportional to it, e.g. ``F_iso``, gives the same forces).
-With one coordinate, Lagrange multipliers give Eq. 6::
+The rehabilitation-robot lower-limb model paper, Eq. 5 writes the muscle generalised force as
+``τ_Mus = Σ_i C_i F_i``, so ``C = R``, and minimises the squared sum of muscle stresses ``Σ
+(F_i/A_i)²`` (``A_i`` the physiological cross-section area; any quantity proportional to it, e.g.
+``F_iso``, gives the same forces). With one coordinate, Lagrange multipliers give Eq. 6::
 
     F_i = A_i² C_i τ_Mus / Σ_j (A_j C_j)²
 
@@ -22,9 +23,10 @@ so a muscle whose moment arm opposes the torque gets a negative (compressive) fo
 forces are flagged in ``negative``, never clipped. Use :func:`msk.optimization.solve_tension`
 when the bounds matter; both agree whenever no bound is active.
 
-Because ``K`` depends only on the posture, seeds/004 §2.2 (items 3–4) computes it offline over
-the workspace of a *functional* degree of freedom ``s`` (e.g. knee flexion, the other
-coordinates following it), and online only looks it up: :class:`CoefficientTable`.
+Because ``K`` depends only on the posture, the rehabilitation-robot lower-limb model paper, §2.2
+(items 3–4) computes it offline over the workspace of a *functional* degree of freedom ``s`` (e.g.
+knee flexion, the other coordinates following it), and online only looks it up:
+:class:`CoefficientTable`.
 """
 
 from __future__ import annotations
@@ -65,7 +67,8 @@ SINGULAR_COND = 1e12
 
 
 def lagrange_coefficients(jacobian: ArrayLike, area: ArrayLike) -> Array:
-    """``K = W Cᵀ (C W Cᵀ)⁻¹`` with ``C = −Jᵀ``, ``W = diag(A²)`` (seeds/004 Eq. 6, n coords).
+    """``K = W Cᵀ (C W Cᵀ)⁻¹`` with ``C = −Jᵀ``, ``W = diag(A²)`` (the rehabilitation-robot
+    lower-limb model paper, Eq. 6, n coords).
 
     ``jacobian`` is ``(n_muscles, n_coords)`` or a stack ``(N, n_muscles, n_coords)``; the result
     has the same leading shape. A singular ``C W Cᵀ`` (a coordinate no muscle crosses) uses the
@@ -88,7 +91,8 @@ def lagrange_coefficients(jacobian: ArrayLike, area: ArrayLike) -> Array:
 
 @dataclass(frozen=True)
 class LagrangeProblem:
-    """``min Σ (F_i/A_i)²  s.t.  C F = τ`` (seeds/004 Eq. 5–6), unbounded.
+    """``min Σ (F_i/A_i)²  s.t.  C F = τ`` (the rehabilitation-robot lower-limb model paper, Eq.
+    5–6), unbounded.
 
     ``jacobian`` ``J = ∂l/∂θ`` ``(n_muscles, n_coords)``, ``tau`` ``(n_coords,)`` the muscle
     generalised force ``τ_Mus`` (N·m, or N for a translation), ``area`` ``A_i`` ``(n_muscles,)``
@@ -135,7 +139,8 @@ class LagrangeSolution:
 
 
 def solve_lagrange(problem: LagrangeProblem) -> LagrangeSolution:
-    """Solve seeds/004 Eq. 6 generalised to several coordinates (see the module docstring)."""
+    """Solve Eq. 6 of the rehabilitation-robot lower-limb model paper, generalised to several
+    coordinates (see the module docstring)."""
     k = lagrange_coefficients(problem.jacobian, problem.area)
     f = k @ problem.tau
     c = -problem.jacobian.T
@@ -185,7 +190,8 @@ def solve_lagrange_batch(
     area: ArrayLike,
     muscle_names: Sequence[str] | None = None,
 ) -> LagrangeBatchSolution:
-    """Vectorised seeds/004 Eq. 6 over frames: ``F[k] = K(J[k]) τ[k]`` (one stacked solve)."""
+    """The rehabilitation-robot lower-limb model paper, Eq. 6, vectorised over frames: ``F[k] =
+    K(J[k]) τ[k]`` (one stacked solve)."""
     j = check_jacobian(jacobians, 3)
     n_frames, m, n = j.shape
     tau = as_float(taus, (n_frames, n), "taus")
@@ -205,7 +211,8 @@ def solve_lagrange_batch(
 
 @dataclass(frozen=True)
 class CoefficientTable:
-    """Lagrange coefficients ``K(s)`` tabulated over a functional DOF ``s`` (seeds/004 §2.2).
+    """Lagrange coefficients ``K(s)`` tabulated over a functional DOF ``s`` (the
+    rehabilitation-robot lower-limb model paper, §2.2).
 
     ``grid`` ``(G,)`` strictly increasing values of ``s`` (e.g. knee flexion in rad),
     ``coefficients`` ``(G, n_muscles, n_coords)``. At run time ``F = K(s) τ`` with ``K``
@@ -287,7 +294,8 @@ def build_coefficient_table(
     muscle_names: Sequence[str] | None = None,
     coordinate_names: Sequence[str] | None = None,
 ) -> CoefficientTable:
-    """Offline stage of seeds/004 §2.2: ``K`` at each grid value of the functional DOF.
+    """Offline stage of the rehabilitation-robot lower-limb model paper, §2.2: ``K`` at each grid
+    value of the functional DOF.
 
     ``jacobians`` ``(G, n_muscles, n_coords)`` are the muscle Jacobians evaluated along the
     functional path (every coordinate set from ``s`` by the subject's fDOF relations).

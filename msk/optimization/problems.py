@@ -364,7 +364,8 @@ def _solve_power(
 
 @dataclass(frozen=True)
 class TensionProblem:
-    """Bounded tension QP of one frame (seeds/004 criterion with bounds)::
+    """Bounded tension QP of one frame (the criterion of the rehabilitation-robot lower-limb model
+    paper, with bounds)::
 
         minimise   Σ_i (f_i / F_iso,i)²  +  Σ_j r_j²
         subject to R f + diag(F_res) r = τ,     f_min ≤ f ≤ f_max
@@ -612,12 +613,12 @@ def _static_qp(
 
 @dataclass(frozen=True)
 class EMGWeightedProblem:
-    """EMG-weighted tension optimisation of one frame (seeds/002 Eq. 17–18)::
+    """EMG-weighted tension optimisation of one frame (Hayashibe et al. 2011, Eq. 17–18)::
 
         minimise   ½‖τ − R f‖²  +  (W_emg/2) Σ_{i measured} (f_i − f*_i)²  +  (ε/2) Σ_{i ∉ M} f_i²
         subject to f ≥ f_min (= 0),  f ≤ f_max (optional)
 
-    seeds/002 writes ``Z = ½‖τ − Jᵀf‖² + (W_emg/2)‖f − f*‖²`` subject to ``E_t f ≤ 0``
+    Hayashibe et al. 2011 writes ``Z = ½‖τ − Jᵀf‖² + (W_emg/2)‖f − f*‖²`` subject to ``E_t f ≤ 0``
     (Eq. 18), with ``f`` along muscle lengthening: tensions are non-positive there. With the
     msk convention (``f`` = tension, ``τ = −Jᵀ f``) the same problem reads as above with
     ``f ≥ 0``. ``f*`` (``f_ref``) is the EMG-based reference force of Eq. 9
@@ -1863,13 +1864,13 @@ def solve_emg_weighted_batch(
 
 
 # ---------------------------------------------------------------------------------------------
-# W_emg study (seeds/002 Table I)
+# W_emg study (Hayashibe et al. 2011, Table I)
 # ---------------------------------------------------------------------------------------------
 
 
 @dataclass(frozen=True)
 class EMGWeightSweep:
-    """The W_emg study of seeds/002 Table I, one row per ``w_emg``.
+    """The W_emg study of Hayashibe et al. 2011, Table I, one row per ``w_emg``.
 
     ``torque_error_rms`` ``(W,)``: RMS over frames and coordinates of ``τ − R f`` (N·m);
     ``torque_error_rms_per_coordinate`` ``(W, n_coords)``; ``max_force`` / ``mean_force``
@@ -1889,7 +1890,8 @@ class EMGWeightSweep:
     coordinate_names: tuple[str, ...]
 
     def table(self, muscle: str | None = None, coordinate: str | None = None) -> str:
-        """Plain-text table like seeds/002 Table I (W_emg, τ error, max force of ``muscle``)."""
+        """Plain-text table like Hayashibe et al. 2011, Table I (W_emg, τ error, max force of
+        ``muscle``)."""
         mi = self.muscle_names.index(muscle) if muscle is not None else None
         ci = self.coordinate_names.index(coordinate) if coordinate is not None else None
         head = f"{'W_emg':>10} {'tau err RMS':>12} {'|f-f*| RMS':>11}"
@@ -1922,7 +1924,8 @@ def emg_weight_sweep(
     muscle_names: Sequence[str] | None = None,
     coordinate_names: Sequence[str] | None = None,
 ) -> EMGWeightSweep:
-    """Solve the EMG-weighted QP for each ``W_emg`` (defaults: the values of seeds/002 Table I)."""
+    """Solve the EMG-weighted QP for each ``W_emg`` (defaults: the values of Hayashibe et al. 2011,
+    Table I)."""
     ws = np.asarray(w_emgs, dtype=float)
     sols = [
         solve_emg_weighted_batch(
@@ -1998,8 +2001,8 @@ def solve_emg_assisted_batch(
     ``activation_weights`` w (default 1; the volume weights of Happee 1994 are the usual
     choice); ``w_track`` ≥ 0 is dimensionless (activations², relative to w). ``w_track = 0``
     is :func:`solve_static_optimization_batch` with exponent 2. Unlike the EMG-weighted QP of
-    seeds/002 Eq. 17 (torque error penalised, W_emg in m²), the torques are constraints here,
-    so the EMG can only redistribute force inside the null space of ``R`` (the sharing between
+    Hayashibe et al. 2011, Eq. 17 (torque error penalised, W_emg in m²), the torques are constraints
+    here, so the EMG can only redistribute force inside the null space of ``R`` (the sharing between
     synergists, antagonists and biarticular muscles), never change the net joint moments.
     The cost is ``Σ (w_i + w_track [i ∈ M]) a_i² − 2 w_track Σ_{i ∈ M} a*_i a_i`` + constant:
     one QP per frame, ``H`` shared by all frames. ``f_passive`` ``(N, m)`` (default 0) as in

@@ -4,15 +4,15 @@ usable frames (:func:`msk.muscles.geometry.muscle_geometry`).
 The Jacobian is kept compact (:class:`msk.timeseries.FrameSparse`: only the coordinates each
 muscle crosses), evaluated block by block (:mod:`msk._runtime.blocks`): a long trial never holds
 it dense. The knee's unit wrenches ∂l/∂ξ are not kept: the knee contact stage recomputes them
-block by block from the same paths, where it consumes them (issue 18: held from this stage to
-the contact stage, they were 0.6 kB/frame of a long trial's resident set).
+block by block from the same paths, where it consumes them (held from this stage to the
+contact stage, they would be 0.6 kB/frame of a long trial's resident set).
 
 On a trial longer than one block (:data:`msk._runtime.blocks.FRAME_BLOCK`) the Jacobian is not
 held either: its compact values are :class:`JacobianRows`, which recompute the rows asked for
 block by block, each block exactly as this stage evaluated it (the same frames in one call:
 bit for bit the values a held Jacobian would give). The tension, strength and knee contact
-stages read it by blocks of frames; a 100 000-frame trial held it as 2.1 kB/frame, 210 MB,
-from here to the contact stage (issue 18, sixth pass). A trial of one block keeps it."""
+stages read it by blocks of frames; held, it would cost a 100 000-frame trial 2.1 kB/frame,
+210 MB, from here to the contact stage. A trial of one block keeps it."""
 
 from __future__ import annotations
 
@@ -101,7 +101,7 @@ def posed_geometry(
 ) -> Any:
     """:func:`msk.muscles.geometry.muscle_geometry` of the ``frames`` of a trial, the frames
     that are not ``usable`` at the default pose, at rest; the Jacobian compact
-    (:class:`msk.timeseries.FrameSparse` at the plan's positions: never dense, issue 18)."""
+    (:class:`msk.timeseries.FrameSparse` at the plan's positions: never dense)."""
     from msk.muscles.geometry import muscle_geometry
 
     ok = usable[frames, None]
@@ -140,7 +140,7 @@ def run(inputs: SessionInputs, model: BuiltModel, kinematics: Any, loads: Loads)
     blocks = frame_blocks(n)
     held = len(blocks) == 1
     # filled block by block into arrays allocated once (a list of blocks concatenated at the
-    # end held the whole geometry twice at that moment: the stage's high-water, issue 18)
+    # end would hold the whole geometry twice at that moment: the stage's high-water)
     lengths = np.empty((n, n_mus))
     vel = np.empty((n, n_mus))
     values: Any = (

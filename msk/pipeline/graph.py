@@ -111,8 +111,8 @@ def model_to_cache(built: model.BuiltModel) -> Any:
     """The model stage's result as the stage cache keeps it: its :class:`msk.model.core.Model` as
     plain data (:meth:`msk.model.core.Model.state`; the cache stores no Pinocchio object). A trial
     of more than :data:`~msk._runtime.blocks.FRAME_BLOCK` frames is given as it is, not
-    storable: its model-frame markers are not written to the cache (issue 18's memory bound),
-    the stage is computed again next time."""
+    storable: its model-frame markers are not written to the cache (the memory bound of long
+    trials), the stage is computed again next time."""
     if len(built.trial.time) > FRAME_BLOCK:
         return built
     return dataclasses.replace(built, model=built.model.state())
@@ -171,7 +171,7 @@ GRAPH: tuple[Node, ...] = (
 #: frame), the plates by the loads stage alone (the mass identification reads the assignment,
 #: the EMG stage the analog channels); the model's own model-frame markers by the kinematics
 #: stage and the step ``swapped_markers`` alone (the summary reads that step's pairs, the
-#: marker labels and gaps). Issue 18: a long trial's read result is ~4.9 kB/frame, its
+#: marker labels and gaps). For scale: a long trial's read result is ~4.9 kB/frame, its
 #: model-frame markers 1.2 kB/frame more.
 TRIMS: tuple[tuple[str, str, Callable[[Any], Any]], ...] = (
     ("model", "read", read.without_markers),
@@ -230,7 +230,7 @@ def run_graph(
     ``keep``: the nodes whose results the caller wants back; every other result is released
     as soon as the last node reading it has run (:func:`last_readers`), and ``trims`` (default
     :data:`TRIMS`) drop the parts of a result no later node reads, so that a long trial's
-    arrays are not all held to the end of the run (issue 18). ``None`` keeps every result
+    arrays are not all held to the end of the run. ``None`` keeps every result
     whole."""
     results: dict[str, Any] = {}
     last = last_readers(graph) if keep is not None else {}

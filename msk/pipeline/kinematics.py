@@ -41,7 +41,7 @@ def solve_trial(
     names = set(model.marker_names)
     cols = [i for i, lab in enumerate(labels) if lab in names]
     # (N, used markers); the flags first, then the columns (not a copy of the used markers'
-    # positions, issue 18)
+    # positions)
     seen = np.isfinite(trial.markers).all(axis=2)[:, cols]
     body_of = {m.name: m.body for m in model.markers}
     blind = np.zeros(trial.time.size, dtype=bool)
@@ -50,7 +50,7 @@ def solve_trial(
             on = [k for k, i in enumerate(cols) if body_of[labels[i]] == body]
             blind |= ~seen[:, on].any(axis=1)
     markers = np.asarray(trial.markers, dtype=float)
-    if blind.any():  # a copy only when frames are blanked (issue 18: no copy of a long trial)
+    if blind.any():  # a copy only when frames are blanked (no copy of a long trial)
         markers = markers.copy()
         markers[blind] = np.nan
     kin = solve_kinematics(

@@ -41,7 +41,7 @@ def run(inputs: SessionInputs, read: ReadResult, model: BuiltModel, kinematics: 
 
     rot = model.rotation
     # rotated one at a time, as external_loads resamples them: one analog-rate plate in the
-    # model frame is held at a time (issue 18)
+    # model frame is held at a time
     plates: Iterator[Any] = (rotated_plate(p, rot) for p in read.plates or ())
     ext = inputs.external_loads(model.model, read.trial, kinematics, plates, read.assignment)
     contact = foot_contact(model.model, kinematics, ext)

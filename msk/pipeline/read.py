@@ -3,7 +3,7 @@ and the measured knee contact force, read from the files (lab frame, SI) and kep
 stages read them: the markers, the analog channels that are not plate channels (the EMG), the
 plates' force, COP and free moment (:class:`msk.dynamics.loads.PlateWrench`), no model outputs. A
 long trial thus holds ~4.9 kB per frame after this stage instead of ~7.1 kB (gc5_PS: 16 EMG
-and 3 plates; issue 18)."""
+and 3 plates)."""
 
 from __future__ import annotations
 
@@ -83,7 +83,7 @@ def without_markers(read: ReadResult) -> ReadResult:
     """``read`` without the task's markers (a ``(N, 0, 3)`` array, no labels): the model stage
     is the last to read them (its :class:`~msk.pipeline.model.BuiltModel` holds them in the
     model frame); :func:`msk.pipeline.graph.run_graph` drops them from ``read`` after it, so
-    that a long trial's markers are not held twice through the loads and EMG stages (issue 18).
+    that a long trial's markers are not held twice through the loads and EMG stages.
     Time, rates, analogs and the plates are shared, not copied."""
     trial = read.trial
     n = int(np.shape(trial.markers)[0])
@@ -95,7 +95,7 @@ def without_markers(read: ReadResult) -> ReadResult:
 def without_plates(read: ReadResult) -> ReadResult:
     """``read`` without its plates (``plates=()``): the loads stage is the last to read them;
     :func:`msk.pipeline.graph.run_graph` drops them after it (their analog-rate force, COP and
-    free moment are the largest part of a long trial's read result; issue 18). The assignment,
+    free moment are the largest part of a long trial's read result). The assignment,
     the measured contact and the trial (its EMG channels) are kept."""
     return dataclasses.replace(read, plates=())
 

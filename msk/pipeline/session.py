@@ -111,7 +111,7 @@ def run_session(
     # not oversubscribe the cores
     with threadpool_limits(limits=1, user_api="blas"):
         # every other stage's result is released once no later stage reads it, and its
-        # arrays leave the resident set (glibc: mapped, not kept in the heap; issue 18)
+        # arrays leave the resident set (glibc: mapped, not kept in the heap)
         map_large_blocks()
         results = run_graph(session_inputs(cfg), runner, keep=("tables", "summary", "report"))
     tables, figures = results["tables"], results["report"]

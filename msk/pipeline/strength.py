@@ -75,7 +75,7 @@ def run(
         params, muscle_geometry.lengths, muscle_geometry.velocities, frames
     )
     # the measured muscles' columns only (compact over the muscles: the others are 0, and a
-    # long trial's (N, M) activation was the stage's largest array, issue 18)
+    # long trial's (N, M) activation would be the stage's largest array)
     cols = sorted({params.names.index(m) for k, m in enumerate(emg.muscles) if emg.usable[k]})
     act = FrameSparse(
         np.zeros((frames.size, len(cols))), np.asarray(cols, dtype=np.intp), (len(params.names),)

@@ -408,7 +408,7 @@ def swapped_markers(
     whose labels look swapped (:func:`msk.quality.swapped_sides` of the model-frame markers and
     the solved poses), for the summary's flags — taken right after the kinematics stage, the
     last stage to read the task's markers, so that a long trial's markers are dropped there
-    (:data:`msk.pipeline.graph.TRIMS`; issue 18)."""
+    (:data:`msk.pipeline.graph.TRIMS`)."""
     from msk.quality import swapped_sides
 
     return tuple(swapped_sides(model.model, kinematics, model.trial.markers, model.labels))

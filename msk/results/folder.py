@@ -27,15 +27,15 @@ identified from, with columns ``<segment>.<parameter>`` (Pinocchio order ``m, mx
 Ixy, Iyy, Ixz, Iyz, Izz`` in kg, kg·m, kg·m²) and ``<group>.<figure>`` (factor ×generic, CI
 bounds, F_iso in N). A readable copy of both lives in ``summary.json``.
 
-FES sessions (``role = "fes"`` trials, seeds/000) add ``fes_parameters`` (one row, ``time`` 0,
-columns ``<group>.<parameter>`` of the identified quadriceps–shank model in SI: ``geometry.L_ext``
-m, ``geometry.r_q`` m, ``knee.J`` kg·m², ``knee.B`` N·m·s/rad, ``knee.K`` N·m/rad,
-``muscle.F_cm`` N, ``muscle.K_cm`` N/m, ``muscle.L_c0`` m, ``muscle.b`` 1, ``muscle.k_s`` N/m,
-``muscle.L_s`` m, ``recruitment.c1…c3`` 1; the units are repeated in ``summary.json`` ``fes``),
+FES sessions (``role = "fes"`` trials, Benoussaad et al. 2013) add ``fes_parameters`` (one row,
+``time`` 0, columns ``<group>.<parameter>`` of the identified quadriceps–shank model in SI:
+``geometry.L_ext`` m, ``geometry.r_q`` m, ``knee.J`` kg·m², ``knee.B`` N·m·s/rad, ``knee.K``
+N·m/rad, ``muscle.F_cm`` N, ``muscle.K_cm`` N/m, ``muscle.L_c0`` m, ``muscle.b`` 1, ``muscle.k_s``
+N/m, ``muscle.L_s`` m, ``recruitment.c1…c3`` 1; the units are repeated in ``summary.json`` ``fes``),
 ``fes_steps`` (one row, ``time`` 0, ``<step>.nrmsd_pct`` and ``<step>.nrmse_pct`` per protocol
-step, seeds/000 Table 2 rows) and ``fes_validation`` (time series of the cross-validation
-trial: ``knee_angle_measured``, ``knee_angle_simulated`` and ``knee_angle_simulated_k_s0``
-before the ``k_s`` identification, rad, 0 = full extension).
+step, Benoussaad et al. 2013, Table 2 rows) and ``fes_validation`` (time series of the
+cross-validation trial: ``knee_angle_measured``, ``knee_angle_simulated`` and
+``knee_angle_simulated_k_s0`` before the ``k_s`` identification, rad, 0 = full extension).
 
 Writing is atomic for the whole folder (:func:`write_session`): everything goes into a temporary
 sibling folder that replaces ``<out>`` by a rename at the very end, so a run that fails never

@@ -669,8 +669,8 @@ class FesTrial(_Record):
 
 @dataclass(frozen=True, kw_only=True)
 class Fes(_Record):
-    """``fes``: the seeds/000 protocol (parameters, initial values, step fits, ``k_s``
-    iterations N/m, solver status, seconds per pass, trials, options)."""
+    """``fes``: the protocol of Benoussaad et al. 2013 (parameters, initial values, step fits,
+    ``k_s`` iterations N/m, solver status, seconds per pass, trials, options)."""
 
     parameters: Mapping[str, FesParameter]
     initial_parameters: Mapping[str, float | None] | None = None

@@ -1,4 +1,5 @@
-"""Muscle-strength identification (seeds/002 §V) and EMG-driven calibration (seeds/003).
+"""Muscle-strength identification (Hayashibe et al. 2011, §V) and EMG-driven calibration (the
+EMG-driven vs OpenSim thesis).
 
 * :class:`StrengthIdentifier` — regression on the net contribution matrix with correlation
   gating and confidence intervals → :class:`StrengthProfile`;

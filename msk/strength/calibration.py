@@ -1,6 +1,8 @@
-"""EMG-driven calibration of muscle parameters to inverse-dynamics moments (seeds/003 §2.2, §3.2).
+"""EMG-driven calibration of muscle parameters to inverse-dynamics moments (the EMG-driven vs
+OpenSim thesis, §2.2, §3.2).
 
-Forward model (per muscle k, frame t; ``seeds/003 Eq. 1–20``), EMG envelope e → moment:
+Forward model (per muscle k, frame t; the EMG-driven vs OpenSim thesis, Eq. 1–20), EMG envelope e →
+moment:
 
     e_d(t)  = e(t − d)                         electromechanical delay d ∈ [0, 100 ms]   (Eq. 1)
     u(t)    = α e_d(t) − β1 u(t−1) − β2 u(t−2),  β1 = γ1 + γ2, β2 = γ1 γ2, α = 1 + β1 + β2
@@ -30,9 +32,9 @@ Lloyd & Besier's A ∈ (−3, 0), bounds [−2.9, −0.01]). Contraction, ``tend
 Both are differentiated exactly by casadi. The fractional delay d is a linear interpolation
 between samples (``e_d(t) = Σ_i max(0, 1 − |d/h − i|) e(t − i h)``), continuous in d.
 
-Calibrated parameters (bounds of ``seeds/003 Table 3.1``): strength factors G per functional
-group ∈ [0.5, 2] (Eq. 19–20), per muscle the optimal fibre length (× [0.95, 1.05]), tendon slack
-length (× [0.85, 1.15]), γ1, γ2 ∈ [−0.9, 0.9], d ∈ [0, 0.1] s, A; and the global skew
+Calibrated parameters (bounds of the EMG-driven vs OpenSim thesis, Table 3.1): strength factors G
+per functional group ∈ [0.5, 2] (Eq. 19–20), per muscle the optimal fibre length (× [0.95, 1.05]),
+tendon slack length (× [0.85, 1.15]), γ1, γ2 ∈ [−0.9, 0.9], d ∈ [0, 0.1] s, A; and the global skew
 λ ∈ [0, 0.25]. Objective: the mean squared difference between M_F and the inverse-dynamics
 moment M_I over the calibration trials, each coordinate divided by the standard deviation of its
 M_I, plus a small Tikhonov term on the parameters normalised to their ranges (default 1e-4).
@@ -88,7 +90,8 @@ MUSCLE_CALIBRATION_PARAMETERS: tuple[str, ...] = (
     "shape_factor",
 )
 
-#: Bounds (``seeds/003 Table 3.1``; A for the exponential form, see the module docstring).
+#: Bounds (the EMG-driven vs OpenSim thesis, Table 3.1; A for the exponential form, see the module
+#: docstring).
 CALIBRATION_BOUNDS: dict[str, tuple[float, float]] = {
     "strength_factor": STRENGTH_FACTOR_BOUNDS,
     "optimal_fiber_length_scale": (0.95, 1.05),
@@ -120,7 +123,7 @@ class CalibrationTrial:
     """One trial for the EMG-driven model (time on axis 0, SI, muscles in parameter order).
 
     ``excitation`` e ``(N, M)`` normalised EMG envelopes in [0, 1] (muscles without electrode
-    take a synergist's, ``seeds/003 §3.2.1``); ``muscle_tendon_length`` and
+    take a synergist's, the EMG-driven vs OpenSim thesis, §3.2.1); ``muscle_tendon_length`` and
     ``lengthening_velocity`` ``(N, M)``; ``moment_arms`` R = −∂l/∂θ ``(N, M, n)`` for the
     calibrated coordinates; ``moments`` the inverse-dynamics moments ``(N, n)``.
     """
@@ -224,8 +227,8 @@ class CalibrationParameters:
 
 @dataclass(frozen=True)
 class FitMetrics:
-    """Moment fit per coordinate (``seeds/003 Table 4.1``): r², RMS (N·m) and RMS normalised to
-    the peak-to-peak range of the inverse-dynamics moment."""
+    """Moment fit per coordinate (the EMG-driven vs OpenSim thesis, Table 4.1): r², RMS (N·m) and
+    RMS normalised to the peak-to-peak range of the inverse-dynamics moment."""
 
     coordinate_names: tuple[str, ...]
     r2: Array
@@ -350,26 +353,29 @@ def casadi_curves(curves: LloydBesierCurves) -> dict[str, Any]:
 
 
 class EMGDrivenCalibration:
-    """EMG-driven calibration (``seeds/003 §2.2.3, §3.2``) with casadi/ipopt multi-start.
+    """EMG-driven calibration (the EMG-driven vs OpenSim thesis, §2.2.3, §3.2) with casadi/ipopt
+    multi-start.
 
     Args:
         params: generic (scaled) muscle parameters, muscle order of the trial arrays.
-        groups: functional group → muscles sharing a strength factor (``seeds/003 Eq. 19–20``:
+        groups: functional group → muscles sharing a strength factor (the EMG-driven vs OpenSim
+        thesis, Eq. 19–20:
             knee flexors / extensors, ankle plantar / dorsiflexors).
         bounds: overrides of :data:`CALIBRATION_BOUNDS`.
         initial: overrides of the initial guess (scalars per parameter name).
         fixed: parameter names held at their initial value (e.g. ``("skew",)``).
         shared: per-muscle parameters given one value per functional group (e.g.
             ``("gamma1", "gamma2", "delay_s", "shape_factor")``) — fewer parameters, less
-            over-fitting of short trials; seeds/003 calibrates them per muscle (the default).
+            over-fitting of short trials; the EMG-driven vs OpenSim thesis calibrates them per
+            muscle (the default).
         n_starts: multi-start count (first = initial guess).
         regularization: weight of the Tikhonov term on range-normalised deviations from the
             initial guess.
         skip_s: padding at the start of each trial excluded from the objective
-            (``seeds/003 §3.2.2``; covers the delay and filter start-up).
+            (the EMG-driven vs OpenSim thesis, §3.2.2; covers the delay and filter start-up).
         max_iter, tol: ipopt options.
         tendon: ``"rigid"`` (default) or ``"elastic"`` (contraction dynamics over time, module
-            docstring; seeds/003's model, ~2–8× slower to calibrate).
+            docstring; the EMG-driven vs OpenSim thesis' model, ~2–8× slower to calibrate).
         substeps: BDF2 steps per sample interval of the elastic tendon.
     """
 
@@ -836,7 +842,7 @@ class EMGDrivenCalibration:
 
     def validate(self, trials: Sequence[CalibrationTrial]) -> FitMetrics:
         """r², RMS and peak-to-peak-normalised RMS per coordinate over ``trials``
-        (``seeds/003 Table 4.1``), padding excluded."""
+        (the EMG-driven vs OpenSim thesis, Table 4.1), padding excluded."""
         self._check_fitted()
         cn = self._check_trials(trials)
         meas, pred = [], []

@@ -1,12 +1,12 @@
 """EMG-to-activation gains fitted jointly with EMG-assisted static optimisation.
 
 Without an MVC trial an EMG envelope ``ê`` (e.g. divided by its session peak) has no absolute
-scale. seeds/003 (Fig. 2.1) calibrates such scales — flexor/extensor gain factors ``G_f``,
-``G_e`` — against the inverse-dynamics moments; seeds/002 §V reads the regression of the ID
-torques on the EMG-driven contributions as strength factors (:class:`StrengthIdentifier`).
-Here the gains are instead the ones that make the EMG the best description of torque-compatible
-activations: over all frames ``t`` of the training trials, jointly in the activations and the
-gains,
+scale. The EMG-driven vs OpenSim thesis (Fig. 2.1) calibrates such scales — flexor/extensor gain
+factors ``G_f``, ``G_e`` — against the inverse-dynamics moments; Hayashibe et al. 2011, §V reads the
+regression of the ID torques on the EMG-driven contributions as strength factors
+(:class:`StrengthIdentifier`). Here the gains are instead the ones that make the EMG the best
+description of torque-compatible activations: over all frames ``t`` of the training trials, jointly
+in the activations and the gains,
 
 .. math::
 

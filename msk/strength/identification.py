@@ -1,20 +1,21 @@
-"""Muscle-strength identification by regression on the net contribution matrix (seeds/002 §V).
+"""Muscle-strength identification by regression on the net contribution matrix
+(Hayashibe et al. 2011, §V).
 
-Per muscle k and coordinate j (``seeds/002 Eq. 12–14``)::
+Per muscle k and coordinate j (Hayashibe et al. 2011, Eq. 12–14)::
 
     τ_k = −J_kᵀ f_k = [−J_kᵀ a_k f_l(l_k) f_v(l̇_k)] F_iso,k = C_k F_iso,k            (Eq. 12–14)
 
-with J = ∂l/∂θ (``seeds/002 Eq. 6``, shape ``(N, M, n)``), a_k the EMG-driven activation and
-f_l, f_v the normalised force–length and force–velocity factors of the muscle state
+with J = ∂l/∂θ (Hayashibe et al. 2011, Eq. 6, shape ``(N, M, n)``), a_k the EMG-driven activation
+and f_l, f_v the normalised force–length and force–velocity factors of the muscle state
 (:func:`msk.muscles.hill.rigid_tendon_state`; its ``cos α`` is included so that the force is
 along the tendon, and with ``passive=True`` the passive fibre force ``F_iso f_P cos α`` — which
 also scales with F_iso — is added to the activation term:
 ``C_k = −J_kᵀ (a_k f_l f_v + f_P) cos α``).
 
 **Synergist groups.** One EMG electrode drives a group g of muscles with a common activity
-level (``seeds/002 §V``, "muscle grouping in stretch reflex"), and the unknown is the group's
-strength factor s_g: ``F_iso,k = s_g F_iso,k^generic`` for k ∈ g. With
-``C_g = Σ_{k∈g} C_k F_iso,k^generic`` the j-th torque reads (``seeds/002 Eq. 15–16``)::
+level (Hayashibe et al. 2011, §V, "muscle grouping in stretch reflex"), and the unknown is the
+group's strength factor s_g: ``F_iso,k = s_g F_iso,k^generic`` for k ∈ g. With
+``C_g = Σ_{k∈g} C_k F_iso,k^generic`` the j-th torque reads (Hayashibe et al. 2011, Eq. 15–16)::
 
     τ(j) = Σ_{g ∈ G_emg} s_g C_g(j) + Σ_{k ∉ G_emg} C_k(j) F_iso,k^generic + d_j           (Eq. 16)
 
@@ -22,7 +23,7 @@ where d_j is the constant residual term (contributions of elements that are not 
 muscles without EMG, ligaments, residual inertial errors). Muscles outside every group keep their
 generic strength and their generic contribution is subtracted from τ.
 
-**Correlation gating** (``seeds/002 §VI.C``: "correlation analysis in the level of the net
+**Correlation gating** (Hayashibe et al. 2011, §VI.C: "correlation analysis in the level of the net
 contribution matrix was performed to judge which EMG-measured synergist muscle group have enough
 correlation and contribute to the torque production"). The trial is cut into windows (cycles,
 trials or fixed-length chunks). In window w, for coordinate j:
@@ -40,10 +41,10 @@ on at least ``min_windows`` selected windows of some coordinate; otherwise its f
 (generic), its contribution moves to the known side, and it is flagged ``identified=False``.
 
 **Regression.** Bounded linear least squares for the factors s_g ∈ [0.5, 2.0]
-(``seeds/003 Table 3.1``) and a free d_j per coordinate; each coordinate's rows are divided by
-the standard deviation of its torque so that joints weigh equally. It is solved from the normal
-equations XᵀX β = Xᵀy accumulated window by window (bounded: BVLS on the Cholesky factor of
-XᵀX, ``scipy.optimize.lsq_linear``), so the stacked rows are never held: a long trial's design
+(the EMG-driven vs OpenSim thesis, Table 3.1) and a free d_j per coordinate; each coordinate's rows
+are divided by the standard deviation of its torque so that joints weigh equally. It is solved from
+the normal equations XᵀX β = Xᵀy accumulated window by window (bounded: BVLS on the Cholesky factor
+of XᵀX, ``scipy.optimize.lsq_linear``), so the stacked rows are never held: a long trial's design
 (one row per frame and coordinate) costs no memory beyond its windows' (p, p) sums. Same
 minimiser as BVLS on the rows (tests/pipeline/test_long_trials.py: to 1e-9 on random designs with
 active bounds); against the previous BVLS on the stacked rows, the strength factors of the
@@ -98,21 +99,21 @@ Measured coverage of the IV 95 % intervals (same set-up, seeds 0–119; per grou
 jackknife-t / BCa): 12 cycles 0.98 / 0.97, 24 cycles 0.92 / 0.90, 48 cycles 0.93 / 0.925
 (mean over groups ≈ 0.99, 0.94, 0.95); 30-seed subsets at 24 cycles range 0.83–1.0 per group,
 as the binomial Monte Carlo error of 30 draws allows. What remains is the bias of the
-activation itself, which no instrument removes: the concave nonlinearity of seeds/003 Eq. 7
-turns zero-mean envelope noise into a slightly low mean activation, hence slightly high factors
-(10 % noise: +0.3 … +0.9 %, 0.2–0.3 standard errors at 24–48 cycles; 20 % envelope noise: least
-squares −3.8 % / −2.6 %, IV +1.9 % / +1.6 % on knee extensors / plantar flexors). It grows
-relative to the interval as √cycles, so with 10 % noise the IV intervals stay honest up to
-≈ 100 cycles, with 20 % noise only to ≈ 15–20 cycles (not measured beyond). Least squares stays
-the default because the instrument needs windows that are repetitions of one movement.
+activation itself, which no instrument removes: the concave nonlinearity of the EMG-driven vs
+OpenSim thesis, Eq. 7 turns zero-mean envelope noise into a slightly low mean activation, hence
+slightly high factors (10 % noise: +0.3 … +0.9 %, 0.2–0.3 standard errors at 24–48 cycles; 20 %
+envelope noise: least squares −3.8 % / −2.6 %, IV +1.9 % / +1.6 % on knee extensors / plantar
+flexors). It grows relative to the interval as √cycles, so with 10 % noise the IV intervals stay
+honest up to ≈ 100 cycles, with 20 % noise only to ≈ 15–20 cycles (not measured beyond). Least
+squares stays the default because the instrument needs windows that are repetitions of one movement.
 
-**MVC trials** (issue 17). From gait alone some groups are weakly determined (synthetic leg,
+**MVC trials**. From gait alone some groups are weakly determined (synthetic leg,
 24 cycles, 3 % torque noise: dorsiflexors ±6 %, up to 21 % off over 120 subjects — torque noise,
-not a model mismatch: noise-free data give the factors exactly). The seeds/002 protocol
-(Hayashibe, Venture, Ayusawa & Nakamura, IROS 2011, §VI.A) records MVCs of flexion and extension
-at each joint; with their joint torques, they enter Eq. 16 as more windows. ``fit(movements=…)``
-labels what each window repeats (gait cycles; each MVC action's repetitions): a window is
-instrumented by the other windows of its own movement (≥ 3 each), the jackknife is the
+not a model mismatch: noise-free data give the factors exactly). The protocol of
+Hayashibe et al. 2011 (Hayashibe, Venture, Ayusawa & Nakamura, IROS 2011, §VI.A) records MVCs of
+flexion and extension at each joint; with their joint torques, they enter Eq. 16 as more windows.
+``fit(movements=…)`` labels what each window repeats (gait cycles; each MVC action's repetitions): a
+window is instrumented by the other windows of its own movement (≥ 3 each), the jackknife is the
 stratified one (Wolter 2007, *Introduction to Variance Estimation*, §4.5) and the t quantile
 takes Satterthwaite's degrees of freedom per parameter (a factor fixed mainly by 5 MVC
 repetitions has ≈ 4, not W − p). Measured, 12 cycles + 5 repetitions per action, seeds 0–119:
@@ -138,7 +139,7 @@ from msk.muscles.hill import MuscleParameters, RigidTendonState, RigidTendonStat
 from msk.timeseries import FrameSparse
 from msk.units import Array
 
-#: Bounds on strength factors, ``seeds/003 Table 3.1`` (G_f, G_e ∈ [0.5, 2.0]).
+#: Bounds on strength factors, the EMG-driven vs OpenSim thesis, Table 3.1 (G_f, G_e ∈ [0.5, 2.0]).
 STRENGTH_FACTOR_BOUNDS: tuple[float, float] = (0.5, 2.0)
 
 __all__ = [
@@ -157,8 +158,8 @@ __all__ = [
 # ---------------------------------------------------------------------------------------------
 #: frames per block of the contribution matrices (:meth:`StrengthIdentifier._contributions`):
 #: a block's dense Jacobian and contributions of 92 muscles × 23 coordinates are ~9 MB each
-#: (at 2048 frames they were ~35 MB each, ~100 MB together: the strength stage's fixed part of
-#: a long trial's peak; issue 18). Each frame's values do not depend on the block.
+#: (at 2048 frames they would be ~35 MB each, ~100 MB together: the strength stage's fixed part
+#: of a long trial's peak). Each frame's values do not depend on the block.
 _FRAME_BLOCK = 512
 
 
@@ -207,7 +208,7 @@ def net_contribution(
     *,
     passive: bool = True,
 ) -> Array:
-    """Net contribution matrix ``C_k = −J_kᵀ a_k f_l f_v cos α`` (``seeds/002 Eq. 13–14``).
+    """Net contribution matrix ``C_k = −J_kᵀ a_k f_l f_v cos α`` (Hayashibe et al. 2011, Eq. 13–14).
 
     ``jacobian`` J = ∂l/∂θ ``(N, M, n)``, ``activation`` ``(N, M)``, ``state`` the rigid-tendon
     muscle state of the **generic** parameters (only the normalised factors f_l, f_v, f_P and
@@ -280,7 +281,8 @@ def group_contributions(
     params: MuscleParameters,
 ) -> tuple[Array, Array]:
     """``(C_g, τ_other)``: ``C_g = Σ_{k∈g} C_k F_iso,k^generic`` ``(N, G, n)`` and the generic
-    contribution of the muscles outside every group ``(N, n)`` (``seeds/002 Eq. 15–16``)."""
+    contribution of the muscles outside every group ``(N, n)`` (Hayashibe et al. 2011, Eq.
+    15–16)."""
     c = _as3(contribution, "contribution")
     if c.shape[1] != params.n_muscles:
         raise ShapeMismatchError(
@@ -604,7 +606,8 @@ def _iv_normal(szz: Array, szx: Array, szy: Array) -> tuple[Array, Array]:
 
 
 class StrengthIdentifier:
-    """Strength identification by regression on the net contribution matrix (seeds/002 §V).
+    """Strength identification by regression on the net contribution matrix (Hayashibe et al. 2011,
+    §V).
 
     Scikit-learn style: :meth:`fit` returns ``self``; fitted attributes end in ``_``
     (``profile_``, ``factors_``, ``residual_``, ``coordinates_``). See the module docstring for
@@ -617,7 +620,7 @@ class StrengthIdentifier:
             group acts).
         gate_threshold: correlation gate (see module docstring), default 0.6.
         min_windows: selected windows a group must correlate on to be identified.
-        bounds: strength-factor bounds (``seeds/003 Table 3.1``).
+        bounds: strength-factor bounds (the EMG-driven vs OpenSim thesis, Table 3.1).
         n_windows: number of equal contiguous windows when ``fit`` gets no ``windows`` labels.
         n_bootstrap: bootstrap replicates (0 disables the bootstrap interval).
         confidence: level of both intervals.
@@ -629,10 +632,10 @@ class StrengthIdentifier:
         random_state: seed of the bootstrap.
         min_excitation: a group is *excited* only if the 99th percentile of its activation
             reaches this level (default 0.25: an excitation of ≈ 20 % MVC gives 0.2–0.29 through
-            the seeds/003 Eq. 7 nonlinearity, A = 0 … −1, with MVC-normalised EMG; a channel
-            normalised to its session peak always reaches it). A group that is not excited is
-            kept generic (its contribution — passive force and baseline activity — moves to the
-            known side) and its status is ``not determined``: without activity the regression
+            the EMG-driven vs OpenSim thesis, Eq. 7 nonlinearity, A = 0 … −1, with MVC-normalised
+            EMG; a channel normalised to its session peak always reaches it). A group that is not
+            excited is kept generic (its contribution — passive force and baseline activity — moves
+            to the known side) and its status is ``not determined``: without activity the regression
             would fit its factor on the passive force and co-contraction alone.
     """
 
@@ -693,7 +696,7 @@ class StrengthIdentifier:
         """Group contributions ``C_g`` ``(N, G, n)`` and the other muscles' ``(N, n)``.
         ``compact`` with a compact Jacobian: ``C_g`` as a :class:`FrameSparse` of the (group,
         coordinate) pairs the groups' muscles cross (:func:`_group_pattern`; a few of G × n on
-        gait2392, issue 18), else dense."""
+        gait2392), else dense."""
         if tuple(state.names) != self.params.names:
             raise ShapeMismatchError(
                 f"muscle state names {state.names[:3]}… differ from the parameters' "
@@ -870,18 +873,18 @@ class StrengthIdentifier:
         label per frame (cycle / trial / motion) — the gating and bootstrap units (default:
         ``n_windows`` equal chunks); ``movements`` one label per frame naming the movement
         each window repeats (e.g. the gait cycles, and each MVC action's repetitions,
-        seeds/002 §VI.A) — with ``instrument="phase_average"`` a window is instrumented by
-        the other windows of its movement only, which must then have ≥ 3 windows, and the
+        Hayashibe et al. 2011, §VI.A) — with ``instrument="phase_average"`` a window is instrumented
+        by the other windows of its movement only, which must then have ≥ 3 windows, and the
         intervals resample within movements (default: all windows repeat one movement).
         ``frames``: the rows of ``jacobian`` that the other arguments' rows are (default:
-        all), read block by block — a long trial's Jacobian rows are not copied (issue 18).
+        all), read block by block — a long trial's Jacobian rows are not copied.
         """
         from scipy import stats  # on use: decoding cached results need not pay for them
 
         if frames is not None:
             frames = np.asarray(frames, dtype=np.int64)
         # compact (the pairs the groups' muscles cross) when the Jacobian is: a long trial's
-        # (N, G, n) contributions are mostly structural zeros (issue 18)
+        # (N, G, n) contributions are mostly structural zeros
         cg, other = self._contributions(jacobian, activation, state, frames, compact=True)
         n_frames, n_groups, n_coords = cg.shape
         cnames = self._coords(coordinate_names, n_coords)

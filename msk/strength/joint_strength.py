@@ -1,4 +1,4 @@
-"""Maximal isometric joint-moment curves: joint-level strength a clinician reads (issue 17).
+"""Maximal isometric joint-moment curves: joint-level strength a clinician reads.
 
 For one action (e.g. "knee extension") the swept coordinate θ takes each angle of a grid, the
 other coordinates sit in a fixed test posture (below), and every muscle is fully activated

@@ -1,5 +1,6 @@
-"""Studies with identified strengths: W_emg stability (seeds/002 Table I) and comparison tables
-of generic vs identified parameters (seeds/003 Tables 4.1, 4.5–4.7).
+"""Studies with identified strengths: W_emg stability (Hayashibe et al. 2011, Table I) and
+comparison tables of generic vs identified parameters (the EMG-driven vs OpenSim thesis, Tables 4.1,
+4.5–4.7).
 
 All metric primitives come from :mod:`msk.metrics` (r², RMS, NRMSD, trapezoidal area ratio, peak
 difference); this module only arranges them into frozen tables.
@@ -29,7 +30,7 @@ __all__ = [
     "w_emg_stability",
 ]
 
-#: The W_emg values of ``seeds/002 Table I``.
+#: The W_emg values of Hayashibe et al. 2011, Table I.
 TABLE_I_W_EMG: tuple[float, ...] = (1.0, 0.5, 0.1, 0.05, 0.01, 0.005, 0.001)
 
 
@@ -38,7 +39,7 @@ TABLE_I_W_EMG: tuple[float, ...] = (1.0, 0.5, 0.1, 0.05, 0.01, 0.005, 0.001)
 # ---------------------------------------------------------------------------------------------
 @dataclass(frozen=True)
 class WEmgStability:
-    """The W_emg sweep with generic and with identified F_iso (``seeds/002 Table I``).
+    """The W_emg sweep with generic and with identified F_iso (Hayashibe et al. 2011, Table I).
 
     ``max_force_generic`` / ``max_force_identified`` ``(W, M)``: maximal estimated force of each
     muscle over the frames, per W_emg; ``torque_error_*`` ``(W,)`` RMS of τ − R f (N·m);
@@ -58,7 +59,7 @@ class WEmgStability:
     sweep_identified: EMGWeightSweep
 
     def table(self, muscle: str) -> str:
-        """Plain-text analogue of ``seeds/002 Table I`` for one muscle."""
+        """Plain-text analogue of Hayashibe et al. 2011, Table I for one muscle."""
         i = self.muscle_names.index(muscle)
         lines = [
             f"{'W_emg':>8} | {'τ err (id)':>10} {'max f (id)':>11} | "
@@ -95,14 +96,15 @@ def w_emg_stability(
     muscle_names: Sequence[str] | None = None,
     coordinate_names: Sequence[str] | None = None,
 ) -> WEmgStability:
-    """Run the EMG-weighted QP sweep (``seeds/002 Eq. 17–18``, :func:`msk.optimization.
+    """Run the EMG-weighted QP sweep (Hayashibe et al. 2011, Eq. 17–18, :func:`msk.optimization.
     emg_weight_sweep`) with the EMG-based reference force ``f* = a f_l f_v F_iso`` (Eq. 9) built
     once from generic and once from identified F_iso.
 
     ``unit_reference`` ``(N, M)`` is ``a f_l f_v`` (reference force per newton of F_iso, e.g.
     ``activation * state.max_active_force_along_tendon / F_iso``); ``measured`` the muscles with
-    EMG. The upper force bound is F_iso (generic or identified, respectively). ``seeds/002
-    §VI.C`` reports that the maximal force varies much less with W_emg after identification.
+    EMG. The upper force bound is F_iso (generic or identified, respectively).
+    Hayashibe et al. 2011, §VI.C reports that the maximal force varies much less with W_emg after
+    identification.
     """
     ur = np.asarray(unit_reference, dtype=float)
     fg = np.asarray(f_iso_generic, dtype=float)
@@ -211,8 +213,9 @@ def net_joint_force(
     positive: Sequence[str],
     negative: Sequence[str],
 ) -> Array:
-    """Net joint force ``Σ_{positive} F − Σ_{negative} F`` ``(N,)`` (``seeds/003 §3.4``: net knee
-    force = extensors − flexors, net ankle force = plantar flexors − dorsiflexors)."""
+    """Net joint force ``Σ_{positive} F − Σ_{negative} F`` ``(N,)`` (the EMG-driven vs OpenSim
+    thesis, §3.4: net knee force = extensors − flexors, net ankle force = plantar flexors −
+    dorsiflexors)."""
     f = np.asarray(forces, dtype=float)
     names = list(muscle_names)
     if f.ndim != 2 or f.shape[1] != len(names):
@@ -233,7 +236,7 @@ def net_force_table(
 ) -> MetricTable:
     """For each pair ``(a, b)`` of net-force series ``(N,)``: r², RMS (N), RMS normalised to the
     peak-to-peak range of ``a`` and the difference in peak ``max a − max b`` (N) — the columns of
-    ``seeds/003 Table 4.7``."""
+    the EMG-driven vs OpenSim thesis, Table 4.7."""
     s = {k: np.asarray(v, dtype=float) for k, v in net_forces.items()}
     rows = []
     for a, b in pairs:
@@ -264,7 +267,7 @@ def moment_fit_table(
     title: str = "joint-moment fit (seeds/003 Table 4.1)",
 ) -> MetricTable:
     """r², RMS (N·m) and peak-to-peak-normalised RMS of predicted vs inverse-dynamics moments
-    ``(N, n)``, one row per coordinate (``seeds/003 Table 4.1``)."""
+    ``(N, n)``, one row per coordinate (the EMG-driven vs OpenSim thesis, Table 4.1)."""
     m = np.asarray(measured, dtype=float)
     p = np.asarray(predicted, dtype=float)
     if m.ndim != 2 or m.shape != p.shape or m.shape[1] != len(coordinate_names):
