@@ -130,7 +130,8 @@ def test_opensim_storage_reads_every_row_of_every_twin(tmp_path, needs_opensim):
             return {"labels": [lab.get(i) for i in range(lab.getSize())], "rows": rows}
         for name in ARGS["names"]:
             t = osim.TimeSeriesTable(ARGS["dir"] + "/" + name)
-            RESULT[name] = {"storage": storage(ARGS["dir"] + "/" + name), "tst_rows": t.getNumRows()}
+            s = storage(ARGS["dir"] + "/" + name)
+            RESULT[name] = {"storage": s, "tst_rows": t.getNumRows()}
         RESULT["raw"] = storage(ARGS["raw"])["rows"]
         """,
         dir=str(out / "tables"),
