@@ -230,7 +230,7 @@ def write_session(
 
 
 #: what a session folder written by :func:`write_session` holds (besides ``keep``)
-SESSION_ENTRIES = frozenset({"summary.json", "report.html", "report.pdf", "tables"})
+SESSION_ENTRIES = frozenset({"summary.json", "report.html", "report.pdf", "tables", "opensim"})
 
 
 def _writer_alive(pid: int) -> bool:

@@ -1051,7 +1051,7 @@ def test_read_trims_drop_markers_and_plates_only() -> None:
     assert [(a, r) for a, r, _ in TRIMS] == [
         ("model", "read"),
         ("loads", "read"),
-        ("swapped_markers", "model"),
+        ("opensim_export", "model"),
     ]
     # the model's markers: read by the kinematics stage and the step swapped_markers only
     # (the summary takes that step's pairs); the step runs right after the kinematics

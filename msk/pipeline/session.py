@@ -113,9 +113,14 @@ def run_session(
         # every other stage's result is released once no later stage reads it, and its
         # arrays leave the resident set (glibc: mapped, not kept in the heap; issue 18)
         map_large_blocks()
-        results = run_graph(session_inputs(cfg), runner, keep=("tables", "summary", "report"))
+        results = run_graph(
+            session_inputs(cfg), runner, keep=("tables", "summary", "report", "opensim_export")
+        )
     tables, figures = results["tables"], results["report"]
     summary = dict(results["summary"])
+    export = results.get("opensim_export")
+    if export is not None:
+        summary["opensim"] = dict(export.record)
     summary["stages"] = [dataclasses.asdict(r) for r in runner.records]
     summary["not_available"] = [
         {"stage": r.name, "status": r.status, "reason": r.message}
@@ -126,6 +131,9 @@ def run_session(
 
     def report(res: SessionResults, folder: Path) -> None:
         from msk.report import write_report
+
+        if export is not None:
+            export.write(folder)  # opensim/: markers, GRF, ExternalLoads
 
         write_report(res, folder, figures=figures, pdf=pdf)
 

@@ -1,0 +1,111 @@
+"""Step ``opensim_export`` (not a recorded stage): the files an OpenSim user goes on from, in
+the session folder's ``opensim/`` (:mod:`msk.results`):
+
+* ``opensim/markers.trc``: the task trial's markers in the model frame (OpenSim's ground, the
+  frame of ``tables/q.mot``), mm, under the model's marker names;
+* ``opensim/grf.mot``: the ground reactions msk applied, per body (after the plate
+  assignment), force/point/torque in ground (:mod:`msk.io.opensim_export`);
+* ``opensim/external_loads.xml``: the ExternalLoads applying ``grf.mot``'s columns to those
+  bodies — with ``tables/q.mot`` the inputs of OpenSim's InverseDynamicsTool.
+
+The subject's scaled model is not written as an ``.osim``: it lives in msk's own model format.
+"""
+
+from __future__ import annotations
+
+import shutil
+import tempfile
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from msk.io.opensim_export import (
+    grf_table,
+    write_external_loads_xml,
+    write_grf_mot,
+    write_markers_trc,
+)
+from msk.io.storage_twin import index_ranges
+from msk.pipeline.inputs import SessionInputs
+
+__all__ = ["FOLDER", "OpenSimExport", "run"]
+
+#: the session folder's sub-folder of OpenSim input files
+FOLDER = "opensim"
+
+
+@dataclass(frozen=True)
+class OpenSimExport:
+    """The files, written once into a private temporary folder (``staging``, removed with this
+    object: a long trial's text is not held in memory to the end of the run), and the record
+    for ``summary.json`` ``opensim``. :meth:`write` copies them into a session folder."""
+
+    staging: tempfile.TemporaryDirectory[str]
+    files: tuple[str, ...]
+    record: Mapping[str, Any] = field(default_factory=dict)
+
+    def write(self, folder: str | Path) -> list[Path]:
+        """Copy the files into ``folder/opensim/``; returns their paths."""
+        out = Path(folder) / FOLDER
+        out.mkdir(parents=True, exist_ok=True)
+        return [Path(shutil.copyfile(Path(self.staging.name) / f, out / f)) for f in self.files]
+
+
+def run(inputs: SessionInputs, model: Any, kinematics: Any, loads: Any) -> OpenSimExport | None:
+    """The OpenSim files of the task trial (module docstring); None without a model or loads."""
+    if model is None or loads is None:
+        return None
+    trial = model.trial
+    ext = loads.external
+    marker_names = tuple(model.labels)
+    markers = np.asarray(trial.markers, dtype=float)
+    # only bodies that carry a load at some frame (an ExternalForce on a body never loaded
+    # would apply zeros)
+    loaded = [
+        b
+        for b, body in enumerate(ext.bodies)
+        if np.nan_to_num(np.asarray(ext.force, dtype=float)[:, b]).any()
+    ]
+    bodies = tuple(ext.bodies[b] for b in loaded)
+    table = grf_table(
+        ext.time,
+        bodies,
+        np.asarray(ext.force, dtype=float)[:, loaded],
+        np.asarray(ext.moment, dtype=float)[:, loaded],
+        np.asarray(ext.point, dtype=float)[:, loaded],
+    )
+    staging = tempfile.TemporaryDirectory(prefix="msk-opensim-")
+    d = Path(staging.name)
+    files: list[str] = []
+    if markers.ndim == 3 and markers.shape[1] == len(marker_names) and markers.shape[1]:
+        write_markers_trc(
+            d / "markers.trc", trial.time, markers, marker_names, rate_hz=trial.point_rate_hz
+        )
+        files.append("markers.trc")
+    _, written = write_grf_mot(d / "grf.mot", table)
+    write_external_loads_xml(d / "external_loads.xml", "grf.mot", bodies)
+    files += ["grf.mot", "external_loads.xml"]
+    kept = np.isin(table.time, written.time)
+    record = {
+        "folder": FOLDER,
+        "files": [f"{FOLDER}/{f}" for f in files],
+        "markers": len(marker_names) if "markers.trc" in files else 0,
+        "marker_units": "mm",
+        "frame": "model (OpenSim ground): the frame of tables/q.mot",
+        "external_loads": [
+            {
+                "name": f"{b}_ground_reaction",
+                "applied_to_body": b,
+                "force_identifier": f"{b}_force_v",
+            }
+            for b in bodies
+        ],
+        "grf_rows": int(written.time.size),
+        "grf_rows_left_out": index_ranges(np.flatnonzero(~kept)) or None,
+        "coordinates": "tables/q.mot",
+        "model": "not written: the scaled model is in msk's format (no .osim writer)",
+    }
+    return OpenSimExport(staging, tuple(files), record)

@@ -1,0 +1,191 @@
+"""The session folder's ``opensim/`` files in OpenSim 4.6 (child process): OpenSim's inverse
+dynamics on the session's model, msk's motion and msk's exported GRF + ExternalLoads reproduces
+msk's joint torques, and OpenSim's legacy ``Storage`` reads every row of every ``.sto/.mot``.
+
+The session: OpenSim's own subject01 walk (Gait2392_Simbody example: the scaled
+``subject01_simbody.osim``, ``subject01_walk1.trc``, its GRF and ExternalLoads), the model used
+as it is (``scale = false``), so that OpenSim and msk hold the same bodies.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from msk.io.opensim_files import read_sto, read_trc
+from msk.io.storage_twin import storage_twin
+from msk.io.tables import read_csv_table
+
+_SOLVE = """
+import os
+import numpy as np
+import opensim as osim
+
+m = osim.Model(ARGS["model"])
+el = osim.ExternalLoads(ARGS["xml"], True)
+RESULT["bodies"] = [el.get(i).get_applied_to_body() for i in range(el.getSize())]
+# OpenSim resolves the datafile against the working directory: the xml's folder
+el.setDataFileName(os.path.join(os.path.dirname(ARGS["xml"]), el.getDataFileName()))
+m.addModelComponent(el)
+s = m.initSystem()
+fs = m.getForceSet()
+for i in range(fs.getSize()):  # only the ground reactions (and gravity) act: no muscle
+    if osim.ExternalForce.safeDownCast(fs.get(i)) is None:
+        fs.get(i).setAppliesForce(s, False)
+cs = m.getCoordinateSet()
+coords = [cs.get(n) for n in ARGS["names"]]
+uidx = []  # each coordinate's index in the state's u
+for c in coords:
+    for d in coords:
+        d.setSpeedValue(s, 0.0)
+    c.setSpeedValue(s, 1.0)
+    uidx.append(int(np.argmax(np.abs(s.getU().to_numpy()))))
+solver = osim.InverseDynamicsSolver(m)
+K = np.load(ARGS["kin"])
+tau = []
+for t, q, v, a in zip(K["t"], K["q"], K["v"], K["a"]):
+    s.setTime(float(t))
+    for c, qi, vi in zip(coords, q, v):
+        c.setValue(s, float(qi), False)
+        c.setSpeedValue(s, float(vi))
+    m.realizeVelocity(s)
+    ud = osim.Vector(s.getNU(), 0.0)
+    for j, ai in zip(uidx, a):
+        ud.set(j, float(ai))
+    g = solver.solve(s, ud).to_numpy()
+    tau.append([float(g[j]) for j in uidx])
+RESULT["tau"] = tau
+# OpenSim's InverseDynamicsTool on the written files (it differentiates q.mot itself)
+tool = osim.InverseDynamicsTool()
+m2 = osim.Model(ARGS["model"])  # a model without the loads added above
+m2.initSystem()
+tool.setModel(m2)
+tool.setCoordinatesFileName(ARGS["q"])
+tool.setExternalLoadsFileName(ARGS["xml"])
+tool.setLowpassCutoffFrequency(-1)
+ex = osim.ArrayStr()
+ex.append("Muscles")
+tool.setExcludedForces(ex)
+qs = osim.Storage(ARGS["q"])
+tool.setStartTime(qs.getFirstTime())
+tool.setEndTime(qs.getLastTime())
+tool.setResultsDir(ARGS["out"])
+tool.setOutputGenForceFileName("id.sto")
+os.chdir(os.path.dirname(ARGS["xml"]))
+RESULT["tool_ok"] = bool(tool.run())
+t = osim.TimeSeriesTable(os.path.join(ARGS["out"], "id.sto"))
+RESULT["tool_labels"] = list(t.getColumnLabels())
+RESULT["tool_time"] = list(t.getIndependentColumn())
+RESULT["tool"] = t.getMatrix().to_numpy().tolist()
+# the legacy Storage on every storage file msk wrote
+RESULT["storage"] = {}
+for p in ARGS["storage_files"]:
+    st = osim.Storage(p)
+    lab = st.getColumnLabels()
+    last = st.getStateVector(st.getSize() - 1).getData()
+    RESULT["storage"][p] = {
+        "rows": st.getSize(),
+        "labels": [lab.get(i) for i in range(lab.getSize())],
+        "last": [last.get(i) for i in range(last.getSize())],
+    }
+mk = osim.TimeSeriesTableVec3(ARGS["trc"])
+RESULT["trc_rows"] = mk.getNumRows()
+RESULT["trc_labels"] = list(mk.getColumnLabels())
+row = mk.getRowAtIndex(mk.getNumRows() // 2)
+RESULT["trc_mid"] = [[row[i].get(k) for k in range(3)] for i in range(row.size())]
+"""
+
+
+@pytest.mark.slow
+@pytest.mark.realdata
+@pytest.mark.opensim
+def test_opensim_reproduces_msk_inverse_dynamics_from_the_exported_files(
+    tmp_path: Path, real_dir: Path, needs_opensim: None
+) -> None:
+    from msk.opensim_peer import run_opensim_script
+    from msk.pipeline import run_session, run_stages
+
+    data = real_dir.parent.parent / "tools" / "opensim-peer" / "data" / "Pipelines"
+    data = data / "Gait2392_Simbody"
+    osim = data / "OutputReference" / "subject01_simbody.osim"
+    if not osim.is_file():
+        pytest.skip("OpenSim's Gait2392_Simbody example absent")
+    cfg = tmp_path / "s01.toml"
+    cfg.write_text(
+        f'[subject]\nname = "subject01"\nmass_kg = 72.6\nheight_m = 1.8034\nside = "right"\n\n'
+        f'[model]\nsource = "{osim}"\nscale = false\n\n'
+        f'[[trials]]\nname = "walk"\nfile = "{data / "subject01_walk1.trc"}"\n'
+        f'grf = "{data / "subject01_walk1_grf.mot"}"\n'
+        f'external_loads = "{data / "subject01_walk1_grf.xml"}"\nrole = "task"\n',
+        encoding="utf-8",
+    )
+    out = tmp_path / "out"
+    res = run_session(cfg, out)
+    rec = res.summary.to_dict()["opensim"]
+    assert rec["files"] == [
+        "opensim/markers.trc",
+        "opensim/grf.mot",
+        "opensim/external_loads.xml",
+    ]
+    # the generic model's torques (the table holds the mass-identified model's) and the motion
+    stages = run_stages(cfg, until="inverse_dynamics")
+    kin, generic = stages["kinematics"], stages["inverse_dynamics"].generic
+    np.savez(
+        tmp_path / "kin.npz",
+        t=np.asarray(kin.time),
+        q=np.asarray(kin.q),
+        v=np.asarray(kin.v),
+        a=np.asarray(kin.a),
+    )
+    sto = sorted(str(p) for p in (out / "tables").glob("*.[sm][to][ot]"))
+    sto.append(str(out / "opensim" / "grf.mot"))
+    got = run_opensim_script(
+        _SOLVE,
+        model=str(osim),
+        xml=str(out / "opensim" / "external_loads.xml"),
+        q=str(out / "tables" / "q.mot"),
+        trc=str(out / "opensim" / "markers.trc"),
+        names=list(kin.coordinate_names),
+        kin=str(tmp_path / "kin.npz"),
+        out=str(tmp_path / "id"),
+        storage_files=sto,
+    )
+    assert got["bodies"] == [b["applied_to_body"] for b in rec["external_loads"]]
+    assert set(got["bodies"]) == {"calcn_r", "calcn_l"}
+    # OpenSim's ID solver, msk's motion, msk's exported loads: msk's torques
+    tau, ok = np.array(got["tau"]), np.isfinite(generic.tau)
+    assert ok.mean() > 0.9
+    np.testing.assert_allclose(tau[ok], generic.tau[ok], rtol=0, atol=1e-6)
+    # OpenSim's ID tool on the written files runs; it differentiates q.mot by splines where msk
+    # low-pass filters the accelerations, so only the feet (little mass below the joint: the
+    # torque is the ground reaction's) agree closely: ankle 0.38 N·m RMS of 156 N·m peak
+    assert got["tool_ok"]
+    tool = np.array(got["tool"])
+    for c in ("ankle_angle_r", "ankle_angle_l", "subtalar_angle_r", "subtalar_angle_l"):
+        j, k = kin.coordinate_names.index(c), got["tool_labels"].index(f"{c}_moment")
+        a = np.interp(kin.time, got["tool_time"], tool[:, k])
+        rms = float(np.sqrt(np.nanmean((a - generic.tau[:, j]) ** 2)))
+        assert rms < 1.0, (c, rms)
+    # Storage reads every row of every table twin and of the GRF file, to the last value
+    for path, s in got["storage"].items():
+        p = Path(path)
+        if p.parent.name == "tables":
+            csv = read_csv_table(p.with_suffix(".csv"))
+            twin = storage_twin(csv).table
+        else:
+            twin = read_sto(p)
+        assert s["rows"] == twin.time.size, p.name
+        assert s["labels"] == ["time", *twin.columns], p.name
+        want = twin.data[-1].copy()
+        if p.name == "q.mot":
+            want[[twin.columns.index(c) for c in res.summary.angle_columns]] *= 180 / np.pi
+        np.testing.assert_allclose(s["last"], want, rtol=1e-12, atol=1e-12, err_msg=p.name)
+    # the markers: every frame, msk's values in mm
+    trc = read_trc(out / "opensim" / "markers.trc")
+    assert got["trc_rows"] == trc.time.size == kin.time.size
+    assert got["trc_labels"] == list(trc.labels)
+    np.testing.assert_allclose(
+        np.array(got["trc_mid"]), trc.markers[trc.time.size // 2] * 1e3, rtol=1e-12
+    )
