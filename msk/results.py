@@ -11,6 +11,13 @@ One folder per session (DESIGN.md "Results a run writes")::
                                 rows and columns left out are listed in its header
                                 (``msk_rows_left_out``: row indices of the CSV,
                                 ``msk_columns_left_out``; :mod:`msk.io.storage_twin`)
+      opensim/markers.trc       the task's markers in the model frame (OpenSim's ground, the
+                                frame of ``q.mot``), mm, model marker names
+      opensim/grf.mot           the ground reactions msk applied, per body (``<body>_force_v*``,
+                                ``_force_p*``, ``_torque_*``; N, m, N·m; in ground)
+      opensim/external_loads.xml  OpenSim ExternalLoads applying ``grf.mot`` to those bodies;
+                                with ``tables/q.mot`` the inputs of OpenSim's inverse dynamics
+                                (:mod:`msk.pipeline.opensim_export`; ``summary.json`` ``opensim``)
       summary.json              versions, inputs with sha256, settings, quality figures, stage
                                 timings, stages not available, identified parameters: the
                                 typed, versioned :class:`msk.summary.Summary` (its ``format``
