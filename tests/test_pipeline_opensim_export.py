@@ -1,10 +1,11 @@
-"""The session folder's ``opensim/`` files in OpenSim 4.6 (child process): OpenSim's inverse
-dynamics on the session's model, msk's motion and msk's exported GRF + ExternalLoads reproduces
-msk's joint torques, and OpenSim's legacy ``Storage`` reads every row of every ``.sto/.mot``.
+"""The session folder's ``opensim/`` files in OpenSim 4.6 (child process): on msk's exported
+model (``model.osim``), OpenSim's inverse dynamics with msk's motion and msk's exported GRF +
+ExternalLoads reproduces msk's joint torques and OpenSim places the markers where msk does;
+OpenSim's legacy ``Storage`` reads every row of every ``.sto/.mot``.
 
-The session: OpenSim's own subject01 walk (Gait2392_Simbody example: the scaled
-``subject01_simbody.osim``, ``subject01_walk1.trc``, its GRF and ExternalLoads), the model used
-as it is (``scale = false``), so that OpenSim and msk hold the same bodies.
+Two sessions: the bundled Grand Challenge PS walk (gait2392 scaled by msk), and OpenSim's own
+subject01 walk (Gait2392_Simbody example: ``subject01_simbody.osim`` imported and used as it is,
+``scale = false``, with OpenSim's GRF and ExternalLoads).
 """
 
 from __future__ import annotations
@@ -24,6 +25,8 @@ import numpy as np
 import opensim as osim
 
 m = osim.Model(ARGS["model"])
+m.initSystem()
+RESULT["mass"] = m.getTotalMass(m.initSystem())
 el = osim.ExternalLoads(ARGS["xml"], True)
 RESULT["bodies"] = [el.get(i).get_applied_to_body() for i in range(el.getSize())]
 # OpenSim resolves the datafile against the working directory: the xml's folder
@@ -57,6 +60,16 @@ for t, q, v, a in zip(K["t"], K["q"], K["v"], K["a"]):
     g = solver.solve(s, ud).to_numpy()
     tau.append([float(g[j]) for j in uidx])
 RESULT["tau"] = tau
+ms = m.getMarkerSet()
+RESULT["marker_names"] = [ms.get(i).getName() for i in range(ms.getSize())]
+RESULT["marker_pos"] = []
+for f in ARGS["frames"]:
+    for c, qi in zip(coords, K["q"][f]):
+        c.setValue(s, float(qi), False)
+    m.realizePosition(s)
+    RESULT["marker_pos"].append(
+        [[ms.get(i).getLocationInGround(s).get(k) for k in range(3)] for i in range(ms.getSize())]
+    )
 # OpenSim's InverseDynamicsTool on the written files (it differentiates q.mot itself)
 tool = osim.InverseDynamicsTool()
 m2 = osim.Model(ARGS["model"])  # a model without the loads added above
@@ -98,15 +111,10 @@ RESULT["trc_mid"] = [[row[i].get(k) for k in range(3)] for i in range(row.size()
 """
 
 
-@pytest.mark.slow
-@pytest.mark.realdata
-@pytest.mark.opensim
-def test_opensim_reproduces_msk_inverse_dynamics_from_the_exported_files(
-    tmp_path: Path, real_dir: Path, needs_opensim: None
-) -> None:
-    from msk.opensim_peer import run_opensim_script
-    from msk.pipeline import run_session, run_stages
+REPO = Path(__file__).resolve().parents[1]
 
+
+def _subject01_config(tmp_path: Path, real_dir: Path) -> Path:
     data = real_dir.parent.parent / "tools" / "opensim-peer" / "data" / "Pipelines"
     data = data / "Gait2392_Simbody"
     osim = data / "OutputReference" / "subject01_simbody.osim"
@@ -121,17 +129,37 @@ def test_opensim_reproduces_msk_inverse_dynamics_from_the_exported_files(
         f'external_loads = "{data / "subject01_walk1_grf.xml"}"\nrole = "task"\n',
         encoding="utf-8",
     )
+    return cfg
+
+
+@pytest.mark.slow
+@pytest.mark.realdata
+@pytest.mark.opensim
+@pytest.mark.parametrize("session", ["gc5_PS", "subject01"])
+def test_opensim_reproduces_msk_inverse_dynamics_from_the_exported_files(
+    session: str, tmp_path: Path, real_dir: Path, needs_opensim: None
+) -> None:
+    from msk.model import marker_positions
+    from msk.opensim_peer import run_opensim_script
+    from msk.pipeline import run_session, run_stages
+
+    if session == "subject01":
+        cfg = _subject01_config(tmp_path, real_dir)
+    else:
+        cfg = REPO / "pipelines" / f"{session}.toml"
     out = tmp_path / "out"
     res = run_session(cfg, out)
     rec = res.summary.to_dict()["opensim"]
     assert rec["files"] == [
         "opensim/markers.trc",
+        "opensim/model.osim",
         "opensim/grf.mot",
         "opensim/external_loads.xml",
     ]
     # the generic model's torques (the table holds the mass-identified model's) and the motion
     stages = run_stages(cfg, until="inverse_dynamics")
     kin, generic = stages["kinematics"], stages["inverse_dynamics"].generic
+    model = stages["model"].model
     np.savez(
         tmp_path / "kin.npz",
         t=np.asarray(kin.time),
@@ -141,9 +169,10 @@ def test_opensim_reproduces_msk_inverse_dynamics_from_the_exported_files(
     )
     sto = sorted(str(p) for p in (out / "tables").glob("*.[sm][to][ot]"))
     sto.append(str(out / "opensim" / "grf.mot"))
+    frames = [0, kin.time.size // 2, kin.time.size - 1]
     got = run_opensim_script(
         _SOLVE,
-        model=str(osim),
+        model=str(out / "opensim" / "model.osim"),
         xml=str(out / "opensim" / "external_loads.xml"),
         q=str(out / "tables" / "q.mot"),
         trc=str(out / "opensim" / "markers.trc"),
@@ -151,23 +180,29 @@ def test_opensim_reproduces_msk_inverse_dynamics_from_the_exported_files(
         kin=str(tmp_path / "kin.npz"),
         out=str(tmp_path / "id"),
         storage_files=sto,
+        frames=frames,
     )
+    assert got["mass"] == pytest.approx(model.total_mass, rel=1e-12)
+    # OpenSim places msk's markers where msk does (the scaled bodies, joints and placements)
+    assert got["marker_names"] == [mk.name for mk in model.markers]
+    want = marker_positions(model, np.asarray(kin.q)[frames])
+    np.testing.assert_allclose(np.array(got["marker_pos"]), want, rtol=0, atol=1e-9)
     assert got["bodies"] == [b["applied_to_body"] for b in rec["external_loads"]]
     assert set(got["bodies"]) == {"calcn_r", "calcn_l"}
-    # OpenSim's ID solver, msk's motion, msk's exported loads: msk's torques
+    # OpenSim's ID solver, msk's motion, msk's exported model and loads: msk's torques
     tau, ok = np.array(got["tau"]), np.isfinite(generic.tau)
     assert ok.mean() > 0.9
     np.testing.assert_allclose(tau[ok], generic.tau[ok], rtol=0, atol=1e-6)
     # OpenSim's ID tool on the written files runs; it differentiates q.mot by splines where msk
     # low-pass filters the accelerations, so only the feet (little mass below the joint: the
-    # torque is the ground reaction's) agree closely: ankle 0.38 N·m RMS of 156 N·m peak
+    # torque is the ground reaction's) agree closely (subject01: ankle 0.38 N·m RMS of 156)
     assert got["tool_ok"]
     tool = np.array(got["tool"])
     for c in ("ankle_angle_r", "ankle_angle_l", "subtalar_angle_r", "subtalar_angle_l"):
         j, k = kin.coordinate_names.index(c), got["tool_labels"].index(f"{c}_moment")
         a = np.interp(kin.time, got["tool_time"], tool[:, k])
         rms = float(np.sqrt(np.nanmean((a - generic.tau[:, j]) ** 2)))
-        assert rms < 1.0, (c, rms)
+        assert rms < 2.0, (c, rms)
     # Storage reads every row of every table twin and of the GRF file, to the last value
     for path, s in got["storage"].items():
         p = Path(path)

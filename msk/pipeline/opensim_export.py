@@ -6,9 +6,11 @@ the session folder's ``opensim/`` (:mod:`msk.results`):
 * ``opensim/grf.mot``: the ground reactions msk applied, per body (after the plate
   assignment), force/point/torque in ground (:mod:`msk.io.opensim_export`);
 * ``opensim/external_loads.xml``: the ExternalLoads applying ``grf.mot``'s columns to those
-  bodies — with ``tables/q.mot`` the inputs of OpenSim's InverseDynamicsTool.
-
-The subject's scaled model is not written as an ``.osim``: it lives in msk's own model format.
+  bodies;
+* ``opensim/model.osim``: the scaled model msk used — bodies, joints, coordinates, placed
+  markers, no muscles (:mod:`msk.io.osim_writer`); with the generic segment inertias (the
+  ``joint_torques`` table uses the mass-identified ones where identified). With
+  ``tables/q.mot`` these are the inputs of OpenSim's inverse kinematics and dynamics.
 """
 
 from __future__ import annotations
@@ -22,12 +24,14 @@ from typing import Any
 
 import numpy as np
 
+from msk.exceptions import ModelError
 from msk.io.opensim_export import (
     grf_table,
     write_external_loads_xml,
     write_grf_mot,
     write_markers_trc,
 )
+from msk.io.osim_writer import write_osim
 from msk.io.storage_twin import index_ranges
 from msk.pipeline.inputs import SessionInputs
 
@@ -85,6 +89,16 @@ def run(inputs: SessionInputs, model: Any, kinematics: Any, loads: Any) -> OpenS
             d / "markers.trc", trial.time, markers, marker_names, rate_hz=trial.point_rate_hz
         )
         files.append("markers.trc")
+    model_note = (
+        "opensim/model.osim: the scaled model msk used (bodies, joints, coordinates, placed "
+        "markers; no muscles), the generic segment inertias (the joint_torques table uses "
+        "the mass-identified ones when identified)"
+    )
+    try:
+        write_osim(d / "model.osim", model.model, name=inputs.cfg.subject.name)
+        files.append("model.osim")
+    except ModelError as exc:
+        model_note = f"not written: {exc}"
     _, written = write_grf_mot(d / "grf.mot", table)
     write_external_loads_xml(d / "external_loads.xml", "grf.mot", bodies)
     files += ["grf.mot", "external_loads.xml"]
@@ -106,6 +120,6 @@ def run(inputs: SessionInputs, model: Any, kinematics: Any, loads: Any) -> OpenS
         "grf_rows": int(written.time.size),
         "grf_rows_left_out": index_ranges(np.flatnonzero(~kept)) or None,
         "coordinates": "tables/q.mot",
-        "model": "not written: the scaled model is in msk's format (no .osim writer)",
+        "model": model_note,
     }
     return OpenSimExport(staging, tuple(files), record)
