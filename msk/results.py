@@ -15,8 +15,10 @@ One folder per session (DESIGN.md "Results a run writes")::
                                 frame of ``q.mot``), mm, model marker names
       opensim/grf.mot           the ground reactions msk applied, per body (``<body>_force_v*``,
                                 ``_force_p*``, ``_torque_*``; N, m, N·m; in ground)
-      opensim/external_loads.xml  OpenSim ExternalLoads applying ``grf.mot`` to those bodies;
-                                with ``tables/q.mot`` the inputs of OpenSim's inverse dynamics
+      opensim/external_loads.xml  OpenSim ExternalLoads applying ``grf.mot`` to those bodies
+      opensim/model.osim        the scaled model msk used (bodies, joints, coordinates, placed
+                                markers; no muscles); with ``tables/q.mot`` these are the
+                                inputs of OpenSim's inverse kinematics and dynamics
                                 (:mod:`msk.pipeline.opensim_export`; ``summary.json`` ``opensim``)
       summary.json              versions, inputs with sha256, settings, quality figures, stage
                                 timings, stages not available, identified parameters: the
