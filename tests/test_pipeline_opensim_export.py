@@ -224,3 +224,46 @@ def test_opensim_reproduces_msk_inverse_dynamics_from_the_exported_files(
     np.testing.assert_allclose(
         np.array(got["trc_mid"]), trc.markers[trc.time.size // 2] * 1e3, rtol=1e-12
     )
+
+
+def test_export_step_writes_what_it_can_and_says_what_it_left_out(tmp_path: Path) -> None:
+    """The step on a tiny model: only loaded bodies get an ExternalForce; a marker label a TRC
+    cannot hold leaves the markers out (said in the record), not the run."""
+    from types import SimpleNamespace
+
+    from msk.io.grf import read_external_loads_xml
+    from msk.model import Axis as MAxis
+    from msk.model import Body, Coordinate, Joint, Marker, Model
+    from msk.pipeline.opensim_export import run
+
+    mdl = Model(
+        name="m",
+        bodies=[Body("a", 2.0, np.zeros(3), np.eye(3) * 0.1), Body("b", 1.0)],
+        joints=[
+            Joint("j0", "ground", "a", axes=(MAxis("prismatic", (0, 1, 0), "ty"),)),
+            Joint("j1", "a", "b", axes=(MAxis("revolute", (0, 0, 1), "rz"),)),
+        ],
+        coordinates=[Coordinate("ty", "translational"), Coordinate("rz")],
+        markers=[Marker("M1", "a", (0.1, 0, 0)), Marker("M2", "b", (0, 0.1, 0))],
+    )
+    n = 5
+    t = np.arange(n) / 100.0
+    force = np.zeros((n, 2, 3))
+    force[:, 0, 1] = 20.0
+    point = np.full((n, 2, 3), np.nan)
+    point[:, 0] = 0.0
+    ext = SimpleNamespace(time=t, bodies=("a", "b"), force=force, moment=np.zeros((n, 2, 3)),
+                          point=point)  # fmt: skip
+    trial = SimpleNamespace(time=t, markers=np.ones((n, 2, 3)), point_rate_hz=100.0)
+    built = SimpleNamespace(model=mdl, trial=trial, labels=("M1", ""))
+    inputs = SimpleNamespace(cfg=SimpleNamespace(subject=SimpleNamespace(name="S")))
+    exp = run(inputs, built, None, SimpleNamespace(external=ext))  # type: ignore[arg-type]
+    assert exp is not None
+    assert exp.files == ("model.osim", "grf.mot", "external_loads.xml")
+    assert exp.record["markers"].startswith("not written") and "label" in exp.record["markers"]
+    assert [e["applied_to_body"] for e in exp.record["external_loads"]] == ["a"]
+    written = exp.write(tmp_path)
+    assert [p.name for p in written] == list(exp.files)
+    spec = read_external_loads_xml(tmp_path / "opensim" / "external_loads.xml")
+    assert [f.applied_to_body for f in spec.forces] == ["a"]
+    assert read_sto(tmp_path / "opensim" / "grf.mot").column("a_force_vy").tolist() == [20.0] * n

@@ -24,7 +24,7 @@ from typing import Any
 
 import numpy as np
 
-from msk.exceptions import ModelError
+from msk.exceptions import ModelError, MskError
 from msk.io.opensim_export import (
     grf_table,
     write_external_loads_xml,
@@ -84,11 +84,16 @@ def run(inputs: SessionInputs, model: Any, kinematics: Any, loads: Any) -> OpenS
     staging = tempfile.TemporaryDirectory(prefix="msk-opensim-")
     d = Path(staging.name)
     files: list[str] = []
+    markers_note = "no markers (the model stage kept none)"
     if markers.ndim == 3 and markers.shape[1] == len(marker_names) and markers.shape[1]:
-        write_markers_trc(
-            d / "markers.trc", trial.time, markers, marker_names, rate_hz=trial.point_rate_hz
-        )
-        files.append("markers.trc")
+        try:  # a label a TRC cannot hold (empty, a tab) leaves the markers out, not the run
+            write_markers_trc(
+                d / "markers.trc", trial.time, markers, marker_names, rate_hz=trial.point_rate_hz
+            )
+            files.append("markers.trc")
+            markers_note = f"{len(marker_names)} markers, mm, model marker names"
+        except MskError as exc:
+            markers_note = f"not written: {exc}"
     model_note = (
         "opensim/model.osim: the scaled model msk used (bodies, joints, coordinates, placed "
         "markers; no muscles), the generic segment inertias (the joint_torques table uses "
@@ -106,8 +111,7 @@ def run(inputs: SessionInputs, model: Any, kinematics: Any, loads: Any) -> OpenS
     record = {
         "folder": FOLDER,
         "files": [f"{FOLDER}/{f}" for f in files],
-        "markers": len(marker_names) if "markers.trc" in files else 0,
-        "marker_units": "mm",
+        "markers": markers_note,
         "frame": "model (OpenSim ground): the frame of tables/q.mot",
         "external_loads": [
             {
