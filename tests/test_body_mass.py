@@ -131,3 +131,24 @@ def test_real_statics_and_parameters(real_dir: Path):
         pytest.skip("Grand Challenge data not present")
     m, _ = body_mass_from_static_plates(read_trial(path))
     assert m == pytest.approx(65.7, abs=0.3)
+
+
+@pytest.mark.slow
+@pytest.mark.realdata
+def test_a_session_without_mass_says_where_its_mass_comes_from(tmp_path: Path, real_dir: Path):
+    """gc4 JW with ``mass_kg`` removed: the run weighs the subject on the static's plates and
+    its summary says so; the body weight of every ``_bw`` figure is that mass's."""
+    from msk.pipeline import run_session
+
+    repo = Path(__file__).resolve().parents[1]
+    text = (repo / "pipelines" / "gc4_JW.toml").read_text(encoding="utf-8")
+    if not (real_dir / "knee-grand-challenge-gc4" / "jw_1legstand1.c3d").exists():
+        pytest.skip("Grand Challenge data not present")
+    lines = [ln for ln in text.splitlines() if not ln.startswith("mass_kg")]
+    text = "\n".join(lines).replace('"../', f'"{repo / "pipelines"}/../')
+    (tmp_path / "jw.toml").write_text(text + "\n", encoding="utf-8")
+    res = run_session(tmp_path / "jw.toml", tmp_path / "out")
+    subj = res.summary.subject
+    assert subj.mass_source == "static_plates" and "jw_1legstand1" in (subj.mass_detail or "")
+    assert subj.mass_kg == pytest.approx(65.7, abs=0.3)
+    assert subj.body_weight_n == pytest.approx(subj.mass_kg * G0)
