@@ -187,6 +187,17 @@ def test_opensim_reproduces_msk_inverse_dynamics_from_the_exported_files(
     assert got["marker_names"] == [mk.name for mk in model.markers]
     want = marker_positions(model, np.asarray(kin.q)[frames])
     np.testing.assert_allclose(np.array(got["marker_pos"]), want, rtol=0, atol=1e-9)
+    # and its muscles where msk has them (scaled paths): lengths and moment arms
+    from msk.muscles.geometry import muscle_geometry
+    from tests.muscles.test_geometry import opensim_geometry
+
+    th = np.asarray(kin.q)[frames]
+    leg = [kin.coordinate_names.index(c) for c in ("hip_flexion_r", "knee_angle_l")]
+    every = list(range(len(model.muscles)))
+    lengths, arms = opensim_geometry(out / "opensim" / "model.osim", model, th, every, leg)
+    geo = muscle_geometry(model, th)
+    np.testing.assert_allclose(lengths, geo.lengths, rtol=0, atol=1e-9)
+    np.testing.assert_allclose(arms, geo.moment_arms[:, :, leg], rtol=0, atol=1e-9)
     assert got["bodies"] == [b["applied_to_body"] for b in rec["external_loads"]]
     assert set(got["bodies"]) == {"calcn_r", "calcn_l"}
     # OpenSim's ID solver, msk's motion, msk's exported model and loads: msk's torques

@@ -1,5 +1,6 @@
 """Write an msk :class:`~msk.model.Model` as an OpenSim 4 ``.osim`` (bodies, joints,
-coordinates, markers): the subject's scaled model for OpenSim's inverse kinematics and dynamics.
+coordinates, markers, muscles, wrap objects): the subject's scaled model for OpenSim's inverse
+kinematics and dynamics, static optimisation and the GUI.
 
 The inverse of the import mapping of :mod:`msk.osim`:
 
@@ -18,13 +19,21 @@ The inverse of the import mapping of :mod:`msk.osim`:
   clamped).
 * Markers: ``location`` in their body.
 
-Muscles are not written (their paths, wrapping and msk's strength scaling are msk's own); a
-model whose axes use a function OpenSim has no element for (:class:`~msk.joints.Composite`,
-the four-bar knee) or a coordinate of another joint raises :class:`~msk.exceptions.ModelError`.
+* Muscles: of their source class (``kind``, e.g. ``Thelen2003Muscle``; else
+  ``Thelen2003Muscle``) with F_iso, l_opt, l_ts, α_opt, v_max and the source's other scalar
+  properties (``extra``); path points (``PathPoint``, ``ConditionalPathPoint``,
+  ``MovingPathPoint``: an axis msk holds fixed gets a ``Constant``) and ``PathWrap`` uses; the
+  bodies' wrap objects (``model.metadata["wrap_objects"]``: cylinder, ellipsoid, sphere,
+  torus).
+
+A model whose axes or moving points use a function OpenSim has no element for
+(:class:`~msk.joints.Composite`: a coupler-eliminated coordinate, the four-bar knee) or whose
+axis is driven by another joint's coordinate raises :class:`~msk.exceptions.ModelError`.
 """
 
 from __future__ import annotations
 
+import re
 from pathlib import Path
 from typing import Any
 from xml.sax.saxutils import escape, quoteattr
@@ -36,6 +45,7 @@ from msk.exceptions import ModelError
 from msk.io.tables import write_text_atomic
 from msk.joints import Constant, Linear, Multiplier, PiecewiseLinear, Polynomial, SimmSpline
 from msk.model import GROUND
+from msk.muscles.path import ConditionalPathPoint, MovingPathPoint
 
 __all__ = ["body_fixed_xyz_angles", "osim_text", "write_osim"]
 
@@ -109,6 +119,96 @@ def _frame(name: str, parent: str, pose: Any) -> str:
     return _el("PhysicalOffsetFrame", body, name)
 
 
+_WRAP_TAGS = {
+    "cylinder": "WrapCylinder",
+    "ellipsoid": "WrapEllipsoid",
+    "sphere": "WrapSphere",
+    "torus": "WrapTorus",
+}
+_TAG = re.compile(r"^[A-Za-z_][A-Za-z0-9_]*$")
+
+
+def _wrap_object(w: Any) -> str:
+    body = (
+        _el("xyz_body_rotation", _vec(w.xyz_body_rotation))
+        + _el("translation", _vec(w.translation))
+        + _el("quadrant", escape(w.quadrant))
+        + _el("active", "true" if w.active else "false")
+    )
+    if w.kind == "cylinder":
+        body += _el("radius", _num(w.radius)) + _el("length", _num(w.length))
+    elif w.kind == "ellipsoid":
+        body += _el("dimensions", _vec(w.dimensions))
+    elif w.kind == "sphere":
+        body += _el("radius", _num(w.radius))
+    elif w.kind == "torus":
+        body += _el("inner_radius", _num(w.dimensions[0])) + _el("outer_radius", _num(w.radius))
+    else:
+        raise ModelError(f"wrap object {w.name}: kind {w.kind!r} has no OpenSim element")
+    return _el(_WRAP_TAGS[w.kind], body, w.name)
+
+
+def _coordinate_path(name: str, owner: dict[str, str]) -> str:
+    if name not in owner:
+        raise ModelError(f"coordinate {name!r} drives a path point but no joint: no .osim written")
+    return f"/jointset/{owner[name]}/{name}"
+
+
+def _path_point(p: Any, muscle: str, owner: dict[str, str]) -> str:
+    what = f"muscle {muscle} point {p.name}"
+    head = _el("socket_parent_frame", _path(p.body)) + _el("location", _vec(p.location))
+    if isinstance(p, ConditionalPathPoint):
+        body = head + _el("socket_coordinate", _coordinate_path(p.coordinate, owner))
+        return _el("ConditionalPathPoint", body + _el("range", _vec(p.range)), p.name)
+    if isinstance(p, MovingPathPoint):
+        body = _el("socket_parent_frame", _path(p.body))
+        for k, ax in enumerate("xyz"):
+            c, f = p.coordinates[k], p.functions[k]
+            if c is None or f is None:  # fixed along this axis at location[k]
+                c = next((x for x in p.coordinates if x is not None), None)
+                f = Constant(float(p.location[k]))
+            if c is None:
+                raise ModelError(f"{what}: a moving point driven by no coordinate")
+            body += _el(f"socket_{ax}_coordinate", _coordinate_path(c, owner))
+            body += _el(f"{ax}_location", _function(f, f"{what} {ax}"))
+        return _el("MovingPathPoint", body, p.name)
+    return _el("PathPoint", head, p.name)
+
+
+def _muscle(mu: Any, owner: dict[str, str]) -> str:
+    points = "".join(_path_point(p, mu.name, owner) for p in mu.points)
+    wraps = "".join(
+        _el(
+            "PathWrap",
+            _el("wrap_object", escape(w.wrap_object))
+            + _el("method", escape(w.method))
+            + _el("range", f"{int(w.range[0])} {int(w.range[1])}"),
+        )
+        for w in mu.wraps
+    )
+    path = _el(
+        "GeometryPath",
+        _el("PathPointSet", _el("objects", points)) + _el("PathWrapSet", _el("objects", wraps)),
+        "geometrypath",
+    )
+    props = (
+        _el("max_isometric_force", _num(mu.max_isometric_force))
+        + _el("optimal_fiber_length", _num(mu.optimal_fiber_length))
+        + _el("tendon_slack_length", _num(mu.tendon_slack_length))
+        + _el("pennation_angle_at_optimal", _num(mu.pennation_angle))
+        + _el("max_contraction_velocity", _num(mu.max_contraction_velocity))
+    )
+    for key, value in (mu.extra or {}).items():  # the source's other scalar properties
+        if not _TAG.match(str(key)):
+            continue
+        text = ("true" if value else "false") if isinstance(value, bool) else str(value)
+        props += _el(str(key), escape(text))
+    kind = (
+        mu.kind if _TAG.match(mu.kind or "") and mu.kind.endswith("Muscle") else "Thelen2003Muscle"
+    )
+    return _el(kind, path + props, mu.name)
+
+
 def _path(body: str) -> str:
     return "/ground" if body == GROUND else f"/bodyset/{body}"
 
@@ -126,13 +226,17 @@ def osim_text(model: Any, *, name: str | None = None) -> str:
                         f"joint {j.name}: axis driven by {ax.coordinate!r}, a coordinate of joint "
                         f"{owner[ax.coordinate]}: no .osim written (OpenSim needs a coupler)"
                     )
+    wrap_objects = list((getattr(model, "metadata", None) or {}).get("wrap_objects", ()))
     bodies = []
     for b in model.bodies:
         i = np.asarray(b.inertia, dtype=float)
         inertia = [i[0, 0], i[1, 1], i[2, 2], i[0, 1], i[0, 2], i[1, 2]]
+        wraps = "".join(_wrap_object(w) for w in wrap_objects if w.body == b.name)
         bodies.append(
             f"<Body name={quoteattr(b.name)}><mass>{_num(b.mass)}</mass>"
-            f"<mass_center>{_vec(b.com)}</mass_center><inertia>{_vec(inertia)}</inertia></Body>"
+            f"<mass_center>{_vec(b.com)}</mass_center><inertia>{_vec(inertia)}</inertia>"
+            + (_el("WrapObjectSet", _el("objects", wraps)) if wraps else "")
+            + "</Body>"
         )
     joints = []
     for j in model.joints:
@@ -188,16 +292,23 @@ def osim_text(model: Any, *, name: str | None = None) -> str:
         f"</socket_parent_frame><location>{_vec(m.offset)}</location><fixed>false</fixed></Marker>"
         for m in model.markers
     )
+    forces = "".join(_muscle(mu, owner) for mu in getattr(model, "muscles", ()))
+    ground_wraps = "".join(_wrap_object(w) for w in wrap_objects if w.body == GROUND)
     title = name or getattr(model, "name", "") or "msk"
     doc = (
         '<?xml version="1.0" encoding="UTF-8" ?>\n<OpenSimDocument Version="40000">\n'
         f"<Model name={quoteattr(title)}>"
-        "<credits>msk (msk.io.osim_writer): bodies, joints, coordinates, markers; no muscles"
+        "<credits>msk (msk.io.osim_writer): bodies, joints, coordinates, markers, muscles"
         "</credits><length_units>meters</length_units><force_units>N</force_units>"
         f"<gravity>{_vec(model.gravity)}</gravity>"
-        '<Ground name="ground" />'
-        f'<BodySet name="bodyset"><objects>{"".join(bodies)}</objects></BodySet>'
+        + (
+            f'<Ground name="ground">{_el("WrapObjectSet", _el("objects", ground_wraps))}</Ground>'
+            if ground_wraps
+            else '<Ground name="ground" />'
+        )
+        + f'<BodySet name="bodyset"><objects>{"".join(bodies)}</objects></BodySet>'
         f'<JointSet name="jointset"><objects>{"".join(joints)}</objects></JointSet>'
+        f'<ForceSet name="forceset"><objects>{forces}</objects></ForceSet>'
         f'<MarkerSet name="markerset"><objects>{markers}</objects></MarkerSet>'
         "</Model>\n</OpenSimDocument>\n"
     )

@@ -8,8 +8,9 @@ the session folder's ``opensim/`` (:mod:`msk.results`):
 * ``opensim/external_loads.xml``: the ExternalLoads applying ``grf.mot``'s columns to those
   bodies;
 * ``opensim/model.osim``: the scaled model msk used — bodies, joints, coordinates, placed
-  markers, no muscles (:mod:`msk.io.osim_writer`); with the generic segment inertias (the
-  ``joint_torques`` table uses the mass-identified ones where identified). With
+  markers, the muscles with their scaled paths and parameters (:mod:`msk.io.osim_writer`);
+  with the generic segment inertias (the ``joint_torques`` table uses the mass-identified ones
+  where identified) and the model's F_iso (not the strength identification's factors). With
   ``tables/q.mot`` these are the inputs of OpenSim's inverse kinematics and dynamics.
 """
 
@@ -96,8 +97,9 @@ def run(inputs: SessionInputs, model: Any, kinematics: Any, loads: Any) -> OpenS
             markers_note = f"not written: {exc}"
     model_note = (
         "opensim/model.osim: the scaled model msk used (bodies, joints, coordinates, placed "
-        "markers; no muscles), the generic segment inertias (the joint_torques table uses "
-        "the mass-identified ones when identified)"
+        "markers, muscles with their scaled paths), the generic segment inertias (the "
+        "joint_torques table uses the mass-identified ones when identified) and the model's "
+        "F_iso (not the strength identification's factors)"
     )
     try:
         write_osim(d / "model.osim", model.model, name=inputs.cfg.subject.name)

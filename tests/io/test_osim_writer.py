@@ -79,10 +79,59 @@ def test_a_chain_of_every_function_reads_back_the_same(tmp_path):
 
 
 def test_gait2392_reads_back_the_same(tmp_path):
+    """Bodies, joints, markers and the 92 muscles (via, conditional and moving points): the
+    same muscle–tendon lengths at any pose."""
+    from msk.muscles.geometry import muscle_geometry
     from msk.pipeline.model import load_model_file
 
     m = load_model_file(REPO / "models" / "gait2392.toml")
-    _same_model(m, load_osim(write_osim(tmp_path / "g.osim", m)))
+    back = load_osim(write_osim(tmp_path / "g.osim", m))
+    _same_model(m, back)
+    assert [mu.name for mu in back.muscles] == [mu.name for mu in m.muscles]
+    for a, b in zip(m.muscles, back.muscles):
+        assert (a.kind, a.max_isometric_force, a.tendon_slack_length) == (
+            b.kind, b.max_isometric_force, b.tendon_slack_length,
+        )  # fmt: skip
+        assert a.extra == b.extra
+    names = [c.name for c in m.coordinates]
+    lo, hi = m.coordinate_bounds()
+    rng = np.random.default_rng(4)
+    th = np.clip(m.default_coordinates() + rng.uniform(-0.4, 0.4, (5, len(names))), lo, hi)
+    order = [names.index(c.name) for c in back.coordinates]
+    np.testing.assert_allclose(
+        muscle_geometry(back, th[:, order]).lengths, muscle_geometry(m, th).lengths, atol=1e-14
+    )
+
+
+def test_wrap_objects_read_back_the_same(tmp_path):
+    from msk.muscles.path import Muscle, PathPoint, PathWrap, WrapObject
+
+    m = _chain()
+    wraps = [
+        WrapObject("cyl", "thigh", "cylinder", np.array([0.0, -0.3, 0.0]),
+                   np.array([0.1, 0.2, 0.0]), radius=0.04, length=0.1, quadrant="-x"),
+        WrapObject("ell", "shank", "ellipsoid", np.zeros(3), np.zeros(3),
+                   dimensions=np.array([0.03, 0.05, 0.04])),
+    ]  # fmt: skip
+    mu = Muscle(
+        "m1",
+        (PathPoint("p1", "thigh", np.array([0.02, 0.0, 0.0])),
+         PathPoint("p2", "shank", np.array([0.02, -0.1, 0.0]))),
+        1000.0, 0.1, 0.3, 0.1, 10.0, (PathWrap("cyl", "hybrid", (1, 2)),), "Thelen2003Muscle",
+    )  # fmt: skip
+    m = Model(name="w", bodies=m.bodies, joints=m.joints, coordinates=m.coordinates,
+              markers=m.markers, muscles=[mu], metadata={"wrap_objects": wraps})  # fmt: skip
+    back = load_osim(write_osim(tmp_path / "w.osim", m))
+    got = {w.name: w for w in back.metadata["wrap_objects"]}
+    for w in wraps:
+        b = got[w.name]
+        assert (b.body, b.kind, b.quadrant, b.radius, b.length) == (
+            w.body, w.kind, w.quadrant, w.radius, w.length,
+        )  # fmt: skip
+        np.testing.assert_array_equal(b.dimensions, w.dimensions)
+        np.testing.assert_array_equal(b.xyz_body_rotation, w.xyz_body_rotation)
+    (w0,) = back.muscles[0].wraps
+    assert (w0.wrap_object, w0.method, w0.range) == ("cyl", "hybrid", (1, 2))
 
 
 def test_what_opensim_cannot_hold_is_refused(tmp_path):
@@ -122,3 +171,24 @@ def test_opensim_places_the_markers_where_msk_does(tmp_path, needs_opensim):
     )
     assert got["mass"] == pytest.approx(m.total_mass, rel=1e-14)
     np.testing.assert_allclose(np.array(got["pos"]), marker_positions(m, th), atol=1e-12)
+
+
+@pytest.mark.opensim
+def test_opensim_gives_msks_muscle_lengths_and_moment_arms(tmp_path, needs_opensim):
+    """gait2392 written by msk: OpenSim 4.6's getLength / computeMomentArm of the 92 muscles
+    equal msk's at random poses."""
+    from msk.muscles.geometry import muscle_geometry
+    from msk.pipeline.model import load_model_file
+    from tests.muscles.test_geometry import opensim_geometry
+
+    m = load_model_file(REPO / "models" / "gait2392.toml")
+    p = write_osim(tmp_path / "g.osim", m)
+    lo, hi = m.coordinate_bounds()
+    rng = np.random.default_rng(5)
+    th = np.clip(m.default_coordinates() + rng.uniform(-0.4, 0.4, (4, m.n_coords)), lo, hi)
+    names = list(m.coordinate_names)
+    coords = [names.index(c) for c in ("hip_flexion_r", "knee_angle_r", "ankle_angle_l")]
+    lengths, arms = opensim_geometry(p, m, th, list(range(len(m.muscles))), coords)
+    geo = muscle_geometry(m, th)
+    np.testing.assert_allclose(lengths, geo.lengths, atol=1e-12)
+    np.testing.assert_allclose(arms, geo.moment_arms[:, :, coords], atol=1e-12)
