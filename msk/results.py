@@ -16,8 +16,9 @@ One folder per session (DESIGN.md "Results a run writes")::
       opensim/grf.mot           the ground reactions msk applied, per body (``<body>_force_v*``,
                                 ``_force_p*``, ``_torque_*``; N, m, N·m; in ground)
       opensim/external_loads.xml  OpenSim ExternalLoads applying ``grf.mot`` to those bodies
-      opensim/model.osim        the scaled model msk used (bodies, joints, coordinates, placed
-                                markers, muscles); with ``tables/q.mot`` these are the
+      opensim/model.osim        the scaled model msk used (bodies with the inertias of
+                                ``joint_torques``, joints, coordinates, placed markers,
+                                muscles); with ``tables/q.mot`` these are the
                                 inputs of OpenSim's inverse kinematics and dynamics
                                 (:mod:`msk.pipeline.opensim_export`; ``summary.json`` ``opensim``)
       summary.json              versions, inputs with sha256, settings, quality figures, stage

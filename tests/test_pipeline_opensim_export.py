@@ -11,6 +11,7 @@ subject01 walk (Gait2392_Simbody example: ``subject01_simbody.osim`` imported an
 from __future__ import annotations
 
 from pathlib import Path
+from types import SimpleNamespace
 
 import numpy as np
 import pytest
@@ -152,14 +153,20 @@ def test_opensim_reproduces_msk_inverse_dynamics_from_the_exported_files(
     rec = res.summary.to_dict()["opensim"]
     assert rec["files"] == [
         "opensim/markers.trc",
-        "opensim/model.osim",
         "opensim/grf.mot",
         "opensim/external_loads.xml",
+        "opensim/model.osim",
     ]
-    # the generic model's torques (the table holds the mass-identified model's) and the motion
+    assert rec["model_inertias"] == "mass-identified"
+    # the motion, and the model with the inertias of the joint_torques table
+    from msk.pipeline.mass_identification import identified_model
+
     stages = run_stages(cfg, until="inverse_dynamics")
-    kin, generic = stages["kinematics"], stages["inverse_dynamics"].generic
-    model = stages["model"].model
+    kin = stages["kinematics"]
+    table = read_csv_table(out / "tables" / "joint_torques.csv")
+    assert list(table.columns) == list(kin.coordinate_names)
+    msk_tau = table.data  # the joint torques msk wrote
+    model = identified_model(stages["model"].model, stages["mass_identification"])
     np.savez(
         tmp_path / "kin.npz",
         t=np.asarray(kin.time),
@@ -200,10 +207,10 @@ def test_opensim_reproduces_msk_inverse_dynamics_from_the_exported_files(
     np.testing.assert_allclose(arms, geo.moment_arms[:, :, leg], rtol=0, atol=1e-9)
     assert got["bodies"] == [b["applied_to_body"] for b in rec["external_loads"]]
     assert set(got["bodies"]) == {"calcn_r", "calcn_l"}
-    # OpenSim's ID solver, msk's motion, msk's exported model and loads: msk's torques
-    tau, ok = np.array(got["tau"]), np.isfinite(generic.tau)
+    # OpenSim's ID solver, msk's motion, msk's exported model and loads: msk's torques table
+    tau, ok = np.array(got["tau"]), np.isfinite(msk_tau)
     assert ok.mean() > 0.9
-    np.testing.assert_allclose(tau[ok], generic.tau[ok], rtol=0, atol=1e-6)
+    np.testing.assert_allclose(tau[ok], msk_tau[ok], rtol=0, atol=1e-6)
     # OpenSim's ID tool on the written files runs; it differentiates q.mot by splines where msk
     # low-pass filters the accelerations, so only the feet (little mass below the joint: the
     # torque is the ground reaction's) agree closely (subject01: ankle 0.38 N·m RMS of 156)
@@ -212,7 +219,7 @@ def test_opensim_reproduces_msk_inverse_dynamics_from_the_exported_files(
     for c in ("ankle_angle_r", "ankle_angle_l", "subtalar_angle_r", "subtalar_angle_l"):
         j, k = kin.coordinate_names.index(c), got["tool_labels"].index(f"{c}_moment")
         a = np.interp(kin.time, got["tool_time"], tool[:, k])
-        rms = float(np.sqrt(np.nanmean((a - generic.tau[:, j]) ** 2)))
+        rms = float(np.sqrt(np.nanmean((a - msk_tau[:, j]) ** 2)))
         assert rms < 2.0, (c, rms)
     # Storage reads every row of every table twin and of the GRF file, to the last value
     for path, s in got["storage"].items():
@@ -240,12 +247,10 @@ def test_opensim_reproduces_msk_inverse_dynamics_from_the_exported_files(
 def test_export_step_writes_what_it_can_and_says_what_it_left_out(tmp_path: Path) -> None:
     """The step on a tiny model: only loaded bodies get an ExternalForce; a marker label a TRC
     cannot hold leaves the markers out (said in the record), not the run."""
-    from types import SimpleNamespace
-
     from msk.io.grf import read_external_loads_xml
     from msk.model import Axis as MAxis
     from msk.model import Body, Coordinate, Joint, Marker, Model
-    from msk.pipeline.opensim_export import run
+    from msk.pipeline.opensim_export import run, run_model
 
     mdl = Model(
         name="m",
@@ -270,7 +275,7 @@ def test_export_step_writes_what_it_can_and_says_what_it_left_out(tmp_path: Path
     inputs = SimpleNamespace(cfg=SimpleNamespace(subject=SimpleNamespace(name="S")))
     exp = run(inputs, built, None, SimpleNamespace(external=ext))  # type: ignore[arg-type]
     assert exp is not None
-    assert exp.files == ("model.osim", "grf.mot", "external_loads.xml")
+    assert exp.files == ("grf.mot", "external_loads.xml")
     assert exp.record["markers"].startswith("not written") and "label" in exp.record["markers"]
     assert [e["applied_to_body"] for e in exp.record["external_loads"]] == ["a"]
     written = exp.write(tmp_path)
@@ -278,3 +283,8 @@ def test_export_step_writes_what_it_can_and_says_what_it_left_out(tmp_path: Path
     spec = read_external_loads_xml(tmp_path / "opensim" / "external_loads.xml")
     assert [f.applied_to_body for f in spec.forces] == ["a"]
     assert read_sto(tmp_path / "opensim" / "grf.mot").column("a_force_vy").tolist() == [20.0] * n
+    om = run_model(inputs, built, None)  # type: ignore[arg-type]
+    assert om is not None and om.files == ("model.osim",)
+    assert om.record["model_inertias"] == "scaled generic"
+    om.write(tmp_path)
+    assert (tmp_path / "opensim" / "model.osim").is_file()

@@ -15,6 +15,7 @@ model stage, the plates after the loads stage; the model's own markers after the
 which takes the summary's swapped-label pairs right after the kinematics)::
 
     read ─ model ─ kinematics ─ swapped_markers* ─ loads ─ opensim_export* ─┬─ mass_identif…─┐
+                                                  (mass_identification ─ opensim_model*)
       ┌──────────────────────────────────────────────────────┘   inverse_dynamics ──┤
       ├─ emg ───────────────────────────────────────────────────────────────────────┤
       └─ muscle_geometry ─ tension_optimization ────────────────────────────────────┤
@@ -138,6 +139,8 @@ GRAPH: tuple[Node, ...] = (
     Node("opensim_export", opensim_export.run, (), _ALL, recorded=False),
     Node("mass_identification", mass_identification.run, ("read", *_ALL),
          settings=mass_identification.settings),
+    Node("opensim_model", opensim_export.run_model, ("model",), ("mass_identification",),
+         recorded=False),
     Node("inverse_dynamics", dynamics.run, _ALL, ("mass_identification",), core=True),
     Node("emg", emg.run, ("read", "model", "kinematics"), settings=emg.settings),
     Node("muscle_geometry", geometry.run, _ALL),

@@ -1,4 +1,5 @@
-"""Step ``opensim_export`` (not a recorded stage): the files an OpenSim user goes on from, in
+"""Steps ``opensim_export`` and ``opensim_model`` (not recorded stages): the files an OpenSim
+user goes on from, in
 the session folder's ``opensim/`` (:mod:`msk.results`):
 
 * ``opensim/markers.trc``: the task trial's markers in the model frame (OpenSim's ground, the
@@ -7,10 +8,10 @@ the session folder's ``opensim/`` (:mod:`msk.results`):
   assignment), force/point/torque in ground (:mod:`msk.io.opensim_export`);
 * ``opensim/external_loads.xml``: the ExternalLoads applying ``grf.mot``'s columns to those
   bodies;
-* ``opensim/model.osim``: the scaled model msk used — bodies, joints, coordinates, placed
-  markers, the muscles with their scaled paths and parameters (:mod:`msk.io.osim_writer`);
-  with the generic segment inertias (the ``joint_torques`` table uses the mass-identified ones
-  where identified) and the model's F_iso (not the strength identification's factors). With
+* ``opensim/model.osim`` (step ``opensim_model``, :func:`run_model`, after the mass
+  identification): the scaled model msk used — bodies with the segment inertias of the
+  ``joint_torques`` table, joints, coordinates, placed markers, the muscles with their scaled
+  paths and parameters (:mod:`msk.io.osim_writer`). With
   ``tables/q.mot`` these are the inputs of OpenSim's inverse kinematics and dynamics.
 """
 
@@ -36,7 +37,7 @@ from msk.io.osim_writer import write_osim
 from msk.io.storage_twin import index_ranges
 from msk.pipeline.inputs import SessionInputs
 
-__all__ = ["FOLDER", "OpenSimExport", "run"]
+__all__ = ["FOLDER", "OpenSimExport", "run", "run_model"]
 
 #: the session folder's sub-folder of OpenSim input files
 FOLDER = "opensim"
@@ -95,17 +96,6 @@ def run(inputs: SessionInputs, model: Any, kinematics: Any, loads: Any) -> OpenS
             markers_note = f"{len(marker_names)} markers, mm, model marker names"
         except MskError as exc:
             markers_note = f"not written: {exc}"
-    model_note = (
-        "opensim/model.osim: the scaled model msk used (bodies, joints, coordinates, placed "
-        "markers, muscles with their scaled paths), the generic segment inertias (the "
-        "joint_torques table uses the mass-identified ones when identified) and the model's "
-        "F_iso (not the strength identification's factors)"
-    )
-    try:
-        write_osim(d / "model.osim", model.model, name=inputs.cfg.subject.name)
-        files.append("model.osim")
-    except ModelError as exc:
-        model_note = f"not written: {exc}"
     _, written = write_grf_mot(d / "grf.mot", table)
     write_external_loads_xml(d / "external_loads.xml", "grf.mot", bodies)
     files += ["grf.mot", "external_loads.xml"]
@@ -126,6 +116,33 @@ def run(inputs: SessionInputs, model: Any, kinematics: Any, loads: Any) -> OpenS
         "grf_rows": int(written.time.size),
         "grf_rows_left_out": index_ranges(np.flatnonzero(~kept)) or None,
         "coordinates": "tables/q.mot",
-        "model": model_note,
     }
     return OpenSimExport(staging, tuple(files), record)
+
+
+def run_model(
+    inputs: SessionInputs, model: Any, mass_identification: Any = None
+) -> OpenSimExport | None:
+    """``opensim/model.osim``: the scaled model with the segment inertias the ``joint_torques``
+    table was computed with — the mass-identified ones when the mass identification ran
+    (:func:`msk.pipeline.mass_identification.identified_model`), else the scaled generic
+    ones — and the model's muscles (F_iso as the muscle-force stage used them, not the strength
+    identification's factors). A model OpenSim cannot hold as written is left out and the
+    record says why (:mod:`msk.io.osim_writer`)."""
+    from msk.pipeline.mass_identification import identified_model
+
+    if model is None:
+        return None
+    staging = tempfile.TemporaryDirectory(prefix="msk-opensim-")
+    inertias = "mass-identified" if mass_identification is not None else "scaled generic"
+    try:
+        mdl = identified_model(model.model, mass_identification)
+        write_osim(Path(staging.name) / "model.osim", mdl, name=inputs.cfg.subject.name)
+    except ModelError as exc:
+        return OpenSimExport(staging, (), {"model": f"not written: {exc}"})
+    note = (
+        f"the scaled model msk used: bodies with the {inertias} segment inertias of the "
+        "joint_torques table, joints, coordinates, placed markers, muscles with their scaled "
+        "paths (the model's F_iso, not the strength identification's factors)"
+    )
+    return OpenSimExport(staging, ("model.osim",), {"model": note, "model_inertias": inertias})

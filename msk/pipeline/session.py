@@ -114,13 +114,16 @@ def run_session(
         # arrays leave the resident set (glibc: mapped, not kept in the heap; issue 18)
         map_large_blocks()
         results = run_graph(
-            session_inputs(cfg), runner, keep=("tables", "summary", "report", "opensim_export")
+            session_inputs(cfg),
+            runner,
+            keep=("tables", "summary", "report", "opensim_export", "opensim_model"),
         )
     tables, figures = results["tables"], results["report"]
     summary = dict(results["summary"])
-    export = results.get("opensim_export")
-    if export is not None:
-        summary["opensim"] = dict(export.record)
+    exports = [e for e in (results.get(n) for n in ("opensim_export", "opensim_model")) if e]
+    if exports:
+        summary["opensim"] = {k: v for e in exports for k, v in e.record.items()}
+        summary["opensim"]["files"] = [f"opensim/{f}" for e in exports for f in e.files]
     summary["stages"] = [dataclasses.asdict(r) for r in runner.records]
     summary["not_available"] = [
         {"stage": r.name, "status": r.status, "reason": r.message}
@@ -132,8 +135,8 @@ def run_session(
     def report(res: SessionResults, folder: Path) -> None:
         from msk.report import write_report
 
-        if export is not None:
-            export.write(folder)  # opensim/: markers, GRF, ExternalLoads
+        for export in exports:
+            export.write(folder)  # opensim/: markers, GRF, ExternalLoads, model
 
         write_report(res, folder, figures=figures, pdf=pdf)
 
