@@ -203,7 +203,6 @@ def test_a_config_written_from_the_reference_defaults_loads(tree: Path) -> None:
     """The reference, with its required keys given, is a configuration; every key it sets loads
     as the dataclass default."""
     required = {
-        ("subject", "mass_kg"): "70.0",
         ("model", "source"): '"model.toml"',
         ("trials", "name"): '"walk"',
         ("trials", "file"): '"walk.c3d"',

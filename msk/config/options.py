@@ -106,8 +106,11 @@ class Subject:
     """``[subject]``: who was measured."""
 
     name: str = opt("the subject's name, used in the report", "subject")
-    mass_kg: float = opt(
-        "body mass; the static trial's plates are checked against it",
+    mass_kg: float | None = opt(
+        "body mass; the static trial's plates are checked against it. Omitted: the C3D's "
+        "subject parameters (Bodymass, MASS, WEIGHT), else the static trial's plates weighing "
+        "the subject standing still; summary.json subject.mass_source says which",
+        None,
         unit="kg",
         bounds=Range(20.0, 300.0),
         hint=": not a plausible body mass",

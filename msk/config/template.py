@@ -9,7 +9,8 @@ TEMPLATE = """\
 
 [subject]
 name = "PS"            # used in the report
-mass_kg = 75.0         # body mass; the static trial's plates are checked against it
+mass_kg = 75.0         # body mass; the static trial's plates are checked against it. Omitted:
+                       # the C3D's stored mass, else the static's plates (summary: mass_source)
 height_m = 1.70
 sex = "male"           # "male" | "female": picks the anthropometric table rows
 side = "left"          # side of interest (instrumented knee, affected limb)

@@ -336,7 +336,7 @@ def trc_task(
     if task_cfg.grf is None or Path(task_cfg.file).suffix.lower() != ".trc":
         raise ValueError(f"{config}: its task is not a .trc with a GRF file")
     built = run_stages(Path(config), until="model")["model"]
-    mass = float(cfg.subject.mass_kg if mass_kg is None else mass_kg)
+    mass = float(mass_kg or cfg.subject.mass_kg or built.model.total_mass)
     subject = subject_model(built.model, factors, mass_kg=mass)
     from msk.io import read_trc
 

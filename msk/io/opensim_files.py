@@ -12,7 +12,7 @@ Writes are atomic (temporary file then rename).
 from __future__ import annotations
 
 import re
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -195,12 +195,16 @@ def write_sto(
     name: str | None = None,
     in_degrees: bool = False,
     angle_columns: Sequence[str] | None = None,
+    header: Mapping[str, str] | None = None,
 ) -> Path:
     """Write an OpenSim 4 ``.sto``/``.mot`` file (``version=1`` header, tab separated).
 
     Either pass a :class:`Table` or ``time``/``data``/``columns``. Values are SI; with
     ``in_degrees=True`` the angle columns (``angle_columns`` or the table's) are written in
-    degrees and the header says ``inDegrees=yes``. Full float precision (``%.17g``).
+    degrees and the header says ``inDegrees=yes``. Full float precision (``%.17g``); a missing
+    value is written ``nan`` (``TimeSeriesTable`` reads it, the legacy ``Storage`` does not:
+    :func:`msk.io.storage_twin.storage_twin` gives the complete block it reads). ``header``
+    adds ``key=value`` lines (metadata of ``TimeSeriesTable``) before ``endheader``.
     """
     path = Path(path)
     if table is None:
@@ -233,11 +237,25 @@ def write_sto(
         f"nRows={t.size}",
         f"nColumns={x.shape[1] + 1}",
         f"inDegrees={'yes' if in_degrees else 'no'}",
+        *_header_lines(path, header),
         "endheader",
         "\t".join(("time", *table.columns)),
     ]
     rows = format_rows(t, x, "\t")
     return write_text_atomic(path, "\n".join(head + rows) + "\n")
+
+
+_RESERVED = frozenset({"version", "nrows", "ncolumns", "indegrees", "endheader"})
+
+
+def _header_lines(path: Path, header: Mapping[str, str] | None) -> list[str]:
+    lines = []
+    for k, v in (header or {}).items():
+        bad = not k or any(ch in k for ch in "=\t\n\r ") or any(ch in v for ch in "\n\r")
+        if bad or k.lower() in _RESERVED:
+            raise FileFormatError(f"{path}: invalid header line {k!r}={v!r}")
+        lines.append(f"{k}={v}")
+    return lines
 
 
 write_mot = write_sto

@@ -92,7 +92,7 @@ def fes_session(cfg: SessionConfig, trials: Sequence[Any]) -> Any:
     return FesSession(
         cfg.subject.name,
         float(cfg.subject.height_m),  # type: ignore[arg-type]
-        cfg.subject.mass_kg,
+        float(cfg.subject.mass_kg or np.nan),  # set by session_inputs
         static,
         pd.pendulum_trial(theta_rest=rest),
         tuple(iso(tc, r) for tc, r in by_step["isometric"]),

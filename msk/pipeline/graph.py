@@ -11,9 +11,11 @@ measured knee contact force on, so that no stage after the EMG stage reads ``rea
 ``keep`` (:func:`run_graph`) the trial's analog-rate arrays are released there, and parts of
 ``read`` are dropped earlier, after their last reader (:data:`TRIMS`: the markers after the
 model stage, the plates after the loads stage; the model's own markers after the step
-``swapped_markers``, which takes the summary's swapped-label pairs right after the kinematics)::
+``opensim_export``, which writes them with the loads for OpenSim, after ``swapped_markers``,
+which takes the summary's swapped-label pairs right after the kinematics)::
 
-    read ─ model ─ kinematics ─ swapped_markers* ─ loads ─┬─ mass_identification ─┐
+    read ─ model ─ kinematics ─ swapped_markers* ─ loads ─ opensim_export* ─┬─ mass_identif…─┐
+                                                  (mass_identification ─ opensim_model*)
       ┌──────────────────────────────────────────────────────┘   inverse_dynamics ──┤
       ├─ emg ───────────────────────────────────────────────────────────────────────┤
       └─ muscle_geometry ─ tension_optimization ────────────────────────────────────┤
@@ -47,6 +49,7 @@ from msk.pipeline import (
     loads,
     mass_identification,
     model,
+    opensim_export,
     read,
     report,
     strength,
@@ -133,8 +136,11 @@ GRAPH: tuple[Node, ...] = (
     Node("kinematics", kinematics.run, ("model",), settings=kinematics.settings, core=True),
     Node("swapped_markers", summary.swapped_markers, ("model", "kinematics"), recorded=False),
     Node("loads", loads.run, ("read", "model", "kinematics"), settings=loads.settings, core=True),
+    Node("opensim_export", opensim_export.run, (), _ALL, recorded=False),
     Node("mass_identification", mass_identification.run, ("read", *_ALL),
          settings=mass_identification.settings),
+    Node("opensim_model", opensim_export.run_model, ("model",), ("mass_identification",),
+         recorded=False),
     Node("inverse_dynamics", dynamics.run, _ALL, ("mass_identification",), core=True),
     Node("emg", emg.run, ("read", "model", "kinematics"), settings=emg.settings),
     Node("muscle_geometry", geometry.run, _ALL),
@@ -170,13 +176,14 @@ GRAPH: tuple[Node, ...] = (
 #: are read by the model stage alone (later stages read the model's own copy in the model
 #: frame), the plates by the loads stage alone (the mass identification reads the assignment,
 #: the EMG stage the analog channels); the model's own model-frame markers by the kinematics
-#: stage and the step ``swapped_markers`` alone (the summary reads that step's pairs, the
+#: stage, the step ``swapped_markers`` and the step ``opensim_export`` (the markers' ``.trc``)
+#: alone (the summary reads that step's pairs, the
 #: marker labels and gaps). For scale: a long trial's read result is ~4.9 kB/frame, its
 #: model-frame markers 1.2 kB/frame more.
 TRIMS: tuple[tuple[str, str, Callable[[Any], Any]], ...] = (
     ("model", "read", read.without_markers),
     ("loads", "read", read.without_plates),
-    ("swapped_markers", "model", model.without_markers),
+    ("opensim_export", "model", model.without_markers),
 )
 
 #: Every recorded stage, in order (``summary.json`` ``stages``, progress lines).

@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import dataclasses
 from collections.abc import Mapping
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
@@ -41,6 +41,17 @@ class SessionInputs:
     files: Mapping[str, Path]
     hashes: Mapping[str, str]
     inv_rename: Mapping[str, str]
+    #: where ``cfg.subject.mass_kg`` comes from (:mod:`msk.personalise.body_mass`): ``mass_source``
+    #: (``config``, ``c3d_parameters``, ``static_plates``) and ``mass_detail``
+    mass: Mapping[str, str] = field(default_factory=dict)
+
+    @property
+    def mass_kg(self) -> float:
+        """The body mass (kg): the configuration's, else the one :func:`session_inputs`
+        found in the trial files (never None here)."""
+        if self.cfg.subject.mass_kg is None:
+            raise ConfigError(f"{self.cfg.path}: no body mass (subject.mass_kg)")
+        return float(self.cfg.subject.mass_kg)
 
     @property
     def side(self) -> str:
@@ -54,8 +65,8 @@ class SessionInputs:
 
     @property
     def body_weight(self) -> float:
-        """Configured body mass × standard gravity (N)."""
-        return self.cfg.subject.mass_kg * G0
+        """Body mass (:attr:`mass_kg`) × standard gravity (N)."""
+        return self.mass_kg * G0
 
     def labels_of(self, labels: tuple[str, ...] | list[str]) -> tuple[str, ...]:
         """Lab marker labels in model names (``[markers] rename``)."""
@@ -130,7 +141,13 @@ def model_source(cfg: SessionConfig) -> Path:
 
 
 def session_inputs(cfg: SessionConfig) -> SessionInputs:
-    """Resolve the trials by role, the model file and the sha256 of every input file."""
+    """Resolve the trials by role, the model file, the sha256 of every input file and the body
+    mass when the configuration omits it (:func:`msk.personalise.body_mass.resolve_body_mass`:
+    ``cfg.subject.mass_kg`` is then set, its source in ``mass``)."""
+    from msk.personalise.body_mass import resolve_body_mass
+
+    cfg, body_mass = resolve_body_mass(cfg)
+    mass = body_mass.summary()
     fes_trials = cfg.trials_with_role("fes")
     tasks = cfg.trials_with_role("task")
     if not tasks and not fes_trials:
@@ -140,7 +157,7 @@ def session_inputs(cfg: SessionConfig) -> SessionInputs:
         files: dict[str, Path] = {f"fes:{tc.name}": tc.file for tc in fes_trials}
         return SessionInputs(
             cfg, False, None, None, (), tuple(mvc), tuple(fes_trials), None, None, files,
-            {k: file_sha256(p) for k, p in files.items()}, {},
+            {k: file_sha256(p) for k, p in files.items()}, {}, mass,
         )  # fmt: skip
     task = tasks[0]
     statics = cfg.trials_with_role("static")
@@ -165,7 +182,7 @@ def session_inputs(cfg: SessionConfig) -> SessionInputs:
     return SessionInputs(
         cfg, True, task, static, tuple(mass_trials), tuple(mvc), tuple(fes_trials), src,
         cfg.model, files, {k: file_sha256(p) for k, p in files.items()},
-        {v: k for k, v in cfg.marker_rename.items()},
+        {v: k for k, v in cfg.marker_rename.items()}, mass,
     )  # fmt: skip
 
 

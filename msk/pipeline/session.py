@@ -113,9 +113,17 @@ def run_session(
         # every other stage's result is released once no later stage reads it, and its
         # arrays leave the resident set (glibc: mapped, not kept in the heap)
         map_large_blocks()
-        results = run_graph(session_inputs(cfg), runner, keep=("tables", "summary", "report"))
+        results = run_graph(
+            session_inputs(cfg),
+            runner,
+            keep=("tables", "summary", "report", "opensim_export", "opensim_model"),
+        )
     tables, figures = results["tables"], results["report"]
     summary = dict(results["summary"])
+    exports = [e for e in (results.get(n) for n in ("opensim_export", "opensim_model")) if e]
+    if exports:
+        summary["opensim"] = {k: v for e in exports for k, v in e.record.items()}
+        summary["opensim"]["files"] = [f"opensim/{f}" for e in exports for f in e.files]
     summary["stages"] = [dataclasses.asdict(r) for r in runner.records]
     summary["not_available"] = [
         {"stage": r.name, "status": r.status, "reason": r.message}
@@ -126,6 +134,9 @@ def run_session(
 
     def report(res: SessionResults, folder: Path) -> None:
         from msk.report import write_report
+
+        for export in exports:
+            export.write(folder)  # opensim/: markers, GRF, ExternalLoads, model
 
         write_report(res, folder, figures=figures, pdf=pdf)
 

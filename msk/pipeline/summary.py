@@ -109,7 +109,8 @@ def base_summary(inputs: SessionInputs) -> dict[str, Any]:
         "settings": plain_settings(cfg),
         "subject": {
             "name": cfg.subject.name,
-            "mass_kg": cfg.subject.mass_kg,
+            "mass_kg": inputs.mass_kg,
+            **inputs.mass,
             "height_m": cfg.subject.height_m,
             "sex": cfg.subject.sex,
             "side": inputs.side,
@@ -231,7 +232,8 @@ def _anthropometry(cfg: SessionConfig, model: Any) -> dict[str, Any] | None:
         # segment masses are fractions of body mass: the stature (default 1.75 m when the
         # config has none) only sets lengths and inertias, which are not reported
         sex = cast(Literal["male", "female"], cfg.subject.sex)
-        segs = generic_segments(cfg.subject.mass_kg, cfg.subject.height_m or 1.75, sex=sex)
+        mass = float(cfg.subject.mass_kg or np.nan)  # set by session_inputs
+        segs = generic_segments(mass, cfg.subject.height_m or 1.75, sex=sex)
     except (ImportError, MskError):
         return None
     out = {}
@@ -444,7 +446,7 @@ def _flags(
         f.as_dict()
         for f in gait_flags(
             task.name, quality=quality, model=mdl, kinematics=kin, joint_torques=jt,
-            mass_kg=cfg.subject.mass_kg, height_m=cfg.subject.height_m,
+            mass_kg=inputs.mass_kg, height_m=cfg.subject.height_m,
             marker_labels=model.trial.marker_labels, optimization=sol, plate_mass_kg=plate_mass,
             held=tuple(model.held), scaling_methods={b: v["method"] for b, v in scaling.items()},
             peak_external_force_n=peak_measured_force_n(ext, loads.measured),

@@ -5,7 +5,22 @@ One folder per session (DESIGN.md "Results a run writes")::
     <out>/
       tables/<quantity>.csv     first column ``time`` (s), then named columns, SI units
       tables/<quantity>.sto     the same table as an OpenSim 4 storage file (``q.mot`` for the
-                                coordinates, angles in degrees as OpenSim expects)
+                                coordinates, angles in degrees as OpenSim expects): its rows
+                                and columns without a missing value, so that OpenSim's legacy
+                                ``Storage`` (GUI, AnalyzeTool) reads it to the last row; the
+                                rows and columns left out are listed in its header
+                                (``msk_rows_left_out``: row indices of the CSV,
+                                ``msk_columns_left_out``; :mod:`msk.io.storage_twin`)
+      opensim/markers.trc       the task's markers in the model frame (OpenSim's ground, the
+                                frame of ``q.mot``), mm, model marker names
+      opensim/grf.mot           the ground reactions msk applied, per body (``<body>_force_v*``,
+                                ``_force_p*``, ``_torque_*``; N, m, N·m; in ground)
+      opensim/external_loads.xml  OpenSim ExternalLoads applying ``grf.mot`` to those bodies
+      opensim/model.osim        the scaled model msk used (bodies with the inertias of
+                                ``joint_torques``, joints, coordinates, placed markers,
+                                muscles); with ``tables/q.mot`` these are the
+                                inputs of OpenSim's inverse kinematics and dynamics
+                                (:mod:`msk.pipeline.opensim_export`; ``summary.json`` ``opensim``)
       summary.json              versions, inputs with sha256, settings, quality figures, stage
                                 timings, stages not available, identified parameters: the
                                 typed, versioned :class:`msk.results.summary.Summary` (its
@@ -60,6 +75,7 @@ from typing import Any
 
 from msk.exceptions import FileFormatError, MissingDataError, SummaryError
 from msk.io.opensim_files import write_sto
+from msk.io.storage_twin import storage_twin
 from msk.io.tables import Table, read_csv_table, write_csv_table
 from msk.results.summary import SUMMARY_FORMAT, Summary, as_summary, json_default, strict_json
 
@@ -147,12 +163,20 @@ def _write_tables(folder: Path, results: SessionResults) -> list[str]:
     written = []
     for name, tab in results.tables.items():
         write_csv_table(tdir / f"{name}.csv", tab)
-        twin = Table(time=tab.time, data=tab.data, columns=tab.columns, name=name)
+        # the rows and columns OpenSim's Storage reads (no NaN), the rest listed in its header
+        twin = storage_twin(Table(time=tab.time, data=tab.data, columns=tab.columns, name=name))
         if name == "q":
-            angles = tuple(c for c in results.angle_columns if c in tab.columns)
-            write_sto(tdir / "q.mot", twin, in_degrees=True, angle_columns=angles, name="q")
+            angles = tuple(c for c in results.angle_columns if c in twin.table.columns)
+            write_sto(
+                tdir / "q.mot",
+                twin.table,
+                in_degrees=True,
+                angle_columns=angles,
+                name="q",
+                header=twin.header,
+            )
         else:
-            write_sto(tdir / f"{name}.sto", twin, name=name)
+            write_sto(tdir / f"{name}.sto", twin.table, name=name, header=twin.header)
         written.append(name)
     return written
 
@@ -217,7 +241,7 @@ def write_session(
 
 
 #: what a session folder written by :func:`write_session` holds (besides ``keep``)
-SESSION_ENTRIES = frozenset({"summary.json", "report.html", "report.pdf", "tables"})
+SESSION_ENTRIES = frozenset({"summary.json", "report.html", "report.pdf", "tables", "opensim"})
 
 
 def _writer_alive(pid: int) -> bool:

@@ -265,10 +265,14 @@ class InputFile(_Record):
 
 @dataclass(frozen=True, kw_only=True)
 class Subject(_Record):
-    """``subject``: name, body mass (kg), height (m), sex, analysed side, body weight (N)."""
+    """``subject``: name, body mass (kg) and where it comes from (``mass_source``: ``config``,
+    ``c3d_parameters`` or ``static_plates``, :mod:`msk.personalise.body_mass`; ``mass_detail``),
+    height (m), sex, analysed side, body weight (N)."""
 
     name: str
     mass_kg: float | None = None
+    mass_source: str | None = None
+    mass_detail: str | None = None
     height_m: float | None = None
     sex: str | None = None
     side: str | None = None

@@ -9,7 +9,6 @@ import numpy as np
 import pinocchio as pin
 import pytest
 
-from msk._runtime.opensim_peer import POSE_PRELUDE
 from msk.datasets.models import leg_model
 from msk.exceptions import ModelError, ShapeMismatchError
 from msk.model.core import Axis, Joint, Model
@@ -30,6 +29,7 @@ from msk.muscles.path import (
     PathWrap,
     WrapObject,
 )
+from tests.support.opensim_geometry import opensim_geometry
 
 # the crossed four-bar of tests/model/test_joints.py (femur frame: x anterior, y proximal)
 KNEE = FourBarKnee(
@@ -485,23 +485,6 @@ GAIT2392_IK = "Pipelines/Gait2392_Simbody/OutputReference/subject01_walk1_ik.mot
 LEG_COORDS = ("hip_flexion", "hip_adduction", "hip_rotation", "knee_angle", "ankle_angle",
               "subtalar_angle", "mtp_angle")  # fmt: skip
 
-OPENSIM_GEOMETRY = (
-    POSE_PRELUDE
-    + """
-muscles = [m.getMuscles().get(n) for n in ARGS["muscles"]]
-macs = [cs.get(n) for n in ARGS["ma_coords"]]
-L, R = [], []
-t0 = time.perf_counter()
-for q in ARGS["q"]:
-    set_pose(q)
-    L.append([mu.getLength(s) for mu in muscles])
-    R.append([[mu.computeMomentArm(s, c) for c in macs] for mu in muscles])
-RESULT["seconds"] = time.perf_counter() - t0
-RESULT["L"] = L
-RESULT["R"] = R
-"""
-)
-
 
 def _load_osim(path):
     import msk.model.osim as osim
@@ -546,20 +529,6 @@ def right_leg(model: Model) -> tuple[list[int], list[int]]:
     ]
     coords = [model.coordinate_index(f"{c}_r") for c in LEG_COORDS]
     return mus, coords
-
-
-def opensim_geometry(path, model: Model, theta, muscles, coords):
-    from msk._runtime.opensim_peer import run_opensim_script
-
-    out = run_opensim_script(
-        OPENSIM_GEOMETRY,
-        model=str(path),
-        coords=list(model.coordinate_names),
-        q=np.asarray(theta).tolist(),
-        muscles=[model.muscles[k].name for k in muscles],
-        ma_coords=[model.coordinate_names[i] for i in coords],
-    )
-    return np.asarray(out["L"]), np.asarray(out["R"])
 
 
 @pytest.mark.parametrize(

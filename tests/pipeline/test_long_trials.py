@@ -15,8 +15,8 @@ from hypothesis import given
 from hypothesis import strategies as st
 
 import msk.optimization as o
+from msk._runtime import blocks
 from msk.datasets.optimization import leg_like_frames
-from msk.pipeline import blocks
 from msk.pipeline.cache import decode, encode
 from msk.timeseries import FrameSparse
 
@@ -1059,7 +1059,7 @@ def test_read_trims_drop_markers_and_plates_only() -> None:
     assert [(a, r) for a, r, _ in TRIMS] == [
         ("model", "read"),
         ("loads", "read"),
-        ("swapped_markers", "model"),
+        ("opensim_export", "model"),
     ]
     # the model's markers: read by the kinematics stage and the step swapped_markers only
     # (the summary takes that step's pairs); the step runs right after the kinematics
