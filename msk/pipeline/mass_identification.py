@@ -11,8 +11,8 @@ from typing import Any
 
 import numpy as np
 
+from msk.kinematics.trial import solve_trial
 from msk.pipeline.inputs import SessionInputs
-from msk.pipeline.kinematics import solve_trial
 from msk.pipeline.loads import Loads, assign_loads
 from msk.pipeline.model import BuiltModel
 from msk.pipeline.read import ReadResult

@@ -633,13 +633,13 @@ def held_foot_coordinates(
     joint: e.g. Plug-in Gait's heel + toe), held near neutral by an IK coordinate task
     (OpenSim's IKCoordinateTask) instead of wandering to −75°. A marker counts when the trial
     tracks it in at least half of the frames the IK solves (those that see
-    :data:`msk.pipeline.kinematics.MIN_MARKER_FRACTION` of the most model markers any frame
+    :data:`msk.kinematics.trial.MIN_MARKER_FRACTION` of the most model markers any frame
     sees: metatarsal-head markers lost in most of them do not observe the subtalar). Not the
     frames that track anything: a running trial's unlabelled trajectories (``*33``…) and
     acromia outlast its feet's markers by 150 frames, and the right subtalar of UWA's
     ``Running_1``, whose metatarsal heads are tracked in 93 % of the solved frames, was held
     (issue 15, twelfth pass)."""
-    from msk.pipeline.kinematics import MIN_MARKER_FRACTION
+    from msk.kinematics.trial import MIN_MARKER_FRACTION
 
     vis = np.isfinite(markers).all(axis=2)
     on_model = np.array([lab in set(model.marker_names) for lab in labels], dtype=bool)
@@ -825,7 +825,7 @@ def placement_fit(
     initial_q: np.ndarray | None = None,
 ) -> tuple[np.ndarray, float]:  # fmt: skip
     """The task's inverse kinematics of a placed model on the frames ``x`` (model frame) and
-    its cost (m): the kinematics stage's IK (:func:`msk.pipeline.kinematics.solve_trial`: the
+    its cost (m): the kinematics stage's IK (:func:`msk.kinematics.trial.solve_trial`: the
     configured marker weights, the held foot coordinates, physiological knee ranges; no filter;
     ``initial_q`` its warm start), then the weighted RMS over ``markers`` of each frame's
     distances, averaged over the frames — the quantity the task's IK minimises, on one marker
@@ -835,8 +835,8 @@ def placement_fit(
     (``q_raw``, NaN rows for frames not solved) and the cost (inf when nothing is solved)."""
     from types import SimpleNamespace
 
+    from msk.kinematics.trial import solve_trial
     from msk.model.core import Marker, frame_placements
-    from msk.pipeline.kinematics import solve_trial
 
     final, _ = knee_flexion_to_physiological(model)
     held = held_foot_coordinates(final, x, tuple(labels))
