@@ -16,13 +16,13 @@ from typing import Any
 
 import numpy as np
 
+from msk.personalise import Personalisation
 from msk.pipeline.blocks import frame_blocks
 from msk.pipeline.dynamics import InverseDynamics
 from msk.pipeline.emg import EmgActivations
 from msk.pipeline.inputs import SessionInputs
 from msk.pipeline.loads import Loads
 from msk.pipeline.mass_identification import MassIdentification, identified_model
-from msk.pipeline.model import BuiltModel
 from msk.pipeline.runner import StageUnavailable
 from msk.pipeline.strength import StrengthIdentification
 from msk.pipeline.tension import MuscleTensions, knee_plateau, optimise
@@ -105,7 +105,7 @@ def settings(inputs: SessionInputs) -> Any:
 
 def run(
     inputs: SessionInputs,
-    model: BuiltModel,
+    model: Personalisation,
     kinematics: Any,
     loads: Loads,
     mass_identification: MassIdentification | None,

@@ -11,10 +11,10 @@ from typing import Any
 
 import numpy as np
 
+from msk.personalise import Personalisation
 from msk.pipeline.contact import KneeContact
 from msk.pipeline.inputs import SessionInputs
 from msk.pipeline.loads import Loads
-from msk.pipeline.model import BuiltModel
 
 __all__ = ["GaitCycle", "run"]
 
@@ -38,7 +38,7 @@ class GaitCycle:
 
 def run(
     inputs: SessionInputs,
-    model: BuiltModel,
+    model: Personalisation,
     kinematics: Any,
     loads: Loads,
     knee_contact: KneeContact | None,

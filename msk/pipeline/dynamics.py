@@ -8,10 +8,10 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Any
 
+from msk.personalise import Personalisation
 from msk.pipeline.inputs import SessionInputs
 from msk.pipeline.loads import Loads
 from msk.pipeline.mass_identification import MassIdentification, identified_model
-from msk.pipeline.model import BuiltModel
 
 __all__ = ["InverseDynamics", "contact_gated_torques", "run"]
 
@@ -32,7 +32,7 @@ class InverseDynamics:
 
 def run(
     inputs: SessionInputs,
-    model: BuiltModel,
+    model: Personalisation,
     kinematics: Any,
     loads: Loads,
     mass_identification: MassIdentification | None,

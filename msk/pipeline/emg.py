@@ -13,8 +13,8 @@ from typing import Any
 import numpy as np
 
 from msk.exceptions import ConfigError
+from msk.personalise import Personalisation
 from msk.pipeline.inputs import SessionInputs
-from msk.pipeline.model import BuiltModel
 from msk.pipeline.read import ReadResult
 from msk.pipeline.runner import StageUnavailable, file_sha256
 
@@ -55,7 +55,7 @@ def settings(inputs: SessionInputs) -> Any:
 
 
 def run(
-    inputs: SessionInputs, read: ReadResult, model: BuiltModel, kinematics: Any
+    inputs: SessionInputs, read: ReadResult, model: Personalisation, kinematics: Any
 ) -> EmgActivations:
     cfg, trial = inputs.cfg, read.trial
     if not cfg.emg.channels:

@@ -21,10 +21,10 @@ from typing import Any, cast
 import numpy as np
 from numpy.typing import NDArray
 
+from msk.personalise import Personalisation
 from msk.pipeline.blocks import frame_blocks
 from msk.pipeline.inputs import SessionInputs
 from msk.pipeline.loads import Loads
-from msk.pipeline.model import BuiltModel
 from msk.pipeline.runner import StageUnavailable
 
 __all__ = ["JacobianRows", "compact_values", "posed_geometry", "run"]
@@ -122,7 +122,7 @@ def compact_values(jacobian: Any, positions: NDArray[np.intp]) -> NDArray[np.flo
     )
 
 
-def run(inputs: SessionInputs, model: BuiltModel, kinematics: Any, loads: Loads) -> Any:
+def run(inputs: SessionInputs, model: Personalisation, kinematics: Any, loads: Loads) -> Any:
     """:class:`msk.muscles.geometry.MuscleGeometry` with a compact ``jacobian`` (no
     ``distal_wrenches``); frames in which no leg is solvable
     (:attr:`msk.pipeline.loads.Loads.solvable`) are evaluated at the default pose, at rest

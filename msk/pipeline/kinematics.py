@@ -7,13 +7,13 @@ from typing import Any
 
 from msk.kinematics.ik import Kinematics
 from msk.kinematics.trial import solve_trial
+from msk.personalise import Personalisation
 from msk.pipeline.inputs import SessionInputs
-from msk.pipeline.model import BuiltModel
 
 __all__ = ["run", "settings"]
 
 
-def settings(inputs: SessionInputs, model: BuiltModel) -> Any:
+def settings(inputs: SessionInputs, model: Personalisation) -> Any:
     return {
         "weights": dict(inputs.cfg.marker_weights),
         "cut": inputs.cfg.filters.kinematics_cutoff_hz,
@@ -22,7 +22,7 @@ def settings(inputs: SessionInputs, model: BuiltModel) -> Any:
     }
 
 
-def run(inputs: SessionInputs, model: BuiltModel) -> Kinematics:
+def run(inputs: SessionInputs, model: Personalisation) -> Kinematics:
     """:class:`msk.kinematics.ik.Kinematics` of the task trial."""
     return solve_trial(
         model.model, model.trial, model.labels, weights=inputs.cfg.marker_weights,

@@ -12,8 +12,8 @@ from typing import Any
 
 import numpy as np
 
+from msk.personalise import Personalisation
 from msk.pipeline.inputs import SessionInputs
-from msk.pipeline.model import BuiltModel
 from msk.pipeline.read import ReadResult
 
 __all__ = [
@@ -160,7 +160,7 @@ def rotated_plate(plate: Any, rot: np.ndarray) -> Any:
     )
 
 
-def run(inputs: SessionInputs, read: ReadResult, model: BuiltModel, kinematics: Any) -> Loads:
+def run(inputs: SessionInputs, read: ReadResult, model: Personalisation, kinematics: Any) -> Loads:
     """The read trial's plates (a C3D's, or its GRF file's) in the model frame (rotated here,
     not kept by the model stage), assigned to the feet."""
     from msk.dynamics.loads import foot_contact

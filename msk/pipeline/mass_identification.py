@@ -12,9 +12,9 @@ from typing import Any
 import numpy as np
 
 from msk.kinematics.trial import solve_trial
+from msk.personalise import Personalisation
 from msk.pipeline.inputs import SessionInputs
 from msk.pipeline.loads import Loads, assign_loads
-from msk.pipeline.model import BuiltModel
 from msk.pipeline.read import ReadResult
 from msk.pipeline.runner import StageUnavailable, file_sha256
 
@@ -68,7 +68,7 @@ def settings(inputs: SessionInputs) -> Any:
 
 
 def run(
-    inputs: SessionInputs, read: ReadResult, model: BuiltModel, kinematics: Any, loads: Loads
+    inputs: SessionInputs, read: ReadResult, model: Personalisation, kinematics: Any, loads: Loads
 ) -> MassIdentification:
     from msk.dynamics.identification import IdentificationTrial, InertialIdentifier
     from msk.dynamics.loads import contact_measured

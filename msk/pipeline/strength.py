@@ -21,11 +21,11 @@ from typing import Any
 import numpy as np
 
 from msk.exceptions import IdentificationError
+from msk.personalise import Personalisation
 from msk.pipeline.dynamics import InverseDynamics
 from msk.pipeline.emg import EmgActivations
 from msk.pipeline.inputs import SessionInputs
 from msk.pipeline.loads import Loads
-from msk.pipeline.model import BuiltModel
 from msk.pipeline.runner import StageUnavailable
 
 __all__ = ["StrengthIdentification", "run"]
@@ -43,7 +43,7 @@ class StrengthIdentification:
 
 def run(
     inputs: SessionInputs,
-    model: BuiltModel,
+    model: Personalisation,
     kinematics: Any,
     loads: Loads,
     inverse_dynamics: InverseDynamics,

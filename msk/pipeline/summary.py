@@ -14,6 +14,7 @@ import numpy as np
 
 from msk.config import SessionConfig
 from msk.exceptions import MskError
+from msk.personalise import Personalisation
 from msk.pipeline.comparison import rms
 from msk.pipeline.cycle import GaitCycle
 from msk.pipeline.dynamics import InverseDynamics
@@ -22,7 +23,6 @@ from msk.pipeline.fes import FesResult, fes_summary
 from msk.pipeline.inputs import SessionInputs, plain_settings
 from msk.pipeline.loads import PLATE_ASSIGNMENT, Loads, grf_cutoff_hz
 from msk.pipeline.mass_identification import MassIdentification
-from msk.pipeline.model import BuiltModel
 from msk.pipeline.runner import file_sha256, versions
 from msk.pipeline.strength import StrengthIdentification
 from msk.pipeline.tension import MuscleTensions
@@ -270,7 +270,7 @@ def joint_strength_settings(inputs: SessionInputs) -> Any:
 
 def joint_strength(
     inputs: SessionInputs,
-    model: BuiltModel | None,
+    model: Personalisation | None,
     strength_identification: StrengthIdentification | None,
 ) -> dict[str, Any] | None:
     """The summary's ``strength.joint_strength`` (the maximal isometric moment curves of the
@@ -400,7 +400,7 @@ def kkt_summary(worst: Any) -> dict[str, Any]:
 
 
 def swapped_markers(
-    inputs: SessionInputs, model: BuiltModel, kinematics: Any
+    inputs: SessionInputs, model: Personalisation, kinematics: Any
 ) -> tuple[tuple[str, str, float], ...]:
     """Step ``swapped_markers`` (not a recorded stage): the left/right marker pairs of the task
     whose labels look swapped (:func:`msk.quality.swapped_sides` of the model-frame markers and
@@ -415,7 +415,7 @@ def swapped_markers(
 def _flags(
     inputs: SessionInputs,
     quality: Mapping[str, Any],
-    model: BuiltModel,
+    model: Personalisation,
     kin: Any,
     loads: Loads,
     swapped_pairs: Sequence[tuple[str, str, float]],
@@ -512,7 +512,7 @@ def _flags(
 
 def run(
     inputs: SessionInputs,
-    model: BuiltModel | None,
+    model: Personalisation | None,
     kinematics: Any,
     loads: Loads | None,
     mass_identification: MassIdentification | None,

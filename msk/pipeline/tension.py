@@ -22,13 +22,13 @@ from typing import Any
 
 import numpy as np
 
+from msk.personalise import Personalisation
 from msk.pipeline.blocks import frame_blocks, solve_parts
 from msk.pipeline.dynamics import InverseDynamics
 from msk.pipeline.emg import EmgActivations
 from msk.pipeline.inputs import SessionInputs
 from msk.pipeline.loads import Loads
 from msk.pipeline.mass_identification import MassIdentification, identified_model
-from msk.pipeline.model import BuiltModel
 from msk.pipeline.runner import StageUnavailable
 
 __all__ = [
@@ -730,7 +730,7 @@ def settings(inputs: SessionInputs) -> Any:
 
 def run(
     inputs: SessionInputs,
-    model: BuiltModel,
+    model: Personalisation,
     kinematics: Any,
     loads: Loads,
     mass_identification: MassIdentification | None,
