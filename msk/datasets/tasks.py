@@ -845,7 +845,7 @@ def write_lab_c3d(
 ) -> Path:
     """Write ``motion`` as a C3D in the lab format of ``template`` (module docstring).
 
-    ``rename``: model marker name → the lab's label (:attr:`msk.pipeline.model.BuiltModel.rename`;
+    ``rename``: model marker name → the lab's label (:attr:`msk.personalise.Personalisation.rename`;
     others keep their model name); ``lab_from_model`` (3, 3) and ``lab_origin_m`` place the model
     frame in the lab (lab = R p + o); ``plates`` in the model frame, each measuring the feet on
     its surface (in the template's plate order and channel labels); ``tau`` (N, n) drives the EMG

@@ -5,7 +5,7 @@ thirteenth pass).
 The Grand Challenge DM sessions are written so (``DM_<task>_new.trc``, ``DM_<task>_grf.sto``,
 ``DM_<task>_external_loads.xml``) and have no static trial: ``msk run`` scales the model and
 places the lab's markers from the motion itself (:mod:`msk.personalise.scaling`,
-:mod:`msk.pipeline.model`). :mod:`msk.datasets.tasks` writes its tasks as C3D files of a
+:mod:`msk.personalise.personalise`). :mod:`msk.datasets.tasks` writes its tasks as C3D files of a
 session's *own* placed model, which tests the later stages but not that scaling. Here the
 subject is known and differs from what the session's model stage makes of its own walk:
 
