@@ -54,7 +54,7 @@ Thresholds and their sources (:data:`THRESHOLDS`):
   error above which a gait measurement "should raise concern", McGinley et al. 2009) fits the
   markers within 0.2 mm of task IK cost or better
   (:func:`msk.personalise.determinacy.placement_profile`,
-  the resolution the placement's own choice has: ``msk.pipeline.model.CHOICE_TOLERANCE_M``).
+  the resolution the placement's own choice has: ``msk.personalise.placement.CHOICE_TOLERANCE_M``).
 """
 
 from __future__ import annotations

@@ -74,26 +74,26 @@ BOUND_BW = 0.02  # a predicted compartment force below this is at the rows' boun
 def _run_stages(cfg: Path, sigma_m: float = 0.0, seed: int = 0) -> dict[str, Any]:
     """The pipeline's stages up to ``knee_contact``; ``sigma_m`` > 0: the markers + N(0, σ)
     in the model stage only (as ``studies/placement_jitter.py`` perturbs it)."""
-    import msk.pipeline.model as pmodel
+    import msk.personalise.personalise as pmodel
     from msk.pipeline.session import run_stages
 
     if sigma_m <= 0:
         return run_stages(cfg, until="knee_contact")
     rng = np.random.default_rng(seed)
-    orig = pmodel._scale_and_place
+    orig = pmodel.scale_and_place
 
-    def scale_and_place(inputs, read, functional=None, placement=None):  # type: ignore[no-untyped-def]
-        tr = read.trial
+    def scale_and_place(generic, static, task, opts, **kw):  # type: ignore[no-untyped-def]
+        tr = task
         m = np.asarray(tr.markers, dtype=float)
         seen = (m != 0.0).any(axis=-1, keepdims=True)  # exact zeros are gaps (TRC)
         tr = dataclasses.replace(tr, markers=m + seen * rng.normal(0.0, sigma_m, m.shape))
-        return orig(inputs, dataclasses.replace(read, trial=tr), functional, placement)
+        return orig(generic, static, tr, opts, **kw)
 
-    pmodel._scale_and_place = scale_and_place  # type: ignore[assignment]
+    pmodel.scale_and_place = scale_and_place  # type: ignore[assignment]
     try:
         return run_stages(cfg, until="knee_contact")
     finally:
-        pmodel._scale_and_place = orig  # type: ignore[assignment]
+        pmodel.scale_and_place = orig  # type: ignore[assignment]
 
 
 class Trial:

@@ -31,28 +31,25 @@ def run_once(name: str, sd: float, seed: int | None) -> dict[str, Any]:
     shipped) in its scaling and placement passes; its ``model.placement_determinacy``."""
     from pathlib import Path
 
-    import msk.pipeline.model as pmodel
+    import msk.personalise.personalise as pmodel
     from msk.pipeline import run_stages
 
     rng = None if seed is None else np.random.default_rng(seed)
-    orig = pmodel._scale_and_place
+    orig = pmodel.scale_and_place
 
-    def scale_and_place(  # type: ignore[no-untyped-def]
-        inputs, read, functional=None, placement=None, continue_from=None, workspace=None
-    ):
+    def scale_and_place(generic, static, task, opts, **kw):  # type: ignore[no-untyped-def]
         if rng is not None:
-            m = np.asarray(read.trial.markers, dtype=float)
+            m = np.asarray(task.markers, dtype=float)
             seen = ((m != 0.0).any(axis=-1) & np.isfinite(m).all(axis=-1))[..., None]
-            tr = dataclasses.replace(read.trial, markers=m + seen * rng.normal(0.0, sd, m.shape))
-            read = dataclasses.replace(read, trial=tr)
-        return orig(inputs, read, functional, placement, continue_from, workspace)
+            task = dataclasses.replace(task, markers=m + seen * rng.normal(0.0, sd, m.shape))
+        return orig(generic, static, task, opts, **kw)
 
-    pmodel._scale_and_place = scale_and_place  # type: ignore[assignment]
+    pmodel.scale_and_place = scale_and_place  # type: ignore[assignment]
     try:
         cfg = Path(__file__).resolve().parents[1] / "pipelines" / f"{name}.toml"
         r = run_stages(cfg, until="model")
     finally:
-        pmodel._scale_and_place = orig  # type: ignore[assignment]
+        pmodel.scale_and_place = orig  # type: ignore[assignment]
     return dict(r["model"].info["placement_determinacy"])
 
 

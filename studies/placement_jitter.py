@@ -59,13 +59,13 @@ def run_once(name: str, kind: str, k: int, seed: int) -> dict[str, Any]:
     """The model and kinematics stages of ``name`` with one perturbation ``kind`` (``none``,
     ``factors``, ``noise``, ``shift``) injected in the model stage only (the trial's own IK
     tracks the unperturbed markers)."""
+    import msk.personalise.personalise as pmodel
     import msk.personalise.scaling as scaling
-    import msk.pipeline.model as pmodel
     from msk.pipeline import run_stages
 
     rng = np.random.default_rng(seed + 7919 * k)
     sign = 1.0 if k % 2 == 0 else -1.0
-    orig_scale, orig_sp = scaling.scale_from_motion, pmodel._scale_and_place
+    orig_scale, orig_sp = scaling.scale_from_motion, pmodel.scale_and_place
     calls: list[dict[str, Any]] = []
     orig_place = scaling.place_markers_from_motion
     orig_rms = pmodel._placement_rms
@@ -94,10 +94,8 @@ def run_once(name: str, kind: str, k: int, seed: int) -> dict[str, Any]:
             calls.append(out[1])
         return out
 
-    def scale_and_place(  # type: ignore[no-untyped-def]
-        inputs, read, functional=None, placement=None, continue_from=None, workspace=None
-    ):
-        tr = read.trial
+    def scale_and_place(generic, static, task, opts, **kw):  # type: ignore[no-untyped-def]
+        tr = task
         if kind == "noise":
             m = np.asarray(tr.markers, dtype=float)
             seen = (m != 0.0).any(axis=-1, keepdims=True)  # exact zeros are gaps (TRC)
@@ -105,25 +103,18 @@ def run_once(name: str, kind: str, k: int, seed: int) -> dict[str, Any]:
         elif kind == "shift":
             n = 1 + k // 3
             tr = dataclasses.replace(tr, markers=tr.markers[n:], time=tr.time[n:])
-        return orig_sp(
-            inputs,
-            dataclasses.replace(read, trial=tr),
-            functional,
-            placement,
-            continue_from,
-            workspace,
-        )
+        return orig_sp(generic, static, tr, opts, **kw)
 
     scaling.scale_from_motion = scale  # type: ignore[assignment]
     scaling.place_markers_from_motion = place  # type: ignore[assignment]
-    pmodel._scale_and_place = scale_and_place  # type: ignore[assignment]
+    pmodel.scale_and_place = scale_and_place  # type: ignore[assignment]
     pmodel._placement_rms = placement_rms  # type: ignore[assignment]
     try:
         r = run_stages(_config(name), until="kinematics")
     finally:
         scaling.scale_from_motion = orig_scale  # type: ignore[assignment]
         scaling.place_markers_from_motion = orig_place  # type: ignore[assignment]
-        pmodel._scale_and_place = orig_sp  # type: ignore[assignment]
+        pmodel.scale_and_place = orig_sp  # type: ignore[assignment]
         pmodel._placement_rms = orig_rms  # type: ignore[assignment]
     bm, kin = r["model"], r["kinematics"]
     info = bm.info

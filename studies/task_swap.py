@@ -298,6 +298,7 @@ def main() -> None:
         return
     from msk.datasets.tasks import lab_task
     from msk.datasets.trc import trc_task
+    from msk.pipeline import run_stages
 
     for stem in SYNTHETIC:
         if only and stem not in only:
@@ -309,7 +310,8 @@ def main() -> None:
                 folder = Path(args.keep) / stem if args.keep else Path(tmp)
                 folder.mkdir(parents=True, exist_ok=True)
                 cfg = REPO / "pipelines" / f"{stem}.toml"
-                task = lab_task(cfg, kind, folder / f"{kind}.c3d")
+                placed = run_stages(cfg, until="model")["model"]
+                task = lab_task(cfg, kind, folder / f"{kind}.c3d", placed=placed)
                 path = swapped_config(stem, f"synthetic_{kind}", {"file": task.path}, folder)
                 if _row(stem, f"synthetic_{kind}", path, folder / f"out_{kind}") is not None:
                     _print_truth(stem, kind, compare_to_truth(task, path))
@@ -323,7 +325,8 @@ def main() -> None:
             with tempfile.TemporaryDirectory() as tmp:
                 folder = Path(args.keep) / stem if args.keep else Path(tmp)
                 cfg = REPO / "pipelines" / f"{stem}.toml"
-                ttask = trc_task(cfg, kind, folder)
+                placed = run_stages(cfg, until="model")["model"]
+                ttask = trc_task(cfg, kind, folder, placed=placed)
                 files = {"file": ttask.trc, "grf": ttask.grf}
                 if ttask.external_loads is not None:
                     files["external_loads"] = ttask.external_loads

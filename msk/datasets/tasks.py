@@ -844,7 +844,7 @@ def write_lab_c3d(
 ) -> Path:
     """Write ``motion`` as a C3D in the lab format of ``template`` (module docstring).
 
-    ``rename``: model marker name → the lab's label (:attr:`msk.pipeline.model.BuiltModel.rename`;
+    ``rename``: model marker name → the lab's label (:attr:`msk.personalise.Personalisation.rename`;
     others keep their model name); ``lab_from_model`` (3, 3) and ``lab_origin_m`` place the model
     frame in the lab (lab = R p + o); ``plates`` in the model frame, each measuring the feet on
     its surface (in the template's plate order and channel labels); ``tau`` (N, n) drives the EMG
@@ -965,6 +965,7 @@ def lab_task(
     kind: str,
     path: str | Path,
     *,
+    placed: Any,
     seed: int = 0,
     noise_m: float = 0.0015,
     step_height_m: float = 0.17,
@@ -973,7 +974,8 @@ def lab_task(
     knee_flexion_deg: float = 95.0,
 ) -> LabTask:
     """A ``kind`` ("squat" or "stair") trial of the session ``config``'s subject in its lab's
-    format: the model its ``msk run`` builds (scaled, markers placed from its static), its task
+    format: ``placed``, the session's personalised model (:class:`msk.personalise.Personalisation`
+    that its ``msk run`` builds: scaled, markers placed from its static), its task
     C3D as the template (labels, rates, plate and analog channels), written to ``path``.
 
     Squat: each foot on its own plate — the feet straddle the boundary between the template's
@@ -983,9 +985,7 @@ def lab_task(
     the other steps uninstrumented; the flight along the lab's first horizontal axis."""
     import ezc3d
 
-    from msk.pipeline import run_stages
-
-    built = run_stages(Path(config), until="model")["model"]
+    built = placed
     model = built.model
     from msk.config import load_config
 

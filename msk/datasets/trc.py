@@ -4,7 +4,7 @@ reactions ``.sto`` and their ExternalLoads ``.xml``, in a lab's own naming.
 The Grand Challenge DM sessions are written so (``DM_<task>_new.trc``, ``DM_<task>_grf.sto``,
 ``DM_<task>_external_loads.xml``) and have no static trial: ``msk run`` scales the model and
 places the lab's markers from the motion itself (:mod:`msk.personalise.scaling`,
-:mod:`msk.pipeline.model`). :mod:`msk.datasets.tasks` writes its tasks as C3D files of a
+:mod:`msk.personalise.personalise`). :mod:`msk.datasets.tasks` writes its tasks as C3D files of a
 session's *own* placed model, which tests the later stages but not that scaling. Here the
 subject is known and differs from what the session's model stage makes of its own walk:
 
@@ -38,6 +38,7 @@ from __future__ import annotations
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
@@ -309,6 +310,7 @@ def trc_task(
     kind: str,
     folder: str | Path,
     *,
+    placed: Any,
     factors: Mapping[str, float] = SUBJECT_FACTORS,
     mass_kg: float | None = None,
     seed: int = 0,
@@ -317,8 +319,9 @@ def trc_task(
     stem: str | None = None,
 ) -> TrcTask:
     """A ``kind`` ("walk" or "squat") trial of a synthetic subject in the OpenSim-format lab of
-    the session ``config`` (a ``.trc`` task with a ``grf`` file): the subject is the model the
-    session's model stage builds from its own task (scaled, the lab's markers placed) scaled by
+    the session ``config`` (a ``.trc`` task with a ``grf`` file): the subject is ``placed`` — the
+    session's personalised model (:class:`msk.personalise.Personalisation`, what its model stage
+    builds from its own task: scaled, the lab's markers placed) — scaled by
     ``factors`` to ``mass_kg`` (default: the config's subject mass); its task files are the
     templates; ``external_loads`` (default: when the session's task has one) writes the
     ExternalLoads file. The lab frame is the session's (its heading), the walk along the model's
@@ -329,13 +332,12 @@ def trc_task(
     start; treadmill files: 2); the standing start and end are unmeasured. Squat: the first
     plate under the right foot, the second under the left, any other unloaded."""
     from msk.config import load_config
-    from msk.pipeline import run_stages
 
     cfg = load_config(config)
     task_cfg = cfg.trials_with_role("task")[0]
     if task_cfg.grf is None or Path(task_cfg.file).suffix.lower() != ".trc":
         raise ValueError(f"{config}: its task is not a .trc with a GRF file")
-    built = run_stages(Path(config), until="model")["model"]
+    built = placed
     mass = float(mass_kg or cfg.subject.mass_kg or built.model.total_mass)
     subject = subject_model(built.model, factors, mass_kg=mass)
     from msk.io import read_trc

@@ -1233,7 +1233,7 @@ def scale_from_motion(
     ``workspace``: a dict (empty to begin with) keeping step 3's poses; a later call with the
     same ``model`` and markers — another ``functional`` split, which step 3 does not depend on
     — reuses them instead of solving that IK again (the model stage scales a trial once per
-    candidate split, :func:`msk.pipeline.model.choose_placement`).
+    candidate split, :func:`msk.personalise.placement.choose_placement`).
 
     Returns:
         (the scaled model, :class:`ScalingReport`).
@@ -1550,8 +1550,9 @@ def place_markers_from_motion(
 
     ``start`` (``info["state"]`` of an earlier placement: marker → [body, σ, offset]): the
     first pass solves with those markers placed too (those within the later passes' spread
-    limit), so the passes continue that placement (:func:`msk.pipeline.model.choose_placement`
-    alternates placement and inverse kinematics so until the task's fit stops improving).
+    limit), so the passes continue that placement
+    (:func:`msk.personalise.placement.choose_placement` alternates placement and inverse
+    kinematics so until the task's fit stops improving).
 
     ``warm``: a workspace (an empty dict to begin with) in which every pass leaves its IK
     solution (``"frames"``, ``"q"``) and from which the next pass — of this call or of a later
@@ -1811,7 +1812,7 @@ def refine_placement_from_motion(
     basin or diverged, so where the descent stopped was a lottery, issue 15 twelfth pass;
     ``kwargs``: the other keywords it was placed with) for as long as ``cost(model, info)``
     — the fit the placement is for, e.g. the task's own inverse kinematics cost
-    (:func:`msk.pipeline.model.placement_cost`) — falls by more than ``rel_tolerance`` of
+    (:func:`msk.personalise.placement.placement_cost`) — falls by more than ``rel_tolerance`` of
     itself per round (at most ``max_rounds`` rounds, a safeguard: ``info["descent_stop"]``
     says which rule stopped it).
 

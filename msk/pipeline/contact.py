@@ -20,8 +20,8 @@ from msk.dynamics.identification import MassIdentification, identified_model
 from msk.dynamics.inverse import InverseDynamics
 from msk.muscles.emg import EmgActivations
 from msk.optimization.muscle_forces import MuscleForces, solve_muscle_forces
+from msk.personalise import Personalisation
 from msk.pipeline.inputs import SessionInputs
-from msk.pipeline.model import BuiltModel
 from msk.pipeline.records import ContactVariant, KneeContact, Loads, StrengthIdentification
 from msk.pipeline.runner import StageUnavailable
 
@@ -80,7 +80,7 @@ def settings(inputs: SessionInputs) -> Any:
 
 def run(
     inputs: SessionInputs,
-    model: BuiltModel,
+    model: Personalisation,
     kinematics: Any,
     loads: Loads,
     mass_identification: MassIdentification | None,

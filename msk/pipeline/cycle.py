@@ -9,8 +9,8 @@ from typing import Any
 
 import numpy as np
 
+from msk.personalise import Personalisation
 from msk.pipeline.inputs import SessionInputs
-from msk.pipeline.model import BuiltModel
 from msk.pipeline.records import GaitCycle, KneeContact, Loads
 
 __all__ = ["run"]
@@ -18,7 +18,7 @@ __all__ = ["run"]
 
 def run(
     inputs: SessionInputs,
-    model: BuiltModel,
+    model: Personalisation,
     kinematics: Any,
     loads: Loads,
     knee_contact: KneeContact | None,

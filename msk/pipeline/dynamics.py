@@ -9,8 +9,8 @@ from typing import Any
 
 from msk.dynamics.identification import MassIdentification, identified_model
 from msk.dynamics.inverse import InverseDynamics
+from msk.personalise import Personalisation
 from msk.pipeline.inputs import SessionInputs
-from msk.pipeline.model import BuiltModel
 from msk.pipeline.records import Loads
 
 __all__ = ["contact_gated_torques", "run"]
@@ -18,7 +18,7 @@ __all__ = ["contact_gated_torques", "run"]
 
 def run(
     inputs: SessionInputs,
-    model: BuiltModel,
+    model: Personalisation,
     kinematics: Any,
     loads: Loads,
     mass_identification: MassIdentification | None,

@@ -10,8 +10,8 @@ from typing import Any
 
 from msk.exceptions import ConfigError
 from msk.muscles.emg import EmgActivations
+from msk.personalise import Personalisation
 from msk.pipeline.inputs import SessionInputs
-from msk.pipeline.model import BuiltModel
 from msk.pipeline.records import ReadResult
 from msk.pipeline.runner import StageUnavailable, file_sha256
 
@@ -31,7 +31,7 @@ def settings(inputs: SessionInputs) -> Any:
 
 
 def run(
-    inputs: SessionInputs, read: ReadResult, model: BuiltModel, kinematics: Any
+    inputs: SessionInputs, read: ReadResult, model: Personalisation, kinematics: Any
 ) -> EmgActivations:
     cfg, trial = inputs.cfg, read.trial
     if not cfg.emg.channels:

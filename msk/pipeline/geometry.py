@@ -22,8 +22,8 @@ import numpy as np
 from numpy.typing import NDArray
 
 from msk._runtime.blocks import frame_blocks
+from msk.personalise import Personalisation
 from msk.pipeline.inputs import SessionInputs
-from msk.pipeline.model import BuiltModel
 from msk.pipeline.records import Loads
 from msk.pipeline.runner import StageUnavailable
 
@@ -122,7 +122,7 @@ def compact_values(jacobian: Any, positions: NDArray[np.intp]) -> NDArray[np.flo
     )
 
 
-def run(inputs: SessionInputs, model: BuiltModel, kinematics: Any, loads: Loads) -> Any:
+def run(inputs: SessionInputs, model: Personalisation, kinematics: Any, loads: Loads) -> Any:
     """:class:`msk.muscles.geometry.MuscleGeometry` with a compact ``jacobian`` (no
     ``distal_wrenches``); frames in which no leg is solvable
     (:attr:`msk.pipeline.loads.Loads.solvable`) are evaluated at the default pose, at rest

@@ -33,10 +33,11 @@ import dataclasses
 import inspect
 from collections.abc import Callable, Collection, Mapping
 from dataclasses import dataclass
-from typing import Any
+from typing import Any, cast
 
 from msk._runtime.blocks import FRAME_BLOCK
-from msk.model.core import Model
+from msk.model.core import Model, ModelState
+from msk.personalise import Personalisation
 from msk.pipeline import (
     comparison,
     contact,
@@ -110,7 +111,7 @@ class Node:
         return self.needs(inputs) if callable(self.needs) else self.needs
 
 
-def model_to_cache(built: model.BuiltModel) -> Any:
+def model_to_cache(built: Personalisation) -> Personalisation:
     """The model stage's result as the stage cache keeps it: its :class:`msk.model.core.Model` as
     plain data (:meth:`msk.model.core.Model.state`; the cache stores no Pinocchio object). A trial
     of more than :data:`~msk._runtime.blocks.FRAME_BLOCK` frames is given as it is, not
@@ -118,13 +119,15 @@ def model_to_cache(built: model.BuiltModel) -> Any:
     trials), the stage is computed again next time."""
     if len(built.trial.time) > FRAME_BLOCK:
         return built
-    return dataclasses.replace(built, model=built.model.state())
+    # the cache's form: the model's plain-data state in the model's place
+    return dataclasses.replace(built, model=cast(Model, built.model.state()))
 
 
-def model_from_cache(stored: model.BuiltModel) -> model.BuiltModel:
+def model_from_cache(stored: Personalisation) -> Personalisation:
     """The model stage's result from what :func:`model_to_cache` kept (the model built again
     from its specifications: :meth:`msk.model.core.Model.from_state`)."""
-    return dataclasses.replace(stored, model=Model.from_state(stored.model))
+    state = cast(ModelState, stored.model)  # model_to_cache's form
+    return dataclasses.replace(stored, model=Model.from_state(state))
 
 
 _ALL = ("model", "kinematics", "loads")

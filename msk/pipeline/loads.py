@@ -13,8 +13,8 @@ import numpy as np
 
 from msk.dynamics.loads import ASSIGNMENT_METHOD, rotated_plate
 from msk.kinematics.observation import OBSERVATION_METHOD
+from msk.personalise import Personalisation
 from msk.pipeline.inputs import SessionInputs
-from msk.pipeline.model import BuiltModel
 from msk.pipeline.records import Loads, ReadResult
 
 __all__ = [
@@ -33,7 +33,7 @@ def settings(inputs: SessionInputs) -> Any:
     }
 
 
-def run(inputs: SessionInputs, read: ReadResult, model: BuiltModel, kinematics: Any) -> Loads:
+def run(inputs: SessionInputs, read: ReadResult, model: Personalisation, kinematics: Any) -> Loads:
     """The read trial's plates (a C3D's, or its GRF file's) in the model frame (rotated here,
     not kept by the model stage), assigned to the feet."""
     from msk.dynamics.loads import foot_contact

@@ -10,9 +10,9 @@ from typing import Any
 import numpy as np
 
 from msk.dynamics.identification import MassIdentification, segment_summary
+from msk.kinematics.trial import solve_trial
+from msk.personalise import Personalisation
 from msk.pipeline.inputs import SessionInputs
-from msk.pipeline.kinematics import solve_trial
-from msk.pipeline.model import BuiltModel
 from msk.pipeline.records import Loads, ReadResult
 from msk.pipeline.runner import StageUnavailable, file_sha256
 
@@ -27,7 +27,7 @@ def settings(inputs: SessionInputs) -> Any:
 
 
 def run(
-    inputs: SessionInputs, read: ReadResult, model: BuiltModel, kinematics: Any, loads: Loads
+    inputs: SessionInputs, read: ReadResult, model: Personalisation, kinematics: Any, loads: Loads
 ) -> MassIdentification:
     from msk.dynamics.identification import IdentificationTrial, InertialIdentifier
     from msk.dynamics.loads import contact_measured

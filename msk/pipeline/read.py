@@ -81,7 +81,7 @@ def for_session(inputs: SessionInputs, read: ReadResult) -> ReadResult:
 
 def without_markers(read: ReadResult) -> ReadResult:
     """``read`` without the task's markers (a ``(N, 0, 3)`` array, no labels): the model stage
-    is the last to read them (its :class:`~msk.pipeline.model.BuiltModel` holds them in the
+    is the last to read them (its :class:`~msk.personalise.Personalisation` holds them in the
     model frame); :func:`msk.pipeline.graph.run_graph` drops them from ``read`` after it, so
     that a long trial's markers are not held twice through the loads and EMG stages.
     Time, rates, analogs and the plates are shared, not copied."""
@@ -150,34 +150,10 @@ def measured_contact(inputs: SessionInputs, read: ReadResult) -> Any:
 def read_static_markers(
     path: Path, up: np.ndarray
 ) -> tuple[np.ndarray, tuple[str, ...], np.ndarray, Any, Any]:
-    """Markers of a static trial in the model frame (any format :func:`msk.io.read_trial`
-    reads, rotated so that its vertical is the model's ``up``; no heading: the subject stands
-    still), the file's :class:`msk.trial.Subject` and the part of the trial that is still in
-    double stance (:func:`msk.personalise.static_window.still_window` on its measured markers and,
-    where
-    the file has plates, their vertical loads at the marker frames; the markers and time
-    returned are the whole trial's).
+    """:func:`msk.personalise.read_static_trial` as a tuple: the static trial's markers in the
+    model frame, labels, time, the file's :class:`msk.trial.Subject` and its still
+    double-stance window (:class:`msk.personalise.static_window.StillWindow`)."""
+    from msk.personalise.static_trial import read_static_trial
 
-    Raises:
-        StaticTrialError: the static has no still window (the message names the file).
-    """
-    from msk.exceptions import StaticTrialError
-    from msk.io import read_trial, to_model_frame
-    from msk.io.c3d import is_measured_marker
-    from msk.model.markersets import zeros_as_gaps
-    from msk.personalise.static_window import still_window
-
-    tr = to_model_frame(read_trial(path), up=up, forward=None)
-    keep = [i for i, lab in enumerate(tr.marker_labels) if is_measured_marker(lab)]
-    loads = None
-    if tr.plates and np.size(tr.analog_time):
-        u = np.asarray(up, dtype=float)
-        loads = np.stack(
-            [np.interp(tr.time, tr.analog_time, np.asarray(p.force, float) @ u) for p in tr.plates],
-            axis=1,
-        )
-    try:
-        window = still_window(zeros_as_gaps(tr.markers)[:, keep], tr.time, plate_loads=loads)
-    except StaticTrialError as exc:
-        raise StaticTrialError(f"{path.name}: {exc}") from None
-    return tr.markers, tr.marker_labels, tr.time, tr.subject, window
+    st = read_static_trial(path, up)
+    return st.markers, st.labels, st.time, st.subject, st.window

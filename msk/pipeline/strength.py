@@ -21,8 +21,8 @@ import numpy as np
 from msk.dynamics.inverse import InverseDynamics
 from msk.exceptions import IdentificationError
 from msk.muscles.emg import EmgActivations
+from msk.personalise import Personalisation
 from msk.pipeline.inputs import SessionInputs
-from msk.pipeline.model import BuiltModel
 from msk.pipeline.records import Loads, StrengthIdentification
 from msk.pipeline.runner import StageUnavailable
 
@@ -31,7 +31,7 @@ __all__ = ["run"]
 
 def run(
     inputs: SessionInputs,
-    model: BuiltModel,
+    model: Personalisation,
     kinematics: Any,
     loads: Loads,
     inverse_dynamics: InverseDynamics,

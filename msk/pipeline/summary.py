@@ -22,8 +22,8 @@ from msk.fes.io import FES_PARAMETER_UNITS, fes_parameters, fes_step_figures
 from msk.metrics import root_mean_square as rms
 from msk.muscles.emg import EmgActivations
 from msk.optimization.muscle_forces import MuscleForces
+from msk.personalise import Personalisation
 from msk.pipeline.inputs import SessionInputs, plain_settings
-from msk.pipeline.model import BuiltModel
 from msk.pipeline.records import FesResult, GaitCycle, Loads, StrengthIdentification
 from msk.pipeline.runner import file_sha256, versions
 
@@ -274,7 +274,7 @@ def joint_strength_settings(inputs: SessionInputs) -> Any:
 
 def joint_strength(
     inputs: SessionInputs,
-    model: BuiltModel | None,
+    model: Personalisation | None,
     strength_identification: StrengthIdentification | None,
 ) -> dict[str, Any] | None:
     """The summary's ``strength.joint_strength`` (the maximal isometric moment curves of the
@@ -404,7 +404,7 @@ def kkt_summary(worst: Any) -> dict[str, Any]:
 
 
 def swapped_markers(
-    inputs: SessionInputs, model: BuiltModel, kinematics: Any
+    inputs: SessionInputs, model: Personalisation, kinematics: Any
 ) -> tuple[tuple[str, str, float], ...]:
     """Step ``swapped_markers`` (not a recorded stage): the left/right marker pairs of the task
     whose labels look swapped (:func:`msk.quality.swapped_sides` of the model-frame markers and
@@ -419,7 +419,7 @@ def swapped_markers(
 def _flags(
     inputs: SessionInputs,
     quality: Mapping[str, Any],
-    model: BuiltModel,
+    model: Personalisation,
     kin: Any,
     loads: Loads,
     swapped_pairs: Sequence[tuple[str, str, float]],
@@ -516,7 +516,7 @@ def _flags(
 
 def run(
     inputs: SessionInputs,
-    model: BuiltModel | None,
+    model: Personalisation | None,
     kinematics: Any,
     loads: Loads | None,
     mass_identification: MassIdentification | None,

@@ -13,8 +13,8 @@ from msk.dynamics.inverse import InverseDynamics
 from msk.muscles.emg import EmgActivations
 from msk.optimization.criteria import criterion
 from msk.optimization.muscle_forces import MuscleForces, solve_muscle_forces
+from msk.personalise import Personalisation
 from msk.pipeline.inputs import SessionInputs
-from msk.pipeline.model import BuiltModel
 from msk.pipeline.records import Loads
 
 __all__ = ["needs", "run", "settings"]
@@ -33,7 +33,7 @@ def settings(inputs: SessionInputs) -> Any:
 
 def run(
     inputs: SessionInputs,
-    model: BuiltModel,
+    model: Personalisation,
     kinematics: Any,
     loads: Loads,
     mass_identification: MassIdentification | None,

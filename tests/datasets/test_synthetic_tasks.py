@@ -14,6 +14,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from msk.pipeline import run_stages
+
 REPO = Path(__file__).resolve().parents[2]
 JW = REPO / "pipelines" / "gc4_JW.toml"
 _GC4 = REPO.parent / "shared" / "data" / "real" / "knee-grand-challenge-gc4"
@@ -47,7 +49,8 @@ def _run(kind: str, folder: Path):
 
     ht = _script()
     folder.mkdir(parents=True, exist_ok=True)
-    task = lab_task(JW, kind, folder / f"{kind}.c3d", seed=1)
+    placed = run_stages(JW, until="model")["model"]
+    task = lab_task(JW, kind, folder / f"{kind}.c3d", placed=placed, seed=1)
     cfg = ht.swapped_config("gc4_JW", kind, {"file": task.path}, folder)
     (res,) = run_task_trials(cfg, folder / "out")
     return task, res, ht.compare_to_truth(task, cfg)

@@ -14,6 +14,7 @@ from msk.datasets.trc import subject_model, write_trc_task
 from msk.io import read_trc
 from msk.model.core import marker_positions
 from msk.model.files import load_model
+from msk.pipeline import run_stages
 
 REPO = Path(__file__).resolve().parents[2]
 
@@ -177,7 +178,8 @@ def test_dm_og1_recovers_a_known_subjects_walk_and_flags_what_it_does_not(tmp_pa
     ts = importlib.util.module_from_spec(spec)
     sys.modules["task_swap"] = ts
     spec.loader.exec_module(ts)
-    task = trc_task(REPO / "pipelines" / "gc6_DM_og1.toml", "walk", tmp_path)
+    config = REPO / "pipelines" / "gc6_DM_og1.toml"
+    task = trc_task(config, "walk", tmp_path, placed=run_stages(config, until="model")["model"])
     files = {"file": task.trc, "grf": task.grf, "external_loads": task.external_loads}
     cfg = ts.swapped_config("gc6_DM_og1", "synthetic_walk", files, tmp_path)
     (res,) = run_task_trials(cfg, tmp_path / "out")

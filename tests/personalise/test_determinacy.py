@@ -11,7 +11,7 @@ from msk.kinematics.ik import solve_kinematics
 from msk.model.core import marker_positions
 from msk.personalise.determinacy import gauge_shifted_markers, placement_profile
 
-#: the placement's cost resolution the pipeline uses (msk.pipeline.model.CHOICE_TOLERANCE_M)
+#: the placement's cost resolution the pipeline uses (msk.personalise.placement.CHOICE_TOLERANCE_M)
 TOL_M = 2e-4
 
 

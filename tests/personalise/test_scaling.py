@@ -809,8 +809,8 @@ def test_motion_placement_takes_the_walks_median_subtalar_as_neutral(gait2392):
     ±6° about 0 through the walk) put the walk's subtalar at a median of ~25° unless
     ``median_neutral`` takes the walk's median as the joint's neutral: then within 2°."""
     from msk.kinematics.ik import solve_kinematics
+    from msk.personalise.coordinates import free_foot_coordinates
     from msk.personalise.scaling import place_markers_from_motion
-    from msk.pipeline.model import free_foot_coordinates
 
     th = _gait_poses(gait2392)
     c = gait2392.coordinate_names
@@ -1017,8 +1017,9 @@ def test_refined_motion_placement_descends_to_the_truth_and_is_stable(gait2392):
     unperturbed run's. Eleventh pass: the rounds are squared extrapolations (SQUAREM) and stop
     by the relative-decrease rule, not the round cap (3 rounds of 3 passes here: the plain
     alternation took 12 rounds of 2 passes to 2.7 mm). Run with the pipeline's stopping rule
-    (:data:`msk.pipeline.model.DESCENT_REL_TOLERANCE`, 2 %; the function's default is 0.1 %)."""
-    from msk.pipeline.model import DESCENT_REL_TOLERANCE
+    (:data:`msk.personalise.placement.DESCENT_REL_TOLERANCE`, 2 %; the function's default is
+    0.1 %)."""
+    from msk.personalise.placement import DESCENT_REL_TOLERANCE
 
     x, labels, t, clusters = _pelvis_and_feet_walk(gait2392)
     tol = {"rel_tolerance": DESCENT_REL_TOLERANCE}
@@ -1083,12 +1084,13 @@ def test_motion_scaling_and_placement_do_not_depend_on_the_lab_frame(gait2392):
     """Issue 15, tenth pass: the same walk recorded in a lab frame rotated 37° about the
     vertical and translated by metres (4.5 m sideways: beyond gait2392's ±3 m bound on
     ``pelvis_tz``), brought to the model frame as the model stage does (the progression's
-    heading, :func:`msk.io.lab_to_model_rotation`, then :func:`msk.pipeline.model.
-    lab_origin_offset`): the same scale factors and marker offsets to 1e-9. Without the
-    translation (the markers as the lab gives them) the placement loses the clusters."""
+    heading, :func:`msk.io.lab_to_model_rotation`, then
+    :func:`msk.personalise.task_markers.lab_origin_offset`): the same scale factors and marker
+    offsets to 1e-9. Without the translation (the markers as the lab gives them) the placement
+    loses the clusters."""
     from msk.io.frames import lab_to_model_rotation
     from msk.personalise.scaling import scale_from_motion
-    from msk.pipeline.model import lab_origin_offset
+    from msk.personalise.task_markers import lab_origin_offset
 
     x, labels, t, clusters = _pelvis_and_feet_walk(gait2392)
     up = (0.0, 1.0, 0.0)

@@ -936,15 +936,16 @@ def test_model_stage_markers_in_blocks_equal_the_whole_trial(
 ) -> None:
     """The model stage's levelled and model-frame markers of a trial longer than a block: the
     heading (pelvis fit and progression) computed block by block equals the one-pass heading,
-    and :func:`msk.pipeline.model.model_frame_columns` equals ``match.apply`` of the whole
+    and :func:`msk.personalise.task_markers.model_frame_columns` equals ``match.apply`` of the whole
     rotated trial, bit for bit (gc5_PS's task, blocks of 7 and 40 frames, a gap of exact
     zeros)."""
     from msk.config import load_config
     from msk.io import frames
     from msk.model.markersets import recognise
+    from msk.personalise.task_markers import model_frame_columns
     from msk.pipeline import run_stages
     from msk.pipeline.inputs import session_inputs
-    from msk.pipeline.model import load_model_file, model_frame_columns
+    from msk.pipeline.model import load_model_file
 
     cfg = load_config(REPO / "pipelines" / "gc5_PS.toml")
     read = run_stages(cfg, until="read")["read"]

@@ -494,7 +494,7 @@ def test_given_knee_alignment_and_contact_depth_reach_the_model_and_the_split(tm
 
 def test_static_knee_held_only_where_no_epicondyle_and_malleolus():
     from msk.datasets.models import two_leg_model
-    from msk.pipeline.model import HELD_COORDINATE_WEIGHT, held_static_knees
+    from msk.personalise.coordinates import HELD_COORDINATE_WEIGHT, held_static_knees
 
     model = two_leg_model()
     # right: lateral epicondyle and malleolus (Plug-in Gait); left: clusters and a patella
@@ -511,7 +511,7 @@ def test_knee_flexion_bound_widened_to_the_physiological_limit_only_where_narrow
     from msk.datasets.trials import make_trial
     from msk.kinematics.ik import solve_kinematics
     from msk.model.core import marker_positions
-    from msk.pipeline.model import knee_flexion_to_physiological
+    from msk.personalise.coordinates import knee_flexion_to_physiological
 
     model = two_leg_model()  # knees [-120.3°, 9.7°]
     wide, widened = knee_flexion_to_physiological(model)
@@ -585,12 +585,12 @@ def test_a_trial_no_plate_measures_runs_kinematics_and_says_why_no_dynamics(tmp_
 
 
 def test_placement_frames_are_interleaved_over_the_well_tracked_frames():
-    """:func:`msk.pipeline.model.placement_frames` (issue 15, eleventh pass): at most
+    """:func:`msk.personalise.placement.placement_frames` (issue 15, eleventh pass): at most
     ``max_frames`` frames, evenly interleaved from the first to the last well-tracked frame,
     none of a stretch where three markers drop out (NaN or exact zeros), the same on every
     call; a trial shorter than ``max_frames`` gives all its well-tracked frames, and one where
     most frames miss markers still gives ``max_frames`` (from the best-tracked)."""
-    from msk.pipeline.model import placement_frames
+    from msk.personalise.placement import placement_frames
 
     rng = np.random.default_rng(0)
     x = rng.normal(size=(1000, 10, 3))
@@ -620,7 +620,7 @@ def test_foot_joint_held_by_the_frames_the_ik_solves_not_by_any_trajectory():
     trajectories and acromia outlast its foot markers (UWA ``Running_1``: the right subtalar
     was held with its metatarsal heads tracked in 93 % of the solved frames)."""
     from msk.model.files import load_model
-    from msk.pipeline.model import held_foot_coordinates
+    from msk.personalise.coordinates import held_foot_coordinates
 
     model = load_model(REPO / "models" / "gait2392.toml")
     pelvis = ["R.ASIS", "L.ASIS", "V.Sacral"]
