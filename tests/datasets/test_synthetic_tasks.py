@@ -110,6 +110,7 @@ def test_com_from_zmp_solves_the_cart_table_equation():
     x − (h/g) ẍ = p at every interior sample (central differences, to round-off) and starts
     and ends at p (still); it is smoother than p (its largest step 10× smaller)."""
     from msk.datasets.tasks import com_from_zmp
+    from msk.units import G0
 
     dt, h = 0.01, 0.9
     t = np.arange(0.0, 4.0 + dt / 2, dt)
@@ -117,7 +118,7 @@ def test_com_from_zmp_solves_the_cart_table_equation():
     p += 0.002 * np.random.default_rng(0).standard_normal(t.size)
     x = com_from_zmp(p, dt, h)
     acc = (x[2:] - 2 * x[1:-1] + x[:-2]) / dt**2
-    np.testing.assert_allclose(x[1:-1] - h / 9.81 * acc, p[1:-1], atol=1e-10)
+    np.testing.assert_allclose(x[1:-1] - h / G0 * acc, p[1:-1], atol=1e-10)
     assert x[0] == pytest.approx(p[0]) and x[-1] == pytest.approx(p[-1])
     assert np.abs(np.diff(x)).max() < 0.1 * np.abs(np.diff(p)).max()
 
