@@ -129,6 +129,16 @@ class ModelConfig:
         unit="m",
         bounds=Range(-0.03, 0.03),
     )
+    hip_centre: str = opt(
+        "where the hip joints sit in the pelvis: harrington (regression on the static's pelvic "
+        "width and depth, Harrington et al. 2007; within 5 mm of MRI, the most accurate "
+        "regression: the default), davis (Plug-in Gait's, Davis et al. 1991; leg length from "
+        "the ASIS-to-malleolus markers), bell (Bell et al. 1990), or model (the generic model's "
+        "hips scaled with its pelvis); needs both ASIS and both PSIS or a sacral marker, else "
+        "the model's, said in summary.json (msk.hip_centre)",
+        "harrington",
+        choices=("model", "harrington", "davis", "bell"),
+    )
     markers: Path | None = opt(
         "an OpenSim marker set (.xml) for a model whose markers are kept apart (stock .osim)",
         None,

@@ -212,6 +212,7 @@ def _scale_and_place(
     (the split candidates of :func:`choose_placement`). ``workspace``: that of
     :func:`msk.scaling.scale_from_motion` (a new one when None; returned as ``"workspace"``),
     so that scaling the same trial again with a split reuses the pose-matched IK."""
+    from msk.hip_centre import no_static_hip_centre, place_hip_centres
     from msk.io.c3d import is_measured_marker
     from msk.io.frames import pelvis_heading_rotation
     from msk.markersets import (
@@ -321,6 +322,10 @@ def _scale_and_place(
                 widths_m=widths, marker_diameter_m=mdiam, functional=functional,
             )  # fmt: skip
         model = _aligned(inputs, model, sm, slabels)
+        model, info["hip_centre"] = place_hip_centres(
+            model, sm, slabels, method=mc.hip_centre,
+            marker_radius_m=0.007 if mdiam is None else 0.5 * float(mdiam),
+        )  # fmt: skip
         centres, jc_move = _chord_centres(model, sm, slabels, widths, mdiam)
         try:
             model, placed = place_markers(
@@ -369,6 +374,7 @@ def _scale_and_place(
                 body_mass=cfg.subject.mass_kg, functional=functional, workspace=workspace,
             )  # fmt: skip
         model = _aligned(inputs, model, xm, mlabels)
+        info["hip_centre"] = no_static_hip_centre(mc.hip_centre)
         # the lab's foot markers: where they sit on the foot is the lab's choice and nothing
         # but the motion tells (msk.markersets.foot_markers), so they are moved too
         present = [mk.name for mk in model.markers if mk.name in set(mlabels)]
