@@ -15,6 +15,7 @@ import numpy as np
 from msk.config import SessionConfig
 from msk.exceptions import MskError
 from msk.pipeline.comparison import rms
+from msk.pipeline.contact import KneeContact
 from msk.pipeline.cycle import GaitCycle
 from msk.pipeline.dynamics import InverseDynamics
 from msk.pipeline.emg import EmgActivations
@@ -522,6 +523,7 @@ def run(
     fes: FesResult | None,
     swapped_markers: Sequence[tuple[str, str, float]] | None,
     joint_strength: Mapping[str, Any] | None,
+    knee_contact: KneeContact | None = None,
 ) -> dict[str, Any]:
     """``summary.json`` without the stage records; a pure FES session has the base summary,
     no angle columns, an empty quality block and the ``fes`` section."""
@@ -544,6 +546,15 @@ def run(
     quality["plate_mass_kg"] = plate_mass
     pairs = () if swapped_markers is None else swapped_markers
     quality["flags"] = _flags(inputs, quality, model, kin, loads, pairs, jt, sol, plate_mass)
+    if knee_contact is not None:
+        from msk.contact_plausibility import gait_mode, knee_contact_flags
+
+        mode, why = gait_mode(gait_cycle.events, kin, -np.asarray(mdl.gravity, dtype=float))
+        bw = {v: np.asarray(c.total, dtype=float) / inputs.body_weight
+              for v, c in knee_contact.variants.items()}  # fmt: skip
+        quality["flags"] += [
+            f.as_dict() for f in knee_contact_flags(inputs.task.name, bw, mode, why)
+        ]
     quality["thresholds"] = dict(THRESHOLDS)
     quality["held_coordinates"] = sorted(model.held)
     ev = gait_cycle.events
