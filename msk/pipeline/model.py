@@ -1134,8 +1134,19 @@ def run(inputs: SessionInputs, read: ReadResult) -> BuiltModel:
 
     cfg = inputs.cfg
     read, swapped = _swap_back(read)
+    sacrum = None
+    if inputs.static is None and inputs.model_source is not None and inputs.model_cfg:
+        # no static: the PSIS midpoint stands for a missing sacral marker (msk.virtual_markers)
+        from msk.virtual_markers import with_virtual_sacrum
+
+        vtrial, sacrum = with_virtual_sacrum(
+            read.trial, load_model_file(inputs.model_source, inputs.model_cfg.markers)
+        )
+        read = dataclasses.replace(read, trial=vtrial)
     trial = read.trial
     built = _scale_and_place(inputs, read)
+    if sacrum is not None:
+        built["info"]["virtual_markers"] = [sacrum]
     split: Mapping[str, Any] | None = None
     if "regularized" in built["info"].get("marker_placement", {}):
         # no static trial: the placement of least task IK cost among fixed candidates, the

@@ -546,15 +546,20 @@ def run(
     quality["plate_mass_kg"] = plate_mass
     pairs = () if swapped_markers is None else swapped_markers
     quality["flags"] = _flags(inputs, quality, model, kin, loads, pairs, jt, sol, plate_mass)
-    if knee_contact is not None:
-        from msk.contact_plausibility import gait_mode, knee_contact_flags
+    from msk.gait_plausibility import gait_mode, knee_contact_flags, pelvis_tilt_flags
 
-        mode, why = gait_mode(gait_cycle.events, kin, -np.asarray(mdl.gravity, dtype=float))
+    mode, why = gait_mode(gait_cycle.events, kin, -np.asarray(mdl.gravity, dtype=float))
+    if knee_contact is not None:
         bw = {v: np.asarray(c.total, dtype=float) / inputs.body_weight
               for v, c in knee_contact.variants.items()}  # fmt: skip
         quality["flags"] += [
             f.as_dict() for f in knee_contact_flags(inputs.task.name, bw, mode, why)
         ]
+    on_pelvis = tuple(m.name for m in mdl.markers if m.body == "pelvis"
+                      and m.name in set(model.labels))  # fmt: skip
+    quality["flags"] += [
+        f.as_dict() for f in pelvis_tilt_flags(inputs.task.name, kin, mode, on_pelvis)
+    ]
     quality["thresholds"] = dict(THRESHOLDS)
     quality["held_coordinates"] = sorted(model.held)
     ev = gait_cycle.events

@@ -1,4 +1,5 @@
-"""A plausibility gate on the knee contact force of a walk, against in-vivo measurements.
+"""Plausibility gates on a walk: its knee contact force against in-vivo measurements, and its
+pelvis tilt.
 
 Instrumented knee prostheses measure the tibiofemoral contact force directly. In level walking
 its peak is 2-3 body weights (BW): 2.61 BW on average over 5 subjects, Kutzner et al. 2010,
@@ -15,6 +16,15 @@ event a strike) — and running a flight phase (its last event a foot off); with
 both sides, the pelvis' mean horizontal speed against the walk-run transition speed,
 :data:`WALK_RUN_SPEED_M_S` (≈ 2.0 m/s, Hreljac 1993, Med Sci Sports Exerc 25:1158-1162). A
 running trial is not gated (in-vivo running loads are not measured at these speeds).
+
+Pelvis tilt (:func:`pelvis_tilt_flags`): in walking the pelvis tilts 10-15° anteriorly on
+average, its ASIS–PSIS line against the horizontal, with a range of about 4° over the cycle
+(Kadaba et al. 1990, J Orthop Res 8:383-392, Plug-in Gait's own definition); a model's pelvis
+frame (gait2392's: ASIS and a sacral point) differs from that line by under 10°. A walk whose
+mean pelvis tilt exceeds :data:`PELVIS_TILT_WALKING_MAX_DEG` (25°) in magnitude is a pelvis
+the markers did not determine (two ASIS and the legs alone: a missing sacral or PSIS marker, a
+PSIS placed from the motion) — the hips then take up the error (−50…−62° of hip extension at
+6-12 mm marker RMS): flagged, with the tilt and the markers on the pelvis.
 """
 
 from __future__ import annotations
@@ -29,14 +39,18 @@ from msk.quality import Flag
 
 __all__ = [
     "KNEE_CONTACT_WALKING_MAX_BW",
+    "PELVIS_TILT_WALKING_MAX_DEG",
     "WALK_RUN_SPEED_M_S",
     "gait_mode",
     "knee_contact_flags",
+    "pelvis_tilt_flags",
 ]
 
 #: Largest plausible peak knee contact force in level walking, BW (1.5 × the highest in-vivo
 #: walking peak, 3.0 BW: Kutzner et al. 2010; Fregly et al. 2012).
 KNEE_CONTACT_WALKING_MAX_BW = 4.5
+#: Largest plausible mean pelvis tilt magnitude in walking, deg (module docstring).
+PELVIS_TILT_WALKING_MAX_DEG = 25.0
 #: Walk-run transition speed, m/s (Hreljac 1993).
 WALK_RUN_SPEED_M_S = 2.0
 
@@ -114,3 +128,36 @@ def knee_contact_flags(
                 )
             )  # fmt: skip
     return out
+
+
+def pelvis_tilt_flags(
+    trial_name: str,
+    kinematics: Any,
+    mode: str,
+    pelvis_markers: tuple[str, ...] = (),
+    *,
+    bound_deg: float = PELVIS_TILT_WALKING_MAX_DEG,
+) -> list[Flag]:
+    """A flag when the mean pelvis tilt (coordinate ``pelvis_tilt`` of ``kinematics``, rad)
+    of a walk exceeds ``bound_deg`` in magnitude; ``pelvis_markers`` (the model's and the lab's
+    markers on the pelvis used) are named in the message."""
+    names = list(kinematics.coordinate_names)
+    if mode != "walking" or "pelvis_tilt" not in names:
+        return []
+    tilt = np.degrees(np.asarray(kinematics.q, dtype=float)[:, names.index("pelvis_tilt")])
+    if not np.isfinite(tilt).any():
+        return []
+    mean = float(np.nanmean(tilt))
+    if abs(mean) <= bound_deg:
+        return []
+    lo, hi = float(np.nanmin(tilt)), float(np.nanmax(tilt))
+    on = ", ".join(pelvis_markers) or "none"
+    return [
+        Flag(
+            trial_name, "pelvis_tilt_mean_deg", mean, bound_deg if mean > 0 else -bound_deg,
+            f"mean pelvis tilt {mean:.0f}° ({lo:.0f}…{hi:.0f}°) in a walk, beyond ±{bound_deg:g}° "
+            "(walking: 10-15° anterior, Kadaba et al. 1990): a pelvis its markers do not "
+            f"determine (pelvis markers: {on}; two ASIS need a sacral or both PSIS markers, "
+            "with a static trial to place them) — hip angles and moments take up the error",
+        )
+    ]  # fmt: skip

@@ -1,4 +1,4 @@
-"""The walking knee-contact gate (msk.contact_plausibility) on gait events and kinematics built
+"""The walking knee-contact gate (msk.gait_plausibility) on gait events and kinematics built
 in code."""
 
 from __future__ import annotations
@@ -7,12 +7,14 @@ from types import SimpleNamespace
 
 import numpy as np
 
-from msk.contact_plausibility import (
+from msk.events import GaitEvents
+from msk.gait_plausibility import (
     KNEE_CONTACT_WALKING_MAX_BW,
+    PELVIS_TILT_WALKING_MAX_DEG,
     gait_mode,
     knee_contact_flags,
+    pelvis_tilt_flags,
 )
-from msk.events import GaitEvents
 
 UP = np.array([0.0, 1.0, 0.0])
 
@@ -67,3 +69,22 @@ def test_a_walking_peak_above_the_bound_is_flagged_with_its_reference() -> None:
     # a run is not gated; NaN-only (no muscle forces) is not judged
     assert knee_contact_flags("run", {"generic": high}, "running", "flight") == []
     assert knee_contact_flags("walk", {"generic": np.full(5, np.nan)}, "walking", "") == []
+
+
+def _tilted(mean_deg: float) -> SimpleNamespace:
+    t = np.linspace(0.0, 2.0, 201)
+    tilt = np.radians(mean_deg + 2.0 * np.sin(2 * np.pi * t))
+    return SimpleNamespace(time=t, q=tilt[:, None], coordinate_names=("pelvis_tilt",))
+
+
+def test_an_undetermined_pelvis_tilt_is_flagged_in_a_walk() -> None:
+    (f,) = pelvis_tilt_flags("walk", _tilted(40.0), "walking", ("R.ASIS", "L.ASIS"))
+    assert f.quantity == "pelvis_tilt_mean_deg" and abs(f.value - 40.0) < 0.1
+    assert f.threshold == PELVIS_TILT_WALKING_MAX_DEG
+    assert "R.ASIS, L.ASIS" in f.message and "Kadaba et al. 1990" in f.message
+    (g,) = pelvis_tilt_flags("walk", _tilted(-35.0), "walking")
+    assert g.threshold == -PELVIS_TILT_WALKING_MAX_DEG
+    # a plausible walk, a run and a model without the coordinate are not flagged
+    assert pelvis_tilt_flags("walk", _tilted(12.0), "walking") == []
+    assert pelvis_tilt_flags("run", _tilted(40.0), "running") == []
+    assert pelvis_tilt_flags("walk", _kin(1.0), "walking") == []
