@@ -130,13 +130,15 @@ class ModelConfig:
         bounds=Range(-0.03, 0.03),
     )
     hip_centre: str = opt(
-        "where the hip joints sit in the pelvis: harrington (regression on the static's pelvic "
-        "width and depth, Harrington et al. 2007; within 5 mm of MRI, the most accurate "
-        "regression: the default), davis (Plug-in Gait's, Davis et al. 1991; leg length from "
-        "the ASIS-to-malleolus markers), bell (Bell et al. 1990), or model (the generic model's "
-        "hips scaled with its pelvis); needs both ASIS and both PSIS or a sacral marker, else "
-        "the model's, said in summary.json (msk.hip_centre)",
-        "harrington",
+        "where the hip joints sit in the pelvis: model (the generic model's hips scaled with "
+        "its pelvis: the default, see docs/validation.md), harrington (regression on the "
+        "static's pelvic width and depth, Harrington et al. 2007: within 5 mm of MRI; here "
+        "33-41 mm anterior of gait2392's, a better marker fit but in-vivo knee contact worse "
+        "with the current muscle calibration), davis (Plug-in Gait's, Davis et al. 1991; leg "
+        "length from the ASIS-to-malleolus markers), bell (Bell et al. 1990); a regression "
+        "needs a static trial with both ASIS and both PSIS or a sacral marker, else the "
+        "model's, said in summary.json (msk.hip_centre)",
+        "model",
         choices=("model", "harrington", "davis", "bell"),
     )
     markers: Path | None = opt(
