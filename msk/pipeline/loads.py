@@ -164,6 +164,19 @@ def run(inputs: SessionInputs, read: ReadResult, model: BuiltModel, kinematics: 
     plates: Iterator[Any] = (rotated_plate(p, rot) for p in read.plates or ())
     ext = assign_loads(inputs, model.model, read.trial, kinematics, plates, read.assignment)
     contact = foot_contact(model.model, kinematics, ext)
+    # a foot straddling its plate's edge: not measured there (msk.plate_footprint)
+    corners = {p.name: np.asarray(p.corners) @ np.asarray(rot, dtype=float).T
+               for p in read.plates or () if p.corners is not None}  # fmt: skip
+    if corners and contact.feet:
+        from msk.plate_footprint import plate_edge_frames
+
+        edge, records = plate_edge_frames(
+            model.model, kinematics, ext.assignments, corners,
+            -np.asarray(model.model.gravity, dtype=float), contact.feet,
+        )  # fmt: skip
+        if records:
+            contact = dataclasses.replace(contact, unmeasured=contact.unmeasured | edge)
+            ext = dataclasses.replace(ext, metadata={**ext.metadata, "plate_edge": records})
     # contact_measured's frames (msk.loads), from the same per-foot test
     measured = contact.known & ~contact.unmeasured.any(axis=1) & ~ext.flagged()
     obs = observed_frames(model.model, kinematics)

@@ -560,6 +560,17 @@ def run(
     quality["flags"] += [
         f.as_dict() for f in pelvis_tilt_flags(inputs.task.name, kin, mode, on_pelvis)
     ]
+    for e in loads.external.metadata.get("plate_edge", ()):
+        quality["flags"].append(
+            {"trial": inputs.task.name, "quantity": "foot_past_plate_edge_m",
+             "value": e["max_outside_m"], "threshold": 0.01,
+             "message": f"{e['foot']} straddles the edge of {e['plate']} from "
+             f"{e['start_s']:.2f} to {e['end_s']:.2f} s ({e['frames']} frames, up to "
+             f"{100 * e['max_outside_m']:.0f} cm past it): part of its ground reaction is "
+             "off the plate, so those frames count as an unmeasured contact (no joint "
+             "torques of that leg, residual, muscle force or knee contact from them; "
+             "msk.plate_footprint)"}
+        )  # fmt: skip
     quality["thresholds"] = dict(THRESHOLDS)
     quality["held_coordinates"] = sorted(model.held)
     ev = gait_cycle.events
