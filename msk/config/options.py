@@ -163,6 +163,18 @@ class ModelConfig:
         unit="m",
         bounds=Range(-0.03, 0.03),
     )
+    hip_centre: str = opt(
+        "where the hip joints sit in the pelvis: model (the generic model's hips scaled with "
+        "its pelvis: the default, see docs/validation.md), harrington (regression on the "
+        "static's pelvic width and depth, Harrington et al. 2007: within 5 mm of MRI; here "
+        "33-41 mm anterior of gait2392's, a better marker fit but in-vivo knee contact worse "
+        "with the current muscle calibration), davis (Plug-in Gait's, Davis et al. 1991; leg "
+        "length from the ASIS-to-malleolus markers), bell (Bell et al. 1990); a regression "
+        "needs a static trial with both ASIS and both PSIS or a sacral marker, else the "
+        "model's, said in summary.json (msk.personalise.hip_centre)",
+        "model",
+        choices=("model", "harrington", "davis", "bell"),
+    )
     markers: Path | None = opt(
         "an OpenSim marker set (.xml) for a model whose markers are kept apart (stock .osim)",
         None,

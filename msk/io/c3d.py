@@ -712,6 +712,28 @@ def _events(params: Mapping[str, Any]) -> tuple[Event, ...]:
     return tuple(sorted(out, key=lambda e: (e.time, e.context, e.label)))
 
 
+def _gait_events(events: tuple[Event, ...]) -> tuple[tuple[Event, ...], str]:
+    """The events with every foot strike/off naming read as Vicon's (``LHS`` → ``Foot Strike``
+    ``Left``…, :func:`msk.io.event_labels.standard_events`), the others kept as they are; and a
+    message naming the labels not read as gait events ("" when every one was)."""
+    from msk.io.event_labels import standard_events
+
+    ok, other = standard_events(events)
+    out = tuple(sorted((*ok, *other), key=lambda e: (e.time, e.context, e.label)))
+    # Vicon's generic, deliberately unnamed events ("Event", "General Event") are no gait
+    # events by design: not reported
+    other = tuple(e for e in other if e.label.strip().lower() not in ("event", "general event"))
+    if not other:
+        return out, ""
+    names = sorted({f"{e.context} {e.label!r}".strip() for e in other})
+    return out, (
+        f"{len(other)} event(s) not read as a foot strike or foot off of a side: "
+        f"{', '.join(names)} (read: Vicon's 'Foot Strike'/'Foot Off' with a Left/Right context, "
+        "LHS/RHS/LTO/RTO and the like: msk.io.event_labels); the gait events are taken from "
+        "the plates and the kinematics where the file has none"
+    )
+
+
 # ---------------------------------------------------------------------------------------------
 # force platforms (vectorised)
 # ---------------------------------------------------------------------------------------------
@@ -1301,6 +1323,9 @@ def read_c3d(
             f"{path}: event {bad_ev[0].context} {bad_ev[0].label!r} has time {bad_ev[0].time} "
             "(EVENT:TIMES not finite)"
         )
+    events, unknown_ev = _gait_events(events)
+    if unknown_ev:
+        warnings.append(unknown_ev)
     vertical_axis, up = _vertical(params, plates)
     meta = {
         "first_frame": first,

@@ -37,7 +37,9 @@ class MarkerOptions:
 class PersonaliseOptions:
     """What :func:`msk.personalise.personalise` does: the subject (``mass_kg``, ``height_m``
     — None: unknown —, the ``side`` of interest, ``"left"`` or ``"right"``), whether the model
-    is scaled (``scale``), the knee's alignment, the lab's markers, the model file's name
+    is scaled (``scale``), where the hip joint centres go (``hip_centre``: the model's own,
+    or a regression from the static trial's pelvis markers, :mod:`msk.personalise.hip_centre`),
+    the knee's alignment, the lab's markers, the model file's name
     reported as the source (``source``) and the prefix of configuration errors (``origin``:
     the configuration file)."""
 
@@ -45,6 +47,7 @@ class PersonaliseOptions:
     height_m: float | None = None
     side: str = "right"
     scale: bool = True
+    hip_centre: str = "model"
     knee_alignment: KneeAlignmentOptions = field(default_factory=KneeAlignmentOptions)
     markers: MarkerOptions = field(default_factory=MarkerOptions)
     source: str = ""

@@ -190,6 +190,7 @@ def scale_and_place(
         held_foot_coordinates,
         held_static_knees,
     )
+    from msk.personalise.hip_centre import no_static_hip_centre, place_hip_centres
     from msk.personalise.scaling import (
         place_markers,
         place_markers_from_motion,
@@ -295,6 +296,10 @@ def scale_and_place(
                 widths_m=widths, marker_diameter_m=mdiam, functional=functional,
             )  # fmt: skip
         model = _aligned(opts, model, sm, slabels)
+        model, info["hip_centre"] = place_hip_centres(
+            model, sm, slabels, method=opts.hip_centre,
+            marker_radius_m=0.007 if mdiam is None else 0.5 * float(mdiam),
+        )  # fmt: skip
         centres, jc_move = chord_centres(model, sm, slabels, widths, mdiam)
         try:
             model, placed = place_markers(
@@ -342,6 +347,7 @@ def scale_and_place(
                 body_mass=opts.mass_kg, functional=functional, workspace=workspace,
             )  # fmt: skip
         model = _aligned(opts, model, xm, mlabels)
+        info["hip_centre"] = no_static_hip_centre(opts.hip_centre)
         # the lab's foot markers: where they sit on the foot is the lab's choice and nothing
         # but the motion tells (msk.model.markersets.foot_markers), so they are moved too
         present = [mk.name for mk in model.markers if mk.name in set(mlabels)]
@@ -540,9 +546,15 @@ def personalise(
     """
     from msk.personalise.coordinates import held_foot_coordinates, knee_flexion_to_physiological
     from msk.personalise.task_markers import swap_back
+    from msk.personalise.virtual_markers import with_virtual_sacrum
 
     opts = options
     trial, swapped = swap_back(task)
+    sacrum = None
+    if static is None:
+        # no static: the PSIS midpoint stands for a missing sacral marker
+        # (msk.personalise.virtual_markers)
+        trial, sacrum = with_virtual_sacrum(trial, model)
 
     def again(
         functional: Mapping[str, float] | None = None,
@@ -615,6 +627,8 @@ def personalise(
         built.info["leg_split"] = {side: sp.summary() for side, sp in split.items()}
     if swapped:
         built.info["marker_set"]["swapped_back"] = swapped
+    if sacrum is not None:
+        built.info["virtual_markers"] = [sacrum]
     # after scaling and placement (whose passes keep the generic bounds): the task's IK and
     # every later stage
     final, widened = knee_flexion_to_physiological(built.model)

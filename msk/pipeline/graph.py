@@ -168,7 +168,7 @@ GRAPH: tuple[Node, ...] = (
     Node("summary", summary.run, (),
          (*_ALL, "mass_identification", "inverse_dynamics", "emg",
           "tension_optimization", "strength_identification", "gait_cycle", "comparison", "fes",
-          "swapped_markers", "joint_strength"),
+          "swapped_markers", "joint_strength", "knee_contact"),
          recorded=False, gait=False),
     Node("report", report.run, ("tables", "summary"), settings=report.settings, core=True,
          gait=False),

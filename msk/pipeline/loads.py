@@ -12,6 +12,7 @@ from typing import Any
 import numpy as np
 
 from msk.dynamics.loads import ASSIGNMENT_METHOD, rotated_plate
+from msk.dynamics.plate_footprint import exclude_plate_edges
 from msk.kinematics.observation import OBSERVATION_METHOD
 from msk.personalise import Personalisation
 from msk.pipeline.inputs import SessionInputs
@@ -45,6 +46,10 @@ def run(inputs: SessionInputs, read: ReadResult, model: Personalisation, kinemat
     plates: Iterator[Any] = (rotated_plate(p, rot) for p in read.plates or ())
     ext = inputs.external_loads(model.model, read.trial, kinematics, plates, read.assignment)
     contact = foot_contact(model.model, kinematics, ext)
+    # a foot straddling its plate's edge: not measured there (msk.dynamics.plate_footprint)
+    corners = {p.name: np.asarray(p.corners) @ np.asarray(rot, dtype=float).T
+               for p in read.plates or () if p.corners is not None}  # fmt: skip
+    contact, ext = exclude_plate_edges(model.model, kinematics, ext, contact, corners)
     # contact_measured's frames (msk.dynamics.loads), from the same per-foot test
     measured = contact.known & ~contact.unmeasured.any(axis=1) & ~ext.flagged()
     obs = observed_frames(model.model, kinematics)

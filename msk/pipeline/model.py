@@ -76,7 +76,7 @@ def options(inputs: SessionInputs) -> PersonaliseOptions:
     )
     return PersonaliseOptions(
         mass_kg=inputs.mass_kg, height_m=cfg.subject.height_m, side=cfg.subject.side,
-        scale=mc.scale,
+        scale=mc.scale, hip_centre=mc.hip_centre,
         knee_alignment=KneeAlignmentOptions(
             source=source, varus_deg=mc.knee_varus_deg, medial_shift_m=mc.knee_medial_shift_m
         ),

@@ -24,7 +24,13 @@ from msk.muscles.emg import EmgActivations
 from msk.optimization.muscle_forces import MuscleForces
 from msk.personalise import Personalisation
 from msk.pipeline.inputs import SessionInputs, plain_settings
-from msk.pipeline.records import FesResult, GaitCycle, Loads, StrengthIdentification
+from msk.pipeline.records import (
+    FesResult,
+    GaitCycle,
+    KneeContact,
+    Loads,
+    StrengthIdentification,
+)
 from msk.pipeline.runner import file_sha256, versions
 
 __all__ = [
@@ -529,6 +535,7 @@ def run(
     fes: FesResult | None,
     swapped_markers: Sequence[tuple[str, str, float]] | None,
     joint_strength: Mapping[str, Any] | None,
+    knee_contact: KneeContact | None = None,
 ) -> dict[str, Any]:
     """``summary.json`` without the stage records; a pure FES session has the base summary,
     no angle columns, an empty quality block and the ``fes`` section."""
@@ -551,6 +558,31 @@ def run(
     quality["plate_mass_kg"] = plate_mass
     pairs = () if swapped_markers is None else swapped_markers
     quality["flags"] = _flags(inputs, quality, model, kin, loads, pairs, jt, sol, plate_mass)
+    from msk.kinematics.gait_plausibility import gait_mode, knee_contact_flags, pelvis_tilt_flags
+
+    mode, why = gait_mode(gait_cycle.events, kin, -np.asarray(mdl.gravity, dtype=float))
+    if knee_contact is not None:
+        bw = {v: np.asarray(c.total, dtype=float) / inputs.body_weight
+              for v, c in knee_contact.variants.items()}  # fmt: skip
+        quality["flags"] += [
+            f.as_dict() for f in knee_contact_flags(inputs.task.name, bw, mode, why)
+        ]
+    on_pelvis = tuple(m.name for m in mdl.markers if m.body == "pelvis"
+                      and m.name in set(model.labels))  # fmt: skip
+    quality["flags"] += [
+        f.as_dict() for f in pelvis_tilt_flags(inputs.task.name, kin, mode, on_pelvis)
+    ]
+    for e in loads.external.metadata.get("plate_edge", ()):
+        quality["flags"].append(
+            {"trial": inputs.task.name, "quantity": "foot_past_plate_edge_m",
+             "value": e["max_outside_m"], "threshold": 0.01,
+             "message": f"{e['foot']} straddles the edge of {e['plate']} from "
+             f"{e['start_s']:.2f} to {e['end_s']:.2f} s ({e['frames']} frames, up to "
+             f"{100 * e['max_outside_m']:.0f} cm past it): part of its ground reaction is "
+             "off the plate, so those frames count as an unmeasured contact (no joint "
+             "torques of that leg, residual, muscle force or knee contact from them; "
+             "msk.dynamics.plate_footprint)"}
+        )  # fmt: skip
     quality["thresholds"] = dict(THRESHOLDS)
     quality["held_coordinates"] = sorted(model.held)
     ev = gait_cycle.events
