@@ -200,9 +200,32 @@ def _session_dirs(configs: Sequence[str | Path], out: Path) -> list[Path]:
     return dirs
 
 
+def _check_cohort_replaceable(path: Path) -> None:
+    """Refuse to replace ``path`` unless it is absent or a cohort table msk wrote: a regular
+    file (not a symbolic link) whose first line is the :data:`COHORT_COLUMNS` header."""
+    if not os.path.lexists(path):
+        return
+    header = ",".join(COHORT_COLUMNS)
+    ours = False
+    if not path.is_symlink() and path.is_file():
+        try:
+            with open(path, encoding="utf-8", newline="") as fh:
+                ours = fh.readline(len(header) + 2).rstrip("\r\n") == header
+        except (OSError, UnicodeDecodeError):
+            ours = False
+    if not ours:
+        raise BatchError(
+            f"{path}: exists and msk did not write it (not a cohort table of msk batch); "
+            "refusing to replace it: move it or choose another --out"
+        )
+
+
 def write_cohort_csv(path: str | Path, rows: Sequence[Mapping[str, Any]]) -> Path:
-    """The cohort table (one row per session, :data:`COHORT_COLUMNS`), written atomically."""
+    """The cohort table (one row per session, :data:`COHORT_COLUMNS`), written atomically;
+    a ``cohort.csv`` msk did not write (or a symbolic link) is never replaced
+    (:class:`~msk.exceptions.BatchError`)."""
     path = Path(path)
+    _check_cohort_replaceable(path)
     buf = io.StringIO()
     w = csv.DictWriter(buf, fieldnames=list(COHORT_COLUMNS), lineterminator="\n")
     w.writeheader()
@@ -270,6 +293,7 @@ def run_batch(
         )
     out = Path(out_dir).resolve()
     out.mkdir(parents=True, exist_ok=True)
+    _check_cohort_replaceable(out / "cohort.csv")  # before hours of work, not after
     cfgs = [str(Path(c).resolve()) for c in configs]
     dirs = [str(d) for d in _session_dirs(cfgs, out)]
     done: dict[int, SessionOutcome] = {}

@@ -364,7 +364,7 @@ class Mutable:
 
 @pytest.fixture
 def msk_test_module(monkeypatch):
-    mod = types.ModuleType("msk._cache_test_types")
+    mod = types.ModuleType("msk.cache_test_types")  # a library module's name (not private)
     for cls in (Colour, Slotted, Mutable):
         monkeypatch.setattr(cls, "__module__", mod.__name__)
         setattr(mod, cls.__qualname__, cls)

@@ -1,0 +1,279 @@
+"""A results folder is untrusted input: planted symlinks, foreign leftovers, user tables,
+forged cache entries and poisoned summaries (msk.results, msk.cache, msk.report, msk.batch)."""
+
+from __future__ import annotations
+
+import json
+import os
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from msk._secure import MARKER, read_marker, write_marker
+from msk.cache import StageCache
+from msk.exceptions import FileFormatError
+from msk.io.opensim_files import Table
+from msk.report import render_html, write_report
+from msk.results import SessionResults, check_replaceable, read_session, write_session
+
+BASE = {
+    "session": "S1",
+    "created_utc": "2026-01-01T00:00:00Z",
+    "versions": {"msk": "0.1.0"},
+    "config": {"path": "s.toml", "sha256": "0" * 64},
+    "inputs": [{"role": "task", "path": "t.c3d", "sha256": "1" * 64, "bytes": 10}],
+    "settings": {"subject": {"name": "S1"}},
+    "subject": {"name": "S1", "mass_kg": 70.0, "height_m": None, "side": "left"},
+    "quality": {},
+    "stages": [],
+    "not_available": [],
+}
+DEAD = 2**22 + 12345  # above pid_max's default: no such process
+
+
+def _results(**extra: object) -> SessionResults:
+    t = np.linspace(0.0, 1.0, 11)
+    q = Table(t, np.column_stack([np.sin(t)]), ("knee_angle_l",), "q")
+    return SessionResults({"q": q}, {**BASE, **extra}, angle_columns=("knee_angle_l",))
+
+
+def _tree(root: Path) -> dict[str, bytes | str]:
+    """Every entry under ``root`` (links by target), to compare before/after."""
+    out: dict[str, bytes | str] = {}
+    for p in sorted(root.rglob("*")):
+        rel = p.relative_to(root).as_posix()
+        if p.is_symlink():
+            out[rel] = "-> " + os.readlink(p)
+        elif p.is_file():
+            out[rel] = p.read_bytes()
+        else:
+            out[rel] = "dir"
+    return out
+
+
+# ----------------------------------------------------------------- planted symlinks
+def test_report_never_writes_through_planted_symlinks(tmp_path, monkeypatch):
+    import msk.report.html as h
+
+    monkeypatch.setattr(h, "chromium_executable", lambda: None)  # the PDF then fails
+    out = write_session(tmp_path / "s", _results())
+    victim = tmp_path / "victim"
+    victim.mkdir()
+    (victim / "authorized_keys").write_text("ssh-ed25519 AAAA precious\n")
+    (victim / "other").write_text("precious too\n")
+    (out / ".report.html.tmp").symlink_to(victim / "authorized_keys")
+    (out / "report.html").symlink_to(victim / "other")
+    (out / "report.pdf").symlink_to(victim / "other")
+    before = _tree(victim)
+    write_report(read_session(out), out, figures={}, pdf=True)
+    assert _tree(victim) == before
+    assert not (out / "report.html").is_symlink() and (out / "report.html").is_file()
+    # a failed PDF leaves no report.pdf of other results behind (the link removed, not its
+    # target)
+    assert not os.path.lexists(out / "report.pdf")
+
+
+def test_pdf_is_printed_privately_then_moved_over_a_planted_link(tmp_path, monkeypatch):
+    import msk.report.html as h
+
+    victim = tmp_path / "victim.txt"
+    victim.write_text("precious\n")
+    page = tmp_path / "r.html"
+    page.write_text("<!DOCTYPE html><html><head></head><body>x</body></html>")
+    (tmp_path / "r.pdf").symlink_to(victim)
+    seen: list[str] = []
+
+    def fake_chromium(cmd, **kw):
+        target = next(a for a in cmd if a.startswith("--print-to-pdf=")).split("=", 1)[1]
+        seen.append(target)
+        Path(target).write_bytes(b"%PDF-1.4 fake")
+
+    monkeypatch.setattr(h, "chromium_executable", lambda: "/bin/true")
+    monkeypatch.setattr(h.subprocess, "run", fake_chromium)
+    with pytest.warns(h.ChromiumSandboxWarning) if not h.sandbox_possible() else _nowarn():
+        assert h.write_pdf(page, tmp_path / "r.pdf")
+    assert victim.read_text() == "precious\n"
+    assert not (tmp_path / "r.pdf").is_symlink()
+    assert (tmp_path / "r.pdf").read_bytes() == b"%PDF-1.4 fake"
+    assert seen and not seen[0].startswith(str(tmp_path))  # Chromium wrote elsewhere
+
+
+class _nowarn:
+    def __enter__(self) -> None:
+        return None
+
+    def __exit__(self, *a: object) -> None:
+        return None
+
+
+def test_a_cache_that_is_a_symlink_is_not_followed(tmp_path):
+    out = write_session(tmp_path / "s", _results())
+    elsewhere = tmp_path / "elsewhere"
+    elsewhere.mkdir()
+    (elsewhere / ".old.tmp").write_text("x")
+    os.utime(elsewhere / ".old.tmp", (0, 0))  # what prune would remove as abandoned
+    (out / ".cache").symlink_to(elsewhere, target_is_directory=True)
+    before = _tree(elsewhere)
+    cache = StageCache(out / ".cache")
+    assert not cache.save("kinematics", "k", {"q": np.ones(3)})
+    assert cache.load("kinematics", "k") == (False, None)
+    cache.prune()
+    assert _tree(elsewhere) == before
+    # the next run does not carry the link over as its cache
+    write_session(out, _results())
+    assert not os.path.lexists(out / ".cache") and _tree(elsewhere) == before
+
+
+# ----------------------------------------------------------------- what msk may delete
+def test_sibling_folders_msk_did_not_create_are_never_removed(tmp_path):
+    out = write_session(tmp_path / "s", _results())
+    mine = [f".s.old-{DEAD}", f".s.tmp-{DEAD}-abc", f".s.old-{DEAD}-x", ".s.tmp-1-y"]
+    for name in mine:
+        (tmp_path / name).mkdir()
+        (tmp_path / name / "thesis.docx").write_text("precious")
+    # a forged marker (not made with this user's key) proves nothing
+    forged = json.loads(json.dumps({"kind": "old", "target": "s", "pid": DEAD, "mac": "0" * 64}))
+    (tmp_path / f".s.old-{DEAD}" / MARKER).write_text(json.dumps(forged))
+    before = _tree(tmp_path)
+    write_session(out, _results())
+    after = _tree(tmp_path)
+    for name in mine:
+        assert {k: v for k, v in after.items() if k.startswith(name)} == {
+            k: v for k, v in before.items() if k.startswith(name)
+        }
+
+
+def test_a_refused_run_removes_nothing(tmp_path):
+    out = write_session(tmp_path / "s", _results())
+    leftover = tmp_path / f".s.tmp-{DEAD}-abc"
+    leftover.mkdir()
+    write_marker(leftover, "tmp", "s", pid=DEAD)  # provably a dead msk writer's
+    (out / "notes.txt").write_text("mine")  # makes the run refused
+    with pytest.raises(FileFormatError, match="did not write"):
+        check_replaceable(out)
+    assert leftover.is_dir()
+    (out / "notes.txt").unlink()
+    check_replaceable(out)  # accepted: now the dead writer's folder goes
+    assert not leftover.exists()
+
+
+def test_a_writer_in_another_pid_namespace_or_boot_is_assumed_alive(tmp_path):
+    out = write_session(tmp_path / "s", _results())
+    for field, value in (("pid_ns", "pid:[1]"), ("boot_id", "another-boot"), ("host", "h2")):
+        leftover = tmp_path / f".s.tmp-{DEAD}-{field}"
+        leftover.mkdir()
+        write_marker(leftover, "tmp", "s", pid=DEAD)
+        rec = json.loads((leftover / MARKER).read_text())
+        import msk._secure as sec
+
+        rec[field] = value
+        rec["mac"] = sec._marker_mac(rec)  # a genuine marker written elsewhere
+        (leftover / MARKER).write_text(json.dumps(rec))
+        assert read_marker(leftover, "tmp", "s") is not None
+    write_session(out, _results())
+    assert len([p for p in tmp_path.iterdir() if p.name.startswith(".s.tmp-")]) == 3
+
+
+def test_user_files_in_tables_are_never_deleted(tmp_path):
+    out = write_session(tmp_path / "s", _results())
+    (out / "tables" / "my_analysis.csv").write_text("time,x\n0,1\n")
+    (out / "tables" / "trial2.mot").write_text("precious")
+    with pytest.raises(FileFormatError, match="did not write"):
+        write_session(out, _results())
+    assert (out / "tables" / "my_analysis.csv").read_text() == "time,x\n0,1\n"
+    assert (out / "tables" / "trial2.mot").read_text() == "precious"
+    # a symlink in place of a table msk wrote is not msk's either
+    (out / "tables" / "my_analysis.csv").unlink()
+    (out / "tables" / "trial2.mot").unlink()
+    (out / "tables" / "q.csv").unlink()
+    (out / "tables" / "q.csv").symlink_to(tmp_path / "x")
+    with pytest.raises(FileFormatError, match="did not write"):
+        write_session(out, _results())
+
+
+# ----------------------------------------------------------------- forged cache entries
+def test_a_forged_cache_entry_is_not_trusted(tmp_path, monkeypatch):
+    cache = StageCache(tmp_path / ".cache")
+    assert cache.save("kinematics", "k", {"q": np.zeros(3)})
+    manifest, _ = cache.paths("kinematics", "k")
+    # whoever wrote the folder recomputes the checksum from msk's own code: without the
+    # user's key the forged entry does not authenticate
+    import msk._secure as sec
+
+    sec._user_key.cache_clear()
+    sec._process_key.cache_clear()
+    monkeypatch.setenv("XDG_CACHE_HOME", str(tmp_path / "attacker-home"))
+    forger = StageCache(tmp_path / ".cache")
+    assert forger.save("kinematics", "k", {"q": np.full(3, 0.2)})
+    monkeypatch.undo()
+    sec._user_key.cache_clear()
+    hit, value = StageCache(tmp_path / ".cache").load("kinematics", "k")
+    assert not hit and value is None and not manifest.exists()
+
+
+def test_a_manifest_cannot_name_an_entry_point_or_private_module():
+    import sys
+
+    import msk.cache as c
+
+    for ref in ("msk.cli.__main__:X", "msk.cli:Command", "msk.cli.batch:X", "msk._fork:X"):
+        before = set(sys.modules)
+        with pytest.raises(ValueError, match="library module"):
+            c._msk_class(ref)
+        assert set(sys.modules) == before  # nothing imported
+    assert c._msk_class("msk.loads:ExternalLoads").__name__ == "ExternalLoads"
+
+
+# ----------------------------------------------------------------- poisoned summaries
+HOSTILE = (
+    '"><iframe src="file:///etc/passwd"></iframe><meta http-equiv="refresh" content="0;url=x">'
+    "<style>body{display:none}</style><img src=http://x/y>"
+)
+
+
+def _assert_inert(html: str) -> None:
+    low = html.lower()
+    for tag in ("<iframe", '<meta http-equiv="refresh', "<img", "<style>body"):
+        assert tag not in low, tag
+    assert low.count("<style>") == 1  # the report's own
+
+
+def test_every_summary_string_is_escaped(tmp_path):
+    methods = {"plate_assignment": HOSTILE, "filtering": HOSTILE}
+    res = _results(methods=methods, trial=HOSTILE, session=HOSTILE)
+    html = render_html(res, figures={})
+    _assert_inert(html)
+    assert "&lt;iframe" in html
+
+
+def test_the_csp_forbids_frames_loads_and_the_pdf_page_has_no_refresh():
+    from msk.report.html import CONTENT_SECURITY_POLICY, without_scripts
+
+    for rule in ("default-src 'none'", "frame-src 'none'", "script-src 'none'"):
+        assert rule in CONTENT_SECURITY_POLICY
+    page = without_scripts(
+        '<html><head><META HTTP-EQUIV=Refresh content="0;url=about:blank"></head><p>x</html>'
+    )
+    assert "refresh" not in page.lower()
+
+
+# ----------------------------------------------------------------- batch
+def test_batch_never_overwrites_a_cohort_csv_it_did_not_write(tmp_path):
+    from msk.batch import write_cohort_csv
+    from msk.exceptions import BatchError
+
+    mine = tmp_path / "cohort.csv"
+    mine.write_text("my own cohort table\n")
+    with pytest.raises(BatchError, match="did not write"):
+        write_cohort_csv(mine, [{"session": "a", "status": "ok"}])
+    assert mine.read_text() == "my own cohort table\n"
+    other = tmp_path / "b" / "cohort.csv"
+    write_cohort_csv(other, [{"session": "a", "status": "ok"}])
+    write_cohort_csv(other, [{"session": "a", "status": "failed"}])  # its own: replaced
+    assert "failed" in other.read_text()
+    (tmp_path / "c").mkdir()
+    (tmp_path / "c" / "cohort.csv").symlink_to(mine)
+    with pytest.raises(BatchError, match="did not write"):
+        write_cohort_csv(tmp_path / "c" / "cohort.csv", [{"session": "a"}])
+    assert mine.read_text() == "my own cohort table\n"
