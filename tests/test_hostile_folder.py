@@ -277,3 +277,98 @@ def test_batch_never_overwrites_a_cohort_csv_it_did_not_write(tmp_path):
     with pytest.raises(BatchError, match="did not write"):
         write_cohort_csv(tmp_path / "c" / "cohort.csv", [{"session": "a"}])
     assert mine.read_text() == "my own cohort table\n"
+
+
+REPO = Path(__file__).resolve().parents[1]
+
+
+@pytest.fixture(scope="module")
+def gc5(tmp_path_factory):
+    from msk.pipeline import run_session
+
+    out = tmp_path_factory.mktemp("hostile") / "gc5"
+    run_session(REPO / "pipelines" / "gc5_PS.toml", out)
+    return read_session(out)
+
+
+def _poison(x: object, keys: bool, depth: int = 0) -> object:
+    """Every string (and, with ``keys``, every key of a nested map) followed by HOSTILE; the
+    status words stay valid (they are checked, not shown as written)."""
+    from msk.status import Status
+
+    words = {s.value for s in Status}
+    if isinstance(x, dict):
+        return {
+            (k + HOSTILE if keys and depth >= 2 and isinstance(k, str) else k): _poison(
+                v, keys, depth + 1
+            )
+            for k, v in x.items()
+        }
+    if isinstance(x, list):
+        return [_poison(v, keys, depth + 1) for v in x]
+    if isinstance(x, str) and x not in words:
+        return x + HOSTILE
+    return x
+
+
+def test_no_string_of_a_real_summary_can_inject_markup(gc5):
+    """Every string of a real session's summary.json (and the keys of its nested maps, one
+    section at a time) poisoned: the report stays inert."""
+    from msk.exceptions import SummaryError
+    from msk.summary import Summary
+
+    d = gc5.summary.to_dict()
+    variants = [_poison(d, False)]
+    variants += [
+        {**_poison(d, False), top: _poison(d[top], True, 1)}  # type: ignore[dict-item]
+        for top in d
+        if isinstance(d[top], (dict, list))
+    ]
+    rendered = 0
+    for h in variants:
+        assert isinstance(h, dict)
+        h.update(format=d["format"], tables=d["tables"])
+        try:
+            s = Summary.from_json(json.dumps(h))
+        except SummaryError:
+            continue  # a poisoned schema key: refused, not rendered
+        res = SessionResults(gc5.tables, s, gc5.path, gc5.angle_columns)
+        _assert_inert(render_html(res, figures={}))
+        rendered += 1
+    assert rendered >= 10
+
+
+@pytest.mark.parametrize(
+    "poison",
+    [
+        lambda d: d["stages"].__setitem__(0, {**d["stages"][0], "status": "pwned\x1b[2J"}),
+        lambda d: d["strength"]["groups"][0].__setitem__("status", "bogus"),
+        lambda d: d["model"].__setitem__("static_window", {"still_below_m_s": "fast"}),
+    ],
+)
+def test_msk_report_on_a_malformed_summary_is_one_line(gc5, tmp_path, capsys, poison):
+    import shutil
+
+    from msk.cli import main
+
+    out = tmp_path / "s"
+    shutil.copytree(gc5.path, out)
+    d = json.loads((out / "summary.json").read_text())
+    poison(d)
+    (out / "summary.json").write_text(json.dumps(d))
+    code = main(["report", str(out)])
+    err = capsys.readouterr().err
+    assert code in (0, 2)
+    if code == 2:
+        assert err.startswith("msk: error:") and err.count("\n") == 1 and "Traceback" not in err
+
+
+def test_msk_report_on_a_very_deep_summary_is_one_line(tmp_path, capsys):
+    from msk.cli import main
+
+    out = tmp_path / "s"
+    out.mkdir()
+    (out / "summary.json").write_text("[" * 200_000 + "]" * 200_000)
+    assert main(["report", str(out)]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith("msk: error:") and err.count("\n") == 1

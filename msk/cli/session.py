@@ -90,10 +90,20 @@ def _report_args(p: argparse.ArgumentParser) -> None:
 
 
 def _report(args: argparse.Namespace) -> int:
+    from msk.exceptions import SummaryError
     from msk.report import write_report
     from msk.results import read_session
 
-    path = write_report(read_session(args.folder), args.folder, pdf=args.pdf)
+    res = read_session(args.folder)
+    try:
+        path = write_report(res, args.folder, pdf=args.pdf)
+    except (ValueError, TypeError, KeyError, IndexError, AttributeError, RecursionError) as exc:
+        # a received folder's summary.json that passes the schema but not the report's reading
+        # (an unknown status word, a string where a window is expected): one line, no traceback
+        raise SummaryError(
+            f"{args.folder / 'summary.json'}: cannot be reported "
+            f"({type(exc).__name__}: {' '.join(str(exc).split())[:200]})"
+        ) from None
     sys.stdout.write(f"{path}\n")
     return 0
 
