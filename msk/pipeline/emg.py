@@ -26,7 +26,8 @@ class EmgActivations:
     """Per model muscle with an EMG channel: ``envelopes`` and ``activation`` (N, m) on the
     kinematics' time base (activation NaN for unusable channels), the channel each muscle reads
     (``sources``), ``usable`` (m,), the normalisation used, the reader's warnings and the
-    per-channel :class:`msk.muscles.emg.ChannelQuality`."""
+    per-channel :class:`msk.muscles.emg.ChannelQuality` and the raw channels' single-sample
+    faults (repaired or channel excluded)."""
 
     normalisation: str
     muscles: tuple[str, ...]
@@ -36,6 +37,8 @@ class EmgActivations:
     usable: np.ndarray
     warnings: Sequence[str]
     quality: Any
+    #: single-sample faults of the raw channels (msk.muscles.emg_faults.SampleFaults)
+    sample_faults: tuple[Any, ...] = ()
 
     def column(self, muscle: str) -> int:
         """Index of ``muscle`` in :attr:`muscles`."""
@@ -108,5 +111,5 @@ def run(
         "MVC" if (mvc or cfg.emg.mvc) else "this session's peak (relative activations, not "
         "strength)",
         tuple(env_k.muscle_names), tuple(env_k.muscle_sources), env_k.envelopes, act,
-        np.asarray(env_k.usable), list(env.warnings), env.quality,
+        np.asarray(env_k.usable), list(env.warnings), env.quality, tuple(env.sample_faults),
     )  # fmt: skip

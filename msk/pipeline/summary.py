@@ -544,6 +544,10 @@ def run(
     quality["plate_mass_kg"] = plate_mass
     pairs = () if swapped_markers is None else swapped_markers
     quality["flags"] = _flags(inputs, quality, model, kin, loads, pairs, jt, sol, plate_mass)
+    if emg is not None:  # a glitch in a raw EMG channel, repaired or the channel excluded
+        from msk.muscles.emg_faults import fault_flags
+
+        quality["flags"] += fault_flags(inputs.task.name, emg.sample_faults)
     quality["thresholds"] = dict(THRESHOLDS)
     quality["held_coordinates"] = sorted(model.held)
     ev = gait_cycle.events
