@@ -3,9 +3,12 @@
 ``run_batch(configs, out)`` runs :func:`msk.pipeline.run_session` for every configuration into
 ``out/<session>/`` (``<session>`` = the config file's stem, made unique), in parallel:
 
-* ``scheduler=None``: a local :class:`concurrent.futures.ProcessPoolExecutor` (``forkserver``
-  start method: every worker is forked from a server that imported msk once, no forked
-  solver state; ``spawn`` where there is no forkserver);
+* ``scheduler=None``: local child processes, one per session, ``workers`` at a time
+  (:func:`msk._isolated.run_isolated`; ``forkserver`` start method: every child is forked from
+  a server that imported msk once, no forked solver state; ``spawn`` where there is no
+  forkserver): a child killed by a signal costs only its session (run once more, then failed
+  with the signal's name), one over the time limit is killed and failed, and the children's
+  ``sys.path`` does not start with the current folder;
 * ``scheduler="tcp://host:8786"`` (or a ``distributed.Client``): the sessions are mapped on a
   Dask distributed cluster; the workers need msk installed and the paths visible.
 
@@ -40,6 +43,7 @@ from msk.summary import Summary, as_summary
 
 __all__ = [
     "COHORT_COLUMNS",
+    "SESSION_TIME_LIMIT_S",
     "BatchResult",
     "SessionOutcome",
     "compare_sessions",
@@ -240,6 +244,10 @@ def write_cohort_csv(path: str | Path, rows: Sequence[Mapping[str, Any]]) -> Pat
     return path
 
 
+#: a local batch's default time limit per session (s): far above any session's run (a long
+#: trial takes minutes), it ends one that hangs or was stopped
+SESSION_TIME_LIMIT_S = 3600.0
+
 #: what a session imports, imported once by the forkserver the pool's workers are forked from
 WORKER_PRELOAD = (
     "msk.pipeline",
@@ -276,8 +284,15 @@ def run_batch(
     workers: int | None = None,
     use_cache: bool = True,
     progress: Any = None,
+    time_limit_s: float | None = None,
 ) -> BatchResult:
-    """Run every session configuration into ``out_dir/<session>/`` (see the module docstring)."""
+    """Run every session configuration into ``out_dir/<session>/`` (see the module docstring).
+
+    Locally each session runs in a child process of its own (:func:`msk._isolated.run_isolated`):
+    a worker killed by a signal (a native crash, the OOM killer) costs only its session, which
+    is run once more and then reported failed with the signal; a session running longer than
+    ``time_limit_s`` (default :data:`SESSION_TIME_LIMIT_S`; hung, or stopped) is killed and
+    reported failed at the time limit. ``cohort.csv`` is always written, one row per session."""
     t0 = _time.perf_counter()
     if not configs:
         raise BatchError("no session configurations given")
@@ -285,6 +300,9 @@ def run_batch(
         raise BatchError(f"workers = {workers!r} should be an integer ≥ 1")
     if workers is not None and workers < 1:
         raise BatchError(f"workers = {workers} should be ≥ 1 (local pool size)")
+    limit = SESSION_TIME_LIMIT_S if time_limit_s is None else time_limit_s
+    if isinstance(limit, bool) or not isinstance(limit, (int, float)) or not limit > 0:
+        raise BatchError(f"time limit = {time_limit_s!r} should be a number of seconds > 0")
     if isinstance(scheduler, str) and not re.fullmatch(
         r"(tcp|tls|inproc|ucx|ws|wss)://[^\s/]+(:\d{1,5})?/?", scheduler
     ):
@@ -317,18 +335,30 @@ def run_batch(
         progress.flush()
 
     if scheduler is None:
-        from concurrent.futures import ProcessPoolExecutor, as_completed
+        from msk._isolated import JobFailure, run_isolated
 
         n = workers or min(len(cfgs), os.cpu_count() or 1) or 1
         # worker BLAS threads sleep between calls instead of spinning on the CPUs the other
         # workers need (same thread count, same results; see msk.cli), set before they start
         os.environ.setdefault("OPENBLAS_THREAD_TIMEOUT", "4")
-        with ProcessPoolExecutor(max_workers=n, mp_context=_pool_context()) as pool:
-            futs = {
-                pool.submit(run_one, c, d, use_cache): k for k, (c, d) in enumerate(zip(cfgs, dirs))
-            }
-            for f in as_completed(futs):
-                collect(futs[f], f)
+
+        class _Done:  # collect()'s view of a finished job
+            def __init__(self, value: Any) -> None:
+                self.value = value
+
+            def result(self) -> Any:
+                if isinstance(self.value, JobFailure):
+                    raise BatchError(self.value.reason)
+                return self.value
+
+        run_isolated(
+            run_one,
+            [(c, d, use_cache) for c, d in zip(cfgs, dirs)],
+            context=_pool_context(),
+            workers=n,
+            time_limit_s=float(limit),
+            on_done=lambda k, v: collect(k, _Done(v)),
+        )
     else:
         try:
             from distributed import Client
