@@ -38,6 +38,7 @@ def _run(args: argparse.Namespace) -> int:
 
 
 def _run_sessions(args: argparse.Namespace) -> int:
+    from msk._terminal import terminal_safe
     from msk.pipeline import run_task_trials
 
     raised = 0
@@ -54,7 +55,8 @@ def _run_sessions(args: argparse.Namespace) -> int:
         flags = res.summary.quality.flags or ()
         raised += len(flags)
         for f in flags:
-            sys.stderr.write(f"{res.out_dir}: quality flag: {f.message}\n")
+            msg = terminal_safe(" ".join(str(f.message).split()))
+            sys.stderr.write(f"{res.out_dir}: quality flag: {msg}\n")
     return 3 if args.strict and raised else 0
 
 

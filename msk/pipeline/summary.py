@@ -548,6 +548,9 @@ def run(
         from msk.muscles.emg_faults import fault_flags
 
         quality["flags"] += fault_flags(inputs.task.name, emg.sample_faults)
+    from msk.pipeline.contact_check import comparison_flags
+
+    quality["flags"] += comparison_flags(inputs, gait_cycle, comparison, kin.time)
     quality["thresholds"] = dict(THRESHOLDS)
     quality["held_coordinates"] = sorted(model.held)
     ev = gait_cycle.events
