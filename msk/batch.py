@@ -74,6 +74,7 @@ COHORT_COLUMNS: tuple[str, ...] = (
     "knee_contact_rms_bw",
     "knee_contact_icc",
     "stages_not_available",
+    "quality_flags",
 )
 
 
@@ -156,6 +157,9 @@ def _row(
         row["knee_contact_rms_bw"] = round(_nan(comp.rms_bw), 4)
         row["knee_contact_icc"] = round(_nan(comp.icc), 4)
     row["stages_not_available"] = " ".join(i.stage for i in s.not_available or ())
+    # the quality gates raised (what `msk run --strict` exits 3 for): the quantities, counted
+    flags = [str(f.quantity) for f in q.flags or ()]
+    row["quality_flags"] = " ".join(f"{k}×{flags.count(k)}" for k in dict.fromkeys(flags))
     return row
 
 
@@ -206,15 +210,16 @@ def _session_dirs(configs: Sequence[str | Path], out: Path) -> list[Path]:
 
 def _check_cohort_replaceable(path: Path) -> None:
     """Refuse to replace ``path`` unless it is absent or a cohort table msk wrote: a regular
-    file (not a symbolic link) whose first line is the :data:`COHORT_COLUMNS` header."""
+    file (not a symbolic link) whose header starts with :data:`COHORT_COLUMNS`' first four
+    (a table of an msk with other columns is msk's too)."""
     if not os.path.lexists(path):
         return
-    header = ",".join(COHORT_COLUMNS)
+    head = "session,config,status,error,"  # every msk's cohort table starts so
     ours = False
     if not path.is_symlink() and path.is_file():
         try:
             with open(path, encoding="utf-8", newline="") as fh:
-                ours = fh.readline(len(header) + 2).rstrip("\r\n") == header
+                ours = fh.readline(4096).startswith(head)
         except (OSError, UnicodeDecodeError):
             ours = False
     if not ours:
