@@ -32,6 +32,7 @@ C3DFileAdapter report it.
 
 from __future__ import annotations
 
+import functools
 import math
 import os
 import re
@@ -1133,6 +1134,31 @@ def plate_axes(corners: ArrayLike) -> NDArray[np.float64]:
     return np.column_stack([ax / nx, ay / np.linalg.norm(ay), az / nz])
 
 
+def _one_line_errors(reader: Callable[..., Trial]) -> Callable[..., Trial]:
+    """A malformed file the reader's checks did not foresee (a parameter of an unexpected
+    shape or type: TypeError, IndexError, ValueError, KeyError, OverflowError,
+    ZeroDivisionError, RecursionError) raises a :class:`~msk.exceptions.C3DError` naming the
+    file and the error, never a traceback."""
+
+    @functools.wraps(reader)
+    def read(path: str | Path, *args: Any, **kwargs: Any) -> Trial:
+        try:
+            return reader(path, *args, **kwargs)
+        except MskError:
+            raise
+        except (
+            TypeError, IndexError, ValueError, KeyError, OverflowError, ZeroDivisionError,
+            RecursionError,
+        ) as exc:  # fmt: skip
+            what = " ".join(str(exc).split())[:300]
+            raise C3DError(
+                f"{path}: inconsistent C3D content ({type(exc).__name__}: {what})"
+            ) from exc
+
+    return read
+
+
+@_one_line_errors
 def read_c3d(
     path: str | Path,
     *,

@@ -1,0 +1,38 @@
+"""msk.io.c3d: a C3D whose parameters have a shape the reader's checks do not foresee is one
+C3DError line naming the file, never a traceback."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from msk.exceptions import C3DError
+from msk.io.c3d import read_c3d
+
+REPO = Path(__file__).resolve().parents[2]
+GC5 = REPO / "data" / "gc5-PS" / "PS_ngait_og_ss1.c3d"
+
+
+def test_a_3d_force_platform_channel_is_one_line(tmp_path):
+    import ezc3d
+
+    c = ezc3d.c3d(str(GC5))
+    ch = np.asarray(c["parameters"]["FORCE_PLATFORM"]["CHANNEL"]["value"])
+    c["parameters"]["FORCE_PLATFORM"]["CHANNEL"]["value"] = ch.reshape(*ch.shape, 1)
+    c.write(str(tmp_path / "ch3d.c3d"))
+    with pytest.raises(C3DError, match=r"ch3d\.c3d: inconsistent C3D content \(TypeError"):
+        read_c3d(tmp_path / "ch3d.c3d", isolate=False)
+
+
+def test_every_unforeseen_error_of_the_reader_names_the_file():
+    from msk.io.c3d import _one_line_errors
+
+    for exc in (TypeError("t"), IndexError("i"), KeyError("k"), OverflowError("o")):
+
+        def reader(path: object, exc: Exception = exc) -> None:
+            raise exc
+
+        with pytest.raises(C3DError, match=rf"f\.c3d: .*{type(exc).__name__}"):
+            _one_line_errors(reader)("f.c3d")  # type: ignore[arg-type]
