@@ -47,6 +47,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from msk.analogs import StoredAnalogs
 from msk.exceptions import C3DError, ForcePlateError, MskError, UnitsError
+from msk.io.plate_checks import saturation_warnings
 from msk.io.validate import MAX_ABS_COORDINATE_M, MAX_ABS_FORCE_N, check_regular_file
 from msk.trial import Event, ForcePlate, GapReport, ModelOutputs, Subject, Trial
 
@@ -976,7 +977,8 @@ def _check_plate_forces(
     path: Path, plates: Sequence[ForcePlate], time: NDArray[np.float64], warnings: list[str]
 ) -> None:
     """Infinite forces or forces beyond :data:`msk.io.validate.MAX_ABS_FORCE_N` are refused
-    (naming plate, channel, sample and value); NaN samples are missing data (a warning)."""
+    (naming plate, channel, sample and value); NaN samples are missing data (a warning), and
+    so is a clipped channel (:func:`msk.io.plate_checks.saturation_warnings`)."""
     for p in plates:
         f = p.force
         with np.errstate(invalid="ignore"):
@@ -996,6 +998,7 @@ def _check_plate_forces(
                 f"force platform {p.index + 1}: {int(nan.sum())} of {nan.size} samples are NaN "
                 "(missing)"
             )
+        warnings.extend(saturation_warnings(p))  # a clipped channel (msk.io.plate_checks)
 
 
 # ---------------------------------------------------------------------------------------------

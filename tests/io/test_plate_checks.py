@@ -1,0 +1,52 @@
+"""msk.io.plate_checks: a clipped (saturated) force-plate channel is said, a real one is not."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from msk.io.c3d import read_c3d
+from msk.io.plate_checks import longest_run_at_extreme
+
+REPO = Path(__file__).resolve().parents[2]
+GC5 = REPO / "data" / "gc5-PS" / "PS_ngait_og_ss1.c3d"
+
+
+def test_longest_run_at_extreme():
+    x = np.array([0.0, 1.0, 5.0, 5.0, 5.0, 2.0, 5.0, -1.0, -1.0])
+    assert longest_run_at_extreme(x) == (3, 5.0)
+    assert longest_run_at_extreme(np.full(3, np.nan))[0] == 0
+
+
+def _clipped(tmp_path: Path, fraction: float) -> Path:
+    import ezc3d
+
+    c = ezc3d.c3d(str(GC5))
+    labels = [s.strip() for s in c["parameters"]["ANALOG"]["LABELS"]["value"]]
+    chan = np.asarray(c["parameters"]["FORCE_PLATFORM"]["CHANNEL"]["value"]) - 1
+    a = c["data"]["analogs"]
+    k = int(chan[2, 0])  # plate 1's Fz channel (type 2: Fx Fy Fz Mx My Mz)
+    x = a[0, k, :]
+    peak = x.max() if abs(x.max()) > abs(x.min()) else x.min()
+    a[0, k, :] = (
+        np.clip(x, None, fraction * peak) if peak > 0 else np.clip(x, fraction * peak, None)
+    )
+    c["data"]["analogs"] = a
+    f = tmp_path / f"clip{fraction:g}.c3d"
+    c.write(str(f))
+    assert labels[k]
+    return f
+
+
+def test_a_clipped_vertical_channel_is_a_reader_warning(tmp_path):
+    tr = read_c3d(_clipped(tmp_path, 0.8), isolate=False)
+    notes = [w for w in tr.metadata["warnings"] if "clipped" in w]
+    assert len(notes) == 1 and notes[0].startswith("force platform 1: force z")
+
+
+@pytest.mark.realdata
+def test_the_real_plates_are_not_called_clipped():
+    tr = read_c3d(GC5, isolate=False)
+    assert not [w for w in tr.metadata.get("warnings", ()) if "clipped" in w]
