@@ -904,6 +904,8 @@ def _vertical(
 #: largest point and analog rates accepted (Hz): anything above is a corrupt header
 MAX_POINT_RATE_HZ = 20_000.0
 MAX_ANALOG_RATE_HZ = 1_000_000.0
+#: point rates of motion capture (Hz): outside, a reader warning (a corrupted or wrong rate)
+PLAUSIBLE_POINT_RATE_HZ = (1.0, 5_000.0)
 _CONTROL = re.compile(r"[\x00-\x1f\x7f]")
 
 
@@ -1310,6 +1312,12 @@ def read_c3d(
 
     warnings: list[str] = []
     _check_rates(path, point_rate, n_pts, analog_rate, n_ana)
+    lo, hi = PLAUSIBLE_POINT_RATE_HZ
+    if n_pts and not lo <= point_rate <= hi:  # readable, but no motion capture runs so
+        warnings.append(
+            f"point rate {point_rate:g} Hz is outside the {lo:g}–{hi:g} Hz of motion capture: "
+            "check the header's frame rate (every time, velocity and filter depends on it)"
+        )
     labels_ok = [*_check_labels(path, "POINT:LABELS", list(marker_labels), warnings)]
     if labels_ok != list(marker_labels):
         marker_labels = tuple(labels_ok)

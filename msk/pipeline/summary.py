@@ -548,6 +548,17 @@ def run(
         from msk.muscles.emg_faults import fault_flags
 
         quality["flags"] += fault_flags(inputs.task.name, emg.sample_faults)
+    unmatched = [
+        n for n in (model.info.get("marker_set") or {}).get("notes", ())
+        if str(n).startswith("markers.rename: labels in no trial")
+    ]  # fmt: skip
+    for note in unmatched:  # a typo in [markers] rename: the marker it meant is not tracked
+        quality["flags"].append(
+            {"trial": inputs.task.name, "quantity": "marker_rename_unmatched",
+             "value": float(len(str(note).split(":", 2)[-1].split(","))), "threshold": 0.0,
+             "message": f"{note} (a typo? the model markers they name are not tracked from "
+             "them)"}
+        )  # fmt: skip
     from msk.pipeline.contact_check import comparison_flags
 
     quality["flags"] += comparison_flags(inputs, gait_cycle, comparison, kin.time)

@@ -36,3 +36,20 @@ def test_every_unforeseen_error_of_the_reader_names_the_file():
 
         with pytest.raises(C3DError, match=rf"f\.c3d: .*{type(exc).__name__}"):
             _one_line_errors(reader)("f.c3d")  # type: ignore[arg-type]
+
+
+@pytest.mark.parametrize("rate", [0.01, 19_999.0])
+def test_an_absurd_but_consistent_rate_is_a_reader_warning(tmp_path, rate):
+    import ezc3d
+
+    c = ezc3d.c3d(str(GC5))
+    per_frame = (
+        c["parameters"]["ANALOG"]["RATE"]["value"][0] / c["parameters"]["POINT"]["RATE"]["value"][0]
+    )
+    c["parameters"]["POINT"]["RATE"]["value"] = [rate]
+    c["parameters"]["ANALOG"]["RATE"]["value"] = [rate * per_frame]
+    c.write(str(tmp_path / "r.c3d"))
+    tr = read_c3d(tmp_path / "r.c3d", isolate=False)
+    (note,) = [w for w in tr.metadata["warnings"] if "point rate" in w]
+    assert "outside the 1–5000 Hz" in note
+    assert not [w for w in read_c3d(GC5, isolate=False).metadata.get("warnings", ()) if "rate" in w]
