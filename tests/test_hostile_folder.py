@@ -372,3 +372,63 @@ def test_msk_report_on_a_very_deep_summary_is_one_line(tmp_path, capsys):
     assert main(["report", str(out)]) == 2
     err = capsys.readouterr().err
     assert err.startswith("msk: error:") and err.count("\n") == 1
+
+
+@pytest.mark.slow
+@pytest.mark.realdata
+def test_a_received_folder_with_planted_links_and_forged_cache(tmp_path, monkeypatch, capsys):
+    """The issue's end-to-end case on gc5: links planted in a results folder and a forged
+    kinematics cache entry (its MAC made with another user's key, as whoever wrote the folder
+    could): `msk run` and `msk report` write nothing outside the folder, and no forged value
+    reaches a table."""
+    import io
+    import shutil
+
+    import msk._secure as sec
+    import msk.cache as mc
+    from msk.cli import main
+    from msk.pipeline import run_session
+
+    cfg = REPO / "pipelines" / "gc5_PS.toml"
+    out = tmp_path / "received"
+    run_session(cfg, out)
+    clean_q = (out / "tables" / "q.csv").read_bytes()
+    # the forgery: every 2-D float array of the kinematics entry 0.2 off, MAC recomputed
+    (manifest_path,) = (out / ".cache").glob("kinematics-*.json")
+    manifest = json.loads(manifest_path.read_text())
+    npz_path = out / ".cache" / manifest["payload"]
+    with np.load(npz_path) as z:
+        arrays = {k: z[k] + 0.2 if z[k].ndim == 2 and z[k].dtype.kind == "f" else z[k] for k in z}
+    buf = io.BytesIO()
+    np.savez(buf, **arrays)
+    payload = buf.getvalue()
+    monkeypatch.setenv("XDG_CACHE_HOME", str(tmp_path / "attacker"))
+    sec._user_key.cache_clear()
+    manifest["mac"] = mc._digest(manifest, payload)
+    monkeypatch.delenv("XDG_CACHE_HOME")
+    sec._user_key.cache_clear()
+    npz_path.write_bytes(payload)
+    manifest_path.write_text(json.dumps(manifest))
+    res = run_session(cfg, out)
+    assert {r.name: r.status for r in res.stages}["kinematics"] == "computed"
+    assert (out / "tables" / "q.csv").read_bytes() == clean_q
+    # links planted where the report is written, pointing outside
+    outside = tmp_path / "outside"
+    outside.mkdir()
+    for name in ("authorized_keys", "x.pdf", "y.html"):
+        (outside / name).write_text(f"precious {name}\n")
+    before = _tree(outside)
+    (out / ".report.html.tmp").symlink_to(outside / "authorized_keys")
+    (out / "report.pdf").unlink(missing_ok=True)
+    (out / "report.pdf").symlink_to(outside / "x.pdf")
+    (out / "report.html").unlink()
+    (out / "report.html").symlink_to(outside / "y.html")
+    received = _tree(out)
+    assert main(["run", str(cfg), "--out", str(out), "--quiet"]) == 2  # refused: not msk's
+    assert "did not write" in capsys.readouterr().err
+    assert _tree(out) == received and _tree(outside) == before
+    for argv in (["report", str(out)], ["report", str(out), "--pdf"]):
+        assert main(argv) == 0
+        assert _tree(outside) == before
+    assert not (out / "report.html").is_symlink()
+    shutil.rmtree(out)
