@@ -107,6 +107,10 @@ def _report(args: argparse.Namespace) -> int:
             f"({type(exc).__name__}: {' '.join(str(exc).split())[:200]})"
         ) from None
     sys.stdout.write(f"{path}\n")
+    if args.pdf and not (args.folder / "report.pdf").is_file():
+        # asked for and not printed: said, and not a success (no stale PDF is left either)
+        sys.stderr.write("msk: report.pdf not written (no headless Chromium, or it failed)\n")
+        return 1
     return 0
 
 
