@@ -63,11 +63,14 @@ def is_real_dir(path: str | Path) -> bool:
 def write_file_atomic(path: str | Path, data: bytes, *, mode: int = 0o644) -> Path:
     """Write ``data`` to ``path`` through a private temporary file in the same folder, created
     exclusively (never an existing file or link), then renamed over ``path`` (a symlink at
-    ``path`` is replaced, not followed). The folder itself must not be a symlink."""
+    ``path`` is replaced, not followed). The folder is the one ``path``'s parent names (a
+    folder given through a link is the user's choice; its last component is never followed)."""
     path = Path(path)
-    if not is_real_dir(path.parent):
-        raise OSError(f"{path.parent}: not a folder (or a symbolic link); not writing {path.name}")
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
+    parent = path.parent.resolve()
+    if not parent.is_dir():
+        raise OSError(f"{path.parent}: not a folder; not writing {path.name}")
+    path = parent / path.name
+    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=parent)
     try:
         with os.fdopen(fd, "wb") as fh:
             fh.write(data)

@@ -72,6 +72,10 @@ def test_report_never_writes_through_planted_symlinks(tmp_path, monkeypatch):
     # a failed PDF leaves no report.pdf of other results behind (the link removed, not its
     # target)
     assert not os.path.lexists(out / "report.pdf")
+    # a folder the user names through a link of their own is written into
+    (tmp_path / "via").symlink_to(out, target_is_directory=True)
+    write_report(read_session(tmp_path / "via"), tmp_path / "via", figures={}, pdf=False)
+    assert (out / "report.html").is_file() and _tree(victim) == before
 
 
 def test_pdf_is_printed_privately_then_moved_over_a_planted_link(tmp_path, monkeypatch):
