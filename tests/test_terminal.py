@@ -71,3 +71,21 @@ def test_a_trc_number_with_an_underscore_is_not_read(tmp_path):
     (tmp_path / "r.trc").write_text("\n".join([*lines[:6], "\t".join(row), *lines[7:]]) + "\n")
     with pytest.raises(FileFormatError, match="0_5"):
         read_trc(tmp_path / "r.trc")
+
+
+def test_filter_messages_say_what_is_wrong():
+    """An infinite sample was reported as "NaN samples" (or filtered into NaN silently); a
+    time column in ms gets a hint, not a bare Nyquist error."""
+    from msk.exceptions import MissingDataError, MskError
+    from msk.signal import filtfilt_butter, lowpass_filtfilt_numpy
+
+    x = np.sin(np.linspace(0, 10, 500))
+    x[123] = np.inf
+    for f in (filtfilt_butter, lowpass_filtfilt_numpy):
+        with pytest.raises(MissingDataError, match=r"infinite samples \(first inf at index \(123"):
+            f(x, rate_hz=100.0, cutoff_hz=6.0)
+    x[123] = np.nan
+    with pytest.raises(MissingDataError, match="NaN samples"):
+        filtfilt_butter(x, rate_hz=100.0, cutoff_hz=6.0)
+    with pytest.raises(MskError, match="milliseconds"):
+        filtfilt_butter(np.zeros(50), rate_hz=0.1, cutoff_hz=6.0)
