@@ -47,7 +47,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from msk.analogs import StoredAnalogs
 from msk.exceptions import C3DError, ForcePlateError, MskError, UnitsError
-from msk.io.plate_checks import saturation_warnings
+from msk.io.plate_checks import cop_warnings, saturation_warnings
 from msk.io.validate import MAX_ABS_COORDINATE_M, MAX_ABS_FORCE_N, check_regular_file
 from msk.trial import Event, ForcePlate, GapReport, ModelOutputs, Subject, Trial
 
@@ -1001,6 +1001,7 @@ def _check_plate_forces(
                 "(missing)"
             )
         warnings.extend(saturation_warnings(p))  # a clipped channel (msk.io.plate_checks)
+        warnings.extend(cop_warnings(p))  # a COP far off the plate
 
 
 # ---------------------------------------------------------------------------------------------

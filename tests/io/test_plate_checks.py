@@ -50,3 +50,16 @@ def test_a_clipped_vertical_channel_is_a_reader_warning(tmp_path):
 def test_the_real_plates_are_not_called_clipped():
     tr = read_c3d(GC5, isolate=False)
     assert not [w for w in tr.metadata.get("warnings", ()) if "clipped" in w]
+
+
+def test_a_cop_far_off_the_plate_is_said_a_real_one_is_not():
+    import dataclasses
+
+    from msk.io.plate_checks import cop_warnings
+
+    tr = read_c3d(GC5, isolate=False)
+    assert all(cop_warnings(p) == [] for p in tr.plates)
+    p = tr.plates[0]
+    moved = dataclasses.replace(p, cop=p.cop + np.array([141.0, 0.0, 0.0]))
+    (note,) = cop_warnings(moved)
+    assert note.startswith("force platform 1: centre of pressure 141 m")
