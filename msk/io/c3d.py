@@ -47,7 +47,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from msk.analogs import StoredAnalogs
 from msk.exceptions import C3DError, ForcePlateError, MskError, UnitsError
-from msk.io.plate_checks import cop_warnings, saturation_warnings
+from msk.io.plate_checks import cop_warnings, direction_warnings, saturation_warnings
 from msk.io.validate import MAX_ABS_COORDINATE_M, MAX_ABS_FORCE_N, check_regular_file
 from msk.trial import Event, ForcePlate, GapReport, ModelOutputs, Subject, Trial
 
@@ -1340,6 +1340,7 @@ def read_c3d(
             "(EVENT:TIMES not finite)"
         )
     vertical_axis, up = _vertical(params, plates)
+    warnings.extend(direction_warnings(plates, up, markers))  # a negative gain
     meta = {
         "first_frame": first,
         "manufacturer": str((_param(params, "MANUFACTURER", "COMPANY") or [""])[0]).strip(),

@@ -18,7 +18,7 @@ from numpy.typing import NDArray
 
 from msk.trial import ForcePlate
 
-__all__ = ["cop_warnings", "longest_run_at_extreme", "saturation_warnings"]
+__all__ = ["cop_warnings", "direction_warnings", "longest_run_at_extreme", "saturation_warnings"]
 
 
 def longest_run_at_extreme(x: NDArray[np.float64]) -> tuple[int, float]:
@@ -89,3 +89,44 @@ def cop_warnings(
         f"centre (its half-diagonal {half:.3g} m) under {load[k]:.0f} N in {int(bad.sum())} "
         "samples: the plate's origin, calibration or type is wrong"
     ]
+
+
+def direction_warnings(
+    plates: list[ForcePlate] | tuple[ForcePlate, ...],
+    up: NDArray[np.float64],
+    markers: NDArray[np.float64],
+    *,
+    min_force_n: float = 100.0,
+) -> list[str]:
+    """The plates' loads against the lab's vertical: the reader takes ``up`` from the sign of
+    the plates' summed vertical force, so a negative gain on every plate turns the lab upside
+    down and one on a single plate makes it pull the subject into the floor. Said when the
+    markers (N, M, 3) lie mostly below the plates' surfaces along ``up`` (the body stands on
+    the plates: its markers are above them), and for a plate whose force under load
+    (> ``min_force_n``) points down in most samples while ``up`` is the other plates' up."""
+    out = []
+    u = np.asarray(up, dtype=float)
+    x = np.asarray(markers, dtype=float)
+    surfaces = [float(np.mean(np.asarray(p.corners, dtype=float) @ u)) for p in plates]
+    if plates and x.size and np.isfinite(x).any() and np.isfinite(surfaces).all():
+        with np.errstate(invalid="ignore"):
+            height = float(np.nanmedian(x @ u)) - float(np.mean(surfaces))
+        if height < -0.05:
+            out.append(
+                f"the markers lie {-height:.2f} m below the force plates' surfaces along the "
+                "vertical the plates' forces give: a negative gain or flipped plate axes has "
+                "turned the vertical (and every ground reaction) upside down"
+            )
+    for p in plates:
+        f = np.asarray(p.force, dtype=float)
+        load = np.linalg.norm(f, axis=1)
+        with np.errstate(invalid="ignore"):
+            loaded = load > min_force_n
+            down = (f @ u) < 0
+        if loaded.sum() >= 10 and (down & loaded).sum() > 0.5 * loaded.sum() and len(plates) > 1:
+            out.append(
+                f"force platform {p.index + 1}: its force points down (into the floor) in "
+                f"{int((down & loaded).sum())} of {int(loaded.sum())} loaded samples while the "
+                "other plates push up: a negative gain or flipped axes"
+            )
+    return out

@@ -63,3 +63,23 @@ def test_a_cop_far_off_the_plate_is_said_a_real_one_is_not():
     moved = dataclasses.replace(p, cop=p.cop + np.array([141.0, 0.0, 0.0]))
     (note,) = cop_warnings(moved)
     assert note.startswith("force platform 1: centre of pressure 141 m")
+
+
+@pytest.mark.parametrize("which", ["all", "one"])
+def test_a_negative_gain_is_said(tmp_path, which):
+    """Every plate's channels negated (a negative gain: the reader's vertical turns upside
+    down, the markers then lie below the floor) or one plate's (it pulls into the floor)."""
+    import ezc3d
+
+    c = ezc3d.c3d(str(GC5))
+    chan = np.asarray(c["parameters"]["FORCE_PLATFORM"]["CHANNEL"]["value"]) - 1
+    a = c["data"]["analogs"]
+    cols = chan.ravel() if which == "all" else chan[:, 1]
+    a[0, cols, :] *= -1.0
+    c["data"]["analogs"] = a
+    c.write(str(tmp_path / "neg.c3d"))
+    notes = read_c3d(tmp_path / "neg.c3d", isolate=False).metadata["warnings"]
+    if which == "all":
+        assert any("upside down" in w for w in notes), notes
+    else:
+        assert any(w.startswith("force platform 2: its force points down") for w in notes), notes
