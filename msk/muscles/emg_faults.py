@@ -92,18 +92,21 @@ def find_sample_faults(
     if n == 0:
         return np.zeros(0, dtype=bool), np.zeros(0)
     finite = np.isfinite(x)
+    clean = bool(finite.all())
     b = max(16, round(block_s * rate_hz))
     nb = -(-n // b)
     pad = np.full(nb * b, np.nan)
-    pad[:n] = np.where(finite, x, np.nan)
+    pad[:n] = x if clean else np.where(finite, x, np.nan)
     blocks = pad.reshape(nb, b)
+    median = np.median if clean and nb * b == n else np.nanmedian  # NaN-free: the fast one
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", RuntimeWarning)  # all-NaN blocks
-        centre = np.nanmedian(blocks, axis=1)
-        mad = np.nanmedian(np.abs(blocks - centre[:, None]), axis=1)
-    if not np.isfinite(centre).any():
-        return ~finite, np.where(finite, 0.0, np.inf)
-    centre = np.where(np.isfinite(centre), centre, np.nanmedian(centre))
+        centre = median(blocks, axis=1)
+        if not np.isfinite(centre).any():
+            return ~finite, np.where(finite, 0.0, np.inf)
+        centre = np.where(np.isfinite(centre), centre, np.nanmedian(centre))
+        dev = np.abs(blocks - centre[:, None])  # (nb, b), NaN where not finite or padding
+        mad = median(dev, axis=1)
     mad = np.where(np.isfinite(mad), mad, 0.0)
     k = max(int(context_blocks), 0)
     wide = np.concatenate([np.zeros(k), mad, np.zeros(k)])
@@ -113,16 +116,16 @@ def find_sample_faults(
         fin = np.abs(x[finite])
         floor = 1e-12 * float(fin.max()) if fin.size and fin.max() > 0 else np.finfo(float).tiny
     scale = np.maximum(scale, floor)
-    with np.errstate(invalid="ignore", over="ignore"):
-        ratio = np.abs(blocks - centre[:, None]) / scale[:, None]
-    ratio = ratio.ravel()[:n]
-    ratio[~finite] = np.inf
+    flat = dev.ravel()[:n]
     # and beyond anything the channel does: ``global_factor`` × its 99th-percentile deviation
-    dev = np.abs(x - np.repeat(centre, b)[:n])
-    reach = float(np.percentile(dev[finite], 99)) if finite.any() else 0.0
-    with np.errstate(invalid="ignore"):
-        beyond = dev > global_factor * max(reach, floor)
-    return ((ratio > threshold) & beyond) | ~finite, ratio
+    reach = float(np.percentile(flat if clean else flat[finite], 99)) if finite.any() else 0.0
+    with np.errstate(invalid="ignore", over="ignore"):
+        beyond = flat > global_factor * max(reach, floor)
+        dev /= scale[:, None]  # the deviation in units of the local scale, in place
+        bad = (flat > threshold) & beyond
+    ratio = flat
+    ratio[~finite] = np.inf
+    return bad | ~finite, ratio
 
 
 def _runs(mask: NDArray[np.bool_]) -> tuple[NDArray[np.intp], NDArray[np.intp]]:
