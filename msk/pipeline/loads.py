@@ -65,6 +65,8 @@ class Loads:
     legs: np.ndarray | None = None
     unbalanced: np.ndarray | None = None
     coordinate_names: tuple[str, ...] = ()
+    #: plates that read nothing while a foot stands on them (:func:`msk.plate_contact.dead_plates`)
+    dead_plates: tuple[Any, ...] = ()
 
     def unbalanced_for(self, coordinate_names: Any) -> np.ndarray:
         """``unbalanced`` in the columns ``coordinate_names`` (e.g. the joint torques'): a
@@ -180,8 +182,17 @@ def run(inputs: SessionInputs, read: ReadResult, model: BuiltModel, kinematics: 
     legs = body[:, None] & ~contact.unmeasured
     out = Loads(ext, measured, usable, obs, contact, legs)
     names = tuple(model.model.coordinate_names)
+    from msk.plate_contact import dead_plates
+
+    # a plate under a standing foot that reads nothing (one rotated plate at a time again)
+    dead = dead_plates(
+        model.model, kinematics, contact, (rotated_plate(p, rot) for p in read.plates or ())
+    )
     return dataclasses.replace(
-        out, unbalanced=unbalanced_coordinates(model.model, out, names), coordinate_names=names
+        out,
+        unbalanced=unbalanced_coordinates(model.model, out, names),
+        coordinate_names=names,
+        dead_plates=tuple(dead),
     )
 
 

@@ -559,6 +559,15 @@ def run(
              "message": f"{note} (a typo? the model markers they name are not tracked from "
              "them)"}
         )  # fmt: skip
+    for d in getattr(loads, "dead_plates", ()):  # a plate reading nothing under a foot
+        quality["flags"].append(
+            {"trial": inputs.task.name, "quantity": "plate_dead", "value": d["max_force_n"],
+             "threshold": 20.0,
+             "message": f"force plate {d['plate']} reads at most {d['max_force_n']:.0f} N while "
+             f"{d['foot']} stands on it for {d['seconds']:.2f} s ({d['start_s']:.2f}–"
+             f"{d['end_s']:.2f} s): a dead, disconnected or mis-mapped plate; that foot's "
+             "ground reaction is missing"}
+        )  # fmt: skip
     from msk.pipeline.contact_check import comparison_flags
 
     quality["flags"] += comparison_flags(inputs, gait_cycle, comparison, kin.time)
