@@ -30,6 +30,31 @@ FilterType = Literal["lowpass", "highpass", "bandpass", "bandstop"]
 GapMethod = Literal["linear", "pchip", "cubic"]
 
 
+def _rate_hint(rate_hz: float, wn: NDArray[np.float64]) -> str:
+    """A hint when the rate looks 1000× too low (a time column in ms read as s)."""
+    if np.any(wn >= 1) and 0 < rate_hz < 10.0:
+        return (
+            f" (a rate of {rate_hz:g} Hz: is the time column in milliseconds instead of seconds?)"
+        )
+    return ""
+
+
+def _check_finite(x: NDArray[np.float64]) -> None:
+    """NaN samples (gaps) and infinite ones (a corrupt value) are refused, each said so."""
+    bad = ~np.isfinite(x)
+    if not bad.any():
+        return
+    first = tuple(int(i[0]) for i in np.nonzero(bad))
+    if np.isnan(x[first]):
+        raise MissingDataError(
+            f"cannot filter a signal with NaN samples (first at index {first}): fill the gaps first"
+        )
+    raise MissingDataError(
+        f"cannot filter a signal with infinite samples (first {x[first]} at index {first}): "
+        "a corrupt value in the input"
+    )
+
+
 def filtfilt_butter(
     x: ArrayLike,
     *,
@@ -49,9 +74,11 @@ def filtfilt_butter(
     nyq = 0.5 * rate_hz
     wn = np.atleast_1d(np.asarray(cutoff_hz, dtype=float)) / nyq
     if np.any(wn <= 0) or np.any(wn >= 1):
-        raise MskError(f"cutoff {cutoff_hz} Hz must lie in (0, {nyq}) Hz for rate {rate_hz} Hz")
-    if np.isnan(x).any():
-        raise MissingDataError("cannot filter a signal with NaN samples: fill the gaps first")
+        raise MskError(
+            f"cutoff {cutoff_hz} Hz must lie in (0, {nyq}) Hz for rate {rate_hz} Hz"
+            + _rate_hint(rate_hz, wn)
+        )
+    _check_finite(x)
     from scipy import signal as _sig  # imported on use: 0.4 s that `msk --help` need not pay
 
     sos = _sig.butter(order, wn if wn.size > 1 else wn[0], btype=btype, output="sos")
@@ -75,11 +102,11 @@ def lowpass_filtfilt_numpy(
     if not 0.0 < wn < 1.0:
         raise MskError(
             f"cutoff {cutoff_hz} Hz must lie in (0, {0.5 * rate_hz}) Hz for rate {rate_hz} Hz"
+            + _rate_hint(rate_hz, np.atleast_1d(wn))
         )
     if order < 2 or order % 2:
         raise MskError(f"lowpass_filtfilt_numpy: an even order >= 2 is needed, got {order}")
-    if np.isnan(x).any():
-        raise MissingDataError("cannot filter a signal with NaN samples: fill the gaps first")
+    _check_finite(x)
     k = np.arange(1, order + 1)
     warped = 4.0 * np.tan(np.pi * wn / 2.0)  # prewarped, sampling rate 2 as scipy designs
     poles = warped * np.exp(1j * np.pi * (2 * k + order - 1) / (2 * order))

@@ -112,7 +112,9 @@ def main(argv: Sequence[str] | None = None) -> int:
     try:
         return int(args._handler(args) or 0)
     except MskError as exc:
-        msg = " ".join(str(exc).split()) or type(exc).__name__
+        from msk._runtime.terminal import terminal_safe
+
+        msg = terminal_safe(" ".join(str(exc).split())) or type(exc).__name__
         print(f"msk: error: {msg}", file=sys.stderr)
         return 2
     except BrokenPipeError:  # output piped into head & co.

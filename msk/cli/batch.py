@@ -39,6 +39,12 @@ def batch_args(p: argparse.ArgumentParser) -> None:
     )
     p.add_argument("--workers", type=positive_int, help="local pool size (default: #CPUs)")
     p.add_argument("--no-cache", action="store_true", help="recompute every stage")
+    p.add_argument(
+        "--time-limit",
+        type=float,
+        metavar="SECONDS",
+        help="local pool: a session running longer is killed and failed (default: 3600)",
+    )
 
 
 def _batch(args: argparse.Namespace) -> int:
@@ -51,6 +57,7 @@ def _batch(args: argparse.Namespace) -> int:
         workers=args.workers,
         use_cache=not args.no_cache,
         progress=sys.stderr,
+        time_limit_s=args.time_limit,
     )
     n_ok = len(res.outcomes) - len(res.failed)
     sys.stderr.write(

@@ -11,6 +11,7 @@ from typing import TextIO
 
 import numpy as np
 
+from msk._runtime.terminal import terminal_safe
 from msk.cli import Command
 
 __all__ = ["COMMANDS", "flat_channels"]
@@ -50,7 +51,13 @@ def _info_c3d(path: Path, out: TextIO) -> None:
     from msk.io.c3d import read_c3d
 
     tr = read_c3d(path)
-    w = out.write
+
+    def w(text: str) -> None:
+        # labels, events and names come from the file: no control character reaches the
+        # terminal (msk._runtime.terminal), and one line stays one line
+        body, end = (text[:-1], "\n") if text.endswith("\n") else (text, "")
+        out.write(terminal_safe(body) + end)
+
     w(f"file: {path}\n")
     t0 = tr.time[0] if tr.n_frames else 0.0
     w(
@@ -96,6 +103,10 @@ def _info_c3d(path: Path, out: TextIO) -> None:
     if s.height_m is not None:
         parts.append(f"height {s.height_m:g} m")
     w(f"subject: {', '.join(parts) if parts else '-'}\n")
+    notes = list((tr.metadata or {}).get("warnings", ()))
+    w(f"reader warnings: {len(notes)}\n")
+    for note in notes:  # duplicate labels renamed, NaN plate samples, …
+        w(f"  {' '.join(str(note).split())}\n")
 
 
 def _info_text(path: Path, out: TextIO) -> None:

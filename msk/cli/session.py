@@ -38,6 +38,7 @@ def _run(args: argparse.Namespace) -> int:
 
 
 def _run_sessions(args: argparse.Namespace) -> int:
+    from msk._runtime.terminal import terminal_safe
     from msk.pipeline import run_task_trials
     from msk.pipeline.dynamometry import is_dynamometry_config, run_dynamometry
 
@@ -62,7 +63,8 @@ def _run_sessions(args: argparse.Namespace) -> int:
         flags = res.summary.quality.flags or ()
         raised += len(flags)
         for f in flags:
-            sys.stderr.write(f"{res.out_dir}: quality flag: {f.message}\n")
+            msg = terminal_safe(" ".join(str(f.message).split()))
+            sys.stderr.write(f"{res.out_dir}: quality flag: {msg}\n")
     return 3 if args.strict and raised else 0
 
 
@@ -98,11 +100,25 @@ def _report_args(p: argparse.ArgumentParser) -> None:
 
 
 def _report(args: argparse.Namespace) -> int:
+    from msk.exceptions import SummaryError
     from msk.report import write_report
     from msk.results.folder import read_session
 
-    path = write_report(read_session(args.folder), args.folder, pdf=args.pdf)
+    res = read_session(args.folder)
+    try:
+        path = write_report(res, args.folder, pdf=args.pdf)
+    except (ValueError, TypeError, KeyError, IndexError, AttributeError, RecursionError) as exc:
+        # a received folder's summary.json that passes the schema but not the report's reading
+        # (an unknown status word, a string where a window is expected): one line, no traceback
+        raise SummaryError(
+            f"{args.folder / 'summary.json'}: cannot be reported "
+            f"({type(exc).__name__}: {' '.join(str(exc).split())[:200]})"
+        ) from None
     sys.stdout.write(f"{path}\n")
+    if args.pdf and not (args.folder / "report.pdf").is_file():
+        # asked for and not printed: said, and not a success (no stale PDF is left either)
+        sys.stderr.write("msk: report.pdf not written (no headless Chromium, or it failed)\n")
+        return 1
     return 0
 
 

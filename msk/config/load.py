@@ -50,6 +50,8 @@ def _read_toml(source: Path) -> dict[str, Any]:
         ) from None
     except OSError as exc:
         raise ConfigError(f"{source}: cannot read: {exc.strerror or exc}") from None
+    except RecursionError:
+        raise ConfigError(f"{source}: nested too deeply to be a session configuration") from None
     except tomllib.TOMLDecodeError as exc:
         raise ConfigError(f"{source}: not valid TOML: {exc}") from None
 

@@ -256,7 +256,15 @@ def _typed(tp: type, value: Any, name: str, source: Path) -> Any:
         ok = isinstance(value, tp)
     if not ok:
         raise ConfigError(f"{source}: {name} = {value!r} should be {tp.__name__}")
-    return float(value) if tp is float else value
+    if tp is float:
+        try:
+            return float(value)
+        except OverflowError:  # a 400-digit integer
+            raise ConfigError(
+                f"{source}: {name} = {str(value)[:20]}… ({len(str(value))} digits) is not a "
+                "finite number"
+            ) from None
+    return value
 
 
 def _check_number(o: Option, value: float, name: str, source: Path) -> None:
@@ -290,7 +298,12 @@ def _file_kind(p: Path) -> str:
 
 def _path(value: str, name: str, source: Path) -> Path:
     """A regular file, relative to the configuration file."""
-    p = (source.parent / value).resolve()
+    if "\x00" in value:
+        raise ConfigError(f"{source}: {name} = {value!r}: a path cannot hold a NUL character")
+    try:
+        p = (source.parent / value).resolve()
+    except (RuntimeError, OSError) as exc:  # a symlink loop
+        raise ConfigError(f"{source}: {name}: {value}: cannot be resolved ({exc})") from None
     if not p.exists():
         raise ConfigError(f"{source}: {name}: file not found: {p}")
     if not p.is_file():  # a FIFO or /dev/zero would hang the reader, a folder is no file

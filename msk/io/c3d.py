@@ -32,6 +32,7 @@ C3DFileAdapter report it.
 
 from __future__ import annotations
 
+import functools
 import math
 import os
 import re
@@ -46,6 +47,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from msk.analogs import StoredAnalogs
 from msk.exceptions import C3DError, ForcePlateError, MskError, UnitsError
+from msk.io.plate_checks import cop_warnings, direction_warnings, saturation_warnings
 from msk.io.validate import MAX_ABS_COORDINATE_M, MAX_ABS_FORCE_N, check_regular_file
 from msk.trial import Event, ForcePlate, GapReport, ModelOutputs, Subject, Trial
 
@@ -924,6 +926,8 @@ def _vertical(
 #: largest point and analog rates accepted (Hz): anything above is a corrupt header
 MAX_POINT_RATE_HZ = 20_000.0
 MAX_ANALOG_RATE_HZ = 1_000_000.0
+#: point rates of motion capture (Hz): outside, a reader warning (a corrupted or wrong rate)
+PLAUSIBLE_POINT_RATE_HZ = (1.0, 5_000.0)
 _CONTROL = re.compile(r"[\x00-\x1f\x7f]")
 
 
@@ -997,7 +1001,8 @@ def _check_plate_forces(
     path: Path, plates: Sequence[ForcePlate], time: NDArray[np.float64], warnings: list[str]
 ) -> None:
     """Infinite forces or forces beyond :data:`msk.io.validate.MAX_ABS_FORCE_N` are refused
-    (naming plate, channel, sample and value); NaN samples are missing data (a warning)."""
+    (naming plate, channel, sample and value); NaN samples are missing data (a warning), and
+    so is a clipped channel (:func:`msk.io.plate_checks.saturation_warnings`)."""
     for p in plates:
         f = p.force
         with np.errstate(invalid="ignore"):
@@ -1017,6 +1022,8 @@ def _check_plate_forces(
                 f"force platform {p.index + 1}: {int(nan.sum())} of {nan.size} samples are NaN "
                 "(missing)"
             )
+        warnings.extend(saturation_warnings(p))  # a clipped channel (msk.io.plate_checks)
+        warnings.extend(cop_warnings(p))  # a COP far off the plate
 
 
 # ---------------------------------------------------------------------------------------------
@@ -1155,6 +1162,31 @@ def plate_axes(corners: ArrayLike) -> NDArray[np.float64]:
     return np.column_stack([ax / nx, ay / np.linalg.norm(ay), az / nz])
 
 
+def _one_line_errors(reader: Callable[..., Trial]) -> Callable[..., Trial]:
+    """A malformed file the reader's checks did not foresee (a parameter of an unexpected
+    shape or type: TypeError, IndexError, ValueError, KeyError, OverflowError,
+    ZeroDivisionError, RecursionError) raises a :class:`~msk.exceptions.C3DError` naming the
+    file and the error, never a traceback."""
+
+    @functools.wraps(reader)
+    def read(path: str | Path, *args: Any, **kwargs: Any) -> Trial:
+        try:
+            return reader(path, *args, **kwargs)
+        except MskError:
+            raise
+        except (
+            TypeError, IndexError, ValueError, KeyError, OverflowError, ZeroDivisionError,
+            RecursionError,
+        ) as exc:  # fmt: skip
+            what = " ".join(str(exc).split())[:300]
+            raise C3DError(
+                f"{path}: inconsistent C3D content ({type(exc).__name__}: {what})"
+            ) from exc
+
+    return read
+
+
+@_one_line_errors
 def read_c3d(
     path: str | Path,
     *,
@@ -1303,6 +1335,12 @@ def read_c3d(
 
     warnings: list[str] = []
     _check_rates(path, point_rate, n_pts, analog_rate, n_ana)
+    lo, hi = PLAUSIBLE_POINT_RATE_HZ
+    if n_pts and not lo <= point_rate <= hi:  # readable, but no motion capture runs so
+        warnings.append(
+            f"point rate {point_rate:g} Hz is outside the {lo:g}–{hi:g} Hz of motion capture: "
+            "check the header's frame rate (every time, velocity and filter depends on it)"
+        )
     labels_ok = [*_check_labels(path, "POINT:LABELS", list(marker_labels), warnings)]
     if labels_ok != list(marker_labels):
         marker_labels = tuple(labels_ok)
@@ -1327,6 +1365,7 @@ def read_c3d(
     if unknown_ev:
         warnings.append(unknown_ev)
     vertical_axis, up = _vertical(params, plates)
+    warnings.extend(direction_warnings(plates, up, markers))  # a negative gain
     meta = {
         "first_frame": first,
         "manufacturer": str((_param(params, "MANUFACTURER", "COMPANY") or [""])[0]).strip(),

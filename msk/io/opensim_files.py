@@ -100,6 +100,8 @@ def _parse_rows(path: Path, lines: Sequence[str], start: int, ncol: int) -> NDAr
                 )
             vals = vals[:ncol]
         try:
+            if any("_" in v for v in vals):  # float() reads "1_20" as 120: not a file's number
+                raise ValueError(f"{next(v for v in vals if '_' in v)!r}")
             row = [float(v) if v else np.nan for v in vals]
         except ValueError as exc:
             raise FileFormatError(f"{path}: line {k + 1}: not a number ({exc})") from None
@@ -283,6 +285,9 @@ def read_trc(path: str | Path) -> MarkerTable:
     if units not in _TRC_UNITS_M:
         raise UnitsError(f"{path}: TRC Units {units!r} not in {sorted(_TRC_UNITS_M)}")
     try:
+        for key in ("DataRate", "NumMarkers"):
+            if "_" in info.get(key, ""):  # float() reads "1_20" as 120
+                raise ValueError(f"{key} = {info[key]!r} is not a number")
         rate = float(info.get("DataRate", "nan"))
         n_markers = int(float(info.get("NumMarkers", "0")))
     except ValueError as exc:

@@ -27,6 +27,11 @@ Quality checks (figures are reported for every channel in :class:`ChannelQuality
 * **saturated** (clipped amplifier or ADC): at least ``clip_min_samples`` samples (and at least
   ``clip_fraction`` of the trial) sit within half a quantisation step of the channel's extreme
   value, or reach ``saturation_level`` when the range is known.
+* **faulty samples** (a glitch: 1e20, inf, NaN, a transient far beyond the channel's range),
+  found on the raw channel before any filter (:mod:`msk.muscles.emg_faults`): isolated ones
+  are interpolated, a channel with a longer run is excluded (NaN, whatever ``bad_channel``
+  says); both are listed in :attr:`EmgEnvelopes.sample_faults` and the warnings. MVC trials
+  are repaired the same way (an excluded channel gives no MVC).
 
 By default a flat channel's envelope is set to NaN (``bad_channel="nan"``) so that it cannot be
 mistaken for activity; ``"keep"`` keeps it, ``"raise"`` raises :class:`EmgError`.
@@ -43,6 +48,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from msk.exceptions import EmgError, MissingDataError
+from msk.muscles.emg_faults import SampleFaults, repair_sample_faults
 from msk.signal import filtfilt_butter, resample_to
 from msk.timeseries import FrameAxis
 from msk.units import Array
@@ -118,6 +124,8 @@ class EmgEnvelopes(FrameAxis):
     quality: ChannelQuality
     delay_s: Array  #: per muscle electromechanical delay applied
     warnings: tuple[str, ...]
+    #: single-sample faults found in the raw channels (:mod:`msk.muscles.emg_faults`)
+    sample_faults: tuple[SampleFaults, ...] = ()
 
     @property
     def rate_hz(self) -> float:
@@ -147,6 +155,7 @@ class EmgEnvelopes(FrameAxis):
             quality=self.quality,
             delay_s=self.delay_s,
             warnings=self.warnings,
+            sample_faults=self.sample_faults,
         )
 
 
@@ -209,13 +218,22 @@ def mvc_peaks(
     peaks: dict[str, float] = {}
     for emg, rate, labels in trials:
         labels = [str(s).strip() for s in labels]
-        x = _as_channels(emg, len(labels))
+        x = _as_channels(emg, len(labels)).copy()
+        keep = []
+        for j, lab in enumerate(labels):  # a glitch must not set the MVC (emg_faults)
+            fixed, _ = repair_sample_faults(x[:, j], rate_hz=rate, channel=lab)
+            if fixed is not None:
+                x[:, j] = fixed
+                keep.append(j)
+            else:
+                x[:, j] = 0.0  # excluded: no MVC from this trial for the channel
         env = linear_envelope(
             x, rate_hz=rate, highpass_hz=highpass_hz, lowpass_hz=lowpass_hz, order=order
         )
         k = _edge(env.shape[0], rate, lowpass_hz)
         inner = env[k : env.shape[0] - k] if k else env
-        for j, lab in enumerate(labels):
+        for j in keep:
+            lab = labels[j]
             peaks[lab] = max(peaks.get(lab, 0.0), float(inner[:, j].max()))
     return peaks
 
@@ -418,11 +436,6 @@ def process_emg(
         if str(ch).strip() not in used:
             used.append(str(ch).strip())
     idx = [labels.index(ch) for ch in used]
-    for c, i in enumerate(idx):
-        bad = ~np.isfinite(x[:, i])
-        if bad.any():
-            r = int(np.argmax(bad))
-            raise MissingDataError(f"EMG channel {used[c]!r} has a non-finite sample at index {r}")
     names = list(muscles)
     msrc = [str(muscles[m]).strip() for m in names]
     for m, group in (synergists or {}).items():
@@ -471,8 +484,18 @@ def process_emg(
     norm = np.empty(len(used))
     over = np.zeros(len(used))
     norm_warnings: list[str] = []
+    faults: list[SampleFaults] = []
+    excluded = np.zeros(len(used), dtype=bool)
     for j, (ch, i) in enumerate(zip(used, idx)):
         xj = np.ascontiguousarray(x[:, i])
+        # one glitch (1e20, inf, a 50 V transient) repaired, or the channel excluded: said
+        fixed, fault = repair_sample_faults(xj, rate_hz=rate_hz, channel=ch, t0=t0)
+        if fault is not None:
+            faults.append(fault)
+        if fixed is None:
+            excluded[j] = True
+            fixed = np.where(np.isfinite(xj), xj, 0.0)  # processed, then set to NaN
+        xj = fixed
         st = _channel_stats(
             xj, rate_hz=rate_hz, highpass_hz=highpass_hz, lowpass_hz=lowpass_hz,
             saturation_level=qopt.get("saturation_level"),
@@ -526,6 +549,8 @@ def process_emg(
         **{key: v for key, v in qopt.items() if key != "saturation_level"},
     )  # fmt: skip
     warnings: list[str] = list(quality.summary())
+    warnings += [f.message() for f in faults]
+    unusable = quality.flat | excluded if bad_channel == "nan" else excluded
     if bad_channel == "raise" and quality.flat.any():
         raise EmgError("; ".join(quality.summary()))
     warnings += norm_warnings
@@ -534,15 +559,13 @@ def process_emg(
             warnings.append(
                 f"channel {ch!r}: envelope reaches {100 * over[j]:.1f} % of MVC; clipped to 100 %"
             )
-    if bad_channel == "nan":
-        for col in range(n_direct):
-            if quality.flat[used.index(msrc[col])]:
-                out[:, col] = np.nan
+    for col in range(n_direct):
+        if unusable[used.index(msrc[col])]:
+            out[:, col] = np.nan
     for c, (_, gi) in enumerate(syn):
         # the mean of the group's normalised envelopes (NaN for a flat one), then its own delay
         cols = [
-            np.full(n, np.nan) if bad_channel == "nan" and quality.flat[used.index(msrc[g])]
-            else grouped[g] for g in gi
+            np.full(n, np.nan) if unusable[used.index(msrc[g])] else grouped[g] for g in gi
         ]  # fmt: skip
         col = n_direct + c
         m_e = np.mean(cols, axis=0)
@@ -563,6 +586,7 @@ def process_emg(
         quality=quality,
         delay_s=shifts / rate_hz,
         warnings=tuple(warnings),
+        sample_faults=tuple(faults),
     )
 
 
@@ -607,7 +631,7 @@ class EmgActivations:
     """Per model muscle with an EMG channel: ``envelopes`` and ``activation`` (N, m) on the
     kinematics' time base (activation NaN for unusable channels), the channel each muscle reads
     (``sources``), ``usable`` (m,), the normalisation used, the reader's warnings and the
-    per-channel :class:`ChannelQuality`."""
+    per-channel :class:`ChannelQuality` and the raw channels' single-sample faults."""
 
     normalisation: str
     muscles: tuple[str, ...]
@@ -617,6 +641,9 @@ class EmgActivations:
     usable: np.ndarray
     warnings: Sequence[str]
     quality: Any
+    #: single-sample faults of the raw channels (:class:`msk.muscles.emg_faults.SampleFaults`),
+    #: each repaired or its channel excluded
+    sample_faults: tuple[Any, ...] = ()
 
     def column(self, muscle: str) -> int:
         """Index of ``muscle`` in :attr:`muscles`."""
@@ -660,5 +687,5 @@ def emg_activations(
         "MVC" if (mvc_trials or mvc) else "this session's peak (relative activations, not "
         "strength)",
         tuple(env.muscle_names), tuple(env.muscle_sources), env.envelopes, act,
-        np.asarray(env.usable), list(env.warnings), env.quality,
+        np.asarray(env.usable), list(env.warnings), env.quality, tuple(env.sample_faults),
     )  # fmt: skip

@@ -3,9 +3,13 @@
 ``run_batch(configs, out)`` runs :func:`msk.pipeline.run_session` for every configuration into
 ``out/<session>/`` (``<session>`` = the config file's stem, made unique), in parallel:
 
-* ``scheduler=None``: a local :class:`concurrent.futures.ProcessPoolExecutor` (``forkserver``
-  start method: every worker is forked from a server that imported msk once, no forked
-  solver state; ``spawn`` where there is no forkserver);
+* ``scheduler=None``: local child processes, one per session, ``workers`` at a time
+  (:func:`msk._runtime.isolated.run_isolated`; ``forkserver`` start method: every child is forked
+  from
+  a server that imported msk once, no forked solver state; ``spawn`` where there is no
+  forkserver): a child killed by a signal costs only its session (run once more, then failed
+  with the signal's name), one over the time limit is killed and failed, and the children's
+  ``sys.path`` does not start with the current folder;
 * ``scheduler="tcp://host:8786"`` (or a ``distributed.Client``): the sessions are mapped on a
   Dask distributed cluster; the workers need msk installed and the paths visible.
 
@@ -42,6 +46,7 @@ from msk.results.summary import Summary, as_summary
 
 __all__ = [
     "COHORT_COLUMNS",
+    "SESSION_TIME_LIMIT_S",
     "BatchResult",
     "SessionOutcome",
     "compare_sessions",
@@ -72,6 +77,7 @@ COHORT_COLUMNS: tuple[str, ...] = (
     "knee_contact_rms_bw",
     "knee_contact_icc",
     "stages_not_available",
+    "quality_flags",
 )
 
 
@@ -154,6 +160,9 @@ def _row(
         row["knee_contact_rms_bw"] = round(_nan(comp.rms_bw), 4)
         row["knee_contact_icc"] = round(_nan(comp.icc), 4)
     row["stages_not_available"] = " ".join(i.stage for i in s.not_available or ())
+    # the quality gates raised (what `msk run --strict` exits 3 for): the quantities, counted
+    flags = [str(f.quantity) for f in q.flags or ()]
+    row["quality_flags"] = " ".join(f"{k}×{flags.count(k)}" for k in dict.fromkeys(flags))
     return row
 
 
@@ -234,9 +243,33 @@ def _session_dirs(configs: Sequence[str | Path], out: Path) -> list[Path]:
     return dirs
 
 
+def _check_cohort_replaceable(path: Path) -> None:
+    """Refuse to replace ``path`` unless it is absent or a cohort table msk wrote: a regular
+    file (not a symbolic link) whose header starts with :data:`COHORT_COLUMNS`' first four
+    (a table of an msk with other columns is msk's too)."""
+    if not os.path.lexists(path):
+        return
+    head = "session,config,status,error,"  # every msk's cohort table starts so
+    ours = False
+    if not path.is_symlink() and path.is_file():
+        try:
+            with open(path, encoding="utf-8", newline="") as fh:
+                ours = fh.readline(4096).startswith(head)
+        except (OSError, UnicodeDecodeError):
+            ours = False
+    if not ours:
+        raise BatchError(
+            f"{path}: exists and msk did not write it (not a cohort table of msk batch); "
+            "refusing to replace it: move it or choose another --out"
+        )
+
+
 def write_cohort_csv(path: str | Path, rows: Sequence[Mapping[str, Any]]) -> Path:
-    """The cohort table (one row per session, :data:`COHORT_COLUMNS`), written atomically."""
+    """The cohort table (one row per session, :data:`COHORT_COLUMNS`), written atomically;
+    a ``cohort.csv`` msk did not write (or a symbolic link) is never replaced
+    (:class:`~msk.exceptions.BatchError`)."""
     path = Path(path)
+    _check_cohort_replaceable(path)
     buf = io.StringIO()
     w = csv.DictWriter(buf, fieldnames=list(COHORT_COLUMNS), lineterminator="\n")
     w.writeheader()
@@ -250,6 +283,10 @@ def write_cohort_csv(path: str | Path, rows: Sequence[Mapping[str, Any]]) -> Pat
     os.replace(tmp, path)
     return path
 
+
+#: a local batch's default time limit per session (s): far above any session's run (a long
+#: trial takes minutes), it ends one that hangs or was stopped
+SESSION_TIME_LIMIT_S = 3600.0
 
 #: what a session imports, imported once by the forkserver the pool's workers are forked from
 WORKER_PRELOAD = (
@@ -287,8 +324,16 @@ def run_batch(
     workers: int | None = None,
     use_cache: bool = True,
     progress: Any = None,
+    time_limit_s: float | None = None,
 ) -> BatchResult:
-    """Run every session configuration into ``out_dir/<session>/`` (see the module docstring)."""
+    """Run every session configuration into ``out_dir/<session>/`` (see the module docstring).
+
+    Locally each session runs in a child process of its own
+    (:func:`msk._runtime.isolated.run_isolated`):
+    a worker killed by a signal (a native crash, the OOM killer) costs only its session, which
+    is run once more and then reported failed with the signal; a session running longer than
+    ``time_limit_s`` (default :data:`SESSION_TIME_LIMIT_S`; hung, or stopped) is killed and
+    reported failed at the time limit. ``cohort.csv`` is always written, one row per session."""
     t0 = _time.perf_counter()
     if not configs:
         raise BatchError("no session configurations given")
@@ -296,6 +341,9 @@ def run_batch(
         raise BatchError(f"workers = {workers!r} should be an integer ≥ 1")
     if workers is not None and workers < 1:
         raise BatchError(f"workers = {workers} should be ≥ 1 (local pool size)")
+    limit = SESSION_TIME_LIMIT_S if time_limit_s is None else time_limit_s
+    if isinstance(limit, bool) or not isinstance(limit, (int, float)) or not limit > 0:
+        raise BatchError(f"time limit = {time_limit_s!r} should be a number of seconds > 0")
     if isinstance(scheduler, str) and not re.fullmatch(
         r"(tcp|tls|inproc|ucx|ws|wss)://[^\s/]+(:\d{1,5})?/?", scheduler
     ):
@@ -304,6 +352,7 @@ def run_batch(
         )
     out = Path(out_dir).resolve()
     out.mkdir(parents=True, exist_ok=True)
+    _check_cohort_replaceable(out / "cohort.csv")  # before hours of work, not after
     cfgs = [str(Path(c).resolve()) for c in configs]
     dirs = [str(d) for d in _session_dirs(cfgs, out)]
     done: dict[int, SessionOutcome] = {}
@@ -327,18 +376,30 @@ def run_batch(
         progress.flush()
 
     if scheduler is None:
-        from concurrent.futures import ProcessPoolExecutor, as_completed
+        from msk._runtime.isolated import JobFailure, run_isolated
 
         n = workers or min(len(cfgs), os.cpu_count() or 1) or 1
         # worker BLAS threads sleep between calls instead of spinning on the CPUs the other
         # workers need (same thread count, same results; see msk.cli), set before they start
         os.environ.setdefault("OPENBLAS_THREAD_TIMEOUT", "4")
-        with ProcessPoolExecutor(max_workers=n, mp_context=_pool_context()) as pool:
-            futs = {
-                pool.submit(run_one, c, d, use_cache): k for k, (c, d) in enumerate(zip(cfgs, dirs))
-            }
-            for f in as_completed(futs):
-                collect(futs[f], f)
+
+        class _Done:  # collect()'s view of a finished job
+            def __init__(self, value: Any) -> None:
+                self.value = value
+
+            def result(self) -> Any:
+                if isinstance(self.value, JobFailure):
+                    raise BatchError(self.value.reason)
+                return self.value
+
+        run_isolated(
+            run_one,
+            [(c, d, use_cache) for c, d in zip(cfgs, dirs)],
+            context=_pool_context(),
+            workers=n,
+            time_limit_s=float(limit),
+            on_done=lambda k, v: collect(k, _Done(v)),
+        )
     else:
         try:
             from distributed import Client

@@ -17,8 +17,10 @@ Format (``FORMAT``)
       ``{"nd": i}`` array, ``{"np": i}`` numpy scalar (a 0-d array), ``{"b": i}`` bytes,
       ``{"dc": ["module:QualName", [[attribute, node], ...]]}`` dataclass instance,
       ``{"en": ["module:QualName", member]}`` enum member), the stage name, the key, the code
-      fingerprint, the indices of the read-only arrays and a sha256 over all of it and the
-      bytes of the ``.npz``.
+      fingerprint, the indices of the read-only arrays and an HMAC-SHA256 over all of it and
+      the bytes of the ``.npz``, keyed with this user's secret
+      (:func:`msk._runtime.secure.user_key`,
+      a file outside every results folder).
 
     Both files are written to a temporary file and moved into place (``os.replace``), the
     ``.npz`` first: the manifest is the commit record.
@@ -42,14 +44,19 @@ Threat model
     A results folder may come from someone else (a colleague, a download). Loading its cache
     must not run their code: nothing is unpickled, and the only classes the loader touches are
     dataclasses and enums that ``msk`` itself defines — the module must be ``msk`` or
-    ``msk.*`` (imported with :func:`importlib.import_module`), the attribute must be a class
+    ``msk.*``, a library module (no private ``_`` module, no ``__main__``, nothing of the
+    command line ``msk.cli``: a manifest naming ``msk.cli.__main__`` cannot run the program;
+    imported with :func:`importlib.import_module`), the attribute must be a class
     whose ``__module__``/``__qualname__`` are the ones named (no re-exports such as ``os`` in
     an ``msk`` module), and attribute names may not be dunders. Those classes are
-    instantiated without running any of their methods. The sha256 is an integrity check, not a
-    signature: it catches a flipped byte, a truncated write or two writers racing (the entry is
-    deleted and the stage recomputed — never wrong output with exit code 0), not a forgery; a
-    forged entry can give wrong numbers (as a forged input file can) but cannot execute code.
-    A huge forged file can still cost memory (denial of service is out of scope).
+    instantiated without running any of their methods. Every entry is authenticated with an
+    HMAC under a key only this user can read (Krawczyk, Bellare and Canetti 1997): a flipped
+    byte, a truncated write, two writers racing and an entry forged by whoever wrote the
+    folder (its digest recomputed from msk's own code) all fail the check, and the entry is
+    deleted and the stage recomputed — a received folder's cache is never trusted, only
+    recomputed. A cache folder that is a symbolic link is not used (nothing is read, written or
+    pruned through it). A huge forged file can still cost memory (denial of service is out of
+    scope).
 
 Staleness
     :func:`code_fingerprint` hashes the source of every ``msk/**/*.py`` file and the package
@@ -65,6 +72,7 @@ import dataclasses
 import enum
 import functools
 import hashlib
+import hmac
 import importlib
 import importlib.metadata as _md
 import io
@@ -81,6 +89,8 @@ from typing import Any
 
 import numpy as np
 
+from msk._runtime.secure import is_real_dir, mac
+
 __all__ = [
     "DEPENDENCIES",
     "FORMAT",
@@ -93,7 +103,7 @@ __all__ = [
     "source_fingerprint",
 ]
 
-FORMAT = "msk-stage-cache/1"
+FORMAT = "msk-stage-cache/2"
 DEPENDENCIES = (
     "numpy",
     "scipy",
@@ -114,6 +124,7 @@ _ENTRY = re.compile(r"(?P<name>[A-Za-z0-9_][A-Za-z0-9_.\-]*)-(?P<id>[0-9a-f]{32}
 _LEGACY = re.compile(r"[A-Za-z0-9_][A-Za-z0-9_.\-]*-[0-9a-f]{24}\.pkl")
 _IDENT = re.compile(r"[A-Za-z_][A-Za-z0-9_]*")
 _MODULE = re.compile(r"msk(\.[A-Za-z_][A-Za-z0-9_]*)*")
+_ENTRY_POINTS = (["msk", "cli"],)  # packages whose import is a program, not a library
 _ORPHAN_AGE_S = 600.0  # an .npz without manifest younger than this may be a write in progress
 _TEMP_AGE_S = 3600.0
 _CONTAINER_TAGS: dict[type, str] = {list: "l", tuple: "t", set: "s", frozenset: "fs"}
@@ -210,6 +221,10 @@ def _msk_class(ref: str) -> type:
     parts = qualname.split(".")
     if not all(_IDENT.fullmatch(p) and not p.startswith("__") for p in parts):
         raise ValueError(f"bad class name {ref!r}")
+    parts_ = module.split(".")
+    if any(p.startswith("_") for p in parts_) or parts_[:2] in _ENTRY_POINTS:
+        # private modules, __main__ and the command line: importing them may run code
+        raise ValueError(f"class {ref!r} is not from an msk library module")
     scope: Any = importlib.import_module(module)
     cls: type | None = None
     for p in parts:  # plain namespace look-ups: no descriptor, no module __getattr__ runs
@@ -405,13 +420,10 @@ def _decode(n: Any, arrays: list[np.ndarray], depth: int) -> Any:
 # entries on disk
 # ---------------------------------------------------------------------------------------------
 def _digest(manifest: dict[str, Any], payload: bytes) -> str:
-    body = {k: v for k, v in manifest.items() if k != "sha256"}
+    """HMAC-SHA256 of the manifest (but its ``mac``) and the payload under the user's key."""
+    body = {k: v for k, v in manifest.items() if k != "mac"}
     text = json.dumps(body, sort_keys=True, separators=(",", ":"), allow_nan=False)
-    h = hashlib.sha256()
-    _update(h, FORMAT.encode())
-    _update(h, text.encode())
-    _update(h, payload)
-    return h.hexdigest()
+    return mac(FORMAT, text, payload)
 
 
 def _read_arrays(payload: bytes, n: int) -> list[np.ndarray]:
@@ -482,6 +494,9 @@ class StageCache:
     def load(self, name: str, key: str) -> tuple[bool, Any]:
         manifest_path, npz_path = self.paths(name, key)
         self.last_reason = ""
+        if os.path.lexists(self.folder) and not is_real_dir(self.folder):
+            self.last_reason = f"{self.folder} is not a folder (a symbolic link?): not used"
+            return False, None
         if not manifest_path.is_file():
             self.last_reason = "no entry"
             return False, None
@@ -503,8 +518,9 @@ class StageCache:
                 if manifest.get(k) != v:
                     raise ValueError(f"manifest {k} mismatch")
             payload = npz_path.read_bytes()
-            if manifest.get("sha256") != _digest(manifest, payload):
-                raise ValueError("checksum mismatch")
+            tag = manifest.get("mac")
+            if not isinstance(tag, str) or not hmac.compare_digest(tag, _digest(manifest, payload)):
+                raise ValueError("checksum (HMAC) mismatch: written elsewhere, or altered")
             n, read_only = manifest["arrays"], manifest["read_only"]
             if type(n) is not int or type(read_only) is not list:
                 raise ValueError("bad array list")
@@ -540,9 +556,11 @@ class StageCache:
                 "read_only": read_only,
                 "tree": tree,
             }
-            manifest["sha256"] = _digest(manifest, payload)
+            manifest["mac"] = _digest(manifest, payload)
             text = json.dumps(manifest, allow_nan=False, separators=(",", ":"))
             self.folder.mkdir(parents=True, exist_ok=True)
+            if not is_real_dir(self.folder):
+                raise NotStorable(f"{self.folder} is not a folder (a symbolic link?)")
             _atomic_write(npz_path, payload)
             _atomic_write(manifest_path, text.encode())
             stored = True
@@ -557,6 +575,8 @@ class StageCache:
 
     # ------------------------------------------------------------------ housekeeping
     def _files(self) -> Iterator[Path]:
+        if not is_real_dir(self.folder):
+            return
         try:
             yield from (p for p in self.folder.iterdir() if p.is_file())
         except OSError:

@@ -66,8 +66,17 @@ def run(inputs: SessionInputs, read: ReadResult, model: Personalisation, kinemat
     legs = body[:, None] & ~contact.unmeasured
     out = Loads(ext, measured, usable, obs, contact, legs)
     names = tuple(model.model.coordinate_names)
+    from msk.dynamics.plate_contact import dead_plates
+
+    # a plate under a standing foot that reads nothing (one rotated plate at a time again)
+    dead = dead_plates(
+        model.model, kinematics, contact, (rotated_plate(p, rot) for p in read.plates or ())
+    )
     return dataclasses.replace(
-        out, unbalanced=unbalanced_coordinates(model.model, out, names), coordinate_names=names
+        out,
+        unbalanced=unbalanced_coordinates(model.model, out, names),
+        coordinate_names=names,
+        dead_plates=tuple(dead),
     )
 
 

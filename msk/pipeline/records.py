@@ -77,6 +77,9 @@ class Loads:
     legs: np.ndarray | None = None
     unbalanced: np.ndarray | None = None
     coordinate_names: tuple[str, ...] = ()
+    #: plates that read nothing while a foot stands on them
+    #: (:func:`msk.dynamics.plate_contact.dead_plates`)
+    dead_plates: tuple[Any, ...] = ()
 
     def unbalanced_for(self, coordinate_names: Any) -> np.ndarray:
         """``unbalanced`` in the columns ``coordinate_names`` (e.g. the joint torques'): a

@@ -131,6 +131,15 @@ def run_session(
         if r.status in ("not available", "failed")
     ]
     summary["run_seconds"] = time.perf_counter() - t_start
+    failed = [r for r in runner.records if r.status == "failed"]
+    if failed:  # a stage that bad input made fail is a quality gate: --strict exits 3
+        quality = summary["quality"] = dict(summary.get("quality") or {})
+        quality["flags"] = [*(quality.get("flags") or ()), *(
+            {"trial": str(summary.get("trial") or ""), "quantity": "stage_failed",
+             "value": 1.0, "threshold": 0.0,
+             "message": f"stage {r.name} failed, its results are not available: {r.message}"}
+            for r in failed
+        )]  # fmt: skip
 
     def report(res: SessionResults, folder: Path) -> None:
         from msk.report import write_report

@@ -583,6 +583,33 @@ def run(
              "torques of that leg, residual, muscle force or knee contact from them; "
              "msk.dynamics.plate_footprint)"}
         )  # fmt: skip
+    if emg is not None:  # a glitch in a raw EMG channel, repaired or the channel excluded
+        from msk.muscles.emg_faults import fault_flags
+
+        quality["flags"] += fault_flags(inputs.task.name, emg.sample_faults)
+    unmatched = [
+        n for n in (model.info.get("marker_set") or {}).get("notes", ())
+        if str(n).startswith("markers.rename: labels in no trial")
+    ]  # fmt: skip
+    for note in unmatched:  # a typo in [markers] rename: the marker it meant is not tracked
+        quality["flags"].append(
+            {"trial": inputs.task.name, "quantity": "marker_rename_unmatched",
+             "value": float(len(str(note).split(":", 2)[-1].split(","))), "threshold": 0.0,
+             "message": f"{note} (a typo? the model markers they name are not tracked from "
+             "them)"}
+        )  # fmt: skip
+    for d in getattr(loads, "dead_plates", ()):  # a plate reading nothing under a foot
+        quality["flags"].append(
+            {"trial": inputs.task.name, "quantity": "plate_dead", "value": d["max_force_n"],
+             "threshold": 20.0,
+             "message": f"force plate {d['plate']} reads at most {d['max_force_n']:.0f} N while "
+             f"{d['foot']} stands on it for {d['seconds']:.2f} s ({d['start_s']:.2f}–"
+             f"{d['end_s']:.2f} s): a dead, disconnected or mis-mapped plate; that foot's "
+             "ground reaction is missing"}
+        )  # fmt: skip
+    from msk.contact.comparison_check import comparison_flags
+
+    quality["flags"] += comparison_flags(inputs, gait_cycle, comparison, kin.time)
     quality["thresholds"] = dict(THRESHOLDS)
     quality["held_coordinates"] = sorted(model.held)
     ev = gait_cycle.events

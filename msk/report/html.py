@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import contextlib
 import html
 import io
 import os
@@ -16,6 +17,7 @@ from typing import Any, TypeGuard
 
 import numpy as np
 
+from msk._runtime.secure import write_file_atomic
 from msk.results.folder import SessionResults
 from msk.results.summary import Strength, Summary
 from msk.status import (
@@ -1478,7 +1480,7 @@ def _methods_section(res: SessionResults, number: int = 6, *, gait: bool = True)
             "contribution matrix ([1], Eq. 12–16) → tibiofemoral contact force from the tibia "
             "free-body diagram with the muscle forces ([4], §2.1), muscle paths evaluated at "
             "every frame. The lab frame is rotated into the model frame (vertical up, walking "
-            f"along +x); force-plate contacts: {_or(plate_assignment, '?')}."
+            f"along +x); force-plate contacts: {_e(_or(plate_assignment, '?'))}."
             "</p>"
         )
         filtering = s.methods.filtering if s.methods else None
@@ -1640,9 +1642,15 @@ def chromium_executable() -> str | None:
     return None
 
 
-#: what the report's HTML allows: no script at all (the report has none; a string from a data
-#: file that slipped past escaping could not run)
-CONTENT_SECURITY_POLICY = "script-src 'none'; object-src 'none'; base-uri 'none'"
+#: what the report's HTML allows: its inline styles and SVG figures and nothing else — no script
+#: (the report has none), no frame, no load of any URL (file, network), no form, no base (a
+#: string from a data file that slipped past escaping could not run, frame a local file into
+#: the PDF or call home)
+CONTENT_SECURITY_POLICY = (
+    "default-src 'none'; style-src 'unsafe-inline'; img-src data:; font-src data:; "
+    "script-src 'none'; object-src 'none'; frame-src 'none'; child-src 'none'; "
+    "form-action 'none'; base-uri 'none'"
+)
 _CSP_META = f'<meta http-equiv="Content-Security-Policy" content="{CONTENT_SECURITY_POLICY}">'
 
 
@@ -1678,8 +1686,16 @@ def chromium_args(user_data_dir: str, *, sandbox: bool | None = None) -> list[st
 
 def without_scripts(html_text: str) -> str:
     """``html_text`` with the no-script Content-Security-Policy as the first element of its
-    head (Chromium then runs no script of the page, whatever it holds: its
+    head and without ``<meta http-equiv="refresh">`` (Chromium then runs no script of the
+    page, loads nothing and does not navigate away, whatever it holds: its
     ``--blink-settings=scriptEnabled=false`` also stops headless printing)."""
+    # a refresh/redirect pragma would replace the page before it is printed
+    html_text = re.sub(
+        r"<meta\b[^>]*http-equiv\s*=\s*[\"']?\s*refresh[^>]*>",
+        "",
+        html_text,
+        flags=re.IGNORECASE,
+    )
     m = re.search(r"<head\b[^>]*>", html_text, flags=re.IGNORECASE)
     if m is not None:
         return html_text[: m.end()] + _CSP_META + html_text[m.end() :]
@@ -1704,8 +1720,10 @@ def write_pdf(html_path: str | Path, pdf_path: str | Path, *, timeout_s: float =
     exe = chromium_executable()
     if exe is None:
         return False
-    pdf = Path(pdf_path).resolve()
+    dest = Path(pdf_path)
+    dest = dest.parent.resolve() / dest.name  # a symlink at pdf_path is replaced, not followed
     with tempfile.TemporaryDirectory() as work:
+        pdf = Path(work) / "report.pdf"  # Chromium prints into this private folder only
         page = Path(work) / "report.html"  # the report is self-contained: no relative links
         page.write_text(
             without_scripts(Path(html_path).read_text(encoding="utf-8")), encoding="utf-8"
@@ -1724,6 +1742,7 @@ def write_pdf(html_path: str | Path, pdf_path: str | Path, *, timeout_s: float =
             except (OSError, subprocess.TimeoutExpired):
                 return False
             if pdf.is_file() and pdf.stat().st_size > 0:
+                write_file_atomic(dest, pdf.read_bytes())
                 if not sandbox:
                     why = (
                         "running as root"
@@ -1731,7 +1750,7 @@ def write_pdf(html_path: str | Path, pdf_path: str | Path, *, timeout_s: float =
                         else "its sandbox could not start here"
                     )
                     warnings.warn(
-                        f"{pdf.name}: Chromium printed without its sandbox ({why}); "
+                        f"{dest.name}: Chromium printed without its sandbox ({why}); "
                         "JavaScript was disabled",
                         ChromiumSandboxWarning,
                         stacklevel=2,
@@ -1751,11 +1770,13 @@ def write_report(
     False; ``MSK_NO_PDF=1`` disables it) into ``folder``."""
     folder = Path(folder)
     path = folder / "report.html"
-    tmp = folder / ".report.html.tmp"
-    tmp.write_text(render_html(res, figures), encoding="utf-8")
-    os.replace(tmp, path)
+    # a private temporary file renamed into place: a symlink planted in a received folder (as
+    # report.html, report.pdf or any temporary name) is replaced, never written through
+    write_file_atomic(path, render_html(res, figures).encode("utf-8"))
     if pdf is None:
         pdf = os.environ.get("MSK_NO_PDF", "") not in ("1", "true", "yes")
-    if pdf:
-        write_pdf(path, folder / "report.pdf")
+    if pdf and not write_pdf(path, folder / "report.pdf"):
+        # no stale report.pdf of earlier results beside the new report.html
+        with contextlib.suppress(FileNotFoundError):
+            os.unlink(folder / "report.pdf")
     return path

@@ -55,17 +55,21 @@ cross-validation trial: ``knee_angle_measured``, ``knee_angle_simulated`` and
 Writing is atomic for the whole folder (:func:`write_session`): everything goes into a temporary
 sibling folder that replaces ``<out>`` by a rename at the very end, so a run that fails never
 leaves a half-written table or report behind (the previous results, if any, stay intact).
-The replacement is two renames (``<out>`` → ``.<out>.old-<pid>``, then the temporary folder →
-``<out>``); a process killed between them leaves ``<out>`` absent. The next write to (or
-check of) ``<out>`` recovers (:func:`recover_interrupted_write`): the previous results are put
-back, with the stage cache, and the leftovers of dead writers are removed — an interrupted run
-never reported success, so its half-published results are not kept.
+The replacement is two renames (``<out>`` → ``.<out>.old-<pid>-<random>``, then the temporary
+folder → ``<out>``); a process killed between them leaves ``<out>`` absent. The next write to
+(or check of) ``<out>`` recovers (:func:`recover_interrupted_write`): the previous results are
+put back, with the stage cache, and the leftovers of dead writers are removed — an interrupted
+run never reported success, so its half-published results are not kept. Both hidden folders
+carry a marker authenticated with the user's key (:mod:`msk._runtime.secure`): a folder msk cannot
+prove it created is never removed, and a folder holding anything msk did not write (a user's
+file in ``tables/``, a symbolic link) is never replaced.
 """
 
 from __future__ import annotations
 
 import json
 import os
+import secrets
 import shutil
 import tempfile
 from collections.abc import Callable, Mapping, Sequence
@@ -73,6 +77,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+from msk._runtime.secure import MARKER, is_real_dir, read_marker, write_marker, writer_may_be_alive
 from msk.exceptions import FileFormatError, MissingDataError, SummaryError
 from msk.io.opensim_files import write_sto
 from msk.io.storage_twin import storage_twin
@@ -200,6 +205,7 @@ def write_session(
     out.parent.mkdir(parents=True, exist_ok=True)
     tmp = Path(tempfile.mkdtemp(prefix=f".{out.name}.tmp-{os.getpid()}-", dir=out.parent))
     try:
+        write_marker(tmp, "tmp", out.name)  # proof that this folder is msk's (recovery)
         written = _write_tables(tmp, results)
         for rel, blob in results.extra_files.items():
             p = tmp / rel
@@ -221,59 +227,48 @@ def write_session(
         if out.exists():
             for name in keep:
                 src = out / name
-                if src.exists():
+                if is_real_dir(src):  # a symlink planted as the cache is not carried over
                     os.replace(src, tmp / name)
-            old = out.parent / f".{out.name}.old-{os.getpid()}"
-            if old.exists():
-                shutil.rmtree(old)
+            old = out.parent / f".{out.name}.old-{os.getpid()}-{secrets.token_hex(8)}"
+            write_marker(out, "old", out.name)
             os.replace(out, old)
         os.replace(tmp, out)
+        (out / MARKER).unlink(missing_ok=True)
         if old is not None:
             shutil.rmtree(old, ignore_errors=True)
     except BaseException:
         # put the cache back if it was moved, then drop the temporary folder
         for name in keep:
-            if (tmp / name).exists() and out.exists() and not (out / name).exists():
+            if is_real_dir(tmp / name) and out.exists() and not (out / name).exists():
                 os.replace(tmp / name, out / name)
+        if out.is_dir():
+            (out / MARKER).unlink(missing_ok=True)
         shutil.rmtree(tmp, ignore_errors=True)
         raise
     return out
 
 
 #: what a session folder written by :func:`write_session` holds (besides ``keep``)
-SESSION_ENTRIES = frozenset({"summary.json", "report.html", "report.pdf", "tables", "opensim"})
-
-
-def _writer_alive(pid: int) -> bool:
-    """Whether process ``pid`` may still be writing (exists, or cannot be checked)."""
-    if pid == os.getpid():
-        return False  # this process is not inside write_session here
-    try:
-        os.kill(pid, 0)
-    except ProcessLookupError:
-        return False
-    except (PermissionError, OSError, OverflowError):
-        return True
-    return True
-
-
-def _leftover_pid(name: str, prefix: str) -> int | None:
-    """The writer's pid in a leftover name ``<prefix><pid>[-<random>]``; None when it has
-    none (a folder that is not msk's)."""
-    head = name[len(prefix) :].split("-", 1)[0]
-    return int(head) if head.isdigit() else None
+SESSION_ENTRIES = frozenset(
+    {"summary.json", "report.html", "report.pdf", "tables", "opensim", MARKER}
+)
 
 
 def recover_interrupted_write(out_dir: str | Path, keep: Sequence[str] = (".cache",)) -> list[str]:
     """Recover ``out_dir`` from a :func:`write_session` killed between its two renames, and
-    remove what dead writers left beside it. The rule, for leftovers whose writer process is
-    gone (a live writer's are never touched):
+    remove what dead writers left beside it.
 
-    * ``.<out>.old-<pid>`` (the previous results, renamed away): when ``<out>`` is absent it
-      is renamed back to ``<out>``; otherwise the swap had completed and it is removed;
-    * ``.<out>.tmp-<pid>-*`` (a temporary folder: unfinished, or finished but never
-      published): the ``keep`` entries in it (the stage cache) go back into ``<out>`` when
-      ``<out>`` lacks them; then it is removed.
+    Only folders msk can prove it created are touched: a real folder (not a symlink) named
+    ``.<out>.old-*`` or ``.<out>.tmp-*`` holding a marker that this user's msk wrote for
+    ``<out>`` (:func:`msk._runtime.secure.read_marker`: authenticated with the user's key), whose
+    writer is gone (same host, boot and PID namespace, process absent: a writer elsewhere is
+    assumed alive). Then:
+
+    * ``.<out>.old-*`` (the previous results, renamed away): when ``<out>`` is absent it is
+      renamed back to ``<out>``; otherwise the swap had completed and it is removed;
+    * ``.<out>.tmp-*`` (a temporary folder: unfinished, or finished but never published):
+      the ``keep`` entries in it (the stage cache) go back into ``<out>`` when ``<out>``
+      lacks them; then it is removed.
 
     Returns one line per action (empty when there was nothing to do)."""
     out = Path(out_dir).resolve()
@@ -286,25 +281,25 @@ def recover_interrupted_write(out_dir: str | Path, keep: Sequence[str] = (".cach
         entries = sorted(parent.iterdir())
     except OSError:
         return []
-    olds = [p for p in entries if p.name.startswith(old_prefix) and p.is_dir()]
-    tmps = [p for p in entries if p.name.startswith(tmp_prefix) and p.is_dir()]
+
+    def proven(p: Path, kind: str) -> bool:
+        rec = read_marker(p, kind, out.name)
+        return rec is not None and not writer_may_be_alive(rec)
+
+    olds = [p for p in entries if p.name.startswith(old_prefix) and proven(p, "old")]
+    tmps = [p for p in entries if p.name.startswith(tmp_prefix) and proven(p, "tmp")]
     for old in olds:
-        pid = _leftover_pid(old.name, old_prefix)
-        if pid is None or _writer_alive(pid):
-            continue
-        if not out.exists():
-            os.replace(old, out)
+        if not os.path.lexists(out):
+            os.rename(old, out)
+            (out / MARKER).unlink(missing_ok=True)
             done.append(f"restored {out} from {old.name} (a run was interrupted replacing it)")
         else:
             shutil.rmtree(old, ignore_errors=True)
             done.append(f"removed {old.name} (left by an interrupted run)")
     for tmp in tmps:
-        pid = _leftover_pid(tmp.name, tmp_prefix)
-        if pid is None or _writer_alive(pid):
-            continue
-        if out.is_dir():
+        if is_real_dir(out):
             for name in keep:
-                if (tmp / name).exists() and not (out / name).exists():
+                if is_real_dir(tmp / name) and not os.path.lexists(out / name):
                     os.replace(tmp / name, out / name)
         shutil.rmtree(tmp, ignore_errors=True)
         done.append(f"removed {tmp.name} (temporary folder of an interrupted run)")
@@ -314,40 +309,61 @@ def recover_interrupted_write(out_dir: str | Path, keep: Sequence[str] = (".cach
 def check_replaceable(out_dir: str | Path, keep: Sequence[str] = (".cache",)) -> None:
     """Refuse to replace a folder unless nothing but msk's own output would be lost: it must
     be absent, empty (but for ``keep``), or an msk session folder — a ``summary.json`` of
-    format :data:`SUMMARY_FORMAT` and no entry msk did not write (:data:`SESSION_ENTRIES`,
-    table files in ``tables/``). Recovers an interrupted write first
-    (:func:`recover_interrupted_write`)."""
+    format :data:`SUMMARY_FORMAT` and no entry msk did not write (:data:`SESSION_ENTRIES`;
+    in ``tables/`` only the tables its summary lists, as ``.csv`` and their ``.sto``/``.mot``
+    twins; no symbolic link anywhere but as a ``keep`` entry, which is then not carried
+    over). A folder that is refused is refused before anything is recovered or removed;
+    otherwise an interrupted write is recovered (:func:`recover_interrupted_write`) and the
+    folder it restores is checked in turn."""
     out = Path(out_dir)
+    if os.path.lexists(out):
+        _check_folder(out, keep)  # refused: nothing is touched
     recover_interrupted_write(out, keep)
-    if not out.exists():
-        return
-    if not out.is_dir():
+    if os.path.lexists(out):
+        _check_folder(out, keep)
+
+
+def _table_files(names: Any) -> set[str]:
+    """The files of ``tables/`` a summary's ``tables`` list accounts for."""
+    if not isinstance(names, list):
+        return set()
+    out = set()
+    for n in names:
+        if isinstance(n, str) and n in TABLES:
+            out |= {f"{n}.csv", "q.mot" if n == "q" else f"{n}.sto"}
+    return out
+
+
+def _check_folder(out: Path, keep: Sequence[str]) -> None:
+    if out.is_symlink() or not out.is_dir():
         raise FileFormatError(f"{out}: exists and is not a folder")
     other = sorted(p.name for p in out.iterdir() if p.name not in keep)
     if not other:
         return
     spath = out / "summary.json"
-    if not spath.is_file():
+    if spath.is_symlink() or not spath.is_file():
         raise FileFormatError(
             f"{out}: not an msk session folder (no summary.json) and not empty "
             f"({', '.join(other[:3])}…); choose another --out"
         )
     try:
-        fmt = json.loads(spath.read_text(encoding="utf-8")).get("format")
-    except (OSError, UnicodeDecodeError, json.JSONDecodeError, AttributeError):
-        fmt = None
+        data = json.loads(spath.read_text(encoding="utf-8"))
+        fmt, listed = data.get("format"), data.get("tables")
+    except (OSError, UnicodeDecodeError, json.JSONDecodeError, AttributeError, RecursionError):
+        fmt, listed = None, None
     if fmt != SUMMARY_FORMAT:
         raise FileFormatError(
             f"{spath}: not an msk session summary (format {fmt!r}, expected "
             f"{SUMMARY_FORMAT!r}); refusing to replace {out}: choose another --out"
         )
-    foreign = [n for n in other if n not in SESSION_ENTRIES]
+    foreign = [n for n in other if n not in SESSION_ENTRIES or (out / n).is_symlink()]
     tables = out / "tables"
-    if tables.is_dir():
+    if is_real_dir(tables):
+        ours = _table_files(listed)
         foreign += [
             f"tables/{p.name}"
             for p in tables.iterdir()
-            if not (p.is_file() and p.suffix in (".csv", ".sto", ".mot"))
+            if p.is_symlink() or not p.is_file() or p.name not in ours
         ]
     if foreign:
         raise FileFormatError(

@@ -784,6 +784,8 @@ class Summary(_Record):
             d = json.loads(text)
         except json.JSONDecodeError as exc:
             raise SummaryError(f"summary: not valid JSON: {exc}") from None
+        except RecursionError:
+            raise SummaryError("summary: nested too deeply to be a session summary") from None
         return cls.from_dict(d)
 
     def to_json(self) -> str:

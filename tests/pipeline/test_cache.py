@@ -364,7 +364,7 @@ class Mutable:
 
 @pytest.fixture
 def msk_test_module(monkeypatch):
-    mod = types.ModuleType("msk._cache_test_types")
+    mod = types.ModuleType("msk.cache_test_types")  # a library module's name (not private)
     for cls in (Colour, Slotted, Mutable):
         monkeypatch.setattr(cls, "__module__", mod.__name__)
         setattr(mod, cls.__qualname__, cls)
@@ -384,7 +384,8 @@ def test_msk_enums_slots_and_init_false_dataclasses_round_trip(cache, msk_test_m
 # poisoned entries: never executed, deleted
 # ---------------------------------------------------------------------------------------------
 def forge(cache: StageCache, name: str, key: str, tree: Any, payload: bytes, n: int) -> Path:
-    """Write an entry with a valid checksum, as an attacker who read msk.pipeline.cache could."""
+    """Write an entry with a valid MAC, as an attacker holding the user's key could (the
+    decoder's own defences, behind the MAC)."""
     manifest_path, npz_path = cache.paths(name, key)
     cache.folder.mkdir(parents=True, exist_ok=True)
     npz_path.write_bytes(payload)
@@ -398,7 +399,7 @@ def forge(cache: StageCache, name: str, key: str, tree: Any, payload: bytes, n: 
         "read_only": [],
         "tree": tree,
     }
-    manifest["sha256"] = mc._digest(manifest, payload)
+    manifest["mac"] = mc._digest(manifest, payload)
     manifest_path.write_text(json.dumps(manifest))
     return manifest_path
 

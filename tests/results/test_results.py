@@ -358,12 +358,15 @@ def _fake_dead_pid(parent, name):
     """Rename the leftovers of this process to those of a process that no longer exists."""
     import os
 
+    from msk._runtime.secure import write_marker
+
     dead = 2**22 + 12345  # above pid_max's default: no such process
     for p in parent.iterdir():
         for kind in ("old", "tmp"):
             prefix = f".{name}.{kind}-{os.getpid()}"
             if p.name.startswith(prefix):
-                p.rename(parent / p.name.replace(prefix, f".{name}.{kind}-{dead}"))
+                p = p.rename(parent / p.name.replace(prefix, f".{name}.{kind}-{dead}"))
+                write_marker(p, kind, name, pid=dead)  # as the dead writer had marked it
 
 
 def test_kill_between_the_two_renames_is_recovered_on_the_next_run(tmp_path, monkeypatch):
@@ -394,18 +397,25 @@ def test_kill_between_the_two_renames_is_recovered_on_the_next_run(tmp_path, mon
 def test_stale_leftovers_are_removed_but_a_live_writers_are_kept(tmp_path):
     import os
 
+    from msk._runtime.secure import write_marker
     from msk.results.folder import recover_interrupted_write
 
     out = write_session(tmp_path / "s", _results())
     dead = 2**22 + 12345
     (tmp_path / f".s.old-{dead}").mkdir()  # swap completed, old copy not removed
+    write_marker(tmp_path / f".s.old-{dead}", "old", "s", pid=dead)
     (tmp_path / f".s.tmp-{dead}-abc").mkdir()  # unfinished temporary folder
     (tmp_path / f".s.tmp-{dead}-abc" / "summary.json").write_text("{}")
+    write_marker(tmp_path / f".s.tmp-{dead}-abc", "tmp", "s", pid=dead)
     parent_pid = os.getppid()  # alive: its leftovers may be in use
     (tmp_path / f".s.tmp-{parent_pid}-xyz").mkdir()
-    (tmp_path / ".s.tmp-notapid").mkdir()  # not msk's naming: untouched
+    write_marker(tmp_path / f".s.tmp-{parent_pid}-xyz", "tmp", "s", pid=parent_pid)
+    (tmp_path / ".s.tmp-notapid").mkdir()  # no marker: not provably msk's, untouched
+    (tmp_path / f".s.old-{dead}-user").mkdir()  # msk's naming but no marker: untouched
     msgs = recover_interrupted_write(out)
     assert len(msgs) == 2
     left = sorted(p.name for p in tmp_path.iterdir())
-    assert left == sorted(["s", f".s.tmp-{parent_pid}-xyz", ".s.tmp-notapid"])
+    assert left == sorted(
+        ["s", f".s.tmp-{parent_pid}-xyz", ".s.tmp-notapid", f".s.old-{dead}-user"]
+    )
     assert (out / "summary.json").exists()
