@@ -15,8 +15,8 @@ from hypothesis import given
 from hypothesis import strategies as st
 
 import msk.optimization as o
+from msk._runtime import blocks
 from msk.datasets.optimization import leg_like_frames
-from msk.pipeline import blocks
 from msk.pipeline.cache import decode, encode
 from msk.timeseries import FrameSparse
 
