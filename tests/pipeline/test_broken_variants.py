@@ -19,7 +19,7 @@ import pytest
 
 from msk.config import load_config, render_config
 from msk.model.markersets import parse_label
-from msk.pipeline import run_stages, run_task_trials
+from msk.pipeline import run_stages, split_task_trials
 
 REPO = Path(__file__).resolve().parents[2]
 CONFIGS = sorted((REPO / "pipelines").glob("*.toml"))
@@ -34,12 +34,14 @@ def _present(cfg: Path) -> bool:
 
 def _flags(cfg, folder: Path, **changes) -> dict[str, dict]:
     """The quality flags (quantity → flag) of the session's first task trial run with the
-    configuration changed as given."""
+    configuration changed as given: the summary stage's, the flags ``msk run`` writes to
+    summary.json (the report's figures, drawn after it, are not made)."""
     path = folder / "variant.toml"
     path.parent.mkdir(parents=True, exist_ok=True)
     path.write_text(render_config(dataclasses.replace(cfg, **changes)), encoding="utf-8")
-    res = run_task_trials(path, folder / "out")[0]
-    return {f["quantity"]: f for f in res.summary.to_dict()["quality"]["flags"]}
+    first = split_task_trials(load_config(path))[0]
+    summary = run_stages(first, until="summary")["summary"]
+    return {f["quantity"]: f for f in summary["quality"]["flags"]}
 
 
 def _asis_pair(matched: dict[str, str]) -> tuple[str, str]:
