@@ -22,9 +22,6 @@ from msk.timeseries import FrameSparse
 from tests.support.sessions import stages
 
 REPO = Path(__file__).resolve().parents[2]
-#: the gc5_PS stages every test here reads, computed once (tests/support/sessions.py) by the
-#: worker that runs the tests of the group
-GC5 = pytest.mark.xdist_group("gc5_PS")
 
 
 def _sparse_dense(n: int = 7) -> tuple[np.ndarray, np.ndarray]:
@@ -170,7 +167,6 @@ def test_batch_with_inequality_rows_in_parts_equals_one_call(criterion: str) -> 
 
 
 @pytest.mark.slow
-@GC5
 @pytest.mark.parametrize("frame_block", [40, 4096])
 def test_tension_and_contact_in_solve_parts_equal_whole_blocks(
     monkeypatch: pytest.MonkeyPatch, frame_block: int
@@ -266,9 +262,10 @@ def test_session_in_small_blocks_equals_one_block(
     from msk.config import load_config
     from msk.pipeline import run_session
     from msk.results.folder import read_session
+    from tests.support.sessions import session
 
     cfg = load_config(REPO / "pipelines" / "gc5_PS.toml")
-    one = run_session(cfg, tmp_path / "one", use_cache=False)
+    one = session("gc5_PS.toml")  # the shipped session in one block, shared
     monkeypatch.setattr(blocks, "FRAME_BLOCK", 40)
     many = run_session(cfg, tmp_path / "many", use_cache=False)
     assert [s.status for s in many.stages] == [s.status for s in one.stages]
@@ -299,7 +296,6 @@ def test_gain_fit_frames_are_all_or_evenly_spaced(n: int, cap: int) -> None:
         assert fit[0] == frames[0] and (cap == 1 or fit[-1] == frames[-1])
 
 
-@GC5
 def test_emg_assisted_gains_from_a_frame_sample(
     tmp_path: Path, monkeypatch: pytest.MonkeyPatch
 ) -> None:
@@ -324,7 +320,6 @@ def test_emg_assisted_gains_from_a_frame_sample(
     assert np.isfinite(part.forces).sum() == np.isfinite(full.forces).sum()
 
 
-@GC5
 def test_tension_forces_only_are_the_stage_forces() -> None:
     """The knee contact stage's re-solve keeps the forces only: the same forces as the tension
     stage's (gc5_PS, ``emg_assisted``), no activations or reserve torques held."""
@@ -379,7 +374,6 @@ def test_foot_points_in_blocks_equal_one_pass(monkeypatch: pytest.MonkeyPatch) -
         assert np.isnan(a[[4, 11, 30]]).all() and np.isfinite(np.delete(a, [4, 11, 30], 0)).all()
 
 
-@GC5
 def test_shipped_emg_assisted_session_over_several_assembly_chunks(
     monkeypatch: pytest.MonkeyPatch,
 ) -> None:
@@ -630,7 +624,6 @@ def test_run_graph_releases_each_result_after_its_last_reader() -> None:
     assert set(out) == set(names) and alive["at middle"] is True
 
 
-@GC5
 def test_model_stage_keeps_no_analog_rate_data() -> None:
     """The model stage's trial holds the markers (model frame) only: the analogs and plates
     stay with the read stage, which is released after the EMG stage; the read stage keeps the
@@ -700,7 +693,6 @@ def test_emg_channel_by_channel_on_the_frames_equals_resampling_the_whole() -> N
     np.testing.assert_array_equal(per_channel.time, frames)
 
 
-@GC5
 def test_plates_sampled_first_give_the_same_loads() -> None:
     """external_loads of plates already on the kinematics time
     (:func:`msk.dynamics.loads.sample_plate`,
@@ -724,7 +716,6 @@ def test_plates_sampled_first_give_the_same_loads() -> None:
     np.testing.assert_allclose(rotated.force @ rot.T, sampled[0].force, atol=1e-9)
 
 
-@GC5
 def test_inverse_dynamics_in_blocks_equals_one_pass(monkeypatch: pytest.MonkeyPatch) -> None:
     """gc5_PS's inverse dynamics in blocks of 40 frames: the one-pass torques and residuals."""
     import msk.dynamics.inverse as dyn
@@ -740,7 +731,6 @@ def test_inverse_dynamics_in_blocks_equals_one_pass(monkeypatch: pytest.MonkeyPa
     assert many.coordinate_names == one.coordinate_names
 
 
-@GC5
 def test_knee_contact_in_blocks_equals_one_pass() -> None:
     """The knee contact stage (gc5_PS: generic and subject-specific) with the knee wrenches
     recomputed per block and the subject-specific re-solve consumed per block of 40 frames
@@ -863,7 +853,6 @@ def test_strength_compact_activation_equals_the_dense_one(
     assert np.isfinite(profiles[0].factors).all()
 
 
-@GC5
 def test_recomputed_jacobian_rows_are_the_geometry_stages_values(
     monkeypatch: pytest.MonkeyPatch,
 ) -> None:
@@ -937,7 +926,6 @@ def test_zeros_as_gaps_view_copies_only_what_it_blanks() -> None:
     np.testing.assert_array_equal(c, zeros_as_gaps(x))
 
 
-@GC5
 def test_model_stage_markers_in_blocks_equal_the_whole_trial(
     monkeypatch: pytest.MonkeyPatch,
 ) -> None:
@@ -986,7 +974,6 @@ def test_model_stage_markers_in_blocks_equal_the_whole_trial(
     assert whole.source in ("pelvis markers", "progression")
 
 
-@GC5
 def test_loads_stage_in_point_blocks_equals_one_pass(monkeypatch: pytest.MonkeyPatch) -> None:
     """gc5_PS's loads stage (plates rotated and sampled one at a time, the feet's speeds for
     the measured-contact test block by block of ``msk.dynamics.loads._POINT_BLOCK`` frames): blocks
@@ -1051,7 +1038,6 @@ def test_run_graph_trims_a_result_after_the_node_named() -> None:
     assert seen == {"first": ("a", "b"), "second": ("a", "b")}
 
 
-@GC5
 def test_read_trims_drop_markers_and_plates_only() -> None:
     """``without_markers`` / ``without_plates`` (the graph's TRIMS) drop the task's markers and
     the plates and share everything else; the model stage holds its own markers (model frame,
