@@ -13,19 +13,18 @@ import numpy as np
 import pytest
 
 from msk.io.opensim_files import Table
-from msk.pipeline import run_session
 from msk.report import render_html, write_pdf
 from msk.report.html import chromium_args, chromium_executable
 from msk.results.folder import SessionResults, read_session
+from tests.support import sessions
 
 REPO = Path(__file__).resolve().parents[1]
 
 
 @pytest.fixture(scope="module")
-def session(tmp_path_factory):
-    out = tmp_path_factory.mktemp("report") / "gc5"
-    run_session(REPO / "pipelines" / "gc5_PS.toml", out)
-    return read_session(out)
+def session():
+    # the bundled session's results folder, shared with the other tests that read it
+    return read_session(sessions.session("gc5_PS.toml").out_dir)
 
 
 @pytest.fixture(scope="module")

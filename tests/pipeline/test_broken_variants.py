@@ -14,12 +14,13 @@ from __future__ import annotations
 import dataclasses
 import re
 from pathlib import Path
+from typing import Any
 
 import pytest
 
 from msk.config import load_config, render_config
 from msk.model.markersets import parse_label
-from msk.pipeline import run_stages, run_task_trials
+from msk.pipeline import run_stages, split_task_trials
 
 REPO = Path(__file__).resolve().parents[2]
 CONFIGS = sorted((REPO / "pipelines").glob("*.toml"))
@@ -32,14 +33,21 @@ def _present(cfg: Path) -> bool:
     return all((cfg.parent / p).resolve().exists() for p in paths)
 
 
-def _flags(cfg, folder: Path, **changes) -> dict[str, dict]:
-    """The quality flags (quantity → flag) of the session's first task trial run with the
-    configuration changed as given."""
+def _variant(cfg, folder: Path, **changes) -> dict[str, Any]:
+    """The stages up to the summary of the session's first task trial run with the
+    configuration changed as given (the report's figures, drawn after the summary, are not
+    made)."""
     path = folder / "variant.toml"
     path.parent.mkdir(parents=True, exist_ok=True)
     path.write_text(render_config(dataclasses.replace(cfg, **changes)), encoding="utf-8")
-    res = run_task_trials(path, folder / "out")[0]
-    return {f["quantity"]: f for f in res.summary.to_dict()["quality"]["flags"]}
+    first = split_task_trials(load_config(path))[0]
+    return run_stages(first, until="summary")
+
+
+def _flags(results: dict[str, Any]) -> dict[str, dict]:
+    """The quality flags (quantity → flag) of a run: the summary stage's, the flags ``msk run``
+    writes to summary.json."""
+    return {f["quantity"]: f for f in results["summary"]["quality"]["flags"]}
 
 
 def _asis_pair(matched: dict[str, str]) -> tuple[str, str]:
@@ -61,21 +69,24 @@ def test_broken_variants_raise_the_flag_that_names_the_problem(path: Path, tmp_p
     if not _present(path):
         pytest.skip(f"{path.stem}: recordings not here")
     cfg = load_config(path)
-    built = run_stages(cfg, until="model")["model"]
-    matched = dict(built.info["marker_set"]["matched"])
-
     # 1. the body mass typed 30 % low: the plates weigh someone else
     if cfg.subject.mass_kg is not None:
         light = dataclasses.replace(cfg.subject, mass_kg=0.7 * cfg.subject.mass_kg)
-        flags = _flags(cfg, tmp_path / "mass", subject=light)
+        light_run = _variant(cfg, tmp_path / "mass", subject=light)
+        flags = _flags(light_run)
         assert "plate_mass_difference_pct" in flags, sorted(flags)
         # plates heavier than the configured mass (the value is their difference, % of it)
         assert flags["plate_mass_difference_pct"]["value"] > 5.0
+        # the model's markers, their lab labels and bodies: the mass does not change them
+        built = light_run["model"]
+    else:
+        built = run_stages(cfg, until="model")["model"]
+    matched = dict(built.info["marker_set"]["matched"])
 
     # 2. the right and left ASIS labels swapped (a labelling error in the file)
     r, lft = _asis_pair(matched)
     swapped = {**cfg.marker_rename, r: matched[lft], lft: matched[r]}
-    flags = _flags(cfg, tmp_path / "swap", marker_rename=swapped)
+    flags = _flags(_variant(cfg, tmp_path / "swap", marker_rename=swapped))
     assert f"{r}/{lft}_swapped" in flags, sorted(flags)
 
     # 3. every marker on the right foot dropped from IK: the foot is not observed, and a
@@ -86,6 +97,6 @@ def test_broken_variants_raise_the_flag_that_names_the_problem(path: Path, tmp_p
     if not on_foot:
         pytest.skip("the model has no right-foot markers")
     weights = {**cfg.marker_weights, **dict.fromkeys(on_foot, 0.0)}
-    flags = _flags(cfg, tmp_path / "foot", marker_weights=weights)
+    flags = _flags(_variant(cfg, tmp_path / "foot", marker_weights=weights))
     named = " ".join(flags)
     assert re.search(r"calcn_r|toes_r|subtalar_angle_r|ankle_angle_r|mtp_angle_r", named), named

@@ -19,6 +19,7 @@ from msk._runtime import blocks
 from msk.datasets.optimization import leg_like_frames
 from msk.pipeline.cache import decode, encode
 from msk.timeseries import FrameSparse
+from tests.support.sessions import stages
 
 REPO = Path(__file__).resolve().parents[2]
 
@@ -179,14 +180,16 @@ def test_tension_and_contact_in_solve_parts_equal_whole_blocks(
     from threadpoolctl import threadpool_limits
 
     from msk.config import load_config
-    from msk.pipeline import contact, run_stages, tension
+    from msk.pipeline import contact, tension
     from msk.pipeline.inputs import session_inputs
 
     cfg = load_config(REPO / "pipelines" / "gc5_PS.toml")
     assert cfg.optimization.compartment_nonnegative
+    # the stages with blocks of ``frame_block`` frames, each solved whole (the trial's 145
+    # frames are fewer than the default solve part)
+    r = stages("gc5_PS.toml", "knee_contact", frame_block=frame_block)
+    assert r["kinematics"].time.size <= blocks.SOLVE_BLOCK
     monkeypatch.setattr(blocks, "FRAME_BLOCK", frame_block)
-    monkeypatch.setattr(blocks, "SOLVE_BLOCK", 4096)
-    r = run_stages(cfg, until="knee_contact")
     monkeypatch.setattr(blocks, "SOLVE_BLOCK", 16)
     inputs = session_inputs(cfg)
     args = (inputs, r["model"], r["kinematics"], r["loads"], r["mass_identification"],
@@ -259,9 +262,10 @@ def test_session_in_small_blocks_equals_one_block(
     from msk.config import load_config
     from msk.pipeline import run_session
     from msk.results.folder import read_session
+    from tests.support.sessions import session
 
     cfg = load_config(REPO / "pipelines" / "gc5_PS.toml")
-    one = run_session(cfg, tmp_path / "one", use_cache=False)
+    one = session("gc5_PS.toml")  # the shipped session in one block, shared
     monkeypatch.setattr(blocks, "FRAME_BLOCK", 40)
     many = run_session(cfg, tmp_path / "many", use_cache=False)
     assert [s.status for s in many.stages] == [s.status for s in one.stages]
@@ -304,7 +308,7 @@ def test_emg_assisted_gains_from_a_frame_sample(
 
     cfg = load_config(REPO / "pipelines" / "gc5_PS.toml")
     assert cfg.optimization.method == "emg_assisted"
-    full = run_stages(cfg, until="tension_optimization")["tension_optimization"]
+    full = stages("gc5_PS.toml", "knee_contact")["tension_optimization"]
     monkeypatch.setattr(muscle_forces, "GAIN_FIT_FRAMES", 70)
     monkeypatch.setattr(blocks, "FRAME_BLOCK", 40)
     part = run_stages(cfg, until="tension_optimization")["tension_optimization"]
@@ -324,11 +328,10 @@ def test_tension_forces_only_are_the_stage_forces() -> None:
     from msk.config import load_config
     from msk.dynamics.identification import identified_model
     from msk.optimization.muscle_forces import solve_muscle_forces
-    from msk.pipeline import run_stages
     from msk.pipeline.inputs import session_inputs
 
     cfg = load_config(REPO / "pipelines" / "gc5_PS.toml")
-    r = run_stages(cfg, until="tension_optimization")
+    r = stages("gc5_PS.toml", "knee_contact")
     full = r["tension_optimization"]
     torques = r["inverse_dynamics"].torques
     with threadpool_limits(limits=1, user_api="blas"):
@@ -384,7 +387,7 @@ def test_shipped_emg_assisted_session_over_several_assembly_chunks(
 
     cfg = load_config(REPO / "pipelines" / "gc5_PS.toml")
     assert cfg.optimization.method == "emg_assisted"
-    one = run_stages(cfg, until="tension_optimization")["tension_optimization"]
+    one = stages("gc5_PS.toml", "knee_contact")["tension_optimization"]
     monkeypatch.setattr(problems, "_BLOCK_CHUNK", 40)
     many = run_stages(cfg, until="tension_optimization")["tension_optimization"]
     assert np.isfinite(one.forces).sum() > 100 and many.infeasible_frames == 0
@@ -628,11 +631,10 @@ def test_model_stage_keeps_no_analog_rate_data() -> None:
     analog channels of no plate, nothing else at the analog rate."""
     from msk.config import load_config
     from msk.pipeline import read as read_stage
-    from msk.pipeline import run_stages
     from msk.pipeline.inputs import session_inputs
 
     cfg = load_config(REPO / "pipelines" / "gc5_PS.toml")
-    r = run_stages(cfg, until="loads")
+    r = stages("gc5_PS.toml", "knee_contact")
     built, read = r["model"], r["read"]
     assert built.trial.plates == () and built.trial.analogs.size == 0
     np.testing.assert_array_equal(built.lab_up, read.trial.up)
@@ -695,11 +697,9 @@ def test_plates_sampled_first_give_the_same_loads() -> None:
     """external_loads of plates already on the kinematics time
     (:func:`msk.dynamics.loads.sample_plate`,
     column by column) equals external_loads of the analog-rate plates, bit for bit."""
-    from msk.config import load_config
     from msk.dynamics.loads import external_loads, sample_plate
-    from msk.pipeline import run_stages
 
-    r = run_stages(load_config(REPO / "pipelines" / "gc5_PS.toml"), until="loads")
+    r = stages("gc5_PS.toml", "knee_contact")
     mdl, kin, read = r["model"], r["kinematics"], r["read"]
     rot = mdl.rotation
     from msk.pipeline.loads import rotated_plate
@@ -719,10 +719,8 @@ def test_plates_sampled_first_give_the_same_loads() -> None:
 def test_inverse_dynamics_in_blocks_equals_one_pass(monkeypatch: pytest.MonkeyPatch) -> None:
     """gc5_PS's inverse dynamics in blocks of 40 frames: the one-pass torques and residuals."""
     import msk.dynamics.inverse as dyn
-    from msk.config import load_config
-    from msk.pipeline import run_stages
 
-    r = run_stages(load_config(REPO / "pipelines" / "gc5_PS.toml"), until="loads")
+    r = stages("gc5_PS.toml", "knee_contact")
     mdl, kin, ext = r["model"].model, r["kinematics"], r["loads"].external
     one = dyn.inverse_dynamics(mdl, kin, ext)
     monkeypatch.setattr(dyn, "ID_BLOCK", 40)
@@ -733,7 +731,7 @@ def test_inverse_dynamics_in_blocks_equals_one_pass(monkeypatch: pytest.MonkeyPa
     assert many.coordinate_names == one.coordinate_names
 
 
-def test_knee_contact_in_blocks_equals_one_pass(monkeypatch: pytest.MonkeyPatch) -> None:
+def test_knee_contact_in_blocks_equals_one_pass() -> None:
     """The knee contact stage (gc5_PS: generic and subject-specific) with the knee wrenches
     recomputed per block and the subject-specific re-solve consumed per block of 40 frames
     (never held whole) gives the contact of one pass: the whole re-solve's forces and the
@@ -745,14 +743,11 @@ def test_knee_contact_in_blocks_equals_one_pass(monkeypatch: pytest.MonkeyPatch)
     from msk.dynamics.identification import identified_model
     from msk.muscles.geometry import muscle_geometry
     from msk.optimization.muscle_forces import solve_muscle_forces
-    from msk.pipeline import run_stages
     from msk.pipeline.inputs import session_inputs
     from msk.strength import with_strength
 
     cfg = load_config(REPO / "pipelines" / "gc5_PS.toml")
-    monkeypatch.setattr(blocks, "FRAME_BLOCK", 40)
-    r = run_stages(cfg, until="knee_contact")
-    monkeypatch.setattr(blocks, "FRAME_BLOCK", 4096)
+    r = stages("gc5_PS.toml", "knee_contact", frame_block=40)
     got = r["knee_contact"]
     assert set(got.variants) == {"generic", "subject_specific"}
     assert not r["muscle_geometry"].distal_wrenches  # not held from geometry to contact
@@ -872,13 +867,13 @@ def test_recomputed_jacobian_rows_are_the_geometry_stages_values(
 
     from msk.config import load_config
     from msk.muscles.geometry import geometry_plan
-    from msk.pipeline import geometry, run_stages, tension
+    from msk.pipeline import geometry, tension
     from msk.pipeline.geometry import JacobianRows, posed_geometry
     from msk.pipeline.inputs import session_inputs
 
+    r = stages("gc5_PS.toml", "knee_contact", frame_block=40)
     monkeypatch.setattr(blocks, "FRAME_BLOCK", 40)
     cfg = load_config(REPO / "pipelines" / "gc5_PS.toml")
-    r = run_stages(cfg, until="emg")
     mdl, kin, ok = r["model"].model, r["kinematics"], r["loads"].solvable
     geo = geometry.run(session_inputs(cfg), r["model"], kin, r["loads"])
     rows = geo.jacobian.values
@@ -943,12 +938,11 @@ def test_model_stage_markers_in_blocks_equal_the_whole_trial(
     from msk.io import frames
     from msk.model.markersets import recognise
     from msk.personalise.task_markers import model_frame_columns
-    from msk.pipeline import run_stages
     from msk.pipeline.inputs import session_inputs
     from msk.pipeline.model import load_model_file
 
     cfg = load_config(REPO / "pipelines" / "gc5_PS.toml")
-    read = run_stages(cfg, until="read")["read"]
+    read = stages("gc5_PS.toml", "knee_contact")["read"]
     inputs = session_inputs(cfg)
     assert inputs.model_source is not None and inputs.model_cfg is not None
     model = load_model_file(inputs.model_source, inputs.model_cfg.markers)
@@ -990,11 +984,10 @@ def test_loads_stage_in_point_blocks_equals_one_pass(monkeypatch: pytest.MonkeyP
     import msk.dynamics.loads as ml
     from msk.config import load_config
     from msk.pipeline import loads as stage
-    from msk.pipeline import run_stages
     from msk.pipeline.inputs import session_inputs
 
     cfg = load_config(REPO / "pipelines" / "gc5_PS.toml")
-    r = run_stages(cfg, until="kinematics")
+    r = stages("gc5_PS.toml", "knee_contact")
     inputs = session_inputs(cfg)
     one = stage.run(inputs, r["read"], r["model"], r["kinematics"])
     monkeypatch.setattr(ml, "_POINT_BLOCK", 8)
@@ -1050,10 +1043,8 @@ def test_read_trims_drop_markers_and_plates_only() -> None:
     """``without_markers`` / ``without_plates`` (the graph's TRIMS) drop the task's markers and
     the plates and share everything else; the model stage holds its own markers (model frame,
     not the read result's array), so that dropping them from ``read`` frees them."""
-    from msk.config import load_config
     from msk.pipeline import model as model_stage
     from msk.pipeline import read as read_stage
-    from msk.pipeline import run_stages
     from msk.pipeline.graph import GRAPH, TRIMS
 
     names = [n.name for n in GRAPH]
@@ -1071,8 +1062,7 @@ def test_read_trims_drop_markers_and_plates_only() -> None:
     readers = [n.name for n in GRAPH if "read" in n.reads_results]
     assert readers == ["measured_contact", "model", "loads", "mass_identification", "emg"]
     assert names.index("model") < names.index("loads") < names.index("emg")
-    cfg = load_config(REPO / "pipelines" / "gc5_PS.toml")
-    r = run_stages(cfg, until="swapped_markers")
+    r = stages("gc5_PS.toml", "knee_contact")
     built, read = r["model"], r["read"]
     assert not np.shares_memory(built.trial.markers, read.trial.markers)
     assert not np.shares_memory(r["kinematics"].q, built.trial.markers)

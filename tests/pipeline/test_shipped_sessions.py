@@ -35,7 +35,7 @@ import pytest
 from msk.personalise.leg_split import LEG_SPLIT_METHODS
 from msk.pipeline import CORE_STAGES, run_task_trials
 from msk.results.summary import Summary
-from tests.support import golden
+from tests.support import golden, sessions
 
 REPO = Path(__file__).resolve().parents[2]
 CONFIGS = sorted((REPO / "pipelines").glob("*.toml"))
@@ -129,19 +129,15 @@ def _files_present(cfg: Path) -> bool:
     return all((cfg.parent / p).resolve().exists() for p in paths)
 
 
-def _run(cfg: Path, out: Path):
-    (res,) = run_task_trials(cfg, out)
-    return res
-
-
 @pytest.mark.slow
 @pytest.mark.realdata
 @pytest.mark.parametrize("cfg", CONFIGS, ids=[c.stem for c in CONFIGS])
-def test_shipped_session_runs_and_flags_what_is_wrong(cfg: Path, tmp_path: Path) -> None:
+def test_shipped_session_runs_and_flags_what_is_wrong(cfg: Path) -> None:
     if not _files_present(cfg):
         pytest.skip(f"{cfg.name}: its recordings are not here")
     assert cfg.stem in EXPECT, f"add {cfg.stem} to EXPECT with its measured figures"
-    res = _run(cfg, tmp_path / "out")
+    # run once per process, its folder shared with the other tests reading it (read only)
+    res = sessions.session(cfg)
     s = res.summary.to_dict()
     text = (res.out_dir / "summary.json").read_text()
     assert Summary.from_json(text).to_json() == text  # the typed summary round-trips exactly
@@ -299,8 +295,8 @@ def test_short_trial_progressing_under_0p3_m_is_headed_by_the_pelvis(tmp_path: P
     src = (REPO / "pipelines" / "../../shared/data/real/btkdata/PiG_Motion3_FF.c3d").resolve()
     short = _crop_c3d(src, tmp_path / "short.c3d", 100, 125)
     var = _variant(cfg, tmp_path, lambda t: t.replace(str(src), str(short)))
-    full = _run(cfg, tmp_path / "full")
-    res = _run(var, tmp_path / "short")
+    full = sessions.session(cfg)  # the shipped session's folder (shared, read only)
+    (res,) = run_task_trials(var, tmp_path / "short")
     s = res.summary.to_dict()
     assert s["model"]["heading"]["source"] == "pelvis markers"
     prog = s["model"]["heading"]["progression_yaw_deg"]
@@ -343,7 +339,7 @@ def test_both_feet_on_one_plate_is_flagged_and_left_out(tmp_path: Path) -> None:
 
 @pytest.mark.slow
 @pytest.mark.realdata
-def test_subject01_coordinates_within_5_deg_of_opensims_ik(tmp_path: Path) -> None:
+def test_subject01_coordinates_within_5_deg_of_opensims_ik() -> None:
     """The shipped subject01 config (gait2392, static-scaled, markers placed and relocated from
     the static) against OpenSim's own IK of the same walk (``subject01_walk_IK.mot``, the
     10-dof model): every leg and lumbar coordinate within 5° RMS over the IK's frames
@@ -355,7 +351,7 @@ def test_subject01_coordinates_within_5_deg_of_opensims_ik(tmp_path: Path) -> No
            / "subject01_walk_IK.mot").resolve()  # fmt: skip
     if not _files_present(cfg) or not ref.is_file():
         pytest.skip("OpenSim subject01 recordings are not here")
-    res = _run(cfg, tmp_path / "out")
+    res = sessions.session(cfg)  # the shipped session's folder (shared, read only)
     ik = read_sto(ref)
     q = res.out_dir / "tables" / "q.csv"
     head = q.read_text(encoding="utf-8").splitlines()[0].split(",")

@@ -13,7 +13,7 @@ import numpy as np
 import pytest
 
 from msk.exceptions import FileFormatError, MissingDataError, MskError
-from msk.io.dynamometer import G_STANDARD, DynamometerRecording, read_dynamometer
+from msk.io.dynamometer import DynamometerRecording, read_dynamometer
 from msk.strength.isometric import (
     IsometricSettings,
     IsometricTest,
@@ -25,6 +25,7 @@ from msk.strength.isometric import (
     lever_arm_from_height,
     session_mvc,
 )
+from msk.units import G0 as G_STANDARD
 
 RATE = 2000.0
 LABELS = ("VL", "BF", "TA", "GL")
