@@ -85,6 +85,7 @@ __all__ = [
     "recognise",
     "reconstructed_markers",
     "shoulder_girdle_markers",
+    "strip_subject_prefix",
     "zeros_as_gaps",
     "zeros_as_gaps_view",
 ]
@@ -403,6 +404,26 @@ def parse_label(label: str) -> ParsedLabel:
         if lm is not None:
             return ParsedLabel(label, name, side, lm, "landmark")
     return ParsedLabel(label, name, None, None, "unknown")
+
+
+def strip_subject_prefix(labels: Sequence[str]) -> tuple[tuple[str, ...], str]:
+    """The labels of one trial without their subject prefix, and that prefix (``""``: none).
+
+    Vicon Nexus writes ``JW:LASI`` when a subject is named; the same lab's static may carry no
+    prefix, or another one. A trial's prefix is dropped once, when the trial is read, so that
+    every trial of a session names a marker alike: the prefix is the text up to the first ``:``
+    shared by every label that has one (at least half of the labels; the others — a lab's axes,
+    unnamed points — keep their name), dropped unless that would give two labels one name."""
+    labs = [str(lab) for lab in labels]
+    pre = {lab.split(":", 1)[0] for lab in labs if ":" in lab}
+    with_pre = [lab for lab in labs if ":" in lab]
+    if len(pre) != 1 or 2 * len(with_pre) < len(labs):
+        return tuple(labs), ""
+    prefix = next(iter(pre)) + ":"
+    out = [lab[len(prefix) :] if lab.startswith(prefix) else lab for lab in labs]
+    if len(set(out)) < len(set(labs)) or any(not lab.strip() for lab in out):
+        return tuple(labs), ""
+    return tuple(out), prefix
 
 
 def is_knee_segment(body: str) -> bool:
