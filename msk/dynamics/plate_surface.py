@@ -15,8 +15,9 @@ force above twice the contact threshold), the foot whose floor projection lies i
 outline grown by ``margin_m`` and is nearest the centre of pressure bears the load; its sole
 height s_t is its lowest point's height along u (the origins of the foot bodies and their
 markers, :func:`msk.dynamics.loads._foot_points`). When the median of s_t over those frames is
-more than ``floor_m`` above the corners' height h_c (no foot stands at the corners' height), the
-surface is
+more than ``floor_m`` above the corners' height h_c and the foot stands within ``floor_m`` of
+h_c in fewer than :data:`AT_CORNERS_MAX` of those frames (it never stood on the plate's own top:
+a stance foot posed higher and higher by a leg scaled too long did), the surface is
 
     h_s = median_t(s_t) − c_s
 
@@ -51,6 +52,7 @@ import numpy as np
 from msk.units import Array
 
 __all__ = [
+    "AT_CORNERS_MAX",
     "PlateBaseline",
     "PlateSurface",
     "plate_baseline",
@@ -58,6 +60,13 @@ __all__ = [
     "surface_from_feet",
     "without_baseline",
 ]
+
+
+#: largest share of a plate's loaded frames in which the foot bearing it stands at the corners'
+#: height for the plate to be taken as raised (a foot landing on a step never stands at the
+#: plate's own top; a stance foot whose pose drifts up off a floor plate, a leg scaled too
+#: long, did before it drifted)
+AT_CORNERS_MAX = 0.1
 
 
 @dataclass(frozen=True)
@@ -168,7 +177,8 @@ def surface_from_feet(
             continue
         s, which = soles[p.name]
         ok = np.isfinite(s)
-        if ok.any() and float(np.median(s[ok])) - h_c > floor_m:
+        at_corners = float(np.mean(np.abs(s[ok] - h_c) <= floor_m)) if ok.any() else 1.0
+        if ok.any() and float(np.median(s[ok])) - h_c > floor_m and at_corners < AT_CORNERS_MAX:
             # the foot that bears most of the loaded frames, and its clearance
             f = int(np.bincount(which[ok]).argmax())
             c = clear.get(f, clear_all)
