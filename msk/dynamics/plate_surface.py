@@ -48,6 +48,7 @@ from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
+from numpy.typing import NDArray
 
 from msk.units import Array
 
@@ -99,7 +100,7 @@ class PlateSurface:
 
 def _sole_heights(
     cop: Array,
-    contact: Array,
+    contact: NDArray[np.bool_],
     corners: Array | None,
     fpts: Sequence[Array],
     up: Array,
@@ -223,7 +224,7 @@ def plate_baseline(
     if t.size < 4:
         return None
     rate = (t.size - 1) / (t[-1] - t[0])
-    w = max(int(round(window_s * rate)), 2)
+    w = max(round(float(window_s * rate)), 2)
     nw = t.size // w
     if nw == 0:
         return None

@@ -638,9 +638,9 @@ def run(
         },
         "anthropometry": _anthropometry(cfg, mdl),
         "plates": {  # each plate's surface, offset removed, plates left out
-            "surfaces": list(ext.metadata.get("surfaces", ())),
-            "offsets_removed": list(ext.metadata.get("plate_offsets", ())),
-            "ignored": list(ext.metadata.get("ignored_plates", ())),
+            "surfaces": list(loads.external.metadata.get("surfaces", ())),
+            "offsets_removed": list(loads.external.metadata.get("plate_offsets", ())),
+            "ignored": list(loads.external.metadata.get("ignored_plates", ())),
         },
         "strength": None if strength is None else strength_summary(strength, joint=joint_strength),
         "comparison": comparison,

@@ -563,8 +563,11 @@ class GenericVsIdentified(_Record):
 @dataclass(frozen=True, kw_only=True)
 class ContactAgreement(_Record):
     """``comparison.knee_contact_<variant>[_medial|_lateral]``: predicted vs measured knee
-    contact force (N, BW, %, correlation coefficients) over ``n_frames``."""
+    contact force (N, BW, %, correlation coefficients) over ``n_frames``; ``component`` the
+    force compared (``axial total``: the measurement is axial, compared with the predicted
+    axial force; ``magnitude total``; ``medial axial``…)."""
 
+    component: str | None = None
     rms_n: float | None = None
     rms_bw: float | None = None
     nrmsd_pct: float | None = None

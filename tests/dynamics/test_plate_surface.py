@@ -55,9 +55,9 @@ def test_a_step_on_a_plate_takes_its_surface_from_the_foot_standing_on_it():
     """A 0.40 m step stands on plate1 (its corners and COP at the floor, 0.40 m below the foot):
     the surface is found within 3 cm of the truth (the foot's sole height less the clearance
     measured on plate2, whose corners are its surface: this toy trial's lowest foot points move
-    ±6 cm while loaded, their medians 2.4 cm apart between the feet), the contact is assigned to the foot as
-    without the step and the wrench is the same; without the inference the contact is left
-    unassigned; a surface given in the config is used as given."""
+    ±6 cm while loaded, their medians 2.4 cm apart between the feet), the contact is assigned
+    to the foot as without the step and the wrench is the same; without the inference the
+    contact is left unassigned; a surface given in the config is used as given."""
     truth = float(np.mean(TRIAL.plates[0].corners @ UP))
     stepped = [_under_a_step(TRIAL.plates[0], 0.40), TRIAL.plates[1]]
     ref = external_loads(MODEL, KIN, TRIAL.plates)
