@@ -45,9 +45,20 @@ def run(inputs: SessionInputs, read: ReadResult, model: Personalisation, kinemat
     from msk.kinematics.observation import observed_frames
 
     rot = model.rotation
+    lc = inputs.cfg.loads
+    plate_names = [p.name for p in read.plates or ()]
+    for key, given in (("surface_height_m", list(lc.surface_height_m)), ("ignore", lc.ignore)):
+        unknown = [g for g in given if g not in plate_names]
+        if unknown:
+            from msk.exceptions import ConfigError
+
+            task = inputs.task.file if inputs.task else "the task"
+            raise ConfigError(
+                f"[loads] {key}: no plate {unknown[0]!r} in {task} "
+                f"(its plates: {', '.join(plate_names) or 'none'})"
+            )
     # rotated one at a time, as external_loads resamples them: one analog-rate plate in the
     # model frame is held at a time
-    lc = inputs.cfg.loads
     up = -np.asarray(model.model.gravity, dtype=float)
     up = up / np.linalg.norm(up)
     offsets: list[Any] = []
