@@ -737,6 +737,10 @@ class Summary(_Record):
     methods: Methods | None = None
     identification: Identification | None = None
     anthropometry: Anthropometry | None = None
+    #: each plate's standing surface (``surfaces``: height, its corners' height, ``source``
+    #: corners / feet / config), the offsets removed and the plates ignored
+    #: (:mod:`msk.dynamics.plate_surface`)
+    plates: JsonObject | None = None
     strength: Strength | None = None
     comparison: Comparison | None = None
     optimization: Optimization | None = None
