@@ -78,6 +78,7 @@ __all__ = [
     "SIDED_SYNONYMS",
     "MarkerSetMatch",
     "ParsedLabel",
+    "as_read",
     "foot_markers",
     "is_knee_segment",
     "other_side",
@@ -426,6 +427,17 @@ def strip_subject_prefix(labels: Sequence[str]) -> tuple[tuple[str, ...], str]:
     return tuple(out), prefix
 
 
+def as_read(label: str, labels: Sequence[str]) -> str:
+    """``label`` as it is among ``labels`` — itself, or without its subject prefix when the
+    trial's reader dropped it (:func:`strip_subject_prefix`: a configuration naming
+    ``JW:RKneeLateral``)."""
+    have = set(labels)
+    if label in have or ":" not in label:
+        return label
+    bare = label.split(":", 1)[1]
+    return bare if bare in have else label
+
+
 def is_knee_segment(body: str) -> bool:
     """Whether the model body (or :data:`LANDMARK_BODIES` stem) ``body`` is a femur or a tibia
     (:data:`KNEE_SEGMENTS`: ``femur``, ``femur_r``, ``tibia_l``…)."""
@@ -685,7 +697,9 @@ def recognise(
     """
     labels = tuple(labels)
     model_names = tuple(model_marker_names)
-    explicit = dict(rename or {})
+    # a configured label written with the subject prefix the trial's reader dropped
+    # (strip_subject_prefix) names the same label
+    explicit = {mk: as_read(lab, labels) for mk, lab in (rename or {}).items()}
     parsed = [parse_label(lab) for lab in labels]
     model_parsed = {mk: parse_label(mk) for mk in model_names}
     has_arm = any(_ARM_BODY.search(b) for b in model_bodies)

@@ -387,3 +387,16 @@ def test_static_and_task_with_different_prefixes_read_alike(tmp_path):
         f"Frame#\tTime\t{head}\n\t\tX1\tY1\tZ1\tX2\tY2\tZ2\tX3\tY3\tZ3\n\n{rows}\n"
     )
     assert read_trc(trc).labels == tuple(names)
+
+
+def test_a_configured_label_with_the_prefix_the_reader_dropped_still_matches():
+    """``rename = {"R.Knee.Med" = "JW:RKneeLateral"}`` pairs with the label read as
+    ``RKneeLateral`` (the trial's prefix dropped when read)."""
+    from msk.model.markersets import as_read
+
+    gait2392 = load_model(MODELS / "gait2392.toml")
+    labels = ["RAsis", "LAsis", "Sacral", "RKneeLateral"]
+    m = recognise(labels, gait2392.marker_names, rename={"R.Knee.Med": "JW:RKneeLateral"})
+    assert m.rename["R.Knee.Med"] == "RKneeLateral"
+    assert as_read("JW:Other", labels) == "JW:Other"
+    assert as_read("LAsis", labels) == "LAsis"
