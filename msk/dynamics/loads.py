@@ -14,8 +14,9 @@ for its points (origins of the foot bodies and their descendants, and their mark
 
 * the floor projection of one of them lies inside the plate outline (corners) grown by
   ``margin_m``;
-* the one nearest the floor is within ``floor_m`` of the plate surface (the height of the
-  recorded COPs);
+* the one nearest the floor is within ``floor_m`` of the plate surface (its corners' height,
+  else that of the recorded COPs; a step or platform standing on the plate raises it: given,
+  or taken from the feet standing on it, :mod:`msk.dynamics.plate_surface`);
 * it is not swinging over the plate: a foot whose slowest point moves faster than
   ``speed_mps`` does not stand on the plate while another foot on it is both slower and nearer
   the centre of pressure (a supporting foot is still, or rolls about the heel or the toes; a
