@@ -28,9 +28,11 @@ again by known per-segment factors), written in DM's files' naming; their truth 
 the scale factors the run chose against the subject's and the model's mass (issue 15,
 thirteenth pass).
 
+``stair_on_plates`` is the stair as a lab records it (:data:`AS_RECORDED`).
+
 Usage: ``.venv/bin/python studies/task_swap.py [--only gc5_PS,gc6_DM_og1] [--synthetic
-[--kinds squat,stair,walk] [--keep DIR]]``; ``--synthetic-only`` runs the synthetic trials
-alone.
+[--kinds squat,stair,stair_on_plates,walk] [--keep DIR]]``; ``--synthetic-only`` runs the
+synthetic trials alone.
 """
 
 from __future__ import annotations
@@ -124,7 +126,14 @@ SYNTHETIC = ("gc4_JW", "gc5_PS")
 #: OpenSim GRF file): a known subject, not the session's own model (issue 15, thirteenth pass)
 SYNTHETIC_TRC = ("gc6_DM_og1", "gc6_DM_ngait_tm_ss", "gc6_DM_crouch_tm")
 #: the kinds each writer makes
-KINDS_C3D, KINDS_TRC = ("squat", "stair"), ("walk", "squat")
+KINDS_C3D, KINDS_TRC = ("squat", "stair", "stair_on_plates"), ("walk", "squat")
+#: kinds as a lab records them (:func:`msk.datasets.tasks.lab_task`): the stair's steps standing
+#: on their plates (the corners stored at floor level), every label with a subject prefix the
+#: static lacks, every plate reading 30 N unloaded
+AS_RECORDED = {
+    "stair_on_plates": ("stair", {"corners_at_floor": True, "label_prefix": "S1:",
+                                  "plate_offset_n": 30.0}),
+}  # fmt: skip
 #: the leg coordinates compared with a synthetic task's truth
 LEG = ("hip_flexion", "hip_adduction", "hip_rotation", "knee_angle", "ankle_angle")
 
@@ -274,8 +283,9 @@ def main() -> None:
     ap.add_argument("--synthetic-only", action="store_true", help="the synthetic tasks alone")
     ap.add_argument(
         "--kinds",
-        default="squat,stair,walk",
-        help="synthetic task kinds (C3D labs: squat, stair; .trc labs: walk, squat)",
+        default="squat,stair,stair_on_plates,walk",
+        help="synthetic task kinds (C3D labs: squat, stair, stair_on_plates; .trc labs: walk, "
+        "squat)",
     )
     ap.add_argument("--keep", default="", help="folder to keep the synthetic trials and runs")
     args = ap.parse_args()
@@ -311,7 +321,8 @@ def main() -> None:
                 folder.mkdir(parents=True, exist_ok=True)
                 cfg = REPO / "pipelines" / f"{stem}.toml"
                 placed = run_stages(cfg, until="model")["model"]
-                task = lab_task(cfg, kind, folder / f"{kind}.c3d", placed=placed)
+                base, extra = AS_RECORDED.get(kind, (kind, {}))
+                task = lab_task(cfg, base, folder / f"{kind}.c3d", placed=placed, **extra)
                 path = swapped_config(stem, f"synthetic_{kind}", {"file": task.path}, folder)
                 if _row(stem, f"synthetic_{kind}", path, folder / f"out_{kind}") is not None:
                     _print_truth(stem, kind, compare_to_truth(task, path))

@@ -377,6 +377,25 @@ class LoadsConfig:
         {},
         item="a body name (string)",
     )
+    surface_height_m: Mapping[str, float] = opt(
+        "plate name = height of its standing surface above its corners (a step or platform "
+        "built on the plate); absent: inferred from the feet standing on it "
+        "(msk.dynamics.plate_surface)",
+        {},
+        unit="m",
+        bounds=Range(-0.5, 2.0),
+        item="height above the plate's corners (m)",
+    )
+    ignore: tuple[str, ...] = opt(
+        "plates whose force is not used (a plate under no foot, or a broken one)",
+        (),
+        item="plate names",
+    )
+    remove_baseline: bool = opt(
+        "remove a plate's steady offset in its unloaded frames (e.g. 30 N with nothing on it; "
+        "msk.dynamics.plate_surface.plate_baseline)",
+        True,
+    )
 
 
 @dataclass(frozen=True, kw_only=True)

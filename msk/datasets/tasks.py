@@ -841,6 +841,8 @@ def write_lab_c3d(
     noise_m: float = 0.0015,
     seed: int = 0,
     tau: Array | None = None,
+    label_prefix: str = "",
+    plate_offset_n: float = 0.0,
 ) -> Path:
     """Write ``motion`` as a C3D in the lab format of ``template`` (module docstring).
 
@@ -848,7 +850,9 @@ def write_lab_c3d(
     others keep their model name); ``lab_from_model`` (3, 3) and ``lab_origin_m`` place the model
     frame in the lab (lab = R p + o); ``plates`` in the model frame, each measuring the feet on
     its surface (in the template's plate order and channel labels); ``tau`` (N, n) drives the EMG
-    channels (``side``'s coordinates)."""
+    channels (``side``'s coordinates); ``label_prefix`` is put before every marker label (a
+    Vicon subject prefix, ``JW:LASI``); ``plate_offset_n`` a steady force along the lab's up
+    added to every plate's reading at its centre (an amplifier not zeroed)."""
     import ezc3d
 
     from msk.io import PlateSpec, write_c3d
@@ -909,6 +913,7 @@ def write_lab_c3d(
             f_lab += np.where(on[:, None], f, 0.0)
             m_c += np.where(on[:, None], np.cross(c - centre, f) + tf, 0.0)
         # plate noise: 2 N, 0.5 N·m
+        f_lab += plate_offset_n * (rot @ np.array([0.0, 1.0, 0.0]))  # no moment about the centre
         f_loc = f_lab @ axes + rng.normal(0.0, 2.0, f_lab.shape)
         m_loc = (m_c @ axes + rng.normal(0.0, 0.5, m_c.shape)) * 1000.0
         for c, v in zip(pl.channels, np.column_stack([f_loc, m_loc]).T, strict=True):
@@ -928,7 +933,7 @@ def write_lab_c3d(
     return write_c3d(
         path,
         markers=out,
-        marker_labels=labels,
+        marker_labels=[label_prefix + lab for lab in labels],
         rate_hz=rate,
         point_units=str(prm["POINT"]["UNITS"]["value"][0]),
         analogs=analogs,
@@ -972,6 +977,9 @@ def lab_task(
     steps: int = 4,
     reps: int = 4,
     knee_flexion_deg: float = 95.0,
+    corners_at_floor: bool = False,
+    label_prefix: str = "",
+    plate_offset_n: float = 0.0,
 ) -> LabTask:
     """A ``kind`` ("squat" or "stair") trial of the session ``config``'s subject in its lab's
     format: ``placed``, the session's personalised model (:class:`msk.personalise.Personalisation`
@@ -982,7 +990,10 @@ def lab_task(
     two nearest plates (±15 cm of their centres' midpoint along the line joining them; the
     subject faces across it). Stair: the template's first plate on the floor under the left
     foot's start, the next ones in steps 1 and 2 (corners at the step's height, tread-sized),
-    the other steps uninstrumented; the flight along the lab's first horizontal axis."""
+    the other steps uninstrumented; the flight along the lab's first horizontal axis. With
+    ``corners_at_floor`` the steps stand on their plates and the file stores the plates'
+    corners at floor level (as a lab does: the step's surface is ``k × step_height_m`` above
+    them). ``label_prefix`` and ``plate_offset_n``: :func:`write_lab_c3d`."""
     import ezc3d
 
     built = placed
@@ -1042,8 +1053,9 @@ def lab_task(
         ]  # fmt: skip
         for k in range(1, min(n_pl, 3)):
             h = k * step_height_m
+            hc = 0.0 if corners_at_floor else h
             plates_m.append(LabPlate(f"step{k}", _tread((k - 1) * tread, k * tread, -0.25, 0.25,
-                                                        h), channels[k]))  # fmt: skip
+                                                        hc), channels[k]))  # fmt: skip
     else:
         raise ValueError(f"kind {kind!r}: 'squat' or 'stair'")
     reactions = task_reactions(motion, a_rate)
@@ -1051,7 +1063,8 @@ def lab_task(
     out = write_lab_c3d(
         path, motion, reactions, template=template, rename=built.rename, lab_from_model=rot,
         lab_origin_m=org, plates=plates_m, noise_m=noise_m, seed=seed, tau=tau,
-        side=cfg.subject.side[0] if cfg.subject.side else "r",
+        side=cfg.subject.side[0] if cfg.subject.side else "r", label_prefix=label_prefix,
+        plate_offset_n=plate_offset_n,
     )  # fmt: skip
     measured = {p.surface for p in plates_m}
     unmeasured = np.zeros(motion.time.size, dtype=bool)

@@ -14,8 +14,9 @@ for its points (origins of the foot bodies and their descendants, and their mark
 
 * the floor projection of one of them lies inside the plate outline (corners) grown by
   ``margin_m``;
-* the one nearest the floor is within ``floor_m`` of the plate surface (the height of the
-  recorded COPs);
+* the one nearest the floor is within ``floor_m`` of the plate surface (its corners' height,
+  else that of the recorded COPs; a step or platform standing on the plate raises it: given,
+  or taken from the feet standing on it, :mod:`msk.dynamics.plate_surface`);
 * it is not swinging over the plate: a foot whose slowest point moves faster than
   ``speed_mps`` does not stand on the plate while another foot on it is both slower and nearer
   the centre of pressure (a supporting foot is still, or rolls about the heel or the toes; a
@@ -525,6 +526,8 @@ def external_loads(
     cutoff_hz: float | None = None,
     extra: Sequence[AppliedForce] = (),
     on_unassigned: Literal["flag", "raise"] = "flag",
+    surface_heights: Mapping[str, float] | None = None,
+    infer_surface: bool = True,
 ) -> ExternalLoads:
     """Assign plate wrenches to feet and bring them to the kinematics time.
 
@@ -553,6 +556,12 @@ def external_loads(
         extra: other applied forces.
         on_unassigned: ``"flag"`` (default) puts a shared or unassigned contact interval in
             :attr:`ExternalLoads.flags` (its load on no body); ``"raise"`` raises instead.
+        surface_heights: plate name → height of its standing surface above its corners (a step
+            built on the plate); the surface of the "foot stands on it" test and of its COP.
+        infer_surface: a plate with corners whose loaded frames have no foot near the corners'
+            height takes the surface the feet standing on it show
+            (:func:`msk.dynamics.plate_surface.surface_from_feet`); every plate's surface and
+            its source are in ``metadata["surfaces"]``.
 
     Raises:
         ForcePlateError: with ``on_unassigned="raise"``, a contact interval that cannot be
@@ -601,9 +610,30 @@ def external_loads(
             _prepare(plate, t, up, threshold_n=threshold_n, sign=sign, cutoff_hz=cutoff_hz)
         )
         del plate
+    surfaces = []
+    fpts: list[Array] | None = None
+    if prepared and (infer_surface or surface_heights):
+        from msk.dynamics.plate_surface import PlateSurface, surface_from_feet
+
+        with_corners = [p for p in prepared if p.corners is not None]
+        if infer_surface and any(p.contact.any() for p in with_corners):
+            fpts = _foot_points(model, q, feet, np.arange(n))
+            surfaces = surface_from_feet(
+                with_corners, fpts, up, threshold_n=threshold_n, margin_m=margin_m,
+                floor_m=floor_m, given=surface_heights,
+            )  # fmt: skip
+        else:
+            given = dict(surface_heights or {})
+            surfaces = [PlateSurface(p.name, p.height + float(given[p.name]), p.height, "config")
+                        for p in with_corners if p.name in given]  # fmt: skip
+        for sf in surfaces:
+            if sf.source != "corners":
+                p = next(p for p in prepared if p.name == sf.plate)
+                _move_surface(p, sf.height_m, up)
     auto = [p for p in prepared if p.name not in assignment and p.contact.any()]
     if auto:
-        fpts = _foot_points(model, q, feet, np.arange(n))
+        if fpts is None:
+            fpts = _foot_points(model, q, feet, np.arange(n))
         vel = [_velocity(p, t) for p in fpts]
         crit = _Criteria(margin_m, cop_radius_m, floor_m, speed_mps)
         hz = _horizontal_axes(up)
@@ -718,6 +748,7 @@ def external_loads(
         assignments=tuple(assigned),
         metadata={
             "surface_heights_m": {p.name: p.height for p in prepared},
+            "surfaces": [sf.as_dict() for sf in surfaces],
             "surface_velocities_mps": {
                 p.name: p.surface_v.tolist() for p in prepared if p.surface_v is not None
             },
@@ -865,6 +896,17 @@ def _prepare(
     cop[~contact] = np.nan
     recorded = fv_rec > threshold_n
     return _Prepared(pl.name, pl.corners, f_k, m_k, fv, cop, h, contact, fv_rec, recorded, f_rec)
+
+
+def _move_surface(p: _Prepared, height: float, up: Array) -> None:
+    """Put the prepared plate's surface at ``height`` along ``up``: its COP on that plane
+    (c = h·u + u × M_h / F_u, the same wrench)."""
+    with np.errstate(divide="ignore", invalid="ignore"):
+        m_h = p.moment - np.cross(height * up, p.force)
+        cop = height * up + np.cross(up, m_h) / p.fv[:, None]
+    cop[~p.contact] = np.nan
+    p.cop = cop
+    p.height = float(height)
 
 
 def _plate_state(

@@ -1347,6 +1347,14 @@ def read_c3d(
         gaps = GapReport(
             labels=marker_labels, n_missing=gaps.n_missing, longest_gap=gaps.longest_gap
         )
+    # a subject prefix (``JW:LASI``) dropped once, here, for every trial alike
+    from msk.model.markersets import strip_subject_prefix
+
+    marker_labels, label_prefix = strip_subject_prefix(marker_labels)
+    if label_prefix:
+        gaps = GapReport(
+            labels=marker_labels, n_missing=gaps.n_missing, longest_gap=gaps.longest_gap
+        )
     _check_labels(path, "ANALOG:LABELS", list(analog_labels), warnings, rename=False)
     _check_coordinates(path, markers, marker_labels, time)
     if plate_channels:
@@ -1370,6 +1378,7 @@ def read_c3d(
         "first_frame": first,
         "manufacturer": str((_param(params, "MANUFACTURER", "COMPANY") or [""])[0]).strip(),
         "warnings": tuple(warnings),
+        "label_prefix": label_prefix,
     }
     return Trial(
         path=path,

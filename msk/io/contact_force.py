@@ -85,6 +85,7 @@ __all__ = [
     "read_dm_mat",
     "read_load_cells",
     "read_measured_contact",
+    "total_component",
 ]
 
 
@@ -101,6 +102,10 @@ class MeasuredContact:
         cycle_fraction: (N,) 0..1, or ``None``.
         source: where the values come from (file, columns, alignment).
         metadata: extra facts (e.g. the :class:`DMAlignment` as a dict).
+        component: what ``total`` measures: ``"axial"`` (along the tibia's long axis, the
+            plateau normal: an implant's load cells, medial + lateral), ``"magnitude"`` (the
+            3-D force's magnitude: the eTibia's "total") or ``"unstated"`` (compared as a
+            magnitude); :func:`total_component` decides it for a file.
     """
 
     total: Array
@@ -110,6 +115,7 @@ class MeasuredContact:
     cycle_fraction: Array | None = None
     source: str = ""
     metadata: Mapping[str, Any] = field(default_factory=dict)
+    component: str = "unstated"
 
     def __post_init__(self) -> None:
         if (self.time is None) == (self.cycle_fraction is None):
@@ -204,7 +210,7 @@ def read_load_cells(path: str | Path) -> MeasuredContact:
     nan = np.full(t.size, np.nan)
     return MeasuredContact(
         total, nan, nan.copy(), time=t,
-        source=f"{path.name} (PM+AM+AL+PL load cells, lbf → N)",
+        source=f"{path.name} (PM+AM+AL+PL load cells, lbf → N)", component="axial",
     )  # fmt: skip
 
 
@@ -235,6 +241,10 @@ def _read_csv(
     nan = np.full(tab.time.size, np.nan)
     vals = {r: (tab.data[:, i].copy() if i is not None else nan.copy()) for r, i in idx.items()}
     used = ", ".join(f"{r}={cols[i]}" for r, i in idx.items() if i is not None)
+    comp = total_component(
+        None if idx["total"] is None else cols[idx["total"]], vals["total"], vals["medial"],
+        vals["lateral"],
+    )  # fmt: skip
     x = tab.time
     if re.fullmatch(r"(?i)time(_s)?", head):
         if not np.all(np.diff(x) > 0):
@@ -245,6 +255,7 @@ def _read_csv(
             vals["lateral"],
             time=x.copy(),
             source=f"{path.name} ({used})",
+            component=comp,
         )
     if not np.all(np.diff(x) > 0):
         raise FileFormatError(f"{path}: first column {head!r} is not increasing")
@@ -255,6 +266,7 @@ def _read_csv(
         vals["lateral"],
         cycle_fraction=frac,
         source=f"{path.name} (cycle-normalised by {head!r}; {used})",
+        component=comp,
     )
 
 
@@ -503,6 +515,7 @@ def _read_mat(path: Path, trial: Path | None, grf: Path | None) -> MeasuredConta
             time=np.arange(dm["n"]) / dm["rate_hz"],
             source=f"{path.name} (NOT aligned: time from the file's first frame)",
             metadata=meta,
+            component="axial",
         )
     al = align_dm_trial(path, trial, grf=grf)
     meta.update(aligned=True, alignment=al.as_dict())
@@ -516,7 +529,26 @@ def _read_mat(path: Path, trial: Path | None, grf: Path | None) -> MeasuredConta
             f"frame 0 = {al.start_time_s:.6g} s, RMS {al.marker_rms_m * 1e3:.2f} mm"
         ),
         metadata=meta,
+        component="axial",
     )
+
+
+def total_component(name: str | None, total: Array, medial: Array, lateral: Array) -> str:
+    """What a file's total contact force measures (:attr:`MeasuredContact.component`): a
+    column named for a magnitude or resultant is ``"magnitude"``; one named axial, or equal to
+    medial + lateral (within 1 % of its peak on every frame that has the three) — the axial
+    force the two compartments' load cells share — is ``"axial"``; otherwise ``"unstated"``."""
+    n = "" if name is None else _normalise(name)
+    if "magnitude" in n or "resultant" in n:
+        return "magnitude"
+    if "axial" in n:
+        return "axial"
+    t, m, lat = (np.asarray(x, dtype=float) for x in (total, medial, lateral))
+    ok = np.isfinite(t) & np.isfinite(m) & np.isfinite(lat)
+    if ok.sum() >= 2 and np.abs(t[ok]).max() > 0:
+        if np.abs(t[ok] - m[ok] - lat[ok]).max() <= 0.01 * np.abs(t[ok]).max():
+            return "axial"
+    return "unstated"
 
 
 def read_measured_contact(

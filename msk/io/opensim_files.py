@@ -329,10 +329,12 @@ def read_trc(path: str | Path) -> MarkerTable:
             f"{path}: marker {labels[m]!r} has {'XYZ'[a]} = {markers[f, m, a]:.6g} m at row "
             f"{f + 1}: beyond {MAX_ABS_COORDINATE_M:g} m from the lab origin"
         )
+    from msk.model.markersets import strip_subject_prefix
+
     return MarkerTable(
         time=data[:, 1].copy(),
         markers=markers,
-        labels=tuple(labels),
+        labels=strip_subject_prefix(labels)[0],  # a subject prefix dropped, as read_c3d does
         rate_hz=rate,
         units_in_file=units,
         frame_numbers=np.nan_to_num(data[:, 0]).astype(np.int64),

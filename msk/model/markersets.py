@@ -78,6 +78,7 @@ __all__ = [
     "SIDED_SYNONYMS",
     "MarkerSetMatch",
     "ParsedLabel",
+    "as_read",
     "foot_markers",
     "is_knee_segment",
     "other_side",
@@ -85,6 +86,7 @@ __all__ = [
     "recognise",
     "reconstructed_markers",
     "shoulder_girdle_markers",
+    "strip_subject_prefix",
     "zeros_as_gaps",
     "zeros_as_gaps_view",
 ]
@@ -405,6 +407,37 @@ def parse_label(label: str) -> ParsedLabel:
     return ParsedLabel(label, name, None, None, "unknown")
 
 
+def strip_subject_prefix(labels: Sequence[str]) -> tuple[tuple[str, ...], str]:
+    """The labels of one trial without their subject prefix, and that prefix (``""``: none).
+
+    Vicon Nexus writes ``JW:LASI`` when a subject is named; the same lab's static may carry no
+    prefix, or another one. A trial's prefix is dropped once, when the trial is read, so that
+    every trial of a session names a marker alike: the prefix is the text up to the first ``:``
+    shared by every label that has one (at least half of the labels; the others — a lab's axes,
+    unnamed points — keep their name), dropped unless that would give two labels one name."""
+    labs = [str(lab) for lab in labels]
+    pre = {lab.split(":", 1)[0] for lab in labs if ":" in lab}
+    with_pre = [lab for lab in labs if ":" in lab]
+    if len(pre) != 1 or 2 * len(with_pre) < len(labs):
+        return tuple(labs), ""
+    prefix = next(iter(pre)) + ":"
+    out = [lab[len(prefix) :] if lab.startswith(prefix) else lab for lab in labs]
+    if len(set(out)) < len(set(labs)) or any(not lab.strip() for lab in out):
+        return tuple(labs), ""
+    return tuple(out), prefix
+
+
+def as_read(label: str, labels: Sequence[str]) -> str:
+    """``label`` as it is among ``labels`` — itself, or without its subject prefix when the
+    trial's reader dropped it (:func:`strip_subject_prefix`: a configuration naming
+    ``JW:RKneeLateral``)."""
+    have = set(labels)
+    if label in have or ":" not in label:
+        return label
+    bare = label.split(":", 1)[1]
+    return bare if bare in have else label
+
+
 def is_knee_segment(body: str) -> bool:
     """Whether the model body (or :data:`LANDMARK_BODIES` stem) ``body`` is a femur or a tibia
     (:data:`KNEE_SEGMENTS`: ``femur``, ``femur_r``, ``tibia_l``…)."""
@@ -664,7 +697,9 @@ def recognise(
     """
     labels = tuple(labels)
     model_names = tuple(model_marker_names)
-    explicit = dict(rename or {})
+    # a configured label written with the subject prefix the trial's reader dropped
+    # (strip_subject_prefix) names the same label
+    explicit = {mk: as_read(lab, labels) for mk, lab in (rename or {}).items()}
     parsed = [parse_label(lab) for lab in labels]
     model_parsed = {mk: parse_label(mk) for mk in model_names}
     has_arm = any(_ARM_BODY.search(b) for b in model_bodies)

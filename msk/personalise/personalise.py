@@ -222,7 +222,10 @@ def scale_and_place(
     # names in the configuration that match nothing are errors, not silently ignored (a lab
     # label absent from these trials is a note: rename tables of a protocol list variants a
     # given session may not use)
-    absent = sorted(set(marks.rename.values()) - labels_all)
+    from msk.model.markersets import as_read
+
+    absent = sorted(v for v in set(marks.rename.values())
+                    if as_read(v, tuple(labels_all)) not in labels_all)  # fmt: skip
     unknown = sorted(set(marks.rename) - set(model.marker_names))
     if unknown:
         raise ConfigError(f"{opts.origin}: markers.rename: the model has no marker {unknown[0]!r}")

@@ -14,16 +14,27 @@ from msk.pipeline.inputs import SessionInputs
 from msk.pipeline.records import GaitCycle, KneeContact, Loads, StrengthIdentification
 from msk.pipeline.runner import StageUnavailable
 
-__all__ = ["contact_agreement", "run"]
+__all__ = ["contact_agreement", "measured_component", "run"]
 
 
-def contact_agreement(measured: np.ndarray, predicted: np.ndarray, bw: float) -> dict[str, Any]:
+def measured_component(measured: Any) -> str:
+    """What the measured total knee contact force is (``"axial"``, ``"magnitude"``,
+    ``"unstated"``: :attr:`msk.io.contact_force.MeasuredContact.component`)."""
+    return str(getattr(measured, "component", "unstated") or "unstated")
+
+
+def contact_agreement(
+    measured: np.ndarray, predicted: np.ndarray, bw: float, *, component: str | None = None
+) -> dict[str, Any]:
     """Agreement figures (:mod:`msk.metrics`) of a predicted knee contact force with the
-    measured one; ``bw`` body weight (N)."""
+    measured one; ``bw`` body weight (N); ``component`` names the force compared (``axial``,
+    ``magnitude``…), stated in the figures."""
     from msk import metrics as compare
 
     a, b = measured, predicted
+    named = {} if component is None else {"component": component}
     return {
+        **named,
         "rms_n": float(compare.rms(a, b)),
         "rms_bw": float(compare.rms(a, b)) / bw,
         "nrmsd_pct": float(compare.nrmsd(a, b)),
@@ -66,14 +77,18 @@ def run(
         }
     measured = None if gait_cycle is None else gait_cycle.measured_contact
     if knee_contact is not None and measured:
+        # the like component: a measured total is axial (load cells, medial + lateral) or a
+        # magnitude (msk.io.contact_force.MeasuredContact.component); the compartments are axial
+        total_is = measured_component(knee_contact.measured)
         for name, pred in knee_contact.variants.items():
             for comp, meas in measured.items():
-                p = getattr(pred, comp)
+                p = pred.component(total_is) if comp == "total" else getattr(pred, comp)
                 m = np.isfinite(meas) & np.isfinite(p)
                 if m.sum() < 5:
                     continue
                 key = f"knee_contact_{name}" + ("" if comp == "total" else f"_{comp}")
-                out[key] = contact_agreement(meas[m], p[m], bw)
+                what = f"{total_is} total" if comp == "total" else f"{comp} axial"
+                out[key] = contact_agreement(meas[m], p[m], bw, component=what)
     if strength_identification is not None:
         p = strength_identification.profile
         out["strength_factor_minus_generic"] = {

@@ -66,8 +66,9 @@ class _VariantArrays:
 
     def result(self) -> ContactVariant:
         return ContactVariant(
-            self.force, np.linalg.norm(self.force, axis=1), self.medial, self.lateral
-        )
+            self.force, np.linalg.norm(self.force, axis=1), self.medial, self.lateral,
+            lateral_sign=-1.0 if self.joint.endswith("_l") else 1.0,
+        )  # fmt: skip
 
 
 def settings(inputs: SessionInputs) -> Any:

@@ -90,6 +90,7 @@ class SessionInputs:
         return external_loads(
             model, kinematics, plates, assignment=assign,
             cutoff_hz=self.cfg.filters.grf_cutoff_used_hz,
+            surface_heights=dict(self.cfg.loads.surface_height_m),
         )  # fmt: skip
 
     def knee_plateau(self, model: Any, joint: str) -> Any:

@@ -637,6 +637,11 @@ def run(
             "advice": ident.advice,
         },
         "anthropometry": _anthropometry(cfg, mdl),
+        "plates": {  # each plate's surface, offset removed, plates left out
+            "surfaces": list(loads.external.metadata.get("surfaces", ())),
+            "offsets_removed": list(loads.external.metadata.get("plate_offsets", ())),
+            "ignored": list(loads.external.metadata.get("ignored_plates", ())),
+        },
         "strength": None if strength is None else strength_summary(strength, joint=joint_strength),
         "comparison": comparison,
         "optimization": None if sol is None else _optimization_summary(sol, inputs.sfx),

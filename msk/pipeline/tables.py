@@ -61,7 +61,7 @@ def _contact_table(
         cols += [f"{name}_{a}" for a in ("x", "y", "z")]
         cols += [f"{name}_total", f"{name}_total_bw"]
         data += [c.force, c.total[:, None], (c.total / bw)[:, None]]
-        for comp in ("medial", "lateral"):
+        for comp in ("medial", "lateral", "axial", "shear_anterior", "shear_lateral"):
             v = getattr(c, comp)
             cols += [f"{name}_{comp}", f"{name}_{comp}_bw"]
             data += [v[:, None], (v / bw)[:, None]]

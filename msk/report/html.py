@@ -350,12 +350,17 @@ def _fig_contact(res: SessionResults) -> str | None:
         "generic": ("#9e9e9e", "--", "predicted, generic parameters"),
         "subject_specific": ("#1565c0", "-", "predicted, subject-specific"),
     }
+    # the like component: an axial measured total against the predicted axial force
+    cmp = res.summary.comparison
+    agree = cmp.knee_contact("generic") if cmp else None
+    axial = bool(agree and agree.component == "axial total" and "generic_axial_bw" in kc.columns)
     for ax, comp in zip(axes[0], comps):
         for key, (c, ls, lab) in style.items():
-            col = f"{key}_{comp}_bw"
+            pred = "axial" if comp == "total" and axial and key != "measured" else comp
+            col = f"{key}_{pred}_bw"
             if col in kc.columns:
                 ax.plot(x[sel], kc.column(col)[sel], color=c, ls=ls, label=lab)
-        ax.set_title(comp, fontsize=9)
+        ax.set_title("total (axial)" if comp == "total" and axial else comp, fontsize=9)
         ax.set_xlabel(xl)
     axes[0][0].set_ylabel("knee contact force (body weights)")
     axes[0][0].legend(fontsize=6)
@@ -1024,7 +1029,7 @@ def _contact_section(res: SessionResults, figs: Mapping[str, str]) -> str:
         if c:
             rows.append(
                 [
-                    _e(f"{vl}{pl}"),
+                    _e(f"{vl}, {c.component}" if c.component else f"{vl}{pl}"),
                     _num(c.peak_predicted_bw, ".2f", "BW"),
                     _num(c.peak_measured_bw, ".2f", "BW"),
                     _num(c.rms_bw, ".2f", "BW"),

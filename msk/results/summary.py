@@ -563,8 +563,11 @@ class GenericVsIdentified(_Record):
 @dataclass(frozen=True, kw_only=True)
 class ContactAgreement(_Record):
     """``comparison.knee_contact_<variant>[_medial|_lateral]``: predicted vs measured knee
-    contact force (N, BW, %, correlation coefficients) over ``n_frames``."""
+    contact force (N, BW, %, correlation coefficients) over ``n_frames``; ``component`` the
+    force compared (``axial total``: the measurement is axial, compared with the predicted
+    axial force; ``magnitude total``; ``medial axial``…)."""
 
+    component: str | None = None
     rms_n: float | None = None
     rms_bw: float | None = None
     nrmsd_pct: float | None = None
@@ -734,6 +737,10 @@ class Summary(_Record):
     methods: Methods | None = None
     identification: Identification | None = None
     anthropometry: Anthropometry | None = None
+    #: each plate's standing surface (``surfaces``: height, its corners' height, ``source``
+    #: corners / feet / config), the offsets removed and the plates ignored
+    #: (:mod:`msk.dynamics.plate_surface`)
+    plates: JsonObject | None = None
     strength: Strength | None = None
     comparison: Comparison | None = None
     optimization: Optimization | None = None

@@ -105,6 +105,43 @@ def test_jw_stair_unmeasured_steps_are_found_blanked_counted_and_flagged(tmp_mod
     assert np.isnan(torques["knee_angle_r"]).sum() > 0
 
 
+@_jw
+def test_jw_stair_with_steps_on_plates_prefixed_labels_and_plate_offsets(tmp_module):
+    """The stair as a lab records it with the steps built on the plates: the file's plate
+    corners at floor level (steps 1–2 are 0.17 and 0.34 m above them), every marker label
+    ``JW:``-prefixed (the static's are not) and every plate reading 30 N unloaded, run with
+    the shipped config and only the task swapped. Each step's surface is found from the feet
+    within 1 cm, each offset within 1 N, every plate contact is assigned (none unassigned),
+    the thigh and shank clusters placed from the static are tracked (no segment unobserved),
+    and the joint torques are as near the truth as with the corners at the steps' height."""
+    from msk.datasets.tasks import lab_task
+    from msk.pipeline import run_task_trials
+
+    ht = _script()
+    folder = tmp_module / "stair_on_plates"
+    folder.mkdir(parents=True, exist_ok=True)
+    placed = run_stages(JW, until="model")["model"]
+    task = lab_task(JW, "stair", folder / "stair.c3d", placed=placed, seed=1,
+                    corners_at_floor=True, label_prefix="JW:", plate_offset_n=30.0)  # fmt: skip
+    cfg = ht.swapped_config("gc4_JW", "stair", {"file": task.path}, folder)
+    (res,) = run_task_trials(cfg, folder / "out")
+    s = res.summary.to_dict()
+    surf = {x["plate"]: x for x in s["plates"]["surfaces"]}
+    assert surf["plate1"]["source"] == "corners"
+    for name, h in (("plate2", 0.17), ("plate3", 0.34)):
+        assert surf[name]["source"] == "feet"
+        assert surf[name]["above_corners_m"] == pytest.approx(h, abs=0.01)
+    offsets = s["plates"]["offsets_removed"]
+    assert sorted(o["plate"] for o in offsets) == ["plate1", "plate2", "plate3"]
+    assert all(abs(o["force_n"][1] - 30.0) < 1.0 for o in offsets)
+    flags = {f["quantity"] for f in s["quality"]["flags"]}
+    assert not any("unassigned" in f or "unobserved" in f for f in flags), flags
+    cmp = ht.compare_to_truth(task, cfg)
+    assert max(cmp["ik_deg"].values()) < 0.5, cmp["ik_deg"]
+    assert cmp["unblanked_true_unmeasured"] == 0
+    assert cmp["tau_rmse_nm"]["knee_angle_r"] < 8.0 and cmp["tau_rmse_nm"]["knee_angle_l"] < 8.0
+
+
 def test_com_from_zmp_solves_the_cart_table_equation():
     """The centre of mass path of a zero-moment point stepping between two feet satisfies
     x − (h/g) ẍ = p at every interior sample (central differences, to round-off) and starts

@@ -276,11 +276,19 @@ def test_raised_step_plate_uses_its_own_surface_height():
         assert not measured[gap].any() and measured[(t > 0.52) & (t < 0.88)].all()
 
     _both_ways(run)
-    # the floor plate's own height: a foot hovering 20 cm above a floor plate does not stand on it
+    # the plate's corners at the floor (a step built on the plate, stored as labs store it):
+    # held at the corners' height, a foot 20 cm above the plate does not stand on it; the
+    # surface inferred from that foot (msk.dynamics.plate_surface) is the step's and the foot
+    # gets its load
     p_low = plate("plate2", t, [(w_l, l_)], corners(0.6, 1.2, -0.3, 0.3, 0.0))
-    low = external_loads(MODEL, kin, [p_low])
+    low = external_loads(MODEL, kin, [p_low], infer_surface=False)
     assert all(a.body != "foot_l" for a in low.assignments)
     assert low.unassigned_contact[(w_l > 0) & (t > 0.75)].all()
+    found = external_loads(MODEL, kin, [p_low])
+    (sf,) = found.metadata["surfaces"]
+    assert sf["source"] == "feet" and sf["height_m"] == pytest.approx(h, abs=0.01)
+    assert [a.body for a in found.assignments] == ["foot_l", "foot_l"]
+    np.testing.assert_allclose(on_body(found, "foot_l")[:, 1], w_l)
 
 
 def test_split_belt_treadmill_feet_on_own_belts_then_crossing():

@@ -301,3 +301,19 @@ def test_dm_medial_lateral_are_one_fixed_linear_map_of_the_raw_implant_channels(
     assert coef[0] == pytest.approx([0.494, 0.505], abs=1e-3)
     assert coef[2] == pytest.approx([-0.876, 0.876], abs=1e-3)
     assert abs(coef[1, 0]) < 0.02 and coef[1, 0] == pytest.approx(-coef[1, 1])
+
+
+def test_what_a_measured_total_measures():
+    """A column named for a magnitude is a magnitude; a total equal to medial + lateral is the
+    axial force; JW's load cells are axial; otherwise unstated."""
+    import numpy as np
+
+    from msk.io.contact_force import total_component
+
+    m, lat = np.array([300.0, 500.0, 400.0]), np.array([200.0, 300.0, 100.0])
+    assert total_component("F_total_magnitude_N", m + lat + 50, m, lat) == "magnitude"
+    assert total_component("total_N", m + lat, m, lat) == "axial"
+    assert total_component("total_N", m + lat + 50, m, lat) == "unstated"
+    nan = np.full(3, np.nan)
+    assert total_component("total", m, nan, nan) == "unstated"
+    assert total_component("axial_force", m, nan, nan) == "axial"

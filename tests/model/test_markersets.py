@@ -339,3 +339,64 @@ def test_other_side_and_knee_segments_of_labels_and_bodies():
     knee = {lm for lm, stem in LANDMARK_BODIES.items() if is_knee_segment(stem)}
     assert {"knee_lat", "thigh_cluster", "ankle_med", "shank_cluster"} <= knee
     assert not knee & {"asis", "heel", "toe_tip", "sternum"}
+
+
+def test_a_trial_wide_subject_prefix_is_dropped_once_unless_ambiguous():
+    """``JW:LASI`` → ``LASI`` when one prefix is shared by the labels that carry one (a lab's
+    unprefixed axes keep their names); kept when the labels carry two prefixes, when fewer than
+    half carry it, or when dropping it would give two labels one name."""
+    from msk.model.markersets import strip_subject_prefix
+
+    assert strip_subject_prefix(["JW:LASI", "JW:RASI", "Oglobal"]) == (
+        ("LASI", "RASI", "Oglobal"),
+        "JW:",
+    )
+    assert strip_subject_prefix(["LASI", "RASI"]) == (("LASI", "RASI"), "")
+    assert strip_subject_prefix(["A:LASI", "B:RASI"]) == (("A:LASI", "B:RASI"), "")
+    assert strip_subject_prefix(["JW:LASI", "RASI", "LPSI"])[1] == ""
+    assert strip_subject_prefix(["JW:LASI", "LASI"]) == (("JW:LASI", "LASI"), "")
+
+
+def test_static_and_task_with_different_prefixes_read_alike(tmp_path):
+    """A static written with ``S1:`` and a task with ``JW:`` (and one without): every trial's
+    labels are read without its prefix (msk.io.read_c3d, msk.io.read_trc), so the markers placed
+    from the static are the task's; the prefix is in the trial's metadata."""
+    from msk.io import read_c3d, write_c3d
+    from msk.io.opensim_files import read_trc
+
+    x = np.random.default_rng(0).normal(size=(5, 3, 3))
+    names = ["LASI", "RASI", "R.Thigh.Upper"]
+    got = {}
+    for pre in ("", "S1:", "JW:"):
+        p = write_c3d(tmp_path / f"t{pre[:2]}.c3d", markers=x,
+                      marker_labels=[pre + n for n in names], rate_hz=100.0)  # fmt: skip
+        tr = read_c3d(p)
+        got[pre] = tr.marker_labels
+        assert tr.metadata["label_prefix"] == pre
+        assert tuple(tr.gaps.labels) == tuple(names)
+    assert got[""] == got["S1:"] == got["JW:"] == tuple(names)
+    trc = tmp_path / "t.trc"
+    head = "\t".join(f"JW:{n}\t\t" for n in names)
+    rows = "\n".join(
+        f"{i + 1}\t{i / 100:.2f}\t" + "\t".join(f"{v:.4f}" for v in x[i].ravel()) for i in range(5)
+    )
+    trc.write_text(
+        "PathFileType\t4\t(X/Y/Z)\tt.trc\n"
+        "DataRate\tCameraRate\tNumFrames\tNumMarkers\tUnits\tOrigDataRate\tOrigDataStartFrame"
+        "\tOrigNumFrames\n100\t100\t5\t3\tm\t100\t1\t5\n"
+        f"Frame#\tTime\t{head}\n\t\tX1\tY1\tZ1\tX2\tY2\tZ2\tX3\tY3\tZ3\n\n{rows}\n"
+    )
+    assert read_trc(trc).labels == tuple(names)
+
+
+def test_a_configured_label_with_the_prefix_the_reader_dropped_still_matches():
+    """``rename = {"R.Knee.Med" = "JW:RKneeLateral"}`` pairs with the label read as
+    ``RKneeLateral`` (the trial's prefix dropped when read)."""
+    from msk.model.markersets import as_read
+
+    gait2392 = load_model(MODELS / "gait2392.toml")
+    labels = ["RAsis", "LAsis", "Sacral", "RKneeLateral"]
+    m = recognise(labels, gait2392.marker_names, rename={"R.Knee.Med": "JW:RKneeLateral"})
+    assert m.rename["R.Knee.Med"] == "RKneeLateral"
+    assert as_read("JW:Other", labels) == "JW:Other"
+    assert as_read("LAsis", labels) == "LAsis"

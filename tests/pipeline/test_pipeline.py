@@ -428,6 +428,8 @@ def test_config_typos_end_the_run_with_one_line(tmp_path, capsys):
          "has no analog channel 'vasmedX'"),
         (lambda t: t.replace("weights = {}", 'weights = { "R.ASISS" = 2.0 }'),
          "markers.weights: no marker 'R.ASISS'"),
+        (lambda t: t + '\n[loads]\nsurface_height_m = { plate9 = 0.2 }\n',
+         "[loads] surface_height_m: no plate 'plate9'"),
     ):  # fmt: skip
         cfg = tmp_path / "typo.toml"
         cfg.write_text(edit(base), encoding="utf-8")

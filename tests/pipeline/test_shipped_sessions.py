@@ -228,6 +228,10 @@ def test_shipped_session_runs_and_flags_what_is_wrong(cfg: Path) -> None:
         for part in ("", "_medial", "_lateral"):  # each component the measurement has
             if part == "" or f"measured{part}," in header + ",":
                 assert f"knee_contact_generic{part}" in comp, part
+        # the like component, named: JW's load cells and DM's medial + lateral are axial, PS's
+        # eTibia total a magnitude (msk.io.contact_force.MeasuredContact.component)
+        like = "magnitude" if cfg.stem == "gc5_PS" else "axial"
+        assert comp["knee_contact_generic"]["component"] == f"{like} total"
 
 
 def _check_report_renders(folder: Path, summary: dict) -> None:
