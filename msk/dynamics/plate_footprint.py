@@ -11,7 +11,10 @@ plate contact assigned to a foot, the foot's points near the plate surface (with
 ``outside_m`` outside the outline means the foot straddles the edge there. Those frames are
 to be counted as an unmeasured contact of that foot, like a foot on the floor beside the plates.
 
-Plates without corners (a GRF file's) are not judged.
+Plates without corners (a GRF file's) are not judged, nor raised ones
+(:func:`floor_level_plates`): a step or platform standing on a plate passes all of its load to
+the plate wherever the foot stands on it, and beyond a raised surface's edge there is nothing to
+stand on.
 """
 
 from __future__ import annotations
@@ -23,7 +26,13 @@ from typing import Any
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-__all__ = ["exclude_plate_edges", "outside_distance", "plate_edge_frames"]
+__all__ = [
+    "RAISED_PLATE_M",
+    "exclude_plate_edges",
+    "floor_level_plates",
+    "outside_distance",
+    "plate_edge_frames",
+]
 
 Array = NDArray[np.float64]
 
@@ -118,3 +127,23 @@ def exclude_plate_edges(
         dataclasses.replace(contact, unmeasured=contact.unmeasured | edge),
         dataclasses.replace(external, metadata={**external.metadata, "plate_edge": records}),
     )
+
+
+#: a plate whose standing surface is higher than the lowest plate's by more than this carries a
+#: step or platform (m)
+RAISED_PLATE_M = 0.05
+
+
+def floor_level_plates(
+    corners: Mapping[str, ArrayLike], up: ArrayLike, *, raised_m: float = RAISED_PLATE_M
+) -> set[str]:
+    """The plates of ``corners`` (plate name → (4, 3) corners at the plate's standing surface,
+    m) whose surface lies within ``raised_m`` of the lowest plate's along ``up``: the plates
+    a foot can straddle onto the floor."""
+    u = np.asarray(up, dtype=float)
+    u = u / np.linalg.norm(u)
+    heights = {name: float(np.mean(np.asarray(c, dtype=float) @ u)) for name, c in corners.items()}
+    if not heights:
+        return set()
+    floor = min(heights.values())
+    return {name for name, h in heights.items() if h <= floor + raised_m}

@@ -15,7 +15,9 @@ walking has double support — at a foot strike the other foot is still on the g
 event a strike) — and running a flight phase (its last event a foot off); without events of
 both sides, the pelvis' mean horizontal speed against the walk-run transition speed,
 :data:`WALK_RUN_SPEED_M_S` (≈ 2.0 m/s, Hreljac 1993, Med Sci Sports Exerc 25:1158-1162). A
-running trial is not gated (in-vivo running loads are not measured at these speeds).
+running trial is not gated (in-vivo running loads are not measured at these speeds), nor a
+stationary task (squat: its knee loads reach 3-4 BW in vivo) or a stair (a pelvis that rises or
+falls: 3-3.5 BW in vivo, Kutzner et al. 2010).
 
 Pelvis tilt (:func:`pelvis_tilt_flags`): in walking the pelvis tilts 10-15° anteriorly on
 average, its ASIS–PSIS line against the horizontal, with a range of about 4° over the cycle
@@ -39,7 +41,9 @@ from msk.quality import Flag
 
 __all__ = [
     "KNEE_CONTACT_WALKING_MAX_BW",
+    "LEVEL_MAX_RISE_M",
     "PELVIS_TILT_WALKING_MAX_DEG",
+    "WALK_MIN_SPEED_M_S",
     "WALK_RUN_SPEED_M_S",
     "gait_mode",
     "knee_contact_flags",
@@ -53,6 +57,11 @@ KNEE_CONTACT_WALKING_MAX_BW = 4.5
 PELVIS_TILT_WALKING_MAX_DEG = 25.0
 #: Walk-run transition speed, m/s (Hreljac 1993).
 WALK_RUN_SPEED_M_S = 2.0
+#: Slowest walk, m/s: below it the trial is a stationary task (pathological gait is rarely slower
+#: than 0.2 m/s; a squat's pelvis does not travel)
+WALK_MIN_SPEED_M_S = 0.2
+#: Largest net rise or fall of the pelvis over a level walk, m (a stair's step is 0.15–0.2 m)
+LEVEL_MAX_RISE_M = 0.12
 
 
 def _mode_from_events(events: Any) -> str | None:
@@ -70,30 +79,47 @@ def _mode_from_events(events: Any) -> str | None:
     return max(votes, key=lambda k: votes[k])
 
 
-def gait_mode(events: Any, kinematics: Any, up: ArrayLike) -> tuple[str, str]:
-    """(``"walking"``/``"running"``/``"unknown"``, how it was judged) of a trial: from its gait
-    events (:class:`msk.kinematics.events.GaitEvents`), else from the pelvis' net horizontal speed
-    (the
-    root translations ``*_tx/_ty/_tz`` of ``kinematics``; ``up`` the model's up direction)."""
-    mode = _mode_from_events(events) if events is not None else None
-    if mode is not None:
-        why = "double support" if mode == "walking" else "a flight phase"
-        return mode, f"the gait events show {why}"
+def _pelvis_path(kinematics: Any, up: Any) -> tuple[float, float, float] | None:
+    """(net horizontal distance m, net rise m, duration s) of the pelvis over the tracked frames
+    (its root translations ``*_tx/_ty/_tz``), None when they are not known."""
     names = list(kinematics.coordinate_names)
     cols = [next((i for i, n in enumerate(names) if n.endswith(ax)), None)
             for ax in ("_tx", "_ty", "_tz")]  # fmt: skip
     t = np.asarray(kinematics.time, dtype=float)
     if any(c is None for c in cols) or t.size < 2:
-        return "unknown", "no gait events of both sides and no root translation"
+        return None
     x = np.asarray(kinematics.q, dtype=float)[:, [c for c in cols if c is not None]]
     ok = np.isfinite(x).all(axis=1)
     if ok.sum() < 2:
-        return "unknown", "no gait events of both sides and no tracked pelvis"
+        return None
     u = np.asarray(up, dtype=float)
     u = u / np.linalg.norm(u)
     d = x[ok][-1] - x[ok][0]
-    d = d - np.dot(d, u) * u
-    speed = float(np.linalg.norm(d) / (t[ok][-1] - t[ok][0]))
+    rise = float(np.dot(d, u))
+    return float(np.linalg.norm(d - rise * u)), rise, float(t[ok][-1] - t[ok][0])
+
+
+def gait_mode(events: Any, kinematics: Any, up: ArrayLike) -> tuple[str, str]:
+    """(``"walking"``, ``"running"``, ``"stairs"``, ``"stationary"`` or ``"unknown"``, how it
+    was judged) of a trial. A pelvis that rises or falls by more than :data:`LEVEL_MAX_RISE_M`
+    over the trial is on stairs or a slope (not level walking); otherwise the gait events
+    (:class:`msk.kinematics.events.GaitEvents`: double support or a flight phase); without
+    events of both sides, the pelvis' net horizontal speed (the root translations
+    ``*_tx/_ty/_tz`` of ``kinematics``; ``up`` the model's up direction): below
+    :data:`WALK_MIN_SPEED_M_S` a stationary task (a squat, a sit-to-stand), above
+    :data:`WALK_RUN_SPEED_M_S` running."""
+    path = _pelvis_path(kinematics, up)
+    if path is not None and abs(path[1]) > LEVEL_MAX_RISE_M:
+        return "stairs", f"the pelvis rises {path[1]:+.2f} m over the trial (not level)"
+    mode = _mode_from_events(events) if events is not None else None
+    if mode is not None:
+        why = "double support" if mode == "walking" else "a flight phase"
+        return mode, f"the gait events show {why}"
+    if path is None:
+        return "unknown", "no gait events of both sides and no tracked pelvis"
+    speed = path[0] / path[2] if path[2] > 0 else 0.0
+    if speed < WALK_MIN_SPEED_M_S:
+        return "stationary", f"the pelvis' mean horizontal speed {speed:.2f} m/s"
     mode = "walking" if speed <= WALK_RUN_SPEED_M_S else "running"
     return mode, f"the pelvis' mean horizontal speed {speed:.2f} m/s"
 
