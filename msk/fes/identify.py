@@ -968,7 +968,7 @@ def identify_series_stiffness(
     m0 = s0.muscle
     if k_s_bounds is None:
         k_s_bounds = (k_s_lower_bound(m0.F_cm, m0.L_c0), 1e6)
-    step, who = "k_s NLP (seeds/000 Eq. 8)", f"{subject.name}, dynamic trial"
+    step, who = "k_s NLP (Benoussaad et al. 2013 Eq. 8)", f"{subject.name}, dynamic trial"
     if not (0 < k_s_bounds[0] < k_s_bounds[1]) or not np.isfinite(k_s_bounds[0]):
         raise IdentificationError(
             f"{step} ({who}): empty k_s box [{k_s_bounds[0]:.4g}, {k_s_bounds[1]:.4g}] N/m "

@@ -247,7 +247,8 @@ class FesSubject:
         rec = self.recruitment
         if isinstance(rec, RecruitmentCurrent) and abs(rec.i_max - 3e-3) > 1e-12:
             raise ModelError(
-                f"FES subject {self.name!r}: the simulator uses seeds/001's I_max = 3 mA, "
+                f"FES subject {self.name!r}: the simulator uses the implanted-FES identification "
+                "paper's I_max = 3 mA, "
                 f"got i_max = {rec.i_max} A"
             )
         return self

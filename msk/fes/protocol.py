@@ -451,7 +451,7 @@ def run_protocol(
     v = session.validation
     # pass 0: the seed's protocol (rigid tendon in the force–length step, k_s0 from literature)
     t1 = _time.perf_counter()
-    with _stage(session.name, "pass 0 (seeds/000 protocol)"):
+    with _stage(session.name, "pass 0 (Benoussaad et al. 2013 protocol)"):
         subj_initial, fl, rec = initial_phase(k_s0, np.inf)
         cv0 = cross_validate(v.time, v.theta_r, v.stim, subj_initial)
         ks = identify_series_stiffness(d.time, d.theta_r, d.stim, subj_initial, k_s0=k_s0)

@@ -564,7 +564,7 @@ def solve_kinematics(
         )
     cols = [labels.index(n) for n in used]
     # each frame's used markers are taken as it is solved (x[n, cols]): a long trial's used
-    # markers are not copied whole (issue 18)
+    # markers are not copied whole
     # model markers of the trial left out by a zero weight: their distances are reported
     ignored = [mk.name for mk in model.markers if mk.name in labels and mk.name not in used]
     ign_cols = [labels.index(n) for n in ignored]

@@ -202,7 +202,8 @@ def recursive_filter(
         if bad.any():
             j = int(np.flatnonzero(bad)[0])
             raise MuscleModelError(
-                f"muscle {nm[j]!r}: |{what}| must be < 1 for a stable filter (seeds/003 Eq. 4-5), "
+                f"muscle {nm[j]!r}: |{what}| must be < 1 for a stable filter (the EMG-driven vs "
+                "OpenSim thesis, Eq. 4-5), "
                 f"got {g[j]}"
             )
     if np.any(d < 0) or np.any(d != np.round(d)):
@@ -244,7 +245,8 @@ def piecewise_coefficients(shape_factor: float) -> tuple[float, float, float, fl
     if not (0.0 <= A < 1.0 - u0):
         raise MuscleModelError(
             f"piecewise shape factor A must be in [0, {1.0 - u0:.4f}), got {A} "
-            "(seeds/003 Table 3.1 uses [0.01, 0.12]; form='exponential' takes A in (-3, 0])"
+            "(the EMG-driven vs OpenSim thesis, Table 3.1, uses [0.01, 0.12]; form='exponential' "
+            "takes A in (-3, 0])"
         )
     y0 = u0 + A
     m = (1.0 - y0) / (1.0 - u0)

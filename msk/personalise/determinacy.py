@@ -9,7 +9,7 @@ while the joint's coordinate moves by −δ at every frame leaves every marker w
 a revolute joint exactly (R(θ + δ) R(δ)⁻¹ = R(θ)), for a joint with coupled translations (the
 gait2392 knee) nearly: the mean of that coordinate over the trial is then fixed by where the
 placement's passes started and stopped, not by the markers (DM's crouch: 1 nm of marker noise
-moved its mean knee flexion 28.5–33.4°, docs/validation.md, issue 15 basin pass).
+moved its mean knee flexion 28.5–33.4°, docs/validation.md).
 
 The check is the profile likelihood of the coordinate's offset (Raue A, Kreutz C, Maiwald T,
 Bachmann J, Schilling M, Klingmüller U, Timmer J (2009) Structural and practical

@@ -24,7 +24,7 @@ through the knee's and the ankle's range, and their functional centres measure t
   it (its figures are reported): between trials of one subject the functional femur agrees to
   ~10 mm and this tibia does not (Grand Challenge DM, left: 411 / 430 / 431 mm in three trials),
   and a shank cluster sliding on the bone moves the knee's estimate along the tibia (synthetic:
-  8 mm of slide, −5 mm of tibia; docs/validation.md, issue 15, seventh pass).
+  8 mm of slide, −5 mm of tibia; docs/validation.md).
 
 Each centre is used only when the data determine it (:data:`CHECKS`): enough frames, enough
 rotation about the joint's axis (SCoRE's error grows as the range of motion shrinks, Ehrig et

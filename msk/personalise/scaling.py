@@ -1036,7 +1036,7 @@ NEUTRAL_TASK_WEIGHT = 0.001
 #: of a trial whose model markers leave the knees unobserved (:func:`scale_from_motion`): 1 rad
 #: costs as much as one marker 3 mm off — enough to make the minimum along the flat directions
 #: (the leg's swivel about the hip–ankle line) unique, too weak to bend a running knee
-#: (:data:`NEUTRAL_TASK_WEIGHT` there moved UWA running's leg factors; issue 15 ninth pass)
+#: (:data:`NEUTRAL_TASK_WEIGHT` there moved UWA running's leg factors)
 SCALING_NEUTRAL_WEIGHT = 1e-5
 
 
@@ -1051,7 +1051,7 @@ PLACEMENT_RETRY_RMS_M = 0.030
 #: the flat directions of a cluster-only leg unique (without it UWA fast walking's passes jumped
 #: from a task IK cost of 9.9 mm to 40–118 mm in most rounds, and where the descent stopped
 #: moved with 1e-4 of its input: 8.4–9.9 mm); it moves a walk's ±8° hip rotation by nothing
-#: the markers can see (synthetic: ``tests/personalise/test_scaling.py``; issue 15, twelfth pass)
+#: the markers can see (synthetic: ``tests/personalise/test_scaling.py``)
 DESCENT_NEUTRAL_WEIGHT = 1e-5
 
 
@@ -1079,7 +1079,7 @@ def _ik_frames(
     them at the highest rate that gives at most ``max_frames``: UWA ``Running_1`` tracks its
     markers over ~1 s at 250 Hz, whose middle 120 frames (0.48 s, less than a stride) had
     placed the clusters and measured the legs on one phase of the run (task IK 13.9 mm; over
-    the whole window 10.9 mm; issue 15, twelfth pass)."""
+    the whole window 10.9 mm)."""
     cols = [i for i, lab in enumerate(labels) if lab in set(names)]
     n_seen = np.isfinite(x[:, cols]).all(axis=2).sum(axis=1) if cols else np.zeros(len(x))
     good = np.flatnonzero(n_seen >= min_markers)
@@ -1102,7 +1102,7 @@ def _ik_frames(
 #: relative difference within which a leg's pose-matched factor is said to be its stature start
 #: (:func:`unobserved_leg_starts`): the motion did not lengthen or shorten the stature's leg by
 #: more than the 0.5 % (~4 mm of an adult's 0.9 m leg) the measurement's own spread under 0.1 mm
-#: of marker noise is below (issue 15, thirteenth pass)
+#: of marker noise is below
 LEG_START_TOLERANCE = 0.005
 
 
@@ -1272,7 +1272,7 @@ def scale_from_motion(
         # neutral (SCALING_NEUTRAL_WEIGHT), else the pose each frame is compared in is
         # wherever the solver drifts along the flat directions (UWA fast walking, pelvis and
         # foot markers: the leg factors moved by up to 0.2 with 0.1 mm of marker noise;
-        # studies/placement_jitter.py, issue 15 ninth and tenth passes)
+        # studies/placement_jitter.py)
         flexed = unobserved_knees_flexed(first, x[idx], labels, min_frames)
         if flexed:
             first = first.with_coordinate_ranges(flexed)
@@ -1509,7 +1509,7 @@ def place_markers_from_motion(
        bone; a thigh or shank marker (hint on a femur or tibia,
        :data:`msk.model.markersets.KNEE_SEGMENTS`) goes to its hinted body whenever it is rigid
        enough there (σ ≤ ``max_spread_m``, not only in a near-tie), and a
-       sided label never to a body of the other side (issue 15, thirteenth pass: a synthetic
+       sided label never to a body of the other side (a synthetic
        DM walk had thigh and shank markers exchanged across the knee, a squat a right foot
        marker on the left toes);
     3. ``iterations`` > 1: inverse kinematics again with the placed markers too (they pin the
@@ -1594,7 +1594,7 @@ def place_markers_from_motion(
     from msk.kinematics.ik import solve_kinematics
     from msk.model.markersets import zeros_as_gaps_view
 
-    # exact zeros: gaps (TRC writers); read only, not copied when there are none (issue 18)
+    # exact zeros: gaps (TRC writers); read only, not copied when there are none
     x = zeros_as_gaps_view(np.asarray(markers, dtype=float))
     t = np.asarray(time, dtype=float)
     labels = tuple(labels)
@@ -1696,7 +1696,7 @@ def place_markers_from_motion(
             dist = _bone_distances(med, seg_a, seg_d, seg_body, len(names))
             near = dist <= max_distance_m
             # a sided label is never placed on the other side's body (still feet in a squat are
-            # as rigid to either foot: R_Midfoot_Medial went to toes_l, issue 15, 13th pass)
+            # as rigid to either foot: R_Midfoot_Medial went to toes_l)
             near &= ~other_side(lab, names)
             if not near.any():
                 k = int(np.argmin(dist))
@@ -1809,7 +1809,7 @@ def refine_placement_from_motion(
     last state, one pass per call; every rotation pulled towards neutral by
     :data:`DESCENT_NEUTRAL_WEIGHT` only, which leaves the fit to the markers and makes each
     pass's minimum unique — unpulled, the passes of a cluster-only leg (UWA) jumped to another
-    basin or diverged, so where the descent stopped was a lottery, issue 15 twelfth pass;
+    basin or diverged, so where the descent stopped was a lottery;
     ``kwargs``: the other keywords it was placed with) for as long as ``cost(model, info)``
     — the fit the placement is for, e.g. the task's own inverse kinematics cost
     (:func:`msk.personalise.placement.placement_cost`) — falls by more than ``rel_tolerance`` of

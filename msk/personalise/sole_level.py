@@ -36,7 +36,7 @@ frames on a side (no stance, running, toe walking whose heel never rests) keeps 
 placement's ankle as it is, and says so (:class:`SoleLevel`, ``reason``).
 
 The prior sets the foot's orientation, not the shank's: an ankle still moves with its knee's
-own gauge when that is free (docs/validation.md, issue 15 ankle pass).
+own gauge when that is free (docs/validation.md).
 """
 
 from __future__ import annotations

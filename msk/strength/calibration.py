@@ -905,5 +905,8 @@ class EMGDrivenCalibration:
             confidence=float("nan"),
             n_samples=int(self.result_.n_residuals) if hasattr(self, "result_") else 0,
             n_bootstrap=0,
-            method="EMG-driven calibration (seeds/003 §2.2.3), casadi/ipopt multi-start",
+            method=(
+                "EMG-driven calibration (the EMG-driven vs OpenSim thesis §2.2.3), casadi/ipopt "
+                "multi-start"
+            ),
         )

@@ -1193,7 +1193,7 @@ class StrengthIdentifier:
             n_samples=n_rows,
             n_bootstrap=self.n_bootstrap,
             method=(
-                "net-contribution regression (seeds/002 Eq. 12-16), "
+                "net-contribution regression (Hayashibe et al. 2011 Eq. 12-16), "
                 + ("bounded IV, phase-averaged instrument" if use_iv else "bounded least squares")
             ),
             bounds=self.bounds,

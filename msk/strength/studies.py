@@ -191,7 +191,10 @@ def area_ratio_table(
     muscle_names: Sequence[str],
     *,
     time: ArrayLike | None = None,
-    title: str = "area-under-curve ratios (trapezoidal rule, seeds/003 Tables 4.5-4.6)",
+    title: str = (
+        "area-under-curve ratios (trapezoidal rule, the EMG-driven vs OpenSim thesis Tables "
+        "4.5-4.6)"
+    ),
 ) -> MetricTable:
     """Per-muscle ratio of trapezoidal areas ``∫a/∫b`` for each pair ``(a, b)`` of named series
     ``(N, M)`` (activations → Table 4.5, forces → Table 4.6), via :func:`msk.metrics.area_ratio`.
@@ -232,7 +235,7 @@ def net_force_table(
     net_forces: Mapping[str, ArrayLike],
     pairs: Sequence[tuple[str, str]],
     *,
-    title: str = "net joint force comparison (seeds/003 Table 4.7)",
+    title: str = "net joint force comparison (the EMG-driven vs OpenSim thesis Table 4.7)",
 ) -> MetricTable:
     """For each pair ``(a, b)`` of net-force series ``(N,)``: r², RMS (N), RMS normalised to the
     peak-to-peak range of ``a`` and the difference in peak ``max a − max b`` (N) — the columns of
@@ -264,7 +267,7 @@ def moment_fit_table(
     predicted: ArrayLike,
     coordinate_names: Sequence[str],
     *,
-    title: str = "joint-moment fit (seeds/003 Table 4.1)",
+    title: str = "joint-moment fit (the EMG-driven vs OpenSim thesis Table 4.1)",
 ) -> MetricTable:
     """r², RMS (N·m) and peak-to-peak-normalised RMS of predicted vs inverse-dynamics moments
     ``(N, n)``, one row per coordinate (the EMG-driven vs OpenSim thesis, Table 4.1)."""
