@@ -16,7 +16,7 @@ from msk.model.markersets import recognise
 from msk.personalise.scaling import place_markers, scale_from_static
 
 REPO = Path(__file__).resolve().parents[1]
-model = load_model(REPO / "models/gait2392.toml")
+model = load_model("gait2392")
 up = -np.asarray(model.gravity) / np.linalg.norm(model.gravity)
 
 # static trial (OpenSim frame already): recognise the lab's labels, scale, place the others

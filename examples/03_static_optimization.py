@@ -21,7 +21,7 @@ from msk.optimization import solve_static_optimization_batch
 from msk.personalise.scaling import place_markers_from_motion, scale_from_motion
 
 REPO = Path(__file__).resolve().parents[1]
-model = load_model(REPO / "models/gait2392.toml")
+model = load_model("gait2392")
 up = -np.asarray(model.gravity) / np.linalg.norm(model.gravity)
 walk = to_model_frame(read_c3d(REPO / "data/gc5-PS/PS_ngait_og_ss1.c3d"), up=up)
 match = recognise(walk.marker_labels, model.marker_names, markers=walk.markers)

@@ -33,7 +33,7 @@ METHODS = ("model", "harrington", "davis")
 
 
 def _config(real: Path, name: str, method: str, folder: Path) -> Path:
-    gait = ROOT / "models" / "gait2392.toml"
+    gait = ROOT / "msk" / "data" / "models" / "gait2392.toml"
     trials, mass = "", 66.4  # PlugInC3D: PiG's normalisation mass (docs/validation.md)
     if name == "PiG_Motion3_FF":
         trials = (

@@ -1,7 +1,7 @@
 """Validation on the Grand Challenge (5th) subject PS: predicted vs measured (eTibia) tibial
 contact force, quadriceps forces vs EMG, and the W_emg trade-off of seeds/002 Table I.
 
-Full chain per trial: gait2392 (``models/gait2392.toml``) scaled to ``PS_static_for_scaling.trc``
+Full chain per trial: gait2392 (shipped as ``gait2392``) scaled to ``PS_static_for_scaling.trc``
 (75 kg, the mass the data's source assumes) → IK → plate loads → ID → muscle geometry →
 OpenSim-equivalent static optimisation (Σ a², Thelen2003 curves of gait2392, rigid tendon,
 ``a ∈ [0.01, 1]``, pelvis residual actuators of optimal force 1) → knee contact force of the

@@ -6,7 +6,7 @@ body mass: N·mm/kg, read by :func:`msk.io.read_c3d` as N·m/kg). msk's chain on
 and plates is compared with them, sagittal hip, knee and ankle, over every stance phase
 (events of the file: Foot Strike → next Foot Off of that side) whose foot stands on a plate.
 
-Chain (both files): gait2392 (``models/gait2392.toml``) →
+Chain (both files): gait2392 (``msk/data/models/gait2392.toml``) →
 :func:`msk.personalise.scaling.scale_model`
 (:data:`msk.pipeline.DEFAULT_MEASUREMENTS` where both markers exist; the feet, which have no
 usable pair — PiG's toe marker is not gait2392's toe tip — take the mean tibia factor) →
@@ -232,7 +232,7 @@ def _stances(trial: Any, side: str) -> list[tuple[float, float]]:
 
 @functools.lru_cache(maxsize=2)
 def pig_comparison(name: str) -> PigResult:
-    gen = load_model(ROOT / "models" / "gait2392.toml")
+    gen = load_model(ROOT / "msk" / "data" / "models" / "gait2392.toml")
     g = np.asarray(gen.gravity, dtype=float)
     up = -g / np.linalg.norm(g)
     trial = read_c3d(_btk(name))

@@ -11,7 +11,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from msk.exceptions import ConfigError
+from msk.exceptions import ConfigError, MskError
 from msk.io.dynamometer import EMG_UNITS, FORCE_UNITS, TORQUE_UNITS
 from msk.strength.isometric import IsometricSettings, IsometricTest
 
@@ -134,7 +134,13 @@ def load_dynamometry_config(path: str | Path) -> DynamometryConfig:
     if not isinstance(model, dict):
         raise ConfigError(f"{src}: missing table [model] (source = the generic model)")
     _check_keys(model, {"source"}, "model", src)
-    model_source = (src.parent / _get(model, "source", str, "model", src)).resolve()
+    from msk.model.files import model_file
+
+    named = _get(model, "source", str, "model", src)
+    try:
+        model_source = model_file(named, base=src.parent)
+    except MskError as exc:
+        raise ConfigError(f"{src}: model.source = {named!r}: {exc}") from None
     dyn = raw.get("dynamometer", {})
     if not isinstance(dyn, dict):
         raise ConfigError(f"{src}: [dynamometer] should be a table")

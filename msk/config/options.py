@@ -94,6 +94,13 @@ def _solvers() -> tuple[str, ...]:
     return available_solvers()
 
 
+def _shipped_model(name: str) -> Path:
+    """The file of the shipped model ``name`` (:func:`msk.model.files.model_file`)."""
+    from msk.model.files import model_file
+
+    return model_file(name)
+
+
 def _ms_hint(delay: float) -> str:
     """``40`` given as a delay in seconds: say it looks like milliseconds."""
     if math.isfinite(delay) and 0.2 < delay <= 200.0:
@@ -132,7 +139,11 @@ class Subject:
 class ModelConfig:
     """``[model]``: the musculoskeletal model (optional when every trial has role = "fes")."""
 
-    source: Path = opt("an msk model file (.toml) or an OpenSim model (.osim)")
+    source: Path = opt(
+        "a shipped model by name (gait2392, gait2392_fourbar), an msk model file (.toml) or an "
+        "OpenSim model (.osim)",
+        named=_shipped_model,
+    )
     knee: str = opt(
         "knee joint: spline (the gait2392 knee) or four_bar (the crossed four-bar knee of the "
         "rehabilitation-robot lower-limb model paper)",

@@ -18,7 +18,7 @@ from dataclasses import MISSING, dataclass, field
 from pathlib import Path
 from typing import Any
 
-from msk.exceptions import ConfigError
+from msk.exceptions import ConfigError, MskError
 
 __all__ = ["OPTION", "Option", "Range", "check_keys", "opt", "option_fields", "read_options"]
 
@@ -68,6 +68,8 @@ class Option:
         choices: allowed strings, or a function returning them (registered solvers).
         hint: appended to an out-of-range message; a function of the value for ms→s style hints.
         item: what one value of a table or the items of a list are (for messages).
+        named: for a path, the file a bare word names (no folder, no suffix: a shipped model);
+            it raises :class:`msk.exceptions.MskError` when the word names nothing.
     """
 
     meaning: str
@@ -77,6 +79,7 @@ class Option:
     choices: tuple[str, ...] | Callable[[], tuple[str, ...]] | None = None
     hint: str | Callable[[float], str] = ""
     item: str = ""
+    named: Callable[[str], Path] | None = None
 
     def allowed(self) -> tuple[str, ...] | None:
         """The allowed strings (None: any)."""
@@ -93,6 +96,7 @@ def opt(
     choices: tuple[str, ...] | Callable[[], tuple[str, ...]] | None = None,
     hint: str | Callable[[float], str] = "",
     item: str = "",
+    named: Callable[[str], Path] | None = None,
 ) -> Any:
     """A dataclass field that is a TOML key. No ``default``: the key is required.
 
@@ -105,11 +109,12 @@ def opt(
         choices: allowed strings (or a function returning them).
         hint: appended to the out-of-range message (or a function of the value giving it).
         item: what a table's values / a list's items are, for messages.
+        named: for a path, the file a bare word names (:attr:`Option.named`).
 
     Returns:
         A :func:`dataclasses.field` carrying the :class:`Option` in its metadata.
     """
-    md = {OPTION: Option(meaning, key, unit, bounds, choices, hint, item)}
+    md = {OPTION: Option(meaning, key, unit, bounds, choices, hint, item, named)}
     if isinstance(default, dict):
         return field(default_factory=dict, metadata=md)
     return field(default=default, metadata=md)
@@ -232,7 +237,13 @@ def _value(o: Option, tp: Any, value: Any, name: str, source: Path) -> Any:
             raise ConfigError(f"{source}: {name} = {value!r} should be a list of {o.item}")
         return tuple(value)
     if tp is Path:
-        return _path(_typed(str, value, name, source), name, source)
+        text = _typed(str, value, name, source)
+        if o.named is not None and _bare_word(text):
+            try:
+                return o.named(text)
+            except MskError as exc:
+                raise ConfigError(f"{source}: {name} = {text!r}: {exc}") from None
+        return _path(text, name, source)
     value = _typed(tp, value, name, source)
     if tp in (int, float):
         _check_number(o, value, name, source)
@@ -294,6 +305,12 @@ def _file_kind(p: Path) -> str:
     from msk.io.validate import path_kind
 
     return path_kind(p)
+
+
+def _bare_word(text: str) -> bool:
+    """A name with no folder and no suffix (``"gait2392"``), not a path."""
+    p = Path(text)
+    return bool(text.strip()) and "\x00" not in text and not p.suffix and len(p.parts) == 1
 
 
 def _path(value: str, name: str, source: Path) -> Path:

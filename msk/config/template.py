@@ -16,7 +16,7 @@ sex = "male"           # "male" | "female": picks the anthropometric table rows
 side = "left"          # side of interest (instrumented knee, affected limb)
 
 [model]
-source = "../models/gait2392.toml"   # an msk model file (.toml) or an OpenSim model (.osim)
+source = "gait2392"                  # a shipped model by name, an msk model file (.toml) or a .osim
 knee = "spline"                      # "spline" (gait2392 knee) | "four_bar" (crossed four-bar knee)
 scale = true                         # scale to the static trial's marker distances
 # markers = "gait2392_Scale_MarkerSet.xml"   # OpenSim marker set of a .osim without markers

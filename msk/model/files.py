@@ -29,6 +29,7 @@ p_ref}}``.
 
 from __future__ import annotations
 
+import difflib
 import json
 import math
 import tomllib
@@ -62,9 +63,50 @@ from msk.muscles.path import (
     WrapObject,
 )
 
-__all__ = ["FORMAT_VERSION", "function_from_dict", "function_to_dict", "load_model", "save_model"]
+__all__ = [
+    "FORMAT_VERSION",
+    "function_from_dict",
+    "function_to_dict",
+    "load_model",
+    "model_file",
+    "save_model",
+    "shipped_models",
+]
 
 FORMAT_VERSION = 1
+
+
+def _shipped_dir() -> Path:
+    """The folder of the models shipped inside the package (``msk/data/models``)."""
+    return Path(__file__).resolve().parents[1] / "data" / "models"
+
+
+def shipped_models() -> tuple[str, ...]:
+    """The names of the models shipped with msk (``gait2392``, ``gait2392_fourbar``, …), sorted."""
+    return tuple(sorted(p.stem for p in _shipped_dir().glob("*.toml")))
+
+
+def model_file(name: str | Path, *, base: Path | None = None) -> Path:
+    """The file of a model given by name (a shipped model: ``"gait2392"``) or by path.
+
+    A bare word (no folder, no suffix) names a shipped model; anything else is a path, relative to
+    ``base`` (the configuration file's folder) when given. A bare word that is no shipped model
+    raises :class:`ModelError` listing the shipped names (with the closest one).
+    """
+    text = str(name)
+    p = Path(text)
+    if not p.suffix and len(p.parts) == 1 and text not in ("", ".", ".."):
+        shipped = _shipped_dir() / f"{text}.toml"
+        if shipped.is_file():
+            return shipped
+        names = shipped_models()
+        close = difflib.get_close_matches(text, names, n=1, cutoff=0.6)
+        tip = f" (did you mean {close[0]!r}?)" if close else ""
+        raise ModelError(
+            f"model {text!r} is neither a file nor a shipped model; shipped: "
+            f"{', '.join(names)}{tip}"
+        )
+    return (base / p).resolve() if base is not None else p
 
 
 # ------------------------------------------------------------------------------------------
@@ -409,8 +451,9 @@ def _point_from(d: Mapping[str, Any], where: str) -> PathPoint:
 
 
 def load_model(path: str | Path) -> Model:
-    """Read a model written by :func:`save_model` (or written by hand in the same layout)."""
-    path = Path(path)
+    """Read a model written by :func:`save_model` (or written by hand in the same layout); a bare
+    name reads the shipped model of that name (:func:`model_file`: ``load_model("gait2392")``)."""
+    path = model_file(path)
     try:
         doc = tomllib.loads(path.read_text(encoding="utf-8"))
     except OSError as exc:

@@ -23,7 +23,7 @@ Model marker names go through the same grammar (gait2392's ``R.Knee.Lat`` → (R
 epicondyle)); a model marker that names no landmark (technical markers such as gait2392's
 ``R.Thigh.Upper``) is only paired with a lab label of exactly its name (OpenSim subject01).
 
-Where gait2392 puts its markers (``models/gait2392.toml``, offsets in the calcaneus frame,
+Where gait2392 puts its markers (``msk/data/models/gait2392.toml``, offsets in the calcaneus frame,
 whose origin is at the back of the heel; the MTP joint is 0.18 m ahead) decided the foot:
 
 * ``R.Heel`` (−0.02, 0.02, 0): back of the calcaneus = Plug-in Gait ``HEE``, ``CAL``, IOR ``CA``;

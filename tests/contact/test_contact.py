@@ -301,7 +301,7 @@ def test_bad_input_raises_typed_errors() -> None:
 # ---------------------------------------------------------------------------------------------
 # medial / lateral split (two-point model, Winby et al. 2009; Lerner et al. 2015)
 # ---------------------------------------------------------------------------------------------
-MODELS = Path(__file__).resolve().parents[2] / "models"
+MODELS = Path(__file__).resolve().parents[2] / "msk" / "data" / "models"
 
 
 def _contact(force, moment, joint: str = "knee_r") -> KneeContact:

@@ -34,7 +34,7 @@ RENAME = {"R.ASIS": "R_Asis", "L.ASIS": "L_Asis", "V.Sacral": "Sacral", "R.Heel"
 
 @pytest.fixture(scope="module")
 def gait2392():
-    return load_model(REPO / "models" / "gait2392.toml")
+    return load_model(REPO / "msk" / "data" / "models" / "gait2392.toml")
 
 
 def _templates(folder, model):

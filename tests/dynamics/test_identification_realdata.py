@@ -3,7 +3,7 @@ real
 C3D recordings with force plates (GitHub issue 5, "Show — real data").
 
 Grand Challenge (5th) subject PS, three overground gait trials on 3 plates
-    gait2392 (``models/gait2392.toml``) scaled to ``PS_static_for_scaling.trc`` at the 75 kg the
+    gait2392 (shipped as ``gait2392``) scaled to ``PS_static_for_scaling.trc`` at the 75 kg the
     data's source assumes (``tests.support.gc5.scaled_model``, marker names from
     ``pipelines/gc5_PS.toml`` ``[markers] rename`` via ``tests.support.gc5.marker_rename``) →
     msk IK → plate loads → identification model with the upper body (gait2392's torso = HAT)
@@ -322,7 +322,7 @@ def _com_and_jacobian(
 def standing(which: str) -> StandingResult:
     from msk.datasets.shared import real_data_dir
 
-    gen = load_model(ROOT / "models" / "gait2392.toml")
+    gen = load_model(ROOT / "msk" / "data" / "models" / "gait2392.toml")
     up = _up(gen)
     if which == "FunctionalStatic":
         path = real_data_dir() / "btkdata" / "FunctionalStatic.c3d"

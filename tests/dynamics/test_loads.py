@@ -209,7 +209,7 @@ def _gc5_walk() -> tuple[object, object, object]:
 
     with (Path(__file__).resolve().parents[2] / "pipelines" / "gc5_PS.toml").open("rb") as fh:
         inv = {v: k for k, v in tomllib.load(fh)["markers"]["rename"].items()}
-    model = load_model(Path(__file__).resolve().parents[2] / "models" / "gait2392.toml")
+    model = load_model("gait2392")
     static = read_trc(GC5 / "PS_static_for_scaling.trc")
     labels = tuple(inv.get(lab, lab) for lab in static.labels)
     meas = usable_measurements(DEFAULT_MEASUREMENTS, set(labels) & set(model.marker_names))

@@ -22,7 +22,7 @@ def test_outside_distance_of_a_square() -> None:
 
 
 def _setup(toe_past_m: float):
-    model = load_model(ROOT / "models" / "gait2392.toml")
+    model = load_model(ROOT / "msk" / "data" / "models" / "gait2392.toml")
     q = np.tile(model.default_coordinates(), (5, 1))
     kin = SimpleNamespace(time=np.linspace(0.0, 0.4, 5), q=q)
     pts = _foot_points(model, q, ["calcn_r"], np.arange(5))[0][0]  # (P, 3) default pose

@@ -176,7 +176,7 @@ def test_lab_to_model_rotation_ignores_frames_without_markers():
 # ---------------------------------------------------------------------------------------------
 # heading from the pelvis markers
 # ---------------------------------------------------------------------------------------------
-MODELS = Path(__file__).resolve().parents[2] / "models"
+MODELS = Path(__file__).resolve().parents[2] / "msk" / "data" / "models"
 REAL = Path(__file__).resolve().parents[3] / "shared" / "data" / "real"
 _Y_TO_Z = rotation_between([0, 1.0, 0], [0, 0, 1.0])  # model (Y-up) → a Z-up lab
 

@@ -84,7 +84,7 @@ def test_gait2392_reads_back_the_same(tmp_path):
     from msk.muscles.geometry import muscle_geometry
     from msk.pipeline.model import load_model_file
 
-    m = load_model_file(REPO / "models" / "gait2392.toml")
+    m = load_model_file(REPO / "msk" / "data" / "models" / "gait2392.toml")
     back = load_osim(write_osim(tmp_path / "g.osim", m))
     _same_model(m, back)
     assert [mu.name for mu in back.muscles] == [mu.name for mu in m.muscles]
@@ -181,7 +181,7 @@ def test_opensim_gives_msks_muscle_lengths_and_moment_arms(tmp_path, needs_opens
     from msk.pipeline.model import load_model_file
     from tests.support.opensim_geometry import opensim_geometry
 
-    m = load_model_file(REPO / "models" / "gait2392.toml")
+    m = load_model_file(REPO / "msk" / "data" / "models" / "gait2392.toml")
     p = write_osim(tmp_path / "g.osim", m)
     lo, hi = m.coordinate_bounds()
     rng = np.random.default_rng(5)

@@ -14,7 +14,7 @@ from msk.model.core import Model, forward_kinematics
 from tests.support.knees import HIP, femur_tibia
 
 ANKLE = np.array([0.0, -0.4, 0.0])  # in the tibia frame
-MODELS = Path(__file__).resolve().parents[2] / "models"
+MODELS = Path(__file__).resolve().parents[2] / "msk" / "data" / "models"
 
 
 def _tibia(model: Model, theta: float) -> pin.SE3:

@@ -10,7 +10,7 @@ import pytest
 from msk.model.files import load_model
 from msk.model.markersets import parse_label, recognise
 
-MODELS = Path(__file__).resolve().parents[2] / "models"
+MODELS = Path(__file__).resolve().parents[2] / "msk" / "data" / "models"
 
 
 @pytest.fixture(scope="module")

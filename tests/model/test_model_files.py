@@ -27,7 +27,7 @@ from msk.model.joints import (
 from msk.model.osim import load_osim
 from msk.muscles.path import MovingPathPoint
 
-MODELS = REPO_ROOT / "models"
+MODELS = REPO_ROOT / "msk" / "data" / "models"
 
 
 def _same_model(a, b, rng):
@@ -176,3 +176,79 @@ def test_scaled_four_bar_model_round_trips(tmp_path):
     back = load_model(save_model(model, tmp_path / "scaled.toml"))
     _same_model(model, back, np.random.default_rng(3))
     assert back.metadata["scale_factors"]["femur_r"] == [1.1, 1.05, 1.0]
+
+
+# ------------------------------------------------------------------------------------------
+# shipped models by name
+# ------------------------------------------------------------------------------------------
+
+
+def test_a_bare_name_is_a_shipped_model(tmp_path) -> None:
+    from msk.config import load_config
+    from msk.model.files import model_file, shipped_models
+
+    assert {"gait2392", "gait2392_fourbar"} <= set(shipped_models())
+    path = model_file("gait2392")
+    assert path == (MODELS / "gait2392.toml").resolve() and path.is_file()
+    assert load_model("gait2392").marker_names == load_model(MODELS / "gait2392.toml").marker_names
+    # a path stays a path (relative to the base folder)
+    assert model_file("m.toml", base=tmp_path) == tmp_path / "m.toml"
+    # a session names the model by name, from a folder holding no model
+    (tmp_path / "t.c3d").write_text("")
+    cfg = tmp_path / "s.toml"
+    cfg.write_text(
+        '[subject]\nname = "x"\nmass_kg = 70.0\nheight_m = 1.7\n'
+        '[model]\nsource = "gait2392"\nknee = "four_bar"\n'
+        '[[trials]]\nname = "w"\nfile = "t.c3d"\nrole = "task"\n'
+    )
+    from msk.pipeline.inputs import model_source
+
+    assert model_source(load_config(cfg)) == (MODELS / "gait2392_fourbar.toml").resolve()
+
+
+def test_a_misspelt_model_name_is_a_config_error_with_a_suggestion(tmp_path) -> None:
+    from msk.config import load_config
+    from msk.exceptions import ConfigError
+    from msk.model.files import model_file
+
+    with pytest.raises(ModelError, match=r"shipped: gait2392.*did you mean 'gait2392'"):
+        model_file("gait2329")
+    (tmp_path / "t.c3d").write_text("")
+    cfg = tmp_path / "s.toml"
+    cfg.write_text(
+        '[subject]\nname = "x"\nmass_kg = 70.0\nheight_m = 1.7\n[model]\nsource = "gait_2392"\n'
+        '[[trials]]\nname = "w"\nfile = "t.c3d"\nrole = "task"\n'
+    )
+    with pytest.raises(ConfigError, match=r"model\.source = 'gait_2392'.*did you mean 'gait2392'"):
+        load_config(cfg)
+
+
+@pytest.mark.slow
+def test_the_wheel_ships_the_models(tmp_path) -> None:
+    """A non-editable install holds the models: the wheel built from the tree lists them, and
+    installed (no editable link to the tree) it reads gait2392 by name from another folder."""
+    import subprocess
+    import sys
+    import zipfile
+
+    subprocess.run(
+        [sys.executable, "-m", "pip", "wheel", "--no-deps", "-q", "-w", str(tmp_path),
+         str(REPO_ROOT)],
+        check=True, capture_output=True, timeout=600,
+    )  # fmt: skip
+    (wheel,) = tmp_path.glob("msk-*.whl")
+    names = set(zipfile.ZipFile(wheel).namelist())
+    for model in ("gait2392", "gait2392_fourbar"):
+        assert f"msk/data/models/{model}.toml" in names
+    site = tmp_path / "site"
+    subprocess.run(
+        [sys.executable, "-m", "pip", "install", "--no-deps", "-q", "--target", str(site),
+         str(wheel)],
+        check=True, capture_output=True, timeout=600,
+    )  # fmt: skip
+    code = "import msk.model.files as f; print(f.__file__, len(f.load_model('gait2392').muscles))"
+    out = subprocess.run(
+        [sys.executable, "-c", code], cwd=tmp_path, env={"PYTHONPATH": str(site)},
+        check=True, capture_output=True, text=True, timeout=600,
+    ).stdout.split()  # fmt: skip
+    assert out[0].startswith(str(site)) and int(out[1]) == 92

@@ -115,7 +115,7 @@ def _static_of(model, rot: np.ndarray, org: np.ndarray, shift: np.ndarray) -> di
 
 
 def test_place_hip_centres_puts_the_model_hips_on_the_regression() -> None:
-    model = load_model(ROOT / "models" / "gait2392.toml")
+    model = load_model(ROOT / "msk" / "data" / "models" / "gait2392.toml")
     rng = np.random.default_rng(2)
     rot, org = _rotation(rng), np.array([0.3, 0.9, -0.1])
     means = _static_of(model, rot, org, np.array([0.03, 0.0, 0.0]))
@@ -143,7 +143,7 @@ def test_place_hip_centres_puts_the_model_hips_on_the_regression() -> None:
 
 
 def test_the_pose_keeps_the_markers_tilt_about_the_hip_axis() -> None:
-    model = load_model(ROOT / "models" / "gait2392.toml")
+    model = load_model(ROOT / "msk" / "data" / "models" / "gait2392.toml")
     means = _static_of(model, np.eye(3), np.zeros(3), np.zeros(3))
     r, t, info = pelvis_pose_for_hips(model, means)
     # the generic markers fit the generic pelvis exactly, and both hip axes are along z:
@@ -159,7 +159,7 @@ def test_the_pose_keeps_the_markers_tilt_about_the_hip_axis() -> None:
 
 
 def test_without_pelvis_landmarks_the_model_hip_is_kept_and_said() -> None:
-    model = load_model(ROOT / "models" / "gait2392.toml")
+    model = load_model(ROOT / "msk" / "data" / "models" / "gait2392.toml")
     x = np.zeros((1, 2, 3))
     same, info = place_hip_centres(model, x, ["RASI", "LASI"], method="harrington")
     assert same is model

@@ -480,7 +480,7 @@ def test_usable_measurements_keep_those_whose_markers_all_exist():
 # ---------------------------------------------------------------------------------------------
 # scaling and marker placement without a static trial
 # ---------------------------------------------------------------------------------------------
-GAIT2392 = Path(__file__).resolve().parents[2] / "models" / "gait2392.toml"
+GAIT2392 = Path(__file__).resolve().parents[2] / "msk" / "data" / "models" / "gait2392.toml"
 TRUE_FACTORS = {
     "pelvis": 1.06,
     "femur_r": 1.10,

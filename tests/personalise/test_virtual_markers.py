@@ -22,7 +22,7 @@ class _Trial:
 
 
 def test_the_psis_midpoint_becomes_the_models_sacral_marker() -> None:
-    model = load_model(ROOT / "models" / "gait2392.toml")
+    model = load_model(ROOT / "msk" / "data" / "models" / "gait2392.toml")
     rng = np.random.default_rng(0)
     x = rng.normal(size=(5, 4, 3))
     x[2, 3] = 0.0  # a gap (exact zeros) in LPSI
@@ -38,7 +38,7 @@ def test_the_psis_midpoint_becomes_the_models_sacral_marker() -> None:
 
 
 def test_nothing_is_added_with_a_sacral_marker_or_one_psis() -> None:
-    model = load_model(ROOT / "models" / "gait2392.toml")
+    model = load_model(ROOT / "msk" / "data" / "models" / "gait2392.toml")
     x = np.ones((3, 4, 3))
     for labels in (("RASI", "LASI", "RPSI", "SACR"), ("RASI", "LASI", "RPSI", "LTHI")):
         tr = _Trial(x, labels)
@@ -60,7 +60,7 @@ def _pig_config(real_dir: Path, folder: Path, static: bool) -> Path:
     p = folder / f"pig_{static}.toml"
     p.write_text(
         f'[subject]\nname = "s"\nmass_kg = 74.0\nheight_m = 1.76\nside = "right"\n'
-        f'[model]\nsource = "{ROOT / "models" / "gait2392.toml"}"\n{trials}'
+        f'[model]\nsource = "{ROOT / "msk" / "data" / "models" / "gait2392.toml"}"\n{trials}'
         f'[[trials]]\nname = "walk"\nfile = "{real_dir}/btkdata/PiG_Motion3_FF.c3d"\n'
         'role = "task"\n',
         encoding="utf-8",

@@ -233,7 +233,7 @@ def test_solve_parts_cover_a_block(monkeypatch: pytest.MonkeyPatch) -> None:
 def gait2392() -> object:
     from msk.model.files import load_model
 
-    return load_model(REPO / "models" / "gait2392.toml")
+    return load_model(REPO / "msk" / "data" / "models" / "gait2392.toml")
 
 
 def test_plan_positions_hold_every_nonzero_entry(gait2392: object) -> None:

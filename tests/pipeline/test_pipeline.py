@@ -625,7 +625,7 @@ def test_foot_joint_held_by_the_frames_the_ik_solves_not_by_any_trajectory():
     from msk.model.files import load_model
     from msk.personalise.coordinates import held_foot_coordinates
 
-    model = load_model(REPO / "models" / "gait2392.toml")
+    model = load_model(REPO / "msk" / "data" / "models" / "gait2392.toml")
     pelvis = ["R.ASIS", "L.ASIS", "V.Sacral"]
     foot = ["R.Heel", "R.Toe.Lat", "R.Toe.Med"]
     labels = (*pelvis, *foot, "R.Acromium", "*33")

@@ -1,7 +1,7 @@
 """``msk run`` on real sessions of labs other than the Grand Challenge (GitHub issue 10).
 
 Each session config is written in ``tmp_path`` with absolute paths into ``real_dir`` (the
-data are not bundled) and run as a lab engineer would, with ``models/gait2392.toml``:
+data are not bundled) and run as a lab engineer would, with ``msk/data/models/gait2392.toml``:
 
 * **Vicon Plug-in Gait** (BTKData ``PiG_Motion3_FF.c3d``, 3 plates, 16 unnamed EMG channels
   left out): static ``PiG_Calibration3_FF.c3d`` (a C3D static trial, no plates), 74 kg and
@@ -34,7 +34,7 @@ import pytest
 from msk.pipeline import CORE_STAGES, run_session
 
 REPO = Path(__file__).resolve().parents[2]
-GAIT2392 = REPO / "models" / "gait2392.toml"
+GAIT2392 = REPO / "msk" / "data" / "models" / "gait2392.toml"
 PIG_MAP = REPO / "pipelines" / "markersets" / "plug_in_gait_to_gait2392.toml"
 #: IK weights of OpenSim's subject01_Setup_IK.xml, acromia at 0 (module docstring)
 S01_WEIGHTS = {

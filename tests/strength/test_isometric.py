@@ -226,7 +226,7 @@ def test_reader_csv_gzip_tab_and_bad_cells(tmp_path: Path) -> None:
         read_dynamometer(tmp_path / "none.csv", force_column="F")
 
 
-MODEL = Path(__file__).resolve().parents[2] / "models" / "gait2392.toml"
+MODEL = Path(__file__).resolve().parents[2] / "msk" / "data" / "models" / "gait2392.toml"
 
 
 def _write_csv(path: Path, rec: DynamometerRecording) -> None:

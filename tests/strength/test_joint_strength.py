@@ -36,7 +36,7 @@ BASE_SUMMARY = {
 
 @pytest.fixture(scope="module")
 def model():
-    return load_model(REPO_ROOT / "models" / "gait2392.toml")
+    return load_model(REPO_ROOT / "msk" / "data" / "models" / "gait2392.toml")
 
 
 @pytest.fixture(scope="module")

@@ -217,7 +217,7 @@ VARIANTS: dict[str, Variant] = {
 def scaled_model(mass: str = "assumed", move: tuple[str, ...] = ()) -> Any:
     """gait2392 scaled to the PS static trial (``Variant.mass``), with the static's own markers
     placed and the ``move`` markers moved to their static positions."""
-    gen = load_model(ROOT / "models" / "gait2392.toml")
+    gen = load_model(ROOT / "msk" / "data" / "models" / "gait2392.toml")
     static = read_trc(gc5_dir() / "PS_static_for_scaling.trc")
     inv = {v: k for k, v in marker_rename().items()}
     labels = tuple(inv.get(lab, lab) for lab in static.labels)
