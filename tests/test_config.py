@@ -30,7 +30,7 @@ def test_template_is_a_valid_config(session_dir: Path):
     assert cfg.model.knee == "spline"
     assert [t.role for t in cfg.trials] == ["static", "task"]
     assert cfg.trials[1].contact_force.name == "PS_ngait_og_ss1_eTibia.csv"
-    assert cfg.emg.channels["vasmed_l"] == "vasmed"
+    assert cfg.emg.channels["vas_med_l"] == "vasmed"
     assert cfg.trials_with_role("static")[0].name == "static"
 
 
@@ -263,7 +263,7 @@ def test_non_utf8_config_is_one_line(session_dir: Path):
         ("height_m = 1.70", "height_m = 1700", r"1700.0 m is outside .*1.68 m"),
         ('solver = "daqp"', 'solver = "dapq"', "optimization.solver = 'dapq' is not one of"),
         ("w_emg = 0.1", "w_emg = nan", "optimization.w_emg = nan"),
-        ('vasmed_l = "vasmed"', "vasmed_l = 1", "emg.channels.vasmed_l = 1 should be"),
+        ('vas_med_l = "vasmed"', "vas_med_l = 1", "emg.channels.vas_med_l = 1 should be"),
     ],
 )
 def test_numbers_are_range_checked_with_their_unit(session_dir, old, new, message):

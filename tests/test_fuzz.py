@@ -406,7 +406,7 @@ _CONFIG_EDITS = [
     ("rename = {}", ["rename = { RASI = 1 }", 'rename = { RASI = "" }']),
     ('solver = "daqp"', ['solver = "dapq"', "solver = 3"]),
     ("w_emg = 0.1", ["w_emg = nan", "w_emg = -1"]),
-    ('vasmed_l = "vasmed"', ["vasmed_l = 2", 'vasmed_l = ""']),
+    ('vas_med_l = "vasmed"', ["vas_med_l = 2", 'vas_med_l = ""']),
     ("activation_exponent = 2.0", ["activation_exponent = nan"]),
 ]  # fmt: skip
 

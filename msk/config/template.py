@@ -51,7 +51,7 @@ move = []
 
 [emg]
 # model muscle (or muscle group) = analog channel label
-channels = { vasmed_l = "vasmed", vaslat_l = "vaslat", rect_fem_l = "rf" }
+channels = { vas_med_l = "vasmed", vas_lat_l = "vaslat", rect_fem_l = "rf" }
 highpass_hz = 20.0
 lowpass_hz = 6.0
 electromechanical_delay_s = 0.04

@@ -68,6 +68,7 @@ __all__ = [
     "missing_channels",
     "mvc_peaks",
     "process_emg",
+    "unknown_muscles",
 ]
 
 NormalisationSource = Literal["mvc", "session_peak"]
@@ -377,6 +378,21 @@ def missing_channels(
         else:
             absent.append(ch)
     return typos, tuple(absent)
+
+
+def unknown_muscles(
+    channels: Mapping[str, str], muscles: Sequence[str], *, cutoff: float = 0.6
+) -> dict[str, str | None]:
+    """The configured EMG ``channels``' muscle names (their keys) that are no muscle of the model,
+    each with the closest model muscle name (:func:`difflib.get_close_matches`, similarity ≥
+    ``cutoff``: ``rectfem_r`` → ``rect_fem_r``) or ``None`` when nothing is close."""
+    import difflib
+
+    names = list(muscles)
+    return {
+        key: next(iter(difflib.get_close_matches(key, names, n=1, cutoff=cutoff)), None)
+        for key in sorted(set(channels) - set(names))
+    }
 
 
 def process_emg(

@@ -37,11 +37,15 @@ def run(
     if not cfg.emg.channels:
         raise StageUnavailable("no [emg] channels in the configuration")
     from msk.io import read_c3d
-    from msk.muscles.emg import emg_activations, missing_channels
+    from msk.muscles.emg import emg_activations, missing_channels, unknown_muscles
 
-    unknown = sorted(set(cfg.emg.channels) - {m.name for m in model.model.muscles})
+    unknown = unknown_muscles(cfg.emg.channels, [m.name for m in model.model.muscles])
     if unknown:
-        raise ConfigError(f"{cfg.path}: emg.channels: model has no muscle {unknown[0]!r}")
+        key, close = next(iter(unknown.items()))
+        tip = f" (did you mean {close!r}?)" if close else ""
+        raise ConfigError(
+            f"{cfg.path}: emg.channels.{key}: model {model.model.name} has no muscle {key!r}{tip}"
+        )
     assert inputs.task is not None  # a gait stage
     typos, absent = missing_channels(cfg.emg.channels, getattr(trial, "analog_labels", ()))
     if typos:

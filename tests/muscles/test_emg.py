@@ -12,6 +12,7 @@ from msk.muscles.emg import (
     envelopes_from_trial,
     linear_envelope,
     missing_channels,
+    unknown_muscles,
     mvc_peaks,
     process_emg,
 )
@@ -244,3 +245,26 @@ def test_missing_channels_tells_a_typo_from_a_channel_the_trial_lacks():
     assert typos == {"vasmedX": "vasmed"}
     assert absent == ("semimem", "vaslatt")
     assert missing_channels({"a": "vasmed"}, labels) == ({}, ())
+
+
+def test_a_misspelt_muscle_of_the_emg_channels_gets_the_closest_model_muscle(tmp_path):
+    from types import SimpleNamespace
+
+    from msk.exceptions import ConfigError
+    from msk.model.files import load_model
+    from msk.pipeline import emg as stage
+
+    gait2392 = load_model("gait2392")
+    names = [m.name for m in gait2392.muscles]
+    channels = {"rectfem_r": "rf", "VasLat_r": "vl", "soleus_r": "sol", "quadriceps": "q"}
+    assert unknown_muscles(channels, names) == {
+        "VasLat_r": "vas_lat_r",
+        "quadriceps": None,
+        "rectfem_r": "rect_fem_r",
+    }
+    assert unknown_muscles({"soleus_r": "sol"}, names) == {}
+    # the EMG stage: a ConfigError naming the file, the key and the suggestion
+    emg = SimpleNamespace(channels={"rectfem_r": "rf"})
+    inputs = SimpleNamespace(cfg=SimpleNamespace(path=tmp_path / "s.toml", emg=emg))
+    with pytest.raises(ConfigError, match=r"s\.toml: emg\.channels\.rectfem_r: .*'rect_fem_r'\?"):
+        stage.run(inputs, SimpleNamespace(trial=None), SimpleNamespace(model=gait2392), None)
