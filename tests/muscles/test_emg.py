@@ -12,9 +12,9 @@ from msk.muscles.emg import (
     envelopes_from_trial,
     linear_envelope,
     missing_channels,
-    unknown_muscles,
     mvc_peaks,
     process_emg,
+    unknown_muscles,
 )
 
 RATE = 2000.0
