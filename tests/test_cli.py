@@ -162,3 +162,50 @@ def test_flat_channels_rules():
     flat = flat_channels(a, labs, ["V"] * 7)
     assert set(flat) == {"floor", "nan", "switch"}
     assert flat["nan"] == "all NaN" and flat["switch"] == "2 distinct values"
+
+
+def test_info_names_the_recognised_markers_and_the_emg_muscles(capsys):
+    from msk.cli.info import write_recognition
+
+    out: list[str] = []
+    labels = ["LASI", "RASI", "SACR", "LKNE", "LTHI", "RELB"]
+    write_recognition(
+        labels, None, ["LREC", "vasmed", "EMG1", "dud"], {"dud": "all zero"}, out.append
+    )
+    text = "".join(out)
+    assert "; 4 of 39 gait2392 markers recognised\n" in text
+    assert "  LASI -> L.ASIS\n" in text and "  LKNE -> L.Knee.Lat\n" in text
+    assert "  LTHI  (no gait2392 marker: kept for marker placement)\n" in text
+    assert "  RELB  (not used: arm marker" in text
+    assert "  LREC -> rect_fem_l\n" in text
+    assert "  vasmed -> vas_med_r  (the label names no side: right assumed)\n" in text
+    assert "EMG1 ->" not in text and "dud ->" not in text
+    assert '"L.ASIS" = "LASI"' in text and '"rect_fem_l" = "LREC"' in text
+
+
+@pytest.mark.slow
+@pytest.mark.realdata
+def test_info_on_a_real_c3d_suggests_a_configuration_that_loads(real_dir, tmp_path, capsys):
+    """Motion Analysis Gait.c3d: Helen-Hayes labels and three-letter EMG codes (LREC, RTIB)."""
+    import tomllib
+
+    from msk.config import load_config
+
+    c3d = real_dir / "btkdata" / "Gait.c3d"
+    assert main(["info", str(c3d)]) == 0
+    out = capsys.readouterr().out
+    for line in ("RASI -> R.ASIS", "LKNE -> L.Knee.Lat", "LREC -> rect_fem_l", "RSOL -> soleus_r"):
+        assert f"  {line}\n" in out
+    suggested = out.split("suggested session configuration")[1].split("\n", 1)[1]
+    tables = tomllib.loads("\n".join(line.strip() for line in suggested.splitlines()))
+    assert tables["emg"]["channels"]["tib_ant_r"] == "RTIB"
+    assert tables["markers"]["rename"]["R.ASIS"] == "RASI"
+    # the suggested tables make a session configuration that loads
+    cfg = tmp_path / "s.toml"
+    cfg.write_text(
+        '[subject]\nname = "x"\nmass_kg = 70.0\nheight_m = 1.7\n'
+        + suggested.replace("  [", "[").replace("\n  ", "\n").lstrip()
+        + f'\n[[trials]]\nname = "walk"\nfile = "{c3d.as_posix()}"\nrole = "task"\n'
+    )
+    loaded = load_config(cfg)
+    assert loaded.emg.channels == tables["emg"]["channels"]

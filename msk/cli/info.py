@@ -1,11 +1,14 @@
 """``msk info FILE``: what a .c3d/.trc/.mot/.sto file holds (rates, markers and gaps, analog
-channels with the flat or unused ones, plates, events, subject)."""
+channels with the flat or unused ones, plates, events, subject), which marker labels msk
+recognises as which marker of the shipped gait2392 model, the EMG channels that name a muscle,
+and the ``[markers]`` / ``[emg]`` tables a session configuration would start from."""
 
 from __future__ import annotations
 
 import argparse
+import json
 import sys
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import TextIO
 
@@ -14,7 +17,10 @@ import numpy as np
 from msk._runtime.terminal import terminal_safe
 from msk.cli import Command
 
-__all__ = ["COMMANDS", "flat_channels"]
+__all__ = ["COMMANDS", "flat_channels", "write_recognition"]
+
+#: the model ``msk info`` recognises labels against (a session's default model)
+INFO_MODEL = "gait2392"
 
 
 def flat_channels(
@@ -45,6 +51,67 @@ def flat_channels(
             if np.isfinite(med) and med > 0 and std[k] < rel_std * med:
                 out[lab] = f"std {std[k]:.3g} {units[k]} is {100 * std[k] / med:.1f}% of median"
     return out
+
+
+def write_recognition(
+    labels: Sequence[str],
+    markers: np.ndarray | None,
+    analog_labels: Sequence[str],
+    flat: dict[str, str],
+    w: Callable[[str], object],
+    *,
+    model_name: str = INFO_MODEL,
+) -> None:
+    """Write which marker labels :func:`msk.model.markersets.recognise` pairs with which marker
+    of the shipped model ``model_name``, the analog channels that name a muscle
+    (:func:`msk.muscles.emg.suggest_channels`) and the ``[markers] rename`` / ``[emg] channels``
+    tables a session configuration would start from (pairs whose label is the model's name left
+    out: msk pairs those itself)."""
+    from msk.model.files import load_model
+    from msk.model.markersets import recognise, zeros_as_gaps
+    from msk.muscles.emg import suggest_channels
+
+    model = load_model(model_name)
+    data = zeros_as_gaps(markers) if markers is not None and markers.size else None
+    match = recognise(
+        labels, model.marker_names, model_bodies=[b.name for b in model.bodies], markers=data
+    )
+    to_model = match.lab_to_model
+    w(
+        f"marker set: {match.protocol}; {len(match.rename)} of {len(model.marker_names)} "
+        f"{model_name} markers recognised\n"
+    )
+    for lab in labels:
+        if lab in to_model:
+            w(f"  {lab} -> {to_model[lab]}\n")
+        elif lab in match.excluded:
+            w(f"  {lab}  (not used: {match.excluded[lab]})\n")
+        else:
+            w(f"  {lab}  (no {model_name} marker: kept for marker placement)\n")
+    if match.unmatched_model:
+        w(f"  {model_name} markers no label names: {', '.join(match.unmatched_model)}\n")
+    for note in match.notes:
+        w(f"  note: {note}\n")
+    emg = suggest_channels(analog_labels, [m.name for m in model.muscles])
+    w(f"EMG channels naming a muscle: {len(emg)}\n")
+    for lab, (muscle, sided) in emg.items():
+        side = "" if sided else "  (the label names no side: right assumed)"
+        state = f"  FLAT/UNUSED? ({flat[lab]})" if lab in flat else ""
+        w(f"  {lab} -> {muscle}{side}{state}\n")
+    rename = {mk: lab for mk, lab in match.rename.items() if mk != lab}
+    usable = {muscle: lab for lab, (muscle, _) in emg.items() if lab not in flat}
+    w("suggested session configuration (check every pair; msk pairs the marker labels itself):\n")
+    w("  [model]\n")
+    w(f'  source = "{model_name}"\n')
+    w("  [markers]\n")
+    w(f"  rename = {_inline(rename)}\n")
+    w("  [emg]\n")
+    w(f"  channels = {_inline(usable)}\n")
+
+
+def _inline(pairs: dict[str, str]) -> str:
+    """A TOML inline table (keys quoted: model marker names hold dots)."""
+    return "{ " + ", ".join(f"{json.dumps(k)} = {json.dumps(v)}" for k, v in pairs.items()) + " }"
 
 
 def _info_c3d(path: Path, out: TextIO) -> None:
@@ -107,6 +174,7 @@ def _info_c3d(path: Path, out: TextIO) -> None:
     w(f"reader warnings: {len(notes)}\n")
     for note in notes:  # duplicate labels renamed, NaN plate samples, …
         w(f"  {' '.join(str(note).split())}\n")
+    write_recognition(tr.marker_labels, tr.markers, labs, flat, w)
 
 
 def _info_text(path: Path, out: TextIO) -> None:
@@ -126,6 +194,7 @@ def _info_text(path: Path, out: TextIO) -> None:
         w(f"markers: {len(m.labels)} ({int((miss > 0).sum())} with gaps)\n")
         for lab, k in zip(m.labels, miss):
             w(f"  {lab}{f'  ({k} missing frames)' if k else ''}\n")
+        write_recognition(m.labels, m.markers, (), {}, w)
         return
     t = read_sto(path)
     n = t.time.size

@@ -68,6 +68,7 @@ __all__ = [
     "missing_channels",
     "mvc_peaks",
     "process_emg",
+    "suggest_channels",
     "unknown_muscles",
 ]
 
@@ -378,6 +379,87 @@ def missing_channels(
         else:
             absent.append(ch)
     return typos, tuple(absent)
+
+
+#: (pattern, gait2392 muscle stem): how EMG channel labels name a muscle, matched in this order at
+#: the start of the label's letters (side words and "emg" removed, lower case): full names
+#: ("Rectus femoris"), the short names of clinical labs ("vasmed", "tibant", "gmax") and the
+#: three-letter codes of Motion Analysis files ("REC", "VAS", "BIC", "TIB", "SOL")
+EMG_NAMES: tuple[tuple[str, str], ...] = (
+    (r"rect|rf$|rec$", "rect_fem"),
+    (r"vas\w*med|vm$|vmo$", "vas_med"),
+    (r"vas\w*int|vi$", "vas_int"),
+    (r"vas\w*lat|vl$|vas$|vastus$", "vas_lat"),
+    (r"bi\w*(short|brev|sh$)|bfsh", "bifemsh"),
+    (r"bic|bifem|bf", "bifemlh"),
+    (r"semimem|sm$", "semimem"),
+    (r"semiten|st$", "semiten"),
+    (r"(gas|gastr)\w*lat|lat\w*gas|lg$", "lat_gas"),
+    (r"(gas|gastr)\w*med|med\w*gas|mg$|gas", "med_gas"),
+    (r"sol", "soleus"),
+    (r"tib\w*post|tp$", "tib_post"),
+    (r"tib|ta$", "tib_ant"),
+    (r"per\w*brev|fib\w*brev|pb$", "per_brev"),
+    (r"peron|fibul|perl|pl$", "per_long"),
+    (r"gmax|glu\w*max", "glut_max2"),
+    (r"gmed|glu\w*med", "glut_med2"),
+    (r"gmin|glu\w*min", "glut_min2"),
+    (r"tfl|tensor", "tfl"),
+    (r"add\w*mag|am$", "add_mag2"),
+    (r"add\w*brev", "add_brev"),
+    (r"add", "add_long"),
+    (r"grac", "grac"),
+    (r"sar", "sar"),
+    (r"psoas", "psoas"),
+    (r"iliac", "iliacus"),
+)
+
+_LEFT = frozenset({"l", "left", "lt", "sx", "sin"})
+_RIGHT = frozenset({"r", "right", "rt", "dx"})
+_NOISE = frozenset({"emg", "voltage", "sensor", "analog", "channel", "ch", "muscle"})
+
+
+def _emg_stem(letters: str) -> str | None:
+    import re
+
+    for pattern, stem in EMG_NAMES:
+        if re.match(pattern, letters):
+            return stem
+    return None
+
+
+def suggest_channels(
+    labels: Sequence[str], muscles: Sequence[str], *, side: str = "r"
+) -> dict[str, tuple[str, bool]]:
+    """EMG channel label → (model muscle, whether the label names the side), for the labels
+    that name a muscle of :data:`EMG_NAMES` (``"Left Rectus femoris"`` → ``rect_fem_l``,
+    ``"LREC"`` → ``rect_fem_l``, ``"vasmed"`` → ``vas_med_<side>``).
+
+    The side is a word of the label (``L``, ``Left``, ``R``, ``right``…) or a one-letter prefix
+    of a code (``RTIB``); a label naming no side gets ``side``. Only muscles in ``muscles``
+    are suggested; a muscle two labels name goes to the first. A guess from the label only: the
+    user confirms it (``[emg] channels``)."""
+    import re
+
+    have = set(muscles)
+    out: dict[str, tuple[str, bool]] = {}
+    taken: set[str] = set()
+    for label in labels:
+        words = [w for w in re.split(r"[^a-z]+", str(label).lower()) if w and w not in _NOISE]
+        sides = [w for w in words if w in _LEFT | _RIGHT]
+        letters = "".join(w for w in words if w not in _LEFT | _RIGHT)
+        stem = _emg_stem(letters) if letters else None
+        named = sides[0][0] if sides else None
+        if stem is None and not sides and letters[:1] in ("l", "r") and len(letters) > 2:
+            stem = _emg_stem(letters[1:])  # LREC, RTIB: a side letter before a code
+            named = letters[0] if stem is not None else None
+        if stem is None:
+            continue
+        muscle = f"{stem}_{named or side}"
+        if muscle in have and muscle not in taken:
+            out[str(label)] = (muscle, named is not None)
+            taken.add(muscle)
+    return out
 
 
 def unknown_muscles(

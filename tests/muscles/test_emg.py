@@ -268,3 +268,22 @@ def test_a_misspelt_muscle_of_the_emg_channels_gets_the_closest_model_muscle(tmp
     inputs = SimpleNamespace(cfg=SimpleNamespace(path=tmp_path / "s.toml", emg=emg))
     with pytest.raises(ConfigError, match=r"s\.toml: emg\.channels\.rectfem_r: .*'rect_fem_r'\?"):
         stage.run(inputs, SimpleNamespace(trial=None), SimpleNamespace(model=gait2392), None)
+
+
+def test_suggest_channels_reads_the_muscle_and_side_of_common_emg_labels():
+    from msk.muscles.emg import suggest_channels
+
+    muscles = [f"{m}_{s}" for m in ("rect_fem", "vas_med", "tib_ant", "lat_gas", "soleus")
+               for s in "rl"]  # fmt: skip
+    labels = ["Left Rectus femoris", "RTIB", "vasmed", "Right Gastrocnemius Lateralis",
+              "Voltage.SOL_L", "EMG1", "LeftFootSwitch", "goniometer", "rf"]  # fmt: skip
+    assert suggest_channels(labels, muscles) == {
+        "Left Rectus femoris": ("rect_fem_l", True),
+        "RTIB": ("tib_ant_r", True),
+        "vasmed": ("vas_med_r", False),
+        "Right Gastrocnemius Lateralis": ("lat_gas_r", True),
+        "Voltage.SOL_L": ("soleus_l", True),
+        "rf": ("rect_fem_r", False),  # no side in the label: the default side
+    }
+    assert suggest_channels(["vasmed"], muscles, side="l") == {"vasmed": ("vas_med_l", False)}
+    assert suggest_channels(["rf", "RF_R"], ["rect_fem_r"]) == {"rf": ("rect_fem_r", False)}
