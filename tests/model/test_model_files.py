@@ -252,3 +252,49 @@ def test_the_wheel_ships_the_models(tmp_path) -> None:
         check=True, capture_output=True, text=True, timeout=600,
     ).stdout.split()  # fmt: skip
     assert out[0].startswith(str(site)) and int(out[1]) == 92
+
+
+def model_names_markdown(name: str) -> str:
+    """The user guide's list of a shipped model's marker names (by body) and muscle names."""
+    model = load_model(name)
+    bodies: dict[str, list[str]] = {}
+    for mk in model.markers:
+        bodies.setdefault(mk.body, []).append(mk.name)
+    lines = [
+        f"Markers of `{name}` (the keys of `[markers] rename`, `weights` and `move`), by body:",
+        "",
+        "| body | markers |",
+        "| --- | --- |",
+        *(f"| `{b}` | {', '.join(f'`{m}`' for m in ms)} |" for b, ms in bodies.items()),
+        "",
+    ]
+    muscles = [m.name for m in model.muscles]
+    right = [m for m in muscles if m.endswith("_r")]
+    paired = all(f"{m[:-2]}_l" in muscles for m in right)
+    others = [m for m in muscles if not m.endswith(("_r", "_l"))]
+    lines += [
+        f"Muscles of `{name}` (the keys of `[emg] channels`): {len(muscles)}, the right side's "
+        + ("below; each has a left twin ending `_l`:" if paired else "below:"),
+        "",
+        ", ".join(f"`{m}`" for m in right),
+    ]
+    if others:
+        lines += ["", "Unsided: " + ", ".join(f"`{m}`" for m in others)]
+    return "\n".join(lines) + "\n"
+
+
+def test_the_user_guide_lists_the_names_of_gait2392() -> None:
+    import os
+    import re
+
+    guide = REPO_ROOT / "docs" / "user-guide.md"
+    text = guide.read_text(encoding="utf-8")
+    block = re.compile(r"(rewrites this section \(a test checks it matches the model\) -->\n\n)"
+                       r"(.*?)(<!-- end of the generated names -->)", re.S)  # fmt: skip
+    names = model_names_markdown("gait2392")
+    if os.environ.get("MSK_UPDATE_DOCS") == "1":
+        text = block.sub(lambda m: m.group(1) + names + "\n" + m.group(3), text)
+        guide.write_text(text, encoding="utf-8")
+    found = block.search(text)
+    assert found is not None, "docs/user-guide.md: the generated section's markers are missing"
+    assert found.group(2) == names + "\n", "docs/user-guide.md: MSK_UPDATE_DOCS=1 rewrites it"
