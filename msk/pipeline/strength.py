@@ -103,5 +103,29 @@ def run(
             f"the {int(good.sum())} solvable frames determine no strength: {exc}"
         ) from None
     return StrengthIdentification(
-        est.profile_, {g: list(v) for g, v in groups.items()}, float(kinematics.time[good][0])
+        est.profile_,
+        {g: list(v) for g, v in groups.items()},
+        float(kinematics.time[good][0]),
+        _protocols(model.model, est.profile_, groups),
     )
+
+
+def _protocols(
+    model: Any, profile: Any, groups: dict[str, list[str]]
+) -> dict[str, dict[str, Any] | None]:
+    """Per group not identified, the subject-model test that would identify it
+    (:func:`msk.strength.recommend_tests`, per side of the group's muscles)."""
+    from msk.exceptions import MskError
+    from msk.strength import recommend_tests
+
+    status = dict(zip(profile.group_names, profile.statuses()))
+    todo = {g: v for g, v in groups.items() if status.get(g) != "identified"}
+    out: dict[str, dict[str, Any] | None] = {}
+    for sfx, side in (("_r", "right"), ("_l", "left")):
+        these = {g: v for g, v in todo.items() if v and v[0].endswith(sfx)}
+        try:
+            found = recommend_tests(model, these, side=side)
+        except MskError:  # a model without the tested joints: no protocol, not a failed stage
+            found = dict.fromkeys(these)
+        out.update({g: None if p is None else p.as_dict() for g, p in found.items()})
+    return out

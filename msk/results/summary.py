@@ -482,6 +482,15 @@ class StrengthGroup(_Record):
     status: str | None = None
     identified: bool | None = None
     gated: bool | None = None
+    #: the status's reason in plain words (:func:`msk.strength.diagnose`)
+    reason: str | None = None
+    #: fit r² of the group's own rows (the coordinates ``r2_coordinates`` its muscles cross)
+    r2: float | None = None
+    r2_coordinates: tuple[str, ...] = ()
+    confounded_with: tuple[str, ...] = ()
+    #: the test that would identify a group not identified
+    #: (:meth:`msk.strength.TestProtocol.as_dict`)
+    protocol: Mapping[str, Any] | None = None
 
 
 @dataclass(frozen=True, kw_only=True)
