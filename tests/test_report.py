@@ -378,7 +378,13 @@ def test_no_group_at_a_bound_is_called_identified_anywhere(tmp_path):
     for g in st.groups:
         if g.status != "identified":
             assert f"<b>{g.group}</b> ({g.status})" in after, g.group
-    assert after.count("Next protocol:") == sum(w != "identified" for w in words.values())
+    # the groups whose channel failed a check (PS: gmed and gracilis flat) are listed too
+    assert {g.group for g in st.failed_channels} == {"gmed", "gracilis"}
+    for g in st.failed_channels:
+        assert g.status == "not determined" and "failed a check" in g.reason and "flat" in g.reason
+        assert g.protocol and f"<b>{g.group}</b> (not determined)" in after
+    n_next = sum(w != "identified" for w in words.values()) + len(st.failed_channels)
+    assert after.count("Next protocol:") == n_next
     for g in bound:
         assert not re.search(rf"identified[^.]*\b{re.escape(g)}\b", plain)
     # the PDF text

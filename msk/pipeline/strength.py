@@ -46,9 +46,9 @@ def run(
     jt = inverse_dynamics.torques
     params = muscle_parameters(model.model)
     groups: dict[str, list[str]] = {}
+    failed: dict[str, list[str]] = {}
     for k, m in enumerate(emg.muscles):
-        if emg.usable[k]:
-            groups.setdefault(emg.sources[k], []).append(m)
+        (groups if emg.usable[k] else failed).setdefault(emg.sources[k], []).append(m)
     if not groups:
         raise StageUnavailable("no usable EMG channel")
     # per leg (module docstring): no coordinate a group's muscle crosses (has a moment arm
@@ -107,7 +107,27 @@ def run(
         {g: list(v) for g, v in groups.items()},
         float(kinematics.time[good][0]),
         _protocols(model.model, est.profile_, groups),
+        _failed(model.model, emg, failed),
     )
+
+
+def _failed(model: Any, emg: EmgActivations, failed: dict[str, list[str]]) -> dict[str, Any]:
+    """Per group whose channel failed a check: its muscles, the check (the EMG quality lines
+    naming the channel) and the test that would identify it once recorded again."""
+    quality = getattr(emg, "quality", None)
+    lines = list(quality.summary()) if quality is not None else []
+    lines += [w for w in getattr(emg, "warnings", ()) if w not in lines]
+    out: dict[str, Any] = {}
+    protos = _protocols(model, None, failed)
+    for g, muscles in failed.items():
+        said = [w for w in lines if f"'{g}'" in w and "no MVC" not in w]
+        out[g] = {
+            "muscles": list(muscles),
+            "reason": "its EMG channel failed a check, so it is left out of the regression: "
+            + ("; ".join(said) if said else "the channel was excluded by the EMG checks"),
+            "protocol": protos.get(g),
+        }
+    return out
 
 
 def _protocols(
@@ -118,7 +138,7 @@ def _protocols(
     from msk.exceptions import MskError
     from msk.strength import recommend_tests
 
-    status = dict(zip(profile.group_names, profile.statuses()))
+    status = {} if profile is None else dict(zip(profile.group_names, profile.statuses()))
     todo = {g: v for g, v in groups.items() if status.get(g) != "identified"}
     out: dict[str, dict[str, Any] | None] = {}
     for sfx, side in (("_r", "right"), ("_l", "left")):

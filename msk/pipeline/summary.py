@@ -351,6 +351,18 @@ def strength_summary(
         "bounds": list(p.bounds),
         "method": p.method,
         "joint_strength": joint,
+        "failed_channels": [
+            {
+                "group": n,
+                "muscles": list(rec.get("muscles", [])),
+                "status": "not determined",
+                "identified": False,
+                "gated": False,
+                "reason": rec.get("reason"),
+                "protocol": rec.get("protocol"),
+            }
+            for n, rec in (getattr(strength, "failed", None) or {}).items()
+        ],
     }
 
 

@@ -705,7 +705,10 @@ def _strength_section(res: SessionResults, figs: Mapping[str, str]) -> str:
         )
     )
     out.append(_status_legend())
-    out.append(_strength_next_tests(st.groups, status))
+    failed = tuple(st.failed_channels or ())
+    out.append(
+        _strength_next_tests((*st.groups, *failed), (*status, *("not determined",) * len(failed)))
+    )
     lo, hi = LITERATURE_FACTOR_RANGE
     out.append(
         f'<p class="note">Literature range of strength factors: {lo}–{hi} × generic '

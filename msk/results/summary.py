@@ -552,6 +552,9 @@ class Strength(_Record):
     bounds: tuple[float, ...] | None = None
     method: str | None = None
     joint_strength: JointStrength | None = None
+    #: groups whose EMG channel failed a check (not in the regression): ``not determined``,
+    #: the check as ``reason``, the test that would identify them as ``protocol``
+    failed_channels: tuple[StrengthGroup, ...] = ()
 
     def group_status(self, group: StrengthGroup) -> str:
         """The :mod:`msk.status` word of one of the groups (its ``status``, or computed from
