@@ -82,7 +82,8 @@ STATUS_MEANING: dict[str, str] = {
 }
 
 #: Minimum fit r² (dimensionless) of the strength regression (Hayashibe et al. 2011, Eq. 16: the ID
-#: joint moments explained by the EMG-driven contributions) for any group to be ``identified``.
+#: joint moments explained by the EMG-driven contributions) for a group to be ``identified``,
+#: on the group's own rows (the coordinates its muscles cross: :func:`msk.strength.diagnose`).
 #: Below 0.5 the EMG-driven model explains less than half of the joint-moment variance: most
 #: of the moment is then left to the residual, and the factors absorb model error rather than
 #: strength. The same threshold has been the report's "could not be estimated reliably" warning.

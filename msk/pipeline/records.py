@@ -187,6 +187,12 @@ class StrengthIdentification:
     profile: Any
     groups: Mapping[str, Sequence[str]]
     t0: float
+    #: per group not identified, the isometric test that would identify it
+    #: (:meth:`msk.strength.TestProtocol.as_dict`; None when no joint action loads the group)
+    protocols: Mapping[str, Any] = field(default_factory=dict)
+    #: per group whose EMG channel failed a check (left out of the regression): its muscles,
+    #: the check's words (``reason``) and the test that would identify it (``protocol``)
+    failed: Mapping[str, Any] = field(default_factory=dict)
 
 
 @dataclass(frozen=True)

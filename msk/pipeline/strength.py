@@ -46,9 +46,9 @@ def run(
     jt = inverse_dynamics.torques
     params = muscle_parameters(model.model)
     groups: dict[str, list[str]] = {}
+    failed: dict[str, list[str]] = {}
     for k, m in enumerate(emg.muscles):
-        if emg.usable[k]:
-            groups.setdefault(emg.sources[k], []).append(m)
+        (groups if emg.usable[k] else failed).setdefault(emg.sources[k], []).append(m)
     if not groups:
         raise StageUnavailable("no usable EMG channel")
     # per leg (module docstring): no coordinate a group's muscle crosses (has a moment arm
@@ -103,5 +103,49 @@ def run(
             f"the {int(good.sum())} solvable frames determine no strength: {exc}"
         ) from None
     return StrengthIdentification(
-        est.profile_, {g: list(v) for g, v in groups.items()}, float(kinematics.time[good][0])
+        est.profile_,
+        {g: list(v) for g, v in groups.items()},
+        float(kinematics.time[good][0]),
+        _protocols(model.model, est.profile_, groups),
+        _failed(model.model, emg, failed),
     )
+
+
+def _failed(model: Any, emg: EmgActivations, failed: dict[str, list[str]]) -> dict[str, Any]:
+    """Per group whose channel failed a check: its muscles, the check (the EMG quality lines
+    naming the channel) and the test that would identify it once recorded again."""
+    quality = getattr(emg, "quality", None)
+    lines = list(quality.summary()) if quality is not None else []
+    lines += [w for w in getattr(emg, "warnings", ()) if w not in lines]
+    out: dict[str, Any] = {}
+    protos = _protocols(model, None, failed)
+    for g, muscles in failed.items():
+        said = [w for w in lines if f"'{g}'" in w and "no MVC" not in w]
+        out[g] = {
+            "muscles": list(muscles),
+            "reason": "its EMG channel failed a check, so it is left out of the regression: "
+            + ("; ".join(said) if said else "the channel was excluded by the EMG checks"),
+            "protocol": protos.get(g),
+        }
+    return out
+
+
+def _protocols(
+    model: Any, profile: Any, groups: dict[str, list[str]]
+) -> dict[str, dict[str, Any] | None]:
+    """Per group not identified, the subject-model test that would identify it
+    (:func:`msk.strength.recommend_tests`, per side of the group's muscles)."""
+    from msk.exceptions import MskError
+    from msk.strength import recommend_tests
+
+    status = {} if profile is None else dict(zip(profile.group_names, profile.statuses()))
+    todo = {g: v for g, v in groups.items() if status.get(g) != "identified"}
+    out: dict[str, dict[str, Any] | None] = {}
+    for sfx, side in (("_r", "right"), ("_l", "left")):
+        these = {g: v for g, v in todo.items() if v and v[0].endswith(sfx)}
+        try:
+            found = recommend_tests(model, these, side=side)
+        except MskError:  # a model without the tested joints: no protocol, not a failed stage
+            found = dict.fromkeys(these)
+        out.update({g: None if p is None else p.as_dict() for g, p in found.items()})
+    return out

@@ -6,6 +6,7 @@ comparison, FES. The stage records are added by :func:`msk.pipeline.session.run_
 from __future__ import annotations
 
 import dataclasses
+import math
 from collections.abc import Mapping, Sequence
 from datetime import UTC, datetime
 from pathlib import Path
@@ -311,9 +312,12 @@ def strength_summary(
     (:func:`msk.strength.joint_strength_summary`), N·m and N·m/kg; ``joint``: those already
     computed (:func:`joint_strength`)."""
     from msk.status import STATUS_CODES, STATUS_MEANING, STRENGTH_R2_MIN
+    from msk.strength.diagnosis import diagnose
 
     p = strength.profile
-    status = p.statuses()
+    diag = diagnose(p)
+    status = tuple(d.status for d in diag)
+    protocols = getattr(strength, "protocols", None) or {}
     if joint is _COMPUTE:
         joint = _joint_strength(strength, model, side, mass_kg)
     return {
@@ -331,6 +335,11 @@ def strength_summary(
                 "status": status[g],
                 "identified": status[g] == "identified",
                 "gated": bool(p.identified[g]),
+                "reason": diag[g].reason,
+                "r2": diag[g].r2 if math.isfinite(diag[g].r2) else None,
+                "r2_coordinates": list(diag[g].coordinates),
+                "confounded_with": list(diag[g].confounded_with),
+                "protocol": protocols.get(n),
             }
             for g, n in enumerate(p.group_names)
         ],
@@ -342,6 +351,18 @@ def strength_summary(
         "bounds": list(p.bounds),
         "method": p.method,
         "joint_strength": joint,
+        "failed_channels": [
+            {
+                "group": n,
+                "muscles": list(rec.get("muscles", [])),
+                "status": "not determined",
+                "identified": False,
+                "gated": False,
+                "reason": rec.get("reason"),
+                "protocol": rec.get("protocol"),
+            }
+            for n, rec in (getattr(strength, "failed", None) or {}).items()
+        ],
     }
 
 

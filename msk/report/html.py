@@ -653,19 +653,20 @@ def _strength_section(res: SessionResults, figs: Mapping[str, str]) -> str:
     if unreliable:
         out.append(
             f'<p class="warn"><b>Caution:</b> the EMG-driven muscle model explains the '
-            f"joint moments poorly: fit r² = {_num(r2, '.2f')}, below the threshold "
-            f"{_num(r2_min, '.2f')} for a group to be identified. No group is identified; "
-            f"factors at the bounds ({_e(bounds[0])} or {_e(bounds[1])} ×) were "
-            "fixed by the bound, not by the data. The values are shown for research use only."
-            "</p>"
+            f"joint moments poorly over all rows: fit r² = {_num(r2, '.2f')}, below "
+            f"{_num(r2_min, '.2f')}. Each group is judged on the fit of its own joints' rows "
+            f"(below); factors at the bounds ({_e(bounds[0])} or {_e(bounds[1])} ×) were "
+            "fixed by the bound, not by the data, and are never identified.</p>"
         )
     no_mvc = any("no MVC" in w for w in res.summary.quality.emg_warnings or ())
     if no_mvc:
         out.append(
             '<p class="warn">No maximal voluntary contraction (MVC) trials: EMG is '
             "normalised to this session's peak, so activations are relative and the "
-            "strength factors are biased (a muscle that never contracts fully looks "
-            "strong).</p>"
+            "strength factors are biased: a muscle whose EMG is divided by a sub-maximal peak "
+            "reaches activations near 1, its EMG-driven force is too large for the joint "
+            "moments, and its factor is pinned low — it looks weak (often at the lower "
+            "bound).</p>"
         )
     pct = round(100 * _or(st.confidence, 0.95))
     rows = []
@@ -679,10 +680,12 @@ def _strength_section(res: SessionResults, figs: Mapping[str, str]) -> str:
             [
                 _e(g.group),
                 _e(", ".join(g.muscles)),
-                _num(g.factor, ".2f", "×"),
+                # a "prior" group's factor is the generic one the data did not change
+                "generic (kept)" if word == "prior" else _num(g.factor, ".2f", "×"),
                 ci,
                 _num(g.f_iso_generic_n, ".0f", "N"),
-                _num(g.f_iso_n, ".0f", "N"),
+                # an F_iso is a finding only for an identified group
+                _num(g.f_iso_n, ".0f", "N") if word == "identified" else "—",
                 _status_html(word),
             ]
         )
@@ -702,6 +705,10 @@ def _strength_section(res: SessionResults, figs: Mapping[str, str]) -> str:
         )
     )
     out.append(_status_legend())
+    failed = tuple(st.failed_channels or ())
+    out.append(
+        _strength_next_tests((*st.groups, *failed), (*status, *("not determined",) * len(failed)))
+    )
     lo, hi = LITERATURE_FACTOR_RANGE
     out.append(
         f'<p class="note">Literature range of strength factors: {lo}–{hi} × generic '
@@ -709,16 +716,45 @@ def _strength_section(res: SessionResults, figs: Mapping[str, str]) -> str:
         f"{other.capitalize()} side: not measured (no EMG).</p>"
     )
     out.append(
-        f'<p class="note">Fit r² = {_num(r2, ".3f")} (dimensionless; threshold for '
-        f"“identified”: ≥ {_num(r2_min, '.2f')}); method: {_e(st.method)}; factors "
+        f'<p class="note">Fit r² of all rows = {_num(r2, ".3f")} (dimensionless; a group '
+        f"needs r² ≥ {_num(r2_min, '.2f')} on its own joints' rows); method: {_e(st.method)}; "
+        "factors "
         f"bounded to {_e(bounds[0])}–{_e(bounds[1])} × generic (Hayashibe et al. "
         "[1], §V; thesis [3], Table 3.1). A group is “identified” only when its factor and its "
-        "whole interval lie strictly inside the bounds and the fit reaches the threshold.</p>"
+        "whole interval lie strictly inside the bounds and the fit of its own rows reaches the "
+        "threshold.</p>"
     )
     if "strength" in figs:
         out.append(f"<figure>{figs['strength']}</figure>")
     out.append(_joint_strength_html(st, figs))
     return "".join(out)
+
+
+def _strength_next_tests(groups: Sequence[Any], status: Sequence[str]) -> str:
+    """Each group not identified: its reason and the test that would identify it (the
+    summary's ``strength.groups[*].reason`` and ``.protocol``)."""
+    items = []
+    for g, word in zip(groups, status):
+        if word == "identified":
+            continue
+        reason = getattr(g, "reason", None) or word
+        proto = getattr(g, "protocol", None)
+        text = proto.get("text") if proto else None
+        nxt = (
+            f" <b>Next protocol:</b> {_e(text)}."
+            if text
+            else " No isometric test of the model's joint actions loads this group."
+        )
+        items.append(f"<li><b>{_e(g.group)}</b> ({_e(word)}): {_e(reason)}.{nxt}</li>")
+    if not items:
+        return ""
+    return (
+        "<h3>Groups not identified: why, and the test that would identify them</h3>"
+        '<p class="note">Tests computed from the subject\'s model: the isometric maximal '
+        "contraction where the group's moment arm × force–length is largest and its "
+        "synergists' share smallest; record it with the group's EMG.</p>"
+        "<ul>" + "".join(items) + "</ul>"
+    )
 
 
 def _joint_strength_html(st: Strength, figs: Mapping[str, str]) -> str:

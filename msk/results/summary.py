@@ -482,6 +482,15 @@ class StrengthGroup(_Record):
     status: str | None = None
     identified: bool | None = None
     gated: bool | None = None
+    #: the status's reason in plain words (:func:`msk.strength.diagnose`)
+    reason: str | None = None
+    #: fit r² of the group's own rows (the coordinates ``r2_coordinates`` its muscles cross)
+    r2: float | None = None
+    r2_coordinates: tuple[str, ...] = ()
+    confounded_with: tuple[str, ...] = ()
+    #: the test that would identify a group not identified
+    #: (:meth:`msk.strength.TestProtocol.as_dict`)
+    protocol: Mapping[str, Any] | None = None
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -543,6 +552,9 @@ class Strength(_Record):
     bounds: tuple[float, ...] | None = None
     method: str | None = None
     joint_strength: JointStrength | None = None
+    #: groups whose EMG channel failed a check (not in the regression): ``not determined``,
+    #: the check as ``reason``, the test that would identify them as ``protocol``
+    failed_channels: tuple[StrengthGroup, ...] = ()
 
     def group_status(self, group: StrengthGroup) -> str:
         """The :mod:`msk.status` word of one of the groups (its ``status``, or computed from

@@ -27,6 +27,7 @@ from msk.strength.calibration import (
     emg_driven_forces,
     fractional_delay,
 )
+from msk.strength.diagnosis import GroupDiagnosis, diagnose
 from msk.strength.emg_gains import EMGGainFit, fit_emg_gains
 from msk.strength.identification import (
     STRENGTH_FACTOR_BOUNDS,
@@ -45,6 +46,7 @@ from msk.strength.joint_strength import (
     joint_strength_summary,
     max_isometric_moment_curves,
 )
+from msk.strength.protocol import TestProtocol, recommend_test, recommend_tests
 from msk.strength.studies import (
     TABLE_I_W_EMG,
     MetricTable,
@@ -68,15 +70,18 @@ __all__ = [
     "EMGDrivenCalibration",
     "EMGGainFit",
     "FitMetrics",
+    "GroupDiagnosis",
     "JointStrengthCurves",
     "MetricTable",
     "MomentCurve",
     "StrengthIdentifier",
     "StrengthProfile",
+    "TestProtocol",
     "WEmgStability",
     "action_status",
     "area_ratio_table",
     "casadi_curves",
+    "diagnose",
     "emg_driven_forces",
     "expand_groups",
     "fit_emg_gains",
@@ -88,6 +93,8 @@ __all__ = [
     "net_contribution",
     "net_force_table",
     "net_joint_force",
+    "recommend_test",
+    "recommend_tests",
     "w_emg_stability",
     "with_strength",
 ]

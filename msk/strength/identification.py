@@ -426,6 +426,12 @@ class StrengthProfile:
     #: per group, whether its activation rose above ``min_excitation`` of the identifier (a
     #: group the data do not excite is kept generic and ``not determined``); None: all were
     excited: NDArray[np.bool_] | None = None
+    #: ``(G, n)`` whether group g's muscles have a moment arm about coordinate j (its own rows
+    #: of the regression); None: not recorded
+    acts: NDArray[np.bool_] | None = None
+    #: ``(G, G)`` correlation of the groups' factor estimates from the regression covariance
+    #: (NaN for groups kept generic); None: not recorded
+    factor_correlation: Array | None = None
 
     def strength_factors(self) -> dict[str, float]:
         """Muscle → factor (× generic F_iso), ready for :func:`with_strength`."""
@@ -437,27 +443,13 @@ class StrengthProfile:
 
     def statuses(self, *, r2_min: float | None = None) -> tuple[str, ...]:
         """Per group, the :class:`msk.status.Status` value (``identified``, ``at bound``,
-        ``not determined``, ``prior``) from the factor, its bootstrap interval, the bounds, the
-        fit r² and the correlation gate (:func:`msk.status.strength_status`); a group the data
-        do not excite (:attr:`excited`) is ``not determined``."""
-        from msk.status import STRENGTH_R2_MIN, Status, strength_status
+        ``not determined``, ``prior``) of :func:`msk.strength.diagnosis.diagnose`: from the
+        factor, its bootstrap interval, the bounds, the fit r² of the group's own rows and the
+        correlation gate (:func:`msk.status.strength_status`); a group the data do not excite
+        (:attr:`excited`) is ``not determined``."""
+        from msk.strength.diagnosis import diagnose
 
-        lo, hi = self.bounds
-        return tuple(
-            strength_status(
-                float(self.factors[g]),
-                float(self.ci_low[g]),
-                float(self.ci_high[g]),
-                lo,
-                hi,
-                float(self.r2),
-                gated=bool(self.identified[g]),
-                r2_min=STRENGTH_R2_MIN if r2_min is None else r2_min,
-            ).value
-            if self.excited is None or self.excited[g]
-            else Status.NOT_DETERMINED.value
-            for g in range(len(self.group_names))
-        )
+        return tuple(d.status for d in diagnose(self, r2_min=r2_min))
 
     def table(self) -> str:
         """Plain-text table: group, factor, 95 % CIs, F_iso generic → identified."""
@@ -1152,6 +1144,13 @@ class StrengthIdentifier:
             fgen[g] = float(self.params.max_isometric_force[ii].sum())
             for i in ii:
                 mg[i] = gnames[g]
+        # correlation of the factor estimates (confounded groups: near ±1)
+        corr = np.full((n_groups, n_groups), np.nan)
+        if gid.size:
+            cg_cov = cov[: gid.size, : gid.size]
+            sd_g = np.sqrt(np.clip(np.diag(cg_cov), 0.0, None))
+            with np.errstate(invalid="ignore", divide="ignore"):
+                corr[np.ix_(gid, gid)] = cg_cov / np.outer(sd_g, sd_g)
         # fit r² on the selected rows, in N·m
         pred = _weighted_groups(cg, factors) + residual[None] + other
         r2c = np.full(n_coords, np.nan)
@@ -1198,6 +1197,8 @@ class StrengthIdentifier:
             ),
             bounds=self.bounds,
             excited=excited,
+            acts=acts.copy(),
+            factor_correlation=corr,
         )
         return self
 

@@ -203,6 +203,7 @@ def max_isometric_moment_curves(
     angles_deg: Mapping[str, ArrayLike] | None = None,
     activation: float = 1.0,
     contributions: bool = True,
+    posture_deg: Mapping[str, Mapping[str, float]] | None = None,
 ) -> JointStrengthCurves:
     """Maximal isometric moment–angle curves of ``model`` (module docstring for the maths).
 
@@ -210,6 +211,8 @@ def max_isometric_moment_curves(
     :data:`ACTIONS` (default all), or joint stems (``"knee"``, ``"ankle"``, ``"hip"``) for all
     their actions. ``angles_deg``: per action, a grid replacing its default (clinical
     convention, deg). ``activation`` in (0, 1]. ``contributions``: keep per-muscle moments.
+    ``posture_deg``: per action, the held coordinates (stem → deg, the coordinate's own
+    convention) replacing its test posture.
     """
     from msk.muscles.geometry import muscle_geometry, muscle_parameters
     from msk.muscles.hill import rigid_tendon_state
@@ -245,7 +248,8 @@ def max_isometric_moment_curves(
             if not c.name.endswith(("_tx", "_ty", "_tz")):
                 theta[model.coordinate_index(c.name)] = 0.0
         posture = {}
-        for stem, deg in spec.posture_deg.items():
+        held = (posture_deg or {}).get(name, spec.posture_deg)
+        for stem, deg in held.items():
             theta[model.coordinate_index(stem + sfx)] = np.deg2rad(deg)
             posture[stem + sfx] = float(deg)
         key = (coord, tuple(x), tuple(theta))
