@@ -72,6 +72,18 @@ def _kkt_truth(seed: int, m: int, n: int, f_hi_frac: float):
     return r, f_iso, ub * f_iso, x * f_iso, tau
 
 
+@pytest.fixture(autouse=True)
+def _solver_registry_restored():
+    """Solvers a test registers are removed after it (the registry is the config's choices:
+    ``docs/config.md`` lists them)."""
+    from msk.optimization import _qp
+
+    saved = dict(_qp._REGISTRY)
+    yield
+    _qp._REGISTRY.clear()
+    _qp._REGISTRY.update(saved)
+
+
 # ---------------------------------------------------------------------------------------------
 # closed form (seeds/004 Eq. 6)
 # ---------------------------------------------------------------------------------------------

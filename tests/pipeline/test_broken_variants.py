@@ -21,16 +21,14 @@ import pytest
 from msk.config import load_config, render_config
 from msk.model.markersets import parse_label
 from msk.pipeline import run_stages, split_task_trials
+from tests.support.recordings import recordings_present
 
 REPO = Path(__file__).resolve().parents[2]
 CONFIGS = sorted((REPO / "pipelines").glob("*.toml"))
 
 
 def _present(cfg: Path) -> bool:
-    text = cfg.read_text(encoding="utf-8")
-    paths = re.findall(r'^\s*(?:file|grf|external_loads|contact_force|source)\s*=\s*"([^"]+)"',
-                       text, flags=re.M)  # fmt: skip
-    return all((cfg.parent / p).resolve().exists() for p in paths)
+    return recordings_present(cfg)
 
 
 def _variant(cfg, folder: Path, **changes) -> dict[str, Any]:

@@ -36,6 +36,7 @@ from msk.personalise.leg_split import LEG_SPLIT_METHODS
 from msk.pipeline import CORE_STAGES, run_task_trials
 from msk.results.summary import Summary
 from tests.support import golden, sessions
+from tests.support.recordings import recordings_present
 
 REPO = Path(__file__).resolve().parents[2]
 CONFIGS = sorted((REPO / "pipelines").glob("*.toml"))
@@ -123,10 +124,7 @@ PARTLY_OBSERVED = {"unipd_bts", "uwa_running"}
 
 
 def _files_present(cfg: Path) -> bool:
-    text = cfg.read_text(encoding="utf-8")
-    paths = re.findall(r'^\s*(?:file|grf|external_loads|contact_force|source)\s*=\s*"([^"]+)"',
-                       text, flags=re.M)  # fmt: skip
-    return all((cfg.parent / p).resolve().exists() for p in paths)
+    return recordings_present(cfg)
 
 
 @pytest.mark.slow

@@ -5,7 +5,6 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from msk.datasets.shared import REPO_ROOT
 from msk.model.files import load_model
 from msk.muscles.geometry import muscle_geometry, muscle_parameters
 from msk.strength import TestProtocol as Protocol
@@ -17,7 +16,7 @@ QUADS = ("rect_fem_r", *VASTI)
 
 @pytest.fixture(scope="module")
 def model():
-    return load_model(REPO_ROOT / "models" / "gait2392.toml")
+    return load_model("gait2392")
 
 
 def _knee_arms(model, angles_deg, hip_deg):
