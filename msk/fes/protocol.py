@@ -372,9 +372,10 @@ def run_protocol(
     stiffness_ratio F_cm``; 6. ``k_s`` by the NLP of Eq. 8 from ``k_s0`` (literature value);
     7. cross-validation before (``k_s0``, the seed's "before k_s identification") and after.
 
-    Pass 0 is the seed's protocol.  Because the model's series element stretches by ``F/k_s``
-    (several cm at Table 3's forces and stiffnesses), the rigid-tendon force–length step is
-    biased (e.g. ``b`` 0.60 instead of 0.39 for S3L); passes 1… therefore solve the fixed
+    The first outer iteration is the seed's protocol. Because the model's series element
+    stretches by ``F/k_s`` (several cm at Table 3's forces and stiffnesses), the rigid-tendon
+    force–length step is biased (e.g. ``b`` 0.60 instead of 0.39 for S3L); the next iterations
+    therefore solve the fixed
     point ``k_s = NLP(steps 4–5 with L_c = L − L_s − F/k_s)`` by secant steps on ``log k_s``
     (``outer_iterations`` passes at most, stop when ``k_s`` moves by < 0.5 %).
 
@@ -449,7 +450,8 @@ def run_protocol(
 
     d = session.identification
     v = session.validation
-    # pass 0: the seed's protocol (rigid tendon in the force–length step, k_s0 from literature)
+    # the first outer iteration: the seed's protocol (rigid tendon in the force–length step, k_s0
+    # from literature)
     t1 = _time.perf_counter()
     with _stage(session.name, "pass 0 (Benoussaad et al. 2013 protocol)"):
         subj_initial, fl, rec = initial_phase(k_s0, np.inf)
@@ -468,7 +470,8 @@ def run_protocol(
         try:
             with _stage(session.name, f"pass {it} (k_s = {k:.4g} N/m)"):
                 if isometric_transients:
-                    # warm start from the previous pass (pass 0: the seed's steady-state values)
+                    # warm start from the previous iteration (the first: the seed's steady-state
+                    # values)
                     subj_k, fl_k, rec_k = subj.with_muscle(k_s=k), fl, rec
                     iso_k = identify_isometric_transients(
                         (*session.force_length, *session.recruitment),

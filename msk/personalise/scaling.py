@@ -1139,7 +1139,7 @@ def unobserved_leg_starts(
     anthropometric proportion (segment lengths ∝ stature, Winter 2009, Table 4.1; Dempster
     1955) that is the same for both legs (anatomical leg-length inequality: 5 mm mean, under
     20 mm in ~95 % of adults; Knutson 2005, Chiropr Osteopat 13:11), unless the markers show
-    the leg longer. Issue 15, thirteenth pass (docs/validation.md).
+    the leg longer (docs/validation.md).
 
     Returns measurement name → {"default_pose": ratio, "stature": height_factor, "start":
     the factor used, "source": "stature" or "default pose"}."""
@@ -1652,7 +1652,7 @@ def place_markers_from_motion(
         # every pass (the first with the anatomical markers only: pelvis and feet at worst):
         # a weak pull of every rotation towards neutral keeps the unpinned ones (hip rotation
         # with no thigh marker, pelvis tilt with two pelvis markers) from wandering to their
-        # bounds, and later passes from diverging (UWA fast walking: 79 → 22 mm in pass 3)
+        # bounds, and later passes from diverging (UWA fast walking: 79 → 22 mm at the third)
         unobserved = unobserved_end_rotations(ik_model, xs, labels, min_frames)
         tasks = {
             **unobserved,
