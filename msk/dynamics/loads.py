@@ -79,6 +79,7 @@ __all__ = [
     "external_loads",
     "external_loads_assignment",
     "foot_contact",
+    "outside_distance",
     "plates_from_grf_file",
     "plates_from_table",
     "plates_from_trial",
@@ -418,19 +419,27 @@ def _horizontal_axes(up: Array) -> Array:
     return np.stack([e1, e2])  # (2, 3)
 
 
-def _inside_grown(points2: Array, poly2: Array, margin: float) -> Array:
-    """Is each 2-D point (..., 2) inside the convex polygon grown by ``margin``?"""
-    centre = poly2.mean(axis=0)
-    ok = np.ones(points2.shape[:-1], dtype=bool)
-    n = poly2.shape[0]
+def outside_distance(points2: ArrayLike, outline2: ArrayLike) -> Array:
+    """Signed distance (m) of 2-D points (..., 2) outside a convex outline (k, 2): the
+    largest over its edges of the distance beyond the edge's line, > 0 outside, ≤ 0 inside."""
+    p = np.asarray(points2, dtype=float)
+    poly = np.asarray(outline2, dtype=float)
+    centre = poly.mean(axis=0)
+    d = np.full(p.shape[:-1], -np.inf)
+    n = poly.shape[0]
     for k in range(n):
-        a, b = poly2[k], poly2[(k + 1) % n]
-        edge = b - a
-        normal = np.array([edge[1], -edge[0]]) / np.linalg.norm(edge)
+        a, b = poly[k], poly[(k + 1) % n]
+        e = b - a
+        normal = np.array([e[1], -e[0]]) / np.linalg.norm(e)
         if (centre - a) @ normal > 0:
             normal = -normal  # outward
-        ok &= (points2 - a) @ normal <= margin
-    return ok
+        d = np.maximum(d, (p - a) @ normal)
+    return d
+
+
+def _inside_grown(points2: Array, poly2: Array, margin: float) -> NDArray[np.bool_]:
+    """Is each 2-D point (..., 2) inside the convex polygon grown by ``margin``?"""
+    return outside_distance(points2, poly2) <= margin
 
 
 def _foot_points(

@@ -30,29 +30,10 @@ __all__ = [
     "RAISED_PLATE_M",
     "exclude_plate_edges",
     "floor_level_plates",
-    "outside_distance",
     "plate_edge_frames",
 ]
 
 Array = NDArray[np.float64]
-
-
-def outside_distance(points2: ArrayLike, outline2: ArrayLike) -> Array:
-    """Signed distance (m) of 2-D points (..., 2) outside a convex outline (k, 2): the
-    largest over its edges of the distance beyond the edge's line, > 0 outside, ≤ 0 inside."""
-    p = np.asarray(points2, dtype=float)
-    poly = np.asarray(outline2, dtype=float)
-    centre = poly.mean(axis=0)
-    d = np.full(p.shape[:-1], -np.inf)
-    n = poly.shape[0]
-    for k in range(n):
-        a, b = poly[k], poly[(k + 1) % n]
-        e = b - a
-        normal = np.array([e[1], -e[0]]) / np.linalg.norm(e)
-        if (centre - a) @ normal > 0:
-            normal = -normal  # outward
-        d = np.maximum(d, (p - a) @ normal)
-    return d
 
 
 def plate_edge_frames(
@@ -71,7 +52,7 @@ def plate_edge_frames(
     (4, 3) m in the kinematics' frame; ``up`` the model's up), and one record per plate contact
     that straddles (plate, foot, first and last straddling time, frames, the farthest point
     outside in m)."""
-    from msk.dynamics.loads import _foot_points, _horizontal_axes
+    from msk.dynamics.loads import _foot_points, _horizontal_axes, outside_distance
 
     t = np.asarray(kinematics.time, dtype=float)
     q = np.asarray(kinematics.q, dtype=float)

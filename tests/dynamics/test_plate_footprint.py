@@ -7,8 +7,8 @@ from types import SimpleNamespace
 
 import numpy as np
 
-from msk.dynamics.loads import Assignment, _foot_points
-from msk.dynamics.plate_footprint import outside_distance, plate_edge_frames
+from msk.dynamics.loads import Assignment, _foot_points, outside_distance
+from msk.dynamics.plate_footprint import plate_edge_frames
 from msk.model.files import load_model
 
 ROOT = Path(__file__).resolve().parents[2]
