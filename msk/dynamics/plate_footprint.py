@@ -92,16 +92,19 @@ def exclude_plate_edges(
     model: Any, kinematics: Any, external: Any, contact: Any, corners: Mapping[str, Any]
 ) -> tuple[Any, Any]:
     """``contact`` (:class:`msk.dynamics.loads.FootContact`) with the frames in which a foot
-    straddles the edge of the plate it is assigned to (:func:`plate_edge_frames`; ``corners``
-    plate name → (4, 3) corners in the model frame) counted as unmeasured for that foot, and
-    ``external`` with those runs recorded in its metadata (``plate_edge``); both unchanged when
-    no foot straddles an edge."""
+    straddles the edge of the floor-level plate it is assigned to (:func:`plate_edge_frames`,
+    :func:`floor_level_plates`; ``corners`` plate name → (4, 3) corners at the plate's standing
+    surface in the model frame) counted as unmeasured for that foot, and ``external`` with
+    those runs recorded in its metadata (``plate_edge``); both unchanged when no foot straddles
+    an edge."""
+    up = -np.asarray(model.gravity, dtype=float)
+    floor = floor_level_plates(corners, up)
+    corners = {name: c for name, c in corners.items() if name in floor}
     if not corners or not contact.feet:
         return contact, external
     edge, records = plate_edge_frames(
-        model, kinematics, external.assignments, corners,
-        -np.asarray(model.gravity, dtype=float), contact.feet,
-    )  # fmt: skip
+        model, kinematics, external.assignments, corners, up, contact.feet
+    )
     if not records:
         return contact, external
     return (

@@ -12,7 +12,7 @@ from typing import Any
 import numpy as np
 
 from msk.dynamics.loads import ASSIGNMENT_METHOD, rotated_plate
-from msk.dynamics.plate_footprint import exclude_plate_edges, floor_level_plates
+from msk.dynamics.plate_footprint import exclude_plate_edges
 from msk.dynamics.plate_surface import prepared_plates
 from msk.kinematics.observation import OBSERVATION_METHOD
 from msk.personalise import Personalisation
@@ -81,8 +81,6 @@ def run(inputs: SessionInputs, read: ReadResult, model: Personalisation, kinemat
                + lift.get(p.name, 0.0) * up
                for p in read.plates or () if p.corners is not None
                and p.name not in set(lc.ignore)}  # fmt: skip
-    floor = floor_level_plates(corners, up)
-    corners = {name: c for name, c in corners.items() if name in floor}
     contact, ext = exclude_plate_edges(model.model, kinematics, ext, contact, corners)
     # contact_measured's frames (msk.dynamics.loads), from the same per-foot test
     measured = contact.known & ~contact.unmeasured.any(axis=1) & ~ext.flagged()
