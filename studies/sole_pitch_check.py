@@ -20,8 +20,8 @@ import numpy as np
 from msk.kinematics.ik import solve_kinematics
 from msk.model.markersets import zeros_as_gaps
 from msk.personalise.sole_level import foot_flat_frames, sole_pitch
+from msk.personalise.static_trial import read_static_trial
 from msk.pipeline.inputs import session_inputs
-from msk.pipeline.read import read_static_markers
 from msk.pipeline.session import run_stages
 
 
@@ -35,7 +35,8 @@ def standing(path: str, built: Any) -> str:
     model = built.model
     up = -np.asarray(model.gravity, dtype=float)
     up /= np.linalg.norm(up)
-    sm, slabels, stime, _, window = read_static_markers(inputs.static.file, up)
+    static = read_static_trial(inputs.static.file, up)
+    sm, slabels, stime, window = static.markers, static.labels, static.time, static.window
     sm = zeros_as_gaps(np.asarray(sm))[window.frames]
     stime = np.asarray(stime)[window.frames]
     inv = {v: k for k, v in built.rename.items()}

@@ -20,7 +20,6 @@ from msk.pipeline.records import ReadResult
 __all__ = [
     "for_session",
     "measured_contact",
-    "read_static_markers",
     "read_task",
     "run",
     "settings",
@@ -145,15 +144,3 @@ def measured_contact(inputs: SessionInputs, read: ReadResult) -> Any:
     ``read`` alone, so that the stages after the loads and EMG do not read ``read`` and its
     analog-rate arrays are released early (:func:`msk.pipeline.graph.run_graph`)."""
     return read.contact
-
-
-def read_static_markers(
-    path: Path, up: np.ndarray
-) -> tuple[np.ndarray, tuple[str, ...], np.ndarray, Any, Any]:
-    """:func:`msk.personalise.read_static_trial` as a tuple: the static trial's markers in the
-    model frame, labels, time, the file's :class:`msk.trial.Subject` and its still
-    double-stance window (:class:`msk.personalise.static_window.StillWindow`)."""
-    from msk.personalise.static_trial import read_static_trial
-
-    st = read_static_trial(path, up)
-    return st.markers, st.labels, st.time, st.subject, st.window

@@ -103,12 +103,13 @@ def test_jw_1legstand1_still_double_stance() -> None:
     plate from ~2.4 s to ~8.7 s. The window must lie in the double stance, before the lift,
     and the knee goniometer (an independent measurement) must be steady in it."""
     from msk.datasets.shared import real_data_dir
-    from msk.pipeline.read import read_static_markers
+    from msk.personalise.static_trial import read_static_trial
 
     path = real_data_dir() / "knee-grand-challenge-gc4" / "jw_1legstand1.c3d"
     if not path.exists():
         pytest.skip("Grand Challenge data not present")
-    _, _, time, _, w = read_static_markers(path, np.array([0.0, 1.0, 0.0]))
+    static = read_static_trial(path, np.array([0.0, 1.0, 0.0]))
+    time, w = static.time, static.window
     assert w.plates == 2 and w.first == 0
     assert 0.5 <= w.end_s <= 2.4  # before the left foot leaves the plate
     assert time[w.stop - 1] == pytest.approx(w.end_s)
@@ -130,12 +131,12 @@ def test_jw_1legstand1_still_double_stance() -> None:
 )
 def test_still_statics_are_used_whole(rel: str) -> None:
     from msk.datasets.shared import real_data_dir
-    from msk.pipeline.read import read_static_markers
+    from msk.personalise.static_trial import read_static_trial
 
     path = real_data_dir() / rel
     if not path.exists():
         pytest.skip(f"{rel} not present")
-    w = read_static_markers(path, np.array([0.0, 1.0, 0.0]))[4]
+    w = read_static_trial(path, np.array([0.0, 1.0, 0.0])).window
     assert w.whole
 
 
