@@ -84,6 +84,7 @@ __all__ = [
     "as_summary",
     "json_default",
     "strict_json",
+    "unknown_keys",
 ]
 
 #: The schema version this msk writes and the newest it reads.
@@ -319,6 +320,22 @@ class ModelInfo(_Record):
     leg_split: JsonObject | None = None
     placement_determinacy: JsonObject | None = None
     sole_level: JsonObject | None = None
+    #: the hip joint centres' method and where they moved (:mod:`msk.personalise.hip_centre`)
+    hip_centre: JsonObject | None = None
+    #: virtual markers built from others (the PSIS midpoint as the sacrum)
+    virtual_markers: tuple[Any, ...] | None = None
+    #: coordinate → [lower, upper] degrees: ranges widened to the physiological knee flexion
+    widened_ranges_deg: JsonObject | None = None
+    #: without a static trial: the placement chosen among the motion's candidates and why
+    #: (:meth:`msk.personalise.placement.PlacementChoice.summary`)
+    placement_choice: JsonObject | None = None
+    #: the knee axis alignment from the static (:mod:`msk.model.alignment`)
+    knee_alignment: JsonObject | None = None
+    #: the static markers the task contradicts, re-placed from the task
+    #: (:func:`msk.personalise.static_placement.place_from_task`)
+    static_check: JsonObject | None = None
+    #: why the static trial was not used, when it was refused
+    static_rejected: str | None = None
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -658,6 +675,8 @@ class Optimization(_Record):
     frames_solved: Mapping[str, int] | None = None
     reserve_torque_rms_nm: Mapping[str, float | None] | None = None
     kkt: Kkt | None = None
+    #: the knee's frontal-plane reserve moments (:func:`msk.quality.frontal_reserve_figures`)
+    frontal_reserve: JsonObject | None = None
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -760,6 +779,8 @@ class Summary(_Record):
     stages: tuple[StageRecord, ...] | None = None
     not_available: tuple[NotAvailable, ...] | None = None
     run_seconds: float | None = None
+    #: the OpenSim files written (``files``) and what they hold (:mod:`msk.io.opensim_export`)
+    opensim: JsonObject | None = None
     schema_version: int = dataclasses.field(default=SCHEMA_VERSION, metadata={"json": "format"})
     tables: tuple[str, ...] | None = None
 
@@ -846,14 +867,49 @@ def strict_json(obj: Any) -> Any:
     return obj
 
 
+def unknown_keys(record: _Record, path: str = "") -> tuple[str, ...]:
+    """The keys of ``record`` (read from a mapping) and of every record inside it that the
+    schema does not name, as dotted paths (``quality.flag[2].valu``); ``()`` for a record built
+    in code. Parts kept as JSON (:data:`JsonObject`) are not looked into."""
+    out: list[str] = [f"{path}.{k}" if path else k for k in getattr(record, "_extra", {})]
+
+    def visit(v: Any, sub: str) -> None:
+        if isinstance(v, _Record):
+            out.extend(unknown_keys(v, sub))
+        elif isinstance(v, tuple):
+            for i, x in enumerate(v):
+                visit(x, f"{sub}[{i}]")
+        elif isinstance(v, Mapping):
+            for k, x in v.items():
+                if isinstance(x, (_Record, tuple)):
+                    visit(x, f"{sub}.{k}")
+
+    for f in dataclasses.fields(record):
+        visit(getattr(record, f.name), f"{path}.{_json_key(f)}" if path else _json_key(f))
+    return tuple(out)
+
+
 def as_summary(summary: Summary | Mapping[str, Any]) -> Summary:
     """``summary`` as a :class:`Summary`: a mapping (a summary being assembled by the
     pipeline, not yet written) is first made what its ``summary.json`` would hold — numpy
     values as plain JSON, non-finite numbers as ``None``, ``format`` the current one when
-    absent — so a reader sees exactly what a reader of the written folder sees."""
+    absent — so a reader sees exactly what a reader of the written folder sees.
+
+    Typed on write as on read: a key of an assembled mapping that the schema does not name
+    (a misspelt optional key) raises :class:`~msk.exceptions.SummaryKeyError` naming it,
+    where reading a file written by a newer msk keeps such keys verbatim.
+    """
     if isinstance(summary, Summary):
         return summary
     d = json.loads(json.dumps(strict_json(summary), default=json_default, allow_nan=False))
     if isinstance(d, dict):
         d.setdefault("format", SUMMARY_FORMAT)
-    return Summary.from_dict(d)
+    s = Summary.from_dict(d)
+    unknown = unknown_keys(s)
+    if unknown:
+        raise SummaryKeyError(
+            f"summary: key {unknown[0]!r} is not in the schema of {SUMMARY_FORMAT!r} "
+            f"(msk.results.summary)" + (f" (nor {list(unknown[1:])})" if unknown[1:] else ""),
+            key=unknown[0],
+        )
+    return s
