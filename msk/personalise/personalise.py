@@ -266,7 +266,7 @@ def scale_and_place(
         # (msk.personalise.static_window.still_window)
         sm, stime = static.markers[window.frames], static.time[window.frames]
         slabels_raw, ssubj = static.labels, static.subject
-        info["static_window"] = window.summary()
+        info["static_window"] = {**window.summary(), "not_judged": list(static.not_judged)}
         # the lab's joint widths (Plug-in Gait subject parameters): the static's, else the task's
         subj = ssubj if ssubj is not None and ssubj.widths_m else trial.subject
         widths = dict(getattr(subj, "widths_m", None) or {})

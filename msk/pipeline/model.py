@@ -94,7 +94,11 @@ def run(inputs: SessionInputs, read: ReadResult) -> Personalisation:
     assert mc is not None and inputs.model_source is not None  # a gait stage
     model = load_model_file(inputs.model_source, mc.markers)
     up = -np.asarray(model.gravity, dtype=float)
-    static = None if inputs.static is None else read_static_trial(inputs.static.file, up)
+    static = (
+        None
+        if inputs.static is None
+        else read_static_trial(inputs.static.file, up, model=model, rename=inputs.cfg.marker_rename)
+    )
     return personalise(model, static, read.trial, options(inputs))
 
 
