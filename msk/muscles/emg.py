@@ -74,6 +74,7 @@ __all__ = [
     "EmgEnvelopes",
     "NormalisationSource",
     "channel_quality",
+    "cycle_correlation",
     "emg_activations",
     "envelopes_from_trial",
     "linear_envelope",
