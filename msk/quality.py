@@ -123,6 +123,15 @@ THRESHOLDS: Mapping[str, float] = {
     # functional
     # knee and ankle against the ASIS-to-heel leg; the split's own limit for using the ankle
     "leg_length_disagreement_pct": 5.0,
+    # a static's anatomical marker relocated from the scaled model's landmark by more than
+    # twice the inter-examiner spread of palpated landmarks (up to ~2.5 cm; Della Croce U et al.
+    # 2005, Gait Posture 21:226-237): on the shipped statics ≤ 39 mm (UNIPD's lateral
+    # epicondyle, 26 mm above gait2392's), so 50 mm
+    "static_marker_relocated_m": 0.05,
+    # a marker the lab places where it likes (``move``: clusters, foot markers) moved by more
+    # than a foot's marker region (~0.1 m: the midfoot-to-toe span): on the shipped statics
+    # ≤ 94 mm (PS's lateral midfoot); a ghost in a static moved a foot marker 127 mm
+    "static_marker_moved_m": 0.10,
 }
 
 #: a solved coordinate within this of its model range bound is "at the bound" (rad or m)
@@ -635,6 +644,7 @@ def model_flags(
                       "model was scaled to: the leg's and the tibia's scale factors are "
                       "uncertain by that much (no static trial; msk.personalise.leg_split)")
             )  # fmt: skip
+    out += _relocation_flags(trial, info, th)
     det = dict(info.get("placement_determinacy") or {})
     if det.get("not_run"):
         out.append(
@@ -657,6 +667,32 @@ def model_flags(
                   f"mm; a change under {1000 * tol:.1f} mm is one the placement cannot resolve; "
                   f"{why}msk.personalise.determinacy)")
         )  # fmt: skip
+    return out
+
+
+def _relocation_flags(trial: str, info: Mapping[str, Any], th: Mapping[str, float]) -> list[Flag]:
+    """A static's markers moved far on their body (``model.marker_placement`` ``relocated``:
+    anatomical markers moved from the scaled model's landmark to where the static puts them;
+    ``moved``: the ``move`` markers), each with its distance — a ghost or mislabelled marker
+    in the static moves a model marker silently otherwise. Only with a static trial
+    (``model.static_window``): without one the markers are placed from the motion."""
+    if "static_window" not in info:
+        return []
+    mp = dict(info.get("marker_placement") or {})
+    out: list[Flag] = []
+    for key, th_key, what in (
+        ("relocated", "static_marker_relocated_m", "from the scaled model's landmark"),
+        ("moved", "static_marker_moved_m", "from the model's generic place"),
+    ):
+        far = {k: float(v) for k, v in dict(mp.get(key) or {}).items() if float(v) > th[th_key]}
+        if far:
+            out.append(
+                _flag(trial, th_key, max(far.values()), th[th_key],
+                      f"the static trial {key} " + ", ".join(
+                          f"{k} {1000 * v:.0f} mm" for k, v in sorted(far.items()))
+                      + f" on its body {what}: a ghost or mislabelled marker in the static? "
+                      "(msk.personalise.scaling.place_markers)")
+            )  # fmt: skip
     return out
 
 
