@@ -132,6 +132,14 @@ THRESHOLDS: Mapping[str, float] = {
     # than a foot's marker region (~0.1 m: the midfoot-to-toe span): on the shipped statics
     # ≤ 94 mm (PS's lateral midfoot); a ghost in a static moved a foot marker 127 mm
     "static_marker_moved_m": 0.10,
+    # a static's standing pose: the pelvis tilts 10-15° anteriorly (ASIS-PSIS line; Kadaba MP
+    # et al. 1990, J Orthop Res 8:383-392) and a model's pelvis frame differs from that line by
+    # under 10° (msk.kinematics.gait_plausibility): beyond 25° the static's pelvis is not
+    # determined by its markers (or the subject did not stand); the hips of quiet standing are
+    # within ~10° of neutral, a crouched stance 20-30°: beyond 30° the static is not standing or
+    # its thighs are mis-solved
+    "static_pelvis_tilt_deg": 25.0,
+    "static_hip_flexion_deg": 30.0,
 }
 
 #: a solved coordinate within this of its model range bound is "at the bound" (rad or m)
@@ -671,7 +679,8 @@ def model_flags(
 
 
 def _relocation_flags(trial: str, info: Mapping[str, Any], th: Mapping[str, float]) -> list[Flag]:
-    """A static's markers moved far on their body (``model.marker_placement`` ``relocated``:
+    """A static's standing pose beyond the gates (``model.marker_placement.static_pose_deg``:
+    pelvis tilt, hip flexion), and its markers moved far on their body (``relocated``:
     anatomical markers moved from the scaled model's landmark to where the static puts them;
     ``moved``: the ``move`` markers), each with its distance — a ghost or mislabelled marker
     in the static moves a model marker silently otherwise. Only with a static trial
@@ -680,6 +689,19 @@ def _relocation_flags(trial: str, info: Mapping[str, Any], th: Mapping[str, floa
         return []
     mp = dict(info.get("marker_placement") or {})
     out: list[Flag] = []
+    pose = dict(mp.get("static_pose_deg") or {})
+    for name, th_key in (("pelvis_tilt", "static_pelvis_tilt_deg"),
+                         ("hip_flexion_r", "static_hip_flexion_deg"),
+                         ("hip_flexion_l", "static_hip_flexion_deg")):  # fmt: skip
+        v = pose.get(name)
+        if v is not None and np.isfinite(v) and abs(float(v)) > th[th_key]:
+            out.append(
+                _flag(trial, f"static_{name}_deg", float(v), np.copysign(th[th_key], float(v)),
+                      f"the static trial's standing pose has {name} {float(v):.0f}°, beyond "
+                      f"±{th[th_key]:g}° (quiet standing: pelvis tilt 10-15°, hips within ~10°"
+                      "): a pelvis or thigh its markers do not determine, or a static not "
+                      "standing — every marker placed from that pose carries the error")
+            )  # fmt: skip
     for key, th_key, what in (
         ("relocated", "static_marker_relocated_m", "from the scaled model's landmark"),
         ("moved", "static_marker_moved_m", "from the model's generic place"),

@@ -490,3 +490,21 @@ def test_a_static_marker_moved_far_on_its_body_is_flagged_with_its_distance():
     assert "L.Toe.Tip 127 mm" in flags["static_marker_moved_m"].message
     assert flags["static_marker_moved_m"].threshold == THRESHOLDS["static_marker_moved_m"]
     assert model_flags("t", {"marker_placement": placement}, []) == []
+
+
+@pytest.mark.parametrize(
+    ("pose", "flagged"),
+    [({"pelvis_tilt": 12.0, "hip_flexion_r": 4.0, "hip_flexion_l": -3.0}, set()),
+     ({"pelvis_tilt": -41.0, "hip_flexion_r": 4.0}, {"static_pelvis_tilt_deg"}),
+     ({"pelvis_tilt": 8.0, "hip_flexion_l": -55.0}, {"static_hip_flexion_l_deg"})],
+)  # fmt: skip
+def test_a_static_standing_pose_beyond_the_gates_is_flagged(pose, flagged):
+    """Standing pelvis tilt beyond ±25° and hip flexion beyond ±30° in the static's pose
+    (``marker_placement.static_pose_deg``) are flagged with the value and the signed bound."""
+    from msk.quality import model_flags
+
+    info = {"static_window": {}, "marker_placement": {"static_pose_deg": pose}}
+    flags = {f.quantity: f for f in model_flags("t", info, [])}
+    assert set(flags) == flagged
+    for f in flags.values():
+        assert abs(f.value) > abs(f.threshold) and np.sign(f.value) == np.sign(f.threshold)
