@@ -660,6 +660,19 @@ def model_flags(
                   f"what the placement from the motion determines was not checked: "
                   f"{det['not_run']} (msk.personalise.determinacy)")
         )  # fmt: skip
+    pel = dict(det.get("pelvis") or {})
+    if pel.get("not_determined"):
+        fixed = ", ".join(pel.get("fixed_markers", ())) or "none"
+        out.append(
+            _flag(trial, f"placement_not_determined_{pel.get('body', 'pelvis')}",
+                  float(len(pel.get("fixed_markers", ()))), 3.0,
+                  f"{pel.get('body', 'pelvis')} not posed by its markers (no static trial): "
+                  f"{', '.join(pel['not_determined'])} left to the legs, whose markers the "
+                  f"same motion placed — observed fixed markers {fixed} (three not on one "
+                  "line are needed; with two ASIS a sacral marker or both PSIS, "
+                  "msk.personalise.virtual_markers); the hip angles and moments take up the "
+                  "error (msk.personalise.determinacy.pelvis_determinacy)")
+        )  # fmt: skip
     tol = float(det.get("tolerance_m", 0.0))
     for name in det.get("not_determined", ()):
         c = dict(det["coordinates"][name])

@@ -477,7 +477,7 @@ def placement_determinacy(
     :data:`msk.personalise.placement.CHOICE_TOLERANCE_M` (a cost change the choice itself
     does not tell from a tie) — ``summary.json`` ``model.placement_determinacy`` (its quality
     flag: :func:`msk.quality.model_flags`); why not when the frames cannot be fitted."""
-    from msk.personalise.determinacy import placement_profile
+    from msk.personalise.determinacy import pelvis_determinacy, placement_profile
 
     x, t, labels = choice_frames(task, built)
     w = dict(weights)
@@ -492,7 +492,9 @@ def placement_determinacy(
 
     free = [*dict(mp.get("moved", {})), *dict(mp.get("placed", {}))]
     try:
-        return placement_profile(model, fit, free, observed, tolerance_m=CHOICE_TOLERANCE_M)
+        profile = placement_profile(model, fit, free, observed, tolerance_m=CHOICE_TOLERANCE_M)
+        # the pelvis first: the root segment its fixed markers must pose
+        return dataclasses.replace(profile, pelvis=pelvis_determinacy(model, free, observed))
     except ModelError as exc:  # reported (and flagged), not a failed personalisation
         return str(exc)
 
