@@ -551,10 +551,16 @@ def personalise(
     """
     from msk.personalise.coordinates import held_foot_coordinates, knee_flexion_to_physiological
     from msk.personalise.task_markers import swap_back
-    from msk.personalise.virtual_markers import with_virtual_sacrum
+    from msk.personalise.virtual_markers import with_virtual_markers, with_virtual_sacrum
 
     opts = options
     trial, swapped = swap_back(task)
+    # the lab's virtual markers, in the task and the static alike
+    # (msk.personalise.virtual_markers)
+    virtual = dict(opts.markers.virtual)
+    trial, virtual_notes = with_virtual_markers(trial, virtual)
+    if static is not None:
+        static, _ = with_virtual_markers(static, virtual)
     sacrum = None
     if static is None:
         # no static: the PSIS midpoint stands for a missing sacral marker
@@ -632,8 +638,8 @@ def personalise(
         built.info["leg_split"] = {side: sp.summary() for side, sp in split.items()}
     if swapped:
         built.info["marker_set"]["swapped_back"] = swapped
-    if sacrum is not None:
-        built.info["virtual_markers"] = [sacrum]
+    if sacrum is not None or virtual_notes:
+        built.info["virtual_markers"] = [*virtual_notes, *([sacrum] if sacrum else [])]
     # after scaling and placement (whose passes keep the generic bounds): the task's IK and
     # every later stage
     final, widened = knee_flexion_to_physiological(built.model)

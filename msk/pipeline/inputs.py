@@ -209,6 +209,7 @@ def plain_settings(cfg: SessionConfig) -> dict[str, Any]:
             "rename": dict(cfg.marker_rename),
             "weights": dict(cfg.marker_weights),
             "move": list(cfg.marker_move),
+            "virtual": dict(cfg.marker_virtual),
         },
         "emg": plain(cfg.emg),
         "filters": plain(cfg.filters),

@@ -58,6 +58,7 @@ def settings(inputs: SessionInputs) -> dict[str, object]:
         "height": cfg.subject.height_m,
         "rename": dict(cfg.marker_rename),
         "move": list(cfg.marker_move),
+        "virtual": dict(cfg.marker_virtual),
         # also read by the stage (the key is complete: its result is kept in the cache): the
         # weights (placement without a static; their names checked), the side (knee alignment
         # from markers), the model file's path (summary.json model.source)
@@ -81,7 +82,8 @@ def options(inputs: SessionInputs) -> PersonaliseOptions:
             source=source, varus_deg=mc.knee_varus_deg, medial_shift_m=mc.knee_medial_shift_m
         ),
         markers=MarkerOptions(
-            rename=cfg.marker_rename, weights=cfg.marker_weights, move=cfg.marker_move
+            rename=cfg.marker_rename, weights=cfg.marker_weights, move=cfg.marker_move,
+            virtual=cfg.marker_virtual,
         ),
         source=str(inputs.model_source), origin=str(cfg.path),
     )  # fmt: skip
