@@ -43,7 +43,7 @@ __all__ = [
     "TrialConfig",
 ]
 
-TRIAL_ROLES = ("static", "mass_identification", "mvc", "task", "fes")
+TRIAL_ROLES = ("static", "mass_identification", "mvc", "task", "fes", "functional")
 KNEE_VARIANTS = ("spline", "four_bar")
 OPTIMIZATION_METHODS = (
     "static_optimization",
@@ -182,7 +182,10 @@ class ModelConfig:
         "with the current muscle calibration), davis (Plug-in Gait's, Davis et al. 1991; leg "
         "length from the ASIS-to-malleolus markers), bell (Bell et al. 1990); a regression "
         "needs a static trial with both ASIS and both PSIS or a sacral marker, else the "
-        "model's, said in summary.json (msk.personalise.hip_centre)",
+        "model's, said in summary.json (msk.personalise.hip_centre); a trial of role "
+        "functional (the hips moved through their range, with a static) replaces it by the "
+        "functional centre (sphere fit of the thigh markers in the pelvis) when that fits both "
+        "hips",
         "model",
         choices=("model", "harrington", "davis", "bell"),
     )

@@ -164,10 +164,13 @@ def scale_and_place(
     placement: Mapping[str, Any] | None = None,
     continue_from: tuple[Model, Mapping[str, Any]] | None = None,
     workspace: dict[str, Any] | None = None,
+    hip_trial: Trial | None = None,
 ) -> Candidate:  # fmt: skip
     """Scale ``generic`` and place the lab's markers (``static`` trial, else the ``task``).
     ``functional``: femur and tibia factors of a functional leg split
-    (:func:`measured_leg_split`). ``placement``: extra keywords of
+    (:func:`measured_leg_split`). ``hip_trial``: a functional trial of the hips (model frame,
+    with a static), their centres fitted on it (:func:`msk.personalise.hip_centre.
+    place_hip_centres`). ``placement``: extra keywords of
     :func:`msk.personalise.scaling.place_markers_from_motion` (``regularize``, ``frame_phase``)
     when there is no static trial. ``continue_from`` (no static trial; an earlier motion
     placement: its model and ``info["marker_placement"]``): the placement is one pulled pass
@@ -299,9 +302,13 @@ def scale_and_place(
                 widths_m=widths, marker_diameter_m=mdiam, functional=functional,
             )  # fmt: skip
         model = _aligned(opts, model, sm, slabels)
+        fx = None
+        if hip_trial is not None:  # its labels in the static's names (the model's)
+            back = {lab: mk for mk, lab in smatch.rename.items()}
+            fx = (hip_trial.markers, [back.get(lab, lab) for lab in hip_trial.marker_labels])
         model, info["hip_centre"] = place_hip_centres(
             model, sm, slabels, method=opts.hip_centre,
-            marker_radius_m=0.007 if mdiam is None else 0.5 * float(mdiam),
+            marker_radius_m=0.007 if mdiam is None else 0.5 * float(mdiam), functional=fx,
         )  # fmt: skip
         centres, jc_move = chord_centres(model, sm, slabels, widths, mdiam)
         try:
@@ -528,7 +535,12 @@ def _placement_rms(info: Mapping[str, Any]) -> float:
 
 
 def personalise(
-    model: Model, static: StaticTrial | None, task: Trial, options: PersonaliseOptions
+    model: Model,
+    static: StaticTrial | None,
+    task: Trial,
+    options: PersonaliseOptions,
+    *,
+    hip_trial: Trial | None = None,
 ) -> Personalisation:
     """The subject's model from the generic ``model``: scaled and its markers placed from the
     ``static`` trial (markers in the model frame,
@@ -574,7 +586,7 @@ def personalise(
     ) -> Candidate:
         return scale_and_place(
             model, static, trial, opts, functional=functional, continue_from=continue_from,
-            workspace=workspace,
+            workspace=workspace, hip_trial=hip_trial,
         )  # fmt: skip
 
     built = again()

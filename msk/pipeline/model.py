@@ -51,6 +51,7 @@ def settings(inputs: SessionInputs) -> dict[str, object]:
         "model": inputs.hashes["model"],
         "model_markers": inputs.hashes.get("model_markers"),
         "static": inputs.hashes.get("static"),
+        "functional": sorted(v for k, v in inputs.hashes.items() if k.startswith("functional:")),
         "scale": mc.scale,
         "knee": mc.knee,
         "knee_alignment": (mc.knee_alignment, mc.knee_varus_deg, mc.knee_medial_shift_m),
@@ -101,7 +102,13 @@ def run(inputs: SessionInputs, read: ReadResult) -> Personalisation:
         if inputs.static is None
         else read_static_trial(inputs.static.file, up, model=model, rename=inputs.cfg.marker_rename)
     )
-    return personalise(model, static, read.trial, options(inputs))
+    functional = None
+    trials = inputs.cfg.trials_with_role("functional")
+    if static is not None and trials:  # the hip centres' functional trial (its first)
+        from msk.io import read_trial, to_model_frame
+
+        functional = to_model_frame(read_trial(trials[0].file), up=up, forward=None)
+    return personalise(model, static, read.trial, options(inputs), hip_trial=functional)
 
 
 def without_markers(model: Personalisation) -> Personalisation:
