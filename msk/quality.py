@@ -123,6 +123,23 @@ THRESHOLDS: Mapping[str, float] = {
     # functional
     # knee and ankle against the ASIS-to-heel leg; the split's own limit for using the ankle
     "leg_length_disagreement_pct": 5.0,
+    # a static's anatomical marker relocated from the scaled model's landmark by more than
+    # twice the inter-examiner spread of palpated landmarks (up to ~2.5 cm; Della Croce U et al.
+    # 2005, Gait Posture 21:226-237): on the shipped statics ≤ 39 mm (UNIPD's lateral
+    # epicondyle, 26 mm above gait2392's), so 50 mm
+    "static_marker_relocated_m": 0.05,
+    # a marker the lab places where it likes (``move``: clusters, foot markers) moved by more
+    # than a foot's marker region (~0.1 m: the midfoot-to-toe span): on the shipped statics
+    # ≤ 94 mm (PS's lateral midfoot); a ghost in a static moved a foot marker 127 mm
+    "static_marker_moved_m": 0.10,
+    # a static's standing pose: the pelvis tilts 10-15° anteriorly (ASIS-PSIS line; Kadaba MP
+    # et al. 1990, J Orthop Res 8:383-392) and a model's pelvis frame differs from that line by
+    # under 10° (msk.kinematics.gait_plausibility): beyond 25° the static's pelvis is not
+    # determined by its markers (or the subject did not stand); the hips of quiet standing are
+    # within ~10° of neutral, a crouched stance 20-30°: beyond 30° the static is not standing or
+    # its thighs are mis-solved
+    "static_pelvis_tilt_deg": 25.0,
+    "static_hip_flexion_deg": 30.0,
 }
 
 #: a solved coordinate within this of its model range bound is "at the bound" (rad or m)
@@ -635,12 +652,26 @@ def model_flags(
                       "model was scaled to: the leg's and the tibia's scale factors are "
                       "uncertain by that much (no static trial; msk.personalise.leg_split)")
             )  # fmt: skip
+    out += _relocation_flags(trial, info, th)
     det = dict(info.get("placement_determinacy") or {})
     if det.get("not_run"):
         out.append(
             _flag(trial, "placement_determinacy_not_run", 1.0, 0.0,
                   f"what the placement from the motion determines was not checked: "
                   f"{det['not_run']} (msk.personalise.determinacy)")
+        )  # fmt: skip
+    pel = dict(det.get("pelvis") or {})
+    if pel.get("not_determined"):
+        fixed = ", ".join(pel.get("fixed_markers", ())) or "none"
+        out.append(
+            _flag(trial, f"placement_not_determined_{pel.get('body', 'pelvis')}",
+                  float(len(pel.get("fixed_markers", ()))), 3.0,
+                  f"{pel.get('body', 'pelvis')} not posed by its markers (no static trial): "
+                  f"{', '.join(pel['not_determined'])} left to the legs, whose markers the "
+                  f"same motion placed — observed fixed markers {fixed} (three not on one "
+                  "line are needed; with two ASIS a sacral marker or both PSIS, "
+                  "msk.personalise.virtual_markers); the hip angles and moments take up the "
+                  "error (msk.personalise.determinacy.pelvis_determinacy)")
         )  # fmt: skip
     tol = float(det.get("tolerance_m", 0.0))
     for name in det.get("not_determined", ()):
@@ -657,6 +688,46 @@ def model_flags(
                   f"mm; a change under {1000 * tol:.1f} mm is one the placement cannot resolve; "
                   f"{why}msk.personalise.determinacy)")
         )  # fmt: skip
+    return out
+
+
+def _relocation_flags(trial: str, info: Mapping[str, Any], th: Mapping[str, float]) -> list[Flag]:
+    """A static's standing pose beyond the gates (``model.marker_placement.static_pose_deg``:
+    pelvis tilt, hip flexion), and its markers moved far on their body (``relocated``:
+    anatomical markers moved from the scaled model's landmark to where the static puts them;
+    ``moved``: the ``move`` markers), each with its distance — a ghost or mislabelled marker
+    in the static moves a model marker silently otherwise. Only with a static trial
+    (``model.static_window``): without one the markers are placed from the motion."""
+    if "static_window" not in info:
+        return []
+    mp = dict(info.get("marker_placement") or {})
+    out: list[Flag] = []
+    pose = dict(mp.get("static_pose_deg") or {})
+    for name, th_key in (("pelvis_tilt", "static_pelvis_tilt_deg"),
+                         ("hip_flexion_r", "static_hip_flexion_deg"),
+                         ("hip_flexion_l", "static_hip_flexion_deg")):  # fmt: skip
+        v = pose.get(name)
+        if v is not None and np.isfinite(v) and abs(float(v)) > th[th_key]:
+            out.append(
+                _flag(trial, f"static_{name}_deg", float(v), np.copysign(th[th_key], float(v)),
+                      f"the static trial's standing pose has {name} {float(v):.0f}°, beyond "
+                      f"±{th[th_key]:g}° (quiet standing: pelvis tilt 10-15°, hips within ~10°"
+                      "): a pelvis or thigh its markers do not determine, or a static not "
+                      "standing — every marker placed from that pose carries the error")
+            )  # fmt: skip
+    for key, th_key, what in (
+        ("relocated", "static_marker_relocated_m", "from the scaled model's landmark"),
+        ("moved", "static_marker_moved_m", "from the model's generic place"),
+    ):
+        far = {k: float(v) for k, v in dict(mp.get(key) or {}).items() if float(v) > th[th_key]}
+        if far:
+            out.append(
+                _flag(trial, th_key, max(far.values()), th[th_key],
+                      f"the static trial {key} " + ", ".join(
+                          f"{k} {1000 * v:.0f} mm" for k, v in sorted(far.items()))
+                      + f" on its body {what}: a ghost or mislabelled marker in the static? "
+                      "(msk.personalise.scaling.place_markers)")
+            )  # fmt: skip
     return out
 
 

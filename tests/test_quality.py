@@ -470,3 +470,41 @@ def test_a_leg_coordinate_the_placement_does_not_determine_is_flagged():
     assert "-4.9°" in flag.message and "better" in flag.message
     (flag,) = model_flags("t", {"placement_determinacy": {"not_run": "no frame fitted"}}, [])
     assert flag.quantity == "placement_determinacy_not_run" and "no frame fitted" in flag.message
+
+
+def test_a_static_marker_moved_far_on_its_body_is_flagged_with_its_distance():
+    """A static's anatomical marker relocated 60 mm (over 50 mm) and a moved foot marker
+    127 mm (over 100 mm; a ghost in the static) are flagged with their names and distances;
+    39 mm and 94 mm (the largest on the shipped statics) are not; without a static nothing is
+    judged."""
+    from msk.quality import model_flags
+
+    placement = {"relocated": {"R.Knee.Lat": 0.039, "L.Ankle.Lat": 0.060},
+                 "moved": {"R.Midfoot.Lat": 0.094, "L.Toe.Tip": 0.127}}  # fmt: skip
+    info = {"static_window": {"whole_trial": True}, "marker_placement": placement}
+    flags = {f.quantity: f for f in model_flags("t", info, [])}
+    assert set(flags) == {"static_marker_relocated_m", "static_marker_moved_m"}
+    assert flags["static_marker_relocated_m"].value == pytest.approx(0.060)
+    assert "L.Ankle.Lat 60 mm" in flags["static_marker_relocated_m"].message
+    assert "R.Knee.Lat" not in flags["static_marker_relocated_m"].message
+    assert "L.Toe.Tip 127 mm" in flags["static_marker_moved_m"].message
+    assert flags["static_marker_moved_m"].threshold == THRESHOLDS["static_marker_moved_m"]
+    assert model_flags("t", {"marker_placement": placement}, []) == []
+
+
+@pytest.mark.parametrize(
+    ("pose", "flagged"),
+    [({"pelvis_tilt": 12.0, "hip_flexion_r": 4.0, "hip_flexion_l": -3.0}, set()),
+     ({"pelvis_tilt": -41.0, "hip_flexion_r": 4.0}, {"static_pelvis_tilt_deg"}),
+     ({"pelvis_tilt": 8.0, "hip_flexion_l": -55.0}, {"static_hip_flexion_l_deg"})],
+)  # fmt: skip
+def test_a_static_standing_pose_beyond_the_gates_is_flagged(pose, flagged):
+    """Standing pelvis tilt beyond ±25° and hip flexion beyond ±30° in the static's pose
+    (``marker_placement.static_pose_deg``) are flagged with the value and the signed bound."""
+    from msk.quality import model_flags
+
+    info = {"static_window": {}, "marker_placement": {"static_pose_deg": pose}}
+    flags = {f.quantity: f for f in model_flags("t", info, [])}
+    assert set(flags) == flagged
+    for f in flags.values():
+        assert abs(f.value) > abs(f.threshold) and np.sign(f.value) == np.sign(f.threshold)

@@ -107,6 +107,13 @@ def load_config(path: str | Path) -> SessionConfig:
         )
 
     markers = parts.pop("markers", MarkersConfig())
+    from msk.personalise.virtual_markers import parse_virtual
+
+    for name, text in markers.virtual.items():
+        try:
+            parse_virtual(name, text)
+        except ConfigError as exc:
+            raise ConfigError(f"{source}: {exc}") from None
     emg = parts.get("emg")
     if emg is not None:
         for ch in emg.mvc:
@@ -124,6 +131,7 @@ def load_config(path: str | Path) -> SessionConfig:
         marker_rename=markers.rename,
         marker_weights=markers.weights,
         marker_move=markers.move,
+        marker_virtual=markers.virtual,
         **parts,
     )
 

@@ -43,7 +43,7 @@ __all__ = [
     "TrialConfig",
 ]
 
-TRIAL_ROLES = ("static", "mass_identification", "mvc", "task", "fes")
+TRIAL_ROLES = ("static", "mass_identification", "mvc", "task", "fes", "functional")
 KNEE_VARIANTS = ("spline", "four_bar")
 OPTIMIZATION_METHODS = (
     "static_optimization",
@@ -182,7 +182,10 @@ class ModelConfig:
         "with the current muscle calibration), davis (Plug-in Gait's, Davis et al. 1991; leg "
         "length from the ASIS-to-malleolus markers), bell (Bell et al. 1990); a regression "
         "needs a static trial with both ASIS and both PSIS or a sacral marker, else the "
-        "model's, said in summary.json (msk.personalise.hip_centre)",
+        "model's, said in summary.json (msk.personalise.hip_centre); a trial of role "
+        "functional (the hips moved through their range, with a static) replaces it by the "
+        "functional centre (sphere fit of the thigh markers in the pelvis) when that fits both "
+        "hips",
         "model",
         choices=("model", "harrington", "davis", "bell"),
     )
@@ -254,7 +257,8 @@ class TrialConfig:
 @dataclass(frozen=True, kw_only=True)
 class MarkersConfig:
     """``[markers]``: lab marker names, IK weights, technical clusters (flattened into
-    :class:`SessionConfig` as ``marker_rename``, ``marker_weights``, ``marker_move``)."""
+    :class:`SessionConfig` as ``marker_rename``, ``marker_weights``, ``marker_move``,
+    ``marker_virtual``)."""
 
     rename: Mapping[str, str] = opt(
         "model marker name = lab label, when they differ", {}, item="a lab marker label (string)"
@@ -269,6 +273,14 @@ class MarkersConfig:
         "model markers moved to where the static trial puts them on their body (clusters)",
         (),
         item="marker names",
+    )
+    virtual: Mapping[str, str] = opt(
+        "virtual markers made from the measured ones in every trial, name = mean(A, B, ...) "
+        '(their centroid, e.g. "V.Sacral" = "mean(LPSI, RPSI)") or offset(O, X, P, dx, dy, '
+        "dz) (the point at dx, dy, dz m in the frame origin O, x toward X, z normal to the plane "
+        "O X P); a model marker's name makes it that marker (msk.personalise.virtual_markers)",
+        {},
+        item="mean(A, B, ...) or offset(O, X, P, dx, dy, dz)",
     )
 
 
@@ -471,6 +483,8 @@ class SessionConfig:
     marker_weights: Mapping[str, float] = field(default_factory=dict)
     #: model markers moved to where the static trial puts them (technical clusters)
     marker_move: tuple[str, ...] = ()
+    #: virtual markers: name → definition (msk.personalise.virtual_markers)
+    marker_virtual: Mapping[str, str] = field(default_factory=dict)
     emg: EmgConfig = field(default_factory=EmgConfig)
     filters: FilterConfig = field(default_factory=FilterConfig)
     optimization: OptimizationConfig = field(default_factory=OptimizationConfig)
@@ -486,8 +500,9 @@ class SessionConfig:
     def markers(self) -> MarkersConfig:
         """The ``[markers]`` table."""
         return MarkersConfig(
-            rename=self.marker_rename, weights=self.marker_weights, move=self.marker_move
-        )
+            rename=self.marker_rename, weights=self.marker_weights, move=self.marker_move,
+            virtual=self.marker_virtual,
+        )  # fmt: skip
 
 
 @dataclass(frozen=True)

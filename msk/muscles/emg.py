@@ -23,7 +23,18 @@ Quality checks (figures are reported for every channel in :class:`ChannelQuality
   quantisation steps, or below ``flat_rel_rms`` × the median RMS of the channels processed
   together (needs ≥ 3 channels), or the envelope is not modulated: its 99th/10th percentile ratio
   (inner part, filter edges excluded) is below ``flat_modulation`` (stationary noise gives
-  ≈ 1.2–1.5, EMG of a muscle that works during the trial gives > 3).
+  ≈ 1.2–1.5, EMG of a muscle that works during the trial gives > 3). A channel whose envelope
+  repeats with the gait cycle is not flat by the quantisation or the modulation test: a muscle
+  that bursts once per stride over a high noise floor (surface EMG of a small or deep muscle,
+  a low amplifier gain) can have a 99th/10th percentile ratio under ``flat_modulation`` and an
+  RMS of a few quantisation steps, yet its envelope, shifted by one stride, matches itself —
+  stationary noise's does not. The test is the envelope's autocorrelation (Pearson r between
+  e(t) and e(t + τ) over their overlap) at its best lag τ in :data:`CYCLE_LAG_S` (a stride of
+  running to slow walking), with at least two such lags in the record: r ≥
+  ``flat_cycle_correlation`` (0.6: the stride-to-stride repeatability of healthy gait EMG
+  envelopes, coefficients of multiple correlation 0.6–0.9, Kadaba MP et al. 1989, J Orthop Res
+  7:849–860; white noise through the 6 Hz envelope filter decorrelates within 0.1 s) keeps
+  the channel (:attr:`ChannelQuality.cycle_correlation`, :attr:`ChannelQuality.cycle_period_s`).
 * **saturated** (clipped amplifier or ADC): at least ``clip_min_samples`` samples (and at least
   ``clip_fraction`` of the trial) sit within half a quantisation step of the channel's extreme
   value, or reach ``saturation_level`` when the range is known.
@@ -57,11 +68,13 @@ if TYPE_CHECKING:
     from msk.analogs import StoredAnalogs
 
 __all__ = [
+    "CYCLE_LAG_S",
     "ChannelQuality",
     "EmgActivations",
     "EmgEnvelopes",
     "NormalisationSource",
     "channel_quality",
+    "cycle_correlation",
     "emg_activations",
     "envelopes_from_trial",
     "linear_envelope",
@@ -73,6 +86,13 @@ __all__ = [
 ]
 
 NormalisationSource = Literal["mvc", "session_peak"]
+
+#: lags (s) over which an envelope is looked for its gait-cycle repetition: a stride of running
+#: (~0.6–0.8 s) to slow or pathological walking (~2 s; healthy walking 0.9–1.4 s)
+CYCLE_LAG_S = (0.5, 2.0)
+#: rate (Hz) the envelope is sampled at for the autocorrelation (it holds nothing above its
+#: low-pass cut-off)
+_CYCLE_RATE_HZ = 50.0
 
 
 @dataclass(frozen=True)
@@ -88,6 +108,11 @@ class ChannelQuality:
     relative_rms: Array  #: rms / median rms of the channels processed together (NaN if < 3)
     modulation: Array  #: 99th / 10th percentile of the envelope
     clipped_fraction: Array  #: fraction of samples at an extreme (saturation) value
+    #: the envelope's autocorrelation at its best lag in :data:`CYCLE_LAG_S` (NaN: the record
+    #: holds fewer than two such lags, or the envelope is constant)
+    cycle_correlation: Array = dataclasses.field(default_factory=lambda: np.empty(0))
+    #: that lag, s (NaN as above)
+    cycle_period_s: Array = dataclasses.field(default_factory=lambda: np.empty(0))
 
     def summary(self) -> list[str]:
         """One line per flagged channel, with the figures that flagged it."""
@@ -98,6 +123,13 @@ class ChannelQuality:
                     f"channel {lab!r} is flat: rms {self.rms[i]:.3g} ({self.rms_lsb[i]:.1f} LSB, "
                     f"{self.relative_rms[i]:.3f} of the median channel), "
                     f"envelope modulation {self.modulation[i]:.2f}"
+                    + (
+                        f", autocorrelation {self.cycle_correlation[i]:.2f} at "
+                        f"{self.cycle_period_s[i]:.2f} s"
+                        if i < self.cycle_correlation.size
+                        and np.isfinite(self.cycle_correlation[i])
+                        else ""
+                    )
                 )
             if self.saturated[i]:
                 lines.append(
@@ -249,6 +281,39 @@ class _ChannelStats:
     modulation: float
     clipped: float
     envelope: Array  #: max(low-pass(|high-pass(x)|), 0) with order-4 filters, (N,)
+    cycle_correlation: float = float("nan")
+    cycle_period_s: float = float("nan")
+
+
+def cycle_correlation(envelope: ArrayLike, rate_hz: float) -> tuple[float, float]:
+    """The autocorrelation of ``envelope`` (N,) at its stride over the lags of
+    :data:`CYCLE_LAG_S`, and that lag (s): Pearson r between e(t) and e(t + τ) over their
+    overlap, at the peak of the shortest lag within 0.05 of the best (a multiple of the stride
+    matches about as well), the envelope
+    sampled at :data:`_CYCLE_RATE_HZ` (module docstring). (NaN, NaN) when the record is shorter
+    than two of the shortest lags or the envelope is constant."""
+    e = np.asarray(envelope, dtype=float)
+    step = max(1, int(rate_hz // _CYCLE_RATE_HZ))
+    e = e[::step]
+    r_hz = rate_hz / step
+    lo = max(1, int(np.ceil(CYCLE_LAG_S[0] * r_hz)))
+    hi = min(int(CYCLE_LAG_S[1] * r_hz), e.size // 2)
+    if hi < lo or not np.isfinite(e).all():
+        return float("nan"), float("nan")
+    lags = np.arange(lo, hi + 1)
+    r = np.full(lags.size, np.nan)
+    for i, k in enumerate(lags):
+        a, b = e[:-k], e[k:]
+        sa, sb = float(a.std()), float(b.std())
+        if sa > 0.0 and sb > 0.0:
+            r[i] = float(np.mean((a - a.mean()) * (b - b.mean())) / (sa * sb))
+    if not np.isfinite(r).any():
+        return float("nan"), float("nan")
+    # the shortest lag as good as the best to within 0.05 (not a multiple of the stride)
+    i = int(np.flatnonzero(np.nan_to_num(r, nan=-np.inf) >= np.nanmax(r) - 0.05)[0])
+    while i + 1 < r.size and np.nan_to_num(r[i + 1], nan=-np.inf) > r[i]:
+        i += 1  # up to that peak
+    return float(r[i]), float(lags[i] / r_hz)
 
 
 def _channel_stats(
@@ -282,7 +347,8 @@ def _channel_stats(
         at_max |= x >= saturation_level
         at_min |= x <= -saturation_level
     clipped = max(at_max.sum(), at_min.sum()) / n if u.size > 1 else 1.0
-    return _ChannelStats(rms, lsb, float(modulation), float(clipped), env)
+    cyc, period = cycle_correlation(inner, rate_hz)
+    return _ChannelStats(rms, lsb, float(modulation), float(clipped), env, cyc, period)
 
 
 def _quality(
@@ -293,6 +359,7 @@ def _quality(
     flat_rms_lsb: float = 20.0,
     flat_rel_rms: float = 0.05,
     flat_modulation: float = 1.6,
+    flat_cycle_correlation: float = 0.6,
     clip_min_samples: int = 5,
     clip_fraction: float = 0.002,
 ) -> ChannelQuality:
@@ -305,7 +372,10 @@ def _quality(
     with np.errstate(divide="ignore", invalid="ignore"):
         rms_lsb = np.where(lsb > 0, rms / lsb, 0.0)
     rel = rms / np.median(rms) if c >= 3 and np.median(rms) > 0 else np.full(c, np.nan)
+    cyc = np.array([st.cycle_correlation for st in stats])
+    period = np.array([st.cycle_period_s for st in stats])
     flat = (rms_lsb < flat_rms_lsb) | (modulation < flat_modulation)
+    flat &= ~(np.nan_to_num(cyc, nan=-1.0) >= flat_cycle_correlation)  # bursts with the cycle
     if c >= 3:
         flat |= rel < flat_rel_rms
     n_clip = clipped * n
@@ -320,6 +390,8 @@ def _quality(
         relative_rms=rel,
         modulation=modulation,
         clipped_fraction=clipped,
+        cycle_correlation=cyc,
+        cycle_period_s=period,
     )
 
 
@@ -333,6 +405,7 @@ def channel_quality(
     flat_rms_lsb: float = 20.0,
     flat_rel_rms: float = 0.05,
     flat_modulation: float = 1.6,
+    flat_cycle_correlation: float = 0.6,
     clip_min_samples: int = 5,
     clip_fraction: float = 0.002,
     saturation_level: float | None = None,
@@ -350,8 +423,8 @@ def channel_quality(
         stats.append(dataclasses.replace(st, envelope=np.empty(0)))
     return _quality(
         labels, stats, x.shape[0], flat_rms_lsb=flat_rms_lsb, flat_rel_rms=flat_rel_rms,
-        flat_modulation=flat_modulation, clip_min_samples=clip_min_samples,
-        clip_fraction=clip_fraction,
+        flat_modulation=flat_modulation, flat_cycle_correlation=flat_cycle_correlation,
+        clip_min_samples=clip_min_samples, clip_fraction=clip_fraction,
     )  # fmt: skip
 
 

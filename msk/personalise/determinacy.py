@@ -46,14 +46,22 @@ from msk.model.core import Marker, Model, frame_placements
 from msk.units import Array
 
 __all__ = [
+    "PELVIS_MIN_SPREAD_M",
     "PROFILE_COORDINATE_STEMS",
     "PROFILE_SHIFT_DEG",
     "CoordinateProfile",
+    "PelvisDeterminacy",
     "PlacementProfile",
     "gauge_shifted_markers",
     "joint_child",
+    "pelvis_determinacy",
     "placement_profile",
 ]
+
+#: the least distance (m) of a fixed pelvis marker from the line through two others for the
+#: three to pose the pelvis: a marker cluster's own size (a sacral marker sits ~0.1 m behind the
+#: inter-ASIS line; two markers within 2 cm of one line leave a rotation about it to noise)
+PELVIS_MIN_SPREAD_M = 0.02
 
 #: shift (deg) of each profiled coordinate's mean: 5°, the error above which a kinematic gait
 #: measurement "should raise concern" (McGinley JL, Baker R, Wolfe R, Morris ME (2009) The
@@ -111,6 +119,41 @@ class CoordinateProfile:
 
 
 @dataclass(frozen=True)
+class PelvisDeterminacy:
+    """Whether the root segment's (pelvis') fixed markers pose it (:func:`pelvis_determinacy`).
+
+    Attributes:
+        body: the root segment.
+        fixed: its observed markers at fixed offsets (the model's own).
+        free: its observed markers placed or moved from the motion.
+        spread_m: the largest distance of a fixed marker from the line through two others
+            (0 with fewer than three).
+        not_determined: the root joint's rotation coordinates the fixed markers leave free
+            (the one about the line through two fixed markers, every one with fewer).
+    """
+
+    body: str
+    fixed: tuple[str, ...]
+    free: tuple[str, ...]
+    spread_m: float
+    not_determined: tuple[str, ...]
+
+    def summary(self) -> dict[str, Any]:
+        """``summary.json`` ``model.placement_determinacy.pelvis``."""
+        return {
+            "body": self.body,
+            "fixed_markers": list(self.fixed),
+            "free_markers": list(self.free),
+            "spread_m": self.spread_m,
+            "status": "not determined" if self.not_determined else "determined",
+            "not_determined": list(self.not_determined),
+            "method": "rank of the observed fixed-offset markers on the root segment: three, "
+            f"not within {1000 * PELVIS_MIN_SPREAD_M:g} mm of one line, pose it "
+            "(msk.personalise.determinacy.pelvis_determinacy)",
+        }
+
+
+@dataclass(frozen=True)
 class PlacementProfile:
     """The profiles of a motion placement's leg coordinates (:func:`placement_profile`): the
     shift tried (rad), the cost's resolution ``tolerance_m`` (a cost change within it is one
@@ -121,6 +164,8 @@ class PlacementProfile:
     frames: int
     cost_m: float
     coordinates: tuple[CoordinateProfile, ...]
+    #: the root segment's check (:func:`pelvis_determinacy`), the first of the chain
+    pelvis: PelvisDeterminacy | None = None
 
     def not_determined(
         self, priors: Mapping[str, str] | None = None
@@ -153,7 +198,62 @@ class PlacementProfile:
             },
             "not_determined": [c.coordinate for c in self.not_determined(priors)],
             "set_by_prior": {k: f"set by prior: {v}" for k, v in priors.items()},
+            **({"pelvis": self.pelvis.summary()} if self.pelvis is not None else {}),
         }
+
+
+def pelvis_determinacy(
+    model: Model,
+    free: Sequence[str],
+    observed: Sequence[str],
+    *,
+    min_spread_m: float = PELVIS_MIN_SPREAD_M,
+) -> PelvisDeterminacy:
+    """What the root segment's markers leave free (module docstring): its observed markers not
+    in ``free`` are fixed; with three not collinear (a distance ≥ ``min_spread_m`` from the
+    line through two others) nothing; with two, the root joint's rotation coordinate whose axis
+    is closest to the line through them; with fewer, every rotation coordinate of the root
+    joint.
+
+    Raises:
+        ModelError: the model has no joint from the ground.
+    """
+    root = next((j for j in model.joints if j.parent in ("ground", "world", "universe")), None)
+    if root is None:
+        raise ModelError(f"model {model.name!r}: no joint from the ground to a root segment")
+    seen, loose = set(observed), set(free)
+    on = [mk for mk in model.markers if mk.body == root.child and mk.name in seen]
+    fixed = [mk for mk in on if mk.name not in loose]
+    rots = [(a.coordinate, np.asarray(a.axis, dtype=float)) for a in root.axes
+            if a.kind == "revolute" and a.coordinate is not None]  # fmt: skip
+    spread = 0.0
+    line: Array | None = None
+    pts = [np.asarray(mk.offset, dtype=float) for mk in fixed]
+    for i in range(len(pts)):
+        for k in range(i + 1, len(pts)):
+            d = pts[k] - pts[i]
+            n = float(np.linalg.norm(d))
+            if n < 1e-9:
+                continue
+            if line is None:
+                line = d / n
+            for m, p in enumerate(pts):
+                if m not in (i, k):
+                    v = p - pts[i]
+                    spread = max(spread, float(np.linalg.norm(v - np.dot(v, d / n) * d / n)))
+    if spread >= min_spread_m:
+        undetermined: tuple[str, ...] = ()
+    elif line is not None and rots:
+        # the joint axes are in the parent's frame; the root's rotations are about the
+        # segment's own axes at its neutral (gait2392: tilt z, list x, rotation y)
+        best = max(rots, key=lambda r: abs(float(np.dot(r[1], line))) / np.linalg.norm(r[1]))
+        undetermined = (str(best[0]),)
+    else:
+        undetermined = tuple(str(c) for c, _ in rots)
+    return PelvisDeterminacy(
+        root.child, tuple(mk.name for mk in fixed),
+        tuple(mk.name for mk in on if mk.name in loose), spread, undetermined,
+    )  # fmt: skip
 
 
 def joint_child(model: Model, coordinate: str) -> str:

@@ -26,6 +26,19 @@ the right hip centre is (x, y, z) and the left one (x, y, −z), with (mm):
 - ``bell`` (Bell et al. 1990, J Biomech 23:617-621): x = −0.19 PW, y = −0.30 PW,
   z = 0.36 PW.
 
+- ``functional`` (:func:`functional_hip_centres`, when the session has a trial of role
+  ``functional``: the subject moving each hip through its range, a "star" or circumduction):
+  each thigh marker m, expressed in the pelvis' frame in every frame t (the pelvis posed on its
+  markers' static positions, Söderkvist & Wedin 1993), moves on a sphere about the hip centre c,
+  ‖p_m(t) − c‖ = r_m; with k_m = r_m² − ‖c‖² the system 2 p_m(t)·c + k_m = ‖p_m(t)‖² is
+  linear in (c, k_1…k_M): its least-squares solution over every marker and frame is the
+  multi-marker centre of Gamage & Lasenby (2002, J Biomech 35:87-93), which needs no thigh
+  cluster (one marker per thigh is enough: Plug-in Gait's wand and knee markers). The fit is
+  refused (the regression or the model's hip is kept, said in the summary) when the thigh
+  markers sweep less than :data:`FUNCTIONAL_MIN_RANGE_DEG` about the centre: the error of a
+  functional centre grows quickly as the range of hip motion shrinks (Piazza SJ et al. 2004,
+  J Biomech 37:349-356; Camomilla V et al. 2006, J Biomech 39:1096-1106).
+
 Harrington et al. (2007) found their equations within 5 mm of the MRI centres where Bell's and
 Davis' erred by 10-20 mm and more (Davis': mostly too far anterior and lateral), and Sangeux
 et al. (2014, Gait Posture 40:20-25) found Harrington's as good as the best functional methods
@@ -53,8 +66,10 @@ from numpy.typing import ArrayLike, NDArray
 from msk.exceptions import MissingDataError, ModelError
 
 __all__ = [
+    "FUNCTIONAL_MIN_RANGE_DEG",
     "HIP_CENTRE_METHODS",
     "PelvisLandmarks",
+    "functional_hip_centres",
     "no_static_hip_centre",
     "pelvis_frame",
     "pelvis_pose_for_hips",
@@ -68,6 +83,12 @@ Array = NDArray[np.float64]
 #: The hip-centre methods (``model.hip_centre``): the generic model's own (scaled with its
 #: pelvis) or a regression of this module.
 HIP_CENTRE_METHODS: tuple[str, ...] = ("model", "harrington", "davis", "bell")
+
+#: least sweep (deg) a functional trial must give a hip: twice the 95th percentile of a thigh
+#: marker's distance from its mean position in the pelvis over its distance from the centre,
+#: the largest over a side's markers (±20°: with 1 mm of marker noise a synthetic circumduction
+#: of ±8° put the centre 62 mm off, ±15° 17-19 mm, ±20° 8-10 mm, ±30° 2-4 mm; module docstring)
+FUNCTIONAL_MIN_RANGE_DEG = 40.0
 
 
 @dataclass(frozen=True)
@@ -229,6 +250,101 @@ def _posterior(pts: Mapping[str, Array]) -> Array | None:
     return pts.get("sacrum")
 
 
+def _body_of(label: str) -> tuple[str | None, str | None]:
+    """(side "r"/"l" or None, the landmark's body stem) of a label."""
+    from msk.model.markersets import LANDMARK_BODIES, parse_label
+
+    p = parse_label(label)
+    return ((p.side or "").lower() or None), LANDMARK_BODIES.get(p.landmark or "")
+
+
+def functional_hip_centres(
+    means: Mapping[str, ArrayLike],
+    markers: ArrayLike,
+    labels: tuple[str, ...] | list[str],
+    *,
+    min_range_deg: float = FUNCTIONAL_MIN_RANGE_DEG,
+) -> tuple[dict[str, Array], dict[str, Any]]:
+    """The hip centres (side → (3,) m, in the frame of the static ``means``: label → mean
+    position) from a functional trial's ``markers`` (N, M, 3) m of ``labels`` (the static's
+    names), by the sphere fit of the module docstring; and a summary per side (markers used,
+    frames, residual RMS, sweep, or why a side was not fitted). A side is fitted with at least
+    one thigh marker (femur landmark or cluster) and a sweep of ``min_range_deg``; the pelvis
+    needs three of its markers in the static and the trial.
+
+    Raises:
+        MissingDataError: fewer than three pelvis markers common to the static and the trial.
+    """
+    import warnings
+
+    from msk.personalise.functional_joints import segment_poses
+
+    x = np.asarray(markers, dtype=float)
+    labs = list(labels)
+    common = [lab for lab in labs if lab in means and np.isfinite(np.asarray(means[lab])).all()]
+    pel = [lab for lab in common if _body_of(lab)[1] == "pelvis"]
+    if len(pel) < 3:
+        raise MissingDataError(
+            "functional hip centre: the static and the functional trial share "
+            f"{len(pel)} pelvis markers ({', '.join(pel) or 'none'}); three are needed"
+        )
+    local = np.array([np.asarray(means[lab], dtype=float) for lab in pel])
+    world = x[:, [labs.index(lab) for lab in pel]]
+    world = np.where((world == 0.0).all(axis=-1, keepdims=True), np.nan, world)
+    pose = segment_poses(local, world)
+    centres: dict[str, Array] = {}
+    info: dict[str, Any] = {"pelvis_markers": pel, "pelvis_frames": int(pose.valid.sum())}
+    for side in ("r", "l"):
+        thigh = [lab for lab in common if _body_of(lab) == (side, "femur")]
+        rows, rhs, owner = [], [], []
+        for k, lab in enumerate(thigh):
+            w = x[:, labs.index(lab)]
+            ok = pose.valid & np.isfinite(w).all(axis=1) & ~(w == 0.0).all(axis=1)
+            p = np.einsum("nji,nj->ni", pose.rotation[ok], w[ok] - pose.origin[ok])
+            rows.append(p)
+            rhs.append((p**2).sum(axis=1))
+            owner.append(np.full(p.shape[0], k))
+        n = sum(r.shape[0] for r in rows)
+        if not thigh or n < 10 * (3 + len(thigh)):
+            info[side] = {"fitted": False, "thigh_markers": thigh,
+                          "reason": f"{n} frames of {len(thigh)} thigh markers posed"}  # fmt: skip
+            continue
+        p_all, b, own = np.concatenate(rows), np.concatenate(rhs), np.concatenate(owner)
+        a = np.zeros((n, 3 + len(thigh)))
+        a[:, :3] = 2.0 * p_all
+        a[np.arange(n), 3 + own] = 1.0
+        sol, *_ = np.linalg.lstsq(a, b, rcond=None)
+        c = sol[:3]
+        radii, sweep = [], []
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", RuntimeWarning)
+            for p in rows:
+                r = np.linalg.norm(p - c, axis=1)
+                radii.append(r)
+                # the path's extent over its radius (the extent does not depend on the fitted
+                # centre, which a short arc leaves uncertain)
+                spread = np.linalg.norm(p - p.mean(axis=0), axis=1)
+                sweep.append(float(np.degrees(2.0 * np.percentile(spread, 95) / np.median(r))))
+        resid = np.concatenate([r - np.sqrt(max(sol[3 + k] + c @ c, 0.0))
+                                for k, r in enumerate(radii)])  # fmt: skip
+        # the centre's standard error: the algebraic residual's σ through (AᵀA)⁻¹
+        alg = a @ sol - b
+        dof = max(n - a.shape[1], 1)
+        cov = np.linalg.pinv(a.T @ a)[:3, :3] * float(alg @ alg) / dof
+        se = float(np.sqrt(max(np.linalg.eigvalsh(cov).max(), 0.0)))
+        rng = float(max(sweep))
+        entry = {"thigh_markers": thigh, "frames": int(n // len(thigh)),
+                 "residual_rms_m": float(np.sqrt(np.mean(resid**2))), "centre_se_m": se,
+                 "sweep_deg": rng}  # fmt: skip
+        if rng < min_range_deg:
+            why = f"the thigh swept {rng:.0f}°, under {min_range_deg:g}°"
+            info[side] = {**entry, "fitted": False, "reason": why}
+            continue
+        centres[side] = np.asarray(c, dtype=float)
+        info[side] = {**entry, "fitted": True}
+    return centres, info
+
+
 def pelvis_pose_for_hips(
     model: Any,
     means: Mapping[str, ArrayLike],
@@ -236,10 +352,12 @@ def pelvis_pose_for_hips(
     method: str = "harrington",
     leg_length_m: float | None = None,
     marker_radius_m: float = 0.007,
+    centres: Mapping[str, Array] | None = None,
 ) -> tuple[Array, Array, dict[str, Any]]:
     """The pose (rotation (3, 3), origin (3,)) of ``model``'s pelvis body in a static trial
     (``means``: lab label or model marker name → mean position, m) that puts the model's hips
-    at ``method``'s regression centres, and a summary.
+    at ``method``'s regression centres (or at ``centres``, side → point in the static, e.g.
+    :func:`functional_hip_centres`), and a summary.
 
     First the pelvis' pose P₀ = (R₀, t₀) fitted rigidly to the static's ASIS and PSIS/sacral
     landmarks through the model's own pelvis markers (Söderkvist & Wedin 1993; the mid-PSIS
@@ -273,8 +391,12 @@ def pelvis_pose_for_hips(
     if set(hips) != {"r", "l"}:
         raise MissingDataError(f"hip centre: model {model.name} has no pelvis–femur hip joints")
     lm = PelvisLandmarks(exp["asis_r"], exp["asis_l"], post)
-    reg = regression_hip_centres(
-        lm, method=method, leg_length_m=leg_length_m, marker_radius_m=marker_radius_m
+    reg = (
+        {s: np.asarray(centres[s], dtype=float) for s in ("r", "l")}
+        if centres is not None
+        else regression_hip_centres(
+            lm, method=method, leg_length_m=leg_length_m, marker_radius_m=marker_radius_m
+        )
     )
     pairs: list[tuple[Array, Array]] = []
     for key in ("asis_r", "asis_l"):
@@ -377,6 +499,7 @@ def place_hip_centres(
     *,
     method: str,
     marker_radius_m: float = 0.007,
+    functional: tuple[ArrayLike, tuple[str, ...] | list[str]] | None = None,
 ) -> tuple[Any, dict[str, Any]]:
     """The model with its hips at ``method``'s centres (:func:`pelvis_pose_for_hips` on the
     mean positions of a static trial's ``markers`` (N, M, 3), m, NaN gaps), and a summary for
@@ -384,31 +507,57 @@ def place_hip_centres(
     the regression, leaves the model as it is and the summary says why. The pelvis markers
     are moved (:func:`with_pelvis_markers`).
 
+    ``functional`` (a functional trial's markers (N, M, 3) and labels, in the static's names)
+    is chosen over ``method`` when it fits both hips (:func:`functional_hip_centres`): method
+    ``functional``, the ``requested`` one and why a refused fit fell back to it in the summary.
+
     The leg length of ``davis`` is the ASIS-to-malleolus marker distance (the medial
     malleolus where there is one)."""
     import warnings
 
     if method not in HIP_CENTRE_METHODS:
         raise ModelError(f"hip centre: unknown method {method!r} (one of {HIP_CENTRE_METHODS})")
-    if method == "model":
-        return model, no_static_hip_centre(method)
     x = np.asarray(markers, dtype=float)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", RuntimeWarning)
         means = {lab: np.nanmean(x[:, i], axis=0) for i, lab in enumerate(labels)}
+    fallback: dict[str, Any] = {}
+    if functional is not None:
+        try:
+            centres, finfo = functional_hip_centres(means, functional[0], functional[1])
+        except MissingDataError as exc:
+            centres, finfo = {}, {"reason": str(exc)}
+        if set(centres) == {"r", "l"}:
+            try:
+                rot, org, info = pelvis_pose_for_hips(
+                    model, means, method="functional", centres=centres
+                )
+            except MissingDataError as exc:
+                finfo = {**finfo, "reason": str(exc)}
+            else:
+                model, moved = with_pelvis_markers(model, rot, org, means)
+                return model, {**info, "requested": method, "functional": finfo,
+                               "pelvis_markers_moved_m": moved}  # fmt: skip
+        why = finfo.get("reason") or "; ".join(
+            f"{s}: {v.get('reason')}" for s, v in finfo.items()
+            if isinstance(v, dict) and not v.get("fitted", True)
+        )  # fmt: skip
+        fallback = {"functional_refused": why, "functional": finfo}
+    if method == "model":
+        return model, {**no_static_hip_centre(method), **fallback}
     ll = _leg_length(means)
     if method == "davis" and ll is None:
-        return model, {"method": "model", "requested": method,
-                       "reason": "no ASIS-to-malleolus leg length in the static"}  # fmt: skip
+        why = "no ASIS-to-malleolus leg length in the static"
+        return model, {"method": "model", "requested": method, "reason": why, **fallback}
     try:
         rot, org, info = pelvis_pose_for_hips(
             model, means, method=method, leg_length_m=ll if method == "davis" else None,
             marker_radius_m=marker_radius_m,
         )  # fmt: skip
     except MissingDataError as exc:
-        return model, {"method": "model", "requested": method, "reason": str(exc)}
+        return model, {"method": "model", "requested": method, "reason": str(exc), **fallback}
     model, moved = with_pelvis_markers(model, rot, org, means)
-    return model, {**info, "pelvis_markers_moved_m": moved}
+    return model, {**info, "pelvis_markers_moved_m": moved, **fallback}
 
 
 def no_static_hip_centre(method: str) -> dict[str, Any]:

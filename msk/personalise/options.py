@@ -26,11 +26,14 @@ class KneeAlignmentOptions:
 class MarkerOptions:
     """The lab's markers: model marker name → lab label (``rename``), IK weight by model marker
     name (``weights``, absent: 1), model markers moved to where the trial puts them on their
-    body (``move``, technical clusters)."""
+    body (``move``, technical clusters), virtual markers made from the measured ones
+    (``virtual``)."""
 
     rename: Mapping[str, str] = field(default_factory=dict)
     weights: Mapping[str, float] = field(default_factory=dict)
     move: tuple[str, ...] = ()
+    #: virtual markers, name → definition (:mod:`msk.personalise.virtual_markers`)
+    virtual: Mapping[str, str] = field(default_factory=dict)
 
 
 @dataclass(frozen=True, kw_only=True)

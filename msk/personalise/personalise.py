@@ -164,10 +164,13 @@ def scale_and_place(
     placement: Mapping[str, Any] | None = None,
     continue_from: tuple[Model, Mapping[str, Any]] | None = None,
     workspace: dict[str, Any] | None = None,
+    hip_trial: Trial | None = None,
 ) -> Candidate:  # fmt: skip
     """Scale ``generic`` and place the lab's markers (``static`` trial, else the ``task``).
     ``functional``: femur and tibia factors of a functional leg split
-    (:func:`measured_leg_split`). ``placement``: extra keywords of
+    (:func:`measured_leg_split`). ``hip_trial``: a functional trial of the hips (model frame,
+    with a static), their centres fitted on it (:func:`msk.personalise.hip_centre.
+    place_hip_centres`). ``placement``: extra keywords of
     :func:`msk.personalise.scaling.place_markers_from_motion` (``regularize``, ``frame_phase``)
     when there is no static trial. ``continue_from`` (no static trial; an earlier motion
     placement: its model and ``info["marker_placement"]``): the placement is one pulled pass
@@ -266,7 +269,7 @@ def scale_and_place(
         # (msk.personalise.static_window.still_window)
         sm, stime = static.markers[window.frames], static.time[window.frames]
         slabels_raw, ssubj = static.labels, static.subject
-        info["static_window"] = window.summary()
+        info["static_window"] = {**window.summary(), "not_judged": list(static.not_judged)}
         # the lab's joint widths (Plug-in Gait subject parameters): the static's, else the task's
         subj = ssubj if ssubj is not None and ssubj.widths_m else trial.subject
         widths = dict(getattr(subj, "widths_m", None) or {})
@@ -299,9 +302,13 @@ def scale_and_place(
                 widths_m=widths, marker_diameter_m=mdiam, functional=functional,
             )  # fmt: skip
         model = _aligned(opts, model, sm, slabels)
+        fx = None
+        if hip_trial is not None:  # its labels in the static's names (the model's)
+            back = {lab: mk for mk, lab in smatch.rename.items()}
+            fx = (hip_trial.markers, [back.get(lab, lab) for lab in hip_trial.marker_labels])
         model, info["hip_centre"] = place_hip_centres(
             model, sm, slabels, method=opts.hip_centre,
-            marker_radius_m=0.007 if mdiam is None else 0.5 * float(mdiam),
+            marker_radius_m=0.007 if mdiam is None else 0.5 * float(mdiam), functional=fx,
         )  # fmt: skip
         centres, jc_move = chord_centres(model, sm, slabels, widths, mdiam)
         try:
@@ -477,7 +484,7 @@ def placement_determinacy(
     :data:`msk.personalise.placement.CHOICE_TOLERANCE_M` (a cost change the choice itself
     does not tell from a tie) — ``summary.json`` ``model.placement_determinacy`` (its quality
     flag: :func:`msk.quality.model_flags`); why not when the frames cannot be fitted."""
-    from msk.personalise.determinacy import placement_profile
+    from msk.personalise.determinacy import pelvis_determinacy, placement_profile
 
     x, t, labels = choice_frames(task, built)
     w = dict(weights)
@@ -492,7 +499,9 @@ def placement_determinacy(
 
     free = [*dict(mp.get("moved", {})), *dict(mp.get("placed", {}))]
     try:
-        return placement_profile(model, fit, free, observed, tolerance_m=CHOICE_TOLERANCE_M)
+        profile = placement_profile(model, fit, free, observed, tolerance_m=CHOICE_TOLERANCE_M)
+        # the pelvis first: the root segment its fixed markers must pose
+        return dataclasses.replace(profile, pelvis=pelvis_determinacy(model, free, observed))
     except ModelError as exc:  # reported (and flagged), not a failed personalisation
         return str(exc)
 
@@ -526,7 +535,12 @@ def _placement_rms(info: Mapping[str, Any]) -> float:
 
 
 def personalise(
-    model: Model, static: StaticTrial | None, task: Trial, options: PersonaliseOptions
+    model: Model,
+    static: StaticTrial | None,
+    task: Trial,
+    options: PersonaliseOptions,
+    *,
+    hip_trial: Trial | None = None,
 ) -> Personalisation:
     """The subject's model from the generic ``model``: scaled and its markers placed from the
     ``static`` trial (markers in the model frame,
@@ -549,10 +563,16 @@ def personalise(
     """
     from msk.personalise.coordinates import held_foot_coordinates, knee_flexion_to_physiological
     from msk.personalise.task_markers import swap_back
-    from msk.personalise.virtual_markers import with_virtual_sacrum
+    from msk.personalise.virtual_markers import with_virtual_markers, with_virtual_sacrum
 
     opts = options
     trial, swapped = swap_back(task)
+    # the lab's virtual markers, in the task and the static alike
+    # (msk.personalise.virtual_markers)
+    virtual = dict(opts.markers.virtual)
+    trial, virtual_notes = with_virtual_markers(trial, virtual)
+    if static is not None:
+        static, _ = with_virtual_markers(static, virtual)
     sacrum = None
     if static is None:
         # no static: the PSIS midpoint stands for a missing sacral marker
@@ -566,7 +586,7 @@ def personalise(
     ) -> Candidate:
         return scale_and_place(
             model, static, trial, opts, functional=functional, continue_from=continue_from,
-            workspace=workspace,
+            workspace=workspace, hip_trial=hip_trial,
         )  # fmt: skip
 
     built = again()
@@ -630,8 +650,8 @@ def personalise(
         built.info["leg_split"] = {side: sp.summary() for side, sp in split.items()}
     if swapped:
         built.info["marker_set"]["swapped_back"] = swapped
-    if sacrum is not None:
-        built.info["virtual_markers"] = [sacrum]
+    if sacrum is not None or virtual_notes:
+        built.info["virtual_markers"] = [*virtual_notes, *([sacrum] if sacrum else [])]
     # after scaling and placement (whose passes keep the generic bounds): the task's IK and
     # every later stage
     final, widened = knee_flexion_to_physiological(built.model)

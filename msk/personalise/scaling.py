@@ -70,6 +70,7 @@ __all__ = [
     "MODEL_HEIGHT_M",
     "SCALING_METHODS",
     "SEGMENT_MEASUREMENTS",
+    "STATIC_POSE_COORDINATES",
     "Measurement",
     "ScaleSetup",
     "ScalingReport",
@@ -524,6 +525,11 @@ def _girdle_moved(model: Model, labels: Sequence[str], move: Sequence[str]) -> t
     return tuple(move) + tuple(m for m in girdle if m not in move)
 
 
+#: the coordinates of a static's standing pose kept in ``marker_placement.static_pose_deg``
+#: (gait2392 / Rajagopal names): the pelvis' tilt and list, the hips' flexion
+STATIC_POSE_COORDINATES = ("pelvis_tilt", "pelvis_list", "hip_flexion_r", "hip_flexion_l")
+
+
 def place_markers(
     model: Model,
     static_markers: np.ndarray,
@@ -589,8 +595,9 @@ def place_markers(
         relocate: model markers that pin θ̄ and are then moved to their static positions.
 
     Returns:
-        The model with the markers added, and ``{"static_marker_rms_m", "placed",
-        "not_markers", "too_far", "moved", "relocated"}`` (placed: marker → body;
+        The model with the markers added, and ``{"static_marker_rms_m", "static_pose_deg",
+        "placed", "not_markers", "too_far", "moved", "relocated"}`` (static_pose_deg: θ̄'s
+        :data:`STATIC_POSE_COORDINATES`, deg; placed: marker → body;
         not_markers: the labels left out as not measured markers; too_far: marker → [nearest
         body, distance in m] of the markers left out by ``max_distance_m``; moved, relocated:
         marker → displacement in m).
@@ -686,8 +693,16 @@ def place_markers(
         local = data.oMf[model.body_frame[body]].actInv(mean[i])
         added.append(Marker(lab, body, np.asarray(local, dtype=float)))
         placed[lab] = body
+    names = model.coordinate_names
     info = {
         "static_marker_rms_m": float(np.nanmean(kin.marker_rms[ok])),
+        # the standing pose the placement read the static in (its plausibility gates:
+        # msk.quality.model_flags)
+        "static_pose_deg": {
+            c: float(np.degrees(theta[names.index(c)]))
+            for c in STATIC_POSE_COORDINATES
+            if c in names
+        },
         "placed": placed,
         "not_markers": not_markers,
         "too_far": too_far,

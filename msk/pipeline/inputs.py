@@ -173,7 +173,7 @@ def session_inputs(cfg: SessionConfig) -> SessionInputs:
         files["grf"] = task.grf
     if task.external_loads is not None:
         files["external_loads"] = task.external_loads
-    for tc in (*mass_trials, *mvc, *fes_trials):
+    for tc in (*mass_trials, *mvc, *fes_trials, *cfg.trials_with_role("functional")[:1]):
         files[f"{tc.role}:{tc.name}"] = tc.file
     src = model_source(cfg)
     assert cfg.model is not None  # model_source raised without a [model] table
@@ -209,6 +209,7 @@ def plain_settings(cfg: SessionConfig) -> dict[str, Any]:
             "rename": dict(cfg.marker_rename),
             "weights": dict(cfg.marker_weights),
             "move": list(cfg.marker_move),
+            "virtual": dict(cfg.marker_virtual),
         },
         "emg": plain(cfg.emg),
         "filters": plain(cfg.filters),

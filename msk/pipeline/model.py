@@ -51,6 +51,7 @@ def settings(inputs: SessionInputs) -> dict[str, object]:
         "model": inputs.hashes["model"],
         "model_markers": inputs.hashes.get("model_markers"),
         "static": inputs.hashes.get("static"),
+        "functional": sorted(v for k, v in inputs.hashes.items() if k.startswith("functional:")),
         "scale": mc.scale,
         "knee": mc.knee,
         "knee_alignment": (mc.knee_alignment, mc.knee_varus_deg, mc.knee_medial_shift_m),
@@ -58,6 +59,7 @@ def settings(inputs: SessionInputs) -> dict[str, object]:
         "height": cfg.subject.height_m,
         "rename": dict(cfg.marker_rename),
         "move": list(cfg.marker_move),
+        "virtual": dict(cfg.marker_virtual),
         # also read by the stage (the key is complete: its result is kept in the cache): the
         # weights (placement without a static; their names checked), the side (knee alignment
         # from markers), the model file's path (summary.json model.source)
@@ -81,7 +83,8 @@ def options(inputs: SessionInputs) -> PersonaliseOptions:
             source=source, varus_deg=mc.knee_varus_deg, medial_shift_m=mc.knee_medial_shift_m
         ),
         markers=MarkerOptions(
-            rename=cfg.marker_rename, weights=cfg.marker_weights, move=cfg.marker_move
+            rename=cfg.marker_rename, weights=cfg.marker_weights, move=cfg.marker_move,
+            virtual=cfg.marker_virtual,
         ),
         source=str(inputs.model_source), origin=str(cfg.path),
     )  # fmt: skip
@@ -94,8 +97,18 @@ def run(inputs: SessionInputs, read: ReadResult) -> Personalisation:
     assert mc is not None and inputs.model_source is not None  # a gait stage
     model = load_model_file(inputs.model_source, mc.markers)
     up = -np.asarray(model.gravity, dtype=float)
-    static = None if inputs.static is None else read_static_trial(inputs.static.file, up)
-    return personalise(model, static, read.trial, options(inputs))
+    static = (
+        None
+        if inputs.static is None
+        else read_static_trial(inputs.static.file, up, model=model, rename=inputs.cfg.marker_rename)
+    )
+    functional = None
+    trials = inputs.cfg.trials_with_role("functional")
+    if static is not None and trials:  # the hip centres' functional trial (its first)
+        from msk.io import read_trial, to_model_frame
+
+        functional = to_model_frame(read_trial(trials[0].file), up=up, forward=None)
+    return personalise(model, static, read.trial, options(inputs), hip_trial=functional)
 
 
 def without_markers(model: Personalisation) -> Personalisation:

@@ -287,3 +287,33 @@ def test_suggest_channels_reads_the_muscle_and_side_of_common_emg_labels():
     }
     assert suggest_channels(["vasmed"], muscles, side="l") == {"vasmed": ("vas_med_l", False)}
     assert suggest_channels(["rf", "RF_R"], ["rect_fem_r"]) == {"rf": ("rect_fem_r", False)}
+
+
+def test_a_channel_bursting_once_per_stride_is_not_flat():
+    """A muscle bursting once per 1.1 s stride (a 0.15 s burst, 20 % over the noise floor:
+    99th/10th percentile ratio < 1.6, a few LSB) is kept; stationary noise of the same level
+    stays flat; the figures say why."""
+    rng = np.random.default_rng(11)
+    t = np.arange(int(6.0 * RATE)) / RATE
+    floor = 0.002 * _noise(t.size, rng)
+    burst = 1.0 + 0.6 * np.exp(-((((t % 1.1) - 0.4) / 0.07) ** 2))
+    bursting = _quantise(floor * burst)
+    noise = _quantise(0.002 * _noise(t.size, rng))
+    good = _quantise(_truth(t) * _noise(t.size, rng) * 0.3)
+    x = np.column_stack([bursting, noise, good])
+    plain = channel_quality(x, rate_hz=RATE, labels=["burst", "noise", "good"],
+                            flat_cycle_correlation=np.inf)  # fmt: skip
+    assert plain.flat.tolist() == [True, True, False]  # flat by modulation or LSB alone
+    q = channel_quality(x, rate_hz=RATE, labels=["burst", "noise", "good"])
+    assert q.flat.tolist() == [False, True, False]
+    assert q.cycle_correlation[0] >= 0.6 > q.cycle_correlation[1]
+    assert q.cycle_period_s[0] == pytest.approx(1.1, abs=0.03)
+    assert q.cycle_period_s[2] == pytest.approx(1.0, abs=0.03)
+    assert any("'noise' is flat" in s and "autocorrelation" in s for s in q.summary())
+
+
+def test_a_record_shorter_than_two_strides_has_no_cycle_figure():
+    rng = np.random.default_rng(12)
+    x = _quantise(0.002 * _noise(int(0.9 * RATE), rng))
+    q = channel_quality(x[:, None], rate_hz=RATE, labels=["a"])
+    assert np.isnan(q.cycle_correlation[0]) and q.flat[0]

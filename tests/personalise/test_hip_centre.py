@@ -194,3 +194,76 @@ def test_davis_reproduces_plug_in_gaits_hip_centre(real_dir: Path) -> None:
         pig = mean(f"{side}FEP")
         assert np.linalg.norm(davis[side.lower()] - pig) < 0.001
         assert 0.015 < np.linalg.norm(harr[side.lower()] - pig) < 0.025
+
+
+def _functional_trial(model, means: dict, hips: dict, *, sweep_deg: float, noise_m: float,
+                      seed: int = 4) -> tuple[np.ndarray, list[str], dict]:  # fmt: skip
+    """A functional hip trial of a known subject: the static's pelvis markers (``means``)
+    carried by a pelvis that turns (±10°) and walks, each thigh's markers (a wand 0.15 m and a
+    knee marker 0.40 m below its hip centre ``hips[side]``, lateral) swung about that centre
+    in a star/circumduction of ``sweep_deg`` amplitude; ``noise_m`` Gaussian noise. Returns
+    the markers, labels and the thigh markers' static positions."""
+    rng = np.random.default_rng(seed)
+    n = 300
+    t = np.linspace(0.0, 2 * np.pi, n)
+    thigh_static = {}
+    for s, sign in (("r", 1.0), ("l", -1.0)):
+        side = s.upper()
+        thigh_static[f"{side}THI"] = hips[s] + [0.02, -0.15, sign * 0.06]
+        thigh_static[f"{side}KNE"] = hips[s] + [0.0, -0.40, sign * 0.05]
+    static = {**means, **thigh_static}
+    labels = list(static)
+    x = np.empty((n, len(labels), 3))
+    a = np.radians(sweep_deg)
+    for k in range(n):
+        pel = _axis_angle([0.0, 1.0, 0.0], np.radians(10.0) * np.sin(t[k])) @ _axis_angle(
+            [1.0, 0.0, 0.0], np.radians(5.0) * np.sin(2 * t[k]))  # fmt: skip
+        org = np.array([0.2 * t[k], 0.0, 0.0])
+        for s in "rl":
+            # the thigh's rotation in the pelvis: flexion/abduction in a circumduction
+            th = _axis_angle([0.0, 0.0, 1.0], a * np.sin(t[k] + (s == "l"))) @ _axis_angle(
+                [1.0, 0.0, 0.0], 0.6 * a * np.cos(t[k] + (s == "l")))  # fmt: skip
+            for lab in (f"{s.upper()}THI", f"{s.upper()}KNE"):
+                local = hips[s] + th @ (static[lab] - hips[s])
+                x[k, labels.index(lab)] = pel @ local + org
+        for lab in means:
+            x[k, labels.index(lab)] = pel @ static[lab] + org
+    return x + rng.normal(0.0, noise_m, x.shape), labels, static
+
+
+def _axis_angle(axis, angle: float) -> np.ndarray:
+    k = np.asarray(axis, dtype=float)
+    kx = np.array([[0.0, -k[2], k[1]], [k[2], 0.0, -k[0]], [-k[1], k[0], 0.0]])
+    return np.eye(3) + np.sin(angle) * kx + (1.0 - np.cos(angle)) * kx @ kx
+
+
+def test_functional_hip_centres_recover_a_known_centre_and_place_the_model() -> None:
+    """A functional trial (hips swept ±30°, 1 mm noise, two markers per thigh as Plug-in Gait
+    has): the sphere fit recovers both known hip centres within 5 mm; place_hip_centres
+    chooses it over the regression requested (method functional), and the placed model's hips
+    sit on it (to half the model-to-subject hip-width difference, medio-laterally). A trial
+    sweeping 8° is refused: the regression is used, the summary says why."""
+    from msk.personalise.hip_centre import functional_hip_centres
+
+    model = load_model(ROOT / "msk" / "data" / "models" / "gait2392.toml")
+    means = _static_of(model, np.eye(3), np.array([0.1, 0.9, 0.0]), np.zeros(3))
+    lm = PelvisLandmarks(means["R.ASIS"], means["L.ASIS"], 0.5 * (means["RPSI"] + means["LPSI"]))
+    truth = {s: c + np.array([0.012, -0.008, 0.0]) for s, c in regression_hip_centres(lm).items()}
+    x, labels, static = _functional_trial(model, means, truth, sweep_deg=30.0, noise_m=0.001)
+    centres, info = functional_hip_centres(static, x, labels)
+    for s in "rl":
+        assert np.linalg.norm(centres[s] - truth[s]) < 0.005, (s, centres[s] - truth[s])
+        assert info[s]["fitted"] and info[s]["sweep_deg"] > 40.0
+        assert info[s]["residual_rms_m"] < 0.003
+    st = np.array([list(static.values())])
+    placed, pinfo = place_hip_centres(model, st, list(static), method="harrington",
+                                      functional=(x, labels))  # fmt: skip
+    assert pinfo["method"] == "functional" and pinfo["requested"] == "harrington"
+    hips = static_hip_centres(placed, means)
+    half = abs(pinfo["width_residual_m"]) / 2
+    for s in "rl":
+        assert np.linalg.norm(hips[s] - centres[s]) <= half + 1e-6
+    small, _, _ = _functional_trial(model, means, truth, sweep_deg=8.0, noise_m=0.001)
+    _, refused = place_hip_centres(model, st, list(static), method="harrington",
+                                   functional=(small, labels))  # fmt: skip
+    assert refused["method"] == "harrington" and "swept" in refused["functional_refused"]

@@ -179,3 +179,34 @@ def test_a_static_too_short_to_judge_is_used_whole() -> None:
     assert one.whole and one.n_frames == 1
     with pytest.raises(StaticTrialError):
         still_window(x[:0], t[:0])
+
+
+def test_arm_markers_moving_do_not_refuse_a_static_the_model_can_use(tmp_path) -> None:
+    """A subject standing still with the arms waving (1 Hz, 0.3 m: ≥ 0.6 m/s at the wrists):
+    on all markers the static has no still window; on the markers gait2392 uses (no arm
+    segment) it is still throughout, and the arm markers are listed as not judged."""
+    from pathlib import Path
+
+    from msk.io.opensim_files import write_trc
+    from msk.model.files import load_model
+    from msk.personalise.static_trial import judged_markers, read_static_trial
+
+    legs = ["RASI", "LASI", "RPSI", "LPSI", "RTHI", "LTHI", "RKNE", "LKNE", "RTIB", "LTIB",
+            "RANK", "LANK", "RHEE", "LHEE", "RTOE", "LTOE"]  # fmt: skip
+    arms = ["RELB", "LELB", "RWRA", "LWRA", "RWRB", "LWRB", "RFIN", "LFIN", "RUPA", "LUPA",
+            "RFRA", "LFRA"]  # fmt: skip
+    x, t = _standing(3.0, seed=6)
+    x = x[:, : len(legs) + len(arms)]
+    x[:, len(legs) :, 0] += (0.3 * np.sin(2 * np.pi * t))[:, None]
+    labels = legs + arms
+    with pytest.raises(StaticTrialError):
+        still_window(x, t)
+    model = load_model(Path(__file__).resolve().parents[2] / "msk/data/models/gait2392.toml")
+    judged = judged_markers(labels, model)
+    assert set(judged) == set(legs)
+    path = write_trc(tmp_path / "static.trc", time=t, markers=x, labels=labels)
+    static = read_static_trial(path, np.array([0.0, 1.0, 0.0]), model=model)
+    assert static.window.whole
+    assert set(static.not_judged) == set(arms)
+    with pytest.raises(StaticTrialError, match=r"static\.trc"):
+        read_static_trial(path, np.array([0.0, 1.0, 0.0]))  # every marker judged

@@ -90,3 +90,65 @@ def test_a_walk_without_its_static_keeps_the_pelvis_tilt_of_the_static(
             (v,) = r["model"].info["virtual_markers"]
             assert v["marker"] == "V.Sacral" and v["from"] == ["RPSI", "LPSI"]
     assert abs(tilt[False] - tilt[True]) < 4.0, tilt
+
+
+def test_configured_virtual_markers_mean_and_offset() -> None:
+    """``mean(A, B)`` is the midpoint (NaN where a marker is missing, exact zeros included);
+    ``offset(O, X, P, dx, dy, dz)`` the point at (dx, dy, dz) in the frame of O, X, P: known
+    on a rotated, translated marker triad."""
+    from msk.personalise.virtual_markers import parse_virtual, with_virtual_markers
+
+    rng = np.random.default_rng(1)
+    n = 6
+    o = rng.normal(size=(n, 3))
+    rot = [np.linalg.qr(rng.normal(size=(3, 3)))[0] for _ in range(n)]
+    rot = [r * np.sign(np.linalg.det(r)) for r in rot]
+    x_ax = np.array([r[:, 0] for r in rot])
+    y_ax = np.array([r[:, 1] for r in rot])
+    z_ax = np.array([r[:, 2] for r in rot])
+    a = o + 0.2 * x_ax
+    b = o + 0.1 * x_ax + 0.15 * y_ax  # in the x-y plane: z normal to it
+    x = np.stack([o, a, b], axis=1)
+    x[3, 1] = 0.0  # a gap in A
+    tr = _Trial(x, ("O", "A", "B"))
+    out, notes = with_virtual_markers(
+        tr, {"MID": "mean(O, A)", "PT": "offset(O, A, B, 0.01, 0.02, -0.03)"}
+    )
+    assert out.marker_labels == ("O", "A", "B", "MID", "PT")
+    mid, pt = out.markers[:, 3], out.markers[:, 4]
+    ok = [0, 1, 2, 4, 5]
+    assert np.allclose(mid[ok], 0.5 * (o[ok] + a[ok])) and np.isnan(mid[3]).all()
+    want = o + 0.01 * x_ax + 0.02 * y_ax - 0.03 * z_ax
+    assert np.allclose(pt[ok], want[ok], atol=1e-12) and np.isnan(pt[3]).all()
+    assert notes[0]["from"] == ["O", "A"] and notes[1]["frames_missing"] == 1
+    # an existing label is replaced, not duplicated
+    again, _ = with_virtual_markers(out, {"MID": "mean(A, B)"})
+    assert again.marker_labels == out.marker_labels
+    from msk.exceptions import ConfigError, MissingDataError
+
+    for bad in ("midpoint(A, B)", "mean(A)", "mean(A, A)", "offset(O, A, B, 1, 2)",
+                "offset(O, A, B, x, 0, 0)", "offset(O, O, B, 0, 0, 0)"):  # fmt: skip
+        with pytest.raises(ConfigError, match=r"markers\.virtual\.V"):
+            parse_virtual("V", bad)
+    with pytest.raises(MissingDataError, match="no marker Q"):
+        with_virtual_markers(tr, {"V": "mean(O, Q)"})
+
+
+def test_a_configuration_names_its_virtual_markers(tmp_path: Path) -> None:
+    from msk.config import load_config
+    from msk.exceptions import ConfigError
+
+    base = (
+        '[subject]\nname = "s"\nmass_kg = 70.0\nheight_m = 1.7\n'
+        '[model]\nsource = "gait2392"\n'
+        '[[trials]]\nname = "w"\nfile = "w.c3d"\nrole = "task"\n'
+    )
+    p = tmp_path / "c.toml"
+    p.write_text(base + '[markers]\nvirtual = { "V.Sacral" = "mean(LPSI, RPSI)" }\n')
+    (tmp_path / "w.c3d").write_bytes(b"")
+    cfg = load_config(p)
+    assert dict(cfg.marker_virtual) == {"V.Sacral": "mean(LPSI, RPSI)"}
+    assert dict(cfg.markers.virtual) == {"V.Sacral": "mean(LPSI, RPSI)"}
+    p.write_text(base + '[markers]\nvirtual = { "V.Sacral" = "middle(LPSI, RPSI)" }\n')
+    with pytest.raises(ConfigError, match=r"markers\.virtual\.V\.Sacral"):
+        load_config(p)
