@@ -852,6 +852,25 @@ def _plates(
         origin_all.shape[1] if origin_all.ndim == 2 else 0,
         chan.shape[1],
     )
+    undeclared = [
+        p
+        for p in range(max(used, 0), described)
+        if chan.shape[0] and (chan[:, p] >= 1).all() and (chan[:, p] <= n_ch).all()
+    ]
+    if undeclared and used > 0 and flags is not None:
+        on = "; ".join(
+            ", ".join(analog_labels[int(i) - 1] for i in chan[:6, p]) for p in undeclared[:3]
+        )
+        flags.append(
+            _reader_flag(
+                "c3d_plates_not_declared",
+                len(undeclared),
+                used,
+                f"FORCE_PLATFORM:USED = {used} but TYPE, CORNERS, ORIGIN and CHANNEL describe "
+                f"{described} plates: force platform(s) "
+                f"{', '.join(str(p + 1) for p in undeclared)} on analog channels {on} not read",
+            )
+        )
     if used <= 0:
         found = [
             p
@@ -911,6 +930,13 @@ def _plates(
                             f"has {n_ch} analog channels: the plate is not read")
             )  # fmt: skip
             continue
+        twice = [int(i) for i in set(idx.tolist()) if int((idx == i).sum()) > 1]
+        if twice:
+            raise ForcePlateError(
+                f"{path}: force platform {p + 1} uses analog channel {twice[0] + 1} "
+                f"({analog_labels[twice[0]]!r}) for two of its components "
+                f"(FORCE_PLATFORM:CHANNEL {[int(i) + 1 for i in idx]})"
+            )
         for i in idx:
             if used_by.setdefault(int(i), p) != p:
                 raise ForcePlateError(

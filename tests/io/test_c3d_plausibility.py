@@ -265,3 +265,27 @@ def test_the_ghost_in_unipd_walking3(real_dir):
     (f,) = _flags(tr, "marker_teleport_samples")
     assert "RHF frames 252–253 (153 mm)" in f["message"]
     assert np.isnan(tr.marker("RHF")[251:253]).all()
+
+
+def test_plates_described_beyond_used_are_said(ps, tmp_path):
+    src, ref = ps
+    d = bytearray(src)
+    set_value(d, ("FORCE_PLATFORM", "USED"), 2)
+    tr = _read(_write(tmp_path, d))
+    assert [p.index for p in tr.plates] == [0, 1]
+    np.testing.assert_array_equal(tr.plates[1].force, ref.plates[1].force)
+    (f,) = _flags(tr, "c3d_plates_not_declared")
+    assert (
+        "USED = 2" in f["message"] and "force platform(s) 3 on analog channels Fx3" in f["message"]
+    )
+
+
+def test_a_channel_used_twice_by_one_plate_is_one_line(ps, tmp_path):
+    from msk.exceptions import ForcePlateError
+
+    src, _ = ps
+    d = bytearray(src)
+    set_value(d, ("FORCE_PLATFORM", "CHANNEL"), 2, index=2)  # plate 1's Fz reads Fy1
+    with pytest.raises(ForcePlateError, match=r"force platform 1 uses analog channel 2 \('Fy1'\) "
+                       "for two of its components"):  # fmt: skip
+        _read(_write(tmp_path, d))
