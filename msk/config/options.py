@@ -140,8 +140,8 @@ class ModelConfig:
     """``[model]``: the musculoskeletal model (optional when every trial has role = "fes")."""
 
     source: Path = opt(
-        "a shipped model by name (gait2392, gait2392_fourbar), an msk model file (.toml) or an "
-        "OpenSim model (.osim)",
+        "a shipped model by name (gait2392, gait2392_fourbar, rajagopal), an msk model file "
+        "(.toml) or an OpenSim model (.osim)",
         named=_shipped_model,
     )
     knee: str = opt(

@@ -533,7 +533,17 @@ def _flags(
                  f"{', '.join(repr(c) for c in absent)} of the configuration's [emg] channels: "
                  f"{', '.join(muscles)} tracked by no EMG in this trial"}
             )  # fmt: skip
-    for w in (model.trial.metadata or {}).get("warnings", ()):
+    meta = model.trial.metadata or {}
+    typed = tuple(meta.get("flags", ()))  # the reader's typed flags keep their quantity
+    for f in typed:
+        flags.append(
+            {"trial": task.name, "quantity": str(f["quantity"]), "value": float(f["value"]),
+             "threshold": float(f["threshold"]), "message": f"{task.file.name}: {f['message']}"}
+        )  # fmt: skip
+    said = {f["message"] for f in typed}
+    for w in meta.get("warnings", ()):
+        if w in said:
+            continue
         flags.append(
             {"trial": task.name, "quantity": "input_file", "value": 1.0,
              "threshold": 0.0, "message": f"{task.file.name}: {w}"}
