@@ -56,6 +56,7 @@ __all__ = [
     "STATUS_NOT_CONVERGED",
     "STATUS_OK",
     "STATUS_TOO_FEW_MARKERS",
+    "FrameIK",
     "Kinematics",
     "filtered_derivatives",
     "ik_tasks_from_setup",
@@ -731,6 +732,90 @@ def solve_kinematics(
         solve_time_s=solve_time,
         marker_rms_all=rms_all,
     )
+
+
+
+class FrameIK:
+    """Inverse kinematics of one frame at a time, warm-started from the caller's θ (a stream:
+    :mod:`msk.live`). The problem of :func:`solve_kinematics` — E(θ) = Σ_m w_m ‖p_m − x_m‖²
+    (+ coordinate tasks) by projected Levenberg–Marquardt on r = √w (p − x) with the world
+    joint Jacobians of Pinocchio (module docstring) — set up once for a fixed marker list:
+    its marker problem, weights, bounds and task rows are built here, not per frame.
+
+    ``solve(theta, x)`` starts from ``theta`` (the previous frame's solution) and runs at most
+    ``max_iterations`` steps; from the same start it returns the θ :func:`solve_kinematics`
+    returns for that frame (the same function, :func:`_levenberg_marquardt`).
+
+    Args:
+        model: the model; ``labels`` are the columns of the frames given to :meth:`solve`
+            (model marker names; labels the model does not have are ignored).
+        weights, coordinate_tasks, max_iterations, tolerance, rel_tolerance, min_markers: as
+            :func:`solve_kinematics`'s.
+    """
+
+    def __init__(
+        self,
+        model: Model,
+        labels: Sequence[str],
+        *,
+        weights: Mapping[str, float] | None = None,
+        coordinate_tasks: Mapping[str, tuple[float, float]] | None = None,
+        max_iterations: int = 50,
+        tolerance: float = 1e-6,
+        rel_tolerance: float = 1e-8,
+        min_markers: int = 3,
+    ) -> None:
+        labels = tuple(labels)
+        w_map = dict(weights or {})
+        self.used = tuple(
+            mk.name for mk in model.markers if mk.name in labels and w_map.get(mk.name, 1.0) > 0
+        )
+        if len(self.used) < min_markers:
+            raise KinematicsError(
+                f"only {len(self.used)} model markers among the stream's labels; need "
+                f"{min_markers}"
+            )
+        self.columns = np.array([labels.index(n) for n in self.used], dtype=np.intp)
+        self.problem = _MarkerProblem(model, self.used)
+        self.sw = np.sqrt(np.array([w_map.get(n, 1.0) for n in self.used]))
+        self.lo, self.hi = model.coordinate_bounds()
+        locked = np.array([c.locked for c in model.coordinates], dtype=bool)
+        self.free = ~locked
+        self.ctask = None
+        if coordinate_tasks:
+            idx = np.array([model.coordinate_index(c) for c in coordinate_tasks], dtype=int)
+            val = np.array([float(v[0]) for v in coordinate_tasks.values()])
+            cw = np.sqrt(np.array([float(v[1]) for v in coordinate_tasks.values()]))
+            rows = np.zeros((idx.size, model.n_coords))
+            rows[np.arange(idx.size), idx] = cw
+            self.ctask = (idx, val, cw, rows)
+        self.min_markers = int(min_markers)
+        self.max_iterations = int(max_iterations)
+        self.tolerance, self.rel_tolerance = float(tolerance), float(rel_tolerance)
+        self._x = np.empty((len(self.used), 3))
+        self._d = np.empty(len(self.used))
+        self._diff = np.empty((len(self.used), 3))
+
+    def solve(self, theta: Array, markers: Array) -> tuple[Array, int, bool, float]:
+        """θ of one frame from the start ``theta`` and the frame's ``markers`` (M, 3) in the
+        columns of ``labels``; returns θ, the iterations, whether it converged and the RMS
+        marker distance (m) over the markers present. Fewer than ``min_markers`` present:
+        ``theta`` unchanged, 0 iterations, not converged, NaN."""
+        x = self._x
+        np.take(markers, self.columns, axis=0, out=x)
+        present = np.isfinite(x).all(axis=1)
+        if int(present.sum()) < self.min_markers:
+            return theta, 0, False, float("nan")
+        start = np.minimum(np.maximum(theta, self.lo), self.hi)
+        th, k, ok, p = _levenberg_marquardt(
+            self.problem, start, x, self.sw, present, self.free, self.lo, self.hi,
+            self.max_iterations, self.tolerance, self.ctask, self.rel_tolerance,
+        )  # fmt: skip
+        d, diff = self._d, self._diff
+        np.subtract(p, x, out=diff)
+        np.einsum("ij,ij->i", diff, diff, out=d)
+        rms = float(np.sqrt(d[present].mean()))
+        return th, k, ok, rms
 
 
 def _levenberg_marquardt(
