@@ -20,6 +20,8 @@ def _args(p: argparse.ArgumentParser) -> None:
     src = p.add_mutually_exclusive_group(required=True)
     src.add_argument("--replay", type=Path, metavar="TRIAL", help="a .c3d/.trc trial to replay")
     src.add_argument("--lsl-in", metavar="NAME", help="an LSL stream (msk.live.sources layout)")
+    p.add_argument("--grf", type=Path, metavar="FILE", help="the replayed trial's GRF .mot/.sto")
+    p.add_argument("--external-loads", type=Path, metavar="XML", help="the GRF's ExternalLoads")
     p.add_argument("--out", type=Path, metavar="DIR", help="write the streamed tables here")
     p.add_argument("--realtime", action="store_true", help="replay at the recorded rate")
     p.add_argument("--lsl-out", metavar="NAME", help="also publish the results on an LSL outlet")
@@ -48,7 +50,9 @@ def _live(args: argparse.Namespace) -> int:
 
     source: ReplaySource | LslSource
     if args.replay is not None:
-        source = ReplaySource(args.replay, realtime=args.realtime)
+        source = ReplaySource(
+            args.replay, grf=args.grf, external_loads=args.external_loads, realtime=args.realtime
+        )
         rate = source.rate_hz
     else:
         source = LslSource(args.lsl_in)

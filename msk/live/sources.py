@@ -84,18 +84,21 @@ class ReplaySource:
     :class:`LiveInput` frames, lab frame, at the marker rate: markers (exact zeros, a C3D's gaps,
     as NaN), each plate's wrench at the frame's time (:func:`msk.dynamics.loads.sample_plate`:
     the sign, the contact threshold and the resampling of the offline run, no low-pass), the
-    analog ``emg_channels`` sampled likewise. ``realtime``: frames are given at the recorded
+    analog ``emg_channels`` sampled likewise. ``grf`` (with its ExternalLoads ``.xml``): the
+    plates of an OpenSim GRF file instead (a ``.trc``'s, :func:`msk.dynamics.loads.plates_from_grf_file`). ``realtime``: frames are given at the recorded
     rate (the iterator sleeps until each frame's time), else as fast as they are read."""
 
     def __init__(
         self,
         path: str | Path,
         *,
+        grf: str | Path | None = None,
+        external_loads: str | Path | None = None,
         emg_channels: Sequence[str] = (),
         realtime: bool = False,
         threshold_n: float = 20.0,
     ) -> None:
-        from msk.dynamics.loads import plates_from_trial, sample_plate
+        from msk.dynamics.loads import plates_from_grf_file, plates_from_trial, sample_plate
         from msk.io import read_trial
 
         self.path = Path(path)
@@ -109,7 +112,11 @@ class ReplaySource:
         self.markers = x
         self.labels = tuple(trial.marker_labels)
         up = np.asarray(trial.up, dtype=float)
-        plates = plates_from_trial(trial) if trial.plates else ()
+        plates: tuple[Any, ...] = ()
+        if grf is not None:
+            plates = plates_from_grf_file(grf, external_loads)
+        elif trial.plates:
+            plates = plates_from_trial(trial)
         sampled = [sample_plate(p, self.time, up, threshold_n=threshold_n) for p in plates]
         self.plate_names = tuple(p.name for p in plates)
         self.plate_force = np.stack([s.force for s in sampled], axis=1) if sampled else None
