@@ -18,12 +18,14 @@ The chain of ``msk run`` made causal, each stage the library's own computation o
 4. inverse dynamics (:class:`msk.dynamics.inverse.FrameInverseDynamics`);
 5. muscle–tendon lengths, velocities, moment arms and the knee's unit wrenches in one geometry
    pass (:meth:`msk.muscles.geometry.GeometryPlan.evaluate`);
-6. static optimisation min Σ w_i a_i^p + Σ r_j² with the rigid-tendon force curves
-   (:func:`msk.optimization.solve_static_optimization_batch`, DAQP warm-started from the previous
-   frame's working set, :class:`msk.optimization.WarmStart`);
+6. static optimisation min Σ w_i a_i² + Σ r_j² with the rigid-tendon force curves
+   (:class:`msk.optimization.FrameStaticOptimization`, the QP of
+   :func:`msk.optimization.solve_static_optimization_batch` with DAQP warm-started from the
+   previous frame's working set; an exponent p > 2 runs the batch's sequential QP on the frame);
 7. the tibiofemoral contact force from the tibia free-body diagram
-   (:func:`msk.contact.knee.knee_contact_force`) and its medial/lateral split
-   (:func:`msk.contact.knee.split_medial_lateral`, Winby et al. 2009).
+   (:class:`msk.contact.knee.FrameKneeContact`: RNEA's knee wrench of step 4, the muscles'
+   pull, the plateau frame — :func:`msk.contact.knee.knee_contact_force` frame by frame) and
+   its medial/lateral split (two-point model, Winby et al. 2009).
 
 The set-up (:func:`live_model`) is done once; :func:`live_step` follows Pinocchio's
 ``algorithm(model, data, ...)`` style: :class:`LiveModel` holds what does not change, :class:`LiveData`
@@ -135,17 +137,6 @@ class LiveFrame:
 
 
 @dataclass(frozen=True)
-class _KinematicsFrame:
-    """The one-frame kinematics :func:`msk.contact.knee.knee_contact_force` reads."""
-
-    time: NDArray[np.float64]
-    q: NDArray[np.float64]
-    v: NDArray[np.float64]
-    a: NDArray[np.float64]
-    coordinate_names: tuple[str, ...]
-
-
-@dataclass(frozen=True)
 class LiveModel:
     """What a live session does not change from frame to frame (:func:`live_model`)."""
 
@@ -154,8 +145,9 @@ class LiveModel:
     labels: tuple[str, ...]
     rotation: NDArray[np.float64]
     options: LiveOptions
-    ik: Any
-    dynamics: Any
+    weights: Mapping[str, float]
+    held: Mapping[str, tuple[float, float]]
+    ik_markers: tuple[str, ...]
     plan: Any
     params: Any
     feet: tuple[str, ...]
@@ -176,8 +168,13 @@ class LiveModel:
 
 @dataclass
 class LiveData:
-    """The buffers and carried states of a live session (:func:`live_data`)."""
+    """The buffers and carried states of a live session (:func:`live_data`): the per-frame
+    solvers of each stage (their buffers, Pinocchio data and warm starts are this session's)."""
 
+    ik: Any
+    dynamics: Any
+    optimization: Any
+    contact: Any
     theta: NDArray[np.float64]
     pin_data: Any
     markers: NDArray[np.float64]
@@ -211,19 +208,15 @@ def live_model(
     (:func:`msk.contact.knee.plateau_geometry`, default from the model)."""
     import msk.optimization as o
     from msk.contact.knee import plateau_geometry
-    from msk.dynamics.inverse import FrameInverseDynamics, _root_info
+    from msk.dynamics.inverse import _root_info
     from msk.dynamics.loads import _default_feet
     from msk.kinematics.ik import FrameIK
     from msk.muscles.geometry import geometry_plan, muscle_parameters
 
     opt = options or LiveOptions()
     labels = tuple(labels)
-    ik = FrameIK(
-        model, labels, weights=weights, coordinate_tasks=dict(held or {}) or None,
-        max_iterations=opt.ik_iterations,
-    )  # fmt: skip
+    ik = FrameIK(model, labels, weights=weights, coordinate_tasks=dict(held or {}) or None)
     feet = _default_feet(model)
-    dyn = FrameInverseDynamics(model, feet)
     plan = geometry_plan(model)
     params = muscle_parameters(model)
     root = set(_root_info(model)[1])
@@ -248,7 +241,8 @@ def live_model(
     return LiveModel(
         model=model, rate_hz=float(rate_hz), labels=labels,
         rotation=np.eye(3) if rotation is None else np.asarray(rotation, dtype=float),
-        options=opt, ik=ik, dynamics=dyn, plan=plan, params=params, feet=feet,
+        options=opt, weights=dict(weights or {}), held=dict(held or {}), ik_markers=ik.used,
+        plan=plan, params=params, feet=feet,
         foot_joints=np.array([model.body_joint[f] for f in feet], dtype=np.intp), up=up,
         actuated=act, muscle_names=tuple(params.names), coordinate_names=names,
         actuated_names=tuple(names[i] for i in act), activation_weights=w, plateau=plateau,
@@ -260,12 +254,28 @@ def live_data(lm: LiveModel, start: NDArray[np.float64] | None = None) -> LiveDa
     """Fresh buffers and states for ``lm``; IK starts from ``start`` (default: the model's
     default pose)."""
     import msk.optimization as o
+    from msk.contact.knee import FrameKneeContact
+    from msk.dynamics.inverse import FrameInverseDynamics
+    from msk.kinematics.ik import FrameIK
     from msk.signal import CausalLowpass
 
     n_c, n_f = lm.n_coords, len(lm.feet)
     opt = lm.options
     theta = lm.model.default_coordinates() if start is None else np.array(start, dtype=float)
+    knee = opt.knee_joint
     return LiveData(
+        ik=FrameIK(
+            lm.model, lm.labels, weights=lm.weights, coordinate_tasks=dict(lm.held) or None,
+            max_iterations=opt.ik_iterations,
+        ),
+        dynamics=FrameInverseDynamics(lm.model, lm.feet),
+        optimization=o.FrameStaticOptimization(
+            lm.muscle_names, lm.actuated_names, activation_weights=lm.activation_weights,
+            solver=opt.solver,
+        ) if opt.activation_exponent == 2.0 else None,
+        contact=None if knee is None else FrameKneeContact(
+            lm.model, knee, bodies=lm.feet, geometry=lm.plateau
+        ),
         theta=theta,
         pin_data=lm.model.pin_model.createData(),
         markers=np.empty((len(lm.labels), 3)),
@@ -317,7 +327,6 @@ def _assign_plates(lm: LiveModel, ld: LiveData, frame: LiveInput) -> None:
 def live_step(lm: LiveModel, ld: LiveData, frame: LiveInput) -> LiveFrame:
     """One frame through the chain (module docstring); ``ld`` carries the states."""
     import msk.optimization as o
-    from msk.contact.knee import knee_contact_force, split_medial_lateral
     from msk.muscles.geometry import jacobian_frames
     from msk.muscles.hill import rigid_tendon_state
 
@@ -326,7 +335,7 @@ def live_step(lm: LiveModel, ld: LiveData, frame: LiveInput) -> LiveFrame:
     t0 = clock()
     x = ld.markers
     np.matmul(frame.markers, lm.rotation.T, out=x)
-    theta, iters, converged, rms = lm.ik.solve(ld.theta, x)
+    theta, iters, converged, rms = ld.ik.solve(ld.theta, x)
     ld.theta = theta
     t1 = clock()
     stage[0] = t1 - t0
@@ -343,7 +352,7 @@ def live_step(lm: LiveModel, ld: LiveData, frame: LiveInput) -> LiveFrame:
     moment = filt.y[n_c + 3 * n_f :].reshape(n_f, 3)
     t2 = clock()
     stage[1] = t2 - t1
-    tau = lm.dynamics.torques(q, v, a, force, moment)
+    tau = ld.dynamics.torques(q, v, a, force, moment)
     t3 = clock()
     stage[2] = t3 - t2
     knee = lm.options.knee_joint
@@ -353,52 +362,40 @@ def live_step(lm: LiveModel, ld: LiveData, frame: LiveInput) -> LiveFrame:
     t4 = clock()
     stage[3] = t4 - t3
     state = rigid_tendon_state(lm.params, geo.lengths, geo.velocities)
-    fmax = state.max_active_force_along_tendon
+    fmax = state.max_active_force_along_tendon[0]
+    fa = np.where(fmax < 0, 0.0, fmax)
+    jac = jacobian_frames(geo.jacobian, np.zeros(1, dtype=np.intp), lm.actuated)[0]
     opt = lm.options
-    sol = o.solve_static_optimization_batch(
-        jacobian_frames(geo.jacobian, np.zeros(1, dtype=np.intp), lm.actuated),
-        tau[lm.actuated][None], f_active=np.where(fmax < 0, 0.0, fmax),
-        f_passive=state.passive_force_along_tendon, reserve_optimal_force=ld.reserve_optimal,
-        activation_weights=lm.activation_weights, activation_exponent=opt.activation_exponent,
-        solver=opt.solver, warm=ld.warm, compute_kkt=False, muscle_names=lm.muscle_names,
-        coordinate_names=lm.actuated_names, time=np.array([frame.time]),
-    )  # fmt: skip
-    forces = np.asarray(sol.forces[0], dtype=float)
+    if ld.optimization is not None:
+        forces, acts, status = ld.optimization.solve(
+            jac, tau[lm.actuated], fa, state.passive_force_along_tendon[0]
+        )
+    else:  # exponent > 2: the batch's sequential QP on this one frame
+        sol = o.solve_static_optimization_batch(
+            jac[None], tau[lm.actuated][None], f_active=fa[None],
+            f_passive=state.passive_force_along_tendon, reserve_optimal_force=ld.reserve_optimal,
+            activation_weights=lm.activation_weights, activation_exponent=opt.activation_exponent,
+            solver=opt.solver, warm=ld.warm, compute_kkt=False, muscle_names=lm.muscle_names,
+            coordinate_names=lm.actuated_names, time=np.array([frame.time]),
+        )  # fmt: skip
+        forces, acts, status = sol.forces[0], sol.activations[0], int(sol.status[0])
     t5 = clock()
     stage[4] = t5 - t4
     kf = np.full(3, np.nan)
     axial = medial = lateral = float("nan")
-    if knee is not None:
-        contact = knee_contact_force(
-            lm.model,
-            _KinematicsFrame(np.array([frame.time]), q[None], v[None], a[None],
-                             lm.coordinate_names),
-            _loads_frame(lm, frame.time, force, moment),
-            muscle_forces=forces[None], muscle_names=lm.muscle_names, joint=knee,
-            distal_wrenches=geo.distal_wrenches[knee],
-        )  # fmt: skip
-        ml = split_medial_lateral(contact, lm.plateau)
-        kf = np.asarray(contact.force[0], dtype=float)
-        axial, medial, lateral = -float(kf[1]), float(ml.medial[0]), float(ml.lateral[0])
+    if knee is not None and ld.contact is not None:
+        axial, medial, lateral = ld.contact.contact(
+            ld.dynamics.data, forces, geo.distal_wrenches[knee][0], force, moment
+        )
+        kf = ld.contact.force.copy()
     stage[5] = clock() - t5
     ld.frames += 1
     return LiveFrame(
         time=float(frame.time), q=q.copy(), v=v.copy(), a=a.copy(), torques=tau.copy(),
-        muscle_forces=forces, activations=np.asarray(sol.activations[0], dtype=float),
+        muscle_forces=np.array(forces, dtype=float), activations=np.array(acts, dtype=float),
         knee_force=kf, knee_axial=axial, knee_medial=medial, knee_lateral=lateral,
         marker_rms=rms, ik_iterations=int(iters), ik_converged=bool(converged),
-        qp_status=int(sol.status[0]), stage_s=stage, emg=np.asarray(frame.emg, dtype=float),
-    )  # fmt: skip
-
-
-def _loads_frame(
-    lm: LiveModel, t: float, force: NDArray[np.float64], moment: NDArray[np.float64]
-) -> Any:
-    from msk.dynamics.loads import ExternalLoads
-
-    return ExternalLoads(
-        time=np.array([t]), bodies=lm.feet, force=force[None], moment=moment[None],
-        point=np.full((1, len(lm.feet), 3), np.nan),
+        qp_status=int(status), stage_s=stage, emg=np.asarray(frame.emg, dtype=float),
     )  # fmt: skip
 
 

@@ -1,17 +1,14 @@
-"""The live chain frame by frame: each per-frame stage equal to its batch computation, and the
-whole chain recovering a synthetic truth (two legs, ten muscles a leg, two plates) after its
-stated lag."""
+"""The live chain frame by frame recovers a synthetic truth (two legs, ten muscles a leg, two
+plates) after its stated lag (each per-frame stage equal to its batch computation: the tests of
+FrameIK, FrameInverseDynamics, FrameStaticOptimization and FrameKneeContact)."""
 
 from __future__ import annotations
 
 import numpy as np
 import pytest
 
-from msk.datasets.models import two_leg_model
 from msk.datasets.trials import make_trial
-from msk.dynamics.inverse import FrameInverseDynamics, inverse_dynamics
-from msk.dynamics.loads import external_loads, sample_plate
-from msk.kinematics.ik import FrameIK, kinematics_from_coordinates, solve_kinematics
+from msk.dynamics.loads import sample_plate
 from msk.live import LiveInput, LiveOptions, LiveSession, live_model
 from tests.support.two_legs import muscled_two_legs
 
@@ -32,45 +29,6 @@ def _frames(tr):
         LiveInput(float(tr.time[k]), tr.markers[k], force[k], moment[k])
         for k in range(tr.time.size)
     ]
-
-
-def test_frame_ik_equals_the_batch_solve():
-    model = two_leg_model()
-    tr = make_trial(model, duration_s=0.3, rate_hz=100.0, noise_m=0.001, seed=1)
-    batch = solve_kinematics(model, tr.markers, tr.marker_labels, tr.time, cutoff_hz=None)
-    ik = FrameIK(model, tr.marker_labels)
-    for n in range(1, tr.time.size):
-        th, _, ok, rms = ik.solve(batch.q_raw[n - 1], tr.markers[n])
-        assert ok
-        np.testing.assert_allclose(th, batch.q_raw[n], atol=2e-6)
-        assert rms == pytest.approx(batch.marker_rms[n], rel=1e-4)
-    # and the truth, within the markers' noise
-    assert np.abs(th - tr.q[-1]).max() < np.radians(1.0)
-
-
-def test_frame_ik_without_enough_markers_keeps_the_start():
-    model = two_leg_model()
-    tr = make_trial(model, duration_s=0.1, rate_hz=100.0)
-    ik = FrameIK(model, tr.marker_labels)
-    start = model.default_coordinates()
-    th, k, ok, rms = ik.solve(start, np.full_like(tr.markers[0], np.nan))
-    assert th is start and k == 0 and not ok and np.isnan(rms)
-
-
-def test_frame_inverse_dynamics_equals_the_batch():
-    model = two_leg_model()
-    tr = make_trial(model, duration_s=0.5, rate_hz=100.0)
-    kin = kinematics_from_coordinates(tr.time, tr.q, model.coordinate_names, cutoff_hz=None)
-    kin = type(kin)(**{**kin.__dict__, "v": tr.v, "a": tr.a})
-    ext = external_loads(model, kin, tr.plates)
-    batch = inverse_dynamics(model, kin, ext)
-    fid = FrameInverseDynamics(model, ext.bodies)
-    for k in range(0, tr.time.size, 7):
-        tau = fid.torques(tr.q[k], tr.v[k], tr.a[k], ext.force[k], ext.moment[k])
-        np.testing.assert_allclose(tau, batch.tau[k], rtol=1e-10, atol=1e-9)
-    # the batch recovers the simulated torques: so does the frame
-    act = [i for i, c in enumerate(model.coordinate_names) if not c.startswith("pelvis")]
-    np.testing.assert_allclose(tau[act], tr.tau_true[k][act], atol=2.0)
 
 
 def test_live_session_recovers_the_truth_after_its_lag(synthetic):
