@@ -321,7 +321,10 @@ class FrameInverseDynamics:
     """
 
     def __init__(self, model: Model, bodies: Sequence[str] = ()) -> None:
+        from msk.kinematics.ik import _CouplingEvaluator
+
         self.model = model
+        self.coupling = _CouplingEvaluator(model)
         self.pm = model.pin_model
         self.data = self.pm.createData()
         self.bodies = tuple(bodies)
@@ -343,7 +346,11 @@ class FrameInverseDynamics:
         """τ_θ (n_coords,) of the frame (θ, θ̇, θ̈), with the wrenches ``force``, ``moment``
         (B, 3) on :attr:`bodies`. The returned array is this object's buffer, overwritten by the
         next call."""
-        q, v, a = self.model.coupling.embed(theta, theta_dot, theta_ddot)
+        cp = self.coupling
+        q = cp.q(theta)
+        g = cp.jacobian(theta)
+        v = g @ theta_dot
+        a = g @ theta_ddot + cp.bias(theta, theta_dot)
         pm, data = self.pm, self.data
         if self._loaded:
             pin.computeJointJacobians(pm, data, q)
@@ -356,7 +363,7 @@ class FrameInverseDynamics:
                 w[:3] += force[r]
                 w[3:] += moment[r]
             tau[support] -= data.J[:, support].T @ w
-        np.copyto(self.tau, self.model.coupling.project(theta, tau))
+        np.dot(g.T, tau, out=self.tau)
         return self.tau
 
 

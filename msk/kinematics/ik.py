@@ -257,21 +257,27 @@ def kinematics_from_coordinates(
     )
 
 
-def _scalar_function(f: object) -> tuple[object, object] | None:
-    """Fast scalar (value, first derivative) closures for the common coordinate functions."""
+def _scalar_function(f: object) -> tuple[object, object, object] | None:
+    """Fast scalar (value, first, second derivative) closures for the common coordinate
+    functions."""
     if isinstance(f, Linear):
         slope, intercept = float(f.slope), float(f.intercept)
-        return (lambda x: slope * x + intercept), (lambda x: slope)
+        return (lambda x: slope * x + intercept), (lambda x: slope), (lambda x: 0.0)
     if isinstance(f, Multiplier):
         inner = _scalar_function(f.function)
         if inner is None:
             return None
-        s, fi, di = float(f.scale), inner[0], inner[1]
-        return (lambda x: s * fi(x)), (lambda x: s * di(x))  # type: ignore[operator]
+        s, fi, di, ddi = float(f.scale), inner[0], inner[1], inner[2]
+        return (
+            (lambda x: s * fi(x)),  # type: ignore[operator]
+            (lambda x: s * di(x)),  # type: ignore[operator]
+            (lambda x: s * ddi(x)),  # type: ignore[operator]
+        )
     if isinstance(f, Polynomial):
         c = [float(x) for x in f.coefficients]
         n = len(c) - 1
         dc = [c[k] * (n - k) for k in range(n)]
+        ddc = [dc[k] * (n - 1 - k) for k in range(n - 1)]
 
         def horner(coef: list[float], x: float) -> float:
             out = 0.0
@@ -279,7 +285,7 @@ def _scalar_function(f: object) -> tuple[object, object] | None:
                 out = out * x + a
             return out
 
-        return (lambda x: horner(c, x)), (lambda x: horner(dc, x))
+        return (lambda x: horner(c, x)), (lambda x: horner(dc, x)), (lambda x: horner(ddc, x))
     if isinstance(f, SimmSpline):
         knots = [float(x) for x in f.x]
         ys = [float(y) for y in f.y]
@@ -304,7 +310,13 @@ def _scalar_function(f: object) -> tuple[object, object] | None:
             dx = x - knots[i]
             return b[i] + dx * (2 * c[i] + 3 * dx * d[i])
 
-        return val, der
+        def der2(x: float) -> float:
+            if x < knots[0] or x > knots[-1]:
+                return 0.0
+            i = min(max(bisect_right(knots, x) - 1, 0), last)
+            return 2 * c[i] + 6 * (x - knots[i]) * d[i]
+
+        return val, der, der2
     return None
 
 
@@ -335,6 +347,7 @@ class _CouplingEvaluator:
         self.lin_b = np.array([affine[k][1] for k in lin])  # type: ignore[index]
         self.q0 = np.zeros(self.nq)
         self.other: list[tuple[int, int, object, object]] = []
+        self.second: list[tuple[int, int, object]] = []  # f_k'' of the non-affine entries
         lin_set = set(lin)
         for k, f in enumerate(cp.functions):
             if coord[k] < 0:
@@ -342,8 +355,13 @@ class _CouplingEvaluator:
             elif k not in lin_set:
                 fast = _scalar_function(f)
                 if fast is None:
-                    fast = (lambda x, f=f: float(f(x))), (lambda x, f=f: float(f.d1(x)))
+                    fast = (
+                        (lambda x, f=f: float(f(x))),
+                        (lambda x, f=f: float(f.d1(x))),
+                        (lambda x, f=f: float(f.d2(x))),
+                    )
                 self.other.append((k, int(coord[k]), fast[0], fast[1]))
+                self.second.append((k, int(coord[k]), fast[2]))
         self.g_lin = np.zeros((self.nq, self.n))
         if lin:
             self.g_lin[self.lin_k, self.lin_i] = self.lin_s
@@ -368,6 +386,15 @@ class _CouplingEvaluator:
             for k, i, _, d in self.other:
                 g[k, i] = d(th[i])  # type: ignore[operator]
         return g
+
+    def bias(self, theta: Array, theta_dot: Array) -> Array:
+        """Ġθ̇: f_k''(θ_i) θ̇_i² (zero on the affine entries), (nq,)."""
+        out = np.zeros(self.nq)
+        if self.second:
+            th, thd = theta.tolist(), theta_dot.tolist()
+            for k, i, dd in self.second:
+                out[k] = dd(th[i]) * thd[i] * thd[i]  # type: ignore[operator]
+        return out
 
 
 class _MarkerProblem:

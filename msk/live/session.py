@@ -185,6 +185,9 @@ class LiveData:
     moment: NDArray[np.float64]
     reserve_optimal: NDArray[np.float64]
     plate_owner: NDArray[np.intp] = field(default_factory=lambda: np.zeros(0, dtype=np.intp))
+    history: NDArray[np.float64] = field(default_factory=lambda: np.zeros((3, 0)))
+    start: NDArray[np.float64] = field(default_factory=lambda: np.zeros(0))
+    solved: int = 0
     frames: int = 0
 
 
@@ -287,6 +290,8 @@ def live_data(lm: LiveModel, start: NDArray[np.float64] | None = None) -> LiveDa
         force=np.empty((n_f, 3)),
         moment=np.empty((n_f, 3)),
         reserve_optimal=np.ones(lm.actuated.size),
+        history=np.zeros((3, n_c)),
+        start=np.empty(n_c),
     )
 
 
@@ -311,7 +316,7 @@ def _assign_plates(lm: LiveModel, ld: LiveData, frame: LiveInput) -> None:
     owner[~loaded] = -1
     if not loaded.any():
         return
-    pin.forwardKinematics(lm.model.pin_model, ld.pin_data, lm.model.coupling.q(ld.theta))
+    pin.forwardKinematics(lm.model.pin_model, ld.pin_data, ld.ik.problem.coupling.q(ld.theta))
     omi = ld.pin_data.oMi
     feet = np.array([omi[int(j)].translation for j in lm.foot_joints])
     for p in np.flatnonzero(loaded).tolist():
@@ -335,7 +340,26 @@ def live_step(lm: LiveModel, ld: LiveData, frame: LiveInput) -> LiveFrame:
     t0 = clock()
     x = ld.markers
     np.matmul(frame.markers, lm.rotation.T, out=x)
-    theta, iters, converged, rms = ld.ik.solve(ld.theta, x)
+    # the start: the previous solutions extrapolated (constant acceleration, as the batch IK)
+    h, n_h = ld.history, ld.solved
+    start = ld.start
+    if n_h >= 3:
+        np.subtract(h[0], h[1], out=start)
+        start *= 3.0
+        start += h[2]
+    elif n_h == 2:
+        np.multiply(h[0], 2.0, out=start)
+        start -= h[1]
+    else:
+        start[:] = ld.theta
+    theta, iters, converged, rms = ld.ik.solve(start, x)
+    if np.isfinite(rms):
+        h[2] = h[1]
+        h[1] = h[0]
+        h[0] = theta
+        ld.solved = min(n_h + 1, 3)
+    else:
+        ld.solved = 0
     ld.theta = theta
     t1 = clock()
     stage[0] = t1 - t0
