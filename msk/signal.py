@@ -140,6 +140,7 @@ def lowpass_filtfilt_numpy(
     y = sosfilt(sosfilt(ext)[::-1])[::-1]
     return np.ascontiguousarray(y[pad : pad + n])
 
+
 def _butter_lowpass_sos(wn: float, order: int) -> NDArray[np.float64]:
     """Second-order sections of the even-``order`` Butterworth low-pass at ``wn`` (fraction of
     Nyquist): analog prototype, frequency prewarping and the bilinear transform, the gain in
@@ -248,7 +249,6 @@ class CausalLowpass:
         self.ddy -= h[1]
         self.ddy += h[2]
         self.ddy *= 1.0 / (self.dt * self.dt)
-
 
 
 def true_runs(mask: ArrayLike) -> list[tuple[int, int]]:

@@ -30,8 +30,13 @@ def _args(p: argparse.ArgumentParser) -> None:
         help="the segment inertias identified on the configuration's task trial",
     )  # fmt: skip
     p.add_argument("--ik-iterations", type=positive_int, default=10, metavar="N")
-    p.add_argument("--skip", type=int, default=10, metavar="N",
-                   help="frames left out of the latency figures (the first calls' warm-up)")
+    p.add_argument(
+        "--skip",
+        type=int,
+        default=10,
+        metavar="N",
+        help="frames left out of the latency figures (the first calls' warm-up)",
+    )
 
 
 def latency_report(percentiles: dict[str, tuple[float, float]], n_frames: int) -> str:

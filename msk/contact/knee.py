@@ -107,12 +107,12 @@ from msk.timeseries import FrameAxis
 from msk.units import G0, Array
 
 __all__ = [
-    "FrameKneeContact",
     "CONTACT_COLUMNS",
     "G0",
     "INTERCONDYLAR_DISTANCE_M",
     "PLATEAU_DEPTH_M",
     "CompartmentMap",
+    "FrameKneeContact",
     "KneeContact",
     "MedialLateral",
     "PlateauGeometry",
@@ -863,7 +863,6 @@ def split_medial_lateral(
     )
 
 
-
 def _two_point(
     f: Array, m: Array, geo: PlateauGeometry, sd: str
 ) -> tuple[Array, Array, Array, Array]:
@@ -912,9 +911,7 @@ class FrameKneeContact:
             place = place * plateau_offset
         self.place_rot = np.array(place.rotation)
         self.place_trans = np.array(place.translation)
-        self.loaded = [
-            b for b, body in enumerate(bodies) if model.body_joint[body] in tree.subtree
-        ]
+        self.loaded = [b for b, body in enumerate(bodies) if model.body_joint[body] in tree.subtree]
         self.geometry = plateau_geometry(model, joint=joint) if geometry is None else geometry
         self.side = _side_of(joint, None)
         self.force = np.empty(3)

@@ -45,8 +45,8 @@ from msk.timeseries import FrameAxis
 from msk.units import Array
 
 __all__ = [
-    "FrameInverseDynamics",
     "ID_BLOCK",
+    "FrameInverseDynamics",
     "InverseDynamics",
     "JointReaction",
     "JointTorques",
@@ -302,7 +302,6 @@ def _run_rnea(
                 if jk in pm.supports[j]:
                     f_keep[jk][idx] -= wrench[:, i]
     return tau, f_keep, m_keep, jac, org
-
 
 
 class FrameInverseDynamics:

@@ -761,7 +761,6 @@ def solve_kinematics(
     )
 
 
-
 class FrameIK:
     """Inverse kinematics of one frame at a time, warm-started from the caller's θ (a stream:
     :mod:`msk.live`). The problem of :func:`solve_kinematics` — E(θ) = Σ_m w_m ‖p_m − x_m‖²
@@ -799,8 +798,7 @@ class FrameIK:
         )
         if len(self.used) < min_markers:
             raise KinematicsError(
-                f"only {len(self.used)} model markers among the stream's labels; need "
-                f"{min_markers}"
+                f"only {len(self.used)} model markers among the stream's labels; need {min_markers}"
             )
         self.columns = np.array([labels.index(n) for n in self.used], dtype=np.intp)
         self.problem = _MarkerProblem(model, self.used)
@@ -830,7 +828,7 @@ class FrameIK:
         ``theta`` unchanged, 0 iterations, not converged, NaN."""
         x = self._x
         np.take(markers, self.columns, axis=0, out=x)
-        present = np.isfinite(x).all(axis=1)
+        present = np.asarray(np.isfinite(x).all(axis=1), dtype=bool)
         if int(present.sum()) < self.min_markers:
             return theta, 0, False, float("nan")
         start = np.minimum(np.maximum(theta, self.lo), self.hi)

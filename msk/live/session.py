@@ -8,8 +8,9 @@ The chain of ``msk run`` made causal, each stage the library's own computation o
    Pinocchio's world joint Jacobians, at most ``ik_iterations`` steps);
 2. each loaded plate's wrench assigned to the foot (``calcn*``) whose origin is nearest to the
    plate's centre of pressure in the horizontal plane, where its vertical force exceeds
-   ``contact_threshold_n`` (a causal rule; the offline run's :func:`msk.dynamics.loads.external_loads`
-   assigns contact intervals with the whole trial in view);
+   ``contact_threshold_n`` (a causal rule; the offline run's
+   :func:`msk.dynamics.loads.external_loads` assigns contact intervals with the whole trial in
+   view);
 3. θ and the feet's wrenches through one causal Butterworth low-pass
    (:class:`msk.signal.CausalLowpass`, the same filter on both so that kinematics and ground
    reactions keep the same delay — Kristianslund et al. 2012, J Biomech 45:666), θ̇ and θ̈ by
@@ -28,8 +29,8 @@ The chain of ``msk run`` made causal, each stage the library's own computation o
    its medial/lateral split (two-point model, Winby et al. 2009).
 
 The set-up (:func:`live_model`) is done once; :func:`live_step` follows Pinocchio's
-``algorithm(model, data, ...)`` style: :class:`LiveModel` holds what does not change, :class:`LiveData`
-the buffers and the states carried from frame to frame (filter, warm starts).
+``algorithm(model, data, ...)`` style: :class:`LiveModel` holds what does not change,
+:class:`LiveData` the buffers and the states carried from frame to frame (filter, warm starts).
 """
 
 from __future__ import annotations
@@ -238,8 +239,10 @@ def live_model(
         plateau = plateau_geometry(model, joint=knee)
     up = -np.asarray(model.gravity, dtype=float)
     up = up / np.linalg.norm(up)
-    bw = body_weight_n if body_weight_n is not None else model.total_mass * float(
-        np.linalg.norm(model.gravity)
+    bw = (
+        body_weight_n
+        if body_weight_n is not None
+        else model.total_mass * float(np.linalg.norm(model.gravity))
     )
     return LiveModel(
         model=model, rate_hz=float(rate_hz), labels=labels,
@@ -268,17 +271,24 @@ def live_data(lm: LiveModel, start: NDArray[np.float64] | None = None) -> LiveDa
     knee = opt.knee_joint
     return LiveData(
         ik=FrameIK(
-            lm.model, lm.labels, weights=lm.weights, coordinate_tasks=dict(lm.held) or None,
+            lm.model,
+            lm.labels,
+            weights=lm.weights,
+            coordinate_tasks=dict(lm.held) or None,
             max_iterations=opt.ik_iterations,
         ),
         dynamics=FrameInverseDynamics(lm.model, lm.feet),
         optimization=o.FrameStaticOptimization(
-            lm.muscle_names, lm.actuated_names, activation_weights=lm.activation_weights,
+            lm.muscle_names,
+            lm.actuated_names,
+            activation_weights=lm.activation_weights,
             solver=opt.solver,
-        ) if opt.activation_exponent == 2.0 else None,
-        contact=None if knee is None else FrameKneeContact(
-            lm.model, knee, bodies=lm.feet, geometry=lm.plateau
-        ),
+        )
+        if opt.activation_exponent == 2.0
+        else None,
+        contact=None
+        if knee is None
+        else FrameKneeContact(lm.model, knee, bodies=lm.feet, geometry=lm.plateau),
         theta=theta,
         pin_data=lm.model.pin_model.createData(),
         markers=np.empty((len(lm.labels), 3)),
@@ -402,6 +412,7 @@ def live_step(lm: LiveModel, ld: LiveData, frame: LiveInput) -> LiveFrame:
             solver=opt.solver, warm=ld.warm, compute_kkt=False, muscle_names=lm.muscle_names,
             coordinate_names=lm.actuated_names, time=np.array([frame.time]),
         )  # fmt: skip
+        assert sol.activations is not None  # compute_kkt=False keeps the activations
         forces, acts, status = sol.forces[0], sol.activations[0], int(sol.status[0])
     t5 = clock()
     stage[4] = t5 - t4

@@ -30,12 +30,12 @@ def result_channels(lm: LiveModel) -> tuple[str, ...]:
     and torque, every muscle's force, the knee's axial, medial and lateral contact force, the
     RMS marker error and the QP status."""
     return (
-        ("time",)
-        + tuple(f"q_{c}" for c in lm.coordinate_names)
-        + tuple(f"tau_{c}" for c in lm.coordinate_names)
-        + tuple(f"force_{m}" for m in lm.muscle_names)
-        + ("knee_axial", "knee_medial", "knee_lateral", "marker_rms", "qp_status")
-    )
+        "time",
+        *(f"q_{c}" for c in lm.coordinate_names),
+        *(f"tau_{c}" for c in lm.coordinate_names),
+        *(f"force_{m}" for m in lm.muscle_names),
+        "knee_axial", "knee_medial", "knee_lateral", "marker_rms", "qp_status",
+    )  # fmt: skip
 
 
 class LslSink:
@@ -111,21 +111,19 @@ class FrameRecorder:
             stack("marker_rms"), stack("ik_iterations"), stack("ik_converged"),
             stack("qp_status"), self.stage_seconds(),
         ])  # fmt: skip
+        knee_cols = (*cols, *(f"{c}_bw" for c in cols))
+        quality_cols = (
+            "marker_rms", "ik_iterations", "ik_converged", "qp_status",
+            *(f"{s}_s" for s in STAGES),
+        )  # fmt: skip
+        contact = np.column_stack([knee, knee / body_weight_n])
         return {
             "q": Table(t, stack("q"), lm.coordinate_names, "q"),
             "joint_torques": Table(t, stack("torques"), lm.coordinate_names, "joint_torques"),
             "muscle_forces": Table(t, stack("muscle_forces"), lm.muscle_names, "muscle_forces"),
             "activations": Table(t, stack("activations"), lm.muscle_names, "activations"),
-            "knee_contact": Table(
-                t, np.column_stack([knee, knee / body_weight_n]),
-                cols + tuple(f"{c}_bw" for c in cols), "knee_contact",
-            ),  # fmt: skip
-            "live_quality": Table(
-                t, quality,
-                ("marker_rms", "ik_iterations", "ik_converged", "qp_status")
-                + tuple(f"{s}_s" for s in STAGES),
-                "live_quality",
-            ),  # fmt: skip
+            "knee_contact": Table(t, contact, knee_cols, "knee_contact"),
+            "live_quality": Table(t, quality, quality_cols, "live_quality"),
         }
 
     def write(self, folder: str | Path, body_weight_n: float) -> list[Path]:

@@ -85,7 +85,8 @@ class ReplaySource:
     as NaN), each plate's wrench at the frame's time (:func:`msk.dynamics.loads.sample_plate`:
     the sign, the contact threshold and the resampling of the offline run, no low-pass), the
     analog ``emg_channels`` sampled likewise. ``grf`` (with its ExternalLoads ``.xml``): the
-    plates of an OpenSim GRF file instead (a ``.trc``'s, :func:`msk.dynamics.loads.plates_from_grf_file`). ``realtime``: frames are given at the recorded
+    plates of an OpenSim GRF file instead (a ``.trc``'s,
+    :func:`msk.dynamics.loads.plates_from_grf_file`). ``realtime``: frames are given at the recorded
     rate (the iterator sleeps until each frame's time), else as fast as they are read."""
 
     def __init__(

@@ -560,7 +560,6 @@ class StaticOptimizationProblem:
         )
 
 
-
 class FrameStaticOptimization:
     """:class:`StaticOptimizationProblem` (exponent 2) of one frame at a time, warm-started from
     the previous frame's working set (a stream: :mod:`msk.live`)::
@@ -635,8 +634,10 @@ class FrameStaticOptimization:
         if not out.ok or out.x is None:
             self.forces[:] = np.nan
             self.activations[:] = np.nan
-            return self.forces, self.activations, (
-                STATUS_INFEASIBLE if out.infeasible else STATUS_SOLVER_FAILED
+            return (
+                self.forces,
+                self.activations,
+                (STATUS_INFEASIBLE if out.infeasible else STATUS_SOLVER_FAILED),
             )
         np.copyto(self.activations, out.x[:m])
         np.multiply(f_active, self.activations, out=self.forces)

@@ -58,8 +58,9 @@ def streamed():
 
 
 def _at(t, time, series):
+    cols = range(series.shape[1])
     return np.column_stack(
-        [np.interp(t, time, series[:, j], left=np.nan, right=np.nan) for j in range(series.shape[1])]
+        [np.interp(t, time, series[:, j], left=np.nan, right=np.nan) for j in cols]
     )
 
 
