@@ -64,7 +64,9 @@ def run(name: str, passes: int, skip: int) -> None:
     task = session_inputs(cfg).task
     assert task is not None
     src = ReplaySource(task.file, grf=task.grf, external_loads=task.external_loads)
-    setup = live_setup(cfg, src.layout.labels, src.rate_hz)
+    setup = live_setup(
+        cfg, src.layout.labels, src.rate_hz, plate_names=src.plate_names, assignment=src.assignment
+    )
     lm = setup.model
     frames = list(src)
     data = lm.model.pin_model.createData()

@@ -63,9 +63,12 @@ def _live(args: argparse.Namespace) -> int:
         source = LslSource(args.lsl_in)
         rate = source.rate_hz
     labels = source.layout.labels
+    plates = source.plate_names if isinstance(source, ReplaySource) else ()
+    assignment = source.assignment if isinstance(source, ReplaySource) else None
     setup = live_setup(
-        args.config, labels, rate, identified=args.identified, ik_iterations=args.ik_iterations
-    )
+        args.config, labels, rate, identified=args.identified, ik_iterations=args.ik_iterations,
+        plate_names=plates, assignment=assignment,
+    )  # fmt: skip
     session = LiveSession(setup.model)
     record = FrameRecorder(setup.model)
     sinks = [record]

@@ -28,6 +28,18 @@ The chain of ``msk run`` made causal, each stage the library's own computation o
    pull, the plateau frame — :func:`msk.contact.knee.knee_contact_force` frame by frame) and
    its medial/lateral split (two-point model, Winby et al. 2009).
 
+Allocation: the IK's marker buffers, the filter's state and outputs, the inverse dynamics'
+torques, the static optimisation's constraint matrix and right-hand side, the contact's load are
+buffers of :class:`LiveData`, written in place; the geometry pass
+(:meth:`msk.muscles.geometry.GeometryPlan.evaluate` on one frame), the Levenberg–Marquardt steps
+and the QP solver's call still allocate their small temporaries, and each :class:`LiveFrame`
+owns copies of its arrays (the buffers are overwritten by the next frame).
+
+Every frame is solved, including those where a foot stands on no plate (the offline run leaves
+that leg out of the torques and the muscle forces there; a live frame cannot tell a foot on the
+floor from a foot on an unmeasured surface before the contact ends): read the torques and
+forces of a leg only while its foot is on a plate or in the air.
+
 The set-up (:func:`live_model`) is done once; :func:`live_step` follows Pinocchio's
 ``algorithm(model, data, ...)`` style: :class:`LiveModel` holds what does not change,
 :class:`LiveData` the buffers and the states carried from frame to frame (filter, warm starts).
@@ -44,10 +56,11 @@ import numpy as np
 import pinocchio as pin
 from numpy.typing import NDArray
 
-from msk.exceptions import ShapeMismatchError
+from msk.exceptions import ModelError, ShapeMismatchError
 from msk.model.core import Model
 
 __all__ = [
+    "FOOT_RADIUS_M",
     "STAGES",
     "LiveData",
     "LiveFrame",
@@ -161,6 +174,7 @@ class LiveModel:
     activation_weights: NDArray[np.float64] | None
     plateau: Any
     body_weight_n: float
+    plate_feet: tuple[int, ...] = ()
 
     @property
     def n_coords(self) -> int:
@@ -203,13 +217,16 @@ def live_model(
     options: LiveOptions | None = None,
     plateau: Any = None,
     body_weight_n: float | None = None,
+    plate_bodies: Sequence[str | None] = (),
 ) -> LiveModel:
     """Set a live session up for the subject's ``model`` (scaled, markers placed: e.g.
     :attr:`msk.personalise.Personalisation.model`) and a stream whose markers are
     ``labels`` (model marker names) at ``rate_hz``, lab frame rotated into the model's by
     ``rotation`` (:attr:`msk.personalise.Personalisation.rotation`). ``weights`` and ``held``:
     the IK's marker weights and coordinate tasks; ``plateau``: the knee's contact points
-    (:func:`msk.contact.knee.plateau_geometry`, default from the model)."""
+    (:func:`msk.contact.knee.plateau_geometry`, default from the model); ``plate_bodies``: the
+    foot each plate of the stream (in its order) loads when the lab says so (an ExternalLoads
+    ``.xml``, ``[loads] assign``; None: assigned per contact, :func:`live_step`)."""
     import msk.optimization as o
     from msk.contact.knee import plateau_geometry
     from msk.dynamics.inverse import _root_info
@@ -221,6 +238,12 @@ def live_model(
     labels = tuple(labels)
     ik = FrameIK(model, labels, weights=weights, coordinate_tasks=dict(held or {}) or None)
     feet = _default_feet(model)
+    unknown = [b for b in plate_bodies if b is not None and b not in feet]
+    if unknown:
+        raise ModelError(
+            f"plate assigned to {unknown[0]!r}: not a foot of model {model.name} "
+            f"(feet: {', '.join(feet)})"
+        )
     plan = geometry_plan(model)
     params = muscle_parameters(model)
     root = set(_root_info(model)[1])
@@ -253,6 +276,7 @@ def live_model(
         actuated=act, muscle_names=tuple(params.names), coordinate_names=names,
         actuated_names=tuple(names[i] for i in act), activation_weights=w, plateau=plateau,
         body_weight_n=float(bw),
+        plate_feet=tuple(-1 if b is None else feet.index(b) for b in plate_bodies),
     )  # fmt: skip
 
 
@@ -305,19 +329,29 @@ def live_data(lm: LiveModel, start: NDArray[np.float64] | None = None) -> LiveDa
     )
 
 
+#: a plate's foot is kept while its origin stays this close to the plate's line of action
+#: (horizontally; a foot is ~0.25 m long, its body origin at the heel), as
+#: :func:`msk.dynamics.loads.external_loads`' ``cop_radius_m``
+FOOT_RADIUS_M = 0.30
+
+
 def _assign_plates(lm: LiveModel, ld: LiveData, frame: LiveInput) -> None:
-    """The feet's wrenches (model frame, moment about the origin) into ``ld.force``/``moment``:
-    a plate loaded above the threshold goes to the foot nearest to its line of action when its
-    contact starts (horizontal distance from the foot body's origin, at the newest IK pose, to
-    the point p₀ = F × M_O / |F|² of the line, which is the centre of pressure's horizontal
-    position for a near-vertical F), and stays that foot's until it is unloaded: one contact,
-    one foot (a swinging foot passes close to the other foot's centre of pressure)."""
+    """The feet's wrenches (model frame, moment about the origin) into ``ld.force``/``moment``.
+
+    A plate the set-up assigns to a foot (``plate_bodies``) loads that foot. Any other plate
+    loaded above the threshold goes to the foot nearest to its line of action (horizontal
+    distance from the foot body's origin, at the newest IK pose, to the point
+    p₀ = F × M_O / |F|² of the line, which is the centre of pressure's horizontal position for a
+    near-vertical F) when its contact starts, and stays that foot's while the foot stays within
+    :data:`FOOT_RADIUS_M` of it (a swinging foot passes close to the other foot's centre of
+    pressure; the other foot may land on the same plate before the first leaves it)."""
     ld.force[:] = 0.0
     ld.moment[:] = 0.0
-    if not frame.plate_force.shape[0]:
+    n_p = frame.plate_force.shape[0]
+    if not n_p:
         return
-    if ld.plate_owner.size != frame.plate_force.shape[0]:
-        ld.plate_owner = np.full(frame.plate_force.shape[0], -1, dtype=np.intp)
+    if ld.plate_owner.size != n_p:
+        ld.plate_owner = np.full(n_p, -1, dtype=np.intp)
     r, up = lm.rotation, lm.up
     f = frame.plate_force @ r.T
     m = frame.plate_moment @ r.T
@@ -326,15 +360,22 @@ def _assign_plates(lm: LiveModel, ld: LiveData, frame: LiveInput) -> None:
     owner[~loaded] = -1
     if not loaded.any():
         return
-    pin.forwardKinematics(lm.model.pin_model, ld.pin_data, ld.ik.problem.coupling.q(ld.theta))
-    omi = ld.pin_data.oMi
-    feet = np.array([omi[int(j)].translation for j in lm.foot_joints])
+    fixed = lm.plate_feet
+    feet = None
     for p in np.flatnonzero(loaded).tolist():
-        k = int(owner[p])
+        k = fixed[p] if p < len(fixed) else -1
         if k < 0:
+            if feet is None:
+                pin.forwardKinematics(
+                    lm.model.pin_model, ld.pin_data, ld.ik.problem.coupling.q(ld.theta)
+                )
+                feet = np.array([ld.pin_data.oMi[int(j)].translation for j in lm.foot_joints])
             d = feet - np.cross(f[p], m[p]) / float(f[p] @ f[p])
             d -= np.outer(d @ up, up)
-            k = owner[p] = int(np.argmin(np.einsum("ij,ij->i", d, d)))
+            dist2 = np.einsum("ij,ij->i", d, d)
+            k = int(owner[p])
+            if k < 0 or dist2[k] > FOOT_RADIUS_M**2:
+                k = owner[p] = int(np.argmin(dist2))
         ld.force[k] += f[p]
         ld.moment[k] += m[p]
 

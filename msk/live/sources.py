@@ -99,7 +99,12 @@ class ReplaySource:
         realtime: bool = False,
         threshold_n: float = 20.0,
     ) -> None:
-        from msk.dynamics.loads import plates_from_grf_file, plates_from_trial, sample_plate
+        from msk.dynamics.loads import (
+            external_loads_assignment,
+            plates_from_grf_file,
+            plates_from_trial,
+            sample_plate,
+        )
         from msk.io import read_trial
 
         self.path = Path(path)
@@ -114,8 +119,12 @@ class ReplaySource:
         self.labels = tuple(trial.marker_labels)
         up = np.asarray(trial.up, dtype=float)
         plates: tuple[Any, ...] = ()
+        #: plate name → body of the GRF file's ExternalLoads ``.xml`` (empty without one)
+        self.assignment: dict[str, str] = {}
         if grf is not None:
             plates = plates_from_grf_file(grf, external_loads)
+            if external_loads is not None:
+                self.assignment = dict(external_loads_assignment(external_loads, grf))
         elif trial.plates:
             plates = plates_from_trial(trial)
         sampled = [sample_plate(p, self.time, up, threshold_n=threshold_n) for p in plates]

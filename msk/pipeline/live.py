@@ -14,7 +14,7 @@ solves static optimisation without them (docs/user-guide.md, "Live mode").
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -47,10 +47,14 @@ def live_setup(
     identified: bool = False,
     ik_iterations: int = 10,
     filter_order: int = 2,
+    plate_names: Sequence[str] = (),
+    assignment: Mapping[str, str] | None = None,
 ) -> LiveSetup:
     """The live chain of ``config``'s subject for a stream of the lab's marker ``labels`` at
     ``rate_hz``. ``identified``: run the pipeline up to its mass identification on the
-    configured task trial and use those inertias (None identified: the scaled ones)."""
+    configured task trial and use those inertias (None identified: the scaled ones).
+    ``plate_names``: the stream's plates, in order; ``assignment``: plate name → body (an
+    ExternalLoads ``.xml``'s), with ``[loads] assign`` over it, as ``msk run`` assigns."""
     from msk.dynamics.identification import identified_model
 
     cfg = config if isinstance(config, SessionConfig) else load_config(config)
@@ -69,10 +73,12 @@ def live_setup(
         activation_weights=opt.activation_weights, activation_exponent=opt.activation_exponent,
         solver=opt.solver,
     )  # fmt: skip
+    assign = {**(assignment or {}), **cfg.loads.assign}
     lm = live_model(
         model, [to_model.get(lab, lab) for lab in labels], rate_hz, rotation=pers.rotation,
         weights=cfg.marker_weights, held=pers.held, options=options,
         plateau=inputs.knee_plateau(model, knee) if has_knee else None,
         body_weight_n=inputs.body_weight,
+        plate_bodies=[assign.get(p) for p in plate_names],
     )  # fmt: skip
     return LiveSetup(lm, pers, mass is not None, float(inputs.body_weight))

@@ -8,6 +8,7 @@ import numpy as np
 import pytest
 
 from msk.datasets.trials import make_trial
+from msk.exceptions import ModelError
 from msk.dynamics.loads import sample_plate
 from msk.live import LiveInput, LiveOptions, LiveSession, live_model
 from tests.support.two_legs import muscled_two_legs
@@ -69,3 +70,23 @@ def test_live_session_torques_follow_the_truth(synthetic):
     peak = np.abs(tr.tau_true[:, act]).max(axis=0)
     err = (np.abs(tau - truth)[late] / peak).max(axis=0)
     assert err.max() < 0.10, dict(zip([model.coordinate_names[i] for i in act], err.round(3)))
+
+
+def test_a_plate_assigned_by_the_lab_loads_that_foot(synthetic):
+    model, tr = synthetic
+    frames = _frames(tr)
+    auto = LiveSession(live_model(model, tr.marker_labels, tr.rate_hz))
+    # both plates given to the left foot: the right foot never carries a load
+    fixed = LiveSession(
+        live_model(model, tr.marker_labels, tr.rate_hz, plate_bodies=["foot_l", "foot_l"])
+    )
+    right = fixed.model.feet.index("foot_r")
+    loaded_auto = loaded_fixed = 0
+    for f in frames:
+        auto.step(f)
+        fixed.step(f)
+        loaded_auto += int(np.abs(auto.data.force[right]).sum() > 0)
+        loaded_fixed += int(np.abs(fixed.data.force[right]).sum() > 0)
+    assert loaded_auto > 10 and loaded_fixed == 0
+    with pytest.raises(ModelError, match="not a foot"):
+        live_model(model, tr.marker_labels, tr.rate_hz, plate_bodies=["pelvis"])
