@@ -8,8 +8,8 @@ import numpy as np
 import pytest
 
 from msk.datasets.trials import make_trial
-from msk.exceptions import ModelError
 from msk.dynamics.loads import sample_plate
+from msk.exceptions import ModelError
 from msk.live import LiveInput, LiveOptions, LiveSession, live_model
 from tests.support.two_legs import muscled_two_legs
 
