@@ -38,7 +38,7 @@ def _at(t: np.ndarray, time: np.ndarray, x: np.ndarray) -> np.ndarray:
     return np.column_stack([np.interp(t, time, x[:, j], left=np.nan, right=np.nan) for j in cols])
 
 
-def study(name: str, order: int, shipped: bool) -> None:
+def study(name: str, order: int, shipped: bool, ik_iterations: int = 10) -> None:
     cfg = load_config(ROOT / "pipelines" / f"{name}.toml")
     if not shipped:
         opt = dataclasses.replace(
@@ -59,7 +59,8 @@ def study(name: str, order: int, shipped: bool) -> None:
         model, [to_model.get(lab, lab) for lab in src.labels], src.rate_hz,
         rotation=pers.rotation, weights=cfg.marker_weights, held=pers.held,
         options=LiveOptions(knee_joint=knee, cutoff_hz=cut, filter_order=order,
-                            activation_weights=cfg.optimization.activation_weights),
+                            activation_weights=cfg.optimization.activation_weights,
+                            ik_iterations=ik_iterations),
         plateau=inputs.knee_plateau(model, knee), body_weight_n=inputs.body_weight,
         plate_bodies=[assign.get(p) for p in src.plate_names],
     )  # fmt: skip
@@ -80,8 +81,11 @@ def study(name: str, order: int, shipped: bool) -> None:
     tt = kin.time - filt.lag_s
     alone = np.degrees(np.abs(ys - _at(tt, kin.time, kin.q)))[tt > kin.time[0] + START_UP_S]
     alone = alone[:, act]
+    rms = np.array([f.marker_rms for f in out])
+    its = np.array([f.ik_iterations for f in out])
     print(f"\n{name} ({'shipped' if shipped else 'static optimisation'}, order {order}): "
-          f"{len(out)} frames, lag {1e3 * session.lag_s:.1f} ms")  # fmt: skip
+          f"{len(out)} frames, lag {1e3 * session.lag_s:.1f} ms; IK {its.mean():.1f} steps a "
+          f"frame, RMS marker error median {1e3 * np.nanmedian(rms):.1f} mm")  # fmt: skip
     print(f"  angles: max {np.nanmax(dq):.2f}°, p95 {np.nanpercentile(dq, 95):.2f}° "
           f"(the filter alone: max {np.nanmax(alone):.2f}°, "
           f"p95 {np.nanpercentile(alone, 95):.2f}°)")  # fmt: skip
@@ -111,9 +115,10 @@ def main() -> None:
     ap.add_argument("--sessions", nargs="+", default=["gc5_PS", "gc6_DM_og1"])
     ap.add_argument("--order", type=int, default=2, help="the causal filter's order")
     ap.add_argument("--shipped", action="store_true", help="against the session as shipped")
+    ap.add_argument("--ik-iterations", type=int, default=10, help="LM steps per frame at most")
     args = ap.parse_args()
     for name in args.sessions:
-        study(name, args.order, args.shipped)
+        study(name, args.order, args.shipped, args.ik_iterations)
 
 
 if __name__ == "__main__":

@@ -946,7 +946,7 @@ class GeometryPlan:
         cache = self.__dict__.setdefault("_distal_rows_cache", {})
         if joint not in cache:
             cache[joint] = self._find_distal_rows(joint)
-        return cache[joint]  # type: ignore[no-any-return]
+        return cache[joint]
 
     def _find_distal_rows(self, joint: str) -> tuple[NDArray[np.intp], NDArray[np.intp]] | None:
         """:meth:`_distal_rows` computed."""
