@@ -84,6 +84,10 @@ def _live(args: argparse.Namespace) -> int:
           f"{1e3 * session.lag_s:.1f} ms (causal filter and one sample)")  # fmt: skip
     if n:
         print(latency_report(record.latency_percentiles(skip), n - skip))
+        chain = record.stage_seconds()[skip:].sum(axis=1)
+        late = int((chain > 1.0 / rate).sum())
+        print(f"frames whose chain took longer than the frame period ({1e3 / rate:.1f} ms): "
+              f"{late} of {chain.size}")  # fmt: skip
     if args.out is not None and n:
         for path in record.write(args.out, setup.body_weight_n):
             sys.stderr.write(f"wrote {path}\n")
