@@ -30,6 +30,7 @@ VERB_MODULES: tuple[str, ...] = (
     "msk.cli.init",
     "msk.cli.batch",
     "msk.cli.info",
+    "msk.cli.live",
 )
 
 
