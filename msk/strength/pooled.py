@@ -162,7 +162,9 @@ def session_emg_reference(
     return EmgReference(tuple(channels), np.asarray(values), tuple(sources))
 
 
-def _default_windows(tr: PooledTrial, used: NDArray[np.int64], window_s: float) -> Array:
+def _default_windows(
+    tr: PooledTrial, used: NDArray[np.int64], window_s: float
+) -> NDArray[np.int64]:
     if tr.windows is not None:
         w = np.asarray(tr.windows, dtype=np.int64)
         if w.shape != (tr.n_frames,):
@@ -207,6 +209,7 @@ def identify_pooled(
     coordinate_names: Sequence[str],
     activation: Callable[[Array, float], Array] | None = None,
     mvc: Mapping[str, float] | None = None,
+    reference: EmgReference | None = None,
     window_s: float = 1.0,
     edge_s: float = 0.0,
     **identifier: Any,
@@ -217,7 +220,9 @@ def identify_pooled(
     ``channels`` model muscle → EMG channel label (one group per channel, named by it);
     ``activation(e, rate_hz)`` turns a trial's normalised envelopes ``(N, K)`` into activations
     (default: :func:`msk.muscles.activation.first_order_activation`, Hayashibe et al. 2011,
-    Eq. 8); ``mvc`` given references (channel units); ``identifier`` keyword arguments of
+    Eq. 8); ``mvc`` given references (channel units); ``reference`` the session's normalisation
+    computed by the caller (e.g. from the raw recordings, :func:`msk.muscles.emg.mvc_peaks`),
+    else :func:`session_emg_reference` of ``trials``; ``identifier`` keyword arguments of
     :class:`msk.strength.StrengthIdentifier` (``n_bootstrap``, ``instrument``, …).
 
     The returned profile's ``extra`` holds ``normalisation`` (per channel: reference and source),
@@ -240,7 +245,12 @@ def identify_pooled(
         if m not in params.names:
             raise IdentificationError(f"identify_pooled: unknown muscle {m!r}")
         groups.setdefault(str(c), []).append(m)
-    ref = session_emg_reference(trials, given=mvc, edge_s=edge_s)
+    ref = (
+        session_emg_reference(trials, given=mvc, edge_s=edge_s) if reference is None else reference
+    )
+    absent = sorted(set(groups) - set(ref.channels))
+    if absent:
+        raise IdentificationError(f"the EMG reference has no value for channel(s) {absent}")
     n_mus = len(params.names)
     n_coords = len(coordinate_names)
     acts, jacs, lens, vels, taus, wins, movs = [], [], [], [], [], [], []
@@ -305,7 +315,7 @@ def identify_pooled(
         coordinate_names=coordinate_names,
         movements=np.concatenate(movs) if len(movement_names) > 1 else None,
     )
-    kind = "mvc" if any(tr.kind == "mvc" for tr in trials) else "session_peak"
+    kind = "session_peak" if "session_peak" in ref.source else "mvc"
     extra = dict(est.profile_.extra)
     extra.update(
         normalisation=ref.as_dict(),
