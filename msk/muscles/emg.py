@@ -24,6 +24,12 @@ Quality checks (figures are reported for every channel in :class:`ChannelQuality
   together (needs ≥ 3 channels), or the envelope is not modulated: its 99th/10th percentile ratio
   (inner part, filter edges excluded) is below ``flat_modulation`` (stationary noise gives
   ≈ 1.2–1.5, EMG of a muscle that works during the trial gives > 3).
+* **pre-processed envelope** (:func:`envelope_channel`): an amplifier's rectified and
+  smoothed (RMS or linear-envelope) output stored in place of the raw EMG: no negative sample,
+  the content above the high-pass at the quantisation floor (≤ ``floor_lsb`` steps), but a
+  signal that moves below it (its low-passed standard deviation ≥ ``floor_lsb`` steps). The
+  high-pass would remove it (it looks flat); it is used as its own envelope, low-passed only,
+  and said so by the caller.
 * **saturated** (clipped amplifier or ADC): at least ``clip_min_samples`` samples (and at least
   ``clip_fraction`` of the trial) sit within half a quantisation step of the channel's extreme
   value, or reach ``saturation_level`` when the range is known.
@@ -60,9 +66,11 @@ __all__ = [
     "ChannelQuality",
     "EmgActivations",
     "EmgEnvelopes",
+    "EnvelopeChannel",
     "NormalisationSource",
     "channel_quality",
     "emg_activations",
+    "envelope_channel",
     "envelopes_from_trial",
     "linear_envelope",
     "missing_channels",
@@ -198,6 +206,60 @@ def linear_envelope(
     hp = filtfilt_butter(x, rate_hz=rate_hz, cutoff_hz=highpass_hz, order=order, btype="highpass")
     env = filtfilt_butter(np.abs(hp), rate_hz=rate_hz, cutoff_hz=lowpass_hz, order=order)
     return np.maximum(env, 0.0)
+
+
+@dataclass(frozen=True)
+class EnvelopeChannel:
+    """A channel recognised as a pre-processed envelope (:func:`envelope_channel`): its
+    ``envelope`` (low-passed only, input units), the quantisation step ``lsb``, the RMS above
+    the high-pass in steps (``hp_rms_lsb``) and the low-passed standard deviation in steps
+    (``lp_sd_lsb``)."""
+
+    envelope: Array
+    lsb: float
+    hp_rms_lsb: float
+    lp_sd_lsb: float
+
+
+def envelope_channel(
+    x: ArrayLike,
+    *,
+    rate_hz: float,
+    highpass_hz: float = 30.0,
+    lowpass_hz: float = 6.0,
+    floor_lsb: float = 3.0,
+    order: int = 4,
+) -> EnvelopeChannel | None:
+    """The channel ``x`` ``(N,)`` as an envelope when it is a pre-processed (rectified and
+    smoothed) EMG amplitude rather than raw EMG, else None.
+
+    Raw surface EMG is zero-mean with its power at 20–500 Hz (De Luca 1997, *J Appl Biomech*
+    13:135); an envelope — |x| low-passed, or a moving RMS — is non-negative with its power
+    below a few hertz. Criteria: no negative sample; the high-passed (``highpass_hz``) RMS at
+    most ``floor_lsb`` quantisation steps (the ADC's floor: nothing of raw EMG left); the
+    ``lowpass_hz`` low-passed signal's standard deviation at least ``floor_lsb`` steps (it moves:
+    not a dead channel). The envelope returned is the channel low-passed at ``lowpass_hz``,
+    neither high-passed nor rectified again. A channel without distinct quantisation steps
+    (LSB 0, e.g. a float export) is judged with the step taken as 1e-6 of its range."""
+    v = np.asarray(x, dtype=float).ravel()
+    if v.size < 8 or not np.isfinite(v).all() or float(v.min()) < 0.0:
+        return None
+    u = np.unique(v)
+    d = np.diff(u)
+    lsb = float(d.min()) if d.size else 0.0
+    if lsb <= 0.0 or lsb < 1e-9 * max(float(np.ptp(v)), 1e-300):
+        lsb = 1e-6 * float(np.ptp(v))
+    if lsb <= 0.0:
+        return None
+    hp = filtfilt_butter(v, rate_hz=rate_hz, cutoff_hz=highpass_hz, order=order, btype="highpass")
+    lp = filtfilt_butter(v, rate_hz=rate_hz, cutoff_hz=lowpass_hz, order=order)
+    k = _edge(v.size, rate_hz, lowpass_hz)
+    inner = slice(k, v.size - k) if k else slice(None)
+    hp_lsb = float(np.sqrt(np.mean(hp[inner] ** 2))) / lsb
+    lp_lsb = float(np.std(lp[inner])) / lsb
+    if hp_lsb > floor_lsb or lp_lsb < floor_lsb:
+        return None
+    return EnvelopeChannel(np.maximum(lp, 0.0), lsb, hp_lsb, lp_lsb)
 
 
 def _edge(n: int, rate_hz: float, lowpass_hz: float) -> int:

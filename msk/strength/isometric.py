@@ -75,8 +75,13 @@ the group ``not determined`` with the reason):
 * ``wrong_direction``: the largest sustained excursion is opposite to ``s``;
 * ``emg_flat`` (:func:`msk.muscles.emg.channel_quality`): a dead/unused channel — fails the
   test when it is the target's; an antagonist's only removes the co-contraction correction;
+* ``emg_envelope_channel`` (informational): a channel that is an amplifier's pre-processed
+  envelope (non-negative, nothing above the high-pass but quantisation, a moving amplitude
+  below it: :func:`msk.muscles.emg.envelope_channel`) is used as its own envelope, low-passed
+  only — the high-pass would leave nothing of it;
 * ``emg_one_sided`` (informational): a channel with no negative sample (an amplifier's
-  offset or half-wave output): its envelope is a relative amplitude only.
+  offset or half-wave output) that is not such an envelope: its envelope is a relative
+  amplitude only.
 """
 
 from __future__ import annotations
@@ -92,7 +97,7 @@ from numpy.typing import NDArray
 
 from msk.exceptions import MissingDataError, ModelError
 from msk.io.dynamometer import DynamometerRecording
-from msk.muscles.emg import channel_quality, linear_envelope
+from msk.muscles.emg import channel_quality, envelope_channel, linear_envelope
 from msk.quality import Flag
 from msk.status import STRENGTH_CI_REL_WIDTH_MAX, Status
 from msk.units import Array
@@ -335,11 +340,39 @@ def analyse_isometric(
             flat_rms_lsb=st.flat_rms_lsb,
             flat_rel_rms=0.0,
         )
+        enveloped: set[str] = set()
         for j, lab in enumerate(labels):
+            pre = (
+                envelope_channel(
+                    rec.emg[:, j],
+                    rate_hz=rate,
+                    highpass_hz=st.highpass_hz,
+                    lowpass_hz=st.lowpass_hz,
+                    floor_lsb=st.flat_rms_lsb,
+                )
+                if q.flat[j]
+                else None
+            )
+            if pre is not None:  # an amplifier's envelope output: used as the envelope
+                env[:, j] = pre.envelope
+                enveloped.add(lab)
+                flags.append(
+                    _flag(
+                        test.name,
+                        "emg_envelope_channel",
+                        pre.hp_rms_lsb,
+                        st.flat_rms_lsb,
+                        f"{test.name}: EMG {lab}: a pre-processed envelope, not raw EMG (no "
+                        f"negative sample; {pre.hp_rms_lsb:.1f} quantisation steps above the "
+                        f"{st.highpass_hz:g}-Hz high-pass, {pre.lp_sd_lsb:.0f} below it): used "
+                        f"as its envelope, low-passed at {st.lowpass_hz:g} Hz, not rectified "
+                        "again; its amplitude includes the amplifier's rest level",
+                    )
+                )
             emg_plateau[lab] = float(env[i0 : i0 + nw_eff, j].mean())
             emg_base[lab] = float(env[:nb, j].mean())
-            emg_flat[lab] = bool(q.flat[j])
-            if q.flat[j]:
+            emg_flat[lab] = bool(q.flat[j]) and pre is None
+            if emg_flat[lab]:
                 role = "target" if lab == test.target else "other"
                 raw_sd = float(rec.emg[:, j].std())
                 low = (
@@ -359,7 +392,7 @@ def analyse_isometric(
                         f"steps above the high-pass{low})",
                     )
                 )
-            if float(rec.emg[:, j].min()) >= 0.0:
+            if float(rec.emg[:, j].min()) >= 0.0 and lab not in enveloped:
                 flags.append(
                     _flag(
                         test.name,
