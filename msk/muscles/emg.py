@@ -27,7 +27,7 @@ Quality checks (figures are reported for every channel in :class:`ChannelQuality
 * **pre-processed envelope** (:func:`envelope_channel`): an amplifier's rectified and
   smoothed (RMS or linear-envelope) output stored in place of the raw EMG: no negative sample,
   the content above the high-pass at the quantisation floor (≤ ``floor_lsb`` steps), but a
-  signal that moves below it (its low-passed standard deviation ≥ ``floor_lsb`` steps). The
+  signal that moves below it (its low-passed standard deviation ≥ ``moving_lsb`` steps). The
   high-pass would remove it (it looks flat); it is used as its own envelope, low-passed only,
   and said so by the caller.
 * **saturated** (clipped amplifier or ADC): at least ``clip_min_samples`` samples (and at least
@@ -228,6 +228,7 @@ def envelope_channel(
     highpass_hz: float = 30.0,
     lowpass_hz: float = 6.0,
     floor_lsb: float = 3.0,
+    moving_lsb: float = 1.0,
     order: int = 4,
 ) -> EnvelopeChannel | None:
     """The channel ``x`` ``(N,)`` as an envelope when it is a pre-processed (rectified and
@@ -237,9 +238,11 @@ def envelope_channel(
     13:135); an envelope — |x| low-passed, or a moving RMS — is non-negative with its power
     below a few hertz. Criteria: no negative sample; the high-passed (``highpass_hz``) RMS at
     most ``floor_lsb`` quantisation steps (the ADC's floor: nothing of raw EMG left); the
-    ``lowpass_hz`` low-passed signal's standard deviation at least ``floor_lsb`` steps (it moves:
-    not a dead channel). The envelope returned is the channel low-passed at ``lowpass_hz``,
-    neither high-passed nor rectified again. A channel without distinct quantisation steps
+    ``lowpass_hz`` low-passed signal's standard deviation at least ``moving_lsb`` steps (it
+    moves: not a dead channel with an offset — the quantisation noise itself, ≈ 0.29 steps
+    white, keeps ≈ 0.29 √(2 f_lp / f_s) ≈ 0.02 steps below 6 Hz at 2 kHz). The envelope
+    returned is the channel low-passed at ``lowpass_hz``, neither high-passed nor rectified
+    again. A channel without distinct quantisation steps
     (LSB 0, e.g. a float export) is judged with the step taken as 1e-6 of its range."""
     v = np.asarray(x, dtype=float).ravel()
     if v.size < 8 or not np.isfinite(v).all() or float(v.min()) < 0.0:
@@ -257,7 +260,7 @@ def envelope_channel(
     inner = slice(k, v.size - k) if k else slice(None)
     hp_lsb = float(np.sqrt(np.mean(hp[inner] ** 2))) / lsb
     lp_lsb = float(np.std(lp[inner])) / lsb
-    if hp_lsb > floor_lsb or lp_lsb < floor_lsb:
+    if hp_lsb > floor_lsb or lp_lsb < moving_lsb:
         return None
     return EnvelopeChannel(np.maximum(lp, 0.0), lsb, hp_lsb, lp_lsb)
 
