@@ -466,8 +466,9 @@ class StrengthConfig:
     (:mod:`msk.strength.pooled`)."""
 
     pool: tuple[str, ...] = opt(
-        "names of the task and MVC trials identified together, one EMG normalisation (the MVC "
-        "trials' peaks, else the session's peak); empty: every task and MVC trial",
+        "names of the task and MVC trials whose rows are identified together (an MVC trial "
+        "only if the plates measure its external force); the EMG is normalised by every MVC "
+        "trial's peak, else the pooled trials' peak; empty: every task and MVC trial",
         (),
         item="trial names",
     )

@@ -6,11 +6,14 @@ session, which needs its trials together. For each trial of ``[strength] pool`` 
 every task and MVC trial) the pipeline's own chain runs up to the muscle geometry
 (:func:`msk.pipeline.session.run_stages`: model from the static, kinematics, loads, inverse
 dynamics, EMG envelopes, moment arms) with the trial as the task — an MVC trial recorded on the
-plates gets its joint torques by inverse dynamics of its (static) posture like any task. The
+plates gets its joint torques by inverse dynamics of its (static) posture like any task (an
+MVC against a strap or a dynamometer that no plate measures belongs in the session's MVC
+trials but not in the pool: its inverse dynamics would miss that force). The
 rows each contributes are those the strength stage uses (:func:`msk.pipeline.strength.\
 regression_rows`). The EMG of every trial is normalised by ONE reference per channel, computed
 from the raw recordings with the session's filters (:func:`msk.muscles.emg.mvc_peaks`): the
-MVC trials' peak where any is pooled, else the peak over every pooled trial (``session_peak``,
+MVC trials' peak (every ``role = "mvc"`` trial of the session, pooled or not) where any
+exists, else the peak over every pooled trial (``session_peak``,
 stated with its bias); ``[emg] mvc`` values win. The folder gets ``strength.json`` (per group:
 factor, intervals, status, reason, its own rows' r², the test that would identify it) and
 ``strength.txt``.
@@ -50,7 +53,8 @@ def _reference(cfg: SessionConfig, trials: list[Any]) -> Any:
     from msk.strength.pooled import EmgReference
 
     chans = list(dict.fromkeys(str(c).strip() for c in cfg.emg.channels.values()))
-    raw = {t.name: read_c3d(t.file) for t in trials}
+    every = {t.name: t for t in (*trials, *cfg.trials_with_role("mvc"))}
+    raw = {n: read_c3d(t.file) for n, t in every.items()}
 
     def peaks(ts: list[Any]) -> dict[str, float]:
         return mvc_peaks(
@@ -59,7 +63,9 @@ def _reference(cfg: SessionConfig, trials: list[Any]) -> Any:
             highpass_hz=cfg.emg.highpass_hz, lowpass_hz=cfg.emg.lowpass_hz,
         )  # fmt: skip
 
-    mvc = [t for t in trials if t.role == "mvc"]
+    # every MVC trial of the session normalises (pooled or not: one whose torque no plate
+    # measures — a seated MVC against a strap — sets the reference without entering the rows)
+    mvc = list(cfg.trials_with_role("mvc"))
     from_mvc = peaks(mvc) if mvc else {}
     from_all = peaks(trials)
     given = {str(k).strip(): float(v) for k, v in cfg.emg.mvc.items()}
