@@ -57,7 +57,7 @@ def test_pool_defaults_to_every_task_and_mvc_trial_and_keeps_its_order(tmp_path:
     ("pool", "said"), [('["still"]', "role 'static'"), ('["jump"]', "'jump', which is no trial")]
 )
 def test_pool_names_only_task_and_mvc_trials(tmp_path: Path, pool: str, said: str) -> None:
-    with pytest.raises(ConfigError, match="strength.pool") as e:
+    with pytest.raises(ConfigError, match=r"strength\.pool") as e:
         _cfg(tmp_path, f"pool = {pool}")
     assert said in str(e.value)
 
