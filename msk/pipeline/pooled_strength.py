@@ -91,6 +91,8 @@ class _Rows(NamedTuple):
     groups: dict[str, list[str]]
     failed: dict[str, list[str]]
     coordinates: tuple[str, ...]
+    #: per failed channel, the EMG check lines that name it
+    checks: dict[str, list[str]]
 
 
 def _trial_rows(cfg: SessionConfig, tc: Any, ref: Any, progress: TextIO | None) -> _Rows:
@@ -129,7 +131,9 @@ def _trial_rows(cfg: SessionConfig, tc: Any, ref: Any, progress: TextIO | None) 
         frames=np.flatnonzero(good), movement=tc.name if tc.role == "mvc" else None,
     )  # fmt: skip
     coords = tuple(res["inverse_dynamics"].torques.coordinate_names)
-    return _Rows(trial, params, res["model"].model, groups, failed, coords)
+    said = list(getattr(em, "warnings", ()))
+    checks = {g: [w for w in said if f"'{g}'" in w and "no MVC" not in w] for g in failed}
+    return _Rows(trial, params, res["model"].model, groups, failed, coords, checks)
 
 
 def run_pooled_strength(
@@ -198,7 +202,16 @@ def run_pooled_strength(
             for i, (g, d) in enumerate(zip(profile.group_names, diag))
         ],
         "failed_channels": {
-            g: {"muscles": m, "protocol": protos.get(g)} for g, m in failed.items()
+            g: {
+                "muscles": m,
+                "failed_in": {
+                    r.trial.name: r.checks.get(g) or ["the channel was excluded by the EMG checks"]
+                    for r in rows
+                    if g in r.failed
+                },
+                "protocol": protos.get(g),
+            }
+            for g, m in failed.items()
         },
     }
     out = Path(out_dir)
@@ -206,7 +219,9 @@ def run_pooled_strength(
     (out / "strength.json").write_text(json.dumps(record, indent=1) + "\n")
     lines = [profile.table(), ""]
     lines += [f"{d.group}: {d.status} — {d.reason}" for d in diag]
-    lines += [f"{g}: EMG channel failed a check in a pooled trial" for g in failed]
+    for g, v in record["failed_channels"].items():
+        lines += [f"{g}: left out, its EMG channel failed a check in {t}: {'; '.join(w)}"
+                  for t, w in v["failed_in"].items()]  # fmt: skip
     lines.append(f"EMG normalisation: {record['normalisation_kind']}")
     if record["normalisation_bias"]:
         lines.append(record["normalisation_bias"])

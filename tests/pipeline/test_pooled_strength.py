@@ -87,4 +87,6 @@ def test_jw_session_pooled_gives_every_group_a_status_reason_and_protocol(tmp_pa
             assert g["status"] != "identified", g
         if g["status"] != "identified":
             assert "protocol" in g
+    for g, v in rec["failed_channels"].items():  # left out: in which trial, which check
+        assert v["failed_in"] and all(v["failed_in"].values()), (g, v)
     assert (tmp_path / "strength.txt").read_text().startswith("group")
