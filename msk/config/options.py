@@ -473,8 +473,9 @@ class StrengthConfig:
         item="trial names",
     )
     window_s: float = opt(
-        "length of the regression windows a task trial is cut into (an MVC trial is one)",
-        1.0,
+        "length of the regression windows a task trial is cut into (an MVC trial is one): "
+        "the jackknife's units; ≥ 3 correlation times of a 6-Hz envelope (≈ 0.17 s)",
+        0.5,
         unit="s",
         bounds=_POSITIVE,
     )

@@ -128,7 +128,7 @@ def _trial_rows(cfg: SessionConfig, tc: Any, ref: Any, progress: TextIO | None) 
     trial = PooledTrial(
         tc.name, "mvc" if tc.role == "mvc" else "task", rate, chans, env, geo.jacobian,
         np.asarray(geo.lengths), np.asarray(geo.velocities), np.asarray(tau),
-        frames=np.flatnonzero(good), movement=tc.name if tc.role == "mvc" else None,
+        frames=np.flatnonzero(good), movement=None,
     )  # fmt: skip
     coords = tuple(res["inverse_dynamics"].torques.coordinate_names)
     said = list(getattr(em, "warnings", ()))
@@ -194,7 +194,7 @@ def run_pooled_strength(
                 "ci_jackknife_t": [_num(profile.ci_cov_low[i]), _num(profile.ci_cov_high[i])],
                 "f_iso_generic_n": _num(profile.f_iso_generic[i]),
                 "status": d.status,
-                "reason": d.reason,
+                "reason": d.reason + _bias_clause(profile, g),
                 "r2_own_rows": _num(d.r2),
                 "own_coordinates": list(d.coordinates),
                 "protocol": protos.get(g) if d.status != "identified" else None,
@@ -227,6 +227,18 @@ def run_pooled_strength(
         lines.append(record["normalisation_bias"])
     (out / "strength.txt").write_text("\n".join(lines) + "\n")
     return record
+
+
+def _bias_clause(profile: Any, group: str) -> str:
+    """The normalisation caveat of a group whose channel is normalised to the session's peak."""
+    norm = profile.extra.get("normalisation", {}).get(group, {})
+    if norm.get("source") != "session_peak":
+        return ""
+    return (
+        "; its EMG is normalised to the session's peak, not an MVC: the activations are too "
+        "high, so the factor is low — a lower bound on the strength, by the ratio of the MVC "
+        "to the session's peak"
+    )
 
 
 def _num(x: Any) -> float | None:

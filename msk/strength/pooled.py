@@ -24,7 +24,9 @@ joint torques — inverse dynamics of a task, or the joint torque of an isometri
 dynamics of the static posture on the plates, or a dynamometer's torque): τ = Σ_g s_g C_g + …
 at the trial's posture, the antagonists' EMG entering as co-contraction like any other column.
 Windows (the gating and resampling units) never straddle two trials: a task trial is cut into
-``window_s`` chunks (default ≈ one gait cycle) unless it gives its own labels (cycles); an MVC
+round(T / ``window_s``) equal chunks of its used rows (default 0.5 s: half a gait cycle,
+≈ 3 correlation times of a 6-Hz envelope) unless it
+gives its own labels (cycles); an MVC
 trial is one window (one repetition) unless labelled. ``movement`` names what a trial's windows
 repeat (for the instrument and the stratified jackknife of the identifier).
 
@@ -175,8 +177,10 @@ def _default_windows(
         return np.unique(w[used], return_inverse=True)[1]
     if tr.kind == "mvc":
         return np.zeros(used.size, dtype=np.int64)
-    # contiguous chunks of ≈ window_s of the trial's time (frames not used leave gaps)
-    return np.unique((used / (window_s * tr.rate_hz)).astype(np.int64), return_inverse=True)[1]
+    # round(T / window_s) (≥ 1) equal chunks of the used rows, in time order: no remainder
+    # window of a few frames
+    n_w = max(1, round(used.size / (window_s * tr.rate_hz)))
+    return (np.arange(used.size) * n_w // used.size).astype(np.int64)
 
 
 def _jacobian_rows(jac: Array | FrameSparse, used: NDArray[np.int64]) -> Array | FrameSparse:
@@ -210,7 +214,7 @@ def identify_pooled(
     activation: Callable[[Array, float], Array] | None = None,
     mvc: Mapping[str, float] | None = None,
     reference: EmgReference | None = None,
-    window_s: float = 1.0,
+    window_s: float = 0.5,
     edge_s: float = 0.0,
     **identifier: Any,
 ) -> StrengthProfile:
@@ -306,25 +310,34 @@ def identify_pooled(
     lengths = np.concatenate(lens)
     state = RigidTendonStateBlocks(params, lengths, np.concatenate(vels))
     est = StrengthIdentifier({g: tuple(v) for g, v in groups.items()}, params, **identifier)
+    labels, mov = np.concatenate(wins), np.concatenate(movs)
+    # a stratum of one window adds nothing to the stratified jackknife's variance: with any
+    # movement of fewer than 2 windows the windows are taken as one stratum (CR3) — but the
+    # instrument never mixes movements (the identifier then asks for ≥ 3 windows of each)
+    per_mov = [np.unique(labels[mov == k]).size for k in range(len(movement_names))]
+    iv = identifier.get("instrument", "none") == "phase_average"
+    stratified = len(movement_names) > 1 and (iv or min(per_mov) >= 2)
     est.fit(
         _concatenate_jacobians(jacs),
         np.concatenate(acts),
         np.concatenate(taus),
         state,
-        windows=np.concatenate(wins),
+        windows=labels,
         coordinate_names=coordinate_names,
-        movements=np.concatenate(movs) if len(movement_names) > 1 else None,
+        movements=mov if stratified else None,
     )
-    kind = "session_peak" if "session_peak" in ref.source else "mvc"
+    sources_used = [s for c, s in zip(ref.channels, ref.source) if c in groups]
+    kind = "session_peak" if "session_peak" in sources_used else "mvc"
     extra = dict(est.profile_.extra)
     extra.update(
         normalisation=ref.as_dict(),
         normalisation_kind=kind,
         trials=record,
         movements=movement_names,
+        stratified_by_movement=stratified,
     )
-    if "session_peak" in ref.source:
-        peak = [c for c, s in zip(ref.channels, ref.source) if s == "session_peak"]
+    if any(s == "session_peak" and c in groups for c, s in zip(ref.channels, ref.source)):
+        peak = [c for c, s in zip(ref.channels, ref.source) if s == "session_peak" and c in groups]
         extra["normalisation_bias"] = (
             f"channel(s) {', '.join(peak)} normalised to the session's peak envelope (no MVC "
             "trial): the peak of submaximal trials is below the MVC, so activations are too "

@@ -14,7 +14,11 @@ from msk.pipeline.pooled_strength import pooled_trials
 from tests.support.recordings import recordings_present
 
 REPO = Path(__file__).resolve().parents[2]
-JW = REPO / "pipelines" / "strength" / "gc4_JW.toml"
+STRENGTH = REPO / "pipelines" / "strength"
+POOLED = {
+    "gc4_JW": {"ngait_og3", "1legstand1_task"},
+    "gc5_PS": {"ngait_og_ss1", "ngait_og_ss3", "ngait_og_ss8"},
+}
 
 _SESSION = """[subject]
 mass_kg = 70.0
@@ -64,24 +68,29 @@ def test_pool_names_only_task_and_mvc_trials(tmp_path: Path, pool: str, said: st
 
 @pytest.mark.slow
 @pytest.mark.realdata
-def test_jw_session_pooled_gives_every_group_a_status_reason_and_protocol(tmp_path: Path) -> None:
-    """JW's gait and single-leg stance pooled (no MVC trial: session-peak normalisation,
-    stated with its bias): exit 0; every group a status and a reason judged on its own rows;
-    a group on a bound never identified; every group not identified a protocol or none said."""
-    if not recordings_present(JW):
-        pytest.skip("the JW recordings are not here")
+@pytest.mark.parametrize("name", sorted(POOLED))
+def test_shipped_strength_sessions_give_every_group_a_status_reason_and_protocol(
+    tmp_path: Path, name: str
+) -> None:
+    """JW's gait and single-leg stance, PS's three gait trials, pooled (no MVC trial:
+    session-peak normalisation, stated with its bias in every group's reason): exit 0; every
+    group a status and a reason judged on its own rows; a group on a bound never identified;
+    every group not identified a protocol entry."""
+    cfg = STRENGTH / f"{name}.toml"
+    if not recordings_present(cfg):
+        pytest.skip(f"the {name} recordings are not here")
     from msk.cli import main
 
-    assert main(["strength", str(JW), "--out", str(tmp_path), "--quiet"]) == 0
+    assert main(["strength", str(cfg), "--out", str(tmp_path), "--quiet"]) == 0
     rec = json.loads((tmp_path / "strength.json").read_text())
     assert rec["normalisation_kind"] == "session_peak"
     assert "too LOW" in rec["normalisation_bias"]
-    assert set(rec["trials"]) == {"ngait_og3", "1legstand1_task"}
+    assert set(rec["trials"]) == POOLED[name]
     assert all(t["rows"] > 0 for t in rec["trials"].values())
     assert {v["source"] for v in rec["normalisation"].values()} == {"session_peak"}
     for g in rec["groups"]:
         assert g["status"] in ("identified", "at bound", "not determined", "prior")
-        assert g["reason"]
+        assert "lower bound on the strength" in g["reason"]
         lo, hi = 0.5, 2.0
         if g["factor"] is not None and not (lo + 1e-6 < g["factor"] < hi - 1e-6):
             assert g["status"] != "identified", g

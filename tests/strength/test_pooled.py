@@ -159,3 +159,19 @@ def test_pooled_intervals_cover_the_truth_over_120_subjects(leg):
     print("max |err| per group", np.abs(err).max(axis=0), "coverage", inside.mean(axis=0))
     assert np.abs(err).max() < 0.10, np.abs(err).max(axis=0)
     assert inside.mean(axis=0).min() >= 0.90, inside.mean(axis=0)
+
+
+def test_default_windows_cut_task_trials_into_equal_chunks_and_keep_an_mvc_one(leg):
+    """Without labels, a task trial is cut into round(T / window_s) equal windows (no
+    remainder window of a few frames) and an MVC trial is one window; windows never straddle
+    two trials."""
+    from dataclasses import replace
+
+    trials, channels = _session(leg, 0)
+    walk = replace(trials[0], windows=None)  # 6 cycles of ≈ 1 s at 100 Hz
+    mvcs = [replace(t, windows=None) for t in trials[2:]]
+    p = _fit(leg, [walk, *mvcs], channels, instrument="none", window_s=1.5)
+    rec = p.extra["trials"]
+    assert rec["walk1"]["windows"] == round(walk.n_frames / 150)
+    assert all(rec[t.name]["windows"] == 1 for t in mvcs)
+    assert p.window_labels.max() + 1 == sum(r["windows"] for r in rec.values())
