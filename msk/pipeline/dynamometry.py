@@ -195,7 +195,7 @@ def run_dynamometry(
         "flags": flags,
         "run_seconds": time.perf_counter() - t0,
     }
-    rows = strength_rows(s["name"], results)
+    rows = strength_rows(s["name"], results, age_years=s.get("age_years"), mass_kg=s.get("mass_kg"))
     out.parent.mkdir(parents=True, exist_ok=True)
     tmp = Path(tempfile.mkdtemp(prefix=f".{out.name}.", dir=out.parent))
     try:

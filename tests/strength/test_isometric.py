@@ -375,6 +375,11 @@ def test_the_twenty_subjects_run_with_sane_figures(tmp_path: Path) -> None:
     passed = plantar = 0
     assert main(["batch", *map(str, configs), "--out", str(tmp_path)]) == 0
     assert (tmp_path / "strength_cohort.csv").read_text().count("\n") == 1 + 4 * len(configs)
+    import csv
+
+    cohort = list(csv.DictReader((tmp_path / "strength_cohort.csv").open()))
+    # the covariates of a cohort comparison on every row (strength per kg vs age)
+    assert all(64 <= float(r["age_years"]) <= 82 and float(r["mass_kg"]) > 30 for r in cohort)
     for c in configs:
         out = tmp_path / c.stem
         s = json.loads((out / "summary.json").read_text())
