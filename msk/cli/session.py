@@ -1,8 +1,9 @@
 """``msk run`` (a session configuration → its results folder), ``msk print-config`` (every
 configuration key with its type, default, unit and meaning — generated from the options
 dataclasses, :func:`msk.config.config_reference`; with a CONFIG, that configuration resolved with
-every default; ``--example``, the commented example) and ``msk report`` (rebuild a folder's
-report)."""
+every default; ``--example``, the commented example), ``msk report`` (rebuild a folder's
+report) and ``msk strength`` (the session's trials pooled into one strength identification,
+:mod:`msk.pipeline.pooled_strength`)."""
 
 from __future__ import annotations
 
@@ -122,9 +123,29 @@ def _report(args: argparse.Namespace) -> int:
     return 0
 
 
+def _strength_args(p: argparse.ArgumentParser) -> None:
+    p.add_argument("config", metavar="CONFIG", type=Path, help="session configuration (.toml)")
+    p.add_argument("--out", required=True, type=Path, metavar="DIR", help="output folder")
+    p.add_argument("--quiet", action="store_true", help="no progress lines")
+
+
+def _strength(args: argparse.Namespace) -> int:
+    from msk.pipeline.pooled_strength import run_pooled_strength
+
+    rec = run_pooled_strength(args.config, args.out, progress=None if args.quiet else sys.stderr)
+    n = sum(g["status"] == "identified" for g in rec["groups"])
+    sys.stdout.write(
+        f"{args.out / 'strength.json'}: {n}/{len(rec['groups'])} groups identified "
+        f"(EMG normalisation: {rec['normalisation_kind']})\n"
+    )
+    return 0
+
+
 COMMANDS = (
     Command("run", "run a session pipeline (C3D → results folder)", _run_args, _run),
     Command("print-config", "print every session-config key (type, default, unit, meaning), a "
             "config resolved, or the example", _print_config_args, _print_config),
     Command("report", "rebuild report.html of a session folder", _report_args, _report),
+    Command("strength", "identify strength from a session's task and MVC trials together "
+            "([strength] pool; one EMG normalisation)", _strength_args, _strength),
 )  # fmt: skip

@@ -190,7 +190,12 @@ def _run_dynamometry(config: str, out_dir: str) -> SessionOutcome:
         strength_groups_at_bound=0,
         strength_groups_not_determined=sum(w == "not determined" for _, w in words),
         strength_group_status="; ".join(f"{t}: {w}" for t, w in words),
-        strength_rows=strength_rows(res.summary["session"], res.strengths),
+        strength_rows=strength_rows(
+            res.summary["session"],
+            res.strengths,
+            age_years=res.summary["subject"].get("age_years"),
+            mass_kg=res.summary["subject"].get("mass_kg"),
+        ),
     )
     return SessionOutcome(config, out_dir, True, dt, "", row)
 
