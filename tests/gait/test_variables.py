@@ -77,9 +77,14 @@ def test_kam_equals_statics_of_the_distal_segments_in_any_pose():
     the tibia's anterior axis (an independent free-body computation, no RNEA)."""
     rng = np.random.default_rng(4)
     for _ in range(5):
-        q = _q0(hip_flexion_r=rng.uniform(-0.3, 0.8), hip_adduction_r=rng.uniform(-0.3, 0.3),
-                hip_rotation_r=rng.uniform(-0.3, 0.3), knee_angle_r=rng.uniform(-1.2, 0.0),
-                ankle_angle_r=rng.uniform(-0.3, 0.3), pelvis_list=rng.uniform(-0.1, 0.1))  # fmt: skip
+        q = _q0(
+            hip_flexion_r=rng.uniform(-0.3, 0.8),
+            hip_adduction_r=rng.uniform(-0.3, 0.3),
+            hip_rotation_r=rng.uniform(-0.3, 0.3),
+            knee_angle_r=rng.uniform(-1.2, 0.0),
+            ankle_angle_r=rng.uniform(-0.3, 0.3),
+            pelvis_list=rng.uniform(-0.1, 0.1),
+        )
         kin = _kin(q)
         F = rng.normal(0, 100, 3) + np.array([0.0, 700.0, 0.0])
         P = _pose(q, "foot_r").translation + rng.normal(0, 0.05, 3)
