@@ -170,8 +170,9 @@ class SessionResults:
 
     def gait_cycles(self) -> GaitCycles | None:
         """Every normalised gait cycle of both sides (:class:`msk.gait.cycles.GaitCycles`,
-        from ``tables/gait_cycles_<side>.csv``), None when the session has none."""
-        if not (self.has("gait_cycles_left") and self.has("gait_cycles_right")):
+        from ``tables/gait_cycles_<side>.csv``; a side without a complete cycle has no table),
+        None when the session has none."""
+        if not (self.has("gait_cycles_left") or self.has("gait_cycles_right")):
             return None
         return GaitCycles.from_tables(self.tables, trial=self.summary.trial or "")
 
