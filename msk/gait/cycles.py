@@ -196,9 +196,8 @@ class GaitCycles:
             for p in parts:
                 sc = p.side(s)
                 cols = [p.variables.index(v) for v in common]
-                vals.append(
-                    np.asarray(sc.values, dtype=float).reshape(sc.n_cycles, 101, -1)[..., cols]
-                )
+                v = np.asarray(sc.values, dtype=float)
+                vals.append(v[..., cols] if sc.n_cycles else np.zeros((0, 101, len(cols))))
                 st.append(sc.start_s)
                 en.append(sc.end_s)
                 fo.append(sc.foot_off_pct)

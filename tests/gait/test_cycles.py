@@ -98,3 +98,5 @@ def test_a_side_without_cycles_has_no_table():
     back = GaitCycles.from_tables(tabs)
     assert back.right.n_cycles == 0 and back.left.n_cycles == 2
     assert np.isnan(back.mean("right")).all()
+    pooled = GaitCycles.concatenate([back, c])
+    assert pooled.left.n_cycles == 4 and pooled.right.n_cycles == 0
