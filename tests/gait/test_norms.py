@@ -99,3 +99,18 @@ def test_msk_norms_builds_bands_from_a_batch_folder(tmp_path, capsys):
     assert np.allclose(bands.mean[:, 0], allv[:, :, 0].mean(axis=0), rtol=1e-5)
     assert main(["norms", str(tmp_path / "batch"), "--out", str(out), "--session", "x"]) == 2
     assert "no session folder 'x'" in capsys.readouterr().err
+
+
+def test_task_trial_folders_are_read_and_pooled(tmp_path):
+    from msk.results.folder import pooled_gait, read_task_trials
+
+    a = _session_folder(tmp_path / "session", "walk1", 2, 10.0)
+    b = _session_folder(tmp_path / "session", "walk2", 3, 12.0)
+    trials = read_task_trials(tmp_path / "session")
+    assert [t.summary.session for t in trials] == ["walk1", "walk2"]
+    cycles, strides = pooled_gait(trials)
+    assert strides is None and cycles is not None
+    assert cycles.left.n_cycles == 5
+    allv = np.concatenate([a.left.values, b.left.values])
+    assert np.allclose(cycles.mean("left"), allv.mean(axis=0))
+    assert len(read_task_trials(tmp_path / "session" / "walk1")) == 1
