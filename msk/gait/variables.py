@@ -193,6 +193,7 @@ class GaitVariables:
         series: side → variable → (N,) values (units in the names).
         not_modelled: variables the model has no degree of freedom for (not given).
         knee_adduction_moment: how the knee adduction moment was computed (or why not).
+        notes: what was decided (the model's knee has no frontal or transverse freedom…).
     """
 
     time: Array
