@@ -29,6 +29,7 @@ VERB_MODULES: tuple[str, ...] = (
     "msk.cli.session",
     "msk.cli.init",
     "msk.cli.batch",
+    "msk.cli.norms",
     "msk.cli.info",
     "msk.cli.live",
 )
