@@ -27,10 +27,6 @@ def _run_args(p: argparse.ArgumentParser) -> None:
 def _run(args: argparse.Namespace) -> int:
     from msk._runtime import fork as _fork
 
-    # the report's figures: a child forked when the first stage is computed (none if every
-    # stage comes from the cache) imports matplotlib on the free CPU while the stages run, and
-    # draws them when the report stage asks (msk.report.build_figures)
-    _fork.defer_server("figures", "msk.report.html", "_draw_all", warm="_warm")
     try:
         return _run_sessions(args)
     finally:
