@@ -52,7 +52,8 @@ def test_html_is_self_contained(session):
     assert not re.search(r"""<(script|link|img)[^>]+(src|href)\s*=""", html)
     assert not re.search(r"""(href|src)\s*=\s*["']https?:|url\(\s*["']?https?:""", html)
     assert "<metadata>" not in html
-    assert html.count("<svg") == 6  # strength, joint strength, mass, joints, muscles, contact
+    # kinematics, kinetics, knee contact, muscles, strength, joint strength, mass
+    assert html.count("<svg") == 7
     for heading in (
         "Muscle strength",
         "Mass distribution",
@@ -239,8 +240,19 @@ def test_no_internal_document_names_and_a_reference_list(session):
     assert "spinal cord injury" not in refs  # [2], the FES study, is not cited in gait reports
     assert "EMG-driven and OpenSim musculoskeletal model" in refs
     assert "control of rehabilitation robots" in refs
-    for k in (1, 3, 4, 5):  # [2] is the FES study: cited by FES sessions only
-        assert f"[{k}]" in html.split('<ol class="refs">')[0]
+    # numbered 1, 2, 3 … in the order of first citation, every number in the list cited in the
+    # text and every cited number in the list, each with its year
+    text = html.split('<ol class="refs">')[0]
+    numbers = [int(k) for k in re.findall(r'<li value="(\d+)">', refs)]
+    assert numbers == list(range(1, len(numbers) + 1)) and len(numbers) >= 8
+    cited = {int(k) for group in re.findall(r"\[(\d+(?:, \d+)*)\]", text)
+             for k in group.split(", ")}  # fmt: skip
+    assert cited == set(numbers)
+    first = [int(m) for m in re.findall(r"\[(\d+)(?:, \d+)*\]", text)]
+    assert [k for i, k in enumerate(first) if k not in first[:i]] == numbers  # first-cited order
+    for item in re.findall(r"<li value=\"\d+\">(.*?)</li>", refs):
+        assert re.search(r"\((19|20)\d\d\)", item) or "year not given" in item, item
+    assert "Kutzner I" in refs and "Fregly BJ" in refs  # the in-vivo knee-load band's sources
 
 
 def test_weak_directions_in_words():
@@ -297,8 +309,9 @@ def test_pdf_tables_are_not_cut_at_a4(session, chromium, tmp_path):
     for g in groups:  # one line per group, ending with its status word
         line = next(ln for ln in text.splitlines() if ln.split()[:1] == [g.group])
         assert g.status.split()[0] in line, line
+    mass = text.split("Mass distribution", 1)[1].splitlines()  # after the section's heading
     for seg in session.summary.identification.segments:
-        line = next(ln for ln in text.splitlines() if ln.split()[:1] == [seg.name])
+        line = next(ln for ln in mass if ln.split()[:1] == [seg.name])
         assert seg.status.split()[0] in line, line
     assert "anthropometric" in text.replace("-\n", "") or "anthropome" in text
     assert "threshold" in text and "check" in text

@@ -85,9 +85,8 @@ class FesSection(Section):
         fes = s.fes
         if not fes and not na:
             return None
-        ref = ctx.cite("benoussaad2013")
         if not fes:
-            return {"fes": None, "na": na, "ref": ref}
+            return {"fes": None, "na": na}
         t3, t2 = _fes_references()
         steps = or_(fes.steps, {})
         cv_step = steps.get("cross_validation")
@@ -134,7 +133,6 @@ class FesSection(Section):
         return {
             "fes": fes,
             "na": na,
-            "ref": ref,
             "cv": num(cv_step.nrmsd_pct if cv_step else None, ".1f", "%"),
             "seed_median": f"{float(np.median(seed_cv)):.1f}",
             "seed_n": len(seed_cv),

@@ -40,7 +40,6 @@ class Kinematics(Section):
         data = _cycles(ctx)
         if not (data["n_left"] or data["n_right"]):
             data["title"] = "Kinematics over the trial"
-        data["kadaba"] = ctx.cite("kadaba1990")
         return data
 
 
@@ -55,5 +54,4 @@ class Kinetics(Section):
         data = _cycles(ctx)
         if not (data["n_left"] or data["n_right"]):
             data["title"] = "Kinetics over the trial"
-        data["winter"] = ctx.cite("winter2009")
         return data

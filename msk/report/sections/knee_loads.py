@@ -50,7 +50,4 @@ class KneeLoads(Section):
             "na": na,
             "rows": rows,
             "band": f"{lo:g}–{hi:g} BW",
-            "kutzner": ctx.cite("kutzner2010"),
-            "fregly": ctx.cite("fregly2012"),
-            "rehab": ctx.cite("rehab_model"),
         }

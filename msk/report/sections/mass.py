@@ -153,6 +153,4 @@ class MassSection(Section):
             "not_excited": at_prior if any(a.startswith("not excited") for a in advice) else [],
             "weak": seen[:5],
             "other_advice": [a for a in advice if not a.startswith(("not excited", "weak direction"))],
-            "hayashibe": ctx.cite("hayashibe2011"),
-            "dumas": ctx.cite("dumas2007"),
         }

@@ -149,7 +149,4 @@ class Methods(Section):
             "gains": gains,
             "versions": [[k, v] for k, v in s.versions.items()],
             "inputs": [[i.role, PurePath(i.path).name, i.sha256[:16] + "…"] for i in s.inputs],
-            "hayashibe": ctx.cite("hayashibe2011") if ctx.gait else "",
-            "rehab": ctx.cite("rehab_model") if ctx.gait else "",
-            "benoussaad": ctx.cite("benoussaad2013") if s.fes else "",
         }

@@ -7,8 +7,6 @@ from __future__ import annotations
 from collections.abc import Mapping
 from typing import Any
 
-from markupsafe import Markup
-
 from msk.report.format import check, finite, num, or_
 from msk.report.sections.base import ReportContext, Section
 from msk.status import STRENGTH_R2_MIN
@@ -186,5 +184,4 @@ class SessionSummary(Section):
             ],
             "emg_warnings": [w for w in warns if "no MVC" not in w][:8],
             "no_mvc": no_mvc,
-            "hicks": Markup(hicks),
         }

@@ -191,7 +191,4 @@ class StrengthSection(Section):
             "other": other,
             "method": st.method,
             "joint": _joint_strength(st),
-            "hayashibe": ctx.cite("hayashibe2011"),
-            "thesis": ctx.cite("thesis"),
-            "delp": ctx.cite("delp1990"),
         }
