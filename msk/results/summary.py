@@ -59,6 +59,8 @@ __all__ = [
     "FesTrial",
     "Flag",
     "Frame",
+    "Gait",
+    "GaitParameter",
     "GenericVsIdentified",
     "Heading",
     "Identification",
@@ -75,6 +77,7 @@ __all__ = [
     "PlateAssignment",
     "Quality",
     "Segment",
+    "SpatiotemporalSide",
     "StageRecord",
     "Strength",
     "StrengthAction",
@@ -403,6 +406,51 @@ class Quality(_Record):
     flags: tuple[Flag, ...] | None = None
     thresholds: Mapping[str, float | None] | None = None
     held_coordinates: tuple[str, ...] | None = None
+
+
+@dataclass(frozen=True, kw_only=True)
+class GaitParameter(_Record):
+    """``gait.spatiotemporal.<side>.parameters.<name>``: a spatiotemporal parameter (its unit in
+    ``name``, :data:`msk.gait.spatiotemporal.PARAMETERS`): mean and sample SD over the strides,
+    and each stride's value (``null``: not computable in that stride)."""
+
+    mean: float | None = None
+    sd: float | None = None
+    values: tuple[float | None, ...] = ()
+
+
+@dataclass(frozen=True, kw_only=True)
+class SpatiotemporalSide(_Record):
+    """``gait.spatiotemporal.<side>``: the side's strides (count, the foot strike starting each,
+    s) and its parameters by name (:class:`msk.gait.spatiotemporal.Spatiotemporal`)."""
+
+    n_strides: int | None = None
+    stride_start_s: tuple[float | None, ...] = ()
+    parameters: Mapping[str, GaitParameter]
+
+
+@dataclass(frozen=True, kw_only=True)
+class Gait(_Record):
+    """``gait``: the gait analysis of the task trial (:mod:`msk.gait`).
+
+    ``spatiotemporal``: side → :class:`SpatiotemporalSide`; ``heel_source``: where the heel
+    positions of the spatiotemporal parameters come from; ``variables``: the names of the
+    normalised cycles' variables (``tables/gait_cycles_<side>.csv``, units in the names);
+    ``cycles``: side → complete cycles; ``cycles_measured``: side → cycles whose stance the
+    plates measured (the kinetic variables are known in those only); ``foot_off_pct``: side →
+    mean foot off, % of the cycle; ``knee_adduction_moment``: how the external knee adduction
+    moment was computed and its sign; ``not_modelled``: gait-lab variables the model has no
+    degree of freedom for (not given); ``notes``: what was decided."""
+
+    spatiotemporal: Mapping[str, SpatiotemporalSide] | None = None
+    heel_source: str | None = None
+    variables: tuple[str, ...] | None = None
+    cycles: Mapping[str, int] | None = None
+    cycles_measured: Mapping[str, int] | None = None
+    foot_off_pct: Mapping[str, float | None] | None = None
+    knee_adduction_moment: str | None = None
+    not_modelled: tuple[str, ...] | None = None
+    notes: tuple[str, ...] | None = None
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -744,6 +792,7 @@ class Summary(_Record):
     events: tuple[Event, ...] | None = None
     event_sources: JsonObject | None = None
     gait_cycle_s: tuple[float, ...] | None = None
+    gait: Gait | None = None
     angle_columns: tuple[str, ...] | None = None
     quality: Quality
     methods: Methods | None = None
