@@ -53,6 +53,9 @@ def _run_sessions(args: argparse.Namespace) -> int:
         use_cache=not args.no_cache,
         pdf=args.pdf,
     ):
+        if args.pdf and not args.quiet:
+            pdf = res.out_dir / "report.pdf"
+            sys.stderr.write(f"{pdf if pdf.is_file() else 'report.pdf not written (no headless Chromium, or it failed)'}\n")
         missing = res.not_available
         if missing and not args.quiet:
             sys.stderr.write(f"{res.out_dir}: stages not available: {', '.join(missing)}\n")
@@ -93,6 +96,11 @@ def _print_config(args: argparse.Namespace) -> int:
 def _report_args(p: argparse.ArgumentParser) -> None:
     p.add_argument("folder", metavar="DIR", type=Path, help="a session folder of msk run")
     p.add_argument("--pdf", action="store_true", help="also print report.pdf (Chromium)")
+    p.add_argument(
+        "--norms", type=Path, metavar="FILE",
+        help="normative bands (CSV of msk.gait.norms, e.g. from msk norms) drawn under the "
+        "gait-cycle grids",
+    )  # fmt: skip
 
 
 def _report(args: argparse.Namespace) -> int:
@@ -101,8 +109,13 @@ def _report(args: argparse.Namespace) -> int:
     from msk.results.folder import read_session
 
     res = read_session(args.folder)
+    norms = None
+    if args.norms is not None:
+        from msk.gait.norms import read_norms
+
+        norms = read_norms(args.norms)
     try:
-        path = write_report(res, args.folder, pdf=args.pdf)
+        path = write_report(res, args.folder, pdf=args.pdf, norms=norms)
     except (ValueError, TypeError, KeyError, IndexError, AttributeError, RecursionError) as exc:
         # a received folder's summary.json that passes the schema but not the report's reading
         # (an unknown status word, a string where a window is expected): one line, no traceback
@@ -111,6 +124,8 @@ def _report(args: argparse.Namespace) -> int:
             f"({type(exc).__name__}: {' '.join(str(exc).split())[:200]})"
         ) from None
     sys.stdout.write(f"{path}\n")
+    if args.pdf and (args.folder / "report.pdf").is_file():
+        sys.stdout.write(f"{(args.folder / 'report.pdf').resolve()}\n")  # the PDF's path
     if args.pdf and not (args.folder / "report.pdf").is_file():
         # asked for and not printed: said, and not a success (no stale PDF is left either)
         sys.stderr.write("msk: report.pdf not written (no headless Chromium, or it failed)\n")

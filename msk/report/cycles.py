@@ -18,10 +18,19 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from msk.gait.cycles import GaitCycles
 from msk.results.folder import SessionResults
 from msk.units import Array
 
-__all__ = ["KINEMATICS", "KINETICS", "CycleCurves", "SideCurves", "Variable", "curves_from_tables"]
+__all__ = [
+    "KINEMATICS",
+    "KINETICS",
+    "CycleCurves",
+    "SideCurves",
+    "Variable",
+    "curves_from_gait",
+    "curves_from_tables",
+]
 
 PERCENT = np.linspace(0.0, 100.0, 101)
 #: two strikes of one foot farther apart than this are not one cycle (a gap in the events)
@@ -30,50 +39,59 @@ MAX_CYCLE_S = 2.5
 
 @dataclass(frozen=True)
 class Variable:
-    """A curve of the grids: ``column`` of ``table`` (``{s}`` the side suffix ``_l``/``_r``)
-    × ``sign``, in the unit of ``unit``; ``kind`` ``angle`` (rad → deg), ``moment`` (N·m →
-    N·m/kg), ``power`` (the moment × the coordinate's angular velocity, W/kg)."""
+    """A curve of the grids: ``key`` the variable's name in :mod:`msk.gait.variables` (units in
+    the name; the normative bands use the same names), its title and unit; ``stems`` the model
+    coordinates it is computed from without :mod:`msk.gait`'s tables (``{s}`` the side suffix;
+    (stem, sign on the right, sign on the left)) and ``kind`` ``angle`` (rad → deg), ``moment``
+    (N·m → N·m/kg) or ``power`` (Σ τ θ̇ over the stems, W/kg)."""
 
     key: str
     title: str
-    row: str
-    plane: str
-    column: str | None
-    sign: float
     unit: str
-    kind: str
+    kind: str = "angle"
+    stems: tuple[tuple[str, float, float], ...] = ()
 
 
-_P = ("sagittal", "frontal", "transverse")
-#: the kinematics grid: rows pelvis, hip, knee, ankle; columns the three planes
-KINEMATICS: tuple[Variable, ...] = (
-    Variable("pelvis_tilt", "Pelvis tilt (anterior +)", "pelvis", _P[0], "pelvis_tilt", -1.0, "deg", "angle"),
-    Variable("pelvis_obliquity", "Pelvis obliquity (list)", "pelvis", _P[1], "pelvis_list", 1.0, "deg", "angle"),
-    Variable("pelvis_rotation", "Pelvis rotation", "pelvis", _P[2], "pelvis_rotation", 1.0, "deg", "angle"),
-    Variable("hip_flexion", "Hip flexion", "hip", _P[0], "hip_flexion{s}", 1.0, "deg", "angle"),
-    Variable("hip_adduction", "Hip adduction", "hip", _P[1], "hip_adduction{s}", 1.0, "deg", "angle"),
-    Variable("hip_rotation", "Hip internal rotation", "hip", _P[2], "hip_rotation{s}", 1.0, "deg", "angle"),
-    Variable("knee_flexion", "Knee flexion", "knee", _P[0], "knee_angle{s}", -1.0, "deg", "angle"),
-    Variable("knee_varus", "Knee varus", "knee", _P[1], None, 1.0, "deg", "angle"),
-    Variable("knee_rotation", "Knee internal rotation", "knee", _P[2], None, 1.0, "deg", "angle"),
-    Variable("ankle_dorsiflexion", "Ankle dorsiflexion", "ankle", _P[0], "ankle_angle{s}", 1.0, "deg", "angle"),
-    Variable("subtalar_inversion", "Subtalar inversion", "ankle", _P[1], "subtalar_angle{s}", 1.0, "deg", "angle"),
-    Variable("foot_progression", "Foot progression", "ankle", _P[2], None, 1.0, "deg", "angle"),
+def _v(key: str, title: str, unit: str, kind: str, *stems: tuple[str, float, float]) -> Variable:
+    return Variable(key, title, unit, kind, tuple(stems))
+
+
+#: the kinematics grid (columns: sagittal, frontal, transverse; rows: pelvis, hip, knee, ankle
+#: and foot), Plug-in Gait conventions (:mod:`msk.gait.variables`); None: an empty cell
+KINEMATICS: tuple[Variable | None, ...] = (
+    _v("pelvis_tilt_deg", "Pelvis tilt (anterior +)", "deg", "angle", ("pelvis_tilt", -1, -1)),
+    _v("pelvis_obliquity_deg", "Pelvis obliquity (up +)", "deg", "angle", ("pelvis_list", -1, 1)),
+    _v("pelvis_rotation_deg", "Pelvis rotation (forward +)", "deg", "angle",
+       ("pelvis_rotation", 1, -1)),
+    _v("hip_flexion_deg", "Hip flexion", "deg", "angle", ("hip_flexion{s}", 1, 1)),
+    _v("hip_adduction_deg", "Hip adduction", "deg", "angle", ("hip_adduction{s}", 1, 1)),
+    _v("hip_rotation_deg", "Hip internal rotation", "deg", "angle", ("hip_rotation{s}", 1, 1)),
+    _v("knee_flexion_deg", "Knee flexion", "deg", "angle", ("knee_angle{s}", -1, -1)),
+    _v("knee_adduction_deg", "Knee varus (adduction)", "deg", "angle",
+       ("knee_adduction{s}", 1, 1)),
+    _v("knee_rotation_deg", "Knee internal rotation", "deg", "angle", ("knee_rotation{s}", 1, 1)),
+    _v("ankle_dorsiflexion_deg", "Ankle dorsiflexion", "deg", "angle", ("ankle_angle{s}", 1, 1)),
+    None,
+    _v("foot_progression_deg", "Foot progression (internal +)", "deg", "angle"),
 )  # fmt: skip
-#: the kinetics grid: internal net joint moments (three planes) and sagittal powers
-KINETICS: tuple[Variable, ...] = (
-    Variable("hip_flexion_moment", "Hip flexion moment", "hip moment", _P[0], "hip_flexion{s}", 1.0, "N·m/kg", "moment"),
-    Variable("hip_adduction_moment", "Hip adduction moment", "hip moment", _P[1], "hip_adduction{s}", 1.0, "N·m/kg", "moment"),
-    Variable("hip_rotation_moment", "Hip internal rotation moment", "hip moment", _P[2], "hip_rotation{s}", 1.0, "N·m/kg", "moment"),
-    Variable("knee_flexion_moment", "Knee flexion moment", "knee moment", _P[0], "knee_angle{s}", -1.0, "N·m/kg", "moment"),
-    Variable("knee_adduction_moment", "Knee adduction moment", "knee moment", _P[1], None, 1.0, "N·m/kg", "moment"),
-    Variable("knee_rotation_moment", "Knee rotation moment", "knee moment", _P[2], None, 1.0, "N·m/kg", "moment"),
-    Variable("ankle_dorsiflexion_moment", "Ankle dorsiflexion moment", "ankle moment", _P[0], "ankle_angle{s}", 1.0, "N·m/kg", "moment"),
-    Variable("subtalar_inversion_moment", "Subtalar inversion moment", "ankle moment", _P[1], "subtalar_angle{s}", 1.0, "N·m/kg", "moment"),
-    Variable("ankle_rotation_moment", "Ankle rotation moment", "ankle moment", _P[2], None, 1.0, "N·m/kg", "moment"),
-    Variable("hip_power", "Hip power", "power", _P[0], "hip_flexion{s}", 1.0, "W/kg", "power"),
-    Variable("knee_power", "Knee power", "power", _P[0], "knee_angle{s}", 1.0, "W/kg", "power"),
-    Variable("ankle_power", "Ankle power", "power", _P[0], "ankle_angle{s}", 1.0, "W/kg", "power"),
+#: the kinetics grid (columns: hip, knee, ankle; rows: sagittal moment, frontal moment, power):
+#: internal moments but the external knee adduction moment, as Plug-in Gait reports them
+KINETICS: tuple[Variable | None, ...] = (
+    _v("hip_extension_moment_nm_kg", "Hip extension moment", "N·m/kg", "moment",
+       ("hip_flexion{s}", -1, -1)),
+    _v("knee_extension_moment_nm_kg", "Knee extension moment", "N·m/kg", "moment",
+       ("knee_angle{s}", 1, 1)),
+    _v("ankle_plantarflexion_moment_nm_kg", "Ankle plantarflexion moment", "N·m/kg", "moment",
+       ("ankle_angle{s}", -1, -1)),
+    _v("hip_abduction_moment_nm_kg", "Hip abduction moment", "N·m/kg", "moment",
+       ("hip_adduction{s}", -1, -1)),
+    _v("knee_adduction_moment_nm_kg", "Knee adduction moment (external)", "N·m/kg", "moment"),
+    None,
+    _v("hip_power_w_kg", "Hip power", "W/kg", "power", ("hip_flexion{s}", 1, 1),
+       ("hip_adduction{s}", 1, 1), ("hip_rotation{s}", 1, 1)),
+    _v("knee_power_w_kg", "Knee power", "W/kg", "power", ("knee_angle{s}", 1, 1)),
+    _v("ankle_power_w_kg", "Ankle power", "W/kg", "power", ("ankle_angle{s}", 1, 1),
+       ("subtalar_angle{s}", 1, 1)),
 )  # fmt: skip
 
 
@@ -161,39 +179,51 @@ def _normalise(t: Array, y: Array, bounds: Sequence[tuple[float, float, float]])
     return out
 
 
-def curves_from_tables(res: SessionResults) -> CycleCurves | None:
-    """The cycles of both legs from ``summary.events`` and the ``q`` and ``joint_torques``
-    tables; None without a ``q`` table or a complete cycle."""
-    if not res.has("q"):
-        return None
+def _series(res: SessionResults, v: Variable, sfx: str, right: bool) -> tuple[Array, Array] | None:
+    """(time, values) of ``v`` on one side from the ``q`` and ``joint_torques`` tables."""
     q = res.table("q")
     tau = res.table("joint_torques") if res.has("joint_torques") else None
     mass = res.summary.subject.mass_kg or 1.0
+    cols = [(stem.format(s=sfx), sr if right else sl) for stem, sr, sl in v.stems]
+    if not cols or any(c not in q.columns for c, _ in cols):
+        return None
+    if v.kind == "angle":
+        (c, sign), *_ = cols
+        return q.time, sign * np.rad2deg(q.column(c))
+    if tau is None or any(c not in tau.columns for c, _ in cols):
+        return None
+    t = tau.time
+    if v.kind == "moment":
+        (c, sign), *_ = cols
+        return t, sign * tau.column(c) / mass
+    if t.size < 2:
+        return None
+    power = np.zeros(t.size)
+    for c, _ in cols:
+        qa = np.interp(t, q.time, q.column(c))
+        power = power + tau.column(c) * np.gradient(qa, t)
+    return t, power / mass
+
+
+def curves_from_tables(res: SessionResults) -> CycleCurves | None:
+    """The cycles of both legs: :mod:`msk.gait`'s (``tables/gait_cycles_<side>``) when the
+    folder has them, else from ``summary.events`` and the ``q`` and ``joint_torques`` tables
+    (the coordinate-based variables only); None without a complete cycle."""
+    cycles = res.gait_cycles()
+    if cycles is not None:
+        return curves_from_gait(cycles)
+    if not res.has("q"):
+        return None
     sides = {}
     for side, sfx in (("left", "_l"), ("right", "_r")):
         bounds = cycle_bounds(_events(res, "Foot Strike", side), _events(res, "Foot Off", side))
         values: dict[str, Array] = {}
         for v in (*KINEMATICS, *KINETICS):
-            if v.column is None or not bounds:
+            if v is None or not bounds:
                 continue
-            col = v.column.format(s=sfx)
-            if col not in q.columns:
-                continue
-            ang = q.column(col)
-            if v.kind == "angle":
-                y = v.sign * np.rad2deg(ang)
-                t = q.time
-            else:
-                if tau is None or col not in tau.columns:
-                    continue
-                t = tau.time
-                torque = tau.column(col)
-                if v.kind == "moment":
-                    y = v.sign * torque / mass
-                else:
-                    qa = np.interp(t, q.time, ang)
-                    y = torque * np.gradient(qa, t) / mass if t.size > 1 else torque * np.nan
-            values[v.key] = _normalise(t, y, bounds)
+            series = _series(res, v, sfx, side == "right")
+            if series is not None:
+                values[v.key] = _normalise(*series, bounds)
         starts = np.array([b[0] for b in bounds])
         ends = np.array([b[1] for b in bounds])
         offs = np.array([100.0 * (b[2] - b[0]) / (b[1] - b[0]) for b in bounds])
@@ -201,3 +231,23 @@ def curves_from_tables(res: SessionResults) -> CycleCurves | None:
     if not sides["left"].n_cycles and not sides["right"].n_cycles:
         return None
     return CycleCurves(sides["left"], sides["right"], "the gait events of the task trial")
+
+
+def curves_from_gait(cycles: GaitCycles) -> CycleCurves | None:
+    """:class:`msk.gait.cycles.GaitCycles` as the report's curves."""
+    sides = {}
+    for side in ("left", "right"):
+        sc = cycles.side(side)
+        values = {name: np.asarray(sc.values)[:, :, j] for j, name in enumerate(cycles.variables)}
+        sides[side] = SideCurves(
+            side,
+            values,
+            np.asarray(sc.start_s, float),
+            np.asarray(sc.end_s, float),
+            np.asarray(sc.foot_off_pct, float),
+        )
+    if not sides["left"].n_cycles and not sides["right"].n_cycles:
+        return None
+    return CycleCurves(
+        sides["left"], sides["right"], "msk.gait (every task trial's cycles)", tuple(cycles.notes)
+    )

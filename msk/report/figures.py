@@ -11,6 +11,7 @@ import numpy as np
 
 from msk.report import svg
 from msk.report.cycles import KINEMATICS, KINETICS, PERCENT, CycleCurves, Variable, curves_from_tables
+from msk.gait.norms import NormativeBands
 from msk.report.format import STATUS_COLOURS, escape_text, finite
 from msk.results.folder import SessionResults
 
@@ -20,6 +21,8 @@ __all__ = [
     "SIDE_COLOURS",
     "build_figures",
     "cycle_grid",
+    "kinematics_figure",
+    "kinetics_figure",
 ]
 
 #: left red, right green (the clinical gait report convention)
@@ -35,19 +38,21 @@ FACTOR_RANGE = (0.5, 2.0)
 
 def cycle_grid(
     curves: CycleCurves,
-    variables: Sequence[Variable],
+    variables: Sequence[Variable | None],
     label: str,
-    norms: Callable[[str], tuple[np.ndarray, np.ndarray] | None] | None = None,
+    norms: NormativeBands | None = None,
 ) -> str | None:
-    """A grid of panels, one per variable (3 columns: the planes): each side's mean ± SD over
-    its cycles, the normative mean ± SD in grey where ``norms`` has the variable, each side's
-    mean foot off as a dashed vertical line."""
+    """A grid of panels, one per variable (3 columns; None an empty cell): each side's mean ±
+    SD over its cycles, the normative mean ± SD in grey where ``norms`` has the variable, each
+    side's mean foot off as a dashed vertical line."""
     panels: list[svg.Panel | None] = []
     for v in variables:
+        if v is None:
+            panels.append(None)
+            continue
         p = svg.Panel(title=v.title, xlabel="gait cycle (%)", ylabel=f"({v.unit})", xlim=(0, 100))
-        band = norms(v.key) if norms else None
-        if band is not None:
-            mean, sd = band
+        if norms is not None and v.key in norms.variables:
+            mean, sd = norms.band(v.key)
             p.band(PERCENT, mean - sd, mean + sd, NORM_COLOUR, "normative mean ± SD", opacity=0.35)
         for side in ("left", "right"):
             sc = curves.side(side)
@@ -64,17 +69,26 @@ def cycle_grid(
             if off.size:
                 p.vline(float(off.mean()), col, f"{side} foot off")
         if p.empty:
-            p.note = "not in this model" if v.column is None else "no cycle"
+            known = any(v.key in curves.side(s).values for s in ("left", "right"))
+            p.note = "no measured cycle" if known else "not computed for this model"
         panels.append(p)
     return svg.grid(panels, 3, label=label, panel_w=300.0, panel_h=200.0)
 
 
+def kinematics_figure(curves: CycleCurves, norms: NormativeBands | None = None) -> str | None:
+    return cycle_grid(curves, KINEMATICS, "kinematics", norms)
+
+
+def kinetics_figure(curves: CycleCurves, norms: NormativeBands | None = None) -> str | None:
+    return cycle_grid(curves, KINETICS, "kinetics", norms)
+
+
 def _fig_kinematics(res: SessionResults, curves: CycleCurves | None) -> str | None:
-    return None if curves is None else cycle_grid(curves, KINEMATICS, "kinematics")
+    return None if curves is None else kinematics_figure(curves)
 
 
 def _fig_kinetics(res: SessionResults, curves: CycleCurves | None) -> str | None:
-    return None if curves is None else cycle_grid(curves, KINETICS, "kinetics")
+    return None if curves is None else kinetics_figure(curves)
 
 
 def _cycle_axis(res: SessionResults, t: np.ndarray) -> tuple[np.ndarray, np.ndarray, str]:
@@ -97,18 +111,21 @@ def _fig_joints(res: SessionResults, curves: CycleCurves | None) -> str | None:
     tq = res.table("joint_torques") if res.has("joint_torques") else None
     mass = res.summary.subject.mass_kg or 1.0
     rows: list[list[svg.Panel | None]] = [[], [], []]
-    for v in (KINEMATICS[3], KINEMATICS[6], KINEMATICS[9]):
-        c = (v.column or "").format(s=sfx)
-        pa = svg.Panel(title=v.title, xlabel=xl, ylabel="angle (deg)")
-        pm = svg.Panel(title=v.title.replace("flexion", "flexion moment").replace(
-            "dorsiflexion", "dorsiflexion moment"), xlabel=xl, ylabel="moment (N·m/kg)")
-        pp = svg.Panel(title=v.title.split()[0] + " power", xlabel=xl, ylabel="power (W/kg)")
+    for stem, sign, title in (
+        ("hip_flexion", 1.0, "Hip flexion"),
+        ("knee_angle", -1.0, "Knee flexion"),
+        ("ankle_angle", 1.0, "Ankle dorsiflexion"),
+    ):
+        c = stem + sfx
+        pa = svg.Panel(title=title, xlabel=xl, ylabel="angle (deg)")
+        pm = svg.Panel(title=f"{title} moment", xlabel=xl, ylabel="moment (N·m/kg)")
+        pp = svg.Panel(title=title.split()[0] + " power", xlabel=xl, ylabel="power (W/kg)")
         if c in q.columns:
             ang = q.column(c)
-            pa.line(x[sel], v.sign * np.rad2deg(ang[sel]), "#1565c0", "this session")
+            pa.line(x[sel], sign * np.rad2deg(ang[sel]), "#1565c0", "this session")
             if tq is not None and c in tq.columns and q.time.size > 1:
                 tau = np.interp(q.time, tq.time, tq.column(c))
-                pm.line(x[sel], v.sign * tau[sel] / mass, "#c62828", "net joint moment")
+                pm.line(x[sel], sign * tau[sel] / mass, "#c62828", "net joint moment")
                 power = tau * np.gradient(ang, q.time)
                 pp.line(x[sel], power[sel] / mass, "#2e7d32", "joint power")
         for r, p in enumerate((pa, pm, pp)):

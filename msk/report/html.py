@@ -17,7 +17,8 @@ from pathlib import Path
 from markupsafe import Markup
 
 from msk._runtime.secure import write_file_atomic
-from msk.report.figures import build_figures
+from msk.gait.norms import NormativeBands
+from msk.report.figures import build_figures, kinematics_figure, kinetics_figure
 from msk.report.format import STATUS_COLOURS, num, render
 from msk.report.sections import SECTIONS, ReportContext
 from msk.report.sections.mass import weak_direction_words
@@ -45,15 +46,22 @@ def render_html(
     figures: Mapping[str, str] | None = None,
     *,
     pdf_path: str | Path | None = None,
+    norms: NormativeBands | None = None,
 ) -> str:
     """The report as one self-contained HTML string: every section of :data:`SECTIONS` that
     has something for this session, numbered in order, then the references it cited.
-    ``pdf_path``: where the printable copy is written (printed in the page's footer)."""
+    ``pdf_path``: where the printable copy is written (printed in the page's footer);
+    ``norms``: normative bands drawn in grey under the gait-cycle grids (:mod:`msk.gait.norms`)."""
     figs = build_figures(res) if figures is None else figures
     s = res.summary
     # a session of FES trials only has no gait results: its report is the FES section
     gait = res.has("q") or not s.fes
-    ctx = ReportContext(res, figs, gait=gait)
+    ctx = ReportContext(res, figs, gait=gait, norms=norms)
+    curves = ctx.curves() if gait and norms is not None else None
+    if curves is not None:  # the grids redrawn over the bands
+        grids = {"kinematics": kinematics_figure(curves, norms),
+                 "kinetics": kinetics_figure(curves, norms)}  # fmt: skip
+        ctx.figures = {**figs, **{k: v for k, v in grids.items() if v}}
     bodies = [b for b in (sec.render(ctx) for sec in SECTIONS) if b]
     tasks = [i for i in s.inputs if i.role == "task"]
     trials = [s.trial] if s.trial else [Path(i.path).stem for i in tasks]
@@ -208,6 +216,7 @@ def write_report(
     *,
     figures: Mapping[str, str] | None = None,
     pdf: bool | None = None,
+    norms: NormativeBands | None = None,
 ) -> Path:
     """Write ``report.html`` (and ``report.pdf`` when Chromium is available and ``pdf`` is not
     False; ``MSK_NO_PDF=1`` disables it) into ``folder``."""
@@ -220,10 +229,10 @@ def write_report(
     pdf = bool(pdf) and chromium_executable() is not None
     figs = build_figures(res) if figures is None else figures
     target = (folder.resolve() / "report.pdf") if pdf else None
-    write_file_atomic(path, render_html(res, figs, pdf_path=target).encode("utf-8"))
+    write_file_atomic(path, render_html(res, figs, pdf_path=target, norms=norms).encode("utf-8"))
     if pdf and not write_pdf(path, folder / "report.pdf"):
         # the page names no PDF that is not there
-        write_file_atomic(path, render_html(res, figs).encode("utf-8"))
+        write_file_atomic(path, render_html(res, figs, norms=norms).encode("utf-8"))
     if not pdf or not (folder / "report.pdf").is_file():
         # no stale report.pdf of earlier results beside the new report.html
         with contextlib.suppress(FileNotFoundError):

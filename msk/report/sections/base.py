@@ -9,6 +9,8 @@ from collections.abc import Mapping
 from dataclasses import dataclass, field
 from typing import Any, ClassVar
 
+from msk.gait.norms import NormativeBands
+from msk.report.cycles import CycleCurves, curves_from_tables
 from msk.report.format import render
 from msk.report.references import Citations
 from msk.results.folder import SessionResults
@@ -24,6 +26,7 @@ class ReportContext:
         res: the session's results (tables and the typed summary).
         figures: the report's figures by name (inline SVG; a missing name is not drawn).
         gait: whether the session has gait results (False: an FES-only session).
+        norms: the normative bands the grids draw (None: none attached).
         citations: the numbering of the works cited, in the order of first citation.
         sections: the numbers given so far (section key → number).
     """
@@ -31,8 +34,16 @@ class ReportContext:
     res: SessionResults
     figures: Mapping[str, str]
     gait: bool = True
+    norms: NormativeBands | None = None
     citations: Citations = field(default_factory=Citations)
     sections: dict[str, int] = field(default_factory=dict)
+    _curves: list[CycleCurves | None] = field(default_factory=list, repr=False)
+
+    def curves(self) -> CycleCurves | None:
+        """Every gait cycle of both legs (:func:`msk.report.cycles.curves_from_tables`), once."""
+        if not self._curves:
+            self._curves.append(curves_from_tables(self.res))
+        return self._curves[0]
 
     def cite(self, *keys: str) -> str:
         return self.citations.cite(*keys)

@@ -7,7 +7,6 @@ from __future__ import annotations
 
 from typing import Any
 
-from msk.report.cycles import curves_from_tables
 from msk.report.sections.base import ReportContext, Section
 from msk.report.sections.session import event_source_words
 
@@ -16,7 +15,7 @@ __all__ = ["Kinematics", "Kinetics"]
 
 def _cycles(ctx: ReportContext) -> dict[str, Any]:
     res = ctx.res
-    curves = curves_from_tables(res)
+    curves = ctx.curves()
     src = res.summary.event_sources
     return {
         "n_left": curves.left.n_cycles if curves else 0,
@@ -26,6 +25,8 @@ def _cycles(ctx: ReportContext) -> dict[str, Any]:
         },
         "cycle": res.summary.gait_cycle_s,
         "side": res.summary.subject.side or "right",
+        "notes": list(curves.notes) if curves else [],
+        "norms": ctx.norms,
     }
 
 

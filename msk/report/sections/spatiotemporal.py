@@ -24,8 +24,8 @@ __all__ = ["Spatiotemporal", "spatiotemporal_from_events"]
 
 #: (key, label, unit, format)
 PARAMETERS = (
-    ("speed_m_s", "walking speed", "m/s", ".2f"),
-    ("cadence_steps_min", "cadence", "steps/min", ".1f"),
+    ("walking_speed_m_s", "walking speed", "m/s", ".2f"),
+    ("cadence_steps_per_min", "cadence", "steps/min", ".1f"),
     ("stride_time_s", "stride time", "s", ".3f"),
     ("step_time_s", "step time", "s", ".3f"),
     ("stride_length_m", "stride length", "m", ".3f"),
@@ -70,7 +70,7 @@ def spatiotemporal_from_events(res: SessionResults) -> dict[str, dict[str, list[
         for a, b, off in cycle_bounds(strikes, offs):
             T = b - a
             vals["stride_time_s"].append(T)
-            vals["cadence_steps_min"].append(120.0 / T)
+            vals["cadence_steps_per_min"].append(120.0 / T)
             vals["stance_pct"].append(100.0 * (off - a) / T)
             vals["swing_pct"].append(100.0 * (b - off) / T)
             oo = [t for t in o_offs if a < t < b]
@@ -82,7 +82,7 @@ def spatiotemporal_from_events(res: SessionResults) -> dict[str, dict[str, list[
             stride = travel(a, b)
             vals["stride_length_m"].append(stride)
             vals["step_length_m"].append(travel(prev[-1], a) if prev else np.nan)
-            vals["speed_m_s"].append(stride / T)
+            vals["walking_speed_m_s"].append(stride / T)
             vals["step_width_m"].append(np.nan)
         out[side] = vals
     return out
@@ -98,6 +98,24 @@ def _cell(values: list[float], fmt: str) -> str:
     return f"{v.mean():{fmt}} ± {v.std(ddof=1):{fmt}} (n {v.size})"
 
 
+def _from_gait(res: SessionResults) -> tuple[dict[str, dict[str, list[float]]], str] | None:
+    st = res.spatiotemporal()
+    if st is None:
+        return None
+    out: dict[str, dict[str, list[float]]] = {}
+    for side in ("left", "right"):
+        sd = st.side(side)
+        out[side] = {
+            k: [float(x) for x in sd.parameter(k)] if k in sd.parameters else []
+            for k, *_ in PARAMETERS
+        }
+    how = (
+        "times from the gait events; lengths, speed and step width from the heel positions "
+        f"({st.source}) along the direction of progression (msk.gait)"
+    )
+    return out, how
+
+
 class Spatiotemporal(Section):
     key = "spatiotemporal"
     title = "Spatiotemporal parameters"
@@ -106,7 +124,16 @@ class Spatiotemporal(Section):
     def context(self, ctx: ReportContext) -> dict[str, Any] | None:
         if not ctx.gait or not ctx.res.summary.events:
             return None
-        vals = spatiotemporal_from_events(ctx.res)
+        typed = _from_gait(ctx.res)
+        if typed is not None:
+            vals, how = typed
+        else:
+            vals = spatiotemporal_from_events(ctx.res)
+            how = (
+                "times from the gait events; lengths and speed from the pelvis' horizontal "
+                "travel between foot strikes; step width needs the feet's positions (not "
+                "computed here: “—”)"
+            )
         if not any(vals[s]["stride_time_s"] for s in vals):
             return None
         rows = [
@@ -114,4 +141,4 @@ class Spatiotemporal(Section):
             for k, label, unit, fmt in PARAMETERS
         ]
         cycles = {s: len(vals[s]["stride_time_s"]) for s in vals}
-        return {"rows": rows, "cycles": cycles}
+        return {"rows": rows, "cycles": cycles, "how": how}
