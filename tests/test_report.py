@@ -453,3 +453,87 @@ def test_pdf_runs_no_script_of_the_page(chromium, tmp_path):
         assert write_pdf(page, tmp_path / "r.pdf")
     text = _pdf_text(tmp_path / "r.pdf")
     assert text is not None and "static text" in text and "SCRIPT RAN" not in text
+
+
+#: the sections of a gait report, in order (msk.report.sections), by their element id
+GAIT_SECTIONS = (
+    "session",
+    "spatiotemporal",
+    "kinematics",
+    "kinetics",
+    "knee-loads",
+    "muscle-forces",
+    "strength",
+    "mass",
+    "methods",
+    "references",
+)
+
+_MEASURE = """<script>
+const out = {scroll: document.documentElement.scrollWidth, width: innerWidth, wide: []};
+for (const el of document.querySelectorAll("table, figure, svg, p, h2, h3, ul, ol")) {
+  const r = el.getBoundingClientRect();
+  if (r.right > innerWidth + 0.5 || el.scrollWidth > el.clientWidth + 1 && el.tagName == "TABLE")
+    out.wide.push(el.tagName + "." + el.className + " " + Math.round(r.right));
+}
+const p = document.createElement("pre"); p.id = "measured";
+p.textContent = JSON.stringify(out); document.body.appendChild(p);
+</script>"""
+
+
+def test_the_gait_report_in_chromium_at_1280_px(session, chromium, tmp_path):
+    """Rendered by headless Chromium at 1280 px: every section in the clinical order, each
+    figure and table present, nothing wider than the window (no horizontal scroll, no table
+    in a scroll box)."""
+    import json
+
+    html = (session.path / "report.html").read_text(encoding="utf-8")
+    # the report forbids scripts (its CSP): a copy without the policy runs the measurement
+    page = tmp_path / "measure.html"
+    page.write_text(
+        re.sub(r'<meta http-equiv="Content-Security-Policy"[^>]*>', "", html).replace(
+            "</body>", _MEASURE + "</body>"
+        ),
+        encoding="utf-8",
+    )
+    dom = _chromium(chromium, "--window-size=1280,900", "--dump-dom", page.as_uri()).stdout
+    ids = re.findall(r'<section id="([\w-]+)"', dom)
+    assert ids == list(GAIT_SECTIONS)
+    numbers = re.findall(r"<h2>(\d+)\. ", dom)
+    assert numbers == [str(k) for k in range(1, len(GAIT_SECTIONS) + 1)]
+    for figure in ("kinematics", "kinetics", "knee contact force", "muscle forces",
+                   "strength factors", "joint strength", "segment masses"):  # fmt: skip
+        assert f'aria-label="{figure}"' in dom, figure
+    for table in ("quality", "st", "contact", "strength", "mass", "stages", "inputs"):
+        assert re.search(rf'<table class="{table}[" ]', dom), table
+    measured = json.loads(re.search(r'<pre id="measured">(.*?)</pre>', dom, re.S).group(1))
+    assert measured["width"] == 1280
+    assert measured["scroll"] <= 1280, measured
+    assert not measured["wide"], measured["wide"]
+    assert "overflow-x:auto" not in html and "overflow:auto" not in html  # no scroll boxes
+    # left red, right green; foot-off lines; the in-vivo knee-load band
+    assert 'stroke="#c62828"' in dom and "left foot off" in dom
+    assert "in-vivo walking peaks 2–3 BW" in dom
+
+
+def test_pdf_keeps_every_heading_with_its_content(session, chromium, tmp_path):
+    """Printed at A4, no page ends with a section or sub-section heading (print CSS:
+    break-after: avoid, headings kept in a block with what follows them)."""
+    pdf = tmp_path / "r.pdf"
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")  # the sandbox warning when run as root
+        assert write_pdf(session.path / "report.html", pdf)
+    text = _pdf_text(pdf)
+    if text is None:
+        pytest.skip("pdftotext (poppler-utils) is not installed")
+    html = (session.path / "report.html").read_text(encoding="utf-8")
+    headings = {
+        " ".join(re.sub(r"<.*?>", "", h).split())
+        for h in re.findall(r"<h[23]>(.*?)</h[23]>", html, re.S)
+    }
+    pages = [p for p in text.split("\f") if p.strip()]
+    assert len(pages) >= 3
+    for k, page in enumerate(pages[:-1]):
+        last = " ".join(page.strip().splitlines()[-1].split())
+        assert last not in headings, (k + 1, last)
+        assert not any(h.startswith(last) or last.startswith(h) for h in headings if len(last) > 3), (k + 1, last)
