@@ -66,7 +66,9 @@ def main() -> None:
     print(f"figures, fresh interpreter (median)   {f:7.3f} s")
     print(f"report.html written (median)          {p:7.3f} s")
     print(f"report total                          {f + p:7.3f} s  (target ≤ 1 s)")
-    print(f"whole run (run_seconds)               {run:7.3f} s  → report {100 * (f + p) / run:.0f} %")
+    print(
+        f"whole run (run_seconds)               {run:7.3f} s  → report {100 * (f + p) / run:.0f} %"
+    )
 
 
 if __name__ == "__main__":

@@ -536,4 +536,6 @@ def test_pdf_keeps_every_heading_with_its_content(session, chromium, tmp_path):
     for k, page in enumerate(pages[:-1]):
         last = " ".join(page.strip().splitlines()[-1].split())
         assert last not in headings, (k + 1, last)
-        assert not any(h.startswith(last) or last.startswith(h) for h in headings if len(last) > 3), (k + 1, last)
+        assert not any(
+            h.startswith(last) or last.startswith(h) for h in headings if len(last) > 3
+        ), (k + 1, last)

@@ -55,7 +55,11 @@ def _run_sessions(args: argparse.Namespace) -> int:
     ):
         if args.pdf and not args.quiet:
             pdf = res.out_dir / "report.pdf"
-            sys.stderr.write(f"{pdf if pdf.is_file() else 'report.pdf not written (no headless Chromium, or it failed)'}\n")
+            sys.stderr.write(
+                f"{pdf}\n"
+                if pdf.is_file()
+                else f"{res.out_dir}: report.pdf not written (no headless Chromium, or it failed)\n"
+            )
         missing = res.not_available
         if missing and not args.quiet:
             sys.stderr.write(f"{res.out_dir}: stages not available: {', '.join(missing)}\n")

@@ -12,6 +12,7 @@ stance). Built here from the tables of one results folder and its ``summary.even
 
 from __future__ import annotations
 
+import itertools
 import warnings
 from collections.abc import Sequence
 from dataclasses import dataclass, field
@@ -61,38 +62,75 @@ def _v(key: str, title: str, unit: str, kind: str, *stems: tuple[str, float, flo
 KINEMATICS: tuple[Variable | None, ...] = (
     _v("pelvis_tilt_deg", "Pelvis tilt (anterior +)", "deg", "angle", ("pelvis_tilt", -1, -1)),
     _v("pelvis_obliquity_deg", "Pelvis obliquity (up +)", "deg", "angle", ("pelvis_list", -1, 1)),
-    _v("pelvis_rotation_deg", "Pelvis rotation (forward +)", "deg", "angle",
-       ("pelvis_rotation", 1, -1)),
+    _v(
+        "pelvis_rotation_deg",
+        "Pelvis rotation (forward +)",
+        "deg",
+        "angle",
+        ("pelvis_rotation", 1, -1),
+    ),
     _v("hip_flexion_deg", "Hip flexion", "deg", "angle", ("hip_flexion{s}", 1, 1)),
     _v("hip_adduction_deg", "Hip adduction", "deg", "angle", ("hip_adduction{s}", 1, 1)),
     _v("hip_rotation_deg", "Hip internal rotation", "deg", "angle", ("hip_rotation{s}", 1, 1)),
     _v("knee_flexion_deg", "Knee flexion", "deg", "angle", ("knee_angle{s}", -1, -1)),
-    _v("knee_adduction_deg", "Knee varus (adduction)", "deg", "angle",
-       ("knee_adduction{s}", 1, 1)),
+    _v("knee_adduction_deg", "Knee varus (adduction)", "deg", "angle", ("knee_adduction{s}", 1, 1)),
     _v("knee_rotation_deg", "Knee internal rotation", "deg", "angle", ("knee_rotation{s}", 1, 1)),
     _v("ankle_dorsiflexion_deg", "Ankle dorsiflexion", "deg", "angle", ("ankle_angle{s}", 1, 1)),
     None,
     _v("foot_progression_deg", "Foot progression (internal +)", "deg", "angle"),
-)  # fmt: skip
+)
 #: the kinetics grid (columns: hip, knee, ankle; rows: sagittal moment, frontal moment, power):
 #: internal moments but the external knee adduction moment, as Plug-in Gait reports them
 KINETICS: tuple[Variable | None, ...] = (
-    _v("hip_extension_moment_nm_kg", "Hip extension moment", "N·m/kg", "moment",
-       ("hip_flexion{s}", -1, -1)),
-    _v("knee_extension_moment_nm_kg", "Knee extension moment", "N·m/kg", "moment",
-       ("knee_angle{s}", 1, 1)),
-    _v("ankle_plantarflexion_moment_nm_kg", "Ankle plantarflexion moment", "N·m/kg", "moment",
-       ("ankle_angle{s}", -1, -1)),
-    _v("hip_abduction_moment_nm_kg", "Hip abduction moment", "N·m/kg", "moment",
-       ("hip_adduction{s}", -1, -1)),
+    _v(
+        "hip_extension_moment_nm_kg",
+        "Hip extension moment",
+        "N·m/kg",
+        "moment",
+        ("hip_flexion{s}", -1, -1),
+    ),
+    _v(
+        "knee_extension_moment_nm_kg",
+        "Knee extension moment",
+        "N·m/kg",
+        "moment",
+        ("knee_angle{s}", 1, 1),
+    ),
+    _v(
+        "ankle_plantarflexion_moment_nm_kg",
+        "Ankle plantarflexion moment",
+        "N·m/kg",
+        "moment",
+        ("ankle_angle{s}", -1, -1),
+    ),
+    _v(
+        "hip_abduction_moment_nm_kg",
+        "Hip abduction moment",
+        "N·m/kg",
+        "moment",
+        ("hip_adduction{s}", -1, -1),
+    ),
     _v("knee_adduction_moment_nm_kg", "Knee adduction moment (external)", "N·m/kg", "moment"),
     None,
-    _v("hip_power_w_kg", "Hip power", "W/kg", "power", ("hip_flexion{s}", 1, 1),
-       ("hip_adduction{s}", 1, 1), ("hip_rotation{s}", 1, 1)),
+    _v(
+        "hip_power_w_kg",
+        "Hip power",
+        "W/kg",
+        "power",
+        ("hip_flexion{s}", 1, 1),
+        ("hip_adduction{s}", 1, 1),
+        ("hip_rotation{s}", 1, 1),
+    ),
     _v("knee_power_w_kg", "Knee power", "W/kg", "power", ("knee_angle{s}", 1, 1)),
-    _v("ankle_power_w_kg", "Ankle power", "W/kg", "power", ("ankle_angle{s}", 1, 1),
-       ("subtalar_angle{s}", 1, 1)),
-)  # fmt: skip
+    _v(
+        "ankle_power_w_kg",
+        "Ankle power",
+        "W/kg",
+        "power",
+        ("ankle_angle{s}", 1, 1),
+        ("subtalar_angle{s}", 1, 1),
+    ),
+)
 
 
 @dataclass(frozen=True)
@@ -159,10 +197,12 @@ def _events(res: SessionResults, label: str, side: str) -> list[float]:
     )
 
 
-def cycle_bounds(strikes: Sequence[float], offs: Sequence[float]) -> list[tuple[float, float, float]]:
+def cycle_bounds(
+    strikes: Sequence[float], offs: Sequence[float]
+) -> list[tuple[float, float, float]]:
     """(strike, next strike, foot off or NaN) of every complete cycle."""
     out = []
-    for a, b in zip(strikes[:-1], strikes[1:]):
+    for a, b in itertools.pairwise(strikes):
         if not 0.0 < b - a <= MAX_CYCLE_S:
             continue
         off = [t for t in offs if a < t < b]

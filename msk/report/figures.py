@@ -9,9 +9,16 @@ from collections.abc import Callable, Sequence
 
 import numpy as np
 
-from msk.report import svg
-from msk.report.cycles import KINEMATICS, KINETICS, PERCENT, CycleCurves, Variable, curves_from_tables
 from msk.gait.norms import NormativeBands
+from msk.report import svg
+from msk.report.cycles import (
+    KINEMATICS,
+    KINETICS,
+    PERCENT,
+    CycleCurves,
+    Variable,
+    curves_from_tables,
+)
 from msk.report.format import STATUS_COLOURS, escape_text, finite
 from msk.results.folder import SessionResults
 
@@ -52,8 +59,15 @@ def cycle_grid(
             continue
         p = svg.Panel(title=v.title, xlabel="gait cycle (%)", ylabel=f"({v.unit})", xlim=(0, 100))
         if norms is not None and v.key in norms.variables:
-            mean, sd = norms.band(v.key)
-            p.band(PERCENT, mean - sd, mean + sd, NORM_COLOUR, "normative mean ± SD", opacity=0.35)
+            n_mean, n_sd = norms.band(v.key)
+            p.band(
+                PERCENT,
+                n_mean - n_sd,
+                n_mean + n_sd,
+                NORM_COLOUR,
+                "normative mean ± SD",
+                opacity=0.35,
+            )
         for side in ("left", "right"):
             sc = curves.side(side)
             m = sc.mean(v.key)
@@ -130,8 +144,7 @@ def _fig_joints(res: SessionResults, curves: CycleCurves | None) -> str | None:
                 pp.line(x[sel], power[sel] / mass, "#2e7d32", "joint power")
         for r, p in enumerate((pa, pm, pp)):
             rows[r].append(p)
-    return svg.grid([p for r in rows for p in r], 3, label="joints", panel_w=300.0,
-                    panel_h=200.0)  # fmt: skip
+    return svg.grid([p for r in rows for p in r], 3, label="joints", panel_w=300.0, panel_h=200.0)
 
 
 def _fig_knee_loads(res: SessionResults, curves: CycleCurves | None) -> str | None:
@@ -185,8 +198,16 @@ def _fig_muscles(res: SessionResults, curves: CycleCurves | None) -> str | None:
     with np.errstate(all="ignore"):
         peaks = np.nan_to_num(np.nanmax(np.abs(mf.data[:, idx]), axis=0, initial=0.0))
     top = [idx[k] for k in np.argsort(peaks)[::-1][:8]]
-    palette = ("#1565c0", "#c62828", "#2e7d32", "#ef6c00", "#6a1b9a", "#00838f", "#5d4037",
-               "#ad1457")  # fmt: skip
+    palette = (
+        "#1565c0",
+        "#c62828",
+        "#2e7d32",
+        "#ef6c00",
+        "#6a1b9a",
+        "#00838f",
+        "#5d4037",
+        "#ad1457",
+    )
     p = svg.Panel(title="8 largest", xlabel=xl, ylabel="muscle force (N)")
     for k, c in zip(top, palette):
         p.line(x[sel], mf.data[sel, k], c, mf.columns[k])
@@ -219,10 +240,12 @@ def _fig_strength(res: SessionResults, curves: CycleCurves | None) -> str | None
         (0.3, 2.2),
         reference=(1.0, "generic model"),
         span=(lo, hi, "#e3f2fd"),
-        legend=[("band", "#e3f2fd", f"plausible range {lo}–{hi} ×"),
-                ("vline", "#000000", "generic model (1.0 ×)")]
+        legend=[
+            ("band", "#e3f2fd", f"plausible range {lo}–{hi} ×"),
+            ("vline", "#000000", "generic model (1.0 ×)"),
+        ]
         + [("marker", c, w) for w, c in STATUS_COLOURS.items()],
-    )  # fmt: skip
+    )
     return chart.svg("strength factors")
 
 
@@ -237,17 +260,24 @@ def _fig_strength_curves(res: SessionResults, curves: CycleCurves | None) -> str
     for a in acts:
         x = np.asarray(a.angles_deg, dtype=float)
         p = svg.Panel(title=a.action, xlabel=f"{a.angle_label} (deg)", ylabel="moment (N·m/kg)")
-        p.line(x, np.asarray(a.generic_nm, dtype=float) / mass, "#000000", "generic model",
-               dash="5 3")  # fmt: skip
+        p.line(
+            x, np.asarray(a.generic_nm, dtype=float) / mass, "#000000", "generic model", dash="5 3"
+        )
         word = a.status or "prior"
         if word == "identified":
-            p.line(x, np.asarray(a.identified_nm, dtype=float) / mass, STATUS_COLOURS[word],
-                   "identified (this subject)", width=2.0)  # fmt: skip
+            p.line(
+                x,
+                np.asarray(a.identified_nm, dtype=float) / mass,
+                STATUS_COLOURS[word],
+                "identified (this subject)",
+                width=2.0,
+            )
         else:
             p.note = "= generic (prior)" if word == "prior" else f"identified: {word}"
         panels.append(p)
-    return svg.grid(panels, min(4, len(panels)), label="joint strength", panel_w=235.0,
-                    panel_h=190.0)  # fmt: skip
+    return svg.grid(
+        panels, min(4, len(panels)), label="joint strength", panel_w=235.0, panel_h=190.0
+    )
 
 
 def _fig_mass(res: SessionResults, curves: CycleCurves | None) -> str | None:
@@ -294,13 +324,23 @@ def _fig_fes(res: SessionResults, curves: CycleCurves | None) -> str | None:
         xlabel="time (s)",
         ylabel="knee angle (deg, 0 = full extension)",
     )
-    p.line(tb.time, np.rad2deg(tb.column("knee_angle_measured")), "#000000",
-           "measured (goniometer)")  # fmt: skip
-    p.line(tb.time, np.rad2deg(tb.column("knee_angle_simulated")), "#1565c0",
-           "simulated, identified model")  # fmt: skip
+    p.line(
+        tb.time, np.rad2deg(tb.column("knee_angle_measured")), "#000000", "measured (goniometer)"
+    )
+    p.line(
+        tb.time,
+        np.rad2deg(tb.column("knee_angle_simulated")),
+        "#1565c0",
+        "simulated, identified model",
+    )
     if "knee_angle_simulated_k_s0" in tb.columns:
-        p.line(tb.time, np.rad2deg(tb.column("knee_angle_simulated_k_s0")), "#ef6c00",
-               "simulated before k_s identification", dash="5 3")  # fmt: skip
+        p.line(
+            tb.time,
+            np.rad2deg(tb.column("knee_angle_simulated_k_s0")),
+            "#ef6c00",
+            "simulated before k_s identification",
+            dash="5 3",
+        )
     return svg.grid([p], 1, label="FES cross-validation", panel_w=760.0, panel_h=260.0)
 
 

@@ -34,7 +34,7 @@ def nice_ticks(lo: float, hi: float, n: int = 5) -> list[float]:
         return [lo] if math.isfinite(lo) else [0.0]
     raw = (hi - lo) / max(n - 1, 1)
     mag = 10.0 ** math.floor(math.log10(raw))
-    step = next((m * mag for m in (1.0, 2.0, 2.5, 5.0, 10.0) if m * mag >= raw), 10.0 * mag)
+    step = min((m * mag for m in (1.0, 2.0, 2.5, 5.0, 10.0)), key=lambda s: abs(math.log(s / raw)))
     first = math.ceil(lo / step - 1e-9) * step
     ticks = []
     v = first
@@ -175,43 +175,57 @@ class Panel:
         def py(y: np.ndarray | float) -> np.ndarray:
             return oy + mt + (y1 - np.asarray(y, float)) / (y1 - y0) * ph
 
-        out = [f'<rect x="{ox + ml:.1f}" y="{oy + mt:.1f}" width="{pw:.1f}" height="{ph:.1f}" '
-               'fill="#fff" stroke="#888" stroke-width="0.8"/>']  # fmt: skip
+        out = [
+            f'<rect x="{ox + ml:.1f}" y="{oy + mt:.1f}" width="{pw:.1f}" height="{ph:.1f}" '
+            'fill="#fff" stroke="#888" stroke-width="0.8"/>'
+        ]
         for t in yt:
             y = float(py(t))
-            out.append(f'<line x1="{ox + ml:.1f}" x2="{ox + ml + pw:.1f}" y1="{y:.1f}" '
-                       f'y2="{y:.1f}" stroke="#e0e0e0" stroke-width="0.6"/>'
-                       f'<text x="{ox + ml - 4:.1f}" y="{y + 3.5:.1f}" text-anchor="end">'
-                       f"{_fmt(t)}</text>")  # fmt: skip
+            out.append(
+                f'<line x1="{ox + ml:.1f}" x2="{ox + ml + pw:.1f}" y1="{y:.1f}" '
+                f'y2="{y:.1f}" stroke="#e0e0e0" stroke-width="0.6"/>'
+                f'<text x="{ox + ml - 4:.1f}" y="{y + 3.5:.1f}" text-anchor="end">'
+                f"{_fmt(t)}</text>"
+            )
         for t in xt:
             x = float(px(t))
-            out.append(f'<line x1="{x:.1f}" x2="{x:.1f}" y1="{oy + mt:.1f}" '
-                       f'y2="{oy + mt + ph:.1f}" stroke="#eeeeee" stroke-width="0.6"/>'
-                       f'<text x="{x:.1f}" y="{oy + mt + ph + 13:.1f}" text-anchor="middle">'
-                       f"{_fmt(t)}</text>")  # fmt: skip
+            out.append(
+                f'<line x1="{x:.1f}" x2="{x:.1f}" y1="{oy + mt:.1f}" '
+                f'y2="{oy + mt + ph:.1f}" stroke="#eeeeee" stroke-width="0.6"/>'
+                f'<text x="{x:.1f}" y="{oy + mt + ph + 13:.1f}" text-anchor="middle">'
+                f"{_fmt(t)}</text>"
+            )
         if y0 < 0 < y1:
             y = float(py(0.0))
-            out.append(f'<line x1="{ox + ml:.1f}" x2="{ox + ml + pw:.1f}" y1="{y:.1f}" '
-                       f'y2="{y:.1f}" stroke="#9e9e9e" stroke-width="0.8"/>')  # fmt: skip
+            out.append(
+                f'<line x1="{ox + ml:.1f}" x2="{ox + ml + pw:.1f}" y1="{y:.1f}" '
+                f'y2="{y:.1f}" stroke="#9e9e9e" stroke-width="0.8"/>'
+            )
         for lo, hi, colour, _ in self.spans:
             ya, yb = float(py(hi)), float(py(lo))
-            out.append(f'<rect x="{ox + ml:.1f}" y="{ya:.1f}" width="{pw:.1f}" '
-                       f'height="{max(yb - ya, 0.5):.1f}" fill="{colour}" '
-                       'fill-opacity="0.35"/>')  # fmt: skip
+            out.append(
+                f'<rect x="{ox + ml:.1f}" y="{ya:.1f}" width="{pw:.1f}" '
+                f'height="{max(yb - ya, 0.5):.1f}" fill="{colour}" '
+                'fill-opacity="0.35"/>'
+            )
         for b in self.bands:
             ok = np.isfinite(b.lo) & np.isfinite(b.hi) & np.isfinite(b.x)
             if ok.sum() < 2:
                 continue
             xs = px(b.x[ok])
             pts = _points(np.r_[xs, xs[::-1]], np.r_[py(b.hi[ok]), py(b.lo[ok])[::-1]])
-            out.append(f'<polygon points="{pts}" fill="{b.colour}" '
-                       f'fill-opacity="{b.opacity:g}" stroke="none"/>')  # fmt: skip
+            out.append(
+                f'<polygon points="{pts}" fill="{b.colour}" '
+                f'fill-opacity="{b.opacity:g}" stroke="none"/>'
+            )
         for x, colour, _ in self.vlines:
             if x0 <= x <= x1:
                 xx = float(px(x))
-                out.append(f'<line x1="{xx:.1f}" x2="{xx:.1f}" y1="{oy + mt:.1f}" '
-                           f'y2="{oy + mt + ph:.1f}" stroke="{colour}" stroke-width="1.1" '
-                           'stroke-dasharray="4 3"/>')  # fmt: skip
+                out.append(
+                    f'<line x1="{xx:.1f}" x2="{xx:.1f}" y1="{oy + mt:.1f}" '
+                    f'y2="{oy + mt + ph:.1f}" stroke="{colour}" stroke-width="1.1" '
+                    'stroke-dasharray="4 3"/>'
+                )
         for ln in self.lines:
             ok = np.isfinite(ln.y) & np.isfinite(ln.x)
             # a gap (NaN) splits the curve: one polyline per finite run
@@ -219,24 +233,36 @@ class Panel:
             dash = f' stroke-dasharray="{ln.dash}"' if ln.dash else ""
             for a, b in zip(edges[::2], edges[1::2]):
                 if b - a == 1:
-                    out.append(f'<circle cx="{float(px(ln.x[a])):.1f}" '
-                               f'cy="{float(py(ln.y[a])):.1f}" r="1.8" fill="{ln.colour}"/>')  # fmt: skip
+                    out.append(
+                        f'<circle cx="{float(px(ln.x[a])):.1f}" '
+                        f'cy="{float(py(ln.y[a])):.1f}" r="1.8" fill="{ln.colour}"/>'
+                    )
                     continue
                 pts = _points(px(ln.x[a:b]), py(ln.y[a:b]))
-                out.append(f'<polyline points="{pts}" fill="none" stroke="{ln.colour}" '
-                           f'stroke-width="{ln.width:g}"{dash}/>')  # fmt: skip
+                out.append(
+                    f'<polyline points="{pts}" fill="none" stroke="{ln.colour}" '
+                    f'stroke-width="{ln.width:g}"{dash}/>'
+                )
         if self.title:
-            out.append(f'<text x="{ox + ml + pw / 2:.1f}" y="{oy + 13:.1f}" '
-                       f'text-anchor="middle" font-weight="600" font-size="{FONT + 1}">'
-                       f"{_esc(self.title)}</text>")  # fmt: skip
+            out.append(
+                f'<text x="{ox + ml + pw / 2:.1f}" y="{oy + 13:.1f}" '
+                f'text-anchor="middle" font-weight="600" font-size="{FONT + 1}">'
+                f"{_esc(self.title)}</text>"
+            )
         if self.note:
-            out.append(f'<text x="{ox + ml + 4:.1f}" y="{oy + mt + 12:.1f}" fill="#555">'
-                       f"{_esc(self.note)}</text>")  # fmt: skip
-        out.append(f'<text x="{ox + ml + pw / 2:.1f}" y="{oy + h - 4:.1f}" '
-                   f'text-anchor="middle">{_esc(self.xlabel)}</text>')  # fmt: skip
+            out.append(
+                f'<text x="{ox + ml + 4:.1f}" y="{oy + mt + 12:.1f}" fill="#555">'
+                f"{_esc(self.note)}</text>"
+            )
+        out.append(
+            f'<text x="{ox + ml + pw / 2:.1f}" y="{oy + h - 4:.1f}" '
+            f'text-anchor="middle">{_esc(self.xlabel)}</text>'
+        )
         cy = oy + mt + ph / 2
-        out.append(f'<text transform="translate({ox + 11:.1f},{cy:.1f}) rotate(-90)" '
-                   f'text-anchor="middle">{_esc(self.ylabel)}</text>')  # fmt: skip
+        out.append(
+            f'<text transform="translate({ox + 11:.1f},{cy:.1f}) rotate(-90)" '
+            f'text-anchor="middle">{_esc(self.ylabel)}</text>'
+        )
         return "".join(out)
 
 
@@ -260,16 +286,22 @@ def _legend_svg(items: Sequence[tuple[str, str, str]], y: float, w: float) -> tu
             x, row = 10.0, row + 1
         yy = y + row * step
         if kind == "band":
-            out.append(f'<rect x="{x:.1f}" y="{yy - 8:.1f}" width="18" height="10" '
-                       f'fill="{colour}" fill-opacity="0.45"/>')  # fmt: skip
+            out.append(
+                f'<rect x="{x:.1f}" y="{yy - 8:.1f}" width="18" height="10" '
+                f'fill="{colour}" fill-opacity="0.45"/>'
+            )
         elif kind == "vline":
-            out.append(f'<line x1="{x + 9:.1f}" x2="{x + 9:.1f}" y1="{yy - 9:.1f}" '
-                       f'y2="{yy + 2:.1f}" stroke="{colour}" stroke-dasharray="3 2"/>')  # fmt: skip
+            out.append(
+                f'<line x1="{x + 9:.1f}" x2="{x + 9:.1f}" y1="{yy - 9:.1f}" '
+                f'y2="{yy + 2:.1f}" stroke="{colour}" stroke-dasharray="3 2"/>'
+            )
         elif kind == "marker":
             out.append(f'<circle cx="{x + 9:.1f}" cy="{yy - 3:.1f}" r="4" fill="{colour}"/>')
         else:
-            out.append(f'<line x1="{x:.1f}" x2="{x + 18:.1f}" y1="{yy - 3:.1f}" '
-                       f'y2="{yy - 3:.1f}" stroke="{colour}" stroke-width="2"/>')  # fmt: skip
+            out.append(
+                f'<line x1="{x:.1f}" x2="{x + 18:.1f}" y1="{yy - 3:.1f}" '
+                f'y2="{yy - 3:.1f}" stroke="{colour}" stroke-width="2"/>'
+            )
         out.append(f'<text x="{x + 23:.1f}" y="{yy:.1f}">{_esc(label)}</text>')
         x += width
     return "".join(out), (row + 1) * step + 6 if seen else 0.0
@@ -325,34 +357,47 @@ class Intervals:
         def px(x: float) -> float:
             return ml + (min(max(x, x0), x1) - x0) / (x1 - x0) * pw
 
-        out = [f'<rect x="{ml}" y="{top}" width="{pw:.1f}" height="{ph:.1f}" fill="#fff" '
-               'stroke="#888" stroke-width="0.8"/>']  # fmt: skip
+        out = [
+            f'<rect x="{ml}" y="{top}" width="{pw:.1f}" height="{ph:.1f}" fill="#fff" '
+            'stroke="#888" stroke-width="0.8"/>'
+        ]
         if self.span:
-            lo, hi, colour = self.span
-            out.append(f'<rect x="{px(lo):.1f}" y="{top}" width="{px(hi) - px(lo):.1f}" '
-                       f'height="{ph:.1f}" fill="{colour}" fill-opacity="0.5"/>')  # fmt: skip
+            s_lo, s_hi, colour = self.span
+            out.append(
+                f'<rect x="{px(s_lo):.1f}" y="{top}" width="{px(s_hi) - px(s_lo):.1f}" '
+                f'height="{ph:.1f}" fill="{colour}" fill-opacity="0.5"/>'
+            )
         for t in nice_ticks(x0, x1, 8):
             x = px(t)
-            out.append(f'<line x1="{x:.1f}" x2="{x:.1f}" y1="{top}" y2="{top + ph:.1f}" '
-                       f'stroke="#e0e0e0" stroke-width="0.6"/><text x="{x:.1f}" '
-                       f'y="{top + ph + 13:.1f}" text-anchor="middle">{_fmt(t)}</text>')  # fmt: skip
+            out.append(
+                f'<line x1="{x:.1f}" x2="{x:.1f}" y1="{top}" y2="{top + ph:.1f}" '
+                f'stroke="#e0e0e0" stroke-width="0.6"/><text x="{x:.1f}" '
+                f'y="{top + ph + 13:.1f}" text-anchor="middle">{_fmt(t)}</text>'
+            )
         if self.reference:
             x = px(self.reference[0])
-            out.append(f'<line x1="{x:.1f}" x2="{x:.1f}" y1="{top}" y2="{top + ph:.1f}" '
-                       'stroke="#000" stroke-dasharray="4 3"/>')  # fmt: skip
-        for k, (name, v, lo, hi, colour, filled) in enumerate(self.rows):
+            out.append(
+                f'<line x1="{x:.1f}" x2="{x:.1f}" y1="{top}" y2="{top + ph:.1f}" '
+                'stroke="#000" stroke-dasharray="4 3"/>'
+            )
+        for k, (name, value, lo, hi, colour, filled) in enumerate(self.rows):
             y = top + rh * (k + 0.5)
-            out.append(f'<text x="{ml - 6}" y="{y + 4:.1f}" text-anchor="end">'
-                       f"{_esc(name)}</text>")  # fmt: skip
+            out.append(f'<text x="{ml - 6}" y="{y + 4:.1f}" text-anchor="end">{_esc(name)}</text>')
             if lo is not None and hi is not None and math.isfinite(lo) and math.isfinite(hi):
-                out.append(f'<line x1="{px(lo):.1f}" x2="{px(hi):.1f}" y1="{y:.1f}" '
-                           f'y2="{y:.1f}" stroke="{colour}" stroke-width="1.5"/>')  # fmt: skip
-            if v is not None and math.isfinite(v):
+                out.append(
+                    f'<line x1="{px(lo):.1f}" x2="{px(hi):.1f}" y1="{y:.1f}" '
+                    f'y2="{y:.1f}" stroke="{colour}" stroke-width="1.5"/>'
+                )
+            if value is not None and math.isfinite(value):
                 fill = colour if filled else "#fff"
-                out.append(f'<circle cx="{px(v):.1f}" cy="{y:.1f}" r="4.5" fill="{fill}" '
-                           f'stroke="{colour}" stroke-width="1.5"/>')  # fmt: skip
-        out.append(f'<text x="{ml + pw / 2:.1f}" y="{top + ph + 28:.1f}" '
-                   f'text-anchor="middle">{_esc(self.xlabel)}</text>')  # fmt: skip
+                out.append(
+                    f'<circle cx="{px(value):.1f}" cy="{y:.1f}" r="4.5" fill="{fill}" '
+                    f'stroke="{colour}" stroke-width="1.5"/>'
+                )
+        out.append(
+            f'<text x="{ml + pw / 2:.1f}" y="{top + ph + 28:.1f}" '
+            f'text-anchor="middle">{_esc(self.xlabel)}</text>'
+        )
         items = list(self.legend)
         leg, lh = _legend_svg(items, top + ph + 48, w)
         h = top + ph + 40 + lh
@@ -390,13 +435,17 @@ class Bars:
         def py(v: float) -> float:
             return top + ph - v / y1 * ph
 
-        out = [f'<rect x="{ml}" y="{top}" width="{pw:.1f}" height="{ph:.1f}" fill="#fff" '
-               'stroke="#888" stroke-width="0.8"/>']  # fmt: skip
+        out = [
+            f'<rect x="{ml}" y="{top}" width="{pw:.1f}" height="{ph:.1f}" fill="#fff" '
+            'stroke="#888" stroke-width="0.8"/>'
+        ]
         for t in ticks:
             y = py(t)
-            out.append(f'<line x1="{ml}" x2="{ml + pw:.1f}" y1="{y:.1f}" y2="{y:.1f}" '
-                       f'stroke="#e0e0e0" stroke-width="0.6"/><text x="{ml - 4}" '
-                       f'y="{y + 3.5:.1f}" text-anchor="end">{_fmt(t)}</text>')  # fmt: skip
+            out.append(
+                f'<line x1="{ml}" x2="{ml + pw:.1f}" y1="{y:.1f}" y2="{y:.1f}" '
+                f'stroke="#e0e0e0" stroke-width="0.6"/><text x="{ml - 4}" '
+                f'y="{y + 3.5:.1f}" text-anchor="end">{_fmt(t)}</text>'
+            )
         ns = len(self.series)
         bw = gw * 0.8 / max(ns, 1)
         for s, (_, vs, colours, errs) in enumerate(self.series):
@@ -407,29 +456,42 @@ class Bars:
                 col = colours if isinstance(colours, str) else colours[k]
                 fill = "#fff" if col == "hatch" else col
                 stroke = "#37474f"
-                out.append(f'<rect x="{x:.1f}" y="{py(v):.1f}" width="{bw:.1f}" '
-                           f'height="{max(py(0) - py(v), 0):.1f}" fill="{fill}" '
-                           f'stroke="{stroke}" stroke-width="0.6"'
-                           + (' stroke-dasharray="2 1.5"' if col == "hatch" else "")
-                           + "/>")  # fmt: skip
+                out.append(
+                    f'<rect x="{x:.1f}" y="{py(v):.1f}" width="{bw:.1f}" '
+                    f'height="{max(py(0) - py(v), 0):.1f}" fill="{fill}" '
+                    f'stroke="{stroke}" stroke-width="0.6"'
+                    + (' stroke-dasharray="2 1.5"' if col == "hatch" else "")
+                    + "/>"
+                )
                 e = errs[k] if len(errs) > k else 0.0
                 if e and math.isfinite(e):
                     xc = x + bw / 2
-                    out.append(f'<line x1="{xc:.1f}" x2="{xc:.1f}" y1="{py(v + e):.1f}" '
-                               f'y2="{py(max(v - e, 0)):.1f}" stroke="#000" '
-                               'stroke-width="0.9"/>')  # fmt: skip
+                    out.append(
+                        f'<line x1="{xc:.1f}" x2="{xc:.1f}" y1="{py(v + e):.1f}" '
+                        f'y2="{py(max(v - e, 0)):.1f}" stroke="#000" '
+                        'stroke-width="0.9"/>'
+                    )
         for k, c in enumerate(self.categories):
             x = ml + gw * (k + 0.5)
             y = top + ph + 8
-            out.append(f'<text transform="translate({x:.1f},{y:.1f}) rotate(-40)" '
-                       f'text-anchor="end">{_esc(c)}</text>')  # fmt: skip
-        out.append(f'<text transform="translate(14,{top + ph / 2:.1f}) rotate(-90)" '
-                   f'text-anchor="middle">{_esc(self.ylabel)}</text>')  # fmt: skip
+            out.append(
+                f'<text transform="translate({x:.1f},{y:.1f}) rotate(-40)" '
+                f'text-anchor="end">{_esc(c)}</text>'
+            )
+        out.append(
+            f'<text transform="translate(14,{top + ph / 2:.1f}) rotate(-90)" '
+            f'text-anchor="middle">{_esc(self.ylabel)}</text>'
+        )
         items = [
-            ("band", "#ffffff" if (c if isinstance(c, str) else "") == "hatch" else
-             (c if isinstance(c, str) else "#90a4ae"), lab)
+            (
+                "band",
+                "#ffffff"
+                if (c if isinstance(c, str) else "") == "hatch"
+                else (c if isinstance(c, str) else "#90a4ae"),
+                lab,
+            )
             for lab, _, c, _ in self.series
-        ]  # fmt: skip
+        ]
         items += list(self.extra_legend)
         leg, lh = _legend_svg(items, top + ph + mb, w)
         h = top + ph + mb + lh

@@ -73,7 +73,6 @@ def _fes_references() -> tuple[dict[str, tuple[float, float]], dict[str, tuple[f
     return t3, t2
 
 
-
 class FesSection(Section):
     key = "fes"
     title = "FES knee model"

@@ -152,5 +152,7 @@ class MassSection(Section):
             "n_frames": ident.n_frames,
             "not_excited": at_prior if any(a.startswith("not excited") for a in advice) else [],
             "weak": seen[:5],
-            "other_advice": [a for a in advice if not a.startswith(("not excited", "weak direction"))],
+            "other_advice": [
+                a for a in advice if not a.startswith(("not excited", "weak direction"))
+            ],
         }

@@ -70,7 +70,11 @@ def _static_window(win: Any) -> str:
     rule = (
         f"markers' 90th-percentile speed ≤ {1000 * float(win.get('still_below_m_s') or 0.0):.0f}"
         " mm/s"
-        + ("" if win.get("plates_loaded") is None else f", {win.get('plates_loaded')} plates loaded")
+        + (
+            ""
+            if win.get("plates_loaded") is None
+            else f", {win.get('plates_loaded')} plates loaded"
+        )
     )
     if win.get("judged") is False:
         return "the whole trial (too short to judge whether it moves)"
@@ -142,7 +146,9 @@ class Methods(Section):
             "static_window": _static_window(win) if static else "",
             "stages": stages,
             "opt": opt,
-            "frames_solved": ", ".join(f"{k} {int(v)}" for k, v in (opt.frames_solved or {}).items())
+            "frames_solved": ", ".join(
+                f"{k} {int(v)}" for k, v in (opt.frames_solved or {}).items()
+            )
             if opt
             else "",
             "kkt": _kkt(opt.kkt) if opt and opt.kkt is not None else None,

@@ -116,7 +116,9 @@ class SessionSummary(Section):
                 "pelvis residual force (RMS)",
                 f"{num(q.residual_force_rms_n, '.1f', 'N')} ({num(rf, '.1f', '% BW')})",
                 f"≤ {TH['residual_force_rms_pct_bw']:g} % BW {hicks}",
-                check(rf, TH["residual_force_rms_pct_bw"], flagged=gate("residual_force_rms_pct_bw")),
+                check(
+                    rf, TH["residual_force_rms_pct_bw"], flagged=gate("residual_force_rms_pct_bw")
+                ),
             ],
             [
                 "pelvis residual moment (RMS)",
@@ -163,9 +165,7 @@ class SessionSummary(Section):
             )
         warns = q.emg_warnings or ()
         no_mvc = [w.split("'")[1] for w in warns if "no MVC" in w and w.count("'") >= 2]
-        events = [
-            (e.label, e.context or "", num(e.time, ".3f", "s")) for e in (s.events or ())
-        ]
+        events = [(e.label, e.context or "", num(e.time, ".3f", "s")) for e in (s.events or ())]
         notes = s.event_sources.get("notes") if isinstance(s.event_sources, Mapping) else ()
         trials = [i for i in s.inputs if i.role == "task" or i.role.startswith("task")]
         static = [i for i in s.inputs if i.role == "static"]
@@ -177,7 +177,9 @@ class SessionSummary(Section):
             "event_sources": event_source_words(s.event_sources),
             "event_notes": [str(n) for n in (notes or ()) if isinstance(n, str)],
             "rows": rows,
-            "other_flags": [f for f in (q.flags or ()) if f.quantity not in _QUALITY_ROW_QUANTITIES],
+            "other_flags": [
+                f for f in (q.flags or ()) if f.quantity not in _QUALITY_ROW_QUANTITIES
+            ],
             "gaps": [
                 [g.marker, or_(g.missing_frames, "—"), or_(g.longest_gap_frames, "—")]
                 for g in (q.marker_gaps or ())
