@@ -196,9 +196,8 @@ class GaitCycles:
             for p in parts:
                 sc = p.side(s)
                 cols = [p.variables.index(v) for v in common]
-                vals.append(
-                    np.asarray(sc.values, dtype=float).reshape(sc.n_cycles, 101, -1)[..., cols]
-                )
+                v = np.asarray(sc.values, dtype=float)
+                vals.append(v[..., cols] if sc.n_cycles else np.zeros((0, 101, len(cols))))
                 st.append(sc.start_s)
                 en.append(sc.end_s)
                 fo.append(sc.foot_off_pct)
@@ -220,29 +219,28 @@ class GaitCycles:
 
     # -- the results folder's tables ------------------------------------------------------------
     def to_tables(self) -> dict[str, Table]:
-        """``{"gait_cycles_left": Table, "gait_cycles_right": Table}`` (module docstring)."""
+        """``{"gait_cycles_<side>": Table}`` of the sides with at least one cycle (module
+        docstring; a side without a complete cycle has no table)."""
         out = {}
+        k = PERCENT.size
         for s in SIDES:
             sc = self.side(s)
             n = sc.n_cycles
-            k = PERCENT.size
+            if n == 0:
+                continue
             frac = PERCENT / 100.0
-            time = (sc.start_s[:, None] + frac[None, :] * (sc.end_s - sc.start_s)[:, None]).ravel()
-            head = (
-                np.column_stack(
-                    [
-                        np.repeat(np.arange(n, dtype=float), k),
-                        np.tile(PERCENT, n),
-                        np.repeat(np.asarray(sc.foot_off_pct, dtype=float), k),
-                        np.repeat(np.asarray(sc.measured, dtype=float), k),
-                    ]
-                )
-                if n
-                else np.zeros((0, len(CYCLE_COLUMNS)))
+            time = sc.start_s[:, None] + frac[None, :] * (sc.end_s - sc.start_s)[:, None]
+            head = np.column_stack(
+                [
+                    np.repeat(np.arange(n, dtype=float), k),
+                    np.tile(PERCENT, n),
+                    np.repeat(np.asarray(sc.foot_off_pct, dtype=float), k),
+                    np.repeat(np.asarray(sc.measured, dtype=float), k),
+                ]
             )
             body = np.asarray(sc.values, dtype=float).reshape(n * k, len(self.variables))
             out[f"gait_cycles_{s}"] = Table(
-                time=np.asarray(time, dtype=float),
+                time=np.asarray(time, dtype=float).ravel(),
                 data=np.hstack([head, body]),
                 columns=CYCLE_COLUMNS + self.variables,
                 name=f"gait_cycles_{s}",
@@ -252,24 +250,27 @@ class GaitCycles:
     @staticmethod
     def from_tables(tables: Mapping[str, Table], *, trial: str = "") -> GaitCycles:
         """The cycles of the tables :meth:`to_tables` wrote (``trial``: the task trial's name,
-        for every cycle)."""
+        for every cycle); a side without its table has no cycle."""
+        present = [s for s in SIDES if f"gait_cycles_{s}" in tables]
+        if not present:
+            raise MissingDataError("results: no table 'gait_cycles_left' or 'gait_cycles_right'")
+        first = tables[f"gait_cycles_{present[0]}"]
+        variables = tuple(first.columns[len(CYCLE_COLUMNS) :])
+        k = PERCENT.size
         sides = {}
-        variables: tuple[str, ...] | None = None
         for s in SIDES:
             name = f"gait_cycles_{s}"
             if name not in tables:
-                raise MissingDataError(f"results: no table {name!r}")
+                e = np.zeros(0)
+                sides[s] = SideCycles(s, np.zeros((0, k, len(variables))), e, e, e, e > 0)
+                continue
             tab = tables[name]
             if tuple(tab.columns[: len(CYCLE_COLUMNS)]) != CYCLE_COLUMNS:
                 raise ShapeMismatchError(
                     f"table {name}: first columns {tab.columns[:4]}, expected {CYCLE_COLUMNS}"
                 )
-            var = tuple(tab.columns[len(CYCLE_COLUMNS) :])
-            if variables is None:
-                variables = var
-            elif var != variables:
+            if tuple(tab.columns[len(CYCLE_COLUMNS) :]) != variables:
                 raise ShapeMismatchError(f"table {name}: variables differ from the other side's")
-            k = PERCENT.size
             d = np.asarray(tab.data, dtype=float)
             if d.shape[0] % k:
                 raise ShapeMismatchError(f"table {name}: {d.shape[0]} rows, not a multiple of {k}")
@@ -277,14 +278,13 @@ class GaitCycles:
             t = np.asarray(tab.time, dtype=float).reshape(n, k)
             sides[s] = SideCycles(
                 s,
-                d[:, len(CYCLE_COLUMNS) :].reshape(n, k, len(var)),
+                d[:, len(CYCLE_COLUMNS) :].reshape(n, k, len(variables)),
                 t[:, 0].copy(),
                 t[:, -1].copy(),
                 d[::k, 2].copy(),
                 d[::k, 3] > 0.5,
                 (trial,) * n,
             )
-        assert variables is not None
         return GaitCycles(variables, sides["left"], sides["right"])
 
 

@@ -39,7 +39,14 @@ from msk.gait.cycles import PERCENT, SIDES, GaitCycles
 from msk.io.tables import write_text_atomic
 from msk.units import Array
 
-__all__ = ["NORM_COLUMNS", "NormativeBands", "bands_from_cycles", "read_norms", "write_norms"]
+__all__ = [
+    "NORM_COLUMNS",
+    "NormativeBands",
+    "bands_from_cycles",
+    "bands_from_sessions",
+    "read_norms",
+    "write_norms",
+]
 
 #: the columns of a normative-band file
 NORM_COLUMNS: tuple[str, ...] = ("variable", "percent_cycle", "mean", "sd")
@@ -187,3 +194,42 @@ def bands_from_cycles(
     info = {"n_sessions": str(len(cycles)), "n_cycles": str(allv.shape[0])}
     info.update(notes or {})
     return NormativeBands(pooled.variables, mean, sd, population, source, licence, info)
+
+
+def bands_from_sessions(
+    folders: Sequence[str | Path],
+    *,
+    population: str | None = None,
+    source: str,
+    licence: str,
+) -> tuple[NormativeBands, list[str], list[tuple[str, str]]]:
+    """Bands from the results folders of control sessions (``msk run`` / ``msk batch``),
+    read typed (:meth:`msk.results.folder.SessionResults.gait_cycles`); a folder without gait
+    cycles is left out. Returns the bands, the sessions used and ``(session, why)`` of those
+    left out. ``population`` defaults to "control sessions of this lab (n = …: names)"."""
+    from msk.exceptions import MskError
+    from msk.results.folder import read_session
+
+    cycles: list[GaitCycles] = []
+    used: list[str] = []
+    skipped: list[tuple[str, str]] = []
+    for f in folders:
+        p = Path(f)
+        try:
+            c = read_session(p).gait_cycles()
+        except MskError as exc:
+            skipped.append((p.name, " ".join(str(exc).split())))
+            continue
+        if c is None or not (c.left.n_cycles or c.right.n_cycles):
+            skipped.append((p.name, "no complete gait cycle"))
+            continue
+        cycles.append(c)
+        used.append(p.name)
+    if not cycles:
+        raise MissingDataError(
+            "normative bands: no session with gait cycles among "
+            f"{', '.join(Path(f).name for f in folders) or 'no folder'}"
+        )
+    pop = population or f"control sessions of this lab (n = {len(used)}: {', '.join(used)})"
+    bands = bands_from_cycles(cycles, population=pop, source=source, licence=licence)
+    return bands, used, skipped

@@ -128,6 +128,31 @@ class Spatiotemporal:
             raise MissingDataError(f"spatiotemporal: no side {side!r} (left, right)")
         return self.left if side == "left" else self.right
 
+    @staticmethod
+    def concatenate(parts: Sequence[Spatiotemporal]) -> Spatiotemporal:
+        """The strides of several trials (or sessions) pooled, per side (the parameters of the
+        first part; a parameter another part lacks is NaN in its strides)."""
+        if not parts:
+            raise MissingDataError("spatiotemporal: nothing to pool")
+        names = parts[0].left.parameters
+        sides = {}
+        for s in SIDES:
+            starts, rows = [], []
+            for p in parts:
+                sp = p.side(s)
+                starts.append(np.asarray(sp.stride_start_s, dtype=float))
+                cols = [
+                    sp.parameter(n) if n in sp.parameters else np.full(sp.n_strides, np.nan)
+                    for n in names
+                ]
+                rows.append(np.column_stack(cols) if cols else np.zeros((sp.n_strides, 0)))
+            sides[s] = SideSpatiotemporal(
+                s, np.concatenate(starts), np.concatenate(rows).reshape(-1, len(names)), names
+            )
+        notes = tuple(dict.fromkeys(n for p in parts for n in p.notes))
+        sources = ", ".join(dict.fromkeys(p.source for p in parts))
+        return Spatiotemporal(sides["left"], sides["right"], sources, notes)
+
     def to_summary(self) -> dict[str, object]:
         """The ``summary.json`` ``gait.spatiotemporal`` object: side → ``{"n_strides",
         "stride_start_s", "parameters": {name: {"mean", "sd", "values"}}}``

@@ -96,7 +96,9 @@ __all__ = [
     "Summary",
     "check_replaceable",
     "json_default",
+    "pooled_gait",
     "read_session",
+    "read_task_trials",
     "recover_interrupted_write",
     "write_session",
 ]
@@ -170,8 +172,9 @@ class SessionResults:
 
     def gait_cycles(self) -> GaitCycles | None:
         """Every normalised gait cycle of both sides (:class:`msk.gait.cycles.GaitCycles`,
-        from ``tables/gait_cycles_<side>.csv``), None when the session has none."""
-        if not (self.has("gait_cycles_left") and self.has("gait_cycles_right")):
+        from ``tables/gait_cycles_<side>.csv``; a side without a complete cycle has no table),
+        None when the session has none."""
+        if not (self.has("gait_cycles_left") or self.has("gait_cycles_right")):
             return None
         return GaitCycles.from_tables(self.tables, trial=self.summary.trial or "")
 
@@ -422,3 +425,36 @@ def read_session(path: str | Path) -> SessionResults:
         tables[name] = read_csv_table(folder / "tables" / f"{name}.csv")
     angles = summary.angle_columns or ()
     return SessionResults(tables=tables, summary=summary, path=folder, angle_columns=angles)
+
+
+def read_task_trials(path: str | Path) -> list[SessionResults]:
+    """The results of every task trial of a session as ``msk run`` wrote them
+    (:func:`msk.pipeline.run_task_trials`): ``path`` itself when it is a session folder, else
+    each of its subfolders that is one (several task trials: ``<out>/<trial name>/``), in name
+    order."""
+    folder = Path(path)
+    if (folder / "summary.json").is_file():
+        return [read_session(folder)]
+    subs = (
+        sorted(p for p in folder.iterdir() if (p / "summary.json").is_file())
+        if folder.is_dir()
+        else []
+    )
+    if not subs:
+        raise FileFormatError(f"{folder}: neither a session folder nor one of task-trial folders")
+    return [read_session(p) for p in subs]
+
+
+def pooled_gait(
+    sessions: Sequence[SessionResults],
+) -> tuple[GaitCycles | None, Spatiotemporal | None]:
+    """Every gait cycle and stride of ``sessions`` (e.g. the task trials of
+    :func:`read_task_trials`) pooled per side (:meth:`GaitCycles.concatenate`,
+    :meth:`Spatiotemporal.concatenate`): mean ± SD across cycles and trials; None where no
+    session has any."""
+    cycles = [c for s in sessions if (c := s.gait_cycles()) is not None]
+    strides = [st for s in sessions if (st := s.spatiotemporal()) is not None]
+    return (
+        GaitCycles.concatenate(cycles) if cycles else None,
+        Spatiotemporal.concatenate(strides) if strides else None,
+    )

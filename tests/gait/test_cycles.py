@@ -89,3 +89,14 @@ def test_shapes_are_checked():
     with pytest.raises(ShapeMismatchError, match="foot_off_pct"):
         SideCycles("left", np.zeros((2, 101, 1)), np.zeros(2), np.ones(2), np.zeros(3),
                    np.zeros(2, bool))  # fmt: skip
+
+
+def test_a_side_without_cycles_has_no_table():
+    c = _cycles(n_left=2, n_right=0)
+    tabs = c.to_tables()
+    assert set(tabs) == {"gait_cycles_left"}
+    back = GaitCycles.from_tables(tabs)
+    assert back.right.n_cycles == 0 and back.left.n_cycles == 2
+    assert np.isnan(back.mean("right")).all()
+    pooled = GaitCycles.concatenate([back, c])
+    assert pooled.left.n_cycles == 4 and pooled.right.n_cycles == 0

@@ -60,3 +60,57 @@ def test_bands_from_cycles_pool_sides_and_sessions():
     assert allv.shape[0] == 14 and b.notes["n_cycles"] == "14"
     assert np.allclose(b.mean[:, 0], allv[:, :, 0].mean(axis=0))
     assert np.allclose(b.sd[:, 0], allv[:, :, 0].std(axis=0, ddof=1))
+
+
+def _session_folder(root, name, n, offset):
+    from msk.results.folder import SessionResults, write_session
+
+    rng = np.random.default_rng(n)
+
+    def side(s):
+        v = offset + rng.normal(size=(n, 101, 1))
+        start = np.arange(n) * 1.1
+        return SideCycles(s, v, start, start + 1.1, np.full(n, 60.0), np.ones(n, bool))
+
+    cycles = GaitCycles(("knee_flexion_deg",), side("left"), side("right"))
+    summary = {
+        "session": name, "created_utc": "2026-12-07T00:00:00Z", "versions": {},
+        "config": {"path": "x.toml", "sha256": "0"}, "inputs": [], "settings": {},
+        "subject": {"name": name}, "quality": {}, "trial": "walk",
+    }  # fmt: skip
+    write_session(root / name, SessionResults(cycles.to_tables(), summary))
+    return cycles
+
+
+def test_msk_norms_builds_bands_from_a_batch_folder(tmp_path, capsys):
+    from msk.cli import main
+
+    a = _session_folder(tmp_path / "batch", "control1", 3, 10.0)
+    b = _session_folder(tmp_path / "batch", "control2", 2, 20.0)
+    _session_folder(tmp_path / "batch", "patient", 4, 50.0)
+    out = tmp_path / "bands.csv"
+    argv = ["norms", str(tmp_path / "batch"), "--out", str(out), "--session", "control1",
+            "--session", "control2", "--licence", "CC-BY-4.0"]  # fmt: skip
+    assert main(argv) == 0
+    assert "10 cycles of 2 sessions (control1, control2)" in capsys.readouterr().err
+    bands = read_norms(out)
+    assert bands.licence == "CC-BY-4.0" and "n = 2: control1, control2" in bands.population
+    allv = np.concatenate([c.side(s).values for c in (a, b) for s in ("left", "right")])
+    assert np.allclose(bands.mean[:, 0], allv[:, :, 0].mean(axis=0), rtol=1e-5)
+    assert main(["norms", str(tmp_path / "batch"), "--out", str(out), "--session", "x"]) == 2
+    assert "no session folder 'x'" in capsys.readouterr().err
+
+
+def test_task_trial_folders_are_read_and_pooled(tmp_path):
+    from msk.results.folder import pooled_gait, read_task_trials
+
+    a = _session_folder(tmp_path / "session", "walk1", 2, 10.0)
+    b = _session_folder(tmp_path / "session", "walk2", 3, 12.0)
+    trials = read_task_trials(tmp_path / "session")
+    assert [t.summary.session for t in trials] == ["walk1", "walk2"]
+    cycles, strides = pooled_gait(trials)
+    assert strides is None and cycles is not None
+    assert cycles.left.n_cycles == 5
+    allv = np.concatenate([a.left.values, b.left.values])
+    assert np.allclose(cycles.mean("left"), allv.mean(axis=0))
+    assert len(read_task_trials(tmp_path / "session" / "walk1")) == 1

@@ -71,3 +71,17 @@ def test_summary_round_trip():
     for s in ("left", "right"):
         assert np.allclose(back.side(s).values, st.side(s).values, equal_nan=True)
         assert back.side(s).mean("stride_time_s") == pytest.approx(st.side(s).mean("stride_time_s"))
+
+
+def test_pooling_strides_of_two_trials():
+    t, heel, fs, fo = _walk()
+    a = spatiotemporal(t, heel, fs, fo, up=np.array([0.0, 1.0, 0.0]))
+    t2, heel2, fs2, fo2 = _walk(speed=1.0)
+    b = spatiotemporal(t2, heel2, fs2, fo2, up=np.array([0.0, 1.0, 0.0]))
+    both = Spatiotemporal.concatenate([a, b])
+    for s in ("left", "right"):
+        n = a.side(s).n_strides + b.side(s).n_strides
+        assert both.side(s).n_strides == n
+        v = np.concatenate([a.side(s).parameter("walking_speed_m_s"),
+                            b.side(s).parameter("walking_speed_m_s")])  # fmt: skip
+        assert both.side(s).mean("walking_speed_m_s") == pytest.approx(np.nanmean(v))
