@@ -98,7 +98,11 @@ def _print_config(args: argparse.Namespace) -> int:
 
 
 def _report_args(p: argparse.ArgumentParser) -> None:
-    p.add_argument("folder", metavar="DIR", type=Path, help="a session folder of msk run")
+    p.add_argument(
+        "folder", metavar="DIR", type=Path,
+        help="a session folder of msk run, or the folder of its task-trial folders (one report "
+        "of them all)",
+    )  # fmt: skip
     p.add_argument("--pdf", action="store_true", help="also print report.pdf (Chromium)")
     p.add_argument(
         "--norms", type=Path, metavar="FILE",
@@ -110,16 +114,17 @@ def _report_args(p: argparse.ArgumentParser) -> None:
 def _report(args: argparse.Namespace) -> int:
     from msk.exceptions import SummaryError
     from msk.report import write_report
-    from msk.results.folder import read_session
+    from msk.results.folder import read_task_trials
 
-    res = read_session(args.folder)
+    parts = read_task_trials(args.folder)  # a session folder, or one per task trial
+    res = parts[0]
     norms = None
     if args.norms is not None:
         from msk.gait.norms import read_norms
 
         norms = read_norms(args.norms)
     try:
-        path = write_report(res, args.folder, pdf=args.pdf, norms=norms)
+        path = write_report(res, args.folder, pdf=args.pdf, norms=norms, trials=parts)
     except (ValueError, TypeError, KeyError, IndexError, AttributeError, RecursionError) as exc:
         # a received folder's summary.json that passes the schema but not the report's reading
         # (an unknown status word, a string where a window is expected): one line, no traceback

@@ -20,6 +20,7 @@ __all__ = ["run", "settings"]
 FIGURE_SECTIONS = (
     "gait_cycle_s",
     "events",
+    "gait",
     "subject",
     "identification",
     "strength",

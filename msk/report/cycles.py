@@ -19,8 +19,9 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from msk.exceptions import MskError
 from msk.gait.cycles import GaitCycles
-from msk.results.folder import SessionResults
+from msk.results.folder import SessionResults, pooled_gait
 from msk.units import Array
 
 __all__ = [
@@ -31,6 +32,7 @@ __all__ = [
     "Variable",
     "curves_from_gait",
     "curves_from_tables",
+    "pooled_curves",
 ]
 
 PERCENT = np.linspace(0.0, 100.0, 101)
@@ -249,9 +251,16 @@ def curves_from_tables(res: SessionResults) -> CycleCurves | None:
     """The cycles of both legs: :mod:`msk.gait`'s (``tables/gait_cycles_<side>``) when the
     folder has them, else from ``summary.events`` and the ``q`` and ``joint_torques`` tables
     (the coordinate-based variables only); None without a complete cycle."""
-    cycles = res.gait_cycles()
+    try:
+        cycles = res.gait_cycles()
+    except (MskError, ValueError):
+        cycles = None  # a malformed gait table: the cycles from the events
     if cycles is not None:
         return curves_from_gait(cycles)
+    return _curves_from_events(res)
+
+
+def _curves_from_events(res: SessionResults) -> CycleCurves | None:
     if not res.has("q"):
         return None
     sides = {}
@@ -291,3 +300,49 @@ def curves_from_gait(cycles: GaitCycles) -> CycleCurves | None:
     return CycleCurves(
         sides["left"], sides["right"], "msk.gait (every task trial's cycles)", tuple(cycles.notes)
     )
+
+
+def pooled_curves(trials: Sequence[SessionResults]) -> CycleCurves | None:
+    """Every cycle of every task trial in ``trials``, pooled per side: :mod:`msk.gait`'s cycles
+    (:func:`msk.results.folder.pooled_gait`) where the folders have them, else those of
+    :func:`curves_from_tables` of the first trial. A malformed gait table (a received folder)
+    falls back the same way."""
+    try:
+        cycles, _ = pooled_gait(trials)
+    except (MskError, ValueError):
+        cycles = None
+    if cycles is not None:
+        pooled = curves_from_gait(cycles)
+        if pooled is not None:
+            return pooled
+    parts = []
+    for res in trials:
+        try:
+            part = _curves_from_events(res)
+        except (MskError, ValueError):
+            part = None
+        if part is not None:
+            parts.append(part)
+    return _merge(parts) if parts else None
+
+
+def _merge(parts: Sequence[CycleCurves]) -> CycleCurves:
+    """The cycles of ``parts`` (several trials) side by side."""
+    if len(parts) == 1:
+        return parts[0]
+    sides = {}
+    for side in ("left", "right"):
+        ps = [p.side(side) for p in parts]
+        keys = {k for p in ps for k in p.values}
+        values = {}
+        for k in keys:
+            blocks = [p.values.get(k, np.full((p.n_cycles, PERCENT.size), np.nan)) for p in ps]
+            values[k] = np.concatenate(blocks, axis=0)
+        sides[side] = SideCurves(
+            side,
+            values,
+            np.concatenate([p.start_s for p in ps]),
+            np.concatenate([p.end_s for p in ps]),
+            np.concatenate([p.foot_off_pct for p in ps]),
+        )
+    return CycleCurves(sides["left"], sides["right"], f"the gait events of {len(parts)} trials")

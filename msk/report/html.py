@@ -11,7 +11,7 @@ import shutil
 import subprocess
 import tempfile
 import warnings
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from pathlib import Path
 
 from markupsafe import Markup
@@ -47,31 +47,36 @@ def render_html(
     *,
     pdf_path: str | Path | None = None,
     norms: NormativeBands | None = None,
+    trials: Sequence[SessionResults] = (),
 ) -> str:
     """The report as one self-contained HTML string: every section of :data:`SECTIONS` that
     has something for this session, numbered in order, then the references it cited.
     ``pdf_path``: where the printable copy is written (printed in the page's footer);
-    ``norms``: normative bands drawn in grey under the gait-cycle grids (:mod:`msk.gait.norms`)."""
+    ``norms``: normative bands drawn in grey under the gait-cycle grids (:mod:`msk.gait.norms`);
+    ``trials``: the results of every task trial of the session (``res`` the first): the gait
+    sections pool their cycles and strides (one report per session), the others are ``res``'s."""
     figs = build_figures(res) if figures is None else figures
     s = res.summary
     # a session of FES trials only has no gait results: its report is the FES section
     gait = res.has("q") or not s.fes
-    ctx = ReportContext(res, figs, gait=gait, norms=norms)
-    curves = ctx.curves() if gait and norms is not None else None
-    if curves is not None:  # the grids redrawn over the bands
+    ctx = ReportContext(res, figs, gait=gait, norms=norms, trials=tuple(trials))
+    pooled = norms is not None or len(trials) > 1
+    curves = ctx.curves() if gait and pooled else None
+    if curves is not None:  # the grids redrawn: over the bands, with every trial's cycles
         grids = {"kinematics": kinematics_figure(curves, norms),
                  "kinetics": kinetics_figure(curves, norms)}  # fmt: skip
         ctx.figures = {**figs, **{k: v for k, v in grids.items() if v}}
     bodies = [b for b in (sec.render(ctx) for sec in SECTIONS) if b]
-    tasks = [i for i in s.inputs if i.role == "task"]
-    trials = [s.trial] if s.trial else [Path(i.path).stem for i in tasks]
+    names = [t.summary.trial or "" for t in trials] if len(trials) > 1 else [s.trial or ""]
+    if not any(names):
+        names = [Path(i.path).stem for i in s.inputs if i.role == "task"]
     return (
         render(
             "page.html.j2",
             csp=Markup(CONTENT_SECURITY_POLICY),
             kind="Gait analysis" if gait else "FES knee model",
             subject=s.subject,
-            trials=trials,
+            trials=[n for n in names if n],
             created=s.created_utc,
             version=s.versions.get("msk", ""),
             not_available=s.not_available or (),
@@ -217,9 +222,11 @@ def write_report(
     figures: Mapping[str, str] | None = None,
     pdf: bool | None = None,
     norms: NormativeBands | None = None,
+    trials: Sequence[SessionResults] = (),
 ) -> Path:
     """Write ``report.html`` (and ``report.pdf`` when Chromium is available and ``pdf`` is not
-    False; ``MSK_NO_PDF=1`` disables it) into ``folder``."""
+    False; ``MSK_NO_PDF=1`` disables it) into ``folder``; ``norms`` and ``trials`` as for
+    :func:`render_html`."""
     folder = Path(folder)
     path = folder / "report.html"
     # a private temporary file renamed into place: a symlink planted in a received folder (as
@@ -229,10 +236,12 @@ def write_report(
     pdf = bool(pdf) and chromium_executable() is not None
     figs = build_figures(res) if figures is None else figures
     target = (folder.resolve() / "report.pdf") if pdf else None
-    write_file_atomic(path, render_html(res, figs, pdf_path=target, norms=norms).encode("utf-8"))
+    write_file_atomic(
+        path, render_html(res, figs, pdf_path=target, norms=norms, trials=trials).encode("utf-8")
+    )
     if pdf and not write_pdf(path, folder / "report.pdf"):
         # the page names no PDF that is not there
-        write_file_atomic(path, render_html(res, figs, norms=norms).encode("utf-8"))
+        write_file_atomic(path, render_html(res, figs, norms=norms, trials=trials).encode("utf-8"))
     if not pdf or not (folder / "report.pdf").is_file():
         # no stale report.pdf of earlier results beside the new report.html
         with contextlib.suppress(FileNotFoundError):

@@ -10,7 +10,7 @@ from dataclasses import dataclass, field
 from typing import Any, ClassVar
 
 from msk.gait.norms import NormativeBands
-from msk.report.cycles import CycleCurves, curves_from_tables
+from msk.report.cycles import CycleCurves, pooled_curves
 from msk.report.format import render
 from msk.report.references import Citations
 from msk.results.folder import SessionResults
@@ -27,6 +27,8 @@ class ReportContext:
         figures: the report's figures by name (inline SVG; a missing name is not drawn).
         gait: whether the session has gait results (False: an FES-only session).
         norms: the normative bands the grids draw (None: none attached).
+        trials: the results of every task trial of the session (``res`` among them) whose
+            cycles and strides the gait sections pool; empty: ``res`` alone.
         citations: the numbering of the works cited, in the order of first citation.
         sections: the numbers given so far (section key → number).
     """
@@ -35,6 +37,7 @@ class ReportContext:
     figures: Mapping[str, str]
     gait: bool = True
     norms: NormativeBands | None = None
+    trials: tuple[SessionResults, ...] = ()
     citations: Citations = field(default_factory=Citations)
     sections: dict[str, int] = field(default_factory=dict)
     _curves: list[CycleCurves | None] = field(default_factory=list, repr=False)
@@ -42,7 +45,7 @@ class ReportContext:
     def curves(self) -> CycleCurves | None:
         """Every gait cycle of both legs (:func:`msk.report.cycles.curves_from_tables`), once."""
         if not self._curves:
-            self._curves.append(curves_from_tables(self.res))
+            self._curves.append(pooled_curves(self.trials or (self.res,)))
         return self._curves[0]
 
     def cite(self, *keys: str) -> str:

@@ -167,7 +167,9 @@ class SessionSummary(Section):
         no_mvc = [w.split("'")[1] for w in warns if "no MVC" in w and w.count("'") >= 2]
         events = [(e.label, e.context or "", num(e.time, ".3f", "s")) for e in (s.events or ())]
         notes = s.event_sources.get("notes") if isinstance(s.event_sources, Mapping) else ()
-        trials = [i for i in s.inputs if i.role == "task" or i.role.startswith("task")]
+        trials = [
+            i for t in (ctx.trials or (ctx.res,)) for i in t.summary.inputs if i.role == "task"
+        ]
         static = [i for i in s.inputs if i.role == "static"]
         return {
             "trial": s.trial,

@@ -12,13 +12,15 @@ stride length the pelvis' horizontal travel from s_i to s_{i+1} (model frame, wa
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from typing import Any
 
 import numpy as np
 
 from msk.report.cycles import cycle_bounds
 from msk.report.sections.base import ReportContext, Section
-from msk.results.folder import SessionResults
+from msk.exceptions import MskError
+from msk.results.folder import SessionResults, pooled_gait
 
 __all__ = ["Spatiotemporal", "spatiotemporal_from_events"]
 
@@ -98,8 +100,13 @@ def _cell(values: list[float], fmt: str) -> str:
     return f"{v.mean():{fmt}} ± {v.std(ddof=1):{fmt}} (n {v.size})"
 
 
-def _from_gait(res: SessionResults) -> tuple[dict[str, dict[str, list[float]]], str] | None:
-    st = res.spatiotemporal()
+def _from_gait(
+    trials: Sequence[SessionResults],
+) -> tuple[dict[str, dict[str, list[float]]], str] | None:
+    try:
+        _, st = pooled_gait(trials)
+    except (MskError, ValueError):
+        st = None
     if st is None:
         return None
     out: dict[str, dict[str, list[float]]] = {}
@@ -124,7 +131,7 @@ class Spatiotemporal(Section):
     def context(self, ctx: ReportContext) -> dict[str, Any] | None:
         if not ctx.gait or not ctx.res.summary.events:
             return None
-        typed = _from_gait(ctx.res)
+        typed = _from_gait(ctx.trials or (ctx.res,))
         if typed is not None:
             vals, how = typed
         else:
