@@ -142,3 +142,13 @@ def test_sections_are_numbered_without_gaps():
     html = render_html(_walk(), figures={})
     numbers = [int(n) for n in re.findall(r"<h2>(\d+)\. ", html)]
     assert numbers == list(range(1, len(numbers) + 1))
+
+
+def test_one_report_pools_every_task_trial():
+    a, b = _walk(trial="walk1"), _walk(noise=np.deg2rad(1.0), trial="walk2")
+    html = render_html(a, figures={}, trials=[a, b])
+    assert "trials walk1, walk2" in html
+    assert '<span class="left">left</span> 4 cycle(s)' in html  # 2 + 2 left cycles
+    assert "<svg" in html  # the grids redrawn from the pooled cycles
+    single = render_html(a, figures={})
+    assert '<span class="left">left</span> 2 cycle(s)' in single

@@ -17,9 +17,9 @@ from typing import Any
 
 import numpy as np
 
+from msk.exceptions import MskError
 from msk.report.cycles import cycle_bounds
 from msk.report.sections.base import ReportContext, Section
-from msk.exceptions import MskError
 from msk.results.folder import SessionResults, pooled_gait
 
 __all__ = ["Spatiotemporal", "spatiotemporal_from_events"]
@@ -135,7 +135,11 @@ class Spatiotemporal(Section):
         if typed is not None:
             vals, how = typed
         else:
-            vals = spatiotemporal_from_events(ctx.res)
+            vals = {"left": {}, "right": {}}
+            for trial in ctx.trials or (ctx.res,):
+                for side, params in spatiotemporal_from_events(trial).items():
+                    for k, v in params.items():
+                        vals[side].setdefault(k, []).extend(v)
             how = (
                 "times from the gait events; lengths and speed from the pelvis' horizontal "
                 "travel between foot strikes; step width needs the feet's positions (not "
