@@ -13,7 +13,7 @@ from typing import Any
 import numpy as np
 
 from msk.gait.cycles import SIDES, GaitCycles
-from msk.gait.spatiotemporal import Spatiotemporal, spatiotemporal
+from msk.gait.spatiotemporal import Spatiotemporal, spatiotemporal, surface_velocity
 from msk.gait.variables import GaitVariables, gait_cycles, segment_poses
 
 __all__ = ["GaitAnalysis", "analyse_gait"]
@@ -22,11 +22,14 @@ __all__ = ["GaitAnalysis", "analyse_gait"]
 @dataclass(frozen=True)
 class GaitAnalysis:
     """The cycles, the spatiotemporal parameters, and what the variables are (the knee
-    adduction moment's method, the variables the model has no degree of freedom for)."""
+    adduction moment's method, the variables the model has no degree of freedom for);
+    ``treadmill_speed_m_s``: the belt speed found (0 overground,
+    :func:`msk.gait.spatiotemporal.surface_velocity`)."""
 
     cycles: GaitCycles
     spatiotemporal: Spatiotemporal
     variables: GaitVariables
+    treadmill_speed_m_s: float = 0.0
 
     def summary(self) -> dict[str, Any]:
         """The ``summary.json`` ``gait`` section (:class:`msk.results.summary.Gait`)."""
@@ -39,6 +42,7 @@ class GaitAnalysis:
         return {
             "spatiotemporal": self.spatiotemporal.to_summary(),
             "heel_source": self.spatiotemporal.source,
+            "treadmill_speed_m_s": self.treadmill_speed_m_s or None,
             "variables": list(c.variables),
             "cycles": {s: c.side(s).n_cycles for s in SIDES},
             "cycles_measured": {s: int(np.sum(c.side(s).measured)) for s in SIDES},
@@ -65,14 +69,18 @@ def analyse_gait(
     spatiotemporal parameters from the feet's body origins (:func:`spatiotemporal`), one
     forward-kinematics pass shared by both."""
     poses = segment_poses(model, kinematics)
+    t = np.asarray(kinematics.time, dtype=float)
+    # a treadmill's belt (zero overground): strides and progression are measured relative to it
+    surface = surface_velocity(
+        t, poses.heel, foot_strike, foot_off, pelvis=poses.pelvis_origin, up=poses.up
+    )
     cycles, variables = gait_cycles(
         model, kinematics, foot_strike, foot_off, torques=torques, loads=loads, mass_kg=mass_kg,
-        dynamics_model=dynamics_model, poses=poses, trial=trial,
+        dynamics_model=dynamics_model, poses=poses, trial=trial, surface=surface,
     )  # fmt: skip
-    source = "model: origin of " + ", ".join(
-        poses.foot_body[s] for s in SIDES if s in poses.foot_body
-    )
+    feet = ", ".join(poses.foot_body[s] for s in SIDES if s in poses.foot_body)
     st = spatiotemporal(
-        kinematics.time, poses.heel, foot_strike, foot_off, up=poses.up, source=source
-    )
-    return GaitAnalysis(cycles, st, variables)
+        t, poses.heel, foot_strike, foot_off, up=poses.up, source=f"model: origin of {feet}",
+        surface=surface,
+    )  # fmt: skip
+    return GaitAnalysis(cycles, st, variables, float(np.linalg.norm(surface)))

@@ -41,12 +41,17 @@ from msk.units import Array
 
 __all__ = [
     "NORM_COLUMNS",
+    "SHIPPED_DIR",
     "NormativeBands",
     "bands_from_cycles",
     "bands_from_sessions",
     "read_norms",
+    "shipped_norms",
     "write_norms",
 ]
+
+#: the normative bands shipped with msk (package data; provenance in its ``ORIGIN.md``)
+SHIPPED_DIR = Path(__file__).resolve().parents[1] / "data" / "norms"
 
 #: the columns of a normative-band file
 NORM_COLUMNS: tuple[str, ...] = ("variable", "percent_cycle", "mean", "sd")
@@ -89,6 +94,12 @@ class NormativeBands:
     def has(self, variable: str) -> bool:
         """Whether the bands hold ``variable``."""
         return variable in self.variables
+
+
+def shipped_norms() -> dict[str, Path]:
+    """The normative-band files shipped with msk (``msk/data/norms/*.csv``) by name (the file
+    stem); read one with :func:`read_norms`."""
+    return {p.stem: p for p in sorted(SHIPPED_DIR.glob("*.csv"))}
 
 
 def write_norms(path: str | Path, bands: NormativeBands) -> Path:

@@ -17,6 +17,10 @@ Vicon's Plug-in Gait and of Perry & Burnfield 2010, ch. 1):
   (o_s − c)]/T, the initial and the terminal double support (o_c the other foot's off after t_i,
   before o_s).
 
+On a treadmill the heels are first expressed relative to the belt: h_s(t) − u t, u the belt's
+horizontal velocity (:func:`surface_velocity`: zero overground), so that the same definitions
+give the stride on the belt (stride length = belt speed × stride time at a steady pace).
+
 A parameter whose events are missing in a stride is NaN for that stride;
 :meth:`SideSpatiotemporal.mean` and :meth:`~SideSpatiotemporal.sd` are over the strides that have
 it.
@@ -36,10 +40,17 @@ from msk.units import Array
 
 __all__ = [
     "PARAMETERS",
+    "TREADMILL_PELVIS_SPEED_M_S",
     "SideSpatiotemporal",
     "Spatiotemporal",
     "spatiotemporal",
+    "surface_velocity",
 ]
+
+#: a walk whose pelvis advances slower than this (m/s, horizontally, first to last known frame)
+#: is on a treadmill: overground gait is faster than 0.4 m/s even in slow pathological walkers
+#: (Perry & Burnfield 2010, ch. 21)
+TREADMILL_PELVIS_SPEED_M_S = 0.25
 
 #: the parameters, units in the names (SI but for cadence and the percentages)
 PARAMETERS: tuple[str, ...] = (
@@ -217,6 +228,52 @@ def _at(time: Array, pos: Array, t: float) -> Array:
     return np.array([np.interp(t, time, pos[:, k]) for k in range(3)])
 
 
+def surface_velocity(
+    time: Array,
+    heel: Mapping[str, Array],
+    foot_strike: Mapping[str, Sequence[float]],
+    foot_off: Mapping[str, Sequence[float]],
+    *,
+    pelvis: Array,
+    up: Array,
+) -> Array:
+    """(3,) the horizontal velocity of the surface walked on (m/s): zero overground; on a
+    treadmill (the pelvis advancing slower than :data:`TREADMILL_PELVIS_SPEED_M_S`) the belt's,
+    the median horizontal velocity of the heels over the middle half of their stances (a foot
+    standing on the belt moves with it)."""
+    t = np.asarray(time, dtype=float)
+    u = np.asarray(up, dtype=float) / np.linalg.norm(up)
+    p = np.asarray(pelvis, dtype=float)
+    ok = np.flatnonzero(np.isfinite(p).all(axis=1))
+    if ok.size < 2:
+        return np.zeros(3)
+    d = p[ok[-1]] - p[ok[0]]
+    d = d - (d @ u) * u
+    if np.linalg.norm(d) / max(t[ok[-1]] - t[ok[0]], 1e-9) >= TREADMILL_PELVIS_SPEED_M_S:
+        return np.zeros(3)
+    vel: list[Array] = []
+    for s in SIDES:
+        if s not in heel:
+            continue
+        h = np.asarray(heel[s], dtype=float)
+        v = np.gradient(h, t, axis=0)
+        offs = sorted(float(x) for x in foot_off.get(s, ()))
+        for a in sorted(float(x) for x in foot_strike.get(s, ())):
+            off = _first(offs, a, np.inf)
+            if not np.isfinite(off):
+                continue
+            mid = (t >= a + 0.25 * (off - a)) & (t <= a + 0.75 * (off - a))
+            vel.append(v[mid])
+    if not vel:
+        return np.zeros(3)
+    allv = np.concatenate(vel)
+    allv = allv[np.isfinite(allv).all(axis=1)]
+    if not allv.size:
+        return np.zeros(3)
+    m = np.median(allv, axis=0)
+    return m - (m @ u) * u
+
+
 def spatiotemporal(
     time: Array,
     heel: Mapping[str, Array],
@@ -225,6 +282,7 @@ def spatiotemporal(
     *,
     up: Array,
     source: str = "model",
+    surface: Array | None = None,
 ) -> Spatiotemporal:
     """Per side and stride the parameters of the module docstring.
 
@@ -234,6 +292,8 @@ def spatiotemporal(
         foot_strike, foot_off: side → event times (s).
         up: (3,) the world's up direction.
         source: where ``heel`` comes from (kept in the result).
+        surface: (3,) the walking surface's velocity (m/s; a treadmill's belt,
+            :func:`surface_velocity`); None: at rest.
     """
     t = np.asarray(time, dtype=float)
     u = np.asarray(up, dtype=float)
@@ -252,6 +312,9 @@ def spatiotemporal(
         fo = sorted(float(x) for x in foot_off.get(o, ()))
         ps = np.asarray(heel[s], dtype=float) if s in heel else np.full((t.size, 3), np.nan)
         po = np.asarray(heel[o], dtype=float) if o in heel else np.full((t.size, 3), np.nan)
+        if surface is not None:  # on the belt
+            ps = ps - t[:, None] * np.asarray(surface, dtype=float)
+            po = po - t[:, None] * np.asarray(surface, dtype=float)
         rows, starts = [], []
         for a, b in itertools.pairwise(hs):
             T = b - a

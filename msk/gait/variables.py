@@ -21,6 +21,10 @@ al. 1991; each side seen from its own side):
 * foot progression (internal, toe-in, +): the angle in the floor plane between the foot's long
   axis (the x axis of the calcaneus / foot body) and x̂.
 
+On a treadmill x̂ is the pelvis's displacement relative to the belt (the belt's velocity u:
+:func:`msk.gait.spatiotemporal.surface_velocity`), i.e. −u's direction for a pelvis held in
+place.
+
 **Kinetics** (per kg of body mass m; internal moments, Plug-in Gait signs, but the knee
 adduction moment, which is external as gait clinics report it):
 
@@ -314,11 +318,16 @@ def gait_variables(
     )
 
 
-def _progression(poses: SegmentPoses, t: Array, a: float, b: float) -> Array | None:
-    """Horizontal unit direction of the pelvis's displacement from a to b."""
+def _progression(
+    poses: SegmentPoses, t: Array, a: float, b: float, surface: Array | None = None
+) -> Array | None:
+    """Horizontal unit direction of the pelvis's displacement from a to b relative to the
+    surface walked on (``surface``: its velocity, a treadmill's belt)."""
     pa = np.array([np.interp(a, t, poses.pelvis_origin[:, k]) for k in range(3)])
     pb = np.array([np.interp(b, t, poses.pelvis_origin[:, k]) for k in range(3)])
     d = pb - pa
+    if surface is not None:
+        d = d - (b - a) * np.asarray(surface, dtype=float)
     d = d - (d @ poses.up) * poses.up
     nd = float(np.linalg.norm(d))
     return d / nd if np.isfinite(nd) and nd > 1e-3 else None
@@ -359,12 +368,15 @@ def gait_cycles(
     poses: SegmentPoses | None = None,
     trial: str = "",
     threshold_n: float = 20.0,
+    surface: Array | None = None,
 ) -> tuple[GaitCycles, GaitVariables]:
     """Every complete cycle of both legs with the variables of the module docstring.
 
     A cycle counts as measured when its stance (strike to foot off) has the leg's kinetics on
     every frame and the foot carries more than ``threshold_n`` of vertical ground reaction on
-    at least half of them (a stance the plates saw)."""
+    at least half of them (a stance the plates saw). ``surface``: the velocity of the surface
+    walked on (a treadmill's belt, :func:`msk.gait.spatiotemporal.surface_velocity`): the
+    progression direction is the pelvis's relative to it."""
     poses = segment_poses(model, kinematics) if poses is None else poses
     gv = gait_variables(
         model, kinematics, torques=torques, loads=loads, mass_kg=mass_kg,
@@ -384,7 +396,7 @@ def gait_cycles(
         measured = np.zeros(len(bounds), dtype=bool)
         fz = _vertical_load(model, loads, poses.foot_body.get(s), poses.up, t.size)
         for i, (a, b, fo_pct) in enumerate(bounds):
-            x = _progression(poses, t, a, b)
+            x = _progression(poses, t, a, b, surface)
             series: dict[str, Array] = dict(gv.series.get(s, {}))
             if x is not None:
                 series.update(_frame_angles(poses, s, x))

@@ -434,16 +434,19 @@ class Gait(_Record):
     """``gait``: the gait analysis of the task trial (:mod:`msk.gait`).
 
     ``spatiotemporal``: side → :class:`SpatiotemporalSide`; ``heel_source``: where the heel
-    positions of the spatiotemporal parameters come from; ``variables``: the names of the
-    normalised cycles' variables (``tables/gait_cycles_<side>.csv``, units in the names);
-    ``cycles``: side → complete cycles; ``cycles_measured``: side → cycles whose stance the
-    plates measured (the kinetic variables are known in those only); ``foot_off_pct``: side →
-    mean foot off, % of the cycle; ``knee_adduction_moment``: how the external knee adduction
-    moment was computed and its sign; ``not_modelled``: gait-lab variables the model has no
-    degree of freedom for (not given); ``notes``: what was decided."""
+    positions of the spatiotemporal parameters come from; ``treadmill_speed_m_s``: the belt
+    speed found on a treadmill (absent overground), relative to which strides are measured;
+    ``variables``: the names of the normalised cycles' variables
+    (``tables/gait_cycles_<side>.csv``, units in the names); ``cycles``: side → complete
+    cycles; ``cycles_measured``: side → cycles whose stance the plates measured (the kinetic
+    variables are known in those only); ``foot_off_pct``: side → mean foot off, % of the
+    cycle; ``knee_adduction_moment``: how the external knee adduction moment was computed and
+    its sign; ``not_modelled``: gait-lab variables the model has no degree of freedom for (not
+    given); ``notes``: what was decided."""
 
     spatiotemporal: Mapping[str, SpatiotemporalSide] | None = None
     heel_source: str | None = None
+    treadmill_speed_m_s: float | None = None
     variables: tuple[str, ...] | None = None
     cycles: Mapping[str, int] | None = None
     cycles_measured: Mapping[str, int] | None = None

@@ -114,3 +114,18 @@ def test_task_trial_folders_are_read_and_pooled(tmp_path):
     allv = np.concatenate([a.left.values, b.left.values])
     assert np.allclose(cycles.mean("left"), allv.mean(axis=0))
     assert len(read_task_trials(tmp_path / "session" / "walk1")) == 1
+
+
+def test_shipped_bands_read_with_their_licence_and_gait_variables():
+    from msk.gait.norms import shipped_norms
+    from msk.gait.variables import KINEMATICS, KINETICS
+
+    files = shipped_norms()
+    assert "opensim_examples_2_adults" in files
+    for path in files.values():
+        b = read_norms(path)
+        assert b.licence.startswith("Apache-2.0") and "illustrative" in b.population
+        assert set(b.variables) <= set(KINEMATICS + KINETICS)
+        assert np.isfinite(b.mean).all() and (b.sd >= 0).all()
+        knee, _ = b.band("knee_flexion_deg")
+        assert 50.0 < knee[55:80].max() < 75.0  # swing-phase knee flexion of healthy walking

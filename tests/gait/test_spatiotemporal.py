@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from msk.gait.spatiotemporal import PARAMETERS, Spatiotemporal, spatiotemporal
+from msk.gait.spatiotemporal import PARAMETERS, Spatiotemporal, spatiotemporal, surface_velocity
 from msk.results.summary import Gait
 
 
@@ -85,3 +85,23 @@ def test_pooling_strides_of_two_trials():
         v = np.concatenate([a.side(s).parameter("walking_speed_m_s"),
                             b.side(s).parameter("walking_speed_m_s")])  # fmt: skip
         assert both.side(s).mean("walking_speed_m_s") == pytest.approx(np.nanmean(v))
+
+
+def test_treadmill_walk_measured_on_the_belt():
+    """The same walk on a treadmill (heels carried back at the walking speed, pelvis still):
+    the belt's speed is found and the parameters are those of the walk, to 1 %."""
+    speed = 1.25
+    t, heel, fs, fo = _walk(speed=speed, heading_deg=0.0)
+    fwd = np.array([1.0, 0.0, 0.0])
+    belt = {s: h - speed * t[:, None] * fwd for s, h in heel.items()}
+    pelvis = np.zeros((t.size, 3)) + np.array([0.0, 0.9, 0.0])
+    up = np.array([0.0, 1.0, 0.0])
+    u = surface_velocity(t, belt, fs, fo, pelvis=pelvis, up=up)
+    assert u == pytest.approx([-speed, 0.0, 0.0], abs=0.01 * speed)
+    st = spatiotemporal(t, belt, fs, fo, up=up, surface=u)
+    for s in ("left", "right"):
+        assert st.side(s).mean("walking_speed_m_s") == pytest.approx(speed, rel=0.01)
+        assert st.side(s).mean("step_width_m") == pytest.approx(0.12, rel=0.01)
+    # overground, the same call finds a surface at rest
+    walking = np.column_stack([speed * t, 0.9 + 0 * t, 0 * t])
+    assert not surface_velocity(t, heel, fs, fo, pelvis=walking, up=up).any()
