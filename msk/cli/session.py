@@ -9,6 +9,7 @@ from __future__ import annotations
 import argparse
 import sys
 from pathlib import Path
+from typing import Any
 
 from msk.cli import Command
 
@@ -107,7 +108,7 @@ def _report_args(p: argparse.ArgumentParser) -> None:
     p.add_argument(
         "--norms", type=Path, metavar="FILE",
         help="normative bands (CSV of msk.gait.norms, e.g. from msk norms) drawn under the "
-        "gait-cycle grids",
+        "gait-cycle grids (default: the set msk ships)",
     )  # fmt: skip
 
 
@@ -118,7 +119,9 @@ def _report(args: argparse.Namespace) -> int:
 
     parts = read_task_trials(args.folder)  # a session folder, or one per task trial
     res = parts[0]
-    norms = None
+    from msk.report.html import SHIPPED
+
+    norms: Any = SHIPPED  # the shipped set unless a file is named
     if args.norms is not None:
         from msk.gait.norms import read_norms
 

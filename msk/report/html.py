@@ -26,11 +26,13 @@ from msk.results.folder import SessionResults
 
 __all__ = [
     "CONTENT_SECURITY_POLICY",
+    "SHIPPED",
     "STATUS_COLOURS",
     "ChromiumSandboxWarning",
     "build_figures",
     "chromium_args",
     "chromium_executable",
+    "default_norms",
     "pdf_attempts",
     "render_html",
     "sandbox_possible",
@@ -41,24 +43,46 @@ __all__ = [
 ]
 
 
+#: ``norms=SHIPPED``: the first normative set msk ships (:func:`msk.gait.norms.shipped_norms`)
+SHIPPED = "shipped"
+
+
+def default_norms() -> NormativeBands | None:
+    """The first normative set shipped with msk (by name), None when there is none or it cannot
+    be read."""
+    from msk.exceptions import MskError
+    from msk.gait.norms import read_norms, shipped_norms
+
+    files = shipped_norms()
+    if not files:
+        return None
+    try:
+        return read_norms(next(iter(files.values())))
+    except (MskError, OSError, ValueError):
+        return None
+
+
 def render_html(
     res: SessionResults,
     figures: Mapping[str, str] | None = None,
     *,
     pdf_path: str | Path | None = None,
-    norms: NormativeBands | None = None,
+    norms: NormativeBands | str | None = SHIPPED,
     trials: Sequence[SessionResults] = (),
 ) -> str:
     """The report as one self-contained HTML string: every section of :data:`SECTIONS` that
     has something for this session, numbered in order, then the references it cited.
     ``pdf_path``: where the printable copy is written (printed in the page's footer);
-    ``norms``: normative bands drawn in grey under the gait-cycle grids (:mod:`msk.gait.norms`);
+    ``norms``: normative bands drawn in grey under the gait-cycle grids (:mod:`msk.gait.norms`;
+    :data:`SHIPPED`: msk's shipped set, :func:`default_norms`; None: none);
     ``trials``: the results of every task trial of the session (``res`` the first): the gait
     sections pool their cycles and strides (one report per session), the others are ``res``'s."""
     figs = build_figures(res) if figures is None else figures
     s = res.summary
     # a session of FES trials only has no gait results: its report is the FES section
     gait = res.has("q") or not s.fes
+    if isinstance(norms, str):
+        norms = default_norms() if norms == SHIPPED else None
     ctx = ReportContext(res, figs, gait=gait, norms=norms, trials=tuple(trials))
     pooled = norms is not None or len(trials) > 1
     curves = ctx.curves() if gait and pooled else None
@@ -221,7 +245,7 @@ def write_report(
     *,
     figures: Mapping[str, str] | None = None,
     pdf: bool | None = None,
-    norms: NormativeBands | None = None,
+    norms: NormativeBands | str | None = SHIPPED,
     trials: Sequence[SessionResults] = (),
 ) -> Path:
     """Write ``report.html`` (and ``report.pdf`` when Chromium is available and ``pdf`` is not
