@@ -514,6 +514,8 @@ def test_the_gait_report_in_chromium_at_1280_px(session, chromium, tmp_path):
     # left red, right green; foot-off lines; the in-vivo knee-load band
     assert 'stroke="#c62828"' in dom and "left foot off" in dom
     assert "in-vivo walking peaks 2–3 BW" in dom
+    assert "normative mean ± SD" in dom  # the shipped set, with its population and licence
+    assert "licence: Apache-2.0" in dom
 
 
 def test_pdf_keeps_every_heading_with_its_content(session, chromium, tmp_path):

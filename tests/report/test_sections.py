@@ -152,3 +152,15 @@ def test_one_report_pools_every_task_trial():
     assert "<svg" in html  # the grids redrawn from the pooled cycles
     single = render_html(a, figures={})
     assert '<span class="left">left</span> 2 cycle(s)' in single
+
+
+def test_msk_report_on_the_folder_of_task_trial_folders_writes_one_report(tmp_path, capsys):
+    from msk.cli import main
+    from msk.results.folder import write_session
+
+    for name, noise in (("walk1", 0.0), ("walk2", np.deg2rad(1.0))):
+        write_session(tmp_path / "s" / name, _walk(noise=noise, trial=name))
+    assert main(["report", str(tmp_path / "s")]) == 0
+    html = (tmp_path / "s" / "report.html").read_text(encoding="utf-8")
+    assert "trials walk1, walk2" in html and "4 cycle(s)" in html
+    assert capsys.readouterr().out.strip().endswith("report.html")
