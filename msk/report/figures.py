@@ -165,7 +165,12 @@ def _fig_knee_loads(res: SessionResults, curves: CycleCurves | None) -> str | No
     panels: list[svg.Panel | None] = []
     for comp in comps:
         title = "total (axial)" if comp == "total" and axial else comp
-        p = svg.Panel(title=title, xlabel=xl, ylabel="knee contact force (body weights)")
+        p = svg.Panel(
+            title=title,
+            xlabel=xl,
+            ylabel="knee contact force (body weights)",
+            xlim=(0.0, 100.0) if xl == "gait cycle (%)" else None,
+        )
         if comp == "total":
             p.span(lo, hi, "#ffe0b2", f"in-vivo walking peaks {lo:g}–{hi:g} BW")
         for key, (c, dash, lab) in style.items():
@@ -208,7 +213,12 @@ def _fig_muscles(res: SessionResults, curves: CycleCurves | None) -> str | None:
         "#5d4037",
         "#ad1457",
     )
-    p = svg.Panel(title="8 largest", xlabel=xl, ylabel="muscle force (N)")
+    p = svg.Panel(
+        title="8 largest",
+        xlabel=xl,
+        ylabel="muscle force (N)",
+        xlim=(0.0, 100.0) if xl == "gait cycle (%)" else None,
+    )
     for k, c in zip(top, palette):
         p.line(x[sel], mf.data[sel, k], c, mf.columns[k])
     return svg.grid([p], 1, label="muscle forces", panel_w=760.0, panel_h=260.0)
