@@ -47,13 +47,24 @@ def _run_sessions(args: argparse.Namespace) -> int:
         failed = [r for r in dyn.strengths if r.status != "identified"]
         return 3 if args.strict and failed else 0
     raised = 0
-    for res in run_task_trials(
+    runs = run_task_trials(
         args.config,
         args.out,
         progress=None if args.quiet else sys.stderr,
         use_cache=not args.no_cache,
         pdf=args.pdf,
-    ):
+    )
+    if len(runs) > 1:  # one report of the session: every task trial's cycles pooled
+        from msk.report import write_report
+        from msk.results.folder import read_session
+
+        parts = [read_session(r.out_dir) for r in runs]
+        path = write_report(parts[0], args.out, pdf=args.pdf, trials=parts)
+        if not args.quiet:
+            sys.stderr.write(f"{path}: the session's report ({len(parts)} task trials)\n")
+            if args.pdf and (Path(args.out) / "report.pdf").is_file():
+                sys.stderr.write(f"{(Path(args.out) / 'report.pdf').resolve()}\n")
+    for res in runs:
         if args.pdf and not args.quiet:
             pdf = res.out_dir / "report.pdf"
             sys.stderr.write(
