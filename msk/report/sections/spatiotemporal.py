@@ -152,4 +152,5 @@ class Spatiotemporal(Section):
             for k, label, unit, fmt in PARAMETERS
         ]
         cycles = {s: len(vals[s]["stride_time_s"]) for s in vals}
-        return {"rows": rows, "cycles": cycles, "how": how}
+        named = ctx.norms.population.split(":")[0] if ctx.norms is not None else ""
+        return {"rows": rows, "cycles": cycles, "how": how, "norms_named": named}
