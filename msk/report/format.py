@@ -9,7 +9,6 @@ markup (:func:`status_html`, :func:`check`) return :class:`markupsafe.Markup` bu
 from __future__ import annotations
 
 import functools
-from collections.abc import Mapping
 from pathlib import Path
 from typing import Any, TypeGuard
 
@@ -137,10 +136,6 @@ def environment() -> Environment:
 def render(template: str, **context: Any) -> str:
     """``template`` (a file of ``msk/report/templates``) rendered with ``context``."""
     return environment().get_template(template).render(**context)
-
-
-def mapping(x: Any) -> Mapping[str, Any]:
-    return x if isinstance(x, Mapping) else {}
 
 
 def escape_text(x: Any) -> str:
