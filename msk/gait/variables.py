@@ -193,6 +193,7 @@ class GaitVariables:
         series: side → variable → (N,) values (units in the names).
         not_modelled: variables the model has no degree of freedom for (not given).
         knee_adduction_moment: how the knee adduction moment was computed (or why not).
+        notes: what was decided (the model's knee has no frontal or transverse freedom…).
     """
 
     time: Array
@@ -222,13 +223,23 @@ def knee_adduction_moment(
 ) -> Array | None:
     """(N,) the external knee adduction moment of ``side`` (N·m/kg; module docstring), None
     when the model has no knee flexion coordinate on that side."""
-    from msk.dynamics.inverse import joint_reaction
+    from msk.dynamics.inverse import ID_BLOCK, joint_reaction
 
     joint = _knee_joint(model, side)
     if joint is None:
         return None
-    r = joint_reaction(model, kinematics, loads, joint=joint.name, frame=joint.child)
-    return -_SIGN[side] * np.asarray(r.moment, dtype=float)[:, 0] / mass_kg
+    n = int(np.size(kinematics.time))
+    parts = []
+    # block by block on a long trial (every frame's wrench is computed alone: the same values)
+    for c0 in range(0, n, ID_BLOCK) if n > ID_BLOCK else (0,):
+        if n > ID_BLOCK:
+            fr = np.arange(c0, min(c0 + ID_BLOCK, n))
+            kin, ext = kinematics.take(fr), None if loads is None else loads.take(fr)
+        else:
+            kin, ext = kinematics, loads
+        r = joint_reaction(model, kin, ext, joint=joint.name, frame=joint.child)
+        parts.append(np.asarray(r.moment, dtype=float)[:, 0])
+    return -_SIGN[side] * np.concatenate(parts) / mass_kg
 
 
 def gait_variables(

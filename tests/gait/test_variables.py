@@ -210,3 +210,26 @@ def test_cycles_of_a_synthetic_walk_pelvis_and_foot_progression():
     assert level.mean("left")[:, level.index("foot_progression_deg")] == pytest.approx(0, abs=1e-6)
     knee = m[:, cyc.index("knee_flexion_deg")]
     assert knee[0] == pytest.approx(np.rad2deg(0.5 * (1 - np.cos(2 * np.pi * 0.2 / 1.1))), abs=0.2)
+
+
+def test_kam_of_a_long_trial_is_computed_block_by_block(monkeypatch):
+    """The same values in blocks (the memory bound of long trials) as in one pass."""
+    import msk.dynamics.inverse as inverse
+    from msk.kinematics.ik import Kinematics
+
+    rng = np.random.default_rng(5)
+    n = 7
+    q = np.array([_q0(knee_angle_r=-x, hip_adduction_r=0.1 * x) for x in rng.uniform(0, 1, n)])
+    z = np.zeros(n)
+    kin = Kinematics(
+        time=np.arange(n) * 0.01, q=q, v=0 * q, a=0 * q, coordinate_names=NAMES, q_raw=q,
+        status=np.zeros(n, np.int64), marker_rms=z, marker_max=z, marker_max_name=("",) * n,
+        marker_errors=np.zeros((n, 0)), marker_names=(), n_markers_used=np.zeros(n, np.int64),
+        iterations=np.zeros(n, np.int64),
+    )  # fmt: skip
+    loads = _loads(kin.time, "foot_r", np.array([10.0, 600.0, -20.0]), np.array([0.3, 0, 0.1]))
+    whole = knee_adduction_moment(MODEL, kin, loads, "right", mass_kg=MASS)
+    monkeypatch.setattr(inverse, "ID_BLOCK", 3)
+    blocks = knee_adduction_moment(MODEL, kin, loads, "right", mass_kg=MASS)
+    assert whole is not None and blocks is not None
+    assert np.array_equal(whole, blocks)
