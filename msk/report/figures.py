@@ -19,7 +19,7 @@ from msk.report.cycles import (
     Variable,
     curves_from_tables,
 )
-from msk.report.format import STATUS_COLOURS, escape_text, finite
+from msk.report.format import STATUS_COLOURS, escape_text, finite, group_statuses
 from msk.results.folder import SessionResults
 
 __all__ = [
@@ -229,8 +229,7 @@ def _fig_strength(res: SessionResults, curves: CycleCurves | None) -> str | None
     if not st or not st.groups:
         return None
     rows = []
-    for g in st.groups:
-        status = st.group_status(g)
+    for g, status in zip(st.groups, group_statuses(st)):
         col = STATUS_COLOURS[status]
         interval = status != "prior" and finite(g.ci_low) and finite(g.ci_high)
         rows.append(

@@ -26,6 +26,7 @@ __all__ = [
     "esc",
     "escape_text",
     "finite",
+    "group_statuses",
     "num",
     "or_",
     "status_html",
@@ -141,3 +142,13 @@ def render(template: str, **context: Any) -> str:
 def escape_text(x: Any) -> str:
     """:func:`esc` as a plain string (for text written into SVG or HTML outside a template)."""
     return str(esc(x))
+
+
+def group_statuses(strength: Any) -> list[str]:
+    """The :mod:`msk.status` word of every group of a ``summary.strength`` record
+    (:meth:`msk.results.summary.Strength.group_status`, the record serialised once, not once a
+    group)."""
+    from msk.status import group_status
+
+    whole = strength.to_dict()
+    return [group_status(g.to_dict(), whole).value for g in strength.groups]

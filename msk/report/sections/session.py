@@ -22,6 +22,16 @@ _QUALITY_ROW_QUANTITIES = {
     "plate_mass_difference_pct",
     "optimization_infeasible_frames",
 }
+#: the thresholds the data-quality table prints
+_THRESHOLDS_SHOWN = (
+    "ik_marker_rms_mean_m",
+    "ik_marker_max_mean_m",
+    "observed_measured_frames_min_pct",
+    "unmeasured_contact_inside_pct",
+    "residual_force_rms_pct_bw",
+    "residual_moment_rms_pct_com_height_peak_force",
+    "body_mass_difference_pct",
+)
 #: ``summary.event_sources`` words → what a clinician reads
 _SOURCE_WORDS = {
     "file": "C3D events",
@@ -55,10 +65,15 @@ class SessionSummary(Section):
     def context(self, ctx: ReportContext) -> dict[str, Any] | None:
         if not ctx.gait:
             return None
-        from msk.quality import THRESHOLDS as TH
-
         s = ctx.res.summary
         q = s.quality
+        # the thresholds the run judged with (summary.quality.thresholds); msk's own for any
+        # the summary lacks
+        TH = {k: v for k, v in (q.thresholds or {}).items() if finite(v)}
+        if not set(_THRESHOLDS_SHOWN) <= set(TH):
+            from msk.quality import THRESHOLDS
+
+            TH = {**THRESHOLDS, **TH}
         flags = q.flags or ()
         raised = {f.quantity for f in flags}
 

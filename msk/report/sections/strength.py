@@ -11,7 +11,7 @@ from typing import Any
 import numpy as np
 from markupsafe import Markup
 
-from msk.report.format import STATUS_COLOURS, finite, num, or_, status_html
+from msk.report.format import STATUS_COLOURS, finite, group_statuses, num, or_, status_html
 from msk.report.sections.base import ReportContext, Section
 from msk.results.summary import Strength
 from msk.status import STRENGTH_R2_MIN
@@ -111,7 +111,7 @@ class StrengthSection(Section):
             return {"st": None, "na": na}
         side = or_(res.summary.subject.side, "right")
         other = "right" if side == "left" else "left"
-        status = [st.group_status(g) for g in st.groups]
+        status = group_statuses(st)
         ident = [g for g, w in zip(st.groups, status) if w == "identified"]
         weaker = [g.group for g in ident if finite(g.ci_high) and g.ci_high < 1.0]
         stronger = [g.group for g in ident if finite(g.ci_low) and g.ci_low > 1.0]
