@@ -301,15 +301,13 @@ WORKER_PRELOAD = (
     "msk.strength",
     "msk.contact.knee",
     "msk.report.html",
-    "matplotlib.figure",
-    "matplotlib.backends.backend_svg",
 )
 
 
 def _pool_context() -> Any:
     """Start method of the local pool's workers: forked from a server process that imported
     :data:`WORKER_PRELOAD` once (``forkserver``), so that a worker starts in ~10 ms instead of
-    importing numpy, scipy, Pinocchio and matplotlib afresh (~1 s a worker, on the CPUs the
+    importing numpy, scipy and Pinocchio afresh (~1 s a worker, on the CPUs the
     others are working with); like ``spawn`` (the fallback where there is no forkserver), a
     worker inherits no state from the caller, only those imports."""
     import multiprocessing as mp
