@@ -937,6 +937,8 @@ def _plates(
                 f"({analog_labels[twice[0]]!r}) for two of its components "
                 f"(FORCE_PLATFORM:CHANNEL {[int(i) + 1 for i in idx]})"
             )
+        if flags is not None:
+            flags.extend(_channel_label_flags(p, typ, [analog_labels[int(i)] for i in idx]))
         for i in idx:
             if used_by.setdefault(int(i), p) != p:
                 raise ForcePlateError(
@@ -1027,6 +1029,41 @@ def _plates(
             )
         )
     return tuple(plates)
+
+
+#: the component each channel of a plate of types 1, 2 and 4 carries, in C3D order
+_PLATE_COMPONENTS = {
+    1: ("fx", "fy", "fz", "px", "py", "mz"),
+    2: ("fx", "fy", "fz", "mx", "my", "mz"),
+    4: ("fx", "fy", "fz", "mx", "my", "mz"),
+}
+_COMPONENT_NAMES = frozenset({"fx", "fy", "fz", "mx", "my", "mz", "px", "py"})
+
+
+def _channel_label_flags(p: int, typ: int, labels: Sequence[str]) -> list[dict[str, Any]]:
+    """A plate whose channels are labelled by component (``Fx1``, ``FZ2``, ``PF1Mx``,
+    ``F1X``: the letters of the label end with the component) but one of which names another
+    component or none (``Fy1`` where Fz is read, ``gracilis``): ``FORCE_PLATFORM:CHANNEL``
+    points at another signal. Judged only when at least 4 of its 6 labels name a component."""
+    want = _PLATE_COMPONENTS.get(typ)
+    if want is None or len(labels) != len(want):
+        return []
+    comp = [re.sub(r"[^a-z]", "", lab.lower())[-2:] for lab in labels]
+    if sum(c in _COMPONENT_NAMES for c in comp) < 4:
+        return []
+    bad = [(k, labels[k]) for k in range(len(want)) if comp[k] != want[k]]
+    if not bad:
+        return []
+    said = ", ".join(f"{lab!r} as its {want[k][0].upper()}{want[k][1]}" for k, lab in bad)
+    return [
+        _reader_flag(
+            "c3d_plate_channel_label",
+            len(bad),
+            0,
+            f"force platform {p + 1} reads {said} (its channels: {', '.join(labels)}): "
+            "FORCE_PLATFORM:CHANNEL points at another signal",
+        )
+    ]
 
 
 def _reader_flag(quantity: str, value: float, threshold: float, message: str) -> dict[str, Any]:

@@ -289,3 +289,25 @@ def test_a_channel_used_twice_by_one_plate_is_one_line(ps, tmp_path):
     with pytest.raises(ForcePlateError, match=r"force platform 1 uses analog channel 2 \('Fy1'\) "
                        "for two of its components"):  # fmt: skip
         _read(_write(tmp_path, d))
+
+
+@pytest.mark.parametrize(("index", "channel", "said"), [(2, 19, "'gracilis' as its Fz"),
+                                                         (3, 6, "'Mz1' as its Mx")])  # fmt: skip
+def test_a_plate_channel_pointing_at_another_signal_is_said(ps, tmp_path, index, channel, said):
+    src, _ = ps
+    d = bytearray(src)
+    if channel == 6:  # Mx and Mz of plate 1 exchanged: no channel twice
+        set_value(d, ("FORCE_PLATFORM", "CHANNEL"), 6, index=3)
+        set_value(d, ("FORCE_PLATFORM", "CHANNEL"), 4, index=5)
+    else:
+        set_value(d, ("FORCE_PLATFORM", "CHANNEL"), channel, index=index)
+    tr = _read(_write(tmp_path, d))
+    (f,) = _flags(tr, "c3d_plate_channel_label")
+    assert f["message"].startswith("force platform 1 reads") and said in f["message"]
+
+
+def test_no_real_plate_channel_is_misread(real_dir):
+    import glob
+
+    for f in sorted(glob.glob(str(real_dir / "**/*.c3d"), recursive=True)):
+        assert not _flags(_read(Path(f)), "c3d_plate_channel_label"), f
