@@ -199,6 +199,11 @@ class LiveData:
     force: NDArray[np.float64]
     moment: NDArray[np.float64]
     reserve_optimal: NDArray[np.float64]
+    jacobian: NDArray[np.float64] = field(default_factory=lambda: np.zeros((0, 0)))
+    jac_keep: NDArray[np.intp] = field(default_factory=lambda: np.zeros(0, dtype=np.intp))
+    jac_at: tuple[NDArray[np.intp], NDArray[np.intp]] = field(
+        default_factory=lambda: (np.zeros(0, dtype=np.intp), np.zeros(0, dtype=np.intp))
+    )
     plate_owner: NDArray[np.intp] = field(default_factory=lambda: np.zeros(0, dtype=np.intp))
     history: NDArray[np.float64] = field(default_factory=lambda: np.zeros((3, 0)))
     start: NDArray[np.float64] = field(default_factory=lambda: np.zeros(0))
@@ -293,7 +298,17 @@ def live_data(lm: LiveModel, start: NDArray[np.float64] | None = None) -> LiveDa
     opt = lm.options
     theta = lm.model.default_coordinates() if start is None else np.array(start, dtype=float)
     knee = opt.knee_joint
+    # the actuated columns of the compact geometry Jacobian: which stored entries, where in the
+    # (muscles × actuated) block (what msk.muscles.geometry.jacobian_frames gathers per call)
+    mus, coord = np.divmod(lm.plan.jacobian_positions(), n_c)
+    place = np.full(n_c, -1, dtype=np.intp)
+    place[lm.actuated] = np.arange(lm.actuated.size)
+    keep = np.flatnonzero(place[coord] >= 0)
     return LiveData(
+        # coordinate-major, as jacobian_frames lays it out (the QP's products sum alike)
+        jacobian=np.zeros((lm.actuated.size, len(lm.muscle_names))).T,
+        jac_keep=keep,
+        jac_at=(mus[keep], place[coord[keep]]),
         ik=FrameIK(
             lm.model,
             lm.labels,
@@ -370,7 +385,10 @@ def _assign_plates(lm: LiveModel, ld: LiveData, frame: LiveInput) -> None:
                     lm.model.pin_model, ld.pin_data, ld.ik.problem.coupling.q(ld.theta)
                 )
                 feet = np.array([ld.pin_data.oMi[int(j)].translation for j in lm.foot_joints])
-            d = feet - np.cross(f[p], m[p]) / float(f[p] @ f[p])
+            (f0, f1, f2), (m0, m1, m2) = f[p].tolist(), m[p].tolist()
+            s2 = f0 * f0 + f1 * f1 + f2 * f2
+            p0 = ((f1 * m2 - f2 * m1) / s2, (f2 * m0 - f0 * m2) / s2, (f0 * m1 - f1 * m0) / s2)
+            d = feet - np.array(p0)
             d -= np.outer(d @ up, up)
             dist2 = np.einsum("ij,ij->i", d, d)
             k = int(owner[p])
@@ -383,7 +401,6 @@ def _assign_plates(lm: LiveModel, ld: LiveData, frame: LiveInput) -> None:
 def live_step(lm: LiveModel, ld: LiveData, frame: LiveInput) -> LiveFrame:
     """One frame through the chain (module docstring); ``ld`` carries the states."""
     import msk.optimization as o
-    from msk.muscles.geometry import jacobian_frames
     from msk.muscles.hill import rigid_tendon_state
 
     clock = _time.perf_counter
@@ -439,7 +456,8 @@ def live_step(lm: LiveModel, ld: LiveData, frame: LiveInput) -> LiveFrame:
     state = rigid_tendon_state(lm.params, geo.lengths, geo.velocities)
     fmax = state.max_active_force_along_tendon[0]
     fa = np.where(fmax < 0, 0.0, fmax)
-    jac = jacobian_frames(geo.jacobian, np.zeros(1, dtype=np.intp), lm.actuated)[0]
+    jac = ld.jacobian  # its other entries stay 0
+    jac[ld.jac_at] = geo.jacobian.values[0, ld.jac_keep]
     opt = lm.options
     if ld.optimization is not None:
         forces, acts, status = ld.optimization.solve(
