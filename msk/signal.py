@@ -171,12 +171,25 @@ class CausalLowpass:
     √2/(2π f_c) s for order 2, 2.613/(2π f_c) s for order 4 in the analog limit). The
     derivatives ẏ_{n−1} = (y_n − y_{n−2}) / 2Δt and ÿ_{n−1} = (y_n − 2 y_{n−1} + y_{n−2}) / Δt²
     are centred on the previous sample, so y, ẏ and ÿ all describe the same instant:
-    :attr:`lag_s` = τ + Δt behind the newest input.
+    :attr:`lag_s` = τ + Δt behind the newest input. ``scheme="gradient"``: the offline run's
+    differences instead (:func:`derivative`, ``np.gradient`` applied twice),
+    ẏ_{n−2} = (y_{n−1} − y_{n−3}) / 2Δt and ÿ_{n−2} = (y_n − 2 y_{n−2} + y_{n−4}) / 4Δt², centred
+    two samples back (:attr:`lag_s` = τ + 2Δt); its ÿ's gain at frequency f is
+    sin²(ωΔt)/(ωΔt)², against (2 − 2 cos ωΔt)/(ωΔt)² for the three-point one: it passes less
+    of what the causal filter lets through above the cut-off.
 
     Nothing is allocated per sample: :meth:`step` writes into :attr:`y`, :attr:`dy`, :attr:`ddy`.
     """
 
-    def __init__(self, channels: int, *, rate_hz: float, cutoff_hz: float, order: int = 2) -> None:
+    def __init__(
+        self,
+        channels: int,
+        *,
+        rate_hz: float,
+        cutoff_hz: float,
+        order: int = 2,
+        scheme: str = "central",
+    ) -> None:
         wn = cutoff_hz / (0.5 * rate_hz)
         if not 0.0 < wn < 1.0:
             raise MskError(
@@ -185,6 +198,10 @@ class CausalLowpass:
             )
         if order < 2 or order % 2:
             raise MskError(f"CausalLowpass: an even order >= 2 is needed, got {order}")
+        if scheme not in ("central", "gradient"):
+            raise MskError(f"CausalLowpass: scheme {scheme!r} is not 'central' or 'gradient'")
+        self.scheme = scheme
+        back = 1 if scheme == "central" else 2  # samples between y's instant and the newest
         self.sos = _butter_lowpass_sos(wn, order)
         self.dt = 1.0 / rate_hz
         k = np.arange(3)
@@ -192,11 +209,12 @@ class CausalLowpass:
         delay = (b @ k) / b.sum(axis=1) - (a @ k) / a.sum(axis=1)
         #: group delay at DC of the filter, s
         self.group_delay_s = float(delay.sum()) * self.dt
-        #: lag of y, ẏ, ÿ behind the newest input: the group delay and one sample, s
-        self.lag_s = self.group_delay_s + self.dt
+        #: lag of y, ẏ, ÿ behind the newest input: the group delay and one sample (two with
+        #: ``scheme="gradient"``), s
+        self.lag_s = self.group_delay_s + back * self.dt
         n = int(channels)
         self._z = np.zeros((len(self.sos), 2, n))
-        self._hist = np.zeros((3, n))  # filtered y_n, y_{n−1}, y_{n−2}
+        self._hist = np.zeros((1 + 2 * back, n))  # filtered y_n, y_{n−1}, …
         self._tmp = np.empty(n)
         self._out = np.empty(n)
         self.y = np.zeros(n)
@@ -238,10 +256,21 @@ class CausalLowpass:
             np.multiply(tmp, b2, out=z1)
             z1 -= a2 * y
         h = self._hist
-        h[2] = h[1]
-        h[1] = h[0]
+        for i in range(h.shape[0] - 1, 0, -1):
+            h[i] = h[i - 1]
         h[0] = y
         self.count += 1
+        if self.scheme == "gradient":
+            # np.gradient twice, as the offline run differentiates (msk.signal.derivative):
+            # ẏ_{n−2} = (y_{n−1} − y_{n−3}) / 2Δt, ÿ_{n−2} = (y_n − 2 y_{n−2} + y_{n−4}) / 4Δt²
+            np.copyto(self.y, h[2])
+            np.subtract(h[1], h[3], out=self.dy)
+            self.dy *= 0.5 / self.dt
+            np.subtract(h[0], h[2], out=self.ddy)
+            self.ddy -= h[2]
+            self.ddy += h[4]
+            self.ddy *= 0.25 / (self.dt * self.dt)
+            return
         np.copyto(self.y, h[1])
         np.subtract(h[0], h[2], out=self.dy)
         self.dy *= 0.5 / self.dt

@@ -38,7 +38,9 @@ def _at(t: np.ndarray, time: np.ndarray, x: np.ndarray) -> np.ndarray:
     return np.column_stack([np.interp(t, time, x[:, j], left=np.nan, right=np.nan) for j in cols])
 
 
-def study(name: str, order: int, shipped: bool, ik_iterations: int = 10) -> None:
+def study(
+    name: str, order: int, shipped: bool, ik_iterations: int = 10, scheme: str = "gradient"
+) -> None:
     cfg = load_config(ROOT / "pipelines" / f"{name}.toml")
     if not shipped:
         opt = dataclasses.replace(
@@ -60,7 +62,7 @@ def study(name: str, order: int, shipped: bool, ik_iterations: int = 10) -> None
         rotation=pers.rotation, weights=cfg.marker_weights, held=pers.held,
         options=LiveOptions(knee_joint=knee, cutoff_hz=cut, filter_order=order,
                             activation_weights=cfg.optimization.activation_weights,
-                            ik_iterations=ik_iterations),
+                            ik_iterations=ik_iterations, derivative_scheme=scheme),
         plateau=inputs.knee_plateau(model, knee), body_weight_n=inputs.body_weight,
         plate_bodies=[assign.get(p) for p in src.plate_names],
     )  # fmt: skip
@@ -73,7 +75,9 @@ def study(name: str, order: int, shipped: bool, ik_iterations: int = 10) -> None
     dq = np.degrees(np.abs(np.array([f.q for f in out]) - _at(t, kin.time, kin.q)))[late][:, act]
     # the causal filter alone: the offline IK's raw angles through it
     raw = kin.q_raw
-    filt = CausalLowpass(raw.shape[1], rate_hz=src.rate_hz, cutoff_hz=cut, order=order)
+    filt = CausalLowpass(
+        raw.shape[1], rate_hz=src.rate_hz, cutoff_hz=cut, order=order, scheme=scheme
+    )
     ys = np.full_like(raw, np.nan)
     for k in np.flatnonzero(np.isfinite(raw).all(axis=1)):
         filt.step(raw[k])
@@ -83,7 +87,8 @@ def study(name: str, order: int, shipped: bool, ik_iterations: int = 10) -> None
     alone = alone[:, act]
     rms = np.array([f.marker_rms for f in out])
     its = np.array([f.ik_iterations for f in out])
-    print(f"\n{name} ({'shipped' if shipped else 'static optimisation'}, order {order}): "
+    print(f"\n{name} ({'shipped' if shipped else 'static optimisation'}, order {order}, "
+          f"{scheme} differences): "
           f"{len(out)} frames, lag {1e3 * session.lag_s:.1f} ms; IK {its.mean():.1f} steps a "
           f"frame, RMS marker error median {1e3 * np.nanmedian(rms):.1f} mm")  # fmt: skip
     print(f"  angles: max {np.nanmax(dq):.2f}°, p95 {np.nanpercentile(dq, 95):.2f}° "
@@ -116,9 +121,11 @@ def main() -> None:
     ap.add_argument("--order", type=int, default=2, help="the causal filter's order")
     ap.add_argument("--shipped", action="store_true", help="against the session as shipped")
     ap.add_argument("--ik-iterations", type=int, default=10, help="LM steps per frame at most")
+    ap.add_argument("--scheme", default="gradient", choices=("central", "gradient"),
+                    help="the causal filter's differences")  # fmt: skip
     args = ap.parse_args()
     for name in args.sessions:
-        study(name, args.order, args.shipped, args.ik_iterations)
+        study(name, args.order, args.shipped, args.ik_iterations, args.scheme)
 
 
 if __name__ == "__main__":

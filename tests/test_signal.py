@@ -198,6 +198,32 @@ def test_causal_lowpass_lag_is_its_group_delay():
         np.testing.assert_allclose(out[late], shifted, atol=2e-3)
 
 
+def test_causal_lowpass_gradient_scheme_is_the_offline_differences_two_samples_back():
+    from scipy import signal as sig
+
+    from msk.signal import CausalLowpass, derivative
+
+    rng = np.random.default_rng(1)
+    x = np.cumsum(rng.normal(size=(200, 3)), axis=0)
+    f = CausalLowpass(3, rate_hz=100.0, cutoff_hz=6.0, scheme="gradient")
+    assert f.lag_s == pytest.approx(f.group_delay_s + 0.02)
+    ys, dys, ddys = [], [], []
+    for row in x:
+        f.step(row)
+        ys.append(f.y.copy())
+        dys.append(f.dy.copy())
+        ddys.append(f.ddy.copy())
+    sos = sig.butter(2, 6.0 / 50.0, output="sos")
+    ref, _ = sig.sosfilt(sos, x, axis=0, zi=sig.sosfilt_zi(sos)[:, :, None] * x[0])
+    # np.gradient twice on the filtered samples (interior), read two samples later
+    v, a = derivative(ref, dt=0.01), derivative(ref, dt=0.01, order=2)
+    np.testing.assert_allclose(np.array(ys)[4:], ref[2:-2], atol=1e-10)
+    np.testing.assert_allclose(np.array(dys)[4:], v[2:-2], atol=1e-8)
+    np.testing.assert_allclose(np.array(ddys)[4:], a[2:-2], rtol=1e-9, atol=1e-6)
+    with pytest.raises(MskError):
+        CausalLowpass(1, rate_hz=100.0, cutoff_hz=6.0, scheme="spline")
+
+
 def test_causal_lowpass_refuses_a_cutoff_above_nyquist():
     from msk.signal import CausalLowpass
 
