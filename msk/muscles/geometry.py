@@ -1707,12 +1707,16 @@ def _spmm(a: Any, x: Array) -> Array:
         or a.shape[1] != x.shape[0]
     ):
         return np.asarray(a @ x)
-    from scipy.sparse import _sparsetools
+    try:  # a private kernel: a scipy that moves or changes it gets the operator
+        from scipy.sparse import _sparsetools
 
-    out = np.zeros((a.shape[0], x.shape[1]))
-    _sparsetools.csr_matvecs(
-        a.shape[0], a.shape[1], x.shape[1], a.indptr, a.indices, a.data, x.ravel(), out.ravel()
-    )
+        out = np.zeros((a.shape[0], x.shape[1]))
+        _sparsetools.csr_matvecs(
+            a.shape[0], a.shape[1], x.shape[1], a.indptr, a.indices, a.data,
+            np.ascontiguousarray(x).ravel(), out.ravel(),
+        )  # fmt: skip
+    except (ImportError, AttributeError, TypeError, ValueError):
+        return np.asarray(a @ x)
     return out
 
 
