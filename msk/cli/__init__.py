@@ -31,6 +31,7 @@ VERB_MODULES: tuple[str, ...] = (
     "msk.cli.batch",
     "msk.cli.norms",
     "msk.cli.info",
+    "msk.cli.model",
     "msk.cli.live",
 )
 
