@@ -15,7 +15,8 @@
 
 A failing session never stops the others: its error is kept as one line (type and message), the
 others complete and are written, and :attr:`BatchResult.failed` lists it. The cohort table
-``out/cohort.csv`` has one row per session with its key quality figures (:data:`COHORT_COLUMNS`);
+``out/cohort.csv`` has one row per session with its key quality figures, the body mass and its
+source and each side's spatiotemporal means (:data:`COHORT_COLUMNS`);
 its strength columns count the groups per :mod:`msk.status` word and list each group's word
 (``strength_group_status``: ``group: status; …``). Dynamometry sessions
 (:mod:`msk.pipeline.dynamometry`) also give ``out/strength_cohort.csv``: one row per subject
@@ -56,12 +57,18 @@ __all__ = [
 ]
 
 #: Columns of ``cohort.csv`` (units in the names).
+#: the spatiotemporal parameters of the cohort table (per side, mean over the session's strides)
+_GAIT_COLUMNS = ("cycles", "walking_speed_m_s", "cadence_steps_per_min", "stride_length_m",
+                 "stance_pct")  # fmt: skip
+
 COHORT_COLUMNS: tuple[str, ...] = (
     "session",
     "config",
     "status",
     "error",
     "run_s",
+    "mass_kg",
+    "mass_source",
     "frames",
     "ik_marker_rms_mean_mm",
     "ik_failed_frames",
@@ -76,6 +83,7 @@ COHORT_COLUMNS: tuple[str, ...] = (
     "strength_group_status",
     "knee_contact_rms_bw",
     "knee_contact_icc",
+    *(f"{p}_{side}" for side in ("left", "right") for p in _GAIT_COLUMNS),
     "stages_not_available",
     "quality_flags",
 )
@@ -159,6 +167,19 @@ def _row(
     if comp:
         row["knee_contact_rms_bw"] = round(_nan(comp.rms_bw), 4)
         row["knee_contact_icc"] = round(_nan(comp.icc), 4)
+    if s.subject.mass_kg is not None:
+        row["mass_kg"] = round(float(s.subject.mass_kg), 2)
+    row["mass_source"] = s.subject.mass_source or ""
+    gait = s.gait
+    for side in ("left", "right"):
+        if gait is None:
+            break
+        row[f"cycles_{side}"] = (gait.cycles or {}).get(side, 0)
+        params = (gait.spatiotemporal or {}).get(side)
+        for p in _GAIT_COLUMNS[1:]:
+            par = params.parameters.get(p) if params is not None else None
+            if par is not None and par.mean is not None:
+                row[f"{p}_{side}"] = round(float(par.mean), 4)
     row["stages_not_available"] = " ".join(i.stage for i in s.not_available or ())
     # the quality gates raised (what `msk run --strict` exits 3 for): the quantities, counted
     flags = [str(f.quantity) for f in q.flags or ()]

@@ -49,6 +49,10 @@ def test_dask_local_cluster(tmp_path):
     ps = rows[1]
     assert ps["session"] == "PS" and float(ps["knee_contact_icc"]) > 0.3
     assert float(ps["ik_marker_rms_mean_mm"]) < 30 and ps["emg_flat_channels"] == "gmed gracilis"
+    # the subject's mass and where it comes from; the left cycle's spatiotemporal parameters
+    assert float(ps["mass_kg"]) == 82.8 and ps["mass_source"] == "config"
+    assert ps["cycles_left"] == "1" and 0.9 < float(ps["walking_speed_m_s_left"]) < 1.3
+    assert 55 < float(ps["stance_pct_left"]) < 70 and ps["stance_pct_right"] == ""
     assert "muscle_geometry" in rows[0]["stages_not_available"]
 
 
