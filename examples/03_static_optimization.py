@@ -1,64 +1,31 @@
-"""Muscle forces by static optimisation on a trial, and the knee contact force with its
-medial/lateral split — the library calls ``msk run`` composes.
+"""Muscle forces and the knee contact force with its medial/lateral split, as ``msk run``
+computes them, against the instrumented implant's measurement (Grand Challenge PS): one call
+runs the session (``msk.run_session``), one reads its results back typed
+(``msk.read_session``).
 
-    python examples/03_static_optimization.py
+    python examples/03_static_optimization.py [OUT_DIR]
+
+The same figures as ``msk run pipelines/gc5_PS.toml --out OUT_DIR`` (tables/knee_contact.csv):
+``generic`` with the generic muscle strengths, ``subject_specific`` with the strengths
+identified from the EMG, ``measured`` the implant's.
 """
 
+import sys
+import tempfile
 from pathlib import Path
 
 import numpy as np
 
-from msk.contact.knee import knee_contact_force, plateau_geometry, split_medial_lateral
-from msk.dynamics.inverse import inverse_dynamics
-from msk.dynamics.loads import contact_measured, external_loads, plates_from_trial
-from msk.io import read_c3d, to_model_frame
-from msk.kinematics.ik import solve_kinematics
-from msk.model.files import load_model
-from msk.model.markersets import recognise
-from msk.muscles.geometry import muscle_geometry, muscle_parameters
-from msk.muscles.hill import rigid_tendon_state
-from msk.optimization import solve_static_optimization_batch
-from msk.personalise.scaling import place_markers_from_motion, scale_from_motion
+import msk
 
 REPO = Path(__file__).resolve().parents[1]
-model = load_model("gait2392")
-up = -np.asarray(model.gravity) / np.linalg.norm(model.gravity)
-walk = to_model_frame(read_c3d(REPO / "data/gc5-PS/PS_ngait_og_ss1.c3d"), up=up)
-match = recognise(walk.marker_labels, model.marker_names, markers=walk.markers)
-x, labels = match.apply(walk.markers, walk.marker_labels)
-# no static trial: scale and place the lab's markers from the walk itself
-model, _ = scale_from_motion(model, x, labels, walk.time, body_mass=82.8)
-model, _ = place_markers_from_motion(model, x, labels, walk.time)
-kin = solve_kinematics(model, x, labels, walk.time, cutoff_hz=6.0)
-loads = external_loads(model, kin, plates_from_trial(walk), cutoff_hz=15.0)
-ok = contact_measured(model, kin, loads) & np.isfinite(kin.a).all(axis=1)
-tau = inverse_dynamics(model, kin, loads)
-geom = muscle_geometry(model, kin.q[ok], kin.v[ok], distal_wrench_joints=("knee_l",))
-params = muscle_parameters(model)
-state = rigid_tendon_state(params, geom.lengths, geom.velocities)
-act = [i for i, c in enumerate(tau.coordinate_names) if c not in tau.root_coordinates]
-sol = solve_static_optimization_batch(
-    geom.jacobian[:, :, act], tau.tau[ok][:, act],
-    f_active=np.clip(state.max_active_force_along_tendon, 0, None),
-    f_passive=state.passive_force_along_tendon, reserve_optimal_force=np.ones(len(act)),
-    muscle_names=params.names,
-)  # fmt: skip
-print(f"{ok.sum()} frames, infeasible {sol.infeasible_frames.size}")
-idx = np.flatnonzero(ok)
-
-
-class _Take:  # the frames of ``ok`` of a time-axis result
-    def __init__(self, obj):
-        self.__dict__.update({k: (v[idx] if isinstance(v, np.ndarray) and v.shape[:1] ==
-                                  (ok.size,) else v) for k, v in vars(obj).items()})  # fmt: skip
-
-
-contact = knee_contact_force(model, _Take(kin), _Take(loads), muscle_forces=sol.forces,
-                             muscle_names=params.names, joint="knee_l",
-                             distal_wrenches=geom.distal_wrenches["knee_l"])  # fmt: skip
-ml = split_medial_lateral(contact, plateau_geometry(model, joint="knee_l"))
-bw = 82.8 * 9.80665
-print(
-    f"peak knee contact {np.nanmax(contact.total) / bw:.2f} BW "
-    f"(medial {np.nanmax(ml.medial) / bw:.2f}, lateral {np.nanmax(ml.lateral) / bw:.2f})"
-)
+out = Path(sys.argv[1]) if len(sys.argv) > 1 else Path(tempfile.mkdtemp()) / "gc5_PS"
+msk.run_session(REPO / "pipelines/gc5_PS.toml", out)
+res = msk.read_session(out)
+forces = res.tables["muscle_forces"]
+print(f"{int(np.isfinite(forces.data).all(axis=1).sum())} frames with muscle forces")
+contact = res.tables["knee_contact"]
+for variant in ("generic", "subject_specific", "measured"):
+    total, med, lat = (np.nanmax(contact.column(f"{variant}_{c}_bw"))
+                       for c in ("total", "medial", "lateral"))  # fmt: skip
+    print(f"{variant}: peak knee contact {total:.2f} BW (medial {med:.2f}, lateral {lat:.2f})")

@@ -15,6 +15,8 @@ Thresholds and their sources (:data:`THRESHOLDS`):
   (centre-of-mass height × peak external force): the residual bounds of Hicks et al. (2015,
   Table 2), stated there on the peak residuals; msk applies them to the RMS over the frames
   whose ground contact the plates measure (COM height 55 % of stature, 1.75 m when unknown).
+* Analog scale: the plates' weighing a power of ten 10ᵏ (k ≠ 0, within 30 %) off the configured
+  mass (:func:`plate_scale_factor`): ``ANALOG:SCALE``, ``GEN_SCALE`` or a unit mis-set.
 * Body mass: the mass that balances the measured vertical ground reaction, Newton's second law
   on the whole body in integral form over the longest measured run,
   m̂ = ∫ F_z dt / (g T + Δv_com,z), more than 5 % from the configured mass.
@@ -90,6 +92,7 @@ __all__ = [
     "model_flags",
     "optimization_flags",
     "placement_label_conflicts",
+    "plate_scale_factor",
     "swapped_label_pairs",
     "swapped_sides",
 ]
@@ -460,6 +463,22 @@ def swapped_sides(
     )
     sign = -1.0 if reversed_pelvis else 1.0
     return [(r, lft, sign * v) for (r, lft), v in med.items() if sign * v < -SWAP_MIN_SEPARATION_M]
+
+
+def plate_scale_factor(
+    plate_mass_kg: float, mass_kg: float, *, tolerance: float = 0.3
+) -> float | None:
+    """The power of ten 10ᵏ (k ≠ 0) by which the plates' weighing m̂ of the subject
+    (:func:`body_mass_from_loads`) misses the known mass m, when m̂ / m lies within
+    ``tolerance`` (relative) of it: an analog scale, gain or unit mis-set by a decade (a
+    wrong mass is rarely off by exactly a power of ten); None otherwise."""
+    if not (plate_mass_kg > 0 and mass_kg > 0):
+        return None
+    r = plate_mass_kg / mass_kg
+    k = round(float(np.log10(r)))
+    if k == 0 or abs(r / 10.0**k - 1.0) > tolerance:
+        return None
+    return 10.0**k
 
 
 def _flag(trial: str, quantity: str, value: float, threshold: float, message: str) -> Flag:
@@ -1048,6 +1067,15 @@ def gait_flags(
                 _flag(trial_name, "plate_mass_difference_pct", d, th["body_mass_difference_pct"],
                       f"the plates weigh the subject at {plate_mass_kg:.1f} kg; the configuration"
                       f" says {mass_kg:g} kg ({d:+.1f} %)")
+            )  # fmt: skip
+        factor = plate_scale_factor(plate_mass_kg, mass_kg)
+        if factor is not None:
+            out.append(
+                _flag(trial_name, "plate_force_scale", factor, 1.0,
+                      f"the plates weigh the subject at {plate_mass_kg:.1f} kg, "
+                      f"{plate_mass_kg / mass_kg:.3g} × the configured {mass_kg:g} kg: the "
+                      f"forces look a factor {factor:g} off (ANALOG:SCALE, GEN_SCALE or the "
+                      "channels' units mis-set); msk does not rescale them")
             )  # fmt: skip
     unscaled = sorted(b for b, m in (scaling_methods or {}).items() if m == "unscaled")
     if unscaled:

@@ -14,6 +14,7 @@ from numpy.typing import ArrayLike, NDArray
 from msk.exceptions import MissingDataError, MskError
 
 __all__ = [
+    "CausalLowpass",
     "FilterType",
     "GapMethod",
     "block_average",
@@ -107,15 +108,7 @@ def lowpass_filtfilt_numpy(
     if order < 2 or order % 2:
         raise MskError(f"lowpass_filtfilt_numpy: an even order >= 2 is needed, got {order}")
     _check_finite(x)
-    k = np.arange(1, order + 1)
-    warped = 4.0 * np.tan(np.pi * wn / 2.0)  # prewarped, sampling rate 2 as scipy designs
-    poles = warped * np.exp(1j * np.pi * (2 * k + order - 1) / (2 * order))
-    pz = (4.0 + poles) / (4.0 - poles)
-    gain = warped**order * np.real(1.0 / np.prod(4.0 - poles))
-    upper = pz[np.imag(pz) > 0]
-    upper = upper[np.argsort(np.abs(upper))]  # the poles nearest the unit circle last
-    sos = np.array([[1.0, 2.0, 1.0, 1.0, -2.0 * q.real, abs(q) ** 2] for q in upper])
-    sos[0, :3] *= gain
+    sos = _butter_lowpass_sos(wn, order)
     # steady state of each section's step response, scaled by the sections before it
     zi = np.zeros((len(sos), 2))
     scale = 1.0
@@ -146,6 +139,116 @@ def lowpass_filtfilt_numpy(
 
     y = sosfilt(sosfilt(ext)[::-1])[::-1]
     return np.ascontiguousarray(y[pad : pad + n])
+
+
+def _butter_lowpass_sos(wn: float, order: int) -> NDArray[np.float64]:
+    """Second-order sections of the even-``order`` Butterworth low-pass at ``wn`` (fraction of
+    Nyquist): analog prototype, frequency prewarping and the bilinear transform, the gain in
+    the first section, as ``scipy.signal.butter(..., output="sos")``."""
+    k = np.arange(1, order + 1)
+    warped = 4.0 * np.tan(np.pi * wn / 2.0)  # prewarped, sampling rate 2 as scipy designs
+    poles = warped * np.exp(1j * np.pi * (2 * k + order - 1) / (2 * order))
+    pz = (4.0 + poles) / (4.0 - poles)
+    gain = warped**order * np.real(1.0 / np.prod(4.0 - poles))
+    upper = pz[np.imag(pz) > 0]
+    upper = upper[np.argsort(np.abs(upper))]  # the poles nearest the unit circle last
+    sos = np.array([[1.0, 2.0, 1.0, 1.0, -2.0 * q.real, abs(q) ** 2] for q in upper])
+    sos[0, :3] *= gain
+    return sos
+
+
+class CausalLowpass:
+    """A causal Butterworth low-pass run one sample at a time over ``channels`` (a stream:
+    :mod:`msk.live`), with the first and second derivatives by central differences on the
+    filtered samples — y, ẏ, ÿ of the sample *before* the newest one.
+
+    The filter is the forward half of :func:`lowpass_filtfilt_numpy`'s (the same second-order
+    sections, direct form II transposed), each section started in the steady state of the
+    first sample. Its magnitude is |H| (order ``order``, −3 dB at ``cutoff_hz``), not |H|² as
+    the zero-lag pass's; its phase is not zero: near DC the output lags the input by the group
+    delay τ = −dφ/dω at ω = 0, for each section
+    τ_s = Σ k b_k / Σ b_k − Σ k a_k / Σ a_k samples (exact for the designed coefficients;
+    √2/(2π f_c) s for order 2, 2.613/(2π f_c) s for order 4 in the analog limit). The
+    derivatives ẏ_{n−1} = (y_n − y_{n−2}) / 2Δt and ÿ_{n−1} = (y_n − 2 y_{n−1} + y_{n−2}) / Δt²
+    are centred on the previous sample, so y, ẏ and ÿ all describe the same instant:
+    :attr:`lag_s` = τ + Δt behind the newest input.
+
+    Nothing is allocated per sample: :meth:`step` writes into :attr:`y`, :attr:`dy`, :attr:`ddy`.
+    """
+
+    def __init__(self, channels: int, *, rate_hz: float, cutoff_hz: float, order: int = 2) -> None:
+        wn = cutoff_hz / (0.5 * rate_hz)
+        if not 0.0 < wn < 1.0:
+            raise MskError(
+                f"cutoff {cutoff_hz} Hz must lie in (0, {0.5 * rate_hz}) Hz for rate {rate_hz} Hz"
+                + _rate_hint(rate_hz, np.atleast_1d(wn))
+            )
+        if order < 2 or order % 2:
+            raise MskError(f"CausalLowpass: an even order >= 2 is needed, got {order}")
+        self.sos = _butter_lowpass_sos(wn, order)
+        self.dt = 1.0 / rate_hz
+        k = np.arange(3)
+        b, a = self.sos[:, :3], self.sos[:, 3:]
+        delay = (b @ k) / b.sum(axis=1) - (a @ k) / a.sum(axis=1)
+        #: group delay at DC of the filter, s
+        self.group_delay_s = float(delay.sum()) * self.dt
+        #: lag of y, ẏ, ÿ behind the newest input: the group delay and one sample, s
+        self.lag_s = self.group_delay_s + self.dt
+        n = int(channels)
+        self._z = np.zeros((len(self.sos), 2, n))
+        self._hist = np.zeros((3, n))  # filtered y_n, y_{n−1}, y_{n−2}
+        self._tmp = np.empty(n)
+        self._out = np.empty(n)
+        self.y = np.zeros(n)
+        self.dy = np.zeros(n)
+        self.ddy = np.zeros(n)
+        self.count = 0
+
+    def reset(self) -> None:
+        """Forget the past: the next sample starts the filter in its steady state again."""
+        self.count = 0
+
+    def _start(self, x: NDArray[np.float64]) -> None:
+        scale = 1.0
+        for i, (b0, b1, b2, _, a1, a2) in enumerate(self.sos):
+            zi = np.linalg.solve(
+                np.array([[1.0 + a1, -1.0], [a2, 1.0]]), np.array([b1 - a1 * b0, b2 - a2 * b0])
+            )
+            self._z[i, 0] = scale * zi[0] * x
+            self._z[i, 1] = scale * zi[1] * x
+            scale *= (b0 + b1 + b2) / (1.0 + a1 + a2)
+        self._hist[:] = x
+
+    def step(self, x: NDArray[np.float64]) -> None:
+        """Take the next sample ``x`` (channels,): :attr:`y`, :attr:`dy`, :attr:`ddy` become
+        those of the previous sample (the first two samples: at rest at the first)."""
+        if self.count == 0:
+            self._start(x)
+        y, tmp = self._out, self._tmp
+        y[:] = x
+        for i, (b0, b1, b2, _, a1, a2) in enumerate(self.sos):
+            z0, z1 = self._z[i, 0], self._z[i, 1]
+            np.copyto(tmp, y)  # the section's input
+            np.multiply(tmp, b0, out=y)
+            y += z0
+            # z0 ← b1 x − a1 y + z1 ;  z1 ← b2 x − a2 y
+            np.multiply(tmp, b1, out=z0)
+            z0 -= a1 * y
+            z0 += z1
+            np.multiply(tmp, b2, out=z1)
+            z1 -= a2 * y
+        h = self._hist
+        h[2] = h[1]
+        h[1] = h[0]
+        h[0] = y
+        self.count += 1
+        np.copyto(self.y, h[1])
+        np.subtract(h[0], h[2], out=self.dy)
+        self.dy *= 0.5 / self.dt
+        np.subtract(h[0], h[1], out=self.ddy)
+        self.ddy -= h[1]
+        self.ddy += h[2]
+        self.ddy *= 1.0 / (self.dt * self.dt)
 
 
 def true_runs(mask: ArrayLike) -> list[tuple[int, int]]:

@@ -20,7 +20,8 @@ from msk.io.opensim_files import Table, write_sto, write_trc
 @pytest.fixture
 def small_c3d(tmp_path):
     rng = np.random.default_rng(0)
-    x = rng.uniform(size=(30, 3, 3))
+    t = np.arange(30)[:, None, None] / 100.0  # smooth paths (white noise is a teleport)
+    x = rng.uniform(size=(1, 3, 3)) + 0.1 * np.sin(2 * np.pi * t + rng.uniform(0, 6, (1, 3, 3)))
     x[3:7, 2] = np.nan
     a = np.column_stack(
         [

@@ -68,6 +68,16 @@ _CHILD = textwrap.dedent(
         elif t.size > 1 and not (np.diff(t) > 0).all():
             bad.append("time not strictly increasing")
 
+    FINGERPRINT = [None, False]  # the last C3D read: its fingerprint, whether it said anything
+
+    def fingerprint(t):  # what a mutant must read alike or flag: markers, plate forces
+        import hashlib
+        h = hashlib.sha256()
+        h.update(np.nan_to_num(np.asarray(t.markers, float), nan=-7.0).tobytes())
+        for p in t.plates:
+            h.update(np.nan_to_num(np.asarray(p.force, float), nan=-7.0).tobytes())
+        return h.hexdigest()
+
     def c3d(path):
         from msk.io import read_c3d
         t = read_c3d(path)
@@ -84,6 +94,8 @@ _CHILD = textwrap.dedent(
             if np.isinf(f).any() or (np.abs(f[np.isfinite(f)]) >= 20000).any():
                 bad.append(f"plate {p.index + 1} force beyond 20 kN")
         labels_ok(t.marker_labels, "markers", bad)
+        FINGERPRINT[0] = fingerprint(t)
+        FINGERPRINT[1] = bool(t.metadata.get("warnings"))
         if any(not math.isfinite(e.time) for e in t.events):
             bad.append("event time not finite")
         check_time(t.time, bad)
@@ -139,8 +151,10 @@ _CHILD = textwrap.dedent(
     for line in sys.stdin:
         kind, path = json.loads(line)
         try:
+            FINGERPRINT[:] = [None, False]
             bad = READERS[kind](path)
-            out = {"outcome": "accepted", "violations": bad}
+            out = {"outcome": "accepted", "violations": bad, "fingerprint": FINGERPRINT[0],
+                   "said": FINGERPRINT[1]}
         except MskError as exc:
             out = {"outcome": "error", "type": type(exc).__name__, "message": str(exc)}
         except BaseException as exc:
@@ -203,11 +217,21 @@ def reader():
     r.close()
 
 
-def _judge(kind: str, name: str, out: dict) -> str | None:
+#: parameter mutations the reader must read as the original or say (a reader warning/flag):
+#: the frame count, the plates' declaration and channels
+_SAID_OR_SAME = ("value:POINT:FRAMES", "value:FORCE_PLATFORM:USED", "value:FORCE_PLATFORM:CHANNEL")
+
+
+def _judge(kind: str, name: str, out: dict, original: str | None = None) -> str | None:
     """None when the outcome is acceptable, else what went wrong."""
     o = out["outcome"]
     if o == "accepted":
-        return f"{name}: accepted with {out['violations']}" if out["violations"] else None
+        if out["violations"]:
+            return f"{name}: accepted with {out['violations']}"
+        silent = original is not None and out.get("fingerprint") != original and not out["said"]
+        if silent and any(f" {k}=" in name for k in _SAID_OR_SAME):
+            return f"{name}: read with other numbers than the original and nothing said"
+        return None
     if o == "error":
         msg = out["message"]
         if "\n" in msg or not msg.strip():
@@ -216,8 +240,12 @@ def _judge(kind: str, name: str, out: dict) -> str | None:
     return f"{name}: {o}: {out['message'][-1500:]}"
 
 
-def _run_cases(reader: Reader, kind: str, cases, tmp_path: Path) -> dict[str, int]:
-    """Write every (name, bytes) mutant, read it, collect failures; returns outcome counts."""
+def _run_cases(
+    reader: Reader, kind: str, cases, tmp_path: Path, original: str | None = None
+) -> dict[str, int]:
+    """Write every (name, bytes) mutant, read it, collect failures; returns outcome counts.
+    ``original``: the source's fingerprint (markers and plate forces) a C3D mutant of the
+    :data:`_SAID_OR_SAME` families must keep unless its reader says something."""
     failures: list[str] = []
     counts = {"accepted": 0, "error": 0}
     suffix = {"c3d": ".c3d", "trc": ".trc", "sto": ".mot", "config": ".toml"}[kind]
@@ -229,7 +257,7 @@ def _run_cases(reader: Reader, kind: str, cases, tmp_path: Path) -> dict[str, in
             f = data  # a path (special files)
         out = reader.read(kind, f)
         counts[out["outcome"]] = counts.get(out["outcome"], 0) + 1
-        if (why := _judge(kind, name, out)) is not None:
+        if (why := _judge(kind, name, out, original)) is not None:
             failures.append(why)
     assert not failures, f"{len(failures)} bad outcomes:\n" + "\n".join(failures[:10])
     return counts
@@ -476,10 +504,45 @@ def _config_cases(root: Path, n: int, seed: int):
         yield f"config#{k} {kind}", d
 
 
+def _original(reader: Reader, tmp_path: Path, name: str) -> str:
+    f = tmp_path / "original.c3d"
+    f.write_bytes((REAL / name).read_bytes())
+    out = reader.read("c3d", f)
+    assert out["outcome"] == "accepted", out
+    return out["fingerprint"]
+
+
 @pytest.mark.parametrize("name", C3D_SOURCES)
 def test_c3d_mutants(reader, tmp_path, name):
-    counts = _run_cases(reader, "c3d", _c3d_cases(name, 50, seed=18), tmp_path)
+    orig = _original(reader, tmp_path, name)
+    counts = _run_cases(reader, "c3d", _c3d_cases(name, 50, seed=18), tmp_path, orig)
     assert counts["error"] > 0
+
+
+def _declared_count_cases(name: str, n: int, seed: int):
+    """Mutants of the :data:`_SAID_OR_SAME` families only: POINT:FRAMES, FORCE_PLATFORM:USED
+    or one FORCE_PLATFORM:CHANNEL entry set to another count."""
+    src = (REAL / name).read_bytes()
+    _, _, params = parameters(src)
+    family = (("POINT", "FRAMES"), ("FORCE_PLATFORM", "USED"), ("FORCE_PLATFORM", "CHANNEL"))
+    keys = [k for k in family if k in params and params[k].type != -1]
+    rng = random.Random(f"{seed}:{name}:declared")
+    for k in range(n if keys else 0):
+        d = bytearray(src)
+        key = rng.choice(keys)
+        p = params[key]
+        v = rng.choice([0, 1, 2, 3, 4, 7, 99, 145, 500, 32767, -1])
+        set_value(d, key, v, rng.randrange(max(1, len(p.data) // abs(p.type))))
+        yield f"{name}#{k} value:{':'.join(key)}={v}", d
+
+
+@pytest.mark.parametrize("name", C3D_SOURCES)
+def test_declared_counts_are_read_alike_or_said(reader, tmp_path, name):
+    """A frame count or a plate declaration changed in the parameters: the mutant is refused
+    with one line, or read with the original's markers and plate forces, or the reader says
+    what it did (issue: declared-but-missing plates, frame counts)."""
+    orig = _original(reader, tmp_path, name)
+    _run_cases(reader, "c3d", _declared_count_cases(name, 30, seed=38), tmp_path, orig)
 
 
 @pytest.mark.parametrize("name", TEXT_SOURCES)
@@ -517,7 +580,8 @@ def test_the_unmutated_sources_are_accepted(reader, tmp_path):
 @pytest.mark.parametrize("seed", [1, 2, 3])
 @pytest.mark.parametrize("name", C3D_SOURCES)
 def test_c3d_mutants_slow(reader, tmp_path, name, seed):
-    _run_cases(reader, "c3d", _c3d_cases(name, 300, seed=seed), tmp_path)
+    orig = _original(reader, tmp_path, name)
+    _run_cases(reader, "c3d", _c3d_cases(name, 300, seed=seed), tmp_path, orig)
 
 
 @pytest.mark.slow

@@ -52,7 +52,8 @@ def test_html_is_self_contained(session):
     assert not re.search(r"""<(script|link|img)[^>]+(src|href)\s*=""", html)
     assert not re.search(r"""(href|src)\s*=\s*["']https?:|url\(\s*["']?https?:""", html)
     assert "<metadata>" not in html
-    assert html.count("<svg") == 6  # strength, joint strength, mass, joints, muscles, contact
+    # kinematics, kinetics, knee contact, muscles, strength, joint strength, mass
+    assert html.count("<svg") == 7
     for heading in (
         "Muscle strength",
         "Mass distribution",
@@ -239,8 +240,19 @@ def test_no_internal_document_names_and_a_reference_list(session):
     assert "spinal cord injury" not in refs  # [2], the FES study, is not cited in gait reports
     assert "EMG-driven and OpenSim musculoskeletal model" in refs
     assert "control of rehabilitation robots" in refs
-    for k in (1, 3, 4, 5):  # [2] is the FES study: cited by FES sessions only
-        assert f"[{k}]" in html.split('<ol class="refs">')[0]
+    # numbered 1, 2, 3 … in the order of first citation, every number in the list cited in the
+    # text and every cited number in the list, each with its year
+    text = html.split('<ol class="refs">')[0]
+    numbers = [int(k) for k in re.findall(r'<li value="(\d+)">', refs)]
+    assert numbers == list(range(1, len(numbers) + 1)) and len(numbers) >= 8
+    cited = {int(k) for group in re.findall(r"\[(\d+(?:, \d+)*)\]", text)
+             for k in group.split(", ")}  # fmt: skip
+    assert cited == set(numbers)
+    first = [int(m) for m in re.findall(r"\[(\d+)(?:, \d+)*\]", text)]
+    assert [k for i, k in enumerate(first) if k not in first[:i]] == numbers  # first-cited order
+    for item in re.findall(r"<li value=\"\d+\">(.*?)</li>", refs):
+        assert re.search(r"\((19|20)\d\d\)", item) or "year not given" in item, item
+    assert "Kutzner I" in refs and "Fregly BJ" in refs  # the in-vivo knee-load band's sources
 
 
 def test_weak_directions_in_words():
@@ -297,8 +309,9 @@ def test_pdf_tables_are_not_cut_at_a4(session, chromium, tmp_path):
     for g in groups:  # one line per group, ending with its status word
         line = next(ln for ln in text.splitlines() if ln.split()[:1] == [g.group])
         assert g.status.split()[0] in line, line
+    mass = text.split("Mass distribution", 1)[1].splitlines()  # after the section's heading
     for seg in session.summary.identification.segments:
-        line = next(ln for ln in text.splitlines() if ln.split()[:1] == [seg.name])
+        line = next(ln for ln in mass if ln.split()[:1] == [seg.name])
         assert seg.status.split()[0] in line, line
     assert "anthropometric" in text.replace("-\n", "") or "anthropome" in text
     assert "threshold" in text and "check" in text
@@ -440,3 +453,91 @@ def test_pdf_runs_no_script_of_the_page(chromium, tmp_path):
         assert write_pdf(page, tmp_path / "r.pdf")
     text = _pdf_text(tmp_path / "r.pdf")
     assert text is not None and "static text" in text and "SCRIPT RAN" not in text
+
+
+#: the sections of a gait report, in order (msk.report.sections), by their element id
+GAIT_SECTIONS = (
+    "session",
+    "spatiotemporal",
+    "kinematics",
+    "kinetics",
+    "knee-loads",
+    "muscle-forces",
+    "strength",
+    "mass",
+    "methods",
+    "references",
+)
+
+_MEASURE = """<script>
+const out = {scroll: document.documentElement.scrollWidth, width: innerWidth, wide: []};
+for (const el of document.querySelectorAll("table, figure, svg, p, h2, h3, ul, ol")) {
+  const r = el.getBoundingClientRect();
+  if (r.right > innerWidth + 0.5 || el.scrollWidth > el.clientWidth + 1 && el.tagName == "TABLE")
+    out.wide.push(el.tagName + "." + el.className + " " + Math.round(r.right));
+}
+const p = document.createElement("pre"); p.id = "measured";
+p.textContent = JSON.stringify(out); document.body.appendChild(p);
+</script>"""
+
+
+def test_the_gait_report_in_chromium_at_1280_px(session, chromium, tmp_path):
+    """Rendered by headless Chromium at 1280 px: every section in the clinical order, each
+    figure and table present, nothing wider than the window (no horizontal scroll, no table
+    in a scroll box)."""
+    import json
+
+    html = (session.path / "report.html").read_text(encoding="utf-8")
+    # the report forbids scripts (its CSP): a copy without the policy runs the measurement
+    page = tmp_path / "measure.html"
+    page.write_text(
+        re.sub(r'<meta http-equiv="Content-Security-Policy"[^>]*>', "", html).replace(
+            "</body>", _MEASURE + "</body>"
+        ),
+        encoding="utf-8",
+    )
+    dom = _chromium(chromium, "--window-size=1280,900", "--dump-dom", page.as_uri()).stdout
+    ids = re.findall(r'<section id="([\w-]+)"', dom)
+    assert ids == list(GAIT_SECTIONS)
+    numbers = re.findall(r"<h2>(\d+)\. ", dom)
+    assert numbers == [str(k) for k in range(1, len(GAIT_SECTIONS) + 1)]
+    for figure in ("kinematics", "kinetics", "knee contact force", "muscle forces",
+                   "strength factors", "joint strength", "segment masses"):  # fmt: skip
+        assert f'aria-label="{figure}"' in dom, figure
+    for table in ("quality", "st", "contact", "strength", "mass", "stages", "inputs"):
+        assert re.search(rf'<table class="{table}[" ]', dom), table
+    measured = json.loads(re.search(r'<pre id="measured">(.*?)</pre>', dom, re.S).group(1))
+    assert measured["width"] == 1280
+    assert measured["scroll"] <= 1280, measured
+    assert not measured["wide"], measured["wide"]
+    assert "overflow-x:auto" not in html and "overflow:auto" not in html  # no scroll boxes
+    # left red, right green; foot-off lines; the in-vivo knee-load band
+    assert 'stroke="#c62828"' in dom and "left foot off" in dom
+    assert "in-vivo walking peaks 2–3 BW" in dom
+    assert "normative mean ± SD" in dom  # the shipped set, with its population and licence
+    assert "licence: Apache-2.0" in dom
+
+
+def test_pdf_keeps_every_heading_with_its_content(session, chromium, tmp_path):
+    """Printed at A4, no page ends with a section or sub-section heading (print CSS:
+    break-after: avoid, headings kept in a block with what follows them)."""
+    pdf = tmp_path / "r.pdf"
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")  # the sandbox warning when run as root
+        assert write_pdf(session.path / "report.html", pdf)
+    text = _pdf_text(pdf)
+    if text is None:
+        pytest.skip("pdftotext (poppler-utils) is not installed")
+    html = (session.path / "report.html").read_text(encoding="utf-8")
+    headings = {
+        " ".join(re.sub(r"<.*?>", "", h).split())
+        for h in re.findall(r"<h[23]>(.*?)</h[23]>", html, re.S)
+    }
+    pages = [p for p in text.split("\f") if p.strip()]
+    assert len(pages) >= 3
+    for k, page in enumerate(pages[:-1]):
+        last = " ".join(page.strip().splitlines()[-1].split())
+        assert last not in headings, (k + 1, last)
+        assert not any(
+            h.startswith(last) or last.startswith(h) for h in headings if len(last) > 3
+        ), (k + 1, last)

@@ -157,3 +157,51 @@ def test_true_runs_rebuild_the_mask(mask):
         rebuilt[a:b] = True
     np.testing.assert_array_equal(rebuilt, mask)
     assert all(b1 < a2 for (_, b1), (a2, _) in itertools.pairwise(runs))
+
+
+def test_causal_lowpass_is_the_forward_butterworth_one_sample_late():
+    from scipy import signal as sig
+
+    from msk.signal import CausalLowpass
+
+    rng = np.random.default_rng(0)
+    x = np.cumsum(rng.normal(size=(300, 2)), axis=0)
+    f = CausalLowpass(2, rate_hz=100.0, cutoff_hz=6.0, order=2)
+    ys, dys = [], []
+    for row in x:
+        f.step(row)
+        ys.append(f.y.copy())
+        dys.append(f.dy.copy())
+    sos = sig.butter(2, 6.0 / 50.0, output="sos")
+    ref, _ = sig.sosfilt(sos, x, axis=0, zi=sig.sosfilt_zi(sos)[:, :, None] * x[0])
+    np.testing.assert_allclose(np.array(ys)[1:], ref[:-1], atol=1e-10)
+    np.testing.assert_allclose(np.array(dys)[2:], (ref[2:] - ref[:-2]) / 0.02, atol=1e-8)
+
+
+def test_causal_lowpass_lag_is_its_group_delay():
+    from msk.signal import CausalLowpass
+
+    for order, analog in ((2, np.sqrt(2.0)), (4, 2.6131)):
+        f = CausalLowpass(1, rate_hz=1000.0, cutoff_hz=6.0, order=order)
+        # the analog prototype's delay at DC, 1/ω_c Σ 1/sin(...) (bilinear: close at f_c ≪ f_s)
+        assert f.group_delay_s == pytest.approx(analog / (2 * np.pi * 6.0), rel=0.01)
+        assert f.lag_s == pytest.approx(f.group_delay_s + 1e-3)
+        # a slow sine comes out shifted by the lag
+        t = np.arange(3000) / 1000.0
+        x = np.sin(2 * np.pi * 0.5 * t)
+        out = np.empty_like(x)
+        for k, v in enumerate(x):
+            f.step(np.array([v]))
+            out[k] = f.y[0]
+        late = t > 1.0
+        shifted = np.sin(2 * np.pi * 0.5 * (t[late] - f.lag_s))
+        np.testing.assert_allclose(out[late], shifted, atol=2e-3)
+
+
+def test_causal_lowpass_refuses_a_cutoff_above_nyquist():
+    from msk.signal import CausalLowpass
+
+    with pytest.raises(MskError):
+        CausalLowpass(1, rate_hz=10.0, cutoff_hz=6.0)
+    with pytest.raises(MskError):
+        CausalLowpass(1, rate_hz=100.0, cutoff_hz=6.0, order=3)

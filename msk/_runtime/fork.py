@@ -1,8 +1,7 @@
 """Half of a job in a forked child while the caller does the other half (a second free CPU).
 
 Used where one session spends most of its wall time in independent pieces of pure Python or
-GIL-holding native work (the report's figures): threads would not run them side by side, a
-forked child does, with the parent's imports and data already in place (~10 ms to fork).
+GIL-holding native work: threads would not run them side by side, a forked child does, with the parent's imports and data already in place (~10 ms to fork).
 Nothing changes in the results: the child computes exactly what the caller would have (same
 code, same data, same BLAS thread count), pickles it into a pipe, and the caller falls back to
 computing it itself if the child fails in any way.
@@ -13,11 +12,10 @@ of the mass-identification cross-validation): only in the main thread of a top-l
 its affinity mask, where ``os.fork`` exists, and unless ``MSK_FORK=0``.
 
 A :class:`Server` is a child forked early that imports a module on the free CPU while the
-caller works, then computes one function of that module for it: the report's figures cost the
-caller neither matplotlib's import nor their drawing time beyond the caller's wait. ``msk run``
-registers it with :func:`defer_server` and the stage runner forks it
-(:func:`start_deferred`) when it first computes a stage: a run whose stages all come from the
-cache (its figures too) forks no child, whose import would only take CPU from it.
+caller works, then computes one function of that module for it: the caller pays neither the
+import nor the computation beyond its wait. A command registers it with :func:`defer_server`
+and the stage runner forks it (:func:`start_deferred`) when it first computes a stage: a run
+whose stages all come from the cache forks no child, whose import would only take CPU from it.
 """
 
 from __future__ import annotations

@@ -25,7 +25,14 @@ from msk.exceptions import MskError
 __all__ = ["VERB_MODULES", "Command", "build_parser", "console", "main", "positive_int"]
 
 #: Modules whose ``COMMANDS`` tuple lists their verbs, in the order ``msk --help`` shows them.
-VERB_MODULES: tuple[str, ...] = ("msk.cli.session", "msk.cli.batch", "msk.cli.info")
+VERB_MODULES: tuple[str, ...] = (
+    "msk.cli.session",
+    "msk.cli.init",
+    "msk.cli.batch",
+    "msk.cli.norms",
+    "msk.cli.info",
+    "msk.cli.live",
+)
 
 
 @dataclass(frozen=True)

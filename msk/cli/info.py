@@ -9,15 +9,23 @@ import argparse
 import json
 import sys
 from collections.abc import Callable, Sequence
+from dataclasses import dataclass
 from pathlib import Path
-from typing import TextIO
+from typing import Any, TextIO
 
 import numpy as np
 
 from msk._runtime.terminal import terminal_safe
 from msk.cli import Command
 
-__all__ = ["COMMANDS", "flat_channels", "write_recognition"]
+__all__ = [
+    "COMMANDS",
+    "Recognition",
+    "flat_channels",
+    "inline_table",
+    "recognition",
+    "write_recognition",
+]
 
 #: the model ``msk info`` recognises labels against (a session's default model)
 INFO_MODEL = "gait2392"
@@ -53,6 +61,47 @@ def flat_channels(
     return out
 
 
+@dataclass(frozen=True)
+class Recognition:
+    """What msk recognises in a trial's labels: the marker-set match
+    (:func:`msk.model.markersets.recognise`) against the model ``model_name``, the EMG channels
+    naming one of its muscles (:func:`msk.muscles.emg.suggest_channels`: label → (muscle,
+    whether the label names the side)), the ``[markers] rename`` pairs (model marker → lab
+    label, the identical ones left out: msk pairs those itself) and the ``[emg] channels``
+    pairs (muscle → label, flat channels left out)."""
+
+    model_name: str
+    model: Any
+    match: Any
+    emg: dict[str, tuple[str, bool]]
+    rename: dict[str, str]
+    channels: dict[str, str]
+
+
+def recognition(
+    labels: Sequence[str],
+    markers: np.ndarray | None,
+    analog_labels: Sequence[str],
+    flat: dict[str, str],
+    *,
+    model_name: str = INFO_MODEL,
+) -> Recognition:
+    """:class:`Recognition` of a trial's marker and analog labels against ``model_name``."""
+    from msk.model.files import load_model
+    from msk.model.markersets import recognise, zeros_as_gaps
+    from msk.muscles.emg import suggest_channels
+
+    model = load_model(model_name)
+    data = zeros_as_gaps(markers) if markers is not None and markers.size else None
+    match = recognise(
+        labels, model.marker_names, model_bodies=[b.name for b in model.bodies], markers=data
+    )
+    emg = suggest_channels(analog_labels, [m.name for m in model.muscles])
+    rename = {mk: lab for mk, lab in match.rename.items() if mk != lab}
+    usable = {muscle: lab for lab, (muscle, _) in emg.items() if lab not in flat}
+    return Recognition(model_name, model, match, emg, rename, usable)
+
+
 def write_recognition(
     labels: Sequence[str],
     markers: np.ndarray | None,
@@ -65,17 +114,10 @@ def write_recognition(
     """Write which marker labels :func:`msk.model.markersets.recognise` pairs with which marker
     of the shipped model ``model_name``, the analog channels that name a muscle
     (:func:`msk.muscles.emg.suggest_channels`) and the ``[markers] rename`` / ``[emg] channels``
-    tables a session configuration would start from (pairs whose label is the model's name left
-    out: msk pairs those itself)."""
-    from msk.model.files import load_model
-    from msk.model.markersets import recognise, zeros_as_gaps
-    from msk.muscles.emg import suggest_channels
-
-    model = load_model(model_name)
-    data = zeros_as_gaps(markers) if markers is not None and markers.size else None
-    match = recognise(
-        labels, model.marker_names, model_bodies=[b.name for b in model.bodies], markers=data
-    )
+    tables a session configuration would start from (:func:`recognition`; ``msk init`` writes
+    the whole configuration)."""
+    rec = recognition(labels, markers, analog_labels, flat, model_name=model_name)
+    match, model = rec.match, rec.model
     to_model = match.lab_to_model
     w(
         f"marker set: {match.protocol}; {len(match.rename)} of {len(model.marker_names)} "
@@ -92,24 +134,22 @@ def write_recognition(
         w(f"  {model_name} markers no label names: {', '.join(match.unmatched_model)}\n")
     for note in match.notes:
         w(f"  note: {note}\n")
-    emg = suggest_channels(analog_labels, [m.name for m in model.muscles])
-    w(f"EMG channels naming a muscle: {len(emg)}\n")
-    for lab, (muscle, sided) in emg.items():
+    w(f"EMG channels naming a muscle: {len(rec.emg)}\n")
+    for lab, (muscle, sided) in rec.emg.items():
         side = "" if sided else "  (the label names no side: right assumed)"
         state = f"  FLAT/UNUSED? ({flat[lab]})" if lab in flat else ""
         w(f"  {lab} -> {muscle}{side}{state}\n")
-    rename = {mk: lab for mk, lab in match.rename.items() if mk != lab}
-    usable = {muscle: lab for lab, (muscle, _) in emg.items() if lab not in flat}
-    w("suggested session configuration (check every pair; msk pairs the marker labels itself):\n")
+    w("suggested session configuration (check every pair; msk pairs the marker labels itself;"
+      " msk init writes a whole one):\n")  # fmt: skip
     w("  [model]\n")
     w(f'  source = "{model_name}"\n')
     w("  [markers]\n")
-    w(f"  rename = {_inline(rename)}\n")
+    w(f"  rename = {inline_table(rec.rename)}\n")
     w("  [emg]\n")
-    w(f"  channels = {_inline(usable)}\n")
+    w(f"  channels = {inline_table(rec.channels)}\n")
 
 
-def _inline(pairs: dict[str, str]) -> str:
+def inline_table(pairs: dict[str, str]) -> str:
     """A TOML inline table (keys quoted: model marker names hold dots)."""
     return "{ " + ", ".join(f"{json.dumps(k)} = {json.dumps(v)}" for k, v in pairs.items()) + " }"
 

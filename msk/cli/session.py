@@ -1,14 +1,16 @@
 """``msk run`` (a session configuration → its results folder), ``msk print-config`` (every
 configuration key with its type, default, unit and meaning — generated from the options
 dataclasses, :func:`msk.config.config_reference`; with a CONFIG, that configuration resolved with
-every default; ``--example``, the commented example) and ``msk report`` (rebuild a folder's
-report)."""
+every default; ``--example``, the commented example), ``msk report`` (rebuild a folder's
+report) and ``msk strength`` (the session's trials pooled into one strength identification,
+:mod:`msk.pipeline.pooled_strength`)."""
 
 from __future__ import annotations
 
 import argparse
 import sys
 from pathlib import Path
+from typing import Any
 
 from msk.cli import Command
 
@@ -27,10 +29,6 @@ def _run_args(p: argparse.ArgumentParser) -> None:
 def _run(args: argparse.Namespace) -> int:
     from msk._runtime import fork as _fork
 
-    # the report's figures: a child forked when the first stage is computed (none if every
-    # stage comes from the cache) imports matplotlib on the free CPU while the stages run, and
-    # draws them when the report stage asks (msk.report.build_figures)
-    _fork.defer_server("figures", "msk.report.html", "_draw_all", warm="_warm")
     try:
         return _run_sessions(args)
     finally:
@@ -50,13 +48,31 @@ def _run_sessions(args: argparse.Namespace) -> int:
         failed = [r for r in dyn.strengths if r.status != "identified"]
         return 3 if args.strict and failed else 0
     raised = 0
-    for res in run_task_trials(
+    runs = run_task_trials(
         args.config,
         args.out,
         progress=None if args.quiet else sys.stderr,
         use_cache=not args.no_cache,
         pdf=args.pdf,
-    ):
+    )
+    if len(runs) > 1:  # one report of the session: every task trial's cycles pooled
+        from msk.report import write_report
+        from msk.results.folder import read_session
+
+        parts = [read_session(r.out_dir) for r in runs]
+        path = write_report(parts[0], args.out, pdf=args.pdf, trials=parts)
+        if not args.quiet:
+            sys.stderr.write(f"{path}: the session's report ({len(parts)} task trials)\n")
+            if args.pdf and (Path(args.out) / "report.pdf").is_file():
+                sys.stderr.write(f"{(Path(args.out) / 'report.pdf').resolve()}\n")
+    for res in runs:
+        if args.pdf and not args.quiet:
+            pdf = res.out_dir / "report.pdf"
+            sys.stderr.write(
+                f"{pdf}\n"
+                if pdf.is_file()
+                else f"{res.out_dir}: report.pdf not written (no headless Chromium, or it failed)\n"
+            )
         missing = res.not_available
         if missing and not args.quiet:
             sys.stderr.write(f"{res.out_dir}: stages not available: {', '.join(missing)}\n")
@@ -95,18 +111,35 @@ def _print_config(args: argparse.Namespace) -> int:
 
 
 def _report_args(p: argparse.ArgumentParser) -> None:
-    p.add_argument("folder", metavar="DIR", type=Path, help="a session folder of msk run")
+    p.add_argument(
+        "folder", metavar="DIR", type=Path,
+        help="a session folder of msk run, or the folder of its task-trial folders (one report "
+        "of them all)",
+    )  # fmt: skip
     p.add_argument("--pdf", action="store_true", help="also print report.pdf (Chromium)")
+    p.add_argument(
+        "--norms", type=Path, metavar="FILE",
+        help="normative bands (CSV of msk.gait.norms, e.g. from msk norms) drawn under the "
+        "gait-cycle grids (default: the set msk ships)",
+    )  # fmt: skip
 
 
 def _report(args: argparse.Namespace) -> int:
     from msk.exceptions import SummaryError
     from msk.report import write_report
-    from msk.results.folder import read_session
+    from msk.results.folder import read_task_trials
 
-    res = read_session(args.folder)
+    parts = read_task_trials(args.folder)  # a session folder, or one per task trial
+    res = parts[0]
+    from msk.report.html import SHIPPED
+
+    norms: Any = SHIPPED  # the shipped set unless a file is named
+    if args.norms is not None:
+        from msk.gait.norms import read_norms
+
+        norms = read_norms(args.norms)
     try:
-        path = write_report(res, args.folder, pdf=args.pdf)
+        path = write_report(res, args.folder, pdf=args.pdf, norms=norms, trials=parts)
     except (ValueError, TypeError, KeyError, IndexError, AttributeError, RecursionError) as exc:
         # a received folder's summary.json that passes the schema but not the report's reading
         # (an unknown status word, a string where a window is expected): one line, no traceback
@@ -115,10 +148,30 @@ def _report(args: argparse.Namespace) -> int:
             f"({type(exc).__name__}: {' '.join(str(exc).split())[:200]})"
         ) from None
     sys.stdout.write(f"{path}\n")
+    if args.pdf and (args.folder / "report.pdf").is_file():
+        sys.stdout.write(f"{(args.folder / 'report.pdf').resolve()}\n")  # the PDF's path
     if args.pdf and not (args.folder / "report.pdf").is_file():
         # asked for and not printed: said, and not a success (no stale PDF is left either)
         sys.stderr.write("msk: report.pdf not written (no headless Chromium, or it failed)\n")
         return 1
+    return 0
+
+
+def _strength_args(p: argparse.ArgumentParser) -> None:
+    p.add_argument("config", metavar="CONFIG", type=Path, help="session configuration (.toml)")
+    p.add_argument("--out", required=True, type=Path, metavar="DIR", help="output folder")
+    p.add_argument("--quiet", action="store_true", help="no progress lines")
+
+
+def _strength(args: argparse.Namespace) -> int:
+    from msk.pipeline.pooled_strength import run_pooled_strength
+
+    rec = run_pooled_strength(args.config, args.out, progress=None if args.quiet else sys.stderr)
+    n = sum(g["status"] == "identified" for g in rec["groups"])
+    sys.stdout.write(
+        f"{args.out / 'strength.json'}: {n}/{len(rec['groups'])} groups identified "
+        f"(EMG normalisation: {rec['normalisation_kind']})\n"
+    )
     return 0
 
 
@@ -127,4 +180,6 @@ COMMANDS = (
     Command("print-config", "print every session-config key (type, default, unit, meaning), a "
             "config resolved, or the example", _print_config_args, _print_config),
     Command("report", "rebuild report.html of a session folder", _report_args, _report),
+    Command("strength", "identify strength from a session's task and MVC trials together "
+            "([strength] pool; one EMG normalisation)", _strength_args, _strength),
 )  # fmt: skip

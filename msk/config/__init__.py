@@ -37,6 +37,7 @@ from msk.config.options import (
     OptimizationConfig,
     Section,
     SessionConfig,
+    StrengthConfig,
     Subject,
     TrialConfig,
 )
@@ -69,6 +70,7 @@ __all__ = [
     "OptimizationConfig",
     "Section",
     "SessionConfig",
+    "StrengthConfig",
     "Subject",
     "TrialConfig",
     "config_reference",

@@ -121,6 +121,16 @@ def load_config(path: str | Path) -> SessionConfig:
                 raise ConfigError(
                     f"{source}: emg.mvc names channel {ch!r}, which no muscle in emg.channels uses"
                 )
+    strength = parts.get("strength")
+    if strength is not None:
+        roles = {t.name: t.role for t in trials}
+        for name in strength.pool:
+            if roles.get(name) not in ("task", "mvc"):
+                raise ConfigError(
+                    f"{source}: strength.pool names {name!r}, which is "
+                    + ("no trial" if name not in roles else f"a trial of role {roles[name]!r}")
+                    + "; it takes trials of role 'task' or 'mvc'"
+                )
     fes_trials = [tc for tc in trials if tc.role == "fes"]
     if fes_trials:
         _check_fes_session(source, fes_trials, parts["subject"].height_m)

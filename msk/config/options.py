@@ -39,6 +39,7 @@ __all__ = [
     "OptimizationConfig",
     "Section",
     "SessionConfig",
+    "StrengthConfig",
     "Subject",
     "TrialConfig",
 ]
@@ -140,8 +141,8 @@ class ModelConfig:
     """``[model]``: the musculoskeletal model (optional when every trial has role = "fes")."""
 
     source: Path = opt(
-        "a shipped model by name (gait2392, gait2392_fourbar), an msk model file (.toml) or an "
-        "OpenSim model (.osim)",
+        "a shipped model by name (gait2392, gait2392_fourbar, rajagopal), an msk model file "
+        "(.toml) or an OpenSim model (.osim)",
         named=_shipped_model,
     )
     knee: str = opt(
@@ -471,6 +472,27 @@ class FesConfig:
     )
 
 
+@dataclass(frozen=True, kw_only=True)
+class StrengthConfig:
+    """``[strength]``: the trials ``msk strength`` pools into one strength identification
+    (:mod:`msk.strength.pooled`)."""
+
+    pool: tuple[str, ...] = opt(
+        "names of the task and MVC trials whose rows are identified together (an MVC trial "
+        "only if the plates measure its external force); the EMG is normalised by every MVC "
+        "trial's peak, else the pooled trials' peak; empty: every task and MVC trial",
+        (),
+        item="trial names",
+    )
+    window_s: float = opt(
+        "length of the regression windows a task trial is cut into (an MVC trial is one): "
+        "the jackknife's units; ≥ 3 correlation times of a 6-Hz envelope (≈ 0.17 s)",
+        0.5,
+        unit="s",
+        bounds=_POSITIVE,
+    )
+
+
 @dataclass(frozen=True)
 class SessionConfig:
     """A validated session configuration (:func:`msk.config.load_config`)."""
@@ -491,6 +513,7 @@ class SessionConfig:
     fes: FesConfig = field(default_factory=FesConfig)
     loads: LoadsConfig = field(default_factory=LoadsConfig)
     contact: ContactConfig = field(default_factory=ContactConfig)
+    strength: StrengthConfig = field(default_factory=StrengthConfig)
 
     def trials_with_role(self, role: str) -> tuple[TrialConfig, ...]:
         """The trials of ``role``, in file order."""
@@ -537,6 +560,12 @@ SECTIONS = (
     Section("contact", ContactConfig, "contact", "tibiofemoral contact-point geometry"),
     Section("filters", FilterConfig, "filters", "low-pass cut-offs (zero-lag Butterworth)"),
     Section("optimization", OptimizationConfig, "optimization", "how muscle forces are solved"),
+    Section(
+        "strength",
+        StrengthConfig,
+        "strength",
+        "the trials `msk strength` identifies together (one EMG normalisation)",
+    ),
     Section(
         "fes",
         FesConfig,

@@ -112,6 +112,7 @@ __all__ = [
     "INTERCONDYLAR_DISTANCE_M",
     "PLATEAU_DEPTH_M",
     "CompartmentMap",
+    "FrameKneeContact",
     "KneeContact",
     "MedialLateral",
     "PlateauGeometry",
@@ -848,13 +849,7 @@ def split_medial_lateral(
     m = np.asarray(contact.moment, dtype=float)
     if f.ndim != 2 or f.shape[1] != 3 or m.shape != f.shape:
         raise ShapeMismatchError(f"contact force {f.shape} / moment {m.shape} must be (N, 3)")
-    _, cy, cz = geo.centre_m
-    normal = -f[:, 1]
-    m_c = m[:, 0] - cy * f[:, 2] + cz * f[:, 1]
-    half = 0.5 * normal
-    delta = m_c / geo.intercondylar_distance_m
-    plus, minus = half + delta, half - delta  # forces at C + d/2 e_z and C − d/2 e_z
-    medial, lateral = (minus, plus) if sd == "right" else (plus, minus)
+    medial, lateral, normal, m_c = _two_point(f, m, geo, sd)
     return MedialLateral(
         time=np.asarray(contact.time, dtype=float),
         joint=contact.joint,
@@ -866,6 +861,90 @@ def split_medial_lateral(
         geometry=geo,
         body_weight_n=float(contact.body_weight_n),
     )
+
+
+def _two_point(
+    f: Array, m: Array, geo: PlateauGeometry, sd: str
+) -> tuple[Array, Array, Array, Array]:
+    """Medial, lateral, normal force and the frontal moment about C of the plateau-frame load
+    ``f``, ``m`` (…, 3) by the two-point model (:func:`split_medial_lateral`)."""
+    _, cy, cz = geo.centre_m
+    normal = -f[..., 1]
+    m_c = m[..., 0] - cy * f[..., 2] + cz * f[..., 1]
+    half = 0.5 * normal
+    delta = m_c / geo.intercondylar_distance_m
+    plus, minus = half + delta, half - delta  # forces at C + d/2 e_z and C − d/2 e_z
+    medial, lateral = (minus, plus) if sd == "right" else (plus, minus)
+    return medial, lateral, normal, m_c
+
+
+class FrameKneeContact:
+    """The tibiofemoral contact force of one frame at a time (a stream: :mod:`msk.live`), from
+    the Pinocchio data of that frame's inverse dynamics
+    (:class:`msk.dynamics.inverse.FrameInverseDynamics`, one ``rnea``): the wrench the femur
+    side transmits to the knee's subtree is RNEA's ``data.f`` of the knee's first joint mapped to
+    the world (what :func:`knee_contact_force`'s Newton–Euler balance equals, module
+    docstring), minus the external loads on the subtree's bodies, plus Σ F_i ∂l_i/∂ξ, expressed
+    in the plateau frame; and its two-point medial/lateral split (:func:`split_medial_lateral`).
+
+    Args:
+        model: the model; ``joint`` the knee; ``bodies`` the bodies of the external wrenches
+            given to :meth:`contact` (as the inverse dynamics'); ``geometry`` the contact points
+            (default :func:`plateau_geometry`); ``plateau_offset`` as :func:`knee_contact_force`'s.
+    """
+
+    def __init__(
+        self,
+        model: Model,
+        joint: str = "knee_r",
+        *,
+        bodies: Sequence[str] = (),
+        geometry: PlateauGeometry | None = None,
+        plateau_offset: pin.SE3 | None = None,
+    ) -> None:
+        tree = _distal_tree(model, joint)
+        self.joint = joint
+        self.j0 = min(tree.subtree)
+        self.child_joint = tree.joints[tree.child_slot]
+        place = tree.child_placement
+        if plateau_offset is not None:
+            place = place * plateau_offset
+        self.place_rot = np.array(place.rotation)
+        self.place_trans = np.array(place.translation)
+        self.loaded = [b for b, body in enumerate(bodies) if model.body_joint[body] in tree.subtree]
+        self.geometry = plateau_geometry(model, joint=joint) if geometry is None else geometry
+        self.side = _side_of(joint, None)
+        self.force = np.empty(3)
+        self.moment = np.empty(3)
+        self._w = np.empty(6)
+
+    def contact(
+        self,
+        data: Any,
+        muscle_forces: Array,
+        distal_wrenches: Array,
+        force: Array,
+        moment: Array,
+    ) -> tuple[float, float, float]:
+        """(axial, medial, lateral) N of the frame whose ``rnea`` ``data`` holds, with the
+        muscle tensions (m,), their unit wrenches ∂l/∂ξ on the knee's distal side (m, 6) and the
+        external ``force``, ``moment`` (B, 3) on ``bodies``; :attr:`force`, :attr:`moment`
+        become the plateau-frame load (as :class:`KneeContact`'s)."""
+        fw = data.oMi[self.j0].act(data.f[self.j0])
+        w = self._w
+        w[:3] = fw.linear
+        w[3:] = fw.angular
+        for b in self.loaded:
+            w[:3] -= force[b]
+            w[3:] -= moment[b]
+        w += muscle_forces @ distal_wrenches
+        om = data.oMi[self.child_joint]
+        rot = om.rotation @ self.place_rot
+        origin = om.translation + om.rotation @ self.place_trans
+        np.dot(rot.T, w[:3], out=self.force)
+        np.dot(rot.T, w[3:] - np.cross(origin, w[:3]), out=self.moment)
+        medial, lateral, normal, _ = _two_point(self.force, self.moment, self.geometry, self.side)
+        return float(normal), float(medial), float(lateral)
 
 
 # ---------------------------------------------------------------------------------------------

@@ -46,6 +46,7 @@ from msk.units import Array
 
 __all__ = [
     "ID_BLOCK",
+    "FrameInverseDynamics",
     "InverseDynamics",
     "JointReaction",
     "JointTorques",
@@ -301,6 +302,68 @@ def _run_rnea(
                 if jk in pm.supports[j]:
                     f_keep[jk][idx] -= wrench[:, i]
     return tau, f_keep, m_keep, jac, org
+
+
+class FrameInverseDynamics:
+    """Joint torques τ_θ of one frame at a time (a stream: :mod:`msk.live`), the computation of
+    :func:`inverse_dynamics` (variant ``"full"``; module docstring) with what does not change
+    from frame to frame set up once: the Pinocchio data, the loaded bodies' joints and the DOFs
+    supporting each. Per frame: (q, v, a) = (g(θ), Gθ̇, Gθ̈ + Ġθ̇), one
+    ``computeJointJacobians`` and one ``rnea``, the external wrenches' generalised force
+    Σ_b (J masked to the DOFs supporting b)ᵀ f_b subtracted, τ_θ = Gᵀ τ_pin — the numbers of
+    :func:`inverse_dynamics` for that frame (the same operations in the same order).
+
+    Args:
+        model: the model (its inertias as they are).
+        bodies: the bodies external wrenches are applied to, in the order of the ``force`` and
+            ``moment`` rows given to :meth:`torques` (world frame, moment about the origin).
+    """
+
+    def __init__(self, model: Model, bodies: Sequence[str] = ()) -> None:
+        from msk.kinematics.ik import _CouplingEvaluator
+
+        self.model = model
+        self.coupling = _CouplingEvaluator(model)
+        self.pm = model.pin_model
+        self.data = self.pm.createData()
+        self.bodies = tuple(bodies)
+        self._loaded: list[tuple[int, list[int], list[int]]] = []
+        by_joint: dict[int, list[int]] = {}
+        for b, body in enumerate(self.bodies):
+            j = model.body_joint[body]
+            if j != 0:
+                by_joint.setdefault(j, []).append(b)
+        for j, rows in by_joint.items():
+            support = [self.pm.joints[s].idx_v for s in self.pm.supports[j] if s > 0]
+            self._loaded.append((j, rows, support))
+        self._w = np.empty(6)
+        self.tau = np.empty(model.n_coords)
+
+    def torques(
+        self, theta: Array, theta_dot: Array, theta_ddot: Array, force: Array, moment: Array
+    ) -> Array:
+        """τ_θ (n_coords,) of the frame (θ, θ̇, θ̈), with the wrenches ``force``, ``moment``
+        (B, 3) on :attr:`bodies`. The returned array is this object's buffer, overwritten by the
+        next call."""
+        cp = self.coupling
+        q = cp.q(theta)
+        g = cp.jacobian(theta)
+        v = g @ theta_dot
+        a = g @ theta_ddot + cp.bias(theta, theta_dot)
+        pm, data = self.pm, self.data
+        if self._loaded:
+            pin.computeJointJacobians(pm, data, q)
+        tau = pin.rnea(pm, data, q, v, a)
+        w = self._w
+        for _, rows, support in self._loaded:
+            w[:3] = force[rows[0]]
+            w[3:] = moment[rows[0]]
+            for r in rows[1:]:
+                w[:3] += force[r]
+                w[3:] += moment[r]
+            tau[support] -= data.J[:, support].T @ w
+        np.dot(g.T, tau, out=self.tau)
+        return self.tau
 
 
 #: frames per block of a longer trial's inverse dynamics: its per-frame states,

@@ -47,7 +47,12 @@ from numpy.typing import ArrayLike, NDArray
 
 from msk.analogs import StoredAnalogs
 from msk.exceptions import C3DError, ForcePlateError, MskError, UnitsError
-from msk.io.plate_checks import cop_warnings, direction_warnings, saturation_warnings
+from msk.io.plate_checks import (
+    cop_warnings,
+    direction_warnings,
+    saturation_warnings,
+    scale_flags,
+)
 from msk.io.validate import MAX_ABS_COORDINATE_M, MAX_ABS_FORCE_N, check_regular_file
 from msk.trial import Event, ForcePlate, GapReport, ModelOutputs, Subject, Trial
 
@@ -133,7 +138,13 @@ def _check_bytes(path: Path) -> _Layout:
         first, n_frames = long_first
     if data_block < 2 and (n_points or n_analog_words):
         raise C3DError(f"{path}: corrupt header (data block {data_block})")
-    expected = (data_block - 1) * 512 + n_frames * (4 * n_points + n_analog_words) * word
+    frame_bytes = (4 * n_points + n_analog_words) * word
+    frames_flag: dict[str, Any] | None = None
+    if long_first is None:
+        n_frames, frames_flag = _frame_count(
+            path, raw_params, proc, n_frames, size, (data_block - 1) * 512, frame_bytes
+        )
+    expected = (data_block - 1) * 512 + n_frames * frame_bytes
     if n_frames and size < expected:
         raise C3DError(
             f"{path}: truncated: the header promises {n_frames} frames "
@@ -173,7 +184,60 @@ def _check_bytes(path: Path) -> _Layout:
         data_start=(data_block - 1) * 512,
         point_rate=hdr_rate,
         params=raw_params,
+        flags=() if frames_flag is None else (frames_flag,),
     )
+
+
+def _frame_count(
+    path: Path,
+    params: Mapping[tuple[str, str], _RawParam],
+    proc: int,
+    header_frames: int,
+    size: int,
+    data_start: int,
+    frame_bytes: int,
+) -> tuple[int, dict[str, Any] | None]:
+    """The number of frames to read when the header's frames (last − first + 1) and
+    ``POINT:FRAMES`` disagree, and the reader flag saying so (None when they agree).
+
+    The C3D header is the reference (C3D User Guide, Motion Lab Systems 2008, "The header
+    section"; ezc3d and BTK read its frames): its frames are read when the data section holds
+    them; otherwise ``POINT:FRAMES``'s when the data section holds those (a corrupt header
+    word). When neither count is present in the file the two disagree irreconcilably and the
+    file is refused (:class:`C3DError` naming both counts and the frames present). Nothing is
+    read past the data, nothing dropped unsaid: a data section holding more whole frames than
+    the count read is said in the flag."""
+    p = params.get(("POINT", "FRAMES"))
+    if p is None or p.type not in (1, 2, 4):
+        return header_frames, None
+    v = _decode(p, proc)
+    if v is None or v.size == 0 or not math.isfinite(float(v[0])):
+        return header_frames, None
+    declared = int(v[0])
+    if p.type == 2 and declared < 0:  # an unsigned 16-bit count stored as int16
+        declared %= 65536
+    if declared == header_frames or declared < 0 or not frame_bytes:
+        return header_frames, None
+    present = max(0, size - data_start) // frame_bytes
+    if 0 < header_frames <= present:
+        n, which = header_frames, "the header's"
+    elif 0 < declared <= present:
+        n, which = declared, "POINT:FRAMES's"
+    else:
+        raise C3DError(
+            f"{path}: the header declares {header_frames} frames, POINT:FRAMES = {declared}, "
+            f"and the data section holds {present} whole frames: truncated or corrupt"
+        )
+    extra = present - n
+    # a data section is padded to whole 512-byte blocks: more than that is unread data
+    beyond = extra * frame_bytes >= 512 and extra > 0
+    msg = (
+        f"frame count: the header declares {header_frames} frames, POINT:FRAMES = "
+        f"{declared}; the data section holds {present} whole frames: {which} {n} read"
+        + (f" ({extra} frames after them are not read)" if beyond else "")
+    )
+    return n, {"quantity": "c3d_frame_count_mismatch", "value": float(declared),
+               "threshold": float(n), "message": msg}  # fmt: skip
 
 
 @dataclass(frozen=True)
@@ -182,7 +246,8 @@ class _Layout:
     checked them): processor type (84 Intel, 85 DEC, 86 MIPS), float or integer storage and
     the header's scale factor, points and analog words per frame, analog samples per frame,
     the first frame number (1-based) and the number of frames, the data section's byte
-    offset, the header's point rate and the parameter records."""
+    offset, the header's point rate, the parameter records and the reader flags raised while
+    checking them (:func:`_frame_count`)."""
 
     proc: int
     is_float: bool
@@ -195,6 +260,7 @@ class _Layout:
     data_start: int
     point_rate: float
     params: Mapping[tuple[str, str], _RawParam]
+    flags: tuple[dict[str, Any], ...] = ()
 
 
 def _long_first_frame(
@@ -582,8 +648,10 @@ def _check_plate_params(
     used: int | None,
     n_analog: int | None,
 ) -> None:
-    """FORCE_PLATFORM parameter shapes: TYPE, CORNERS (3x4 per plate), ORIGIN (3 per plate),
-    CHANNEL (channels x plates, each within ANALOG:USED)."""
+    """FORCE_PLATFORM parameter shapes: TYPE, CORNERS (3x4 per plate), ORIGIN (3 per plate)
+    and CHANNEL (channels x plates) hold whole plates. Fewer plates described than
+    ``FORCE_PLATFORM:USED`` declares, or a plate's channel outside the analogs, is no error
+    here: :func:`_plates` drops that plate with a reader flag."""
     if not used:
         return
     if used > 64:
@@ -591,35 +659,26 @@ def _check_plate_params(
     fp = "FORCE_PLATFORM"
     for name, per_plate in (("TYPE", 1), ("CORNERS", 12), ("ORIGIN", 3)):
         v = vals.get((fp, name))
-        if v is None:
-            raise ForcePlateError(f"{path}: FORCE_PLATFORM:USED = {used} but no {fp}:{name}")
-        if v.size % per_plate or v.size < per_plate * used:
+        dims = params[(fp, name)].dims if (fp, name) in params else ()
+        lead = {"CORNERS": (3, 4), "ORIGIN": (3,)}.get(name, ())
+        shaped = len(dims) <= len(lead) or tuple(dims[: len(lead)]) == lead
+        if v is not None and (v.size % per_plate or not shaped):
             raise ForcePlateError(
                 f"{path}: {fp}:{name} holds {v.size} values (dims {params[(fp, name)].dims}); "
                 f"{used} plates need {per_plate} each"
             )
     chan = vals.get((fp, "CHANNEL"))
     if chan is None:
-        raise ForcePlateError(f"{path}: FORCE_PLATFORM:USED = {used} but no {fp}:CHANNEL")
+        return
     dims = params[(fp, "CHANNEL")].dims
-    rows = dims[0] if len(dims) >= 2 else (chan.size if used == 1 else chan.size // used)
-    if rows == 0 or chan.size < rows * used or (len(dims) < 2 and chan.size % used):
+    if len(dims) > 2:
+        raise C3DError(f"{path}: {fp}:CHANNEL has dims {dims}; it must be channels x plates")
+    rows = dims[0] if len(dims) == 2 else (chan.size if used == 1 else chan.size // used)
+    if chan.size and (rows == 0 or (len(dims) < 2 and chan.size % used)):
         raise ForcePlateError(
             f"{path}: {fp}:CHANNEL holds {chan.size} values (dims {dims}): "
             f"not a whole number of channels for {used} plates"
         )
-    if n_analog is not None:
-        types = vals[(fp, "TYPE")]
-        grid = chan[: rows * used].reshape(used, rows)
-        for p in range(used):
-            nch = {1: 6, 2: 6, 4: 6, 3: 8}.get(int(types[p]), rows)
-            idx = grid[p, : min(nch, rows)]
-            bad = idx[(idx < 1) | (idx > n_analog)]
-            if bad.size:
-                raise ForcePlateError(
-                    f"{path}: force platform {p + 1} uses analog channel {int(bad[0])} but "
-                    f"ANALOG:USED = {n_analog}"
-                )
 
 
 # ---------------------------------------------------------------------------------------------
@@ -759,13 +818,17 @@ def _plates(
     pos_scale: float,
     rate_hz: float,
     cop_threshold_n: float,
+    flags: list[dict[str, Any]] | None = None,
 ) -> tuple[ForcePlate, ...]:
+    """The force platforms of a C3D (conventions: the module docstring). A plate that
+    ``FORCE_PLATFORM:USED`` declares but the other FORCE_PLATFORM parameters do not describe,
+    or whose channel is outside the analogs, is dropped and said in ``flags`` (a
+    :class:`ForcePlateError` when ``flags`` is None); plates described while ``USED`` is 0 or
+    absent are said there too."""
     used_v = _param(params, "FORCE_PLATFORM", "USED")
     used = int(np.asarray(used_v).flat[0]) if used_v is not None and len(used_v) else 0
-    if used <= 0:
-        return ()
     fu = _param(params, "FORCE_PLATFORM", "UNITS")
-    if fu and str(fu[0]).strip() not in ("N", ""):
+    if used > 0 and fu and str(fu[0]).strip() not in ("N", ""):
         raise UnitsError(f"{path}: FORCE_PLATFORM:UNITS {fu[0]!r} is not supported (expected N)")
     types = np.atleast_1d(np.asarray(_param(params, "FORCE_PLATFORM", "TYPE", []), dtype=int))
     corners_all = np.asarray(_param(params, "FORCE_PLATFORM", "CORNERS", []), dtype=float)
@@ -775,36 +838,107 @@ def _plates(
     cal = np.asarray(cal, dtype=float) if cal is not None else np.empty(0)
     poly = _param(params, "FORCE_PLATFORM", "FPCOPPOLY")
     poly = np.asarray(poly, dtype=float).ravel(order="F") if poly is not None else np.empty(0)
-    if types.size < used:
-        raise ForcePlateError(f"{path}: FORCE_PLATFORM:USED={used} but {types.size} TYPE values")
     corners_all = corners_all.reshape(3, 4, -1, order="F") if corners_all.size else corners_all
-    if corners_all.size < 12 * used:
-        raise ForcePlateError(f"{path}: FORCE_PLATFORM:CORNERS holds fewer than {used} plates")
     origin_all = origin_all.reshape(3, -1, order="F") if origin_all.size else origin_all
-    if origin_all.size < 3 * used:
-        raise ForcePlateError(f"{path}: FORCE_PLATFORM:ORIGIN holds fewer than {used} plates")
-    if chan.ndim == 1:
-        chan = chan.reshape(-1, 1) if used == 1 else chan.reshape(-1, used, order="F")
+    if chan.ndim == 1 and chan.size:
+        cols = used if used > 0 and chan.size % used == 0 else max(1, types.size)
+        cols = cols if chan.size % cols == 0 else 1
+        chan = chan.reshape(-1, cols, order="F")
+    elif chan.ndim != 2:
+        chan = np.zeros((0, 0), dtype=int)
+    described = min(
+        types.size,
+        corners_all.shape[2] if corners_all.ndim == 3 else 0,
+        origin_all.shape[1] if origin_all.ndim == 2 else 0,
+        chan.shape[1],
+    )
+    undeclared = [
+        p
+        for p in range(max(used, 0), described)
+        if chan.shape[0] and (chan[:, p] >= 1).all() and (chan[:, p] <= n_ch).all()
+    ]
+    if undeclared and used > 0 and flags is not None:
+        on = "; ".join(
+            ", ".join(analog_labels[int(i) - 1] for i in chan[:6, p]) for p in undeclared[:3]
+        )
+        flags.append(
+            _reader_flag(
+                "c3d_plates_not_declared",
+                len(undeclared),
+                used,
+                f"FORCE_PLATFORM:USED = {used} but TYPE, CORNERS, ORIGIN and CHANNEL describe "
+                f"{described} plates: force platform(s) "
+                f"{', '.join(str(p + 1) for p in undeclared)} on analog channels {on} not read",
+            )
+        )
+    if used <= 0:
+        found = [
+            p
+            for p in range(described)
+            if chan.shape[0] and (chan[:, p] >= 1).all() and (chan[:, p] <= n_ch).all()
+        ]
+        if found and flags is not None:
+            on = "; ".join(
+                ", ".join(analog_labels[int(i) - 1] for i in chan[:6, p]) for p in found[:3]
+            )
+            state = used if used_v is not None else "absent"
+            flags.append(
+                _reader_flag(
+                    "c3d_plates_not_declared",
+                    len(found),
+                    0,
+                    f"FORCE_PLATFORM describes {len(found)} plate(s) on analog channels {on} "
+                    f"but FORCE_PLATFORM:USED is {state}: no plate read, no ground reaction",
+                )
+            )
+        return ()
     plates: list[ForcePlate] = []
     used_by: dict[int, int] = {}
     for p in range(used):
+        if p >= described:
+            if flags is not None:
+                flags.append(
+                    _reader_flag("c3d_plate_missing", p + 1, described,
+                                f"force platform {p + 1}: FORCE_PLATFORM:USED = {used} declares "
+                                f"it but TYPE, CORNERS, ORIGIN and CHANNEL describe {described} "
+                                "plate(s): it is not read")
+                )  # fmt: skip
+            continue
         typ = int(types[p])
         nchan = {1: 6, 2: 6, 4: 6, 3: 8}.get(typ)
         if nchan is None:
             raise ForcePlateError(
                 f"{path}: force platform {p + 1} has type {typ}; msk reads types 1, 2, 3 and 4"
             )
-        if chan.shape[0] < nchan or chan.shape[1] <= p:
+        if chan.shape[0] < nchan:
             raise ForcePlateError(
                 f"{path}: force platform {p + 1} (type {typ}) needs {nchan} channels, "
                 f"FORCE_PLATFORM:CHANNEL has shape {chan.shape}"
             )
         idx = chan[:nchan, p] - 1
         if idx.min() < 0 or idx.max() >= n_ch:
+            bad = [int(i) + 1 for i in idx if i < 0 or i >= n_ch]
+            if flags is None:
+                raise ForcePlateError(
+                    f"{path}: force platform {p + 1} uses analog channel {bad[0]} but the file "
+                    f"has {n_ch} analog channels"
+                )
+            flags.append(
+                _reader_flag("c3d_plate_channel_missing", bad[0], n_ch,
+                            f"force platform {p + 1} (type {typ}) uses analog channel "
+                            f"{', '.join(map(str, bad))} (FORCE_PLATFORM:CHANNEL) but the file "
+                            f"has {n_ch} analog channels: the plate is not read")
+            )  # fmt: skip
+            continue
+        twice = [int(i) for i in set(idx.tolist()) if int((idx == i).sum()) > 1]
+        if twice:
             raise ForcePlateError(
-                f"{path}: force platform {p + 1} uses analog channels {list(idx + 1)} "
-                f"but the file has {n_ch} analog channels"
+                f"{path}: force platform {p + 1} uses analog channel {twice[0] + 1} "
+                f"({analog_labels[twice[0]]!r}) for two of its components "
+                f"(FORCE_PLATFORM:CHANNEL {[int(i) + 1 for i in idx]})"
             )
+        if flags is not None:
+            flags.extend(_channel_label_flags(p, typ, [analog_labels[int(i)] for i in idx]))
         for i in idx:
             if used_by.setdefault(int(i), p) != p:
                 raise ForcePlateError(
@@ -895,6 +1029,46 @@ def _plates(
             )
         )
     return tuple(plates)
+
+
+#: the component each channel of a plate of types 1, 2 and 4 carries, in C3D order
+_PLATE_COMPONENTS = {
+    1: ("fx", "fy", "fz", "px", "py", "mz"),
+    2: ("fx", "fy", "fz", "mx", "my", "mz"),
+    4: ("fx", "fy", "fz", "mx", "my", "mz"),
+}
+_COMPONENT_NAMES = frozenset({"fx", "fy", "fz", "mx", "my", "mz", "px", "py"})
+
+
+def _channel_label_flags(p: int, typ: int, labels: Sequence[str]) -> list[dict[str, Any]]:
+    """A plate whose channels are labelled by component (``Fx1``, ``FZ2``, ``PF1Mx``,
+    ``F1X``: the letters of the label end with the component) but one of which names another
+    component or none (``Fy1`` where Fz is read, ``gracilis``): ``FORCE_PLATFORM:CHANNEL``
+    points at another signal. Judged only when at least 4 of its 6 labels name a component."""
+    want = _PLATE_COMPONENTS.get(typ)
+    if want is None or len(labels) != len(want):
+        return []
+    comp = [re.sub(r"[^a-z]", "", lab.lower())[-2:] for lab in labels]
+    if sum(c in _COMPONENT_NAMES for c in comp) < 4:
+        return []
+    bad = [(k, labels[k]) for k in range(len(want)) if comp[k] != want[k]]
+    if not bad:
+        return []
+    said = ", ".join(f"{lab!r} as its {want[k][0].upper()}{want[k][1]}" for k, lab in bad)
+    return [
+        _reader_flag(
+            "c3d_plate_channel_label",
+            len(bad),
+            0,
+            f"force platform {p + 1} reads {said} (its channels: {', '.join(labels)}): "
+            "FORCE_PLATFORM:CHANNEL points at another signal",
+        )
+    ]
+
+
+def _reader_flag(quantity: str, value: float, threshold: float, message: str) -> dict[str, Any]:
+    return {"quantity": quantity, "value": float(value), "threshold": float(threshold),
+            "message": message}  # fmt: skip
 
 
 def _vertical(
@@ -995,6 +1169,42 @@ def _check_coordinates(
             f"{path}: marker {labels[m]!r} has {_AXES[a]} = {markers[f, m, a]:.6g} m at frame "
             f"{f + 1}{t}: beyond {MAX_ABS_COORDINATE_M:g} m from the lab origin"
         )
+
+
+def _drop_teleports(
+    markers: NDArray[np.float64],
+    labels: Sequence[str],
+    rate_hz: float,
+    flags: list[dict[str, Any]],
+) -> int | None:
+    """Marker samples on a teleport (:func:`msk.io.marker_checks.find_teleports`: a trajectory
+    jumping away and back, a swapped or ghost label) made gaps in ``markers`` (in place) and
+    said by one ``marker_teleport_samples`` flag naming the markers, frames (1-based) and
+    distances; the number of samples dropped, None when there is none."""
+    from msk.io.marker_checks import MAX_MARKER_ACCELERATION, find_teleports
+
+    found = find_teleports(markers, labels, rate_hz)
+    if not found:
+        return None
+    col = {lab: k for k, lab in enumerate(labels)}
+    n = 0
+    for t in found:
+        markers[t.first : t.last + 1, col[t.label]] = np.nan
+        n += t.last - t.first + 1
+    thr = max(0.05, MAX_MARKER_ACCELERATION / rate_hz**2)
+    where = "; ".join(
+        f"{t.label} frame{'s' if t.last > t.first else ''} {t.first + 1}"
+        + (f"–{t.last + 1}" if t.last > t.first else "")
+        + f" ({1000 * t.distance_m:.0f} mm)"
+        for t in found[:5]
+    ) + (f"; and {len(found) - 5} more" if len(found) > 5 else "")
+    flags.append(
+        _reader_flag("marker_teleport_samples", n, thr,
+                    f"{len(found)} marker teleport(s) (the trajectory jumps more than "
+                    f"{1000 * thr:.0f} mm off its path and back: a swapped or ghost label): "
+                    f"{where}; those {n} samples are gaps")
+    )  # fmt: skip
+    return n
 
 
 def _check_plate_forces(
@@ -1245,6 +1455,7 @@ def read_c3d(
     if n_pts and not point_rate > 0:
         raise C3DError(f"{path}: point rate {point_rate} Hz is not positive")
     first = lay.first_frame - 1  # 0-based, as ezc3d reports it
+    flags: list[dict[str, Any]] = list(lay.flags)  # typed reader flags (metadata["flags"])
     analog_labels = tuple(_labels(params, "ANALOG", "LABELS", n_ana, "ANALOG"))
     analog_units = tuple(_labels(params, "ANALOG", "UNITS", n_ana, None))
     if plate_channels:
@@ -1284,7 +1495,15 @@ def read_c3d(
     is_out = np.array([lab in kind_of for lab in labels], dtype=bool)
     if not plate_channels:  # plates first, one at a time; then the points and other channels
         plates = _plates(
-            path, params, columns, n_ana, analog_labels, pos_scale, analog_rate, cop_threshold_n
+            path,
+            params,
+            columns,
+            n_ana,
+            analog_labels,
+            pos_scale,
+            analog_rate,
+            cop_threshold_n,
+            flags,
         )
         keep = [i for i in range(n_ana) if i not in plate_used]
         pts, invalid, kept = _read_data(path, lay, keep, stored=stored_analogs)
@@ -1357,9 +1576,20 @@ def read_c3d(
         )
     _check_labels(path, "ANALOG:LABELS", list(analog_labels), warnings, rename=False)
     _check_coordinates(path, markers, marker_labels, time)
+    teleported = _drop_teleports(markers, marker_labels, point_rate, flags)
+    if teleported is not None:
+        gaps = GapReport.from_missing(marker_labels, np.asarray(np.isnan(markers).any(axis=2)))
     if plate_channels:
         plates = _plates(
-            path, params, columns, n_ana, analog_labels, pos_scale, analog_rate, cop_threshold_n
+            path,
+            params,
+            columns,
+            n_ana,
+            analog_labels,
+            pos_scale,
+            analog_rate,
+            cop_threshold_n,
+            flags,
         )
     _check_plate_forces(path, plates, analog_time, warnings)
     events = _events(params)
@@ -1374,10 +1604,14 @@ def read_c3d(
         warnings.append(unknown_ev)
     vertical_axis, up = _vertical(params, plates)
     warnings.extend(direction_warnings(plates, up, markers))  # a negative gain
+    subject = _subject(params)
+    flags.extend(scale_flags(plates, up, subject.mass_kg))
+    warnings.extend(f["message"] for f in flags)
     meta = {
         "first_frame": first,
         "manufacturer": str((_param(params, "MANUFACTURER", "COMPANY") or [""])[0]).strip(),
         "warnings": tuple(warnings),
+        "flags": tuple(flags),
         "label_prefix": label_prefix,
     }
     return Trial(
@@ -1395,7 +1629,7 @@ def read_c3d(
         analog_units=analog_units,
         plates=plates,
         events=events,
-        subject=_subject(params),
+        subject=subject,
         vertical_axis=vertical_axis,
         up=up,
         point_units_in_file=unit,

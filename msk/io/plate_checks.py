@@ -1,5 +1,6 @@
 """Force-plate signals that cannot be a foot's load: a clipped (saturated) channel, a centre
-of pressure far outside the plate (:func:`cop_warnings`).
+of pressure far outside the plate (:func:`cop_warnings`), forces a decade off the subject's
+weight (:func:`scale_flags`).
 
 An amplifier or converter driven beyond its range holds its last code: the channel reads one
 exact value, its extreme, for as long as the load exceeds the range. A foot's load never does:
@@ -18,7 +19,15 @@ from numpy.typing import NDArray
 
 from msk.trial import ForcePlate
 
-__all__ = ["cop_warnings", "direction_warnings", "longest_run_at_extreme", "saturation_warnings"]
+__all__ = [
+    "PLAUSIBLE_STANCE_MASS_KG",
+    "STANCE_BODY_WEIGHTS",
+    "cop_warnings",
+    "direction_warnings",
+    "longest_run_at_extreme",
+    "saturation_warnings",
+    "scale_flags",
+]
 
 
 def longest_run_at_extreme(x: NDArray[np.float64]) -> tuple[int, float]:
@@ -129,4 +138,90 @@ def direction_warnings(
                 f"{int((down & loaded).sum())} of {int(loaded.sum())} loaded samples while the "
                 "other plates push up: a negative gain or flipped axes"
             )
+    return out
+
+
+#: a plate's mean vertical force over its longest stance, in body weights, that a foot's load
+#: gives: ~0.5 standing with a foot on each of two plates, 0.8–1 walking or standing on one
+#: plate, ~1.6 running (a stance's impulse is half the body weight × the stride time) — with
+#: margins for a foot partly on the plate and a jump landing
+STANCE_BODY_WEIGHTS = (0.3, 3.0)
+#: the body masses (kg) a plate's stance can weigh without a known mass: the stance range above
+#: applied to 10–250 kg subjects
+PLAUSIBLE_STANCE_MASS_KG = (STANCE_BODY_WEIGHTS[0] * 10.0, STANCE_BODY_WEIGHTS[1] * 250.0 / 2)
+
+
+def _longest_stance(
+    fz: NDArray[np.float64], rate_hz: float, min_s: float, min_load_n: float = 50.0
+) -> float | None:
+    """The mean of ``fz`` over its longest run above 10 % of its 99th percentile lasting at
+    least ``min_s``; None without one, or when the 99th percentile is below ``min_load_n``
+    (an unloaded plate: its offset and noise weigh nothing)."""
+    f = np.where(np.isfinite(fz), fz, 0.0)
+    top = float(np.percentile(f, 99)) if f.size else 0.0
+    if not top > min_load_n:
+        return None
+    on = np.concatenate([[0], (f > 0.1 * top).astype(np.int8), [0]])
+    d = np.diff(on)
+    starts, ends = np.flatnonzero(d == 1), np.flatnonzero(d == -1)
+    if not starts.size:
+        return None
+    k = int(np.argmax(ends - starts))
+    if (ends[k] - starts[k]) < min_s * rate_hz:
+        return None
+    return float(np.mean(f[starts[k] : ends[k]]))
+
+
+def scale_flags(
+    plates: list[ForcePlate] | tuple[ForcePlate, ...],
+    up: NDArray[np.float64],
+    mass_kg: float | None,
+    *,
+    g: float = 9.80665,
+    min_stance_s: float = 0.15,
+) -> list[dict[str, float | str]]:
+    """Plates whose forces are off by a factor (``ANALOG:SCALE``, ``GEN_SCALE`` or a channel's
+    units mis-set): each plate weighs the subject by its mean vertical force F̄ over its longest
+    stance (≥ ``min_stance_s``), r = F̄ / (m g) body weights, which a foot's load keeps within
+    :data:`STANCE_BODY_WEIGHTS`. Without a mass the plate's weighing m̂ = F̄ / g must lie within
+    :data:`PLAUSIBLE_STANCE_MASS_KG`, and the plates must agree with one another within a
+    factor 5 (the median plate as the reference). The factor said is the power of ten 10ᵏ
+    bringing the ratio back into its range. Typed flags (``quantity`` ``plate_force_scale``,
+    ``value`` the factor, ``threshold`` the ratio range's bound, ``message``)."""
+    u = np.asarray(up, dtype=float)
+    weigh: dict[int, float] = {}
+    for p in plates:
+        fz = np.asarray(p.force, dtype=float) @ u
+        m = _longest_stance(fz, p.rate_hz, min_stance_s)
+        if m is not None:
+            weigh[p.index] = m / g  # kg
+    out: list[dict[str, float | str]] = []
+
+    def factor(ratio: float, lo: float, hi: float) -> float:
+        k = round(float(np.log10(ratio / np.sqrt(lo * hi))))
+        return 10.0**k
+
+    ref = float(np.median(list(weigh.values()))) if len(weigh) >= 3 else None
+    for index, m_hat in weigh.items():
+        if mass_kg is not None and mass_kg > 0:
+            r = m_hat / mass_kg
+            lo, hi = STANCE_BODY_WEIGHTS
+            what = f"{r:.2g} × the subject's {mass_kg:g} kg"
+        else:
+            lo, hi = PLAUSIBLE_STANCE_MASS_KG
+            r = m_hat
+            what = "no human's weight"
+            if ref is not None and ref > 0 and not 0.2 <= m_hat / ref <= 5.0:
+                r, lo, hi = m_hat / ref, 0.5, 2.0
+                what = f"{r:.2g} × the other plates' median ({ref:.0f} kg)"
+        if lo <= r <= hi or not r > 0:
+            continue
+        f = factor(r, lo, hi)
+        said = f"a factor {f:g} off" if f != 1.0 else "off"
+        out.append(
+            {"quantity": "plate_force_scale", "value": f, "threshold": hi if r > hi else lo,
+             "message": f"force platform {index + 1} weighs the subject at {m_hat:.3g} kg over "
+             f"its longest stance: {what}; its forces look {said} (ANALOG:SCALE, GEN_SCALE or "
+             "the channels' units mis-set); msk does not rescale them"}
+        )  # fmt: skip
     return out

@@ -35,7 +35,7 @@ from numpy.typing import NDArray
 from msk.signal import find_peaks
 from msk.units import Array
 
-__all__ = ["GaitEvents", "detect_gait_events", "reconcile"]
+__all__ = ["DISTINCT_EVENT_S", "GaitEvents", "detect_gait_events", "reconcile"]
 
 _SIDES = {"right": "_r", "left": "_l"}
 
@@ -212,6 +212,11 @@ def detect_gait_events(
     return GaitEvents(strikes, offs, source)
 
 
+#: Two events of one side and kind closer than this are one event (a stride lasts ≥ 0.7 s at a
+#: run's cadence; half of it)
+DISTINCT_EVENT_S = 0.35
+
+
 def reconcile(
     file_events: Sequence[Any],
     detected: GaitEvents,
@@ -222,7 +227,9 @@ def reconcile(
     """The events to use: the file's (``label`` ``"Foot Strike"``/``"Foot Off"``, ``context``
     ``"Left"``/``"Right"``, ``time``) where they agree with the plates, the detected ones
     where the file has none of a side/kind or where a file event lies farther than
-    ``tolerance_s`` from the plate event it should be (the notes name each case).
+    ``tolerance_s`` from the plate event it should be (the notes name each case). A file that
+    marks only some events of a side and kind (often the strides over the plates) is completed
+    by the detected ones farther than :data:`DISTINCT_EVENT_S` from every file event.
 
     ``plate_events`` are the plate-only events (default: those of ``detected`` whose source
     includes the plates). The default tolerance, 75 ms, is two frames at 60 Hz plus the ≈ 30 ms
@@ -261,6 +268,15 @@ def reconcile(
                     f"{min(f, key=lambda x: abs(x - bad[0])):.3f} s): detected events used"
                 )
                 continue
-            table[side] = tuple(f)
-            source[f"{side} {kind}"] = "file"
+            # a file that marks only some of the trial's events (the strides over the plates):
+            # the detected events of this side and kind farther than half a stride's shortest
+            # duration from every file event complete it, so that every complete cycle is there
+            extra = [d for d in det if min(abs(d - x) for x in f) > DISTINCT_EVENT_S]
+            table[side] = tuple(sorted([*f, *extra]))
+            source[f"{side} {kind}"] = "file" if not extra else f"file + {src or 'detected'}"
+            if extra:
+                notes.append(
+                    f"the file marks {len(f)} {side} {kind} event(s); {len(extra)} detected "
+                    f"({src or 'detected'}) added where it marks none"
+                )
     return GaitEvents(strikes, offs, source, tuple(notes))

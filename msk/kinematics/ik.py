@@ -56,6 +56,7 @@ __all__ = [
     "STATUS_NOT_CONVERGED",
     "STATUS_OK",
     "STATUS_TOO_FEW_MARKERS",
+    "FrameIK",
     "Kinematics",
     "filtered_derivatives",
     "ik_tasks_from_setup",
@@ -256,21 +257,27 @@ def kinematics_from_coordinates(
     )
 
 
-def _scalar_function(f: object) -> tuple[object, object] | None:
-    """Fast scalar (value, first derivative) closures for the common coordinate functions."""
+def _scalar_function(f: object) -> tuple[object, object, object] | None:
+    """Fast scalar (value, first, second derivative) closures for the common coordinate
+    functions."""
     if isinstance(f, Linear):
         slope, intercept = float(f.slope), float(f.intercept)
-        return (lambda x: slope * x + intercept), (lambda x: slope)
+        return (lambda x: slope * x + intercept), (lambda x: slope), (lambda x: 0.0)
     if isinstance(f, Multiplier):
         inner = _scalar_function(f.function)
         if inner is None:
             return None
-        s, fi, di = float(f.scale), inner[0], inner[1]
-        return (lambda x: s * fi(x)), (lambda x: s * di(x))  # type: ignore[operator]
+        s, fi, di, ddi = float(f.scale), inner[0], inner[1], inner[2]
+        return (
+            (lambda x: s * fi(x)),  # type: ignore[operator]
+            (lambda x: s * di(x)),  # type: ignore[operator]
+            (lambda x: s * ddi(x)),  # type: ignore[operator]
+        )
     if isinstance(f, Polynomial):
         c = [float(x) for x in f.coefficients]
         n = len(c) - 1
         dc = [c[k] * (n - k) for k in range(n)]
+        ddc = [dc[k] * (n - 1 - k) for k in range(n - 1)]
 
         def horner(coef: list[float], x: float) -> float:
             out = 0.0
@@ -278,7 +285,7 @@ def _scalar_function(f: object) -> tuple[object, object] | None:
                 out = out * x + a
             return out
 
-        return (lambda x: horner(c, x)), (lambda x: horner(dc, x))
+        return (lambda x: horner(c, x)), (lambda x: horner(dc, x)), (lambda x: horner(ddc, x))
     if isinstance(f, SimmSpline):
         knots = [float(x) for x in f.x]
         ys = [float(y) for y in f.y]
@@ -303,7 +310,13 @@ def _scalar_function(f: object) -> tuple[object, object] | None:
             dx = x - knots[i]
             return b[i] + dx * (2 * c[i] + 3 * dx * d[i])
 
-        return val, der
+        def der2(x: float) -> float:
+            if x < knots[0] or x > knots[-1]:
+                return 0.0
+            i = min(max(bisect_right(knots, x) - 1, 0), last)
+            return 2 * c[i] + 6 * (x - knots[i]) * d[i]
+
+        return val, der, der2
     return None
 
 
@@ -334,6 +347,7 @@ class _CouplingEvaluator:
         self.lin_b = np.array([affine[k][1] for k in lin])  # type: ignore[index]
         self.q0 = np.zeros(self.nq)
         self.other: list[tuple[int, int, object, object]] = []
+        self.second: list[tuple[int, int, object]] = []  # f_k'' of the non-affine entries
         lin_set = set(lin)
         for k, f in enumerate(cp.functions):
             if coord[k] < 0:
@@ -341,8 +355,13 @@ class _CouplingEvaluator:
             elif k not in lin_set:
                 fast = _scalar_function(f)
                 if fast is None:
-                    fast = (lambda x, f=f: float(f(x))), (lambda x, f=f: float(f.d1(x)))
+                    fast = (
+                        (lambda x, f=f: float(f(x))),
+                        (lambda x, f=f: float(f.d1(x))),
+                        (lambda x, f=f: float(f.d2(x))),
+                    )
                 self.other.append((k, int(coord[k]), fast[0], fast[1]))
+                self.second.append((k, int(coord[k]), fast[2]))
         self.g_lin = np.zeros((self.nq, self.n))
         if lin:
             self.g_lin[self.lin_k, self.lin_i] = self.lin_s
@@ -367,6 +386,15 @@ class _CouplingEvaluator:
             for k, i, _, d in self.other:
                 g[k, i] = d(th[i])  # type: ignore[operator]
         return g
+
+    def bias(self, theta: Array, theta_dot: Array) -> Array:
+        """Ġθ̇: f_k''(θ_i) θ̇_i² (zero on the affine entries), (nq,)."""
+        out = np.zeros(self.nq)
+        if self.second:
+            th, thd = theta.tolist(), theta_dot.tolist()
+            for k, i, dd in self.second:
+                out[k] = dd(th[i]) * thd[i] * thd[i]  # type: ignore[operator]
+        return out
 
 
 class _MarkerProblem:
@@ -731,6 +759,88 @@ def solve_kinematics(
         solve_time_s=solve_time,
         marker_rms_all=rms_all,
     )
+
+
+class FrameIK:
+    """Inverse kinematics of one frame at a time, warm-started from the caller's θ (a stream:
+    :mod:`msk.live`). The problem of :func:`solve_kinematics` — E(θ) = Σ_m w_m ‖p_m − x_m‖²
+    (+ coordinate tasks) by projected Levenberg–Marquardt on r = √w (p − x) with the world
+    joint Jacobians of Pinocchio (module docstring) — set up once for a fixed marker list:
+    its marker problem, weights, bounds and task rows are built here, not per frame.
+
+    ``solve(theta, x)`` starts from ``theta`` (the previous frame's solution) and runs at most
+    ``max_iterations`` steps; from the same start it returns the θ :func:`solve_kinematics`
+    returns for that frame (the same function, :func:`_levenberg_marquardt`).
+
+    Args:
+        model: the model; ``labels`` are the columns of the frames given to :meth:`solve`
+            (model marker names; labels the model does not have are ignored).
+        weights, coordinate_tasks, max_iterations, tolerance, rel_tolerance, min_markers: as
+            :func:`solve_kinematics`'s.
+    """
+
+    def __init__(
+        self,
+        model: Model,
+        labels: Sequence[str],
+        *,
+        weights: Mapping[str, float] | None = None,
+        coordinate_tasks: Mapping[str, tuple[float, float]] | None = None,
+        max_iterations: int = 50,
+        tolerance: float = 1e-6,
+        rel_tolerance: float = 1e-8,
+        min_markers: int = 3,
+    ) -> None:
+        labels = tuple(labels)
+        w_map = dict(weights or {})
+        self.used = tuple(
+            mk.name for mk in model.markers if mk.name in labels and w_map.get(mk.name, 1.0) > 0
+        )
+        if len(self.used) < min_markers:
+            raise KinematicsError(
+                f"only {len(self.used)} model markers among the stream's labels; need {min_markers}"
+            )
+        self.columns = np.array([labels.index(n) for n in self.used], dtype=np.intp)
+        self.problem = _MarkerProblem(model, self.used)
+        self.sw = np.sqrt(np.array([w_map.get(n, 1.0) for n in self.used]))
+        self.lo, self.hi = model.coordinate_bounds()
+        locked = np.array([c.locked for c in model.coordinates], dtype=bool)
+        self.free = ~locked
+        self.ctask = None
+        if coordinate_tasks:
+            idx = np.array([model.coordinate_index(c) for c in coordinate_tasks], dtype=int)
+            val = np.array([float(v[0]) for v in coordinate_tasks.values()])
+            cw = np.sqrt(np.array([float(v[1]) for v in coordinate_tasks.values()]))
+            rows = np.zeros((idx.size, model.n_coords))
+            rows[np.arange(idx.size), idx] = cw
+            self.ctask = (idx, val, cw, rows)
+        self.min_markers = int(min_markers)
+        self.max_iterations = int(max_iterations)
+        self.tolerance, self.rel_tolerance = float(tolerance), float(rel_tolerance)
+        self._x = np.empty((len(self.used), 3))
+        self._d = np.empty(len(self.used))
+        self._diff = np.empty((len(self.used), 3))
+
+    def solve(self, theta: Array, markers: Array) -> tuple[Array, int, bool, float]:
+        """θ of one frame from the start ``theta`` and the frame's ``markers`` (M, 3) in the
+        columns of ``labels``; returns θ, the iterations, whether it converged and the RMS
+        marker distance (m) over the markers present. Fewer than ``min_markers`` present:
+        ``theta`` unchanged, 0 iterations, not converged, NaN."""
+        x = self._x
+        np.take(markers, self.columns, axis=0, out=x)
+        present = np.asarray(np.isfinite(x).all(axis=1), dtype=bool)
+        if int(present.sum()) < self.min_markers:
+            return theta, 0, False, float("nan")
+        start = np.minimum(np.maximum(theta, self.lo), self.hi)
+        th, k, ok, p = _levenberg_marquardt(
+            self.problem, start, x, self.sw, present, self.free, self.lo, self.hi,
+            self.max_iterations, self.tolerance, self.ctask, self.rel_tolerance,
+        )  # fmt: skip
+        d, diff = self._d, self._diff
+        np.subtract(p, x, out=diff)
+        np.einsum("ij,ij->i", diff, diff, out=d)
+        rms = float(np.sqrt(d[present].mean()))
+        return th, k, ok, rms
 
 
 def _levenberg_marquardt(

@@ -35,6 +35,12 @@ Quality checks (figures are reported for every channel in :class:`ChannelQuality
   envelopes, coefficients of multiple correlation 0.6–0.9, Kadaba MP et al. 1989, J Orthop Res
   7:849–860; white noise through the 6 Hz envelope filter decorrelates within 0.1 s) keeps
   the channel (:attr:`ChannelQuality.cycle_correlation`, :attr:`ChannelQuality.cycle_period_s`).
+* **pre-processed envelope** (:func:`envelope_channel`): an amplifier's rectified and
+  smoothed (RMS or linear-envelope) output stored in place of the raw EMG: no negative sample,
+  the content above the high-pass at the quantisation floor (≤ ``floor_lsb`` steps), but a
+  signal that moves below it (its low-passed standard deviation ≥ ``moving_lsb`` steps). The
+  high-pass would remove it (it looks flat); it is used as its own envelope, low-passed only,
+  and said so by the caller.
 * **saturated** (clipped amplifier or ADC): at least ``clip_min_samples`` samples (and at least
   ``clip_fraction`` of the trial) sit within half a quantisation step of the channel's extreme
   value, or reach ``saturation_level`` when the range is known.
@@ -72,10 +78,12 @@ __all__ = [
     "ChannelQuality",
     "EmgActivations",
     "EmgEnvelopes",
+    "EnvelopeChannel",
     "NormalisationSource",
     "channel_quality",
     "cycle_correlation",
     "emg_activations",
+    "envelope_channel",
     "envelopes_from_trial",
     "linear_envelope",
     "missing_channels",
@@ -230,6 +238,63 @@ def linear_envelope(
     hp = filtfilt_butter(x, rate_hz=rate_hz, cutoff_hz=highpass_hz, order=order, btype="highpass")
     env = filtfilt_butter(np.abs(hp), rate_hz=rate_hz, cutoff_hz=lowpass_hz, order=order)
     return np.maximum(env, 0.0)
+
+
+@dataclass(frozen=True)
+class EnvelopeChannel:
+    """A channel recognised as a pre-processed envelope (:func:`envelope_channel`): its
+    ``envelope`` (low-passed only, input units), the quantisation step ``lsb``, the RMS above
+    the high-pass in steps (``hp_rms_lsb``) and the low-passed standard deviation in steps
+    (``lp_sd_lsb``)."""
+
+    envelope: Array
+    lsb: float
+    hp_rms_lsb: float
+    lp_sd_lsb: float
+
+
+def envelope_channel(
+    x: ArrayLike,
+    *,
+    rate_hz: float,
+    highpass_hz: float = 30.0,
+    lowpass_hz: float = 6.0,
+    floor_lsb: float = 3.0,
+    moving_lsb: float = 1.0,
+    order: int = 4,
+) -> EnvelopeChannel | None:
+    """The channel ``x`` ``(N,)`` as an envelope when it is a pre-processed (rectified and
+    smoothed) EMG amplitude rather than raw EMG, else None.
+
+    Raw surface EMG is zero-mean with its power at 20–500 Hz (De Luca 1997, *J Appl Biomech*
+    13:135); an envelope — |x| low-passed, or a moving RMS — is non-negative with its power
+    below a few hertz. Criteria: no negative sample; the high-passed (``highpass_hz``) RMS at
+    most ``floor_lsb`` quantisation steps (the ADC's floor: nothing of raw EMG left); the
+    ``lowpass_hz`` low-passed signal's standard deviation at least ``moving_lsb`` steps (it
+    moves: not a dead channel with an offset — the quantisation noise itself, ≈ 0.29 steps
+    white, keeps ≈ 0.29 √(2 f_lp / f_s) ≈ 0.02 steps below 6 Hz at 2 kHz). The envelope
+    returned is the channel low-passed at ``lowpass_hz``, neither high-passed nor rectified
+    again. A channel without distinct quantisation steps
+    (LSB 0, e.g. a float export) is judged with the step taken as 1e-6 of its range."""
+    v = np.asarray(x, dtype=float).ravel()
+    if v.size < 8 or not np.isfinite(v).all() or float(v.min()) < 0.0:
+        return None
+    u = np.unique(v)
+    d = np.diff(u)
+    lsb = float(d.min()) if d.size else 0.0
+    if lsb <= 0.0 or lsb < 1e-9 * max(float(np.ptp(v)), 1e-300):
+        lsb = 1e-6 * float(np.ptp(v))
+    if lsb <= 0.0:
+        return None
+    hp = filtfilt_butter(v, rate_hz=rate_hz, cutoff_hz=highpass_hz, order=order, btype="highpass")
+    lp = filtfilt_butter(v, rate_hz=rate_hz, cutoff_hz=lowpass_hz, order=order)
+    k = _edge(v.size, rate_hz, lowpass_hz)
+    inner = slice(k, v.size - k) if k else slice(None)
+    hp_lsb = float(np.sqrt(np.mean(hp[inner] ** 2))) / lsb
+    lp_lsb = float(np.std(lp[inner])) / lsb
+    if hp_lsb > floor_lsb or lp_lsb < moving_lsb:
+        return None
+    return EnvelopeChannel(np.maximum(lp, 0.0), lsb, hp_lsb, lp_lsb)
 
 
 def _edge(n: int, rate_hz: float, lowpass_hz: float) -> int:

@@ -941,7 +941,15 @@ class GeometryPlan:
     def _distal_rows(self, joint: str) -> tuple[NDArray[np.intp], NDArray[np.intp]] | None:
         """The Jacobian rows (muscle, e) whose effective column e supports exactly the plan bodies
         distal to ``joint``, and their muscles; ``None`` when no column does (then
-        :meth:`_distal_by_twists`)."""
+        :meth:`_distal_by_twists`). Computed once per joint (the plan's model is immutable): a
+        stream evaluates one frame per call (:mod:`msk.live`)."""
+        cache = self.__dict__.setdefault("_distal_rows_cache", {})
+        if joint not in cache:
+            cache[joint] = self._find_distal_rows(joint)
+        return cache[joint]
+
+    def _find_distal_rows(self, joint: str) -> tuple[NDArray[np.intp], NDArray[np.intp]] | None:
+        """:meth:`_distal_rows` computed."""
         dofs = self._joint_dofs(joint)
         nb = len(self.body_names)
         pattern = self.support[:nb, dofs[0]].astype(bool)

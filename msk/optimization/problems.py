@@ -41,6 +41,7 @@ from msk.optimization._qp import (
     KKT,
     KKT_CHUNK,
     KKT_COLUMNS,
+    STATUS_INFEASIBLE,
     STATUS_NAMES,
     STATUS_OPTIMAL,
     STATUS_SOLVER_FAILED,
@@ -66,6 +67,7 @@ __all__ = [
     "BoolArray",
     "EMGWeightSweep",
     "EMGWeightedProblem",
+    "FrameStaticOptimization",
     "Problem",
     "QPSolution",
     "StaticOptimizationProblem",
@@ -556,6 +558,91 @@ class StaticOptimizationProblem:
             np.asarray(self.reserve_max_control)[idx],
             cost,
         )
+
+
+class FrameStaticOptimization:
+    """:class:`StaticOptimizationProblem` (exponent 2) of one frame at a time, warm-started from
+    the previous frame's working set (a stream: :mod:`msk.live`)::
+
+        minimise   Σ_i w_i a_i² + Σ_j r_j²
+        subject to Σ_i R_ji (a_i F_act,i + F_pass,i) + F_res,j r_j = τ_j,   a_min ≤ a ≤ a_max
+
+    The QP of :meth:`StaticOptimizationProblem.standard_form` (the same cost, bounds and
+    reserve columns, built once here; per frame only the muscle columns R F_act and the
+    right-hand side τ − R F_pass change, written into buffers) solved whole by ``solver``
+    with the solver's warm start carried (:func:`new_warm`). The batch
+    (:func:`solve_static_optimization_batch`) splits the same QP into its independent blocks:
+    the same optimum to round-off (tested).
+
+    Args:
+        muscle_names, coordinate_names: the columns of the Jacobians and torques given to
+            :meth:`solve`.
+        activation_weights, reserve_optimal_force, activation_min, activation_max,
+        reserve_min_control, reserve_max_control, solver: as
+            :class:`StaticOptimizationProblem`'s (reserves default to 1 on every coordinate).
+    """
+
+    def __init__(
+        self,
+        muscle_names: Sequence[str],
+        coordinate_names: Sequence[str],
+        *,
+        activation_weights: ArrayLike | None = None,
+        reserve_optimal_force: ArrayLike | None = None,
+        activation_min: ArrayLike = 0.0,
+        activation_max: ArrayLike = 1.0,
+        reserve_min_control: ArrayLike = -np.inf,
+        reserve_max_control: ArrayLike = np.inf,
+        solver: str = DEFAULT_SOLVER,
+    ) -> None:
+        self.muscle_names, self.coordinate_names = tuple(muscle_names), tuple(coordinate_names)
+        m, n = len(self.muscle_names), len(self.coordinate_names)
+        ropt = np.ones(n) if reserve_optimal_force is None else reserve_optimal_force
+        idx, opt = _reserves(ropt, n, self.coordinate_names)
+        k = idx.shape[0]
+        w = _activation_weights(activation_weights, m, self.muscle_names)
+        self.h, self.g = _constant_cost(m + k) if w is None else _weighted_cost(w, k)
+        amin = np.broadcast_to(np.asarray(activation_min, dtype=float), (m,))
+        amax = np.broadcast_to(np.asarray(activation_max, dtype=float), (m,))
+        rmin = np.broadcast_to(np.asarray(reserve_min_control, dtype=float), (n,))[idx]
+        rmax = np.broadcast_to(np.asarray(reserve_max_control, dtype=float), (n,))[idx]
+        self.lb = np.concatenate([amin, rmin])
+        self.ub = np.concatenate([amax, rmax])
+        self.a = np.zeros((n, m + k))
+        self.a[idx, m + np.arange(k)] = opt
+        self.b = np.empty(n)
+        self.m = m
+        self.spec = get_solver(solver)
+        self.warm = new_warm(solver)
+        self.forces = np.empty(m)
+        self.activations = np.empty(m)
+
+    def solve(
+        self, jacobian: Array, tau: Array, f_active: Array, f_passive: Array
+    ) -> tuple[Array, Array, int]:
+        """Forces (m,), activations (m,) and the status (:data:`STATUS_OPTIMAL`, …) of one
+        frame: ``jacobian`` (m, n) = ∂l/∂θ, ``tau`` (n,), the force curves (m,). The returned
+        arrays are this object's buffers (NaN when not solved), overwritten by the next call."""
+        m = self.m
+        r = jacobian.T  # R = −∂l/∂θᵀ: the signs folded into the products below
+        np.multiply(r, f_active, out=self.a[:, :m])
+        np.negative(self.a[:, :m], out=self.a[:, :m])
+        np.add(tau, r @ f_passive, out=self.b)
+        qp = StandardQP(H=self.h, g=self.g, A=self.a, b=self.b, lb=self.lb, ub=self.ub)
+        out = self.spec.solve(qp, self.warm)
+        self.warm = out.warm
+        if not out.ok or out.x is None:
+            self.forces[:] = np.nan
+            self.activations[:] = np.nan
+            return (
+                self.forces,
+                self.activations,
+                (STATUS_INFEASIBLE if out.infeasible else STATUS_SOLVER_FAILED),
+            )
+        np.copyto(self.activations, out.x[:m])
+        np.multiply(f_active, self.activations, out=self.forces)
+        self.forces += f_passive
+        return self.forces, self.activations, STATUS_OPTIMAL
 
 
 def volume_weights(max_isometric_force: ArrayLike, optimal_fiber_length: ArrayLike) -> Array:

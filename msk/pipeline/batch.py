@@ -190,7 +190,12 @@ def _run_dynamometry(config: str, out_dir: str) -> SessionOutcome:
         strength_groups_at_bound=0,
         strength_groups_not_determined=sum(w == "not determined" for _, w in words),
         strength_group_status="; ".join(f"{t}: {w}" for t, w in words),
-        strength_rows=strength_rows(res.summary["session"], res.strengths),
+        strength_rows=strength_rows(
+            res.summary["session"],
+            res.strengths,
+            age_years=res.summary["subject"].get("age_years"),
+            mass_kg=res.summary["subject"].get("mass_kg"),
+        ),
     )
     return SessionOutcome(config, out_dir, True, dt, "", row)
 
@@ -296,15 +301,13 @@ WORKER_PRELOAD = (
     "msk.strength",
     "msk.contact.knee",
     "msk.report.html",
-    "matplotlib.figure",
-    "matplotlib.backends.backend_svg",
 )
 
 
 def _pool_context() -> Any:
     """Start method of the local pool's workers: forked from a server process that imported
     :data:`WORKER_PRELOAD` once (``forkserver``), so that a worker starts in ~10 ms instead of
-    importing numpy, scipy, Pinocchio and matplotlib afresh (~1 s a worker, on the CPUs the
+    importing numpy, scipy and Pinocchio afresh (~1 s a worker, on the CPUs the
     others are working with); like ``spawn`` (the fallback where there is no forkserver), a
     worker inherits no state from the caller, only those imports."""
     import multiprocessing as mp

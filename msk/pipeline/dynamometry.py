@@ -55,6 +55,7 @@ from msk.strength.isometric import (
     group_strength,
     lever_arm_from_height,
     model_isometric_torque,
+    remove_envelope_rest,
     session_mvc,
     subject_model,
 )
@@ -135,6 +136,7 @@ def run_dynamometry(
         if progress is not None:
             progress.write(f"read {tc.test.name}: {tc.file.name}\n")
     tests = [tc.test for tc in cfg.tests]
+    trials = remove_envelope_rest(trials)
     mvc = session_mvc(trials)
     own = agonist_mvc(trials, tests)
     results = []
@@ -193,7 +195,7 @@ def run_dynamometry(
         "flags": flags,
         "run_seconds": time.perf_counter() - t0,
     }
-    rows = strength_rows(s["name"], results)
+    rows = strength_rows(s["name"], results, age_years=s.get("age_years"), mass_kg=s.get("mass_kg"))
     out.parent.mkdir(parents=True, exist_ok=True)
     tmp = Path(tempfile.mkdtemp(prefix=f".{out.name}.", dir=out.parent))
     try:

@@ -20,7 +20,8 @@ which takes the summary's swapped-label pairs right after the kinematics)::
       ├─ emg ───────────────────────────────────────────────────────────────────────┤
       └─ muscle_geometry ─ tension_optimization ────────────────────────────────────┤
          strength_identification (emg, geometry, torques) ─ knee_contact ─ gait_cycle*
-         ─ joint_strength* ─ comparison ─ fes ─ tables* ─ summary* ─ report   (* unrecorded)
+         ─ gait_analysis* ─ joint_strength* ─ comparison ─ fes ─ tables* ─ summary* ─ report
+                                                                              (* unrecorded)
 
 A node's result is kept in the stage cache (:mod:`msk.pipeline.cache`) as it is, or in the form its
 ``to_cache`` gives and ``from_cache`` reads back (the model stage: :func:`model_to_cache`);
@@ -45,6 +46,7 @@ from msk.pipeline import (
     dynamics,
     emg,
     fes,
+    gait_analysis,
     geometry,
     kinematics,
     loads,
@@ -156,6 +158,8 @@ GRAPH: tuple[Node, ...] = (
          ("mass_identification", "emg", "strength_identification", "measured_contact"),
          settings=contact.settings),
     Node("gait_cycle", cycle.run, _ALL, ("knee_contact",), recorded=False),
+    Node("gait_analysis", gait_analysis.run, (*_ALL, "gait_cycle"),
+         ("inverse_dynamics", "mass_identification"), recorded=False),
     Node("joint_strength", summary.joint_strength, (), ("model", "strength_identification"),
          settings=summary.joint_strength_settings, recorded=False, cached=True),
     Node("comparison", comparison.run, ("loads", "inverse_dynamics"),
@@ -163,12 +167,12 @@ GRAPH: tuple[Node, ...] = (
     Node("fes", fes.run, settings=fes.settings, gait=False, requested=fes.requested),
     Node("tables", tables.run, (),
          ("kinematics", "inverse_dynamics", "mass_identification", "tension_optimization",
-          "strength_identification", "knee_contact", "gait_cycle", "fes"),
+          "strength_identification", "knee_contact", "gait_cycle", "fes", "gait_analysis"),
          recorded=False, gait=False),
     Node("summary", summary.run, (),
          (*_ALL, "mass_identification", "inverse_dynamics", "emg",
           "tension_optimization", "strength_identification", "gait_cycle", "comparison", "fes",
-          "swapped_markers", "joint_strength", "knee_contact"),
+          "swapped_markers", "joint_strength", "knee_contact", "gait_analysis"),
          recorded=False, gait=False),
     Node("report", report.run, ("tables", "summary"), settings=report.settings, core=True,
          gait=False),

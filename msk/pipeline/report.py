@@ -17,7 +17,17 @@ from msk.results.folder import SessionResults
 __all__ = ["run", "settings"]
 
 #: summary.json sections the figures draw
-FIGURE_SECTIONS = ("gait_cycle_s", "subject", "identification", "strength", "anthropometry", "fes")
+FIGURE_SECTIONS = (
+    "gait_cycle_s",
+    "events",
+    "gait",
+    "subject",
+    "identification",
+    "strength",
+    "anthropometry",
+    "comparison",
+    "fes",
+)
 
 
 def settings(inputs: SessionInputs, tables: Mapping[str, Table], summary: Mapping[str, Any]) -> Any:

@@ -26,7 +26,7 @@ from msk.pipeline.inputs import SessionInputs
 from msk.pipeline.records import Loads, StrengthIdentification
 from msk.pipeline.runner import StageUnavailable
 
-__all__ = ["run"]
+__all__ = ["regression_rows", "run"]
 
 
 def run(
@@ -38,37 +38,17 @@ def run(
     emg: EmgActivations,
     muscle_geometry: Any,
 ) -> StrengthIdentification:
-    from msk.muscles.geometry import moment_arm_pattern, muscle_parameters
+    from msk.muscles.geometry import muscle_parameters
     from msk.muscles.hill import RigidTendonStateBlocks
     from msk.strength import StrengthIdentifier
     from msk.timeseries import FrameSparse
 
     jt = inverse_dynamics.torques
     params = muscle_parameters(model.model)
-    groups: dict[str, list[str]] = {}
-    failed: dict[str, list[str]] = {}
-    for k, m in enumerate(emg.muscles):
-        (groups if emg.usable[k] else failed).setdefault(emg.sources[k], []).append(m)
-    if not groups:
-        raise StageUnavailable("no usable EMG channel")
-    # per leg (module docstring): no coordinate a group's muscle crosses (has a moment arm
-    # about in some frame) may be unbalanced; the others' torques (NaN where unbalanced) are
-    # not regressed
-    unbalanced = loads.unbalanced_for(jt.coordinate_names)
-    grouped = [params.names.index(m) for v in groups.values() for m in v]
-    crossed = moment_arm_pattern(muscle_geometry.jacobian)[grouped].any(axis=0)
-    good = (
-        loads.solvable
-        & ~(unbalanced & crossed).any(axis=1)
-        & (np.isfinite(jt.tau) | unbalanced).all(axis=1)
+    groups, failed, good, tau = regression_rows(
+        params, loads, inverse_dynamics, emg, muscle_geometry
     )
     frames = np.flatnonzero(good)
-    if frames.size == 0:  # e.g. a trial no foot stands on a plate in: a reason, not a traceback
-        raise StageUnavailable(
-            "no frame in which the EMG groups' legs have their foot contact measured (or "
-            "swing), every leg segment observed and finite joint torques"
-        )
-    tau = np.where(unbalanced, 0.0, jt.tau)
     # the Hill state of the frames used, computed block by block as the identifier needs it
     # (its ten (N, M) arrays are never held whole); the compact Jacobian of those frames only
     state = RigidTendonStateBlocks(
@@ -109,6 +89,46 @@ def run(
         _protocols(model.model, est.profile_, groups),
         _failed(model.model, emg, failed),
     )
+
+
+def regression_rows(
+    params: Any,
+    loads: Loads,
+    inverse_dynamics: InverseDynamics,
+    emg: EmgActivations,
+    muscle_geometry: Any,
+) -> tuple[dict[str, list[str]], dict[str, list[str]], Any, Any]:
+    """The groups (channel → muscles) of the usable EMG channels, those whose channel failed a
+    check, the frames whose rows enter the regression (module docstring: no coordinate a
+    group's muscles cross is unbalanced, finite torques) and the torques with the unbalanced
+    coordinates set to 0 (not regressed). :class:`StageUnavailable` when no channel or no frame
+    is usable."""
+    from msk.muscles.geometry import moment_arm_pattern
+
+    jt = inverse_dynamics.torques
+    groups: dict[str, list[str]] = {}
+    failed: dict[str, list[str]] = {}
+    for k, m in enumerate(emg.muscles):
+        (groups if emg.usable[k] else failed).setdefault(emg.sources[k], []).append(m)
+    if not groups:
+        raise StageUnavailable("no usable EMG channel")
+    # per leg (module docstring): no coordinate a group's muscle crosses (has a moment arm
+    # about in some frame) may be unbalanced; the others' torques (NaN where unbalanced) are
+    # not regressed
+    unbalanced = loads.unbalanced_for(jt.coordinate_names)
+    grouped = [params.names.index(m) for v in groups.values() for m in v]
+    crossed = moment_arm_pattern(muscle_geometry.jacobian)[grouped].any(axis=0)
+    good = (
+        loads.solvable
+        & ~(unbalanced & crossed).any(axis=1)
+        & (np.isfinite(jt.tau) | unbalanced).all(axis=1)
+    )
+    if not good.any():  # e.g. a trial no foot stands on a plate in: a reason, not a traceback
+        raise StageUnavailable(
+            "no frame in which the EMG groups' legs have their foot contact measured (or "
+            "swing), every leg segment observed and finite joint torques"
+        )
+    return groups, failed, good, np.where(unbalanced, 0.0, jt.tau)
 
 
 def _failed(model: Any, emg: EmgActivations, failed: dict[str, list[str]]) -> dict[str, Any]:

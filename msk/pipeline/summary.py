@@ -20,6 +20,7 @@ from msk.dynamics.inverse import InverseDynamics
 from msk.dynamics.loads import ASSIGNMENT_METHOD
 from msk.exceptions import MskError
 from msk.fes.io import FES_PARAMETER_UNITS, fes_parameters, fes_step_figures
+from msk.gait.analysis import GaitAnalysis
 from msk.metrics import root_mean_square as rms
 from msk.muscles.emg import EmgActivations
 from msk.optimization.muscle_forces import MuscleForces
@@ -533,7 +534,17 @@ def _flags(
                  f"{', '.join(repr(c) for c in absent)} of the configuration's [emg] channels: "
                  f"{', '.join(muscles)} tracked by no EMG in this trial"}
             )  # fmt: skip
-    for w in (model.trial.metadata or {}).get("warnings", ()):
+    meta = model.trial.metadata or {}
+    typed = tuple(meta.get("flags", ()))  # the reader's typed flags keep their quantity
+    for f in typed:
+        flags.append(
+            {"trial": task.name, "quantity": str(f["quantity"]), "value": float(f["value"]),
+             "threshold": float(f["threshold"]), "message": f"{task.file.name}: {f['message']}"}
+        )  # fmt: skip
+    said = {f["message"] for f in typed}
+    for w in meta.get("warnings", ()):
+        if w in said:
+            continue
         flags.append(
             {"trial": task.name, "quantity": "input_file", "value": 1.0,
              "threshold": 0.0, "message": f"{task.file.name}: {w}"}
@@ -557,6 +568,7 @@ def run(
     swapped_markers: Sequence[tuple[str, str, float]] | None,
     joint_strength: Mapping[str, Any] | None,
     knee_contact: KneeContact | None = None,
+    gait_analysis: GaitAnalysis | None = None,
 ) -> dict[str, Any]:
     """``summary.json`` without the stage records; a pure FES session has the base summary,
     no angle columns, an empty quality block and the ``fes`` section."""
@@ -641,6 +653,7 @@ def run(
         "events": gait_cycle.as_list(),
         "event_sources": {**dict(ev.source), "notes": list(ev.notes)},
         "gait_cycle_s": list(gait_cycle.cycle) if gait_cycle.cycle else None,
+        "gait": None if gait_analysis is None else gait_analysis.summary(),
         "angle_columns": [c for c in kin.coordinate_names if not c.endswith(("_tx", "_ty", "_tz"))],
         "quality": quality,
         "methods": {

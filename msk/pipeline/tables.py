@@ -10,6 +10,7 @@ import numpy as np
 from msk.dynamics.identification import MassIdentification
 from msk.dynamics.inverse import InverseDynamics
 from msk.fes.io import fes_tables
+from msk.gait.analysis import GaitAnalysis
 from msk.io.tables import Table
 from msk.optimization.muscle_forces import MuscleForces
 from msk.pipeline.inputs import SessionInputs
@@ -82,6 +83,7 @@ def run(
     knee_contact: KneeContact | None,
     gait_cycle: GaitCycle | None,
     fes: FesResult | None,
+    gait_analysis: GaitAnalysis | None = None,
 ) -> dict[str, Table]:
     tables: dict[str, Table] = {}
     if kinematics is not None and inverse_dynamics is not None:
@@ -104,6 +106,8 @@ def run(
             tables["inertial_parameters"] = inertial_table(mass_identification)
         if strength_identification is not None:
             tables["strength"] = strength_table(strength_identification)
+        if gait_analysis is not None:
+            tables.update(gait_analysis.cycles.to_tables())
     if fes is not None:
         tables.update(fes_tables(fes.result))
     return tables

@@ -36,7 +36,10 @@ coordinate, the pelvis ones being the residuals), ``residuals`` (``force_x…z``
 in the knee joint frame fixed in the tibia, N; ``<variant>_total`` its magnitude, N, and
 ``_total_bw`` in body weights; variants ``generic`` and ``subject_specific``; ``measured_total``
 the implant's force on the same time base, NaN outside the measured cycle),
-``inertial_parameters`` and ``strength``. The last two are
+``inertial_parameters`` and ``strength``, ``gait_cycles_left`` and ``gait_cycles_right`` (every
+complete gait cycle of the side, 101 rows per cycle: :mod:`msk.gait.cycles`; read typed by
+:meth:`SessionResults.gait_cycles`; the spatiotemporal parameters are in ``summary.json``
+``gait``, :meth:`SessionResults.spatiotemporal`). ``inertial_parameters`` and ``strength`` are
 not time series: they are one row whose ``time`` is the start (s) of the data they were
 identified from, with columns ``<segment>.<parameter>`` (Pinocchio order ``m, mx, my, mz, Ixx,
 Ixy, Iyy, Ixz, Iyz, Izz`` in kg, kg·m, kg·m²) and ``<group>.<figure>`` (factor ×generic, CI
@@ -79,6 +82,8 @@ from typing import Any
 
 from msk._runtime.secure import MARKER, is_real_dir, read_marker, write_marker, writer_may_be_alive
 from msk.exceptions import FileFormatError, MissingDataError, SummaryError
+from msk.gait.cycles import GaitCycles
+from msk.gait.spatiotemporal import Spatiotemporal
 from msk.io.opensim_files import write_sto
 from msk.io.storage_twin import storage_twin
 from msk.io.tables import Table, read_csv_table, write_csv_table
@@ -91,7 +96,9 @@ __all__ = [
     "Summary",
     "check_replaceable",
     "json_default",
+    "pooled_gait",
     "read_session",
+    "read_task_trials",
     "recover_interrupted_write",
     "write_session",
 ]
@@ -109,6 +116,8 @@ TABLES: tuple[str, ...] = (
     "fes_parameters",
     "fes_steps",
     "fes_validation",
+    "gait_cycles_left",
+    "gait_cycles_right",
 )
 
 
@@ -160,6 +169,23 @@ class SessionResults:
 
     def has(self, name: str) -> bool:
         return name in self.tables
+
+    def gait_cycles(self) -> GaitCycles | None:
+        """Every normalised gait cycle of both sides (:class:`msk.gait.cycles.GaitCycles`,
+        from ``tables/gait_cycles_<side>.csv``; a side without a complete cycle has no table),
+        None when the session has none."""
+        if not (self.has("gait_cycles_left") or self.has("gait_cycles_right")):
+            return None
+        return GaitCycles.from_tables(self.tables, trial=self.summary.trial or "")
+
+    def spatiotemporal(self) -> Spatiotemporal | None:
+        """The spatiotemporal parameters per side and stride
+        (:class:`msk.gait.spatiotemporal.Spatiotemporal`, from ``summary.json`` ``gait``),
+        None when the session has none."""
+        gait = self.summary.gait
+        if gait is None or gait.spatiotemporal is None:
+            return None
+        return Spatiotemporal.from_summary(gait.spatiotemporal, source=gait.heel_source or "")
 
 
 def _write_tables(folder: Path, results: SessionResults) -> list[str]:
@@ -399,3 +425,36 @@ def read_session(path: str | Path) -> SessionResults:
         tables[name] = read_csv_table(folder / "tables" / f"{name}.csv")
     angles = summary.angle_columns or ()
     return SessionResults(tables=tables, summary=summary, path=folder, angle_columns=angles)
+
+
+def read_task_trials(path: str | Path) -> list[SessionResults]:
+    """The results of every task trial of a session as ``msk run`` wrote them
+    (:func:`msk.pipeline.run_task_trials`): ``path`` itself when it is a session folder, else
+    each of its subfolders that is one (several task trials: ``<out>/<trial name>/``), in name
+    order."""
+    folder = Path(path)
+    if (folder / "summary.json").is_file():
+        return [read_session(folder)]
+    subs = (
+        sorted(p for p in folder.iterdir() if (p / "summary.json").is_file())
+        if folder.is_dir()
+        else []
+    )
+    if not subs:
+        raise FileFormatError(f"{folder}: neither a session folder nor one of task-trial folders")
+    return [read_session(p) for p in subs]
+
+
+def pooled_gait(
+    sessions: Sequence[SessionResults],
+) -> tuple[GaitCycles | None, Spatiotemporal | None]:
+    """Every gait cycle and stride of ``sessions`` (e.g. the task trials of
+    :func:`read_task_trials`) pooled per side (:meth:`GaitCycles.concatenate`,
+    :meth:`Spatiotemporal.concatenate`): mean ± SD across cycles and trials; None where no
+    session has any."""
+    cycles = [c for s in sessions if (c := s.gait_cycles()) is not None]
+    strides = [st for s in sessions if (st := s.spatiotemporal()) is not None]
+    return (
+        GaitCycles.concatenate(cycles) if cycles else None,
+        Spatiotemporal.concatenate(strides) if strides else None,
+    )

@@ -16,6 +16,8 @@ __all__ = ["STRENGTH_COLUMNS", "strength_rows", "write_strength_csv"]
 #: the columns of ``tables/strength.csv`` (and of the cohort table)
 STRENGTH_COLUMNS = (
     "subject",
+    "age_years",
+    "mass_kg",
     "test",
     "action",
     "status",
@@ -38,9 +40,18 @@ STRENGTH_COLUMNS = (
 )
 
 
-def strength_rows(subject: str, results: Sequence[TestStrength]) -> list[dict[str, Any]]:
-    """The rows of ``tables/strength.csv`` (:data:`STRENGTH_COLUMNS`) of one subject."""
-    return [_row(subject, r) for r in results]
+def strength_rows(
+    subject: str,
+    results: Sequence[TestStrength],
+    *,
+    age_years: float | None = None,
+    mass_kg: float | None = None,
+) -> list[dict[str, Any]]:
+    """The rows of ``tables/strength.csv`` (:data:`STRENGTH_COLUMNS`) of one subject (its age
+    and body mass repeated on each row, empty when not given: the cohort table's covariates)."""
+    who = {"age_years": "" if age_years is None else age_years,
+           "mass_kg": "" if mass_kg is None else mass_kg}  # fmt: skip
+    return [_row(subject, r) | who for r in results]
 
 
 def write_strength_csv(path: str | Path, rows: Sequence[Mapping[str, Any]]) -> Path:

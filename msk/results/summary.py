@@ -59,6 +59,8 @@ __all__ = [
     "FesTrial",
     "Flag",
     "Frame",
+    "Gait",
+    "GaitParameter",
     "GenericVsIdentified",
     "Heading",
     "Identification",
@@ -75,6 +77,7 @@ __all__ = [
     "PlateAssignment",
     "Quality",
     "Segment",
+    "SpatiotemporalSide",
     "StageRecord",
     "Strength",
     "StrengthAction",
@@ -84,6 +87,7 @@ __all__ = [
     "as_summary",
     "json_default",
     "strict_json",
+    "unknown_keys",
 ]
 
 #: The schema version this msk writes and the newest it reads.
@@ -319,6 +323,22 @@ class ModelInfo(_Record):
     leg_split: JsonObject | None = None
     placement_determinacy: JsonObject | None = None
     sole_level: JsonObject | None = None
+    #: the hip joint centres' method and where they moved (:mod:`msk.personalise.hip_centre`)
+    hip_centre: JsonObject | None = None
+    #: virtual markers built from others (the PSIS midpoint as the sacrum)
+    virtual_markers: tuple[Any, ...] | None = None
+    #: coordinate → [lower, upper] degrees: ranges widened to the physiological knee flexion
+    widened_ranges_deg: JsonObject | None = None
+    #: without a static trial: the placement chosen among the motion's candidates and why
+    #: (:meth:`msk.personalise.placement.PlacementChoice.summary`)
+    placement_choice: JsonObject | None = None
+    #: the knee axis alignment from the static (:mod:`msk.model.alignment`)
+    knee_alignment: JsonObject | None = None
+    #: the static markers the task contradicts, re-placed from the task
+    #: (:func:`msk.personalise.static_placement.place_from_task`)
+    static_check: JsonObject | None = None
+    #: why the static trial was not used, when it was refused
+    static_rejected: str | None = None
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -403,6 +423,54 @@ class Quality(_Record):
     flags: tuple[Flag, ...] | None = None
     thresholds: Mapping[str, float | None] | None = None
     held_coordinates: tuple[str, ...] | None = None
+
+
+@dataclass(frozen=True, kw_only=True)
+class GaitParameter(_Record):
+    """``gait.spatiotemporal.<side>.parameters.<name>``: a spatiotemporal parameter (its unit in
+    ``name``, :data:`msk.gait.spatiotemporal.PARAMETERS`): mean and sample SD over the strides,
+    and each stride's value (``null``: not computable in that stride)."""
+
+    mean: float | None = None
+    sd: float | None = None
+    values: tuple[float | None, ...] = ()
+
+
+@dataclass(frozen=True, kw_only=True)
+class SpatiotemporalSide(_Record):
+    """``gait.spatiotemporal.<side>``: the side's strides (count, the foot strike starting each,
+    s) and its parameters by name (:class:`msk.gait.spatiotemporal.Spatiotemporal`)."""
+
+    n_strides: int | None = None
+    stride_start_s: tuple[float | None, ...] = ()
+    parameters: Mapping[str, GaitParameter]
+
+
+@dataclass(frozen=True, kw_only=True)
+class Gait(_Record):
+    """``gait``: the gait analysis of the task trial (:mod:`msk.gait`).
+
+    ``spatiotemporal``: side → :class:`SpatiotemporalSide`; ``heel_source``: where the heel
+    positions of the spatiotemporal parameters come from; ``treadmill_speed_m_s``: the belt
+    speed found on a treadmill (absent overground), relative to which strides are measured;
+    ``variables``: the names of the normalised cycles' variables
+    (``tables/gait_cycles_<side>.csv``, units in the names); ``cycles``: side → complete
+    cycles; ``cycles_measured``: side → cycles whose stance the plates measured (the kinetic
+    variables are known in those only); ``foot_off_pct``: side → mean foot off, % of the
+    cycle; ``knee_adduction_moment``: how the external knee adduction moment was computed and
+    its sign; ``not_modelled``: gait-lab variables the model has no degree of freedom for (not
+    given); ``notes``: what was decided."""
+
+    spatiotemporal: Mapping[str, SpatiotemporalSide] | None = None
+    heel_source: str | None = None
+    treadmill_speed_m_s: float | None = None
+    variables: tuple[str, ...] | None = None
+    cycles: Mapping[str, int] | None = None
+    cycles_measured: Mapping[str, int] | None = None
+    foot_off_pct: Mapping[str, float | None] | None = None
+    knee_adduction_moment: str | None = None
+    not_modelled: tuple[str, ...] | None = None
+    notes: tuple[str, ...] | None = None
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -658,6 +726,8 @@ class Optimization(_Record):
     frames_solved: Mapping[str, int] | None = None
     reserve_torque_rms_nm: Mapping[str, float | None] | None = None
     kkt: Kkt | None = None
+    #: the knee's frontal-plane reserve moments (:func:`msk.quality.frontal_reserve_figures`)
+    frontal_reserve: JsonObject | None = None
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -744,6 +814,7 @@ class Summary(_Record):
     events: tuple[Event, ...] | None = None
     event_sources: JsonObject | None = None
     gait_cycle_s: tuple[float, ...] | None = None
+    gait: Gait | None = None
     angle_columns: tuple[str, ...] | None = None
     quality: Quality
     methods: Methods | None = None
@@ -760,6 +831,8 @@ class Summary(_Record):
     stages: tuple[StageRecord, ...] | None = None
     not_available: tuple[NotAvailable, ...] | None = None
     run_seconds: float | None = None
+    #: the OpenSim files written (``files``) and what they hold (:mod:`msk.io.opensim_export`)
+    opensim: JsonObject | None = None
     schema_version: int = dataclasses.field(default=SCHEMA_VERSION, metadata={"json": "format"})
     tables: tuple[str, ...] | None = None
 
@@ -846,14 +919,49 @@ def strict_json(obj: Any) -> Any:
     return obj
 
 
+def unknown_keys(record: _Record, path: str = "") -> tuple[str, ...]:
+    """The keys of ``record`` (read from a mapping) and of every record inside it that the
+    schema does not name, as dotted paths (``quality.flag[2].valu``); ``()`` for a record built
+    in code. Parts kept as JSON (:data:`JsonObject`) are not looked into."""
+    out: list[str] = [f"{path}.{k}" if path else k for k in getattr(record, "_extra", {})]
+
+    def visit(v: Any, sub: str) -> None:
+        if isinstance(v, _Record):
+            out.extend(unknown_keys(v, sub))
+        elif isinstance(v, tuple):
+            for i, x in enumerate(v):
+                visit(x, f"{sub}[{i}]")
+        elif isinstance(v, Mapping):
+            for k, x in v.items():
+                if isinstance(x, (_Record, tuple)):
+                    visit(x, f"{sub}.{k}")
+
+    for f in dataclasses.fields(record):
+        visit(getattr(record, f.name), f"{path}.{_json_key(f)}" if path else _json_key(f))
+    return tuple(out)
+
+
 def as_summary(summary: Summary | Mapping[str, Any]) -> Summary:
     """``summary`` as a :class:`Summary`: a mapping (a summary being assembled by the
     pipeline, not yet written) is first made what its ``summary.json`` would hold — numpy
     values as plain JSON, non-finite numbers as ``None``, ``format`` the current one when
-    absent — so a reader sees exactly what a reader of the written folder sees."""
+    absent — so a reader sees exactly what a reader of the written folder sees.
+
+    Typed on write as on read: a key of an assembled mapping that the schema does not name
+    (a misspelt optional key) raises :class:`~msk.exceptions.SummaryKeyError` naming it,
+    where reading a file written by a newer msk keeps such keys verbatim.
+    """
     if isinstance(summary, Summary):
         return summary
     d = json.loads(json.dumps(strict_json(summary), default=json_default, allow_nan=False))
     if isinstance(d, dict):
         d.setdefault("format", SUMMARY_FORMAT)
-    return Summary.from_dict(d)
+    s = Summary.from_dict(d)
+    unknown = unknown_keys(s)
+    if unknown:
+        raise SummaryKeyError(
+            f"summary: key {unknown[0]!r} is not in the schema of {SUMMARY_FORMAT!r} "
+            f"(msk.results.summary)" + (f" (nor {list(unknown[1:])})" if unknown[1:] else ""),
+            key=unknown[0],
+        )
+    return s

@@ -7,6 +7,8 @@ EMG-driven vs OpenSim thesis).
   moments with casadi exact derivatives and multi-start;
 * :func:`fit_emg_gains` — EMG-to-activation gains fitted jointly with EMG-assisted static
   optimisation on the inverse-dynamics torques → :class:`EMGGainFit`;
+* :func:`identify_pooled` — a session's task and MVC trials in one identification, one EMG
+  normalisation (:mod:`msk.strength.pooled`);
 * :func:`max_isometric_moment_curves` — maximal isometric joint-moment curves per action
   (knee, ankle, hip) of a model → :class:`JointStrengthCurves`;
 * :func:`w_emg_stability` and the comparison tables of :mod:`msk.strength.studies`;
@@ -46,6 +48,7 @@ from msk.strength.joint_strength import (
     joint_strength_summary,
     max_isometric_moment_curves,
 )
+from msk.strength.pooled import EmgReference, PooledTrial, identify_pooled, session_emg_reference
 from msk.strength.protocol import TestProtocol, recommend_test, recommend_tests
 from msk.strength.studies import (
     TABLE_I_W_EMG,
@@ -69,11 +72,13 @@ __all__ = [
     "CalibrationTrial",
     "EMGDrivenCalibration",
     "EMGGainFit",
+    "EmgReference",
     "FitMetrics",
     "GroupDiagnosis",
     "JointStrengthCurves",
     "MetricTable",
     "MomentCurve",
+    "PooledTrial",
     "StrengthIdentifier",
     "StrengthProfile",
     "TestProtocol",
@@ -87,6 +92,7 @@ __all__ = [
     "fit_emg_gains",
     "fractional_delay",
     "group_contributions",
+    "identify_pooled",
     "joint_strength_summary",
     "max_isometric_moment_curves",
     "moment_fit_table",
@@ -95,6 +101,7 @@ __all__ = [
     "net_joint_force",
     "recommend_test",
     "recommend_tests",
+    "session_emg_reference",
     "w_emg_stability",
     "with_strength",
 ]

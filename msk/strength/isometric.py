@@ -75,8 +75,13 @@ the group ``not determined`` with the reason):
 * ``wrong_direction``: the largest sustained excursion is opposite to ``s``;
 * ``emg_flat`` (:func:`msk.muscles.emg.channel_quality`): a dead/unused channel — fails the
   test when it is the target's; an antagonist's only removes the co-contraction correction;
+* ``emg_envelope_channel`` (informational): a channel that is an amplifier's pre-processed
+  envelope (non-negative, nothing above the high-pass but quantisation, a moving amplitude
+  below it: :func:`msk.muscles.emg.envelope_channel`) is used as its own envelope, low-passed
+  only — the high-pass would leave nothing of it;
 * ``emg_one_sided`` (informational): a channel with no negative sample (an amplifier's
-  offset or half-wave output): its envelope is a relative amplitude only.
+  offset or half-wave output) that is not such an envelope: its envelope is a relative
+  amplitude only.
 """
 
 from __future__ import annotations
@@ -92,7 +97,7 @@ from numpy.typing import NDArray
 
 from msk.exceptions import MissingDataError, ModelError
 from msk.io.dynamometer import DynamometerRecording
-from msk.muscles.emg import channel_quality, linear_envelope
+from msk.muscles.emg import channel_quality, envelope_channel, linear_envelope
 from msk.quality import Flag
 from msk.status import STRENGTH_CI_REL_WIDTH_MAX, Status
 from msk.units import Array
@@ -110,6 +115,7 @@ __all__ = [
     "group_strength",
     "lever_arm_from_height",
     "model_isometric_torque",
+    "remove_envelope_rest",
     "session_mvc",
     "subject_model",
     "target_check",
@@ -207,6 +213,10 @@ class IsometricTrial:
     emg_baseline: Mapping[str, float]
     emg_flat: Mapping[str, bool]
     flags: tuple[Flag, ...]
+    #: per channel that is an amplifier's envelope (``emg_envelope_channel``): its level at
+    #: rest in this trial (the 1st percentile of its envelope, V), which
+    #: :func:`remove_envelope_rest` takes off the session's amplitudes
+    emg_rest: Mapping[str, float] = field(default_factory=dict)
 
     @property
     def failed(self) -> tuple[Flag, ...]:
@@ -335,11 +345,41 @@ def analyse_isometric(
             flat_rms_lsb=st.flat_rms_lsb,
             flat_rel_rms=0.0,
         )
+        enveloped: dict[str, float] = {}
         for j, lab in enumerate(labels):
+            pre = (
+                envelope_channel(
+                    rec.emg[:, j],
+                    rate_hz=rate,
+                    highpass_hz=st.highpass_hz,
+                    lowpass_hz=st.lowpass_hz,
+                    floor_lsb=st.flat_rms_lsb,
+                )
+                if q.flat[j]
+                else None
+            )
+            if pre is not None:  # an amplifier's envelope output: used as the envelope
+                env[:, j] = pre.envelope
+                k_e = min(round(rate / st.lowpass_hz), max(n // 10, 0))
+                enveloped[lab] = float(np.percentile(pre.envelope[k_e : n - k_e], 1.0))
+                flags.append(
+                    _flag(
+                        test.name,
+                        "emg_envelope_channel",
+                        pre.hp_rms_lsb,
+                        st.flat_rms_lsb,
+                        f"{test.name}: EMG {lab}: a pre-processed envelope, not raw EMG (no "
+                        f"negative sample; {pre.hp_rms_lsb:.1f} quantisation steps above the "
+                        f"{st.highpass_hz:g}-Hz high-pass, {pre.lp_sd_lsb:.0f} below it): used "
+                        f"as its envelope, low-passed at {st.lowpass_hz:g} Hz, not rectified "
+                        "again; the session's lowest rest level of the channel is taken off "
+                        "its amplitudes",
+                    )
+                )
             emg_plateau[lab] = float(env[i0 : i0 + nw_eff, j].mean())
             emg_base[lab] = float(env[:nb, j].mean())
-            emg_flat[lab] = bool(q.flat[j])
-            if q.flat[j]:
+            emg_flat[lab] = bool(q.flat[j]) and pre is None
+            if emg_flat[lab]:
                 role = "target" if lab == test.target else "other"
                 raw_sd = float(rec.emg[:, j].std())
                 low = (
@@ -359,7 +399,7 @@ def analyse_isometric(
                         f"steps above the high-pass{low})",
                     )
                 )
-            if float(rec.emg[:, j].min()) >= 0.0:
+            if float(rec.emg[:, j].min()) >= 0.0 and lab not in enveloped:
                 flags.append(
                     _flag(
                         test.name,
@@ -379,15 +419,17 @@ def analyse_isometric(
     rest_flags: list[Flag] = []
     t = test.target
     if t and t in emg_plateau and not emg_flat[t]:
-        p = emg_plateau[t]
-        if p > 0 and emg_base[t] > st.rest_fraction * p:
+        # an envelope channel's amplifier rest level is no contraction
+        r0 = enveloped.get(t, 0.0) if labels else 0.0
+        p, b = emg_plateau[t] - r0, emg_base[t] - r0
+        if p > 0 and b > st.rest_fraction * p:
             rest_flags.append(
                 _flag(
                     test.name,
                     "effort_before_baseline",
-                    emg_base[t] / p,
+                    b / p,
                     st.rest_fraction,
-                    f"{test.name}: EMG {t}: {100 * emg_base[t] / p:.0f} % of its "
+                    f"{test.name}: EMG {t}: {100 * b / p:.0f} % of its "
                     "plateau already in the pre-effort window: the effort was "
                     "under way",
                 )
@@ -523,7 +565,33 @@ def analyse_isometric(
         emg_baseline=emg_base,
         emg_flat=emg_flat,
         flags=tuple(flags),
+        emg_rest=dict(enveloped) if labels else {},
     )
+
+
+def remove_envelope_rest(trials: Sequence[IsometricTrial]) -> list[IsometricTrial]:
+    """The trials with each envelope channel's amplifier rest level taken off its plateau and
+    baseline amplitudes: ``R_c = min_i`` of the trials' rest levels (:attr:`IsometricTrial.\
+    emg_rest`; the session's quietest reading of the channel), ``e ← max(e − R_c, 0)``. An
+    RMS or envelope output reads its noise floor at rest, which raw EMG's high-pass removes:
+    left in, it would count as activity (an antagonist's co-contraction, a target's share of
+    its MVC)."""
+    rest: dict[str, float] = {}
+    for tr in trials:
+        for lab, v in tr.emg_rest.items():
+            rest[lab] = min(rest.get(lab, v), v)
+    out = []
+    for tr in trials:
+        if not tr.emg_rest:
+            out.append(tr)
+            continue
+        plateau = dict(tr.emg_plateau)
+        base = dict(tr.emg_baseline)
+        for lab in tr.emg_rest:
+            plateau[lab] = max(plateau[lab] - rest[lab], 0.0)
+            base[lab] = max(base[lab] - rest[lab], 0.0)
+        out.append(dataclasses.replace(tr, emg_plateau=plateau, emg_baseline=base))
+    return out
 
 
 def session_mvc(trials: Sequence[IsometricTrial]) -> dict[str, float]:

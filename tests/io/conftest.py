@@ -59,7 +59,12 @@ def synth(tmp_path: Path):
         rate = 100.0
         t = np.arange(n) / rate
         labels = ["LASI", "RASI", "LKNE", "RKNE"]
-        markers = rng.uniform(-1.0, 1.0, size=(n, 4, 3)) + np.array([0.0, 0.0, 1.0])
+        # smooth trajectories (a marker's path, not noise: white noise of 1 m a frame is a
+        # teleport every frame for the reader, msk.io.marker_checks)
+        amp = rng.uniform(0.1, 0.5, size=(1, 4, 3))
+        phase = rng.uniform(0.0, 2 * np.pi, size=(1, 4, 3))
+        offset = rng.uniform(-0.5, 0.5, size=(1, 4, 3)) + np.array([0.0, 0.0, 1.0])
+        markers = offset + amp * np.sin(2 * np.pi * t[:, None, None] + phase)
         markers[5:9, 1] = np.nan  # 4-frame gap
         markers[20, 1] = np.nan  # 1-frame gap
         markers[30:33, 3] = np.nan  # 3-frame gap

@@ -94,8 +94,11 @@ def test_plate_with_channels_beyond_the_analogs(synth, tmp_path):
         _set_param(c, "FORCE_PLATFORM", "CHANNEL", np.array([[1], [2], [3], [4], [5], [99]]))
 
     bad = _edit(path, tmp_path / "chan.c3d", edit)
-    with pytest.raises(ForcePlateError, match=r"chan\.c3d: force platform 1 .*99"):
-        read_c3d(bad)
+    tr = read_c3d(bad)  # the plate is dropped, said by a typed flag naming plate and channel
+    assert tr.plates == ()
+    (flag,) = [f for f in tr.metadata["flags"] if f["quantity"] == "c3d_plate_channel_missing"]
+    assert flag["value"] == 99 and "force platform 1" in flag["message"]
+    assert flag["message"] in tr.metadata["warnings"]
 
 
 def test_unsupported_plate_type(synth, tmp_path):

@@ -22,7 +22,7 @@ def test_a_3d_force_platform_channel_is_one_line(tmp_path):
     ch = np.asarray(c["parameters"]["FORCE_PLATFORM"]["CHANNEL"]["value"])
     c["parameters"]["FORCE_PLATFORM"]["CHANNEL"]["value"] = ch.reshape(*ch.shape, 1)
     c.write(str(tmp_path / "ch3d.c3d"))
-    with pytest.raises(C3DError, match=r"ch3d\.c3d: inconsistent C3D content \(TypeError"):
+    with pytest.raises(C3DError, match=r"ch3d\.c3d: FORCE_PLATFORM:CHANNEL has dims \(6, 3, 1\)"):
         read_c3d(tmp_path / "ch3d.c3d", isolate=False)
 
 

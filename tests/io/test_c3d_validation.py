@@ -71,8 +71,6 @@ def test_text_parameter_stored_as_numbers_is_refused(real_dir, tmp_path):
         (("POINT", "USED"), 60, r"POINT:USED = 60 but the header declares 51"),
         (("ANALOG", "USED"), 40, r"ANALOG:USED = 40 channels"),
         (("ANALOG", "GEN_SCALE"), 0.0, "GEN_SCALE is 0"),
-        (("FORCE_PLATFORM", "USED"), 5, r"TYPE holds 3 values .* 5 plates"),
-        (("FORCE_PLATFORM", "CHANNEL"), 99, "force platform 1 uses analog channel 99"),
         (("FORCE_PLATFORM", "CORNERS"), float("inf"), r"CORNERS\[0\] is inf"),
         (("ANALOG", "SCALE"), 1e6, r"force platform 1 reads F. = .* beyond 20000 N"),
         (("EVENT", "TIMES"), float("nan"), r"TIMES\[0\] is nan"),
@@ -90,7 +88,6 @@ def test_inconsistent_values_are_refused(real_dir, tmp_path, key, value, message
     [
         (("FORCE_PLATFORM", "CORNERS"), 1, 3),
         (("FORCE_PLATFORM", "ORIGIN"), 0, 2),
-        (("FORCE_PLATFORM", "CHANNEL"), 1, 2),
     ],
 )
 def test_plate_parameter_shapes_that_do_not_divide(real_dir, tmp_path, key, k, value):

@@ -65,3 +65,14 @@ def test_reconcile_keeps_agreeing_file_events_and_replaces_contradicting_ones():
     # a NaN event time is ignored, never used
     out = reconcile([Event("Foot Off", "Right", float("nan"))], det)
     assert out.foot_off["right"] == (1.10,)
+
+
+def test_reconcile_completes_a_file_that_marks_only_some_events():
+    """A file marking one stride's strike (the one over the plates) keeps its time there; the
+    detected strikes a stride away complete the side, so its cycles exist."""
+    det = GaitEvents({"right": (0.50, 1.60, 2.70)}, {},
+                     {"right foot strike": "kinematics"})  # fmt: skip
+    out = reconcile([Event("Foot Strike", "Right", 1.62)], det, plate_events=GaitEvents({}, {}, {}))
+    assert out.foot_strike["right"] == (0.50, 1.62, 2.70)
+    assert out.source["right foot strike"] == "file + kinematics"
+    assert "2 detected (kinematics) added" in out.notes[-1]

@@ -115,6 +115,23 @@ def test_shipped_models_load_and_match_their_source(ref_dir):
     assert np.sqrt(np.mean(d**2)) < 1e-3
 
 
+def test_the_shipped_rajagopal_model_matches_its_source(ref_dir):
+    """``source = "rajagopal"``: the Apache-2.0 Rajagopal-derived model of opensim-core's
+    example3DWalking, read by name, the same numbers as its .osim."""
+    from msk.model.files import model_file
+
+    assert model_file("rajagopal") == (MODELS / "rajagopal.toml").resolve()
+    shipped = load_model("rajagopal")
+    osim = load_osim(ref_dir / "opensim-core/subject_walk_scaled.osim")
+    assert len(shipped.muscles) == len(osim.muscles) == 80
+    assert shipped.marker_names == osim.marker_names
+    assert shipped.coordinate_names == osim.coordinate_names
+    assert shipped.total_mass == pytest.approx(osim.total_mass, rel=1e-15)
+    assert "Apache" in shipped.metadata["licence"]
+    th = np.random.default_rng(2).uniform(-0.3, 0.3, (5, shipped.n_coords))
+    np.testing.assert_allclose(shipped.coupling.q(th), osim.coupling.q(th), atol=1e-12)
+
+
 _FUNCS = st.sampled_from(
     [
         Constant(0.3),
@@ -238,7 +255,7 @@ def test_the_wheel_ships_the_models(tmp_path) -> None:
     )  # fmt: skip
     (wheel,) = tmp_path.glob("msk-*.whl")
     names = set(zipfile.ZipFile(wheel).namelist())
-    for model in ("gait2392", "gait2392_fourbar"):
+    for model in ("gait2392", "gait2392_fourbar", "rajagopal"):
         assert f"msk/data/models/{model}.toml" in names
     site = tmp_path / "site"
     subprocess.run(
@@ -246,12 +263,15 @@ def test_the_wheel_ships_the_models(tmp_path) -> None:
          str(wheel)],
         check=True, capture_output=True, timeout=600,
     )  # fmt: skip
-    code = "import msk.model.files as f; print(f.__file__, len(f.load_model('gait2392').muscles))"
+    code = (
+        "import msk.model.files as f; print(f.__file__, len(f.load_model('gait2392').muscles), "
+        "len(f.load_model('rajagopal').muscles))"
+    )
     out = subprocess.run(
         [sys.executable, "-c", code], cwd=tmp_path, env={"PYTHONPATH": str(site)},
         check=True, capture_output=True, text=True, timeout=600,
     ).stdout.split()  # fmt: skip
-    assert out[0].startswith(str(site)) and int(out[1]) == 92
+    assert out[0].startswith(str(site)) and int(out[1]) == 92 and int(out[2]) == 80
 
 
 def model_names_markdown(name: str) -> str:

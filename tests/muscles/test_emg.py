@@ -317,3 +317,36 @@ def test_a_record_shorter_than_two_strides_has_no_cycle_figure():
     x = _quantise(0.002 * _noise(int(0.9 * RATE), rng))
     q = channel_quality(x[:, None], rate_hz=RATE, labels=["a"])
     assert np.isnan(q.cycle_correlation[0]) and q.flat[0]
+def _amplifier_envelope(seed: int = 0, rest_v: float = 30e-6, amp_v: float = 60e-6):
+    """An amplifier's RMS output of a 2-kHz EMG: rest level + an effort, 100-ms moving RMS,
+    quantised to 2.44 µV (a 12-bit converter's step)."""
+    from msk.signal import filtfilt_butter
+
+    rng = np.random.default_rng(seed)
+    rate = 2000.0
+    t = np.arange(int(10 * rate)) / rate
+    level = rest_v + amp_v * np.clip((t - 1.0) / 0.5, 0, 1) * (t < 8.0)
+    raw = level * rng.standard_normal(t.size)
+    rms = np.sqrt(np.convolve(raw**2, np.ones(200) / 200, mode="same"))
+    rms = filtfilt_butter(rms, rate_hz=rate, cutoff_hz=10.0)
+    return rate, raw, np.round(np.maximum(rms, 0) / 2.44e-6) * 2.44e-6
+
+
+def test_envelope_channel_recognises_an_amplifier_envelope_not_raw_or_dead_emg():
+    from msk.muscles.emg import envelope_channel
+
+    rate, raw, env = _amplifier_envelope()
+    got = envelope_channel(env, rate_hz=rate, highpass_hz=20.0, lowpass_hz=6.0)
+    assert got is not None
+    assert got.hp_rms_lsb <= 3.0 and got.lp_sd_lsb >= 1.0
+    assert got.lsb == pytest.approx(2.44e-6)
+    # the effort's level read back: √(30² + 60²) ≈ 67 µV RMS
+    assert float(np.median(got.envelope[6000:14000])) == pytest.approx(
+        np.hypot(30e-6, 60e-6), rel=0.35
+    )
+    raw_q = np.round(raw / 2.44e-6) * 2.44e-6
+    assert envelope_channel(raw_q, rate_hz=rate, highpass_hz=20.0) is None  # raw EMG
+    assert envelope_channel(np.abs(raw_q), rate_hz=rate, highpass_hz=20.0) is None  # rectified
+    rng = np.random.default_rng(1)
+    dead = np.round((25e-6 + 0.5e-6 * rng.standard_normal(20000)) / 2.44e-6) * 2.44e-6
+    assert envelope_channel(dead, rate_hz=rate, highpass_hz=20.0) is None  # an offset, still

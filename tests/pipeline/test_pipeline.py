@@ -273,6 +273,9 @@ def test_several_task_trials_each_get_a_results_folder(tmp_path, capsys):
         assert (folder / "report.html").is_file()
         summary = json.loads((folder / "summary.json").read_text())
         assert summary["trial"] == name, summary.get("trial")
+    # and one report of the session, every task trial's cycles in it
+    html = (tmp_path / "o" / "report.html").read_text(encoding="utf-8")
+    assert "trials walk, walk2" in html and 'id="kinematics"' in html
 
 
 @pytest.mark.slow

@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import csv
 import json
+import re
 from pathlib import Path
 
 import numpy as np
@@ -192,10 +193,11 @@ def test_fes_report_section(fes_run: tuple[Path, Path]) -> None:
     _, out = fes_run
     html = (out / "report.html").read_text()
     assert "FES knee model" in html
-    assert "published range [2]" in html and "published NRMSD range [2]" in html
+    # the FES study is the first work this report cites: [1] (numbered in citation order)
+    assert "published range [1]" in html and "published NRMSD range [1]" in html
     assert "seeds/" not in html  # the literature is cited, not internal file names
     assert "application to patients with spinal cord injury" in html.split('class="refs"')[1]
-    assert "<th>status</th>" in html.split("published range [2]")[1][:40]
+    assert "<th>status</th>" in html.split("published range [1]")[1][:40]
     assert "kg·m²" in html and "N·m·s/rad" in html
     assert "knee angle (deg, 0 = full extension)" in html and "time (s)" in html
     assert "simulated, identified model" in html  # the figure's legend
@@ -244,7 +246,8 @@ def test_gait_and_fes_in_one_session(tmp_path: Path) -> None:
     assert {"q", "joint_torques", "fes_parameters", "fes_steps"} <= set(out.tables)
     html = (res.out_dir / "report.html").read_text()
     assert "Gait analysis report" in html
-    assert "6. FES knee model" in html and "7. Methods, stages and software" in html
+    fes = int(re.search(r"<h2>(\d+)\. FES knee model", html).group(1))
+    assert f"<h2>{fes + 1}. Methods, stages and software" in html  # numbers derived, no gap
     assert res.summary.to_dict()["fes"]["parameters"]["knee.K"]["value"] == pytest.approx(
         TRUTH.knee.K, rel=0.05
     )

@@ -25,7 +25,7 @@ from msk.exceptions import (
 )
 from msk.io.opensim_files import Table, read_sto
 from msk.results.folder import SUMMARY_FORMAT, SessionResults, read_session, write_session
-from msk.results.summary import SCHEMA_VERSION, Summary, _Record
+from msk.results.summary import SCHEMA_VERSION, Summary, _Record, as_summary, unknown_keys
 
 #: the required keys of a summary (msk.results.summary.Summary) but ``format``
 BASE = {
@@ -60,8 +60,8 @@ def _results() -> SessionResults:
     }
     summary = {
         **BASE,
-        "quality": {"x": float("nan"), "y": np.float64(2.5)},
-        "frame": {"rotation": np.eye(3)},
+        "quality": {"ik_marker_rms_mean_m": float("nan"), "ik_marker_rms_max_m": np.float64(2.5)},
+        "frame": {"lab_to_model_rotation": np.eye(3)},
     }
     return SessionResults(tab, summary, angle_columns=("knee_angle_l",))
 
@@ -72,9 +72,9 @@ def test_round_trip(tmp_path):
     assert isinstance(back.summary, Summary) and back.summary.schema_version == SCHEMA_VERSION
     written = json.loads((out / "summary.json").read_text())
     assert written["format"] == SUMMARY_FORMAT and back.summary.to_dict() == written
-    # keys this schema does not name are kept as written
-    assert written["quality"] == {"x": None, "y": 2.5}  # strict JSON: NaN → null
-    assert written["frame"]["rotation"] == np.eye(3).tolist()
+    # strict JSON: NaN → null
+    assert written["quality"] == {"ik_marker_rms_mean_m": None, "ik_marker_rms_max_m": 2.5}
+    assert written["frame"]["lab_to_model_rotation"] == np.eye(3).tolist()
     for name, tab in _results().tables.items():
         got = back.table(name)
         assert got.columns == tab.columns
@@ -311,6 +311,19 @@ def test_summary_wrong_type_is_named() -> None:
     d["quality"] = []
     with pytest.raises(SummaryError, match="'quality': expected an object, got an array"):
         Summary.from_dict(d)
+
+
+def test_an_assembled_summary_with_a_misspelt_key_is_refused_on_write() -> None:
+    """Typed on write: the pipeline's mapping may only hold keys the schema names (a file
+    read keeps unknown keys verbatim, test_summary_round_trip_is_exact)."""
+    assert unknown_keys(as_summary(_summary_dict())) == ()
+    d = _summary_dict()
+    d["strength"]["groups"][0]["factr"] = 1.0
+    d["subject"]["mas_kg"] = 70.0
+    assert unknown_keys(Summary.from_dict(d)) == ("subject.mas_kg", "strength.groups[0].factr")
+    with pytest.raises(SummaryKeyError, match=r"'subject\.mas_kg' is not in the schema") as exc:
+        as_summary(d)
+    assert exc.value.key == "subject.mas_kg"
 
 
 def test_read_session_names_the_file_and_the_key(tmp_path):

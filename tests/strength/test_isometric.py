@@ -23,6 +23,7 @@ from msk.strength.isometric import (
     analyse_isometric,
     group_strength,
     lever_arm_from_height,
+    remove_envelope_rest,
     session_mvc,
 )
 from msk.units import G0 as G_STANDARD
@@ -108,6 +109,42 @@ def test_cocontraction_uses_the_antagonists_own_test() -> None:
     assert r.cocontraction_nm == pytest.approx(0.2 * 80.0, rel=0.15)
     assert r.torque_nm == pytest.approx(r.measured_net_nm + r.cocontraction_nm)
     assert r.status == "identified", r.reason
+
+
+def _as_envelope_output(rec: DynamometerRecording, j: int, rest_v: float) -> DynamometerRecording:
+    """Channel j replaced by an amplifier's envelope output of it: its 100-ms moving RMS plus
+    the amplifier's rest level ``rest_v``, quantised to 2.44 µV (non-negative, smooth)."""
+    from dataclasses import replace
+
+    x = rec.emg[:, j]
+    rms = np.sqrt(np.convolve(x**2, np.ones(200) / 200, mode="same")) + rest_v
+    emg = rec.emg.copy()
+    emg[:, j] = np.round(rms / 2.44e-6) * 2.44e-6
+    return replace(rec, emg=emg)
+
+
+def test_an_envelope_channel_is_used_as_its_envelope_with_its_rest_level_removed() -> None:
+    """Plantarflexion whose GL channel is an amplifier's envelope (the shared elderly data):
+    not refused as flat, flagged ``emg_envelope_channel``, and — its amplifier rest level (the
+    session's lowest) taken off — its plateau amplitude is the effort's RMS, the target of
+    the test identified."""
+    plantar = IsometricTest(
+        name="ankle_plantarflexion", action="ankle plantarflexion", angle_deg=0.0,
+        target="GL", antagonist="TA", segment="foot",
+    )  # fmt: skip
+    knee = _as_envelope_output(_trial(amps=(300e-6, 30e-6, 20e-6, 0.0)), 3, 25e-6)
+    rec = _as_envelope_output(_trial(amps=(20e-6, 20e-6, 20e-6, 80e-6), seed=2), 3, 25e-6)
+    raw = analyse_isometric(_trial(amps=(20e-6, 20e-6, 20e-6, 80e-6), seed=2), plantar)
+    tr = analyse_isometric(rec, plantar)
+    assert not tr.emg_flat["GL"]
+    assert any(f.quantity == "emg_envelope_channel" for f in tr.flags)
+    assert not any(f.quantity == "emg_one_sided" for f in tr.flags)
+    assert not tr.failed, [f.message for f in tr.failed]
+    trials = remove_envelope_rest([analyse_isometric(knee, KNEE), tr])
+    # rest level 25 µV + the 5-µV rest noise's RMS: ≈ 30 µV read at rest, taken off
+    assert trials[1].emg_plateau["GL"] == pytest.approx(85e-6 - 5e-6, rel=0.15)
+    # the raw channel's linear envelope reads the mean |x| (√(2/π) of the RMS): same effort
+    assert raw.emg_plateau["GL"] == pytest.approx(np.sqrt(2 / np.pi) * 85e-6, rel=0.1)
 
 
 def test_tared_zero_used_when_the_recording_starts_mid_effort() -> None:
@@ -335,9 +372,14 @@ def test_the_twenty_subjects_run_with_sane_figures(tmp_path: Path) -> None:
     if not first.resolve().is_file() and not data.is_dir():
         pytest.skip("dynamometry-elderly data absent")
     knee_ext = []
-    passed = 0
+    passed = plantar = 0
     assert main(["batch", *map(str, configs), "--out", str(tmp_path)]) == 0
     assert (tmp_path / "strength_cohort.csv").read_text().count("\n") == 1 + 4 * len(configs)
+    import csv
+
+    cohort = list(csv.DictReader((tmp_path / "strength_cohort.csv").open()))
+    # the covariates of a cohort comparison on every row (strength per kg vs age)
+    assert all(64 <= float(r["age_years"]) <= 82 and float(r["mass_kg"]) > 30 for r in cohort)
     for c in configs:
         out = tmp_path / c.stem
         s = json.loads((out / "summary.json").read_text())
@@ -348,9 +390,17 @@ def test_the_twenty_subjects_run_with_sane_figures(tmp_path: Path) -> None:
             assert t["status"] == "identified" or t["reason"] != "every check passed"
             if t["test"] == "knee_extension" and t["status"] == "identified":
                 knee_ext.append(t["torque_nm"])
+            if t["test"] == "ankle_plantarflexion":
+                plantar += t["status"] == "identified"
+                # the GL channel is an amplifier's envelope in every file: used, said so
+                gl = [f for f in s["flags"] if f["trial"] == "ankle_plantarflexion"]
+                assert any(f["quantity"] == "emg_envelope_channel" for f in gl), gl
         assert (out / "tables" / "strength.csv").is_file()
         assert "Identified" in (out / "report.html").read_text()
     assert passed >= 20
+    # GL read as the envelope it is: 8 of 20 plantarflexion tests identified (0 when it was
+    # refused as a flat channel); the others fail a stated check
+    assert plantar >= 6
     assert len(knee_ext) >= 8
     assert 30.0 < float(np.median(knee_ext)) < 200.0
     assert all(10.0 < x < 250.0 for x in knee_ext)

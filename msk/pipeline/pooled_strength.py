@@ -1,0 +1,246 @@
+"""``msk strength``: the trials of a session pooled into one strength identification
+(:func:`msk.strength.pooled.identify_pooled`; Hayashibe et al. 2011, §V–VI).
+
+``msk run`` analyses each task trial into its own folder; strength is a property of the
+session, which needs its trials together. For each trial of ``[strength] pool`` (default:
+every task and MVC trial) the pipeline's own chain runs up to the muscle geometry
+(:func:`msk.pipeline.session.run_stages`: model from the static, kinematics, loads, inverse
+dynamics, EMG envelopes, moment arms) with the trial as the task — an MVC trial recorded on the
+plates gets its joint torques by inverse dynamics of its (static) posture like any task (an
+MVC against a strap or a dynamometer that no plate measures belongs in the session's MVC
+trials but not in the pool: its inverse dynamics would miss that force). The
+rows each contributes are those the strength stage uses (:func:`msk.pipeline.strength.\
+regression_rows`). The EMG of every trial is normalised by ONE reference per channel, computed
+from the raw recordings with the session's filters (:func:`msk.muscles.emg.mvc_peaks`): the
+MVC trials' peak (every ``role = "mvc"`` trial of the session, pooled or not) where any
+exists, else the peak over every pooled trial (``session_peak``,
+stated with its bias); ``[emg] mvc`` values win. The folder gets ``strength.json`` (per group:
+factor, intervals, status, reason, its own rows' r², the test that would identify it) and
+``strength.txt``.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+import math
+from pathlib import Path
+from typing import Any, NamedTuple, TextIO
+
+import numpy as np
+
+from msk.config import SessionConfig, load_config
+from msk.exceptions import ConfigError
+
+__all__ = ["pooled_trials", "run_pooled_strength"]
+
+
+def pooled_trials(cfg: SessionConfig) -> list[Any]:
+    """The trials ``[strength] pool`` names (default: every task and MVC trial), in its
+    order."""
+    names = list(cfg.strength.pool) or [t.name for t in cfg.trials if t.role in ("task", "mvc")]
+    by_name = {t.name: t for t in cfg.trials}
+    out = [by_name[n] for n in names if n in by_name]
+    if not out:
+        raise ConfigError(f"{cfg.path}: no task or MVC trial to pool for the strength")
+    return out
+
+
+def _reference(cfg: SessionConfig, trials: list[Any]) -> Any:
+    """One EMG reference per configured channel from the raw recordings (module docstring)."""
+    from msk.io import read_c3d
+    from msk.muscles.emg import mvc_peaks
+    from msk.strength.pooled import EmgReference
+
+    chans = list(dict.fromkeys(str(c).strip() for c in cfg.emg.channels.values()))
+    every = {t.name: t for t in (*trials, *cfg.trials_with_role("mvc"))}
+    raw = {n: read_c3d(t.file) for n, t in every.items()}
+
+    def peaks(ts: list[Any]) -> dict[str, float]:
+        return mvc_peaks(
+            [(raw[t.name].analogs, raw[t.name].analog_rate_hz, raw[t.name].analog_labels)
+             for t in ts],
+            highpass_hz=cfg.emg.highpass_hz, lowpass_hz=cfg.emg.lowpass_hz,
+        )  # fmt: skip
+
+    # every MVC trial of the session normalises (pooled or not: one whose torque no plate
+    # measures — a seated MVC against a strap — sets the reference without entering the rows)
+    mvc = list(cfg.trials_with_role("mvc"))
+    from_mvc = peaks(mvc) if mvc else {}
+    from_all = peaks(trials)
+    given = {str(k).strip(): float(v) for k, v in cfg.emg.mvc.items()}
+    values, sources, used = [], [], []
+    for c in chans:
+        if c in given:
+            v, s = given[c], "given"
+        elif from_mvc.get(c, 0.0) > 0:
+            v, s = from_mvc[c], "mvc"
+        else:
+            v, s = from_all.get(c, math.nan), "session_peak"
+        if math.isfinite(v) and v > 0:
+            used.append(c)
+            values.append(v)
+            sources.append(s)
+    return EmgReference(tuple(used), np.asarray(values), tuple(sources))
+
+
+class _Rows(NamedTuple):
+    trial: Any  # msk.strength.pooled.PooledTrial
+    params: Any
+    model: Any
+    groups: dict[str, list[str]]
+    failed: dict[str, list[str]]
+    coordinates: tuple[str, ...]
+    #: per failed channel, the EMG check lines that name it
+    checks: dict[str, list[str]]
+
+
+def _trial_rows(cfg: SessionConfig, tc: Any, ref: Any, progress: TextIO | None) -> _Rows:
+    """One trial through the chain up to the muscle geometry, as a
+    :class:`msk.strength.pooled.PooledTrial` (its usable rows and channel-unit envelopes)."""
+    from msk.muscles.geometry import muscle_parameters
+    from msk.pipeline.runner import StageUnavailable
+    from msk.pipeline.session import run_stages
+    from msk.pipeline.strength import regression_rows
+    from msk.strength.pooled import PooledTrial
+
+    task = dataclasses.replace(tc, role="task")
+    keep = tuple(t for t in cfg.trials if t.role in ("static", "mass_identification"))
+    emg = dataclasses.replace(cfg.emg, mvc=dict(zip(ref.channels, map(float, ref.value))))
+    one = dataclasses.replace(cfg, trials=(*keep, task), emg=emg)
+    if progress is not None:
+        progress.write(f"strength: trial {tc.name} ({tc.role}) through the chain\n")
+    res = run_stages(one, until="muscle_geometry")
+    params = muscle_parameters(res["model"].model)
+    em, geo = res.get("emg"), res.get("muscle_geometry")
+    if em is None or geo is None:
+        raise StageUnavailable(f"trial {tc.name}: no EMG or muscle geometry")
+    groups, failed, good, tau = regression_rows(
+        params, res["loads"], res["inverse_dynamics"], em, geo
+    )
+    chans = tuple(groups)
+    env = np.empty((em.envelopes.shape[0], len(chans)))
+    for k, c in enumerate(chans):
+        col = em.sources.index(c)
+        env[:, k] = em.envelopes[:, col] * float(ref.value[ref.channels.index(c)])
+    t = np.asarray(res["kinematics"].time, dtype=float)
+    rate = (t.size - 1) / float(t[-1] - t[0])
+    trial = PooledTrial(
+        tc.name, "mvc" if tc.role == "mvc" else "task", rate, chans, env, geo.jacobian,
+        np.asarray(geo.lengths), np.asarray(geo.velocities), np.asarray(tau),
+        frames=np.flatnonzero(good), movement=None,
+    )  # fmt: skip
+    coords = tuple(res["inverse_dynamics"].torques.coordinate_names)
+    said = list(getattr(em, "warnings", ()))
+    checks = {g: [w for w in said if f"'{g}'" in w and "no MVC" not in w] for g in failed}
+    return _Rows(trial, params, res["model"].model, groups, failed, coords, checks)
+
+
+def run_pooled_strength(
+    config: str | Path | SessionConfig,
+    out_dir: str | Path,
+    *,
+    progress: TextIO | None = None,
+) -> dict[str, Any]:
+    """Identify the strength of the session's pooled trials (module docstring) and write
+    ``strength.json`` and ``strength.txt`` into ``out_dir``; returns the JSON record."""
+    from msk.pipeline.strength import _protocols
+    from msk.strength import diagnose
+    from msk.strength.pooled import identify_pooled
+
+    cfg = config if isinstance(config, SessionConfig) else load_config(config)
+    if not cfg.emg.channels:
+        raise ConfigError(f"{cfg.path}: strength needs [emg] channels")
+    trials = pooled_trials(cfg)
+    ref = _reference(cfg, trials)
+    rows = [_trial_rows(cfg, tc, ref, progress) for tc in trials]
+    params, model, coords = rows[0].params, rows[0].model, rows[0].coordinates
+    # a channel enters when it is usable in every pooled trial (one normalisation, one group)
+    usable = set.intersection(*(set(r.groups) for r in rows))
+    failed = {g: m for r in rows for g, m in r.failed.items()}
+    failed.update({g: m for r in rows for g, m in r.groups.items() if g not in usable})
+    channels = {m: g for g, ms in rows[0].groups.items() if g in usable for m in ms}
+    pooled = []
+    for r in rows:
+        keep = [k for k, c in enumerate(r.trial.channels) if c in usable]
+        pooled.append(
+            dataclasses.replace(
+                r.trial,
+                channels=tuple(r.trial.channels[k] for k in keep),
+                envelopes=r.trial.envelopes[:, keep],
+            )
+        )
+    profile = identify_pooled(
+        pooled, channels, params, coordinate_names=coords, reference=ref,
+        window_s=cfg.strength.window_s, n_bootstrap=200, random_state=0,
+    )  # fmt: skip
+    groups = {g: [m for m, c in channels.items() if c == g] for g in profile.group_names}
+    protos = _protocols(model, profile, groups)
+    protos.update(_protocols(model, None, failed))
+    diag = diagnose(profile)
+    record: dict[str, Any] = {
+        "config": str(cfg.path),
+        "trials": profile.extra["trials"],
+        "normalisation": profile.extra["normalisation"],
+        "normalisation_kind": profile.extra["normalisation_kind"],
+        "normalisation_bias": profile.extra.get("normalisation_bias"),
+        "fit_r2_all_rows": _num(profile.r2),
+        "groups": [
+            {
+                "group": g,
+                "muscles": groups[g],
+                "factor": _num(profile.factors[i]),
+                "ci_bootstrap": [_num(profile.ci_low[i]), _num(profile.ci_high[i])],
+                "ci_jackknife_t": [_num(profile.ci_cov_low[i]), _num(profile.ci_cov_high[i])],
+                "f_iso_generic_n": _num(profile.f_iso_generic[i]),
+                "status": d.status,
+                "reason": d.reason + _bias_clause(profile, g),
+                "r2_own_rows": _num(d.r2),
+                "own_coordinates": list(d.coordinates),
+                "protocol": protos.get(g) if d.status != "identified" else None,
+            }
+            for i, (g, d) in enumerate(zip(profile.group_names, diag))
+        ],
+        "failed_channels": {
+            g: {
+                "muscles": m,
+                "failed_in": {
+                    r.trial.name: r.checks.get(g) or ["the channel was excluded by the EMG checks"]
+                    for r in rows
+                    if g in r.failed
+                },
+                "protocol": protos.get(g),
+            }
+            for g, m in failed.items()
+        },
+    }
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    (out / "strength.json").write_text(json.dumps(record, indent=1) + "\n")
+    lines = [profile.table(), ""]
+    lines += [f"{d.group}: {d.status} — {d.reason}" for d in diag]
+    for g, v in record["failed_channels"].items():
+        lines += [f"{g}: left out, its EMG channel failed a check in {t}: {'; '.join(w)}"
+                  for t, w in v["failed_in"].items()]  # fmt: skip
+    lines.append(f"EMG normalisation: {record['normalisation_kind']}")
+    if record["normalisation_bias"]:
+        lines.append(record["normalisation_bias"])
+    (out / "strength.txt").write_text("\n".join(lines) + "\n")
+    return record
+
+
+def _bias_clause(profile: Any, group: str) -> str:
+    """The normalisation caveat of a group whose channel is normalised to the session's peak."""
+    norm = profile.extra.get("normalisation", {}).get(group, {})
+    if norm.get("source") != "session_peak":
+        return ""
+    return (
+        "; its EMG is normalised to the session's peak, not an MVC: the activations are too "
+        "high, so the factor is low — a lower bound on the strength, by the ratio of the MVC "
+        "to the session's peak"
+    )
+
+
+def _num(x: Any) -> float | None:
+    v = float(x)
+    return v if math.isfinite(v) else None

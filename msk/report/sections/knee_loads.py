@@ -1,0 +1,53 @@
+"""Section ``knee_loads``: the tibiofemoral contact force — total, medial and lateral (two-point
+model) — predicted from the muscle forces, against the instrumented implant's measurement where
+there is one, and against the in-vivo range of walking peaks (2–3 body weights: Kutzner et al.
+2010; Fregly et al. 2012)."""
+
+from __future__ import annotations
+
+from typing import Any
+
+from msk.report.figures import KNEE_WALKING_PEAK_BW
+from msk.report.format import num
+from msk.report.sections.base import ReportContext, Section
+
+__all__ = ["KneeLoads"]
+
+
+class KneeLoads(Section):
+    key = "knee_loads"
+    title = "Knee contact force"
+    order = 50
+
+    def context(self, ctx: ReportContext) -> dict[str, Any] | None:
+        if not ctx.gait:
+            return None
+        res = ctx.res
+        na = [i for i in res.summary.not_available or () if i.stage in
+              ("knee_contact", "tension_optimization")][:1]  # fmt: skip
+        if ctx.figure("contact") is None:
+            return {"na": na, "rows": None}
+        comp = res.summary.comparison
+        rows = []
+        for v, vl in (("generic", "generic parameters"), ("subject_specific", "subject-specific")):
+            for part in ("total", "medial", "lateral"):
+                c = comp.knee_contact(v, part) if comp else None
+                if c:
+                    rows.append(
+                        [
+                            f"{vl}, {c.component}" if c.component else f"{vl}, {part}",
+                            num(c.peak_predicted_bw, ".2f", "BW"),
+                            num(c.peak_measured_bw, ".2f", "BW"),
+                            num(c.rms_bw, ".2f", "BW"),
+                            num(c.rms_n, ".0f", "N"),
+                            num(c.nrmsd_pct, ".1f", "%"),
+                            num(c.pearson_r, ".2f"),
+                            num(c.icc, ".2f"),
+                        ]
+                    )
+        lo, hi = KNEE_WALKING_PEAK_BW
+        return {
+            "na": na,
+            "rows": rows,
+            "band": f"{lo:g}–{hi:g} BW",
+        }
