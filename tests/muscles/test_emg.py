@@ -317,6 +317,8 @@ def test_a_record_shorter_than_two_strides_has_no_cycle_figure():
     x = _quantise(0.002 * _noise(int(0.9 * RATE), rng))
     q = channel_quality(x[:, None], rate_hz=RATE, labels=["a"])
     assert np.isnan(q.cycle_correlation[0]) and q.flat[0]
+
+
 def _amplifier_envelope(seed: int = 0, rest_v: float = 30e-6, amp_v: float = 60e-6):
     """An amplifier's RMS output of a 2-kHz EMG: rest level + an effort, 100-ms moving RMS,
     quantised to 2.44 µV (a 12-bit converter's step)."""

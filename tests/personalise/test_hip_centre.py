@@ -267,3 +267,49 @@ def test_functional_hip_centres_recover_a_known_centre_and_place_the_model() -> 
     _, refused = place_hip_centres(model, st, list(static), method="harrington",
                                    functional=(small, labels))  # fmt: skip
     assert refused["method"] == "harrington" and "swept" in refused["functional_refused"]
+
+
+@pytest.mark.slow
+@pytest.mark.realdata
+def test_a_functional_trial_places_the_hips_near_plug_in_gaits(real_dir: Path, tmp_path: Path):
+    """pipelines/pig_motion3.toml with PiG_Motion3_FF's walk also given as the functional
+    trial (the hips sweep ~51°): the model stage takes the functional centre over the davis
+    regression asked for, and msk's hips in the walk sit within 10 mm of Plug-in Gait's
+    <S>FEP in the pelvis frame (measured 6.3 / 4.4 mm R / L; docs/validation.md)."""
+    from msk.config import load_config
+    from msk.model.core import forward_kinematics
+    from msk.personalise.hip_centre import pelvis_frame
+    from msk.pipeline.session import run_stages
+
+    walk = real_dir / "btkdata" / "PiG_Motion3_FF.c3d"
+    if not walk.is_file():
+        pytest.skip("btkdata PiG files absent")
+    text = (
+        (ROOT / "pipelines" / "pig_motion3.toml")
+        .read_text()
+        .replace("../../shared/data/real", str(real_dir))
+    )
+    text += f'[[trials]]\nname = "func"\nfile = "{walk}"\nrole = "functional"\n'
+    cfg = tmp_path / "pig.toml"
+    cfg.write_text(text)
+    r = run_stages(load_config(cfg), until="kinematics")
+    info = r["model"].info["hip_centre"]
+    assert info["method"] == "functional" and info["requested"] == "davis"
+    assert all(info["functional"][s]["fitted"] for s in "rl")
+    model, trial, kin = r["model"].model, r["model"].trial, r["kinematics"]
+    data = model.create_data()
+    t_tr = np.asarray(trial.time, dtype=float)
+    for side in "RL":
+        d = []
+        for i, t in enumerate(kin.time[::5]):
+            j = int(np.argmin(np.abs(t_tr - t)))
+            q = kin.q[5 * i]
+            pts = [np.asarray(trial.marker(lab), dtype=float)[j]
+                   for lab in ("RASI", "LASI", "RPSI", "LPSI", f"{side}FEP")]  # fmt: skip
+            if not (np.isfinite(q).all() and np.isfinite(np.asarray(pts)).all()):
+                continue
+            forward_kinematics(model, data, q)
+            rot, _ = pelvis_frame(PelvisLandmarks(pts[0], pts[1], 0.5 * (pts[2] + pts[3])))
+            hip = np.asarray(data.oMf[model.body_frame[f"femur_{side.lower()}"]].translation)
+            d.append(rot.T @ (pts[4] - hip))
+        assert np.linalg.norm(np.median(np.asarray(d), axis=0)) < 0.010, side
