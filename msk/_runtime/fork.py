@@ -1,7 +1,8 @@
 """Half of a job in a forked child while the caller does the other half (a second free CPU).
 
 Used where one session spends most of its wall time in independent pieces of pure Python or
-GIL-holding native work: threads would not run them side by side, a forked child does, with the parent's imports and data already in place (~10 ms to fork).
+GIL-holding native work: threads would not run them side by side, a forked child does, with
+the parent's imports and data already in place (~10 ms to fork).
 Nothing changes in the results: the child computes exactly what the caller would have (same
 code, same data, same BLAS thread count), pickles it into a pipe, and the caller falls back to
 computing it itself if the child fails in any way.
