@@ -428,6 +428,13 @@ class ContactConfig:
         unit="m",
         bounds=Range(0.0, 0.08),
     )
+    patella: str = opt(
+        'how the quadriceps load the tibia: along the model\'s own paths ("none") or through '
+        "the patellar tendon at van Eijden et al. (1985)'s angle, with the quadriceps' knee "
+        'moment ("tendon", msk.contact.patella)',
+        "none",
+        choices=("none", "tendon"),
+    )
 
 
 @dataclass(frozen=True, kw_only=True)

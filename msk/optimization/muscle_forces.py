@@ -275,6 +275,7 @@ class KneeCompartments:
     plan: Any
     kinematics: Any
     external: Any
+    patella: bool = False
 
     def rows(
         self, model: Any, fr: np.ndarray, names: tuple[str, ...], keep: np.ndarray | None = None
@@ -291,9 +292,14 @@ class KneeCompartments:
             self.kinematics.q[fr], distal_wrench_joints=(self.joint,), compact=True
         )
         ext = None if self.external is None else self.external.take(fr)
+        tendon = None
+        if self.patella:
+            from msk.contact.patella import patellar_tendon
+
+            tendon = patellar_tendon(model, joint=self.joint)
         cmap = compartment_force_map(
             model, self.kinematics.take(fr), ext, joint=self.joint, geometry=self.geometry,
-            distal_wrenches=w.distal_wrenches[self.joint],
+            distal_wrenches=w.distal_wrenches[self.joint], patella=tendon,
         )  # fmt: skip
         if cmap.muscle_names != tuple(names):
             raise NotAvailableError("compartment rows: muscle order differs from the QP's")
@@ -312,17 +318,20 @@ class KneeCompartments:
 
 
 def knee_compartments(
-    model: Any, kinematics: Any, external: Any, *, joint: str, plateau: Any
+    model: Any, kinematics: Any, external: Any, *, joint: str, plateau: Any, patella: bool = False
 ) -> KneeCompartments:
     """The knee compartment rows F_M(f) ≥ 0, F_L(f) ≥ 0 of ``joint`` with its two contact points
     ``plateau`` (:func:`msk.contact.knee.plateau_geometry`, as the knee contact's split places
     them), evaluated on ``kinematics`` and ``external`` (:class:`NotAvailableError` when the model
-    has no such joint)."""
+    has no such joint). ``patella``: the quadriceps load the knee through the patellar tendon
+    (:mod:`msk.contact.patella`), as the knee contact does."""
     from msk.muscles.geometry import geometry_plan
 
     if joint not in {j.name for j in model.joints}:
         raise NotAvailableError(f"compartment_nonnegative: model has no joint {joint!r}")
-    return KneeCompartments(joint, plateau, geometry_plan(model), kinematics, external)
+    return KneeCompartments(
+        joint, plateau, geometry_plan(model), kinematics, external, patella=patella
+    )
 
 
 @dataclass(frozen=True)
@@ -381,6 +390,7 @@ def solve_muscle_forces(
     emg_channels: Mapping[str, str] | None = None,
     knee_joint: str | None = None,
     knee_plateau: Any = None,
+    knee_patella: bool = False,
     forces_only: bool = False,
     on_block: Callable[[np.ndarray, np.ndarray], None] | None = None,
     kinematics: Any = None,
@@ -410,7 +420,8 @@ def solve_muscle_forces(
     and ``knee_plateau`` (its two contact points): needed with ``options.compartment_nonnegative``,
     which adds to every frame's QP the rows F_M(f) ≥ 0 and F_L(f) ≥ 0 of that knee
     (:func:`knee_compartments`), each with a frontal reserve moment ≥ 0 priced as a coordinate
-    reserve.
+    reserve. ``knee_patella``: those rows with the quadriceps acting through the patellar
+    tendon (:mod:`msk.contact.patella`), as ``[contact] patella = "tendon"`` has the contact.
 
     ``unbalanced`` (N, coordinates of ``torques``; the loads stage's,
     :meth:`msk.pipeline.loads.Loads.unbalanced_for`): per frame the coordinates whose torque
@@ -505,8 +516,9 @@ def solve_muscle_forces(
         if kinematics is None or knee_joint is None:
             raise NotAvailableError("compartment_nonnegative needs the kinematics, loads and knee")
         comp = knee_compartments(
-            model, kinematics, external, joint=knee_joint, plateau=knee_plateau
-        )
+            model, kinematics, external, joint=knee_joint, plateau=knee_plateau,
+            patella=knee_patella,
+        )  # fmt: skip
     frontal = None if comp is None else np.full((time.size, 2), np.nan)
     # per pattern: whether the compartment rows' knee is left out (a coordinate between its
     # tibia and the root is): no frontal reserve or peak from such a frame

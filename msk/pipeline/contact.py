@@ -33,10 +33,12 @@ class _VariantArrays:
     filled block by block of frames (:func:`msk.contact.knee.knee_contact_force`,
     :func:`msk.contact.knee.split_medial_lateral`)."""
 
-    def __init__(self, model: Any, geo: Any, kin: Any, external: Any, joint: str) -> None:
+    def __init__(
+        self, model: Any, geo: Any, kin: Any, external: Any, joint: str, patella: Any = None
+    ) -> None:
         n = kin.time.size
-        self.model, self.geo, self.kin, self.external, self.joint = (
-            model, geo, kin, external, joint,
+        self.model, self.geo, self.kin, self.external, self.joint, self.patella = (
+            model, geo, kin, external, joint, patella,
         )  # fmt: skip
         self.force = np.full((n, 3), np.nan)
         self.medial = np.full(n, np.nan)
@@ -58,7 +60,7 @@ class _VariantArrays:
             return
         contact = knee_contact_force(
             self.model, self.kin.take(fr), self.external.take(fr), muscle_forces=forces,
-            muscle_names=tuple(names), joint=self.joint, distal_wrenches=w,
+            muscle_names=tuple(names), joint=self.joint, distal_wrenches=w, patella=self.patella,
         )  # fmt: skip
         self.force[fr] = contact.force
         ml = split_medial_lateral(contact, self.geo)
@@ -76,6 +78,7 @@ def settings(inputs: SessionInputs) -> Any:
         "contact": inputs.hashes.get("contact_force"),
         "icd": inputs.cfg.contact.intercondylar_distance_m,
         "depth": inputs.cfg.contact.plateau_depth_m,
+        "patella": inputs.cfg.contact.patella,
     }
 
 
@@ -112,8 +115,13 @@ def run(
             ]
         )
 
+    tendon = inputs.cfg.contact.patella == "tendon"
+
     def variant(m: Any) -> _VariantArrays:
-        return _VariantArrays(m, inputs.knee_plateau(m, joint), kin, loads.external, joint)
+        from msk.contact.patella import patellar_tendon
+
+        pt = patellar_tendon(m, joint=joint) if tendon else None
+        return _VariantArrays(m, inputs.knee_plateau(m, joint), kin, loads.external, joint, pt)
 
     gen_forces, names = tension_optimization.forces, tension_optimization.muscles
     # frames without the knee's muscle forces get no contact force (never zero muscle force;
@@ -160,5 +168,6 @@ def run(
         "intercondylar_distance_m": geo.intercondylar_distance_m,
         "centre_m": list(geo.centre_m),
         "source": geo.source,
+        "patella": inputs.cfg.contact.patella,
     }
     return KneeContact(joint, out, plateau, measured_contact)
