@@ -370,6 +370,14 @@ class OptimizationConfig:
         1.0,
         bounds=_POSITIVE,
     )
+    emg_gains: str = opt(
+        "emg_assisted: one EMG-to-activation gain per channel, or one gain common to every "
+        "channel (each envelope normalised per channel, by its MVC or session peak: the "
+        "channels keep their relative levels, so antagonists' measured activity is tracked "
+        "rather than fitted away; Lloyd & Besier 2003)",
+        "per_channel",
+        choices=("per_channel", "common"),
+    )
     compartment_nonnegative: bool = opt(
         "static_optimization, emg_assisted, emg_weighted, bounded_qp: require the medial and "
         "lateral contact forces of the side's knee (the [contact] two-point split) to be ≥ 0 "

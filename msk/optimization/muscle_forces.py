@@ -227,17 +227,25 @@ def _emg_gains(
     weights: np.ndarray | None,
     reserves: np.ndarray,
     coordinate_names: tuple[str, ...],
+    common: bool = False,
 ) -> Any:
-    """One EMG-to-activation gain per EMG channel of ``emg_assisted``, fitted jointly with the
+    """One EMG-to-activation gain per EMG channel of ``emg_assisted`` (``common``: one gain
+    shared by every channel, ``[optimization] emg_gains = "common"``), fitted jointly with the
     activations on these frames' torques (:func:`msk.strength.fit_emg_gains`); only channels
     with signal on these frames take part (None when no channel has: the criterion is then
-    static optimisation with exponent 2)."""
+    static optimisation with exponent 2).
+
+    Per channel, the joint minimum sets an antagonist's gain to the least-squares scale of the
+    activation the torques need from it — near 0, since no torque needs co-contraction — so
+    its measured activity is discarded. One common gain is fixed by the agonists and keeps
+    each channel's normalised level (Lloyd & Besier 2003, J Biomech 36:765: per-channel
+    normalisation, shared activation parameters)."""
     from msk.strength import fit_emg_gains
 
     groups: dict[str, list[str]] = {}
     for k, n in enumerate(names):
         if measured[k] and np.any(emg_act[:, k] > 0):
-            groups.setdefault(channels[n], []).append(n)
+            groups.setdefault("all" if common else channels[n], []).append(n)
     if not groups:
         return None
     return fit_emg_gains(
@@ -544,7 +552,7 @@ def solve_muscle_forces(
             jacobian_frames(geometry.jacobian, fit_fr, act_idx),
             np.where(drop_c[gone], 0.0, torques.tau[fit_fr][:, act_idx]), fa, fp,
             np.where(drop_m[gone], 0.0, emg_reference(fit_fr)), meas, params.names, weights,
-            reserves, cn,
+            reserves, cn, common=opt.emg_gains == "common",
         )  # fmt: skip
         del fa, fp
         if gain_fit is not None:  # the fit's last a-step (its frames' solution) is not read
