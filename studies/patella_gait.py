@@ -1,11 +1,14 @@
 """The patellar tendon (``[contact] patella = "tendon"``) against the models' own quadriceps
-paths (``"none"``) on every Grand Challenge gait trial with a measured contact force (PS ss1,
-ss3, ss8; DM og1, og3, og4; JW og3), the shipped configs with only the task files swapped
-(:mod:`studies.contact_validation`), spline knee. Prints per trial and setting the like
-component's RMSE (BW) and Pearson r: PS's eTibia total (a magnitude), DM's medial + lateral and
-JW's load cells (axial), and the medial / lateral forces where measured.
+paths (``"none"``), and the common EMG gain (``[optimization] emg_gains = "common"``) against
+one gain per channel, on every Grand Challenge gait trial with a measured contact force (PS ss1,
+ss3, ss8; DM og1, og3, og4; JW og3): the shipped configs with only the task files swapped
+(:mod:`studies.contact_validation`), spline knee. Prints per trial and setting the compared
+component's RMSE (BW) and Pearson r (PS: the eTibia total, a magnitude; DM: medial + lateral,
+axial; JW: the load cells, axial), the medial and lateral ones where measured, and the lateral
+share Σ F_L / Σ (F_M + F_L) over the frames whose measured medial + lateral force exceeds
+0.5 BW (stance), predicted / measured.
 
-    python studies/patella_gait.py [--only gc5_PS] [--out FILE]
+    python studies/patella_gait.py [--only gc5_PS] [--variants none,tendon] [--out FILE]
 """
 
 from __future__ import annotations
@@ -15,12 +18,45 @@ import sys
 import tempfile
 from pathlib import Path
 
+import numpy as np
+
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from contact_validation import TRIALS, _config
 
+#: variant → (patella, emg_gains)
+VARIANTS = {
+    "none": ("none", None),
+    "tendon": ("tendon", None),
+    "tendon+common": ("tendon", "common"),
+    "none+common": ("none", "common"),
+}
 
-def _patella(mode: str):
-    return lambda text: text + f'\n[contact]\npatella = "{mode}"\n'
+
+def _edit(patella: str, gains: str | None):
+    def edit(text: str) -> str:
+        if gains is not None:
+            text = text.replace("[optimization]\n", f'[optimization]\nemg_gains = "{gains}"\n', 1)
+        return text + f'\n[contact]\npatella = "{patella}"\n'
+
+    return edit
+
+
+def _share(res) -> str:
+    if not res.has("knee_contact"):
+        return "—"
+    kc = res.table("knee_contact")
+    cols = kc.columns
+    if "measured_medial_bw" not in cols or "measured_lateral_bw" not in cols:
+        return "—"
+    col = kc.column if hasattr(kc, "column") else None
+    get = (lambda c: np.asarray(col(c), float)) if col else (
+        lambda c: np.asarray(kc.values[:, cols.index(c)], float))  # fmt: skip
+    mm, ml = get("measured_medial_bw"), get("measured_lateral_bw")
+    pm, pl = get("generic_medial_bw"), get("generic_lateral_bw")
+    ok = np.isfinite(mm + ml + pm + pl) & (mm + ml > 0.5)
+    if not ok.any():
+        return "—"
+    return f"{pl[ok].sum() / (pm[ok] + pl[ok]).sum():.2f} / {ml[ok].sum() / (mm[ok] + ml[ok]).sum():.2f}"
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -28,13 +64,14 @@ def main(argv: list[str] | None = None) -> int:
 
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("--only", default="", help="comma-separated config names")
+    p.add_argument("--variants", default="none,tendon")
     p.add_argument("--out", type=Path)
     args = p.parse_args(argv)
     only = [s for s in args.only.split(",") if s]
     rows = [
-        "| subject | trial | patella | total RMSE (BW) | total r | peak pred / meas (BW) "
-        "| medial RMSE | medial r | lateral RMSE | lateral r |",
-        "| --- | --- | --- | --- | --- | --- | --- | --- | --- | --- |",
+        "| subject | trial | variant | total RMSE (BW) | total r | peak pred / meas (BW) "
+        "| medial RMSE | medial r | lateral RMSE | lateral r | lateral share pred / meas |",
+        "| --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- |",
     ]
     with tempfile.TemporaryDirectory() as tmp:
         folder = Path(tmp)
@@ -42,9 +79,10 @@ def main(argv: list[str] | None = None) -> int:
             if only and name not in only:
                 continue
             for trial, swap in trials:
-                for mode in ("none", "tendon"):
-                    cfg = _config(name, swap, "spline", folder, _patella(mode), mode)
-                    (res,) = run_task_trials(cfg, folder / f"{name}_{trial}_{mode}")
+                for tag in args.variants.split(","):
+                    patella, gains = VARIANTS[tag]
+                    cfg = _config(name, swap, "spline", folder, _edit(patella, gains), tag)
+                    (res,) = run_task_trials(cfg, folder / f"{name}_{trial}_{tag}")
                     comp = res.summary.to_dict()["comparison"] or {}
                     cells = []
                     for part in ("", "_medial", "_lateral"):
@@ -56,7 +94,8 @@ def main(argv: list[str] | None = None) -> int:
                                 if c
                                 else "—"
                             )
-                    rows.append(f"| {name.split('_')[1]} | {trial} | {mode} | " + " | ".join(cells)
+                    cells.append(_share(res))
+                    rows.append(f"| {name.split('_')[1]} | {trial} | {tag} | " + " | ".join(cells)
                                 + " |")  # fmt: skip
                     print(rows[-1], flush=True)
     text = "\n".join(rows) + "\n"

@@ -444,7 +444,7 @@ def _through_patella(
     patella: PatellarTendon,
     joint: str,
     th: Array,
-    idx: Array,
+    idx: NDArray[np.intp],
     w: Array,
     tree: _DistalTree,
     st: _ChainStates,
