@@ -41,22 +41,28 @@ def _edit(patella: str, gains: str | None):
     return edit
 
 
-def _share(res) -> str:
+def _share(run) -> str:
+    from msk.results.folder import read_session
+
+    res = read_session(run.out_dir)
     if not res.has("knee_contact"):
         return "—"
     kc = res.table("knee_contact")
     cols = kc.columns
     if "measured_medial_bw" not in cols or "measured_lateral_bw" not in cols:
         return "—"
-    col = kc.column if hasattr(kc, "column") else None
-    get = (lambda c: np.asarray(col(c), float)) if col else (
-        lambda c: np.asarray(kc.values[:, cols.index(c)], float))  # fmt: skip
+
+    def get(c: str) -> np.ndarray:
+        return np.asarray(kc.column(c), dtype=float)
+
     mm, ml = get("measured_medial_bw"), get("measured_lateral_bw")
     pm, pl = get("generic_medial_bw"), get("generic_lateral_bw")
     ok = np.isfinite(mm + ml + pm + pl) & (mm + ml > 0.5)
     if not ok.any():
         return "—"
-    return f"{pl[ok].sum() / (pm[ok] + pl[ok]).sum():.2f} / {ml[ok].sum() / (mm[ok] + ml[ok]).sum():.2f}"
+    pred = pl[ok].sum() / (pm[ok] + pl[ok]).sum()
+    meas = ml[ok].sum() / (mm[ok] + ml[ok]).sum()
+    return f"{pred:.2f} / {meas:.2f}"
 
 
 def main(argv: list[str] | None = None) -> int:
