@@ -23,17 +23,21 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from contact_validation import TRIALS, _config
 
-#: variant → (patella, emg_gains)
+#: variant → (patella, emg_gains, compartments held ≥ 0 as shipped)
 VARIANTS = {
-    "none": ("none", None),
-    "tendon": ("tendon", None),
-    "tendon+common": ("tendon", "common"),
-    "none+common": ("none", "common"),
+    "none": ("none", None, True),
+    "tendon": ("tendon", None, True),
+    "tendon+common": ("tendon", "common", True),
+    "none+common": ("none", "common", True),
+    "none-free": ("none", None, False),
+    "tendon-free": ("tendon", None, False),
 }
 
 
-def _edit(patella: str, gains: str | None):
+def _edit(patella: str, gains: str | None, held: bool):
     def edit(text: str) -> str:
+        if not held:
+            text = text.replace("compartment_nonnegative = true", "compartment_nonnegative = false")
         if gains is not None:
             text = text.replace("[optimization]\n", f'[optimization]\nemg_gains = "{gains}"\n', 1)
         return text + f'\n[contact]\npatella = "{patella}"\n'
@@ -70,7 +74,8 @@ def main(argv: list[str] | None = None) -> int:
 
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("--only", default="", help="comma-separated config names")
-    p.add_argument("--variants", default="none,tendon")
+    p.add_argument("--variants", default="none,tendon", help="comma-separated VARIANTS keys")
+    p.add_argument("--trials", default="", help="comma-separated trial names (e.g. og1)")
     p.add_argument("--out", type=Path)
     args = p.parse_args(argv)
     only = [s for s in args.only.split(",") if s]
@@ -85,9 +90,10 @@ def main(argv: list[str] | None = None) -> int:
             if only and name not in only:
                 continue
             for trial, swap in trials:
+                if args.trials and trial not in args.trials.split(","):
+                    continue
                 for tag in args.variants.split(","):
-                    patella, gains = VARIANTS[tag]
-                    cfg = _config(name, swap, "spline", folder, _edit(patella, gains), tag)
+                    cfg = _config(name, swap, "spline", folder, _edit(*VARIANTS[tag]), tag)
                     (res,) = run_task_trials(cfg, folder / f"{name}_{trial}_{tag}")
                     comp = res.summary.to_dict()["comparison"] or {}
                     cells = []
