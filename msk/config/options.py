@@ -440,7 +440,7 @@ class ContactConfig:
         'how the quadriceps load the tibia: along the model\'s own paths ("none") or through '
         "the patellar tendon at van Eijden et al. (1985)'s angle, with the quadriceps' knee "
         'moment ("tendon", msk.contact.patella; the default, chosen on the Grand Challenge walks: '
-        'docs/validation.md)',
+        "docs/validation.md)",
         "tendon",
         choices=("none", "tendon"),
     )
