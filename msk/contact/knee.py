@@ -456,8 +456,12 @@ def _through_patella(
         raise ModelError(f"patellar tendon of {patella.joint!r} given for knee {joint!r}")
     r_t, p_t = _plateau_placement(tree, st, None)
     out = np.array(w, dtype=float, copy=True)
-    knee = th[idx, model.coordinate_index(patella.coordinate)]
-    out[idx] = patella.substitute(knee, out[idx], r_t, p_t)
+    ci = model.coordinate_index(patella.coordinate)
+    # the quadriceps' moment arms as the muscle forces were solved with them (moving points
+    # included): one geometry pass of these frames
+    jac = np.asarray(geometry_plan(model).evaluate(th[idx]).jacobian)
+    dl = jac[:, list(patella.muscles), ci]
+    out[idx] = patella.substitute(th[idx, ci], out[idx], r_t, p_t, dl)
     return out
 
 

@@ -34,12 +34,14 @@ whose ratio F_PT/F_Q is the quadriceps' effective moment arm over the tendon's):
 
     F_PT,i = ρ_i F_i,     ρ_i = −(∂l_i/∂θ) / (e · v_T)
 
-where ∂l_i/∂θ = (∂l_i/∂ξ) · S is muscle i's length Jacobian on the knee coordinate (its
-distal unit wrench ∂l_i/∂ξ of :func:`msk.contact.knee.muscle_distal_wrenches` on the knee's
-twist S: tibia relative to femur per unit θ̇), and e · v_T, with v_T = v_O + ω × T the velocity
-of T for that twist, is the tendon's moment arm on θ. ρ therefore carries the model's own
-quadriceps moment arm (so the muscle forces still balance the inverse-dynamics knee moment) and
-the published tendon geometry; it is clipped at 0 where the two disagree in sign.
+where ∂l_i/∂θ is muscle i's length Jacobian on the knee coordinate — the moment arm the muscle
+forces were solved with, including gait2392's moving path points (whose own motion a rigid
+unit wrench ∂l_i/∂ξ does not see: on gait2392 (∂l/∂ξ)·S is 67 mm at 0° and 46 mm at 90°
+where ∂l/∂θ is 50 and 27 mm) — and e · v_T, with v_T = v_O + ω × T the velocity of T for the
+knee's twist S (tibia relative to femur per unit θ̇), is the tendon's moment arm on θ. ρ
+therefore carries the model's own quadriceps moment arm (the muscle forces still balance the
+inverse-dynamics knee moment) and the published tendon geometry; it is clipped at 0 where the
+two disagree in sign. On gait2392 it is 0.66 at 90°, van Eijden et al. (1986)'s order.
 
 **Contact.** In the knee's free-body diagram (:mod:`msk.contact.knee`) each quadriceps' distal
 unit wrench ∂l_i/∂ξ is replaced by the tendon's, ``−ρ_i (e, T × e)`` (world axes, moment about
@@ -147,14 +149,16 @@ class PatellarTendon:
         s = np.stack([np.interp(th, self.grid, self.twist[:, c]) for c in range(6)], axis=-1)
         return phi, e, s
 
-    def ratio(self, theta: ArrayLike, wrench_tibia: ArrayLike) -> Array:
-        """ρ (N, K) = −(∂l/∂θ)/(e · v_T) for unit wrenches ∂l/∂ξ (N, K, 6) in tibia axes
-        (force, moment about the tibia origin), clipped at 0."""
+    def moment_arm(self, theta: ArrayLike) -> Array:
+        """(N,) the tendon's moment arm on the knee coordinate, e · v_T (m per rad)."""
         _, e, s = self.at(theta)
-        w = np.asarray(wrench_tibia, dtype=float)
-        dl = np.einsum("nkc,nc->nk", w[..., :3], s[:, :3]) + np.einsum(
-            "nkc,nc->nk", w[..., 3:], s[:, 3:]
-        )
+        return np.einsum("nc,nc->n", e, s[:, :3] + np.cross(s[:, 3:], self.insertion_m))
+
+    def ratio(self, theta: ArrayLike, length_jacobian: ArrayLike) -> Array:
+        """ρ (N, K) = −(∂l/∂θ)/(e · v_T) for the quadriceps' length Jacobian on the knee
+        coordinate ``length_jacobian`` (N, K), clipped at 0."""
+        _, e, s = self.at(theta)
+        dl = np.asarray(length_jacobian, dtype=float)
         v_t = s[:, :3] + np.cross(s[:, 3:], self.insertion_m)
         arm = np.einsum("nc,nc->n", e, v_t)
         with np.errstate(divide="ignore", invalid="ignore"):
@@ -162,11 +166,12 @@ class PatellarTendon:
         return np.where(np.isfinite(rho), np.maximum(rho, 0.0), 0.0)
 
     def substitute(self, theta: ArrayLike, distal_wrenches: ArrayLike, rot: ArrayLike,
-                   origin: ArrayLike) -> Array:  # fmt: skip
+                   origin: ArrayLike, length_jacobian: ArrayLike) -> Array:  # fmt: skip
         """The distal unit wrenches (N, K, 6; world axes, moment about the world origin) with
         each quadriceps' row replaced by its tendon's ``−ρ_i (e, T × e)``, for tibia
-        placements ``rot`` (N, 3, 3) and ``origin`` (N, 3) and knee coordinate ``theta``
-        (N,). Rows of other muscles are returned unchanged."""
+        placements ``rot`` (N, 3, 3) and ``origin`` (N, 3), knee coordinate ``theta`` (N,)
+        and the quadriceps' length Jacobian on it ``length_jacobian`` (N, len(muscles)).
+        Rows of other muscles are returned unchanged."""
         w = np.array(distal_wrenches, dtype=float, copy=True)
         r = np.asarray(rot, dtype=float)
         p = np.asarray(origin, dtype=float)
@@ -179,10 +184,7 @@ class PatellarTendon:
         if not self.muscles or not n:
             return w
         q = list(self.muscles)
-        f_w, m_w = w[:, q, :3], w[:, q, 3:]
-        f_t = np.einsum("nji,nkj->nki", r, f_w)
-        m_t = np.einsum("nji,nkj->nki", r, m_w - np.cross(p[:, None, :], f_w))
-        rho = self.ratio(theta, np.concatenate([f_t, m_t], axis=-1))
+        rho = self.ratio(theta, length_jacobian)
         _, e, _ = self.at(theta)
         e_w = np.einsum("nij,nj->ni", r, e)
         t_w = p + np.einsum("nij,j->ni", r, self.insertion_m)

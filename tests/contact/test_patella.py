@@ -154,3 +154,46 @@ def test_the_left_knee_mirrors_the_insertion_and_errors_are_typed() -> None:
     with pytest.raises(ModelError, match="given for knee"):
         knee_contact_force(other, _static(other, -0.5), muscle_forces=np.zeros((3, 2)),
                            joint="knee_l", variant="quasi_static", patella=pt)  # fmt: skip
+
+
+@pytest.mark.parametrize("source", ["gait2392", "gait2392_fourbar"])
+def test_gait2392_knees_keep_the_quadriceps_knee_moment(source: str) -> None:
+    """Spline and four-bar knee: the substituted unit wrenches project on the knee's twist as
+    the quadriceps' length Jacobian ∂l/∂θ (their moment arm with gait2392's moving points,
+    which the muscle forces balance), other rows untouched; the tendon's moment arm falls from
+    about 65 to 40 mm over 0–100° and ρ from about 0.75 to 0.65 (van Eijden et al. 1986's
+    order)."""
+    from msk.contact.knee import (
+        _chain_states,
+        _distal_tree,
+        _plateau_placement,
+        muscle_distal_wrenches,
+    )
+    from msk.model.files import load_model
+    from msk.muscles.geometry import muscle_geometry
+
+    model = load_model(source)
+    pt = patellar_tendon(model, joint="knee_r")
+    assert set(pt.muscle_names) == {"rect_fem_r", "vas_med_r", "vas_int_r", "vas_lat_r"}
+    ci = model.coordinate_index("knee_angle_r")
+    knee = np.radians([0.0, -45.0, -90.0, -100.0])
+    th = np.tile(model.default_coordinates(), (knee.size, 1))
+    th[:, ci] = knee
+    q = list(pt.muscles)
+    jac = np.asarray(muscle_geometry(model, th).jacobian)[:, q, ci]
+    w = muscle_distal_wrenches(model, th, joint="knee_r")
+    tree = _distal_tree(model, "knee_r")
+    r, p = _plateau_placement(tree, _chain_states(model, tree, th, None, None), None)
+    w2 = pt.substitute(knee, w, r, p, jac)
+    _, _, s = pt.at(knee)
+    # the knee twist in world axes about the world origin: ω_w = R ω, v_O = R v − ω_w × p
+    om = np.einsum("nij,nj->ni", r, s[:, 3:])
+    v0 = np.einsum("nij,nj->ni", r, s[:, :3]) - np.cross(om, p)
+    proj2 = np.einsum("nkc,nc->nk", w2[..., :3], v0) + np.einsum("nkc,nc->nk", w2[..., 3:], om)
+    np.testing.assert_allclose(proj2[:, q], jac, atol=1e-9)
+    other = [k for k in range(w.shape[1]) if k not in q]
+    np.testing.assert_array_equal(w2[:, other], w[:, other])
+    arm = pt.moment_arm(knee)
+    assert 0.060 < arm[0] < 0.072 and 0.035 < arm[-1] < 0.045
+    rho = pt.ratio(knee, jac)
+    assert np.all((rho > 0.55) & (rho < 0.85)), rho
