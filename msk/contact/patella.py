@@ -41,7 +41,7 @@ where ∂l/∂θ is 50 and 27 mm) — and e · v_T, with v_T = v_O + ω × T the
 knee's twist S (tibia relative to femur per unit θ̇), is the tendon's moment arm on θ. ρ
 therefore carries the model's own quadriceps moment arm (the muscle forces still balance the
 inverse-dynamics knee moment) and the published tendon geometry; it is clipped at 0 where the
-two disagree in sign. On gait2392 it is 0.66 at 90°, van Eijden et al. (1986)'s order.
+two disagree in sign. On gait2392 it is 0.64–0.70 at 90° and 0.64–0.74 at 0°.
 
 **Contact.** In the knee's free-body diagram (:mod:`msk.contact.knee`) each quadriceps' distal
 unit wrench ∂l_i/∂ξ is replaced by the tendon's, ``−ρ_i (e, T × e)`` (world axes, moment about
