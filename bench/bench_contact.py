@@ -119,11 +119,12 @@ def main() -> None:
         return split_medial_lateral(c, geo)
 
     tendon = patellar_tendon(model, joint=JOINT)
+    knee_jac = np.asarray(geom.jacobian)[:, :, model.coordinate_index(tendon.coordinate)]
 
     def contact_patella() -> Any:
         c = knee_contact_force(
             model, kin, loads, muscle_forces=forces, joint=JOINT, distal_wrenches=wrenches,
-            patella=tendon,
+            patella=tendon, knee_jacobian=knee_jac,
         )  # fmt: skip
         return split_medial_lateral(c, geo)
 

@@ -290,6 +290,7 @@ def knee_contact_force(
     plan: GeometryPlan | None = None,
     distal_wrenches: ArrayLike | None = None,
     patella: PatellarTendon | None = None,
+    knee_jacobian: ArrayLike | None = None,
 ) -> KneeContact:
     """Tibiofemoral contact force per frame (see the module docstring, the rehabilitation-robot
     lower-limb model paper, §2.1).
@@ -320,6 +321,9 @@ def knee_contact_force(
         patella: the quadriceps act on the tibia through this patellar tendon
             (:mod:`msk.contact.patella`: their unit wrenches replaced by the tendon's);
             ``None``: along their own paths.
+        knee_jacobian: with ``patella``, the muscles' length Jacobian on the knee coordinate
+            (N, n_muscles), model order (the geometry stage's, as the muscle forces were
+            solved with it); default: one geometry pass on ``kinematics.q``.
 
     Returns:
         :class:`KneeContact`; frames whose kinematics are NaN are NaN.
@@ -327,7 +331,7 @@ def knee_contact_force(
     return _knee_contact(
         model, kinematics, loads, muscle_forces=muscle_forces, muscle_names=muscle_names,
         joint=joint, plateau_offset=plateau_offset, body_mass_kg=body_mass_kg, variant=variant,
-        plan=plan, distal_wrenches=distal_wrenches, patella=patella,
+        plan=plan, distal_wrenches=distal_wrenches, patella=patella, knee_jacobian=knee_jacobian,
     )[0]  # fmt: skip
 
 
@@ -345,6 +349,7 @@ def _knee_contact(
     plan: GeometryPlan | None = None,
     distal_wrenches: ArrayLike | None = None,
     patella: PatellarTendon | None = None,
+    knee_jacobian: ArrayLike | None = None,
 ) -> tuple[KneeContact, Array, Array]:
     """:func:`knee_contact_force` and the plateau frame's world rotation (N, 3, 3) and origin
     (N, 3) it computed (NaN on the frames it did not: non-finite kinematics)."""
@@ -409,7 +414,7 @@ def _knee_contact(
         moment_w[idx] = wr[:, 3:]
         rot[idx], origin[idx] = _plateau_placement(tree, st, plateau_offset)
         if patella is not None and w is not None:
-            w = _through_patella(model, patella, joint, th, idx, w, tree, st)
+            w = _through_patella(model, patella, joint, th, idx, w, tree, st, knee_jacobian)
     if with_muscles and f is not None and w is not None:
         add = np.einsum("nm,nmc->nc", np.nan_to_num(f), w)
         add[~np.isfinite(f).all(axis=1)] = np.nan
@@ -448,6 +453,7 @@ def _through_patella(
     w: Array,
     tree: _DistalTree,
     st: _ChainStates,
+    knee_jacobian: ArrayLike | None = None,
 ) -> Array:
     """``w`` with the quadriceps' unit wrenches on frames ``idx`` replaced by the patellar
     tendon's (:meth:`msk.contact.patella.PatellarTendon.substitute`, tibia placement from the
@@ -458,9 +464,18 @@ def _through_patella(
     out = np.array(w, dtype=float, copy=True)
     ci = model.coordinate_index(patella.coordinate)
     # the quadriceps' moment arms as the muscle forces were solved with them (moving points
-    # included): one geometry pass of these frames
-    jac = np.asarray(geometry_plan(model).evaluate(th[idx]).jacobian)
-    dl = jac[:, list(patella.muscles), ci]
+    # included): given, or one geometry pass of these frames
+    if knee_jacobian is None:
+        dl = np.asarray(geometry_plan(model).evaluate(th[idx]).jacobian)[:, :, ci]
+    else:
+        dl = np.asarray(knee_jacobian, dtype=float)
+        if dl.shape != (th.shape[0], len(model.muscles)):
+            raise ShapeMismatchError(
+                f"knee Jacobian {dl.shape} must be (frames {th.shape[0]}, muscles "
+                f"{len(model.muscles)})"
+            )
+        dl = dl[idx]
+    dl = dl[:, list(patella.muscles)]
     out[idx] = patella.substitute(th[idx, ci], out[idx], r_t, p_t, dl)
     return out
 
@@ -957,6 +972,7 @@ def compartment_force_map(
     plan: GeometryPlan | None = None,
     distal_wrenches: ArrayLike | None = None,
     patella: PatellarTendon | None = None,
+    knee_jacobian: ArrayLike | None = None,
 ) -> CompartmentMap:
     """The medial/lateral compartment forces of ``joint`` as affine functions of the muscle
     tensions (:class:`CompartmentMap`), all frames at once.
@@ -967,7 +983,8 @@ def compartment_force_map(
     ``offset + gain · f`` equals the split of :func:`knee_contact_force` with tensions f to
     round-off (tested). Arguments as :func:`knee_contact_force`; ``distal_wrenches`` (N, K, 6)
     from the geometry pass, or computed here; ``patella``: the quadriceps' rows through the
-    patellar tendon (:mod:`msk.contact.patella`). Frames with non-finite kinematics are NaN.
+    patellar tendon (:mod:`msk.contact.patella`; ``knee_jacobian`` as in
+    :func:`knee_contact_force`). Frames with non-finite kinematics are NaN.
     """
     geo = PlateauGeometry() if geometry is None else geometry
     contact, rot, origin = _knee_contact(
@@ -992,7 +1009,7 @@ def compartment_force_map(
             tree_p = _distal_tree(model, joint)
             w = _through_patella(
                 model, patella, joint, th, fin, w, tree_p,
-                _chain_states(model, tree_p, th[fin], None, None),
+                _chain_states(model, tree_p, th[fin], None, None), knee_jacobian,
             )  # fmt: skip
     # the plateau frame as the contact computed it; its forward kinematics again only on the
     # frames it left out with finite positions (non-finite velocities of the "full" variant)

@@ -300,14 +300,15 @@ class KneeCompartments:
             self.kinematics.q[fr], distal_wrench_joints=(self.joint,), compact=True
         )
         ext = None if self.external is None else self.external.take(fr)
-        tendon = None
+        tendon = jk = None
         if self.patella:
             from msk.contact.patella import patellar_tendon
 
             tendon = patellar_tendon(model, joint=self.joint)
+            jk = np.asarray(w.jacobian[:])[:, :, model.coordinate_index(tendon.coordinate)]
         cmap = compartment_force_map(
             model, self.kinematics.take(fr), ext, joint=self.joint, geometry=self.geometry,
-            distal_wrenches=w.distal_wrenches[self.joint], patella=tendon,
+            distal_wrenches=w.distal_wrenches[self.joint], patella=tendon, knee_jacobian=jk,
         )  # fmt: skip
         if cmap.muscle_names != tuple(names):
             raise NotAvailableError("compartment rows: muscle order differs from the QP's")

@@ -44,7 +44,10 @@ class _VariantArrays:
         self.medial = np.full(n, np.nan)
         self.lateral = np.full(n, np.nan)
 
-    def fill(self, fr: np.ndarray, forces: np.ndarray, w: np.ndarray, names: Any) -> None:
+    def fill(
+        self, fr: np.ndarray, forces: np.ndarray, w: np.ndarray, names: Any,
+        jk: np.ndarray | None = None,
+    ) -> None:  # fmt: skip
         """The contact on frames ``fr`` (indices) with these muscle ``forces`` (columns
         ``names``) and the knee's unit wrenches ``w`` (N, muscles, 6) of those frames. Only the
         frames where every muscle with a wrench on the knee's distal subtree has a force are
@@ -56,11 +59,13 @@ class _VariantArrays:
         known = np.isfinite(forces)
         keep = (known | ~loads_knee).all(axis=1)
         fr, forces, w = fr[keep], np.where(known, forces, 0.0)[keep], w[keep]
+        jk = None if jk is None else jk[keep]
         if not fr.size:
             return
         contact = knee_contact_force(
             self.model, self.kin.take(fr), self.external.take(fr), muscle_forces=forces,
             muscle_names=tuple(names), joint=self.joint, distal_wrenches=w, patella=self.patella,
+            knee_jacobian=jk if self.patella is not None else None,
         )  # fmt: skip
         self.force[fr] = contact.force
         ml = split_medial_lateral(contact, self.geo)
@@ -106,14 +111,16 @@ def run(
     # both variants (with_strength only scales F_iso)
     plan = geometry_plan(mdl)
 
-    def wrenches(fr: np.ndarray) -> np.ndarray:
+    ci = mdl.coordinate_index(next(a.coordinate for s in mdl.joints if s.name == joint
+                                   for a in s.axes if a.coordinate is not None))  # fmt: skip
+
+    def wrenches(fr: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """The knee's unit wrenches (N, muscles, 6) and the muscles' length Jacobian on the
+        knee coordinate (N, muscles) of frames ``fr`` (one geometry pass)."""
         if not fr.size:
-            return np.zeros((0, plan.n_muscles, 6))
-        return np.asarray(
-            plan.evaluate(kin.q[fr], distal_wrench_joints=(joint,), compact=True).distal_wrenches[
-                joint
-            ]
-        )
+            return np.zeros((0, plan.n_muscles, 6)), np.zeros((0, plan.n_muscles))
+        g = plan.evaluate(kin.q[fr], distal_wrench_joints=(joint,), compact=True)
+        return np.asarray(g.distal_wrenches[joint]), np.asarray(g.jacobian[:])[:, :, ci]
 
     tendon = inputs.cfg.contact.patella == "tendon"
 
@@ -145,11 +152,11 @@ def run(
             """One block of the subject-specific re-solve: both variants' contact on its frames
             (the wrenches computed once), its forces then dropped — a long trial never holds
             the re-solve's forces whole."""
-            w = wrenches(fr)
+            w, jk = wrenches(fr)
             ks = np.isfinite(forces).any(axis=1)
-            spec.fill(fr[ks], forces[ks], w[ks], names)
+            spec.fill(fr[ks], forces[ks], w[ks], names, jk[ks])
             kg = gen_ok[fr]
-            generic.fill(fr[kg], gen_forces[fr[kg]], w[kg], names)
+            generic.fill(fr[kg], gen_forces[fr[kg]], w[kg], names, jk[kg])
             done[fr] = True
 
         torques = inverse_dynamics.torques
@@ -161,7 +168,8 @@ def run(
         )  # fmt: skip
         gen_ok &= ~done  # generic frames no re-solve block had (normally none)
     for fr in frame_blocks(np.flatnonzero(gen_ok)):  # block by block: memory bounded
-        generic.fill(fr, gen_forces[fr], wrenches(fr), names)
+        w, jk = wrenches(fr)
+        generic.fill(fr, gen_forces[fr], w, names, jk)
     out = {name: v.result() for name, v in variants.items()}
     geo = variants["subject_specific" if "subject_specific" in variants else "generic"].geo
     plateau = {

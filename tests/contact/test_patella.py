@@ -197,3 +197,24 @@ def test_gait2392_knees_keep_the_quadriceps_knee_moment(source: str) -> None:
     assert 0.060 < arm[0] < 0.072 and 0.035 < arm[-1] < 0.045
     rho = pt.ratio(knee, jac)
     assert np.all((rho > 0.55) & (rho < 0.85)), rho
+
+
+def test_a_given_knee_jacobian_is_the_geometry_pass_s() -> None:
+    """The pipeline hands the geometry stage's ∂l/∂θ (``knee_jacobian``): the same contact as
+    the tendon's own geometry pass; a wrong shape is a typed error."""
+    from msk.exceptions import ShapeMismatchError
+    from msk.muscles.geometry import muscle_geometry
+
+    model = _leg()
+    kin = _static(model, -np.radians(70.0))
+    pt = patellar_tendon(model, joint="knee_r")
+    f = np.tile([1200.0, 200.0], (3, 1))
+    jk = np.asarray(muscle_geometry(model, kin.q).jacobian)[:, :, 0]
+    own = knee_contact_force(model, kin, muscle_forces=f, joint="knee_r", patella=pt,
+                             variant="quasi_static")  # fmt: skip
+    given = knee_contact_force(model, kin, muscle_forces=f, joint="knee_r", patella=pt,
+                               variant="quasi_static", knee_jacobian=jk)  # fmt: skip
+    np.testing.assert_allclose(given.force, own.force, atol=1e-9)
+    with pytest.raises(ShapeMismatchError, match="knee Jacobian"):
+        knee_contact_force(model, kin, muscle_forces=f, joint="knee_r", patella=pt,
+                           variant="quasi_static", knee_jacobian=jk[:, :1])  # fmt: skip
