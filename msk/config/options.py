@@ -383,6 +383,14 @@ class OptimizationConfig:
         1.0,
         bounds=_POSITIVE,
     )
+    emg_gains: str = opt(
+        "emg_assisted: one EMG-to-activation gain per channel, or one gain common to every "
+        "channel (each envelope normalised per channel, by its MVC or session peak: the "
+        "channels keep their relative levels, so antagonists' measured activity is tracked "
+        "rather than fitted away; Lloyd & Besier 2003)",
+        "per_channel",
+        choices=("per_channel", "common"),
+    )
     compartment_nonnegative: bool = opt(
         "static_optimization, emg_assisted, emg_weighted, bounded_qp: require the medial and "
         "lateral contact forces of the side's knee (the [contact] two-point split) to be ≥ 0 "
@@ -440,6 +448,14 @@ class ContactConfig:
         None,
         unit="m",
         bounds=Range(0.0, 0.08),
+    )
+    patella: str = opt(
+        'how the quadriceps load the tibia: along the model\'s own paths ("none") or through '
+        "the patellar tendon at van Eijden et al. (1985)'s angle, with the quadriceps' knee "
+        'moment ("tendon", msk.contact.patella; the default, chosen on the Grand Challenge walks: '
+        "docs/validation.md)",
+        "tendon",
+        choices=("none", "tendon"),
     )
 
 

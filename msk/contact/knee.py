@@ -99,6 +99,7 @@ import numpy as np
 import pinocchio as pin
 from numpy.typing import ArrayLike, NDArray
 
+from msk.contact.patella import PatellarTendon
 from msk.dynamics.inverse import Variant
 from msk.exceptions import ModelError, ShapeMismatchError
 from msk.model.core import Model
@@ -289,6 +290,8 @@ def knee_contact_force(
     variant: Variant = "full",
     plan: GeometryPlan | None = None,
     distal_wrenches: ArrayLike | None = None,
+    patella: PatellarTendon | None = None,
+    knee_jacobian: ArrayLike | None = None,
 ) -> KneeContact:
     """Tibiofemoral contact force per frame (see the module docstring, the rehabilitation-robot
     lower-limb model paper, §2.1).
@@ -316,6 +319,12 @@ def knee_contact_force(
             order, as :attr:`msk.muscles.geometry.MuscleGeometry.distal_wrenches` ``[joint]``
             (the geometry stage computes them in its own pass: give them, and no path is
             resolved here); default: one geometry pass on ``kinematics.q``.
+        patella: the quadriceps act on the tibia through this patellar tendon
+            (:mod:`msk.contact.patella`: their unit wrenches replaced by the tendon's);
+            ``None``: along their own paths.
+        knee_jacobian: with ``patella``, the muscles' length Jacobian on the knee coordinate
+            (N, n_muscles), model order (the geometry stage's, as the muscle forces were
+            solved with it); default: one geometry pass on ``kinematics.q``.
 
     Returns:
         :class:`KneeContact`; frames whose kinematics are NaN are NaN.
@@ -323,7 +332,7 @@ def knee_contact_force(
     return _knee_contact(
         model, kinematics, loads, muscle_forces=muscle_forces, muscle_names=muscle_names,
         joint=joint, plateau_offset=plateau_offset, body_mass_kg=body_mass_kg, variant=variant,
-        plan=plan, distal_wrenches=distal_wrenches,
+        plan=plan, distal_wrenches=distal_wrenches, patella=patella, knee_jacobian=knee_jacobian,
     )[0]  # fmt: skip
 
 
@@ -340,6 +349,8 @@ def _knee_contact(
     variant: Variant = "full",
     plan: GeometryPlan | None = None,
     distal_wrenches: ArrayLike | None = None,
+    patella: PatellarTendon | None = None,
+    knee_jacobian: ArrayLike | None = None,
 ) -> tuple[KneeContact, Array, Array]:
     """:func:`knee_contact_force` and the plateau frame's world rotation (N, 3, 3) and origin
     (N, 3) it computed (NaN on the frames it did not: non-finite kinematics)."""
@@ -403,6 +414,8 @@ def _knee_contact(
         force_w[idx] = wr[:, :3]
         moment_w[idx] = wr[:, 3:]
         rot[idx], origin[idx] = _plateau_placement(tree, st, plateau_offset)
+        if patella is not None and w is not None:
+            w = _through_patella(model, patella, joint, th, idx, w, tree, st, knee_jacobian)
     if with_muscles and f is not None and w is not None:
         add = np.einsum("nm,nmc->nc", np.nan_to_num(f), w)
         add[~np.isfinite(f).all(axis=1)] = np.nan
@@ -430,6 +443,42 @@ def _knee_contact(
         metadata={"variant": variant, "plateau_offset": plateau_offset is not None},
     )
     return contact, rot, origin
+
+
+def _through_patella(
+    model: Model,
+    patella: PatellarTendon,
+    joint: str,
+    th: Array,
+    idx: NDArray[np.intp],
+    w: Array,
+    tree: _DistalTree,
+    st: _ChainStates,
+    knee_jacobian: ArrayLike | None = None,
+) -> Array:
+    """``w`` with the quadriceps' unit wrenches on frames ``idx`` replaced by the patellar
+    tendon's (:meth:`msk.contact.patella.PatellarTendon.substitute`, tibia placement from the
+    chain states ``st`` of those frames)."""
+    if patella.joint != joint:
+        raise ModelError(f"patellar tendon of {patella.joint!r} given for knee {joint!r}")
+    r_t, p_t = _plateau_placement(tree, st, None)
+    out = np.array(w, dtype=float, copy=True)
+    ci = model.coordinate_index(patella.coordinate)
+    # the quadriceps' moment arms as the muscle forces were solved with them (moving points
+    # included): given, or one geometry pass of these frames
+    if knee_jacobian is None:
+        dl = np.asarray(geometry_plan(model).evaluate(th[idx]).jacobian)[:, :, ci]
+    else:
+        dl = np.asarray(knee_jacobian, dtype=float)
+        if dl.shape != (th.shape[0], len(model.muscles)):
+            raise ShapeMismatchError(
+                f"knee Jacobian {dl.shape} must be (frames {th.shape[0]}, muscles "
+                f"{len(model.muscles)})"
+            )
+        dl = dl[idx]
+    dl = dl[:, list(patella.muscles)]
+    out[idx] = patella.substitute(th[idx, ci], out[idx], r_t, p_t, dl)
+    return out
 
 
 def _plateau_placement(
@@ -1010,6 +1059,8 @@ def compartment_force_map(
     variant: Variant = "full",
     plan: GeometryPlan | None = None,
     distal_wrenches: ArrayLike | None = None,
+    patella: PatellarTendon | None = None,
+    knee_jacobian: ArrayLike | None = None,
 ) -> CompartmentMap:
     """The medial/lateral compartment forces of ``joint`` as affine functions of the muscle
     tensions (:class:`CompartmentMap`), all frames at once.
@@ -1019,7 +1070,9 @@ def compartment_force_map(
     frame (the transform :func:`knee_contact_force` applies to Σ f_i ∂l_i/∂ξ), so that
     ``offset + gain · f`` equals the split of :func:`knee_contact_force` with tensions f to
     round-off (tested). Arguments as :func:`knee_contact_force`; ``distal_wrenches`` (N, K, 6)
-    from the geometry pass, or computed here. Frames with non-finite kinematics are NaN.
+    from the geometry pass, or computed here; ``patella``: the quadriceps' rows through the
+    patellar tendon (:mod:`msk.contact.patella`; ``knee_jacobian`` as in
+    :func:`knee_contact_force`). Frames with non-finite kinematics are NaN.
     """
     geo = PlateauGeometry() if geometry is None else geometry
     contact, rot, origin = _knee_contact(
@@ -1038,6 +1091,14 @@ def compartment_force_map(
             raise ShapeMismatchError(
                 f"distal wrenches {w.shape} must be (frames {n}, muscles {k}, 6)"
             )
+    if patella is not None:
+        fin = np.flatnonzero(np.isfinite(th).all(axis=1))
+        if fin.size:
+            tree_p = _distal_tree(model, joint)
+            w = _through_patella(
+                model, patella, joint, th, fin, w, tree_p,
+                _chain_states(model, tree_p, th[fin], None, None), knee_jacobian,
+            )  # fmt: skip
     # the plateau frame as the contact computed it; its forward kinematics again only on the
     # frames it left out with finite positions (non-finite velocities of the "full" variant)
     ok = np.isfinite(th).all(axis=1) & ~np.isfinite(origin).all(axis=1)

@@ -227,17 +227,25 @@ def _emg_gains(
     weights: np.ndarray | None,
     reserves: np.ndarray,
     coordinate_names: tuple[str, ...],
+    common: bool = False,
 ) -> Any:
-    """One EMG-to-activation gain per EMG channel of ``emg_assisted``, fitted jointly with the
+    """One EMG-to-activation gain per EMG channel of ``emg_assisted`` (``common``: one gain
+    shared by every channel, ``[optimization] emg_gains = "common"``), fitted jointly with the
     activations on these frames' torques (:func:`msk.strength.fit_emg_gains`); only channels
     with signal on these frames take part (None when no channel has: the criterion is then
-    static optimisation with exponent 2)."""
+    static optimisation with exponent 2).
+
+    Per channel, the joint minimum sets an antagonist's gain to the least-squares scale of the
+    activation the torques need from it — near 0, since no torque needs co-contraction — so
+    its measured activity is discarded. One common gain is fixed by the agonists and keeps
+    each channel's normalised level (Lloyd & Besier 2003, J Biomech 36:765: per-channel
+    normalisation, shared activation parameters)."""
     from msk.strength import fit_emg_gains
 
     groups: dict[str, list[str]] = {}
     for k, n in enumerate(names):
         if measured[k] and np.any(emg_act[:, k] > 0):
-            groups.setdefault(channels[n], []).append(n)
+            groups.setdefault("all" if common else channels[n], []).append(n)
     if not groups:
         return None
     return fit_emg_gains(
@@ -275,6 +283,7 @@ class KneeCompartments:
     plan: Any
     kinematics: Any
     external: Any
+    patella: bool = False
 
     def rows(
         self, model: Any, fr: np.ndarray, names: tuple[str, ...], keep: np.ndarray | None = None
@@ -291,9 +300,15 @@ class KneeCompartments:
             self.kinematics.q[fr], distal_wrench_joints=(self.joint,), compact=True
         )
         ext = None if self.external is None else self.external.take(fr)
+        tendon = jk = None
+        if self.patella:
+            from msk.contact.patella import patellar_tendon
+
+            tendon = patellar_tendon(model, joint=self.joint)
+            jk = np.asarray(w.jacobian[:])[:, :, model.coordinate_index(tendon.coordinate)]
         cmap = compartment_force_map(
             model, self.kinematics.take(fr), ext, joint=self.joint, geometry=self.geometry,
-            distal_wrenches=w.distal_wrenches[self.joint],
+            distal_wrenches=w.distal_wrenches[self.joint], patella=tendon, knee_jacobian=jk,
         )  # fmt: skip
         if cmap.muscle_names != tuple(names):
             raise NotAvailableError("compartment rows: muscle order differs from the QP's")
@@ -312,17 +327,20 @@ class KneeCompartments:
 
 
 def knee_compartments(
-    model: Any, kinematics: Any, external: Any, *, joint: str, plateau: Any
+    model: Any, kinematics: Any, external: Any, *, joint: str, plateau: Any, patella: bool = False
 ) -> KneeCompartments:
     """The knee compartment rows F_M(f) ≥ 0, F_L(f) ≥ 0 of ``joint`` with its two contact points
     ``plateau`` (:func:`msk.contact.knee.plateau_geometry`, as the knee contact's split places
     them), evaluated on ``kinematics`` and ``external`` (:class:`NotAvailableError` when the model
-    has no such joint)."""
+    has no such joint). ``patella``: the quadriceps load the knee through the patellar tendon
+    (:mod:`msk.contact.patella`), as the knee contact does."""
     from msk.muscles.geometry import geometry_plan
 
     if joint not in {j.name for j in model.joints}:
         raise NotAvailableError(f"compartment_nonnegative: model has no joint {joint!r}")
-    return KneeCompartments(joint, plateau, geometry_plan(model), kinematics, external)
+    return KneeCompartments(
+        joint, plateau, geometry_plan(model), kinematics, external, patella=patella
+    )
 
 
 @dataclass(frozen=True)
@@ -381,6 +399,7 @@ def solve_muscle_forces(
     emg_channels: Mapping[str, str] | None = None,
     knee_joint: str | None = None,
     knee_plateau: Any = None,
+    knee_patella: bool = False,
     forces_only: bool = False,
     on_block: Callable[[np.ndarray, np.ndarray], None] | None = None,
     kinematics: Any = None,
@@ -410,7 +429,8 @@ def solve_muscle_forces(
     and ``knee_plateau`` (its two contact points): needed with ``options.compartment_nonnegative``,
     which adds to every frame's QP the rows F_M(f) ≥ 0 and F_L(f) ≥ 0 of that knee
     (:func:`knee_compartments`), each with a frontal reserve moment ≥ 0 priced as a coordinate
-    reserve.
+    reserve. ``knee_patella``: those rows with the quadriceps acting through the patellar
+    tendon (:mod:`msk.contact.patella`), as ``[contact] patella = "tendon"`` has the contact.
 
     ``unbalanced`` (N, coordinates of ``torques``; the loads stage's,
     :meth:`msk.pipeline.loads.Loads.unbalanced_for`): per frame the coordinates whose torque
@@ -505,8 +525,9 @@ def solve_muscle_forces(
         if kinematics is None or knee_joint is None:
             raise NotAvailableError("compartment_nonnegative needs the kinematics, loads and knee")
         comp = knee_compartments(
-            model, kinematics, external, joint=knee_joint, plateau=knee_plateau
-        )
+            model, kinematics, external, joint=knee_joint, plateau=knee_plateau,
+            patella=knee_patella,
+        )  # fmt: skip
     frontal = None if comp is None else np.full((time.size, 2), np.nan)
     # per pattern: whether the compartment rows' knee is left out (a coordinate between its
     # tibia and the root is): no frontal reserve or peak from such a frame
@@ -532,7 +553,7 @@ def solve_muscle_forces(
             jacobian_frames(geometry.jacobian, fit_fr, act_idx),
             np.where(drop_c[gone], 0.0, torques.tau[fit_fr][:, act_idx]), fa, fp,
             np.where(drop_m[gone], 0.0, emg_reference(fit_fr)), meas, params.names, weights,
-            reserves, cn,
+            reserves, cn, common=opt.emg_gains == "common",
         )  # fmt: skip
         del fa, fp
         if gain_fit is not None:  # the fit's last a-step (its frames' solution) is not read

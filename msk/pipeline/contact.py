@@ -33,16 +33,21 @@ class _VariantArrays:
     filled block by block of frames (:func:`msk.contact.knee.knee_contact_force`,
     :func:`msk.contact.knee.split_medial_lateral`)."""
 
-    def __init__(self, model: Any, geo: Any, kin: Any, external: Any, joint: str) -> None:
+    def __init__(
+        self, model: Any, geo: Any, kin: Any, external: Any, joint: str, patella: Any = None
+    ) -> None:
         n = kin.time.size
-        self.model, self.geo, self.kin, self.external, self.joint = (
-            model, geo, kin, external, joint,
+        self.model, self.geo, self.kin, self.external, self.joint, self.patella = (
+            model, geo, kin, external, joint, patella,
         )  # fmt: skip
         self.force = np.full((n, 3), np.nan)
         self.medial = np.full(n, np.nan)
         self.lateral = np.full(n, np.nan)
 
-    def fill(self, fr: np.ndarray, forces: np.ndarray, w: np.ndarray, names: Any) -> None:
+    def fill(
+        self, fr: np.ndarray, forces: np.ndarray, w: np.ndarray, names: Any,
+        jk: np.ndarray | None = None,
+    ) -> None:  # fmt: skip
         """The contact on frames ``fr`` (indices) with these muscle ``forces`` (columns
         ``names``) and the knee's unit wrenches ``w`` (N, muscles, 6) of those frames. Only the
         frames where every muscle with a wrench on the knee's distal subtree has a force are
@@ -54,11 +59,13 @@ class _VariantArrays:
         known = np.isfinite(forces)
         keep = (known | ~loads_knee).all(axis=1)
         fr, forces, w = fr[keep], np.where(known, forces, 0.0)[keep], w[keep]
+        jk = None if jk is None else jk[keep]
         if not fr.size:
             return
         contact = knee_contact_force(
             self.model, self.kin.take(fr), self.external.take(fr), muscle_forces=forces,
-            muscle_names=tuple(names), joint=self.joint, distal_wrenches=w,
+            muscle_names=tuple(names), joint=self.joint, distal_wrenches=w, patella=self.patella,
+            knee_jacobian=jk if self.patella is not None else None,
         )  # fmt: skip
         self.force[fr] = contact.force
         ml = split_medial_lateral(contact, self.geo)
@@ -76,6 +83,7 @@ def settings(inputs: SessionInputs) -> Any:
         "contact": inputs.hashes.get("contact_force"),
         "icd": inputs.cfg.contact.intercondylar_distance_m,
         "depth": inputs.cfg.contact.plateau_depth_m,
+        "patella": inputs.cfg.contact.patella,
     }
 
 
@@ -103,17 +111,24 @@ def run(
     # both variants (with_strength only scales F_iso)
     plan = geometry_plan(mdl)
 
-    def wrenches(fr: np.ndarray) -> np.ndarray:
+    ci = mdl.coordinate_index(next(a.coordinate for s in mdl.joints if s.name == joint
+                                   for a in s.axes if a.coordinate is not None))  # fmt: skip
+
+    def wrenches(fr: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """The knee's unit wrenches (N, muscles, 6) and the muscles' length Jacobian on the
+        knee coordinate (N, muscles) of frames ``fr`` (one geometry pass)."""
         if not fr.size:
-            return np.zeros((0, plan.n_muscles, 6))
-        return np.asarray(
-            plan.evaluate(kin.q[fr], distal_wrench_joints=(joint,), compact=True).distal_wrenches[
-                joint
-            ]
-        )
+            return np.zeros((0, plan.n_muscles, 6)), np.zeros((0, plan.n_muscles))
+        g = plan.evaluate(kin.q[fr], distal_wrench_joints=(joint,), compact=True)
+        return np.asarray(g.distal_wrenches[joint]), np.asarray(g.jacobian[:])[:, :, ci]
+
+    tendon = inputs.cfg.contact.patella == "tendon"
 
     def variant(m: Any) -> _VariantArrays:
-        return _VariantArrays(m, inputs.knee_plateau(m, joint), kin, loads.external, joint)
+        from msk.contact.patella import patellar_tendon
+
+        pt = patellar_tendon(m, joint=joint) if tendon else None
+        return _VariantArrays(m, inputs.knee_plateau(m, joint), kin, loads.external, joint, pt)
 
     gen_forces, names = tension_optimization.forces, tension_optimization.muscles
     # frames without the knee's muscle forces get no contact force (never zero muscle force;
@@ -137,11 +152,11 @@ def run(
             """One block of the subject-specific re-solve: both variants' contact on its frames
             (the wrenches computed once), its forces then dropped — a long trial never holds
             the re-solve's forces whole."""
-            w = wrenches(fr)
+            w, jk = wrenches(fr)
             ks = np.isfinite(forces).any(axis=1)
-            spec.fill(fr[ks], forces[ks], w[ks], names)
+            spec.fill(fr[ks], forces[ks], w[ks], names, jk[ks])
             kg = gen_ok[fr]
-            generic.fill(fr[kg], gen_forces[fr[kg]], w[kg], names)
+            generic.fill(fr[kg], gen_forces[fr[kg]], w[kg], names, jk[kg])
             done[fr] = True
 
         torques = inverse_dynamics.torques
@@ -153,12 +168,14 @@ def run(
         )  # fmt: skip
         gen_ok &= ~done  # generic frames no re-solve block had (normally none)
     for fr in frame_blocks(np.flatnonzero(gen_ok)):  # block by block: memory bounded
-        generic.fill(fr, gen_forces[fr], wrenches(fr), names)
+        w, jk = wrenches(fr)
+        generic.fill(fr, gen_forces[fr], w, names, jk)
     out = {name: v.result() for name, v in variants.items()}
     geo = variants["subject_specific" if "subject_specific" in variants else "generic"].geo
     plateau = {
         "intercondylar_distance_m": geo.intercondylar_distance_m,
         "centre_m": list(geo.centre_m),
         "source": geo.source,
+        "patella": inputs.cfg.contact.patella,
     }
     return KneeContact(joint, out, plateau, measured_contact)

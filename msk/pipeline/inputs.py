@@ -122,6 +122,7 @@ class SessionInputs:
             "emg_channels": self.cfg.emg.channels,
             "knee_joint": joint,
             "knee_plateau": plateau,
+            "knee_patella": self.cfg.contact.patella == "tendon",
         }
 
 

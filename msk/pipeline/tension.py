@@ -28,7 +28,10 @@ def needs(inputs: SessionInputs) -> tuple[str, ...]:
 
 
 def settings(inputs: SessionInputs) -> Any:
-    return dataclasses.asdict(inputs.cfg.optimization)
+    out = dataclasses.asdict(inputs.cfg.optimization)
+    if inputs.cfg.optimization.compartment_nonnegative:  # the rows' contact points and patella
+        out["contact"] = dataclasses.asdict(inputs.cfg.contact)
+    return out
 
 
 def run(

@@ -188,3 +188,43 @@ def test_fit_emg_gains_rejects_bad_groups() -> None:
     emg0[:, 2] = 0.0
     with pytest.raises(IdentificationError, match="no EMG"):
         fit_emg_gains(jac, tau, groups={"g": ("c",)}, **{**kw, "emg_activation": emg0})
+
+
+def test_a_common_gain_keeps_the_measured_co_contraction() -> None:
+    """One knee coordinate, two extensors and a flexor, all active as measured (the flexor
+    against the extensors: co-contraction), every envelope on the same normalisation (true
+    activation 0.5 ê). Per channel the flexor's gain collapses (no torque needs it; the joint
+    minimum fits it to the static-optimisation activation); one common gain is set by the
+    extensors and keeps the flexor's measured activity
+    (:func:`msk.optimization.muscle_forces._emg_gains`, ``common``)."""
+    from msk.optimization.muscle_forces import _emg_gains
+
+    rng = np.random.default_rng(11)
+    n_frames = 40
+    arms = np.array([0.045, 0.04, -0.03])  # J = ∂l/∂θ: extensors shorten, flexor lengthens
+    jac = np.tile(-arms[None, :, None], (n_frames, 1, 1))
+    fa = np.tile([3000.0, 2500.0, 1500.0], (n_frames, 1))
+    emg = np.column_stack(
+        [rng.uniform(0.4, 1.0, n_frames), rng.uniform(0.4, 1.0, n_frames),
+         rng.uniform(0.2, 0.5, n_frames)]
+    )  # fmt: skip
+    a_true = 0.5 * emg
+    tau = _torques(jac, fa, a_true)
+    assert np.all(tau > 0)  # net extension: the flexor is an antagonist
+    names = ("vas_a", "vas_b", "bifem")
+    channels = {"vas_a": "vasmed", "vas_b": "vaslat", "bifem": "bifeml"}
+    args = (
+        channels, 10.0, jac, tau, fa, np.zeros_like(fa), emg, np.ones(3, dtype=bool), names,
+        None, None, ("knee",),
+    )  # fmt: skip
+    per = _emg_gains(*args)
+    com = _emg_gains(*args, common=True)
+    assert com.group_names == ("all",)
+    g_flex_per = per.muscle_gains[2]
+    assert g_flex_per < 0.25 * com.muscle_gains[2]  # the antagonist's EMG thrown away
+    np.testing.assert_allclose(com.muscle_gains, com.muscle_gains[0])
+    assert 0.35 < com.gains[0] < 0.55  # near the true 0.5 (the effort term pulls it down)
+    # the common gain's flexor activation follows its EMG
+    a_flex = com.solution.activations[:, 2]
+    assert np.corrcoef(a_flex, emg[:, 2])[0, 1] > 0.9
+    assert np.mean(a_flex) > 3 * np.mean(per.solution.activations[:, 2])
