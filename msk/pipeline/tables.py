@@ -9,7 +9,6 @@ import numpy as np
 
 from msk.dynamics.identification import MassIdentification
 from msk.dynamics.inverse import InverseDynamics
-from msk.fes.io import fes_tables
 from msk.io.tables import Table
 from msk.optimization.muscle_forces import MuscleForces
 from msk.pipeline.inputs import SessionInputs
@@ -105,5 +104,7 @@ def run(
         if strength_identification is not None:
             tables["strength"] = strength_table(strength_identification)
     if fes is not None:
+        from msk.fes.io import fes_tables  # on use: a gait session does not import msk.fes
+
         tables.update(fes_tables(fes.result))
     return tables
