@@ -246,7 +246,7 @@ def msk_run(fig: Figures, base: Path | None, ref: str, rounds: int) -> None:
         for what, cached in (("cold", False), ("cached", True)):
             count = iter(range(10**6))
 
-            def run(src: Path, name: str, cached: bool = cached) -> float:
+            def run(src: Path, name: str, cached: bool = cached, count: Any = count) -> float:
                 out = root / f"{name}_cached" if cached else root / f"{name}_{next(count)}"
                 return bench_run_cold._run_once(src, out, cached=cached)[0]
 
