@@ -64,11 +64,14 @@ NUMPY_FILTER_MAX_SAMPLES = 50_000
 def _numpy_is_quicker(
     x: NDArray[np.float64], axis: int, order: int, btype: str, wn: NDArray[np.float64]
 ) -> bool:
-    """Whether :func:`filtfilt_butter` takes the numpy filter: a low-pass of even order along
-    the first axis of a short signal, while ``scipy.signal`` is not imported yet."""
+    """Whether :func:`filtfilt_butter` takes the numpy filter: a low- or high-pass of even
+    order along the first axis of a short signal, while ``scipy.signal`` is not imported
+    yet."""
     import sys
 
-    if "scipy.signal" in sys.modules or btype != "lowpass" or order % 2 or wn.size != 1:
+    if "scipy.signal" in sys.modules or btype not in ("lowpass", "highpass") or order % 2:
+        return False
+    if wn.size != 1:
         return False
     if x.ndim == 0 or axis not in (0, -x.ndim) or x.shape[0] < 2:
         return False
@@ -103,7 +106,9 @@ def filtfilt_butter(
         # the same numbers (lowpass_filtfilt_numpy equals scipy's design and filter bit for bit)
         # without importing scipy.signal (~1 s with the scipy.stats it imports)
         cutoff = float(np.atleast_1d(np.asarray(cutoff_hz, dtype=float))[0])
-        return lowpass_filtfilt_numpy(x, rate_hz=rate_hz, cutoff_hz=cutoff, order=order)
+        return lowpass_filtfilt_numpy(
+            x, rate_hz=rate_hz, cutoff_hz=cutoff, order=order, btype=btype
+        )
     from scipy import signal as _sig  # imported on use: 0.4 s that `msk --help` need not pay
 
     sos = _sig.butter(order, wn if wn.size > 1 else wn[0], btype=btype, output="sos")
@@ -111,24 +116,33 @@ def filtfilt_butter(
     return _sig.sosfiltfilt(sos, x, axis=axis, padlen=max(padlen, 0))
 
 
-def _butter_lowpass_sos(order: int, wn: float) -> NDArray[np.float64]:
-    """``scipy.signal.butter(order, wn, output="sos")`` (low-pass, even ``order``) in numpy, by
+def _butter_sos(order: int, wn: float, btype: str = "lowpass") -> NDArray[np.float64]:
+    """``scipy.signal.butter(order, wn, btype, output="sos")`` (low- or high-pass, even
+    ``order``) in numpy, by
     the same operations in the same order, hence equal to it bit for bit (tested): the analog
     prototype's poles −exp(iπm/(2N)), m = −N+1, −N+3, …, N−1 (Butterworth), prewarping
-    ω = 4 tan(πW_n/2) (sampling rate 2), the bilinear transform z = (4 + p)/(4 − p) with the
-    gain ω^N Re(1/Π(4 − p)), then second-order sections of conjugate pole pairs, the pair
-    nearest the unit circle last, each denominator the product (z − p)(z − p̄) as
-    ``numpy.convolve`` forms it, the zeros at −1 and the gain in the first section."""
+    ω = 4 tan(πW_n/2) (sampling rate 2); low-pass p ↦ ωp (gain ω^N), high-pass p ↦ ω/p
+    (gain Re(1/Π(−p)), N zeros at 0); the bilinear transform z = (4 + p)/(4 − p) (zeros at
+    −1 low-pass, at +1 high-pass) with the gain times Re(Π(4 − z)/Π(4 − p)); then
+    second-order sections of conjugate pole pairs, the pair nearest the unit circle last, each
+    denominator the product (z − p)(z − p̄) as ``numpy.convolve`` forms it, the gain in the
+    first section."""
     n = order
     m = np.arange(-n + 1, n, 2, dtype=np.float64)
     analog = -np.exp(1j * np.pi * m / (2 * n))
     fs = 2.0
     warped = float(2 * fs * np.tan(np.pi * np.float64(wn) / fs))
-    analog = warped * analog
-    gain = 1.0 * warped**n
+    zeros = np.zeros(0)
+    if btype == "lowpass":
+        analog, gain = warped * analog, 1.0 * warped**n
+        numerator = (1.0, 2.0, 1.0)
+    else:  # high-pass: the prototype inverted, its zeros at infinity moved to the origin
+        gain = 1 * np.real(np.prod(-zeros) / np.prod(-analog))
+        analog, zeros = warped / analog, np.zeros(n)
+        numerator = (1.0, -2.0, 1.0)
     fs2 = 2.0 * fs
     poles = (fs2 + analog) / (fs2 - analog)
-    gain = gain * np.real(np.prod(fs2 - np.zeros(0)) / np.prod(fs2 - analog))
+    gain = gain * np.real(np.prod(fs2 - zeros) / np.prod(fs2 - analog))
     # scipy's _cplxreal: the members of positive imaginary part, by real part, each averaged
     # with its conjugate partner
     poles = poles[np.lexsort((abs(poles.imag), poles.real))]
@@ -141,14 +155,14 @@ def _butter_lowpass_sos(order: int, wn: float) -> NDArray[np.float64]:
         a = np.ones((1,), dtype=complex)
         for root in (p1, p1.conj()):
             a = np.convolve(a, np.stack((np.ones_like(root), -root)), mode="full")
-        sos[si, :3] = (1.0, 2.0, 1.0)
+        sos[si, :3] = numerator
         sos[si, 3:] = np.real(a)
     sos[0][:3] *= gain
     return sos
 
 
 def lowpass_filtfilt_numpy(
-    x: ArrayLike, *, rate_hz: float, cutoff_hz: float, order: int = 4
+    x: ArrayLike, *, rate_hz: float, cutoff_hz: float, order: int = 4, btype: str = "lowpass"
 ) -> NDArray[np.float64]:
     """:func:`filtfilt_butter` (low-pass, even ``order``, time on axis 0) in numpy alone: the
     same second-order sections (Butterworth analog prototype, frequency prewarping and the
@@ -157,7 +171,8 @@ def lowpass_filtfilt_numpy(
     steady-state initial conditions as ``scipy.signal.sosfiltfilt`` — equal to it bit for bit
     (tested). For short signals on a path that must not import ``scipy.signal`` (~0.5 s: the
     static trial's still window, which a cached run computes again); the sample loop runs in
-    Python, one column at a time."""
+    Python, one column at a time. ``btype="highpass"``: the high-pass of
+    :func:`filtfilt_butter` the same way."""
     x = np.asarray(x, dtype=float)
     wn = cutoff_hz / (0.5 * rate_hz)
     if not 0.0 < wn < 1.0:
@@ -168,7 +183,7 @@ def lowpass_filtfilt_numpy(
     if order < 2 or order % 2:
         raise MskError(f"lowpass_filtfilt_numpy: an even order >= 2 is needed, got {order}")
     _check_finite(x)
-    sos = _butter_lowpass_sos(order, wn)
+    sos = _butter_sos(order, wn, btype)
     # steady state of each section's step response, scaled by the sections before it
     zi = np.zeros((len(sos), 2))
     scale = 1.0

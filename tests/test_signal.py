@@ -169,18 +169,22 @@ def test_true_runs_rebuild_the_mask(mask):
     seed=st.integers(0, 2**31 - 1),
 )
 def test_numpy_lowpass_is_scipy_bit_for_bit(n, columns, order, rate_hz, fraction, seed):
-    """The numpy low-pass designs scipy's sections and filters as sosfiltfilt does, to the last
-    bit: filtfilt_butter may take it (no scipy.signal import) without changing a number."""
+    """The numpy low- and high-pass design scipy's sections and filter as sosfiltfilt does, to
+    the last bit: filtfilt_butter may take them (no scipy.signal import) without changing a
+    number."""
     from scipy import signal as sig
 
-    from msk.signal import _butter_lowpass_sos
+    from msk.signal import _butter_sos
 
     cutoff_hz = fraction * rate_hz
     wn = cutoff_hz / (0.5 * rate_hz)
-    sos = sig.butter(order, wn, output="sos")
-    np.testing.assert_array_equal(_butter_lowpass_sos(order, wn), sos)
     shape = (n, columns) if columns else (n,)
     x = np.cumsum(np.random.default_rng(seed).normal(size=shape), axis=0)
-    ref = sig.sosfiltfilt(sos, x, axis=0, padlen=min(3 * (2 * len(sos) + 1), n - 1))
-    got = lowpass_filtfilt_numpy(x, rate_hz=rate_hz, cutoff_hz=cutoff_hz, order=order)
-    np.testing.assert_array_equal(got, ref)
+    for btype in ("lowpass", "highpass"):
+        sos = sig.butter(order, wn, btype=btype, output="sos")
+        np.testing.assert_array_equal(_butter_sos(order, wn, btype), sos)
+        ref = sig.sosfiltfilt(sos, x, axis=0, padlen=min(3 * (2 * len(sos) + 1), n - 1))
+        got = lowpass_filtfilt_numpy(
+            x, rate_hz=rate_hz, cutoff_hz=cutoff_hz, order=order, btype=btype
+        )
+        np.testing.assert_array_equal(got, ref)
