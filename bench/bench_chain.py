@@ -147,11 +147,77 @@ def measure(repeat: int = 5) -> dict[str, Any]:
         best[name] = min(walls) / n * 1e6
         median[name] = float(np.median(walls)) / n * 1e6
         cpu[name] = c / n * 1e6
+    floor = measure_floor(model, kin.q, geom.jacobian, jt.tau, state.max_active_force_along_tendon,
+                          reserves, repeat)  # fmt: skip
     ms = {"forces": sol.forces, "activations": sol.activations, "muscle_names": params.names,
           "f_active": state.max_active_force_along_tendon}  # fmt: skip
     return {"n": n, "stages": list(stages), "best": best, "median": median, "cpu": cpu,
             "opensim_us": os_["per_frame_s"] * 1e6, "opensim_cpu_us": os_["per_frame_cpu_s"] * 1e6,
-            "compare": compare_static_optimization(ms, os_), "repeat": repeat}  # fmt: skip
+            "compare": compare_static_optimization(ms, os_), "repeat": repeat,
+            "floor": floor}  # fmt: skip
+
+
+def measure_floor(
+    model: Any,
+    q: np.ndarray,
+    jac: np.ndarray,
+    tau: np.ndarray,
+    f_active: np.ndarray,
+    reserves: np.ndarray,
+    repeat: int,
+) -> dict[str, float]:
+    """The physical floor of the chain per frame (µs: wall min, median, CPU min over
+    ``repeat`` passes after a warm-up): Pinocchio's kinematics of the frame
+    (``computeJointJacobians``: every joint's placement and Jacobian) and one cold DAQP solve of
+    a QP of the static optimisation's size (the muscles' activations and one reserve per
+    coordinate, ``min Σa² s.t. Σ_j R_ij F_j a_j + r_i = τ_i, 0.01 ≤ a ≤ 1``; one workspace
+    warm-started from frame to frame), frame by frame in a Python loop: what any per-frame
+    chain on these libraries pays at least."""
+    import daqp
+    import pinocchio as pin
+
+    pm, data = model.pin_model, model.create_data()
+    n_frames, n_m = f_active.shape
+    n_c = tau.shape[1]
+    qp = [model.coupling.q(q[k]) for k in range(n_frames)]
+    arms = -np.asarray(jac)  # moment arms r = −∂l/∂θ, (N, muscles, coordinates)
+    opt = np.where(reserves > 0, 1.0, 100.0)  # reserve optimal forces (N·m per unit)
+    h = np.eye(n_m + n_c)
+    f = np.zeros(n_m + n_c)
+    lo = np.concatenate([np.full(n_m, 0.01), np.full(n_c, -1e6), tau[0]])
+    hi = lo.copy()
+    hi[:n_m] = 1.0
+    hi[n_m : n_m + n_c] = 1e6
+    sense = np.concatenate([np.zeros(n_m + n_c), np.full(n_c, 5)]).astype(np.int32)
+    a_rows = [np.hstack([(arms[k] * f_active[k][:, None]).T, np.diag(opt)])
+              for k in range(n_frames)]  # fmt: skip
+
+    def one_pass() -> int:
+        # one DAQP workspace carried from frame to frame (its working set warm), as msk's SO
+        qpm = daqp.Model()
+        qpm.settings = {"primal_tol": 1e-10}
+        ok = 0
+        for k in range(n_frames):
+            pin.computeJointJacobians(pm, data, qp[k])
+            lo[n_m + n_c :] = hi[n_m + n_c :] = tau[k]
+            if k == 0:
+                qpm.setup(h, f, a_rows[k], hi, lo, sense)
+            else:
+                qpm.update(A=a_rows[k], bupper=hi, blower=lo)
+            _, _, flag, _ = qpm.solve()
+            ok += flag > 0
+        return ok
+
+    solved = one_pass()
+    walls, c = [], np.inf
+    for _ in range(repeat):
+        t0, c0 = time.perf_counter(), time.process_time()
+        one_pass()
+        walls.append(time.perf_counter() - t0)
+        c = min(c, time.process_time() - c0)
+    return {"best": min(walls) / n_frames * 1e6, "median": float(np.median(walls)) / n_frames * 1e6,
+            "cpu": c / n_frames * 1e6, "solved": solved, "frames": n_frames,
+            "size": (n_m + n_c, n_c)}  # fmt: skip
 
 
 def main() -> None:

@@ -134,10 +134,18 @@ def pearson_r(a: ArrayLike, b: ArrayLike) -> Metric:
 
 
 def _rank(x: NDArray[np.float64]) -> NDArray[np.float64]:
-    """Average ranks (ties share the mean rank), column-wise."""
-    from scipy.stats import rankdata
-
-    return rankdata(x, axis=0).astype(float)
+    """Average ranks (ties share the mean rank), column-wise: a value's rank is the mean of the
+    1-based positions its ties take in the sorted column (``scipy.stats.rankdata``'s
+    ``"average"``, without importing scipy.stats)."""
+    cols = np.asarray(x, dtype=float).reshape(x.shape[0], -1)
+    out = np.empty_like(cols)
+    for c in range(cols.shape[1]):
+        order = np.argsort(cols[:, c], kind="stable")
+        s = cols[order, c]
+        new = np.concatenate([[True], s[1:] != s[:-1]])
+        bounds = np.concatenate([np.flatnonzero(new), [s.size]])  # each tie group's start, end
+        out[order, c] = (0.5 * (bounds[:-1] + 1 + bounds[1:]))[np.cumsum(new) - 1]
+    return out.reshape(x.shape)
 
 
 def spearman(a: ArrayLike, b: ArrayLike) -> Metric:

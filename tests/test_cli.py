@@ -210,3 +210,26 @@ def test_info_on_a_real_c3d_suggests_a_configuration_that_loads(real_dir, tmp_pa
     )
     loaded = load_config(cfg)
     assert loaded.emg.channels == tables["emg"]["channels"]
+
+
+@pytest.mark.slow
+def test_run_of_the_bundled_session_imports_no_scipy_signal_nor_stats(tmp_path):
+    """``msk run pipelines/gc5_PS.toml`` (every stage computed) takes the numpy Butterworth
+    and scipy.special's quantiles: neither scipy.signal nor scipy.stats is imported (~1 s of a
+    cold run)."""
+    from pathlib import Path
+
+    config = Path(__file__).resolve().parents[1] / "pipelines" / "gc5_PS.toml"
+    code = (
+        "import sys, contextlib, io\n"
+        "from msk.cli import main\n"
+        "with contextlib.redirect_stderr(io.StringIO()):\n"
+        f"    code = main(['run', {str(config)!r}, '--out', {str(tmp_path / 'out')!r}, "
+        "'--no-cache', '--quiet'])\n"
+        "heavy = ('scipy.signal', 'scipy.stats')\n"
+        "print(code, ' '.join(m for m in heavy if m in sys.modules))\n"
+    )
+    proc = subprocess.run(
+        [sys.executable, "-c", code], capture_output=True, text=True, timeout=900, check=True
+    )
+    assert proc.stdout.strip() == "0"

@@ -37,10 +37,12 @@ def _run(args: argparse.Namespace) -> int:
 
 def _run_sessions(args: argparse.Namespace) -> int:
     from msk._runtime.terminal import terminal_safe
+    from msk.config.dynamometry import is_dynamometry_config
     from msk.pipeline import run_task_trials
-    from msk.pipeline.dynamometry import is_dynamometry_config, run_dynamometry
 
     if is_dynamometry_config(args.config):
+        from msk.pipeline.dynamometry import run_dynamometry
+
         dyn = run_dynamometry(args.config, args.out, progress=None if args.quiet else sys.stderr)
         for f in dyn.summary["flags"]:
             if not args.quiet:

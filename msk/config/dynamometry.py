@@ -9,11 +9,13 @@ import tomllib
 from collections.abc import Mapping
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from msk.exceptions import ConfigError, MskError
 from msk.io.dynamometer import EMG_UNITS, FORCE_UNITS, TORQUE_UNITS
-from msk.strength.isometric import IsometricSettings, IsometricTest
+
+if TYPE_CHECKING:
+    from msk.strength.isometric import IsometricSettings, IsometricTest
 
 __all__ = [
     "KIND",
@@ -92,6 +94,8 @@ def _check_keys(table: Mapping[str, Any], allowed: set[str], where: str, src: Pa
 def load_dynamometry_config(path: str | Path) -> DynamometryConfig:
     """Read and validate a ``kind = "dynamometry"`` configuration (module docstring);
     :class:`~msk.exceptions.ConfigError` naming the file and the key."""
+    # on use: `msk run` of a gait session asks is_dynamometry_config without msk.strength
+    from msk.strength.isometric import IsometricSettings, IsometricTest
     from msk.strength.joint_strength import ACTIONS
 
     src = Path(path).resolve()

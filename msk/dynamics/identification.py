@@ -67,7 +67,6 @@ from typing import Any, Literal
 
 import numpy as np
 import pinocchio as pin
-import scipy.sparse as sp
 from numpy.typing import ArrayLike, NDArray
 
 from msk._runtime.fork import spare_cpu
@@ -679,6 +678,7 @@ def _clarabel_solve(
 ) -> Array:
     """min ½ xᵀ(2H)x − 2 linᵀx  s.t.  A x + s = b, s ∈ cones (objective normalised)."""
     import clarabel
+    import scipy.sparse as sp  # on use: a cached run does not import scipy.sparse
 
     k = max(float(np.max(np.abs(np.diag(hess)))), 1e-12)
     p = sp.triu(sp.csc_matrix(2.0 * hess / k)).tocsc()
@@ -1079,6 +1079,7 @@ class InertialIdentifier:
 
     def _solve(self, hx: Array, gx: Array, weight: float = 1.0) -> Array:
         import clarabel
+        import scipy.sparse as sp  # on use: a cached run does not import scipy.sparse
 
         if self._cone_cache is None:  # the same for every solve of a fit (cv grid: ~120)
             a_rows, b_rows, cones = self._constraints()

@@ -11,38 +11,46 @@ identification paper) and its identification protocol.
 * :mod:`msk.fes.io` — CSV / C3D-analog inputs and result tables.
 """
 
-from msk.fes.identify import (
-    cross_validate,
-    geometry_from_height,
-    identify_force_length,
-    identify_pendulum_linear,
-    identify_pendulum_nonlinear,
-    identify_recruitment_current,
-    identify_recruitment_pw,
-    identify_series_stiffness,
-    identify_static_torque,
-    shank_anthropometry,
-)
-from msk.fes.model import (
-    SEED001_SUBJECT,
-    TABLE3,
-    CalciumParams,
-    FesSubject,
-    GeometryParams,
-    KneeParams,
-    MuscleParams,
-    RecruitmentCurrent,
-    RecruitmentPW,
-)
-from msk.fes.protocol import (
-    FesSession,
-    ProtocolResult,
-    run_protocol,
-    run_protocol_seed001,
-    synthetic_session,
-)
-from msk.fes.simulate import FesTrajectory, simulate
-from msk.fes.stimulation import Stimulation, pulse_train, stimulation_from_profile
+from __future__ import annotations
+
+import importlib
+from typing import Any
+
+#: public name → the submodule that defines it: imported on first use (PEP 562), so that a
+#: module of the package (:mod:`msk.fes.io`'s tables for the results folder) does not import
+#: casadi, ``scipy.optimize`` and ``scipy.signal`` with the whole package
+_NAMES = {
+    "cross_validate": "msk.fes.identify",
+    "geometry_from_height": "msk.fes.identify",
+    "identify_force_length": "msk.fes.identify",
+    "identify_pendulum_linear": "msk.fes.identify",
+    "identify_pendulum_nonlinear": "msk.fes.identify",
+    "identify_recruitment_current": "msk.fes.identify",
+    "identify_recruitment_pw": "msk.fes.identify",
+    "identify_series_stiffness": "msk.fes.identify",
+    "identify_static_torque": "msk.fes.identify",
+    "shank_anthropometry": "msk.fes.identify",
+    "SEED001_SUBJECT": "msk.fes.model",
+    "TABLE3": "msk.fes.model",
+    "CalciumParams": "msk.fes.model",
+    "FesSubject": "msk.fes.model",
+    "GeometryParams": "msk.fes.model",
+    "KneeParams": "msk.fes.model",
+    "MuscleParams": "msk.fes.model",
+    "RecruitmentCurrent": "msk.fes.model",
+    "RecruitmentPW": "msk.fes.model",
+    "FesSession": "msk.fes.protocol",
+    "ProtocolResult": "msk.fes.protocol",
+    "run_protocol": "msk.fes.protocol",
+    "run_protocol_seed001": "msk.fes.protocol",
+    "synthetic_session": "msk.fes.protocol",
+    "FesTrajectory": "msk.fes.simulate",
+    "simulate": "msk.fes.simulate",
+    "Stimulation": "msk.fes.stimulation",
+    "pulse_train": "msk.fes.stimulation",
+    "stimulation_from_profile": "msk.fes.stimulation",
+}
+
 
 __all__ = [
     "SEED001_SUBJECT",
@@ -75,3 +83,17 @@ __all__ = [
     "stimulation_from_profile",
     "synthetic_session",
 ]
+
+
+def __getattr__(name: str) -> Any:
+    """Import a public name on first use (PEP 562)."""
+    module = _NAMES.get(name)
+    if module is None:
+        raise AttributeError(f"module 'msk.fes' has no attribute {name!r}")
+    value = getattr(importlib.import_module(module), name)
+    globals()[name] = value
+    return value
+
+
+def __dir__() -> list[str]:
+    return sorted(__all__)

@@ -41,6 +41,7 @@ from typing import Any
 
 import numpy as np
 
+from msk._runtime.fork import Forked, spare_cpu
 from msk.exceptions import ModelError
 from msk.model.core import Marker, Model, frame_placements
 from msk.units import Array
@@ -318,32 +319,51 @@ def placement_profile(
     delta = float(np.radians(shift_deg))
     seen = set(observed)
     body_of: Mapping[str, str] = {mk.name: mk.body for mk in model.markers if mk.name in seen}
-    out = []
     wanted = set(stems)
+    profiled: list[tuple[str, int, list[str]]] = []  # (coordinate, index, distal markers)
     for coord in model.coordinate_names:
         if (coord[:-2] if coord.endswith(("_r", "_l")) else coord) not in wanted:
             continue
         ci = model.coordinate_index(coord)
         sub = set(model.subtree(joint_child(model, coord)))
         distal = [m for m, b in body_of.items() if b in sub]
-        if not distal:
-            continue
+        if distal:
+            profiled.append((coord, ci, distal))
+
+    def shifted_fit(job: tuple[str, int, float]) -> tuple[float, float]:
+        # (the refitted poses' change of the coordinate's mean, the cost's change)
+        coord, ci, sign = job
         mean0 = float(np.mean(q_ref[ok, ci]))
-        changes, costs = [], []
-        for sign in (1.0, -1.0):
-            shifted = gauge_shifted_markers(model, coord, sign * delta, pose, free)
-            start = q_ref.copy()
-            start[:, ci] += sign * delta
-            q, cost = fit(shifted, np.where(np.isfinite(start), start, 0.0))
-            q = np.asarray(q, dtype=float)
-            good = np.isfinite(q).all(axis=1)
-            changes.append(float(np.mean(q[good, ci])) - mean0 if good.any() else float("nan"))
-            costs.append(float(cost) - float(cost0))
-        n_free = sum(m in set(free) for m in distal)
+        shifted = gauge_shifted_markers(model, coord, sign * delta, pose, free)
+        start = q_ref.copy()
+        start[:, ci] += sign * delta
+        q, cost = fit(shifted, np.where(np.isfinite(start), start, 0.0))
+        q = np.asarray(q, dtype=float)
+        good = np.isfinite(q).all(axis=1)
+        change = float(np.mean(q[good, ci])) - mean0 if good.any() else float("nan")
+        return change, float(cost) - float(cost0)
+
+    def fits(jobs: Sequence[tuple[str, int, float]]) -> list[tuple[float, float]]:
+        return [shifted_fit(j) for j in jobs]
+
+    # the fits are independent: the second half in a forked child on a second CPU when there
+    # is one (msk._runtime.fork: the same code on the same data, the same numbers)
+    jobs = [(coord, ci, sign) for coord, ci, _ in profiled for sign in (1.0, -1.0)]
+    half = len(jobs) // 2
+    if half and spare_cpu():
+        child = Forked(fits, jobs[half:])
+        got = fits(jobs[:half]) + child.result()
+    else:
+        got = fits(jobs)
+    out = []
+    free_set = set(free)
+    for k, (coord, ci, distal) in enumerate(profiled):
+        (c_plus, j_plus), (c_minus, j_minus) = got[2 * k], got[2 * k + 1]
+        n_free = sum(m in free_set for m in distal)
         out.append(
             CoordinateProfile(
-                coord, mean0, (changes[0], changes[1]), (costs[0], costs[1]), n_free,
-                len(distal) - n_free,
+                coord, float(np.mean(q_ref[ok, ci])), (c_plus, c_minus), (j_plus, j_minus),
+                n_free, len(distal) - n_free,
             )
         )  # fmt: skip
     return PlacementProfile(delta, float(tolerance_m), int(ok.sum()), float(cost0), tuple(out))

@@ -11,7 +11,8 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from msk.model.core import Model
+from msk._runtime.fork import Forked, spare_cpu
+from msk.model.core import Model, ModelState
 from msk.personalise.scaling import ScalingReport
 from msk.trial import Trial
 
@@ -273,6 +274,15 @@ def placement_cost(
 Rescale = Callable[[Mapping[str, float], tuple[Model, Mapping[str, Any]]], Candidate]
 
 
+def _refined_state(
+    refine: Callable[[Candidate], tuple[Model, dict[str, Any]]], c: Candidate
+) -> tuple[ModelState, dict[str, Any]]:
+    """``refine(c)`` with its model as plain data (:meth:`msk.model.core.Model.state`): what a
+    forked child sends back."""
+    model, info = refine(c)
+    return model.state(), info
+
+
 def choose_placement(
     built: Candidate, task: Trial, weights: Mapping[str, float], *,
     split_of: Callable[[Candidate], Mapping[str, float] | None] | None = None,
@@ -382,21 +392,38 @@ def choose_placement(
     records: list[dict[str, Any]] = []
     results: list[Candidate] = []
 
+    def refine(c: Candidate) -> tuple[Model, dict[str, Any]]:
+        call = c.call
+        assert call is not None
+        return refine_placement_from_motion(
+            call.model, call.markers, call.labels, call.time,
+            (c.model, c.info["marker_placement"]), cost,
+            max_rounds=DESCENT_MAX_ROUNDS, rel_tolerance=DESCENT_REL_TOLERANCE, **call.keywords,
+        )  # fmt: skip
+
     def descend(cands: list[tuple[dict[str, Any], Candidate]]) -> None:
+        # the descents are independent (each its own passes and warm starts, one fixed cost):
+        # every one after the first runs in a forked child on a second CPU when there is one
+        # (msk._runtime.fork; the same code on the same data: the same numbers)
+        firsts = {
+            id(c.info["marker_placement"]): i for i, (_, c) in reversed(list(enumerate(cands)))
+        }
+        forked = {
+            i: Forked(_refined_state, refine, c)
+            for i, (_, c) in enumerate(cands)
+            if i and firsts[id(c.info["marker_placement"])] == i and spare_cpu()
+        }  # fmt: skip
         done: list[tuple[Any, Candidate]] = []  # (start placement, descended result)
-        for spec, c in cands:
+        for i, (spec, c) in enumerate(cands):
             mp = c.info["marker_placement"]
             same = [r for m, r in done if m is mp]  # the same start (a pulled route before)
             if same:
                 got_model, got = same[0].model, same[0].info["marker_placement"]
+            elif i in forked:
+                state, got = forked[i].result()
+                got_model = Model.from_state(state)
             else:
-                call = c.call
-                assert call is not None
-                got_model, got = refine_placement_from_motion(
-                    call.model, call.markers, call.labels, call.time, (c.model, mp), cost,
-                    max_rounds=DESCENT_MAX_ROUNDS, rel_tolerance=DESCENT_REL_TOLERANCE,
-                    **call.keywords,
-                )  # fmt: skip
+                got_model, got = refine(c)
             path = got["descent_cost_m"]
             results.append(replace(c, model=got_model,
                                    info={**c.info, "marker_placement": got}))  # fmt: skip

@@ -19,7 +19,6 @@ from msk.dynamics.identification import MassIdentification
 from msk.dynamics.inverse import InverseDynamics
 from msk.dynamics.loads import ASSIGNMENT_METHOD
 from msk.exceptions import MskError
-from msk.fes.io import FES_PARAMETER_UNITS, fes_parameters, fes_step_figures
 from msk.gait.analysis import GaitAnalysis
 from msk.metrics import root_mean_square as rms
 from msk.muscles.emg import EmgActivations
@@ -684,6 +683,9 @@ def run(
 
 
 def fes_summary(res: Any, cfg: SessionConfig, trials: Sequence[Any]) -> dict[str, Any]:
+    # on use: a gait session's summary does not import the FES package (casadi, scipy.signal)
+    from msk.fes.io import FES_PARAMETER_UNITS, fes_parameters, fes_step_figures
+
     par = fes_parameters(res)
     return {
         "parameters": {k: {"value": v, "unit": FES_PARAMETER_UNITS[k]} for k, v in par.items()},

@@ -9,7 +9,6 @@ import numpy as np
 
 from msk.dynamics.identification import MassIdentification
 from msk.dynamics.inverse import InverseDynamics
-from msk.fes.io import fes_tables
 from msk.gait.analysis import GaitAnalysis
 from msk.io.tables import Table
 from msk.optimization.muscle_forces import MuscleForces
@@ -109,5 +108,7 @@ def run(
         if gait_analysis is not None:
             tables.update(gait_analysis.cycles.to_tables())
     if fes is not None:
+        from msk.fes.io import fes_tables  # on use: a gait session does not import msk.fes
+
         tables.update(fes_tables(fes.result))
     return tables

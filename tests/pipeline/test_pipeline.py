@@ -6,6 +6,8 @@ from __future__ import annotations
 import dataclasses
 import json
 import re
+import subprocess
+import sys
 from pathlib import Path
 from types import SimpleNamespace
 
@@ -641,3 +643,19 @@ def test_foot_joint_held_by_the_frames_the_ik_solves_not_by_any_trajectory():
     lost = x.copy()
     lost[30:60, labels.index("R.Toe.Med")] = np.nan  # tracked in 10 of the 40 solved frames
     assert "subtalar_angle_r" in held_foot_coordinates(model, lost, labels)
+
+
+def test_the_pipeline_imports_neither_the_fes_package_nor_scipy_signal():
+    """A gait session's run (and a cached one wholly) does not pay for the FES package's
+    casadi, ``scipy.optimize`` and ``scipy.signal``/``scipy.stats``: importing the stage graph,
+    the summary and the tables imports none of them (the FES stage imports them on use)."""
+    code = (
+        "import sys\n"
+        "import msk.pipeline, msk.pipeline.summary, msk.pipeline.tables, msk.pipeline.graph\n"
+        "heavy = ('msk.fes.protocol', 'msk.fes.identify', 'scipy.signal', 'scipy.stats')\n"
+        "print(' '.join(m for m in heavy if m in sys.modules))\n"
+    )
+    proc = subprocess.run(
+        [sys.executable, "-c", code], capture_output=True, text=True, timeout=300, check=True
+    )
+    assert proc.stdout.strip() == ""

@@ -1,4 +1,4 @@
-"""Issue 20's five figures in one run, each next to its target, with the load average.
+"""The speed targets' figures in one run, each next to its target, with the load average.
 
 1. static optimisation: OpenSim 4.6 StaticOptimization / msk SO per frame, CPU (≥ 500×);
 2. the chain ID + geometry + SO + knee contact (with the medial/lateral split), µs/frame (≤ 100);
@@ -15,7 +15,7 @@ untimed run: min and median, verdict on the median), 5 from :func:`msk.pipeline.
 (``forkserver`` workers, every stage computed). The machine is shared: the load average is
 printed before and after each part; only figures of the same run compare.
 
-    .venv/bin/python bench/bench_issue20.py [--repeat 15] [--cold 5] [--sessions 16]
+    .venv/bin/python bench/bench_targets.py [--repeat 15] [--cold 5] [--sessions 16]
         [--skip batch] [--baseline main]
 
 ``--baseline REF`` measures the ``msk`` package as it is at git ``REF`` instead (``git
@@ -156,8 +156,11 @@ def main() -> None:
         best, med, cpu = r["best"], r["median"], r["cpu"]
         so = "static optimisation"
         ratio = r["opensim_cpu_us"] / cpu[so]
-        chain = sum(best.values())
-        chain_med = sum(med.values())
+        # the plain chain: the compartment rows' stages replace the SO, they do not add to it
+        plain = [k for k in r["stages"] if k not in (bench_chain.ROWS, bench_chain.SO_ROWS)]
+        chain = sum(best[k] for k in plain)
+        chain_med = sum(med[k] for k in plain)
+        chain_cpu = sum(cpu[k] for k in plain)
         contact = best[bench_chain.CONTACT]
         rows += [
             ("SO: OpenSim / msk per frame (CPU)", f"{ratio:,.0f}×",
@@ -166,9 +169,9 @@ def main() -> None:
              f"≥ {bench_chain.TARGET_RATIO:.0f}×", "met" if ratio >= bench_chain.TARGET_RATIO
              else "not met"),
             ("chain ID + geometry + SO + contact", f"{chain:.1f} µs/frame",
-             f"wall min; median {chain_med:.1f}, CPU {sum(cpu.values()):.1f}; "
-             + ", ".join(f"{k} {best[k]:.1f}" for k in r["stages"]),
-             f"≤ {bench_chain.TARGET_US:.0f} µs", _verdict(chain, sum(cpu.values()),
+             f"wall min; median {chain_med:.1f}, CPU {chain_cpu:.1f}; "
+             + ", ".join(f"{k} {best[k]:.1f}" for k in plain),
+             f"≤ {bench_chain.TARGET_US:.0f} µs", _verdict(chain, chain_cpu,
                                                         bench_chain.TARGET_US)),
             ("knee contact + medial/lateral split", f"{contact:.1f} µs/frame",
              f"wall min; median {med[bench_chain.CONTACT]:.1f}, CPU {cpu[bench_chain.CONTACT]:.1f}",
