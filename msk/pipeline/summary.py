@@ -25,6 +25,7 @@ from msk.metrics import root_mean_square as rms
 from msk.muscles.emg import EmgActivations
 from msk.optimization.muscle_forces import MuscleForces
 from msk.personalise import Personalisation
+from msk.personalise.scaling import DEFAULT_MEASUREMENTS
 from msk.pipeline.inputs import SessionInputs, plain_settings
 from msk.pipeline.records import (
     FesResult,
@@ -36,7 +37,6 @@ from msk.pipeline.records import (
 from msk.pipeline.runner import file_sha256, versions
 
 __all__ = [
-    "DEFAULT_MEASUREMENTS",
     "base_summary",
     "fes_summary",
     "filtering",
@@ -48,19 +48,6 @@ __all__ = [
     "strength_summary",
     "swapped_markers",
 ]
-
-#: Scaling measurements (model marker pairs → bodies), used where both markers exist in the
-#: model and (after ``[markers] rename``) in the static trial.
-DEFAULT_MEASUREMENTS: tuple[tuple[str, tuple[tuple[str, str], ...], tuple[str, ...]], ...] = (
-    ("pelvis", (("R.ASIS", "L.ASIS"),), ("pelvis",)),
-    ("femur_r", (("R.ASIS", "R.Knee.Lat"),), ("femur_r",)),
-    ("femur_l", (("L.ASIS", "L.Knee.Lat"),), ("femur_l",)),
-    ("tibia_r", (("R.Knee.Lat", "R.Ankle.Lat"),), ("tibia_r",)),
-    ("tibia_l", (("L.Knee.Lat", "L.Ankle.Lat"),), ("tibia_l",)),
-    ("foot_r", (("R.Heel", "R.Toe.Tip"),), ("talus_r", "calcn_r", "toes_r")),
-    ("foot_l", (("L.Heel", "L.Toe.Tip"),), ("talus_l", "calcn_l", "toes_l")),
-    ("torso", (("V.Sacral", "Sternum"),), ("torso",)),
-)
 
 _ANTHRO_MAP = {
     "pelvis": ("pelvis",),

@@ -204,8 +204,12 @@ def _gc5_walk() -> tuple[object, object, object]:
     from msk.io import read_c3d, read_trc, to_model_frame
     from msk.kinematics.ik import solve_kinematics
     from msk.model.files import load_model
-    from msk.personalise.scaling import place_markers, scale_model, usable_measurements
-    from msk.pipeline import DEFAULT_MEASUREMENTS
+    from msk.personalise.scaling import (
+        DEFAULT_MEASUREMENTS,
+        place_markers,
+        scale_model,
+        usable_measurements,
+    )
 
     with (Path(__file__).resolve().parents[2] / "pipelines" / "gc5_PS.toml").open("rb") as fh:
         inv = {v: k for k, v in tomllib.load(fh)["markers"]["rename"].items()}
