@@ -302,7 +302,7 @@ def test_unmeasured_contact_inside_the_measured_span_is_flagged_outside_it_is_no
     from types import SimpleNamespace as NS
 
     from msk.dynamics.loads import FootContact
-    from msk.pipeline.summary import unmeasured_contact_figures
+    from msk.quality import unmeasured_contact_figures
 
     t = np.arange(100) / 100.0
     miss = np.zeros((100, 2), dtype=bool)

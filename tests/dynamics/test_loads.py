@@ -349,7 +349,7 @@ def test_recorded_force_is_kept_beside_the_low_passed_one():
     """``force_recorded``: the plates' force as recorded (before the low-pass), summed over the
     assigned contacts; the residual-moment bound takes its peak (Hicks et al. 2015: the
     measured external force), which a low-pass lowers."""
-    from msk.pipeline.summary import peak_measured_force_n
+    from msk.dynamics.loads import peak_measured_force_n
 
     idx = np.arange(TRIAL.time.size) * TRIAL.analog_ratio
     impact = [dataclasses.replace(p, force=p.force.copy()) for p in TRIAL.plates]

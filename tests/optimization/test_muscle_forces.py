@@ -137,8 +137,7 @@ def test_left_out_is_the_component_holding_the_coordinate() -> None:
 def test_frames_solved_counts_each_leg() -> None:
     """summary.json's ``optimization.frames_solved``: per leg the frames with every one of its
     muscle forces (the right leg in all 5 frames, the left one in 2)."""
-    from msk.optimization.muscle_forces import MuscleForces
-    from msk.pipeline.summary import frames_solved
+    from msk.optimization.muscle_forces import MuscleForces, frames_solved
 
     f = np.ones((5, 4))
     f[[1, 2], 2] = np.nan
@@ -294,8 +293,7 @@ def test_optimization_figures_count_the_solved_leg_only() -> None:
     there count in its saturation (saturated in 3 of its 10 frames: 30 % > 25 %, flagged; a
     whole-row count saw 0 of 4), the left leg's over its 4 solved frames only; the reserve
     RMS of a left coordinate over its solved frames."""
-    from msk.optimization.muscle_forces import MuscleForces
-    from msk.pipeline.summary import frames_solved
+    from msk.optimization.muscle_forces import MuscleForces, frames_solved
     from msk.quality import optimization_flags
 
     acts = np.full((10, 4), 0.2)
