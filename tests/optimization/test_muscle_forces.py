@@ -312,3 +312,29 @@ def test_optimization_figures_count_the_solved_leg_only() -> None:
     assert flags["a_r_saturated_frames_pct"].value == pytest.approx(30.0)
     assert flags["knee_l_reserve_rms_pct"].value == pytest.approx(15.0)  # 3 of 20 N·m
     assert "knee_r_reserve_rms_pct" not in flags
+
+
+def test_kkt_summary_is_the_typed_record_of_the_worst_figures() -> None:
+    """``summary.optimization.kkt`` built as a typed :class:`msk.results.summary.Kkt`: per
+    figure the worst value, relative value, frame and time; the gate's tolerance; it reads
+    back equal from its JSON."""
+    from msk.optimization import KKT_COLUMNS
+    from msk.optimization.muscle_forces import KktWorst, kkt_summary
+    from msk.quality import THRESHOLDS
+    from msk.results.summary import Kkt
+
+    n = len(KKT_COLUMNS)
+    worst = KktWorst(
+        columns=KKT_COLUMNS,
+        value=np.arange(n) * 1e-9,
+        relative=np.arange(n) * 1e-14,
+        frame=np.arange(n) + 3,
+        time_s=(np.arange(n) + 3) / 100.0,
+        frames=42,
+    )
+    rec = kkt_summary(worst)
+    assert rec.frames == 42 and rec.relative_tolerance == THRESHOLDS["kkt_relative"]
+    comp = rec.complementarity
+    assert comp is not None and comp.frame == n + 2 and comp.max == pytest.approx((n - 1) * 1e-9)
+    assert Kkt.from_dict(rec.to_dict()) == rec
+    assert list(rec.to_dict())[2:] == list(KKT_COLUMNS)
