@@ -42,6 +42,7 @@ from msk.quality import (
     trial_flags,
     unmeasured_contact_figures,
 )
+from msk.results.summary import Methods
 from msk.strength.diagnosis import joint_strength_or_error, strength_summary
 
 __all__ = [
@@ -243,12 +244,12 @@ def run(
         "gait": None if gait_analysis is None else gait_analysis.summary(),
         "angle_columns": [c for c in kin.coordinate_names if not c.endswith(("_tx", "_ty", "_tz"))],
         "quality": quality,
-        "methods": {
-            "plate_assignment": ASSIGNMENT_METHOD,
-            "scaling_measurements": [m[0] for m in DEFAULT_MEASUREMENTS],
-            "task_trial": inputs.task.name,
-            "filtering": filtering(cfg),
-        },
+        "methods": Methods(
+            plate_assignment=ASSIGNMENT_METHOD,
+            scaling_measurements=tuple(m[0] for m in DEFAULT_MEASUREMENTS),
+            task_trial=inputs.task.name,
+            filtering=filtering(cfg),
+        ).to_dict(),
         "identification": None
         if ident is None
         else {
