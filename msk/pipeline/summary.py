@@ -60,21 +60,9 @@ __all__ = [
 
 
 def filtering(cfg: SessionConfig) -> str:
-    """What was low-passed, in words (``methods.filtering``)."""
-    f = cfg.filters
-    where = (
-        "each segment's centre of mass low-passed like the plates for the whole-body "
-        "acceleration (the difference taken by the pelvis translations; "
-        "msk.kinematics.com_consistency)"
-        if f.acceleration_domain == "segment_com"
-        else "velocities and accelerations differentiated from the low-passed coordinates"
-    )
-    return (
-        f"joint coordinates low-passed at {f.kinematics_cutoff_hz:g} Hz and ground reactions "
-        f"at {cfg.filters.grf_cutoff_used_hz:g} Hz (4th-order Butterworth run forward and "
-        "backward: zero "
-        f"lag); {where}"
-    )
+    """What was low-passed, in words (``methods.filtering``,
+    :meth:`msk.config.options.FilterConfig.description`)."""
+    return cfg.filters.description()
 
 
 def base_summary(inputs: SessionInputs) -> dict[str, Any]:
