@@ -45,6 +45,8 @@ from msk.quality import (
 from msk.results.summary import Methods
 from msk.strength.diagnosis import joint_strength_or_error, strength_summary
 
+# fes_summary, frames_solved, peak_measured_force_n and strength_summary are their library
+# rooms' (msk.fes.io, msk.optimization.muscle_forces, msk.dynamics.loads, msk.strength.diagnosis)
 __all__ = [
     "base_summary",
     "fes_summary",
