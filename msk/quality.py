@@ -70,6 +70,7 @@ import numpy as np
 import pinocchio as pin
 from numpy.typing import ArrayLike, NDArray
 
+from msk.metrics import root_mean_square as rms
 from msk.model.markersets import LANDMARK_BODIES, is_knee_segment, other_side, parse_label
 from msk.signal import true_runs
 from msk.units import G0, Array
@@ -84,17 +85,23 @@ __all__ = [
     "body_mass_from_loads",
     "com_height",
     "contact_flags",
+    "dead_plate_flags",
     "frontal_reserve_figures",
     "frontal_reserve_flags",
     "gait_flags",
+    "gait_quality",
     "inconsistent_static_markers",
     "kkt_flags",
+    "marker_rename_flags",
     "model_flags",
     "optimization_flags",
     "placement_label_conflicts",
+    "plate_edge_flags",
     "plate_scale_factor",
     "swapped_label_pairs",
     "swapped_sides",
+    "trial_flags",
+    "unmeasured_contact_figures",
 ]
 
 #: the thresholds of the gates (SI unless the name says)
@@ -1095,3 +1102,258 @@ def gait_flags(
     if optimization is not None:
         out += optimization_flags(trial_name, optimization, joint_torques, th)
     return out
+
+
+def unmeasured_contact_figures(loads: Any, time: ArrayLike) -> dict[str, Any]:
+    """``quality.unmeasured_contact_frames`` of ``loads`` (its ``contact``,
+    :class:`msk.dynamics.loads.FootContact`, and ``measured`` frames): frames in which a foot
+    stands on a surface no plate measures for at least :data:`msk.dynamics.loads.STANDING_S`
+    (:meth:`msk.dynamics.loads.FootContact.standing`; its leg's joint torques are not written
+    there), ``unmeasured_contact_frames_by_foot``, ``unmeasured_contact_raised_frames`` (those
+    off the floor's level: a stair's upper steps, a box) and ``unmeasured_contact_inside_pct``:
+    the share of the frames between the first and the last measured frame that have one (a
+    walkway's steps before and after the plates lie outside; a foot off a plate in the middle
+    of the task inside)."""
+    contact = getattr(loads, "contact", None)
+    if contact is None:
+        return {}
+    miss = np.asarray(contact.standing(), dtype=bool)
+    anym: NDArray[np.bool_] = np.asarray(miss.any(axis=1), dtype=bool)
+    meas = np.flatnonzero(np.asarray(loads.measured, dtype=bool))
+    inside = None
+    span = None
+    if meas.size:
+        a, b = int(meas[0]), int(meas[-1])
+        inside = 100.0 * float(anym[a : b + 1].mean())
+        t = np.asarray(time, dtype=float)
+        hit = np.flatnonzero(anym[a : b + 1])
+        if hit.size:
+            span = [float(t[a + hit[0]]), float(t[a + hit[-1]])]
+    floor = getattr(contact, "on_floor", None)
+    raised = miss & ~np.asarray(floor, dtype=bool) if floor is not None else miss & False
+    return {
+        "unmeasured_contact_frames": int(anym.sum()),
+        "unmeasured_contact_raised_frames": int(raised.any(axis=1).sum()),
+        "unmeasured_contact_frames_by_foot": {
+            f: int(miss[:, k].sum()) for k, f in enumerate(contact.feet)
+        },
+        "unmeasured_contact_inside_pct": inside,
+        "unmeasured_contact_inside_s": span,
+    }
+
+
+def _mode(names: Sequence[str]) -> str:
+    vals = [n for n in names if n]
+    return max(set(vals), key=vals.count) if vals else ""
+
+
+def gait_quality(
+    trial: Any,
+    kin: Any,
+    jt: Any,
+    loads: Any,
+    emg: Any,
+    sol: Any,
+    strength: Any,
+    ident: Any,
+    body_weight: float,
+    measured: NDArray[np.bool_],
+    observed: NDArray[np.bool_],
+    observation: Any = None,
+) -> dict[str, Any]:
+    """The data-quality figures of a gait trial (``summary.quality`` before its flags): marker
+    gaps, IK marker RMS (mean, max, worst marker), frames measured and observed, and the pelvis
+    residuals' RMS over the frames whose ground contact the plates measure (``measured``,
+    :func:`msk.dynamics.loads.contact_measured`) and the markers observe (``observed`` ⊆
+    ``measured``; ``observation``: :func:`msk.kinematics.observation.observed_frames`), None
+    when there is none; with the EMG (``emg``), the tension result (``sol``), the strength
+    identification (``strength``) and the mass identification (``ident``) their own figures.
+    ``loads`` is the :class:`msk.dynamics.loads.ExternalLoads` (its plate assignments)."""
+    ok = np.isfinite(jt.residual_force).all(axis=1) & observed
+    res_f = rms(jt.residual_force[ok]) if ok.any() else None
+    gaps = [
+        {"marker": lab, "missing_frames": int(n), "longest_gap_frames": int(g)}
+        for lab, n, g in zip(trial.gaps.labels, trial.gaps.n_missing, trial.gaps.longest_gap)
+        if n > 0
+    ]
+    q: dict[str, Any] = {
+        "frames": int(kin.time.size),
+        "rate_hz": float(trial.point_rate_hz),
+        "marker_gaps": gaps,
+        "ik_failed_frames": int(kin.failed_frames.size),
+        "ik_marker_rms_mean_m": float(np.nanmean(kin.marker_rms)),
+        "ik_marker_rms_max_m": float(np.nanmax(kin.marker_rms)),
+        "ik_worst_marker": _mode(kin.marker_max_name),
+        "contact_measured_frames": int(measured.sum()),
+        "observed_measured_frames": int(observed.sum()),
+        "unobserved_segment_frames": (
+            None if observation is None else {k: int(v) for k, v in observation.short.items()}
+        ),
+        "residual_force_rms_n": res_f,
+        "residual_force_rms_pct_bw": None if res_f is None else 100 * res_f / body_weight,
+        "residual_moment_rms_nm": rms(jt.residual_moment[ok]) if ok.any() else None,
+        "plate_assignments": [
+            {k: getattr(a, k) for k in ("plate", "body", "start_time", "end_time") if hasattr(a, k)}
+            for a in getattr(loads, "assignments", ())
+        ],
+    }
+    if emg is not None:
+        flat = [emg.sources[k] for k in range(len(emg.muscles)) if not emg.usable[k]]
+        q["emg_flat_channels"] = sorted(set(flat))
+        q["emg_warnings"] = list(emg.warnings)
+        q["emg_normalisation"] = emg.normalisation
+    if sol is not None and sol.infeasible_frames is not None:
+        q["optimization_infeasible_frames"] = sol.infeasible_frames
+    if strength is not None:
+        q["strength_fit_r2"] = float(strength.profile.r2)
+    if ident is not None:
+        q["identification_condition_number"] = ident.condition_number
+    return q
+
+
+def trial_flags(
+    trial: str,
+    *,
+    file_name: str,
+    quality: Mapping[str, Any],
+    model: Any,
+    kinematics: Any,
+    joint_torques: Any,
+    external: Any,
+    measured: NDArray[np.bool_],
+    mass_kg: float,
+    height_m: float | None,
+    marker_labels: Sequence[str],
+    optimization: Any,
+    plate_mass_kg: float | None,
+    held: Sequence[str],
+    model_info: Mapping[str, Any],
+    swapped_pairs: Sequence[tuple[str, str, float]],
+    static_name: str | None,
+    emg_channels: Mapping[str, Any],
+    analog_labels: Sequence[str],
+    file_metadata: Mapping[str, Any],
+) -> list[Flag]:
+    """The gates raised on a gait trial (:func:`gait_flags`, :func:`contact_flags`,
+    :func:`model_flags`), its left/right labels that look swapped (``swapped_pairs``,
+    :func:`swapped_sides`) or were swapped back before scaling, a static trial refused or
+    contradicted by the task (``model_info``: what personalisation reported), the
+    configuration's EMG channels missing from the file (``emg_channels`` muscle → channel, the
+    file's ``analog_labels``) and what the reader noticed in the file (``file_metadata``: its
+    typed ``flags`` and ``warnings``: duplicate labels renamed, NaN plate samples…)."""
+    from msk.dynamics.loads import peak_measured_force_n
+
+    scaling = model_info.get("scaling", {}).get("bodies", {})
+    out = list(
+        gait_flags(
+            trial, quality=quality, model=model, kinematics=kinematics,
+            joint_torques=joint_torques, mass_kg=mass_kg, height_m=height_m,
+            marker_labels=marker_labels, optimization=optimization, plate_mass_kg=plate_mass_kg,
+            held=tuple(held), scaling_methods={b: v["method"] for b, v in scaling.items()},
+            peak_external_force_n=peak_measured_force_n(external, measured),
+            com_height_m=com_height(model, kinematics, measured, floor_m=float(np.median(
+                list(external.metadata.get("surface_heights_m", {}).values()) or [0.0]))),
+        )
+    )  # fmt: skip
+    out += contact_flags(trial, external)
+    out += model_flags(trial, model_info, [b.name for b in model.bodies])
+    for r, lft, dz in swapped_pairs:
+        out.append(
+            Flag(trial, f"{r}/{lft}_swapped", dz, -SWAP_MIN_SEPARATION_M,
+                 f"{r} is {-1000 * dz:.0f} mm left of {lft} (the subject's right "
+                 "from the pelvis): their labels look swapped (a labelling error in the file, or "
+                 "the wrong side in the config)")
+        )  # fmt: skip
+    swapped = dict(model_info.get("marker_set", {}).get("swapped_back", {}))
+    if swapped:
+        out.append(
+            Flag(trial, "marker_labels_swapped_back", max(-v for v in swapped.values()),
+                 SWAP_MIN_SEPARATION_M,
+                 "left/right labels swapped in the file: " + ", ".join(
+                     f"{pair} ({-1000 * v:.0f} mm on the wrong side)"
+                     for pair, v in sorted(swapped.items()))
+                 + "; their markers were exchanged back before scaling and IK "
+                 "(msk.quality.swapped_label_pairs, judged from the pelvis markers)")
+        )  # fmt: skip
+    if model_info.get("static_rejected"):
+        out.append(
+            Flag(trial, "static_not_used", 1.0, 0.0,
+                 f"static trial {static_name!r}: {model_info['static_rejected']}")
+        )  # fmt: skip
+    bad = dict(model_info.get("static_check", {}).get("contradicted_m", {}))
+    if bad:
+        out.append(
+            Flag(trial, "static_markers_contradicted_m", max(bad.values()),
+                 THRESHOLDS["static_marker_discrepancy_m"],
+                 "the static trial's " + ", ".join(
+                     f"{lab} ({1000 * d:.0f} mm)" for lab, d in sorted(bad.items()))
+                 + " disagree with their segment's other markers in the task (median distance "
+                 "difference): mislabelled or ghost markers in the static, placed from the task "
+                 "instead (msk.quality.inconsistent_static_markers)")
+        )  # fmt: skip
+    if emg_channels:
+        from msk.muscles.emg import missing_channels
+
+        _, absent = missing_channels(emg_channels, analog_labels)
+        if absent:
+            muscles = sorted(m for m, c in emg_channels.items() if str(c).strip() in absent)
+            out.append(
+                Flag(trial, "emg_channels_missing", len(absent), 0,
+                     f"{file_name} has no analog channel "
+                     f"{', '.join(repr(c) for c in absent)} of the configuration's [emg] "
+                     f"channels: {', '.join(muscles)} tracked by no EMG in this trial")
+            )  # fmt: skip
+    typed = tuple(file_metadata.get("flags", ()))  # the reader's typed flags keep their quantity
+    for f in typed:
+        out.append(
+            Flag(trial, str(f["quantity"]), float(f["value"]), float(f["threshold"]),
+                 f"{file_name}: {f['message']}")
+        )  # fmt: skip
+    said = {f["message"] for f in typed}
+    for w in file_metadata.get("warnings", ()):
+        if w in said:
+            continue
+        out.append(Flag(trial, "input_file", 1.0, 0.0, f"{file_name}: {w}"))
+    return out
+
+
+def plate_edge_flags(trial: str, metadata: Mapping[str, Any]) -> list[Flag]:
+    """A foot straddling a plate's edge (``metadata["plate_edge"]`` of the external loads,
+    :mod:`msk.dynamics.plate_footprint`): those frames count as an unmeasured contact."""
+    return [
+        Flag(trial, "foot_past_plate_edge_m", e["max_outside_m"], 0.01,
+             f"{e['foot']} straddles the edge of {e['plate']} from "
+             f"{e['start_s']:.2f} to {e['end_s']:.2f} s ({e['frames']} frames, up to "
+             f"{100 * e['max_outside_m']:.0f} cm past it): part of its ground reaction is "
+             "off the plate, so those frames count as an unmeasured contact (no joint "
+             "torques of that leg, residual, muscle force or knee contact from them; "
+             "msk.dynamics.plate_footprint)")
+        for e in metadata.get("plate_edge", ())
+    ]  # fmt: skip
+
+
+def marker_rename_flags(trial: str, model_info: Mapping[str, Any]) -> list[Flag]:
+    """A ``[markers] rename`` entry naming a label in no trial (a typo: the model marker it
+    meant is not tracked), from the marker set's notes (``model_info["marker_set"]``)."""
+    unmatched = [
+        n for n in (model_info.get("marker_set") or {}).get("notes", ())
+        if str(n).startswith("markers.rename: labels in no trial")
+    ]  # fmt: skip
+    return [
+        Flag(trial, "marker_rename_unmatched", float(len(str(note).split(":", 2)[-1].split(","))),
+             0.0, f"{note} (a typo? the model markers they name are not tracked from them)")
+        for note in unmatched
+    ]  # fmt: skip
+
+
+def dead_plate_flags(trial: str, dead_plates: Sequence[Mapping[str, Any]]) -> list[Flag]:
+    """A plate reading nothing under a foot standing on it (a dead, disconnected or mis-mapped
+    plate: that foot's ground reaction is missing)."""
+    return [
+        Flag(trial, "plate_dead", d["max_force_n"], 20.0,
+             f"force plate {d['plate']} reads at most {d['max_force_n']:.0f} N while "
+             f"{d['foot']} stands on it for {d['seconds']:.2f} s ({d['start_s']:.2f}–"
+             f"{d['end_s']:.2f} s): a dead, disconnected or mis-mapped plate; that foot's "
+             "ground reaction is missing")
+        for d in dead_plates
+    ]  # fmt: skip

@@ -302,7 +302,7 @@ def test_unmeasured_contact_inside_the_measured_span_is_flagged_outside_it_is_no
     from types import SimpleNamespace as NS
 
     from msk.dynamics.loads import FootContact
-    from msk.pipeline.summary import unmeasured_contact_figures
+    from msk.quality import unmeasured_contact_figures
 
     t = np.arange(100) / 100.0
     miss = np.zeros((100, 2), dtype=bool)
@@ -508,3 +508,25 @@ def test_a_static_standing_pose_beyond_the_gates_is_flagged(pose, flagged):
     assert set(flags) == flagged
     for f in flags.values():
         assert abs(f.value) > abs(f.threshold) and np.sign(f.value) == np.sign(f.threshold)
+
+
+def test_file_and_plate_flags_name_what_they_found() -> None:
+    """A ``[markers] rename`` naming labels in no trial (its count the value), a plate reading
+    nothing under a foot (its largest force the value) and a foot past a plate's edge (how far)
+    are each one flag of the trial; nothing raised without them."""
+    from msk.quality import dead_plate_flags, marker_rename_flags, plate_edge_flags
+
+    info = {"marker_set": {"notes": ["markers.rename: labels in no trial: RKNE, LKNEE", "ok"]}}
+    (f,) = marker_rename_flags("walk", info)
+    assert (f.trial, f.quantity, f.value) == ("walk", "marker_rename_unmatched", 2.0)
+    assert "RKNE" in f.message
+    dead = {"plate": "FP2", "foot": "calcn_l", "max_force_n": 3.0, "seconds": 0.6,
+            "start_s": 1.0, "end_s": 1.6}  # fmt: skip
+    (d,) = dead_plate_flags("walk", [dead])
+    assert (d.quantity, d.value, d.threshold) == ("plate_dead", 3.0, 20.0) and "FP2" in d.message
+    edge = {"foot": "calcn_r", "plate": "FP1", "max_outside_m": 0.04, "start_s": 0.1,
+            "end_s": 0.3, "frames": 20}  # fmt: skip
+    (e,) = plate_edge_flags("walk", {"plate_edge": [edge]})
+    assert (e.quantity, e.value) == ("foot_past_plate_edge_m", 0.04) and "4 cm" in e.message
+    assert not marker_rename_flags("walk", {}) and not dead_plate_flags("walk", [])
+    assert not plate_edge_flags("walk", {})

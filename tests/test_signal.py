@@ -231,6 +231,8 @@ def test_causal_lowpass_refuses_a_cutoff_above_nyquist():
         CausalLowpass(1, rate_hz=10.0, cutoff_hz=6.0)
     with pytest.raises(MskError):
         CausalLowpass(1, rate_hz=100.0, cutoff_hz=6.0, order=3)
+
+
 @settings(max_examples=60, deadline=None)
 @given(
     n=st.integers(2, 400),

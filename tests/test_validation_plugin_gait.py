@@ -8,7 +8,8 @@ and plates is compared with them, sagittal hip, knee and ankle, over every stanc
 
 Chain (both files): gait2392 (``msk/data/models/gait2392.toml``) →
 :func:`msk.personalise.scaling.scale_model`
-(:data:`msk.pipeline.DEFAULT_MEASUREMENTS` where both markers exist; the feet, which have no
+(:data:`msk.personalise.scaling.DEFAULT_MEASUREMENTS` where both markers exist; the feet, which
+have no
 usable pair — PiG's toe marker is not gait2392's toe tip — take the mean tibia factor) →
 :func:`msk.personalise.scaling.place_markers` (THI/TIB wands, PSIS, toe, C7…) → lab → model frame
 (:func:`msk.io.lab_to_model_rotation`: lab up → model up, walking along +x) →
@@ -64,8 +65,13 @@ from msk.kinematics.ik import solve_kinematics
 from msk.metrics import pearson_r
 from msk.model.core import forward_kinematics
 from msk.model.files import load_model
-from msk.personalise.scaling import Measurement, measure_scale_factors, place_markers, scale_model
-from msk.pipeline import DEFAULT_MEASUREMENTS
+from msk.personalise.scaling import (
+    DEFAULT_MEASUREMENTS,
+    Measurement,
+    measure_scale_factors,
+    place_markers,
+    scale_model,
+)
 from msk.signal import filtfilt_butter
 
 ROOT = Path(__file__).resolve().parents[1]

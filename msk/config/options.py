@@ -355,6 +355,21 @@ class FilterConfig:
             self.kinematics_cutoff_hz if self.grf_cutoff_hz is None else self.grf_cutoff_hz
         )
 
+    def description(self) -> str:
+        """What was low-passed, in words (``summary.methods.filtering``)."""
+        where = (
+            "each segment's centre of mass low-passed like the plates for the whole-body "
+            "acceleration (the difference taken by the pelvis translations; "
+            "msk.kinematics.com_consistency)"
+            if self.acceleration_domain == "segment_com"
+            else "velocities and accelerations differentiated from the low-passed coordinates"
+        )
+        return (
+            f"joint coordinates low-passed at {self.kinematics_cutoff_hz:g} Hz and ground "
+            f"reactions at {self.grf_cutoff_used_hz:g} Hz (4th-order Butterworth run forward and "
+            f"backward: zero lag); {where}"
+        )
+
 
 @dataclass(frozen=True, kw_only=True)
 class OptimizationConfig:

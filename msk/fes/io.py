@@ -12,6 +12,7 @@ import csv
 import dataclasses
 import os
 import tempfile
+from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Literal
@@ -30,6 +31,7 @@ __all__ = [
     "FesRecording",
     "fes_parameters",
     "fes_step_figures",
+    "fes_summary",
     "fes_tables",
     "read_fes_csv",
     "recording_from_trial",
@@ -264,4 +266,25 @@ def fes_tables(res: Any) -> dict[str, Table]:
             ("knee_angle_measured", "knee_angle_simulated", "knee_angle_simulated_k_s0"),
             "fes_validation",
         ),
+    }
+
+
+def fes_summary(res: Any, options: Any, trials: Sequence[Any]) -> dict[str, Any]:
+    """``summary.fes`` of the FES protocol's result (:func:`fes_parameters`): the
+    estimated parameters with their units, the initial values, each step's fit
+    (:func:`fes_step_figures`), the series-stiffness iterations, the solver status, seconds per
+    pass, the ``trials`` (name, protocol step, file) and the ``[fes]`` ``options``."""
+    par = fes_parameters(res)
+    return {
+        "parameters": {k: {"value": v, "unit": FES_PARAMETER_UNITS[k]} for k, v in par.items()},
+        "initial_parameters": {
+            k: float(getattr(getattr(res.subject_initial, k.split(".")[0]), k.split(".")[1]))
+            for k in FES_PARAMETER_UNITS
+        },
+        "steps": fes_step_figures(res),
+        "k_s_history_n_per_m": list(res.k_s_history),
+        "solver_status": res.series_stiffness.solver_status,
+        "seconds": dict(res.seconds),
+        "trials": [{"name": tc.name, "step": tc.fes.step, "file": str(tc.file)} for tc in trials],
+        "options": dataclasses.asdict(options),
     }

@@ -69,14 +69,15 @@ from dataclasses import dataclass
 from functools import cache
 from importlib.resources import files
 from importlib.resources.abc import Traversable
-from typing import Literal
+from typing import Literal, cast
 
 import numpy as np
 import pinocchio as pin
 from numpy.typing import ArrayLike, NDArray
 
-from msk.exceptions import AnthropometryError, FileFormatError, InertiaError
+from msk.exceptions import AnthropometryError, FileFormatError, InertiaError, MskError
 from msk.model.core import INERTIAL_PARAMETER_NAMES
+from msk.results.summary import Anthropometry, AnthropometrySegment
 
 __all__ = [
     "DELEVA1996_SEGMENTS",
@@ -92,6 +93,7 @@ __all__ = [
     "inertial_parameters",
     "is_physically_consistent",
     "mirror_segment",
+    "model_anthropometry",
     "pseudo_inertia",
     "segment_from_parameters",
     "segment_table",
@@ -542,3 +544,45 @@ def is_physically_consistent(phi: ArrayLike, *, tol: float = 0.0) -> bool:
 def total_mass(segments: Iterable[SegmentInertia]) -> float:
     """Sum of the masses (kg)."""
     return float(sum(s.mass for s in segments))
+
+
+#: the model's segments (gait2392 / Rajagopal stems) → the table's segments they hold (the
+#: foot = talus + calcaneus + toes; the torso = trunk, head and arms)
+_MODEL_SEGMENTS = {
+    "pelvis": ("pelvis",),
+    "femur": ("thigh",),
+    "tibia": ("shank",),
+    "foot": ("foot",),
+    "torso": ("head_neck", "thorax", "upper_arm", "forearm", "hand"),
+}
+
+
+def model_anthropometry(
+    body_names: Iterable[str], mass_kg: float | None, height_m: float | None, sex: str
+) -> Anthropometry | None:
+    """``summary.anthropometry``: the generic segment masses of the anthropometric table
+    (Dumas R, Chèze L, Verriest J-P 2007, J Biomech 40:543-553) mapped on the model's bodies
+    ``body_names`` (the foot = talus + calcaneus + toes; the torso = trunk, head and arms).
+    Segment masses are fractions of body mass: the stature (1.75 m when None) only sets
+    lengths and inertias, which are not reported. None when the table has no such subject."""
+    try:
+        sx = cast(Literal["male", "female"], sex)
+        segs = generic_segments(float(mass_kg or np.nan), height_m or 1.75, sex=sx)
+    except MskError:
+        return None
+    out = {}
+    for body in body_names:
+        base, _, sd = body.rpartition("_") if body.endswith(("_l", "_r")) else (body, "", "")
+        key = "foot" if base in ("talus", "calcn", "toes") else base
+        if key not in _MODEL_SEGMENTS:
+            continue
+        total = 0.0
+        for s in _MODEL_SEGMENTS[key]:
+            for name, seg in segs.items():
+                stem = name[:-2] if name.endswith(("_l", "_r")) else name
+                side_ok = not sd or not name.endswith(("_l", "_r")) or name.endswith("_" + sd)
+                if stem == s and side_ok:
+                    total += seg.mass
+        label = f"{key}_{sd}" if sd else key
+        out[label] = AnthropometrySegment(mass_kg=total, table="Dumas et al. 2007")
+    return Anthropometry(segments=out, table="Dumas et al. 2007", sex=sex)

@@ -34,6 +34,7 @@ import numpy as np
 
 from msk._runtime.blocks import frame_blocks, solve_parts
 from msk.exceptions import NotAvailableError
+from msk.results.summary import Kkt, KktFigure, Optimization
 
 if TYPE_CHECKING:
     from msk.config.options import OptimizationConfig
@@ -47,9 +48,12 @@ __all__ = [
     "MuscleForces",
     "actuated",
     "fit_frames",
+    "frames_solved",
+    "kkt_summary",
     "knee_compartments",
     "left_out",
     "left_out_patterns",
+    "optimization_summary",
     "solve_muscle_forces",
     "worst_kkt",
 ]
@@ -698,3 +702,71 @@ def solve_muscle_forces(
         compartment_rows=(f"{comp.joint}_medial", f"{comp.joint}_lateral"),
         id_frontal_moment_peak_nm=id_peak,
     )  # fmt: skip
+
+
+def frames_solved(sol: MuscleForces) -> dict[str, int]:
+    """Per leg (the side suffix ``r``/``l`` of the muscles' names) the frames in which every
+    muscle of that leg has a force (the tension stage leaves a leg out where its foot stands
+    off the plates, :func:`solve_muscle_forces`)."""
+    out = {}
+    for side in ("r", "l"):
+        cols = [k for k, n in enumerate(sol.muscles) if n.endswith(f"_{side}")]
+        if cols and sol.forces.shape[1]:
+            out[side] = int(np.isfinite(sol.forces[:, cols]).all(axis=1).sum())
+    return out
+
+
+def kkt_summary(worst: KktWorst) -> Kkt:
+    """``summary.optimization.kkt`` of a :class:`KktWorst`: the frames checked, the relative
+    tolerance of the quality gate (:data:`msk.quality.THRESHOLDS` ``kkt_relative``) and per
+    figure its largest value, largest relative value and where."""
+    from msk.quality import THRESHOLDS
+
+    return Kkt(
+        frames=int(worst.frames),
+        relative_tolerance=THRESHOLDS["kkt_relative"],
+        **{
+            c: KktFigure(
+                max=float(worst.value[k]),
+                relative_max=float(worst.relative[k]),
+                frame=int(worst.frame[k]),
+                time_s=float(worst.time_s[k]),
+            )
+            for k, c in enumerate(worst.columns)
+        },
+    )
+
+
+def optimization_summary(sol: MuscleForces, sfx: str) -> Optimization:
+    """``summary.optimization`` of a tension result: method, criterion, the EMG gains and their
+    :mod:`msk.status` words (:func:`msk.status.gain_status`), infeasible frames,
+    :func:`frames_solved`, the RMS of the reserve torques of the analysed side's coordinates
+    (suffix ``sfx``), :func:`kkt_summary` and the knee's frontal-plane reserve moments
+    (:func:`msk.quality.frontal_reserve_figures`)."""
+    from msk.quality import frontal_reserve_figures
+    from msk.status import gain_status
+
+    return Optimization(
+        method=sol.method,
+        criterion=sol.criterion,
+        emg_gains=None if sol.emg_gains is None else dict(sol.emg_gains),
+        emg_gain_status=None
+        if not sol.emg_gains
+        else {c: gain_status(float(g)).value for c, g in sol.emg_gains.items()},
+        infeasible_frames=sol.infeasible_frames,
+        frames_solved=frames_solved(sol),
+        reserve_torque_rms_nm=None
+        if sol.reserve_torques is None or sol.reserve_coordinates is None
+        else {
+            c: float(np.sqrt(np.nanmean(sol.reserve_torques[:, k] ** 2)))
+            for k, c in enumerate(sol.reserve_coordinates)
+            if c.endswith(sfx)
+        },
+        kkt=None if sol.kkt is None else kkt_summary(sol.kkt),
+        frontal_reserve=None
+        if sol.frontal_reserve_moments is None
+        else {
+            "id_frontal_moment_peak_nm": sol.id_frontal_moment_peak_nm or 0.0,
+            **frontal_reserve_figures(sol),
+        },
+    )

@@ -63,6 +63,7 @@ from msk.personalise.functional_joints import segment_poses
 from msk.units import Array
 
 __all__ = [
+    "DEFAULT_MEASUREMENTS",
     "DESCENT_MAX_STEP",
     "LEG_START_MAX_SHORTFALL",
     "LEG_START_TOLERANCE",
@@ -792,6 +793,20 @@ def _sided_alternatives(s: str, side: str) -> list[tuple[str, list[Measurement]]
         ),
     ]
 
+
+#: Scaling measurements of gait2392 (name, model marker pairs, bodies): the reference set a
+#: session names in ``methods.scaling_measurements``; each is used where both markers exist in
+#: the model and (after ``[markers] rename``) in the static trial.
+DEFAULT_MEASUREMENTS: tuple[tuple[str, tuple[tuple[str, str], ...], tuple[str, ...]], ...] = (
+    ("pelvis", (("R.ASIS", "L.ASIS"),), ("pelvis",)),
+    ("femur_r", (("R.ASIS", "R.Knee.Lat"),), ("femur_r",)),
+    ("femur_l", (("L.ASIS", "L.Knee.Lat"),), ("femur_l",)),
+    ("tibia_r", (("R.Knee.Lat", "R.Ankle.Lat"),), ("tibia_r",)),
+    ("tibia_l", (("L.Knee.Lat", "L.Ankle.Lat"),), ("tibia_l",)),
+    ("foot_r", (("R.Heel", "R.Toe.Tip"),), ("talus_r", "calcn_r", "toes_r")),
+    ("foot_l", (("L.Heel", "L.Toe.Tip"),), ("talus_l", "calcn_l", "toes_l")),
+    ("torso", (("V.Sacral", "Sternum"),), ("torso",)),
+)
 
 #: gait2392 measurements, per segment the alternatives in order of preference (the first whose
 #: markers are all there is used, :func:`choose_measurements`): the pipeline's defaults first,

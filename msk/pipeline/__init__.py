@@ -28,10 +28,10 @@ session may hold only FES trials: the gait stages are then ``not requested``.
 from __future__ import annotations
 
 from msk.io.frames import lab_to_model_rotation
+from msk.personalise.scaling import DEFAULT_MEASUREMENTS
 from msk.pipeline.graph import CORE_STAGES, GRAPH, STAGES, Node
 from msk.pipeline.runner import RunResult, StageRecord, file_sha256
 from msk.pipeline.session import run_session, run_stages, run_task_trials, split_task_trials
-from msk.pipeline.summary import DEFAULT_MEASUREMENTS
 
 __all__ = [
     "CORE_STAGES",

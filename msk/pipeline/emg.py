@@ -55,7 +55,7 @@ def run(
             f"{ch!r} (did you mean {close!r}?)"
         )
     # a channel this recording lacks (and nothing like it): its muscles are not tracked, the
-    # quality flag emg_channels_missing says so (msk.pipeline.summary)
+    # quality flag emg_channels_missing says so (msk.quality.trial_flags)
     channels = {m: c for m, c in cfg.emg.channels.items() if str(c).strip() not in absent}
     if not channels:
         raise StageUnavailable(

@@ -146,9 +146,5 @@ def escape_text(x: Any) -> str:
 
 def group_statuses(strength: Any) -> list[str]:
     """The :mod:`msk.status` word of every group of a ``summary.strength`` record
-    (:meth:`msk.results.summary.Strength.group_status`, the record serialised once, not once a
-    group)."""
-    from msk.status import group_status
-
-    whole = strength.to_dict()
-    return [group_status(g.to_dict(), whole).value for g in strength.groups]
+    (:meth:`msk.results.summary.Strength.group_status`)."""
+    return [strength.group_status(g) for g in strength.groups]

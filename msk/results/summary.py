@@ -626,10 +626,12 @@ class Strength(_Record):
 
     def group_status(self, group: StrengthGroup) -> str:
         """The :mod:`msk.status` word of one of the groups (its ``status``, or computed from
-        the factor, interval, bounds and r² for older summaries)."""
+        the factor, interval, bounds and r² for older summaries). Reads only the record's
+        ``bounds`` and ``r2``: the rest of the strength record (the joint curves) is not
+        serialised."""
         from msk.status import group_status
 
-        return group_status(group.to_dict(), self.to_dict()).value
+        return group_status(group.to_dict(), {"bounds": self.bounds, "r2": self.r2}).value
 
 
 @dataclass(frozen=True, kw_only=True)

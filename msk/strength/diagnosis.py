@@ -33,7 +33,14 @@ import numpy as np
 
 from msk.status import STRENGTH_CI_REL_WIDTH_MAX, STRENGTH_R2_MIN, Status, strength_status
 
-__all__ = ["CONFOUNDED_R", "GroupDiagnosis", "diagnose", "group_r2"]
+__all__ = [
+    "CONFOUNDED_R",
+    "GroupDiagnosis",
+    "diagnose",
+    "group_r2",
+    "joint_strength_or_error",
+    "strength_summary",
+]
 
 #: |correlation| of two groups' factor estimates at or above which they are called confounded:
 #: at 0.9 the variance inflation 1/(1 − ρ²) is above 5, the usual collinearity alarm (Belsley,
@@ -185,3 +192,92 @@ def diagnose(
             )
         )
     return tuple(out)
+
+
+def joint_strength_or_error(
+    strength: Any, model: Any, side: str, mass_kg: float | None
+) -> dict[str, Any] | None:
+    """``summary.strength.joint_strength``: the maximal isometric moment curves of the generic
+    and the identified model (:func:`msk.strength.joint_strength_summary` of ``strength``'s
+    profile), None without muscles, ``{"error": ...}`` when they cannot be computed (the
+    curves must not cost a run its strength summary)."""
+    if model is None or not model.muscles:
+        return None
+    from msk.strength.joint_strength import joint_strength_summary
+
+    try:
+        return joint_strength_summary(model, strength.profile, side=side, mass_kg=mass_kg)
+    except Exception as exc:  # the curves must not cost the run its strength summary
+        return {"error": f"{type(exc).__name__}: {' '.join(str(exc).split())[:200]}"}
+
+
+_COMPUTE = object()  # strength_summary's default: compute the joint curves
+
+
+def strength_summary(
+    strength: Any,
+    *,
+    model: Any = None,
+    side: str = "_r",
+    mass_kg: float | None = None,
+    joint: Any = _COMPUTE,
+) -> dict[str, Any]:
+    """``summary.strength`` of a strength identification (its ``profile``, ``groups``,
+    ``protocols`` and ``failed`` channels): per group the factor, its intervals, F_iso and the
+    :mod:`msk.status` word with its reason (:func:`diagnose`); ``identified`` = status
+    "identified"; ``gated`` = the group passed the correlation gate. With the (generic,
+    scaled) ``model``: ``joint_strength``, the maximal isometric moment curves of the generic
+    and the identified model (:func:`joint_strength_or_error`), N·m and N·m/kg; ``joint``:
+    those already computed."""
+    from msk.status import STATUS_CODES, STATUS_MEANING
+
+    p = strength.profile
+    diag = diagnose(p)
+    status = tuple(d.status for d in diag)
+    protocols = getattr(strength, "protocols", None) or {}
+    if joint is _COMPUTE:
+        joint = joint_strength_or_error(strength, model, side, mass_kg)
+    return {
+        "groups": [
+            {
+                "group": n,
+                "muscles": list(strength.groups.get(n, [])),
+                "factor": float(p.factors[g]),
+                "ci_low": float(p.ci_low[g]),
+                "ci_high": float(p.ci_high[g]),
+                "ci_cov_low": float(p.ci_cov_low[g]),
+                "ci_cov_high": float(p.ci_cov_high[g]),
+                "f_iso_generic_n": float(p.f_iso_generic[g]),
+                "f_iso_n": float(p.f_iso[g]),
+                "status": status[g],
+                "identified": status[g] == "identified",
+                "gated": bool(p.identified[g]),
+                "reason": diag[g].reason,
+                "r2": diag[g].r2 if math.isfinite(diag[g].r2) else None,
+                "r2_coordinates": list(diag[g].coordinates),
+                "confounded_with": list(diag[g].confounded_with),
+                "protocol": protocols.get(n),
+            }
+            for g, n in enumerate(p.group_names)
+        ],
+        "r2": float(p.r2),
+        "r2_min": STRENGTH_R2_MIN,
+        "status_codes": dict(STATUS_CODES),
+        "status_meaning": dict(STATUS_MEANING),
+        "confidence": float(p.confidence),
+        "bounds": list(p.bounds),
+        "method": p.method,
+        "joint_strength": joint,
+        "failed_channels": [
+            {
+                "group": n,
+                "muscles": list(rec.get("muscles", [])),
+                "status": "not determined",
+                "identified": False,
+                "gated": False,
+                "reason": rec.get("reason"),
+                "protocol": rec.get("protocol"),
+            }
+            for n, rec in (getattr(strength, "failed", None) or {}).items()
+        ],
+    }

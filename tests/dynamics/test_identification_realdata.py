@@ -70,8 +70,7 @@ from msk.kinematics.ik import solve_kinematics
 from msk.model.anthropometry import is_physically_consistent
 from msk.model.core import forward_kinematics
 from msk.model.files import load_model
-from msk.personalise.scaling import Measurement, place_markers, scale_model
-from msk.pipeline import DEFAULT_MEASUREMENTS
+from msk.personalise.scaling import DEFAULT_MEASUREMENTS, Measurement, place_markers, scale_model
 
 ROOT = Path(__file__).resolve().parents[2]
 G = 9.80665

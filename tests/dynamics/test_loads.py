@@ -204,8 +204,12 @@ def _gc5_walk() -> tuple[object, object, object]:
     from msk.io import read_c3d, read_trc, to_model_frame
     from msk.kinematics.ik import solve_kinematics
     from msk.model.files import load_model
-    from msk.personalise.scaling import place_markers, scale_model, usable_measurements
-    from msk.pipeline import DEFAULT_MEASUREMENTS
+    from msk.personalise.scaling import (
+        DEFAULT_MEASUREMENTS,
+        place_markers,
+        scale_model,
+        usable_measurements,
+    )
 
     with (Path(__file__).resolve().parents[2] / "pipelines" / "gc5_PS.toml").open("rb") as fh:
         inv = {v: k for k, v in tomllib.load(fh)["markers"]["rename"].items()}
@@ -345,7 +349,7 @@ def test_recorded_force_is_kept_beside_the_low_passed_one():
     """``force_recorded``: the plates' force as recorded (before the low-pass), summed over the
     assigned contacts; the residual-moment bound takes its peak (Hicks et al. 2015: the
     measured external force), which a low-pass lowers."""
-    from msk.pipeline.summary import peak_measured_force_n
+    from msk.dynamics.loads import peak_measured_force_n
 
     idx = np.arange(TRIAL.time.size) * TRIAL.analog_ratio
     impact = [dataclasses.replace(p, force=p.force.copy()) for p in TRIAL.plates]

@@ -406,3 +406,31 @@ def test_consistency_margin_and_shape_errors() -> None:
         pseudo_inertia(np.zeros(9))
     with pytest.raises(InertiaError, match="mass"):
         segment_from_parameters(np.zeros(10), name="foot_r")
+
+
+def test_model_anthropometry_maps_the_table_on_the_model_bodies() -> None:
+    """``summary.anthropometry``: each model body gets its table segment's mass (femur = thigh,
+    tibia = shank, talus/calcaneus/toes = one foot, torso = trunk, head and both arms): on a
+    whole gait2392-like body list the masses add up to the table's whole body (Dumas et al.
+    2007, the fractions of 70 kg); a body the table has no segment for is left out and an
+    unknown sex gives None."""
+    from msk.model.anthropometry import generic_segments, model_anthropometry
+
+    legs = [f"{b}_{s}" for s in "rl" for b in ("femur", "tibia", "talus", "calcn", "toes")]
+    rec = model_anthropometry(["pelvis", *legs, "torso", "patella_r"], 70.0, None, "male")
+    assert rec is not None and rec.table == "Dumas et al. 2007" and rec.sex == "male"
+    segs = generic_segments(70.0, 1.75, sex="male")
+    assert set(rec.segments) == {"pelvis", "femur_r", "femur_l", "tibia_r", "tibia_l", "foot_r",
+                                 "foot_l", "torso"}  # fmt: skip
+    got = {k: v.mass_kg for k, v in rec.segments.items()}
+    assert got["femur_l"] == pytest.approx(segs["thigh_l"].mass)
+    assert got["foot_r"] == pytest.approx(segs["foot_r"].mass)
+    assert got["torso"] == pytest.approx(
+        sum(
+            v.mass
+            for k, v in segs.items()
+            if k.startswith(("head", "thorax", "upper", "fore", "hand"))
+        )
+    )
+    assert sum(got.values()) == pytest.approx(sum(v.mass for v in segs.values()))
+    assert model_anthropometry(["pelvis"], 70.0, None, "unknown") is None

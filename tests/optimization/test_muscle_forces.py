@@ -137,8 +137,7 @@ def test_left_out_is_the_component_holding_the_coordinate() -> None:
 def test_frames_solved_counts_each_leg() -> None:
     """summary.json's ``optimization.frames_solved``: per leg the frames with every one of its
     muscle forces (the right leg in all 5 frames, the left one in 2)."""
-    from msk.optimization.muscle_forces import MuscleForces
-    from msk.pipeline.summary import frames_solved
+    from msk.optimization.muscle_forces import MuscleForces, frames_solved
 
     f = np.ones((5, 4))
     f[[1, 2], 2] = np.nan
@@ -294,8 +293,7 @@ def test_optimization_figures_count_the_solved_leg_only() -> None:
     there count in its saturation (saturated in 3 of its 10 frames: 30 % > 25 %, flagged; a
     whole-row count saw 0 of 4), the left leg's over its 4 solved frames only; the reserve
     RMS of a left coordinate over its solved frames."""
-    from msk.optimization.muscle_forces import MuscleForces
-    from msk.pipeline.summary import frames_solved
+    from msk.optimization.muscle_forces import MuscleForces, frames_solved
     from msk.quality import optimization_flags
 
     acts = np.full((10, 4), 0.2)
@@ -314,3 +312,29 @@ def test_optimization_figures_count_the_solved_leg_only() -> None:
     assert flags["a_r_saturated_frames_pct"].value == pytest.approx(30.0)
     assert flags["knee_l_reserve_rms_pct"].value == pytest.approx(15.0)  # 3 of 20 N·m
     assert "knee_r_reserve_rms_pct" not in flags
+
+
+def test_kkt_summary_is_the_typed_record_of_the_worst_figures() -> None:
+    """``summary.optimization.kkt`` built as a typed :class:`msk.results.summary.Kkt`: per
+    figure the worst value, relative value, frame and time; the gate's tolerance; it reads
+    back equal from its JSON."""
+    from msk.optimization import KKT_COLUMNS
+    from msk.optimization.muscle_forces import KktWorst, kkt_summary
+    from msk.quality import THRESHOLDS
+    from msk.results.summary import Kkt
+
+    n = len(KKT_COLUMNS)
+    worst = KktWorst(
+        columns=KKT_COLUMNS,
+        value=np.arange(n) * 1e-9,
+        relative=np.arange(n) * 1e-14,
+        frame=np.arange(n) + 3,
+        time_s=(np.arange(n) + 3) / 100.0,
+        frames=42,
+    )
+    rec = kkt_summary(worst)
+    assert rec.frames == 42 and rec.relative_tolerance == THRESHOLDS["kkt_relative"]
+    comp = rec.complementarity
+    assert comp is not None and comp.frame == n + 2 and comp.max == pytest.approx((n - 1) * 1e-9)
+    assert Kkt.from_dict(rec.to_dict()) == rec
+    assert list(rec.to_dict())[2:] == list(KKT_COLUMNS)

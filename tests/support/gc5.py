@@ -32,8 +32,8 @@ from msk.optimization import (
     solve_static_optimization_batch,
     solve_tension_batch,
 )
-from msk.personalise.scaling import Measurement, place_markers, scale_model
-from msk.pipeline import DEFAULT_MEASUREMENTS, lab_to_model_rotation
+from msk.personalise.scaling import DEFAULT_MEASUREMENTS, Measurement, place_markers, scale_model
+from msk.pipeline import lab_to_model_rotation
 from msk.strength import StrengthIdentifier, fit_emg_gains
 
 ROOT = Path(__file__).resolve().parents[2]

@@ -12,6 +12,7 @@ from markupsafe import Markup
 
 from msk.report.format import check, num, or_, status_html
 from msk.report.sections.base import ReportContext, Section
+from msk.results.summary import Kkt
 from msk.status import gain_status
 
 __all__ = ["Methods"]
@@ -87,11 +88,16 @@ def _static_window(win: Any) -> str:
     )
 
 
-def _kkt(kkt: Any) -> dict[str, Any]:
+def _kkt(kkt: Kkt) -> dict[str, Any]:
     tol = kkt.relative_tolerance
     rows = []
-    for name in ("stationarity", "primal_feasibility", "dual_feasibility", "complementarity"):
-        f = getattr(kkt, name)
+    figures = {
+        "stationarity": kkt.stationarity,
+        "primal_feasibility": kkt.primal_feasibility,
+        "dual_feasibility": kkt.dual_feasibility,
+        "complementarity": kkt.complementarity,
+    }
+    for name, f in figures.items():
         if f is None:
             continue
         rows.append(

@@ -13,7 +13,7 @@ from markupsafe import Markup
 
 from msk.report.format import STATUS_COLOURS, finite, group_statuses, num, or_, status_html
 from msk.report.sections.base import ReportContext, Section
-from msk.results.summary import Strength
+from msk.results.summary import Strength, StrengthGroup
 from msk.status import STRENGTH_R2_MIN
 
 __all__ = ["LITERATURE_FACTOR_RANGE", "StrengthSection"]
@@ -24,14 +24,13 @@ LITERATURE_FACTOR_RANGE = (0.5, 2.0)
 _RANK = {"identified": 0, "at bound": 1, "not determined": 2, "prior": 3}
 
 
-def _next_tests(groups: Sequence[Any], status: Sequence[str]) -> list[Markup]:
+def _next_tests(groups: Sequence[StrengthGroup], status: Sequence[str]) -> list[Markup]:
     items = []
     for g, word in zip(groups, status):
         if word == "identified":
             continue
-        reason = getattr(g, "reason", None) or word
-        proto = getattr(g, "protocol", None)
-        text = proto.get("text") if proto else None
+        reason = g.reason or word
+        text = g.protocol.get("text") if g.protocol else None
         nxt = (
             Markup(" <b>Next protocol:</b> {}.").format(text)
             if text
