@@ -740,6 +740,7 @@ def test_knee_contact_in_blocks_equals_one_pass() -> None:
 
     from msk.config import load_config
     from msk.contact.knee import knee_contact_force, plateau_geometry, split_medial_lateral
+    from msk.contact.patella import patellar_tendon
     from msk.dynamics.identification import identified_model
     from msk.muscles.geometry import muscle_geometry
     from msk.optimization.muscle_forces import solve_muscle_forces
@@ -753,6 +754,9 @@ def test_knee_contact_in_blocks_equals_one_pass() -> None:
     assert not r["muscle_geometry"].distal_wrenches  # not held from geometry to contact
     inputs, mdl, kin = session_inputs(cfg), r["model"].model, r["kinematics"]
     joint = got.joint
+    knee_coord = mdl.coordinate_index(
+        next(a.coordinate for j in mdl.joints if j.name == joint for a in j.axes if a.coordinate)
+    )
     m_id = identified_model(mdl, r["mass_identification"])  # both variants' inertias
     spec = with_strength(m_id, r["strength_identification"].profile)
     torques = r["inverse_dynamics"].torques
@@ -773,11 +777,15 @@ def test_knee_contact_in_blocks_equals_one_pass() -> None:
         ok = np.flatnonzero(r["loads"].solvable & np.isfinite(f[:, side]).all(axis=1))
         assert ok.size > 100
         assert (~np.isfinite(f[ok])).any()  # frames whose other leg is left out
-        w = muscle_geometry(mdl, kin.q[ok], distal_wrench_joints=(joint,)).distal_wrenches[joint]
+        g = muscle_geometry(mdl, kin.q[ok], distal_wrench_joints=(joint,))
+        tendon = cfg.contact.patella == "tendon"  # the quadriceps through the patellar tendon
         c = knee_contact_force(
             models[name], kin.take(ok), r["loads"].external.take(ok),
             muscle_forces=np.nan_to_num(f[ok], nan=0.0),
-            muscle_names=r["tension_optimization"].muscles, joint=joint, distal_wrenches=w,
+            muscle_names=r["tension_optimization"].muscles, joint=joint,
+            distal_wrenches=g.distal_wrenches[joint],
+            patella=patellar_tendon(models[name], joint=joint) if tendon else None,
+            knee_jacobian=np.asarray(g.jacobian)[:, :, knee_coord] if tendon else None,
         )  # fmt: skip
         cc = cfg.contact
         geo = plateau_geometry(
