@@ -190,6 +190,17 @@ class ModelConfig:
         "model",
         choices=("model", "harrington", "davis", "bell"),
     )
+    inertias: str = opt(
+        "which identified segment inertias the dynamics downstream of the mass identification "
+        "use (joint torques of the identified model, muscle forces, knee contact, gait "
+        "kinetics): all (every identified segment: the posterior mean of the identification, "
+        "shrunk towards the scaled model where the data say little — the default, see "
+        "docs/validation.md, 'Inertias by status') or by_status (a segment's identified "
+        "inertia only where its status is identified, the scaled model's elsewhere); "
+        "summary.json identification.applied_to_dynamics lists the segments used",
+        "all",
+        choices=("by_status", "all"),
+    )
     markers: Path | None = opt(
         "an OpenSim marker set (.xml) for a model whose markers are kept apart (stock .osim)",
         None,

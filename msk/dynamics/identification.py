@@ -109,6 +109,7 @@ __all__ = [
     "SegmentEstimate",
     "SegmentExcitation",
     "WeakDirection",
+    "applied_segments",
     "base_residuals",
     "default_prior_std",
     "excitation_report",
@@ -1789,6 +1790,32 @@ def segment_summary(s: Any) -> dict[str, Any]:
     return out
 
 
-def identified_model(model: Any, ident: MassIdentification | None) -> Any:
-    """``model`` with the identified inertias (``model`` itself when nothing was identified)."""
-    return model if ident is None else model.with_inertias(ident.parameters)
+def identified_model(
+    model: Any, ident: MassIdentification | None, *, by_status: bool = False
+) -> Any:
+    """``model`` with the identified inertias (``model`` itself when nothing was identified).
+
+    ``by_status``: only the segments whose status (:func:`segment_summary`, :mod:`msk.status`)
+    is ``identified`` take their identified inertia; a segment the data do not determine
+    (``not determined``, ``at bound``) or left at its prior keeps ``model``'s — an estimate the
+    data do not determine is not used downstream as if they did. ``False``: every identified
+    segment, whatever its status."""
+    if ident is None:
+        return model
+    if not by_status:
+        return model.with_inertias(ident.parameters)
+    keep = {str(s["name"]) for s in ident.segments if s.get("status") == "identified"}
+    chosen = {b: p for b, p in ident.parameters.items() if b in keep}
+    return model.with_inertias(chosen) if chosen else model
+
+
+def applied_segments(ident: MassIdentification | None, *, by_status: bool = False) -> list[str]:
+    """The segments whose identified inertia :func:`identified_model` applies."""
+    if ident is None:
+        return []
+    if not by_status:
+        return sorted(ident.parameters)
+    return sorted(
+        b for b in ident.parameters
+        if any(s["name"] == b and s.get("status") == "identified" for s in ident.segments)
+    )  # fmt: skip

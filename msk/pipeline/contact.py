@@ -138,7 +138,7 @@ def run(
     # both variants on the inertias the muscle forces balance (the tension stage's torques are
     # the identified model's): the joint reaction of the generic model's inertias with those
     # forces mixed two models (PS ss1: up to 82/111 N on the medial/lateral split)
-    m_id = identified_model(mdl, mass_identification)
+    m_id = identified_model(mdl, mass_identification, by_status=inputs.inertias_by_status)
     generic = variant(m_id)
     variants = {"generic": generic}
     if strength_identification is not None:

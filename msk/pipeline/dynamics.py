@@ -30,7 +30,7 @@ def run(
     )
     if mass_identification is None:
         return InverseDynamics(generic)
-    m_id = identified_model(model.model, mass_identification)
+    m_id = identified_model(model.model, mass_identification, by_status=inputs.inertias_by_status)
     return InverseDynamics(
         generic,
         contact_gated_torques(m_id, inverse_dynamics(m_id, kinematics, loads.external), loads),

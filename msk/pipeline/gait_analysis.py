@@ -34,7 +34,9 @@ def run(
     dyn = model.model
     if inverse_dynamics is not None and inverse_dynamics.identified is not None:
         assert mass_identification is not None  # the identified torques come from it
-        dyn = identified_model(model.model, mass_identification)
+        dyn = identified_model(
+            model.model, mass_identification, by_status=inputs.inertias_by_status
+        )
     events = gait_cycle.events
     return analyse_gait(
         model.model, kinematics, events.foot_strike, events.foot_off,

@@ -54,6 +54,13 @@ class SessionInputs:
         return float(self.cfg.subject.mass_kg)
 
     @property
+    def inertias_by_status(self) -> bool:
+        """``[model] inertias = "by_status"``: the dynamics downstream of the mass
+        identification apply only the segments it identified
+        (:func:`msk.dynamics.identification.identified_model`)."""
+        return self.cfg.model is not None and self.cfg.model.inertias == "by_status"
+
+    @property
     def side(self) -> str:
         """``left`` or ``right``: the leg whose muscles and knee are analysed."""
         return self.cfg.subject.side

@@ -62,7 +62,7 @@ def live_setup(
     pers = res["model"]
     inputs = session_inputs(cfg)
     mass = res.get("mass_identification") if identified else None
-    model = identified_model(pers.model, mass)
+    model = identified_model(pers.model, mass, by_status=inputs.inertias_by_status)
     to_model = {lab: name for name, lab in pers.rename.items()}
     knee = f"knee{inputs.sfx}"
     has_knee = knee in {j.name for j in model.joints}

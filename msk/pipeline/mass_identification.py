@@ -23,6 +23,9 @@ def settings(inputs: SessionInputs) -> Any:
     return {
         "trials": [file_sha256(t.file) for t in inputs.mass_trials],
         "mass": inputs.cfg.subject.mass_kg,
+        # which segments the stages downstream apply (identified_model): in their keys through
+        # this one
+        "inertias": inputs.inertias_by_status,
     }
 
 

@@ -136,7 +136,9 @@ def run_model(
     staging = tempfile.TemporaryDirectory(prefix="msk-opensim-")
     inertias = "mass-identified" if mass_identification is not None else "scaled generic"
     try:
-        mdl = identified_model(model.model, mass_identification)
+        mdl = identified_model(
+            model.model, mass_identification, by_status=inputs.inertias_by_status
+        )
         write_osim(Path(staging.name) / "model.osim", mdl, name=inputs.cfg.subject.name)
     except ModelError as exc:
         return OpenSimExport(staging, (), {"model": f"not written: {exc}"})

@@ -13,7 +13,7 @@ from typing import Any
 import numpy as np
 
 from msk.config import SessionConfig
-from msk.dynamics.identification import MassIdentification
+from msk.dynamics.identification import MassIdentification, applied_segments
 from msk.dynamics.inverse import InverseDynamics
 from msk.dynamics.loads import ASSIGNMENT_METHOD, peak_measured_force_n
 from msk.gait.analysis import GaitAnalysis
@@ -249,6 +249,7 @@ def run(
             "condition_number": ident.condition_number,
             "n_frames": ident.n_frames,
             "advice": ident.advice,
+            "applied_to_dynamics": applied_segments(ident, by_status=inputs.inertias_by_status),
         },
         "anthropometry": None if anthro is None else anthro.to_dict(),
         "plates": {  # each plate's surface, offset removed, plates left out

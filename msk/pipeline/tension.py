@@ -45,7 +45,7 @@ def run(
     emg: EmgActivations | None,
 ) -> MuscleForces:
     torques = inverse_dynamics.torques
-    m_id = identified_model(model.model, mass_identification)
+    m_id = identified_model(model.model, mass_identification, by_status=inputs.inertias_by_status)
     return solve_muscle_forces(
         m_id, torques, muscle_geometry, kinematics.time, loads.solvable, emg,
         kinematics=kinematics, external=loads.external,

@@ -507,12 +507,16 @@ class Segment(_Record):
 
 @dataclass(frozen=True, kw_only=True)
 class Identification(_Record):
-    """``identification``: the mass-distribution identification."""
+    """``identification``: the mass-distribution identification; ``applied_to_dynamics``: the
+    segments whose identified inertia the dynamics downstream used (``[model] inertias``,
+    :func:`msk.dynamics.identification.identified_model`), the others keeping the scaled
+    model's."""
 
     segments: tuple[Segment, ...]
     condition_number: float | None = None
     n_frames: int | None = None
     advice: tuple[str, ...] | None = None
+    applied_to_dynamics: tuple[str, ...] | None = None
 
 
 @dataclass(frozen=True, kw_only=True)

@@ -530,3 +530,31 @@ def test_excitation_report_names_segments_and_motions_from_the_regressor(lumped)
         s = rich.segment(body)
         assert not s.poorly_excited and s.n_excited >= 4, str(rich)
         assert np.all(np.diff(s.information) >= 0)
+
+
+def test_identified_model_applies_segments_by_status():
+    """``by_status``: only a segment whose status is identified takes its identified inertia;
+    ``all`` (the default) applies every one; the summary's list says which."""
+    from msk.dynamics.identification import (
+        MassIdentification,
+        applied_segments,
+        identified_model,
+    )
+
+    model = whole_body_model(generic_bodies())
+    names = [b.name for b in model.bodies]
+    heavier = {b.name: b.parameters() * 1.1 for b in model.bodies}
+    status = {names[0]: "identified", names[1]: "not determined"}
+    ident = MassIdentification(
+        parameters=heavier,
+        segments=[{"name": n, "status": status.get(n, "prior")} for n in names],
+        condition_number=1.0, n_frames=10, advice=(), t0=0.0,
+    )  # fmt: skip
+    some = identified_model(model, ident, by_status=True)
+    assert some.body(names[0]).mass == pytest.approx(1.1 * model.body(names[0]).mass)
+    assert some.body(names[1]).mass == model.body(names[1]).mass  # not determined: the prior
+    every = identified_model(model, ident)
+    assert all(every.body(n).mass == pytest.approx(1.1 * model.body(n).mass) for n in names)
+    assert applied_segments(ident, by_status=True) == [names[0]]
+    assert applied_segments(ident) == sorted(names)
+    assert identified_model(model, None) is model
