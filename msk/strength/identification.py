@@ -143,11 +143,9 @@ from msk.units import Array
 STRENGTH_FACTOR_BOUNDS: tuple[float, float] = (0.5, 2.0)
 
 __all__ = [
-    "MIN_WINDOW_DOF",
     "STRENGTH_FACTOR_BOUNDS",
     "StrengthIdentifier",
     "StrengthProfile",
-    "default_window_count",
     "expand_groups",
     "group_contributions",
     "net_contribution",
@@ -496,25 +494,6 @@ def _bounded_from_normal(a: Array, b: Array, lo: Array, hi: Array) -> Array:
     return lsq_linear(lfac.T, rhs, bounds=(lo, hi), method="bvls", tol=1e-12).x
 
 
-#: residual degrees of freedom a default window keeps in the regression of the coordinate with
-#: the fewest groups (frames ≥ groups + intercept + this)
-MIN_WINDOW_DOF = 3
-
-
-def default_window_count(
-    n_frames: int, n_groups: int, n_windows: int, *, min_dof: int = MIN_WINDOW_DOF
-) -> int:
-    """Number of equal contiguous windows a trial of ``n_frames`` frames is cut into when no
-    window labels are given: ``n_windows``, fewer when a window would hold fewer frames than the
-    regression of a coordinate on its ``n_groups`` groups needs, L = n_groups + 1 + ``min_dof``
-    (the groups, the intercept, and residual degrees of freedom for the adjusted R² of the
-    correlation gate: with L − p − 1 ≤ 0 it is 0 by definition, so a short trial cut into too
-    many windows passes no gate, whatever its data): K = max(3, min(n_windows, ⌊N / L⌋)), three
-    windows being the fewest the gating and the bootstrap need."""
-    need = max(int(n_groups), 1) + 1 + int(min_dof)
-    return int(max(3, min(int(n_windows), int(n_frames) // need)))
-
-
 def _windows(windows: ArrayLike | None, n: int, n_default: int) -> NDArray[np.int64]:
     if windows is None:
         return np.minimum(np.arange(n) * n_default // n, n_default - 1).astype(np.int64)
@@ -634,8 +613,7 @@ class StrengthIdentifier:
         gate_threshold: correlation gate (see module docstring), default 0.6.
         min_windows: selected windows a group must correlate on to be identified.
         bounds: strength-factor bounds (the EMG-driven vs OpenSim thesis, Table 3.1).
-        n_windows: number of equal contiguous windows when ``fit`` gets no ``windows`` labels
-            (at most: fewer on a short trial, :func:`default_window_count`).
+        n_windows: number of equal contiguous windows when ``fit`` gets no ``windows`` labels.
         n_bootstrap: bootstrap replicates (0 disables the bootstrap interval).
         confidence: level of both intervals.
         passive: include the passive fibre force in C_k.
@@ -903,23 +881,7 @@ class StrengthIdentifier:
         n_frames, n_groups, n_coords = cg.shape
         cnames = self._coords(coordinate_names, n_coords)
         y_all = _as2(tau, (n_frames, n_coords), "tau", cnames) - other
-        # coordinates used
-        scale = _group_scale(cg)  # max |C_g| (G, n)
-        acts = scale > 1e-9 * max(float(scale.max()), 1e-300)
-        if self.coordinates is None:
-            use = [j for j in range(n_coords) if acts[:, j].any()]
-        else:
-            use = []
-            for c in self.coordinates:
-                if c not in cnames:
-                    raise IdentificationError(f"unknown coordinate {c!r}; have {list(cnames)}")
-                use.append(cnames.index(c))
-        if not use:
-            raise IdentificationError("no synergist group acts on the selected coordinates")
-        n_default = default_window_count(
-            n_frames, int(acts[:, use].sum(axis=0).min()), self.n_windows
-        )
-        labels = _windows(windows, n_frames, n_default)
+        labels = _windows(windows, n_frames, self.n_windows)
         n_win = int(labels.max()) + 1
         if n_win < 3:
             raise IdentificationError(f"need at least 3 windows for gating/bootstrap, got {n_win}")
@@ -943,6 +905,19 @@ class StrengthIdentifier:
         if use_iv:
             a_bar = _phase_average_loo(np.asarray(act_arr), labels, movement=win_mov)
             zg, _ = self._contributions(jacobian, a_bar, state, frames, compact=True)
+        # coordinates used
+        scale = _group_scale(cg)  # max |C_g| (G, n)
+        acts = scale > 1e-9 * max(float(scale.max()), 1e-300)
+        if self.coordinates is None:
+            use = [j for j in range(n_coords) if acts[:, j].any()]
+        else:
+            use = []
+            for c in self.coordinates:
+                if c not in cnames:
+                    raise IdentificationError(f"unknown coordinate {c!r}; have {list(cnames)}")
+                use.append(cnames.index(c))
+        if not use:
+            raise IdentificationError("no synergist group acts on the selected coordinates")
 
         # gating figures
         gating_r = np.full((n_win, n_groups, n_coords), np.nan)

@@ -32,7 +32,6 @@ from msk.strength import (
     w_emg_stability,
     with_strength,
 )
-from msk.strength.identification import default_window_count
 
 # activation dynamics assumed known (generic) by the identifier: those of the simulation
 ACT = {
@@ -481,26 +480,3 @@ def test_movements_must_each_have_three_windows_for_the_instrument(leg):
         idf.fit(tr.jacobian, a, tr.tau, s, windows=tr.cycle, movements=split)
     with pytest.raises(ShapeMismatchError, match="movements"):
         idf.fit(tr.jacobian, a, tr.tau, s, windows=tr.cycle, movements=mov[:5])
-
-
-def test_default_window_count_keeps_residual_degrees_of_freedom():
-    # 51 frames, 5 groups on the coordinate with fewest: 9 frames a window at least → 5 windows
-    assert default_window_count(51, 5, 10) == 5
-    assert default_window_count(129, 5, 10) == 10  # long enough: the requested count
-    assert default_window_count(10, 8, 10) == 3  # never below the three the gating needs
-    assert default_window_count(51, 5, 10, min_dof=0) == 8
-
-
-def test_short_windows_are_merged_instead_of_failing_every_gate(leg):
-    """Cut into more windows than its frames can fit (windows of 1-2 frames: the adjusted R² of
-    every window is 0), a trial used to pass no gate; the default windows are now capped so a
-    window keeps residual degrees of freedom, and the known strengths are recovered."""
-    tr = gait_trial(leg, n_cycles=10, seed=6)
-    a, s = _inputs(leg, tr)
-    n = tr.tau.shape[0]
-    idf = StrengthIdentifier(leg.groups, leg.params, n_windows=n, n_bootstrap=0)
-    p = idf.fit(tr.jacobian, a, tr.tau, s, coordinate_names=tr.coordinate_names).profile_
-    assert 3 <= p.selected.shape[0] < n
-    ke = p.group_names.index("knee_extensors")
-    assert p.identified[ke]
-    assert abs(p.factors[ke] / 1.7 - 1) < 0.1
