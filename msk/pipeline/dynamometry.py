@@ -55,6 +55,7 @@ from msk.strength.isometric import (
     group_strength,
     lever_arm_from_height,
     model_isometric_torque,
+    relabel_quiet_channels,
     remove_envelope_rest,
     session_mvc,
     subject_model,
@@ -136,7 +137,7 @@ def run_dynamometry(
         if progress is not None:
             progress.write(f"read {tc.test.name}: {tc.file.name}\n")
     tests = [tc.test for tc in cfg.tests]
-    trials = remove_envelope_rest(trials)
+    trials = relabel_quiet_channels(remove_envelope_rest(trials))
     mvc = session_mvc(trials)
     own = agonist_mvc(trials, tests)
     results = []

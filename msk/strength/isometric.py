@@ -75,6 +75,8 @@ the group ``not determined`` with the reason):
 * ``wrong_direction``: the largest sustained excursion is opposite to ``s``;
 * ``emg_flat`` (:func:`msk.muscles.emg.channel_quality`): a dead/unused channel — fails the
   test when it is the target's; an antagonist's only removes the co-contraction correction;
+* ``emg_quiet_other`` (informational, :func:`relabel_quiet_channels`): a non-target channel
+  flat in this test but carrying EMG in another test of the session — a muscle at rest;
 * ``emg_envelope_channel`` (informational): a channel that is an amplifier's pre-processed
   envelope (non-negative, nothing above the high-pass but quantisation, a moving amplitude
   below it: :func:`msk.muscles.emg.envelope_channel`) is used as its own envelope, low-passed
@@ -115,6 +117,7 @@ __all__ = [
     "group_strength",
     "lever_arm_from_height",
     "model_isometric_torque",
+    "relabel_quiet_channels",
     "remove_envelope_rest",
     "session_mvc",
     "subject_model",
@@ -591,6 +594,42 @@ def remove_envelope_rest(trials: Sequence[IsometricTrial]) -> list[IsometricTria
             plateau[lab] = max(plateau[lab] - rest[lab], 0.0)
             base[lab] = max(base[lab] - rest[lab], 0.0)
         out.append(dataclasses.replace(tr, emg_plateau=plateau, emg_baseline=base))
+    return out
+
+
+def relabel_quiet_channels(trials: Sequence[IsometricTrial]) -> list[IsometricTrial]:
+    """The trials with each ``emg_flat_other`` flag of a channel that is *not* flat in another
+    test of the session replaced by the informational ``emg_quiet_other``: a non-target muscle
+    whose EMG stays at the noise floor during one test (the vastus lateralis during a knee
+    flexion, the gastrocnemius during a dorsiflexion) is at rest, not a dead electrode, when the
+    same channel carries EMG in another test. Only a channel flat in every test of the session
+    is called dead. The analysis is unchanged (the channel still counts as no co-contraction in
+    that test)."""
+    alive = {lab for tr in trials for lab, flat in tr.emg_flat.items() if not flat}
+    out = []
+    for tr in trials:
+        flags = []
+        for f in tr.flags:
+            lab = next(
+                (
+                    lab
+                    for lab, flat in tr.emg_flat.items()
+                    if flat and f.message.startswith(f"{tr.test}: EMG {lab}: flat/dead")
+                ),
+                None,
+            )
+            if f.quantity == "emg_flat_other" and lab in alive:
+                active = [o.test for o in trials if lab in o.emg_flat and not o.emg_flat[lab]]
+                rms = f.message.split("(RMS ", 1)[-1].split(" = ", 1)[0]
+                f = dataclasses.replace(
+                    f,
+                    quantity="emg_quiet_other",
+                    message=f"{tr.test}: EMG {lab}: quiet during this test (RMS {rms}, at the "
+                    f"noise floor) and active in {', '.join(active)}: a muscle at rest, not a "
+                    "dead channel; no co-contraction counted from it in this test",
+                )
+            flags.append(f)
+        out.append(dataclasses.replace(tr, flags=tuple(flags)))
     return out
 
 

@@ -23,6 +23,7 @@ from msk.strength.isometric import (
     analyse_isometric,
     group_strength,
     lever_arm_from_height,
+    relabel_quiet_channels,
     remove_envelope_rest,
     session_mvc,
 )
@@ -453,3 +454,27 @@ def test_a_torque_export_needs_no_lever_arm() -> None:
     assert r.measured_net_nm == pytest.approx(80.0, rel=0.01)
     assert r.lever_arm_source.startswith("not used")
     assert r.torque_per_kg == pytest.approx(r.torque_nm / 80.0)
+
+
+def test_a_channel_quiet_in_one_test_and_active_in_another_is_not_called_dead() -> None:
+    """TA at the noise floor during a knee extension but active in a dorsiflexion: a muscle at
+    rest (``emg_quiet_other``); GL flat in both tests stays a dead channel."""
+    dorsi = IsometricTest(
+        name="ankle_dorsiflexion", action="ankle dorsiflexion", angle_deg=0.0,
+        target="TA", antagonist="GL", segment="foot",
+    )  # fmt: skip
+    knee = analyse_isometric(_trial(amps=(300e-6, 30e-6, 0.0, 0.0), rest_amp=3e-6), KNEE)
+    ta = analyse_isometric(_trial(amps=(20e-6, 20e-6, 300e-6, 0.0), rest_amp=3e-6, seed=3), dorsi)
+    assert knee.emg_flat["TA"] and knee.emg_flat["GL"] and not ta.emg_flat["TA"]
+
+    def flat(tr):
+        return {f.message.split(": ")[1] for f in tr.flags if f.quantity == "emg_flat_other"}
+
+    assert flat(knee) == {"EMG TA", "EMG GL"}
+    out = relabel_quiet_channels([knee, ta])
+    assert flat(out[0]) == {"EMG GL"}
+    quiet = [f for f in out[0].flags if f.quantity == "emg_quiet_other"]
+    assert len(quiet) == 1 and "EMG TA" in quiet[0].message
+    assert "ankle_dorsiflexion" in quiet[0].message
+    assert out[1].flags == ta.flags
+    assert out[0].emg_flat == knee.emg_flat  # the analysis is unchanged
