@@ -1,10 +1,13 @@
-"""Shared fixtures (paths to the third-party recordings and reference tables) and the lane
-summary: the last line of a run names the lane that ran and its wall time."""
+"""Shared fixtures (paths to the third-party recordings and reference tables), the lane
+summary (the last line of a run names the lane that ran and its wall time) and the order in
+which pytest-xdist workers run the tests (longest first, from ``tests/durations.json``)."""
 
 from __future__ import annotations
 
+import json
 import os
 import time
+from collections import defaultdict
 from pathlib import Path
 
 import pytest
@@ -14,6 +17,7 @@ from msk._runtime.opensim_peer import opensim_available
 from msk.datasets.shared import real_data_dir, reference_dir
 
 TESTS_DATA = Path(__file__).parent / "data"
+DURATIONS = Path(__file__).parent / "durations.json"
 # CI runs property tests on a fixed example sequence (reproducible, never flaky); locally they
 # explore fresh examples on every run.
 settings.register_profile("ci", derandomize=True, print_blob=True)
@@ -76,4 +80,101 @@ def pytest_terminal_summary(
         f"lane: {lane_name(config.getoption('markexpr') or '')}; wall time "
         f"{time.perf_counter() - _START:.1f} s (from conftest import, {os.cpu_count()} CPUs, "
         f"xdist workers: {workers or 0}, CI={os.environ.get('CI', '')!r})",
+    )
+
+
+# ---------------------------------------------------------------------------------------------
+# pytest-xdist: one BLAS thread per worker, longest tests first (docs/contributing.md)
+# ---------------------------------------------------------------------------------------------
+_BLAS_THREADS = ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS")
+
+
+def pytest_configure(config: pytest.Config) -> None:
+    """With ``-n N`` the workers share the cores: each gets one BLAS thread (two workers each
+    spinning two OpenBLAS threads on two cores oversubscribe them). Set in the controller
+    before it starts the workers, which inherit its environment and import numpy after; a
+    value already in the environment is kept."""
+    if os.environ.get("PYTEST_XDIST_WORKER") is None and config.getoption("numprocesses", None):
+        for var in _BLAS_THREADS:
+            os.environ.setdefault(var, "1")
+
+
+#: recorded seconds (setup + call + teardown) of a test absent from the table
+DEFAULT_SECONDS = 0.05
+
+
+def _recorded() -> dict[str, float]:
+    try:
+        table = json.loads(DURATIONS.read_text())
+    except (OSError, ValueError):
+        return {}
+    return {str(k): float(v) for k, v in table.get("seconds", {}).items()}
+
+
+def worker_order(nodeids: list[str], seconds: dict[str, float], n_workers: int) -> list[int]:
+    """The order (indices into ``nodeids``) in which to hand the tests to ``n_workers``
+    pytest-xdist workers under ``--dist worksteal``, from recorded durations ``seconds``.
+
+    Worksteal hands the first ``⌊n/k⌋`` tests of the list to the first worker, the next share to
+    the next, and lets an idle worker take the second half of a busy worker's queue. The tests
+    of one file stay together (a module fixture or a shared session result is computed once per
+    worker) and files are dealt to ``k`` bins, longest first, each to the bin with the least
+    time so far (longest-processing-time rule); each bin runs its longest file first, so no long
+    test is left at the end of a queue for one worker while the others idle, and what is stolen
+    is the short tail. A bin with more tests than its share comes first: its spilled tail (short
+    tests) starts the next worker, never the other way round."""
+    files: dict[str, list[int]] = defaultdict(list)
+    for i, nid in enumerate(nodeids):
+        files[nid.split("::", 1)[0]].append(i)
+    weight = {
+        f: sum(seconds.get(nodeids[i], DEFAULT_SECONDS) for i in ix) for f, ix in files.items()
+    }
+    k = max(1, n_workers)
+    bins: list[list[str]] = [[] for _ in range(k)]
+    load = [0.0] * k
+    for f in sorted(files, key=lambda f: (-weight[f], f)):
+        b = min(range(k), key=lambda j: (load[j], j))
+        bins[b].append(f)
+        load[b] += weight[f]
+    bins.sort(key=lambda b: -sum(len(files[f]) for f in b))
+    return [i for b in bins for f in b for i in files[f]]
+
+
+@pytest.hookimpl(trylast=True)
+def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item]) -> None:
+    """In a pytest-xdist worker (every worker collects the same list and orders it alike), the
+    selected tests in :func:`worker_order`; a plain run keeps pytest's order."""
+    n = int(os.environ.get("PYTEST_XDIST_WORKER_COUNT", "0") or 0)
+    if os.environ.get("PYTEST_XDIST_WORKER") is None or n < 2:
+        return
+    order = worker_order([it.nodeid for it in items], _recorded(), n)
+    items[:] = [items[i] for i in order]
+
+
+# MSK_UPDATE_DURATIONS=1: the run rewrites tests/durations.json with the durations it measured
+# (tests it did not run keep their recorded value)
+_MEASURED: dict[str, float] = defaultdict(float)
+
+
+def pytest_runtest_logreport(report: pytest.TestReport) -> None:
+    if os.environ.get("MSK_UPDATE_DURATIONS"):
+        _MEASURED[report.nodeid] += report.duration
+
+
+def pytest_sessionfinish(session: pytest.Session) -> None:
+    if not os.environ.get("MSK_UPDATE_DURATIONS") or os.environ.get("PYTEST_XDIST_WORKER"):
+        return
+    table = _recorded() | {k: v for k, v in _MEASURED.items()}
+    kept = {k: round(v, 2) for k, v in sorted(table.items()) if v >= DEFAULT_SECONDS}
+    DURATIONS.write_text(
+        json.dumps(
+            {
+                "what": "seconds (setup + call + teardown) of each test slower than "
+                f"{DEFAULT_SECONDS} s, measured with MSK_UPDATE_DURATIONS=1; tests/conftest.py "
+                "orders the pytest-xdist queues by them",
+                "seconds": kept,
+            },
+            indent=1,
+        )
+        + "\n"
     )
