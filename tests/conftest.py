@@ -99,8 +99,9 @@ def pytest_configure(config: pytest.Config) -> None:
             os.environ.setdefault(var, "1")
 
 
-#: recorded seconds (setup + call + teardown) of a test absent from the table
+#: seconds assumed for a test absent from the table: a fast-lane test, a ``slow`` one
 DEFAULT_SECONDS = 0.05
+DEFAULT_SLOW_SECONDS = 5.0
 
 
 def _recorded() -> dict[str, float]:
@@ -111,9 +112,9 @@ def _recorded() -> dict[str, float]:
     return {str(k): float(v) for k, v in table.get("seconds", {}).items()}
 
 
-def worker_order(nodeids: list[str], seconds: dict[str, float], n_workers: int) -> list[int]:
+def worker_order(nodeids: list[str], seconds: list[float], n_workers: int) -> list[int]:
     """The order (indices into ``nodeids``) in which to hand the tests to ``n_workers``
-    pytest-xdist workers under ``--dist worksteal``, from recorded durations ``seconds``.
+    pytest-xdist workers under ``--dist worksteal``, given each test's expected ``seconds``.
 
     Worksteal hands the first ``⌊n/k⌋`` tests of the list to the first worker, the next share to
     the next, and lets an idle worker take the second half of a busy worker's queue. The tests
@@ -126,9 +127,7 @@ def worker_order(nodeids: list[str], seconds: dict[str, float], n_workers: int) 
     files: dict[str, list[int]] = defaultdict(list)
     for i, nid in enumerate(nodeids):
         files[nid.split("::", 1)[0]].append(i)
-    weight = {
-        f: sum(seconds.get(nodeids[i], DEFAULT_SECONDS) for i in ix) for f, ix in files.items()
-    }
+    weight = {f: sum(seconds[i] for i in ix) for f, ix in files.items()}
     k = max(1, n_workers)
     bins: list[list[str]] = [[] for _ in range(k)]
     load = [0.0] * k
@@ -147,7 +146,15 @@ def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item
     n = int(os.environ.get("PYTEST_XDIST_WORKER_COUNT", "0") or 0)
     if os.environ.get("PYTEST_XDIST_WORKER") is None or n < 2:
         return
-    order = worker_order([it.nodeid for it in items], _recorded(), n)
+    table = _recorded()
+    seconds = [
+        table.get(
+            it.nodeid,
+            DEFAULT_SLOW_SECONDS if it.get_closest_marker("slow") else DEFAULT_SECONDS,
+        )
+        for it in items
+    ]
+    order = worker_order([it.nodeid for it in items], seconds, n)
     items[:] = [items[i] for i in order]
 
 
