@@ -12,7 +12,9 @@ for "missing" without being read as a measurement.
 The twin therefore holds the largest complete block of the table: columns that are missing on
 many rows (an estimate msk did not compute for this trial, or the implant's measured force
 outside its measured cycle) are left out when that keeps more values than leaving out rows,
-then every row that still holds a missing value is left out. Among the column subsets "every
+then every row that still holds a missing value is left out, and a row whose time does not
+advance past the previous kept row's (``Storage`` keeps one row per time: a gait-cycle table's
+100 % row is the next cycle's 0 % instant). Among the column subsets "every
 column finite on at least ``c`` rows" (one per distinct count ``c``) the one keeping the most
 values ``rows × columns`` wins (ties: more rows). What is left out is listed in the twin's
 header (``key=value`` lines both readers keep as metadata) and returned; the CSV table keeps
@@ -47,8 +49,9 @@ class StorageTwin:
         if not self.rows_left_out.size and not self.columns_left_out:
             return {}
         return {
-            "msk_missing": "rows and columns holding a missing value (NaN) are left out: "
-            "OpenSim's Storage cannot read NaN; the CSV table has them",
+            "msk_missing": "rows and columns holding a missing value (NaN), and rows repeating "
+            "the previous row's time, are left out: OpenSim's Storage cannot read NaN and keeps "
+            "one row per time; the CSV table has them",
             "msk_rows_left_out": index_ranges(self.rows_left_out) or "none",
             "msk_columns_left_out": ",".join(self.columns_left_out) or "none",
         }
@@ -73,7 +76,8 @@ def storage_twin(table: Table) -> StorageTwin:
     finite and unchanged."""
     x = np.asarray(table.data, dtype=float).reshape(table.time.size, -1)
     finite = np.isfinite(x)
-    if finite.all():
+    t = np.asarray(table.time, dtype=float)
+    if finite.all() and (t.size < 2 or bool((np.diff(t) > 0).all())):
         return StorageTwin(table, np.zeros(0, dtype=np.int64), ())
     counts = finite.sum(axis=0)
     best: tuple[int, int, NDArray[np.bool_], NDArray[np.bool_]] | None = None
@@ -88,8 +92,9 @@ def storage_twin(table: Table) -> StorageTwin:
         cols = np.zeros(x.shape[1], dtype=bool)
     else:
         rows, cols = best[2], best[3]
+    rows = rows & _time_advances(t, rows)
     kept = Table(
-        time=np.asarray(table.time, dtype=float)[rows],
+        time=t[rows],
         data=x[np.ix_(rows, cols)],
         columns=tuple(c for c, k in zip(table.columns, cols) if k),
         name=table.name,
@@ -102,3 +107,16 @@ def storage_twin(table: Table) -> StorageTwin:
         np.flatnonzero(~rows).astype(np.int64),
         tuple(c for c, k in zip(table.columns, cols) if not k),
     )
+
+
+def _time_advances(t: NDArray[np.float64], rows: NDArray[np.bool_]) -> NDArray[np.bool_]:
+    """Of the rows ``rows`` keeps, those whose time is later than the previous kept row's:
+    ``Storage`` keeps one row per time (a gait-cycle table's 100 % row is the next cycle's 0 %
+    instant: the later of the two is left out)."""
+    out = np.zeros(t.size, dtype=bool)
+    last = -np.inf
+    for k in np.flatnonzero(rows):
+        if t[k] > last:
+            out[k] = True
+            last = t[k]
+    return out

@@ -71,6 +71,16 @@ def test_a_complete_table_is_its_own_twin_without_header():
     assert nothing.table.data.shape == (0, 0) and nothing.columns_left_out == ("a", "b")
 
 
+def test_a_row_repeating_the_previous_time_is_left_out():
+    """Two gait cycles back to back: cycle 1's 100 % row is cycle 2's 0 % instant; Storage keeps
+    one row per time, so the twin leaves the later one out and says so."""
+    t = np.array([0.0, 0.5, 1.0, 1.0, 1.5, 2.0])
+    tab = Table(t, np.arange(12.0).reshape(6, 2), ("cycle", "knee"))
+    twin = storage_twin(tab)
+    assert list(twin.rows_left_out) == [3] and twin.table.time.tolist() == [0, 0.5, 1, 1.5, 2]
+    assert "repeating the previous row's time" in twin.header["msk_missing"]
+
+
 def test_header_lines_round_trip_and_bad_keys_are_refused(tmp_path):
     twin = storage_twin(_table())
     p = write_sto(tmp_path / "t.sto", twin.table, header=twin.header)

@@ -37,6 +37,8 @@ def streamed():
         optimization=dataclasses.replace(
             cfg.optimization, method="static_optimization", compartment_nonnegative=False
         ),
+        # the live knee contact takes the quadriceps' own lines of action (no patellar tendon)
+        contact=dataclasses.replace(cfg.contact, patella="none"),
     )
     res = run_stages(cfg, until="knee_contact")
     pers, inputs = res["model"], session_inputs(cfg)

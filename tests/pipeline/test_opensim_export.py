@@ -272,7 +272,8 @@ def test_export_step_writes_what_it_can_and_says_what_it_left_out(tmp_path: Path
                           point=point)  # fmt: skip
     trial = SimpleNamespace(time=t, markers=np.ones((n, 2, 3)), point_rate_hz=100.0)
     built = SimpleNamespace(model=mdl, trial=trial, labels=("M1", ""))
-    inputs = SimpleNamespace(cfg=SimpleNamespace(subject=SimpleNamespace(name="S")))
+    inputs = SimpleNamespace(cfg=SimpleNamespace(subject=SimpleNamespace(name="S")),
+                             inertias_by_status=False)  # fmt: skip
     exp = run(inputs, built, None, SimpleNamespace(external=ext))  # type: ignore[arg-type]
     assert exp is not None
     assert exp.files == ("grf.mot", "external_loads.xml")
