@@ -162,6 +162,19 @@ def _butter_sos(order: int, wn: float, btype: str = "lowpass") -> NDArray[np.flo
     return sos
 
 
+def _even_order_wn(cutoff_hz: float, rate_hz: float, order: int, who: str) -> float:
+    """The cut-off as a fraction of Nyquist, checked, for an even-order Butterworth."""
+    wn = cutoff_hz / (0.5 * rate_hz)
+    if not 0.0 < wn < 1.0:
+        raise MskError(
+            f"cutoff {cutoff_hz} Hz must lie in (0, {0.5 * rate_hz}) Hz for rate {rate_hz} Hz"
+            + _rate_hint(rate_hz, np.atleast_1d(wn))
+        )
+    if order < 2 or order % 2:
+        raise MskError(f"{who}: an even order >= 2 is needed, got {order}")
+    return wn
+
+
 def lowpass_filtfilt_numpy(
     x: ArrayLike, *, rate_hz: float, cutoff_hz: float, order: int = 4, btype: str = "lowpass"
 ) -> NDArray[np.float64]:
@@ -175,14 +188,7 @@ def lowpass_filtfilt_numpy(
     Python, one column at a time. ``btype="highpass"``: the high-pass of
     :func:`filtfilt_butter` the same way."""
     x = np.asarray(x, dtype=float)
-    wn = cutoff_hz / (0.5 * rate_hz)
-    if not 0.0 < wn < 1.0:
-        raise MskError(
-            f"cutoff {cutoff_hz} Hz must lie in (0, {0.5 * rate_hz}) Hz for rate {rate_hz} Hz"
-            + _rate_hint(rate_hz, np.atleast_1d(wn))
-        )
-    if order < 2 or order % 2:
-        raise MskError(f"lowpass_filtfilt_numpy: an even order >= 2 is needed, got {order}")
+    wn = _even_order_wn(cutoff_hz, rate_hz, order, "lowpass_filtfilt_numpy")
     _check_finite(x)
     sos = _butter_sos(order, wn, btype)
     # steady state of each section's step response, scaled by the sections before it
@@ -260,14 +266,7 @@ class CausalLowpass:
         order: int = 2,
         scheme: str = "central",
     ) -> None:
-        wn = cutoff_hz / (0.5 * rate_hz)
-        if not 0.0 < wn < 1.0:
-            raise MskError(
-                f"cutoff {cutoff_hz} Hz must lie in (0, {0.5 * rate_hz}) Hz for rate {rate_hz} Hz"
-                + _rate_hint(rate_hz, np.atleast_1d(wn))
-            )
-        if order < 2 or order % 2:
-            raise MskError(f"CausalLowpass: an even order >= 2 is needed, got {order}")
+        wn = _even_order_wn(cutoff_hz, rate_hz, order, "CausalLowpass")
         if scheme not in ("central", "gradient"):
             raise MskError(f"CausalLowpass: scheme {scheme!r} is not 'central' or 'gradient'")
         self.scheme = scheme
