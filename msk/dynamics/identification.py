@@ -1802,10 +1802,7 @@ def identified_model(
     segment, whatever its status."""
     if ident is None:
         return model
-    if not by_status:
-        return model.with_inertias(ident.parameters)
-    keep = {str(s["name"]) for s in ident.segments if s.get("status") == "identified"}
-    chosen = {b: p for b, p in ident.parameters.items() if b in keep}
+    chosen = {b: ident.parameters[b] for b in applied_segments(ident, by_status=by_status)}
     return model.with_inertias(chosen) if chosen else model
 
 
@@ -1815,7 +1812,5 @@ def applied_segments(ident: MassIdentification | None, *, by_status: bool = Fals
         return []
     if not by_status:
         return sorted(ident.parameters)
-    return sorted(
-        b for b in ident.parameters
-        if any(s["name"] == b and s.get("status") == "identified" for s in ident.segments)
-    )  # fmt: skip
+    identified = {str(s["name"]) for s in ident.segments if s.get("status") == "identified"}
+    return sorted(b for b in ident.parameters if b in identified)
