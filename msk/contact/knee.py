@@ -149,6 +149,9 @@ class KneeContact(FrameAxis):
             ``F_x`` and ``F_z``, tangential ``√(F_x² + F_z²)`` and total ``|F|`` (N).
         body_weight_n: m g used by :meth:`in_body_weights` (N).
         muscles_included: the muscle forces were subtracted (False: the ID joint reaction).
+        patellofemoral: (N,) with a patellar tendon and muscle forces, the patellofemoral
+            contact force |F_PF| (N; :meth:`msk.contact.patella.PatellarTendon.patellofemoral`),
+            else None.
     """
 
     FRAME_FIELDS: ClassVar[tuple[str, ...]] = (
@@ -156,6 +159,7 @@ class KneeContact(FrameAxis):
         "force",
         "moment",
         "values",
+        "patellofemoral",
     )
 
     time: Array
@@ -168,6 +172,7 @@ class KneeContact(FrameAxis):
     muscles_included: bool
     columns: tuple[str, ...] = CONTACT_COLUMNS
     metadata: dict[str, Any] = field(default_factory=dict)
+    patellofemoral: Array | None = None
 
     def column(self, name: str) -> Array:
         """One column of :attr:`values` by name (e.g. ``"total_n"``)."""
@@ -394,6 +399,7 @@ def _knee_contact(
                     f"{len(model.muscles)}, 6)"
                 )
     idx = np.flatnonzero(ok)
+    patellofemoral: Array | None = None
     force_w = np.full((n, 3), np.nan)
     moment_w = np.full((n, 3), np.nan)
     rot = np.full((n, 3, 3), np.nan)
@@ -415,7 +421,19 @@ def _knee_contact(
         moment_w[idx] = wr[:, 3:]
         rot[idx], origin[idx] = _plateau_placement(tree, st, plateau_offset)
         if patella is not None and w is not None:
-            w = _through_patella(model, patella, joint, th, idx, w, tree, st, knee_jacobian)
+            lines = -w[idx][:, list(patella.muscles), :3]  # the quadriceps' pull at the patella
+            w, dl, r_t = _through_patella(
+                model, patella, joint, th, idx, w, tree, st, knee_jacobian
+            )
+            if f is not None:
+                ci = model.coordinate_index(patella.coordinate)
+                f_q = np.nan_to_num(f[idx][:, list(patella.muscles)])
+                pf = np.linalg.norm(
+                    patella.patellofemoral(th[idx, ci], lines, r_t, dl, f_q), axis=1
+                )
+                pf[~np.isfinite(f[idx]).all(axis=1)] = np.nan
+                patellofemoral = np.full(n, np.nan)
+                patellofemoral[idx] = pf
     if with_muscles and f is not None and w is not None:
         add = np.einsum("nm,nmc->nc", np.nan_to_num(f), w)
         add[~np.isfinite(f).all(axis=1)] = np.nan
@@ -441,6 +459,7 @@ def _knee_contact(
         body_weight_n=mass * G0,
         muscles_included=with_muscles,
         metadata={"variant": variant, "plateau_offset": plateau_offset is not None},
+        patellofemoral=patellofemoral,
     )
     return contact, rot, origin
 
@@ -455,10 +474,11 @@ def _through_patella(
     tree: _DistalTree,
     st: _ChainStates,
     knee_jacobian: ArrayLike | None = None,
-) -> Array:
+) -> tuple[Array, Array, Array]:
     """``w`` with the quadriceps' unit wrenches on frames ``idx`` replaced by the patellar
     tendon's (:meth:`msk.contact.patella.PatellarTendon.substitute`, tibia placement from the
-    chain states ``st`` of those frames)."""
+    chain states ``st`` of those frames); the quadriceps' length Jacobian on the knee
+    coordinate (len(idx), len(patella.muscles)) and the tibia's rotations on those frames."""
     if patella.joint != joint:
         raise ModelError(f"patellar tendon of {patella.joint!r} given for knee {joint!r}")
     r_t, p_t = _plateau_placement(tree, st, None)
@@ -478,7 +498,7 @@ def _through_patella(
         dl = dl[idx]
     dl = dl[:, list(patella.muscles)]
     out[idx] = patella.substitute(th[idx, ci], out[idx], r_t, p_t, dl)
-    return out
+    return out, dl, r_t
 
 
 def _plateau_placement(
@@ -1098,7 +1118,7 @@ def compartment_force_map(
             w = _through_patella(
                 model, patella, joint, th, fin, w, tree_p,
                 _chain_states(model, tree_p, th[fin], None, None), knee_jacobian,
-            )  # fmt: skip
+            )[0]  # fmt: skip
     # the plateau frame as the contact computed it; its forward kinematics again only on the
     # frames it left out with finite positions (non-finite velocities of the "full" variant)
     ok = np.isfinite(th).all(axis=1) & ~np.isfinite(origin).all(axis=1)

@@ -51,7 +51,18 @@ rows of the tension QP) is unchanged, so ::
 
     W_contact = W_ID + Σ_{i ∉ Q} F_i ∂l_i/∂ξ − Σ_{i ∈ Q} F_i ρ_i (e, T × e).
 
-The patellofemoral contact force (the patella's third load) is not formed here.
+**Patellofemoral contact.** The massless patella is held by three loads: the quadriceps'
+tension along each muscle's line at the patella (unit u_i, pointing proximally: the model's own
+path segment that ends on the tibia-fixed moving point riding with the patella), the tendon's
+ρ_i F_i pulling distally along −e, and the femur's contact force F_PF. Their sum vanishes
+(van Eijden et al. 1986, Eq. 1; Mason JJ et al. (2008) "Patellofemoral joint forces",
+J Biomech 41(11):2337–2348)::
+
+    F_PF = −Σ_{i ∈ Q} F_i (u_i − ρ_i e),
+
+reported as its magnitude |F_PF| (:meth:`PatellarTendon.patellofemoral`). Its ratio to the
+quadriceps force, |u − ρ e|, is small near extension, where the two pulls are nearly opposite,
+and about 1 in deep flexion, where they are about perpendicular.
 """
 
 from __future__ import annotations
@@ -191,6 +202,31 @@ class PatellarTendon:
         unit = np.concatenate([e_w, np.cross(t_w, e_w)], axis=-1)  # (N, 6)
         w[:, q, :] = -rho[..., None] * unit[:, None, :]
         return w
+
+    def patellofemoral(self, theta: ArrayLike, quadriceps_lines: ArrayLike, rot: ArrayLike,
+                       length_jacobian: ArrayLike, forces: ArrayLike) -> Array:  # fmt: skip
+        """F_PF (N, 3): the femur's force on the patella, world axes (module docstring),
+        ``−Σ F_i (u_i − ρ_i e)``, for knee coordinate ``theta`` (N,), the quadriceps' lines
+        at the patella ``quadriceps_lines`` (N, K, 3; the pull of a unit tension on the
+        patella, normalised here), tibia rotations ``rot`` (N, 3, 3), their length Jacobian on
+        the knee coordinate (N, K) and tensions ``forces`` (N, K) in N. A line of zero length
+        (a muscle that does not reach the tibia) counts as no pull."""
+        u = np.asarray(quadriceps_lines, dtype=float)
+        f = np.asarray(forces, dtype=float)
+        r = np.asarray(rot, dtype=float)
+        n = u.shape[0]
+        if u.ndim != 3 or u.shape[2] != 3 or f.shape != u.shape[:2] or r.shape != (n, 3, 3):
+            raise ShapeMismatchError(
+                f"quadriceps lines {u.shape}, forces {f.shape}, rotations {r.shape} do not "
+                "match (N, K, 3), (N, K), (N, 3, 3)"
+            )
+        norm = np.linalg.norm(u, axis=2, keepdims=True)
+        u = np.divide(u, norm, out=np.zeros_like(u), where=norm > 0)
+        rho = self.ratio(theta, length_jacobian)
+        _, e, _ = self.at(theta)
+        e_w = np.einsum("nij,nj->ni", r, e)
+        pull = u - rho[..., None] * e_w[:, None, :]
+        return -np.einsum("nk,nkc->nc", f, pull)
 
 
 _CACHE: weakref.WeakKeyDictionary[Model, dict[tuple[str, tuple[str, ...] | None], PatellarTendon]]

@@ -43,6 +43,7 @@ class _VariantArrays:
         self.force = np.full((n, 3), np.nan)
         self.medial = np.full(n, np.nan)
         self.lateral = np.full(n, np.nan)
+        self.patellofemoral = None if patella is None else np.full(n, np.nan)
 
     def fill(
         self, fr: np.ndarray, forces: np.ndarray, w: np.ndarray, names: Any,
@@ -68,6 +69,8 @@ class _VariantArrays:
             knee_jacobian=jk if self.patella is not None else None,
         )  # fmt: skip
         self.force[fr] = contact.force
+        if self.patellofemoral is not None and contact.patellofemoral is not None:
+            self.patellofemoral[fr] = contact.patellofemoral
         ml = split_medial_lateral(contact, self.geo)
         self.medial[fr], self.lateral[fr] = ml.medial, ml.lateral
 
@@ -75,6 +78,7 @@ class _VariantArrays:
         return ContactVariant(
             self.force, np.linalg.norm(self.force, axis=1), self.medial, self.lateral,
             lateral_sign=-1.0 if self.joint.endswith("_l") else 1.0,
+            patellofemoral=self.patellofemoral,
         )  # fmt: skip
 
 

@@ -145,6 +145,9 @@ class ContactVariant:
     medial: np.ndarray
     lateral: np.ndarray
     lateral_sign: float = 1.0
+    #: (N,) the patellofemoral contact force |F_PF| in N with the patellar tendon
+    #: (:meth:`msk.contact.patella.PatellarTendon.patellofemoral`), else None
+    patellofemoral: np.ndarray | None = None
 
     @property
     def axial(self) -> np.ndarray:

@@ -124,6 +124,21 @@ def swapped_markers(
     return tuple(swapped_sides(model.model, kinematics, model.trial.markers, model.labels))
 
 
+def _knee_loads(contact: KneeContact, body_weight_n: float) -> dict[str, Any]:
+    """``knee_loads``: the quadriceps' route and the peak patellofemoral force per variant."""
+    peak = {
+        v: float(np.nanmax(c.patellofemoral))
+        for v, c in contact.variants.items()
+        if c.patellofemoral is not None and np.isfinite(c.patellofemoral).any()
+    }
+    return {
+        "joint": contact.joint,
+        "patella": contact.plateau.get("patella"),
+        "peak_patellofemoral_n": peak or None,
+        "peak_patellofemoral_bw": {v: p / body_weight_n for v, p in peak.items()} or None,
+    }
+
+
 def _flags(
     inputs: SessionInputs,
     quality: Mapping[str, Any],
@@ -259,6 +274,9 @@ def run(
         },
         "strength": None if strength is None else strength_summary(strength, joint=joint_strength),
         "comparison": comparison,
+        "knee_loads": None
+        if knee_contact is None
+        else _knee_loads(knee_contact, inputs.body_weight),
         "optimization": None if sol is None else optimization_summary(sol, inputs.sfx).to_dict(),
         "fes": fes_part,
     }

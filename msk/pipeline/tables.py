@@ -65,6 +65,9 @@ def _contact_table(
             v = getattr(c, comp)
             cols += [f"{name}_{comp}", f"{name}_{comp}_bw"]
             data += [v[:, None], (v / bw)[:, None]]
+        if c.patellofemoral is not None:  # the patellar tendon's third load, on the patella
+            cols += [f"{name}_patellofemoral", f"{name}_patellofemoral_bw"]
+            data += [c.patellofemoral[:, None], (c.patellofemoral / bw)[:, None]]
     measured = None if cycle is None else cycle.measured_contact
     for comp, on_t in (measured or {}).items():
         cols += [f"measured_{comp}", f"measured_{comp}_bw"]

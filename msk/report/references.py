@@ -37,6 +37,8 @@ LITERATURE: dict[str, str] = {
     "kutzner2010": "Kutzner I, Heinlein B, Graichen F, Bender A, Rohlmann A, Halder A, Beier A, "
     "Bergmann G (2010). Loading of the knee joint during activities of daily living measured "
     "in vivo in five subjects. J Biomech 43:2164–2173.",
+    "vaneijden1986": "van Eijden TMGJ, Kouwenhoven E, Verburg J, Weijs WA (1986). A "
+    "mathematical model of the patellofemoral joint. J Biomech 19:219–229.",
     "fregly2012": "Fregly BJ, Besier TF, Lloyd DG, Delp SL, Banks SA, Pandy MG, D'Lima DD "
     "(2012). Grand challenge competition to predict in vivo knee loads. J Orthop Res "
     "30:503–513.",

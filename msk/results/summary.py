@@ -69,6 +69,7 @@ __all__ = [
     "JsonObject",
     "Kkt",
     "KktFigure",
+    "KneeLoads",
     "MarkerGap",
     "Methods",
     "ModelInfo",
@@ -691,6 +692,20 @@ class Comparison(_Record):
 
 
 @dataclass(frozen=True, kw_only=True)
+class KneeLoads(_Record):
+    """``knee_loads``: what the knee contact stage computed beyond the tibiofemoral force —
+    the quadriceps' route (``patella``: ``"tendon"`` or ``"none"``, ``[contact] patella``) and,
+    with the tendon, the peak patellofemoral contact force |F_PF| over the trial per model
+    variant (``generic``, ``subject_specific``; :mod:`msk.contact.patella`), in N and in body
+    weights of the configured mass."""
+
+    joint: str | None = None
+    patella: str | None = None
+    peak_patellofemoral_n: Mapping[str, float | None] | None = None
+    peak_patellofemoral_bw: Mapping[str, float | None] | None = None
+
+
+@dataclass(frozen=True, kw_only=True)
 class KktFigure(_Record):
     """``optimization.kkt.<figure>``: the largest value of a KKT figure over the frames the
     solver called optimal (scaled variables of the standard-form QP), the largest value
@@ -832,6 +847,7 @@ class Summary(_Record):
     plates: JsonObject | None = None
     strength: Strength | None = None
     comparison: Comparison | None = None
+    knee_loads: KneeLoads | None = None
     optimization: Optimization | None = None
     fes: Fes | None = None
     stages: tuple[StageRecord, ...] | None = None

@@ -218,3 +218,69 @@ def test_a_given_knee_jacobian_is_the_geometry_pass_s() -> None:
     with pytest.raises(ShapeMismatchError, match="knee Jacobian"):
         knee_contact_force(model, kin, muscle_forces=f, joint="knee_r", patella=pt,
                            variant="quasi_static", knee_jacobian=jk[:, :1])  # fmt: skip
+
+
+@pytest.mark.parametrize("flexion", [0.0, 30.0, 60.0, 90.0])
+def test_patellofemoral_force_of_a_hinge_by_hand(flexion: float) -> None:
+    """The patella's third load: F_PF = −F_Q (u − ρ e), u the quadriceps' line at its distal
+    end (towards its femoral origin), e the tendon (tibia axes rotated into the femur's),
+    ρ as above; absent without the tendon or without muscle forces."""
+    model = _leg()
+    theta = -np.radians(flexion)
+    r = _rz(theta)
+    ri = r @ INSERT
+    u = (ORIGIN - ri) / np.linalg.norm(ORIGIN - ri)
+    dl = -u @ np.cross([0, 0, 1.0], ri)
+    a = np.radians(tendon_angle_deg(flexion))
+    e = np.array([np.sin(a), np.cos(a), 0.0])
+    rho = max(-dl / (e @ np.cross([0, 0, 1.0], np.asarray(TUBEROSITY_M))), 0.0)
+    f_q = 1800.0
+    hand = f_q * np.linalg.norm(u - rho * (r @ e))
+    pt = patellar_tendon(model, joint="knee_r")
+    kin = _static(model, theta)
+    forces = np.tile([f_q, 250.0], (3, 1))
+    out = knee_contact_force(model, kin, muscle_forces=forces, joint="knee_r",
+                             variant="quasi_static", patella=pt)  # fmt: skip
+    assert out.patellofemoral is not None
+    np.testing.assert_allclose(out.patellofemoral, hand, rtol=1e-9)
+    np.testing.assert_allclose(out.take([0, 2]).patellofemoral, [hand, hand], rtol=1e-9)
+    assert knee_contact_force(model, kin, muscle_forces=forces, joint="knee_r",
+                              variant="quasi_static").patellofemoral is None  # fmt: skip
+    assert knee_contact_force(model, kin, joint="knee_r", variant="quasi_static",
+                              patella=pt).patellofemoral is None  # fmt: skip
+
+
+def test_gait2392_patellofemoral_to_quadriceps_ratio_follows_the_published_curve() -> None:
+    """|F_PF|/F_Q of each gait2392 quadriceps (spline knee) against the ratio of van Eijden et
+    al. (1986)'s patellofemoral model, as reviewed by Mason et al. (2008): about 0.5 in
+    extension, 0.8 at 30°, about 1 from 60° to 90° (readings of the published curve, not a
+    digitisation). Tolerance ±0.2 of those readings: the model's quadriceps lines and ρ are
+    gait2392's and van Eijden's, not the cadavers'."""
+    from msk.contact.knee import (
+        _chain_states,
+        _distal_tree,
+        _plateau_placement,
+        muscle_distal_wrenches,
+    )
+    from msk.model.files import load_model
+    from msk.muscles.geometry import muscle_geometry
+
+    model = load_model("gait2392")
+    pt = patellar_tendon(model, joint="knee_r")
+    ci = model.coordinate_index("knee_angle_r")
+    flexion = np.array([0.0, 30.0, 60.0, 90.0])
+    published = np.array([0.5, 0.8, 1.0, 1.0])
+    knee = -np.radians(flexion)
+    th = np.tile(model.default_coordinates(), (knee.size, 1))
+    th[:, ci] = knee
+    q = list(pt.muscles)
+    jac = np.asarray(muscle_geometry(model, th).jacobian)[:, q, ci]
+    lines = -muscle_distal_wrenches(model, th, joint="knee_r")[:, q, :3]
+    tree = _distal_tree(model, "knee_r")
+    r, _ = _plateau_placement(tree, _chain_states(model, tree, th, None, None), None)
+    for k, name in enumerate(pt.muscle_names):
+        f = np.zeros((knee.size, len(q)))
+        f[:, k] = 1.0
+        ratio = np.linalg.norm(pt.patellofemoral(knee, lines, r, jac, f), axis=1)
+        np.testing.assert_allclose(ratio, published, atol=0.2, err_msg=name)
+        assert np.all(np.diff(ratio[:3]) > 0), (name, ratio)  # rises with flexion to 60°

@@ -1,7 +1,8 @@
 """Section ``knee_loads``: the tibiofemoral contact force — total, medial and lateral (two-point
-model) — predicted from the muscle forces, against the instrumented implant's measurement where
-there is one, and against the in-vivo range of walking peaks (2–3 body weights: Kutzner et al.
-2010; Fregly et al. 2012)."""
+model) — predicted from the muscle forces, and the patellofemoral contact force (the patella's
+third load with the quadriceps and the patellar tendon), against the instrumented implant's
+measurement where there is one, and against the in-vivo range of walking peaks (2–3 body
+weights: Kutzner et al. 2010; Fregly et al. 2012)."""
 
 from __future__ import annotations
 
@@ -50,4 +51,14 @@ class KneeLoads(Section):
             "na": na,
             "rows": rows,
             "band": f"{lo:g}–{hi:g} BW",
+            "patellofemoral": _patellofemoral(res.summary.knee_loads),
         }
+
+
+def _patellofemoral(loads: Any) -> str | None:
+    """The peak patellofemoral contact force per variant (``knee_loads``), or None."""
+    peaks = None if loads is None else loads.peak_patellofemoral_bw
+    if not peaks:
+        return None
+    names = {"generic": "generic parameters", "subject_specific": "subject-specific"}
+    return "; ".join(f"{names.get(v, v)} {num(p, '.2f', 'BW')}" for v, p in peaks.items())
