@@ -71,7 +71,10 @@ VARIANTS = {
     "emd80": (_set("electromechanical_delay_s", "0.08", "emg"), ("gc5_PS",)),
     "so": (_set("method", '"static_optimization"', "optimization"), ("gc5_PS",)),
     "cut12": (
-        _both(_set("kinematics_cutoff_hz", "12.0", "filters"), _set("grf_cutoff_hz", "12.0", "filters")),
+        _both(
+            _set("kinematics_cutoff_hz", "12.0", "filters"),
+            _set("grf_cutoff_hz", "12.0", "filters"),
+        ),
         ("gc5_PS", "gc6_DM_og1"),
     ),
     "varus+3": (_varus(3.0), ("gc5_PS", "gc6_DM_og1")),
@@ -118,14 +121,18 @@ def peaks(t: np.ndarray, pred: np.ndarray, meas: np.ndarray) -> tuple[float, ...
     on = []
     for y in (p, m):
         half = 0.5 * np.max(y[a:mid])
-        k = int(np.argmax(y[: mid] >= half))
+        k = int(np.argmax(y[:mid] >= half))
         on.append(float(np.interp(half, [y[k - 1], y[k]], [ts[k - 1], ts[k]])) if k else ts[0])
     # unloading: the last fall through half of each curve's own second-half peak
     off = []
     for y in (p, m):
         half = 0.5 * np.max(y[mid : b + 1])
         k = len(y) - 1 - int(np.argmax(y[::-1] >= half))
-        off.append(float(np.interp(half, [y[k + 1], y[k]], [ts[k + 1], ts[k]])) if k + 1 < len(y) else ts[-1])
+        off.append(
+            float(np.interp(half, [y[k + 1], y[k]], [ts[k + 1], ts[k]]))
+            if k + 1 < len(y)
+            else ts[-1]
+        )
     return out[0], out[1], on[0] - on[1], off[0] - off[1]
 
 
@@ -163,7 +170,10 @@ def analyse(out_dir: Path) -> dict[str, object]:
 
     row: dict[str, object] = {}
     pairs = {
-        "total": (col("generic_axial_bw" if axial else "generic_total_bw"), col("measured_total_bw")),
+        "total": (
+            col("generic_axial_bw" if axial else "generic_total_bw"),
+            col("measured_total_bw"),
+        ),
         "medial": (col("generic_medial_bw"), col("measured_medial_bw")),
         "lateral": (col("generic_lateral_bw"), col("measured_lateral_bw")),
     }
@@ -177,7 +187,10 @@ def analyse(out_dir: Path) -> dict[str, object]:
     pm, pl = pairs["medial"][0], pairs["lateral"][0]
     ok = np.isfinite(mm + ml + pm + pl) & (mm + ml > 0.5)
     if ok.any():
-        row["share"] = (pl[ok].sum() / (pm[ok] + pl[ok]).sum(), ml[ok].sum() / (mm[ok] + ml[ok]).sum())
+        row["share"] = (
+            pl[ok].sum() / (pm[ok] + pl[ok]).sum(),
+            ml[ok].sum() / (mm[ok] + ml[ok]).sum(),
+        )
     if comp is not None:
         row["rmse"] = comp.rms_bw
     lat = res.summary.comparison.knee_contact("generic", "lateral")

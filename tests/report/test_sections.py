@@ -164,3 +164,17 @@ def test_msk_report_on_the_folder_of_task_trial_folders_writes_one_report(tmp_pa
     html = (tmp_path / "s" / "report.html").read_text(encoding="utf-8")
     assert "trials walk1, walk2" in html and "4 cycle(s)" in html
     assert capsys.readouterr().out.strip().endswith("report.html")
+
+
+def test_knee_section_states_the_patellofemoral_peak():
+    """With the patellar tendon the knee section gives the patellofemoral force's peak per
+    variant (summary ``knee_loads``); without it, no such line."""
+    loads = {"joint": "knee_l", "patella": "tendon",
+             "peak_patellofemoral_n": {"generic": 950.0},
+             "peak_patellofemoral_bw": {"generic": 1.234}}  # fmt: skip
+    res = _walk(knee_loads=loads)
+    html = render_html(res, figures={"contact": "<svg></svg>"})
+    line = html.split('<section id="knee-loads">')[1].split("</section>")[0]
+    assert "Patellofemoral contact force" in line and "generic parameters 1.23 BW" in line
+    plain = render_html(_walk(), figures={"contact": "<svg></svg>"})
+    assert "Patellofemoral" not in plain
