@@ -253,9 +253,10 @@ def test_patellofemoral_force_of_a_hinge_by_hand(flexion: float) -> None:
 def test_gait2392_patellofemoral_to_quadriceps_ratio_follows_the_published_curve() -> None:
     """|F_PF|/F_Q of each gait2392 quadriceps (spline knee) against the ratio of van Eijden et
     al. (1986)'s patellofemoral model, as reviewed by Mason et al. (2008): about 0.5 in
-    extension, 0.8 at 30°, about 1 from 60° to 90° (readings of the published curve, not a
-    digitisation). Tolerance ±0.2 of those readings: the model's quadriceps lines and ρ are
-    gait2392's and van Eijden's, not the cadavers'."""
+    extension, 0.8 at 30°, about 1 from 60° to 90° (approximate readings of the published
+    curve, not a digitisation; the paper is not among the shared seeds). Tolerance ±0.2 of
+    those readings: the model's quadriceps lines and ρ are gait2392's and van Eijden's, not
+    the cadavers'."""
     from msk.contact.knee import (
         _chain_states,
         _distal_tree,
