@@ -16,6 +16,9 @@ EMG); ``cut12`` (kinematics and ground reactions low-passed at 12 Hz instead of 
 lag); ``varus±3`` (the knee's frontal alignment 3° more varus / valgus than shipped:
 ``[model] knee_varus_deg``, :func:`msk.model.alignment.with_knee_alignment`).
 
+The total's RMSE (BW) with the prediction delayed by 0, by its best lead and by 40 ms
+(``rmse_delayed``: what a delay would buy, not a correction msk applies).
+
 Lateral share Σ F_L / Σ (F_M + F_L) over the frames whose measured medial + lateral force
 exceeds 0.5 BW (stance), predicted / measured.
 
@@ -182,6 +185,14 @@ def analyse(out_dir: Path) -> dict[str, object]:
             continue
         row[name] = lead(t, p, m)
     row["peaks"] = peaks(t, *pairs["total"])
+    # the total's RMSE (BW) with the prediction delayed by 0, by its best lead and by 40 ms
+    p_tot, m_tot = pairs["total"]
+    rms = []
+    for lag in (0.0, row["total"][0], 0.040) if "total" in row else ():
+        pd = np.interp(t - lag, t, p_tot, left=np.nan, right=np.nan)
+        sel = np.isfinite(pd) & np.isfinite(m_tot)
+        rms.append(float(np.sqrt(np.mean((pd[sel] - m_tot[sel]) ** 2))))
+    row["rmse_delayed"] = tuple(rms)
     row["moment_peak"] = moment_peak(res, t, *pairs["total"])
     mm, ml = pairs["medial"][1], pairs["lateral"][1]
     pm, pl = pairs["medial"][0], pairs["lateral"][0]
