@@ -219,10 +219,17 @@ def run(
     ]
     from msk.contact.comparison_check import comparison_flags
 
-    quality["flags"] += comparison_flags(inputs, gait_cycle, comparison, kin.time)
+    ev = gait_cycle.events
+    quality["flags"] += [
+        f.as_dict()
+        for f in comparison_flags(
+            inputs.task.name, inputs.task.contact_force, comparison, kin.time, side=inputs.side,
+            cycle=gait_cycle.cycle, measured=gait_cycle.measured_contact,
+            foot_strikes=ev.foot_strike.get(inputs.side, ()) if ev else (),
+        )
+    ]  # fmt: skip
     quality["thresholds"] = dict(THRESHOLDS)
     quality["held_coordinates"] = sorted(model.held)
-    ev = gait_cycle.events
     anthro = model_anthropometry(
         (b.name for b in mdl.bodies), cfg.subject.mass_kg, cfg.subject.height_m, cfg.subject.sex
     )
