@@ -1,6 +1,6 @@
 """A results folder is untrusted input: planted symlinks, foreign leftovers, user tables,
 forged cache entries and poisoned summaries (msk.results.folder, msk._runtime.cache, msk.report,
-msk.pipeline.batch)."""
+msk.results.cohort)."""
 
 from __future__ import annotations
 
@@ -255,7 +255,7 @@ def test_the_csp_forbids_frames_loads_and_the_pdf_page_has_no_refresh():
 # ----------------------------------------------------------------- batch
 def test_batch_never_overwrites_a_cohort_csv_it_did_not_write(tmp_path):
     from msk.exceptions import BatchError
-    from msk.pipeline.batch import write_cohort_csv
+    from msk.results.cohort import write_cohort_csv
 
     mine = tmp_path / "cohort.csv"
     mine.write_text("my own cohort table\n")
