@@ -41,7 +41,16 @@ from msk.quality import (
     trial_flags,
     unmeasured_contact_figures,
 )
-from msk.results.summary import Methods
+from msk.results.summary import (
+    ConfigRef,
+    Event,
+    Frame,
+    Identification,
+    InputFile,
+    Methods,
+    Segment,
+    Subject,
+)
 from msk.strength.diagnosis import joint_strength_or_error, strength_summary
 
 # frames_solved, peak_measured_force_n and strength_summary are their library rooms'
@@ -73,21 +82,24 @@ def base_summary(inputs: SessionInputs) -> dict[str, Any]:
         "trial": inputs.task.name if inputs.task is not None else None,
         "created_utc": datetime.now(UTC).strftime("%Y-%m-%dT%H:%M:%SZ"),
         "versions": versions(),
-        "config": {"path": str(cfg.path), "sha256": file_sha256(cfg.path)},
+        "config": ConfigRef(path=str(cfg.path), sha256=file_sha256(cfg.path)).to_dict(),
         "inputs": [
-            {"role": k, "path": str(p), "sha256": inputs.hashes[k], "bytes": Path(p).stat().st_size}
+            InputFile(
+                role=k, path=str(p), sha256=inputs.hashes[k], bytes=Path(p).stat().st_size
+            ).to_dict()
             for k, p in inputs.files.items()
         ],
         "settings": plain_settings(cfg),
-        "subject": {
-            "name": cfg.subject.name,
-            "mass_kg": inputs.mass_kg,
-            **inputs.mass,
-            "height_m": cfg.subject.height_m,
-            "sex": cfg.subject.sex,
-            "side": inputs.side,
-            "body_weight_n": inputs.body_weight,
-        },
+        "subject": Subject(
+            name=cfg.subject.name,
+            mass_kg=inputs.mass_kg,
+            mass_source=inputs.mass.get("mass_source"),
+            mass_detail=inputs.mass.get("mass_detail"),
+            height_m=cfg.subject.height_m,
+            sex=cfg.subject.sex,
+            side=inputs.side,
+            body_weight_n=inputs.body_weight,
+        ).to_dict(),
     }
 
 
@@ -149,6 +161,18 @@ def _flags(
         file_metadata=model.trial.metadata or {},
     )  # fmt: skip
     return [f.as_dict() for f in flags]
+
+
+def _identification(ident: MassIdentification, inputs: SessionInputs) -> dict[str, Any]:
+    """The summary's ``identification``: each segment's figures with its status word and the
+    segments whose identified inertia the dynamics used."""
+    return Identification(
+        segments=tuple(Segment(**s) for s in ident.segments),
+        condition_number=ident.condition_number,
+        n_frames=ident.n_frames,
+        advice=tuple(ident.advice),
+        applied_to_dynamics=tuple(applied_segments(ident, by_status=inputs.inertias_by_status)),
+    ).to_dict()
 
 
 def run(
@@ -236,8 +260,11 @@ def run(
     return {
         **base_summary(inputs),
         "model": {**model.info, "name": mdl.name, "muscles": len(mdl.muscles)},
-        "frame": {"lab_to_model_rotation": model.rotation, "lab_up": model.lab_up},
-        "events": gait_cycle.as_list(),
+        "frame": Frame(
+            lab_to_model_rotation=tuple(tuple(map(float, row)) for row in model.rotation),
+            lab_up=tuple(map(float, model.lab_up)),
+        ).to_dict(),
+        "events": [Event(**e).to_dict() for e in gait_cycle.as_list()],
         "event_sources": {**dict(ev.source), "notes": list(ev.notes)},
         "gait_cycle_s": list(gait_cycle.cycle) if gait_cycle.cycle else None,
         "gait": None if gait_analysis is None else gait_analysis.summary(),
@@ -249,15 +276,7 @@ def run(
             task_trial=inputs.task.name,
             filtering=filtering(cfg),
         ).to_dict(),
-        "identification": None
-        if ident is None
-        else {
-            "segments": ident.segments,
-            "condition_number": ident.condition_number,
-            "n_frames": ident.n_frames,
-            "advice": ident.advice,
-            "applied_to_dynamics": applied_segments(ident, by_status=inputs.inertias_by_status),
-        },
+        "identification": None if ident is None else _identification(ident, inputs),
         "anthropometry": None if anthro is None else anthro.to_dict(),
         "plates": {  # each plate's surface, offset removed, plates left out
             "surfaces": list(loads.external.metadata.get("surfaces", ())),
