@@ -33,6 +33,7 @@ from msk.pipeline.records import (
 from msk.pipeline.runner import file_sha256, versions
 from msk.quality import (
     THRESHOLDS,
+    Flag,
     body_mass_from_loads,
     dead_plate_flags,
     gait_quality,
@@ -146,7 +147,7 @@ def _flags(
     jt: Any,
     sol: MuscleForces | None,
     plate_mass: float | None,
-) -> list[dict[str, Any]]:
+) -> list[Flag]:
     """The task trial's raised gates (:func:`msk.quality.trial_flags`)."""
     cfg, task = inputs.cfg, inputs.task
     assert task is not None  # a gait session
@@ -160,7 +161,7 @@ def _flags(
         emg_channels=cfg.emg.channels, analog_labels=model.trial.analog_labels,
         file_metadata=model.trial.metadata or {},
     )  # fmt: skip
-    return [f.as_dict() for f in flags]
+    return list(flags)
 
 
 def _identification(ident: MassIdentification, inputs: SessionInputs) -> dict[str, Any]:
@@ -215,43 +216,34 @@ def run(
     plate_mass = body_mass_from_loads(mdl, kin, loads.external, loads.measured_observed)
     quality["plate_mass_kg"] = plate_mass
     pairs = () if swapped_markers is None else swapped_markers
-    quality["flags"] = _flags(inputs, quality, model, kin, loads, pairs, jt, sol, plate_mass)
+    flags = _flags(inputs, quality, model, kin, loads, pairs, jt, sol, plate_mass)
     from msk.kinematics.gait_plausibility import gait_mode, knee_contact_flags, pelvis_tilt_flags
 
+    trial = inputs.task.name
     mode, why = gait_mode(gait_cycle.events, kin, -np.asarray(mdl.gravity, dtype=float))
     if knee_contact is not None:
         bw = {v: np.asarray(c.total, dtype=float) / inputs.body_weight
               for v, c in knee_contact.variants.items()}  # fmt: skip
-        quality["flags"] += [
-            f.as_dict() for f in knee_contact_flags(inputs.task.name, bw, mode, why)
-        ]
+        flags += knee_contact_flags(trial, bw, mode, why)
     on_pelvis = tuple(m.name for m in mdl.markers if m.body == "pelvis"
                       and m.name in set(model.labels))  # fmt: skip
-    quality["flags"] += [
-        f.as_dict() for f in pelvis_tilt_flags(inputs.task.name, kin, mode, on_pelvis)
-    ]
-    quality["flags"] += [
-        f.as_dict() for f in plate_edge_flags(inputs.task.name, loads.external.metadata)
-    ]
+    flags += pelvis_tilt_flags(trial, kin, mode, on_pelvis)
+    flags += plate_edge_flags(trial, loads.external.metadata)
     if emg is not None:  # a glitch in a raw EMG channel, repaired or the channel excluded
         from msk.muscles.emg_faults import fault_flags
 
-        quality["flags"] += fault_flags(inputs.task.name, emg.sample_faults)
-    quality["flags"] += [f.as_dict() for f in marker_rename_flags(inputs.task.name, model.info)]
-    quality["flags"] += [
-        f.as_dict() for f in dead_plate_flags(inputs.task.name, getattr(loads, "dead_plates", ()))
-    ]
+        flags += fault_flags(trial, emg.sample_faults)
+    flags += marker_rename_flags(trial, model.info)
+    flags += dead_plate_flags(trial, getattr(loads, "dead_plates", ()))
     from msk.contact.comparison_check import comparison_flags
 
     ev = gait_cycle.events
-    quality["flags"] += [
-        f.as_dict()
-        for f in comparison_flags(
-            inputs.task.name, inputs.task.contact_force, comparison, kin.time, side=inputs.side,
-            cycle=gait_cycle.cycle, measured=gait_cycle.measured_contact,
-            foot_strikes=ev.foot_strike.get(inputs.side, ()) if ev else (),
-        )
-    ]  # fmt: skip
+    flags += comparison_flags(
+        trial, inputs.task.contact_force, comparison, kin.time, side=inputs.side,
+        cycle=gait_cycle.cycle, measured=gait_cycle.measured_contact,
+        foot_strikes=ev.foot_strike.get(inputs.side, ()) if ev else (),
+    )  # fmt: skip
+    quality["flags"] = [f.as_dict() for f in flags]
     quality["thresholds"] = dict(THRESHOLDS)
     quality["held_coordinates"] = sorted(model.held)
     anthro = model_anthropometry(
