@@ -3,11 +3,11 @@ model (:func:`msk.contact.knee.knee_contact_force`: the joint reaction with the 
 the knee's unit wrenches of a geometry pass) and its two-point medial/lateral split
 (:func:`msk.contact.knee.split_medial_lateral`; Winby et al. 2009; Lerner et al. 2015).
 
-Block by block of frames: the knee's unit wrenches are recomputed for each block
-from the model's paths (the geometry stage does not hold them for the whole trial), and the
-subject-specific re-solve hands each solved block's forces to both variants' contact
-(:func:`msk.optimization.muscle_forces.solve_muscle_forces` ``on_block``) — its forces are never
-held whole."""
+Block by block of frames (:class:`msk.contact.blocks.ContactAssembly`): the knee's unit
+wrenches are recomputed for each block from the model's paths (the geometry stage does not hold
+them for the whole trial), and the subject-specific re-solve hands each solved block's forces to
+both variants' contact (:func:`msk.optimization.muscle_forces.solve_muscle_forces`
+``on_block``) — its forces are never held whole."""
 
 from __future__ import annotations
 
