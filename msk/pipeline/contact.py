@@ -19,6 +19,7 @@ from msk._runtime.blocks import frame_blocks
 from msk.contact.blocks import ContactAssembly
 from msk.dynamics.identification import MassIdentification, identified_model
 from msk.dynamics.inverse import InverseDynamics
+from msk.kinematics.ik import Kinematics
 from msk.model.core import Model
 from msk.muscles.emg import EmgActivations
 from msk.optimization.muscle_forces import MuscleForces, solve_muscle_forces
@@ -42,7 +43,7 @@ def settings(inputs: SessionInputs) -> Any:
 def run(
     inputs: SessionInputs,
     model: Personalisation,
-    kinematics: Any,
+    kinematics: Kinematics,
     loads: Loads,
     mass_identification: MassIdentification | None,
     inverse_dynamics: InverseDynamics,
