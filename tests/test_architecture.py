@@ -74,7 +74,6 @@ def test_stages_do_not_import_one_another():
         "session",
         "inputs",
         "records",
-        "cache",
         "batch",
         # a session-level runner like batch: runs the graph per trial, then pools the rows the
         # strength stage selects (msk strength)

@@ -364,7 +364,7 @@ def test_no_group_at_a_bound_is_called_identified_anywhere(tmp_path):
     assert int(row["strength_groups_identified"]) == sum(w == "identified" for w in words.values())
     assert int(row["strength_groups_at_bound"]) == len(bound)
     # msk compare
-    from msk.pipeline.batch import compare_sessions
+    from msk.results.cohort import compare_sessions
 
     notes = {
         r["item"]: r["note"]

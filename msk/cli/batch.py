@@ -1,5 +1,6 @@
 """``msk batch`` (many sessions in parallel: local pool or Dask) and ``msk compare`` (generic
-against identified parameters across session folders): :mod:`msk.pipeline.batch`."""
+against identified parameters across session folders): :mod:`msk.pipeline.batch`,
+:mod:`msk.results.cohort`."""
 
 from __future__ import annotations
 
@@ -73,7 +74,7 @@ def cmp_args(p: argparse.ArgumentParser) -> None:
 
 
 def _compare(args: argparse.Namespace) -> int:
-    from msk.pipeline.batch import COMPARE_COLUMNS, compare_sessions
+    from msk.results.cohort import COMPARE_COLUMNS, compare_sessions
 
     rows = compare_sessions(args.folders)
     widths = {

@@ -10,10 +10,13 @@ overlap the trial's frames.
 
 from __future__ import annotations
 
-from collections.abc import Mapping
-from typing import Any
+import os
+from collections.abc import Mapping, Sequence
 
 import numpy as np
+from numpy.typing import ArrayLike
+
+from msk.quality import Flag
 
 __all__ = ["MIN_COMPARED_FRAMES", "comparison_flags"]
 
@@ -22,29 +25,45 @@ MIN_COMPARED_FRAMES = 5
 
 
 def comparison_flags(
-    inputs: Any,
-    gait_cycle: Any,
-    comparison: Mapping[str, Any] | None,
-    time: np.ndarray,
-) -> list[dict[str, Any]]:
+    trial: str,
+    contact_force: str | os.PathLike[str] | None,
+    comparison: Mapping[str, object] | None,
+    time: ArrayLike,
+    *,
+    side: str,
+    cycle_ran: bool = True,
+    cycle: tuple[float, float] | None = None,
+    measured: Mapping[str, ArrayLike] | None = None,
+    foot_strikes: Sequence[float] = (),
+) -> list[Flag]:
     """The flag (a list of zero or one) saying why a configured measured contact force was
-    not compared; ``time`` is the kinematics' time base (s)."""
-    task = inputs.task
-    if task is None or getattr(task, "contact_force", None) is None:
+    not compared.
+
+    Args:
+        trial: the task trial's name.
+        contact_force: the measured contact force file configured for it (None: none, no flag).
+        comparison: the ``comparison`` figures by name (a ``knee_contact*`` one: compared).
+        time: the kinematics' time base (s).
+        side: the analysed side (``"left"``/``"right"``).
+        cycle_ran: whether the gait cycle step ran.
+        cycle: the analysed side's gait cycle ``(start, end)`` in s, None without one.
+        measured: component → measured force on ``time`` (NaN outside the measured cycle),
+            None when the contact stage gave none.
+        foot_strikes: the analysed side's foot-strike times (s) found.
+    """
+    if contact_force is None:
         return []
     if any(str(k).startswith("knee_contact") for k in (comparison or {})):
         return []
-    name = getattr(task.contact_force, "name", str(task.contact_force))
-    measured = None if gait_cycle is None else gait_cycle.measured_contact
+    name = os.path.basename(os.fspath(contact_force))
     t = np.asarray(time, dtype=float)
     n_frames = 0
-    if gait_cycle is None:
+    if not cycle_ran:
         why = "the gait cycle step did not run (a core stage is missing)"
-    elif measured is None and gait_cycle.cycle is None:
-        strikes = gait_cycle.events.foot_strike.get(inputs.side, ()) if gait_cycle.events else ()
+    elif measured is None and cycle is None:
         why = (
-            f"no gait cycle of the {inputs.side} side to place it on (two foot strikes are "
-            f"needed; found {len(tuple(strikes))} in the file's events or from the plates)"
+            f"no gait cycle of the {side} side to place it on (two foot strikes are "
+            f"needed; found {len(tuple(foot_strikes))} in the file's events or from the plates)"
         )
     elif measured is None:
         why = "the knee_contact stage gave no measured force (see the stages' notes)"
@@ -52,8 +71,7 @@ def comparison_flags(
         both = [np.isfinite(np.asarray(v, dtype=float)) for v in measured.values()]
         n_frames = int(max((b.sum() for b in both), default=0))
         span = f"{t[0]:.3f}–{t[-1]:.3f} s" if t.size else "no frames"
-        c = gait_cycle.cycle
-        placed = f", placed on the gait cycle {c[0]:.3f}–{c[1]:.3f} s," if c else ""
+        placed = f", placed on the gait cycle {cycle[0]:.3f}–{cycle[1]:.3f} s," if cycle else ""
         why = (
             f"it overlaps{placed} {n_frames} of the trial's frames ({span}) where the "
             f"prediction is finite (at least {MIN_COMPARED_FRAMES} needed): its time base or "
@@ -61,11 +79,11 @@ def comparison_flags(
             "available"
         )
     return [
-        {
-            "trial": task.name,
-            "quantity": "contact_comparison_not_available",
-            "value": float(n_frames),
-            "threshold": float(MIN_COMPARED_FRAMES),
-            "message": f"measured knee contact force {name} not compared: {why}",
-        }
+        Flag(
+            trial=trial,
+            quantity="contact_comparison_not_available",
+            value=float(n_frames),
+            threshold=float(MIN_COMPARED_FRAMES),
+            message=f"measured knee contact force {name} not compared: {why}",
+        )
     ]

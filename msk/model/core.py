@@ -182,7 +182,7 @@ class JointState:
 @dataclass(frozen=True, eq=False)
 class ModelState:
     """What a :class:`Model` is built from, as plain data (msk dataclasses, numpy arrays,
-    strings, numbers): the form the stage cache (:mod:`msk.pipeline.cache`, which stores no
+    strings, numbers): the form the stage cache (:mod:`msk._runtime.cache`, which stores no
     Pinocchio
     object) keeps of a model. :meth:`Model.from_state` builds the model again from it with the
     same specifications, entry for entry (an offset SE(3) from its stored rotation and

@@ -27,10 +27,15 @@ samples, the first one's time and value, so that the run raises a quality flag.
 from __future__ import annotations
 
 import warnings
+from collections.abc import Sequence
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
+
+if TYPE_CHECKING:
+    from msk.quality import Flag
 
 __all__ = ["SampleFaults", "fault_flags", "find_sample_faults", "repair_sample_faults"]
 
@@ -190,16 +195,18 @@ def repair_sample_faults(
     return y, faults
 
 
-def fault_flags(trial: str, faults: tuple[SampleFaults, ...] | list[SampleFaults]) -> list[dict]:
+def fault_flags(trial: str, faults: Sequence[SampleFaults]) -> list[Flag]:
     """The quality flags (``summary.json`` ``quality.flags``) of the faults: one per channel,
     quantity ``emg_sample_faults`` (repaired) or ``emg_channel_excluded``, value the count."""
+    from msk.quality import Flag  # on use: reading EMG does not import the quality gates
+
     return [
-        {
-            "trial": trial,
-            "quantity": "emg_sample_faults" if f.repaired else "emg_channel_excluded",
-            "value": float(f.count),
-            "threshold": 0.0,
-            "message": f.message(),
-        }
+        Flag(
+            trial=trial,
+            quantity="emg_sample_faults" if f.repaired else "emg_channel_excluded",
+            value=float(f.count),
+            threshold=0.0,
+            message=f.message(),
+        )
         for f in faults
     ]

@@ -19,7 +19,7 @@ dynamics, report) have no fallback: their errors end the run, and nothing is wri
 **Cache.** A stage's key is the sha256 of its name, the code fingerprint (the source of msk and
 the versions of its numerical dependencies), its settings and the keys of the stages it reads
 (input files enter through their content hash). Values are stored in ``<out>/.cache`` by
-:mod:`msk.pipeline.cache` (``.npz`` + JSON, checksummed, never pickled).
+:mod:`msk._runtime.cache` (``.npz`` + JSON, checksummed, never pickled).
 
 **FES.** The ``fes`` stage runs the identification protocol on the ``role = "fes"`` trials; a
 session may hold only FES trials: the gait stages are then ``not requested``.

@@ -15,24 +15,16 @@
 
 A failing session never stops the others: its error is kept as one line (type and message), the
 others complete and are written, and :attr:`BatchResult.failed` lists it. The cohort table
-``out/cohort.csv`` has one row per session with its key quality figures, the body mass and its
-source and each side's spatiotemporal means (:data:`COHORT_COLUMNS`);
-its strength columns count the groups per :mod:`msk.status` word and list each group's word
-(``strength_group_status``: ``group: status; …``). Dynamometry sessions
+``out/cohort.csv`` has one row per session (:func:`msk.results.cohort.cohort_row`,
+:data:`msk.results.cohort.COHORT_COLUMNS`). Dynamometry sessions
 (:mod:`msk.pipeline.dynamometry`) also give ``out/strength_cohort.csv``: one row per subject
 and test (torque, N·m/kg, interval, factor, status, reason).
-
-``compare_sessions(folders)`` builds the table of generic vs identified differences across
-session folders (``msk compare``), with the metrics of :mod:`msk.metrics`.
 """
 
 from __future__ import annotations
 
-import csv
-import io
 import os
 import re
-import tempfile
 import time as _time
 import traceback
 from collections.abc import Mapping, Sequence
@@ -40,53 +32,16 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-import numpy as np
-
 from msk.exceptions import BatchError, MskError
-from msk.results.summary import Summary, as_summary
+from msk.results.cohort import check_cohort_replaceable, cohort_row, write_cohort_csv
 
 __all__ = [
-    "COHORT_COLUMNS",
     "SESSION_TIME_LIMIT_S",
     "BatchResult",
     "SessionOutcome",
-    "compare_sessions",
     "run_batch",
     "run_one",
-    "write_cohort_csv",
 ]
-
-#: Columns of ``cohort.csv`` (units in the names).
-#: the spatiotemporal parameters of the cohort table (per side, mean over the session's strides)
-_GAIT_COLUMNS = ("cycles", "walking_speed_m_s", "cadence_steps_per_min", "stride_length_m",
-                 "stance_pct")  # fmt: skip
-
-COHORT_COLUMNS: tuple[str, ...] = (
-    "session",
-    "config",
-    "status",
-    "error",
-    "run_s",
-    "mass_kg",
-    "mass_source",
-    "frames",
-    "ik_marker_rms_mean_mm",
-    "ik_failed_frames",
-    "residual_force_rms_pct_bw",
-    "residual_moment_rms_nm",
-    "emg_flat_channels",
-    "identified_mass_kg",
-    "strength_fit_r2",
-    "strength_groups_identified",
-    "strength_groups_at_bound",
-    "strength_groups_not_determined",
-    "strength_group_status",
-    "knee_contact_rms_bw",
-    "knee_contact_icc",
-    *(f"{p}_{side}" for side in ("left", "right") for p in _GAIT_COLUMNS),
-    "stages_not_available",
-    "quality_flags",
-)
 
 
 @dataclass(frozen=True)
@@ -117,76 +72,6 @@ def _one_line(exc: BaseException) -> str:
     return f"{type(exc).__name__}: {' '.join(str(exc).split())}"
 
 
-def _nan(x: float | None) -> float:
-    """A summary number (``None`` where the run computed a non-finite one) as a float."""
-    return float("nan") if x is None else x
-
-
-def _row(
-    config: str,
-    summary: Summary | Mapping[str, Any] | None,
-    status: str,
-    error: str,
-    seconds: float,
-) -> dict[str, Any]:
-    name = Path(config).stem
-    row: dict[str, Any] = dict.fromkeys(COHORT_COLUMNS, "")
-    row.update(session=name, config=config, status=status, error=error, run_s=round(seconds, 3))
-    if not summary:
-        return row
-    s = as_summary(summary)
-    q = s.quality
-    row["session"] = s.session or name
-    row["frames"] = "" if q.frames is None else q.frames
-    if q.ik_marker_rms_mean_m is not None:
-        row["ik_marker_rms_mean_mm"] = round(1000 * q.ik_marker_rms_mean_m, 3)
-    row["ik_failed_frames"] = "" if q.ik_failed_frames is None else q.ik_failed_frames
-    for k, v in (
-        ("residual_force_rms_pct_bw", q.residual_force_rms_pct_bw),
-        ("residual_moment_rms_nm", q.residual_moment_rms_nm),
-        ("strength_fit_r2", q.strength_fit_r2),
-    ):
-        row[k] = "" if v is None else round(float(v), 4)
-    row["emg_flat_channels"] = " ".join(q.emg_flat_channels or ())
-    ident = s.identification
-    if ident:
-        row["identified_mass_kg"] = round(sum(_nan(g.mass_kg) for g in ident.segments), 3)
-    st = s.strength
-    if st:
-        statuses = [(g.group, st.group_status(g)) for g in st.groups]
-        for col, word in (
-            ("strength_groups_identified", "identified"),
-            ("strength_groups_at_bound", "at bound"),
-            ("strength_groups_not_determined", "not determined"),
-        ):
-            row[col] = sum(s == word for _, s in statuses)
-        row["strength_group_status"] = "; ".join(f"{n}: {s}" for n, s in statuses)
-    comp = s.comparison and (
-        s.comparison.knee_contact_subject_specific or s.comparison.knee_contact_generic
-    )
-    if comp:
-        row["knee_contact_rms_bw"] = round(_nan(comp.rms_bw), 4)
-        row["knee_contact_icc"] = round(_nan(comp.icc), 4)
-    if s.subject.mass_kg is not None:
-        row["mass_kg"] = round(float(s.subject.mass_kg), 2)
-    row["mass_source"] = s.subject.mass_source or ""
-    gait = s.gait
-    for side in ("left", "right"):
-        if gait is None:
-            break
-        row[f"cycles_{side}"] = (gait.cycles or {}).get(side, 0)
-        params = (gait.spatiotemporal or {}).get(side)
-        for p in _GAIT_COLUMNS[1:]:
-            par = params.parameters.get(p) if params is not None else None
-            if par is not None and par.mean is not None:
-                row[f"{p}_{side}"] = round(float(par.mean), 4)
-    row["stages_not_available"] = " ".join(i.stage for i in s.not_available or ())
-    # the quality gates raised (what `msk run --strict` exits 3 for): the quantities, counted
-    flags = [str(f.quantity) for f in q.flags or ()]
-    row["quality_flags"] = " ".join(f"{k}×{flags.count(k)}" for k in dict.fromkeys(flags))
-    return row
-
-
 def _run_dynamometry(config: str, out_dir: str) -> SessionOutcome:
     """A ``kind = "dynamometry"`` session (:mod:`msk.pipeline.dynamometry`): its cohort row
     counts the tests per status word; ``row["strength_rows"]`` holds its strength table rows
@@ -200,10 +85,10 @@ def _run_dynamometry(config: str, out_dir: str) -> SessionOutcome:
         dt = _time.perf_counter() - t0
         msg = _one_line(exc)
         return SessionOutcome(
-            config, out_dir, False, dt, msg, _row(config, None, "failed", msg, dt)
+            config, out_dir, False, dt, msg, cohort_row(config, None, "failed", msg, dt)
         )
     dt = _time.perf_counter() - t0
-    row = _row(config, None, "ok", "", dt)
+    row = cohort_row(config, None, "ok", "", dt)
     words = [(r.test, r.status) for r in res.strengths]
     row.update(
         session=res.summary["session"],
@@ -241,7 +126,7 @@ def run_one(config: str, out_dir: str, use_cache: bool = True) -> SessionOutcome
         dt = _time.perf_counter() - t0
         msg = _one_line(exc)
         return SessionOutcome(
-            config, out_dir, False, dt, msg, _row(config, None, "failed", msg, dt)
+            config, out_dir, False, dt, msg, cohort_row(config, None, "failed", msg, dt)
         )
     except Exception as exc:  # a bug in one session must not take the cohort down
         dt = _time.perf_counter() - t0
@@ -249,13 +134,15 @@ def run_one(config: str, out_dir: str, use_cache: bool = True) -> SessionOutcome
         where = f" ({tb[-1].filename}:{tb[-1].lineno})" if tb else ""
         msg = _one_line(exc) + where
         return SessionOutcome(
-            config, out_dir, False, dt, msg, _row(config, None, "failed", msg, dt)
+            config, out_dir, False, dt, msg, cohort_row(config, None, "failed", msg, dt)
         )
     finally:
         if isolate_set:
             os.environ.pop(ISOLATE_ENV, None)
     dt = _time.perf_counter() - t0
-    return SessionOutcome(config, out_dir, True, dt, "", _row(config, res.summary, "ok", "", dt))
+    return SessionOutcome(
+        config, out_dir, True, dt, "", cohort_row(config, res.summary, "ok", "", dt)
+    )
 
 
 def _session_dirs(configs: Sequence[str | Path], out: Path) -> list[Path]:
@@ -267,47 +154,6 @@ def _session_dirs(configs: Sequence[str | Path], out: Path) -> list[Path]:
         seen[stem] = k + 1
         dirs.append(out / (stem if k == 0 else f"{stem}-{k + 1}"))
     return dirs
-
-
-def _check_cohort_replaceable(path: Path) -> None:
-    """Refuse to replace ``path`` unless it is absent or a cohort table msk wrote: a regular
-    file (not a symbolic link) whose header starts with :data:`COHORT_COLUMNS`' first four
-    (a table of an msk with other columns is msk's too)."""
-    if not os.path.lexists(path):
-        return
-    head = "session,config,status,error,"  # every msk's cohort table starts so
-    ours = False
-    if not path.is_symlink() and path.is_file():
-        try:
-            with open(path, encoding="utf-8", newline="") as fh:
-                ours = fh.readline(4096).startswith(head)
-        except (OSError, UnicodeDecodeError):
-            ours = False
-    if not ours:
-        raise BatchError(
-            f"{path}: exists and msk did not write it (not a cohort table of msk batch); "
-            "refusing to replace it: move it or choose another --out"
-        )
-
-
-def write_cohort_csv(path: str | Path, rows: Sequence[Mapping[str, Any]]) -> Path:
-    """The cohort table (one row per session, :data:`COHORT_COLUMNS`), written atomically;
-    a ``cohort.csv`` msk did not write (or a symbolic link) is never replaced
-    (:class:`~msk.exceptions.BatchError`)."""
-    path = Path(path)
-    _check_cohort_replaceable(path)
-    buf = io.StringIO()
-    w = csv.DictWriter(buf, fieldnames=list(COHORT_COLUMNS), lineterminator="\n")
-    w.writeheader()
-    for r in rows:
-        w.writerow({k: r.get(k, "") for k in COHORT_COLUMNS})
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", dir=path.parent)
-    with os.fdopen(fd, "w", encoding="utf-8", newline="") as fh:
-        fh.write(buf.getvalue())
-    os.chmod(tmp, 0o644)
-    os.replace(tmp, path)
-    return path
 
 
 #: a local batch's default time limit per session (s): far above any session's run (a long
@@ -376,7 +222,7 @@ def run_batch(
         )
     out = Path(out_dir).resolve()
     out.mkdir(parents=True, exist_ok=True)
-    _check_cohort_replaceable(out / "cohort.csv")  # before hours of work, not after
+    check_cohort_replaceable(out / "cohort.csv")  # before hours of work, not after
     cfgs = [str(Path(c).resolve()) for c in configs]
     dirs = [str(d) for d in _session_dirs(cfgs, out)]
     done: dict[int, SessionOutcome] = {}
@@ -388,7 +234,7 @@ def run_batch(
         except Exception as exc:  # worker died or was lost
             msg = _one_line(exc)
             o = SessionOutcome(
-                cfgs[k], dirs[k], False, 0.0, msg, _row(cfgs[k], None, "failed", msg, 0.0)
+                cfgs[k], dirs[k], False, 0.0, msg, cohort_row(cfgs[k], None, "failed", msg, 0.0)
             )
         done[k] = o
         if progress is None:
@@ -452,129 +298,3 @@ def run_batch(
 
         write_strength_csv(out / "strength_cohort.csv", per_test)
     return BatchResult(out, tuple(outcomes), cohort, _time.perf_counter() - t0)
-
-
-# ---------------------------------------------------------------------------------------------
-# compare across session folders
-# ---------------------------------------------------------------------------------------------
-COMPARE_COLUMNS = (
-    "session",
-    "quantity",
-    "item",
-    "generic",
-    "identified",
-    "difference",
-    "unit",
-    "note",
-)
-
-
-def compare_sessions(folders: Sequence[str | Path]) -> list[dict[str, Any]]:
-    """Generic vs identified, per session folder: segment masses (kg), strength factors (×),
-    pelvis residuals (N, N·m) and the knee contact force against the measured one (RMS in BW,
-    NRMSD %, Pearson r, ICC from :mod:`msk.metrics` on the ``knee_contact`` table). The
-    ``note`` of a mass or strength row is its :mod:`msk.status` word (``identified``,
-    ``at bound``, ``not determined``, ``prior``)."""
-    from msk import metrics as compare
-    from msk.results.folder import read_session
-
-    rows: list[dict[str, Any]] = []
-
-    def add(
-        sess: str,
-        qty: str,
-        item: str,
-        gen: float | None,
-        ide: float | None,
-        unit: str,
-        note: str = "",
-    ) -> None:
-        gen, ide = _nan(gen), _nan(ide)
-        rows.append(
-            {
-                "session": sess,
-                "quantity": qty,
-                "item": item,
-                "generic": gen,
-                "identified": ide,
-                "difference": ide - gen,
-                "unit": unit,
-                "note": note,
-            }
-        )
-
-    for folder in folders:
-        res = read_session(folder)
-        s = res.summary
-        sess = str(s.session or Path(folder).name)
-        ident = s.identification
-        if ident:
-            for seg in ident.segments:
-                add(
-                    sess,
-                    "segment mass",
-                    seg.name,
-                    seg.prior_mass_kg,
-                    seg.mass_kg,
-                    "kg",
-                    seg.status_word(),
-                )
-        st = s.strength
-        if st:
-            for grp in st.groups:
-                add(
-                    sess,
-                    "strength factor",
-                    grp.group,
-                    1.0,
-                    grp.factor,
-                    "x generic",
-                    st.group_status(grp),
-                )
-        comp = s.comparison
-        for key, unit, pair in (
-            ("residual_force_rms_n", "N", comp.residual_force_rms_n if comp else None),
-            ("residual_moment_rms_nm", "N·m", comp.residual_moment_rms_nm if comp else None),
-        ):
-            if pair is not None:
-                add(
-                    sess,
-                    "pelvis residual RMS",
-                    key.split("_rms")[0],
-                    pair.generic,
-                    pair.identified,
-                    unit,
-                )
-
-        if res.has("knee_contact"):
-            kc = res.table("knee_contact")
-            if {"measured_total_bw", "generic_total_bw"} <= set(kc.columns):
-                meas = kc.column("measured_total_bw")
-                gen = kc.column("generic_total_bw")
-                spec = (
-                    kc.column("subject_specific_total_bw")
-                    if "subject_specific_total_bw" in kc.columns
-                    else None
-                )
-                m = np.isfinite(meas) & np.isfinite(gen)
-                if spec is not None:
-                    m &= np.isfinite(spec)
-                if m.sum() >= 5:
-                    for name, fn, unit in (
-                        ("RMS error", compare.rms, "BW"),
-                        ("NRMSD", compare.nrmsd, "%"),
-                        ("Pearson r", compare.pearson_r, "1"),
-                        ("ICC(2,1)", compare.icc, "1"),
-                    ):
-                        g = float(fn(meas[m], gen[m]))
-                        i = float(fn(meas[m], spec[m])) if spec is not None else float("nan")
-                        add(
-                            sess,
-                            "knee contact vs measured",
-                            name,
-                            g,
-                            i,
-                            unit,
-                            f"{int(m.sum())} frames",
-                        )
-    return rows

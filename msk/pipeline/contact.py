@@ -3,11 +3,11 @@ model (:func:`msk.contact.knee.knee_contact_force`: the joint reaction with the 
 the knee's unit wrenches of a geometry pass) and its two-point medial/lateral split
 (:func:`msk.contact.knee.split_medial_lateral`; Winby et al. 2009; Lerner et al. 2015).
 
-Block by block of frames: the knee's unit wrenches are recomputed for each block
-from the model's paths (the geometry stage does not hold them for the whole trial), and the
-subject-specific re-solve hands each solved block's forces to both variants' contact
-(:func:`msk.optimization.muscle_forces.solve_muscle_forces` ``on_block``) — its forces are never
-held whole."""
+Block by block of frames (:class:`msk.contact.blocks.ContactAssembly`): the knee's unit
+wrenches are recomputed for each block from the model's paths (the geometry stage does not hold
+them for the whole trial), and the subject-specific re-solve hands each solved block's forces to
+both variants' contact (:func:`msk.optimization.muscle_forces.solve_muscle_forces`
+``on_block``) — its forces are never held whole."""
 
 from __future__ import annotations
 
@@ -16,70 +16,19 @@ from typing import Any
 import numpy as np
 
 from msk._runtime.blocks import frame_blocks
+from msk.contact.blocks import ContactAssembly
 from msk.dynamics.identification import MassIdentification, identified_model
 from msk.dynamics.inverse import InverseDynamics
+from msk.kinematics.ik import Kinematics
+from msk.model.core import Model
 from msk.muscles.emg import EmgActivations
 from msk.optimization.muscle_forces import MuscleForces, solve_muscle_forces
 from msk.personalise import Personalisation
 from msk.pipeline.inputs import SessionInputs
-from msk.pipeline.records import ContactVariant, KneeContact, Loads, StrengthIdentification
+from msk.pipeline.records import KneeContact, Loads, StrengthIdentification
 from msk.pipeline.runner import StageUnavailable
 
 __all__ = ["run", "settings"]
-
-
-class _VariantArrays:
-    """One model's contact force and medial/lateral split on every frame (NaN until filled),
-    filled block by block of frames (:func:`msk.contact.knee.knee_contact_force`,
-    :func:`msk.contact.knee.split_medial_lateral`)."""
-
-    def __init__(
-        self, model: Any, geo: Any, kin: Any, external: Any, joint: str, patella: Any = None
-    ) -> None:
-        n = kin.time.size
-        self.model, self.geo, self.kin, self.external, self.joint, self.patella = (
-            model, geo, kin, external, joint, patella,
-        )  # fmt: skip
-        self.force = np.full((n, 3), np.nan)
-        self.medial = np.full(n, np.nan)
-        self.lateral = np.full(n, np.nan)
-        self.patellofemoral = None if patella is None else np.full(n, np.nan)
-
-    def fill(
-        self, fr: np.ndarray, forces: np.ndarray, w: np.ndarray, names: Any,
-        jk: np.ndarray | None = None,
-    ) -> None:  # fmt: skip
-        """The contact on frames ``fr`` (indices) with these muscle ``forces`` (columns
-        ``names``) and the knee's unit wrenches ``w`` (N, muscles, 6) of those frames. Only the
-        frames where every muscle with a wrench on the knee's distal subtree has a force are
-        filled: a muscle without one (NaN: the other leg, left out of the tension QP where its
-        foot stands off the plates) does not load this knee and counts as 0."""
-        from msk.contact.knee import knee_contact_force, split_medial_lateral
-
-        loads_knee = (np.asarray(w) != 0).any(axis=2)
-        known = np.isfinite(forces)
-        keep = (known | ~loads_knee).all(axis=1)
-        fr, forces, w = fr[keep], np.where(known, forces, 0.0)[keep], w[keep]
-        jk = None if jk is None else jk[keep]
-        if not fr.size:
-            return
-        contact = knee_contact_force(
-            self.model, self.kin.take(fr), self.external.take(fr), muscle_forces=forces,
-            muscle_names=tuple(names), joint=self.joint, distal_wrenches=w, patella=self.patella,
-            knee_jacobian=jk if self.patella is not None else None,
-        )  # fmt: skip
-        self.force[fr] = contact.force
-        if self.patellofemoral is not None and contact.patellofemoral is not None:
-            self.patellofemoral[fr] = contact.patellofemoral
-        ml = split_medial_lateral(contact, self.geo)
-        self.medial[fr], self.lateral[fr] = ml.medial, ml.lateral
-
-    def result(self) -> ContactVariant:
-        return ContactVariant(
-            self.force, np.linalg.norm(self.force, axis=1), self.medial, self.lateral,
-            lateral_sign=-1.0 if self.joint.endswith("_l") else 1.0,
-            patellofemoral=self.patellofemoral,
-        )  # fmt: skip
 
 
 def settings(inputs: SessionInputs) -> Any:
@@ -94,7 +43,7 @@ def settings(inputs: SessionInputs) -> Any:
 def run(
     inputs: SessionInputs,
     model: Personalisation,
-    kinematics: Any,
+    kinematics: Kinematics,
     loads: Loads,
     mass_identification: MassIdentification | None,
     inverse_dynamics: InverseDynamics,
@@ -128,16 +77,16 @@ def run(
 
     tendon = inputs.cfg.contact.patella == "tendon"
 
-    def variant(m: Any) -> _VariantArrays:
+    def variant(m: Model) -> ContactAssembly:
         from msk.contact.patella import patellar_tendon
 
         pt = patellar_tendon(m, joint=joint) if tendon else None
-        return _VariantArrays(m, inputs.knee_plateau(m, joint), kin, loads.external, joint, pt)
+        return ContactAssembly(m, inputs.knee_plateau(m, joint), kin, loads.external, joint, pt)
 
     gen_forces, names = tension_optimization.forces, tension_optimization.muscles
     # frames without the knee's muscle forces get no contact force (never zero muscle force;
     # a frame whose other leg is left out of the tension QP is solved for this knee:
-    # _VariantArrays.fill)
+    # ContactAssembly.fill)
     gen_ok = loads.solvable & np.isfinite(gen_forces).any(axis=1)
     # both variants on the inertias the muscle forces balance (the tension stage's torques are
     # the identified model's): the joint reaction of the generic model's inertias with those
@@ -175,7 +124,7 @@ def run(
         w, jk = wrenches(fr)
         generic.fill(fr, gen_forces[fr], w, names, jk)
     out = {name: v.result() for name, v in variants.items()}
-    geo = variants["subject_specific" if "subject_specific" in variants else "generic"].geo
+    geo = variants["subject_specific" if "subject_specific" in variants else "generic"].geometry
     plateau = {
         "intercondylar_distance_m": geo.intercondylar_distance_m,
         "centre_m": list(geo.centre_m),

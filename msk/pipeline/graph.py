@@ -23,7 +23,7 @@ which takes the summary's swapped-label pairs right after the kinematics)::
          ─ gait_analysis* ─ joint_strength* ─ comparison ─ fes ─ tables* ─ summary* ─ report
                                                                               (* unrecorded)
 
-A node's result is kept in the stage cache (:mod:`msk.pipeline.cache`) as it is, or in the form its
+A node's result is kept in the stage cache (:mod:`msk._runtime.cache`) as it is, or in the form its
 ``to_cache`` gives and ``from_cache`` reads back (the model stage: :func:`model_to_cache`);
 an unrecorded node with ``cached`` is kept too (``joint_strength``, the summary's curves).
 """

@@ -11,6 +11,8 @@ from typing import Any
 
 import numpy as np
 
+from msk.contact.blocks import ContactVariant
+
 __all__ = [
     "ContactVariant",
     "FesResult",
@@ -127,47 +129,6 @@ class GaitCycle:
     def as_list(self) -> Sequence[Any]:
         """The events as ``summary.json`` lists them."""
         return self.events.as_list()
-
-
-@dataclass(frozen=True)
-class ContactVariant:
-    """One model's knee contact force (N, 3) in the knee joint frame fixed in the tibia, its
-    magnitude and medial/lateral compartment forces (N); NaN where there is no muscle force.
-
-    By component (:mod:`msk.contact.knee`'s plateau frame: x anterior, y proximal along the
-    tibia's long axis — the plateau normal —, z to the subject's right; ``force`` is the femur's
-    on the tibia): :attr:`axial` = −F_y (compressive positive), :attr:`shear_anterior` = F_x
-    (on the tibia, anterior positive), :attr:`shear_lateral` = ``lateral_sign`` · F_z (toward
-    the knee's lateral side: +1 on a right knee, −1 on a left one)."""
-
-    force: np.ndarray
-    total: np.ndarray
-    medial: np.ndarray
-    lateral: np.ndarray
-    lateral_sign: float = 1.0
-    #: (N,) the patellofemoral contact force |F_PF| in N with the patellar tendon
-    #: (:meth:`msk.contact.patella.PatellarTendon.patellofemoral`), else None
-    patellofemoral: np.ndarray | None = None
-
-    @property
-    def axial(self) -> np.ndarray:
-        """(N,) compressive force along the tibia's long axis (plateau normal), N."""
-        return -np.asarray(self.force)[:, 1]
-
-    @property
-    def shear_anterior(self) -> np.ndarray:
-        """(N,) anterior–posterior shear on the tibia (anterior positive), N."""
-        return np.asarray(self.force)[:, 0]
-
-    @property
-    def shear_lateral(self) -> np.ndarray:
-        """(N,) medial–lateral shear on the tibia (lateral positive), N."""
-        return self.lateral_sign * np.asarray(self.force)[:, 2]
-
-    def component(self, name: str) -> np.ndarray:
-        """(N,) the predicted force a measurement of ``name`` measures: ``"axial"`` →
-        :attr:`axial`, ``"magnitude"`` / ``"unstated"`` → :attr:`total` (N)."""
-        return self.axial if name == "axial" else self.total
 
 
 @dataclass(frozen=True)

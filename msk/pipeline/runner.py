@@ -1,11 +1,11 @@
 """The stage runner: content-hash cache, status records, progress lines.
 
 :class:`Runner` runs the nodes of :data:`msk.pipeline.graph.GRAPH` in their declared order. A
-node's cache key is the sha256 of its name, :func:`msk.pipeline.cache.code_fingerprint` (the source
+node's cache key is the sha256 of its name, :func:`msk._runtime.cache.code_fingerprint` (the source
 of
 msk and the versions of its numerical dependencies), its settings and the keys of the nodes it
 reads, so a changed setting recomputes exactly the stages downstream of it. Values are stored
-by :class:`msk.pipeline.cache.StageCache` (``.npz`` + JSON, checksummed, never pickled).
+by :class:`msk._runtime.cache.StageCache` (``.npz`` + JSON, checksummed, never pickled).
 
 Status of a recorded stage: ``computed`` / ``cached`` / ``not requested`` (the configuration
 has no trial for it) / ``not available`` (a prerequisite or library piece is missing, recorded
@@ -26,9 +26,9 @@ from pathlib import Path
 from typing import Any, TextIO
 
 from msk import __version__
+from msk._runtime.cache import StageCache, code_fingerprint, dependency_versions
 from msk._runtime.fork import start_deferred
 from msk.exceptions import ConfigError, MskError, NotAvailableError
-from msk.pipeline.cache import StageCache, code_fingerprint, dependency_versions
 from msk.results.folder import json_default
 from msk.results.summary import Summary
 
@@ -92,7 +92,7 @@ def stage_key(*parts: Any) -> str:
 
 def versions() -> dict[str, str]:
     """msk, Python and the numerical dependencies
-    (:func:`msk.pipeline.cache.dependency_versions`)."""
+    (:func:`msk._runtime.cache.dependency_versions`)."""
     return {"msk": __version__, **dependency_versions()}
 
 

@@ -33,6 +33,7 @@ from msk.pipeline.records import (
 from msk.pipeline.runner import file_sha256, versions
 from msk.quality import (
     THRESHOLDS,
+    Flag,
     body_mass_from_loads,
     dead_plate_flags,
     gait_quality,
@@ -41,7 +42,16 @@ from msk.quality import (
     trial_flags,
     unmeasured_contact_figures,
 )
-from msk.results.summary import Methods
+from msk.results.summary import (
+    ConfigRef,
+    Event,
+    Frame,
+    Identification,
+    InputFile,
+    Methods,
+    Segment,
+    Subject,
+)
 from msk.strength.diagnosis import joint_strength_or_error, strength_summary
 
 # frames_solved, peak_measured_force_n and strength_summary are their library rooms'
@@ -73,21 +83,24 @@ def base_summary(inputs: SessionInputs) -> dict[str, Any]:
         "trial": inputs.task.name if inputs.task is not None else None,
         "created_utc": datetime.now(UTC).strftime("%Y-%m-%dT%H:%M:%SZ"),
         "versions": versions(),
-        "config": {"path": str(cfg.path), "sha256": file_sha256(cfg.path)},
+        "config": ConfigRef(path=str(cfg.path), sha256=file_sha256(cfg.path)).to_dict(),
         "inputs": [
-            {"role": k, "path": str(p), "sha256": inputs.hashes[k], "bytes": Path(p).stat().st_size}
+            InputFile(
+                role=k, path=str(p), sha256=inputs.hashes[k], bytes=Path(p).stat().st_size
+            ).to_dict()
             for k, p in inputs.files.items()
         ],
         "settings": plain_settings(cfg),
-        "subject": {
-            "name": cfg.subject.name,
-            "mass_kg": inputs.mass_kg,
-            **inputs.mass,
-            "height_m": cfg.subject.height_m,
-            "sex": cfg.subject.sex,
-            "side": inputs.side,
-            "body_weight_n": inputs.body_weight,
-        },
+        "subject": Subject(
+            name=cfg.subject.name,
+            mass_kg=inputs.mass_kg,
+            mass_source=inputs.mass.get("mass_source"),
+            mass_detail=inputs.mass.get("mass_detail"),
+            height_m=cfg.subject.height_m,
+            sex=cfg.subject.sex,
+            side=inputs.side,
+            body_weight_n=inputs.body_weight,
+        ).to_dict(),
     }
 
 
@@ -149,7 +162,7 @@ def _flags(
     jt: Any,
     sol: MuscleForces | None,
     plate_mass: float | None,
-) -> list[dict[str, Any]]:
+) -> list[Flag]:
     """The task trial's raised gates (:func:`msk.quality.trial_flags`)."""
     cfg, task = inputs.cfg, inputs.task
     assert task is not None  # a gait session
@@ -163,7 +176,19 @@ def _flags(
         emg_channels=cfg.emg.channels, analog_labels=model.trial.analog_labels,
         file_metadata=model.trial.metadata or {},
     )  # fmt: skip
-    return [f.as_dict() for f in flags]
+    return list(flags)
+
+
+def _identification(ident: MassIdentification, inputs: SessionInputs) -> dict[str, Any]:
+    """The summary's ``identification``: each segment's figures with its status word and the
+    segments whose identified inertia the dynamics used."""
+    return Identification(
+        segments=tuple(Segment(**s) for s in ident.segments),
+        condition_number=ident.condition_number,
+        n_frames=ident.n_frames,
+        advice=tuple(ident.advice),
+        applied_to_dynamics=tuple(applied_segments(ident, by_status=inputs.inertias_by_status)),
+    ).to_dict()
 
 
 def run(
@@ -206,46 +231,47 @@ def run(
     plate_mass = body_mass_from_loads(mdl, kin, loads.external, loads.measured_observed)
     quality["plate_mass_kg"] = plate_mass
     pairs = () if swapped_markers is None else swapped_markers
-    quality["flags"] = _flags(inputs, quality, model, kin, loads, pairs, jt, sol, plate_mass)
+    flags = _flags(inputs, quality, model, kin, loads, pairs, jt, sol, plate_mass)
     from msk.kinematics.gait_plausibility import gait_mode, knee_contact_flags, pelvis_tilt_flags
 
+    trial = inputs.task.name
     mode, why = gait_mode(gait_cycle.events, kin, -np.asarray(mdl.gravity, dtype=float))
     if knee_contact is not None:
         bw = {v: np.asarray(c.total, dtype=float) / inputs.body_weight
               for v, c in knee_contact.variants.items()}  # fmt: skip
-        quality["flags"] += [
-            f.as_dict() for f in knee_contact_flags(inputs.task.name, bw, mode, why)
-        ]
+        flags += knee_contact_flags(trial, bw, mode, why)
     on_pelvis = tuple(m.name for m in mdl.markers if m.body == "pelvis"
                       and m.name in set(model.labels))  # fmt: skip
-    quality["flags"] += [
-        f.as_dict() for f in pelvis_tilt_flags(inputs.task.name, kin, mode, on_pelvis)
-    ]
-    quality["flags"] += [
-        f.as_dict() for f in plate_edge_flags(inputs.task.name, loads.external.metadata)
-    ]
+    flags += pelvis_tilt_flags(trial, kin, mode, on_pelvis)
+    flags += plate_edge_flags(trial, loads.external.metadata)
     if emg is not None:  # a glitch in a raw EMG channel, repaired or the channel excluded
         from msk.muscles.emg_faults import fault_flags
 
-        quality["flags"] += fault_flags(inputs.task.name, emg.sample_faults)
-    quality["flags"] += [f.as_dict() for f in marker_rename_flags(inputs.task.name, model.info)]
-    quality["flags"] += [
-        f.as_dict() for f in dead_plate_flags(inputs.task.name, getattr(loads, "dead_plates", ()))
-    ]
+        flags += fault_flags(trial, emg.sample_faults)
+    flags += marker_rename_flags(trial, model.info)
+    flags += dead_plate_flags(trial, getattr(loads, "dead_plates", ()))
     from msk.contact.comparison_check import comparison_flags
 
-    quality["flags"] += comparison_flags(inputs, gait_cycle, comparison, kin.time)
+    ev = gait_cycle.events
+    flags += comparison_flags(
+        trial, inputs.task.contact_force, comparison, kin.time, side=inputs.side,
+        cycle=gait_cycle.cycle, measured=gait_cycle.measured_contact,
+        foot_strikes=ev.foot_strike.get(inputs.side, ()) if ev else (),
+    )  # fmt: skip
+    quality["flags"] = [f.as_dict() for f in flags]
     quality["thresholds"] = dict(THRESHOLDS)
     quality["held_coordinates"] = sorted(model.held)
-    ev = gait_cycle.events
     anthro = model_anthropometry(
         (b.name for b in mdl.bodies), cfg.subject.mass_kg, cfg.subject.height_m, cfg.subject.sex
     )
     return {
         **base_summary(inputs),
         "model": {**model.info, "name": mdl.name, "muscles": len(mdl.muscles)},
-        "frame": {"lab_to_model_rotation": model.rotation, "lab_up": model.lab_up},
-        "events": gait_cycle.as_list(),
+        "frame": Frame(
+            lab_to_model_rotation=tuple(tuple(map(float, row)) for row in model.rotation),
+            lab_up=tuple(map(float, model.lab_up)),
+        ).to_dict(),
+        "events": [Event(**e).to_dict() for e in gait_cycle.as_list()],
         "event_sources": {**dict(ev.source), "notes": list(ev.notes)},
         "gait_cycle_s": list(gait_cycle.cycle) if gait_cycle.cycle else None,
         "gait": None if gait_analysis is None else gait_analysis.summary(),
@@ -257,15 +283,7 @@ def run(
             task_trial=inputs.task.name,
             filtering=filtering(cfg),
         ).to_dict(),
-        "identification": None
-        if ident is None
-        else {
-            "segments": ident.segments,
-            "condition_number": ident.condition_number,
-            "n_frames": ident.n_frames,
-            "advice": ident.advice,
-            "applied_to_dynamics": applied_segments(ident, by_status=inputs.inertias_by_status),
-        },
+        "identification": None if ident is None else _identification(ident, inputs),
         "anthropometry": None if anthro is None else anthro.to_dict(),
         "plates": {  # each plate's surface, offset removed, plates left out
             "surfaces": list(loads.external.metadata.get("surfaces", ())),

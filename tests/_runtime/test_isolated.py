@@ -84,18 +84,3 @@ def test_a_batch_session_over_its_time_limit_is_failed_and_cohort_written(tmp_pa
     # no process of the killed session is left
     assert not [p for p in mp.active_children() if p.is_alive()]
     assert os.path.isdir(tmp_path / "b")
-
-
-def test_the_cohort_row_says_which_quality_gates_were_raised():
-    from msk.pipeline.batch import _row
-    from tests.support.summaries import BASE
-
-    flag = {"trial": "t", "value": 1.0, "threshold": 0.0, "message": "m"}
-    flags = [
-        {**flag, "quantity": "emg_sample_faults"},
-        {**flag, "quantity": "stage_failed"},
-        {**flag, "quantity": "emg_sample_faults"},
-    ]
-    row = _row("s.toml", {**BASE, "quality": {"flags": flags}}, "ok", "", 1.0)
-    assert row["quality_flags"] == "emg_sample_faults×2 stage_failed×1"
-    assert _row("s.toml", {**BASE, "quality": {}}, "ok", "", 1.0)["quality_flags"] == ""

@@ -4,7 +4,6 @@ why (a quality flag), never vanishes silently."""
 from __future__ import annotations
 
 from pathlib import Path
-from types import SimpleNamespace
 
 import numpy as np
 import pytest
@@ -15,35 +14,33 @@ REPO = Path(__file__).resolve().parents[2]
 T = np.linspace(0.0, 1.0, 11)
 
 
-def _inputs(contact: str | None = "implant.csv"):
-    task = SimpleNamespace(name="walk", contact_force=None if contact is None else Path(contact))
-    return SimpleNamespace(task=task, side="left")
-
-
-def _cycle(cycle=(0.1, 0.9), measured=None, strikes=(0.1, 0.9)):
-    events = SimpleNamespace(foot_strike={"left": strikes})
-    return SimpleNamespace(cycle=cycle, measured_contact=measured, events=events)
+def _flags(contact: str | None = "implant.csv", comparison=None, **kw):
+    """The flags of trial ``walk`` (left side) with measured force file ``contact``."""
+    kw = {"cycle": (0.1, 0.9), "foot_strikes": (0.1, 0.9), **kw}
+    file = None if contact is None else Path(contact)
+    return comparison_flags("walk", file, comparison, T, side="left", **kw)
 
 
 def test_compared_or_not_configured_is_no_flag():
-    assert comparison_flags(_inputs(None), _cycle(), None, T) == []
+    assert _flags(None) == []
     done = {"knee_contact_generic": {"rms_bw": 0.2}}
-    assert comparison_flags(_inputs(), _cycle(measured={"total": T}), done, T) == []
+    assert _flags(comparison=done, measured={"total": T}) == []
 
 
 @pytest.mark.parametrize(
-    ("cycle", "why"),
+    ("kw", "why"),
     [
-        (_cycle(cycle=None, strikes=(0.3,)), "no gait cycle of the left side"),
-        (_cycle(measured=None), "knee_contact stage gave no measured force"),
-        (_cycle(measured={"total": np.full(11, np.nan)}), "overlaps, placed on the gait cycle"),
-        (None, "gait cycle step did not run"),
+        ({"cycle": None, "foot_strikes": (0.3,)}, "no gait cycle of the left side"),
+        ({"measured": None}, "knee_contact stage gave no measured force"),
+        ({"measured": {"total": np.full(11, np.nan)}}, "overlaps, placed on the gait cycle"),
+        ({"cycle_ran": False}, "gait cycle step did not run"),
     ],
 )
-def test_each_reason_is_said(cycle, why):
-    (flag,) = comparison_flags(_inputs(), cycle, {"residual_force_rms_n": {}}, T)
-    assert flag["quantity"] == "contact_comparison_not_available"
-    assert "implant.csv not compared" in flag["message"] and why in flag["message"]
+def test_each_reason_is_said(kw, why):
+    (flag,) = _flags(comparison={"residual_force_rms_n": {}}, **kw)
+    assert flag.trial == "walk" and flag.quantity == "contact_comparison_not_available"
+    assert "implant.csv not compared" in flag.message and why in flag.message
+    assert flag.threshold == 5.0
 
 
 @pytest.mark.slow

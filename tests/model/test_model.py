@@ -217,8 +217,8 @@ def test_frame_placements_equal_forward_kinematics_frame_by_frame():
 def test_state_round_trip_through_the_stage_cache_builds_the_same_model(tmp_path):
     """The cache stores no Model (Pinocchio objects), but its plain-data state, from which the
     same Pinocchio model is built: every frame placement, inertia and marker position exact."""
+    from msk._runtime.cache import StageCache
     from msk.datasets.models import two_leg_model
-    from msk.pipeline.cache import StageCache
 
     rng = np.random.default_rng(3)
     base = two_leg_model()

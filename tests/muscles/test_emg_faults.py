@@ -52,7 +52,8 @@ def test_one_bad_sample_is_repaired_and_said(value):
     assert f.channel == "vasmed" and f.count == 1 and f.first_index == 1234 and f.repaired
     assert f.first_time_s == pytest.approx(1.234)
     (flag,) = fault_flags("walk", got.sample_faults)
-    assert flag["quantity"] == "emg_sample_faults" and "'vasmed'" in flag["message"]
+    assert flag.quantity == "emg_sample_faults" and "'vasmed'" in flag.message
+    assert flag.trial == "walk" and flag.value == 1.0 and flag.threshold == 0.0
     assert any("vasmed" in w and "1.2340 s" in w for w in got.warnings)
 
 
@@ -63,7 +64,7 @@ def test_a_long_run_of_bad_samples_excludes_the_channel():
     assert got.usable.tolist() == [True, False]
     (f,) = got.sample_faults
     assert not f.repaired and f.count == 100 and "run of 100" in f.reason
-    assert fault_flags("walk", got.sample_faults)[0]["quantity"] == "emg_channel_excluded"
+    assert fault_flags("walk", got.sample_faults)[0].quantity == "emg_channel_excluded"
 
 
 def test_a_spike_in_an_mvc_trial_does_not_set_the_mvc():

@@ -11,7 +11,8 @@ import pytest
 
 from msk.cli import main
 from msk.datasets.trials import write_synthetic_session
-from msk.pipeline.batch import COHORT_COLUMNS, compare_sessions, run_batch
+from msk.pipeline.batch import run_batch
+from msk.results.cohort import COHORT_COLUMNS, compare_sessions
 
 REPO = Path(__file__).resolve().parents[2]
 GC5 = REPO / "pipelines" / "gc5_PS.toml"

@@ -16,8 +16,8 @@ from hypothesis import strategies as st
 
 import msk.optimization as o
 from msk._runtime import blocks
+from msk._runtime.cache import decode, encode
 from msk.datasets.optimization import leg_like_frames
-from msk.pipeline.cache import decode, encode
 from msk.timeseries import FrameSparse
 from tests.support.sessions import stages
 

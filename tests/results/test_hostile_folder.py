@@ -1,6 +1,6 @@
 """A results folder is untrusted input: planted symlinks, foreign leftovers, user tables,
-forged cache entries and poisoned summaries (msk.results.folder, msk.pipeline.cache, msk.report,
-msk.pipeline.batch)."""
+forged cache entries and poisoned summaries (msk.results.folder, msk._runtime.cache, msk.report,
+msk.results.cohort)."""
 
 from __future__ import annotations
 
@@ -11,10 +11,10 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from msk._runtime.cache import StageCache
 from msk._runtime.secure import MARKER, read_marker, write_marker
 from msk.exceptions import FileFormatError
 from msk.io.opensim_files import Table
-from msk.pipeline.cache import StageCache
 from msk.report import render_html, write_report
 from msk.results.folder import SessionResults, check_replaceable, read_session, write_session
 from tests.support.summaries import BASE
@@ -209,7 +209,7 @@ def test_a_forged_cache_entry_is_not_trusted(tmp_path, monkeypatch):
 def test_a_manifest_cannot_name_an_entry_point_or_private_module():
     import sys
 
-    import msk.pipeline.cache as c
+    import msk._runtime.cache as c
 
     for ref in ("msk.cli.__main__:X", "msk.cli:Command", "msk.cli.batch:X", "msk._runtime.fork:X"):
         before = set(sys.modules)
@@ -255,7 +255,7 @@ def test_the_csp_forbids_frames_loads_and_the_pdf_page_has_no_refresh():
 # ----------------------------------------------------------------- batch
 def test_batch_never_overwrites_a_cohort_csv_it_did_not_write(tmp_path):
     from msk.exceptions import BatchError
-    from msk.pipeline.batch import write_cohort_csv
+    from msk.results.cohort import write_cohort_csv
 
     mine = tmp_path / "cohort.csv"
     mine.write_text("my own cohort table\n")
@@ -378,8 +378,8 @@ def test_a_received_folder_with_planted_links_and_forged_cache(tmp_path, monkeyp
     import io
     import shutil
 
+    import msk._runtime.cache as mc
     import msk._runtime.secure as sec
-    import msk.pipeline.cache as mc
     from msk.cli import main
     from msk.pipeline import run_session
 

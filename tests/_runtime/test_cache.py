@@ -1,4 +1,4 @@
-"""Stage cache (msk.pipeline.cache): exact round trips, no code from the cache folder ever runs, bad
+"""Stage cache (msk._runtime.cache): exact round trips, no code from the cache folder ever runs, bad
 entries are recomputed, code changes invalidate, old entries do not pile up."""
 
 from __future__ import annotations
@@ -28,8 +28,8 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from hypothesis.extra import numpy as hnp
 
-import msk.pipeline.cache as mc
-from msk.pipeline.cache import StageCache, code_fingerprint, decode, encode, source_fingerprint
+import msk._runtime.cache as mc
+from msk._runtime.cache import StageCache, code_fingerprint, decode, encode, source_fingerprint
 
 DATA = Path(__file__).resolve().parents[2] / "data"
 FP = "f" * 64  # a fixed fingerprint: the tests do not depend on the sources
