@@ -164,3 +164,33 @@ def test_msk_report_on_the_folder_of_task_trial_folders_writes_one_report(tmp_pa
     html = (tmp_path / "s" / "report.html").read_text(encoding="utf-8")
     assert "trials walk1, walk2" in html and "4 cycle(s)" in html
     assert capsys.readouterr().out.strip().endswith("report.html")
+
+
+def test_the_spatiotemporal_table_shows_the_norm_and_marks_a_side_beyond_2_sd():
+    """The norm column holds the set's scalar mean ± SD; a side's mean beyond ±2 SD (here the
+    synthetic 1.2 m/s against 1.45 ± 0.1) is marked ▼ and coloured, one inside (cadence
+    109.1 against 110 ± 8) is not; a set without scalars leaves the column empty, said."""
+    from msk.gait.norms import NormativeBands
+    from msk.report.sections.spatiotemporal import norm_position
+
+    pct = np.linspace(0, 100, 101)
+    norms = NormativeBands(
+        ("knee_flexion_deg",), pct[:, None] * 0.0, pct[:, None] * 0.0 + 1.0, "adults (n = 9)",
+        "synthetic", "CC0-1.0",
+        scalars={"walking_speed_m_s": (1.45, 0.1), "cadence_steps_per_min": (110.0, 8.0)},
+    )  # fmt: skip
+    html = render_html(_walk(), figures={}, norms=norms)
+    table = html.split('<section id="spatiotemporal">')[1].split("</table>")[0]
+    speed = next(r for r in table.split("<tr>") if "walking speed" in r)
+    cadence = next(r for r in table.split("<tr>") if "cadence" in r)
+    assert "1.45 ± 0.10" in speed and speed.count('class="out low"') == 2 and "▼" in speed
+    assert "110.0 ± 8.0" in cadence and "out" not in cadence
+    assert "more than 2 SD" in html
+    assert norm_position([1.2, 1.2], (1.45, 0.1)) == "low"
+    assert norm_position([1.7], (1.45, 0.1)) == "high"
+    assert norm_position([1.5], (1.45, 0.1)) == ""
+    assert norm_position([1.7], (1.45, float("nan"))) == ""  # no SD: no flag
+    plain = NormativeBands(("knee_flexion_deg",), pct[:, None] * 0.0, pct[:, None] * 0.0,
+                           "adults", "s", "l")  # fmt: skip
+    html = render_html(_walk(), figures={}, norms=plain)
+    assert "holds no spatiotemporal values" in html and 'class="out' not in html
