@@ -128,6 +128,14 @@ def test_shipped_bands_read_with_their_licence_and_gait_variables():
         assert b.licence.startswith("Apache-2.0") and "illustrative" in b.population
         assert set(b.variables) <= set(KINEMATICS + KINETICS)
         assert np.isfinite(b.mean).all() and (b.sd >= 0).all()
+        # the spatiotemporal rows, of walking adults
+        speed = b.scalar("walking_speed_m_s")
+        assert speed is not None and 0.9 < speed[0] < 1.6 and speed[1] > 0
+        assert {"cadence_steps_per_min", "stance_pct", "step_width_m"} <= set(b.scalars)
+        # the pelvis tilt in Plug-in Gait's frame: the two subjects' markers' ASIS–sacrum line
+        # tilts −0.4° / −0.5° (ORIGIN.md); the model body frame's gave ≈ −8°
+        tilt, _ = b.band("pelvis_tilt_deg")
+        assert -4.0 < float(np.mean(tilt)) < 1.0
         knee, _ = b.band("knee_flexion_deg")
         assert 50.0 < knee[55:80].max() < 75.0  # swing-phase knee flexion of healthy walking
 

@@ -194,3 +194,15 @@ def test_the_spatiotemporal_table_shows_the_norm_and_marks_a_side_beyond_2_sd():
                            "adults", "s", "l")  # fmt: skip
     html = render_html(_walk(), figures={}, norms=plain)
     assert "holds no spatiotemporal values" in html and 'class="out' not in html
+
+
+def test_the_kinematics_say_the_pelvis_frame_of_the_angles():
+    note = (
+        "pelvis angles in the plane of the ASIS (RASI, LASI) and the mid-PSIS (RPSI, LPSI) "
+        "markers (Plug-in Gait's pelvis): its tilt is the model's pelvis body frame's +3.2°"
+    )
+    html = render_html(_walk(gait={"notes": [note]}), figures={})
+    kin = html.split('<section id="kinematics">')[1].split("</section>")[0]
+    assert "Pelvis angles in the pelvis frame of Plug-in Gait" in kin and "+3.2°" in kin
+    assert "Davis RB" in html  # cited, in the references
+    assert "pelvis frame of Plug-in Gait" not in render_html(_walk(), figures={})
