@@ -54,6 +54,15 @@ puts them on that pose (:func:`with_pelvis_markers`). The hips then keep their p
 the pelvis markers through every later step (marker placement, inverse kinematics), and the
 pelvis' muscles keep their geometry against the hip (moving the hip joints inside the pelvis
 instead left the gluteal paths 34 mm off on a Plug-in Gait subject: 22 muscles saturated).
+The hip *width* alone is then set to the regression's (:func:`with_hip_width`: the pelvis is
+scaled as one body, so its hip width is the generic model's share of the pelvic width).
+
+Without a static trial (:func:`place_hip_centres_from_motion`) the landmarks are the task's:
+the pelvis markers' shape in the pelvis frame they define, median over the frames
+(:func:`motion_pelvis_landmarks`: a rigid body's markers keep it whatever the pelvis does), and
+the leg length the lab's, else the longest straight ASIS-to-malleolus distance the walk shows
+(:data:`MOTION_LEG_LENGTH_PERCENTILE`); the hips are placed before the motion placement, which
+keeps the pelvis markers where they are put here.
 """
 
 from __future__ import annotations
@@ -644,7 +653,9 @@ def _place_regression(
                    "pelvis_markers_moved_m": moved}  # fmt: skip
 
 
-def _posed_at(model: Any, means: Mapping[str, Array], **kw: Any) -> tuple[Any, Array, Array, dict]:
+def _posed_at(
+    model: Any, means: Mapping[str, Array], **kw: Any
+) -> tuple[Any, Array, Array, dict[str, Any]]:
     """:func:`pelvis_pose_for_hips` after the model's hips are set to the centres' width
     (:func:`with_hip_width`): the model, the pose and its summary, ``hip_width_moved_m`` (each
     hip's move outwards) added and ``width_residual_m`` that before the move."""
