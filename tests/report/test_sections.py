@@ -4,6 +4,7 @@ the static trial and the reference numbering are said as they are."""
 
 from __future__ import annotations
 
+import dataclasses
 import re
 
 import numpy as np
@@ -185,7 +186,11 @@ def test_the_spatiotemporal_table_shows_the_norm_and_marks_a_side_beyond_2_sd():
     cadence = next(r for r in table.split("<tr>") if "cadence" in r)
     assert "1.45 ± 0.10" in speed and speed.count('class="out low"') == 2 and "▼" in speed
     assert "110.0 ± 8.0" in cadence and "out" not in cadence
-    assert "more than 2 SD" in html
+    assert "more than 2 SD" in html and "sessions' stride means" not in html
+    few = dataclasses.replace(norms, notes={"n_sessions_spatiotemporal": "2"})
+    assert "SD between its 2 sessions' stride means, itself uncertain" in render_html(
+        _walk(), figures={}, norms=few
+    )
     assert norm_position([1.2, 1.2], (1.45, 0.1)) == "low"
     assert norm_position([1.7], (1.45, 0.1)) == "high"
     assert norm_position([1.5], (1.45, 0.1)) == ""

@@ -196,4 +196,5 @@ class Spatiotemporal(Section):
             "rows": rows, "cycles": cycles, "how": how, "norms_named": named,
             "has_scalars": bool(norms is not None and norms.scalars), "flagged": flagged,
             "flag_sd": f"{NORM_FLAG_SD:g}",
+            "norm_n": (norms.notes.get("n_sessions_spatiotemporal", "") if norms else ""),
         }  # fmt: skip
