@@ -206,8 +206,8 @@ def pelvis_marker_frame(model: Any, body: str = "pelvis") -> tuple[Array | None,
     r = np.column_stack([x, np.cross(z, x), z])
     tilt = float(np.degrees(np.arctan2(-x[1], x[0])))
     return r, (
-        f"the plane of the ASIS ({names['asis_r']}, {names['asis_l']}) and {post_name} "
-        f"markers (Plug-in Gait's pelvis): its tilt is the model's pelvis body frame's "
+        f"the plane of the ASIS markers ({names['asis_r']}, {names['asis_l']}) and "
+        f"{post_name} (Plug-in Gait's pelvis): its tilt is the model's pelvis body frame's "
         f"{tilt:+.1f}° (anterior +)"
     )
 
