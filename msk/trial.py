@@ -130,7 +130,11 @@ class Subject:
     ``widths_m``: the lab's anthropometric measurements of the joints, ``"R.knee"``,
     ``"L.ankle"``… (Vicon ``PROCESSING:RKneeWidth``, ``LAnkleWidth``; mm in the file), and
     ``marker_diameter_m`` (``PROCESSING:MarkerDiameter``; None when absent): what Plug-in Gait
-    places its knee and ankle centres from (Davis et al. 1991).
+    places its knee and ankle centres from (Davis et al. 1991). ``leg_lengths_m`` (``"R"``/``"L"``:
+    ``PROCESSING:RLegLength``…, ASIS to medial malleolus measured on the subject),
+    ``asis_trochanter_m`` (``RAsisTrocanterDistance``…) and ``inter_asis_m``
+    (``InterAsisDistance``): what Plug-in Gait places its hip centres from (Davis et al. 1991);
+    empty / None where absent or zero (Plug-in Gait's "not measured").
     """
 
     name: str | None = None
@@ -138,6 +142,9 @@ class Subject:
     height_m: float | None = None
     widths_m: Mapping[str, float] = field(default_factory=dict)
     marker_diameter_m: float | None = None
+    leg_lengths_m: Mapping[str, float] = field(default_factory=dict)
+    asis_trochanter_m: Mapping[str, float] = field(default_factory=dict)
+    inter_asis_m: float | None = None
 
 
 @dataclass(frozen=True)

@@ -12,16 +12,26 @@ File format (CSV, UTF-8; :func:`read_norms`, :func:`write_norms`)::
     knee_flexion_deg,1,5.0,3.3
     …
 
+    …
+    walking_speed_m_s,,1.32,0.14
+    cadence_steps_per_min,,109.5,6.8
+
 Header lines start with ``#`` and hold ``key: value``; ``population``, ``source`` and ``licence``
-are required, any other key is kept (``notes``). Rows: ``variable`` (a name of
+are required, any other key is kept (``notes``). Curve rows: ``variable`` (a name of
 :mod:`msk.gait.variables`, units in the name), ``percent_cycle`` (0…100, the same 101 samples
-for every variable), ``mean`` and ``sd`` in the variable's unit. A band is mean ± 1 SD unless the
-reader draws otherwise.
+for every variable), ``mean`` and ``sd`` in the variable's unit. Scalar rows (one per
+variable, ``percent_cycle`` empty): a spatiotemporal parameter
+(:data:`msk.gait.spatiotemporal.PARAMETERS`, units in the name), its mean and SD. A band is
+mean ± 1 SD unless the reader draws otherwise.
 
 :func:`bands_from_cycles` builds a lab's own bands from pooled cycles (the ``msk norms`` verb):
 per variable and sample, the mean and sample SD (n − 1) over every cycle of the control
 subjects, both sides pooled (healthy gait is taken as symmetric, Sadeghi et al. 2000 review the
-evidence); ``n_cycles`` counts the cycles that entered.
+evidence); ``n_cycles`` counts the cycles that entered. :func:`scalar_norms` gives the
+spatiotemporal rows: per control session the mean over its strides (both sides pooled), then
+the mean and sample SD of those session means (``n_sessions_spatiotemporal``) — the spread
+between subjects, which a patient's value is compared with, not one subject's stride-to-stride
+variability; one session gives no SD (NaN).
 """
 
 from __future__ import annotations
@@ -29,13 +39,14 @@ from __future__ import annotations
 import csv
 import io
 from collections.abc import Mapping, Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 import numpy as np
 
 from msk.exceptions import FileFormatError, MissingDataError
 from msk.gait.cycles import PERCENT, SIDES, GaitCycles
+from msk.gait.spatiotemporal import Spatiotemporal
 from msk.io.tables import write_text_atomic
 from msk.units import Array
 
@@ -46,6 +57,7 @@ __all__ = [
     "bands_from_cycles",
     "bands_from_sessions",
     "read_norms",
+    "scalar_norms",
     "shipped_norms",
     "write_norms",
 ]
@@ -70,6 +82,7 @@ class NormativeBands:
         licence: the licence they are shared under.
         notes: the other header keys of the file (``n_subjects``, ``n_cycles``, …).
         percent: (101,) % of the cycle.
+        scalars: spatiotemporal parameter → (mean, SD) (SD NaN: not known).
     """
 
     variables: tuple[str, ...]
@@ -80,6 +93,12 @@ class NormativeBands:
     licence: str
     notes: Mapping[str, str] = field(default_factory=dict)
     percent: Array = field(default_factory=lambda: PERCENT.copy())
+    scalars: Mapping[str, tuple[float, float]] = field(default_factory=dict)
+
+    def scalar(self, name: str) -> tuple[float, float] | None:
+        """``(mean, sd)`` of the spatiotemporal parameter ``name``; None when the set lacks it."""
+        v = self.scalars.get(name)
+        return None if v is None else (float(v[0]), float(v[1]))
 
     def band(self, variable: str) -> tuple[Array, Array]:
         """``(mean, sd)`` (101,) of ``variable``."""
@@ -116,6 +135,8 @@ def write_norms(path: str | Path, bands: NormativeBands) -> Path:
     for j, var in enumerate(bands.variables):
         for i, pc in enumerate(np.asarray(bands.percent, dtype=float)):
             w.writerow([var, f"{pc:g}", _num(float(m[i, j])), _num(float(s[i, j]))])
+    for var, (mu, sd) in bands.scalars.items():
+        w.writerow([var, "", _num(float(mu)), _num(float(sd))])
     return write_text_atomic(path, buf.getvalue())
 
 
@@ -149,16 +170,29 @@ def read_norms(path: str | Path) -> NormativeBands:
         header_row = rows[0][1] if rows else None
         raise FileFormatError(f"{p}: columns {header_row}, expected {','.join(NORM_COLUMNS)}")
     data: dict[str, dict[float, tuple[float, float]]] = {}
+    scalars: dict[str, tuple[float, float]] = {}
     for k, r in rows[1:]:
         if len(r) != len(NORM_COLUMNS):
             raise FileFormatError(
                 f"{p}: line {k} has {len(r)} values, expected {len(NORM_COLUMNS)}"
             )
+        var = r[0].strip()
         try:
-            pc, mu, sd = float(r[1]), float(r[2]), float(r[3])
+            mu, sd = float(r[2]), float(r[3])
+            pc = None if not r[1].strip() else float(r[1])
         except ValueError as exc:
             raise FileFormatError(f"{p}: line {k}: {exc}") from None
-        data.setdefault(r[0].strip(), {})[pc] = (mu, sd)
+        if (pc is None and var in data) or (pc is not None and var in scalars):
+            raise FileFormatError(
+                f"{p}: line {k}: variable {var!r} is both a curve (percent_cycle given) and a "
+                "scalar (percent_cycle empty)"
+            )
+        if pc is None:
+            if var in scalars:
+                raise FileFormatError(f"{p}: line {k}: scalar {var!r} given twice")
+            scalars[var] = (mu, sd)
+        else:
+            data.setdefault(var, {})[pc] = (mu, sd)
     variables = tuple(data)
     mean = np.full((PERCENT.size, len(variables)), np.nan)
     sdev = np.full_like(mean, np.nan)
@@ -173,8 +207,9 @@ def read_norms(path: str | Path) -> NormativeBands:
             mean[i, j], sdev[i, j] = got[float(x)]
     notes = {key: val for key, val in head.items() if key not in _REQUIRED}
     return NormativeBands(
-        variables, mean, sdev, head["population"], head["source"], head["licence"], notes
-    )
+        variables, mean, sdev, head["population"], head["source"], head["licence"], notes,
+        scalars=scalars,
+    )  # fmt: skip
 
 
 def bands_from_cycles(
@@ -207,6 +242,25 @@ def bands_from_cycles(
     return NormativeBands(pooled.variables, mean, sd, population, source, licence, info)
 
 
+def scalar_norms(sessions: Sequence[Spatiotemporal]) -> dict[str, tuple[float, float]]:
+    """The spatiotemporal rows of a normative set (module docstring): per parameter, the mean
+    and sample SD (n − 1) over the sessions of each session's stride mean, both sides pooled;
+    a parameter no session has is left out, one session gives an SD of NaN."""
+    per: dict[str, list[float]] = {}
+    for st in sessions:
+        for name in st.left.parameters:
+            v = np.concatenate([st.side(s).parameter(name) for s in SIDES
+                                if name in st.side(s).parameters])  # fmt: skip
+            v = v[np.isfinite(v)]
+            if v.size:
+                per.setdefault(name, []).append(float(v.mean()))
+    out: dict[str, tuple[float, float]] = {}
+    for name, vals in per.items():
+        a = np.asarray(vals)
+        out[name] = (float(a.mean()), float(a.std(ddof=1)) if a.size > 1 else float("nan"))
+    return out
+
+
 def bands_from_sessions(
     folders: Sequence[str | Path],
     *,
@@ -215,19 +269,24 @@ def bands_from_sessions(
     licence: str,
 ) -> tuple[NormativeBands, list[str], list[tuple[str, str]]]:
     """Bands from the results folders of control sessions (``msk run`` / ``msk batch``),
-    read typed (:meth:`msk.results.folder.SessionResults.gait_cycles`); a folder without gait
+    read typed (:meth:`msk.results.folder.SessionResults.gait_cycles`), with the scalar rows of
+    their spatiotemporal parameters (:func:`scalar_norms`,
+    :meth:`~msk.results.folder.SessionResults.spatiotemporal`); a folder without gait
     cycles is left out. Returns the bands, the sessions used and ``(session, why)`` of those
     left out. ``population`` defaults to "control sessions of this lab (n = …: names)"."""
     from msk.exceptions import MskError
     from msk.results.folder import read_session
 
     cycles: list[GaitCycles] = []
+    strides: list[Spatiotemporal] = []
     used: list[str] = []
     skipped: list[tuple[str, str]] = []
     for f in folders:
         p = Path(f)
         try:
-            c = read_session(p).gait_cycles()
+            res = read_session(p)
+            c = res.gait_cycles()
+            st = res.spatiotemporal()
         except MskError as exc:
             skipped.append((p.name, " ".join(str(exc).split())))
             continue
@@ -235,6 +294,8 @@ def bands_from_sessions(
             skipped.append((p.name, "no complete gait cycle"))
             continue
         cycles.append(c)
+        if st is not None:
+            strides.append(st)
         used.append(p.name)
     if not cycles:
         raise MissingDataError(
@@ -243,4 +304,10 @@ def bands_from_sessions(
         )
     pop = population or f"control sessions of this lab (n = {len(used)}: {', '.join(used)})"
     bands = bands_from_cycles(cycles, population=pop, source=source, licence=licence)
+    if strides:
+        bands = replace(
+            bands,
+            scalars=scalar_norms(strides),
+            notes={**bands.notes, "n_sessions_spatiotemporal": str(len(strides))},
+        )
     return bands, used, skipped

@@ -8,9 +8,16 @@ al. 1991; each side seen from its own side):
   x̂ the horizontal direction of the pelvis's displacement over the cycle, ŷ up, ẑ = x̂ × ŷ
   (to the right) — in the order tilt (about ẑ), obliquity (about x̂'), rotation (about ŷ''):
   Pᵀ R_p = R_z(α) R_x(β) R_y(γ), tilt = −α, obliquity = −β on the right and +β on the left,
-  rotation = +γ on the right and −γ on the left (the model's pelvis frame: x anterior, y up,
-  z right, as gait2392's; its tilt is the tilt of that frame, not of Plug-in Gait's ASIS–PSIS
-  plane);
+  rotation = +γ on the right and −γ on the left. R_p is Plug-in Gait's pelvis frame (Davis et
+  al. 1991; Vicon's "Plug-in Gait kinematic variables"): the plane of the two ASIS and the
+  mid-PSIS (else the sacral marker), z from the left to the right ASIS, x anterior in that
+  plane, y = z × x — the frame of the model's pelvis markers as inverse kinematics poses them,
+  R_p = R_body R_m with R_m that frame in the pelvis body (:func:`pelvis_marker_frame`), so the
+  tilt is that of the ASIS–PSIS line. A model body frame is not that plane: gait2392's and
+  Rajagopal's pelvis frames put x along the generic bones' ASIS–sacrum line tilted 3.2° and
+  −6.6° (their markers' ASIS–PSIS plane about the body's z), and a subject's markers add their
+  own offset. Without the ASIS pair and a PSIS/sacral marker on the model's pelvis the body
+  frame is used, and :attr:`GaitVariables.notes` says so;
 * hip flexion / adduction / internal rotation, knee flexion, ankle dorsiflexion: the model's
   coordinates where it has them (gait2392 and models naming their coordinates as it does:
   ``hip_flexion_<s>``, ``hip_adduction_<s>``, ``hip_rotation_<s>``, ``knee_angle_<s>`` with
@@ -68,6 +75,7 @@ __all__ = [
     "SegmentPoses",
     "gait_cycles",
     "gait_variables",
+    "pelvis_marker_frame",
     "segment_poses",
 ]
 
@@ -136,6 +144,7 @@ class SegmentPoses:
             origin, m (the heel of :mod:`msk.gait.spatiotemporal`).
         foot_body: side → the foot body's name.
         up: (3,) the world's up direction (against gravity).
+        pelvis_frame: which frame ``pelvis_rotation`` is (:func:`pelvis_marker_frame`).
     """
 
     pelvis_rotation: Array
@@ -144,6 +153,7 @@ class SegmentPoses:
     heel: Mapping[str, Array]
     foot_body: Mapping[str, str]
     up: Array
+    pelvis_frame: str = "the model's pelvis body frame"
 
 
 def _foot_body(model: Any, side: str) -> str | None:
@@ -153,8 +163,59 @@ def _foot_body(model: Any, side: str) -> str | None:
     return None
 
 
+def pelvis_marker_frame(model: Any, body: str = "pelvis") -> tuple[Array | None, str]:
+    """Plug-in Gait's pelvis frame in the model's pelvis ``body`` (rotation (3, 3), columns x
+    anterior, y up, z right; module docstring) from the model's markers on it — the ASIS pair
+    and the midpoint of the PSIS pair, else the sacral marker (:mod:`msk.model.markersets`
+    labels: the lab's as placed, else the model's own) — and a description saying which; None
+    and why when the markers do not define it."""
+    from msk.model.markersets import parse_label
+
+    pts: dict[str, Array] = {}
+    names: dict[str, str] = {}
+    for mk in getattr(model, "markers", ()):
+        if mk.body != body:
+            continue
+        p = parse_label(mk.name)
+        if p.kind != "landmark":
+            continue
+        key = {"asis": f"asis_{(p.side or '').lower()}", "psis": f"psis_{(p.side or '').lower()}",
+               "sacrum": "sacrum"}.get(p.landmark or "")  # fmt: skip
+        if key in ("asis_r", "asis_l", "psis_r", "psis_l", "sacrum") and key not in pts:
+            pts[key] = np.asarray(mk.offset, dtype=float)
+            names[key] = mk.name
+    if "psis_r" in pts and "psis_l" in pts:
+        post, post_name = (
+            0.5 * (pts["psis_r"] + pts["psis_l"]),
+            (f"the mid-PSIS ({names['psis_r']}, {names['psis_l']})"),
+        )
+    elif "sacrum" in pts:
+        post, post_name = pts["sacrum"], f"the sacral marker {names['sacrum']}"
+    else:
+        return None, "the model's pelvis body frame (no PSIS pair nor sacral marker on it)"
+    if "asis_r" not in pts or "asis_l" not in pts:
+        return None, "the model's pelvis body frame (no ASIS pair on it)"
+    z = pts["asis_r"] - pts["asis_l"]
+    z = z / np.linalg.norm(z)
+    a = 0.5 * (pts["asis_r"] + pts["asis_l"]) - post
+    x = a - (a @ z) * z
+    nx = float(np.linalg.norm(x))
+    if nx < 1e-6:
+        return None, "the model's pelvis body frame (its pelvis markers are collinear)"
+    x = x / nx
+    r = np.column_stack([x, np.cross(z, x), z])
+    tilt = float(np.degrees(np.arctan2(-x[1], x[0])))
+    return r, (
+        f"the plane of the ASIS markers ({names['asis_r']}, {names['asis_l']}) and "
+        f"{post_name} (Plug-in Gait's pelvis): its tilt is the model's pelvis body frame's "
+        f"{tilt:+.1f}° (anterior +)"
+    )
+
+
 def segment_poses(model: Any, kinematics: Any) -> SegmentPoses:
-    """The pelvis and feet poses over the trial (one forward-kinematics pass)."""
+    """The pelvis and feet poses over the trial (one forward-kinematics pass); the pelvis in
+    Plug-in Gait's frame where the model's pelvis markers define it
+    (:func:`pelvis_marker_frame`)."""
     q = np.asarray(kinematics.q, dtype=float)
     n = q.shape[0]
     good = np.isfinite(q).all(axis=1)
@@ -179,7 +240,10 @@ def segment_poses(model: Any, kinematics: Any) -> SegmentPoses:
             for s, f in ff.items():
                 fr[s][i] = data.oMf[f].rotation
                 fo[s][i] = data.oMf[f].translation
-    return SegmentPoses(pr, po, fr, fo, feet, up)
+    r_m, how = pelvis_marker_frame(model, pelvis)
+    if r_m is not None:
+        pr = np.einsum("nij,jk->nik", pr, r_m)
+    return SegmentPoses(pr, po, fr, fo, feet, up, how)
 
 
 @dataclass(frozen=True)
@@ -399,7 +463,7 @@ def gait_cycles(
     if poses.foot_rotation:
         geo.add("foot_progression_deg")
     variables = tuple(v for v in KINEMATICS + KINETICS if v in have or v in geo)
-    notes = list(gv.notes)
+    notes = [*gv.notes, f"pelvis angles in {poses.pelvis_frame}"]
     sides: dict[str, SideCycles] = {}
     for s in SIDES:
         bounds = cycle_bounds(foot_strike.get(s, ()), foot_off.get(s, ()))

@@ -749,10 +749,21 @@ def _subject(params: Mapping[str, Any]) -> Subject:
             w = _first_number(params, "PROCESSING", (f"{side}{key}", f"{long}{key}"))
             if w is not None and w > 0:
                 widths[f"{side}.{joint}"] = w / 1000.0  # Vicon stores mm
+    # Plug-in Gait's hip-centre parameters (mm in the file; 0 = not measured)
+    legs: dict[str, float] = {}
+    troch: dict[str, float] = {}
+    for side, long in (("R", "Right"), ("L", "Left")):
+        for out, key in ((legs, "LegLength"), (troch, "AsisTrocanterDistance")):
+            v = _first_number(params, "PROCESSING", (f"{side}{key}", f"{long}{key}"))
+            if v is not None and v > 0:
+                out[side] = v / 1000.0
+    ia = _first_number(params, "PROCESSING", ("InterAsisDistance",))
     md = _first_number(params, "PROCESSING", ("MarkerDiameter",))
     return Subject(
         name=name, mass_kg=mass, height_m=height, widths_m=widths,
         marker_diameter_m=md / 1000.0 if md is not None and md > 0 else None,
+        leg_lengths_m=legs, asis_trochanter_m=troch,
+        inter_asis_m=ia / 1000.0 if ia is not None and ia > 0 else None,
     )  # fmt: skip
 
 

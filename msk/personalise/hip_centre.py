@@ -15,9 +15,11 @@ the right hip centre is (x, y, z) and the left one (x, y, −z), with (mm):
 
       y = −0.16 PW − 0.04 LL − 7.1,  z = 0.28 PD + 0.16 PW + 7.9
 
-- ``davis`` (Davis et al. 1991, Hum Mov Sci 10:575-587; the form Vicon's Plug-in Gait uses):
-  C = 0.115 LL − 15.3, θ = 28.4°, β = 18°, the ASIS-to-trochanter distance
-  X_dis = 0.1288 LL − 48.56 plus the marker radius r_m::
+- ``davis`` (Davis et al. 1991, Hum Mov Sci 10:575-587; the form Vicon's Plug-in Gait uses,
+  with its constants θ = 0.5 rad and β = 0.314 rad where the paper rounds to 28.4° and 18°):
+  C = 0.115 LL − 15.3, the ASIS-to-trochanter distance X_dis = 0.1288 LL − 48.56 (the lab's
+  measured one where given) plus the marker radius r_m, PW the lab's inter-ASIS distance where
+  given::
 
       x = C cos θ sin β − (X_dis + r_m) cos β
       y = −(X_dis + r_m) sin β − C cos θ cos β
@@ -52,10 +54,20 @@ puts them on that pose (:func:`with_pelvis_markers`). The hips then keep their p
 the pelvis markers through every later step (marker placement, inverse kinematics), and the
 pelvis' muscles keep their geometry against the hip (moving the hip joints inside the pelvis
 instead left the gluteal paths 34 mm off on a Plug-in Gait subject: 22 muscles saturated).
+The hip *width* alone is then set to the regression's (:func:`with_hip_width`: the pelvis is
+scaled as one body, so its hip width is the generic model's share of the pelvic width).
+
+Without a static trial (:func:`place_hip_centres_from_motion`) the landmarks are the task's:
+the pelvis markers' shape in the pelvis frame they define, median over the frames
+(:func:`motion_pelvis_landmarks`: a rigid body's markers keep it whatever the pelvis does), and
+the leg length the lab's, else the longest straight ASIS-to-malleolus distance the walk shows
+(:data:`MOTION_LEG_LENGTH_PERCENTILE`); the hips are placed before the motion placement, which
+keeps the pelvis markers where they are put here.
 """
 
 from __future__ import annotations
 
+import dataclasses
 from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import Any
@@ -66,15 +78,21 @@ from numpy.typing import ArrayLike, NDArray
 from msk.exceptions import MissingDataError, ModelError
 
 __all__ = [
+    "DAVIS_BETA_RAD",
+    "DAVIS_THETA_RAD",
     "FUNCTIONAL_MIN_RANGE_DEG",
     "HIP_CENTRE_METHODS",
+    "MOTION_LEG_LENGTH_PERCENTILE",
     "PelvisLandmarks",
     "functional_hip_centres",
+    "motion_pelvis_landmarks",
     "no_static_hip_centre",
     "pelvis_frame",
     "pelvis_pose_for_hips",
     "place_hip_centres",
+    "place_hip_centres_from_motion",
     "regression_hip_centres",
+    "with_hip_width",
     "with_pelvis_markers",
 ]
 
@@ -83,6 +101,12 @@ Array = NDArray[np.float64]
 #: The hip-centre methods (``model.hip_centre``): the generic model's own (scaled with its
 #: pelvis) or a regression of this module.
 HIP_CENTRE_METHODS: tuple[str, ...] = ("model", "harrington", "davis", "bell")
+
+#: Davis et al.'s (1991) angles as Plug-in Gait applies them (rad): θ, of the hip centre about
+#: the ASIS-to-trochanter line, and β, of that line below the pelvis plane (reproduce Vicon's
+#: stored hip centre to 0.01 mm where the paper's 28.4° leave 0.4 mm)
+DAVIS_THETA_RAD = 0.5
+DAVIS_BETA_RAD = 0.314
 
 #: least sweep (deg) a functional trial must give a hip: twice the 95th percentile of a thigh
 #: marker's distance from its mean position in the pelvis over its distance from the centre,
@@ -137,16 +161,31 @@ def pelvis_frame(lm: PelvisLandmarks) -> tuple[Array, Array]:
     return np.column_stack([x, y, z]), o
 
 
+def _side_value(v: float | Mapping[str, float] | None, side: str) -> float | None:
+    """``v`` for ``side`` ("r"/"l"): the number itself, or a mapping's entry ("r" or "R")."""
+    if v is None:
+        return None
+    if isinstance(v, Mapping):
+        x = v.get(side, v.get(side.upper()))
+        return None if x is None else float(x)
+    return float(v)
+
+
 def regression_hip_centres(
     lm: PelvisLandmarks,
     *,
     method: str = "harrington",
-    leg_length_m: float | None = None,
+    leg_length_m: float | Mapping[str, float] | None = None,
     marker_radius_m: float = 0.007,
+    asis_trochanter_m: float | Mapping[str, float] | None = None,
+    inter_asis_m: float | None = None,
 ) -> dict[str, Array]:
     """``{"r": centre, "l": centre}`` (m, in the landmarks' frame) by the regression
     ``method`` (module docstring; ``davis`` needs ``leg_length_m``, ``harrington`` uses it when
-    given).
+    given). ``leg_length_m`` and ``asis_trochanter_m`` are one number or one per side (``"r"``/
+    ``"l"``, as Plug-in Gait's ``RLegLength``…). ``davis`` takes, as Plug-in Gait does, the
+    lab's ASIS-to-trochanter distance for X_dis and its inter-ASIS distance for PW where given
+    (``asis_trochanter_m``, ``inter_asis_m``), else the regression's and the markers'.
 
     Raises:
         ModelError: an unknown method, or ``davis`` without a leg length.
@@ -154,30 +193,38 @@ def regression_hip_centres(
     """
     rot, o = pelvis_frame(lm)
     pw, pd = 1000.0 * lm.width_m, 1000.0 * lm.depth_m
-    ll = None if leg_length_m is None else 1000.0 * float(leg_length_m)
-    if method == "harrington":
-        x = -0.24 * pd - 9.9
-        if ll is None:
-            y, z = -0.30 * pw - 10.9, 0.33 * pw + 7.3
+    local: dict[str, tuple[float, float, float]] = {}
+    for side in ("r", "l"):
+        ll_s = _side_value(leg_length_m, side)
+        ll = None if ll_s is None else 1000.0 * ll_s
+        if method == "harrington":
+            x = -0.24 * pd - 9.9
+            if ll is None:
+                y, z = -0.30 * pw - 10.9, 0.33 * pw + 7.3
+            else:
+                y, z = -0.16 * pw - 0.04 * ll - 7.1, 0.28 * pd + 0.16 * pw + 7.9
+        elif method == "davis":
+            if ll is None:
+                raise ModelError(f"hip centre 'davis' needs the leg length (side {side})")
+            c = 0.115 * ll - 15.3
+            th, be = DAVIS_THETA_RAD, DAVIS_BETA_RAD
+            atd = _side_value(asis_trochanter_m, side)
+            xd = (0.1288 * ll - 48.56 if atd is None else 1000.0 * atd) + 1000.0 * marker_radius_m
+            w = pw if inter_asis_m is None else 1000.0 * float(inter_asis_m)
+            x = c * np.cos(th) * np.sin(be) - xd * np.cos(be)
+            y = -xd * np.sin(be) - c * np.cos(th) * np.cos(be)
+            z = 0.5 * w - c * np.sin(th)
+        elif method == "bell":
+            x, y, z = -0.19 * pw, -0.30 * pw, 0.36 * pw
         else:
-            y, z = -0.16 * pw - 0.04 * ll - 7.1, 0.28 * pd + 0.16 * pw + 7.9
-    elif method == "davis":
-        if ll is None:
-            raise ModelError("hip centre 'davis' needs the leg length")
-        c = 0.115 * ll - 15.3
-        th, be = np.radians(28.4), np.radians(18.0)
-        xd = 0.1288 * ll - 48.56 + 1000.0 * marker_radius_m
-        x = c * np.cos(th) * np.sin(be) - xd * np.cos(be)
-        y = -xd * np.sin(be) - c * np.cos(th) * np.cos(be)
-        z = 0.5 * pw - c * np.sin(th)
-    elif method == "bell":
-        x, y, z = -0.19 * pw, -0.30 * pw, 0.36 * pw
-    else:
-        raise ModelError(f"hip centre: unknown regression {method!r} (one of {HIP_CENTRE_METHODS})")
+            raise ModelError(
+                f"hip centre: unknown regression {method!r} (one of {HIP_CENTRE_METHODS})"
+            )
+        local[side] = (x, y, z)
     out = {}
     for side, s in (("r", 1.0), ("l", -1.0)):
-        local = np.array([x, y, s * z]) / 1000.0
-        out[side] = np.asarray(rot @ local + o, dtype=float)
+        x, y, z = local[side]
+        out[side] = np.asarray(rot @ (np.array([x, y, s * z]) / 1000.0) + o, dtype=float)
     return out
 
 
@@ -350,9 +397,11 @@ def pelvis_pose_for_hips(
     means: Mapping[str, ArrayLike],
     *,
     method: str = "harrington",
-    leg_length_m: float | None = None,
+    leg_length_m: float | Mapping[str, float] | None = None,
     marker_radius_m: float = 0.007,
     centres: Mapping[str, Array] | None = None,
+    asis_trochanter_m: float | Mapping[str, float] | None = None,
+    inter_asis_m: float | None = None,
 ) -> tuple[Array, Array, dict[str, Any]]:
     """The pose (rotation (3, 3), origin (3,)) of ``model``'s pelvis body in a static trial
     (``means``: lab label or model marker name → mean position, m) that puts the model's hips
@@ -395,7 +444,12 @@ def pelvis_pose_for_hips(
         {s: np.asarray(centres[s], dtype=float) for s in ("r", "l")}
         if centres is not None
         else regression_hip_centres(
-            lm, method=method, leg_length_m=leg_length_m, marker_radius_m=marker_radius_m
+            lm,
+            method=method,
+            leg_length_m=leg_length_m,
+            marker_radius_m=marker_radius_m,
+            asis_trochanter_m=asis_trochanter_m,
+            inter_asis_m=inter_asis_m,
         )
     )
     pairs: list[tuple[Array, Array]] = []
@@ -426,7 +480,7 @@ def pelvis_pose_for_hips(
         "method": method,
         "pelvic_width_m": lm.width_m,
         "pelvic_depth_m": lm.depth_m,
-        "leg_length_m": leg_length_m,
+        "leg_length_m": dict(leg_length_m) if isinstance(leg_length_m, Mapping) else leg_length_m,
         "pelvis_fit_rms_m": float(pose.fit_rms_m[0]),
         "shift_m": {s: [float(v) for v in r0.T @ (reg[s] - w[s])] for s in ("r", "l")},
         "width_residual_m": float(np.linalg.norm(b) - np.linalg.norm(a)),
@@ -466,9 +520,39 @@ def with_pelvis_markers(
     return model.with_markers(markers), moved
 
 
-def _leg_length(means: Mapping[str, Array]) -> float | None:
-    """Mean over sides of the ASIS to medial (else lateral) malleolus marker distance, m: the
-    leg length of Davis et al. (1991) when the lab did not measure it."""
+def with_hip_width(model: Any, width_m: float) -> tuple[Any, float]:
+    """``model`` with its two hip joints moved in the pelvis, symmetrically along the line
+    joining them, to ``width_m`` apart (their midpoint and that line kept); and how far each
+    hip moved (m, positive outwards). The pelvis is scaled as one body (from its markers), so
+    its hip width is the generic model's proportion of the pelvic width, not the subject's:
+    a regression or a functional fit sets the width too (PlugInC3D: the scaled gait2392 hips
+    157 mm apart, Davis' 142 mm, Plug-in Gait's 130 mm). Only the joints move: a few
+    millimetres medio-laterally against the pelvis' muscle attachments. Applied to the
+    regressions, not to a functional fit, whose medio-lateral coordinate a walk's few degrees
+    of hip abduction leave uncertain (PiG_Motion3's walk as the functional trial: 64 mm too
+    wide a hip once set to the fit's width)."""
+    import pinocchio as pin
+
+    hips = _model_hips(model)
+    if set(hips) != {"r", "l"}:
+        raise MissingDataError(f"hip centre: model {model.name} has no pelvis–femur hip joints")
+    axis = hips["r"] - hips["l"]
+    now = float(np.linalg.norm(axis))
+    u = axis / now
+    step = 0.5 * (float(width_m) - now)
+    new = {}
+    for j in model.joints:
+        for side, sign in (("r", 1.0), ("l", -1.0)):
+            if j.parent == "pelvis" and j.child == f"femur_{side}":
+                off = j.parent_offset
+                t = np.asarray(off.translation, dtype=float) + sign * step * u
+                new[j.name] = dataclasses.replace(j, parent_offset=pin.SE3(off.rotation.copy(), t))
+    return model.with_joints(new), step
+
+
+def _leg_lengths(means: Mapping[str, Array]) -> dict[str, float]:
+    """Per side (``"R"``/``"L"``) the ASIS to medial (else lateral) malleolus marker distance,
+    m: the leg length of Davis et al. (1991) when the lab did not measure it."""
     from msk.model.markersets import parse_label
 
     asis: dict[str, Array] = {}
@@ -484,12 +568,103 @@ def _leg_length(means: Mapping[str, Array]) -> float | None:
             asis.setdefault(p.side, x)
         elif p.landmark in ("ankle_med", "ankle_lat"):
             ankle.setdefault((p.side, p.landmark[-3:]), x)
-    out = []
+    out: dict[str, float] = {}
     for s in ("R", "L"):
         a = ankle.get((s, "med"), ankle.get((s, "lat")))
         if s in asis and a is not None:
-            out.append(float(np.linalg.norm(asis[s] - a)))
-    return float(np.mean(out)) if out else None
+            out[s] = float(np.linalg.norm(asis[s] - a))
+    return out
+
+
+#: percentile of a walk's ASIS-to-malleolus marker distance taken as the leg length without a
+#: static trial: the distance is longest with the knee straight (near foot strike), and the
+#: 95th percentile rather than the maximum keeps a noisy frame out (PiG_Motion3: 932 / 938 mm
+#: against the lab's measured 920 mm, taped over the knee)
+MOTION_LEG_LENGTH_PERCENTILE = 95.0
+
+
+def _davis_inputs(
+    measured: Mapping[str, float], lab: Any, source: str
+) -> tuple[dict[str, float], dict[str, Any]]:
+    """The leg length per side for ``davis``: the lab's (``lab``: a
+    :class:`msk.trial.Subject`, its ``leg_lengths_m``; Plug-in Gait's ``LegLength``), else the
+    markers' (``measured``); a side with neither takes the other side's. And the summary
+    entries (lengths and their source)."""
+    labs = dict(getattr(lab, "leg_lengths_m", None) or {})
+    out: dict[str, float] = {}
+    src: dict[str, str] = {}
+    for s in ("R", "L"):
+        if s in labs:
+            out[s], src[s] = float(labs[s]), "the lab's (PROCESSING:LegLength)"
+        elif s in measured:
+            out[s], src[s] = float(measured[s]), source
+    for s, o in (("R", "L"), ("L", "R")):
+        if s not in out and o in out:
+            out[s], src[s] = out[o], f"the {'left' if o == 'L' else 'right'} leg's"
+    info: dict[str, Any] = {"leg_lengths_m": dict(out), "leg_length_source": src}
+    troch = dict(getattr(lab, "asis_trochanter_m", None) or {})
+    ia = getattr(lab, "inter_asis_m", None)
+    if troch:
+        info["asis_trochanter_m"] = troch
+    if ia is not None:
+        info["inter_asis_m"] = float(ia)
+    return out, info
+
+
+def _place_regression(
+    model: Any,
+    means: Mapping[str, Array],
+    *,
+    method: str,
+    marker_radius_m: float,
+    measured_legs: Mapping[str, float],
+    leg_source: str,
+    lab: Any,
+) -> tuple[Any, dict[str, Any]]:
+    """The model with its hips at ``method``'s regression centres from the pelvis landmarks of
+    ``means`` (label → position, m), its pelvis markers moved there; or the model unchanged
+    and a summary saying why (no leg length for ``davis``, pelvis markers missing)."""
+    kw: dict[str, Any] = {}
+    extra: dict[str, Any] = {}
+    if method == "davis":
+        legs, extra = _davis_inputs(measured_legs, lab, leg_source)
+        if not legs:
+            why = (
+                "no leg length: none in the file (PROCESSING:LegLength), no ASIS and malleolus "
+                "markers"
+            )
+            return model, {"method": "model", "requested": method, "reason": why}
+        kw = {
+            "leg_length_m": {s.lower(): v for s, v in legs.items()},
+            "asis_trochanter_m": {
+                s.lower(): v for s, v in extra.get("asis_trochanter_m", {}).items()
+            }
+            or None,
+            "inter_asis_m": extra.get("inter_asis_m"),
+        }
+    try:
+        model, rot, org, info = _posed_at(
+            model, means, method=method, marker_radius_m=marker_radius_m, **kw
+        )
+    except MissingDataError as exc:
+        return model, {"method": "model", "requested": method, "reason": str(exc)}
+    model, moved = with_pelvis_markers(model, rot, org, means)
+    return model, {**info, **extra, "marker_radius_m": marker_radius_m,
+                   "pelvis_markers_moved_m": moved}  # fmt: skip
+
+
+def _posed_at(
+    model: Any, means: Mapping[str, Array], **kw: Any
+) -> tuple[Any, Array, Array, dict[str, Any]]:
+    """:func:`pelvis_pose_for_hips` after the model's hips are set to the centres' width
+    (:func:`with_hip_width`): the model, the pose and its summary, ``hip_width_moved_m`` (each
+    hip's move outwards) added and ``width_residual_m`` that before the move."""
+    _, _, first = pelvis_pose_for_hips(model, means, **kw)
+    res = float(first["width_residual_m"])
+    hips = _model_hips(model)
+    model, step = with_hip_width(model, float(np.linalg.norm(hips["r"] - hips["l"])) + res)
+    rot, org, info = pelvis_pose_for_hips(model, means, **kw)
+    return model, rot, org, {**info, "width_residual_m": res, "hip_width_moved_m": step}
 
 
 def place_hip_centres(
@@ -500,6 +675,7 @@ def place_hip_centres(
     method: str,
     marker_radius_m: float = 0.007,
     functional: tuple[ArrayLike, tuple[str, ...] | list[str]] | None = None,
+    lab: Any = None,
 ) -> tuple[Any, dict[str, Any]]:
     """The model with its hips at ``method``'s centres (:func:`pelvis_pose_for_hips` on the
     mean positions of a static trial's ``markers`` (N, M, 3), m, NaN gaps), and a summary for
@@ -511,8 +687,10 @@ def place_hip_centres(
     is chosen over ``method`` when it fits both hips (:func:`functional_hip_centres`): method
     ``functional``, the ``requested`` one and why a refused fit fell back to it in the summary.
 
-    The leg length of ``davis`` is the ASIS-to-malleolus marker distance (the medial
-    malleolus where there is one)."""
+    The leg length of ``davis`` is the lab's (``lab``, a :class:`msk.trial.Subject`: Plug-in
+    Gait's ``LegLength`` per side), else the ASIS-to-malleolus marker distance of the static
+    (the medial malleolus where there is one); the lab's ASIS-to-trochanter and inter-ASIS
+    distances are used where it gives them (:func:`regression_hip_centres`)."""
     import warnings
 
     if method not in HIP_CENTRE_METHODS:
@@ -520,7 +698,7 @@ def place_hip_centres(
     x = np.asarray(markers, dtype=float)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", RuntimeWarning)
-        means = {lab: np.nanmean(x[:, i], axis=0) for i, lab in enumerate(labels)}
+        means = {lab_: np.nanmean(x[:, i], axis=0) for i, lab_ in enumerate(labels)}
     fallback: dict[str, Any] = {}
     if functional is not None:
         try:
@@ -545,29 +723,132 @@ def place_hip_centres(
         fallback = {"functional_refused": why, "functional": finfo}
     if method == "model":
         return model, {**no_static_hip_centre(method), **fallback}
-    ll = _leg_length(means)
-    if method == "davis" and ll is None:
-        why = "no ASIS-to-malleolus leg length in the static"
-        return model, {"method": "model", "requested": method, "reason": why, **fallback}
+    model, info = _place_regression(
+        model, means, method=method, marker_radius_m=marker_radius_m,
+        measured_legs=_leg_lengths(means), leg_source="ASIS to malleolus markers (static)",
+        lab=lab,
+    )  # fmt: skip
+    return model, {**info, **fallback}
+
+
+def motion_pelvis_landmarks(
+    markers: ArrayLike, labels: tuple[str, ...] | list[str]
+) -> tuple[dict[str, Array], dict[str, float], int]:
+    """A task trial's pelvis landmark markers (ASIS, PSIS, sacrum; ``labels`` in the model's
+    names) in the pelvis frame they define (:func:`pelvis_frame`, every frame where it is
+    defined), median over frames — the rigid shape a static trial's means would give, whatever
+    the pelvis does —; the leg length per side (``"R"``/``"L"``), the
+    :data:`MOTION_LEG_LENGTH_PERCENTILE` th percentile of the ASIS-to-malleolus (medial, else
+    lateral) marker distance over the frames; and the number of frames the pelvis frame was
+    defined in.
+
+    Raises:
+        MissingDataError: no frame with both ASIS and the PSIS or sacral markers.
+    """
+    import warnings
+
+    from msk.model.markersets import parse_label
+
+    x = np.asarray(markers, dtype=float)
+    labs = list(labels)
+    pel: dict[str, int] = {}
+    ank: dict[tuple[str, str], int] = {}
+    for i, lab in enumerate(labs):
+        p = parse_label(lab)
+        if p.kind != "landmark":
+            continue
+        if p.landmark in ("asis", "psis") and p.side in ("R", "L"):
+            pel.setdefault(f"{p.landmark}_{p.side.lower()}", i)
+        elif p.landmark == "sacrum":
+            pel.setdefault("sacrum", i)
+        elif p.landmark in ("ankle_med", "ankle_lat") and p.side in ("R", "L"):
+            ank.setdefault((p.side, p.landmark[-3:]), i)
+    if "asis_r" not in pel or "asis_l" not in pel:
+        raise MissingDataError("hip centre: the task has no pair of ASIS markers")
+    ar, al = x[:, pel["asis_r"]], x[:, pel["asis_l"]]
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", RuntimeWarning)
+        if "psis_r" in pel and "psis_l" in pel:
+            post = 0.5 * (x[:, pel["psis_r"]] + x[:, pel["psis_l"]])
+            if "sacrum" in pel:
+                sac = x[:, pel["sacrum"]]
+                post = np.where(np.isfinite(post).all(axis=1, keepdims=True), post, sac)
+        elif "sacrum" in pel:
+            post = x[:, pel["sacrum"]]
+        else:
+            raise MissingDataError("hip centre: the task has neither PSIS pair nor sacral marker")
+        o = 0.5 * (ar + al)
+        z = ar - al
+        z /= np.linalg.norm(z, axis=1, keepdims=True)
+        a = o - post
+        xa = a - np.sum(a * z, axis=1, keepdims=True) * z
+        xa /= np.linalg.norm(xa, axis=1, keepdims=True)
+        rot = np.stack([xa, np.cross(z, xa), z], axis=2)  # columns x, y, z
+        ok = np.isfinite(rot).all(axis=(1, 2))
+        if not ok.any():
+            raise MissingDataError(
+                "hip centre: no frame of the task has both ASIS and the PSIS or sacral marker"
+            )
+        means: dict[str, Array] = {}
+        for i in pel.values():
+            local = np.einsum("nji,nj->ni", rot[ok], x[ok, i] - o[ok])
+            med = np.nanmedian(local, axis=0)
+            if np.isfinite(med).all():
+                means[labs[i]] = np.asarray(med, dtype=float)
+        legs: dict[str, float] = {}
+        for s in ("R", "L"):
+            j = ank.get((s, "med"), ank.get((s, "lat")))
+            if j is None or f"asis_{s.lower()}" not in pel:
+                continue
+            d = np.linalg.norm(x[:, pel[f"asis_{s.lower()}"]] - x[:, j], axis=1)
+            d = d[np.isfinite(d)]
+            if d.size:
+                legs[s] = float(np.percentile(d, MOTION_LEG_LENGTH_PERCENTILE))
+    return means, legs, int(ok.sum())
+
+
+def place_hip_centres_from_motion(
+    model: Any,
+    markers: ArrayLike,
+    labels: tuple[str, ...] | list[str],
+    *,
+    method: str,
+    marker_radius_m: float = 0.007,
+    lab: Any = None,
+) -> tuple[Any, dict[str, Any]]:
+    """:func:`place_hip_centres` for a session without a static trial: the pelvis landmarks
+    are those of the task (``markers`` (N, M, 3), m, model names; their shape in the pelvis
+    frame, :func:`motion_pelvis_landmarks`), the leg length of ``davis`` the lab's, else the
+    task's. The pelvis markers are moved on the model here, and the motion placement that
+    follows (:func:`msk.personalise.scaling.place_markers_from_motion`) keeps them where they
+    are (it moves the model markers it is told to, the feet's): a Plug-in Gait walk without a
+    static thus gets Plug-in Gait's hip as a walk with a static does."""
+    if method not in HIP_CENTRE_METHODS:
+        raise ModelError(f"hip centre: unknown method {method!r} (one of {HIP_CENTRE_METHODS})")
+    if method == "model":
+        return model, no_static_hip_centre(method)
     try:
-        rot, org, info = pelvis_pose_for_hips(
-            model, means, method=method, leg_length_m=ll if method == "davis" else None,
-            marker_radius_m=marker_radius_m,
-        )  # fmt: skip
+        means, legs, frames = motion_pelvis_landmarks(markers, labels)
     except MissingDataError as exc:
-        return model, {"method": "model", "requested": method, "reason": str(exc), **fallback}
-    model, moved = with_pelvis_markers(model, rot, org, means)
-    return model, {**info, "pelvis_markers_moved_m": moved, **fallback}
+        return model, {"method": "model", "requested": method, "reason": str(exc)}
+    # one length for both legs, the longer reading: a knee that does not straighten in the
+    # task (a crouch, a flexed strike, a malleolus marker riding high) reads short, and the
+    # legs of a subject differ by millimetres (PlugInC3D: 1040 / 965 mm where Plug-in Gait's
+    # hips match 1040 mm on both sides)
+    longest = {s: max(legs.values()) for s in ("R", "L")} if legs else {}
+    model, info = _place_regression(
+        model, means, method=method, marker_radius_m=marker_radius_m, measured_legs=longest,
+        leg_source=f"ASIS to malleolus markers, {MOTION_LEG_LENGTH_PERCENTILE:g}th percentile "
+        "over the task, the longer leg",
+        lab=lab,
+    )  # fmt: skip
+    info["task_leg_lengths_m"] = legs
+    return model, {**info, "landmarks_from": f"the task ({frames} frames; no static trial)"}
 
 
 def no_static_hip_centre(method: str) -> dict[str, Any]:
-    """The summary of a session without a static trial: the regression is not applied. Its
-    pelvis markers are placed from the motion with the rest of the lab's markers
-    (:func:`msk.personalise.scaling.place_markers_from_motion`), which moves them after any
-    regression
-    could place them: on a Plug-in Gait walk without a static (BTKData PlugInC3D) the
-    regression's hip ended 27-31 mm from Plug-in Gait's and the hip moment 0.20-0.26 N·m/kg
-    RMS from its, against 11-22 mm and 0.12-0.18 N·m/kg with the model's own hip."""
+    """The summary of the model's own hip centre (``method`` ``"model"``; a regression
+    without a static trial: :func:`place_hip_centres_from_motion`)."""
     if method not in HIP_CENTRE_METHODS:
         raise ModelError(f"hip centre: unknown method {method!r} (one of {HIP_CENTRE_METHODS})")
     if method == "model":
@@ -575,6 +856,5 @@ def no_static_hip_centre(method: str) -> dict[str, Any]:
     return {
         "method": "model",
         "requested": method,
-        "reason": "no static trial: the pelvis markers are placed from the motion, and the "
-        "hips with them",
+        "reason": "no pelvis landmarks to place the regression's hips from",
     }

@@ -158,6 +158,14 @@ def _aligned(
     return aligned
 
 
+def _hip_parameters(static: Any, task: Any) -> Any:
+    """The subject whose Plug-in Gait hip parameters (leg lengths, ASIS-to-trochanter and
+    inter-ASIS distances) the hip regression takes: the static's, else the task's."""
+    if static is not None and getattr(static, "leg_lengths_m", None):
+        return static
+    return task
+
+
 def scale_and_place(
     generic: Model, static: StaticTrial | None, task: Trial, opts: PersonaliseOptions, *,
     functional: Mapping[str, float] | None = None,
@@ -193,7 +201,7 @@ def scale_and_place(
         held_foot_coordinates,
         held_static_knees,
     )
-    from msk.personalise.hip_centre import no_static_hip_centre, place_hip_centres
+    from msk.personalise.hip_centre import place_hip_centres, place_hip_centres_from_motion
     from msk.personalise.scaling import (
         place_markers,
         place_markers_from_motion,
@@ -309,6 +317,7 @@ def scale_and_place(
         model, info["hip_centre"] = place_hip_centres(
             model, sm, slabels, method=opts.hip_centre,
             marker_radius_m=0.007 if mdiam is None else 0.5 * float(mdiam), functional=fx,
+            lab=_hip_parameters(ssubj, trial.subject),
         )  # fmt: skip
         centres, jc_move = chord_centres(model, sm, slabels, widths, mdiam)
         try:
@@ -357,7 +366,14 @@ def scale_and_place(
                 body_mass=opts.mass_kg, functional=functional, workspace=workspace,
             )  # fmt: skip
         model = _aligned(opts, model, xm, mlabels)
-        info["hip_centre"] = no_static_hip_centre(opts.hip_centre)
+        # the regression's hips from the task's pelvis markers, before the placement (which
+        # keeps the pelvis markers where this puts them)
+        tsubj = trial.subject
+        tdiam = getattr(tsubj, "marker_diameter_m", None)
+        model, info["hip_centre"] = place_hip_centres_from_motion(
+            model, xm, mlabels, method=opts.hip_centre,
+            marker_radius_m=0.007 if tdiam is None else 0.5 * float(tdiam), lab=tsubj,
+        )  # fmt: skip
         # the lab's foot markers: where they sit on the foot is the lab's choice and nothing
         # but the motion tells (msk.model.markersets.foot_markers), so they are moved too
         present = [mk.name for mk in model.markers if mk.name in set(mlabels)]

@@ -44,6 +44,8 @@ LITERATURE: dict[str, str] = {
     "30:503–513.",
     "kadaba1990": "Kadaba MP, Ramakrishnan HK, Wootten ME (1990). Measurement of lower "
     "extremity kinematics during level walking. J Orthop Res 8:383–392.",
+    "davis1991": "Davis RB, Õunpuu S, Tyburski D, Gage JR (1991). A gait analysis data "
+    "collection and reduction technique. Hum Mov Sci 10:575–587.",
     "winter2009": "Winter DA (2009). Biomechanics and motor control of human movement, 4th ed. "
     "Wiley.",
 }

@@ -12,7 +12,12 @@ from scipy.spatial.transform import Rotation
 
 from msk.datasets.models import two_leg_model
 from msk.dynamics.loads import ExternalLoads
-from msk.gait.variables import gait_cycles, gait_variables, knee_adduction_moment
+from msk.gait.variables import (
+    gait_cycles,
+    gait_variables,
+    knee_adduction_moment,
+    pelvis_marker_frame,
+)
 
 MODEL = two_leg_model()
 NAMES = MODEL.coordinate_names
@@ -181,8 +186,12 @@ def test_cycles_of_a_synthetic_walk_pelvis_and_foot_progression():
     q = np.array([_q0() for _ in t])
     q[:, NAMES.index("pelvis_tx")] = 1.2 * t * np.cos(heading)
     q[:, NAMES.index("pelvis_tz")] = -1.2 * t * np.sin(heading)
-    # the pelvis: R = R_y(heading) R_x(5°) (right side down), in the model's tilt-list-rotation
-    tilt, lst, rot = Rotation.from_euler("YX", [heading, np.deg2rad(5.0)]).as_euler("ZXY")
+    # the pelvis' Plug-in Gait frame (its markers' ASIS–PSIS plane, R_body R_m): R_y(heading)
+    # R_x(5°) (right side down); the body's rotation R_body = R Rmᵀ in the model's
+    # tilt-list-rotation
+    r_m, _ = pelvis_marker_frame(MODEL)
+    r_pig = Rotation.from_euler("YX", [heading, np.deg2rad(5.0)]).as_matrix()
+    tilt, lst, rot = Rotation.from_matrix(r_pig @ r_m.T).as_euler("ZXY")
     q[:, NAMES.index("pelvis_tilt")] = tilt
     q[:, NAMES.index("pelvis_list")] = lst
     q[:, NAMES.index("pelvis_rotation")] = rot
@@ -233,3 +242,27 @@ def test_kam_of_a_long_trial_is_computed_block_by_block(monkeypatch):
     blocks = knee_adduction_moment(MODEL, kin, loads, "right", mass_kg=MASS)
     assert whole is not None and blocks is not None
     assert np.array_equal(whole, blocks)
+
+
+def test_pelvis_tilt_is_plug_in_gaits_the_asis_psis_line():
+    """The model's pelvis body level (pelvis_tilt = 0) with its PSIS markers 30 mm above its
+    ASIS, 170 mm behind: Plug-in Gait's tilt (of the ASIS–PSIS line) is atan(30/170) = 10.0°
+    anterior, whatever the model's body frame; a pelvis without PSIS or sacral marker gives
+    the body frame's tilt (0°), and the notes say which frame."""
+    from msk.model.core import Marker
+
+    t = np.arange(0.0, 2.5, 0.01)
+    q = np.array([_q0(pelvis_tx=1.2 * x) for x in t])
+    strikes = {"right": (0.2, 1.3), "left": (0.75, 1.85)}
+    offs = {"right": (0.87, 1.97), "left": (1.42, 2.52)}
+    cyc, _ = gait_cycles(MODEL, _kin(q), strikes, offs, mass_kg=MASS)
+    tilt = cyc.mean("right")[:, cyc.index("pelvis_tilt_deg")]
+    assert tilt == pytest.approx(np.degrees(np.arctan2(0.03, 0.17)), abs=1e-6)
+    assert any("Plug-in Gait's pelvis" in n and "+10.0°" in n for n in cyc.notes)
+    bare = MODEL.with_markers([m for m in MODEL.markers if "PSI" not in m.name])
+    cyc0, _ = gait_cycles(bare, _kin(q), strikes, offs, mass_kg=MASS)
+    assert cyc0.mean("right")[:, cyc0.index("pelvis_tilt_deg")] == pytest.approx(0.0, abs=1e-6)
+    assert any("body frame (no PSIS pair nor sacral" in n for n in cyc0.notes)
+    sacral = MODEL.with_markers([*bare.markers, Marker("SACR", "pelvis", [-0.17, 0.03, 0.0])])
+    r_m, how = pelvis_marker_frame(sacral)
+    assert r_m is not None and "sacral marker SACR" in how

@@ -195,3 +195,24 @@ def test_subject_parameters_whatever_their_case(synth, tmp_path):
     _set_param(c, "PROCESSING", "BodyMass", [0.0])
     c.write(str(tmp_path / "zero.c3d"))
     assert read_c3d(tmp_path / "zero.c3d").subject.mass_kg is None
+
+
+def test_plug_in_gait_hip_parameters_are_read(synth, tmp_path):
+    """Plug-in Gait's hip-centre inputs (``PROCESSING:RLegLength``…, mm): read in m per side;
+    a zero (Vicon's "not measured") is none."""
+    import ezc3d
+
+    from msk.io.c3d import _set_param
+
+    path, _ = synth()
+    c = ezc3d.c3d(str(path))
+    _set_param(c, "PROCESSING", "RLegLength", [920.0])
+    _set_param(c, "PROCESSING", "LLegLength", [915.0])
+    _set_param(c, "PROCESSING", "RAsisTrocanterDistance", [69.9])
+    _set_param(c, "PROCESSING", "LAsisTrocanterDistance", [0.0])
+    _set_param(c, "PROCESSING", "InterAsisDistance", [245.2])
+    c.write(str(tmp_path / "pig.c3d"))
+    s = read_c3d(tmp_path / "pig.c3d").subject
+    assert s.leg_lengths_m == pytest.approx({"R": 0.92, "L": 0.915})
+    assert s.asis_trochanter_m == pytest.approx({"R": 0.0699})
+    assert s.inter_asis_m == pytest.approx(0.2452)

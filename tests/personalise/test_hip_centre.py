@@ -13,11 +13,14 @@ from msk.exceptions import ModelError
 from msk.model.files import load_model
 from msk.personalise.hip_centre import (
     PelvisLandmarks,
+    motion_pelvis_landmarks,
     no_static_hip_centre,
     pelvis_frame,
     pelvis_pose_for_hips,
     place_hip_centres,
+    place_hip_centres_from_motion,
     regression_hip_centres,
+    with_hip_width,
 )
 from msk.personalise.scaling import static_hip_centres
 
@@ -83,7 +86,7 @@ def test_davis_and_bell_forms() -> None:
                          np.array([-0.15, 0.0, 0.0]))  # fmt: skip
     ll = 0.9
     c = 0.115 * 900 - 15.3
-    th, be = np.radians(28.4), np.radians(18.0)
+    th, be = 0.5, 0.314  # Plug-in Gait's constants (Davis et al. 1991: 28.4°, 18°)
     xd = 0.1288 * 900 - 48.56 + 7.0
     davis = regression_hip_centres(lm, method="davis", leg_length_m=ll)
     truth = np.array([
@@ -166,7 +169,7 @@ def test_without_pelvis_landmarks_the_model_hip_is_kept_and_said() -> None:
     assert info["method"] == "model" and info["requested"] == "harrington"
     assert "PSIS" in info["reason"]
     assert no_static_hip_centre("harrington")["method"] == "model"
-    assert "no static" in no_static_hip_centre("harrington")["reason"]
+    assert "no pelvis landmarks" in no_static_hip_centre("harrington")["reason"]
     with pytest.raises(ModelError):
         place_hip_centres(model, x, ["RASI", "LASI"], method="sphere")
 
@@ -313,3 +316,107 @@ def test_a_functional_trial_places_the_hips_near_plug_in_gaits(real_dir: Path, t
             hip = np.asarray(data.oMf[model.body_frame[f"femur_{side.lower()}"]].translation)
             d.append(rot.T @ (pts[4] - hip))
         assert np.linalg.norm(np.median(np.asarray(d), axis=0)) < 0.010, side
+
+
+def test_davis_with_the_labs_parameters_is_plug_in_gaits() -> None:
+    """Davis et al. (1991) as Plug-in Gait applies it, with the lab's leg length, ASIS-to-
+    trochanter and inter-ASIS distances (PiG_Calibration3_FF's PROCESSING: 920, 69.936 and
+    245.244 mm, 14 mm markers) gives the hip Vicon stored (its <S>FEP in the ASIS frame:
+    x −48.64, y −99.30, z ±79.23 mm) whatever pelvis width the markers show; per-side leg
+    lengths give each side its own centre."""
+    lm = PelvisLandmarks(np.array([0.0, 0.0, 0.13]), np.array([0.0, 0.0, -0.13]),
+                         np.array([-0.2, 0.0, 0.0]))  # fmt: skip
+    got = regression_hip_centres(
+        lm, method="davis", leg_length_m={"R": 0.92, "L": 0.92}, marker_radius_m=0.007,
+        asis_trochanter_m={"r": 0.069936, "l": 0.069936}, inter_asis_m=0.245244,
+    )  # fmt: skip
+    assert np.allclose(1000 * got["r"], [-48.64, -99.30, 79.23], atol=0.02)
+    assert np.allclose(1000 * got["l"], [-48.64, -99.30, -79.23], atol=0.02)
+    two = regression_hip_centres(lm, method="davis", leg_length_m={"r": 0.92, "l": 1.0})
+    one = regression_hip_centres(lm, method="davis", leg_length_m=1.0)
+    assert np.allclose(two["l"], one["l"]) and not np.allclose(two["r"], one["r"])
+
+
+def _walking_pelvis(model, legs_m: float, *, noise_m: float, seed: int = 5):
+    """A walk without a static: the model's pelvis markers (a PSIS pair about its sacral
+    marker, moved 20 mm forward on the bone) carried by a pelvis that tilts (±5°), rolls (±4°),
+    turns (±8°) and walks 3 m; a lateral malleolus marker per side at legs_m × (0.85…1) from
+    its ASIS, longest once a stride (the knee straight). Returns the markers (N, M, 3), the
+    labels, and the pelvis markers in the pelvis' ISB frame (the truth)."""
+    rng = np.random.default_rng(seed)
+    shape = _static_of(model, np.eye(3), np.zeros(3), np.array([0.02, 0.0, 0.0]))
+    lm = PelvisLandmarks(shape["R.ASIS"], shape["L.ASIS"], 0.5 * (shape["RPSI"] + shape["LPSI"]))
+    rot0, o0 = pelvis_frame(lm)
+    local = {k: rot0.T @ (v - o0) for k, v in shape.items()}
+    n = 240
+    t = np.linspace(0.0, 4 * 2 * np.pi, n)
+    labels = [*local, "RANK", "LANK"]
+    x = np.empty((n, len(labels), 3))
+    for k in range(n):
+        pel = (_axis_angle([0.0, 1.0, 0.0], np.radians(8.0) * np.sin(t[k]))
+               @ _axis_angle([0.0, 0.0, 1.0], np.radians(5.0) * np.sin(2 * t[k]))
+               @ _axis_angle([1.0, 0.0, 0.0], np.radians(4.0) * np.cos(t[k])))  # fmt: skip
+        org = np.array([3.0 * k / n, 0.9, 0.0])
+        for lab, v in local.items():
+            x[k, labels.index(lab)] = pel @ v + org
+        for side, ph in (("R", 0.0), ("L", np.pi)):
+            length = legs_m * (0.925 + 0.075 * np.cos(t[k] + ph))
+            down = _axis_angle([0.0, 0.0, 1.0], 0.4 * np.sin(t[k] + ph)) @ [0.0, -1.0, 0.0]
+            x[k, labels.index(f"{side}ANK")] = x[k, labels.index(f"{side}.ASIS")] + length * down
+    return x + rng.normal(0.0, noise_m, x.shape), labels, local
+
+
+def test_motion_pelvis_landmarks_recover_the_pelvis_and_the_leg() -> None:
+    """Without a static, the pelvis markers' shape in their own frame (median over a walk,
+    1 mm noise) is the truth to 1 mm, and the leg length (95th percentile of the ASIS-to-
+    malleolus distance) within 1 % of the straight leg's."""
+    model = load_model(ROOT / "msk" / "data" / "models" / "gait2392.toml")
+    x, labels, truth = _walking_pelvis(model, 0.95, noise_m=0.001)
+    means, legs, frames = motion_pelvis_landmarks(x, labels)
+    assert frames == x.shape[0]
+    for lab, v in truth.items():
+        assert np.linalg.norm(means[lab] - v) < 0.001, lab
+    for s in "RL":
+        assert legs[s] == pytest.approx(0.95, rel=0.01)
+
+
+def test_a_walk_without_a_static_places_the_hips_on_davis() -> None:
+    """place_hip_centres_from_motion on the synthetic walk: the model's hips (its pelvis fitted
+    to the placed pelvis markers) land on Davis' centres of the true pelvis and leg within
+    2 mm — the width too (with_hip_width); the lab's leg length is preferred to the walk's."""
+    from types import SimpleNamespace
+
+    model = load_model(ROOT / "msk" / "data" / "models" / "gait2392.toml")
+    x, labels, truth = _walking_pelvis(model, 0.95, noise_m=0.001)
+    placed, info = place_hip_centres_from_motion(model, x, labels, method="davis")
+    assert info["method"] == "davis" and "task" in info["landmarks_from"]
+    lm = PelvisLandmarks(truth["R.ASIS"], truth["L.ASIS"], 0.5 * (truth["RPSI"] + truth["LPSI"]))
+    reg = regression_hip_centres(lm, method="davis", leg_length_m=0.95)
+    hips = static_hip_centres(placed, truth)
+    for s in "rl":
+        assert np.linalg.norm(hips[s] - reg[s]) < 0.002, (s, hips[s] - reg[s])
+    # the generic model's hips were far from them
+    before = static_hip_centres(model, truth)
+    assert max(np.linalg.norm(before[s] - reg[s]) for s in "rl") > 0.01
+    lab = SimpleNamespace(leg_lengths_m={"R": 0.90, "L": 0.90})
+    _, info2 = place_hip_centres_from_motion(model, x, labels, method="davis", lab=lab)
+    assert info2["leg_lengths_m"] == {"R": 0.90, "L": 0.90}
+    assert "lab" in info2["leg_length_source"]["R"]
+    # "model" keeps the model; no pelvis markers: said, not raised
+    same, minfo = place_hip_centres_from_motion(model, x, labels, method="model")
+    assert same is model and minfo["method"] == "model"
+    same, why = place_hip_centres_from_motion(model, x[:, 4:], labels[4:], method="davis")
+    assert same is model and "ASIS" in why["reason"]
+
+
+def test_with_hip_width_moves_the_hips_symmetrically() -> None:
+    model = load_model(ROOT / "msk" / "data" / "models" / "gait2392.toml")
+    hips = {j.child[-1]: np.asarray(j.parent_offset.translation) for j in model.joints
+            if j.parent == "pelvis" and j.child.startswith("femur")}  # fmt: skip
+    w0 = float(np.linalg.norm(hips["r"] - hips["l"]))
+    moved, step = with_hip_width(model, w0 - 0.02)
+    assert step == pytest.approx(-0.01)
+    new = {j.child[-1]: np.asarray(j.parent_offset.translation) for j in moved.joints
+           if j.parent == "pelvis" and j.child.startswith("femur")}  # fmt: skip
+    assert np.linalg.norm(new["r"] - new["l"]) == pytest.approx(w0 - 0.02)
+    assert np.allclose(new["r"] + new["l"], hips["r"] + hips["l"])

@@ -4,6 +4,7 @@ the static trial and the reference numbering are said as they are."""
 
 from __future__ import annotations
 
+import dataclasses
 import re
 
 import numpy as np
@@ -178,3 +179,49 @@ def test_knee_section_states_the_patellofemoral_peak():
     assert "Patellofemoral contact force" in line and "generic parameters 1.23 BW" in line
     plain = render_html(_walk(), figures={"contact": "<svg></svg>"})
     assert "Patellofemoral" not in plain
+
+
+def test_the_spatiotemporal_table_shows_the_norm_and_marks_a_side_beyond_2_sd():
+    """The norm column holds the set's scalar mean ± SD; a side's mean beyond ±2 SD (here the
+    synthetic 1.2 m/s against 1.45 ± 0.1) is marked ▼ and coloured, one inside (cadence
+    109.1 against 110 ± 8) is not; a set without scalars leaves the column empty, said."""
+    from msk.gait.norms import NormativeBands
+    from msk.report.sections.spatiotemporal import norm_position
+
+    pct = np.linspace(0, 100, 101)
+    norms = NormativeBands(
+        ("knee_flexion_deg",), pct[:, None] * 0.0, pct[:, None] * 0.0 + 1.0, "adults (n = 9)",
+        "synthetic", "CC0-1.0",
+        scalars={"walking_speed_m_s": (1.45, 0.1), "cadence_steps_per_min": (110.0, 8.0)},
+    )  # fmt: skip
+    html = render_html(_walk(), figures={}, norms=norms)
+    table = html.split('<section id="spatiotemporal">')[1].split("</table>")[0]
+    speed = next(r for r in table.split("<tr>") if "walking speed" in r)
+    cadence = next(r for r in table.split("<tr>") if "cadence" in r)
+    assert "1.45 ± 0.10" in speed and speed.count('class="out low"') == 2 and "▼" in speed
+    assert "110.0 ± 8.0" in cadence and "out" not in cadence
+    assert "more than 2 SD" in html and "sessions' stride means" not in html
+    few = dataclasses.replace(norms, notes={"n_sessions_spatiotemporal": "2"})
+    assert "SD between its 2 sessions' stride means, itself uncertain" in render_html(
+        _walk(), figures={}, norms=few
+    )
+    assert norm_position([1.2, 1.2], (1.45, 0.1)) == "low"
+    assert norm_position([1.7], (1.45, 0.1)) == "high"
+    assert norm_position([1.5], (1.45, 0.1)) == ""
+    assert norm_position([1.7], (1.45, float("nan"))) == ""  # no SD: no flag
+    plain = NormativeBands(("knee_flexion_deg",), pct[:, None] * 0.0, pct[:, None] * 0.0,
+                           "adults", "s", "l")  # fmt: skip
+    html = render_html(_walk(), figures={}, norms=plain)
+    assert "holds no spatiotemporal values" in html and 'class="out' not in html
+
+
+def test_the_kinematics_say_the_pelvis_frame_of_the_angles():
+    note = (
+        "pelvis angles in the plane of the ASIS (RASI, LASI) and the mid-PSIS (RPSI, LPSI) "
+        "markers (Plug-in Gait's pelvis): its tilt is the model's pelvis body frame's +3.2°"
+    )
+    html = render_html(_walk(gait={"notes": [note]}), figures={})
+    kin = html.split('<section id="kinematics">')[1].split("</section>")[0]
+    assert "Pelvis angles in the pelvis frame of Plug-in Gait" in kin and "+3.2°" in kin
+    assert "Davis RB" in html  # cited, in the references
+    assert "pelvis frame of Plug-in Gait" not in render_html(_walk(), figures={})

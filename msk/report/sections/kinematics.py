@@ -10,7 +10,7 @@ from typing import Any
 from msk.report.sections.base import ReportContext, Section
 from msk.report.sections.session import event_source_words
 
-__all__ = ["Kinematics", "Kinetics"]
+__all__ = ["Kinematics", "Kinetics", "pelvis_frame_words"]
 
 
 def _cycles(ctx: ReportContext) -> dict[str, Any]:
@@ -27,7 +27,18 @@ def _cycles(ctx: ReportContext) -> dict[str, Any]:
         "side": res.summary.subject.side or "right",
         "notes": list(curves.notes) if curves else [],
         "norms": ctx.norms,
+        "pelvis_frame": pelvis_frame_words(ctx),
     }
+
+
+def pelvis_frame_words(ctx: ReportContext) -> str:
+    """The frame the pelvis angles are in (``summary.json`` ``gait.notes``, written by
+    :func:`msk.gait.variables.gait_cycles`), "" when the summary does not say."""
+    gait = ctx.res.summary.gait
+    for note in (gait.notes or ()) if gait is not None else ():
+        if note.startswith("pelvis angles in "):
+            return note[len("pelvis angles in ") :]
+    return ""
 
 
 class Kinematics(Section):

@@ -8,6 +8,10 @@ s_i; cadence 120 / T steps/min; stance 100·(o_i − s_i)/T %; double support
 100·((o' − s_i) + (o_i − s'))/T %; step time s_i − (the other foot's last strike before s_i);
 stride length the pelvis' horizontal travel from s_i to s_{i+1} (model frame, walking along
 +x); speed stride length / T.
+
+The norm column holds the normative set's scalar rows (:mod:`msk.gait.norms`): its mean ± SD;
+a side whose mean lies more than :data:`NORM_FLAG_SD` normative SDs from the normative mean is
+marked (▲ above, ▼ below, and coloured).
 """
 
 from __future__ import annotations
@@ -22,7 +26,7 @@ from msk.report.cycles import cycle_bounds
 from msk.report.sections.base import ReportContext, Section
 from msk.results.folder import SessionResults, pooled_gait
 
-__all__ = ["Spatiotemporal", "spatiotemporal_from_events"]
+__all__ = ["NORM_FLAG_SD", "Spatiotemporal", "norm_position", "spatiotemporal_from_events"]
 
 #: (key, label, unit, format)
 PARAMETERS = (
@@ -90,14 +94,39 @@ def spatiotemporal_from_events(res: SessionResults) -> dict[str, dict[str, list[
     return out
 
 
-def _cell(values: list[float], fmt: str) -> str:
+#: how many normative SDs from the normative mean a side's mean may sit before the table marks it
+#: (±2 SD: ~95 % of a normal population inside)
+NORM_FLAG_SD = 2.0
+
+
+def _finite(values: list[float]) -> np.ndarray:
     v = np.asarray(values, dtype=float)
-    v = v[np.isfinite(v)]
+    return v[np.isfinite(v)]
+
+
+def _cell(values: list[float], fmt: str) -> str:
+    v = _finite(values)
     if not v.size:
         return "—"
     if v.size == 1:
         return f"{v[0]:{fmt}}"
     return f"{v.mean():{fmt}} ± {v.std(ddof=1):{fmt}} (n {v.size})"
+
+
+def norm_position(values: list[float], norm: tuple[float, float] | None) -> str:
+    """Where a side's mean sits against a normative (mean, SD): ``"high"`` / ``"low"`` beyond
+    :data:`NORM_FLAG_SD` SDs, ``""`` inside them or when either is unknown."""
+    v = _finite(values)
+    if norm is None or not v.size or not (np.isfinite(norm[0]) and np.isfinite(norm[1])):
+        return ""
+    z = (float(v.mean()) - norm[0]) / norm[1] if norm[1] > 0 else 0.0
+    return "high" if z > NORM_FLAG_SD else "low" if z < -NORM_FLAG_SD else ""
+
+
+def _norm_cell(norm: tuple[float, float] | None, fmt: str) -> str:
+    if norm is None or not np.isfinite(norm[0]):
+        return "—"
+    return f"{norm[0]:{fmt}}" + (f" ± {norm[1]:{fmt}}" if np.isfinite(norm[1]) else "")
 
 
 def _from_gait(
@@ -147,10 +176,25 @@ class Spatiotemporal(Section):
             )
         if not any(vals[s]["stride_time_s"] for s in vals):
             return None
-        rows = [
-            [f"{label} ({unit})", _cell(vals["left"][k], fmt), _cell(vals["right"][k], fmt), "—"]
-            for k, label, unit, fmt in PARAMETERS
-        ]
+        norms = ctx.norms
+        rows, flagged = [], 0
+        for k, label, unit, fmt in PARAMETERS:
+            norm = norms.scalar(k) if norms is not None else None
+            cells = [
+                (f"{label} ({unit})", ""),
+            ]
+            for side in ("left", "right"):
+                pos = norm_position(vals[side][k], norm)
+                flagged += bool(pos)
+                mark = {"high": " ▲", "low": " ▼"}.get(pos, "")
+                cells.append((_cell(vals[side][k], fmt) + mark, f"out {pos}" if pos else ""))
+            cells.append((_norm_cell(norm, fmt), ""))
+            rows.append(cells)
         cycles = {s: len(vals[s]["stride_time_s"]) for s in vals}
-        named = ctx.norms.population.split(":")[0] if ctx.norms is not None else ""
-        return {"rows": rows, "cycles": cycles, "how": how, "norms_named": named}
+        named = norms.population.split(":")[0] if norms is not None else ""
+        return {
+            "rows": rows, "cycles": cycles, "how": how, "norms_named": named,
+            "has_scalars": bool(norms is not None and norms.scalars), "flagged": flagged,
+            "flag_sd": f"{NORM_FLAG_SD:g}",
+            "norm_n": (norms.notes.get("n_sessions_spatiotemporal", "") if norms else ""),
+        }  # fmt: skip
