@@ -18,7 +18,8 @@ others complete and are written, and :attr:`BatchResult.failed` lists it. The co
 ``out/cohort.csv`` has one row per session with its key quality figures, the body mass and its
 source and each side's spatiotemporal means (:data:`COHORT_COLUMNS`);
 its strength columns count the groups per :mod:`msk.status` word and list each group's word
-(``strength_group_status``: ``group: status; …``). Dynamometry sessions
+(``strength_group_status``: ``group: status; …``; ``pooled_strength_group_status`` the same
+for the session's pooled identification of ``msk strength``). Dynamometry sessions
 (:mod:`msk.pipeline.dynamometry`) also give ``out/strength_cohort.csv``: one row per subject
 and test (torque, N·m/kg, interval, factor, status, reason).
 
@@ -81,6 +82,7 @@ COHORT_COLUMNS: tuple[str, ...] = (
     "strength_groups_at_bound",
     "strength_groups_not_determined",
     "strength_group_status",
+    "pooled_strength_group_status",
     "knee_contact_rms_bw",
     "knee_contact_icc",
     *(f"{p}_{side}" for side in ("left", "right") for p in _GAIT_COLUMNS),
@@ -161,6 +163,11 @@ def _row(
         ):
             row[col] = sum(s == word for _, s in statuses)
         row["strength_group_status"] = "; ".join(f"{n}: {s}" for n, s in statuses)
+    ps = s.pooled_strength
+    if ps:
+        row["pooled_strength_group_status"] = "; ".join(
+            f"{g.group}: {ps.group_status(g)}" for g in (*ps.groups, *ps.failed_channels)
+        )
     comp = s.comparison and (
         s.comparison.knee_contact_subject_specific or s.comparison.knee_contact_generic
     )
@@ -531,6 +538,11 @@ def compare_sessions(folders: Sequence[str | Path]) -> list[dict[str, Any]]:
                     "x generic",
                     st.group_status(grp),
                 )
+        ps = s.pooled_strength
+        if ps:  # the session's trials pooled (msk strength)
+            for grp in ps.groups:
+                add(sess, "pooled strength factor", grp.group, 1.0, grp.factor, "x generic",
+                    ps.group_status(grp))  # fmt: skip
         comp = s.comparison
         for key, unit, pair in (
             ("residual_force_rms_n", "N", comp.residual_force_rms_n if comp else None),
