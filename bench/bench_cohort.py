@@ -93,7 +93,7 @@ def lines(m: dict[str, float], workers: int) -> list[tuple[str, str, str]]:
             f"reading {m['read_s'] / n:.3f} s per subject",
         ),
         (
-            f"dynamometry cohort, `run_dynamometry` one after the other in one process / reading",
+            "dynamometry cohort, `run_dynamometry` one after the other in one process / reading",
             f"{m['serial_s'] / m['read_s']:.1f}×",
             f"{m['serial_s'] / n:.3f} s per subject",
         ),

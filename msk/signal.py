@@ -7,7 +7,6 @@ silently into its neighbours.
 from __future__ import annotations
 
 import functools
-
 from typing import Literal
 
 import numpy as np

@@ -16,11 +16,11 @@ MVC trials' peak (every ``role = "mvc"`` trial of the session, pooled or not) wh
 exists — when every MVC trial is pooled (its torque known), the plateau mean over its
 highest-torque second with its standard error, carried into the intervals
 (:func:`msk.strength.pooled.identify_pooled`) — else the peak over every pooled trial
-(``session_peak``, stated with its bias); ``[emg] mvc`` values win. The folder gets ``strength.json`` (per group:
-factor, intervals, status, reason, its own rows' r², the test that would identify it) and
-``strength.txt``; when the folder holds the session ``msk run`` wrote for the same
-configuration, :func:`attach_to_session` adds the result to its ``summary.json``
-(``pooled_strength``) and rebuilds its report.
+(``session_peak``, stated with its bias); ``[emg] mvc`` values win. The folder gets
+``strength.json`` (per group: factor, intervals, status, reason, its own rows' r², the test
+that would identify it) and ``strength.txt``; when the folder holds the session ``msk run``
+wrote for the same configuration, :func:`attach_to_session` adds the result to its
+``summary.json`` (``pooled_strength``) and rebuilds its report.
 """
 
 from __future__ import annotations

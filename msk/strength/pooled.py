@@ -33,12 +33,12 @@ repeat (for the instrument and the stratified jackknife of the identifier).
 **The MVC reference is a measurement.** In each MVC trial the plateau is the window of
 ``plateau_s`` seconds (default 1 s) where the joint torque's magnitude is highest, and the
 channel's level is its mean envelope over that window — the usual definition of the MVC
-amplitude (Konrad 2005, *The ABC of EMG*, Noraxon, on MVC normalisation: the mean amplitude of the highest
-500–1000 ms of the plateau; Burden 2010, J Electromyogr Kinesiol 20:1023) — with the window
-chosen on the torque: choosing it on the EMG (or taking the single highest sample) selects
-the envelope's noise and biases every reference high (≈ +3 % with a 10 % envelope noise).
-E_c is the highest level over the MVC trials. Its standard error
-comes from the plateau's own variability: with x_t the envelope's n samples in the window,
+amplitude (Konrad 2005, *The ABC of EMG*, Noraxon, on MVC normalisation: the mean amplitude
+of the highest 500–1000 ms of the plateau; Burden 2010, J Electromyogr Kinesiol 20:1023) —
+with the window chosen on the torque: choosing it on the EMG (or taking the single highest
+sample) selects the envelope's noise and biases every reference high (≈ +3 % with a 10 %
+envelope noise). E_c is the highest level over the MVC trials. Its standard error comes
+from the plateau's own variability: with x_t the envelope's n samples in the window,
 γ_k their autocovariances and Γ_m = γ_2m + γ_2m+1 summed while positive (Geyer 1992, Stat
 Sci 7:473, the initial positive sequence estimator)::
 
