@@ -146,7 +146,9 @@ __all__ = [
     "STRENGTH_FACTOR_BOUNDS",
     "StrengthIdentifier",
     "StrengthProfile",
+    "envelope_window_s",
     "expand_groups",
+    "gating_windows",
     "group_contributions",
     "net_contribution",
     "with_strength",
@@ -502,6 +504,43 @@ def _windows(windows: ArrayLike | None, n: int, n_default: int) -> NDArray[np.in
         raise ShapeMismatchError(f"windows must be one label per frame ({n},), got {w.shape}")
     _, inv = np.unique(w, return_inverse=True)
     return inv.astype(np.int64)
+
+
+def envelope_window_s(lowpass_hz: float) -> float:
+    """The shortest gating window (s): three correlation times 1/(π f_c) of an EMG envelope
+    low-passed at ``lowpass_hz`` (the correlation time of a first-order low-pass of cut-off
+    f_c is 1/(2π f_c); the zero-lag second-order filter's is about twice it) — 0.16 s at
+    6 Hz. A window shorter than this holds fewer than three independent envelope values, so
+    its correlation of C_g with τ (the gate) measures the filter, not the muscle."""
+    return 3.0 / (np.pi * float(lowpass_hz))
+
+
+def gating_windows(
+    frames: ArrayLike, rate_hz: float, min_window_s: float, n_default: int = 10
+) -> tuple[NDArray[np.bool_], NDArray[np.int64] | None]:
+    """The gating windows of a trial's usable ``frames`` (sorted frame indices at
+    ``rate_hz``) when :class:`StrengthIdentifier`'s ``n_default`` equal chunks would be
+    shorter than ``min_window_s`` (:func:`envelope_window_s`): each contiguous run of frames
+    (a stance on a plate, a swing) is cut into ⌊length / min⌋ equal windows of at least
+    ``min_window_s``, a window never straddles a gap in time (its correlation would join
+    unrelated instants), and a run shorter than one window (a few frames of swing between
+    plates) gives none — its frames are left out (``keep`` False). Returns ``(keep,
+    labels)``, labels for the kept frames; ``(all True, None)`` when the equal chunks are
+    long enough (the identifier's default stands)."""
+    f = np.asarray(frames, dtype=np.int64)
+    keep = np.ones(f.size, dtype=bool)
+    min_len = int(np.ceil(min_window_s * rate_hz - 1e-9))
+    if f.size == 0 or f.size // max(n_default, 1) >= min_len:
+        return keep, None
+    labels = np.full(f.size, -1, dtype=np.int64)
+    k = 0
+    for run in np.split(np.arange(f.size), np.flatnonzero(np.diff(f) > 1) + 1):
+        n_w = run.size // max(min_len, 1)
+        if n_w:
+            labels[run] = k + np.arange(run.size) * n_w // run.size
+            k += n_w
+    keep = labels >= 0
+    return keep, labels[keep]
 
 
 def _movement_of_windows(
