@@ -507,11 +507,13 @@ def _windows(windows: ArrayLike | None, n: int, n_default: int) -> NDArray[np.in
 
 
 def envelope_window_s(lowpass_hz: float) -> float:
-    """The shortest gating window (s): three correlation times 1/(π f_c) of an EMG envelope
-    low-passed at ``lowpass_hz`` (the correlation time of a first-order low-pass of cut-off
-    f_c is 1/(2π f_c); the zero-lag second-order filter's is about twice it) — 0.16 s at
-    6 Hz. A window shorter than this holds fewer than three independent envelope values, so
-    its correlation of C_g with τ (the gate) measures the filter, not the muscle."""
+    """The shortest gating window (s): three correlation times τ = 1/(π f_c) of an EMG
+    envelope zero-lag low-passed at ``lowpass_hz`` — 0.16 s at 6 Hz. τ is the integral of
+    the envelope's autocorrelation, ∫₀^∞ ρ(t) dt (a first-order low-pass: 1/(2π f_c); the
+    forward–backward Butterworth of orders 2 and 4 at 6 Hz on white noise, measured:
+    0.049–0.053 s); the envelope decorrelates over about 2τ, so a window of 3τ holds only
+    ≈ 1.5 independent envelope values and a shorter one less: its correlation of C_g with τ
+    (the gate) then measures the filter, not the muscle."""
     return 3.0 / (np.pi * float(lowpass_hz))
 
 
