@@ -26,6 +26,7 @@ wrote for the same configuration, :func:`attach_to_session` adds the result to i
 from __future__ import annotations
 
 import dataclasses
+import hashlib
 import json
 import math
 from pathlib import Path
@@ -321,7 +322,8 @@ def attach_to_session(folder: str | Path, record: dict[str, Any]) -> list[Path]:
     """Add :func:`pooled_summary` of ``record`` to the ``summary.json`` of every task trial
     ``msk run`` wrote under ``folder`` and rebuild the session's report (the strength section
     shows it); returns the summaries rewritten — none when ``folder`` holds no ``msk run``
-    session."""
+    session. :class:`~msk.exceptions.ConfigError` when that session was run with another
+    configuration (its ``config.sha256``)."""
     from msk.report import write_report
     from msk.results.folder import read_task_trials
     from msk.results.summary import Summary
@@ -335,10 +337,19 @@ def attach_to_session(folder: str | Path, record: dict[str, Any]) -> list[Path]:
     if not paths:
         return []
     part = pooled_summary(record).to_dict()
+    cfg_file = Path(record["config"])
+    sha = hashlib.sha256(cfg_file.read_bytes()).hexdigest() if cfg_file.is_file() else None
     for path in paths:
         d = json.loads(path.read_text(encoding="utf-8"))
         if d.get("kind") is not None or "format" not in d:
             return []  # not an msk run session summary (e.g. a dynamometry folder)
+        theirs = (d.get("config") or {}).get("sha256")
+        if sha is not None and theirs and theirs != sha:
+            raise ConfigError(
+                f"{path}: a session of another configuration "
+                f"({(d.get('config') or {}).get('path')}), not {cfg_file}: pooled strength not "
+                "added to it"
+            )
         d["pooled_strength"] = part
         text = json.dumps(Summary.from_dict(d).to_dict(), indent=2, allow_nan=False)
         path.write_text(text + "\n", encoding="utf-8")

@@ -160,3 +160,8 @@ def test_no_group_at_a_bound_is_identified_in_summary_compare_cohort_or_report(t
              if r["quantity"] == "pooled strength factor"}  # fmt: skip
     assert notes == {k: v for k, v in words.items() if k != "hamstrings"}
     assert (folder / "report.html").is_file()
+    # a session run with another configuration is not given this one's strength
+    other = tmp_path / "other.toml"
+    other.write_text("# another session\n", encoding="utf-8")
+    with pytest.raises(ConfigError, match="another configuration"):
+        attach_to_session(folder, {**_record(), "config": str(other)})
