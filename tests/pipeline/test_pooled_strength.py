@@ -165,3 +165,31 @@ def test_no_group_at_a_bound_is_identified_in_summary_compare_cohort_or_report(t
     other.write_text("# another session\n", encoding="utf-8")
     with pytest.raises(ConfigError, match="another configuration"):
         attach_to_session(folder, {**_record(), "config": str(other)})
+
+
+def test_the_mvc_reference_is_the_torque_plateau_when_every_mvc_trial_is_pooled(tmp_path):
+    """Every MVC trial of the session pooled (its torque known): the channel's reference is
+    its mean over the highest-torque second, with a standard error, not the raw peak; an MVC
+    trial left out of the pool keeps the peak (no torque to choose the plateau by)."""
+    import numpy as np
+
+    from msk.pipeline.pooled_strength import _plateau_reference
+    from msk.strength.pooled import EmgReference, PooledTrial
+
+    cfg = _cfg(tmp_path)
+    rng = np.random.default_rng(0)
+    n = 300  # 3 s at 100 Hz: rest, a 1.5-s hold, rest
+    hold = np.zeros(n)
+    hold[75:225] = 1.0
+    env = (0.02 + 0.5 * hold * (1 + 0.1 * rng.standard_normal(n)))[:, None]
+    tau = (80.0 * hold)[:, None]
+
+    def trial(name, kind):
+        return PooledTrial(name, kind, 100.0, ("c",), env, np.zeros((n, 1, 1)),
+                           np.zeros((n, 1)), np.zeros((n, 1)), tau)  # fmt: skip
+
+    peak = EmgReference(("c",), np.array([env.max()]), ("mvc",))
+    ref = _plateau_reference(cfg, peak, [trial("walk", "task"), trial("mvc_knee", "mvc")])
+    assert ref.value[0] < env.max() and abs(ref.value[0] / 0.52 - 1) < 0.05
+    assert 0 < ref.relative_error("c") < 0.05
+    assert _plateau_reference(cfg, peak, [trial("walk", "task")]) is peak
