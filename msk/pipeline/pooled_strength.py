@@ -354,7 +354,12 @@ def attach_to_session(folder: str | Path, record: dict[str, Any]) -> list[Path]:
         text = json.dumps(Summary.from_dict(d).to_dict(), indent=2, allow_nan=False)
         path.write_text(text + "\n", encoding="utf-8")
     parts = read_task_trials(root)
-    # a printed copy is rebuilt when the folder had one (never left stale)
+    # every report that reads these summaries (each trial's and the session's), a printed
+    # copy rebuilt when the folder had one (never left stale)
+    if len(parts) > 1:
+        for p in parts:
+            if p.path is not None:
+                write_report(p, p.path, pdf=(p.path / "report.pdf").is_file())
     write_report(parts[0], root, trials=parts, pdf=(root / "report.pdf").is_file())
     return paths
 
