@@ -15,7 +15,9 @@ Baselines, each timed in this run beside what it calibrates:
   ``git archive``, imported ahead of the working tree's), timed alternately with the working
   tree: the model stage of a session without a static trial (``pipelines/gc6_DM_og1.toml``,
   ``pipelines/uwa_fast_walking.toml``) and ``msk run pipelines/gc5_PS.toml`` cold
-  (``--no-cache``) and cached, each in a fresh interpreter.
+  (``--no-cache``) and cached, each in a fresh interpreter;
+* **reading the files alone**: the 20-subject dynamometry cohort through ``msk batch`` (2
+  workers) and in one process, as a multiple of reading its 20 × 4 files (``bench_cohort``).
 
 Absolute times are printed only beside the host line they were measured on; on a shared
 machine only the ratios of one run compare.
@@ -48,7 +50,7 @@ REPO = Path(__file__).resolve().parents[1]
 DOCS = REPO / "docs" / "benchmarks.md"
 MARK = "<!-- run_all:figures -->"
 NO_STATIC = ("gc6_DM_og1", "uwa_fast_walking")
-PARTS = ("opensim", "chain", "model", "run")
+PARTS = ("opensim", "chain", "model", "run", "cohort")
 
 #: the model stage's seconds, in a fresh interpreter with the package of ``sys.argv[1]``
 _MODEL_CHILD = """
@@ -270,6 +272,15 @@ def msk_run(fig: Figures, base: Path | None, ref: str, rounds: int) -> None:
                         f"{statistics.median(shares):.1%}", f"{len(shares)} runs")  # fmt: skip
 
 
+def cohort(fig: Figures, repeats: int) -> None:
+    """The 20 dynamometry subjects through ``msk batch`` (2 workers) and in one process, as
+    ratios to reading their files (``bench_cohort``)."""
+    import bench_cohort
+
+    for figure, ratio, detail in bench_cohort.lines(bench_cohort.measure(repeats, 2), 2):
+        fig.add(figure, ratio, detail)
+
+
 def write_docs(fig: Figures, head: str) -> None:
     lines = [head, "", "| figure | ratio | detail (absolute times on this host) |",
              "| --- | --- | --- |"]  # fmt: skip
@@ -311,6 +322,8 @@ def main() -> None:
             part("model", lambda: model_stage(fig, base, rev, args.rounds))
         if "run" not in skip:
             part("run", lambda: msk_run(fig, base, rev, args.rounds))
+        if "cohort" not in skip:
+            part("cohort", lambda: cohort(fig, args.rounds))
     end = f"load average at the end {load()}"
     print(f"\n{end}")
     if args.write_docs:

@@ -6,6 +6,7 @@ silently into its neighbours.
 
 from __future__ import annotations
 
+import functools
 from typing import Literal
 
 import numpy as np
@@ -112,9 +113,24 @@ def filtfilt_butter(
         )
     from scipy import signal as _sig  # imported on use: 0.4 s that `msk --help` need not pay
 
-    sos = _sig.butter(order, wn if wn.size > 1 else wn[0], btype=btype, output="sos")
+    # a writable copy of the cached design (scipy's filter wants a writable buffer)
+    sos = np.array(_butter_design(order, tuple(float(w) for w in wn), btype))
     padlen = min(3 * (2 * len(sos) + 1), x.shape[axis] - 1)
     return _sig.sosfiltfilt(sos, x, axis=axis, padlen=max(padlen, 0))
+
+
+@functools.lru_cache(maxsize=256)
+def _butter_design(order: int, wn: tuple[float, ...], btype: str) -> NDArray[np.float64]:
+    """``scipy.signal.butter(order, wn, btype, output="sos")``, designed once per
+    (order, normalised cut-off, type) — a session filters many channels with the same few
+    designs (≈ 5 ms each) — and read-only."""
+    from scipy import signal as _sig
+
+    sos = np.asarray(
+        _sig.butter(order, wn if len(wn) > 1 else wn[0], btype=btype, output="sos"), dtype=float
+    )
+    sos.setflags(write=False)
+    return sos
 
 
 def _butter_sos(order: int, wn: float, btype: str = "lowpass") -> NDArray[np.float64]:

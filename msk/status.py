@@ -326,9 +326,22 @@ def group_status(group: Mapping[str, Any], strength: Mapping[str, Any]) -> Statu
     ``strength`` record: bounds and fit r²): its ``status`` when present, else
     :func:`strength_status` — in summaries written before the status existed, ``identified``
     meant only "passed the correlation gate"."""
-    if group.get("status"):
-        return Status(group["status"])
     lo, hi = strength.get("bounds") or (0.5, 2.0)
+    if group.get("status"):
+        word = Status(group["status"])
+        if word is not Status.IDENTIFIED:
+            return word
+        # a recorded "identified" is re-checked against the bounds: a factor or interval on a
+        # bound is never identified, whoever wrote the file
+        f, cl, ch = group.get("factor"), group.get("ci_low"), group.get("ci_high")
+        if _finite(f) and _on_or_past(float(f), float(lo), float(hi), BOUND_REL_TOL):  # type: ignore[arg-type]
+            return Status.AT_BOUND
+        if not (_finite(cl) and _finite(ch)) or any(
+            _on_or_past(float(x), float(lo), float(hi), BOUND_REL_TOL)  # type: ignore[arg-type]
+            for x in (cl, ch)
+        ):
+            return Status.NOT_DETERMINED
+        return word
     return strength_status(
         group.get("factor"),
         group.get("ci_low"),

@@ -161,12 +161,16 @@ def _report(args: argparse.Namespace) -> int:
 
 def _strength_args(p: argparse.ArgumentParser) -> None:
     p.add_argument("config", metavar="CONFIG", type=Path, help="session configuration (.toml)")
-    p.add_argument("--out", required=True, type=Path, metavar="DIR", help="output folder")
+    p.add_argument(
+        "--out", required=True, type=Path, metavar="DIR",
+        help="output folder; when it holds the session of `msk run CONFIG --out DIR`, its "
+        "summary.json gains `pooled_strength` and its report the pooled strength",
+    )  # fmt: skip
     p.add_argument("--quiet", action="store_true", help="no progress lines")
 
 
 def _strength(args: argparse.Namespace) -> int:
-    from msk.pipeline.pooled_strength import run_pooled_strength
+    from msk.pipeline.pooled_strength import attach_to_session, run_pooled_strength
 
     rec = run_pooled_strength(args.config, args.out, progress=None if args.quiet else sys.stderr)
     n = sum(g["status"] == "identified" for g in rec["groups"])
@@ -174,6 +178,8 @@ def _strength(args: argparse.Namespace) -> int:
         f"{args.out / 'strength.json'}: {n}/{len(rec['groups'])} groups identified "
         f"(EMG normalisation: {rec['normalisation_kind']})\n"
     )
+    for path in attach_to_session(args.out, rec):
+        sys.stdout.write(f"{path}: pooled_strength added (report rebuilt)\n")
     return 0
 
 

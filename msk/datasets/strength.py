@@ -319,10 +319,13 @@ def _simulate(
     force_fn: object | None = None,
     qdot: Array | None = None,
     movement: NDArray[np.int64] | None = None,
+    emg_ceiling: float | None = 1.0,
 ) -> SyntheticLegTrial:
     """Forces, torques and recorded EMG of the motion ``q`` driven by the group excitations
     ``e_group`` (N, G) with the true strengths ``factors``. ``tau_noise`` is × the range of
-    each torque (scalar), or the noise standard deviation per coordinate in N·m (array)."""
+    each torque (scalar), or the noise standard deviation per coordinate in N·m (array).
+    The recorded envelope is clipped to ``[0, emg_ceiling]`` (None: no upper clip — the
+    envelope of a maximal hold fluctuates around its mean, above it half of the time)."""
     n_frames = q.shape[0]
     time = np.arange(n_frames) / rate_hz
     if qdot is None:
@@ -368,7 +371,7 @@ def _simulate(
     e_obs_group = e_group * (
         1.0 + emg_mult_noise * _smooth_noise(rng_noise, e_group.shape, rate_hz)
     ) + emg_add_noise * _smooth_noise(rng_noise, e_group.shape, rate_hz)
-    emg = np.clip(e_obs_group, 0.0, 1.0) @ gm
+    emg = np.clip(e_obs_group, 0.0, emg_ceiling) @ gm
     return SyntheticLegTrial(
         time=time,
         q=q,
@@ -405,6 +408,7 @@ def mvc_trials(
     offset: tuple[float, float, float] = (2.0, -1.5, 1.0),
     first_cycle: int = 0,
     first_movement: int = 1,
+    emg_ceiling: float | None = 1.0,
 ) -> SyntheticLegTrial:
     """Isometric maximal voluntary contractions of the synthetic subject, concatenated.
 
@@ -417,6 +421,9 @@ def mvc_trials(
     ramp down, 0.3 s rest; the other groups co-contract at 0–10 % of the effort over the
     baseline 0.03. Same EMG noise model as :func:`gait_trial`; torque noise ``tau_noise_nm``
     (N·m, standard deviation, 5 Hz low-passed: a dynamometer's or inverse dynamics' error).
+
+    ``emg_ceiling`` the upper clip of the recorded envelope (None: none — the noise of a
+    maximal hold is then symmetric about the MVC level, as in a real recording).
 
     One window (``cycle``) per trial, numbered from ``first_cycle``; ``movement`` labels the
     action (``first_movement + index in groups``) so that the repetitions of one action are
@@ -476,6 +483,7 @@ def mvc_trials(
         offset=offset,
         qdot=np.zeros_like(q),
         movement=np.concatenate(mov).astype(np.int64),
+        emg_ceiling=emg_ceiling,
     )
 
 

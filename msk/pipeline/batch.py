@@ -163,6 +163,8 @@ SESSION_TIME_LIMIT_S = 3600.0
 #: what a session imports, imported once by the forkserver the pool's workers are forked from
 WORKER_PRELOAD = (
     "msk.pipeline",
+    "msk.pipeline.dynamometry",
+    "scipy.signal",
     "msk.personalise.scaling",
     "msk.dynamics.identification",
     "msk.strength",

@@ -13,15 +13,20 @@ rows each contributes are those the strength stage uses (:func:`msk.pipeline.str
 regression_rows`). The EMG of every trial is normalised by ONE reference per channel, computed
 from the raw recordings with the session's filters (:func:`msk.muscles.emg.mvc_peaks`): the
 MVC trials' peak (every ``role = "mvc"`` trial of the session, pooled or not) where any
-exists, else the peak over every pooled trial (``session_peak``,
-stated with its bias); ``[emg] mvc`` values win. The folder gets ``strength.json`` (per group:
-factor, intervals, status, reason, its own rows' r², the test that would identify it) and
-``strength.txt``.
+exists — when every MVC trial is pooled (its torque known), the plateau mean over its
+highest-torque second with its standard error, carried into the intervals
+(:func:`msk.strength.pooled.identify_pooled`) — else the peak over every pooled trial
+(``session_peak``, stated with its bias); ``[emg] mvc`` values win. The folder gets
+``strength.json`` (per group: factor, intervals, status, reason, its own rows' r², the test
+that would identify it) and ``strength.txt``; when the folder holds the session ``msk run``
+wrote for the same configuration, :func:`attach_to_session` adds the result to its
+``summary.json`` (``pooled_strength``) and rebuilds its report.
 """
 
 from __future__ import annotations
 
 import dataclasses
+import hashlib
 import json
 import math
 from pathlib import Path
@@ -32,7 +37,7 @@ import numpy as np
 from msk.config import SessionConfig, load_config
 from msk.exceptions import ConfigError
 
-__all__ = ["pooled_trials", "run_pooled_strength"]
+__all__ = ["attach_to_session", "pooled_summary", "pooled_trials", "run_pooled_strength"]
 
 
 def pooled_trials(cfg: SessionConfig) -> list[Any]:
@@ -82,6 +87,29 @@ def _reference(cfg: SessionConfig, trials: list[Any]) -> Any:
             values.append(v)
             sources.append(s)
     return EmgReference(tuple(used), np.asarray(values), tuple(sources))
+
+
+def _plateau_reference(cfg: SessionConfig, ref: Any, pooled: list[Any]) -> Any:
+    """When every MVC trial of the session is pooled (its torques known), each MVC-normalised
+    channel's reference becomes its plateau mean over the trial's highest-torque second, with
+    its standard error (:func:`msk.strength.pooled.session_emg_reference`); an MVC trial whose
+    torque no plate measures keeps the peak of the raw recordings (no standard error)."""
+    from msk.strength.pooled import EmgReference, session_emg_reference
+
+    mvc = [p for p in pooled if p.kind == "mvc"]
+    every = {t.name for t in cfg.trials_with_role("mvc")}
+    if not mvc or every - {p.name for p in mvc}:
+        return ref
+    plate = session_emg_reference(mvc)
+    values = np.array(ref.value, dtype=float)
+    errors = np.full(values.size, np.nan)
+    for k, (c, src) in enumerate(zip(ref.channels, ref.source)):
+        if src == "mvc" and c in plate.channels:
+            j = plate.channels.index(c)
+            if plate.source[j] == "mvc":
+                values[k] = plate.value[j]
+                errors[k] = float(np.asarray(plate.standard_error)[j])
+    return EmgReference(ref.channels, values, ref.source, errors)
 
 
 class _Rows(NamedTuple):
@@ -170,21 +198,34 @@ def run_pooled_strength(
                 envelopes=r.trial.envelopes[:, keep],
             )
         )
+    ref = _plateau_reference(cfg, ref, pooled)
     profile = identify_pooled(
         pooled, channels, params, coordinate_names=coords, reference=ref,
         window_s=cfg.strength.window_s, n_bootstrap=200, random_state=0,
     )  # fmt: skip
     groups = {g: [m for m, c in channels.items() if c == g] for g in profile.group_names}
-    protos = _protocols(model, profile, groups)
-    protos.update(_protocols(model, None, failed))
+    # every group's best isometric test (its maximal moment for an identified group, the next
+    # protocol for one that is not)
+    protos = _protocols(model, None, {**groups, **failed})
     diag = diagnose(profile)
+
+    def moment(i: int, g: str, scale: float) -> float | None:
+        p = protos.get(g)
+        if diag[i].status != "identified" or not p:
+            return None
+        return _num(scale * float(p["group_moment_nm"]))
+
     record: dict[str, Any] = {
         "config": str(cfg.path),
         "trials": profile.extra["trials"],
         "normalisation": profile.extra["normalisation"],
         "normalisation_kind": profile.extra["normalisation_kind"],
         "normalisation_bias": profile.extra.get("normalisation_bias"),
+        "reference_uncertainty": profile.extra.get("reference_uncertainty"),
         "fit_r2_all_rows": _num(profile.r2),
+        "confidence": float(profile.confidence),
+        "bounds": list(profile.bounds),
+        "mass_kg": cfg.subject.mass_kg,
         "groups": [
             {
                 "group": g,
@@ -198,6 +239,9 @@ def run_pooled_strength(
                 "r2_own_rows": _num(d.r2),
                 "own_coordinates": list(d.coordinates),
                 "protocol": protos.get(g) if d.status != "identified" else None,
+                "moment_nm": moment(i, g, profile.factors[i]),
+                "moment_ci_nm": [moment(i, g, profile.ci_low[i]), moment(i, g, profile.ci_high[i])],
+                "moment_test": _test_words(protos.get(g)) if d.status == "identified" else None,
             }
             for i, (g, d) in enumerate(zip(profile.group_names, diag))
         ],
@@ -227,6 +271,97 @@ def run_pooled_strength(
         lines.append(record["normalisation_bias"])
     (out / "strength.txt").write_text("\n".join(lines) + "\n")
     return record
+
+
+def _test_words(p: Any) -> str | None:
+    """``"knee extension at knee flexion 60°"``: where a group's maximal moment is taken."""
+    if not p:
+        return None
+    return f"{p['action']} at {p['angle_label']} {p['angle_deg']:g}°"
+
+
+def pooled_summary(record: dict[str, Any]) -> Any:
+    """The ``summary.json`` ``pooled_strength`` record
+    (:class:`msk.results.summary.PooledStrength`) of :func:`run_pooled_strength`'s record."""
+    from msk.results.summary import PooledStrength, StrengthGroup
+
+    groups = tuple(
+        StrengthGroup(
+            group=g["group"], muscles=tuple(g["muscles"]), factor=g["factor"],
+            ci_low=g["ci_bootstrap"][0], ci_high=g["ci_bootstrap"][1],
+            ci_cov_low=g["ci_jackknife_t"][0], ci_cov_high=g["ci_jackknife_t"][1],
+            f_iso_generic_n=g["f_iso_generic_n"],
+            f_iso_n=None if g["status"] != "identified" or g["factor"] is None
+            or g["f_iso_generic_n"] is None else g["factor"] * g["f_iso_generic_n"],
+            status=g["status"], reason=g["reason"], r2=g["r2_own_rows"],
+            r2_coordinates=tuple(g["own_coordinates"]), protocol=g["protocol"],
+            moment_nm=g["moment_nm"], moment_low_nm=g["moment_ci_nm"][0],
+            moment_high_nm=g["moment_ci_nm"][1], moment_test=g["moment_test"],
+        )
+        for g in record["groups"]
+    )  # fmt: skip
+    failed = tuple(
+        StrengthGroup(
+            group=g, muscles=tuple(v["muscles"]), status="not determined",
+            reason="its EMG channel failed a check: " + "; ".join(
+                f"{t}: {' '.join(w)}" for t, w in v["failed_in"].items()),
+            protocol=v["protocol"],
+        )
+        for g, v in record["failed_channels"].items()
+    )  # fmt: skip
+    return PooledStrength(
+        groups=groups, failed_channels=failed, r2=record["fit_r2_all_rows"],
+        confidence=record["confidence"], bounds=tuple(record["bounds"]),
+        method="the session's trials pooled (msk strength), one EMG normalisation",
+        trials=tuple(record["trials"]), normalisation_kind=record["normalisation_kind"],
+        normalisation_bias=record["normalisation_bias"], mass_kg=record["mass_kg"],
+    )  # fmt: skip
+
+
+def attach_to_session(folder: str | Path, record: dict[str, Any]) -> list[Path]:
+    """Add :func:`pooled_summary` of ``record`` to the ``summary.json`` of every task trial
+    ``msk run`` wrote under ``folder`` and rebuild the session's report (the strength section
+    shows it); returns the summaries rewritten — none when ``folder`` holds no ``msk run``
+    session. :class:`~msk.exceptions.ConfigError` when that session was run with another
+    configuration (its ``config.sha256``)."""
+    from msk.report import write_report
+    from msk.results.folder import read_task_trials
+    from msk.results.summary import Summary
+
+    root = Path(folder)
+    paths = (
+        [root / "summary.json"]
+        if (root / "summary.json").is_file()
+        else sorted(p / "summary.json" for p in root.iterdir() if (p / "summary.json").is_file())
+    )
+    if not paths:
+        return []
+    part = pooled_summary(record).to_dict()
+    cfg_file = Path(record["config"])
+    sha = hashlib.sha256(cfg_file.read_bytes()).hexdigest() if cfg_file.is_file() else None
+    for path in paths:
+        d = json.loads(path.read_text(encoding="utf-8"))
+        if d.get("kind") is not None or "format" not in d:
+            return []  # not an msk run session summary (e.g. a dynamometry folder)
+        theirs = (d.get("config") or {}).get("sha256")
+        if sha is not None and theirs and theirs != sha:
+            raise ConfigError(
+                f"{path}: a session of another configuration "
+                f"({(d.get('config') or {}).get('path')}), not {cfg_file}: pooled strength not "
+                "added to it"
+            )
+        d["pooled_strength"] = part
+        text = json.dumps(Summary.from_dict(d).to_dict(), indent=2, allow_nan=False)
+        path.write_text(text + "\n", encoding="utf-8")
+    parts = read_task_trials(root)
+    # every report that reads these summaries (each trial's and the session's), a printed
+    # copy rebuilt when the folder had one (never left stale)
+    if len(parts) > 1:
+        for p in parts:
+            if p.path is not None:
+                write_report(p, p.path, pdf=(p.path / "report.pdf").is_file())
+    write_report(parts[0], root, trials=parts, pdf=(root / "report.pdf").is_file())
+    return paths
 
 
 def _bias_clause(profile: Any, group: str) -> str:

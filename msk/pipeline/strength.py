@@ -41,6 +41,7 @@ def run(
     from msk.muscles.geometry import muscle_parameters
     from msk.muscles.hill import RigidTendonStateBlocks
     from msk.strength import StrengthIdentifier
+    from msk.strength.identification import envelope_window_s, gating_windows
     from msk.timeseries import FrameSparse
 
     jt = inverse_dynamics.torques
@@ -49,6 +50,16 @@ def run(
         params, loads, inverse_dynamics, emg, muscle_geometry
     )
     frames = np.flatnonzero(good)
+    # gating windows of ≥ 3 envelope correlation times that never straddle a gap, when the
+    # identifier's equal chunks of a few solvable frames would be shorter (one stance on the
+    # plates): the runs too short for one (swing between plates) are left out
+    t = np.asarray(kinematics.time, dtype=float)
+    rate = (t.size - 1) / float(t[-1] - t[0]) if t.size > 1 else 1.0
+    keep, windows = gating_windows(frames, rate, envelope_window_s(inputs.cfg.emg.lowpass_hz))
+    if windows is not None:
+        good = good.copy()
+        good[frames[~keep]] = False
+        frames = frames[keep]
     # the Hill state of the frames used, computed block by block as the identifier needs it
     # (its ten (N, M) arrays are never held whole); the compact Jacobian of those frames only
     state = RigidTendonStateBlocks(
@@ -75,6 +86,7 @@ def run(
             state,
             coordinate_names=jt.coordinate_names,
             frames=frames,
+            windows=windows,
         )
     except IdentificationError as exc:
         # the measured frames do not determine any group (e.g. no window passes the

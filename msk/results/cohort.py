@@ -58,6 +58,7 @@ COHORT_COLUMNS: tuple[str, ...] = (
     "strength_groups_at_bound",
     "strength_groups_not_determined",
     "strength_group_status",
+    "pooled_strength_group_status",
     "knee_contact_rms_bw",
     "knee_contact_icc",
     *(f"{p}_{side}" for side in ("left", "right") for p in _GAIT_COLUMNS),
@@ -115,6 +116,11 @@ def cohort_row(
         ):
             row[col] = sum(s == word for _, s in statuses)
         row["strength_group_status"] = "; ".join(f"{n}: {s}" for n, s in statuses)
+    ps = s.pooled_strength
+    if ps:
+        row["pooled_strength_group_status"] = "; ".join(
+            f"{g.group}: {ps.group_status(g)}" for g in (*ps.groups, *ps.failed_channels)
+        )
     comp = s.comparison and (
         s.comparison.knee_contact_subject_specific or s.comparison.knee_contact_generic
     )
@@ -259,6 +265,11 @@ def compare_sessions(folders: Sequence[str | Path]) -> list[dict[str, Any]]:
                     "x generic",
                     st.group_status(grp),
                 )
+        ps = s.pooled_strength
+        if ps:  # the session's trials pooled (msk strength)
+            for grp in ps.groups:
+                add(sess, "pooled strength factor", grp.group, 1.0, grp.factor, "x generic",
+                    ps.group_status(grp))  # fmt: skip
         comp = s.comparison
         for key, unit, pair in (
             ("residual_force_rms_n", "N", comp.residual_force_rms_n if comp else None),

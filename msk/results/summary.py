@@ -76,6 +76,7 @@ __all__ = [
     "NotAvailable",
     "Optimization",
     "PlateAssignment",
+    "PooledStrength",
     "Quality",
     "Segment",
     "SpatiotemporalSide",
@@ -564,6 +565,13 @@ class StrengthGroup(_Record):
     #: the test that would identify a group not identified
     #: (:meth:`msk.strength.TestProtocol.as_dict`)
     protocol: Mapping[str, Any] | None = None
+    #: the group's maximal isometric moment (N·m; identified factor × the generic model's, at
+    #: the posture of ``moment_test``) and its interval (the factor's bootstrap interval ×)
+    moment_nm: float | None = None
+    moment_low_nm: float | None = None
+    moment_high_nm: float | None = None
+    #: the action and posture of ``moment_nm`` (:attr:`msk.strength.TestProtocol.text`'s test)
+    moment_test: str | None = None
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -637,6 +645,21 @@ class Strength(_Record):
         from msk.status import group_status
 
         return group_status(group.to_dict(), {"bounds": self.bounds, "r2": self.r2}).value
+
+
+@dataclass(frozen=True, kw_only=True)
+class PooledStrength(Strength):
+    """``pooled_strength``: the session's trials pooled into one strength identification
+    (:func:`msk.strength.pooled.identify_pooled`, ``msk strength``): the fields of
+    :class:`Strength` (``r2`` the fit r² of all rows; each group judged on its own rows) and
+    the trials pooled, the EMG normalisation (``mvc``, ``session_peak``) and, for a
+    session-peak normalisation, the bias it implies."""
+
+    trials: tuple[str, ...] = ()
+    normalisation_kind: str | None = None
+    normalisation_bias: str | None = None
+    #: the mass (kg) the moments are divided by for N·m/kg
+    mass_kg: float | None = None
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -846,6 +869,8 @@ class Summary(_Record):
     #: (:mod:`msk.dynamics.plate_surface`)
     plates: JsonObject | None = None
     strength: Strength | None = None
+    #: the session's trials pooled (``msk strength CONFIG --out`` a folder of ``msk run``)
+    pooled_strength: PooledStrength | None = None
     comparison: Comparison | None = None
     knee_loads: KneeLoads | None = None
     optimization: Optimization | None = None

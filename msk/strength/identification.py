@@ -146,7 +146,9 @@ __all__ = [
     "STRENGTH_FACTOR_BOUNDS",
     "StrengthIdentifier",
     "StrengthProfile",
+    "envelope_window_s",
     "expand_groups",
+    "gating_windows",
     "group_contributions",
     "net_contribution",
     "with_strength",
@@ -502,6 +504,45 @@ def _windows(windows: ArrayLike | None, n: int, n_default: int) -> NDArray[np.in
         raise ShapeMismatchError(f"windows must be one label per frame ({n},), got {w.shape}")
     _, inv = np.unique(w, return_inverse=True)
     return inv.astype(np.int64)
+
+
+def envelope_window_s(lowpass_hz: float) -> float:
+    """The shortest gating window (s): three correlation times τ = 1/(π f_c) of an EMG
+    envelope zero-lag low-passed at ``lowpass_hz`` — 0.16 s at 6 Hz. τ is the integral of
+    the envelope's autocorrelation, ∫₀^∞ ρ(t) dt (a first-order low-pass: 1/(2π f_c); the
+    forward–backward Butterworth of orders 2 and 4 at 6 Hz on white noise, measured:
+    0.049–0.053 s); the envelope decorrelates over about 2τ, so a window of 3τ holds only
+    ≈ 1.5 independent envelope values and a shorter one less: its correlation of C_g with τ
+    (the gate) then measures the filter, not the muscle."""
+    return 3.0 / (np.pi * float(lowpass_hz))
+
+
+def gating_windows(
+    frames: ArrayLike, rate_hz: float, min_window_s: float, n_default: int = 10
+) -> tuple[NDArray[np.bool_], NDArray[np.int64] | None]:
+    """The gating windows of a trial's usable ``frames`` (sorted frame indices at
+    ``rate_hz``) when :class:`StrengthIdentifier`'s ``n_default`` equal chunks would be
+    shorter than ``min_window_s`` (:func:`envelope_window_s`): each contiguous run of frames
+    (a stance on a plate, a swing) is cut into ⌊length / min⌋ equal windows of at least
+    ``min_window_s``, a window never straddles a gap in time (its correlation would join
+    unrelated instants), and a run shorter than one window (a few frames of swing between
+    plates) gives none — its frames are left out (``keep`` False). Returns ``(keep,
+    labels)``, labels for the kept frames; ``(all True, None)`` when the equal chunks are
+    long enough (the identifier's default stands)."""
+    f = np.asarray(frames, dtype=np.int64)
+    keep = np.ones(f.size, dtype=bool)
+    min_len = int(np.ceil(min_window_s * rate_hz - 1e-9))
+    if f.size == 0 or f.size // max(n_default, 1) >= min_len:
+        return keep, None
+    labels = np.full(f.size, -1, dtype=np.int64)
+    k = 0
+    for run in np.split(np.arange(f.size), np.flatnonzero(np.diff(f) > 1) + 1):
+        n_w = run.size // max(min_len, 1)
+        if n_w:
+            labels[run] = k + np.arange(run.size) * n_w // run.size
+            k += n_w
+    keep = labels >= 0
+    return keep, labels[keep]
 
 
 def _movement_of_windows(

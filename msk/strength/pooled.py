@@ -30,6 +30,29 @@ gives its own labels (cycles); an MVC
 trial is one window (one repetition) unless labelled. ``movement`` names what a trial's windows
 repeat (for the instrument and the stratified jackknife of the identifier).
 
+**The MVC reference is a measurement.** In each MVC trial the plateau is the window of
+``plateau_s`` seconds (default 1 s) where the joint torque's magnitude is highest, and the
+channel's level is its mean envelope over that window — the usual definition of the MVC
+amplitude (Konrad 2005, *The ABC of EMG*, Noraxon, on MVC normalisation: the mean amplitude
+of the highest 500–1000 ms of the plateau; Burden 2010, J Electromyogr Kinesiol 20:1023) —
+with the window chosen on the torque: choosing it on the EMG (or taking the single highest
+sample) selects the envelope's noise and biases every reference high (≈ +3 % with a 10 %
+envelope noise). E_c is the highest level over the MVC trials. Its standard error comes
+from the plateau's own variability: with x_t the envelope's n samples in the window,
+γ_k their autocovariances and Γ_m = γ_2m + γ_2m+1 summed while positive (Geyer 1992, Stat
+Sci 7:473, the initial positive sequence estimator)::
+
+    SE(E_c)² = (−γ_0 + 2 Σ_m Γ_m) / n
+
+One reference is shared by every row of the session, so the window jackknife never resamples
+it: its error is added to each group's variance by the delta method with a one-standard-error
+secant — the identification is repeated with E_c × (1 + SE_c/E_c), giving Δs_g,c, and::
+
+    Var(ŝ_g) = Var_jackknife(ŝ_g) + Σ_c Δs_g,c²
+
+(both intervals are widened by the same t-quantile). A reference given in the configuration
+or taken as the session's peak has no such term (``reference_uncertainty`` in ``extra``).
+
 **Per group.** Statuses are judged on each group's own rows (:func:`msk.strength.diagnose`):
 the fit r² of the coordinates its muscles cross, not the session-wide mean.
 """
@@ -54,6 +77,7 @@ __all__ = [
     "EmgReference",
     "PooledTrial",
     "identify_pooled",
+    "mvc_plateau",
     "session_emg_reference",
 ]
 
@@ -106,17 +130,69 @@ class PooledTrial:
 class EmgReference:
     """The session's EMG normalisation: per channel the reference ``value`` (channel units) and
     its ``source`` (``"mvc"`` — the MVC trials' peak; ``"given"`` — a value of the
-    configuration; ``"session_peak"`` — the peak over every pooled trial, no MVC recorded)."""
+    configuration; ``"session_peak"`` — the peak over every pooled trial, no MVC recorded);
+    ``standard_error`` (channel units) of an MVC plateau's mean (:func:`mvc_plateau`), NaN
+    where none is known (None: none at all)."""
 
     channels: tuple[str, ...]
     value: Array
     source: tuple[str, ...]
+    standard_error: Array | None = None
+
+    def relative_error(self, channel: str) -> float:
+        """SE/E of ``channel``'s reference (NaN when unknown)."""
+        if self.standard_error is None:
+            return float("nan")
+        k = self.channels.index(channel)
+        return float(self.standard_error[k] / self.value[k])
 
     def as_dict(self) -> dict[str, Any]:
         return {
-            c: {"value": float(v), "source": s}
+            c: {"value": float(v), "source": s, "relative_error": _finite(self.relative_error(c))}
             for c, v, s in zip(self.channels, self.value, self.source)
         }
+
+
+def _finite(x: float) -> float | None:
+    return x if np.isfinite(x) else None
+
+
+def mvc_plateau(
+    envelopes: Array, effort: Array, rate_hz: float, window_s: float = 1.0
+) -> tuple[Array, Array]:
+    """The MVC levels of an MVC trial's envelopes ``(N, K)`` and their standard errors
+    (module docstring): the mean of each channel over the ``window_s`` seconds where the
+    ``effort`` ``(N,)`` (the joint torque's magnitude) is highest, and SE² = (−γ_0 + 2 Σ Γ_m)/n
+    of its n samples (Geyer 1992, initial positive sequence). The window is chosen on the
+    torque, not on the EMG: choosing it on the EMG would pick its noise's highest second and
+    bias every reference high. A trial shorter than the window gives each channel's highest
+    sample and NaN."""
+    x = np.asarray(envelopes, dtype=float)
+    tq = np.nan_to_num(np.asarray(effort, dtype=float), nan=-np.inf)
+    n = round(window_s * rate_hz)
+    k_ch = x.shape[1]
+    if n < 4 or x.shape[0] < n:
+        with np.errstate(invalid="ignore"):
+            return np.nanmax(x, axis=0), np.full(k_ch, np.nan)
+    c = np.concatenate([[0.0], np.cumsum(np.where(np.isfinite(tq), tq, -1e12))])
+    i = int(np.argmax(c[n:] - c[:-n]))
+    w = x[i : i + n]
+    levels, errors = np.full(k_ch, np.nan), np.full(k_ch, np.nan)
+    for j in range(k_ch):
+        col = w[:, j][np.isfinite(w[:, j])]
+        if col.size < 4:
+            continue
+        d = col - col.mean()
+        gamma = np.correlate(d, d, mode="full")[col.size - 1 :] / col.size
+        var = -gamma[0]
+        for m in range(col.size // 2):
+            pair = gamma[2 * m] + (gamma[2 * m + 1] if 2 * m + 1 < col.size else 0.0)
+            if pair <= 0:
+                break
+            var += 2.0 * pair
+        levels[j] = col.mean()
+        errors[j] = np.sqrt(max(var, gamma[0]) / col.size)
+    return levels, errors
 
 
 def _channel_peaks(trials: Sequence[PooledTrial], edge_s: float) -> dict[str, float]:
@@ -133,26 +209,49 @@ def _channel_peaks(trials: Sequence[PooledTrial], edge_s: float) -> dict[str, fl
     return peaks
 
 
+def _channel_plateaus(
+    trials: Sequence[PooledTrial], edge_s: float, plateau_s: float
+) -> dict[str, tuple[float, float]]:
+    best: dict[str, tuple[float, float]] = {}
+    for tr in trials:
+        env = np.asarray(tr.envelopes, dtype=float)
+        k = min(round(edge_s * tr.rate_hz), max((env.shape[0] - 1) // 2, 0))
+        sl = slice(k, env.shape[0] - k)
+        effort = np.linalg.norm(np.nan_to_num(np.asarray(tr.tau, dtype=float)), axis=1)
+        levels, errors = mvc_plateau(env[sl], effort[sl], tr.rate_hz, plateau_s)
+        for j, c in enumerate(tr.channels):
+            if np.isfinite(levels[j]) and levels[j] > best.get(c, (0.0, 0.0))[0]:
+                best[c] = (float(levels[j]), float(errors[j]))
+    return best
+
+
 def session_emg_reference(
     trials: Sequence[PooledTrial],
     *,
     given: Mapping[str, float] | None = None,
     edge_s: float = 0.0,
+    plateau_s: float | None = 1.0,
 ) -> EmgReference:
-    """One reference per channel for the whole session (module docstring): the peak envelope
-    over the MVC trials where any exist, else over every trial (``session_peak``); ``given``
-    values (channel units) win. ``edge_s`` seconds at each end of every trial are ignored
-    (filter edge transients)."""
+    """One reference per channel for the whole session (module docstring): per channel the
+    highest of the MVC trials' plateau means (each over the ``plateau_s`` seconds of its
+    highest torque), with its standard error (:func:`mvc_plateau`; None: their highest
+    sample, no error) where any exist, else the peak over every trial
+    (``session_peak``); ``given`` values (channel units) win. ``edge_s`` seconds at each end
+    of every trial are ignored (filter edge transients)."""
     channels = list(dict.fromkeys(c for tr in trials for c in tr.channels))
     mvc = [tr for tr in trials if tr.kind == "mvc"]
-    from_mvc = _channel_peaks(mvc, edge_s)
+    if plateau_s is None:
+        from_mvc = {c: (v, float("nan")) for c, v in _channel_peaks(mvc, edge_s).items()}
+    else:
+        from_mvc = _channel_plateaus(mvc, edge_s, plateau_s)
     from_all = _channel_peaks(trials, edge_s)
-    values, sources = [], []
+    values, sources, errors = [], [], []
     for c in channels:
+        se = float("nan")
         if given and c in given:
             v, s = float(given[c]), "given"
-        elif c in from_mvc and from_mvc[c] > 0:
-            v, s = from_mvc[c], "mvc"
+        elif c in from_mvc and from_mvc[c][0] > 0:
+            (v, se), s = from_mvc[c], "mvc"
         else:
             v, s = from_all.get(c, float("nan")), "session_peak"
         if not (np.isfinite(v) and v > 0):
@@ -161,7 +260,8 @@ def session_emg_reference(
             )
         values.append(v)
         sources.append(s)
-    return EmgReference(tuple(channels), np.asarray(values), tuple(sources))
+        errors.append(se)
+    return EmgReference(tuple(channels), np.asarray(values), tuple(sources), np.asarray(errors))
 
 
 def _default_windows(
@@ -216,6 +316,8 @@ def identify_pooled(
     reference: EmgReference | None = None,
     window_s: float = 0.5,
     edge_s: float = 0.0,
+    plateau_s: float | None = 1.0,
+    reference_uncertainty: bool = True,
     **identifier: Any,
 ) -> StrengthProfile:
     """Strength factors of the EMG groups from every trial of a session together (module
@@ -226,10 +328,14 @@ def identify_pooled(
     (default: :func:`msk.muscles.activation.first_order_activation`, Hayashibe et al. 2011,
     Eq. 8); ``mvc`` given references (channel units); ``reference`` the session's normalisation
     computed by the caller (e.g. from the raw recordings, :func:`msk.muscles.emg.mvc_peaks`),
-    else :func:`session_emg_reference` of ``trials``; ``identifier`` keyword arguments of
-    :class:`msk.strength.StrengthIdentifier` (``n_bootstrap``, ``instrument``, …).
+    else :func:`session_emg_reference` of ``trials`` (MVC level over ``plateau_s``);
+    ``reference_uncertainty`` adds the references' standard errors to the intervals (module
+    docstring); ``identifier`` keyword arguments of :class:`msk.strength.StrengthIdentifier`
+    (``n_bootstrap``, ``instrument``, …).
 
-    The returned profile's ``extra`` holds ``normalisation`` (per channel: reference and source),
+    The returned profile's ``extra`` holds ``normalisation`` (per channel: reference, source
+    and relative error), ``reference_uncertainty`` (per group: the standard deviation the
+    references add to its factor),
     ``normalisation_kind`` (``"mvc"`` or ``"session_peak"``), ``trials`` (per trial: kind, rows
     and windows) and the bias statement of a session-peak normalisation.
     """
@@ -250,14 +356,16 @@ def identify_pooled(
             raise IdentificationError(f"identify_pooled: unknown muscle {m!r}")
         groups.setdefault(str(c), []).append(m)
     ref = (
-        session_emg_reference(trials, given=mvc, edge_s=edge_s) if reference is None else reference
+        session_emg_reference(trials, given=mvc, edge_s=edge_s, plateau_s=plateau_s)
+        if reference is None
+        else reference
     )
     absent = sorted(set(groups) - set(ref.channels))
     if absent:
         raise IdentificationError(f"the EMG reference has no value for channel(s) {absent}")
     n_mus = len(params.names)
     n_coords = len(coordinate_names)
-    acts, jacs, lens, vels, taus, wins, movs = [], [], [], [], [], [], []
+    jacs, lens, vels, taus, wins, movs = [], [], [], [], [], []
     record: dict[str, Any] = {}
     offset = 0
     movement_names: list[str] = []
@@ -275,21 +383,11 @@ def identify_pooled(
         used = tr.used()
         if used.size == 0:
             raise IdentificationError(f"trial {tr.name!r}: no usable frame")
-        e = np.empty((env.shape[0], len(groups)))
-        for k, c in enumerate(groups):
-            e[:, k] = env[:, tr.channels.index(c)] / ref.value[ref.channels.index(c)]
-        e = np.clip(np.nan_to_num(e, nan=0.0), 0.0, 1.0)
-        a_ch = np.asarray(activation(e, float(tr.rate_hz)), dtype=float)[used]
-        a = np.zeros((used.size, n_mus))
-        for k, members in enumerate(groups.values()):
-            for m in members:
-                a[:, params.names.index(m)] = a_ch[:, k]
         tau = np.asarray(tr.tau, dtype=float)
         if tau.shape != (tr.n_frames, n_coords):
             raise ShapeMismatchError(
                 f"trial {tr.name!r}: tau must be (N, {n_coords}), got {tau.shape}"
             )
-        acts.append(a)
         jacs.append(_jacobian_rows(tr.jacobian, used))
         lens.append(np.asarray(tr.lengths, dtype=float)[used])
         vels.append(np.asarray(tr.velocities, dtype=float)[used])
@@ -307,6 +405,25 @@ def identify_pooled(
             "windows": int(w.max()) + 1,
             "movement": mv,
         }
+    ref_of = np.array([ref.value[ref.channels.index(c)] for c in groups])
+
+    def activations(reference: Array) -> Array:
+        """Every trial's muscle activations ``(rows, M)`` with the channels normalised by
+        ``reference`` (in ``groups`` order). Only the negative undershoot is clipped: a
+        hold's envelope fluctuates about its plateau mean, above 1 half of the time."""
+        out = []
+        for tr in trials:
+            env = np.asarray(tr.envelopes, dtype=float)
+            cols = [tr.channels.index(c) for c in groups]
+            e = np.clip(np.nan_to_num(env[:, cols] / reference[None], nan=0.0), 0.0, None)
+            a_ch = np.asarray(activation(e, float(tr.rate_hz)), dtype=float)[tr.used()]
+            a = np.zeros((a_ch.shape[0], n_mus))
+            for k, members in enumerate(groups.values()):
+                for m in members:
+                    a[:, params.names.index(m)] = a_ch[:, k]
+            out.append(a)
+        return np.concatenate(out)
+
     lengths = np.concatenate(lens)
     state = RigidTendonStateBlocks(params, lengths, np.concatenate(vels))
     est = StrengthIdentifier({g: tuple(v) for g, v in groups.items()}, params, **identifier)
@@ -317,18 +434,27 @@ def identify_pooled(
     per_mov = [np.unique(labels[mov == k]).size for k in range(len(movement_names))]
     iv = identifier.get("instrument", "none") == "phase_average"
     stratified = len(movement_names) > 1 and (iv or min(per_mov) >= 2)
-    est.fit(
-        _concatenate_jacobians(jacs),
-        np.concatenate(acts),
-        np.concatenate(taus),
-        state,
-        windows=labels,
-        coordinate_names=coordinate_names,
-        movements=mov if stratified else None,
-    )
+    jac_all, tau_all = _concatenate_jacobians(jacs), np.concatenate(taus)
+
+    def fit(est: StrengthIdentifier, reference: Array) -> StrengthProfile:
+        est.fit(
+            jac_all, activations(reference), tau_all, state, windows=labels,
+            coordinate_names=coordinate_names, movements=mov if stratified else None,
+        )  # fmt: skip
+        return est.profile_
+
+    profile = fit(est, ref_of)
+    rel = np.array([ref.relative_error(c) for c in groups])
+    if reference_uncertainty and np.isfinite(rel).any():
+        profile = _with_reference_error(
+            profile, rel, lambda r: fit(
+                StrengthIdentifier({g: tuple(v) for g, v in groups.items()}, params,
+                                   **(identifier | {"n_bootstrap": 0})), r),
+            ref_of, tuple(groups),
+        )  # fmt: skip
     sources_used = [s for c, s in zip(ref.channels, ref.source) if c in groups]
     kind = "session_peak" if "session_peak" in sources_used else "mvc"
-    extra = dict(est.profile_.extra)
+    extra = dict(profile.extra)
     extra.update(
         normalisation=ref.as_dict(),
         normalisation_kind=kind,
@@ -344,4 +470,40 @@ def identify_pooled(
             "high and those groups' factors too LOW by about the ratio of the session peak to "
             "the true MVC"
         )
-    return dataclasses.replace(est.profile_, extra=extra)
+    return dataclasses.replace(profile, extra=extra)
+
+
+def _with_reference_error(
+    profile: StrengthProfile,
+    rel: Array,
+    refit: Callable[[Array], StrengthProfile],
+    reference: Array,
+    channels: tuple[str, ...],
+) -> StrengthProfile:
+    """``profile`` with each group's variance grown by Σ_c Δs_g,c², Δs_g,c the change of its
+    factor when channel c's reference grows by one standard error (module docstring)."""
+    f = profile.factors
+    var_ref = np.zeros(f.size)
+    for k in np.flatnonzero(np.isfinite(rel) & (rel > 0)):
+        r = reference.copy()
+        r[k] *= 1.0 + rel[k]
+        var_ref += (refit(r).factors - f) ** 2
+    sd_ref = np.sqrt(var_ref)
+    se = profile.std_error
+    with np.errstate(invalid="ignore", divide="ignore"):
+        tq = np.where(se > 0, (profile.ci_cov_high - f) / se, np.nan)
+    lo, hi = profile.bounds
+    grow = tq * sd_ref
+    ci_low = np.maximum(f - np.hypot(f - profile.ci_low, grow), lo)
+    ci_high = np.minimum(f + np.hypot(profile.ci_high - f, grow), hi)
+    se_tot = np.hypot(se, sd_ref)
+    extra = dict(profile.extra)
+    extra["reference_uncertainty"] = {
+        "relative_error": {c: _finite(float(x)) for c, x in zip(channels, rel)},
+        "factor_sd": {g: float(s) for g, s in zip(profile.group_names, sd_ref)},
+        "method": "delta method, one-standard-error secant of each MVC reference",
+    }
+    return dataclasses.replace(
+        profile, std_error=se_tot, ci_cov_low=f - tq * se_tot, ci_cov_high=f + tq * se_tot,
+        ci_low=ci_low, ci_high=ci_high, extra=extra,
+    )  # fmt: skip

@@ -60,9 +60,13 @@ def _session(n: int = 300, seed: int = 0) -> Any:
     )  # fmt: skip
 
 
+#: the stage reads the session's EMG envelope cut-off (its gating windows' shortest length)
+INPUTS = SimpleNamespace(cfg=SimpleNamespace(emg=SimpleNamespace(lowpass_hz=6.0)))
+
+
 def _run(s: Any) -> Any:
     return strength.run(
-        SimpleNamespace(), s.model, s.kinematics, s.loads, s.inverse_dynamics, s.emg, s.geometry
+        INPUTS, s.model, s.kinematics, s.loads, s.inverse_dynamics, s.emg, s.geometry
     )
 
 
@@ -91,7 +95,7 @@ def test_a_group_whose_leg_is_unbalanced_leaves_the_frame_out() -> None:
         activation=np.column_stack([s.emg.activation, s.emg.activation[:, 1]]),
     )  # fmt: skip
     out = strength.run(
-        SimpleNamespace(), s.model, s.kinematics, s.loads, s.inverse_dynamics, left_hams,
+        INPUTS, s.model, s.kinematics, s.loads, s.inverse_dynamics, left_hams,
         s.geometry,
     )  # fmt: skip
     assert out.t0 == s.kinematics.time[np.flatnonzero(~s.off)[0]]

@@ -225,3 +225,25 @@ def test_the_kinematics_say_the_pelvis_frame_of_the_angles():
     assert "Pelvis angles in the pelvis frame of Plug-in Gait" in kin and "+3.2°" in kin
     assert "Davis RB" in html  # cited, in the references
     assert "pelvis frame of Plug-in Gait" not in render_html(_walk(), figures={})
+
+
+def test_strength_section_shows_the_pooled_groups_identified_first_and_never_a_bound():
+    """The session's pooled strength (summary ``pooled_strength``): the identified group with
+    its moment (N·m, N·m/kg over the subject's mass) and factor interval; each other group
+    with its reason and the test that would determine it, and no moment or F_iso; a group on
+    a bound written "identified" is listed as at bound, not in the identified table."""
+    from msk.pipeline.pooled_strength import pooled_summary
+    from tests.pipeline.test_pooled_strength import _record
+
+    ps = pooled_summary(_record()).to_dict()
+    html = render_html(_walk(pooled_strength=ps), figures={})
+    sec = html.split('<section id="strength">')[1].split("</section>")[0]
+    table, rest = sec.split("Not identified: why")
+    assert "knee_extensors" in table and "210 N·m" in table and "3.00 N·m/kg" in table
+    assert "1.20 × [1.05–1.35]" in table
+    assert "plantar_flexors" not in table and "99 N·m" not in sec
+    assert "<b>plantar_flexors</b> (at bound)" in rest
+    assert "<b>dorsiflexors</b> (not determined): dorsiflexors: reason in plain words" in rest
+    assert "isometric MVC of ankle dorsiflexion" in rest
+    assert "<b>hamstrings</b> (not determined): its EMG channel failed a check" in rest
+    assert "1 of 4 muscle groups identified" in sec

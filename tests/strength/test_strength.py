@@ -480,3 +480,28 @@ def test_movements_must_each_have_three_windows_for_the_instrument(leg):
         idf.fit(tr.jacobian, a, tr.tau, s, windows=tr.cycle, movements=split)
     with pytest.raises(ShapeMismatchError, match="movements"):
         idf.fit(tr.jacobian, a, tr.tau, s, windows=tr.cycle, movements=mov[:5])
+
+
+def test_gating_windows_follow_the_solvable_runs_when_equal_chunks_are_too_short():
+    """UNIPD Walking1's pattern (60 Hz, envelope low-passed at 6 Hz: windows ≥ 3/(π·6) s =
+    10 frames): 51 solvable frames in runs of 5 (swing), 35 (the stance on the plate), 4 and
+    7 (swing). Ten equal chunks would be 5 frames, straddling the gaps; the runs give the
+    stance three windows of ≥ 10 frames inside it and leave the swing bits out. A trial
+    whose equal chunks are long enough keeps the identifier's default."""
+    from msk.strength.identification import envelope_window_s, gating_windows
+
+    assert envelope_window_s(6.0) == pytest.approx(0.159, abs=1e-3)
+    frames = np.concatenate(
+        [np.arange(131, 136), np.arange(147, 182), np.arange(193, 197), np.arange(206, 213)]
+    )
+    keep, labels = gating_windows(frames, 60.0, envelope_window_s(6.0))
+    assert labels is not None
+    np.testing.assert_array_equal(frames[keep], np.arange(147, 182))
+    assert labels.max() + 1 == 3
+    counts = np.bincount(labels)
+    assert counts.min() >= 10 and counts.sum() == 35
+    # each window one contiguous piece of the stance
+    for w in range(3):
+        assert np.all(np.diff(frames[keep][labels == w]) == 1)
+    keep2, labels2 = gating_windows(np.arange(600), 60.0, envelope_window_s(6.0))
+    assert labels2 is None and keep2.all()

@@ -13,7 +13,7 @@ from markupsafe import Markup
 
 from msk.report.format import STATUS_COLOURS, finite, group_statuses, num, or_, status_html
 from msk.report.sections.base import ReportContext, Section
-from msk.results.summary import Strength, StrengthGroup
+from msk.results.summary import PooledStrength, Strength, StrengthGroup
 from msk.status import STRENGTH_R2_MIN
 
 __all__ = ["LITERATURE_FACTOR_RANGE", "StrengthSection"]
@@ -94,6 +94,59 @@ def _joint_strength(st: Strength) -> dict[str, Any] | None:
     }
 
 
+def _pooled(ps: PooledStrength) -> dict[str, Any]:
+    """The session's pooled strength for a clinician: identified groups first (maximal
+    moment N·m and N·m/kg, factor vs generic with its interval), then each group not
+    identified with its reason and the test that would determine it — no estimated F_iso or
+    moment for those."""
+    status = group_statuses(ps)
+    mass = ps.mass_kg
+    pct = round(100 * or_(ps.confidence, 0.95))
+    rows = []
+    for g, word in zip(ps.groups, status):
+        if word != "identified":
+            continue
+        mom = num(g.moment_nm, ".0f", "N·m")
+        if finite(g.moment_low_nm) and finite(g.moment_high_nm):
+            mom += f" [{num(g.moment_low_nm, '.0f')}–{num(g.moment_high_nm, '.0f')}]"
+        per_kg = "—"
+        if mass and finite(mass) and mass > 0 and finite(g.moment_nm):
+            per_kg = num(or_(g.moment_nm, np.nan) / mass, ".2f", "N·m/kg")
+            if finite(g.moment_low_nm) and finite(g.moment_high_nm):
+                lo, hi = or_(g.moment_low_nm, np.nan) / mass, or_(g.moment_high_nm, np.nan) / mass
+                per_kg += f" [{lo:.2f}–{hi:.2f}]"
+        rows.append(
+            [
+                g.group,
+                ", ".join(g.muscles),
+                or_(g.moment_test, "—"),
+                mom,
+                per_kg,
+                f"{num(g.factor, '.2f', '×')} [{num(g.ci_low, '.2f')}–{num(g.ci_high, '.2f')}]",
+            ]
+        )
+    others = [(g, w) for g, w in zip(ps.groups, status) if w != "identified"]
+    others += [(g, "not determined") for g in ps.failed_channels]
+    return {
+        "rows": rows,
+        "head": [
+            "group (EMG)",
+            "muscles",
+            "maximal isometric test",
+            f"moment [{pct} % CI]",
+            "per body mass",
+            f"factor vs generic [{pct} % CI]",
+        ],
+        "next_tests": _next_tests([g for g, _ in others], [w for _, w in others]),
+        "trials": ", ".join(ps.trials),
+        "normalisation": or_(ps.normalisation_kind, "—"),
+        "bias": ps.normalisation_bias,
+        "n": len(status) + len(ps.failed_channels),
+        "n_identified": len(rows),
+        "mass": num(mass, ".1f", "kg"),
+    }
+
+
 class StrengthSection(Section):
     key = "strength"
     title = "Muscle strength"
@@ -104,10 +157,12 @@ class StrengthSection(Section):
             return None
         res = ctx.res
         st = res.summary.strength
+        ps = res.summary.pooled_strength
+        pooled = None if ps is None else _pooled(ps)
         na = [i for i in res.summary.not_available or () if i.stage in
               ("strength_identification", "emg")][:1]  # fmt: skip
         if not st:
-            return {"st": None, "na": na}
+            return {"st": None, "na": na, "pooled": pooled}
         side = or_(res.summary.subject.side, "right")
         other = "right" if side == "left" else "left"
         status = group_statuses(st)
@@ -190,4 +245,5 @@ class StrengthSection(Section):
             "other": other,
             "method": st.method,
             "joint": _joint_strength(st),
+            "pooled": pooled,
         }
