@@ -219,6 +219,9 @@ class LiveData:
     jac_at: tuple[NDArray[np.intp], NDArray[np.intp]] = field(
         default_factory=lambda: (np.zeros(0, dtype=np.intp), np.zeros(0, dtype=np.intp))
     )
+    geometry: Any = None
+    tendon: Any = None
+    f_active: NDArray[np.float64] = field(default_factory=lambda: np.zeros(0))
     plate_owner: NDArray[np.intp] = field(default_factory=lambda: np.zeros(0, dtype=np.intp))
     history: NDArray[np.float64] = field(default_factory=lambda: np.zeros((3, 0)))
     start: NDArray[np.float64] = field(default_factory=lambda: np.zeros(0))
@@ -307,6 +310,8 @@ def live_data(lm: LiveModel, start: NDArray[np.float64] | None = None) -> LiveDa
     from msk.contact.knee import FrameKneeContact
     from msk.dynamics.inverse import FrameInverseDynamics
     from msk.kinematics.ik import FrameIK
+    from msk.muscles.geometry import FrameGeometry
+    from msk.muscles.hill import RigidTendonFrame
     from msk.signal import CausalLowpass
 
     n_c, n_f = lm.n_coords, len(lm.feet)
@@ -324,6 +329,12 @@ def live_data(lm: LiveModel, start: NDArray[np.float64] | None = None) -> LiveDa
         jacobian=np.zeros((lm.actuated.size, len(lm.muscle_names))).T,
         jac_keep=keep,
         jac_at=(mus[keep], place[coord[keep]]),
+        # wrap-free paths: the one-frame evaluator (else GeometryPlan.evaluate per frame)
+        geometry=None
+        if lm.plan.wraps
+        else FrameGeometry(lm.plan, (knee,) if knee is not None else ()),
+        tendon=RigidTendonFrame(lm.params),
+        f_active=np.empty(len(lm.muscle_names)),
         ik=FrameIK(
             lm.model,
             lm.labels,
@@ -402,10 +413,15 @@ def _assign_plates(lm: LiveModel, ld: LiveData, frame: LiveInput) -> None:
         k = fixed[p] if p < len(fixed) else -1
         if k < 0:
             if feet is None:
-                pin.forwardKinematics(
-                    lm.model.pin_model, ld.pin_data, ld.ik.problem.coupling.q(ld.theta)
-                )
-                feet = np.array([ld.pin_data.oMi[int(j)].translation for j in lm.foot_joints])
+                prob = ld.ik.problem
+                if prob._at is ld.theta:  # the IK's last placements are those of θ
+                    omi = prob.data.oMi.tolist()
+                else:
+                    pin.forwardKinematics(
+                        lm.model.pin_model, ld.pin_data, prob.coupling.q(ld.theta)
+                    )
+                    omi = ld.pin_data.oMi.tolist()
+                feet = np.array([omi[j].translation for j in lm.foot_joints.tolist()])
             (f0, f1, f2), (m0, m1, m2) = f[p].tolist(), m[p].tolist()
             s2 = f0 * f0 + f1 * f1 + f2 * f2
             p0 = ((f1 * m2 - f2 * m1) / s2, (f2 * m0 - f0 * m2) / s2, (f0 * m1 - f1 * m0) / s2)
@@ -422,7 +438,6 @@ def _assign_plates(lm: LiveModel, ld: LiveData, frame: LiveInput) -> None:
 def live_step(lm: LiveModel, ld: LiveData, frame: LiveInput) -> LiveFrame:
     """One frame through the chain (module docstring); ``ld`` carries the states."""
     import msk.optimization as o
-    from msk.muscles.hill import rigid_tendon_state
 
     clock = _time.perf_counter
     stage = np.empty(len(STAGES))
@@ -469,25 +484,31 @@ def live_step(lm: LiveModel, ld: LiveData, frame: LiveInput) -> LiveFrame:
     t3 = clock()
     stage[2] = t3 - t2
     knee = lm.options.knee_joint
-    geo = lm.plan.evaluate(
-        q[None], v[None], distal_wrench_joints=(knee,) if knee else (), compact=True
-    )
+    fg = ld.geometry
+    if fg is not None:
+        fg.evaluate(q, v)
+        lengths, speeds, jl = fg.lengths, fg.velocities, fg.jacobian
+        distal = fg.distal_wrenches
+    else:
+        geo = lm.plan.evaluate(
+            q[None], v[None], distal_wrench_joints=(knee,) if knee else (), compact=True
+        )
+        lengths, speeds, jl = geo.lengths[0], geo.velocities[0], geo.jacobian.values[0]
+        distal = {k: w[0] for k, w in geo.distal_wrenches.items()}
     t4 = clock()
     stage[3] = t4 - t3
-    state = rigid_tendon_state(lm.params, geo.lengths, geo.velocities)
-    fmax = state.max_active_force_along_tendon[0]
-    fa = np.where(fmax < 0, 0.0, fmax)
+    fmax, f_passive = ld.tendon(lengths, speeds)
+    fa = ld.f_active
+    np.maximum(fmax, 0.0, out=fa)
     jac = ld.jacobian  # its other entries stay 0
-    jac[ld.jac_at] = geo.jacobian.values[0, ld.jac_keep]
+    jac[ld.jac_at] = jl[ld.jac_keep]
     opt = lm.options
     if ld.optimization is not None:
-        forces, acts, status = ld.optimization.solve(
-            jac, tau[lm.actuated], fa, state.passive_force_along_tendon[0]
-        )
+        forces, acts, status = ld.optimization.solve(jac, tau[lm.actuated], fa, f_passive)
     else:  # exponent > 2: the batch's sequential QP on this one frame
         sol = o.solve_static_optimization_batch(
             jac[None], tau[lm.actuated][None], f_active=fa[None],
-            f_passive=state.passive_force_along_tendon, reserve_optimal_force=ld.reserve_optimal,
+            f_passive=f_passive[None], reserve_optimal_force=ld.reserve_optimal,
             activation_weights=lm.activation_weights, activation_exponent=opt.activation_exponent,
             solver=opt.solver, warm=ld.warm, compute_kkt=False, muscle_names=lm.muscle_names,
             coordinate_names=lm.actuated_names, time=np.array([frame.time]),
@@ -500,7 +521,7 @@ def live_step(lm: LiveModel, ld: LiveData, frame: LiveInput) -> LiveFrame:
     axial = medial = lateral = float("nan")
     if knee is not None and ld.contact is not None:
         axial, medial, lateral = ld.contact.contact(
-            ld.dynamics.data, forces, geo.distal_wrenches[knee][0], force, moment
+            ld.dynamics.data, forces, distal[knee], force, moment
         )
         kf = ld.contact.force.copy()
     stage[5] = clock() - t5
