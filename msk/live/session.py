@@ -58,7 +58,7 @@ import numpy as np
 import pinocchio as pin
 from numpy.typing import NDArray
 
-from msk.exceptions import ModelError, ShapeMismatchError
+from msk.exceptions import ConfigError, ModelError, ShapeMismatchError
 from msk.model.core import Model
 
 __all__ = [
@@ -88,7 +88,12 @@ class LiveOptions:
     offline run's ``np.gradient`` twice, θ̈ from y_n − 2y_{n−2} + y_{n−4}: on gc5 PS and gc6 DM
     the torques agree with the offline run's by 0.3–4 points of peak more and the axial knee
     contact by 0.005–0.013 BW more than with the three-point ``"central"``, for one sample more
-    of lag); ``ik_iterations``: the most Levenberg–Marquardt steps per frame;
+    of lag); ``smoother``: ``"butterworth"`` (that causal low-pass, the shortest lag) or
+    ``"linear_phase"`` (:class:`msk.signal.LinearPhaseLowpass`: the offline run's zero-lag
+    4th-order Butterworth as a symmetric FIR of half width ``fir_half_width_s``, 14 samples at
+    120 Hz — every frequency delayed alike, lag 133 ms at 120 Hz; docs/validation.md, "Live
+    mode against the offline run", gives what each agrees to); ``ik_iterations``: the most
+    Levenberg–Marquardt steps per frame;
     ``ik_tolerance_rad``, ``ik_rel_tolerance``: a frame's IK stops after a step that
     moves no coordinate by more than ``ik_tolerance_rad`` or lowers the cost by at most
     ``ik_rel_tolerance`` of it (:func:`msk.kinematics.ik.solve_kinematics`' ``tolerance`` and
@@ -103,6 +108,8 @@ class LiveOptions:
     cutoff_hz: float = 6.0
     filter_order: int = 2
     derivative_scheme: str = "gradient"
+    smoother: str = "butterworth"
+    fir_half_width_s: float = 0.12
     ik_iterations: int = 10
     ik_tolerance_rad: float = 1e-3
     ik_rel_tolerance: float = 1e-6
@@ -258,6 +265,8 @@ def live_model(
     from msk.muscles.geometry import geometry_plan, muscle_parameters
 
     opt = options or LiveOptions()
+    if opt.smoother not in ("butterworth", "linear_phase"):
+        raise ConfigError(f"live smoother {opt.smoother!r}: not 'butterworth' or 'linear_phase'")
     labels = tuple(labels)
     ik = FrameIK(model, labels, weights=weights, coordinate_tasks=dict(held or {}) or None)
     feet = _default_feet(model)
@@ -312,7 +321,7 @@ def live_data(lm: LiveModel, start: NDArray[np.float64] | None = None) -> LiveDa
     from msk.kinematics.ik import FrameIK
     from msk.muscles.geometry import FrameGeometry
     from msk.muscles.hill import RigidTendonFrame
-    from msk.signal import CausalLowpass
+    from msk.signal import CausalLowpass, LinearPhaseLowpass
 
     n_c, n_f = lm.n_coords, len(lm.feet)
     opt = lm.options
@@ -360,7 +369,15 @@ def live_data(lm: LiveModel, start: NDArray[np.float64] | None = None) -> LiveDa
         pin_data=lm.model.pin_model.createData(),
         markers=np.empty((len(lm.labels), 3)),
         channels=np.empty(n_c + 6 * n_f),
-        filter=CausalLowpass(
+        filter=LinearPhaseLowpass(
+            n_c + 6 * n_f,
+            rate_hz=lm.rate_hz,
+            cutoff_hz=opt.cutoff_hz,
+            scheme=opt.derivative_scheme,
+            half_width_s=opt.fir_half_width_s,
+        )
+        if opt.smoother == "linear_phase"
+        else CausalLowpass(
             n_c + 6 * n_f,
             rate_hz=lm.rate_hz,
             cutoff_hz=opt.cutoff_hz,
