@@ -7,8 +7,8 @@ gzip CSV). Timed, best of ``--repeats``, in one process (no pool, no interpreter
 * :func:`msk.pipeline.dynamometry.run_dynamometry` of every subject (read, analyse, scale the
   model, model torques, write the folder).
 
-Run: ``.venv/bin/python bench/bench_dynamometry.py [--repeats N] [--no-write]``; writes the
-section "Dynamometry cohort" of ``docs/benchmarks.md``.
+Run: ``.venv/bin/python bench/bench_dynamometry.py [--repeats N]``: prints the section (only
+``bench/run_all.py`` writes figures into the docs).
 """
 
 from __future__ import annotations
@@ -19,7 +19,7 @@ import platform
 import tempfile
 from pathlib import Path
 
-from _timing import best_of, replace_doc_section
+from _timing import best_of
 
 from msk.io.dynamometer import read_dynamometer
 from msk.pipeline.dynamometry import load_dynamometry_config, run_dynamometry
@@ -31,7 +31,6 @@ SECTION = "## Dynamometry cohort"
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__)
     ap.add_argument("--repeats", type=int, default=3)
-    ap.add_argument("--no-write", action="store_true")
     args = ap.parse_args()
     cfgs = [
         load_dynamometry_config(p)
@@ -70,8 +69,6 @@ def main() -> None:
     ]
     text = "\n".join(lines)
     print(text)
-    if not args.no_write:
-        replace_doc_section(ROOT / "docs" / "benchmarks.md", SECTION, text)
 
 
 if __name__ == "__main__":
