@@ -17,10 +17,14 @@ The chain of ``msk run`` made causal, each stage the library's own computation o
    the offline run's differences on the filtered samples (``np.gradient`` twice, centred two
    samples back; ``derivative_scheme="central"``: three-point, one sample back): every output
    describes the instant :attr:`LiveSession.lag_s` = τ + 2Δt (τ + Δt) before the newest input
-   (τ the filter's group delay at DC);
+   (τ the filter's group delay at DC); ``smoother="linear_phase"``: the offline run's zero-lag
+   filter as a symmetric FIR instead (:class:`msk.signal.LinearPhaseLowpass`, τ = its half
+   width, the same for every frequency);
 4. inverse dynamics (:class:`msk.dynamics.inverse.FrameInverseDynamics`);
 5. muscle–tendon lengths, velocities, moment arms and the knee's unit wrenches in one geometry
-   pass (:meth:`msk.muscles.geometry.GeometryPlan.evaluate`);
+   pass (:class:`msk.muscles.geometry.FrameGeometry`, :meth:`GeometryPlan.evaluate
+   <msk.muscles.geometry.GeometryPlan.evaluate>` of one frame; the plan's own evaluation for
+   paths with wrapping surfaces);
 6. static optimisation min Σ w_i a_i² + Σ r_j² with the rigid-tendon force curves
    (:class:`msk.optimization.FrameStaticOptimization`, the QP of
    :func:`msk.optimization.solve_static_optimization_batch` with DAQP warm-started from the
@@ -31,11 +35,12 @@ The chain of ``msk run`` made causal, each stage the library's own computation o
    its medial/lateral split (two-point model, Winby et al. 2009).
 
 Allocation: the IK's marker buffers, the filter's state and outputs, the inverse dynamics'
-torques, the static optimisation's constraint matrix and right-hand side, the contact's load are
-buffers of :class:`LiveData`, written in place; the geometry pass
-(:meth:`msk.muscles.geometry.GeometryPlan.evaluate` on one frame), the Levenberg–Marquardt steps
-and the QP solver's call still allocate their small temporaries, and each :class:`LiveFrame`
-owns copies of its arrays (the buffers are overwritten by the next frame).
+torques, the muscle geometry of the frame (:class:`msk.muscles.geometry.FrameGeometry`), the
+force curves (:class:`msk.muscles.hill.RigidTendonFrame`), the static optimisation's
+constraint matrix and right-hand side, the contact's load are buffers written in place; the
+Levenberg–Marquardt steps, the geometry's and the curves' intermediate products and the QP
+solver's call still allocate small temporaries, and each :class:`LiveFrame` owns copies of its
+arrays (the buffers are overwritten by the next frame).
 
 Every frame is solved, including those where a foot stands on no plate (the offline run leaves
 that leg out of the torques and the muscle forces there; a live frame cannot tell a foot on the
