@@ -106,3 +106,17 @@ def test_the_linear_phase_smoother_recovers_the_truth_after_its_own_lag(syntheti
     assert np.degrees(np.abs(q - truth)[late]).max() < 1.0
     with pytest.raises(ConfigError, match="smoother"):
         live_model(model, tr.marker_labels, tr.rate_hz, options=LiveOptions(smoother="spline"))
+
+
+def test_the_one_frame_geometry_equals_the_plans_evaluation_in_the_chain(synthetic):
+    """Paths with wrapping surfaces take GeometryPlan.evaluate frame by frame: on wrap-free
+    paths both give the same frames to round-off."""
+    model, tr = synthetic
+    lm = live_model(model, tr.marker_labels, tr.rate_hz, options=LiveOptions(knee_joint="knee_r"))
+    fast, plan = LiveSession(lm), LiveSession(lm)
+    assert fast.data.geometry is not None
+    plan.data.geometry = None
+    for f in _frames(tr)[:40]:
+        a, b = fast.step(f), plan.step(f)
+        np.testing.assert_allclose(a.muscle_forces, b.muscle_forces, rtol=1e-9, atol=1e-9)
+        assert a.knee_axial == pytest.approx(b.knee_axial, rel=1e-9, abs=1e-9)
