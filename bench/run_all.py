@@ -300,10 +300,16 @@ def live(fig: Figures, base: Path | None, ref: str, rounds: int) -> None:
             p99 = statistics.median(r["chain_p99"] for r in runs)
             f50 = statistics.median(r["floor_p50"] for r in runs)
             f99 = statistics.median(r["floor_p99"] for r in runs)
+            stages = [k[:-4] for k in runs[0] if k.endswith("_p50") and k[:-4] not in
+                      ("chain", "floor", "wall")]  # fmt: skip
+            each = ", ".join(
+                f"{k} {1e6 * statistics.median(r[k + '_p50'] for r in runs):.0f}" for k in stages
+            )
             fig.add(f"`msk live` chain {session} ({name}), CPU / floor, median of {rounds}",
                     f"p50 {p50 / f50:.1f}×, p99 {p99 / f99:.1f}×",
                     f"chain p50 {1e6 * p50:.0f} µs, p99 {1e6 * p99:.0f} µs; floor (FK + one "
-                    f"cold DAQP solve) p50 {1e6 * f50:.0f}, p99 {1e6 * f99:.0f}")  # fmt: skip
+                    f"cold DAQP solve) p50 {1e6 * f50:.0f}, p99 {1e6 * f99:.0f}; stages p50 "
+                    f"(wall, µs): {each}")  # fmt: skip
         if base is not None:
             old = statistics.median(r[session]["chain_p50"] for r in got[ref])
             new = statistics.median(r[session]["chain_p50"] for r in got["tree"])
