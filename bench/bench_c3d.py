@@ -5,16 +5,13 @@ Writes the file with ezc3d (``msk.io.write_c3d``), then times, in the same run:
 * ``ezc3d.c3d(path, extract_forceplat_data=True)`` (ezc3d's own, per-frame plate loop),
 * ``msk.io.read_c3d(path)`` cold (first call in the process) and warm (median of 5).
 
-Usage: ``.venv/bin/python bench/bench_c3d.py [--frames 10000] [--repeat 5] [--write-docs]``;
-``--write-docs`` replaces only the section "## C3D reading" of docs/benchmarks.md (other
-sections are kept). Target: read_c3d < 1 s.
+Usage: ``.venv/bin/python bench/bench_c3d.py [--frames 10000] [--repeat 5]`` (prints its
+figures; only ``bench/run_all.py`` writes figures into the docs). Target: read_c3d < 1 s.
 """
 
 from __future__ import annotations
 
 import argparse
-import os
-import platform
 import statistics
 import tempfile
 import time
@@ -61,26 +58,6 @@ def make_file(path: Path, *, frames: int, markers: int, plates: int, ratio: int)
     )
 
 
-SECTION = "## C3D reading (`bench/bench_c3d.py`)"
-
-
-def write_docs_section(table: str) -> None:
-    """Replace (or append) this benchmark's figures in docs/benchmarks.md, atomically."""
-    path = Path(__file__).resolve().parents[1] / "docs" / "benchmarks.md"
-    old = path.read_text() if path.exists() else "# Benchmarks\n"
-    marker = "<!-- bench_c3d:figures -->"
-    if SECTION not in old:
-        old = old.rstrip() + f"\n\n{SECTION}\n\n{marker}\n{marker}\n"
-    head, rest = old.split(SECTION, 1)
-    if rest.count(marker) >= 2:
-        before, _, after = rest.split(marker, 2)
-        rest = before + marker + "\n" + table.rstrip() + "\n" + marker + after
-    new = head + SECTION + rest
-    tmp = path.with_suffix(".md.c3d.tmp")
-    tmp.write_text(new)
-    os.replace(tmp, path)
-
-
 def _time(fn, repeat: int) -> list[float]:
     out = []
     for _ in range(repeat):
@@ -98,7 +75,6 @@ def main() -> None:
     ap.add_argument("--ratio", type=int, default=10)
     ap.add_argument("--repeat", type=int, default=5)
     ap.add_argument("--skip-ezc3d-plates", action="store_true")
-    ap.add_argument("--write-docs", action="store_true")
     args = ap.parse_args()
     with tempfile.TemporaryDirectory() as d:
         path = make_file(
@@ -142,28 +118,6 @@ def main() -> None:
     print(f"ezc3d.c3d + plates       : {ezfp * 1e3:8.1f} ms")
     print(f"ratio read_c3d / raw ezc3d: {warm / raw:.2f}")
     print(f"target < 1 s: {'met' if warm < 1.0 else 'NOT met'}")
-    if args.write_docs:
-        import ezc3d
-
-        table = "\n".join(
-            [
-                f"Latest run ({time.strftime('%Y-%m-%d')}, {platform.machine()}, "
-                f"{os.cpu_count()} cores shared with other jobs, load average "
-                f"{os.getloadavg()[0]:.1f}; ezc3d {ezc3d.__version__}, numpy {np.__version__}, "
-                f"Python {platform.python_version()}):",
-                "",
-                "| step | time |",
-                "| --- | --- |",
-                f"| `read_c3d` cold | {cold * 1e3:.0f} ms |",
-                f"| `read_c3d` warm (median of {args.repeat}) | {warm * 1e3:.0f} ms |",
-                f"| raw `ezc3d.c3d(path)` (median of {args.repeat}) | {raw * 1e3:.0f} ms |",
-                f"| `ezc3d.c3d(path, extract_forceplat_data=True)` | {ezfp * 1e3:,.0f} ms |",
-                f"| ratio `read_c3d` / raw ezc3d | {warm / raw:.2f} |",
-                "",
-                f"Target {'met' if warm < 1.0 else 'NOT met'}.",
-            ]
-        )
-        write_docs_section(table)
 
 
 if __name__ == "__main__":

@@ -9,13 +9,12 @@ time is the wall time of
 ``AnalyzeTool.run()`` (SO, 92 muscles + 6 pelvis residuals, IPOPT) timed inside the child,
 divided by its frames; msk's are best-of-``--repeat`` batch calls after one warm-up.
 
-    .venv/bin/python bench/bench_chain.py                 # print
-    .venv/bin/python bench/bench_chain.py --write-docs    # also update docs/benchmarks.md
+    .venv/bin/python bench/bench_chain.py
 
-``--write-docs`` replaces only the section "## Whole chain" of docs/benchmarks.md (appends it
-when absent). Targets: ≤ 100 µs per frame for the chain with the
-contact, ≤ 10 µs for the contact; ≥ 500× OpenSim's SO per frame (the rehabilitation-robot
-lower-limb model paper reports < 2.5 ms per frame for its whole model as the real-time bound).
+prints its figures (only ``bench/run_all.py`` writes figures into the docs). Targets: ≤ 100 µs
+per frame for the chain with the contact, ≤ 10 µs for the contact; ≥ 500× OpenSim's SO per
+frame (the rehabilitation-robot lower-limb model paper reports < 2.5 ms per frame for its whole
+model as the real-time bound).
 """
 
 from __future__ import annotations
@@ -31,7 +30,6 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-from _timing import replace_doc_section
 
 from msk.contact.knee import (
     compartment_force_map,
@@ -51,9 +49,6 @@ from msk.optimization.opensim_reference import (
     opensim_full_static_optimization,
 )
 
-ROOT = Path(__file__).resolve().parents[1]
-
-SECTION = "## Whole chain"
 TARGET_US = 100.0
 TARGET_CONTACT_US = 10.0
 CONTACT = "knee contact force + medial/lateral split"
@@ -223,7 +218,6 @@ def measure_floor(
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--repeat", type=int, default=5)
-    ap.add_argument("--write-docs", action="store_true")
     args = ap.parse_args()
     r = measure(args.repeat)
     n, stages, best, cpu = r["n"], r["stages"], r["best"], r["cpu"]
@@ -283,47 +277,6 @@ def main() -> None:
     ]
     text = "\n".join(lines)
     print(text)
-    if args.write_docs:
-        _write_docs(text)
-
-
-def _write_docs(figures: str) -> None:
-    path = ROOT / "docs" / "benchmarks.md"
-    section = (
-        f"{SECTION} (`bench/bench_chain.py`)\n\n"
-        "`.venv/bin/python bench/bench_chain.py [--write-docs]`: inverse dynamics "
-        "(`msk.dynamics.inverse.inverse_dynamics`), muscle geometry and Thelen2003 rigid-tendon "
-        "`f_active` (`GeometryPlan.evaluate`, `rigid_tendon_state`), OpenSim-equivalent static "
-        "optimisation (`solve_static_optimization_batch`, DAQP warm-started, no KKT report) and "
-        "the knee contact force with its medial/lateral split (`msk.contact.knee`, from the knee's "
-        "∂l/∂ξ of the geometry pass; part of the chain figure), each a batch call "
-        "over the trial, best of repeated runs after a warm-up; OpenSim 4.6 StaticOptimization "
-        "on the same states timed inside its child process.\n\n"
-        f"**Targets: chain with the contact ≤ {TARGET_US:.0f} µs per frame (wall, min), contact ≤ "
-        f"{TARGET_CONTACT_US:.0f} µs; "
-        f"≥ {TARGET_RATIO:.0f}× OpenSim's SO.**\n\n"
-        f"<!-- bench_chain:figures -->\n{figures}\n<!-- bench_chain:figures -->\n\n"
-        "Where the time goes: the SO is one QP per frame (92 activations, 17 equalities: no "
-        "muscle crosses a pelvis coordinate, so the six pelvis residuals are τ/F_res exactly and "
-        "leave the QP with their rows), and that QP splits into independent sub-problems — "
-        "each leg's muscles on its own 7 coordinates, the 6 back muscles on the 3 lumbar "
-        "coordinates joined to one leg (one DAQP call costs a few µs of Python) — each solved "
-        "by its own warm-started DAQP workspace, with its data assembled for all frames at "
-        "once (`_BatchQP.solve_blocks`). Same solution to round-off (forces within 1e-11 N, "
-        "activations 4e-14 on this trial); DAQP's cost is mostly refactorising the kept working "
-        "set after each frame's new constraint matrix (~cube of its size: 63 constraints whole, "
-        "~35 and ~28 split), so the SO went from 57 to about 30 µs/frame, of which about a "
-        "third is the Python of two DAQP calls per frame. With `[optimization] "
-        "compartment_nonnegative` the knee's rows d·F_M + s_M ≥ 0 and d·F_L + s_L ≥ 0 involve "
-        "only the muscles crossing that knee, so the rows and their two frontal reserves join "
-        "that leg's sub-problem and the split stays (solved whole, the QP with the rows costs "
-        "83 against 28 µs/frame); what they add is mostly building "
-        "the rows (`msk.contact.knee.compartment_force_map`). Geometry is the batched evaluation "
-        'of "Muscle geometry" above plus the Thelen curves; ID is RNEA per frame. The knee '
-        "contact force takes the knee rows of the length Jacobian from the geometry pass and "
-        'balances the distal bodies for all frames at once (see "Knee contact" below).\n'
-    )
-    replace_doc_section(path, SECTION, section)
 
 
 if __name__ == "__main__":

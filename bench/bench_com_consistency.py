@@ -10,8 +10,8 @@ own stages (:func:`msk.pipeline.run_stages`). Timed, best of ``--repeats``:
 * :func:`msk.kinematics.ik.solve_kinematics` of the same trial (the pipeline's kinematics stage,
   ``msk.pipeline.kinematics.run``): the baseline.
 
-Run: ``.venv/bin/python bench/bench_com_consistency.py [--repeats N] [--no-write]``; writes the
-section "Segment-COM acceleration domain" of ``docs/benchmarks.md``.
+Run: ``.venv/bin/python bench/bench_com_consistency.py [--repeats N]``: prints the section
+(only ``bench/run_all.py`` writes figures into the docs).
 """
 
 from __future__ import annotations
@@ -23,7 +23,7 @@ import platform
 from pathlib import Path
 
 import numpy as np
-from _timing import best_of, replace_doc_section
+from _timing import best_of
 
 from msk.config import load_config
 from msk.kinematics.com_consistency import com_consistent_kinematics
@@ -38,7 +38,6 @@ SECTION = "## Segment-COM acceleration domain"
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__)
     ap.add_argument("--repeats", type=int, default=5)
-    ap.add_argument("--no-write", action="store_true")
     args = ap.parse_args()
     cfg_path = ROOT / "pipelines" / "uwa_running.toml"
     cfg = load_config(cfg_path)
@@ -71,8 +70,6 @@ def main() -> None:
     ]
     text = "\n".join(lines)
     print(text)
-    if not args.no_write:
-        replace_doc_section(ROOT / "docs" / "benchmarks.md", SECTION, text)
 
 
 if __name__ == "__main__":

@@ -10,11 +10,10 @@ filtered at 6 Hz, 0.5–2.5 s, plate loads; static-optimisation forces by msk (n
 Each stage is a batch call over the trial, one warm-up then ``--repeat`` timed calls; min and
 median are reported.
 
-    .venv/bin/python bench/bench_contact.py                 # print
-    .venv/bin/python bench/bench_contact.py --write-docs    # also update docs/benchmarks.md
+    .venv/bin/python bench/bench_contact.py
 
-``--write-docs`` replaces only the section "## Knee contact" of docs/benchmarks.md (appends it
-when absent). Target: ≤ 10 µs per frame for the contact stage, medial/lateral split included.
+prints its figures (only ``bench/run_all.py`` writes figures into the docs). Target: ≤ 10 µs per
+frame for the contact stage, medial/lateral split included.
 """
 
 from __future__ import annotations
@@ -25,11 +24,9 @@ import os
 import platform
 import time
 from collections.abc import Callable
-from pathlib import Path
 from typing import Any
 
 import numpy as np
-from _timing import replace_doc_section
 
 from msk.contact.knee import (
     KneeContact,
@@ -48,9 +45,6 @@ from msk.muscles.hill import Thelen2003Curves, rigid_tendon_state
 from msk.optimization import TensionInequalities, solve_static_optimization_batch
 from tests.support.legacy_contact import legacy_knee_contact_force
 
-ROOT = Path(__file__).resolve().parents[1]
-
-SECTION = "## Knee contact"
 TARGET_US = 10.0
 JOINT = "knee_r"
 
@@ -69,7 +63,6 @@ def timings(fn: Callable[[], Any], repeat: int, n: int) -> tuple[float, float]:
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--repeat", type=int, default=15)
-    ap.add_argument("--write-docs", action="store_true")
     args = ap.parse_args()
 
     s = load_subject01()
@@ -226,33 +219,6 @@ def main() -> None:
     ]
     text = "\n".join(lines)
     print(text)
-    if args.write_docs:
-        _write_docs(text)
-
-
-def _write_docs(figures: str) -> None:
-    path = ROOT / "docs" / "benchmarks.md"
-    section = (
-        f"{SECTION} (`bench/bench_contact.py`)\n\n"
-        "`.venv/bin/python bench/bench_contact.py [--write-docs]`: tibiofemoral contact force "
-        "(`msk.contact.knee.knee_contact_force`) and its medial/lateral split "
-        "(`split_medial_lateral`), former route against the vectorised one, and the whole "
-        "chain with it, all in one run.\n\n"
-        f"**Target: ≤ {TARGET_US:.0f} µs per frame for the contact stage, split included.**\n\n"
-        f"<!-- bench_contact:figures -->\n{figures}\n<!-- bench_contact:figures -->\n\n"
-        "Where the time went and goes: the former route evaluated the muscle paths again, once "
-        "per pair of unit twists on the knee DOFs (two stacked evaluations for the 3-axis "
-        "knee), ran RNEA per frame for the transmitted wrench and a forward-kinematics pass per "
-        "frame for the plateau frame. Now ∂l_i/∂ξ is the knee row of the length Jacobian that "
-        "the geometry stage aggregates anyway (`muscle_geometry(..., "
-        'distal_wrench_joints=("knee_r",))`, no second path resolution), the transmitted '
-        "wrench is the Newton–Euler balance of the bodies distal to the knee computed for all "
-        "frames at once (forward kinematics, velocities and accelerations of the 15 Pinocchio "
-        "joints from the pelvis to the toes, matrix products over the support), and the muscle "
-        "pull one contraction Σ F_i ∂l_i/∂ξ; what is left is numpy call overhead of the "
-        "per-joint forward-kinematics loop.\n"
-    )
-    replace_doc_section(path, SECTION, section)
 
 
 if __name__ == "__main__":

@@ -9,12 +9,11 @@ computes ``getLength`` + ``computeMomentArm`` of each muscle about the 7 coordin
 leg (hip ×3, knee, ankle, subtalar, mtp) on a subset of frames — fewer outputs than msk.
 
     .venv/bin/python bench/bench_geometry.py               # print
-    .venv/bin/python bench/bench_geometry.py --write-docs  # also update docs/benchmarks.md
     .venv/bin/python bench/bench_geometry.py --baseline 98101f1  # also time that revision's
                                                                  # geometry.py, same run
 
-``--write-docs`` replaces only the section "## Muscle geometry" of docs/benchmarks.md (appends
-it when absent). **Target: < 60 µs per frame for the 86 gait2392 lower-limb muscles.**
+Only ``bench/run_all.py`` writes figures into the docs. **Target: < 60 µs per frame for the 86
+gait2392 lower-limb muscles.**
 """
 
 from __future__ import annotations
@@ -193,7 +192,7 @@ def markdown(rows: list[dict], baseline: str | None = None) -> str:
     lines = [
         SECTION,
         "",
-        "`.venv/bin/python bench/bench_geometry.py [--write-docs]`: lengths + full Jacobians "
+        "`.venv/bin/python bench/bench_geometry.py`: lengths + full Jacobians "
         "∂l/∂θ (`msk.muscles.geometry.GeometryPlan.evaluate`) over the subject01 walk IK "
         "(211 frames, one batch call), best of repeated runs after a warm-up; OpenSim 4.6 "
         "`getLength` + `computeMomentArm` about the 7 coordinates of each muscle's own leg, "
@@ -312,24 +311,10 @@ def markdown(rows: list[dict], baseline: str | None = None) -> str:
     return "\n".join(lines)
 
 
-def write_docs(text: str) -> None:
-    path = Path(__file__).resolve().parent.parent / "docs" / "benchmarks.md"
-    doc = path.read_text() if path.exists() else "# Benchmarks\n"
-    if SECTION in doc:
-        start = doc.index(SECTION)
-        nxt = doc.find("\n## ", start + len(SECTION))
-        rest = doc[nxt + 1 :] if nxt >= 0 else ""
-        doc = doc[:start] + text.rstrip("\n") + ("\n\n" + rest if rest else "\n")
-    else:
-        doc = doc.rstrip("\n") + "\n\n" + text
-    path.write_text(doc)
-
-
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--repeat", type=int, default=20)
     ap.add_argument("--osim-frames", type=int, default=20)
-    ap.add_argument("--write-docs", action="store_true")
     ap.add_argument("--baseline", metavar="REV", help="also time geometry.py of this git revision")
     args = ap.parse_args()
     base = baseline_plan_class(args.baseline) if args.baseline else None
@@ -341,8 +326,6 @@ def main() -> None:
     ]  # fmt: skip
     text = markdown(rows, args.baseline)
     print(text)
-    if args.write_docs:
-        write_docs(text)
 
 
 if __name__ == "__main__":

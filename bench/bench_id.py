@@ -12,9 +12,8 @@ trajectory continuous), written as .trc / .mot so both tools read the same input
 * OpenSim 4.6: ``InverseKinematicsTool.run()`` and ``InverseDynamicsTool.run()`` (6 Hz) timed
   inside a child interpreter (:func:`msk._runtime.opensim_peer.run_opensim_script`), same files.
 
-Run: ``.venv/bin/python bench/bench_id.py [--repeats N] [--write-docs]``; with
-``--write-docs`` writes the section
-"Inverse kinematics and dynamics" of ``docs/benchmarks.md`` (other sections are kept).
+Run: ``.venv/bin/python bench/bench_id.py [--repeats N]`` (prints its figures; ``bench/run_all.py``
+prints the same ratios, and only it writes figures into the docs).
 """
 
 from __future__ import annotations
@@ -88,7 +87,6 @@ def main() -> None:
     ap.add_argument("--frames", type=int, default=1000)
     ap.add_argument("--repeats", type=int, default=3)
     ap.add_argument("--opensim-ik-repeats", type=int, default=2)
-    ap.add_argument("--write-docs", action="store_true")
     args = ap.parse_args()
 
     s = load_subject01()
@@ -183,18 +181,6 @@ def main() -> None:
         else:
             lines.append(f"| {name} | {fps:.0f} | (opensim not installed) | | ≥ {target}× |")
     lines.append("")
-    if args.write_docs:
-        path = ROOT / "docs" / "benchmarks.md"
-        text = path.read_text() if path.exists() else "# Benchmarks\n"
-        if SECTION in text:
-            head, rest = text.split(SECTION, 1)
-            nxt = rest.find("\n## ")
-            tail = rest[nxt + 1 :] if nxt >= 0 else ""
-            text = head + "\n".join(lines) + ("\n" + tail if tail else "")
-        else:
-            text = text.rstrip("\n") + "\n\n" + "\n".join(lines)
-        path.write_text(text)
-        print(f"wrote {path}")
 
 
 if __name__ == "__main__":

@@ -9,9 +9,8 @@ over frames at once, :func:`msk.optimization.kkt_stacked`) and ``--against`` (de
 alternating tree by tree (``--passes``), on the same machine under the same load.
 
     .venv/bin/python bench/bench_kkt.py [--repeat 7] [--passes 2] [--against /work/main]
-                                        [--write-docs]
 
-``--write-docs`` replaces the section "## Tension stage KKT check" of docs/benchmarks.md.
+prints its figures (only ``bench/run_all.py`` writes figures into the docs).
 """
 
 from __future__ import annotations
@@ -127,7 +126,6 @@ def main() -> None:
     ap.add_argument("--passes", type=int, default=2)
     ap.add_argument("--against", type=Path, default=Path("/work/main"))
     ap.add_argument("--child", action="store_true")
-    ap.add_argument("--write-docs", action="store_true")
     args = ap.parse_args()
     if args.child:
         print(json.dumps(child(args.repeat)))
@@ -139,10 +137,6 @@ def main() -> None:
             print(json.dumps(runs[-1]), flush=True)
     text = _section(runs, args.repeat)
     print(text)
-    if args.write_docs:
-        from _timing import replace_doc_section
-
-        replace_doc_section(ROOT / "docs" / "benchmarks.md", SECTION, text)
 
 
 if __name__ == "__main__":

@@ -12,12 +12,16 @@ CPU time (``time.thread_time``: what a busy host's preemptions do not inflate) a
 printed; the ratio is of CPU times. Target (docs/user-guide.md, "Live mode"): p99 ≤ 1 ms on
 an idle 2-core machine, chain ≤ 1.5× the floor.
 
-    .venv/bin/python bench/bench_live.py [--passes 3] [--sessions gc5_PS gc6_DM_og1]
+    .venv/bin/python bench/bench_live.py [--passes 3] [--sessions gc5_PS gc6_DM_og1] [--json]
+
+``bench/run_all.py`` runs it (part ``live``) alternately on the working tree and the previous
+commit, each in a fresh interpreter.
 """
 
 from __future__ import annotations
 
 import argparse
+import json
 import os
 import platform
 import time
@@ -59,7 +63,7 @@ def _floor(lm, q: np.ndarray, v: np.ndarray, tau: np.ndarray, data) -> float:
     return time.thread_time() - t0
 
 
-def run(name: str, passes: int, skip: int) -> None:
+def run(name: str, passes: int, skip: int) -> dict[str, float]:
     cfg = load_config(REPO / "pipelines" / f"{name}.toml")
     task = session_inputs(cfg).task
     assert task is not None
@@ -99,6 +103,11 @@ def run(name: str, passes: int, skip: int) -> None:
     print(f"  {'floor (CPU)':<18s} {1e6 * f50:9.0f} {1e6 * f99:9.0f}   (FK + one DAQP solve)")
     print(f"  chain / floor (CPU): p50 {p50 / f50:.1f}×, p99 {p99 / f99:.1f}×  "
           f"(targets: p99 ≤ 1000 µs on an idle host; ≤ 1.5× the floor)")  # fmt: skip
+    out = {"chain_p50": p50, "chain_p99": p99, "floor_p50": f50, "floor_p99": f99,
+           "wall_p50": w50, "wall_p99": w99, "lag_s": session.lag_s}  # fmt: skip
+    for k, st in enumerate(STAGES):
+        out[f"{st}_p50"] = float(np.percentile(s[:, k], 50))
+    return out
 
 
 def main() -> None:
@@ -106,13 +115,16 @@ def main() -> None:
     ap.add_argument("--passes", type=int, default=3)
     ap.add_argument("--skip", type=int, default=10, help="first frames of a pass not timed")
     ap.add_argument("--sessions", nargs="+", default=["gc5_PS", "gc6_DM_og1"])
+    ap.add_argument("--json", action="store_true", help="also one JSON line per session")
     args = ap.parse_args()
     load = os.getloadavg()
     print(f"host {platform.node()} ({platform.machine()}, {os.cpu_count()} CPUs), "
           f"load {load[0]:.2f} {load[1]:.2f} {load[2]:.2f}, python {platform.python_version()}, "
           f"pinocchio {pin.__version__}")  # fmt: skip
     for name in args.sessions:
-        run(name, args.passes, args.skip)
+        figures = run(name, args.passes, args.skip)
+        if args.json:
+            print("JSON " + json.dumps({"session": name, **figures}), flush=True)
 
 
 if __name__ == "__main__":

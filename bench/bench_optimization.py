@@ -4,23 +4,18 @@ Leg-like synthetic frames (msk.datasets.optimization: each muscle crosses 1–3 
 coordinates, 1–6 cm moment arms varying smoothly over a cycle, torques from known activations),
 the bounded QP ``min Σ(f/F_iso)²  s.t. R f = τ, 0 ≤ f ≤ F_iso``.
 
-    .venv/bin/python bench/bench_optimization.py            # print
-    .venv/bin/python bench/bench_optimization.py --write-docs   # also update docs/benchmarks.md
+    .venv/bin/python bench/bench_optimization.py
 
-All ratios are measured in the same run. ``--write-docs`` replaces only the section
-"## Tension optimisation" of docs/benchmarks.md (appends it when absent).
+All ratios are measured in the same run; only ``bench/run_all.py`` writes figures into the
+docs.
 """
 
 from __future__ import annotations
 
 import argparse
-import os
-import platform
-import time
 import warnings
 from collections.abc import Callable
 from functools import partial
-from pathlib import Path
 
 import numpy as np
 from _timing import best_of
@@ -38,7 +33,6 @@ from msk.optimization import (
 warnings.filterwarnings("ignore")  # qpsolvers' dense → sparse conversion notices
 
 SIZES = ((43, 7), (86, 14), (92, 18))
-SECTION = "## Tension optimisation"
 
 
 def _daqp_raw(jac: np.ndarray, taus: np.ndarray, f_iso: np.ndarray) -> np.ndarray:
@@ -327,56 +321,14 @@ def _summary(rows: list[dict[str, object]]) -> str:
     return "\n".join(lines)
 
 
-def _write_docs(text: str) -> None:
-    path = Path(__file__).resolve().parents[1] / "docs" / "benchmarks.md"
-    old = path.read_text() if path.exists() else "# Benchmarks\n"
-    if SECTION in old:
-        head, rest = old.split(SECTION, 1)
-        nxt = rest.find("\n## ")
-        tail = rest[nxt + 1 :] if nxt >= 0 else ""
-        new = head + text.rstrip() + "\n" + ("\n" + tail if tail else "")
-    else:
-        new = old.rstrip() + "\n\n" + text.rstrip() + "\n"
-    tmp = path.with_suffix(".md.tmp")
-    tmp.write_text(new)
-    os.replace(tmp, path)
-
-
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--frames", type=int, default=300)
     ap.add_argument("--slow-frames", type=int, default=30)
-    ap.add_argument("--write-docs", action="store_true")
     args = ap.parse_args()
     rows = run(args.frames, args.slow_frames) + run_opensim()
     table = _table(rows)
     print(table)
-    if args.write_docs:
-        import daqp  # noqa: F401
-        import qpsolvers
-
-        text = (
-            f"{SECTION}\n\n"
-            f"`bench/bench_optimization.py` ({time.strftime('%Y-%m-%d')}, "
-            f"{platform.processor() or platform.machine()}, {os.cpu_count()} cores shared with "
-            f"other jobs, load average {os.getloadavg()[0]:.1f} at the end of the run, so "
-            f"single figures can be off by ±50 %; Python {platform.python_version()}, "
-            f"qpsolvers {qpsolvers.__version__}). Bounded tension QP "
-            "`min Σ(f/F_iso)²  s.t. R f = τ, 0 ≤ f ≤ F_iso` on leg-like synthetic frames "
-            f"({args.frames} frames; OSQP, Clarabel, SLSQP and DAQP-via-qpsolvers on the first "
-            f"{args.slow_frames}). Time per frame is the best of 9 runs (2 for the slow "
-            "solvers) of the whole batch, "
-            "including building each frame's QP; the last column is the largest force "
-            "difference to the DAQP solution, relative to the largest force. The closed form "
-            "and the table solve the *unbounded* problem (seeds/004 Eq. 6), so they are not "
-            "compared. The gait2392 rows (when OpenSim 4.6 is installed) solve msk's static "
-            "optimisation on the states, moment arms and active-force capacities of OpenSim's "
-            "own SO run of subject01 walking (right leg, which decouples from the rest) and "
-            "time OpenSim's whole-model SO in the same run; the ratio there is OpenSim / msk."
-            "\n\n"
-            f"{table}\n\n{_summary(rows)}\n"
-        )
-        _write_docs(text)
 
 
 if __name__ == "__main__":

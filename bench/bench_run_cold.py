@@ -7,8 +7,9 @@ temporary folder ahead of the installed one) runs interleaved with the working t
 same conditions, and the ratio working tree / baseline is printed. The load average is printed
 before and after: on a shared machine only the ratio of the same run means something.
 
-Usage: ``.venv/bin/python bench/bench_run_cold.py [--repeat 5] [--baseline main]
-[--write-docs]``.
+Usage: ``.venv/bin/python bench/bench_run_cold.py [--repeat 5] [--baseline main]`` (prints its
+figures; ``bench/run_all.py`` prints the same comparison, and only it writes figures into the
+docs).
 """
 
 from __future__ import annotations
@@ -29,12 +30,9 @@ from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
-from _timing import replace_doc_section
 
 REPO = Path(__file__).resolve().parents[1]
 CONFIG = REPO / "pipelines" / "gc5_PS.toml"
-DOCS = REPO / "docs" / "benchmarks.md"
-HEADING = "## `msk run` cold (`bench/bench_run_cold.py`)"
 STAGE = re.compile(r"^\[\s*\d+/\d+\]\s+(\S+)\s+([\d.]+) s\s+(\S+)", re.M)
 TARGET_S = 2.0
 TARGET_CACHED_S = 0.5
@@ -84,7 +82,6 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--repeat", type=int, default=5, help="cold runs of each variant")
     ap.add_argument("--baseline", default=None, help="git ref to compare with (same run)")
-    ap.add_argument("--write-docs", action="store_true", help=f"update {DOCS.name}")
     args = ap.parse_args()
 
     load0 = _load()
@@ -148,34 +145,6 @@ def main() -> None:
     )
     text = "\n".join(lines)
     print(text)
-    if args.write_docs:
-        intro = (
-            f"{HEADING}\n\n`.venv/bin/python bench/bench_run_cold.py [--baseline REF] "
-            "[--write-docs]`: the bundled session as a user runs it, from a fresh interpreter "
-            "(imports, model, every stage, the report), against the package at a git ref in the "
-            "same run.\n\n"
-            f"**Target: ≤ {TARGET_S:g} s wall on an idle machine.**\n\n"
-            "Where the time goes: about 1 s is imports (numpy, "
-            "scipy — `scipy.signal` alone ~0.45 s, of which `scipy.stats` ~0.17 s and scipy's "
-            "docstring processing, and it is needed for the filters —, Pinocchio, ezc3d, "
-            "clarabel, daqp; most land in the `model` stage, the first to need them), the mass "
-            "identification ~0.5 s (123 Clarabel solves of the cross-validation grid; their "
-            "constraints are now built once per fit, each fold's first noise system once for "
-            "all λ — same solver inputs, same result), the report ~0.4 s. The report's "
-            "figures are drawn by a child that `msk run` forks when its first stage is "
-            "computed (`msk._runtime.fork.Server`; none when every stage comes from the cache): it "
-            "imports matplotlib and warms its fonts on the free CPU "
-            "while the stages run, then draws half of the figures while a grandchild draws "
-            "the other half (the parent never imports matplotlib; `MSK_FORK=0` draws in the "
-            "process, as inside batch workers); figures are plain `Figure`s (no pyplot) drawn "
-            "once when `tight_layout` already fits them. The console script ends with "
-            "`gc.freeze()` (no final collection over ~10⁶ objects, ~0.15 s) and collects "
-            "cyclic garbage every 20,000 allocations (~0.07 s). On a loaded machine the "
-            "forked children get no spare CPU and the run is about as slow as drawing in "
-            "the process.\n\n"
-        )
-        replace_doc_section(DOCS, HEADING, intro + f"<!-- bench_run_cold:figures -->\n{text}\n"
-                            "<!-- bench_run_cold:figures -->\n")  # fmt: skip
 
 
 if __name__ == "__main__":

@@ -14,8 +14,10 @@ Baselines, each timed in this run beside what it calibrates:
 * **the previous commit** (``--baseline REV``, default ``HEAD~1``; its ``msk`` package from
   ``git archive``, imported ahead of the working tree's), timed alternately with the working
   tree: the model stage of a session without a static trial (``pipelines/gc6_DM_og1.toml``,
-  ``pipelines/uwa_fast_walking.toml``) and ``msk run pipelines/gc5_PS.toml`` cold
-  (``--no-cache``) and cached, each in a fresh interpreter;
+  ``pipelines/uwa_fast_walking.toml``), ``msk run pipelines/gc5_PS.toml`` cold
+  (``--no-cache``) and cached, and ``msk live``'s per-frame chain on gc5 PS and gc6 DM
+  (``bench_live``: p50/p99 and the ratio to its frame-by-frame floor), each in a fresh
+  interpreter;
 * **reading the files alone**: the 20-subject dynamometry cohort through ``msk batch`` (2
   workers) and in one process, as a multiple of reading its 20 × 4 files (``bench_cohort``).
 
@@ -50,7 +52,7 @@ REPO = Path(__file__).resolve().parents[1]
 DOCS = REPO / "docs" / "benchmarks.md"
 MARK = "<!-- run_all:figures -->"
 NO_STATIC = ("gc6_DM_og1", "uwa_fast_walking")
-PARTS = ("opensim", "chain", "model", "run", "cohort")
+PARTS = ("opensim", "chain", "live", "model", "run", "cohort")
 
 #: the model stage's seconds, in a fresh interpreter with the package of ``sys.argv[1]``
 _MODEL_CHILD = """
@@ -281,6 +283,51 @@ def cohort(fig: Figures, repeats: int) -> None:
         fig.add(figure, ratio, detail)
 
 
+def live(fig: Figures, base: Path | None, ref: str, rounds: int) -> None:
+    """``msk live``'s per-frame chain (``bench_live``: IK + filter + ID + geometry + SO + knee
+    contact, 92 muscles) on gc5 PS and gc6 DM: p50/p99 of the thread's CPU time and its ratio to
+    the floor timed frame by frame beside it, tree vs the previous commit alternated, each in a
+    fresh interpreter."""
+    import json
+
+    def run(src: Path) -> dict[str, dict[str, float]]:
+        env = {**os.environ, "PYTHONPATH": os.pathsep.join([str(src), str(REPO)])}
+        out = subprocess.run(
+            [sys.executable, str(REPO / "bench" / "bench_live.py"), "--passes", "2", "--json"],
+            check=True, capture_output=True, text=True, cwd=REPO, env=env,
+        )  # fmt: skip
+        rows = [json.loads(x[5:]) for x in out.stdout.splitlines() if x.startswith("JSON ")]
+        return {r["session"]: r for r in rows}
+
+    srcs = {"tree": REPO} if base is None else {ref: base, "tree": REPO}
+    got: dict[str, list[dict[str, dict[str, float]]]] = {k: [] for k in srcs}
+    for _ in range(rounds):
+        for name, src in srcs.items():
+            got[name].append(run(src))
+    for session in got["tree"][0]:
+        for name in srcs:
+            runs = [r[session] for r in got[name]]
+            p50 = statistics.median(r["chain_p50"] for r in runs)
+            p99 = statistics.median(r["chain_p99"] for r in runs)
+            f50 = statistics.median(r["floor_p50"] for r in runs)
+            f99 = statistics.median(r["floor_p99"] for r in runs)
+            stages = [k[:-4] for k in runs[0] if k.endswith("_p50") and k[:-4] not in
+                      ("chain", "floor", "wall")]  # fmt: skip
+            each = ", ".join(
+                f"{k} {1e6 * statistics.median(r[k + '_p50'] for r in runs):.0f}" for k in stages
+            )
+            fig.add(f"`msk live` chain {session} ({name}), CPU / floor, median of {rounds}",
+                    f"p50 {p50 / f50:.1f}×, p99 {p99 / f99:.1f}×",
+                    f"chain p50 {1e6 * p50:.0f} µs, p99 {1e6 * p99:.0f} µs; floor (FK + one "
+                    f"cold DAQP solve) p50 {1e6 * f50:.0f}, p99 {1e6 * f99:.0f}; stages p50 "
+                    f"(wall, µs): {each}")  # fmt: skip
+        if base is not None:
+            old = statistics.median(r[session]["chain_p50"] for r in got[ref])
+            new = statistics.median(r[session]["chain_p50"] for r in got["tree"])
+            fig.add(f"`msk live` chain {session}: {ref} / tree, p50 CPU", f"{old / new:.2f}×",
+                    f"{ref} {1e6 * old:.0f} µs, tree {1e6 * new:.0f} µs")  # fmt: skip
+
+
 def write_docs(fig: Figures, head: str) -> None:
     lines = [head, "", "| figure | ratio | detail (absolute times on this host) |",
              "| --- | --- | --- |"]  # fmt: skip
@@ -318,6 +365,8 @@ def main() -> None:
             part("opensim", lambda: opensim_ik_id(fig, 3))
         if "chain" not in skip:
             part("chain", lambda: chain(fig, args.repeat))
+        if "live" not in skip:
+            part("live", lambda: live(fig, base, rev, args.rounds))
         if "model" not in skip:
             part("model", lambda: model_stage(fig, base, rev, args.rounds))
         if "run" not in skip:

@@ -10,7 +10,7 @@ chain is set up on the same model (the identified inertias, the plates assigned 
 assigns them).
 
     .venv/bin/python studies/live_agreement.py [--sessions gc5_PS gc6_DM_og1] [--order 2]
-        [--shipped]
+        [--shipped] [--smoother linear_phase]
 """
 
 from __future__ import annotations
@@ -39,20 +39,30 @@ def _at(t: np.ndarray, time: np.ndarray, x: np.ndarray) -> np.ndarray:
 
 
 def study(
-    name: str, order: int, shipped: bool, ik_iterations: int = 10, scheme: str = "gradient"
+    name: str,
+    order: int,
+    shipped: bool,
+    ik_iterations: int = 10,
+    scheme: str = "gradient",
+    smoother: str = "butterworth",
 ) -> None:
     cfg = load_config(ROOT / "pipelines" / f"{name}.toml")
     if not shipped:
         opt = dataclasses.replace(
             cfg.optimization, method="static_optimization", compartment_nonnegative=False
         )
-        cfg = dataclasses.replace(cfg, optimization=opt)
+        # the live knee contact takes the quadriceps' own lines of action (no patellar tendon)
+        cfg = dataclasses.replace(
+            cfg, optimization=opt, contact=dataclasses.replace(cfg.contact, patella="none")
+        )
     res = run_stages(cfg, until="knee_contact")
     pers, inputs = res["model"], session_inputs(cfg)
     task = inputs.task
     assert task is not None
     src = ReplaySource(task.file, grf=task.grf, external_loads=task.external_loads)
-    model = identified_model(pers.model, res.get("mass_identification"))
+    model = identified_model(
+        pers.model, res.get("mass_identification"), by_status=inputs.inertias_by_status
+    )
     to_model = {lab: m for m, lab in pers.rename.items()}
     knee = f"knee{inputs.sfx}"
     assign = {**src.assignment, **cfg.loads.assign}
@@ -62,7 +72,8 @@ def study(
         rotation=pers.rotation, weights=cfg.marker_weights, held=pers.held,
         options=LiveOptions(knee_joint=knee, cutoff_hz=cut, filter_order=order,
                             activation_weights=cfg.optimization.activation_weights,
-                            ik_iterations=ik_iterations, derivative_scheme=scheme),
+                            ik_iterations=ik_iterations, derivative_scheme=scheme,
+                            smoother=smoother),
         plateau=inputs.knee_plateau(model, knee), body_weight_n=inputs.body_weight,
         plate_bodies=[assign.get(p) for p in src.plate_names],
     )  # fmt: skip
@@ -87,8 +98,8 @@ def study(
     alone = alone[:, act]
     rms = np.array([f.marker_rms for f in out])
     its = np.array([f.ik_iterations for f in out])
-    print(f"\n{name} ({'shipped' if shipped else 'static optimisation'}, order {order}, "
-          f"{scheme} differences): "
+    what = "shipped" if shipped else "static optimisation"
+    print(f"\n{name} ({what}, {smoother}, order {order}, {scheme} differences): "
           f"{len(out)} frames, lag {1e3 * session.lag_s:.1f} ms; IK {its.mean():.1f} steps a "
           f"frame, RMS marker error median {1e3 * np.nanmedian(rms):.1f} mm")  # fmt: skip
     print(f"  angles: max {np.nanmax(dq):.2f}°, p95 {np.nanpercentile(dq, 95):.2f}° "
@@ -123,9 +134,11 @@ def main() -> None:
     ap.add_argument("--ik-iterations", type=int, default=10, help="LM steps per frame at most")
     ap.add_argument("--scheme", default="gradient", choices=("central", "gradient"),
                     help="the causal filter's differences")  # fmt: skip
+    ap.add_argument("--smoother", default="butterworth", choices=("butterworth", "linear_phase"),
+                    help="the live filter (LiveOptions.smoother)")  # fmt: skip
     args = ap.parse_args()
     for name in args.sessions:
-        study(name, args.order, args.shipped, args.ik_iterations, args.scheme)
+        study(name, args.order, args.shipped, args.ik_iterations, args.scheme, args.smoother)
 
 
 if __name__ == "__main__":

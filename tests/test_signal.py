@@ -224,6 +224,39 @@ def test_causal_lowpass_gradient_scheme_is_the_offline_differences_two_samples_b
         CausalLowpass(1, rate_hz=100.0, cutoff_hz=6.0, scheme="spline")
 
 
+def test_linear_phase_lowpass_delays_every_frequency_by_its_half_width():
+    """A symmetric FIR: a sine of any frequency comes out with the FIR's gain at that frequency
+    and delayed by exactly K samples (no phase distortion); its taps are the zero-lag filter's
+    response (:func:`lowpass_filtfilt_numpy` of an impulse), truncated and of sum 1."""
+    from msk.signal import LinearPhaseLowpass, lowpass_filtfilt_numpy
+
+    rate, k = 100.0, 10
+    f0 = LinearPhaseLowpass(1, rate_hz=rate, cutoff_hz=6.0, half_width=k, scheme="central")
+    assert f0.lag_s == pytest.approx((k + 1) / rate)
+    taps = f0.taps
+    np.testing.assert_allclose(taps, taps[::-1], rtol=0, atol=1e-15)
+    assert taps.sum() == pytest.approx(1.0, abs=1e-14)
+    imp = np.zeros(401)
+    imp[200] = 1.0
+    ref = lowpass_filtfilt_numpy(imp, rate_hz=rate, cutoff_hz=6.0)[200 - k : 201 + k]
+    np.testing.assert_allclose(taps, ref / ref.sum(), rtol=1e-12)
+    t = np.arange(600) / rate
+    for hz in (0.7, 2.5, 5.0, 9.0):
+        f = LinearPhaseLowpass(1, rate_hz=rate, cutoff_hz=6.0, half_width=k, scheme="central")
+        out = np.empty_like(t)
+        for n, v in enumerate(np.sin(2 * np.pi * hz * t)):
+            f.step(np.array([v]))
+            out[n] = f.y[0]
+        gain = taps[k] + 2 * sum(
+            taps[k + j] * np.cos(2 * np.pi * hz * j / rate) for j in range(1, k + 1)
+        )
+        late = t > 0.5
+        want = gain * np.sin(2 * np.pi * hz * (t[late] - f.lag_s))
+        np.testing.assert_allclose(out[late], want, rtol=0, atol=1e-12)
+    with pytest.raises(MskError):
+        LinearPhaseLowpass(1, rate_hz=rate, cutoff_hz=6.0, half_width=0)
+
+
 def test_causal_lowpass_refuses_a_cutoff_above_nyquist():
     from msk.signal import CausalLowpass
 

@@ -26,8 +26,13 @@ def _args(p: argparse.ArgumentParser) -> None:
     p.add_argument("--realtime", action="store_true", help="replay at the recorded rate")
     p.add_argument("--lsl-out", metavar="NAME", help="also publish the results on an LSL outlet")
     p.add_argument(
-        "--identified", action="store_true",
-        help="the segment inertias identified on the configuration's task trial",
+        "--scaled-inertias", action="store_true",
+        help="the scaled segment inertias, not those identified on the configuration's task "
+        "trial (which msk run's torques use)",
+    )  # fmt: skip
+    p.add_argument(
+        "--smoother", choices=("butterworth", "linear_phase"), default="butterworth",
+        help="causal Butterworth (shortest lag) or the offline filter as a linear-phase FIR",
     )  # fmt: skip
     p.add_argument("--ik-iterations", type=positive_int, default=10, metavar="N")
     p.add_argument(
@@ -66,7 +71,8 @@ def _live(args: argparse.Namespace) -> int:
     plates = source.plate_names if isinstance(source, ReplaySource) else ()
     assignment = source.assignment if isinstance(source, ReplaySource) else None
     setup = live_setup(
-        args.config, labels, rate, identified=args.identified, ik_iterations=args.ik_iterations,
+        args.config, labels, rate, identified=not args.scaled_inertias,
+        ik_iterations=args.ik_iterations, smoother=args.smoother,
         plate_names=plates, assignment=assignment,
     )  # fmt: skip
     session = LiveSession(setup.model)
@@ -81,7 +87,7 @@ def _live(args: argparse.Namespace) -> int:
     n = len(record.frames)
     skip = min(args.skip, max(n - 1, 0))
     print(f"msk live: {n} frames at {rate:g} Hz; outputs lag the newest input by "
-          f"{1e3 * session.lag_s:.1f} ms (causal filter and one sample)")  # fmt: skip
+          f"{1e3 * session.lag_s:.1f} ms (the filter's delay and its differences)")  # fmt: skip
     if n:
         print(latency_report(record.latency_percentiles(skip), n - skip))
         chain = record.stage_seconds()[skip:].sum(axis=1)

@@ -444,7 +444,8 @@ class _MarkerProblem:
 
     def _points(self) -> Array:
         # one (3J × 4) @ (4 × M) product, then each marker's rows of its own joint
-        omi = self.omi
+        # one conversion of the placements (indexing Pinocchio's vector costs as much per item)
+        omi = self.omi.tolist()
         h = np.array([omi[j].homogeneous for j in self.joints])[:, :3]
         return (h.reshape(-1, 4) @ self.local_h).ravel()[self.take].reshape(-1, 3)
 

@@ -17,10 +17,14 @@ The chain of ``msk run`` made causal, each stage the library's own computation o
    the offline run's differences on the filtered samples (``np.gradient`` twice, centred two
    samples back; ``derivative_scheme="central"``: three-point, one sample back): every output
    describes the instant :attr:`LiveSession.lag_s` = τ + 2Δt (τ + Δt) before the newest input
-   (τ the filter's group delay at DC);
+   (τ the filter's group delay at DC); ``smoother="linear_phase"``: the offline run's zero-lag
+   filter as a symmetric FIR instead (:class:`msk.signal.LinearPhaseLowpass`, τ = its half
+   width, the same for every frequency);
 4. inverse dynamics (:class:`msk.dynamics.inverse.FrameInverseDynamics`);
 5. muscle–tendon lengths, velocities, moment arms and the knee's unit wrenches in one geometry
-   pass (:meth:`msk.muscles.geometry.GeometryPlan.evaluate`);
+   pass (:class:`msk.muscles.geometry.FrameGeometry`, :meth:`GeometryPlan.evaluate
+   <msk.muscles.geometry.GeometryPlan.evaluate>` of one frame; the plan's own evaluation for
+   paths with wrapping surfaces);
 6. static optimisation min Σ w_i a_i² + Σ r_j² with the rigid-tendon force curves
    (:class:`msk.optimization.FrameStaticOptimization`, the QP of
    :func:`msk.optimization.solve_static_optimization_batch` with DAQP warm-started from the
@@ -31,11 +35,12 @@ The chain of ``msk run`` made causal, each stage the library's own computation o
    its medial/lateral split (two-point model, Winby et al. 2009).
 
 Allocation: the IK's marker buffers, the filter's state and outputs, the inverse dynamics'
-torques, the static optimisation's constraint matrix and right-hand side, the contact's load are
-buffers of :class:`LiveData`, written in place; the geometry pass
-(:meth:`msk.muscles.geometry.GeometryPlan.evaluate` on one frame), the Levenberg–Marquardt steps
-and the QP solver's call still allocate their small temporaries, and each :class:`LiveFrame`
-owns copies of its arrays (the buffers are overwritten by the next frame).
+torques, the muscle geometry of the frame (:class:`msk.muscles.geometry.FrameGeometry`), the
+force curves (:class:`msk.muscles.hill.RigidTendonFrame`), the static optimisation's
+constraint matrix and right-hand side, the contact's load are buffers written in place; the
+Levenberg–Marquardt steps, the geometry's and the curves' intermediate products and the QP
+solver's call still allocate small temporaries, and each :class:`LiveFrame` owns copies of its
+arrays (the buffers are overwritten by the next frame).
 
 Every frame is solved, including those where a foot stands on no plate (the offline run leaves
 that leg out of the torques and the muscle forces there; a live frame cannot tell a foot on the
@@ -58,7 +63,7 @@ import numpy as np
 import pinocchio as pin
 from numpy.typing import NDArray
 
-from msk.exceptions import ModelError, ShapeMismatchError
+from msk.exceptions import ConfigError, ModelError, ShapeMismatchError
 from msk.model.core import Model
 
 __all__ = [
@@ -88,7 +93,12 @@ class LiveOptions:
     offline run's ``np.gradient`` twice, θ̈ from y_n − 2y_{n−2} + y_{n−4}: on gc5 PS and gc6 DM
     the torques agree with the offline run's by 0.3–4 points of peak more and the axial knee
     contact by 0.005–0.013 BW more than with the three-point ``"central"``, for one sample more
-    of lag); ``ik_iterations``: the most Levenberg–Marquardt steps per frame;
+    of lag); ``smoother``: ``"butterworth"`` (that causal low-pass, the shortest lag) or
+    ``"linear_phase"`` (:class:`msk.signal.LinearPhaseLowpass`: the offline run's zero-lag
+    4th-order Butterworth as a symmetric FIR of half width ``fir_half_width_s``, 14 samples at
+    120 Hz — every frequency delayed alike, lag 133 ms at 120 Hz; docs/validation.md, "Live
+    mode against the offline run", gives what each agrees to); ``ik_iterations``: the most
+    Levenberg–Marquardt steps per frame;
     ``ik_tolerance_rad``, ``ik_rel_tolerance``: a frame's IK stops after a step that
     moves no coordinate by more than ``ik_tolerance_rad`` or lowers the cost by at most
     ``ik_rel_tolerance`` of it (:func:`msk.kinematics.ik.solve_kinematics`' ``tolerance`` and
@@ -103,6 +113,8 @@ class LiveOptions:
     cutoff_hz: float = 6.0
     filter_order: int = 2
     derivative_scheme: str = "gradient"
+    smoother: str = "butterworth"
+    fir_half_width_s: float = 0.12
     ik_iterations: int = 10
     ik_tolerance_rad: float = 1e-3
     ik_rel_tolerance: float = 1e-6
@@ -219,6 +231,9 @@ class LiveData:
     jac_at: tuple[NDArray[np.intp], NDArray[np.intp]] = field(
         default_factory=lambda: (np.zeros(0, dtype=np.intp), np.zeros(0, dtype=np.intp))
     )
+    geometry: Any = None
+    tendon: Any = None
+    f_active: NDArray[np.float64] = field(default_factory=lambda: np.zeros(0))
     plate_owner: NDArray[np.intp] = field(default_factory=lambda: np.zeros(0, dtype=np.intp))
     history: NDArray[np.float64] = field(default_factory=lambda: np.zeros((3, 0)))
     start: NDArray[np.float64] = field(default_factory=lambda: np.zeros(0))
@@ -255,6 +270,8 @@ def live_model(
     from msk.muscles.geometry import geometry_plan, muscle_parameters
 
     opt = options or LiveOptions()
+    if opt.smoother not in ("butterworth", "linear_phase"):
+        raise ConfigError(f"live smoother {opt.smoother!r}: not 'butterworth' or 'linear_phase'")
     labels = tuple(labels)
     ik = FrameIK(model, labels, weights=weights, coordinate_tasks=dict(held or {}) or None)
     feet = _default_feet(model)
@@ -307,7 +324,9 @@ def live_data(lm: LiveModel, start: NDArray[np.float64] | None = None) -> LiveDa
     from msk.contact.knee import FrameKneeContact
     from msk.dynamics.inverse import FrameInverseDynamics
     from msk.kinematics.ik import FrameIK
-    from msk.signal import CausalLowpass
+    from msk.muscles.geometry import FrameGeometry
+    from msk.muscles.hill import RigidTendonFrame
+    from msk.signal import CausalLowpass, LinearPhaseLowpass
 
     n_c, n_f = lm.n_coords, len(lm.feet)
     opt = lm.options
@@ -324,6 +343,12 @@ def live_data(lm: LiveModel, start: NDArray[np.float64] | None = None) -> LiveDa
         jacobian=np.zeros((lm.actuated.size, len(lm.muscle_names))).T,
         jac_keep=keep,
         jac_at=(mus[keep], place[coord[keep]]),
+        # wrap-free paths: the one-frame evaluator (else GeometryPlan.evaluate per frame)
+        geometry=None
+        if lm.plan.wraps
+        else FrameGeometry(lm.plan, (knee,) if knee is not None else ()),
+        tendon=RigidTendonFrame(lm.params),
+        f_active=np.empty(len(lm.muscle_names)),
         ik=FrameIK(
             lm.model,
             lm.labels,
@@ -349,7 +374,15 @@ def live_data(lm: LiveModel, start: NDArray[np.float64] | None = None) -> LiveDa
         pin_data=lm.model.pin_model.createData(),
         markers=np.empty((len(lm.labels), 3)),
         channels=np.empty(n_c + 6 * n_f),
-        filter=CausalLowpass(
+        filter=LinearPhaseLowpass(
+            n_c + 6 * n_f,
+            rate_hz=lm.rate_hz,
+            cutoff_hz=opt.cutoff_hz,
+            scheme=opt.derivative_scheme,
+            half_width_s=opt.fir_half_width_s,
+        )
+        if opt.smoother == "linear_phase"
+        else CausalLowpass(
             n_c + 6 * n_f,
             rate_hz=lm.rate_hz,
             cutoff_hz=opt.cutoff_hz,
@@ -402,10 +435,15 @@ def _assign_plates(lm: LiveModel, ld: LiveData, frame: LiveInput) -> None:
         k = fixed[p] if p < len(fixed) else -1
         if k < 0:
             if feet is None:
-                pin.forwardKinematics(
-                    lm.model.pin_model, ld.pin_data, ld.ik.problem.coupling.q(ld.theta)
-                )
-                feet = np.array([ld.pin_data.oMi[int(j)].translation for j in lm.foot_joints])
+                prob = ld.ik.problem
+                if prob._at is ld.theta:  # the IK's last placements are those of θ
+                    omi = prob.data.oMi.tolist()
+                else:
+                    pin.forwardKinematics(
+                        lm.model.pin_model, ld.pin_data, prob.coupling.q(ld.theta)
+                    )
+                    omi = ld.pin_data.oMi.tolist()
+                feet = np.array([omi[j].translation for j in lm.foot_joints.tolist()])
             (f0, f1, f2), (m0, m1, m2) = f[p].tolist(), m[p].tolist()
             s2 = f0 * f0 + f1 * f1 + f2 * f2
             p0 = ((f1 * m2 - f2 * m1) / s2, (f2 * m0 - f0 * m2) / s2, (f0 * m1 - f1 * m0) / s2)
@@ -422,7 +460,6 @@ def _assign_plates(lm: LiveModel, ld: LiveData, frame: LiveInput) -> None:
 def live_step(lm: LiveModel, ld: LiveData, frame: LiveInput) -> LiveFrame:
     """One frame through the chain (module docstring); ``ld`` carries the states."""
     import msk.optimization as o
-    from msk.muscles.hill import rigid_tendon_state
 
     clock = _time.perf_counter
     stage = np.empty(len(STAGES))
@@ -469,25 +506,31 @@ def live_step(lm: LiveModel, ld: LiveData, frame: LiveInput) -> LiveFrame:
     t3 = clock()
     stage[2] = t3 - t2
     knee = lm.options.knee_joint
-    geo = lm.plan.evaluate(
-        q[None], v[None], distal_wrench_joints=(knee,) if knee else (), compact=True
-    )
+    fg = ld.geometry
+    if fg is not None:
+        fg.evaluate(q, v)
+        lengths, speeds, jl = fg.lengths, fg.velocities, fg.jacobian
+        distal = fg.distal_wrenches
+    else:
+        geo = lm.plan.evaluate(
+            q[None], v[None], distal_wrench_joints=(knee,) if knee else (), compact=True
+        )
+        lengths, speeds, jl = geo.lengths[0], geo.velocities[0], geo.jacobian.values[0]
+        distal = {k: w[0] for k, w in geo.distal_wrenches.items()}
     t4 = clock()
     stage[3] = t4 - t3
-    state = rigid_tendon_state(lm.params, geo.lengths, geo.velocities)
-    fmax = state.max_active_force_along_tendon[0]
-    fa = np.where(fmax < 0, 0.0, fmax)
+    fmax, f_passive = ld.tendon(lengths, speeds)
+    fa = ld.f_active
+    np.maximum(fmax, 0.0, out=fa)
     jac = ld.jacobian  # its other entries stay 0
-    jac[ld.jac_at] = geo.jacobian.values[0, ld.jac_keep]
+    jac[ld.jac_at] = jl[ld.jac_keep]
     opt = lm.options
     if ld.optimization is not None:
-        forces, acts, status = ld.optimization.solve(
-            jac, tau[lm.actuated], fa, state.passive_force_along_tendon[0]
-        )
+        forces, acts, status = ld.optimization.solve(jac, tau[lm.actuated], fa, f_passive)
     else:  # exponent > 2: the batch's sequential QP on this one frame
         sol = o.solve_static_optimization_batch(
             jac[None], tau[lm.actuated][None], f_active=fa[None],
-            f_passive=state.passive_force_along_tendon, reserve_optimal_force=ld.reserve_optimal,
+            f_passive=f_passive[None], reserve_optimal_force=ld.reserve_optimal,
             activation_weights=lm.activation_weights, activation_exponent=opt.activation_exponent,
             solver=opt.solver, warm=ld.warm, compute_kkt=False, muscle_names=lm.muscle_names,
             coordinate_names=lm.actuated_names, time=np.array([frame.time]),
@@ -500,7 +543,7 @@ def live_step(lm: LiveModel, ld: LiveData, frame: LiveInput) -> LiveFrame:
     axial = medial = lateral = float("nan")
     if knee is not None and ld.contact is not None:
         axial, medial, lateral = ld.contact.contact(
-            ld.dynamics.data, forces, geo.distal_wrenches[knee][0], force, moment
+            ld.dynamics.data, forces, distal[knee], force, moment
         )
         kf = ld.contact.force.copy()
     stage[5] = clock() - t5

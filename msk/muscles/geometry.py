@@ -102,6 +102,7 @@ from msk.timeseries import FrameAxis, FrameSparse
 from msk.units import Array
 
 __all__ = [
+    "FrameGeometry",
     "GeometryPlan",
     "MuscleGeometry",
     "finite_frames",
@@ -1527,6 +1528,147 @@ class GeometryPlan:
         return xw, dloc, active
 
 
+class FrameGeometry:
+    """:meth:`GeometryPlan.evaluate` of one frame at a time (a stream: :mod:`msk.live`) for a
+    plan without wrapping surfaces: the same maths — x_p = R_b loc_p + t_b, segment lines
+    L_s = (u_s, x_A × u_s) aggregated into Jacobian rows, ∂l/∂θ = Σ rows · (J_joint G) and the
+    moving points' ∂p/∂θ terms, l̇ = (∂l/∂θ) θ̇, the distal unit wrenches from the same rows —
+    on arrays without the frame axis, into buffers of this object, the coordinate functions of
+    the embedding and of the moving points in one bank.
+
+    Equal to :meth:`GeometryPlan.evaluate` (``compact=True``) to round-off (1e-12 relative:
+    a few products summed in another order; tested). :meth:`evaluate` returns the buffers
+    :attr:`lengths` (M,), :attr:`velocities` (M,), :attr:`jacobian` (U,) (the entries at
+    :meth:`GeometryPlan.jacobian_positions`) and :attr:`distal_wrenches` (per joint, (M, 6)),
+    overwritten by the next call.
+
+    Raises:
+        ModelError: the plan has wrapping surfaces (use :meth:`GeometryPlan.evaluate`).
+    """
+
+    def __init__(self, plan: GeometryPlan, distal_wrench_joints: Sequence[str] = ()) -> None:
+        if not plan._static:
+            raise ModelError(
+                f"geometry plan of {plan.model_name!r}: wrapping surfaces need "
+                "GeometryPlan.evaluate (FrameGeometry evaluates wrap-free paths)"
+            )
+        self.plan = plan
+        m = plan.n_muscles
+        cb = plan._coupling_bank
+        self._n_embed = cb.size
+        mb = plan._moving_bank
+        self._bank = _FunctionBank(
+            np.concatenate([cb.coords, mb.coords]), [*cb.functions, *mb.functions]
+        )
+        self._q = plan._q_const.copy()
+        self._dg = np.zeros(plan._q_const.size)
+        self._data = plan._pm.createData()
+        self._nb = len(plan.body_names)
+        self._body_rot = plan.body_rot
+        self._body_trans = plan.body_trans
+        self._mp_body = plan.point_body[plan.moving_points]
+        self._mp_loc = plan.point_location[plan.moving_points].copy()
+        self._trans_pb = plan.point_body
+        self._active = np.ones(plan.n_points, dtype=bool)
+        self._has_cond = bool(plan.cond_points.size)
+        self._dyn_rows = np.arange(plan._dyn_seg.size)
+        self._mv_col = plan.point_body[plan._mv_point]
+        self._need = plan._seg_need
+        self._lines = np.empty((plan._seg_need.size, 6))
+        self._n_rows = plan._row_col.size
+        self.lengths = np.empty(m)
+        self.velocities = np.empty(m)
+        self.jacobian = np.empty(plan._target_cols.size)
+        joints = tuple(dict.fromkeys(distal_wrench_joints))
+        self._distal: list[tuple[Array, NDArray[np.intp], NDArray[np.intp]]] = []
+        self.distal_wrenches: dict[str, Array] = {}
+        for j in joints:
+            self.distal_wrenches[j] = out = np.zeros((m, 6))
+            rows = plan._distal_rows(j)
+            if rows is not None:
+                self._distal.append((out, rows[0], rows[1]))
+        # a joint none of whose DOFs moves with a coordinate: the plan's twist evaluation
+        self._by_twists = [j for j in joints if plan._distal_rows(j) is None]
+
+    def evaluate(self, theta: Array, theta_dot: Array) -> FrameGeometry:
+        """Lengths, l̇, the compact ∂l/∂θ and the distal wrenches at θ, θ̇ (n_coords,)."""
+        pl = self.plan
+        th = theta[None]
+        val, d1 = self._bank.evaluate(th)
+        ne = self._n_embed
+        q, dg = self._q, self._dg
+        q[pl._var_dof] = val[0, :ne]
+        dg[pl._var_dof] = d1[0, :ne]
+        # body placements and the world joint Jacobians (Pinocchio)
+        data = self._data
+        jac = np.reshape(pin.computeJointJacobians(pl._pm, data, q), (6, -1))
+        omi = data.oMi.tolist()  # one conversion (indexing Pinocchio's vector costs as much)
+        hom = np.array([omi[j].homogeneous for j in pl._body_joint_list])
+        rjb = hom[:, :3, :3]
+        rot = rjb @ self._body_rot
+        trans = hom[:, :3, 3] + np.einsum("bij,bj->bi", rjb, self._body_trans)
+        # path points in world (P, 3)
+        rt = rot.transpose(0, 2, 1).reshape(self._nb * 3, 3)
+        xw = _spmm(pl._loc_matrix, rt)
+        xw += trans[self._trans_pb]
+        if pl.moving:
+            loc = self._mp_loc.copy()
+            loc[pl._mv_slot, pl._mv_axis] = val[0, ne:]
+            xw[pl.moving_points] = (rot[self._mp_body] @ loc[..., None])[..., 0] + trans[
+                self._mp_body
+            ]
+        active = None
+        if self._has_cond:
+            active = self._active
+            v = theta[pl.cond_coord]
+            active[pl.cond_points] = (v >= pl.cond_lo) & (v <= pl.cond_hi)
+        # segments: start fixed, end at the next active point
+        sp = pl.orig_start_point
+        sa = xw[sp]
+        sb = xw[sp + 1]
+        ent_on = None
+        if active is not None and pl._dyn_seg.size:
+            lvl = np.argmax(active[pl._dyn_cand], axis=1)
+            sb[pl._dyn_seg] = xw[pl._dyn_cand[self._dyn_rows, lvl]]
+            ent_on = lvl[pl._ent_seg] == pl._ent_lvl
+        d = sb - sa
+        seg = np.sqrt(np.einsum("si,si->s", d, d))
+        ok = seg > 0.0
+        if active is not None:
+            ok &= active[sp]
+        u = d / np.where(ok, seg, np.inf)[:, None]
+        seg[~ok] = 0.0
+        self.lengths[:] = np.add.reduceat(seg, pl.muscle_slot_start)
+        need, lines = self._need, self._lines
+        un = u[need]
+        lines[:, :3] = un
+        _cross_into(sa[need], un, lines[:, 3:])
+        rows = _spmm(pl._seg_sigma, lines)
+        if ent_on is not None:
+            rows += _spmm(pl._ent_agg, lines[pl._dyn_need[pl._ent_seg]] * ent_on[:, None])
+        for out, r_idx, mus in self._distal:
+            out[mus] = rows[r_idx]
+        for j in self._by_twists:
+            self.distal_wrenches[j][:] = pl._distal_by_twists(th, pl._joint_dofs(j))[0]
+        # ∂l/∂θ: each row against its coordinate's effective column
+        if self._n_rows:
+            jg = jac[:, pl._col_dofs] * dg[pl._col_dofs]
+            jt = np.add.reduceat(jg, pl._col_start, axis=1).T  # (E, 6)
+            vals = np.einsum("rc,rc->r", rows[: self._n_rows], jt[pl._row_col])
+        else:
+            vals = np.zeros(0)
+        if pl.moving:
+            col = rot[self._mv_col, :, pl._mv_axis]  # (E, 3)
+            term = np.einsum("ei,ei->e", rows[pl._mv_row, :3], col) * d1[0, ne:]
+            vals = np.concatenate([vals, term])
+        jl = _spmm(pl._target_sum, vals[:, None])[:, 0]
+        self.jacobian[:] = jl
+        self.velocities[:] = _spmm(
+            pl._muscle_of_target, (jl * theta_dot[pl._target_coord])[:, None]
+        )[:, 0]
+        return self
+
+
 # --------------------------------------------------------------------------------------------
 # moving-point functions, evaluated in groups
 # --------------------------------------------------------------------------------------------
@@ -1571,6 +1713,7 @@ class _FunctionBank:
 
     def __init__(self, coords: NDArray[np.intp], functions: list[Any]) -> None:
         coords = np.asarray(coords, dtype=np.intp)
+        self.coords, self.functions = coords, list(functions)
         self.size = len(functions)
         lin = [e for e, f in enumerate(functions) if _linear_of(f) is not None]
         spl = [e for e, f in enumerate(functions) if e not in set(lin) and _spline_of(f)]

@@ -59,6 +59,7 @@ __all__ = [
     "EquilibriumState",
     "LloydBesierCurves",
     "MuscleParameters",
+    "RigidTendonFrame",
     "RigidTendonState",
     "RigidTendonStateBlocks",
     "Thelen2003Curves",
@@ -505,6 +506,102 @@ def rigid_tendon_state(
         max_active_force_along_tendon=fiso * fl * fv * cos_a,
         passive_force_along_tendon=fiso * fpe * cos_a,
     )
+
+
+class RigidTendonFrame:
+    """The two force curves of :func:`rigid_tendon_state` for one frame at a time (a stream:
+    :mod:`msk.live`): ``F_max,along = F_iso f_l(l̃_f) f_v(ṽ_f) cos α`` and
+    ``F_P,along = F_iso f_PE(l̃_f) cos α`` (Thelen 2003 curves, activation 1 inside f_v), with
+    the constants of ``params`` folded once and every array a buffer of this object. The same
+    operations in the same order as :func:`rigid_tendon_state`: equal to it bit for bit
+    (tested). :meth:`__call__` returns the buffers :attr:`active` and :attr:`passive`,
+    overwritten by the next call."""
+
+    def __init__(self, params: MuscleParameters, curves: Thelen2003Curves | None = None) -> None:
+        cv = curves or Thelen2003Curves()
+        self.params = params
+        lopt = np.asarray(params.optimal_fiber_length, dtype=float)
+        h = lopt * np.sin(params.pennation_angle_at_optimal)
+        self._lopt = lopt
+        self._h2 = h**2
+        self._lmin = np.maximum(h / np.sin(MAX_PENNATION_ANGLE), 1e-6 * lopt)
+        self._slack = np.asarray(params.tendon_slack_length, dtype=float)
+        self._vscale = lopt * params.max_contraction_velocity
+        self._fiso = np.asarray(params.max_isometric_force, dtype=float)
+        self._ka, self._kp, self._e0 = cv.kshape_active, cv.kshape_passive, cv.fmax_muscle_strain
+        self._den = np.expm1(self._kp)
+        # force–velocity constants of Thelen2003Curves.force_velocity at activation 1
+        k = 0.25 + 0.75 * 1.0
+        af, fl = cv.af, cv.flen
+        c = (2.0 + 2.0 / af) / (fl - 1.0)
+        f0 = cv.fv_linear_extrap_threshold * fl
+        self._fv = (k, af, fl, c, k * (1.0 + 1.0 / af), f0, k * (f0 - 1.0) / (c * (fl - f0)))
+        self._slope = k * (fl - 1.0) / (c * (fl - f0) ** 2)
+        m = lopt.size
+        self._lf, self._cos, self._vn = np.empty(m), np.empty(m), np.empty(m)
+        self._x, self._fl, self._fv_out = np.empty(m), np.empty(m), np.empty(m)
+        self._t = np.empty(m)
+        self.active, self.passive = np.empty(m), np.empty(m)
+
+    def __call__(self, lengths: Array, velocities: Array) -> tuple[Array, Array]:
+        """``(F_max,along, F_P,along)`` (M,) of one frame's muscle–tendon lengths and lengthening
+        velocities (M,)."""
+        if not (np.isfinite(lengths).all() and np.isfinite(velocities).all()):
+            bad = np.flatnonzero(~(np.isfinite(lengths) & np.isfinite(velocities)))[0]
+            raise MuscleModelError(
+                f"muscle {self.params.names[bad]!r}: non-finite length or velocity "
+                f"({float(lengths[bad])!r}, {float(velocities[bad])!r})"
+            )
+        lf, cos_a, vn, x, t = self._lf, self._cos, self._vn, self._x, self._t
+        along = np.subtract(lengths, self._slack, out=t)
+        np.multiply(along, along, out=lf)
+        lf += self._h2
+        np.sqrt(lf, out=lf)
+        np.maximum(lf, self._lmin, out=lf)
+        np.divide(along, lf, out=cos_a)
+        np.clip(cos_a, 0.0, 1.0, out=cos_a)
+        np.multiply(velocities, cos_a, out=vn)
+        vn /= self._vscale
+        # x = l̃_f − 1; f_l = exp(−x²/K_a)
+        np.divide(lf, self._lopt, out=x)
+        x -= 1.0
+        fl = self._fl
+        np.multiply(x, x, out=fl)
+        np.negative(fl, out=fl)
+        fl /= self._ka
+        np.exp(fl, out=fl)
+        # f_PE = (exp(K_p x/ε_0) − 1)/(e^{K_p} − 1) where x > 0, else 0
+        pas = self.passive
+        np.maximum(x, 0.0, out=pas)
+        pas *= self._kp
+        pas /= self._e0
+        np.exp(pas, out=pas)
+        pas -= 1.0
+        pas /= self._den
+        pas[x <= 0] = 0.0
+        # f_v: concentric branch everywhere, the other three where they apply
+        k, af, flen, c, kc, f0, v0 = self._fv
+        fv = self._fv_out
+        np.divide(vn, af, out=t)
+        np.subtract(k, t, out=t)
+        np.add(vn, k, out=fv)
+        fv /= t
+        if (vn < -k).any():
+            lo = vn < -k
+            fv[lo] = (vn[lo] + k) / kc
+        if (vn > 0).any():
+            ecc = vn > 0
+            v = vn[ecc]
+            fv[ecc] = np.where(
+                v <= v0, (k + v * c * flen) / (k + v * c), f0 + (v - v0) / self._slope
+            )
+        act = self.active
+        np.multiply(self._fiso, fl, out=act)
+        act *= fv
+        act *= cos_a
+        np.multiply(self._fiso, pas, out=pas)
+        pas *= cos_a
+        return act, pas
 
 
 @dataclass(frozen=True)

@@ -1,8 +1,9 @@
 """A live session set up from a session configuration (``msk live``): the pipeline's model stage
 makes the subject's model from the static trial (:func:`msk.personalise.personalise`, as
-``msk run`` does), optionally with the segment inertias its mass identification finds on the
-configuration's task trial (an earlier recording of the subject), and
-:func:`msk.live.live_model` sets the streaming chain up on it.
+``msk run`` does) with the segment inertias its mass identification finds on the
+configuration's task trial (an earlier recording of the subject: the inertias ``msk run``'s
+joint torques use; ``identified=False``: the scaled ones), and :func:`msk.live.live_model`
+sets the streaming chain up on it.
 
 The lab → model rotation is the one the model stage found for the configuration's task trial
 (:attr:`msk.personalise.Personalisation.rotation`): a stream recorded in the same lab. The
@@ -44,15 +45,17 @@ def live_setup(
     labels: Sequence[str],
     rate_hz: float,
     *,
-    identified: bool = False,
+    identified: bool = True,
     ik_iterations: int = 10,
     filter_order: int = 2,
+    smoother: str = "butterworth",
     plate_names: Sequence[str] = (),
     assignment: Mapping[str, str] | None = None,
 ) -> LiveSetup:
     """The live chain of ``config``'s subject for a stream of the lab's marker ``labels`` at
     ``rate_hz``. ``identified``: run the pipeline up to its mass identification on the
-    configured task trial and use those inertias (None identified: the scaled ones).
+    configured task trial and use those inertias, as ``msk run``'s torques do (none
+    identified, or False: the scaled ones). ``smoother``: :class:`msk.live.LiveOptions`'.
     ``plate_names``: the stream's plates, in order; ``assignment``: plate name → body (an
     ExternalLoads ``.xml``'s), with ``[loads] assign`` over it, as ``msk run`` assigns."""
     from msk.dynamics.identification import identified_model
@@ -69,6 +72,7 @@ def live_setup(
     opt = cfg.optimization
     options = LiveOptions(
         cutoff_hz=cfg.filters.kinematics_cutoff_hz or 6.0, filter_order=filter_order,
+        smoother=smoother,
         ik_iterations=ik_iterations, knee_joint=knee if has_knee else None,
         activation_weights=opt.activation_weights, activation_exponent=opt.activation_exponent,
         solver=opt.solver,

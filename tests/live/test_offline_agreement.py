@@ -109,7 +109,48 @@ def test_live_knee_contact_follows_the_offline_run(streamed):
 
 
 @pytest.mark.slow
+def test_the_linear_phase_smoother_trades_lag_for_agreement(streamed):
+    """The offline filter as a symmetric FIR (14 samples each side at 120 Hz): every frequency
+    delayed alike, 133 ms instead of 54 ms; angles, the hip flexion and ankle torques and the
+    medial and lateral contact agree better, the hip rotation and knee torques still miss the
+    5 % target (docs/validation.md)."""
+    from msk.live import LiveSession
+    from msk.live.sources import ReplaySource
+
+    res, inputs, lm, _, _ = streamed
+    opts = dataclasses.replace(lm.options, smoother="linear_phase")
+    session = LiveSession(dataclasses.replace(lm, options=opts))
+    out = [session.step(f) for f in ReplaySource(inputs.task.file)]
+    assert session.lag_s == pytest.approx(16 / 120.0)  # 14 samples and the differences' 2
+    t = np.array([f.time for f in out]) - session.lag_s
+    kin, tq = res["kinematics"], res["inverse_dynamics"].torques
+    late = t > kin.time[0] + 0.3
+    d = np.degrees(np.abs(np.array([f.q for f in out]) - _at(t, kin.time, kin.q)))[late]
+    assert np.nanmax(d[:, lm.actuated]) < ANGLES_LINEAR_PHASE
+    names = lm.coordinate_names
+    cols = [i for i, c in enumerate(names)
+            if c.endswith(inputs.sfx) and c.startswith(("hip", "knee", "ankle"))]  # fmt: skip
+    err = np.abs(np.array([f.torques for f in out]) - _at(t, kin.time, tq.tau))[late][:, cols]
+    worst = np.nanmax(err / np.nanmax(np.abs(tq.tau[:, cols]), axis=0), axis=0)
+    got = {names[c].removesuffix(inputs.sfx): float(w) for c, w in zip(cols, worst)}
+    for name, bound in TORQUES_LINEAR_PHASE.items():
+        assert got[name] < bound, (name, got)
+
+
+#: achieved on PS with the linear-phase smoother, rounded up (max, fraction of peak)
+ANGLES_LINEAR_PHASE = 0.75
+TORQUES_LINEAR_PHASE = {
+    "hip_flexion": 0.05,
+    "hip_adduction": 0.065,
+    "hip_rotation": 0.25,
+    "knee_angle": 0.165,
+    "ankle_angle": 0.032,
+}
+
+
+@pytest.mark.slow
 def test_msk_live_cli_writes_the_streamed_tables(tmp_path, capsys):
+
     from msk.cli import main
     from msk.io.tables import read_csv_table
 

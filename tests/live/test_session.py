@@ -9,7 +9,7 @@ import pytest
 
 from msk.datasets.trials import make_trial
 from msk.dynamics.loads import sample_plate
-from msk.exceptions import ModelError
+from msk.exceptions import ConfigError, ModelError
 from msk.live import LiveInput, LiveOptions, LiveSession, live_model
 from tests.support.two_legs import muscled_two_legs
 
@@ -91,3 +91,32 @@ def test_a_plate_assigned_by_the_lab_loads_that_foot(synthetic):
     assert loaded_auto > 10 and loaded_fixed == 0
     with pytest.raises(ModelError, match="not a foot"):
         live_model(model, tr.marker_labels, tr.rate_hz, plate_bodies=["pelvis"])
+
+
+def test_the_linear_phase_smoother_recovers_the_truth_after_its_own_lag(synthetic):
+    model, tr = synthetic
+    opts = LiveOptions(smoother="linear_phase", fir_half_width_s=0.12)
+    session = LiveSession(live_model(model, tr.marker_labels, tr.rate_hz, options=opts))
+    assert session.lag_s == pytest.approx((12 + 2) / tr.rate_hz)  # 12 taps each side, 2 back
+    out = [session.step(f) for f in _frames(tr)]
+    t = np.array([f.time for f in out]) - session.lag_s
+    late = t > 0.25
+    truth = np.column_stack([np.interp(t, tr.time, tr.q[:, j]) for j in range(tr.q.shape[1])])
+    q = np.array([f.q for f in out])
+    assert np.degrees(np.abs(q - truth)[late]).max() < 1.0
+    with pytest.raises(ConfigError, match="smoother"):
+        live_model(model, tr.marker_labels, tr.rate_hz, options=LiveOptions(smoother="spline"))
+
+
+def test_the_one_frame_geometry_equals_the_plans_evaluation_in_the_chain(synthetic):
+    """Paths with wrapping surfaces take GeometryPlan.evaluate frame by frame: on wrap-free
+    paths both give the same frames to round-off."""
+    model, tr = synthetic
+    lm = live_model(model, tr.marker_labels, tr.rate_hz, options=LiveOptions(knee_joint="knee_r"))
+    fast, plan = LiveSession(lm), LiveSession(lm)
+    assert fast.data.geometry is not None
+    plan.data.geometry = None
+    for f in _frames(tr)[:40]:
+        a, b = fast.step(f), plan.step(f)
+        np.testing.assert_allclose(a.muscle_forces, b.muscle_forces, rtol=1e-9, atol=1e-9)
+        assert a.knee_axial == pytest.approx(b.knee_axial, rel=1e-9, abs=1e-9)

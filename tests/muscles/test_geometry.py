@@ -14,6 +14,7 @@ from msk.exceptions import ModelError, ShapeMismatchError
 from msk.model.core import Axis, Joint, Model
 from msk.model.joints import FourBarKnee, FourBarTranslation, Linear, SimmSpline
 from msk.muscles.geometry import (
+    FrameGeometry,
     GeometryPlan,
     MuscleGeometry,
     geometry_plan,
@@ -777,6 +778,29 @@ def test_consecutive_conditional_points_lengths_and_jacobian():
     assert seen == {"c1", "c2"}
     # a coordinate the path does not cross (the pelvis DOFs carry the whole path) is exactly 0
     assert np.all(geo.jacobian[:, :, :6] == 0.0)
+
+
+def test_frame_geometry_equals_the_plan_evaluation():
+    """One frame at a time (a stream) through moving and consecutive conditional points (every
+    activity state), with the knee's distal wrenches: the batch's lengths, velocities, compact
+    Jacobian and wrenches to round-off."""
+    model = _chained_conditional_model()
+    th = random_poses(model, 60, seed=12)
+    thd = np.random.default_rng(5).standard_normal(th.shape)
+    plan = geometry_plan(model)
+    assert plan.moving and plan.cond_points.size
+    full = plan.evaluate(th, thd, distal_wrench_joints=("knee",), compact=True)
+    frame = FrameGeometry(plan, ("knee",))
+    for n in range(th.shape[0]):
+        out = frame.evaluate(th[n], thd[n])
+        np.testing.assert_allclose(out.lengths, full.lengths[n], rtol=1e-12, atol=1e-15)
+        np.testing.assert_allclose(out.velocities, full.velocities[n], rtol=1e-12, atol=1e-14)
+        np.testing.assert_allclose(out.jacobian, full.jacobian.values[n], rtol=1e-12, atol=1e-15)
+        np.testing.assert_allclose(
+            out.distal_wrenches["knee"], full.distal_wrenches["knee"][n], rtol=1e-12, atol=1e-15
+        )
+    with pytest.raises(ModelError, match="wrapping"):
+        FrameGeometry(geometry_plan(leg_with_muscles()))
 
 
 @pytest.mark.parametrize("four_bar", [False, True], ids=["spline_knee", "four_bar_knee"])

@@ -13,6 +13,7 @@ from msk.muscles.hill import (
     MUSCLE_PARAMETER_ORDER,
     LloydBesierCurves,
     MuscleParameters,
+    RigidTendonFrame,
     Thelen2003Curves,
     equilibrium,
     fl_gaussian,
@@ -195,6 +196,27 @@ def test_rigid_tendon_recovers_known_fiber_state():
     assert np.all(st_.f_velocity[vmt[:, 0] > 0.01, 0] > 1)
     with pytest.raises(MuscleModelError, match="frame 1"):
         rigid_tendon_state(p, np.array([[0.3, 0.3, 0.4], [np.nan, 0.3, 0.4]]))
+
+
+def test_rigid_tendon_frame_equals_the_batch_state_bit_for_bit():
+    """Every branch: short paths (cos α clipped to 0), the fibre-length floor, concentric,
+    the concentric extrapolation below f_v = 0, eccentric and its extrapolation."""
+    p = _params()
+    rng = np.random.default_rng(4)
+    lmt = p.tendon_slack_length + p.optimal_fiber_length * rng.uniform(-0.3, 1.6, (400, 3))
+    speed = p.optimal_fiber_length * p.max_contraction_velocity
+    vmt = speed * rng.uniform(-1.6, 1.6, (400, 3))
+    batch = rigid_tendon_state(p, lmt, vmt)
+    vn = batch.norm_fiber_velocity
+    assert (vn < -1).any() and ((vn > -1) & (vn < 0)).any() and (vn > 0.5).any()
+    assert (batch.cos_pennation == 0).any()
+    frame = RigidTendonFrame(p)
+    for n in range(lmt.shape[0]):
+        fa, fp = frame(lmt[n], vmt[n])
+        np.testing.assert_array_equal(fa, batch.max_active_force_along_tendon[n])
+        np.testing.assert_array_equal(fp, batch.passive_force_along_tendon[n])
+    with pytest.raises(MuscleModelError, match="soleus"):
+        frame(np.array([0.3, np.nan, 0.4]), np.zeros(3))
 
 
 # --- elastic tendon equilibrium -----------------------------------------------------------------
