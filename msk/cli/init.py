@@ -77,6 +77,16 @@ def task_plate_mass(
     return float(np.mean(fz[starts[k] : ends[k]])) / g, span
 
 
+def _static_mass(trial: Any) -> float | None:
+    """The mass (kg) the run would weigh on this static's plates
+    (:func:`msk.personalise.body_mass.body_mass_from_static_plates`: a still window with every
+    foot on a plate), None when they cannot weigh the subject."""
+    from msk.personalise.body_mass import body_mass_from_static_plates
+
+    got = body_mass_from_static_plates(trial)
+    return None if got is None or not 20.0 <= got[0] <= 300.0 else got[0]
+
+
 def _name(path: Path, taken: set[str]) -> str:
     base = re.sub(r"[^A-Za-z0-9._-]+", "_", path.stem).strip("._-") or "trial"
     name, k = base, 2
@@ -171,10 +181,15 @@ def starter_config(
     mass = subj_src.mass_kg
     if mass is not None and 20.0 <= mass <= 300.0:
         lines.append(f"mass_kg = {mass:.1f}  # from the C3D's subject parameters (Bodymass)")
-    elif any(roles[f] == "static" and len(tr.plates) >= 2 for f, tr in trials):
+    elif (
+        static_mass := next(
+            (got for f, tr in trials if roles[f] == "static" and (got := _static_mass(tr))),
+            None,
+        )
+    ) is not None:
         lines.append(
-            "# mass_kg: not stored in the files: the run weighs the subject on the static "
-            "trial's plates (summary.json subject.mass_source says so)"
+            f"# mass_kg: not stored in the files: the run weighs the subject on the static "
+            f"trial's plates ({static_mass:.1f} kg; summary.json subject.mass_source says so)"
         )
     elif (weighed := task_plate_mass(task)) is not None and 20.0 <= weighed[0] <= 300.0:
         lines.append(

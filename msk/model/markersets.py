@@ -43,8 +43,14 @@ whose origin is at the back of the heel; the MTP joint is 0.18 m ahead) decided 
 Knee and ankle: a bare ``KNE``/``Knee`` is the lateral femoral epicondyle (Plug-in Gait,
 Rajagopal's ``R.Knee``), ``ANK``/``Ankle`` the lateral malleolus; ``LE``/``ME`` (IOR/CAST,
 Cappozzo et al. 1995 Clin Biomech 10:171) the lateral/medial epicondyles, ``LM``/``MM`` the
-malleoli. Sternum: gait2392's ``Sternum`` is 0.14 m below the acromia, on the body of the sternum,
-as the Grand Challenge ``Sternum``; Plug-in Gait's ``STRN`` and the Grand Challenge
+malleoli. The landmark codes of Van Sint Jan (2007) *Color Atlas of Skeletal Landmark
+Definitions* (Qualisys' IOR/CAST sets write them ``R_IAS``, ``L_FLE``…) are synonyms:
+``IAS``/``IPS`` the iliac spines, ``FTC`` the greater trochanter, ``FLE``/``FME`` the
+epicondyles, ``FAX`` the fibular head, ``TTC`` the tibial tuberosity, ``FAL``/``TAM`` the
+malleoli, ``FCC`` the calcaneus, ``FM1``/``FM2``/``FM5`` the metatarsal heads, ``SAE`` the
+acromion, ``CV7``, ``TV10``, ``LV5``, ``SJN``/``SXS`` the jugular notch / xiphoid.
+Sternum: gait2392's ``Sternum`` is 0.14 m below the acromia, on the body of the
+sternum, as the Grand Challenge ``Sternum``; Plug-in Gait's ``STRN`` and the Grand Challenge
 ``Xiphoid`` are on the xiphoid process, 0.15 m lower, and stay unmatched. Acromion: ``SHO``
 (Plug-in Gait: acromio-clavicular joint), ``ACR``, IOR's ``A``; a "Shoulder" word marker
 (Grand Challenge, Rajagopal) is not paired (7–9 cm from gait2392's ``R.Acromium`` after
@@ -175,8 +181,8 @@ KNEE_SEGMENTS = ("femur", "tibia")
 
 #: normalised name (lower case, no separators, side removed) → landmark key, sided landmarks
 SIDED_SYNONYMS: Mapping[str, str] = {
-    **dict.fromkeys(("asis", "asi", "antsupiliacspine"), "asis"),
-    **dict.fromkeys(("psis", "psi", "postsupiliacspine"), "psis"),
+    **dict.fromkeys(("asis", "asi", "antsupiliacspine", "ias"), "asis"),
+    **dict.fromkeys(("psis", "psi", "postsupiliacspine", "ips"), "psis"),
     **dict.fromkeys(
         (
             "kneelat",
@@ -192,6 +198,7 @@ SIDED_SYNONYMS: Mapping[str, str] = {
             "latepicondyle",
             "lateralepicondyle",
             "lepi",
+            "fle",
         ),
         "knee_lat",
     ),
@@ -212,6 +219,7 @@ SIDED_SYNONYMS: Mapping[str, str] = {
             "medialepicondyle",
             "mepi",
             "kneemedepicondyle",
+            "fme",
         ),
         "knee_med",
     ),
@@ -229,6 +237,7 @@ SIDED_SYNONYMS: Mapping[str, str] = {
             "latmalleolus",
             "lateralmalleolus",
             "lma",
+            "fal",
         ),
         "ankle_lat",
     ),
@@ -249,10 +258,11 @@ SIDED_SYNONYMS: Mapping[str, str] = {
             "sph",
             "medmalleolus",
             "medialmalleolus",
+            "tam",
         ),
         "ankle_med",
     ),
-    **dict.fromkeys(("heel", "hee", "ca", "cal", "calc", "calcaneus"), "heel"),
+    **dict.fromkeys(("heel", "hee", "ca", "cal", "calc", "calcaneus", "fcc"), "heel"),
     **dict.fromkeys(("toetip", "hallux", "halluxtip", "toe", "ttip"), "toe_tip"),
     **dict.fromkeys(
         ("toemed", "toemedial", "mt1", "mh1", "mfh1", "met1", "fm1", "imh", "mth1"), "mt1"
@@ -265,11 +275,11 @@ SIDED_SYNONYMS: Mapping[str, str] = {
     **dict.fromkeys(("midfootlat", "midfootlateral"), "midfoot_lat"),
     **dict.fromkeys(("midfootmed", "midfootmedial"), "midfoot_med"),
     "hindfoot": "hindfoot",
-    **dict.fromkeys(("gt", "gtr", "troch", "trochanter", "greatertrochanter"), "gt"),
-    **dict.fromkeys(("hf", "fibhead", "fibularhead", "fibulahead"), "fib_head"),
-    **dict.fromkeys(("tt", "tibtub", "tibialtuberosity"), "tib_tub"),
+    **dict.fromkeys(("gt", "gtr", "troch", "trochanter", "greatertrochanter", "ftc"), "gt"),
+    **dict.fromkeys(("hf", "fibhead", "fibularhead", "fibulahead", "fax"), "fib_head"),
+    **dict.fromkeys(("tt", "tibtub", "tibialtuberosity", "ttc"), "tib_tub"),
     **dict.fromkeys(("patella", "pat"), "patella"),
-    **dict.fromkeys(("acromion", "acromium", "acr", "sho", "a", "ac"), "acromion"),
+    **dict.fromkeys(("acromion", "acromium", "acr", "sho", "a", "ac", "sae"), "acromion"),
     **dict.fromkeys(("clavicle", "cla", "clav"), "clavicle"),
     **dict.fromkeys(("temple", "temp", "fhd", "bhd", "head"), "head"),
 }
@@ -278,11 +288,16 @@ SIDED_SYNONYMS: Mapping[str, str] = {
 MIDLINE_SYNONYMS: Mapping[str, str] = {
     **dict.fromkeys(("sacr", "sacral", "vsacral", "sacrum", "s2", "vsac", "sac", "ms2"), "sacrum"),
     **dict.fromkeys(("sternum", "str", "stern", "sternumbody"), "sternum"),
-    **dict.fromkeys(("xiphoid", "xiph", "px", "strn"), "xiphoid"),
-    **dict.fromkeys(("ij", "clav", "sup", "jugular", "jugularnotch", "suprasternal"), "jugular"),
-    "c7": "c7",
-    "t10": "t10",
-    **dict.fromkeys(("thoracic", "lumbar", "l5", "l3", "l1", "t8", "t12", "t6"), "spine"),
+    **dict.fromkeys(("xiphoid", "xiph", "px", "strn", "sxs"), "xiphoid"),
+    **dict.fromkeys(
+        ("ij", "clav", "sup", "jugular", "jugularnotch", "suprasternal", "sjn"), "jugular"
+    ),
+    **dict.fromkeys(("c7", "cv7"), "c7"),
+    **dict.fromkeys(("t10", "tv10"), "t10"),
+    **dict.fromkeys(
+        ("thoracic", "lumbar", "l5", "l3", "l1", "t8", "t12", "t6", "lv5", "lv3", "lv1", "tv8"),
+        "spine",
+    ),
     "neck": "neck",
     **dict.fromkeys(("tophead", "hv", "vertex", "headtop"), "top_head"),
     **dict.fromkeys(("occ", "sel", "lfhd", "rfhd", "lbhd", "rbhd"), "head"),
@@ -291,7 +306,7 @@ MIDLINE_SYNONYMS: Mapping[str, str] = {
 #: normalised (side removed) name patterns of technical cluster markers
 _CLUSTERS: tuple[tuple[re.Pattern[str], str], ...] = (
     (re.compile(r"^(thigh\w*|th\d|thi|tha|thp|thl|tc\d|femur\w*|fem\d)$"), "thigh_cluster"),
-    (re.compile(r"^(shank\w*|sh\d|tb\d|tib|sha|tibia\w*|tib\d|shk\d|sc\d)$"), "shank_cluster"),
+    (re.compile(r"^(shank\w*|sh\d|sk\d|tb\d|tib|sha|tibia\w*|tib\d|shk\d|sc\d)$"), "shank_cluster"),
     (re.compile(r"^(foot\w*|ft\d|fc\d)$"), "foot_cluster"),
 )
 #: normalised (side removed) name patterns of arm markers
@@ -659,10 +674,17 @@ def _protocol(parsed: Sequence[ParsedLabel], exact: int, n_model: int) -> str:
         return "Plug-in Gait"
     if has("asis", "le") or has("asis", "lm") or {"lle", "rle"} & raw:
         return "IOR/CAST"
+    if has("ias", "fle") or has("ias", "fal"):
+        return "IOR/CAST (Van Sint Jan names)"
+    if "vsacral" in raw and {"knee", "ankle"} & codes and has("heel"):
+        return "Helen Hayes"
     if any("thighsuperior" in n for n in raw) and any("asis" in n for n in raw):
         return "Grand Challenge"
     if any(n.endswith("th1") for n in raw) and any(n.endswith("asis") for n in raw):
         return "OpenSim clusters (Rajagopal)"
+    lms = {p.landmark for p in parsed}
+    if {"thigh_cluster", "shank_cluster"} <= lms:
+        return "clusters + epicondyles" if {"knee_lat", "knee_med"} & lms else "clusters"
     return "unknown"
 
 
