@@ -218,3 +218,17 @@ def test_a_given_knee_jacobian_is_the_geometry_pass_s() -> None:
     with pytest.raises(ShapeMismatchError, match="knee Jacobian"):
         knee_contact_force(model, kin, muscle_forces=f, joint="knee_r", patella=pt,
                            variant="quasi_static", knee_jacobian=jk[:, :1])  # fmt: skip
+
+
+def test_a_model_whose_quadriceps_end_on_its_patella_uses_the_tendon() -> None:
+    """Rajagopal's quadriceps end on its patella body (on the femur's chain): its knees use
+    the tendon whatever the configuration says; gait2392's quadriceps end on the tibia."""
+    from msk.contact.patella import patella_mode
+    from msk.model.files import load_model
+
+    raj, g = load_model("rajagopal"), load_model("gait2392")
+    assert patella_mode(raj, "walker_knee_r", "none") == "tendon"
+    assert patella_mode(raj, "walker_knee_l", "none") == "tendon"
+    assert patella_mode(g, "knee_r", "none") == "none"
+    assert patella_mode(g, "knee_r", "tendon") == "tendon"
+    assert patella_mode(g, "no_such_joint", "none") == "none"
