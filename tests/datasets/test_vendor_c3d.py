@@ -46,6 +46,7 @@ def test_motion_analysis_copy_keeps_the_plates_and_adds_three_unloaded(tmp_path)
     assert {e.label for e in got.events} == {"Foot Strike", "Foot Off"}  # read as Vicon's
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("kind", list(KINDS))
 def test_init_then_run_with_no_hand_edit(tmp_path, kind):
     writer, protocol, n_markers, n_emg, strike_source = KINDS[kind]
