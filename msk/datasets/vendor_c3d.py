@@ -203,7 +203,7 @@ def _pig(fname: str) -> Trial:
     return read_c3d(_src(f"btkdata/{fname}"))
 
 
-def motion_analysis(out: Path, *, frames: slice = slice(0, 170)) -> VendorSession:
+def motion_analysis(out: Path, *, frames: slice = slice(0, 200)) -> VendorSession:
     """btkdata's Plug-in Gait static and walk as a Motion Analysis Cortex export with the Helen
     Hayes set and six plates (module docstring)."""
     out.mkdir(parents=True, exist_ok=True)

@@ -42,7 +42,7 @@ class SessionInputs:
     hashes: Mapping[str, str]
     inv_rename: Mapping[str, str]
     #: where ``cfg.subject.mass_kg`` comes from (:mod:`msk.personalise.body_mass`): ``mass_source``
-    #: (``config``, ``c3d_parameters``, ``static_plates``) and ``mass_detail``
+    #: (``config``, ``c3d_parameters``, ``static_plates``, ``task_plates``) and ``mass_detail``
     mass: Mapping[str, str] = field(default_factory=dict)
 
     @property

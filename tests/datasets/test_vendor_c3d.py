@@ -67,4 +67,9 @@ def test_init_then_run_with_no_hand_edit(tmp_path, kind):
     assert len(ms["matched"]) >= n_markers
     assert summary["event_sources"]["right foot strike"] == strike_source
     assert summary["quality"]["ik_marker_rms_mean_m"] < 0.025
+    # the mass from the files or weighed by the plates, agreeing with the run's own weighing
+    stored = kind in ("vicon_delsys", "clusters_epicondyles")  # PROCESSING:Bodymass
+    assert summary["subject"]["mass_source"] == ("config" if stored else "task_plates")
+    raised = {f["quantity"] for f in summary["quality"]["flags"]}
+    assert "plate_mass_difference_pct" not in raised
     assert (out / "report.html").is_file()
