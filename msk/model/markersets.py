@@ -36,7 +36,10 @@ whose origin is at the back of the heel; the MTP joint is 0.18 m ahead) decided 
   dorsum (Vicon Plug-in Gait marker placement), ~7 cm behind the toe tip; pairing it with
   ``R.Toe.Tip`` would shorten the foot to ~0.7 and tilt it in IK. An all-capitals ``TOE``
   (Plug-in Gait's code) is therefore read as the 2nd metatarsal head, which gait2392 lacks:
-  it stays unmatched and is placed on the foot from the static trial (or the motion).
+  it stays unmatched and is placed on the foot from the static trial (or the motion). So is the
+  Helen Hayes set's ``R.Toe`` (Kadaba MP, Ramakrishnan HK, Wootten ME 1990 J Orthop Res
+  8:383–392: over the 2nd metatarsal head) when the labels are that set (``V.Sacral`` with
+  bare ``Knee``/``Ankle``/``Heel`` words, as Motion Analysis writes them).
 * ``R.Midfoot.Sup`` / ``R.Midfoot.Lat``: the Grand Challenge's ``MidfootSuperior`` /
   ``MidfootLateral`` (same names, same protocol: the gait2392 set was drawn for it).
 
@@ -69,7 +72,7 @@ from __future__ import annotations
 
 import re
 from collections.abc import Mapping, Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -657,6 +660,14 @@ class MarkerSetMatch:
         return x[:, keep], names
 
 
+def _helen_hayes(parsed: Sequence[ParsedLabel]) -> bool:
+    """The labels are the Helen Hayes set (Kadaba et al. 1990; Motion Analysis): ``V.Sacral``
+    with bare ``Knee``/``Ankle`` words and a ``Heel``."""
+    raw = {_norm(p.name) for p in parsed}
+    codes = {_norm(p.name)[1:] for p in parsed if p.side}
+    return "vsacral" in raw and bool({"knee", "ankle"} & codes) and "heel" in codes
+
+
 def _protocol(parsed: Sequence[ParsedLabel], exact: int, n_model: int) -> str:
     """A name for the marker protocol the labels look like (descriptive only)."""
     raw = {_norm(p.name) for p in parsed}
@@ -676,7 +687,7 @@ def _protocol(parsed: Sequence[ParsedLabel], exact: int, n_model: int) -> str:
         return "IOR/CAST"
     if has("ias", "fle") or has("ias", "fal"):
         return "IOR/CAST (Van Sint Jan names)"
-    if "vsacral" in raw and {"knee", "ankle"} & codes and has("heel"):
+    if _helen_hayes(parsed):
         return "Helen Hayes"
     if any("thighsuperior" in n for n in raw) and any("asis" in n for n in raw):
         return "Grand Challenge"
@@ -723,6 +734,8 @@ def recognise(
     # (strip_subject_prefix) names the same label
     explicit = {mk: as_read(lab, labels) for mk, lab in (rename or {}).items()}
     parsed = [parse_label(lab) for lab in labels]
+    if _helen_hayes(parsed):  # its toe marker sits on the 2nd metatarsal head
+        parsed = [replace(p, landmark="mt2") if p.landmark == "toe_tip" else p for p in parsed]
     model_parsed = {mk: parse_label(mk) for mk in model_names}
     has_arm = any(_ARM_BODY.search(b) for b in model_bodies)
     has_head = any(_HEAD_BODY.search(b) for b in model_bodies) or any(

@@ -25,7 +25,7 @@ pytestmark = [
 KINDS = {
     "qualisys": (vendor_c3d.qualisys_ior, "IOR/CAST (Van Sint Jan names)", 18, 15,
                  "file + kinematics"),
-    "motion_analysis": (vendor_c3d.motion_analysis, "Helen Hayes", 11, 12, "file"),
+    "motion_analysis": (vendor_c3d.motion_analysis, "Helen Hayes", 9, 12, "file"),
     "vicon_delsys": (vendor_c3d.vicon_delsys, "Plug-in Gait", 8, 8, "file"),
     "clusters_epicondyles": (vendor_c3d.clusters_epicondyles, "clusters", 12, 0,
                              "file"),

@@ -414,3 +414,18 @@ def test_a_configured_label_with_the_prefix_the_reader_dropped_still_matches():
 def test_van_sint_jan_landmark_codes(label, side, landmark):
     p = parse_label(label)
     assert (p.side, p.landmark) == (side, landmark)
+
+
+def test_helen_hayes_toe_is_the_second_metatarsal_head():
+    """Motion Analysis' Helen Hayes set: ``R.Toe`` sits on the 2nd metatarsal head (Kadaba et
+    al. 1990), not at gait2392's toe tip: left unpaired (placed); OpenSim's own labels keep
+    theirs."""
+    hh = ["R.ASIS", "L.ASIS", "V.Sacral", "R.Thigh", "R.Knee", "R.Tibia", "R.Ankle", "R.Heel",
+          "R.Toe", "L.Knee", "L.Ankle", "L.Heel", "L.Toe"]  # fmt: skip
+    model = load_model("gait2392")
+    m = recognise(hh, model.marker_names)
+    assert m.protocol == "Helen Hayes"
+    assert "R.Toe.Tip" not in m.rename and "R.Toe" in m.unmatched_lab
+    assert m.rename["R.Heel"] == "R.Heel" and m.rename["R.Knee.Lat"] == "R.Knee"
+    other = recognise(["RASI", "LASI", "RHeel", "RToe", "RKNE"], model.marker_names)
+    assert other.rename["R.Toe.Tip"] == "RToe"
