@@ -22,7 +22,9 @@ Thresholds and their sources (:data:`THRESHOLDS`):
   m̂ = ∫ F_z dt / (g T + Δv_com,z), more than 5 % from the configured mass.
 * Joint angles outside physiological ranges of motion (:data:`PHYSIOLOGICAL_RANGES_DEG`: the
   active ranges of motion of healthy adults, Roaas A, Andersson GBJ (1982) Acta Orthop Scand
-  53:205–208, widened by 10°).
+  53:205–208, widened by 10°), in gait2392's convention (knee flexion negative); a model whose
+  coordinate turns the other way (Rajagopal's knee) is read through
+  :func:`msk.model.conventions.reference_sign`.
 * Coordinates at their model bound: a leg coordinate that IK holds at a bound of its model
   range (within :data:`AT_BOUND_TOLERANCE`) in more than 5 % of the solved frames: there the
   markers pull it beyond what the model allows and the pose is clamped, not measured (DM og4
@@ -506,6 +508,13 @@ def _coordinate_flags(
         for j, name in enumerate(kin.coordinate_names)
     }
     names = kin.coordinate_names
+    # the ranges are stated in the reference convention (knee_angle negative in flexion): a
+    # model whose coordinate turns the other way is read with its sign turned
+    signs: Mapping[str, float] = {}
+    if model is not None:
+        from msk.model.conventions import reference_signs
+
+        signs = reference_signs(model)
     checked = [
         j for j, st in stems.items() if st in PHYSIOLOGICAL_RANGES_DEG and names[j] not in held
     ]
@@ -516,15 +525,16 @@ def _coordinate_flags(
     still = bool(sds.size) and float(sds.max()) < th.get("still_trial_coordinate_std_deg", 0.0)
     for j, sd in zip(checked, sds.tolist()):
         name, stem = names[j], stems[j]
-        deg = np.degrees(q[good, j])
+        deg = signs.get(name, 1.0) * np.degrees(q[good, j])
         lo, hi = PHYSIOLOGICAL_RANGES_DEG[stem]
         if deg.min() < lo or deg.max() > hi:
             worst = deg.min() if lo - deg.min() > deg.max() - hi else deg.max()
             bound = lo if worst < lo else hi
             out.append(
                 _flag(trial, f"{name}_deg", worst, bound,
-                      f"{name} reaches {worst:.1f}°, outside the physiological range "
-                      f"[{lo:g}°, {hi:g}°]")
+                      f"{name} reaches {worst:.1f}°"
+                      + (" (gait2392's sign: flexion negative)" if name in signs else "")
+                      + f", outside the physiological range [{lo:g}°, {hi:g}°]")
             )  # fmt: skip
         if sd < th["frozen_coordinate_std_deg"] and not still:
             out.append(

@@ -530,3 +530,23 @@ def test_file_and_plate_flags_name_what_they_found() -> None:
     assert (e.quantity, e.value) == ("foot_past_plate_edge_m", 0.04) and "4 cm" in e.message
     assert not marker_rename_flags("walk", {}) and not dead_plate_flags("walk", [])
     assert not plate_edge_flags("walk", {})
+
+
+def test_the_physiological_range_is_read_in_the_reference_convention():
+    """A knee coordinate positive in flexion (Rajagopal's walker knee; here two_leg_model with
+    its knee axes turned): 70° of flexion is inside the physiological range, 30° of
+    hyperextension (−30° of that coordinate) is not, and the flag says the sign it used."""
+    from tests.support.knees import turned_knees
+
+    model = turned_knees(two_leg_model())
+    i = model.coordinate_names.index("knee_angle_r")
+    for deg, raised in ((70.0, False), (-30.0, True)):
+        kin = _still(model, 50)
+        kin.coordinate_names = kin_names(model)
+        kin.q[:, i] = np.radians(deg) + 0.01 * np.sin(np.arange(50))
+        kin.q_raw = kin.q.copy()
+        by = {f.quantity: f for f in _flags(model, kin)}
+        assert ("knee_angle_r_deg" in by) is raised
+        if raised:
+            assert by["knee_angle_r_deg"].value == pytest.approx(30.0, abs=0.6)
+            assert "gait2392's sign" in by["knee_angle_r_deg"].message

@@ -7,9 +7,11 @@ spans less than :data:`STILL_SPAN_M`); the others are tasks. Their marker and an
 are matched to the model as ``msk info`` matches them (:func:`msk.cli.info.recognition`): the
 ``[markers] rename`` table, the ``[emg] channels`` suggestions, with a "did you mean" for an
 analog label close to a muscle name. The mass and height come from the C3D's subject
-parameters when stored (else ``mass_kg`` is left out: the run weighs the subject on the static
-trial's plates), the side of interest from the sides the EMG channels name. The written
-configuration runs with ``msk run`` as it is; its comments say what to check.
+parameters when stored; else ``mass_kg`` is left out when the run can weigh the subject on the
+static trial's plates or on two consecutive whole stances of the task's
+(:mod:`msk.personalise.body_mass`), else the task's plates' mean loaded force gives it. The side
+of interest comes from the sides the EMG channels name. The written configuration runs with
+``msk run`` as it is; its comments say what to check.
 """
 
 from __future__ import annotations
@@ -75,6 +77,25 @@ def task_plate_mass(
     if span < min_s:
         return None
     return float(np.mean(fz[starts[k] : ends[k]])) / g, span
+
+
+def _static_mass(trial: Any) -> float | None:
+    """The mass (kg) the run would weigh on this static's plates
+    (:func:`msk.personalise.body_mass.body_mass_from_static_plates`: a still window with every
+    foot on a plate), None when they cannot weigh the subject."""
+    from msk.personalise.body_mass import body_mass_from_static_plates
+
+    got = body_mass_from_static_plates(trial)
+    return None if got is None or not 20.0 <= got[0] <= 300.0 else got[0]
+
+
+def _stride_mass(trial: Any) -> float | None:
+    """The mass (kg) the run would weigh on this task's plates
+    (:func:`msk.personalise.body_mass.body_mass_from_task_plates`), None when they cannot."""
+    from msk.personalise.body_mass import body_mass_from_task_plates
+
+    got = body_mass_from_task_plates(trial)
+    return None if got is None or not 20.0 <= got[0] <= 300.0 else got[0]
 
 
 def _name(path: Path, taken: set[str]) -> str:
@@ -171,10 +192,23 @@ def starter_config(
     mass = subj_src.mass_kg
     if mass is not None and 20.0 <= mass <= 300.0:
         lines.append(f"mass_kg = {mass:.1f}  # from the C3D's subject parameters (Bodymass)")
-    elif any(roles[f] == "static" and len(tr.plates) >= 2 for f, tr in trials):
+    elif (
+        static_mass := next(
+            (got for f, tr in trials if roles[f] == "static" and (got := _static_mass(tr))),
+            None,
+        )
+    ) is not None:
         lines.append(
-            "# mass_kg: not stored in the files: the run weighs the subject on the static "
-            "trial's plates (summary.json subject.mass_source says so)"
+            f"# mass_kg: not stored in the files: the run weighs the subject on the static "
+            f"trial's plates ({static_mass:.1f} kg; summary.json subject.mass_source says so)"
+        )
+    elif (
+        strides := next((got for _, tr in tasks if (got := _stride_mass(tr)) is not None), None)
+    ) is not None:
+        lines.append(
+            f"# mass_kg: not stored in the files: the run weighs the subject on the task's "
+            f"plates ({strides:.1f} kg: the vertical impulse of two consecutive whole stances "
+            "over a stride; summary.json subject.mass_source says so)"
         )
     elif (weighed := task_plate_mass(task)) is not None and 20.0 <= weighed[0] <= 300.0:
         lines.append(

@@ -65,9 +65,17 @@ def describe_model(name: str, *, markdown: bool = False, write: Callable[[str], 
     h("Bodies (mass)")
     for b in model.bodies:
         item(f"{b.name} ({b.mass:.2f} kg)")
+    from msk.model.conventions import knee_joint, reference_signs
+
+    knees = [k for s in ("r", "l") if (k := knee_joint(model, s)) is not None]
+    if knees:
+        write(("\n" if markdown else "") + f"knee joints (contact): {', '.join(knees)}\n")
+    turned = reference_signs(model)
     h("Coordinates (range)")
     for c in model.coordinates:
-        item(f"{c.name}: {_range(c)}{' (locked)' if c.locked else ''}")
+        sign = (" (positive in flexion: read with its sign turned, as gait2392's)"
+                if c.name in turned else "")  # fmt: skip
+        item(f"{c.name}: {_range(c)}{' (locked)' if c.locked else ''}{sign}")
     h("Markers (body)")
     for m in model.markers:
         item(f"{m.name} ({m.body})")

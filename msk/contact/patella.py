@@ -87,6 +87,7 @@ __all__ = [
     "VAN_EIJDEN_ANGLE_DEG",
     "VAN_EIJDEN_FLEXION_DEG",
     "PatellarTendon",
+    "patella_mode",
     "patellar_tendon",
     "tendon_angle_deg",
 ]
@@ -116,6 +117,35 @@ QUADRICEPS_PREFIXES: tuple[str, ...] = (
     "vasint",
     "vaslat",
 )
+
+
+def patella_mode(model: Model, joint: str, configured: str) -> str:
+    """The mode the knee ``joint``'s contact uses: ``configured``, but ``"tendon"`` when a
+    quadriceps of that side passes over a body that is neither on the tibia side nor on the
+    chain from the root to the femur (Rajagopal et al. 2016's patella: a child of the femur
+    whose motion a coupled coordinate ties to the knee's). Such a body moves with the knee but
+    not with a rigid displacement of the tibia side, so the tibia's free-body diagram misses
+    the part of the quadriceps' knee moment the coupling carries (by virtual work, the length
+    Jacobian ∂l/∂θ is then not S · ∂l/∂ξ); the tendon restores it (ρ from ∂l/∂θ, module
+    docstring)."""
+    if configured == "tendon":
+        return configured
+    spec = next((j for j in model.joints if j.name == joint), None)
+    if spec is None:
+        return configured
+    parent_of = {j.child: j.parent for j in model.joints}
+    chain = set(model.subtree(spec.child))
+    body: str | None = spec.parent
+    while body is not None:
+        chain.add(body)
+        body = parent_of.get(body)
+    side = joint[-2:]
+    for m in model.muscles:
+        nm = m.name.lower()
+        if nm.startswith(QUADRICEPS_PREFIXES) and nm.endswith(side):
+            if any(pt.body not in chain for pt in m.points):
+                return "tendon"
+    return configured
 
 
 def tendon_angle_deg(flexion_deg: ArrayLike) -> Array:

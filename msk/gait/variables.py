@@ -21,10 +21,12 @@ al. 1991; each side seen from its own side):
 * hip flexion / adduction / internal rotation, knee flexion, ankle dorsiflexion: the model's
   coordinates where it has them (gait2392 and models naming their coordinates as it does:
   ``hip_flexion_<s>``, ``hip_adduction_<s>``, ``hip_rotation_<s>``, ``knee_angle_<s>`` with
-  flexion negative, ``ankle_angle_<s>``); the knee's adduction and rotation only where the model
-  has a coordinate for them (``knee_adduction_<s>``, ``knee_rotation_<s>``): gait2392's knee has
-  one degree of freedom (flexion; its translations follow it), so it has neither — said in
-  :attr:`GaitVariables.not_modelled`, never invented;
+  flexion negative, ``ankle_angle_<s>``), read in that reference convention
+  (:func:`msk.model.conventions.reference_sign`: Rajagopal's knee coordinate, positive in
+  flexion, and its generalised force are turned); the knee's adduction and rotation only where
+  the model has a coordinate for them (``knee_adduction_<s>``, ``knee_rotation_<s>``):
+  gait2392's knee has one degree of freedom (flexion; its translations follow it), so it has
+  neither — said in :attr:`GaitVariables.not_modelled`, never invented;
 * foot progression (internal, toe-in, +): the angle in the floor plane between the foot's long
   axis (the x axis of the calcaneus / foot body) and x̂.
 
@@ -326,7 +328,10 @@ def gait_variables(
         mass_kg: body mass for the normalisation.
         dynamics_model: the model whose inertias gave ``torques`` (default ``model``).
     """
+    from msk.model.conventions import reference_signs
+
     names = tuple(kinematics.coordinate_names)
+    ref = reference_signs(model)  # q_ref = s q, τ_ref = s τ (msk.model.conventions)
     q = np.asarray(kinematics.q, dtype=float)
     v = np.asarray(kinematics.v, dtype=float)
     series: dict[str, dict[str, Array]] = {}
@@ -340,14 +345,14 @@ def gait_variables(
             if c is None:
                 missing.add(var)
                 continue
-            out[var] = sign * np.rad2deg(q[:, c])
+            out[var] = sign * ref.get(names[c], 1.0) * np.rad2deg(q[:, c])
         if torques is not None:
             tn = tuple(torques.coordinate_names)
             tau = np.asarray(torques.tau, dtype=float)
             for var, (stem, sign) in _MOMENTS.items():
                 c = _col(tn, stem + _SFX[s])
                 if c is not None:
-                    out[var] = sign * tau[:, c] / mass_kg
+                    out[var] = sign * ref.get(tn[c], 1.0) * tau[:, c] / mass_kg
             for var, stems in _POWERS.items():
                 cols = [
                     (ct, cq)

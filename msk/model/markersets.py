@@ -36,15 +36,24 @@ whose origin is at the back of the heel; the MTP joint is 0.18 m ahead) decided 
   dorsum (Vicon Plug-in Gait marker placement), ~7 cm behind the toe tip; pairing it with
   ``R.Toe.Tip`` would shorten the foot to ~0.7 and tilt it in IK. An all-capitals ``TOE``
   (Plug-in Gait's code) is therefore read as the 2nd metatarsal head, which gait2392 lacks:
-  it stays unmatched and is placed on the foot from the static trial (or the motion).
+  it stays unmatched and is placed on the foot from the static trial (or the motion). So is the
+  Helen Hayes set's ``R.Toe`` (Kadaba MP, Ramakrishnan HK, Wootten ME 1990 J Orthop Res
+  8:383–392: over the 2nd metatarsal head) when the labels are that set (``V.Sacral`` with
+  bare ``Knee``/``Ankle``/``Heel`` words, as Motion Analysis writes them).
 * ``R.Midfoot.Sup`` / ``R.Midfoot.Lat``: the Grand Challenge's ``MidfootSuperior`` /
   ``MidfootLateral`` (same names, same protocol: the gait2392 set was drawn for it).
 
 Knee and ankle: a bare ``KNE``/``Knee`` is the lateral femoral epicondyle (Plug-in Gait,
 Rajagopal's ``R.Knee``), ``ANK``/``Ankle`` the lateral malleolus; ``LE``/``ME`` (IOR/CAST,
 Cappozzo et al. 1995 Clin Biomech 10:171) the lateral/medial epicondyles, ``LM``/``MM`` the
-malleoli. Sternum: gait2392's ``Sternum`` is 0.14 m below the acromia, on the body of the sternum,
-as the Grand Challenge ``Sternum``; Plug-in Gait's ``STRN`` and the Grand Challenge
+malleoli. The landmark codes of Van Sint Jan (2007) *Color Atlas of Skeletal Landmark
+Definitions* (Qualisys' IOR/CAST sets write them ``R_IAS``, ``L_FLE``…) are synonyms:
+``IAS``/``IPS`` the iliac spines, ``FTC`` the greater trochanter, ``FLE``/``FME`` the
+epicondyles, ``FAX`` the fibular head, ``TTC`` the tibial tuberosity, ``FAL``/``TAM`` the
+malleoli, ``FCC`` the calcaneus, ``FM1``/``FM2``/``FM5`` the metatarsal heads, ``SAE`` the
+acromion, ``CV7``, ``TV10``, ``LV5``, ``SJN``/``SXS`` the jugular notch / xiphoid.
+Sternum: gait2392's ``Sternum`` is 0.14 m below the acromia, on the body of the
+sternum, as the Grand Challenge ``Sternum``; Plug-in Gait's ``STRN`` and the Grand Challenge
 ``Xiphoid`` are on the xiphoid process, 0.15 m lower, and stay unmatched. Acromion: ``SHO``
 (Plug-in Gait: acromio-clavicular joint), ``ACR``, IOR's ``A``; a "Shoulder" word marker
 (Grand Challenge, Rajagopal) is not paired (7–9 cm from gait2392's ``R.Acromium`` after
@@ -63,7 +72,7 @@ from __future__ import annotations
 
 import re
 from collections.abc import Mapping, Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -175,8 +184,8 @@ KNEE_SEGMENTS = ("femur", "tibia")
 
 #: normalised name (lower case, no separators, side removed) → landmark key, sided landmarks
 SIDED_SYNONYMS: Mapping[str, str] = {
-    **dict.fromkeys(("asis", "asi", "antsupiliacspine"), "asis"),
-    **dict.fromkeys(("psis", "psi", "postsupiliacspine"), "psis"),
+    **dict.fromkeys(("asis", "asi", "antsupiliacspine", "ias"), "asis"),
+    **dict.fromkeys(("psis", "psi", "postsupiliacspine", "ips"), "psis"),
     **dict.fromkeys(
         (
             "kneelat",
@@ -192,6 +201,7 @@ SIDED_SYNONYMS: Mapping[str, str] = {
             "latepicondyle",
             "lateralepicondyle",
             "lepi",
+            "fle",
         ),
         "knee_lat",
     ),
@@ -212,6 +222,7 @@ SIDED_SYNONYMS: Mapping[str, str] = {
             "medialepicondyle",
             "mepi",
             "kneemedepicondyle",
+            "fme",
         ),
         "knee_med",
     ),
@@ -229,6 +240,7 @@ SIDED_SYNONYMS: Mapping[str, str] = {
             "latmalleolus",
             "lateralmalleolus",
             "lma",
+            "fal",
         ),
         "ankle_lat",
     ),
@@ -249,10 +261,11 @@ SIDED_SYNONYMS: Mapping[str, str] = {
             "sph",
             "medmalleolus",
             "medialmalleolus",
+            "tam",
         ),
         "ankle_med",
     ),
-    **dict.fromkeys(("heel", "hee", "ca", "cal", "calc", "calcaneus"), "heel"),
+    **dict.fromkeys(("heel", "hee", "ca", "cal", "calc", "calcaneus", "fcc"), "heel"),
     **dict.fromkeys(("toetip", "hallux", "halluxtip", "toe", "ttip"), "toe_tip"),
     **dict.fromkeys(
         ("toemed", "toemedial", "mt1", "mh1", "mfh1", "met1", "fm1", "imh", "mth1"), "mt1"
@@ -265,11 +278,11 @@ SIDED_SYNONYMS: Mapping[str, str] = {
     **dict.fromkeys(("midfootlat", "midfootlateral"), "midfoot_lat"),
     **dict.fromkeys(("midfootmed", "midfootmedial"), "midfoot_med"),
     "hindfoot": "hindfoot",
-    **dict.fromkeys(("gt", "gtr", "troch", "trochanter", "greatertrochanter"), "gt"),
-    **dict.fromkeys(("hf", "fibhead", "fibularhead", "fibulahead"), "fib_head"),
-    **dict.fromkeys(("tt", "tibtub", "tibialtuberosity"), "tib_tub"),
+    **dict.fromkeys(("gt", "gtr", "troch", "trochanter", "greatertrochanter", "ftc"), "gt"),
+    **dict.fromkeys(("hf", "fibhead", "fibularhead", "fibulahead", "fax"), "fib_head"),
+    **dict.fromkeys(("tt", "tibtub", "tibialtuberosity", "ttc"), "tib_tub"),
     **dict.fromkeys(("patella", "pat"), "patella"),
-    **dict.fromkeys(("acromion", "acromium", "acr", "sho", "a", "ac"), "acromion"),
+    **dict.fromkeys(("acromion", "acromium", "acr", "sho", "a", "ac", "sae"), "acromion"),
     **dict.fromkeys(("clavicle", "cla", "clav"), "clavicle"),
     **dict.fromkeys(("temple", "temp", "fhd", "bhd", "head"), "head"),
 }
@@ -278,11 +291,16 @@ SIDED_SYNONYMS: Mapping[str, str] = {
 MIDLINE_SYNONYMS: Mapping[str, str] = {
     **dict.fromkeys(("sacr", "sacral", "vsacral", "sacrum", "s2", "vsac", "sac", "ms2"), "sacrum"),
     **dict.fromkeys(("sternum", "str", "stern", "sternumbody"), "sternum"),
-    **dict.fromkeys(("xiphoid", "xiph", "px", "strn"), "xiphoid"),
-    **dict.fromkeys(("ij", "clav", "sup", "jugular", "jugularnotch", "suprasternal"), "jugular"),
-    "c7": "c7",
-    "t10": "t10",
-    **dict.fromkeys(("thoracic", "lumbar", "l5", "l3", "l1", "t8", "t12", "t6"), "spine"),
+    **dict.fromkeys(("xiphoid", "xiph", "px", "strn", "sxs"), "xiphoid"),
+    **dict.fromkeys(
+        ("ij", "clav", "sup", "jugular", "jugularnotch", "suprasternal", "sjn"), "jugular"
+    ),
+    **dict.fromkeys(("c7", "cv7"), "c7"),
+    **dict.fromkeys(("t10", "tv10"), "t10"),
+    **dict.fromkeys(
+        ("thoracic", "lumbar", "l5", "l3", "l1", "t8", "t12", "t6", "lv5", "lv3", "lv1", "tv8"),
+        "spine",
+    ),
     "neck": "neck",
     **dict.fromkeys(("tophead", "hv", "vertex", "headtop"), "top_head"),
     **dict.fromkeys(("occ", "sel", "lfhd", "rfhd", "lbhd", "rbhd"), "head"),
@@ -291,7 +309,7 @@ MIDLINE_SYNONYMS: Mapping[str, str] = {
 #: normalised (side removed) name patterns of technical cluster markers
 _CLUSTERS: tuple[tuple[re.Pattern[str], str], ...] = (
     (re.compile(r"^(thigh\w*|th\d|thi|tha|thp|thl|tc\d|femur\w*|fem\d)$"), "thigh_cluster"),
-    (re.compile(r"^(shank\w*|sh\d|tb\d|tib|sha|tibia\w*|tib\d|shk\d|sc\d)$"), "shank_cluster"),
+    (re.compile(r"^(shank\w*|sh\d|sk\d|tb\d|tib|sha|tibia\w*|tib\d|shk\d|sc\d)$"), "shank_cluster"),
     (re.compile(r"^(foot\w*|ft\d|fc\d)$"), "foot_cluster"),
 )
 #: normalised (side removed) name patterns of arm markers
@@ -642,6 +660,14 @@ class MarkerSetMatch:
         return x[:, keep], names
 
 
+def _helen_hayes(parsed: Sequence[ParsedLabel]) -> bool:
+    """The labels are the Helen Hayes set (Kadaba et al. 1990; Motion Analysis): ``V.Sacral``
+    with bare ``Knee``/``Ankle`` words and a ``Heel``."""
+    raw = {_norm(p.name) for p in parsed}
+    codes = {_norm(p.name)[1:] for p in parsed if p.side}
+    return "vsacral" in raw and bool({"knee", "ankle"} & codes) and "heel" in codes
+
+
 def _protocol(parsed: Sequence[ParsedLabel], exact: int, n_model: int) -> str:
     """A name for the marker protocol the labels look like (descriptive only)."""
     raw = {_norm(p.name) for p in parsed}
@@ -659,10 +685,17 @@ def _protocol(parsed: Sequence[ParsedLabel], exact: int, n_model: int) -> str:
         return "Plug-in Gait"
     if has("asis", "le") or has("asis", "lm") or {"lle", "rle"} & raw:
         return "IOR/CAST"
+    if has("ias", "fle") or has("ias", "fal"):
+        return "IOR/CAST (Van Sint Jan names)"
+    if _helen_hayes(parsed):
+        return "Helen Hayes"
     if any("thighsuperior" in n for n in raw) and any("asis" in n for n in raw):
         return "Grand Challenge"
     if any(n.endswith("th1") for n in raw) and any(n.endswith("asis") for n in raw):
         return "OpenSim clusters (Rajagopal)"
+    lms = {p.landmark for p in parsed}
+    if {"thigh_cluster", "shank_cluster"} <= lms:
+        return "clusters + epicondyles" if {"knee_lat", "knee_med"} & lms else "clusters"
     return "unknown"
 
 
@@ -701,6 +734,8 @@ def recognise(
     # (strip_subject_prefix) names the same label
     explicit = {mk: as_read(lab, labels) for mk, lab in (rename or {}).items()}
     parsed = [parse_label(lab) for lab in labels]
+    if _helen_hayes(parsed):  # its toe marker sits on the 2nd metatarsal head
+        parsed = [replace(p, landmark="mt2") if p.landmark == "toe_tip" else p for p in parsed]
     model_parsed = {mk: parse_label(mk) for mk in model_names}
     has_arm = any(_ARM_BODY.search(b) for b in model_bodies)
     has_head = any(_HEAD_BODY.search(b) for b in model_bodies) or any(

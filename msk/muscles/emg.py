@@ -75,6 +75,7 @@ if TYPE_CHECKING:
 
 __all__ = [
     "CYCLE_LAG_S",
+    "RAJAGOPAL_STEMS",
     "ChannelQuality",
     "EmgActivations",
     "EmgEnvelopes",
@@ -552,6 +553,16 @@ EMG_NAMES: tuple[tuple[str, str], ...] = (
     (r"iliac", "iliacus"),
 )
 
+#: gait2392 muscle stem → the Rajagopal et al. (2016) model's name for the same muscle (the
+#: suggestion is made in the model's own names)
+RAJAGOPAL_STEMS: Mapping[str, str] = {
+    "rect_fem": "recfem", "vas_med": "vasmed", "vas_int": "vasint", "vas_lat": "vaslat",
+    "bifemsh": "bfsh", "bifemlh": "bflh", "lat_gas": "gaslat", "med_gas": "gasmed",
+    "tib_post": "tibpost", "tib_ant": "tibant", "per_brev": "perbrev", "per_long": "perlong",
+    "glut_max2": "glmax2", "glut_med2": "glmed2", "glut_min2": "glmin2",
+    "add_mag2": "addmagMid", "add_brev": "addbrev", "add_long": "addlong", "sar": "sart",
+}  # fmt: skip
+
 _LEFT = frozenset({"l", "left", "lt", "sx", "sin"})
 _RIGHT = frozenset({"r", "right", "rt", "dx"})
 _NOISE = frozenset({"emg", "voltage", "sensor", "analog", "channel", "ch", "muscle"})
@@ -571,7 +582,8 @@ def suggest_channels(
 ) -> dict[str, tuple[str, bool]]:
     """EMG channel label → (model muscle, whether the label names the side), for the labels
     that name a muscle of :data:`EMG_NAMES` (``"Left Rectus femoris"`` → ``rect_fem_l``,
-    ``"LREC"`` → ``rect_fem_l``, ``"vasmed"`` → ``vas_med_<side>``).
+    ``"LREC"`` → ``rect_fem_l``, ``"vasmed"`` → ``vas_med_<side>``; in a model that names the
+    muscle as Rajagopal et al. 2016 do, :data:`RAJAGOPAL_STEMS`: ``recfem_l``).
 
     The side is a word of the label (``L``, ``Left``, ``R``, ``right``…) or a one-letter prefix
     of a code (``RTIB``); a label naming no side gets ``side``. Only muscles in ``muscles``
@@ -594,6 +606,8 @@ def suggest_channels(
         if stem is None:
             continue
         muscle = f"{stem}_{named or side}"
+        if muscle not in have:  # the model names it otherwise (Rajagopal)
+            muscle = f"{RAJAGOPAL_STEMS.get(stem, stem)}_{named or side}"
         if muscle in have and muscle not in taken:
             out[str(label)] = (muscle, named is not None)
             taken.add(muscle)

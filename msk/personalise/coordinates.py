@@ -37,16 +37,22 @@ def knee_flexion_to_physiological(model: Model) -> tuple[Model, dict[str, list[f
     bound (10°, already past the 0–5° of a normal knee) is kept. A session whose knees never
     reach the model's bound solves the same IK. Applied after scaling and marker placement, whose
     IK passes keep the generic bounds (widened there, UWA fast walking's placement took another
-    branch: knees to +9° of hyperextension)."""
+    branch: knees to +9° of hyperextension). The bounds are read in gait2392's sign
+    (:func:`msk.model.conventions.reference_sign`): Rajagopal's knee, positive in flexion, has
+    its upper bound widened (140° → 155°)."""
+    from msk.model.conventions import reference_signs
     from msk.quality import PHYSIOLOGICAL_RANGES_DEG
 
     lo_phys = np.radians(PHYSIOLOGICAL_RANGES_DEG["knee_angle"][0])
+    signs = reference_signs(model)
     out: dict[str, tuple[float, float]] = {}
     for c in model.coordinates:
         stem = c.name[:-2] if c.name.endswith(("_r", "_l")) else c.name
-        lo, hi = c.range
+        s = signs.get(c.name, 1.0)
+        lo, hi = sorted((s * c.range[0], s * c.range[1]))  # reference sign: flexion negative
         if stem == "knee_angle" and -np.pi / 2 >= lo > lo_phys + 1e-9:
-            out[c.name] = (float(lo_phys), float(hi))
+            a, b = sorted((s * float(lo_phys), s * float(hi)))
+            out[c.name] = (a, b)
     if not out:
         return model, {}
     return model.with_coordinate_ranges(out), {

@@ -54,9 +54,12 @@ def run(
     measured_contact: Any,
 ) -> KneeContact:
     mdl, kin = model.model, kinematics
-    joint = f"knee{inputs.sfx}"
-    if joint not in {j.name for j in mdl.joints}:
-        raise StageUnavailable(f"model has no joint {joint!r}")
+    from msk.model.conventions import knee_joint
+
+    found = knee_joint(mdl, inputs.sfx)
+    if found is None:
+        raise StageUnavailable(f"model has no knee joint (child body 'tibia{inputs.sfx}')")
+    joint = found
     from msk.muscles.geometry import geometry_plan
 
     # ∂l/∂ξ of the knee recomputed block by block from the model's paths (the geometry stage
@@ -75,7 +78,12 @@ def run(
         g = plan.evaluate(kin.q[fr], distal_wrench_joints=(joint,), compact=True)
         return np.asarray(g.distal_wrenches[joint]), np.asarray(g.jacobian[:])[:, :, ci]
 
-    tendon = inputs.cfg.contact.patella == "tendon"
+    from msk.contact.patella import patella_mode
+
+    # a model whose quadriceps end on its own patella (Rajagopal) reaches the tibia through
+    # the tendon whatever [contact] patella says (msk.contact.patella.patella_mode)
+    mode = patella_mode(mdl, joint, inputs.cfg.contact.patella)
+    tendon = mode == "tendon"
 
     def variant(m: Model) -> ContactAssembly:
         from msk.contact.patella import patellar_tendon
@@ -129,6 +137,6 @@ def run(
         "intercondylar_distance_m": geo.intercondylar_distance_m,
         "centre_m": list(geo.centre_m),
         "source": geo.source,
-        "patella": inputs.cfg.contact.patella,
+        "patella": mode,
     }
     return KneeContact(joint, out, plateau, measured_contact)

@@ -42,7 +42,7 @@ class SessionInputs:
     hashes: Mapping[str, str]
     inv_rename: Mapping[str, str]
     #: where ``cfg.subject.mass_kg`` comes from (:mod:`msk.personalise.body_mass`): ``mass_source``
-    #: (``config``, ``c3d_parameters``, ``static_plates``) and ``mass_detail``
+    #: (``config``, ``c3d_parameters``, ``static_plates``, ``task_plates``) and ``mass_detail``
     mass: Mapping[str, str] = field(default_factory=dict)
 
     @property
@@ -118,18 +118,20 @@ class SessionInputs:
         this session's configuration sets for ``model``: ``[optimization]``, the EMG channels
         (the groups of ``emg_assisted``'s gains) and the side's knee with its contact points
         (the compartment rows of ``compartment_nonnegative``)."""
-        joint = f"knee{self.sfx}"
+        from msk.contact.patella import patella_mode
+        from msk.model.conventions import knee_joint
+
+        found = knee_joint(model, self.sfx)
+        joint = found if found is not None else f"knee{self.sfx}"
         plateau = None
-        if self.cfg.optimization.compartment_nonnegative and joint in {
-            j.name for j in model.joints
-        }:
+        if self.cfg.optimization.compartment_nonnegative and found is not None:
             plateau = self.knee_plateau(model, joint)
         return {
             "options": self.cfg.optimization,
             "emg_channels": self.cfg.emg.channels,
             "knee_joint": joint,
             "knee_plateau": plateau,
-            "knee_patella": self.cfg.contact.patella == "tendon",
+            "knee_patella": patella_mode(model, joint, self.cfg.contact.patella) == "tendon",
         }
 
 

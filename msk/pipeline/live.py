@@ -67,8 +67,11 @@ def live_setup(
     mass = res.get("mass_identification") if identified else None
     model = identified_model(pers.model, mass, by_status=inputs.inertias_by_status)
     to_model = {lab: name for name, lab in pers.rename.items()}
-    knee = f"knee{inputs.sfx}"
-    has_knee = knee in {j.name for j in model.joints}
+    from msk.model.conventions import knee_joint
+
+    found = knee_joint(model, inputs.sfx)
+    knee = found if found is not None else f"knee{inputs.sfx}"
+    has_knee = found is not None
     opt = cfg.optimization
     options = LiveOptions(
         cutoff_hz=cfg.filters.kinematics_cutoff_hz or 6.0, filter_order=filter_order,

@@ -272,7 +272,8 @@ class InputFile(_Record):
 @dataclass(frozen=True, kw_only=True)
 class Subject(_Record):
     """``subject``: name, body mass (kg) and where it comes from (``mass_source``: ``config``,
-    ``c3d_parameters`` or ``static_plates``, :mod:`msk.personalise.body_mass`; ``mass_detail``),
+    ``c3d_parameters``, ``static_plates`` or ``task_plates``, :mod:`msk.personalise.body_mass`;
+    ``mass_detail``),
     height (m), sex, analysed side, body weight (N)."""
 
     name: str

@@ -857,3 +857,90 @@ def _one_knee_four(side: str) -> Model:
     from tests.support.knees import four_muscle_knee
 
     return four_muscle_knee(f"knee_{side}", shank_mass_kg=M_SHANK)
+
+
+# ---------------------------------------------------------------------------------------------
+# any knee whose child body is the tibia: Rajagopal's walker knee (coupled translations, three
+# rotations driven by one coordinate, positive in flexion)
+# ---------------------------------------------------------------------------------------------
+@pytest.mark.parametrize("name", ["rajagopal", "gait2392"])
+def test_walker_and_spline_knees_hold_a_static_stance_by_hand(name: str) -> None:
+    """Static pose, a 700 N vertical load under each calcaneus, no muscle force: the femur's
+    force and moment on the tibia side are minus the loads and the weights of the tibia side,
+    computed here from the bodies' placements alone (no RNEA), on both knees."""
+    from msk.model.conventions import knee_joint, reference_sign
+    from msk.model.files import load_model
+
+    model = load_model(name)
+    names = model.coordinate_names
+    q0 = model.default_coordinates()
+    for side in ("r", "l"):
+        c = f"knee_angle_{side}"
+        q0[names.index(c)] = reference_sign(model, c) * np.radians(-25.0)  # 25° of flexion
+        q0[names.index(f"hip_flexion_{side}")] = 0.2
+    q = np.tile(q0, (3, 1))
+    kin = _static(model, q)
+    loads = _stance_load(model, q, 0.02)
+    data = model.create_data()
+    pin.framesForwardKinematics(model.pin_model, data, model.coupling.q(q0))
+    g = np.array([0.0, -G0, 0.0])
+    for side, b in (("r", 0), ("l", 1)):
+        joint = knee_joint(model, side)
+        assert joint == ("walker_knee_" if name == "rajagopal" else "knee_") + side
+        tib = data.oMf[model.body_frame[f"tibia_{side}"]]
+        force_w = -loads.force[0, b].copy()
+        moment_w = -np.cross(loads.point[0, b] - tib.translation, loads.force[0, b])
+        for body in model.subtree(f"tibia_{side}"):
+            bd = model.body(body)
+            c_w = data.oMf[model.body_frame[body]].act(bd.com)
+            force_w -= bd.mass * g
+            moment_w -= np.cross(c_w - tib.translation, bd.mass * g)
+        out = knee_contact_force(model, kin, loads, joint=joint, variant="quasi_static")
+        np.testing.assert_allclose(out.force, np.tile(tib.rotation.T @ force_w, (3, 1)), atol=1e-7)
+        np.testing.assert_allclose(out.moment, np.tile(tib.rotation.T @ moment_w, (3, 1)),
+                                   atol=1e-7)  # fmt: skip
+        assert np.all(out.normal > 600.0)  # the stance compresses the plateau
+
+
+def test_walker_knee_muscle_pulls_do_the_virtual_work_of_their_moment_arms() -> None:
+    """Rajagopal, flexed 30°, random tensions: the muscles' part of the contact wrench
+    (with tensions minus without) does, over the knee's own motion (the tibia side's world
+    twist S per unit knee coordinate, its coupled translations and rotations included, by
+    central differences of the tibia's placement), the virtual work Σ F_i ∂l_i/∂θ of the
+    length Jacobian (virtual work: S · Σ F_i ∂l_i/∂ξ = Σ F_i ∂l_i/∂θ)."""
+    from msk.contact.patella import patellar_tendon
+    from msk.model.core import frame_placements
+    from msk.model.files import load_model
+
+    model = load_model("rajagopal")
+    ci = model.coordinate_index("knee_angle_r")
+    q0 = model.default_coordinates()
+    q0[ci] = np.radians(30.0)
+    q = np.tile(q0, (2, 1))
+    kin = _static(model, q)
+    rng = np.random.default_rng(5)
+    f = rng.uniform(0.0, 800.0, (2, len(model.muscles)))
+    jac = muscle_geometry(model, q, np.zeros_like(q)).jacobian[:, :, ci]
+    # the quadriceps insert on Rajagopal's patella (a body on the femur, coupled to the knee
+    # coordinate): they load the tibia through the patellar tendon (msk.contact.patella)
+    tendon = patellar_tendon(model, joint="walker_knee_r")
+    kw = {"joint": "walker_knee_r", "variant": "quasi_static", "patella": tendon,
+          "knee_jacobian": jac}  # fmt: skip
+    bare = knee_contact_force(model, kin, muscle_forces=np.zeros_like(f), **kw)
+    full = knee_contact_force(model, kin, muscle_forces=f, **kw)
+    frame = [model.body_frame["tibia_r"]]
+    h = 1e-6
+    qs = np.tile(q0, (3, 1))
+    qs[:, ci] += [-h, 0.0, h]
+    rot, pos = frame_placements(model, qs, frame)
+    r, p = rot[1, 0], pos[1, 0]
+    omega = pin.log3(rot[0, 0].T @ rot[2, 0]) / (2 * h)
+    omega = rot[0, 0] @ omega  # world axes
+    v_o = (pos[2, 0] - pos[0, 0]) / (2 * h) - np.cross(omega, p)  # at the world origin
+    d_force = r @ (full.force[0] - bare.force[0])
+    d_moment = r @ (full.moment[0] - bare.moment[0]) + np.cross(p, d_force)
+    work = omega @ d_moment + v_o @ d_force
+    want = float(f[0] @ jac[0])
+    assert abs(want) > 10.0
+    assert work == pytest.approx(want, rel=1e-5, abs=1e-6)
+    assert np.all(full.normal > bare.normal)  # tensions across the knee compress it

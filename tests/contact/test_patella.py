@@ -285,3 +285,17 @@ def test_gait2392_patellofemoral_to_quadriceps_ratio_follows_the_published_curve
         ratio = np.linalg.norm(pt.patellofemoral(knee, lines, r, jac, f), axis=1)
         np.testing.assert_allclose(ratio, published, atol=0.2, err_msg=name)
         assert np.all(np.diff(ratio[:3]) > 0), (name, ratio)  # rises with flexion to 60°
+
+
+def test_a_model_whose_quadriceps_end_on_its_patella_uses_the_tendon() -> None:
+    """Rajagopal's quadriceps end on its patella body (on the femur's chain): its knees use
+    the tendon whatever the configuration says; gait2392's quadriceps end on the tibia."""
+    from msk.contact.patella import patella_mode
+    from msk.model.files import load_model
+
+    raj, g = load_model("rajagopal"), load_model("gait2392")
+    assert patella_mode(raj, "walker_knee_r", "none") == "tendon"
+    assert patella_mode(raj, "walker_knee_l", "none") == "tendon"
+    assert patella_mode(g, "knee_r", "none") == "none"
+    assert patella_mode(g, "knee_r", "tendon") == "tendon"
+    assert patella_mode(g, "no_such_joint", "none") == "none"

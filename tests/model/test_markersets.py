@@ -400,3 +400,32 @@ def test_a_configured_label_with_the_prefix_the_reader_dropped_still_matches():
     assert m.rename["R.Knee.Med"] == "RKneeLateral"
     assert as_read("JW:Other", labels) == "JW:Other"
     assert as_read("LAsis", labels) == "LAsis"
+
+
+@pytest.mark.parametrize(
+    ("label", "side", "landmark"),
+    [("R_IAS", "R", "asis"), ("L_IPS", "L", "psis"), ("R_FTC", "R", "gt"),
+     ("L_FLE", "L", "knee_lat"), ("L_FME", "L", "knee_med"), ("R_FAX", "R", "fib_head"),
+     ("R_TTC", "R", "tib_tub"), ("L_FAL", "L", "ankle_lat"), ("L_TAM", "L", "ankle_med"),
+     ("L_FCC", "L", "heel"), ("L_FM1", "L", "mt1"), ("L_FM5", "L", "mt5"),
+     ("R_SAE", "R", "acromion"), ("CV7", None, "c7"), ("LV5", None, "spine"),
+     ("L_SK2", "L", "shank_cluster")],
+)  # fmt: skip
+def test_van_sint_jan_landmark_codes(label, side, landmark):
+    p = parse_label(label)
+    assert (p.side, p.landmark) == (side, landmark)
+
+
+def test_helen_hayes_toe_is_the_second_metatarsal_head():
+    """Motion Analysis' Helen Hayes set: ``R.Toe`` sits on the 2nd metatarsal head (Kadaba et
+    al. 1990), not at gait2392's toe tip: left unpaired (placed); OpenSim's own labels keep
+    theirs."""
+    hh = ["R.ASIS", "L.ASIS", "V.Sacral", "R.Thigh", "R.Knee", "R.Tibia", "R.Ankle", "R.Heel",
+          "R.Toe", "L.Knee", "L.Ankle", "L.Heel", "L.Toe"]  # fmt: skip
+    model = load_model("gait2392")
+    m = recognise(hh, model.marker_names)
+    assert m.protocol == "Helen Hayes"
+    assert "R.Toe.Tip" not in m.rename and "R.Toe" in m.unmatched_lab
+    assert m.rename["R.Heel"] == "R.Heel" and m.rename["R.Knee.Lat"] == "R.Knee"
+    other = recognise(["RASI", "LASI", "RHeel", "RToe", "RKNE"], model.marker_names)
+    assert other.rename["R.Toe.Tip"] == "RToe"

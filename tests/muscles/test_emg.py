@@ -287,6 +287,17 @@ def test_suggest_channels_reads_the_muscle_and_side_of_common_emg_labels():
     }
     assert suggest_channels(["vasmed"], muscles, side="l") == {"vasmed": ("vas_med_l", False)}
     assert suggest_channels(["rf", "RF_R"], ["rect_fem_r"]) == {"rf": ("rect_fem_r", False)}
+    # the Rajagopal model's own names
+    raj = ["recfem_r", "vaslat_l", "bflh_r", "gasmed_r", "tibant_r", "sart_r", "soleus_r"]
+    assert suggest_channels(
+        ["R Rectus Femoris.EMG1", "L Vastus Lateralis", "RBIC", "RGAS", "R Tibialis Anterior",
+         "R Sartorius", "RSOL"], raj,
+    ) == {
+        "R Rectus Femoris.EMG1": ("recfem_r", True), "L Vastus Lateralis": ("vaslat_l", True),
+        "RBIC": ("bflh_r", True), "RGAS": ("gasmed_r", True),
+        "R Tibialis Anterior": ("tibant_r", True), "R Sartorius": ("sart_r", True),
+        "RSOL": ("soleus_r", True),
+    }  # fmt: skip
 
 
 def test_a_channel_bursting_once_per_stride_is_not_flat():

@@ -533,6 +533,15 @@ def test_knee_flexion_bound_widened_to_the_physiological_limit_only_where_narrow
         {"knee_angle_r": (0.0, 2.1), "knee_angle_l": (0.0, 2.1)}
     )
     assert knee_flexion_to_physiological(positive) == (positive, {})
+    # a knee that turns the other way (Rajagopal's walker knee: + in flexion, 0…120°) has
+    # its flexion bound widened on its positive side
+    from tests.support.knees import turned_knees
+
+    turned = turned_knees(model).with_coordinate_ranges(
+        {"knee_angle_r": (-0.17, 2.1), "knee_angle_l": (-0.17, 2.1)}
+    )
+    _, widened = knee_flexion_to_physiological(turned)
+    assert widened["knee_angle_r"] == [pytest.approx(np.degrees(-0.17)), pytest.approx(155.0)]
     tr = make_trial(model, duration_s=0.5)
     q = tr.q.copy()
     k = model.coordinate_names.index("knee_angle_l")

@@ -291,3 +291,34 @@ def test_a_trc_and_grf_of_a_z_up_lab_are_levelled_by_the_ground_reactions(
     # its header says 250 Hz, its rows step at 25 Hz: the rows' rate is used, and said so
     (rate,) = [f for f in q["flags"] if f["quantity"] == "input_file"]
     assert re.search(r"DataRate = 250 Hz .* steps at 25(\.\d+)? Hz", rate["message"])
+
+
+@pytest.mark.slow
+@pytest.mark.realdata
+def test_the_rajagopal_model_on_its_own_walk_has_knee_contact(tmp_path: Path) -> None:
+    """pipelines/opensim_rajagopal.toml with ``source = "rajagopal"`` (and ``[contact] patella =
+    "none"``): the walker knee found as the tibia's joint, its knee contact computed through
+    the patellar tendon (its quadriceps pass over its patella), its flexion (positive in the
+    model) inside the physiological gate and reported as flexion, the peak knee contact within
+    15 % of gait2392's on the same walk (3.74 BW, the shipped golden; measured 3.68 BW)."""
+    src = REPO / "pipelines" / "opensim_rajagopal.toml"
+    text = src.read_text(encoding="utf-8").replace('"../../shared', f'"{REPO.parent / "shared"}')
+    text = text.replace('source = "gait2392"', 'source = "rajagopal"')
+    text += '\n[contact]\npatella = "none"\n'
+    if not (REPO.parent / "shared" / "data" / "real" / "opensim-rajagopal-walk").is_dir():
+        pytest.skip("the Rajagopal walk is not here")
+    cfg = tmp_path / "raj.toml"
+    cfg.write_text(text, encoding="utf-8")
+    res = run_session(cfg, tmp_path / "out")
+    status = {r.name: r for r in res.stages}
+    assert status["knee_contact"].status == "computed", status["knee_contact"]
+    s = res.summary.to_dict()
+    assert not [f for f in s["quality"]["flags"] if f["quantity"].startswith("knee_angle")]
+    table = np.genfromtxt(res.out_dir / "tables" / "knee_contact.csv", delimiter=",", names=True)
+    peak = float(np.nanmax(table["generic_total_bw"]))
+    assert peak == pytest.approx(3.74, rel=0.15)
+    assert np.isfinite(table["generic_total"]).sum() > 200
+    cycles = np.genfromtxt(res.out_dir / "tables" / "gait_cycles_right.csv", delimiter=",",
+                           names=True)  # fmt: skip
+    assert 60.0 < np.nanmax(cycles["knee_flexion_deg"]) < 80.0  # swing flexion, gait2392: 73.7°
+    assert np.nanmin(cycles["knee_flexion_deg"]) > -10.0

@@ -1,7 +1,10 @@
 """A femur welded to the ground and a tibia on a one-axis revolute knee: the smallest model
-on which the knee's side conventions (alignment, medial/lateral contact) can be checked."""
+on which the knee's side conventions (alignment, medial/lateral contact) can be checked; and
+any model with its knees turned (a knee coordinate positive in flexion)."""
 
 from __future__ import annotations
+
+import dataclasses
 
 import numpy as np
 import pinocchio as pin
@@ -55,3 +58,16 @@ def four_muscle_knee(knee_joint: str, shank_mass_kg: float = 4.0) -> Model:
             )
             muscles.append(Muscle(f"{side}_{kind}", pts, 3000.0, 0.1, 0.2, 0.0, 10.0))
     return femur_tibia(knee_joint, shank_mass_kg=shank_mass_kg).with_muscles(muscles)
+
+
+def turned_knees(model: Model) -> Model:
+    """``model`` with each knee's flexion axis reversed (a coordinate positive in flexion, as
+    Rajagopal's walker knee)."""
+    joints = {}
+    for j in model.joints:
+        if j.child.startswith("tibia_"):
+            axes = tuple(
+                dataclasses.replace(a, axis=-a.axis) if a.kind == "revolute" else a for a in j.axes
+            )
+            joints[j.name] = dataclasses.replace(j, axes=axes)
+    return model.with_joints(joints)
