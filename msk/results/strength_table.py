@@ -1,14 +1,38 @@
-"""``tables/strength.csv`` of a dynamometry session and the cohort table of ``msk batch``: one
-row per isometric test (:class:`msk.strength.isometric.TestStrength`)."""
+"""``tables/strength.csv`` of a dynamometry session and the cohort table of ``msk batch``
+(``strength_cohort.csv``): one row per subject and isometric test
+(:class:`msk.strength.isometric.TestStrength`). Columns (:data:`STRENGTH_COLUMNS`):
+
+* ``subject``, ``age_years``, ``mass_kg``: the subject (age and mass empty when not given);
+* ``test``, ``action``: the test's name and the model action it loads;
+* ``status``: ``identified`` or ``not determined`` (the reason in ``reason``);
+* ``torque_nm``, ``torque_ci_low_nm``, ``torque_ci_high_nm``: the agonists' maximal isometric
+  torque (N·m) with its 95 % interval (net torque + co-contraction);
+* ``torque_nm_per_kg``, ``torque_nm_per_kg_ci_low``, ``torque_nm_per_kg_ci_high``: the same
+  over the body mass (N·m/kg);
+* ``measured_net_nm``: lever arm × plateau force (N·m); ``cocontraction_nm``: the antagonists'
+  torque added back (N·m);
+* ``lever_arm_m``, ``lever_arm_sd_m``: the lever arm and its standard deviation (m);
+  ``lever_arm_kind``: ``anthropometric``, ``given by the configuration`` or ``not used`` (a
+  torque export);
+* ``model_nm``: the scaled generic model's agonist torque at the posture (N·m); ``factor``,
+  ``factor_ci_low``, ``factor_ci_high``: torque over it with the interval;
+* ``band_low_nm_per_kg``, ``band_high_nm_per_kg``: the published band of the action for the
+  subject's age (empty: none); ``below_published_band``: 1 when the interval lies wholly below
+  it (``msk.strength.isometric`` docstring);
+* ``failed_checks``: the trial's failed checks (``;``-separated quantities of
+  :data:`msk.strength.isometric.CHECKS_FAILING`; empty: every check passed);
+* ``reason``: the status's reason in words.
+"""
 
 from __future__ import annotations
 
 import csv
+import math
 from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
-from msk.strength.isometric import TestStrength
+from msk.strength.isometric import CHECKS_FAILING, TestStrength
 
 __all__ = ["STRENGTH_COLUMNS", "strength_rows", "write_strength_csv"]
 
@@ -24,9 +48,9 @@ STRENGTH_COLUMNS = (
     "torque_nm",
     "torque_ci_low_nm",
     "torque_ci_high_nm",
-    "torque_per_kg",
-    "torque_per_kg_ci_low",
-    "torque_per_kg_ci_high",
+    "torque_nm_per_kg",
+    "torque_nm_per_kg_ci_low",
+    "torque_nm_per_kg_ci_high",
     "measured_net_nm",
     "cocontraction_nm",
     "lever_arm_m",
@@ -36,6 +60,10 @@ STRENGTH_COLUMNS = (
     "factor",
     "factor_ci_low",
     "factor_ci_high",
+    "band_low_nm_per_kg",
+    "band_high_nm_per_kg",
+    "below_published_band",
+    "failed_checks",
     "reason",
 )
 
@@ -74,9 +102,9 @@ def _row(subject: str, r: TestStrength) -> dict[str, Any]:
         "torque_nm": round(r.torque_nm, 3),
         "torque_ci_low_nm": round(r.torque_ci_nm[0], 3),
         "torque_ci_high_nm": round(r.torque_ci_nm[1], 3),
-        "torque_per_kg": round(r.torque_per_kg, 4),
-        "torque_per_kg_ci_low": round(r.torque_per_kg_ci[0], 4),
-        "torque_per_kg_ci_high": round(r.torque_per_kg_ci[1], 4),
+        "torque_nm_per_kg": round(r.torque_nm_per_kg, 4),
+        "torque_nm_per_kg_ci_low": round(r.torque_nm_per_kg_ci[0], 4),
+        "torque_nm_per_kg_ci_high": round(r.torque_nm_per_kg_ci[1], 4),
         "measured_net_nm": round(r.measured_net_nm, 3),
         "cocontraction_nm": round(r.cocontraction_nm, 3),
         "lever_arm_m": round(r.lever_arm_m, 4),
@@ -86,5 +114,11 @@ def _row(subject: str, r: TestStrength) -> dict[str, Any]:
         "factor": round(r.factor, 4),
         "factor_ci_low": round(r.factor_ci[0], 4),
         "factor_ci_high": round(r.factor_ci[1], 4),
+        "band_low_nm_per_kg": "" if math.isnan(r.band_nm_per_kg[0]) else r.band_nm_per_kg[0],
+        "band_high_nm_per_kg": "" if math.isnan(r.band_nm_per_kg[1]) else r.band_nm_per_kg[1],
+        "below_published_band": int(r.below_band),
+        "failed_checks": ";".join(
+            sorted({f.quantity for f in r.flags if f.quantity in CHECKS_FAILING})
+        ),
         "reason": r.reason,
     }
