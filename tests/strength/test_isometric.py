@@ -437,6 +437,17 @@ def test_the_twenty_subjects_run_with_sane_figures(tmp_path: Path) -> None:
     cohort = list(csv.DictReader((tmp_path / "strength_cohort.csv").open()))
     # the covariates of a cohort comparison on every row (strength per kg vs age)
     assert all(64 <= float(r["age_years"]) <= 82 and float(r["mass_kg"]) > 30 for r in cohort)
+    # every test's torque per kg and its published band (all subjects are ≥ 60 y)
+    for r in cohort:
+        assert float(r["torque_nm_per_kg"]) == pytest.approx(
+            float(r["torque_nm"]) / float(r["mass_kg"]), abs=1e-3
+        )
+        assert float(r["band_low_nm_per_kg"]) < float(r["band_high_nm_per_kg"])
+        below = float(r["torque_nm_per_kg_ci_high"]) < float(r["band_low_nm_per_kg"])
+        assert r["below_published_band"] == str(int(below))
+        assert (r["failed_checks"] == "") == (r["reason"] == "every check passed") or (
+            r["status"] == "not determined" and "interval" in r["reason"]
+        )
     for c in configs:
         out = tmp_path / c.stem
         s = json.loads((out / "summary.json").read_text())
@@ -453,7 +464,9 @@ def test_the_twenty_subjects_run_with_sane_figures(tmp_path: Path) -> None:
                 gl = [f for f in s["flags"] if f["trial"] == "ankle_plantarflexion"]
                 assert any(f["quantity"] == "emg_envelope_channel" for f in gl), gl
         assert (out / "tables" / "strength.csv").is_file()
-        assert "Identified" in (out / "report.html").read_text()
+        report = (out / "report.html").read_text()
+        assert "Identified" in report and "Published band" in report
+        assert "Trial and EMG checks" in report
     assert passed >= 20
     # GL read as the envelope it is: 8 of 20 plantarflexion tests identified (0 when it was
     # refused as a flat channel); the others fail a stated check
