@@ -58,7 +58,14 @@ def _check_notes(r: Any) -> str:
     """One test's checks in words: the failed ones with their messages, else "every check
     passed", and the plausibility flag when raised."""
     failed = [f.message for f in r.flags if f.quantity in CHECKS_FAILING]
-    band = [f.message for f in r.flags if f.quantity == "below_published_band"]
+    band = [
+        f"{f.value:.2f} N·m/kg is below the published band "
+        f"{r.band_nm_per_kg[0]:.2f}–{r.band_nm_per_kg[1]:.2f} N·m/kg (source under "
+        "Assumptions): submaximal effort, strap slip or the lever-arm assumption — or a true "
+        "weakness"
+        for f in r.flags
+        if f.quantity == "below_published_band"
+    ]
     if failed:
         text = "failed — " + "; ".join(failed)
     elif r.status != "identified":

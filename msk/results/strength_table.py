@@ -22,6 +22,13 @@
 * ``failed_checks``: the trial's failed checks (``;``-separated quantities of
   :data:`msk.strength.isometric.CHECKS_FAILING`; empty: every check passed);
 * ``reason``: the status's reason in words.
+
+``strength_cohort_summary.csv`` (:func:`cohort_summary_rows`, :data:`SUMMARY_COLUMNS`): one row
+per test over the cohort — ``n_subjects``, ``n_identified``; the median and quartiles of
+``torque_nm``, ``torque_nm_per_kg`` and ``factor`` over the *identified* tests only (a failed
+test's torque is not a strength); the band; ``n_below_band_identified`` and ``n_below_band``
+(all tests); ``not_identified_because``: each failed check (or ``interval too wide``) with its
+count.
 """
 
 from __future__ import annotations
@@ -34,7 +41,14 @@ from typing import Any
 
 from msk.strength.isometric import CHECKS_FAILING, TestStrength
 
-__all__ = ["STRENGTH_COLUMNS", "strength_rows", "write_strength_csv"]
+__all__ = [
+    "STRENGTH_COLUMNS",
+    "SUMMARY_COLUMNS",
+    "cohort_summary_rows",
+    "strength_rows",
+    "write_strength_csv",
+    "write_summary_csv",
+]
 
 
 #: the columns of ``tables/strength.csv`` (and of the cohort table)
@@ -122,3 +136,81 @@ def _row(subject: str, r: TestStrength) -> dict[str, Any]:
         ),
         "reason": r.reason,
     }
+
+
+#: the columns of ``strength_cohort_summary.csv`` (module docstring)
+SUMMARY_COLUMNS = (
+    "test",
+    "action",
+    "n_subjects",
+    "n_identified",
+    "torque_nm_median",
+    "torque_nm_q1",
+    "torque_nm_q3",
+    "torque_nm_per_kg_median",
+    "torque_nm_per_kg_q1",
+    "torque_nm_per_kg_q3",
+    "factor_median",
+    "factor_q1",
+    "factor_q3",
+    "band_low_nm_per_kg",
+    "band_high_nm_per_kg",
+    "n_below_band_identified",
+    "n_below_band",
+    "not_identified_because",
+)
+
+
+def _quartiles(values: Sequence[float], nd: int) -> tuple[Any, Any, Any]:
+    import numpy as np
+
+    if not values:
+        return "", "", ""
+    q = np.percentile(np.asarray(values, dtype=float), [50.0, 25.0, 75.0])
+    return round(float(q[0]), nd), round(float(q[1]), nd), round(float(q[2]), nd)
+
+
+def cohort_summary_rows(rows: Sequence[Mapping[str, Any]]) -> list[dict[str, Any]]:
+    """One row per test (in first-seen order) of the strength rows of several subjects
+    (:func:`strength_rows`): counts, the identified tests' median and quartiles, the band and
+    the reasons the others were not identified (module docstring)."""
+    tests: dict[str, list[Mapping[str, Any]]] = {}
+    for r in rows:
+        tests.setdefault(str(r["test"]), []).append(r)
+    out = []
+    for test, rs in tests.items():
+        ident = [r for r in rs if r["status"] == "identified"]
+        why: dict[str, int] = {}
+        for r in rs:
+            if r["status"] != "identified":
+                key = str(r.get("failed_checks") or "interval too wide")
+                why[key] = why.get(key, 0) + 1
+        row: dict[str, Any] = {
+            "test": test,
+            "action": rs[0]["action"],
+            "n_subjects": len(rs),
+            "n_identified": len(ident),
+            "band_low_nm_per_kg": rs[0].get("band_low_nm_per_kg", ""),
+            "band_high_nm_per_kg": rs[0].get("band_high_nm_per_kg", ""),
+            "n_below_band_identified": sum(int(r.get("below_published_band") or 0) for r in ident),
+            "n_below_band": sum(int(r.get("below_published_band") or 0) for r in rs),
+            "not_identified_because": "; ".join(
+                f"{k}: {v}" for k, v in sorted(why.items(), key=lambda kv: -kv[1])
+            ),
+        }
+        for key, nd in (("torque_nm", 1), ("torque_nm_per_kg", 3), ("factor", 3)):
+            med, q1, q3 = _quartiles([float(r[key]) for r in ident], nd)
+            row |= {f"{key}_median": med, f"{key}_q1": q1, f"{key}_q3": q3}
+        out.append(row)
+    return out
+
+
+def write_summary_csv(path: str | Path, rows: Sequence[Mapping[str, Any]]) -> Path:
+    """``strength_cohort_summary.csv`` (:data:`SUMMARY_COLUMNS`) of :func:`cohort_summary_rows`."""
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    with open(path, "w", newline="", encoding="utf-8") as fh:
+        w = csv.DictWriter(fh, fieldnames=SUMMARY_COLUMNS, lineterminator="\n")
+        w.writeheader()
+        w.writerows({k: r.get(k, "") for k in SUMMARY_COLUMNS} for r in rows)
+    return path

@@ -840,7 +840,8 @@ def lever_arm_from_height(
         src = (
             f"anthropometric: {foot_fraction:.2f} ± {foot_fraction_sd:.2f} × foot length "
             f"{length:.3f} m (heel to toe tip, de Leva (1996) Table 4 ratio × height "
-            f"{height_m:.2f} m, {who}) from the ankle centre to the strap"
+            f"{height_m:.2f} m, {who}) from the ankle centre to the strap (over the "
+            "metatarsal heads), the force line perpendicular to the foot (a cable along the leg)"
         )
     return LeverArm(float(d), float(sd), src)
 

@@ -435,6 +435,14 @@ def test_the_twenty_subjects_run_with_sane_figures(tmp_path: Path) -> None:
     import csv
 
     cohort = list(csv.DictReader((tmp_path / "strength_cohort.csv").open()))
+    summary = list(csv.DictReader((tmp_path / "strength_cohort_summary.csv").open()))
+    assert [r["test"] for r in summary] == [
+        "knee_extension",
+        "knee_flexion",
+        "ankle_dorsiflexion",
+        "ankle_plantarflexion",
+    ]
+    assert all(r["n_subjects"] == "20" for r in summary)
     # the covariates of a cohort comparison on every row (strength per kg vs age)
     assert all(64 <= float(r["age_years"]) <= 82 and float(r["mass_kg"]) > 30 for r in cohort)
     # every test's torque per kg and its published band (all subjects are ≥ 60 y)
