@@ -411,6 +411,15 @@ def test_config_errors_name_the_key(tmp_path: Path) -> None:
     (tmp_path / "session.toml").write_text(text)
     with pytest.raises(MskError, match=r"tests\[0\].target = 'XX'"):
         load_dynamometry_config(tmp_path / "session.toml")
+    good = _config(tmp_path, files).read_text()
+    for extra, msg in (
+        ("band_nm_per_kg = [2.0, 1.0]", r"tests\[0\].band_nm_per_kg = \[2.0, 1.0\]"),
+        ("band_nm_per_kg = [0.5, 1.0]", r"tests\[0\].band_nm_per_kg needs tests\[0\].band_source"),
+    ):
+        text = good.replace('name = "knee_extension"', f'name = "knee_extension"\n{extra}')
+        (tmp_path / "session.toml").write_text(text)
+        with pytest.raises(MskError, match=msg):
+            load_dynamometry_config(tmp_path / "session.toml")
 
 
 REAL = Path(__file__).resolve().parents[2] / "pipelines" / "dynamometry_elderly"
