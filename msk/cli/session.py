@@ -47,7 +47,7 @@ def _run_sessions(args: argparse.Namespace) -> int:
         for f in dyn.summary["flags"]:
             if not args.quiet:
                 sys.stderr.write(f"{dyn.out_dir}: flag: {f['message']}\n")
-        failed = [r for r in dyn.strengths if r.status != "identified"]
+        failed = [r for r in dyn.strengths if r.status != "identified" or r.below_band]
         return 3 if args.strict and failed else 0
     raised = 0
     runs = run_task_trials(

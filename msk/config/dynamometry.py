@@ -37,6 +37,10 @@ class TestConfig:
     file: Path
     lever_arm_m: float | None
     lever_arm_sd_m: float
+    #: a published band given by the configuration (low, high N·m/kg) and its source; None:
+    #: the library's band of the action for the subject's age
+    band_nm_per_kg: tuple[float, float] | None = None
+    band_source: str = ""
 
 
 @dataclass(frozen=True)
@@ -227,6 +231,8 @@ def load_dynamometry_config(path: str | Path) -> DynamometryConfig:
         "segment",
         "lever_arm_m",
         "lever_arm_sd_m",
+        "band_nm_per_kg",
+        "band_source",
     }
     for i, t in enumerate(raw_tests):
         w = f"tests[{i}]"
@@ -270,7 +276,29 @@ def load_dynamometry_config(path: str | Path) -> DynamometryConfig:
             segment=segment,
         )
         file = (src.parent / _get(t, "file", str, w, src)).resolve()
-        tests.append(TestConfig(test, file, lever, _get(t, "lever_arm_sd_m", float, w, src, 0.01)))
+        band = t.get("band_nm_per_kg")
+        if band is not None and not (
+            isinstance(band, list)
+            and len(band) == 2
+            and all(isinstance(x, (int, float)) and not isinstance(x, bool) for x in band)
+            and 0.0 <= band[0] < band[1] <= 10.0
+        ):
+            raise ConfigError(
+                f"{src}: {w}.band_nm_per_kg = {band!r}: [low, high] in N·m/kg, 0 ≤ low < high"
+            )
+        band_source = _get(t, "band_source", str, w, src, "")
+        if band is not None and not band_source:
+            raise ConfigError(f"{src}: {w}.band_nm_per_kg needs {w}.band_source (its citation)")
+        tests.append(
+            TestConfig(
+                test,
+                file,
+                lever,
+                _get(t, "lever_arm_sd_m", float, w, src, 0.01),
+                (float(band[0]), float(band[1])) if band is not None else None,
+                band_source,
+            )
+        )
     names = [tc.test.name for tc in tests]
     if len(set(names)) != len(names):
         raise ConfigError(f"{src}: test names must be unique, got {names}")

@@ -18,7 +18,9 @@ others complete and are written, and :attr:`BatchResult.failed` lists it. The co
 ``out/cohort.csv`` has one row per session (:func:`msk.results.cohort.cohort_row`,
 :data:`msk.results.cohort.COHORT_COLUMNS`). Dynamometry sessions
 (:mod:`msk.pipeline.dynamometry`) also give ``out/strength_cohort.csv``: one row per subject
-and test (torque, N·m/kg, interval, factor, status, reason).
+and test (torque, N·m/kg, interval, factor, published band, status, reason), and
+``out/strength_cohort_summary.csv``: one row per test over the cohort (counts, the identified
+tests' median and quartiles, the band, the reasons; :mod:`msk.results.strength_table`).
 """
 
 from __future__ import annotations
@@ -297,6 +299,8 @@ def run_batch(
     per_test = [r for o in outcomes for r in o.row.get("strength_rows", ())]
     if per_test:
         from msk.pipeline.dynamometry import write_strength_csv
+        from msk.results.strength_table import cohort_summary_rows, write_summary_csv
 
         write_strength_csv(out / "strength_cohort.csv", per_test)
+        write_summary_csv(out / "strength_cohort_summary.csv", cohort_summary_rows(per_test))
     return BatchResult(out, tuple(outcomes), cohort, _time.perf_counter() - t0)

@@ -14,7 +14,9 @@ runs :func:`run_dynamometry`); paths are relative to the file::
     [[tests]]                # name, file, action (msk.strength.joint_strength.ACTIONS),
                              # angle_deg, angle_range_deg, posture_deg = {stem = deg}, target,
                              # antagonist, sign, segment ("shank"/"foot") or lever_arm_m
-                             # (+ lever_arm_sd_m)
+                             # (+ lever_arm_sd_m), band_nm_per_kg = [low, high] +
+                             # band_source (else the library's older-adult band of the
+                             # action when subject.age_years ≥ 60)
 
 Another subject of the same protocol: change ``[subject]`` and the ``file`` of each test.
 
@@ -49,11 +51,13 @@ from msk.report.dynamometry import report_html
 from msk.results.strength_table import STRENGTH_COLUMNS, strength_rows, write_strength_csv
 from msk.strength.isometric import (
     LeverArm,
+    LiteratureBand,
     TestStrength,
     agonist_mvc,
     analyse_isometric,
     group_strength,
     lever_arm_from_height,
+    literature_band,
     model_isometric_torque,
     relabel_quiet_channels,
     remove_envelope_rest,
@@ -92,6 +96,13 @@ def _lever(cfg: DynamometryConfig, tc: TestConfig) -> LeverArm:
         )
     s = cfg.subject
     return lever_arm_from_height(tc.test.segment, s["height_m"], sex=s["sex"])
+
+
+def _band(cfg: DynamometryConfig, tc: TestConfig) -> LiteratureBand | None:
+    if tc.band_nm_per_kg is not None:
+        lo, hi = tc.band_nm_per_kg
+        return LiteratureBand(lo, hi, f"given by the configuration: {tc.band_source}")
+    return literature_band(tc.test.action, cfg.subject.get("age_years"))
 
 
 def _check_folder(out: Path) -> None:
@@ -160,6 +171,7 @@ def run_dynamometry(
             mvc=mvc,
             own_mvc=own,
             own_torque_nm=own_torque,
+            band=_band(cfg, tc),
         )
         results.append(r)
         rec_d = r.as_dict()
@@ -193,6 +205,7 @@ def run_dynamometry(
         "tests": records,
         "n_tests": len(results),
         "n_identified": sum(r.status == "identified" for r in results),
+        "n_below_published_band": sum(r.below_band for r in results),
         "flags": flags,
         "run_seconds": time.perf_counter() - t0,
     }

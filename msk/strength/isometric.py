@@ -23,9 +23,30 @@ from the subject's stature ``H`` and the segment-length ratios of de Leva (1996,
 tests strapped at the ankle, ``d = L_shank − δ`` with ``L_shank = r_shank H`` (KJC–LMAL) and
 ``δ`` the strap's centre above the malleolus; ankle tests strapped over the forefoot,
 ``d = k L_foot`` (``L_foot = r_foot H``, HEEL–TTIP) with ``k`` the fraction of the foot
-length from the ankle joint centre to the strap. Without the subject's sex the mean of the
+length from the ankle joint centre to the strap. ``k = 0.5 ± 0.1`` puts the strap over the
+metatarsal heads: the ankle centre lies about 0.2–0.25 ``L_foot`` in front of the heel and the
+metatarsal heads about 0.7–0.75 ``L_foot`` (de Leva 1996 HEEL–TTIP), ``0.25 ≤ k ≤ 0.55``; a
+strap at mid-foot is ``k ≈ 0.3``, inside two standard deviations. The force line is taken
+perpendicular to the foot: in the supine tests the cable runs along the leg (dorsiflexion: to a
+fixture beyond the sole; plantarflexion: to a fixture behind the head, about 1.5–2 m away), i.e.
+perpendicular to a neutral foot, and the lever arm is the strap's distance from the ankle axis
+across the leg, ``k L_foot cos θ`` at an ankle angle θ off neutral (cos 10° = 0.985: inside the
+standard deviation). A cable anchored off the leg's axis (e.g. 0.1 m above the sole's level
+over 1.5 m) tilts the line by < 4° (cos > 0.998). Without the subject's sex the mean of the
 male and female ratios is used and half their difference joins the standard deviation. The
 result always states which (:attr:`TestStrength.lever_arm_source`).
+
+**Plausibility: the published band.** Each action has a band of maximal isometric torque per
+kilogram of body mass for older adults (:data:`LITERATURE_BANDS`, sex-pooled: the female
+lower edge to the male upper edge, since the data sets often do not give the sex), used when
+the subject is at least ``BAND_MIN_AGE_YEARS`` old. A test whose interval lies wholly below the
+band (its upper end below the band's lower edge) carries ``below_published_band``: a torque this
+low is either a true weakness or a failed measurement (submaximal effort, the strap slipping or
+the subject sliding on the bench, the lever-arm assumption), which the trial's own checks
+cannot tell apart. The test stays ``identified`` (a weakness is the finding a clinician looks
+for; hiding it as "not determined" would hide exactly the patients the test is for), and the
+flag, the band and its source are written with it so that the number is not acted upon before
+the test is repeated; ``msk run --strict`` exits non-zero on it.
 
 **Interval.** Independent relative errors add in quadrature: the plateau's variability
 (the standard deviation of ``s (F − F_0)`` inside the best window, relative to ``F̄``), the
@@ -105,17 +126,22 @@ from msk.status import STRENGTH_CI_REL_WIDTH_MAX, Status
 from msk.units import Array
 
 __all__ = [
+    "BAND_MIN_AGE_YEARS",
     "CHECKS_FAILING",
+    "LITERATURE_BANDS",
     "IsometricSettings",
     "IsometricTest",
     "IsometricTrial",
     "LeverArm",
+    "LiteratureBand",
     "ModelTorque",
     "TestStrength",
     "agonist_mvc",
     "analyse_isometric",
+    "band_check",
     "group_strength",
     "lever_arm_from_height",
+    "literature_band",
     "model_isometric_torque",
     "relabel_quiet_channels",
     "remove_envelope_rest",
@@ -139,6 +165,66 @@ CHECKS_FAILING = frozenset(
 )
 #: z of a two-sided 95 % interval
 _Z95 = 1.959963984540054
+
+
+@dataclass(frozen=True)
+class LiteratureBand:
+    """A published band of maximal isometric torque per body mass, ``low_nm_per_kg`` to
+    ``high_nm_per_kg`` (N·m/kg), and where it comes from (authors, year, population, posture)."""
+
+    low_nm_per_kg: float
+    high_nm_per_kg: float
+    source: str
+
+
+#: the youngest age (years) the older-adult bands of :data:`LITERATURE_BANDS` apply to
+BAND_MIN_AGE_YEARS = 60.0
+
+_SARABON = (
+    "Šarabon, Kozinc & Perman (2021) Front Physiol 12:767941, meta-analysis of isometric knee "
+    "strength: older adults, mid-range knee angle, pooled 95 % CI of the mean, {what}; "
+    "sex-pooled (female lower edge – male upper edge)"
+)
+_SIMONEAU = (
+    "Simoneau, Martin & Van Hoecke (2005) J Gerontol A 60:439, men aged 77 y: {what} N·m "
+    "isometric at the neutral ankle, knee extended; per kg and sex-pooled as {how}"
+)
+#: published maximal isometric torque per kg for older adults (≥ 60 y), by action
+#: (:class:`LiteratureBand`); the ankle bands are derived from absolute torques (stated)
+LITERATURE_BANDS: dict[str, LiteratureBand] = {
+    "knee extension": LiteratureBand(
+        1.40, 2.16, _SARABON.format(what="extension 1.40–1.64 (women), 1.74–2.16 N·m/kg (men)")
+    ),
+    "knee flexion": LiteratureBand(
+        0.46, 0.89, _SARABON.format(what="flexion 0.46–0.81 (women), 0.69–0.89 N·m/kg (men)")
+    ),
+    "ankle plantarflexion": LiteratureBand(
+        0.56,
+        1.33,
+        _SIMONEAU.format(
+            what="80",
+            how="80 N·m over 60–100 kg = 0.80–1.33 N·m/kg, the lower edge × 0.7 for women "
+            "(approximate)",
+        ),
+    ),
+    "ankle dorsiflexion": LiteratureBand(
+        0.32,
+        0.70,
+        _SIMONEAU.format(
+            what="42",
+            how="42 N·m over 60–100 kg = 0.42–0.70 N·m/kg, the lower edge × 0.75 for women "
+            "(approximate)",
+        ),
+    ),
+}
+
+
+def literature_band(action: str, age_years: float | None) -> LiteratureBand | None:
+    """The published band of ``action`` for a subject of ``age_years`` (``None``: no band for
+    this action, or the age not given or below :data:`BAND_MIN_AGE_YEARS`)."""
+    if age_years is None or age_years < BAND_MIN_AGE_YEARS:
+        return None
+    return LITERATURE_BANDS.get(action)
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -248,8 +334,8 @@ class TestStrength:
     reason: str
     torque_nm: float
     torque_ci_nm: tuple[float, float]
-    torque_per_kg: float
-    torque_per_kg_ci: tuple[float, float]
+    torque_nm_per_kg: float
+    torque_nm_per_kg_ci: tuple[float, float]
     measured_net_nm: float
     cocontraction_nm: float
     cocontraction_note: str
@@ -261,15 +347,33 @@ class TestStrength:
     factor: float
     factor_ci: tuple[float, float]
     flags: tuple[Flag, ...]
+    #: the published band of the test's action (N·m/kg, NaN: none) and its source ("" none)
+    band_nm_per_kg: tuple[float, float] = (float("nan"), float("nan"))
+    band_source: str = ""
+
+    @property
+    def below_band(self) -> bool:
+        """Whether the ``below_published_band`` flag was raised."""
+        return any(f.quantity == "below_published_band" for f in self.flags)
 
     def as_dict(self) -> dict[str, Any]:
         d: dict[str, Any] = {
             k: getattr(self, k)
             for k in self.__dataclass_fields__
-            if k not in ("flags", "torque_ci_nm", "torque_per_kg_ci", "model_range_nm", "factor_ci")
+            if k
+            not in (
+                "flags",
+                "torque_ci_nm",
+                "torque_nm_per_kg_ci",
+                "model_range_nm",
+                "factor_ci",
+                "band_nm_per_kg",
+            )
         }
+        d["band_nm_per_kg"] = [None if math.isnan(x) else x for x in self.band_nm_per_kg]
+        d["below_published_band"] = self.below_band
         d["torque_ci_nm"] = list(self.torque_ci_nm)
-        d["torque_per_kg_ci"] = list(self.torque_per_kg_ci)
+        d["torque_nm_per_kg_ci"] = list(self.torque_nm_per_kg_ci)
         d["model_range_nm"] = list(self.model_range_nm)
         d["factor_ci"] = list(self.factor_ci)
         d["flags"] = [f.as_dict() for f in self.flags]
@@ -736,7 +840,8 @@ def lever_arm_from_height(
         src = (
             f"anthropometric: {foot_fraction:.2f} ± {foot_fraction_sd:.2f} × foot length "
             f"{length:.3f} m (heel to toe tip, de Leva (1996) Table 4 ratio × height "
-            f"{height_m:.2f} m, {who}) from the ankle centre to the strap"
+            f"{height_m:.2f} m, {who}) from the ankle centre to the strap (over the "
+            "metatarsal heads), the force line perpendicular to the foot (a cable along the leg)"
         )
     return LeverArm(float(d), float(sd), src)
 
@@ -807,6 +912,7 @@ def group_strength(
     mvc: Mapping[str, float],
     own_mvc: Mapping[str, float] | None = None,
     own_torque_nm: Mapping[str, tuple[str, float]] | None = None,
+    band: LiteratureBand | None = None,
 ) -> TestStrength:
     """The targeted group's strength from an analysed trial (module docstring): torque,
     per kg, 95 % interval, factor vs the model, status and reason. ``lever`` None for a torque
@@ -814,7 +920,8 @@ def group_strength(
     ``own_mvc`` each channel's plateau in the test that targets it (:func:`agonist_mvc`, the
     antagonist's activation; absent: ``mvc``); ``own_torque_nm`` channel → (test, the
     subject's measured net torque in the test that targets it): the antagonists' maximal
-    torque of the co-contraction correction (absent: the scaled model's)."""
+    torque of the co-contraction correction (absent: the scaled model's); ``band`` the
+    published band of the action (:func:`literature_band`; ``None``: no plausibility check)."""
     flags = list(trial.flags)
     tc = target_check(trial, test, mvc)
     if tc is not None:
@@ -877,6 +984,10 @@ def group_strength(
     lo_m, mid_m, hi_m = model.agonist_nm
     factor = tau / mid_m if mid_m > 0 else float("nan")
     fci = (ci[0] / hi_m, ci[1] / lo_m) if lo_m > 0 else (float("nan"), float("nan"))
+    if band is not None:
+        bf = band_check(test.name, ci[1] / mass_kg, tau / mass_kg, band, src)
+        if bf is not None:
+            flags.append(bf)
     failed = [f for f in flags if f.quantity in CHECKS_FAILING]
     width = (fci[1] - fci[0]) / factor if factor > 0 else float("inf")
     if failed:
@@ -899,8 +1010,8 @@ def group_strength(
         reason=reason,
         torque_nm=float(tau),
         torque_ci_nm=(float(ci[0]), float(ci[1])),
-        torque_per_kg=float(tau / mass_kg),
-        torque_per_kg_ci=(float(ci[0] / mass_kg), float(ci[1] / mass_kg)),
+        torque_nm_per_kg=float(tau / mass_kg),
+        torque_nm_per_kg_ci=(float(ci[0] / mass_kg), float(ci[1] / mass_kg)),
         measured_net_nm=float(net),
         cocontraction_nm=float(co),
         cocontraction_note=note,
@@ -912,4 +1023,28 @@ def group_strength(
         factor=float(factor),
         factor_ci=(float(fci[0]), float(fci[1])),
         flags=tuple(flags),
+        band_nm_per_kg=(
+            (band.low_nm_per_kg, band.high_nm_per_kg) if band else (float("nan"), float("nan"))
+        ),
+        band_source=band.source if band else "",
+    )
+
+
+def band_check(
+    test: str, upper_nm_per_kg: float, nm_per_kg: float, band: LiteratureBand, lever: str
+) -> Flag | None:
+    """``below_published_band`` when the interval's upper end ``upper_nm_per_kg`` lies below
+    the band's lower edge (module docstring); ``None`` otherwise. ``lever`` names the
+    lever-arm assumption in the message."""
+    if not (upper_nm_per_kg < band.low_nm_per_kg):
+        return None
+    return _flag(
+        test,
+        "below_published_band",
+        nm_per_kg,
+        band.low_nm_per_kg,
+        f"{test}: {nm_per_kg:.2f} N·m/kg (interval up to {upper_nm_per_kg:.2f}) is below the "
+        f"published band for age, {band.low_nm_per_kg:.2f}–{band.high_nm_per_kg:.2f} N·m/kg "
+        f"({band.source}): submaximal effort, strap slip or the lever-arm assumption "
+        f"({lever.split(':')[0]}) — or a true weakness; repeat the test before acting on it",
     )

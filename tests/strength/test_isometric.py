@@ -276,7 +276,7 @@ def _write_csv(path: Path, rec: DynamometerRecording) -> None:
     path.write_bytes(gzip.compress(("\n".join(lines) + "\n").encode()))
 
 
-def _config(tmp: Path, files: dict[str, Path], extra: str = "") -> Path:
+def _config(tmp: Path, files: dict[str, Path], extra: str = "", subject: str = "") -> Path:
     tests = {
         "knee_extension": ("knee extension", 90.0, "VL", "BF", "shank"),
         "knee_flexion": ("knee flexion", 90.0, "BF", "VL", "shank"),
@@ -286,6 +286,7 @@ def _config(tmp: Path, files: dict[str, Path], extra: str = "") -> Path:
 name = "synthetic"
 mass_kg = 70.0
 height_m = 1.70
+{subject}
 [model]
 source = "{MODEL.as_posix()}"
 [dynamometer]
@@ -340,8 +341,63 @@ def test_msk_run_recovers_a_synthetic_session(tmp_path: Path) -> None:
     assert 0.0 < ext["cocontraction_nm"] < 0.3 * 100.0
     report = (tmp_path / "out" / "report.html").read_text()
     assert "knee_extension" in report and "N·m/kg" in report
+    # every test's torque per kg: summary, table, report
+    import csv
+
+    rows = {r["test"]: r for r in csv.DictReader((tmp_path / "out/tables/strength.csv").open())}
+    for t in s["tests"]:
+        assert t["torque_nm_per_kg"] == pytest.approx(t["torque_nm"] / 70.0)
+        lo, hi = t["torque_nm_per_kg_ci"]
+        assert lo < t["torque_nm_per_kg"] < hi
+        assert float(rows[t["test"]]["torque_nm_per_kg"]) == pytest.approx(
+            t["torque_nm_per_kg"], abs=1e-4
+        )
+        assert f"{t['torque_nm_per_kg']:.2f} [" in report
+    # no age given: no published band, no plausibility flag
+    assert ext["band_nm_per_kg"] == [None, None] and not ext["below_published_band"]
     # same folder again: replaced
     assert main(["run", str(cfg), "--out", str(tmp_path / "out"), "--quiet"]) == 0
+
+
+def test_a_torque_below_the_published_band_is_flagged_and_stays_identified(
+    tmp_path: Path,
+) -> None:
+    """A 72-year-old's knee extension of 0.5 N·m/kg (band 1.40–2.16) passes every trial check:
+    identified, with ``below_published_band`` naming the band, its source and the candidate
+    causes; ``--strict`` exits 3; a knee flexion inside its band is not flagged."""
+    from msk.cli import main
+
+    files = {"knee_extension": tmp_path / "ext.tsv.gz", "knee_flexion": tmp_path / "flex.tsv.gz"}
+    _write_csv(files["knee_extension"], _trial(torque_nm=35.0, offset_n=50.0, seed=1))
+    flex = _trial(torque_nm=45.0, offset_n=10.0, seed=2, amps=(10e-6, 200e-6, 20e-6, 20e-6))
+    _write_csv(files["knee_flexion"], flex)
+    cfg = _config(tmp_path, files, subject="age_years = 72")
+    out = tmp_path / "out"
+    assert main(["run", str(cfg), "--out", str(out), "--quiet"]) == 0
+    assert main(["run", str(cfg), "--out", str(out), "--quiet", "--strict"]) == 3
+    s = json.loads((out / "summary.json").read_text())
+    by = {t["test"]: t for t in s["tests"]}
+    ext, fl = by["knee_extension"], by["knee_flexion"]
+    assert ext["status"] == "identified" and ext["below_published_band"]
+    assert ext["band_nm_per_kg"] == [1.40, 2.16] and "Šarabon" in ext["band_source"]
+    flag = next(f for f in s["flags"] if f["quantity"] == "below_published_band")
+    assert flag["trial"] == "knee_extension" and flag["threshold"] == 1.40
+    assert "submaximal effort, strap slip or the lever-arm assumption" in flag["message"]
+    assert not fl["below_published_band"], fl  # 0.64 N·m/kg, band 0.46–0.89
+    assert s["n_below_published_band"] == 1
+    rows = (out / "tables" / "strength.csv").read_text().splitlines()
+    assert "below_published_band" in rows[0] and ",1.4,2.16,1,," in rows[1]
+    report = (out / "report.html").read_text()
+    assert "1.40–2.16 (below)" in report and "below the published band for age" in report
+    # a band given by the configuration replaces the library's, with its source
+    text = cfg.read_text().replace(
+        'name = "knee_extension"',
+        'name = "knee_extension"\nband_nm_per_kg = [0.3, 0.9]\nband_source = "lab norms"',
+    )
+    cfg.write_text(text)
+    assert main(["run", str(cfg), "--out", str(out), "--quiet", "--strict"]) == 0
+    ext = json.loads((out / "summary.json").read_text())["tests"][0]
+    assert ext["band_nm_per_kg"] == [0.3, 0.9] and ext["band_source"].endswith("lab norms")
 
 
 def test_config_errors_name_the_key(tmp_path: Path) -> None:
@@ -355,6 +411,15 @@ def test_config_errors_name_the_key(tmp_path: Path) -> None:
     (tmp_path / "session.toml").write_text(text)
     with pytest.raises(MskError, match=r"tests\[0\].target = 'XX'"):
         load_dynamometry_config(tmp_path / "session.toml")
+    good = _config(tmp_path, files).read_text()
+    for extra, msg in (
+        ("band_nm_per_kg = [2.0, 1.0]", r"tests\[0\].band_nm_per_kg = \[2.0, 1.0\]"),
+        ("band_nm_per_kg = [0.5, 1.0]", r"tests\[0\].band_nm_per_kg needs tests\[0\].band_source"),
+    ):
+        text = good.replace('name = "knee_extension"', f'name = "knee_extension"\n{extra}')
+        (tmp_path / "session.toml").write_text(text)
+        with pytest.raises(MskError, match=msg):
+            load_dynamometry_config(tmp_path / "session.toml")
 
 
 REAL = Path(__file__).resolve().parents[2] / "pipelines" / "dynamometry_elderly"
@@ -379,8 +444,27 @@ def test_the_twenty_subjects_run_with_sane_figures(tmp_path: Path) -> None:
     import csv
 
     cohort = list(csv.DictReader((tmp_path / "strength_cohort.csv").open()))
+    summary = list(csv.DictReader((tmp_path / "strength_cohort_summary.csv").open()))
+    assert [r["test"] for r in summary] == [
+        "knee_extension",
+        "knee_flexion",
+        "ankle_dorsiflexion",
+        "ankle_plantarflexion",
+    ]
+    assert all(r["n_subjects"] == "20" for r in summary)
     # the covariates of a cohort comparison on every row (strength per kg vs age)
     assert all(64 <= float(r["age_years"]) <= 82 and float(r["mass_kg"]) > 30 for r in cohort)
+    # every test's torque per kg and its published band (all subjects are ≥ 60 y)
+    for r in cohort:
+        assert float(r["torque_nm_per_kg"]) == pytest.approx(
+            float(r["torque_nm"]) / float(r["mass_kg"]), abs=1e-3
+        )
+        assert float(r["band_low_nm_per_kg"]) < float(r["band_high_nm_per_kg"])
+        below = float(r["torque_nm_per_kg_ci_high"]) < float(r["band_low_nm_per_kg"])
+        assert r["below_published_band"] == str(int(below))
+        assert (r["failed_checks"] == "") == (r["reason"] == "every check passed") or (
+            r["status"] == "not determined" and "interval" in r["reason"]
+        )
     for c in configs:
         out = tmp_path / c.stem
         s = json.loads((out / "summary.json").read_text())
@@ -397,7 +481,9 @@ def test_the_twenty_subjects_run_with_sane_figures(tmp_path: Path) -> None:
                 gl = [f for f in s["flags"] if f["trial"] == "ankle_plantarflexion"]
                 assert any(f["quantity"] == "emg_envelope_channel" for f in gl), gl
         assert (out / "tables" / "strength.csv").is_file()
-        assert "Identified" in (out / "report.html").read_text()
+        report = (out / "report.html").read_text()
+        assert "Identified" in report and "Published band" in report
+        assert "Trial and EMG checks" in report
     assert passed >= 20
     # GL read as the envelope it is: 8 of 20 plantarflexion tests identified (0 when it was
     # refused as a flat channel); the others fail a stated check
@@ -453,7 +539,7 @@ def test_a_torque_export_needs_no_lever_arm() -> None:
                        own_mvc={})  # fmt: skip
     assert r.measured_net_nm == pytest.approx(80.0, rel=0.01)
     assert r.lever_arm_source.startswith("not used")
-    assert r.torque_per_kg == pytest.approx(r.torque_nm / 80.0)
+    assert r.torque_nm_per_kg == pytest.approx(r.torque_nm / 80.0)
 
 
 def test_a_channel_quiet_in_one_test_and_active_in_another_is_not_called_dead() -> None:
@@ -478,3 +564,18 @@ def test_a_channel_quiet_in_one_test_and_active_in_another_is_not_called_dead() 
     assert "ankle_dorsiflexion" in quiet[0].message
     assert out[1].flags == ta.flags
     assert out[0].emg_flat == knee.emg_flat  # the analysis is unchanged
+
+
+def test_the_published_band_applies_to_older_adults_and_to_the_whole_interval() -> None:
+    from msk.strength.isometric import LITERATURE_BANDS, band_check, literature_band
+
+    assert literature_band("knee extension", None) is None
+    assert literature_band("knee extension", 45.0) is None
+    band = literature_band("ankle plantarflexion", 70.0)
+    assert band is LITERATURE_BANDS["ankle plantarflexion"]
+    # below only when the interval's upper end is below the lower edge
+    assert band_check("pf", band.low_nm_per_kg + 0.01, 0.3, band, "x: y") is None
+    f = band_check("pf", band.low_nm_per_kg - 0.01, 0.3, band, "anthropometric: …")
+    assert f is not None and f.quantity == "below_published_band" and f.value == 0.3
+    for b in LITERATURE_BANDS.values():
+        assert 0.0 < b.low_nm_per_kg < b.high_nm_per_kg < 3.0 and "(20" in b.source
