@@ -64,7 +64,7 @@ Thresholds and their sources (:data:`THRESHOLDS`):
 from __future__ import annotations
 
 import warnings
-from collections.abc import Mapping, Sequence
+from collections.abc import Collection, Mapping, Sequence
 from dataclasses import asdict, dataclass
 from typing import Any
 
@@ -94,6 +94,7 @@ __all__ = [
     "gait_quality",
     "inconsistent_static_markers",
     "kkt_flags",
+    "leg_coordinates",
     "marker_rename_flags",
     "model_flags",
     "optimization_flags",
@@ -767,14 +768,33 @@ def _relocation_flags(trial: str, info: Mapping[str, Any], th: Mapping[str, floa
     return out
 
 
+def leg_coordinates(model: Any) -> frozenset[str]:
+    """The coordinates of the joints in either leg's tree: each joint whose child body is a
+    femur (the hip) or below one (``Model.subtree``); empty for a model without femurs."""
+    bodies: set[str] = set()
+    for femur in ("femur_r", "femur_l"):
+        if femur in getattr(model, "body_frame", {}):
+            bodies.update(model.subtree(femur))
+    return frozenset(
+        ax.coordinate for j in getattr(model, "joints", ()) if j.child in bodies
+        for ax in j.axes if ax.coordinate
+    )  # fmt: skip
+
+
 def optimization_flags(
-    trial: str, sol: Any, jt: Any, thresholds: Mapping[str, float] = THRESHOLDS
+    trial: str,
+    sol: Any,
+    jt: Any,
+    thresholds: Mapping[str, float] = THRESHOLDS,
+    legs: Collection[str] | None = None,
 ) -> list[Flag]:
     """The tension optimisation's gates (``sol``: a
     :class:`msk.optimization.muscle_forces.MuscleForces`; ``jt`` the joint torques its reserves are
     judged against): infeasible and excluded frames, a muscle saturated on more than
     ``saturated_frames_pct`` of the frames it was solved in, a leg coordinate's reserve RMS
-    over its solved frames above ``reserve_rms_pct_peak_torque`` of its peak torque, the
+    over its solved frames above ``reserve_rms_pct_peak_torque`` of its peak torque (``legs``:
+    the leg coordinates, :func:`leg_coordinates`; None: those named ``*_r``/``*_l`` — an arm's
+    torque-driven coordinate has no muscle to judge), the
     frontal reserves (:func:`frontal_reserve_flags`) and the KKT check (:func:`kkt_flags`).
     A leg left out of a frame (NaN there) counts in none of them."""
     th = {**THRESHOLDS, **thresholds}
@@ -819,7 +839,8 @@ def optimization_flags(
         rt = np.asarray(rt, dtype=float)
         cn = tuple(jt.coordinate_names)
         for k, c in enumerate(rc):
-            if not c.endswith(("_r", "_l")) or c not in cn:
+            leg = c in legs if legs is not None else c.endswith(("_r", "_l"))
+            if not leg or c not in cn:
                 continue
             tau = np.asarray(jt.tau, dtype=float)[:, cn.index(c)]
             ok = np.isfinite(rt[:, k]) & np.isfinite(tau)
@@ -1110,7 +1131,8 @@ def gait_flags(
                   f"duplicate marker labels in the file: {', '.join(dup[:5])}")
         )  # fmt: skip
     if optimization is not None:
-        out += optimization_flags(trial_name, optimization, joint_torques, th)
+        legs = leg_coordinates(model) if model is not None else None
+        out += optimization_flags(trial_name, optimization, joint_torques, th, legs or None)
     return out
 
 

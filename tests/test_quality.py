@@ -550,3 +550,33 @@ def test_the_physiological_range_is_read_in_the_reference_convention():
         if raised:
             assert by["knee_angle_r_deg"].value == pytest.approx(30.0, abs=0.6)
             assert "gait2392's sign" in by["knee_angle_r_deg"].message
+
+
+def test_leg_coordinates_are_the_hips_and_below_and_an_arm_reserve_is_not_judged() -> None:
+    """The reserve gate judges the coordinates of either leg's tree only: gait2392's and
+    Rajagopal's hips, knees, ankles …, never the pelvis' or Rajagopal's torque-driven arms
+    (whose names end in ``_r`` too); an arm's reserve carrying all its torque raises nothing
+    while a knee's does."""
+    from types import SimpleNamespace
+
+    from msk.model.files import load_model
+    from msk.optimization.muscle_forces import MuscleForces
+    from msk.quality import leg_coordinates, optimization_flags
+
+    g = leg_coordinates(load_model("gait2392"))
+    assert {"hip_flexion_r", "knee_angle_l", "ankle_angle_r", "subtalar_angle_l"} <= g
+    assert not {c for c in g if c.startswith(("pelvis", "lumbar"))}
+    raj = load_model("rajagopal")
+    legs = leg_coordinates(raj)
+    arms = [c for c in raj.coordinate_names if c.startswith(("arm_", "elbow_", "pro_sup"))]
+    assert arms and not set(arms) & legs and "knee_angle_r" in legs
+    rt = np.full((10, 2), 30.0)
+    sol = MuscleForces(
+        np.full((10, 1), 100.0), np.full((10, 1), 0.1), ("vasint_r",), "static_optimization", 0,
+        reserve_torques=rt, reserve_coordinates=(arms[0], "knee_angle_r"),
+    )  # fmt: skip
+    jt = SimpleNamespace(coordinate_names=(arms[0], "knee_angle_r"), tau=np.full((10, 2), 30.0))
+    flags = {f.quantity for f in optimization_flags("t", sol, jt, legs=legs)}
+    assert flags == {"knee_angle_r_reserve_rms_pct"}
+    everything = {f.quantity for f in optimization_flags("t", sol, jt)}  # by suffix
+    assert f"{arms[0]}_reserve_rms_pct" in everything
