@@ -199,6 +199,48 @@ def test_gait2392_knees_keep_the_quadriceps_knee_moment(source: str) -> None:
     assert np.all((rho > 0.55) & (rho < 0.85)), rho
 
 
+def test_the_tendons_pull_is_the_forces_on_the_substituted_wrenches() -> None:
+    """gait2392, 0–100° with random forces (NaN on one frame): the contact with the tendon —
+    the quadriceps' forces left out of the muscles' pull and Σ_Q F_i ρ_i (e, T × e) added,
+    the tendon's line evaluated once — is the inverse-dynamics joint reaction plus
+    Σ_i F_i w̃_i over the substituted unit wrenches (:meth:`PatellarTendon.substitute`), to
+    round-off; F_PF likewise (:meth:`PatellarTendon.patellofemoral` on its own); the frame
+    with a NaN force is NaN."""
+    from msk.contact.knee import _chain_states, _distal_tree, _plateau_placement
+    from msk.model.files import load_model
+    from msk.muscles.geometry import muscle_geometry
+
+    model = load_model("gait2392")
+    pt = patellar_tendon(model, joint="knee_r")
+    ci = model.coordinate_index("knee_angle_r")
+    knee = -np.radians(np.linspace(0.0, 100.0, 6))
+    th = np.tile(model.default_coordinates(), (knee.size, 1))
+    th[:, ci] = knee
+    kin = kinematics_from_coordinates(np.arange(knee.size) * 0.01, th, model.coordinate_names,
+                                      cutoff_hz=None)  # fmt: skip
+    geo = muscle_geometry(model, th, distal_wrench_joints=("knee_r",))
+    w = np.asarray(geo.distal_wrenches["knee_r"])
+    jk = np.asarray(geo.jacobian)[:, :, ci]
+    f = np.random.default_rng(3).uniform(0.0, 800.0, (knee.size, len(model.muscles)))
+    f[2, 5] = np.nan
+    kw = {"joint": "knee_r", "variant": "quasi_static", "distal_wrenches": w}
+    out = knee_contact_force(model, kin, muscle_forces=f, patella=pt, knee_jacobian=jk, **kw)
+    bare = knee_contact_force(model, kin, **kw)  # the joint reaction alone
+    tree = _distal_tree(model, "knee_r")
+    r, p = _plateau_placement(tree, _chain_states(model, tree, th, None, None), None)
+    q = list(pt.muscles)
+    w2 = pt.substitute(knee, w, r, p, jk[:, q])
+    add = np.einsum("nm,nmc->nc", f, w2)
+    force = bare.force + np.einsum("nji,nj->ni", r, add[:, :3])
+    ok = np.arange(knee.size) != 2
+    scale = np.abs(force[ok]).max()
+    np.testing.assert_allclose(out.force[ok], force[ok], rtol=0, atol=1e-12 * scale)
+    assert np.isnan(out.force[2]).all() and np.isnan(out.patellofemoral[2])
+    pf = pt.patellofemoral(knee, -w[:, q, :3], r, jk[:, q], f[:, q])
+    np.testing.assert_allclose(out.patellofemoral[ok], np.linalg.norm(pf, axis=1)[ok],
+                               rtol=1e-12)  # fmt: skip
+
+
 def test_a_given_knee_jacobian_is_the_geometry_pass_s() -> None:
     """The pipeline hands the geometry stage's ∂l/∂θ (``knee_jacobian``): the same contact as
     the tendon's own geometry pass; a wrong shape is a typed error."""
