@@ -486,7 +486,7 @@ def _tendon_pull(
         raise ModelError(f"patellar tendon of {patella.joint!r} given for knee {joint!r}")
     if f is None:
         return None, None
-    q = list(patella.muscles)
+    q = np.asarray(patella.muscles, dtype=np.intp)
     dl = _quadriceps_jacobian(model, patella, th, idx, knee_jacobian)
     r_t, p_t = _plateau_placement(tree, st, None) if placement is None else placement
     ci = model.coordinate_index(patella.coordinate)
