@@ -174,7 +174,7 @@ def chain(fig: Figures, repeats: int) -> None:
 
     r = bench_chain.measure(repeats)
     best, cpu, fl = r["best"], r["cpu"], r["floor"]
-    plain = [k for k in r["stages"] if k not in (bench_chain.ROWS, bench_chain.SO_ROWS)]
+    plain = [k for k in r["stages"] if k not in bench_chain.EXTRA]
     total = sum(best[k] for k in plain)
     total_cpu = sum(cpu[k] for k in plain)
     so = "static optimisation"
@@ -186,6 +186,13 @@ def chain(fig: Figures, repeats: int) -> None:
         f"{fl['best']:.0f} µs/frame (CPU {fl['cpu']:.0f}): Pinocchio kinematics + one warm "
         f"DAQP solve of {fl['size'][0]} variables × {fl['size'][1]} equalities per frame; "
         + ", ".join(f"{k} {best[k]:.1f}" for k in plain),
+    )
+    with_pt = total + best[bench_chain.PATELLA] - best[bench_chain.CONTACT]
+    fig.add(
+        "chain with the patellar tendon / chain without it",
+        f"{with_pt / total:.3f}×",
+        f"{with_pt:.0f} against {total:.0f} µs/frame wall min (target ≤ 100 with it); contact "
+        f"{best[bench_chain.PATELLA]:.1f} against {best[bench_chain.CONTACT]:.1f}",
     )
     fig.add(
         "knee contact + medial/lateral split / floor",

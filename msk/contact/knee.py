@@ -400,6 +400,7 @@ def _knee_contact(
                 )
     idx = np.flatnonzero(ok)
     patellofemoral: Array | None = None
+    tendon_add: Array | None = None
     force_w = np.full((n, 3), np.nan)
     moment_w = np.full((n, 3), np.nan)
     rot = np.full((n, 3, 3), np.nan)
@@ -421,21 +422,19 @@ def _knee_contact(
         moment_w[idx] = wr[:, 3:]
         rot[idx], origin[idx] = _plateau_placement(tree, st, plateau_offset)
         if patella is not None and w is not None:
-            lines = -w[idx][:, list(patella.muscles), :3]  # the quadriceps' pull at the patella
-            w, dl, r_t = _through_patella(
-                model, patella, joint, th, idx, w, tree, st, knee_jacobian
-            )
-            if f is not None:
-                ci = model.coordinate_index(patella.coordinate)
-                f_q = np.nan_to_num(f[idx][:, list(patella.muscles)])
-                pf = np.linalg.norm(
-                    patella.patellofemoral(th[idx, ci], lines, r_t, dl, f_q), axis=1
-                )
-                pf[~np.isfinite(f[idx]).all(axis=1)] = np.nan
-                patellofemoral = np.full(n, np.nan)
-                patellofemoral[idx] = pf
+            # the quadriceps' rows are not substituted in a copy of w: their forces are left
+            # out of the muscles' pull below and the tendon's Σ_Q F_i ρ_i (e, T × e) added
+            tendon_add, patellofemoral = _tendon_pull(
+                model, patella, joint, th, idx, w, tree, st, knee_jacobian, f,
+                None if plateau_offset is not None else (rot[idx], origin[idx]),
+            )  # fmt: skip
     if with_muscles and f is not None and w is not None:
-        add = np.einsum("nm,nmc->nc", np.nan_to_num(f), w)
+        f0 = np.nan_to_num(f)
+        if tendon_add is not None and patella is not None:
+            f0[:, list(patella.muscles)] = 0.0
+        add = np.einsum("nm,nmc->nc", f0, w)
+        if tendon_add is not None:
+            add[idx] += tendon_add
         add[~np.isfinite(f).all(axis=1)] = np.nan
         force_w += add[:, :3]
         moment_w += add[:, 3:]
@@ -464,6 +463,71 @@ def _knee_contact(
     return contact, rot, origin
 
 
+def _tendon_pull(
+    model: Model,
+    patella: PatellarTendon,
+    joint: str,
+    th: Array,
+    idx: NDArray[np.intp],
+    w: Array,
+    tree: _DistalTree,
+    st: _ChainStates,
+    knee_jacobian: ArrayLike | None,
+    f: Array | None,
+    placement: tuple[Array, Array] | None = None,
+) -> tuple[Array | None, Array | None]:
+    """On frames ``idx``: the tendon's pull on the tibia −Σ_{i ∈ Q} F_i ρ_i (e, T × e)
+    (len(idx), 6; world axes, moment about the world origin) and the patellofemoral force
+    |F_PF| (n,) — both None without muscle forces ``f`` (n, muscles). The tendon's line e and
+    moment arm are evaluated once for ρ, the wrench and F_PF
+    (:meth:`msk.contact.patella.PatellarTendon.line`); ``placement``: the tibia's world
+    rotations and origins on those frames when already computed."""
+    if patella.joint != joint:
+        raise ModelError(f"patellar tendon of {patella.joint!r} given for knee {joint!r}")
+    if f is None:
+        return None, None
+    q = np.asarray(patella.muscles, dtype=np.intp)
+    dl = _quadriceps_jacobian(model, patella, th, idx, knee_jacobian)
+    r_t, p_t = _plateau_placement(tree, st, None) if placement is None else placement
+    ci = model.coordinate_index(patella.coordinate)
+    theta = th[idx, ci]
+    tendon = patella.line(theta)
+    rho = patella.ratio(theta, dl, tendon)
+    f_q = np.nan_to_num(f[np.ix_(idx, q)])
+    unit = patella.unit_wrench(tendon[0], r_t, p_t)
+    pull = -np.einsum("nk,nk->n", f_q, rho)[:, None] * unit
+    lines = -w[np.ix_(idx, q)][..., :3]  # the quadriceps' pull at the patella
+    pf = np.linalg.norm(patella.patellofemoral(theta, lines, r_t, dl, f_q, tendon, rho), axis=1)
+    pf[~np.isfinite(f[idx]).all(axis=1)] = np.nan
+    out = np.full(th.shape[0], np.nan)
+    out[idx] = pf
+    return pull, out
+
+
+def _quadriceps_jacobian(
+    model: Model,
+    patella: PatellarTendon,
+    th: Array,
+    idx: NDArray[np.intp],
+    knee_jacobian: ArrayLike | None,
+) -> Array:
+    """The quadriceps' length Jacobian on the knee coordinate on frames ``idx``
+    (len(idx), len(patella.muscles)): ``knee_jacobian`` (frames, muscles) as the muscle
+    forces were solved with it (moving points included), or one geometry pass."""
+    ci = model.coordinate_index(patella.coordinate)
+    if knee_jacobian is None:
+        dl = np.asarray(geometry_plan(model).evaluate(th[idx]).jacobian)[:, :, ci]
+    else:
+        dl = np.asarray(knee_jacobian, dtype=float)
+        if dl.shape != (th.shape[0], len(model.muscles)):
+            raise ShapeMismatchError(
+                f"knee Jacobian {dl.shape} must be (frames {th.shape[0]}, muscles "
+                f"{len(model.muscles)})"
+            )
+        dl = dl[idx]
+    return dl[:, list(patella.muscles)]
+
+
 def _through_patella(
     model: Model,
     patella: PatellarTendon,
@@ -484,19 +548,7 @@ def _through_patella(
     r_t, p_t = _plateau_placement(tree, st, None)
     out = np.array(w, dtype=float, copy=True)
     ci = model.coordinate_index(patella.coordinate)
-    # the quadriceps' moment arms as the muscle forces were solved with them (moving points
-    # included): given, or one geometry pass of these frames
-    if knee_jacobian is None:
-        dl = np.asarray(geometry_plan(model).evaluate(th[idx]).jacobian)[:, :, ci]
-    else:
-        dl = np.asarray(knee_jacobian, dtype=float)
-        if dl.shape != (th.shape[0], len(model.muscles)):
-            raise ShapeMismatchError(
-                f"knee Jacobian {dl.shape} must be (frames {th.shape[0]}, muscles "
-                f"{len(model.muscles)})"
-            )
-        dl = dl[idx]
-    dl = dl[:, list(patella.muscles)]
+    dl = _quadriceps_jacobian(model, patella, th, idx, knee_jacobian)
     out[idx] = patella.substitute(th[idx, ci], out[idx], r_t, p_t, dl)
     return out, dl, r_t
 

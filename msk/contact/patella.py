@@ -70,6 +70,7 @@ from __future__ import annotations
 import weakref
 from collections.abc import Sequence
 from dataclasses import dataclass
+from functools import cached_property
 from typing import Literal
 
 import numpy as np
@@ -184,27 +185,55 @@ class PatellarTendon:
         """Flexion φ (N,) deg, tendon direction e (N, 3) and knee twist S (N, 6), both in
         tibia axes, at knee-coordinate values ``theta`` (N,)."""
         th = np.asarray(theta, dtype=float)
-        phi = np.interp(th, self.grid, self.flexion_deg)
-        a = np.radians(tendon_angle_deg(phi))
-        e = np.stack([np.sin(a), np.cos(a), np.zeros_like(a)], axis=-1)
+        phi, e = self._direction(th)
         s = np.stack([np.interp(th, self.grid, self.twist[:, c]) for c in range(6)], axis=-1)
         return phi, e, s
 
+    def _direction(self, th: Array) -> tuple[Array, Array]:
+        """φ (N,) deg and e (N, 3) tibia axes at knee-coordinate values ``th``."""
+        phi = np.interp(th, self.grid, self.flexion_deg)
+        a = np.radians(tendon_angle_deg(phi))
+        return phi, np.stack([np.sin(a), np.cos(a), np.zeros_like(a)], axis=-1)
+
+    @cached_property
+    def _insertion_velocity(self) -> Array:
+        """(G, 3) v_T = v_O + ω × T on the grid, tibia axes (linear in S: its interpolation is
+        that of S, to round-off)."""
+        return self.twist[:, :3] + np.cross(self.twist[:, 3:], self.insertion_m)
+
+    def line(self, theta: ArrayLike) -> tuple[Array, Array]:
+        """The tendon direction e (N, 3; tibia axes) and its moment arm e · v_T (N,) (m per
+        rad) at knee-coordinate values ``theta`` (N,): one evaluation for :meth:`ratio`,
+        :meth:`substitute` and :meth:`patellofemoral` (their ``tendon`` argument)."""
+        th = np.asarray(theta, dtype=float)
+        _, e = self._direction(th)
+        vt = self._insertion_velocity
+        v_t = np.stack([np.interp(th, self.grid, vt[:, c]) for c in range(3)], axis=-1)
+        return e, np.einsum("nc,nc->n", e, v_t)
+
     def moment_arm(self, theta: ArrayLike) -> Array:
         """(N,) the tendon's moment arm on the knee coordinate, e · v_T (m per rad)."""
-        _, e, s = self.at(theta)
-        return np.einsum("nc,nc->n", e, s[:, :3] + np.cross(s[:, 3:], self.insertion_m))
+        return self.line(theta)[1]
 
-    def ratio(self, theta: ArrayLike, length_jacobian: ArrayLike) -> Array:
+    def ratio(self, theta: ArrayLike, length_jacobian: ArrayLike,
+              tendon: tuple[Array, Array] | None = None) -> Array:  # fmt: skip
         """ρ (N, K) = −(∂l/∂θ)/(e · v_T) for the quadriceps' length Jacobian on the knee
-        coordinate ``length_jacobian`` (N, K), clipped at 0."""
-        _, e, s = self.at(theta)
+        coordinate ``length_jacobian`` (N, K), clipped at 0 (``tendon``: :meth:`line` at
+        ``theta``, when already evaluated)."""
+        _, arm = self.line(theta) if tendon is None else tendon
         dl = np.asarray(length_jacobian, dtype=float)
-        v_t = s[:, :3] + np.cross(s[:, 3:], self.insertion_m)
-        arm = np.einsum("nc,nc->n", e, v_t)
         with np.errstate(divide="ignore", invalid="ignore"):
             rho = -dl / arm[:, None]
         return np.where(np.isfinite(rho), np.maximum(rho, 0.0), 0.0)
+
+    def unit_wrench(self, e: Array, rot: ArrayLike, origin: ArrayLike) -> Array:
+        """(N, 6) the tendon's unit wrench ``(e, T × e)`` (world axes, moment about the world
+        origin) for tibia-axes directions ``e`` (N, 3) and tibia placements ``rot`` (N, 3, 3),
+        ``origin`` (N, 3)."""
+        r = np.asarray(rot, dtype=float)
+        e_w = np.einsum("nij,nj->ni", r, e)
+        t_w = np.asarray(origin, dtype=float) + np.einsum("nij,j->ni", r, self.insertion_m)
+        return np.concatenate([e_w, np.cross(t_w, e_w)], axis=-1)
 
     def substitute(self, theta: ArrayLike, distal_wrenches: ArrayLike, rot: ArrayLike,
                    origin: ArrayLike, length_jacobian: ArrayLike) -> Array:  # fmt: skip
@@ -225,22 +254,23 @@ class PatellarTendon:
         if not self.muscles or not n:
             return w
         q = list(self.muscles)
-        rho = self.ratio(theta, length_jacobian)
-        _, e, _ = self.at(theta)
-        e_w = np.einsum("nij,nj->ni", r, e)
-        t_w = p + np.einsum("nij,j->ni", r, self.insertion_m)
-        unit = np.concatenate([e_w, np.cross(t_w, e_w)], axis=-1)  # (N, 6)
+        tendon = self.line(theta)
+        rho = self.ratio(theta, length_jacobian, tendon)
+        unit = self.unit_wrench(tendon[0], r, p)  # (N, 6)
         w[:, q, :] = -rho[..., None] * unit[:, None, :]
         return w
 
     def patellofemoral(self, theta: ArrayLike, quadriceps_lines: ArrayLike, rot: ArrayLike,
-                       length_jacobian: ArrayLike, forces: ArrayLike) -> Array:  # fmt: skip
+                       length_jacobian: ArrayLike, forces: ArrayLike,
+                       tendon: tuple[Array, Array] | None = None,
+                       rho: Array | None = None) -> Array:  # fmt: skip
         """F_PF (N, 3): the femur's force on the patella, world axes (module docstring),
         ``−Σ F_i (u_i − ρ_i e)``, for knee coordinate ``theta`` (N,), the quadriceps' lines
         at the patella ``quadriceps_lines`` (N, K, 3; the pull of a unit tension on the
         patella, normalised here), tibia rotations ``rot`` (N, 3, 3), their length Jacobian on
         the knee coordinate (N, K) and tensions ``forces`` (N, K) in N. A line of zero length
-        (a muscle that does not reach the tibia) counts as no pull."""
+        (a muscle that does not reach the tibia) counts as no pull. ``tendon`` (:meth:`line`)
+        and ``rho`` (:meth:`ratio`) at ``theta``, when already evaluated."""
         u = np.asarray(quadriceps_lines, dtype=float)
         f = np.asarray(forces, dtype=float)
         r = np.asarray(rot, dtype=float)
@@ -252,9 +282,11 @@ class PatellarTendon:
             )
         norm = np.linalg.norm(u, axis=2, keepdims=True)
         u = np.divide(u, norm, out=np.zeros_like(u), where=norm > 0)
-        rho = self.ratio(theta, length_jacobian)
-        _, e, _ = self.at(theta)
-        e_w = np.einsum("nij,nj->ni", r, e)
+        if tendon is None:
+            tendon = self.line(theta)
+        if rho is None:
+            rho = self.ratio(theta, length_jacobian, tendon)
+        e_w = np.einsum("nij,nj->ni", r, tendon[0])
         pull = u - rho[..., None] * e_w[:, None, :]
         return -np.einsum("nk,nkc->nc", f, pull)
 
