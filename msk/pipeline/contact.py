@@ -105,7 +105,8 @@ def run(
     if strength_identification is not None:
         from msk.strength import with_strength
 
-        m_spec = with_strength(m_id, strength_identification.profile)
+        # only the identified groups' factors (the others keep the generic F_iso)
+        m_spec = with_strength(m_id, strength_identification.profile.applied_factors())
         spec = variants["subject_specific"] = variant(m_spec)
         done = np.zeros(kin.time.size, dtype=bool)
 

@@ -633,6 +633,9 @@ class Strength(_Record):
     confidence: float | None = None
     bounds: tuple[float, ...] | None = None
     method: str | None = None
+    #: the groups whose factor the subject-specific model takes (the identified ones; every
+    #: other group keeps the generic F_iso: :meth:`msk.strength.StrengthProfile.applied_factors`)
+    applied_groups: tuple[str, ...] | None = None
     joint_strength: JointStrength | None = None
     #: groups whose EMG channel failed a check (not in the regression): ``not determined``,
     #: the check as ``reason``, the test that would identify them as ``protocol``

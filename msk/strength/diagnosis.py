@@ -267,6 +267,7 @@ def strength_summary(
         "confidence": float(p.confidence),
         "bounds": list(p.bounds),
         "method": p.method,
+        "applied_groups": [n for g, n in enumerate(p.group_names) if status[g] == "identified"],
         "joint_strength": joint,
         "failed_channels": [
             {

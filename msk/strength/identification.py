@@ -439,6 +439,16 @@ class StrengthProfile:
         """Muscle → factor (× generic F_iso), ready for :func:`with_strength`."""
         return {n: float(f) for n, f in zip(self.muscle_names, self.muscle_factors)}
 
+    def applied_factors(self) -> dict[str, float]:
+        """Muscle → the factor a model of the subject takes: the group's factor where its
+        status (:meth:`statuses`) is ``identified``, else 1 (the generic F_iso) — a factor on a
+        bound or not determined by the data is not applied as if it were known."""
+        keep = {n for n, st in zip(self.group_names, self.statuses()) if st == "identified"}
+        return {
+            n: float(f) if g in keep else 1.0
+            for n, g, f in zip(self.muscle_names, self.muscle_groups, self.muscle_factors)
+        }
+
     def max_isometric_forces(self) -> dict[str, float]:
         """Muscle → identified F_iso (N)."""
         return {n: float(f) for n, f in zip(self.muscle_names, self.muscle_f_iso)}

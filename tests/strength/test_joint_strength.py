@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import json
 from dataclasses import replace
+from types import SimpleNamespace
 
 import numpy as np
 import pytest
@@ -229,3 +230,21 @@ def test_summary_record_and_report_keep_undetermined_curves_out(model, curves):
     # a summary without the curves renders as before
     del summary["strength"]["joint_strength"]
     assert "Joint strength" not in render_html(SessionResults({}, summary))
+
+
+def test_a_subject_model_takes_only_the_identified_groups_factors(model):
+    """``StrengthProfile.applied_factors``: the identified quadriceps' 1.3 on each of its
+    muscles; the soleus at its upper bound and every muscle of no group keep the generic 1;
+    ``summary.strength.applied_groups`` names the quadriceps only."""
+    from msk.strength.diagnosis import strength_summary
+
+    groups = {"quads": KNEE_EXTENSORS, "soleus": ("soleus_r",)}
+    prof = _profile(model, groups, [1.3, 2.0], [(1.2, 1.4), (1.8, 2.0)])
+    applied = prof.applied_factors()
+    assert set(applied) == {m.name for m in model.muscles}
+    assert all(applied[m] == pytest.approx(1.3) for m in KNEE_EXTENSORS)
+    assert applied["soleus_r"] == 1.0 and prof.strength_factors()["soleus_r"] == 2.0
+    others = set(applied) - set(KNEE_EXTENSORS)
+    assert all(applied[m] == 1.0 for m in others)
+    strength = SimpleNamespace(profile=prof, groups=groups, protocols={}, failed={})
+    assert strength_summary(strength, joint=None)["applied_groups"] == ["quads"]

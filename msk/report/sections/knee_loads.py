@@ -52,7 +52,23 @@ class KneeLoads(Section):
             "rows": rows,
             "band": f"{lo:g}–{hi:g} BW",
             "patellofemoral": _patellofemoral(res.summary.knee_loads),
+            "applied": _applied(res.summary.strength),
         }
+
+
+def _applied(strength: Any) -> str | None:
+    """What the subject-specific prediction's model takes from the strength identification
+    (``strength.applied_groups``), or None without one."""
+    groups = None if strength is None else strength.applied_groups
+    if groups is None:
+        return None
+    if not groups:
+        return ("no muscle group's strength is identified, so the subject-specific "
+                "prediction uses the generic strength throughout")  # fmt: skip
+    return (
+        f"the subject-specific prediction takes the identified strength of "
+        f"{', '.join(groups)}; every other group keeps the generic strength"
+    )
 
 
 def _patellofemoral(loads: Any) -> str | None:
