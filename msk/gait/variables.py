@@ -18,8 +18,17 @@ al. 1991; each side seen from its own side):
   −6.6° (their markers' ASIS–PSIS plane about the body's z), and a subject's markers add their
   own offset. Without the ASIS pair and a PSIS/sacral marker on the model's pelvis the body
   frame is used, and :attr:`GaitVariables.notes` says so;
-* hip flexion / adduction / internal rotation, knee flexion, ankle dorsiflexion: the model's
-  coordinates where it has them (gait2392 and models naming their coordinates as it does:
+* hip flexion / adduction / internal rotation: the thigh (the femur body, its frame turned so
+  that it coincides with the pelvis body's at zero hip coordinates) relative to the same pelvis
+  frame R_p as the pelvis angles, Plug-in Gait's YXZ Cardan sequence (Vicon, Nexus 2.10
+  "Angle outputs": flexion about the pelvis' lateral axis, adduction about the floating
+  anterior axis, rotation about the thigh's long axis; here z, x', y''):
+  R_pᵀ R_thigh = R_z(φ) R_x(θ) R_y(ψ), flexion = φ, adduction = s θ, internal rotation = s ψ
+  (s = +1 right, −1 left) (:func:`hip_angles`). The pelvis angles and the hip angles are then
+  of one pelvis frame: the thigh's inclination in the sagittal plane is hip flexion minus
+  anterior pelvis tilt, as in Plug-in Gait. With the pelvis body frame (no ASIS/PSIS markers
+  on the model) they are the model's hip coordinates;
+* knee flexion, ankle dorsiflexion: the model's coordinates where it has them (gait2392 and models naming their coordinates as it does:
   ``hip_flexion_<s>``, ``hip_adduction_<s>``, ``hip_rotation_<s>``, ``knee_angle_<s>`` with
   flexion negative, ``ankle_angle_<s>``); the knee's adduction and rotation only where the model
   has a coordinate for them (``knee_adduction_<s>``, ``knee_rotation_<s>``): gait2392's knee has
@@ -75,6 +84,7 @@ __all__ = [
     "SegmentPoses",
     "gait_cycles",
     "gait_variables",
+    "hip_angles",
     "pelvis_marker_frame",
     "segment_poses",
 ]
@@ -145,6 +155,10 @@ class SegmentPoses:
         foot_body: side → the foot body's name.
         up: (3,) the world's up direction (against gravity).
         pelvis_frame: which frame ``pelvis_rotation`` is (:func:`pelvis_marker_frame`).
+        thigh_rotation: side → (N, 3, 3) world ← thigh: the femur body's rotation turned by
+            its rest orientation in the pelvis body (zero hip coordinates), so that a thigh
+            at rest is aligned with the pelvis body; given only when ``pelvis_rotation`` is
+            Plug-in Gait's frame (the hip angles of :func:`hip_angles`).
     """
 
     pelvis_rotation: Array
@@ -154,6 +168,7 @@ class SegmentPoses:
     foot_body: Mapping[str, str]
     up: Array
     pelvis_frame: str = "the model's pelvis body frame"
+    thigh_rotation: Mapping[str, Array] = field(default_factory=dict)
 
 
 def _foot_body(model: Any, side: str) -> str | None:
@@ -241,9 +256,61 @@ def segment_poses(model: Any, kinematics: Any) -> SegmentPoses:
                 fr[s][i] = data.oMf[f].rotation
                 fo[s][i] = data.oMf[f].translation
     r_m, how = pelvis_marker_frame(model, pelvis)
+    thighs: dict[str, Array] = {}
     if r_m is not None:
         pr = np.einsum("nij,jk->nik", pr, r_m)
-    return SegmentPoses(pr, po, fr, fo, feet, up, how)
+        thighs = _thigh_rotations(model, q, good, pelvis)
+    return SegmentPoses(pr, po, fr, fo, feet, up, how, thighs)
+
+
+def _thigh_rotations(model: Any, q: Array, good: Array, pelvis: str) -> dict[str, Array]:
+    """side → (N, 3, 3) world ← thigh (:class:`SegmentPoses`), the femur being the child of
+    the joint driven by ``hip_flexion_<s>``; sides without one are left out."""
+    femurs = {
+        s: j.child for s in SIDES if (j := _joint_of(model, "hip_flexion" + _SFX[s])) is not None
+    }
+    femurs = {s: b for s, b in femurs.items() if b in model.body_frame}
+    if not femurs:
+        return {}
+    data = model.create_data()
+    fp = model.body_frame[pelvis]
+    # the femurs' rest orientation in the pelvis body: every coordinate zero
+    pin.framesForwardKinematics(
+        model.pin_model, data, model.coupling.q(np.zeros((1, q.shape[1])))[0]
+    )
+    rest = {
+        s: data.oMf[fp].rotation.T @ data.oMf[model.body_frame[b]].rotation
+        for s, b in femurs.items()
+    }
+    out = {s: np.full((q.shape[0], 3, 3), np.nan) for s in femurs}
+    idx = np.flatnonzero(good)
+    if idx.size:
+        qp = model.coupling.q(q[idx])
+        for k, i in enumerate(idx):
+            pin.framesForwardKinematics(model.pin_model, data, qp[k])
+            for s, b in femurs.items():
+                out[s][i] = data.oMf[model.body_frame[b]].rotation @ rest[s].T
+    return out
+
+
+def hip_angles(pelvis_rotation: Array, thigh_rotation: Array, side: str) -> dict[str, Array]:
+    """Hip flexion, adduction and internal rotation (deg, (N,) each) of the thigh relative to
+    the pelvis frame, Plug-in Gait's YXZ Cardan sequence (module docstring): R_pᵀ R_thigh =
+    R_z(φ) R_x(θ) R_y(ψ) in the model's axes (x anterior, y up, z right), flexion φ,
+    adduction s θ, internal rotation s ψ (s = +1 right, −1 left)."""
+    r = np.asarray(pelvis_rotation, dtype=float)
+    t = np.asarray(thigh_rotation, dtype=float)
+    ok = np.isfinite(r).all(axis=(1, 2)) & np.isfinite(t).all(axis=(1, 2))
+    ang = np.full((r.shape[0], 3), np.nan)
+    if ok.any():
+        rel = np.einsum("nji,njk->nik", r[ok], t[ok])
+        ang[ok] = np.rad2deg(Rotation.from_matrix(rel).as_euler("ZXY"))
+    s = _SIGN[side]
+    return {
+        "hip_flexion_deg": ang[:, 0],
+        "hip_adduction_deg": s * ang[:, 1],
+        "hip_rotation_deg": s * ang[:, 2],
+    }
 
 
 @dataclass(frozen=True)
@@ -275,7 +342,11 @@ def _col(names: Sequence[str], name: str) -> int | None:
 
 
 def _knee_joint(model: Any, side: str) -> Any | None:
-    coord = "knee_angle" + _SFX[side]
+    return _joint_of(model, "knee_angle" + _SFX[side])
+
+
+def _joint_of(model: Any, coord: str) -> Any | None:
+    """The joint with a revolute axis driven by ``coord``."""
     for j in model.joints:
         if any(ax.coordinate == coord and ax.kind == "revolute" for ax in j.axes):
             return j
@@ -314,8 +385,11 @@ def gait_variables(
     loads: Any = None,
     mass_kg: float,
     dynamics_model: Any = None,
+    poses: SegmentPoses | None = None,
 ) -> GaitVariables:
-    """The coordinate-based kinematics and the kinetics of both sides (module docstring).
+    """The coordinate-based kinematics and the kinetics of both sides (module docstring); the
+    hip angles relative to Plug-in Gait's pelvis frame where ``poses`` has the thighs
+    (:func:`hip_angles`), else the model's hip coordinates.
 
     Args:
         model: the model of ``kinematics``.
@@ -325,6 +399,7 @@ def gait_variables(
             moment's ground reactions; None: no knee adduction moment).
         mass_kg: body mass for the normalisation.
         dynamics_model: the model whose inertias gave ``torques`` (default ``model``).
+        poses: :func:`segment_poses` of ``kinematics`` (None: the hip coordinates).
     """
     names = tuple(kinematics.coordinate_names)
     q = np.asarray(kinematics.q, dtype=float)
@@ -341,6 +416,8 @@ def gait_variables(
                 missing.add(var)
                 continue
             out[var] = sign * np.rad2deg(q[:, c])
+        if poses is not None and s in poses.thigh_rotation:
+            out.update(hip_angles(poses.pelvis_rotation, poses.thigh_rotation[s], s))
         if torques is not None:
             tn = tuple(torques.coordinate_names)
             tau = np.asarray(torques.tau, dtype=float)
@@ -383,6 +460,11 @@ def gait_variables(
         series[s] = out
     have = {v for s in series.values() for v in s}
     not_modelled = tuple(v for v in COORDINATE_ANGLES if v in missing and v not in have)
+    if poses is not None and poses.thigh_rotation:
+        notes.append(
+            "hip angles: the thigh relative to the pelvis frame of the pelvis angles (Plug-in "
+            "Gait's YXZ Cardan sequence), not the model's hip coordinates"
+        )
     if "knee_adduction_deg" in not_modelled:
         notes.append(
             "the model's knee has no adduction or rotation degree of freedom (one: flexion, "
@@ -455,7 +537,7 @@ def gait_cycles(
     poses = segment_poses(model, kinematics) if poses is None else poses
     gv = gait_variables(
         model, kinematics, torques=torques, loads=loads, mass_kg=mass_kg,
-        dynamics_model=dynamics_model,
+        dynamics_model=dynamics_model, poses=poses,
     )  # fmt: skip
     t = np.asarray(kinematics.time, dtype=float)
     have = {v for s in gv.series.values() for v in s}
