@@ -15,6 +15,7 @@ import numpy as np
 from msk.gait.cycles import SIDES, GaitCycles
 from msk.gait.spatiotemporal import Spatiotemporal, spatiotemporal, surface_velocity
 from msk.gait.variables import GaitVariables, gait_cycles, segment_poses
+from msk.units import Array
 
 __all__ = ["GaitAnalysis", "analyse_gait"]
 
@@ -30,6 +31,19 @@ class GaitAnalysis:
     spatiotemporal: Spatiotemporal
     variables: GaitVariables
     treadmill_speed_m_s: float = 0.0
+
+    def pelvis_tilt_deg(self) -> tuple[Array | None, str]:
+        """The reported pelvis tilt of every cycle of both sides (deg, flattened; None without
+        cycles) and the frame it is in (the cycles' notes)."""
+        c = self.cycles
+        if "pelvis_tilt_deg" not in c.variables:
+            return None, ""
+        k = c.index("pelvis_tilt_deg")
+        vals = [np.asarray(c.side(s).values, dtype=float)[:, :, k].ravel() for s in SIDES]
+        tilt = np.concatenate(vals)
+        frame = next((n[len("pelvis angles in ") :] for n in c.notes
+                      if n.startswith("pelvis angles in ")), "")  # fmt: skip
+        return (tilt if np.isfinite(tilt).any() else None), frame
 
     def summary(self) -> dict[str, Any]:
         """The ``summary.json`` ``gait`` section (:class:`msk.results.summary.Gait`)."""
