@@ -78,11 +78,29 @@ def analyse_gait(
     loads: Any = None,
     dynamics_model: Any = None,
     trial: str = "",
+    angle_convention: str = "model",
+    markers: Any = None,
 ) -> GaitAnalysis:
     """Every complete cycle of both legs (:func:`msk.gait.variables.gait_cycles`) and the
     spatiotemporal parameters from the feet's body origins (:func:`spatiotemporal`), one
-    forward-kinematics pass shared by both."""
+    forward-kinematics pass shared by both. ``angle_convention`` ``"plug_in_gait"``: the knee
+    flexion as Plug-in Gait measures it (:func:`msk.gait.plug_in_gait.
+    plug_in_gait_knee_flexion`, from ``markers``: the task trial in the model's frame, with its
+    ``subject``), else the model's knee coordinate."""
     poses = segment_poses(model, kinematics)
+    angles: dict[str, dict[str, Array]] = {}
+    angle_notes: list[str] = []
+    if angle_convention == "plug_in_gait":
+        from msk.gait.plug_in_gait import plug_in_gait_knee_flexion
+
+        for s in SIDES:
+            flex, how = (None, "no marker trial") if markers is None else (
+                plug_in_gait_knee_flexion(model, kinematics, markers, s))  # fmt: skip
+            if flex is not None:
+                angles[s] = {"knee_flexion_deg": flex}
+                angle_notes.append(f"{s} knee flexion as Plug-in Gait measures it: {how}")
+            else:
+                angle_notes.append(f"{s} knee flexion: the model's knee coordinate ({how})")
     t = np.asarray(kinematics.time, dtype=float)
     # a treadmill's belt (zero overground): strides and progression are measured relative to it
     surface = surface_velocity(
@@ -91,6 +109,7 @@ def analyse_gait(
     cycles, variables = gait_cycles(
         model, kinematics, foot_strike, foot_off, torques=torques, loads=loads, mass_kg=mass_kg,
         dynamics_model=dynamics_model, poses=poses, trial=trial, surface=surface,
+        angles=angles, angle_notes=angle_notes,
     )  # fmt: skip
     feet = ", ".join(poses.foot_body[s] for s in SIDES if s in poses.foot_body)
     st = spatiotemporal(

@@ -28,12 +28,13 @@ al. 1991; each side seen from its own side):
   of one pelvis frame: the thigh's inclination in the sagittal plane is hip flexion minus
   anterior pelvis tilt, as in Plug-in Gait. With the pelvis body frame (no ASIS/PSIS markers
   on the model) they are the model's hip coordinates;
-* knee flexion, ankle dorsiflexion: the model's coordinates where it has them (gait2392 and models naming their coordinates as it does:
-  ``hip_flexion_<s>``, ``hip_adduction_<s>``, ``hip_rotation_<s>``, ``knee_angle_<s>`` with
-  flexion negative, ``ankle_angle_<s>``); the knee's adduction and rotation only where the model
-  has a coordinate for them (``knee_adduction_<s>``, ``knee_rotation_<s>``): gait2392's knee has
-  one degree of freedom (flexion; its translations follow it), so it has neither — said in
-  :attr:`GaitVariables.not_modelled`, never invented;
+* knee flexion, ankle dorsiflexion: the model's coordinates where it has them (gait2392 and
+  models naming their coordinates as it does: ``hip_flexion_<s>``, ``hip_adduction_<s>``,
+  ``hip_rotation_<s>``, ``knee_angle_<s>`` with flexion negative, ``ankle_angle_<s>``), or
+  Plug-in Gait's knee flexion (``angles``: :mod:`msk.gait.plug_in_gait`); the knee's adduction
+  and rotation only where the model has a coordinate for them (``knee_adduction_<s>``,
+  ``knee_rotation_<s>``): gait2392's knee has one degree of freedom (flexion; its translations
+  follow it), so it has neither — said in :attr:`GaitVariables.not_modelled`, never invented;
 * foot progression (internal, toe-in, +): the angle in the floor plane between the foot's long
   axis (the x axis of the calcaneus / foot body) and x̂.
 
@@ -386,6 +387,8 @@ def gait_variables(
     mass_kg: float,
     dynamics_model: Any = None,
     poses: SegmentPoses | None = None,
+    angles: Mapping[str, Mapping[str, Array]] | None = None,
+    angle_notes: Sequence[str] = (),
 ) -> GaitVariables:
     """The coordinate-based kinematics and the kinetics of both sides (module docstring); the
     hip angles relative to Plug-in Gait's pelvis frame where ``poses`` has the thighs
@@ -400,6 +403,8 @@ def gait_variables(
         mass_kg: body mass for the normalisation.
         dynamics_model: the model whose inertias gave ``torques`` (default ``model``).
         poses: :func:`segment_poses` of ``kinematics`` (None: the hip coordinates).
+        angles: side → variable → (N,) angles replacing the model's (a reported angle
+            convention: :mod:`msk.gait.plug_in_gait`), with ``angle_notes`` saying what.
     """
     names = tuple(kinematics.coordinate_names)
     q = np.asarray(kinematics.q, dtype=float)
@@ -418,6 +423,8 @@ def gait_variables(
             out[var] = sign * np.rad2deg(q[:, c])
         if poses is not None and s in poses.thigh_rotation:
             out.update(hip_angles(poses.pelvis_rotation, poses.thigh_rotation[s], s))
+        if angles is not None and s in angles:
+            out.update({k: np.asarray(v, dtype=float) for k, v in angles[s].items()})
         if torques is not None:
             tn = tuple(torques.coordinate_names)
             tau = np.asarray(torques.tau, dtype=float)
@@ -465,6 +472,7 @@ def gait_variables(
             "hip angles: the thigh relative to the pelvis frame of the pelvis angles (Plug-in "
             "Gait's YXZ Cardan sequence), not the model's hip coordinates"
         )
+    notes.extend(angle_notes)
     if "knee_adduction_deg" in not_modelled:
         notes.append(
             "the model's knee has no adduction or rotation degree of freedom (one: flexion, "
@@ -526,6 +534,8 @@ def gait_cycles(
     trial: str = "",
     threshold_n: float = 20.0,
     surface: Array | None = None,
+    angles: Mapping[str, Mapping[str, Array]] | None = None,
+    angle_notes: Sequence[str] = (),
 ) -> tuple[GaitCycles, GaitVariables]:
     """Every complete cycle of both legs with the variables of the module docstring.
 
@@ -533,11 +543,12 @@ def gait_cycles(
     every frame and the foot carries more than ``threshold_n`` of vertical ground reaction on
     at least half of them (a stance the plates saw). ``surface``: the velocity of the surface
     walked on (a treadmill's belt, :func:`msk.gait.spatiotemporal.surface_velocity`): the
-    progression direction is the pelvis's relative to it."""
+    progression direction is the pelvis's relative to it. ``angles``, ``angle_notes``: angles
+    replacing the model's (:func:`gait_variables`)."""
     poses = segment_poses(model, kinematics) if poses is None else poses
     gv = gait_variables(
         model, kinematics, torques=torques, loads=loads, mass_kg=mass_kg,
-        dynamics_model=dynamics_model, poses=poses,
+        dynamics_model=dynamics_model, poses=poses, angles=angles, angle_notes=angle_notes,
     )  # fmt: skip
     t = np.asarray(kinematics.time, dtype=float)
     have = {v for s in gv.series.values() for v in s}
