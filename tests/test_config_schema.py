@@ -190,7 +190,7 @@ def _loaded(cfg: SessionConfig, table: str) -> Any:
 def test_every_key_of_the_reference_is_accepted_with_its_default(tree: Path) -> None:
     classes = {s.name: s.options for s in SECTIONS} | {"fes_trial": FesTrialConfig}
     with_default = {k: v for k, v in reference_keys().items() if v is not None}
-    assert len(with_default) == 49  # plateau_depth_m, grf_cutoff_hz have no default
+    assert len(with_default) == 50  # plateau_depth_m, grf_cutoff_hz have no default
     for (table, key), literal in with_default.items():
         line = f"{key} = {literal}\n"
         if table == "fes_trial":

@@ -33,6 +33,7 @@ __all__ = [
     "FesConfig",
     "FesTrialConfig",
     "FilterConfig",
+    "GaitConfig",
     "LoadsConfig",
     "MarkersConfig",
     "ModelConfig",
@@ -489,6 +490,21 @@ class ContactConfig:
 
 
 @dataclass(frozen=True, kw_only=True)
+class GaitConfig:
+    """``[gait]``: how the gait report's angles are defined."""
+
+    angle_convention: str = opt(
+        "the definition of the report's knee flexion: model (the model's knee coordinate) or "
+        "plug_in_gait (Plug-in Gait's: its chord-function knee and ankle centres from the "
+        "thigh and shank wands, the file's PROCESSING knee and ankle widths where present, "
+        "msk.gait.plug_in_gait); the reported angles only, never the model's dynamics; the "
+        "hip and pelvis angles are Plug-in Gait's frames in both",
+        "model",
+        choices=("model", "plug_in_gait"),
+    )
+
+
+@dataclass(frozen=True, kw_only=True)
 class FesConfig:
     """``[fes]``: the FES identification protocol (:func:`msk.fes.protocol.run_protocol`)."""
 
@@ -558,6 +574,7 @@ class SessionConfig:
     fes: FesConfig = field(default_factory=FesConfig)
     loads: LoadsConfig = field(default_factory=LoadsConfig)
     contact: ContactConfig = field(default_factory=ContactConfig)
+    gait: GaitConfig = field(default_factory=GaitConfig)
     strength: StrengthConfig = field(default_factory=StrengthConfig)
 
     def trials_with_role(self, role: str) -> tuple[TrialConfig, ...]:
@@ -603,6 +620,7 @@ SECTIONS = (
     Section("emg", EmgConfig, "emg", "EMG channels and their linear envelope"),
     Section("loads", LoadsConfig, "loads", "which body each force plate pushes"),
     Section("contact", ContactConfig, "contact", "tibiofemoral contact-point geometry"),
+    Section("gait", GaitConfig, "gait", "the definition of the gait report's angles"),
     Section("filters", FilterConfig, "filters", "low-pass cut-offs (zero-lag Butterworth)"),
     Section("optimization", OptimizationConfig, "optimization", "how muscle forces are solved"),
     Section(

@@ -15,6 +15,7 @@ import numpy as np
 from msk.gait.cycles import SIDES, GaitCycles
 from msk.gait.spatiotemporal import Spatiotemporal, spatiotemporal, surface_velocity
 from msk.gait.variables import GaitVariables, gait_cycles, segment_poses
+from msk.units import Array
 
 __all__ = ["GaitAnalysis", "analyse_gait"]
 
@@ -30,6 +31,19 @@ class GaitAnalysis:
     spatiotemporal: Spatiotemporal
     variables: GaitVariables
     treadmill_speed_m_s: float = 0.0
+
+    def pelvis_tilt_deg(self) -> tuple[Array | None, str]:
+        """The reported pelvis tilt of every cycle of both sides (deg, flattened; None without
+        cycles) and the frame it is in (the cycles' notes)."""
+        c = self.cycles
+        if "pelvis_tilt_deg" not in c.variables:
+            return None, ""
+        k = c.index("pelvis_tilt_deg")
+        vals = [np.asarray(c.side(s).values, dtype=float)[:, :, k].ravel() for s in SIDES]
+        tilt = np.concatenate(vals)
+        frame = next((n[len("pelvis angles in ") :] for n in c.notes
+                      if n.startswith("pelvis angles in ")), "")  # fmt: skip
+        return (tilt if np.isfinite(tilt).any() else None), frame
 
     def summary(self) -> dict[str, Any]:
         """The ``summary.json`` ``gait`` section (:class:`msk.results.summary.Gait`)."""
@@ -64,11 +78,29 @@ def analyse_gait(
     loads: Any = None,
     dynamics_model: Any = None,
     trial: str = "",
+    angle_convention: str = "model",
+    markers: Any = None,
 ) -> GaitAnalysis:
     """Every complete cycle of both legs (:func:`msk.gait.variables.gait_cycles`) and the
     spatiotemporal parameters from the feet's body origins (:func:`spatiotemporal`), one
-    forward-kinematics pass shared by both."""
+    forward-kinematics pass shared by both. ``angle_convention`` ``"plug_in_gait"``: the knee
+    flexion as Plug-in Gait measures it (:func:`msk.gait.plug_in_gait.
+    plug_in_gait_knee_flexion`, from ``markers``: the task trial in the model's frame, with its
+    ``subject``), else the model's knee coordinate."""
     poses = segment_poses(model, kinematics)
+    angles: dict[str, dict[str, Array]] = {}
+    angle_notes: list[str] = []
+    if angle_convention == "plug_in_gait":
+        from msk.gait.plug_in_gait import plug_in_gait_knee_flexion
+
+        for s in SIDES:
+            flex, how = (None, "no marker trial") if markers is None else (
+                plug_in_gait_knee_flexion(model, kinematics, markers, s))  # fmt: skip
+            if flex is not None:
+                angles[s] = {"knee_flexion_deg": flex}
+                angle_notes.append(f"{s} knee flexion as Plug-in Gait measures it: {how}")
+            else:
+                angle_notes.append(f"{s} knee flexion: the model's knee coordinate ({how})")
     t = np.asarray(kinematics.time, dtype=float)
     # a treadmill's belt (zero overground): strides and progression are measured relative to it
     surface = surface_velocity(
@@ -77,6 +109,7 @@ def analyse_gait(
     cycles, variables = gait_cycles(
         model, kinematics, foot_strike, foot_off, torques=torques, loads=loads, mass_kg=mass_kg,
         dynamics_model=dynamics_model, poses=poses, trial=trial, surface=surface,
+        angles=angles, angle_notes=angle_notes,
     )  # fmt: skip
     feet = ", ".join(poses.foot_body[s] for s in SIDES if s in poses.foot_body)
     st = spatiotemporal(

@@ -18,15 +18,11 @@ al. 1991; each side seen from its own side):
   −6.6° (their markers' ASIS–PSIS plane about the body's z), and a subject's markers add their
   own offset. Without the ASIS pair and a PSIS/sacral marker on the model's pelvis the body
   frame is used, and :attr:`GaitVariables.notes` says so;
-* hip flexion / adduction / internal rotation, knee flexion, ankle dorsiflexion: the model's
-  coordinates where it has them (gait2392 and models naming their coordinates as it does:
-  ``hip_flexion_<s>``, ``hip_adduction_<s>``, ``hip_rotation_<s>``, ``knee_angle_<s>`` with
-  flexion negative, ``ankle_angle_<s>``), read in that reference convention
-  (:func:`msk.model.conventions.reference_sign`: Rajagopal's knee coordinate, positive in
-  flexion, and its generalised force are turned); the knee's adduction and rotation only where
-  the model has a coordinate for them (``knee_adduction_<s>``, ``knee_rotation_<s>``):
-  gait2392's knee has one degree of freedom (flexion; its translations follow it), so it has
-  neither — said in :attr:`GaitVariables.not_modelled`, never invented;
+            out[var] = sign * np.rad2deg(q[:, c])
+        if poses is not None and s in poses.thigh_rotation:
+            out.update(hip_angles(poses.pelvis_rotation, poses.thigh_rotation[s], s))
+        if angles is not None and s in angles:
+            out.update({k: np.asarray(v, dtype=float) for k, v in angles[s].items()})
 * foot progression (internal, toe-in, +): the angle in the floor plane between the foot's long
   axis (the x axis of the calcaneus / foot body) and x̂.
 
@@ -77,6 +73,7 @@ __all__ = [
     "SegmentPoses",
     "gait_cycles",
     "gait_variables",
+    "hip_angles",
     "pelvis_marker_frame",
     "segment_poses",
 ]
@@ -147,6 +144,10 @@ class SegmentPoses:
         foot_body: side → the foot body's name.
         up: (3,) the world's up direction (against gravity).
         pelvis_frame: which frame ``pelvis_rotation`` is (:func:`pelvis_marker_frame`).
+        thigh_rotation: side → (N, 3, 3) world ← thigh: the femur body's rotation turned by
+            its rest orientation in the pelvis body (zero hip coordinates), so that a thigh
+            at rest is aligned with the pelvis body; given only when ``pelvis_rotation`` is
+            Plug-in Gait's frame (the hip angles of :func:`hip_angles`).
     """
 
     pelvis_rotation: Array
@@ -156,6 +157,7 @@ class SegmentPoses:
     foot_body: Mapping[str, str]
     up: Array
     pelvis_frame: str = "the model's pelvis body frame"
+    thigh_rotation: Mapping[str, Array] = field(default_factory=dict)
 
 
 def _foot_body(model: Any, side: str) -> str | None:
@@ -243,9 +245,61 @@ def segment_poses(model: Any, kinematics: Any) -> SegmentPoses:
                 fr[s][i] = data.oMf[f].rotation
                 fo[s][i] = data.oMf[f].translation
     r_m, how = pelvis_marker_frame(model, pelvis)
+    thighs: dict[str, Array] = {}
     if r_m is not None:
         pr = np.einsum("nij,jk->nik", pr, r_m)
-    return SegmentPoses(pr, po, fr, fo, feet, up, how)
+        thighs = _thigh_rotations(model, q, good, pelvis)
+    return SegmentPoses(pr, po, fr, fo, feet, up, how, thighs)
+
+
+def _thigh_rotations(model: Any, q: Array, good: Array, pelvis: str) -> dict[str, Array]:
+    """side → (N, 3, 3) world ← thigh (:class:`SegmentPoses`), the femur being the child of
+    the joint driven by ``hip_flexion_<s>``; sides without one are left out."""
+    femurs = {
+        s: j.child for s in SIDES if (j := _joint_of(model, "hip_flexion" + _SFX[s])) is not None
+    }
+    femurs = {s: b for s, b in femurs.items() if b in model.body_frame}
+    if not femurs:
+        return {}
+    data = model.create_data()
+    fp = model.body_frame[pelvis]
+    # the femurs' rest orientation in the pelvis body: every coordinate zero
+    pin.framesForwardKinematics(
+        model.pin_model, data, model.coupling.q(np.zeros((1, q.shape[1])))[0]
+    )
+    rest = {
+        s: data.oMf[fp].rotation.T @ data.oMf[model.body_frame[b]].rotation
+        for s, b in femurs.items()
+    }
+    out = {s: np.full((q.shape[0], 3, 3), np.nan) for s in femurs}
+    idx = np.flatnonzero(good)
+    if idx.size:
+        qp = model.coupling.q(q[idx])
+        for k, i in enumerate(idx):
+            pin.framesForwardKinematics(model.pin_model, data, qp[k])
+            for s, b in femurs.items():
+                out[s][i] = data.oMf[model.body_frame[b]].rotation @ rest[s].T
+    return out
+
+
+def hip_angles(pelvis_rotation: Array, thigh_rotation: Array, side: str) -> dict[str, Array]:
+    """Hip flexion, adduction and internal rotation (deg, (N,) each) of the thigh relative to
+    the pelvis frame, Plug-in Gait's YXZ Cardan sequence (module docstring): R_pᵀ R_thigh =
+    R_z(φ) R_x(θ) R_y(ψ) in the model's axes (x anterior, y up, z right), flexion φ,
+    adduction s θ, internal rotation s ψ (s = +1 right, −1 left)."""
+    r = np.asarray(pelvis_rotation, dtype=float)
+    t = np.asarray(thigh_rotation, dtype=float)
+    ok = np.isfinite(r).all(axis=(1, 2)) & np.isfinite(t).all(axis=(1, 2))
+    ang = np.full((r.shape[0], 3), np.nan)
+    if ok.any():
+        rel = np.einsum("nji,njk->nik", r[ok], t[ok])
+        ang[ok] = np.rad2deg(Rotation.from_matrix(rel).as_euler("ZXY"))
+    s = _SIGN[side]
+    return {
+        "hip_flexion_deg": ang[:, 0],
+        "hip_adduction_deg": s * ang[:, 1],
+        "hip_rotation_deg": s * ang[:, 2],
+    }
 
 
 @dataclass(frozen=True)
@@ -277,7 +331,11 @@ def _col(names: Sequence[str], name: str) -> int | None:
 
 
 def _knee_joint(model: Any, side: str) -> Any | None:
-    coord = "knee_angle" + _SFX[side]
+    return _joint_of(model, "knee_angle" + _SFX[side])
+
+
+def _joint_of(model: Any, coord: str) -> Any | None:
+    """The joint with a revolute axis driven by ``coord``."""
     for j in model.joints:
         if any(ax.coordinate == coord and ax.kind == "revolute" for ax in j.axes):
             return j
@@ -316,8 +374,13 @@ def gait_variables(
     loads: Any = None,
     mass_kg: float,
     dynamics_model: Any = None,
+    poses: SegmentPoses | None = None,
+    angles: Mapping[str, Mapping[str, Array]] | None = None,
+    angle_notes: Sequence[str] = (),
 ) -> GaitVariables:
-    """The coordinate-based kinematics and the kinetics of both sides (module docstring).
+    """The coordinate-based kinematics and the kinetics of both sides (module docstring); the
+    hip angles relative to Plug-in Gait's pelvis frame where ``poses`` has the thighs
+    (:func:`hip_angles`), else the model's hip coordinates.
 
     Args:
         model: the model of ``kinematics``.
@@ -327,6 +390,9 @@ def gait_variables(
             moment's ground reactions; None: no knee adduction moment).
         mass_kg: body mass for the normalisation.
         dynamics_model: the model whose inertias gave ``torques`` (default ``model``).
+        poses: :func:`segment_poses` of ``kinematics`` (None: the hip coordinates).
+        angles: side → variable → (N,) angles replacing the model's (a reported angle
+            convention: :mod:`msk.gait.plug_in_gait`), with ``angle_notes`` saying what.
     """
     from msk.model.conventions import reference_signs
 
@@ -346,6 +412,10 @@ def gait_variables(
                 missing.add(var)
                 continue
             out[var] = sign * ref.get(names[c], 1.0) * np.rad2deg(q[:, c])
+        if poses is not None and s in poses.thigh_rotation:
+            out.update(hip_angles(poses.pelvis_rotation, poses.thigh_rotation[s], s))
+        if angles is not None and s in angles:
+            out.update({k: np.asarray(v, dtype=float) for k, v in angles[s].items()})
         if torques is not None:
             tn = tuple(torques.coordinate_names)
             tau = np.asarray(torques.tau, dtype=float)
@@ -388,6 +458,12 @@ def gait_variables(
         series[s] = out
     have = {v for s in series.values() for v in s}
     not_modelled = tuple(v for v in COORDINATE_ANGLES if v in missing and v not in have)
+    if poses is not None and poses.thigh_rotation:
+        notes.append(
+            "hip angles: the thigh relative to the pelvis frame of the pelvis angles (Plug-in "
+            "Gait's YXZ Cardan sequence), not the model's hip coordinates"
+        )
+    notes.extend(angle_notes)
     if "knee_adduction_deg" in not_modelled:
         notes.append(
             "the model's knee has no adduction or rotation degree of freedom (one: flexion, "
@@ -449,6 +525,8 @@ def gait_cycles(
     trial: str = "",
     threshold_n: float = 20.0,
     surface: Array | None = None,
+    angles: Mapping[str, Mapping[str, Array]] | None = None,
+    angle_notes: Sequence[str] = (),
 ) -> tuple[GaitCycles, GaitVariables]:
     """Every complete cycle of both legs with the variables of the module docstring.
 
@@ -456,11 +534,12 @@ def gait_cycles(
     every frame and the foot carries more than ``threshold_n`` of vertical ground reaction on
     at least half of them (a stance the plates saw). ``surface``: the velocity of the surface
     walked on (a treadmill's belt, :func:`msk.gait.spatiotemporal.surface_velocity`): the
-    progression direction is the pelvis's relative to it."""
+    progression direction is the pelvis's relative to it. ``angles``, ``angle_notes``: angles
+    replacing the model's (:func:`gait_variables`)."""
     poses = segment_poses(model, kinematics) if poses is None else poses
     gv = gait_variables(
         model, kinematics, torques=torques, loads=loads, mass_kg=mass_kg,
-        dynamics_model=dynamics_model,
+        dynamics_model=dynamics_model, poses=poses, angles=angles, angle_notes=angle_notes,
     )  # fmt: skip
     t = np.asarray(kinematics.time, dtype=float)
     have = {v for s in gv.series.values() for v in s}

@@ -26,7 +26,9 @@ frame (gait2392's: ASIS and a sacral point) differs from that line by under 10°
 mean pelvis tilt exceeds :data:`PELVIS_TILT_WALKING_MAX_DEG` (25°) in magnitude is a pelvis
 the markers did not determine (two ASIS and the legs alone: a missing sacral or PSIS marker, a
 PSIS placed from the motion) — the hips then take up the error (−50…−62° of hip extension at
-6-12 mm marker RMS): flagged, with the tilt and the markers on the pelvis.
+6-12 mm marker RMS): flagged, with the tilt and the markers on the pelvis. The tilt judged is
+the one the report gives (Plug-in Gait's ASIS–PSIS plane, :mod:`msk.gait.variables`) when the
+caller passes it, else the model's ``pelvis_tilt`` coordinate.
 """
 
 from __future__ import annotations
@@ -164,14 +166,25 @@ def pelvis_tilt_flags(
     pelvis_markers: tuple[str, ...] = (),
     *,
     bound_deg: float = PELVIS_TILT_WALKING_MAX_DEG,
+    tilt_deg: ArrayLike | None = None,
+    frame: str = "",
 ) -> list[Flag]:
-    """A flag when the mean pelvis tilt (coordinate ``pelvis_tilt`` of ``kinematics``, rad)
-    of a walk exceeds ``bound_deg`` in magnitude; ``pelvis_markers`` (the model's and the lab's
-    markers on the pelvis used) are named in the message."""
-    names = list(kinematics.coordinate_names)
-    if mode != "walking" or "pelvis_tilt" not in names:
+    """A flag when the mean pelvis tilt of a walk exceeds ``bound_deg`` in magnitude: the
+    reported tilt ``tilt_deg`` (deg, any shape, NaN ignored; anterior +; e.g. the gait cycles'
+    ``pelvis_tilt_deg`` in Plug-in Gait's pelvis frame, described by ``frame``), else the
+    coordinate ``pelvis_tilt`` of ``kinematics`` (rad); ``pelvis_markers`` (the model's and
+    the lab's markers on the pelvis used) are named in the message."""
+    if mode != "walking":
         return []
-    tilt = np.degrees(np.asarray(kinematics.q, dtype=float)[:, names.index("pelvis_tilt")])
+    if tilt_deg is not None:
+        tilt = np.asarray(tilt_deg, dtype=float).ravel()
+        what = f"reported pelvis tilt ({frame})" if frame else "reported pelvis tilt"
+    else:
+        names = list(kinematics.coordinate_names)
+        if "pelvis_tilt" not in names:
+            return []
+        tilt = np.degrees(np.asarray(kinematics.q, dtype=float)[:, names.index("pelvis_tilt")])
+        what = "pelvis tilt (the model's pelvis_tilt coordinate)"
     if not np.isfinite(tilt).any():
         return []
     mean = float(np.nanmean(tilt))
@@ -182,7 +195,7 @@ def pelvis_tilt_flags(
     return [
         Flag(
             trial_name, "pelvis_tilt_mean_deg", mean, bound_deg if mean > 0 else -bound_deg,
-            f"mean pelvis tilt {mean:.0f}° ({lo:.0f}…{hi:.0f}°) in a walk, beyond ±{bound_deg:g}° "
+            f"mean {what} {mean:.0f}° ({lo:.0f}…{hi:.0f}°) in a walk, beyond ±{bound_deg:g}° "
             "(walking: 10-15° anterior, Kadaba et al. 1990): a pelvis its markers do not "
             f"determine (pelvis markers: {on}; two ASIS need a sacral or both PSIS markers, "
             "with a static trial to place them) — hip angles and moments take up the error",

@@ -42,4 +42,5 @@ def run(
         model.model, kinematics, events.foot_strike, events.foot_off,
         mass_kg=inputs.mass_kg, torques=torques, loads=loads.external, dynamics_model=dyn,
         trial=inputs.task.name if inputs.task is not None else "",
+        angle_convention=inputs.cfg.gait.angle_convention, markers=model.trial,
     )  # fmt: skip

@@ -183,14 +183,15 @@ GRAPH: tuple[Node, ...] = (
 #: are read by the model stage alone (later stages read the model's own copy in the model
 #: frame), the plates by the loads stage alone (the mass identification reads the assignment,
 #: the EMG stage the analog channels); the model's own model-frame markers by the kinematics
-#: stage, the step ``swapped_markers`` and the step ``opensim_export`` (the markers' ``.trc``)
-#: alone (the summary reads that step's pairs, the
+#: stage, the step ``swapped_markers``, the step ``opensim_export`` (the markers' ``.trc``)
+#: and the step ``gait_analysis`` (Plug-in Gait's knee centres from the thigh and shank
+#: wands, ``[gait] angle_convention``) alone (the summary reads that step's pairs, the
 #: marker labels and gaps). For scale: a long trial's read result is ~4.9 kB/frame, its
 #: model-frame markers 1.2 kB/frame more.
 TRIMS: tuple[tuple[str, str, Callable[[Any], Any]], ...] = (
     ("model", "read", read.without_markers),
     ("loads", "read", read.without_plates),
-    ("opensim_export", "model", model.without_markers),
+    ("gait_analysis", "model", model.without_markers),
 )
 
 #: Every recorded stage, in order (``summary.json`` ``stages``, progress lines).

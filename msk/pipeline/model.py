@@ -113,7 +113,7 @@ def run(inputs: SessionInputs, read: ReadResult) -> Personalisation:
 
 def without_markers(model: Personalisation) -> Personalisation:
     """``model`` without the task's model-frame markers
-    (:meth:`msk.personalise.Personalisation.without_markers`): the kinematics stage and the
-    step ``swapped_markers`` are the last to read them, and
-    :func:`msk.pipeline.graph.run_graph` drops them after that step."""
+    (:meth:`msk.personalise.Personalisation.without_markers`): the step ``gait_analysis`` is
+    the last to read them, and :func:`msk.pipeline.graph.run_graph` drops them after it
+    (:data:`msk.pipeline.graph.TRIMS`)."""
     return model.without_markers()

@@ -242,7 +242,9 @@ def run(
         flags += knee_contact_flags(trial, bw, mode, why)
     on_pelvis = tuple(m.name for m in mdl.markers if m.body == "pelvis"
                       and m.name in set(model.labels))  # fmt: skip
-    flags += pelvis_tilt_flags(trial, kin, mode, on_pelvis)
+    # the tilt the report gives (its pelvis frame), else the model's coordinate
+    tilt, tilt_frame = (None, "") if gait_analysis is None else gait_analysis.pelvis_tilt_deg()
+    flags += pelvis_tilt_flags(trial, kin, mode, on_pelvis, tilt_deg=tilt, frame=tilt_frame)
     flags += plate_edge_flags(trial, loads.external.metadata)
     if emg is not None:  # a glitch in a raw EMG channel, repaired or the channel excluded
         from msk.muscles.emg_faults import fault_flags

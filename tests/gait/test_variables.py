@@ -15,6 +15,7 @@ from msk.dynamics.loads import ExternalLoads
 from msk.gait.variables import (
     gait_cycles,
     gait_variables,
+    hip_angles,
     knee_adduction_moment,
     pelvis_marker_frame,
 )
@@ -266,3 +267,57 @@ def test_pelvis_tilt_is_plug_in_gaits_the_asis_psis_line():
     sacral = MODEL.with_markers([*bare.markers, Marker("SACR", "pelvis", [-0.17, 0.03, 0.0])])
     r_m, how = pelvis_marker_frame(sacral)
     assert r_m is not None and "sacral marker SACR" in how
+
+
+@pytest.mark.parametrize("side", ["right", "left"])
+def test_hip_angles_recover_a_known_thigh_in_any_pelvis(side):
+    """Thigh posed from known Plug-in Gait hip angles (YXZ Cardan, z-x'-y'' in the model's
+    axes) in randomly turned pelvis frames: flexion, adduction and internal rotation
+    recovered, each side from its own side (adduction and rotation mirrored on the left)."""
+    s = 1.0 if side == "right" else -1.0
+    rng = np.random.default_rng(3)
+    n = 20
+    truth = np.column_stack(
+        [rng.uniform(-20, 60, n), rng.uniform(-15, 15, n), rng.uniform(-30, 30, n)]
+    )
+    pelvis = Rotation.random(n, random_state=4).as_matrix()
+    rel = Rotation.from_euler(
+        "ZXY", np.deg2rad(truth * [1.0, s, s])
+    ).as_matrix()  # flexion about z, adduction about x' (+ on the right), rotation about y''
+    thigh = np.einsum("nij,njk->nik", pelvis, rel)
+    thigh[5] = np.nan  # a failed frame stays NaN
+    h = hip_angles(pelvis, thigh, side)
+    got = np.column_stack([h["hip_flexion_deg"], h["hip_adduction_deg"], h["hip_rotation_deg"]])
+    assert np.isnan(got[5]).all()
+    ok = np.arange(n) != 5
+    assert got[ok] == pytest.approx(truth[ok], abs=1e-9)
+
+
+def test_hip_flexion_is_relative_to_the_reported_pelvis_frame():
+    """The model's pelvis body tilted 8° posterior with its PSIS markers 30 mm above its ASIS,
+    170 mm behind (Plug-in Gait's pelvis 10.0° anterior of the body) and the right hip flexed
+    0.3 rad: the reported pelvis tilt is 10.0 − 8 = 2.0° anterior, the hip flexion 0.3 rad +
+    10.0°, and hip flexion − anterior tilt is the thigh's inclination (0.3 rad + 8°); the
+    frontal and transverse hip angles zero. Without PSIS markers: the model's coordinates."""
+    t = np.arange(0.0, 2.5, 0.01)
+    q = np.array(
+        [_q0(pelvis_tx=1.2 * x, pelvis_tilt=np.deg2rad(8.0), hip_flexion_r=0.3) for x in t]
+    )
+    strikes = {"right": (0.2, 1.3), "left": (0.75, 1.85)}
+    offs = {"right": (0.87, 1.97), "left": (1.42, 2.52)}
+    cyc, gv = gait_cycles(MODEL, _kin(q), strikes, offs, mass_kg=MASS)
+    m = cyc.mean("right")
+    tilt_m = np.degrees(np.arctan2(0.03, 0.17))
+    assert m[:, cyc.index("pelvis_tilt_deg")] == pytest.approx(tilt_m - 8.0, abs=1e-6)
+    hip = m[:, cyc.index("hip_flexion_deg")]
+    assert hip == pytest.approx(np.degrees(0.3) + tilt_m, abs=1e-6)
+    thigh = hip - m[:, cyc.index("pelvis_tilt_deg")]
+    assert thigh == pytest.approx(np.degrees(0.3) + 8.0, abs=1e-6)
+    assert m[:, cyc.index("hip_adduction_deg")] == pytest.approx(0.0, abs=1e-6)
+    assert m[:, cyc.index("hip_rotation_deg")] == pytest.approx(0.0, abs=1e-6)
+    assert gv.series["right"]["hip_flexion_deg"][0] == pytest.approx(hip[0], abs=1e-6)
+    assert any("hip angles: the thigh relative to the pelvis frame" in n for n in cyc.notes)
+    bare = MODEL.with_markers([mk for mk in MODEL.markers if "PSI" not in mk.name])
+    cyc0, _ = gait_cycles(bare, _kin(q), strikes, offs, mass_kg=MASS)
+    hip0 = cyc0.mean("right")[:, cyc0.index("hip_flexion_deg")]
+    assert hip0 == pytest.approx(np.degrees(0.3), abs=1e-6)

@@ -89,3 +89,14 @@ def test_an_undetermined_pelvis_tilt_is_flagged_in_a_walk() -> None:
     assert pelvis_tilt_flags("walk", _tilted(12.0), "walking") == []
     assert pelvis_tilt_flags("run", _tilted(40.0), "running") == []
     assert pelvis_tilt_flags("walk", _kin(1.0), "walking") == []
+
+
+def test_the_gate_reads_the_reported_tilt_when_given() -> None:
+    """The coordinate at 12° but the reported (Plug-in Gait frame) tilt at 30°: flagged on the
+    reported tilt, its frame named; the reverse not flagged; NaN cycles ignored."""
+    rep = np.concatenate([30.0 + np.sin(np.linspace(0, 6, 101)), np.full(101, np.nan)])
+    (f,) = pelvis_tilt_flags("walk", _tilted(12.0), "walking", tilt_deg=rep, frame="ASIS–PSIS")
+    assert abs(f.value - np.nanmean(rep)) < 1e-12
+    assert "reported pelvis tilt (ASIS–PSIS)" in f.message
+    assert pelvis_tilt_flags("walk", _tilted(40.0), "walking", tilt_deg=np.full(5, 12.0)) == []
+    assert pelvis_tilt_flags("walk", _tilted(40.0), "walking", tilt_deg=np.full(5, np.nan)) == []

@@ -1059,7 +1059,7 @@ def test_read_trims_drop_markers_and_plates_only() -> None:
     assert [(a, r) for a, r, _ in TRIMS] == [
         ("model", "read"),
         ("loads", "read"),
-        ("opensim_export", "model"),
+        ("gait_analysis", "model"),
     ]
     # the model's markers: read by the kinematics stage and the step swapped_markers only
     # (the summary takes that step's pairs); the step runs right after the kinematics

@@ -227,6 +227,20 @@ def test_the_kinematics_say_the_pelvis_frame_of_the_angles():
     assert "pelvis frame of Plug-in Gait" not in render_html(_walk(), figures={})
 
 
+def test_the_kinematics_say_how_the_hip_and_knee_angles_are_defined():
+    notes = [
+        "hip angles: the thigh relative to the pelvis frame of the pelvis angles (Plug-in "
+        "Gait's YXZ Cardan sequence), not the model's hip coordinates",
+        "right knee flexion as Plug-in Gait measures it: Plug-in Gait's knee centre (chord)",
+        "the model's knee has no adduction or rotation degree of freedom",
+    ]
+    html = render_html(_walk(gait={"notes": notes}), figures={})
+    kin = html.split('<section id="kinematics">')[1].split("</section>")[0]
+    assert "Hip angles: the thigh relative to the pelvis frame" in kin
+    assert "Right knee flexion as Plug-in Gait measures it" in kin
+    assert "Hip angles:" not in render_html(_walk(), figures={})
+
+
 def test_strength_section_shows_the_pooled_groups_identified_first_and_never_a_bound():
     """The session's pooled strength (summary ``pooled_strength``): the identified group with
     its moment (N·m, N·m/kg over the subject's mass) and factor interval; each other group

@@ -10,7 +10,7 @@ from typing import Any
 from msk.report.sections.base import ReportContext, Section
 from msk.report.sections.session import event_source_words
 
-__all__ = ["Kinematics", "Kinetics", "pelvis_frame_words"]
+__all__ = ["Kinematics", "Kinetics", "angle_notes", "pelvis_frame_words"]
 
 
 def _cycles(ctx: ReportContext) -> dict[str, Any]:
@@ -28,7 +28,17 @@ def _cycles(ctx: ReportContext) -> dict[str, Any]:
         "notes": list(curves.notes) if curves else [],
         "norms": ctx.norms,
         "pelvis_frame": pelvis_frame_words(ctx),
+        "angle_notes": angle_notes(ctx),
     }
+
+
+def angle_notes(ctx: ReportContext) -> list[str]:
+    """How the hip and knee angles were defined (``summary.json`` ``gait.notes``, written by
+    :func:`msk.gait.variables.gait_variables` and :func:`msk.gait.analysis.analyse_gait`)."""
+    gait = ctx.res.summary.gait
+    notes = (gait.notes or ()) if gait is not None else ()
+    return [n for n in notes if n.startswith(("hip angles:", "left knee flexion",
+                                              "right knee flexion"))]  # fmt: skip
 
 
 def pelvis_frame_words(ctx: ReportContext) -> str:
