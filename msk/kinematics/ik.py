@@ -821,6 +821,11 @@ class FrameIK:
         self._x = np.empty((len(self.used), 3))
         self._d = np.empty(len(self.used))
         self._diff = np.empty((len(self.used), 3))
+        self._lm = (
+            _FrameLM(self.problem, self.sw, self.free, self.lo, self.hi, self.ctask)
+            if self.problem.coord_mask is not None
+            else None
+        )
 
     def solve(self, theta: Array, markers: Array) -> tuple[Array, int, bool, float]:
         """θ of one frame from the start ``theta`` and the frame's ``markers`` (M, 3) in the
@@ -832,11 +837,16 @@ class FrameIK:
         present = np.asarray(np.isfinite(x).all(axis=1), dtype=bool)
         if int(present.sum()) < self.min_markers:
             return theta, 0, False, float("nan")
-        start = np.minimum(np.maximum(theta, self.lo), self.hi)
-        th, k, ok, p = _levenberg_marquardt(
-            self.problem, start, x, self.sw, present, self.free, self.lo, self.hi,
-            self.max_iterations, self.tolerance, self.ctask, self.rel_tolerance,
-        )  # fmt: skip
+        if self._lm is not None:
+            th, k, ok, p = self._lm.solve(
+                theta, x, present, self.max_iterations, self.tolerance, self.rel_tolerance
+            )
+        else:
+            start = np.minimum(np.maximum(theta, self.lo), self.hi)
+            th, k, ok, p = _levenberg_marquardt(
+                self.problem, start, x, self.sw, present, self.free, self.lo, self.hi,
+                self.max_iterations, self.tolerance, self.ctask, self.rel_tolerance,
+            )  # fmt: skip
         d, diff = self._d, self._diff
         np.subtract(p, x, out=diff)
         np.einsum("ij,ij->i", diff, diff, out=d)
@@ -932,3 +942,250 @@ def _levenberg_marquardt(
         np.multiply(swr[:, None], prob.jacobian(th, p)[rows], out=j[:m3])
         lam = max(lam / 10.0, 1e-12)
     return th, max_iterations, False, p
+
+
+class _FrameLM:
+    """:func:`_levenberg_marquardt` with every buffer allocated once, for :class:`FrameIK`.
+
+    The same iterations and the same floating-point operations in the same order (θ equal to
+    the function's to the last bit, ``tests/kinematics/test_ik_frame.py``); what differs is the
+    number of Python-level numpy calls: q = g(θ) and G = ∂g/∂θ into fixed arrays, the marker
+    positions from one stacked product of the carrying joints' placements, the Jacobian
+    J = (E(p) (J_pin G)) ⊙ (mask √w) with the cross-product matrix E(p) written by one
+    scatter, the normal equations (JᵀJ + λ diag(JᵀJ)) δ = −Jᵀr formed with ``out=`` and solved
+    by LAPACK's Cholesky ``dposv`` on the buffer itself. A frame's rows (its present markers,
+    then the coordinate tasks) are chosen once per frame. A step that frees only part of the
+    coordinates (a bound, a locked coordinate) takes the function's own path.
+    """
+
+    def __init__(
+        self,
+        prob: _MarkerProblem,
+        sw: Array,
+        free: NDArray[np.bool_],
+        lo: Array,
+        hi: Array,
+        ctask: tuple[NDArray[np.int64], Array, Array, Array] | None,
+    ) -> None:
+        from scipy.linalg.lapack import dposv
+
+        self.dposv = dposv
+        self.prob, self.free, self.lo, self.hi, self.ctask = prob, free, lo, hi, ctask
+        self.all_free = bool(free.all())
+        cp = prob.coupling
+        self.g_lin, self.q_b, self.other = cp.g_lin, cp.q_b, cp.other
+        m, n = sw.size, lo.size
+        n_t = 0 if ctask is None else ctask[0].size
+        self.m, self.n, self.n_t = m, n, n_t
+        self.q = np.empty(cp.nq)
+        self.g = cp.g_lin.copy()
+        self.jg = np.empty((6, n))
+        self.jp = np.empty((3 * m, n))
+        self.rows_all = np.arange(3 * m)
+        self.swr_all = np.repeat(sw, 3)
+        # √w on the rows; the support mask folded in (0/1: the product is the function's)
+        assert prob.coord_mask is not None
+        self.maskw_all = prob.coord_mask * self.swr_all[:, None]
+        # E(p) of each marker, [I, −[p]×] (3 × 6), is linear in p: E = e₀ + p A (A of 0, ±1)
+        self.e = np.empty((m, 18))
+        self.e2 = self.e.reshape(-1, 6)
+        self.e0 = prob.e_buf.reshape(m, 18)[:1].copy()
+        self.e_a = np.zeros((3, 18))
+        for at, fr, sg in ((4, 2, 1), (5, 1, -1), (9, 2, -1), (11, 0, 1), (15, 1, 1), (16, 0, -1)):
+            self.e_a[fr, at] = sg
+        # the carrying joints' homogeneous placements (J, 4, 4) times the local points
+        n_j = len(prob.joints)
+        self.pts = np.empty(4 * n_j * m)
+        self.take4 = ((4 * prob.which[:, None] + np.arange(3)) * m + np.arange(m)[:, None]).ravel()
+        self.p_a, self.p_b = np.empty((m, 3)), np.empty((m, 3))
+        self.r_a, self.r_b = np.empty(3 * m + n_t), np.empty(3 * m + n_t)
+        self.j = np.empty((3 * m + n_t, n))
+        self.tgt = np.empty(3 * m)
+        self.th_a, self.th_b = np.empty(n), np.empty(n)
+        self.grad, self.step_t, self.tmp = np.empty(n), np.empty(n), np.empty(n)
+        self.task = np.empty(n_t)
+        self.h, self.hl = np.empty((n, n)), np.empty((n, n))
+        self.h_diag = self.h.reshape(-1)[:: n + 1]
+        self.hl_diag = self.hl.reshape(-1)[:: n + 1]
+        self.hl_f = self.hl.T  # Fortran order of the symmetric matrix: dposv works in place
+        self.dg = np.empty(n)
+        self.nb = np.empty(n)
+        self.b_lo, self.b_hi = np.empty(n, dtype=bool), np.empty(n, dtype=bool)
+        self.b_any = np.empty(n, dtype=bool)
+        self._present: NDArray[np.bool_] | None = None
+        self._rows_n = -1
+
+    def _rows(self, present: NDArray[np.bool_]) -> None:
+        """The frame's rows: present markers' (x, y, z), then the coordinate tasks."""
+        if self._present is not None and np.array_equal(present, self._present):
+            return
+        self._present = present.copy()
+        self.all = bool(present.all())
+        rows = self.rows_all if self.all else np.flatnonzero(np.repeat(present, 3))
+        self.rows, m3 = rows, rows.size
+        self.m3 = m3
+        self.swr = self.swr_all[rows]
+        self.maskw = self.maskw_all[rows]
+        k = m3 + self.n_t
+        self.rv_a, self.rv_b, self.jv = self.r_a[:k], self.r_b[:k], self.j[:k]
+        self.jv_t = self.jv.T
+        self.tgt_v = self.tgt[:m3]
+        self.jsel = self.jp if self.all else np.empty((m3, self.n))
+        if self.ctask is not None and self._rows_n != m3:
+            self.j[m3:k] = self.ctask[3]
+        self._rows_n = m3
+
+    def _q(self, th: Array) -> Array:
+        """q = g(θ) into the fixed buffer; G's non-affine entries at θ."""
+        q = self.q
+        np.matmul(self.g_lin, th, out=q)
+        q += self.q_b
+        if self.other:
+            t = th.tolist()
+            for k, i, f, _ in self.other:
+                q[k] = f(t[i])  # type: ignore[operator]
+        return q
+
+    def _points(self, p: Array) -> Array:
+        """The markers' world positions (M, 3) from the placements now in the data."""
+        prob = self.prob
+        omi = prob.omi.tolist()
+        hom = np.array([omi[j].homogeneous for j in prob.joints])
+        np.matmul(hom.reshape(-1, 4), prob.local_h, out=self.pts.reshape(-1, self.m))
+        np.take(self.pts, self.take4, out=p.reshape(-1))
+        return p
+
+    def _residual(self, th: Array, p: Array, out: Array) -> Array:
+        m3 = self.m3
+        if self.all:
+            np.subtract(p.reshape(-1), self.tgt_v, out=out[:m3])
+        else:
+            np.take(p.reshape(-1), self.rows, out=out[:m3])
+            out[:m3] -= self.tgt_v
+        np.multiply(self.swr, out[:m3], out=out[:m3])
+        if self.ctask is not None:
+            t = self.task
+            np.take(th, self.ctask[0], out=t)
+            t -= self.ctask[1]
+            np.multiply(self.ctask[2], t, out=out[m3:])
+        return out
+
+    def _jacobian(self, th: Array, p: Array) -> None:
+        """J's marker rows at θ (placements and joint Jacobians already in the data)."""
+        g = self.g
+        if self.other:
+            t = th.tolist()
+            for k, i, _, d in self.other:
+                g[k, i] = d(t[i])  # type: ignore[operator]
+        np.matmul(self.prob.data.J, g, out=self.jg)
+        np.matmul(p, self.e_a, out=self.e)
+        self.e += self.e0
+        np.matmul(self.e2, self.jg, out=self.jp)
+        if not self.all:
+            np.take(self.jp, self.rows, axis=0, out=self.jsel)
+        np.multiply(self.jsel, self.maskw, out=self.jv[: self.m3])
+
+    def solve(
+        self, theta: Array, target: Array, present: NDArray[np.bool_], max_iterations: int,
+        tolerance: float, rel_tolerance: float,
+    ) -> tuple[Array, int, bool, Array]:  # fmt: skip
+        """As :func:`_levenberg_marquardt` (θ a new array; ``prob._at`` kept as it keeps it)."""
+        prob, pm, data = self.prob, self.prob.pm, self.prob.data
+        lo, hi = self.lo, self.hi
+        self._rows(present)
+        if self.all:
+            np.copyto(self.tgt_v, target.reshape(-1))
+        else:
+            np.take(target.reshape(-1), self.rows, out=self.tgt_v)
+        th, trial = self.th_a, self.th_b
+        np.maximum(theta, lo, out=th)
+        np.minimum(th, hi, out=th)
+        p, p_t = self.p_a, self.p_b
+        r, r_t = self.rv_a, self.rv_b
+        j, jt = self.jv, self.jv_t
+        grad, h, dg, hl, nb = self.grad, self.h, self.dg, self.hl, self.nb
+        b_lo, b_hi, b_any, tmp = self.b_lo, self.b_hi, self.b_any, self.tmp
+        pin.computeJointJacobians(pm, data, self._q(th))
+        prob._at = None
+        self._points(p)
+        self._residual(th, p, r)
+        self._jacobian(th, p)
+        cost = float(r @ r)
+        lam = 1e-6
+        ok = False
+        k = 0
+        for k in range(1, max_iterations + 1):
+            np.matmul(jt, r, out=grad)
+            np.less_equal(th, lo, out=b_lo)
+            np.greater_equal(th, hi, out=b_hi)
+            np.logical_or(b_lo, b_hi, out=b_any)
+            if self.all_free and not np.count_nonzero(b_any):
+                whole = True
+            else:
+                act = self.free & ~(b_any & ((b_lo & (grad > 0)) | (b_hi & (grad < 0))))
+                whole = self.all_free and bool(act.all())
+            if whole:
+                np.matmul(jt, j, out=h)
+                np.add(self.h_diag, 1e-9, out=dg)
+                while True:
+                    np.copyto(hl, h)
+                    np.multiply(dg, lam, out=tmp)
+                    self.hl_diag += tmp
+                    np.negative(grad, out=nb)
+                    _, step, info = self.dposv(self.hl_f, nb, overwrite_a=1, overwrite_b=1)
+                    if info != 0:
+                        lam *= 10.0
+                        continue
+                    np.add(th, step, out=trial)
+                    np.maximum(trial, lo, out=trial)
+                    np.minimum(trial, hi, out=trial)
+                    pin.forwardKinematics(pm, data, self._q(trial))
+                    self._points(p_t)
+                    self._residual(trial, p_t, r_t)
+                    cost_t = float(r_t @ r_t)
+                    if cost_t <= cost or lam > 1e12:
+                        break
+                    lam *= 4.0
+            else:  # the function's path: a sub-block of the free coordinates
+                ja = j[:, act]
+                hs = ja.T @ ja
+                gs = grad[act]
+                di = np.arange(hs.shape[0])
+                diag = hs[di, di] + 1e-9
+                while True:
+                    hls = hs.copy()
+                    hls[di, di] += lam * diag
+                    _, step, info = self.dposv(hls, -gs)
+                    if info != 0:
+                        lam *= 10.0
+                        continue
+                    np.copyto(trial, th)
+                    trial[act] += step
+                    np.maximum(trial, lo, out=trial)
+                    np.minimum(trial, hi, out=trial)
+                    pin.forwardKinematics(pm, data, self._q(trial))
+                    self._points(p_t)
+                    self._residual(trial, p_t, r_t)
+                    cost_t = float(r_t @ r_t)
+                    if cost_t <= cost or lam > 1e12:
+                        break
+                    lam *= 4.0
+            if cost_t > cost:  # no descent possible: at a (constrained) minimum
+                return th.copy(), k, True, p
+            np.subtract(trial, th, out=tmp)
+            np.abs(tmp, out=tmp)
+            moved = max(tmp.tolist())
+            decrease = cost - cost_t
+            th, trial = trial, th
+            cost = cost_t
+            p, p_t = p_t, p
+            r, r_t = r_t, r
+            if moved < tolerance or decrease <= rel_tolerance * max(cost, 1e-300):
+                ok = True
+                break
+            pin.computeJointJacobians(pm, data)
+            self._jacobian(th, p)
+            lam = max(lam / 10.0, 1e-12)
+        out = th.copy()
+        prob._at = out  # the data's placements are those of the returned θ
+        return out, (k if ok else max_iterations), ok, p

@@ -32,3 +32,80 @@ def test_frame_ik_without_enough_markers_keeps_the_start():
     start = model.default_coordinates()
     th, k, ok, rms = ik.solve(start, np.full_like(tr.markers[0], np.nan))
     assert th is start and k == 0 and not ok and np.isnan(rms)
+
+
+def _batch_step(ik, start, markers):
+    """The batch solve's own LM (:func:`_levenberg_marquardt`) on FrameIK's problem."""
+    from msk.kinematics.ik import _levenberg_marquardt
+
+    x = markers[ik.columns]
+    present = np.isfinite(x).all(axis=1)
+    start = np.minimum(np.maximum(start, ik.lo), ik.hi)
+    return _levenberg_marquardt(
+        ik.problem, start, x, ik.sw, present, ik.free, ik.lo, ik.hi, ik.max_iterations,
+        ik.tolerance, ik.ctask, ik.rel_tolerance,
+    )  # fmt: skip
+
+
+def test_frame_ik_is_the_batch_lm_to_the_last_bit():
+    """Preallocated buffers, not other arithmetic: with missing markers, a coordinate task and
+    a coordinate held at a bound, θ, the iterations and the placements left in the data equal
+    the batch solve's LM's exactly."""
+    model = two_leg_model()
+    tr = make_trial(model, duration_s=0.3, rate_hz=100.0, noise_m=0.002, seed=3)
+    name = model.coordinate_names[-1]
+    ik = FrameIK(model, tr.marker_labels, coordinate_tasks={name: (0.1, 0.5)})
+    assert ik._lm is not None
+    k_b = model.coordinate_index(model.coordinate_names[3])
+    ik.hi[k_b] = float(np.percentile(tr.q[:, k_b], 30))  # the bound is reached on most frames
+    rng = np.random.default_rng(0)
+    markers = tr.markers.copy()
+    gone = rng.random(markers.shape[:2]) < 0.15
+    markers[gone] = np.nan
+    th_prev = tr.q[0]
+    bound_hit = 0
+    for n in range(1, tr.time.size):
+        th_b, k_b2, ok_b, p_b = _batch_step(ik, th_prev, markers[n])
+        th, k, ok, rms = ik.solve(th_prev, markers[n])
+        assert np.array_equal(th, th_b) and k == k_b2 and ok == ok_b
+        present = np.isfinite(markers[n][ik.columns]).all(axis=1)
+        d = ((p_b - markers[n][ik.columns]) ** 2).sum(axis=1)[present]
+        assert rms == pytest.approx(np.sqrt(d.mean()), rel=1e-12)
+        assert ik.problem._at is th  # the data holds the returned θ's placements
+        bound_hit += th[k_b] == ik.hi[k_b]
+        th_prev = th
+    assert bound_hit > 5
+
+
+@pytest.mark.slow
+def test_frame_ik_is_the_batch_lm_on_a_recorded_trial():
+    """The same on the bundled trial's frames (gc5 PS: gait2392, splined knee coordinates,
+    missing markers), each frame from the previous frame's solution."""
+    from pathlib import Path
+
+    from msk.config import load_config
+    from msk.live import LiveSession
+    from msk.live.sources import ReplaySource
+    from msk.pipeline.inputs import session_inputs
+    from msk.pipeline.live import live_setup
+
+    root = Path(__file__).resolve().parents[2]
+    cfg = load_config(root / "pipelines" / "gc5_PS.toml")
+    task = session_inputs(cfg).task
+    assert task is not None
+    src = ReplaySource(task.file, grf=task.grf, external_loads=task.external_loads)
+    lm = live_setup(
+        cfg, src.layout.labels, src.rate_hz, plate_names=src.plate_names, assignment=src.assignment
+    ).model
+    ik = LiveSession(lm).data.ik  # the live session's IK (its options and coordinate tasks)
+    assert ik._lm is not None
+    th_prev = lm.model.default_coordinates()
+    missing = 0
+    for f in src:
+        x = f.markers @ lm.rotation.T
+        th_b, k_b, ok_b, _ = _batch_step(ik, th_prev, x)
+        th, k, ok, _ = ik.solve(th_prev, x)
+        assert np.array_equal(th, th_b) and k == k_b and ok == ok_b
+        missing += not np.isfinite(x[ik.columns]).all()
+        th_prev = th
+    assert missing > 10
