@@ -28,6 +28,7 @@ in the output.
 
 from __future__ import annotations
 
+import math
 import time as _time
 from bisect import bisect_right
 from collections.abc import Mapping, Sequence
@@ -318,6 +319,65 @@ def _scalar_function(f: object) -> tuple[object, object, object] | None:
 
         return val, der, der2
     return None
+
+
+def _value_and_slope(f: object) -> object:
+    """One closure x ↦ (f(x), f'(x)) with :func:`_scalar_function`'s arithmetic (one knot
+    search for a spline)."""
+    scale = None
+    if isinstance(f, Multiplier) and isinstance(f.function, SimmSpline):
+        scale, f = float(f.scale), f.function
+    elif isinstance(f, Multiplier):
+        inner = _value_and_slope(f.function)
+        s = float(f.scale)
+
+        def scaled(x: float) -> tuple[float, float]:
+            v, d = inner(x)  # type: ignore[operator]
+            return s * v, s * d
+
+        return scaled
+    if isinstance(f, SimmSpline):
+        knots = [float(x) for x in f.x]
+        ys = [float(y) for y in f.y]
+        b, c, d = (list(map(float, arr)) for arr in f.coefficients)
+        last = len(knots) - 2
+        lo, hi = knots[0], knots[-1]
+
+        def both(x: float) -> tuple[float, float]:
+            if x < lo:
+                return ys[0] + (x - lo) * b[0], b[0]
+            if x > hi:
+                return ys[-1] + (x - hi) * b[-1], b[-1]
+            i = min(max(bisect_right(knots, x) - 1, 0), last)
+            dx = x - knots[i]
+            return (
+                ys[i] + dx * (b[i] + dx * (c[i] + dx * d[i])),
+                b[i] + dx * (2 * c[i] + 3 * dx * d[i]),
+            )
+
+        if scale is None:
+            return both
+        s = scale
+
+        def scaled_spline(x: float) -> tuple[float, float]:
+            if x < lo:
+                return s * (ys[0] + (x - lo) * b[0]), s * b[0]
+            if x > hi:
+                return s * (ys[-1] + (x - hi) * b[-1]), s * b[-1]
+            i = min(max(bisect_right(knots, x) - 1, 0), last)
+            dx = x - knots[i]
+            return (
+                s * (ys[i] + dx * (b[i] + dx * (c[i] + dx * d[i]))),
+                s * (b[i] + dx * (2 * c[i] + 3 * dx * d[i])),
+            )
+
+        return scaled_spline
+    fast = _scalar_function(f)
+    if fast is None:
+        fv, fd = (lambda x: float(f(x))), (lambda x: float(f.d1(x)))  # type: ignore[operator,attr-defined]
+    else:
+        fv, fd = fast[0], fast[1]
+    return lambda x: (fv(x), fd(x))  # type: ignore[operator]
 
 
 def _affine(f: object) -> tuple[float, float] | None:
@@ -821,6 +881,8 @@ class FrameIK:
         self._x = np.empty((len(self.used), 3))
         self._d = np.empty(len(self.used))
         self._diff = np.empty((len(self.used), 3))
+        self._fin = np.empty((len(self.used), 3), dtype=bool)
+        self._present = np.empty(len(self.used), dtype=bool)
         self._lm = (
             _FrameLM(self.problem, self.sw, self.free, self.lo, self.hi, self.ctask)
             if self.problem.coord_mask is not None
@@ -832,10 +894,12 @@ class FrameIK:
         columns of ``labels``; returns θ, the iterations, whether it converged and the RMS
         marker distance (m) over the markers present. Fewer than ``min_markers`` present:
         ``theta`` unchanged, 0 iterations, not converged, NaN."""
-        x = self._x
+        x, fin, present = self._x, self._fin, self._present
         np.take(markers, self.columns, axis=0, out=x)
-        present = np.asarray(np.isfinite(x).all(axis=1), dtype=bool)
-        if int(present.sum()) < self.min_markers:
+        np.isfinite(x, out=fin)
+        np.logical_and.reduce(fin, axis=1, out=present)
+        n_present = int(np.count_nonzero(present))
+        if n_present < self.min_markers:
             return theta, 0, False, float("nan")
         if self._lm is not None:
             th, k, ok, p = self._lm.solve(
@@ -850,8 +914,8 @@ class FrameIK:
         d, diff = self._d, self._diff
         np.subtract(p, x, out=diff)
         np.einsum("ij,ij->i", diff, diff, out=d)
-        rms = float(np.sqrt(d[present].mean()))
-        return th, k, ok, rms
+        ss = float(np.add.reduce(d if n_present == d.size else d[present]))
+        return th, k, ok, math.sqrt(ss / n_present)
 
 
 def _levenberg_marquardt(
@@ -973,7 +1037,10 @@ class _FrameLM:
         self.prob, self.free, self.lo, self.hi, self.ctask = prob, free, lo, hi, ctask
         self.all_free = bool(free.all())
         cp = prob.coupling
-        self.g_lin, self.q_b, self.other = cp.g_lin, cp.q_b, cp.other
+        self.g_lin, self.q_b = cp.g_lin, cp.q_b
+        # the non-affine entries: q_k = f_k(θ_i) and G_ki = f_k'(θ_i) from one call
+        fns = prob.model.coupling.functions
+        self.other = [(k, i, _value_and_slope(fns[k])) for k, i, _, _ in cp.other]
         m, n = sw.size, lo.size
         n_t = 0 if ctask is None else ctask[0].size
         self.m, self.n, self.n_t = m, n, n_t
@@ -1003,7 +1070,12 @@ class _FrameLM:
         self.tgt = np.empty(3 * m)
         self.th_a, self.th_b = np.empty(n), np.empty(n)
         self.grad, self.step_t, self.tmp = np.empty(n), np.empty(n), np.empty(n)
-        self.task = np.empty(n_t)
+        self.task_rows = (
+            []
+            if ctask is None
+            else list(zip(ctask[0].tolist(), ctask[1].tolist(), ctask[2].tolist(), strict=True))
+        )
+        self.th_list: list[float] = []
         self.h, self.hl = np.empty((n, n)), np.empty((n, n))
         self.h_diag = self.h.reshape(-1)[:: n + 1]
         self.hl_diag = self.hl.reshape(-1)[:: n + 1]
@@ -1012,14 +1084,15 @@ class _FrameLM:
         self.nb = np.empty(n)
         self.b_lo, self.b_hi = np.empty(n, dtype=bool), np.empty(n, dtype=bool)
         self.b_any = np.empty(n, dtype=bool)
-        self._present: NDArray[np.bool_] | None = None
+        self._present = b""
         self._rows_n = -1
 
     def _rows(self, present: NDArray[np.bool_]) -> None:
         """The frame's rows: present markers' (x, y, z), then the coordinate tasks."""
-        if self._present is not None and np.array_equal(present, self._present):
+        key = present.tobytes()
+        if key == self._present:
             return
-        self._present = present.copy()
+        self._present = key
         self.all = bool(present.all())
         rows = self.rows_all if self.all else np.flatnonzero(np.repeat(present, 3))
         self.rows, m3 = rows, rows.size
@@ -1036,14 +1109,14 @@ class _FrameLM:
         self._rows_n = m3
 
     def _q(self, th: Array) -> Array:
-        """q = g(θ) into the fixed buffer; G's non-affine entries at θ."""
-        q = self.q
+        """q = g(θ) into the fixed buffer, and G's non-affine entries at θ (the Jacobian is
+        always taken at the θ of the last q)."""
+        q, g = self.q, self.g
         np.matmul(self.g_lin, th, out=q)
         q += self.q_b
-        if self.other:
-            t = th.tolist()
-            for k, i, f, _ in self.other:
-                q[k] = f(t[i])  # type: ignore[operator]
+        self.th_list = t = th.tolist()
+        for k, i, fd in self.other:
+            q[k], g[k, i] = fd(t[i])  # type: ignore[operator]
         return q
 
     def _points(self, p: Array) -> Array:
@@ -1063,21 +1136,15 @@ class _FrameLM:
             np.take(p.reshape(-1), self.rows, out=out[:m3])
             out[:m3] -= self.tgt_v
         np.multiply(self.swr, out[:m3], out=out[:m3])
-        if self.ctask is not None:
-            t = self.task
-            np.take(th, self.ctask[0], out=t)
-            t -= self.ctask[1]
-            np.multiply(self.ctask[2], t, out=out[m3:])
+        # the task rows w_c (θ_c − value) in Python floats (θ's list from q(θ), just before)
+        t = self.th_list
+        for row, (i, v, w) in enumerate(self.task_rows, start=m3):
+            out[row] = w * (t[i] - v)
         return out
 
     def _jacobian(self, th: Array, p: Array) -> None:
-        """J's marker rows at θ (placements and joint Jacobians already in the data)."""
-        g = self.g
-        if self.other:
-            t = th.tolist()
-            for k, i, _, d in self.other:
-                g[k, i] = d(t[i])  # type: ignore[operator]
-        np.matmul(self.prob.data.J, g, out=self.jg)
+        """J's marker rows at θ (placements, joint Jacobians and G already at θ)."""
+        np.matmul(self.prob.data.J, self.g, out=self.jg)
         np.matmul(p, self.e_a, out=self.e)
         self.e += self.e0
         np.matmul(self.e2, self.jg, out=self.jp)
