@@ -902,15 +902,15 @@ class FrameIK:
         if n_present < self.min_markers:
             return theta, 0, False, float("nan")
         if self._lm is not None:
-            th, k, ok, p = self._lm.solve(
-                theta, x, present, self.max_iterations, self.tolerance, self.rel_tolerance
-            )
-        else:
-            start = np.minimum(np.maximum(theta, self.lo), self.hi)
-            th, k, ok, p = _levenberg_marquardt(
-                self.problem, start, x, self.sw, present, self.free, self.lo, self.hi,
-                self.max_iterations, self.tolerance, self.ctask, self.rel_tolerance,
+            return self._lm.solve(
+                theta, x, present, n_present, self.max_iterations, self.tolerance,
+                self.rel_tolerance,
             )  # fmt: skip
+        start = np.minimum(np.maximum(theta, self.lo), self.hi)
+        th, k, ok, p = _levenberg_marquardt(
+            self.problem, start, x, self.sw, present, self.free, self.lo, self.hi,
+            self.max_iterations, self.tolerance, self.ctask, self.rel_tolerance,
+        )  # fmt: skip
         d, diff = self._d, self._diff
         np.subtract(p, x, out=diff)
         np.einsum("ij,ij->i", diff, diff, out=d)
@@ -1011,15 +1011,17 @@ def _levenberg_marquardt(
 class _FrameLM:
     """:func:`_levenberg_marquardt` with every buffer allocated once, for :class:`FrameIK`.
 
-    The same iterations and the same floating-point operations in the same order (θ equal to
-    the function's to the last bit, ``tests/kinematics/test_ik_frame.py``); what differs is the
-    number of Python-level numpy calls: q = g(θ) and G = ∂g/∂θ into fixed arrays, the marker
-    positions from one stacked product of the carrying joints' placements, the Jacobian
-    J = (E(p) (J_pin G)) ⊙ (mask √w) with the cross-product matrix E(p) written by one
-    scatter, the normal equations (JᵀJ + λ diag(JᵀJ)) δ = −Jᵀr formed with ``out=`` and solved
-    by LAPACK's Cholesky ``dposv`` on the buffer itself. A frame's rows (its present markers,
-    then the coordinate tasks) are chosen once per frame. A step that frees only part of the
-    coordinates (a bound, a locked coordinate) takes the function's own path.
+    The same iterations and the same floating-point operations on each entry (θ equal to the
+    function's to the last bit on the frames of ``tests/kinematics/test_ik_frame.py``); what
+    differs is the number of Python-level numpy calls per iteration: q = g(θ) and G = ∂g/∂θ
+    into fixed arrays (one knot search per spline for both), the present markers' positions
+    from one product of the carrying joints' homogeneous placements, their Jacobian rows
+    J_m = (E(p_m) (J_pin G)) ⊙ (mask √w) with E(p) = [I, −[p]×] = e₀ + p A (A of 0 and ±1),
+    the normal equations (JᵀJ + λ diag(JᵀJ)) δ = −Jᵀr formed with ``out=`` and solved by
+    LAPACK's Cholesky (``dposv``) in place. A frame's rows (its present markers, then the
+    coordinate tasks) are chosen once per frame (once per pattern of missing markers). A step
+    that frees only part of the coordinates (a bound, a locked coordinate) takes the
+    function's own path.
     """
 
     def __init__(
@@ -1047,29 +1049,29 @@ class _FrameLM:
         self.q = np.empty(cp.nq)
         self.g = cp.g_lin.copy()
         self.jg = np.empty((6, n))
-        self.jp = np.empty((3 * m, n))
-        self.rows_all = np.arange(3 * m)
         self.swr_all = np.repeat(sw, 3)
-        # √w on the rows; the support mask folded in (0/1: the product is the function's)
+        # √w on the rows with the support mask folded in (0/1: the product is the function's)
         assert prob.coord_mask is not None
         self.maskw_all = prob.coord_mask * self.swr_all[:, None]
-        # E(p) of each marker, [I, −[p]×] (3 × 6), is linear in p: E = e₀ + p A (A of 0, ±1)
+        # E(p) of each marker, [I, −[p]×] (3 × 6), is linear in p: E = e₀ + p A
         self.e = np.empty((m, 18))
-        self.e2 = self.e.reshape(-1, 6)
         self.e0 = prob.e_buf.reshape(m, 18)[:1].copy()
         self.e_a = np.zeros((3, 18))
         for at, fr, sg in ((4, 2, 1), (5, 1, -1), (9, 2, -1), (11, 0, 1), (15, 1, 1), (16, 0, -1)):
             self.e_a[fr, at] = sg
-        # the carrying joints' homogeneous placements (J, 4, 4) times the local points
+        # the carrying joints' homogeneous placements (4J × 4) times the local points (4 × M):
+        # marker m's (x, y, z) are the entries (4 joint(m) + c, m)
         n_j = len(prob.joints)
         self.pts = np.empty(4 * n_j * m)
+        self.pts2 = self.pts.reshape(-1, m)
         self.take4 = ((4 * prob.which[:, None] + np.arange(3)) * m + np.arange(m)[:, None]).ravel()
-        self.p_a, self.p_b = np.empty((m, 3)), np.empty((m, 3))
+        self.p_a, self.p_b = np.empty(3 * m), np.empty(3 * m)
         self.r_a, self.r_b = np.empty(3 * m + n_t), np.empty(3 * m + n_t)
         self.j = np.empty((3 * m + n_t, n))
         self.tgt = np.empty(3 * m)
+        self.diff, self.d = np.empty(3 * m), np.empty(m)
         self.th_a, self.th_b = np.empty(n), np.empty(n)
-        self.grad, self.step_t, self.tmp = np.empty(n), np.empty(n), np.empty(n)
+        self.grad, self.tmp = np.empty(n), np.empty(n)
         self.task_rows = (
             []
             if ctask is None
@@ -1085,28 +1087,36 @@ class _FrameLM:
         self.b_lo, self.b_hi = np.empty(n, dtype=bool), np.empty(n, dtype=bool)
         self.b_any = np.empty(n, dtype=bool)
         self._present = b""
-        self._rows_n = -1
 
-    def _rows(self, present: NDArray[np.bool_]) -> None:
+    def _rows(self, present: NDArray[np.bool_], n_present: int) -> None:
         """The frame's rows: present markers' (x, y, z), then the coordinate tasks."""
         key = present.tobytes()
         if key == self._present:
             return
         self._present = key
-        self.all = bool(present.all())
-        rows = self.rows_all if self.all else np.flatnonzero(np.repeat(present, 3))
-        self.rows, m3 = rows, rows.size
-        self.m3 = m3
+        self.all = n_present == self.m
+        m3 = 3 * n_present
+        rows = np.arange(m3) if self.all else np.flatnonzero(np.repeat(present, 3))
+        self.rows, self.m3, self.m_p = rows, m3, n_present
+        self.take_rows = self.take4[rows]
         self.swr = self.swr_all[rows]
         self.maskw = self.maskw_all[rows]
         k = m3 + self.n_t
-        self.rv_a, self.rv_b, self.jv = self.r_a[:k], self.r_b[:k], self.j[:k]
+        # (positions, residual, its marker rows) of the two points of a step
+        self.slot_a = (self.p_a[:m3], self.r_a[:k], self.r_a[:m3])
+        self.slot_b = (self.p_b[:m3], self.r_b[:k], self.r_b[:m3])
+        self.jv, self.jm = self.j[:k], self.j[:m3]
         self.jv_t = self.jv.T
         self.tgt_v = self.tgt[:m3]
-        self.jsel = self.jp if self.all else np.empty((m3, self.n))
-        if self.ctask is not None and self._rows_n != m3:
+        self.e_v = self.e[:n_present]
+        self.e2 = self.e_v.reshape(-1, 6)
+        self.diff_v, self.diff3, self.d_v = (
+            self.diff[:m3],
+            self.diff[:m3].reshape(-1, 3),
+            self.d[:n_present],
+        )
+        if self.ctask is not None:
             self.j[m3:k] = self.ctask[3]
-        self._rows_n = m3
 
     def _q(self, th: Array) -> Array:
         """q = g(θ) into the fixed buffer, and G's non-affine entries at θ (the Jacobian is
@@ -1119,47 +1129,41 @@ class _FrameLM:
             q[k], g[k, i] = fd(t[i])  # type: ignore[operator]
         return q
 
-    def _points(self, p: Array) -> Array:
-        """The markers' world positions (M, 3) from the placements now in the data."""
+    def _evaluate(self, slot: tuple[Array, Array, Array]) -> float:
+        """The present markers' positions from the placements now in the data, the residual
+        r = √w (p − x) (then the task rows) and the cost rᵀr."""
+        p, r, rm = slot
         prob = self.prob
         omi = prob.omi.tolist()
         hom = np.array([omi[j].homogeneous for j in prob.joints])
-        np.matmul(hom.reshape(-1, 4), prob.local_h, out=self.pts.reshape(-1, self.m))
-        np.take(self.pts, self.take4, out=p.reshape(-1))
-        return p
-
-    def _residual(self, th: Array, p: Array, out: Array) -> Array:
-        m3 = self.m3
-        if self.all:
-            np.subtract(p.reshape(-1), self.tgt_v, out=out[:m3])
-        else:
-            np.take(p.reshape(-1), self.rows, out=out[:m3])
-            out[:m3] -= self.tgt_v
-        np.multiply(self.swr, out[:m3], out=out[:m3])
+        np.matmul(hom.reshape(-1, 4), prob.local_h, out=self.pts2)
+        np.take(self.pts, self.take_rows, out=p)
+        np.subtract(p, self.tgt_v, out=rm)
+        np.multiply(self.swr, rm, out=rm)
         # the task rows w_c (θ_c − value) in Python floats (θ's list from q(θ), just before)
         t = self.th_list
-        for row, (i, v, w) in enumerate(self.task_rows, start=m3):
-            out[row] = w * (t[i] - v)
-        return out
+        for row, (i, v, w) in enumerate(self.task_rows, start=self.m3):
+            r[row] = w * (t[i] - v)
+        return float(r @ r)
 
-    def _jacobian(self, th: Array, p: Array) -> None:
+    def _jacobian(self, p: Array) -> None:
         """J's marker rows at θ (placements, joint Jacobians and G already at θ)."""
         np.matmul(self.prob.data.J, self.g, out=self.jg)
-        np.matmul(p, self.e_a, out=self.e)
-        self.e += self.e0
-        np.matmul(self.e2, self.jg, out=self.jp)
-        if not self.all:
-            np.take(self.jp, self.rows, axis=0, out=self.jsel)
-        np.multiply(self.jsel, self.maskw, out=self.jv[: self.m3])
+        np.matmul(p.reshape(-1, 3), self.e_a, out=self.e_v)
+        np.add(self.e_v, self.e0, out=self.e_v)
+        jm = self.jm
+        np.matmul(self.e2, self.jg, out=jm)
+        np.multiply(jm, self.maskw, out=jm)
 
     def solve(
-        self, theta: Array, target: Array, present: NDArray[np.bool_], max_iterations: int,
-        tolerance: float, rel_tolerance: float,
-    ) -> tuple[Array, int, bool, Array]:  # fmt: skip
-        """As :func:`_levenberg_marquardt` (θ a new array; ``prob._at`` kept as it keeps it)."""
+        self, theta: Array, target: Array, present: NDArray[np.bool_], n_present: int,
+        max_iterations: int, tolerance: float, rel_tolerance: float,
+    ) -> tuple[Array, int, bool, float]:  # fmt: skip
+        """As :func:`_levenberg_marquardt`, and the RMS marker distance at the returned θ (a
+        new array; ``prob._at`` kept as the function keeps it)."""
         prob, pm, data = self.prob, self.prob.pm, self.prob.data
         lo, hi = self.lo, self.hi
-        self._rows(present)
+        self._rows(present, n_present)
         if self.all:
             np.copyto(self.tgt_v, target.reshape(-1))
         else:
@@ -1167,22 +1171,19 @@ class _FrameLM:
         th, trial = self.th_a, self.th_b
         np.maximum(theta, lo, out=th)
         np.minimum(th, hi, out=th)
-        p, p_t = self.p_a, self.p_b
-        r, r_t = self.rv_a, self.rv_b
+        cur, nxt = self.slot_a, self.slot_b
         j, jt = self.jv, self.jv_t
         grad, h, dg, hl, nb = self.grad, self.h, self.dg, self.hl, self.nb
         b_lo, b_hi, b_any, tmp = self.b_lo, self.b_hi, self.b_any, self.tmp
         pin.computeJointJacobians(pm, data, self._q(th))
         prob._at = None
-        self._points(p)
-        self._residual(th, p, r)
-        self._jacobian(th, p)
-        cost = float(r @ r)
+        cost = self._evaluate(cur)
+        self._jacobian(cur[0])
         lam = 1e-6
-        ok = False
+        ok = at_min = False
         k = 0
-        for k in range(1, max_iterations + 1):
-            np.matmul(jt, r, out=grad)
+        for k in range(1, max_iterations + 1):  # noqa: B007 (k is returned)
+            np.matmul(jt, cur[1], out=grad)
             np.less_equal(th, lo, out=b_lo)
             np.greater_equal(th, hi, out=b_hi)
             np.logical_or(b_lo, b_hi, out=b_any)
@@ -1207,9 +1208,7 @@ class _FrameLM:
                     np.maximum(trial, lo, out=trial)
                     np.minimum(trial, hi, out=trial)
                     pin.forwardKinematics(pm, data, self._q(trial))
-                    self._points(p_t)
-                    self._residual(trial, p_t, r_t)
-                    cost_t = float(r_t @ r_t)
+                    cost_t = self._evaluate(nxt)
                     if cost_t <= cost or lam > 1e12:
                         break
                     lam *= 4.0
@@ -1231,28 +1230,31 @@ class _FrameLM:
                     np.maximum(trial, lo, out=trial)
                     np.minimum(trial, hi, out=trial)
                     pin.forwardKinematics(pm, data, self._q(trial))
-                    self._points(p_t)
-                    self._residual(trial, p_t, r_t)
-                    cost_t = float(r_t @ r_t)
+                    cost_t = self._evaluate(nxt)
                     if cost_t <= cost or lam > 1e12:
                         break
                     lam *= 4.0
             if cost_t > cost:  # no descent possible: at a (constrained) minimum
-                return th.copy(), k, True, p
+                ok = at_min = True
+                break
             np.subtract(trial, th, out=tmp)
             np.abs(tmp, out=tmp)
             moved = max(tmp.tolist())
             decrease = cost - cost_t
             th, trial = trial, th
             cost = cost_t
-            p, p_t = p_t, p
-            r, r_t = r_t, r
+            cur, nxt = nxt, cur
             if moved < tolerance or decrease <= rel_tolerance * max(cost, 1e-300):
                 ok = True
                 break
             pin.computeJointJacobians(pm, data)
-            self._jacobian(th, p)
+            self._jacobian(cur[0])
             lam = max(lam / 10.0, 1e-12)
         out = th.copy()
-        prob._at = out  # the data's placements are those of the returned θ
-        return out, (k if ok else max_iterations), ok, p
+        if not at_min:
+            prob._at = out  # the data's placements are those of the returned θ
+        # RMS marker distance at θ over the present markers (the function's p at θ)
+        np.subtract(cur[0], self.tgt_v, out=self.diff_v)
+        np.einsum("ij,ij->i", self.diff3, self.diff3, out=self.d_v)
+        rms = math.sqrt(float(np.add.reduce(self.d_v)) / self.m_p)
+        return out, (k if ok else max_iterations), ok, rms
