@@ -1200,7 +1200,7 @@ class _FrameLM:
                     np.multiply(dg, lam, out=tmp)
                     self.hl_diag += tmp
                     np.negative(grad, out=nb)
-                    _, step, info = self.dposv(self.hl_f, nb, overwrite_a=1, overwrite_b=1)
+                    _, step, info = self.dposv(self.hl_f, nb, 0, 1, 1)  # upper, in place
                     if info != 0:
                         lam *= 10.0
                         continue
