@@ -610,10 +610,21 @@ class FrameStaticOptimization:
         self.ub = np.concatenate([amax, rmax])
         self.a = np.zeros((n, m + k))
         self.a[idx, m + np.arange(k)] = opt
-        self.b = np.empty(n)
+        # DAQP's bounds, the variables' then the equality rows' (b written into both)
+        self._bu = np.concatenate([self.ub, np.empty(n)])
+        self._bl = np.concatenate([self.lb, np.empty(n)])
+        self.b = self._bu[m + k :]
+        self._bl_b = self._bl[m + k :]
+        self._sense = np.zeros(m + k + n, dtype=np.int32)
+        self._sense[m + k :] = 5  # ACTIVE + IMMUTABLE: equality (as msk.optimization._qp)
         self.m = m
         self.spec = get_solver(solver)
         self.warm = new_warm(solver)
+        self._daqp: Any = None
+        if solver == "daqp":
+            import daqp
+
+            self._daqp = daqp
         self.forces = np.empty(m)
         self.activations = np.empty(m)
 
@@ -628,21 +639,54 @@ class FrameStaticOptimization:
         np.multiply(r, f_active, out=self.a[:, :m])
         np.negative(self.a[:, :m], out=self.a[:, :m])
         np.add(tau, r @ f_passive, out=self.b)
-        qp = StandardQP(H=self.h, g=self.g, A=self.a, b=self.b, lb=self.lb, ub=self.ub)
-        out = self.spec.solve(qp, self.warm)
-        self.warm = out.warm
-        if not out.ok or out.x is None:
+        if self._daqp is not None:
+            x, ok, infeasible = self._solve_daqp()
+        else:
+            qp = StandardQP(H=self.h, g=self.g, A=self.a, b=self.b, lb=self.lb, ub=self.ub)
+            out = self.spec.solve(qp, self.warm)
+            self.warm = out.warm
+            x, ok, infeasible = out.x, out.ok, out.infeasible
+        if not ok or x is None:
             self.forces[:] = np.nan
             self.activations[:] = np.nan
             return (
                 self.forces,
                 self.activations,
-                (STATUS_INFEASIBLE if out.infeasible else STATUS_SOLVER_FAILED),
+                (STATUS_INFEASIBLE if infeasible else STATUS_SOLVER_FAILED),
             )
-        np.copyto(self.activations, out.x[:m])
+        np.copyto(self.activations, x[:m])
         np.multiply(f_active, self.activations, out=self.forces)
         self.forces += f_passive
         return self.forces, self.activations, STATUS_OPTIMAL
+
+    def _solve_daqp(self) -> tuple[Array | None, bool, bool]:
+        """The registered DAQP solve (:func:`msk.optimization._qp._solve_daqp`: the same data,
+        settings, warm start and fallbacks) on this object's buffers: the workspace kept in
+        ``warm.model`` is updated with the frame's A and bounds (H and g are constant), a
+        failed update or solve drops it (a cold solve; the next frame sets it up afresh).
+        Returns x, whether it solved, whether DAQP found the frame infeasible."""
+        daqp, warm = self._daqp, self.warm
+        bu, bl = self._bu, self._bl
+        np.copyto(self._bl_b, self.b)
+        if warm.model is not None:
+            if warm.model.update(None, None, self.a, bu, bl) < 0:
+                warm.model = None  # the update found the frame infeasible: solve it cold
+        else:
+            warm.model = daqp.Model()
+            warm.model.settings = DAQP_OPTIONS
+            if warm.model.setup(self.h, self.g, self.a, bu, bl, self._sense.copy())[0] < 0:
+                warm.model = None
+            warm.shape = (self.lb.size, self.b.size, 0)
+        warm.h, warm.g = self.h, self.g
+        if warm.model is not None:
+            x, _, flag, _ = warm.model.solve()
+            if flag < 0:  # do not carry a failed working set into the next frame
+                warm.model = None
+        else:
+            x, _, flag, _ = daqp.solve(
+                self.h, self.g, self.a, bu, bl, self._sense.copy(), **DAQP_OPTIONS
+            )
+        return (x if flag > 0 else None), flag > 0, flag == -1
 
 
 def volume_weights(max_isometric_force: ArrayLike, optimal_fiber_length: ArrayLike) -> Array:
