@@ -373,11 +373,13 @@ def _value_and_slope(f: object) -> object:
 
         return scaled_spline
     fast = _scalar_function(f)
+    fv: Any
+    fd: Any
     if fast is None:
         fv, fd = (lambda x: float(f(x))), (lambda x: float(f.d1(x)))  # type: ignore[operator,attr-defined]
     else:
         fv, fd = fast[0], fast[1]
-    return lambda x: (fv(x), fd(x))  # type: ignore[operator]
+    return lambda x: (fv(x), fd(x))
 
 
 def _affine(f: object) -> tuple[float, float] | None:

@@ -112,3 +112,22 @@ def test_frame_ik_is_the_batch_lm_on_a_recorded_trial():
         missing += not np.isfinite(x[ik.columns]).all()
         th_prev = th
     assert missing > 10
+
+
+def test_value_and_slope_is_the_scalar_functions_arithmetic():
+    """FrameIK's one-call (f, f') of each coordinate function equals the batch IK's separate
+    closures bit for bit, inside, at and beyond a spline's knots."""
+    from msk.kinematics.ik import _scalar_function, _value_and_slope
+    from msk.model.joints import Linear, Multiplier, Polynomial, SimmSpline
+
+    spline = SimmSpline(x=(-2.0, -1.0, -0.3, 0.2, 1.1, 2.0), y=(0.1, -0.2, 0.05, 0.3, 0.0, -0.4))
+    functions = [
+        spline, Multiplier(spline, -0.7), Polynomial((0.3, -1.2, 0.5, 2.0)),
+        Multiplier(Polynomial((1.0, 0.2)), 3.0), Linear(0.5, 0.1), Multiplier(Linear(2.0), 0.25),
+    ]  # fmt: skip
+    xs = [-2.7, -2.0, -1.5, -1.0, -0.3, 0.0, 0.2, 0.9, 2.0, 3.1]
+    for f in functions:
+        fv, fd, _ = _scalar_function(f)  # type: ignore[misc]
+        both = _value_and_slope(f)
+        for x in xs:
+            assert both(x) == (fv(x), fd(x))  # type: ignore[operator]
