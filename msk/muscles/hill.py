@@ -41,6 +41,7 @@ Newton iteration (OpenSim ``Thelen2003Muscle::initMuscleState`` with zero veloci
 from __future__ import annotations
 
 import csv
+import math
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import ClassVar, Protocol
@@ -546,7 +547,11 @@ class RigidTendonFrame:
     def __call__(self, lengths: Array, velocities: Array) -> tuple[Array, Array]:
         """``(F_max,along, F_P,along)`` (M,) of one frame's muscle–tendon lengths and lengthening
         velocities (M,)."""
-        if not (np.isfinite(lengths).all() and np.isfinite(velocities).all()):
+        # one sum each: finite unless an entry is not (or the sum overflows: then look)
+        s = float(np.add.reduce(lengths)) + float(np.add.reduce(velocities))
+        if not math.isfinite(s) and not (
+            np.isfinite(lengths).all() and np.isfinite(velocities).all()
+        ):
             bad = np.flatnonzero(~(np.isfinite(lengths) & np.isfinite(velocities)))[0]
             raise MuscleModelError(
                 f"muscle {self.params.names[bad]!r}: non-finite length or velocity "
@@ -559,7 +564,8 @@ class RigidTendonFrame:
         np.sqrt(lf, out=lf)
         np.maximum(lf, self._lmin, out=lf)
         np.divide(along, lf, out=cos_a)
-        np.clip(cos_a, 0.0, 1.0, out=cos_a)
+        np.maximum(cos_a, 0.0, out=cos_a)  # clip to [0, 1] (no NaN here)
+        np.minimum(cos_a, 1.0, out=cos_a)
         np.multiply(velocities, cos_a, out=vn)
         vn /= self._vscale
         # x = l̃_f − 1; f_l = exp(−x²/K_a)
@@ -586,10 +592,10 @@ class RigidTendonFrame:
         np.subtract(k, t, out=t)
         np.add(vn, k, out=fv)
         fv /= t
-        if (vn < -k).any():
+        if np.minimum.reduce(vn) < -k:
             lo = vn < -k
             fv[lo] = (vn[lo] + k) / kc
-        if (vn > 0).any():
+        if np.maximum.reduce(vn) > 0:
             ecc = vn > 0
             v = vn[ecc]
             fv[ecc] = np.where(
