@@ -47,15 +47,23 @@ def _batch_step(ik, start, markers):
     )  # fmt: skip
 
 
-def test_frame_ik_is_the_batch_lm_to_the_last_bit():
+@pytest.mark.parametrize("locked", [False, True])
+def test_frame_ik_is_the_batch_lm_to_the_last_bit(locked):
     """Preallocated buffers, not other arithmetic: with missing markers, a coordinate task and
-    a coordinate held at a bound, θ and the iterations equal the batch solve's LM's (to the
-    last bit on the hosts measured) and the data holds the returned θ's placements."""
+    a coordinate held at a bound (and a locked coordinate: every step on a sub-block), θ and
+    the iterations equal the batch solve's LM's (to the last bit on the hosts measured) and
+    the data holds the returned θ's placements."""
+    import dataclasses
+
     model = two_leg_model()
+    if locked:
+        model.coordinates = tuple(
+            dataclasses.replace(c, locked=i == 5) for i, c in enumerate(model.coordinates)
+        )
     tr = make_trial(model, duration_s=0.3, rate_hz=100.0, noise_m=0.002, seed=3)
     name = model.coordinate_names[-1]
     ik = FrameIK(model, tr.marker_labels, coordinate_tasks={name: (0.1, 0.5)})
-    assert ik._lm is not None
+    assert ik._lm is not None and ik._lm.all_free != locked
     k_b = model.coordinate_index(model.coordinate_names[3])
     ik.hi[k_b] = float(np.percentile(tr.q[:, k_b], 30))  # the bound is reached on most frames
     rng = np.random.default_rng(0)
