@@ -6,8 +6,8 @@ runs the session (``msk.run_session``), one reads its results back typed
     python examples/03_static_optimization.py [OUT_DIR]
 
 The same figures as ``msk run pipelines/gc5_PS.toml --out OUT_DIR`` (tables/knee_contact.csv):
-``generic`` with the generic muscle strengths, ``subject_specific`` with the strengths
-identified from the EMG, ``measured`` the implant's.
+``generic`` with the generic muscle strengths, ``subject_specific`` with the strength of the
+groups the EMG identifies (every other group generic), ``measured`` the implant's.
 """
 
 import sys

@@ -2,6 +2,10 @@
 
 from __future__ import annotations
 
+import json
+import re
+from pathlib import Path
+
 from tests.support.schedule import worker_order
 
 
@@ -46,3 +50,20 @@ def test_one_worker_keeps_every_file_whole() -> None:
     ids = ["x.py::a", "y.py::a", "x.py::b"]
     order = worker_order(ids, [1.0, 5.0, 1.0], 1)
     assert [ids[i] for i in order] == ["y.py::a", "x.py::a", "x.py::b"]
+
+
+def test_every_recorded_duration_names_a_test_of_its_file() -> None:
+    """A key of tests/durations.json whose test was renamed orders nothing: the renamed test
+    counts as an unknown one (5 s when slow) and may be queued last. Every key names a test
+    function defined in its file (a parametrised id by its function)."""
+    root = Path(__file__).resolve().parents[1]
+    table = json.loads((root / "tests" / "durations.json").read_text(encoding="utf-8"))
+    stale = []
+    for nodeid in table["seconds"]:
+        path, _, name = nodeid.partition("::")
+        func = name.split("[", 1)[0].split("::")[-1]
+        source = root / path
+        text = source.read_text(encoding="utf-8") if source.is_file() else ""
+        if not re.search(rf"^\s*def {re.escape(func)}\(", text, flags=re.M):
+            stale.append(nodeid)
+    assert not stale, stale

@@ -173,21 +173,11 @@ def pelvis_marker_frame(model: Any, body: str = "pelvis") -> tuple[Array | None,
     and the midpoint of the PSIS pair, else the sacral marker (:mod:`msk.model.markersets`
     labels: the lab's as placed, else the model's own) — and a description saying which; None
     and why when the markers do not define it."""
-    from msk.model.markersets import parse_label
+    from msk.model.markersets import pelvis_landmarks
 
-    pts: dict[str, Array] = {}
-    names: dict[str, str] = {}
-    for mk in getattr(model, "markers", ()):
-        if mk.body != body:
-            continue
-        p = parse_label(mk.name)
-        if p.kind != "landmark":
-            continue
-        key = {"asis": f"asis_{(p.side or '').lower()}", "psis": f"psis_{(p.side or '').lower()}",
-               "sacrum": "sacrum"}.get(p.landmark or "")  # fmt: skip
-        if key in ("asis_r", "asis_l", "psis_r", "psis_l", "sacrum") and key not in pts:
-            pts[key] = np.asarray(mk.offset, dtype=float)
-            names[key] = mk.name
+    found = pelvis_landmarks(model, body)
+    pts = {k: np.asarray(mk.offset, dtype=float) for k, mk in found.items()}
+    names = {k: str(mk.name) for k, mk in found.items()}
     if "psis_r" in pts and "psis_l" in pts:
         post, post_name = (
             0.5 * (pts["psis_r"] + pts["psis_l"]),

@@ -73,6 +73,7 @@ from __future__ import annotations
 import re
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field, replace
+from typing import Any
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -92,6 +93,7 @@ __all__ = [
     "is_knee_segment",
     "other_side",
     "parse_label",
+    "pelvis_landmarks",
     "recognise",
     "reconstructed_markers",
     "shoulder_girdle_markers",
@@ -423,6 +425,23 @@ def parse_label(label: str) -> ParsedLabel:
         if lm is not None:
             return ParsedLabel(label, name, side, lm, "landmark")
     return ParsedLabel(label, name, None, None, "unknown")
+
+
+def pelvis_landmarks(model: Any, body: str = "pelvis") -> dict[str, Any]:
+    """The model's markers on ``body`` that name the pelvis landmarks (:func:`parse_label`):
+    ``asis_r``, ``asis_l``, ``psis_r``, ``psis_l``, ``sacrum`` → the first such marker (its
+    ``name`` and ``offset`` in the body frame); absent keys are landmarks no marker names."""
+    out: dict[str, Any] = {}
+    for mk in getattr(model, "markers", ()):
+        if mk.body != body:
+            continue
+        p = parse_label(mk.name)
+        if p.kind != "landmark" or p.landmark not in ("asis", "psis", "sacrum"):
+            continue
+        key = "sacrum" if p.landmark == "sacrum" else f"{p.landmark}_{(p.side or '').lower()}"
+        if key in ("asis_r", "asis_l", "psis_r", "psis_l", "sacrum"):
+            out.setdefault(key, mk)
+    return out
 
 
 def strip_subject_prefix(labels: Sequence[str]) -> tuple[tuple[str, ...], str]:

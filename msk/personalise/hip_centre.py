@@ -256,20 +256,9 @@ def _rotation_between(a: Array, b: Array) -> Array:
 
 
 def _pelvis_model_markers(model: Any) -> dict[str, Array]:
-    from msk.model.markersets import parse_label
+    from msk.model.markersets import pelvis_landmarks
 
-    out: dict[str, Array] = {}
-    for mk in model.markers:
-        if mk.body != "pelvis":
-            continue
-        p = parse_label(mk.name)
-        if p.kind != "landmark":
-            continue
-        key = {"asis": f"asis_{(p.side or '').lower()}", "psis": f"psis_{(p.side or '').lower()}",
-               "sacrum": "sacrum"}.get(p.landmark or "")  # fmt: skip
-        if key in {"asis_r", "asis_l", "psis_r", "psis_l", "sacrum"}:
-            out.setdefault(key, np.asarray(mk.offset, dtype=float))
-    return out
+    return {k: np.asarray(mk.offset, dtype=float) for k, mk in pelvis_landmarks(model).items()}
 
 
 def _landmarks_of(means: Mapping[str, ArrayLike]) -> dict[str, Array]:

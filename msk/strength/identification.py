@@ -904,6 +904,7 @@ class StrengthIdentifier:
         coordinate_names: Sequence[str] | None = None,
         movements: ArrayLike | None = None,
         frames: ArrayLike | None = None,
+        intervals: bool = True,
     ) -> StrengthIdentifier:
         """Identify the group strengths from one or more concatenated trials.
 
@@ -923,6 +924,9 @@ class StrengthIdentifier:
         intervals resample within movements (default: all windows repeat one movement).
         ``frames``: the rows of ``jacobian`` that the other arguments' rows are (default:
         all), read block by block — a long trial's Jacobian rows are not copied.
+        ``intervals=False``: the factors alone (the same numbers), without the jackknife and
+        the bootstrap — standard errors and intervals NaN (a caller that repeats the
+        identification for a derivative, :func:`msk.strength.identify_pooled`).
         """
         # Student's t and the normal quantiles (scipy.stats' t.ppf and norm.ppf are these special
         # functions) without importing scipy.stats (~1 s on a cold run)
@@ -1064,7 +1068,11 @@ class StrengthIdentifier:
         alpha = 1.0 - self.confidence
         active_w = np.flatnonzero(np.any(selected, axis=1))
         n_eff = int(active_w.size)
-        if use_iv:
+        if not intervals:
+            n_jack = 0
+            jack = np.empty((0, n_par))
+            jack_mov = np.zeros(0, dtype=np.int64)
+        elif use_iv:
             # delete-one-cycle jackknife of the whole IV estimator: the deleted cycle leaves
             # the regression *and* every other cycle's instrument (which then averages W − 2
             # cycles), so the instrument's own EMG noise is part of the spread
@@ -1128,11 +1136,15 @@ class StrengthIdentifier:
         ratio = np.where(shrink > 0, v_sum / np.where(shrink > 0, shrink, 1.0), 1.0)
         if strata.size == 1:
             ratio = np.full(n_par, n_eff / max(n_eff - 1, 1))
+        if not intervals:
+            cov = np.full((n_par, n_par), np.nan)
+            se = np.full(n_par, np.nan)
 
         # bootstrap over windows
         rng = np.random.default_rng(self.random_state)
-        boot = np.full((self.n_bootstrap, n_par), np.nan)
-        for bi in range(self.n_bootstrap):
+        n_boot = self.n_bootstrap if intervals else 0
+        boot = np.full((n_boot, n_par), np.nan)
+        for bi in range(n_boot):
             if use_iv:
                 # whole cycles are resampled within each movement: cycle w's instrument
                 # averages the *other* picked cycles of its movement (copies of w excluded);
@@ -1171,7 +1183,7 @@ class StrengthIdentifier:
         cl = np.full(n_groups, np.nan)
         ch = np.full(n_groups, np.nan)
         sev = np.full(n_groups, np.nan)
-        if self.n_bootstrap > 0 and gid.size:
+        if n_boot > 0 and gid.size:
             # percentile interval, widened for the small number of windows by
             # c = sqrt(W/(W-1)) t_{W-p}/z (the percentile bootstrap of a few clusters is narrow)
             est = sol[: gid.size]

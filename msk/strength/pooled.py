@@ -436,20 +436,23 @@ def identify_pooled(
     stratified = len(movement_names) > 1 and (iv or min(per_mov) >= 2)
     jac_all, tau_all = _concatenate_jacobians(jacs), np.concatenate(taus)
 
-    def fit(est: StrengthIdentifier, reference: Array) -> StrengthProfile:
+    def fit(est: StrengthIdentifier, reference: Array, intervals: bool = True) -> StrengthProfile:
         est.fit(
             jac_all, activations(reference), tau_all, state, windows=labels,
             coordinate_names=coordinate_names, movements=mov if stratified else None,
+            intervals=intervals,
         )  # fmt: skip
         return est.profile_
 
     profile = fit(est, ref_of)
     rel = np.array([ref.relative_error(c) for c in groups])
     if reference_uncertainty and np.isfinite(rel).any():
+        # the secant needs the factors alone: the repeated identification skips the jackknife
+        # and the bootstrap (the same factors)
         profile = _with_reference_error(
             profile, rel, lambda r: fit(
                 StrengthIdentifier({g: tuple(v) for g, v in groups.items()}, params,
-                                   **(identifier | {"n_bootstrap": 0})), r),
+                                   **identifier), r, intervals=False),
             ref_of, tuple(groups),
         )  # fmt: skip
     sources_used = [s for c, s in zip(ref.channels, ref.source) if c in groups]

@@ -6,7 +6,12 @@ made the same way on every lab's session whatever its marker names.
 
 The baseline figures of the shipped sessions are asserted by
 ``tests/pipeline/test_shipped_sessions.py``;
-here only what the breakage must add.
+here only what the breakage must add. The three flags are raised from the model, the
+kinematics and the loads (the plates' weight, the swapped-label pairs, the markers each
+segment keeps), so each variant runs only the graph's nodes those flags and the summary need
+(:data:`FLAG_NODES`): not the OpenSim export, mass identification, EMG, muscle, strength,
+contact, gait-analysis, comparison, FES and table nodes, which none of the three reads (the
+summary copes without them, as for a session without EMG).
 """
 
 from __future__ import annotations
@@ -17,10 +22,14 @@ from pathlib import Path
 from typing import Any
 
 import pytest
+from threadpoolctl import threadpool_limits
 
 from msk.config import load_config, render_config
 from msk.model.markersets import parse_label
-from msk.pipeline import run_stages, split_task_trials
+from msk.pipeline import CORE_STAGES, GRAPH, STAGES, run_stages, split_task_trials
+from msk.pipeline.graph import run_graph
+from msk.pipeline.inputs import session_inputs
+from msk.pipeline.runner import Runner
 from tests.support.recordings import recordings_present
 
 REPO = Path(__file__).resolve().parents[2]
@@ -31,15 +40,33 @@ def _present(cfg: Path) -> bool:
     return recordings_present(cfg)
 
 
+#: the nodes a variant runs: the graph up to the summary, the nodes that read the model,
+#: the kinematics and the loads to raise the asserted flags (module docstring) and those the
+#: summary needs (inverse dynamics, gait cycle)
+FLAG_NODES = (
+    "read", "measured_contact", "model", "kinematics", "swapped_markers", "loads",
+    "inverse_dynamics", "gait_cycle", "summary",
+)  # fmt: skip
+
+
 def _variant(cfg, folder: Path, **changes) -> dict[str, Any]:
-    """The stages up to the summary of the session's first task trial run with the
-    configuration changed as given (the report's figures, drawn after the summary, are not
-    made)."""
+    """The nodes :data:`FLAG_NODES` of the session's first task trial run with the
+    configuration changed as given (without cache, nothing written: as
+    :func:`msk.pipeline.run_stages`)."""
     path = folder / "variant.toml"
     path.parent.mkdir(parents=True, exist_ok=True)
     path.write_text(render_config(dataclasses.replace(cfg, **changes)), encoding="utf-8")
     first = split_task_trials(load_config(path))[0]
-    return run_stages(first, until="summary")
+    graph = tuple(n for n in GRAPH if n.name in FLAG_NODES)
+    runner = Runner(None, None, stages=STAGES, core=CORE_STAGES)
+    with threadpool_limits(limits=1, user_api="blas"):
+        return run_graph(session_inputs(first), runner, graph)
+
+
+def test_flag_nodes_are_nodes_of_the_graph_in_its_order():
+    names = [n.name for n in GRAPH]
+    assert set(FLAG_NODES) <= set(names)
+    assert sorted(FLAG_NODES, key=names.index) == list(FLAG_NODES)
 
 
 def _flags(results: dict[str, Any]) -> dict[str, dict]:

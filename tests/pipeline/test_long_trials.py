@@ -763,7 +763,7 @@ def test_knee_contact_in_blocks_equals_one_pass() -> None:
         next(a.coordinate for j in mdl.joints if j.name == joint for a in j.axes if a.coordinate)
     )
     m_id = identified_model(mdl, r["mass_identification"])  # both variants' inertias
-    spec = with_strength(m_id, r["strength_identification"].profile)
+    spec = with_strength(m_id, r["strength_identification"].profile.applied_factors())
     torques = r["inverse_dynamics"].torques
     with threadpool_limits(limits=1, user_api="blas"):
         resolve = solve_muscle_forces(

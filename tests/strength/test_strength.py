@@ -392,6 +392,25 @@ def test_phase_averaged_instrument_removes_the_emg_noise_attenuation(leg):
     assert np.max(np.abs(err_iv)) < 0.1
 
 
+def test_without_intervals_the_factors_are_those_of_the_whole_fit(leg):
+    """``intervals=False`` (a repeated identification for a derivative) skips the jackknife and
+    the bootstrap: the same factors, statuses and fit, bit for bit; no standard error or
+    interval (NaN)."""
+    tr = gait_trial(leg, n_cycles=8, seed=4, emg_mult_noise=0.1, tau_noise=0.01)
+    a, s = _inputs(leg, tr)
+    for inst in ("none", "phase_average"):
+        idf = StrengthIdentifier(leg.groups, leg.params, n_bootstrap=20, instrument=inst)
+        full = idf.fit(tr.jacobian, a, tr.tau, s, windows=tr.cycle).profile_
+        idf = StrengthIdentifier(leg.groups, leg.params, n_bootstrap=20, instrument=inst)
+        bare = idf.fit(tr.jacobian, a, tr.tau, s, windows=tr.cycle, intervals=False).profile_
+        assert np.isfinite(full.std_error[full.identified]).all()
+        np.testing.assert_array_equal(bare.factors, full.factors)
+        np.testing.assert_array_equal(bare.identified, full.identified)
+        np.testing.assert_array_equal(bare.r2_per_coordinate, full.r2_per_coordinate)
+        for name in ("std_error", "ci_low", "ci_high", "ci_cov_low", "ci_cov_high"):
+            assert np.isnan(getattr(bare, name)).all(), name
+
+
 # ---------------------------------------------------------------------------------------------
 # with MVC trials (issue 17): every excited group recovered, honest intervals, the others not
 # ---------------------------------------------------------------------------------------------

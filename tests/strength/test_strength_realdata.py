@@ -64,16 +64,33 @@ def _trial(full, t0, t1, name):
     )
 
 
+@pytest.fixture(scope="module")
+def walk(real_dir, ref_dir):
+    """The walk's muscle parameters and per-frame arrays (:func:`_load`), read once."""
+    return _load(real_dir, ref_dir)
+
+
+#: the calibration settings of the rigid and the elastic tendon's comparison
+CALIBRATION = {"n_starts": 3, "max_iter": 150, "regularization": 1e-2, "random_state": 0}
+
+
+@pytest.fixture(scope="module")
+def rigid(walk):
+    """The rigid-tendon calibration on the first stance and swing (:data:`CALIBRATION`),
+    fitted once for the tests that read it (calibration, predict and validate do not change
+    it)."""
+    params, full = walk
+    calib = _trial(full, 0.45, 1.30, "right stance 1 + swing")
+    return EMGDrivenCalibration(params, GROUPS, tendon="rigid", **CALIBRATION).fit([calib])
+
+
 @pytest.mark.slow
 @pytest.mark.realdata
-def test_emg_driven_calibration_on_the_rajagopal_walk(real_dir, ref_dir):
-    params, full = _load(real_dir, ref_dir)
+def test_emg_driven_calibration_on_the_rajagopal_walk(walk, rigid):
+    _params, full = walk
     calib = _trial(full, 0.45, 1.30, "right stance 1 + swing")
     held_out = _trial(full, 1.30, 1.80, "right stance 2 (held out)")
-    cal = EMGDrivenCalibration(
-        params, GROUPS, n_starts=3, max_iter=150, regularization=1e-2, random_state=0
-    )
-    cal.fit([calib])
+    cal = rigid
     fit = cal.result_.calibration
     val = cal.validate([held_out])
     skip = round(cal.skip_s * RATE_HZ)
@@ -94,7 +111,7 @@ def test_emg_driven_calibration_on_the_rajagopal_walk(real_dir, ref_dir):
 
 @pytest.mark.slow
 @pytest.mark.realdata
-def test_elastic_tendon_calibration_on_the_rajagopal_walk(real_dir, ref_dir):
+def test_elastic_tendon_calibration_on_the_rajagopal_walk(walk, rigid):
     """The same calibration with the elastic tendon of seeds/003 (Eq. 8–18 integrated over time,
     msk.muscles.contraction, BDF2 with 2 substeps inside the casadi graph). Measured
     (2026-11-22; rigid in brackets): calibration r² knee 0.79 (0.80), ankle 0.99 (0.97); held-out
@@ -103,13 +120,16 @@ def test_elastic_tendon_calibration_on_the_rajagopal_walk(real_dir, ref_dir):
     elastic tendon it is 0.99 (gastrocnemius l_ts scales 0.95 → 1.07–1.12); the knee extensors
     stay at 0.50 and λ at its upper bound 0.25 in both. Default stays rigid: the synthetic
     data of msk.datasets.strength are rigid-tendon data."""
-    params, full = _load(real_dir, ref_dir)
+    params, full = walk
     calib = _trial(full, 0.45, 1.30, "right stance 1 + swing")
     held_out = _trial(full, 1.30, 1.80, "right stance 2 (held out)")
-    kw = {"n_starts": 3, "max_iter": 150, "regularization": 1e-2, "random_state": 0}
     fits = {}
     for tendon in ("rigid", "elastic"):
-        cal = EMGDrivenCalibration(params, GROUPS, tendon=tendon, **kw).fit([calib])
+        cal = (
+            rigid
+            if tendon == "rigid"
+            else EMGDrivenCalibration(params, GROUPS, tendon=tendon, **CALIBRATION).fit([calib])
+        )
         fits[tendon] = (cal.result_, cal.validate([held_out]))
         res, val = fits[tendon]
         print(
@@ -134,7 +154,7 @@ def test_elastic_tendon_calibration_on_the_rajagopal_walk(real_dir, ref_dir):
 @pytest.mark.slow
 @pytest.mark.realdata
 @pytest.mark.parametrize("tendon", ["rigid", "elastic"])
-def test_calibration_without_mvc_reaches_the_seed_r2(real_dir, ref_dir, tendon):
+def test_calibration_without_mvc_reaches_the_seed_r2(walk, tendon):
     """seeds/003 calibrates MVC-normalised EMG with strength factors in [0.5, 2]. This walk's EMG
     is normalised to its own peak, so activations reach 1 in walking and the factor must also
     carry the missing EMG scale: with the Table 3.1 bounds the knee extensors sit on 0.5 and
@@ -147,7 +167,7 @@ def test_calibration_without_mvc_reaches_the_seed_r2(real_dir, ref_dir, tendon):
     The rigid tendon's fit is multimodal: with 3 starts another machine's round-off (SkylakeX
     BLAS kernels, 2026-11-25) ended at knee r² 0.911; 6 starts of 200 iterations reach 0.945,
     0.989 / 0.610, 0.597 there (elastic unchanged, 0.957, 0.991 / 0.592, 0.421)."""
-    params, full = _load(real_dir, ref_dir)
+    params, full = walk
     calib = _trial(full, 0.45, 1.30, "right stance 1 + swing")
     held_out = _trial(full, 1.30, 1.80, "right stance 2 (held out)")
     cal = EMGDrivenCalibration(
@@ -165,7 +185,7 @@ def test_calibration_without_mvc_reaches_the_seed_r2(real_dir, ref_dir, tendon):
 
 @pytest.mark.slow
 @pytest.mark.realdata
-def test_net_contribution_identification_on_the_rajagopal_walk(real_dir, ref_dir):
+def test_net_contribution_identification_on_the_rajagopal_walk(walk):
     """seeds/002 §V on real gait. The EMG of this recording is normalised to its own peak (not
     to an MVC), so activations reach 1 during walking and the factors come out well below the
     Table 3.1 range: the bounds are widened to [0.01, 5] (measured 2026-11-22: knee extensors
@@ -174,7 +194,7 @@ def test_net_contribution_identification_on_the_rajagopal_walk(real_dir, ref_dir
     from msk.muscles.hill import rigid_tendon_state
     from msk.strength import StrengthIdentifier
 
-    params, full = _load(real_dir, ref_dir)
+    params, full = walk
     act = emg_to_activation(
         full["e"], gamma1=-0.5, gamma2=-0.5, shape_factor=-1.0, delay_samples=4, form="exponential"
     )
