@@ -261,3 +261,21 @@ def test_strength_section_shows_the_pooled_groups_identified_first_and_never_a_b
     assert "isometric MVC of ankle dorsiflexion" in rest
     assert "<b>hamstrings</b> (not determined): its EMG channel failed a check" in rest
     assert "1 of 4 muscle groups identified" in sec
+
+
+def test_the_knee_section_says_which_strength_the_subject_specific_prediction_took():
+    """``strength.applied_groups`` empty: the subject-specific prediction is the generic one,
+    said once and its patellofemoral peak not repeated; with identified groups, they are
+    named; an older summary without the field says nothing."""
+    from types import SimpleNamespace
+
+    from msk.report.sections.knee_loads import _applied, _patellofemoral
+
+    assert "is the generic one" in (_applied(SimpleNamespace(applied_groups=())) or "")
+    named = _applied(SimpleNamespace(applied_groups=("vaslat", "rf"))) or ""
+    assert "vaslat, rf" in named and "generic strength" in named
+    assert _applied(SimpleNamespace(applied_groups=None)) is None and _applied(None) is None
+    loads = SimpleNamespace(peak_patellofemoral_bw={"generic": 0.71, "subject_specific": 0.7})
+    both = _patellofemoral(loads) or ""
+    assert "generic parameters 0.71 BW" in both and "subject-specific 0.70 BW" in both
+    assert "subject-specific" not in (_patellofemoral(loads, generic_only=True) or "")

@@ -30,7 +30,13 @@ class KneeLoads(Section):
             return {"na": na, "rows": None}
         comp = res.summary.comparison
         rows = []
-        for v, vl in (("generic", "generic parameters"), ("subject_specific", "subject-specific")):
+        strength = res.summary.strength
+        # no group's strength applied: the subject-specific prediction is the generic one
+        same = strength is not None and strength.applied_groups == ()
+        variants = (("generic", "generic parameters"),) + (
+            () if same else (("subject_specific", "subject-specific"),)
+        )
+        for v, vl in variants:
             for part in ("total", "medial", "lateral"):
                 c = comp.knee_contact(v, part) if comp else None
                 if c:
@@ -51,7 +57,7 @@ class KneeLoads(Section):
             "na": na,
             "rows": rows,
             "band": f"{lo:g}–{hi:g} BW",
-            "patellofemoral": _patellofemoral(res.summary.knee_loads),
+            "patellofemoral": _patellofemoral(res.summary.knee_loads, same),
             "applied": _applied(res.summary.strength),
         }
 
@@ -64,17 +70,20 @@ def _applied(strength: Any) -> str | None:
         return None
     if not groups:
         return ("no muscle group's strength is identified, so the subject-specific "
-                "prediction uses the generic strength throughout")  # fmt: skip
+                "prediction is the generic one (its rows are not repeated)")  # fmt: skip
     return (
         f"the subject-specific prediction takes the identified strength of "
         f"{', '.join(groups)}; every other group keeps the generic strength"
     )
 
 
-def _patellofemoral(loads: Any) -> str | None:
-    """The peak patellofemoral contact force per variant (``knee_loads``), or None."""
+def _patellofemoral(loads: Any, generic_only: bool = False) -> str | None:
+    """The peak patellofemoral contact force per variant (``knee_loads``; the generic one only
+    when ``generic_only``), or None."""
     peaks = None if loads is None else loads.peak_patellofemoral_bw
     if not peaks:
         return None
+    if generic_only:
+        peaks = {v: p for v, p in peaks.items() if v == "generic"}
     names = {"generic": "generic parameters", "subject_specific": "subject-specific"}
     return "; ".join(f"{names.get(v, v)} {num(p, '.2f', 'BW')}" for v, p in peaks.items())
